@@ -1,4 +1,4 @@
-"""``fluxcal messenger`` and ``fluxcal simulate messenger`` commands (placeholder, filled by the messenger issue)."""
+"""``fluxcal messenger edr2cdr`` and ``fluxcal simulate messenger`` commands."""
 
 from __future__ import annotations
 

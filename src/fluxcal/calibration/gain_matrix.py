@@ -1,0 +1,95 @@
+"""Lower-triangular gain/alignment matrices (counts -> nT) and their use per sample.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 8, eq. 8, Table 4.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def lower_triangular_matrix(
+    kx: float, ky: float, kz: float, alpha: float, beta: float, gamma: float
+) -> np.ndarray:
+    """Return the counts-to-nT matrix of eq. 8.
+
+    ``B_x = kx c_x``; ``B_y = alpha kx c_x + ky c_y``;
+    ``B_z = beta kx c_x + gamma ky c_y + kz c_z``.
+
+    Parameters
+    ----------
+    kx, ky, kz : float
+        Gains (nT per count).
+    alpha, beta, gamma : float
+        Cross-axis terms: X in Y, X in Z, Y in Z.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 8, eq. 8, Table 4.
+    """
+    return np.array(
+        [
+            [kx, 0.0, 0.0],
+            [alpha * kx, ky, 0.0],
+            [beta * kx, gamma * ky, kz],
+        ]
+    )
+
+
+def apply_per_range(
+    vectors: np.ndarray, range_flag: np.ndarray, matrices: np.ndarray
+) -> np.ndarray:
+    """Multiply each vector by the matrix of its own range.
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (n, 3)
+    range_flag : ndarray of int, shape (n,)
+        Index into ``matrices`` for each sample.
+    matrices : ndarray, shape (m, 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    vectors = np.asarray(vectors, dtype=float)
+    range_flag = np.asarray(range_flag)
+    out = np.empty_like(vectors)
+    for flag in range(matrices.shape[0]):
+        sel = range_flag == flag
+        if sel.any():
+            out[sel] = vectors[sel] @ matrices[flag].T
+    bad = (range_flag < 0) | (range_flag >= matrices.shape[0])
+    if bad.any():
+        raise ValueError(f"range_flag: values outside 0..{matrices.shape[0] - 1}")
+    return out
+
+
+def counts_to_nt(counts: np.ndarray, range_flag: np.ndarray, matrices: np.ndarray) -> np.ndarray:
+    """Convert offset-corrected counts to nT with each sample's range matrix (eq. 8).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 8, eq. 8.
+    """
+    return apply_per_range(counts, range_flag, matrices)
+
+
+def nt_to_counts(field_nt: np.ndarray, range_flag: np.ndarray, matrices: np.ndarray) -> np.ndarray:
+    """Invert eq. 8: nT -> (unquantised) counts for each sample's range."""
+    return apply_per_range(field_nt, range_flag, np.linalg.inv(matrices))
+
+
+def range_conversion(matrices: np.ndarray, reference: int = 0) -> np.ndarray:
+    """Return ``M_r^-1 M_ref`` for every range ``r`` (shape (m, 3, 3)).
+
+    An offset known in counts of range ``reference`` (the fine range for MESSENGER)
+    expressed in counts of range ``r`` is ``M_r^-1 M_ref c_ref`` (same field in nT).
+    """
+    return np.linalg.inv(matrices) @ matrices[reference]

@@ -1,0 +1,220 @@
+"""Sensor-heater periods from the 1-s heater bit, and the heater signal they leave.
+
+A heater period starts at each rising edge of the heater request bit and lasts one
+heater period (100 s) or until the next rising edge.  Its duty cycle is the fraction of
+its one-second bits that are on.  The periodic heater signal (tabulated versus seconds
+since the edge for duty-cycle bins) is applied only when the bit stayed on for at least
+the persistence time (10 s).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class HeaterPeriods:
+    """Heater periods found in a heater-bit series.
+
+    Attributes
+    ----------
+    start : ndarray, shape (k,)
+        Time of each rising edge (s, same scale as the bit times).
+    end : ndarray, shape (k,)
+        End of each period: ``min(start + period, next start)``.
+    duty_cycle : ndarray, shape (k,)
+        Fraction (0..1) of the period's one-second bits that are on.
+    on_duration : ndarray, shape (k,)
+        Length (s) of the run of ones that begins at the edge.
+    applied : ndarray of bool, shape (k,)
+        ``on_duration >= min_on`` (heater signal subtracted for this period).
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    duty_cycle: np.ndarray
+    on_duration: np.ndarray
+    applied: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.start.size)
+
+
+def heater_periods(
+    times: np.ndarray,
+    bits: np.ndarray,
+    *,
+    period: float = 100.0,
+    min_on: float = 10.0,
+    bit_step: float = 1.0,
+) -> HeaterPeriods:
+    """Find the heater periods of a heater-bit series (sec. 6).
+
+    Parameters
+    ----------
+    times : ndarray, shape (n,)
+        Increasing times (s) of the bits, nominally one per second.
+    bits : ndarray of {0, 1}, shape (n,)
+        Heater request bit.
+    period : float
+        Heater period (s).
+    min_on : float
+        Persistence (s) the bit must stay on for the signal to be applied.
+    bit_step : float
+        Time each bit stands for (s); a bit at ``t`` covers ``[t, t + bit_step)``.
+
+    Returns
+    -------
+    HeaterPeriods
+
+    Notes
+    -----
+    A series that starts with the bit on has no known rising edge there: that partial
+    period is not a heater period.  The duty cycle counts the bits with times in
+    ``[start, end)`` and divides by ``period / bit_step`` (100 bits).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6.
+    """
+    times = np.asarray(times, dtype=float)
+    bits = np.asarray(bits).astype(np.int8)
+    if times.shape != bits.shape or times.ndim != 1:
+        raise ValueError("times, bits: must be 1-D arrays of equal length")
+    step = np.diff(bits)
+    rising = np.flatnonzero(step == 1) + 1
+    falling = np.flatnonzero(step == -1) + 1
+    start = times[rising]
+    nxt = np.append(start[1:], np.inf)
+    end = np.minimum(start + period, nxt)
+    # bits on within [start, end): cumulative count, searched by time
+    csum = np.concatenate([[0], np.cumsum(bits, dtype=np.int64)])
+    i0 = rising
+    i1 = np.searchsorted(times, end - 1e-6 * bit_step, side="left")
+    n_on = csum[i1] - csum[i0]
+    duty = n_on * bit_step / period
+    # run of ones beginning at each edge ends at the next falling edge (or series end)
+    j = np.searchsorted(falling, rising, side="right")
+    if falling.size:
+        jj = np.minimum(j, falling.size - 1)
+        fall_time = np.where(j < falling.size, times[falling[jj]], times[-1] + bit_step)
+    else:
+        fall_time = np.full(start.shape, times[-1] + bit_step if times.size else 0.0)
+    on = fall_time - start
+    return HeaterPeriods(
+        start=start, end=end, duty_cycle=duty, on_duration=on, applied=on >= min_on - 1e-9
+    )
+
+
+def heater_waveform(
+    cycle_time: np.ndarray,
+    duty_percent: np.ndarray,
+    table: np.ndarray,
+    bins_percent: np.ndarray,
+) -> np.ndarray:
+    """Interpolate a heater-signal table in heater-cycle time and duty cycle.
+
+    Linear in ``cycle_time`` between the tabulated whole seconds (t = 100 equals t = 0)
+    and linear in duty cycle between bins; below the first bin the slope between the
+    first two bins is extended, above the last bin the slope between the last two.
+
+    Parameters
+    ----------
+    cycle_time : ndarray, shape (n,)
+        Seconds since the period's rising edge, in ``[0, 100]``.
+    duty_percent : ndarray, shape (n,)
+        Duty cycle of the period (percent).
+    table : ndarray, shape (n_axes, 101, n_bins) or (101, n_bins)
+        Signal (counts) at t = 0..100 s for each bin (Tables 6-8).
+    bins_percent : ndarray, shape (n_bins,)
+        Evenly spaced bin centres (12..40 %).
+
+    Returns
+    -------
+    ndarray, shape (n, n_axes) or (n,)
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+    """
+    table = np.asarray(table, dtype=float)
+    squeeze = table.ndim == 2
+    if squeeze:
+        table = table[None]
+    t = np.clip(np.asarray(cycle_time, dtype=float), 0.0, table.shape[1] - 1.0)
+    i = np.minimum(np.floor(t).astype(np.int64), table.shape[1] - 2)
+    ft = t - i
+    bins = np.asarray(bins_percent, dtype=float)
+    width = bins[1] - bins[0]
+    w = (np.asarray(duty_percent, dtype=float) - bins[0]) / width
+    j = np.clip(np.floor(w).astype(np.int64), 0, bins.size - 2)
+    fd = w - j  # < 0 or > 1 in the extrapolation zones
+    out = np.empty((t.size, table.shape[0]))
+    for axis in range(table.shape[0]):
+        tab = table[axis]
+        lo = tab[i, j] * (1 - ft) + tab[i + 1, j] * ft
+        hi = tab[i, j + 1] * (1 - ft) + tab[i + 1, j + 1] * ft
+        out[:, axis] = lo * (1 - fd) + hi * fd
+    return out[:, 0] if squeeze else out
+
+
+def period_index(sample_times: np.ndarray, periods: HeaterPeriods) -> np.ndarray:
+    """Return the index of the heater period holding each sample, or -1 when none."""
+    t = np.asarray(sample_times, dtype=float)
+    k = np.searchsorted(periods.start, t, side="right") - 1
+    inside = k >= 0
+    kk = np.maximum(k, 0)
+    if len(periods):
+        inside &= t < periods.end[kk]
+    else:
+        inside[:] = False
+    return np.where(inside, k, -1)
+
+
+def heater_signal(
+    sample_times: np.ndarray,
+    periods: HeaterPeriods,
+    table: np.ndarray,
+    bins_percent: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the heater signal (counts) at every sample and a mask where it applies.
+
+    Parameters
+    ----------
+    sample_times : ndarray, shape (n,)
+        Sample times (s, same scale as the heater bits).
+    periods : HeaterPeriods
+    table : ndarray, shape (3, 101, n_bins)
+    bins_percent : ndarray, shape (n_bins,)
+
+    Returns
+    -------
+    signal : ndarray, shape (n, 3)
+        Zero outside applied periods.
+    applied : ndarray of bool, shape (n,)
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6.
+    """
+    t = np.asarray(sample_times, dtype=float)
+    k = period_index(t, periods)
+    applied = k >= 0
+    if len(periods):
+        applied &= periods.applied[np.maximum(k, 0)]
+    out = np.zeros((t.size, np.asarray(table).shape[0]))
+    if applied.any():
+        kk = k[applied]
+        out[applied] = heater_waveform(
+            t[applied] - periods.start[kk],
+            periods.duty_cycle[kk] * 100.0,
+            table,
+            bins_percent,
+        )
+    return out, applied

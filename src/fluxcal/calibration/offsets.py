@@ -1,0 +1,47 @@
+"""Temperature-dependent offsets as a two-segment line.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 3a, 3b, 4, Table 2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def breakpoint_temperature(coefficients: np.ndarray) -> np.ndarray:
+    """Return ``T_m = (A0 - A1) / (B1 - B0)`` per axis (eq. 4).
+
+    Parameters
+    ----------
+    coefficients : ndarray, shape (3, 4)
+        ``A0, B0, A1, B1`` per axis.
+    """
+    a0, b0, a1, b1 = np.asarray(coefficients, dtype=float).T
+    return (a0 - a1) / (b1 - b0)
+
+
+def two_segment_offset(temperature_c: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+    """Return the offset ``cT_j(T)`` of eq. 3a/3b for every sample and axis.
+
+    Parameters
+    ----------
+    temperature_c : ndarray, shape (n,)
+        Sensor temperature (degC).
+    coefficients : ndarray, shape (3, 4)
+        ``A0, B0, A1, B1`` per axis (Table 2).
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        Offset in counts: ``A0 + B0 T`` for ``T <= T_m``, ``A1 + B1 T`` above.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 3a, 3b, 4, Table 2.
+    """
+    t = np.asarray(temperature_c, dtype=float)[:, None]
+    a0, b0, a1, b1 = np.asarray(coefficients, dtype=float).T
+    tm = breakpoint_temperature(coefficients)
+    return np.where(t <= tm, a0 + b0 * t, a1 + b1 * t)

@@ -1,0 +1,218 @@
+"""Offsets that relax toward a new steady state after each heater duty-cycle change.
+
+Implements the assignment sequence 6a-6f of the MESSENGER procedure: the offset at a
+sample time ``t_s`` is built from the steady-state offsets ``c*_0..c*_5`` set at the
+last six duty-cycle changes ``t_0 > t_1 > ... > t_5``, starting from zero at ``t_5``,
+each relaxing with time constant ``tau`` after a delay ``dt``::
+
+    c_t4 <- c*_5 (1 - exp(-max(t_4 - t_5 - dt, 0) / tau))                (6a)
+    c_tk <- c*_(k+1) - (c*_(k+1) - c_t(k+1)) exp(-max(t_k - t_(k+1) - dt, 0) / tau)
+    c(t_s) <- c*_0 - (c*_0 - c_t0) exp(-max(t_s - t_0 - dt, 0) / tau)    (6f)
+
+The state at each change (``c_t0`` for that change) is computed once per change with a
+loop over the look-back depth (vectorized over changes); samples are then evaluated in
+one vectorized step.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 5a, 5b, 6a-6f, 7, Table 3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fluxcal.calibration.heater_signal import HeaterPeriods
+
+
+@dataclass(frozen=True)
+class DutyCycleChanges:
+    """Times at which the heater duty cycle changed and the new duty cycle.
+
+    Attributes
+    ----------
+    time : ndarray, shape (m,)
+        Change times (s), increasing.
+    duty_cycle_ppt : ndarray, shape (m,)
+        New duty cycle in parts per 1000.
+    """
+
+    time: np.ndarray
+    duty_cycle_ppt: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.time.size)
+
+
+def duty_cycle_changes(
+    periods: HeaterPeriods,
+    *,
+    period: float = 100.0,
+    data_end: float | None = None,
+    tolerance: float = 1.5,
+) -> DutyCycleChanges:
+    """Return the duty-cycle changes implied by a sequence of heater periods.
+
+    A change happens at the rising edge that starts the first period with a new duty
+    cycle; the heater going quiet (no rising edge within ``period + tolerance`` after the
+    last one) is a change to zero at the end of its last period.  The heater is assumed
+    quiet before the first period.
+
+    Parameters
+    ----------
+    periods : HeaterPeriods
+    period : float
+        Heater period (s).
+    data_end : float, optional
+        End of the heater-bit series; a final period ending after it is not followed
+        by a change to zero.
+    tolerance : float
+        Slack (s) when deciding that two periods are contiguous.
+
+    Returns
+    -------
+    DutyCycleChanges
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (fluxcal reading recorded in
+       docs/decisions/messenger.md).
+    """
+    start = np.asarray(periods.start, dtype=float)
+    ppt = np.round(np.asarray(periods.duty_cycle, dtype=float) * 1000.0)
+    if start.size == 0:
+        return DutyCycleChanges(np.empty(0), np.empty(0))
+    gap_after = np.append(start[1:] - start[:-1] > period + tolerance, True)
+    if data_end is not None:
+        gap_after[-1] = start[-1] + period + tolerance <= data_end
+    # duty cycle in force just before each period starts
+    previous = np.empty_like(ppt)
+    previous[0] = 0.0
+    previous[1:] = np.where(gap_after[:-1], 0.0, ppt[:-1])
+    new = ppt != previous
+    times = [start[new], start[gap_after] + period]
+    values = [ppt[new], np.zeros(int(gap_after.sum()))]
+    t = np.concatenate(times)
+    v = np.concatenate(values)
+    order = np.argsort(t, kind="stable")
+    return DutyCycleChanges(time=t[order], duty_cycle_ppt=v[order])
+
+
+def steady_state_offset(
+    duty_cycle_ppt: np.ndarray, slope: np.ndarray, threshold_ppt: float = 100.0
+) -> np.ndarray:
+    """Return the steady-state offset shift ``D0_j d`` (``d >= 100``) or 0 (eq. 5a, 5b).
+
+    The intercept ``C0`` of eq. 5a is not included: fluxcal adds the temperature line
+    ``cT(T)`` instead, and ``C0 = cT(-50 C)`` (see docs/decisions/messenger.md).
+
+    Parameters
+    ----------
+    duty_cycle_ppt : ndarray, shape (m,)
+    slope : ndarray, shape (3,)
+        ``D0`` per axis (counts per part per 1000, Table 3).
+    threshold_ppt : float
+        Duty cycles below this give zero.
+
+    Returns
+    -------
+    ndarray, shape (m, 3)
+    """
+    d = np.asarray(duty_cycle_ppt, dtype=float)[:, None]
+    return np.where(d >= threshold_ppt, d * np.asarray(slope, dtype=float)[None, :], 0.0)
+
+
+def state_at_changes(
+    change_time: np.ndarray,
+    target: np.ndarray,
+    *,
+    tau: float,
+    delay: float,
+    look_back: int = 5,
+) -> np.ndarray:
+    """Return ``c_t0`` of eq. 6e for each change taken as the most recent one ``t_0``.
+
+    Parameters
+    ----------
+    change_time : ndarray, shape (m,)
+    target : ndarray, shape (m, k)
+        Steady-state offset set at each change.
+    tau, delay : float
+        Relaxation time and heater delay (s).
+    look_back : int
+        Number of earlier changes used (5: t_1..t_5).
+
+    Returns
+    -------
+    ndarray, shape (m, k)
+    """
+    change_time = np.asarray(change_time, dtype=float)
+    target = np.asarray(target, dtype=float)
+    m = change_time.size
+    # pad with `look_back` changes at -inf to zero: the state is zero before t_5
+    pad_t = np.concatenate([np.full(look_back, -np.inf), change_time])
+    pad_c = np.concatenate([np.zeros((look_back, target.shape[1])), target])
+    idx = np.arange(m) + look_back  # index of t_0 in the padded arrays
+    state = np.zeros((m, target.shape[1]))  # value at t_(look_back), zero
+    for lag in range(look_back, 0, -1):
+        older = idx - lag  # t_(lag)
+        newer = older + 1  # t_(lag-1)
+        real = np.isfinite(pad_t[older])
+        dt = np.where(real, pad_t[newer] - np.where(real, pad_t[older], 0.0) - delay, 0.0)
+        decay = np.where(real, np.exp(-np.maximum(dt, 0.0) / tau), 0.0)
+        c_star = pad_c[older]
+        state = c_star - (c_star - state) * decay[:, None]
+    return state
+
+
+def relaxed_offset(
+    sample_time: np.ndarray,
+    change_time: np.ndarray,
+    target: np.ndarray,
+    *,
+    tau: float,
+    delay: float,
+    look_back: int = 5,
+) -> np.ndarray:
+    """Return the duty-cycle offset ``c(t_s)`` of eq. 6f at every sample.
+
+    Parameters
+    ----------
+    sample_time : ndarray, shape (n,)
+    change_time : ndarray, shape (m,)
+        Duty-cycle change times, increasing.
+    target : ndarray, shape (m, k)
+        Steady-state offsets (eq. 5) set at each change.
+    tau : float
+        Relaxation time (872 s).
+    delay : float
+        Delay ``dt`` between heater request and heater power (10 s).
+    look_back : int
+        Number of earlier changes (5).
+
+    Returns
+    -------
+    ndarray, shape (n, k)
+        Zero before the first change.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 6a-6f, 7.
+    """
+    ts = np.asarray(sample_time, dtype=float)
+    change_time = np.asarray(change_time, dtype=float)
+    target = np.asarray(target, dtype=float)
+    out = np.zeros((ts.size, target.shape[1] if target.ndim == 2 else 3))
+    if change_time.size == 0:
+        return out
+    if np.any(np.diff(change_time) < 0):
+        raise ValueError("change_time: must be increasing")
+    state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back)
+    k = np.searchsorted(change_time, ts, side="right") - 1
+    has = k >= 0
+    kk = k[has]
+    decay = np.exp(-np.maximum(ts[has] - change_time[kk] - delay, 0.0) / tau)[:, None]
+    out[has] = target[kk] - (target[kk] - state[kk]) * decay
+    return out

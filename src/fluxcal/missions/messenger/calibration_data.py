@@ -1,0 +1,275 @@
+"""Versioned MESSENGER MAG calibration files and the loader that picks them for a day.
+
+Every file in ``missions/messenger/data`` is named ``<name>_v<version>.<csv|toml>`` and
+carries a header citing its seed section/table, its version and its validity interval
+``[valid_from, valid_to)``.  `load_calibration` returns, for one day, the highest version
+of every table whose interval covers that day; a day outside every interval of a table
+raises `fluxcal.errors.CalibrationRangeError`.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i (Korth and Anderson, 2016), sec. 5
+   Table 1, sec. 7 Tables 2-3, sec. 8 Table 4, sec. 12 Table 5, Appendix Tables 6-8.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from fluxcal.calibration.gain_matrix import lower_triangular_matrix
+from fluxcal.errors import CalibrationError, CalibrationRangeError
+
+TABLE_NAMES = (
+    "latency",
+    "offsets_temperature",
+    "offsets_duty_cycle",
+    "gain_matrix",
+    "heater_signal_x",
+    "heater_signal_y",
+    "heater_signal_z",
+    "processing",
+)
+_NAME_RE = re.compile(r"^(?P<name>[a-z_]+)_v(?P<version>\d+)\.(?P<ext>csv|toml)$")
+
+
+def data_dir() -> Path:
+    """Return the folder holding the packaged MESSENGER calibration files."""
+    return Path(str(resources.files("fluxcal.missions.messenger") / "data"))
+
+
+@dataclass(frozen=True)
+class TableFile:
+    """One versioned calibration file: its header and its parsed body."""
+
+    name: str
+    version: int
+    valid_from: np.datetime64
+    valid_to: np.datetime64
+    path: Path
+    header: dict[str, str]
+    columns: dict[str, np.ndarray] = field(repr=False)
+    toml: dict = field(repr=False, default_factory=dict)
+
+
+def _parse_csv(path: Path) -> tuple[dict[str, str], dict[str, np.ndarray]]:
+    header: dict[str, str] = {}
+    rows: list[list[str]] = []
+    names: list[str] | None = None
+    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+        if not line.strip():
+            continue
+        if line.startswith("#"):
+            key, sep, value = line[1:].partition(":")
+            if sep:
+                header.setdefault(key.strip(), value.strip())
+            continue
+        fields = line.split(",")
+        if names is None:
+            names = fields
+            continue
+        if len(fields) != len(names):
+            raise CalibrationError(
+                f"{path}: line {lineno}: expected {len(names)} fields, got {len(fields)}"
+            )
+        rows.append(fields)
+    if names is None or not rows:
+        raise CalibrationError(f"{path}: no column header or no data rows")
+    columns: dict[str, np.ndarray] = {}
+    for j, name in enumerate(names):
+        values = [r[j] for r in rows]
+        try:
+            columns[name] = np.array([float(v) for v in values])
+        except ValueError:
+            columns[name] = np.array(values)
+    return header, columns
+
+
+def _read_table(path: Path) -> TableFile:
+    match = _NAME_RE.match(path.name)
+    if match is None:
+        raise CalibrationError(f"{path}: file name must be <name>_v<version>.csv|toml")
+    if match["ext"] == "toml":
+        doc = tomllib.loads(path.read_text())
+        header = {k: str(v) for k, v in doc.items() if not isinstance(v, dict)}
+        columns: dict[str, np.ndarray] = {}
+    else:
+        doc = {}
+        header, columns = _parse_csv(path)
+    for key in ("version", "valid_from", "valid_to"):
+        if key not in header:
+            raise CalibrationError(f"{path}: header lacks '{key}'")
+    if int(header["version"]) != int(match["version"]):
+        raise CalibrationError(
+            f"{path}: header version {header['version']} differs from the file name"
+        )
+    return TableFile(
+        name=match["name"],
+        version=int(match["version"]),
+        valid_from=np.datetime64(header["valid_from"], "s"),
+        valid_to=np.datetime64(header["valid_to"], "s"),
+        path=path,
+        header=header,
+        columns=columns,
+        toml=doc,
+    )
+
+
+def resolve_table(name: str, day: np.datetime64 | str, folder: Path | None = None) -> TableFile:
+    """Return the highest version of table ``name`` whose validity covers ``day``.
+
+    Parameters
+    ----------
+    name : str
+        Table name (file stem without ``_v<version>``), one of `TABLE_NAMES`.
+    day : numpy.datetime64 or str
+        Any instant of the day being processed (UTC).
+    folder : Path, optional
+        Folder of calibration files (default: the packaged ``data`` folder).
+
+    Raises
+    ------
+    CalibrationRangeError
+        When no version of the table is valid at ``day``.
+    CalibrationError
+        When no file of that name exists or a header is malformed.
+    """
+    folder = data_dir() if folder is None else Path(folder)
+    when = np.datetime64(day, "s")
+    candidates = [
+        _read_table(p)
+        for p in sorted(folder.glob(f"{name}_v*.*"))
+        if (m := _NAME_RE.match(p.name)) and m["name"] == name
+    ]
+    if not candidates:
+        raise CalibrationError(f"no calibration file named {name}_v*.csv|toml in {folder}")
+    valid = [c for c in candidates if c.valid_from <= when < c.valid_to]
+    if not valid:
+        spans = ", ".join(f"v{c.version} [{c.valid_from}, {c.valid_to})" for c in candidates)
+        raise CalibrationRangeError(
+            f"calibration table {name}: {when} lies outside every validity interval ({spans})"
+        )
+    return max(valid, key=lambda c: c.version)
+
+
+@dataclass(frozen=True)
+class MessengerCalibration:
+    """All MESSENGER MAG calibration constants valid for one day (fine-range counts).
+
+    Attributes
+    ----------
+    net_lag_s : ndarray, shape (11,)
+        Net time lag per rate setting 0-10 (Table 1).
+    sample_rate_hz : ndarray, shape (11,)
+        Sample rate per rate setting (Table 1).
+    temperature_coefficients : ndarray, shape (3, 4)
+        ``A0, B0, A1, B1`` per axis x, y, z (Table 2).
+    breakpoint_temperature_c : ndarray, shape (3,)
+        ``T_m`` per axis as printed in Table 2.
+    duty_cycle_c0, duty_cycle_d0 : ndarray, shape (3,)
+        ``C0`` (counts) and ``D0`` (counts per part per 1000) per axis (Table 3).
+    matrices : ndarray, shape (2, 3, 3)
+        Counts-to-nT matrices of eq. 8 for range flag 0 (fine) and 1 (coarse) (Table 4).
+    heater_signal : ndarray, shape (3, 101, 8)
+        Heater signal (counts) per axis, heater-cycle second 0..100, duty-cycle bin.
+    heater_duty_bins_percent : ndarray, shape (8,)
+        Bin centres 12..40 % (Tables 6-8).
+    constants : dict
+        The ``processing`` TOML (relaxation, heater, pre-V10, quality dates).
+    files : list of (str, int)
+        File names and versions used, for product provenance.
+    """
+
+    net_lag_s: np.ndarray
+    sample_rate_hz: np.ndarray
+    temperature_coefficients: np.ndarray
+    breakpoint_temperature_c: np.ndarray
+    duty_cycle_c0: np.ndarray
+    duty_cycle_d0: np.ndarray
+    matrices: np.ndarray
+    prelaunch_offsets: np.ndarray
+    heater_signal: np.ndarray
+    heater_duty_bins_percent: np.ndarray
+    constants: dict
+    files: list[tuple[str, int]]
+
+    def date(self, key: str) -> np.datetime64:
+        """Return the quality-table date ``key`` (e.g. ``"boom_deployment"``)."""
+        return np.datetime64(self.constants["quality"][key], "s")
+
+    def provenance(self) -> str:
+        """Return ``"name vN; ..."`` for product labels."""
+        return "; ".join(f"{n} v{v}" for n, v in self.files)
+
+
+def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> MessengerCalibration:
+    """Load every MESSENGER MAG calibration table valid for ``day``.
+
+    Parameters
+    ----------
+    day : numpy.datetime64 or str
+        An instant of the processed day (UTC).
+    folder : Path, optional
+        Folder of calibration files (default: packaged).
+
+    Returns
+    -------
+    MessengerCalibration
+
+    Raises
+    ------
+    CalibrationRangeError
+        When ``day`` lies outside every validity interval of some table.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 Table 1, sec. 7 Tables 2-3,
+       sec. 8 Table 4, sec. 12 Table 5, Appendix Tables 6-8.
+    """
+    t = {name: resolve_table(name, day, folder) for name in TABLE_NAMES}
+    lat = t["latency"].columns
+    order = np.argsort(lat["rate_setting"])
+    if not np.array_equal(lat["rate_setting"][order], np.arange(11)):
+        raise CalibrationError(f"{t['latency'].path}: rate settings must be 0..10")
+    temp = t["offsets_temperature"].columns
+    duty = t["offsets_duty_cycle"].columns
+    for table, cols in (("offsets_temperature", temp), ("offsets_duty_cycle", duty)):
+        if list(cols["axis"]) != ["x", "y", "z"]:
+            raise CalibrationError(f"{t[table].path}: axes must be x, y, z in order")
+    gain = t["gain_matrix"].columns
+    matrices = np.empty((2, 3, 3))
+    prelaunch = np.empty((2, 3))
+    for row, flag in enumerate(gain["range_flag"].astype(int)):
+        matrices[flag] = lower_triangular_matrix(
+            gain["kx"][row], gain["ky"][row], gain["kz"][row],
+            gain["alpha"][row], gain["beta"][row], gain["gamma"][row],
+        )
+        prelaunch[flag] = [gain[f"offset_{a}"][row] for a in "xyz"]
+    heater = []
+    bins = None
+    for axis in "xyz":
+        cols = t[f"heater_signal_{axis}"].columns
+        if not np.array_equal(cols["t_s"], np.arange(101)):
+            raise CalibrationError(f"{t[f'heater_signal_{axis}'].path}: t_s must be 0..100")
+        names = [c for c in cols if c != "t_s"]
+        bins = np.array([float(c) for c in names])
+        heater.append(np.column_stack([cols[c] for c in names]))
+    return MessengerCalibration(
+        net_lag_s=lat["net_lag_s"][order],
+        sample_rate_hz=lat["sample_rate_hz"][order],
+        temperature_coefficients=np.column_stack([temp["A0"], temp["B0"], temp["A1"], temp["B1"]]),
+        breakpoint_temperature_c=temp["Tm_c"],
+        duty_cycle_c0=duty["C0"],
+        duty_cycle_d0=duty["D0"],
+        matrices=matrices,
+        prelaunch_offsets=prelaunch,
+        heater_signal=np.stack(heater),
+        heater_duty_bins_percent=bins,
+        constants=t["processing"].toml,
+        files=[(tf.path.name, tf.version) for tf in t.values()],
+    )

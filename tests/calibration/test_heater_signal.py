@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+
+from fluxcal.calibration.heater_signal import heater_periods, heater_signal, heater_waveform
+from fluxcal.missions.messenger.calibration_data import load_calibration
+
+CAL = load_calibration("2012-01-01")
+BINS = CAL.heater_duty_bins_percent
+TAB = CAL.heater_signal
+
+
+@pytest.mark.parametrize("col", range(8))
+@pytest.mark.parametrize("t", [0, 1, 17, 50, 99])
+def test_bin_centres_reproduce_table(col, t):
+    got = heater_waveform(np.array([float(t)]), np.array([BINS[col]]), TAB, BINS)
+    np.testing.assert_allclose(got[0], TAB[:, t, col], rtol=0, atol=1e-12)
+
+
+def test_midpoints_are_averages():
+    # half-way in t and in duty cycle: mean of the 4 surrounding table values
+    got = heater_waveform(np.array([10.5]), np.array([22.0]), TAB, BINS)[0]
+    expect = TAB[:, 10:12, 2:4].mean(axis=(1, 2))
+    np.testing.assert_allclose(got, expect, atol=1e-12)
+
+
+@pytest.mark.parametrize("duty", [0.0, 5.0, 10.0])
+def test_extrapolation_below_12(duty):
+    t = 30
+    slope = (TAB[:, t, 1] - TAB[:, t, 0]) / 4.0
+    expect = TAB[:, t, 0] + slope * (duty - 12.0)
+    got = heater_waveform(np.array([float(t)]), np.array([duty]), TAB, BINS)[0]
+    np.testing.assert_allclose(got, expect, atol=1e-12)
+
+
+@pytest.mark.parametrize("duty", [41.0, 45.0, 60.0])
+def test_extrapolation_above_40(duty):
+    t = 12
+    slope = (TAB[:, t, 7] - TAB[:, t, 6]) / 4.0
+    expect = TAB[:, t, 7] + slope * (duty - 40.0)
+    got = heater_waveform(np.array([float(t)]), np.array([duty]), TAB, BINS)[0]
+    np.testing.assert_allclose(got, expect, atol=1e-12)
+
+
+def test_t100_equals_t0():
+    a = heater_waveform(np.array([0.0, 100.0]), np.array([23.0, 23.0]), TAB, BINS)
+    np.testing.assert_allclose(a[0], a[1])
+
+
+def _bits(pattern):
+    """pattern: list of (on_seconds, period_seconds) repeated periods."""
+    out = [0] * 50
+    for on, per in pattern:
+        out += [1] * on + [0] * (per - on)
+    out += [0] * 300
+    return np.arange(len(out), dtype=float), np.array(out)
+
+
+def test_periods_duty_and_persistence():
+    t, b = _bits([(40, 100), (40, 100), (25, 100), (5, 100)])
+    p = heater_periods(t, b)
+    np.testing.assert_array_equal(p.start, [50, 150, 250, 350])
+    np.testing.assert_allclose(p.duty_cycle, [0.40, 0.40, 0.25, 0.05])
+    np.testing.assert_allclose(p.on_duration, [40, 40, 25, 5])
+    np.testing.assert_array_equal(p.applied, [True, True, True, False])
+    np.testing.assert_array_equal(p.end, [150, 250, 350, 450])
+
+
+def test_signal_only_in_applied_periods():
+    t, b = _bits([(30, 100), (5, 100)])
+    p = heater_periods(t, b)
+    ts = np.array([10.0, 50.0, 80.5, 160.0, 300.0])
+    sig, applied = heater_signal(ts, p, TAB, BINS)
+    np.testing.assert_array_equal(applied, [False, True, True, False, False])
+    assert np.all(sig[~applied] == 0)
+    expect = heater_waveform(np.array([30.5]), np.array([30.0]), TAB, BINS)[0]
+    np.testing.assert_allclose(sig[2], expect)

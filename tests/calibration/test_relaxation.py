@@ -1,0 +1,72 @@
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fluxcal.calibration.heater_signal import heater_periods
+from fluxcal.calibration.relaxation import duty_cycle_changes, relaxed_offset, steady_state_offset
+
+TAU, DT = 872.0, 10.0
+
+
+def brute_force(ts, change_t, cstar, tau=TAU, dt=DT):
+    """Eq. 6a-6f written out literally for one sample and one axis (the seed's loop)."""
+    prior = [i for i in range(len(change_t)) if change_t[i] <= ts]
+    if not prior:
+        return 0.0
+    i0 = prior[-1]
+    # t_0..t_5 and c*_0..c*_5; changes before the data are zero-valued at -infinity
+    t = [change_t[i0 - k] if i0 - k >= 0 else -math.inf for k in range(6)]
+    c = [cstar[i0 - k] if i0 - k >= 0 else 0.0 for k in range(6)]
+
+    def e(a, b):
+        if b == -math.inf:
+            return 0.0
+        return math.exp(-max(a - b - dt, 0.0) / tau)
+
+    ct4 = c[5] * (1 - e(t[4], t[5]))
+    ct3 = c[4] - (c[4] - ct4) * e(t[3], t[4])
+    ct2 = c[3] - (c[3] - ct3) * e(t[2], t[3])
+    ct1 = c[2] - (c[2] - ct2) * e(t[1], t[2])
+    ct0 = c[1] - (c[1] - ct1) * e(t[0], t[1])
+    return c[0] - (c[0] - ct0) * e(ts, t[0])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    gaps=st.lists(st.floats(5.0, 3000.0), min_size=0, max_size=11),
+    values=st.lists(st.floats(-200, 200), min_size=12, max_size=12),
+    samples=st.lists(st.floats(-100.0, 40000.0), min_size=1, max_size=30),
+)
+def test_vectorized_equals_brute_force(gaps, values, samples):
+    change_t = np.cumsum(np.array([0.0] + gaps))
+    cstar = np.array(values[: change_t.size])
+    got = relaxed_offset(np.array(samples), change_t, cstar[:, None], tau=TAU, delay=DT)[:, 0]
+    want = [brute_force(s, change_t, cstar) for s in samples]
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+
+
+def test_single_step_closed_form():
+    # one change to c* at t=0: c(t) = c* (1 - exp(-(t - dt)/tau)) after the delay
+    ts = np.array([-5.0, 0.0, 10.0, 100.0, 1000.0])
+    got = relaxed_offset(ts, np.array([0.0]), np.array([[50.0]]), tau=TAU, delay=DT)[:, 0]
+    want = 50 * (1 - np.exp(-np.maximum(ts - DT, 0) / TAU))
+    want[0] = 0.0
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def test_eq5_threshold():
+    s = steady_state_offset(np.array([0, 99, 100, 400]), np.array([0.17885, 0.32851, 0.01477]))
+    np.testing.assert_allclose(s[:, 1], [0, 0, 32.851, 131.404])
+
+
+def test_changes_from_periods():
+    # 40 % for 3 periods, 25 % for 2, then quiet, then 30 % again
+    bits = [0] * 10 + ([1] * 40 + [0] * 60) * 3 + ([1] * 25 + [0] * 75) * 2 + [0] * 500
+    bits += [1] * 30 + [0] * 70 + [0] * 200
+    t = np.arange(len(bits), dtype=float)
+    p = heater_periods(t, np.array(bits))
+    ch = duty_cycle_changes(p, data_end=t[-1] + 1)
+    np.testing.assert_array_equal(ch.time, [10, 310, 510, 1010, 1110])
+    np.testing.assert_array_equal(ch.duty_cycle_ppt, [400, 250, 0, 300, 0])

@@ -1,0 +1,122 @@
+"""Every seed table reproduced from its data file (spot values typed from the seed)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fluxcal.calibration.offsets import breakpoint_temperature, two_segment_offset
+from fluxcal.errors import CalibrationRangeError
+from fluxcal.missions.messenger.calibration_data import load_calibration, resolve_table
+
+SEED = Path(__file__).resolve().parents[3] / ".." / "shared" / "seeds" / "000_dc13c776705c8c22.txt"
+
+
+@pytest.fixture(scope="module")
+def cal():
+    return load_calibration("2012-06-01")
+
+
+# Table 1 (sec. 5): rate setting -> (sample rate, net lag)
+@pytest.mark.parametrize(
+    ("rate", "hz", "lag"),
+    [(0, 0.01, 2.358), (3, 0.10, 2.358), (6, 1.0, 2.358), (7, 2.0, 1.186), (8, 5.0, 0.477),
+     (9, 10.0, 0.223), (10, 20.0, 0.042)],
+)
+def test_table1(cal, rate, hz, lag):
+    assert cal.sample_rate_hz[rate] == pytest.approx(hz)
+    assert cal.net_lag_s[rate] == pytest.approx(lag)
+
+
+# Table 2 (sec. 7)
+@pytest.mark.parametrize(
+    ("axis", "a0", "b0", "a1", "b1", "tm"),
+    [(0, -10.802, 1.2043, 2.8435, 2.5445, -10.1817), (1, -76.138, 2.042, -18.176, 6.6181, -12.6662),
+     (2, 432.27, 0.45175, 455.4, 2.016, -14.7866)],
+)
+def test_table2_and_eq4(cal, axis, a0, b0, a1, b1, tm):
+    np.testing.assert_array_equal(cal.temperature_coefficients[axis], [a0, b0, a1, b1])
+    assert cal.breakpoint_temperature_c[axis] == tm
+    # eq. 4 reproduces the printed T_m to its last printed digit (1e-4 degC)
+    assert breakpoint_temperature(cal.temperature_coefficients)[axis] == pytest.approx(tm, abs=1e-4)
+
+
+def test_two_segment_continuous_at_tm(cal):
+    tm = breakpoint_temperature(cal.temperature_coefficients)
+    for axis in range(3):
+        lo = two_segment_offset(np.array([tm[axis] - 1e-9]), cal.temperature_coefficients)[0, axis]
+        hi = two_segment_offset(np.array([tm[axis] + 1e-9]), cal.temperature_coefficients)[0, axis]
+        assert lo == pytest.approx(hi, abs=1e-6)
+
+
+# Table 3 and eq. 5a: the intercept C0 equals cT(-50 C) of Table 2.
+# cT(-50) = A0 - 50 B0 = -71.017, -178.238, 409.6825; Table 3 prints -71.0, -178.2, 409.7,
+# i.e. the same numbers rounded to 0.1 count: tolerance 0.05 count (half the last digit).
+@pytest.mark.parametrize(("axis", "c0", "d0"), [(0, -71.0, 0.17885), (1, -178.2, 0.32851),
+                                                (2, 409.7, 0.01477)])
+def test_table3_intercept_is_ct_minus50(cal, axis, c0, d0):
+    assert cal.duty_cycle_c0[axis] == c0
+    assert cal.duty_cycle_d0[axis] == d0
+    ct = two_segment_offset(np.array([-50.0]), cal.temperature_coefficients)[0, axis]
+    assert ct == pytest.approx(c0, abs=0.05)
+
+
+# Table 4 (sec. 8)
+def test_table4(cal):
+    fine, coarse = cal.matrices
+    assert fine[0, 0] == 0.046769 and fine[1, 1] == 0.046673 and fine[2, 2] == 0.047997
+    assert coarse[0, 0] == 1.56513 and coarse[1, 1] == 1.56419 and coarse[2, 2] == 1.61029
+    assert fine[1, 0] == pytest.approx(-0.00462 * 0.046769)
+    assert fine[2, 0] == pytest.approx(0.00053 * 0.046769)
+    assert coarse[2, 1] == pytest.approx(-0.00736 * 1.56419)
+    np.testing.assert_array_equal(cal.prelaunch_offsets[0], [-1017, -2520, -544])
+    np.testing.assert_array_equal(cal.prelaunch_offsets[1], [-30.4, -75.2, -16.2])
+    assert np.all(np.triu(fine, 1) == 0)
+
+
+# Tables 6-8 (Appendix): spot values typed from the seed
+@pytest.mark.parametrize(
+    ("axis", "t", "col", "value"),
+    [(0, 0, 0, -0.70727), (0, 4, 7, -0.04287), (0, 100, 7, 0.21793), (0, 83, 6, 1.80303),
+     (1, 18, 0, -10.40830), (2, 99, 7, 0.70759), (1, 0, 3, -0.81213), (2, 75, 2, 0.87512)],
+)
+def test_heater_tables(cal, axis, t, col, value):
+    assert cal.heater_signal[axis, t, col] == value
+
+
+def test_heater_tables_match_seed_text(cal):
+    """All 3 x 101 x 8 values equal the seed's, parsed independently (regex on the text)."""
+    text = SEED.read_text()
+    for axis, title in enumerate(["Table 6:", "Table 7:", "Table 8:"]):
+        block = text[text.index(title):].split("t-sec", 1)[1].splitlines()[1:]
+        rows = [ln.split() for ln in block if len(ln.split()) == 9]
+        rows = [list(map(float, r[1:])) for r in rows[:101]]
+        np.testing.assert_array_equal(cal.heater_signal[axis], np.array(rows))
+    np.testing.assert_array_equal(cal.heater_duty_bins_percent, np.arange(12, 41, 4))
+    # t = 100 repeats t = 0 (the waveform is periodic)
+    np.testing.assert_array_equal(cal.heater_signal[:, 100], cal.heater_signal[:, 0])
+
+
+def test_quality_dates(cal):
+    assert cal.date("boom_deployment") == np.datetime64("2005-03-08T00:00:00")
+    assert cal.date("heater_mode_v10") == np.datetime64("2007-03-09T00:00:00")
+
+
+def test_outside_validity_raises():
+    with pytest.raises(CalibrationRangeError, match="outside every validity interval"):
+        load_calibration("2003-01-01")
+    with pytest.raises(CalibrationRangeError):
+        resolve_table("latency", "2016-01-01")
+
+
+def test_highest_version_wins(tmp_path):
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    src = (data_dir() / "latency_v1.csv").read_text()
+    (tmp_path / "latency_v1.csv").write_text(src)
+    v2 = src.replace("# version: 1", "# version: 2").replace(
+        "# valid_from: 2004-08-03T00:00:00", "# valid_from: 2010-01-01T00:00:00"
+    ).replace("10,20.0,0.0,0.042", "10,20.0,0.0,0.050")
+    (tmp_path / "latency_v2.csv").write_text(v2)
+    assert resolve_table("latency", "2009-01-01", tmp_path).version == 1
+    assert resolve_table("latency", "2011-01-01", tmp_path).version == 2
