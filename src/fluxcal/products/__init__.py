@@ -1,0 +1,66 @@
+"""Products: writers and readers of every output format, provenance, quicklooks, batch.
+
+Writing a product
+-----------------
+>>> import numpy as np, xarray as xr
+>>> from pathlib import Path
+>>> from fluxcal.products import Column, write_product, read_product, provenance_attrs
+>>> ds = xr.Dataset(
+...     {"B_mso": (("time", "component"), np.zeros((2, 3)), {"units": "nT"}),
+...      "quality": ("time", np.array([0, 1]), {"units": "1"})},
+...     coords={"epoch": ("time", np.array([0, 50_000_000], dtype=np.int64)),
+...             "component": ["x", "y", "z"]},
+...     attrs=provenance_attrs(inputs=[], command_line="doctest"))
+>>> cols = [Column("epoch", "%d", "ns", "TT2000"),
+...         Column("B_mso", "%10.3f", label="b{c}"),      # -> columns bx, by, bz
+...         Column("quality", "%2d")]
+>>> paths = write_product(ds, Path(getfixture("tmp_path")) / "MAGMSOSCI24001",
+...                       formats=("tab", "cdf"), columns=cols)  # doctest: +SKIP
+
+Column naming
+-------------
+A `Column` whose ``name`` is a vector variable ``(time, component)`` expands to one
+column per component, named ``f"{name}_{c}"`` (``B_mso_x``, ``B_mso_y``,
+``B_mso_z``), or ``label.format(c=c)`` when ``label`` is given (``label="b{c}"`` ->
+``bx by bz``).  ``Column("B_mso", "%9.3f", component="z")`` prints one component
+only.  Any variable or coordinate along ``time`` may be a column, including
+``epoch`` (printed ``%d`` it round-trips to the nanosecond) and string variables
+(e.g. pre-formatted UTC; no whitespace inside a value).
+
+Formats: ``tab`` (``.TAB`` + PDS3-like ``.LBL``), ``cdf`` (ISTP, ``Epoch`` TT2000),
+``nc`` (netCDF via xarray), ``zarr`` (if the zarr package is installed).  All writes
+are atomic.  See ``docs/formats/products.md``.
+"""
+
+from fluxcal.products.cdf import read_cdf, write_cdf
+from fluxcal.products.columns import Column
+from fluxcal.products.netcdf import (
+    netcdf_engine,
+    read_netcdf,
+    read_zarr,
+    write_netcdf,
+    write_zarr,
+    zarr_available,
+)
+from fluxcal.products.provenance import provenance_attrs, sha256_file
+from fluxcal.products.tab import read_tab, write_tab
+from fluxcal.products.writer import FORMATS, read_product, write_product
+
+__all__ = [
+    "FORMATS",
+    "Column",
+    "netcdf_engine",
+    "provenance_attrs",
+    "read_cdf",
+    "read_netcdf",
+    "read_product",
+    "read_tab",
+    "read_zarr",
+    "sha256_file",
+    "write_cdf",
+    "write_netcdf",
+    "write_product",
+    "write_tab",
+    "write_zarr",
+    "zarr_available",
+]

@@ -1,0 +1,108 @@
+"""One writer interface for every product format, and the matching readers."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import xarray as xr
+
+from fluxcal.errors import InputFormatError
+from fluxcal.products.cdf import read_cdf, write_cdf
+from fluxcal.products.columns import Column
+from fluxcal.products.netcdf import read_netcdf, read_zarr, write_netcdf, write_zarr
+from fluxcal.products.tab import read_tab, write_tab
+
+FORMATS = ("tab", "cdf", "nc", "zarr")
+SUFFIX = {"tab": ".TAB", "cdf": ".cdf", "nc": ".nc", "zarr": ".zarr"}
+
+
+def write_product(
+    ds: xr.Dataset,
+    stem: Path,
+    formats: Sequence[str] = ("tab", "cdf"),
+    columns: Sequence[Column] | None = None,
+    label_extra: Mapping[str, Any] | None = None,
+    *,
+    variable_yaml: Path | None = None,
+    global_yaml: Path | None = None,
+) -> list[Path]:
+    """Write one product in several formats; return the paths written.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Dimension ``time``, int64 TT2000 coordinate ``epoch``, vectors on
+        ``("time", "component")``, ``units`` attrs, provenance in ``attrs`` (see
+        `fluxcal.products.provenance.provenance_attrs`).
+    stem : Path
+        Output path without suffix, e.g. ``out/MAGMSOSCI24001``.
+    formats : sequence of str
+        Any of ``"tab"`` (``stem.TAB`` + ``stem.LBL``), ``"cdf"`` (``stem.cdf``),
+        ``"nc"`` (``stem.nc``), ``"zarr"`` (``stem.zarr``, needs the zarr package).
+    columns : sequence of Column, optional
+        Table columns (TAB only); default: every time variable, exact formats.
+    label_extra : mapping, optional
+        Extra keywords for the label and extra CDF global attributes.
+    variable_yaml, global_yaml : Path, optional
+        Mission ISTP attribute files replacing ``products/data/istp_*.yaml``.
+
+    Returns
+    -------
+    list of Path
+        Every file (or store) written, in the order of ``formats``.
+
+    Raises
+    ------
+    InputFormatError
+        Unknown format, or a dataset the format cannot hold.
+
+    Notes
+    -----
+    Every file is written under a temporary name in the same folder and renamed
+    into place; if a format fails, the files of the formats already written stay
+    (each is complete), and nothing partial of the failing one is left.
+    """
+    unknown = [f for f in formats if f not in FORMATS]
+    if unknown:
+        raise InputFormatError(f"unknown product format(s) {unknown}; expected {FORMATS}",
+                               field="formats")
+    stem = Path(stem)
+    written: list[Path] = []
+    for fmt in formats:
+        if fmt == "tab":
+            written += write_tab(ds, stem, columns, label_extra)
+        elif fmt == "cdf":
+            written.append(write_cdf(ds, _with(stem, "cdf"), label_extra, variable_yaml,
+                                     global_yaml))
+        elif fmt == "nc":
+            written.append(write_netcdf(ds, _with(stem, "nc")))
+        else:
+            written.append(write_zarr(ds, _with(stem, "zarr")))
+    return written
+
+
+def _with(stem: Path, fmt: str) -> Path:
+    return stem.with_name(stem.name + SUFFIX[fmt])
+
+
+READERS: dict[str, Callable[[Path], xr.Dataset]] = {
+    ".tab": read_tab,
+    ".lbl": read_tab,
+    ".cdf": read_cdf,
+    ".nc": read_netcdf,
+    ".zarr": read_zarr,
+}
+
+
+def read_product(path: Path) -> xr.Dataset:
+    """Read any fluxcal product (format from the suffix) into a Dataset."""
+    path = Path(path)
+    reader = READERS.get(path.suffix.lower())
+    if reader is None:
+        raise InputFormatError(f"unknown product suffix {path.suffix!r}; expected one of "
+                               f"{sorted(READERS)}", path=str(path))
+    if path.suffix.lower() == ".lbl":
+        path = path.with_suffix(".TAB")
+    return reader(path)
