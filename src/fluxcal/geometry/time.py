@@ -1,0 +1,452 @@
+"""Spacecraft clock, ephemeris time, TT2000 and UTC, vectorized over arrays.
+
+Times inside fluxcal are either float64 ephemeris seconds (TDB seconds past J2000, the
+SPICE ``et``) or int64 TT2000 nanoseconds (the CDF epoch: TT nanoseconds past J2000).
+Float64 nanoseconds are never used.
+
+The conversions follow the SPICE algorithms but run in numpy, from the constants of the
+loaded kernels (SCLK type 1 coefficients, the leapseconds kernel's DELTET values); tests
+compare them with ``spiceypy.scs2e``, ``sce2c``, ``unitim`` and ``timout``.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i (seed 000), sec. 9 "UTC Conversion".
+.. [2] NAIF, "SCLK Required Reading" and "Time Required Reading" (type 1 SCLK,
+       TDT-TDB relation, leap seconds).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import spiceypy
+
+from fluxcal.errors import InputFormatError, KernelError
+from fluxcal.geometry.kernels import spice_errors
+
+#: Offset TT - TAI in seconds.
+TT_MINUS_TAI = 32.184
+_J2000_UTC_NAIVE = np.datetime64("2000-01-01T12:00:00", "ns")
+_NS = 1_000_000_000
+
+
+# ----------------------------------------------------------------------------------------
+# TDB <-> TT (the LSK's DELTET model)
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LeapSecondTable:
+    """Constants of the loaded leapseconds kernel (``DELTET/...``).
+
+    Attributes
+    ----------
+    k, eb, m0, m1 : float
+        Constants of TDB - TT = K sin(E), E = M + EB sin(M), M = M0 + M1 t.
+    delta_at : ndarray of int
+        TAI - UTC after each leap epoch.
+    epochs_utc_naive : ndarray of float
+        The leap epochs as naive (86400 s/day) UTC seconds past 2000-01-01T12:00:00.
+    """
+
+    k: float
+    eb: float
+    m0: float
+    m1: float
+    delta_at: np.ndarray
+    epochs_utc_naive: np.ndarray
+
+    @classmethod
+    def from_pool(cls) -> LeapSecondTable:
+        """Read the constants from the loaded leapseconds kernel."""
+        with spice_errors("reading DELTET/* from the leapseconds kernel (is an LSK loaded?)"):
+            k = spiceypy.gdpool("DELTET/K", 0, 1)[0]
+            eb = spiceypy.gdpool("DELTET/EB", 0, 1)[0]
+            m = spiceypy.gdpool("DELTET/M", 0, 2)
+            n = spiceypy.dtpool("DELTET/DELTA_AT")[0]
+            pairs = np.asarray(spiceypy.gdpool("DELTET/DELTA_AT", 0, n), dtype=float)
+        return cls(
+            k=float(k),
+            eb=float(eb),
+            m0=float(m[0]),
+            m1=float(m[1]),
+            delta_at=pairs[0::2].astype(np.int64),
+            epochs_utc_naive=pairs[1::2],
+        )
+
+    def tdb_minus_tt(self, t: np.ndarray) -> np.ndarray:
+        """Return TDB - TT (s) for ``t`` in seconds past J2000 (either scale)."""
+        m = self.m0 + self.m1 * t
+        return self.k * np.sin(m + self.eb * np.sin(m))
+
+    def tt_to_tdb(self, tt: np.ndarray) -> np.ndarray:
+        """TT (TDT) seconds past J2000 -> TDB seconds past J2000 (as SPICE ``unitim``)."""
+        tt = np.asarray(tt, dtype=float)
+        return tt + self.tdb_minus_tt(tt)
+
+    def tdb_to_tt(self, tdb: np.ndarray) -> np.ndarray:
+        """TDB seconds past J2000 -> TT seconds past J2000 (fixed-point inverse)."""
+        tdb = np.asarray(tdb, dtype=float)
+        tt = tdb - self.tdb_minus_tt(tdb)
+        for _ in range(3):
+            tt = tdb - self.tdb_minus_tt(tt)
+        return tt
+
+    # leap seconds in TT2000 nanoseconds
+    def leap_tt2000(self) -> np.ndarray:
+        """Return the TT2000 (ns) instants at which each ``delta_at`` starts to apply."""
+        sec = self.epochs_utc_naive.astype(np.int64)  # leap epochs are whole seconds
+        return (sec + self.delta_at) * _NS + int(TT_MINUS_TAI * _NS)
+
+
+_LSK_CACHE: dict[tuple, LeapSecondTable] = {}
+
+
+def leapseconds() -> LeapSecondTable:
+    """Return the `LeapSecondTable` of the currently loaded LSK (cached per content)."""
+    with spice_errors("reading the leapseconds kernel"):
+        n = spiceypy.dtpool("DELTET/DELTA_AT")[0]
+        key = tuple(spiceypy.gdpool("DELTET/DELTA_AT", 0, n)) + tuple(
+            spiceypy.gdpool("DELTET/M", 0, 2)
+        )
+    if key not in _LSK_CACHE:
+        _LSK_CACHE[key] = LeapSecondTable.from_pool()
+    return _LSK_CACHE[key]
+
+
+# ----------------------------------------------------------------------------------------
+# ET <-> TT2000
+# ----------------------------------------------------------------------------------------
+def et_to_tt2000(et: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
+    """Convert ephemeris time (TDB s past J2000) to int64 TT2000 nanoseconds.
+
+    Parameters
+    ----------
+    et : array_like of float
+        Ephemeris times.
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    ndarray of int64
+        TT nanoseconds past J2000 TT (the CDF ``TT2000`` epoch), rounded to the nearest ns.
+
+    Notes
+    -----
+    The whole and fractional seconds are converted separately so that no float64
+    nanosecond count is formed.
+    """
+    lsk = lsk or leapseconds()
+    tt = lsk.tdb_to_tt(np.asarray(et, dtype=float))
+    whole = np.floor(tt)
+    frac_ns = np.rint((tt - whole) * 1e9).astype(np.int64)
+    return whole.astype(np.int64) * _NS + frac_ns
+
+
+def tt2000_to_et(tt2000: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
+    """Convert int64 TT2000 nanoseconds to ephemeris time (TDB s past J2000)."""
+    lsk = lsk or leapseconds()
+    tt2000 = np.asarray(tt2000, dtype=np.int64)
+    whole, rem = np.divmod(tt2000, _NS)
+    tt = whole.astype(float) + rem.astype(float) * 1e-9
+    return lsk.tt_to_tdb(tt)
+
+
+# ----------------------------------------------------------------------------------------
+# TT2000 <-> UTC
+# ----------------------------------------------------------------------------------------
+def _tt2000_to_utc_naive(tt2000: np.ndarray, lsk: LeapSecondTable) -> tuple[np.ndarray, np.ndarray]:
+    """Return naive UTC ns past 2000-01-01T12 and a mask of samples inside a leap second."""
+    leaps = lsk.leap_tt2000()
+    idx = np.searchsorted(leaps, tt2000, side="right") - 1
+    # inside the leap second that precedes leap i the new TAI-UTC already applies for display
+    nxt = np.clip(idx + 1, 0, len(leaps) - 1)
+    in_leap = (idx + 1 < len(leaps)) & (tt2000 >= leaps[nxt] - _NS)
+    idx = np.where(in_leap, nxt, idx)
+    delta_at = np.where(idx >= 0, lsk.delta_at[np.clip(idx, 0, None)], lsk.delta_at[0])
+    naive = tt2000 - int(TT_MINUS_TAI * _NS) - delta_at * _NS
+    return naive, in_leap
+
+
+def tt2000_to_utc(
+    tt2000: np.ndarray, style: str = "iso", digits: int = 3, lsk: LeapSecondTable | None = None
+) -> np.ndarray:
+    """Format TT2000 nanoseconds as UTC strings.
+
+    Parameters
+    ----------
+    tt2000 : array_like of int64
+        TT2000 nanoseconds.
+    style : {"iso", "doy"}
+        ``"iso"``: ``YYYY-MM-DDTHH:MM:SS.fff``; ``"doy"``: the MESSENGER archive form
+        ``YYYY DOY HH MM SS.fff`` of seed 000 sec. 9 (``timout`` picture
+        ``YYYY DOY HR MN SC.###``).
+    digits : int
+        Decimal places of the seconds, 0-9.  Seconds are truncated, as SPICE ``timout``
+        does without the ``::RND`` token.
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    ndarray of str
+        One string per time; a time inside a leap second shows seconds ``60``.
+    """
+    if style not in ("iso", "doy"):
+        raise ValueError(f"style must be 'iso' or 'doy', not {style!r}")
+    if not 0 <= digits <= 9:
+        raise ValueError(f"digits must be within 0..9, not {digits}")
+    lsk = lsk or leapseconds()
+    tt2000 = np.atleast_1d(np.asarray(tt2000, dtype=np.int64))
+    naive, in_leap = _tt2000_to_utc_naive(tt2000, lsk)
+    stamp = _J2000_UTC_NAIVE + naive.astype("m8[ns]")
+    day = stamp.astype("M8[D]")
+    ns_of_day = (stamp - day).astype(np.int64)
+    year = day.astype("M8[Y]").astype(np.int64) + 1970
+    hour = ns_of_day // (3600 * _NS)
+    minute = ns_of_day // (60 * _NS) % 60
+    sec_ns = ns_of_day % (60 * _NS) + np.where(in_leap, _NS, 0)
+    whole = sec_ns // _NS
+    frac = (sec_ns % _NS) // 10 ** (9 - digits)
+    if style == "iso":
+        date = np.datetime_as_string(day, unit="D")
+        head = np.char.add(date, "T")
+        parts = [head, _pad(hour, 2), ":", _pad(minute, 2), ":", _pad(whole, 2)]
+    else:
+        doy = (day - day.astype("M8[Y]")).astype(np.int64) + 1
+        parts = [_pad(year, 4), " ", _pad(doy, 3), " ", _pad(hour, 2), " ", _pad(minute, 2), " ",
+                 _pad(whole, 2)]
+    if digits:
+        parts += [".", _pad(frac, digits)]
+    out = parts[0]
+    for part in parts[1:]:
+        out = np.char.add(out, part)
+    return out
+
+
+def _pad(values: np.ndarray, width: int) -> np.ndarray:
+    return np.char.zfill(values.astype(np.int64).astype(str), width)
+
+
+def et_to_utc(
+    et: np.ndarray, style: str = "iso", digits: int = 3, lsk: LeapSecondTable | None = None
+) -> np.ndarray:
+    """Format ephemeris times as UTC strings (see `tt2000_to_utc`)."""
+    lsk = lsk or leapseconds()
+    return tt2000_to_utc(et_to_tt2000(et, lsk), style=style, digits=digits, lsk=lsk)
+
+
+def utc_to_tt2000(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
+    """Parse ISO 8601 UTC strings (``YYYY-MM-DDTHH:MM:SS[.f]``, optional ``Z``) to TT2000.
+
+    A seconds field of ``60`` (a leap second) is accepted.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the first string that cannot be parsed.
+    """
+    lsk = lsk or leapseconds()
+    text = np.atleast_1d(np.asarray(utc, dtype=str))
+    text = np.char.rstrip(np.char.strip(text), "Z")
+    leap = np.char.find(text, ":60") == 16
+    if leap.any():
+        text = text.astype(object)
+        text[leap] = [s[:17] + "59" + s[19:] for s in text[leap]]
+        text = text.astype(str)
+    try:
+        stamp = text.astype("M8[ns]")
+    except ValueError:
+        bad = _first_unparsable(text)
+        raise InputFormatError(
+            f"cannot parse UTC time {bad!r}; expected ISO 8601 YYYY-MM-DDTHH:MM:SS.fff",
+            field="time_utc",
+        ) from None
+    naive = (stamp - _J2000_UTC_NAIVE).astype(np.int64)
+    idx = np.searchsorted(lsk.epochs_utc_naive.astype(np.int64) * _NS, naive, side="right") - 1
+    delta_at = lsk.delta_at[np.clip(idx, 0, None)]
+    delta_at = np.where(leap, delta_at - 1, delta_at)  # 23:59:60 belongs to the old count
+    return naive + delta_at * _NS + int(TT_MINUS_TAI * _NS) + np.where(leap, _NS, 0)
+
+
+def _first_unparsable(text: np.ndarray) -> str:
+    for item in text:
+        try:
+            np.datetime64(item, "ns")
+        except ValueError:
+            return str(item)
+    return str(text[0])  # pragma: no cover
+
+
+def utc_to_et(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
+    """Parse ISO 8601 UTC strings to ephemeris time (see `utc_to_tt2000`)."""
+    lsk = lsk or leapseconds()
+    return tt2000_to_et(utc_to_tt2000(utc, lsk), lsk)
+
+
+# ----------------------------------------------------------------------------------------
+# Spacecraft clock (SCLK type 1)
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SclkKernel:
+    """A type 1 spacecraft clock, converted in numpy from the kernel's own coefficients.
+
+    Attributes
+    ----------
+    sc_id : int
+        NAIF spacecraft id (MESSENGER -236, Rosetta -226).
+    moduli : ndarray
+        Field moduli (``SCLK01_MODULI``).
+    partition_start, partition_end : ndarray
+        Partition limits in ticks (``SCLK_PARTITION_START/END``).
+    ticks, parallel, rate : ndarray
+        The coefficient triplets: encoded SCLK, parallel time (s past J2000), rate
+        (parallel seconds per most-significant count).
+    time_system : int
+        1 = TDB, 2 = TDT (TT) parallel time.
+
+    Notes
+    -----
+    A clock reading is given as a partition number and the reading in units of the first
+    (most significant) field, fraction included: for MESSENGER (fields seconds and
+    microseconds) ``seconds = 16458912.103412`` is ``1/16458912:103412``.  Offsets of the
+    fields (``SCLK01_OFFSETS``) must be zero.
+    """
+
+    sc_id: int
+    moduli: np.ndarray
+    partition_start: np.ndarray
+    partition_end: np.ndarray
+    ticks: np.ndarray
+    parallel: np.ndarray
+    rate: np.ndarray
+    time_system: int
+    lsk: LeapSecondTable
+
+    @classmethod
+    def from_pool(cls, sc_id: int) -> SclkKernel:
+        """Read the SCLK of spacecraft ``sc_id`` from the loaded kernel pool.
+
+        Raises
+        ------
+        KernelError
+            When no type 1 SCLK for ``sc_id`` is loaded.
+        """
+        cid = abs(int(sc_id))
+
+        def get(name: str) -> np.ndarray:
+            key = f"{name}_{cid}"
+            try:
+                n = spiceypy.dtpool(key)[0]
+                return np.asarray(spiceypy.gdpool(key, 0, n), dtype=float)
+            except spiceypy.utils.exceptions.SpiceyError:
+                raise KernelError(
+                    f"no SCLK kernel for spacecraft {sc_id} is loaded (missing {key})"
+                ) from None
+
+        try:
+            spiceypy.dtpool(f"SCLK01_COEFFICIENTS_{cid}")
+        except spiceypy.utils.exceptions.SpiceyError:
+            raise KernelError(
+                f"no SCLK kernel for spacecraft {sc_id} is loaded "
+                f"(missing SCLK01_COEFFICIENTS_{cid})"
+            ) from None
+        dtype = get("SCLK_DATA_TYPE")
+        if int(dtype[0]) != 1:
+            raise KernelError(f"SCLK of spacecraft {sc_id} is type {int(dtype[0])}, not 1")
+        offsets = get("SCLK01_OFFSETS")
+        if np.any(offsets != 0):
+            raise KernelError(f"SCLK of spacecraft {sc_id} has non-zero field offsets {offsets}")
+        try:
+            system = int(get("SCLK01_TIME_SYSTEM")[0])
+        except KernelError:
+            system = 1
+        coeff = get("SCLK01_COEFFICIENTS").reshape(-1, 3)
+        return cls(
+            sc_id=int(sc_id),
+            moduli=get("SCLK01_MODULI"),
+            partition_start=get("SCLK_PARTITION_START"),
+            partition_end=get("SCLK_PARTITION_END"),
+            ticks=coeff[:, 0].copy(),
+            parallel=coeff[:, 1].copy(),
+            rate=coeff[:, 2].copy(),
+            time_system=system,
+            lsk=leapseconds(),
+        )
+
+    @property
+    def ticks_per_count(self) -> float:
+        """Ticks per most-significant count (product of the lower field moduli)."""
+        return float(np.prod(self.moduli[1:]))
+
+    @property
+    def partition_offsets(self) -> np.ndarray:
+        """Encoded ticks at the start of each partition."""
+        lengths = self.partition_end - self.partition_start
+        return np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
+
+    def encode(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+        """Return encoded SCLK ticks (continuous across partitions) of clock readings.
+
+        Raises
+        ------
+        InputFormatError
+            Naming the first reading outside its partition (or an unknown partition).
+        """
+        partition = np.asarray(partition)
+        seconds = np.asarray(seconds, dtype=float)
+        partition, seconds = np.broadcast_arrays(partition, seconds)
+        n_part = len(self.partition_start)
+        bad_p = (partition < 1) | (partition > n_part)
+        if bad_p.any():
+            i = int(np.flatnonzero(bad_p)[0])
+            raise InputFormatError(
+                f"SCLK reading {int(partition[i])}/{seconds[i]:.6f} of spacecraft {self.sc_id}: "
+                f"partition {int(partition[i])} does not exist (kernel has 1..{n_part})",
+                line=None,
+                field="partition",
+            )
+        p = partition.astype(np.int64) - 1
+        reading = seconds * self.ticks_per_count
+        start = self.partition_start[p]
+        end = self.partition_end[p]
+        outside = (reading < start) | (reading > end)
+        if outside.any():
+            i = int(np.flatnonzero(outside)[0])
+            raise InputFormatError(
+                f"SCLK reading {int(partition[i])}/{seconds[i]:.6f} of spacecraft {self.sc_id} "
+                f"is outside partition {int(partition[i])} "
+                f"({start[i] / self.ticks_per_count:.6f} .. {end[i] / self.ticks_per_count:.6f})",
+                field="met",
+            )
+        return self.partition_offsets[p] + (reading - start)
+
+    def decode(self, encoded: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (partition, seconds) of encoded SCLK ticks."""
+        encoded = np.asarray(encoded, dtype=float)
+        offsets = self.partition_offsets
+        p = np.clip(np.searchsorted(offsets, encoded, side="right") - 1, 0, len(offsets) - 1)
+        reading = self.partition_start[p] + (encoded - offsets[p])
+        return p + 1, reading / self.ticks_per_count
+
+    def encoded_to_et(self, encoded: np.ndarray) -> np.ndarray:
+        """Encoded ticks -> ephemeris time (SPICE ``sct2e``)."""
+        encoded = np.asarray(encoded, dtype=float)
+        i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, len(self.ticks) - 1)
+        par = self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
+        return self.lsk.tt_to_tdb(par) if self.time_system == 2 else par
+
+    def et_to_encoded(self, et: np.ndarray) -> np.ndarray:
+        """Ephemeris time -> encoded ticks (SPICE ``sce2c``, continuous ticks)."""
+        et = np.asarray(et, dtype=float)
+        par = self.lsk.tdb_to_tt(et) if self.time_system == 2 else et
+        i = np.clip(np.searchsorted(self.parallel, par, side="right") - 1, 0, len(self.parallel) - 1)
+        return self.ticks[i] + (par - self.parallel[i]) * (self.ticks_per_count / self.rate[i])
+
+    def to_et(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+        """Clock readings (partition, seconds) -> ephemeris time, as ``spiceypy.scs2e``."""
+        return self.encoded_to_et(self.encode(partition, seconds))
+
+    def from_et(self, et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ephemeris time -> clock readings (partition, seconds)."""
+        return self.decode(self.et_to_encoded(et))
