@@ -1,0 +1,505 @@
+"""Rosetta RPC-MAG calibration files: parsers and the constants they hold.
+
+Files (all plain text, ``KEY = v1 v2 ...`` per line, ``#`` starts a comment):
+
+- ground calibration ``RPCMAG_001_CALIB_FSDPU_FM<IB|OB>.TXT`` (seed 003, sec. 3.3),
+- daily extended-temperature files ``RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT`` (sec. 4.2.3.3),
+- the alignment file ``RPCMAG_SC_ALIGN.TXT`` (sec. 4.3.1),
+
+plus two CSV tables shipped with fluxcal: the filter-mode time shifts
+(``RPCMAG_FILTER_TIMESHIFT.csv``, sec. 4.2.3.5) and the post-hibernation offset jumps
+(``RPCMAG_OFFSET_JUMPS.csv``, Appendix B).  A user directory given with ``--calib DIR``
+overrides any of them file by file; fluxcal's defaults live in ``missions/rosetta/data``.
+
+References
+----------
+.. [1] I. Richter, "Step by Step Calibration Procedure for RPC-MAG Data",
+   RO-IGEP-TR0028 issue 3 rev. 1 (2015) (seed 003), sec. 3.3, 4.2.3.3, 4.2.3.5, 4.3.1,
+   Appendix B.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from fluxcal.errors import CalibrationError, CalibrationRangeError
+
+SENSORS = ("OB", "IB")
+
+GROUND_FILE = {"OB": "RPCMAG_001_CALIB_FSDPU_FMOB.TXT", "IB": "RPCMAG_001_CALIB_FSDPU_FMIB.TXT"}
+ALIGN_FILE = "RPCMAG_SC_ALIGN.TXT"
+TIMESHIFT_FILE = "RPCMAG_FILTER_TIMESHIFT.csv"
+JUMPS_FILE = "RPCMAG_OFFSET_JUMPS.csv"
+NOMINAL_FILE = "nominal_conversion.toml"
+_DAILY_RE = re.compile(r"^RPCMAG_(\d{6})_006_CALIB_(IB|OB)\.TXT$", re.IGNORECASE)
+
+
+def default_dir() -> Path:
+    """Return the folder of the calibration files shipped with fluxcal."""
+    return Path(str(resources.files("fluxcal.missions.rosetta") / "data"))
+
+
+def check_sensor(sensor: str) -> str:
+    """Return ``sensor`` upper-cased, or raise `CalibrationError` if it is not OB or IB."""
+    name = str(sensor).upper()
+    if name not in SENSORS:
+        raise CalibrationError(
+            f"unknown RPC-MAG sensor {sensor!r}: only OB and IB have a ground calibration "
+            "(seed 003, sec. 3.3)"
+        )
+    return name
+
+
+def resolve(name: str, calib_dir: Path | None) -> Path:
+    """Return ``calib_dir / name`` when that file exists, else fluxcal's default file."""
+    if calib_dir is not None:
+        candidate = Path(calib_dir) / name
+        if candidate.is_file():
+            return candidate
+    path = default_dir() / name
+    if not path.is_file():
+        raise CalibrationError(f"calibration file {name} found neither in {calib_dir} nor in {path.parent}")
+    return path
+
+
+# ----------------------------------------------------------------------------------------
+# KEY = values files
+# ----------------------------------------------------------------------------------------
+def read_key_file(path: Path) -> dict[str, tuple[list[str], int]]:
+    """Read a ``KEY = v1 v2 ...`` file into ``{KEY: (tokens, line_number)}``.
+
+    Keys are upper-cased and ``.`` is read as ``_`` (the seed writes both ``A.0`` and
+    ``A_0``).  A line without ``=`` or a repeated key is a `CalibrationError` naming the
+    file and line.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CalibrationError(f"cannot read calibration file {path}: {exc}") from None
+    out: dict[str, tuple[list[str], int]] = {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        if "=" not in line:
+            raise CalibrationError(f"{path}, line {number}: expected 'KEY = values', got {raw!r}")
+        key, _, value = line.partition("=")
+        key = key.strip().upper().replace(".", "_")
+        if key in out:
+            raise CalibrationError(f"{path}, line {number}: key {key} repeated (first on line {out[key][1]})")
+        out[key] = (value.split(), number)
+    return out
+
+
+def _numbers(entries: dict, key: str, count: int, path: Path) -> np.ndarray:
+    if key not in entries:
+        raise CalibrationError(f"{path}: missing key {key} (expected {count} number(s))")
+    tokens, number = entries[key]
+    if len(tokens) != count:
+        raise CalibrationError(
+            f"{path}, line {number}: key {key} has {len(tokens)} value(s), expected {count}"
+        )
+    try:
+        return np.array([float(t) for t in tokens])
+    except ValueError:
+        raise CalibrationError(f"{path}, line {number}: key {key} has a non-numeric value {tokens}") from None
+
+
+def _text(entries: dict, key: str, default: str | None = None) -> str | None:
+    if key not in entries:
+        return default
+    return " ".join(entries[key][0])
+
+
+def _validity(entries: dict, path: Path) -> tuple[np.datetime64 | None, np.datetime64 | None]:
+    out = []
+    for key in ("VALID_FROM", "VALID_TO"):
+        text = _text(entries, key)
+        if text is None:
+            out.append(None)
+            continue
+        try:
+            out.append(np.datetime64(text, "s"))
+        except ValueError:
+            raise CalibrationError(f"{path}, line {entries[key][1]}: {key} is not an ISO time: {text!r}") from None
+    return out[0], out[1]
+
+
+@dataclass(frozen=True)
+class Validity:
+    """Validity interval ``[start, end]`` (UTC, ``None`` = open) of a calibration file."""
+
+    source: str
+    start: np.datetime64 | None = None
+    end: np.datetime64 | None = None
+
+    def check(self, first_utc: np.datetime64, last_utc: np.datetime64) -> None:
+        """Raise `CalibrationRangeError` if ``[first_utc, last_utc]`` leaves the interval."""
+        if (self.start is not None and first_utc < self.start) or (
+            self.end is not None and last_utc > self.end
+        ):
+            raise CalibrationRangeError(
+                f"{self.source}: valid {self.start} .. {self.end}, data span {first_utc} .. {last_utc}"
+            )
+
+
+@dataclass(frozen=True)
+class GroundCalibration:
+    """Ground calibration of one RPC-MAG sensor (seed 003, sec. 3.3).
+
+    Attributes
+    ----------
+    sensor : str
+        ``"OB"`` or ``"IB"``.
+    offset : ndarray, shape (2, 3)
+        ``A_0`` (nT) and ``A_1`` (nT/K) of ``B_off = A_0 + A_1 T - B_res``.
+    residual_field : ndarray, shape (3,)
+        ``B_RES`` (nT), the coil-system residual field.
+    sensitivity : ndarray, shape (2, 3)
+        ``SIGMA_00`` and ``SIGMA_01`` (1/K): ``sigma^0(T) = SIGMA_00 + SIGMA_01 T``.
+    angles : ndarray, shape (2, 3)
+        ``XI_10`` (deg) and ``XI_11`` (deg/K), angles xi_xy, xi_xz, xi_yz at the off-centre
+        position.
+    k_inverse : ndarray, shape (3, 3)
+        ``K^-1``, rows ``K_0``, ``K_1``, ``K_2``.
+    thermistor : ndarray, shape (4,)
+        ``T_0`` .. ``T_3``, the thermistor polynomial T(U) in deg C (sec. 3.3.3).
+    thermistor_offset : float
+        ``T_OFF`` (deg C): ``T^c = T^r - T_OFF``.
+    source, version : str
+        File and version, for provenance.
+    validity : Validity
+        Validity interval from the file header.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1, 3.3.2 (tables), 3.3.3.
+    """
+
+    sensor: str
+    offset: np.ndarray
+    residual_field: np.ndarray
+    sensitivity: np.ndarray
+    angles: np.ndarray
+    k_inverse: np.ndarray
+    thermistor: np.ndarray
+    thermistor_offset: float
+    source: str = ""
+    version: str = ""
+    validity: Validity = field(default_factory=lambda: Validity(""))
+
+
+def read_ground_calibration(path: Path, sensor: str | None = None) -> GroundCalibration:
+    """Parse a ground-calibration file (seed 003, sec. 3.3).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    sensor : str, optional
+        Expected sensor; a different ``SENSOR`` key in the file is an error.
+
+    Raises
+    ------
+    CalibrationError
+        Missing key, wrong count of values, non-numeric value, unknown sensor.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1.1-3.3.3 (labels A_0, A_1, SIGMA_00,
+       SIGMA_01, XI_10, XI_11, K_0..K_2, T_0..T_3, T_OFF).
+    """
+    path = Path(path)
+    entries = read_key_file(path)
+    file_sensor = _text(entries, "SENSOR")
+    if file_sensor is None:
+        raise CalibrationError(f"{path}: missing key SENSOR (expected OB or IB)")
+    file_sensor = check_sensor(file_sensor)
+    if sensor is not None and check_sensor(sensor) != file_sensor:
+        raise CalibrationError(f"{path}: SENSOR = {file_sensor}, but sensor {sensor} was requested")
+    num = lambda key, n=3: _numbers(entries, key, n, path)  # noqa: E731
+    start, end = _validity(entries, path)
+    return GroundCalibration(
+        sensor=file_sensor,
+        offset=np.stack([num("A_0"), num("A_1")]),
+        residual_field=num("B_RES"),
+        sensitivity=np.stack([num("SIGMA_00"), num("SIGMA_01")]),
+        angles=np.stack([num("XI_10"), num("XI_11")]),
+        k_inverse=np.stack([num("K_0"), num("K_1"), num("K_2")]),
+        thermistor=np.concatenate([num(f"T_{i}", 1) for i in range(4)]),
+        thermistor_offset=float(num("T_OFF", 1)[0]),
+        source=str(path),
+        version=_text(entries, "VERSION", "unversioned") or "",
+        validity=Validity(str(path), start, end),
+    )
+
+
+def load_ground_calibration(sensor: str, calib_dir: Path | None = None) -> GroundCalibration:
+    """Load the ground calibration of ``sensor`` from ``calib_dir`` or fluxcal's defaults."""
+    sensor = check_sensor(sensor)
+    return read_ground_calibration(resolve(GROUND_FILE[sensor], calib_dir), sensor)
+
+
+def write_ground_calibration(cal: GroundCalibration, path: Path) -> Path:
+    """Write ``cal`` as a ground-calibration file readable by `read_ground_calibration`."""
+    vec = lambda v: " ".join(repr(float(x)) for x in np.ravel(v))  # noqa: E731
+    lines = [
+        "# RPC-MAG ground calibration written by fluxcal (seed 003, sec. 3.3 format)",
+        f"VERSION = {cal.version or '001'}",
+        f"SENSOR = {cal.sensor}",
+        f"A_0 = {vec(cal.offset[0])}",
+        f"A_1 = {vec(cal.offset[1])}",
+        f"B_RES = {vec(cal.residual_field)}",
+        f"SIGMA_00 = {vec(cal.sensitivity[0])}",
+        f"SIGMA_01 = {vec(cal.sensitivity[1])}",
+        f"XI_10 = {vec(cal.angles[0])}",
+        f"XI_11 = {vec(cal.angles[1])}",
+        *(f"K_{i} = {vec(cal.k_inverse[i])}" for i in range(3)),
+        *(f"T_{i} = {vec(cal.thermistor[i])}" for i in range(4)),
+        f"T_OFF = {cal.thermistor_offset!r}",
+    ]
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return Path(path)
+
+
+# ----------------------------------------------------------------------------------------
+# Extended temperature model (daily files)
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DailyOffsetModel:
+    """Daily extended-temperature offset polynomial of one sensor (seed 003, sec. 4.2.3.3).
+
+    ``coefficients[k]`` holds ``P_k`` (x, y, z, nT per deg C^k); the polynomial's variable
+    is the calibrated sensor temperature in deg C.
+    """
+
+    day: np.datetime64
+    sensor: str
+    coefficients: np.ndarray
+    source: str = ""
+
+
+def read_daily_offset_model(path: Path) -> DailyOffsetModel:
+    """Parse ``RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT`` (keys ``P_0`` .. ``P_5``).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3.
+    """
+    path = Path(path)
+    match = _DAILY_RE.match(path.name)
+    if match is None:
+        raise CalibrationError(
+            f"{path}: name does not follow RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT (sec. 4.2.3.3)"
+        )
+    yymmdd, sensor = match.group(1), match.group(2).upper()
+    try:
+        day = np.datetime64(dt.datetime.strptime(yymmdd, "%y%m%d").date(), "D")
+    except ValueError:
+        raise CalibrationError(f"{path}: {yymmdd!r} is not a date yymmdd") from None
+    entries = read_key_file(path)
+    file_sensor = _text(entries, "SENSOR")
+    if file_sensor is not None and check_sensor(file_sensor) != sensor:
+        raise CalibrationError(f"{path}: SENSOR = {file_sensor} contradicts the file name ({sensor})")
+    coeffs = np.stack([_numbers(entries, f"P_{k}", 3, path) for k in range(6)])
+    return DailyOffsetModel(day=day, sensor=sensor, coefficients=coeffs, source=str(path))
+
+
+def find_daily_offset_models(calib_dir: Path | None, sensor: str) -> dict[np.datetime64, DailyOffsetModel]:
+    """Return the daily extended-temperature models of ``sensor`` found in ``calib_dir``."""
+    sensor = check_sensor(sensor)
+    out: dict[np.datetime64, DailyOffsetModel] = {}
+    if calib_dir is None:
+        return out
+    for path in sorted(Path(calib_dir).glob("*")):
+        match = _DAILY_RE.match(path.name)
+        if match and match.group(2).upper() == sensor:
+            model = read_daily_offset_model(path)
+            out[model.day] = model
+    return out
+
+
+def write_daily_offset_model(model: DailyOffsetModel, folder: Path) -> Path:
+    """Write ``model`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``folder``."""
+    day = model.day.astype(dt.date)
+    path = Path(folder) / f"RPCMAG_{day:%y%m%d}_006_CALIB_{model.sensor}.TXT"
+    lines = ["# RPC-MAG extended temperature model 006 (seed 003, sec. 4.2.3.3), nT per degC^k",
+             f"SENSOR = {model.sensor}"]
+    lines += [f"P_{k} = " + " ".join(repr(float(v)) for v in model.coefficients[k]) for k in range(6)]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+# ----------------------------------------------------------------------------------------
+# Alignment
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Alignment:
+    """Rotation matrices R_UVW2SC (sec. 4.3.1), keyed ``(sensor, boom)`` with boom
+    ``"deployed"`` or ``"stowed"``."""
+
+    matrices: dict[tuple[str, str], np.ndarray]
+    source: str = ""
+    version: str = ""
+    placeholder: bool = False
+
+    def matrix(self, sensor: str, boom: str = "deployed") -> np.ndarray:
+        """Return R_UVW2SC of ``sensor`` for boom state ``boom``."""
+        key = (check_sensor(sensor), str(boom).lower())
+        if key not in self.matrices:
+            raise CalibrationError(f"{self.source}: no alignment for {key[0]} with boom {key[1]!r}")
+        return self.matrices[key]
+
+
+def read_alignment(path: Path, *, tolerance: float = 1e-4) -> Alignment:
+    """Parse ``RPCMAG_SC_ALIGN.TXT``: keys ``OB_DEPLOYED``, ``OB_STOWED``, ``IB_DEPLOYED``,
+    ``IB_STOWED``, nine numbers each (row-major R_UVW2SC).
+
+    A matrix that is not a rotation within ``tolerance`` (``|R R^T - I|``, ``det R``) is a
+    `CalibrationError`.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.3.1.
+    """
+    path = Path(path)
+    entries = read_key_file(path)
+    matrices = {}
+    for sensor in SENSORS:
+        for boom in ("deployed", "stowed"):
+            key = f"{sensor}_{boom.upper()}"
+            m = _numbers(entries, key, 9, path).reshape(3, 3)
+            err = np.abs(m @ m.T - np.eye(3)).max()
+            if err > tolerance or np.linalg.det(m) < 0:
+                raise CalibrationError(
+                    f"{path}, line {entries[key][1]}: {key} is not a rotation matrix "
+                    f"(|R R^T - I| = {err:.2g}, det = {np.linalg.det(m):.6f})"
+                )
+            matrices[(sensor, boom)] = m
+    placeholder = _text(entries, "PLACEHOLDER", "0") not in ("0", "", None)
+    return Alignment(matrices, str(path), _text(entries, "VERSION", "unversioned") or "", placeholder)
+
+
+def load_alignment(calib_dir: Path | None = None) -> Alignment:
+    """Load ``RPCMAG_SC_ALIGN.TXT`` from ``calib_dir`` or fluxcal's default (placeholder)."""
+    return read_alignment(resolve(ALIGN_FILE, calib_dir))
+
+
+def write_alignment(alignment: Alignment, path: Path) -> Path:
+    """Write ``alignment`` in the ``RPCMAG_SC_ALIGN.TXT`` format."""
+    lines = ["# RPC-MAG R_UVW2SC, row-major (seed 003, sec. 4.3.1), written by fluxcal",
+             f"VERSION = {alignment.version or '001'}"]
+    for (sensor, boom), m in sorted(alignment.matrices.items()):
+        lines.append(f"{sensor}_{boom.upper()} = " + " ".join(repr(float(v)) for v in m.ravel()))
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return Path(path)
+
+
+# ----------------------------------------------------------------------------------------
+# CSV tables: time shifts and offset jumps
+# ----------------------------------------------------------------------------------------
+def _csv_rows(path: Path) -> list[tuple[int, dict[str, str]]]:
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except OSError as exc:
+        raise CalibrationError(f"cannot read calibration table {path}: {exc}") from None
+    numbered = [(i, line) for i, line in enumerate(lines, start=1) if line.strip() and not line.startswith("#")]
+    if not numbered:
+        raise CalibrationError(f"{path}: empty table")
+    reader = csv.DictReader([line for _, line in numbered])
+    return [(numbered[k + 1][0], row) for k, row in enumerate(reader)]
+
+
+@dataclass(frozen=True)
+class TimeShiftTable:
+    """Filter-mode time shifts (s) to add to the time stamps (seed 003, sec. 4.2.3.5).
+
+    ``primary[sid]`` and ``secondary[sid]`` are NaN where the seed's table has no entry.
+    """
+
+    sid: np.ndarray
+    primary: np.ndarray
+    secondary: np.ndarray
+    source: str = ""
+
+
+def read_time_shift_table(path: Path) -> TimeShiftTable:
+    """Parse ``RPCMAG_FILTER_TIMESHIFT.csv`` (columns sid, primary_shift_s, secondary_shift_s)."""
+    rows = _csv_rows(path)
+    sid, primary, secondary = [], [], []
+    for number, row in rows:
+        try:
+            sid.append(int(row["sid"]))
+            primary.append(float(row["primary_shift_s"]) if row["primary_shift_s"] else np.nan)
+            secondary.append(float(row["secondary_shift_s"]) if row["secondary_shift_s"] else np.nan)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationError(f"{path}, line {number}: bad time-shift row {row}: {exc}") from None
+    return TimeShiftTable(np.array(sid), np.array(primary), np.array(secondary), str(path))
+
+
+def load_time_shift_table(calib_dir: Path | None = None) -> TimeShiftTable:
+    """Load the filter-mode time-shift table from ``calib_dir`` or fluxcal's default."""
+    return read_time_shift_table(resolve(TIMESHIFT_FILE, calib_dir))
+
+
+@dataclass(frozen=True)
+class OffsetJumpTable:
+    """Post-hibernation offset jumps (seed 003, Appendix B), applied on ``[start, end)``.
+
+    Attributes
+    ----------
+    start_utc, end_utc : ndarray of str
+        Interval limits (UTC, ISO).
+    jumps : dict[str, ndarray]
+        ``{"OB": (m, 3), "IB": (m, 3)}`` in nT (NaN = unknown).
+    """
+
+    start_utc: np.ndarray
+    end_utc: np.ndarray
+    jumps: dict[str, np.ndarray]
+    source: str = ""
+
+
+def read_offset_jump_table(path: Path) -> OffsetJumpTable:
+    """Parse ``RPCMAG_OFFSET_JUMPS.csv`` (Appendix B of seed 003)."""
+    rows = _csv_rows(path)
+    start, end, ob, ib = [], [], [], []
+    for number, row in rows:
+        try:
+            a, b = np.datetime64(row["start_utc"], "s"), np.datetime64(row["end_utc"], "s")
+            ob.append([float(row[f"ob_{c}"]) for c in "xyz"])
+            ib.append([float(row[f"ib_{c}"]) for c in "xyz"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationError(f"{path}, line {number}: bad offset-jump row: {exc}") from None
+        if b <= a:
+            raise CalibrationError(f"{path}, line {number}: interval end {b} is not after start {a}")
+        start.append(row["start_utc"])
+        end.append(row["end_utc"])
+    return OffsetJumpTable(np.array(start), np.array(end),
+                           {"OB": np.array(ob), "IB": np.array(ib)}, str(path))
+
+
+def load_offset_jump_table(calib_dir: Path | None = None) -> OffsetJumpTable:
+    """Load the offset-jump table from ``calib_dir`` or fluxcal's default."""
+    return read_offset_jump_table(resolve(JUMPS_FILE, calib_dir))
+
+
+# ----------------------------------------------------------------------------------------
+# Nominal conversion constants
+# ----------------------------------------------------------------------------------------
+def load_nominal_conversion(calib_dir: Path | None = None) -> dict:
+    """Load the nominal ADC conversion constants (sec. 4.2.1-4.2.3.1) as a dict of sections."""
+    path = resolve(NOMINAL_FILE, calib_dir)
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise CalibrationError(f"{path}: {exc}") from None

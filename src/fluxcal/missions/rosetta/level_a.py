@@ -1,0 +1,451 @@
+"""RPC-MAG LEVEL_A science data: calibrated field in instrument (URF) coordinates.
+
+Steps (seed 003, sec. 4.2.3): drop vectors flagged bad; counts -> engineering nT;
+calibrated sensor temperature; ground calibration ``B_c = omega0(T) sigma(T) (B_r - B_off(T))``;
+the daily extended-temperature offset with midnight stitching; the filter-mode time shift.
+Each step is a pure array function; `level_a` chains them on a ``Dataset``.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 3.2, 3.3, 4.2.3.1-4.2.3.5.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration import counts as cnt
+from fluxcal.calibration import matrices as mat
+from fluxcal.calibration import thermal, timeshift
+from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta import hk
+from fluxcal.missions.rosetta.calib import (
+    DailyOffsetModel,
+    GroundCalibration,
+    TimeShiftTable,
+    check_sensor,
+)
+
+log = logging.getLogger(__name__)
+
+NS = 1_000_000_000
+DAY_NS = 86_400 * NS
+#: Default largest gap (s) across which the midnight stitching of sec. 4.2.3.3 continues.
+STITCH_GAP_S = 3 * 3600.0
+#: Quality bits meaning "bad component" (bit 0: x, 1: y, 2: z); bit 3 is the sensor id.
+BAD_BITS = 0b0111
+SENSOR_BIT = 0b1000
+
+
+# ----------------------------------------------------------------------------------------
+# Pure array steps
+# ----------------------------------------------------------------------------------------
+def wrong_quality(quality: np.ndarray, sensor: str) -> np.ndarray:
+    """Mask of quality words that cannot belong to ``sensor``'s vectors.
+
+    Bit 3 is the sensor id (0 = OB, 1 = IB); bits above 3 are undefined (seed 003,
+    sec. 4.1.2).
+    """
+    q = np.asarray(quality, dtype=np.int64)
+    expected = SENSOR_BIT if check_sensor(sensor) == "IB" else 0
+    return ((q & SENSOR_BIT) != expected) | (q > 0b1111) | (q < 0)
+
+
+def good_vectors(quality: np.ndarray) -> np.ndarray:
+    """Mask of vectors with no bad-component bit (bits 0-2) set.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1.2 (QUALITY) and 4.2.3 step 1.
+    """
+    return (np.asarray(quality, dtype=np.int64) & BAD_BITS) == 0
+
+
+def field_counts_to_nt(counts: np.ndarray, nominal: dict) -> np.ndarray:
+    """Signed 20-bit science counts -> engineering nT (seed 003, sec. 4.2.3.1)."""
+    p = nominal["science_field"]
+    return cnt.signed_to_value(counts, p["b_min_nt"], p["b_max_nt"], p["bits"])
+
+
+def field_nt_to_counts(b: np.ndarray, nominal: dict) -> np.ndarray:
+    """Inverse of `field_counts_to_nt` (nearest count; forward models)."""
+    p = nominal["science_field"]
+    return cnt.value_to_signed(b, p["b_min_nt"], p["b_max_nt"], p["bits"])
+
+
+def sensor_temperature(counts: np.ndarray, cal: GroundCalibration, nominal: dict) -> np.ndarray:
+    """Thermistor words -> calibrated sensor temperature T^c in deg C.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.2.5 (words -> volts), 3.3.3 and 4.2.3.2
+       item 1 (``T^c = c0 + c1 U + c2 U^2 + c3 U^3 - T^O``).
+    """
+    u = hk.thermistor_voltage(counts, nominal)
+    return thermal.thermistor_temperature(u, cal.thermistor, cal.thermistor_offset)
+
+
+def offset(temperature: np.ndarray, cal: GroundCalibration) -> np.ndarray:
+    """Sensor offset ``B_off = A_0 + A_1 T - B_res`` (nT), shape (n, 3).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1.1 / 3.3.2.1 (with B^res) and 4.2.3.2 item 2.
+    """
+    return thermal.linear_in_temperature(cal.offset, temperature) - cal.residual_field
+
+
+def sensitivity(temperature: np.ndarray, cal: GroundCalibration) -> np.ndarray:
+    """Diagonal of sigma^0(T) = SIGMA_00 + SIGMA_01 T, shape (n, 3).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1.2 / 3.3.2.2 and 4.2.3.2 item 4.
+    """
+    return thermal.linear_in_temperature(cal.sensitivity, temperature)
+
+
+def misalignment(temperature: np.ndarray, cal: GroundCalibration, *, form: str = "unit") -> np.ndarray:
+    """omega^0(T) = omega^1(xi^1(T)) K^-1, shape (n, 3, 3).
+
+    Parameters
+    ----------
+    temperature : array_like, shape (n,)
+        Calibrated sensor temperature, deg C.
+    cal : GroundCalibration
+    form : {"unit", "sec321"}
+        Which of the seed's two omega forms (see `fluxcal.calibration.matrices`).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.2.2.3, 3.3.1.3 / 3.3.2.3, 4.2.3.2 item 5.
+    """
+    xi = thermal.linear_in_temperature(cal.angles, temperature)
+    omega1 = mat.orthogonalisation_matrix(xi[:, 0], xi[:, 1], xi[:, 2], form=form)
+    return omega1 @ cal.k_inverse
+
+
+def ground_calibrate(
+    b_raw: np.ndarray, temperature: np.ndarray, cal: GroundCalibration, *, form: str = "unit"
+) -> np.ndarray:
+    """``B_c = omega0(T) sigma(T) (B_r - B_off(T))`` in nT, shape (n, 3).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.2 items 2-6.
+    """
+    b_m = np.asarray(b_raw, dtype=float) - offset(temperature, cal)
+    return mat.apply(misalignment(temperature, cal, form=form), sensitivity(temperature, cal) * b_m)
+
+
+def ground_uncalibrate(
+    b_cal: np.ndarray, temperature: np.ndarray, cal: GroundCalibration, *, form: str = "unit"
+) -> np.ndarray:
+    """Exact inverse of `ground_calibrate`: ``B_r = sigma^-1 omega0^-1 B_c + B_off`` (forward model)."""
+    b_m = mat.solve(misalignment(temperature, cal, form=form), b_cal) / sensitivity(temperature, cal)
+    return b_m + offset(temperature, cal)
+
+
+@dataclass(frozen=True)
+class StitchState:
+    """End-of-day state carried to the next day's midnight stitching (sec. 4.2.3.3).
+
+    Attributes
+    ----------
+    epoch : int
+        TT2000 ns of the last vector of the previous day.
+    temperature : float
+        Its calibrated temperature (deg C).
+    coefficients : ndarray, shape (6, 3)
+        The previous day's polynomial.
+    correction : ndarray, shape (3,)
+        The shift (nT) already subtracted from the previous day's polynomial.
+    """
+
+    epoch: int
+    temperature: float
+    coefficients: np.ndarray
+    correction: np.ndarray
+
+    def to_attrs(self) -> dict:
+        """Flatten into dataset attributes (``stitch_*``)."""
+        return {
+            "stitch_epoch": int(self.epoch),
+            "stitch_temperature_c": float(self.temperature),
+            "stitch_coefficients": np.asarray(self.coefficients, dtype=float).ravel().tolist(),
+            "stitch_correction_nt": np.asarray(self.correction, dtype=float).tolist(),
+        }
+
+    @classmethod
+    def from_attrs(cls, attrs: Mapping) -> StitchState | None:
+        """Rebuild from `to_attrs` output; ``None`` when the attributes are absent."""
+        if "stitch_epoch" not in attrs:
+            return None
+        return cls(
+            int(attrs["stitch_epoch"]),
+            float(attrs["stitch_temperature_c"]),
+            np.asarray(attrs["stitch_coefficients"], dtype=float).reshape(6, 3),
+            np.asarray(attrs["stitch_correction_nt"], dtype=float),
+        )
+
+
+def extended_offset(
+    epoch: np.ndarray,
+    temperature: np.ndarray,
+    day_index: np.ndarray,
+    days: list[np.datetime64],
+    models: Mapping[np.datetime64, DailyOffsetModel],
+    *,
+    stitch_gap_s: float = STITCH_GAP_S,
+    previous: StitchState | None = None,
+) -> tuple[np.ndarray, StitchState | None, list[str]]:
+    """Daily extended-temperature offsets with the midnight stitching of sec. 4.2.3.3.
+
+    For day ``d`` with polynomial ``P_d`` the offset is ``P_d(T) - c_d``.  When the gap
+    from the previous day's last vector to this day's first is at most ``stitch_gap_s``,
+    ``c_d = c_{d-1} + P_d(T_e) - P_{d-1}(T_e)`` with ``T_e`` the last temperature of the
+    previous day, so the applied offset is continuous across midnight; otherwise (a new
+    campaign) ``c_d = 0``.  A day without a file has offset 0 and breaks the chain.
+
+    Parameters
+    ----------
+    epoch : ndarray of int64, shape (n,)
+        Time stamps (TT2000 ns, before the filter time shift), non-decreasing.
+    temperature : ndarray, shape (n,)
+        Calibrated sensor temperature, deg C (the polynomial's variable, issue 4).
+    day_index : ndarray of int, shape (n,)
+        Index into ``days`` of each vector's UTC day.
+    days : list of numpy.datetime64[D]
+    models : mapping day -> DailyOffsetModel
+    stitch_gap_s : float
+        Largest gap that still continues a campaign (default 3 h).
+    previous : StitchState, optional
+        End state of the previous day processed separately.
+
+    Returns
+    -------
+    offset : ndarray, shape (n, 3)
+        To subtract from the ground-calibrated field.
+    state : StitchState or None
+        End state after the last day (``None`` if the last day had no model).
+    sources : list of str
+        Files used.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3.
+    """
+    n = len(epoch)
+    out = np.zeros((n, 3))
+    sources: list[str] = []
+    state = previous
+    bounds = np.searchsorted(day_index, np.arange(len(days) + 1))
+    for d, day in enumerate(days):
+        i0, i1 = int(bounds[d]), int(bounds[d + 1])
+        if i1 <= i0:
+            continue
+        model = models.get(day)
+        if model is None:
+            state = None
+            continue
+        sources.append(model.source)
+        t = temperature[i0:i1]
+        correction = np.zeros(3)
+        if state is not None and (epoch[i0] - state.epoch) <= stitch_gap_s * NS:
+            te = np.array([state.temperature])
+            correction = (
+                state.correction
+                + thermal.polynomial(model.coefficients, te)[0]
+                - thermal.polynomial(state.coefficients, te)[0]
+            )
+        out[i0:i1] = thermal.polynomial(model.coefficients, t) - correction
+        state = StitchState(int(epoch[i1 - 1]), float(t[-1]), model.coefficients, correction)
+    return out, state, sources
+
+
+def filter_time_shift(
+    sid: np.ndarray, table: TimeShiftTable, *, sensor: str, primary: str = "OB"
+) -> np.ndarray:
+    """Seconds to add to each time stamp for its filter mode (seed 003, sec. 4.2.3.5).
+
+    The primary sensor (OB unless told) uses the filtered-data table, the other sensor
+    the SECONDARY table.
+
+    Raises
+    ------
+    KeyError
+        ``(index, sid)`` of the first vector whose SID has no entry in the table.
+    """
+    is_primary = check_sensor(sensor) == check_sensor(primary)
+    return timeshift.mode_shifts(sid, table.sid, table.primary if is_primary else table.secondary)
+
+
+def utc_days(epoch: np.ndarray, lsk=None) -> tuple[np.ndarray, list[np.datetime64], np.ndarray]:
+    """UTC day of each time: ``(day_index, days, midnight_tt2000)``.
+
+    ``midnight_tt2000[k]`` is the TT2000 of 00:00 UTC of ``days[k]``; vectors are assigned by
+    comparison with these boundaries (correct across leap seconds).
+    """
+    from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
+
+    epoch = np.asarray(epoch, dtype=np.int64)
+    if epoch.size == 0:
+        return np.zeros(0, dtype=np.int64), [], np.zeros(0, dtype=np.int64)
+    ends = tt2000_to_utc(np.array([epoch.min(), epoch.max()]), digits=0, lsk=lsk)
+    first, last = (np.datetime64(str(s)[:10], "D") for s in ends)
+    days = list(np.arange(first, last + np.timedelta64(1, "D"), dtype="M8[D]"))
+    midnight = utc_to_tt2000(np.array([f"{d}T00:00:00" for d in days]), lsk=lsk)
+    day_index = np.searchsorted(midnight, epoch, side="right") - 1
+    return day_index, days, midnight
+
+
+# ----------------------------------------------------------------------------------------
+# Level function
+# ----------------------------------------------------------------------------------------
+def level_a(
+    raw: xr.Dataset,
+    calibration: GroundCalibration,
+    time_shifts: TimeShiftTable,
+    nominal: dict,
+    *,
+    daily_models: Mapping[np.datetime64, DailyOffsetModel] | None = None,
+    primary: str = "OB",
+    stitch_gap_s: float = STITCH_GAP_S,
+    previous: StitchState | None = None,
+    omega_form: str = "unit",
+    lsk=None,
+) -> xr.Dataset:
+    """Raw science counts -> LEVEL_A field (nT, instrument coordinates).
+
+    Parameters
+    ----------
+    raw : xarray.Dataset
+        Raw science data of one sensor (`fluxcal.missions.rosetta.io.read_science_csv` or
+        `fluxcal.missions.rosetta.simulate.simulate`): ``epoch`` (TT2000 ns), ``obt`` (s),
+        ``sid``, ``b_counts`` (time, component), ``t_ob_counts``, ``t_ib_counts``,
+        ``quality``; attribute ``sensor``.
+    calibration : GroundCalibration
+        Of the same sensor.
+    time_shifts : TimeShiftTable
+    nominal : dict
+        Nominal conversion constants (`calib.load_nominal_conversion`).
+    daily_models : mapping, optional
+        Daily extended-temperature models by UTC day; days without one get the ground
+        calibration alone (the ``extended_temperature_model`` attribute says so).
+    primary : {"OB", "IB"}
+        The primary sensor (time-shift table choice).
+    stitch_gap_s : float
+        Midnight stitching gap limit (default 3 h).
+    previous : StitchState, optional
+        Stitching state of the previous day when days are processed one by one.
+    omega_form : {"unit", "sec321"}
+        Orthogonalisation form (docs/decisions/rosetta.md).
+    lsk : LeapSecondTable, optional
+        Needed only with daily models (UTC day boundaries); default the loaded LSK.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``b`` (nT), ``temperature`` (K), ``obt`` (s, shifted), ``sid``, ``quality``,
+        coordinate ``epoch`` shifted to the physical event time and sorted; attributes
+        ``n_dropped_quality``, ``n_reordered``, calibration provenance and the stitching
+        end state (`StitchState.to_attrs`).
+
+    Raises
+    ------
+    InputFormatError
+        Quality word of the wrong sensor, a SID without a time shift, counts out of range.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3 steps 1-5.
+    """
+    sensor = check_sensor(raw.attrs.get("sensor", calibration.sensor))
+    if sensor != calibration.sensor:
+        raise InputFormatError(
+            f"science data are from sensor {sensor} but the calibration is for {calibration.sensor}",
+            path=raw.attrs.get("source"),
+        )
+    source = raw.attrs.get("source")
+    row = raw["row"].values if "row" in raw else np.arange(raw.sizes["time"]) + 1
+    wrong = wrong_quality(raw["quality"].values, sensor)
+    if np.any(wrong):
+        i = int(np.flatnonzero(wrong)[0])
+        raise InputFormatError(
+            f"quality {int(raw['quality'].values[i])} does not belong to a {sensor} vector "
+            f"(bit 3 must be {int(sensor == 'IB')}, bits above 3 must be 0; seed 003 sec. 4.1.2)",
+            path=source, line=int(row[i]), field="quality",
+        )
+    good = good_vectors(raw["quality"].values)
+    n_dropped = int((~good).sum())
+    data = raw.isel(time=np.flatnonzero(good)) if n_dropped else raw
+    row = row[good]
+    epoch = data["epoch"].values.astype(np.int64)
+
+    try:
+        b_raw = field_counts_to_nt(data["b_counts"].values, nominal)
+        t_c = sensor_temperature(data[f"t_{sensor.lower()}_counts"].values, calibration, nominal)
+    except ValueError as exc:
+        raise InputFormatError(f"counts out of range: {exc}", path=source) from None
+    b_c = ground_calibrate(b_raw, t_c, calibration, form=omega_form)
+
+    attrs = dict(raw.attrs)
+    models = daily_models or {}
+    if models:
+        day_index, days, _ = utc_days(epoch, lsk)
+        ext, state, sources = extended_offset(
+            epoch, t_c, day_index, days, models, stitch_gap_s=stitch_gap_s, previous=previous
+        )
+        b_c = b_c - ext
+    else:
+        state, sources = None, []
+    attrs["extended_temperature_model"] = (
+        "model 006 daily files: " + ", ".join(sources) if sources
+        else "none: ground calibration alone (no daily RPCMAG_<yymmdd>_006_CALIB file)"
+    )
+    if state is not None:
+        attrs.update(state.to_attrs())
+
+    try:
+        shift = filter_time_shift(data["sid"].values, time_shifts, sensor=sensor, primary=primary)
+    except KeyError as exc:
+        i, sid = exc.args
+        table = "primary" if sensor == check_sensor(primary) else "secondary"
+        raise InputFormatError(
+            f"filter mode SID {sid} has no time shift in the {table}-sensor table "
+            f"{time_shifts.source} (seed 003, sec. 4.2.3.5)",
+            path=source, line=int(row[i]), field="sid",
+        ) from None
+    new_epoch = timeshift.shift_epoch(epoch, shift)
+    obt = data["obt"].values + shift
+    order = np.argsort(new_epoch, kind="stable")
+    n_reordered = int(np.count_nonzero(order != np.arange(order.size)))
+
+    out = xr.Dataset(
+        {
+            "b": (("time", "component"), b_c[order], {"units": "nT", "frame": f"ROS_RPC_MAG_{sensor} (URF)"}),
+            "temperature": ("time", t_c[order] + hk.KELVIN, {"units": "K"}),
+            "obt": ("time", obt[order], {"units": "s", "description": "TIME.OBT, filter shift added"}),
+            "sid": ("time", data["sid"].values[order], {"units": "1"}),
+            "quality": ("time", data["quality"].values[order], {"units": "1"}),
+        },
+        coords={"epoch": ("time", new_epoch[order], {"units": "ns", "time_base": "TT2000"}),
+                "component": ["x", "y", "z"]},
+        attrs=attrs,
+    )
+    out.attrs.update(
+        level="A",
+        sensor=sensor,
+        primary_sensor=check_sensor(primary),
+        n_dropped_quality=n_dropped,
+        n_reordered=n_reordered,
+        ground_calibration=f"{calibration.source} (version {calibration.version})",
+        time_shift_table=time_shifts.source,
+        omega_form=omega_form,
+    )
+    return out

@@ -1,0 +1,194 @@
+"""Calibration files: shipped defaults match the seed tables; bad files fail clearly."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fluxcal.errors import CalibrationError
+from fluxcal.missions.rosetta import calib
+
+DATA = calib.default_dir()
+
+
+@pytest.mark.parametrize("sensor", ["OB", "IB"])
+def test_default_ground_files_parse(sensor):
+    cal = calib.load_ground_calibration(sensor)
+    assert cal.sensor == sensor
+    assert cal.offset.shape == (2, 3) and cal.k_inverse.shape == (3, 3)
+    assert cal.version == "001"
+
+
+# seed 003 sec. 3.3.1 (IB) and 3.3.2 (OB) tables, copied by hand from the document
+SEED = {
+    "OB": dict(a0=[214.5, -79.9, 384.7], a1=[-1.053, 0.073, -1.657], res=[0.0, 4.0, -20.0],
+               s00=[1.09100, 1.09352, 1.09289], s01=[-1.18e-5, -8.21e-6, -6.97e-6],
+               xi0=[90.0666, 90.0366, 90.0370], xi1=[-6.04e-5, -1.11e-4, -8.12e-5],
+               kinv=[[1, -0.00010, 0.00028], [0, 1, -0.00038], [0, 0, 1]], toff=-2.7),
+    "IB": dict(a0=[114.3, -119.8, 494.0], a1=[-0.565, 0.731, -1.673], res=[-2.0, 2.0, -15.0],
+               s00=[1.09070, 1.09434, 1.09413], s01=[-1.42e-5, -9.30e-6, -8.55e-6],
+               xi0=[90.0348, 89.9587, 89.9433], xi1=[8.54e-5, 3.71e-5, 1.20e-4],
+               kinv=[[1, -0.00017, 0.00031], [0, 1, -0.00008], [0, 0, 1]], toff=-1.5),
+}
+
+
+@pytest.mark.parametrize("sensor", ["OB", "IB"])
+def test_default_values_are_the_seed_tables(sensor):
+    cal = calib.load_ground_calibration(sensor)
+    s = SEED[sensor]
+    np.testing.assert_array_equal(cal.offset, [s["a0"], s["a1"]])
+    np.testing.assert_array_equal(cal.residual_field, s["res"])
+    np.testing.assert_array_equal(cal.sensitivity, [s["s00"], s["s01"]])
+    np.testing.assert_array_equal(cal.angles, [s["xi0"], s["xi1"]])
+    np.testing.assert_array_equal(cal.k_inverse, s["kinv"])
+    np.testing.assert_array_equal(cal.thermistor, [-368.61072, 458.49304, -356.02890, 180.00644])
+    assert cal.thermistor_offset == s["toff"]
+
+
+def _write(tmp_path, text, name="RPCMAG_001_CALIB_FSDPU_FMOB.TXT"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _default_text(sensor="OB"):
+    return (DATA / calib.GROUND_FILE[sensor]).read_text()
+
+
+def test_missing_key_is_named(tmp_path):
+    text = "\n".join(line for line in _default_text().splitlines() if not line.startswith("SIGMA_01"))
+    with pytest.raises(CalibrationError, match="missing key SIGMA_01"):
+        calib.read_ground_calibration(_write(tmp_path, text))
+
+
+def test_wrong_count_names_line(tmp_path):
+    text = _default_text().replace("A_1 = -1.053 0.073 -1.657", "A_1 = -1.053 0.073")
+    with pytest.raises(CalibrationError, match=r"line \d+: key A_1 has 2 value\(s\), expected 3"):
+        calib.read_ground_calibration(_write(tmp_path, text))
+
+
+def test_non_numeric_value(tmp_path):
+    text = _default_text().replace("T_OFF = -2.7", "T_OFF = cold")
+    with pytest.raises(CalibrationError, match="T_OFF has a non-numeric"):
+        calib.read_ground_calibration(_write(tmp_path, text))
+
+
+def test_unknown_sensor(tmp_path):
+    text = _default_text().replace("SENSOR = OB", "SENSOR = MID")
+    with pytest.raises(CalibrationError, match="unknown RPC-MAG sensor 'MID'"):
+        calib.read_ground_calibration(_write(tmp_path, text))
+    with pytest.raises(CalibrationError, match="unknown RPC-MAG sensor"):
+        calib.load_ground_calibration("XB")
+
+
+def test_sensor_mismatch(tmp_path):
+    with pytest.raises(CalibrationError, match="SENSOR = OB, but sensor IB"):
+        calib.read_ground_calibration(_write(tmp_path, _default_text()), "IB")
+
+
+def test_dotted_keys_accepted(tmp_path):
+    # the seed names the keys both A.0 and A_0 (sec. 3.3.1.1 vs 3.3.2.1)
+    text = _default_text().replace("A_0 =", "A.0 =").replace("XI_10 =", "XI.10 =")
+    cal = calib.read_ground_calibration(_write(tmp_path, text))
+    assert cal.offset[0, 0] == 214.5 and cal.angles[0, 0] == 90.0666
+
+
+def test_user_dir_overrides_default(tmp_path):
+    text = _default_text().replace("A_0 = 214.5", "A_0 = 200.0")
+    _write(tmp_path, text)
+    assert calib.load_ground_calibration("OB", tmp_path).offset[0, 0] == 200.0
+    assert calib.load_ground_calibration("IB", tmp_path).offset[0, 0] == 114.3  # default
+
+
+def test_ground_round_trip_writer(tmp_path):
+    cal = calib.load_ground_calibration("IB")
+    back = calib.read_ground_calibration(calib.write_ground_calibration(cal, tmp_path / "x.TXT"))
+    np.testing.assert_array_equal(back.angles, cal.angles)
+    np.testing.assert_array_equal(back.k_inverse, cal.k_inverse)
+
+
+def test_daily_file(tmp_path):
+    coeffs = np.arange(18.0).reshape(6, 3)
+    model = calib.DailyOffsetModel(np.datetime64("2014-08-01"), "OB", coeffs)
+    path = calib.write_daily_offset_model(model, tmp_path)
+    assert path.name == "RPCMAG_140801_006_CALIB_OB.TXT"
+    found = calib.find_daily_offset_models(tmp_path, "OB")
+    assert list(found) == [np.datetime64("2014-08-01")]
+    np.testing.assert_array_equal(found[np.datetime64("2014-08-01")].coefficients, coeffs)
+    assert calib.find_daily_offset_models(tmp_path, "IB") == {}
+
+
+def test_daily_file_missing_p5(tmp_path):
+    path = tmp_path / "RPCMAG_140801_006_CALIB_IB.TXT"
+    path.write_text("\n".join(f"P_{k} = 0 0 0" for k in range(5)))
+    with pytest.raises(CalibrationError, match="missing key P_5"):
+        calib.read_daily_offset_model(path)
+
+
+def test_alignment_default_is_placeholder_rotation():
+    al = calib.load_alignment()
+    assert al.placeholder
+    for sensor in ("OB", "IB"):
+        for boom in ("deployed", "stowed"):
+            np.testing.assert_array_equal(al.matrix(sensor, boom), np.eye(3))
+
+
+def test_alignment_rejects_non_rotation(tmp_path):
+    path = tmp_path / calib.ALIGN_FILE
+    rows = {f"{s}_{b}": "1 0 0 0 1 0 0 0 1" for s in ("OB", "IB") for b in ("DEPLOYED", "STOWED")}
+    rows["IB_STOWED"] = "2 0 0 0 1 0 0 0 1"
+    path.write_text("\n".join(f"{k} = {v}" for k, v in rows.items()))
+    with pytest.raises(CalibrationError, match="IB_STOWED is not a rotation"):
+        calib.read_alignment(path)
+    rows["IB_STOWED"] = "1 0 0 0 1 0 0 0"
+    path.write_text("\n".join(f"{k} = {v}" for k, v in rows.items()))
+    with pytest.raises(CalibrationError, match="IB_STOWED has 8 value"):
+        calib.read_alignment(path)
+
+
+def test_time_shift_table_is_the_seed_table():
+    t = calib.load_time_shift_table()
+    # seed 003 sec. 4.2.3.5, both tables
+    np.testing.assert_array_equal(t.sid, [1, 2, 3, 4, 5, 6])
+    np.testing.assert_array_equal(t.primary, [223.7, 8.2, 0, 1.35, 27.7, 0])
+    np.testing.assert_array_equal(t.secondary[:5], [1023.95, 31.95, 15.95, 31.95, 127.95])
+    assert np.isnan(t.secondary[5])
+
+
+def test_offset_jump_table_is_appendix_b():
+    t = calib.load_offset_jump_table()
+    assert len(t.start_utc) == 19
+    assert t.start_utc[10] == "2014-07-25T02:00:00" and t.end_utc[10] == "2014-09-13T03:00:00"
+    # Appendix B, spot checks (first, a middle and the last entries)
+    np.testing.assert_array_equal(t.jumps["OB"][10], [-1.4364, -0.2041, -0.6965])
+    np.testing.assert_array_equal(t.jumps["IB"][3], [2.3403, 12.9253, -4.5484])
+    np.testing.assert_array_equal(t.jumps["OB"][18], [-4.52, 25.26, -5.52])
+    np.testing.assert_array_equal(t.jumps["IB"][18][:2], [-13.74, -0.4424])
+    assert np.isnan(t.jumps["IB"][18][2])  # cut off in the seed
+    np.testing.assert_array_equal(t.jumps["OB"][0], 0.0)
+
+
+def test_missing_file_in_both_places(tmp_path):
+    with pytest.raises(CalibrationError, match="found neither"):
+        calib.resolve("NOPE.TXT", tmp_path)
+
+
+def test_repeated_key(tmp_path):
+    path = _write(tmp_path, _default_text() + "\nA_0 = 1 2 3\n")
+    with pytest.raises(CalibrationError, match="key A_0 repeated"):
+        calib.read_ground_calibration(path)
+
+
+def test_validity(tmp_path):
+    cal = calib.load_ground_calibration("OB")
+    cal.validity.check(np.datetime64("2014-08-01"), np.datetime64("2014-08-02"))
+    from fluxcal.errors import CalibrationRangeError
+
+    with pytest.raises(CalibrationRangeError):
+        cal.validity.check(np.datetime64("2017-01-01"), np.datetime64("2017-01-02"))
+
+
+def test_data_files_have_header_citation():
+    for name in (*calib.GROUND_FILE.values(), calib.ALIGN_FILE, calib.TIMESHIFT_FILE, calib.JUMPS_FILE):
+        head = Path(DATA / name).read_text()[:1500]
+        assert "seed 003" in head and "version" in head.lower() and "valid" in head.lower(), name
