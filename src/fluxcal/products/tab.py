@@ -243,8 +243,7 @@ def read_tab(path: Path) -> xr.Dataset:
         entry["values"].append(vals)
         if "FLUXCAL_COMPONENT" in c:
             entry["components"].append(str(c["FLUXCAL_COMPONENT"]))
-        if c.get("UNIT"):
-            entry["attrs"]["units"] = str(c["UNIT"])
+        entry["attrs"]["units"] = str(c.get("UNIT", ""))
         if c.get("DESCRIPTION"):
             entry["attrs"]["description"] = str(c["DESCRIPTION"])
     data_vars: dict[str, Any] = {}
