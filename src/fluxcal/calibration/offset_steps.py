@@ -1,0 +1,58 @@
+"""Smoothness check of an applied offset time series (largest step per axis).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13 "Validation".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StepReport:
+    """Largest sample-to-sample step of each offset component.
+
+    Attributes
+    ----------
+    largest_step : ndarray, shape (k,)
+        Largest absolute step per component (offset units).
+    index : ndarray of int, shape (k,)
+        Index ``i`` of the sample after the step (step between ``i-1`` and ``i``).
+    """
+
+    largest_step: np.ndarray
+    index: np.ndarray
+
+
+def largest_steps(offset: np.ndarray, segment: np.ndarray | None = None) -> StepReport:
+    """Return the largest absolute step between consecutive samples, per component.
+
+    Parameters
+    ----------
+    offset : ndarray, shape (n, k)
+        Applied offsets (same units for every sample).
+    segment : ndarray, shape (n,), optional
+        Label of a sample's segment; steps between samples of different segments (e.g.
+        a range change, where offsets are expressed in other counts) are ignored.
+
+    Returns
+    -------
+    StepReport
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13.
+    """
+    offset = np.asarray(offset, dtype=float)
+    if offset.shape[0] < 2:
+        return StepReport(np.zeros(offset.shape[1]), np.zeros(offset.shape[1], dtype=np.int64))
+    steps = np.abs(np.diff(offset, axis=0))
+    if segment is not None:
+        segment = np.asarray(segment)
+        steps[segment[1:] != segment[:-1]] = 0.0
+    idx = np.argmax(steps, axis=0)
+    return StepReport(steps[idx, np.arange(offset.shape[1])], idx + 1)

@@ -1,0 +1,443 @@
+"""MESSENGER MAG processing levels, each a function ``Dataset -> Dataset``.
+
+The science dataset (dimension ``time``) produced by `fluxcal.missions.messenger.readers`
+goes through, in order:
+
+1. `correct_time` (sec. 5, 9): per-sample net lag, MET -> ET, TT2000 epoch;
+2. `correct_heater_signal` (sec. 6): periodic heater signal;
+3. `correct_offsets` (sec. 7): temperature and relaxed duty-cycle offsets;
+4. `counts_to_field` (sec. 8): eq. 8 with each sample's range matrix;
+5. `rotate_field` (sec. 11) and `add_positions` (sec. 10);
+6. `assign_quality` (sec. 12);
+7. `validate_offsets` (sec. 13).
+
+Calibration constants (`MessengerCalibration`) and the SCLK conversion are arguments;
+geometry steps need the kernels loaded by the caller (`fluxcal.geometry.kernels.KernelPool`).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i (Korth and Anderson, 2016), sec. 5-13.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration.gain_matrix import counts_to_nt, range_conversion
+from fluxcal.calibration.heater_signal import HeaterPeriods, heater_periods, heater_signal
+from fluxcal.calibration.offset_steps import largest_steps
+from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.calibration.rate_latency import per_sample_lag
+from fluxcal.calibration.relaxation import (
+    DutyCycleChanges,
+    duty_cycle_changes,
+    relaxed_offset,
+    steady_state_offset,
+)
+from fluxcal.errors import InputFormatError, ValidationError
+from fluxcal.geometry.time import SclkKernel, et_to_tt2000, utc_to_et
+from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+
+log = logging.getLogger(__name__)
+
+COMPONENT = ["x", "y", "z"]
+SC_ID = -236
+
+#: Output frames: product key -> (SPICE frame, archive product name stem).
+FRAMES: dict[str, tuple[str, str]] = {
+    "mso": ("MSGR_MSO", "MAGMSOSCI"),
+    "j2000": ("J2000", "MAGJ2000SCI"),
+    "mbf": ("IAU_MERCURY", "MAGMBFSCI"),
+    "rtn": ("MSGR_RTN", "MAGRTNSCI"),
+    "sc": ("MSGR_SPACECRAFT", "MAGSCSCI"),
+    "vso": ("MSGR_VSO", "MAGVSOSCI"),
+}
+
+
+def _vector(values: np.ndarray, units: str, description: str) -> xr.Variable:
+    return xr.Variable(("time", "component"), values, {"units": units, "description": description})
+
+
+def _scalar(values: np.ndarray, units: str, description: str) -> xr.Variable:
+    return xr.Variable(("time",), values, {"units": units, "description": description})
+
+
+def _date_et(cal: MessengerCalibration, key: str) -> float:
+    return float(utc_to_et(np.array([str(cal.date(key))]))[0])
+
+
+# ----------------------------------------------------------------------------------------
+# 1. time
+# ----------------------------------------------------------------------------------------
+def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) -> xr.Dataset:
+    """Subtract each sample's net lag from its MET and convert to ET and TT2000.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Raw science samples with ``partition``, ``met`` (s) and ``rate`` on ``time``.
+    cal : MessengerCalibration
+        Table 1 net lags.
+    sclk : SclkKernel
+        MESSENGER clock (id -236).
+
+    Returns
+    -------
+    xarray.Dataset
+        With ``met_corrected``, ``lag``, ``et`` and the coordinate ``epoch`` (TT2000 ns).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 Table 1, sec. 9.
+    """
+    lag = per_sample_lag(ds["rate"].values, cal.net_lag_s)
+    met = ds["met"].values - lag
+    et = sclk.to_et(ds["partition"].values, met)
+    out = ds.assign(
+        lag=_scalar(lag, "s", "net time lag subtracted from the MET (Table 1)"),
+        met_corrected=_scalar(met, "s", "MET corrected for the net lag"),
+        et=_scalar(et, "s", "ephemeris time (TDB seconds past J2000)"),
+    )
+    epoch = ("time", et_to_tt2000(et), {"units": "ns", "standard": "TT2000"})
+    return out.assign_coords(epoch=epoch)
+
+
+def aux_times_et(aux: xr.Dataset, dim: str, sclk: SclkKernel) -> np.ndarray:
+    """Return the ET of an auxiliary stream (heater bits, temperatures) from its MET."""
+    return sclk.to_et(aux["partition"].values, aux["met"].values)
+
+
+# ----------------------------------------------------------------------------------------
+# 2. heater
+# ----------------------------------------------------------------------------------------
+def find_heater_periods(
+    heater: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel
+) -> tuple[HeaterPeriods, DutyCycleChanges]:
+    """Heater periods and duty-cycle changes (on the ET scale) from the heater stream.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, 7.
+    """
+    t = aux_times_et(heater, "heater_time", sclk)
+    h = cal.constants["heater"]
+    periods = heater_periods(t, heater["heater"].values, period=h["period_s"], min_on=h["min_on_s"])
+    changes = duty_cycle_changes(periods, period=h["period_s"], data_end=float(t[-1]) + 1.0)
+    return periods, changes
+
+
+def correct_heater_signal(
+    ds: xr.Dataset, periods: HeaterPeriods, cal: MessengerCalibration
+) -> xr.Dataset:
+    """Compute the periodic heater signal (fine-range counts) at every sample (sec. 6).
+
+    The signal is applied only from MAG FSW V10 (2007-03-09) on, in heater periods whose
+    bit stayed on >= 10 s; it is subtracted in `correct_offsets`.
+
+    Returns
+    -------
+    xarray.Dataset
+        With ``heater_signal`` (counts, fine range) and ``heater_applied`` (bool).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+    """
+    et = ds["et"].values
+    signal, applied = heater_signal(et, periods, cal.heater_signal, cal.heater_duty_bins_percent)
+    v10 = et >= _date_et(cal, "heater_mode_v10")
+    applied &= v10
+    signal[~applied] = 0.0
+    return ds.assign(
+        heater_signal=_vector(signal, "counts", "heater signal, fine-range counts (sec. 6)"),
+        heater_applied=_scalar(applied, "1", "heater signal subtracted"),
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# 3. offsets
+# ----------------------------------------------------------------------------------------
+def offset_model(
+    et: np.ndarray,
+    temperature_c: np.ndarray,
+    changes: DutyCycleChanges,
+    cal: MessengerCalibration,
+) -> np.ndarray:
+    """Return the total offset ``cT(T) + Delta(t)`` in fine-range counts (sec. 7).
+
+    Before V10 (2007-03-09) the offset is ``cT(22.4 C)`` (sec. 7, last paragraph).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 2-7, Tables 2-3.
+    """
+    rel = cal.constants["relaxation"]
+    temp = np.asarray(temperature_c, dtype=float)
+    v10 = et >= _date_et(cal, "heater_mode_v10")
+    fixed = cal.constants["pre_v10"]["fixed_temperature_c"]
+    temp = np.where(v10, temp, fixed)
+    ct = two_segment_offset(temp, cal.temperature_coefficients)
+    target = steady_state_offset(
+        changes.duty_cycle_ppt, cal.duty_cycle_d0, rel["min_duty_cycle_ppt"]
+    )
+    delta = relaxed_offset(
+        et, changes.time, target, tau=rel["tau_s"], delay=rel["delay_s"],
+        look_back=int(rel["look_back"]),
+    )
+    delta[~v10] = 0.0
+    return ct + delta
+
+
+def interpolate_temperature(et: np.ndarray, temp_et: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+    """Linear interpolation of the sensor temperature to the sample times.
+
+    Raises
+    ------
+    InputFormatError
+        When samples lie outside the temperature stream (no extrapolation).
+    """
+    if temp_et.size == 0:
+        raise InputFormatError("temperature stream is empty", field="temperature_c")
+    tol = 60.0
+    if et.size and (et.min() < temp_et[0] - tol or et.max() > temp_et[-1] + tol):
+        raise InputFormatError(
+            "science samples extend beyond the temperature stream by more than 60 s",
+            field="temperature_c",
+        )
+    return np.interp(et, temp_et, temp_c)
+
+
+def correct_offsets(
+    ds: xr.Dataset,
+    temperature: xr.Dataset,
+    changes: DutyCycleChanges,
+    cal: MessengerCalibration,
+    sclk: SclkKernel,
+) -> xr.Dataset:
+    """Subtract the thermal offsets and the heater signal from the counts.
+
+    Offsets and heater signal are modelled in fine-range counts; coarse-range samples get
+    ``M_coarse^-1 M_fine`` times them.
+
+    Returns
+    -------
+    xarray.Dataset
+        With ``temperature`` (degC), ``offset`` (fine counts), ``offset_applied`` (counts
+        of the sample's range, offset + heater signal) and ``counts_corrected``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 1-7.
+    """
+    et = ds["et"].values
+    t_et = aux_times_et(temperature, "temperature_time", sclk)
+    temp = interpolate_temperature(et, t_et, temperature["temperature_c"].values)
+    offset = offset_model(et, temp, changes, cal)
+    fine_total = offset + ds["heater_signal"].values
+    conv = range_conversion(cal.matrices, reference=0)
+    rng = ds["range"].values
+    applied = fine_total.copy()
+    coarse = rng == 1
+    if coarse.any():
+        applied[coarse] = fine_total[coarse] @ conv[1].T
+    corrected = ds["counts"].values - applied
+    return ds.assign(
+        temperature=_scalar(temp, "degC", "sensor temperature interpolated to the samples"),
+        offset=_vector(offset, "counts", "thermal offset cT(T) + Delta(t), fine-range counts"),
+        offset_applied=_vector(applied, "counts", "offset + heater signal, counts of the range"),
+        counts_corrected=_vector(corrected, "counts", "counts minus offsets (eq. 1)"),
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# 4. counts -> nT
+# ----------------------------------------------------------------------------------------
+def counts_to_field(ds: xr.Dataset, cal: MessengerCalibration) -> xr.Dataset:
+    """Convert corrected counts to nT in sensor coordinates (eq. 8, Table 4).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 8, eq. 8, Table 4.
+    """
+    b = counts_to_nt(ds["counts_corrected"].values, ds["range"].values, cal.matrices)
+    return ds.assign(b_sensor=_vector(b, "nT", "magnetic field, sensor coordinates"))
+
+
+# ----------------------------------------------------------------------------------------
+# 5. rotation and positions
+# ----------------------------------------------------------------------------------------
+def sensor_frame(et: np.ndarray, cal: MessengerCalibration) -> np.ndarray:
+    """Return ``"MSGR_MAG"`` or ``"MSGR_MAG_STOWED"`` (before boom deployment) per sample."""
+    boom = _date_et(cal, "boom_deployment")
+    return np.where(np.asarray(et) >= boom, "MSGR_MAG", "MSGR_MAG_STOWED")
+
+
+def rotate_field(
+    ds: xr.Dataset,
+    cal: MessengerCalibration,
+    frames: tuple[str, ...] = ("mso", "j2000", "mbf", "rtn", "sc"),
+    *,
+    method: str = "interpolate",
+) -> xr.Dataset:
+    """Rotate the sensor field into the requested frames (sec. 11).
+
+    Adds ``b_<frame>`` for each key of `FRAMES` requested.  Kernels must be loaded.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 11.
+    """
+    from fluxcal.geometry.frames import Rotator, apply, rotation_matrices
+
+    et = ds["et"].values
+    b = ds["b_sensor"].values
+    src = sensor_frame(et, cal)
+    out = {}
+    for name in np.unique(src):
+        sel = src == name
+        if method == "oracle":
+            mats = {f: rotation_matrices(name, FRAMES[f][0], et[sel], method="oracle")
+                    for f in frames}
+        else:
+            rot = Rotator(str(name), et[sel])
+            mats = {f: rot.matrices(FRAMES[f][0]) for f in frames}
+        for f in frames:
+            out.setdefault(f, np.empty_like(b))[sel] = apply(mats[f], b[sel])
+    return ds.assign(
+        {f"b_{f}": _vector(v, "nT", f"magnetic field in {FRAMES[f][0]}") for f, v in out.items()}
+    )
+
+
+def add_positions(ds: xr.Dataset, *, method: str = "interpolate") -> xr.Dataset:
+    """Add MESSENGER's position per sample (sec. 10).
+
+    ``pos_j2000``: relative to the Sun in J2000; ``pos_mso``/``pos_mbf``: relative to
+    Mercury in MSGR_MSO / IAU_MERCURY; ``pos_rtn``: (r km, latitude deg, azimuth deg) of
+    sec. 10.2; ``sun_sc``: unit Sun direction in MSGR_SPACECRAFT (for the S flag).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2.
+    """
+    from fluxcal.geometry.frames import rotate
+    from fluxcal.geometry.positions import position, rtn_spherical
+
+    et = ds["et"].values
+    sun = position("MESSENGER", "SUN", "J2000", et, method=method)
+    mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
+    mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
+    r, lat, az = rtn_spherical("MESSENGER", et, method=method)
+    sun_dir = -sun / np.linalg.norm(sun, axis=1)[:, None]
+    sun_sc = rotate(sun_dir, et, "J2000", "MSGR_SPACECRAFT", method=method)
+    return ds.assign(
+        pos_j2000=_vector(sun, "km", "MESSENGER relative to the Sun, J2000"),
+        pos_mso=_vector(mso, "km", "MESSENGER relative to Mercury, MSGR_MSO"),
+        pos_mbf=_vector(mbf, "km", "MESSENGER relative to Mercury, IAU_MERCURY"),
+        pos_rtn=_vector(np.column_stack([r, lat, az]), "km, deg, deg",
+                        "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)"),
+        sun_sc=_vector(sun_dir if sun_sc is None else sun_sc, "1",
+                       "unit Sun direction in MSGR_SPACECRAFT"),
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# 6. quality
+# ----------------------------------------------------------------------------------------
+def quality_flags(
+    et: np.ndarray,
+    sun_y_sc: np.ndarray,
+    heater_applied: np.ndarray,
+    cal: MessengerCalibration,
+) -> np.ndarray:
+    """Return the three-digit SHC quality flag of Table 5 for each sample (int 0..222).
+
+    S: 0 before boom deployment, else 1 when the Sun is on the spacecraft +Y side
+    (``sun_y_sc > 0``, sensor in sunlight), 2 otherwise.  H: 0/1/2 for MAG FSW V8/V9/V10
+    by date.  C: 1 before boom deployment and, before V10, in shadow (S = 2); 2 where
+    the heater signal was removed; 0 otherwise.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (last paragraphs), sec. 12,
+       Table 5.
+    """
+    et = np.asarray(et, dtype=float)
+    boom = et >= _date_et(cal, "boom_deployment")
+    v9 = et >= _date_et(cal, "heater_mode_v9")
+    v10 = et >= _date_et(cal, "heater_mode_v10")
+    s = np.where(~boom, 0, np.where(np.asarray(sun_y_sc) > 0, 1, 2))
+    h = np.where(v10, 2, np.where(v9, 1, 0))
+    c = np.zeros_like(s)
+    c[np.asarray(heater_applied, dtype=bool)] = 2
+    c[(~v10) & (s == 2)] = 1
+    c[~boom] = 1
+    return 100 * s + 10 * h + c
+
+
+def assign_quality(ds: xr.Dataset, cal: MessengerCalibration) -> xr.Dataset:
+    """Add the SHC ``quality`` flag (Table 5); needs ``sun_sc`` and ``heater_applied``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 12, Table 5.
+    """
+    q = quality_flags(
+        ds["et"].values, ds["sun_sc"].values[:, 1], ds["heater_applied"].values, cal
+    )
+    return ds.assign(quality=_scalar(q.astype(np.int16), "1", "SHC quality flag (Table 5)"))
+
+
+# ----------------------------------------------------------------------------------------
+# 7. validation
+# ----------------------------------------------------------------------------------------
+def offset_step_report(ds: xr.Dataset, max_gap_s: float = 10.0) -> dict:
+    """Largest step of the applied thermal offset per axis and where (sec. 13).
+
+    Steps across data gaps longer than ``max_gap_s`` are ignored.
+
+    Returns
+    -------
+    dict
+        ``{"x": {"step_counts": ..., "utc_index": i, "et": ...}, ...}``.
+    """
+    et = ds["et"].values
+    segment = np.concatenate([[0], np.cumsum(np.diff(et) > max_gap_s)])
+    rep = largest_steps(ds["offset"].values, segment)
+    return {
+        axis: {"step_counts": float(rep.largest_step[j]), "index": int(rep.index[j]),
+               "et": float(et[min(rep.index[j], et.size - 1)])}
+        for j, axis in enumerate(COMPONENT)
+    }
+
+
+def validate_offsets(ds: xr.Dataset, threshold_counts: float = 2.0) -> dict:
+    """Fail the day when the applied offset has a step above ``threshold_counts``.
+
+    Returns
+    -------
+    dict
+        The step report (see `offset_step_report`).
+
+    Raises
+    ------
+    ValidationError
+        Naming the axis, the step and the time.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13.
+    """
+    report = offset_step_report(ds)
+    for axis, item in report.items():
+        if item["step_counts"] > threshold_counts:
+            from fluxcal.geometry.time import et_to_utc
+
+            utc = et_to_utc(np.array([item["et"]]))[0]
+            raise ValidationError(
+                f"offset {axis}: step of {item['step_counts']:.3f} counts at {utc} exceeds the "
+                f"smoothness threshold {threshold_counts} counts (seed 000 sec. 13)"
+            )
+    return report
