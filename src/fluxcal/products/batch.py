@@ -1,0 +1,454 @@
+"""Mission-scale batch processing: one task per day on Dask distributed.
+
+`run_batch` sends one task per day to a Dask cluster (by default a `LocalCluster` of
+single-threaded worker *processes*, because SPICE keeps one global, non-thread-safe
+kernel pool per process) or to an existing scheduler (``scheduler="tcp://host:8786"``),
+or runs the days in this process (``scheduler="serial"``).
+
+A *day task* is a picklable callable ``task(day) -> DayResult`` that writes the day's
+products atomically (`fluxcal.products.write_product`).  It may also define
+``task.inputs(day) -> DayInputs`` (its input files and calibration), which lets the
+runner decide *before* running whether a day is up to date.  Missions expose a
+factory ``make_day_task(input_dir, out_dir, **options)`` in
+``fluxcal.missions.<mission>.batch_task`` (see `task_factory`).
+
+Idempotence: after a day succeeds, a JSON manifest ``<out>/manifests/<name>_<day>.json``
+records the products (size, SHA-256), the inputs and calibration with their SHA-256
+(or version) and the software version.  A later run skips the day when its products
+still exist with the recorded sizes and every input/calibration checksum is unchanged;
+``force=True`` redoes it.  A killed worker loses at most the day it was running: the
+task is resubmitted by Dask, its products appear only by atomic rename, and its
+manifest is written after them.
+
+A failing day does not stop the others: its exception is caught on the worker and
+reported (`DayStatus.error`).  The report of every day is written as JSON.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import importlib
+import json
+import logging
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import fluxcal
+from fluxcal.errors import FluxcalError
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.provenance import sha256_file
+
+log = logging.getLogger(__name__)
+
+MANIFEST_DIR = "manifests"
+REPORT_NAME = "batch_report_{name}.json"
+
+
+class DayWithoutData(FluxcalError):  # noqa: N818 - reads as a status, not a failure
+    """Raised by a day task when there is no input for the day (status ``"no_data"``)."""
+
+
+@dataclass(frozen=True)
+class DayInputs:
+    """Files and calibration a day's processing depends on.
+
+    Parameters
+    ----------
+    files : sequence of Path
+        Input telemetry files (and kernels, if their change must trigger a redo).
+    calibration : mapping
+        Calibration name -> file path (checksummed) or version string.
+    """
+
+    files: tuple[Path, ...] = ()
+    calibration: Mapping[str, str | Path] = field(default_factory=dict)
+
+    def checksums(self) -> dict[str, str]:
+        """Map ``"input:<path>"``/``"calibration:<name>"`` to SHA-256 (or version)."""
+        out = {f"input:{p}": sha256_file(p) for p in self.files}
+        for name, v in self.calibration.items():
+            p = Path(str(v))
+            out[f"calibration:{name}"] = sha256_file(p) if p.is_file() else str(v)
+        return out
+
+
+@dataclass
+class DayResult:
+    """What a day task returns.
+
+    Parameters
+    ----------
+    day : datetime.date
+        The day processed.
+    products : list of Path
+        Every file written for the day.
+    n_vectors : int
+        Number of field vectors processed (for the vectors/s rate).
+    inputs : DayInputs, optional
+        The inputs used (recorded in the manifest); default ``task.inputs(day)``.
+    """
+
+    day: _dt.date
+    products: list[Path]
+    n_vectors: int = 0
+    inputs: DayInputs | None = None
+
+
+class DayTask(Protocol):
+    """A picklable per-day job (``inputs`` is optional)."""
+
+    def __call__(self, day: _dt.date) -> DayResult:  # noqa: D102
+        ...
+
+
+@dataclass
+class DayStatus:
+    """Outcome of one day: ``done``, ``skipped``, ``no_data`` or ``failed``."""
+
+    day: str
+    status: str
+    products: list[str] = field(default_factory=list)
+    n_vectors: int = 0
+    seconds: float = 0.0
+    error: str | None = None
+    traceback: str | None = None
+    worker: str | None = None
+
+
+@dataclass
+class BatchReport:
+    """Every day's status plus run totals."""
+
+    name: str
+    days: list[DayStatus]
+    wall_seconds: float
+    scheduler: str
+    n_workers: int
+    report_path: str | None = None
+
+    def count(self, status: str) -> int:
+        """Return the number of days with ``status``."""
+        return sum(d.status == status for d in self.days)
+
+    @property
+    def failed(self) -> list[DayStatus]:
+        """Days that failed."""
+        return [d for d in self.days if d.status == "failed"]
+
+    @property
+    def n_vectors(self) -> int:
+        """Vectors processed in this run (skipped days not counted)."""
+        return sum(d.n_vectors for d in self.days if d.status == "done")
+
+    @property
+    def ok(self) -> bool:
+        """True when no day failed."""
+        return not self.failed
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        done = [d for d in self.days if d.status == "done"]
+        return {
+            "name": self.name,
+            "software_version": fluxcal.__version__,
+            "scheduler": self.scheduler,
+            "n_workers": self.n_workers,
+            "wall_seconds": round(self.wall_seconds, 3),
+            "counts": {s: self.count(s) for s in ("done", "skipped", "no_data", "failed")},
+            "vectors": self.n_vectors,
+            "vectors_per_second": (self.n_vectors / self.wall_seconds
+                                   if self.wall_seconds > 0 else 0.0),
+            "days_per_second": len(done) / self.wall_seconds if self.wall_seconds > 0 else 0.0,
+            "days": [asdict(d) for d in self.days],
+        }
+
+
+# --- manifests -----------------------------------------------------------------------------
+
+
+def manifest_path(out_dir: Path, name: str, day: _dt.date) -> Path:
+    """Path of a day's manifest."""
+    return Path(out_dir) / MANIFEST_DIR / f"{name}_{day.isoformat()}.json"
+
+
+def _current_inputs(task: Any, day: _dt.date) -> DayInputs | None:
+    fn = getattr(task, "inputs", None)
+    return fn(day) if callable(fn) else None
+
+
+def is_up_to_date(task: Any, day: _dt.date, out_dir: Path, name: str) -> bool:
+    """Whether the day's manifest says its products exist with unchanged inputs.
+
+    Conditions: manifest present and readable; same fluxcal version; every recorded
+    product exists with its recorded size; every recorded input/calibration checksum
+    equals the current one; and, if the task declares ``inputs(day)``, the current
+    inputs are exactly the recorded ones.
+    """
+    path = manifest_path(out_dir, name, day)
+    try:
+        man = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    if man.get("software_version") != fluxcal.__version__:
+        return False
+    for prod in man.get("products", []):
+        p = Path(out_dir) / prod["path"]
+        if not p.exists() or (p.is_file() and p.stat().st_size != prod["size"]):
+            return False
+    recorded: dict[str, str] = man.get("inputs", {})
+    try:
+        current = _current_inputs(task, day)
+        if current is not None:
+            return current.checksums() == recorded
+        for key, value in recorded.items():
+            kind, _, ref = key.partition(":")
+            if kind == "input" and sha256_file(ref) != value:
+                return False
+    except OSError:
+        return False
+    return True
+
+
+def _write_manifest(out_dir: Path, name: str, day: _dt.date, result: DayResult,
+                    inputs: DayInputs | None) -> None:
+    prods = []
+    for p in result.products:
+        p = Path(p)
+        rel = os.path.relpath(p, out_dir)
+        size = p.stat().st_size if p.is_file() else 0
+        prods.append({"path": rel, "size": size,
+                      "sha256": sha256_file(p) if p.is_file() else ""})
+    man = {
+        "name": name,
+        "day": day.isoformat(),
+        "software_version": fluxcal.__version__,
+        "products": prods,
+        "inputs": inputs.checksums() if inputs is not None else {},
+        "n_vectors": result.n_vectors,
+    }
+    atomic_write_bytes(manifest_path(out_dir, name, day),
+                       json.dumps(man, indent=1, sort_keys=True).encode())
+
+
+# --- one day (runs on a worker) ------------------------------------------------------------
+
+
+def run_day(task: Any, day: _dt.date, out_dir: Path, name: str, force: bool) -> DayStatus:
+    """Run one day: skip if up to date, else run the task and write its manifest.
+
+    Never raises for a failing day: the error is returned in the `DayStatus`.
+    """
+    t0 = time.perf_counter()
+    worker = f"pid {os.getpid()}"
+    try:
+        if not force and is_up_to_date(task, day, out_dir, name):
+            return DayStatus(day.isoformat(), "skipped", worker=worker,
+                             seconds=time.perf_counter() - t0)
+        inputs = _current_inputs(task, day)
+        result = task(day)
+        _write_manifest(out_dir, name, day, result, result.inputs or inputs)
+        return DayStatus(day.isoformat(), "done",
+                         products=[os.path.relpath(p, out_dir) for p in result.products],
+                         n_vectors=int(result.n_vectors), worker=worker,
+                         seconds=time.perf_counter() - t0)
+    except DayWithoutData as exc:
+        return DayStatus(day.isoformat(), "no_data", error=str(exc), worker=worker,
+                         seconds=time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001 - one failing day must not stop the others
+        log.warning("day %s failed: %s", day, exc)
+        return DayStatus(day.isoformat(), "failed", error=f"{type(exc).__name__}: {exc}",
+                         traceback="".join(traceback.format_exception(exc)[-6:]),
+                         worker=worker, seconds=time.perf_counter() - t0)
+
+
+# --- worker-side kernel cache --------------------------------------------------------------
+
+_KERNEL_CACHE: dict[str, Any] = {}
+
+
+def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None) -> Any:
+    """Load ``kernels`` once per worker process and keep them loaded.
+
+    Day tasks call this instead of ``with KernelPool(...)``: the first call in a process
+    furnishes the kernels; later calls with the same list return the same pool; a
+    different list unloads the previous one first (SPICE has one pool per process).
+
+    Returns
+    -------
+    fluxcal.geometry.kernels.KernelPool
+        The entered pool (its ``kernel_list()`` serves provenance).
+    """
+    from fluxcal.geometry.kernels import KernelPool
+
+    if kernels is None:
+        key_items: list[str] = []
+    elif isinstance(kernels, (str, Path)):
+        key_items = [str(kernels)]
+    else:
+        key_items = [str(k) for k in kernels]
+    key = "\n".join(key_items)
+    pool = _KERNEL_CACHE.get("pool")
+    if pool is not None and _KERNEL_CACHE.get("key") == key:
+        return pool
+    if pool is not None:
+        pool.__exit__(None, None, None)
+        _KERNEL_CACHE.clear()
+    pool = KernelPool(key_items).__enter__()
+    _KERNEL_CACHE.update(pool=pool, key=key)
+    return pool
+
+
+# --- the runner --------------------------------------------------------------------------
+
+
+def day_range(start: _dt.date, end: _dt.date) -> list[_dt.date]:
+    """Every day from ``start`` to ``end`` inclusive."""
+    if end < start:
+        raise ValueError(f"end {end} is before start {start}")
+    return [start + _dt.timedelta(days=i) for i in range((end - start).days + 1)]
+
+
+def clean_stale_temporaries(out_dir: Path) -> list[Path]:
+    """Remove temporary files left by a killed writer (``.<name>.*.tmp<suffix>``)."""
+    removed = []
+    for p in Path(out_dir).rglob(".*.tmp*"):
+        if p.is_file():
+            p.unlink()
+            removed.append(p)
+    return removed
+
+
+def make_local_cluster(n_workers: int = 2) -> Any:
+    """Return a `LocalCluster` of single-threaded worker processes (SPICE-safe)."""
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                        dashboard_address=None, silence_logs=logging.ERROR)
+
+
+def run_batch(
+    days: Iterable[_dt.date],
+    task: Callable[[_dt.date], DayResult],
+    out_dir: Path,
+    scheduler: str | None = None,
+    n_workers: int = 2,
+    force: bool = False,
+    *,
+    name: str | None = None,
+    on_day_done: Callable[[DayStatus], None] | None = None,
+    report_path: Path | None = None,
+) -> BatchReport:
+    """Run ``task`` for every day, in parallel, resumably; write a JSON report.
+
+    Parameters
+    ----------
+    days : iterable of datetime.date
+        Days to process (one task each).
+    task : callable
+        Picklable ``task(day) -> DayResult``; optional ``task.inputs(day) -> DayInputs``.
+    out_dir : Path
+        Product folder; holds ``manifests/`` and the report.
+    scheduler : str, optional
+        ``None``: a new LocalCluster of ``n_workers`` processes, one thread each;
+        ``"serial"``: run in this process; otherwise the address of an existing Dask
+        scheduler.
+    n_workers : int
+        Workers of the LocalCluster.
+    force : bool
+        Redo days even when they are up to date.
+    name : str, optional
+        Product-set name for manifests and report (default ``task.name`` or
+        the task's class name).
+    on_day_done : callable, optional
+        Called in this process with each `DayStatus` as it arrives (progress bars).
+    report_path : Path, optional
+        Default ``out_dir / "batch_report_<name>.json"``.
+
+    Returns
+    -------
+    BatchReport
+        Status of every day, in day order.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    days = sorted(set(days))
+    name = name or str(getattr(task, "name", type(task).__name__))
+    for p in clean_stale_temporaries(out_dir):
+        log.info("removed stale temporary %s", p)
+    t0 = time.perf_counter()
+    statuses: dict[str, DayStatus] = {}
+
+    def record(st: DayStatus) -> None:
+        statuses[st.day] = st
+        if on_day_done is not None:
+            on_day_done(st)
+
+    if scheduler == "serial":
+        for day in days:
+            record(run_day(task, day, out_dir, name, force))
+        used, workers = "serial", 1
+    else:
+        from distributed import Client, as_completed
+
+        cluster = make_local_cluster(n_workers) if scheduler is None else None
+        try:
+            with Client(cluster if cluster is not None else scheduler) as client:
+                used = str(client.scheduler.address)
+                workers = len(client.scheduler_info().get("workers", {}))
+                futures = {
+                    client.submit(run_day, task, day, out_dir, name, force, pure=False,
+                                  key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
+                    for day in days
+                }
+                for fut in as_completed(futures):
+                    day = futures[fut]
+                    try:
+                        st = fut.result()
+                    except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
+                        st = DayStatus(day.isoformat(), "failed",
+                                       error=f"{type(exc).__name__}: {exc}")
+                    record(st)
+        finally:
+            if cluster is not None:
+                cluster.close()
+    report = BatchReport(name, [statuses[d.isoformat()] for d in days],
+                         time.perf_counter() - t0, used, workers)
+    rpath = Path(report_path) if report_path else out_dir / REPORT_NAME.format(name=name)
+    report.report_path = str(rpath)
+    atomic_write_bytes(rpath, json.dumps(report.to_dict(), indent=1).encode())
+    return report
+
+
+# --- mission registry --------------------------------------------------------------------
+
+BUILTIN_TASKS = {"synthetic": "fluxcal.products.synthetic_task"}
+MISSIONS = ("messenger", "rosetta")
+
+
+def task_factory(mission: str) -> Callable[..., Any]:
+    """Return ``make_day_task(input_dir, out_dir, **options)`` for a mission.
+
+    Looks in ``fluxcal.missions.<mission>.batch_task`` (or a built-in task module).
+
+    Raises
+    ------
+    FluxcalError
+        If the mission has no batch task module or no ``make_day_task`` in it.
+    """
+    module_name = BUILTIN_TASKS.get(mission, f"fluxcal.missions.{mission}.batch_task")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        raise FluxcalError(
+            f"mission {mission!r} has no batch day task (module {module_name} not found; "
+            f"known: {', '.join(MISSIONS + tuple(BUILTIN_TASKS))})"
+        ) from exc
+    factory = getattr(module, "make_day_task", None)
+    if not callable(factory):
+        raise FluxcalError(f"{module_name} defines no make_day_task(input_dir, out_dir, ...)")
+    return factory

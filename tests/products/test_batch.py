@@ -1,0 +1,149 @@
+"""Batch runner on a real 2-worker LocalCluster (one per module, ~5 s to start)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fluxcal.products import read_product
+from fluxcal.products.batch import (
+    BatchReport,
+    day_range,
+    is_up_to_date,
+    make_local_cluster,
+    manifest_path,
+    run_batch,
+    task_factory,
+)
+from fluxcal.products.synthetic_task import (
+    SyntheticDayTask,
+    input_path,
+    write_synthetic_inputs,
+)
+
+DAYS = day_range(dt.date(2024, 3, 1), dt.date(2024, 3, 5))
+BAD = dt.date(2024, 3, 3)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    c = make_local_cluster(2)
+    yield c
+    c.close()
+
+
+def _corrupt(path: Path, line: int) -> None:
+    lines = path.read_text().splitlines()
+    lines[line - 1] = lines[line - 1].replace(",", ",1e", 1)  # '1e' is not an integer
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _products(out: Path) -> list[str]:
+    return sorted(p.name for p in out.glob("SYNTH_*.cdf"))
+
+
+def _expected_field(input_dir: Path, day: dt.date) -> np.ndarray:
+    # Independent of the task: counts from the CSV through the calibration written above.
+    raw = np.loadtxt(input_path(input_dir, day), delimiter=",", skiprows=1)
+    return 0.05 * (raw[:, 1:] - np.array([12.0, -7.0, 3.0]))
+
+
+def test_five_days_one_corrupted(cluster, tmp_path: Path) -> None:
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, DAYS, n_per_day=500)
+    _corrupt(input_path(inp, BAD), line=7)
+    task = SyntheticDayTask(inp, out)
+    seen = []
+    rep = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address, on_day_done=seen.append)
+    assert isinstance(rep, BatchReport)
+    assert [d.status for d in rep.days] == ["done", "done", "failed", "done", "done"]
+    assert len(seen) == 5
+    assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS if d != BAD]
+    bad = rep.days[2]
+    assert "SYNTH_20240303.csv" in bad.error and "line 7" in bad.error and "cx" in bad.error
+    assert not list(out.glob("SYNTH_20240303*"))
+    assert not manifest_path(out, "synthetic", BAD).exists()
+    # products are complete and correct
+    for d in DAYS:
+        if d != BAD:
+            back = read_product(out / f"SYNTH_{d:%Y%m%d}.cdf")
+            np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
+    # JSON report of every day
+    report = json.loads(Path(rep.report_path).read_text())
+    assert report["counts"] == {"done": 4, "skipped": 0, "no_data": 0, "failed": 1}
+    assert report["days"][2]["status"] == "failed" and "line 7" in report["days"][2]["error"]
+    assert rep.n_vectors == 4 * 500
+
+    # Rerun: the four are skipped, the bad one retried (and fails again).
+    rep2 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
+    assert [d.status for d in rep2.days] == ["skipped", "skipped", "failed", "skipped", "skipped"]
+
+    # Fix the input: the rerun does only that day.
+    write_synthetic_inputs(inp, [BAD], n_per_day=500)
+    rep3 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
+    assert [d.status for d in rep3.days] == ["skipped", "skipped", "done", "skipped", "skipped"]
+    assert rep3.ok
+
+    # A changed input or calibration invalidates the manifest; --force redoes everything.
+    write_synthetic_inputs(inp, [DAYS[0]], n_per_day=400, seed=9)
+    assert not is_up_to_date(task, DAYS[0], out, "synthetic")
+    assert is_up_to_date(task, DAYS[1], out, "synthetic")
+    (inp / "synthetic_calib.txt").write_text("offset = 0 0 0\ngain = 0.05\n")
+    assert not is_up_to_date(task, DAYS[1], out, "synthetic")
+    rep4 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address, force=True)
+    assert [d.status for d in rep4.days] == ["done"] * 5
+
+
+def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, DAYS, n_per_day=300)
+    # Day 2 kills its worker process (SIGKILL) once, after leaving a half-written temporary.
+    task = SyntheticDayTask(inp, out, delay=0.3, crash_once_on=DAYS[1])
+    rep = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
+    assert (out / ".crashed-SYNTH_20240302").exists()  # the worker really was killed
+    statuses = {d.day: d.status for d in rep.days}
+    # Every product that exists is complete; none is partial.
+    for d in DAYS:
+        cdf = out / f"SYNTH_{d:%Y%m%d}.cdf"
+        if statuses[d.isoformat()] == "done":
+            back = read_product(cdf)
+            np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
+            assert manifest_path(out, "synthetic", d).exists()
+    # Rerun completes every day (the interrupted one, if Dask did not already retry it).
+    rep2 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
+    assert rep2.ok
+    assert {d.status for d in rep2.days} <= {"done", "skipped"}
+    assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS]
+    assert not list(out.glob(".*.tmp*"))  # the stale temporary was cleaned
+
+
+def test_day_without_input_is_no_data(tmp_path: Path) -> None:
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, DAYS[:2], n_per_day=10)
+    rep = run_batch(DAYS[:3], SyntheticDayTask(inp, out), out, scheduler="serial")
+    assert [d.status for d in rep.days] == ["done", "done", "no_data"]
+    assert rep.ok
+
+
+def test_task_factory_registry() -> None:
+    assert task_factory("synthetic").__module__ == "fluxcal.products.synthetic_task"
+    from fluxcal.errors import FluxcalError
+
+    with pytest.raises(FluxcalError, match="no batch day task"):
+        task_factory("voyager")
+
+
+def test_worker_processes_are_single_threaded(cluster) -> None:
+    from distributed import Client
+
+    with Client(cluster.scheduler_address) as client:
+        info = client.scheduler_info()["workers"]
+        assert len(info) == 2
+        assert all(w["nthreads"] == 1 for w in info.values())
+        pids = client.run(os.getpid)
+        assert len(set(pids.values())) == 2 and os.getpid() not in pids.values()
