@@ -1,0 +1,70 @@
+"""RPC-MAG LEVEL_E, F, G: n-second averages of LEVEL_A, B, C.
+
+All vectors in ``[t0 + k n, t0 + (k+1) n)`` (``t0`` the UTC midnight of the first vector's
+day) are summed and divided by their number; the time tag is the middle of the
+interval; intervals without data are omitted.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.6 (E), 4.7 (F), 4.8 (G).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration import averaging
+
+NEXT_LEVEL = {"A": "E", "B": "F", "C": "G"}
+
+
+def utc_midnight(epoch: int, lsk=None) -> int:
+    """TT2000 of 00:00 UTC of the day containing ``epoch``."""
+    from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
+
+    day = str(tt2000_to_utc(np.array([epoch]), digits=0, lsk=lsk)[0])[:10]
+    return int(utc_to_tt2000(np.array([f"{day}T00:00:00"]), lsk)[0])
+
+
+def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
+    """Average a LEVEL_A/B/C dataset into LEVEL_E/F/G (``seconds`` per interval).
+
+    Vector and scalar float variables are averaged, ``quality`` is OR-ed (maximum),
+    ``obt`` is carried to the interval middle, and ``n_samples`` counts the vectors.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.6-4.8.
+    """
+    if seconds <= 0:
+        raise ValueError(f"seconds must be positive, not {seconds}")
+    epoch = level["epoch"].values.astype(np.int64)
+    width = int(round(seconds * 1e9))
+    origin = utc_midnight(int(epoch[0]), lsk) if epoch.size else 0
+    bins = averaging.bin_index(epoch, width, origin)
+    data = {}
+    rel = (epoch - origin).astype(float) if epoch.size else epoch.astype(float)
+    mean_rel = averaging.bin_mean(bins, rel)
+    for name, var in level.data_vars.items():
+        if name in ("quality",):
+            data[name] = ("time", averaging.bin_max(bins, var.values), var.attrs)
+        elif name == "obt":
+            centre_rel = (bins.centre - origin).astype(float)
+            obt = averaging.bin_mean(bins, var.values) + (centre_rel - mean_rel) * 1e-9
+            data[name] = ("time", obt, var.attrs)
+        elif name in ("sid", "row", "et"):
+            continue
+        elif np.issubdtype(var.dtype, np.floating):
+            data[name] = (var.dims, averaging.bin_mean(bins, var.values), var.attrs)
+    data["n_samples"] = ("time", bins.counts, {"units": "1"})
+    out = xr.Dataset(
+        data,
+        coords={"epoch": ("time", bins.centre, {"units": "ns", "time_base": "TT2000"}),
+                "component": ["x", "y", "z"]},
+        attrs=dict(level.attrs),
+    )
+    src = level.attrs.get("level", "?")
+    out.attrs.update(level=NEXT_LEVEL.get(src, src + "avg"), average_seconds=float(seconds),
+                     average_origin_tt2000=int(origin))
+    return out

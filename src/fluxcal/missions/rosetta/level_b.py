@@ -1,0 +1,112 @@
+"""RPC-MAG LEVEL_B: calibrated field in spacecraft coordinates.
+
+``B_sc = R_UVW2SC B_URF`` with the sensor's fixed rotation for the deployed or stowed boom
+(seed 003, sec. 4.3.1), then the post-hibernation offset jumps of Appendix B subtracted.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.4, 4.3.1, Appendix B.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration import matrices as mat
+from fluxcal.errors import CalibrationError
+from fluxcal.missions.rosetta.calib import Alignment, OffsetJumpTable, check_sensor
+
+
+def offset_jumps(
+    epoch: np.ndarray, table: OffsetJumpTable, sensor: str, *, lsk=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Jump (nT, shape (n, 3)) to subtract from each LEVEL_B vector, and its interval index.
+
+    Intervals are half-open ``[start, end)`` (the seed's IDL tests ``ge``/``le``; see
+    docs/decisions/rosetta.md); index -1 marks a vector outside every interval (no jump).
+
+    Raises
+    ------
+    CalibrationError
+        If the intervals overlap, or a vector falls in an interval whose jump is unknown
+        (NaN in the table).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), Appendix B.1 (OB) and B.2 (IB).
+    """
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    sensor = check_sensor(sensor)
+    starts = utc_to_tt2000(table.start_utc, lsk)
+    ends = utc_to_tt2000(table.end_utc, lsk)
+    if np.any(np.diff(starts) <= 0) or np.any(ends[:-1] > starts[1:]):
+        raise CalibrationError(f"{table.source}: offset-jump intervals must be sorted and disjoint")
+    epoch = np.asarray(epoch, dtype=np.int64)
+    idx = np.searchsorted(starts, epoch, side="right") - 1
+    inside = (idx >= 0) & (epoch < ends[np.clip(idx, 0, None)])
+    idx = np.where(inside, idx, -1)
+    jumps = table.jumps[sensor]
+    out = np.zeros((epoch.size, 3))
+    out[inside] = jumps[idx[inside]]
+    if np.isnan(out).any():
+        k = int(idx[np.isnan(out).any(axis=1)][0])
+        raise CalibrationError(
+            f"{table.source}: the {sensor} offset jump for {table.start_utc[k]} .. {table.end_utc[k]} "
+            "is unknown (the seed's Appendix B list is cut off); supply RPCMAG_OFFSET_JUMPS.csv "
+            "with the value in --calib DIR or process without jumps"
+        )
+    return out, idx
+
+
+def level_b(
+    level_a: xr.Dataset,
+    alignment: Alignment,
+    jumps: OffsetJumpTable | None,
+    *,
+    boom: str = "deployed",
+    lsk=None,
+) -> xr.Dataset:
+    """LEVEL_A (URF) -> LEVEL_B (spacecraft coordinates).
+
+    Parameters
+    ----------
+    level_a : xarray.Dataset
+        Output of `fluxcal.missions.rosetta.level_a.level_a`.
+    alignment : Alignment
+        R_UVW2SC matrices (``RPCMAG_SC_ALIGN.TXT``).
+    jumps : OffsetJumpTable or None
+        Appendix B table; ``None`` skips the jump correction.
+    boom : {"deployed", "stowed"}
+    lsk : LeapSecondTable, optional
+
+    Returns
+    -------
+    xarray.Dataset
+        Same variables, ``b`` in ``ROS_SPACECRAFT``; attributes name the alignment file
+        (and whether it is fluxcal's placeholder) and the jump table.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.3.1 and Appendix B.
+    """
+    sensor = check_sensor(level_a.attrs["sensor"])
+    rot = alignment.matrix(sensor, boom)
+    b_sc = mat.apply(rot, level_a["b"].values)
+    n_jumped = 0
+    if jumps is not None:
+        jump, idx = offset_jumps(level_a["epoch"].values, jumps, sensor, lsk=lsk)
+        b_sc = b_sc - jump
+        n_jumped = int((idx >= 0).sum())
+    out = level_a.copy()
+    out["b"] = (("time", "component"), b_sc, {"units": "nT", "frame": "ROS_SPACECRAFT"})
+    out.attrs.update(
+        level="B",
+        boom=boom,
+        alignment=f"{alignment.source} (version {alignment.version})"
+        + (" PLACEHOLDER identity, not the measured alignment" if alignment.placeholder else ""),
+        offset_jumps=(jumps.source if jumps is not None else "not applied"),
+        n_offset_jump_corrected=n_jumped,
+    )
+    return out

@@ -1,0 +1,317 @@
+"""Forward model of RPC-MAG: raw science and HK telemetry from a known field.
+
+The inverse of every LEVEL_A/B step is applied to a known field so the pipeline's output
+can be compared with the truth:
+
+1. truth ``B_ref(t)`` in ECLIPJ2000 (with kernels) or directly in s/c coordinates;
+2. s/c frame via the attitude, plus the Appendix B offset jump (an s/c field step);
+3. URF via ``R_UVW2SC^T``; plus the daily extended-temperature offset;
+4. raw engineering nT by the exact inverse of the ground calibration at the *true*
+   temperature, quantised to signed 20-bit counts; the thermistor voltage of the true
+   temperature quantised to 16-bit words;
+5. time stamps on a regular grid with the event time = stamp + filter-mode shift
+   (sec. 4.2.3.5); a few vectors flagged bad with their counts scrambled.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3, 4.1-4.3, Appendix B.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration import matrices as mat
+from fluxcal.calibration import thermal
+from fluxcal.missions.rosetta import hk, level_a
+from fluxcal.missions.rosetta.calib import (
+    Alignment,
+    DailyOffsetModel,
+    GroundCalibration,
+    OffsetJumpTable,
+    TimeShiftTable,
+    check_sensor,
+)
+
+log = logging.getLogger(__name__)
+NS = 1_000_000_000
+
+
+def truth_field(seconds: np.ndarray) -> np.ndarray:
+    """The known ambient field (nT) at ``seconds`` after the start: a few slow waves.
+
+    Magnitudes up to ~60 nT, typical of the solar wind near 67P.
+    """
+    s = np.asarray(seconds, dtype=float)
+    return np.stack(
+        [
+            5.0 + 20.0 * np.sin(2 * np.pi * s / 600.0),
+            -3.0 + 15.0 * np.cos(2 * np.pi * s / 900.0) + 3.0 * np.sin(2 * np.pi * s / 37.0),
+            2.0 + 10.0 * np.sin(2 * np.pi * s / 300.0 + 1.0),
+        ],
+        axis=1,
+    )
+
+
+def temperature_profile(seconds: np.ndarray, duration_s: float, sensor: str) -> np.ndarray:
+    """Sensor temperature (deg C) sweeping -140 .. +40 C over the run (cold OB, warmer IB)."""
+    s = np.asarray(seconds, dtype=float)
+    frac = np.clip(s / max(duration_s, 1.0), 0.0, 1.0)
+    base = -140.0 + 180.0 * frac
+    wobble = 1.5 * np.sin(2 * np.pi * s / 1800.0)
+    return base + wobble if sensor == "OB" else np.clip(base + 10.0, -140, 40) - wobble
+
+
+def mode_schedule(n: int) -> np.ndarray:
+    """Filter modes SID per vector: Normal, then Burst, Medium, Low (mode changes; sec. 4.2.3.5)."""
+    sid = np.full(n, 2, dtype=np.int16)
+    sid[n // 4 : n // 2] = 3
+    sid[n // 2 : 3 * n // 4] = 4
+    sid[3 * n // 4 :] = 5
+    return sid
+
+
+@dataclass
+class Simulation:
+    """Raw datasets and truth of a forward-model run."""
+
+    science: dict[str, xr.Dataset]
+    hk: xr.Dataset
+    truth: dict[str, xr.Dataset]
+    attrs: dict = field(default_factory=dict)
+
+
+def raw_counts(
+    b_urf: np.ndarray,
+    temperature: np.ndarray,
+    cal: GroundCalibration,
+    nominal: dict,
+    *,
+    extended: np.ndarray | None = None,
+) -> np.ndarray:
+    """Signed 20-bit counts a sensor reports for field ``b_urf`` at true ``temperature`` (deg C).
+
+    Inverse of sec. 4.2.3.1-4.2.3.3: ``B_c = b_urf + extended``; ``B_r`` the exact inverse of
+    the ground calibration; counts the nearest 20-bit word.
+    """
+    b_c = np.asarray(b_urf, dtype=float) + (0.0 if extended is None else extended)
+    return level_a.field_nt_to_counts(level_a.ground_uncalibrate(b_c, temperature, cal), nominal)
+
+
+def thermistor_words(temperature: np.ndarray, cal: GroundCalibration, nominal: dict) -> np.ndarray:
+    """16-bit thermistor words for calibrated temperature (deg C) (inverse of sec. 4.2.2.5, 3.3.3)."""
+    u = thermal.thermistor_voltage(temperature, cal.thermistor, cal.thermistor_offset)
+    return hk.thermistor_counts(u, nominal)
+
+
+def simulate(
+    start_utc: str,
+    duration_s: float,
+    *,
+    calibrations: Mapping[str, GroundCalibration],
+    time_shifts: TimeShiftTable,
+    nominal: dict,
+    alignment: Alignment,
+    jumps: OffsetJumpTable | None = None,
+    daily_models: Mapping[str, Mapping[np.datetime64, DailyOffsetModel]] | None = None,
+    rate_hz: float = 20.0,
+    primary: str = "OB",
+    boom: str = "deployed",
+    with_kernels: bool = False,
+    bad_fraction: float = 0.005,
+    hk_period_s: float = 32.0,
+    seed: int = 0,
+    lsk=None,
+) -> Simulation:
+    """Simulate raw science files of both sensors and an HK file from `truth_field`.
+
+    Parameters
+    ----------
+    start_utc : str
+        First time stamp (UTC, ISO).
+    duration_s : float
+    calibrations : mapping sensor -> GroundCalibration
+        The instrument's "true" calibration (may differ from fluxcal's defaults).
+    time_shifts, nominal, alignment, jumps, daily_models
+        As passed to the pipeline.
+    rate_hz : float
+        Vector rate.
+    primary : {"OB", "IB"}
+    boom : {"deployed", "stowed"}
+    with_kernels : bool
+        Truth given in ECLIPJ2000 and rotated with the loaded attitude (needs a
+        `KernelPool` with the Rosetta-like kernels, `fluxcal.geometry.synthetic`);
+        ``obt`` from the loaded SCLK.  Without, the truth is in s/c coordinates and ``obt``
+        is seconds since 2003-01-01 UTC-naive.
+    bad_fraction : float
+        Fraction of vectors flagged bad (counts scrambled).
+    seed : int
+        Random seed.
+
+    Returns
+    -------
+    Simulation
+        ``science[sensor]`` raw datasets (as `io.read_science_csv` returns), ``hk``, and
+        ``truth[sensor]`` with ``b_urf`` (LEVEL_A truth), ``b_sc`` (LEVEL_B truth after
+        the jump correction), ``b_ref`` (ECLIPJ2000 or s/c) at the event times.
+    """
+    from fluxcal.geometry.time import et_to_tt2000, tt2000_to_et, utc_to_tt2000
+
+    rng = np.random.default_rng(seed)
+    n = int(round(duration_s * rate_hz))
+    t0 = int(utc_to_tt2000(np.array([start_utc]), lsk)[0])
+    stamps = t0 + np.rint(np.arange(n) / rate_hz * NS).astype(np.int64)
+    sid = mode_schedule(n)
+    sclk = None
+    if with_kernels:
+        from fluxcal.geometry.time import SclkKernel
+
+        sclk = SclkKernel.from_pool(-226)
+        stamps_et = tt2000_to_et(stamps, lsk)
+        obt = sclk.from_et(stamps_et)[1]
+        stamps = et_to_tt2000(sclk.to_et(np.ones(n, dtype=np.int64), np.round(obt, 6)), lsk)
+        obt = np.round(obt, 6)
+    else:
+        obt0 = int(utc_to_tt2000(np.array(["2003-01-01T00:00:00"]), lsk)[0])
+        obt = np.round((stamps - obt0) / NS, 6)
+
+    science, truth = {}, {}
+    temps = {}
+    for sensor in ("OB", "IB"):
+        secs = (stamps - t0) / NS
+        temps[sensor] = temperature_profile(secs, duration_s, sensor)
+    words = {s: thermistor_words(temps[s], calibrations[s], nominal) for s in ("OB", "IB")}
+
+    for sensor in ("OB", "IB"):
+        cal = calibrations[check_sensor(sensor)]
+        shift = level_a.filter_time_shift(sid, time_shifts, sensor=sensor, primary=primary)
+        event = stamps + np.rint(shift * NS).astype(np.int64)
+        secs = (event - t0) / NS
+        b_ref = truth_field(secs)
+        if with_kernels:
+            from fluxcal.geometry.frames import rotate
+
+            b_sc_true = rotate(b_ref, tt2000_to_et(event, lsk), "ECLIPJ2000", "ROS_SPACECRAFT")
+        else:
+            b_sc_true = b_ref
+        jump = np.zeros((n, 3))
+        if jumps is not None:
+            from fluxcal.missions.rosetta.level_b import offset_jumps
+
+            jump = offset_jumps(event, jumps, sensor, lsk=lsk)[0]
+        rot = alignment.matrix(sensor, boom)
+        b_urf = mat.apply(rot.T, b_sc_true + jump)
+        temp = temps[sensor]
+        extended = None
+        models = (daily_models or {}).get(sensor)
+        if models:
+            day_index, days, _ = level_a.utc_days(stamps, lsk)
+            extended = level_a.extended_offset(stamps, temp, day_index, days, models)[0]
+        counts = raw_counts(b_urf, temp, cal, nominal, extended=extended)
+        quality = np.zeros(n, dtype=np.int16)
+        bad = rng.random(n) < bad_fraction
+        quality[bad] = rng.integers(1, 8, size=int(bad.sum()))
+        counts[bad] = rng.integers(-(2**19), 2**19, size=(int(bad.sum()), 3))
+        if sensor == "IB":
+            quality |= 8
+        science[sensor] = xr.Dataset(
+            {
+                "obt": ("time", obt, {"units": "s"}),
+                "sid": ("time", sid, {"units": "1"}),
+                "b_counts": (("time", "component"), counts.astype(np.int32), {"units": "count"}),
+                "t_ob_counts": ("time", words["OB"].astype(np.int32), {"units": "count"}),
+                "t_ib_counts": ("time", words["IB"].astype(np.int32), {"units": "count"}),
+                "quality": ("time", quality, {"units": "1"}),
+            },
+            coords={"epoch": ("time", stamps, {"units": "ns", "time_base": "TT2000"}),
+                    "component": ["x", "y", "z"]},
+            attrs={"sensor": sensor, "source": f"simulated {sensor}"},
+        )
+        truth[sensor] = xr.Dataset(
+            {
+                "b_urf": (("time", "component"), b_urf, {"units": "nT"}),
+                "b_sc": (("time", "component"), b_sc_true, {"units": "nT"}),
+                "b_ref": (("time", "component"), b_ref,
+                          {"units": "nT", "frame": "ECLIPJ2000" if with_kernels else "ROS_SPACECRAFT"}),
+                "temperature": ("time", temp + hk.KELVIN, {"units": "K"}),
+                "good": ("time", ~bad, {"units": "1"}),
+            },
+            coords={"epoch": ("time", event, {"units": "ns", "time_base": "TT2000"}),
+                    "component": ["x", "y", "z"]},
+            attrs={"sensor": sensor},
+        )
+    hk_raw = simulate_hk(stamps, obt, words, sid, truth["OB"]["b_urf"].values, nominal,
+                         calibrations["OB"], step=max(int(round(hk_period_s * rate_hz)), 1))
+    return Simulation(science, hk_raw, truth, {"start_utc": start_utc, "duration_s": duration_s,
+                                               "rate_hz": rate_hz, "sclk": sclk is not None})
+
+
+def simulate_hk(
+    stamps: np.ndarray,
+    obt: np.ndarray,
+    words: Mapping[str, np.ndarray],
+    sid: np.ndarray,
+    b_ob: np.ndarray,
+    nominal: dict,
+    cal: GroundCalibration,
+    *,
+    step: int = 640,
+) -> xr.Dataset:
+    """HK records every ``step`` vectors: thermistors, nominal voltages, 16-bit OB field.
+
+    Inverse of the nominal conversions of sec. 4.2.2.1-4.2.2.4 (2.4996 V reference,
+    +5.0 V / -5.0 V supplies, the raw OB field).
+    """
+    pick = np.arange(0, len(stamps), step)
+    m = pick.size
+    p = nominal["hk_field"]
+    b_raw = level_a.ground_uncalibrate(b_ob[pick], np.zeros(m), cal)
+    nf = (p["b_max_nt"] - p["b_min_nt"]) / (2 ** p["bits"] - 1)
+    conv = np.clip(np.rint((b_raw - p["b_min_nt"]) / nf), 0, 2 ** p["bits"] - 1).astype(np.int64)
+    half = 2 ** (p["bits"] - 1)
+    tlm_b = np.where(conv >= half, conv - half, conv + half)
+    r = nominal["hk_reference_voltage"]
+    nf20 = (r["u_max_v"] - r["u_min_v"]) / (2 ** r["bits"] - 1)
+    conv_ref = int(round((2.4996 * hk.divider(r) - r["u_min_v"]) / nf20))
+    tlm_ref = conv_ref - 2 ** (r["bits"] - 1)
+    return xr.Dataset(
+        {
+            "obt": ("time", obt[pick], {"units": "s"}),
+            "t_ob_counts": ("time", words["OB"][pick], {"units": "count"}),
+            "t_ib_counts": ("time", words["IB"][pick], {"units": "count"}),
+            "stage_a_id": ("time", sid[pick].astype(np.int64), {"units": "1"}),
+            "stage_b_id": ("time", np.zeros(m, dtype=np.int64), {"units": "1"}),
+            "filter_cfg": ("time", sid[pick].astype(np.int64), {"units": "1"}),
+            "ref_voltage_counts": ("time", np.full(m, tlm_ref, dtype=np.int64), {"units": "count"}),
+            "neg_voltage_counts": ("time", np.zeros(m, dtype=np.int64), {"units": "count"}),
+            "pos_voltage_counts": ("time", np.zeros(m, dtype=np.int64), {"units": "count"}),
+            "b_ob_counts": (("time", "component"), tlm_b, {"units": "count"}),
+        },
+        coords={"epoch": ("time", stamps[pick], {"units": "ns", "time_base": "TT2000"}),
+                "component": ["x", "y", "z"]},
+        attrs={"source": "simulated HK"},
+    )
+
+
+def write_truth_csv(truth: xr.Dataset, path: Path, *, lsk=None) -> Path:
+    """Write the truth of one sensor (event time, b_urf, b_sc, b_ref, T) as CSV."""
+    from fluxcal.geometry.time import tt2000_to_utc
+
+    cols = [tt2000_to_utc(truth["epoch"].values, digits=6, lsk=lsk), truth["epoch"].values]
+    header = ["time_utc", "epoch_tt2000_ns"]
+    for name in ("b_urf", "b_sc", "b_ref"):
+        for j, c in enumerate("xyz"):
+            cols.append(np.char.mod("%.6f", truth[name].values[:, j]))
+            header.append(f"{name}_{c}")
+    cols.append(np.char.mod("%.4f", truth["temperature"].values))
+    cols.append(truth["good"].values.astype(int))
+    header += ["temperature_k", "good"]
+    from fluxcal.missions.rosetta.io import _write_atomic
+
+    return _write_atomic(Path(path), tuple(header), cols)

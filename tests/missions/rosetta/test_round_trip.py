@@ -1,0 +1,99 @@
+"""Forward model -> LEVEL_A recovers the known field (seed 003 sec. 4.2.3, issue 4)."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from fluxcal.missions.rosetta import calib, io, level_a, simulate
+from fluxcal.missions.rosetta.calib import DailyOffsetModel
+
+# 20-bit field LSB 0.0286 nT (uniform rounding: 0.0083 nT rms) plus the 16-bit thermistor
+# word (0.02-0.03 K, times |A_1| up to 1.7 nT/K: ~0.01 nT rms) give ~0.015 nT rms; the
+# issue's bound is 0.03 nT rms per component.
+RMS_NT = 0.03
+
+
+def _setup(calib_dir=None):
+    cals = {s: calib.load_ground_calibration(s, calib_dir) for s in ("OB", "IB")}
+    return (cals, calib.load_time_shift_table(calib_dir), calib.load_nominal_conversion(calib_dir),
+            calib.load_alignment(calib_dir), calib.load_offset_jump_table(calib_dir))
+
+
+def _compare(a, truth):
+    good = truth["good"].values
+    epoch, b = truth["epoch"].values[good], truth["b_urf"].values[good]
+    order = np.argsort(epoch, kind="stable")
+    assert a.sizes["time"] == good.sum()
+    assert np.abs(a["epoch"].values - epoch[order]).max() <= 1000  # 1 us: CSV keeps 6 digits
+    return a["b"].values - b[order]
+
+
+@pytest.mark.parametrize("sensor", ["OB", "IB"])
+def test_level_a_recovers_truth(pool, sensor):
+    cals, ts, nom, al, jumps = _setup()
+    sim = simulate.simulate("2014-08-01T00:00:00", 900.0, calibrations=cals, time_shifts=ts,
+                            nominal=nom, alignment=al, jumps=jumps, seed=1)
+    a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom)
+    diff = _compare(a, sim.truth[sensor])
+    rms = np.sqrt((diff**2).mean(axis=0))
+    assert np.all(rms < RMS_NT), rms
+    assert a.attrs["n_dropped_quality"] == int((~sim.truth[sensor]["good"].values).sum()) > 0
+    # the recovered temperature is the truth within the thermistor word (<0.05 K)
+    t_true = np.sort(sim.truth[sensor]["temperature"].values)  # monotone-ish; compare ranges
+    assert a["temperature"].min() == pytest.approx(t_true.min(), abs=0.05)
+
+
+def _user_calibration(tmp_path):
+    """A user calibration dir whose every coefficient differs from fluxcal's defaults."""
+    for sensor in ("OB", "IB"):
+        cal = calib.load_ground_calibration(sensor)
+        user = replace(
+            cal,
+            offset=cal.offset * [[1.2], [0.8]] + [[10.0], [0.0]],
+            residual_field=cal.residual_field + 3.0,
+            sensitivity=cal.sensitivity * [[0.99], [1.5]],
+            angles=cal.angles + [[0.2, -0.1, 0.15], [1e-4, -1e-4, 5e-5]],
+            k_inverse=cal.k_inverse + np.triu(np.full((3, 3), 2e-4), 1),
+            thermistor_offset=cal.thermistor_offset + 1.0,
+            version="user-9",
+        )
+        calib.write_ground_calibration(user, tmp_path / calib.GROUND_FILE[sensor])
+    # and a day's extended temperature polynomial for each sensor
+    for sensor, c0 in (("OB", [3.0, -2.0, 1.0]), ("IB", [-1.0, 0.5, 2.0])):
+        coeffs = np.zeros((6, 3))
+        coeffs[0], coeffs[1], coeffs[2] = c0, [0.01, -0.02, 0.005], [1e-4, 5e-5, -1e-4]
+        calib.write_daily_offset_model(
+            DailyOffsetModel(np.datetime64("2014-08-01"), sensor, coeffs), tmp_path)
+    return tmp_path
+
+
+@pytest.mark.parametrize("sensor", ["OB", "IB"])
+def test_round_trip_with_user_calibration_dir_and_csv(pool, tmp_path, sensor):
+    (tmp_path / "calib").mkdir()
+    user_dir = _user_calibration(tmp_path / "calib")
+    cals, ts, nom, al, jumps = _setup(user_dir)
+    assert cals[sensor].version == "user-9"
+    models = {s: calib.find_daily_offset_models(user_dir, s) for s in ("OB", "IB")}
+    sim = simulate.simulate("2014-08-01T00:00:00", 600.0, calibrations=cals, time_shifts=ts,
+                            nominal=nom, alignment=al, jumps=jumps, daily_models=models, seed=2)
+    path = io.write_science_csv(sim.science[sensor], tmp_path / f"{sensor}.csv")
+    raw = io.read_science_csv(path, sensor)
+    a = level_a.level_a(raw, cals[sensor], ts, nom, daily_models=models[sensor])
+    assert "model 006" in a.attrs["extended_temperature_model"]
+    diff = _compare(a, sim.truth[sensor])
+    assert np.all(np.sqrt((diff**2).mean(axis=0)) < RMS_NT)
+    # processing with the defaults instead must fail to recover it (the files matter)
+    default = calib.load_ground_calibration(sensor)
+    wrong = level_a.level_a(raw, default, ts, nom)
+    assert np.sqrt((_compare(wrong, sim.truth[sensor]) ** 2).mean()) > 1.0
+    assert "none: ground calibration alone" in wrong.attrs["extended_temperature_model"]
+
+
+def test_primary_ib_swaps_time_shift_tables(pool):
+    cals, ts, nom, al, jumps = _setup()
+    sim = simulate.simulate("2014-08-01T00:00:00", 300.0, calibrations=cals, time_shifts=ts,
+                            nominal=nom, alignment=al, primary="IB", seed=3)
+    for sensor in ("OB", "IB"):
+        a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom, primary="IB")
+        assert np.sqrt((_compare(a, sim.truth[sensor]) ** 2).mean()) < RMS_NT
