@@ -1,0 +1,82 @@
+"""Simulate MESSENGER MAG telemetry, run ``edr2cdr`` on it and compare with the truth."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.synthetic import write_messenger_like_kernels
+from fluxcal.geometry.time import SclkKernel
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.simulate import (
+    SimulationConfig,
+    read_truth,
+    simulate,
+    write_inputs,
+)
+
+log = logging.getLogger(__name__)
+
+
+def simulate_to_dir(
+    out: str | Path, start_utc: str = "2012-06-01T00:00:00", duration_s: float = 7200.0
+) -> dict[str, Path]:
+    """Write synthetic kernels, the three input streams and the truth into ``out``.
+
+    Returns
+    -------
+    dict
+        Paths keyed ``kernels`` (meta-kernel), ``science``, ``heater``, ``temperature``,
+        ``truth``.
+    """
+    out = Path(out)
+    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
+    # the sensor sees the Sun (+Y sunward) in the second quarter of the interval
+    mk = write_messenger_like_kernels(
+        out / "kernels", start_utc, duration_s + 2 * config.lead_s,
+        plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)],
+    )
+    cal = load_calibration(start_utc)
+    with KernelPool(mk):
+        sim = simulate(config, cal, SclkKernel.from_pool(-236))
+    paths = write_inputs(sim, out / "inputs")
+    return {"kernels": mk, **paths}
+
+
+def compare(product_tabs: list[Path], truth_path: Path) -> dict[str, np.ndarray]:
+    """Recovered-minus-true MSO field statistics per range from MAGMSOSCI tables."""
+    from fluxcal.products import read_product
+
+    parts = []
+    for tab in sorted(product_tabs):
+        prod = read_product(tab)
+        parts.append(np.asarray(prod["b"].values, dtype=float))
+    truth = read_truth(truth_path)
+    err = np.concatenate(parts) - truth["b_mso"].values
+    stats = {}
+    for name, sel in (("fine", truth["range"].values == 0), ("coarse", truth["range"].values == 1)):
+        if sel.any():
+            stats[f"{name}_rms"] = np.sqrt((err[sel] ** 2).mean(axis=0))
+            stats[f"{name}_max"] = np.abs(err[sel]).max(axis=0)
+    return stats
+
+
+def run_demo(out: Path) -> str:
+    """Simulate ~2 h of MESSENGER MAG data, run edr2cdr, return the error statistics text."""
+    from fluxcal.missions.messenger.run import run_edr2cdr
+
+    out = Path(out)
+    paths = simulate_to_dir(out / "simulation", "2012-06-01T00:01:00")
+    products = out / "products"
+    written = run_edr2cdr([paths["science"]], [paths["heater"]], [paths["temperature"]],
+                          paths["kernels"], products)
+    tabs = [p for p in written if p.name.startswith("MAGMSOSCI1") and p.suffix == ".TAB"]
+    stats = compare(tabs, paths["truth"])
+    lines = [f"MESSENGER demo: {len(written)} product files in {products}",
+             "recovered - true field in MSO (nT), per axis x y z:"]
+    for key, value in stats.items():
+        lines.append(f"  {key:11s} " + " ".join(f"{v:8.4f}" for v in value))
+    return "\n".join(lines)

@@ -1,0 +1,210 @@
+"""MESSENGER MAG CDR products: archive-like tables per frame and day, and averages.
+
+Column layout follows the archived MESSENGER CDR tables: ``year doy hour minute second
+met x y z bx by bz`` (corrected UTC, corrected MET, position in km, field in nT) plus
+the SHC quality flag.  RTN products carry ``r lat az`` (km, deg, deg) as position.
+Averaged products (``...SCIAVG``) carry the bin centre time, the number of samples, the
+mean position and field and the standard deviation of each field component.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9, 10, 11, 12.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.missions.messenger.levels import FRAMES
+
+#: Position variable of each frame's product.
+POSITION_OF = {"mso": "pos_mso", "j2000": "pos_j2000", "mbf": "pos_mbf", "rtn": "pos_rtn",
+               "sc": "pos_j2000", "vso": "pos_j2000"}
+AVERAGES_S = (1, 5, 10, 60)
+
+
+def _utc_fields(et: np.ndarray) -> dict[str, np.ndarray]:
+    from fluxcal.geometry.time import et_to_utc
+
+    text = et_to_utc(np.atleast_1d(et), style="doy", digits=3)  # "YYYY DOY HH MM SS.sss"
+    width = 21
+    if text.size and int(np.char.str_len(text).max()) != width:
+        raise ValueError("unexpected UTC string width")
+    d = (np.frombuffer(text.astype(f"S{width}").tobytes(), dtype=np.uint8)
+         .reshape(-1, width).astype(np.int64) - 48)
+
+    def num(a: int, b: int) -> np.ndarray:
+        out = np.zeros(d.shape[0], dtype=np.int64)
+        for k in range(a, b):
+            out = out * 10 + d[:, k]
+        return out
+
+    return {
+        "year": num(0, 4).astype(np.int16),
+        "doy": num(5, 8).astype(np.int16),
+        "hour": num(9, 11).astype(np.int8),
+        "minute": num(12, 14).astype(np.int8),
+        "second": num(15, 17) + num(18, 21) / 1000.0,
+    }
+
+
+def product_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
+    """Return the product content (time, position, field, flag) for one frame.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9-12.
+    """
+    utc = _utc_fields(ds["et"].values)
+    pos = ds[POSITION_OF[frame]]
+    data = {k: ("time", v, {"units": u}) for (k, v), u in zip(
+        utc.items(), ("year", "day", "h", "min", "s"), strict=True)}
+    data["met"] = ("time", ds["met_corrected"].values, {"units": "s",
+                   "description": "MET corrected for the net lag"})
+    data["position"] = (("time", "component"), pos.values, dict(pos.attrs))
+    data["b"] = (("time", "component"), ds[f"b_{frame}"].values,
+                 {"units": "nT", "description": f"magnetic field in {FRAMES[frame][0]}"})
+    data["quality"] = ("time", ds["quality"].values, {"units": "1",
+                       "description": "SHC data quality flag (Table 5)"})
+    return xr.Dataset(data, coords={"epoch": ds["epoch"], "component": ["x", "y", "z"]},
+                      attrs=dict(ds.attrs))
+
+
+def average(prod: xr.Dataset, seconds: int, day_start_tt2000: int) -> xr.Dataset:
+    """Average a product over ``seconds``-long bins counted from the day start.
+
+    Returns the bin centre ``epoch``, ``count``, mean ``position`` and ``b``, and
+    ``b_std`` (population standard deviation of each field component).
+    """
+    epoch = prod["epoch"].values
+    width = np.int64(seconds) * 1_000_000_000
+    idx = (epoch - day_start_tt2000) // width
+    bins, inv, count = np.unique(idx, return_inverse=True, return_counts=True)
+
+    def mean(v: np.ndarray) -> np.ndarray:
+        sums = [np.bincount(inv, v[:, j], bins.size) for j in range(3)]
+        return np.stack(sums, axis=1) / count[:, None]
+
+    b = prod["b"].values
+    bm = mean(b)
+    var = mean(b * b) - bm * bm
+    centre = day_start_tt2000 + bins * width + width // 2
+    q = np.zeros(bins.size, dtype=prod["quality"].dtype)
+    np.maximum.at(q, inv, prod["quality"].values)
+    vec = ("time", "component")
+    return xr.Dataset(
+        {
+            "count": ("time", count.astype(np.int32), {"units": "1",
+                      "description": "number of samples in the bin"}),
+            "position": (vec, mean(prod["position"].values), dict(prod["position"].attrs)),
+            "b": (vec, bm, {"units": "nT", "description": "mean field"}),
+            "b_std": (vec, np.sqrt(np.maximum(var, 0.0)), {"units": "nT",
+                      "description": "standard deviation of each field component"}),
+            "quality": ("time", q, {"units": "1", "description": "largest SHC flag in the bin"}),
+        },
+        coords={"epoch": ("time", centre, {"units": "ns"}), "component": ["x", "y", "z"]},
+        attrs=dict(prod.attrs, averaging_interval_s=seconds),
+    )
+
+
+def _columns(frame: str, averaged: bool):
+    from fluxcal.products import Column
+
+    pos_label = "{c}" if frame != "rtn" else None
+    cols = []
+    if averaged:
+        cols += [Column("year", "%4d"), Column("doy", "%03d"), Column("hour", "%02d"),
+                 Column("minute", "%02d"), Column("second", "%06.3f"),
+                 Column("count", "%6d")]
+    else:
+        cols += [Column("year", "%4d"), Column("doy", "%03d"), Column("hour", "%02d"),
+                 Column("minute", "%02d"), Column("second", "%06.3f"), Column("met", "%17.6f")]
+    if frame == "rtn":
+        cols += [Column("position", "%16.4f", component="x", label="r"),
+                 Column("position", "%12.7f", component="y", label="lat"),
+                 Column("position", "%12.7f", component="z", label="az")]
+    else:
+        cols += [Column("position", "%14.3f", label=pos_label)]
+    cols += [Column("b", "%11.3f", label="b{c}")]
+    if averaged:
+        cols += [Column("b_std", "%9.3f", label="sd_b{c}")]
+    cols += [Column("quality", "%03d")]
+    return cols
+
+
+def write_day(
+    ds: xr.Dataset,
+    out_dir: Path,
+    frames: Sequence[str],
+    formats: Sequence[str],
+    averages: Sequence[int],
+    provenance: dict,
+) -> list[Path]:
+    """Write every product of one UTC day (all or nothing) and return the final paths.
+
+    Files are first written into a temporary folder inside ``out_dir`` and moved into
+    place only when every product of the day succeeded.
+    """
+    from fluxcal.geometry.time import utc_to_tt2000
+    from fluxcal.products import write_product
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    year, doy, yyddd = day_code(ds)
+    day0 = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
+    day_start = int(utc_to_tt2000(np.array([f"{day0}T00:00:00"]))[0])
+    tmp = Path(tempfile.mkdtemp(prefix=f".tmp_{yyddd}_", dir=out_dir))
+    written: list[Path] = []
+    try:
+        for frame in frames:
+            prod = product_dataset(ds, frame)
+            prod.attrs.update(provenance)
+            stem = FRAMES[frame][1]
+            extra = {"PRODUCT_ID": f"{stem}{yyddd}", "COORDINATE_SYSTEM": FRAMES[frame][0]}
+            written += write_product(prod, tmp / f"{stem}{yyddd}", formats,
+                                     _columns(frame, False), extra)
+            for sec in averages:
+                avg = average(prod, int(sec), day_start)
+                avg = avg.assign(_utc_fields_ds(avg))
+                name = f"{stem}AVG{yyddd}_{int(sec):02d}"
+                written += write_product(avg, tmp / name, formats, _columns(frame, True),
+                                         dict(extra, PRODUCT_ID=name, AVERAGING_INTERVAL_S=sec))
+        final = []
+        for path in written:
+            dest = out_dir / path.name
+            os.replace(path, dest)
+            final.append(dest)
+        return final
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def day_code(ds: xr.Dataset) -> tuple[int, int, str]:
+    """Return (year, day of year, ``yyddd``) of the first sample's UTC day."""
+    utc = _utc_fields(ds["et"].values[:1])
+    year, doy = int(utc["year"][0]), int(utc["doy"][0])
+    return year, doy, f"{year % 100:02d}{doy:03d}"
+
+
+def _utc_fields_ds(avg: xr.Dataset) -> dict:
+    from fluxcal.geometry.time import tt2000_to_et
+
+    utc = _utc_fields(tt2000_to_et(avg["epoch"].values))
+    return {k: ("time", v, {"units": u}) for (k, v), u in zip(
+        utc.items(), ("year", "day", "h", "min", "s"), strict=True)}
+
+
+def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
+    """Split a calibrated dataset by UTC day (of the corrected time)."""
+    utc = _utc_fields(ds["et"].values)
+    key = utc["year"].astype(np.int64) * 1000 + utc["doy"]
+    edges = np.flatnonzero(np.diff(key)) + 1
+    bounds = np.concatenate([[0], edges, [key.size]])
+    return [ds.isel(time=slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]

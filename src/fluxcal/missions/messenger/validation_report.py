@@ -1,0 +1,56 @@
+"""Offset-smoothness report of a calibrated day: text summary and PNG (sec. 13).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13 "Validation".
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.missions.messenger.levels import offset_step_report
+
+
+def report_text(ds: xr.Dataset, threshold_counts: float | None) -> str:
+    """Return the step report as text: largest step per axis, where, and the threshold."""
+    from fluxcal.geometry.time import et_to_utc
+
+    rep = offset_step_report(ds)
+    lines = ["# MESSENGER MAG offset smoothness (seed 000 sec. 13)",
+             f"# threshold_counts: {threshold_counts}", "axis,largest_step_counts,utc"]
+    for axis, item in rep.items():
+        utc = et_to_utc(np.array([item["et"]]))[0]
+        lines.append(f"{axis},{item['step_counts']:.6f},{utc}")
+    return "\n".join(lines) + "\n"
+
+
+def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None) -> list[Path]:
+    """Write ``stem.txt`` and ``stem.png`` (applied offsets versus time) atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    stem = Path(stem)
+    txt = stem.with_name(stem.name + ".txt")
+    tmp = txt.with_name(txt.name + ".tmp")
+    tmp.write_text(report_text(ds, threshold_counts))
+    tmp.replace(txt)
+    png = stem.with_name(stem.name + ".png")
+    hours = (ds["et"].values - ds["et"].values[0]) / 3600.0
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 6))
+    step = max(1, hours.size // 20000)
+    for j, axis in enumerate("xyz"):
+        axes[j].plot(hours[::step], ds["offset"].values[::step, j], lw=0.8)
+        axes[j].set_ylabel(f"offset {axis} (counts)")
+    axes[-1].set_xlabel("hours since first sample")
+    fig.suptitle("Applied thermal offsets (fine-range counts)")
+    tmp_png = png.with_name(png.name + ".tmp.png")
+    fig.savefig(tmp_png, dpi=80)
+    plt.close(fig)
+    tmp_png.replace(png)
+    return [txt, png]
