@@ -21,7 +21,9 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
 )
-simulate_app = typer.Typer(help="Forward models: write raw telemetry and kernels from a known field.")
+simulate_app = typer.Typer(
+    help="Forward models: write raw telemetry and kernels from a known field."
+)
 app.add_typer(simulate_app, name="simulate")
 
 

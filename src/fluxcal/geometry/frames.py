@@ -100,7 +100,7 @@ def _loaded_ck_segments() -> list[_CkSegment]:
 
 
 def _ck_record_ticks(segment: _CkSegment) -> np.ndarray:
-    """Encoded SCLK ticks of the pointing records of a type 1 or 3 CK segment."""
+    """Return the encoded SCLK ticks of the pointing records of a type 1 or 3 CK segment."""
     handle = spiceypy.dafopr(segment.path)
     try:
         if segment.data_type == 3:
@@ -138,7 +138,9 @@ def _ck_instruments(frame: str, segments: list[_CkSegment]) -> list[int]:
         try:
             _center, frclass, classid = spiceypy.frinfo(code)
         except spiceypy.utils.exceptions.SpiceyError:
-            raise KernelError(f"frame id {code} (in the chain of {frame}) has no definition") from None
+            raise KernelError(
+                f"frame id {code} (in the chain of {frame}) has no definition"
+            ) from None
         if frclass == 3:
             ids.append(classid)
             refs = [s.reference for s in segments if s.instrument == classid]
@@ -198,17 +200,18 @@ def slerp(nodes: np.ndarray, quats: np.ndarray, et: np.ndarray) -> np.ndarray:
         two nodes, as a type 3 C-kernel interpolates.
     """
     i = np.clip(np.searchsorted(nodes, et, side="right") - 1, 0, nodes.size - 2)
-    dot = np.clip(np.einsum("ij,ij->i", quats[:-1], quats[1:]), -1.0, 1.0)
-    theta = np.arccos(dot)
-    sin_theta = np.sin(theta)
-    s = (et - nodes[i]) / (nodes[i + 1] - nodes[i])
-    th = theta[i]
-    small = th < 1e-9
-    safe = np.where(small, 1.0, sin_theta[i])
-    w0 = np.where(small, 1.0 - s, np.sin((1.0 - s) * th) / safe)
-    w1 = np.where(small, s, np.sin(s * th) / safe)
-    q = w0[:, None] * quats[i] + w1[:, None] * quats[i + 1]
-    return q / np.linalg.norm(q, axis=1)[:, None]
+    q0, q1 = quats[:-1], quats[1:]
+    dot = np.clip(np.einsum("ij,ij->i", q0, q1), -1.0, 1.0)
+    # a floor on the angle keeps sin(s*theta)/sin(theta) -> s for identical nodes
+    theta = np.maximum(np.arccos(dot), 1e-12)
+    # q(s) = q0 cos(s theta) + u sin(s theta), u the unit quaternion orthogonal to q0
+    ortho = (q1 - q0 * dot[:, None]) / np.sin(theta)[:, None]
+    s = (et - nodes.take(i)) / np.diff(nodes).take(i)
+    angle = s * theta.take(i)
+    out = q0.take(i, axis=0)
+    out *= np.cos(angle)[:, None]
+    out += ortho.take(i, axis=0) * np.sin(angle)[:, None]
+    return out
 
 
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -230,15 +233,18 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     """(n, 4) unit scalar-last quaternions -> (n, 3, 3) rotation matrices."""
     x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     out = np.empty((q.shape[0], 3, 3))
-    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    out[:, 0, 1] = 2 * (x * y - z * w)
-    out[:, 0, 2] = 2 * (x * z + y * w)
-    out[:, 1, 0] = 2 * (x * y + z * w)
-    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    out[:, 1, 2] = 2 * (y * z - x * w)
-    out[:, 2, 0] = 2 * (x * z - y * w)
-    out[:, 2, 1] = 2 * (y * z + x * w)
-    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz = x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    out[:, 0, 0] = 1 - 2 * (yy + zz)
+    out[:, 0, 1] = 2 * (xy - wz)
+    out[:, 0, 2] = 2 * (xz + wy)
+    out[:, 1, 0] = 2 * (xy + wz)
+    out[:, 1, 1] = 1 - 2 * (xx + zz)
+    out[:, 1, 2] = 2 * (yz - wx)
+    out[:, 2, 0] = 2 * (xz - wy)
+    out[:, 2, 1] = 2 * (yz + wx)
+    out[:, 2, 2] = 1 - 2 * (xx + yy)
     return out
 
 
@@ -290,39 +296,52 @@ class _Leg:
     def _build(
         self, tmin: float, tmax: float, ck_nodes: list[np.ndarray], grid_step: float
     ) -> None:
-        base = np.concatenate(ck_nodes) if ck_nodes else np.empty(0)
-        uniform = np.array([tmin, tmax])
-        step = grid_step
-        if not ck_nodes:
-            uniform = self._uniform(tmin, tmax, step)
-        for _ in range(8):
-            self._fit(np.unique(np.concatenate([base, uniform])))
-            if self.nodes.size < 2:
+        if ck_nodes:
+            # CK records: SLERP between them is exact; verified on a sample of intervals
+            nodes = np.unique(np.concatenate([*ck_nodes, [tmin, tmax]]))
+            matrices = pxform_oracle(self.frame, _INERTIAL, nodes)
+            self._set(nodes, matrices)
+            if nodes.size < 2 or self._sampled_error() <= self.tolerance:
                 return
-            error = self._max_error()
-            if error <= self.tolerance:
+        else:
+            n = max(int(np.ceil((tmax - tmin) / grid_step)), 1)
+            nodes = np.linspace(tmin, tmax, n + 1) if tmax > tmin else np.array([tmin])
+            matrices = pxform_oracle(self.frame, _INERTIAL, nodes)
+            self._set(nodes, matrices)
+            if nodes.size < 2:
                 return
-            # SLERP error grows as step**2: aim at half the tolerance
-            step = min(step, (np.diff(self.nodes).max())) * max(
-                min(np.sqrt(0.5 * self.tolerance / error), 0.5), 0.02
-            )
-            uniform = self._uniform(tmin, tmax, step)
+        self._refine(nodes, matrices)
+
+    def _refine(self, nodes: np.ndarray, matrices: np.ndarray) -> None:
+        """Bisect every interval whose mid-point error exceeds the tolerance."""
+        check = np.ones(nodes.size - 1, dtype=bool)
+        for _ in range(40):
+            idx = np.flatnonzero(check)
+            mids = 0.5 * (nodes[idx] + nodes[idx + 1])
+            truth = pxform_oracle(self.frame, _INERTIAL, mids)
+            approx = quat_to_matrix(slerp(self.nodes, self.quats, mids))
+            error = np.linalg.norm(truth - approx, axis=(1, 2)) / np.sqrt(2.0)
+            bad = error > self.tolerance
+            if not bad.any():
+                return
+            where = idx[bad] + 1
+            nodes = np.insert(nodes, where, mids[bad])
+            matrices = np.insert(matrices, where, truth[bad], axis=0)
+            self._set(nodes, matrices)
+            new_pos = where + np.arange(where.size)
+            check = np.zeros(nodes.size - 1, dtype=bool)
+            check[new_pos - 1] = True
+            check[new_pos] = True
         raise KernelError(
             f"frame {self.frame}: interpolated rotation does not reach {self.tolerance} rad; "
             "use method='oracle'"
         )
 
-    @staticmethod
-    def _uniform(tmin: float, tmax: float, step: float) -> np.ndarray:
-        n = max(int(np.ceil((tmax - tmin) / step)), 1)
-        return np.linspace(tmin, tmax, n + 1)
-
-    def _fit(self, nodes: np.ndarray) -> None:
+    def _set(self, nodes: np.ndarray, matrices: np.ndarray) -> None:
         self.nodes = nodes
-        matrices = pxform_oracle(self.frame, _INERTIAL, nodes)
         self.quats = _continuous(Rotation.from_matrix(matrices).as_quat())
 
-    def _max_error(self) -> float:
+    def _sampled_error(self) -> float:
         nodes = self.nodes
         gaps = np.diff(nodes)
         order = np.argsort(gaps)[::-1]

@@ -114,7 +114,8 @@ class StateInterpolator:
             states = states_oracle(target, observer, frame, nodes)
             mid = nodes[:-1] + 0.5 * np.diff(nodes)
             probe = mid if mid.size <= 256 else mid[np.linspace(0, mid.size - 1, 256).astype(int)]
-            err = np.abs(hermite(nodes, states, probe) - position_oracle(target, observer, frame, probe))
+            truth = position_oracle(target, observer, frame, probe)
+            err = np.abs(hermite(nodes, states, probe) - truth)
             if err.max() <= tolerance:
                 self.nodes, self.states = nodes, states
                 return
@@ -125,6 +126,7 @@ class StateInterpolator:
         )
 
     def __call__(self, et: np.ndarray) -> np.ndarray:
+        """Return (n, 3) interpolated positions (km) at ``et``."""
         return hermite(self.nodes, self.states, np.asarray(et, dtype=float))
 
     def states_at(self, et: np.ndarray) -> np.ndarray:

@@ -40,7 +40,8 @@ def _split_path(path: str, width: int = 70) -> list[str]:
 
 def write_meta_kernel(path: Path, files: list[Path]) -> Path:
     """Write a meta-kernel listing ``files`` (absolute paths, split to SPICE's 80 chars)."""
-    lines = ["KPL/MK", "", "fluxcal synthetic kernel set", "", "\\begindata", "", "KERNELS_TO_LOAD = ("]
+    lines = ["KPL/MK", "", "fluxcal synthetic kernel set", "", "\\begindata", ""]
+    lines.append("KERNELS_TO_LOAD = (")
     for file in files:
         pieces = _split_path(str(Path(file).resolve()))
         for j, piece in enumerate(pieces):
@@ -260,14 +261,16 @@ def write_messenger_like_kernels(
             _write_spk(spk_path, -236, 199, epochs, states, "MESSENGER-LIKE ORBIT")
             att_epochs = np.arange(et0, et1 + attitude_step, attitude_step)
             sun = np.array(
-                [spiceypy.spkpos("SUN", float(t), "J2000", "NONE", "MERCURY")[0] for t in att_epochs]
+                [spiceypy.spkpos("SUN", float(t), "J2000", "NONE", "MERCURY")[0]
+                 for t in att_epochs]
             )
             cmat = _sun_keeping_attitude(att_epochs - (et0 + margin_s), _unit(sun), plus_y_sunward)
             _write_ck(ck_path, -236000, -236, att_epochs, cmat, "MESSENGER-LIKE ATTITUDE")
         finally:
             spiceypy.unload(str(fk_path))
             spiceypy.unload(str(sclk_path))
-    return write_meta_kernel(out / "messenger_synthetic.tm", [sclk_path, fk_path, spk_path, ck_path])
+    files = [sclk_path, fk_path, spk_path, ck_path]
+    return write_meta_kernel(out / "messenger_synthetic.tm", files)
 
 
 def _sun_keeping_attitude(
@@ -355,7 +358,10 @@ def write_rosetta_like_kernels(
                 -226,
                 (4294967296, 65536),
                 [(0.0, 2.81474976710655e14)],
-                [(0.0, epoch0, 1.0000003), (65536.0 * 3.5e8, epoch0 + 3.5e8 * 1.0000003, 0.9999998)],
+                [
+                    (0.0, epoch0, 1.0000003),
+                    (65536.0 * 3.5e8, epoch0 + 3.5e8 * 1.0000003, 0.9999998),
+                ],
                 "fluxcal synthetic Rosetta-like SCLK (id -226): OBT seconds since 2003-01-01.",
             )
         )

@@ -86,10 +86,8 @@ class LeapSecondTable:
     def tdb_to_tt(self, tdb: np.ndarray) -> np.ndarray:
         """TDB seconds past J2000 -> TT seconds past J2000 (fixed-point inverse)."""
         tdb = np.asarray(tdb, dtype=float)
-        tt = tdb - self.tdb_minus_tt(tdb)
-        for _ in range(3):
-            tt = tdb - self.tdb_minus_tt(tt)
-        return tt
+        # one fixed-point step: d(TDB-TT)/dt < 4e-10, so the residual is < 1e-12 s
+        return tdb - self.tdb_minus_tt(tdb - self.tdb_minus_tt(tdb))
 
     # leap seconds in TT2000 nanoseconds
     def leap_tt2000(self) -> np.ndarray:
@@ -265,7 +263,7 @@ def utc_to_tt2000(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.nda
     naive = (stamp - _J2000_UTC_NAIVE).astype(np.int64)
     idx = np.searchsorted(lsk.epochs_utc_naive.astype(np.int64) * _NS, naive, side="right") - 1
     delta_at = lsk.delta_at[np.clip(idx, 0, None)]
-    delta_at = np.where(leap, delta_at - 1, delta_at)  # 23:59:60 belongs to the old count
+    # 23:59:60.x is read as 23:59:59.x of the old count plus one second
     return naive + delta_at * _NS + int(TT_MINUS_TAI * _NS) + np.where(leap, _NS, 0)
 
 
@@ -430,7 +428,7 @@ class SclkKernel:
         return p + 1, reading / self.ticks_per_count
 
     def encoded_to_et(self, encoded: np.ndarray) -> np.ndarray:
-        """Encoded ticks -> ephemeris time (SPICE ``sct2e``)."""
+        """Convert encoded ticks to ephemeris time (SPICE ``sct2e``)."""
         encoded = np.asarray(encoded, dtype=float)
         i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, len(self.ticks) - 1)
         par = self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
@@ -440,12 +438,23 @@ class SclkKernel:
         """Ephemeris time -> encoded ticks (SPICE ``sce2c``, continuous ticks)."""
         et = np.asarray(et, dtype=float)
         par = self.lsk.tdb_to_tt(et) if self.time_system == 2 else et
-        i = np.clip(np.searchsorted(self.parallel, par, side="right") - 1, 0, len(self.parallel) - 1)
+        last = len(self.parallel) - 1
+        i = np.clip(np.searchsorted(self.parallel, par, side="right") - 1, 0, last)
         return self.ticks[i] + (par - self.parallel[i]) * (self.ticks_per_count / self.rate[i])
 
     def to_et(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
         """Clock readings (partition, seconds) -> ephemeris time, as ``spiceypy.scs2e``."""
         return self.encoded_to_et(self.encode(partition, seconds))
+
+    def to_tt2000(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+        """Clock readings -> int64 TT2000 ns (direct when the parallel time is TT)."""
+        if self.time_system != 2:
+            return et_to_tt2000(self.to_et(partition, seconds), self.lsk)
+        encoded = self.encode(partition, seconds)
+        i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, len(self.ticks) - 1)
+        tt = self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
+        whole = np.floor(tt)
+        return whole.astype(np.int64) * _NS + np.rint((tt - whole) * 1e9).astype(np.int64)
 
     def from_et(self, et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ephemeris time -> clock readings (partition, seconds)."""
