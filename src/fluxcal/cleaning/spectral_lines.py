@@ -331,11 +331,23 @@ def _clean_segment(
     f_low = np.minimum(np.minimum(f_first, f_mid), f_last)
     f_high = np.maximum(np.maximum(f_first, f_mid), f_last)
     lo, hi, valid = _band_edges(f_low, f_high, f_mid, df, nb, bandwidth)  # (nw, k)
-    kk = np.arange(nb)
-    in_band = (kk >= lo[..., None]) & (kk <= hi[..., None]) & valid[..., None]  # (nw, k, nb)
-    mask = in_band.any(axis=1)  # (nw, nb)
-    if not mask.any():
+    width = np.where(valid, hi - lo + 1, 0)  # (nw, k)
+    nbw = int(width.max()) if width.size else 0
+    if nbw == 0:
         return x.copy(), starts, f_mid
+    k_lines = lo.shape[1]
+    bidx = lo[..., None] + np.arange(nbw)  # (nw, k, B): bins of each band, gathered
+    bvalid = np.arange(nbw) < width[..., None]
+    bidx = np.where(bvalid, bidx, 0)
+    w_of = np.broadcast_to(np.arange(nw)[:, None, None], bidx.shape)
+    mask = np.zeros((nw, nb), dtype=bool)
+    mask[w_of[bvalid], bidx[bvalid]] = True
+    flat_b = bidx.reshape(nw, -1)
+
+    def gather(a: NDArray) -> NDArray:
+        """(..., nw, nb) -> (..., nw, k, B) values at the band bins."""
+        ind = np.broadcast_to(flat_b, (*a.shape[:-2], *flat_b.shape))
+        return np.take_along_axis(a, ind, axis=-1).reshape(*a.shape[:-1], k_lines, nbw)
 
     # Background level from a Hann-tapered spectrum of the same window: the untapered
     # spectrum's slowly decaying sidelobes would carry the line into its neighbours.
@@ -344,57 +356,57 @@ def _clean_segment(
     power = (tapered.real**2 + tapered.imag**2) / np.mean(taper**2)  # (c, nw, nb)
     usable = ~mask
     usable[:, 0] = False  # DC carries the field, not background noise
-    p_left, p_right = _neighbour_power(power, usable, lo, hi, neighbour_bins)
+    p_left, p_right = _neighbour_power(power, usable, lo, hi, neighbour_bins)  # (c, nw, k)
 
     # 1) Fit and subtract each line (a sinusoid whose folded frequency moves linearly
     #    from the window's first to last sample) by least squares on its band bins; its
-    #    full rectangular-window leakage pattern goes with it.  Only significant fits
-    #    (band power > detection_snr x background) are subtracted.
-    work = spec.copy()
+    #    whole rectangular-window leakage pattern goes with it (subtracted in the time
+    #    domain).  Only significant fits (band power > detection_snr x background) count.
+    sb = gather(spec)  # (c, nw, k, B): current spectrum at the band bins
+    model_t = np.zeros((c, nw, length))
     nn = np.arange(length)
-    for j in range(lo.shape[1]):  # loop over the few lines only
-        band = in_band[:, j, :]  # (nw, nb)
-        if not band.any():
+    for j in range(k_lines):  # loop over the few lines only
+        wj = bvalid[:, j, :]  # (nw, B)
+        if not wj.any():
             continue
         fa = np.nan_to_num(f_first[:, j])[:, None]
         fb = np.nan_to_num(f_last[:, j])[:, None]
         phase = (2 * np.pi / fs) * (fa * nn + (fb - fa) * nn**2 / (2 * (length - 1)))
-        u_spec = scipy.fft.rfft(np.cos(phase), axis=-1)  # (nw, nb)
-        v_spec = scipy.fft.rfft(np.sin(phase), axis=-1)
-        uu = np.sum(band * np.abs(u_spec) ** 2, axis=-1)
-        vv = np.sum(band * np.abs(v_spec) ** 2, axis=-1)
-        uv = np.sum(band * (u_spec.conj() * v_spec).real, axis=-1)
-        su = np.sum(band * (u_spec.conj() * work).real, axis=-1)  # (c, nw)
-        sv = np.sum(band * (v_spec.conj() * work).real, axis=-1)
+        u_t, v_t = np.cos(phase), np.sin(phase)  # (nw, L)
+        ub = gather(scipy.fft.rfft(u_t, axis=-1))  # (nw, k, B)
+        vb = gather(scipy.fft.rfft(v_t, axis=-1))
+        uj, vj = ub[:, j, :], vb[:, j, :]
+        uu = np.sum(wj * np.abs(uj) ** 2, axis=-1)
+        vv = np.sum(wj * np.abs(vj) ** 2, axis=-1)
+        uv = np.sum(wj * (uj.conj() * vj).real, axis=-1)
+        su = np.sum(wj * (uj.conj() * sb[:, :, j, :]).real, axis=-1)  # (c, nw)
+        sv = np.sum(wj * (vj.conj() * sb[:, :, j, :]).real, axis=-1)
         det = uu * vv - uv**2
         ok = det > 1e-12 * np.maximum(uu * vv, 1e-300)
         with np.errstate(invalid="ignore", divide="ignore"):
             alpha = np.where(ok, (vv * su - uv * sv) / det, 0.0)
             beta = np.where(ok, (uu * sv - uv * su) / det, 0.0)
-        model = alpha[..., None] * u_spec + beta[..., None] * v_spec  # (c, nw, nb)
-        fit_power = np.sum(band * np.abs(model) ** 2, axis=-1)
-        bg_power = 0.5 * (p_left[..., j] + p_right[..., j]) * band.sum(axis=-1)
+        fit_power = alpha**2 * uu + beta**2 * vv + 2 * alpha * beta * uv
+        bg_power = 0.5 * (p_left[..., j] + p_right[..., j]) * width[:, j]
         keep = (fit_power > detection_snr * bg_power) & valid[:, j]
-        work -= np.where(keep[..., None], model, 0.0)
+        alpha = np.where(keep, alpha, 0.0)
+        beta = np.where(keep, beta, 0.0)
+        sb -= alpha[..., None, None] * ub + beta[..., None, None] * vb
+        model_t += alpha[..., None] * u_t + beta[..., None] * v_t
 
     # 2) Replace the band bins by complex Gaussian noise (random phase) whose mean power
     #    runs linearly from the level below the band to the level above it.
-    target = np.zeros((c, nw, nb))
-    for j in range(lo.shape[1]):
-        frac = (kk[None, :] - lo[:, j, None] + 1) / (hi[:, j, None] - lo[:, j, None] + 2)
-        pj = p_left[:, :, j, None] + (p_right[:, :, j, None] - p_left[:, :, j, None]) * frac
-        target = np.where(in_band[None, :, j, :], pj, target)
-    count = int(mask.sum())
-    noise = rng.standard_normal((c, count, 2))
-    is_real = np.zeros(nb, dtype=bool)
-    if length % 2 == 0:
-        is_real[-1] = True  # Nyquist bin of an even-length real FFT is real
-    real_bin = np.broadcast_to(is_real, mask.shape)[mask]
-    z = np.where(real_bin, noise[..., 0] + 0j, (noise[..., 0] + 1j * noise[..., 1]) / np.sqrt(2.0))
-    work[:, mask] = np.sqrt(target[:, mask]) * z
+    frac = (np.arange(nbw) + 1) / (width[..., None] + 1)  # (nw, k, B)
+    target = p_left[..., None] + (p_right - p_left)[..., None] * frac  # (c, nw, k, B)
+    noise = rng.standard_normal((2, *target.shape))
+    real_bin = (bidx == nb - 1) & (length % 2 == 0)  # Nyquist bin of an even-length FFT
+    z = np.where(real_bin, noise[0] + 0j, (noise[0] + 1j * noise[1]) / np.sqrt(2.0))
+    new = np.sqrt(target) * z
+    delta = np.zeros_like(spec)
+    delta[:, w_of[bvalid], bidx[bvalid]] = (new - sb)[:, bvalid]
 
     # 3) Transform only the change back and crossfade it into the series.
-    change = scipy.fft.irfft(work - spec, n=length, axis=-1)  # (c, nw, L)
+    change = scipy.fft.irfft(delta, n=length, axis=-1) - model_t  # (c, nw, L)
     weights = crossfade_weights(starts, length, n)
     flat_idx = idx.ravel()
     out = x.copy()
