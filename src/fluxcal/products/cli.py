@@ -1,15 +1,129 @@
-"""``fluxcal plot`` and ``fluxcal batch`` commands (placeholder, filled by the products issue)."""
+"""``fluxcal plot`` and ``fluxcal batch`` commands.
+
+The functions keep the names the lead registered in ``fluxcal/cli.py``
+(``app.command("plot")(plot)``, ``app.command("batch")(batch)``).
+"""
 
 from __future__ import annotations
 
+import datetime as _dt
+from pathlib import Path
+
 import typer
 
-
-def plot() -> None:
-    """Render a quicklook PNG of a product."""
-    raise typer.Exit(code=1)
+from fluxcal.errors import InputFormatError
 
 
-def batch() -> None:
-    """Process many days on Dask."""
-    raise typer.Exit(code=1)
+def plot(
+    product: Path = typer.Argument(..., exists=True, help="Product (.cdf, .nc or .TAB)."),
+    out: Path | None = typer.Option(None, "--out", help="Folder for the PNGs "
+                                    "(default: beside the product)."),
+    spectrogram: bool = typer.Option(False, "--spectrogram",
+                                     help="Also write a spectrogram PNG of the field."),
+) -> None:
+    """Render a quicklook PNG per day of a product."""
+    from fluxcal.products.quicklook import save_png, spectrogram_figure, write_quicklooks
+    from fluxcal.products.writer import read_product
+
+    ds = read_product(product)
+    out_dir = out or product.parent
+    paths = write_quicklooks(ds, out_dir, product.stem)
+    if spectrogram:
+        paths.append(save_png(spectrogram_figure(ds), out_dir / f"{product.stem}_spec.png"))
+    for p in paths:
+        typer.echo(str(p))
+
+
+def _parse_date(text: str, option: str) -> _dt.date:
+    try:
+        return _dt.date.fromisoformat(text)
+    except ValueError as exc:
+        raise InputFormatError(f"{text!r} is not a date YYYY-MM-DD", field=option) from exc
+
+
+def batch(
+    mission: str = typer.Argument(..., help="messenger, rosetta (or synthetic)."),
+    start: str = typer.Option(..., "--start", help="First day, YYYY-MM-DD."),
+    end: str = typer.Option(..., "--end", help="Last day (inclusive), YYYY-MM-DD."),
+    input_dir: Path = typer.Option(..., "--input", exists=True, file_okay=False,
+                                   help="Folder of raw inputs."),
+    out: Path = typer.Option(..., "--out", help="Folder for products, manifests, report."),
+    scheduler: str | None = typer.Option(None, "--scheduler",
+                                         help="Address of an existing Dask scheduler; "
+                                              "'serial' runs in this process."),
+    force: bool = typer.Option(False, "--force", help="Redo days that are up to date."),
+    workers: int = typer.Option(2, "--workers", min=1, help="Workers of the local cluster."),
+    kernels: Path | None = typer.Option(None, "--kernels", help="Meta-kernel for the days."),
+    calib: Path | None = typer.Option(None, "--calib", help="Calibration folder."),
+    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+) -> None:
+    """Process many days on Dask, one task per day; resumable; exits 1 if a day failed."""
+    from rich.console import Console
+
+    from fluxcal.products.batch import day_range, task_factory
+
+    d0, d1 = _parse_date(start, "--start"), _parse_date(end, "--end")
+    if d1 < d0:
+        raise InputFormatError(f"--end {d1} is before --start {d0}", field="--end")
+    factory = task_factory(mission)
+    options = {"kernels": kernels, "calib": calib,
+               "formats": tuple(f.strip() for f in formats.split(",") if f.strip())}
+    task = factory(input_dir, out, **{k: v for k, v in options.items() if v is not None})
+    days = day_range(d0, d1)
+    console = Console(stderr=True)
+    report = _run_with_progress(days, task, out, scheduler, workers, force, mission, console,
+                                quiet)
+    _summary(report, console)
+    if not report.ok:
+        # SystemExit, not typer.Exit: fluxcal.cli.main runs click with
+        # standalone_mode=False, where typer.Exit's code is returned and dropped.
+        raise SystemExit(1)
+
+
+def _run_with_progress(days, task, out, scheduler, workers, force, name, console, quiet):
+    import time
+
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    from fluxcal.products.batch import run_batch
+
+    t0 = time.perf_counter()
+    totals = {"vectors": 0, "failed": 0}
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[rate]:>12,.0f} vectors/s"),
+                  TextColumn("failures: {task.fields[failed]}"), TimeElapsedColumn(),
+                  console=console, disable=quiet) as progress:
+        bar = progress.add_task(f"{name} days", total=len(days), rate=0.0, failed=0)
+
+        def done(st) -> None:
+            totals["vectors"] += st.n_vectors if st.status == "done" else 0
+            totals["failed"] += st.status == "failed"
+            rate = totals["vectors"] / max(time.perf_counter() - t0, 1e-9)
+            progress.update(bar, advance=1, rate=rate, failed=totals["failed"])
+
+        return run_batch(days, task, out, scheduler=scheduler, n_workers=workers, force=force,
+                         name=name, on_day_done=done)
+
+
+def _summary(report, console) -> None:
+    from rich.table import Table
+
+    table = Table(title=f"fluxcal batch {report.name}: {report.wall_seconds:.1f} s on "
+                        f"{report.scheduler} ({report.n_workers} workers)")
+    for col in ("day", "status", "vectors", "seconds", "error"):
+        table.add_column(col)
+    style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red"}
+    for d in report.days:
+        table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}", f"{d.n_vectors:,}",
+                      f"{d.seconds:.2f}", (d.error or "")[:120])
+    console.print(table)
+    counts = ", ".join(f"{report.count(s)} {s}" for s in ("done", "skipped", "no_data", "failed"))
+    console.print(f"{counts}; report: {report.report_path}")
+

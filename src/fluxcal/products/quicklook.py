@@ -1,0 +1,250 @@
+"""Quicklook plots: one PNG per day with field components, magnitude and context.
+
+Panels, top to bottom (a panel is drawn only when the Dataset has its variable):
+
+1. the three field components (the first vector variable in nT, preferring ``B*``);
+2. the field magnitude;
+3. applied offsets (MESSENGER; a vector variable whose name starts with ``offset``);
+4. temperatures (Rosetta; variables named ``temperature*``/``T_*`` in degC or K);
+5. quality flags (``quality*``/``flag*``);
+6. spacecraft distance (``distance``, or the norm of a ``position*`` vector in km).
+
+The time axis is hours since the first sample's UTC day start, converted from the
+int64 TT2000 ``epoch`` with cdflib (no SPICE needed).  Long days are reduced for
+drawing by a min/max envelope per pixel column, so every excursion stays visible.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import cdflib  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from fluxcal.errors import InputFormatError  # noqa: E402
+from fluxcal.products.atomic import atomic_path  # noqa: E402
+
+log = logging.getLogger(__name__)
+
+NS_PER_HOUR = 3_600 * 1_000_000_000
+MAX_POINTS = 4000  # envelope bins per panel (about the pixel width of the figure)
+COLORS = ("tab:blue", "tab:green", "tab:red")
+
+
+def _find(ds: xr.Dataset, prefixes: Sequence[str], vector: bool | None = None,
+          units: Sequence[str] | None = None) -> list[str]:
+    out = []
+    for name in ds.data_vars:
+        n = str(name)
+        var = ds[name]
+        if var.dims[:1] != ("time",):
+            continue
+        if not any(n.lower().startswith(p.lower()) for p in prefixes):
+            continue
+        if vector is not None and (var.ndim == 2) != vector:
+            continue
+        if units is not None and str(var.attrs.get("units", "")) not in units:
+            continue
+        if var.dtype.kind not in "iufb":
+            continue
+        out.append(n)
+    return out
+
+
+def field_variable(ds: xr.Dataset) -> str:
+    """Name of the field vector to plot: a ``B*`` vector in nT, else any nT vector."""
+    for cands in (_find(ds, ["B"], vector=True, units=["nT"]),
+                  _find(ds, [""], vector=True, units=["nT"]), _find(ds, ["B"], vector=True)):
+        if cands:
+            return cands[0]
+    raise InputFormatError("no field vector variable (dims (time, component), units nT) "
+                           f"in the dataset; have {sorted(map(str, ds.data_vars))}")
+
+
+def envelope(x: np.ndarray, y: np.ndarray, bins: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """Min/max envelope of ``y`` in ``bins`` equal-count bins (vectorized), for drawing.
+
+    Returns ``x`` and ``y`` unchanged when they are short already.
+    """
+    n = len(y)
+    if n <= 2 * bins:
+        return x, y
+    per = n // bins
+    m = per * bins
+    yb = y[:m].reshape(bins, per)
+    xb = x[:m].reshape(bins, per)
+    with np.errstate(invalid="ignore"):
+        lo, hi = np.nanmin(yb, axis=1), np.nanmax(yb, axis=1)
+    xs = np.repeat(xb[:, 0], 2)
+    ys = np.column_stack([lo, hi]).ravel()
+    return xs, ys
+
+
+def _day_start_ns(epoch0: int) -> tuple[int, str]:
+    """TT2000 of 00:00 UTC of the day containing ``epoch0``, and that date as text."""
+    y, mo, d = (int(v) for v in cdflib.cdfepoch.breakdown_tt2000(int(epoch0))[:3])
+    start = int(cdflib.cdfepoch.compute_tt2000([y, mo, d, 0, 0, 0, 0, 0, 0]))
+    return start, f"{y:04d}-{mo:02d}-{d:02d}"
+
+
+def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) -> Figure:
+    """Build the quicklook figure of ``ds`` (no I/O).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A product with int64 ``epoch`` along ``time`` and a field vector in nT.
+    title : str
+        Figure title (e.g. the product name).
+    frame : str, optional
+        Frame name for the axis labels (default: the field variable's ``frame`` attr
+        or the suffix of its name).
+    """
+    if "epoch" not in ds.coords and "epoch" not in ds:
+        raise InputFormatError("quicklook needs the int64 'epoch' coordinate", field="epoch")
+    epoch = ds["epoch"].values.astype(np.int64)
+    if epoch.size == 0:
+        raise InputFormatError("quicklook of an empty product", field="epoch")
+    start, date = _day_start_ns(epoch[0])
+    hours = (epoch - start) / NS_PER_HOUR
+    bname = field_variable(ds)
+    b = ds[bname].values.astype(float)
+    frame = frame or str(ds[bname].attrs.get("frame", bname.split("_", 1)[-1] if "_" in bname
+                                              else ""))
+    comps = [str(c) for c in ds[ds[bname].dims[1]].values] if ds[bname].dims[1] in ds.coords \
+        else ["x", "y", "z"]
+    panels: list[tuple[str, object]] = [("components", None), ("magnitude", None)]
+    offsets = _find(ds, ["offset"], vector=True)
+    temps = _find(ds, ["temperature", "T_", "temp"], vector=False, units=["degC", "K", "C"])
+    quality = _find(ds, ["quality", "flag"])
+    pos = _find(ds, ["position"], vector=True, units=["km"])
+    dist = _find(ds, ["distance", "r_km", "range"], vector=False, units=["km", "AU", "au"])
+    if offsets:
+        panels.append(("offsets", offsets[0]))
+    if temps:
+        panels.append(("temperature", temps))
+    if quality:
+        panels.append(("quality", quality[0]))
+    if dist:
+        panels.append(("distance", dist[0]))
+    elif pos:
+        panels.append(("position", pos[0]))
+    fig = Figure(figsize=(11, 2.0 * len(panels) + 1.0), dpi=100)
+    axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (kind, arg) in zip(axes, panels, strict=True):
+        if kind == "components":
+            for j in range(b.shape[1]):
+                ax.plot(*envelope(hours, b[:, j]), lw=0.6, color=COLORS[j % 3],
+                        label=f"B{comps[j]}")
+            ax.set_ylabel(f"B {frame} (nT)".replace("  ", " "))
+            ax.legend(loc="upper right", fontsize=8, ncol=3)
+        elif kind == "magnitude":
+            ax.plot(*envelope(hours, np.linalg.norm(b, axis=1)), lw=0.6, color="k")
+            ax.set_ylabel("|B| (nT)")
+        elif kind == "offsets":
+            o = ds[arg].values.astype(float)
+            for j in range(o.shape[1]):
+                ax.plot(*envelope(hours, o[:, j]), lw=0.8, color=COLORS[j % 3],
+                        label=f"{comps[j] if j < len(comps) else j}")
+            ax.set_ylabel(f"{arg} ({ds[arg].attrs.get('units', '')})")
+            ax.legend(loc="upper right", fontsize=8, ncol=3)
+        elif kind == "temperature":
+            for name in arg:
+                ax.plot(*envelope(hours, ds[name].values.astype(float)), lw=0.8, label=name)
+            ax.set_ylabel(f"T ({ds[arg[0]].attrs.get('units', '')})")
+            ax.legend(loc="upper right", fontsize=8)
+        elif kind == "quality":
+            q = ds[arg].values
+            ax.step(*envelope(hours, q.astype(float)), lw=0.8, where="post", color="tab:purple")
+            ax.set_ylabel(f"{arg}")
+        elif kind == "distance":
+            ax.plot(*envelope(hours, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
+            ax.set_ylabel(f"distance ({ds[arg].attrs.get('units', '')})")
+        else:
+            r = np.linalg.norm(ds[arg].values.astype(float), axis=1)
+            ax.plot(*envelope(hours, r), lw=0.8, color="tab:brown")
+            ax.set_ylabel("distance (km)")
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel(f"Hours of {date} (UTC)")
+    fig.suptitle(title or f"{bname} {date}")
+    fig.align_ylabels(axes)
+    return fig
+
+
+def save_png(fig: Figure, path: Path) -> Path:
+    """Save ``fig`` as PNG atomically."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    return path
+
+
+def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
+    """Split ``ds`` at UTC midnights: ``[(yyyymmdd, day_ds), ...]``."""
+    epoch = ds["epoch"].values.astype(np.int64)
+    if epoch.size == 0:
+        return []
+    parts = np.asarray(cdflib.cdfepoch.breakdown_tt2000(epoch)).reshape(-1, 9)
+    key = parts[:, 0] * 10000 + parts[:, 1] * 100 + parts[:, 2]
+    out = []
+    for k in np.unique(key):
+        idx = np.flatnonzero(key == k)
+        out.append((f"{int(k):08d}", ds.isel(time=idx)))
+    return out
+
+
+def write_quicklooks(ds: xr.Dataset, out_dir: Path, stem: str) -> list[Path]:
+    """Write ``<out_dir>/<stem>_<yyyymmdd>.png`` for every UTC day in ``ds``."""
+    paths = []
+    for day, sub in split_days(ds):
+        fig = quicklook_figure(sub, title=f"{stem} {day}")
+        paths.append(save_png(fig, Path(out_dir) / f"{stem}_{day}.png"))
+        plt.close(fig)
+    return paths
+
+
+def spectrogram_axes(ax, t_seconds: np.ndarray, signal: np.ndarray, fs: float,
+                     nperseg: int = 256, label: str = "") -> object:
+    """Draw a power spectrogram of ``signal`` (sampled at ``fs`` Hz) on ``ax``.
+
+    Used where cleaning levels ran (spectral line removal): power in nT^2/Hz, log
+    colour scale.  Returns the QuadMesh (for a colour bar).
+    """
+    from scipy.signal import spectrogram
+
+    if len(signal) < nperseg:
+        raise InputFormatError(f"spectrogram needs at least nperseg={nperseg} samples, "
+                               f"got {len(signal)}", field=label or "signal")
+    f, t, sxx = spectrogram(np.asarray(signal, float), fs=fs, nperseg=nperseg)
+    mesh = ax.pcolormesh(t_seconds[0] + t, f, np.log10(sxx + 1e-30), shading="auto")
+    ax.set_ylabel("Frequency (Hz)")
+    ax.set_xlabel("Time (s)")
+    if label:
+        ax.set_title(label)
+    return mesh
+
+
+def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | None = None,
+                       nperseg: int = 256) -> Figure:
+    """One spectrogram panel per component of a vector variable (default: the field)."""
+    name = variable or field_variable(ds)
+    epoch = ds["epoch"].values.astype(np.int64)
+    t = (epoch - epoch[0]) / 1e9
+    if fs is None:
+        fs = 1.0 / float(np.median(np.diff(t)))
+    data = ds[name].values
+    fig = Figure(figsize=(11, 7), dpi=100)
+    axes = fig.subplots(data.shape[1], 1, sharex=True, squeeze=False)[:, 0]
+    for j, ax in enumerate(axes):
+        mesh = spectrogram_axes(ax, t, data[:, j], fs, nperseg, label=f"{name}[{j}]")
+        fig.colorbar(mesh, ax=ax, label="log10 PSD (nT$^2$/Hz)")
+    return fig
