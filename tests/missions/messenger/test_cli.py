@@ -1,0 +1,51 @@
+"""``fluxcal messenger edr2cdr`` end to end on simulated input files."""
+
+import numpy as np
+
+from fluxcal.cli import main
+from fluxcal.products import read_product
+
+
+def _args(files, kernels, out, *extra):
+    return ["messenger", "edr2cdr", "--sci", str(files["science"]), "--heater",
+            str(files["heater"]), "--temperature", str(files["temperature"]), "--kernels",
+            str(kernels), "--out", str(out), *extra]
+
+
+def test_edr2cdr_writes_archive_named_products(tmp_path, simulated_files, messenger_kernels):
+    out = tmp_path / "out"
+    code = main(_args(simulated_files, messenger_kernels, out, "--frames", "mso,rtn",
+                      "--average", "60", "--formats", "tab,cdf"))
+    assert code == 0
+    names = sorted(p.name for p in out.iterdir())
+    # corrected times of the first samples fall before midnight: two UTC days
+    assert "MAGMSOSCI12153.TAB" in names and "MAGMSOSCI12153.LBL" in names
+    assert "MAGMSOSCI12153.cdf" in names and "MAGRTNSCIAVG12153_60.TAB" in names
+    assert "MAGOFFSETS12153.png" in names and "MAGOFFSETS12153.txt" in names
+    assert not any(n.startswith(".tmp") for n in names)
+    tab = read_product(out / "MAGMSOSCI12153.TAB")
+    cdf = read_product(out / "MAGMSOSCI12153.cdf")
+    np.testing.assert_allclose(np.asarray(tab["b"].values, float), cdf["b"].values, atol=5e-4)
+    label = (out / "MAGMSOSCI12153.LBL").read_text()
+    assert "offsets_temperature" in label and "msgr_synthetic" in label
+
+
+def test_failed_day_writes_nothing(tmp_path, simulated_files, messenger_kernels):
+    out = tmp_path / "out"
+    # a threshold below the real (smooth) steps fails every day
+    code = main(_args(simulated_files, messenger_kernels, out, "--frames", "mso",
+                      "--max-offset-step", "0.001", "--average", ""))
+    assert code == 2
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_bad_input_is_an_error_not_a_crash(tmp_path, simulated_files, messenger_kernels, capsys):
+    bad = tmp_path / "bad.csv"
+    lines = simulated_files["science"].read_text().splitlines()
+    lines[5] = lines[5].replace(",10,0,", ",12,0,")
+    bad.write_text("\n".join(lines) + "\n")
+    files = dict(simulated_files, science=bad)
+    code = main(_args(files, messenger_kernels, tmp_path / "out"))
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "bad.csv" in err and "line 6" in err and "rate" in err

@@ -1,0 +1,123 @@
+"""Bad-input files: every defect is an InputFormatError naming file, line and field."""
+
+import numpy as np
+import pytest
+
+from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+
+SCI_HEADER = "partition,met,rate,range,cx,cy,cz"
+GOOD_SCI = ["1,1000.000000,10,0,100,-200,300", "1,1000.050000,10,0,101,-201,301",
+            "1,1000.100000,10,1,5,-6,7"]
+
+
+def _write(tmp_path, name, lines):
+    p = tmp_path / name
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def test_good_science(tmp_path):
+    ds = read_science(_write(tmp_path, "s.csv", [SCI_HEADER, *GOOD_SCI]))
+    assert ds.sizes["time"] == 3
+    np.testing.assert_array_equal(ds["counts"].values[2], [5, -6, 7])
+    np.testing.assert_array_equal(ds["range"].values, [0, 0, 1])
+
+
+def test_column_order_free(tmp_path):
+    lines = ["met,partition,rate,range,cz,cy,cx", "1000.0,1,10,0,3,2,1"]
+    ds = read_science(_write(tmp_path, "s.csv", lines))
+    np.testing.assert_array_equal(ds["counts"].values[0], [1, 2, 3])
+
+
+@pytest.mark.parametrize(
+    ("lines", "line", "field", "match"),
+    [
+        (["partition,met,rate,range,cx,cy,cz,extra", "1,1,10,0,1,2,3,4"], 1, "extra",
+         "unknown column"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,abc,2,3"], 3, "cx", "non-numeric"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,11,0,1,2,3"], 3, "rate", "rate settings"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,-1,0,1,2,3"], 3, "rate", "rate settings"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,2,1,2,3"], 3, "range", "range flags"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1,40000,3"], 3, "cy", "count limits"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1,2,-32769"], 3, "cz", "count limits"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,999.0,10,0,1,2,3"], 3, "met", "backwards"),
+        ([SCI_HEADER, GOOD_SCI[0], "3,1001.0,10,0,1,2,3"], 3, "partition", "partitions"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1.5,2,3"], 3, "cx", "count limits"),
+    ],
+)
+def test_bad_science(tmp_path, lines, line, field, match):
+    path = _write(tmp_path, "bad.csv", lines)
+    with pytest.raises(InputFormatError, match=match) as info:
+        read_science(path)
+    err = info.value
+    assert err.path == str(path) and err.line == line and err.field == field
+    assert str(path) in str(err) and f"line {line}" in str(err)
+
+
+def test_wrong_field_count(tmp_path):
+    path = _write(tmp_path, "bad.csv", [SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1,2"])
+    with pytest.raises(InputFormatError, match="expected 7 fields") as info:
+        read_science(path)
+    assert info.value.line == 3
+
+
+def test_backwards_across_files(tmp_path):
+    a = _write(tmp_path, "a.csv", [SCI_HEADER, "1,2000.0,10,0,1,2,3", "1,2001.0,10,0,1,2,3"])
+    b = _write(tmp_path, "b.csv", [SCI_HEADER, "1,2000.5,10,0,1,2,3"])
+    with pytest.raises(InputFormatError, match="across files"):
+        read_science([a, b])
+
+
+def test_files_sorted_by_time(tmp_path):
+    a = _write(tmp_path, "a.csv", [SCI_HEADER, "1,3000.0,10,0,1,2,3"])
+    b = _write(tmp_path, "b.csv", [SCI_HEADER, "1,2000.0,10,0,4,5,6"])
+    ds = read_science([a, b])
+    np.testing.assert_array_equal(ds["met"].values, [2000.0, 3000.0])
+
+
+def test_heater_gap_longer_than_period(tmp_path):
+    lines = ["partition,met,heater"] + [f"1,{t},0" for t in range(10)] + ["1,111,1"]
+    path = _write(tmp_path, "h.csv", lines)
+    with pytest.raises(InputFormatError, match="exceeds one heater period") as info:
+        read_heater(path)
+    assert info.value.line == 12 and info.value.field == "met"
+
+
+def test_heater_gap_between_files(tmp_path):
+    a = _write(tmp_path, "a.csv", ["partition,met,heater", "1,0,0", "1,1,0"])
+    b = _write(tmp_path, "b.csv", ["partition,met,heater", "1,200,0"])
+    with pytest.raises(InputFormatError, match="heater period"):
+        read_heater([a, b])
+
+
+def test_heater_bad_bit(tmp_path):
+    path = _write(tmp_path, "h.csv", ["partition,met,heater", "1,0,0", "1,1,2"])
+    with pytest.raises(InputFormatError, match="heater bit") as info:
+        read_heater(path)
+    assert info.value.line == 3 and info.value.field == "heater"
+
+
+def test_temperature_unknown_column_and_range(tmp_path):
+    path = _write(tmp_path, "t.csv", ["partition,met,temp", "1,0,-50"])
+    with pytest.raises(InputFormatError, match="unknown column") as info:
+        read_temperature(path)
+    assert info.value.field == "temp"
+    path = _write(tmp_path, "t2.csv", ["partition,met,temperature_c", "1,0,-50", "1,10,900"])
+    with pytest.raises(InputFormatError, match="outside") as info:
+        read_temperature(path)
+    assert info.value.line == 3
+
+
+def test_missing_column(tmp_path):
+    path = _write(tmp_path, "t.csv", ["partition,met", "1,0"])
+    with pytest.raises(InputFormatError, match="missing column") as info:
+        read_temperature(path)
+    assert info.value.field == "temperature_c"
+
+
+def test_nan_rejected(tmp_path):
+    path = _write(tmp_path, "t.csv", ["partition,met,temperature_c", "1,0,nan"])
+    with pytest.raises(InputFormatError, match="non-finite") as info:
+        read_temperature(path)
+    assert info.value.line == 2 and info.value.field == "temperature_c"
