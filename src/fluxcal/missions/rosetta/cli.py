@@ -1,12 +1,68 @@
-"""``fluxcal rosetta`` and ``fluxcal simulate rosetta`` commands (placeholder, filled by the rosetta issue)."""
+"""``fluxcal rosetta ...`` commands and ``fluxcal simulate rosetta``.
+
+``calibrate`` and ``simulate`` belong to the calibration issue (seed 003 sec. 3-4.8);
+the cleaning commands are added here by the cleaning issue.
+"""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import typer
 
 app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True)
 
 
-def simulate() -> None:
-    """Write simulated raw Rosetta telemetry and kernels from a known field."""
-    raise typer.Exit(code=1)
+@app.command()
+def calibrate(
+    science: Path = typer.Option(..., "--science", help="Raw science CSV of one sensor (sec. 4.1.2)."),
+    sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
+    out: Path = typer.Option(..., "--out", help="Folder for the products."),
+    levels: str = typer.Option("A,B", "--levels", help="Comma-separated levels: A,B,C,E,F,G."),
+    hk: Path | None = typer.Option(None, "--hk", help="Raw HK CSV (sec. 4.1.1), converted to HK LEVEL_A."),
+    calib: Path | None = typer.Option(
+        None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
+    ),
+    kernels: Path | None = typer.Option(
+        None, "--kernels", help="Meta-kernel (SCLK -226, CK, SPK): times from OBT; needed for C, G."
+    ),
+    primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
+    average: float = typer.Option(1.0, "--average", help="Averaging interval of E, F, G (s)."),
+    frame: str = typer.Option("ECLIPJ2000", "--frame", help="LEVEL_C frame: ECLIPJ2000 or CSEQ."),
+    centre: str = typer.Option("SUN", "--centre", help="Body the LEVEL_C position is relative to."),
+    boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
+    stitch_gap_hours: float = typer.Option(
+        3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps (sec. 4.2.3.3)."
+    ),
+    no_jumps: bool = typer.Option(False, "--no-jumps", help="Skip the Appendix B offset jumps."),
+    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
+) -> None:
+    """Calibrate raw RPC-MAG telemetry into LEVEL_A, B, C, E, F, G products."""
+    from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
+
+    result = calibrate_files(
+        science, sensor, out, levels=parse_levels(levels), hk_file=hk, calib_dir=calib,
+        kernels=kernels, primary=primary, average_s=average, frame=frame, centre=centre,
+        boom=boom, stitch_gap_s=stitch_gap_hours * 3600.0, jumps=not no_jumps,
+        formats=[f.strip() for f in formats.split(",") if f.strip()],
+    )
+    a = result.levels["A"]
+    typer.echo(f"{a.sizes['time']} vectors calibrated ({a.attrs['n_dropped_quality']} dropped for "
+               f"quality); {len(result.paths)} files in {out}")
+
+
+def simulate(
+    out: Path = typer.Option(Path("rosetta-sim"), "--out", help="Folder for the simulated inputs."),
+    start: str = typer.Option("2014-08-01T00:00:00", "--start", help="First time stamp (UTC)."),
+    hours: float = typer.Option(1.0, "--hours", help="Length of the simulation (h)."),
+    rate: float = typer.Option(20.0, "--rate", help="Vector rate (Hz)."),
+    primary: str = typer.Option("OB", "--primary", help="Primary sensor."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (bad-quality vectors)."),
+) -> None:
+    """Write simulated raw Rosetta telemetry, calibration files and kernels from a known field."""
+    from fluxcal.missions.rosetta.simulate import write_simulation
+
+    paths = write_simulation(out, start_utc=start, hours=hours, rate_hz=rate, primary=primary,
+                             seed=seed)
+    for name, path in paths.items():
+        typer.echo(f"{name}: {path}")

@@ -73,12 +73,12 @@ def _numeric(table: np.ndarray, j: int, name: str, kind: type, path: Path) -> np
                 float(text) if kind is float else int(text)
             except ValueError:
                 expected = "a number" if kind is float else "an integer"
-                raise InputFormatError(f"{text!r} is not {expected}", path=str(path), line=i + 2,
+                raise InputFormatError(f"{str(text)!r} is not {expected}", path=str(path), line=i + 2,
                                        field=name) from None
         raise  # pragma: no cover
     if kind is float and not np.all(np.isfinite(values)):
         i = int(np.flatnonzero(~np.isfinite(values))[0])
-        raise InputFormatError(f"{col[i]!r} is not a finite number", path=str(path), line=i + 2, field=name)
+        raise InputFormatError(f"{str(col[i])!r} is not a finite number", path=str(path), line=i + 2, field=name)
     if name in _RANGES:
         lo, hi = _RANGES[name]
         out = np.flatnonzero((values < lo) | (values > hi))
@@ -97,9 +97,14 @@ def _epoch(table: np.ndarray, obt: np.ndarray, path: Path, sclk, lsk) -> tuple[n
     else:
         try:
             epoch = utc_to_tt2000(table[:, 0], lsk)
-        except InputFormatError as exc:
-            text = str(exc).split("'")[1] if "'" in str(exc) else ""
-            line = int(np.flatnonzero(np.char.strip(table[:, 0]) == text)[0]) + 2 if text else None
+        except InputFormatError:
+            line, text = None, ""
+            for i, item in enumerate(np.char.strip(table[:, 0])):
+                try:
+                    utc_to_tt2000(np.array([item]), lsk)
+                except InputFormatError:
+                    line, text = i + 2, str(item)
+                    break
             raise InputFormatError(f"cannot parse UTC time {text!r} (ISO 8601 expected)",
                                    path=str(path), line=line, field="time_utc") from None
         field = "time_utc"

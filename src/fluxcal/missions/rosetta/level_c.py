@@ -62,5 +62,6 @@ def level_c(
     out["position"] = (("time", "component"), pos,
                        {"units": "km", "frame": to_frame, "centre": centre})
     out["et"] = ("time", et, {"units": "s", "description": "TDB seconds past J2000"})
-    out.attrs.update(level="C", frame=to_frame, position_centre=centre, geometry_method=method)
+    out.attrs.update(level="C", output_frame=to_frame, position_centre=centre,
+                     geometry_method=method)
     return out

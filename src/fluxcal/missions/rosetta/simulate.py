@@ -174,9 +174,8 @@ def simulate(
 
         sclk = SclkKernel.from_pool(-226)
         stamps_et = tt2000_to_et(stamps, lsk)
-        obt = sclk.from_et(stamps_et)[1]
-        stamps = et_to_tt2000(sclk.to_et(np.ones(n, dtype=np.int64), np.round(obt, 6)), lsk)
-        obt = np.round(obt, 6)
+        obt = np.ceil(sclk.from_et(stamps_et)[1] * 1e6) / 1e6  # 6 digits, never before start
+        stamps = et_to_tt2000(sclk.to_et(np.ones(n, dtype=np.int64), obt), lsk)
     else:
         obt0 = int(utc_to_tt2000(np.array(["2003-01-01T00:00:00"]), lsk)[0])
         obt = np.round((stamps - obt0) / NS, 6)
@@ -315,3 +314,95 @@ def write_truth_csv(truth: xr.Dataset, path: Path, *, lsk=None) -> Path:
     from fluxcal.missions.rosetta.io import _write_atomic
 
     return _write_atomic(Path(path), tuple(header), cols)
+
+
+def synthetic_alignment() -> Alignment:
+    """A non-trivial alignment for simulations (the boom axes tilted, as in ROS_V38.TF)."""
+    from scipy.spatial.transform import Rotation
+
+    angles = {("OB", "deployed"): [-90.234, 89.944, 0.145], ("OB", "stowed"): [0.0, 45.0, 0.0],
+              ("IB", "deployed"): [-90.285, 89.497, 0.117], ("IB", "stowed"): [0.0, 45.0, 0.3]}
+    mats = {k: Rotation.from_euler("xzx", v, degrees=True).as_matrix() for k, v in angles.items()}
+    return Alignment(mats, "fluxcal synthetic alignment", "sim-1")
+
+
+def synthetic_daily_models(days: list[np.datetime64]) -> dict[str, dict[np.datetime64, DailyOffsetModel]]:
+    """Small daily extended-temperature polynomials (nT, deg C) for simulations."""
+    out: dict[str, dict[np.datetime64, DailyOffsetModel]] = {"OB": {}, "IB": {}}
+    for k, day in enumerate(days):
+        for sensor, sign in (("OB", 1.0), ("IB", -1.0)):
+            c = np.zeros((6, 3))
+            c[0] = sign * np.array([1.5, -0.8, 0.6]) + 0.3 * k
+            c[1] = sign * np.array([0.010, 0.004, -0.006])
+            c[2] = np.array([2e-5, -1e-5, 3e-5])
+            out[sensor][day] = DailyOffsetModel(day, sensor, c, f"synthetic {day}")
+    return out
+
+
+def write_simulation(
+    out: Path,
+    *,
+    start_utc: str = "2014-08-01T00:00:00",
+    hours: float = 1.0,
+    rate_hz: float = 20.0,
+    primary: str = "OB",
+    seed: int = 0,
+) -> dict[str, Path]:
+    """Write a complete simulated input set into ``out`` and return the paths.
+
+    ``out/kernels`` (Rosetta-like SCLK, FK, SPK, CK and a meta-kernel), ``out/calib``
+    (synthetic ``RPCMAG_SC_ALIGN.TXT`` and daily ``RPCMAG_<yymmdd>_006_CALIB_*.TXT``),
+    raw science CSVs ``RPCMAG_<yyyymmdd>_RAW_<OB|IB>.csv``, the HK CSV
+    ``RPCMAG_<yyyymmdd>_RAW_HK.csv`` and the truth ``RPCMAG_<yyyymmdd>_TRUTH_<OB|IB>.csv``.
+    The ground calibration is fluxcal's default.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.geometry.time import leapseconds
+    from fluxcal.missions.rosetta import calib, io
+
+    out = Path(out)
+    calib_dir = out / "calib"
+    calib_dir.mkdir(parents=True, exist_ok=True)
+    duration = float(hours) * 3600.0
+    meta = write_rosetta_like_kernels(out / "kernels", start_utc, duration, margin_s=3600.0)
+    alignment = synthetic_alignment()
+    calib.write_alignment(alignment, calib_dir / calib.ALIGN_FILE)
+    first = np.datetime64(start_utc[:10], "D")
+    last = (np.datetime64(start_utc, "s") + np.timedelta64(int(duration) + 1200, "s")).astype("M8[D]")
+    days = list(np.arange(first, last + np.timedelta64(1, "D"), dtype="M8[D]"))
+    models = synthetic_daily_models(days)
+    for sensor in ("OB", "IB"):
+        for model in models[sensor].values():
+            calib.write_daily_offset_model(model, calib_dir)
+    stamp = start_utc[:10].replace("-", "")
+    paths = {"kernels": meta, "calib": calib_dir}
+    with KernelPool(meta):
+        lsk = leapseconds()
+        cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
+        sim = simulate(start_utc, duration, calibrations=cals,
+                       time_shifts=calib.load_time_shift_table(),
+                       nominal=calib.load_nominal_conversion(), alignment=alignment,
+                       jumps=calib.load_offset_jump_table(), daily_models=models, rate_hz=rate_hz,
+                       primary=primary, with_kernels=True, seed=seed, lsk=lsk)
+        for sensor in ("OB", "IB"):
+            paths[f"science_{sensor}"] = io.write_science_csv(
+                sim.science[sensor], out / f"RPCMAG_{stamp}_RAW_{sensor}.csv", lsk=lsk)
+            paths[f"truth_{sensor}"] = write_truth_csv(
+                sim.truth[sensor], out / f"RPCMAG_{stamp}_TRUTH_{sensor}.csv", lsk=lsk)
+        paths["hk"] = io.write_hk_csv(sim.hk, out / f"RPCMAG_{stamp}_RAW_HK.csv", lsk=lsk)
+    return paths
+
+
+def read_truth_csv(path: Path) -> dict[str, np.ndarray]:
+    """Read a truth file of `write_truth_csv` (columns as arrays; epoch int64)."""
+    with open(path, encoding="ascii") as fh:
+        header = fh.readline().strip().split(",")
+    table = np.loadtxt(path, delimiter=",", skiprows=1, dtype=str)
+    out = {name: table[:, j] for j, name in enumerate(header)}
+    result: dict[str, np.ndarray] = {"epoch": out["epoch_tt2000_ns"].astype(np.int64),
+                                     "good": out["good"].astype(int).astype(bool),
+                                     "temperature": out["temperature_k"].astype(float)}
+    for name in ("b_urf", "b_sc", "b_ref"):
+        result[name] = np.stack([out[f"{name}_{c}"].astype(float) for c in "xyz"], axis=1)
+    return result

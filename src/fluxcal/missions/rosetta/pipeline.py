@@ -1,0 +1,218 @@
+"""File-level driver of the RPC-MAG pipeline: read, run the levels, write products.
+
+The level functions (`level_a`, `level_b`, `level_c`, `averaged.average`) are pure; this
+module does the I/O around them for the ``fluxcal rosetta calibrate`` command and the demo.
+
+Products are daily, named ``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` (e.g.
+``RPCMAG_20140801_CLA_OB.TAB``), with the columns of the seed's tables: TIME.UTC
+(ISO), TIME.OBT, [POSITION.X/Y/Z for C/G], BX, BY, BZ, [T in K for A/B], QUALITY.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.5 (LEVEL_A table), 4.3.1 (B), 4.4.1 (C),
+   4.6-4.8 (E, F, G).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.errors import FluxcalError
+from fluxcal.missions.rosetta import averaged, calib, hk, io, level_a, level_b, level_c
+
+log = logging.getLogger(__name__)
+
+LEVELS = ("A", "B", "C", "E", "F", "G")
+PRODUCT_CODE = {lev: f"CL{lev}" for lev in LEVELS}
+
+
+def product_columns(level: str) -> list:
+    """Table columns of a level (seed 003 tables of sec. 4.2.3.5, 4.3.1, 4.4.1, 4.6-4.8)."""
+    from fluxcal.products import Column
+
+    cols = [Column("time_utc", "%s", "UTC", "TIME.UTC, UTC time of observation", label="TIME.UTC"),
+            Column("obt", "%17.6f", "s", "TIME.OBT, s/c clock, s since 2003-01-01",
+                   label="TIME.OBT")]
+    if level in ("C", "G"):
+        cols += [Column("position", "%15.3f", "km", f"spacecraft position, {c.upper()}",
+                        component=c, label=f"POSITION.{c.upper()}") for c in "xyz"]
+    cols += [Column("b", "%11.3f", "nT", f"magnetic field {c.upper()} component, calibrated",
+                    component=c, label=f"B{c.upper()}") for c in "xyz"]
+    if level in ("A", "B"):
+        cols.append(Column("temperature", "%8.2f", "K", "sensor temperature", label="T"))
+    cols.append(Column("quality", "%2d", "1", "quality flag (seed 003 sec. 4.1.2)",
+                       label="QUALITY"))
+    return cols
+
+
+def write_level(
+    ds: xr.Dataset,
+    out_dir: Path,
+    *,
+    formats: Sequence[str] = ("tab", "cdf"),
+    provenance: dict | None = None,
+    lsk=None,
+) -> list[Path]:
+    """Write one level of one sensor as daily products; return the paths written."""
+    from fluxcal.geometry.time import tt2000_to_utc
+    from fluxcal.products import write_product
+
+    level, sensor = ds.attrs["level"], ds.attrs["sensor"]
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    epoch = ds["epoch"].values
+    if epoch.size == 0:
+        raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors left to write")
+    day_index, days, _ = level_a.utc_days(epoch, lsk)
+    written: list[Path] = []
+    for d, day in enumerate(days):
+        sel = np.flatnonzero(day_index == d)
+        if sel.size == 0:
+            continue
+        part = ds.isel(time=sel)
+        part = part.assign(time_utc=("time", tt2000_to_utc(part["epoch"].values, digits=6, lsk=lsk),
+                                     {"units": "UTC"}))
+        attrs = {k: v for k, v in part.attrs.items() if not k.startswith("stitch_")}
+        attrs.update(provenance or {})
+        part.attrs = attrs
+        stem = out_dir / f"RPCMAG_{str(day).replace('-', '')}_{PRODUCT_CODE[level]}_{sensor}"
+        written += write_product(part, stem, formats=formats, columns=product_columns(level),
+                                 label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor})
+    return written
+
+
+@dataclass
+class CalibrateResult:
+    """Datasets made by `calibrate_files` and the files written."""
+
+    levels: dict[str, xr.Dataset] = field(default_factory=dict)
+    paths: list[Path] = field(default_factory=list)
+
+
+def parse_levels(text: str) -> list[str]:
+    """``"A,B,C"`` -> ``["A", "B", "C"]``, checked against `LEVELS`."""
+    levels = [t.strip().upper() for t in str(text).split(",") if t.strip()]
+    bad = [lev for lev in levels if lev not in LEVELS]
+    if bad or not levels:
+        raise FluxcalError(f"unknown level(s) {bad or text!r}; choose from {','.join(LEVELS)}")
+    return levels
+
+
+def calibrate_files(
+    science: Path,
+    sensor: str,
+    out: Path,
+    *,
+    levels: Sequence[str] = ("A",),
+    hk_file: Path | None = None,
+    calib_dir: Path | None = None,
+    kernels: Path | None = None,
+    primary: str = "OB",
+    average_s: float = 1.0,
+    frame: str = "ECLIPJ2000",
+    centre: str = "SUN",
+    boom: str = "deployed",
+    stitch_gap_s: float = level_a.STITCH_GAP_S,
+    jumps: bool = True,
+    formats: Sequence[str] = ("tab", "cdf"),
+    write: bool = True,
+) -> CalibrateResult:
+    """Run ``fluxcal rosetta calibrate``: read raw CSV, make the levels, write products.
+
+    Parameters mirror the command's options (see `fluxcal.missions.rosetta.cli`).
+
+    Raises
+    ------
+    FluxcalError
+        Level C/G without kernels, unknown level, and every input/calibration error.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import SclkKernel, leapseconds
+    from fluxcal.products import provenance_attrs
+
+    sensor = calib.check_sensor(sensor)
+    wanted = set(levels)
+    if wanted & {"C", "G"} and kernels is None:
+        raise FluxcalError("levels C and G need SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
+    need = set(wanted)
+    if "G" in need:
+        need.add("C")
+    if "C" in need or "F" in need:
+        need.add("B")
+    need.add("A")
+
+    result = CalibrateResult()
+    with KernelPool(kernels) as pool:
+        lsk = leapseconds()
+        sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
+        cal = calib.load_ground_calibration(sensor, calib_dir)
+        shifts = calib.load_time_shift_table(calib_dir)
+        nominal = calib.load_nominal_conversion(calib_dir)
+        models = calib.find_daily_offset_models(calib_dir, sensor)
+        raw = io.read_science_csv(science, sensor, sclk=sclk, lsk=lsk)
+        first, last = (np.datetime64(str(s)[:19]) for s in
+                       _utc(raw["epoch"].values[[0, -1]], lsk))
+        cal.validity.check(first, last)
+        used = {"ground": cal.source, "time_shift": shifts.source}
+        used.update({f"daily_{m.day}": m.source for m in models.values()})
+        kernel_files = list(pool.loaded)
+        a = level_a.level_a(raw, cal, shifts, nominal, daily_models=models, primary=primary,
+                            stitch_gap_s=stitch_gap_s, lsk=lsk)
+        result.levels["A"] = a
+        if "B" in need:
+            alignment = calib.load_alignment(calib_dir)
+            table = calib.load_offset_jump_table(calib_dir) if jumps else None
+            used["alignment"] = alignment.source
+            if table is not None:
+                used["offset_jumps"] = table.source
+            result.levels["B"] = level_b.level_b(a, alignment, table, boom=boom, lsk=lsk)
+        if "C" in need:
+            result.levels["C"] = level_c.level_c(result.levels["B"], frame=frame, centre=centre, lsk=lsk)
+        for src, dst in (("A", "E"), ("B", "F"), ("C", "G")):
+            if dst in need:
+                result.levels[dst] = averaged.average(result.levels[src], average_s, lsk=lsk)
+        if hk_file is not None:
+            hk_raw = io.read_hk_csv(hk_file, sclk=sclk, lsk=lsk)
+            result.levels["HK"] = hk.hk_level_a(hk_raw, cal.thermistor, nominal)
+        if write:
+            inputs = [science] + ([hk_file] if hk_file else [])
+            prov = provenance_attrs(inputs=inputs, calibration=used,
+                                    kernels=[Path(str(k)) for k in kernel_files])
+            for lev in LEVELS:
+                if lev in wanted:
+                    result.paths += write_level(result.levels[lev], out, formats=formats,
+                                                provenance=prov, lsk=lsk)
+            if hk_file is not None:
+                result.paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
+    return result
+
+
+def _utc(epoch: np.ndarray, lsk) -> np.ndarray:
+    from fluxcal.geometry.time import tt2000_to_utc
+
+    return tt2000_to_utc(epoch, digits=0, lsk=lsk)
+
+
+def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]:
+    from fluxcal.geometry.time import tt2000_to_utc
+    from fluxcal.products import Column, write_product
+
+    ds = ds.assign(time_utc=("time", tt2000_to_utc(ds["epoch"].values, digits=6, lsk=lsk),
+                             {"units": "UTC"}))
+    ds.attrs = {**ds.attrs, **prov, "level": "A (HK)"}
+    day = str(_utc(ds["epoch"].values[:1], lsk)[0])[:10].replace("-", "")
+    cols = [Column("time_utc", "%s", label="TIME.UTC"), Column("obt", "%17.6f", label="TIME.OBT"),
+            Column("t_ob", "%8.2f", label="T.OB"), Column("t_ib", "%8.2f", label="T.IB"),
+            Column("stage_a_id", "%6d", label="STAGE_A.ID"), Column("stage_b_id", "%6d", label="STAGE_B.ID"),
+            Column("filter_cfg", "%6d", label="FILTER.CFG"),
+            Column("ref_voltage", "%9.5f", label="MAG.REF_VOLTAGE"),
+            Column("neg_voltage", "%9.5f", label="MAG.NEG_VOLTAGE"),
+            Column("pos_voltage", "%9.5f", label="MAG.POS_VOLTAGE"),
+            Column("b_ob", "%11.3f", label="B{c}.OB")]
+    return write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=formats, columns=cols)

@@ -1,0 +1,111 @@
+"""Bad inputs: messages name file, line and field (issue 4)."""
+
+import numpy as np
+import pytest
+
+from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta import calib, io, level_a
+
+HEADER = "time_utc,obt,sid,bx,by,bz,t_ob,t_ib,quality"
+GOOD = [
+    "2014-08-01T00:00:00.000000,366076800.000000,2,1000,-2000,300,16000,17000,0",
+    "2014-08-01T00:00:00.050000,366076800.050000,2,1001,-2001,301,16000,17000,0",
+    "2014-08-01T00:00:00.100000,366076800.100000,2,1002,-2002,302,16000,17000,0",
+]
+
+
+def _file(tmp_path, rows, header=HEADER):
+    path = tmp_path / "sci.csv"
+    path.write_text("\n".join([header, *rows]) + "\n")
+    return path
+
+
+def _read(tmp_path, rows, sensor="OB", **kw):
+    return io.read_science_csv(_file(tmp_path, rows, kw.pop("header", HEADER)), sensor)
+
+
+def test_good_file(pool, tmp_path):
+    ds = _read(tmp_path, GOOD)
+    assert ds.sizes["time"] == 3
+    np.testing.assert_array_equal(ds["b_counts"].values[1], [1001, -2001, 301])
+    assert np.diff(ds["epoch"].values).tolist() == [50_000_000, 50_000_000]
+    assert ds["row"].values.tolist() == [2, 3, 4]
+
+
+def test_non_numeric_field(pool, tmp_path):
+    rows = [GOOD[0], GOOD[1].replace("-2001", "-20x1"), GOOD[2]]
+    with pytest.raises(InputFormatError, match=r"sci.csv, line 3, field 'by': '-20x1' is not an integer"):
+        _read(tmp_path, rows)
+
+
+def test_time_going_backwards(pool, tmp_path):
+    rows = [GOOD[0], GOOD[2], GOOD[1]]
+    with pytest.raises(InputFormatError, match=r"line 4, field 'time_utc': time goes backwards"):
+        _read(tmp_path, rows)
+
+
+def test_bad_time_string(pool, tmp_path):
+    rows = [GOOD[0], "2014-08-01X00:00:00.05," + GOOD[1].split(",", 1)[1], GOOD[2]]
+    with pytest.raises(InputFormatError, match=r"line 3, field 'time_utc'"):
+        _read(tmp_path, rows)
+
+
+def test_wrong_field_count_and_header(pool, tmp_path):
+    with pytest.raises(InputFormatError, match=r"line 3: 8 fields, expected 9"):
+        _read(tmp_path, [GOOD[0], GOOD[1].rsplit(",", 1)[0], GOOD[2]])
+    with pytest.raises(InputFormatError, match=r"line 1: header"):
+        _read(tmp_path, GOOD, header=HEADER.replace("sid", "mode"))
+
+
+def test_counts_out_of_range(pool, tmp_path):
+    rows = [GOOD[0], GOOD[1].replace(",1001,", ",600000,"), GOOD[2]]
+    with pytest.raises(InputFormatError, match=r"line 3, field 'bx': 600000 outside"):
+        _read(tmp_path, rows)
+
+
+def _level_a(ds, sensor="OB"):
+    return level_a.level_a(ds, calib.load_ground_calibration(sensor), calib.load_time_shift_table(),
+                           calib.load_nominal_conversion())
+
+
+def test_quality_bits_dropped_and_counted(pool, tmp_path):
+    rows = [GOOD[0], GOOD[1][:-1] + "5", GOOD[2]]  # bits 0 and 2: x and z bad
+    a = _level_a(_read(tmp_path, rows))
+    assert a.sizes["time"] == 2 and a.attrs["n_dropped_quality"] == 1
+
+
+def test_quality_of_other_sensor(pool, tmp_path):
+    rows = [GOOD[0], GOOD[1][:-1] + "8", GOOD[2]]  # bit 3 set: an IB vector in an OB file
+    with pytest.raises(InputFormatError, match=r"sci.csv, line 3, field 'quality'"):
+        _level_a(_read(tmp_path, rows))
+
+
+def test_sid_not_in_table(pool, tmp_path):
+    # SID 6 (Test) has no SECONDARY time shift (sec. 4.2.3.5): IB is secondary by default
+    rows = [r.replace(",2,", ",6,").rsplit(",", 1)[0] + ",8" for r in GOOD]
+    with pytest.raises(InputFormatError, match=r"line 2, field 'sid': filter mode SID 6 .* secondary"):
+        _level_a(_read(tmp_path, rows, "IB"), "IB")
+    rows = [GOOD[0], GOOD[1].replace(",2,", ",9,"), GOOD[2]]
+    with pytest.raises(InputFormatError, match=r"line 3, field 'sid': filter mode SID 9"):
+        _level_a(_read(tmp_path, rows))
+
+
+def test_hk_round_trip(pool, tmp_path):
+    from fluxcal.missions.rosetta import simulate
+
+    cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
+    sim = simulate.simulate("2014-08-01T00:00:00", 120.0, calibrations=cals,
+                            time_shifts=calib.load_time_shift_table(),
+                            nominal=calib.load_nominal_conversion(), alignment=calib.load_alignment(),
+                            hk_period_s=8.0)
+    path = io.write_hk_csv(sim.hk, tmp_path / "hk.csv")
+    raw = io.read_hk_csv(path)
+    from fluxcal.missions.rosetta import hk
+
+    out = hk.hk_level_a(raw, cals["OB"].thermistor, calib.load_nominal_conversion())
+    assert out["ref_voltage"].values[0] == pytest.approx(2.4996, abs=1e-5)
+    assert out["pos_voltage"].values[0] == pytest.approx(5.0)
+    assert out["neg_voltage"].values[0] == pytest.approx(-5.0)
+    # HK temperature without T_OFF (sec. 4.2.2.5) = calibrated + T_OFF, in K
+    t_true = sim.truth["OB"]["temperature"].values[:: 160][: out.sizes["time"]]
+    np.testing.assert_allclose(out["t_ob"].values, t_true + cals["OB"].thermistor_offset, atol=0.05)
