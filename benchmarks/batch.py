@@ -1,0 +1,131 @@
+"""Batch scale benchmark: N simulated days serially vs on a LocalCluster of 2 workers.
+
+    .venv/bin/python benchmarks/batch.py [--days 8] [--vectors 200000] [--workers 2]
+    .venv/bin/python benchmarks/batch.py --task messenger --input DIR --start 2012-01-01
+
+Prints days/s, vectors/s and the speed-up, then extrapolates the wall time of the whole
+MESSENGER orbital mission (2011-03-18 .. 2015-04-30, 1505 days, up to 20 vectors/s =
+1,728,000 vectors/day) on a cluster of 100 such workers from the measured cost per
+vector.  The cluster start-up is timed separately (a long batch amortises it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import importlib
+import math
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+from distributed import Client
+
+from fluxcal.products.batch import day_range, make_local_cluster, run_batch, task_factory
+
+MESSENGER_DAYS = (dt.date(2015, 4, 30) - dt.date(2011, 3, 18)).days + 1
+VECTORS_PER_DAY_20HZ = 20 * 86_400
+
+
+def _burn(_: int) -> float:
+    """A pure-CPU control task (~0.5 s): measures the parallelism the machine offers now."""
+    t = time.perf_counter()
+    x = 0
+    for k in range(8_000_000):
+        x += k
+    return time.perf_counter() - t
+
+
+def _control(cluster, n: int) -> float:
+    t = time.perf_counter()
+    for i in range(n):
+        _burn(i)
+    serial = time.perf_counter() - t
+    with Client(cluster) as client:
+        t = time.perf_counter()
+        client.gather(client.map(_burn, range(n), pure=False))
+        parallel = time.perf_counter() - t
+    return serial / parallel
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--days", type=int, default=8)
+    ap.add_argument("--vectors", type=int, default=200_000, help="vectors per synthetic day")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--task", default="synthetic", help="synthetic, messenger or rosetta")
+    ap.add_argument("--input", type=Path, help="input folder (mission tasks)")
+    ap.add_argument("--start", default="2024-01-01")
+    ap.add_argument("--formats", default="tab,cdf")
+    args = ap.parse_args()
+
+    days = day_range(dt.date.fromisoformat(args.start),
+                     dt.date.fromisoformat(args.start) + dt.timedelta(days=args.days - 1))
+    work = Path(tempfile.mkdtemp(prefix="fluxcal-bench-"))
+    formats = tuple(args.formats.split(","))
+    try:
+        if args.task == "synthetic":
+            from fluxcal.products.synthetic_task import write_synthetic_inputs
+
+            inp = work / "in"
+            write_synthetic_inputs(inp, days, n_per_day=args.vectors)
+        else:
+            if args.input is None:
+                ap.error("--input is required for a mission task")
+            inp = args.input
+        factory = task_factory(args.task)
+
+        serial_out = work / "serial"
+        task = factory(inp, serial_out, formats=formats)
+        run_batch(days[:1], task, serial_out, scheduler="serial", force=True)  # warm-up
+        rep_s = run_batch(days, task, serial_out, scheduler="serial", force=True)
+
+        t0 = time.perf_counter()
+        cluster = make_local_cluster(args.workers)
+        with Client(cluster) as client:  # import the task's modules on every worker
+            client.run(importlib.import_module, type(task).__module__)
+        startup = time.perf_counter() - t0
+        try:
+            par_out = work / "parallel"
+            task = factory(inp, par_out, formats=formats)
+            # warm-up (first-call costs on each worker), as for the serial run
+            run_batch(days[: args.workers], task, par_out, scheduler=cluster.scheduler_address,
+                      force=True)
+            rep_p = run_batch(days, task, par_out, scheduler=cluster.scheduler_address,
+                              force=True)
+            control = _control(cluster, 2 * args.workers)
+        finally:
+            cluster.close()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+    for rep in (rep_s, rep_p):
+        if not rep.ok:
+            raise SystemExit(f"{len(rep.failed)} day(s) failed: {rep.failed[0].error}")
+    n = len(days)
+    vec = rep_s.n_vectors
+    print(f"task={args.task} days={n} vectors/day={vec // n:,} formats={','.join(formats)}")
+    print(f"serial:           {rep_s.wall_seconds:7.2f} s  {n / rep_s.wall_seconds:6.3f} days/s"
+          f"  {vec / rep_s.wall_seconds:12,.0f} vectors/s")
+    print(f"LocalCluster x{args.workers}: {rep_p.wall_seconds:7.2f} s  "
+          f"{n / rep_p.wall_seconds:6.3f} days/s  {vec / rep_p.wall_seconds:12,.0f} vectors/s"
+          f"  (cluster start-up {startup:.1f} s, not included)")
+    speedup = rep_s.wall_seconds / rep_p.wall_seconds
+    print(f"control: a pure-CPU task reaches {control:.2f}x on this cluster right now "
+          "(the parallelism the machine offers)")
+    print(f"load average during the runs: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
+          "(other processes on the machine lower the speed-up)")
+    print(f"speed-up: {speedup:.2f}x  (ideal {args.workers}x)")
+    per_vector = rep_s.wall_seconds / vec
+    day_cost = per_vector * VECTORS_PER_DAY_20HZ
+    waves = math.ceil(MESSENGER_DAYS / 100)
+    wall = waves * day_cost
+    print(f"extrapolation: one 20 Hz MESSENGER day ~ {day_cost:.1f} s on one worker; "
+          f"{MESSENGER_DAYS} orbital days on 100 workers = {waves} waves ~ {wall / 60:.1f} min "
+          f"(+ scheduler overhead; assumes this task's cost per vector)")
+
+
+if __name__ == "__main__":
+    main()
