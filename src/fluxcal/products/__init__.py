@@ -14,8 +14,15 @@ Writing a product
 >>> cols = [Column("epoch", "%d", "ns", "TT2000"),
 ...         Column("B_mso", "%10.3f", label="b{c}"),      # -> columns bx, by, bz
 ...         Column("quality", "%2d")]
->>> paths = write_product(ds, Path(getfixture("tmp_path")) / "MAGMSOSCI24001",
-...                       formats=("tab", "cdf"), columns=cols)  # doctest: +SKIP
+>>> import tempfile
+>>> out = Path(tempfile.mkdtemp())
+>>> paths = write_product(ds, out / "MAGMSOSCI24001", formats=("tab", "cdf"), columns=cols)
+>>> [p.name for p in paths]
+['MAGMSOSCI24001.TAB', 'MAGMSOSCI24001.LBL', 'MAGMSOSCI24001.cdf']
+>>> (out / "MAGMSOSCI24001.TAB").read_text().splitlines()[1]
+'50000000      0.000      0.000      0.000  1'
+>>> read_product(out / "MAGMSOSCI24001.cdf")["epoch"].values.tolist()
+[0, 50000000]
 
 Column naming
 -------------
