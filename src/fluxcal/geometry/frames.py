@@ -389,6 +389,9 @@ class Rotator:
         b_mbf = apply(rot.matrices("IAU_MERCURY"), b_mag)
     """
 
+    #: Samples per block: keeps the temporaries of one block in the CPU cache.
+    CHUNK = 1 << 15
+
     def __init__(
         self,
         from_frame: str,
@@ -403,32 +406,63 @@ class Rotator:
         self.tolerance = tolerance
         self.grid_step = grid_step
         self._sclk: dict = {}
+        self._legs: dict[str, _Leg | None] = {}
         self.from_frame = from_frame
-        self._source = self._leg_quaternions(from_frame)
+        source = self._leg(from_frame)
+        self._source = None
+        if source is not None:
+            self._source = np.empty((self.et.size, 4))
+            for block in self._blocks():
+                self._source[block] = source.quaternions(self.et[block])
 
-    def _leg_quaternions(self, frame: str) -> np.ndarray | None:
-        if frame.upper() == _INERTIAL:
+    def _blocks(self) -> list[slice]:
+        return [slice(i, i + self.CHUNK) for i in range(0, self.et.size, self.CHUNK)]
+
+    def _leg(self, frame: str) -> _Leg | None:
+        key = frame.upper()
+        if key == _INERTIAL:
             return None
-        with spice_errors(f"rotation {frame} -> {_INERTIAL}"):
-            leg = _Leg(frame, self.et, self.tolerance, self.grid_step, self._sclk)
-        return leg.quaternions(self.et)
+        if key not in self._legs:
+            with spice_errors(f"rotation {frame} -> {_INERTIAL}"):
+                self._legs[key] = _Leg(frame, self.et, self.tolerance, self.grid_step, self._sclk)
+        return self._legs[key]
+
+    def _block_quaternions(self, target: _Leg | None, block: slice) -> np.ndarray:
+        source = None if self._source is None else self._source[block]
+        if target is None:
+            if source is None:
+                return np.tile([0.0, 0.0, 0.0, 1.0], (self.et[block].size, 1))
+            return source
+        target_inv = target.quaternions(self.et[block]) * np.array([-1.0, -1.0, -1.0, 1.0])
+        return target_inv if source is None else quat_multiply(target_inv, source)
 
     def quaternions(self, to_frame: str) -> np.ndarray:
         """Return (n, 4) scalar-last quaternions of the rotation ``from_frame -> to_frame``."""
-        target = self._leg_quaternions(to_frame)
-        source = self._source
-        if target is None and source is None:
-            return np.tile([0.0, 0.0, 0.0, 1.0], (self.et.size, 1))
-        if target is None:
-            return source
-        target_inv = target * np.array([-1.0, -1.0, -1.0, 1.0])  # J2000 -> to_frame
-        if source is None:
-            return target_inv
-        return quat_multiply(target_inv, source)
+        target = self._leg(to_frame)
+        out = np.empty((self.et.size, 4))
+        for block in self._blocks():
+            out[block] = self._block_quaternions(target, block)
+        return out
 
     def matrices(self, to_frame: str) -> np.ndarray:
         """Return the (n, 3, 3) rotation matrices ``from_frame -> to_frame``."""
-        return quat_to_matrix(self.quaternions(to_frame))
+        target = self._leg(to_frame)
+        out = np.empty((self.et.size, 3, 3))
+        for block in self._blocks():
+            out[block] = quat_to_matrix(self._block_quaternions(target, block))
+        return out
+
+    def rotate(self, to_frame: str, vectors: np.ndarray) -> np.ndarray:
+        """Rotate (n, 3) vectors given in ``from_frame`` into ``to_frame``."""
+        vectors = np.asarray(vectors, dtype=float)
+        if vectors.shape != (self.et.size, 3):
+            raise ValueError(f"vectors must have shape ({self.et.size}, 3), got {vectors.shape}")
+        target = self._leg(to_frame)
+        out = np.empty_like(vectors)
+        for block in self._blocks():
+            matrices = quat_to_matrix(self._block_quaternions(target, block))
+            out[block] = apply(matrices, vectors[block])
+        return out
 
 
 def rotation_matrices(
@@ -518,6 +552,10 @@ def rotate(
     et = np.atleast_1d(np.asarray(et, dtype=float))
     if vectors.shape != (et.size, 3):
         raise ValueError(f"vectors must have shape ({et.size}, 3), got {vectors.shape}")
-    matrices = rotation_matrices(from_frame, to_frame, et, method=method, tolerance=tolerance)
-    rotated = apply(matrices, vectors)
-    return (rotated, matrices) if return_matrices else rotated
+    if method == "oracle" or return_matrices:
+        matrices = rotation_matrices(from_frame, to_frame, et, method=method, tolerance=tolerance)
+        rotated = apply(matrices, vectors)
+        return (rotated, matrices) if return_matrices else rotated
+    if method != "interpolate":
+        raise ValueError(f"method must be 'interpolate' or 'oracle', not {method!r}")
+    return Rotator(from_frame, et, tolerance=tolerance).rotate(to_frame, vectors)

@@ -96,6 +96,9 @@ class StateInterpolator:
         First grid step in seconds.
     """
 
+    #: Samples per block of the Hermite evaluation (keeps temporaries in cache).
+    CHUNK = 1 << 15
+
     def __init__(
         self,
         target: str,
@@ -105,21 +108,30 @@ class StateInterpolator:
         tmax: float,
         *,
         tolerance: float = DEFAULT_POSITION_TOLERANCE,
-        step: float = 120.0,
+        step: float = 300.0,
     ) -> None:
         self.target, self.observer, self.frame = target, observer, frame
-        for _ in range(10):
-            n = max(int(np.ceil((tmax - tmin) / step)), 1)
-            nodes = np.linspace(tmin, tmin + n * step, n + 1)
-            states = states_oracle(target, observer, frame, nodes)
-            mid = nodes[:-1] + 0.5 * np.diff(nodes)
-            probe = mid if mid.size <= 256 else mid[np.linspace(0, mid.size - 1, 256).astype(int)]
-            truth = position_oracle(target, observer, frame, probe)
-            err = np.abs(hermite(nodes, states, probe) - truth)
-            if err.max() <= tolerance:
+        n = max(int(np.ceil((tmax - tmin) / step)), 1)
+        nodes = np.linspace(tmin, tmax, n + 1)
+        states = states_oracle(target, observer, frame, nodes)
+        check = np.ones(nodes.size - 1, dtype=bool)
+        # bisect every interval whose mid-point error exceeds the tolerance
+        for _ in range(40):
+            idx = np.flatnonzero(check)
+            mids = 0.5 * (nodes[idx] + nodes[idx + 1])
+            truth = states_oracle(target, observer, frame, mids)
+            error = np.abs(hermite(nodes, states, mids) - truth[:, :3]).max(axis=1)
+            bad = error > tolerance
+            if not bad.any():
                 self.nodes, self.states = nodes, states
                 return
-            step /= 2.0
+            where = idx[bad] + 1
+            nodes = np.insert(nodes, where, mids[bad])
+            states = np.insert(states, where, truth[bad], axis=0)
+            new_pos = where + np.arange(where.size)
+            check = np.zeros(nodes.size - 1, dtype=bool)
+            check[new_pos - 1] = True
+            check[new_pos] = True
         raise KernelError(
             f"positions of {target} relative to {observer} cannot be interpolated to "
             f"{tolerance} km; use method='oracle'"
@@ -127,7 +139,12 @@ class StateInterpolator:
 
     def __call__(self, et: np.ndarray) -> np.ndarray:
         """Return (n, 3) interpolated positions (km) at ``et``."""
-        return hermite(self.nodes, self.states, np.asarray(et, dtype=float))
+        et = np.atleast_1d(np.asarray(et, dtype=float))
+        out = np.empty((et.size, 3))
+        for start in range(0, et.size, self.CHUNK):
+            block = slice(start, start + self.CHUNK)
+            out[block] = hermite(self.nodes, self.states, et[block])
+        return out
 
     def states_at(self, et: np.ndarray) -> np.ndarray:
         """Return (n, 6) interpolated states (velocity from the Hermite derivative)."""
