@@ -60,14 +60,19 @@ def apply_per_range(
     """
     vectors = np.asarray(vectors, dtype=float)
     range_flag = np.asarray(range_flag)
-    out = np.empty_like(vectors)
-    for flag in range(matrices.shape[0]):
-        sel = range_flag == flag
-        if sel.any():
-            out[sel] = vectors[sel] @ matrices[flag].T
-    bad = (range_flag < 0) | (range_flag >= matrices.shape[0])
-    if bad.any():
+    matrices = np.asarray(matrices, dtype=float)
+    if range_flag.size and (range_flag.min() < 0 or range_flag.max() >= matrices.shape[0]):
         raise ValueError(f"range_flag: values outside 0..{matrices.shape[0] - 1}")
+    # per-sample matrix elements gathered from the small table: out_i = sum_j M[r]_ij v_j
+    m = matrices.reshape(matrices.shape[0], 9)
+    out = np.zeros_like(vectors)
+    for i in range(3):
+        for j in range(3):
+            coef = m[:, 3 * i + j]
+            if not coef.any():
+                continue
+            c = coef[0] if np.all(coef == coef[0]) else coef.take(range_flag)
+            out[:, i] += c * vectors[:, j]
     return out
 
 

@@ -156,11 +156,14 @@ def heater_waveform(
     j = np.clip(np.floor(w).astype(np.int64), 0, bins.size - 2)
     fd = w - j  # < 0 or > 1 in the extrapolation zones
     out = np.empty((t.size, table.shape[0]))
+    nb = table.shape[2]
+    flat = i * nb + j  # index of (i, j) in a flattened (101, n_bins) table
+    w00, w10 = (1 - ft) * (1 - fd), ft * (1 - fd)
+    w01, w11 = (1 - ft) * fd, ft * fd
     for axis in range(table.shape[0]):
-        tab = table[axis]
-        lo = tab[i, j] * (1 - ft) + tab[i + 1, j] * ft
-        hi = tab[i, j + 1] * (1 - ft) + tab[i + 1, j + 1] * ft
-        out[:, axis] = lo * (1 - fd) + hi * fd
+        tab = table[axis].ravel()
+        out[:, axis] = (tab.take(flat) * w00 + tab.take(flat + nb) * w10
+                        + tab.take(flat + 1) * w01 + tab.take(flat + nb + 1) * w11)
     return out[:, 0] if squeeze else out
 
 

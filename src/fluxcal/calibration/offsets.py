@@ -41,7 +41,10 @@ def two_segment_offset(temperature_c: np.ndarray, coefficients: np.ndarray) -> n
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 3a, 3b, 4, Table 2.
     """
-    t = np.asarray(temperature_c, dtype=float)[:, None]
-    a0, b0, a1, b1 = np.asarray(coefficients, dtype=float).T
+    t = np.asarray(temperature_c, dtype=float)
+    coefficients = np.asarray(coefficients, dtype=float)
     tm = breakpoint_temperature(coefficients)
-    return np.where(t <= tm, a0 + b0 * t, a1 + b1 * t)
+    out = np.empty((t.size, coefficients.shape[0]))
+    for j, (a0, b0, a1, b1) in enumerate(coefficients):
+        out[:, j] = np.where(t <= tm[j], a0 + b0 * t, a1 + b1 * t)
+    return out

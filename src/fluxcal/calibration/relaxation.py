@@ -210,9 +210,15 @@ def relaxed_offset(
     if np.any(np.diff(change_time) < 0):
         raise ValueError("change_time: must be increasing")
     state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back)
-    k = np.searchsorted(change_time, ts, side="right") - 1
-    has = k >= 0
-    kk = k[has]
-    decay = np.exp(-np.maximum(ts[has] - change_time[kk] - delay, 0.0) / tau)[:, None]
-    out[has] = target[kk] - (target[kk] - state[kk]) * decay
+    # row 0 of the padded tables is "before the first change": zero target and state
+    k = np.searchsorted(change_time, ts, side="right")
+    t_pad = np.concatenate([[0.0], change_time])
+    decay = np.exp(-np.maximum(ts - t_pad.take(k) - delay, 0.0) / tau)
+    decay[k == 0] = 1.0
+    pad = np.zeros((1, target.shape[1]))
+    tgt = np.concatenate([pad, target])
+    st = np.concatenate([pad, state])
+    for j in range(target.shape[1]):
+        tj = tgt[:, j].take(k)
+        out[:, j] = tj - (tj - st[:, j].take(k)) * decay
     return out

@@ -7,7 +7,7 @@ goes through, in order:
 2. `correct_heater_signal` (sec. 6): periodic heater signal;
 3. `correct_offsets` (sec. 7): temperature and relaxed duty-cycle offsets;
 4. `counts_to_field` (sec. 8): eq. 8 with each sample's range matrix;
-5. `rotate_field` (sec. 11) and `add_positions` (sec. 10);
+5. `add_geometry` (sec. 10, 11): frames and positions;
 6. `assign_quality` (sec. 12);
 7. `validate_offsets` (sec. 13).
 
@@ -270,77 +270,103 @@ def counts_to_field(ds: xr.Dataset, cal: MessengerCalibration) -> xr.Dataset:
 # 5. rotation and positions
 # ----------------------------------------------------------------------------------------
 def sensor_frame(et: np.ndarray, cal: MessengerCalibration) -> np.ndarray:
-    """Return ``"MSGR_MAG"`` or ``"MSGR_MAG_STOWED"`` (before boom deployment) per sample."""
-    boom = _date_et(cal, "boom_deployment")
-    return np.where(np.asarray(et) >= boom, "MSGR_MAG", "MSGR_MAG_STOWED")
+    """Return True where the sensor frame is ``MSGR_MAG`` (after boom deployment).
+
+    Before boom deployment (2005-03-08) the sensor frame is ``MSGR_MAG_STOWED``.
+    """
+    return np.asarray(et) >= _date_et(cal, "boom_deployment")
 
 
-def rotate_field(
+def _sensor_to_spacecraft(frame: str, et: np.ndarray, method: str) -> np.ndarray:
+    """(n, 3, 3) sensor -> MSGR_SPACECRAFT; one matrix when the mounting is fixed."""
+    from fluxcal.geometry.frames import rotation_matrices
+
+    ends = rotation_matrices(frame, "MSGR_SPACECRAFT", et[[0, -1]], method="oracle")
+    if method != "oracle" and np.allclose(ends[0], ends[1], rtol=0, atol=1e-14):
+        return ends[:1]
+    return rotation_matrices(frame, "MSGR_SPACECRAFT", et, method=method)
+
+
+def _apply(m: np.ndarray, v: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """``out[i] = M[i] @ v[i]`` (or ``M[i].T @ v[i]``); a single matrix applies to all."""
+    if m.shape[0] == 1:
+        return v @ (m[0] if transpose else m[0].T)
+    out = np.empty_like(v)
+    for i in range(3):
+        row = m[:, :, i] if transpose else m[:, i, :]
+        out[:, i] = row[:, 0] * v[:, 0] + row[:, 1] * v[:, 1] + row[:, 2] * v[:, 2]
+    return out
+
+
+def add_geometry(
     ds: xr.Dataset,
     cal: MessengerCalibration,
     frames: tuple[str, ...] = ("mso", "j2000", "mbf", "rtn", "sc"),
     *,
     method: str = "interpolate",
 ) -> xr.Dataset:
-    """Rotate the sensor field into the requested frames (sec. 11).
+    """Rotate the sensor field into the requested frames and add positions (sec. 10, 11).
 
-    Adds ``b_<frame>`` for each key of `FRAMES` requested.  Kernels must be loaded.
+    The field goes sensor -> MSGR_SPACECRAFT (fixed mounting of MSGR_MAG, or
+    MSGR_MAG_STOWED before boom deployment) -> J2000 (attitude, CK) -> each frame, the
+    composition SPICE's ``pxform`` performs.  Adds ``b_<frame>`` for each requested key
+    of `FRAMES`; ``pos_j2000`` (MESSENGER relative to the Sun, J2000), ``pos_mso`` and
+    ``pos_mbf`` (relative to Mercury in MSGR_MSO and IAU_MERCURY), ``pos_rtn`` (r km,
+    latitude deg, azimuth deg of sec. 10.2) and ``sun_sc`` (unit Sun direction in
+    MSGR_SPACECRAFT, for the S flag).  Kernels must be loaded.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        With ``et`` and ``b_sensor``.
+    cal : MessengerCalibration
+        For the boom deployment date.
+    frames : tuple of str
+        Keys of `FRAMES`.
+    method : {"interpolate", "oracle"}
+        Vectorized geometry, or one SPICE call per sample (the reference).
 
     References
     ----------
-    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 11.
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2, 11.
     """
-    from fluxcal.geometry.frames import Rotator, apply, rotation_matrices
-
-    et = ds["et"].values
-    b = ds["b_sensor"].values
-    src = sensor_frame(et, cal)
-    out = {}
-    for name in np.unique(src):
-        sel = src == name
-        if method == "oracle":
-            mats = {f: rotation_matrices(name, FRAMES[f][0], et[sel], method="oracle")
-                    for f in frames}
-        else:
-            rot = Rotator(str(name), et[sel])
-            mats = {f: rot.matrices(FRAMES[f][0]) for f in frames}
-        for f in frames:
-            out.setdefault(f, np.empty_like(b))[sel] = apply(mats[f], b[sel])
-    return ds.assign(
-        {f"b_{f}": _vector(v, "nT", f"magnetic field in {FRAMES[f][0]}") for f, v in out.items()}
-    )
-
-
-def add_positions(ds: xr.Dataset, *, method: str = "interpolate") -> xr.Dataset:
-    """Add MESSENGER's position per sample (sec. 10).
-
-    ``pos_j2000``: relative to the Sun in J2000; ``pos_mso``/``pos_mbf``: relative to
-    Mercury in MSGR_MSO / IAU_MERCURY; ``pos_rtn``: (r km, latitude deg, azimuth deg) of
-    sec. 10.2; ``sun_sc``: unit Sun direction in MSGR_SPACECRAFT (for the S flag).
-
-    References
-    ----------
-    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2.
-    """
-    from fluxcal.geometry.frames import rotate
+    from fluxcal.geometry.frames import rotation_matrices
     from fluxcal.geometry.positions import position, rtn_spherical
 
     et = ds["et"].values
+    b = ds["b_sensor"].values
+    deployed = sensor_frame(et, cal)
+    b_sc = np.empty_like(b)
+    for name, sel in (("MSGR_MAG", deployed), ("MSGR_MAG_STOWED", ~deployed)):
+        if sel.all():
+            b_sc = _apply(_sensor_to_spacecraft(name, et, method), b)
+        elif sel.any():
+            b_sc[sel] = _apply(_sensor_to_spacecraft(name, et[sel], method), b[sel])
+    att = rotation_matrices("MSGR_SPACECRAFT", "J2000", et, method=method)
+    b_j2000 = _apply(att, b_sc)
     sun = position("MESSENGER", "SUN", "J2000", et, method=method)
+    sun_dir = -sun / np.linalg.norm(sun, axis=1)[:, None]
+    sun_sc = _apply(att, sun_dir, transpose=True)
+    del att
+    out = {"sc": b_sc, "j2000": b_j2000}
+    for f in frames:
+        if f not in out:
+            out[f] = _apply(rotation_matrices("J2000", FRAMES[f][0], et, method=method), b_j2000)
     mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
     mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
     r, lat, az = rtn_spherical("MESSENGER", et, method=method)
-    sun_dir = -sun / np.linalg.norm(sun, axis=1)[:, None]
-    sun_sc = rotate(sun_dir, et, "J2000", "MSGR_SPACECRAFT", method=method)
-    return ds.assign(
+    variables = {
+        f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
+    }
+    variables.update(
         pos_j2000=_vector(sun, "km", "MESSENGER relative to the Sun, J2000"),
         pos_mso=_vector(mso, "km", "MESSENGER relative to Mercury, MSGR_MSO"),
         pos_mbf=_vector(mbf, "km", "MESSENGER relative to Mercury, IAU_MERCURY"),
         pos_rtn=_vector(np.column_stack([r, lat, az]), "km, deg, deg",
                         "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)"),
-        sun_sc=_vector(sun_dir if sun_sc is None else sun_sc, "1",
-                       "unit Sun direction in MSGR_SPACECRAFT"),
+        sun_sc=_vector(sun_sc, "1", "unit Sun direction in MSGR_SPACECRAFT"),
     )
+    return ds.assign(variables)
 
 
 # ----------------------------------------------------------------------------------------

@@ -70,8 +70,7 @@ def calibrate(
     ds = levels.correct_heater_signal(ds, periods, cal)
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
     ds = levels.counts_to_field(ds, cal)
-    ds = levels.rotate_field(ds, cal, frames, method=method)
-    ds = levels.add_positions(ds, method=method)
+    ds = levels.add_geometry(ds, cal, frames, method=method)
     ds = levels.assign_quality(ds, cal)
     report = (
         levels.validate_offsets(ds, max_offset_step)

@@ -27,9 +27,9 @@ import xarray as xr
 
 from fluxcal.calibration.gain_matrix import nt_to_counts, range_conversion
 from fluxcal.calibration.heater_signal import heater_waveform
-from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.rate_latency import per_sample_lag
-from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
+from fluxcal.calibration.relaxation import DutyCycleChanges
+from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.readers import COUNT_LIMITS
 
@@ -161,7 +161,6 @@ def simulate(
     from fluxcal.geometry.positions import position
     from fluxcal.geometry.time import et_to_tt2000, utc_to_et
 
-    rel = cal.constants["relaxation"]
     et_start = float(utc_to_et(np.array([config.start_utc]))[0])
     part_arr, met_arr = sclk.from_et(np.array([et_start]))
     partition = int(part_arr[0])
@@ -219,19 +218,20 @@ def simulate(
     # --- truth field ---------------------------------------------------------------------
     pos = position("MESSENGER", "MERCURY", "MSGR_MSO", et)
     b_mso = mercury_field_mso(pos, config) + _waves(et - et_start, config)
-    frame = "MSGR_MAG"  # the simulated days are after boom deployment
-    b_sensor = rotate(b_mso, et, "MSGR_MSO", frame)
+    deployed = levels.sensor_frame(et, cal)
+    b_sensor = np.empty_like(b_mso)
+    for frame, sel in (("MSGR_MAG", deployed), ("MSGR_MAG_STOWED", ~deployed)):
+        if sel.any():
+            b_sensor[sel] = rotate(b_mso[sel], et[sel], "MSGR_MSO", frame)
     # --- offsets and heater signal (fine counts) ---------------------------------------
     temp_true = _temperature(
         (sclk.from_et(et)[1] - h_zero), blocks, config
     )
-    offset = two_segment_offset(temp_true, cal.temperature_coefficients)
-    target = steady_state_offset(ch_d, cal.duty_cycle_d0, rel["min_duty_cycle_ppt"])
-    offset += relaxed_offset(et, ch_et, target, tau=rel["tau_s"], delay=rel["delay_s"],
-                             look_back=int(rel["look_back"]))
+    offset = levels.offset_model(et, temp_true, DutyCycleChanges(ch_et, ch_d), cal)
     k = np.searchsorted(p_start_et, et, side="right") - 1
     inside = (k >= 0) & (et < p_start_et[np.maximum(k, 0)] + 100.0)
     applied = inside & (p_duty[np.maximum(k, 0)] >= cal.constants["heater"]["min_on_s"])
+    applied &= et >= float(utc_to_et(np.array([str(cal.date("heater_mode_v10"))]))[0])
     heater = np.zeros((et.size, 3))
     kk = k[applied]
     heater[applied] = heater_waveform(
