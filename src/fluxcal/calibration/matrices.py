@@ -57,12 +57,40 @@ def orthogonalisation_matrix(
 
 
 def apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """Apply ``(n, 3, 3)`` (or one ``(3, 3)``) matrices to ``(n, 3)`` vectors."""
+    """Apply ``(n, 3, 3)`` (or one ``(3, 3)``) matrices to ``(n, 3)`` vectors.
+
+    Written as nine multiply-adds on contiguous component arrays: several times faster
+    than ``np.einsum`` or ``vectors @ m.T`` for long ``(n, 3)`` arrays.
+    """
     m = np.asarray(matrices, dtype=float)
     v = np.asarray(vectors, dtype=float)
-    if m.ndim == 2:
-        return v @ m.T
-    return np.einsum("nij,nj->ni", m, v)
+    cols = [np.ascontiguousarray(v[:, j]) for j in range(3)]
+    out = np.empty((v.shape[0], 3))
+    for i in range(3):
+        if m.ndim == 2:
+            out[:, i] = m[i, 0] * cols[0] + m[i, 1] * cols[1] + m[i, 2] * cols[2]
+        else:
+            out[:, i] = m[:, i, 0] * cols[0] + m[:, i, 1] * cols[1] + m[:, i, 2] * cols[2]
+    return out
+
+
+def apply_lookup(table: np.ndarray, index: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Apply ``table[index[k]]`` (a ``(m, 3, 3)`` table) to ``vectors[k]`` without forming ``(n, 3, 3)``.
+
+    For matrices that depend on a quantised quantity (e.g. a 16-bit temperature word):
+    the table holds one matrix per word and ``index`` picks it per sample.
+    """
+    v = np.asarray(vectors, dtype=float)
+    cols = [np.ascontiguousarray(v[:, j]) for j in range(3)]
+    out = np.empty((v.shape[0], 3))
+    flat = table.reshape(table.shape[0], 9)
+    for i in range(3):
+        acc = np.zeros(v.shape[0])
+        for j in range(3):
+            if np.any(flat[:, 3 * i + j] != 0.0):
+                acc += flat[:, 3 * i + j][index] * cols[j]
+        out[:, i] = acc
+    return out
 
 
 def solve(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:

@@ -27,6 +27,8 @@ def polynomial(coefficients: np.ndarray, x: np.ndarray) -> np.ndarray:
     """
     c = np.asarray(coefficients, dtype=float)
     x = np.asarray(x, dtype=float)
+    while len(c) > 1 and not np.any(c[-1]):  # trailing zero orders (e.g. P_4 = P_5 = 0)
+        c = c[:-1]
     xs = x[:, None] if c.ndim == 2 else x
     out = np.zeros(xs.shape[:1] + c.shape[1:]) + c[-1]
     for ck in c[-2::-1]:

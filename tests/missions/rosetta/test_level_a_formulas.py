@@ -195,3 +195,15 @@ def test_stitch_state_carried_between_calls():
     off, _, _ = level_a.extended_offset(np.array([10 * ns]), np.array([0.0]), np.array([0]), d2, m2,
                                         previous=state)
     np.testing.assert_allclose(off, 1.0)
+
+
+def test_word_lookup_equals_per_vector_formula():
+    nom = calib.load_nominal_conversion()
+    cal = calib.load_ground_calibration("OB")
+    rng = np.random.default_rng(0)
+    words = rng.integers(6000, 20000, 5000)
+    b_raw = rng.uniform(-15000, 15000, (5000, 3))
+    fast, t = level_a.ground_calibrate_words(b_raw, words, cal, nom)
+    slow = level_a.ground_calibrate(b_raw, level_a.sensor_temperature(words, cal, nom), cal)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(t, level_a.sensor_temperature(words, cal, nom))

@@ -44,12 +44,20 @@ def offset_jumps(
     if np.any(np.diff(starts) <= 0) or np.any(ends[:-1] > starts[1:]):
         raise CalibrationError(f"{table.source}: offset-jump intervals must be sorted and disjoint")
     epoch = np.asarray(epoch, dtype=np.int64)
-    idx = np.searchsorted(starts, epoch, side="right") - 1
-    inside = (idx >= 0) & (epoch < ends[np.clip(idx, 0, None)])
-    idx = np.where(inside, idx, -1)
     jumps = table.jumps[sensor]
-    out = np.zeros((epoch.size, 3))
-    out[inside] = jumps[idx[inside]]
+    ends_idx = np.searchsorted(starts, epoch[[0, -1]], side="right") - 1 if epoch.size else []
+    if (epoch.size and ends_idx[0] == ends_idx[1] and ends_idx[0] >= 0
+            and epoch.min() >= starts[ends_idx[0]] and epoch.max() < ends[ends_idx[0]]):
+        # the common case: every vector inside one interval (no per-vector search)
+        idx = np.full(epoch.size, ends_idx[0])
+        out = np.broadcast_to(jumps[ends_idx[0]], (epoch.size, 3)).copy()
+        inside = np.ones(epoch.size, dtype=bool)
+    else:
+        idx = np.searchsorted(starts, epoch, side="right") - 1
+        inside = (idx >= 0) & (epoch < ends[np.clip(idx, 0, None)])
+        idx = np.where(inside, idx, -1)
+        out = np.zeros((epoch.size, 3))
+        out[inside] = jumps[idx[inside]]
     if np.isnan(out).any():
         k = int(idx[np.isnan(out).any(axis=1)][0])
         raise CalibrationError(
