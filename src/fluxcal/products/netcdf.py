@@ -32,9 +32,11 @@ DTYPE_ATTR = "fluxcal_dtype"
 
 def netcdf_engine() -> str:
     """Return the xarray engine used for netCDF output (``netcdf4``, ``h5netcdf`` or ``scipy``)."""
-    for module, engine in (("netCDF4", "netcdf4"), ("h5netcdf", "h5netcdf")):
-        if importlib.util.find_spec(module) is not None:
-            return engine
+    if importlib.util.find_spec("netCDF4") is not None:
+        return "netcdf4"
+    # h5netcdf writes only through h5py (its pyfive backend is read-only)
+    if all(importlib.util.find_spec(m) is not None for m in ("h5netcdf", "h5py")):
+        return "h5netcdf"
     return "scipy"
 
 
@@ -140,7 +142,7 @@ def write_zarr(ds: xr.Dataset, path: Path) -> Path:
     path = Path(path)
     enc = encode_for_netcdf3(ds)
     with atomic_path(path, directory=True) as tmp:
-        enc.to_zarr(tmp, mode="w")
+        enc.to_zarr(tmp, mode="w", zarr_format=2, consolidated=True)
     return path
 
 
