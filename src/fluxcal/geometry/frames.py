@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import spiceypy
@@ -288,9 +289,11 @@ class _Leg:
         ok = (idx >= 0) & (et <= windows[np.clip(idx, 0, None), 1])
         if not ok.all():
             bad = float(et[np.flatnonzero(~ok)[0]])
+            files = sorted({Path(s.path).name for s in segments if s.instrument == instrument})
             raise KernelError(
                 f"frame {self.frame}: no C-kernel pointing for instrument {instrument} at "
-                f"{_utc(bad)} (outside the CK interpolation intervals)"
+                f"{_utc(bad)} (outside the interpolation intervals of {', '.join(files)}: "
+                f"{_utc(windows[0, 0])} .. {_utc(windows[-1, 1])})"
             )
 
     def _build(
