@@ -396,8 +396,9 @@ def _clean_segment(
 
     # 2) Replace the band bins by complex Gaussian noise (random phase) whose mean power
     #    runs linearly from the level below the band to the level above it.
-    frac = (np.arange(nbw) + 1) / (width[..., None] + 1)  # (nw, k, B)
+    frac = np.clip((np.arange(nbw) + 1) / (width[..., None] + 1), 0.0, 1.0)  # (nw, k, B)
     target = p_left[..., None] + (p_right - p_left)[..., None] * frac  # (c, nw, k, B)
+    target = np.maximum(target, 0.0)  # round-off of the cumulative sums
     noise = rng.standard_normal((2, *target.shape))
     real_bin = (bidx == nb - 1) & (length % 2 == 0)  # Nyquist bin of an even-length FFT
     z = np.where(real_bin, noise[0] + 0j, (noise[0] + 1j * noise[1]) / np.sqrt(2.0))
