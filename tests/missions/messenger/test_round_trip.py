@@ -79,3 +79,21 @@ def test_frames_are_rotations(recovered):
     n = np.linalg.norm(ds["b_sensor"].values, axis=1)
     for f in ("mso", "j2000", "mbf", "rtn", "sc"):
         np.testing.assert_allclose(np.linalg.norm(ds[f"b_{f}"].values, axis=1), n, rtol=1e-12)
+
+
+def test_heater_stream_must_cover_the_samples(messenger_kernels, simulated, calibration):
+    from fluxcal.errors import InputFormatError
+
+    short = simulated["heater"].isel(heater_time=slice(0, 3000))
+    with KernelPool(messenger_kernels), pytest.raises(InputFormatError, match="does not cover"):
+        calibrate(simulated["science"], short, simulated["temperature"], calibration)
+
+
+def test_vso_on_request(messenger_kernels, simulated, calibration):
+    sci = simulated["science"].isel(time=slice(0, 2000))
+    with KernelPool(messenger_kernels):
+        ds = calibrate(sci, simulated["heater"], simulated["temperature"], calibration,
+                       frames=("vso", "mso"))
+    np.testing.assert_allclose(np.linalg.norm(ds["b_vso"].values, axis=1),
+                               np.linalg.norm(ds["b_mso"].values, axis=1), rtol=1e-12)
+    assert "b_j2000" not in ds

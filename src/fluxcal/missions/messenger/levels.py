@@ -129,6 +129,34 @@ def find_heater_periods(
     return periods, changes
 
 
+def check_heater_coverage(
+    ds: xr.Dataset, heater: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel
+) -> None:
+    """Require the heater stream to cover the V10 science samples (within one period).
+
+    Raises
+    ------
+    InputFormatError
+        When V10 samples (heater modelled) lie before the first or after the last heater
+        record by more than one heater period.
+    """
+    et = ds["et"].values
+    v10 = et >= _date_et(cal, "heater_mode_v10")
+    if not v10.any():
+        return
+    t = aux_times_et(heater, "heater_time", sclk)
+    period = cal.constants["heater"]["period_s"]
+    first, last = et[v10].min(), et[v10].max()
+    if t.size == 0 or first < t[0] - period or last > t[-1] + period:
+        span = f"[{t[0]:.1f}, {t[-1]:.1f}]" if t.size else "empty"
+        raise InputFormatError(
+            f"the heater stream (ET {span}) does not cover the science samples "
+            f"(ET [{first:.1f}, {last:.1f}]) within one heater period; give the heater "
+            "files of the whole interval (and of the previous day for the look-back)",
+            path=heater.attrs.get("inputs"), field="met",
+        )
+
+
 def correct_heater_signal(
     ds: xr.Dataset, periods: HeaterPeriods, cal: MessengerCalibration
 ) -> xr.Dataset:

@@ -66,6 +66,7 @@ def calibrate(
         raise InputFormatError("no science samples", field="met")
     sclk = SclkKernel.from_pool(levels.SC_ID)
     ds = levels.correct_time(science, cal, sclk)
+    levels.check_heater_coverage(ds, heater, cal, sclk)
     periods, changes = levels.find_heater_periods(heater, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
