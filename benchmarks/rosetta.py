@@ -39,9 +39,19 @@ def main() -> None:
             days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
             models = simulate.synthetic_daily_models(days)
             t0 = time.perf_counter()
-            sim = simulate.simulate(start, duration, calibrations=cals, time_shifts=ts, nominal=nom,
-                                    alignment=alignment, jumps=jumps, daily_models=models,
-                                    rate_hz=args.rate, with_kernels=True, lsk=lsk)
+            sim = simulate.simulate(
+                start,
+                duration,
+                calibrations=cals,
+                time_shifts=ts,
+                nominal=nom,
+                alignment=alignment,
+                jumps=jumps,
+                daily_models=models,
+                rate_hz=args.rate,
+                with_kernels=True,
+                lsk=lsk,
+            )
             t_sim = time.perf_counter() - t0
             raw = sim.science["OB"]
             n = raw.sizes["time"]
@@ -63,8 +73,11 @@ def main() -> None:
             total = sum(timings.values())
             for level, seconds in timings.items():
                 print(f"LEVEL_{level}: {seconds:7.3f} s  {n / seconds:12,.0f} vectors/s")
-            print(f"raw -> C and G: {total:.3f} s for {n} vectors: {n / total:,.0f} vectors/s "
-                  f"({n / total / 1e6:.2f} x the 1e6 vectors/s target); {g.sizes['time']} 1-s averages")
+            print(
+                f"raw -> C and G: {total:.3f} s for {n} vectors: {n / total:,.0f} vectors/s "
+                f"({n / total / 1e6:.2f} x the 1e6 vectors/s target); "
+                f"{g.sizes['time']} 1-s averages"
+            )
 
 
 if __name__ == "__main__":

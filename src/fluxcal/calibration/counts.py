@@ -56,7 +56,9 @@ def signed_to_value(counts: np.ndarray, vmin: float, vmax: float, bits: int) -> 
 def value_to_signed(value: np.ndarray, vmin: float, vmax: float, bits: int) -> np.ndarray:
     """Inverse of `signed_to_value`: nearest signed count, clipped to the ADC range."""
     half = 2 ** (bits - 1)
-    counts = np.rint((np.asarray(value, dtype=float) - vmin) / nominal_factor(vmin, vmax, bits)) - half
+    counts = (
+        np.rint((np.asarray(value, dtype=float) - vmin) / nominal_factor(vmin, vmax, bits)) - half
+    )
     return np.clip(counts, -half, half - 1).astype(np.int64)
 
 

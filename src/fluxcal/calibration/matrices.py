@@ -75,7 +75,7 @@ def apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
 
 
 def apply_lookup(table: np.ndarray, index: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """Apply ``table[index[k]]`` (a ``(m, 3, 3)`` table) to ``vectors[k]`` without forming ``(n, 3, 3)``.
+    """Apply ``table[index[k]]`` (``(m, 3, 3)`` table) to ``vectors[k]``, no ``(n, 3, 3)`` array.
 
     For matrices that depend on a quantised quantity (e.g. a 16-bit temperature word):
     the table holds one matrix per word and ``index`` picks it per sample.

@@ -36,7 +36,9 @@ def polynomial(coefficients: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
-def thermistor_temperature(voltage: np.ndarray, coefficients: np.ndarray, offset: float = 0.0) -> np.ndarray:
+def thermistor_temperature(
+    voltage: np.ndarray, coefficients: np.ndarray, offset: float = 0.0
+) -> np.ndarray:
     """Calibrated thermistor temperature ``T^c = c0 + c1 U + c2 U^2 + c3 U^3 - T^O`` (deg C).
 
     References

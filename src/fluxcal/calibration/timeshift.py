@@ -10,7 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def mode_shifts(mode: np.ndarray, table_modes: np.ndarray, table_shifts_s: np.ndarray) -> np.ndarray:
+def mode_shifts(
+    mode: np.ndarray, table_modes: np.ndarray, table_shifts_s: np.ndarray
+) -> np.ndarray:
     """Look up the shift (s) of each sample's mode in a table.
 
     Parameters
@@ -38,7 +40,11 @@ def mode_shifts(mode: np.ndarray, table_modes: np.ndarray, table_shifts_s: np.nd
     modes, shifts = modes[order], shifts[order]
     mode = np.asarray(mode, dtype=np.int64)
     pos = np.clip(np.searchsorted(modes, mode), 0, max(len(modes) - 1, 0))
-    ok = (modes[pos] == mode) & np.isfinite(shifts[pos]) if len(modes) else np.zeros(mode.shape, bool)
+    ok = (
+        (modes[pos] == mode) & np.isfinite(shifts[pos])
+        if len(modes)
+        else np.zeros(mode.shape, bool)
+    )
     if not np.all(ok):
         first = int(np.flatnonzero(~ok)[0])
         raise KeyError(first, int(mode[first]))

@@ -21,14 +21,28 @@ def test_default_ground_files_parse(sensor):
 
 # seed 003 sec. 3.3.1 (IB) and 3.3.2 (OB) tables, copied by hand from the document
 SEED = {
-    "OB": dict(a0=[214.5, -79.9, 384.7], a1=[-1.053, 0.073, -1.657], res=[0.0, 4.0, -20.0],
-               s00=[1.09100, 1.09352, 1.09289], s01=[-1.18e-5, -8.21e-6, -6.97e-6],
-               xi0=[90.0666, 90.0366, 90.0370], xi1=[-6.04e-5, -1.11e-4, -8.12e-5],
-               kinv=[[1, -0.00010, 0.00028], [0, 1, -0.00038], [0, 0, 1]], toff=-2.7),
-    "IB": dict(a0=[114.3, -119.8, 494.0], a1=[-0.565, 0.731, -1.673], res=[-2.0, 2.0, -15.0],
-               s00=[1.09070, 1.09434, 1.09413], s01=[-1.42e-5, -9.30e-6, -8.55e-6],
-               xi0=[90.0348, 89.9587, 89.9433], xi1=[8.54e-5, 3.71e-5, 1.20e-4],
-               kinv=[[1, -0.00017, 0.00031], [0, 1, -0.00008], [0, 0, 1]], toff=-1.5),
+    "OB": dict(
+        a0=[214.5, -79.9, 384.7],
+        a1=[-1.053, 0.073, -1.657],
+        res=[0.0, 4.0, -20.0],
+        s00=[1.09100, 1.09352, 1.09289],
+        s01=[-1.18e-5, -8.21e-6, -6.97e-6],
+        xi0=[90.0666, 90.0366, 90.0370],
+        xi1=[-6.04e-5, -1.11e-4, -8.12e-5],
+        kinv=[[1, -0.00010, 0.00028], [0, 1, -0.00038], [0, 0, 1]],
+        toff=-2.7,
+    ),
+    "IB": dict(
+        a0=[114.3, -119.8, 494.0],
+        a1=[-0.565, 0.731, -1.673],
+        res=[-2.0, 2.0, -15.0],
+        s00=[1.09070, 1.09434, 1.09413],
+        s01=[-1.42e-5, -9.30e-6, -8.55e-6],
+        xi0=[90.0348, 89.9587, 89.9433],
+        xi1=[8.54e-5, 3.71e-5, 1.20e-4],
+        kinv=[[1, -0.00017, 0.00031], [0, 1, -0.00008], [0, 0, 1]],
+        toff=-1.5,
+    ),
 }
 
 
@@ -56,7 +70,9 @@ def _default_text(sensor="OB"):
 
 
 def test_missing_key_is_named(tmp_path):
-    text = "\n".join(line for line in _default_text().splitlines() if not line.startswith("SIGMA_01"))
+    text = "\n".join(
+        line for line in _default_text().splitlines() if not line.startswith("SIGMA_01")
+    )
     with pytest.raises(CalibrationError, match="missing key SIGMA_01"):
         calib.read_ground_calibration(_write(tmp_path, text))
 
@@ -189,6 +205,11 @@ def test_validity(tmp_path):
 
 
 def test_data_files_have_header_citation():
-    for name in (*calib.GROUND_FILE.values(), calib.ALIGN_FILE, calib.TIMESHIFT_FILE, calib.JUMPS_FILE):
+    for name in (
+        *calib.GROUND_FILE.values(),
+        calib.ALIGN_FILE,
+        calib.TIMESHIFT_FILE,
+        calib.JUMPS_FILE,
+    ):
         head = Path(DATA / name).read_text()[:1500]
         assert "seed 003" in head and "version" in head.lower() and "valid" in head.lower(), name

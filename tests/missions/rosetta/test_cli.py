@@ -17,8 +17,14 @@ def sim(tmp_path_factory):
 
 def test_simulate_writes_inputs(sim):
     names = {p.name for p in sim.iterdir()}
-    assert {"RPCMAG_20140801_RAW_OB.csv", "RPCMAG_20140801_RAW_IB.csv", "RPCMAG_20140801_RAW_HK.csv",
-            "RPCMAG_20140801_TRUTH_OB.csv", "kernels", "calib"} <= names
+    assert {
+        "RPCMAG_20140801_RAW_OB.csv",
+        "RPCMAG_20140801_RAW_IB.csv",
+        "RPCMAG_20140801_RAW_HK.csv",
+        "RPCMAG_20140801_TRUTH_OB.csv",
+        "kernels",
+        "calib",
+    } <= names
     assert (sim / "calib" / "RPCMAG_SC_ALIGN.TXT").is_file()
     assert (sim / "calib" / "RPCMAG_140801_006_CALIB_IB.TXT").is_file()
     head = (sim / "RPCMAG_20140801_RAW_OB.csv").read_text().splitlines()[:2]
@@ -28,14 +34,31 @@ def test_simulate_writes_inputs(sim):
 
 @pytest.mark.parametrize("sensor", ["OB", "IB"])
 def test_calibrate_all_levels(sim, tmp_path, sensor):
-    args = ["rosetta", "calibrate", "--science", str(sim / f"RPCMAG_20140801_RAW_{sensor}.csv"),
-            "--sensor", sensor, "--levels", "A,B,C,E,F,G", "--calib", str(sim / "calib"),
-            "--kernels", str(sim / "kernels" / "rosetta_synthetic.tm"), "--out", str(tmp_path),
-            "--hk", str(sim / "RPCMAG_20140801_RAW_HK.csv")]
+    args = [
+        "rosetta",
+        "calibrate",
+        "--science",
+        str(sim / f"RPCMAG_20140801_RAW_{sensor}.csv"),
+        "--sensor",
+        sensor,
+        "--levels",
+        "A,B,C,E,F,G",
+        "--calib",
+        str(sim / "calib"),
+        "--kernels",
+        str(sim / "kernels" / "rosetta_synthetic.tm"),
+        "--out",
+        str(tmp_path),
+        "--hk",
+        str(sim / "RPCMAG_20140801_RAW_HK.csv"),
+    ]
     assert main(args) == 0
     for code in ("CLA", "CLB", "CLC", "CLE", "CLF", "CLG"):
         for suffix in ("TAB", "LBL", "cdf"):
-            assert (tmp_path / f"RPCMAG_20140801_{code}_{sensor}.{suffix}").is_file(), (code, suffix)
+            assert (tmp_path / f"RPCMAG_20140801_{code}_{sensor}.{suffix}").is_file(), (
+                code,
+                suffix,
+            )
     assert (tmp_path / "RPCMAG_20140801_HKA.TAB").is_file()
     # the LEVEL_C table: TIME.UTC TIME.OBT POSITION.XYZ BX BY BZ QUALITY
     line = (tmp_path / f"RPCMAG_20140801_CLC_{sensor}.TAB").read_text().splitlines()[0].split()
@@ -52,24 +75,56 @@ def test_calibrate_all_levels(sim, tmp_path, sensor):
 
 
 def test_calibrate_c_without_kernels_fails(sim, tmp_path, capsys):
-    args = ["rosetta", "calibrate", "--science", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-            "--sensor", "OB", "--levels", "A,C", "--out", str(tmp_path)]
+    args = [
+        "rosetta",
+        "calibrate",
+        "--science",
+        str(sim / "RPCMAG_20140801_RAW_OB.csv"),
+        "--sensor",
+        "OB",
+        "--levels",
+        "A,C",
+        "--out",
+        str(tmp_path),
+    ]
     assert main(args) == 2
     assert "need SPICE kernels" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
 
 
 def test_calibrate_unknown_level(sim, tmp_path, capsys):
-    args = ["rosetta", "calibrate", "--science", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-            "--sensor", "OB", "--levels", "A,Q", "--out", str(tmp_path)]
+    args = [
+        "rosetta",
+        "calibrate",
+        "--science",
+        str(sim / "RPCMAG_20140801_RAW_OB.csv"),
+        "--sensor",
+        "OB",
+        "--levels",
+        "A,Q",
+        "--out",
+        str(tmp_path),
+    ]
     assert main(args) == 2
     assert "unknown level" in capsys.readouterr().err
 
 
 def test_calibrate_level_a_from_utc_only(sim, tmp_path):
     # without kernels times come from time_utc; LEVEL_A with the ground calibration alone
-    args = ["rosetta", "calibrate", "--science", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-            "--sensor", "OB", "--levels", "A", "--out", str(tmp_path), "--formats", "tab"]
+    args = [
+        "rosetta",
+        "calibrate",
+        "--science",
+        str(sim / "RPCMAG_20140801_RAW_OB.csv"),
+        "--sensor",
+        "OB",
+        "--levels",
+        "A",
+        "--out",
+        str(tmp_path),
+        "--formats",
+        "tab",
+    ]
     assert main(args) == 0
     label = (tmp_path / "RPCMAG_20140801_CLA_OB.LBL").read_text()
     assert "ground calibration alone" in label

@@ -34,7 +34,9 @@ def test_good_file(pool, tmp_path):
 
 def test_non_numeric_field(pool, tmp_path):
     rows = [GOOD[0], GOOD[1].replace("-2001", "-20x1"), GOOD[2]]
-    with pytest.raises(InputFormatError, match=r"sci.csv, line 3, field 'by': '-20x1' is not an integer"):
+    with pytest.raises(
+        InputFormatError, match=r"sci.csv, line 3, field 'by': '-20x1' is not an integer"
+    ):
         _read(tmp_path, rows)
 
 
@@ -64,8 +66,12 @@ def test_counts_out_of_range(pool, tmp_path):
 
 
 def _level_a(ds, sensor="OB"):
-    return level_a.level_a(ds, calib.load_ground_calibration(sensor), calib.load_time_shift_table(),
-                           calib.load_nominal_conversion())
+    return level_a.level_a(
+        ds,
+        calib.load_ground_calibration(sensor),
+        calib.load_time_shift_table(),
+        calib.load_nominal_conversion(),
+    )
 
 
 def test_quality_bits_dropped_and_counted(pool, tmp_path):
@@ -83,7 +89,9 @@ def test_quality_of_other_sensor(pool, tmp_path):
 def test_sid_not_in_table(pool, tmp_path):
     # SID 6 (Test) has no SECONDARY time shift (sec. 4.2.3.5): IB is secondary by default
     rows = [r.replace(",2,", ",6,").rsplit(",", 1)[0] + ",8" for r in GOOD]
-    with pytest.raises(InputFormatError, match=r"line 2, field 'sid': filter mode SID 6 .* secondary"):
+    with pytest.raises(
+        InputFormatError, match=r"line 2, field 'sid': filter mode SID 6 .* secondary"
+    ):
         _level_a(_read(tmp_path, rows, "IB"), "IB")
     rows = [GOOD[0], GOOD[1].replace(",2,", ",9,"), GOOD[2]]
     with pytest.raises(InputFormatError, match=r"line 3, field 'sid': filter mode SID 9"):
@@ -94,10 +102,15 @@ def test_hk_round_trip(pool, tmp_path):
     from fluxcal.missions.rosetta import simulate
 
     cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
-    sim = simulate.simulate("2014-08-01T00:00:00", 120.0, calibrations=cals,
-                            time_shifts=calib.load_time_shift_table(),
-                            nominal=calib.load_nominal_conversion(), alignment=calib.load_alignment(),
-                            hk_period_s=8.0)
+    sim = simulate.simulate(
+        "2014-08-01T00:00:00",
+        120.0,
+        calibrations=cals,
+        time_shifts=calib.load_time_shift_table(),
+        nominal=calib.load_nominal_conversion(),
+        alignment=calib.load_alignment(),
+        hk_period_s=8.0,
+    )
     path = io.write_hk_csv(sim.hk, tmp_path / "hk.csv")
     raw = io.read_hk_csv(path)
     from fluxcal.missions.rosetta import hk
@@ -107,5 +120,5 @@ def test_hk_round_trip(pool, tmp_path):
     assert out["pos_voltage"].values[0] == pytest.approx(5.0)
     assert out["neg_voltage"].values[0] == pytest.approx(-5.0)
     # HK temperature without T_OFF (sec. 4.2.2.5) = calibrated + T_OFF, in K
-    t_true = sim.truth["OB"]["temperature"].values[:: 160][: out.sizes["time"]]
+    t_true = sim.truth["OB"]["temperature"].values[::160][: out.sizes["time"]]
     np.testing.assert_allclose(out["t_ob"].values, t_true + cals["OB"].thermistor_offset, atol=0.05)

@@ -12,12 +12,20 @@ from fluxcal.missions.rosetta.calib import DailyOffsetModel
 T1 = 17.39  # deg C, reference temperature of sec. 3.3.1.2 / 3.3.2.2
 # sec. 3.3.x.2 tables: sigma^1_0 (off-centre), sigma^1_1, k, sigma^0(T1) at CoC
 TABLES = {
-    "IB": dict(s10=[1.09026, 1.09354, 1.09336], s11=[-1.42e-5, -9.29e-6, -8.55e-6],
-               k=[0.99959, 0.99927, 0.99929], s0t1=[1.09045, 1.09418, 1.09398],
-               xi0t1=[90.0463, 89.9416, 89.9500]),
-    "OB": dict(s10=[1.09066, 1.09251, 1.09217], s11=[-1.18e-5, -8.20e-6, -6.97e-6],
-               k=[0.99969, 0.99907, 0.99934], s0t1=[1.09079, 1.09338, 1.09277],
-               xi0t1=[90.0711, 90.0187, 90.0576]),
+    "IB": dict(
+        s10=[1.09026, 1.09354, 1.09336],
+        s11=[-1.42e-5, -9.29e-6, -8.55e-6],
+        k=[0.99959, 0.99927, 0.99929],
+        s0t1=[1.09045, 1.09418, 1.09398],
+        xi0t1=[90.0463, 89.9416, 89.9500],
+    ),
+    "OB": dict(
+        s10=[1.09066, 1.09251, 1.09217],
+        s11=[-1.18e-5, -8.20e-6, -6.97e-6],
+        k=[0.99969, 0.99907, 0.99934],
+        s0t1=[1.09079, 1.09338, 1.09277],
+        xi0t1=[90.0711, 90.0187, 90.0576],
+    ),
 }
 
 
@@ -83,8 +91,13 @@ def test_ground_calibration_closed_form_one_vector():
     sig = np.array([1.09100 - 1.18e-5 * t, 1.09352 - 8.21e-6 * t, 1.09289 - 6.97e-6 * t])
     xy, xz, yz = np.deg2rad([90.0666 - 6.04e-5 * t, 90.0366 - 1.11e-4 * t, 90.0370 - 8.12e-5 * t])
     w12 = (np.cos(yz) - np.cos(xy) * np.cos(xz)) / np.sin(xy)
-    om1 = np.array([[1, np.cos(xy), np.cos(xz)], [0, np.sin(xy), w12],
-                    [0, 0, np.sqrt(np.sin(xz) ** 2 - w12**2)]])
+    om1 = np.array(
+        [
+            [1, np.cos(xy), np.cos(xz)],
+            [0, np.sin(xy), w12],
+            [0, 0, np.sqrt(np.sin(xz) ** 2 - w12**2)],
+        ]
+    )
     kinv = np.array([[1, -0.0001, 0.00028], [0, 1, -0.00038], [0, 0, 1]])
     expected = om1 @ kinv @ (sig * (b_raw[0] - boff))
     got = level_a.ground_calibrate(b_raw, np.array([t]), cal)[0]
@@ -123,13 +136,17 @@ def test_quality_bits():
 def test_filter_time_shift_tables():
     table = calib.load_time_shift_table()
     sid = np.array([1, 2, 3, 4, 5, 6])
-    np.testing.assert_array_equal(level_a.filter_time_shift(sid, table, sensor="OB"),
-                                  [223.7, 8.2, 0, 1.35, 27.7, 0])
-    np.testing.assert_array_equal(level_a.filter_time_shift(sid[:5], table, sensor="IB"),
-                                  [1023.95, 31.95, 15.95, 31.95, 127.95])
+    np.testing.assert_array_equal(
+        level_a.filter_time_shift(sid, table, sensor="OB"), [223.7, 8.2, 0, 1.35, 27.7, 0]
+    )
+    np.testing.assert_array_equal(
+        level_a.filter_time_shift(sid[:5], table, sensor="IB"),
+        [1023.95, 31.95, 15.95, 31.95, 127.95],
+    )
     # IB primary: IB takes the primary table, OB the secondary
-    np.testing.assert_array_equal(level_a.filter_time_shift(sid[:2], table, sensor="IB", primary="IB"),
-                                  [223.7, 8.2])
+    np.testing.assert_array_equal(
+        level_a.filter_time_shift(sid[:2], table, sensor="IB", primary="IB"), [223.7, 8.2]
+    )
     with pytest.raises(KeyError) as info:
         level_a.filter_time_shift(np.array([2, 6]), table, sensor="IB")
     assert info.value.args == (1, 6)
@@ -138,8 +155,10 @@ def test_filter_time_shift_tables():
 
 
 def _models(coeffs_by_day):
-    return {np.datetime64(d): DailyOffsetModel(np.datetime64(d), "OB", np.asarray(c, float), d)
-            for d, c in coeffs_by_day.items()}
+    return {
+        np.datetime64(d): DailyOffsetModel(np.datetime64(d), "OB", np.asarray(c, float), d)
+        for d, c in coeffs_by_day.items()
+    }
 
 
 def test_midnight_stitching_removes_jump():
@@ -149,8 +168,13 @@ def test_midnight_stitching_removes_jump():
     temperature = np.linspace(-100, -90, epoch.size)
     day_index = (epoch >= 0).astype(int)
     days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
-    c1 = np.zeros((6, 3)); c1[0] = [1, 2, 3]; c1[1] = [0.1, 0.0, -0.1]
-    c2 = np.zeros((6, 3)); c2[0] = [5, -2, 0]; c2[1] = [0.2, 0.05, 0.0]; c2[2] = [1e-3, 0, 0]
+    c1 = np.zeros((6, 3))
+    c1[0] = [1, 2, 3]
+    c1[1] = [0.1, 0.0, -0.1]
+    c2 = np.zeros((6, 3))
+    c2[0] = [5, -2, 0]
+    c2[1] = [0.2, 0.05, 0.0]
+    c2[2] = [1e-3, 0, 0]
     models = _models({"2014-08-01": c1, "2014-08-02": c2})
     off, state, sources = level_a.extended_offset(epoch, temperature, day_index, days, models)
     i = np.flatnonzero(epoch >= 0)[0]
@@ -159,8 +183,9 @@ def test_midnight_stitching_removes_jump():
     p1 = lambda t: c1[0] + c1[1] * t  # noqa: E731
     p2 = lambda t: c2[0] + c2[1] * t + c2[2] * t**2  # noqa: E731
     np.testing.assert_allclose(off[:i], np.array([p1(t) for t in temperature[:i]]), atol=1e-12)
-    np.testing.assert_allclose(off[i:], np.array([p2(t) for t in temperature[i:]]) - (p2(te) - p1(te)),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        off[i:], np.array([p2(t) for t in temperature[i:]]) - (p2(te) - p1(te)), atol=1e-12
+    )
     # the jump at midnight is now only the temperature step of one sample
     step = off[i] - off[i - 1]
     assert np.abs(step).max() < 0.3 * 1.5
@@ -172,28 +197,36 @@ def test_no_stitching_across_long_gap():
     ns = 1_000_000_000
     epoch = np.array([-4 * 3600, -3 * 3600 - 1, 600, 1200], dtype=np.int64) * ns  # 3 h + 10 min gap
     t = np.array([-100.0, -100.0, -100.0, -100.0])
-    c1 = np.zeros((6, 3)); c1[0] = 1
-    c2 = np.zeros((6, 3)); c2[0] = 4
+    c1 = np.zeros((6, 3))
+    c1[0] = 1
+    c2 = np.zeros((6, 3))
+    c2[0] = 4
     models = _models({"2014-08-01": c1, "2014-08-02": c2})
     days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
     off, _, _ = level_a.extended_offset(epoch, t, np.array([0, 0, 1, 1]), days, models)
     np.testing.assert_allclose(off[2:], 4.0)  # not stitched: 3h10m > 3h
-    off, _, _ = level_a.extended_offset(epoch, t, np.array([0, 0, 1, 1]), days, models,
-                                        stitch_gap_s=4 * 3600)
+    off, _, _ = level_a.extended_offset(
+        epoch, t, np.array([0, 0, 1, 1]), days, models, stitch_gap_s=4 * 3600
+    )
     np.testing.assert_allclose(off[2:], 1.0)  # stitched with a 4 h limit
 
 
 def test_stitch_state_carried_between_calls():
     ns = 1_000_000_000
-    c1 = np.zeros((6, 3)); c1[0] = 1
-    c2 = np.zeros((6, 3)); c2[0] = 4
+    c1 = np.zeros((6, 3))
+    c1[0] = 1
+    c2 = np.zeros((6, 3))
+    c2[0] = 4
     m1 = _models({"2014-08-01": c1})
     m2 = _models({"2014-08-02": c2})
     d1, d2 = [np.datetime64("2014-08-01")], [np.datetime64("2014-08-02")]
-    _, state, _ = level_a.extended_offset(np.array([-10 * ns]), np.array([0.0]), np.array([0]), d1, m1)
+    _, state, _ = level_a.extended_offset(
+        np.array([-10 * ns]), np.array([0.0]), np.array([0]), d1, m1
+    )
     state = level_a.StitchState.from_attrs(state.to_attrs())
-    off, _, _ = level_a.extended_offset(np.array([10 * ns]), np.array([0.0]), np.array([0]), d2, m2,
-                                        previous=state)
+    off, _, _ = level_a.extended_offset(
+        np.array([10 * ns]), np.array([0.0]), np.array([0]), d2, m2, previous=state
+    )
     np.testing.assert_allclose(off, 1.0)
 
 

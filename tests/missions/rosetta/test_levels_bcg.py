@@ -19,12 +19,15 @@ DURATION = 600.0
 
 @pytest.fixture(scope="module")
 def kernels(tmp_path_factory):
-    return write_rosetta_like_kernels(tmp_path_factory.mktemp("ros"), START, DURATION, margin_s=1200)
+    return write_rosetta_like_kernels(
+        tmp_path_factory.mktemp("ros"), START, DURATION, margin_s=1200
+    )
 
 
 def _alignment():
-    rots = Rotation.from_euler("zyx", [[30, -20, 10], [5, 80, -45], [-60, 10, 170], [90, 0, 0]],
-                               degrees=True).as_matrix()
+    rots = Rotation.from_euler(
+        "zyx", [[30, -20, 10], [5, 80, -45], [-60, 10, 170], [90, 0, 0]], degrees=True
+    ).as_matrix()
     keys = [("OB", "deployed"), ("OB", "stowed"), ("IB", "deployed"), ("IB", "stowed")]
     return calib.Alignment(dict(zip(keys, rots, strict=True)), "test alignment", "t1")
 
@@ -35,8 +38,17 @@ def run(kernels):
         cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
         ts, nom = calib.load_time_shift_table(), calib.load_nominal_conversion()
         al, jumps = _alignment(), calib.load_offset_jump_table()
-        sim = simulate.simulate(START, DURATION, calibrations=cals, time_shifts=ts, nominal=nom,
-                                alignment=al, jumps=jumps, with_kernels=True, seed=5)
+        sim = simulate.simulate(
+            START,
+            DURATION,
+            calibrations=cals,
+            time_shifts=ts,
+            nominal=nom,
+            alignment=al,
+            jumps=jumps,
+            with_kernels=True,
+            seed=5,
+        )
         out = {}
         for sensor in ("OB", "IB"):
             a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom)
@@ -69,11 +81,15 @@ def test_level_c_against_oracle(run, sensor):
     # interpolated attitude vs pxform per sample: tolerance of the interpolation (1e-9 rad)
     # times |B| < 100 nT
     np.testing.assert_allclose(fast["b"].values, r["c_oracle"]["b"].values, atol=1e-6)
-    np.testing.assert_allclose(fast["position"].values, r["c_oracle"]["position"].values,
-                               atol=1e-3)  # km
+    np.testing.assert_allclose(
+        fast["position"].values, r["c_oracle"]["position"].values, atol=1e-3
+    )  # km
     # |B| is preserved by the rotations
-    np.testing.assert_allclose(np.linalg.norm(r["c"]["b"].values, axis=1),
-                               np.linalg.norm(r["b"]["b"].values, axis=1), rtol=1e-12)
+    np.testing.assert_allclose(
+        np.linalg.norm(r["c"]["b"].values, axis=1),
+        np.linalg.norm(r["b"]["b"].values, axis=1),
+        rtol=1e-12,
+    )
 
 
 def test_level_c_position_is_spkpos(run, kernels):
@@ -84,8 +100,9 @@ def test_level_c_position_is_spkpos(run, kernels):
             pos = spiceypy.spkpos("ROSETTA", float(t), "ECLIPJ2000", "NONE", "SUN")[0]
             np.testing.assert_allclose(c["position"].values[i], pos, atol=1e-3)
             m = spiceypy.pxform("ROS_SPACECRAFT", "ECLIPJ2000", float(t))
-            np.testing.assert_allclose(c["b"].values[i], m @ run["OB"]["b"]["b"].values[[0, 5000, -1]][i],
-                                       atol=1e-6)
+            np.testing.assert_allclose(
+                c["b"].values[i], m @ run["OB"]["b"]["b"].values[[0, 5000, -1]][i], atol=1e-6
+            )
 
 
 def test_level_b_rotation_closed_form(run):
@@ -98,9 +115,16 @@ def test_level_b_rotation_closed_form(run):
 
 def test_offset_jump_intervals(pool):
     table = calib.load_offset_jump_table()
-    t = utc_to_tt2000(np.array(["2014-03-30T00:00:00",  # between intervals: no jump
-                                "2014-11-12T08:34:59", "2014-11-12T08:35:00",  # shared boundary
-                                "2014-04-16T22:00:00"]))
+    t = utc_to_tt2000(
+        np.array(
+            [
+                "2014-03-30T00:00:00",  # between intervals: no jump
+                "2014-11-12T08:34:59",
+                "2014-11-12T08:35:00",  # shared boundary
+                "2014-04-16T22:00:00",
+            ]
+        )
+    )
     jump, idx = level_b.offset_jumps(t, table, "OB")
     np.testing.assert_array_equal(idx, [-1, 13, 14, 2])
     np.testing.assert_array_equal(jump[0], 0.0)
@@ -138,8 +162,9 @@ def test_average_against_brute_force(run, seconds):
     with KernelPool():
         g = averaged.average(c, seconds)
     origin = g.attrs["average_origin_tt2000"]
-    centres, means, counts = _brute_force_average(c["epoch"].values, c["b"].values,
-                                                  int(seconds * 1e9), origin)
+    centres, means, counts = _brute_force_average(
+        c["epoch"].values, c["b"].values, int(seconds * 1e9), origin
+    )
     np.testing.assert_array_equal(g["epoch"].values, centres)
     np.testing.assert_allclose(g["b"].values, means, atol=1e-9)
     np.testing.assert_array_equal(g["n_samples"].values, counts)
@@ -168,7 +193,8 @@ def test_obt_carried_to_bin_middle(run):
         e = averaged.average(a, 1.0)
     # OBT is linear in time inside a bin: obt(middle) from a line fit through the samples
     sel = (a["epoch"].values >= e["epoch"].values[10] - 500_000_000) & (
-        a["epoch"].values < e["epoch"].values[10] + 500_000_000)
+        a["epoch"].values < e["epoch"].values[10] + 500_000_000
+    )
     x = (a["epoch"].values[sel] - e["epoch"].values[10]) * 1e-9
     fit = np.polyfit(x, a["obt"].values[sel], 1)
     assert e["obt"].values[10] == pytest.approx(fit[1], abs=1e-6)

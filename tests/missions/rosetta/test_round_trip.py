@@ -16,8 +16,13 @@ RMS_NT = 0.03
 
 def _setup(calib_dir=None):
     cals = {s: calib.load_ground_calibration(s, calib_dir) for s in ("OB", "IB")}
-    return (cals, calib.load_time_shift_table(calib_dir), calib.load_nominal_conversion(calib_dir),
-            calib.load_alignment(calib_dir), calib.load_offset_jump_table(calib_dir))
+    return (
+        cals,
+        calib.load_time_shift_table(calib_dir),
+        calib.load_nominal_conversion(calib_dir),
+        calib.load_alignment(calib_dir),
+        calib.load_offset_jump_table(calib_dir),
+    )
 
 
 def _compare(a, truth):
@@ -32,8 +37,16 @@ def _compare(a, truth):
 @pytest.mark.parametrize("sensor", ["OB", "IB"])
 def test_level_a_recovers_truth(pool, sensor):
     cals, ts, nom, al, jumps = _setup()
-    sim = simulate.simulate("2014-08-01T00:00:00", 900.0, calibrations=cals, time_shifts=ts,
-                            nominal=nom, alignment=al, jumps=jumps, seed=1)
+    sim = simulate.simulate(
+        "2014-08-01T00:00:00",
+        900.0,
+        calibrations=cals,
+        time_shifts=ts,
+        nominal=nom,
+        alignment=al,
+        jumps=jumps,
+        seed=1,
+    )
     a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom)
     diff = _compare(a, sim.truth[sensor])
     rms = np.sqrt((diff**2).mean(axis=0))
@@ -64,7 +77,8 @@ def _user_calibration(tmp_path):
         coeffs = np.zeros((6, 3))
         coeffs[0], coeffs[1], coeffs[2] = c0, [0.01, -0.02, 0.005], [1e-4, 5e-5, -1e-4]
         calib.write_daily_offset_model(
-            DailyOffsetModel(np.datetime64("2014-08-01"), sensor, coeffs), tmp_path)
+            DailyOffsetModel(np.datetime64("2014-08-01"), sensor, coeffs), tmp_path
+        )
     return tmp_path
 
 
@@ -75,8 +89,17 @@ def test_round_trip_with_user_calibration_dir_and_csv(pool, tmp_path, sensor):
     cals, ts, nom, al, jumps = _setup(user_dir)
     assert cals[sensor].version == "user-9"
     models = {s: calib.find_daily_offset_models(user_dir, s) for s in ("OB", "IB")}
-    sim = simulate.simulate("2014-08-01T00:00:00", 600.0, calibrations=cals, time_shifts=ts,
-                            nominal=nom, alignment=al, jumps=jumps, daily_models=models, seed=2)
+    sim = simulate.simulate(
+        "2014-08-01T00:00:00",
+        600.0,
+        calibrations=cals,
+        time_shifts=ts,
+        nominal=nom,
+        alignment=al,
+        jumps=jumps,
+        daily_models=models,
+        seed=2,
+    )
     path = io.write_science_csv(sim.science[sensor], tmp_path / f"{sensor}.csv")
     raw = io.read_science_csv(path, sensor)
     a = level_a.level_a(raw, cals[sensor], ts, nom, daily_models=models[sensor])
@@ -92,8 +115,16 @@ def test_round_trip_with_user_calibration_dir_and_csv(pool, tmp_path, sensor):
 
 def test_primary_ib_swaps_time_shift_tables(pool):
     cals, ts, nom, al, jumps = _setup()
-    sim = simulate.simulate("2014-08-01T00:00:00", 300.0, calibrations=cals, time_shifts=ts,
-                            nominal=nom, alignment=al, primary="IB", seed=3)
+    sim = simulate.simulate(
+        "2014-08-01T00:00:00",
+        300.0,
+        calibrations=cals,
+        time_shifts=ts,
+        nominal=nom,
+        alignment=al,
+        primary="IB",
+        seed=3,
+    )
     for sensor in ("OB", "IB"):
         a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom, primary="IB")
         assert np.sqrt((_compare(a, sim.truth[sensor]) ** 2).mean()) < RMS_NT

@@ -60,11 +60,16 @@ def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
     data["n_samples"] = ("time", bins.counts, {"units": "1"})
     out = xr.Dataset(
         data,
-        coords={"epoch": ("time", bins.centre, {"units": "ns", "time_base": "TT2000"}),
-                "component": ["x", "y", "z"]},
+        coords={
+            "epoch": ("time", bins.centre, {"units": "ns", "time_base": "TT2000"}),
+            "component": ["x", "y", "z"],
+        },
         attrs=dict(level.attrs),
     )
     src = level.attrs.get("level", "?")
-    out.attrs.update(level=NEXT_LEVEL.get(src, src + "avg"), average_seconds=float(seconds),
-                     average_origin_tt2000=int(origin))
+    out.attrs.update(
+        level=NEXT_LEVEL.get(src, src + "avg"),
+        average_seconds=float(seconds),
+        average_origin_tt2000=int(origin),
+    )
     return out

@@ -66,7 +66,9 @@ def resolve(name: str, calib_dir: Path | None) -> Path:
             return candidate
     path = default_dir() / name
     if not path.is_file():
-        raise CalibrationError(f"calibration file {name} found neither in {calib_dir} nor in {path.parent}")
+        raise CalibrationError(
+            f"calibration file {name} found neither in {calib_dir} nor in {path.parent}"
+        )
     return path
 
 
@@ -95,7 +97,9 @@ def read_key_file(path: Path) -> dict[str, tuple[list[str], int]]:
         key, _, value = line.partition("=")
         key = key.strip().upper().replace(".", "_")
         if key in out:
-            raise CalibrationError(f"{path}, line {number}: key {key} repeated (first on line {out[key][1]})")
+            raise CalibrationError(
+                f"{path}, line {number}: key {key} repeated (first on line {out[key][1]})"
+            )
         out[key] = (value.split(), number)
     return out
 
@@ -111,7 +115,9 @@ def _numbers(entries: dict, key: str, count: int, path: Path) -> np.ndarray:
     try:
         return np.array([float(t) for t in tokens])
     except ValueError:
-        raise CalibrationError(f"{path}, line {number}: key {key} has a non-numeric value {tokens}") from None
+        raise CalibrationError(
+            f"{path}, line {number}: key {key} has a non-numeric value {tokens}"
+        ) from None
 
 
 def _text(entries: dict, key: str, default: str | None = None) -> str | None:
@@ -130,7 +136,9 @@ def _validity(entries: dict, path: Path) -> tuple[np.datetime64 | None, np.datet
         try:
             out.append(np.datetime64(text, "s"))
         except ValueError:
-            raise CalibrationError(f"{path}, line {entries[key][1]}: {key} is not an ISO time: {text!r}") from None
+            raise CalibrationError(
+                f"{path}, line {entries[key][1]}: {key} is not an ISO time: {text!r}"
+            ) from None
     return out[0], out[1]
 
 
@@ -148,7 +156,8 @@ class Validity:
             self.end is not None and last_utc > self.end
         ):
             raise CalibrationRangeError(
-                f"{self.source}: valid {self.start} .. {self.end}, data span {first_utc} .. {last_utc}"
+                f"{self.source}: valid {self.start} .. {self.end}, "
+                f"data span {first_utc} .. {last_utc}"
             )
 
 
@@ -309,12 +318,16 @@ def read_daily_offset_model(path: Path) -> DailyOffsetModel:
     entries = read_key_file(path)
     file_sensor = _text(entries, "SENSOR")
     if file_sensor is not None and check_sensor(file_sensor) != sensor:
-        raise CalibrationError(f"{path}: SENSOR = {file_sensor} contradicts the file name ({sensor})")
+        raise CalibrationError(
+            f"{path}: SENSOR = {file_sensor} contradicts the file name ({sensor})"
+        )
     coeffs = np.stack([_numbers(entries, f"P_{k}", 3, path) for k in range(6)])
     return DailyOffsetModel(day=day, sensor=sensor, coefficients=coeffs, source=str(path))
 
 
-def find_daily_offset_models(calib_dir: Path | None, sensor: str) -> dict[np.datetime64, DailyOffsetModel]:
+def find_daily_offset_models(
+    calib_dir: Path | None, sensor: str
+) -> dict[np.datetime64, DailyOffsetModel]:
     """Return the daily extended-temperature models of ``sensor`` found in ``calib_dir``."""
     sensor = check_sensor(sensor)
     out: dict[np.datetime64, DailyOffsetModel] = {}
@@ -332,9 +345,13 @@ def write_daily_offset_model(model: DailyOffsetModel, folder: Path) -> Path:
     """Write ``model`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``folder``."""
     day = model.day.astype(dt.date)
     path = Path(folder) / f"RPCMAG_{day:%y%m%d}_006_CALIB_{model.sensor}.TXT"
-    lines = ["# RPC-MAG extended temperature model 006 (seed 003, sec. 4.2.3.3), nT per degC^k",
-             f"SENSOR = {model.sensor}"]
-    lines += [f"P_{k} = " + " ".join(repr(float(v)) for v in model.coefficients[k]) for k in range(6)]
+    lines = [
+        "# RPC-MAG extended temperature model 006 (seed 003, sec. 4.2.3.3), nT per degC^k",
+        f"SENSOR = {model.sensor}",
+    ]
+    lines += [
+        f"P_{k} = " + " ".join(repr(float(v)) for v in model.coefficients[k]) for k in range(6)
+    ]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
 
@@ -344,8 +361,10 @@ def write_daily_offset_model(model: DailyOffsetModel, folder: Path) -> Path:
 # ----------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Alignment:
-    """Rotation matrices R_UVW2SC (sec. 4.3.1), keyed ``(sensor, boom)`` with boom
-    ``"deployed"`` or ``"stowed"``."""
+    """Rotation matrices R_UVW2SC (sec. 4.3.1).
+
+    ``matrices`` is keyed ``(sensor, boom)`` with boom ``"deployed"`` or ``"stowed"``.
+    """
 
     matrices: dict[tuple[str, str], np.ndarray]
     source: str = ""
@@ -361,8 +380,10 @@ class Alignment:
 
 
 def read_alignment(path: Path, *, tolerance: float = 1e-4) -> Alignment:
-    """Parse ``RPCMAG_SC_ALIGN.TXT``: keys ``OB_DEPLOYED``, ``OB_STOWED``, ``IB_DEPLOYED``,
-    ``IB_STOWED``, nine numbers each (row-major R_UVW2SC).
+    """Parse the alignment file ``RPCMAG_SC_ALIGN.TXT``.
+
+    Keys ``OB_DEPLOYED``, ``OB_STOWED``, ``IB_DEPLOYED``, ``IB_STOWED``, nine numbers
+    each (row-major R_UVW2SC).
 
     A matrix that is not a rotation within ``tolerance`` (``|R R^T - I|``, ``det R``) is a
     `CalibrationError`.
@@ -386,7 +407,9 @@ def read_alignment(path: Path, *, tolerance: float = 1e-4) -> Alignment:
                 )
             matrices[(sensor, boom)] = m
     placeholder = _text(entries, "PLACEHOLDER", "0") not in ("0", "", None)
-    return Alignment(matrices, str(path), _text(entries, "VERSION", "unversioned") or "", placeholder)
+    return Alignment(
+        matrices, str(path), _text(entries, "VERSION", "unversioned") or "", placeholder
+    )
 
 
 def load_alignment(calib_dir: Path | None = None) -> Alignment:
@@ -396,8 +419,10 @@ def load_alignment(calib_dir: Path | None = None) -> Alignment:
 
 def write_alignment(alignment: Alignment, path: Path) -> Path:
     """Write ``alignment`` in the ``RPCMAG_SC_ALIGN.TXT`` format."""
-    lines = ["# RPC-MAG R_UVW2SC, row-major (seed 003, sec. 4.3.1), written by fluxcal",
-             f"VERSION = {alignment.version or '001'}"]
+    lines = [
+        "# RPC-MAG R_UVW2SC, row-major (seed 003, sec. 4.3.1), written by fluxcal",
+        f"VERSION = {alignment.version or '001'}",
+    ]
     for (sensor, boom), m in sorted(alignment.matrices.items()):
         lines.append(f"{sensor}_{boom.upper()} = " + " ".join(repr(float(v)) for v in m.ravel()))
     Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -412,7 +437,11 @@ def _csv_rows(path: Path) -> list[tuple[int, dict[str, str]]]:
         lines = Path(path).read_text(encoding="utf-8").splitlines()
     except OSError as exc:
         raise CalibrationError(f"cannot read calibration table {path}: {exc}") from None
-    numbered = [(i, line) for i, line in enumerate(lines, start=1) if line.strip() and not line.startswith("#")]
+    numbered = [
+        (i, line)
+        for i, line in enumerate(lines, start=1)
+        if line.strip() and not line.startswith("#")
+    ]
     if not numbered:
         raise CalibrationError(f"{path}: empty table")
     reader = csv.DictReader([line for _, line in numbered])
@@ -440,9 +469,13 @@ def read_time_shift_table(path: Path) -> TimeShiftTable:
         try:
             sid.append(int(row["sid"]))
             primary.append(float(row["primary_shift_s"]) if row["primary_shift_s"] else np.nan)
-            secondary.append(float(row["secondary_shift_s"]) if row["secondary_shift_s"] else np.nan)
+            secondary.append(
+                float(row["secondary_shift_s"]) if row["secondary_shift_s"] else np.nan
+            )
         except (KeyError, TypeError, ValueError) as exc:
-            raise CalibrationError(f"{path}, line {number}: bad time-shift row {row}: {exc}") from None
+            raise CalibrationError(
+                f"{path}, line {number}: bad time-shift row {row}: {exc}"
+            ) from None
     return TimeShiftTable(np.array(sid), np.array(primary), np.array(secondary), str(path))
 
 
@@ -481,11 +514,14 @@ def read_offset_jump_table(path: Path) -> OffsetJumpTable:
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f"{path}, line {number}: bad offset-jump row: {exc}") from None
         if b <= a:
-            raise CalibrationError(f"{path}, line {number}: interval end {b} is not after start {a}")
+            raise CalibrationError(
+                f"{path}, line {number}: interval end {b} is not after start {a}"
+            )
         start.append(row["start_utc"])
         end.append(row["end_utc"])
-    return OffsetJumpTable(np.array(start), np.array(end),
-                           {"OB": np.array(ob), "IB": np.array(ib)}, str(path))
+    return OffsetJumpTable(
+        np.array(start), np.array(end), {"OB": np.array(ob), "IB": np.array(ib)}, str(path)
+    )
 
 
 def load_offset_jump_table(calib_dir: Path | None = None) -> OffsetJumpTable:

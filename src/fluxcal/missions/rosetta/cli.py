@@ -15,11 +15,15 @@ app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True)
 
 @app.command()
 def calibrate(
-    science: Path = typer.Option(..., "--science", help="Raw science CSV of one sensor (sec. 4.1.2)."),
+    science: Path = typer.Option(
+        ..., "--science", help="Raw science CSV of one sensor (sec. 4.1.2)."
+    ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
     levels: str = typer.Option("A,B", "--levels", help="Comma-separated levels: A,B,C,E,F,G."),
-    hk: Path | None = typer.Option(None, "--hk", help="Raw HK CSV (sec. 4.1.1), converted to HK LEVEL_A."),
+    hk: Path | None = typer.Option(
+        None, "--hk", help="Raw HK CSV (sec. 4.1.1), converted to HK LEVEL_A."
+    ),
     calib: Path | None = typer.Option(
         None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
     ),
@@ -41,14 +45,27 @@ def calibrate(
     from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
 
     result = calibrate_files(
-        science, sensor, out, levels=parse_levels(levels), hk_file=hk, calib_dir=calib,
-        kernels=kernels, primary=primary, average_s=average, frame=frame, centre=centre,
-        boom=boom, stitch_gap_s=stitch_gap_hours * 3600.0, jumps=not no_jumps,
+        science,
+        sensor,
+        out,
+        levels=parse_levels(levels),
+        hk_file=hk,
+        calib_dir=calib,
+        kernels=kernels,
+        primary=primary,
+        average_s=average,
+        frame=frame,
+        centre=centre,
+        boom=boom,
+        stitch_gap_s=stitch_gap_hours * 3600.0,
+        jumps=not no_jumps,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
     )
     a = result.levels["A"]
-    typer.echo(f"{a.sizes['time']} vectors calibrated ({a.attrs['n_dropped_quality']} dropped for "
-               f"quality); {len(result.paths)} files in {out}")
+    typer.echo(
+        f"{a.sizes['time']} vectors calibrated ({a.attrs['n_dropped_quality']} dropped for "
+        f"quality); {len(result.paths)} files in {out}"
+    )
 
 
 def simulate(
@@ -62,7 +79,8 @@ def simulate(
     """Write simulated raw Rosetta telemetry, calibration files and kernels from a known field."""
     from fluxcal.missions.rosetta.simulate import write_simulation
 
-    paths = write_simulation(out, start_utc=start, hours=hours, rate_hz=rate, primary=primary,
-                             seed=seed)
+    paths = write_simulation(
+        out, start_utc=start, hours=hours, rate_hz=rate, primary=primary, seed=seed
+    )
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")

@@ -34,9 +34,13 @@ def run_demo(out: Path, *, hours: float = 1.0) -> str:
     n_files = 0
     for sensor in ("OB", "IB"):
         res = calibrate_files(
-            paths[f"science_{sensor}"], sensor, out / "products",
-            levels=("A", "B", "C", "E", "F", "G"), hk_file=paths["hk"] if sensor == "OB" else None,
-            calib_dir=paths["calib"], kernels=paths["kernels"],
+            paths[f"science_{sensor}"],
+            sensor,
+            out / "products",
+            levels=("A", "B", "C", "E", "F", "G"),
+            hk_file=paths["hk"] if sensor == "OB" else None,
+            calib_dir=paths["calib"],
+            kernels=paths["kernels"],
         )
         n_files += len(res.paths)
         truth = read_truth_csv(paths[f"truth_{sensor}"])
@@ -52,5 +56,7 @@ def run_demo(out: Path, *, hours: float = 1.0) -> str:
             f"({res.levels['A'].attrs['n_dropped_quality']} bad dropped), {g.sizes['time']} 1-s "
             f"averages; recovered-true rms x y z [nT]: " + "; ".join(parts)
         )
-    lines.append(f"  {n_files} product files in {out / 'products'} ({time.perf_counter() - t0:.1f} s)")
+    lines.append(
+        f"  {n_files} product files in {out / 'products'} ({time.perf_counter() - t0:.1f} s)"
+    )
     return "\n".join(lines)

@@ -33,7 +33,9 @@ def hk_field(tlm: np.ndarray, nominal: dict) -> np.ndarray:
 
 def divider(section: dict) -> float:
     """Voltage-divider ratio ``R_low / (R_low + R_high)`` of an HK channel (sec. 4.2.1)."""
-    return section["divider_r_low_ohm"] / (section["divider_r_low_ohm"] + section["divider_r_high_ohm"])
+    return section["divider_r_low_ohm"] / (
+        section["divider_r_low_ohm"] + section["divider_r_high_ohm"]
+    )
 
 
 def reference_voltage(tlm: np.ndarray, nominal: dict) -> np.ndarray:
@@ -46,7 +48,9 @@ def reference_voltage(tlm: np.ndarray, nominal: dict) -> np.ndarray:
 
 def supply_cal_factor(section: dict) -> float:
     """``CAL_FACTOR = U_ref / ((2^20 - 1) * divider) * scale`` (sec. 4.2.2.3 / 4.2.2.4)."""
-    return section["u_ref_v"] / ((2 ** section["adc_bits"] - 1) * divider(section)) * section["scale"]
+    return (
+        section["u_ref_v"] / ((2 ** section["adc_bits"] - 1) * divider(section)) * section["scale"]
+    )
 
 
 def _supply(tlm: np.ndarray, section: dict) -> np.ndarray:
@@ -78,7 +82,9 @@ def thermistor_voltage(tlm: np.ndarray, nominal: dict) -> np.ndarray:
     top = 2 ** p["bits"] - 1
     if tlm.size and (tlm.min() < 0 or tlm.max() > top):
         raise ValueError(f"thermistor words must lie within 0..{top}")
-    return (tlm + 2 ** (p["bits"] - 1)) * cnt.nominal_factor(p["u_min_v"], p["u_max_v"], p["bits"]) + p["u_min_v"]
+    return (tlm + 2 ** (p["bits"] - 1)) * cnt.nominal_factor(
+        p["u_min_v"], p["u_max_v"], p["bits"]
+    ) + p["u_min_v"]
 
 
 def thermistor_counts(voltage: np.ndarray, nominal: dict) -> np.ndarray:
@@ -108,11 +114,31 @@ def hk_level_a(raw: xr.Dataset, thermistor: np.ndarray, nominal: dict) -> xr.Dat
     out = xr.Dataset(coords=raw.coords, attrs=dict(raw.attrs, level="A (HK)"))
     out["obt"] = raw["obt"]
     for name in ("t_ob", "t_ib"):
-        out[name] = ("time", hk_temperature(raw[f"{name}_counts"].values, thermistor, nominal), {"units": "K"})
+        out[name] = (
+            "time",
+            hk_temperature(raw[f"{name}_counts"].values, thermistor, nominal),
+            {"units": "K"},
+        )
     for name in ("stage_a_id", "stage_b_id", "filter_cfg"):
         out[name] = raw[name]
-    out["ref_voltage"] = ("time", reference_voltage(raw["ref_voltage_counts"].values, nominal), {"units": "V"})
-    out["pos_voltage"] = ("time", positive_supply(raw["pos_voltage_counts"].values, nominal), {"units": "V"})
-    out["neg_voltage"] = ("time", negative_supply(raw["neg_voltage_counts"].values, nominal), {"units": "V"})
-    out["b_ob"] = (("time", "component"), hk_field(raw["b_ob_counts"].values, nominal), {"units": "nT"})
+    out["ref_voltage"] = (
+        "time",
+        reference_voltage(raw["ref_voltage_counts"].values, nominal),
+        {"units": "V"},
+    )
+    out["pos_voltage"] = (
+        "time",
+        positive_supply(raw["pos_voltage_counts"].values, nominal),
+        {"units": "V"},
+    )
+    out["neg_voltage"] = (
+        "time",
+        negative_supply(raw["neg_voltage_counts"].values, nominal),
+        {"units": "V"},
+    )
+    out["b_ob"] = (
+        ("time", "component"),
+        hk_field(raw["b_ob_counts"].values, nominal),
+        {"units": "nT"},
+    )
     return out

@@ -25,15 +25,39 @@ import xarray as xr
 from fluxcal.errors import InputFormatError
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
-HK_COLUMNS = ("time_utc", "obt", "t_ob", "t_ib", "stage_a_id", "stage_b_id", "filter_cfg",
-              "ref_voltage", "neg_voltage", "pos_voltage", "bx_ob", "by_ob", "bz_ob")
+HK_COLUMNS = (
+    "time_utc",
+    "obt",
+    "t_ob",
+    "t_ib",
+    "stage_a_id",
+    "stage_b_id",
+    "filter_cfg",
+    "ref_voltage",
+    "neg_voltage",
+    "pos_voltage",
+    "bx_ob",
+    "by_ob",
+    "bz_ob",
+)
 #: Word ranges: science field signed 20 bit, thermistors 16 bit, supplies 8 bit, ref 20 bit.
 _RANGES = {
-    "bx": (-(2**19), 2**19 - 1), "by": (-(2**19), 2**19 - 1), "bz": (-(2**19), 2**19 - 1),
-    "t_ob": (0, 2**16 - 1), "t_ib": (0, 2**16 - 1), "quality": (0, 15), "sid": (0, 255),
-    "ref_voltage": (0, 2**20 - 1), "neg_voltage": (0, 255), "pos_voltage": (0, 255),
-    "bx_ob": (0, 2**16 - 1), "by_ob": (0, 2**16 - 1), "bz_ob": (0, 2**16 - 1),
-    "stage_a_id": (0, 2**16 - 1), "stage_b_id": (0, 2**16 - 1), "filter_cfg": (0, 2**16 - 1),
+    "bx": (-(2**19), 2**19 - 1),
+    "by": (-(2**19), 2**19 - 1),
+    "bz": (-(2**19), 2**19 - 1),
+    "t_ob": (0, 2**16 - 1),
+    "t_ib": (0, 2**16 - 1),
+    "quality": (0, 15),
+    "sid": (0, 255),
+    "ref_voltage": (0, 2**20 - 1),
+    "neg_voltage": (0, 255),
+    "pos_voltage": (0, 255),
+    "bx_ob": (0, 2**16 - 1),
+    "by_ob": (0, 2**16 - 1),
+    "bz_ob": (0, 2**16 - 1),
+    "stage_a_id": (0, 2**16 - 1),
+    "stage_b_id": (0, 2**16 - 1),
+    "filter_cfg": (0, 2**16 - 1),
 }
 SCLK_ID = -226
 
@@ -48,7 +72,9 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
         raise InputFormatError(f"cannot read: {exc}", path=str(path)) from None
     names = tuple(h.strip() for h in header.strip().split(","))
     if names != columns:
-        raise InputFormatError(f"header {names} differs from the expected {columns}", path=str(path), line=1)
+        raise InputFormatError(
+            f"header {names} differs from the expected {columns}", path=str(path), line=1
+        )
     lines = body.splitlines()
     if lines and not lines[-1].strip():
         lines = lines[:-1]
@@ -59,7 +85,9 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     bad = np.flatnonzero(counts != len(columns))
     if bad.size:
         i = int(bad[0])
-        raise InputFormatError(f"{counts[i]} fields, expected {len(columns)}", path=str(path), line=i + 2)
+        raise InputFormatError(
+            f"{counts[i]} fields, expected {len(columns)}", path=str(path), line=i + 2
+        )
     return np.array(cells.tolist(), dtype=str)
 
 
@@ -73,18 +101,23 @@ def _numeric(table: np.ndarray, j: int, name: str, kind: type, path: Path) -> np
                 float(text) if kind is float else int(text)
             except ValueError:
                 expected = "a number" if kind is float else "an integer"
-                raise InputFormatError(f"{str(text)!r} is not {expected}", path=str(path), line=i + 2,
-                                       field=name) from None
+                raise InputFormatError(
+                    f"{str(text)!r} is not {expected}", path=str(path), line=i + 2, field=name
+                ) from None
         raise  # pragma: no cover
     if kind is float and not np.all(np.isfinite(values)):
         i = int(np.flatnonzero(~np.isfinite(values))[0])
-        raise InputFormatError(f"{str(col[i])!r} is not a finite number", path=str(path), line=i + 2, field=name)
+        raise InputFormatError(
+            f"{str(col[i])!r} is not a finite number", path=str(path), line=i + 2, field=name
+        )
     if name in _RANGES:
         lo, hi = _RANGES[name]
         out = np.flatnonzero((values < lo) | (values > hi))
         if out.size:
             i = int(out[0])
-            raise InputFormatError(f"{values[i]} outside {lo}..{hi}", path=str(path), line=i + 2, field=name)
+            raise InputFormatError(
+                f"{values[i]} outside {lo}..{hi}", path=str(path), line=i + 2, field=name
+            )
     return values
 
 
@@ -105,15 +138,22 @@ def _epoch(table: np.ndarray, obt: np.ndarray, path: Path, sclk, lsk) -> tuple[n
                 except InputFormatError:
                     line, text = i + 2, str(item)
                     break
-            raise InputFormatError(f"cannot parse UTC time {text!r} (ISO 8601 expected)",
-                                   path=str(path), line=line, field="time_utc") from None
+            raise InputFormatError(
+                f"cannot parse UTC time {text!r} (ISO 8601 expected)",
+                path=str(path),
+                line=line,
+                field="time_utc",
+            ) from None
         field = "time_utc"
     back = np.flatnonzero(np.diff(epoch) < 0)
     if back.size:
         i = int(back[0]) + 1
         raise InputFormatError(
-            f"time goes backwards ({table[i, 0]} after {table[i - 1, 0]}, obt {obt[i]} after {obt[i - 1]})",
-            path=str(path), line=i + 2, field=field,
+            f"time goes backwards ({table[i, 0]} after {table[i - 1, 0]}, "
+            f"obt {obt[i]} after {obt[i - 1]})",
+            path=str(path),
+            line=i + 2,
+            field=field,
         )
     return epoch, field
 
@@ -148,24 +188,30 @@ def read_science_csv(path: Path, sensor: str, *, sclk=None, lsk=None) -> xr.Data
     table = _read_table(path, SCIENCE_COLUMNS)
     col = {name: j for j, name in enumerate(SCIENCE_COLUMNS)}
     obt = _numeric(table, col["obt"], "obt", float, path)
-    ints = {name: _numeric(table, col[name], name, int, path)
-            for name in ("sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")}
+    ints = {
+        name: _numeric(table, col[name], name, int, path)
+        for name in ("sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
+    }
     epoch, time_source = _epoch(table, obt, path, sclk, lsk)
     n = obt.size
     return xr.Dataset(
         {
             "obt": ("time", obt, {"units": "s"}),
             "sid": ("time", ints["sid"].astype(np.int16), {"units": "1"}),
-            "b_counts": (("time", "component"),
-                         np.stack([ints["bx"], ints["by"], ints["bz"]], axis=1).astype(np.int32),
-                         {"units": "count"}),
+            "b_counts": (
+                ("time", "component"),
+                np.stack([ints["bx"], ints["by"], ints["bz"]], axis=1).astype(np.int32),
+                {"units": "count"},
+            ),
             "t_ob_counts": ("time", ints["t_ob"].astype(np.int32), {"units": "count"}),
             "t_ib_counts": ("time", ints["t_ib"].astype(np.int32), {"units": "count"}),
             "quality": ("time", ints["quality"].astype(np.int16), {"units": "1"}),
             "row": ("time", np.arange(2, n + 2), {"units": "1", "description": "line in file"}),
         },
-        coords={"epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
-                "component": ["x", "y", "z"]},
+        coords={
+            "epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
+            "component": ["x", "y", "z"],
+        },
         attrs={"sensor": check_sensor(sensor), "source": str(path), "time_source": time_source},
     )
 
@@ -175,7 +221,9 @@ def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
     path = Path(path)
     table = _read_table(path, HK_COLUMNS)
     obt = _numeric(table, 1, "obt", float, path)
-    ints = {name: _numeric(table, j, name, int, path) for j, name in enumerate(HK_COLUMNS) if j >= 2}
+    ints = {
+        name: _numeric(table, j, name, int, path) for j, name in enumerate(HK_COLUMNS) if j >= 2
+    }
     epoch, time_source = _epoch(table, obt, path, sclk, lsk)
     data = {
         "obt": ("time", obt, {"units": "s"}),
@@ -184,14 +232,22 @@ def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
         "ref_voltage_counts": ("time", ints["ref_voltage"], {"units": "count"}),
         "neg_voltage_counts": ("time", ints["neg_voltage"], {"units": "count"}),
         "pos_voltage_counts": ("time", ints["pos_voltage"], {"units": "count"}),
-        "b_ob_counts": (("time", "component"),
-                        np.stack([ints["bx_ob"], ints["by_ob"], ints["bz_ob"]], axis=1), {"units": "count"}),
+        "b_ob_counts": (
+            ("time", "component"),
+            np.stack([ints["bx_ob"], ints["by_ob"], ints["bz_ob"]], axis=1),
+            {"units": "count"},
+        ),
     }
     for name in ("stage_a_id", "stage_b_id", "filter_cfg"):
         data[name] = ("time", ints[name], {"units": "1"})
-    return xr.Dataset(data, coords={"epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
-                                    "component": ["x", "y", "z"]},
-                      attrs={"source": str(path), "time_source": time_source})
+    return xr.Dataset(
+        data,
+        coords={
+            "epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
+            "component": ["x", "y", "z"],
+        },
+        attrs={"source": str(path), "time_source": time_source},
+    )
 
 
 def _write_atomic(path: Path, header: tuple[str, ...], columns: list[np.ndarray]) -> Path:
@@ -223,18 +279,36 @@ def _obt_text(obt: np.ndarray) -> np.ndarray:
 def write_science_csv(raw: xr.Dataset, path: Path, *, lsk=None) -> Path:
     """Write a raw science dataset (as `read_science_csv` returns) to CSV, atomically."""
     b = raw["b_counts"].values
-    cols = [_utc(raw["epoch"].values, lsk), _obt_text(raw["obt"].values), raw["sid"].values,
-            b[:, 0], b[:, 1], b[:, 2], raw["t_ob_counts"].values, raw["t_ib_counts"].values,
-            raw["quality"].values]
+    cols = [
+        _utc(raw["epoch"].values, lsk),
+        _obt_text(raw["obt"].values),
+        raw["sid"].values,
+        b[:, 0],
+        b[:, 1],
+        b[:, 2],
+        raw["t_ob_counts"].values,
+        raw["t_ib_counts"].values,
+        raw["quality"].values,
+    ]
     return _write_atomic(path, SCIENCE_COLUMNS, cols)
 
 
 def write_hk_csv(raw: xr.Dataset, path: Path, *, lsk=None) -> Path:
     """Write a raw HK dataset (as `read_hk_csv` returns) to CSV, atomically."""
     b = raw["b_ob_counts"].values
-    cols = [_utc(raw["epoch"].values, lsk), _obt_text(raw["obt"].values),
-            raw["t_ob_counts"].values, raw["t_ib_counts"].values, raw["stage_a_id"].values,
-            raw["stage_b_id"].values, raw["filter_cfg"].values, raw["ref_voltage_counts"].values,
-            raw["neg_voltage_counts"].values, raw["pos_voltage_counts"].values,
-            b[:, 0], b[:, 1], b[:, 2]]
+    cols = [
+        _utc(raw["epoch"].values, lsk),
+        _obt_text(raw["obt"].values),
+        raw["t_ob_counts"].values,
+        raw["t_ib_counts"].values,
+        raw["stage_a_id"].values,
+        raw["stage_b_id"].values,
+        raw["filter_cfg"].values,
+        raw["ref_voltage_counts"].values,
+        raw["neg_voltage_counts"].values,
+        raw["pos_voltage_counts"].values,
+        b[:, 0],
+        b[:, 1],
+        b[:, 2],
+    ]
     return _write_atomic(path, HK_COLUMNS, cols)

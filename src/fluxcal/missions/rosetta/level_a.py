@@ -110,7 +110,9 @@ def sensitivity(temperature: np.ndarray, cal: GroundCalibration) -> np.ndarray:
     return thermal.linear_in_temperature(cal.sensitivity, temperature)
 
 
-def misalignment(temperature: np.ndarray, cal: GroundCalibration, *, form: str = "unit") -> np.ndarray:
+def misalignment(
+    temperature: np.ndarray, cal: GroundCalibration, *, form: str = "unit"
+) -> np.ndarray:
     """omega^0(T) = omega^1(xi^1(T)) K^-1, shape (n, 3, 3).
 
     Parameters
@@ -144,7 +146,11 @@ def ground_calibrate(
 
 
 def ground_calibrate_words(
-    b_raw: np.ndarray, words: np.ndarray, cal: GroundCalibration, nominal: dict, *,
+    b_raw: np.ndarray,
+    words: np.ndarray,
+    cal: GroundCalibration,
+    nominal: dict,
+    *,
     form: str = "unit",
 ) -> tuple[np.ndarray, np.ndarray]:
     """`ground_calibrate` for thermistor words: one matrix per distinct word, then a gather.
@@ -180,8 +186,13 @@ def ground_calibrate_words(
 def ground_uncalibrate(
     b_cal: np.ndarray, temperature: np.ndarray, cal: GroundCalibration, *, form: str = "unit"
 ) -> np.ndarray:
-    """Exact inverse of `ground_calibrate`: ``B_r = sigma^-1 omega0^-1 B_c + B_off`` (forward model)."""
-    b_m = mat.solve(misalignment(temperature, cal, form=form), b_cal) / sensitivity(temperature, cal)
+    """Exact inverse of `ground_calibrate`: ``B_r = sigma^-1 omega0^-1 B_c + B_off``.
+
+    Used by the forward model (`fluxcal.missions.rosetta.simulate`).
+    """
+    b_m = mat.solve(misalignment(temperature, cal, form=form), b_cal) / sensitivity(
+        temperature, cal
+    )
     return b_m + offset(temperature, cal)
 
 
@@ -410,7 +421,8 @@ def level_a(
     sensor = check_sensor(raw.attrs.get("sensor", calibration.sensor))
     if sensor != calibration.sensor:
         raise InputFormatError(
-            f"science data are from sensor {sensor} but the calibration is for {calibration.sensor}",
+            f"science data are from sensor {sensor} "
+            f"but the calibration is for {calibration.sensor}",
             path=raw.attrs.get("source"),
         )
     source = raw.attrs.get("source")
@@ -421,7 +433,9 @@ def level_a(
         raise InputFormatError(
             f"quality {int(raw['quality'].values[i])} does not belong to a {sensor} vector "
             f"(bit 3 must be {int(sensor == 'IB')}, bits above 3 must be 0; seed 003 sec. 4.1.2)",
-            path=source, line=int(row[i]), field="quality",
+            path=source,
+            line=int(row[i]),
+            field="quality",
         )
     good = good_vectors(raw["quality"].values)
     n_dropped = int((~good).sum())
@@ -431,8 +445,9 @@ def level_a(
 
     try:
         b_raw = field_counts_to_nt(data["b_counts"].values, nominal)
-        b_c, t_c = ground_calibrate_words(b_raw, data[f"t_{sensor.lower()}_counts"].values,
-                                          calibration, nominal, form=omega_form)
+        b_c, t_c = ground_calibrate_words(
+            b_raw, data[f"t_{sensor.lower()}_counts"].values, calibration, nominal, form=omega_form
+        )
     except ValueError as exc:
         raise InputFormatError(f"counts out of range: {exc}", path=source) from None
 
@@ -444,14 +459,21 @@ def level_a(
         lo = int(words.min())
         grid = sensor_temperature(np.arange(lo, int(words.max()) + 1), calibration, nominal)
         ext, state, sources = extended_offset(
-            epoch, t_c, day_index, days, models, stitch_gap_s=stitch_gap_s, previous=previous,
+            epoch,
+            t_c,
+            day_index,
+            days,
+            models,
+            stitch_gap_s=stitch_gap_s,
+            previous=previous,
             lookup=(words - lo, grid),
         )
         b_c = b_c - ext
     else:
         state, sources = None, []
     attrs["extended_temperature_model"] = (
-        "model 006 daily files: " + ", ".join(sources) if sources
+        "model 006 daily files: " + ", ".join(sources)
+        if sources
         else "none: ground calibration alone (no daily RPCMAG_<yymmdd>_006_CALIB file)"
     )
     if state is not None:
@@ -465,7 +487,9 @@ def level_a(
         raise InputFormatError(
             f"filter mode SID {sid} has no time shift in the {table}-sensor table "
             f"{time_shifts.source} (seed 003, sec. 4.2.3.5)",
-            path=source, line=int(row[i]), field="sid",
+            path=source,
+            line=int(row[i]),
+            field="sid",
         ) from None
     new_epoch = timeshift.shift_epoch(epoch, shift)
     obt = data["obt"].values + shift
@@ -478,14 +502,24 @@ def level_a(
 
     out = xr.Dataset(
         {
-            "b": (("time", "component"), b_c[order], {"units": "nT", "frame": f"ROS_RPC_MAG_{sensor} (URF)"}),
+            "b": (
+                ("time", "component"),
+                b_c[order],
+                {"units": "nT", "frame": f"ROS_RPC_MAG_{sensor} (URF)"},
+            ),
             "temperature": ("time", t_c[order] + hk.KELVIN, {"units": "K"}),
-            "obt": ("time", obt[order], {"units": "s", "description": "TIME.OBT, filter shift added"}),
+            "obt": (
+                "time",
+                obt[order],
+                {"units": "s", "description": "TIME.OBT, filter shift added"},
+            ),
             "sid": ("time", data["sid"].values[order], {"units": "1"}),
             "quality": ("time", data["quality"].values[order], {"units": "1"}),
         },
-        coords={"epoch": ("time", new_epoch[order], {"units": "ns", "time_base": "TT2000"}),
-                "component": ["x", "y", "z"]},
+        coords={
+            "epoch": ("time", new_epoch[order], {"units": "ns", "time_base": "TT2000"}),
+            "component": ["x", "y", "z"],
+        },
         attrs=attrs,
     )
     out.attrs.update(

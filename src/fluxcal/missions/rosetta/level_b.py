@@ -46,8 +46,13 @@ def offset_jumps(
     epoch = np.asarray(epoch, dtype=np.int64)
     jumps = table.jumps[sensor]
     ends_idx = np.searchsorted(starts, epoch[[0, -1]], side="right") - 1 if epoch.size else []
-    if (epoch.size and ends_idx[0] == ends_idx[1] and ends_idx[0] >= 0
-            and epoch.min() >= starts[ends_idx[0]] and epoch.max() < ends[ends_idx[0]]):
+    if (
+        epoch.size
+        and ends_idx[0] == ends_idx[1]
+        and ends_idx[0] >= 0
+        and epoch.min() >= starts[ends_idx[0]]
+        and epoch.max() < ends[ends_idx[0]]
+    ):
         # the common case: every vector inside one interval (no per-vector search)
         idx = np.full(epoch.size, ends_idx[0])
         out = np.broadcast_to(jumps[ends_idx[0]], (epoch.size, 3)).copy()
@@ -61,7 +66,8 @@ def offset_jumps(
     if np.isnan(out).any():
         k = int(idx[np.isnan(out).any(axis=1)][0])
         raise CalibrationError(
-            f"{table.source}: the {sensor} offset jump for {table.start_utc[k]} .. {table.end_utc[k]} "
+            f"{table.source}: the {sensor} offset jump for "
+            f"{table.start_utc[k]} .. {table.end_utc[k]} "
             "is unknown (the seed's Appendix B list is cut off); supply RPCMAG_OFFSET_JUMPS.csv "
             "with the value in --calib DIR or process without jumps"
         )

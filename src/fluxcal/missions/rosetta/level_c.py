@@ -59,9 +59,13 @@ def level_c(
     pos = position(SPACECRAFT, centre, to_frame, et, method=method)
     out = level_b.copy()
     out["b"] = (("time", "component"), b, {"units": "nT", "frame": to_frame})
-    out["position"] = (("time", "component"), pos,
-                       {"units": "km", "frame": to_frame, "centre": centre})
+    out["position"] = (
+        ("time", "component"),
+        pos,
+        {"units": "km", "frame": to_frame, "centre": centre},
+    )
     out["et"] = ("time", et, {"units": "s", "description": "TDB seconds past J2000"})
-    out.attrs.update(level="C", output_frame=to_frame, position_centre=centre,
-                     geometry_method=method)
+    out.attrs.update(
+        level="C", output_frame=to_frame, position_centre=centre, geometry_method=method
+    )
     return out

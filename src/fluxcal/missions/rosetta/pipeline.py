@@ -36,18 +36,38 @@ def product_columns(level: str) -> list:
     """Table columns of a level (seed 003 tables of sec. 4.2.3.5, 4.3.1, 4.4.1, 4.6-4.8)."""
     from fluxcal.products import Column
 
-    cols = [Column("time_utc", "%s", "UTC", "TIME.UTC, UTC time of observation", label="TIME.UTC"),
-            Column("obt", "%17.6f", "s", "TIME.OBT, s/c clock, s since 2003-01-01",
-                   label="TIME.OBT")]
+    cols = [
+        Column("time_utc", "%s", "UTC", "TIME.UTC, UTC time of observation", label="TIME.UTC"),
+        Column("obt", "%17.6f", "s", "TIME.OBT, s/c clock, s since 2003-01-01", label="TIME.OBT"),
+    ]
     if level in ("C", "G"):
-        cols += [Column("position", "%15.3f", "km", f"spacecraft position, {c.upper()}",
-                        component=c, label=f"POSITION.{c.upper()}") for c in "xyz"]
-    cols += [Column("b", "%11.3f", "nT", f"magnetic field {c.upper()} component, calibrated",
-                    component=c, label=f"B{c.upper()}") for c in "xyz"]
+        cols += [
+            Column(
+                "position",
+                "%15.3f",
+                "km",
+                f"spacecraft position, {c.upper()}",
+                component=c,
+                label=f"POSITION.{c.upper()}",
+            )
+            for c in "xyz"
+        ]
+    cols += [
+        Column(
+            "b",
+            "%11.3f",
+            "nT",
+            f"magnetic field {c.upper()} component, calibrated",
+            component=c,
+            label=f"B{c.upper()}",
+        )
+        for c in "xyz"
+    ]
     if level in ("A", "B"):
         cols.append(Column("temperature", "%8.2f", "K", "sensor temperature", label="T"))
-    cols.append(Column("quality", "%2d", "1", "quality flag (seed 003 sec. 4.1.2)",
-                       label="QUALITY"))
+    cols.append(
+        Column("quality", "%2d", "1", "quality flag (seed 003 sec. 4.1.2)", label="QUALITY")
+    )
     return cols
 
 
@@ -76,14 +96,24 @@ def write_level(
         if sel.size == 0:
             continue
         part = ds.isel(time=sel)
-        part = part.assign(time_utc=("time", tt2000_to_utc(part["epoch"].values, digits=6, lsk=lsk),
-                                     {"units": "UTC"}))
+        part = part.assign(
+            time_utc=(
+                "time",
+                tt2000_to_utc(part["epoch"].values, digits=6, lsk=lsk),
+                {"units": "UTC"},
+            )
+        )
         attrs = {k: v for k, v in part.attrs.items() if not k.startswith("stitch_")}
         attrs.update(provenance or {})
         part.attrs = attrs
         stem = out_dir / f"RPCMAG_{str(day).replace('-', '')}_{PRODUCT_CODE[level]}_{sensor}"
-        written += write_product(part, stem, formats=formats, columns=product_columns(level),
-                                 label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor})
+        written += write_product(
+            part,
+            stem,
+            formats=formats,
+            columns=product_columns(level),
+            label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor},
+        )
     return written
 
 
@@ -156,14 +186,21 @@ def calibrate_files(
         nominal = calib.load_nominal_conversion(calib_dir)
         models = calib.find_daily_offset_models(calib_dir, sensor)
         raw = io.read_science_csv(science, sensor, sclk=sclk, lsk=lsk)
-        first, last = (np.datetime64(str(s)[:19]) for s in
-                       _utc(raw["epoch"].values[[0, -1]], lsk))
+        first, last = (np.datetime64(str(s)[:19]) for s in _utc(raw["epoch"].values[[0, -1]], lsk))
         cal.validity.check(first, last)
         used = {"ground": cal.source, "time_shift": shifts.source}
         used.update({f"daily_{m.day}": m.source for m in models.values()})
         kernel_files = list(pool.loaded)
-        a = level_a.level_a(raw, cal, shifts, nominal, daily_models=models, primary=primary,
-                            stitch_gap_s=stitch_gap_s, lsk=lsk)
+        a = level_a.level_a(
+            raw,
+            cal,
+            shifts,
+            nominal,
+            daily_models=models,
+            primary=primary,
+            stitch_gap_s=stitch_gap_s,
+            lsk=lsk,
+        )
         result.levels["A"] = a
         if "B" in need:
             alignment = calib.load_alignment(calib_dir)
@@ -173,7 +210,9 @@ def calibrate_files(
                 used["offset_jumps"] = table.source
             result.levels["B"] = level_b.level_b(a, alignment, table, boom=boom, lsk=lsk)
         if "C" in need:
-            result.levels["C"] = level_c.level_c(result.levels["B"], frame=frame, centre=centre, lsk=lsk)
+            result.levels["C"] = level_c.level_c(
+                result.levels["B"], frame=frame, centre=centre, lsk=lsk
+            )
         for src, dst in (("A", "E"), ("B", "F"), ("C", "G")):
             if dst in need:
                 result.levels[dst] = averaged.average(result.levels[src], average_s, lsk=lsk)
@@ -182,12 +221,14 @@ def calibrate_files(
             result.levels["HK"] = hk.hk_level_a(hk_raw, cal.thermistor, nominal)
         if write:
             inputs = [science] + ([hk_file] if hk_file else [])
-            prov = provenance_attrs(inputs=inputs, calibration=used,
-                                    kernels=[Path(str(k)) for k in kernel_files])
+            prov = provenance_attrs(
+                inputs=inputs, calibration=used, kernels=[Path(str(k)) for k in kernel_files]
+            )
             for lev in LEVELS:
                 if lev in wanted:
-                    result.paths += write_level(result.levels[lev], out, formats=formats,
-                                                provenance=prov, lsk=lsk)
+                    result.paths += write_level(
+                        result.levels[lev], out, formats=formats, provenance=prov, lsk=lsk
+                    )
             if hk_file is not None:
                 result.paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
     return result
@@ -203,16 +244,22 @@ def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]
     from fluxcal.geometry.time import tt2000_to_utc
     from fluxcal.products import Column, write_product
 
-    ds = ds.assign(time_utc=("time", tt2000_to_utc(ds["epoch"].values, digits=6, lsk=lsk),
-                             {"units": "UTC"}))
+    ds = ds.assign(
+        time_utc=("time", tt2000_to_utc(ds["epoch"].values, digits=6, lsk=lsk), {"units": "UTC"})
+    )
     ds.attrs = {**ds.attrs, **prov, "level": "A (HK)"}
     day = str(_utc(ds["epoch"].values[:1], lsk)[0])[:10].replace("-", "")
-    cols = [Column("time_utc", "%s", label="TIME.UTC"), Column("obt", "%17.6f", label="TIME.OBT"),
-            Column("t_ob", "%8.2f", label="T.OB"), Column("t_ib", "%8.2f", label="T.IB"),
-            Column("stage_a_id", "%6d", label="STAGE_A.ID"), Column("stage_b_id", "%6d", label="STAGE_B.ID"),
-            Column("filter_cfg", "%6d", label="FILTER.CFG"),
-            Column("ref_voltage", "%9.5f", label="MAG.REF_VOLTAGE"),
-            Column("neg_voltage", "%9.5f", label="MAG.NEG_VOLTAGE"),
-            Column("pos_voltage", "%9.5f", label="MAG.POS_VOLTAGE"),
-            Column("b_ob", "%11.3f", label="B{c}.OB")]
+    cols = [
+        Column("time_utc", "%s", label="TIME.UTC"),
+        Column("obt", "%17.6f", label="TIME.OBT"),
+        Column("t_ob", "%8.2f", label="T.OB"),
+        Column("t_ib", "%8.2f", label="T.IB"),
+        Column("stage_a_id", "%6d", label="STAGE_A.ID"),
+        Column("stage_b_id", "%6d", label="STAGE_B.ID"),
+        Column("filter_cfg", "%6d", label="FILTER.CFG"),
+        Column("ref_voltage", "%9.5f", label="MAG.REF_VOLTAGE"),
+        Column("neg_voltage", "%9.5f", label="MAG.NEG_VOLTAGE"),
+        Column("pos_voltage", "%9.5f", label="MAG.POS_VOLTAGE"),
+        Column("b_ob", "%11.3f", label="B{c}.OB"),
+    ]
     return write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=formats, columns=cols)

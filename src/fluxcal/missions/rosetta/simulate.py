@@ -44,7 +44,7 @@ NS = 1_000_000_000
 
 
 def truth_field(seconds: np.ndarray) -> np.ndarray:
-    """The known ambient field (nT) at ``seconds`` after the start: a few slow waves.
+    """Return the known ambient field (nT) at ``seconds`` after the start: slow waves.
 
     Magnitudes up to ~60 nT, typical of the solar wind near 67P.
     """
@@ -105,7 +105,10 @@ def raw_counts(
 
 
 def thermistor_words(temperature: np.ndarray, cal: GroundCalibration, nominal: dict) -> np.ndarray:
-    """16-bit thermistor words for calibrated temperature (deg C) (inverse of sec. 4.2.2.5, 3.3.3)."""
+    """Return 16-bit thermistor words for calibrated temperatures (deg C).
+
+    Inverse of seed 003 sec. 4.2.2.5 and 3.3.3.
+    """
     u = thermal.thermistor_voltage(temperature, cal.thermistor, cal.thermistor_offset)
     return hk.thermistor_counts(u, nominal)
 
@@ -228,27 +231,51 @@ def simulate(
                 "t_ib_counts": ("time", words["IB"].astype(np.int32), {"units": "count"}),
                 "quality": ("time", quality, {"units": "1"}),
             },
-            coords={"epoch": ("time", stamps, {"units": "ns", "time_base": "TT2000"}),
-                    "component": ["x", "y", "z"]},
+            coords={
+                "epoch": ("time", stamps, {"units": "ns", "time_base": "TT2000"}),
+                "component": ["x", "y", "z"],
+            },
             attrs={"sensor": sensor, "source": f"simulated {sensor}"},
         )
         truth[sensor] = xr.Dataset(
             {
                 "b_urf": (("time", "component"), b_urf, {"units": "nT"}),
                 "b_sc": (("time", "component"), b_sc_true, {"units": "nT"}),
-                "b_ref": (("time", "component"), b_ref,
-                          {"units": "nT", "frame": "ECLIPJ2000" if with_kernels else "ROS_SPACECRAFT"}),
+                "b_ref": (
+                    ("time", "component"),
+                    b_ref,
+                    {"units": "nT", "frame": "ECLIPJ2000" if with_kernels else "ROS_SPACECRAFT"},
+                ),
                 "temperature": ("time", temp + hk.KELVIN, {"units": "K"}),
                 "good": ("time", ~bad, {"units": "1"}),
             },
-            coords={"epoch": ("time", event, {"units": "ns", "time_base": "TT2000"}),
-                    "component": ["x", "y", "z"]},
+            coords={
+                "epoch": ("time", event, {"units": "ns", "time_base": "TT2000"}),
+                "component": ["x", "y", "z"],
+            },
             attrs={"sensor": sensor},
         )
-    hk_raw = simulate_hk(stamps, obt, words, sid, truth["OB"]["b_urf"].values, nominal,
-                         calibrations["OB"], step=max(int(round(hk_period_s * rate_hz)), 1))
-    return Simulation(science, hk_raw, truth, {"start_utc": start_utc, "duration_s": duration_s,
-                                               "rate_hz": rate_hz, "sclk": sclk is not None})
+    hk_raw = simulate_hk(
+        stamps,
+        obt,
+        words,
+        sid,
+        truth["OB"]["b_urf"].values,
+        nominal,
+        calibrations["OB"],
+        step=max(int(round(hk_period_s * rate_hz)), 1),
+    )
+    return Simulation(
+        science,
+        hk_raw,
+        truth,
+        {
+            "start_utc": start_utc,
+            "duration_s": duration_s,
+            "rate_hz": rate_hz,
+            "sclk": sclk is not None,
+        },
+    )
 
 
 def simulate_hk(
@@ -292,8 +319,10 @@ def simulate_hk(
             "pos_voltage_counts": ("time", np.zeros(m, dtype=np.int64), {"units": "count"}),
             "b_ob_counts": (("time", "component"), tlm_b, {"units": "count"}),
         },
-        coords={"epoch": ("time", stamps[pick], {"units": "ns", "time_base": "TT2000"}),
-                "component": ["x", "y", "z"]},
+        coords={
+            "epoch": ("time", stamps[pick], {"units": "ns", "time_base": "TT2000"}),
+            "component": ["x", "y", "z"],
+        },
         attrs={"source": "simulated HK"},
     )
 
@@ -317,16 +346,22 @@ def write_truth_csv(truth: xr.Dataset, path: Path, *, lsk=None) -> Path:
 
 
 def synthetic_alignment() -> Alignment:
-    """A non-trivial alignment for simulations (the boom axes tilted, as in ROS_V38.TF)."""
+    """Return a non-trivial alignment for simulations (boom axes tilted as in ROS_V38.TF)."""
     from scipy.spatial.transform import Rotation
 
-    angles = {("OB", "deployed"): [-90.234, 89.944, 0.145], ("OB", "stowed"): [0.0, 45.0, 0.0],
-              ("IB", "deployed"): [-90.285, 89.497, 0.117], ("IB", "stowed"): [0.0, 45.0, 0.3]}
+    angles = {
+        ("OB", "deployed"): [-90.234, 89.944, 0.145],
+        ("OB", "stowed"): [0.0, 45.0, 0.0],
+        ("IB", "deployed"): [-90.285, 89.497, 0.117],
+        ("IB", "stowed"): [0.0, 45.0, 0.3],
+    }
     mats = {k: Rotation.from_euler("xzx", v, degrees=True).as_matrix() for k, v in angles.items()}
     return Alignment(mats, "fluxcal synthetic alignment", "sim-1")
 
 
-def synthetic_daily_models(days: list[np.datetime64]) -> dict[str, dict[np.datetime64, DailyOffsetModel]]:
+def synthetic_daily_models(
+    days: list[np.datetime64],
+) -> dict[str, dict[np.datetime64, DailyOffsetModel]]:
     """Small daily extended-temperature polynomials (nT, deg C) for simulations."""
     out: dict[str, dict[np.datetime64, DailyOffsetModel]] = {"OB": {}, "IB": {}}
     for k, day in enumerate(days):
@@ -369,7 +404,9 @@ def write_simulation(
     alignment = synthetic_alignment()
     calib.write_alignment(alignment, calib_dir / calib.ALIGN_FILE)
     first = np.datetime64(start_utc[:10], "D")
-    last = (np.datetime64(start_utc, "s") + np.timedelta64(int(duration) + 1200, "s")).astype("M8[D]")
+    last = (np.datetime64(start_utc, "s") + np.timedelta64(int(duration) + 1200, "s")).astype(
+        "M8[D]"
+    )
     days = list(np.arange(first, last + np.timedelta64(1, "D"), dtype="M8[D]"))
     models = synthetic_daily_models(days)
     for sensor in ("OB", "IB"):
@@ -380,16 +417,28 @@ def write_simulation(
     with KernelPool(meta):
         lsk = leapseconds()
         cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
-        sim = simulate(start_utc, duration, calibrations=cals,
-                       time_shifts=calib.load_time_shift_table(),
-                       nominal=calib.load_nominal_conversion(), alignment=alignment,
-                       jumps=calib.load_offset_jump_table(), daily_models=models, rate_hz=rate_hz,
-                       primary=primary, with_kernels=True, seed=seed, lsk=lsk)
+        sim = simulate(
+            start_utc,
+            duration,
+            calibrations=cals,
+            time_shifts=calib.load_time_shift_table(),
+            nominal=calib.load_nominal_conversion(),
+            alignment=alignment,
+            jumps=calib.load_offset_jump_table(),
+            daily_models=models,
+            rate_hz=rate_hz,
+            primary=primary,
+            with_kernels=True,
+            seed=seed,
+            lsk=lsk,
+        )
         for sensor in ("OB", "IB"):
             paths[f"science_{sensor}"] = io.write_science_csv(
-                sim.science[sensor], out / f"RPCMAG_{stamp}_RAW_{sensor}.csv", lsk=lsk)
+                sim.science[sensor], out / f"RPCMAG_{stamp}_RAW_{sensor}.csv", lsk=lsk
+            )
             paths[f"truth_{sensor}"] = write_truth_csv(
-                sim.truth[sensor], out / f"RPCMAG_{stamp}_TRUTH_{sensor}.csv", lsk=lsk)
+                sim.truth[sensor], out / f"RPCMAG_{stamp}_TRUTH_{sensor}.csv", lsk=lsk
+            )
         paths["hk"] = io.write_hk_csv(sim.hk, out / f"RPCMAG_{stamp}_RAW_HK.csv", lsk=lsk)
     return paths
 
@@ -400,9 +449,11 @@ def read_truth_csv(path: Path) -> dict[str, np.ndarray]:
         header = fh.readline().strip().split(",")
     table = np.loadtxt(path, delimiter=",", skiprows=1, dtype=str)
     out = {name: table[:, j] for j, name in enumerate(header)}
-    result: dict[str, np.ndarray] = {"epoch": out["epoch_tt2000_ns"].astype(np.int64),
-                                     "good": out["good"].astype(int).astype(bool),
-                                     "temperature": out["temperature_k"].astype(float)}
+    result: dict[str, np.ndarray] = {
+        "epoch": out["epoch_tt2000_ns"].astype(np.int64),
+        "good": out["good"].astype(int).astype(bool),
+        "temperature": out["temperature_k"].astype(float),
+    }
     for name in ("b_urf", "b_sc", "b_ref"):
         result[name] = np.stack([out[f"{name}_{c}"].astype(float) for c in "xyz"], axis=1)
     return result
