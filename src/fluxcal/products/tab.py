@@ -213,30 +213,40 @@ def read_tab(path: Path) -> xr.Dataset:
         raise InputFormatError("label has no TABLE object", path=str(lbl))
     cols = [as_dict(c) for c in find_objects(tables[0], "COLUMN")]
     ncol = len(cols)
-    tokens = path.read_text(encoding="ascii").split()
-    if ncol == 0 or len(tokens) % ncol:
-        raise InputFormatError(
-            f"{len(tokens)} values is not a multiple of the label's {ncol} columns",
-            path=str(path),
-        )
-    table = np.array(tokens, dtype=str).reshape(-1, ncol)
+    if ncol == 0:
+        raise InputFormatError("label describes no COLUMN", path=str(lbl))
+    fields = []
+    for j, c in enumerate(cols):
+        dtype = np.dtype(str(c.get("FLUXCAL_DTYPE", "str")))
+        if dtype.kind in "iub":
+            fields.append((f"f{j}", np.int64))
+        elif dtype.kind == "f":
+            fields.append((f"f{j}", np.float64))
+        else:
+            width = max(int(c.get("BYTES", 0)), dtype.itemsize // 4, 64)
+            fields.append((f"f{j}", f"U{width}"))
+    try:  # numpy's C parser, whitespace-delimited, one typed field per column
+        if path.stat().st_size == 0:  # an empty day (loadtxt would warn)
+            table = np.zeros(0, dtype=np.dtype(fields))
+        else:
+            table = np.loadtxt(path, dtype=np.dtype(fields), ndmin=1, encoding="ascii")
+    except ValueError as exc:
+        raise InputFormatError(f"table does not match its label's {ncol} columns: {exc}",
+                               path=str(path)) from exc
     variables: dict[str, dict[str, Any]] = {}
     for j, c in enumerate(cols):
         dtype = np.dtype(str(c.get("FLUXCAL_DTYPE", "str")))
-        raw = table[:, j]
-        if dtype.kind in "iu":
-            vals = raw.astype(np.float64).astype(dtype) if np.char.count(raw, ".").any() \
-                else raw.astype(dtype)
-        elif dtype.kind == "f":
-            vals = raw.astype(np.float64)
+        raw = table[f"f{j}"]
+        if dtype.kind == "f":
+            vals = raw
             miss = c.get("MISSING_CONSTANT")
             if miss is not None:
                 vals = np.where(vals == float(miss), np.nan, vals)
             vals = vals.astype(dtype)
-        elif dtype.kind == "b":
-            vals = raw.astype(np.int64).astype(bool)
+        elif dtype.kind in "iub":
+            vals = raw.astype(dtype)
         else:
-            vals = raw.astype(str)
+            vals = raw.astype(dtype if dtype.kind == "U" else str)
         name = str(c.get("FLUXCAL_VARIABLE", c["NAME"]))
         entry = variables.setdefault(name, {"values": [], "components": [], "attrs": {},
                                             "dim": c.get("FLUXCAL_COMPONENT_DIM")})
