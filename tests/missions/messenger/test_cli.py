@@ -18,7 +18,8 @@ def test_edr2cdr_writes_archive_named_products(tmp_path, simulated_files, messen
                       "--average", "60", "--formats", "tab,cdf"))
     assert code == 0
     names = sorted(p.name for p in out.iterdir())
-    # corrected times of the first samples fall before midnight: two UTC days
+    # the first corrected times fall before midnight but stay in their EDR day (12153)
+    assert not any("12152" in n for n in names)
     assert "MAGMSOSCI12153.TAB" in names and "MAGMSOSCI12153.LBL" in names
     assert "MAGMSOSCI12153.cdf" in names and "MAGRTNSCIAVG12153_60.TAB" in names
     assert "MAGOFFSETS12153.png" in names and "MAGOFFSETS12153.txt" in names

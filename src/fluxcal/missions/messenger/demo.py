@@ -69,7 +69,7 @@ def run_demo(out: Path) -> str:
     from fluxcal.missions.messenger.run import run_edr2cdr
 
     out = Path(out)
-    paths = simulate_to_dir(out / "simulation", "2012-06-01T00:01:00")
+    paths = simulate_to_dir(out / "simulation")
     products = out / "products"
     written = run_edr2cdr([paths["science"]], [paths["heater"]], [paths["temperature"]],
                           paths["kernels"], products)

@@ -87,7 +87,8 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
     Returns
     -------
     xarray.Dataset
-        With ``met_corrected``, ``lag``, ``et`` and the coordinate ``epoch`` (TT2000 ns).
+        With ``met_corrected``, ``lag``, ``et``, ``et_recorded`` (uncorrected, decides
+        the product day) and the coordinate ``epoch`` (TT2000 ns).
 
     References
     ----------
@@ -96,7 +97,9 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
     lag = per_sample_lag(ds["rate"].values, cal.net_lag_s)
     met = ds["met"].values - lag
     et = sclk.to_et(ds["partition"].values, met)
+    et_recorded = sclk.to_et(ds["partition"].values, ds["met"].values)
     out = ds.assign(
+        et_recorded=_scalar(et_recorded, "s", "ephemeris time of the recorded (EDR) MET"),
         lag=_scalar(lag, "s", "net time lag subtracted from the MET (Table 1)"),
         met_corrected=_scalar(met, "s", "MET corrected for the net lag"),
         et=_scalar(et, "s", "ephemeris time (TDB seconds past J2000)"),

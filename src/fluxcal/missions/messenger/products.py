@@ -186,9 +186,14 @@ def write_day(
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def _day_et(ds: xr.Dataset) -> np.ndarray:
+    """Return the times that decide a sample's product day (recorded EDR time if known)."""
+    return ds["et_recorded"].values if "et_recorded" in ds else ds["et"].values
+
+
 def day_code(ds: xr.Dataset) -> tuple[int, int, str]:
-    """Return (year, day of year, ``yyddd``) of the first sample's UTC day."""
-    utc = _utc_fields(ds["et"].values[:1])
+    """Return (year, day of year, ``yyddd``) of the first sample's (EDR) UTC day."""
+    utc = _utc_fields(_day_et(ds)[:1])
     year, doy = int(utc["year"][0]), int(utc["doy"][0])
     return year, doy, f"{year % 100:02d}{doy:03d}"
 
@@ -202,8 +207,12 @@ def _utc_fields_ds(avg: xr.Dataset) -> dict:
 
 
 def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
-    """Split a calibrated dataset by UTC day (of the corrected time)."""
-    utc = _utc_fields(ds["et"].values)
+    """Split a calibrated dataset by the UTC day of the recorded (EDR) time.
+
+    A sample stays in its EDR day even when the lag correction moves its time a few
+    hundredths of a second across midnight, so each EDR day gives exactly one CDR day.
+    """
+    utc = _utc_fields(_day_et(ds))
     key = utc["year"].astype(np.int64) * 1000 + utc["doy"]
     edges = np.flatnonzero(np.diff(key)) + 1
     bounds = np.concatenate([[0], edges, [key.size]])

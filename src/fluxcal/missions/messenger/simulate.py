@@ -164,7 +164,7 @@ def simulate(
     et_start = float(utc_to_et(np.array([config.start_utc]))[0])
     part_arr, met_arr = sclk.from_et(np.array([et_start]))
     partition = int(part_arr[0])
-    met0 = float(np.floor(met_arr[0]))
+    met0 = float(np.ceil(met_arr[0]))  # first whole MET second at or after the start
     # --- heater schedule (integer MET seconds) -------------------------------------------
     # the heater stream starts with 10 s of heater off, so the first edge is visible
     h_zero = met0 - config.lead_s
