@@ -147,3 +147,50 @@ def test_worker_processes_are_single_threaded(cluster) -> None:
         assert all(w["nthreads"] == 1 for w in info.values())
         pids = client.run(os.getpid)
         assert len(set(pids.values())) == 2 and os.getpid() not in pids.values()
+
+
+def test_worker_loads_kernels_once(cluster) -> None:
+    from distributed import Client
+
+    def probe(_: int) -> tuple[int, int, int]:
+        import os
+
+        import spiceypy
+
+        from fluxcal.products.batch import worker_kernel_pool
+
+        pool = worker_kernel_pool([])
+        again = worker_kernel_pool([])
+        assert again is pool
+        return os.getpid(), id(pool), spiceypy.ktotal("ALL")
+
+    with Client(cluster.scheduler_address) as client:
+        results = client.gather(client.map(probe, range(8), pure=False))
+    by_pid: dict[int, set] = {}
+    for pid, pool_id, n_kernels in results:
+        by_pid.setdefault(pid, set()).add((pool_id, n_kernels))
+    # one pool object and one kernel count per worker process, however many days it ran
+    assert all(len(v) == 1 for v in by_pid.values())
+    assert all(n > 0 for v in by_pid.values() for _, n in v)
+
+
+def test_worker_kernel_pool_switches_lists() -> None:
+    import spiceypy
+
+    from fluxcal.geometry.kernels import frame_kernel_path
+    from fluxcal.products.batch import _KERNEL_CACHE, worker_kernel_pool
+
+    before = spiceypy.ktotal("ALL")
+    try:
+        a = worker_kernel_pool([])
+        n_a = spiceypy.ktotal("ALL")
+        b = worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
+        assert b is not a
+        assert spiceypy.ktotal("ALL") >= n_a
+        assert worker_kernel_pool([frame_kernel_path("MSGR_MSO")]) is b
+    finally:
+        pool = _KERNEL_CACHE.pop("pool", None)
+        _KERNEL_CACHE.clear()
+        if pool is not None:
+            pool.__exit__(None, None, None)
+    assert spiceypy.ktotal("ALL") == before

@@ -40,3 +40,16 @@ def test_cli_batch_unknown_mission(tmp_path: Path) -> None:
     args = ["batch", "voyager", "--start", "2024-03-01", "--end", "2024-03-01",
             "--input", str(tmp_path), "--out", str(tmp_path / "o")]
     assert main(args) == 2
+
+
+def test_cli_batch_default_local_cluster(tmp_path: Path) -> None:
+    days = day_range(dt.date(2024, 3, 1), dt.date(2024, 3, 2))
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, days, n_per_day=20)
+    args = ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-02",
+            "--input", str(inp), "--out", str(out), "--workers", "1", "--formats", "nc"]
+    assert main(args) == 0
+    report = json.loads((out / "batch_report_synthetic.json").read_text())
+    assert report["scheduler"].startswith("tcp://") and report["n_workers"] == 1
+    assert sorted(p.name for p in out.glob("SYNTH_*")) == ["SYNTH_20240301.nc",
+                                                           "SYNTH_20240302.nc"]
