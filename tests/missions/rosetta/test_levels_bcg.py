@@ -199,3 +199,18 @@ def test_obt_carried_to_bin_middle(run):
     fit = np.polyfit(x, a["obt"].values[sel], 1)
     assert e["obt"].values[10] == pytest.approx(fit[1], abs=1e-6)
     assert Path(a.attrs["time_shift_table"]).name == "RPCMAG_FILTER_TIMESHIFT.csv"
+
+
+def test_level_c_cseq(run, kernels):
+    b = run["OB"]["b"].isel(time=slice(0, None, 211))
+    with KernelPool(kernels):
+        c = level_c.level_c(b, frame="CSEQ", centre="67P/C-G")
+        oracle = level_c.level_c(b, frame="CSEQ", centre="67P/C-G", method="oracle")
+        et = tt2000_to_et(b["epoch"].values[:1])[0]
+        # CSEQ definition: +X from the comet to the Sun
+        sun = spiceypy.spkpos("SUN", float(et), "67P/C-G_CSEQ", "NONE", "67P/C-G")[0]
+    assert c.attrs["output_frame"] == "67P/C-G_CSEQ"
+    np.testing.assert_allclose(sun[1:] / np.linalg.norm(sun), 0.0, atol=1e-12)
+    np.testing.assert_allclose(c["b"].values, oracle["b"].values, atol=1e-6)
+    # the synthetic spacecraft escorts the comet at 30 km
+    np.testing.assert_allclose(np.linalg.norm(c["position"].values, axis=1), 30.0, rtol=1e-6)

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.rosetta import calib, io, level_a, simulate
 from fluxcal.missions.rosetta.calib import DailyOffsetModel
 
@@ -128,3 +129,44 @@ def test_primary_ib_swaps_time_shift_tables(pool):
     for sensor in ("OB", "IB"):
         a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom, primary="IB")
         assert np.sqrt((_compare(a, sim.truth[sensor]) ** 2).mean()) < RMS_NT
+
+
+def test_round_trip_across_midnight_with_two_daily_files(pool):
+    """Two days, each with its own polynomial: LEVEL_A stays within the quantisation budget and
+    the applied extended offset has no jump at midnight (sec. 4.2.3.3)."""
+    cals, ts, nom, al, jumps = _setup()
+    days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
+    models = {}
+    for sensor in ("OB", "IB"):
+        models[sensor] = {}
+        for k, day in enumerate(days):
+            c = np.zeros((6, 3))
+            c[0] = [2.0 + 5 * k, -1.0 - 3 * k, 0.5 + 4 * k]  # 5 nT step between the days' P_0
+            c[1] = [0.01, 0.02 * (1 - k), -0.01]
+            models[sensor][day] = DailyOffsetModel(day, sensor, c, f"{sensor} {day}")
+    sim = simulate.simulate(
+        "2014-08-01T23:55:00",
+        600.0,
+        calibrations=cals,
+        time_shifts=ts,
+        nominal=nom,
+        alignment=al,
+        jumps=jumps,
+        daily_models=models,
+        seed=7,
+    )
+    a = level_a.level_a(sim.science["OB"], cals["OB"], ts, nom, daily_models=models["OB"])
+    diff = _compare(a, sim.truth["OB"])
+    assert np.all(np.sqrt((diff**2).mean(axis=0)) < RMS_NT)
+    # independent of the forward model: with stitching, the offset difference between the
+    # two days cancels at the last temperature of day 1 (closed form from sec. 4.2.3.3)
+    state = level_a.StitchState.from_attrs(a.attrs)
+    raw = sim.science["OB"]
+    good = level_a.good_vectors(raw["quality"].values)
+    midnight = utc_to_tt2000(np.array(["2014-08-02T00:00:00"]))[0]
+    last = np.flatnonzero(good & (raw["epoch"].values < midnight))[-1]
+    te = level_a.sensor_temperature(raw["t_ob_counts"].values[[last]], cals["OB"], nom)[0]
+    p = lambda c, t: c[0] + c[1] * t  # noqa: E731
+    c1, c2 = (models["OB"][d].coefficients for d in days)
+    np.testing.assert_allclose(state.correction, p(c2, te) - p(c1, te), atol=1e-12)
+    assert a.attrs["extended_temperature_model"].count("OB 2014-08-0") == 2

@@ -99,8 +99,8 @@ def write_level(
         part = part.assign(
             time_utc=(
                 "time",
-                tt2000_to_utc(part["epoch"].values, digits=6, lsk=lsk),
-                {"units": "UTC"},
+                tt2000_to_utc(_round_us(part["epoch"].values), digits=6, lsk=lsk),
+                {"units": "UTC", "description": "TIME.UTC rounded to the microsecond"},
             )
         )
         attrs = {k: v for k, v in part.attrs.items() if not k.startswith("stitch_")}
@@ -234,6 +234,11 @@ def calibrate_files(
     return result
 
 
+def _round_us(epoch: np.ndarray) -> np.ndarray:
+    """Round TT2000 ns to the nearest microsecond (the TIME.UTC string has 6 digits)."""
+    return (np.asarray(epoch, dtype=np.int64) + 500) // 1000 * 1000
+
+
 def _utc(epoch: np.ndarray, lsk) -> np.ndarray:
     from fluxcal.geometry.time import tt2000_to_utc
 
@@ -245,7 +250,11 @@ def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]
     from fluxcal.products import Column, write_product
 
     ds = ds.assign(
-        time_utc=("time", tt2000_to_utc(ds["epoch"].values, digits=6, lsk=lsk), {"units": "UTC"})
+        time_utc=(
+            "time",
+            tt2000_to_utc(_round_us(ds["epoch"].values), digits=6, lsk=lsk),
+            {"units": "UTC"},
+        )
     )
     ds.attrs = {**ds.attrs, **prov, "level": "A (HK)"}
     day = str(_utc(ds["epoch"].values[:1], lsk)[0])[:10].replace("-", "")
