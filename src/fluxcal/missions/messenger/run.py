@@ -11,6 +11,8 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+import xarray as xr
+
 from fluxcal.errors import ValidationError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
@@ -22,6 +24,66 @@ from fluxcal.missions.messenger.validation_report import write_report
 
 log = logging.getLogger(__name__)
 
+DEFAULT_FRAMES = ("mso", "j2000", "mbf", "rtn", "sc")
+
+
+def calibrate_and_write(
+    sci: xr.Dataset,
+    heat: xr.Dataset,
+    temp: xr.Dataset,
+    out_dir: Path,
+    *,
+    inputs: Sequence[Path],
+    kernel_list: Sequence[str],
+    frames: Sequence[str] = DEFAULT_FRAMES,
+    formats: Sequence[str] = ("tab", "cdf"),
+    averages: Sequence[int] = AVERAGES_S,
+    max_offset_step: float | None = 2.0,
+    calibration_folder: Path | None = None,
+    only_day: str | None = None,
+) -> list[Path]:
+    """Calibrate loaded streams (kernels already loaded) and write every day's products.
+
+    Parameters
+    ----------
+    only_day : str, optional
+        ``yyddd`` of the one day to write (other days in the data are dropped), e.g.
+        when the previous day's files were given for the look-back.
+
+    Raises
+    ------
+    ValidationError
+        After writing the good days, naming every day that failed the sec. 13 check.
+    """
+    from fluxcal.products import provenance_attrs
+
+    cal = load_calibration(day_of(sci), calibration_folder)
+    ds = calibrate(sci, heat, temp, cal, frames=tuple(frames), max_offset_step=None)
+    prov = provenance_attrs(
+        inputs=list(inputs),
+        calibration={name: version for name, version in cal.files},
+        kernels=list(kernel_list),
+    )
+    prov["calibration_tables"] = cal.provenance()
+    written: list[Path] = []
+    failures: list[str] = []
+    for day in split_days(ds):
+        yyddd = day_code(day)[2]
+        if only_day is not None and yyddd != only_day:
+            continue
+        try:
+            if max_offset_step is not None:
+                levels.validate_offsets(day, max_offset_step)
+        except ValidationError as exc:
+            failures.append(f"day {yyddd}: {exc}")
+            log.error("day %s failed validation: %s", yyddd, exc)
+            continue
+        written += write_day(day, out_dir, frames, formats, averages, prov)
+        written += write_report(day, Path(out_dir) / f"MAGOFFSETS{yyddd}", max_offset_step)
+    if failures:
+        raise ValidationError("; ".join(failures))
+    return written
+
 
 def run_edr2cdr(
     science: Sequence[Path],
@@ -30,12 +92,12 @@ def run_edr2cdr(
     kernels: Path | Sequence[Path],
     out_dir: Path,
     *,
-    frames: Sequence[str] = ("mso", "j2000", "mbf", "rtn", "sc"),
+    frames: Sequence[str] = DEFAULT_FRAMES,
     formats: Sequence[str] = ("tab", "cdf"),
     averages: Sequence[int] = AVERAGES_S,
     max_offset_step: float | None = 2.0,
 ) -> list[Path]:
-    """Run the MESSENGER MAG EDR -> CDR chain and write the products of every day.
+    """Run the MESSENGER MAG EDR -> CDR chain on files and write the products of every day.
 
     A day whose offsets fail the smoothness check (sec. 13) gets no file; the other
     days are written, then `ValidationError` is raised naming the failed days.
@@ -45,36 +107,13 @@ def run_edr2cdr(
     list of Path
         Every file written.
     """
-    from fluxcal.products import provenance_attrs
-
     sci = read_science(science)
     heat = read_heater(heater)
     temp = read_temperature(temperature)
-    out_dir = Path(out_dir)
-    written: list[Path] = []
-    failures: list[str] = []
     with KernelPool(kernels) as pool:
-        cal = load_calibration(day_of(sci))
-        ds = calibrate(sci, heat, temp, cal, frames=tuple(frames), max_offset_step=None)
-        kernel_list = pool.kernel_list()
-        prov = provenance_attrs(
+        return calibrate_and_write(
+            sci, heat, temp, Path(out_dir),
             inputs=[*map(Path, science), *map(Path, heater), *map(Path, temperature)],
-            calibration={name: version for name, version in cal.files},
-            kernels=kernel_list,
+            kernel_list=pool.kernel_list(), frames=frames, formats=formats,
+            averages=averages, max_offset_step=max_offset_step,
         )
-        prov["calibration_tables"] = cal.provenance()
-        for day in split_days(ds):
-            try:
-                if max_offset_step is not None:
-                    levels.validate_offsets(day, max_offset_step)
-            except ValidationError as exc:
-                failures.append(str(exc))
-                log.error("day failed validation: %s", exc)
-                continue
-            files = write_day(day, out_dir, frames, formats, averages, prov)
-            written += files
-            yyddd = day_code(day)[2]
-            written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step)
-    if failures:
-        raise ValidationError("; ".join(failures))
-    return written
