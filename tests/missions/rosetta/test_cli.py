@@ -128,3 +128,47 @@ def test_calibrate_level_a_from_utc_only(sim, tmp_path):
     assert main(args) == 0
     label = (tmp_path / "RPCMAG_20140801_CLA_OB.LBL").read_text()
     assert "ground calibration alone" in label
+
+
+def test_stitch_state_file_between_runs(tmp_path):
+    """Two consecutive days processed by two command runs: the state file carries the
+    end-of-day offset (sec. 4.2.3.3) so day 2's offset continues day 1's."""
+    import json
+
+    from fluxcal.missions.rosetta.simulate import write_simulation
+
+    sim = write_simulation(tmp_path / "sim", start_utc="2014-08-01T23:58:00", hours=0.05)
+    state = tmp_path / "state.json"
+    from fluxcal.missions.rosetta.pipeline import calibrate_files, read_stitch_state
+
+    whole = calibrate_files(
+        sim["science_OB"], "OB", tmp_path / "p0", calib_dir=sim["calib"], write=False
+    )
+    # split the raw file at midnight and process the halves one after the other
+    lines = sim["science_OB"].read_text().splitlines()
+    day1 = [ln for ln in lines[1:] if ln.startswith("2014-08-01")]
+    day2 = [ln for ln in lines[1:] if ln.startswith("2014-08-02")]
+    (tmp_path / "d1.csv").write_text("\n".join([lines[0], *day1]) + "\n")
+    (tmp_path / "d2.csv").write_text("\n".join([lines[0], *day2]) + "\n")
+    calibrate_files(
+        tmp_path / "d1.csv",
+        "OB",
+        tmp_path / "p1",
+        calib_dir=sim["calib"],
+        stitch_state=state,
+        formats=("tab",),
+    )
+    assert read_stitch_state(state) is not None and "stitch_correction_nt" in json.loads(
+        state.read_text()
+    )
+    r2 = calibrate_files(
+        tmp_path / "d2.csv",
+        "OB",
+        tmp_path / "p2",
+        calib_dir=sim["calib"],
+        stitch_state=state,
+        formats=("tab",),
+    )
+    a_whole, a2 = whole.levels["A"], r2.levels["A"]
+    sel = np.isin(a_whole["epoch"].values, a2["epoch"].values)
+    np.testing.assert_allclose(a2["b"].values, a_whole["b"].values[sel], atol=1e-9)

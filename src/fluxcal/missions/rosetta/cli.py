@@ -38,6 +38,11 @@ def calibrate(
     stitch_gap_hours: float = typer.Option(
         3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps (sec. 4.2.3.3)."
     ),
+    stitch_state: Path | None = typer.Option(
+        None,
+        "--stitch-state",
+        help="JSON file carrying the midnight-stitching state from one day's run to the next.",
+    ),
     no_jumps: bool = typer.Option(False, "--no-jumps", help="Skip the Appendix B offset jumps."),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
 ) -> None:
@@ -58,6 +63,7 @@ def calibrate(
         centre=centre,
         boom=boom,
         stitch_gap_s=stitch_gap_hours * 3600.0,
+        stitch_state=stitch_state,
         jumps=not no_jumps,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
     )

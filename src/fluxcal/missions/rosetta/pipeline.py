@@ -149,6 +149,7 @@ def calibrate_files(
     centre: str = "SUN",
     boom: str = "deployed",
     stitch_gap_s: float = level_a.STITCH_GAP_S,
+    stitch_state: Path | None = None,
     jumps: bool = True,
     formats: Sequence[str] = ("tab", "cdf"),
     write: bool = True,
@@ -156,6 +157,9 @@ def calibrate_files(
     """Run ``fluxcal rosetta calibrate``: read raw CSV, make the levels, write products.
 
     Parameters mirror the command's options (see `fluxcal.missions.rosetta.cli`).
+    ``stitch_state`` is a JSON file holding the end-of-day state of the extended
+    temperature model (sec. 4.2.3.3: "the offset values at the end of a day are stored in a
+    separate file"): read before LEVEL_A when it exists, rewritten after.
 
     Raises
     ------
@@ -199,9 +203,12 @@ def calibrate_files(
             daily_models=models,
             primary=primary,
             stitch_gap_s=stitch_gap_s,
+            previous=read_stitch_state(stitch_state),
             lsk=lsk,
         )
         result.levels["A"] = a
+        if stitch_state is not None and write:
+            write_stitch_state(a, stitch_state)
         if "B" in need:
             alignment = calib.load_alignment(calib_dir)
             table = calib.load_offset_jump_table(calib_dir) if jumps else None
@@ -232,6 +239,37 @@ def calibrate_files(
             if hk_file is not None:
                 result.paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
     return result
+
+
+def read_stitch_state(path: Path | None) -> level_a.StitchState | None:
+    """Read the end-of-day stitching state written by `write_stitch_state` (``None`` if absent)."""
+    import json
+
+    if path is None or not Path(path).is_file():
+        return None
+    try:
+        return level_a.StitchState.from_attrs(json.loads(Path(path).read_text(encoding="utf-8")))
+    except (ValueError, KeyError, TypeError) as exc:
+        raise FluxcalError(f"{path}: not a fluxcal stitching state file ({exc})") from None
+
+
+def write_stitch_state(level_a_ds: xr.Dataset, path: Path) -> Path | None:
+    """Write the stitching state of a LEVEL_A dataset as JSON (atomically).
+
+    A stale file is removed when the last day had no extended model (the chain is broken).
+    """
+    import json
+    import os
+
+    path = Path(path)
+    state = {k: v for k, v in level_a_ds.attrs.items() if k.startswith("stitch_")}
+    if not state:
+        path.unlink(missing_ok=True)
+        return None
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(state, indent=1), encoding="utf-8")
+    os.replace(tmp, path)
+    return path
 
 
 def _round_us(epoch: np.ndarray) -> np.ndarray:
