@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta import calib, io, level_a
@@ -122,3 +124,42 @@ def test_hk_round_trip(pool, tmp_path):
     # HK temperature without T_OFF (sec. 4.2.2.5) = calibrated + T_OFF, in K
     t_true = sim.truth["OB"]["temperature"].values[::160][: out.sizes["time"]]
     np.testing.assert_allclose(out["t_ob"].values, t_true + cals["OB"].thermistor_offset, atol=0.05)
+
+
+@settings(
+    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(-(2**19), 2**19 - 1),
+            st.integers(0, 2**16 - 1),
+            st.integers(1, 6),
+            st.integers(0, 7),
+        ),
+        min_size=1,
+        max_size=30,
+    )
+)
+def test_science_csv_round_trip(pool, tmp_path, rows):
+    import xarray as xr
+
+    n = len(rows)
+    c, w, sid, q = (np.array(v) for v in zip(*rows, strict=True))
+    epoch = 460_000_000_000_000_000 + np.arange(n, dtype=np.int64) * 50_000_123
+    ds = xr.Dataset(
+        {
+            "obt": ("time", 3.6e8 + np.arange(n) * 0.05),
+            "sid": ("time", sid),
+            "b_counts": (("time", "component"), np.stack([c, -c - 1, c // 3], axis=1)),
+            "t_ob_counts": ("time", w),
+            "t_ib_counts": ("time", w[::-1]),
+            "quality": ("time", q),
+        },
+        coords={"epoch": ("time", epoch), "component": ["x", "y", "z"]},
+    )
+    back = io.read_science_csv(io.write_science_csv(ds, tmp_path / "rt.csv"), "OB")
+    for name in ("sid", "b_counts", "t_ob_counts", "t_ib_counts", "quality"):
+        np.testing.assert_array_equal(back[name].values, ds[name].values)
+    np.testing.assert_allclose(back["obt"].values, ds["obt"].values, atol=5e-7)
+    assert np.abs(back["epoch"].values - epoch).max() <= 1000  # 6 decimals of UTC seconds
