@@ -47,9 +47,11 @@ def test_cli_batch_default_local_cluster(tmp_path: Path) -> None:
     inp, out = tmp_path / "in", tmp_path / "out"
     write_synthetic_inputs(inp, days, n_per_day=20)
     args = ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-02",
-            "--input", str(inp), "--out", str(out), "--workers", "1", "--formats", "nc"]
+            "--input", str(inp), "--out", str(out), "--workers", "1", "--formats", "nc",
+            "--quicklook"]
     assert main(args) == 0
     report = json.loads((out / "batch_report_synthetic.json").read_text())
     assert report["scheduler"].startswith("tcp://") and report["n_workers"] == 1
-    assert sorted(p.name for p in out.glob("SYNTH_*")) == ["SYNTH_20240301.nc",
-                                                           "SYNTH_20240302.nc"]
+    assert sorted(p.name for p in out.glob("SYNTH_*")) == [
+        "SYNTH_20240301.nc", "SYNTH_20240301_20240301.png",
+        "SYNTH_20240302.nc", "SYNTH_20240302_20240302.png"]

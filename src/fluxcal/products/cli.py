@@ -56,6 +56,7 @@ def batch(
     kernels: Path | None = typer.Option(None, "--kernels", help="Meta-kernel for the days."),
     calib: Path | None = typer.Option(None, "--calib", help="Calibration folder."),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats."),
+    quicklook: bool = typer.Option(False, "--quicklook", help="Also write a PNG per day."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
     """Process many days on Dask, one task per day; resumable; exits 1 if a day failed."""
@@ -67,7 +68,7 @@ def batch(
     if d1 < d0:
         raise InputFormatError(f"--end {d1} is before --start {d0}", field="--end")
     factory = task_factory(mission)
-    options = {"kernels": kernels, "calib": calib,
+    options = {"kernels": kernels, "calib": calib, "quicklook": quicklook or None,
                "formats": tuple(f.strip() for f in formats.split(",") if f.strip())}
     task = factory(input_dir, out, **{k: v for k, v in options.items() if v is not None})
     days = day_range(d0, d1)

@@ -20,6 +20,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import cdflib
 import numpy as np
 import xarray as xr
 
@@ -30,8 +31,6 @@ from fluxcal.products.provenance import provenance_attrs
 from fluxcal.products.writer import write_product
 
 CALIB_NAME = "synthetic_calib.txt"
-# 2000-01-01T12:00:00 TT is TT2000 = 0; days are placed on a simple TT grid.
-_J2000_DATE = _dt.date(2000, 1, 1)
 _DAY_NS = 86_400 * 1_000_000_000
 
 
@@ -41,8 +40,8 @@ def input_path(input_dir: Path, day: _dt.date) -> Path:
 
 
 def day_epoch0(day: _dt.date) -> int:
-    """TT2000 ns at the start of ``day`` on the TT grid used by the synthetic data."""
-    return (day - _J2000_DATE).days * _DAY_NS - 43_200 * 1_000_000_000
+    """TT2000 ns of 00:00 UTC of ``day`` (cdflib's leap-second table)."""
+    return int(cdflib.cdfepoch.compute_tt2000([day.year, day.month, day.day, 0, 0, 0, 0, 0, 0]))
 
 
 def write_synthetic_inputs(input_dir: Path, days: list[_dt.date], n_per_day: int = 1000,
@@ -112,6 +111,7 @@ class SyntheticDayTask:
     formats: tuple[str, ...] = ("tab", "cdf")
     delay: float = 0.0
     crash_once_on: _dt.date | None = None
+    quicklook: bool = False
     name: str = "synthetic"
 
     def inputs(self, day: _dt.date) -> DayInputs:
@@ -142,6 +142,10 @@ class SyntheticDayTask:
             self._maybe_crash(stem)
         cols = [Column("epoch", "%d"), Column("B", "%10.3f", label="B{c}")]
         paths = write_product(ds, stem, formats=self.formats, columns=cols)
+        if self.quicklook:
+            from fluxcal.products.quicklook import write_quicklooks
+
+            paths += write_quicklooks(ds, Path(self.out_dir), stem.name)
         return DayResult(day, paths, n_vectors=len(b))
 
     def _maybe_crash(self, stem: Path) -> None:
@@ -155,8 +159,8 @@ class SyntheticDayTask:
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> SyntheticDayTask:
-    """Build the task for ``fluxcal batch synthetic`` (options: formats, delay)."""
-    allowed = {"formats", "delay"}
+    """Build the task for ``fluxcal batch synthetic`` (options: formats, delay, quicklook)."""
+    allowed = {"formats", "delay", "quicklook"}
     opts = {k: v for k, v in options.items() if k in allowed and v is not None}
     if "formats" in opts:
         opts["formats"] = tuple(opts["formats"])
