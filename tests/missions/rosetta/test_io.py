@@ -1,5 +1,7 @@
 """Bad inputs: messages name file, line and field (issue 4)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -163,3 +165,24 @@ def test_science_csv_round_trip(pool, tmp_path, rows):
         np.testing.assert_array_equal(back[name].values, ds[name].values)
     np.testing.assert_allclose(back["obt"].values, ds["obt"].values, atol=5e-7)
     assert np.abs(back["epoch"].values - epoch).max() <= 1000  # 6 decimals of UTC seconds
+
+
+SHARED = Path(__file__).resolve().parents[3] / ".." / "shared" / "data" / "kernels"
+
+
+def test_obt_through_real_rosetta_sclk(tmp_path):
+    """OBT -> time with the real Rosetta SCLK (MANIFEST: 1/0370000000 is
+    2014-09-22T09:47:49.694 UTC)."""
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import SclkKernel, tt2000_to_utc
+
+    rows = [
+        "2014-09-22T09:47:49.694000,370000000.000000,2,0,0,0,16000,16000,0",
+        "2014-09-22T09:47:49.744000,370000000.050000,2,0,0,0,16000,16000,0",
+    ]
+    with KernelPool([SHARED / "rosetta" / "ROS_160929_STEP.TSC"]):
+        ds = io.read_science_csv(_file(tmp_path, rows), "OB", sclk=SclkKernel.from_pool(-226))
+        utc = tt2000_to_utc(ds["epoch"].values, digits=3)
+    assert ds.attrs["time_source"] == "obt"
+    assert utc[0] == "2014-09-22T09:47:49.694"
+    assert abs(np.diff(ds["epoch"].values)[0] - 50_000_000) < 100  # clock rate ~1
