@@ -322,11 +322,7 @@ def _apply(m: np.ndarray, v: np.ndarray, transpose: bool = False) -> np.ndarray:
     """``out[i] = M[i] @ v[i]`` (or ``M[i].T @ v[i]``); a single matrix applies to all."""
     if m.shape[0] == 1:
         return v @ (m[0] if transpose else m[0].T)
-    out = np.empty_like(v)
-    for i in range(3):
-        row = m[:, :, i] if transpose else m[:, i, :]
-        out[:, i] = row[:, 0] * v[:, 0] + row[:, 1] * v[:, 1] + row[:, 2] * v[:, 2]
-    return out
+    return np.einsum("nji,nj->ni" if transpose else "nij,nj->ni", m, v)
 
 
 def add_geometry(
