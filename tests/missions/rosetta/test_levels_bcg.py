@@ -214,3 +214,37 @@ def test_level_c_cseq(run, kernels):
     np.testing.assert_allclose(c["b"].values, oracle["b"].values, atol=1e-6)
     # the synthetic spacecraft escorts the comet at 30 km
     np.testing.assert_allclose(np.linalg.norm(c["position"].values, axis=1), 30.0, rtol=1e-6)
+
+
+MAG_FK = """KPL/FK
+\\begindata
+   FRAME_ROS_RPC_MAG_OB      = -226541
+   FRAME_-226541_NAME        = 'ROS_RPC_MAG_OB'
+   FRAME_-226541_CLASS       = 4
+   FRAME_-226541_CLASS_ID    = -226541
+   FRAME_-226541_CENTER      = -226
+   TKFRAME_-226541_RELATIVE  = 'ROS_SPACECRAFT'
+   TKFRAME_-226541_SPEC      = 'ANGLES'
+   TKFRAME_-226541_UNITS     = 'DEGREES'
+   TKFRAME_-226541_AXES      = ( 1, 3, 1 )
+   TKFRAME_-226541_ANGLES    = ( -90.234, 89.944, 0.145 )
+\\begintext
+"""
+
+
+def test_alignment_from_spice_frames(run, kernels, tmp_path):
+    """Issue 4: where the frames kernel (and boom CK) define ROS_RPC_MAG_OB, LEVEL_B may take
+    R_UVW2SC from SPICE; it must equal the file path with the same matrix."""
+    fk = tmp_path / "mag.tf"
+    fk.write_text(MAG_FK)
+    a = run["OB"]["a"].isel(time=slice(0, 2000))
+    with KernelPool([kernels, fk]):
+        et0 = tt2000_to_et(a["epoch"].values[:1])[0]
+        rot = spiceypy.pxform("ROS_RPC_MAG_OB", "ROS_SPACECRAFT", float(et0))
+        b_spice = level_b.level_b(a, None, None)
+    keys = [("OB", "deployed"), ("OB", "stowed"), ("IB", "deployed"), ("IB", "stowed")]
+    al = calib.Alignment(dict.fromkeys(keys, rot), "from pxform", "x")
+    b_file = level_b.level_b(a, al, None)
+    np.testing.assert_allclose(b_spice["b"].values, b_file["b"].values, atol=1e-9)
+    assert "SPICE frames ROS_RPC_MAG_OB" in b_spice.attrs["alignment"]
+    assert not np.allclose(rot, np.eye(3))

@@ -43,6 +43,12 @@ def calibrate(
         "--stitch-state",
         help="JSON file carrying the midnight-stitching state from one day's run to the next.",
     ),
+    alignment_from_kernels: bool = typer.Option(
+        False,
+        "--alignment-from-kernels",
+        help="Take URF -> s/c from the frames ROS_RPC_MAG_OB/IB (needs the boom CK) "
+        "instead of RPCMAG_SC_ALIGN.TXT.",
+    ),
     no_jumps: bool = typer.Option(False, "--no-jumps", help="Skip the Appendix B offset jumps."),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
 ) -> None:
@@ -64,6 +70,7 @@ def calibrate(
         boom=boom,
         stitch_gap_s=stitch_gap_hours * 3600.0,
         stitch_state=stitch_state,
+        alignment_from_kernels=alignment_from_kernels,
         jumps=not no_jumps,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
     )

@@ -76,10 +76,11 @@ def offset_jumps(
 
 def level_b(
     level_a: xr.Dataset,
-    alignment: Alignment,
+    alignment: Alignment | None,
     jumps: OffsetJumpTable | None,
     *,
     boom: str = "deployed",
+    spacecraft_frame: str = "ROS_SPACECRAFT",
     lsk=None,
 ) -> xr.Dataset:
     """LEVEL_A (URF) -> LEVEL_B (spacecraft coordinates).
@@ -88,26 +89,43 @@ def level_b(
     ----------
     level_a : xarray.Dataset
         Output of `fluxcal.missions.rosetta.level_a.level_a`.
-    alignment : Alignment
-        R_UVW2SC matrices (``RPCMAG_SC_ALIGN.TXT``).
+    alignment : Alignment or None
+        R_UVW2SC matrices (``RPCMAG_SC_ALIGN.TXT``).  ``None`` takes the rotation from the
+        loaded SPICE frames instead: ``ROS_RPC_MAG_<sensor>`` -> ``spacecraft_frame`` (the
+        mission frames kernel with the boom CK, issue 4), evaluated per vector.
     jumps : OffsetJumpTable or None
         Appendix B table; ``None`` skips the jump correction.
     boom : {"deployed", "stowed"}
+        Which of the file's matrices (ignored with SPICE frames: the boom CK knows).
+    spacecraft_frame : str
+        SPICE name of the spacecraft frame (SPICE path only).
     lsk : LeapSecondTable, optional
 
     Returns
     -------
     xarray.Dataset
         Same variables, ``b`` in ``ROS_SPACECRAFT``; attributes name the alignment file
-        (and whether it is fluxcal's placeholder) and the jump table.
+        (and whether it is fluxcal's placeholder) or the SPICE frames, and the jump table.
 
     References
     ----------
-    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.3.1 and Appendix B.
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1 (alignment in RPCMAG_SC_ALIGN.TXT and the
+       frames kernel), 4.3.1 and Appendix B.
     """
     sensor = check_sensor(level_a.attrs["sensor"])
-    rot = alignment.matrix(sensor, boom)
-    b_sc = mat.apply(rot, level_a["b"].values)
+    if alignment is None:
+        from fluxcal.geometry.frames import rotate
+        from fluxcal.geometry.time import tt2000_to_et
+
+        mag_frame = f"ROS_RPC_MAG_{sensor}"
+        et = tt2000_to_et(level_a["epoch"].values, lsk)
+        b_sc = rotate(level_a["b"].values, et, mag_frame, spacecraft_frame)
+        described = f"SPICE frames {mag_frame} -> {spacecraft_frame}"
+    else:
+        b_sc = mat.apply(alignment.matrix(sensor, boom), level_a["b"].values)
+        described = f"{alignment.source} (version {alignment.version})" + (
+            " PLACEHOLDER identity, not the measured alignment" if alignment.placeholder else ""
+        )
     n_jumped = 0
     if jumps is not None:
         jump, idx = offset_jumps(level_a["epoch"].values, jumps, sensor, lsk=lsk)
@@ -117,9 +135,8 @@ def level_b(
     out["b"] = (("time", "component"), b_sc, {"units": "nT", "frame": "ROS_SPACECRAFT"})
     out.attrs.update(
         level="B",
-        boom=boom,
-        alignment=f"{alignment.source} (version {alignment.version})"
-        + (" PLACEHOLDER identity, not the measured alignment" if alignment.placeholder else ""),
+        boom=boom if alignment is not None else "from SPICE",
+        alignment=described,
         offset_jumps=(jumps.source if jumps is not None else "not applied"),
         n_offset_jump_corrected=n_jumped,
     )

@@ -151,6 +151,7 @@ def calibrate_files(
     stitch_gap_s: float = level_a.STITCH_GAP_S,
     stitch_state: Path | None = None,
     jumps: bool = True,
+    alignment_from_kernels: bool = False,
     formats: Sequence[str] = ("tab", "cdf"),
     write: bool = True,
 ) -> CalibrateResult:
@@ -172,6 +173,8 @@ def calibrate_files(
 
     sensor = calib.check_sensor(sensor)
     wanted = set(levels)
+    if alignment_from_kernels and kernels is None:
+        raise FluxcalError("--alignment-from-kernels needs --kernels (frames kernel + boom CK)")
     if wanted & {"C", "G"} and kernels is None:
         raise FluxcalError("levels C and G need SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
     need = set(wanted)
@@ -210,9 +213,10 @@ def calibrate_files(
         if stitch_state is not None and write:
             write_stitch_state(a, stitch_state)
         if "B" in need:
-            alignment = calib.load_alignment(calib_dir)
+            alignment = None if alignment_from_kernels else calib.load_alignment(calib_dir)
             table = calib.load_offset_jump_table(calib_dir) if jumps else None
-            used["alignment"] = alignment.source
+            if alignment is not None:
+                used["alignment"] = alignment.source
             if table is not None:
                 used["offset_jumps"] = table.source
             result.levels["B"] = level_b.level_b(a, alignment, table, boom=boom, lsk=lsk)
