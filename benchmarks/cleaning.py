@@ -39,7 +39,7 @@ def main() -> None:
     dt = time.perf_counter() - t0
     print(
         f"LEVEL_H line removal: {n} vectors (1 day @ 20 Hz), 6 lines, "
-        f"{res.window_starts.size} windows: {dt:.2f} s = {n / dt:,.0f} vectors/s "
+        f"{res.window_times.size} windows: {dt:.2f} s = {n / dt:,.0f} vectors/s "
         f"(target < 5 s: ratio {dt / 5:.2f})"
     )
 

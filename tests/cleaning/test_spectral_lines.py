@@ -189,12 +189,39 @@ def test_reproducible_and_seeded():
 @pytest.mark.parametrize("fs", [5.0, 20.0])
 def test_gap_splits_segments_and_short_series(fs):
     rng = np.random.default_rng(4)
-    t = np.concatenate([np.arange(3000), np.arange(5000, 5700)]) / fs  # gap; 2nd part < 1024
+    t = np.concatenate([np.arange(3000), np.arange(3020, 3720)]) / fs  # gap; 2nd part < 1024
     f_true = 13.3
     x = 0.01 * rng.normal(size=t.size) + np.cos(2 * np.pi * f_true * t)
     res = remove_spectral_lines(x, fs, [f_true], times=t)
     assert res.segments == [(0, 3000), (3000, 3700)]
     assert np.std(res.values[:3000]) < 0.02 and np.std(res.values[3000:]) < 0.02
+
+
+def test_short_gaps_are_bridged():
+    fs = 20.0
+    rng = np.random.default_rng(5)
+    keep = np.ones(6000, bool)
+    keep[rng.choice(np.arange(10, 5990), 40, replace=False)] = False  # dropped vectors
+    t = (np.arange(6000) / fs)[keep]
+    x = 0.01 * rng.normal(size=t.size) + np.cos(2 * np.pi * 7.3 * t)
+    res = remove_spectral_lines(x, fs, [7.3], times=t)
+    assert res.segments == [(0, t.size)]  # one segment: the gaps were filled for the FFT
+    assert res.values.shape == x.shape
+    assert np.std(res.values) < 0.02
+    assert any("filled" in note for note in res.notes)
+
+
+def test_repeated_times_split_and_short_pieces_pass_through():
+    t = np.arange(4000) / FS
+    t[2000:2004] = t[1999]  # four repeated stamps: a break of the uniform sampling
+    x = np.cos(2 * np.pi * 3.3 * np.arange(4000) / FS)
+    res = remove_spectral_lines(x, FS, [3.3], times=t)
+    # spacing 0 breaks the series; the last repeated stamp starts a new segment whose
+    # first step (5 samples) is a short gap, bridged
+    assert (0, 2000) in res.segments and (2003, 4000) in res.segments
+    np.testing.assert_array_equal(res.values[2000:2003], x[2000:2003])
+    assert "left unchanged" in res.notes[0]
+    assert np.std(res.values[:2000]) < 0.02
 
 
 def test_line_at_dc_never_touches_the_mean():
@@ -218,7 +245,7 @@ def test_interpolated_lines_refuses_far_extrapolation():
         (dict(fs=0.0), "fs"),
         (dict(bandwidth=-1.0), "bandwidth"),
         (dict(overlap=0.9), "overlap"),
-        (dict(times=np.zeros(100)), "times"),
+        (dict(times=np.full(100, np.inf)), "times"),
     ],
 )
 def test_argument_errors(kwargs, field):

@@ -199,20 +199,21 @@ class LineRemovalResult:
         Cleaned series.
     bandwidth : float
         Width ``delta_f`` (Hz) of the replaced bands.
-    window_starts : ndarray
-        First sample of each FFT window (indices into the input).
+    window_times : ndarray
+        Time (same scale as ``times``) of the first sample of each FFT window.
     line_frequencies : ndarray, shape (n_windows, n_lines)
         Folded line frequencies (Hz) used in each window (NaN: line absent).
     segments : list of (int, int)
-        Contiguous (gap-free) sample ranges processed separately; ranges too short for
-        any line band are left unchanged.
+        Sample ranges processed separately (split at gaps longer than
+        ``max_fill_samples``, repeated or interleaved times); ranges shorter than 8
+        samples are left unchanged.
     notes : list of str
         Human-readable notes (short segments passed through, ...).
     """
 
     values: NDArray[np.float64]
     bandwidth: float
-    window_starts: NDArray[np.int64]
+    window_times: NDArray[np.float64]
     line_frequencies: NDArray[np.float64]
     segments: list[tuple[int, int]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -229,9 +230,11 @@ def _line_callable(lines: LineFrequencies) -> Callable[[NDArray[np.float64]], ND
     return lambda t: np.broadcast_to(fixed, (np.size(t), fixed.size))
 
 
-def _segments(times: NDArray[np.float64], fs: float) -> list[tuple[int, int]]:
-    gaps = np.flatnonzero(np.diff(times) > 1.5 / fs) + 1
-    edges = np.concatenate([[0], gaps, [times.size]])
+def _segments(times: NDArray[np.float64], fs: float, max_fill: int) -> list[tuple[int, int]]:
+    """Maximal runs of samples whose spacing lies within [0.5, max_fill + 1.5] / fs."""
+    dt = np.diff(times)
+    breaks = np.flatnonzero((dt > (max_fill + 1.5) / fs) | (dt < 0.5 / fs)) + 1
+    edges = np.concatenate([[0], breaks, [times.size]])
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
 
@@ -427,6 +430,7 @@ def remove_spectral_lines(
     overlap: float = 0.25,
     neighbour_bins: int = 4,
     detection_snr: float = 10.0,
+    max_fill_samples: int = 10,
     seed: int | np.random.Generator = 0,
 ) -> LineRemovalResult:
     """Remove narrow (possibly drifting, aliased) spectral lines from a series.
@@ -442,8 +446,11 @@ def remove_spectral_lines(
         a callable ``f(t) -> (len(t), k)`` evaluated at each window's centre time (see
         `interpolated_lines` for reaction-wheel tables).  NaN means "no line".
     times : array_like, shape (n,), optional
-        Sample times in seconds (default ``arange(n) / fs``).  Gaps longer than 1.5
-        sample intervals split the series into segments processed separately.
+        Sample times in seconds (default ``arange(n) / fs``).  Gaps of up to
+        ``max_fill_samples`` missing samples are filled by linear interpolation for the
+        transforms only (the filled samples are not returned); longer gaps, repeated or
+        interleaved times split the series into segments processed separately;
+        segments shorter than 8 samples are left unchanged (noted in the result).
     bandwidth : float, optional
         Width ``delta_f`` (Hz) of the replaced band around each folded line (default
         `default_bandwidth`: 0.06 Hz at 20 Hz).  The bin nearest the line is always
@@ -458,6 +465,8 @@ def remove_spectral_lines(
         A line is fitted and subtracted (with its leakage) in a window only where the
         fitted band power exceeds this multiple of the background power in the band;
         otherwise only the band replacement is done.
+    max_fill_samples : int
+        Longest gap (in missing samples) bridged by interpolation inside a segment.
     seed : int or numpy.random.Generator
         Seed of the substituted noise (reproducible).
 
@@ -521,6 +530,10 @@ def remove_spectral_lines(
         raise InputFormatError(
             f"detection_snr must be >= 0, got {detection_snr}", field="detection_snr"
         )
+    if max_fill_samples < 0:
+        raise InputFormatError(
+            f"max_fill_samples must be >= 0, got {max_fill_samples}", field="max_fill_samples"
+        )
     if neighbour_bins < 1:
         raise InputFormatError(
             f"neighbour_bins must be >= 1, got {neighbour_bins}", field="neighbour_bins"
@@ -529,8 +542,8 @@ def remove_spectral_lines(
     t = np.arange(n) / fs if times is None else np.asarray(times, dtype=float)
     if t.shape != (n,):
         raise InputFormatError(f"times has shape {t.shape}, expected ({n},)", field="times")
-    if n > 1 and np.any(np.diff(t) <= 0):
-        raise InputFormatError("times must be strictly increasing", field="times")
+    if not np.all(np.isfinite(t)):
+        raise InputFormatError("times contain non-finite values", field="times")
     bw = default_bandwidth(fs) if bandwidth is None else float(bandwidth)
     if bw <= 0:
         raise InputFormatError(f"bandwidth must be > 0 Hz, got {bw}", field="bandwidth")
@@ -538,17 +551,26 @@ def remove_spectral_lines(
     lines = _line_callable(line_frequencies)
 
     out = x.copy()
-    all_starts: list[NDArray[np.int64]] = []
+    all_starts: list[NDArray[np.float64]] = []
     all_folded: list[NDArray[np.float64]] = []
     notes: list[str] = []
-    segs = _segments(t, fs) if n > 1 else [(0, n)]
+    segs = _segments(t, fs, max_fill_samples) if n > 1 else [(0, n)]
+    n_short = n_filled = 0
     for a, b in segs:
         if b - a < 8:
-            notes.append(f"samples {a}..{b - 1}: segment shorter than 8 samples left unchanged")
+            n_short += b - a
             continue
+        # put the segment on its uniform grid, filling short gaps linearly
+        pos = np.floor((t[a:b] - t[a]) * fs + 0.5).astype(np.int64)
+        grid = np.arange(pos[-1] + 1)
+        if grid.size == b - a:
+            xs = x[a:b]
+        else:
+            xs = np.stack([np.interp(grid, pos, x[a:b, j]) for j in range(x.shape[1])], 1)
+            n_filled += grid.size - (b - a)
         cleaned, starts, folded = _clean_segment(
-            x[a:b],
-            t[a:b],
+            xs,
+            t[a] + grid / fs,
             fs,
             lines,
             bw,
@@ -558,16 +580,20 @@ def remove_spectral_lines(
             detection_snr,
             rng,
         )
-        out[a:b] = cleaned
-        all_starts.append(starts + a)
+        out[a:b] = cleaned[pos]
+        all_starts.append(t[a] + starts / fs)
         all_folded.append(folded)
+    if n_short:
+        notes.append(f"{n_short} samples in segments shorter than 8 samples left unchanged")
+    if n_filled:
+        notes.append(f"{n_filled} missing samples filled by interpolation for the FFT only")
     for note in notes:
         log.info(note)
     k = all_folded[0].shape[1] if all_folded else 0
     return LineRemovalResult(
         values=out[:, 0] if one_d else out,
         bandwidth=bw,
-        window_starts=np.concatenate(all_starts) if all_starts else np.zeros(0, np.int64),
+        window_times=np.concatenate(all_starts) if all_starts else np.zeros(0),
         line_frequencies=np.concatenate(all_folded) if all_folded else np.zeros((0, k)),
         segments=segs,
         notes=notes,
