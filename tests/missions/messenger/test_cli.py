@@ -50,3 +50,12 @@ def test_bad_input_is_an_error_not_a_crash(tmp_path, simulated_files, messenger_
     assert code == 2
     err = capsys.readouterr().err
     assert "bad.csv" in err and "line 6" in err and "rate" in err
+
+
+def test_bad_options_are_errors(tmp_path, simulated_files, messenger_kernels, capsys):
+    out = tmp_path / "out"
+    assert main(_args(simulated_files, messenger_kernels, out, "--frames", "gse")) == 2
+    assert "frames" in capsys.readouterr().err
+    assert main(_args(simulated_files, messenger_kernels, out, "--average", "1,x")) == 2
+    assert "--average" in capsys.readouterr().err
+    assert not out.exists() or not any(out.iterdir())

@@ -28,12 +28,21 @@ def edr2cdr(
     ),
 ) -> None:
     """Calibrate MESSENGER MAG EDR streams into CDR products (seed 000 sec. 5-13)."""
+    from fluxcal.errors import InputFormatError
     from fluxcal.missions.messenger.run import run_edr2cdr
 
+    try:
+        averages = [int(a) for a in _split(average)]
+    except ValueError:
+        raise InputFormatError(
+            f"{average!r}: expected whole seconds separated by commas", field="--average"
+        ) from None
+    if any(a <= 0 for a in averages):
+        raise InputFormatError(f"{average!r}: intervals must be positive", field="--average")
     written = run_edr2cdr(
         sci, heater, temperature, kernels, out,
         frames=_split(frames), formats=_split(formats),
-        averages=[int(a) for a in _split(average)],
+        averages=averages,
         max_offset_step=max_offset_step if max_offset_step > 0 else None,
     )
     typer.echo(f"wrote {len(written)} files to {out}")

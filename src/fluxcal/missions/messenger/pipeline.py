@@ -61,7 +61,10 @@ def calibrate(
     """
     unknown = set(frames) - set(levels.FRAMES)
     if unknown:
-        raise ValueError(f"frames: unknown {sorted(unknown)}; expected {sorted(levels.FRAMES)}")
+        raise InputFormatError(
+            f"unknown frame(s) {sorted(unknown)}; expected some of {sorted(levels.FRAMES)}",
+            field="frames",
+        )
     if science.sizes.get("time", 0) == 0:
         raise InputFormatError("no science samples", field="met")
     sclk = SclkKernel.from_pool(levels.SC_ID)
