@@ -37,6 +37,35 @@ def oracle_chain(sci, heat, temp, cal):
     return calibrate(sci, heat, temp, cal, max_offset_step=None, method="oracle")
 
 
+def breakdown(sci, heat, temp, cal) -> dict[str, float]:
+    """Seconds spent in each level function."""
+    from fluxcal.missions.messenger import levels
+
+    sclk = SclkKernel.from_pool(-236)
+    out = {}
+    t = time.perf_counter()
+    ds = levels.correct_time(sci, cal, sclk)
+    out["time (sec. 5, 9)"] = time.perf_counter() - t
+    t = time.perf_counter()
+    periods, changes = levels.find_heater_periods(heat, cal, sclk)
+    ds = levels.correct_heater_signal(ds, periods, cal)
+    out["heater (sec. 6)"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ds = levels.correct_offsets(ds, temp, changes, cal, sclk)
+    out["offsets (sec. 7)"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ds = levels.counts_to_field(ds, cal)
+    out["counts->nT (sec. 8)"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ds = levels.add_geometry(ds, cal)
+    out["frames+positions (sec. 10, 11)"] = time.perf_counter() - t
+    t = time.perf_counter()
+    ds = levels.assign_quality(ds, cal)
+    levels.validate_offsets(ds, 2.0)
+    out["quality+validation (sec. 12, 13)"] = time.perf_counter() - t
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=24.0)
@@ -59,6 +88,7 @@ def main() -> None:
             t0 = time.perf_counter()
             ds = calibrate(sci, heat, temp, cal, max_offset_step=2.0)
             t_fast = time.perf_counter() - t0
+            steps = breakdown(sci, heat, temp, cal)
             # oracle on a subsample spread over the day (every k-th sample)
             k = max(1, n // args.oracle_samples)
             sub = sci.isel(time=slice(0, None, k))
@@ -74,6 +104,8 @@ def main() -> None:
     print(f"simulated {n} vectors ({args.hours:g} h at 20 Hz) in {t_sim:.1f} s")
     print(f"edr2cdr chain (5 frames, positions, flags, validation): {t_fast:.2f} s, "
           f"{fast_rate:,.0f} vectors/s")
+    for name, sec in steps.items():
+        print(f"  {name:34s} {sec:6.2f} s  {n / sec:14,.0f} vectors/s")
     print(f"per-sample SPICE oracle chain: {m} vectors in {t_oracle:.2f} s, "
           f"{oracle_rate:,.0f} vectors/s")
     print(f"ratio fast / oracle: {fast_rate / oracle_rate:,.0f}x")
