@@ -260,3 +260,21 @@ def test_epoch_precision_nanosecond(tmp_path: Path) -> None:
 def test_no_stray_temporary_files(dataset: xr.Dataset, tmp_path: Path) -> None:
     write_product(dataset, tmp_path / "P", formats=("tab", "cdf", "nc"))
     assert sorted(os.listdir(tmp_path)) == ["P.LBL", "P.TAB", "P.cdf", "P.nc"]
+
+
+def test_failing_format_leaves_no_file_of_the_product(dataset: xr.Dataset, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """TAB and CDF succeed, netCDF fails: none of the three appears (all-or-nothing)."""
+    write_product(dataset, tmp_path / "P", formats=("tab", "cdf", "nc"))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    def broken(self, *a, **kw):
+        raise OSError("no space left")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", broken)
+    with pytest.raises(OSError, match="no space"):
+        write_product(dataset.isel(time=slice(0, 5)), tmp_path / "P",
+                      formats=("tab", "cdf", "nc"))
+    with pytest.raises(OSError, match="no space"):
+        write_product(dataset, tmp_path / "Q", formats=("tab", "cdf", "nc"))
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

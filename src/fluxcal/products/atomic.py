@@ -12,7 +12,11 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
+
+# Pending (temporary, final, is_directory) renames of the innermost `atomic_group`.
+_GROUP: ContextVar[list[tuple[Path, Path, bool]] | None] = ContextVar("_GROUP", default=None)
 
 
 @contextmanager
@@ -45,17 +49,62 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     os.close(fd)
     tmp = Path(tmp_name)
     tmp.unlink()  # writers create it themselves (cdflib refuses an existing file)
+    group = _GROUP.get()
     try:
         yield tmp
-        if directory:
-            _replace_dir(tmp, final)
+        if group is not None:
+            group.append((tmp, final, directory))
         else:
-            os.replace(tmp, final)
+            _commit(tmp, final, directory)
     except BaseException:
-        if tmp.is_dir():
-            shutil.rmtree(tmp, ignore_errors=True)
-        elif tmp.exists():
-            tmp.unlink()
+        _discard(tmp)
+        raise
+
+
+def _commit(tmp: Path, final: Path, directory: bool) -> None:
+    if directory:
+        _replace_dir(tmp, final)
+    else:
+        os.replace(tmp, final)
+
+
+def _discard(tmp: Path) -> None:
+    if tmp.is_dir():
+        shutil.rmtree(tmp, ignore_errors=True)
+    elif tmp.exists():
+        tmp.unlink()
+
+
+@contextmanager
+def atomic_group() -> Iterator[None]:
+    """Defer the renames of every `atomic_path` inside the block to its successful end.
+
+    Several files that form one product (``.TAB`` + ``.LBL`` + ``.cdf`` ...) are all
+    written under temporary names first; only when every one is complete are they
+    renamed into place.  An exception anywhere in the block removes every temporary,
+    so a failed product leaves no file at all (an older product stays intact).
+    """
+    if _GROUP.get() is not None:  # nested: the outermost group commits
+        yield
+        return
+    pending: list[tuple[Path, Path, bool]] = []
+    token = _GROUP.set(pending)
+    try:
+        yield
+    except BaseException:
+        _GROUP.reset(token)
+        for tmp, _final, _directory in pending:
+            _discard(tmp)
+        raise
+    _GROUP.reset(token)
+    done = 0
+    try:
+        for tmp, final, directory in pending:
+            _commit(tmp, final, directory)
+            done += 1
+    except BaseException:
+        for tmp, _final, _directory in pending[done:]:
+            _discard(tmp)
         raise
 
 

@@ -103,7 +103,7 @@ def _var_attrs(name: str, var: xr.DataArray, table: Mapping[str, Any], cdf_type:
     if "units" in var.attrs:
         attrs["UNITS"] = str(var.attrs["units"]) or " "
     if record_varying and cdf_type != "CDF_CHAR":
-        _, fill, vmin, vmax = _TYPES[DTYPE_KEY(var)]
+        _, fill, vmin, vmax = _TYPES[_dtype_key(var)]
         attrs.setdefault("FILLVAL", fill)
         attrs.setdefault("VALIDMIN", vmin)
         attrs.setdefault("VALIDMAX", vmax)
@@ -124,7 +124,7 @@ def _var_attrs(name: str, var: xr.DataArray, table: Mapping[str, Any], cdf_type:
     return out
 
 
-def DTYPE_KEY(var: xr.DataArray) -> str:  # noqa: N802 - small helper, reads like a table key
+def _dtype_key(var: xr.DataArray) -> str:
     """Key of `_TYPES` for a variable's dtype."""
     return "bool" if var.dtype == np.bool_ else str(var.dtype)
 
@@ -137,7 +137,7 @@ def _spec(name: str, var: xr.DataArray, record_varying: bool) -> tuple[dict[str,
         cdf_type = "CDF_CHAR"
         payload: Any = data.ravel().tolist()
     else:
-        key = DTYPE_KEY(var)
+        key = _dtype_key(var)
         if key not in _TYPES:
             raise InputFormatError(f"dtype {var.dtype} has no CDF type", field=name)
         cdf_type = _TYPES[key][0]

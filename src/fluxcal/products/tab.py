@@ -21,7 +21,7 @@ import xarray as xr
 
 import fluxcal
 from fluxcal.errors import InputFormatError
-from fluxcal.products.atomic import atomic_path
+from fluxcal.products.atomic import atomic_group, atomic_path
 from fluxcal.products.attrs import decode_value
 from fluxcal.products.columns import TIME_DIM, Column, ResolvedColumn, resolve_columns
 from fluxcal.products.label import Statement, Symbol, as_dict, find_objects, parse_label
@@ -172,8 +172,8 @@ def write_tab(
 ) -> list[Path]:
     """Write ``stem.TAB`` and ``stem.LBL`` atomically; return both paths.
 
-    The label is renamed into place after the table, so a label never describes a
-    missing table.  On failure neither file is left (an older pair is kept).
+    Both are written under temporary names and renamed together at the end (the
+    table first).  On failure neither file is left (an older pair is kept).
     """
     stem = Path(stem)
     cols = resolve_columns(ds, columns)
@@ -183,7 +183,7 @@ def write_tab(
     tab = stem.with_name(stem.name + ".TAB")
     lbl = stem.with_name(stem.name + ".LBL")
     label = _render(label_statements(ds, cols, tab.name, widths, row_bytes, label_extra))
-    with atomic_path(tab) as tmp_tab, atomic_path(lbl) as tmp_lbl:
+    with atomic_group(), atomic_path(tab) as tmp_tab, atomic_path(lbl) as tmp_lbl:
         with open(tmp_tab, "w", encoding="ascii", newline="") as f:
             for chunk in chunks:
                 f.write(chunk)

@@ -9,6 +9,7 @@ from typing import Any
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.products.atomic import atomic_group
 from fluxcal.products.cdf import read_cdf, write_cdf
 from fluxcal.products.columns import Column
 from fluxcal.products.netcdf import read_netcdf, read_zarr, write_netcdf, write_zarr
@@ -60,9 +61,9 @@ def write_product(
 
     Notes
     -----
-    Every file is written under a temporary name in the same folder and renamed
-    into place; if a format fails, the files of the formats already written stay
-    (each is complete), and nothing partial of the failing one is left.
+    Every file is written under a temporary name in the same folder; only when all
+    formats are complete are they renamed into place (`atomic_group`).  If any
+    format fails, no file of this call appears (an older product stays intact).
     """
     unknown = [f for f in formats if f not in FORMATS]
     if unknown:
@@ -70,16 +71,17 @@ def write_product(
                                field="formats")
     stem = Path(stem)
     written: list[Path] = []
-    for fmt in formats:
-        if fmt == "tab":
-            written += write_tab(ds, stem, columns, label_extra)
-        elif fmt == "cdf":
-            written.append(write_cdf(ds, _with(stem, "cdf"), label_extra, variable_yaml,
-                                     global_yaml))
-        elif fmt == "nc":
-            written.append(write_netcdf(ds, _with(stem, "nc")))
-        else:
-            written.append(write_zarr(ds, _with(stem, "zarr")))
+    with atomic_group():  # all formats complete, or none renamed into place
+        for fmt in formats:
+            if fmt == "tab":
+                written += write_tab(ds, stem, columns, label_extra)
+            elif fmt == "cdf":
+                written.append(write_cdf(ds, _with(stem, "cdf"), label_extra, variable_yaml,
+                                         global_yaml))
+            elif fmt == "nc":
+                written.append(write_netcdf(ds, _with(stem, "nc")))
+            else:
+                written.append(write_zarr(ds, _with(stem, "zarr")))
     return written
 
 
