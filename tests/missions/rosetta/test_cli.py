@@ -119,7 +119,7 @@ def test_calibrate_level_a_from_utc_only(sim, tmp_path):
         "--sensor",
         "OB",
         "--levels",
-        "A",
+        "A,B",
         "--out",
         str(tmp_path),
         "--formats",
@@ -128,6 +128,8 @@ def test_calibrate_level_a_from_utc_only(sim, tmp_path):
     assert main(args) == 0
     label = (tmp_path / "RPCMAG_20140801_CLA_OB.LBL").read_text()
     assert "ground calibration alone" in label
+    # fluxcal's default alignment file is a placeholder and the LEVEL_B label says so
+    assert "PLACEHOLDER identity" in (tmp_path / "RPCMAG_20140801_CLB_OB.LBL").read_text()
 
 
 def test_stitch_state_file_between_runs(tmp_path):
