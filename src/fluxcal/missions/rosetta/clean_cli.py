@@ -1,0 +1,391 @@
+"""``fluxcal rosetta clean``: disturbance-removal levels H, I, J, K, L from earlier products.
+
+File I/O around the pure level functions of `fluxcal.missions.rosetta.cleaning_levels`:
+read earlier-level products (``.cdf``, ``.nc`` or ``.TAB``), run one level, write
+``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` products in the formats of the other levels
+(table + label + CDF), plus a before/after spectrogram PNG for H and a before/after
+time-series PNG for K.
+
+Registration (in ``fluxcal/cli.py``)::
+
+    from fluxcal.missions.rosetta import clean_cli
+    rosetta_cli.app.command("clean")(clean_cli.clean)
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9-4.13.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import typer
+import xarray as xr
+
+from fluxcal.errors import FluxcalError, InputFormatError
+
+log = logging.getLogger(__name__)
+
+CLEAN_LEVELS = ("H", "I", "J", "K", "L")
+#: Level whose product columns (seed tables) a cleaned level reuses.
+_COLUMNS_LIKE = {"H": "C", "I": "G", "J": "G", "K": "B", "L": "C"}
+#: Global attributes that describe one written file and must not be inherited.
+_PER_FILE_ATTRS = (
+    "Logical_source",
+    "Logical_file_id",
+    "Generation_date",
+    "Parents",
+    "LEVEL",
+    "SENSOR",
+    "command_line",
+    "creation_time",
+)
+
+
+@dataclass
+class CleanResult:
+    """Datasets made by `clean_files` and the files written."""
+
+    levels: dict[str, xr.Dataset] = field(default_factory=dict)
+    paths: list[Path] = field(default_factory=list)
+
+
+def _columns(level: str, ds: xr.Dataset) -> list:
+    from fluxcal.missions.rosetta.pipeline import product_columns
+
+    cols = product_columns(_COLUMNS_LIKE[level])
+    present = set(ds.data_vars) | set(ds.coords) | {"time_utc"}
+    return [c for c in cols if c.name in present]
+
+
+def _day(epoch: np.ndarray, lsk) -> str:
+    from fluxcal.geometry.time import tt2000_to_utc
+
+    return str(tt2000_to_utc(np.asarray(epoch[:1]), digits=0, lsk=lsk)[0])[:10].replace("-", "")
+
+
+def write_clean_level(
+    ds: xr.Dataset,
+    out_dir: Path,
+    *,
+    level: str,
+    sensor: str,
+    formats: Sequence[str] = ("tab", "cdf"),
+    provenance: dict | None = None,
+    lsk=None,
+) -> list[Path]:
+    """Write one cleaned level of one sensor (one day) as ``RPCMAG_<day>_CL<level>_<sensor>``."""
+    from fluxcal.geometry.time import tt2000_to_utc
+    from fluxcal.products import write_product
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    epoch = ds["epoch"].values
+    if epoch.size == 0:
+        raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors to write")
+    part = ds.assign(time_utc=("time", tt2000_to_utc(epoch, digits=6, lsk=lsk), {"units": "UTC"}))
+    attrs = {k: v for k, v in part.attrs.items() if k not in _PER_FILE_ATTRS}
+    for key in ("inputs", "calibration", "kernels"):
+        if key in attrs:
+            attrs[f"parent_{key}"] = attrs.pop(key)
+    attrs.update(provenance or {})
+    part.attrs = attrs
+    stem = out_dir / f"RPCMAG_{_day(epoch, lsk)}_CL{level}_{sensor}"
+    return write_product(
+        part,
+        stem,
+        formats=formats,
+        columns=_columns(level, part),
+        label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor},
+    )
+
+
+def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
+    """Read disturbed intervals ``start_utc,stop_utc,label`` (method 2 of LEVEL_K).
+
+    Raises
+    ------
+    InputFormatError
+        Wrong header or field count, unparsable time, or stop <= start (names the line).
+    """
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputFormatError("interval file not found", path=str(path))
+    out: list[tuple[int, int, str]] = []
+    header = ("start_utc", "stop_utc", "label")
+    seen = False
+    with path.open(newline="") as fh:
+        for lineno, row in enumerate(csv.reader(fh), start=1):
+            cells = [c.strip() for c in row]
+            if not cells or not "".join(cells) or cells[0].startswith("#"):
+                continue
+            if not seen:
+                if tuple(c.lower() for c in cells) != header:
+                    raise InputFormatError(
+                        f"header {','.join(cells)!r}; expected {','.join(header)!r}",
+                        path=str(path),
+                        line=lineno,
+                    )
+                seen = True
+                continue
+            if len(cells) != 3:
+                raise InputFormatError(
+                    f"{len(cells)} fields; expected 3", path=str(path), line=lineno
+                )
+            try:
+                t0, t1 = utc_to_tt2000(np.array(cells[:2]), lsk)
+            except InputFormatError as exc:
+                raise InputFormatError(str(exc), path=str(path), line=lineno) from None
+            if t1 <= t0:
+                raise InputFormatError(
+                    "stop_utc must be after start_utc", path=str(path), line=lineno,
+                    field="stop_utc",
+                )  # fmt: skip
+            out.append((int(t0), int(t1), cells[2]))
+    if not out:
+        raise InputFormatError("no intervals", path=str(path))
+    return out
+
+
+def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: str) -> Path:
+    """Before/after dynamic spectra (trace PSD) of the longest cleaned mode, as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fluxcal.cleaning.spectral_lines import dynamic_spectrum
+    from fluxcal.missions.rosetta.cleaning_levels import _groups
+
+    groups = _groups(before)
+    _, idx = max(groups, key=lambda g: g[1].size)
+    epoch = before["epoch"].values[idx]
+    dt = np.diff(epoch) / 1e9
+    fs = 1.0 / float(np.median(dt[dt > 0])) if idx.size > 2 else 1.0
+    length = int(min(1024, idx.size))
+    if length < 16:
+        raise FluxcalError(f"too few vectors ({idx.size}) for a spectrogram")
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
+    for ax, ds, name in ((axes[0], before, "before"), (axes[1], after, "after")):
+        b = ds["b"].values[idx]
+        psd = 0.0
+        for c in range(3):
+            starts, freqs, p = dynamic_spectrum(b[:, c], fs, window_length=length)
+            psd = psd + p
+        hours = (epoch[starts + length // 2] - epoch[0]) / 3.6e12
+        mesh = ax.pcolormesh(
+            hours, freqs[1:], np.log10(np.maximum(psd[:, 1:].T, 1e-12)), shading="nearest"
+        )
+        ax.set_ylabel("frequency (Hz)")
+        ax.set_title(f"{title}: {name} line removal")
+        fig.colorbar(mesh, ax=ax, label="log10 trace PSD (nT^2/Hz)")
+    axes[1].set_xlabel("hours since first vector")
+    return _save(fig, path)
+
+
+def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: str) -> Path:
+    """Before (grey) / after (colour) components, as PNG (decimated to <= 200k points)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    epoch = before["epoch"].values
+    step = max(1, epoch.size // 200_000)
+    hours = (epoch[::step] - epoch[0]) / 3.6e12
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
+    for c, ax in enumerate(axes):
+        ax.plot(hours, before["b"].values[::step, c], color="0.6", lw=0.6, label="before")
+        ax.plot(hours, after["b"].values[::step, c], color="C1", lw=0.6, label="after")
+        ax.set_ylabel(f"B{'xyz'[c]} (nT)")
+    axes[0].legend(loc="upper right")
+    axes[0].set_title(title)
+    axes[-1].set_xlabel("hours since first vector")
+    return _save(fig, path)
+
+
+def _save(fig, path: Path) -> Path:
+    import os
+
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        fig.savefig(tmp, dpi=100, format="png")
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _read(path: Path, lsk=None) -> xr.Dataset:
+    """Read a level product; a table (no ``epoch`` column) gets ``epoch`` from TIME.UTC."""
+    from fluxcal.geometry.time import utc_to_tt2000
+    from fluxcal.products import read_product
+
+    path = Path(path)
+    if not path.exists():
+        raise InputFormatError("input product not found", path=str(path))
+    ds = read_product(path)
+    if "b" not in ds:
+        raise InputFormatError(
+            "not an RPC-MAG level product: no 'b' (BX, BY, BZ) variable", path=str(path)
+        )
+    if "epoch" not in ds:
+        if "time_utc" not in ds:
+            raise InputFormatError("product has neither epoch nor TIME.UTC", path=str(path))
+        epoch = utc_to_tt2000(np.asarray(ds["time_utc"].values, dtype=str), lsk)
+        ds = ds.assign_coords(epoch=("time", epoch.astype(np.int64), {"units": "ns"}))
+    return ds
+
+
+def clean_files(
+    level: str,
+    inputs: Sequence[Path],
+    out: Path,
+    *,
+    wheels: Path | None = None,
+    lap_lines_hz: Sequence[float] = (),
+    bandwidth_hz: float | None = None,
+    seed: int = 0,
+    intervals: Path | None = None,
+    kernels: Path | None = None,
+    average_s: float = 1.0,
+    formats: Sequence[str] = ("tab", "cdf"),
+    plot: bool = True,
+) -> CleanResult:
+    """Run one cleaning level on earlier-level product files and write the products.
+
+    Parameters mirror the ``clean`` command's options.
+
+    Raises
+    ------
+    FluxcalError
+        Unknown level, wrong number of inputs, missing kernels for L, and every
+        input error.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import leapseconds
+    from fluxcal.missions.rosetta import cleaning_levels as cl
+    from fluxcal.missions.rosetta.reaction_wheels import read_reaction_wheels
+    from fluxcal.products import provenance_attrs
+
+    level = level.strip().upper()
+    if level not in CLEAN_LEVELS:
+        raise FluxcalError(f"unknown level {level!r}; choose one of {','.join(CLEAN_LEVELS)}")
+    need = 2 if level == "J" else 1
+    if len(inputs) != need:
+        raise FluxcalError(
+            f"LEVEL_{level} needs {need} input product(s) "
+            + ("(--input OB, --input-ib IB)" if need == 2 else "(--input)")
+        )
+    if level == "L" and kernels is None:
+        raise FluxcalError("LEVEL_L needs SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
+    result = CleanResult()
+    out = Path(out)
+    with KernelPool(kernels) as pool:
+        lsk = leapseconds()
+        data = [_read(p, lsk) for p in inputs]
+        used_inputs: list[Path] = list(inputs)
+        src = data[0]
+        sensor = str(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")))
+        if level == "H":
+            table = read_reaction_wheels(wheels, lsk) if wheels is not None else None
+            if wheels is not None:
+                used_inputs.append(Path(wheels))
+            made = {
+                sensor: cl.level_h(src, table, lap_lines_hz, bandwidth_hz=bandwidth_hz, seed=seed)
+            }
+        elif level == "I":
+            made = {sensor: cl.level_i(src, average_s, lsk=lsk)}
+        elif level == "J":
+            made = cl.level_j(data[0], data[1])
+        elif level == "K":
+            if intervals is not None:
+                used_inputs.append(Path(intervals))
+                made = {sensor: cl.level_k_assisted(src, read_intervals(intervals, lsk))}
+            else:
+                made = {sensor: cl.level_k(src)}
+        else:
+            made = {sensor: cl.level_l(src, lsk=lsk)}
+        prov = provenance_attrs(inputs=used_inputs, kernels=[Path(str(k)) for k in pool.loaded])
+        for tag, ds in made.items():
+            result.levels[tag] = ds
+            result.paths += write_clean_level(
+                ds, out, level=level, sensor=tag, formats=formats, provenance=prov, lsk=lsk
+            )
+        if plot and level in ("H", "K"):
+            ds = made[sensor]
+            png = out / f"RPCMAG_{_day(ds['epoch'].values, lsk)}_CL{level}_{sensor}.png"
+            title = f"RPC-MAG {sensor} LEVEL_{level}"
+            plotter = plot_spectrogram if level == "H" else plot_timeseries
+            result.paths.append(plotter(src, ds, png, title))
+    return result
+
+
+def _floats(text: str, option: str) -> list[float]:
+    try:
+        return [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise typer.BadParameter(f"expected comma-separated Hz values, got {text!r}",
+                                 param_hint=option) from None  # fmt: skip
+
+
+def clean(
+    level: str = typer.Option(..., "--level", help="Level to make: H, I, J, K or L."),
+    input: list[Path] = typer.Option(  # noqa: A002 - the option's natural name
+        ...,
+        "--input",
+        help="Earlier-level product (.cdf/.nc/.TAB): C or L for H, H for I, B for K, K for "
+        "L; for J the OB product (G or I).",
+    ),
+    input_ib: Path | None = typer.Option(None, "--input-ib", help="J only: the IB product."),
+    out: Path = typer.Option(..., "--out", help="Folder for the products."),
+    wheels: Path | None = typer.Option(
+        None, "--wheels", help="H: reaction wheel CSV time_utc,rw1_hz,rw2_hz,rw3_hz,rw4_hz."
+    ),
+    lap_lines: str = typer.Option("", "--lap-lines", help="H: fixed LAP lines, e.g. 2.5,4.1 (Hz)."),
+    bandwidth: float | None = typer.Option(
+        None, "--bandwidth", help="H: replaced band width in Hz (default 0.06 Hz at 20 Hz)."
+    ),
+    seed: int = typer.Option(0, "--seed", help="H: seed of the substituted noise."),
+    intervals: Path | None = typer.Option(
+        None, "--intervals", help="K: ROMAP intervals CSV start_utc,stop_utc,label (method 2)."
+    ),
+    kernels: Path | None = typer.Option(
+        None, "--kernels", help="Meta-kernel (SCLK, CK, SPK); needed for L."
+    ),
+    average: float = typer.Option(1.0, "--average", help="I: averaging interval (s)."),
+    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
+    no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
+) -> None:
+    """Remove spacecraft disturbances: LEVEL_H (wheel/LAP lines), I, J (PCA), K, L (heaters)."""
+    inputs = list(input) + ([input_ib] if input_ib is not None else [])
+    result = clean_files(
+        level,
+        inputs,
+        out,
+        wheels=wheels,
+        lap_lines_hz=_floats(lap_lines, "--lap-lines"),
+        bandwidth_hz=bandwidth,
+        seed=seed,
+        intervals=intervals,
+        kernels=kernels,
+        average_s=average,
+        formats=[f.strip() for f in formats.split(",") if f.strip()],
+        plot=not no_plot,
+    )
+    for tag, ds in result.levels.items():
+        typer.echo(f"LEVEL_{level.upper()} {tag}: {ds.sizes['time']} vectors")
+    typer.echo(f"{len(result.paths)} files in {out}")

@@ -1,0 +1,423 @@
+"""RPC-MAG disturbance-removal levels H, I, J, K, L as ``Dataset -> Dataset`` functions.
+
+* `level_h`: reaction-wheel and LAP spectral lines removed from LEVEL_C (or L).
+* `level_i`: 1 s averages of LEVEL_H.
+* `level_j`: two-sensor PCA of OB and IB (LEVEL_G or I): external field and each
+  sensor's uncorrelated part (three datasets).
+* `level_k`: heater square waves removed from LEVEL_B (automatic method 1);
+  `level_k_assisted`: the same with disturbed intervals from another instrument
+  (ROMAP, method 2).
+* `level_l`: LEVEL_K rotated to ECLIPJ2000 (with the spacecraft position).
+
+The datasets follow the Rosetta level conventions (`fluxcal.missions.rosetta.level_c`):
+``b`` (time, component) in nT, ``epoch`` TT2000 ns, ``sid`` (instrument mode),
+``quality``; the generic algorithms live in `fluxcal.cleaning`.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9 (H), 4.10 (I), 4.11 (J), 4.12 (K),
+   4.13 (L).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Hashable, Mapping, Sequence
+
+import numpy as np
+import xarray as xr
+from numpy.typing import ArrayLike, NDArray
+
+from fluxcal.cleaning.pca import two_sensor_pca
+from fluxcal.cleaning.spectral_lines import (
+    default_bandwidth,
+    interpolated_lines,
+    remove_spectral_lines,
+)
+from fluxcal.cleaning.steps import remove_heater_steps, remove_labelled_offsets
+from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta.reaction_wheels import ReactionWheelTable
+
+__all__ = [
+    "CLEANABLE_RATES_HZ",
+    "level_h",
+    "level_i",
+    "level_j",
+    "level_k",
+    "level_k_assisted",
+    "level_l",
+]
+
+log = logging.getLogger(__name__)
+
+#: MEDIUM (5 vectors/s) and BURST (20 vectors/s) modes: the only rates at which the
+#: wheel lines emerge from the noise (seed 003 sec. 4.9); others pass through unchanged.
+CLEANABLE_RATES_HZ = (5.0, 20.0)
+
+
+def _vectors(ds: xr.Dataset, level: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    if "b" not in ds or "epoch" not in ds.coords and "epoch" not in ds:
+        raise InputFormatError(
+            f"LEVEL_{level} input needs variables 'b' (time, component) and 'epoch'",
+            field="b",
+        )
+    b = np.asarray(ds["b"].values, dtype=float)
+    epoch = np.asarray(ds["epoch"].values, dtype=np.int64)
+    if b.ndim != 2 or b.shape[1] != 3 or b.shape[0] != epoch.size:
+        raise InputFormatError(f"'b' has shape {b.shape}, expected ({epoch.size}, 3)", field="b")
+    if epoch.size > 1 and np.any(np.diff(epoch) < 0):
+        raise InputFormatError("epoch is not in time order", field="epoch")
+    return b, epoch
+
+
+def _with_b(ds: xr.Dataset, b: NDArray[np.float64], description: str) -> xr.Dataset:
+    out = ds.copy()
+    attrs = dict(ds["b"].attrs)
+    attrs.setdefault("units", "nT")
+    attrs["description"] = description
+    out["b"] = (("time", "component"), b, attrs)
+    return out
+
+
+def _groups(ds: xr.Dataset) -> list[tuple[object, NDArray[np.int64]]]:
+    """Sample indices per instrument mode (``sid``), or one group without ``sid``."""
+    n = ds.sizes["time"]
+    if "sid" not in ds:
+        return [(None, np.arange(n))]
+    sid = np.asarray(ds["sid"].values)
+    return [(int(s), np.flatnonzero(sid == s)) for s in np.unique(sid)]
+
+
+def _match_rate(dt: NDArray[np.float64], rates: Sequence[float], tol: float) -> float | None:
+    good = dt[dt > 0]
+    if good.size == 0:
+        return None
+    est = 1.0 / float(np.median(good))
+    for r in rates:
+        if abs(est - r) <= tol * r:
+            return float(r)
+    return None
+
+
+def level_h(
+    level: xr.Dataset,
+    wheels: ReactionWheelTable | None = None,
+    lap_lines_hz: Sequence[float] = (),
+    *,
+    bandwidth_hz: float | None = None,
+    rates_hz: Sequence[float] = CLEANABLE_RATES_HZ,
+    rate_tolerance: float = 0.02,
+    wheel_extrapolation_s: float = 600.0,
+    seed: int = 0,
+) -> xr.Dataset:
+    """LEVEL_C (or L) -> LEVEL_H: remove reaction-wheel and LAP lines.
+
+    Parameters
+    ----------
+    level : xarray.Dataset
+        LEVEL_C or LEVEL_L of the primary sensor (``b`` in nT, ``epoch``, optional
+        ``sid``: each instrument mode is processed as its own series).
+    wheels : ReactionWheelTable, optional
+        Wheel rotation rates versus time (`read_reaction_wheels`); they are folded
+        into the measured band per window.
+    lap_lines_hz : sequence of float
+        Fixed LAP disturbance lines (Hz, as seen in the spectrum of the mode).
+    bandwidth_hz : float, optional
+        Width of the replaced bands (default: 0.06 Hz at 20 Hz, scaled with the rate).
+    rates_hz : sequence of float
+        Sampling rates that are cleaned; a mode at any other rate is passed through
+        unchanged with a note in the attributes.
+    rate_tolerance : float
+        Relative tolerance when matching a mode's median rate to ``rates_hz``.
+    wheel_extrapolation_s : float
+        How far the wheel table may be extrapolated (held) beyond its ends.
+    seed : int
+        Seed of the substituted noise (reproducible products).
+
+    Returns
+    -------
+    xarray.Dataset
+        Copy of ``level`` with cleaned ``b`` and ``level = "H"``; attributes
+        ``line_removal_notes``, ``line_removal_bandwidth_hz``, ``reaction_wheel_file``,
+        ``lap_lines_hz``, ``line_removal_seed``.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9.
+    """
+    b, epoch = _vectors(level, "H")
+    out_b = b.copy()
+    notes: list[str] = []
+    lap = np.asarray(list(lap_lines_hz), dtype=float)
+    if epoch.size == 0 or (wheels is None and lap.size == 0):
+        notes.append("no wheel table and no LAP lines: data unchanged")
+    else:
+        epoch0 = int(epoch[0])
+        wheel_fn = None
+        if wheels is not None:
+            wheel_fn = interpolated_lines(
+                (wheels.epoch - epoch0) / 1e9,
+                wheels.frequencies,
+                max_extrapolation=wheel_extrapolation_s,
+            )
+
+        def lines(tc: NDArray[np.float64]) -> NDArray[np.float64]:
+            parts = [wheel_fn(tc)] if wheel_fn is not None else []
+            parts.append(np.broadcast_to(lap, (np.size(tc), lap.size)))
+            return np.concatenate(parts, axis=1)
+
+        rng = np.random.default_rng(seed)
+        for sid, idx in _groups(level):
+            name = "all vectors" if sid is None else f"sid {sid}"
+            t = (epoch[idx] - epoch0) / 1e9
+            fs = _match_rate(np.diff(t), rates_hz, rate_tolerance) if idx.size > 1 else None
+            if fs is None:
+                rate = 1.0 / np.median(np.diff(t)[np.diff(t) > 0]) if idx.size > 2 else np.nan
+                notes.append(
+                    f"{name}: {idx.size} vectors at {rate:.3g} Hz, not one of "
+                    f"{list(rates_hz)} Hz: passed through unchanged"
+                )
+                continue
+            bw = default_bandwidth(fs) if bandwidth_hz is None else float(bandwidth_hz)
+            res = remove_spectral_lines(b[idx], fs, lines, times=t, bandwidth=bw, seed=rng)
+            out_b[idx] = res.values
+            notes.append(
+                f"{name}: {idx.size} vectors at {fs:g} Hz cleaned, delta_f = {bw:.4g} Hz, "
+                f"{res.window_times.size} windows"
+                + ("" if not res.notes else " (" + "; ".join(res.notes) + ")")
+            )
+    for note in notes:
+        log.info("LEVEL_H %s", note)
+    out = _with_b(level, out_b, "calibrated field; reaction wheel and LAP disturbance corrected")
+    out.attrs.update(
+        level="H",
+        line_removal_notes="; ".join(notes),
+        line_removal_bandwidth_hz=float(bandwidth_hz) if bandwidth_hz is not None else "auto",
+        reaction_wheel_file=wheels.source if wheels is not None else "none",
+        lap_lines_hz=[float(f) for f in lap],
+        line_removal_seed=int(seed),
+    )
+    return out
+
+
+def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
+    """LEVEL_H -> LEVEL_I: ``seconds`` averages (1 s in the seed), time tag mid-interval.
+
+    Needs a leap-second table (a loaded LSK or ``lsk``) for the UTC midnight origin.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.10.
+    """
+    from fluxcal.missions.rosetta import averaged
+
+    out = averaged.average(level_h_ds, seconds, lsk=lsk)
+    out.attrs.update(level="I")
+    return out
+
+
+def _common_times(
+    a: xr.Dataset, b: xr.Dataset
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    ea = np.asarray(a["epoch"].values, dtype=np.int64)
+    eb = np.asarray(b["epoch"].values, dtype=np.int64)
+    common, ia, ib = np.intersect1d(ea, eb, assume_unique=False, return_indices=True)
+    return common, ia, ib
+
+
+def level_j(ob: xr.Dataset, ib: xr.Dataset) -> dict[str, xr.Dataset]:
+    """LEVEL_G/I of OB and IB -> LEVEL_J: external field and each sensor's own part.
+
+    The two sensors are put on a common time base by their common time tags (1 s
+    averages of both sensors share the interval middles); see
+    `fluxcal.cleaning.pca.two_sensor_pca` for the split.
+
+    Returns
+    -------
+    dict
+        ``{"EXT": external field, "OB": uncorrelated OB part, "IB": uncorrelated IB
+        part}``, each a dataset on the common times with ``b`` (nT) and attributes
+        ``level = "J"``, ``pca_part``, ``pca_noise_variance_nT2`` (OB, IB per component),
+        ``pca_weights``.
+
+    Raises
+    ------
+    InputFormatError
+        If fewer than 3 time tags are common to both sensors.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.11.
+    """
+    _vectors(ob, "J")
+    _vectors(ib, "J")
+    common, i_ob, i_ib = _common_times(ob, ib)
+    if common.size < 3:
+        raise InputFormatError(
+            f"only {common.size} time tags common to OB and IB; average both sensors "
+            "over the same intervals (LEVEL_G or I) first",
+            field="epoch",
+        )
+    res = two_sensor_pca(ob["b"].values[i_ob], ib["b"].values[i_ib])
+    base = ob.isel(time=i_ob)
+    stats = dict(
+        level="J",
+        pca_noise_variance_nT2=[float(v) for v in res.noise_variance.ravel()],
+        pca_weights=[float(v) for v in res.weights.ravel()],
+        pca_external_variance_nT2=[float(v) for v in res.external_variance],
+        pca_inputs=[str(ob.attrs.get("source", "OB")), str(ib.attrs.get("source", "IB"))],
+    )
+    parts = {
+        "EXT": (res.external, "correlated OB/IB part: external field", "OB+IB"),
+        "OB": (res.uncorrelated_a, "uncorrelated OB part: s/c noise at OB", "OB"),
+        "IB": (res.uncorrelated_b, "uncorrelated IB part: s/c noise at IB", "IB"),
+    }
+    out: dict[str, xr.Dataset] = {}
+    for key, (values, text, sensor) in parts.items():
+        ds = _with_b(base, values, text)
+        ds.attrs.update(stats, pca_part=key, sensor=sensor)
+        out[key] = ds
+    return out
+
+
+def _uniform_segments(epoch: NDArray[np.int64], max_gap_s: float) -> list[tuple[int, int]]:
+    """Split into runs without gaps longer than ``max_gap_s`` or overlapping modes."""
+    if epoch.size < 2:
+        return [(0, int(epoch.size))] if epoch.size else []
+    dt = np.diff(epoch).astype(float)
+    med = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    breaks = np.flatnonzero((dt > max(1.5 * med, max_gap_s * 1e9)) | (dt < 0.5 * med)) + 1
+    edges = np.concatenate([[0], breaks, [epoch.size]])
+    return [(int(a), int(c)) for a, c in zip(edges[:-1], edges[1:], strict=True) if c > a]
+
+
+def level_k(
+    level_b: xr.Dataset,
+    *,
+    width: int = 4,
+    threshold: float | None = None,
+    k_mad: float = 40.0,
+    average_samples: int = 5,
+    baseline_segments: int | None = 2,
+    min_segment: int = 200,
+    max_gap_s: float = 1.0,
+) -> xr.Dataset:
+    """LEVEL_B -> LEVEL_K: remove heater square waves automatically (method 1).
+
+    Each stretch without gaps longer than ``max_gap_s`` (a few dropped vectors do not
+    split it) and without overlapping modes, of at least ``min_segment`` vectors, is
+    cleaned by `fluxcal.cleaning.steps.remove_heater_steps`
+    (parameters passed through); shorter stretches are left unchanged.
+
+    Returns
+    -------
+    xarray.Dataset
+        Copy with cleaned ``b`` (s/c frame), ``heater_disturbance`` (time, component;
+        the removed signal, nT), ``level = "K"`` and attributes ``heater_method``,
+        ``heater_jumps``, ``heater_thresholds_nT2``.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.12, 4.12.1.
+    """
+    b, epoch = _vectors(level_b, "K")
+    out_b = b.copy()
+    n_jumps = 0
+    thresholds: list[float] = []
+    unchanged = 0
+    for a, c in _uniform_segments(epoch, max_gap_s):
+        if c - a < max(min_segment, 2 * width + 2):
+            unchanged += c - a
+            continue
+        res = remove_heater_steps(
+            b[a:c],
+            width=width,
+            threshold=threshold,
+            k_mad=k_mad,
+            average_samples=average_samples,
+            baseline_segments=baseline_segments,
+        )
+        out_b[a:c] = res.values
+        n_jumps += int(res.jump_indices.size)
+        thresholds.append(float(res.threshold))
+    out = _with_b(level_b, out_b, "calibrated field, s/c frame, heater disturbance eliminated")
+    out["heater_disturbance"] = (
+        ("time", "component"),
+        b - out_b,
+        {"units": "nT", "description": "removed heater disturbance (s/c frame)"},
+    )
+    out.attrs.update(
+        level="K",
+        heater_method="automatic: minimum variance + moving variance jumps (sec. 4.12.1)",
+        heater_jumps=n_jumps,
+        heater_thresholds_nT2=thresholds,
+        heater_unchanged_vectors=unchanged,
+    )
+    return out
+
+
+def level_k_assisted(
+    level_b: xr.Dataset,
+    intervals: Sequence[tuple[int, int, Hashable]],
+    offsets: Mapping[Hashable, ArrayLike] | None = None,
+    *,
+    reference_samples: int = 20,
+) -> xr.Dataset:
+    """LEVEL_B -> LEVEL_K with disturbed intervals from another instrument (method 2).
+
+    Parameters
+    ----------
+    level_b : xarray.Dataset
+        LEVEL_B (s/c frame).
+    intervals : sequence of (start_tt2000, stop_tt2000, label)
+        Disturbed intervals (e.g. identified in ROMAP data) and the active heaters.
+    offsets : mapping label -> (3,) nT, optional
+        Known offsets per label in the s/c frame; missing labels are estimated.
+    reference_samples : int
+        Undisturbed samples on each side of an interval for the estimate.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.12.2.
+    """
+    b, epoch = _vectors(level_b, "K")
+    res = remove_labelled_offsets(epoch, b, intervals, offsets, reference_samples=reference_samples)
+    out = _with_b(level_b, res.values, "calibrated field, s/c frame, heater disturbance eliminated")
+    out["heater_disturbance"] = (
+        ("time", "component"),
+        b - res.values,
+        {"units": "nT", "description": "removed heater disturbance (s/c frame)"},
+    )
+    out.attrs.update(
+        level="K",
+        heater_method="assisted: labelled intervals from another instrument (sec. 4.12.2)",
+        heater_offsets_nT={str(k): [float(x) for x in v] for k, v in res.offsets.items()},
+        heater_intervals=len(intervals),
+    )
+    return out
+
+
+def level_l(
+    level_k_ds: xr.Dataset,
+    *,
+    frame: str = "ECLIPJ2000",
+    centre: str = "SUN",
+    method: str = "interpolate",
+    lsk=None,
+) -> xr.Dataset:
+    """LEVEL_K -> LEVEL_L: rotate to ECLIPJ2000 and add the spacecraft position.
+
+    Kernels (SCLK, CK, SPK) must be loaded; the rotation is the LEVEL_C one
+    (`fluxcal.missions.rosetta.level_c.level_c`, i.e. `fluxcal.geometry.frames.rotate`).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.13.
+    """
+    from fluxcal.missions.rosetta.level_c import level_c
+
+    src = level_k_ds.drop_vars(["heater_disturbance"], errors="ignore")
+    out = level_c(src, frame=frame, centre=centre, method=method, lsk=lsk)
+    out["b"].attrs["description"] = "calibrated field, heater disturbance eliminated"
+    out.attrs.update(level="L")
+    return out
