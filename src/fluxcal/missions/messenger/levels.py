@@ -108,7 +108,7 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
     return out.assign_coords(epoch=epoch)
 
 
-def aux_times_et(aux: xr.Dataset, dim: str, sclk: SclkKernel) -> np.ndarray:
+def aux_times_et(aux: xr.Dataset, sclk: SclkKernel) -> np.ndarray:
     """Return the ET of an auxiliary stream (heater bits, temperatures) from its MET."""
     return sclk.to_et(aux["partition"].values, aux["met"].values)
 
@@ -125,7 +125,7 @@ def find_heater_periods(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, 7.
     """
-    t = aux_times_et(heater, "heater_time", sclk)
+    t = aux_times_et(heater, sclk)
     h = cal.constants["heater"]
     periods = heater_periods(t, heater["heater"].values, period=h["period_s"], min_on=h["min_on_s"])
     changes = duty_cycle_changes(periods, period=h["period_s"], data_end=float(t[-1]) + 1.0)
@@ -147,7 +147,7 @@ def check_heater_coverage(
     v10 = et >= _date_et(cal, "heater_mode_v10")
     if not v10.any():
         return
-    t = aux_times_et(heater, "heater_time", sclk)
+    t = aux_times_et(heater, sclk)
     period = cal.constants["heater"]["period_s"]
     first, last = et[v10].min(), et[v10].max()
     if t.size == 0 or first < t[0] - period or last > t[-1] + period:
@@ -264,7 +264,7 @@ def correct_offsets(
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 1-7.
     """
     et = ds["et"].values
-    t_et = aux_times_et(temperature, "temperature_time", sclk)
+    t_et = aux_times_et(temperature, sclk)
     temp = interpolate_temperature(et, t_et, temperature["temperature_c"].values)
     offset = offset_model(et, temp, changes, cal)
     fine_total = offset + ds["heater_signal"].values
@@ -273,7 +273,7 @@ def correct_offsets(
     applied = fine_total.copy()
     coarse = rng == 1
     if coarse.any():
-        applied[coarse] = fine_total[coarse] @ conv[1].T
+        applied[coarse] = np.einsum("ij,nj->ni", conv[1], fine_total[coarse])
     corrected = ds["counts"].values - applied
     return ds.assign(
         temperature=_scalar(temp, "degC", "sensor temperature interpolated to the samples"),
@@ -320,8 +320,8 @@ def _sensor_to_spacecraft(frame: str, et: np.ndarray, method: str) -> np.ndarray
 
 def _apply(m: np.ndarray, v: np.ndarray, transpose: bool = False) -> np.ndarray:
     """``out[i] = M[i] @ v[i]`` (or ``M[i].T @ v[i]``); a single matrix applies to all."""
-    if m.shape[0] == 1:
-        return v @ (m[0] if transpose else m[0].T)
+    if m.shape[0] == 1:  # (n, 3) @ (3, 3) matmul is slow in numpy; einsum is not
+        return np.einsum("ji,nj->ni" if transpose else "ij,nj->ni", m[0], v)
     return np.einsum("nji,nj->ni" if transpose else "nij,nj->ni", m, v)
 
 

@@ -93,7 +93,7 @@ def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig) -> np.nd
     rn = np.linalg.norm(r, axis=1)[:, None]
     rhat = r / rn
     m = np.array([0.0, 0.0, -1.0])  # southward moment: field points north at the equator
-    b = MERCURY_DIPOLE_NT * (MERCURY_RADIUS_KM / rn) ** 3 * (3 * (rhat @ m)[:, None] * rhat - m)
+    b = MERCURY_DIPOLE_NT * (MERCURY_RADIUS_KM / rn) ** 3 * (3 * (rhat * m).sum(axis=1, keepdims=True) * rhat - m)
     return b + np.asarray(config.imf_nt)
 
 
@@ -240,7 +240,7 @@ def simulate(
     )
     conv = range_conversion(cal.matrices)
     total = offset + heater
-    total[rng == 1] = total[rng == 1] @ conv[1].T
+    total[rng == 1] = np.einsum("ij,nj->ni", conv[1], total[rng == 1])
     counts = np.round(nt_to_counts(b_sensor, rng, cal.matrices) + total)
     if counts.min() < COUNT_LIMITS[0] or counts.max() > COUNT_LIMITS[1]:
         raise ValueError("simulated counts exceed the 16-bit limits; reduce the field")
