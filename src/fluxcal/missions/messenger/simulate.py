@@ -93,7 +93,8 @@ def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig) -> np.nd
     rn = np.linalg.norm(r, axis=1)[:, None]
     rhat = r / rn
     m = np.array([0.0, 0.0, -1.0])  # southward moment: field points north at the equator
-    b = MERCURY_DIPOLE_NT * (MERCURY_RADIUS_KM / rn) ** 3 * (3 * (rhat * m).sum(axis=1, keepdims=True) * rhat - m)
+    m_dot_r = (rhat * m).sum(axis=1, keepdims=True)
+    b = MERCURY_DIPOLE_NT * (MERCURY_RADIUS_KM / rn) ** 3 * (3 * m_dot_r * rhat - m)
     return b + np.asarray(config.imf_nt)
 
 
