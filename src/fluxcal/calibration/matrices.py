@@ -88,7 +88,7 @@ def apply_lookup(table: np.ndarray, index: np.ndarray, vectors: np.ndarray) -> n
         acc = np.zeros(v.shape[0])
         for j in range(3):
             if np.any(flat[:, 3 * i + j] != 0.0):
-                acc += flat[:, 3 * i + j][index] * cols[j]
+                acc += np.take(flat[:, 3 * i + j], index) * cols[j]
         out[:, i] = acc
     return out
 

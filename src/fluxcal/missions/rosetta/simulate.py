@@ -151,7 +151,7 @@ def simulate(
         Truth given in ECLIPJ2000 and rotated with the loaded attitude (needs a
         `KernelPool` with the Rosetta-like kernels, `fluxcal.geometry.synthetic`);
         ``obt`` from the loaded SCLK.  Without, the truth is in s/c coordinates and ``obt``
-        is seconds since 2003-01-01 UTC-naive.
+        is the elapsed SI seconds since 2003-01-01T00:00:00 UTC.
     bad_fraction : float
         Fraction of vectors flagged bad (counts scrambled).
     seed : int
