@@ -39,7 +39,7 @@ def _dataset(epoch, b, *, sid=None, level="C", sensor="OB"):
         "obt": ("time", 3.6e8 + (epoch - epoch[0]) / 1e9, {"units": "s"}),
         "temperature": ("time", np.full(n, 290.0), {"units": "K"}),
     }
-    if level in ("C", "L", "H"):
+    if level in ("C", "G", "H", "I", "L"):
         data["position"] = (
             ("time", "component"),
             np.tile([1e8, 2e7, 1e6], (n, 1)),
@@ -353,3 +353,19 @@ def test_read_intervals(tmp_path, lsk):
     with pytest.raises(InputFormatError, match="line 2"):
         read_intervals(p, lsk)
     assert isinstance(Path(p), Path)
+
+
+def test_clean_command_j_writes_three_products(tmp_path, lsk):
+    rng = np.random.default_rng(2)
+    t0 = int(utc_to_tt2000(np.array([START]), lsk)[0])
+    n = 3000
+    epoch = t0 + np.arange(n, dtype=np.int64) * 1_000_000_000 + 500_000_000
+    ext = rotating_field(np.arange(n), magnitude=5.0, period=1e5) + rng.normal(size=(n, 3))
+    ob = _dataset(epoch, ext + 0.1 * rng.normal(size=(n, 3)), level="G", sensor="OB")
+    ib = _dataset(epoch, ext + 0.4 * rng.normal(size=(n, 3)), level="G", sensor="IB")
+    f_ob, f_ib = _write(ob, tmp_path / "in", lsk), _write(ib, tmp_path / "in", lsk)
+    res = clean_files("J", [f_ob[".cdf"], f_ib[".cdf"]], tmp_path / "out")
+    assert set(res.levels) == {"EXT", "OB", "IB"}
+    for tag in ("EXT", "OB", "IB"):
+        back = read_product(tmp_path / "out" / f"RPCMAG_20140801_CLJ_{tag}.cdf")
+        assert back.attrs["pca_part"] == tag and back.sizes["time"] == n
