@@ -183,6 +183,8 @@ class MessengerCalibration:
         The ``processing`` TOML (relaxation, heater, pre-V10, quality dates).
     files : list of (str, int)
         File names and versions used, for product provenance.
+    paths : tuple of Path
+        The files themselves (checksummed in product provenance).
     """
 
     net_lag_s: np.ndarray
@@ -197,6 +199,7 @@ class MessengerCalibration:
     heater_duty_bins_percent: np.ndarray
     constants: dict
     files: list[tuple[str, int]]
+    paths: tuple[Path, ...] = ()
 
     def date(self, key: str) -> np.datetime64:
         """Return the quality-table date ``key`` (e.g. ``"boom_deployment"``)."""
@@ -272,4 +275,5 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
         heater_duty_bins_percent=bins,
         constants=t["processing"].toml,
         files=[(tf.path.name, tf.version) for tf in t.values()],
+        paths=tuple(tf.path for tf in t.values()),
     )

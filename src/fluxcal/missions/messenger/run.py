@@ -61,7 +61,7 @@ def calibrate_and_write(
     ds = calibrate(sci, heat, temp, cal, frames=tuple(frames), max_offset_step=None)
     prov = provenance_attrs(
         inputs=list(inputs),
-        calibration={name: version for name, version in cal.files},
+        calibration={path.name: path for path in cal.paths},
         kernels=list(kernel_list),
     )
     prov["calibration_tables"] = cal.provenance()
