@@ -7,6 +7,7 @@ The functions keep the names the lead registered in ``fluxcal/cli.py``
 from __future__ import annotations
 
 import datetime as _dt
+import logging
 from pathlib import Path
 
 import typer
@@ -57,7 +58,7 @@ def batch(
     calib: Path | None = typer.Option(None, "--calib", help="Calibration folder."),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats."),
     quicklook: bool = typer.Option(False, "--quicklook", help="Also write a PNG per day."),
-    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bar; one-line summary."),
 ) -> None:
     """Process many days on Dask, one task per day; resumable; exits 1 if a day failed."""
     from rich.console import Console
@@ -73,9 +74,13 @@ def batch(
     task = factory(input_dir, out, **{k: v for k, v in options.items() if v is not None})
     days = day_range(d0, d1)
     console = Console(stderr=True)
+    if not logging.getLogger().isEnabledFor(logging.INFO):  # no --verbose
+        import distributed  # noqa: F401 - its import sets the 'distributed' logger to INFO
+
+        logging.getLogger("distributed").setLevel(logging.WARNING)
     report = _run_with_progress(days, task, out, scheduler, workers, force, mission, console,
                                 quiet)
-    _summary(report, console)
+    _summary(report, console, full=not quiet)
     if not report.ok:
         # SystemExit, not typer.Exit: fluxcal.cli.main runs click with
         # standalone_mode=False, where typer.Exit's code is returned and dropped.
@@ -113,8 +118,14 @@ def _run_with_progress(days, task, out, scheduler, workers, force, name, console
                          name=name, on_day_done=done)
 
 
-def _summary(report, console) -> None:
+def _summary(report, console, full: bool = True) -> None:
     from rich.table import Table
+
+    counts = ", ".join(f"{report.count(s)} {s}" for s in ("done", "skipped", "no_data", "failed"))
+    if not full:
+        console.print(f"fluxcal batch {report.name}: {counts}; report: {report.report_path}",
+                      soft_wrap=True)
+        return
 
     table = Table(title=f"fluxcal batch {report.name}: {report.wall_seconds:.1f} s on "
                         f"{report.scheduler} ({report.n_workers} workers)")
@@ -125,6 +136,5 @@ def _summary(report, console) -> None:
         table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}", f"{d.n_vectors:,}",
                       f"{d.seconds:.2f}", (d.error or "")[:120])
     console.print(table)
-    counts = ", ".join(f"{report.count(s)} {s}" for s in ("done", "skipped", "no_data", "failed"))
-    console.print(f"{counts}; report: {report.report_path}")
+    console.print(f"{counts}; report: {report.report_path}", soft_wrap=True)
 
