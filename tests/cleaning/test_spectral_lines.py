@@ -176,6 +176,19 @@ def test_series_without_lines_changes_only_inside_bands(wheel_case):
     assert np.all((ratio > 0.3) & (ratio < 4.0)), ratio
 
 
+@settings(max_examples=25, deadline=None)
+@given(
+    n=st.integers(8, 3000),
+    seed=st.integers(0, 2**31),
+    fs=st.sampled_from([5.0, 20.0]),
+)
+def test_absent_lines_leave_series_identical(n, seed, fs):
+    # law: with every line absent (NaN) nothing is touched, bit for bit
+    x = np.random.default_rng(seed).normal(size=(n, 3)) * 10
+    res = remove_spectral_lines(x, fs, [np.nan, np.nan])
+    np.testing.assert_array_equal(res.values, x)
+
+
 def test_reproducible_and_seeded():
     rng = np.random.default_rng(0)
     x = rng.normal(size=(5000, 3))

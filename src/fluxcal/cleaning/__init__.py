@@ -1,0 +1,49 @@
+"""Generic removal of spacecraft disturbances from magnetometer series.
+
+Pure array functions (any magnetometer; arrays and parameters in, arrays out):
+
+- `minimum_variance` (MVA: eigenvalues, eigenvectors, ratio),
+- `remove_spectral_lines` (aliased reaction-wheel / fixed instrument lines),
+- `remove_heater_steps`, `remove_labelled_offsets` (square-wave heater disturbances),
+- `two_sensor_pca` (external field versus sensor-local noise of two sensors).
+
+The Rosetta levels H-L built on them are in `fluxcal.missions.rosetta.cleaning_levels`.
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9-4.13.
+"""
+
+from fluxcal.cleaning.minimum_variance import MinimumVarianceResult, minimum_variance
+from fluxcal.cleaning.pca import TwoSensorPCAResult, two_sensor_pca
+from fluxcal.cleaning.spectral_lines import (
+    LineRemovalResult,
+    default_bandwidth,
+    fold_frequency,
+    interpolated_lines,
+    remove_spectral_lines,
+)
+from fluxcal.cleaning.steps import (
+    LabelledOffsetResult,
+    StepRemovalResult,
+    moving_variance,
+    remove_heater_steps,
+    remove_labelled_offsets,
+)
+
+__all__ = [
+    "LabelledOffsetResult",
+    "LineRemovalResult",
+    "MinimumVarianceResult",
+    "StepRemovalResult",
+    "TwoSensorPCAResult",
+    "default_bandwidth",
+    "fold_frequency",
+    "interpolated_lines",
+    "minimum_variance",
+    "moving_variance",
+    "remove_heater_steps",
+    "remove_labelled_offsets",
+    "remove_spectral_lines",
+    "two_sensor_pca",
+]

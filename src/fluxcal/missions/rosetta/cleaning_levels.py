@@ -179,7 +179,16 @@ def level_h(
                 )
                 continue
             bw = default_bandwidth(fs) if bandwidth_hz is None else float(bandwidth_hz)
-            res = remove_spectral_lines(b[idx], fs, lines, times=t, bandwidth=bw, seed=rng)
+            try:
+                res = remove_spectral_lines(b[idx], fs, lines, times=t, bandwidth=bw, seed=rng)
+            except InputFormatError as exc:
+                if wheels is None or exc.field != "times":
+                    raise
+                raise InputFormatError(
+                    f"{name}: {exc} (seconds after the first vector, TT2000 {epoch0} ns)",
+                    path=wheels.source or None,
+                    field="time_utc",
+                ) from None
             out_b[idx] = res.values
             notes.append(
                 f"{name}: {idx.size} vectors at {fs:g} Hz cleaned, delta_f = {bw:.4g} Hz, "
