@@ -342,6 +342,10 @@ def test_clean_files_errors(tmp_path, lsk):
         clean_files("L", [tmp_path / "a.cdf"], tmp_path)
     with pytest.raises(InputFormatError, match="not found"):
         clean_files("H", [tmp_path / "missing.cdf"], tmp_path)
+    hds, *_ = _heater_case(lsk, n=400)
+    files = _write(hds, tmp_path / "b", lsk)  # a LEVEL_B product
+    with pytest.raises(InputFormatError, match="LEVEL_B product; LEVEL_H is made from LEVEL_C"):
+        clean_files("H", [files[".cdf"]], tmp_path / "out")
 
 
 def test_read_intervals(tmp_path, lsk):

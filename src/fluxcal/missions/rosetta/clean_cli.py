@@ -33,6 +33,8 @@ from fluxcal.errors import FluxcalError, InputFormatError
 log = logging.getLogger(__name__)
 
 CLEAN_LEVELS = ("H", "I", "J", "K", "L")
+#: Levels each cleaned level is made from (seed 003 sec. 4.9-4.13).
+SOURCE_LEVELS = {"H": ("C", "L"), "I": ("H",), "J": ("G", "I"), "K": ("B",), "L": ("K",)}
 #: Level whose product columns (seed tables) a cleaned level reuses.
 _COLUMNS_LIKE = {"H": "C", "I": "G", "J": "G", "K": "B", "L": "C"}
 #: Global attributes that describe one written file and must not be inherited.
@@ -297,6 +299,14 @@ def clean_files(
     with KernelPool(kernels) as pool:
         lsk = leapseconds()
         data = [_read(p, lsk) for p in inputs]
+        for path, ds in zip(inputs, data, strict=True):
+            have = str(ds.attrs.get("level", "")).upper()
+            if have and have not in SOURCE_LEVELS[level]:
+                raise InputFormatError(
+                    f"is a LEVEL_{have} product; LEVEL_{level} is made from LEVEL_"
+                    + " or LEVEL_".join(SOURCE_LEVELS[level]),
+                    path=str(path),
+                )
         used_inputs: list[Path] = list(inputs)
         src = data[0]
         sensor = str(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")))
