@@ -1,7 +1,8 @@
 """Batch scale benchmark: N simulated days serially vs on a LocalCluster of 2 workers.
 
     .venv/bin/python benchmarks/batch.py [--days 8] [--vectors 200000] [--workers 2]
-    .venv/bin/python benchmarks/batch.py --task messenger --input DIR --start 2012-01-01
+    .venv/bin/python benchmarks/batch.py --task messenger [--days 8]   # simulated, 1 vector/s
+    .venv/bin/python benchmarks/batch.py --task messenger --input DIR --start 2012-06-01
 
 Prints days/s, vectors/s and the speed-up, then extrapolates the wall time of the whole
 MESSENGER orbital mission (2011-03-18 .. 2015-04-30, 1505 days, up to 20 vectors/s =
@@ -57,12 +58,14 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--task", default="synthetic", help="synthetic, messenger or rosetta")
     ap.add_argument("--input", type=Path, help="input folder (mission tasks)")
-    ap.add_argument("--start", default="2024-01-01")
+    ap.add_argument("--start", default=None, help="first day (default 2024-01-01, "
+                    "MESSENGER 2012-06-01)")
     ap.add_argument("--formats", default="tab,cdf")
     args = ap.parse_args()
 
-    days = day_range(dt.date.fromisoformat(args.start),
-                     dt.date.fromisoformat(args.start) + dt.timedelta(days=args.days - 1))
+    start = args.start or ("2012-06-01" if args.task == "messenger" else "2024-01-01")
+    days = day_range(dt.date.fromisoformat(start),
+                     dt.date.fromisoformat(start) + dt.timedelta(days=args.days - 1))
     work = Path(tempfile.mkdtemp(prefix="fluxcal-bench-"))
     formats = tuple(args.formats.split(","))
     try:
@@ -71,9 +74,16 @@ def main() -> None:
 
             inp = work / "in"
             write_synthetic_inputs(inp, days, n_per_day=args.vectors)
+        elif args.input is None and args.task == "messenger":
+            from fluxcal.products.demo import simulate_messenger_days
+
+            inp = work / "in"
+            start = dt.datetime.combine(days[0], dt.time())
+            days = simulate_messenger_days(inp, duration_s=args.days * 86_400.0, start=start,
+                                           rate_setting=6)  # Table 1: 1 vector/s
         else:
             if args.input is None:
-                ap.error("--input is required for a mission task")
+                ap.error("--input is required for this task")
             inp = args.input
         factory = task_factory(args.task)
 

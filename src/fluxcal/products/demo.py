@@ -48,24 +48,45 @@ def _split_by_day(path: Path, stream: str, out_dir: Path, sclk) -> list[Path]:
     return written
 
 
-def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0) -> list[_dt.date]:
-    """Simulate MESSENGER MAG telemetry across midnight; write the batch input layout."""
+def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
+                            start: _dt.datetime | None = None,
+                            rate_setting: int | None = None) -> list[_dt.date]:
+    """Simulate MESSENGER MAG telemetry; write the batch input layout (one file per day).
+
+    By default ``duration_s`` centred on the midnight between the two demo days.  With
+    ``rate_setting`` (Table 1, e.g. 6 = 1 vector/s) the whole stretch uses that rate
+    (long benchmark stretches).  Returns the UTC days that received science data.
+    """
     from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
-    from fluxcal.missions.messenger.demo import simulate_to_dir
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 
     input_dir = Path(input_dir)
     work = input_dir / "simulation"
-    start = _dt.datetime.combine(MESSENGER_DAYS[1], _dt.time()) - _dt.timedelta(
-        seconds=duration_s / 2)
-    paths = simulate_to_dir(work, start_utc=start.strftime("%Y-%m-%dT%H:%M:%S"),
-                            duration_s=duration_s)
+    if start is None:
+        start = _dt.datetime.combine(MESSENGER_DAYS[1], _dt.time()) - _dt.timedelta(
+            seconds=duration_s / 2)
+    start_utc = start.strftime("%Y-%m-%dT%H:%M:%S")
+    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
+    if rate_setting is not None:
+        config.rate_segments = [(0.0, rate_setting)]
+    mk = write_messenger_like_kernels(work / "kernels", start_utc,
+                                      duration_s + 2 * config.lead_s,
+                                      plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)])
+    with KernelPool(mk):
+        sim = simulate(config, load_calibration(start_utc), SclkKernel.from_pool(-236))
+    paths = {"kernels": mk, **write_inputs(sim, work / "inputs")}
     with KernelPool(paths["kernels"]):
         sclk = SclkKernel.from_pool(-236)
+        days = []
         for key, stream in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
-            _split_by_day(Path(paths[key]), stream, input_dir, sclk)
+            written = _split_by_day(Path(paths[key]), stream, input_dir, sclk)
+            if key == "science":
+                days = [_dt.datetime.strptime(p.stem[-7:], "%Y%j").date() for p in written]
     (input_dir / "kernels.tm").write_text(Path(paths["kernels"]).read_text())
-    return list(MESSENGER_DAYS)
+    return days
 
 
 def _mission_inputs(mission: str, input_dir: Path) -> list[_dt.date] | None:
