@@ -106,6 +106,7 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     task = SyntheticDayTask(inp, out, delay=0.3, crash_once_on=DAYS[1])
     rep = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
     assert (out / ".crashed-SYNTH_20240302").exists()  # the worker really was killed
+    assert not list(out.glob(".*.tmp*"))  # its half-written temporary was removed
     statuses = {d.day: d.status for d in rep.days}
     # Every product that exists is complete; none is partial.
     for d in DAYS:
@@ -119,7 +120,6 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     assert rep2.ok
     assert {d.status for d in rep2.days} <= {"done", "skipped"}
     assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS]
-    assert not list(out.glob(".*.tmp*"))  # the stale temporary was cleaned
 
 
 def test_day_without_input_is_no_data(tmp_path: Path) -> None:

@@ -416,6 +416,8 @@ def run_batch(
         finally:
             if cluster is not None:
                 cluster.close()
+    for p in clean_stale_temporaries(out_dir):  # left by a worker killed during this run
+        log.info("removed stale temporary %s", p)
     report = BatchReport(name, [statuses[d.isoformat()] for d in days],
                          time.perf_counter() - t0, used, workers)
     rpath = Path(report_path) if report_path else out_dir / REPORT_NAME.format(name=name)
