@@ -55,10 +55,12 @@ def demo(
 
 def _register() -> None:
     from fluxcal.missions.messenger import cli as messenger_cli
+    from fluxcal.missions.rosetta import clean_cli
     from fluxcal.missions.rosetta import cli as rosetta_cli
     from fluxcal.products import cli as products_cli
 
     app.add_typer(messenger_cli.app, name="messenger")
+    rosetta_cli.app.command("clean")(clean_cli.clean)
     app.add_typer(rosetta_cli.app, name="rosetta")
     simulate_app.command("messenger")(messenger_cli.simulate)
     simulate_app.command("rosetta")(rosetta_cli.simulate)

@@ -50,7 +50,23 @@ def position_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> n
     return out
 
 
-def hermite(nodes: np.ndarray, states: np.ndarray, et: np.ndarray) -> np.ndarray:
+def hermite_coefficients(nodes: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """Per-interval cubic coefficients of the Hermite interpolant, shape (m - 1, 4, 3).
+
+    On interval ``i`` with ``s = (t - t_i) / h_i``, the position is
+    ``c0 + s c1 + s**2 c2 + s**3 c3`` with the node positions ``p`` and velocities ``v``.
+    """
+    h = np.diff(nodes)[:, None]
+    p0, p1 = states[:-1, :3], states[1:, :3]
+    v0, v1 = states[:-1, 3:] * h, states[1:, 3:] * h
+    c2 = -3.0 * p0 - 2.0 * v0 + 3.0 * p1 - v1
+    c3 = 2.0 * p0 + v0 - 2.0 * p1 + v1
+    return np.stack([p0, v0, c2, c3], axis=1)
+
+
+def hermite(
+    nodes: np.ndarray, states: np.ndarray, et: np.ndarray, coefficients: np.ndarray | None = None
+) -> np.ndarray:
     """Cubic Hermite interpolation of positions from node positions and velocities.
 
     Parameters
@@ -61,22 +77,25 @@ def hermite(nodes: np.ndarray, states: np.ndarray, et: np.ndarray) -> np.ndarray
         Position (km) and velocity (km/s) at the nodes.
     et : ndarray, shape (n,)
         Times within ``[nodes[0], nodes[-1]]``.
+    coefficients : ndarray, optional
+        `hermite_coefficients` of ``nodes, states`` when already computed.
 
     Returns
     -------
     ndarray, shape (n, 3)
     """
+    if coefficients is None:
+        coefficients = hermite_coefficients(nodes, states)
     i = np.clip(np.searchsorted(nodes, et, side="right") - 1, 0, nodes.size - 2)
-    h = (nodes[i + 1] - nodes[i])[:, None]
-    s = ((et - nodes[i]) / h[:, 0])[:, None]
-    p0, v0 = states[i, :3], states[i, 3:]
-    p1, v1 = states[i + 1, :3], states[i + 1, 3:]
-    s2, s3 = s * s, s * s * s
-    h00 = 2 * s3 - 3 * s2 + 1
-    h10 = s3 - 2 * s2 + s
-    h01 = -2 * s3 + 3 * s2
-    h11 = s3 - s2
-    return h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1
+    s = ((et - nodes.take(i)) / np.diff(nodes).take(i))[:, None]
+    c = coefficients.take(i, axis=0)
+    out = c[:, 3] * s
+    out += c[:, 2]
+    out *= s
+    out += c[:, 1]
+    out *= s
+    out += c[:, 0]
+    return out
 
 
 class StateInterpolator:
@@ -124,6 +143,7 @@ class StateInterpolator:
             bad = error > tolerance
             if not bad.any():
                 self.nodes, self.states = nodes, states
+                self.coefficients = hermite_coefficients(nodes, states)
                 return
             where = idx[bad] + 1
             nodes = np.insert(nodes, where, mids[bad])
@@ -143,7 +163,7 @@ class StateInterpolator:
         out = np.empty((et.size, 3))
         for start in range(0, et.size, self.CHUNK):
             block = slice(start, start + self.CHUNK)
-            out[block] = hermite(self.nodes, self.states, et[block])
+            out[block] = hermite(self.nodes, self.states, et[block], self.coefficients)
         return out
 
     def states_at(self, et: np.ndarray) -> np.ndarray:
@@ -220,6 +240,7 @@ def rtn_spherical(
     observer: str = "SUN",
     frame: str = "J2000",
     method: str = "interpolate",
+    target_position: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Spherical heliocentric position of seed 000 sec. 10.2.
 
@@ -236,6 +257,9 @@ def rtn_spherical(
         depend on it.
     method : {"interpolate", "oracle"}
         As for `position`.
+    target_position : ndarray, shape (n, 3), optional
+        The target's position relative to ``observer`` in ``frame`` when the caller
+        already has it (saves recomputing it).
 
     Returns
     -------
@@ -254,25 +278,39 @@ def rtn_spherical(
        ``cspice_vcrss``/``vsep``/``vperp``/``vprjp`` sequence, written here in numpy).
     """
     et = np.atleast_1d(np.asarray(et, dtype=float))
+    if target_position is None:
+        target_position = position(target, observer, frame, et, method=method)
+    m_pos = np.asarray(target_position, dtype=float)
     if method == "oracle" or et.size < 4:
-        m_pos = position_oracle(target, observer, frame, et)
-        earth = states_oracle("EARTH", observer, frame, et)
+        earth_states = lambda t: states_oracle("EARTH", observer, frame, t)  # noqa: E731
     else:
-        m_pos = position(target, observer, frame, et, method=method)
-        interp = StateInterpolator("EARTH", observer, frame, float(et.min()), float(et.max()))
-        earth = interp.states_at(et)
+        earth_states = StateInterpolator(
+            "EARTH", observer, frame, float(et.min()), float(et.max())
+        ).states_at
+    r = np.empty(et.size)
+    lat = np.empty(et.size)
+    az = np.empty(et.size)
+    for start in range(0, et.size, StateInterpolator.CHUNK):
+        block = slice(start, start + StateInterpolator.CHUNK)
+        r[block], lat[block], az[block] = _ecliptic_angles(m_pos[block], earth_states(et[block]))
+    return r, lat, az
+
+
+def _ecliptic_angles(
+    m_pos: np.ndarray, earth: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distance, latitude and azimuth of ``m_pos`` from the Earth's heliocentric state."""
     r_e, v_e = earth[:, :3], earth[:, 3:]
     r = np.linalg.norm(m_pos, axis=1)
     normal = np.cross(r_e, v_e)
     normal /= np.linalg.norm(normal, axis=1)[:, None]
-    sin_lat = np.einsum("ij,ij->i", normal, m_pos) / r
-    lat = np.degrees(np.arcsin(np.clip(sin_lat, -1.0, 1.0)))
-    proj = m_pos - np.einsum("ij,ij->i", m_pos, normal)[:, None] * normal
-    # vperp(v_earth, r_earth): component of the Earth velocity orthogonal to the Earth position
+    height = np.einsum("ij,ij->i", normal, m_pos)
+    lat = np.degrees(np.arcsin(np.clip(height / r, -1.0, 1.0)))
+    proj = m_pos - height[:, None] * normal
+    # vperp(v_earth, r_earth): component of the Earth velocity orthogonal to its position
     e_hat = r_e / np.linalg.norm(r_e, axis=1)[:, None]
     v_perp = v_e - np.einsum("ij,ij->i", v_e, e_hat)[:, None] * e_hat
-    sign = np.sign(np.einsum("ij,ij->i", v_perp, proj))
-    sign[sign == 0] = 1.0
+    sign = np.where(np.einsum("ij,ij->i", v_perp, proj) < 0, -1.0, 1.0)
     cos_az = np.einsum("ij,ij->i", e_hat, proj) / np.linalg.norm(proj, axis=1)
     az = sign * np.degrees(np.arccos(np.clip(cos_az, -1.0, 1.0)))
     return r, lat, az

@@ -357,7 +357,7 @@ def add_geometry(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2, 11.
     """
-    from fluxcal.geometry.frames import rotation_matrices
+    from fluxcal.geometry.frames import Rotator, rotation_matrices
     from fluxcal.geometry.positions import position, rtn_spherical
 
     et = ds["et"].values
@@ -376,12 +376,17 @@ def add_geometry(
     sun_sc = _apply(att, sun_dir, transpose=True)
     del att
     out = {"sc": b_sc, "j2000": b_j2000}
+    from_j2000 = Rotator("J2000", et) if method == "interpolate" else None
     for f in frames:
-        if f not in out:
+        if f in out:
+            continue
+        if from_j2000 is None:
             out[f] = _apply(rotation_matrices("J2000", FRAMES[f][0], et, method=method), b_j2000)
+        else:  # blocks of samples sized for the CPU cache
+            out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
     mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
     mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
-    r, lat, az = rtn_spherical("MESSENGER", et, method=method)
+    r, lat, az = rtn_spherical("MESSENGER", et, method=method, target_position=sun)
     variables = {
         f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
     }
