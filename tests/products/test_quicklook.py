@@ -70,6 +70,17 @@ def test_png_per_day(tmp_path: Path) -> None:
     assert sum(sub.sizes["time"] for _, sub in split_days(ds)) == 2000
 
 
+def test_daily_product_starting_before_midnight_gives_one_png(tmp_path: Path) -> None:
+    ds = make_dataset(600)
+    # 3 samples before 00:00 UTC, then 24 h: one product day, one PNG named by that day.
+    epoch = EPOCH0 - 3 * 10**9 + np.arange(600, dtype=np.int64) * 144 * 10**9
+    ds = ds.assign_coords(epoch=("time", epoch))
+    (day, sub), = split_days(ds)
+    assert day == "20240101" and sub.sizes["time"] == 600
+    paths = write_quicklooks(ds, tmp_path, "P")
+    assert [p.name for p in paths] == ["P_20240101.png"]
+
+
 def test_envelope_keeps_extremes() -> None:
     x = np.arange(100_000.0)
     y = np.sin(x / 1000)

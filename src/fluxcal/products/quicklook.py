@@ -114,7 +114,7 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
     epoch = ds["epoch"].values.astype(np.int64)
     if epoch.size == 0:
         raise InputFormatError("quicklook of an empty product", field="epoch")
-    start, date = _day_start_ns(epoch[0])
+    start, date = _day_start_ns(int(np.median(epoch)))
     hours = (epoch - start) / NS_PER_HOUR
     bname = field_variable(ds)
     b = ds[bname].values.astype(float)
@@ -188,13 +188,28 @@ def save_png(fig: Figure, path: Path) -> Path:
     return path
 
 
+ONE_DAY_SLACK_NS = 25 * NS_PER_HOUR
+
+
+def _day_keys(epoch: np.ndarray) -> np.ndarray:
+    parts = np.asarray(cdflib.cdfepoch.breakdown_tt2000(epoch)).reshape(-1, 9)
+    return parts[:, 0] * 10000 + parts[:, 1] * 100 + parts[:, 2]
+
+
 def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
-    """Split ``ds`` at UTC midnights: ``[(yyyymmdd, day_ds), ...]``."""
+    """Split ``ds`` at UTC midnights: ``[(yyyymmdd, day_ds), ...]``.
+
+    A product spanning at most 25 h is one day (that of its median sample): a daily
+    product whose first samples fall a few seconds before midnight (e.g. MESSENGER
+    days defined by the recorded time, before the latency correction) gives one PNG.
+    """
     epoch = ds["epoch"].values.astype(np.int64)
     if epoch.size == 0:
         return []
-    parts = np.asarray(cdflib.cdfepoch.breakdown_tt2000(epoch)).reshape(-1, 9)
-    key = parts[:, 0] * 10000 + parts[:, 1] * 100 + parts[:, 2]
+    if int(epoch.max()) - int(epoch.min()) <= ONE_DAY_SLACK_NS:
+        key = _day_keys(np.array([int(np.median(epoch))], dtype=np.int64))[0]
+        return [(f"{int(key):08d}", ds)]
+    key = _day_keys(epoch)
     out = []
     for k in np.unique(key):
         idx = np.flatnonzero(key == k)
