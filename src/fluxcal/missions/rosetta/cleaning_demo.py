@@ -95,7 +95,8 @@ def run_demo(out: Path, hours: float = 1.0, seed: int = 3) -> str:
         f"{n} vectors at {FS:g} Hz ({hours:g} h): red-noise field + 4 drifting wheel lines "
         "(1 nT) + 30 s heater square wave (0.5-1.5 nT)",
         f"  LEVEL_H line removal (sec. 4.9): wheel-line power down "
-        f"{10 * np.log10(before / after):.1f} dB (band {cleaned_lines.bandwidth:.3f} Hz, {cleaned_lines.window_times.size} windows)",
+        f"{10 * np.log10(before / after):.1f} dB (band {cleaned_lines.bandwidth:.3f} Hz, "
+        f"{cleaned_lines.window_times.size} windows)",
         f"  LEVEL_K heater steps (sec. 4.12.1): {steps.jump_indices.size} jumps found "
         f"(truth {int(np.count_nonzero(np.diff(level) != 0))}), direction "
         f"{np.array2string(steps.direction, precision=3)} (truth {heater_dir})",
