@@ -106,8 +106,9 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
     title : str
         Figure title (e.g. the product name).
     frame : str, optional
-        Frame name for the axis labels (default: the field variable's ``frame`` attr
-        or the suffix of its name).
+        Frame name for the axis labels (default: the field variable's or the
+        dataset's ``frame`` attr, the dataset's ``COORDINATE_SYSTEM``, or the suffix
+        of the variable name, e.g. ``B_mso`` -> ``mso``).
     """
     if "epoch" not in ds.coords and "epoch" not in ds:
         raise InputFormatError("quicklook needs the int64 'epoch' coordinate", field="epoch")
@@ -118,8 +119,12 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
     hours = (epoch - start) / NS_PER_HOUR
     bname = field_variable(ds)
     b = ds[bname].values.astype(float)
-    frame = frame or str(ds[bname].attrs.get("frame", bname.split("_", 1)[-1] if "_" in bname
-                                              else ""))
+    frame = frame or str(
+        ds[bname].attrs.get("frame")
+        or ds.attrs.get("frame")
+        or ds.attrs.get("COORDINATE_SYSTEM")
+        or (bname.split("_", 1)[-1] if "_" in bname else "")
+    )
     comps = [str(c) for c in ds[ds[bname].dims[1]].values] if ds[bname].dims[1] in ds.coords \
         else ["x", "y", "z"]
     panels: list[tuple[str, object]] = [("components", None), ("magnitude", None)]
