@@ -160,3 +160,15 @@ def lsk():
 def test_utc_round_trip_is_exact_to_the_nanosecond(lsk, tt2000):
     text = tt2000_to_utc(np.array([tt2000]), digits=9, lsk=lsk)
     assert utc_to_tt2000(text, lsk=lsk)[0] == tt2000
+
+
+def test_sclk_to_tt2000_direct_matches_spice(real_clocks):
+    """The TT2000 epoch taken straight from the TDT clock correlation equals SPICE's
+    scs2e followed by unitim(TDB -> TDT)."""
+    clock = SclkKernel.from_pool(-236)
+    micro = np.random.default_rng(5).integers(int(2e14), int(2.6e14), 500)
+    et, tt2000 = clock.to_et_and_tt2000(np.ones(micro.size, dtype=int), micro / 1e6)
+    ref_et = np.array([spiceypy.scs2e(-236, _msgr_string(1, int(m))) for m in micro])
+    ref_tt = np.array([spiceypy.unitim(e, "TDB", "TDT") for e in ref_et])
+    assert np.max(np.abs(et - ref_et)) < 1e-6
+    assert np.max(np.abs(tt2000 * 1e-9 - ref_tt)) < 1e-6

@@ -429,9 +429,7 @@ class SclkKernel:
 
     def encoded_to_et(self, encoded: np.ndarray) -> np.ndarray:
         """Convert encoded ticks to ephemeris time (SPICE ``sct2e``)."""
-        encoded = np.asarray(encoded, dtype=float)
-        i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, len(self.ticks) - 1)
-        par = self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
+        par = self._parallel(np.asarray(encoded, dtype=float))
         return self.lsk.tt_to_tdb(par) if self.time_system == 2 else par
 
     def et_to_encoded(self, et: np.ndarray) -> np.ndarray:
@@ -446,15 +444,30 @@ class SclkKernel:
         """Clock readings (partition, seconds) -> ephemeris time, as ``spiceypy.scs2e``."""
         return self.encoded_to_et(self.encode(partition, seconds))
 
-    def to_tt2000(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
-        """Clock readings -> int64 TT2000 ns (direct when the parallel time is TT)."""
+    def _parallel(self, encoded: np.ndarray) -> np.ndarray:
+        """Convert encoded ticks to parallel time (TDB or TT seconds past J2000)."""
+        last = len(self.ticks) - 1
+        i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, last)
+        return self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
+
+    def to_et_and_tt2000(
+        self, partition: np.ndarray, seconds: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Clock readings -> (ephemeris time, int64 TT2000 ns), sharing the work.
+
+        With a TT (TDT) parallel time the TT2000 epoch comes straight from the clock
+        correlation, without a TDB round trip.
+        """
+        parallel = self._parallel(self.encode(partition, seconds))
         if self.time_system != 2:
-            return et_to_tt2000(self.to_et(partition, seconds), self.lsk)
-        encoded = self.encode(partition, seconds)
-        i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, len(self.ticks) - 1)
-        tt = self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
-        whole = np.floor(tt)
-        return whole.astype(np.int64) * _NS + np.rint((tt - whole) * 1e9).astype(np.int64)
+            return parallel, et_to_tt2000(parallel, self.lsk)
+        whole = np.floor(parallel)
+        tt2000 = whole.astype(np.int64) * _NS + np.rint((parallel - whole) * 1e9).astype(np.int64)
+        return self.lsk.tt_to_tdb(parallel), tt2000
+
+    def to_tt2000(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+        """Clock readings -> int64 TT2000 nanoseconds."""
+        return self.to_et_and_tt2000(partition, seconds)[1]
 
     def from_et(self, et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ephemeris time -> clock readings (partition, seconds)."""
