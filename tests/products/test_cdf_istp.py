@@ -57,3 +57,30 @@ def test_mission_yaml_overrides(dataset: xr.Dataset, tmp_path: Path) -> None:
     flat = {k: (v[0] if isinstance(v, list) and len(v) == 1 else v) for k, v in g.items()}
     assert flat["Project"] == "NASA>Discovery>MESSENGER"
     assert flat["PI_name"] == "S. C. Solomon"
+
+
+def test_reads_a_foreign_istp_cdf(tmp_path: Path) -> None:
+    """A CDF written by plain cdflib (no fluxcal attributes) is readable and plottable."""
+    from cdflib.cdfwrite import CDF
+
+    from fluxcal.products import read_product
+    from fluxcal.products.quicklook import quicklook_figure
+
+    epoch = np.arange(100, dtype=np.int64) * 10**9 + 757_339_269_184_000_000
+    b = np.column_stack([np.arange(100.0), np.ones(100), -np.ones(100)])
+    cdf = CDF(tmp_path / "foreign.cdf")
+    cdf.write_var({"Variable": "Epoch", "Data_Type": 33, "Num_Elements": 1, "Rec_Vary": True,
+                   "Dim_Sizes": []}, {"VAR_TYPE": "support_data"}, epoch)
+    cdf.write_var({"Variable": "B_GSE", "Data_Type": 45, "Num_Elements": 1, "Rec_Vary": True,
+                   "Dim_Sizes": [3]},
+                  {"DEPEND_0": "Epoch", "LABL_PTR_1": "label_B", "UNITS": "nT",
+                   "VAR_TYPE": "data"}, b)
+    cdf.write_var({"Variable": "label_B", "Data_Type": 51, "Num_Elements": 4, "Rec_Vary": False,
+                   "Dim_Sizes": [3]}, {"VAR_TYPE": "metadata"}, ["Bx  ", "By  ", "Bz  "])
+    cdf.close()
+    ds = read_product(tmp_path / "foreign.cdf")
+    np.testing.assert_array_equal(ds["epoch"].values, epoch)
+    np.testing.assert_array_equal(ds["B_GSE"].values, b)
+    assert ds["B_GSE"].dims == ("time", "label_B")
+    fig = quicklook_figure(ds)
+    assert fig.axes[0].get_ylabel() == "B GSE (nT)"

@@ -231,7 +231,9 @@ def read_cdf(path: Path) -> xr.Dataset:
     """Read a fluxcal CDF back into a Dataset (``Epoch`` -> int64 ``epoch`` coordinate).
 
     Variables keep every attribute of the file (ISTP ones included); dataset attrs are
-    the decoded global attributes.
+    the decoded global attributes.  For a CDF written by other ISTP software (no
+    ``fluxcal_dims`` attributes), the variables with ``DEPEND_0 = Epoch`` are read with
+    dims ``("time", <LABL_PTR_i or DEPEND_i>...)``; ``Epoch`` must be CDF_TIME_TT2000.
     """
     path = Path(path)
     cdf = cdflib.CDF(str(path))
@@ -257,8 +259,14 @@ def read_cdf(path: Path) -> xr.Dataset:
             n_epoch = values.size
             coords["epoch"] = xr.Variable((TIME_DIM,), values, attrs)
             continue
-        if dims is None:
-            continue
+        if dims is None:  # a CDF not written by fluxcal: infer dims from ISTP attributes
+            if not (vinfo.Rec_Vary and attrs.get("DEPEND_0") == EPOCH):
+                continue
+            extra = [str(attrs.get(f"LABL_PTR_{i + 1}") or attrs.get(f"DEPEND_{i + 1}")
+                         or f"{name}_dim{i + 1}") for i in range(len(vinfo.Dim_Sizes))]
+            dims = [TIME_DIM, *extra]
+            if vinfo.Data_Type_Description == "CDF_CHAR":
+                dtype = "str"
         dims = tuple(dims)
         if dtype == "str":
             values = np.asarray(values, dtype=str)

@@ -40,6 +40,11 @@ MAX_POINTS = 4000  # envelope bins per panel (about the pixel width of the figur
 COLORS = ("tab:blue", "tab:green", "tab:red")
 
 
+def _units(var: xr.DataArray) -> str:
+    """Return the ``units`` attr, or ISTP ``UNITS`` (CDFs written by other software)."""
+    return str(var.attrs.get("units", var.attrs.get("UNITS", ""))).strip()
+
+
 def _find(ds: xr.Dataset, prefixes: Sequence[str], vector: bool | None = None,
           units: Sequence[str] | None = None) -> list[str]:
     out = []
@@ -52,7 +57,7 @@ def _find(ds: xr.Dataset, prefixes: Sequence[str], vector: bool | None = None,
             continue
         if vector is not None and (var.ndim == 2) != vector:
             continue
-        if units is not None and str(var.attrs.get("units", "")) not in units:
+        if units is not None and _units(var) not in units:
             continue
         if var.dtype.kind not in "iufb":
             continue
@@ -160,12 +165,12 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
             for j in range(o.shape[1]):
                 ax.plot(*envelope(hours, o[:, j]), lw=0.8, color=COLORS[j % 3],
                         label=f"{comps[j] if j < len(comps) else j}")
-            ax.set_ylabel(f"{arg} ({ds[arg].attrs.get('units', '')})")
+            ax.set_ylabel(f"{arg} ({_units(ds[arg])})")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         elif kind == "temperature":
             for name in arg:
                 ax.plot(*envelope(hours, ds[name].values.astype(float)), lw=0.8, label=name)
-            ax.set_ylabel(f"T ({ds[arg[0]].attrs.get('units', '')})")
+            ax.set_ylabel(f"T ({_units(ds[arg[0]])})")
             ax.legend(loc="upper right", fontsize=8)
         elif kind == "quality":
             q = ds[arg].values
@@ -173,7 +178,7 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
             ax.set_ylabel(f"{arg}")
         elif kind == "distance":
             ax.plot(*envelope(hours, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
-            ax.set_ylabel(f"distance ({ds[arg].attrs.get('units', '')})")
+            ax.set_ylabel(f"distance ({_units(ds[arg])})")
         else:
             r = np.linalg.norm(ds[arg].values.astype(float), axis=1)
             ax.plot(*envelope(hours, r), lw=0.8, color="tab:brown")
