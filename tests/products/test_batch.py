@@ -194,3 +194,16 @@ def test_worker_kernel_pool_switches_lists() -> None:
         if pool is not None:
             pool.__exit__(None, None, None)
     assert spiceypy.ktotal("ALL") == before
+
+
+def test_cli_batch_on_existing_scheduler(cluster, tmp_path: Path) -> None:
+    from fluxcal.cli import main
+
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, DAYS[:2], n_per_day=30)
+    args = ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-02", "--input",
+            str(inp), "--out", str(out), "--scheduler", cluster.scheduler_address]
+    assert main(args) == 0
+    report = json.loads((out / "batch_report_synthetic.json").read_text())
+    assert report["scheduler"] == cluster.scheduler_address
+    assert report["counts"]["done"] == 2
