@@ -36,6 +36,7 @@ from fluxcal.errors import InputFormatError
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_value, encode_value
 from fluxcal.products.columns import TIME_DIM
+from fluxcal.products.provenance import creation_time
 
 EPOCH = "Epoch"
 DIMS_ATTR = "fluxcal_dims"
@@ -182,7 +183,8 @@ def write_cdf(
     gattrs.update(label_extra or {})
     gattrs.setdefault("Logical_source", path.stem)
     gattrs["Logical_file_id"] = path.stem
-    gattrs["Generation_date"] = str(ds.attrs.get("creation_time", ""))[:10].replace("-", "")
+    created = str(ds.attrs.get("creation_time") or creation_time())
+    gattrs["Generation_date"] = created[:10].replace("-", "")
     gattrs["Software_version"] = str(ds.attrs.get("software_version", fluxcal.__version__))
     parents = [r.get("name", "") for r in ds.attrs.get("inputs", []) or []]
     globals_cdf: dict[str, dict[int, Any]] = {
