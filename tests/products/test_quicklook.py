@@ -50,6 +50,15 @@ def test_panels_follow_the_dataset() -> None:
     assert ymax == pytest.approx(np.linalg.norm(ds["B_mso"].values, axis=1).max())
 
 
+def test_chosen_field_and_frame() -> None:
+    ds = _messenger_like(200)
+    ds["b_sensor"] = ds["B_mso"] * 2
+    fig = quicklook_figure(ds, field="b_sensor", frame="MSGR_MAG")
+    assert fig.axes[0].get_ylabel() == "B MSGR_MAG (nT)"
+    with pytest.raises(InputFormatError, match="quality"):
+        quicklook_figure(ds, field="quality")
+
+
 def test_minimal_product_has_two_panels() -> None:
     ds = make_dataset(100)[["B_mso"]]
     fig = quicklook_figure(ds)

@@ -101,7 +101,8 @@ def _day_start_ns(epoch0: int) -> tuple[int, str]:
     return start, f"{y:04d}-{mo:02d}-{d:02d}"
 
 
-def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) -> Figure:
+def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
+                     field: str | None = None) -> Figure:
     """Build the quicklook figure of ``ds`` (no I/O).
 
     Parameters
@@ -114,6 +115,9 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
         Frame name for the axis labels (default: the field variable's or the
         dataset's ``frame`` attr, the dataset's ``COORDINATE_SYSTEM``, or the suffix
         of the variable name, e.g. ``B_mso`` -> ``mso``).
+    field : str, optional
+        The field vector to plot (default: `field_variable`), e.g. ``"b_mso"`` when the
+        dataset holds the field in several frames.
     """
     if "epoch" not in ds.coords and "epoch" not in ds:
         raise InputFormatError("quicklook needs the int64 'epoch' coordinate", field="epoch")
@@ -122,7 +126,10 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None) 
         raise InputFormatError("quicklook of an empty product", field="epoch")
     start, date = _day_start_ns(int(np.median(epoch)))
     hours = (epoch - start) / NS_PER_HOUR
-    bname = field_variable(ds)
+    bname = field or field_variable(ds)
+    if bname not in ds or ds[bname].ndim != 2:
+        raise InputFormatError(f"field {bname!r} is not a (time, component) variable of the "
+                               "dataset", field=bname)
     b = ds[bname].values.astype(float)
     frame = frame or str(
         ds[bname].attrs.get("frame")
@@ -227,11 +234,17 @@ def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
     return out
 
 
-def write_quicklooks(ds: xr.Dataset, out_dir: Path, stem: str) -> list[Path]:
-    """Write ``<out_dir>/<stem>_<yyyymmdd>.png`` for every UTC day in ``ds``."""
+def write_quicklooks(ds: xr.Dataset, out_dir: Path, stem: str, field: str | None = None,
+                     frame: str | None = None) -> list[Path]:
+    """Write ``<out_dir>/<stem>_<yyyymmdd>.png`` for every UTC day in ``ds``.
+
+    This is the quicklook option of the pipelines: call it with the calibrated day
+    Dataset (which may hold ``offset`` or ``temperature`` variables that the archived
+    product does not) and the field in the chosen frame (``field=``, ``frame=``).
+    """
     paths = []
     for day, sub in split_days(ds):
-        fig = quicklook_figure(sub, title=f"{stem} {day}")
+        fig = quicklook_figure(sub, title=f"{stem} {day}", frame=frame, field=field)
         paths.append(save_png(fig, Path(out_dir) / f"{stem}_{day}.png"))
         plt.close(fig)
     return paths
