@@ -21,6 +21,9 @@ def plot(
                                     "(default: beside the product)."),
     spectrogram: bool = typer.Option(False, "--spectrogram",
                                      help="Also write a spectrogram PNG of the field."),
+    field: str | None = typer.Option(None, "--field",
+                                     help="Field variable to plot (default: the first "
+                                          "B* vector in nT)."),
 ) -> None:
     """Render a quicklook PNG per day of a product."""
     from fluxcal.products.quicklook import save_png, spectrogram_figure, write_quicklooks
@@ -28,9 +31,10 @@ def plot(
 
     ds = read_product(product)
     out_dir = out or product.parent
-    paths = write_quicklooks(ds, out_dir, product.stem)
+    paths = write_quicklooks(ds, out_dir, product.stem, field=field)
     if spectrogram:
-        paths.append(save_png(spectrogram_figure(ds), out_dir / f"{product.stem}_spec.png"))
+        paths.append(save_png(spectrogram_figure(ds, field),
+                              out_dir / f"{product.stem}_spec.png"))
     for p in paths:
         typer.echo(str(p))
 
