@@ -21,7 +21,9 @@ Each writer returns the path of a meta-kernel listing the files it wrote; load i
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +86,29 @@ SCLK01_COEFFICIENTS_{cid}  = (
 
 \\begintext
 """
+
+
+def _prepare(out_dir: str | Path, prefix: str) -> tuple[Path, Path, Path, Path, Path]:
+    """Create ``out_dir``; return it and the SCLK, FK, SPK, CK paths (old binaries removed)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sclk, fk = out / f"{prefix}.tsc", out / f"{prefix}.tf"
+    spk, ck = out / f"{prefix}.bsp", out / f"{prefix}_sc.bc"
+    for path in (spk, ck):  # the SPICE writers refuse to overwrite
+        path.unlink(missing_ok=True)
+    return out, sclk, fk, spk, ck
+
+
+@contextlib.contextmanager
+def _furnished(*paths: Path) -> Iterator[None]:
+    """Load text kernels just written, for the writers that need them; unload after."""
+    for path in paths:
+        spiceypy.furnsh(str(path))
+    try:
+        yield
+    finally:
+        for path in paths:
+            spiceypy.unload(str(path))
 
 
 def _tdt(utc: str) -> float:
@@ -215,12 +240,7 @@ def write_messenger_like_kernels(
     Path
         The meta-kernel ``messenger_synthetic.tm``.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    sclk_path, fk_path = out / "msgr_synthetic.tsc", out / "msgr_synthetic.tf"
-    spk_path, ck_path = out / "msgr_synthetic.bsp", out / "msgr_synthetic_sc.bc"
-    for path in (spk_path, ck_path):
-        path.unlink(missing_ok=True)
+    out, sclk_path, fk_path, spk_path, ck_path = _prepare(out_dir, "msgr_synthetic")
     with KernelPool([], fluxcal_frames=False):
         launch = _tdt("2004-08-03T06:15:56.5")
         reset = _tdt("2013-01-08T20:00:00")
@@ -247,9 +267,7 @@ def write_messenger_like_kernels(
             )
         )
         fk_path.write_text(MESSENGER_FK)
-        spiceypy.furnsh(str(sclk_path))
-        spiceypy.furnsh(str(fk_path))
-        try:
+        with _furnished(sclk_path, fk_path):
             et0 = spiceypy.str2et(start_utc) - margin_s
             et1 = spiceypy.str2et(start_utc) + duration_s + margin_s
             epochs = np.arange(et0, et1 + 60.0, 60.0)
@@ -266,9 +284,6 @@ def write_messenger_like_kernels(
             )
             cmat = _sun_keeping_attitude(att_epochs - (et0 + margin_s), _unit(sun), plus_y_sunward)
             _write_ck(ck_path, -236000, -236, att_epochs, cmat, "MESSENGER-LIKE ATTITUDE")
-        finally:
-            spiceypy.unload(str(fk_path))
-            spiceypy.unload(str(sclk_path))
     files = [sclk_path, fk_path, spk_path, ck_path]
     return write_meta_kernel(out / "messenger_synthetic.tm", files)
 
@@ -345,12 +360,7 @@ def write_rosetta_like_kernels(
     Path
         The meta-kernel ``rosetta_synthetic.tm``.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    sclk_path, fk_path = out / "ros_synthetic.tsc", out / "ros_synthetic.tf"
-    spk_path, ck_path = out / "ros_synthetic.bsp", out / "ros_synthetic_sc.bc"
-    for path in (spk_path, ck_path):
-        path.unlink(missing_ok=True)
+    out, sclk_path, fk_path, spk_path, ck_path = _prepare(out_dir, "ros_synthetic")
     with KernelPool([], fluxcal_frames=False):
         epoch0 = _tdt("2003-01-01T00:00:00")
         sclk_path.write_text(
@@ -366,9 +376,7 @@ def write_rosetta_like_kernels(
             )
         )
         fk_path.write_text(ROSETTA_FK)
-        spiceypy.furnsh(str(sclk_path))
-        spiceypy.furnsh(str(fk_path))
-        try:
+        with _furnished(sclk_path, fk_path):
             et0 = spiceypy.str2et(start_utc) - margin_s
             et1 = spiceypy.str2et(start_utc) + duration_s + margin_s
             epochs = np.arange(et0, et1 + 600.0, 600.0)
@@ -389,9 +397,6 @@ def write_rosetta_like_kernels(
             x_axis = np.cross(y_axis, z_axis)
             cmat = np.stack([x_axis, y_axis, z_axis], axis=1)
             _write_ck(ck_path, -226000, -226, att_epochs, cmat, "ROSETTA-LIKE ATTITUDE")
-        finally:
-            spiceypy.unload(str(fk_path))
-            spiceypy.unload(str(sclk_path))
     return write_meta_kernel(out / "rosetta_synthetic.tm", [sclk_path, fk_path, spk_path, ck_path])
 
 
