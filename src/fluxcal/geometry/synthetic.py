@@ -121,9 +121,20 @@ def _kepler_states(elements: list[float], epochs: np.ndarray) -> np.ndarray:
 
 
 def _write_spk(
-    path: Path, body: int, center: int, epochs: np.ndarray, states: np.ndarray, segid: str
+    path: Path,
+    body: int,
+    center: int,
+    epochs: np.ndarray,
+    states: np.ndarray,
+    segid: str,
+    *,
+    append: bool = False,
 ) -> None:
-    handle = spiceypy.spkopn(str(path), "fluxcal synthetic SPK", 0)
+    """Write (or append) a type 13 (Hermite) SPK segment of ``states`` relative to J2000."""
+    if append:
+        handle = spiceypy.spkopa(str(path))
+    else:
+        handle = spiceypy.spkopn(str(path), "fluxcal synthetic SPK", 0)
     try:
         spiceypy.spkw13(
             handle, body, center, "J2000", float(epochs[0]), float(epochs[-1]), segid, 7,
@@ -388,7 +399,7 @@ def write_rosetta_like_kernels(
             gm_comet = 6.674e-20 * 1.0e13
             sc_elements = [30.0, 0.0, math.radians(70.0), 0.0, 0.0, 0.0, et0, gm_comet]
             sc = _kepler_states(sc_elements, epochs)
-            _append_spk(spk_path, -226, 1000012, epochs, sc, "ROSETTA-LIKE ESCORT")
+            _write_spk(spk_path, -226, 1000012, epochs, sc, "ROSETTA-LIKE ESCORT", append=True)
             att_epochs = np.arange(et0, et1 + attitude_step, attitude_step)
             to_comet = _unit(-np.array([conics_pos(sc_elements, t) for t in att_epochs]))
             sun = _unit(-np.array([conics_pos(comet_elements, t) for t in att_epochs]))
@@ -403,16 +414,3 @@ def write_rosetta_like_kernels(
 def conics_pos(elements: list[float], et: float) -> np.ndarray:
     """Position (km) from conic elements at ``et`` (``spiceypy.conics``)."""
     return np.asarray(spiceypy.conics(elements, float(et))[:3])
-
-
-def _append_spk(
-    path: Path, body: int, center: int, epochs: np.ndarray, states: np.ndarray, segid: str
-) -> None:
-    handle = spiceypy.spkopa(str(path))
-    try:
-        spiceypy.spkw13(
-            handle, body, center, "J2000", float(epochs[0]), float(epochs[-1]), segid, 7,
-            len(epochs), states.tolist(), epochs.tolist(),
-        )
-    finally:
-        spiceypy.spkcls(handle)
