@@ -22,9 +22,21 @@ import tempfile
 import time
 from pathlib import Path
 
-from distributed import Client
+# One BLAS/OpenMP thread in this process too: Dask's nanny gives each worker one thread
+# (OMP/MKL/OPENBLAS_NUM_THREADS=1), so the serial run must not use both cores through
+# OpenBLAS, or the comparison measures BLAS threading instead of day parallelism.
+# (Set before numpy is imported.)
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-from fluxcal.products.batch import day_range, make_local_cluster, run_batch, task_factory
+from distributed import Client  # noqa: E402
+
+from fluxcal.products.batch import (  # noqa: E402
+    day_range,
+    make_local_cluster,
+    run_batch,
+    task_factory,
+)
 
 MESSENGER_DAYS = (dt.date(2015, 4, 30) - dt.date(2011, 3, 18)).days + 1
 VECTORS_PER_DAY_20HZ = 20 * 86_400
