@@ -1,7 +1,7 @@
 """Batch scale benchmark: N simulated days serially vs on a LocalCluster of 2 workers.
 
-    .venv/bin/python benchmarks/batch.py [--days 8] [--vectors 200000] [--workers 2]
-    .venv/bin/python benchmarks/batch.py --task messenger [--days 8]   # simulated, 1 vector/s
+    .venv/bin/python benchmarks/batch.py [--days 8] [--workers 2]   # MESSENGER day task
+    .venv/bin/python benchmarks/batch.py --task synthetic [--vectors 200000]
     .venv/bin/python benchmarks/batch.py --task messenger --input DIR --start 2012-06-01
 
 Prints days/s, vectors/s and the speed-up, then extrapolates the wall time of the whole
@@ -31,6 +31,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from distributed import Client  # noqa: E402
 
+from fluxcal.errors import FluxcalError  # noqa: E402
 from fluxcal.products.batch import (  # noqa: E402
     day_range,
     make_local_cluster,
@@ -68,12 +69,19 @@ def main() -> None:
     ap.add_argument("--days", type=int, default=8)
     ap.add_argument("--vectors", type=int, default=200_000, help="vectors per synthetic day")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--task", default="synthetic", help="synthetic, messenger or rosetta")
+    ap.add_argument("--task", default="auto",
+                    help="messenger (default when its day task exists), synthetic or rosetta")
     ap.add_argument("--input", type=Path, help="input folder (mission tasks)")
     ap.add_argument("--start", default=None, help="first day (default 2024-01-01, "
                     "MESSENGER 2012-06-01)")
     ap.add_argument("--formats", default="tab,cdf")
     args = ap.parse_args()
+    if args.task == "auto":
+        try:
+            task_factory("messenger")
+            args.task = "messenger"
+        except FluxcalError:
+            args.task = "synthetic"
 
     start = args.start or ("2012-06-01" if args.task == "messenger" else "2024-01-01")
     days = day_range(dt.date.fromisoformat(start),
