@@ -142,6 +142,9 @@ def test_worker_processes_are_single_threaded(cluster) -> None:
     from distributed import Client
 
     with Client(cluster.scheduler_address) as client:
+        # a worker killed by an earlier test in this module is restarted by its nanny:
+        # wait for it to register again before counting
+        client.wait_for_workers(2, timeout=60)
         info = client.scheduler_info()["workers"]
         assert len(info) == 2
         assert all(w["nthreads"] == 1 for w in info.values())
