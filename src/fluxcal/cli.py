@@ -72,27 +72,34 @@ _register()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit code."""
+    """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit code.
+
+    Usage errors print click's message and return its code (2); a `FluxcalError` prints
+    ``fluxcal: error: ...`` and returns 2; ``typer.Exit(code)`` returns ``code``.
+    """
+    from fluxcal.errors import FluxcalError
+
     args = list(sys.argv[1:] if argv is None else argv)
     try:
-        app(args=args, prog_name="fluxcal", standalone_mode=False)
-    except SystemExit as exc:  # typer/click exit paths
+        code = app(args=args, prog_name="fluxcal", standalone_mode=False)
+    except SystemExit as exc:
         return int(exc.code or 0)
-    except Exception as exc:  # noqa: BLE001 - turn any failure into a message and exit code
-        from click.exceptions import ClickException, Exit
-
-        if isinstance(exc, Exit):
-            return int(exc.exit_code)
-        if isinstance(exc, ClickException):
-            exc.show()
-            return exc.exit_code
-        from fluxcal.errors import FluxcalError
-
-        if isinstance(exc, FluxcalError):
-            typer.echo(f"fluxcal: error: {exc}", err=True)
-            return 2
-        raise
-    return 0
+    except FluxcalError as exc:
+        typer.echo(f"fluxcal: error: {exc}", err=True)
+        return 2
+    except typer.Abort:
+        typer.echo("Aborted.", err=True)
+        return 1
+    except Exception as exc:
+        # click's (and typer's vendored click's) usage errors and Exit carry exit_code
+        exit_code = getattr(exc, "exit_code", None)
+        if exit_code is None:
+            raise
+        show = getattr(exc, "show", None)
+        if callable(show):
+            show()
+        return int(exit_code)
+    return int(code) if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover
