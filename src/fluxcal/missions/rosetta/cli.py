@@ -51,6 +51,12 @@ def calibrate(
     ),
     no_jumps: bool = typer.Option(False, "--no-jumps", help="Skip the Appendix B offset jumps."),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
+    quicklook: bool = typer.Option(
+        False,
+        "--quicklook",
+        help="Also write RPCMAG_QL_<sensor>_<yyyymmdd>.png per day (field of the highest "
+        "level made among C, B, A; sensor temperature; quality; distance).",
+    ),
 ) -> None:
     """Calibrate raw RPC-MAG telemetry into LEVEL_A, B, C, E, F, G products."""
     from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
@@ -73,6 +79,7 @@ def calibrate(
         alignment_from_kernels=alignment_from_kernels,
         jumps=not no_jumps,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
+        quicklook=quicklook,
     )
     a = result.levels["A"]
     typer.echo(

@@ -15,6 +15,7 @@ References
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -30,6 +31,19 @@ log = logging.getLogger(__name__)
 
 LEVELS = ("A", "B", "C", "E", "F", "G")
 PRODUCT_CODE = {lev: f"CL{lev}" for lev in LEVELS}
+QUICKLOOK_STEM = "RPCMAG_QL_{sensor}"
+
+
+def istp_yaml() -> dict[str, Path]:
+    """Rosetta ISTP attribute files: ``{"global_yaml": ..., "variable_yaml": ...}``.
+
+    ``missions/rosetta/data/istp_global.yaml`` (Project, Source_name, Descriptor,
+    Discipline, ...) and ``istp_variables.yaml`` (the variables of the RPC-MAG levels),
+    passed to `fluxcal.products.write_product`.
+    """
+    data = Path(__file__).resolve().parent / "data"
+    return {"global_yaml": data / "istp_global.yaml",
+            "variable_yaml": data / "istp_variables.yaml"}
 
 
 def product_columns(level: str) -> list:
@@ -113,8 +127,32 @@ def write_level(
             formats=formats,
             columns=product_columns(level),
             label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor},
+            **istp_yaml(),
         )
     return written
+
+
+def quicklook_dataset(levels: dict[str, xr.Dataset]) -> xr.Dataset:
+    """Return the dataset drawn by the quicklook option (field, temperature, ...).
+
+    The highest full-resolution level made: LEVEL_C (field in the output frame, sensor
+    temperature in K, spacecraft position for the distance panel), else LEVEL_B (s/c
+    coordinates), else LEVEL_A (URF).
+    """
+    for lev in ("C", "B", "A"):
+        if lev in levels:
+            return levels[lev]
+    raise FluxcalError("quicklook needs LEVEL_A, B or C")
+
+
+def write_quicklook(levels: dict[str, xr.Dataset], out_dir: Path) -> list[Path]:
+    """Write ``RPCMAG_QL_<sensor>_<yyyymmdd>.png`` per UTC day (field + temperatures)."""
+    from fluxcal.products.quicklook import write_quicklooks
+
+    ds = quicklook_dataset(levels)
+    frame = str(ds["b"].attrs.get("frame", ds.attrs.get("frame", "")) or "") or None
+    stem = QUICKLOOK_STEM.format(sensor=ds.attrs["sensor"])
+    return write_quicklooks(ds, Path(out_dir), stem, field="b", frame=frame)
 
 
 @dataclass
@@ -154,6 +192,8 @@ def calibrate_files(
     alignment_from_kernels: bool = False,
     formats: Sequence[str] = ("tab", "cdf"),
     write: bool = True,
+    quicklook: bool = False,
+    pool=None,
 ) -> CalibrateResult:
     """Run ``fluxcal rosetta calibrate``: read raw CSV, make the levels, write products.
 
@@ -161,6 +201,9 @@ def calibrate_files(
     ``stitch_state`` is a JSON file holding the end-of-day state of the extended
     temperature model (sec. 4.2.3.3: "the offset values at the end of a day are stored in a
     separate file"): read before LEVEL_A when it exists, rewritten after.
+    ``quicklook`` also writes a PNG per UTC day (`write_quicklook`).  ``pool`` is an
+    already entered `KernelPool` holding ``kernels`` (batch workers keep theirs loaded,
+    `fluxcal.products.batch.worker_kernel_pool`); by default a pool is opened here.
 
     Raises
     ------
@@ -185,7 +228,8 @@ def calibrate_files(
     need.add("A")
 
     result = CalibrateResult()
-    with KernelPool(kernels) as pool:
+    scope = KernelPool(kernels) if pool is None else contextlib.nullcontext(pool)
+    with scope as pool:
         lsk = leapseconds()
         sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
         cal = calib.load_ground_calibration(sensor, calib_dir)
@@ -242,6 +286,8 @@ def calibrate_files(
                     )
             if hk_file is not None:
                 result.paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
+            if quicklook:
+                result.paths += write_quicklook(result.levels, out)
     return result
 
 
@@ -313,4 +359,5 @@ def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]
         Column("pos_voltage", "%9.5f", label="MAG.POS_VOLTAGE"),
         Column("b_ob", "%11.3f", label="B{c}.OB"),
     ]
-    return write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=formats, columns=cols)
+    return write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=formats, columns=cols,
+                         **istp_yaml())

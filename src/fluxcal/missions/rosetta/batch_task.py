@@ -1,0 +1,281 @@
+"""Day task for ``fluxcal batch rosetta`` (one day of raw RPC-MAG telemetry -> its levels).
+
+Input folder layout (decision, see ``docs/decisions/rosetta.md``)::
+
+    <input>/kernels.tm                  meta-kernel (optional; or ``--kernels``)
+    <input>/calib/                      calibration overrides (optional; or ``--calib``):
+                                        RPCMAG_SC_ALIGN.TXT, daily
+                                        RPCMAG_<yymmdd>_006_CALIB_<OB|IB>.TXT, ...
+    <input>/<yyyymmdd>/science_OB.csv   raw science of the outboard sensor (sec. 4.1.2)
+    <input>/<yyyymmdd>/science_IB.csv   raw science of the inboard sensor
+    <input>/<yyyymmdd>/hk.csv           raw housekeeping (sec. 4.1.1, optional)
+
+A day folder holds the records of that UTC day only; a record of another day is an
+input error (the day's products are named by the day).  A day folder without science
+file is a day without data.  Either sensor may be missing (e.g. IB switched off).
+
+Levels: A, B, E, F always; C and G too when kernels are given (LEVEL_C needs the
+SPICE attitude and ephemeris, sec. 4.4).  Without kernels the record times come from
+``time_utc`` instead of ``obt`` (`fluxcal.missions.rosetta.io`).  Each day runs
+alone: the midnight stitching of the extended temperature model (sec. 4.2.3.3) is not
+carried from one day to the next, since the days run in parallel.
+
+Every file of a day (both sensors, every level and format, HK, quicklooks) is renamed
+into place only when the whole day succeeded (`fluxcal.products.atomic.atomic_group`).
+
+References
+----------
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1-4.8.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+SENSORS = ("OB", "IB")
+BASE_LEVELS = ("A", "B", "E", "F")
+KERNEL_LEVELS = ("A", "B", "C", "E", "F", "G")
+_DAILY_CALIB = re.compile(r"^RPCMAG_(\d{6})_\d{3}_CALIB_(OB|IB)\.TXT$", re.IGNORECASE)
+
+
+def day_folder(input_dir: Path, day: _dt.date) -> Path:
+    """Return ``<input>/<yyyymmdd>``."""
+    return Path(input_dir) / f"{day:%Y%m%d}"
+
+
+def science_file(input_dir: Path, day: _dt.date, sensor: str) -> Path:
+    """Return ``<input>/<yyyymmdd>/science_<sensor>.csv``."""
+    return day_folder(input_dir, day) / f"science_{sensor}.csv"
+
+
+def hk_file(input_dir: Path, day: _dt.date) -> Path:
+    """Return ``<input>/<yyyymmdd>/hk.csv``."""
+    return day_folder(input_dir, day) / "hk.csv"
+
+
+@dataclass(frozen=True)
+class RosettaDayTask:
+    """Calibrate one RPC-MAG day (both sensors) and write its products (picklable).
+
+    Parameters
+    ----------
+    input_dir, out_dir : Path
+        Raw input folder (layout in the module docstring) and product folder.
+    kernels : Path, optional
+        Meta-kernel; default ``<input>/kernels.tm`` when it exists, else none.
+    calib : Path, optional
+        Calibration folder; default ``<input>/calib`` when it exists, else fluxcal's.
+    levels : sequence of str, optional
+        Default `BASE_LEVELS`, or `KERNEL_LEVELS` with kernels.
+    quicklook : bool
+        Also write ``RPCMAG_QL_<sensor>_<yyyymmdd>.png``.
+    """
+
+    input_dir: Path
+    out_dir: Path
+    kernels: Path | None = None
+    calib: Path | None = None
+    formats: tuple[str, ...] = ("tab", "cdf")
+    levels: tuple[str, ...] | None = None
+    quicklook: bool = False
+    primary: str = "OB"
+    average_s: float = 1.0
+    frame: str = "ECLIPJ2000"
+    centre: str = "SUN"
+    boom: str = "deployed"
+    name: str = "rosetta"
+
+    def kernel_file(self) -> Path | None:
+        """Return the meta-kernel used (explicit, else ``<input>/kernels.tm`` if present)."""
+        if self.kernels is not None:
+            return Path(self.kernels)
+        default = Path(self.input_dir) / "kernels.tm"
+        return default if default.is_file() else None
+
+    def calib_dir(self) -> Path | None:
+        """Return the calibration folder used (explicit, else ``<input>/calib`` if present)."""
+        if self.calib is not None:
+            return Path(self.calib)
+        default = Path(self.input_dir) / "calib"
+        return default if default.is_dir() else None
+
+    def level_list(self) -> list[str]:
+        """Levels made for each sensor."""
+        from fluxcal.missions.rosetta.pipeline import parse_levels
+
+        if self.levels:
+            return parse_levels(",".join(self.levels))
+        return list(KERNEL_LEVELS if self.kernel_file() is not None else BASE_LEVELS)
+
+    def _science(self, day: _dt.date) -> dict[str, Path]:
+        files = {s: science_file(self.input_dir, day, s) for s in SENSORS}
+        return {s: p for s, p in files.items() if p.is_file()}
+
+    def inputs(self, day: _dt.date):
+        """Return the day's raw files, meta-kernel and calibration files (manifest).
+
+        Calibration: every file of fluxcal's Rosetta data folder and of the override
+        folder, except other days' daily offset models (adding a day's model must not
+        invalidate the other days).
+        """
+        from fluxcal.products.batch import DayInputs
+
+        files = list(self._science(day).values())
+        hk = hk_file(self.input_dir, day)
+        if hk.is_file():
+            files.append(hk)
+        kern = self.kernel_file()
+        if kern is not None:
+            files.append(kern)
+        stamp = f"{day:%y%m%d}"
+        cal: dict[str, Path] = {}
+        folders = {"fluxcal": Path(__file__).resolve().parent / "data"}
+        if self.calib_dir() is not None:
+            folders["calib"] = self.calib_dir()
+        for key, folder in folders.items():
+            for p in sorted(folder.glob("*")):
+                m = _DAILY_CALIB.match(p.name)
+                if p.is_file() and (m is None or m.group(1) == stamp):
+                    cal[f"{key}/{p.name}"] = p
+        return DayInputs(tuple(files), cal)
+
+    def __call__(self, day: _dt.date):
+        """Process ``day``; raise `DayWithoutData` when it has no science file."""
+        from fluxcal.errors import InputFormatError
+        from fluxcal.missions.rosetta.pipeline import calibrate_files
+        from fluxcal.products.atomic import atomic_group
+        from fluxcal.products.batch import DayResult, DayWithoutData, worker_kernel_pool
+
+        science = self._science(day)
+        if not science:
+            raise DayWithoutData(
+                f"no science_OB.csv or science_IB.csv in {day_folder(self.input_dir, day)}"
+            )
+        hk = hk_file(self.input_dir, day)
+        kern = self.kernel_file()
+        pool = worker_kernel_pool(kern)
+        levels = self.level_list()
+        paths: list[Path] = []
+        n_vectors = 0
+        with atomic_group():  # nothing of the day appears unless every file is complete
+            for k, (sensor, path) in enumerate(science.items()):
+                result = calibrate_files(
+                    path, sensor, Path(self.out_dir), levels=levels,
+                    hk_file=hk if (k == 0 and hk.is_file()) else None,
+                    calib_dir=self.calib_dir(), kernels=kern, primary=self.primary,
+                    average_s=self.average_s, frame=self.frame, centre=self.centre,
+                    boom=self.boom, formats=self.formats, quicklook=self.quicklook,
+                    pool=pool,
+                )
+                a = result.levels["A"]
+                n_vectors += int(a.sizes["time"]) + int(a.attrs.get("n_dropped_quality", 0))
+                paths += result.paths
+            stamp = f"_{day:%Y%m%d}"
+            stray = [p for p in paths if stamp not in Path(p).name]
+            if stray:
+                raise InputFormatError(
+                    f"records outside the day {day} (would write {Path(stray[0]).name}); "
+                    f"a day folder must hold that UTC day only",
+                    path=str(day_folder(self.input_dir, day)), field="time_utc",
+                )
+        return DayResult(day, [Path(p) for p in paths], n_vectors=n_vectors)
+
+
+def make_day_task(input_dir: Path, out_dir: Path, **options) -> RosettaDayTask:
+    """Build the task for ``fluxcal batch rosetta``.
+
+    Options: ``kernels``, ``calib``, ``formats``, ``quicklook``, ``levels``, ``primary``,
+    ``average_s``, ``frame``, ``centre``, ``boom``; others are ignored.
+    """
+    allowed = {"kernels", "calib", "formats", "quicklook", "levels", "primary", "average_s",
+               "frame", "centre", "boom"}
+    opts = {k: v for k, v in options.items() if k in allowed and v is not None}
+    for key in ("formats", "levels"):
+        if key in opts:
+            value = opts[key]
+            opts[key] = tuple(value.split(",")) if isinstance(value, str) else tuple(value)
+    for key in ("kernels", "calib"):
+        if key in opts:
+            opts[key] = Path(opts[key])
+    if "quicklook" in opts:
+        opts["quicklook"] = bool(opts["quicklook"])
+    return RosettaDayTask(Path(input_dir), Path(out_dir), **opts)
+
+
+def simulate_days(
+    input_dir: Path,
+    days: Sequence[_dt.date],
+    *,
+    start_time: str = "10:00:00",
+    minutes: float = 15.0,
+    rate_hz: float = 20.0,
+    seed: int = 0,
+    kernels: bool = True,
+    truth: bool = False,
+) -> list[Path]:
+    """Write simulated raw inputs of ``days`` in the batch layout; return the day folders.
+
+    Each day gets ``minutes`` of both sensors from ``start_time`` UTC (the forward model
+    `fluxcal.missions.rosetta.simulate.simulate`), plus its HK file; ``<input>/calib``
+    gets a synthetic alignment and each day's extended temperature models, and (with
+    ``kernels``) ``<input>/kernels/`` one Rosetta-like kernel set covering every day,
+    referenced by ``<input>/kernels.tm``.  ``truth`` also writes ``truth_<sensor>.csv``.
+    """
+    import numpy as np
+
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.geometry.time import leapseconds
+    from fluxcal.missions.rosetta import calib, io
+    from fluxcal.missions.rosetta.simulate import (
+        simulate,
+        synthetic_alignment,
+        synthetic_daily_models,
+        write_truth_csv,
+    )
+
+    input_dir = Path(input_dir)
+    days = sorted(days)
+    duration = float(minutes) * 60.0
+    calib_dir = input_dir / "calib"
+    calib_dir.mkdir(parents=True, exist_ok=True)
+    alignment = synthetic_alignment()
+    calib.write_alignment(alignment, calib_dir / calib.ALIGN_FILE)
+    models = synthetic_daily_models([np.datetime64(d.isoformat(), "D") for d in days])
+    for sensor in SENSORS:
+        for model in models[sensor].values():
+            calib.write_daily_offset_model(model, calib_dir)
+    meta = None
+    if kernels:
+        first = f"{days[0].isoformat()}T{start_time}"
+        span = (days[-1] - days[0]).total_seconds() + duration
+        meta = write_rosetta_like_kernels(input_dir / "kernels", first, span, margin_s=3600.0)
+        (input_dir / "kernels.tm").write_text(Path(meta).read_text())
+    cals = {s: calib.load_ground_calibration(s) for s in SENSORS}
+    shifts = calib.load_time_shift_table()
+    nominal = calib.load_nominal_conversion()
+    jumps = calib.load_offset_jump_table()
+    folders = []
+    with KernelPool(meta):
+        lsk = leapseconds()
+        for k, day in enumerate(days):
+            folder = day_folder(input_dir, day)
+            folder.mkdir(parents=True, exist_ok=True)
+            sim = simulate(
+                f"{day.isoformat()}T{start_time}", duration, calibrations=cals,
+                time_shifts=shifts, nominal=nominal, alignment=alignment, jumps=jumps,
+                daily_models=models, rate_hz=rate_hz, with_kernels=kernels,
+                seed=seed + k, lsk=lsk,
+            )
+            for sensor in SENSORS:
+                io.write_science_csv(sim.science[sensor], folder / f"science_{sensor}.csv",
+                                     lsk=lsk)
+                if truth:
+                    write_truth_csv(sim.truth[sensor], folder / f"truth_{sensor}.csv", lsk=lsk)
+            io.write_hk_csv(sim.hk, folder / "hk.csv", lsk=lsk)
+            folders.append(folder)
+    return folders
