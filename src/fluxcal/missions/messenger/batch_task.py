@@ -39,6 +39,8 @@ class MessengerDayTask:
     averages: tuple[int, ...] = AVERAGES_S
     max_offset_step: float | None = 2.0
     calib: Path | None = None
+    quicklook: bool = False
+    quicklook_frame: str | None = None
 
     def _kernels(self) -> Path:
         return Path(self.kernels) if self.kernels else Path(self.input_dir) / "kernels.tm"
@@ -86,13 +88,19 @@ class MessengerDayTask:
             kernel_list=pool.kernel_list(), frames=self.frames, formats=self.formats,
             averages=self.averages, max_offset_step=self.max_offset_step,
             calibration_folder=self.calib, only_day=f"{day:%y%j}",
+            quicklook=self.quicklook, quicklook_frame=self.quicklook_frame,
         )
         return DayResult(day, paths, n_vectors=int(sci.sizes["time"]))
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask:
-    """Build the task for ``fluxcal batch messenger`` (options: kernels, formats, calib)."""
-    allowed = {"kernels", "formats", "calib", "frames", "averages", "max_offset_step"}
+    """Build the task for ``fluxcal batch messenger``.
+
+    Options: kernels, formats, calib, frames, averages, max_offset_step, quicklook,
+    quicklook_frame; unknown options are ignored.
+    """
+    allowed = {"kernels", "formats", "calib", "frames", "averages", "max_offset_step",
+               "quicklook", "quicklook_frame"}
     opts = {k: v for k, v in options.items() if k in allowed and v is not None}
     for key in ("formats", "frames", "averages"):
         if key in opts:

@@ -26,6 +26,14 @@ def edr2cdr(
     max_offset_step: float = typer.Option(
         2.0, help="Sec. 13 smoothness threshold (fine-range counts); <= 0 disables."
     ),
+    quicklook: bool = typer.Option(
+        False, "--quicklook", help="Also write a quicklook PNG per day (field, |B|, offsets, "
+        "quality flag, distance from Mercury)."
+    ),
+    quicklook_frame: str = typer.Option(
+        "", "--quicklook-frame", help="Frame of the quicklook's field (default: the first "
+        "of --frames)."
+    ),
 ) -> None:
     """Calibrate MESSENGER MAG EDR streams into CDR products (seed 000 sec. 5-13)."""
     from fluxcal.errors import InputFormatError
@@ -44,6 +52,7 @@ def edr2cdr(
         frames=_split(frames), formats=_split(formats),
         averages=averages,
         max_offset_step=max_offset_step if max_offset_step > 0 else None,
+        quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
     )
     typer.echo(f"wrote {len(written)} files to {out}")
 

@@ -13,9 +13,6 @@ References
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,6 +20,8 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.missions.messenger.levels import FRAMES
+from fluxcal.products import write_product
+from fluxcal.products.atomic import atomic_group
 
 #: Position variable of each frame's product.
 POSITION_OF = {"mso": "pos_mso", "j2000": "pos_j2000", "mbf": "pos_mbf", "rtn": "pos_rtn",
@@ -149,41 +148,77 @@ def write_day(
 ) -> list[Path]:
     """Write every product of one UTC day (all or nothing) and return the final paths.
 
-    Files are first written into a temporary folder inside ``out_dir`` and moved into
-    place only when every product of the day succeeded.
+    Every file is written under a temporary name; the renames into place happen only
+    when every product of the day is complete (`fluxcal.products.atomic.atomic_group`;
+    inside a caller's group, at the end of that group).
     """
     from fluxcal.geometry.time import utc_to_tt2000
-    from fluxcal.products import write_product
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     year, doy, yyddd = day_code(ds)
     day0 = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
     day_start = int(utc_to_tt2000(np.array([f"{day0}T00:00:00"]))[0])
-    tmp = Path(tempfile.mkdtemp(prefix=f".tmp_{yyddd}_", dir=out_dir))
     written: list[Path] = []
-    try:
+    with atomic_group():
         for frame in frames:
             prod = product_dataset(ds, frame)
             prod.attrs.update(provenance)
             stem = FRAMES[frame][1]
             extra = {"PRODUCT_ID": f"{stem}{yyddd}", "COORDINATE_SYSTEM": FRAMES[frame][0]}
-            written += write_product(prod, tmp / f"{stem}{yyddd}", formats,
+            written += write_product(prod, out_dir / f"{stem}{yyddd}", formats,
                                      _columns(frame, False), extra)
             for sec in averages:
                 avg = average(prod, int(sec), day_start)
                 avg = avg.assign(_utc_fields_ds(avg))
                 name = f"{stem}AVG{yyddd}_{int(sec):02d}"
-                written += write_product(avg, tmp / name, formats, _columns(frame, True),
+                written += write_product(avg, out_dir / name, formats, _columns(frame, True),
                                          dict(extra, PRODUCT_ID=name, AVERAGING_INTERVAL_S=sec))
-        final = []
-        for path in written:
-            dest = out_dir / path.name
-            os.replace(path, dest)
-            final.append(dest)
-        return final
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    return written
+
+
+def quicklook_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
+    """Return what the day's quicklook shows, taken from the calibrated day dataset.
+
+    Variables: ``b_<frame>`` (nT), ``offset`` (the applied thermal + duty-cycle offset
+    ``cT(T) + Delta(t)`` per axis, fine-range counts), ``quality`` (SHC flag) and
+    ``distance`` (MESSENGER from Mercury's centre, km).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, 10.1, 12.
+    """
+    vec = ("time", "component")
+    b = f"b_{frame}"
+    return xr.Dataset(
+        {
+            b: (vec, ds[b].values, {"units": "nT", "frame": FRAMES[frame][0],
+                                    "description": f"magnetic field in {FRAMES[frame][0]}"}),
+            "offset": (vec, ds["offset"].values, {
+                "units": "counts",
+                "description": "applied offset cT(T) + Delta(t) (thermal + duty cycle), "
+                               "fine-range counts (sec. 7)"}),
+            "quality": ("time", ds["quality"].values, {"units": "1",
+                        "description": "SHC data quality flag (Table 5)"}),
+            "distance": ("time", np.linalg.norm(ds["pos_mso"].values, axis=1), {
+                "units": "km", "description": "distance of MESSENGER from Mercury's centre"}),
+        },
+        coords={"epoch": ("time", ds["epoch"].values), "component": ["x", "y", "z"]},
+    )
+
+
+def write_quicklook(ds: xr.Dataset, out_dir: Path, frame: str) -> list[Path]:
+    """Write the day's quicklook PNG ``<stem><yyddd>_<yyyymmdd>.png`` (atomically).
+
+    Panels: the field in ``frame``, its magnitude, the applied offsets, the quality
+    flag and the distance from Mercury (`fluxcal.products.quicklook.write_quicklooks`).
+    """
+    from fluxcal.products.quicklook import write_quicklooks
+
+    yyddd = day_code(ds)[2]
+    return write_quicklooks(quicklook_dataset(ds, frame), Path(out_dir),
+                            f"{FRAMES[frame][1]}{yyddd}", field=f"b_{frame}",
+                            frame=FRAMES[frame][0])
 
 
 def _day_et(ds: xr.Dataset) -> np.ndarray:

@@ -13,14 +13,21 @@ from pathlib import Path
 
 import xarray as xr
 
-from fluxcal.errors import ValidationError
+from fluxcal.errors import InputFormatError, ValidationError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.pipeline import calibrate, day_of
-from fluxcal.missions.messenger.products import AVERAGES_S, day_code, split_days, write_day
+from fluxcal.missions.messenger.products import (
+    AVERAGES_S,
+    day_code,
+    split_days,
+    write_day,
+    write_quicklook,
+)
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.validation_report import write_report
+from fluxcal.products.atomic import atomic_group
 
 log = logging.getLogger(__name__)
 
@@ -41,14 +48,24 @@ def calibrate_and_write(
     max_offset_step: float | None = 2.0,
     calibration_folder: Path | None = None,
     only_day: str | None = None,
+    quicklook: bool = False,
+    quicklook_frame: str | None = None,
 ) -> list[Path]:
     """Calibrate loaded streams (kernels already loaded) and write every day's products.
+
+    Each day is all or nothing: its validation (sec. 13), products, offset report and
+    quicklook are written under temporary names and renamed into place only when all
+    of them succeeded (`fluxcal.products.atomic.atomic_group`).
 
     Parameters
     ----------
     only_day : str, optional
         ``yyddd`` of the one day to write (other days in the data are dropped), e.g.
         when the previous day's files were given for the look-back.
+    quicklook : bool
+        Also write a quicklook PNG per day (`write_quicklook`).
+    quicklook_frame : str, optional
+        Frame key of the quicklook's field (default: the first of ``frames``).
 
     Raises
     ------
@@ -57,8 +74,15 @@ def calibrate_and_write(
     """
     from fluxcal.products import provenance_attrs
 
+    ql_frame = quicklook_frame or (frames[0] if frames else "mso")
+    if quicklook and ql_frame not in levels.FRAMES:
+        raise InputFormatError(
+            f"quicklook frame {ql_frame!r}; expected one of {sorted(levels.FRAMES)}",
+            field="quicklook_frame",
+        )
+    calib_frames = tuple(frames) + ((ql_frame,) if quicklook and ql_frame not in frames else ())
     cal = load_calibration(day_of(sci), calibration_folder)
-    ds = calibrate(sci, heat, temp, cal, frames=tuple(frames), max_offset_step=None)
+    ds = calibrate(sci, heat, temp, cal, frames=calib_frames, max_offset_step=None)
     prov = provenance_attrs(
         inputs=list(inputs),
         calibration={path.name: path for path in cal.paths},
@@ -72,16 +96,43 @@ def calibrate_and_write(
         if only_day is not None and yyddd != only_day:
             continue
         try:
-            if max_offset_step is not None:
-                levels.validate_offsets(day, max_offset_step)
+            written += write_day_outputs(
+                day, Path(out_dir), frames, formats, averages, prov, max_offset_step,
+                ql_frame if quicklook else None,
+            )
         except ValidationError as exc:
             failures.append(f"day {yyddd}: {exc}")
             log.error("day %s failed validation: %s", yyddd, exc)
-            continue
-        written += write_day(day, out_dir, frames, formats, averages, prov)
-        written += write_report(day, Path(out_dir) / f"MAGOFFSETS{yyddd}", max_offset_step)
     if failures:
         raise ValidationError("; ".join(failures))
+    return written
+
+
+def write_day_outputs(
+    day: xr.Dataset,
+    out_dir: Path,
+    frames: Sequence[str],
+    formats: Sequence[str],
+    averages: Sequence[int],
+    provenance: dict,
+    max_offset_step: float | None,
+    quicklook_frame: str | None = None,
+) -> list[Path]:
+    """Validate one calibrated day and write all its files, all or nothing.
+
+    Raises
+    ------
+    ValidationError
+        When the day's offsets fail the sec. 13 check (nothing is written).
+    """
+    yyddd = day_code(day)[2]
+    with atomic_group():  # any exception below: no file of the day appears
+        if max_offset_step is not None:
+            levels.validate_offsets(day, max_offset_step)
+        written = write_day(day, out_dir, frames, formats, averages, provenance)
+        written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step)
+        if quicklook_frame is not None:
+            written += write_quicklook(day, out_dir, quicklook_frame)
     return written
 
 
@@ -96,6 +147,8 @@ def run_edr2cdr(
     formats: Sequence[str] = ("tab", "cdf"),
     averages: Sequence[int] = AVERAGES_S,
     max_offset_step: float | None = 2.0,
+    quicklook: bool = False,
+    quicklook_frame: str | None = None,
 ) -> list[Path]:
     """Run the MESSENGER MAG EDR -> CDR chain on files and write the products of every day.
 
@@ -116,4 +169,5 @@ def run_edr2cdr(
             inputs=[*map(Path, science), *map(Path, heater), *map(Path, temperature)],
             kernel_list=pool.kernel_list(), frames=frames, formats=formats,
             averages=averages, max_offset_step=max_offset_step,
+            quicklook=quicklook, quicklook_frame=quicklook_frame,
         )

@@ -29,28 +29,28 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None) -> str:
 
 
 def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None) -> list[Path]:
-    """Write ``stem.txt`` and ``stem.png`` (applied offsets versus time) atomically."""
-    import matplotlib
+    """Write ``stem.txt`` and ``stem.png`` (applied offsets versus time) atomically.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Both files go through `fluxcal.products.atomic.atomic_path`, so inside a caller's
+    `atomic_group` they appear only with the rest of the day's products.
+    """
+    from matplotlib.figure import Figure
+
+    from fluxcal.products.atomic import atomic_path, atomic_write_bytes
 
     stem = Path(stem)
     txt = stem.with_name(stem.name + ".txt")
-    tmp = txt.with_name(txt.name + ".tmp")
-    tmp.write_text(report_text(ds, threshold_counts))
-    tmp.replace(txt)
+    atomic_write_bytes(txt, report_text(ds, threshold_counts).encode())
     png = stem.with_name(stem.name + ".png")
     hours = (ds["et"].values - ds["et"].values[0]) / 3600.0
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 6))
+    fig = Figure(figsize=(8, 6))
+    axes = fig.subplots(3, 1, sharex=True)
     step = max(1, hours.size // 20000)
     for j, axis in enumerate("xyz"):
         axes[j].plot(hours[::step], ds["offset"].values[::step, j], lw=0.8)
         axes[j].set_ylabel(f"offset {axis} (counts)")
     axes[-1].set_xlabel("hours since first sample")
     fig.suptitle("Applied thermal offsets (fine-range counts)")
-    tmp_png = png.with_name(png.name + ".tmp.png")
-    fig.savefig(tmp_png, dpi=80)
-    plt.close(fig)
-    tmp_png.replace(png)
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, dpi=80, format="png")
     return [txt, png]
