@@ -58,11 +58,14 @@ class MessengerDayTask:
     def inputs(self, day: _dt.date):
         """Return the day's input files, kernels and calibration folder."""
         from fluxcal.missions.messenger.calibration_data import data_dir
+        from fluxcal.missions.messenger.products import istp_files
         from fluxcal.products.batch import DayInputs
 
         files = [p for group in self._files(day).values() for p in group if p.exists()]
         folder = Path(self.calib) if self.calib else data_dir()
         cal = {p.name: p for p in sorted(folder.glob("*_v*.*"))}
+        # product metadata: a changed ISTP attribute file redoes the day too
+        cal.update({p.name: p for p in (*istp_files(), data_dir() / "istp_products.yaml")})
         return DayInputs(tuple(files + [self._kernels()]), cal)
 
     def __call__(self, day: _dt.date):

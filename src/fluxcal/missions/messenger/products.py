@@ -14,10 +14,12 @@ References
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
+import yaml
 
 from fluxcal.missions.messenger.levels import FRAMES
 from fluxcal.products import write_product
@@ -113,6 +115,47 @@ def average(prod: xr.Dataset, seconds: int, day_start_tt2000: int) -> xr.Dataset
     )
 
 
+def istp_files() -> tuple[Path, Path]:
+    """Return the mission's ISTP (global, variable) attribute files for `write_product`."""
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    return data_dir() / "istp_global.yaml", data_dir() / "istp_variables.yaml"
+
+
+@lru_cache(maxsize=1)
+def _istp_products() -> tuple[dict, dict]:
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    glob = yaml.safe_load((data_dir() / "istp_global.yaml").read_text())
+    table = yaml.safe_load((data_dir() / "istp_products.yaml").read_text())
+    return glob, table
+
+
+def istp_product_attrs(frame: str, seconds: int | None = None) -> dict[str, str]:
+    """ISTP ``Data_type``, ``Logical_source`` and its description for one product.
+
+    ``Logical_source`` follows the ISTP rule ``source_descriptor_datatype`` (the short
+    forms before ``>``, lower case), e.g. ``messenger_mag_mso-sci`` or
+    ``messenger_mag_mso-avg60``.
+
+    Parameters
+    ----------
+    frame : str
+        Frame key of `FRAMES`.
+    seconds : int, optional
+        Averaging interval of a ``SCIAVG`` product; ``None`` for full resolution.
+    """
+    glob, table = _istp_products()
+    template = table["full" if seconds is None else "average"]
+    fields = {"FRAME": frame.upper(), "frame_name": table["frames"][frame],
+              "seconds": seconds}
+    out = {k: " ".join(str(v).format(**fields).split()) for k, v in template.items()}
+    short = [str(x).split(">")[0].strip() for x in
+             (glob["Source_name"], glob["Descriptor"], out["Data_type"])]
+    out["Logical_source"] = "_".join(short).lower()
+    return out
+
+
 def _columns(frame: str, averaged: bool):
     from fluxcal.products import Column
 
@@ -159,6 +202,8 @@ def write_day(
     year, doy, yyddd = day_code(ds)
     day0 = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
     day_start = int(utc_to_tt2000(np.array([f"{day0}T00:00:00"]))[0])
+    global_yaml, variable_yaml = istp_files()
+    istp = {"global_yaml": global_yaml, "variable_yaml": variable_yaml}
     written: list[Path] = []
     with atomic_group():
         for frame in frames:
@@ -167,13 +212,15 @@ def write_day(
             stem = FRAMES[frame][1]
             extra = {"PRODUCT_ID": f"{stem}{yyddd}", "COORDINATE_SYSTEM": FRAMES[frame][0]}
             written += write_product(prod, out_dir / f"{stem}{yyddd}", formats,
-                                     _columns(frame, False), extra)
+                                     _columns(frame, False),
+                                     dict(extra, **istp_product_attrs(frame)), **istp)
             for sec in averages:
                 avg = average(prod, int(sec), day_start)
                 avg = avg.assign(_utc_fields_ds(avg))
                 name = f"{stem}AVG{yyddd}_{int(sec):02d}"
                 written += write_product(avg, out_dir / name, formats, _columns(frame, True),
-                                         dict(extra, PRODUCT_ID=name, AVERAGING_INTERVAL_S=sec))
+                                         dict(extra, PRODUCT_ID=name, AVERAGING_INTERVAL_S=sec,
+                                              **istp_product_attrs(frame, int(sec))), **istp)
     return written
 
 
