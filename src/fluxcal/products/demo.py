@@ -7,9 +7,10 @@ up-to-date days are skipped.  The synthetic task always runs, so the demo shows 
 machinery even when a mission task is missing.
 
 A mission's ``batch_task`` module may provide ``simulate_days(input_dir, days)`` to
-write its demo inputs; for MESSENGER, a fallback simulates a stretch across a UTC
-midnight with the mission's forward model and splits the three CSV streams by the
-UTC day of their recorded MET.
+write its demo inputs (Rosetta: 15 minutes of both sensors per day, with a kernel set,
+so the task makes LEVEL_A, B, C, E, F, G and the HK product); for MESSENGER, a
+fallback simulates a stretch across a UTC midnight with the mission's forward model
+and splits the three CSV streams by the UTC day of their recorded MET.
 """
 
 from __future__ import annotations
@@ -116,11 +117,15 @@ def _run(mission: str, days: list[_dt.date], input_dir: Path, out_dir: Path,
     report = json.loads(report_path.read_text()) if report_path.exists() else {}
     counts = report.get("counts", {})
     pngs = sorted(out_dir.glob("*.png"))
+    n_products = sum(len(d.get("products", [])) for d in report.get("days", []))
     lines = [f"{mission}: exit {code}; {counts.get('done', 0)} done, "
              f"{counts.get('skipped', 0)} skipped, {counts.get('failed', 0)} failed in "
              f"{report.get('wall_seconds', 0):.1f} s "
              f"({report.get('vectors_per_second', 0):,.0f} vectors/s)",
-             f"  products:   {out_dir}", f"  quicklooks: {len(pngs)} PNG"
+             f"  inputs:     {input_dir}",
+             f"  products:   {out_dir} ({n_products} files, manifests in "
+             f"{out_dir / 'manifests'})",
+             f"  quicklooks: {len(pngs)} PNG"
              + (f", e.g. {pngs[0].name}" if pngs else ""),
              f"  report:     {report_path}"]
     for d in report.get("days", []):

@@ -210,3 +210,15 @@ def test_quicklook_figure_panels(sim, serial_products):
     labels = " ".join(ax.get_ylabel() for ax in fig.axes)
     plt.close(fig)
     assert "nT" in labels and "K" in labels and "km" in labels
+
+
+def test_demo_writes_rosetta_inputs(tmp_path):
+    # `make demo` simulates the two Rosetta demo days through batch_task.simulate_days
+    from fluxcal.products.demo import ROSETTA_DAYS, _mission_inputs
+
+    days = _mission_inputs("rosetta", tmp_path)
+    assert days == list(ROSETTA_DAYS)
+    task = make_day_task(tmp_path, tmp_path / "out")
+    assert task.level_list() == ["A", "B", "C", "E", "F", "G"]
+    for day in days:
+        assert len(task.inputs(day).files) == 4  # OB, IB, HK, kernels.tm
