@@ -222,3 +222,31 @@ def test_demo_writes_rosetta_inputs(tmp_path):
     assert task.level_list() == ["A", "B", "C", "E", "F", "G"]
     for day in days:
         assert len(task.inputs(day).files) == 4  # OB, IB, HK, kernels.tm
+
+
+def test_quicklook_temperatures_of_both_sensors_recover_truth(sim):
+    # each science file carries both thermistor words; the quicklook draws both sensors'
+    # temperatures.  Forward model: the simulator's temperature profiles (truth files, raw
+    # record order).  Tolerance: one thermistor word step (16-bit quantization).
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import leapseconds
+    from fluxcal.missions.rosetta import calib, io, level_a
+    from fluxcal.missions.rosetta.pipeline import thermistor_temperatures
+
+    folder = sim / f"{DAYS[0]:%Y%m%d}"
+    nominal = calib.load_nominal_conversion()
+    cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
+    with KernelPool():
+        raw = io.read_science_csv(folder / "science_OB.csv", "OB", lsk=leapseconds())
+    temps = thermistor_temperatures(raw, cals, nominal)
+    good = read_truth_csv(folder / "truth_OB.csv")["good"]
+    for sensor in ("OB", "IB"):
+        truth = read_truth_csv(folder / f"truth_{sensor}.csv")["temperature"][good]
+        epoch, kelvin = temps[sensor]
+        assert epoch.shape == kelvin.shape == truth.shape
+        words = raw[f"t_{sensor.lower()}_counts"].values
+        grid = level_a.sensor_temperature(np.arange(words.min() - 1, words.max() + 2),
+                                          cals[sensor], nominal)
+        step = np.abs(np.diff(grid)).max()
+        assert step < 0.1  # K: the quantization is fine enough for this to mean something
+        assert np.abs(kelvin - truth).max() <= step, (sensor, step)

@@ -145,11 +145,54 @@ def quicklook_dataset(levels: dict[str, xr.Dataset]) -> xr.Dataset:
     raise FluxcalError("quicklook needs LEVEL_A, B or C")
 
 
-def write_quicklook(levels: dict[str, xr.Dataset], out_dir: Path) -> list[Path]:
-    """Write ``RPCMAG_QL_<sensor>_<yyyymmdd>.png`` per UTC day (field + temperatures)."""
+def thermistor_temperatures(
+    raw: xr.Dataset, calibrations: dict, nominal: dict
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Both sensors' temperatures (K) from the thermistor words of one science file.
+
+    Every science record carries the OB and IB thermistor words (sec. 4.1.2); the
+    temperature of each is converted with its sensor's thermistor calibration
+    (sec. 4.2.2.5), once per distinct word.  Bad-quality records are left out.
+
+    Returns
+    -------
+    dict
+        ``{"OB": (epoch, kelvin), "IB": (epoch, kelvin)}``, epoch int64 TT2000 ns.
+    """
+    good = level_a.good_vectors(raw["quality"].values)
+    epoch = raw["epoch"].values[good].astype(np.int64)
+    out = {}
+    for sensor, cal in calibrations.items():
+        words, inverse = np.unique(raw[f"t_{sensor.lower()}_counts"].values[good],
+                                   return_inverse=True)
+        kelvin = level_a.sensor_temperature(words, cal, nominal) + hk.KELVIN
+        out[sensor] = (epoch, kelvin[inverse])
+    return out
+
+
+def write_quicklook(
+    levels: dict[str, xr.Dataset],
+    out_dir: Path,
+    temperatures: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+) -> list[Path]:
+    """Write ``RPCMAG_QL_<sensor>_<yyyymmdd>.png`` per UTC day.
+
+    Panels: the field of `quicklook_dataset`, the sensor temperatures (both sensors'
+    when ``temperatures`` is given, see `thermistor_temperatures`, interpolated to the
+    field's time stamps for drawing; else the sensor's own), quality and distance.
+    """
     from fluxcal.products.quicklook import write_quicklooks
 
     ds = quicklook_dataset(levels)
+    if temperatures:
+        t = ds["epoch"].values.astype(np.int64)
+        extra = {}
+        for sensor, (epoch, kelvin) in temperatures.items():
+            if epoch.size:
+                values = np.interp((t - t[0]) / 1e9, (epoch - t[0]) / 1e9, kelvin)
+                extra[f"temperature_{sensor}"] = ("time", values, {"units": "K"})
+        if extra:
+            ds = ds.drop_vars("temperature", errors="ignore").assign(extra)
     frame = str(ds["b"].attrs.get("frame", ds.attrs.get("frame", "")) or "") or None
     stem = QUICKLOOK_STEM.format(sensor=ds.attrs["sensor"])
     return write_quicklooks(ds, Path(out_dir), stem, field="b", frame=frame)
@@ -287,7 +330,10 @@ def calibrate_files(
             if hk_file is not None:
                 result.paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
             if quicklook:
-                result.paths += write_quicklook(result.levels, out)
+                cals = {s: cal if s == sensor else calib.load_ground_calibration(s, calib_dir)
+                        for s in ("OB", "IB")}
+                temps = thermistor_temperatures(raw, cals, nominal)
+                result.paths += write_quicklook(result.levels, out, temps)
     return result
 
 
