@@ -8,6 +8,8 @@ Input folder layout (one file per stream and day, day = UTC day of the recorded 
     MAGTMP_YYYYDDD.csv   sensor temperatures (previous and next day read when present)
     kernels.tm           meta-kernel (or ``--kernels``)
 
+`simulate_days` writes this layout from the forward model (demos, tests, benchmarks).
+
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-13.
@@ -16,10 +18,20 @@ References
 from __future__ import annotations
 
 import datetime as _dt
+import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from fluxcal.missions.messenger.products import AVERAGES_S
+
+DAY_S = 86_400.0
+#: Default science rate/range schedule inside each simulated day's science window
+#: (fractions of the window): rate settings 10, 8, 6, 9, 10 (20, 5, 1, 10, 20 Hz).
+WINDOW_RATES = ((0.0, 10), (0.45, 8), (0.55, 6), (0.62, 9), (0.7, 10))
+WINDOW_COARSE = ((0.3, 0.38),)
 
 
 def day_file(folder: Path, stream: str, day: _dt.date) -> Path:
@@ -109,3 +121,116 @@ def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask
         if key in opts:
             opts[key] = tuple(opts[key])
     return MessengerDayTask(Path(input_dir), Path(out_dir), **opts)
+
+
+def _runs(days: Sequence[_dt.date]) -> list[list[_dt.date]]:
+    """Group sorted unique days into runs of consecutive days."""
+    runs: list[list[_dt.date]] = []
+    for day in sorted(set(days)):
+        if runs and (day - runs[-1][-1]).days == 1:
+            runs[-1].append(day)
+        else:
+            runs.append([day])
+    return runs
+
+
+def simulate_days(
+    input_dir: Path,
+    days: Sequence[_dt.date],
+    seconds_per_day: float = 3600.0,
+    *,
+    rate_setting: int | None = None,
+) -> list[_dt.date]:
+    """Simulate raw MAG telemetry for ``days`` in the layout `MessengerDayTask` reads.
+
+    Each run of consecutive days is one forward-model simulation
+    (`fluxcal.missions.messenger.simulate.simulate`) with continuous heater and
+    temperature streams (so a day's look-back into the previous day's heater file is
+    real) and science samples in the first ``seconds_per_day`` of every day (a short
+    day; ``86400`` for whole days).  Inside each window the rate setting changes, the
+    spacecraft turns +Y to the Sun over 20-60 % of the window (10-min slews), and the
+    range goes coarse as in `WINDOW_RATES`/`WINDOW_COARSE` (or one ``rate_setting``
+    throughout).  The streams are split by the UTC day of their recorded MET into
+    ``MAG{SCI,HTR,TMP}_YYYYDDD.csv`` (heater and temperature start 20 min before the
+    first day, in the previous day's files); the truth goes to
+    ``truth/MAGTRUTH_YYYYDDD.csv``; one synthetic kernel set per run, all listed in
+    ``kernels.tm``.
+
+    Parameters
+    ----------
+    input_dir : Path
+        Folder to write (created).
+    days : sequence of datetime.date
+        Days to simulate (any order; gaps allowed).
+    seconds_per_day : float
+        Length of each day's science window from 00:00 UTC (s), at most 86400.
+    rate_setting : int, optional
+        One Table 1 rate setting for all samples (e.g. 6 = 1 vector/s).
+
+    Returns
+    -------
+    list of datetime.date
+        The days that received science data (sorted).
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_messenger_like_kernels, write_meta_kernel
+    from fluxcal.geometry.time import SclkKernel, utc_to_et
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+
+    if not 0.0 < seconds_per_day <= DAY_S:
+        raise ValueError(f"seconds_per_day must be in (0, 86400], got {seconds_per_day}")
+    input_dir = Path(input_dir)
+    input_dir.mkdir(parents=True, exist_ok=True)
+    kernel_files: list[Path] = []
+    done: list[_dt.date] = []
+    for run in _runs(days):
+        start = f"{run[0]:%Y-%m-%d}T00:00:00"
+        duration = (len(run) - 1) * DAY_S + seconds_per_day
+        windows = [(k * DAY_S, k * DAY_S + seconds_per_day) for k in range(len(run))]
+        config = SimulationConfig(start_utc=start, duration_s=duration, science_windows=windows)
+        if rate_setting is not None:
+            config.rate_segments = [(0.0, rate_setting)]
+        else:
+            config.rate_segments = [((w0 + f * seconds_per_day) / duration, r)
+                                    for w0, _ in windows for f, r in WINDOW_RATES]
+        config.coarse_intervals = [((w0 + a * seconds_per_day) / duration,
+                                    (w0 + b * seconds_per_day) / duration)
+                                   for w0, _ in windows for a, b in WINDOW_COARSE]
+        sunward = [(w0 + 0.2 * seconds_per_day, w0 + 0.6 * seconds_per_day)
+                   for w0, _ in windows]
+        mk = write_messenger_like_kernels(input_dir / "kernels" / f"run_{run[0]:%Y%j}", start,
+                                          duration + config.lead_s, plus_y_sunward=sunward)
+        # the SCLK and frame kernels are the same for every run: list the first ones
+        listed = sorted(p for p in mk.parent.iterdir() if p.suffix != ".tm")
+        kernel_files += listed if not kernel_files else [k for k in listed
+                                                         if k.suffix in (".bsp", ".bc")]
+        with KernelPool(mk):
+            sclk = SclkKernel.from_pool(-236)
+            sim = simulate(config, load_calibration(start), sclk)
+            first = run[0] - _dt.timedelta(days=1)
+            edges = utc_to_et(np.array([f"{first + _dt.timedelta(days=k)}T00:00:00"
+                                        for k in range(len(run) + 2)]))
+            day_index = {k: np.searchsorted(edges, sclk.to_et(sim[k]["partition"].values,
+                                                              sim[k]["met"].values),
+                                            side="right") - 1
+                         for k in ("science", "heater", "temperature")}
+        dims = {"science": "time", "heater": "heater_time", "temperature": "temperature_time"}
+        tmp = input_dir / ".simulation"
+        for k in range(len(run) + 1):
+            day = first + _dt.timedelta(days=k)
+            part = {key: sim[key].isel({dims[key]: day_index[key] == k}) for key in dims}
+            part["truth"] = sim["truth"].isel(time=day_index["science"] == k)
+            paths = write_inputs(part, tmp, stem=f"{day:%Y%j}")
+            has_science = part["science"].sizes["time"] > 0
+            for key, code in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
+                if part[key].sizes[dims[key]] and (key != "science" or has_science):
+                    paths[key].replace(day_file(input_dir, code, day))
+            if has_science:
+                (input_dir / "truth").mkdir(exist_ok=True)
+                paths["truth"].replace(input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
+                done.append(day)
+        shutil.rmtree(tmp, ignore_errors=True)
+    write_meta_kernel(input_dir / "kernels.tm", kernel_files)
+    return sorted(done)
+

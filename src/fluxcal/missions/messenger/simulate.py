@@ -68,6 +68,9 @@ class SimulationConfig:
         Uniform interplanetary field added (MSO, nT).
     waves : list of (amplitude_nT, period_s)
         Circularly polarised waves in the MSO Y-Z plane.
+    science_windows : list of (start_s, end_s), optional
+        Keep science samples only inside these intervals (seconds after ``start_utc``);
+        the heater and temperature streams stay continuous (short simulated days).
     """
 
     start_utc: str = "2012-06-01T00:00:00"
@@ -85,6 +88,7 @@ class SimulationConfig:
     excursion_c: float = 55.0
     imf_nt: tuple[float, float, float] = (12.0, -8.0, 5.0)
     waves: list[tuple[float, float]] = field(default_factory=lambda: [(3.0, 2.0), (1.0, 0.31)])
+    science_windows: list[tuple[float, float]] | None = None
 
 
 def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig) -> np.ndarray:
@@ -209,6 +213,12 @@ def simulate(
         rate_parts.append(np.full(grid.size, rate, dtype=np.int8))
     met_rec = np.round(np.concatenate(met_parts), 6)
     rate = np.concatenate(rate_parts)
+    if config.science_windows is not None:
+        rel = met_rec - met0
+        keep = np.zeros(met_rec.size, dtype=bool)
+        for a, b in config.science_windows:
+            keep |= (rel >= a) & (rel < b)
+        met_rec, rate = met_rec[keep], rate[keep]
     rng = np.zeros(met_rec.size, dtype=np.int8)
     for a, b in config.coarse_intervals:
         lo, hi = met0 + a * config.duration_s, met0 + b * config.duration_s
