@@ -38,7 +38,7 @@ from fluxcal.calibration.relaxation import (
     steady_state_offset,
 )
 from fluxcal.errors import InputFormatError, ValidationError
-from fluxcal.geometry.time import SclkKernel, et_to_tt2000, utc_to_et
+from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
 log = logging.getLogger(__name__)
@@ -96,7 +96,8 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
     """
     lag = per_sample_lag(ds["rate"].values, cal.net_lag_s)
     met = ds["met"].values - lag
-    et = sclk.to_et(ds["partition"].values, met)
+    # TT2000 straight from the clock's TT parallel time (no TDB round trip)
+    et, tt2000 = sclk.to_et_and_tt2000(ds["partition"].values, met)
     et_recorded = sclk.to_et(ds["partition"].values, ds["met"].values)
     out = ds.assign(
         et_recorded=_scalar(et_recorded, "s", "ephemeris time of the recorded (EDR) MET"),
@@ -104,7 +105,7 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
         met_corrected=_scalar(met, "s", "MET corrected for the net lag"),
         et=_scalar(et, "s", "ephemeris time (TDB seconds past J2000)"),
     )
-    epoch = ("time", et_to_tt2000(et), {"units": "ns", "standard": "TT2000"})
+    epoch = ("time", tt2000, {"units": "ns", "standard": "TT2000"})
     return out.assign_coords(epoch=epoch)
 
 
@@ -325,6 +326,197 @@ def _apply(m: np.ndarray, v: np.ndarray, transpose: bool = False) -> np.ndarray:
     return np.einsum("nji,nj->ni" if transpose else "nij,nj->ni", m, v)
 
 
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` divided by their norms."""
+    return v / np.sqrt(np.einsum("ij,ij->i", v, v))[:, None]
+
+
+def _rotate_oracle(
+    b_sc: np.ndarray, sun: np.ndarray, et: np.ndarray, frames: tuple[str, ...]
+) -> dict[str, np.ndarray]:
+    """Field in every frame and ``sun_sc`` with one ``pxform`` per sample and frame."""
+    from fluxcal.geometry.frames import rotation_matrices
+
+    att = rotation_matrices("MSGR_SPACECRAFT", "J2000", et, method="oracle")
+    b_j2000 = _apply(att, b_sc)
+    out = {"sc": b_sc, "j2000": b_j2000, "sun_sc": _apply(att, _unit_rows(-sun), True)}
+    for f in frames:
+        if f not in out:
+            out[f] = _apply(rotation_matrices("J2000", FRAMES[f][0], et, method="oracle"),
+                            b_j2000)
+    return out
+
+
+def _rotate_interpolated(
+    b_sc: np.ndarray, sun: np.ndarray, et: np.ndarray, frames: tuple[str, ...]
+) -> dict[str, np.ndarray]:
+    """Field in every frame and ``sun_sc``, evaluated in cache-sized blocks.
+
+    The attitude leg (MSGR_SPACECRAFT -> J2000, from the CK records) is built once;
+    its matrices exist only one block at a time and serve both the field (to J2000)
+    and the Sun direction (to the spacecraft frame, transposed).  The J2000 -> frame
+    legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000.
+    """
+    from fluxcal.geometry.frames import Rotator, quat_to_matrix
+
+    quats = Rotator("MSGR_SPACECRAFT", et).quaternions("J2000")
+    b_j2000 = np.empty_like(b_sc)
+    sun_sc = np.empty_like(sun)
+    for start in range(0, et.size, Rotator.CHUNK):
+        block = slice(start, start + Rotator.CHUNK)
+        att = quat_to_matrix(quats[block])
+        b_j2000[block] = np.einsum("nij,nj->ni", att, b_sc[block])
+        sun_sc[block] = np.einsum("nji,nj->ni", att, _unit_rows(-sun[block]))
+    del quats
+    out = {"sc": b_sc, "j2000": b_j2000, "sun_sc": sun_sc}
+    if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
+        out["rtn"] = rtn_from_position(b_j2000, sun, et)
+    from_j2000 = Rotator("J2000", et)
+    for f in frames:
+        if f not in out:
+            out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
+    return out
+
+
+#: The MSGR_RTN definition `rtn_from_position` reproduces (fluxcal's msgr_rtn.tf):
+#: kernel-pool keyword -> accepted values.
+_RTN_DEFINITION = {
+    "CLASS": ("5",), "RELATIVE": ("J2000",), "DEF_STYLE": ("PARAMETERIZED",),
+    "FAMILY": ("TWO-VECTOR",), "PRI_AXIS": ("X",),
+    "PRI_VECTOR_DEF": ("OBSERVER_TARGET_POSITION",), "PRI_OBSERVER": ("SUN", "10"),
+    "PRI_TARGET": ("-236", "MESSENGER"), "PRI_ABCORR": ("NONE",), "SEC_AXIS": ("Z",),
+    "SEC_VECTOR_DEF": ("CONSTANT",), "SEC_FRAME": ("IAU_SUN",),
+    "SEC_SPEC": ("RECTANGULAR",), "SEC_VECTOR": ("0 0 1",),
+}
+
+
+def _pool_text(name: str) -> str | None:
+    """Return a kernel-pool variable as text (whole numbers as integers), or None."""
+    import spiceypy
+
+    try:
+        n, kind = spiceypy.dtpool(name)
+    except spiceypy.utils.exceptions.SpiceyError:
+        return None
+    if kind == "C":
+        return " ".join(str(v).strip().upper() for v in spiceypy.gcpool(name, 0, n))
+    values = spiceypy.gdpool(name, 0, n)
+    return " ".join(str(int(v)) if float(v).is_integer() else repr(float(v)) for v in values)
+
+
+def rtn_is_sun_pole_two_vector(frame: str) -> bool:
+    """Return True when the loaded ``frame`` is the two-vector RTN frame of fluxcal's FK.
+
+    That is: X along the Sun -> MESSENGER position (no aberration correction), Z toward
+    the component of the IAU_SUN +Z axis (solar rotation axis) orthogonal to X, relative
+    to J2000.  A mission kernel defining the frame otherwise makes this False (and the
+    pipeline then rotates with SPICE's definition through the interpolated legs).
+    """
+    import spiceypy
+
+    code = spiceypy.namfrm(frame)
+    if code == 0:
+        return False
+    for key, accepted in _RTN_DEFINITION.items():
+        if _pool_text(f"FRAME_{code}_{key}") not in accepted:
+            return False
+    return True
+
+
+def rtn_from_position(b_j2000: np.ndarray, sun: np.ndarray, et: np.ndarray) -> np.ndarray:
+    """Rotate J2000 vectors into RTN built from the Sun -> spacecraft position.
+
+    ``R = sun / |sun|``, ``T = unit(Omega x R)`` with ``Omega`` the solar rotation axis
+    (IAU_SUN +Z in J2000), ``N = R x T``: the two-vector frame MSGR_RTN of seed 000
+    sec. 3.5, evaluated from the positions already computed (no frame leg to build).
+    Computed in cache-sized blocks.
+
+    Parameters
+    ----------
+    b_j2000 : ndarray, shape (n, 3)
+        Vectors in J2000.
+    sun : ndarray, shape (n, 3)
+        MESSENGER relative to the Sun, J2000 (km).
+    et : ndarray, shape (n,)
+        Ephemeris times (for the solar rotation axis).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 3.5, sec. 11.
+    """
+    from fluxcal.geometry.frames import Rotator, rotation_matrices
+
+    ends = rotation_matrices("IAU_SUN", "J2000", et[[0, -1]], method="oracle")[:, :, 2]
+    if np.allclose(ends[0], ends[1], rtol=0.0, atol=1e-15):
+        pole = np.broadcast_to(ends[0], (et.size, 3))
+    else:  # a precessing pole model: the axis per sample
+        pole = Rotator("IAU_SUN", et).rotate("J2000", np.tile([0.0, 0.0, 1.0], (et.size, 1)))
+    out = np.empty_like(b_j2000)
+    for start in range(0, et.size, 1 << 15):
+        block = slice(start, start + (1 << 15))
+        r = _unit_rows(sun[block])
+        t = _unit_rows(np.cross(pole[block], r))
+        n = np.cross(r, t)
+        v = b_j2000[block]
+        out[block, 0] = np.einsum("ij,ij->i", r, v)
+        out[block, 1] = np.einsum("ij,ij->i", t, v)
+        out[block, 2] = np.einsum("ij,ij->i", n, v)
+    return out
+
+
+#: Grid step (s) of the sec. 10.2 angles when the samples are denser (see `spherical_rtn`).
+RTN_ANGLE_STEP_S = 1.0
+
+
+def spherical_rtn(
+    sun: np.ndarray, et: np.ndarray, *, method: str = "interpolate",
+    step: float = RTN_ANGLE_STEP_S,
+) -> np.ndarray:
+    """Distance from the Sun, ecliptic latitude and azimuth (sec. 10.2) per sample.
+
+    The distance is ``|sun|`` at every sample.  The two angles vary slowly (the
+    spacecraft's heliocentric direction); when the samples are denser than ``step``
+    they are evaluated by `fluxcal.geometry.positions.rtn_spherical` on a ``step`` grid
+    and interpolated linearly (azimuth unwrapped).  Error bound: ``step**2 / 8`` times
+    the angular acceleration, below 3.7e-9 deg/s**2 even at a 200-km periapsis
+    (3.2e-3 km/s**2 at 0.3 AU), so under 5e-10 deg for 1 s -- far below the 1e-7 deg
+    printed in the products (checked against the per-sample evaluation in the tests).
+
+    Parameters
+    ----------
+    sun : ndarray, shape (n, 3)
+        MESSENGER relative to the Sun in J2000 (km) at ``et``.
+    et : ndarray, shape (n,)
+        Ephemeris times, increasing.
+    method : {"interpolate", "oracle"}
+        ``"oracle"`` evaluates every sample with one SPICE call per sample.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        ``r`` (km), latitude (deg), azimuth (deg).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.2.
+    """
+    from fluxcal.geometry.positions import rtn_spherical
+
+    out = np.empty((et.size, 3))
+    span = float(et[-1] - et[0]) if et.size else 0.0
+    if method == "oracle" or et.size < 4 * (span / step + 2):
+        out[:, 0], out[:, 1], out[:, 2] = rtn_spherical(
+            "MESSENGER", et, method=method, target_position=sun)
+        return out
+    grid = np.linspace(et[0], et[-1], int(np.ceil(span / step)) + 1)
+    _r, lat, az = rtn_spherical("MESSENGER", grid)
+    out[:, 0] = np.sqrt(np.einsum("ij,ij->i", sun, sun))
+    out[:, 1] = np.interp(et, grid, lat)
+    az = np.interp(et, grid, np.unwrap(az, period=360.0))
+    out[:, 2] = np.where(np.abs(az) > 180.0, (az + 180.0) % 360.0 - 180.0, az)
+    return out
+
+
 def add_geometry(
     ds: xr.Dataset,
     cal: MessengerCalibration,
@@ -357,8 +549,7 @@ def add_geometry(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2, 11.
     """
-    from fluxcal.geometry.frames import Rotator, rotation_matrices
-    from fluxcal.geometry.positions import position, rtn_spherical
+    from fluxcal.geometry.positions import position
 
     et = ds["et"].values
     b = ds["b_sensor"].values
@@ -369,24 +560,16 @@ def add_geometry(
             b_sc = _apply(_sensor_to_spacecraft(name, et, method), b)
         elif sel.any():
             b_sc[sel] = _apply(_sensor_to_spacecraft(name, et[sel], method), b[sel])
-    att = rotation_matrices("MSGR_SPACECRAFT", "J2000", et, method=method)
-    b_j2000 = _apply(att, b_sc)
+    # MESSENGER relative to the Sun (J2000): pos_j2000, the Sun direction and sec. 10.2
     sun = position("MESSENGER", "SUN", "J2000", et, method=method)
-    sun_dir = -sun / np.linalg.norm(sun, axis=1)[:, None]
-    sun_sc = _apply(att, sun_dir, transpose=True)
-    del att
-    out = {"sc": b_sc, "j2000": b_j2000}
-    from_j2000 = Rotator("J2000", et) if method == "interpolate" else None
-    for f in frames:
-        if f in out:
-            continue
-        if from_j2000 is None:
-            out[f] = _apply(rotation_matrices("J2000", FRAMES[f][0], et, method=method), b_j2000)
-        else:  # blocks of samples sized for the CPU cache
-            out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
+    if method == "oracle":
+        out = _rotate_oracle(b_sc, sun, et, frames)
+    else:
+        out = _rotate_interpolated(b_sc, sun, et, frames)
+    sun_sc = out.pop("sun_sc")
     mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
     mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
-    r, lat, az = rtn_spherical("MESSENGER", et, method=method, target_position=sun)
+    pos_rtn = spherical_rtn(sun, et, method=method)
     variables = {
         f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
     }
@@ -394,7 +577,7 @@ def add_geometry(
         pos_j2000=_vector(sun, "km", "MESSENGER relative to the Sun, J2000"),
         pos_mso=_vector(mso, "km", "MESSENGER relative to Mercury, MSGR_MSO"),
         pos_mbf=_vector(mbf, "km", "MESSENGER relative to Mercury, IAU_MERCURY"),
-        pos_rtn=_vector(np.column_stack([r, lat, az]), "km, deg, deg",
+        pos_rtn=_vector(pos_rtn, "km, deg, deg",
                         "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)"),
         sun_sc=_vector(sun_sc, "1", "unit Sun direction in MSGR_SPACECRAFT"),
     )
