@@ -5,6 +5,7 @@ import spiceypy
 
 from fluxcal.errors import KernelError
 from fluxcal.geometry import frames
+from fluxcal.geometry import kernels as kernels_mod
 from fluxcal.geometry.kernels import KernelPool, frame_defined
 
 
@@ -60,3 +61,18 @@ def test_time_outside_coverage_is_kernel_error(messenger_kernels):
         et = spiceypy.str2et("2013-06-01T00:00:00")  # a year after the synthetic CK
         with pytest.raises(KernelError, match=r"MSGR_MAG.*2013-06-01.*msgr_synthetic_sc\.bc"):
             frames.rotation_matrices("MSGR_MAG", "J2000", [et, et + 1.0])
+
+
+def test_nested_pool_restores_the_outer_pool():
+    # SPICE keeps one copy of a file: an inner pool loading the same generic kernels must
+    # not leave the outer pool without them when it exits
+    before = kernels_mod.loaded_kernels()
+    with KernelPool([]) as outer:
+        files_outer = outer.kernel_list()
+        with KernelPool([]):
+            pass
+        assert sorted(outer.kernel_list()) == sorted(files_outer)
+        # the outer pool still works: DE421 and the leapseconds are there
+        et = spiceypy.str2et("2020-01-01T00:00:00")
+        spiceypy.spkpos("MERCURY", et, "J2000", "NONE", "SUN")
+    assert kernels_mod.loaded_kernels() == before

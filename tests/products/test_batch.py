@@ -181,8 +181,10 @@ def test_worker_kernel_pool_switches_lists() -> None:
     import spiceypy
 
     from fluxcal.geometry.kernels import frame_kernel_path
-    from fluxcal.products.batch import _KERNEL_CACHE, worker_kernel_pool
+    from fluxcal.products.batch import release_worker_kernel_pool, worker_kernel_pool
 
+    # an earlier in-process (serial) batch test may have left its pool cached here
+    release_worker_kernel_pool()
     before = spiceypy.ktotal("ALL")
     try:
         a = worker_kernel_pool([])
@@ -192,10 +194,7 @@ def test_worker_kernel_pool_switches_lists() -> None:
         assert spiceypy.ktotal("ALL") >= n_a
         assert worker_kernel_pool([frame_kernel_path("MSGR_MSO")]) is b
     finally:
-        pool = _KERNEL_CACHE.pop("pool", None)
-        _KERNEL_CACHE.clear()
-        if pool is not None:
-            pool.__exit__(None, None, None)
+        release_worker_kernel_pool()
     assert spiceypy.ktotal("ALL") == before
 
 

@@ -101,6 +101,19 @@ def _expand(paths: Iterable[str | Path]) -> list[Path]:
     return out
 
 
+def loaded_kernels() -> list[tuple[str, str]]:
+    """Return ``(file, source)`` of every loaded kernel, oldest first.
+
+    ``source`` is the meta-kernel that loaded the file, or ``""`` for a file furnished
+    directly.
+    """
+    out = []
+    for i in range(spiceypy.ktotal("ALL")):
+        file, _type, source, _handle = spiceypy.kdata(i, "ALL")
+        out.append((file, source))
+    return out
+
+
 class KernelPool:
     """Scoped set of loaded SPICE kernels (a context manager).
 
@@ -147,9 +160,11 @@ class KernelPool:
         self.generic = generic
         self.fluxcal_frames = fluxcal_frames
         self.loaded: list[Path] = []
+        self._before: list[tuple[str, str]] = []
 
     # -- context manager -------------------------------------------------------------
     def __enter__(self) -> KernelPool:
+        self._before = loaded_kernels()
         try:
             if self.generic:
                 for path in generic_kernels():
@@ -191,17 +206,34 @@ class KernelPool:
         return added
 
     def unload(self) -> None:
-        """Unload every kernel this pool loaded, newest first."""
+        """Unload every kernel this pool loaded, newest first, and restore the outer pool.
+
+        SPICE identifies a kernel by its file name and keeps one copy: furnishing a file
+        that an enclosing pool already loaded moves it, and unloading it removes it for
+        everyone.  Files that were loaded before this pool was entered and are gone after
+        the unload are therefore furnished again, in their original order (a file loaded
+        by a meta-kernel comes back with its meta-kernel).
+        """
         while self.loaded:
             path = self.loaded.pop()
             with contextlib.suppress(spiceypy.utils.exceptions.SpiceyError):
                 spiceypy.unload(str(path))
+        self._restore_outer()
+
+    def _restore_outer(self) -> None:
+        if not self._before:
+            return
+        present = {file for file, _ in loaded_kernels()}
+        before_files = {file for file, _ in self._before}
+        for file, source in self._before:
+            if file in present:
+                continue
+            if source and source in before_files:
+                continue  # restored by furnishing its meta-kernel
+            with spice_errors(f"restoring kernel {file} of the enclosing pool"):
+                spiceypy.furnsh(file)
+            present = {f for f, _ in loaded_kernels()}
 
     def kernel_list(self) -> list[str]:
         """Return the files loaded by this pool (for product provenance)."""
-        files = []
-        count = spiceypy.ktotal("ALL")
-        for i in range(count):
-            file, _type, _source, _handle = spiceypy.kdata(i, "ALL")
-            files.append(file)
-        return files
+        return [file for file, _ in loaded_kernels()]

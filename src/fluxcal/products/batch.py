@@ -296,11 +296,18 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None) -> Any
     if pool is not None and _KERNEL_CACHE.get("key") == key:
         return pool
     if pool is not None:
-        pool.__exit__(None, None, None)
-        _KERNEL_CACHE.clear()
+        release_worker_kernel_pool()
     pool = KernelPool(key_items).__enter__()
     _KERNEL_CACHE.update(pool=pool, key=key)
     return pool
+
+
+def release_worker_kernel_pool() -> None:
+    """Unload the kernels `worker_kernel_pool` keeps loaded in this process (if any)."""
+    pool = _KERNEL_CACHE.pop("pool", None)
+    _KERNEL_CACHE.clear()
+    if pool is not None:
+        pool.__exit__(None, None, None)
 
 
 # --- the runner --------------------------------------------------------------------------
