@@ -131,10 +131,17 @@ def test_offset_jump_intervals(pool):
     # Appendix B.1: interval 13 and 14 values, applied once each (half-open intervals)
     np.testing.assert_array_equal(jump[1], [8.2876, 13.2751, -4.4664])
     np.testing.assert_array_equal(jump[2], [-7.8000, 8.9000, -15.7000])
-    with pytest.raises(CalibrationError, match="IB offset jump .* unknown"):
-        level_b.offset_jumps(utc_to_tt2000(np.array(["2015-06-01T00:00:00"])), table, "IB")
-    jump, _ = level_b.offset_jumps(utc_to_tt2000(np.array(["2015-06-01T00:00:00"])), table, "OB")
+    late = utc_to_tt2000(np.array(["2015-06-01T00:00:00"]))
+    jump, _ = level_b.offset_jumps(late, table, "OB")
     np.testing.assert_array_equal(jump[0], [-4.52, 25.26, -5.52])
+    jump, _ = level_b.offset_jumps(late, table, "IB")  # Appendix B.2, last interval
+    np.testing.assert_array_equal(jump[0], [-13.74, -0.4424, 0.7735])
+    # a user table may leave a value unknown: data in that interval are refused
+    ib = table.jumps["IB"].copy()
+    ib[18, 2] = np.nan
+    unknown = calib.OffsetJumpTable(table.start_utc, table.end_utc, {**table.jumps, "IB": ib}, "u")
+    with pytest.raises(CalibrationError, match="IB offset jump .* unknown"):
+        level_b.offset_jumps(late, unknown, "IB")
 
 
 def test_stowed_uses_other_matrix(run):

@@ -30,7 +30,7 @@ def offset_jumps(
     ------
     CalibrationError
         If the intervals overlap, or a vector falls in an interval whose jump is unknown
-        (NaN in the table).
+        (NaN in a user table; the shipped table has every value of Appendix B).
 
     References
     ----------
@@ -68,8 +68,8 @@ def offset_jumps(
         raise CalibrationError(
             f"{table.source}: the {sensor} offset jump for "
             f"{table.start_utc[k]} .. {table.end_utc[k]} "
-            "is unknown (the seed's Appendix B list is cut off); supply RPCMAG_OFFSET_JUMPS.csv "
-            "with the value in --calib DIR or process without jumps"
+            "is unknown ('nan' in the table); supply RPCMAG_OFFSET_JUMPS.csv with the value "
+            "in --calib DIR or process without jumps"
         )
     return out, idx
 
