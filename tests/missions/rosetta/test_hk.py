@@ -129,3 +129,57 @@ def test_thermistor_inverse():
 def test_reference_divider_is_printed_value():
     # sec. 4.2.2.2 prints VOLT_DIVIDER = 0.49996 (see docs/decisions/rosetta.md)
     assert hk.divider(NOM["hk_reference_voltage"]) == pytest.approx(0.49996, abs=1e-5)
+
+
+# ---------------------------------------------------------------------------------------
+# The whole chain voltage -> 20-bit ADC -> PIU operation -> TLM word -> physical value, with
+# the PIU operations written out from sec. 4.2.2.3-4.2.2.5 (independent of fluxcal's code):
+# 80000h <-> 0 V, FFFFFh <-> +2.5 V (sec. 4.2.1).
+# ---------------------------------------------------------------------------------------
+def _adc(volts):
+    """20-bit bipolar ADC count of an input voltage (sec. 4.2.1)."""
+    return 2**19 + np.rint(np.asarray(volts) * (2**20 - 1) / 5.0).astype(np.int64)
+
+
+@pytest.mark.parametrize("supply", np.linspace(4.70, 5.30, 13))
+def test_positive_supply_through_piu(supply):
+    # sec. 4.2.2.3: monitored behind 90956/(99972+90956); TLM = (((ADC-2^19) shr 4) - 79F7h) shr 4,
+    # 8 bits kept.  Two floor shifts lose < 1 LSB of the printed CAL_FACTOR (2.562 mV).
+    adc = _adc(supply * 90956 / (99972 + 90956))
+    tlm = ((((adc - 2**19) >> 4) - 0x79F7) >> 4) & 0xFF
+    got = hk.positive_supply(np.array([tlm]), NOM)[0]
+    assert supply - 0.002562 - 1e-3 <= got <= supply + 1e-3
+
+
+@pytest.mark.parametrize("supply", np.linspace(-5.30, -4.70, 13))
+def test_negative_supply_through_piu(supply):
+    # sec. 4.2.2.4: behind 27400/(100024+27400); TLM = (((ADC-2^19) shr 4) + 370Eh) shr 3, 8 bits
+    adc = _adc(supply * 27400 / (100024 + 27400))
+    tlm = ((((adc - 2**19) >> 4) + 0x370E) >> 3) & 0xFF
+    got = hk.negative_supply(np.array([tlm]), NOM)[0]
+    assert supply - 0.002838 - 1e-3 <= got <= supply + 1e-3
+
+
+@pytest.mark.parametrize("row", TABLE1[1:], ids=[f"{t:g}C" for t in TABLE1[1:, 0]])
+def test_table1_through_thermistor_words(row):
+    # Table 1 voltage -> ADC -> TLM = (ADC - 2^19) shr 4 (sec. 4.2.2.5) -> fluxcal's science
+    # conversion (word -> U -> cubic - T_OFF) + T_OFF: the Table-1 temperature within the cubic's
+    # fit error (see test_thermistor_polynomial_table1) plus one 16-bit word (76 uV, < 0.03 K).
+    from fluxcal.missions.rosetta import level_a
+
+    t, _, u = row
+    word = (_adc(u) - 2**19) >> 4
+    cal = calib.load_ground_calibration("IB")
+    got = level_a.sensor_temperature(np.array([word]), cal, NOM)[0] + cal.thermistor_offset
+    tol = (0.65 if t > 140 else 0.4) + 0.03
+    assert got == pytest.approx(t, abs=tol)
+
+
+def test_reference_voltage_nominal_relation():
+    # sec. 4.2.2.2: TLM = ADC - 2^19 as unsigned 20-bit; converted 00000h <-> -2.5 V,
+    # 80000h <-> 0, FFFFFh <-> +2.5 V, then divided by VOLT_DIVIDER (0.49996)
+    tlm = np.array([0x80000, 0x00000, 0x7FFFF])
+    lsb = 5.0 / (2**20 - 1)
+    np.testing.assert_allclose(
+        hk.reference_voltage(tlm, NOM) * 0.49996, [-2.5, 0.0, 2.5], atol=lsb + 2e-5
+    )
