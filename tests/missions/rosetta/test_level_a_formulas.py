@@ -240,3 +240,28 @@ def test_word_lookup_equals_per_vector_formula():
     slow = level_a.ground_calibrate(b_raw, level_a.sensor_temperature(words, cal, nom), cal)
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(t, level_a.sensor_temperature(words, cal, nom))
+
+
+def test_extended_model_fifth_order_closed_form():
+    # sec. 4.2.3.3: the daily files carry P_0 .. P_5 ("5th order polynomials"); every order
+    # must be used.  Expected value written out term by term.
+    c = np.array(
+        [
+            [1.5, -2.0, 0.5],
+            [0.01, 0.02, -0.03],
+            [1e-4, -2e-4, 3e-4],
+            [1e-6, 2e-6, -1e-6],
+            [1e-8, -1e-8, 2e-8],
+            [1e-10, 3e-10, -2e-10],
+        ]
+    )
+    t = np.array([-140.0, -60.0, 0.0, 25.0, 40.0])
+    expected = sum(np.outer(t**k, c[k]) for k in range(6))
+    day = np.datetime64("2014-08-01")
+    off, _, sources = level_a.extended_offset(
+        np.arange(5, dtype=np.int64), t, np.zeros(5, dtype=int), [day], _models({str(day): c})
+    )
+    np.testing.assert_allclose(off, expected, rtol=1e-13, atol=1e-12)
+    assert sources == ["2014-08-01"]
+    # the fifth-order term matters at -140 C: 1e-10 * (-140)^5 = -5.4 nT in x
+    assert abs(expected[0, 0] - sum(t[0] ** k * c[k, 0] for k in range(5))) > 5.0
