@@ -5,14 +5,17 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fluxcal.products import read_product
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.batch import (
     BatchReport,
+    DayResult,
     day_range,
     is_up_to_date,
     make_local_cluster,
@@ -209,3 +212,63 @@ def test_cli_batch_on_existing_scheduler(cluster, tmp_path: Path) -> None:
     report = json.loads((out / "batch_report_synthetic.json").read_text())
     assert report["scheduler"] == cluster.scheduler_address
     assert report["counts"]["done"] == 2
+
+
+@dataclass(frozen=True)
+class KernelDayTask:
+    """A day task that loads kernels through `worker_kernel_pool`, as the mission tasks do."""
+
+    out_dir: Path
+    name: str = "kernels"
+
+    def __call__(self, day: dt.date) -> DayResult:
+        import spiceypy
+
+        from fluxcal.geometry.kernels import frame_kernel_path
+        from fluxcal.products.batch import worker_kernel_pool
+
+        worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
+        path = atomic_write_bytes(Path(self.out_dir) / f"K_{day:%Y%m%d}.txt",
+                                  str(spiceypy.ktotal("ALL")).encode())
+        return DayResult(day, [path])
+
+
+def test_serial_run_leaves_the_callers_spice_pool_as_found(tmp_path: Path) -> None:
+    """In-process runs must not leak a task's kernels into the caller (or the next test)."""
+    from fluxcal.geometry.kernels import loaded_kernels
+    from fluxcal.products import batch as batch_mod
+
+    batch_mod.release_worker_kernel_pool()  # whatever an earlier test may have cached
+    before = loaded_kernels()
+    rep = run_batch(DAYS[:2], KernelDayTask(tmp_path), tmp_path, scheduler="serial")
+    assert [d.status for d in rep.days] == ["done", "done"]
+    assert int((tmp_path / "K_20240301.txt").read_text()) > len(before)  # kernels were loaded
+    assert loaded_kernels() == before
+    assert "pool" not in batch_mod._KERNEL_CACHE
+    # a caller that keeps a worker pool itself (a worker running a nested serial batch) keeps it
+    try:
+        pool = batch_mod.worker_kernel_pool([])
+        run_batch(DAYS[:1], KernelDayTask(tmp_path), tmp_path, scheduler="serial", force=True)
+        assert batch_mod._KERNEL_CACHE.get("pool") is not None
+        assert batch_mod._KERNEL_CACHE["pool"] is not pool  # replaced by the task's list
+    finally:
+        batch_mod.release_worker_kernel_pool()
+    assert loaded_kernels() == before
+
+
+def test_cluster_and_serial_give_identical_science(cluster, tmp_path: Path) -> None:
+    """Worker processes and this process write the same bytes (same run, another place)."""
+    from .test_reproducible import science_content
+
+    inp = tmp_path / "in"
+    write_synthetic_inputs(inp, DAYS[:2], n_per_day=400)
+    runs = {}
+    for where, scheduler in (("serial", "serial"), ("cluster", cluster.scheduler_address)):
+        out = tmp_path / where
+        rep = run_batch(DAYS[:2], SyntheticDayTask(inp, out, formats=("tab", "cdf", "nc")), out,
+                        scheduler=scheduler)
+        assert rep.ok, [d.error for d in rep.days]
+        runs[where] = {Path(p).name: out / p for d in rep.days for p in d.products}
+    assert sorted(runs["serial"]) == sorted(runs["cluster"]) and len(runs["serial"]) == 8
+    for name, path in runs["serial"].items():
+        assert science_content(path) == science_content(runs["cluster"][name]), name

@@ -373,8 +373,9 @@ def run_batch(
         Product folder; holds ``manifests/`` and the report.
     scheduler : str, optional
         ``None``: a new LocalCluster of ``n_workers`` processes, one thread each;
-        ``"serial"``: run in this process; otherwise the address of an existing Dask
-        scheduler.
+        ``"serial"``: run in this process (kernels a task loads through
+        `worker_kernel_pool` are unloaded at the end, so the caller's SPICE pool is left
+        as it was); otherwise the address of an existing Dask scheduler.
     n_workers : int
         Workers of the LocalCluster.
     force : bool
@@ -407,8 +408,13 @@ def run_batch(
             on_day_done(st)
 
     if scheduler == "serial":
-        for day in days:
-            record(run_day(task, day, out_dir, name, force))
+        had_pool = "pool" in _KERNEL_CACHE
+        try:
+            for day in days:
+                record(run_day(task, day, out_dir, name, force))
+        finally:
+            if not had_pool:  # this process is not a worker: leave its SPICE pool as found
+                release_worker_kernel_pool()
         used, workers = "serial", 1
     else:
         from distributed import Client, as_completed
