@@ -55,3 +55,27 @@ def test_cli_batch_default_local_cluster(tmp_path: Path) -> None:
     assert sorted(p.name for p in out.glob("SYNTH_*")) == [
         "SYNTH_20240301.nc", "SYNTH_20240301_20240301.png",
         "SYNTH_20240302.nc", "SYNTH_20240302_20240302.png"]
+
+
+def test_cli_batch_progress_and_summary_table(tmp_path: Path, capsys, monkeypatch) -> None:
+    """Without --quiet: the rich progress bar, then a table of every day and the counts."""
+    monkeypatch.setenv("COLUMNS", "200")  # rich's width when stderr is not a terminal
+    monkeypatch.setenv("NO_COLOR", "1")  # plain text whatever the CI environment forces
+    for var in ("FORCE_COLOR", "TTY_COMPATIBLE", "TTY_INTERACTIVE"):
+        monkeypatch.delenv(var, raising=False)
+    days = day_range(dt.date(2024, 3, 1), dt.date(2024, 3, 3))
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, days, n_per_day=40)
+    input_path(inp, days[2]).write_text("epoch_ns,cx,cy\n1,2,3\n")  # a bad header
+    args = ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-03",
+            "--input", str(inp), "--out", str(out), "--scheduler", "serial"]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "synthetic days" in err and "vectors/s" in err and "failures: 1" in err
+    rows = {line.split("│")[1].strip(): line for line in err.splitlines()
+            if line.count("│") >= 5 and "2024-03-0" in line}
+    assert sorted(rows) == ["2024-03-01", "2024-03-02", "2024-03-03"]
+    assert "done" in rows["2024-03-01"] and "40" in rows["2024-03-01"]
+    assert "failed" in rows["2024-03-03"] and "InputFormatError" in rows["2024-03-03"]
+    assert "2 done, 0 skipped, 0 no_data, 1 failed" in err
+    assert str(out / "batch_report_synthetic.json") in err.replace("\n", "")

@@ -119,7 +119,7 @@ def test_no_field_is_an_error() -> None:
         quicklook_figure(ds)
 
 
-@pytest.mark.parametrize("fmt,suffix", [("cdf", ".cdf"), ("nc", ".nc")])
+@pytest.mark.parametrize("fmt,suffix", [("cdf", ".cdf"), ("nc", ".nc"), ("tab", ".TAB")])
 def test_cli_plot(fmt: str, suffix: str, tmp_path: Path) -> None:
     from fluxcal.cli import main
 
