@@ -43,6 +43,22 @@ log = logging.getLogger(__name__)
 
 #: Scale from the median absolute deviation to the standard deviation of a Gaussian.
 MAD_TO_SIGMA = 1.4826
+#: Shortest series for the second detection pass (its 99.9 % quantile needs >= 20
+#: samples beyond it).
+REFINE_MIN_SAMPLES = 20000
+
+
+def _tail_threshold(mv: NDArray[np.float64], false_alarms: float = 1e-3) -> float:
+    """Level exceeded ``false_alarms`` times per series under an exponential tail.
+
+    The tail ``P(X > x) = 1e-3 exp(-(x - q999) / s)`` passes through the 99 % and
+    99.9 % quantiles of ``mv`` (``s = (q999 - q99) / ln 10``; the moving variance of
+    Gaussian noise is a quadratic form of Gaussians, whose tail is exponential); the
+    returned ``x`` has ``n P(X > x) = false_alarms``.
+    """
+    q99, q999 = np.quantile(mv, [0.99, 0.999])
+    scale = (q999 - q99) / np.log(10.0)
+    return float(q999 + scale * np.log(1e-3 * mv.size / false_alarms))
 
 
 def _as_vectors(values: ArrayLike, name: str = "values") -> NDArray[np.float64]:
@@ -169,6 +185,7 @@ def remove_heater_steps(
     baseline_segments: int | None = 2,
     transition_sigma: float = 4.0,
     direction: ArrayLike | None = None,
+    refine_threshold: bool = True,
 ) -> StepRemovalResult:
     """Detect and remove square-wave steps (heater switching) from a vector series.
 
@@ -208,6 +225,16 @@ def remove_heater_steps(
     direction : array_like (3,), optional
         Known disturbance direction; by default the maximum variance axis of the
         first differences, refined as the principal axis of the detected 3-D jumps.
+    refine_threshold : bool
+        Second pass (automatic threshold only, series of at least
+        `REFINE_MIN_SAMPLES` samples, when the first pass found jumps): the moving
+        variance of the *cleaned* series, now free of the steps, gives the
+        background's own tail; its 99 % and 99.9 % quantiles define an exponential
+        tail that is extrapolated to 0.001 expected false alarms in the series.
+        Where that threshold is lower than the MAD one, detection is redone with it
+        (along the direction already found).  This recovers the smallest steps on a
+        white-noise background, whose moving variance has a lighter tail than the red
+        background the MAD factor ``k_mad`` is set for.
 
     Returns
     -------
@@ -323,6 +350,19 @@ def remove_heater_steps(
     corrected[cut] = np.interp(np.flatnonzero(cut), np.flatnonzero(good), corrected[good])
     out = b + (corrected - u)[:, None] * e[None, :]
     log.info("removed %d heater steps (threshold %.3g)", jumps.size, thr)
+    if threshold is None and refine_threshold and n >= REFINE_MIN_SAMPLES:
+        thr2 = _tail_threshold(moving_variance(out @ e, width))
+        if thr2 < thr:
+            log.info("second pass with the cleaned series' tail threshold %.3g", thr2)
+            return remove_heater_steps(
+                b,
+                width=width,
+                threshold=thr2,
+                average_samples=average_samples,
+                baseline_segments=baseline_segments,
+                transition_sigma=transition_sigma,
+                direction=e,
+            )
     return StepRemovalResult(
         values=out,
         direction=e,
