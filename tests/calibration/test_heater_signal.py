@@ -74,3 +74,31 @@ def test_signal_only_in_applied_periods():
     assert np.all(sig[~applied] == 0)
     expect = heater_waveform(np.array([30.5]), np.array([30.0]), TAB, BINS)[0]
     np.testing.assert_allclose(sig[2], expect)
+
+
+def test_stream_ending_inside_the_on_phase():
+    # 40 % periods; the series ends 15 s into the third period's on-phase: that period
+    # keeps the 40 % (and the >= 10 s persistence) of the contiguous period before it
+    t, b = _bits([(40, 100), (40, 100)])
+    b = np.concatenate([b[:250], np.ones(15, dtype=b.dtype)])
+    t = np.arange(b.size, dtype=float)
+    p = heater_periods(t, b)
+    np.testing.assert_array_equal(p.start, [50, 150, 250])
+    np.testing.assert_allclose(p.duty_cycle, [0.40, 0.40, 0.40])
+    np.testing.assert_array_equal(p.applied, [True, True, True])
+
+
+def test_stream_ending_after_the_on_phase_is_complete():
+    # the cut period's bit went off at 25 s before the end: its duty cycle is known (25 %)
+    t, b = _bits([(40, 100), (40, 100)])
+    b = np.concatenate([b[:250], np.ones(25, dtype=b.dtype), np.zeros(10, dtype=b.dtype)])
+    t = np.arange(b.size, dtype=float)
+    p = heater_periods(t, b)
+    np.testing.assert_allclose(p.duty_cycle, [0.40, 0.40, 0.25])
+
+
+def test_unfinished_period_without_predecessor_keeps_what_was_seen():
+    b = np.array([0] * 20 + [1] * 5)
+    p = heater_periods(np.arange(b.size, dtype=float), b)
+    np.testing.assert_allclose(p.duty_cycle, [0.05])
+    np.testing.assert_array_equal(p.applied, [False])

@@ -53,6 +53,7 @@ def heater_periods(
     period: float = 100.0,
     min_on: float = 10.0,
     bit_step: float = 1.0,
+    tolerance: float = 1.5,
 ) -> HeaterPeriods:
     """Find the heater periods of a heater-bit series (sec. 6).
 
@@ -68,6 +69,8 @@ def heater_periods(
         Persistence (s) the bit must stay on for the signal to be applied.
     bit_step : float
         Time each bit stands for (s); a bit at ``t`` covers ``[t, t + bit_step)``.
+    tolerance : float
+        Slack (s) when deciding that two periods are contiguous.
 
     Returns
     -------
@@ -78,6 +81,15 @@ def heater_periods(
     A series that starts with the bit on has no known rising edge there: that partial
     period is not a heater period.  The duty cycle counts the bits with times in
     ``[start, end)`` and divides by ``period / bit_step`` (100 bits).
+
+    A period cut by the end of the series (``start + period`` after the last bit) whose
+    bit is still on at the end is *unfinished*: only a lower bound of its duty cycle and
+    on-time was seen (a day's heater file ends wherever the day ends).  When it follows
+    a contiguous period (edges at most ``period + tolerance`` apart) it keeps that
+    period's duty cycle and on-time if they are larger: the V10 controller changes the
+    duty cycle only every ten periods, so a truncated on-phase must not read as a new
+    duty cycle.  A cut period whose bit went off before the end is complete (the
+    controller switches on once per period, at its start).
 
     References
     ----------
@@ -107,6 +119,13 @@ def heater_periods(
     else:
         fall_time = np.full(start.shape, times[-1] + bit_step if times.size else 0.0)
     on = fall_time - start
+    data_end = times[-1] + bit_step if times.size else 0.0
+    eps = 1e-6 * bit_step
+    unfinished = (start + period > data_end + eps) & (fall_time >= data_end - eps)
+    for k in np.flatnonzero(unfinished):
+        if k > 0 and start[k] - start[k - 1] <= period + tolerance:
+            duty[k] = max(duty[k], duty[k - 1])
+            on[k] = max(on[k], on[k - 1])
     return HeaterPeriods(
         start=start, end=end, duty_cycle=duty, on_duration=on, applied=on >= min_on - 1e-9
     )

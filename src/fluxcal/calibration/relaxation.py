@@ -51,6 +51,7 @@ def duty_cycle_changes(
     *,
     period: float = 100.0,
     data_end: float | None = None,
+    data_start: float | None = None,
     tolerance: float = 1.5,
 ) -> DutyCycleChanges:
     """Return the duty-cycle changes implied by a sequence of heater periods.
@@ -58,7 +59,12 @@ def duty_cycle_changes(
     A change happens at the rising edge that starts the first period with a new duty
     cycle; the heater going quiet (no rising edge within ``period + tolerance`` after the
     last one) is a change to zero at the end of its last period.  The heater is assumed
-    quiet before the first period.
+    quiet before the first period when the series shows it: more than
+    ``period + tolerance`` of heater data before the first rising edge (an earlier edge
+    would have been seen).  Otherwise (the series starts inside heater operation, e.g. a
+    day processed without the previous day's heater file) the first period's duty cycle
+    is taken as in force since the distant past: a change at ``-inf``, i.e. its steady
+    state (the initial assumption of sec. 7's look-back), not a step from zero.
 
     Parameters
     ----------
@@ -68,6 +74,9 @@ def duty_cycle_changes(
     data_end : float, optional
         End of the heater-bit series; a final period ending after it is not followed
         by a change to zero.
+    data_start : float, optional
+        Time of the first heater bit.  ``None`` assumes the heater quiet before the
+        first period.
     tolerance : float
         Slack (s) when deciding that two periods are contiguous.
 
@@ -92,7 +101,11 @@ def duty_cycle_changes(
     previous[0] = 0.0
     previous[1:] = np.where(gap_after[:-1], 0.0, ppt[:-1])
     new = ppt != previous
-    times = [start[new], start[gap_after] + period]
+    change_at = start.copy()
+    if data_start is not None and start[0] - data_start <= period + tolerance:
+        new[0] = True  # the duty cycle before the data is unknown: steady since -inf
+        change_at[0] = -np.inf
+    times = [change_at[new], start[gap_after] + period]
     values = [ppt[new], np.zeros(int(gap_after.sum()))]
     t = np.concatenate(times)
     v = np.concatenate(values)

@@ -122,6 +122,11 @@ def find_heater_periods(
 ) -> tuple[HeaterPeriods, DutyCycleChanges]:
     """Heater periods and duty-cycle changes (on the ET scale) from the heater stream.
 
+    A heater stream that starts inside heater operation (less than one heater period of
+    data before the first rising edge) gives a first change at ``-inf``: that duty cycle
+    is taken as steady before the data (logged as a warning).  A last period cut inside
+    its on-phase by the end of the stream keeps the previous period's duty cycle.
+
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, 7.
@@ -129,7 +134,15 @@ def find_heater_periods(
     t = aux_times_et(heater, sclk)
     h = cal.constants["heater"]
     periods = heater_periods(t, heater["heater"].values, period=h["period_s"], min_on=h["min_on_s"])
-    changes = duty_cycle_changes(periods, period=h["period_s"], data_end=float(t[-1]) + 1.0)
+    changes = duty_cycle_changes(periods, period=h["period_s"], data_end=float(t[-1]) + 1.0,
+                                 data_start=float(t[0]))
+    if len(changes) and np.isneginf(changes.time[0]):
+        log.warning(
+            "the heater stream (%s) starts inside heater operation: the duty cycle before "
+            "it (%.0f ppt) is taken as steady; give the previous day's heater file for the "
+            "sec. 7 look-back", heater.attrs.get("inputs", "in memory"),
+            changes.duty_cycle_ppt[0],
+        )
     return periods, changes
 
 

@@ -38,6 +38,9 @@ from fluxcal.missions.messenger.readers import COUNT_LIMITS
 MERCURY_DIPOLE_NT = 195.0
 MERCURY_RADIUS_KM = 2440.0
 DIPOLE_OFFSET_KM = 480.0
+#: Heater-off seconds at the start of the simulated heater stream (> one heater period,
+#: so the quiet start is visible; see `fluxcal.calibration.relaxation.duty_cycle_changes`).
+QUIET_LEAD_S = 110.0
 
 
 @dataclass
@@ -171,9 +174,10 @@ def simulate(
     partition = int(part_arr[0])
     met0 = float(np.ceil(met_arr[0]))  # first whole MET second at or after the start
     # --- heater schedule (integer MET seconds) -------------------------------------------
-    # the heater stream starts with 10 s of heater off, so the first edge is visible
+    # the heater stream starts with 110 s of heater off (more than one heater period):
+    # the pipeline sees the heater quiet before the first edge (relaxation from zero)
     h_zero = met0 - config.lead_s
-    h_met = np.arange(h_zero - 10.0, met0 + config.duration_s + 200.0, 1.0)
+    h_met = np.arange(h_zero - QUIET_LEAD_S, met0 + config.duration_s + 200.0, 1.0)
     rel_h = h_met - h_zero
     blocks = _schedule_blocks(config, rel_h[-1] + 1)
     block_of = np.maximum(rel_h // config.block_s, 0).astype(int)
