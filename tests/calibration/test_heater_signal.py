@@ -102,3 +102,31 @@ def test_unfinished_period_without_predecessor_keeps_what_was_seen():
     p = heater_periods(np.arange(b.size, dtype=float), b)
     np.testing.assert_allclose(p.duty_cycle, [0.05])
     np.testing.assert_array_equal(p.applied, [False])
+
+
+def test_short_gap_inside_the_on_phase():
+    # 40 % periods; 20 bits missing (a gap < one period) inside the third on-phase:
+    # 20 bits seen on, up to 40 possible -> keeps the previous 40 %
+    t, b = _bits([(40, 100)] * 4)
+    keep = (t < 260) | (t >= 280)
+    p = heater_periods(t[keep], b[keep])
+    np.testing.assert_array_equal(p.start, [50, 150, 250, 350])
+    np.testing.assert_allclose(p.duty_cycle, [0.40, 0.40, 0.40, 0.40])
+    np.testing.assert_array_equal(p.applied, [True] * 4)
+
+
+def test_gap_after_the_fall_keeps_the_seen_duty_cycle():
+    # the bit was seen going off at 25 s, the gap is in the off-phase: 25 % is known
+    t, b = _bits([(40, 100), (40, 100), (25, 100), (25, 100)])
+    keep = (t < 290) | (t >= 320)
+    p = heater_periods(t[keep], b[keep])
+    np.testing.assert_allclose(p.duty_cycle, [0.40, 0.40, 0.25, 0.25])
+
+
+def test_gap_duty_outside_the_bounds_is_not_inherited():
+    # 10 bits missing in a 25 % on-phase following a 40 % period: seen 15, at most 25
+    # (< 40): the previous duty cycle is impossible, the seen lower bound stays
+    t, b = _bits([(40, 100), (25, 100)])
+    keep = (t < 165) | (t >= 175)
+    p = heater_periods(t[keep], b[keep])
+    np.testing.assert_allclose(p.duty_cycle, [0.40, 0.15])

@@ -82,14 +82,15 @@ def heater_periods(
     period is not a heater period.  The duty cycle counts the bits with times in
     ``[start, end)`` and divides by ``period / bit_step`` (100 bits).
 
-    A period cut by the end of the series (``start + period`` after the last bit) whose
-    bit is still on at the end is *unfinished*: only a lower bound of its duty cycle and
-    on-time was seen (a day's heater file ends wherever the day ends).  When it follows
-    a contiguous period (edges at most ``period + tolerance`` apart) it keeps that
-    period's duty cycle and on-time if they are larger: the V10 controller changes the
+    A period whose on-phase was not fully seen -- cut by the end of the series (a day's
+    heater file ends wherever the day ends) or with missing bits (a gap shorter than a
+    period) before an observed 1 -> 0 transition -- has only bounds on its duty cycle:
+    the bits seen on, up to those plus the missing ones.  When it follows a contiguous
+    period (edges at most ``period + tolerance`` apart) whose duty cycle lies within
+    these bounds it keeps that duty cycle and on-time: the V10 controller changes the
     duty cycle only every ten periods, so a truncated on-phase must not read as a new
-    duty cycle.  A cut period whose bit went off before the end is complete (the
-    controller switches on once per period, at its start).
+    duty cycle.  A period whose bit was seen going off with no missing bit before is
+    complete (the controller switches on once per period, at its start).
 
     References
     ----------
@@ -119,13 +120,24 @@ def heater_periods(
     else:
         fall_time = np.full(start.shape, times[-1] + bit_step if times.size else 0.0)
     on = fall_time - start
-    data_end = times[-1] + bit_step if times.size else 0.0
+    # periods whose on-phase was not fully seen: cut by the end of the data, or with
+    # missing bits (a short gap) before the observed fall of the bit
     eps = 1e-6 * bit_step
-    unfinished = (start + period > data_end + eps) & (fall_time >= data_end - eps)
-    for k in np.flatnonzero(unfinished):
+    missing = np.round((end - start) / bit_step).astype(np.int64) - (i1 - i0)
+    fall_seen = j < falling.size  # a 1 -> 0 transition after the edge, on consecutive bits
+    if falling.size:
+        f = falling[np.minimum(j, falling.size - 1)]
+        fall_seen &= times[f] - times[f - 1] <= bit_step + eps
+    # every bit of the on-run present: records in [start, fall) = its length in bits
+    i_fall = np.searchsorted(times, fall_time - eps, side="left")
+    whole_run = (i_fall - i0) == np.round((fall_time - start) / bit_step)
+    uncertain = (missing > 0) & ~(fall_seen & whole_run)
+    for k in np.flatnonzero(uncertain):
         if k > 0 and start[k] - start[k - 1] <= period + tolerance:
-            duty[k] = max(duty[k], duty[k - 1])
-            on[k] = max(on[k], on[k - 1])
+            upper = (n_on[k] + missing[k]) * bit_step / period
+            if duty[k] <= duty[k - 1] <= upper + eps:
+                duty[k] = duty[k - 1]
+                on[k] = max(on[k], on[k - 1])
     return HeaterPeriods(
         start=start, end=end, duty_cycle=duty, on_duration=on, applied=on >= min_on - 1e-9
     )
