@@ -272,3 +272,41 @@ def test_cluster_and_serial_give_identical_science(cluster, tmp_path: Path) -> N
     assert sorted(runs["serial"]) == sorted(runs["cluster"]) and len(runs["serial"]) == 8
     for name, path in runs["serial"].items():
         assert science_content(path) == science_content(runs["cluster"][name]), name
+
+
+def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
+    """The test SIGKILLs a worker process while it runs a day: no partial product, rerun ok."""
+    import signal
+
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, DAYS, n_per_day=300)
+    task = SyntheticDayTask(inp, out, delay=0.5)
+    killed: list[int] = []
+
+    def kill_a_busy_worker(st) -> None:
+        # the worker that just finished a day has already started its next one
+        if not killed and st.status == "done" and st.worker:
+            pid = int(st.worker.split()[-1])
+            assert pid != os.getpid()
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+
+    rep = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address,
+                    on_day_done=kill_a_busy_worker)
+    assert killed
+    with pytest.raises(ProcessLookupError):
+        os.kill(killed[0], 0)  # the worker process really is gone
+    assert not list(out.glob(".*.tmp*"))
+    assert {d.status for d in rep.days} <= {"done", "failed"}
+    assert all("KilledWorker" in (d.error or "") for d in rep.days if d.status == "failed")
+    for day in DAYS:  # every product present is complete (even one whose manifest is missing)
+        cdf = out / f"SYNTH_{day:%Y%m%d}.cdf"
+        if cdf.exists():
+            np.testing.assert_allclose(read_product(cdf)["B"].values,
+                                       _expected_field(inp, day), atol=1e-9)
+    rep2 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
+    assert rep2.ok and {d.status for d in rep2.days} <= {"done", "skipped"}
+    assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS]
+    for d in DAYS:
+        np.testing.assert_allclose(read_product(out / f"SYNTH_{d:%Y%m%d}.cdf")["B"].values,
+                                   _expected_field(inp, d), atol=1e-9)
