@@ -5,7 +5,9 @@ Pure array functions (any magnetometer; arrays and parameters in, arrays out):
 - `minimum_variance` (MVA: eigenvalues, eigenvectors, ratio),
 - `remove_spectral_lines` (aliased reaction-wheel / fixed instrument lines),
 - `remove_heater_steps`, `remove_labelled_offsets` (square-wave heater disturbances),
-- `two_sensor_pca` (external field versus sensor-local noise of two sensors).
+- `two_sensor_pca` (external field versus sensor-local noise of two sensors),
+- `resample_two_sensors` (two series onto a common time base, gap-aware linear
+  interpolation; `common_time_base`, `interpolate_linear`).
 
 The Rosetta levels H-L built on them are in `fluxcal.missions.rosetta.cleaning_levels`.
 
@@ -16,6 +18,12 @@ References
 
 from fluxcal.cleaning.minimum_variance import MinimumVarianceResult, minimum_variance
 from fluxcal.cleaning.pca import TwoSensorPCAResult, two_sensor_pca
+from fluxcal.cleaning.resample import (
+    TwoSensorResample,
+    common_time_base,
+    interpolate_linear,
+    resample_two_sensors,
+)
 from fluxcal.cleaning.spectral_lines import (
     LineRemovalResult,
     default_bandwidth,
@@ -37,13 +45,17 @@ __all__ = [
     "MinimumVarianceResult",
     "StepRemovalResult",
     "TwoSensorPCAResult",
+    "TwoSensorResample",
+    "common_time_base",
     "default_bandwidth",
     "fold_frequency",
+    "interpolate_linear",
     "interpolated_lines",
     "minimum_variance",
     "moving_variance",
     "remove_heater_steps",
     "remove_labelled_offsets",
     "remove_spectral_lines",
+    "resample_two_sensors",
     "two_sensor_pca",
 ]
