@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import importlib
+import logging
 import math
 import os
 import shutil
@@ -64,6 +65,11 @@ def _control(cluster, n: int) -> float:
     return serial / parallel
 
 
+def _quiet_fluxcal_logs() -> None:
+    """Keep the pipelines' data warnings (e.g. heater look-back) out of the timing output."""
+    logging.getLogger("fluxcal").setLevel(logging.ERROR)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--days", type=int, default=8)
@@ -75,7 +81,10 @@ def main() -> None:
     ap.add_argument("--start", default=None, help="first day (default 2024-01-01, "
                     "MESSENGER 2012-06-01)")
     ap.add_argument("--formats", default="tab,cdf")
+    ap.add_argument("--verbose", action="store_true", help="keep the pipelines' warnings")
     args = ap.parse_args()
+    if not args.verbose:
+        _quiet_fluxcal_logs()
     if args.task == "auto":
         try:
             task_factory("messenger")
@@ -116,6 +125,8 @@ def main() -> None:
         cluster = make_local_cluster(args.workers)
         with Client(cluster) as client:  # import the task's modules on every worker
             client.run(importlib.import_module, type(task).__module__)
+            if not args.verbose:
+                client.run(_quiet_fluxcal_logs)
         startup = time.perf_counter() - t0
         try:
             par_out = work / "parallel"
