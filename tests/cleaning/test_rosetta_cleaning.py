@@ -12,6 +12,7 @@ import typer
 import xarray as xr
 from typer.testing import CliRunner
 
+from fluxcal.cleaning.pca import two_sensor_pca
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import leapseconds, utc_to_tt2000
@@ -211,6 +212,77 @@ def test_level_j_three_parts(lsk):
         cl.level_j(ob.isel(time=slice(0, 10)), ib.isel(time=slice(100, 110)))
 
 
+def test_level_j_identical_tags_is_the_pca_of_the_samples(lsk):
+    rng = np.random.default_rng(10)
+    t0 = int(utc_to_tt2000(np.array([START]), lsk)[0])
+    epoch = t0 + np.arange(3000, dtype=np.int64) * 1_000_000_000 + 500_000_000
+    ext = rotating_field(np.arange(3000), magnitude=5.0, period=1e5)
+    ob = _dataset(epoch, ext + 0.1 * rng.normal(size=(3000, 3)), level="G", sensor="OB")
+    ib = _dataset(epoch, ext + 0.4 * rng.normal(size=(3000, 3)), level="G", sensor="IB")
+    parts = cl.level_j(ob, ib)
+    ref = two_sensor_pca(ob["b"].values, ib["b"].values)  # the former tag matching
+    np.testing.assert_array_equal(parts["EXT"]["b"].values, ref.external)
+    np.testing.assert_array_equal(parts["IB"]["b"].values, ref.uncorrelated_b)
+    assert parts["EXT"].attrs["pca_interpolated_vectors"] == [0, 0]
+    assert parts["EXT"].attrs["pca_dropped_vectors"] == 0
+
+
+def test_level_j_resamples_shifted_ib_and_drops_gaps(lsk):
+    """IB tagged half a second after OB, with a 10 s gap: interpolated, gap dropped."""
+    rng = np.random.default_rng(11)
+    t0 = int(utc_to_tt2000(np.array([START]), lsk)[0])
+    n = 20000
+    k = np.arange(n, dtype=float)  # (float: rotating_field's constant z is full_like)
+    epoch_ob = t0 + np.arange(n, dtype=np.int64) * 1_000_000_000
+    epoch_ib = epoch_ob + 500_000_000
+    # a field slow enough that its interpolation error (<= h^2/8 max|B''| = 2e-6 nT
+    # for the 5 nT, 2e4 s rotation) is negligible against the 0.1/0.4 nT disturbances
+    ext_ob = rotating_field(k, magnitude=5.0, period=2e4)
+    ext_ib = rotating_field(k + 0.5, magnitude=5.0, period=2e4)
+    noise_ob, noise_ib = 0.1 * rng.normal(size=(n, 3)), 0.4 * rng.normal(size=(n, 3))
+    keep = np.ones(n, bool)
+    keep[1000:1010] = False  # IB gap 999.5 s -> 1010.5 s
+    ob = _dataset(epoch_ob, ext_ob + noise_ob, level="G", sensor="OB")
+    ib = _dataset(epoch_ib[keep], (ext_ib + noise_ib)[keep], level="G", sensor="IB")
+    parts = cl.level_j(ob, ib)
+    ext = parts["EXT"]
+    assert ext.attrs["pca_dropped_in_gaps"] == [0, 11]  # OB tags 1000..1010
+    assert ext.attrs["pca_dropped_vectors"] == 11 and ext.attrs["pca_max_gap_s"] == [2.0, 2.0]
+    assert ext.attrs["pca_outside_overlap"] == [1, 1]  # OB first, IB last tag
+    assert ext.attrs["pca_interpolated_vectors"] == [0, n - 12]
+    assert ext.attrs["pca_time_base"].startswith("OB time tags")
+    assert ext.sizes["time"] == n - 12
+    np.testing.assert_array_equal(ext["epoch"].values, np.delete(epoch_ob, [0, *range(1000, 1011)]))
+    # the resampled white IB noise keeps half its variance at u = 1/2 (documented
+    # limit of linear interpolation): psi_IB ~ 0.16 / 2; the OB one is untouched
+    # (sampling std of psi as in test_pca: sqrt(var_e (pa + pb) + pa pb + 2 p^2 / N); 4 of them)
+    psi = np.asarray(ext.attrs["pca_noise_variance_nT2"]).reshape(3, 2)
+    pa, pb, m = 0.01, 0.16 / 2, ext.sizes["time"]
+    var_e = ext_ob.var(axis=0)
+    for col, p_true in enumerate((pa, pb)):
+        std = np.sqrt((var_e * (pa + pb) + pa * pb + 2 * p_true**2) / m)
+        assert np.all(np.abs(psi[:, col] - p_true) < 4 * std), (col, psi[:, col], std)
+    sel = np.delete(np.arange(n), [0, *range(1000, 1011)])
+    err = np.sqrt(np.mean((ext["b"].values - ext_ob[sel]) ** 2, axis=0))
+    # the inverse-variance optimum sqrt(pa pb / (pa + pb)) = 0.094 nT; 5 % for the
+    # weights' own sampling error (psi above) -- better than the better sensor alone
+    np.testing.assert_allclose(err, np.sqrt(pa * pb / (pa + pb)), rtol=0.05)
+    assert np.all(err < 0.1)
+    # the position etc. of the OB rows go with the kept times
+    np.testing.assert_array_equal(ext["obt"].values, ob["obt"].values[sel])
+    # on a regular grid: OB interpolated as well, float variables too
+    grid = cl.level_j(ob, ib, step_s=2.0)["EXT"]
+    assert grid.attrs["pca_time_base"].startswith("regular grid of 2 s")
+    assert np.all(np.diff(grid["epoch"].values) % 2_000_000_000 == 0)
+    assert grid["epoch"].values[0] == epoch_ib[0]  # overlap start
+    np.testing.assert_allclose(
+        grid["obt"].values, 3.6e8 + (grid["epoch"].values - epoch_ob[0]) / 1e9, rtol=0, atol=1e-6
+    )
+    assert grid["quality"].dtype == ob["quality"].dtype
+    with pytest.raises(InputFormatError, match="common"):
+        cl.level_j(ob, ib, max_gap_s=0.1)  # nothing can be interpolated
+
+
 # --- reaction wheel CSV ---------------------------------------------------------------
 
 
@@ -358,6 +430,48 @@ def test_clean_level_l_rotation_preserves_magnitude(tmp_path, lsk):
     assert "position" in lds and (tmp_path / "out" / "RPCMAG_20140801_CLL_OB.TAB").exists()
 
 
+def test_level_l_matches_scalar_spice_rotation(tmp_path, lsk):
+    """LEVEL_L against one ``spiceypy.pxform`` per sample (the scalar oracle).
+
+    Tolerance 1e-9 relative: the LEVEL_C rotation path SLERPs attitude between nodes
+    to 5e-10 rad (`fluxcal.geometry.frames.DEFAULT_TOLERANCE`; SLERP between type 3 CK
+    records is what SPICE itself does), a rotation error theta moves a vector by at
+    most theta |B|; the oracle's ET comes from SPICE's own ``unitim`` (TT -> TDB), which
+    agrees with fluxcal's conversion (a 1 us difference would be ~1e-9 rad only at
+    1e-3 rad/s); float rounding adds ~1e-15. Measured: 2.6e-13.
+    """
+    import spiceypy
+
+    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.missions.rosetta.level_c import SPACECRAFT_FRAME
+
+    meta = write_rosetta_like_kernels(tmp_path / "k", START, 600.0, margin_s=1200.0)
+    hds, *_ = _heater_case(lsk, n=2000)
+    kds = cl.level_k(hds)
+    with KernelPool(meta):
+        lds = cl.level_l(kds, lsk=lsk)
+        assert lds["b"].attrs["frame"] == "ECLIPJ2000"
+        idx = np.unique(np.linspace(0, kds.sizes["time"] - 1, 60).astype(int))
+        epoch = kds["epoch"].values[idx].astype(np.int64)
+        # TT2000: TT ns past J2000; whole seconds and the rest kept apart (no float ns)
+        tt = (epoch // 1_000_000_000).astype(float) + (epoch % 1_000_000_000) / 1e9
+        expected = np.array(
+            [
+                spiceypy.mxv(
+                    spiceypy.pxform(
+                        SPACECRAFT_FRAME, "ECLIPJ2000", spiceypy.unitim(t, "TT", "TDB")
+                    ),
+                    v,
+                )
+                for t, v in zip(tt, kds["b"].values[idx], strict=True)
+            ]
+        )
+    got = lds["b"].values[idx]
+    assert not np.allclose(got, kds["b"].values[idx], atol=1e-3)  # a real rotation
+    rel = np.linalg.norm(got - expected, axis=1) / np.linalg.norm(expected, axis=1)
+    assert np.max(rel) < 1e-9, np.max(rel)
+
+
 def test_clean_files_errors(tmp_path, lsk):
     with pytest.raises(FluxcalError, match="unknown level"):
         clean_files("X", [tmp_path / "a.cdf"], tmp_path)
@@ -398,6 +512,23 @@ def test_clean_command_j_writes_three_products(tmp_path, lsk):
     for tag in ("EXT", "OB", "IB"):
         back = read_product(tmp_path / "out" / f"RPCMAG_20140801_CLJ_{tag}.cdf")
         assert back.attrs["pca_part"] == tag and back.sizes["time"] == n
+    # the command with a regular grid and a gap limit (IB shifted by 0.25 s, a 4 s gap)
+    ib2 = _dataset(np.delete(epoch, range(100, 103)) + 250_000_000, ib["b"].values[3:],
+                   level="G", sensor="IB")  # fmt: skip
+    f_ib2 = _write(ib2, tmp_path / "in2", lsk)
+    app = typer.Typer()
+    app.command()(clean)
+    app.command("noop")(lambda: None)
+    args = ["clean", "--level", "J", "--input", str(f_ob[".cdf"]), "--input-ib", str(f_ib2[".cdf"])]
+    out = tmp_path / "out2"
+    res = CliRunner().invoke(app, args + ["--out", str(out), "--step", "1", "--max-gap", "3"])
+    assert res.exit_code == 0, res.output
+    back = read_product(out / "RPCMAG_20140801_CLJ_EXT.cdf")
+    assert str(back.attrs["pca_time_base"]).startswith("regular grid of 1 s")
+    # grid every 1 s from IB's first tag (the overlap start), n - 1 times; IB's gap of
+    # 4 s (> 3 samples) holds 3 of them strictly inside, OB has none
+    assert list(np.ravel(back.attrs["pca_dropped_in_gaps"])) == [0, 3]
+    assert back.sizes["time"] == n - 1 - 3
 
 
 def test_fluxcal_rosetta_clean_k_with_romap_intervals(tmp_path, lsk):

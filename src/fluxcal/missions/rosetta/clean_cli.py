@@ -264,6 +264,8 @@ def clean_files(
     intervals: Path | None = None,
     kernels: Path | None = None,
     average_s: float = 1.0,
+    step_s: float | None = None,
+    max_gap_samples: float = 2.0,
     formats: Sequence[str] = ("tab", "cdf"),
     plot: bool = True,
 ) -> CleanResult:
@@ -320,7 +322,7 @@ def clean_files(
         elif level == "I":
             made = {sensor: cl.level_i(src, average_s, lsk=lsk)}
         elif level == "J":
-            made = cl.level_j(data[0], data[1])
+            made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples)
         elif level == "K":
             if intervals is not None:
                 used_inputs.append(Path(intervals))
@@ -377,6 +379,12 @@ def clean(
         None, "--kernels", help="Meta-kernel (SCLK, CK, SPK); needed for L."
     ),
     average: float = typer.Option(1.0, "--average", help="I: averaging interval (s)."),
+    step: float | None = typer.Option(
+        None, "--step", help="J: regular common time grid step (s); default the OB tags."
+    ),
+    max_gap: float = typer.Option(
+        2.0, "--max-gap", help="J: longest gap bridged by interpolation (sample intervals)."
+    ),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
@@ -393,6 +401,8 @@ def clean(
         intervals=intervals,
         kernels=kernels,
         average_s=average,
+        step_s=step,
+        max_gap_samples=max_gap,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
         plot=not no_plot,
     )

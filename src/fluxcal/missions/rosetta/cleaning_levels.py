@@ -2,8 +2,8 @@
 
 * `level_h`: reaction-wheel and LAP spectral lines removed from LEVEL_C (or L).
 * `level_i`: 1 s averages of LEVEL_H.
-* `level_j`: two-sensor PCA of OB and IB (LEVEL_G or I): external field and each
-  sensor's uncorrelated part (three datasets).
+* `level_j`: two-sensor PCA of OB and IB (LEVEL_G or I, resampled onto a common
+  time base): external field and each sensor's uncorrelated part (three datasets).
 * `level_k`: heater square waves removed from LEVEL_B (automatic method 1);
   `level_k_assisted`: the same with disturbed intervals from another instrument
   (ROMAP, method 2).
@@ -29,6 +29,11 @@ import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
 from fluxcal.cleaning.pca import two_sensor_pca
+from fluxcal.cleaning.resample import (
+    TwoSensorResample,
+    interpolate_linear,
+    resample_two_sensors,
+)
 from fluxcal.cleaning.spectral_lines import (
     default_bandwidth,
     interpolated_lines,
@@ -225,21 +230,52 @@ def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dat
     return out
 
 
-def _common_times(
-    a: xr.Dataset, b: xr.Dataset
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    ea = np.asarray(a["epoch"].values, dtype=np.int64)
-    eb = np.asarray(b["epoch"].values, dtype=np.int64)
-    common, ia, ib = np.intersect1d(ea, eb, assume_unique=False, return_indices=True)
-    return common, ia, ib
+def _on_grid(ob: xr.Dataset, res: TwoSensorResample) -> xr.Dataset:
+    """OB's per-time variables on a regular grid: floats interpolated, others nearest."""
+    epoch = np.asarray(ob["epoch"].values, dtype=np.int64)
+    near = np.clip(np.searchsorted(epoch, res.times), 1, max(epoch.size - 1, 1))
+    near -= (res.times - epoch[near - 1]) <= (epoch[near] - res.times)  # nearest tag
+    out = ob.isel(time=near)
+    for name, var in ob.data_vars.items():
+        if "time" in var.dims and var.dims[0] == "time" and var.dtype.kind == "f":
+            vals, _, _ = interpolate_linear(epoch, var.values, res.times, reference=res.reference)
+            out[name] = (var.dims, vals, var.attrs)
+    return out.assign_coords(epoch=("time", res.times, ob["epoch"].attrs))
 
 
-def level_j(ob: xr.Dataset, ib: xr.Dataset) -> dict[str, xr.Dataset]:
+def level_j(
+    ob: xr.Dataset,
+    ib: xr.Dataset,
+    *,
+    step_s: float | None = None,
+    max_gap_samples: float = 2.0,
+    max_gap_s: float | None = None,
+) -> dict[str, xr.Dataset]:
     """LEVEL_G/I of OB and IB -> LEVEL_J: external field and each sensor's own part.
 
-    The two sensors are put on a common time base by their common time tags (1 s
-    averages of both sensors share the interval middles); see
-    `fluxcal.cleaning.pca.two_sensor_pca` for the split.
+    The two sensors are first put on a common time base
+    (`fluxcal.cleaning.resample.resample_two_sensors`): the overlap of both series,
+    on the OB tags there (default) or on a regular grid of ``step_s``; each sensor
+    is linearly interpolated onto it, except across its own gaps longer than
+    ``max_gap_samples`` sample intervals (those base times are dropped and counted).
+    Identical OB/IB tags (both sensors averaged over the same intervals) need no
+    interpolation and give the PCA of the samples themselves. The split is
+    `fluxcal.cleaning.pca.two_sensor_pca`.
+
+    Parameters
+    ----------
+    ob, ib : xarray.Dataset
+        LEVEL_G or I of the outboard and inboard sensors (``b`` nT, ``epoch``).
+    step_s : float, optional
+        Step (s) of a regular common grid starting at the overlap start (default:
+        the OB tags inside the overlap). On a grid, OB's other float variables
+        (position, ...) are interpolated and integer ones (quality, sid) taken from
+        the nearest OB vector.
+    max_gap_samples : float
+        Longest spacing bridged by interpolation, in each sensor's median sample
+        intervals (default 2: one missing vector is bridged).
+    max_gap_s : float, optional
+        The same in seconds for both sensors (overrides ``max_gap_samples``).
 
     Returns
     -------
@@ -247,39 +283,79 @@ def level_j(ob: xr.Dataset, ib: xr.Dataset) -> dict[str, xr.Dataset]:
         ``{"EXT": external field, "OB": uncorrelated OB part, "IB": uncorrelated IB
         part}``, each a dataset on the common times with ``b`` (nT) and attributes
         ``level = "J"``, ``pca_part``, ``pca_noise_variance_nT2`` (OB, IB per component),
-        ``pca_weights``.
+        ``pca_weights``, ``pca_time_base``, ``pca_max_gap_s`` (OB, IB),
+        ``pca_dropped_in_gaps`` (OB, IB), ``pca_dropped_vectors``,
+        ``pca_interpolated_vectors`` (OB, IB), ``pca_outside_overlap`` (OB, IB vectors
+        outside the time span both sensors cover).
 
     Raises
     ------
     InputFormatError
-        If fewer than 3 time tags are common to both sensors.
+        If fewer than 3 times remain on the common time base.
 
     References
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.11.
     """
-    _vectors(ob, "J")
-    _vectors(ib, "J")
-    common, i_ob, i_ib = _common_times(ob, ib)
-    if common.size < 3:
+    b_ob, e_ob = _vectors(ob, "J")
+    b_ib, e_ib = _vectors(ib, "J")
+    step_ns = None if step_s is None else int(round(float(step_s) * 1e9))
+    max_gap_ns = None if max_gap_s is None else int(round(float(max_gap_s) * 1e9))
+    try:
+        res = resample_two_sensors(
+            e_ob,
+            b_ob,
+            e_ib,
+            b_ib,
+            step_ns=step_ns,
+            max_gap_samples=max_gap_samples,
+            max_gap_ns=max_gap_ns,
+        )
+    except InputFormatError as exc:
+        sensor = "OB" if exc.field in ("t_a", "a") else "IB"
+        field = "epoch" if str(exc.field).startswith("t_") else "b"
+        text = str(exc).split(": ", 1)[-1]
+        raise InputFormatError(f"{sensor}: {text}", field=field) from None
+    if res.times.size < 3:
         raise InputFormatError(
-            f"only {common.size} time tags common to OB and IB; average both sensors "
-            "over the same intervals (LEVEL_G or I) first",
+            f"only {res.times.size} vectors on the common OB/IB time base "
+            f"({res.base_size} in the overlap, {res.dropped} inside gaps); LEVEL_J needs "
+            "both sensors over a common time span",
             field="epoch",
         )
-    res = two_sensor_pca(ob["b"].values[i_ob], ib["b"].values[i_ib])
-    base = ob.isel(time=i_ob)
+    pca = two_sensor_pca(res.a, res.b)
+    if step_ns is None:
+        base = ob.isel(time=res.primary_index)
+        time_base = "OB time tags inside the OB/IB overlap"
+    else:
+        base = _on_grid(ob, res)
+        time_base = f"regular grid of {step_ns / 1e9:g} s from the OB/IB overlap start"
+    span = (max(int(e_ob[0]), int(e_ib[0])), min(int(e_ob[-1]), int(e_ib[-1])))
+    outside = [int(np.count_nonzero((e < span[0]) | (e > span[1]))) for e in (e_ob, e_ib)]
     stats = dict(
         level="J",
-        pca_noise_variance_nT2=[float(v) for v in res.noise_variance.ravel()],
-        pca_weights=[float(v) for v in res.weights.ravel()],
-        pca_external_variance_nT2=[float(v) for v in res.external_variance],
+        pca_noise_variance_nT2=[float(v) for v in pca.noise_variance.ravel()],
+        pca_weights=[float(v) for v in pca.weights.ravel()],
+        pca_external_variance_nT2=[float(v) for v in pca.external_variance],
         pca_inputs=[str(ob.attrs.get("source", "OB")), str(ib.attrs.get("source", "IB"))],
+        pca_time_base=time_base,
+        pca_max_gap_s=[g / 1e9 for g in res.max_gap_ns],
+        pca_dropped_in_gaps=list(res.dropped_in_gaps),
+        pca_dropped_vectors=res.dropped,
+        pca_interpolated_vectors=list(res.interpolated),
+        pca_outside_overlap=outside,
     )
+    if res.dropped:
+        log.info(
+            "LEVEL_J: %d of %d common times dropped inside data gaps (OB %d, IB %d)",
+            res.dropped,
+            res.base_size,
+            *res.dropped_in_gaps,
+        )
     parts = {
-        "EXT": (res.external, "correlated OB/IB part: external field", "OB+IB"),
-        "OB": (res.uncorrelated_a, "uncorrelated OB part: s/c noise at OB", "OB"),
-        "IB": (res.uncorrelated_b, "uncorrelated IB part: s/c noise at IB", "IB"),
+        "EXT": (pca.external, "correlated OB/IB part: external field", "OB+IB"),
+        "OB": (pca.uncorrelated_a, "uncorrelated OB part: s/c noise at OB", "OB"),
+        "IB": (pca.uncorrelated_b, "uncorrelated IB part: s/c noise at IB", "IB"),
     }
     out: dict[str, xr.Dataset] = {}
     for key, (values, text, sensor) in parts.items():
