@@ -310,3 +310,22 @@ def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
     for d in DAYS:
         np.testing.assert_allclose(read_product(out / f"SYNTH_{d:%Y%m%d}.cdf")["B"].values,
                                    _expected_field(inp, d), atol=1e-9)
+
+
+def test_clean_stale_temporaries_files_and_store_directories(tmp_path: Path) -> None:
+    from fluxcal.products.batch import clean_stale_temporaries
+
+    (tmp_path / "P.zarr" / "B").mkdir(parents=True)  # a finished store: kept
+    (tmp_path / "P.zarr" / "B" / "0.0").write_bytes(b"x")
+    stale_dir = tmp_path / ".P.zarr.k3j2.tmp.zarr"  # a Zarr store a killed worker was writing
+    (stale_dir / "B").mkdir(parents=True)
+    (stale_dir / "B" / "0.0.abc.partial").write_bytes(b"x")
+    (stale_dir / ".zgroup").write_text("{}")
+    stale_file = tmp_path / "sub" / ".P.TAB.x1y2.tmp.TAB"
+    stale_file.parent.mkdir()
+    stale_file.write_text("partial")
+    (tmp_path / "P.TAB").write_text("done")
+    removed = clean_stale_temporaries(tmp_path)
+    assert sorted(removed) == sorted([stale_dir, stale_file])
+    assert not stale_dir.exists() and not stale_file.exists()
+    assert (tmp_path / "P.zarr" / "B" / "0.0").exists() and (tmp_path / "P.TAB").exists()

@@ -160,7 +160,15 @@ def test_failed_rename_leaves_nothing(fmt: str, dataset: xr.Dataset, tmp_path: P
         seen.append(p.stat().st_size if p.is_file() else 1)
         raise OSError("simulated crash before rename")
 
-    monkeypatch.setattr(atomic_mod.os, "replace", broken_replace)
+    # Only fluxcal's final rename fails: patching os.replace process-wide would also break
+    # the writers' own renames (zarr renames every chunk it writes, from its I/O thread).
+    class OsWithBrokenReplace:
+        replace = staticmethod(broken_replace)
+
+        def __getattr__(self, name: str):
+            return getattr(os, name)
+
+    monkeypatch.setattr(atomic_mod, "os", OsWithBrokenReplace())
     with pytest.raises(OSError, match="simulated crash"):
         write_product(dataset, tmp_path / "P", formats=(fmt,))
     assert seen and seen[0] > 0

@@ -31,6 +31,7 @@ import importlib
 import json
 import logging
 import os
+import shutil
 import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -321,12 +322,21 @@ def day_range(start: _dt.date, end: _dt.date) -> list[_dt.date]:
 
 
 def clean_stale_temporaries(out_dir: Path) -> list[Path]:
-    """Remove temporary files left by a killed writer (``.<name>.*.tmp<suffix>``)."""
-    removed = []
-    for p in Path(out_dir).rglob(".*.tmp*"):
-        if p.is_file():
-            p.unlink()
-            removed.append(p)
+    """Remove temporaries left by a killed writer (``.<name>.*.tmp<suffix>``).
+
+    Files and directories (a Zarr store is written as a temporary directory) alike.
+    """
+    removed: list[Path] = []
+    for p in sorted(Path(out_dir).rglob(".*.tmp*")):
+        if any(r in p.parents for r in removed):
+            continue  # inside a temporary directory already removed
+        if p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        elif p.exists():
+            p.unlink(missing_ok=True)
+        else:
+            continue
+        removed.append(p)
     return removed
 
 
