@@ -26,6 +26,7 @@ References
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -458,15 +459,25 @@ class Rotator:
 
     def rotate(self, to_frame: str, vectors: np.ndarray) -> np.ndarray:
         """Rotate (n, 3) vectors given in ``from_frame`` into ``to_frame``."""
-        vectors = np.asarray(vectors, dtype=float)
-        if vectors.shape != (self.et.size, 3):
-            raise ValueError(f"vectors must have shape ({self.et.size}, 3), got {vectors.shape}")
+        return self.rotate_many(to_frame, [vectors])[0]
+
+    def rotate_many(self, to_frame: str, arrays: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """Rotate several (n, 3) arrays into ``to_frame`` with one set of matrices.
+
+        The matrices are evaluated once per block and applied to every array (e.g. a
+        field and a position sharing the same epochs).
+        """
+        arrays = [np.asarray(v, dtype=float) for v in arrays]
+        for v in arrays:
+            if v.shape != (self.et.size, 3):
+                raise ValueError(f"vectors must have shape ({self.et.size}, 3), got {v.shape}")
         target = self._leg(to_frame)
-        out = np.empty_like(vectors)
+        outs = [np.empty_like(v) for v in arrays]
         for block in self._blocks():
             matrices = quat_to_matrix(self._block_quaternions(target, block))
-            out[block] = apply(matrices, vectors[block])
-        return out
+            for v, out in zip(arrays, outs, strict=True):
+                out[block] = apply(matrices, v[block])
+        return outs
 
 
 def rotation_matrices(

@@ -102,3 +102,18 @@ def test_fast_chain_matches_oracle_on_rtn_and_sun(messenger_kernels, simulated, 
     # sample from the interpolated position, 1e-4 km / 5e7 km ~ 1e-10 deg
     np.testing.assert_allclose(fast["pos_rtn"].values[:, 1:], slow["pos_rtn"].values[:, 1:],
                                atol=1e-8)
+
+
+def test_fast_positions_in_mso_and_mbf_match_spkpos(messenger_kernels, simulated, calibration):
+    # the fast path rotates MESSENGER-Mercury (J2000) with the field's J2000 -> MSO/MBF
+    # matrices; the oracle is one spkpos per sample in each frame.  Tolerance 1e-3 km:
+    # 1e-4 km Hermite tolerance plus 1e-9 rad x ~2e4 km of rotation error, with margin.
+    sci = _sub(simulated["science"], 400)
+    with KernelPool(messenger_kernels):
+        fast = calibrate(sci, simulated["heater"], simulated["temperature"], calibration)
+        et = fast["et"].values
+        for var, frame in (("pos_mso", "MSGR_MSO"), ("pos_mbf", "IAU_MERCURY")):
+            expected = np.array(
+                [spiceypy.spkpos("MESSENGER", float(t), frame, "NONE", "MERCURY")[0] for t in et]
+            )
+            np.testing.assert_allclose(fast[var].values, expected, rtol=0, atol=1e-3)

@@ -361,14 +361,22 @@ def _rotate_oracle(
 
 
 def _rotate_interpolated(
-    b_sc: np.ndarray, sun: np.ndarray, et: np.ndarray, frames: tuple[str, ...]
+    b_sc: np.ndarray,
+    sun: np.ndarray,
+    et: np.ndarray,
+    frames: tuple[str, ...],
+    mercury_j2000: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Field in every frame and ``sun_sc``, evaluated in cache-sized blocks.
 
     The attitude leg (MSGR_SPACECRAFT -> J2000, from the CK records) is built once;
     its matrices exist only one block at a time and serve both the field (to J2000)
     and the Sun direction (to the spacecraft frame, transposed).  The J2000 -> frame
-    legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000.
+    legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000.  When
+    ``mercury_j2000`` (MESSENGER relative to Mercury, J2000) is given, the same
+    J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY matrices also rotate it, giving
+    ``pos_mso`` and ``pos_mbf`` (what ``spkpos`` returns in those frames without
+    aberration correction: the frame is evaluated at the same epoch).
     """
     from fluxcal.geometry.frames import Rotator, quat_to_matrix
 
@@ -385,6 +393,13 @@ def _rotate_interpolated(
     if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
         out["rtn"] = rtn_from_position(b_j2000, sun, et)
     from_j2000 = Rotator("J2000", et)
+    if mercury_j2000 is not None:
+        for f in ("mso", "mbf"):
+            arrays = [mercury_j2000] if f in out or f not in frames else [mercury_j2000, b_j2000]
+            rotated = from_j2000.rotate_many(FRAMES[f][0], arrays)
+            out[f"pos_{f}"] = rotated[0]
+            if len(rotated) == 2:
+                out[f] = rotated[1]
     for f in frames:
         if f not in out:
             out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
@@ -577,11 +592,13 @@ def add_geometry(
     sun = position("MESSENGER", "SUN", "J2000", et, method=method)
     if method == "oracle":
         out = _rotate_oracle(b_sc, sun, et, frames)
+        mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
+        mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
     else:
-        out = _rotate_interpolated(b_sc, sun, et, frames)
+        mercury = position("MESSENGER", "MERCURY", "J2000", et, method=method)
+        out = _rotate_interpolated(b_sc, sun, et, frames, mercury_j2000=mercury)
+        mso, mbf = out.pop("pos_mso"), out.pop("pos_mbf")
     sun_sc = out.pop("sun_sc")
-    mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
-    mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
     pos_rtn = spherical_rtn(sun, et, method=method)
     variables = {
         f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
