@@ -52,6 +52,9 @@ def test_rotate_returns_vectors_and_matrices(msgr_pool, day_epochs):
          for t, v in zip(day_epochs, b, strict=True)]
     )
     assert np.max(np.abs(rotated - expected)) < 1e-9 * 300 * 3
+    # the vector-only path (quaternions applied without matrices) meets the same bound
+    plain = frames.rotate(b, day_epochs, "MSGR_MAG", "MSGR_MSO")
+    assert np.max(np.abs(plain - expected)) < 1e-9 * 300 * 3
     # rotations preserve |B| and are proper orthogonal
     np.testing.assert_allclose(np.linalg.norm(rotated, axis=1), np.linalg.norm(b, axis=1),
                                rtol=1e-12)
@@ -144,3 +147,32 @@ def test_rotation_law_orthogonal_and_norm_preserving(msgr_pool, offsets):
     m = frames.rotation_matrices("MSGR_MAG", "MSGR_MSO", et)
     np.testing.assert_allclose(np.einsum("nij,nkj->nik", m, m),
                                np.broadcast_to(np.eye(3), m.shape), atol=1e-12)
+
+
+@given(seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=25, deadline=None)
+def test_quat_rotate_equals_matrix_product(seed):
+    # the matrix-free rotation equals R(q) @ v with scipy's independent quaternion matrix
+    from scipy.spatial.transform import Rotation
+
+    from fluxcal.geometry.frames import quat_rotate
+
+    rng = np.random.default_rng(seed)
+    q = Rotation.random(50, random_state=rng).as_quat()  # scalar last, as fluxcal
+    v = rng.normal(scale=1e4, size=(50, 3))
+    expected = np.einsum("nij,nj->ni", Rotation.from_quat(q).as_matrix(), v)
+    np.testing.assert_allclose(quat_rotate(q, v), expected, rtol=0, atol=1e-9)
+
+
+def test_ck_nodes_from_record_quaternions(msgr_pool, day_epochs):
+    # the CK leg's node matrices come from the segment's own quaternions (not pxform);
+    # they must equal pxform at every node to 1e-10 (pxform converts the record's ET back
+    # to ticks and lands a fraction of a tick off it: ~1e-11 rad at the simulated slew
+    # rates; a tenth of the 1e-9 requirement), and the leg must have taken that path
+    rot = frames.Rotator("MSGR_MAG", day_epochs)
+    leg = rot._legs["MSGR_MAG"]
+    nodes = leg.nodes
+    fast = leg._record_matrices(nodes)
+    assert fast is not None
+    truth = frames.pxform_oracle("MSGR_MAG", "J2000", nodes)
+    assert np.abs(fast - truth).max() < 1e-10
