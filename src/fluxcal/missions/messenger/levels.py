@@ -370,24 +370,25 @@ def _rotate_interpolated(
     """Field in every frame and ``sun_sc``, evaluated in cache-sized blocks.
 
     The attitude leg (MSGR_SPACECRAFT -> J2000, from the CK records) is built once;
-    its matrices exist only one block at a time and serve both the field (to J2000)
-    and the Sun direction (to the spacecraft frame, transposed).  The J2000 -> frame
+    its quaternions serve both the field (to J2000) and the Sun direction (to the
+    spacecraft frame, conjugated), applied one cache-sized block at a time.  The J2000 -> frame
     legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000.  When
     ``mercury_j2000`` (MESSENGER relative to Mercury, J2000) is given, the same
     J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY matrices also rotate it, giving
     ``pos_mso`` and ``pos_mbf`` (what ``spkpos`` returns in those frames without
     aberration correction: the frame is evaluated at the same epoch).
     """
-    from fluxcal.geometry.frames import Rotator, quat_to_matrix
+    from fluxcal.geometry.frames import Rotator, quat_rotate
 
     quats = Rotator("MSGR_SPACECRAFT", et).quaternions("J2000")
+    conjugate = np.array([-1.0, -1.0, -1.0, 1.0])  # the inverse rotation, J2000 -> SC
     b_j2000 = np.empty_like(b_sc)
     sun_sc = np.empty_like(sun)
     for start in range(0, et.size, Rotator.CHUNK):
         block = slice(start, start + Rotator.CHUNK)
-        att = quat_to_matrix(quats[block])
-        b_j2000[block] = np.einsum("nij,nj->ni", att, b_sc[block])
-        sun_sc[block] = np.einsum("nji,nj->ni", att, _unit_rows(-sun[block]))
+        att = quats[block]
+        b_j2000[block] = quat_rotate(att, b_sc[block])
+        sun_sc[block] = quat_rotate(att * conjugate, _unit_rows(-sun[block]))
     del quats
     out = {"sc": b_sc, "j2000": b_j2000, "sun_sc": sun_sc}
     if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
