@@ -37,3 +37,12 @@ def rosetta_kernels(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     folder = tmp_path_factory.mktemp("ros_kernels")
     return write_rosetta_like_kernels(folder, "2014-09-01T00:00:00", 86400.0)
+
+
+@pytest.fixture(autouse=True)
+def _release_cached_worker_kernels():
+    """Unload kernels a day task called in-process cached for its worker (test isolation)."""
+    yield
+    from fluxcal.products.batch import release_worker_kernel_pool
+
+    release_worker_kernel_pool()
