@@ -104,23 +104,16 @@ def _loaded_ck_segments() -> list[_CkSegment]:
 
 def _ck_record_ticks(segment: _CkSegment) -> np.ndarray:
     """Return the encoded SCLK ticks of the pointing records of a type 1 or 3 CK segment."""
+    if segment.data_type == 3:
+        return _ck_type3_records(segment)[0]
+    if segment.data_type != 1:
+        return np.empty(0)
     handle = spiceypy.dafopr(segment.path)
     try:
-        if segment.data_type == 3:
-            n_int, n_rec = (int(x) for x in spiceypy.dafgda(handle, segment.end - 1, segment.end))
-            # record size: quaternion (4) plus angular velocity (3) when present
-            size = segment.end - segment.begin + 1
-            n_dir = (n_rec - 1) // 100
-            n_idir = (n_int - 1) // 100
-            rec_size = (size - 2 - n_rec - n_dir - n_int - n_idir) // n_rec
-            first = segment.begin + n_rec * rec_size
-        elif segment.data_type == 1:
-            n_rec = int(spiceypy.dafgda(handle, segment.end, segment.end)[0])
-            size = segment.end - segment.begin + 1
-            rec_size = (size - 1 - n_rec - (n_rec - 1) // 100) // n_rec
-            first = segment.begin + n_rec * rec_size
-        else:
-            return np.empty(0)
+        n_rec = int(spiceypy.dafgda(handle, segment.end, segment.end)[0])
+        size = segment.end - segment.begin + 1
+        rec_size = (size - 1 - n_rec - (n_rec - 1) // 100) // n_rec
+        first = segment.begin + n_rec * rec_size
         return np.asarray(spiceypy.dafgda(handle, first, first + n_rec - 1), dtype=float)
     finally:
         spiceypy.dafcls(handle)
