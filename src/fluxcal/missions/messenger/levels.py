@@ -365,18 +365,18 @@ def _rotate_interpolated(
     sun: np.ndarray,
     et: np.ndarray,
     frames: tuple[str, ...],
-    mercury_j2000: np.ndarray | None = None,
+    mercury_j2000: np.ndarray,
 ) -> dict[str, np.ndarray]:
     """Field in every frame and ``sun_sc``, evaluated in cache-sized blocks.
 
     The attitude leg (MSGR_SPACECRAFT -> J2000, from the CK records) is built once;
     its quaternions serve both the field (to J2000) and the Sun direction (to the
-    spacecraft frame, conjugated), applied one cache-sized block at a time.  The J2000 -> frame
-    legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000.  When
-    ``mercury_j2000`` (MESSENGER relative to Mercury, J2000) is given, the same
-    J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY matrices also rotate it, giving
-    ``pos_mso`` and ``pos_mbf`` (what ``spkpos`` returns in those frames without
-    aberration correction: the frame is evaluated at the same epoch).
+    spacecraft frame, conjugated), applied one cache-sized block at a time.  The
+    J2000 -> frame legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000;
+    its J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY rotations also turn ``mercury_j2000``
+    (MESSENGER relative to Mercury, J2000) into ``pos_mso`` and ``pos_mbf`` (what
+    ``spkpos`` returns in those frames without aberration correction: the frame is
+    evaluated at the same epoch).
     """
     from fluxcal.geometry.frames import Rotator, quat_rotate
 
@@ -394,13 +394,11 @@ def _rotate_interpolated(
     if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
         out["rtn"] = rtn_from_position(b_j2000, sun, et)
     from_j2000 = Rotator("J2000", et)
-    if mercury_j2000 is not None:
-        for f in ("mso", "mbf"):
-            arrays = [mercury_j2000] if f in out or f not in frames else [mercury_j2000, b_j2000]
-            rotated = from_j2000.rotate_many(FRAMES[f][0], arrays)
-            out[f"pos_{f}"] = rotated[0]
-            if len(rotated) == 2:
-                out[f] = rotated[1]
+    for f in ("mso", "mbf"):  # positions always; the field when that frame is requested
+        arrays = [mercury_j2000, b_j2000] if f in frames else [mercury_j2000]
+        out[f"pos_{f}"], *field = from_j2000.rotate_many(FRAMES[f][0], arrays)
+        if field:
+            out[f] = field[0]
     for f in frames:
         if f not in out:
             out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
