@@ -35,6 +35,7 @@ import spiceypy
 from scipy.spatial.transform import Rotation
 
 from fluxcal.errors import KernelError
+from fluxcal.geometry import compiled
 from fluxcal.geometry.kernels import spice_errors
 
 log = logging.getLogger(__name__)
@@ -429,6 +430,7 @@ class _Leg:
     def _set(self, nodes: np.ndarray, matrices: np.ndarray) -> None:
         self.nodes = nodes
         self.quats = _continuous(Rotation.from_matrix(matrices).as_quat())
+        self._table: tuple[np.ndarray, ...] | None = None
 
     def _sampled_error(self) -> float:
         nodes = self.nodes
@@ -448,11 +450,23 @@ class _Leg:
         approx = quat_to_matrix(self.quaternions(probe))
         return float(np.max(np.linalg.norm(truth - approx, axis=(1, 2)) / np.sqrt(2.0)))
 
+    @property
+    def table(self) -> tuple[np.ndarray, ...]:
+        """SLERP terms ``(nodes, q0, ortho, theta)`` (see `compiled.slerp_table`)."""
+        if self._table is None:
+            self._table = compiled.slerp_table(self.nodes, self.quats)
+        return self._table
+
     def quaternions(self, et: np.ndarray) -> np.ndarray:
-        """Return (n, 4) quaternions of ``frame -> J2000`` at ``et``."""
+        """Return (n, 4) quaternions of ``frame -> J2000`` at ``et``.
+
+        The compiled loop `compiled.slerp_quaternions`; `slerp` is its numpy reference.
+        """
         if self.nodes.size < 2:
             return np.broadcast_to(self.quats[0], (et.size, 4)).copy()
-        return slerp(self.nodes, self.quats, et)
+        out = np.empty((et.size, 4))
+        compiled.slerp_quaternions(*self.table, np.ascontiguousarray(et, dtype=float), out)
+        return out
 
 
 class Rotator:
@@ -497,12 +511,7 @@ class Rotator:
         self._sclk: dict = {}
         self._legs: dict[str, _Leg | None] = {}
         self.from_frame = from_frame
-        source = self._leg(from_frame)
-        self._source = None
-        if source is not None:
-            self._source = np.empty((self.et.size, 4))
-            for block in self._blocks():
-                self._source[block] = source.quaternions(self.et[block])
+        self._source = self._leg(from_frame)
 
     def _blocks(self) -> list[slice]:
         return [slice(i, i + self.CHUNK) for i in range(0, self.et.size, self.CHUNK)]
@@ -517,12 +526,13 @@ class Rotator:
         return self._legs[key]
 
     def _block_quaternions(self, target: _Leg | None, block: slice) -> np.ndarray:
-        source = None if self._source is None else self._source[block]
+        et = self.et[block]
+        source = None if self._source is None else self._source.quaternions(et)
         if target is None:
             if source is None:
-                return np.tile([0.0, 0.0, 0.0, 1.0], (self.et[block].size, 1))
+                return np.tile([0.0, 0.0, 0.0, 1.0], (et.size, 1))
             return source
-        target_inv = target.quaternions(self.et[block]) * np.array([-1.0, -1.0, -1.0, 1.0])
+        target_inv = target.quaternions(et) * np.array([-1.0, -1.0, -1.0, 1.0])
         return target_inv if source is None else quat_multiply(target_inv, source)
 
     def quaternions(self, to_frame: str) -> np.ndarray:
@@ -545,22 +555,46 @@ class Rotator:
         """Rotate (n, 3) vectors given in ``from_frame`` into ``to_frame``."""
         return self.rotate_many(to_frame, [vectors])[0]
 
-    def rotate_many(self, to_frame: str, arrays: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """Rotate several (n, 3) arrays into ``to_frame`` with one set of matrices.
+    def rotate_many(
+        self,
+        to_frame: str,
+        arrays: Sequence[np.ndarray],
+        inverse: Sequence[bool] | None = None,
+    ) -> list[np.ndarray]:
+        """Rotate several (n, 3) arrays into ``to_frame`` in one pass over the epochs.
 
-        The matrices are evaluated once per block and applied to every array (e.g. a
-        field and a position sharing the same epochs).
+        The rotation of each epoch is interpolated once and applied to every array (e.g.
+        a field and a position sharing the same epochs), in the compiled loop
+        `compiled.slerp_rotate`.
+
+        Parameters
+        ----------
+        to_frame : str
+            Target frame.
+        arrays : sequence of ndarray, shape (n, 3)
+            Vectors given in ``from_frame`` (or in ``to_frame`` where ``inverse``).
+        inverse : sequence of bool, optional
+            Per array: apply the inverse rotation ``to_frame -> from_frame`` instead.
+
+        Returns
+        -------
+        list of ndarray, shape (n, 3)
         """
-        arrays = [np.asarray(v, dtype=float) for v in arrays]
+        arrays = [np.ascontiguousarray(v, dtype=float) for v in arrays]
         for v in arrays:
             if v.shape != (self.et.size, 3):
                 raise ValueError(f"vectors must have shape ({self.et.size}, 3), got {v.shape}")
+        inverse = tuple(bool(x) for x in (inverse or [False] * len(arrays)))
+        if len(inverse) != len(arrays):
+            raise ValueError("inverse needs one flag per array")
+        if not arrays:
+            return []
         target = self._leg(to_frame)
+        source_table = compiled.IDENTITY_TABLE if self._source is None else self._source.table
+        target_table = compiled.IDENTITY_TABLE if target is None else target.table
         outs = [np.empty_like(v) for v in arrays]
-        for block in self._blocks():
-            quats = self._block_quaternions(target, block)
-            for v, out in zip(arrays, outs, strict=True):
-                out[block] = quat_rotate(quats, v[block])
+        compiled.slerp_rotate(*source_table, *target_table, np.ascontiguousarray(self.et),
+                              tuple(arrays), inverse, tuple(outs))
         return outs
 
 

@@ -17,6 +17,7 @@ import numpy as np
 import spiceypy
 
 from fluxcal.errors import KernelError
+from fluxcal.geometry import compiled
 from fluxcal.geometry.kernels import spice_errors
 
 #: Default accuracy of interpolated positions (km).
@@ -34,9 +35,15 @@ def states_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> np.
     """Return (n, 6) states (km, km/s) with one ``spkezr`` call per epoch, abcorr NONE."""
     et = np.atleast_1d(np.asarray(et, dtype=float))
     out = np.empty((et.size, 6))
-    for i, t in enumerate(et):
-        with spice_errors(f"state of {target} relative to {observer} in {frame} at {_utc(t)}"):
+    i = 0
+    try:
+        for i, t in enumerate(et):
             out[i] = spiceypy.spkezr(target, float(t), frame, "NONE", observer)[0]
+    except spiceypy.utils.exceptions.SpiceyError:
+        # the context (with its UTC string) is built only for the failing epoch
+        with spice_errors(f"state of {target} relative to {observer} in {frame} at "
+                          f"{_utc(et[i])}"):
+            spiceypy.spkezr(target, float(et[i]), frame, "NONE", observer)
     return out
 
 
@@ -44,9 +51,14 @@ def position_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> n
     """Return (n, 3) positions (km) with one ``spkpos`` call per epoch (the reference path)."""
     et = np.atleast_1d(np.asarray(et, dtype=float))
     out = np.empty((et.size, 3))
-    for i, t in enumerate(et):
-        with spice_errors(f"position of {target} relative to {observer} in {frame} at {_utc(t)}"):
+    i = 0
+    try:
+        for i, t in enumerate(et):
             out[i] = spiceypy.spkpos(target, float(t), frame, "NONE", observer)[0]
+    except spiceypy.utils.exceptions.SpiceyError:
+        with spice_errors(f"position of {target} relative to {observer} in {frame} at "
+                          f"{_utc(et[i])}"):
+            spiceypy.spkpos(target, float(et[i]), frame, "NONE", observer)
     return out
 
 
@@ -143,7 +155,7 @@ class StateInterpolator:
             bad = error > tolerance
             if not bad.any():
                 self.nodes, self.states = nodes, states
-                self.coefficients = hermite_coefficients(nodes, states)
+                self.coefficients = np.ascontiguousarray(hermite_coefficients(nodes, states))
                 return
             where = idx[bad] + 1
             nodes = np.insert(nodes, where, mids[bad])
@@ -158,12 +170,13 @@ class StateInterpolator:
         )
 
     def __call__(self, et: np.ndarray) -> np.ndarray:
-        """Return (n, 3) interpolated positions (km) at ``et``."""
-        et = np.atleast_1d(np.asarray(et, dtype=float))
+        """Return (n, 3) interpolated positions (km) at ``et``.
+
+        The compiled loop `compiled.hermite_positions`; `hermite` is its numpy reference.
+        """
+        et = np.ascontiguousarray(np.atleast_1d(et), dtype=float)
         out = np.empty((et.size, 3))
-        for start in range(0, et.size, self.CHUNK):
-            block = slice(start, start + self.CHUNK)
-            out[block] = hermite(self.nodes, self.states, et[block], self.coefficients)
+        compiled.hermite_positions(self.nodes, self.coefficients, et, out)
         return out
 
     def states_at(self, et: np.ndarray) -> np.ndarray:

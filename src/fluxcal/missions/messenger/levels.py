@@ -22,6 +22,7 @@ References
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import numpy as np
 import xarray as xr
@@ -334,8 +335,13 @@ def _sensor_to_spacecraft(frame: str, et: np.ndarray, method: str) -> np.ndarray
 
 def _apply(m: np.ndarray, v: np.ndarray, transpose: bool = False) -> np.ndarray:
     """``out[i] = M[i] @ v[i]`` (or ``M[i].T @ v[i]``); a single matrix applies to all."""
-    if m.shape[0] == 1:  # (n, 3) @ (3, 3) matmul is slow in numpy; einsum is not
-        return np.einsum("ji,nj->ni" if transpose else "ij,nj->ni", m[0], v)
+    if m.shape[0] == 1:  # one fixed matrix: a compiled pass over the vectors
+        from fluxcal.geometry import compiled
+
+        out = np.empty(v.shape)
+        compiled.apply_matrix(np.ascontiguousarray(m[0].T if transpose else m[0]),
+                              np.ascontiguousarray(v, dtype=float), out)
+        return out
     return np.einsum("nji,nj->ni" if transpose else "nij,nj->ni", m, v)
 
 
@@ -367,29 +373,25 @@ def _rotate_interpolated(
     frames: tuple[str, ...],
     mercury_j2000: np.ndarray,
 ) -> dict[str, np.ndarray]:
-    """Field in every frame and ``sun_sc``, evaluated in cache-sized blocks.
+    """Field in every frame and ``sun_sc``, one compiled pass per frame leg.
 
     The attitude leg (MSGR_SPACECRAFT -> J2000, from the CK records) is built once;
-    its quaternions serve both the field (to J2000) and the Sun direction (to the
-    spacecraft frame, conjugated), applied one cache-sized block at a time.  The
+    its interpolated rotation serves both the field (to J2000) and the Sun direction (to
+    the spacecraft frame, inverted) in one compiled pass over the samples.  The
     J2000 -> frame legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000;
     its J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY rotations also turn ``mercury_j2000``
     (MESSENGER relative to Mercury, J2000) into ``pos_mso`` and ``pos_mbf`` (what
     ``spkpos`` returns in those frames without aberration correction: the frame is
     evaluated at the same epoch).
     """
-    from fluxcal.geometry.frames import Rotator, quat_rotate
+    from fluxcal.geometry import compiled
+    from fluxcal.geometry.frames import Rotator
 
-    quats = Rotator("MSGR_SPACECRAFT", et).quaternions("J2000")
-    conjugate = np.array([-1.0, -1.0, -1.0, 1.0])  # the inverse rotation, J2000 -> SC
-    b_j2000 = np.empty_like(b_sc)
-    sun_sc = np.empty_like(sun)
-    for start in range(0, et.size, Rotator.CHUNK):
-        block = slice(start, start + Rotator.CHUNK)
-        att = quats[block]
-        b_j2000[block] = quat_rotate(att, b_sc[block])
-        sun_sc[block] = quat_rotate(att * conjugate, _unit_rows(-sun[block]))
-    del quats
+    sun_unit = np.empty_like(sun)
+    compiled.unit_rows(np.ascontiguousarray(sun), -1.0, sun_unit)  # spacecraft -> Sun
+    b_j2000, sun_sc = Rotator("MSGR_SPACECRAFT", et).rotate_many(
+        "J2000", [b_sc, sun_unit], inverse=[False, True])
+    del sun_unit
     out = {"sc": b_sc, "j2000": b_j2000, "sun_sc": sun_sc}
     if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
         out["rtn"] = rtn_from_position(b_j2000, sun, et)
@@ -455,8 +457,8 @@ def rtn_from_position(b_j2000: np.ndarray, sun: np.ndarray, et: np.ndarray) -> n
 
     ``R = sun / |sun|``, ``T = unit(Omega x R)`` with ``Omega`` the solar rotation axis
     (IAU_SUN +Z in J2000), ``N = R x T``: the two-vector frame MSGR_RTN of seed 000
-    sec. 3.5, evaluated from the positions already computed (no frame leg to build).
-    Computed in cache-sized blocks.
+    sec. 3.5, evaluated from the positions already computed (no frame leg to build), in
+    one compiled pass (`fluxcal.geometry.compiled.rtn_rotate`).
 
     Parameters
     ----------
@@ -471,23 +473,17 @@ def rtn_from_position(b_j2000: np.ndarray, sun: np.ndarray, et: np.ndarray) -> n
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 3.5, sec. 11.
     """
+    from fluxcal.geometry import compiled
     from fluxcal.geometry.frames import Rotator, rotation_matrices
 
     ends = rotation_matrices("IAU_SUN", "J2000", et[[0, -1]], method="oracle")[:, :, 2]
     if np.allclose(ends[0], ends[1], rtol=0.0, atol=1e-15):
-        pole = np.broadcast_to(ends[0], (et.size, 3))
+        pole = ends[:1].copy()
     else:  # a precessing pole model: the axis per sample
         pole = Rotator("IAU_SUN", et).rotate("J2000", np.tile([0.0, 0.0, 1.0], (et.size, 1)))
     out = np.empty_like(b_j2000)
-    for start in range(0, et.size, 1 << 15):
-        block = slice(start, start + (1 << 15))
-        r = _unit_rows(sun[block])
-        t = _unit_rows(np.cross(pole[block], r))
-        n = np.cross(r, t)
-        v = b_j2000[block]
-        out[block, 0] = np.einsum("ij,ij->i", r, v)
-        out[block, 1] = np.einsum("ij,ij->i", t, v)
-        out[block, 2] = np.einsum("ij,ij->i", n, v)
+    compiled.rtn_rotate(np.ascontiguousarray(sun, dtype=float), pole,
+                        np.ascontiguousarray(b_j2000, dtype=float), out)
     return out
 
 
@@ -497,7 +493,7 @@ RTN_ANGLE_STEP_S = 1.0
 
 def spherical_rtn(
     sun: np.ndarray, et: np.ndarray, *, method: str = "interpolate",
-    step: float = RTN_ANGLE_STEP_S,
+    step: float = RTN_ANGLE_STEP_S, sun_at: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """Distance from the Sun, ecliptic latitude and azimuth (sec. 10.2) per sample.
 
@@ -517,6 +513,12 @@ def spherical_rtn(
         Ephemeris times, increasing.
     method : {"interpolate", "oracle"}
         ``"oracle"`` evaluates every sample with one SPICE call per sample.
+    step : float
+        Grid step (s) of the angles.
+    sun_at : callable, optional
+        MESSENGER relative to the Sun (J2000) at given epochs, e.g. the
+        `fluxcal.geometry.positions.StateInterpolator` that gave ``sun``; used on the
+        grid instead of building another interpolator.
 
     Returns
     -------
@@ -527,6 +529,7 @@ def spherical_rtn(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.2.
     """
+    from fluxcal.geometry import compiled
     from fluxcal.geometry.positions import rtn_spherical
 
     out = np.empty((et.size, 3))
@@ -536,8 +539,9 @@ def spherical_rtn(
             "MESSENGER", et, method=method, target_position=sun)
         return out
     grid = np.linspace(et[0], et[-1], int(np.ceil(span / step)) + 1)
-    _r, lat, az = rtn_spherical("MESSENGER", grid)
-    out[:, 0] = np.sqrt(np.einsum("ij,ij->i", sun, sun))
+    _r, lat, az = rtn_spherical(
+        "MESSENGER", grid, target_position=None if sun_at is None else sun_at(grid))
+    compiled.row_norms(np.ascontiguousarray(sun, dtype=float), out[:, 0])
     out[:, 1] = np.interp(et, grid, lat)
     az = np.interp(et, grid, np.unwrap(az, period=360.0))
     out[:, 2] = np.where(np.abs(az) > 180.0, (az + 180.0) % 360.0 - 180.0, az)
@@ -576,7 +580,7 @@ def add_geometry(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2, 11.
     """
-    from fluxcal.geometry.positions import position
+    from fluxcal.geometry.positions import StateInterpolator, position
 
     et = ds["et"].values
     b = ds["b_sensor"].values
@@ -588,7 +592,13 @@ def add_geometry(
         elif sel.any():
             b_sc[sel] = _apply(_sensor_to_spacecraft(name, et[sel], method), b[sel])
     # MESSENGER relative to the Sun (J2000): pos_j2000, the Sun direction and sec. 10.2
-    sun = position("MESSENGER", "SUN", "J2000", et, method=method)
+    sun_at = None
+    if method == "oracle" or et.size < 4:
+        sun = position("MESSENGER", "SUN", "J2000", et, method=method)
+    else:
+        sun_at = StateInterpolator("MESSENGER", "SUN", "J2000", float(et.min()),
+                                   float(et.max()))
+        sun = sun_at(et)
     if method == "oracle":
         out = _rotate_oracle(b_sc, sun, et, frames)
         mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
@@ -598,7 +608,7 @@ def add_geometry(
         out = _rotate_interpolated(b_sc, sun, et, frames, mercury_j2000=mercury)
         mso, mbf = out.pop("pos_mso"), out.pop("pos_mbf")
     sun_sc = out.pop("sun_sc")
-    pos_rtn = spherical_rtn(sun, et, method=method)
+    pos_rtn = spherical_rtn(sun, et, method=method, sun_at=sun_at)
     variables = {
         f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
     }
