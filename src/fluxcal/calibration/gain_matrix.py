@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fluxcal.calibration._compiled import apply_per_range_kernel
+
 
 def lower_triangular_matrix(
     kx: float, ky: float, kz: float, alpha: float, beta: float, gamma: float
@@ -46,6 +48,48 @@ def apply_per_range(
     vectors: np.ndarray, range_flag: np.ndarray, matrices: np.ndarray
 ) -> np.ndarray:
     """Multiply each vector by the matrix of its own range.
+
+    One compiled pass (`fluxcal.calibration._compiled.apply_per_range_kernel`);
+    `apply_per_range_reference` is the numpy version the tests compare with.
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (n, 3)
+    range_flag : ndarray of int, shape (n,)
+        Index into ``matrices`` for each sample.
+    matrices : ndarray, shape (m, 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+
+    Raises
+    ------
+    ValueError
+        When a range flag is outside ``0..m-1``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 8, eq. 8, Table 4.
+    """
+    v = np.asarray(vectors, dtype=float)
+    flags = np.asarray(range_flag)
+    m = np.ascontiguousarray(matrices, dtype=float)
+    if (v.ndim != 2 or v.shape[1] != 3 or m.ndim != 3 or m.shape[1:] != (3, 3)
+            or flags.shape != v.shape[:1] or flags.dtype.kind not in "iu"):
+        return apply_per_range_reference(vectors, range_flag, matrices)
+    out = np.empty_like(v)
+    used = np.any(m != 0.0, axis=0)  # terms the reference does not skip
+    bad = apply_per_range_kernel(v, flags, m, used, out)
+    if bad >= 0:
+        raise ValueError(f"range_flag: values outside 0..{m.shape[0] - 1}")
+    return out
+
+
+def apply_per_range_reference(
+    vectors: np.ndarray, range_flag: np.ndarray, matrices: np.ndarray
+) -> np.ndarray:
+    """Numpy reference of `apply_per_range` (the tests compare the two).
 
     Parameters
     ----------

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fluxcal.calibration._compiled import heater_signal_kernel
+
 
 @dataclass(frozen=True)
 class HeaterPeriods:
@@ -218,6 +220,57 @@ def heater_signal(
     bins_percent: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return the heater signal (counts) at every sample and a mask where it applies.
+
+    One compiled pass over the samples (`fluxcal.calibration._compiled.heater_signal_kernel`)
+    doing what `heater_signal_reference` does with `period_index` and `heater_waveform`.
+
+    Parameters
+    ----------
+    sample_times : ndarray, shape (n,)
+        Sample times (s, same scale as the heater bits).
+    periods : HeaterPeriods
+    table : ndarray, shape (3, 101, n_bins)
+    bins_percent : ndarray, shape (n_bins,)
+
+    Returns
+    -------
+    signal : ndarray, shape (n, 3)
+        Zero outside applied periods.
+    applied : ndarray of bool, shape (n,)
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+    """
+    t = np.asarray(sample_times, dtype=float)
+    tab = np.asarray(table, dtype=float)
+    bins = np.asarray(bins_percent, dtype=float)
+    start = np.asarray(periods.start, dtype=float)
+    if (t.ndim != 1 or tab.ndim != 3 or tab.shape[0] != 3 or tab.shape[1] < 2
+            or bins.size < 2 or bins.size != tab.shape[2] or np.isnan(start).any()):
+        return heater_signal_reference(sample_times, periods, table, bins_percent)
+    out = np.empty((t.size, 3))
+    applied = np.empty(t.size, dtype=bool)
+    bad = heater_signal_kernel(
+        t, start, np.asarray(periods.end, dtype=float),
+        np.asarray(periods.applied, dtype=bool), np.asarray(periods.duty_cycle, dtype=float),
+        np.ascontiguousarray(tab.transpose(1, 2, 0)),  # (101, n_bins, 3): corners adjacent
+        float(bins[0]), float(bins[1] - bins[0]), out, applied,
+    )
+    if bad >= 0:  # a non-finite cycle time or duty cycle: the reference decides
+        return heater_signal_reference(sample_times, periods, table, bins_percent)
+    return out, applied
+
+
+def heater_signal_reference(
+    sample_times: np.ndarray,
+    periods: HeaterPeriods,
+    table: np.ndarray,
+    bins_percent: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Numpy reference of `heater_signal`: `period_index`, then `heater_waveform`.
+
+    Several whole-array passes; the tests compare the compiled `heater_signal` with it.
 
     Parameters
     ----------

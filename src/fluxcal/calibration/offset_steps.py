@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fluxcal.calibration._compiled import largest_steps_kernel
+
 
 @dataclass(frozen=True)
 class StepReport:
@@ -30,6 +32,41 @@ class StepReport:
 
 def largest_steps(offset: np.ndarray, segment: np.ndarray | None = None) -> StepReport:
     """Return the largest absolute step between consecutive samples, per component.
+
+    One compiled pass (`fluxcal.calibration._compiled.largest_steps_kernel`), no step
+    array; `largest_steps_reference` is the numpy version the tests compare with.
+
+    Parameters
+    ----------
+    offset : ndarray, shape (n, k)
+        Applied offsets (same units for every sample).
+    segment : ndarray, shape (n,), optional
+        Label of a sample's segment; steps between samples of different segments (e.g.
+        a range change, where offsets are expressed in other counts) are ignored.
+
+    Returns
+    -------
+    StepReport
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13.
+    """
+    offset = np.asarray(offset, dtype=float)
+    if offset.ndim != 2 or offset.shape[0] < 2:
+        return largest_steps_reference(offset, segment)
+    use_segment = segment is not None
+    seg = np.asarray(segment) if use_segment else np.zeros(1, dtype=np.int64)
+    if use_segment and (seg.shape != offset.shape[:1] or seg.dtype.kind not in "biuf"):
+        return largest_steps_reference(offset, segment)
+    largest = np.empty(offset.shape[1])
+    index = np.empty(offset.shape[1], dtype=np.int64)
+    largest_steps_kernel(offset, seg, use_segment, largest, index)
+    return StepReport(largest, index)
+
+
+def largest_steps_reference(offset: np.ndarray, segment: np.ndarray | None = None) -> StepReport:
+    """Numpy reference of `largest_steps` (the tests compare the two).
 
     Parameters
     ----------

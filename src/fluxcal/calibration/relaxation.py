@@ -11,7 +11,7 @@ each relaxing with time constant ``tau`` after a delay ``dt``::
 
 The state at each change (``c_t0`` for that change) is computed once per change with a
 loop over the look-back depth (vectorized over changes); samples are then evaluated in
-one vectorized step.
+one compiled pass (`relaxed_offset`; `relaxed_offset_reference` is the numpy version).
 
 References
 ----------
@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fluxcal.calibration._compiled import relaxed_offset_kernel
 from fluxcal.calibration.heater_signal import HeaterPeriods
 
 
@@ -190,6 +191,66 @@ def relaxed_offset(
     look_back: int = 5,
 ) -> np.ndarray:
     """Return the duty-cycle offset ``c(t_s)`` of eq. 6f at every sample.
+
+    Parameters
+    ----------
+    sample_time : ndarray, shape (n,)
+    change_time : ndarray, shape (m,)
+        Duty-cycle change times, increasing.
+    target : ndarray, shape (m, k)
+        Steady-state offsets (eq. 5) set at each change.
+    tau : float
+        Relaxation time (872 s).
+    delay : float
+        Delay ``dt`` between heater request and heater power (10 s).
+    look_back : int
+        Number of earlier changes (5).
+
+    Returns
+    -------
+    ndarray, shape (n, k)
+        Zero before the first change.
+
+    Notes
+    -----
+    The states at the changes come from `state_at_changes` (numpy, one row per change);
+    the samples are evaluated in one compiled pass
+    (`fluxcal.calibration._compiled.relaxed_offset_kernel`).  `relaxed_offset_reference`
+    is the numpy version the tests compare with.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 6a-6f, 7.
+    """
+    ts = np.ascontiguousarray(sample_time, dtype=float)
+    change_time = np.ascontiguousarray(change_time, dtype=float)
+    target = np.asarray(target, dtype=float)
+    if ts.ndim != 1 or target.ndim != 2 or np.isnan(change_time).any():
+        return relaxed_offset_reference(sample_time, change_time, target, tau=tau,
+                                        delay=delay, look_back=look_back)
+    out = np.zeros((ts.size, target.shape[1]))
+    if change_time.size == 0:
+        return out
+    if np.any(change_time[1:] < change_time[:-1]):
+        raise ValueError("change_time: must be increasing")
+    state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back)
+    # row 0 of the padded tables is "before the first change": zero target and state
+    pad = np.zeros((1, target.shape[1]))
+    relaxed_offset_kernel(ts, change_time, np.concatenate([pad, target]),
+                          np.concatenate([pad, state]), float(tau), float(delay), out)
+    return out
+
+
+def relaxed_offset_reference(
+    sample_time: np.ndarray,
+    change_time: np.ndarray,
+    target: np.ndarray,
+    *,
+    tau: float,
+    delay: float,
+    look_back: int = 5,
+) -> np.ndarray:
+    """Numpy reference of `relaxed_offset` (whole-array passes; the tests compare).
 
     Parameters
     ----------
