@@ -91,6 +91,27 @@ def test_heater_gap_between_files(tmp_path):
         read_heater([a, b])
 
 
+def test_temperature_gap_longer_than_limit(tmp_path):
+    """A 601-s hole in the temperature stream is not bridged by the interpolation."""
+    lines = ["partition,met,temperature_c"] + [f"1,{t}.0,20.0" for t in range(0, 100, 10)]
+    lines.append("1,691.0,21.0")  # 90 -> 691: 601 s > 600 s
+    path = _write(tmp_path, "t.csv", lines)
+    with pytest.raises(InputFormatError, match="temperature stream gap of 601 s") as info:
+        read_temperature(path)
+    assert info.value.line == 12 and info.value.field == "met" and "t.csv" in str(info.value)
+    read_temperature(path, max_gap_s=700.0)  # an explicit, longer limit accepts it
+    lines[-1] = "1,690.0,21.0"  # exactly 600 s: accepted
+    assert read_temperature(_write(tmp_path, "ok.csv", lines)).sizes["temperature_time"] == 11
+
+
+def test_temperature_gap_between_files(tmp_path):
+    a = _write(tmp_path, "a.csv", ["partition,met,temperature_c", "1,0,20", "1,10,20"])
+    b = _write(tmp_path, "b.csv", ["partition,met,temperature_c", "1,1000,20"])
+    with pytest.raises(InputFormatError, match="between") as info:
+        read_temperature([a, b])
+    assert info.value.line == 2 and "b.csv" in str(info.value)
+
+
 def test_heater_bad_bit(tmp_path):
     path = _write(tmp_path, "h.csv", ["partition,met,heater", "1,0,0", "1,1,2"])
     with pytest.raises(InputFormatError, match="heater bit") as info:

@@ -33,6 +33,9 @@ TEMPERATURE_COLUMNS = ("partition", "met", "temperature_c")
 COUNT_LIMITS = (-32768, 32767)
 MAX_RATE_SETTING = 10
 HEATER_PERIOD_S = 100.0
+#: Longest gap (s) between temperature records the linear interpolation may bridge
+#: (docs/decisions/messenger.md, "Temperature gaps").
+TEMPERATURE_MAX_GAP_S = 600.0
 
 
 def _read_table(path: Path, expected: Sequence[str]) -> np.ndarray:
@@ -204,26 +207,8 @@ def read_heater(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
     plist, tables = _read_stream(paths, HEATER_COLUMNS, "heater")
     for path, data in zip(plist, tables, strict=True):
         _check_integer(path, data[:, 2], "heater", 0, 1, "the heater bit values 0 and 1")
-        gaps = np.diff(data[:, 1]) > HEATER_PERIOD_S
-        gaps &= np.diff(data[:, 0]) == 0
-        if gaps.any():
-            row = int(np.flatnonzero(gaps)[0]) + 1
-            raise InputFormatError(
-                f"heater stream gap of {data[row, 1] - data[row - 1, 1]:.0f} s exceeds one "
-                f"heater period ({HEATER_PERIOD_S:.0f} s)", path=str(path), line=row + 2,
-                field="met",
-            )
-    for (p0, d0), (p1, d1) in zip(
-        zip(plist[:-1], tables[:-1], strict=True), zip(plist[1:], tables[1:], strict=True),
-        strict=True,
-    ):
-        if d0.shape[0] and d1.shape[0] and d0[-1, 0] == d1[0, 0]:
-            gap = d1[0, 1] - d0[-1, 1]
-            if gap > HEATER_PERIOD_S:
-                raise InputFormatError(
-                    f"heater stream gap of {gap:.0f} s between {p0} and this file exceeds one "
-                    "heater period", path=str(p1), line=2, field="met",
-                )
+    _check_gaps(plist, tables, HEATER_PERIOD_S, "heater stream",
+                f"one heater period ({HEATER_PERIOD_S:.0f} s)")
     data = np.concatenate(tables)
     return xr.Dataset(
         {
@@ -235,8 +220,58 @@ def read_heater(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
     )
 
 
-def read_temperature(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
-    """Read sensor-temperature CSV files into a dataset on ``temperature_time``."""
+def _check_gaps(
+    plist: Sequence[Path], tables: Sequence[np.ndarray], max_gap: float, what: str,
+    limit: str | None = None,
+) -> None:
+    """Raise when consecutive records of one partition are more than ``max_gap`` apart.
+
+    Checked within each file and across consecutive files; the error names the file and
+    the line of the record after the gap; ``limit`` words the limit (default seconds).
+    """
+    limit = limit or f"{max_gap:.0f} s"
+    for path, data in zip(plist, tables, strict=True):
+        gaps = (np.diff(data[:, 1]) > max_gap) & (np.diff(data[:, 0]) == 0)
+        if gaps.any():
+            row = int(np.flatnonzero(gaps)[0]) + 1
+            raise InputFormatError(
+                f"{what} gap of {data[row, 1] - data[row - 1, 1]:.0f} s exceeds {limit}",
+                path=str(path), line=row + 2, field="met",
+            )
+    for (p0, d0), (p1, d1) in zip(
+        zip(plist[:-1], tables[:-1], strict=True), zip(plist[1:], tables[1:], strict=True),
+        strict=True,
+    ):
+        if d0.shape[0] and d1.shape[0] and d0[-1, 0] == d1[0, 0]:
+            gap = d1[0, 1] - d0[-1, 1]
+            if gap > max_gap:
+                raise InputFormatError(
+                    f"{what} gap of {gap:.0f} s between {p0} and this file exceeds {limit}",
+                    path=str(p1), line=2, field="met",
+                )
+
+
+def read_temperature(
+    paths: Sequence[str | Path] | str | Path, max_gap_s: float = TEMPERATURE_MAX_GAP_S
+) -> xr.Dataset:
+    """Read sensor-temperature CSV files into a dataset on ``temperature_time``.
+
+    Parameters
+    ----------
+    paths : path or sequence of paths
+        One file per day; several for a longer interval.
+    max_gap_s : float
+        Longest gap between consecutive records (same SCLK partition) that the linear
+        interpolation to the sample times (seed 000 sec. 7) may bridge.  With Table 2's
+        steepest slope (6.62 counts/degC, ~0.3 nT/degC) a temperature the interpolation
+        misses by 0.2 degC already costs 0.06 nT.
+
+    Raises
+    ------
+    InputFormatError
+        Naming file, line and field: a temperature outside -150..150 degC, or a gap
+        longer than ``max_gap_s``.
+    """
     plist, tables = _read_stream(paths, TEMPERATURE_COLUMNS, "temperature")
     for path, data in zip(plist, tables, strict=True):
         bad = (data[:, 2] < -150) | (data[:, 2] > 150)
@@ -246,6 +281,7 @@ def read_temperature(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
                 f"temperature {data[row, 2]} degC outside -150..150 degC", path=str(path),
                 line=row + 2, field="temperature_c",
             )
+    _check_gaps(plist, tables, max_gap_s, "temperature stream")
     data = np.concatenate(tables)
     return xr.Dataset(
         {
