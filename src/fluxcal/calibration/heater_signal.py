@@ -218,6 +218,8 @@ def heater_signal(
     periods: HeaterPeriods,
     table: np.ndarray,
     bins_percent: np.ndarray,
+    *,
+    applies_from: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return the heater signal (counts) at every sample and a mask where it applies.
 
@@ -231,6 +233,9 @@ def heater_signal(
     periods : HeaterPeriods
     table : ndarray, shape (3, 101, n_bins)
     bins_percent : ndarray, shape (n_bins,)
+    applies_from : float, optional
+        No signal before this time: samples with ``not t >= applies_from`` are not
+        applied (zero signal), e.g. before MAG FSW V10 (2007-03-09, sec. 6).
 
     Returns
     -------
@@ -248,17 +253,20 @@ def heater_signal(
     start = np.asarray(periods.start, dtype=float)
     if (t.ndim != 1 or tab.ndim != 3 or tab.shape[0] != 3 or tab.shape[1] < 2
             or bins.size < 2 or bins.size != tab.shape[2] or np.isnan(start).any()):
-        return heater_signal_reference(sample_times, periods, table, bins_percent)
+        return heater_signal_reference(sample_times, periods, table, bins_percent,
+                                       applies_from=applies_from)
     out = np.empty((t.size, 3))
     applied = np.empty(t.size, dtype=bool)
     bad = heater_signal_kernel(
         t, start, np.asarray(periods.end, dtype=float),
         np.asarray(periods.applied, dtype=bool), np.asarray(periods.duty_cycle, dtype=float),
         np.ascontiguousarray(tab.transpose(1, 2, 0)),  # (101, n_bins, 3): corners adjacent
-        float(bins[0]), float(bins[1] - bins[0]), out, applied,
+        float(bins[0]), float(bins[1] - bins[0]),
+        -np.inf if applies_from is None else float(applies_from), out, applied,
     )
     if bad >= 0:  # a non-finite cycle time or duty cycle: the reference decides
-        return heater_signal_reference(sample_times, periods, table, bins_percent)
+        return heater_signal_reference(sample_times, periods, table, bins_percent,
+                                       applies_from=applies_from)
     return out, applied
 
 
@@ -267,6 +275,8 @@ def heater_signal_reference(
     periods: HeaterPeriods,
     table: np.ndarray,
     bins_percent: np.ndarray,
+    *,
+    applies_from: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Numpy reference of `heater_signal`: `period_index`, then `heater_waveform`.
 
@@ -279,6 +289,8 @@ def heater_signal_reference(
     periods : HeaterPeriods
     table : ndarray, shape (3, 101, n_bins)
     bins_percent : ndarray, shape (n_bins,)
+    applies_from : float, optional
+        No signal before this time (``not t >= applies_from``).
 
     Returns
     -------
@@ -295,6 +307,8 @@ def heater_signal_reference(
     applied = k >= 0
     if len(periods):
         applied &= periods.applied[np.maximum(k, 0)]
+    if applies_from is not None:
+        applied &= t >= applies_from
     out = np.zeros((t.size, np.asarray(table).shape[0]))
     if applied.any():
         kk = k[applied]

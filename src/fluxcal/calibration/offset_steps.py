@@ -30,7 +30,13 @@ class StepReport:
     index: np.ndarray
 
 
-def largest_steps(offset: np.ndarray, segment: np.ndarray | None = None) -> StepReport:
+def largest_steps(
+    offset: np.ndarray,
+    segment: np.ndarray | None = None,
+    *,
+    times: np.ndarray | None = None,
+    max_gap: float | None = None,
+) -> StepReport:
     """Return the largest absolute step between consecutive samples, per component.
 
     One compiled pass (`fluxcal.calibration._compiled.largest_steps_kernel`), no step
@@ -43,29 +49,51 @@ def largest_steps(offset: np.ndarray, segment: np.ndarray | None = None) -> Step
     segment : ndarray, shape (n,), optional
         Label of a sample's segment; steps between samples of different segments (e.g.
         a range change, where offsets are expressed in other counts) are ignored.
+    times : ndarray, shape (n,), optional
+        Sample times; with ``max_gap``, steps across data gaps
+        (``times[i] - times[i-1] > max_gap``) are ignored, as across segments.
+    max_gap : float, optional
+        Longest time step within a segment (given together with ``times``).
 
     Returns
     -------
     StepReport
 
+    Raises
+    ------
+    ValueError
+        When only one of ``times`` and ``max_gap`` is given.
+
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13.
     """
+    if (times is None) != (max_gap is None):
+        raise ValueError("times, max_gap: give both or neither")
     offset = np.asarray(offset, dtype=float)
     if offset.ndim != 2 or offset.shape[0] < 2:
-        return largest_steps_reference(offset, segment)
+        return largest_steps_reference(offset, segment, times=times, max_gap=max_gap)
     use_segment = segment is not None
     seg = np.asarray(segment) if use_segment else np.zeros(1, dtype=np.int64)
-    if use_segment and (seg.shape != offset.shape[:1] or seg.dtype.kind not in "biuf"):
-        return largest_steps_reference(offset, segment)
+    use_gaps = times is not None
+    t = np.asarray(times) if use_gaps else np.zeros(1)
+    if ((use_segment and (seg.shape != offset.shape[:1] or seg.dtype.kind not in "biuf"))
+            or (use_gaps and (t.shape != offset.shape[:1] or t.dtype.kind not in "iuf"))):
+        return largest_steps_reference(offset, segment, times=times, max_gap=max_gap)
     largest = np.empty(offset.shape[1])
     index = np.empty(offset.shape[1], dtype=np.int64)
-    largest_steps_kernel(offset, seg, use_segment, largest, index)
+    largest_steps_kernel(offset, seg, use_segment, t, float(max_gap) if use_gaps else 0.0,
+                         use_gaps, largest, index)
     return StepReport(largest, index)
 
 
-def largest_steps_reference(offset: np.ndarray, segment: np.ndarray | None = None) -> StepReport:
+def largest_steps_reference(
+    offset: np.ndarray,
+    segment: np.ndarray | None = None,
+    *,
+    times: np.ndarray | None = None,
+    max_gap: float | None = None,
+) -> StepReport:
     """Numpy reference of `largest_steps` (the tests compare the two).
 
     Parameters
@@ -75,6 +103,10 @@ def largest_steps_reference(offset: np.ndarray, segment: np.ndarray | None = Non
     segment : ndarray, shape (n,), optional
         Label of a sample's segment; steps between samples of different segments (e.g.
         a range change, where offsets are expressed in other counts) are ignored.
+    times : ndarray, shape (n,), optional
+        Sample times; with ``max_gap``, steps across gaps longer than ``max_gap`` are
+        ignored.
+    max_gap : float, optional
 
     Returns
     -------
@@ -84,6 +116,8 @@ def largest_steps_reference(offset: np.ndarray, segment: np.ndarray | None = Non
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 13.
     """
+    if (times is None) != (max_gap is None):
+        raise ValueError("times, max_gap: give both or neither")
     offset = np.asarray(offset, dtype=float)
     if offset.shape[0] < 2:
         return StepReport(np.zeros(offset.shape[1]), np.zeros(offset.shape[1], dtype=np.int64))
@@ -91,5 +125,7 @@ def largest_steps_reference(offset: np.ndarray, segment: np.ndarray | None = Non
     if segment is not None:
         segment = np.asarray(segment)
         steps[segment[1:] != segment[:-1]] = 0.0
+    if times is not None:
+        steps[np.diff(np.asarray(times)) > max_gap] = 0.0
     idx = np.argmax(steps, axis=0)
     return StepReport(steps[idx, np.arange(offset.shape[1])], idx + 1)

@@ -27,19 +27,22 @@ from collections.abc import Callable
 import numpy as np
 import xarray as xr
 
+from fluxcal.calibration._compiled import offset_chain_kernel
 from fluxcal.calibration.gain_matrix import counts_to_nt, range_conversion
 from fluxcal.calibration.heater_signal import HeaterPeriods, heater_periods, heater_signal
 from fluxcal.calibration.offset_steps import largest_steps
-from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.calibration.offsets import breakpoint_temperature, two_segment_offset
 from fluxcal.calibration.rate_latency import per_sample_lag
 from fluxcal.calibration.relaxation import (
     DutyCycleChanges,
     duty_cycle_changes,
     relaxed_offset,
+    state_at_changes,
     steady_state_offset,
 )
 from fluxcal.errors import InputFormatError, ValidationError
 from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.missions.messenger._compiled import clock_kernel, quality_kernel
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
 log = logging.getLogger(__name__)
@@ -91,15 +94,65 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
         With ``met_corrected``, ``lag``, ``et``, ``et_recorded`` (uncorrected, decides
         the product day) and the coordinate ``epoch`` (TT2000 ns).
 
+    Notes
+    -----
+    One compiled pass (`fluxcal.missions.messenger._compiled.clock_kernel`) gives the
+    lag, both clock conversions and TT2000; `correct_time_reference` is the numpy
+    version (`per_sample_lag`, `SclkKernel.to_et_and_tt2000`, `SclkKernel.to_et`), run
+    instead for readings it must decide (unknown rate setting or partition, reading
+    outside its partition, NaN) and compared with in the tests.
+
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 Table 1, sec. 9.
     """
+    out = _clock(ds["partition"].values, ds["met"].values, ds["rate"].values,
+                 cal.net_lag_s, sclk)
+    if out is None:
+        return correct_time_reference(ds, cal, sclk)
+    return _time_dataset(ds, *out)
+
+
+def _clock(
+    partition: np.ndarray, met: np.ndarray, rate: np.ndarray, net_lag_s: np.ndarray,
+    sclk: SclkKernel,
+) -> tuple[np.ndarray, ...] | None:
+    """(lag, met_corrected, et, tt2000, et_recorded) from `clock_kernel`, or None."""
+    met = np.asarray(met)
+    lags = np.ascontiguousarray(net_lag_s, dtype=float)
+    if (met.ndim != 1 or met.dtype != np.float64 or partition.shape != met.shape
+            or rate.shape != met.shape or partition.dtype.kind not in "iuf"
+            or rate.dtype.kind not in "iu" or lags.ndim != 1 or sclk.ticks.size == 0):
+        return None
+    n = met.size
+    lag, met_corrected, et, et_recorded = (np.empty(n) for _ in range(4))
+    tt2000 = np.empty(n, dtype=np.int64)
+    lsk = sclk.lsk
+    bad = clock_kernel(
+        partition, met, rate, lags, float(len(sclk.partition_start)), sclk.ticks_per_count,
+        sclk.partition_start, sclk.partition_end, sclk.partition_offsets, sclk.ticks,
+        sclk.parallel, sclk.rate, sclk.time_system == 2, lsk.k, lsk.eb, lsk.m0, lsk.m1,
+        lag, met_corrected, et, tt2000, et_recorded,
+    )
+    return None if bad >= 0 else (lag, met_corrected, et, tt2000, et_recorded)
+
+
+def correct_time_reference(
+    ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel
+) -> xr.Dataset:
+    """Numpy reference of `correct_time`: lag, then two clock conversions."""
     lag = per_sample_lag(ds["rate"].values, cal.net_lag_s)
     met = ds["met"].values - lag
     # TT2000 straight from the clock's TT parallel time (no TDB round trip)
     et, tt2000 = sclk.to_et_and_tt2000(ds["partition"].values, met)
     et_recorded = sclk.to_et(ds["partition"].values, ds["met"].values)
+    return _time_dataset(ds, lag, met, et, tt2000, et_recorded)
+
+
+def _time_dataset(
+    ds: xr.Dataset, lag: np.ndarray, met: np.ndarray, et: np.ndarray, tt2000: np.ndarray,
+    et_recorded: np.ndarray,
+) -> xr.Dataset:
     out = ds.assign(
         et_recorded=_scalar(et_recorded, "s", "ephemeris time of the recorded (EDR) MET"),
         lag=_scalar(lag, "s", "net time lag subtracted from the MET (Table 1)"),
@@ -192,11 +245,9 @@ def correct_heater_signal(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
     """
-    et = ds["et"].values
-    signal, applied = heater_signal(et, periods, cal.heater_signal, cal.heater_duty_bins_percent)
-    v10 = et >= _date_et(cal, "heater_mode_v10")
-    applied &= v10
-    signal[~applied] = 0.0
+    signal, applied = heater_signal(ds["et"].values, periods, cal.heater_signal,
+                                    cal.heater_duty_bins_percent,
+                                    applies_from=_date_et(cal, "heater_mode_v10"))
     return ds.assign(
         heater_signal=_vector(signal, "counts", "heater signal, fine-range counts (sec. 6)"),
         heater_applied=_scalar(applied, "1", "heater signal subtracted"),
@@ -215,6 +266,63 @@ def offset_model(
     """Return the total offset ``cT(T) + Delta(t)`` in fine-range counts (sec. 7).
 
     Before V10 (2007-03-09) the offset is ``cT(22.4 C)`` (sec. 7, last paragraph).
+    One compiled pass (`fluxcal.calibration._compiled.offset_chain_kernel`);
+    `offset_model_reference` is the numpy version the tests compare with.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 2-7, Tables 2-3.
+    """
+    et = np.ascontiguousarray(et, dtype=float)
+    temp = np.ascontiguousarray(temperature_c, dtype=float)
+    model = _offset_model_tables(changes, cal)
+    if et.ndim != 1 or temp.shape != et.shape or model is None:
+        return offset_model_reference(et, temperature_c, changes, cal)
+    offset = np.empty((et.size, 3))
+    unused = np.empty((0, 3))
+    offset_chain_kernel(et, np.empty(0), np.empty(0), False, 0.0, *model, unused,
+                        np.empty(0, dtype=np.int8), np.eye(3), unused, False,
+                        temp, offset, unused, unused)
+    return offset
+
+
+def _offset_model_tables(changes: DutyCycleChanges, cal: MessengerCalibration) -> tuple | None:
+    """Arguments ``model_start .. delay`` of `offset_chain_kernel`, or None.
+
+    None when the numpy reference must decide: NaN change times (the reference's
+    result), decreasing ones (its ``ValueError``), or tables of other shapes.
+    """
+    rel = cal.constants["relaxation"]
+    coefficients = np.ascontiguousarray(cal.temperature_coefficients, dtype=float)
+    change_time = np.ascontiguousarray(changes.time, dtype=float)
+    target = steady_state_offset(
+        changes.duty_cycle_ppt, cal.duty_cycle_d0, rel["min_duty_cycle_ppt"]
+    )
+    if (coefficients.shape != (3, 4) or change_time.ndim != 1 or target.shape != (
+            change_time.size, 3) or np.isnan(change_time).any()
+            or np.any(change_time[1:] < change_time[:-1])):
+        return None
+    pad = np.zeros((1, 3))  # row 0: before the first change, zero target and state
+    if change_time.size:
+        state = state_at_changes(change_time, target, tau=rel["tau_s"], delay=rel["delay_s"],
+                                 look_back=int(rel["look_back"]))
+    else:
+        state = np.empty((0, 3))
+    return (
+        _date_et(cal, "heater_mode_v10"), float(cal.constants["pre_v10"]["fixed_temperature_c"]),
+        coefficients, np.ascontiguousarray(breakpoint_temperature(coefficients)), change_time,
+        np.concatenate([pad, target]), np.concatenate([pad, state]), float(rel["tau_s"]),
+        float(rel["delay_s"]),
+    )
+
+
+def offset_model_reference(
+    et: np.ndarray,
+    temperature_c: np.ndarray,
+    changes: DutyCycleChanges,
+    cal: MessengerCalibration,
+) -> np.ndarray:
+    """Numpy reference of `offset_model` (whole-array passes; the tests compare).
 
     References
     ----------
@@ -237,6 +345,10 @@ def offset_model(
     return ct + delta
 
 
+#: Samples may lie this far (s) outside the temperature stream (`interpolate_temperature`).
+TEMPERATURE_MARGIN_S = 60.0
+
+
 def interpolate_temperature(et: np.ndarray, temp_et: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
     """Linear interpolation of the sensor temperature to the sample times.
 
@@ -247,13 +359,18 @@ def interpolate_temperature(et: np.ndarray, temp_et: np.ndarray, temp_c: np.ndar
     """
     if temp_et.size == 0:
         raise InputFormatError("temperature stream is empty", field="temperature_c")
-    tol = 60.0
-    if et.size and (et.min() < temp_et[0] - tol or et.max() > temp_et[-1] + tol):
+    _check_temperature_cover(bool(et.size) and (
+        et.min() < temp_et[0] - TEMPERATURE_MARGIN_S
+        or et.max() > temp_et[-1] + TEMPERATURE_MARGIN_S))
+    return np.interp(et, temp_et, temp_c)
+
+
+def _check_temperature_cover(outside: bool) -> None:
+    if outside:
         raise InputFormatError(
             "science samples extend beyond the temperature stream by more than 60 s",
             field="temperature_c",
         )
-    return np.interp(et, temp_et, temp_c)
 
 
 def correct_offsets(
@@ -274,6 +391,63 @@ def correct_offsets(
         With ``temperature`` (degC), ``offset`` (fine counts), ``offset_applied`` (counts
         of the sample's range, offset + heater signal) and ``counts_corrected``.
 
+    Notes
+    -----
+    Temperature interpolation (`interpolate_temperature`), offset model
+    (`offset_model`), range conversion and subtraction run in one compiled pass
+    (`fluxcal.calibration._compiled.offset_chain_kernel`); `correct_offsets_reference`
+    is the numpy version the tests compare with, run instead for inputs it must decide
+    (see `_offset_model_tables`; a temperature stream of one record or with unsorted or
+    NaN times is interpolated by ``np.interp`` first).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 1-7.
+    """
+    et = ds["et"].values
+    t_et = aux_times_et(temperature, sclk)
+    t_c = temperature["temperature_c"].values
+    if t_et.size == 0:
+        raise InputFormatError("temperature stream is empty", field="temperature_c")
+    model = _offset_model_tables(changes, cal)
+    conv = range_conversion(cal.matrices, reference=0)
+    counts = ds["counts"].values
+    heater = ds["heater_signal"].values
+    rng = ds["range"].values
+    n = et.shape[0] if et.ndim == 1 else -1
+    if (model is None or et.dtype != np.float64 or et.ndim != 1 or conv.shape[0] < 2
+            or counts.shape != (n, 3) or counts.dtype.kind not in "iuf"
+            or heater.shape != (n, 3) or heater.dtype != np.float64 or rng.shape != (n,)
+            or rng.dtype.kind not in "iu"):
+        return correct_offsets_reference(ds, temperature, changes, cal, sclk)
+    t_et = np.ascontiguousarray(t_et, dtype=float)
+    t_c = np.ascontiguousarray(t_c, dtype=float)
+    interpolate = t_et.size >= 2 and t_c.shape == t_et.shape and not (
+        np.isnan(t_et).any() or np.any(t_et[1:] < t_et[:-1]))
+    if interpolate:
+        temp = np.empty(n)
+    else:  # np.interp's own cases (one record, unsorted or NaN times) and errors
+        temp = interpolate_temperature(et, t_et, t_c)
+    offset, applied, corrected = (np.empty((n, 3)) for _ in range(3))
+    outside = offset_chain_kernel(
+        np.ascontiguousarray(et), t_et, t_c, interpolate, TEMPERATURE_MARGIN_S, *model,
+        np.ascontiguousarray(heater), np.ascontiguousarray(rng),
+        np.ascontiguousarray(conv[1]), np.ascontiguousarray(counts), True,
+        temp, offset, applied, corrected,
+    )
+    _check_temperature_cover(interpolate and outside)
+    return _offset_dataset(ds, temp, offset, applied, corrected)
+
+
+def correct_offsets_reference(
+    ds: xr.Dataset,
+    temperature: xr.Dataset,
+    changes: DutyCycleChanges,
+    cal: MessengerCalibration,
+    sclk: SclkKernel,
+) -> xr.Dataset:
+    """Numpy reference of `correct_offsets` (whole-array passes; the tests compare).
+
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 1-7.
@@ -281,7 +455,7 @@ def correct_offsets(
     et = ds["et"].values
     t_et = aux_times_et(temperature, sclk)
     temp = interpolate_temperature(et, t_et, temperature["temperature_c"].values)
-    offset = offset_model(et, temp, changes, cal)
+    offset = offset_model_reference(et, temp, changes, cal)
     fine_total = offset + ds["heater_signal"].values
     conv = range_conversion(cal.matrices, reference=0)
     rng = ds["range"].values
@@ -290,6 +464,13 @@ def correct_offsets(
     if coarse.any():
         applied[coarse] = np.einsum("ij,nj->ni", conv[1], fine_total[coarse])
     corrected = ds["counts"].values - applied
+    return _offset_dataset(ds, temp, offset, applied, corrected)
+
+
+def _offset_dataset(
+    ds: xr.Dataset, temp: np.ndarray, offset: np.ndarray, applied: np.ndarray,
+    corrected: np.ndarray,
+) -> xr.Dataset:
     return ds.assign(
         temperature=_scalar(temp, "degC", "sensor temperature interpolated to the samples"),
         offset=_vector(offset, "counts", "thermal offset cT(T) + Delta(t), fine-range counts"),
@@ -639,6 +820,42 @@ def quality_flags(
     by date.  C: 1 before boom deployment and, before V10, in shadow (S = 2); 2 where
     the heater signal was removed; 0 otherwise.
 
+    One compiled pass (`fluxcal.missions.messenger._compiled.quality_kernel`);
+    `quality_flags_reference` is the numpy version the tests compare with.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (last paragraphs), sec. 12,
+       Table 5.
+    """
+    return _quality(et, sun_y_sc, heater_applied, cal, np.int64)
+
+
+def _quality(
+    et: np.ndarray, sun_y_sc: np.ndarray, heater_applied: np.ndarray,
+    cal: MessengerCalibration, dtype: type,
+) -> np.ndarray:
+    """`quality_flags` as ``dtype`` (the numpy reference for inputs of other shapes)."""
+    et = np.asarray(et, dtype=float)
+    sun_y = np.asarray(sun_y_sc)
+    heater = np.asarray(heater_applied, dtype=bool)
+    if (et.ndim != 1 or sun_y.shape != et.shape or heater.shape != et.shape
+            or sun_y.dtype.kind not in "biuf"):
+        return quality_flags_reference(et, sun_y_sc, heater_applied, cal).astype(dtype)
+    out = np.empty(et.size, dtype=dtype)
+    quality_kernel(et, sun_y, heater, _date_et(cal, "boom_deployment"),
+                   _date_et(cal, "heater_mode_v9"), _date_et(cal, "heater_mode_v10"), out)
+    return out
+
+
+def quality_flags_reference(
+    et: np.ndarray,
+    sun_y_sc: np.ndarray,
+    heater_applied: np.ndarray,
+    cal: MessengerCalibration,
+) -> np.ndarray:
+    """Numpy reference of `quality_flags` (whole-array passes; the tests compare).
+
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (last paragraphs), sec. 12,
@@ -664,10 +881,9 @@ def assign_quality(ds: xr.Dataset, cal: MessengerCalibration) -> xr.Dataset:
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 12, Table 5.
     """
-    q = quality_flags(
-        ds["et"].values, ds["sun_sc"].values[:, 1], ds["heater_applied"].values, cal
-    )
-    return ds.assign(quality=_scalar(q.astype(np.int16), "1", "SHC quality flag (Table 5)"))
+    q = _quality(ds["et"].values, ds["sun_sc"].values[:, 1], ds["heater_applied"].values,
+                 cal, np.int16)
+    return ds.assign(quality=_scalar(q, "1", "SHC quality flag (Table 5)"))
 
 
 # ----------------------------------------------------------------------------------------
@@ -684,8 +900,7 @@ def offset_step_report(ds: xr.Dataset, max_gap_s: float = 10.0) -> dict:
         ``{"x": {"step_counts": ..., "utc_index": i, "et": ...}, ...}``.
     """
     et = ds["et"].values
-    segment = np.concatenate([[0], np.cumsum(np.diff(et) > max_gap_s)])
-    rep = largest_steps(ds["offset"].values, segment)
+    rep = largest_steps(ds["offset"].values, times=et, max_gap=max_gap_s)
     return {
         axis: {"step_counts": float(rep.largest_step[j]), "index": int(rep.index[j]),
                "et": float(et[min(rep.index[j], et.size - 1)])}
