@@ -1,6 +1,6 @@
 """The compiled passes of the MESSENGER levels against their numpy references.
 
-`correct_time`, `correct_heater_signal`, `correct_offsets` / `offset_model`,
+`correct_heater_signal`, `correct_offsets` / `offset_model`,
 `quality_flags` / `assign_quality` and `offset_step_report` each run one numba pass
 (`fluxcal.missions.messenger._compiled`, `fluxcal.calibration._compiled`); the numpy
 code they replaced stays as ``*_reference`` (or is written out below).  The kernels
@@ -10,8 +10,6 @@ reference's relaxed offset is itself compiled), so every comparison here is exac
 """
 
 from __future__ import annotations
-
-import dataclasses
 
 import numpy as np
 import pytest
@@ -59,82 +57,6 @@ def _assert_same_dataset(got: xr.Dataset, ref: xr.Dataset) -> None:
         assert got[name].dims == ref[name].dims, name
         np.testing.assert_array_equal(got[name].values, ref[name].values, err_msg=name)
         assert got[name].attrs == ref[name].attrs, name
-
-
-# ----------------------------------------------------------------------------------------
-# sec. 5, 9: correct_time
-# ----------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def clocks(shared_kernels):
-    with KernelPool([shared_kernels / "messenger" / "messenger_2548.tsc"]):
-        msgr = SclkKernel.from_pool(-236)
-        # the same coefficients read as a TDB clock: the tdb_to_tt branch of TT2000
-        yield {"tt": msgr, "tdb": dataclasses.replace(msgr, time_system=1)}
-
-
-def _science(clock, rng, n, *, sort=True):
-    """Raw science samples over both partitions with random rate settings."""
-    tpc = clock.ticks_per_count
-    parts, secs = [], []
-    for p in range(len(clock.partition_start)):
-        lo, hi = clock.partition_start[p] / tpc + 1.0, clock.partition_end[p] / tpc
-        sec = rng.uniform(lo, hi, n)
-        parts.append(np.full(n, p + 1, dtype=np.int8))
-        secs.append(np.sort(sec) if sort else sec)
-    met = np.concatenate(secs)
-    rate = rng.integers(0, CAL.net_lag_s.size, met.size).astype(np.int8)
-    return xr.Dataset({"partition": ("time", np.concatenate(parts)), "met": ("time", met),
-                       "rate": ("time", rate)})
-
-
-@pytest.mark.parametrize("clock", ["tt", "tdb"])
-@pytest.mark.parametrize("sort", [True, False])
-def test_correct_time_matches_reference(monkeypatch, clocks, clock, sort):
-    ds = _science(clocks[clock], np.random.default_rng(7), 30000, sort=sort)
-    reference = _compiled_only(monkeypatch, "correct_time_reference")
-    got = levels.correct_time(ds, CAL, clocks[clock])
-    _assert_same_dataset(got, reference(ds, CAL, clocks[clock]))
-
-
-def test_correct_time_twenty_hertz_day(clocks):
-    met = 2.0e8 + np.arange(0.0, 86400.0, 0.05)
-    ds = xr.Dataset({"partition": ("time", np.ones(met.size, np.int8)), "met": ("time", met),
-                     "rate": ("time", np.full(met.size, 10, np.int8))})
-    got = levels.correct_time(ds, CAL, clocks["tt"])
-    _assert_same_dataset(got, levels.correct_time_reference(ds, CAL, clocks["tt"]))
-    # the lag moves the ET, the recorded ET keeps the EDR time
-    np.testing.assert_allclose(got["et_recorded"].values - got["et"].values,
-                               got["lag"].values, rtol=0, atol=1e-6)
-
-
-def test_correct_time_empty_and_rejected_readings(clocks):
-    clock = clocks["tt"]
-    empty = _science(clock, np.random.default_rng(0), 0)
-    _assert_same_dataset(levels.correct_time(empty, CAL, clock),
-                         levels.correct_time_reference(empty, CAL, clock))
-    ds = _science(clock, np.random.default_rng(1), 50)
-    bad = ds.copy(deep=True)
-    bad["rate"].values[7] = CAL.net_lag_s.size  # rate setting outside Table 1
-    with pytest.raises(ValueError, match="rate_setting"):
-        levels.correct_time(bad, CAL, clock)
-    bad = ds.copy(deep=True)
-    bad["partition"].values[3] = 3
-    with pytest.raises(InputFormatError, match="partition 3 does not exist"):
-        levels.correct_time(bad, CAL, clock)
-    # the first tick of partition 1: recorded inside, lag-corrected before the partition
-    bad = ds.copy(deep=True)
-    bad["met"].values[0] = clock.partition_start[0] / clock.ticks_per_count
-    with pytest.raises(InputFormatError, match="outside partition 1"):
-        levels.correct_time(bad, CAL, clock)
-
-
-@pytest.mark.filterwarnings("ignore:invalid value encountered in cast")
-def test_correct_time_nan_reading_as_reference(clocks):
-    ds = _science(clocks["tt"], np.random.default_rng(2), 20)
-    ds["met"].values[5] = np.nan
-    got = levels.correct_time(ds, CAL, clocks["tt"])
-    _assert_same_dataset(got, levels.correct_time_reference(ds, CAL, clocks["tt"]))
-    assert np.isnan(got["et"].values[5]) and np.isnan(got["et_recorded"].values[5])
 
 
 # ----------------------------------------------------------------------------------------
@@ -352,8 +274,6 @@ def test_correct_offsets_simulated_day_matches_reference(messenger_kernels, simu
     with KernelPool(messenger_kernels):
         sclk = SclkKernel.from_pool(-236)
         ds = levels.correct_time(simulated["science"], calibration, sclk)
-        _assert_same_dataset(ds, levels.correct_time_reference(simulated["science"],
-                                                               calibration, sclk))
         periods, changes = levels.find_heater_periods(simulated["heater"], calibration, sclk)
         ds = levels.correct_heater_signal(ds, periods, calibration)
         got = levels.correct_offsets(ds, simulated["temperature"], changes, calibration, sclk)

@@ -42,7 +42,7 @@ from fluxcal.calibration.relaxation import (
 )
 from fluxcal.errors import InputFormatError, ValidationError
 from fluxcal.geometry.time import SclkKernel, utc_to_et
-from fluxcal.missions.messenger._compiled import clock_kernel, quality_kernel
+from fluxcal.missions.messenger._compiled import quality_kernel
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
 log = logging.getLogger(__name__)
@@ -94,53 +94,10 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
         With ``met_corrected``, ``lag``, ``et``, ``et_recorded`` (uncorrected, decides
         the product day) and the coordinate ``epoch`` (TT2000 ns).
 
-    Notes
-    -----
-    One compiled pass (`fluxcal.missions.messenger._compiled.clock_kernel`) gives the
-    lag, both clock conversions and TT2000; `correct_time_reference` is the numpy
-    version (`per_sample_lag`, `SclkKernel.to_et_and_tt2000`, `SclkKernel.to_et`), run
-    instead for readings it must decide (unknown rate setting or partition, reading
-    outside its partition, NaN) and compared with in the tests.
-
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 Table 1, sec. 9.
     """
-    out = _clock(ds["partition"].values, ds["met"].values, ds["rate"].values,
-                 cal.net_lag_s, sclk)
-    if out is None:
-        return correct_time_reference(ds, cal, sclk)
-    return _time_dataset(ds, *out)
-
-
-def _clock(
-    partition: np.ndarray, met: np.ndarray, rate: np.ndarray, net_lag_s: np.ndarray,
-    sclk: SclkKernel,
-) -> tuple[np.ndarray, ...] | None:
-    """(lag, met_corrected, et, tt2000, et_recorded) from `clock_kernel`, or None."""
-    met = np.asarray(met)
-    lags = np.ascontiguousarray(net_lag_s, dtype=float)
-    if (met.ndim != 1 or met.dtype != np.float64 or partition.shape != met.shape
-            or rate.shape != met.shape or partition.dtype.kind not in "iuf"
-            or rate.dtype.kind not in "iu" or lags.ndim != 1 or sclk.ticks.size == 0):
-        return None
-    n = met.size
-    lag, met_corrected, et, et_recorded = (np.empty(n) for _ in range(4))
-    tt2000 = np.empty(n, dtype=np.int64)
-    lsk = sclk.lsk
-    bad = clock_kernel(
-        partition, met, rate, lags, float(len(sclk.partition_start)), sclk.ticks_per_count,
-        sclk.partition_start, sclk.partition_end, sclk.partition_offsets, sclk.ticks,
-        sclk.parallel, sclk.rate, sclk.time_system == 2, lsk.k, lsk.eb, lsk.m0, lsk.m1,
-        lag, met_corrected, et, tt2000, et_recorded,
-    )
-    return None if bad >= 0 else (lag, met_corrected, et, tt2000, et_recorded)
-
-
-def correct_time_reference(
-    ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel
-) -> xr.Dataset:
-    """Numpy reference of `correct_time`: lag, then two clock conversions."""
     lag = per_sample_lag(ds["rate"].values, cal.net_lag_s)
     met = ds["met"].values - lag
     # TT2000 straight from the clock's TT parallel time (no TDB round trip)
