@@ -47,7 +47,7 @@ def retain_freed_memory() -> bool:
     is a fresh ``mmap`` whose pages fault on first touch and go back to the system when
     freed.  On the virtual machines measured here that first touch costs 0.1-2.2 s of
     kernel time per 20 Hz day (same page-fault count, host-dependent cost) against
-    ~0.9 s of computation.  With ``M_MMAP_MAX = 0`` large arrays come from the heap and
+    ~0.7 s of computation.  With ``M_MMAP_MAX = 0`` large arrays come from the heap and
     with a huge ``M_TRIM_THRESHOLD`` the heap is kept, so later runs reuse touched memory
     (as a long-lived worker started with ``MALLOC_MMAP_MAX_=0`` would).  Returns True
     when applied.
