@@ -30,40 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-
-@njit(cache=True, nogil=True, inline="always")
-def _bisect_right(nodes, x):
-    """``np.searchsorted(nodes, x, side="right")`` (NaN sorts after every node)."""
-    lo = 0
-    hi = nodes.size
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if x < nodes[mid]:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@njit(cache=True, nogil=True, inline="always")
-def count_le(nodes, x, hint):
-    """``np.searchsorted(nodes, x, side="right")`` given the answer for a nearby ``x``.
-
-    Parameters
-    ----------
-    nodes : ndarray, shape (m,)
-        Non-decreasing.
-    x : float
-    hint : int
-        An earlier answer (``0..m``); the next interval is tried before a bisection.
-    """
-    m = nodes.size
-    k = hint
-    if (k == 0 or nodes[k - 1] <= x) and (k == m or x < nodes[k]):
-        return k
-    if k < m and nodes[k] <= x and (k + 1 == m or x < nodes[k + 1]):
-        return k + 1
-    return _bisect_right(nodes, x)
+from fluxcal.geometry.compiled import count_le
 
 
 # ----------------------------------------------------------------------------------------
@@ -218,6 +185,20 @@ def two_segment_kernel(temp, coefficients, t_break, out):
                 out[i, j] = coefficients[j, 2] + coefficients[j, 3] * t
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _decay(change_time, k, t, delay, tau):
+    """``exp(-max(t - t_0 - dt, 0) / tau)`` of eq. 6f, ``t_0 = change_time[k - 1]``.
+
+    ``k`` is the number of changes at or before ``t`` (`count_le`); 1 before the first.
+    """
+    if k == 0:
+        return 1.0
+    x = t - change_time[k - 1] - delay
+    if x < 0.0:  # np.maximum(x, 0): NaN stays NaN
+        x = 0.0
+    return math.exp(-x / tau)
+
+
 @njit(cache=True, nogil=True)
 def relaxed_offset_kernel(ts, change_time, target, state, tau, delay, out):
     """Eq. 6f at every sample from the states ``c_t0`` at the changes (seed 000 sec. 7).
@@ -244,13 +225,7 @@ def relaxed_offset_kernel(ts, change_time, target, state, tau, delay, out):
         t = ts[i]
         k = count_le(change_time, t, hint)
         hint = k
-        if k == 0:
-            decay = 1.0
-        else:
-            x = t - change_time[k - 1] - delay
-            if x < 0.0:  # np.maximum(x, 0): NaN stays NaN
-                x = 0.0
-            decay = math.exp(-x / tau)
+        decay = _decay(change_time, k, t, delay, tau)
         for j in range(k_axes):
             c = target[k, j]
             out[i, j] = c - (c - state[k, j]) * decay
@@ -396,13 +371,7 @@ def offset_chain_kernel(
         if model:
             k = count_le(change_time, t, hint_c)
             hint_c = k
-            if k == 0:
-                decay = 1.0
-            else:
-                x = t - change_time[k - 1] - delay
-                if x < 0.0:  # np.maximum(x, 0): NaN stays NaN
-                    x = 0.0
-                decay = math.exp(-x / tau)
+            decay = _decay(change_time, k, t, delay, tau)
             g = target[k, 0]
             d0 = g - (g - state[k, 0]) * decay
             g = target[k, 1]

@@ -25,20 +25,55 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _bisect_right(nodes, x):
+    """``np.searchsorted(nodes, x, side="right")`` (NaN sorts after every node)."""
+    lo = 0
+    hi = nodes.size
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if x < nodes[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True, nogil=True, inline="always")
+def count_le(nodes, x, hint):
+    """``np.searchsorted(nodes, x, side="right")`` given the answer for a nearby ``x``.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (m,)
+        Non-decreasing.
+    x : float
+    hint : int
+        An earlier answer (``0..m``); the next interval is tried before a bisection.
+
+    Notes
+    -----
+    Shared by the compiled loops of `fluxcal.calibration._compiled` and
+    `fluxcal.geometry.time`.  numba's on-disk cache of those loops does not notice an
+    edit here (numba issue #1833): after changing this function, clear the
+    ``__pycache__/*.nbi``/``*.nbc`` files of the importing modules.
+    """
+    m = nodes.size
+    k = hint
+    if (k == 0 or nodes[k - 1] <= x) and (k == m or x < nodes[k]):
+        return k
+    if k < m and nodes[k] <= x and (k + 1 == m or x < nodes[k + 1]):
+        return k + 1
+    return _bisect_right(nodes, x)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _interval(nodes, t, hint):
     """Index ``i`` in ``[0, m - 2]`` with ``nodes[i] <= t < nodes[i + 1]`` (clipped).
 
-    Walks forward from ``hint`` (O(1) per sample for sorted epochs); a backward step or
-    a long jump uses a binary search.
+    `count_le` from the interval ``hint`` of the previous epoch: O(1) per sample for
+    sorted epochs, a binary search otherwise.
     """
-    last = nodes.size - 2
-    i = hint
-    if nodes[i] <= t:
-        for _ in range(8):
-            if i >= last or nodes[i + 1] > t:
-                return i
-            i += 1
-    return min(max(np.searchsorted(nodes, t, side="right") - 1, 0), last)
+    return min(max(count_le(nodes, t, hint + 1) - 1, 0), nodes.size - 2)
 
 
 @njit(cache=True, nogil=True, inline="always")

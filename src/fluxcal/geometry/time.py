@@ -25,6 +25,7 @@ import spiceypy
 from numba import njit
 
 from fluxcal.errors import InputFormatError, KernelError
+from fluxcal.geometry.compiled import count_le
 from fluxcal.geometry.kernels import spice_errors
 
 #: Offset TT - TAI in seconds.
@@ -537,30 +538,6 @@ class SclkKernel:
 # ----------------------------------------------------------------------------------------
 # Compiled clock conversion (one pass per reading)
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True, inline="always")
-def _count_le(nodes, x, hint):
-    """``np.searchsorted(nodes, x, side="right")`` given the answer for a nearby ``x``.
-
-    The interval of the hint and the next one are tried before a bisection, so sorted
-    readings cost O(1) each; NaN sorts after every node, as in numpy.
-    """
-    m = nodes.size
-    k = hint
-    if (k == 0 or nodes[k - 1] <= x) and (k == m or x < nodes[k]):
-        return k
-    if k < m and nodes[k] <= x and (k + 1 == m or x < nodes[k + 1]):
-        return k + 1
-    lo = 0
-    hi = m
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if x < nodes[mid]:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
 #: Spacing (s) of the nodes of the compiled TDB - TT expansion (`_tdb_minus_tt_taylor`).
 TDB_TT_NODE_SPACING = 128.0
 
@@ -675,7 +652,7 @@ def _sclk_kernel(
         if not (reading >= start and reading <= part_end[p]):
             return i
         encoded = part_offsets[p] + (reading - start)
-        c = _count_le(ticks, encoded, hint)
+        c = count_le(ticks, encoded, hint)
         hint = c
         j = min(max(c - 1, 0), last)
         par = parallel[j] + (encoded - ticks[j]) * (rate[j] / ticks_per_count)
