@@ -91,16 +91,7 @@ def apply_per_range_reference(
 ) -> np.ndarray:
     """Numpy reference of `apply_per_range` (the tests compare the two).
 
-    Parameters
-    ----------
-    vectors : ndarray, shape (n, 3)
-    range_flag : ndarray of int, shape (n,)
-        Index into ``matrices`` for each sample.
-    matrices : ndarray, shape (m, 3, 3)
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
+    Parameters and returns as `apply_per_range`.
     """
     vectors = np.asarray(vectors, dtype=float)
     range_flag = np.asarray(range_flag)

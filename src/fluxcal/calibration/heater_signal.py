@@ -282,21 +282,7 @@ def heater_signal_reference(
 
     Several whole-array passes; the tests compare the compiled `heater_signal` with it.
 
-    Parameters
-    ----------
-    sample_times : ndarray, shape (n,)
-        Sample times (s, same scale as the heater bits).
-    periods : HeaterPeriods
-    table : ndarray, shape (3, 101, n_bins)
-    bins_percent : ndarray, shape (n_bins,)
-    applies_from : float, optional
-        No signal before this time (``not t >= applies_from``).
-
-    Returns
-    -------
-    signal : ndarray, shape (n, 3)
-        Zero outside applied periods.
-    applied : ndarray of bool, shape (n,)
+    Parameters and returns as `heater_signal`.
 
     References
     ----------

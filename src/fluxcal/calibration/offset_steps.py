@@ -96,21 +96,7 @@ def largest_steps_reference(
 ) -> StepReport:
     """Numpy reference of `largest_steps` (the tests compare the two).
 
-    Parameters
-    ----------
-    offset : ndarray, shape (n, k)
-        Applied offsets (same units for every sample).
-    segment : ndarray, shape (n,), optional
-        Label of a sample's segment; steps between samples of different segments (e.g.
-        a range change, where offsets are expressed in other counts) are ignored.
-    times : ndarray, shape (n,), optional
-        Sample times; with ``max_gap``, steps across gaps longer than ``max_gap`` are
-        ignored.
-    max_gap : float, optional
-
-    Returns
-    -------
-    StepReport
+    Parameters and returns as `largest_steps`.
 
     References
     ----------

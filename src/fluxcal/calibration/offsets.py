@@ -58,17 +58,7 @@ def two_segment_offset(temperature_c: np.ndarray, coefficients: np.ndarray) -> n
 def two_segment_offset_reference(temperature_c: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
     """Numpy reference of `two_segment_offset` (the tests compare the two).
 
-    Parameters
-    ----------
-    temperature_c : ndarray, shape (n,)
-        Sensor temperature (degC).
-    coefficients : ndarray, shape (3, 4)
-        ``A0, B0, A1, B1`` per axis (Table 2).
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
-        Offset in counts: ``A0 + B0 T`` for ``T <= T_m``, ``A1 + B1 T`` above.
+    Parameters and returns as `two_segment_offset`.
 
     References
     ----------

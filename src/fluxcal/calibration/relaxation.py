@@ -252,24 +252,7 @@ def relaxed_offset_reference(
 ) -> np.ndarray:
     """Numpy reference of `relaxed_offset` (whole-array passes; the tests compare).
 
-    Parameters
-    ----------
-    sample_time : ndarray, shape (n,)
-    change_time : ndarray, shape (m,)
-        Duty-cycle change times, increasing.
-    target : ndarray, shape (m, k)
-        Steady-state offsets (eq. 5) set at each change.
-    tau : float
-        Relaxation time (872 s).
-    delay : float
-        Delay ``dt`` between heater request and heater power (10 s).
-    look_back : int
-        Number of earlier changes (5).
-
-    Returns
-    -------
-    ndarray, shape (n, k)
-        Zero before the first change.
+    Parameters and returns as `relaxed_offset`.
 
     References
     ----------
