@@ -28,10 +28,18 @@ from fluxcal.errors import InputFormatError, KernelError
 from fluxcal.geometry.compiled import count_le
 from fluxcal.geometry.kernels import spice_errors
 
-#: Offset TT - TAI in seconds.
-TT_MINUS_TAI = 32.184
+#: Offset TT - TAI, exactly 32.184 s, in integer nanoseconds (never formed from a float:
+#: ``int(32.184 * 1e9)`` is 32_183_999_999).
+TT_MINUS_TAI_NS = 32_184_000_000
+#: The CDF TT2000 fill value (ISTP ``FILLVAL``, -2**63); `tt2000_to_datetime64` maps it to NaT.
+TT2000_FILL = np.iinfo(np.int64).min
+#: The CDF TT2000 pad value (-2**63 + 1), also mapped to NaT (as ``cdflib`` does).
+TT2000_PAD = TT2000_FILL + 1
 _J2000_UTC_NAIVE = np.datetime64("2000-01-01T12:00:00", "ns")
 _NS = 1_000_000_000
+#: 2000-01-01T12:00:00 in ns past 1970-01-01T00:00:00 (naive UTC, 86400 s days).
+_J2000_UNIX_NS = int(_J2000_UTC_NAIVE.astype(np.int64))
+_DAY_NS = 86_400 * _NS
 
 
 # ----------------------------------------------------------------------------------------
@@ -95,8 +103,12 @@ class LeapSecondTable:
     # leap seconds in TT2000 nanoseconds
     def leap_tt2000(self) -> np.ndarray:
         """Return the TT2000 (ns) instants at which each ``delta_at`` starts to apply."""
-        sec = self.epochs_utc_naive.astype(np.int64)  # leap epochs are whole seconds
-        return (sec + self.delta_at) * _NS + int(TT_MINUS_TAI * _NS)
+        return self.epochs_naive_ns() + self.delta_at * _NS + TT_MINUS_TAI_NS
+
+    def epochs_naive_ns(self) -> np.ndarray:
+        """Return the leap epochs as int64 naive UTC ns past 2000-01-01T12:00:00."""
+        # the LSK's epochs are whole seconds, exact in float64
+        return np.rint(self.epochs_utc_naive).astype(np.int64) * _NS
 
 
 _LSK_CACHE: dict[tuple, LeapSecondTable] = {}
@@ -157,16 +169,142 @@ def tt2000_to_et(tt2000: np.ndarray, lsk: LeapSecondTable | None = None) -> np.n
 # TT2000 <-> UTC
 # ----------------------------------------------------------------------------------------
 def _tt2000_to_utc_naive(tt2000: np.ndarray, lsk: LeapSecondTable) -> tuple[np.ndarray, np.ndarray]:
-    """Return naive UTC ns past 2000-01-01T12 and a mask of samples inside a leap second."""
+    """Return naive UTC ns past 2000-01-01T12 and a mask of samples inside a leap second.
+
+    Int64 arithmetic only.  Inside a leap second (``23:59:60.x``) the naive time is that
+    of ``23:59:59.x`` (the new TAI - UTC already applies); the mask tells the caller to
+    show seconds ``60``.
+    """
     leaps = lsk.leap_tt2000()
     idx = np.searchsorted(leaps, tt2000, side="right") - 1
     # inside the leap second that precedes leap i the new TAI-UTC already applies for display
     nxt = np.clip(idx + 1, 0, len(leaps) - 1)
     in_leap = (idx + 1 < len(leaps)) & (tt2000 >= leaps[nxt] - _NS)
     idx = np.where(in_leap, nxt, idx)
-    delta_at = np.where(idx >= 0, lsk.delta_at[np.clip(idx, 0, None)], lsk.delta_at[0])
-    naive = tt2000 - int(TT_MINUS_TAI * _NS) - delta_at * _NS
+    delta_at = lsk.delta_at[np.clip(idx, 0, None)]
+    naive = tt2000 - TT_MINUS_TAI_NS - delta_at * _NS
     return naive, in_leap
+
+
+def _utc_naive_to_tt2000(
+    naive: np.ndarray, leap: np.ndarray | bool, lsk: LeapSecondTable
+) -> np.ndarray:
+    """Naive UTC ns past 2000-01-01T12 (``leap``: a ``23:59:60.x`` read as ``59.x``) -> TT2000."""
+    idx = np.searchsorted(lsk.epochs_naive_ns(), naive, side="right") - 1
+    delta_at = lsk.delta_at[np.clip(idx, 0, None)]
+    # 23:59:60.x is 23:59:59.x of the old TAI - UTC count plus one second
+    return naive + delta_at * _NS + TT_MINUS_TAI_NS + np.where(leap, _NS, 0)
+
+
+#: Smallest TT2000 (other than fill and pad) the UTC conversions accept: no int64 overflow
+#: (about 1707-09-22; the datetime64[ns] range starts in 1677).
+_TT2000_MIN = TT2000_FILL + 1000 * _NS
+
+
+def _check_tt2000(tt2000: np.ndarray, special: np.ndarray) -> None:
+    bad = (tt2000 < _TT2000_MIN) & ~special
+    if bad.any():
+        raise InputFormatError(
+            f"TT2000 value {int(tt2000[np.flatnonzero(bad)[0]])} is outside the supported "
+            f"range (>= {_TT2000_MIN}, or the CDF fill/pad values)",
+            field="tt2000",
+        )
+
+
+def tt2000_to_datetime64(tt2000: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
+    """Convert int64 TT2000 nanoseconds to UTC ``datetime64[ns]`` (e.g. an xarray time index).
+
+    Parameters
+    ----------
+    tt2000 : array_like of int64
+        TT2000 nanoseconds (the CDF epoch).
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    ndarray of datetime64[ns]
+        UTC, same shape as ``tt2000``.  The CDF fill (-2**63) and pad (-2**63 + 1)
+        values give NaT.
+
+    Raises
+    ------
+    InputFormatError
+        For a value that UTC datetime64[ns] cannot hold (before ~1708 or after 2262-04-11).
+
+    Notes
+    -----
+    ``datetime64`` has no leap seconds.  A time inside a leap second
+    (``23:59:60.000000000`` to ``23:59:60.999999999``) is clamped to
+    ``23:59:59.999999999``, so the index stays sorted (non-decreasing) and no time is
+    moved into the next day.  ``cdflib.cdfepoch.to_datetime`` (1.3) instead adds the
+    broken-down fields, which carries ``23:59:60.5`` into ``00:00:00.5`` of the next
+    day, one second late and out of order with the samples that follow; outside leap
+    seconds the two agree exactly (``tests/geometry/test_utc_exact.py``).  Use
+    `tt2000_to_utc` (seconds ``60``) or the TT2000 epoch itself where the leap second
+    must be seen.  See docs/decisions.md, geometry.
+    """
+    lsk = lsk or leapseconds()
+    tt = np.asarray(tt2000, dtype=np.int64)
+    shape = tt.shape
+    flat = tt.ravel()
+    special = flat <= TT2000_PAD
+    _check_tt2000(flat, special)
+    naive, in_leap = _tt2000_to_utc_naive(np.where(special, 0, flat), lsk)
+    naive = np.where(in_leap, naive - naive % _NS + (_NS - 1), naive)
+    too_late = naive > np.iinfo(np.int64).max - _J2000_UNIX_NS
+    if too_late.any():
+        raise InputFormatError(
+            f"TT2000 value {int(flat[np.flatnonzero(too_late)[0]])} is after the last "
+            "datetime64[ns] (2262-04-11)",
+            field="tt2000",
+        )
+    unix = np.where(special, np.iinfo(np.int64).min, naive + _J2000_UNIX_NS)
+    return unix.view("M8[ns]").reshape(shape)
+
+
+def datetime64_to_tt2000(dt64: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
+    """Convert UTC ``datetime64`` values to int64 TT2000 nanoseconds.
+
+    Parameters
+    ----------
+    dt64 : array_like of datetime64
+        UTC times, any unit (converted exactly to ns).  NaT gives the CDF fill value
+        `TT2000_FILL`.
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    ndarray of int64
+        TT2000 nanoseconds, same shape.
+
+    Raises
+    ------
+    InputFormatError
+        When the input is not datetime64, or does not fit datetime64[ns].
+
+    Notes
+    -----
+    The inverse of `tt2000_to_datetime64` except inside a leap second, which
+    ``datetime64`` cannot express: there the clamped ``23:59:59.999999999`` maps back to
+    itself, not to the leap second.
+    """
+    lsk = lsk or leapseconds()
+    d = np.asarray(dt64)
+    if d.dtype.kind != "M":
+        raise InputFormatError(f"expected datetime64 values, got dtype {d.dtype}", field="time")
+    nat = np.isnat(d)
+    ns = d.astype("M8[ns]")
+    if d.dtype != ns.dtype and np.any((ns.astype(d.dtype) != d) & ~nat):
+        i = int(np.flatnonzero(((ns.astype(d.dtype) != d) & ~nat).ravel())[0])
+        raise InputFormatError(
+            f"time {d.ravel()[i]} does not fit datetime64[ns] (1677-09-22 .. 2262-04-11)",
+            field="time",
+        )
+    naive = ns.view(np.int64) - _J2000_UNIX_NS
+    out = _utc_naive_to_tt2000(np.where(nat, 0, naive), False, lsk)
+    return np.where(nat, TT2000_FILL, out)
 
 
 def tt2000_to_utc(
@@ -264,10 +402,7 @@ def utc_to_tt2000(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.nda
             field="time_utc",
         ) from None
     naive = (stamp - _J2000_UTC_NAIVE).astype(np.int64)
-    idx = np.searchsorted(lsk.epochs_utc_naive.astype(np.int64) * _NS, naive, side="right") - 1
-    delta_at = lsk.delta_at[np.clip(idx, 0, None)]
-    # 23:59:60.x is read as 23:59:59.x of the old count plus one second
-    return naive + delta_at * _NS + int(TT_MINUS_TAI * _NS) + np.where(leap, _NS, 0)
+    return _utc_naive_to_tt2000(naive, leap, lsk)
 
 
 def _first_unparsable(text: np.ndarray) -> str:
