@@ -77,7 +77,13 @@ def _date_et(cal: MessengerCalibration, key: str) -> float:
 # 1. time
 # ----------------------------------------------------------------------------------------
 def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) -> xr.Dataset:
-    """Subtract each sample's net lag from its MET and convert to ET and TT2000.
+    """Convert each sample's MET to ET and TT2000 and subtract its net lag there.
+
+    The lag (Table 1, seconds) is subtracted from the ET of the recorded MET, not from
+    the MET before conversion: both are seconds (the SCLK rate differs from 1 by far
+    less than 1e-5, i.e. < 3e-5 s on a 2.4-s lag), and a sample recorded within the lag
+    after the start of an SCLK partition (e.g. partition 2, 2013-01-08) would otherwise
+    need a clock reading outside its partition (docs/decisions/messenger.md).
 
     Parameters
     ----------
@@ -100,9 +106,14 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
     """
     lag = per_sample_lag(ds["rate"].values, cal.net_lag_s)
     met = ds["met"].values - lag
-    # TT2000 straight from the clock's TT parallel time (no TDB round trip)
-    et, tt2000 = sclk.to_et_and_tt2000(ds["partition"].values, met)
-    et_recorded = sclk.to_et(ds["partition"].values, ds["met"].values)
+    # the recorded MET is a valid clock reading of its partition; the lag is subtracted
+    # on the ET (and TT2000) scale, so a sample recorded just after a partition start
+    # does not need a clock reading before it.  TT2000 straight from the clock's TT
+    # parallel time (no TDB round trip).
+    et_recorded, tt2000_recorded = sclk.to_et_and_tt2000(ds["partition"].values,
+                                                         ds["met"].values)
+    et = et_recorded - lag
+    tt2000 = tt2000_recorded - np.round(lag * 1e9).astype(np.int64)
     return _time_dataset(ds, lag, met, et, tt2000, et_recorded)
 
 
