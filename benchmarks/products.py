@@ -1,0 +1,195 @@
+"""MESSENGER ``edr2cdr`` end to end, as a user runs it: CSV inputs -> product files.
+
+Simulates one day of 20 Hz MESSENGER MAG inputs once (science, heater and temperature
+CSV files and a synthetic kernel set; the last 2 % of the day at rate setting 8, so the
+day has a fast -> slow switch), then runs ``fluxcal messenger edr2cdr`` (the CLI entry
+point `fluxcal.cli.main`, each case in a fresh child process so its peak RSS is its own)
+for
+
+(a) CSV -> CDF, frames MSO + RTN, default averages (1, 5, 10, 60 s);
+(b) the full default set: TAB + CDF, 5 frames, 4 averages, offsets report.
+
+The baseline, measured in the same run and also in a child process, is the calibration
+chain alone on the same inputs (the three CSV files read, then seed 000 sec. 5-13 in
+memory, no product).  Printed per case: wall seconds, vectors/s, the ratio to the
+baseline's time, peak RSS (``resource.getrusage(RUSAGE_SELF).ru_maxrss`` of the child)
+and seconds per stage (functions of `fluxcal.missions.messenger.run` and ``products``
+wrapped with a timer; nested stages are included in their callers).
+
+The numba cache is warmed first (one short ``edr2cdr`` run), so the figures do not
+include the one-off compilation.
+
+Usage: .venv/bin/python benchmarks/products.py [--hours 24] [--cases baseline,a,b]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+#: Stages timed in the child: (module, function name).
+STAGES = (
+    ("fluxcal.missions.messenger.run", "read_science"),
+    ("fluxcal.missions.messenger.run", "read_heater"),
+    ("fluxcal.missions.messenger.run", "read_temperature"),
+    ("fluxcal.missions.messenger.run", "calibrate"),
+    ("fluxcal.missions.messenger.run", "split_days"),
+    ("fluxcal.missions.messenger.run", "write_day"),
+    ("fluxcal.missions.messenger.run", "write_report"),
+    ("fluxcal.missions.messenger.products", "product_dataset"),
+    ("fluxcal.missions.messenger.products", "write_product"),
+)
+
+
+def simulate_inputs(folder: Path, hours: float) -> dict[str, Path]:
+    """Write the kernels and the three CSV input streams of ``hours`` of 20 Hz data."""
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_messenger_like_kernels
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+
+    duration = hours * 3600.0
+    config = SimulationConfig(duration_s=duration, rate_segments=[(0.0, 10), (0.98, 8)],
+                              coarse_intervals=[(0.5, 0.52)])
+    mk = write_messenger_like_kernels(folder / "kernels", config.start_utc,
+                                      duration + 2 * config.lead_s,
+                                      plus_y_sunward=[(0.2 * duration, 0.3 * duration)])
+    cal = load_calibration(config.start_utc)
+    with KernelPool(mk):
+        sim = simulate(config, cal, SclkKernel.from_pool(-236))
+    paths = write_inputs(sim, folder / "inputs")
+    paths["kernels"] = mk
+    return paths
+
+
+def _argv(paths: dict[str, Path], out: Path, case: str) -> list[str]:
+    argv = ["messenger", "edr2cdr", "--sci", str(paths["science"]),
+            "--heater", str(paths["heater"]), "--temperature", str(paths["temperature"]),
+            "--kernels", str(paths["kernels"]), "--out", str(out)]
+    if case == "a":
+        argv += ["--frames", "mso,rtn", "--formats", "cdf"]
+    return argv
+
+
+def _wrap_stages(times: dict[str, float]) -> None:
+    import importlib
+
+    for module_name, name in STAGES:
+        module = importlib.import_module(module_name)
+        func = getattr(module, name, None)
+        if func is None:
+            continue
+
+        def timed(*args, __f=func, __n=name, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return __f(*args, **kwargs)
+            finally:
+                times[__n] += time.perf_counter() - t0
+
+        setattr(module, name, timed)
+
+
+def child(case: str, paths: dict[str, Path], out: Path) -> dict:
+    """Run one case in this process; return wall time, stages, RSS and vector count."""
+    import numpy as np
+
+    times: dict[str, float] = defaultdict(float)
+    t0 = time.perf_counter()
+    if case == "baseline":
+        from fluxcal.geometry.kernels import KernelPool
+        from fluxcal.missions.messenger.calibration_data import load_calibration
+        from fluxcal.missions.messenger.pipeline import calibrate, day_of
+        from fluxcal.missions.messenger.readers import (
+            read_heater,
+            read_science,
+            read_temperature,
+        )
+
+        t = time.perf_counter()
+        sci = read_science([paths["science"]])
+        heat = read_heater([paths["heater"]])
+        temp = read_temperature([paths["temperature"]])
+        times["read inputs"] = time.perf_counter() - t
+        with KernelPool(paths["kernels"]):
+            t = time.perf_counter()
+            ds = calibrate(sci, heat, temp, load_calibration(day_of(sci)),
+                           max_offset_step=2.0)
+            times["calibrate"] = time.perf_counter() - t
+        n = int(ds.sizes["time"])
+        code = 0
+    else:
+        from fluxcal.cli import main
+
+        _wrap_stages(times)
+        code = main(_argv(paths, out, case))
+        with open(paths["science"], "rb") as fh:
+            n = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 24), b"")) - 1
+    wall = time.perf_counter() - t0
+    rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    files = sorted(out.iterdir()) if out.exists() else []
+    size = sum(p.stat().st_size for p in files if p.is_file())
+    return {"case": case, "code": code, "wall": wall, "stages": dict(times), "n": n,
+            "rss_mb": rss_mb, "files": len(files), "bytes": size,
+            "numpy": np.__version__}
+
+
+def run_case(case: str, paths: dict[str, Path], out: Path) -> dict:
+    spec = json.dumps({k: str(v) for k, v in paths.items()})
+    proc = subprocess.run([sys.executable, __file__, "--child", case, "--paths", spec,
+                           "--out", str(out)], capture_output=True, text=True, check=False)
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    if proc.returncode != 0 or not lines:
+        raise RuntimeError(f"case {case} failed:\n{proc.stdout}\n{proc.stderr}")
+    return json.loads(lines[-1])
+
+
+def report(res: dict, base: dict | None) -> None:
+    n, wall = res["n"], res["wall"]
+    ratio = f", {wall / base['wall']:.1f}x the baseline time" if base else ""
+    print(f"case {res['case']}: {wall:.2f} s, {n / wall:,.0f} vectors/s{ratio}, "
+          f"peak RSS {res['rss_mb']:.0f} MB, {res['files']} files, "
+          f"{res['bytes'] / 1e6:.0f} MB written")
+    for name, sec in res["stages"].items():
+        print(f"    {name:18s} {sec:7.2f} s")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hours", type=float, default=24.0)
+    parser.add_argument("--cases", default="baseline,a,b")
+    parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--paths", default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--out", default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        paths = {k: Path(v) for k, v in json.loads(args.paths).items()}
+        print(json.dumps(child(args.child, paths, Path(args.out))))
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        t0 = time.perf_counter()
+        paths = simulate_inputs(folder / "sim", args.hours)
+        print(f"simulated {args.hours:g} h of inputs in {time.perf_counter() - t0:.1f} s")
+        warm = simulate_inputs(folder / "warm", 0.05)
+        t0 = time.perf_counter()
+        run_case("b", warm, folder / "warm_out")
+        print(f"warm-up run (numba cache, imports): {time.perf_counter() - t0:.1f} s")
+        base = None
+        for case in args.cases.split(","):
+            res = run_case(case, paths, folder / f"out_{case}")
+            if case == "baseline":
+                base = res
+            report(res, base if case != "baseline" else None)
+
+
+if __name__ == "__main__":
+    main()
