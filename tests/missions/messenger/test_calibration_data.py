@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fluxcal.calibration.offsets import breakpoint_temperature, two_segment_offset
-from fluxcal.errors import CalibrationRangeError
+from fluxcal.errors import CalibrationError, CalibrationRangeError
 from fluxcal.missions.messenger.calibration_data import load_calibration, resolve_table
 
 SEED = Path(__file__).resolve().parents[3] / ".." / "shared" / "seeds" / "000_dc13c776705c8c22.txt"
@@ -120,3 +120,69 @@ def test_highest_version_wins(tmp_path):
     (tmp_path / "latency_v2.csv").write_text(v2)
     assert resolve_table("latency", "2009-01-01", tmp_path).version == 1
     assert resolve_table("latency", "2011-01-01", tmp_path).version == 2
+
+
+# Table 4's pre-launch offsets: the calibration-file switch (issue 11, decision in
+# docs/decisions/messenger.md)
+def _with_reading(tmp_path, reading):
+    import shutil
+
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    for p in data_dir().iterdir():
+        if p.suffix in (".csv", ".toml"):
+            shutil.copy(p, tmp_path / p.name)
+    src = (tmp_path / "processing_v1.toml").read_text()
+    assert 'prelaunch_offsets = "not_applied"' in src
+    v2 = src.replace("version = 1", "version = 2").replace(
+        'prelaunch_offsets = "not_applied"', f'prelaunch_offsets = "{reading}"')
+    (tmp_path / "processing_v2.toml").write_text(v2)
+    return load_calibration("2012-06-01", tmp_path)
+
+
+def test_prelaunch_offsets_not_applied_by_default(cal):
+    assert cal.prelaunch_offsets_reading == "not_applied"
+    np.testing.assert_array_equal(cal.offset_coefficients(), cal.temperature_coefficients)
+
+
+def test_prelaunch_offsets_switch(tmp_path, cal):
+    import xarray as xr
+
+    from fluxcal.calibration.relaxation import DutyCycleChanges
+    from fluxcal.missions.messenger import levels
+
+    alt = _with_reading(tmp_path, "added_to_table2")
+    assert alt.prelaunch_offsets_reading == "added_to_table2"
+
+    class Clock:  # the temperature stream's met is already ET
+        @staticmethod
+        def to_et(partition, met):
+            return np.asarray(met, dtype=float)
+
+    et = np.array([4.0e8, 4.0e8 + 10.0, 4.0e8 + 20.0, 4.0e8 + 30.0])  # 2012-09 (V10)
+    temps = np.array([-60.0, -10.0, 20.0, 35.0])  # both segments of every axis
+    ds = xr.Dataset({"et": ("time", et), "counts": (("time", "component"), np.zeros((4, 3))),
+                     "range": ("time", np.array([0, 0, 1, 1], dtype=np.int8)),
+                     "heater_signal": (("time", "component"), np.zeros((4, 3)))})
+    temp = xr.Dataset({"partition": ("t", np.ones(4)), "met": ("t", et),
+                       "temperature_c": ("t", temps)})
+    none = DutyCycleChanges(np.empty(0), np.empty(0))
+    from fluxcal.geometry.kernels import KernelPool
+
+    with KernelPool([]):  # the leapseconds kernel, for the V10 date
+        a = levels.correct_offsets(ds, temp, none, cal, Clock())
+        b = levels.correct_offsets(ds, temp, none, alt, Clock())
+    # fine range: Table 4's fine counts exactly (closed form: A0/A1 + offset)
+    np.testing.assert_allclose(b["offset_applied"].values[:2] - a["offset_applied"].values[:2],
+                               np.tile([-1017.0, -2520.0, -544.0], (2, 1)), rtol=0, atol=1e-9)
+    # coarse range: Table 4's coarse counts, to their printed 0.1-count rounding
+    np.testing.assert_allclose(b["offset_applied"].values[2:] - a["offset_applied"].values[2:],
+                               np.tile([-30.4, -75.2, -16.2], (2, 1)), rtol=0, atol=0.05)
+    # in nT (eq. 8): Table 4's -48/-118/-26 nT (printed to 1 nT)
+    fine = alt.matrices[0] @ np.array([-1017.0, -2520.0, -544.0])
+    np.testing.assert_allclose(fine, [-48.0, -118.0, -26.0], atol=0.8)
+
+
+def test_prelaunch_offsets_unknown_reading_is_an_error(tmp_path):
+    with pytest.raises(CalibrationError, match="prelaunch_offsets"):
+        _with_reading(tmp_path, "subtracted_twice")

@@ -201,6 +201,34 @@ class MessengerCalibration:
     files: list[tuple[str, int]]
     paths: tuple[Path, ...] = ()
 
+    @property
+    def prelaunch_offsets_reading(self) -> str:
+        """How Table 4's pre-launch offsets enter the offset model (``[offsets]`` table).
+
+        ``"not_applied"`` (default reading: Table 2 + Table 3 are the whole offset, eq. 1)
+        or ``"added_to_table2"`` (Table 2 is a residual after Table 4's offsets); see
+        docs/decisions/messenger.md.
+        """
+        return str(self.constants["offsets"]["prelaunch_offsets"])
+
+    def offset_coefficients(self) -> np.ndarray:
+        """Return ``A0, B0, A1, B1`` per axis of the total temperature offset (counts).
+
+        Table 2, with Table 4's fine-range pre-launch offsets added to ``A0`` and ``A1``
+        under the ``"added_to_table2"`` reading (a constant shift: ``T_m`` of eq. 4 is
+        unchanged; coarse-range samples get it through ``M_coarse^-1 M_fine``, which
+        reproduces Table 4's coarse offsets to 0.01 count).
+
+        References
+        ----------
+        .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 Table 2, sec. 8 Table 4.
+        """
+        out = np.array(self.temperature_coefficients, dtype=float)
+        if self.prelaunch_offsets_reading == "added_to_table2":
+            out[:, 0] += self.prelaunch_offsets[0]
+            out[:, 2] += self.prelaunch_offsets[0]
+        return out
+
     def date(self, key: str) -> np.datetime64:
         """Return the quality-table date ``key`` (e.g. ``"boom_deployment"``)."""
         return np.datetime64(self.constants["quality"][key], "s")
@@ -253,6 +281,13 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
             gain["alpha"][row], gain["beta"][row], gain["gamma"][row],
         )
         prelaunch[flag] = [gain[f"offset_{a}"][row] for a in "xyz"]
+    readings = ("not_applied", "added_to_table2")
+    proc = t["processing"]
+    if proc.toml.get("offsets", {}).get("prelaunch_offsets") not in readings:
+        raise CalibrationError(
+            f"{proc.path}: [offsets] prelaunch_offsets must be one of {readings} "
+            "(how Table 4's pre-launch offsets enter the offset model)"
+        )
     heater = []
     bins = None
     for axis in "xyz":

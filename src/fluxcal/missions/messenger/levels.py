@@ -261,7 +261,7 @@ def _offset_model_tables(changes: DutyCycleChanges, cal: MessengerCalibration) -
     result), decreasing ones (its ``ValueError``), or tables of other shapes.
     """
     rel = cal.constants["relaxation"]
-    coefficients = np.ascontiguousarray(cal.temperature_coefficients, dtype=float)
+    coefficients = np.ascontiguousarray(cal.offset_coefficients(), dtype=float)
     change_time = np.ascontiguousarray(changes.time, dtype=float)
     target = steady_state_offset(
         changes.duty_cycle_ppt, cal.duty_cycle_d0, rel["min_duty_cycle_ppt"]
@@ -301,7 +301,7 @@ def offset_model_reference(
     v10 = et >= _date_et(cal, "heater_mode_v10")
     fixed = cal.constants["pre_v10"]["fixed_temperature_c"]
     temp = np.where(v10, temp, fixed)
-    ct = two_segment_offset(temp, cal.temperature_coefficients)
+    ct = two_segment_offset(temp, cal.offset_coefficients())
     target = steady_state_offset(
         changes.duty_cycle_ppt, cal.duty_cycle_d0, rel["min_duty_cycle_ppt"]
     )
