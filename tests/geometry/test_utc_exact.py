@@ -87,7 +87,9 @@ def test_datetime64_fill_and_nat(lsk):
         datetime64_to_tt2000(np.array(["3000-01-01"], dtype="M8[s]"), lsk=lsk)
     with pytest.raises(InputFormatError, match="datetime64"):
         datetime64_to_tt2000(np.array([1, 2]), lsk=lsk)
-    with pytest.raises(InputFormatError, match="2262"):
+    with pytest.raises(InputFormatError, match="2262"):  # 2270: a TT2000, not a datetime64[ns]
+        tt2000_to_datetime64(np.array([_cdf([2270, 1, 1, 0, 0, 0, 0, 0, 0])]), lsk=lsk)
+    with pytest.raises(InputFormatError, match="outside the supported range"):
         tt2000_to_datetime64(np.array([np.iinfo(np.int64).max]), lsk=lsk)
 
 

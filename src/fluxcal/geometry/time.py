@@ -168,47 +168,61 @@ def tt2000_to_et(tt2000: np.ndarray, lsk: LeapSecondTable | None = None) -> np.n
 # ----------------------------------------------------------------------------------------
 # TT2000 <-> UTC
 # ----------------------------------------------------------------------------------------
-def _tt2000_to_utc_naive(tt2000: np.ndarray, lsk: LeapSecondTable) -> tuple[np.ndarray, np.ndarray]:
-    """Return naive UTC ns past 2000-01-01T12 and a mask of samples inside a leap second.
+#: Range of TT2000 values (other than fill and pad) the UTC conversions accept, so that
+#: no int64 sum overflows: about 1707-09-22 .. 2292-03-31.
+_TT2000_MIN = TT2000_FILL + 1000 * _NS
+_TT2000_MAX = np.iinfo(np.int64).max - 10**15
+
+
+def _check_tt2000(tt2000: np.ndarray, special: np.ndarray) -> None:
+    bad = ((tt2000 < _TT2000_MIN) | (tt2000 > _TT2000_MAX)) & ~special
+    if bad.any():
+        raise InputFormatError(
+            f"TT2000 value {int(tt2000[np.flatnonzero(bad)[0]])} is outside the supported "
+            f"range {_TT2000_MIN} .. {_TT2000_MAX} (or the CDF fill/pad values)",
+            field="tt2000",
+        )
+
+
+def _tt2000_to_utc_midnight(
+    tt2000: np.ndarray, lsk: LeapSecondTable
+) -> tuple[np.ndarray, np.ndarray | bool]:
+    """TT2000 -> naive UTC ns past 2000-01-01T00:00, and whether each is in a leap second.
 
     Int64 arithmetic only.  Inside a leap second (``23:59:60.x``) the naive time is that
-    of ``23:59:59.x`` (the new TAI - UTC already applies); the mask tells the caller to
-    show seconds ``60``.
+    of ``23:59:59.x`` (the new TAI - UTC already applies) and the mask tells the caller
+    to show seconds ``60``.  Before the first LSK epoch (1972) its TAI - UTC applies.
+    When all times lie between the same two leap seconds (a day of data, usually) the
+    offset is one scalar and no per-sample table search is made.
     """
-    leaps = lsk.leap_tt2000()
-    idx = np.searchsorted(leaps, tt2000, side="right") - 1
-    # inside the leap second that precedes leap i the new TAI-UTC already applies for display
-    nxt = np.clip(idx + 1, 0, len(leaps) - 1)
-    in_leap = (idx + 1 < len(leaps)) & (tt2000 >= leaps[nxt] - _NS)
-    idx = np.where(in_leap, nxt, idx)
-    delta_at = lsk.delta_at[np.clip(idx, 0, None)]
-    naive = tt2000 - TT_MINUS_TAI_NS - delta_at * _NS
-    return naive, in_leap
+    leaps = lsk.leap_tt2000()  # the leap second before leaps[i] is [leaps[i] - 1 s, leaps[i])
+    starts = leaps - _NS
+    shift = TT_MINUS_TAI_NS - _DAY_NS // 2  # naive counts from 12:00; this from 00:00
+    if tt2000.size:
+        lo, hi = int(tt2000.min()), int(tt2000.max())
+        j = np.searchsorted(starts, [lo, hi], side="right") - 1
+        if j[0] == j[1] and (j[0] < 0 or lo >= leaps[j[0]]):
+            return tt2000 - (shift + int(lsk.delta_at[max(j[0], 0)]) * _NS), False
+    j = np.searchsorted(starts, tt2000, side="right") - 1
+    jc = np.clip(j, 0, None)
+    in_leap = (j >= 0) & (tt2000 < leaps[jc])
+    return tt2000 - (shift + lsk.delta_at[jc] * _NS), in_leap
 
 
 def _utc_naive_to_tt2000(
     naive: np.ndarray, leap: np.ndarray | bool, lsk: LeapSecondTable
 ) -> np.ndarray:
     """Naive UTC ns past 2000-01-01T12 (``leap``: a ``23:59:60.x`` read as ``59.x``) -> TT2000."""
-    idx = np.searchsorted(lsk.epochs_naive_ns(), naive, side="right") - 1
+    epochs = lsk.epochs_naive_ns()
+    if naive.size:
+        j = np.searchsorted(epochs, [naive.min(), naive.max()], side="right") - 1
+        if j[0] == j[1]:
+            delta_at = int(lsk.delta_at[max(j[0], 0)])
+            return naive + (delta_at * _NS + TT_MINUS_TAI_NS) + np.where(leap, _NS, 0)
+    idx = np.searchsorted(epochs, naive, side="right") - 1
     delta_at = lsk.delta_at[np.clip(idx, 0, None)]
     # 23:59:60.x is 23:59:59.x of the old TAI - UTC count plus one second
     return naive + delta_at * _NS + TT_MINUS_TAI_NS + np.where(leap, _NS, 0)
-
-
-#: Smallest TT2000 (other than fill and pad) the UTC conversions accept: no int64 overflow
-#: (about 1707-09-22; the datetime64[ns] range starts in 1677).
-_TT2000_MIN = TT2000_FILL + 1000 * _NS
-
-
-def _check_tt2000(tt2000: np.ndarray, special: np.ndarray) -> None:
-    bad = (tt2000 < _TT2000_MIN) & ~special
-    if bad.any():
-        raise InputFormatError(
-            f"TT2000 value {int(tt2000[np.flatnonzero(bad)[0]])} is outside the supported "
-            f"range (>= {_TT2000_MIN}, or the CDF fill/pad values)",
-            field="tt2000",
-        )
 
 
 def tt2000_to_datetime64(tt2000: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
@@ -250,16 +264,21 @@ def tt2000_to_datetime64(tt2000: np.ndarray, lsk: LeapSecondTable | None = None)
     flat = tt.ravel()
     special = flat <= TT2000_PAD
     _check_tt2000(flat, special)
-    naive, in_leap = _tt2000_to_utc_naive(np.where(special, 0, flat), lsk)
-    naive = np.where(in_leap, naive - naive % _NS + (_NS - 1), naive)
-    too_late = naive > np.iinfo(np.int64).max - _J2000_UNIX_NS
+    midnight, in_leap = _tt2000_to_utc_midnight(
+        np.where(special, 0, flat) if special.any() else flat, lsk)
+    if np.any(in_leap):
+        midnight = np.where(in_leap, midnight - midnight % _NS + (_NS - 1), midnight)
+    to_unix = _J2000_UNIX_NS - _DAY_NS // 2
+    too_late = midnight > np.iinfo(np.int64).max - to_unix
     if too_late.any():
         raise InputFormatError(
             f"TT2000 value {int(flat[np.flatnonzero(too_late)[0]])} is after the last "
             "datetime64[ns] (2262-04-11)",
             field="tt2000",
         )
-    unix = np.where(special, np.iinfo(np.int64).min, naive + _J2000_UNIX_NS)
+    unix = midnight + to_unix
+    if special.any():
+        unix = np.where(special, np.iinfo(np.int64).min, unix)
     return unix.view("M8[ns]").reshape(shape)
 
 
@@ -296,21 +315,196 @@ def datetime64_to_tt2000(dt64: np.ndarray, lsk: LeapSecondTable | None = None) -
         raise InputFormatError(f"expected datetime64 values, got dtype {d.dtype}", field="time")
     nat = np.isnat(d)
     ns = d.astype("M8[ns]")
-    if d.dtype != ns.dtype and np.any((ns.astype(d.dtype) != d) & ~nat):
-        i = int(np.flatnonzero(((ns.astype(d.dtype) != d) & ~nat).ravel())[0])
-        raise InputFormatError(
-            f"time {d.ravel()[i]} does not fit datetime64[ns] (1677-09-22 .. 2262-04-11)",
-            field="time",
-        )
+    if d.dtype != ns.dtype:
+        lost = (ns.astype(d.dtype) != d) & ~nat
+        if lost.any():
+            i = int(np.flatnonzero(lost.ravel())[0])
+            raise InputFormatError(
+                f"time {d.ravel()[i]} does not fit datetime64[ns] (1677-09-22 .. 2262-04-11)",
+                field="time",
+            )
     naive = ns.view(np.int64) - _J2000_UNIX_NS
+    if not nat.any():
+        return _utc_naive_to_tt2000(naive, False, lsk)
     out = _utc_naive_to_tt2000(np.where(nat, 0, naive), False, lsk)
     return np.where(nat, TT2000_FILL, out)
 
 
+def _utc_parts(
+    tt2000: np.ndarray, lsk: LeapSecondTable | None
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, np.ndarray | bool]:
+    """Return the UTC fields of 1-d TT2000 values, the date part as a table of days.
+
+    Returns
+    -------
+    dates : dict of str to ndarray of int64
+        ``year, month, day, doy`` of each row of the day table.
+    row : ndarray of int
+        The day-table row of each time.
+    sec_of_day, nanosecond : ndarray of int64
+        Whole seconds of the naive day (0-86399) and nanoseconds of the second.
+    in_leap : ndarray of bool or False
+        Inside a leap second (show seconds 60 = ``sec_of_day`` 86399 plus one).
+
+    Notes
+    -----
+    The calendar is computed once per day of the range covered (the data of a day
+    touch one or two days), not once per time.  The CDF fill and pad values get two
+    extra rows (9999-12-31 and 0000-01-01) and times 23:59:59.999999999 and 0.
+    """
+    lsk = lsk or leapseconds()
+    fill = tt2000 == TT2000_FILL
+    pad = tt2000 == TT2000_PAD
+    special = fill | pad
+    any_special = bool(special.any())
+    _check_tt2000(tt2000, special)
+    midnight, in_leap = _tt2000_to_utc_midnight(
+        np.where(special, 0, tt2000) if any_special else tt2000, lsk)
+    days, ns_of_day = np.divmod(midnight, _DAY_NS)  # days past 2000-01-01
+    sec_of_day, nanosecond = np.divmod(ns_of_day, _NS)
+    first, last = (int(days.min()), int(days.max())) if days.size else (0, 0)
+    if last - first < max(days.size, 1024):
+        table_days = np.arange(first, last + 1, dtype=np.int64)
+        row = days - first
+    else:  # few times spread over many days: one calendar row per time
+        table_days, row = days, np.arange(days.size)
+    year, month, day, doy = _civil_from_days(table_days + 10_957)  # days past 1970-01-01
+    dates = {"year": year, "month": month, "day": day, "doy": doy}
+    if any_special:
+        extra = {"year": (9999, 0), "month": (12, 1), "day": (31, 1), "doy": (365, 1)}
+        dates = {k: np.concatenate([v, extra[k]]) for k, v in dates.items()}
+        n = table_days.size
+        row = np.where(fill, n, np.where(pad, n + 1, row))
+        sec_of_day = np.where(fill, 86_399, np.where(pad, 0, sec_of_day))
+        nanosecond = np.where(fill, _NS - 1, np.where(pad, 0, nanosecond))
+        if np.any(in_leap):
+            in_leap = in_leap & ~special
+    return dates, row, sec_of_day, nanosecond, in_leap
+
+
+def tt2000_to_utc_fields(
+    tt2000: np.ndarray, lsk: LeapSecondTable | None = None
+) -> dict[str, np.ndarray]:
+    """Break int64 TT2000 nanoseconds down into UTC calendar fields, exactly.
+
+    Parameters
+    ----------
+    tt2000 : array_like of int64
+        TT2000 nanoseconds (the CDF epoch).
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    dict of str to ndarray of int64
+        ``year, month, day, doy, hour, minute, second, nanosecond``, each of the shape of
+        ``tt2000``; ``doy`` is the day of the year (1-366), ``second`` is 60 inside a leap
+        second and ``nanosecond`` is 0-999,999,999.  The CDF fill value gives
+        9999-12-31 23:59:59.999999999 and the pad value 0000-01-01 00:00:00.000000000,
+        as ``cdflib.cdfepoch.breakdown_tt2000`` does.
+
+    Raises
+    ------
+    InputFormatError
+        For a value outside ~1708-2292 (other than fill and pad), where int64 sums
+        would overflow.
+
+    Notes
+    -----
+    Int64 arithmetic only: TAI - UTC from the LSK table, TT - TAI = `TT_MINUS_TAI_NS`,
+    the date from the day count by the proleptic Gregorian "civil from days" algorithm
+    of [1]_.  No float is formed, so the result is exact to the nanosecond.
+
+    References
+    ----------
+    .. [1] H. Hinnant, "chrono-Compatible Low-Level Date Algorithms" (``civil_from_days``).
+    .. [2] NAIF, "Time Required Reading" (UTC, TAI, leap seconds).
+    """
+    tt = np.asarray(tt2000, dtype=np.int64)
+    dates, row, sec_of_day, nanosecond, in_leap = _utc_parts(tt.ravel(), lsk)
+    fields = {name: value[row] for name, value in dates.items()}
+    fields["hour"] = sec_of_day // 3600
+    fields["minute"] = sec_of_day // 60 % 60
+    fields["second"] = sec_of_day % 60 + in_leap
+    fields["nanosecond"] = nanosecond
+    return {name: np.asarray(value, dtype=np.int64).reshape(tt.shape)
+            for name, value in fields.items()}
+
+
+def _civil_from_days(days: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Days past 1970-01-01 -> (year, month, day, day of year), proleptic Gregorian.
+
+    Hinnant's ``civil_from_days`` in int64 numpy (years start on 1 March inside it).
+    """
+    z = days + 719_468
+    era = z // 146_097
+    doe = z - era * 146_097  # day of the 400-year era, 0..146096
+    yoe = (doe - doe // 1460 + doe // 36_524 - doe // 146_096) // 365  # 0..399
+    doy_march = doe - (365 * yoe + yoe // 4 - yoe // 100)  # 0..365, 0 = 1 March
+    mp = (5 * doy_march + 2) // 153  # 0..11, 0 = March
+    day = doy_march - (153 * mp + 2) // 5 + 1
+    jan_feb = mp >= 10
+    month = np.where(jan_feb, mp - 9, mp + 3)
+    year = yoe + era * 400 + jan_feb
+    leap = (year % 4 == 0) & ((year % 100 != 0) | (year % 400 == 0))
+    # 1 March is day 60 (61 in a leap year); 1 January is 306 days after 1 March
+    doy = np.where(jan_feb, doy_march - 305, doy_march + 60 + leap)
+    return year, month, day, doy
+
+
+#: ASCII digits of 0..999, three per row (the formatting tables of `tt2000_to_utc`).
+_DIGITS = np.array([[48 + i // 100, 48 + i // 10 % 10, 48 + i % 10] for i in range(1000)],
+                   dtype=np.uint8)
+
+
+def _put(buf: np.ndarray, col: int, values: np.ndarray, first: int, count: int) -> None:
+    """Write digits ``first:first + count`` of the 3-digit form of ``values`` at ``col``."""
+    buf[:, col:col + count] = np.take(_DIGITS[:, first:first + count], values, axis=0)
+
+
+def _date_rows(dates: dict[str, np.ndarray], style: str) -> np.ndarray:
+    """ASCII ``YYYY-MM-DDT`` (iso) or ``YYYY DOY `` (doy) of each day, (n, 11 or 9) uint8."""
+    year = dates["year"]
+    rows = np.empty((year.size, 11 if style == "iso" else 9), dtype=np.uint8)
+    _put(rows, 0, year // 100, 1, 2)
+    _put(rows, 2, year % 100, 1, 2)
+    if style == "iso":
+        rows[:, 4] = rows[:, 7] = ord("-")
+        _put(rows, 5, dates["month"], 1, 2)
+        _put(rows, 8, dates["day"], 1, 2)
+        rows[:, 10] = ord("T")
+    else:
+        rows[:, 4] = rows[:, 8] = ord(" ")
+        _put(rows, 5, dates["doy"], 0, 3)
+    return rows
+
+
+_CLOCK_ROWS: dict[str, np.ndarray] = {}
+
+
+def _clock_rows(sep: str) -> np.ndarray:
+    """ASCII ``HH:MM:SS`` (``sep`` between) of seconds 0-86399 of a day, and ``23:59:60``."""
+    if sep not in _CLOCK_ROWS:
+        sec = np.arange(86_401)
+        rows = np.empty((sec.size, 8), dtype=np.uint8)
+        whole = np.minimum(sec, 86_399)  # the leap second is 23:59 and 60 s
+        _put(rows, 0, whole // 3600, 1, 2)
+        rows[:, 2] = rows[:, 5] = ord(sep)
+        _put(rows, 3, whole // 60 % 60, 1, 2)
+        _put(rows, 6, np.where(sec == 86_400, 60, sec % 60), 1, 2)
+        _CLOCK_ROWS[sep] = rows
+    return _CLOCK_ROWS[sep]
+
+
 def tt2000_to_utc(
-    tt2000: np.ndarray, style: str = "iso", digits: int = 3, lsk: LeapSecondTable | None = None
+    tt2000: np.ndarray,
+    style: str = "iso",
+    digits: int = 3,
+    lsk: LeapSecondTable | None = None,
+    *,
+    as_bytes: bool = False,
 ) -> np.ndarray:
-    """Format TT2000 nanoseconds as UTC strings.
+    """Format TT2000 nanoseconds as UTC strings, exactly.
 
     Parameters
     ----------
@@ -325,52 +519,72 @@ def tt2000_to_utc(
         does without the ``::RND`` token.
     lsk : LeapSecondTable, optional
         Leapseconds constants; default the loaded LSK.
+    as_bytes : bool
+        Return ASCII bytes (``S`` dtype, e.g. for CSV/CDF writers) instead of ``str``.
 
     Returns
     -------
-    ndarray of str
-        One string per time; a time inside a leap second shows seconds ``60``.
+    ndarray of str (``U``) or bytes (``S``)
+        Fixed-width strings, one per time, of the shape of ``tt2000`` (at least 1-d);
+        a time inside a leap second shows seconds ``60``.  The CDF fill value prints
+        as ``9999-12-31T23:59:59.999...`` (``9999 365 23 59 59.999...``).
+
+    Raises
+    ------
+    InputFormatError
+        For a TT2000 value outside ~1708-2292 other than the CDF fill/pad values.
+
+    Notes
+    -----
+    The fields come from the int64 arithmetic of `tt2000_to_utc_fields`, so a time
+    exactly on a millisecond prints that millisecond; formatting from a float64 ET that
+    may sit a few ns early would print the one before.  The characters are written
+    into an ``(n, width)`` uint8 array from tables (the date of each day covered, the
+    ``HH:MM:SS`` of each second of a day, the digits of 0-999) and viewed as
+    fixed-width strings: no per-sample Python and no per-field string operations.
+    A 20 Hz day (1.73 M times) formats in about 0.1 s (issue 10; it took ~2 s with
+    per-field ``np.char``).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i (seed 000), sec. 9 "UTC Conversion".
+    .. [2] NAIF, ``timout`` (truncation unless ``::RND``).
     """
     if style not in ("iso", "doy"):
         raise ValueError(f"style must be 'iso' or 'doy', not {style!r}")
     if not 0 <= digits <= 9:
         raise ValueError(f"digits must be within 0..9, not {digits}")
-    lsk = lsk or leapseconds()
-    tt2000 = np.atleast_1d(np.asarray(tt2000, dtype=np.int64))
-    naive, in_leap = _tt2000_to_utc_naive(tt2000, lsk)
-    stamp = _J2000_UTC_NAIVE + naive.astype("m8[ns]")
-    day = stamp.astype("M8[D]")
-    ns_of_day = (stamp - day).astype(np.int64)
-    year = day.astype("M8[Y]").astype(np.int64) + 1970
-    hour = ns_of_day // (3600 * _NS)
-    minute = ns_of_day // (60 * _NS) % 60
-    sec_ns = ns_of_day % (60 * _NS) + np.where(in_leap, _NS, 0)
-    whole = sec_ns // _NS
-    frac = (sec_ns % _NS) // 10 ** (9 - digits)
-    if style == "iso":
-        date = np.datetime_as_string(day, unit="D")
-        head = np.char.add(date, "T")
-        parts = [head, _pad(hour, 2), ":", _pad(minute, 2), ":", _pad(whole, 2)]
-    else:
-        doy = (day - day.astype("M8[Y]")).astype(np.int64) + 1
-        parts = [_pad(year, 4), " ", _pad(doy, 3), " ", _pad(hour, 2), " ", _pad(minute, 2), " ",
-                 _pad(whole, 2)]
+    tt = np.atleast_1d(np.asarray(tt2000, dtype=np.int64))
+    dates, row, sec_of_day, nanosecond, in_leap = _utc_parts(tt.ravel(), lsk)
+    date_rows = _date_rows(dates, style)
+    head = date_rows.shape[1] + 8
+    width = head + (digits + 1 if digits else 0)
+    buf = np.empty((tt.size, width), dtype=np.uint8)
+    buf[:, :head - 8] = np.take(date_rows, row, axis=0)
+    buf[:, head - 8:head] = np.take(_clock_rows(":" if style == "iso" else " "),
+                                    sec_of_day + in_leap, axis=0)
     if digits:
-        parts += [".", _pad(frac, digits)]
-    out = parts[0]
-    for part in parts[1:]:
-        out = np.char.add(out, part)
-    return out
-
-
-def _pad(values: np.ndarray, width: int) -> np.ndarray:
-    return np.char.zfill(values.astype(np.int64).astype(str), width)
+        buf[:, head] = ord(".")
+        groups = (nanosecond // 1_000_000, nanosecond // 1000 % 1000, nanosecond % 1000)
+        for g in range((digits + 2) // 3):
+            _put(buf, head + 1 + 3 * g, groups[g], 0, min(3, digits - 3 * g))
+    if as_bytes:
+        out = buf.view(f"S{width}")
+    else:
+        out = buf.astype(np.uint32).view(f"U{width}")
+    return out.reshape(tt.shape)
 
 
 def et_to_utc(
     et: np.ndarray, style: str = "iso", digits: int = 3, lsk: LeapSecondTable | None = None
 ) -> np.ndarray:
-    """Format ephemeris times as UTC strings (see `tt2000_to_utc`)."""
+    """Format ephemeris times as UTC strings (see `tt2000_to_utc`).
+
+    The float64 ET is rounded to the nearest TT2000 nanosecond first; ET itself resolves
+    only ~60 ns at these epochs, so a time meant to lie on a millisecond may print the
+    millisecond before.  Products hold the integer TT2000 epoch and should format it with
+    `tt2000_to_utc`.
+    """
     lsk = lsk or leapseconds()
     return tt2000_to_utc(et_to_tt2000(et, lsk), style=style, digits=digits, lsk=lsk)
 
