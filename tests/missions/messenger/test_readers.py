@@ -156,3 +156,27 @@ def test_writer_reader_round_trip(simulated, simulated_files):
     temp = read_temperature(simulated_files["temperature"])
     np.testing.assert_allclose(temp["temperature_c"].values,
                                simulated["temperature"]["temperature_c"].values, atol=5e-5)
+
+
+@pytest.mark.parametrize(
+    ("body", "line", "field", "match"),
+    [
+        (["1,1000.0,10,0,1,2,3", "", "1,1000.1,10,0,1,2,3"], 3, None, "empty line"),
+        (["1,1000.0,10,0,1,2,3", "1,1000.1,10,0,,2,3"], 3, "cx", "non-numeric"),
+        (["1,1000.0,10,0,1,2,3", "1,1000.1,10,0,NA,2,3"], 3, "cx", "non-numeric"),
+        (["1,1000.0,10,0,1,2,3", "1,1000.1,10,0,1,2,3,4"], 3, None, "expected 7 fields"),
+        (["1,1000.0,10,0,1,2,3", "1,inf,10,0,1,2,3"], 3, "met", "non-finite"),
+    ],
+)
+def test_fast_reader_defects_name_line_and_field(tmp_path, body, line, field, match):
+    """The pyarrow reader rejects what it cannot parse; the message names line and field."""
+    path = _write(tmp_path, "bad.csv", [SCI_HEADER, *body])
+    with pytest.raises(InputFormatError, match=match) as info:
+        read_science(path)
+    assert info.value.line == line and info.value.field == field
+
+
+def test_header_only_and_blank_padded_numbers(tmp_path):
+    assert read_science(_write(tmp_path, "empty.csv", [SCI_HEADER])).sizes["time"] == 0
+    ds = read_science(_write(tmp_path, "pad.csv", [SCI_HEADER, "1, 1000.5,10,0,1,2,3"]))
+    assert ds["met"].values.tolist() == [1000.5]

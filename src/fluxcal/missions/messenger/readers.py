@@ -61,28 +61,62 @@ def _read_table(path: Path, expected: Sequence[str]) -> np.ndarray:
             )
     if len(set(names)) != len(names):
         raise InputFormatError("duplicate column names", path=str(path), line=1)
-    try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
-    except ValueError:
-        _diagnose(path, names)
-        raise  # pragma: no cover - _diagnose always raises
-    if data.shape[0] == 0:
-        data = np.empty((0, len(names)))
-    if data.shape[1] != len(names):
-        _diagnose(path, names)
+    data = _parse_numbers(path, names, [names.index(n) for n in expected])
     bad = ~np.isfinite(data)
     if bad.any():
         row, col = np.argwhere(bad)[0]
         raise InputFormatError(
             "non-finite value; expected a finite number", path=str(path), line=int(row) + 2,
-            field=names[col],
+            field=expected[col],
         )
-    order = [names.index(n) for n in expected]
-    return data[:, order]
+    return data
+
+
+def _parse_numbers(path: Path, names: list[str], order: list[int]) -> np.ndarray:
+    """Parse the CSV body as float64, shape (n, len(names)), columns ``names[order]``.
+
+    Uses pyarrow's CSV reader.
+
+    pyarrow parses in C++ (~20x ``np.loadtxt``).  Empty fields are not taken as missing
+    values and empty lines are not skipped, so every defect fails the parse; the slow
+    line-by-line `_diagnose` then names the file, line and field.
+    """
+    import pyarrow as pa
+    from pyarrow import csv as pacsv
+
+    try:
+        table = pacsv.read_csv(
+            path,
+            read_options=pacsv.ReadOptions(skip_rows=1, column_names=names,
+                                           block_size=1 << 24),
+            parse_options=pacsv.ParseOptions(delimiter=",", ignore_empty_lines=False),
+            convert_options=pacsv.ConvertOptions(
+                column_types={n: pa.float64() for n in names}, null_values=[],
+                strings_can_be_null=False, quoted_strings_can_be_null=False),
+        )
+    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        _diagnose(path, names)  # raises naming the line and field of a defect
+        # every line parses with Python's float: numpy's more lenient parser decides
+        try:
+            full = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        except ValueError as exc:
+            raise InputFormatError(f"malformed CSV: {exc}", path=str(path)) from None
+        return full.reshape(-1, len(names))[:, order]
+    data = np.empty((table.num_rows, len(names)))
+    for j, k in enumerate(order):
+        column = table.column(k)
+        if column.null_count:  # pragma: no cover - null_values=[] leaves none
+            raise InputFormatError("missing value", path=str(path), field=names[k])
+        data[:, j] = column.to_numpy()
+    return data
 
 
 def _diagnose(path: Path, names: list[str]) -> None:
-    """Find the first malformed line (slow path, only after a parse failure) and raise."""
+    """Find the first malformed line (slow path, only after a parse failure) and raise.
+
+    Returns without raising when every line has the right number of fields, each of
+    which Python's ``float`` accepts.
+    """
     with path.open() as fh:
         fh.readline()
         for lineno, line in enumerate(fh, start=2):
@@ -101,7 +135,6 @@ def _diagnose(path: Path, names: list[str]) -> None:
                         f"non-numeric value {value.strip()!r}; expected a number",
                         path=str(path), line=lineno, field=name,
                     ) from None
-    raise InputFormatError("malformed CSV", path=str(path))  # pragma: no cover
 
 
 def _check_integer(
@@ -181,7 +214,7 @@ def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
         for j, name in enumerate(("cx", "cy", "cz")):
             _check_integer(path, data[:, 4 + j], name, *COUNT_LIMITS,
                            f"the signed 16-bit count limits {COUNT_LIMITS}")
-    data = np.concatenate(tables) if tables else np.empty((0, 7))
+    data = tables[0] if len(tables) == 1 else np.concatenate(tables)
     return xr.Dataset(
         {
             "partition": ("time", data[:, 0].astype(np.int8), {"units": "1"}),
