@@ -162,6 +162,8 @@ def _models(coeffs_by_day):
 
 
 def test_midnight_stitching_removes_jump():
+    """Sec. 4.2.3.3 as written: day 2 is shifted so that its first vector gets the offset
+    stored for day 1's last vector; the applied offset has no jump at midnight."""
     ns = 1_000_000_000
     # two days, 1-minute sampling across midnight; temperature drifts linearly
     epoch = np.arange(-3600, 3600, 60, dtype=np.int64) * ns
@@ -178,19 +180,39 @@ def test_midnight_stitching_removes_jump():
     models = _models({"2014-08-01": c1, "2014-08-02": c2})
     off, state, sources = level_a.extended_offset(epoch, temperature, day_index, days, models)
     i = np.flatnonzero(epoch >= 0)[0]
-    te = temperature[i - 1]
-    # closed form: day 2 shifted by P2(Te) - P1(Te)
+    # closed form: day 2 shifted by P2(T_first) - P1(T_last)
     p1 = lambda t: c1[0] + c1[1] * t  # noqa: E731
     p2 = lambda t: c2[0] + c2[1] * t + c2[2] * t**2  # noqa: E731
+    shift = p2(temperature[i]) - p1(temperature[i - 1])
     np.testing.assert_allclose(off[:i], np.array([p1(t) for t in temperature[:i]]), atol=1e-12)
     np.testing.assert_allclose(
-        off[i:], np.array([p2(t) for t in temperature[i:]]) - (p2(te) - p1(te)), atol=1e-12
+        off[i:], np.array([p2(t) for t in temperature[i:]]) - shift, atol=1e-12
     )
-    # the jump at midnight is now only the temperature step of one sample
-    step = off[i] - off[i - 1]
-    assert np.abs(step).max() < 0.3 * 1.5
-    np.testing.assert_allclose(state.correction, p2(te) - p1(te))
+    np.testing.assert_allclose(off[i], off[i - 1], atol=1e-12)  # no jump at all
+    np.testing.assert_allclose(state.correction, shift, atol=1e-12)
+    np.testing.assert_allclose(state.offset, off[-1], atol=1e-12)
     assert len(sources) == 2
+
+
+def test_stitching_across_gap_with_temperature_change():
+    """Issue 11: across a 2 h gap with a 10 C temperature change the earlier matching of
+    both polynomials at the last temperature left the day-2 slope times 10 C at midnight
+    (0.5 nT here); stored-offset matching (sec. 4.2.3.3) leaves 0 nT."""
+    ns = 1_000_000_000
+    epoch = np.array([-3 * 3600, -3600, 3600, 2 * 3600], dtype=np.int64) * ns  # 2 h gap
+    t = np.array([-100.0, -100.0, -90.0, -90.0])  # +10 C across the gap
+    c1 = np.zeros((6, 3))
+    c1[0] = [1.0, -2.0, 3.0]
+    c2 = np.zeros((6, 3))
+    c2[0] = [4.0, 0.0, -1.0]
+    c2[1] = [0.05, -0.05, 0.02]  # nT/C: 10 C -> 0.5, -0.5, 0.2 nT
+    models = _models({"2014-08-01": c1, "2014-08-02": c2})
+    days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
+    off, state, _ = level_a.extended_offset(epoch, t, np.array([0, 0, 1, 1]), days, models)
+    # before (P2(Te) - P1(Te) matching): off[2] - off[1] = [0.5, -0.5, 0.2] nT
+    np.testing.assert_allclose(off[2] - off[1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(off[1], c1[0], atol=1e-12)
+    np.testing.assert_allclose(off[3], off[2], atol=1e-12)  # same temperature within day 2
 
 
 def test_no_stitching_across_long_gap():
@@ -215,8 +237,10 @@ def test_stitch_state_carried_between_calls():
     ns = 1_000_000_000
     c1 = np.zeros((6, 3))
     c1[0] = 1
+    c1[1] = 0.1
     c2 = np.zeros((6, 3))
     c2[0] = 4
+    c2[1] = -0.2
     m1 = _models({"2014-08-01": c1})
     m2 = _models({"2014-08-02": c2})
     d1, d2 = [np.datetime64("2014-08-01")], [np.datetime64("2014-08-02")]
@@ -225,9 +249,25 @@ def test_stitch_state_carried_between_calls():
     )
     state = level_a.StitchState.from_attrs(state.to_attrs())
     off, _, _ = level_a.extended_offset(
-        np.array([10 * ns]), np.array([0.0]), np.array([0]), d2, m2, previous=state
+        np.array([10 * ns, 20 * ns]), np.array([5.0, 10.0]), np.array([0, 0]), d2, m2,
+        previous=state,
     )
-    np.testing.assert_allclose(off, 1.0)
+    # first vector of day 2 gets day 1's end offset (1 nT); the second follows P2's slope
+    np.testing.assert_allclose(off[:, 0], [1.0, 1.0 - 0.2 * 5.0])
+    with pytest.raises(ValueError, match="not before"):  # a state of the same/later day
+        level_a.extended_offset(
+            np.array([-20 * ns]), np.array([0.0]), np.array([0]), d2, m2, previous=state
+        )
+
+
+def test_old_stitch_state_attributes_are_converted():
+    c = np.zeros((6, 3))
+    c[0] = [1.0, 2.0, 3.0]
+    c[1] = [0.1, 0.2, 0.3]
+    old = {"stitch_epoch": 5, "stitch_temperature_c": 10.0,
+           "stitch_coefficients": c.ravel().tolist(), "stitch_correction_nt": [0.5, 0.5, 0.5]}
+    state = level_a.StitchState.from_attrs(old)
+    np.testing.assert_allclose(state.offset, [1.5, 3.5, 5.5])
 
 
 def test_word_lookup_equals_per_vector_formula():

@@ -158,15 +158,18 @@ def test_round_trip_across_midnight_with_two_daily_files(pool):
     a = level_a.level_a(sim.science["OB"], cals["OB"], ts, nom, daily_models=models["OB"])
     diff = _compare(a, sim.truth["OB"])
     assert np.all(np.sqrt((diff**2).mean(axis=0)) < RMS_NT)
-    # independent of the forward model: with stitching, the offset difference between the
-    # two days cancels at the last temperature of day 1 (closed form from sec. 4.2.3.3)
+    # independent of the forward model: with stitching, day 2 is shifted so that its first
+    # vector gets the offset of day 1's last vector (closed form from sec. 4.2.3.3)
     state = level_a.StitchState.from_attrs(a.attrs)
     raw = sim.science["OB"]
     good = level_a.good_vectors(raw["quality"].values)
     midnight = utc_to_tt2000(np.array(["2014-08-02T00:00:00"]))[0]
     last = np.flatnonzero(good & (raw["epoch"].values < midnight))[-1]
-    te = level_a.sensor_temperature(raw["t_ob_counts"].values[[last]], cals["OB"], nom)[0]
+    first = np.flatnonzero(good & (raw["epoch"].values >= midnight))[0]
+    te, tf = level_a.sensor_temperature(
+        raw["t_ob_counts"].values[[last, first]], cals["OB"], nom
+    )
     p = lambda c, t: c[0] + c[1] * t  # noqa: E731
     c1, c2 = (models["OB"][d].coefficients for d in days)
-    np.testing.assert_allclose(state.correction, p(c2, te) - p(c1, te), atol=1e-12)
+    np.testing.assert_allclose(state.correction, p(c2, tf) - p(c1, te), atol=1e-12)
     assert a.attrs["extended_temperature_model"].count("OB 2014-08-0") == 2

@@ -188,10 +188,18 @@ class GroundCalibration:
         File and version, for provenance.
     validity : Validity
         Validity interval from the file header.
+    residual_in_offset : bool
+        Key ``B_RES_IN_OFFSET`` (1 default, 0): whether ``B_RES`` is subtracted in the
+        offset (sec. 3.3.1.1 / 3.3.2.1 and 3.2.2.1 write it, sec. 3.3 "Combining all this"
+        and 4.2.3.2 item 2 do not); docs/decisions/rosetta.md, decision 25.
+    reduced_temperature : str
+        Key ``REDUCED_TEMPERATURE``: the variable of the daily extended-temperature
+        polynomial of sec. 4.2.3.3, ``CALIBRATED`` (default, ``T~ = T^c``) or
+        ``CALIBRATED_MINUS_T_OFF`` (``T~ = T^c - T^O``); decision 26.
 
     References
     ----------
-    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1, 3.3.2 (tables), 3.3.3.
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1, 3.3.2 (tables), 3.3.3, 4.2.3.3.
     """
 
     sensor: str
@@ -205,6 +213,29 @@ class GroundCalibration:
     source: str = ""
     version: str = ""
     validity: Validity = field(default_factory=lambda: Validity(""))
+    residual_in_offset: bool = True
+    reduced_temperature: str = "CALIBRATED"
+
+    def extended_model_temperature(self, calibrated: np.ndarray) -> np.ndarray:
+        """Return the reduced temperature ``T~`` of sec. 4.2.3.3 from the calibrated ``T^c``."""
+        t = np.asarray(calibrated, dtype=float)
+        if self.reduced_temperature == "CALIBRATED_MINUS_T_OFF":
+            return t - self.thermistor_offset
+        return t
+
+
+#: Values of the ``REDUCED_TEMPERATURE`` key (decision 26).
+REDUCED_TEMPERATURES = ("CALIBRATED", "CALIBRATED_MINUS_T_OFF")
+
+
+def _switch(entries: dict, key: str, allowed: tuple[str, ...], default: str, path: Path) -> str:
+    value = (_text(entries, key) or default).upper()
+    if value not in allowed:
+        raise CalibrationError(
+            f"{path}, line {entries[key][1]}: {key} = {value!r}, expected one of "
+            + ", ".join(allowed)
+        )
+    return value
 
 
 def read_ground_calibration(path: Path, sensor: str | None = None) -> GroundCalibration:
@@ -225,7 +256,8 @@ def read_ground_calibration(path: Path, sensor: str | None = None) -> GroundCali
     References
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1.1-3.3.3 (labels A_0, A_1, SIGMA_00,
-       SIGMA_01, XI_10, XI_11, K_0..K_2, T_0..T_3, T_OFF).
+       SIGMA_01, XI_10, XI_11, K_0..K_2, T_0..T_3, T_OFF); the switches
+       ``B_RES_IN_OFFSET`` and ``REDUCED_TEMPERATURE`` are fluxcal's (decisions 25, 26).
     """
     path = Path(path)
     entries = read_key_file(path)
@@ -249,6 +281,10 @@ def read_ground_calibration(path: Path, sensor: str | None = None) -> GroundCali
         source=str(path),
         version=_text(entries, "VERSION", "unversioned") or "",
         validity=Validity(str(path), start, end),
+        residual_in_offset=_switch(entries, "B_RES_IN_OFFSET", ("1", "0"), "1", path) == "1",
+        reduced_temperature=_switch(
+            entries, "REDUCED_TEMPERATURE", REDUCED_TEMPERATURES, "CALIBRATED", path
+        ),
     )
 
 
@@ -275,6 +311,8 @@ def write_ground_calibration(cal: GroundCalibration, path: Path) -> Path:
         *(f"K_{i} = {vec(cal.k_inverse[i])}" for i in range(3)),
         *(f"T_{i} = {vec(cal.thermistor[i])}" for i in range(4)),
         f"T_OFF = {cal.thermistor_offset!r}",
+        f"B_RES_IN_OFFSET = {int(cal.residual_in_offset)}",
+        f"REDUCED_TEMPERATURE = {cal.reduced_temperature}",
     ]
     Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
     return Path(path)

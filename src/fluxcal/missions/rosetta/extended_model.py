@@ -2,7 +2,8 @@
 
 The daily polynomial ``P_d(T)`` (files ``RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT``) is
 subtracted from the ground-calibrated field; consecutive days of one campaign are shifted
-so the applied offset is continuous at midnight.
+so that the offset of the day's first vector equals the offset stored for the previous
+day's last vector (the midnight jump vanishes; docs/decisions/rosetta.md, decision 27).
 
 References
 ----------
@@ -28,43 +29,114 @@ STITCH_GAP_S = 3 * 3600.0
 class StitchState:
     """End-of-day state carried to the next day's midnight stitching (sec. 4.2.3.3).
 
+    "The specific calculated offset values at the end of a day are stored in a separate
+    file": the extended offset applied to the day's last vector, and when that vector was.
+
     Attributes
     ----------
     epoch : int
-        TT2000 ns of the last vector of the previous day.
-    temperature : float
-        Its calibrated temperature (deg C).
-    coefficients : ndarray, shape (6, 3)
-        The previous day's polynomial.
+        TT2000 ns of the last vector of the day (telemetry time, before the filter shift).
+    offset : ndarray, shape (3,)
+        The extended-model offset (nT) subtracted from that vector, ``P_d(T~_e) - c_d``.
     correction : ndarray, shape (3,)
-        The shift (nT) already subtracted from the previous day's polynomial.
+        The day's shift ``c_d`` (nT), for the record.
     """
 
     epoch: int
-    temperature: float
-    coefficients: np.ndarray
+    offset: np.ndarray
     correction: np.ndarray
 
     def to_attrs(self) -> dict:
         """Flatten into dataset attributes (``stitch_*``)."""
         return {
             "stitch_epoch": int(self.epoch),
-            "stitch_temperature_c": float(self.temperature),
-            "stitch_coefficients": np.asarray(self.coefficients, dtype=float).ravel().tolist(),
+            "stitch_offset_nt": np.asarray(self.offset, dtype=float).tolist(),
             "stitch_correction_nt": np.asarray(self.correction, dtype=float).tolist(),
         }
 
     @classmethod
     def from_attrs(cls, attrs: Mapping) -> StitchState | None:
-        """Rebuild from `to_attrs` output; ``None`` when the attributes are absent."""
+        """Rebuild from `to_attrs` output; ``None`` when the attributes are absent.
+
+        A state written by fluxcal before decision 27 (last temperature, coefficients and
+        correction) is converted: its end offset is ``P(T_e) - correction``.
+        """
         if "stitch_epoch" not in attrs:
             return None
-        return cls(
-            int(attrs["stitch_epoch"]),
-            float(attrs["stitch_temperature_c"]),
-            np.asarray(attrs["stitch_coefficients"], dtype=float).reshape(6, 3),
-            np.asarray(attrs["stitch_correction_nt"], dtype=float),
+        correction = np.asarray(attrs["stitch_correction_nt"], dtype=float)
+        if "stitch_offset_nt" in attrs:
+            offset = np.asarray(attrs["stitch_offset_nt"], dtype=float)
+        else:
+            coefficients = np.asarray(attrs["stitch_coefficients"], dtype=float).reshape(6, 3)
+            te = np.array([float(attrs["stitch_temperature_c"])])
+            offset = thermal.polynomial(coefficients, te)[0] - correction
+        if offset.shape != (3,) or correction.shape != (3,):
+            raise ValueError("stitch_offset_nt and stitch_correction_nt need 3 values each")
+        return cls(int(attrs["stitch_epoch"]), offset, correction)
+
+
+def day_correction(
+    first_epoch: int,
+    first_model_offset: np.ndarray,
+    previous: StitchState | None,
+    stitch_gap_s: float = STITCH_GAP_S,
+) -> np.ndarray:
+    """Return the shift ``c_d`` (nT) of a day (``first_model_offset``: ``P_d`` at its start).
+
+    Sec. 4.2.3.3: "the data of the following day will be shifted in that way that a
+    possible midnight jump disappears": ``c_d = P_d(T~_first) - O_end`` with ``O_end`` the
+    offset applied to the previous day's last vector, so the first vector of the day gets
+    exactly the offset of the last one before.  No shift (``c_d = 0``) without a previous
+    state or when the gap exceeds ``stitch_gap_s`` ("if subsequent measurements are
+    interrupted by more than a few hours an offset-jump adaption is neither needed nor
+    used").
+
+    Raises
+    ------
+    ValueError
+        The previous state is not before ``first_epoch`` (e.g. the state file of the same or
+        a later day).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3.
+    """
+    if previous is None:
+        return np.zeros(3)
+    gap = int(first_epoch) - int(previous.epoch)
+    if gap <= 0:
+        raise ValueError(
+            f"stitching state of TT2000 {previous.epoch} is not before the first vector "
+            f"(TT2000 {int(first_epoch)}): pass the state of the previous day"
         )
+    if gap > stitch_gap_s * NS:
+        return np.zeros(3)
+    return np.asarray(first_model_offset, dtype=float) - previous.offset
+
+
+def stitch_day(
+    model: DailyOffsetModel,
+    first: tuple[int, float],
+    last: tuple[int, float],
+    previous: StitchState | None,
+    stitch_gap_s: float = STITCH_GAP_S,
+) -> tuple[np.ndarray, StitchState]:
+    """Shift and end state of one day from its first and last vector alone.
+
+    ``first`` and ``last`` are ``(epoch TT2000 ns, reduced temperature deg C)`` of the day's
+    first and last good vector.  The batch resolves the chain of days with this (without
+    calibrating the whole day); `extended_offset` gives the same numbers.
+
+    Returns
+    -------
+    correction : ndarray, shape (3,)
+    state : StitchState
+        End of the day.
+    """
+    t = np.array([first[1], last[1]], dtype=float)
+    p = thermal.polynomial(model.coefficients, t)
+    correction = day_correction(first[0], p[0], previous, stitch_gap_s)
+    return correction, StitchState(int(last[0]), p[1] - correction, correction)
 
 
 def extended_offset(
@@ -80,18 +152,19 @@ def extended_offset(
 ) -> tuple[np.ndarray, StitchState | None, list[str]]:
     """Daily extended-temperature offsets with the midnight stitching of sec. 4.2.3.3.
 
-    For day ``d`` with polynomial ``P_d`` the offset is ``P_d(T) - c_d``.  When the gap
-    from the previous day's last vector to this day's first is at most ``stitch_gap_s``,
-    ``c_d = c_{d-1} + P_d(T_e) - P_{d-1}(T_e)`` with ``T_e`` the last temperature of the
-    previous day, so the applied offset is continuous across midnight; otherwise (a new
-    campaign) ``c_d = 0``.  A day without a file has offset 0 and breaks the chain.
+    For day ``d`` with polynomial ``P_d`` the offset is ``P_d(T~) - c_d``, ``c_d`` from
+    `day_correction`: when the previous day's last vector is at most ``stitch_gap_s``
+    before this day's first, the day is shifted so that its first vector gets the offset
+    of the previous day's last vector (the jump vanishes); otherwise (a new campaign)
+    ``c_d = 0``.  A day without a file has offset 0 and breaks the chain.
 
     Parameters
     ----------
     epoch : ndarray of int64, shape (n,)
         Time stamps (TT2000 ns, before the filter time shift), non-decreasing.
     temperature : ndarray, shape (n,)
-        Calibrated sensor temperature, deg C (the polynomial's variable, issue 4).
+        Reduced temperature ``T~`` (deg C), the polynomial's variable
+        (`GroundCalibration.extended_model_temperature`).
     day_index : ndarray of int, shape (n,)
         Index into ``days`` of each vector's UTC day.
     days : list of numpy.datetime64[D]
@@ -113,6 +186,11 @@ def extended_offset(
     sources : list of str
         Files used.
 
+    Raises
+    ------
+    ValueError
+        ``previous`` is not before the first vector.
+
     References
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3.
@@ -132,20 +210,15 @@ def extended_offset(
             continue
         sources.append(model.source)
         t = temperature[i0:i1]
-        correction = np.zeros(3)
-        if state is not None and (epoch[i0] - state.epoch) <= stitch_gap_s * NS:
-            te = np.array([state.temperature])
-            correction = (
-                state.correction
-                + thermal.polynomial(model.coefficients, te)[0]
-                - thermal.polynomial(state.coefficients, te)[0]
-            )
+        correction, state = stitch_day(
+            model, (int(epoch[i0]), float(t[0])), (int(epoch[i1 - 1]), float(t[-1])), state,
+            stitch_gap_s,
+        )
         if lookup is None:
             out[i0:i1] = thermal.polynomial(model.coefficients, t) - correction
         else:
             index, grid = lookup
             out[i0:i1] = (thermal.polynomial(model.coefficients, grid) - correction)[index[i0:i1]]
-        state = StitchState(int(epoch[i1 - 1]), float(t[-1]), model.coefficients, correction)
     return out, state, sources
 
 

@@ -21,7 +21,7 @@ import xarray as xr
 from fluxcal.calibration import counts as cnt
 from fluxcal.calibration import matrices as mat
 from fluxcal.calibration import thermal, timeshift
-from fluxcal.errors import InputFormatError
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.rosetta import hk
 from fluxcal.missions.rosetta.calib import (
     DailyOffsetModel,
@@ -94,11 +94,15 @@ def sensor_temperature(counts: np.ndarray, cal: GroundCalibration, nominal: dict
 def offset(temperature: np.ndarray, cal: GroundCalibration) -> np.ndarray:
     """Sensor offset ``B_off = A_0 + A_1 T - B_res`` (nT), shape (n, 3).
 
+    ``B_res`` is left out when the calibration file says ``B_RES_IN_OFFSET = 0`` (the
+    reading of sec. 4.2.3.2 item 2; docs/decisions/rosetta.md, decision 25).
+
     References
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3.1.1 / 3.3.2.1 (with B^res) and 4.2.3.2 item 2.
     """
-    return thermal.linear_in_temperature(cal.offset, temperature) - cal.residual_field
+    linear = thermal.linear_in_temperature(cal.offset, temperature)
+    return linear - cal.residual_field if cal.residual_in_offset else linear
 
 
 def sensitivity(temperature: np.ndarray, cal: GroundCalibration) -> np.ndarray:
@@ -314,17 +318,22 @@ def level_a(
         day_index, days, _ = utc_days(epoch, lsk)
         words = data[f"t_{sensor.lower()}_counts"].values.astype(np.int64)
         lo = int(words.min())
-        grid = sensor_temperature(np.arange(lo, int(words.max()) + 1), calibration, nominal)
-        ext, state, sources = extended_offset(
-            epoch,
-            t_c,
-            day_index,
-            days,
-            models,
-            stitch_gap_s=stitch_gap_s,
-            previous=previous,
-            lookup=(words - lo, grid),
+        grid = calibration.extended_model_temperature(
+            sensor_temperature(np.arange(lo, int(words.max()) + 1), calibration, nominal)
         )
+        try:
+            ext, state, sources = extended_offset(
+                epoch,
+                calibration.extended_model_temperature(t_c),
+                day_index,
+                days,
+                models,
+                stitch_gap_s=stitch_gap_s,
+                previous=previous,
+                lookup=(words - lo, grid),
+            )
+        except ValueError as exc:
+            raise FluxcalError(f"{source}: midnight stitching (sec. 4.2.3.3): {exc}") from None
         b_c = b_c - ext
     else:
         state, sources = None, []
@@ -386,6 +395,8 @@ def level_a(
         n_dropped_quality=n_dropped,
         n_reordered=n_reordered,
         ground_calibration=f"{calibration.source} (version {calibration.version})",
+        residual_field_in_offset=int(calibration.residual_in_offset),
+        extended_model_temperature=calibration.reduced_temperature,
         time_shift_table=time_shifts.source,
         omega_form=omega_form,
     )
