@@ -7,8 +7,11 @@ Oracles: ``cdflib.cdfepoch.compute_tt2000`` / ``breakdown_tt2000`` / ``encode_tt
 
 from __future__ import annotations
 
+import datetime
+
 import numpy as np
 import pytest
+import spiceypy
 from cdflib.epochs import CDFepoch
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -18,9 +21,13 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import (
     TT2000_FILL,
     TT2000_PAD,
+    SclkKernel,
     datetime64_to_tt2000,
     leapseconds,
     tt2000_to_datetime64,
+    tt2000_to_utc,
+    tt2000_to_utc_fields,
+    utc_to_tt2000,
 )
 
 NS = 1_000_000_000
@@ -104,3 +111,167 @@ def test_datetime64_round_trip_outside_leap_seconds(lsk, tt2000):
         assert back[0] < t[0]  # clamped to 23:59:59.999999999, before the leap second
     else:
         assert back[0] == t[0]
+
+
+# ----------------------------------------------------------------------------------------
+# UTC fields and strings against cdflib (exact, both directions)
+# ----------------------------------------------------------------------------------------
+def test_fields_match_cdflib_breakdown(lsk, epochs):
+    ours = tt2000_to_utc_fields(epochs, lsk=lsk)
+    ref = CDFepoch.breakdown_tt2000(epochs)  # y, m, d, h, mi, s, ms, us, ns
+    for k, name in enumerate(["year", "month", "day", "hour", "minute", "second"]):
+        np.testing.assert_array_equal(ours[name], ref[:, k], err_msg=name)
+    np.testing.assert_array_equal(
+        ours["nanosecond"], ref[:, 6] * 1_000_000 + ref[:, 7] * 1000 + ref[:, 8])
+    # day of year from the standard library's proleptic Gregorian calendar
+    doy = [datetime.date(*map(int, r[:3])).timetuple().tm_yday for r in ref]
+    np.testing.assert_array_equal(ours["doy"], doy)
+    assert (ours["second"] == 60).sum() > 400
+
+
+def test_cdflib_compute_tt2000_of_our_fields_is_the_epoch(lsk, epochs):
+    f = tt2000_to_utc_fields(epochs, lsk=lsk)
+    ns = f["nanosecond"]
+    fields = np.stack([f["year"], f["month"], f["day"], f["hour"], f["minute"], f["second"],
+                       ns // 1_000_000, ns // 1000 % 1000, ns % 1000], axis=1)
+    np.testing.assert_array_equal(np.asarray(CDFepoch.compute_tt2000(fields)), epochs)
+
+
+def test_fill_and_pad_fields_match_cdflib(lsk):
+    special = np.array([TT2000_FILL, TT2000_PAD, 0], dtype=np.int64)
+    f = tt2000_to_utc_fields(special, lsk=lsk)
+    ref = CDFepoch.breakdown_tt2000(special)
+    np.testing.assert_array_equal(f["second"], ref[:, 5])
+    np.testing.assert_array_equal(f["year"], ref[:, 0])
+    assert list(tt2000_to_utc(special, digits=9, lsk=lsk)) == [
+        "9999-12-31T23:59:59.999999999", "0000-01-01T00:00:00.000000000",
+        CDFepoch.encode_tt2000(0)]
+
+
+def test_iso_strings_match_cdflib_encode(lsk, epochs):
+    # encode_tt2000 is a Python loop (~1 ms a value): every leap-second epoch, 2,000 others
+    sample = np.concatenate([epochs[:2000], epochs[20_000:]])
+    ref = np.array(CDFepoch.encode_tt2000(sample))
+    ours = tt2000_to_utc(sample, digits=9, lsk=lsk)
+    np.testing.assert_array_equal(ours, ref)
+    np.testing.assert_array_equal(tt2000_to_utc(sample, digits=9, lsk=lsk, as_bytes=True),
+                                  np.char.encode(ref, "ascii"))
+    # fewer digits are cdflib's string truncated (timout truncates, never rounds)
+    for digits in (0, 1, 3, 4, 6, 8):
+        width = 19 + (digits + 1 if digits else 0)
+        np.testing.assert_array_equal(tt2000_to_utc(sample, digits=digits, lsk=lsk),
+                                      np.array([s[:width] for s in ref]))
+    # and back: parsing cdflib's strings gives the epochs
+    np.testing.assert_array_equal(utc_to_tt2000(ref, lsk=lsk), sample)
+
+
+def test_doy_strings_from_cdflib_fields(lsk, epochs):
+    ref = CDFepoch.breakdown_tt2000(epochs[::7])
+    expected = [
+        f"{y:04d} {datetime.date(y, m, d).timetuple().tm_yday:03d} {h:02d} {mi:02d} {s:02d}."
+        f"{ms:03d}{us:03d}{ns:03d}"[: 17 + 1 + 7]
+        for y, m, d, h, mi, s, ms, us, ns in ref.tolist()
+    ]
+    np.testing.assert_array_equal(tt2000_to_utc(epochs[::7], "doy", 7, lsk=lsk), expected)
+
+
+def test_shape_is_kept(lsk, epochs):
+    grid = epochs[:12].reshape(3, 4)
+    assert tt2000_to_utc(grid, lsk=lsk).shape == (3, 4)
+    assert tt2000_to_utc(grid[0, 0], lsk=lsk).shape == (1,)
+    assert tt2000_to_utc_fields(grid, lsk=lsk)["doy"].shape == (3, 4)
+    assert tt2000_to_utc(np.array([], dtype=np.int64), lsk=lsk).shape == (0,)
+
+
+# ----------------------------------------------------------------------------------------
+# Millisecond strings against SPICE timout
+# ----------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def messenger_clock(shared_kernels):
+    with KernelPool([shared_kernels / "messenger" / "messenger_2548.tsc"]):
+        yield SclkKernel.from_pool(-236)
+
+
+def _timout(tt2000: np.ndarray, picture: str) -> np.ndarray:
+    """SPICE's own string of a TT2000 epoch: TT seconds -> TDB by ``unitim``, then ``timout``."""
+    return np.array([spiceypy.timout(spiceypy.unitim(float(t) / 1e9, "TDT", "TDB"), picture)
+                     for t in tt2000.tolist()])
+
+
+@pytest.mark.parametrize(
+    ("style", "picture"),
+    [("doy", "YYYY DOY HR MN SC.### ::UTC"), ("iso", "YYYY-MM-DDTHR:MN:SC.### ::UTC")],
+)
+def test_millisecond_strings_match_timout(messenger_clock, style, picture):
+    clock = messenger_clock
+    rng = np.random.default_rng(216)
+    parts = []
+    for p in (1, 2):  # both MESSENGER clock partitions (before / after the 2013-01-08 reset)
+        lo = clock.partition_start[p - 1] / 1e6
+        hi = min(clock.partition_end[p - 1] / 1e6, lo + 3.3e8)
+        sec = rng.integers(int(lo * 1e6), int(hi * 1e6), 5000) / 1e6  # on the us tick grid
+        parts.append(clock.to_tt2000(np.full(sec.size, p), sec))
+    parts.append(rng.integers(_cdf([1999, 1, 1, 0, 0, 0, 0, 0, 0]),
+                              _cdf([2030, 1, 1, 0, 0, 0, 0, 0, 0]), 5000))
+    for y, m, d in LEAP_DAYS:  # every 50 ms across each leap second, off the ms grid
+        leap = _cdf([y, m, d, 23, 59, 60, 0, 0, 0])
+        parts.append(np.arange(leap - 2 * NS, leap + 2 * NS, NS // 20) + 123_457)
+    tt = np.concatenate(parts).astype(np.int64)
+    # timout takes a float64 ET: at these epochs (|ET| < 1e9 s) its resolution is 60 ns and
+    # TT -> TDB adds a rounding, so SPICE cannot tell on which side of a millisecond a time
+    # within ~30 ns of it lies.  Times within 100 ns of a millisecond are left out (and
+    # counted: with random ns about 2 in 10,000); the exact case is tested below.
+    sub_ms = tt % 1_000_000
+    near = (sub_ms < 100) | (sub_ms > 1_000_000 - 100)
+    assert near.sum() < 20, near.sum()
+    tt = tt[~near]
+    ours = tt2000_to_utc(tt, style=style, digits=3)
+    ref = _timout(tt, picture)
+    assert (np.char.find(ref, ":60.") > 0).sum() + (np.char.find(ref, " 60.") > 0).sum() >= 100
+    bad = ours != ref
+    assert not bad.any(), list(zip(ours[bad], ref[bad], strict=True))[:5]
+
+
+def test_messenger_launch_second_prints_16_000(lsk):
+    # 2004-08-03T05:59:16.000 UTC (MESSENGER SCLK 1/0000000000), an integer TT2000 exactly
+    # on the millisecond: truncation keeps .000 (a float ET 15 ns early printed 15.999)
+    tt = np.array([_cdf([2004, 8, 3, 5, 59, 16, 0, 0, 0])], dtype=np.int64)
+    assert tt2000_to_utc(tt, "doy", lsk=lsk)[0] == "2004 216 05 59 16.000"
+    assert tt2000_to_utc(tt - 1, "doy", lsk=lsk)[0] == "2004 216 05 59 15.999"
+    assert tt2000_to_utc(tt, "iso", 9, lsk=lsk)[0] == "2004-08-03T05:59:16.000000000"
+    with KernelPool([]):
+        assert _timout(tt, "YYYY DOY HR MN SC.### ::UTC")[0] == "2004 216 05 59 16.000"
+
+
+# ----------------------------------------------------------------------------------------
+# Round trips (hypothesis), leap seconds included
+# ----------------------------------------------------------------------------------------
+_near_leaps = st.builds(
+    lambda i, off: _cdf([*LEAP_DAYS[i], 23, 59, 60, 0, 0, 0]) + off,
+    st.integers(0, len(LEAP_DAYS) - 1), st.integers(-2 * NS, 2 * NS),
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.one_of(st.integers(min_value=-(2**62), max_value=2**62), _near_leaps))
+def test_string_round_trip_is_exact(lsk, tt2000):
+    t = np.array([tt2000], dtype=np.int64)
+    assert utc_to_tt2000(tt2000_to_utc(t, digits=9, lsk=lsk), lsk=lsk)[0] == tt2000
+    # and truncation to ms never moves later, nor more than 1 ms earlier
+    back = utc_to_tt2000(tt2000_to_utc(t, digits=3, lsk=lsk), lsk=lsk)[0]
+    assert 0 <= tt2000 - back < 1_000_000
+
+
+def test_utc_parse_rejects_a_false_leap_second(lsk):
+    with pytest.raises(InputFormatError, match="2015-01-01T12:00:60"):
+        utc_to_tt2000(["2016-12-31T23:59:60.5", "2015-01-01T12:00:60"], lsk=lsk)
+    with pytest.raises(InputFormatError, match="2014-12-31T23:59:60"):
+        utc_to_tt2000(["2014-12-31T23:59:60"], lsk=lsk)  # no leap second that day
+
+
+def test_utc_parse_fraction_is_exact(lsk):
+    # nine decimals are read as integer nanoseconds (no float): compare with cdflib
+    text = ["2004-08-03T05:59:16.000000001", "2012-06-30T23:59:60.999999999",
+            "2030-12-31T23:59:59.123456789"]
+    np.testing.assert_array_equal(utc_to_tt2000(text, lsk=lsk),
+                                  [CDFepoch.parse(s) for s in text])

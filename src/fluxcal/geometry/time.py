@@ -592,12 +592,30 @@ def et_to_utc(
 def utc_to_tt2000(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.ndarray:
     """Parse ISO 8601 UTC strings (``YYYY-MM-DDTHH:MM:SS[.f]``, optional ``Z``) to TT2000.
 
-    A seconds field of ``60`` (a leap second) is accepted.
+    Parameters
+    ----------
+    utc : array_like of str or bytes
+        UTC times.  A seconds field of ``60`` is accepted in the last second of a day
+        that ends with a leap second in the LSK.
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    ndarray of int64
+        TT2000 nanoseconds.
 
     Raises
     ------
     InputFormatError
-        Naming the first string that cannot be parsed.
+        Naming the first string that cannot be parsed, or a seconds field ``60`` that is
+        not a leap second.
+
+    Notes
+    -----
+    Exact: numpy reads the date, time and up to nine decimals of the seconds as
+    integers (further decimals are cut off, i.e. truncated to the nanosecond), and TAI -
+    UTC and TT - TAI are added in int64 nanoseconds.  No float is formed.
     """
     lsk = lsk or leapseconds()
     text = np.atleast_1d(np.asarray(utc, dtype=str))
@@ -616,6 +634,15 @@ def utc_to_tt2000(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.nda
             field="time_utc",
         ) from None
     naive = (stamp - _J2000_UTC_NAIVE).astype(np.int64)
+    if leap.any():  # 23:59:60.x only where the next whole second starts a new TAI - UTC
+        ends = naive[leap] - naive[leap] % _NS + _NS
+        false_leap = ~np.isin(ends, lsk.epochs_naive_ns())
+        if false_leap.any():
+            raise InputFormatError(
+                f"UTC time {np.asarray(utc).ravel()[leap][false_leap][0]!r} has seconds 60 "
+                "but is not in a leap second of the leapseconds kernel",
+                field="time_utc",
+            )
     return _utc_naive_to_tt2000(naive, leap, lsk)
 
 
