@@ -14,8 +14,13 @@ SHARED_KERNELS = SHARED_DATA / "kernels"
 
 @pytest.fixture(scope="session")
 def shared_kernels() -> Path:
-    """Folder of the real MESSENGER/Rosetta kernels (required: CI has ../shared)."""
-    assert SHARED_KERNELS.is_dir(), f"expected the shared data beside the repo at {SHARED_KERNELS}"
+    """Folder of the real MESSENGER/Rosetta kernels (CI has ../shared beside the checkout).
+
+    Without it the tests that need real kernels are skipped with one reason, not errors.
+    """
+    if not SHARED_KERNELS.is_dir():
+        pytest.skip(f"real kernels not found at {SHARED_KERNELS}: put the shared data folder "
+                    "beside the checkout (../shared/data, see README)")
     return SHARED_KERNELS
 
 
