@@ -7,7 +7,7 @@ import pytest
 import spiceypy
 from scipy.spatial.transform import Rotation
 
-from fluxcal.errors import CalibrationError
+from fluxcal.errors import CalibrationError, FluxcalError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.synthetic import write_rosetta_like_kernels
 from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
@@ -53,8 +53,10 @@ def run(kernels):
         for sensor in ("OB", "IB"):
             a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom)
             b = level_b.level_b(a, al, jumps)
-            c = level_c.level_c(b)
-            c_oracle = level_c.level_c(b.isel(time=slice(0, None, 97)), method="oracle")
+            c = level_c.level_c(b, frame="ECLIPJ2000")  # the frame of the simulator's truth
+            c_oracle = level_c.level_c(
+                b.isel(time=slice(0, None, 97)), frame="ECLIPJ2000", method="oracle"
+            )
             out[sensor] = dict(a=a, b=b, c=c, c_oracle=c_oracle, truth=sim.truth[sensor])
         yield out
 
@@ -221,6 +223,35 @@ def test_level_c_cseq(run, kernels):
     np.testing.assert_allclose(c["b"].values, oracle["b"].values, atol=1e-6)
     # the synthetic spacecraft escorts the comet at 30 km
     np.testing.assert_allclose(np.linalg.norm(c["position"].values, axis=1), 30.0, rtol=1e-6)
+
+
+def test_level_c_frame_by_date(run, kernels):
+    """Issue 11: sec. 4.4.1 "Update 2014" makes CSEQ the standard LEVEL_C frame in the comet
+    phase.  Default: CSEQ centred on the comet from 2014-01-20 (the simulated day is
+    2014-08-01), ECLIPJ2000 from the Sun before; explicit choices still win.  (Before: always
+    ECLIPJ2000 from the Sun.)"""
+    b = run["OB"]["b"].isel(time=slice(0, None, 401))
+    with KernelPool(kernels):
+        auto = level_c.level_c(b)
+        cseq = level_c.level_c(b, frame="CSEQ", centre="67P/C-G")
+        eclip = level_c.level_c(b, frame="ECLIPJ2000")
+        before = utc_to_tt2000(np.array(["2010-07-10T12:00:00", "2014-01-19T23:59:59"]))
+        after = utc_to_tt2000(np.array(["2014-01-20T00:00:00", "2016-09-30T10:00:00"]))
+        assert level_c.default_frame(before) == ("ECLIPJ2000", "SUN")
+        assert level_c.default_frame(after) == ("CSEQ", "67P/C-G")
+        with pytest.raises(FluxcalError, match="comet phase"):
+            level_c.default_frame(np.r_[before[1:], after[:1]])
+    assert auto.attrs["output_frame"] == "67P/C-G_CSEQ"
+    assert auto.attrs["position_centre"] == "67P/C-G"
+    np.testing.assert_array_equal(auto["b"].values, cseq["b"].values)
+    np.testing.assert_array_equal(auto["position"].values, cseq["position"].values)
+    assert eclip.attrs["position_centre"] == "SUN"  # explicit frame, centre by frame
+    # a rotation: |B| is the same in both frames, the components are not
+    np.testing.assert_allclose(
+        np.linalg.norm(auto["b"].values, axis=1), np.linalg.norm(eclip["b"].values, axis=1),
+        rtol=1e-12,
+    )
+    assert np.abs(auto["b"].values - eclip["b"].values).max() > 1.0
 
 
 MAG_FK = """KPL/FK

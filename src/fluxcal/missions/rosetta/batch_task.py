@@ -84,8 +84,8 @@ class RosettaDayTask:
     quicklook: bool = False
     primary: str = "OB"
     average_s: float = 1.0
-    frame: str = "ECLIPJ2000"
-    centre: str = "SUN"
+    frame: str = "auto"
+    centre: str = "auto"
     boom: str = "deployed"
     name: str = "rosetta"
 

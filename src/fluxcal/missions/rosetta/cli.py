@@ -32,8 +32,14 @@ def calibrate(
     ),
     primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
     average: float = typer.Option(1.0, "--average", help="Averaging interval of E, F, G (s)."),
-    frame: str = typer.Option("ECLIPJ2000", "--frame", help="LEVEL_C frame: ECLIPJ2000 or CSEQ."),
-    centre: str = typer.Option("SUN", "--centre", help="Body the LEVEL_C position is relative to."),
+    frame: str = typer.Option(
+        "auto", "--frame",
+        help="LEVEL_C frame: ECLIPJ2000, CSEQ, or auto (CSEQ from 2014-01-20, sec. 4.4.1).",
+    ),
+    centre: str = typer.Option(
+        "auto", "--centre",
+        help="Body the LEVEL_C position is relative to (auto: the comet for CSEQ, else SUN).",
+    ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     stitch_gap_hours: float = typer.Option(
         3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps (sec. 4.2.3.3)."

@@ -41,6 +41,7 @@ def run_demo(out: Path, *, hours: float = 1.0) -> str:
             hk_file=paths["hk"] if sensor == "OB" else None,
             calib_dir=paths["calib"],
             kernels=paths["kernels"],
+            frame="ECLIPJ2000",  # the frame of the simulator's truth (default: CSEQ by date)
         )
         n_files += len(res.paths)
         truth = read_truth_csv(paths[f"truth_{sensor}"])
