@@ -1,24 +1,46 @@
 """ISTP-compliant CDF products through cdflib.
 
-* ``Epoch`` is ``CDF_TIME_TT2000`` written from the int64 ``epoch`` coordinate
-  (read back to the nanosecond).
-* Every variable along ``time`` is record-varying with ``DEPEND_0 = Epoch``; a vector
-  variable ``(time, component)`` gets ``LABL_PTR_1`` pointing to the ``component``
-  metadata variable (CDF_CHAR, not record-varying).
-* Variable attributes: ISTP defaults and per-name entries from the YAML data file
-  ``products/data/istp_variables.yaml`` (or the file passed as ``variable_yaml``),
-  then the Dataset variable's attrs (``units`` -> ``UNITS``, ``description`` or
-  ``long_name`` -> ``CATDESC``/``FIELDNAM``), which are also kept verbatim.
-* Global attributes: ``products/data/istp_global.yaml``, then the Dataset attrs
-  (containers JSON-encoded, see `fluxcal.products.attrs`), then ``label_extra``;
-  ``Logical_file_id``, ``Generation_date``, ``Software_version`` and ``Parents``
-  (input file names) are filled in.
+* ``Epoch`` is ``CDF_TIME_TT2000`` written from the int64 ``epoch`` coordinate (read
+  back to the nanosecond); ``MONOTON = INCREASE`` only when it is strictly increasing.
+  A derived ``time`` index (`fluxcal.products.timeindex`) is not stored.
+* Every variable along ``time`` is record-varying with ``DEPEND_0 = Epoch``.  An extra
+  dimension ``d`` (``(time, d)``, e.g. vector components) gets ``DEPEND_1 = LABL_PTR_1 =
+  d``, a CDF_CHAR ``metadata`` variable holding the coordinate's labels (so a mission
+  names RTN components ``B_R B_T B_N`` through its coordinate).
+* One attribute per meaning: the Dataset attrs with an ISTP meaning are stored under the
+  ISTP name only (`ISTP_NAME`: ``units`` -> ``UNITS``, ``description`` -> ``CATDESC``,
+  ``long_name`` -> ``LABLAXIS``, ``valid_min``/``valid_max`` -> ``VALIDMIN``/``VALIDMAX``,
+  ``coordinate_system`` -> ``COORDINATE_SYSTEM``, ``var_type`` -> ``VAR_TYPE``) and
+  `read_cdf` maps them back; other attrs are stored verbatim.
+* Attribute values: the variable's attrs, then the per-name entries of the YAML table
+  (``products/data/istp_variables.yaml`` or a mission's ``variable_yaml``), then its
+  ``defaults``.  ``VALIDMIN``/``VALIDMAX`` are physical: the variable's
+  ``valid_min``/``valid_max``, the table's entry, or the table's ``valid_range_by_units``
+  for the variable's units; integers without one get their type's range (fill
+  excluded); a float data or support variable without one is an error.
+* NaN is written as ``FILLVAL`` (-1e31) and read back as NaN.  ``FILLVAL`` is the ISTP
+  value of the variable's CDF type.
+* ``VAR_TYPE`` ``data`` (default; quality flags too) get ``DISPLAY_TYPE time_series``
+  and ``LABLAXIS`` (scalars) or ``LABL_PTR_1`` (vectors); ``FIELDNAM`` is the variable
+  name (as spacepy's ISTP checks require).  String variables are ``metadata``.
+* Global attributes: ``products/data/istp_global.yaml`` (or ``global_yaml``), then the
+  Dataset attrs (containers JSON-encoded, see `fluxcal.products.attrs`), then
+  ``label_extra``.  ``Logical_source`` defaults to the ISTP rule
+  ``source_descriptor_datatype``; ``Logical_file_id`` is `istp_file_stem` of it, the UTC
+  day of the median sample and ``Data_version``; ``Generation_date``,
+  ``Software_version`` (from ``software_version``) and ``Parents`` are filled in.
 * No compression: the bytes of the data records depend only on the values.
+
+References
+----------
+.. [1] ISTP/IACG Guidelines, global and variable attributes,
+       https://spdf.gsfc.nasa.gov/istp_guide/gattributes.html, vattributes.html.
 """
 
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Mapping
 from functools import lru_cache
 from importlib import resources
@@ -37,31 +59,99 @@ from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_value, encode_value
 from fluxcal.products.columns import TIME_DIM
 from fluxcal.products.provenance import creation_time
+from fluxcal.products.timeindex import TIME_COORD, default_lsk, with_time_index
 
 EPOCH = "Epoch"
 DIMS_ATTR = "fluxcal_dims"
 DTYPE_ATTR = "fluxcal_dtype"
 
-# numpy dtype -> (CDF type name, FILLVAL, VALIDMIN, VALIDMAX)
-_TYPES: dict[str, tuple[str, Any, Any, Any]] = {
-    "float64": ("CDF_DOUBLE", -1.0e31, -1.0e30, 1.0e30),
-    "float32": ("CDF_FLOAT", -1.0e31, -1.0e30, 1.0e30),
-    "int64": ("CDF_INT8", -(2**63), -(2**63) + 1, 2**63 - 1),
-    "int32": ("CDF_INT4", -(2**31), -(2**31) + 1, 2**31 - 1),
-    "int16": ("CDF_INT2", -(2**15), -(2**15) + 1, 2**15 - 1),
-    "int8": ("CDF_INT1", -128, -127, 127),
-    "uint8": ("CDF_UINT1", 255, 0, 254),
-    "uint16": ("CDF_UINT2", 65535, 0, 65534),
-    "uint32": ("CDF_UINT4", 4294967295, 0, 4294967294),
-    "bool": ("CDF_UINT1", 255, 0, 1),
+#: Dataset attribute -> ISTP variable attribute (one CDF attribute per meaning).
+ISTP_NAME = {
+    "units": "UNITS",
+    "description": "CATDESC",
+    "long_name": "LABLAXIS",
+    "valid_min": "VALIDMIN",
+    "valid_max": "VALIDMAX",
+    "coordinate_system": "COORDINATE_SYSTEM",
+    "var_type": "VAR_TYPE",
+}
+_FROM_ISTP = {v: k for k, v in ISTP_NAME.items()}
+#: Dataset attribute -> ISTP global attribute.
+ISTP_GLOBAL_NAME = {"software_version": "Software_version"}
+_GLOBAL_FROM_ISTP = {v: k for k, v in ISTP_GLOBAL_NAME.items()}
+#: Variable attributes the writer derives itself (never taken from a table or attrs).
+_DERIVED = re.compile(r"^(FIELDNAM|FILLVAL|MONOTON|DEPEND_\d+|LABL_PTR_\d+)$")
+
+# numpy dtype -> (CDF type name, ISTP FILLVAL, FORMAT)
+_TYPES: dict[str, tuple[str, Any, str]] = {
+    "float64": ("CDF_DOUBLE", -1.0e31, "E23.15"),
+    "float32": ("CDF_FLOAT", -1.0e31, "E14.7"),
+    "int64": ("CDF_INT8", -(2**63), "I20"),
+    "int32": ("CDF_INT4", -(2**31), "I11"),
+    "int16": ("CDF_INT2", -(2**15), "I6"),
+    "int8": ("CDF_INT1", -128, "I4"),
+    "uint8": ("CDF_UINT1", 255, "I3"),
+    "uint16": ("CDF_UINT2", 65535, "I5"),
+    "uint32": ("CDF_UINT4", 4294967295, "I10"),
+    "bool": ("CDF_UINT1", 255, "I1"),
 }
 _TYPE_NUM = {
     "CDF_DOUBLE": 45, "CDF_FLOAT": 44, "CDF_INT8": 8, "CDF_INT4": 4, "CDF_INT2": 2,
     "CDF_INT1": 1, "CDF_UINT1": 11, "CDF_UINT2": 12, "CDF_UINT4": 14, "CDF_CHAR": 51,
     "CDF_TIME_TT2000": 33,
 }
+_TT2000_FILL = -(2**63)
+_VERSION = re.compile(r"^[vV]?(\d+)$")
 
 
+# ----------------------------------------------------------------------------------------
+# ISTP names
+# ----------------------------------------------------------------------------------------
+def istp_logical_source(source_name: str, descriptor: str, data_type: str) -> str:
+    """ISTP ``Logical_source``: the short forms (before ``>``) joined by ``_``, lower case.
+
+    >>> istp_logical_source("MESSENGER>MErcury ...", "MAG>Magnetometer", "MSO-SCI>Full")
+    'messenger_mag_mso-sci'
+    """
+    return "_".join(str(x).split(">")[0].strip() for x in
+                    (source_name, descriptor, data_type)).lower()
+
+
+def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
+    """ISTP file name without suffix: ``<logical_source>_<yyyymmdd>_v<NN>``.
+
+    Parameters
+    ----------
+    logical_source : str
+        The product's ``Logical_source`` (e.g. ``messenger_mag_mso-sci``).
+    date : datetime.date, numpy.datetime64 or str
+        The product's UTC day (``"2011-04-10"``, ``"20110410"`` or a date).
+    version : int or str
+        Data version: ``1``, ``"1"``, ``"01"`` or ``"v01"`` all give ``v01``.
+
+    Returns
+    -------
+    str
+        E.g. ``messenger_mag_mso-sci_20110410_v01``; the writer stores the same string as
+        ``Logical_file_id``, so a CDF named ``<stem>.cdf`` passes the ISTP file-name checks.
+
+    >>> istp_file_stem("rosetta_rpcmag_clc-ob", "2014-08-01", 1)
+    'rosetta_rpcmag_clc-ob_20140801_v01'
+    """
+    if isinstance(date, str) and re.fullmatch(r"\d{8}", date):
+        day = date
+    else:
+        day = str(np.datetime64(date, "D")).replace("-", "")
+    m = _VERSION.match(str(version).strip())
+    if m is None:
+        raise InputFormatError(f"data version {version!r} is not a number (e.g. 1 or 'v01')",
+                               field="Data_version")
+    return f"{logical_source}_{day}_v{int(m.group(1)):02d}"
+
+
+# ----------------------------------------------------------------------------------------
+# writing
+# ----------------------------------------------------------------------------------------
 @lru_cache(maxsize=8)
 def _load_yaml(path: str | None, default: str) -> dict[str, Any]:
     if path is None:
@@ -88,72 +178,229 @@ def _typed(value: Any, cdf_type: str) -> Any:
     return [value, cdf_type] if cdf_type != "CDF_CHAR" else str(value)
 
 
-def _tt2000(year: int) -> int:
-    return int(cdflib.cdfepoch.compute_tt2000([year, 1, 1, 0, 0, 0, 0, 0, 0]))
-
-
-def _var_attrs(name: str, var: xr.DataArray, table: Mapping[str, Any], cdf_type: str,
-               record_varying: bool) -> dict[str, Any]:
-    attrs: dict[str, Any] = {}
-    if record_varying:
-        attrs.update(table.get("defaults", {}))
-    attrs.update(table.get(name, {}))
-    attrs["FIELDNAM"] = str(var.attrs.get("long_name", attrs.get("FIELDNAM") or name))[:30]
-    desc = var.attrs.get("description", var.attrs.get("long_name"))
-    attrs["CATDESC"] = str(desc or attrs.get("CATDESC") or name)
-    if "units" in var.attrs:
-        attrs["UNITS"] = str(var.attrs["units"]) or " "
-    if record_varying and cdf_type != "CDF_CHAR":
-        _, fill, vmin, vmax = _TYPES[_dtype_key(var)]
-        attrs.setdefault("FILLVAL", fill)
-        attrs.setdefault("VALIDMIN", vmin)
-        attrs.setdefault("VALIDMAX", vmax)
-        attrs.setdefault("FORMAT", "E14.6" if cdf_type in ("CDF_DOUBLE", "CDF_FLOAT") else "I20")
-    elif record_varying:
-        attrs.setdefault("FILLVAL", " ")
-        attrs.setdefault("FORMAT", f"A{max(1, var.dtype.itemsize // 4)}")
-    if var.ndim == 2 and record_varying:
-        attrs["LABL_PTR_1"] = str(var.dims[1])
-    out: dict[str, Any] = {}
-    for k, v in attrs.items():
-        out[k] = _typed(v, cdf_type) if k in ("FILLVAL", "VALIDMIN", "VALIDMAX") else \
-            _cdf_attr(v)
-    for k, v in var.attrs.items():  # verbatim copy for an exact round trip
-        out[k] = _cdf_attr(v)
-    out[DIMS_ATTR] = _cdf_attr(list(var.dims))
-    out[DTYPE_ATTR] = str(var.dtype) if var.dtype.kind not in "US" else "str"
-    return out
-
-
-def _dtype_key(var: xr.DataArray) -> str:
+def _dtype_key(var: xr.Variable) -> str:
     """Key of `_TYPES` for a variable's dtype."""
     return "bool" if var.dtype == np.bool_ else str(var.dtype)
 
 
-def _spec(name: str, var: xr.DataArray, record_varying: bool) -> tuple[dict[str, Any], Any]:
-    shape = var.shape[1:] if record_varying else var.shape
+def _inferred_dims(name: str, rec_vary: bool, ndim: int,
+                   depends: Mapping[int, str]) -> tuple[str, ...]:
+    """Dims `read_cdf` gives a variable from its ISTP attributes (one rule, both ways)."""
+    if rec_vary:
+        return (TIME_DIM, *[depends.get(i, f"{name}_dim{i}") for i in range(1, ndim)])
+    if ndim == 1:
+        return (name,)
+    return tuple(f"{name}_dim{i}" for i in range(1, ndim + 1))
+
+
+def _valid_range(name: str, var: xr.Variable, entry: Mapping[str, Any],
+                 table: Mapping[str, Any], key: str) -> tuple[Any, Any] | None:
+    """Physical (VALIDMIN, VALIDMAX) of a variable, see the module docstring."""
+    a = var.attrs
+    lo = a.get("valid_min", entry.get("VALIDMIN"))
+    hi = a.get("valid_max", entry.get("VALIDMAX"))
+    if lo is None or hi is None:
+        units = str(a.get("units", entry.get("UNITS", ""))).strip()
+        ranges = {**(_load_yaml(None, "istp_variables.yaml").get("valid_range_by_units") or {}),
+                  **(table.get("valid_range_by_units") or {})}
+        by_units = ranges.get(units)
+        if by_units is not None:
+            lo = by_units[0] if lo is None else lo
+            hi = by_units[1] if hi is None else hi
+    if lo is None or hi is None:
+        if key == "bool":
+            return 0, 1
+        if np.dtype(var.dtype).kind in "iu":
+            info = np.iinfo(var.dtype)
+            fill = _TYPES[key][1]
+            return (info.min + 1, info.max) if fill == info.min else (info.min, info.max - 1)
+        return None
+    return lo, hi
+
+
+def _var_attrs(name: str, var: xr.Variable, table: Mapping[str, Any], cdf_type: str,
+               rec_vary: bool, depends: Mapping[int, str], is_dimension: bool = False,
+               ) -> dict[str, Any]:
+    """ISTP attributes of one variable (values in cdflib's typed form)."""
+    entry = table.get(name) or {}
+    istp: dict[str, Any] = {}
+    if rec_vary:
+        istp.update(table.get("defaults", {}))
+    istp.update(entry)
+    custom: dict[str, Any] = {}
+    for k, v in var.attrs.items():
+        if v is None or (k in ("valid_min", "valid_max")):
+            continue
+        if k in ISTP_NAME:
+            istp[ISTP_NAME[k]] = v
+        elif k.isupper():
+            istp[k] = v
+        else:
+            custom[k] = v
+    istp = {k: v for k, v in istp.items() if not _DERIVED.match(k)}
+    if is_dimension:
+        istp["VAR_TYPE"] = "support_data"
+    elif cdf_type == "CDF_CHAR":
+        istp["VAR_TYPE"] = "metadata"
+    var_type = str(istp.setdefault("VAR_TYPE", "support_data"))
+    istp["FIELDNAM"] = name
+    if not str(istp.get("CATDESC", "")).strip():
+        istp["CATDESC"] = name
+    if not str(istp.get("UNITS", "")).strip():
+        istp["UNITS"] = " "
+    if var_type != "data":
+        istp.pop("DISPLAY_TYPE", None)
+    else:
+        istp.setdefault("DISPLAY_TYPE", "time_series")
+    if rec_vary:
+        istp["DEPEND_0"] = EPOCH
+    for i, dep in depends.items():
+        istp[f"DEPEND_{i}"] = dep
+        istp[f"LABL_PTR_{i}"] = label_name(dep)
+    if depends:
+        istp.pop("LABLAXIS", None)  # cdflib: not both LABLAXIS and LABL_PTR_1
+    elif var_type != "metadata" and not str(istp.get("LABLAXIS", "")).strip():
+        istp["LABLAXIS"] = name
+    key = _dtype_key(var)
+    out: dict[str, Any] = {}
+    if cdf_type == "CDF_CHAR":
+        istp["FORMAT"] = f"A{max(1, var.dtype.itemsize // 4)}"
+        istp.pop("VALIDMIN", None)
+        istp.pop("VALIDMAX", None)
+        out["FILLVAL"] = " "
+    else:
+        istp.setdefault("FORMAT", _TYPES[key][2])
+        out["FILLVAL"] = _typed(_TYPES[key][1], cdf_type)
+        rng = _valid_range(name, var, entry, table, key)
+        if rng is None:
+            if var_type in ("data", "support_data") and rec_vary and var.size:
+                raise InputFormatError(
+                    f"variable {name!r} (units {var.attrs.get('units')!r}) has no physical "
+                    "valid range: give it valid_min/valid_max attrs or a VALIDMIN/VALIDMAX "
+                    "entry in the ISTP variable table", field=name)
+            istp.pop("VALIDMIN", None)
+            istp.pop("VALIDMAX", None)
+        else:
+            istp.pop("VALIDMIN", None)
+            istp.pop("VALIDMAX", None)
+            cast = float if cdf_type in ("CDF_DOUBLE", "CDF_FLOAT") else int
+            out["VALIDMIN"] = _typed(cast(rng[0]), cdf_type)
+            out["VALIDMAX"] = _typed(cast(rng[1]), cdf_type)
+    for k, v in istp.items():
+        out[k] = _cdf_attr(v)
+    for k, v in custom.items():
+        out[k] = _cdf_attr(v)
+    dims = tuple(map(str, var.dims))
+    if dims != _inferred_dims(name, rec_vary, var.ndim, depends):
+        out[DIMS_ATTR] = _cdf_attr(list(dims))
+    if key == "bool":
+        out[DTYPE_ATTR] = "bool"
+    return out
+
+
+def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
+    """CDF type, element count and data of a variable (NaN -> FILLVAL)."""
     if var.dtype.kind in "USO":
         data = var.values.astype(str)
         nelem = max(1, max((len(s) for s in data.ravel().tolist()), default=1))
-        cdf_type = "CDF_CHAR"
-        payload: Any = data.ravel().tolist()
+        return "CDF_CHAR", nelem, data.ravel().tolist()
+    key = _dtype_key(var)
+    if key not in _TYPES:
+        raise InputFormatError(f"dtype {var.dtype} has no CDF type", field=name)
+    values = var.values
+    if key == "bool":
+        values = values.astype(np.uint8)
+    elif values.dtype.kind == "f":
+        fill = values.dtype.type(_TYPES[key][1])
+        if np.any(values == fill):
+            raise InputFormatError(
+                f"variable {name!r} holds the fill value {float(fill)!r}, which a reader "
+                "takes for a missing value", field=name)
+        nan = np.isnan(values)
+        if nan.any():
+            values = np.where(nan, fill, values)
+    return _TYPES[key][0], 1, np.ascontiguousarray(values)
+
+
+def _spec(name: str, cdf_type: str, nelem: int, shape: tuple[int, ...],
+          rec_vary: bool) -> dict[str, Any]:
+    return {"Variable": name, "Data_Type": _TYPE_NUM[cdf_type], "Num_Elements": nelem,
+            "Rec_Vary": rec_vary, "Dim_Sizes": list(shape), "Compress": 0}
+
+
+def _tt2000(year: int) -> int:
+    return int(cdflib.cdfepoch.compute_tt2000([year, 1, 1, 0, 0, 0, 0, 0, 0]))
+
+
+def _epoch_attrs(epoch: xr.Variable, table: Mapping[str, Any]) -> dict[str, Any]:
+    v = epoch.values
+    istp: dict[str, Any] = dict(table.get(EPOCH) or {})
+    for k, val in epoch.attrs.items():
+        if k in ISTP_NAME:
+            istp[ISTP_NAME[k]] = val
+        elif k.isupper():
+            istp[k] = val
+    istp = {k: val for k, val in istp.items() if not _DERIVED.match(k)
+            and k not in ("VALIDMIN", "VALIDMAX", "DISPLAY_TYPE", "DEPEND_0")}
+    istp.update(FIELDNAM=EPOCH, VAR_TYPE="support_data", FORMAT=istp.get("FORMAT", "I20"))
+    istp.setdefault("CATDESC", "Time tag of the sample, TT2000 nanoseconds since J2000")
+    istp.setdefault("UNITS", "ns")
+    istp.setdefault("LABLAXIS", EPOCH)
+    if bool(np.all(v[1:] > v[:-1])):
+        istp["MONOTON"] = "INCREASE"
+    out = {k: _cdf_attr(val) for k, val in istp.items()}
+    out["FILLVAL"] = [_TT2000_FILL, "CDF_TIME_TT2000"]
+    out["VALIDMIN"] = [_tt2000(1990), "CDF_TIME_TT2000"]
+    out["VALIDMAX"] = [_tt2000(2100), "CDF_TIME_TT2000"]
+    return out
+
+
+def label_name(dim: str) -> str:
+    """Name of the CDF_CHAR label variable (``LABL_PTR_i``) of an extra dimension."""
+    return f"{dim}_label"
+
+
+def _label_attrs(name: str, dim: str, width: int) -> dict[str, Any]:
+    return {"FIELDNAM": name, "CATDESC": f"Labels of the {dim} dimension",
+            "VAR_TYPE": "metadata", "FORMAT": f"A{width}", "FILLVAL": " ", "DEPEND_1": dim}
+
+
+def _product_day(epoch: np.ndarray) -> np.datetime64:
+    """UTC day of the median sample (the day a daily product is named after)."""
+    from fluxcal.geometry.time import tt2000_to_datetime64
+
+    mid = np.sort(epoch)[epoch.size // 2]
+    return tt2000_to_datetime64(np.array([mid]), default_lsk())[0].astype("M8[D]")
+
+
+def _global_attrs(ds: xr.Dataset, path: Path, label_extra: Mapping[str, Any] | None,
+                  gtable: Mapping[str, Any]) -> dict[str, dict[int, Any]]:
+    gattrs: dict[str, Any] = dict(gtable)
+    for k, v in ds.attrs.items():
+        gattrs[ISTP_GLOBAL_NAME.get(k, k)] = v
+    for k, v in (label_extra or {}).items():
+        gattrs[ISTP_GLOBAL_NAME.get(k, k)] = v
+    if not gattrs.get("Logical_source"):
+        gattrs["Logical_source"] = istp_logical_source(
+            gattrs.get("Source_name", "fluxcal"), gattrs.get("Descriptor", "mag"),
+            gattrs.get("Data_type", "l2"))
+    epoch = ds["epoch"].values
+    if epoch.size:
+        gattrs["Logical_file_id"] = istp_file_stem(gattrs["Logical_source"],
+                                                   _product_day(epoch),
+                                                   gattrs.get("Data_version", 1))
     else:
-        key = _dtype_key(var)
-        if key not in _TYPES:
-            raise InputFormatError(f"dtype {var.dtype} has no CDF type", field=name)
-        cdf_type = _TYPES[key][0]
-        nelem = 1
-        payload = np.ascontiguousarray(var.values.astype(np.uint8) if key == "bool"
-                                       else var.values)
-    spec = {
-        "Variable": name,
-        "Data_Type": _TYPE_NUM[cdf_type],
-        "Num_Elements": nelem,
-        "Rec_Vary": record_varying,
-        "Dim_Sizes": list(shape),
-        "Compress": 0,
+        gattrs["Logical_file_id"] = path.stem
+    created = str(ds.attrs.get("creation_time") or creation_time())
+    gattrs["Generation_date"] = created[:10].replace("-", "")
+    gattrs.setdefault("Software_version", fluxcal.__version__)
+    parents = [r.get("name", "") for r in ds.attrs.get("inputs", []) or []]
+    out: dict[str, dict[int, Any]] = {
+        k: {0: _cdf_attr(v)} for k, v in gattrs.items() if v is not None and k != "Parents"
     }
-    return spec, (cdf_type, payload)
+    if parents:
+        out["Parents"] = {i: f"CDF>{p}" for i, p in enumerate(parents)}
+    return out
 
 
 def write_cdf(
@@ -165,11 +412,25 @@ def write_cdf(
 ) -> Path:
     """Write ``ds`` as an ISTP CDF at ``path`` (atomically) and return ``path``.
 
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Dimension ``time`` with the int64 TT2000 coordinate ``epoch``; a ``time`` index
+        (`fluxcal.products.timeindex.with_time_index`) may be present and is not stored.
+    path : Path
+        The ``.cdf`` file; name it ``istp_file_stem(...) + ".cdf"`` for ISTP file names.
+    label_extra : mapping, optional
+        Extra global attributes (override the Dataset attrs).
+    variable_yaml, global_yaml : Path, optional
+        Mission ISTP tables replacing ``products/data/istp_*.yaml``.
+
     Raises
     ------
     InputFormatError
-        If ``ds`` has no int64 ``epoch`` coordinate along ``time`` or a variable has a
-        dtype with no CDF type.
+        If ``ds`` has no int64 ``epoch`` along ``time``, a variable has a dtype with no
+        CDF type, a float variable holds the fill value -1e31, a data or support
+        variable has no physical valid range, or an extra dimension's coordinate is not
+        a set of string labels.
     """
     path = Path(path)
     if "epoch" not in ds.coords or ds["epoch"].dims != (TIME_DIM,) or ds["epoch"].dtype != np.int64:
@@ -178,64 +439,65 @@ def write_cdf(
     vtable = _load_yaml(None if variable_yaml is None else str(variable_yaml),
                         "istp_variables.yaml")
     gtable = _load_yaml(None if global_yaml is None else str(global_yaml), "istp_global.yaml")
-    gattrs: dict[str, Any] = dict(gtable)
-    gattrs.update(ds.attrs)
-    gattrs.update(label_extra or {})
-    gattrs.setdefault("Logical_source", path.stem)
-    gattrs["Logical_file_id"] = path.stem
-    created = str(ds.attrs.get("creation_time") or creation_time())
-    gattrs["Generation_date"] = created[:10].replace("-", "")
-    gattrs["Software_version"] = str(ds.attrs.get("software_version", fluxcal.__version__))
-    parents = [r.get("name", "") for r in ds.attrs.get("inputs", []) or []]
-    globals_cdf: dict[str, dict[int, Any]] = {
-        k: {0: _cdf_attr(v)} for k, v in gattrs.items() if v is not None
-    }
-    if parents:
-        globals_cdf["Parents"] = {i: f"CDF>{p}" for i, p in enumerate(parents)}
+    globals_cdf = _global_attrs(ds, path, label_extra, gtable)
+    epoch = ds["epoch"].variable
+    names = [str(n) for n in ds.variables if n not in ("epoch", TIME_COORD)]
+    coord_of: dict[str, xr.Variable] = {}  # extra dimension -> its string labels
+    for name in names:
+        var = ds[name].variable
+        if TIME_DIM in var.dims[1:]:
+            raise InputFormatError(f"variable {name!r} has 'time' not first: {var.dims}",
+                                   field=name)
+        for d in map(str, var.dims[1:] if var.dims[:1] == (TIME_DIM,) else ()):
+            if d in ds.variables and ds[d].dtype.kind not in "US":
+                raise InputFormatError(
+                    f"dimension {d!r} of {name!r}: its coordinate must hold string labels "
+                    f"(got {ds[d].dtype})", field=d)
+            if label_name(d) in ds.variables:
+                raise InputFormatError(f"variable name {label_name(d)!r} is reserved for the "
+                                       f"labels of dimension {d!r}", field=label_name(d))
+            coord_of[d] = ds[d].variable if d in ds.variables else xr.Variable(
+                (d,), np.array([f"{d}{i}" for i in range(ds.sizes[d])]))
+    extra = [(d, v) for d, v in coord_of.items() if d not in ds.variables]
     with atomic_path(path) as tmp:
         cdf = CDFWriter(tmp, cdf_spec={"Majority": "Row_major", "Checksum": False})
         try:
             cdf.write_globalattrs(globals_cdf)
-            epoch = ds["epoch"]
-            eattrs = _var_attrs(EPOCH, epoch, vtable, "CDF_TIME_TT2000", True)
-            eattrs["FILLVAL"] = [-(2**63), "CDF_TIME_TT2000"]
-            eattrs["VALIDMIN"] = [_tt2000(1990), "CDF_TIME_TT2000"]
-            eattrs["VALIDMAX"] = [_tt2000(2100), "CDF_TIME_TT2000"]
-            eattrs["FORMAT"] = "I20"
-            eattrs.pop("DEPEND_0", None)
-            eattrs.pop("LABL_PTR_1", None)
-            eattrs["DISPLAY_TYPE"] = "no_plot"
-            spec = {"Variable": EPOCH, "Data_Type": 33, "Num_Elements": 1, "Rec_Vary": True,
-                    "Dim_Sizes": [], "Compress": 0}
-            cdf.write_var(spec, var_attrs=eattrs,
+            spec = _spec(EPOCH, "CDF_TIME_TT2000", 1, (), True)
+            cdf.write_var(spec, var_attrs=_epoch_attrs(epoch, vtable),
                           var_data=np.ascontiguousarray(epoch.values) if epoch.size else None)
-            names = [n for n in ds.variables if n not in ("epoch", TIME_DIM)]
-            for name in names:
-                var = ds[name].variable
-                da = xr.DataArray(var)
+            for d, lab in coord_of.items():
+                text = lab.values.astype(str)
+                width = max(1, max(map(len, text.tolist()), default=1))
+                cdf.write_var(_spec(label_name(d), "CDF_CHAR", width, text.shape, False),
+                              var_attrs=_label_attrs(label_name(d), d, width),
+                              var_data=text.tolist())
+            for name, var in [*extra, *((n, ds[n].variable) for n in names)]:
                 rv = var.dims[:1] == (TIME_DIM,)
-                if not rv and TIME_DIM in var.dims:
-                    raise InputFormatError(f"variable {name!r} has 'time' not first: {var.dims}",
-                                           field=str(name))
-                spec, (cdf_type, payload) = _spec(str(name), da, rv)
-                attrs = _var_attrs(str(name), da, vtable, cdf_type, rv)
-                if not rv:
-                    attrs["VAR_TYPE"] = "metadata" if cdf_type == "CDF_CHAR" else "support_data"
-                    attrs.pop("DEPEND_0", None)
-                empty = da.size == 0
-                cdf.write_var(spec, var_attrs=attrs, var_data=None if empty else payload)
+                depends = {i: str(d) for i, d in enumerate(var.dims[1:], 1)} if rv else {}
+                cdf_type, nelem, payload = _payload(name, var)
+                attrs = _var_attrs(name, var, vtable, cdf_type, rv, depends,
+                                   is_dimension=name in coord_of)
+                shape = var.shape[1:] if rv else var.shape
+                cdf.write_var(_spec(name, cdf_type, nelem, shape, rv), var_attrs=attrs,
+                              var_data=None if var.size == 0 else payload)
         finally:
             cdf.close()
     return path
 
 
+# ----------------------------------------------------------------------------------------
+# reading
+# ----------------------------------------------------------------------------------------
 def read_cdf(path: Path) -> xr.Dataset:
-    """Read a fluxcal CDF back into a Dataset (``Epoch`` -> int64 ``epoch`` coordinate).
+    """Read a CDF into a Dataset (``Epoch`` -> int64 ``epoch``, with a ``time`` index).
 
-    Variables keep every attribute of the file (ISTP ones included); dataset attrs are
-    the decoded global attributes.  For a CDF written by other ISTP software (no
-    ``fluxcal_dims`` attributes), the variables with ``DEPEND_0 = Epoch`` are read with
-    dims ``("time", <LABL_PTR_i or DEPEND_i>...)``; ``Epoch`` must be CDF_TIME_TT2000.
+    ISTP attributes with a Dataset meaning come back under the Dataset name
+    (`ISTP_NAME` reversed: ``UNITS`` -> ``units`` ...); the derived ones (``FIELDNAM``,
+    ``FILLVAL``, ``DEPEND_i``, ``LABL_PTR_i``, ``MONOTON``) are dropped; any other is
+    kept as stored.  Float values equal to ``FILLVAL`` become NaN.  For a CDF written
+    by other ISTP software the variables with ``DEPEND_0 = Epoch`` are read with dims
+    ``("time", <DEPEND_i or LABL_PTR_i>...)``; ``Epoch`` must be CDF_TIME_TT2000.
     """
     path = Path(path)
     cdf = cdflib.CDF(str(path))
@@ -244,16 +506,29 @@ def read_cdf(path: Path) -> xr.Dataset:
     data_vars: dict[str, xr.Variable] = {}
     coords: dict[str, xr.Variable] = {}
     n_epoch = 0
+    all_raw = {n: {k: _plain_attr(v) for k, v in cdf.varattsget(n).items()} for n in names}
+    # label variables of a dimension that has its own DEPEND_i variable are derived
+    derived_labels = {str(a[f"LABL_PTR_{i}"]) for a in all_raw.values() for i in range(1, 10)
+                      if a.get(f"LABL_PTR_{i}") and a.get(f"DEPEND_{i}")
+                      and a[f"LABL_PTR_{i}"] != a[f"DEPEND_{i}"]}
     for name in names:
+        if name in derived_labels:
+            continue
         vinfo = cdf.varinq(name)
-        raw_attrs = cdf.varattsget(name)
-        attrs = {k: _plain_attr(v) for k, v in raw_attrs.items()}
-        dims = attrs.pop(DIMS_ATTR, None)
-        dtype = attrs.pop(DTYPE_ATTR, None)
+        raw = all_raw[name]
+        dims = raw.pop(DIMS_ATTR, None)
+        dtype = raw.pop(DTYPE_ATTR, None)
+        fill = raw.get("FILLVAL")
+        depends = {i: str(raw.get(f"DEPEND_{i}") or raw.get(f"LABL_PTR_{i}"))
+                   for i in range(1, len(vinfo.Dim_Sizes) + 1)
+                   if raw.get(f"DEPEND_{i}") or raw.get(f"LABL_PTR_{i}")}
+        foreign_skip = vinfo.Rec_Vary and raw.get("DEPEND_0") != EPOCH and name != EPOCH
+        attrs = {_FROM_ISTP.get(k, k): ("" if v == " " else v) for k, v in raw.items()
+                 if not _DERIVED.match(k)}
         nrec = vinfo.Last_Rec + 1 if vinfo.Rec_Vary else 1
+        is_char = vinfo.Data_Type_Description == "CDF_CHAR"
         if vinfo.Rec_Vary and nrec == 0:
-            shape = [0, *vinfo.Dim_Sizes]
-            values = np.zeros(shape, dtype=_np_dtype(dtype))
+            values = np.zeros([0, *vinfo.Dim_Sizes], dtype=str if is_char else None)
         else:
             values = np.asarray(cdf.varget(name))
         if name == EPOCH:
@@ -261,44 +536,35 @@ def read_cdf(path: Path) -> xr.Dataset:
             n_epoch = values.size
             coords["epoch"] = xr.Variable((TIME_DIM,), values, attrs)
             continue
-        if dims is None:  # a CDF not written by fluxcal: infer dims from ISTP attributes
-            if not (vinfo.Rec_Vary and attrs.get("DEPEND_0") == EPOCH):
+        if dims is None:
+            if foreign_skip:
                 continue
-            extra = [str(attrs.get(f"LABL_PTR_{i + 1}") or attrs.get(f"DEPEND_{i + 1}")
-                         or f"{name}_dim{i + 1}") for i in range(len(vinfo.Dim_Sizes))]
-            dims = [TIME_DIM, *extra]
-            if vinfo.Data_Type_Description == "CDF_CHAR":
-                dtype = "str"
+            dims = _inferred_dims(name, bool(vinfo.Rec_Vary),
+                                  len(vinfo.Dim_Sizes) + int(bool(vinfo.Rec_Vary)), depends)
         dims = tuple(dims)
-        if dtype == "str":
+        if is_char:
             values = np.asarray(values, dtype=str)
-        elif dtype is not None:
-            values = values.astype(_np_dtype(dtype))
-        if vinfo.Rec_Vary:
-            values = values.reshape((nrec, *vinfo.Dim_Sizes))
-        else:
-            values = values.reshape(tuple(vinfo.Dim_Sizes))
-        var = xr.Variable(dims, values, attrs)
+        elif dtype == "bool":
+            values = values.astype(bool)
+        elif values.dtype.kind == "f" and fill is not None and values.size:
+            values = np.where(values == values.dtype.type(fill), np.nan, values)
+        shape = (nrec, *vinfo.Dim_Sizes) if vinfo.Rec_Vary else tuple(vinfo.Dim_Sizes)
+        var = xr.Variable(dims, values.reshape(shape), attrs)
         if dims == (name,) and not vinfo.Rec_Vary:
             coords[name] = var
         else:
             data_vars[name] = var
     gattrs = {}
     for k, v in cdf.globalattsget().items():
+        key = _GLOBAL_FROM_ISTP.get(k, k)
         if k == "Parents":
-            gattrs[k] = [str(x) for x in (v if isinstance(v, list) else [v])]
+            gattrs[key] = [str(x) for x in (v if isinstance(v, list) else [v])]
         else:
-            gattrs[k] = _plain_attr(v[0] if isinstance(v, list) and len(v) == 1 else v)
+            gattrs[key] = _plain_attr(v[0] if isinstance(v, list) and len(v) == 1 else v)
     ds = xr.Dataset(data_vars, coords=coords, attrs=gattrs)
     if n_epoch and ds.sizes.get(TIME_DIM, n_epoch) != n_epoch:
         raise InputFormatError("Epoch and data variables differ in length", path=str(path))
-    return ds
-
-
-def _np_dtype(dtype: str | None) -> np.dtype:
-    if dtype in (None, "str"):
-        return np.dtype(str)
-    return np.dtype(dtype)
+    return with_time_index(ds) if "epoch" in ds.coords else ds
 
 
 def _plain_attr(v: Any) -> Any:
@@ -309,3 +575,6 @@ def _plain_attr(v: Any) -> Any:
     if isinstance(v, list) and len(v) == 1:
         v = v[0]
     return decode_value(v)
+
+
+__all__ = ["ISTP_NAME", "istp_file_stem", "istp_logical_source", "read_cdf", "write_cdf"]

@@ -1,15 +1,21 @@
-"""netCDF (and Zarr, when installed) products through xarray.
+"""netCDF-4 and Zarr products through xarray, with a CF time coordinate.
 
-The engine is the first installed of ``netCDF4``, ``h5netcdf`` (both netCDF-4, which
-stores int64) and ``scipy`` (netCDF-3, always available here).  netCDF-3 has no
-int64 and no containers in attributes, so before writing:
+A plain ``xr.open_dataset(path)`` / ``xr.open_zarr(path)`` gives a ``datetime64[ns]``
+``time`` index (``.sel``, ``.resample`` work) and the exact int64 TT2000 ``epoch``:
 
-* an int64 variable whose values fit in int32 is stored as int32; one that does not
-  (``epoch``, TT2000 ns ~ 1e17) is split into ``<name>__sec`` (floor seconds) and
-  ``<name>__nsec`` (0..999 999 999), both int32, exact to the nanosecond until 2068;
-* every attribute that is not a string or number is JSON-encoded (`fluxcal.products.attrs`);
-* the original dtype and dims are recorded in ``fluxcal_dtype`` / ``fluxcal_split``
-  attrs, so `read_netcdf` restores the Dataset exactly.
+* ``time`` is the UTC index of `fluxcal.products.timeindex.with_time_index` (added when
+  the Dataset has none), stored by xarray's CF encoding as int64
+  ``nanoseconds since 1970-01-01T00:00:00`` with the ``proleptic_gregorian`` calendar
+  (exact to the nanosecond; UTC without leap seconds, see `with_time_index`);
+* ``epoch`` is stored as it is, int64 (netCDF-4/HDF5 and Zarr hold int64);
+* attribute values that are not strings or numbers are JSON-encoded
+  (`fluxcal.products.attrs`); booleans use xarray's own encoding (int8 + ``dtype``);
+  fixed-width unicode variables are recorded in ``fluxcal_dtype`` so `read_netcdf`
+  restores them exactly (netCDF-4 stores variable-length strings).
+
+The engine is ``netcdf4`` when the netCDF4 package is installed, else ``h5netcdf``
+(a dependency); both write netCDF-4 (HDF5) files.  Float NaN is stored as NaN with no
+``_FillValue`` attribute.
 """
 
 from __future__ import annotations
@@ -17,27 +23,24 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_attrs, encode_attrs
+from fluxcal.products.timeindex import TIME_COORD, with_time_index
 
-_NS = 1_000_000_000
-_I32 = np.iinfo(np.int32)
-SPLIT_ATTR = "fluxcal_split"
 DTYPE_ATTR = "fluxcal_dtype"
+#: CF encoding of the ``time`` coordinate (int64 ns: exact).
+TIME_ENCODING = {"units": "nanoseconds since 1970-01-01T00:00:00",
+                 "calendar": "proleptic_gregorian", "dtype": "int64"}
 
 
 def netcdf_engine() -> str:
-    """Return the xarray engine used for netCDF output (``netcdf4``, ``h5netcdf`` or ``scipy``)."""
+    """Return the xarray engine used for netCDF output (``netcdf4`` or ``h5netcdf``)."""
     if importlib.util.find_spec("netCDF4") is not None:
         return "netcdf4"
-    # h5netcdf writes only through h5py (its pyfive backend is read-only)
-    if all(importlib.util.find_spec(m) is not None for m in ("h5netcdf", "h5py")):
-        return "h5netcdf"
-    return "scipy"
+    return "h5netcdf"
 
 
 def zarr_available() -> bool:
@@ -45,84 +48,58 @@ def zarr_available() -> bool:
     return importlib.util.find_spec("zarr") is not None
 
 
-def encode_for_netcdf3(ds: xr.Dataset) -> xr.Dataset:
-    """Pure: make ``ds`` storable in netCDF-3 (see module docstring); inverse `decode_netcdf3`."""
-    out = xr.Dataset(attrs=encode_attrs(ds.attrs))
-    for name, var in ds.variables.items():
+def encode_for_xarray(ds: xr.Dataset) -> xr.Dataset:
+    """Pure: ``ds`` with a ``time`` index and storable attributes (inverse `decode_from_xarray`).
+
+    Raises
+    ------
+    InputFormatError
+        If ``ds`` has a ``time`` dimension but no int64 ``epoch`` coordinate.
+    """
+    ds = with_time_index(ds) if TIME_COORD in ds.dims else ds
+    out = ds.copy(deep=False)
+    out.attrs = encode_attrs(ds.attrs)
+    for name, var in out.variables.items():
         attrs = encode_attrs(var.attrs)
-        values = var.values
-        if values.dtype == np.int64 or values.dtype == np.uint64 or values.dtype == np.uint32:
-            attrs[DTYPE_ATTR] = str(values.dtype)
-            if values.size == 0 or (values.min() >= _I32.min and values.max() <= _I32.max):
-                values = values.astype(np.int32)
-            else:
-                v = values.astype(np.int64)
-                sec, nsec = np.divmod(v, _NS)
-                if sec.min() < _I32.min or sec.max() > _I32.max:
-                    raise InputFormatError(
-                        f"int64 variable {name!r} exceeds +-2^31 s after splitting", field=name
-                    )
-                is_coord = name in ds.coords
-                for suffix, part in (("__sec", sec), ("__nsec", nsec)):
-                    v2 = xr.Variable(var.dims, part.astype(np.int32),
-                                     {**attrs, SPLIT_ATTR: f"{name}|{int(is_coord)}"})
-                    out[f"{name}{suffix}"] = v2
-                continue
-        elif values.dtype == np.bool_:
-            attrs[DTYPE_ATTR] = "bool"
-            values = values.astype(np.int8)
-        elif values.dtype.kind == "U":
+        if var.dtype.kind == "U":
             attrs[DTYPE_ATTR] = "str"
-        if name in ds.coords:
-            out = out.assign_coords({name: xr.Variable(var.dims, values, attrs)})
-        else:
-            out[name] = xr.Variable(var.dims, values, attrs)
+        var.attrs = attrs
+        var.encoding = {}
+        if name == TIME_COORD and var.dtype.kind == "M":
+            var.encoding = dict(TIME_ENCODING)
+        elif var.dtype.kind == "f":
+            var.encoding = {"_FillValue": None}
     return out
 
 
-def decode_netcdf3(ds: xr.Dataset) -> xr.Dataset:
-    """Inverse of `encode_for_netcdf3`."""
-    out = xr.Dataset(attrs=decode_attrs(ds.attrs))
-    done: set[str] = set()
+def decode_from_xarray(ds: xr.Dataset) -> xr.Dataset:
+    """Inverse of `encode_for_xarray` on a Dataset opened with CF time decoding."""
+    out = ds.copy(deep=False)
+    out.attrs = decode_attrs(ds.attrs)
+    replace: dict[str, xr.Variable] = {}
     for name, var in ds.variables.items():
-        attrs = dict(var.attrs)
-        split = attrs.pop(SPLIT_ATTR, None)
+        attrs = decode_attrs(var.attrs)
         dtype = attrs.pop(DTYPE_ATTR, None)
-        if split is not None:
-            orig, is_coord = str(split).split("|")
-            if orig in done:
-                continue
-            done.add(orig)
-            sec = ds[f"{orig}__sec"].values.astype(np.int64)
-            nsec = ds[f"{orig}__nsec"].values.astype(np.int64)
-            values = (sec * _NS + nsec).astype(dtype or np.int64)
-            new = xr.Variable(var.dims, values, decode_attrs(attrs))
-            if is_coord == "1":
-                out = out.assign_coords({orig: new})
-            else:
-                out[orig] = new
-            continue
         values = var.values
-        if dtype == "bool":
-            values = values.astype(bool)
-        elif dtype == "str":
+        if dtype == "str":
             values = values.astype(str)
-        elif dtype is not None:
+        elif dtype is not None:  # written by earlier fluxcal versions
             values = values.astype(dtype)
-        new = xr.Variable(var.dims, values, decode_attrs(attrs))
-        if name in ds.coords:
+        replace[str(name)] = xr.Variable(var.dims, values, attrs)
+    for name, new in replace.items():
+        if name == TIME_COORD:
+            continue
+        if name in out.coords:
             out = out.assign_coords({name: new})
         else:
             out[name] = new
-    return out
+    return with_time_index(out) if "epoch" in out.coords else out
 
 
 def write_netcdf(ds: xr.Dataset, path: Path) -> Path:
-    """Write ``ds`` to ``path`` (``.nc``) atomically with the available engine."""
+    """Write ``ds`` to ``path`` (``.nc``, netCDF-4) atomically; see the module docstring."""
     path = Path(path)
-    enc = encode_for_netcdf3(ds)
-    for v in enc.variables.values():
-        v.encoding = {"_FillValue": None} if v.dtype.kind == "f" else {}
+    enc = encode_for_xarray(ds)
     with atomic_path(path) as tmp:
         enc.to_netcdf(tmp, engine=netcdf_engine())
     return path
@@ -130,9 +107,9 @@ def write_netcdf(ds: xr.Dataset, path: Path) -> Path:
 
 def read_netcdf(path: Path) -> xr.Dataset:
     """Read a fluxcal netCDF product back into a Dataset (exact inverse of `write_netcdf`)."""
-    with xr.open_dataset(path, engine=netcdf_engine(), decode_times=False,
-                         mask_and_scale=False) as f:
-        return decode_netcdf3(f.load())
+    with xr.open_dataset(path, engine=netcdf_engine(), mask_and_scale=False,
+                         decode_timedelta=False) as f:
+        return decode_from_xarray(f.load())
 
 
 def write_zarr(ds: xr.Dataset, path: Path) -> Path:
@@ -140,7 +117,7 @@ def write_zarr(ds: xr.Dataset, path: Path) -> Path:
     if not zarr_available():
         raise InputFormatError("Zarr output needs the optional 'zarr' package", field="zarr")
     path = Path(path)
-    enc = encode_for_netcdf3(ds)
+    enc = encode_for_xarray(ds)
     with atomic_path(path, directory=True) as tmp:
         enc.to_zarr(tmp, mode="w", zarr_format=2, consolidated=True)
     return path
@@ -148,5 +125,5 @@ def write_zarr(ds: xr.Dataset, path: Path) -> Path:
 
 def read_zarr(path: Path) -> xr.Dataset:
     """Read a fluxcal Zarr store back into a Dataset."""
-    with xr.open_zarr(path, decode_times=False, mask_and_scale=False) as f:
-        return decode_netcdf3(f.load())
+    with xr.open_zarr(path, mask_and_scale=False, decode_timedelta=False) as f:
+        return decode_from_xarray(f.load())

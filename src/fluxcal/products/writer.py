@@ -14,6 +14,7 @@ from fluxcal.products.cdf import read_cdf, write_cdf
 from fluxcal.products.columns import Column
 from fluxcal.products.netcdf import read_netcdf, read_zarr, write_netcdf, write_zarr
 from fluxcal.products.tab import read_tab, write_tab
+from fluxcal.products.timeindex import with_time_index
 
 FORMATS = ("tab", "cdf", "nc", "zarr")
 SUFFIX = {"tab": ".TAB", "cdf": ".cdf", "nc": ".nc", "zarr": ".zarr"}
@@ -28,6 +29,7 @@ def write_product(
     *,
     variable_yaml: Path | None = None,
     global_yaml: Path | None = None,
+    cdf_stem: Path | None = None,
 ) -> list[Path]:
     """Write one product in several formats; return the paths written.
 
@@ -48,6 +50,9 @@ def write_product(
         Extra keywords for the label and extra CDF global attributes.
     variable_yaml, global_yaml : Path, optional
         Mission ISTP attribute files replacing ``products/data/istp_*.yaml``.
+    cdf_stem : Path, optional
+        Path without suffix of the CDF when it is not ``stem``, e.g.
+        ``out / istp_file_stem(logical_source, day, version)`` for ISTP file names.
 
     Returns
     -------
@@ -76,8 +81,8 @@ def write_product(
             if fmt == "tab":
                 written += write_tab(ds, stem, columns, label_extra)
             elif fmt == "cdf":
-                written.append(write_cdf(ds, _with(stem, "cdf"), label_extra, variable_yaml,
-                                         global_yaml))
+                written.append(write_cdf(ds, _with(Path(cdf_stem or stem), "cdf"), label_extra,
+                                         variable_yaml, global_yaml))
             elif fmt == "nc":
                 written.append(write_netcdf(ds, _with(stem, "nc")))
             else:
@@ -99,7 +104,11 @@ READERS: dict[str, Callable[[Path], xr.Dataset]] = {
 
 
 def read_product(path: Path) -> xr.Dataset:
-    """Read any fluxcal product (format from the suffix) into a Dataset."""
+    """Read any fluxcal product (format from the suffix) into a Dataset.
+
+    The Dataset has the indexed UTC ``time`` coordinate beside the exact ``epoch``
+    (`fluxcal.products.timeindex.with_time_index`) whenever it has ``epoch``.
+    """
     path = Path(path)
     reader = READERS.get(path.suffix.lower())
     if reader is None:
@@ -107,4 +116,5 @@ def read_product(path: Path) -> xr.Dataset:
                                f"{sorted(READERS)}", path=str(path))
     if path.suffix.lower() == ".lbl":
         path = path.with_suffix(".TAB")
-    return reader(path)
+    ds = reader(path)
+    return with_time_index(ds) if "epoch" in ds.coords else ds
