@@ -26,10 +26,12 @@ def test_stream_ending_inside_the_on_phase(messenger_kernels, simulated, calibra
     truth = simulated["truth"]
     with KernelPool(messenger_kernels):
         ds = calibrate(sci, heat, simulated["temperature"], calibration)
-    # same heater signal and offsets as the truth (built from the declarative schedule)
+    # same heater signal and offsets as the independent forward model (its declarative
+    # schedule): waveform to the MET/ET clock-rate difference (< 1e-4 counts), offsets to
+    # the sec. 7 look-back bound 0.6 DN (see test_round_trip.py)
     np.testing.assert_allclose(ds["heater_signal"].values, truth["heater_signal"].values,
-                               atol=1e-9)
-    np.testing.assert_allclose(ds["offset"].values, truth["offset"].values, atol=0.02)
+                               atol=1e-4)
+    np.testing.assert_allclose(ds["offset"].values, truth["offset"].values, atol=0.6)
 
 
 def test_stream_starting_inside_heater_operation(messenger_kernels, simulated, calibration,

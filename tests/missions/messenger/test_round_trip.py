@@ -40,7 +40,9 @@ def test_fine_range_recovered(recovered):
     fine = truth["range"].values == 0
     err = ds["b_mso"].values[fine] - truth["b_mso"].values[fine]
     rms = np.sqrt((err**2).mean(axis=0))
-    # issue 3: 0.05 nT rms, 0.1 nT max per axis (quantisation alone ~0.014 rms, ~0.03 max)
+    # issue 3: 0.05 nT rms, 0.1 nT max per axis.  Quantisation alone: fine counts of
+    # 0.047 nT (Table 4) rounded give 0.047/sqrt(12) = 0.0135 nT rms per sensor axis and
+    # <= 0.5 count (0.024 nT) per axis, <= 0.04 nT in MSO
     assert np.all(rms < 0.05), rms
     assert np.all(np.abs(err).max(axis=0) < 0.1), np.abs(err).max(axis=0)
 
@@ -56,12 +58,23 @@ def test_coarse_range_recovered(recovered):
 def test_offsets_and_heater_recovered(recovered, simulated):
     ds, _ = recovered
     truth = simulated["truth"]
-    # the pipeline finds the periods and changes from the heater bits; the simulator
-    # built them from its schedule: same offsets up to the temperature interpolation
-    # (10-s temperature samples; < 0.02 counts ~ 1 pT)
-    np.testing.assert_allclose(ds["offset"].values, truth["offset"].values, atol=0.02)
+    # The pipeline finds periods and changes in the heater bits and evaluates eq. 6a-6f; the
+    # forward model (fluxcal.missions.messenger.forward) steps the relaxation ODE over the
+    # whole history from its block schedule.  While at most six duty-cycle changes lie
+    # behind a sample (the schedule's 7th change is 8000 s after the first edge), eq. 6a's
+    # zero start is the true quiet start and the two agree up to the linear interpolation of
+    # the 10-s temperature samples (< 0.02 counts ~ 1 pT).  Later, the five-change look-back
+    # neglects at most 200 exp(-5000/872) = 0.6 DN (sec. 7).
+    h = simulated["heater"]
+    first_edge_met = float(h["met"].values[0]) + 110.0  # simulate.QUIET_LEAD_S
+    u = simulated["science"]["met"].values - first_edge_met
+    diff = np.abs(ds["offset"].values - truth["offset"].values)
+    assert diff[u < 8000.0].max() < 0.02, diff[u < 8000.0].max(axis=0)
+    assert diff.max() < 0.6, diff.max(axis=0)
+    # heater waveform: the model uses MET, the pipeline ET; their rates differ by < 1e-6,
+    # i.e. < 1e-4 s in a period, times the steepest table slope (< 1 count/s)
     np.testing.assert_allclose(ds["heater_signal"].values, truth["heater_signal"].values,
-                               atol=1e-9)
+                               atol=1e-4)
 
 
 def test_quality_flags_of_the_day(recovered):

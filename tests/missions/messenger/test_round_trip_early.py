@@ -11,6 +11,33 @@ from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
 
+# Table 2 at 22.4 C, straight from the seed (sec. 7 last paragraph; T > T_m: eq. 3b)
+CT_22_4 = np.array([2.8435, -18.176, 455.4]) + np.array([2.5445, 6.6181, 2.016]) * 22.4
+# fine range: 0.047 nT counts rounded, <= 0.04 nT per MSO axis; 0.1 nT is issue 3's bound
+FINE_MAX_NT = 0.1
+
+
+def _early_run(tmp_path, start):
+    cfg = SimulationConfig(start_utc=start, duration_s=1800.0, lead_s=300.0,
+                           rate_segments=[(0.0, 9)], coarse_intervals=[])
+    mk = write_messenger_like_kernels(tmp_path, start, 4000.0, plus_y_sunward=[(100.0, 1700.0)])
+    cal = load_calibration(start)
+    with KernelPool(mk):
+        sim = simulate(cfg, cal, SclkKernel.from_pool(-236))
+        ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal)
+    return sim["truth"], ds
+
+
+def _away_from_steps(temperature, margin=200):
+    """Samples more than ``margin`` samples (20 s at 10 Hz) from a step of the true
+    temperature (sunlit <-> shadow): the pipeline interpolates the 10-s stream there."""
+    step = np.flatnonzero(np.diff(temperature) != 0)
+    idx = np.arange(temperature.size)
+    if step.size == 0:
+        return np.ones(temperature.size, dtype=bool)
+    near = np.abs(idx[:, None] - step[None, :]).min(axis=1) <= margin
+    return ~near
+
 
 @pytest.mark.parametrize(
     ("start", "flags"),
@@ -20,21 +47,33 @@ from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
     ],
 )
 def test_early_mission_round_trip(tmp_path, start, flags):
-    cfg = SimulationConfig(start_utc=start, duration_s=1800.0, lead_s=300.0,
-                           rate_segments=[(0.0, 9)], coarse_intervals=[])
-    mk = write_messenger_like_kernels(tmp_path, start, 4000.0, plus_y_sunward=[(100.0, 1700.0)])
-    cal = load_calibration(start)
-    with KernelPool(mk):
-        sim = simulate(cfg, cal, SclkKernel.from_pool(-236))
-        ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal)
-    truth = sim["truth"]
-    # before V10: offset = Table 2 at 22.4 C, no heater signal, whatever the heater does
-    expected = np.array([2.8435, -18.176, 455.4]) + np.array([2.5445, 6.6181, 2.016]) * 22.4
-    np.testing.assert_allclose(ds["offset"].values, np.tile(expected, (ds.sizes["time"], 1)))
+    truth, ds = _early_run(tmp_path, start)
+    # before V10 no heater signal, whatever the heater does
     assert not ds["heater_applied"].any()
-    err = ds["b_mso"].values - truth["b_mso"].values
-    assert np.abs(err).max() < 0.1  # fine range, quantisation only
     assert set(np.unique(ds["quality"].values)) == flags
+    # deployed in sunlight (the forward model's 22.4 C, the seed's mean): the pipeline's
+    # offset is Table 2 at 22.4 C and the field comes back to the quantisation limit
+    sunlit = truth["temperature"].values == 22.4
+    assert sunlit.any() == (start > "2005-03-08")
+    np.testing.assert_allclose(ds["offset"].values[sunlit],
+                               np.tile(CT_22_4, (int(sunlit.sum()), 1)), atol=1e-9)
+    err = ds["b_mso"].values[sunlit] - truth["b_mso"].values[sunlit]
+    assert np.abs(err).max(initial=0.0) < FINE_MAX_NT
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "issue 11 (helper-7, messenger levels): before V10 the pipeline applies Table 2 at "
+    "22.4 C to every sample; sec. 7 gives that rule for deployed sunlit data only. Shadow "
+    "(V9 regulation at -50 C) and stowed samples need Table 2 at the measured temperature: "
+    "shadow samples up to 14.4/2.8/7.4 nT off (MSO), stowed ones (at 0 C) up to 6.9/2.6/3.2 nT"))
+@pytest.mark.parametrize("start", ["2005-01-10T00:00:00", "2006-02-10T00:00:00"])
+def test_early_mission_shadow_and_stowed_use_the_measured_temperature(tmp_path, start):
+    truth, ds = _early_run(tmp_path, start)
+    t = truth["temperature"].values
+    other = (t != 22.4) & _away_from_steps(t)
+    assert other.sum() > 1000
+    err = ds["b_mso"].values[other] - truth["b_mso"].values[other]
+    assert np.abs(err).max() < FINE_MAX_NT, np.abs(err).max(axis=0)
 
 
 def test_oracle_geometry_matches(messenger_kernels, simulated, calibration):

@@ -1,16 +1,22 @@
 """Forward model: raw MESSENGER MAG telemetry from a known magnetic field.
 
-Every processing step of seed 000 is run in reverse: a known field in MSO (an offset
-dipole for Mercury plus an interplanetary field and waves) is rotated into the sensor
-frame, converted to counts with the inverse eq. 8 matrices of the sample's range, the
-thermal offsets (two-segment temperature line plus the duty-cycle offsets relaxing as in
-eq. 6a-6f) and the heater waveform (Tables 6-8) are added, the samples are time-tagged
-late by the Table 1 net lag and quantised to integer counts.  The heater schedule and the
-temperatures are built from a declarative schedule (duty cycle per 1000-s block), not
-from the pipeline's own heater-bit analysis, so the round trip also tests that analysis.
+The instrument is run forward, from the seed and its tables only (no pipeline code; see
+`fluxcal.missions.messenger.forward` and ``tests/missions/test_forward_independence.py``):
 
-`simulate` is a pure function of its configuration, the calibration and the loaded
-kernels; `write_inputs` writes the three CSV streams and the truth side file.
+1. a declarative schedule: duty cycle per 1000-s block (the V10 controller's evaluation
+   interval, sec. 7) gives the 1-s heater bits (on for the first ``d`` s of every 100-s
+   period); the sensor temperature is -50 C while the heater regulates and rises over
+   heater-off runs (before V10: 22.4 C in sunlight, -50 C in shadow, a fixed value stowed);
+2. a known field in MSO (offset dipole, interplanetary field, waves) at the true sample
+   times, rotated into the sensor frame with SPICE;
+3. the zero level: Table 2 at the true temperature, plus (from V10) the duty-cycle offset
+   relaxing by explicit time stepping and the heater waveform of Tables 6-8 in powered
+   periods (sec. 6, 7);
+4. counts by solving eq. 8 of the sample's range, rounded to integers;
+5. recorded MET = true MET + the Table 1 net lag of the rate setting (sec. 5, forward).
+
+`simulate` is a pure function of its configuration, the tables and the loaded kernels;
+`write_inputs` writes the three CSV streams and the truth side file.
 
 References
 ----------
@@ -21,17 +27,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 
-from fluxcal.calibration.gain_matrix import nt_to_counts, range_conversion
-from fluxcal.calibration.heater_signal import heater_waveform
-from fluxcal.calibration.rate_latency import per_sample_lag
-from fluxcal.calibration.relaxation import DutyCycleChanges
-from fluxcal.missions.messenger import levels
-from fluxcal.missions.messenger.calibration_data import MessengerCalibration
-from fluxcal.missions.messenger.readers import COUNT_LIMITS
+from fluxcal.missions.messenger import forward
+
+if TYPE_CHECKING:
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
 #: Mercury's offset dipole: equatorial surface field (nT), radius (km), northward
 #: offset (km).  Anderson et al. (2011) values, rounded.
@@ -39,8 +44,10 @@ MERCURY_DIPOLE_NT = 195.0
 MERCURY_RADIUS_KM = 2440.0
 DIPOLE_OFFSET_KM = 480.0
 #: Heater-off seconds at the start of the simulated heater stream (> one heater period,
-#: so the quiet start is visible; see `fluxcal.calibration.relaxation.duty_cycle_changes`).
+#: so the quiet start is visible in the bits).
 QUIET_LEAD_S = 110.0
+#: Signed 16-bit count limits of the EDR counts.
+COUNT_LIMITS = (-32768, 32767)
 
 
 @dataclass
@@ -74,6 +81,9 @@ class SimulationConfig:
     science_windows : list of (start_s, end_s), optional
         Keep science samples only inside these intervals (seconds after ``start_utc``);
         the heater and temperature streams stay continuous (short simulated days).
+    sunlit_temperature_c, shadow_temperature_c, stowed_temperature_c : float
+        Sensor temperature before V10 (2007-03-09): deployed in sunlight (sec. 7: mean
+        22.4 C), deployed in shadow (V9 regulation at -50 C), stowed (not in the seed).
     """
 
     start_utc: str = "2012-06-01T00:00:00"
@@ -92,6 +102,9 @@ class SimulationConfig:
     imf_nt: tuple[float, float, float] = (12.0, -8.0, 5.0)
     waves: list[tuple[float, float]] = field(default_factory=lambda: [(3.0, 2.0), (1.0, 0.31)])
     science_windows: list[tuple[float, float]] | None = None
+    sunlit_temperature_c: float = 22.4
+    shadow_temperature_c: float = -50.0
+    stowed_temperature_c: float = 0.0
 
 
 def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig) -> np.ndarray:
@@ -114,102 +127,59 @@ def _waves(t: np.ndarray, config: SimulationConfig) -> np.ndarray:
     return out
 
 
-def _schedule_blocks(config: SimulationConfig, span: float) -> np.ndarray:
-    n = int(np.ceil(span / config.block_s)) + 1
+def _block_duty(u: np.ndarray, config: SimulationConfig) -> np.ndarray:
+    """Duty cycle (percent) commanded at ``u`` seconds after the heater schedule starts."""
     d = np.asarray(config.duty_cycles_percent, dtype=int)
-    return np.resize(d, n)
+    block = np.floor(np.asarray(u, dtype=float) / config.block_s).astype(np.int64)
+    return np.where(block >= 0, d[np.mod(np.maximum(block, 0), d.size)], 0)
 
 
-def _temperature(t_rel: np.ndarray, blocks: np.ndarray, config: SimulationConfig) -> np.ndarray:
-    """-50 C while the heater regulates; a smooth excursion over each heater-off run."""
-    temp = np.full(t_rel.shape, -50.0)
-    off = blocks == 0
-    k = 0
-    while k < blocks.size:
-        if off[k]:
-            j = k
-            while j < blocks.size and off[j]:
-                j += 1
-            a, b = k * config.block_s, j * config.block_s
-            inside = (t_rel >= a) & (t_rel < b)
-            phase = (t_rel[inside] - a) / (b - a)
-            temp[inside] += config.excursion_c * np.sin(np.pi * phase) ** 2
-            k = j
-        else:
-            k += 1
+def _regulated_temperature(u: np.ndarray, config: SimulationConfig) -> np.ndarray:
+    """-50 C while the heater regulates; a sin^2 excursion over each heater-off run."""
+    u = np.asarray(u, dtype=float)
+    n_blocks = int(np.ceil(max(u.max(initial=0.0), 0.0) / config.block_s)) + 2
+    off = _block_duty(np.arange(n_blocks) * config.block_s, config) == 0
+    edges = np.diff(np.concatenate([[0], off.astype(int), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    temp = np.full(u.shape, -50.0)
+    for a, b in zip(starts * config.block_s, ends * config.block_s, strict=True):
+        inside = (u >= a) & (u < b)
+        temp[inside] += config.excursion_c * np.sin(np.pi * (u[inside] - a) / (b - a)) ** 2
     return temp
 
 
-def simulate(
-    config: SimulationConfig, cal: MessengerCalibration, sclk
-) -> dict[str, xr.Dataset]:
-    """Simulate raw science, heater and temperature streams and their truth.
-
-    Kernels (the synthetic MESSENGER-like set) must be loaded.
-
-    Parameters
-    ----------
-    config : SimulationConfig
-    cal : MessengerCalibration
-    sclk : fluxcal.geometry.time.SclkKernel
-        MESSENGER clock (-236).
-
-    Returns
-    -------
-    dict
-        ``"science"``, ``"heater"``, ``"temperature"`` (the raw streams, as the readers
-        return them) and ``"truth"`` (``b_mso``, ``b_sensor``, ``offset``, ``heater_signal``
-        per sample, coordinate ``epoch``).
-
-    References
-    ----------
-    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-11 (run in reverse).
-    """
+def _sunlit(et: np.ndarray) -> np.ndarray:
+    """Sensor side sunlit: the Sun has a positive +Y component in MSGR_SPACECRAFT."""
     from fluxcal.geometry.frames import rotate
     from fluxcal.geometry.positions import position
-    from fluxcal.geometry.time import et_to_tt2000, utc_to_et
 
-    et_start = float(utc_to_et(np.array([config.start_utc]))[0])
-    part_arr, met_arr = sclk.from_et(np.array([et_start]))
-    partition = int(part_arr[0])
-    met0 = float(np.ceil(met_arr[0]))  # first whole MET second at or after the start
-    # --- heater schedule (integer MET seconds) -------------------------------------------
-    # the heater stream starts with 110 s of heater off (more than one heater period):
-    # the pipeline sees the heater quiet before the first edge (relaxation from zero)
-    h_zero = met0 - config.lead_s
-    h_met = np.arange(h_zero - QUIET_LEAD_S, met0 + config.duration_s + 200.0, 1.0)
-    rel_h = h_met - h_zero
-    blocks = _schedule_blocks(config, rel_h[-1] + 1)
-    block_of = np.maximum(rel_h // config.block_s, 0).astype(int)
-    in_period = rel_h % 100.0
-    duty = blocks[block_of]
-    bits = ((in_period < duty) & (rel_h >= 0)).astype(np.int8)
-    # periods (by construction): each 100 s of a block with duty > 0
-    p_start_rel = np.arange(0.0, rel_h[-1] + 1, 100.0)
-    p_duty = blocks[(p_start_rel // config.block_s).astype(int)]
-    keep = (p_duty > 0) & (p_start_rel + 100.0 <= rel_h[-1] + 1)
-    p_start_rel, p_duty = p_start_rel[keep], p_duty[keep]
-    p_start_et = sclk.to_et(np.full(p_start_rel.size, partition), h_zero + p_start_rel)
-    # duty-cycle changes from the block schedule
-    ch_t_rel, ch_d = [], []
-    prev = 0
-    for b, d in enumerate(blocks):
-        if d != prev:
-            ch_t_rel.append(b * config.block_s)
-            ch_d.append(10 * d)
-        prev = d
-    ch_t_rel, ch_d = np.array(ch_t_rel, dtype=float), np.array(ch_d, dtype=float)
-    keep = ch_t_rel <= rel_h[-1] + 1 - 100.0
-    ch_t_rel, ch_d = ch_t_rel[keep], ch_d[keep]
-    ch_et = sclk.to_et(np.full(ch_t_rel.size, partition), h_zero + ch_t_rel)
-    # --- temperatures ------------------------------------------------------------------
-    t_met = np.arange(h_met[0], h_met[-1] + 1, config.temperature_step_s)
-    t_temp = np.round(_temperature(t_met - h_zero, blocks, config), 4)
-    # --- science sample grid (recorded MET) ---------------------------------------------
+    sun = rotate(position("SUN", "MESSENGER", "J2000", et), et, "J2000", "MSGR_SPACECRAFT")
+    return sun[:, 1] > 0
+
+
+def _temperature(
+    u: np.ndarray, et: np.ndarray, config: SimulationConfig, tables: forward.SeedTables,
+    et_of: dict[str, float],
+) -> np.ndarray:
+    """Return the true sensor temperature (degC) at schedule seconds ``u`` (ET ``et``)."""
+    temp = _regulated_temperature(u, config)
+    early = et < et_of["heater_mode_v10"]
+    if early.any():
+        sun = _sunlit(et[early])
+        t_early = np.where(sun, config.sunlit_temperature_c, config.shadow_temperature_c)
+        stowed = et[early] < et_of["boom_deployment"]
+        temp[early] = np.where(stowed, config.stowed_temperature_c, t_early)
+    return temp
+
+
+def _sample_grid(
+    config: SimulationConfig, met0: float, tables: forward.SeedTables
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return recorded MET, rate setting and range flag of every science sample."""
     met_parts, rate_parts = [], []
     bounds = [f for f, _ in config.rate_segments] + [1.0]
     for (frac, rate), end in zip(config.rate_segments, bounds[1:], strict=True):
-        hz = cal.sample_rate_hz[rate]
+        hz = tables.sample_rate_hz[rate]
         a = met0 + frac * config.duration_s
         b = met0 + end * config.duration_s
         grid = np.arange(np.ceil(a * hz) / hz, b, 1.0 / hz)
@@ -227,36 +197,89 @@ def simulate(
     for a, b in config.coarse_intervals:
         lo, hi = met0 + a * config.duration_s, met0 + b * config.duration_s
         rng[(met_rec >= lo) & (met_rec < hi)] = 1
-    lag = per_sample_lag(rate, cal.net_lag_s)
+    return met_rec, rate, rng
+
+
+def simulate(
+    config: SimulationConfig, cal: MessengerCalibration | None, sclk: SclkKernel
+) -> dict[str, xr.Dataset]:
+    """Simulate raw science, heater and temperature streams and their truth.
+
+    Kernels (the synthetic MESSENGER-like set) must be loaded.
+
+    Parameters
+    ----------
+    config : SimulationConfig
+    cal : MessengerCalibration or None
+        Only its ``paths`` are used: the forward model reads those table files itself
+        (`fluxcal.missions.messenger.forward.read_tables`); None reads the packaged v1.
+    sclk : fluxcal.geometry.time.SclkKernel
+        MESSENGER clock (-236).
+
+    Returns
+    -------
+    dict
+        ``"science"``, ``"heater"``, ``"temperature"`` (the raw streams, as the readers
+        return them) and ``"truth"`` (``b_mso``, ``b_sensor``, ``offset`` (Table 2 +
+        duty-cycle offset, fine counts), ``heater_signal`` (fine counts), ``temperature``
+        per sample, coordinate ``epoch``).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-8 (forward).
+    """
+    from fluxcal.geometry.frames import rotate
+    from fluxcal.geometry.positions import position
+    from fluxcal.geometry.time import et_to_tt2000, utc_to_et
+
+    tables = forward.read_tables(None if cal is None or not cal.paths else cal.paths)
+    et_of = {k: float(utc_to_et(np.array([str(tables.date(k))]))[0])
+             for k in ("boom_deployment", "heater_mode_v10")}
+    et_start = float(utc_to_et(np.array([config.start_utc]))[0])
+    part_arr, met_arr = sclk.from_et(np.array([et_start]))
+    partition = int(part_arr[0])
+    met0 = float(np.ceil(met_arr[0]))  # first whole MET second at or after the start
+    # --- heater schedule: 1-s bits, on for the first d seconds of each 100-s period -----
+    period = float(tables.constants["heater"]["period_s"])
+    h_zero = met0 - config.lead_s
+    h_met = np.arange(h_zero - QUIET_LEAD_S, met0 + config.duration_s + 200.0, 1.0)
+    u_h = h_met - h_zero
+    duty_h = _block_duty(u_h, config)
+    bits = ((np.mod(u_h, period) < duty_h) & (u_h >= 0)).astype(np.int8)
+    # --- science samples at their true times (recorded MET minus the net lag, sec. 5) ---
+    met_rec, rate, rng = _sample_grid(config, met0, tables)
+    met_true = met_rec - tables.net_lag_s[rate]
     part = np.full(met_rec.size, partition, dtype=np.int8)
-    et = sclk.to_et(part, met_rec - lag)
+    et = sclk.to_et(part, met_true)
+    u = met_true - h_zero
+    # --- temperatures ------------------------------------------------------------------
+    t_met = np.arange(h_met[0], h_met[-1] + 1, config.temperature_step_s)
+    t_et = sclk.to_et(np.full(t_met.size, partition), t_met)
+    t_stream = np.round(_temperature(t_met - h_zero, t_et, config, tables, et_of), 4)
+    temp_true = _temperature(u, et, config, tables, et_of)
     # --- truth field ---------------------------------------------------------------------
     pos = position("MESSENGER", "MERCURY", "MSGR_MSO", et)
     b_mso = mercury_field_mso(pos, config) + _waves(et - et_start, config)
-    deployed = levels.sensor_frame(et, cal)
+    deployed = et >= et_of["boom_deployment"]
     b_sensor = np.empty_like(b_mso)
     for frame, sel in (("MSGR_MAG", deployed), ("MSGR_MAG_STOWED", ~deployed)):
         if sel.any():
             b_sensor[sel] = rotate(b_mso[sel], et[sel], "MSGR_MSO", frame)
-    # --- offsets and heater signal (fine counts) ---------------------------------------
-    temp_true = _temperature(
-        (sclk.from_et(et)[1] - h_zero), blocks, config
-    )
-    offset = levels.offset_model(et, temp_true, DutyCycleChanges(ch_et, ch_d), cal)
-    k = np.searchsorted(p_start_et, et, side="right") - 1
-    inside = (k >= 0) & (et < p_start_et[np.maximum(k, 0)] + 100.0)
-    applied = inside & (p_duty[np.maximum(k, 0)] >= cal.constants["heater"]["min_on_s"])
-    applied &= et >= float(utc_to_et(np.array([str(cal.date("heater_mode_v10"))]))[0])
+    # --- zero level (fine counts): Table 2 + duty-cycle relaxation + heater waveform ----
+    v10 = et >= et_of["heater_mode_v10"]
+    offset = forward.temperature_offset(temp_true, tables)
+    grid = np.arange(u_h[0], u_h[-1] + 1.0, 1.0)
+    duty_ppt = 10.0 * _block_duty(grid, config) * (grid >= 0)
+    delta = forward.relaxed_duty_offset(grid, duty_ppt, tables)
+    for axis in range(3):
+        offset[:, axis] += np.where(v10, np.interp(u, grid, delta[:, axis]), 0.0)
+    since_edge = np.mod(u, period)
+    d_sample = _block_duty(u, config)
+    powered = v10 & (u >= 0) & (d_sample >= tables.constants["heater"]["min_on_s"])
     heater = np.zeros((et.size, 3))
-    kk = k[applied]
-    heater[applied] = heater_waveform(
-        et[applied] - p_start_et[kk], p_duty[kk].astype(float), cal.heater_signal,
-        cal.heater_duty_bins_percent,
-    )
-    conv = range_conversion(cal.matrices)
-    total = offset + heater
-    total[rng == 1] = np.einsum("ij,nj->ni", conv[1], total[rng == 1])
-    counts = np.round(nt_to_counts(b_sensor, rng, cal.matrices) + total)
+    if powered.any():
+        heater[powered] = forward.heater_waveform(since_edge[powered], d_sample[powered], tables)
+    counts = np.rint(forward.counts_from_field(b_sensor, offset + heater, rng, tables))
     if counts.min() < COUNT_LIMITS[0] or counts.max() > COUNT_LIMITS[1]:
         raise ValueError("simulated counts exceed the 16-bit limits; reduce the field")
     comp = {"component": ["x", "y", "z"]}
@@ -281,7 +304,7 @@ def simulate(
         {
             "partition": ("temperature_time", np.full(t_met.size, partition, dtype=np.int8)),
             "met": ("temperature_time", t_met, {"units": "s"}),
-            "temperature_c": ("temperature_time", t_temp, {"units": "degC"}),
+            "temperature_c": ("temperature_time", t_stream, {"units": "degC"}),
         }
     )
     vec = ("time", "component")
