@@ -223,7 +223,7 @@ def test_millisecond_strings_match_timout(messenger_clock, style, picture):
     # counted: with random ns about 2 in 10,000); the exact case is tested below.
     sub_ms = tt % 1_000_000
     near = (sub_ms < 100) | (sub_ms > 1_000_000 - 100)
-    assert near.sum() < 20, near.sum()
+    assert near.sum() < 20, near.sum()  # 5 of 15,400 here
     tt = tt[~near]
     ours = tt2000_to_utc(tt, style=style, digits=3)
     ref = _timout(tt, picture)
