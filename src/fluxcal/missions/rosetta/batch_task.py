@@ -16,9 +16,19 @@ file is a day without data.  Either sensor may be missing (e.g. IB switched off)
 
 Levels: A, B, E, F always; C and G too when kernels are given (LEVEL_C needs the
 SPICE attitude and ephemeris, sec. 4.4).  Without kernels the record times come from
-``time_utc`` instead of ``obt`` (`fluxcal.missions.rosetta.io`).  Each day runs
-alone: the midnight stitching of the extended temperature model (sec. 4.2.3.3) is not
-carried from one day to the next, since the days run in parallel.
+``time_utc`` instead of ``obt`` (`fluxcal.missions.rosetta.io`).
+
+Midnight stitching of the extended temperature model (sec. 4.2.3.3) across days that run
+in parallel (docs/decisions/rosetta.md, decision 27): a day's shift depends on the whole
+chain of contiguous earlier days, but only through each day's first and last good vector
+(`extended_model.stitch_day`).  Each day therefore leaves a small state file
+``<out>/stitch/RPCMAG_<yyyymmdd>_STITCH_<sensor>.json`` (those two vectors, keyed by the
+raw file and meta-kernel they came from, plus the end-of-day offset: the seed's "separate
+file"); a day walks back over the earlier days that have a science file and a daily model,
+reads their state files (or, when one is missing or stale, reads that day's raw file for
+its two vectors and writes the file), and resolves the chain forward.  Order of execution
+does not matter, and the incoming state is part of the day's manifest inputs, so a change
+in an earlier day redoes the later days of its campaign.
 
 Every file of a day (both sensors, every level and format, HK, quicklooks) is renamed
 into place only when the whole day succeeded (`fluxcal.products.atomic.atomic_group`).
@@ -31,6 +41,7 @@ References
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,6 +51,22 @@ SENSORS = ("OB", "IB")
 BASE_LEVELS = ("A", "B", "E", "F")
 KERNEL_LEVELS = ("A", "B", "C", "E", "F", "G")
 _DAILY_CALIB = re.compile(r"^RPCMAG_(\d{6})_\d{3}_CALIB_(OB|IB)\.TXT$", re.IGNORECASE)
+
+
+STITCH_DIR = "stitch"
+_STITCH_GAP_S = 3 * 3600.0  # extended_model.STITCH_GAP_S (no import at module load)
+
+
+def stitch_file(out_dir: Path, day: _dt.date, sensor: str) -> Path:
+    """Return ``<out>/stitch/RPCMAG_<yyyymmdd>_STITCH_<sensor>.json``."""
+    return Path(out_dir) / STITCH_DIR / f"RPCMAG_{day:%Y%m%d}_STITCH_{sensor}.json"
+
+
+def _file_key(path: Path | None) -> list | None:
+    if path is None:
+        return None
+    st = Path(path).stat()
+    return [str(Path(path).resolve()), st.st_size, st.st_mtime_ns]
 
 
 def day_folder(input_dir: Path, day: _dt.date) -> Path:
@@ -87,6 +114,7 @@ class RosettaDayTask:
     frame: str = "auto"
     centre: str = "auto"
     boom: str = "deployed"
+    stitch_gap_s: float = _STITCH_GAP_S
     name: str = "rosetta"
 
     def kernel_file(self) -> Path | None:
@@ -115,6 +143,93 @@ class RosettaDayTask:
         files = {s: science_file(self.input_dir, day, s) for s in SENSORS}
         return {s: p for s, p in files.items() if p.is_file()}
 
+    # --- midnight stitching across days (sec. 4.2.3.3, decision 27) -----------------------
+    def _edge_key(self, day: _dt.date, sensor: str) -> list:
+        return [_file_key(science_file(self.input_dir, day, sensor)),
+                _file_key(self.kernel_file())]
+
+    def _read_stitch(self, day: _dt.date, sensor: str) -> dict | None:
+        path = stitch_file(self.out_dir, day, sensor)
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        return data if data.get("key") == self._edge_key(day, sensor) else None
+
+    def _write_stitch(self, day: _dt.date, sensor: str, edges, end_state: dict | None) -> None:
+        from fluxcal.products.atomic import atomic_write_bytes
+
+        data = {"key": self._edge_key(day, sensor),
+                "first": list(edges[0]) if edges else None,
+                "last": list(edges[1]) if edges else None,
+                "end_state": end_state}
+        atomic_write_bytes(stitch_file(self.out_dir, day, sensor),
+                           json.dumps(data, indent=1).encode())
+
+    def _edges(self, day: _dt.date, sensor: str):
+        """First and last good vector ``((epoch, word), (epoch, word))`` of a day, cached."""
+        from fluxcal.geometry.time import SclkKernel, leapseconds
+        from fluxcal.missions.rosetta import io
+        from fluxcal.products.batch import worker_kernel_pool
+
+        cached = self._read_stitch(day, sensor)
+        if cached is not None:
+            return None if cached["first"] is None else (tuple(cached["first"]),
+                                                         tuple(cached["last"]))
+        from fluxcal.missions.rosetta.level_a import stitch_edges
+
+        kern = self.kernel_file()
+        worker_kernel_pool(kern)
+        sclk = SclkKernel.from_pool(io.SCLK_ID) if kern is not None else None
+        raw = io.read_science_csv(science_file(self.input_dir, day, sensor), sensor,
+                                  sclk=sclk, lsk=leapseconds())
+        edges = stitch_edges(raw, sensor)
+        self._write_stitch(day, sensor, edges, None)
+        return edges
+
+    def incoming_state(self, day: _dt.date, sensor: str):
+        """Stitching state at the end of the day before ``day`` (``None``: no stitching).
+
+        Walks back over the contiguous earlier days that have a science file of
+        ``sensor`` and a daily model, then resolves the chain forward from their first and
+        last vectors (`extended_model.stitch_day`), exactly as one run over all the days
+        would.
+        """
+        import numpy as np
+
+        from fluxcal.missions.rosetta import calib, level_a
+        from fluxcal.missions.rosetta.extended_model import stitch_day
+
+        models = calib.find_daily_offset_models(self.calib_dir(), sensor)
+        chain = []
+        d = day - _dt.timedelta(days=1)
+        while (science_file(self.input_dir, d, sensor).is_file()
+               and models.get(np.datetime64(d.isoformat(), "D")) is not None):
+            chain.append(d)
+            d -= _dt.timedelta(days=1)
+        if not chain:
+            return None
+        cal = calib.load_ground_calibration(sensor, self.calib_dir())
+        nominal = calib.load_nominal_conversion(self.calib_dir())
+        state = None
+        for d in reversed(chain):
+            edges = self._edges(d, sensor)
+            if edges is None:
+                state = None
+                continue
+            (e0, w0), (e1, w1) = edges
+            t = cal.extended_model_temperature(
+                level_a.sensor_temperature(np.array([w0, w1]), cal, nominal)
+            )
+            model = models[np.datetime64(d.isoformat(), "D")]
+            _, state = stitch_day(model, (e0, float(t[0])), (e1, float(t[1])), state,
+                                  self.stitch_gap_s)
+        return state
+
+    def _incoming_text(self, day: _dt.date, sensor: str) -> str:
+        state = self.incoming_state(day, sensor)
+        return "none" if state is None else json.dumps(state.to_attrs(), sort_keys=True)
+
     def inputs(self, day: _dt.date):
         """Return the day's raw files, meta-kernel and calibration files (manifest).
 
@@ -141,6 +256,8 @@ class RosettaDayTask:
                 m = _DAILY_CALIB.match(p.name)
                 if p.is_file() and (m is None or m.group(1) == stamp):
                     cal[f"{key}/{p.name}"] = p
+        for sensor in self._science(day):  # the chain of earlier days (decision 27)
+            cal[f"stitch_in/{sensor}"] = self._incoming_text(day, sensor)
         return DayInputs(tuple(files), cal)
 
     def __call__(self, day: _dt.date):
@@ -161,6 +278,7 @@ class RosettaDayTask:
         levels = self.level_list()
         paths: list[Path] = []
         n_vectors = 0
+        ends = {}
         with atomic_group():  # nothing of the day appears unless every file is complete
             for k, (sensor, path) in enumerate(science.items()):
                 result = calibrate_files(
@@ -169,11 +287,14 @@ class RosettaDayTask:
                     calib_dir=self.calib_dir(), kernels=kern, primary=self.primary,
                     average_s=self.average_s, frame=self.frame, centre=self.centre,
                     boom=self.boom, formats=self.formats, quicklook=self.quicklook,
-                    pool=pool,
+                    pool=pool, previous=self.incoming_state(day, sensor),
+                    stitch_gap_s=self.stitch_gap_s,
                 )
                 a = result.levels["A"]
                 n_vectors += int(a.sizes["time"]) + int(a.attrs.get("n_dropped_quality", 0))
                 paths += result.paths
+                state = {k2: v for k2, v in a.attrs.items() if k2.startswith("stitch_")}
+                ends[sensor] = (result.edges, state or None)
             stamp = f"_{day:%Y%m%d}"
             stray = [p for p in paths if stamp not in Path(p).name]
             if stray:
@@ -182,6 +303,8 @@ class RosettaDayTask:
                     f"a day folder must hold that UTC day only",
                     path=str(day_folder(self.input_dir, day)), field="time_utc",
                 )
+        for sensor, (edges, state) in ends.items():  # after the products are in place
+            self._write_stitch(day, sensor, edges, state)
         return DayResult(day, [Path(p) for p in paths], n_vectors=n_vectors)
 
 
@@ -189,10 +312,10 @@ def make_day_task(input_dir: Path, out_dir: Path, **options) -> RosettaDayTask:
     """Build the task for ``fluxcal batch rosetta``.
 
     Options: ``kernels``, ``calib``, ``formats``, ``quicklook``, ``levels``, ``primary``,
-    ``average_s``, ``frame``, ``centre``, ``boom``; others are ignored.
+    ``average_s``, ``frame``, ``centre``, ``boom``, ``stitch_gap_s``; others are ignored.
     """
     allowed = {"kernels", "calib", "formats", "quicklook", "levels", "primary", "average_s",
-               "frame", "centre", "boom"}
+               "frame", "centre", "boom", "stitch_gap_s"}
     opts = {k: v for k, v in options.items() if k in allowed and v is not None}
     for key in ("formats", "levels"):
         if key in opts:

@@ -218,6 +218,22 @@ def filter_time_shift(
     return timeshift.mode_shifts(sid, table.sid, table.primary if is_primary else table.secondary)
 
 
+def stitch_edges(raw: xr.Dataset, sensor: str) -> tuple[tuple[int, int], tuple[int, int]] | None:
+    """``((epoch, word), (epoch, word))`` of the first and last good vector of ``raw``.
+
+    Epoch is the telemetry TT2000 (before the filter shift) and word the sensor's own
+    thermistor word: all the midnight stitching of sec. 4.2.3.3 needs of a day
+    (`fluxcal.missions.rosetta.extended_model.stitch_day`).  ``None`` without good vectors.
+    """
+    good = np.flatnonzero(good_vectors(raw["quality"].values))
+    if good.size == 0:
+        return None
+    epoch = raw["epoch"].values
+    words = raw[f"t_{check_sensor(sensor).lower()}_counts"].values
+    i, j = int(good[0]), int(good[-1])
+    return (int(epoch[i]), int(words[i])), (int(epoch[j]), int(words[j]))
+
+
 # ----------------------------------------------------------------------------------------
 # Level function
 # ----------------------------------------------------------------------------------------

@@ -204,6 +204,9 @@ class CalibrateResult:
 
     levels: dict[str, xr.Dataset] = field(default_factory=dict)
     paths: list[Path] = field(default_factory=list)
+    #: First and last good vector ``((epoch, word), (epoch, word))`` of the raw file
+    #: (`level_a.stitch_edges`), for the batch's midnight-stitching chain.
+    edges: tuple | None = None
 
 
 def parse_levels(text: str) -> list[str]:
@@ -231,6 +234,7 @@ def calibrate_files(
     boom: str = "deployed",
     stitch_gap_s: float = level_a.STITCH_GAP_S,
     stitch_state: Path | None = None,
+    previous: level_a.StitchState | None = None,
     jumps: bool = True,
     alignment_from_kernels: bool = False,
     formats: Sequence[str] = ("tab", "cdf"),
@@ -243,7 +247,9 @@ def calibrate_files(
     Parameters mirror the command's options (see `fluxcal.missions.rosetta.cli`).
     ``stitch_state`` is a JSON file holding the end-of-day state of the extended
     temperature model (sec. 4.2.3.3: "the offset values at the end of a day are stored in a
-    separate file"): read before LEVEL_A when it exists, rewritten after.
+    separate file"): read before LEVEL_A when it exists, rewritten after.  ``previous``
+    passes that state directly instead (the batch, `batch_task.RosettaDayTask`); giving
+    both is an error.
     ``quicklook`` also writes a PNG per UTC day (`write_quicklook`).  ``pool`` is an
     already entered `KernelPool` holding ``kernels`` (batch workers keep theirs loaded,
     `fluxcal.products.batch.worker_kernel_pool`); by default a pool is opened here.
@@ -258,6 +264,8 @@ def calibrate_files(
     from fluxcal.products import provenance_attrs
 
     sensor = calib.check_sensor(sensor)
+    if previous is not None and stitch_state is not None:
+        raise FluxcalError("give the stitching state either as a file or as a state, not both")
     wanted = set(levels)
     if alignment_from_kernels and kernels is None:
         raise FluxcalError("--alignment-from-kernels needs --kernels (frames kernel + boom CK)")
@@ -293,10 +301,11 @@ def calibrate_files(
             daily_models=models,
             primary=primary,
             stitch_gap_s=stitch_gap_s,
-            previous=read_stitch_state(stitch_state),
+            previous=previous if previous is not None else read_stitch_state(stitch_state),
             lsk=lsk,
         )
         result.levels["A"] = a
+        result.edges = level_a.stitch_edges(raw, sensor)
         if stitch_state is not None and write:
             write_stitch_state(a, stitch_state)
         if "B" in need:
