@@ -62,37 +62,39 @@ def test_eq5_threshold():
 
 
 def test_changes_from_periods():
-    # 40 % for 3 periods, 25 % for 2, then quiet, then 30 % again
-    bits = [0] * 10 + ([1] * 40 + [0] * 60) * 3 + ([1] * 25 + [0] * 75) * 2 + [0] * 500
-    bits += [1] * 30 + [0] * 70 + [0] * 200
+    # 40 % for ten periods, 25 % for ten (the V10 controller holds a duty cycle for one
+    # 1000-s evaluation interval at least), then quiet, then 30 % again
+    bits = [0] * 10 + ([1] * 40 + [0] * 60) * 10 + ([1] * 25 + [0] * 75) * 10 + [0] * 500
+    bits += ([1] * 30 + [0] * 70) * 10 + [0] * 200
     t = np.arange(len(bits), dtype=float)
     p = heater_periods(t, np.array(bits))
     ch = duty_cycle_changes(p, data_end=t[-1] + 1)
-    np.testing.assert_array_equal(ch.time, [10, 310, 510, 1010, 1110])
+    np.testing.assert_array_equal(ch.time, [10, 1010, 2010, 2510, 3510])
     np.testing.assert_array_equal(ch.duty_cycle_ppt, [400, 250, 0, 300, 0])
 
 
 def test_stream_starting_inside_heater_operation():
     # 40 % from the first bit on (no quiet period seen before the first edge): the duty
     # cycle before the data is unknown and taken as steady (change at -inf), so the
-    # offset is D0 d at once instead of relaxing from zero; then a step to 25 %
-    bits = ([1] * 40 + [0] * 60) * 5 + ([1] * 25 + [0] * 75) * 2 + [0] * 300
+    # offset is D0 d at once instead of relaxing from zero; then 25 % for one 1000-s
+    # evaluation interval
+    bits = ([1] * 40 + [0] * 60) * 5 + ([1] * 25 + [0] * 75) * 10 + [0] * 300
     bits = bits[5:]  # the series starts 5 s into an on-phase: first edge at 95 s
     t = np.arange(len(bits), dtype=float)
     p = heater_periods(t, np.array(bits))
     ch = duty_cycle_changes(p, data_end=t[-1] + 1, data_start=t[0])
     assert ch.time[0] == -np.inf and ch.duty_cycle_ppt[0] == 400
-    np.testing.assert_array_equal(ch.time[1:], [495, 695])
+    np.testing.assert_array_equal(ch.time[1:], [495, 1495])
     np.testing.assert_array_equal(ch.duty_cycle_ppt[1:], [250, 0])
     d0 = np.array([0.32851])
     target = steady_state_offset(ch.duty_cycle_ppt, d0)
-    ts = np.array([0.0, 300.0, 500.0, 600.0, 750.0])
+    ts = np.array([0.0, 300.0, 500.0, 600.0, 1550.0])
     got = relaxed_offset(ts, ch.time, target, tau=TAU, delay=DT)[:, 0]
     # closed form: steady 400 * D0 until 495 + dt, then toward 250 * D0, then toward 0
     c400, c250 = 400 * d0[0], 250 * d0[0]
-    at695 = c250 - (c250 - c400) * math.exp(-(695 - 495 - DT) / TAU)
+    at1495 = c250 - (c250 - c400) * math.exp(-(1495 - 495 - DT) / TAU)
     want = [c400, c400, c400, c250 - (c250 - c400) * math.exp(-(600 - 495 - DT) / TAU),
-            at695 * math.exp(-(750 - 695 - DT) / TAU)]
+            at1495 * math.exp(-(1550 - 1495 - DT) / TAU)]
     np.testing.assert_allclose(got, want, rtol=1e-12)
     # the brute-force 6a-6f agrees with the change at -inf
     brute = [brute_force(s, list(ch.time), list(target[:, 0])) for s in ts]

@@ -158,6 +158,113 @@ def heater_signal_kernel(
 
 
 # ----------------------------------------------------------------------------------------
+# sec. 7: duty-cycle levels of the V10 controller
+# ----------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def _mode(values, lo, hi, ref):
+    """Most frequent value of ``values[lo:hi]``, its count, and the count of ``ref``.
+
+    Ties: the first value to occur wins.
+    """
+    best = values[lo]
+    best_count = 0
+    ref_count = 0
+    for a in range(lo, hi):
+        v = values[a]
+        if v == ref:
+            ref_count += 1
+        c = 0
+        for b in range(lo, hi):
+            if values[b] == v:
+                c += 1
+        if c > best_count:
+            best = v
+            best_count = c
+    return best, best_count, ref_count
+
+
+@njit(cache=True, nogil=True)
+def duty_cycle_levels_kernel(ppt, run_start, window, last_run_open, level, change):
+    """Duty cycle commanded by the controller in each heater period (seed 000 sec. 7).
+
+    The V10 controller sets a new duty cycle only at its evaluations, every ten heater
+    periods, so a commanded duty cycle holds for ``window`` (10) periods while the
+    on-count of single periods may jitter by a bit.  Walking the periods in order:
+
+    - the first period of a contiguous run starts a level (a change) with its own duty
+      cycle;
+    - a later period ``k`` whose duty cycle differs from the level changes it only when
+      the most frequent value ``v`` among it and the ``window - 1`` periods after it
+      (same run; ties: the first to occur) is another value, more frequent there than
+      the level.  The change is at the first of those periods whose duty cycle is closer
+      to ``v`` than to the level (so a jittered period just before a real change does not
+      move it earlier) and takes the value ``v``; otherwise ``k`` is jitter (no change).
+      A run that ends with the heater going quiet ends at an evaluation, so its last
+      level holds ``window`` periods: fewer than ``window - 1`` periods before that end
+      cannot start a level.  The last run may be cut by the end of the data instead
+      (``last_run_open``): there the periods that are left decide;
+    - a run whose first level lasts one period only (a jittered first period) takes the
+      level of the second period from its start.
+
+    Parameters
+    ----------
+    ppt : ndarray, shape (n,)
+        Duty cycle of each period (parts per 1000, whole numbers).
+    run_start : ndarray of bool, shape (n,)
+        First period of a contiguous run (period 0 always starts one).
+    window : int
+        Periods per controller evaluation (10).
+    last_run_open : bool
+        The last run is cut by the end of the data (not ended by the heater going quiet).
+    level : ndarray, shape (n,)
+        Written: the commanded duty cycle in force in each period.
+    change : ndarray of bool, shape (n,)
+        Written: the level changes at this period.
+    """
+    n = ppt.size
+    current = 0.0
+    run_end = 0
+    first = 0
+    k = 0
+    while k < n:
+        change[k] = False
+        if run_start[k] or k == 0:
+            run_end = k + 1
+            while run_end < n and not run_start[run_end]:
+                run_end += 1
+            first = k
+            current = ppt[k]
+            level[k] = current
+            change[k] = True
+            k += 1
+            continue
+        level[k] = current
+        if ppt[k] != current:
+            hi = min(k + window, run_end)
+            if hi - k < window - 1 and not (last_run_open and run_end == n):
+                k += 1  # too close to a quiet end for a new level
+                continue
+            v, cv, cl = _mode(ppt, k, hi, current)
+            if v != current and cv > cl:
+                j = k
+                while abs(ppt[j] - v) >= abs(ppt[j] - current):
+                    change[j] = False
+                    level[j] = current
+                    j += 1
+                if j == first + 1:  # the run's first period was jitter
+                    change[j - 1] = True
+                    level[j - 1] = v
+                    change[j] = False
+                else:
+                    change[j] = True
+                level[j] = v
+                current = v
+                k = j + 1
+                continue
+        k += 1
+
+
+# ----------------------------------------------------------------------------------------
 # sec. 7: offsets
 # ----------------------------------------------------------------------------------------
 @njit(cache=True, nogil=True)

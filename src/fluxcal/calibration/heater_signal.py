@@ -1,7 +1,8 @@
 """Sensor-heater periods from the 1-s heater bit, and the heater signal they leave.
 
-A heater period starts at each rising edge of the heater request bit and lasts one
-heater period (100 s) or until the next rising edge.  Its duty cycle is the fraction of
+A heater period starts at each rising edge of the heater request bit (or, while the bit
+stays on or an edge falls in a short gap, on the 100-s grid of the last edge) and lasts
+one heater period (100 s) or until the next start.  Its duty cycle is the fraction of
 its one-second bits that are on.  The periodic heater signal (tabulated versus seconds
 since the edge for duty-cycle bins) is applied only when the bit stayed on for at least
 the persistence time (10 s).
@@ -48,6 +49,34 @@ class HeaterPeriods:
         return int(self.start.size)
 
 
+def _hidden_edges(
+    times: np.ndarray, bits: np.ndarray, seen: np.ndarray, period: float, bit_step: float,
+    tolerance: float,
+) -> np.ndarray:
+    """Rising edges hidden in gaps of the bit series, on the 100-s grid of the last edge.
+
+    A gap (consecutive records more than ``bit_step`` apart; the reader allows gaps up to
+    one period) hides an edge when the grid point ``e + period`` of the last edge ``e``
+    seen before the gap lies inside it and the heater was still cycling across it: the
+    first bit after the gap is on, or the next seen edge is one period after the grid
+    point.  Returns the times of those grid points (the V10 controller starts one heater
+    period every 100 s, sec. 6, 7).
+    """
+    eps = 1e-6 * bit_step
+    gap = np.flatnonzero(np.diff(times) > bit_step + eps) + 1  # index of the record after
+    if gap.size == 0 or seen.size == 0:
+        return np.empty(0)
+    t_seen = times[seen]
+    k = np.searchsorted(t_seen, times[gap - 1], side="right") - 1  # last edge before the gap
+    has = k >= 0
+    anchor = np.where(has, t_seen[np.maximum(k, 0)], np.nan)
+    grid = anchor + period
+    nxt = np.where(k + 1 < t_seen.size, t_seen[np.minimum(k + 1, t_seen.size - 1)], np.inf)
+    inside = (grid > times[gap - 1] + eps) & (grid <= times[gap] + tolerance)
+    cycling = (bits[gap] == 1) | (np.abs(nxt - grid - period) <= tolerance)
+    return grid[has & inside & cycling & (nxt > grid + tolerance)]
+
+
 def heater_periods(
     times: np.ndarray,
     bits: np.ndarray,
@@ -80,6 +109,18 @@ def heater_periods(
 
     Notes
     -----
+    A rising edge is a 0 -> 1 step between *consecutive* bits (``bit_step`` apart).  A
+    step across a gap is not an edge: the edge lies somewhere in the gap.  When the grid
+    point one period after the last seen edge lies in the gap and the heater kept cycling
+    (see `_hidden_edges`) the period starts there; otherwise the period is not known (as
+    at the start of the series: no heater period, no signal).
+
+    A bit that stays on for longer than a period (duty cycle 100 %) has no rising edge
+    after the first: the periods go on every ``period`` seconds while the bit is on.  A
+    period with the bit on throughout (no off phase) gets no heater signal (``applied``
+    False): the heater-cycle waveform of Tables 6-8 is the response to switching the
+    heater on and off within the period, and there is none (docs/decisions/messenger.md).
+
     A series that starts with the bit on has no known rising edge there: that partial
     period is not a heater period.  The duty cycle counts the bits with times in
     ``[start, end)`` and divides by ``period / bit_step`` (100 bits).
@@ -96,36 +137,53 @@ def heater_periods(
 
     References
     ----------
-    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6.
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, 7.
     """
     times = np.asarray(times, dtype=float)
     bits = np.asarray(bits).astype(np.int8)
     if times.shape != bits.shape or times.ndim != 1:
         raise ValueError("times, bits: must be 1-D arrays of equal length")
+    eps = 1e-6 * bit_step
     step = np.diff(bits)
-    rising = np.flatnonzero(step == 1) + 1
+    consecutive = np.diff(times) <= bit_step + eps
+    seen = np.flatnonzero((step == 1) & consecutive) + 1
     falling = np.flatnonzero(step == -1) + 1
-    start = times[rising]
+    start = np.sort(np.concatenate(
+        [times[seen], _hidden_edges(times, bits, seen, period, bit_step, tolerance)]))
+    # the run of ones from each edge ends at the next 1 -> 0 step (or after the series)
+    t_fall = times[falling]
+    end_of_data = times[-1] + bit_step if times.size else 0.0
+
+    def fall_after(t: np.ndarray) -> np.ndarray:
+        j = np.searchsorted(t_fall, t, side="right")
+        return np.where(j < t_fall.size, t_fall[np.minimum(j, max(t_fall.size - 1, 0))]
+                        if t_fall.size else end_of_data, end_of_data)
+
+    # duty cycle 100 %: periods go on every `period` s while the bit is seen on (up to
+    # the end of the last on-bit before the fall, not across a gap hiding the fall)
+    last_on = np.concatenate([times[falling - 1] + bit_step, [end_of_data]])
+    run = last_on[np.searchsorted(t_fall, start, side="right")] - start
+    extra = np.maximum(np.ceil((run - eps) / period).astype(np.int64) - 1, 0)
+    if extra.any():
+        base = np.repeat(start, extra)
+        k = np.arange(extra.sum()) - np.repeat(np.cumsum(extra) - extra, extra) + 1
+        start = np.sort(np.concatenate([start, base + k * period]))
+        if start.size > 1:  # a hidden edge may coincide with a continued period
+            start = start[np.concatenate([[True], np.diff(start) > tolerance])]
     nxt = np.append(start[1:], np.inf)
     end = np.minimum(start + period, nxt)
     # bits on within [start, end): cumulative count, searched by time
     csum = np.concatenate([[0], np.cumsum(bits, dtype=np.int64)])
-    i0 = rising
-    i1 = np.searchsorted(times, end - 1e-6 * bit_step, side="left")
+    i0 = np.searchsorted(times, start - eps, side="left")
+    i1 = np.searchsorted(times, end - eps, side="left")
     n_on = csum[i1] - csum[i0]
     duty = n_on * bit_step / period
-    # run of ones beginning at each edge ends at the next falling edge (or series end)
-    j = np.searchsorted(falling, rising, side="right")
-    if falling.size:
-        jj = np.minimum(j, falling.size - 1)
-        fall_time = np.where(j < falling.size, times[falling[jj]], times[-1] + bit_step)
-    else:
-        fall_time = np.full(start.shape, times[-1] + bit_step if times.size else 0.0)
-    on = fall_time - start
+    fall_time = fall_after(start)
+    on = np.minimum(fall_time, end) - start
     # periods whose on-phase was not fully seen: cut by the end of the data, or with
     # missing bits (a short gap) before the observed fall of the bit
-    eps = 1e-6 * bit_step
     missing = np.round((end - start) / bit_step).astype(np.int64) - (i1 - i0)
+    j = np.searchsorted(t_fall, start, side="right")
     fall_seen = j < falling.size  # a 1 -> 0 transition after the edge, on consecutive bits
     if falling.size:
         f = falling[np.minimum(j, falling.size - 1)]
@@ -134,14 +192,16 @@ def heater_periods(
     i_fall = np.searchsorted(times, fall_time - eps, side="left")
     whole_run = (i_fall - i0) == np.round((fall_time - start) / bit_step)
     uncertain = (missing > 0) & ~(fall_seen & whole_run)
-    for k in np.flatnonzero(uncertain):
+    for k in np.flatnonzero(uncertain):  # a loop over the few uncertain periods
         if k > 0 and start[k] - start[k - 1] <= period + tolerance:
             upper = (n_on[k] + missing[k]) * bit_step / period
             if duty[k] <= duty[k - 1] <= upper + eps:
                 duty[k] = duty[k - 1]
                 on[k] = max(on[k], on[k - 1])
+    always_on = duty >= 1.0 - eps  # no off phase: no heater-cycle waveform
     return HeaterPeriods(
-        start=start, end=end, duty_cycle=duty, on_duration=on, applied=on >= min_on - 1e-9
+        start=start, end=end, duty_cycle=duty, on_duration=on,
+        applied=(on >= min_on - 1e-9) & ~always_on,
     )
 
 

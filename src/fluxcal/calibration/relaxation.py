@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fluxcal.calibration._compiled import relaxed_offset_kernel
+from fluxcal.calibration._compiled import duty_cycle_levels_kernel, relaxed_offset_kernel
 from fluxcal.calibration.heater_signal import HeaterPeriods
 
 
@@ -54,18 +54,25 @@ def duty_cycle_changes(
     data_end: float | None = None,
     data_start: float | None = None,
     tolerance: float = 1.5,
+    evaluation_periods: int = 10,
 ) -> DutyCycleChanges:
     """Return the duty-cycle changes implied by a sequence of heater periods.
 
-    A change happens at the rising edge that starts the first period with a new duty
-    cycle; the heater going quiet (no rising edge within ``period + tolerance`` after the
-    last one) is a change to zero at the end of its last period.  The heater is assumed
-    quiet before the first period when the series shows it: more than
-    ``period + tolerance`` of heater data before the first rising edge (an earlier edge
-    would have been seen).  Otherwise (the series starts inside heater operation, e.g. a
-    day processed without the previous day's heater file) the first period's duty cycle
-    is taken as in force since the distant past: a change at ``-inf``, i.e. its steady
-    state (the initial assumption of sec. 7's look-back), not a step from zero.
+    The V10 controller evaluates the duty cycle every ``evaluation_periods`` heater
+    periods (1000 s, sec. 7); a change is where the commanded duty cycle changes, found
+    by `fluxcal.calibration._compiled.duty_cycle_levels_kernel`: a period whose on-count
+    differs from the level in force changes it only when the new value is the most
+    frequent among it and the following periods of one evaluation interval (a +-1-bit
+    jitter of single periods is no change); the change is at that period's rising edge
+    and takes the most frequent value.  The heater going quiet (no rising edge within
+    ``period + tolerance`` after the last one) is a change to zero at the end of its last
+    period.  The heater is assumed quiet before the first period when the series shows
+    it: more than ``period + tolerance`` of heater data before the first rising edge (an
+    earlier edge would have been seen).  Otherwise (the series starts inside heater
+    operation, e.g. a day processed without the previous day's heater file) the first
+    period's duty cycle is taken as in force since the distant past: a change at
+    ``-inf``, i.e. its steady state (the initial assumption of sec. 7's look-back), not a
+    step from zero.
 
     Parameters
     ----------
@@ -80,6 +87,8 @@ def duty_cycle_changes(
         first period.
     tolerance : float
         Slack (s) when deciding that two periods are contiguous.
+    evaluation_periods : int
+        Heater periods per controller evaluation (10).
 
     Returns
     -------
@@ -97,17 +106,16 @@ def duty_cycle_changes(
     gap_after = np.append(start[1:] - start[:-1] > period + tolerance, True)
     if data_end is not None:
         gap_after[-1] = start[-1] + period + tolerance <= data_end
-    # duty cycle in force just before each period starts
-    previous = np.empty_like(ppt)
-    previous[0] = 0.0
-    previous[1:] = np.where(gap_after[:-1], 0.0, ppt[:-1])
-    new = ppt != previous
+    run_start = np.concatenate([[True], gap_after[:-1]])
+    level = np.empty_like(ppt)
+    new = np.empty(ppt.size, dtype=bool)
+    duty_cycle_levels_kernel(np.ascontiguousarray(ppt), run_start, int(evaluation_periods),
+                             not bool(gap_after[-1]), level, new)
     change_at = start.copy()
     if data_start is not None and start[0] - data_start <= period + tolerance:
-        new[0] = True  # the duty cycle before the data is unknown: steady since -inf
-        change_at[0] = -np.inf
+        change_at[0] = -np.inf  # the duty cycle before the data is unknown: steady since -inf
     times = [change_at[new], start[gap_after] + period]
-    values = [ppt[new], np.zeros(int(gap_after.sum()))]
+    values = [level[new], np.zeros(int(gap_after.sum()))]
     t = np.concatenate(times)
     v = np.concatenate(values)
     order = np.argsort(t, kind="stable")
@@ -138,6 +146,30 @@ def steady_state_offset(
     return np.where(d >= threshold_ppt, d * np.asarray(slope, dtype=float)[None, :], 0.0)
 
 
+def look_back_depth(change_time: np.ndarray, look_back: int, look_back_s: float) -> np.ndarray:
+    """Return the number of earlier changes each change looks back over (sec. 7).
+
+    At least ``look_back`` changes, and back to the first change at least ``look_back_s``
+    before it (or to the first change of all): sec. 7 looks back over a 5000-s interval
+    with five changes, which span 5000 s when the V10 controller changes the duty cycle
+    at most every 1000 s; changes closer together (the heater going quiet and starting
+    again) must not shorten the look-back below 5000 s.
+
+    Returns
+    -------
+    ndarray of int, shape (m,)
+        Depth ``D`` per change: the state is zero at ``t_D`` (eq. 6a starts there).
+    """
+    t = np.asarray(change_time, dtype=float)
+    idx = np.arange(t.size)
+    depth = np.full(t.size, int(look_back), dtype=np.int64)
+    if look_back_s > 0 and t.size:
+        # last change at or before t_0 - look_back_s (-1: none, look back to the start)
+        j = np.searchsorted(t, t - look_back_s, side="right") - 1
+        depth = np.maximum(depth, np.where(j >= 0, idx - j, idx + look_back))
+    return depth
+
+
 def state_at_changes(
     change_time: np.ndarray,
     target: np.ndarray,
@@ -145,6 +177,7 @@ def state_at_changes(
     tau: float,
     delay: float,
     look_back: int = 5,
+    look_back_s: float = 0.0,
 ) -> np.ndarray:
     """Return ``c_t0`` of eq. 6e for each change taken as the most recent one ``t_0``.
 
@@ -156,7 +189,10 @@ def state_at_changes(
     tau, delay : float
         Relaxation time and heater delay (s).
     look_back : int
-        Number of earlier changes used (5: t_1..t_5).
+        Least number of earlier changes used (5: t_1..t_5).
+    look_back_s : float
+        Least look-back interval (s, 5000): more changes are used when ``look_back``
+        changes span less (`look_back_depth`).
 
     Returns
     -------
@@ -165,18 +201,20 @@ def state_at_changes(
     change_time = np.asarray(change_time, dtype=float)
     target = np.asarray(target, dtype=float)
     m = change_time.size
-    # pad with `look_back` changes at -inf to zero: the state is zero before t_5
-    pad_t = np.concatenate([np.full(look_back, -np.inf), change_time])
-    pad_c = np.concatenate([np.zeros((look_back, target.shape[1])), target])
-    idx = np.arange(m) + look_back  # index of t_0 in the padded arrays
-    state = np.zeros((m, target.shape[1]))  # value at t_(look_back), zero
-    for lag in range(look_back, 0, -1):
+    depth = look_back_depth(change_time, look_back, look_back_s)
+    most = int(depth.max()) if m else int(look_back)
+    # pad with `most` changes at -inf to zero: the state is zero before t_D
+    pad_t = np.concatenate([np.full(most, -np.inf), change_time])
+    pad_c = np.concatenate([np.zeros((most, target.shape[1])), target])
+    idx = np.arange(m) + most  # index of t_0 in the padded arrays
+    state = np.zeros((m, target.shape[1]))  # value at t_D, zero
+    for lag in range(most, 0, -1):
         older = idx - lag  # t_(lag)
         newer = older + 1  # t_(lag-1)
-        real = np.isfinite(pad_t[older])
+        real = np.isfinite(pad_t[older]) & (lag <= depth)
         dt = np.where(real, pad_t[newer] - np.where(real, pad_t[older], 0.0) - delay, 0.0)
         decay = np.where(real, np.exp(-np.maximum(dt, 0.0) / tau), 0.0)
-        c_star = pad_c[older]
+        c_star = np.where((lag <= depth)[:, None], pad_c[older], 0.0)
         state = c_star - (c_star - state) * decay[:, None]
     return state
 
@@ -189,6 +227,7 @@ def relaxed_offset(
     tau: float,
     delay: float,
     look_back: int = 5,
+    look_back_s: float = 0.0,
 ) -> np.ndarray:
     """Return the duty-cycle offset ``c(t_s)`` of eq. 6f at every sample.
 
@@ -204,7 +243,10 @@ def relaxed_offset(
     delay : float
         Delay ``dt`` between heater request and heater power (10 s).
     look_back : int
-        Number of earlier changes (5).
+        Least number of earlier changes (5).
+    look_back_s : float
+        Least look-back interval (s; 5000 in the MESSENGER processing constants, 0: five
+        changes whatever their span), see `look_back_depth`.
 
     Returns
     -------
@@ -227,13 +269,15 @@ def relaxed_offset(
     target = np.asarray(target, dtype=float)
     if ts.ndim != 1 or target.ndim != 2 or np.isnan(change_time).any():
         return relaxed_offset_reference(sample_time, change_time, target, tau=tau,
-                                        delay=delay, look_back=look_back)
+                                        delay=delay, look_back=look_back,
+                                        look_back_s=look_back_s)
     out = np.zeros((ts.size, target.shape[1]))
     if change_time.size == 0:
         return out
     if np.any(change_time[1:] < change_time[:-1]):
         raise ValueError("change_time: must be increasing")
-    state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back)
+    state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back,
+                             look_back_s=look_back_s)
     # row 0 of the padded tables is "before the first change": zero target and state
     pad = np.zeros((1, target.shape[1]))
     relaxed_offset_kernel(ts, change_time, np.concatenate([pad, target]),
@@ -249,6 +293,7 @@ def relaxed_offset_reference(
     tau: float,
     delay: float,
     look_back: int = 5,
+    look_back_s: float = 0.0,
 ) -> np.ndarray:
     """Numpy reference of `relaxed_offset` (whole-array passes; the tests compare).
 
@@ -266,7 +311,8 @@ def relaxed_offset_reference(
         return out
     if np.any(np.diff(change_time) < 0):
         raise ValueError("change_time: must be increasing")
-    state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back)
+    state = state_at_changes(change_time, target, tau=tau, delay=delay, look_back=look_back,
+                             look_back_s=look_back_s)
     # row 0 of the padded tables is "before the first change": zero target and state
     k = np.searchsorted(change_time, ts, side="right")
     t_pad = np.concatenate([[0.0], change_time])

@@ -157,7 +157,8 @@ def find_heater_periods(
     h = cal.constants["heater"]
     periods = heater_periods(t, heater["heater"].values, period=h["period_s"], min_on=h["min_on_s"])
     changes = duty_cycle_changes(periods, period=h["period_s"], data_end=float(t[-1]) + 1.0,
-                                 data_start=float(t[0]))
+                                 data_start=float(t[0]),
+                                 evaluation_periods=int(h["evaluation_periods"]))
     if len(changes) and np.isneginf(changes.time[0]):
         log.warning(
             "the heater stream (%s) starts inside heater operation: the duty cycle before "
@@ -273,7 +274,8 @@ def _offset_model_tables(changes: DutyCycleChanges, cal: MessengerCalibration) -
     pad = np.zeros((1, 3))  # row 0: before the first change, zero target and state
     if change_time.size:
         state = state_at_changes(change_time, target, tau=rel["tau_s"], delay=rel["delay_s"],
-                                 look_back=int(rel["look_back"]))
+                                 look_back=int(rel["look_back"]),
+                                 look_back_s=float(rel["look_back_s"]))
     else:
         state = np.empty((0, 3))
     return (
@@ -307,7 +309,7 @@ def offset_model_reference(
     )
     delta = relaxed_offset(
         et, changes.time, target, tau=rel["tau_s"], delay=rel["delay_s"],
-        look_back=int(rel["look_back"]),
+        look_back=int(rel["look_back"]), look_back_s=float(rel["look_back_s"]),
     )
     delta[~v10] = 0.0
     return ct + delta
