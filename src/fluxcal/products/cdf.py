@@ -199,7 +199,7 @@ def _valid_range(name: str, var: xr.Variable, entry: Mapping[str, Any],
     a = var.attrs
     lo = a.get("valid_min", entry.get("VALIDMIN"))
     hi = a.get("valid_max", entry.get("VALIDMAX"))
-    if lo is None or hi is None:
+    if (lo is None or hi is None) and np.dtype(var.dtype).kind == "f":
         units = str(a.get("units", entry.get("UNITS", ""))).strip()
         ranges = {**(_load_yaml(None, "istp_variables.yaml").get("valid_range_by_units") or {}),
                   **(table.get("valid_range_by_units") or {})}
@@ -207,13 +207,15 @@ def _valid_range(name: str, var: xr.Variable, entry: Mapping[str, Any],
         if by_units is not None:
             lo = by_units[0] if lo is None else lo
             hi = by_units[1] if hi is None else hi
+    if key == "bool":
+        return (0, 1) if lo is None or hi is None else (lo, hi)
+    if np.dtype(var.dtype).kind in "iu":  # the type's range without the fill value
+        info = np.iinfo(var.dtype)
+        tmin, tmax = ((info.min + 1, info.max) if _TYPES[key][1] == info.min
+                      else (info.min, info.max - 1))
+        return (tmin if lo is None else max(int(lo), tmin),
+                tmax if hi is None else min(int(hi), tmax))
     if lo is None or hi is None:
-        if key == "bool":
-            return 0, 1
-        if np.dtype(var.dtype).kind in "iu":
-            info = np.iinfo(var.dtype)
-            fill = _TYPES[key][1]
-            return (info.min + 1, info.max) if fill == info.min else (info.min, info.max - 1)
         return None
     return lo, hi
 
