@@ -353,15 +353,23 @@ def _utc_parts(
     extra rows (9999-12-31 and 0000-01-01) and times 23:59:59.999999999 and 0.
     """
     lsk = lsk or leapseconds()
-    fill = tt2000 == TT2000_FILL
-    pad = tt2000 == TT2000_PAD
-    special = fill | pad
-    any_special = bool(special.any())
-    _check_tt2000(tt2000, special)
-    midnight, in_leap = _tt2000_to_utc_midnight(
-        np.where(special, 0, tt2000) if any_special else tt2000, lsk)
-    days, ns_of_day = np.divmod(midnight, _DAY_NS)  # days past 2000-01-01
-    sec_of_day, nanosecond = np.divmod(ns_of_day, _NS)
+    lo, hi = (int(tt2000.min()), int(tt2000.max())) if tt2000.size else (0, 0)
+    any_special = lo <= TT2000_PAD
+    if any_special:
+        fill = tt2000 == TT2000_FILL
+        pad = tt2000 == TT2000_PAD
+        special = fill | pad
+        _check_tt2000(tt2000, special)
+        regular = tt2000[~special]
+        tt2000 = np.where(special, regular[0] if regular.size else 0, tt2000)
+    elif lo < _TT2000_MIN or hi > _TT2000_MAX:
+        _check_tt2000(tt2000, np.zeros(tt2000.shape, dtype=bool))
+    midnight, in_leap = _tt2000_to_utc_midnight(tt2000, lsk)
+    # floor division and a product: faster than np.divmod for int64
+    days = midnight // _DAY_NS  # days past 2000-01-01
+    ns_of_day = midnight - days * _DAY_NS
+    sec_of_day = ns_of_day // _NS
+    nanosecond = ns_of_day - sec_of_day * _NS
     first, last = (int(days.min()), int(days.max())) if days.size else (0, 0)
     if last - first < max(days.size, 1024):
         table_days = np.arange(first, last + 1, dtype=np.int64)
@@ -565,9 +573,9 @@ def tt2000_to_utc(
                                     sec_of_day + in_leap, axis=0)
     if digits:
         buf[:, head] = ord(".")
-        groups = (nanosecond // 1_000_000, nanosecond // 1000 % 1000, nanosecond % 1000)
-        for g in range((digits + 2) // 3):
-            _put(buf, head + 1 + 3 * g, groups[g], 0, min(3, digits - 3 * g))
+        for g in range((digits + 2) // 3):  # milli-, micro-, nanoseconds
+            group = nanosecond // 10 ** (6 - 3 * g) % 1000 if g else nanosecond // 1_000_000
+            _put(buf, head + 1 + 3 * g, group, 0, min(3, digits - 3 * g))
     if as_bytes:
         out = buf.view(f"S{width}")
     else:
