@@ -52,24 +52,34 @@ def test_calibrate_all_levels(sim, tmp_path, sensor):
         "--hk",
         str(sim / "RPCMAG_20140801_RAW_HK.csv"),
     ]
-    assert main(args) == 0
-    for code in ("CLA", "CLB", "CLC", "CLE", "CLF", "CLG"):
-        for suffix in ("TAB", "LBL", "cdf"):
-            assert (tmp_path / f"RPCMAG_20140801_{code}_{sensor}.{suffix}").is_file(), (
-                code,
-                suffix,
-            )
+    assert main(args + ["--frame", "ECLIPJ2000"]) == 0  # the frame of the simulator's truth
+    for code in ("CLA", "CLB", "CLC"):  # archive names, one table per mode segment
+        tabs = sorted(tmp_path.glob(f"RPCMAG140801T*_{code}_{sensor}_M*.TAB"))
+        assert tabs and all(t.with_suffix(".LBL").is_file() for t in tabs), code
+    for code in ("CLE", "CLF", "CLG"):
+        assert (tmp_path / f"RPCMAG140801_{code}_{sensor}_A01.TAB").is_file(), code
+        assert (tmp_path / f"RPCMAG140801_{code}_{sensor}_A01.LBL").is_file(), code
+    for code in ("cla", "clb", "clc"):
+        assert (tmp_path / f"rosetta_rpcmag_{code}-{sensor.lower()}_20140801_v01.cdf").is_file()
+    for code in ("cle", "clf", "clg"):
+        name = f"rosetta_rpcmag_{code}-{sensor.lower()}-a01_20140801_v01.cdf"
+        assert (tmp_path / name).is_file()
     assert (tmp_path / "RPCMAG_20140801_HKA.TAB").is_file()
-    # the LEVEL_C table: TIME.UTC TIME.OBT POSITION.XYZ BX BY BZ QUALITY
-    line = (tmp_path / f"RPCMAG_20140801_CLC_{sensor}.TAB").read_text().splitlines()[0].split()
-    assert len(line) == 9 and line[0].startswith("2014-08-01T")
-    label = (tmp_path / f"RPCMAG_20140801_CLA_{sensor}.LBL").read_text()
+    # LEVEL_G table with the archive's column positions (sec. 4.8): TIME.UTC TIME.OBT
+    # POSITION.X Y Z BX BY BZ QUALITY, read by a whitespace split
+    g = read_product(tmp_path / f"rosetta_rpcmag_clg-{sensor.lower()}-a01_20140801_v01.cdf")
+    rows = (tmp_path / f"RPCMAG140801_CLG_{sensor}_A01.TAB").read_text().splitlines()
+    cols = np.array([[float(x) for x in r.split()[1:]] for r in rows])
+    assert cols.shape == (g.sizes["time"], 8)
+    np.testing.assert_allclose(cols[:, 1:4], g["position"].values, atol=5e-4)  # F15.3 km
+    np.testing.assert_allclose(cols[:, 4:7], g["b"].values, atol=5e-4)  # F11.3 nT
+    label = next(tmp_path.glob(f"RPCMAG140801T*_CLA_{sensor}_M*.LBL")).read_text()
     assert "RPCMAG_001_CALIB_FSDPU_FM" in label and "006_CALIB" in label
-    # products recover the truth written by the simulator (TAB printed to 1 pT: 0.0005 nT)
+    # products recover the truth written by the simulator
     truth = read_truth_csv(sim / f"RPCMAG_20140801_TRUTH_{sensor}.csv")
     good = truth["good"]
     ref = truth["b_ref"][good][np.argsort(truth["epoch"][good], kind="stable")]
-    c = read_product(tmp_path / f"RPCMAG_20140801_CLC_{sensor}.cdf")
+    c = read_product(tmp_path / f"rosetta_rpcmag_clc-{sensor.lower()}_20140801_v01.cdf")
     rms = np.sqrt(((c["b"].values - ref) ** 2).mean(axis=0))
     assert np.all(rms < 0.03), rms
 
@@ -126,10 +136,10 @@ def test_calibrate_level_a_from_utc_only(sim, tmp_path):
         "tab",
     ]
     assert main(args) == 0
-    label = (tmp_path / "RPCMAG_20140801_CLA_OB.LBL").read_text()
+    label = next(tmp_path.glob("RPCMAG140801T*_CLA_OB_M*.LBL")).read_text()
     assert "ground calibration alone" in label
     # fluxcal's default alignment file is a placeholder and the LEVEL_B label says so
-    assert "PLACEHOLDER identity" in (tmp_path / "RPCMAG_20140801_CLB_OB.LBL").read_text()
+    assert "PLACEHOLDER identity" in next(tmp_path.glob("RPCMAG140801T*_CLB_OB_M*.LBL")).read_text()
 
 
 def test_stitch_state_file_between_runs(tmp_path):

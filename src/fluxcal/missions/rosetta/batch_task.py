@@ -295,8 +295,9 @@ class RosettaDayTask:
                 paths += result.paths
                 state = {k2: v for k2, v in a.attrs.items() if k2.startswith("stitch_")}
                 ends[sensor] = (result.edges, state or None)
-            stamp = f"_{day:%Y%m%d}"
-            stray = [p for p in paths if stamp not in Path(p).name]
+            # archive tables carry RPCMAG<yymmdd>, ISTP CDFs / HK / quicklooks _<yyyymmdd>
+            stamps = (f"RPCMAG{day:%y%m%d}", f"_{day:%Y%m%d}")
+            stray = [p for p in paths if not any(s in Path(p).name for s in stamps)]
             if stray:
                 raise InputFormatError(
                     f"records outside the day {day} (would write {Path(stray[0]).name}); "

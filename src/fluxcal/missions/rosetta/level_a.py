@@ -284,7 +284,8 @@ def level_a(
         ``b`` (nT), ``temperature`` (K), ``obt`` (s, shifted), ``sid``, ``quality``,
         coordinate ``epoch`` shifted to the physical event time and sorted; attributes
         ``n_dropped_quality``, ``n_reordered``, calibration provenance and the stitching
-        end state (`StitchState.to_attrs`).
+        end state (`StitchState.to_attrs`); coordinate ``mode_segment`` numbers the runs
+        of one filter mode (SID) in telemetry order (one calibrated TAB file each).
 
     Raises
     ------
@@ -375,6 +376,10 @@ def level_a(
         ) from None
     new_epoch = timeshift.shift_epoch(epoch, shift)
     obt = data["obt"].values + shift
+    sid = data["sid"].values
+    # a new measurement-mode segment starts wherever the SID changes in telemetry order
+    # (the calibrated products start a new file there, docs/formats/rosetta.md)
+    segment = np.concatenate([[0], np.cumsum(sid[1:] != sid[:-1])]).astype(np.int32)
     if new_epoch.size < 2 or np.all(new_epoch[1:] >= new_epoch[:-1]):
         order = slice(None)
         n_reordered = 0
@@ -401,6 +406,7 @@ def level_a(
         coords={
             "epoch": ("time", new_epoch[order], {"units": "ns", "time_base": "TT2000"}),
             "component": ["x", "y", "z"],
+            "mode_segment": ("time", segment[order], {"units": "1"}),
         },
         attrs=attrs,
     )

@@ -3,9 +3,11 @@
 The level functions (`level_a`, `level_b`, `level_c`, `averaged.average`) are pure; this
 module does the I/O around them for the ``fluxcal rosetta calibrate`` command and the demo.
 
-Products are daily, named ``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` (e.g.
-``RPCMAG_20140801_CLA_OB.TAB``), with the columns of the seed's tables: TIME.UTC
-(ISO), TIME.OBT, [POSITION.X/Y/Z for C/G], BX, BY, BZ, [T in K for A/B], QUALITY.
+Tables carry the archive's names (`write_level`): calibrated levels
+``RPCMAG<yymmdd>T<hhmm>_CL<A|B|C>_<OB|IB>_M<mode>.TAB`` (a new file at each mode change),
+resampled levels ``RPCMAG<yymmdd>_CL<E|F|G>_<OB|IB>_A<NN>.TAB``, with the columns of the
+seed's tables: TIME.UTC (ISO, 6 decimals), TIME.OBT, [POSITION.X/Y/Z for C/G], BX, BY,
+BZ, [T in K for A/B], QUALITY.  CDF/netCDF files are daily with ISTP names.
 
 References
 ----------
@@ -30,8 +32,11 @@ from fluxcal.missions.rosetta import averaged, calib, hk, io, level_a, level_b, 
 log = logging.getLogger(__name__)
 
 LEVELS = ("A", "B", "C", "E", "F", "G")
+CALIBRATED_LEVELS = ("A", "B", "C")
 PRODUCT_CODE = {lev: f"CL{lev}" for lev in LEVELS}
 QUICKLOOK_STEM = "RPCMAG_QL_{sensor}"
+#: ISTP ``Data_version`` of the CDF products (file names ``..._v01.cdf``).
+DATA_VERSION = 1
 
 
 def istp_yaml() -> dict[str, Path]:
@@ -46,19 +51,57 @@ def istp_yaml() -> dict[str, Path]:
             "variable_yaml": data / "istp_variables.yaml"}
 
 
+def average_code(seconds: float) -> str:
+    """``A<NN>`` of a resampled product: ``A01``, ``A60``; fractions as ``A0p5``."""
+    seconds = float(seconds)
+    if seconds <= 0:
+        raise FluxcalError(f"averaging interval must be positive, not {seconds} s")
+    if seconds == round(seconds):
+        return f"A{int(round(seconds)):02d}"
+    return "A" + f"{seconds:g}".replace(".", "p")
+
+
+def calibrated_tab_stem(time_utc: str, level: str, sensor: str, mode: int) -> str:
+    """Archive name of a calibrated table: ``RPCMAG<yymmdd>T<hhmm>_CL<A|B|C>_<sensor>_M<mode>``.
+
+    ``time_utc`` is the TIME.UTC of the file's first vector (``YYYY-MM-DDTHH:MM:SS...``);
+    ``mode`` the filter mode (SID) of the file's vectors (docs/formats/rosetta.md).
+    """
+    t = str(time_utc)
+    return f"RPCMAG{t[2:4]}{t[5:7]}{t[8:10]}T{t[11:13]}{t[14:16]}_CL{level}_{sensor}_M{int(mode)}"
+
+
+def resampled_tab_stem(day: np.datetime64, level: str, sensor: str, seconds: float) -> str:
+    """Archive name of a resampled table: ``RPCMAG<yymmdd>_CL<E|F|G>_<sensor>_A<NN>``."""
+    d = str(np.datetime64(day, "D"))
+    return f"RPCMAG{d[2:4]}{d[5:7]}{d[8:10]}_CL{level}_{sensor}_{average_code(seconds)}"
+
+
+def logical_source(level: str, sensor: str, seconds: float | None = None) -> str:
+    """ISTP ``Logical_source`` of a level product, without date (e.g. ``rosetta_rpcmag_cla-ob``).
+
+    Resampled levels carry the interval: ``rosetta_rpcmag_clf-ob-a01``.
+    """
+    base = f"rosetta_rpcmag_cl{level}-{sensor}".lower()
+    if level in CALIBRATED_LEVELS or seconds is None:
+        return base
+    return f"{base}-{average_code(seconds).lower()}"
+
+
 def product_columns(level: str) -> list:
     """Table columns of a level (seed 003 tables of sec. 4.2.3.5, 4.3.1, 4.4.1, 4.6-4.8)."""
     from fluxcal.products import Column
 
     cols = [
-        Column("time_utc", "%s", "UTC", "TIME.UTC, UTC time of observation", label="TIME.UTC"),
-        Column("obt", "%17.6f", "s", "TIME.OBT, s/c clock, s since 2003-01-01", label="TIME.OBT"),
+        Column("time_utc", "A26", "UTC", "TIME.UTC, UTC time of observation, microseconds",
+               label="TIME.UTC", data_type="TIME"),
+        Column("obt", "F17.6", "s", "TIME.OBT, s/c clock, s since 2003-01-01", label="TIME.OBT"),
     ]
     if level in ("C", "G"):
         cols += [
             Column(
                 "position",
-                "%15.3f",
+                "F15.3",
                 "km",
                 f"spacecraft position, {c.upper()}",
                 component=c,
@@ -69,7 +112,7 @@ def product_columns(level: str) -> list:
     cols += [
         Column(
             "b",
-            "%11.3f",
+            "F11.3",
             "nT",
             f"magnetic field {c.upper()} component, calibrated",
             component=c,
@@ -78,9 +121,9 @@ def product_columns(level: str) -> list:
         for c in "xyz"
     ]
     if level in ("A", "B"):
-        cols.append(Column("temperature", "%8.2f", "K", "sensor temperature", label="T"))
+        cols.append(Column("temperature", "F8.2", "K", "sensor temperature", label="T"))
     cols.append(
-        Column("quality", "%2d", "1", "quality flag (seed 003 sec. 4.1.2)", label="QUALITY")
+        Column("quality", "I2", "1", "quality flag (seed 003 sec. 4.1.2)", label="QUALITY")
     )
     return cols
 
@@ -93,16 +136,46 @@ def write_level(
     provenance: dict | None = None,
     lsk=None,
 ) -> list[Path]:
-    """Write one level of one sensor as daily products; return the paths written."""
+    """Write one level of one sensor; return the paths written.
+
+    Tables (``tab``) carry the archive's names: calibrated levels A, B, C one file per
+    UTC day and measurement-mode segment (``RPCMAG<yymmdd>T<hhmm>_CL<A|B|C>_<sensor>_M<sid>``,
+    `calibrated_tab_stem`), resampled levels E, F, G one per UTC day
+    (`resampled_tab_stem`).  CDF, netCDF and Zarr are one file per UTC day named by the
+    ISTP convention ``rosetta_rpcmag_cl<level>-<sensor>[-a<NN>]_<yyyymmdd>_v01``.
+
+    Raises
+    ------
+    FluxcalError
+        No vectors, or two mode segments of one day that would get the same table name
+        (same mode starting twice within one minute).
+    """
     from fluxcal.geometry.time import tt2000_to_utc
     from fluxcal.products import write_product
+    from fluxcal.products.cdf import istp_file_stem
 
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]
+    seconds = ds.attrs.get("average_seconds")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors left to write")
+    source = logical_source(level, sensor, seconds)
+    ds = ds.assign(
+        time_utc=(
+            "time",
+            tt2000_to_utc(_round_us(epoch), digits=6, lsk=lsk),
+            {"units": "UTC", "description": "TIME.UTC rounded to the microsecond"},
+        )
+    )
+    attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("stitch_")}
+    attrs.update(provenance or {})
+    attrs.update(Logical_source=source, Data_version=str(DATA_VERSION))
+    extra = {"LEVEL": f"LEVEL_{level}", "SENSOR": sensor}
+    if seconds is not None:
+        extra["AVERAGE_SECONDS"] = float(seconds)
+    other = [f for f in formats if f != "tab"]
     day_index, days, _ = level_a.utc_days(epoch, lsk)
     written: list[Path] = []
     for d, day in enumerate(days):
@@ -110,25 +183,39 @@ def write_level(
         if sel.size == 0:
             continue
         part = ds.isel(time=sel)
-        part = part.assign(
-            time_utc=(
-                "time",
-                tt2000_to_utc(_round_us(part["epoch"].values), digits=6, lsk=lsk),
-                {"units": "UTC", "description": "TIME.UTC rounded to the microsecond"},
+        part.attrs = dict(attrs)
+        segment = part["mode_segment"].values if "mode_segment" in part.coords else None
+        part = part.drop_vars("mode_segment", errors="ignore")
+        if other:
+            written += write_product(
+                part, out_dir / istp_file_stem(source, day, DATA_VERSION), formats=other,
+                label_extra=extra, **istp_yaml(),
             )
-        )
-        attrs = {k: v for k, v in part.attrs.items() if not k.startswith("stitch_")}
-        attrs.update(provenance or {})
-        part.attrs = attrs
-        stem = out_dir / f"RPCMAG_{str(day).replace('-', '')}_{PRODUCT_CODE[level]}_{sensor}"
-        written += write_product(
-            part,
-            stem,
-            formats=formats,
-            columns=product_columns(level),
-            label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor},
-            **istp_yaml(),
-        )
+        if "tab" not in formats:
+            continue
+        if level not in CALIBRATED_LEVELS:
+            stem = resampled_tab_stem(day, level, sensor, seconds or 1.0)
+            written += write_product(part, out_dir / stem, formats=("tab",),
+                                     columns=product_columns(level), label_extra=extra)
+            continue
+        if segment is None:
+            segment = np.zeros(sel.size, dtype=np.int32)
+        ids, first = np.unique(segment, return_index=True)
+        seen: dict[str, int] = {}
+        for seg in ids[np.argsort(first)]:
+            rows = np.flatnonzero(segment == seg)
+            piece = part.isel(time=rows)
+            mode = int(piece["sid"].values[0])
+            stem = calibrated_tab_stem(str(piece["time_utc"].values[0]), level, sensor, mode)
+            if stem in seen:
+                raise FluxcalError(
+                    f"LEVEL_{level} {sensor}: two segments of mode {mode} start in the same "
+                    f"minute ({stem}); the archive names cannot tell them apart"
+                )
+            seen[stem] = int(seg)
+            written += write_product(piece, out_dir / stem, formats=("tab",),
+                                     columns=product_columns(level),
+                                     label_extra={**extra, "FILTER_MODE_SID": mode})
     return written
 
 
@@ -389,8 +476,10 @@ def _utc(epoch: np.ndarray, lsk) -> np.ndarray:
 
 
 def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]:
+    """HK LEVEL_A: table ``RPCMAG_<yyyymmdd>_HKA`` (fluxcal's name), ISTP-named CDF."""
     from fluxcal.geometry.time import tt2000_to_utc
     from fluxcal.products import Column, write_product
+    from fluxcal.products.cdf import istp_file_stem
 
     ds = ds.assign(
         time_utc=(
@@ -399,20 +488,30 @@ def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]
             {"units": "UTC"},
         )
     )
-    ds.attrs = {**ds.attrs, **prov, "level": "A (HK)"}
+    source = "rosetta_rpcmag_cla-hk"
+    ds.attrs = {**ds.attrs, **prov, "level": "A (HK)", "Logical_source": source,
+                "Data_version": str(DATA_VERSION)}
     day = str(_utc(ds["epoch"].values[:1], lsk)[0])[:10].replace("-", "")
+    # column names of seed 003 sec. 4.1.1
     cols = [
-        Column("time_utc", "%s", label="TIME.UTC"),
-        Column("obt", "%17.6f", label="TIME.OBT"),
-        Column("t_ob", "%8.2f", label="T.OB"),
-        Column("t_ib", "%8.2f", label="T.IB"),
-        Column("stage_a_id", "%6d", label="STAGE_A.ID"),
-        Column("stage_b_id", "%6d", label="STAGE_B.ID"),
-        Column("filter_cfg", "%6d", label="FILTER.CFG"),
-        Column("ref_voltage", "%9.5f", label="MAG.REF_VOLTAGE"),
-        Column("neg_voltage", "%9.5f", label="MAG.NEG_VOLTAGE"),
-        Column("pos_voltage", "%9.5f", label="MAG.POS_VOLTAGE"),
-        Column("b_ob", "%11.3f", label="B{c}.OB"),
+        Column("time_utc", "A26", label="TIME.UTC", data_type="TIME"),
+        Column("obt", "F17.6", label="TIME.OBT"),
+        Column("t_ob", "F8.2", label="T.OB"),
+        Column("t_ib", "F8.2", label="T.IB"),
+        Column("stage_a_id", "I6", label="STAGE.A.ID"),
+        Column("stage_b_id", "I6", label="STAGE.B.ID"),
+        Column("filter_cfg", "I6", label="FILTER.CFG"),
+        Column("ref_voltage", "F9.5", label="MAG.REF.VOLTAGE"),
+        Column("neg_voltage", "F9.5", label="MAG.NEG.VOLTAGE"),
+        Column("pos_voltage", "F9.5", label="MAG.POS.VOLTAGE"),
+        Column("b_ob", "F11.3", label="B{c}.OB"),
     ]
-    return write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=formats, columns=cols,
-                         **istp_yaml())
+    written = []
+    if "tab" in formats:
+        written += write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=("tab",),
+                                 columns=cols)
+    other = [f for f in formats if f != "tab"]
+    if other:
+        written += write_product(ds, Path(out) / istp_file_stem(source, day, DATA_VERSION),
+                                 formats=other, **istp_yaml())
+    return written
