@@ -20,14 +20,15 @@ def test_edr2cdr_writes_archive_named_products(tmp_path, simulated_files, messen
     names = sorted(p.name for p in out.iterdir())
     # the first corrected times fall before midnight but stay in their EDR day (12153)
     assert not any("12152" in n for n in names)
-    assert "MAGMSOSCI12153.TAB" in names and "MAGMSOSCI12153.LBL" in names
-    assert "MAGMSOSCI12153.cdf" in names and "MAGRTNSCIAVG12153_60.TAB" in names
+    assert "MAGMSOSCI12153_V01.TAB" in names and "MAGMSOSCI12153_V01.LBL" in names
+    assert "messenger_mag_mso-sci_20120601_v01.cdf" in names
+    assert "MAGRTNSCIAVG12153_60_V01.TAB" in names
     assert "MAGOFFSETS12153.png" in names and "MAGOFFSETS12153.txt" in names
     assert not any(n.startswith(".tmp") for n in names)
-    tab = read_product(out / "MAGMSOSCI12153.TAB")
-    cdf = read_product(out / "MAGMSOSCI12153.cdf")
+    tab = read_product(out / "MAGMSOSCI12153_V01.TAB")
+    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
     np.testing.assert_allclose(np.asarray(tab["b"].values, float), cdf["b"].values, atol=5e-4)
-    label = (out / "MAGMSOSCI12153.LBL").read_text()
+    label = (out / "MAGMSOSCI12153_V01.LBL").read_text()
     assert "offsets_temperature" in label and "msgr_synthetic" in label
 
 

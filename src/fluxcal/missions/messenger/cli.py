@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import typer
@@ -34,6 +37,10 @@ def edr2cdr(
         "", "--quicklook-frame", help="Frame of the quicklook's field (default: the first "
         "of --frames)."
     ),
+    version: int = typer.Option(
+        1, "--version", "--product-version", min=1, max=99,
+        help="Product version: the _V<nn> of the file names."
+    ),
 ) -> None:
     """Calibrate MESSENGER MAG EDR streams into CDR products (seed 000 sec. 5-13)."""
     from fluxcal.errors import InputFormatError
@@ -47,14 +54,74 @@ def edr2cdr(
         ) from None
     if any(a <= 0 for a in averages):
         raise InputFormatError(f"{average!r}: intervals must be positive", field="--average")
-    written = run_edr2cdr(
-        sci, heater, temperature, kernels, out,
-        frames=_split(frames), formats=_split(formats),
-        averages=averages,
-        max_offset_step=max_offset_step if max_offset_step > 0 else None,
-        quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
-    )
+    with compilation_notice(), progress_display() as progress:
+        written = run_edr2cdr(
+            sci, heater, temperature, kernels, out,
+            frames=_split(frames), formats=_split(formats),
+            averages=averages,
+            max_offset_step=max_offset_step if max_offset_step > 0 else None,
+            quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
+            version=version, progress=progress,
+        )
     typer.echo(f"wrote {len(written)} files to {out}")
+
+
+@contextmanager
+def compilation_notice() -> Iterator[None]:
+    """Say once on stderr when numba compiles a kernel (the first run, before the cache).
+
+    Listens to numba's ``numba:compile`` event, which fires only for a real compilation
+    (a kernel loaded from numba's on-disk cache does not raise it), so later runs are
+    quiet.
+    """
+    from numba.core import event
+
+    class Notice(event.Listener):
+        said = False
+
+        def on_start(self, ev: event.Event) -> None:
+            if not self.said:
+                self.said = True
+                typer.echo("fluxcal: compiling the numerical kernels (first run only, "
+                           "cached afterwards; up to a minute) ...", err=True)
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    with event.install_listener("numba:compile", Notice()):
+        yield
+
+
+@contextmanager
+def progress_display() -> Iterator[object | None]:
+    """Show a rich progress bar on a terminal (stderr), nothing otherwise.
+
+    Yields the ``progress(description, done, total)`` callback of
+    `fluxcal.missions.messenger.run.run_edr2cdr`, or ``None`` when stderr is not a
+    terminal (logs and pipes stay quiet).
+    """
+    if not sys.stderr.isatty():
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                  MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=Console(stderr=True), transient=False) as bar:
+        task = bar.add_task("edr2cdr", total=None)
+
+        def update(description: str, done: int, total: int) -> None:
+            bar.update(task, description=description, completed=done, total=total)
+
+        yield update
 
 
 def simulate(

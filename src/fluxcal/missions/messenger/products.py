@@ -1,19 +1,35 @@
-"""MESSENGER MAG CDR products: archive-like tables per frame and day, and averages.
+"""MESSENGER MAG CDR/RDR products: the archive's table layouts, in time order, and averages.
 
-Column layout follows the archived MESSENGER CDR tables: ``year doy hour minute second
-met x y z bx by bz`` (corrected UTC, corrected MET, position in km, field in nT) plus
-the SHC quality flag.  RTN products carry ``r lat az`` (km, deg, deg) as position.
-Averaged products (``...SCIAVG``) carry the bin centre time, the number of samples, the
-mean position and field and the standard deviation of each field component.
+Tables (``.TAB``, blank separated, one sample per line), as archived
+(docs/formats/messenger.md says which parts are confirmed):
+
+* full resolution (CDR) ``MAG<FFF>SCI<yyddd>_V<nn>``, 12 columns
+  ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG X Y Z BX BY BZ``;
+* averages (RDR) ``MAG<FFF>SCIAVG<yyddd>_<NN>_V<nn>`` (NN = 01, 05, 10, 60 s), 16 columns
+  ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG NAVG X Y Z BX BY BZ DBX DBY DBZ``.
+
+UTC and ``TIME_TAG`` are the lag-corrected time (sec. 5, 9): UTC fields from the integer
+TT2000 epoch (milliseconds truncated, as SPICE ``timout`` prints them), ``TIME_TAG`` the
+lag-corrected MET; for an average both are the centre of the interval and ``DB*`` are the
+population standard deviations of the field components in it.  The SC product has no
+position columns; RTN positions are ``R LATITUDE AZIMUTH`` (km, deg, deg, sec. 10.2); the
+SHC quality flag (sec. 12) is in the label and the CDF, not in the table.
+
+Samples are written in time order: the lag correction moves samples recorded after a
+fast -> slow rate switch before the last fast ones (the net lag grows), so each day is
+sorted by its corrected epoch (stable) and of several samples at one epoch only the first
+is kept; both counts go to the label, the CDF and the log (`order_day`).
 
 References
 ----------
-.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9, 10, 11, 12.
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1), 9, 10, 11, 12.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -21,98 +37,271 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from fluxcal.missions.messenger.levels import FRAMES
+from fluxcal.calibration import averaging
+from fluxcal.missions.messenger.levels import FRAMES, SC_ID
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
 
-#: Position variable of each frame's product.
-POSITION_OF = {"mso": "pos_mso", "j2000": "pos_j2000", "mbf": "pos_mbf", "rtn": "pos_rtn",
-               "sc": "pos_j2000", "vso": "pos_j2000"}
+log = logging.getLogger(__name__)
+
 AVERAGES_S = (1, 5, 10, 60)
+#: Product version ``_V<nn>`` when none is given.
+DEFAULT_VERSION = 1
+NS = 1_000_000_000
+
+#: Progress callback: (description, steps done, steps in total).
+Progress = Callable[[str, int, int], None]
+
+#: Frame codes the archive uses (confirmed) and the ones that are fluxcal's choice.
+CONFIRMED_FRAME_CODES = ("MSO", "MBF", "RTN")
 
 
-def _utc_fields(et: np.ndarray) -> dict[str, np.ndarray]:
-    from fluxcal.geometry.time import et_to_utc
+@dataclass(frozen=True)
+class OrderReport:
+    """What `order_day` did: samples moved back in time, and duplicate epochs dropped."""
 
-    text = et_to_utc(np.atleast_1d(et), style="doy", digits=3)  # "YYYY DOY HH MM SS.sss"
-    width = 21
-    if text.size and int(np.char.str_len(text).max()) != width:
-        raise ValueError("unexpected UTC string width")
-    d = (np.frombuffer(text.astype(f"S{width}").tobytes(), dtype=np.uint8)
-         .reshape(-1, width).astype(np.int64) - 48)
+    samples: int
+    reordered: int
+    duplicates: int
 
-    def num(a: int, b: int) -> np.ndarray:
-        out = np.zeros(d.shape[0], dtype=np.int64)
-        for k in range(a, b):
-            out = out * 10 + d[:, k]
-        return out
+    def label_keywords(self) -> dict[str, int]:
+        """Label keywords / CDF global attributes (one per meaning)."""
+        return {"FLUXCAL_REORDERED_SAMPLES": self.reordered,
+                "FLUXCAL_DUPLICATE_EPOCHS_DROPPED": self.duplicates}
 
+
+def _position_source(frame: str) -> str | None:
+    """Variable of the calibrated dataset holding the frame's position (None for SC)."""
+    return {"mso": "pos_mso", "j2000": "pos_j2000", "mbf": "pos_mbf", "rtn": "pos_rtn",
+            "vso": "pos_vso", "sc": None}[frame]
+
+
+def _needed(ds: xr.Dataset, frames: Sequence[str]) -> list[str]:
+    names = ["met_corrected", "quality"]
+    for f in frames:
+        names.append(f"b_{f}")
+        pos = _position_source(f)
+        if pos is not None and pos in ds and pos not in names:
+            names.append(pos)
+    return names
+
+
+def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderReport]:
+    """Return the variables the products of ``frames`` need, in time order, and the report.
+
+    The samples are sorted by the corrected epoch with a stable sort (samples at the same
+    epoch keep their recorded order); of several samples at one epoch the first is kept
+    and the others dropped.  ``reordered`` counts the samples whose epoch is earlier than
+    the latest epoch before them in the input (those the sort moves back).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One calibrated day (`fluxcal.missions.messenger.pipeline.calibrate`, split by
+        `split_days`).
+    frames : sequence of str
+        Product frames (keys of `FRAMES`).
+
+    Returns
+    -------
+    (xarray.Dataset, OrderReport)
+        ``epoch``, ``et``, ``met_corrected``, ``quality``, ``b_<frame>`` and the positions
+        (``pos_vso`` added for a VSO product), strictly increasing in ``epoch``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1 net lags), sec. 9.
+    """
+    epoch = ds["epoch"].values
+    n = epoch.size
+    step = np.diff(epoch)
+    if n < 2 or (step > 0).all():
+        index = None
+        reordered = duplicates = 0
+    else:
+        latest = np.maximum.accumulate(epoch)
+        reordered = int(np.count_nonzero(epoch[1:] < latest[:-1]))
+        order = np.argsort(epoch, kind="stable") if reordered else np.arange(n)
+        ordered = epoch[order]
+        keep = np.ones(n, dtype=bool)
+        keep[1:] = ordered[1:] != ordered[:-1]
+        duplicates = int(n - np.count_nonzero(keep))
+        index = order[keep] if duplicates else order
+    names = ["et", *_needed(ds, frames)]
+    variables = {name: ds[name].variable for name in names}
+    coords = {"epoch": ds["epoch"].variable}
+    if index is not None:
+        variables = {k: v[index] for k, v in variables.items()}
+        coords = {k: v[index] for k, v in coords.items()}
+    out = xr.Dataset(variables, coords=coords, attrs=dict(ds.attrs))
+    if "vso" in frames and "pos_vso" not in out:
+        out["pos_vso"] = xr.Variable(("time", "component"), _venus_position(out["et"].values),
+                                     {"units": "km",
+                                      "description": "MESSENGER relative to Venus, MSGR_VSO"})
+    report = OrderReport(n, reordered, duplicates)
+    if reordered or duplicates:
+        log.log(logging.WARNING if duplicates else logging.INFO,
+                "day %s: %d of %d samples moved back into time order, %d duplicate "
+                "epoch(s) dropped (first kept)", day_code(ds)[2], reordered, n, duplicates)
+    return out, report
+
+
+def _venus_position(et: np.ndarray) -> np.ndarray:
+    """MESSENGER relative to Venus in MSGR_VSO (km), the VSO product's position."""
+    from fluxcal.geometry.positions import position
+
+    return position("MESSENGER", "VENUS", "MSGR_VSO", et)
+
+
+def utc_columns(epoch: np.ndarray) -> dict[str, xr.Variable]:
+    """Return the UTC columns YEAR, DAY_OF_YEAR, HOUR, MINUTE, SECOND of int64 TT2000.
+
+    ``second`` is the second of the minute with the milliseconds truncated
+    (``SS.sss``, what SPICE ``timout`` prints with ``SC.###``), computed from the integer
+    epoch (`fluxcal.geometry.time.tt2000_to_utc_fields`), never from a float time.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9.
+    """
+    from fluxcal.geometry.time import tt2000_to_utc_fields
+
+    f = tt2000_to_utc_fields(epoch)
+    second = f["second"] + (f["nanosecond"] // 1_000_000) / 1000.0
+    t = ("time",)
     return {
-        "year": num(0, 4).astype(np.int16),
-        "doy": num(5, 8).astype(np.int16),
-        "hour": num(9, 11).astype(np.int8),
-        "minute": num(12, 14).astype(np.int8),
-        "second": num(15, 17) + num(18, 21) / 1000.0,
+        "year": xr.Variable(t, f["year"].astype(np.int16), {"units": "year"}),
+        "doy": xr.Variable(t, f["doy"].astype(np.int16), {"units": "day"}),
+        "hour": xr.Variable(t, f["hour"].astype(np.int8), {"units": "h"}),
+        "minute": xr.Variable(t, f["minute"].astype(np.int8), {"units": "min"}),
+        "second": xr.Variable(t, second, {"units": "s",
+                                          "description": "second of the minute, ms truncated"}),
     }
 
 
+def coordinate_system(frame: str) -> str:
+    """Frame code of the products (``MSO``, ``MBF``, ``RTN`` as archived; fluxcal's others)."""
+    return frame.upper()
+
+
+def _component_labels(frame: str) -> list[str]:
+    return ["B_R", "B_T", "B_N"] if frame == "rtn" else ["B_X", "B_Y", "B_Z"]
+
+
 def product_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
-    """Return the product content (time, position, field, flag) for one frame.
+    """Return one frame's full-resolution product content (no copy of the big arrays).
+
+    ``ds`` is the ordered day of `order_day`.  Variables: ``met`` (TIME_TAG, lag-corrected
+    MET s), ``b`` (time, b_component) nT with frame-specific component labels, ``b_total``
+    (|B|, nT), ``quality`` (SHC flag), and the position: ``position`` (time,
+    position_component) km for MSO, MBF (Mercury-centred), J2000 (Sun-centred) and VSO
+    (Venus-centred); ``r`` (km), ``latitude`` and ``azimuth`` (deg) for RTN; none for SC.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9-12.
     """
-    utc = _utc_fields(ds["et"].values)
-    pos = ds[POSITION_OF[frame]]
-    data = {k: ("time", v, {"units": u}) for (k, v), u in zip(
-        utc.items(), ("year", "day", "h", "min", "s"), strict=True)}
-    data["met"] = ("time", ds["met_corrected"].values, {"units": "s",
-                   "description": "MET corrected for the net lag"})
-    data["position"] = (("time", "component"), pos.values, dict(pos.attrs))
-    data["b"] = (("time", "component"), ds[f"b_{frame}"].values,
-                 {"units": "nT", "description": f"magnetic field in {FRAMES[frame][0]}"})
-    data["quality"] = ("time", ds["quality"].values, {"units": "1",
-                       "description": "SHC data quality flag (Table 5)"})
-    return xr.Dataset(data, coords={"epoch": ds["epoch"], "component": ["x", "y", "z"]},
-                      attrs=dict(ds.attrs))
+    from fluxcal.geometry.compiled import row_norms
+
+    spice_frame = FRAMES[frame][0]
+    b = ds[f"b_{frame}"].values
+    total = np.empty(b.shape[0])
+    if b.shape[0]:
+        row_norms(np.ascontiguousarray(b, dtype=float), total)
+    vec = ("time", "b_component")
+    data: dict[str, tuple] = {
+        "met": ("time", ds["met_corrected"].values,
+                {"units": "s", "description": "MET corrected for the net lag (TIME_TAG)"}),
+        "b": (vec, b, {"units": "nT", "description": f"magnetic field in {spice_frame}",
+                       "coordinate_system": coordinate_system(frame)}),
+        "b_total": ("time", total, {"units": "nT", "description": "field magnitude |B|"}),
+        "quality": ("time", ds["quality"].values,
+                    {"units": "1", "description": "SHC data quality flag (Table 5)"}),
+    }
+    pos_name = _position_source(frame)
+    coords: dict[str, tuple] = {"epoch": ("time", ds["epoch"].values, ds["epoch"].attrs),
+                                "b_component": ("b_component", _component_labels(frame))}
+    if frame == "rtn":
+        pos = ds[pos_name].values
+        data["r"] = ("time", pos[:, 0], {"units": "km",
+                                         "description": "distance of MESSENGER from the Sun"})
+        data["latitude"] = ("time", pos[:, 1], {
+            "units": "deg", "description": "latitude above the instantaneous ecliptic"})
+        data["azimuth"] = ("time", pos[:, 2], {
+            "units": "deg", "description": "ecliptic azimuth from the Earth-Sun line"})
+    elif pos_name is not None:
+        pos = ds[pos_name]
+        data["position"] = (("time", "position_component"), pos.values,
+                            dict(pos.attrs, coordinate_system=coordinate_system(frame)))
+        coords["position_component"] = ("position_component", ["X", "Y", "Z"])
+    return xr.Dataset(data, coords=coords, attrs=dict(ds.attrs))
 
 
-def average(prod: xr.Dataset, seconds: int, day_start_tt2000: int) -> xr.Dataset:
+def average(
+    prod: xr.Dataset,
+    seconds: int,
+    day_start_tt2000: int,
+    *,
+    bins: averaging.Bins | None = None,
+    sclk=None,
+) -> xr.Dataset:
     """Average a product over ``seconds``-long bins counted from the day start.
 
-    Returns the bin centre ``epoch``, ``count``, mean ``position`` and ``b``, and
-    ``b_std`` (population standard deviation of each field component).
+    Returns the bin centre ``epoch`` (exact integer ns), ``count`` (NAVG), the mean of the
+    position variables (the azimuth unwrapped across +-180 deg first), the mean ``b``,
+    ``b_std`` (population standard deviation per component, two-pass:
+    `fluxcal.calibration.averaging.bin_mean_std`), ``b_total`` (|mean B|), ``quality``
+    (the largest flag in the bin) and, when the product has ``met``, the lag-corrected
+    MET of the bin centre (through the SCLK kernel ``sclk``, default the loaded one).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9 (time), sec. 12 (flag).
     """
+    from fluxcal.geometry.compiled import row_norms
+
     epoch = prod["epoch"].values
-    width = np.int64(seconds) * 1_000_000_000
-    idx = (epoch - day_start_tt2000) // width
-    bins, inv, count = np.unique(idx, return_inverse=True, return_counts=True)
+    width = int(seconds) * NS
+    if bins is None:
+        bins = averaging.bin_index(epoch, width, day_start_tt2000)
+    b_mean, b_std = averaging.bin_mean_std(bins, prod["b"].values)
+    total = np.empty(b_mean.shape[0])
+    if total.size:
+        row_norms(np.ascontiguousarray(b_mean), total)
+    vec = ("time",) + prod["b"].dims[1:]
+    data: dict[str, tuple] = {
+        "count": ("time", bins.counts.astype(np.int32),
+                  {"units": "1", "description": "number of samples in the interval (NAVG)"}),
+        "b": (vec, b_mean, {**prod["b"].attrs, "description": "mean field"}),
+        "b_std": (vec, b_std, {"units": "nT", "description":
+                               "population standard deviation of each field component"}),
+        "b_total": ("time", total, {"units": "nT", "description": "magnitude of the mean field"}),
+        "quality": ("time", averaging.bin_max(bins, prod["quality"].values),
+                    {"units": "1", "description": "largest SHC flag in the interval"}),
+    }
+    for name in ("position", "r", "latitude"):
+        if name in prod:
+            var = prod[name]
+            data[name] = (var.dims, averaging.bin_mean(bins, var.values), dict(var.attrs))
+    if "azimuth" in prod:
+        az = averaging.bin_mean(bins, np.unwrap(prod["azimuth"].values, period=360.0))
+        data["azimuth"] = ("time", (az + 180.0) % 360.0 - 180.0, dict(prod["azimuth"].attrs))
+    if "met" in prod:
+        data["met"] = ("time", _met_at(bins.centre, sclk), dict(
+            prod["met"].attrs, description="lag-corrected MET of the interval centre"))
+    coords = {k: v for k, v in prod.coords.items() if k != "epoch"}
+    coords["epoch"] = ("time", bins.centre, prod["epoch"].attrs)
+    return xr.Dataset(data, coords=coords, attrs=dict(prod.attrs, averaging_interval_s=seconds))
 
-    def mean(v: np.ndarray) -> np.ndarray:
-        sums = [np.bincount(inv, v[:, j], bins.size) for j in range(3)]
-        return np.stack(sums, axis=1) / count[:, None]
 
-    b = prod["b"].values
-    bm = mean(b)
-    var = mean(b * b) - bm * bm
-    centre = day_start_tt2000 + bins * width + width // 2
-    q = np.zeros(bins.size, dtype=prod["quality"].dtype)
-    np.maximum.at(q, inv, prod["quality"].values)
-    vec = ("time", "component")
-    return xr.Dataset(
-        {
-            "count": ("time", count.astype(np.int32), {"units": "1",
-                      "description": "number of samples in the bin"}),
-            "position": (vec, mean(prod["position"].values), dict(prod["position"].attrs)),
-            "b": (vec, bm, {"units": "nT", "description": "mean field"}),
-            "b_std": (vec, np.sqrt(np.maximum(var, 0.0)), {"units": "nT",
-                      "description": "standard deviation of each field component"}),
-            "quality": ("time", q, {"units": "1", "description": "largest SHC flag in the bin"}),
-        },
-        coords={"epoch": ("time", centre, {"units": "ns"}), "component": ["x", "y", "z"]},
-        attrs=dict(prod.attrs, averaging_interval_s=seconds),
-    )
+def _met_at(tt2000: np.ndarray, sclk) -> np.ndarray:
+    """Clock reading (MET s) at TT2000 epochs through the SCLK kernel."""
+    from fluxcal.geometry.time import SclkKernel, tt2000_to_et
+
+    if tt2000.size == 0:
+        return np.zeros(0)
+    sclk = sclk or SclkKernel.from_pool(SC_ID)
+    return sclk.from_et(tt2000_to_et(tt2000))[1]
 
 
 def istp_files() -> tuple[Path, Path]:
@@ -156,29 +345,90 @@ def istp_product_attrs(frame: str, seconds: int | None = None) -> dict[str, str]
     return out
 
 
-def _columns(frame: str, averaged: bool):
+def product_name(frame: str, yyddd: str, version: int, seconds: int | None = None) -> str:
+    """Archive file name stem: ``MAG<FFF>SCI<yyddd>_V<nn>`` or ``...SCIAVG<yyddd>_<NN>_V<nn>``.
+
+    Examples
+    --------
+    >>> product_name("mso", "12153", 1), product_name("rtn", "12153", 8, 60)
+    ('MAGMSOSCI12153_V01', 'MAGRTNSCIAVG12153_60_V08')
+    """
+    if not 0 < int(version) < 100:
+        raise ValueError(f"product version must be 1..99, not {version}")
+    stem = FRAMES[frame][1]
+    if seconds is None:
+        return f"{stem}{yyddd}_V{int(version):02d}"
+    return f"{stem}AVG{yyddd}_{int(seconds):02d}_V{int(version):02d}"
+
+
+def table_columns(frame: str, averaged: bool) -> list:
+    """Return the archive's table columns (names as archived; formats are fluxcal's).
+
+    CDR: ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG X Y Z BX BY BZ``; RDR adds ``NAVG``
+    after ``TIME_TAG`` and ``DBX DBY DBZ`` at the end.  RTN: ``R LATITUDE AZIMUTH`` and
+    ``BR BT BN`` (``DBR DBT DBN``) in the same positions; SC: no position columns.
+    """
     from fluxcal.products import Column
 
-    pos_label = "{c}" if frame != "rtn" else None
-    cols = []
+    cols = [Column("year", "%4d", label="YEAR"), Column("doy", "%03d", label="DAY_OF_YEAR"),
+            Column("hour", "%02d", label="HOUR"), Column("minute", "%02d", label="MINUTE"),
+            Column("second", "%06.3f", label="SECOND"),
+            Column("met", "%17.6f", label="TIME_TAG")]
     if averaged:
-        cols += [Column("year", "%4d"), Column("doy", "%03d"), Column("hour", "%02d"),
-                 Column("minute", "%02d"), Column("second", "%06.3f"),
-                 Column("count", "%6d")]
-    else:
-        cols += [Column("year", "%4d"), Column("doy", "%03d"), Column("hour", "%02d"),
-                 Column("minute", "%02d"), Column("second", "%06.3f"), Column("met", "%17.6f")]
+        cols.append(Column("count", "%5d", label="NAVG"))
     if frame == "rtn":
-        cols += [Column("position", "%16.4f", component="x", label="r"),
-                 Column("position", "%12.7f", component="y", label="lat"),
-                 Column("position", "%12.7f", component="z", label="az")]
-    else:
-        cols += [Column("position", "%14.3f", label=pos_label)]
-    cols += [Column("b", "%11.3f", label="b{c}")]
+        cols += [Column("r", "%14.1f", label="R"), Column("latitude", "%10.5f", label="LATITUDE"),
+                 Column("azimuth", "%10.5f", label="AZIMUTH")]
+    elif _position_source(frame) is not None:
+        cols += [Column("position", "%14.3f", component=c, label=c) for c in "XYZ"]
+    axes = "RTN" if frame == "rtn" else "XYZ"
+    labels = _component_labels(frame)
+    cols += [Column("b", "%11.3f", component=lab, label=f"B{a}")
+             for lab, a in zip(labels, axes, strict=True)]
     if averaged:
-        cols += [Column("b_std", "%9.3f", label="sd_b{c}")]
-    cols += [Column("quality", "%03d")]
+        cols += [Column("b_std", "%9.3f", component=lab, label=f"DB{a}")
+                 for lab, a in zip(labels, axes, strict=True)]
     return cols
+
+
+def _quality_keywords(quality: np.ndarray) -> dict:
+    """Return the SHC flags present, for the label and the CDF (not a table column)."""
+    flags, counts = np.unique(quality, return_counts=True)
+    return {"DATA_QUALITY_ID": [f"{int(q):03d}" for q in flags],
+            "FLUXCAL_QUALITY_SAMPLES": [int(c) for c in counts]}
+
+
+def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], columns: list,
+           tab_extra: dict, cdf_extra: dict, istp: dict, day: np.datetime64,
+           version: int) -> list[Path]:
+    """Write the TAB (archive name, with its UTC columns) and the other formats.
+
+    The CDF (and netCDF/Zarr) get the ISTP file name ``<logical_source>_<yyyymmdd>_v<nn>``
+    (`fluxcal.products.cdf.istp_file_stem`, equal to their ``Logical_file_id``).
+    """
+    from fluxcal.products.cdf import istp_file_stem
+
+    written: list[Path] = []
+    quality = _quality_keywords(prod["quality"].values)
+    if "tab" in formats:
+        tab = prod.assign(utc_columns(prod["epoch"].values))
+        written += write_product(tab, out_dir / name, ("tab",), columns,
+                                 dict(tab_extra, **quality), **istp)
+    others = tuple(f for f in formats if f != "tab")
+    if others:
+        stem = out_dir / istp_file_stem(cdf_extra["Logical_source"], day, version)
+        written += write_product(prod, stem, others, None,
+                                 dict(cdf_extra, Data_version=f"{int(version):02d}", **quality),
+                                 **istp)
+    return written
+
+
+def day_start_tt2000(year: int, doy: int) -> int:
+    """TT2000 of 00:00:00 UTC of day ``doy`` of ``year``."""
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    day0 = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
+    return int(utc_to_tt2000(np.array([f"{day0}T00:00:00"]))[0])
 
 
 def write_day(
@@ -188,39 +438,60 @@ def write_day(
     formats: Sequence[str],
     averages: Sequence[int],
     provenance: dict,
+    version: int = DEFAULT_VERSION,
+    progress: Progress | None = None,
 ) -> list[Path]:
     """Write every product of one UTC day (all or nothing) and return the final paths.
 
-    Every file is written under a temporary name; the renames into place happen only
-    when every product of the day is complete (`fluxcal.products.atomic.atomic_group`;
-    inside a caller's group, at the end of that group).
+    The day is put in time order first (`order_day`); the bins of each averaging interval
+    are computed once and shared by all frames.  Every file is written under a temporary
+    name; the renames into place happen only when every product of the day is complete
+    (`fluxcal.products.atomic.atomic_group`; inside a caller's group, at the end of it).
+
+    Parameters
+    ----------
+    version : int
+        Product version, the ``_V<nn>`` of the file names (1..99).
+    progress : callable, optional
+        Called with ``(description, done, total)`` after each product.
     """
-    from fluxcal.geometry.time import utc_to_tt2000
+    from fluxcal.geometry.time import SclkKernel
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     year, doy, yyddd = day_code(ds)
-    day0 = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
-    day_start = int(utc_to_tt2000(np.array([f"{day0}T00:00:00"]))[0])
+    day0 = day_start_tt2000(year, doy)
+    ordered, report = order_day(ds, frames)
+    epoch = ordered["epoch"].values
+    bins = {int(s): averaging.bin_index(epoch, int(s) * NS, day0) for s in averages}
+    sclk = SclkKernel.from_pool(SC_ID) if averages and epoch.size else None
     global_yaml, variable_yaml = istp_files()
     istp = {"global_yaml": global_yaml, "variable_yaml": variable_yaml}
+    order_kw = report.label_keywords()
+    day = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
     written: list[Path] = []
+    total = len(frames) * (1 + len(averages))
+    done = 0
     with atomic_group():
         for frame in frames:
-            prod = product_dataset(ds, frame)
+            prod = product_dataset(ordered, frame)
             prod.attrs.update(provenance)
-            stem = FRAMES[frame][1]
-            extra = {"PRODUCT_ID": f"{stem}{yyddd}", "COORDINATE_SYSTEM": FRAMES[frame][0]}
-            written += write_product(prod, out_dir / f"{stem}{yyddd}", formats,
-                                     _columns(frame, False),
-                                     dict(extra, **istp_product_attrs(frame)), **istp)
-            for sec in averages:
-                avg = average(prod, int(sec), day_start)
-                avg = avg.assign(_utc_fields_ds(avg))
-                name = f"{stem}AVG{yyddd}_{int(sec):02d}"
-                written += write_product(avg, out_dir / name, formats, _columns(frame, True),
-                                         dict(extra, PRODUCT_ID=name, AVERAGING_INTERVAL_S=sec,
-                                              **istp_product_attrs(frame, int(sec))), **istp)
+            for sec in (None, *averages):
+                name = product_name(frame, yyddd, version, sec)
+                tab_extra = {"PRODUCT_ID": name, "PRODUCT_VERSION_ID": f"V{int(version):02d}",
+                             "COORDINATE_SYSTEM_NAME": FRAMES[frame][0], **order_kw}
+                cdf_extra = {**istp_product_attrs(frame, sec), **order_kw}
+                if sec is None:
+                    out = prod
+                else:
+                    out = average(prod, int(sec), day0, bins=bins[int(sec)], sclk=sclk)
+                    tab_extra["AVERAGING_INTERVAL_S"] = cdf_extra["AVERAGING_INTERVAL_S"] = sec
+                columns = table_columns(frame, sec is not None)
+                written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
+                                  istp, day, version)
+                done += 1
+                if progress is not None:
+                    progress(f"{yyddd} {name}", done, total)
     return written
 
 
@@ -273,29 +544,40 @@ def _day_et(ds: xr.Dataset) -> np.ndarray:
     return ds["et_recorded"].values if "et_recorded" in ds else ds["et"].values
 
 
+def _year_doy(et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    from fluxcal.geometry.time import et_to_tt2000, tt2000_to_utc_fields
+
+    f = tt2000_to_utc_fields(et_to_tt2000(np.atleast_1d(et)))
+    return f["year"], f["doy"]
+
+
 def day_code(ds: xr.Dataset) -> tuple[int, int, str]:
     """Return (year, day of year, ``yyddd``) of the first sample's (EDR) UTC day."""
-    utc = _utc_fields(_day_et(ds)[:1])
-    year, doy = int(utc["year"][0]), int(utc["doy"][0])
+    year, doy = (int(v[0]) for v in _year_doy(_day_et(ds)[:1]))
     return year, doy, f"{year % 100:02d}{doy:03d}"
 
 
-def _utc_fields_ds(avg: xr.Dataset) -> dict:
-    from fluxcal.geometry.time import tt2000_to_et
-
-    utc = _utc_fields(tt2000_to_et(avg["epoch"].values))
-    return {k: ("time", v, {"units": u}) for (k, v), u in zip(
-        utc.items(), ("year", "day", "h", "min", "s"), strict=True)}
-
-
 def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
-    """Split a calibrated dataset by the UTC day of the recorded (EDR) time.
+    """Split a calibrated dataset by the UTC day of the recorded (EDR) time (no copies).
 
     A sample stays in its EDR day even when the lag correction moves its time a few
     hundredths of a second across midnight, so each EDR day gives exactly one CDR day.
+    The recorded times increase (the readers reject a MET going backwards), so the day
+    boundaries are found by binary search of each UTC midnight; the days are slices
+    (views) of ``ds``.
     """
-    utc = _utc_fields(_day_et(ds))
-    key = utc["year"].astype(np.int64) * 1000 + utc["doy"]
-    edges = np.flatnonzero(np.diff(key)) + 1
-    bounds = np.concatenate([[0], edges, [key.size]])
-    return [ds.isel(time=slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    from fluxcal.geometry.time import utc_to_et
+
+    et = _day_et(ds)
+    if et.size == 0:
+        return []
+    if et.size > 1 and not (np.diff(et) >= 0).all():
+        raise ValueError("recorded times must not decrease")  # the readers guarantee it
+    (y0, y1), (d0, d1) = _year_doy(et[[0, -1]])
+    first = np.datetime64(f"{y0}-01-01") + np.timedelta64(int(d0) - 1, "D")
+    last = np.datetime64(f"{y1}-01-01") + np.timedelta64(int(d1) - 1, "D")
+    midnights = np.arange(first + 1, last + 1, dtype="datetime64[D]")
+    edges = np.searchsorted(et, utc_to_et(np.array([f"{d}T00:00:00" for d in midnights])))
+    bounds = [0, *edges.tolist(), et.size]
+    return [ds.isel(time=slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+            if b > a]

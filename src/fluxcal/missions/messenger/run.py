@@ -20,6 +20,8 @@ from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.pipeline import calibrate, day_of
 from fluxcal.missions.messenger.products import (
     AVERAGES_S,
+    DEFAULT_VERSION,
+    Progress,
     day_code,
     split_days,
     write_day,
@@ -50,6 +52,8 @@ def calibrate_and_write(
     only_day: str | None = None,
     quicklook: bool = False,
     quicklook_frame: str | None = None,
+    version: int = DEFAULT_VERSION,
+    progress: Progress | None = None,
 ) -> list[Path]:
     """Calibrate loaded streams (kernels already loaded) and write every day's products.
 
@@ -66,6 +70,10 @@ def calibrate_and_write(
         Also write a quicklook PNG per day (`write_quicklook`).
     quicklook_frame : str, optional
         Frame key of the quicklook's field (default: the first of ``frames``).
+    version : int
+        Product version ``_V<nn>`` of the file names.
+    progress : callable, optional
+        ``progress(description, done, total)``, called after each step and product.
 
     Raises
     ------
@@ -82,7 +90,11 @@ def calibrate_and_write(
         )
     calib_frames = tuple(frames) + ((ql_frame,) if quicklook and ql_frame not in frames else ())
     cal = load_calibration(day_of(sci), calibration_folder)
+    if progress is not None:
+        progress("calibrating (sec. 5-12)", 0, 1)
     ds = calibrate(sci, heat, temp, cal, frames=calib_frames, max_offset_step=None)
+    if progress is not None:
+        progress("calibrated", 1, 1)
     prov = provenance_attrs(
         inputs=list(inputs),
         calibration={path.name: path for path in cal.paths},
@@ -98,7 +110,7 @@ def calibrate_and_write(
         try:
             written += write_day_outputs(
                 day, Path(out_dir), frames, formats, averages, prov, max_offset_step,
-                ql_frame if quicklook else None,
+                ql_frame if quicklook else None, version=version, progress=progress,
             )
         except ValidationError as exc:
             failures.append(f"day {yyddd}: {exc}")
@@ -117,6 +129,9 @@ def write_day_outputs(
     provenance: dict,
     max_offset_step: float | None,
     quicklook_frame: str | None = None,
+    *,
+    version: int = DEFAULT_VERSION,
+    progress: Progress | None = None,
 ) -> list[Path]:
     """Validate one calibrated day and write all its files, all or nothing.
 
@@ -129,7 +144,8 @@ def write_day_outputs(
     with atomic_group():  # any exception below: no file of the day appears
         if max_offset_step is not None:
             levels.validate_offsets(day, max_offset_step)
-        written = write_day(day, out_dir, frames, formats, averages, provenance)
+        written = write_day(day, out_dir, frames, formats, averages, provenance, version,
+                            progress)
         written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step)
         if quicklook_frame is not None:
             written += write_quicklook(day, out_dir, quicklook_frame)
@@ -149,17 +165,24 @@ def run_edr2cdr(
     max_offset_step: float | None = 2.0,
     quicklook: bool = False,
     quicklook_frame: str | None = None,
+    version: int = DEFAULT_VERSION,
+    progress: Progress | None = None,
 ) -> list[Path]:
     """Run the MESSENGER MAG EDR -> CDR chain on files and write the products of every day.
 
     A day whose offsets fail the smoothness check (sec. 13) gets no file; the other
     days are written, then `ValidationError` is raised naming the failed days.
 
+    ``version`` is the product version ``_V<nn>``; ``progress(description, done, total)``
+    is called after reading, calibrating and each product (the CLI draws it).
+
     Returns
     -------
     list of Path
         Every file written.
     """
+    if progress is not None:
+        progress("reading inputs", 0, 1)
     sci = read_science(science)
     heat = read_heater(heater)
     temp = read_temperature(temperature)
@@ -169,5 +192,6 @@ def run_edr2cdr(
             inputs=[*map(Path, science), *map(Path, heater), *map(Path, temperature)],
             kernel_list=pool.kernel_list(), frames=frames, formats=formats,
             averages=averages, max_offset_step=max_offset_step,
-            quicklook=quicklook, quicklook_frame=quicklook_frame,
+            quicklook=quicklook, quicklook_frame=quicklook_frame, version=version,
+            progress=progress,
         )
