@@ -16,11 +16,12 @@ from cdflib.epochs import CDFepoch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fluxcal.errors import InputFormatError
+from fluxcal.errors import InputFormatError, KernelError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import (
     TT2000_FILL,
     TT2000_PAD,
+    LeapSecondTable,
     SclkKernel,
     datetime64_to_tt2000,
     leapseconds,
@@ -275,3 +276,12 @@ def test_utc_parse_fraction_is_exact(lsk):
             "2030-12-31T23:59:59.123456789"]
     np.testing.assert_array_equal(utc_to_tt2000(text, lsk=lsk),
                                   [CDFepoch.parse(s) for s in text])
+
+
+def test_lsk_with_a_two_second_step_is_refused(tmp_path):
+    # the UTC conversions show one inserted second (23:59:60) before each LSK epoch
+    odd = tmp_path / "odd.tls"
+    odd.write_text("KPL/LSK\n\\begindata\nDELTET/DELTA_AT = ( 10, @1972-JAN-1\n"
+                   "                    12, @1973-JAN-1 )\n\\begintext\n")
+    with KernelPool([odd]), pytest.raises(KernelError, match="step by \\+1 s"):
+        LeapSecondTable.from_pool()

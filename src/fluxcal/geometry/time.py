@@ -75,6 +75,12 @@ class LeapSecondTable:
             m = spiceypy.gdpool("DELTET/M", 0, 2)
             n = spiceypy.dtpool("DELTET/DELTA_AT")[0]
             pairs = np.asarray(spiceypy.gdpool("DELTET/DELTA_AT", 0, n), dtype=float)
+        if np.any(np.diff(pairs[0::2]) != 1):
+            # the UTC conversions place one inserted second (23:59:60) before each epoch
+            raise KernelError(
+                "the leapseconds kernel's DELTET/DELTA_AT does not step by +1 s at every "
+                f"epoch ({pairs[0::2].tolist()}); only inserted leap seconds are supported"
+            )
         return cls(
             k=float(k),
             eb=float(eb),
