@@ -1,20 +1,24 @@
 """Forward model of RPC-MAG: raw science and HK telemetry from a known field.
 
-The inverse of every LEVEL_A/B step is applied to a known field so the pipeline's output
-can be compared with the truth:
+The instrument is run forward from seed 003 and its tables only (the physics is in
+`fluxcal.missions.rosetta.forward`; no pipeline code, see
+``tests/missions/test_forward_independence.py``):
 
-1. truth ``B_ref(t)`` in ECLIPJ2000 (with kernels) or directly in s/c coordinates;
-2. s/c frame via the attitude, plus the Appendix B offset jump (an s/c field step);
-3. URF via ``R_UVW2SC^T``; plus the daily extended-temperature offset;
-4. raw engineering nT by the exact inverse of the ground calibration at the *true*
-   temperature, quantised to signed 20-bit counts; the thermistor voltage of the true
-   temperature quantised to 16-bit words;
-5. time stamps on a regular grid with the event time = stamp + filter-mode shift
-   (sec. 4.2.3.5); a few vectors flagged bad with their counts scrambled.
+1. truth ``B_ref(t)`` at the physical event times, in ECLIPJ2000 (with kernels, rotated by
+   SPICE) or directly in s/c coordinates;
+2. the time stamp of each vector is its event time minus the filter-mode delay of its SID
+   (sec. 4.2.3.5): the truth is delayed, not the stamps corrected;
+3. the Appendix B offset present at the event is added in s/c coordinates; the URF field
+   solves ``R_UVW2SC B_urf = B_sc`` (sec. 4.3.1);
+4. the extended-temperature-model offset of the stamp's day (with the midnight shift of
+   sec. 4.2.3.3) is added, the ground calibration applied forward at the *true* temperature
+   (sec. 3.2, 4.2.3.2) and the 20-bit ADC and PIU operations give the counts; the true
+   temperature's thermistor voltage gives the 16-bit words (sec. 3.3.3, 4.2.2.5);
+5. a few vectors are flagged bad with their counts scrambled.
 
 References
 ----------
-.. [1] RO-IGEP-TR0028 (seed 003), sec. 3.3, 4.1-4.3, Appendix B.
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 3.2-3.3, 4.1-4.3, Appendix B.
 """
 
 from __future__ import annotations
@@ -27,9 +31,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from fluxcal.calibration import matrices as mat
-from fluxcal.calibration import thermal
-from fluxcal.missions.rosetta import hk, level_a
+from fluxcal.missions.rosetta import forward
 from fluxcal.missions.rosetta.calib import (
     Alignment,
     DailyOffsetModel,
@@ -97,20 +99,20 @@ def raw_counts(
 ) -> np.ndarray:
     """Signed 20-bit counts a sensor reports for field ``b_urf`` at true ``temperature`` (deg C).
 
-    Inverse of sec. 4.2.3.1-4.2.3.3: ``B_c = b_urf + extended``; ``B_r`` the exact inverse of
-    the ground calibration; counts the nearest 20-bit word.
+    ``extended`` (the extended-temperature-model offset, nT) is added to the field the
+    sensor's ground calibration sees (sec. 4.2.3.3), then `forward.raw_field` and
+    `forward.science_counts`.
     """
     b_c = np.asarray(b_urf, dtype=float) + (0.0 if extended is None else extended)
-    return level_a.field_nt_to_counts(level_a.ground_uncalibrate(b_c, temperature, cal), nominal)
+    return forward.science_counts(forward.raw_field(b_c, temperature, cal), nominal)
 
 
 def thermistor_words(temperature: np.ndarray, cal: GroundCalibration, nominal: dict) -> np.ndarray:
     """Return 16-bit thermistor words for calibrated temperatures (deg C).
 
-    Inverse of seed 003 sec. 4.2.2.5 and 3.3.3.
+    Forward of seed 003 sec. 3.3.3 and 4.2.2.5 (`forward.thermistor_words`).
     """
-    u = thermal.thermistor_voltage(temperature, cal.thermistor, cal.thermistor_offset)
-    return hk.thermistor_counts(u, nominal)
+    return forward.thermistor_words(temperature, cal, nominal)
 
 
 def simulate(
@@ -192,8 +194,9 @@ def simulate(
 
     for sensor in ("OB", "IB"):
         cal = calibrations[check_sensor(sensor)]
-        shift = level_a.filter_time_shift(sid, time_shifts, sensor=sensor, primary=primary)
-        event = stamps + np.rint(shift * NS).astype(np.int64)
+        secondary = check_sensor(sensor) != check_sensor(primary)
+        delay = forward.filter_delay(sid, time_shifts, secondary=secondary)
+        event = stamps + np.rint(delay * NS).astype(np.int64)
         secs = (event - t0) / NS
         b_ref = truth_field(secs)
         if with_kernels:
@@ -204,17 +207,15 @@ def simulate(
             b_sc_true = b_ref
         jump = np.zeros((n, 3))
         if jumps is not None:
-            from fluxcal.missions.rosetta.level_b import offset_jumps
-
-            jump = offset_jumps(event, jumps, sensor, lsk=lsk)[0]
+            jump = forward.jump_field(event, jumps, sensor, lsk=lsk)
         rot = alignment.matrix(sensor, boom)
-        b_urf = mat.apply(rot.T, b_sc_true + jump)
+        b_urf = np.linalg.solve(rot, (b_sc_true + jump).T).T
         temp = temps[sensor]
         extended = None
         models = (daily_models or {}).get(sensor)
         if models:
-            day_index, days, _ = level_a.utc_days(stamps, lsk)
-            extended = level_a.extended_offset(stamps, temp, day_index, days, models)[0]
+            extended = forward.extended_offset(
+                stamps, forward.reduced_temperature(temp, cal), models, lsk)
         counts = raw_counts(b_urf, temp, cal, nominal, extended=extended)
         quality = np.zeros(n, dtype=np.int16)
         bad = rng.random(n) < bad_fraction
@@ -246,7 +247,7 @@ def simulate(
                     b_ref,
                     {"units": "nT", "frame": "ECLIPJ2000" if with_kernels else "ROS_SPACECRAFT"},
                 ),
-                "temperature": ("time", temp + hk.KELVIN, {"units": "K"}),
+                "temperature": ("time", temp + forward.KELVIN, {"units": "K"}),
                 "good": ("time", ~bad, {"units": "1"}),
             },
             coords={
@@ -291,21 +292,14 @@ def simulate_hk(
 ) -> xr.Dataset:
     """HK records every ``step`` vectors: thermistors, nominal voltages, 16-bit OB field.
 
-    Inverse of the nominal conversions of sec. 4.2.2.1-4.2.2.4 (2.4996 V reference,
-    +5.0 V / -5.0 V supplies, the raw OB field).
+    Forward of sec. 4.2.2.1-4.2.2.4: the raw OB field (ground calibration at 0 C) and the
+    2.4996 V reference through the ADC and PIU operations; the supply words are 0 (the
+    nominal +5.0 V / -5.0 V, the centre of the 8-bit range).
     """
     pick = np.arange(0, len(stamps), step)
     m = pick.size
-    p = nominal["hk_field"]
-    b_raw = level_a.ground_uncalibrate(b_ob[pick], np.zeros(m), cal)
-    nf = (p["b_max_nt"] - p["b_min_nt"]) / (2 ** p["bits"] - 1)
-    conv = np.clip(np.rint((b_raw - p["b_min_nt"]) / nf), 0, 2 ** p["bits"] - 1).astype(np.int64)
-    half = 2 ** (p["bits"] - 1)
-    tlm_b = np.where(conv >= half, conv - half, conv + half)
-    r = nominal["hk_reference_voltage"]
-    nf20 = (r["u_max_v"] - r["u_min_v"]) / (2 ** r["bits"] - 1)
-    conv_ref = int(round((2.4996 * hk.divider(r) - r["u_min_v"]) / nf20))
-    tlm_ref = conv_ref - 2 ** (r["bits"] - 1)
+    tlm_b = forward.hk_field_words(forward.raw_field(b_ob[pick], np.zeros(m), cal), nominal)
+    tlm_ref = forward.reference_voltage_word(2.4996, nominal)
     return xr.Dataset(
         {
             "obt": ("time", obt[pick], {"units": "s"}),
