@@ -118,21 +118,26 @@ def test_level_i_is_one_second_mean(lsk):
     assert np.all(out["n_samples"].values == 20)
 
 
-def _heater_case(lsk, n=12000, seed=3):
+def _heater_case(lsk, n=12000, seed=3, sign=1.0):
     rng = np.random.default_rng(seed)
     t0 = int(utc_to_tt2000(np.array([START]), lsk)[0])
     t = np.arange(n) / FS
     bg = rotating_field(t, period=3600.0) + red_noise(n, FS, 1e-3, rng, floor=1e-5)
     levels = rng.uniform(0.5, 1.5, int(t[-1] // 30) + 2)
     sq = np.where((t % 30) >= 15, levels[(t // 30).astype(int)], 0.0)
-    d = np.array([1.0, 2.0, -1.0]) / np.sqrt(6)
+    d = sign * np.array([1.0, 2.0, -1.0]) / np.sqrt(6)
     epoch = t0 + np.round(t * 1e9).astype(np.int64)
     return _dataset(epoch, bg + sq[:, None] * d, level="B"), bg, sq, d
 
 
-def test_level_k_automatic(lsk):
-    ds, bg, sq, _ = _heater_case(lsk)
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_level_k_automatic(lsk, sign):
+    # sign -1: the heater field against the positive maximum-variance axis; before
+    # issue 11 the output was biased by the heater field there (1.1-1.2 nT)
+    ds, bg, sq, d = _heater_case(lsk, sign=sign)
     out = cl.level_k(ds)
+    assert abs(np.mean((out["b"].values - bg) @ d)) < 0.1
+    assert "sign" in out.attrs["heater_off_rules"][0]
     assert out.attrs["level"] == "K"
     assert out.attrs["heater_jumps"] == np.count_nonzero(np.diff(sq))
     residual = np.linalg.norm(out["b"].values - bg, axis=1)

@@ -33,6 +33,7 @@ from fluxcal.errors import InputFormatError
 
 __all__ = [
     "LabelledOffsetResult",
+    "heater_off_segments",
     "StepRemovalResult",
     "moving_variance",
     "remove_heater_steps",
@@ -119,6 +120,11 @@ class StepRemovalResult:
         Detection indicator (moving variance of the maximum variance component).
     threshold : float
         Detection threshold applied to ``moving_variance``.
+    heater_sign : int
+        +1 if the heater field points along ``direction`` (heater-off segments are the
+        low levels), -1 if against it, 0 when no step was found.
+    off_rule : str
+        How the heater-off level was identified (see `heater_off_segments`).
     """
 
     values: NDArray[np.float64]
@@ -130,6 +136,8 @@ class StepRemovalResult:
     cut: NDArray[np.bool_]
     moving_variance: NDArray[np.float64]
     threshold: float
+    heater_sign: int = 0
+    off_rule: str = ""
 
 
 def _runs(flag: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -175,6 +183,119 @@ def _jump_fits(
     return np.linalg.solve(gram, rhs)  # (J, 3 params [level, slope, step], components)
 
 
+def _off_candidates(
+    level: NDArray[np.float64], heights: NDArray[np.float64], sign: int, window: int
+) -> NDArray[np.bool_]:
+    """Segments at the local heater-off extreme for heater sign ``sign``.
+
+    A segment is "off" when ``sign * level`` lies within half of its smaller adjacent
+    jump of the minimum of ``sign * level`` over +/- ``window`` segments.
+    """
+    s = sign * level
+    base = scipy.ndimage.minimum_filter1d(s, 2 * window + 1, mode="nearest")
+    h = np.abs(heights)
+    adjacent = np.minimum(np.concatenate([[np.inf], h]), np.concatenate([h, [np.inf]]))
+    return (s - base) < 0.5 * adjacent
+
+
+def heater_off_segments(
+    level: ArrayLike,
+    heights: ArrayLike,
+    lengths: ArrayLike,
+    *,
+    window: int = 2,
+    quiet_factor: float = 3.0,
+    constancy_ratio: float = 0.35,
+    sign: int | None = None,
+) -> tuple[int, NDArray[np.bool_], str]:
+    """Identify the heater sign and the heater-off segments, whatever the field direction.
+
+    Heater fields are all on one side of "off" (currents do not reverse), so the off
+    level is the local minimum of the cumulative levels if the heater field points
+    along the analysis axis and the local maximum if it points against it.  The axis
+    sign is a convention of the minimum variance analysis, so the heater sign is read
+    from the data, by the first rule that decides:
+
+    1. ``quiet``: a segment at least ``quiet_factor`` times longer than the median
+       cycle (two consecutive segments) is a stretch without heater activity, i.e.
+       off; each votes with the side (below or above its neighbours) it lies on.
+    2. ``constancy``: the off level repeats from period to period while the on levels
+       change with the heater (several heaters, different currents: seed sec. 4.12.1);
+       the sign whose off segments have the smaller median step between consecutive
+       off levels wins if it is below ``constancy_ratio`` times the other's; failing
+       that, the sign with at most half as many (minus one) steps beyond 10 robust
+       standard deviations of that median (rare heater changes).
+    3. ``first segment``: the data before the first jump are undisturbed, as in the
+       seed's step-by-step flattening from the start of the series.
+
+    Parameters
+    ----------
+    level : array_like (m + 1,)
+        Cumulative level of each segment between jumps (any origin).
+    heights : array_like (m,)
+        Jump heights (``level[k + 1] - level[k]``).
+    lengths : array_like (m + 1,)
+        Segment lengths in samples.
+    window : int
+        Segments on each side searched for the local off level.
+    quiet_factor, constancy_ratio : float
+        Parameters of rules 1 and 2.
+    sign : int, optional
+        Known heater sign (skips the rules).
+
+    Returns
+    -------
+    sign : int
+        +1 (off = low levels) or -1 (off = high levels).
+    off : ndarray of bool (m + 1,)
+        Heater-off segments.
+    rule : str
+        ``"given"``, ``"quiet"``, ``"constancy"`` or ``"first segment"``.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.12.1 ("flatten all the infected levels");
+       the sign rules are a fluxcal decision (docs/decisions/cleaning.md, issue 11).
+    """
+    lev = np.asarray(level, dtype=float)
+    h = np.asarray(heights, dtype=float)
+    lengths = np.asarray(lengths, dtype=float)
+    if sign is not None:
+        if sign not in (1, -1):
+            raise InputFormatError(f"heater sign must be +1 or -1, got {sign}", field="sign")
+        return sign, _off_candidates(lev, h, sign, window), "given"
+    m = lev.size
+    if m >= 3:
+        # a cycle (on + off) is two consecutive segments, whatever the duty cycle
+        quiet = lengths >= quiet_factor * np.median(lengths[:-1] + lengths[1:])
+        if quiet.any():
+            k = np.flatnonzero(quiet)
+            nb = np.stack([lev[np.maximum(k - 1, 0)], lev[np.minimum(k + 1, m - 1)]])
+            own = np.where(k == 0, nb[1], np.where(k == m - 1, nb[0], nb.mean(axis=0)))
+            vote = int(np.sign(np.sum(np.sign(own - lev[k]))))
+            if vote != 0:
+                return vote, _off_candidates(lev, h, vote, window), "quiet"
+    steps = {}
+    for sg in (1, -1):
+        off = _off_candidates(lev, h, sg, window)
+        if np.count_nonzero(off) >= 3:
+            steps[sg] = np.abs(np.diff(lev[off]))
+    if len(steps) == 2:
+        med = {sg: float(np.median(d)) for sg, d in steps.items()}
+        lo, hi = sorted(med, key=med.get)
+        if med[lo] < constancy_ratio * med[hi]:
+            return lo, _off_candidates(lev, h, lo, window), "constancy"
+        # rare changes of the on level (a heater switched every few periods): count
+        # the steps beyond 10 robust standard deviations of the quieter candidate
+        limit = 10.0 * MAD_TO_SIGMA * max(med[lo], np.finfo(float).tiny)
+        count = {sg: int(np.count_nonzero(d > limit)) for sg, d in steps.items()}
+        lo, hi = sorted(count, key=count.get)
+        if count[hi] >= 2 * count[lo] + 1:
+            return lo, _off_candidates(lev, h, lo, window), "constancy"
+    first = 1 if h.size == 0 or h[0] >= 0 else -1
+    return first, _off_candidates(lev, h, first, window), "first segment"
+
+
 def remove_heater_steps(
     values: ArrayLike,
     *,
@@ -186,6 +307,7 @@ def remove_heater_steps(
     transition_sigma: float = 4.0,
     direction: ArrayLike | None = None,
     refine_threshold: bool = True,
+    heater_sign: int | None = None,
 ) -> StepRemovalResult:
     """Detect and remove square-wave steps (heater switching) from a vector series.
 
@@ -212,11 +334,14 @@ def remove_heater_steps(
         default 5 was chosen on the f^-2 background of the tests (height error
         0.05 nT rms, against 0.07 nT with 10 samples).
     baseline_segments : int or None
-        Drift control.  Heater disturbances return to zero when the heater is off, so
-        the cumulative level of each segment between jumps is referred to the minimum
-        level within +/- ``baseline_segments`` segments (the nearby "heater off"
-        level).  ``None`` flattens by the plain cumulative sum, the first segment
-        being taken as undisturbed (height errors then accumulate).
+        Heater-off reference.  Heater disturbances return to zero when the heater is
+        off: the heater-off segments are identified (`heater_off_segments`, within
+        +/- ``baseline_segments`` segments, whatever the sign of the heater field
+        along ``direction``) and left unchanged; every other segment is referred to
+        the off level interpolated between the nearest off segments before and after
+        it, so height errors never accumulate.  ``None`` flattens by the plain
+        cumulative sum, the first segment being taken as undisturbed (the literal
+        step-by-step flattening; height errors then accumulate).
     transition_sigma : float
         A sample near a jump is an intermediate (transition) value, cut out and
         interpolated, when it lies more than this many noise standard deviations
@@ -225,6 +350,9 @@ def remove_heater_steps(
     direction : array_like (3,), optional
         Known disturbance direction; by default the maximum variance axis of the
         first differences, refined as the principal axis of the detected 3-D jumps.
+    heater_sign : int, optional
+        Known sign (+1/-1) of the heater field along ``direction`` (only with
+        ``direction``); by default it is identified from the data.
     refine_threshold : bool
         Second pass (automatic threshold only, series of at least
         `REFINE_MIN_SAMPLES` samples, when the first pass found jumps): the moving
@@ -262,6 +390,8 @@ def remove_heater_steps(
             f"average_samples must be >= 2, got {average_samples}", field="average_samples"
         )
     mva = minimum_variance(np.diff(b, axis=0))
+    if heater_sign is not None and direction is None:
+        raise InputFormatError("heater_sign needs a given direction", field="heater_sign")
     if direction is None:
         e = mva.eigenvectors[:, 0]
     else:
@@ -327,6 +457,17 @@ def remove_heater_steps(
     np.add.at(marks, np.clip(cut_lo, 0, n), 1)
     np.add.at(marks, np.clip(cut_hi, 0, n), -1)
     cut = np.cumsum(marks[:-1]) > 0
+    # A jump with fewer than 2 samples between it and the series edge cannot be
+    # measured (the fit on that side is undetermined): the edge piece is cut out and
+    # filled from the nearest corrected sample instead.
+    edge = np.zeros(jumps.size, dtype=bool)
+    edge[0] |= cut_lo[0] < 2
+    edge[-1] |= n - cut_hi[-1] < 2
+    if edge[0]:
+        cut[: cut_hi[0]] = True
+    if edge[-1]:
+        cut[cut_lo[-1] :] = True
+    jumps, cut_lo, cut_hi = jumps[~edge], cut_lo[~edge], cut_hi[~edge]
 
     prev_end = np.concatenate([[0], cut_hi[:-1]])
     next_start = np.concatenate([cut_lo[1:], [n]])
@@ -340,9 +481,15 @@ def remove_heater_steps(
     heights = h3 @ e
 
     level = np.concatenate([[0.0], np.cumsum(heights)])  # per segment
+    bounds = np.concatenate([[0], jumps, [n]])
+    sign, rule = 0, "first segment (plain cumulative flattening)"
     if baseline_segments is not None:
-        base = scipy.ndimage.minimum_filter1d(level, 2 * baseline_segments + 1, mode="nearest")
-        level = level - base
+        sign, off, rule = heater_off_segments(
+            level, heights, np.diff(bounds), window=baseline_segments, sign=heater_sign
+        )
+        centre = 0.5 * (bounds[:-1] + bounds[1:])
+        off_level = np.interp(centre, centre[off], level[off])
+        level = np.where(off, 0.0, level - off_level)
     segment = np.searchsorted(jumps, np.arange(n), side="right")
     disturbance = level[segment]
     corrected = u - disturbance
@@ -362,7 +509,9 @@ def remove_heater_steps(
                 baseline_segments=baseline_segments,
                 transition_sigma=transition_sigma,
                 direction=e,
+                heater_sign=heater_sign,
             )
+    log.info("heater sign %+d along the disturbance axis (%s)", sign, rule)
     return StepRemovalResult(
         values=out,
         direction=e,
@@ -373,6 +522,8 @@ def remove_heater_steps(
         cut=cut,
         moving_variance=mv,
         threshold=thr,
+        heater_sign=sign,
+        off_rule=rule,
     )
 
 

@@ -399,7 +399,9 @@ def level_k(
     xarray.Dataset
         Copy with cleaned ``b`` (s/c frame), ``heater_disturbance`` (time, component;
         the removed signal, nT), ``level = "K"`` and attributes ``heater_method``,
-        ``heater_jumps``, ``heater_thresholds_nT2``.
+        ``heater_jumps``, ``heater_thresholds_nT2``, ``heater_off_rules`` (per cleaned
+        stretch with jumps: how the heater-off level was identified, and the heater
+        sign along the disturbance axis; `fluxcal.cleaning.steps.heater_off_segments`).
 
     References
     ----------
@@ -409,6 +411,7 @@ def level_k(
     out_b = b.copy()
     n_jumps = 0
     thresholds: list[float] = []
+    off_rules: list[str] = []
     unchanged = 0
     for a, c in _uniform_segments(epoch, max_gap_s):
         if c - a < max(min_segment, 2 * width + 2):
@@ -425,6 +428,8 @@ def level_k(
         out_b[a:c] = res.values
         n_jumps += int(res.jump_indices.size)
         thresholds.append(float(res.threshold))
+        if res.jump_indices.size:
+            off_rules.append(f"{res.off_rule} (sign {res.heater_sign:+d})")
     out = _with_b(level_b, out_b, "calibrated field, s/c frame, heater disturbance eliminated")
     out["heater_disturbance"] = (
         ("time", "component"),
@@ -436,6 +441,7 @@ def level_k(
         heater_method="automatic: minimum variance + moving variance jumps (sec. 4.12.1)",
         heater_jumps=n_jumps,
         heater_thresholds_nT2=thresholds,
+        heater_off_rules=off_rules,
         heater_unchanged_vectors=unchanged,
     )
     return out
