@@ -18,6 +18,7 @@ from fluxcal.errors import InputFormatError
 from fluxcal.products import Column, read_product, write_product, zarr_available
 from fluxcal.products.label import find_objects
 from fluxcal.products.tab import read_label
+from fluxcal.products.timeindex import with_time_index
 
 from .conftest import EPOCH0, make_dataset
 
@@ -107,7 +108,7 @@ def test_tab_label_describes_fixed_width_columns(dataset: xr.Dataset, tmp_path: 
     table = find_objects(label, "TABLE")[0]
     columns = [dict(c) for c in find_objects(table, "COLUMN")]
     assert [c["NAME"] for c in columns] == ["utc", "bx", "by", "bz", "quality"]
-    assert [c["UNIT"] for c in columns] == ["", "nT", "nT", "nT", "1"]
+    assert [c["UNIT"] for c in columns] == ["N/A", "nT", "nT", "nT", "1"]  # PDS3: no unit
     row_bytes = dict(table)["ROW_BYTES"]
     raw = (tmp_path / "P.TAB").read_bytes()
     assert len(raw) == row_bytes * dataset.sizes["time"]
@@ -240,10 +241,12 @@ _floats = hnp.arrays(np.float64, st.integers(0, 20).map(lambda n: (n, 3)),
 @given(b=_floats, offset=st.integers(-(2**62), 2**62 - 10**12),
        fmt=st.sampled_from(["tab", "cdf", "nc", *(["zarr"] if zarr_available() else [])]))
 def test_roundtrip_law(b: np.ndarray, offset: int, fmt: str) -> None:
-    """read(write(ds)) == ds for any finite/NaN field and any TT2000 epoch, every format."""
+    """read(write(ds)) == ds for any finite/NaN field and any TT2000 epoch, every format.
+
+    +-2**62 ns is +-146 years around J2000, inside the UTC datetime64[ns] range of the
+    ``time`` index (1678-2262) that netCDF and Zarr store beside the int64 epoch.
+    """
     n = b.shape[0]
-    if fmt in ("nc", "zarr"):  # netCDF-3 split epoch keeps int32 seconds: +-68 years around J2000
-        offset = offset % (2**31 * 10**9 - 10**12)
     epoch = offset + np.arange(n, dtype=np.int64) * 1_000_000_007
     ds = xr.Dataset(
         {"B": (("time", "component"), b, {"units": "nT", "description": "field"})},
@@ -286,3 +289,59 @@ def test_failing_format_leaves_no_file_of_the_product(dataset: xr.Dataset, tmp_p
     with pytest.raises(OSError, match="no space"):
         write_product(dataset, tmp_path / "Q", formats=("tab", "cdf", "nc"))
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+# --- the time index ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_writers_accept_a_time_index_and_readers_return_it(fmt: str, dataset: xr.Dataset,
+                                                           tmp_path: Path) -> None:
+    indexed = with_time_index(dataset)
+    assert indexed["time"].dtype == np.dtype("M8[ns]") and "time" in indexed.indexes
+    back, _ = _roundtrip(indexed, fmt, tmp_path)
+    _assert_same_science(dataset, back)
+    np.testing.assert_array_equal(back["time"].values, indexed["time"].values)
+    assert "time" in back.indexes
+    back2, _ = _roundtrip(dataset, fmt, tmp_path / "plain")  # without the index too
+    np.testing.assert_array_equal(back2["time"].values, indexed["time"].values)
+
+
+def test_time_index_is_cdflibs_utc_and_selects(dataset: xr.Dataset) -> None:
+    import cdflib
+
+    ds = with_time_index(dataset)
+    # an outside maintained conversion (cdflib's own leap-second table), to the nanosecond
+    np.testing.assert_array_equal(ds["time"].values,
+                                  cdflib.cdfepoch.to_datetime(dataset["epoch"].values))
+    assert ds["epoch"].dtype == np.int64  # the exact time stays
+    one = ds.sel(time="2024-01-01T00:00:01.000000143")
+    assert one["epoch"].item() == dataset["epoch"].values[20]
+    # pandas partial-string slicing: "...:01" ends after the whole second 01
+    part = ds.sel(time=slice("2024-01-01T00:00:00.5", "2024-01-01T00:00:01"))
+    assert part.sizes["time"] == 30  # samples 10..39 (50 ms steps)
+    assert part["epoch"].values[0] == dataset["epoch"].values[10]
+    assert ds.resample(time="1s").mean()["B_mso"].shape == (3, 3)
+
+
+def test_time_index_across_a_leap_second() -> None:
+    import cdflib
+
+    # 2016-12-31T23:59:60 is a leap second: UTC datetime64 has no :60, the index clamps
+    # it to 23:59:59.999999999 (sorted, never in the next day)
+    t60 = int(cdflib.cdfepoch.compute_tt2000([2016, 12, 31, 23, 59, 60, 0, 0, 0]))
+    epoch = t60 + np.array([-10**9, 0, 5 * 10**8, 10**9], dtype=np.int64)
+    ds = with_time_index(xr.Dataset({"b": ("time", np.arange(4.0))},
+                                    coords={"epoch": ("time", epoch)}))
+    assert [str(t) for t in ds["time"].values] == [
+        "2016-12-31T23:59:59.000000000", "2016-12-31T23:59:59.999999999",
+        "2016-12-31T23:59:59.999999999", "2017-01-01T00:00:00.000000000"]
+    assert ds.indexes["time"].is_monotonic_increasing
+
+
+def test_time_index_needs_an_int64_epoch() -> None:
+    ds = xr.Dataset({"b": ("time", [1.0])}, coords={"epoch": ("time", [1.5])})
+    with pytest.raises(InputFormatError, match="epoch"):
+        with_time_index(ds)
+    assert with_time_index(xr.Dataset({"c": ("x", [1])})).identical(
+        xr.Dataset({"c": ("x", [1])}))
