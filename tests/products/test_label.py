@@ -1,27 +1,89 @@
+"""PDS3 label encoding: attributes round-trip through pvl; no JSON, no escapes, no repeats."""
+
 from __future__ import annotations
 
+import math
+
+import pvl
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fluxcal.products.label import parse_label, render_label
+from fluxcal.errors import InputFormatError
+from fluxcal.products.label import (
+    Symbol,
+    attributes_object,
+    check_unique_keys,
+    decode_attributes,
+    parse_label,
+    render_label,
+)
 
-_keys = st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,12}", fullmatch=True).filter(
-    lambda k: k not in ("END", "OBJECT", "END_OBJECT"))
-_scalars = st.one_of(st.text(max_size=20), st.integers(-(2**62), 2**62),
-                     st.floats(allow_nan=False, allow_infinity=False))
-_values = st.one_of(_scalars, st.lists(_scalars, min_size=1, max_size=4),
-                    st.dictionaries(st.text(max_size=5), st.integers(), max_size=3))
+_text = st.text(max_size=20)  # any unicode: quotes, backslashes, blanks, newlines
+_scalars = st.one_of(_text, st.integers(-(2**62), 2**62), st.booleans(), st.none(),
+                     st.floats(allow_nan=False))
+_values = st.recursive(
+    _scalars,
+    lambda inner: st.one_of(st.lists(inner, max_size=4),
+                            st.dictionaries(_text, inner, max_size=3)),
+    max_leaves=12,
+)
 
 
-@settings(max_examples=60, deadline=None)
-@given(st.dictionaries(_keys, _values, max_size=6))
-def test_label_roundtrip_law(attrs: dict) -> None:
-    """parse(render(statements)) == statements for strings, numbers, sequences and dicts."""
-    from fluxcal.products.attrs import decode_value
+def _same(a: object, b: object) -> bool:
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    if isinstance(a, (list, tuple)) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return list(a) == list(b) and all(_same(a[k], b[k]) for k in a)
+    return type(a) is type(b) and a == b
 
-    text = render_label([("OBJECT", ("A", list(attrs.items())))])
-    (key, (name, body)), = parse_label(text)
-    assert (key, name) == ("OBJECT", "A")
-    back = {k: decode_value(v) for k, v in body}
-    assert back == attrs
+
+@settings(max_examples=40, deadline=None)
+@given(st.dictionaries(_text, _values, max_size=6))
+def test_attributes_roundtrip_through_pvl(attrs: dict) -> None:
+    """decode(pvl.loads(pvl.dumps(encode(a)))) == a for any JSON-like value, types kept."""
+    module = pvl.PVLModule()
+    module["DATASET_ATTRIBUTES"] = attributes_object(attrs)
+    text = render_label(module)
+    assert '\\"' not in text  # no backslash escapes (and no JSON strings)
+    back = decode_attributes(pvl.loads(text)["DATASET_ATTRIBUTES"])  # pvl's default parser
+    assert _same(attrs, back)
     assert text.endswith("END\r\n")
+
+
+def test_nan_and_infinities_survive() -> None:
+    module = pvl.PVLModule()
+    module["A"] = attributes_object({"x": [math.nan, math.inf, -math.inf, 1e300]})
+    back = decode_attributes(parse_label(render_label(module))["A"])["x"]
+    assert math.isnan(back[0]) and back[1:] == [math.inf, -math.inf, 1e300]
+
+
+def test_text_is_double_quoted_and_symbols_bare() -> None:
+    module = pvl.PVLModule([("PDS_VERSION_ID", Symbol("PDS3")), ("DIGITS", "0123"),
+                            ("NAME", "TIME.UTC"), ("SEQ", ["a", "b c"])])
+    text = render_label(module)
+    assert text.splitlines()[:4] == ['PDS_VERSION_ID = PDS3', 'DIGITS = "0123"',
+                                     'NAME = "TIME.UTC"', 'SEQ = ("a", "b c")']
+    back = parse_label(text)
+    assert back["DIGITS"] == "0123" and back["SEQ"] == ["a", "b c"]
+
+
+def test_repeated_keyword_is_refused() -> None:
+    module = pvl.PVLModule([("A", 1), ("A", 2)])
+    with pytest.raises(InputFormatError, match="A assigned twice"):
+        render_label(module)
+    inner = pvl.PVLModule([("T", pvl.PVLObject([("COLUMNS", 1), ("COLUMNS", 1)]))])
+    with pytest.raises(InputFormatError, match="label/T"):
+        check_unique_keys(inner)
+
+
+def test_keyword_longer_than_30_characters_is_refused() -> None:
+    with pytest.raises(InputFormatError, match="30 characters"):
+        render_label(pvl.PVLModule([("K" * 31, 1)]))
+
+
+def test_unparsable_label_is_an_input_format_error() -> None:
+    with pytest.raises(InputFormatError, match="not a PDS3 label"):
+        parse_label("A = (1, \r\nEND\r\n")

@@ -11,16 +11,16 @@ Writing a product
 ...     coords={"epoch": ("time", np.array([0, 50_000_000], dtype=np.int64)),
 ...             "component": ["x", "y", "z"]},
 ...     attrs=provenance_attrs(inputs=[], command_line="doctest"))
->>> cols = [Column("epoch", "%d", "ns", "TT2000"),
-...         Column("B_mso", "%10.3f", label="b{c}"),      # -> columns bx, by, bz
-...         Column("quality", "%2d")]
+>>> cols = [Column("epoch", "I20", "ns", "TT2000"),   # FORTRAN formats, as in the label
+...         Column("B_mso", "F10.3", label="b{c}"),      # -> columns bx, by, bz
+...         Column("quality", "I2")]
 >>> import tempfile
 >>> out = Path(tempfile.mkdtemp())
 >>> paths = write_product(ds, out / "MAGMSOSCI24001", formats=("tab", "cdf"), columns=cols)
 >>> [p.name for p in paths]
 ['MAGMSOSCI24001.TAB', 'MAGMSOSCI24001.LBL', 'MAGMSOSCI24001.cdf']
 >>> (out / "MAGMSOSCI24001.TAB").read_text().splitlines()[1]
-'50000000      0.000      0.000      0.000  1'
+'            50000000      0.000      0.000      0.000  1'
 >>> read_product(out / "MAGMSOSCI24001.cdf")["epoch"].values.tolist()
 [0, 50000000]
 
@@ -29,12 +29,12 @@ Column naming
 A `Column` whose ``name`` is a vector variable ``(time, component)`` expands to one
 column per component, named ``f"{name}_{c}"`` (``B_mso_x``, ``B_mso_y``,
 ``B_mso_z``), or ``label.format(c=c)`` when ``label`` is given (``label="b{c}"`` ->
-``bx by bz``).  ``Column("B_mso", "%9.3f", component="z")`` prints one component
+``bx by bz``).  ``Column("B_mso", "F9.3", component="z")`` prints one component
 only.  Any variable or coordinate along ``time`` may be a column, including
-``epoch`` (printed ``%d`` it round-trips to the nanosecond) and string variables
+``epoch`` (printed ``I20`` it round-trips to the nanosecond) and string variables
 (e.g. pre-formatted UTC; no whitespace inside a value).
 
-Formats: ``tab`` (``.TAB`` + PDS3-like ``.LBL``), ``cdf`` (ISTP, ``Epoch`` TT2000),
+Formats: ``tab`` (fixed-width ``.TAB`` + PDS3 ``.LBL``, via pvl), ``cdf`` (ISTP, ``Epoch`` TT2000),
 ``nc`` (netCDF via xarray), ``zarr`` (if the zarr package is installed).  All writes
 are atomic.  See ``docs/formats/products.md``.
 """

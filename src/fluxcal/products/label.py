@@ -1,162 +1,254 @@
-r"""A small PDS3-like ODL (Object Description Language) writer and parser.
+"""PDS3 labels (ODL) written and read with `pvl`, and the attribute encoding they carry.
 
-Statements are ``KEY = value`` and ``OBJECT = NAME`` ... ``END_OBJECT = NAME`` blocks,
-closed by ``END``.  Values: quoted strings (``\\`` and ``"`` escaped with a
-backslash), integers, reals, bare symbols (``ASCII_REAL``), and sequences
-``(v1, v2, ...)``.  Dicts and nested containers are written as quoted strings with
-the ``json:`` prefix of `fluxcal.products.attrs`.  `parse_label` reverses
-`render_label` exactly for those value types.
+Writing goes through `pvl.PDSLabelEncoder` (uppercase keywords, ``OBJECT``/
+``END_OBJECT`` blocks, CRLF, ``END``), with one change: every text value is
+double-quoted and bare symbols are marked explicitly with `Symbol`, so a string never
+turns into another type on reading.  Reading goes through ``pvl.loads`` with the PDS
+grammar and decoder.
+
+PDS3 text strings cannot hold a double quote and readers fold whitespace, so a string
+is written as is only when it is "plain" (printable ASCII, no ``"`` or backslash, no
+leading, trailing or repeated whitespace); any other string is percent-encoded (RFC 3986
+style, ``%22`` for ``"``) and flagged with ``ENCODING = PERCENT``.  Dataset attributes (any
+JSON-like value: numbers, text, lists, dicts, ``None``) become nested ``ATTRIBUTE``
+objects (`attributes_object` / `decode_attributes`), so a label has no JSON and no
+backslash escapes, and ``decode_attributes(attributes_object(a)) == a``.
 """
 
 from __future__ import annotations
 
-import re
-from collections.abc import Sequence
+import math
+from collections.abc import Iterator, Mapping
+from pathlib import Path
 from typing import Any
+from urllib.parse import quote, unquote
+
+import numpy as np
+import pvl
+from pvl.decoder import PDSLabelDecoder
+from pvl.grammar import PDSGrammar
 
 from fluxcal.errors import InputFormatError
-from fluxcal.products.attrs import encode_value
 
-Statement = tuple[str, Any]  # (key, value) or ("OBJECT", (name, [statements]))
-
-_KEY = re.compile(r"^[A-Za-z_^][A-Za-z0-9_:.\-]*$")
+_PRINTABLE = "".join(chr(c) for c in range(33, 127) if chr(c) not in '"%\\')
+ATTRIBUTE = "ATTRIBUTE"
 
 
 class Symbol(str):
     """A bare (unquoted) ODL symbol such as ``ASCII_REAL`` or ``PDS3``."""
 
 
-def _quote(s: str) -> str:
-    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+def is_plain(s: str) -> bool:
+    """Tell whether ``s`` survives a PDS3 quoted string unchanged (see module docstring)."""
+    return (
+        s.isascii()
+        and s.isprintable()
+        and '"' not in s
+        and "\\" not in s  # a backslash before the closing quote reads as an escape
+        and s == s.strip()
+        and "  " not in s
+    )
 
 
-def _render_value(value: Any) -> str:
-    if isinstance(value, Symbol):
-        return str(value)
-    if isinstance(value, (list, tuple)) and value and all(
-        isinstance(v, (str, int, float)) and not isinstance(v, bool) for v in value
-    ):
-        return "(" + ", ".join(_render_value(v) for v in value) + ")"
-    v = encode_value(value)
-    if isinstance(v, str):
-        return _quote(v)
-    return repr(v)
+def percent_encode(s: str) -> str:
+    """Percent-encode ``s`` (UTF-8): all but printable ASCII, and blank, quote, % and backslash."""
+    return quote(s, safe=_PRINTABLE)
 
 
-def render_label(statements: Sequence[Statement], indent: int = 0) -> str:
-    """Render ODL statements to text with CRLF line ends (``END`` added at top level)."""
-    pad = "  " * indent
-    lines: list[str] = []
-    for key, value in statements:
-        if key == "OBJECT":
-            name, body = value
-            lines.append(f"{pad}OBJECT = {name}")
-            lines.append(render_label(body, indent + 1).rstrip("\r\n"))
-            lines.append(f"{pad}END_OBJECT = {name}")
-        else:
-            if not _KEY.match(key):
-                raise InputFormatError(f"label keyword {key!r} is not a valid ODL name",
-                                       field=key)
-            lines.append(f"{pad}{key} = {_render_value(value)}")
-    if indent == 0:
-        lines.append("END")
-    return "\r\n".join(line for line in lines if line) + "\r\n"
+class _Encoder(pvl.PDSLabelEncoder):
+    """PDS3 encoder that double-quotes every text value and writes `Symbol` bare."""
+
+    def __init__(self) -> None:
+        super().__init__(symbol_single_quote=False)
+
+    def encode_module(self, module: Mapping[str, Any], level: int = 0) -> str:
+        """One ``KEY = value`` per line, not padded to align (stable, greppable lines)."""
+        lines = [
+            self.encode_aggregation_block(k, v, level) if isinstance(v, Mapping)
+            else self.encode_assignment(k, v, level)
+            for k, v in module.items()
+        ]
+        return self.newline.join(lines)
+
+    def encode_string(self, value: Any) -> str:
+        s = str(value)
+        if isinstance(value, Symbol):
+            if not self.decoder.is_identifier(s):
+                raise ValueError(f"{s!r} is not an ODL symbol")
+            return s
+        if '"' in s or not s.isascii():
+            raise ValueError(f"text {s!r} cannot be a PDS3 string (double quote or non-ASCII)")
+        return '"' + s + '"'
 
 
-_TOKEN = re.compile(
-    r'\s*(?:(?P<comment>/\*.*?\*/)|(?P<str>"(?:[^"\\]|\\.)*")|(?P<punct>[=(),])'
-    r'|(?P<bare>[^\s=(),"]+))',
-    re.S,
-)
+def render_label(module: pvl.PVLModule) -> str:
+    """Render a label (keywords, objects, groups) to PDS3 ODL text with CRLF line ends.
+
+    Raises
+    ------
+    InputFormatError
+        A keyword that is not an ODL identifier (or longer than 30 characters), an
+        empty sequence, or a text value PDS3 cannot hold.
+    """
+    check_unique_keys(module)
+    try:
+        return pvl.dumps(module, encoder=_Encoder())
+    except (ValueError, TypeError) as exc:
+        raise InputFormatError(f"cannot write the PDS3 label: {exc}") from exc
 
 
-def _tokens(text: str) -> list[tuple[str, str]]:
-    out = []
-    pos = 0
-    text = text.rstrip()
-    while pos < len(text):
-        m = _TOKEN.match(text, pos)
-        if m is None:
-            raise InputFormatError(f"cannot parse label near {text[pos:pos + 30]!r}")
-        pos = m.end()
-        kind = m.lastgroup
-        if kind == "comment":
+def parse_label(text: str, path: str | None = None) -> pvl.PVLModule:
+    """Parse PDS3 ODL text with pvl's PDS grammar and decoder.
+
+    Raises
+    ------
+    InputFormatError
+        If pvl cannot parse the text.
+    """
+    try:
+        return pvl.loads(text, grammar=PDSGrammar(), decoder=PDSLabelDecoder())
+    except Exception as exc:  # pvl raises its own lexer/parser exception types
+        raise InputFormatError(f"not a PDS3 label: {exc}", path=path) from exc
+
+
+def read_label(path: Path | str) -> pvl.PVLModule:
+    """Parse a ``.LBL`` file (see `parse_label`)."""
+    return parse_label(Path(path).read_text(encoding="ascii"), path=str(path))
+
+
+def check_unique_keys(block: Mapping[str, Any], where: str = "label") -> None:
+    """Raise if a keyword is assigned twice in one block (objects may repeat, e.g. COLUMN).
+
+    Raises
+    ------
+    InputFormatError
+        Naming the repeated keyword and the enclosing object.
+    """
+    seen: set[str] = set()
+    for key, value in _items(block):
+        if isinstance(value, Mapping):
+            check_unique_keys(value, f"{where}/{key}")
             continue
-        out.append((kind, m.group(kind)))
-    return out
+        k = str(key).upper()
+        if k in seen:
+            raise InputFormatError(f"keyword {k} assigned twice in {where}", field=k)
+        seen.add(k)
 
 
-def _bare(tok: str) -> Any:
-    for conv in (int, float):
-        try:
-            return conv(tok)
-        except ValueError:
-            pass
-    return Symbol(tok)
+def _items(block: Mapping[str, Any]) -> Iterator[tuple[str, Any]]:
+    return iter(block.items())  # pvl's multi-dicts list every (key, value), repeats included
 
 
-def _unquote(tok: str) -> str:
-    return re.sub(r"\\(.)", r"\1", tok[1:-1], flags=re.S)
+def find_objects(block: Mapping[str, Any], name: str) -> list[Mapping[str, Any]]:
+    """Return the direct child objects (or groups) of ``block`` called ``name``, in order."""
+    return [v for k, v in _items(block) if k == name and isinstance(v, Mapping)]
 
 
-def parse_label(text: str) -> list[Statement]:
-    """Parse ODL text into statements (objects nested as ``("OBJECT", (name, body))``)."""
-    toks = _tokens(text)
-    i = 0
-
-    def value() -> Any:
-        nonlocal i
-        kind, tok = toks[i]
-        i += 1
-        if kind == "str":
-            return _unquote(tok)
-        if tok == "(":
-            items = []
-            while toks[i][1] != ")":
-                if toks[i][1] == ",":
-                    i += 1
-                    continue
-                items.append(value())
-            i += 1
-            return items
-        return _bare(tok)
-
-    def block(end: str | None) -> list[Statement]:
-        nonlocal i
-        body: list[Statement] = []
-        while i < len(toks):
-            kind, key = toks[i]
-            if key == "END" and end is None:
-                i += 1
-                return body
-            if i + 2 > len(toks) or toks[i + 1][1] != "=":
-                raise InputFormatError(f"label: expected '=' after {key!r}", field=key)
-            i += 2
-            if key == "OBJECT":
-                name = toks[i][1]
-                i += 1
-                body.append(("OBJECT", (name, block(name))))
-            elif key == "END_OBJECT":
-                name = toks[i][1]
-                i += 1
-                if name != end:
-                    raise InputFormatError(f"label: END_OBJECT = {name} closes {end}",
-                                           field=name)
-                return body
-            else:
-                body.append((key, value()))
-        if end is not None:
-            raise InputFormatError(f"label: OBJECT {end} not closed", field=end)
-        return body
-
-    return block(None)
+def as_dict(block: Mapping[str, Any]) -> dict[str, Any]:
+    """Keyword assignments of one block as a dict (objects skipped)."""
+    return {k: v for k, v in _items(block) if not isinstance(v, Mapping)}
 
 
-def find_objects(statements: Sequence[Statement], name: str) -> list[list[Statement]]:
-    """Bodies of the direct child objects called ``name``."""
-    return [v[1] for k, v in statements if k == "OBJECT" and v[0] == name]
+def text_value(s: str) -> tuple[str, bool]:
+    """``(value, encoded)``: ``s`` itself when plain, else its percent-encoding."""
+    return (s, False) if is_plain(s) else (percent_encode(s), True)
 
 
-def as_dict(statements: Sequence[Statement]) -> dict[str, Any]:
-    """Keyword statements of one level as a dict (objects skipped)."""
-    return {k: v for k, v in statements if k != "OBJECT"}
+# --- dataset attributes as nested ATTRIBUTE objects -----------------------------------
+
+
+def _scalar_plain(v: Any) -> bool:
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, int):
+        return True
+    if isinstance(v, float):
+        return math.isfinite(v)
+    return isinstance(v, str) and is_plain(v)
+
+
+def _normalise(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
+def attribute_object(name: str | None, value: Any) -> pvl.PVLObject:
+    """One attribute (name optional) as an ``ATTRIBUTE`` object; containers nest."""
+    obj = pvl.PVLObject()
+    if name is not None:
+        text, enc = text_value(str(name))
+        obj["NAME"] = text
+        if enc:
+            obj["NAME_ENCODING"] = Symbol("PERCENT")
+    value = _normalise(value)
+    if value is None:
+        obj["TYPE"] = Symbol("NO_VALUE")
+    elif isinstance(value, bool):
+        obj["TYPE"] = Symbol("BOOLEAN")
+        obj["VALUE"] = Symbol("TRUE" if value else "FALSE")
+    elif isinstance(value, (int, float)) and _scalar_plain(value):
+        obj["VALUE"] = value
+    elif isinstance(value, float):  # NaN, +-inf
+        obj["TYPE"] = Symbol("REAL")
+        obj["VALUE"] = repr(value)
+    elif isinstance(value, str):
+        text, enc = text_value(value)
+        obj["VALUE"] = text
+        if enc:
+            obj["ENCODING"] = Symbol("PERCENT")
+    elif isinstance(value, Mapping):
+        obj["TYPE"] = Symbol("DICT")
+        for k, v in value.items():
+            obj.append(ATTRIBUTE, attribute_object(str(k), v))
+    elif isinstance(value, (list, tuple)):
+        items = [_normalise(v) for v in value]
+        if items and all(_scalar_plain(v) for v in items):
+            obj["VALUE"] = items
+        else:
+            obj["TYPE"] = Symbol("LIST")
+            for v in items:
+                obj.append(ATTRIBUTE, attribute_object(None, v))
+    else:  # e.g. a datetime: kept as its text (as JSON encoding did)
+        return attribute_object(name, str(value))
+    return obj
+
+
+def attributes_object(attrs: Mapping[str, Any]) -> pvl.PVLObject:
+    """Every attribute of ``attrs`` as a child ``ATTRIBUTE`` object, in order."""
+    obj = pvl.PVLObject()
+    for k, v in attrs.items():
+        obj.append(ATTRIBUTE, attribute_object(str(k), v))
+    return obj
+
+
+def decode_attribute(obj: Mapping[str, Any]) -> tuple[str | None, Any]:
+    """Inverse of `attribute_object`: ``(name, value)``."""
+    name = obj.get("NAME")
+    if name is not None:
+        name = str(name)
+        if obj.get("NAME_ENCODING") == "PERCENT":
+            name = unquote(name)
+    kind = obj.get("TYPE")
+    children = find_objects(obj, ATTRIBUTE)
+    if kind == "NO_VALUE":
+        return name, None
+    if kind == "BOOLEAN":
+        return name, obj["VALUE"] in (True, "TRUE")
+    if kind == "REAL":
+        return name, float(obj["VALUE"])
+    if kind == "DICT":
+        return name, {n: v for n, v in map(decode_attribute, children)}
+    if kind == "LIST":
+        return name, [v for _, v in map(decode_attribute, children)]
+    value = obj["VALUE"]
+    if obj.get("ENCODING") == "PERCENT":
+        value = unquote(str(value))
+    return name, value
+
+
+def decode_attributes(obj: Mapping[str, Any]) -> dict[str, Any]:
+    """Inverse of `attributes_object`."""
+    return {str(n): v for n, v in map(decode_attribute, find_objects(obj, ATTRIBUTE))}

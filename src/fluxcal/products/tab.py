@@ -1,167 +1,286 @@
-"""Archive-style ASCII table (``.TAB``) with its PDS3-like label (``.LBL``).
+"""Archive-style fixed-width ASCII table (``.TAB``) with its PDS3 detached label (``.LBL``).
 
-The table has one sample per line, values separated by one space, no header, CRLF
-line ends; each value is printed with its column's printf format.  The label lists
-the columns (name, data type, unit, description, format, and the byte positions when
-every row has the same length), the software version and the provenance attributes.
+The table has one sample per line, values in fixed-width fields separated by one
+space, no header, CRLF line ends: every row has the same length, so the label's
+``RECORD_BYTES``/``ROW_BYTES`` and each column's ``START_BYTE``/``BYTES`` slice it
+exactly.  Each value is printed with its column's FORTRAN format (`FieldFormat`).
 
-Formatting is vectorized: one ``%`` operation formats a whole chunk of rows (no
-Python loop per sample), so the bytes depend only on the values and formats.
+Formatting is vectorized: compiled kernels (`fluxcal.products.fixedwidth`) write the
+digits of every value of a column into a ``(rows, row_bytes)`` byte buffer, 100,000
+rows at a time, and each chunk is written to the temporary file of the atomic pair
+(`fluxcal.products.atomic`).  The bytes depend only on the values and formats, and
+equal Python's printf output of the same format (``"%10.3f" % x``).
+
+The label is written and read with `pvl` (PDS3 encoder and grammar):
+``PDS_VERSION_ID = PDS3``, ``RECORD_TYPE = FIXED_LENGTH``, ``RECORD_BYTES``,
+``FILE_RECORDS``, ``^TABLE``, product keywords, a ``PROVENANCE`` group, the dataset
+attributes as ``ATTRIBUTE`` objects (`fluxcal.products.label`), and ``OBJECT = TABLE``
+with one ``OBJECT = COLUMN`` per column (``NAME``, ``DATA_TYPE``, ``START_BYTE``,
+``BYTES``, ``FORMAT``, ``UNIT``, ``DESCRIPTION``, ``MISSING_CONSTANT`` when a fill is
+used, and ``FLUXCAL:*`` keywords that let `read_tab` rebuild the Dataset).
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pvl
 import xarray as xr
 
 import fluxcal
 from fluxcal.errors import InputFormatError
+from fluxcal.products import fixedwidth as fw
 from fluxcal.products.atomic import atomic_group, atomic_path
-from fluxcal.products.attrs import decode_value
-from fluxcal.products.columns import TIME_DIM, Column, ResolvedColumn, resolve_columns
-from fluxcal.products.label import Statement, Symbol, as_dict, find_objects, parse_label
-from fluxcal.products.label import render_label as _render
+from fluxcal.products.columns import (
+    DEFAULT_REAL,
+    TIME_DIM,
+    Column,
+    FieldFormat,
+    ResolvedColumn,
+    resolve_columns,
+)
+from fluxcal.products.label import (
+    Symbol,
+    as_dict,
+    attributes_object,
+    decode_attributes,
+    find_objects,
+    read_label,
+    render_label,
+    text_value,
+)
 
-CHUNK_ROWS = 20_000
-EOL = "\r\n"
+__all__ = ["CHUNK_ROWS", "format_chunk", "label_module", "read_label", "read_tab",
+           "write_tab"]
+
+CHUNK_ROWS = 100_000
+EOL = b"\r\n"
 _DATA_TYPE = {"int": "ASCII_INTEGER", "real": "ASCII_REAL", "str": "CHARACTER"}
-_WS = re.compile(r"\s")
+_WHITESPACE = np.array([9, 10, 11, 12, 13, 32], np.uint8)
+# Keywords the writer owns: label_extra may not change the file's structure.
+_STRUCTURAL = {"PDS_VERSION_ID", "RECORD_TYPE", "RECORD_BYTES", "FILE_RECORDS", "^TABLE"}
+_WHY = {fw.TOO_WIDE: "does not fit the width", fw.NOT_FINITE: "is infinite",
+        fw.TOO_LARGE: "is too large to print with these decimals"}
 
 
-def _column_values(ds: xr.Dataset, col: ResolvedColumn) -> np.ndarray:
+def layout(cols: Sequence[ResolvedColumn]) -> tuple[list[int], int]:
+    """0-based start byte of each column and the row length (one blank between, CRLF)."""
+    starts, pos = [], 0
+    for c in cols:
+        starts.append(pos)
+        pos += c.fmt.width + 1
+    return starts, pos - 1 + len(EOL)
+
+
+def _column_array(ds: xr.Dataset, col: ResolvedColumn) -> np.ndarray:
     var = ds[col.variable]
-    arr = var.values if col.index is None else var.values[:, col.index]
-    if col.kind == "str":
-        arr = arr.astype(str)
-        joined = "\x00".join(arr.tolist())
-        if "" in arr or _WS.search(joined):
+    return var.values if col.index is None else var.values[:, col.index]
+
+
+def _string_bytes(values: np.ndarray, col: ResolvedColumn, first_row: int) -> np.ndarray:
+    """``(rows, width)`` uint8 of a string column, blank-padded; validated."""
+    width = col.fmt.width
+    try:
+        b = values.astype("S") if values.dtype.kind != "S" else values
+    except UnicodeEncodeError as exc:
+        raise InputFormatError(f"string values must be ASCII: {exc}", field=col.label) from exc
+    rows = b.shape[0]
+    if b.dtype.itemsize > width:
+        lens = np.char.str_len(b)
+        bad = int(np.argmax(lens > width))
+        if lens[bad] > width:
             raise InputFormatError(
-                "string values printed in a whitespace-separated table must be non-empty "
-                "and contain no whitespace",
-                field=col.label,
-            )
-    elif col.kind == "real" and col.fill is not None:
-        arr = np.where(np.isnan(arr), col.fill, arr)
-    return arr
+                f"value {b[bad].decode()!r} at row {first_row + bad} is longer than "
+                f"{col.fmt.fortran}", field=col.label, line=first_row + bad + 1)
+    raw = np.zeros((rows, width), np.uint8)
+    k = min(width, b.dtype.itemsize)
+    raw[:, :k] = np.frombuffer(b.tobytes(), np.uint8).reshape(rows, b.dtype.itemsize)[:, :k]
+    content = raw != 0
+    if rows and (not content[:, 0].all() or np.isin(raw[content], _WHITESPACE).any()):
+        raise InputFormatError(
+            "string values printed in a whitespace-separated table must be non-empty "
+            "and contain no whitespace",
+            field=col.label,
+        )
+    raw[~content] = 32
+    return raw
 
 
-def format_rows(ds: xr.Dataset, cols: Sequence[ResolvedColumn]) -> tuple[list[str], list[int]]:
-    """Format the table as text chunks; also return the widths of the first row's values.
+def _check(code: int, row: int, values: np.ndarray, col: ResolvedColumn,
+           first_row: int) -> None:
+    if code != fw.OK:
+        raise InputFormatError(
+            f"value {values[row]!r} at row {first_row + row} {_WHY[code]} of "
+            f"{col.fmt.fortran}" + (f" (fill {col.fill!r})" if col.fill is not None else ""),
+            field=col.label, line=first_row + row + 1)
 
-    Pure (no I/O).  ``"".join(chunks)`` is the whole table.
+
+def _real_values(arr: np.ndarray, col: ResolvedColumn) -> np.ndarray:
+    v = np.ascontiguousarray(arr, dtype=np.float64)
+    if col.fill is not None and col.kind == "real":
+        v = np.where(np.isnan(v), float(col.fill), v)
+    return v
+
+
+def _format_column(buf: np.ndarray, start: int, values: np.ndarray, col: ResolvedColumn,
+                   first_row: int) -> None:
+    f: FieldFormat = col.fmt
+    if col.kind == "str":
+        buf[:, start:start + f.width] = _string_bytes(values, col, first_row)
+        return
+    if f.code == "I":
+        v = np.ascontiguousarray(values)
+        if v.dtype == np.uint64 and v.size and v.max() > np.iinfo(np.int64).max:
+            raise InputFormatError("uint64 values beyond int64 cannot be printed",
+                                   field=col.label)
+        v = v.astype(np.int64, copy=False)
+        code, row = fw.format_int(v, buf, start, f.width, f.decimals)
+        _check(code, row, v, col, first_row)
+        return
+    v = _real_values(values, col)
+    if f.code == "F":
+        code, row = fw.format_fixed(v, buf, start, f.width, f.decimals, f.zero_pad)
+    else:
+        code, row = fw.format_exp(v, buf, start, f.width, f.decimals)
+    _check(code, row, v, col, first_row)
+    if f == DEFAULT_REAL:
+        _ensure_roundtrip(buf, start, v)
+
+
+def _ensure_roundtrip(buf: np.ndarray, start: int, v: np.ndarray) -> None:
+    """Guarantee the default ``E24.16`` text reads back as the same float64.
+
+    The kernel rounds exactly except at decimal near-ties of magnitudes outside
+    1e+-22 (double-double scale, see `fluxcal.products.fixedwidth`); should one ever
+    miss, that row is printed by Python's correctly rounded ``%24.16E`` instead.
     """
-    n = ds.sizes.get(TIME_DIM, 0)
-    values = [_column_values(ds, c) for c in cols]
-    line_fmt = " ".join(c.fmt for c in cols) + EOL
-    chunks: list[str] = []
-    for start in range(0, n, CHUNK_ROWS):
-        stop = min(n, start + CHUNK_ROWS)
-        block = np.empty((stop - start, len(cols)), dtype=object)
-        for j, v in enumerate(values):
-            block[:, j] = v[start:stop].tolist()
-        try:
-            chunks.append((line_fmt * (stop - start)) % tuple(block.ravel().tolist()))
-        except (TypeError, ValueError) as exc:
-            raise InputFormatError(f"cannot format rows {start}..{stop}: {exc}") from exc
-    widths = (
-        [len(c.fmt % v[0].item() if hasattr(v[0], "item") else c.fmt % v[0])
-         for c, v in zip(cols, values, strict=True)]
-        if n
-        else []
-    )
-    return chunks, widths
+    width = DEFAULT_REAL.width
+    text = np.ascontiguousarray(buf[:, start:start + width]).view(f"S{width}").ravel()
+    back = text.astype(np.float64)
+    bad = np.flatnonzero(~((back == v) | (np.isnan(back) & np.isnan(v))))
+    for i in bad.tolist():  # expected empty; one Python format per exceptional row
+        buf[i, start:start + width] = np.frombuffer(
+            (f"%{width}.{DEFAULT_REAL.decimals}E" % v[i]).encode(), np.uint8)
 
 
-def _fixed_row_bytes(chunks: Sequence[str], widths: Sequence[int], n: int) -> int | None:
-    if not n:
-        return None
-    row = sum(widths) + len(widths) - 1 + len(EOL)
-    return row if sum(len(c) for c in chunks) == n * row else None
+def format_chunk(ds: xr.Dataset, cols: Sequence[ResolvedColumn], start: int,
+                 stop: int, arrays: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Rows ``start:stop`` of the table as a ``(rows, row_bytes)`` uint8 array (pure)."""
+    starts, row_bytes = layout(cols)
+    buf = np.full((stop - start, row_bytes), 32, np.uint8)
+    buf[:, -2:] = np.frombuffer(EOL, np.uint8)
+    if arrays is None:
+        arrays = [_column_array(ds, c) for c in cols]
+    for c, s, arr in zip(cols, starts, arrays, strict=True):
+        _format_column(buf, s, arr[start:stop], c, start)
+    return buf
 
 
-def label_statements(
+def _text(s: str) -> str:
+    """Return a label text value: whitespace folded, ``"`` turned into ``'``."""
+    return " ".join(str(s).replace('"', "'").split()) or "N/A"
+
+
+def _put_extra(module: pvl.PVLModule, label_extra: Mapping[str, Any]) -> None:
+    """Merge caller keywords: an existing keyword is replaced in place (once)."""
+    for key, value in label_extra.items():
+        k = str(key).upper()
+        if k in _STRUCTURAL:
+            raise InputFormatError(f"label_extra may not set {k} (the writer owns it)",
+                                   field=k)
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, Mapping) or (isinstance(value, (list, tuple)) and not value):
+            raise InputFormatError(f"label_extra {k}: a PDS3 keyword holds a number, text or "
+                                   "a non-empty sequence", field=k)
+        if k in module:
+            module[k] = value
+        else:
+            module.append(k, value)
+
+
+def _provenance(attrs: Mapping[str, Any]) -> pvl.PVLGroup:
+    """Human-readable provenance (the exact values are in DATASET_ATTRIBUTES)."""
+    g = pvl.PVLGroup()
+
+    def put(key: str, values: list[str]) -> None:
+        if values:
+            g[key] = [text_value(str(v))[0] for v in values]
+
+    inputs = attrs.get("inputs") or []
+    put("INPUT_FILE_NAME", [r.get("path", r.get("name", "")) or "N/A" for r in inputs])
+    put("INPUT_FILE_SHA256", [r.get("sha256", "") or "N/A" for r in inputs])
+    cal = attrs.get("calibration") or {}
+    put("CALIBRATION_NAME", list(cal))
+    put("CALIBRATION_SOURCE", [r.get("path", r.get("version", "")) or "N/A"
+                               for r in cal.values()])
+    put("CALIBRATION_SHA256", [r.get("sha256", "") or "N/A" for r in cal.values()])
+    kernels = attrs.get("kernels") or []
+    put("KERNEL_NAME", [r.get("path", r.get("name", "")) or "N/A" for r in kernels])
+    put("KERNEL_SHA256", [r.get("sha256", "") or "N/A" for r in kernels])
+    if "command_line" in attrs:
+        g["COMMAND_LINE"] = text_value(str(attrs["command_line"]))[0]
+    return g
+
+
+def label_module(
     ds: xr.Dataset,
     cols: Sequence[ResolvedColumn],
     table_name: str,
-    widths: Sequence[int],
-    row_bytes: int | None,
     label_extra: Mapping[str, Any] | None = None,
-) -> list[Statement]:
-    """Build the label as ODL statements (pure)."""
+) -> pvl.PVLModule:
+    """Build the PDS3 label of a table (pure).  Every keyword appears once per block."""
     n = ds.sizes.get(TIME_DIM, 0)
     attrs = dict(ds.attrs)
-    st: list[Statement] = [
-        ("PDS_VERSION_ID", Symbol("PDS3")),
-        ("RECORD_TYPE", Symbol("FIXED_LENGTH" if row_bytes else "STREAM")),
-    ]
-    if row_bytes:
-        st.append(("RECORD_BYTES", row_bytes))
-    st += [
-        ("FILE_RECORDS", n),
-        ("^TABLE", table_name),
-        ("PRODUCT_ID", Path(table_name).stem),
-        ("PRODUCT_CREATION_TIME", str(attrs.get("creation_time", ""))),
-        ("SOFTWARE_NAME", "fluxcal"),
-        ("SOFTWARE_VERSION_ID", str(attrs.get("software_version", fluxcal.__version__))),
-    ]
-    for k, v in (label_extra or {}).items():
-        st.append((k, v))
-    prov: list[Statement] = []
-    inputs = attrs.get("inputs") or []
-    if inputs:
-        prov.append(("INPUT_FILE_NAME", [r.get("path", r.get("name", "")) for r in inputs]))
-        prov.append(("INPUT_FILE_SHA256", [r.get("sha256", "") for r in inputs]))
-    cal = attrs.get("calibration") or {}
-    if cal:
-        prov.append(("CALIBRATION_NAME", list(cal)))
-        prov.append(("CALIBRATION_SOURCE", [r.get("path", r.get("version", ""))
-                                            for r in cal.values()]))
-        prov.append(("CALIBRATION_SHA256", [r.get("sha256", "") for r in cal.values()]))
-    kernels = attrs.get("kernels") or []
-    if kernels:
-        prov.append(("KERNEL_NAME", [r.get("path", r.get("name", "")) for r in kernels]))
-        prov.append(("KERNEL_SHA256", [r.get("sha256", "") for r in kernels]))
-    if "command_line" in attrs:
-        prov.append(("COMMAND_LINE", str(attrs["command_line"])))
+    starts, row_bytes = layout(cols)
+    m = pvl.PVLModule()
+    m["PDS_VERSION_ID"] = Symbol("PDS3")
+    m["RECORD_TYPE"] = Symbol("FIXED_LENGTH")
+    m["RECORD_BYTES"] = row_bytes
+    m["FILE_RECORDS"] = n
+    m["^TABLE"] = table_name
+    m["PRODUCT_ID"] = Path(table_name).stem
+    m["PRODUCT_CREATION_TIME"] = str(attrs.get("creation_time", "")) or "N/A"
+    m["SOFTWARE_NAME"] = "fluxcal"
+    m["SOFTWARE_VERSION_ID"] = str(attrs.get("software_version", fluxcal.__version__))
+    _put_extra(m, label_extra or {})
+    prov = _provenance(attrs)
     if prov:
-        st.append(("OBJECT", ("PROVENANCE", prov)))
-    if attrs:
-        st.append(("OBJECT", ("DATASET_ATTRIBUTES", [(k, v) for k, v in attrs.items()])))
-    table: list[Statement] = [
-        ("INTERCHANGE_FORMAT", Symbol("ASCII")),
-        ("ROWS", n),
-        ("COLUMNS", len(cols)),
-    ]
-    if row_bytes:
-        table.append(("ROW_BYTES", row_bytes))
-    table.append(("DESCRIPTION", "One sample per line, values separated by one space, "
-                                 "no header, CRLF line ends."))
-    start = 1
-    for i, c in enumerate(cols):
+        m["PROVENANCE"] = prov
+    rest = {k: v for k, v in attrs.items() if k != "creation_time"}  # PRODUCT_CREATION_TIME
+    if rest:
+        m["DATASET_ATTRIBUTES"] = attributes_object(rest)
+    table = pvl.PVLObject()
+    table["INTERCHANGE_FORMAT"] = Symbol("ASCII")
+    table["ROWS"] = n
+    table["COLUMNS"] = len(cols)
+    table["ROW_BYTES"] = row_bytes
+    table["DESCRIPTION"] = ("One sample per line, fixed-width fields separated by one "
+                            "blank, no header, CRLF line ends.")
+    for i, (c, s) in enumerate(zip(cols, starts, strict=True)):
         var = ds[c.variable]
-        body: list[Statement] = [
-            ("COLUMN_NUMBER", i + 1),
-            ("NAME", c.label),
-            ("DATA_TYPE", Symbol(_DATA_TYPE[c.kind])),
-        ]
-        if row_bytes:
-            body += [("START_BYTE", start), ("BYTES", widths[i])]
-            start += widths[i] + 1
-        body += [("FORMAT", c.fmt), ("UNIT", c.unit), ("DESCRIPTION", c.description)]
-        if c.fill is not None:
-            body.append(("MISSING_CONSTANT", c.fill))
-        body += [("FLUXCAL_VARIABLE", c.variable), ("FLUXCAL_DTYPE", str(var.dtype))]
+        col = pvl.PVLObject()
+        col["COLUMN_NUMBER"] = i + 1
+        col["NAME"] = c.label
+        col["DATA_TYPE"] = Symbol(c.data_type or _DATA_TYPE[c.kind])
+        col["START_BYTE"] = s + 1
+        col["BYTES"] = c.fmt.width
+        col["FORMAT"] = c.fmt.fortran
+        col["UNIT"] = _text(c.unit)
+        col["DESCRIPTION"] = _text(c.description)
+        if c.fill is not None and c.kind == "real":
+            col["MISSING_CONSTANT"] = float(c.fill)
+        col["FLUXCAL:VARIABLE"] = c.variable
+        col["FLUXCAL:DTYPE"] = str(var.dtype)
         if c.component is not None:
-            body += [("FLUXCAL_COMPONENT", c.component),
-                     ("FLUXCAL_COMPONENT_DIM", str(var.dims[1]))]
-        table.append(("OBJECT", ("COLUMN", body)))
-    st.append(("OBJECT", ("TABLE", table)))
-    return st
+            col["FLUXCAL:COMPONENT"] = c.component
+            col["FLUXCAL:COMPONENT_DIM"] = str(var.dims[1])
+        table.append("COLUMN", col)
+    m["TABLE"] = table
+    return m
 
 
 def write_tab(
@@ -172,112 +291,129 @@ def write_tab(
 ) -> list[Path]:
     """Write ``stem.TAB`` and ``stem.LBL`` atomically; return both paths.
 
-    Both are written under temporary names and renamed together at the end (the
-    table first).  On failure neither file is left (an older pair is kept).
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Dimension ``time``; variables named by ``columns``.
+    stem : Path
+        Output path without suffix.
+    columns : sequence of Column, optional
+        Default: every time variable with an exact format (`Column`).
+    label_extra : mapping, optional
+        Extra label keywords (numbers, text, non-empty sequences); a keyword the
+        writer also sets (e.g. ``PRODUCT_ID``) takes the caller's value, once.
+
+    Returns
+    -------
+    list of Path
+        ``[stem.TAB, stem.LBL]``.
+
+    Raises
+    ------
+    InputFormatError
+        A value that does not fit its column format (naming the column and row), an
+        infinite value, a string with whitespace, or a label value PDS3 cannot hold.
+
+    Notes
+    -----
+    Both files are written under temporary names, the table chunk by chunk, and
+    renamed together at the end (`atomic_group`).  On failure neither file is left
+    (an older pair is kept).
     """
     stem = Path(stem)
     cols = resolve_columns(ds, columns)
-    chunks, widths = format_rows(ds, cols)
     n = ds.sizes.get(TIME_DIM, 0)
-    row_bytes = _fixed_row_bytes(chunks, widths, n)
     tab = stem.with_name(stem.name + ".TAB")
     lbl = stem.with_name(stem.name + ".LBL")
-    label = _render(label_statements(ds, cols, tab.name, widths, row_bytes, label_extra))
+    label = render_label(label_module(ds, cols, tab.name, label_extra))
+    arrays = [_column_array(ds, c) for c in cols]
     with atomic_group(), atomic_path(tab) as tmp_tab, atomic_path(lbl) as tmp_lbl:
-        with open(tmp_tab, "w", encoding="ascii", newline="") as f:
-            for chunk in chunks:
-                f.write(chunk)
-        tmp_lbl.write_text(label, encoding="utf-8", newline="")
+        with open(tmp_tab, "wb") as f:
+            for start in range(0, n, CHUNK_ROWS):
+                f.write(format_chunk(ds, cols, start, min(n, start + CHUNK_ROWS), arrays))
+        tmp_lbl.write_text(label, encoding="ascii", newline="")
     return [tab, lbl]
 
 
-def read_label(path: Path) -> list[Statement]:
-    """Parse a ``.LBL`` file."""
-    return parse_label(Path(path).read_text(encoding="utf-8"))
+def _parse_field(raw: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """Fixed-width ASCII field bytes ``(rows, width)`` -> values of ``dtype``."""
+    text = np.ascontiguousarray(raw).view(f"S{raw.shape[1]}").ravel()
+    if dtype.kind in "iub":
+        return text.astype(np.int64).astype(dtype)
+    if dtype.kind == "f":
+        return text.astype(np.float64)
+    return np.char.strip(text).astype(dtype if dtype.kind == "U" else str)
 
 
 def read_tab(path: Path) -> xr.Dataset:
     """Read a ``.TAB`` (and the ``.LBL`` beside it) back into a Dataset.
 
-    Columns of one variable are regrouped into ``(time, component)`` variables;
-    ``units`` and ``description`` attrs come from the label, dataset attrs from its
-    ``DATASET_ATTRIBUTES`` object.  ``epoch``, if printed, becomes the coordinate.
+    The label's ``START_BYTE``/``BYTES`` slice each row.  Columns of one variable are
+    regrouped into ``(time, component)`` variables; ``units`` and ``description``
+    attrs come from the label, dataset attrs from its ``DATASET_ATTRIBUTES`` object.
+    ``epoch``, if printed, becomes the coordinate.
     """
     path = Path(path)
     if path.suffix.upper() != ".TAB":
         path = path.with_name(path.name + ".TAB")
     lbl = path.with_suffix(".LBL")
-    st = read_label(lbl)
-    tables = find_objects(st, "TABLE")
+    label = read_label(lbl)
+    tables = find_objects(label, "TABLE")
     if not tables:
         raise InputFormatError("label has no TABLE object", path=str(lbl))
     cols = [as_dict(c) for c in find_objects(tables[0], "COLUMN")]
-    ncol = len(cols)
-    if ncol == 0:
+    if not cols:
         raise InputFormatError("label describes no COLUMN", path=str(lbl))
-    fields = []
-    for j, c in enumerate(cols):
-        dtype = np.dtype(str(c.get("FLUXCAL_DTYPE", "str")))
-        if dtype.kind in "iub":
-            fields.append((f"f{j}", np.int64))
-        elif dtype.kind == "f":
-            fields.append((f"f{j}", np.float64))
-        else:
-            width = max(int(c.get("BYTES", 0)), dtype.itemsize // 4, 64)
-            fields.append((f"f{j}", f"U{width}"))
-    try:  # numpy's C parser, whitespace-delimited, one typed field per column
-        if path.stat().st_size == 0:  # an empty day (loadtxt would warn)
-            table = np.zeros(0, dtype=np.dtype(fields))
-        else:
-            table = np.loadtxt(path, dtype=np.dtype(fields), ndmin=1, encoding="ascii")
-    except ValueError as exc:
-        raise InputFormatError(f"table does not match its label's {ncol} columns: {exc}",
-                               path=str(path)) from exc
+    row_bytes = int(tables[0]["ROW_BYTES"])
+    rows = int(tables[0]["ROWS"])
+    raw = np.fromfile(path, dtype=np.uint8)
+    if raw.size != rows * row_bytes:
+        raise InputFormatError(f"table has {raw.size} bytes; the label says {rows} rows of "
+                               f"{row_bytes}", path=str(path))
+    raw = raw.reshape(rows, row_bytes)
     variables: dict[str, dict[str, Any]] = {}
-    for j, c in enumerate(cols):
-        dtype = np.dtype(str(c.get("FLUXCAL_DTYPE", "str")))
-        raw = table[f"f{j}"]
+    for c in cols:
+        dtype = np.dtype(str(c.get("FLUXCAL:DTYPE", "str")))
+        s0 = int(c["START_BYTE"]) - 1
+        field = raw[:, s0:s0 + int(c["BYTES"])]
+        try:
+            vals = _parse_field(field, dtype)
+        except ValueError as exc:
+            raise InputFormatError(f"cannot read column: {exc}", path=str(path),
+                                   field=str(c["NAME"])) from exc
+        miss = c.get("MISSING_CONSTANT")
         if dtype.kind == "f":
-            vals = raw
-            miss = c.get("MISSING_CONSTANT")
             if miss is not None:
                 vals = np.where(vals == float(miss), np.nan, vals)
             vals = vals.astype(dtype)
-        elif dtype.kind in "iub":
-            vals = raw.astype(dtype)
-        else:
-            vals = raw.astype(dtype if dtype.kind == "U" else str)
-        name = str(c.get("FLUXCAL_VARIABLE", c["NAME"]))
+        name = str(c.get("FLUXCAL:VARIABLE", c["NAME"]))
         entry = variables.setdefault(name, {"values": [], "components": [], "attrs": {},
-                                            "dim": c.get("FLUXCAL_COMPONENT_DIM")})
+                                            "dim": c.get("FLUXCAL:COMPONENT_DIM")})
         entry["values"].append(vals)
-        if "FLUXCAL_COMPONENT" in c:
-            entry["components"].append(str(c["FLUXCAL_COMPONENT"]))
-        entry["attrs"]["units"] = str(c.get("UNIT", ""))
-        if c.get("DESCRIPTION"):
-            entry["attrs"]["description"] = str(c["DESCRIPTION"])
+        if "FLUXCAL:COMPONENT" in c:
+            entry["components"].append(str(c["FLUXCAL:COMPONENT"]))
+        unit = str(c.get("UNIT", "N/A"))
+        entry["attrs"]["units"] = "" if unit == "N/A" else unit
+        desc = str(c.get("DESCRIPTION", "N/A"))
+        if desc != "N/A":
+            entry["attrs"]["description"] = desc
     data_vars: dict[str, Any] = {}
     coords: dict[str, Any] = {}
     for name, e in variables.items():
         if e["components"]:
             dim = str(e["dim"] or "component")
-            coords.setdefault(dim, np.array(e["components"], dtype=str))
+            comps = np.array(e["components"], dtype=str)
+            coords.setdefault(dim, comps)
             var = xr.DataArray(np.stack(e["values"], axis=1), dims=(TIME_DIM, dim),
-                               coords={dim: np.array(e["components"], dtype=str)},
-                               attrs=e["attrs"])
+                               coords={dim: comps}, attrs=e["attrs"])
         else:
             var = xr.DataArray(e["values"][0], dims=(TIME_DIM,), attrs=e["attrs"])
         (coords if name == "epoch" else data_vars)[name] = var
     ds = xr.Dataset(data_vars, coords=coords)
-    attrs_obj = find_objects(st, "DATASET_ATTRIBUTES")
-    if attrs_obj:
-        ds.attrs = {k: _plain(decode_value(v)) for k, v in attrs_obj[0]}
+    attrs_obj = find_objects(label, "DATASET_ATTRIBUTES")
+    attrs = decode_attributes(attrs_obj[0]) if attrs_obj else {}
+    created = label.get("PRODUCT_CREATION_TIME")
+    if created is not None and created != "N/A":
+        attrs["creation_time"] = str(created)
+    ds.attrs = attrs
     return ds
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, Symbol):
-        return str(v)
-    if isinstance(v, list):
-        return [_plain(x) for x in v]
-    return v
