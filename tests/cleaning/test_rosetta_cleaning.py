@@ -565,3 +565,55 @@ def test_fluxcal_rosetta_clean_k_with_romap_intervals(tmp_path, lsk):
     # a malformed interval file is a clean error naming the file and line
     csv_path.write_text("start_utc,stop_utc,label\n2014-08-01T00:00:20,2014-08-01T00:00:10,A\n")
     assert main(args + ["--intervals", str(csv_path)]) == 2
+
+
+# --- LEVEL_F from K and LEVEL_G from L (seed 003 sec. 4.7, 4.8) -------------------------
+
+
+def _one_second_means(values, per=20):
+    """Independent 1 s means: the series starts on a whole UTC second at 20 Hz."""
+    v = np.asarray(values, dtype=float)
+    return v[: v.shape[0] // per * per].reshape(-1, per, *v.shape[1:]).mean(axis=1)
+
+
+def test_level_f_from_level_k(lsk):
+    hds, *_ = _heater_case(lsk, n=2000, sign=-1.0)
+    k = cl.level_k(hds)
+    f = cl.level_f(k, lsk=lsk)
+    assert f.attrs["level"] == "F" and f.sizes["time"] == 100
+    np.testing.assert_allclose(f["b"].values, _one_second_means(k["b"].values), atol=1e-12)
+    # time tag: middle of each second after UTC midnight
+    t0 = int(utc_to_tt2000(np.array([START]), lsk)[0])
+    np.testing.assert_array_equal(f["epoch"].values, t0 + 500_000_000 + np.arange(100) * 10**9)
+    with pytest.raises(InputFormatError, match="LEVEL_K"):
+        cl.level_f(hds, lsk=lsk)  # LEVEL_B: the pipeline's path, not this one
+
+
+def test_clean_command_f_and_g(tmp_path, lsk):
+    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+
+    meta = write_rosetta_like_kernels(tmp_path / "k", START, 600.0, margin_s=1200.0)
+    hds, *_ = _heater_case(lsk, n=2000)
+    kfile = _write(cl.level_k(hds), tmp_path / "kin", lsk)
+    out = tmp_path / "out"
+    f = clean_files("F", [kfile[".cdf"]], out).levels["OB"]
+    k = read_product(kfile[".cdf"])
+    # tolerance: the K product stores B with 3 decimals
+    np.testing.assert_allclose(f["b"].values, _one_second_means(k["b"].values), atol=1e-9)
+    assert (out / "RPCMAG_20140801_CLF_OB.TAB").exists()
+    first = (out / "RPCMAG_20140801_CLF_OB.TAB").read_text().splitlines()[0].split()
+    assert len(first) == 6  # TIME.UTC, TIME.OBT, BX, BY, BZ, QUALITY (seed sec. 4.7)
+
+    lres = clean_files("L", [kfile[".cdf"]], out, kernels=meta)
+    lfile = [p for p in lres.paths if p.suffix == ".cdf"][0]
+    g = clean_files("G", [lfile], out).levels["OB"]
+    ldata = read_product(lfile)
+    assert g.attrs["level"] == "G" and g.sizes["time"] == 100
+    np.testing.assert_allclose(g["b"].values, _one_second_means(ldata["b"].values), atol=1e-9)
+    np.testing.assert_allclose(
+        g["position"].values, _one_second_means(ldata["position"].values), rtol=1e-12
+    )
+    first = (out / "RPCMAG_20140801_CLG_OB.TAB").read_text().splitlines()[0].split()
+    assert len(first) == 9  # with POSITION.X/Y/Z (seed sec. 4.8)
+    with pytest.raises(InputFormatError, match="LEVEL_G is made from LEVEL_L"):
+        clean_files("G", [kfile[".cdf"]], out)

@@ -1,4 +1,4 @@
-"""``fluxcal rosetta clean``: disturbance-removal levels H, I, J, K, L from earlier products.
+"""``fluxcal rosetta clean``: disturbance-removal levels F, G, H-L from earlier products.
 
 File I/O around the pure level functions of `fluxcal.missions.rosetta.cleaning_levels`:
 read earlier-level products (``.cdf``, ``.nc`` or ``.TAB``), run one level, write
@@ -13,7 +13,7 @@ Registration (in ``fluxcal/cli.py``)::
 
 References
 ----------
-.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9-4.13.
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.7-4.13.
 """
 
 from __future__ import annotations
@@ -32,11 +32,20 @@ from fluxcal.errors import FluxcalError, InputFormatError
 
 log = logging.getLogger(__name__)
 
-CLEAN_LEVELS = ("H", "I", "J", "K", "L")
-#: Levels each cleaned level is made from (seed 003 sec. 4.9-4.13).
-SOURCE_LEVELS = {"H": ("C", "L"), "I": ("H",), "J": ("G", "I"), "K": ("B",), "L": ("K",)}
+CLEAN_LEVELS = ("F", "G", "H", "I", "J", "K", "L")
+#: Levels each cleaned level is made from (seed 003 sec. 4.7-4.13); F and G here are
+#: the heater-disturbance paths (from B and C they are made by ``calibrate``).
+SOURCE_LEVELS = {
+    "F": ("K",),
+    "G": ("L",),
+    "H": ("C", "L"),
+    "I": ("H",),
+    "J": ("G", "I"),
+    "K": ("B",),
+    "L": ("K",),
+}
 #: Level whose product columns (seed tables) a cleaned level reuses.
-_COLUMNS_LIKE = {"H": "C", "I": "G", "J": "G", "K": "B", "L": "C"}
+_COLUMNS_LIKE = {"F": "F", "G": "G", "H": "C", "I": "G", "J": "G", "K": "B", "L": "C"}
 #: Global attributes that describe one written file and must not be inherited.
 _PER_FILE_ATTRS = (
     "Logical_source",
@@ -321,6 +330,10 @@ def clean_files(
             }
         elif level == "I":
             made = {sensor: cl.level_i(src, average_s, lsk=lsk)}
+        elif level == "F":
+            made = {sensor: cl.level_f(src, average_s, lsk=lsk)}
+        elif level == "G":
+            made = {sensor: cl.level_g(src, average_s, lsk=lsk)}
         elif level == "J":
             made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples)
         elif level == "K":
@@ -355,12 +368,12 @@ def _floats(text: str, option: str) -> list[float]:
 
 
 def clean(
-    level: str = typer.Option(..., "--level", help="Level to make: H, I, J, K or L."),
+    level: str = typer.Option(..., "--level", help="Level to make: F, G, H, I, J, K or L."),
     input: list[Path] = typer.Option(  # noqa: A002 - the option's natural name
         ...,
         "--input",
-        help="Earlier-level product (.cdf/.nc/.TAB): C or L for H, H for I, B for K, K for "
-        "L; for J the OB product (G or I).",
+        help="Earlier-level product (.cdf/.nc/.TAB): K for F, L for G, C or L for H, H for I, "
+        "B for K, K for L; for J the OB product (G or I).",
     ),
     input_ib: Path | None = typer.Option(None, "--input-ib", help="J only: the IB product."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
@@ -378,7 +391,7 @@ def clean(
     kernels: Path | None = typer.Option(
         None, "--kernels", help="Meta-kernel (SCLK, CK, SPK); needed for L."
     ),
-    average: float = typer.Option(1.0, "--average", help="I: averaging interval (s)."),
+    average: float = typer.Option(1.0, "--average", help="F, G, I: averaging interval (s)."),
     step: float | None = typer.Option(
         None, "--step", help="J: regular common time grid step (s); default the OB tags."
     ),
@@ -388,7 +401,7 @@ def clean(
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
-    """Remove spacecraft disturbances: LEVEL_H (wheel/LAP lines), I, J (PCA), K, L (heaters)."""
+    """Remove s/c disturbances: LEVEL_H (wheel/LAP lines), I, J (PCA), K, L (heaters), F, G."""
     inputs = list(input) + ([input_ib] if input_ib is not None else [])
     result = clean_files(
         level,

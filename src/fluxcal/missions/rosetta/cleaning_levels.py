@@ -8,6 +8,8 @@
   `level_k_assisted`: the same with disturbed intervals from another instrument
   (ROMAP, method 2).
 * `level_l`: LEVEL_K rotated to ECLIPJ2000 (with the spacecraft position).
+* `level_f`, `level_g`: 1 s averages of LEVEL_K and LEVEL_L (the heater-disturbance
+  paths of LEVEL_F and G).
 
 The datasets follow the Rosetta level conventions (`fluxcal.missions.rosetta.level_c`):
 ``b`` (time, component) in nT, ``epoch`` TT2000 ns, ``sid`` (instrument mode),
@@ -15,8 +17,8 @@ The datasets follow the Rosetta level conventions (`fluxcal.missions.rosetta.lev
 
 References
 ----------
-.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9 (H), 4.10 (I), 4.11 (J), 4.12 (K),
-   4.13 (L).
+.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.7 (F), 4.8 (G), 4.9 (H), 4.10 (I),
+   4.11 (J), 4.12 (K), 4.13 (L).
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ from fluxcal.missions.rosetta.reaction_wheels import ReactionWheelTable
 
 __all__ = [
     "CLEANABLE_RATES_HZ",
+    "level_f",
+    "level_g",
     "level_h",
     "level_i",
     "level_j",
@@ -228,6 +232,62 @@ def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dat
     out = averaged.average(level_h_ds, seconds, lsk=lsk)
     out.attrs.update(level="I")
     return out
+
+
+def _average_heater_corrected(
+    ds: xr.Dataset, source: str, target: str, seconds: float, lsk
+) -> xr.Dataset:
+    from fluxcal.missions.rosetta import averaged
+
+    have = str(ds.attrs.get("level", source)).upper()
+    if have != source:
+        raise InputFormatError(
+            f"LEVEL_{target} (heater disturbance) is made from LEVEL_{source}, "
+            f"got a LEVEL_{have} dataset",
+            field="level",
+        )
+    out = averaged.average(ds, seconds, lsk=lsk)
+    out.attrs.update(level=target, averaged_from=f"LEVEL_{source}")
+    return out
+
+
+def level_f(level_k_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
+    """LEVEL_K -> LEVEL_F: ``seconds`` averages (1 s) of heater-corrected s/c-frame data.
+
+    The seed's LEVEL_F is the average of LEVEL_B or, in case of heater disturbance, of
+    LEVEL_K; the LEVEL_B path is the calibration pipeline's.  The averaging is the
+    one of LEVEL_E/F/G (`fluxcal.missions.rosetta.averaged.average`): all vectors of
+    each interval from UTC midnight summed and divided by their number, time tag at
+    the interval middle; ``heater_disturbance`` is averaged alike.
+
+    Raises
+    ------
+    InputFormatError
+        If the dataset is not LEVEL_K.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.7.
+    """
+    return _average_heater_corrected(level_k_ds, "K", "F", seconds, lsk)
+
+
+def level_g(level_l_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
+    """LEVEL_L -> LEVEL_G: ``seconds`` averages (1 s) of heater-corrected ECLIPJ2000 data.
+
+    The seed's LEVEL_G is the average of LEVEL_C or, in case of heater disturbance, of
+    LEVEL_L (position averaged alike); see `level_f` for the averaging.
+
+    Raises
+    ------
+    InputFormatError
+        If the dataset is not LEVEL_L.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.8.
+    """
+    return _average_heater_corrected(level_l_ds, "L", "G", seconds, lsk)
 
 
 def _on_grid(ob: xr.Dataset, res: TwoSensorResample) -> xr.Dataset:
