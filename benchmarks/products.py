@@ -13,7 +13,8 @@ The baseline, measured in the same run and also in a child process, is the calib
 chain alone on the same inputs (the three CSV files read, then seed 000 sec. 5-13 in
 memory, no product).  Printed per case: wall seconds, vectors/s, the ratio to the
 baseline's time, peak RSS (``resource.getrusage(RUSAGE_SELF).ru_maxrss`` of the child)
-and seconds per stage (functions of `fluxcal.missions.messenger.run` and ``products``
+CPU seconds (user + system; less sensitive to other load on the machine than the wall
+time) and seconds per stage (functions of `fluxcal.missions.messenger.run` and ``products``
 wrapped with a timer; nested stages are included in their callers).
 
 The numba cache is warmed first (one short ``edr2cdr`` run), so the figures do not
@@ -103,6 +104,8 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
     import numpy as np
 
     times: dict[str, float] = defaultdict(float)
+    start = resource.getrusage(resource.RUSAGE_SELF)
+    cpu0 = start.ru_utime + start.ru_stime
     t0 = time.perf_counter()
     if case == "baseline":
         from fluxcal.geometry.kernels import KernelPool
@@ -134,10 +137,12 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
         with open(paths["science"], "rb") as fh:
             n = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 24), b"")) - 1
     wall = time.perf_counter() - t0
-    rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    rss_mb = usage.ru_maxrss / 1024.0
+    cpu = usage.ru_utime + usage.ru_stime - cpu0
     files = sorted(out.iterdir()) if out.exists() else []
     size = sum(p.stat().st_size for p in files if p.is_file())
-    return {"case": case, "code": code, "wall": wall, "stages": dict(times), "n": n,
+    return {"case": case, "code": code, "wall": wall, "cpu": cpu, "stages": dict(times), "n": n,
             "rss_mb": rss_mb, "files": len(files), "bytes": size,
             "numpy": np.__version__}
 
@@ -156,10 +161,12 @@ def report(res: dict, base: dict | None) -> None:
     n, wall = res["n"], res["wall"]
     ratio = f", {wall / base['wall']:.1f}x the baseline time" if base else ""
     print(f"case {res['case']}: {wall:.2f} s, {n / wall:,.0f} vectors/s{ratio}, "
+          f"CPU {res['cpu']:.2f} s ({n / res['cpu']:,.0f} vectors per CPU second), "
           f"peak RSS {res['rss_mb']:.0f} MB, {res['files']} files, "
           f"{res['bytes'] / 1e6:.0f} MB written")
     for name, sec in res["stages"].items():
         print(f"    {name:18s} {sec:7.2f} s")
+    sys.stdout.flush()
 
 
 def main() -> None:
@@ -172,17 +179,19 @@ def main() -> None:
     args = parser.parse_args()
     if args.child:
         paths = {k: Path(v) for k, v in json.loads(args.paths).items()}
-        print(json.dumps(child(args.child, paths, Path(args.out))))
+        print(json.dumps(child(args.child, paths, Path(args.out))), flush=True)
         return
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         t0 = time.perf_counter()
         paths = simulate_inputs(folder / "sim", args.hours)
-        print(f"simulated {args.hours:g} h of inputs in {time.perf_counter() - t0:.1f} s")
+        print(f"simulated {args.hours:g} h of inputs in {time.perf_counter() - t0:.1f} s",
+              flush=True)
         warm = simulate_inputs(folder / "warm", 0.05)
         t0 = time.perf_counter()
         run_case("b", warm, folder / "warm_out")
-        print(f"warm-up run (numba cache, imports): {time.perf_counter() - t0:.1f} s")
+        print(f"warm-up run (numba cache, imports): {time.perf_counter() - t0:.1f} s",
+              flush=True)
         base = None
         for case in args.cases.split(","):
             res = run_case(case, paths, folder / f"out_{case}")
