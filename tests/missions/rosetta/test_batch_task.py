@@ -77,14 +77,19 @@ def test_serial_run_with_bad_day_then_rerun(sim, tmp_path):
     assert "science_IB.csv" in bad["error"] and "line 102" in bad["error"]
     assert "field 'bx'" in bad["error"]
     # atomic day: the OB products of the bad day (made before IB failed) are not there
-    assert not list(out.glob(f"*{BAD:%Y%m%d}*"))
+    assert not list(out.glob(f"*{BAD:%Y%m%d}*")) and not list(out.glob(f"*{BAD:%y%m%d}*"))
     assert not list(out.rglob(".*.tmp*"))
     for day in (DAYS[0], DAYS[2]):
         stamp = f"{day:%Y%m%d}"
-        for code in ("CLA", "CLB", "CLC", "CLE", "CLF", "CLG"):  # kernels.tm: C and G too
-            for sensor in ("OB", "IB"):
-                for suffix in ("TAB", "LBL", "cdf"):
-                    assert (out / f"RPCMAG_{stamp}_{code}_{sensor}.{suffix}").is_file()
+        for sensor in ("OB", "IB"):
+            for code in ("CLA", "CLB", "CLC"):  # kernels.tm: C and G too
+                tabs = list(out.glob(f"RPCMAG{day:%y%m%d}T*_{code}_{sensor}_M*.TAB"))
+                assert tabs and all(t.with_suffix(".LBL").is_file() for t in tabs)
+            for code in ("CLE", "CLF", "CLG"):
+                for suffix in ("TAB", "LBL"):
+                    assert (out / f"RPCMAG{day:%y%m%d}_{code}_{sensor}_A01.{suffix}").is_file()
+            for code in ("cla", "clb", "clc", "cle-", "clf-", "clg-"):
+                assert list(out.glob(f"rosetta_rpcmag_{code}*{sensor.lower()}*_{stamp}_v01.cdf"))
         assert (out / f"RPCMAG_{stamp}_HKA.TAB").is_file()
         for sensor in ("OB", "IB"):
             png = out / f"RPCMAG_QL_{sensor}_{stamp}.png"
@@ -94,10 +99,12 @@ def test_serial_run_with_bad_day_then_rerun(sim, tmp_path):
     # rerun: the good days are skipped, the bad one fails again
     assert _batch(inp, out, "--scheduler", "serial", "--quicklook") == 1
     assert _report(out)["counts"] == {"done": 0, "skipped": 2, "no_data": 0, "failed": 1}
-    # repaired input: only the repaired day runs
+    # repaired input: the repaired day runs, and the next day too: its incoming midnight-
+    # stitching state (decision 27) changed from "chain broken" to the repaired day's end
     shutil.copy(science_file(sim, BAD, "IB"), science_file(inp, BAD, "IB"))
     assert _batch(inp, out, "--scheduler", "serial", "--quicklook") == 0
-    assert _report(out)["counts"] == {"done": 1, "skipped": 2, "no_data": 0, "failed": 0}
+    assert _report(out)["counts"] == {"done": 2, "skipped": 1, "no_data": 0, "failed": 0}
+    assert [d["status"] for d in _report(out)["days"]] == ["skipped", "done", "done"]
 
 
 def test_local_cluster_two_workers(sim, tmp_path):
@@ -108,7 +115,7 @@ def test_local_cluster_two_workers(sim, tmp_path):
     assert report.n_workers == 2
     assert [d.status for d in report.days] == ["done", "failed", "done"]
     assert "science_IB.csv" in report.days[1].error and "line 102" in report.days[1].error
-    assert not list(out.glob(f"*{BAD:%Y%m%d}*"))
+    assert not list(out.glob(f"*{BAD:%Y%m%d}*")) and not list(out.glob(f"*{BAD:%y%m%d}*"))
     again = run_batch(DAYS, task, out, scheduler="serial", name="rosetta")
     assert [d.status for d in again.days] == ["skipped", "failed", "skipped"]
 
@@ -116,7 +123,8 @@ def test_local_cluster_two_workers(sim, tmp_path):
 @pytest.fixture(scope="module")
 def serial_products(sim, tmp_path_factory):
     out = tmp_path_factory.mktemp("rosetta_batch_out")
-    task = make_day_task(sim, out, formats=("cdf",))
+    # ECLIPJ2000: the simulator's truth frame (the default in the comet phase is CSEQ)
+    task = make_day_task(sim, out, formats=("cdf",), frame="ECLIPJ2000")
     report = run_batch(DAYS[:1], task, out, scheduler="serial")
     assert report.ok, report.days
     return out
@@ -129,14 +137,15 @@ def test_batch_products_recover_truth(sim, serial_products, sensor):
     truth = read_truth_csv(sim / f"{DAYS[0]:%Y%m%d}" / f"truth_{sensor}.csv")
     good = truth["good"]
     ref = truth["b_ref"][good][np.argsort(truth["epoch"][good], kind="stable")]
-    c = read_product(serial_products / f"RPCMAG_{DAYS[0]:%Y%m%d}_CLC_{sensor}.cdf")
+    name = f"rosetta_rpcmag_clc-{sensor.lower()}_{DAYS[0]:%Y%m%d}_v01.cdf"
+    c = read_product(serial_products / name)
     assert c.sizes["time"] == ref.shape[0]
     rms = np.sqrt(((c["b"].values - ref) ** 2).mean(axis=0))
     assert np.all(rms < 0.03), rms
 
 
 def test_cdf_carries_rosetta_istp_attributes(serial_products):
-    cdf = cdflib.CDF(str(serial_products / f"RPCMAG_{DAYS[0]:%Y%m%d}_CLB_OB.cdf"))
+    cdf = cdflib.CDF(str(serial_products / f"rosetta_rpcmag_clb-ob_{DAYS[0]:%Y%m%d}_v01.cdf"))
     g = cdf.globalattsget()
     assert g["Project"] == ["ROSETTA>International Rosetta Mission"]
     assert g["Source_name"][0].startswith("ROSETTA>")
@@ -176,11 +185,11 @@ def test_without_kernels_levels_a_b_e_f(tmp_path):
     assert task.level_list() == ["A", "B", "E", "F"]
     result = task(day)
     codes = sorted({p.name.split("_")[2] for p in result.products})
-    assert codes == ["CLA", "CLB", "CLE", "CLF", "HKA.cdf"]
+    assert codes == ["cla-hk", "cla-ob", "clb-ob", "cle-ob-a01", "clf-ob-a01"]
     truth = read_truth_csv(inp / f"{day:%Y%m%d}" / "truth_OB.csv")
     good = truth["good"]
     ref = truth["b_sc"][good][np.argsort(truth["epoch"][good], kind="stable")]
-    b = read_product(out / f"RPCMAG_{day:%Y%m%d}_CLB_OB.cdf")
+    b = read_product(out / f"rosetta_rpcmag_clb-ob_{day:%Y%m%d}_v01.cdf")
     rms = np.sqrt(((b["b"].values - ref) ** 2).mean(axis=0))
     assert np.all(rms < 0.03), rms  # same budget as LEVEL_C above
 
@@ -194,7 +203,8 @@ def test_calibrate_quicklook_option(sim, tmp_path):
     png = tmp_path / f"RPCMAG_QL_OB_{DAYS[0]:%Y%m%d}.png"
     assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert png.stat().st_size > 20_000
-    g = cdflib.CDF(str(tmp_path / f"RPCMAG_{DAYS[0]:%Y%m%d}_CLA_OB.cdf")).globalattsget()
+    name = f"rosetta_rpcmag_cla-ob_{DAYS[0]:%Y%m%d}_v01.cdf"
+    g = cdflib.CDF(str(tmp_path / name)).globalattsget()
     assert g["Project"] == ["ROSETTA>International Rosetta Mission"]
 
 
@@ -205,7 +215,7 @@ def test_quicklook_figure_panels(sim, serial_products):
 
     from fluxcal.products.quicklook import quicklook_figure
 
-    c = read_product(serial_products / f"RPCMAG_{DAYS[0]:%Y%m%d}_CLC_OB.cdf")
+    c = read_product(serial_products / f"rosetta_rpcmag_clc-ob_{DAYS[0]:%Y%m%d}_v01.cdf")
     fig = quicklook_figure(c, field="b")
     labels = " ".join(ax.get_ylabel() for ax in fig.axes)
     plt.close(fig)

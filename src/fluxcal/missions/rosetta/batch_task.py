@@ -193,10 +193,16 @@ class RosettaDayTask:
         Walks back over the contiguous earlier days that have a science file of
         ``sensor`` and a daily model, then resolves the chain forward from their first and
         last vectors (`extended_model.stitch_day`), exactly as one run over all the days
-        would.
+        would.  A day whose raw file cannot be read has no products (its own task fails
+        and is reported) and breaks the chain like a day without data; the break is in
+        this day's manifest inputs (`inputs`), so repairing that day redoes this one.
         """
+        return self._chain(day, sensor)[0]
+
+    def _chain(self, day: _dt.date, sensor: str):
         import numpy as np
 
+        from fluxcal.errors import FluxcalError
         from fluxcal.missions.rosetta import calib, level_a
         from fluxcal.missions.rosetta.extended_model import stitch_day
 
@@ -208,12 +214,15 @@ class RosettaDayTask:
             chain.append(d)
             d -= _dt.timedelta(days=1)
         if not chain:
-            return None
+            return None, ""
         cal = calib.load_ground_calibration(sensor, self.calib_dir())
         nominal = calib.load_nominal_conversion(self.calib_dir())
-        state = None
+        state, note = None, ""
         for d in reversed(chain):
-            edges = self._edges(d, sensor)
+            try:
+                edges = self._edges(d, sensor)
+            except FluxcalError as exc:
+                edges, note = None, f"chain broken at {d}: {exc}"
             if edges is None:
                 state = None
                 continue
@@ -224,11 +233,14 @@ class RosettaDayTask:
             model = models[np.datetime64(d.isoformat(), "D")]
             _, state = stitch_day(model, (e0, float(t[0])), (e1, float(t[1])), state,
                                   self.stitch_gap_s)
-        return state
+            note = ""
+        return state, note
 
     def _incoming_text(self, day: _dt.date, sensor: str) -> str:
-        state = self.incoming_state(day, sensor)
-        return "none" if state is None else json.dumps(state.to_attrs(), sort_keys=True)
+        state, note = self._chain(day, sensor)
+        if state is None:
+            return f"none {note}".strip()
+        return json.dumps(state.to_attrs(), sort_keys=True)
 
     def inputs(self, day: _dt.date):
         """Return the day's raw files, meta-kernel and calibration files (manifest).
