@@ -113,7 +113,7 @@ def test_order_and_quality_reported_in_label_and_cdf(out):
     label = (out / "MAGMSOSCI12153_V03.LBL").read_text()
     moved = int(re.search(r"FLUXCAL_REORDERED_SAMPLES\s*=\s*(\d+)", label).group(1))
     assert moved > 0  # the rate switches 10 -> 8 -> 6 move samples back
-    assert re.search(r"FLUXCAL_DUPLICATE_EPOCHS_DROPPED\s*=\s*0", label)
+    assert re.search(r"FLUXCAL_DUPLICATES_DROPPED\s*=\s*0", label)
     cdf, v = _cdf(out / _cdf_name("mso"))
     g = cdf.globalattsget()
     assert int(np.ravel(g["FLUXCAL_REORDERED_SAMPLES"])[0]) == moved

@@ -71,7 +71,7 @@ def test_duplicates_keep_the_first_and_are_counted():
     # the first sample recorded at each epoch is kept (input indices 2 and 4)
     np.testing.assert_array_equal(ordered["met_corrected"].values - 1e8, [0, 1, 2, 7, 4])
     assert report.label_keywords() == {"FLUXCAL_REORDERED_SAMPLES": 1,
-                                       "FLUXCAL_DUPLICATE_EPOCHS_DROPPED": 3}
+                                       "FLUXCAL_DUPLICATES_DROPPED": 3}
 
 
 def test_in_order_day_is_not_copied():

@@ -67,7 +67,7 @@ class OrderReport:
     def label_keywords(self) -> dict[str, int]:
         """Label keywords / CDF global attributes (one per meaning)."""
         return {"FLUXCAL_REORDERED_SAMPLES": self.reordered,
-                "FLUXCAL_DUPLICATE_EPOCHS_DROPPED": self.duplicates}
+                "FLUXCAL_DUPLICATES_DROPPED": self.duplicates}
 
 
 def _position_source(frame: str) -> str | None:
