@@ -107,6 +107,17 @@ def _scaled_round(ax: float, n: int) -> tuple[int, bool]:
     if 0 <= n <= 22:
         s = _P10_EXACT[n]
         p = ax * s
+        if p < _TWO52:  # fast path: the product's error matters only at an exact .5
+            fl = math.floor(p)
+            f = p - fl
+            k = np.int64(fl)
+            if f > 0.5:
+                k += 1
+            elif f == 0.5:
+                e = _two_prod_err(ax, s, p)
+                if e > 0.0 or (e == 0.0 and k % 2 == 1):
+                    k += 1
+            return k, True
         if not p < _TWO63:
             return 0, False
         return _round_sum(p, _two_prod_err(ax, s, p))
@@ -181,7 +192,13 @@ def format_fixed(values: np.ndarray, buf: np.ndarray, start: int, width: int, de
     Returns ``(code, row)``: ``OK`` or the first failing row and why.
     """
     scale_digits = decimals + 1 if decimals > 0 else 0
-    for i in range(values.shape[0]):
+    n = values.shape[0]
+    if n and width < scale_digits + 1:
+        return TOO_WIDE, 0
+    ten = np.uint64(10)
+    zero = np.uint64(48)
+    end = start + width
+    for i in range(n):
         x = values[i]
         if math.isnan(x):
             if not _write_nan(buf, i, start, width):
@@ -193,27 +210,28 @@ def format_fixed(values: np.ndarray, buf: np.ndarray, start: int, width: int, de
         k, ok = _scaled_round(abs(x), decimals)
         if not ok:
             return TOO_LARGE, i
-        ip = k
-        for _ in range(decimals):
-            ip //= 10
-        nint = _ndigits(ip)
-        length = nint + scale_digits + (1 if neg else 0)
-        if length > width:
-            return TOO_WIDE, i
-        end = start + width
+        q = np.uint64(k)  # unsigned: digit division without floor-division fix-ups
         pos = end
+        for _ in range(decimals):
+            pos -= 1
+            buf[i, pos] = zero + q % ten
+            q //= ten
         if decimals > 0:
-            frac = k
-            for _ in range(decimals):
-                pos -= 1
-                buf[i, pos] = 48 + frac % 10
-                frac //= 10
             pos -= 1
             buf[i, pos] = 46  # .
-        min_int = 1
+        lim = start + 1 if neg else start
+        while True:  # integer part, at least one digit
+            if pos <= lim:
+                return TOO_WIDE, i
+            pos -= 1
+            buf[i, pos] = zero + q % ten
+            q //= ten
+            if q == 0:
+                break
         if zero_pad:
-            min_int = width - scale_digits - (1 if neg else 0)
-        pos = _write_uint(buf, i, pos, ip, min_int)
+            while pos > lim:
+                pos -= 1
+                buf[i, pos] = 48
         if neg:
             buf[i, pos - 1] = 45  # -
     return OK, -1
