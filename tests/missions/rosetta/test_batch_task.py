@@ -152,7 +152,7 @@ def test_cdf_carries_rosetta_istp_attributes(serial_products):
     assert g["Descriptor"][0].startswith("RPCMAG>")
     assert g["Discipline"] == ["Space Physics>Interplanetary Studies"]
     assert g["LEVEL"] == ["LEVEL_B"] and g["SENSOR"] == ["OB"]
-    assert cdf.varattsget("b")["FIELDNAM"] == "B"
+    assert cdf.varattsget("b")["UNITS"] == "nT"
     assert cdf.varattsget("temperature")["UNITS"] == "K"
 
 
@@ -185,7 +185,8 @@ def test_without_kernels_levels_a_b_e_f(tmp_path):
     assert task.level_list() == ["A", "B", "E", "F"]
     result = task(day)
     codes = sorted({p.name.split("_")[2] for p in result.products})
-    assert codes == ["cla-hk", "cla-ob", "clb-ob", "cle-ob-a01", "clf-ob-a01"]
+    assert codes == ["cla-hk", "cla-ib", "cla-ob", "clb-ib", "clb-ob", "cle-ib-a01",
+                     "cle-ob-a01", "clf-ib-a01", "clf-ob-a01"]
     truth = read_truth_csv(inp / f"{day:%Y%m%d}" / "truth_OB.csv")
     good = truth["good"]
     ref = truth["b_sc"][good][np.argsort(truth["epoch"][good], kind="stable")]
