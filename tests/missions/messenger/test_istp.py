@@ -37,12 +37,12 @@ EXPECTED = {
 }
 
 
-@pytest.mark.parametrize("name, logical_source", [
-    ("MAGMSOSCI12153", "messenger_mag_mso-sci"),
-    ("MAGRTNSCI12153", "messenger_mag_rtn-sci"),
-    ("MAGMSOSCIAVG12153_60", "messenger_mag_mso-avg60"),
+@pytest.mark.parametrize("logical_source", [
+    "messenger_mag_mso-sci", "messenger_mag_rtn-sci", "messenger_mag_mso-avg60",
 ])
-def test_cdf_global_attributes(cdf_products, name, logical_source):
+def test_cdf_global_attributes(cdf_products, logical_source):
+    # ISTP file names: <Logical_source>_<yyyymmdd>_v<nn> (version 1 by default)
+    name = f"{logical_source}_20120601_v01"
     g = _globals(cdf_products / f"{name}.cdf")
     for key, value in EXPECTED.items():
         assert g[key] == value, key
@@ -65,7 +65,7 @@ def test_cdf_global_attributes(cdf_products, name, logical_source):
 def test_every_yaml_global_is_written(cdf_products):
     """All keys of the mission YAML reach the CDF (per-product ones overridden)."""
     table = yaml.safe_load((data_dir() / "istp_global.yaml").read_text())
-    g = _globals(cdf_products / "MAGMSOSCI12153.cdf")
+    g = _globals(cdf_products / "messenger_mag_mso-sci_20120601_v01.cdf")
     per_product = set(istp_product_attrs("mso"))
     for key, value in table.items():
         if key not in per_product:
@@ -73,22 +73,27 @@ def test_every_yaml_global_is_written(cdf_products):
 
 
 def test_variable_attributes(cdf_products):
-    cdf = cdflib.CDF(cdf_products / "MAGMSOSCI12153.cdf")
+    cdf = cdflib.CDF(cdf_products / "messenger_mag_mso-sci_20120601_v01.cdf")
     b = cdf.varattsget("b")
     assert b["VAR_TYPE"] == "data" and b["DEPEND_0"] == "Epoch"
-    assert b["LABL_PTR_1"] == "component" and b["LABLAXIS"] == "B"
+    assert b["DEPEND_0"] == "Epoch" and b["LABL_PTR_1"].startswith("b_component")
+    assert cdf.varget(b["LABL_PTR_1"]).tolist() == ["B_X", "B_Y", "B_Z"]
     assert b["UNITS"] == "nT" and b["DISPLAY_TYPE"] == "time_series"
-    assert cdf.varattsget("quality")["VAR_TYPE"] == "support_data"
+    assert b["COORDINATE_SYSTEM"] == "MSO"
+    assert cdf.varattsget("quality")["VAR_TYPE"] == "data"  # a data variable (issue 10)
     assert cdf.varattsget("position")["UNITS"] == "km"
-    assert cdf.varattsget("year")["DISPLAY_TYPE"] == "no_plot"
+    assert cdf.varattsget("b_total")["UNITS"] == "nT"
+    assert "year" not in cdf.cdf_info().zVariables  # UTC columns are TAB only
     epoch = cdf.varattsget("Epoch")
     assert epoch["TIME_SCALE"] == "Terrestrial Time" and "latency" in epoch["CATDESC"]
     assert cdf.varinq("Epoch").Data_Type_Description == "CDF_TIME_TT2000"
-    rtn = cdflib.CDF(cdf_products / "MAGRTNSCI12153.cdf").varattsget("position")
-    assert rtn["UNITS"] == "km, deg, deg"
-    avg = cdflib.CDF(cdf_products / "MAGMSOSCIAVG12153_60.cdf")
-    assert avg.varattsget("b_std")["LABLAXIS"] == "sd B"
-    assert avg.varattsget("count")["VAR_TYPE"] == "support_data"
+    rtn = cdflib.CDF(cdf_products / "messenger_mag_rtn-sci_20120601_v01.cdf")
+    assert rtn.varget(rtn.varattsget("b")["LABL_PTR_1"]).tolist() == ["B_R", "B_T", "B_N"]
+    assert [rtn.varattsget(v)["UNITS"] for v in ("r", "latitude", "azimuth")] == \
+        ["km", "deg", "deg"]
+    avg = cdflib.CDF(cdf_products / "messenger_mag_mso-avg60_20120601_v01.cdf")
+    assert avg.varattsget("b_std")["UNITS"] == "nT"
+    assert avg.varattsget("count")["LABLAXIS"] == "NAVG"
 
 
 def test_istp_files_are_batch_inputs(tmp_path):

@@ -418,7 +418,7 @@ def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], c
     if others:
         stem = out_dir / istp_file_stem(cdf_extra["Logical_source"], day, version)
         written += write_product(prod, stem, others, None,
-                                 dict(cdf_extra, Data_version=f"{int(version):02d}", **quality),
+                                 dict(cdf_extra, Data_version=str(int(version)), **quality),
                                  **istp)
     return written
 
