@@ -38,9 +38,10 @@ def _chain_temperature(et, xp, fp, margin=60.0):
     unused = np.empty((0, 3))
     zero = np.zeros((1, 3))
     outside = offset_chain_kernel(
-        et, xp, fp, True, margin, -np.inf, 22.4, coef, breakpoint_temperature(coef),
-        np.empty(0), zero, zero, 872.0, 10.0, unused, np.empty(0, np.int8), np.eye(3),
-        unused, False, temp, offset, unused, unused,
+        et, np.ones(n, dtype=bool), xp, fp, True, margin, -np.inf, 22.4, coef,
+        breakpoint_temperature(coef), np.empty(0), zero, zero, 872.0, 10.0, unused,
+        np.empty(0, np.int8), np.eye(3), unused, False, temp, offset, np.empty((n, 3)),
+        unused, unused,
     )
     return temp, offset, outside
 

@@ -340,9 +340,9 @@ def relaxed_offset_kernel(ts, change_time, target, state, tau, delay, out):
 
 @njit(cache=True, nogil=True)
 def offset_chain_kernel(
-    et, temp_et, temp_c, interpolate, margin, model_start, fixed_temp, coefficients, t_break,
-    change_time, target, state, tau, delay, heater, range_flag, coarse, counts, full,
-    temperature, offset, applied, corrected,
+    et, fixed, temp_et, temp_c, interpolate, margin, model_start, fixed_temp, coefficients,
+    t_break, change_time, target, state, tau, delay, heater, range_flag, coarse, counts, full,
+    temperature, offset, duty, applied, corrected,
 ):
     """Temperature, offset model and offset removal per sample (seed 000 sec. 7, eq. 1-7).
 
@@ -355,7 +355,8 @@ def offset_chain_kernel(
       ``np.interp`` does (NaN for a NaN time, the end values outside, ``temp_c[j]`` at a
       node) when ``interpolate``, else ``temperature[i]`` (input);
     - ``model = t >= model_start`` (MAG FSW V10 for MESSENGER, sec. 7 last paragraph);
-      before it the offset uses ``fixed_temp`` (22.4 C) and no duty-cycle term;
+      before it there is no duty-cycle term, and samples with ``fixed[i]`` (deployed
+      sensor in sunlight) use ``fixed_temp`` (22.4 C) instead of ``T``;
     - ``cT_j = A0 + B0 T'`` for ``T' <= T_m``, else ``A1 + B1 T'`` with ``T' = T`` or
       ``fixed_temp``;
     - ``Delta_j = c*_0 - (c*_0 - c_t0) exp(-max(t - t_0 - dt, 0) / tau)`` with ``t_0``
@@ -371,6 +372,8 @@ def offset_chain_kernel(
     ----------
     et : ndarray, shape (n,)
         Sample times (ET s).
+    fixed : ndarray of bool, shape (n,)
+        Before ``model_start``: the offset uses ``fixed_temp`` (else the temperature).
     temp_et, temp_c : ndarray, shape (m,)
         Temperature stream (``m >= 2``, ``temp_et`` non-decreasing, no NaN) when
         ``interpolate``; unused otherwise.
@@ -405,6 +408,8 @@ def offset_chain_kernel(
         Written (the interpolated temperature) when ``interpolate``, else read.
     offset : ndarray, shape (n, 3)
         Written: ``cT + Delta`` (fine-range counts).
+    duty : ndarray, shape (n, 3)
+        Written: ``Delta`` (fine-range counts, zero before ``model_start``).
     applied, corrected : ndarray, shape (n, 3)
         Written when ``full``.
 
@@ -470,7 +475,7 @@ def offset_chain_kernel(
             temp = temperature[i]
         # offset model: cT(T) + Delta(t), or cT(fixed) + 0 before the model start
         model = t >= model_start
-        if not model:
+        if not model and fixed[i]:
             temp = fixed_temp
         d0 = 0.0
         d1 = 0.0
@@ -497,6 +502,9 @@ def offset_chain_kernel(
             o2 = coefficients[2, 0] + coefficients[2, 1] * temp
         else:
             o2 = coefficients[2, 2] + coefficients[2, 3] * temp
+        duty[i, 0] = d0
+        duty[i, 1] = d1
+        duty[i, 2] = d2
         o0 = o0 + d0
         o1 = o1 + d1
         o2 = o2 + d2
@@ -558,12 +566,15 @@ def apply_per_range_kernel(vectors, range_flag, matrices, used, out):
 # sec. 13: largest offset step
 # ----------------------------------------------------------------------------------------
 @njit(cache=True, nogil=True)
-def largest_steps_kernel(offset, segment, use_segment, times, max_gap, use_gaps, largest, index):
+def largest_steps_kernel(offset, segment, use_segment, times, max_gap, use_gaps, time_scale,
+                         largest, index):
     """Largest ``|offset[i] - offset[i-1]|`` per column (seed 000 sec. 13).
 
-    Steps across segments, and across gaps ``times[i] - times[i-1] > max_gap``, count
-    as zero.  As ``np.argmax`` over the step array: the first maximum wins and the first
-    NaN step, if any, is the maximum.  ``index`` is that of the sample after the step.
+    Steps across segments, and across gaps ``times[i] - times[i-1] > max_gap[i]``, count
+    as zero.  With ``time_scale > 0`` a step over ``dt = times[i] - times[i-1]`` longer
+    than ``time_scale`` is divided by ``dt / time_scale`` (a rate per ``time_scale``).
+    As ``np.argmax`` over the step array: the first maximum wins and the first NaN step,
+    if any, is the maximum.  ``index`` is that of the sample after the step.
 
     Parameters
     ----------
@@ -573,28 +584,37 @@ def largest_steps_kernel(offset, segment, use_segment, times, max_gap, use_gaps,
     use_segment : bool
     times : ndarray, shape (n,)
         Sample times (ignored unless ``use_gaps``).
-    max_gap : float
-        Longest step in ``times`` within a segment (a NaN difference is no gap, as
+    max_gap : ndarray, shape (n,) or (1,)
+        Longest step in ``times`` within a segment, for the step ending at each sample
+        (one value for all when of size 1; a NaN difference is no gap, as
         ``np.diff(times) > max_gap``).
     use_gaps : bool
+    time_scale : float
+        Steps over longer times are scaled down (0: no scaling; needs ``use_gaps``).
     largest : ndarray, shape (k,)
         Written.
     index : ndarray of int64, shape (k,)
         Written.
     """
     n, k = offset.shape
+    one_gap = max_gap.size == 1
     for j in range(k):
         largest[j] = -1.0
         index[j] = 1
     for i in range(1, n):
         cut = use_segment and segment[i] != segment[i - 1]
-        if use_gaps and times[i] - times[i - 1] > max_gap:
-            cut = True
+        scale = 1.0
+        if use_gaps:
+            dt = times[i] - times[i - 1]
+            if dt > max_gap[0 if one_gap else i]:
+                cut = True
+            if time_scale > 0.0 and dt > time_scale:
+                scale = dt / time_scale
         for j in range(k):
             best = largest[j]
             if best != best:  # a NaN step already won
                 continue
-            step = 0.0 if cut else abs(offset[i, j] - offset[i - 1, j])
+            step = 0.0 if cut else abs(offset[i, j] - offset[i - 1, j]) / scale
             if step > best or step != step:
                 largest[j] = step
                 index[j] = i

@@ -35,7 +35,8 @@ def largest_steps(
     segment: np.ndarray | None = None,
     *,
     times: np.ndarray | None = None,
-    max_gap: float | None = None,
+    max_gap: float | np.ndarray | None = None,
+    time_scale: float = 0.0,
 ) -> StepReport:
     """Return the largest absolute step between consecutive samples, per component.
 
@@ -52,8 +53,14 @@ def largest_steps(
     times : ndarray, shape (n,), optional
         Sample times; with ``max_gap``, steps across data gaps
         (``times[i] - times[i-1] > max_gap``) are ignored, as across segments.
-    max_gap : float, optional
-        Longest time step within a segment (given together with ``times``).
+    max_gap : float or ndarray of shape (n,), optional
+        Longest time step within a segment (given together with ``times``); an array
+        gives the limit of the step ending at each sample (e.g. scaled to its sample
+        spacing).
+    time_scale : float
+        With ``times``: a step over ``dt > time_scale`` counts as ``step * time_scale /
+        dt`` (0: no scaling), so that the smooth change of an offset over a long sample
+        spacing is not taken for a discontinuity.
 
     Returns
     -------
@@ -71,19 +78,22 @@ def largest_steps(
     if (times is None) != (max_gap is None):
         raise ValueError("times, max_gap: give both or neither")
     offset = np.asarray(offset, dtype=float)
+    kw = {"times": times, "max_gap": max_gap, "time_scale": time_scale}
     if offset.ndim != 2 or offset.shape[0] < 2:
-        return largest_steps_reference(offset, segment, times=times, max_gap=max_gap)
+        return largest_steps_reference(offset, segment, **kw)
     use_segment = segment is not None
     seg = np.asarray(segment) if use_segment else np.zeros(1, dtype=np.int64)
     use_gaps = times is not None
     t = np.asarray(times) if use_gaps else np.zeros(1)
+    gap = np.atleast_1d(np.asarray(max_gap, dtype=float)) if use_gaps else np.zeros(1)
     if ((use_segment and (seg.shape != offset.shape[:1] or seg.dtype.kind not in "biuf"))
-            or (use_gaps and (t.shape != offset.shape[:1] or t.dtype.kind not in "iuf"))):
-        return largest_steps_reference(offset, segment, times=times, max_gap=max_gap)
+            or (use_gaps and (t.shape != offset.shape[:1] or t.dtype.kind not in "iuf"))
+            or gap.ndim != 1 or gap.size not in (1, offset.shape[0])):
+        return largest_steps_reference(offset, segment, **kw)
     largest = np.empty(offset.shape[1])
     index = np.empty(offset.shape[1], dtype=np.int64)
-    largest_steps_kernel(offset, seg, use_segment, t, float(max_gap) if use_gaps else 0.0,
-                         use_gaps, largest, index)
+    largest_steps_kernel(offset, seg, use_segment, t, gap, use_gaps,
+                         float(time_scale) if use_gaps else 0.0, largest, index)
     return StepReport(largest, index)
 
 
@@ -92,7 +102,8 @@ def largest_steps_reference(
     segment: np.ndarray | None = None,
     *,
     times: np.ndarray | None = None,
-    max_gap: float | None = None,
+    max_gap: float | np.ndarray | None = None,
+    time_scale: float = 0.0,
 ) -> StepReport:
     """Numpy reference of `largest_steps` (the tests compare the two).
 
@@ -112,6 +123,11 @@ def largest_steps_reference(
         segment = np.asarray(segment)
         steps[segment[1:] != segment[:-1]] = 0.0
     if times is not None:
-        steps[np.diff(np.asarray(times)) > max_gap] = 0.0
+        dt = np.diff(np.asarray(times, dtype=float))
+        gap = np.asarray(max_gap, dtype=float)
+        steps[dt > (gap[1:] if gap.ndim and gap.size > 1 else gap)] = 0.0
+        if time_scale > 0:
+            scale = np.where(dt > time_scale, dt / time_scale, 1.0)
+            steps = steps / scale[:, None]
     idx = np.argmax(steps, axis=0)
     return StepReport(steps[idx, np.arange(offset.shape[1])], idx + 1)

@@ -119,6 +119,7 @@ def _offset_case(dates, rng, n, *, counts_dtype=np.int32, m=30):
     ds = xr.Dataset({
         "et": ("time", et), "counts": (("time", "component"), counts),
         "range": ("time", rng_flag), "heater_signal": (("time", "component"), heater),
+        "sunlit": ("time", rng.random(n) < 0.5),  # before V10: 22.4 C or measured
     })
     temp = xr.Dataset({"partition": ("t", np.ones(t_et.size, np.int8)), "met": ("t", t_et),
                        "temperature_c": ("t", t_c)})
@@ -155,6 +156,7 @@ def test_correct_offsets_against_a_per_sample_loop(dates):
     got = levels.correct_offsets(ds, temp, changes, CAL, _IdentityClock())
     rel = CAL.constants["relaxation"]
     tau, delay, depth = rel["tau_s"], rel["delay_s"], int(rel["look_back"])
+    span = rel["look_back_s"]
     target = steady_state_offset(changes.duty_cycle_ppt, CAL.duty_cycle_d0,
                                  rel["min_duty_cycle_ppt"])
     coef = CAL.temperature_coefficients
@@ -165,12 +167,14 @@ def test_correct_offsets_against_a_per_sample_loop(dates):
     for i, t in enumerate(ds["et"].values):
         temp_i = float(np.interp(t, t_et, t_c))
         assert got["temperature"].values[i] == temp_i
-        tt = temp_i if t >= v10 else 22.4
+        tt = temp_i if (t >= v10 or not ds["sunlit"].values[i]) else 22.4
         ct = np.where(tt <= t_m, coef[:, 0] + coef[:, 1] * tt, coef[:, 2] + coef[:, 3] * tt)
         delta = np.zeros(3)
         k = int(np.searchsorted(changes.time, t, side="right")) - 1
         if t >= v10 and k >= 0:
-            first = max(k - depth, 0)
+            # at least five changes back and back to a change >= 5000 s before t_0
+            old = [c for c in range(k + 1) if changes.time[c] <= changes.time[k] - span]
+            first = max(min(k - depth, old[-1] if old else -1), 0)
             state = np.zeros(3)  # zero before t_5
             for c in range(first, k):  # relax from change c to change c + 1 (eq. 6a-6e)
                 dt = max(changes.time[c + 1] - changes.time[c] - delay, 0.0)
@@ -239,13 +243,19 @@ def test_correct_offsets_before_boom_deployment(dates):
     rng = np.random.default_rng(6)
     ds, temp, changes = _offset_case(dates, rng, 2000)
     shift = dates["heater_mode_v10"] - dates["boom_deployment"] + 5000.0
-    ds = ds.assign(et=ds["et"] - shift)
+    ds = ds.assign(et=ds["et"] - shift, sunlit=ds["sunlit"] & False)  # stowed: not sunlit
     temp = temp.assign(met=temp["met"] - shift)
     got = levels.correct_offsets(ds, temp, changes, CAL, _IdentityClock())
     _assert_same_dataset(got, levels.correct_offsets_reference(ds, temp, changes, CAL,
                                                                _IdentityClock()))
-    expected = np.array([2.8435, -18.176, 455.4]) + np.array([2.5445, 6.6181, 2.016]) * 22.4
-    np.testing.assert_allclose(got["offset"].values, np.tile(expected, (ds.sizes["time"], 1)))
+    # Table 2 at the measured temperature (sec. 7: the 22.4 C rule is for sunlit data)
+    t = got["temperature"].values[:, None]
+    a0, b0 = np.array([-10.802, -76.138, 432.27]), np.array([1.2043, 2.042, 0.45175])
+    a1, b1 = np.array([2.8435, -18.176, 455.4]), np.array([2.5445, 6.6181, 2.016])
+    t_m = (a0 - a1) / (b1 - b0)
+    expected = np.where(t <= t_m, a0 + b0 * t, a1 + b1 * t)
+    np.testing.assert_allclose(got["offset"].values, expected, rtol=0, atol=1e-9)
+    assert np.all(got["duty_cycle_offset"].values == 0.0)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -254,9 +264,10 @@ def test_offset_model_matches_reference(dates, seed):
     ds, _temp, changes = _offset_case(dates, rng, 20000, m=1 + 20 * seed)
     et = ds["et"].values
     temps = np.concatenate([rng.uniform(-80.0, 80.0, et.size - 3), [np.nan, np.inf, -50.0]])
-    np.testing.assert_array_equal(levels.offset_model(et, temps, changes, CAL),
-                                  levels.offset_model_reference(et, temps, changes, CAL))
-    assert levels.offset_model(et[:0], temps[:0], changes, CAL).shape == (0, 3)
+    sunlit = ds["sunlit"].values
+    np.testing.assert_array_equal(levels.offset_model(et, temps, changes, CAL, sunlit),
+                                  levels.offset_model_reference(et, temps, changes, CAL, sunlit))
+    assert levels.offset_model(et[:0], temps[:0], changes, CAL, sunlit[:0]).shape == (0, 3)
 
 
 @pytest.mark.filterwarnings("ignore:invalid value encountered")

@@ -43,7 +43,7 @@ def _away_from_steps(temperature, margin=200):
     ("start", "flags"),
     [
         ("2005-01-10T00:00:00", {1}),          # stowed (MSGR_MAG_STOWED), V8: "001"
-        ("2006-02-10T00:00:00", {110, 211}),   # V9, sunlit / shadow (uncorrectable)
+        ("2006-02-10T00:00:00", {100, 201}),   # V8 (V9 from 2006-03-08), sunlit / shadow
     ],
 )
 def test_early_mission_round_trip(tmp_path, start, flags):
@@ -61,11 +61,8 @@ def test_early_mission_round_trip(tmp_path, start, flags):
     assert np.abs(err).max(initial=0.0) < FINE_MAX_NT
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 11 (helper-7, messenger levels): before V10 the pipeline applies Table 2 at "
-    "22.4 C to every sample; sec. 7 gives that rule for deployed sunlit data only. Shadow "
-    "(V9 regulation at -50 C) and stowed samples need Table 2 at the measured temperature: "
-    "shadow samples up to 14.4/2.8/7.4 nT off (MSO), stowed ones (at 0 C) up to 6.9/2.6/3.2 nT"))
+# issue 11: before the fix (Table 2 at 22.4 C for every pre-V10 sample) shadow samples were
+# up to 14.4/2.8/7.4 nT off (MSO), stowed ones (at 0 C) up to 6.9/2.6/3.2 nT
 @pytest.mark.parametrize("start", ["2005-01-10T00:00:00", "2006-02-10T00:00:00"])
 def test_early_mission_shadow_and_stowed_use_the_measured_temperature(tmp_path, start):
     truth, ds = _early_run(tmp_path, start)

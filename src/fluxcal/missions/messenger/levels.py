@@ -40,7 +40,7 @@ from fluxcal.calibration.relaxation import (
     state_at_changes,
     steady_state_offset,
 )
-from fluxcal.errors import InputFormatError, ValidationError
+from fluxcal.errors import FluxcalError, InputFormatError, ValidationError
 from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger._compiled import quality_kernel
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
@@ -114,7 +114,11 @@ def correct_time(ds: xr.Dataset, cal: MessengerCalibration, sclk: SclkKernel) ->
                                                          ds["met"].values)
     et = et_recorded - lag
     tt2000 = tt2000_recorded - np.round(lag * 1e9).astype(np.int64)
-    return _time_dataset(ds, lag, met, et, tt2000, et_recorded)
+    out = _time_dataset(ds, lag, met, et, tt2000, et_recorded)
+    # Table 1's sample rates travel with the rate settings (sec. 13 gap rule)
+    rate = ds["rate"]
+    return out.assign(rate=xr.Variable(rate.dims, rate.values, {
+        **rate.attrs, "sample_rate_hz": [float(r) for r in cal.sample_rate_hz]}))
 
 
 def _time_dataset(
@@ -226,17 +230,68 @@ def correct_heater_signal(
 # ----------------------------------------------------------------------------------------
 # 3. offsets
 # ----------------------------------------------------------------------------------------
+def sunlit_before_v10(
+    et: np.ndarray, cal: MessengerCalibration, *, method: str = "interpolate"
+) -> np.ndarray:
+    """Return True for samples before V10 with the deployed sensor in sunlight (S = 1).
+
+    The Sun direction in MSGR_SPACECRAFT has a positive Y component (the sunlit side,
+    Table 5's S = 1, as `quality_flags` decides it), evaluated only for deployed
+    samples before MAG FSW V10; all other samples are False.  Kernels (SPK, CK, FK)
+    must be loaded when such samples exist.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (last paragraphs), sec. 12.
+    """
+    from fluxcal.geometry.frames import rotation_matrices
+    from fluxcal.geometry.positions import position
+
+    et = np.asarray(et, dtype=float)
+    out = np.zeros(et.shape, dtype=bool)
+    sel = (et >= _date_et(cal, "boom_deployment")) & ~(et >= _date_et(cal, "heater_mode_v10"))
+    if sel.any():
+        e = et[sel]
+        sun = position("MESSENGER", "SUN", "J2000", e, method=method)  # MESSENGER - Sun
+        att = rotation_matrices("MSGR_SPACECRAFT", "J2000", e, method=method)
+        out[sel] = _apply(att, _unit_rows(-sun), transpose=True)[:, 1] > 0
+    return out
+
+
+def mark_sunlit(ds: xr.Dataset, cal: MessengerCalibration, *, method: str = "interpolate"
+                ) -> xr.Dataset:
+    """Add ``sunlit`` (`sunlit_before_v10`), which `correct_offsets` needs before V10."""
+    var = _scalar(sunlit_before_v10(ds["et"].values, cal, method=method), "1",
+                  "deployed sensor in sunlight before V10 (sec. 7)")
+    var.attrs["v10_et"] = _date_et(cal, "heater_mode_v10")
+    return ds.assign(sunlit=var)
+
+
 def offset_model(
     et: np.ndarray,
     temperature_c: np.ndarray,
     changes: DutyCycleChanges,
     cal: MessengerCalibration,
+    sunlit: np.ndarray | None = None,
 ) -> np.ndarray:
     """Return the total offset ``cT(T) + Delta(t)`` in fine-range counts (sec. 7).
 
-    Before V10 (2007-03-09) the offset is ``cT(22.4 C)`` (sec. 7, last paragraph).
+    Before V10 (2007-03-09) there is no duty-cycle term, and deployed samples in
+    sunlight (``sunlit``) use ``cT(22.4 C)`` (sec. 7, last paragraph); the others
+    (stowed, shadow) use ``cT`` at the measured temperature.
     One compiled pass (`fluxcal.calibration._compiled.offset_chain_kernel`);
     `offset_model_reference` is the numpy version the tests compare with.
+
+    Parameters
+    ----------
+    sunlit : ndarray of bool, shape (n,), optional
+        Deployed sensor in sunlight (`sunlit_before_v10`); needed when a sample lies
+        before V10.
+
+    Raises
+    ------
+    FluxcalError
+        ``sunlit`` missing while a sample lies before V10.
 
     References
     ----------
@@ -244,15 +299,31 @@ def offset_model(
     """
     et = np.ascontiguousarray(et, dtype=float)
     temp = np.ascontiguousarray(temperature_c, dtype=float)
+    fixed = _fixed_mask(et, sunlit, cal)
     model = _offset_model_tables(changes, cal)
-    if et.ndim != 1 or temp.shape != et.shape or model is None:
-        return offset_model_reference(et, temperature_c, changes, cal)
+    if et.ndim != 1 or temp.shape != et.shape or model is None or fixed.shape != et.shape:
+        return offset_model_reference(et, temperature_c, changes, cal, sunlit)
     offset = np.empty((et.size, 3))
+    duty = np.empty((et.size, 3))
     unused = np.empty((0, 3))
-    offset_chain_kernel(et, np.empty(0), np.empty(0), False, 0.0, *model, unused,
+    offset_chain_kernel(et, fixed, np.empty(0), np.empty(0), False, 0.0, *model, unused,
                         np.empty(0, dtype=np.int8), np.eye(3), unused, False,
-                        temp, offset, unused, unused)
+                        temp, offset, duty, unused, unused)
     return offset
+
+
+def _fixed_mask(et: np.ndarray, sunlit: np.ndarray | None, cal: MessengerCalibration
+                ) -> np.ndarray:
+    """``sunlit`` as a contiguous bool array; an error when missing before V10."""
+    et = np.asarray(et, dtype=float)
+    if sunlit is None:
+        if np.any(~(et >= _date_et(cal, "heater_mode_v10"))):
+            raise FluxcalError(
+                "samples before MAG FSW V10 (2007-03-09) need the sunlit mask (sec. 7: the "
+                "22.4 C offsets are for deployed sunlit data only); run sunlit_before_v10",
+            )
+        return np.zeros(et.shape, dtype=bool)
+    return np.ascontiguousarray(sunlit, dtype=bool)
 
 
 def _offset_model_tables(changes: DutyCycleChanges, cal: MessengerCalibration) -> tuple | None:
@@ -291,6 +362,7 @@ def offset_model_reference(
     temperature_c: np.ndarray,
     changes: DutyCycleChanges,
     cal: MessengerCalibration,
+    sunlit: np.ndarray | None = None,
 ) -> np.ndarray:
     """Numpy reference of `offset_model` (whole-array passes; the tests compare).
 
@@ -298,11 +370,21 @@ def offset_model_reference(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 2-7, Tables 2-3.
     """
+    ct, delta = _offset_parts_reference(et, temperature_c, changes, cal, sunlit)
+    return ct + delta
+
+
+def _offset_parts_reference(
+    et: np.ndarray, temperature_c: np.ndarray, changes: DutyCycleChanges,
+    cal: MessengerCalibration, sunlit: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``cT`` (at 22.4 C for sunlit samples before V10) and ``Delta`` (0 before V10)."""
     rel = cal.constants["relaxation"]
+    et = np.asarray(et, dtype=float)
     temp = np.asarray(temperature_c, dtype=float)
     v10 = et >= _date_et(cal, "heater_mode_v10")
     fixed = cal.constants["pre_v10"]["fixed_temperature_c"]
-    temp = np.where(v10, temp, fixed)
+    temp = np.where(v10 | ~_fixed_mask(et, sunlit, cal), temp, fixed)
     ct = two_segment_offset(temp, cal.offset_coefficients())
     target = steady_state_offset(
         changes.duty_cycle_ppt, cal.duty_cycle_d0, rel["min_duty_cycle_ppt"]
@@ -312,7 +394,7 @@ def offset_model_reference(
         look_back=int(rel["look_back"]), look_back_s=float(rel["look_back_s"]),
     )
     delta[~v10] = 0.0
-    return ct + delta
+    return ct, delta
 
 
 #: Samples may lie this far (s) outside the temperature stream (`interpolate_temperature`).
@@ -355,11 +437,15 @@ def correct_offsets(
     Offsets and heater signal are modelled in fine-range counts; coarse-range samples get
     ``M_coarse^-1 M_fine`` times them.
 
+    Before V10 the dataset needs ``sunlit`` (`mark_sunlit`): deployed samples in
+    sunlight get Table 2 at 22.4 C, the others at the measured temperature (sec. 7).
+
     Returns
     -------
     xarray.Dataset
-        With ``temperature`` (degC), ``offset`` (fine counts), ``offset_applied`` (counts
-        of the sample's range, offset + heater signal) and ``counts_corrected``.
+        With ``temperature`` (degC), ``offset`` (fine counts), ``duty_cycle_offset``
+        (``Delta``, fine counts), ``offset_applied`` (counts of the sample's range,
+        offset + heater signal) and ``counts_corrected``.
 
     Notes
     -----
@@ -385,7 +471,9 @@ def correct_offsets(
     heater = ds["heater_signal"].values
     rng = ds["range"].values
     n = et.shape[0] if et.ndim == 1 else -1
+    fixed = _fixed_mask(et, ds["sunlit"].values if "sunlit" in ds else None, cal)
     if (model is None or et.dtype != np.float64 or et.ndim != 1 or conv.shape[0] < 2
+            or fixed.shape != (n,)
             or counts.shape != (n, 3) or counts.dtype.kind not in "iuf"
             or heater.shape != (n, 3) or heater.dtype != np.float64 or rng.shape != (n,)
             or rng.dtype.kind not in "iu"):
@@ -398,15 +486,15 @@ def correct_offsets(
         temp = np.empty(n)
     else:  # np.interp's own cases (one record, unsorted or NaN times) and errors
         temp = interpolate_temperature(et, t_et, t_c)
-    offset, applied, corrected = (np.empty((n, 3)) for _ in range(3))
+    offset, duty, applied, corrected = (np.empty((n, 3)) for _ in range(4))
     outside = offset_chain_kernel(
-        np.ascontiguousarray(et), t_et, t_c, interpolate, TEMPERATURE_MARGIN_S, *model,
-        np.ascontiguousarray(heater), np.ascontiguousarray(rng),
+        np.ascontiguousarray(et), fixed, t_et, t_c, interpolate, TEMPERATURE_MARGIN_S,
+        *model, np.ascontiguousarray(heater), np.ascontiguousarray(rng),
         np.ascontiguousarray(conv[1]), np.ascontiguousarray(counts), True,
-        temp, offset, applied, corrected,
+        temp, offset, duty, applied, corrected,
     )
     _check_temperature_cover(interpolate and outside)
-    return _offset_dataset(ds, temp, offset, applied, corrected)
+    return _offset_dataset(ds, temp, offset, duty, applied, corrected)
 
 
 def correct_offsets_reference(
@@ -425,7 +513,9 @@ def correct_offsets_reference(
     et = ds["et"].values
     t_et = aux_times_et(temperature, sclk)
     temp = interpolate_temperature(et, t_et, temperature["temperature_c"].values)
-    offset = offset_model_reference(et, temp, changes, cal)
+    sunlit = ds["sunlit"].values if "sunlit" in ds else None
+    ct, duty = _offset_parts_reference(et, temp, changes, cal, sunlit)
+    offset = ct + duty
     fine_total = offset + ds["heater_signal"].values
     conv = range_conversion(cal.matrices, reference=0)
     rng = ds["range"].values
@@ -434,16 +524,18 @@ def correct_offsets_reference(
     if coarse.any():
         applied[coarse] = np.einsum("ij,nj->ni", conv[1], fine_total[coarse])
     corrected = ds["counts"].values - applied
-    return _offset_dataset(ds, temp, offset, applied, corrected)
+    return _offset_dataset(ds, temp, offset, duty, applied, corrected)
 
 
 def _offset_dataset(
-    ds: xr.Dataset, temp: np.ndarray, offset: np.ndarray, applied: np.ndarray,
-    corrected: np.ndarray,
+    ds: xr.Dataset, temp: np.ndarray, offset: np.ndarray, duty: np.ndarray,
+    applied: np.ndarray, corrected: np.ndarray,
 ) -> xr.Dataset:
     return ds.assign(
         temperature=_scalar(temp, "degC", "sensor temperature interpolated to the samples"),
         offset=_vector(offset, "counts", "thermal offset cT(T) + Delta(t), fine-range counts"),
+        duty_cycle_offset=_vector(duty, "counts",
+                                  "duty-cycle offset Delta(t) (eq. 6f), fine-range counts"),
         offset_applied=_vector(applied, "counts", "offset + heater signal, counts of the range"),
         counts_corrected=_vector(corrected, "counts", "counts minus offsets (eq. 1)"),
     )
@@ -847,30 +939,67 @@ def quality_flags_reference(
 def assign_quality(ds: xr.Dataset, cal: MessengerCalibration) -> xr.Dataset:
     """Add the SHC ``quality`` flag (Table 5); needs ``sun_sc`` and ``heater_applied``.
 
+    C = 2 ("contamination present but corrected") where the heater waveform was removed
+    and also where a heater-induced duty-cycle offset (``duty_cycle_offset``, eq. 6f) of
+    at least ``[quality] min_duty_offset_counts`` (1 count) was removed on some axis, e.g.
+    in the hour of relaxation after the heater stops (docs/decisions/messenger.md).
+
     References
     ----------
-    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 12, Table 5.
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, sec. 12, Table 5.
     """
-    q = _quality(ds["et"].values, ds["sun_sc"].values[:, 1], ds["heater_applied"].values,
-                 cal, np.int16)
+    corrected = np.asarray(ds["heater_applied"].values, dtype=bool)
+    if "duty_cycle_offset" in ds:
+        limit = float(cal.constants["quality"]["min_duty_offset_counts"])
+        corrected = corrected | (np.abs(ds["duty_cycle_offset"].values) >= limit).any(axis=1)
+    q = _quality(ds["et"].values, ds["sun_sc"].values[:, 1], corrected, cal, np.int16)
     return ds.assign(quality=_scalar(q, "1", "SHC quality flag (Table 5)"))
 
 
 # ----------------------------------------------------------------------------------------
 # 7. validation
 # ----------------------------------------------------------------------------------------
+#: Sec. 13 gap rule: a step longer than this many nominal sample spacings is a gap.
+GAP_SPACINGS = 2.5
+
+
 def offset_step_report(ds: xr.Dataset, max_gap_s: float = 10.0) -> dict:
     """Largest step of the applied thermal offset per axis and where (sec. 13).
 
-    Steps across data gaps longer than ``max_gap_s`` are ignored.
+    Steps across data gaps are ignored: a gap is longer than ``max_gap_s`` and than
+    `GAP_SPACINGS` nominal sample spacings of the sample after it (Table 1's rate, from
+    the ``sample_rate_hz`` attribute `correct_time` puts on ``rate``; without it the gap
+    is ``max_gap_s``).  A step over more than ``max_gap_s`` (sample spacings of 20-100 s
+    at rate settings 0-2) counts as ``step * max_gap_s / dt``: the threshold is a rate
+    of change per ``max_gap_s``, the same as for denser data, so that the smooth
+    relaxation of sec. 7 over a long spacing is not taken for a discontinuity.  Steps
+    touching a sample before V10 that is not ``sunlit`` (stowed or in shadow: offset at
+    the measured temperature, flagged uncorrectable, C = 1) and steps where the 22.4 C
+    rule of sunlit pre-V10 samples starts or ends are ignored as well (sec. 7): the check
+    is on the calibration of sec. 6-7, not on the sensor's temperature.
 
     Returns
     -------
     dict
         ``{"x": {"step_counts": ..., "utc_index": i, "et": ...}, ...}``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 Table 1, sec. 7, sec. 13.
     """
     et = ds["et"].values
-    rep = largest_steps(ds["offset"].values, times=et, max_gap=max_gap_s)
+    max_gap: float | np.ndarray = max_gap_s
+    rates = ds["rate"].attrs.get("sample_rate_hz") if "rate" in ds else None
+    if rates is not None:
+        spacing = 1.0 / np.asarray(rates, dtype=float)[ds["rate"].values.astype(np.int64)]
+        max_gap = np.maximum(max_gap_s, GAP_SPACINGS * spacing)
+    segment = None
+    if "sunlit" in ds:  # V10 | pre-V10 sunlit (fixed 22.4 C) | each other pre-V10 sample
+        pre = ~(et >= float(ds["sunlit"].attrs.get("v10_et", np.inf)))
+        segment = np.where(~pre, -1, np.where(ds["sunlit"].values, -2,
+                                              np.arange(et.size, dtype=np.int64)))
+    rep = largest_steps(ds["offset"].values, segment, times=et, max_gap=max_gap,
+                        time_scale=max_gap_s)
     return {
         axis: {"step_counts": float(rep.largest_step[j]), "index": int(rep.index[j]),
                "et": float(et[min(rep.index[j], et.size - 1)])}

@@ -72,6 +72,7 @@ def calibrate(
     levels.check_heater_coverage(ds, heater, cal, sclk)
     periods, changes = levels.find_heater_periods(heater, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
+    ds = levels.mark_sunlit(ds, cal, method=method)
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
     ds = levels.counts_to_field(ds, cal)
     ds = levels.add_geometry(ds, cal, frames, method=method)
