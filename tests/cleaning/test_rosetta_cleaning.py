@@ -345,6 +345,9 @@ def _write(ds, out, lsk):
     from fluxcal.missions.rosetta.pipeline import write_level
 
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]
+    if level in "ABC" and "sid" not in ds:
+        # calibrated tables are written per filter mode (archive names, issue 10)
+        ds = ds.assign(sid=("time", np.full(ds.sizes["time"], 3, np.int16), {"units": "1"}))
     if level in "ABCEFG":
         paths = write_level(ds, out, lsk=lsk)
     else:
@@ -600,8 +603,8 @@ def test_clean_command_f_and_g(tmp_path, lsk):
     k = read_product(kfile[".cdf"])
     # tolerance: the K product stores B with 3 decimals
     np.testing.assert_allclose(f["b"].values, _one_second_means(k["b"].values), atol=1e-9)
-    assert (out / "RPCMAG_20140801_CLF_OB.TAB").exists()
-    first = (out / "RPCMAG_20140801_CLF_OB.TAB").read_text().splitlines()[0].split()
+    # written like F from B: archive name RPCMAG<yymmdd>_CLF_<sensor>_A<NN> (issue 10)
+    first = (out / "RPCMAG140801_CLF_OB_A01.TAB").read_text().splitlines()[0].split()
     assert len(first) == 6  # TIME.UTC, TIME.OBT, BX, BY, BZ, QUALITY (seed sec. 4.7)
 
     lres = clean_files("L", [kfile[".cdf"]], out, kernels=meta)
@@ -613,7 +616,38 @@ def test_clean_command_f_and_g(tmp_path, lsk):
     np.testing.assert_allclose(
         g["position"].values, _one_second_means(ldata["position"].values), rtol=1e-12
     )
-    first = (out / "RPCMAG_20140801_CLG_OB.TAB").read_text().splitlines()[0].split()
+    first = (out / "RPCMAG140801_CLG_OB_A01.TAB").read_text().splitlines()[0].split()
     assert len(first) == 9  # with POSITION.X/Y/Z (seed sec. 4.8)
     with pytest.raises(InputFormatError, match="LEVEL_G is made from LEVEL_L"):
         clean_files("G", [kfile[".cdf"]], out)
+
+
+# --- method 2, stage 1 from a heater-state series (seed 003 sec. 4.12.2) ---------------
+
+
+def test_clean_k_with_heater_states(tmp_path, lsk):
+    from fluxcal.geometry.time import tt2000_to_utc
+
+    ds, bg, intervals, offsets = _labelled_heater_case(lsk)
+    files = _write(ds, tmp_path / "in", lsk)
+    # the states at each change only: heaters switched on at an interval start, all off
+    # at its stop (e.g. lander housekeeping or states derived from ROMAP)
+    rows = ["time_utc,A,B,C"]
+    for a, b, label in intervals:
+        start, stop = tt2000_to_utc(np.array([a, b]), digits=9, lsk=lsk)
+        on = ",".join("1" if h in label.split("+") else "0" for h in "ABC")
+        rows += [f"{start},{on}", f"{stop},0,0,0"]
+    states = tmp_path / "heaters.csv"
+    states.write_text("\n".join(rows) + "\n")
+    res = clean_files("K", [files[".cdf"]], tmp_path / "out", heater_states=states, plot=False)
+    k = res.levels["OB"]
+    assert "assisted" in k.attrs["heater_method"]
+    assert set(k.attrs["heater_offsets_nT"]) == set(offsets)  # labels "A" and "B+C"
+    # the same as the level function on the intervals themselves (inputs stored to 1 pT)
+    expected = cl.level_k_assisted(read_product(files[".cdf"]), intervals)["b"].values
+    np.testing.assert_allclose(k["b"].values, expected, atol=1e-9)
+    residual = np.linalg.norm(k["b"].values - bg, axis=1)
+    assert np.sqrt(np.mean(residual**2)) < 0.1  # issue 5: residual < 0.1 nT rms
+    states.write_text("time_utc,A\n2014-08-01T00:00:01,2\n")
+    with pytest.raises(InputFormatError, match="not 0 or 1"):
+        clean_files("K", [files[".cdf"]], tmp_path / "out", heater_states=states)

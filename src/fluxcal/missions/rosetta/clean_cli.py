@@ -166,6 +166,70 @@ def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
     return out
 
 
+def read_heater_states(path: Path, lsk=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read a heater-state series ``time_utc,<heater>,<heater>,...`` (0 = off, 1 = on).
+
+    The first stage of method 2 (seed 003 sec. 4.12.2) as a time series, e.g. from
+    `fluxcal.cleaning.heater_states.states_from_steps` on ROMAP data or from lander
+    housekeeping; `fluxcal.cleaning.heater_states.intervals_from_states` turns it
+    into the labelled intervals.
+
+    Returns
+    -------
+    epoch : ndarray (n,) int64
+        TT2000 ns.
+    states : ndarray (n, k) bool
+    names : list of str
+        Heater names from the header.
+
+    Raises
+    ------
+    InputFormatError
+        Wrong header, field count, unparsable time or state (names the line).
+    """
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputFormatError("heater-state file not found", path=str(path))
+    names: list[str] | None = None
+    times: list[str] = []
+    rows: list[list[bool]] = []
+    with path.open(newline="") as fh:
+        for lineno, row in enumerate(csv.reader(fh), start=1):
+            cells = [c.strip() for c in row]
+            if not cells or not "".join(cells) or cells[0].startswith("#"):
+                continue
+            if names is None:
+                if cells[0].lower() != "time_utc" or len(cells) < 2 or not all(cells[1:]):
+                    raise InputFormatError(
+                        f"header {','.join(cells)!r}; expected time_utc,<heater>,...",
+                        path=str(path), line=lineno,
+                    )  # fmt: skip
+                names = cells[1:]
+                continue
+            if len(cells) != len(names) + 1:
+                raise InputFormatError(
+                    f"{len(cells)} fields; expected {len(names) + 1}", path=str(path), line=lineno
+                )
+            bad = [c for c in cells[1:] if c not in ("0", "1")]
+            if bad:
+                raise InputFormatError(
+                    f"state {bad[0]!r} is not 0 or 1", path=str(path), line=lineno
+                )
+            times.append(cells[0])
+            rows.append([c == "1" for c in cells[1:]])
+    if names is None or not rows:
+        raise InputFormatError("no heater states", path=str(path))
+    try:
+        epoch = utc_to_tt2000(np.array(times), lsk).astype(np.int64)
+    except InputFormatError as exc:
+        raise InputFormatError(str(exc), path=str(path), field="time_utc") from None
+    if epoch.size > 1 and np.any(np.diff(epoch) <= 0):
+        raise InputFormatError("time_utc must increase", path=str(path), field="time_utc")
+    return epoch, np.array(rows, dtype=bool), names
+
+
 def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: str) -> Path:
     """Before/after dynamic spectra (trace PSD) of the longest cleaned mode, as PNG."""
     import matplotlib
@@ -271,6 +335,7 @@ def clean_files(
     bandwidth_hz: float | None = None,
     seed: int = 0,
     intervals: Path | None = None,
+    heater_states: Path | None = None,
     kernels: Path | None = None,
     average_s: float = 1.0,
     step_s: float | None = None,
@@ -337,9 +402,18 @@ def clean_files(
         elif level == "J":
             made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples)
         elif level == "K":
+            if intervals is not None and heater_states is not None:
+                raise FluxcalError("give either --intervals or --heater-states, not both")
             if intervals is not None:
                 used_inputs.append(Path(intervals))
                 made = {sensor: cl.level_k_assisted(src, read_intervals(intervals, lsk))}
+            elif heater_states is not None:
+                from fluxcal.cleaning.heater_states import intervals_from_states
+
+                used_inputs.append(Path(heater_states))
+                epoch, states, names = read_heater_states(heater_states, lsk)
+                spans = intervals_from_states(epoch, states, names)
+                made = {sensor: cl.level_k_assisted(src, spans)}
             else:
                 made = {sensor: cl.level_k(src)}
         else:
@@ -347,6 +421,13 @@ def clean_files(
         prov = provenance_attrs(inputs=used_inputs, kernels=[Path(str(k)) for k in pool.loaded])
         for tag, ds in made.items():
             result.levels[tag] = ds
+            if level in ("F", "G"):
+                # the same products (archive names, columns) as F/G from B/C
+                from fluxcal.missions.rosetta.pipeline import write_level
+
+                part = ds.assign_attrs(sensor=tag)
+                result.paths += write_level(part, out, formats=formats, provenance=prov, lsk=lsk)
+                continue
             result.paths += write_clean_level(
                 ds, out, level=level, sensor=tag, formats=formats, provenance=prov, lsk=lsk
             )
@@ -388,6 +469,11 @@ def clean(
     intervals: Path | None = typer.Option(
         None, "--intervals", help="K: ROMAP intervals CSV start_utc,stop_utc,label (method 2)."
     ),
+    heater_states: Path | None = typer.Option(
+        None,
+        "--heater-states",
+        help="K: heater-state CSV time_utc,<heater>,... of 0/1 (method 2, stage 1).",
+    ),
     kernels: Path | None = typer.Option(
         None, "--kernels", help="Meta-kernel (SCLK, CK, SPK); needed for L."
     ),
@@ -412,6 +498,7 @@ def clean(
         bandwidth_hz=bandwidth,
         seed=seed,
         intervals=intervals,
+        heater_states=heater_states,
         kernels=kernels,
         average_s=average,
         step_s=step,
