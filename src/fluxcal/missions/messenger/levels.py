@@ -791,6 +791,43 @@ def spherical_rtn(
     return out
 
 
+#: Logged and written as the ``mbf_rotation`` attribute when MBF is produced with fluxcal's
+#: built-in Mercury orientation.
+MBF_BUILTIN_NOTE = (
+    "MBF (IAU_MERCURY) uses the IAU 2009 Mercury rotation built into fluxcal: no mission "
+    "PCK redefines it. The MESSENGER PCK pck00010_msgr_v23.tpc differs by about 0.094 "
+    "deg (0.5 nT on 300 nT); load the mission PCK for archive-grade MBF"
+)
+
+
+def mercury_orientation_is_builtin() -> bool:
+    """Return True when the pool's Mercury orientation is fluxcal's IAU 2009 subset.
+
+    Compares ``BODY199_POLE_RA``, ``BODY199_POLE_DEC`` and ``BODY199_PM`` in the kernel
+    pool with the values in `fluxcal.geometry.kernels.orientation_pck`: equal means no
+    mission PCK (loaded after the generic kernels) redefined them.
+    """
+    import re
+
+    import spiceypy
+
+    from fluxcal.geometry.kernels import orientation_pck
+
+    text = orientation_pck().read_text()
+    for name in ("BODY199_POLE_RA", "BODY199_POLE_DEC", "BODY199_PM"):
+        match = re.search(rf"{name}\s*=\s*\(([^)]*)\)", text)
+        if match is None:  # pragma: no cover - the shipped file defines all three
+            raise FluxcalError(f"{orientation_pck()}: {name} not found")
+        builtin = [float(v) for v in match.group(1).split()]
+        try:
+            pool = spiceypy.gdpool(name, 0, len(builtin))
+        except spiceypy.utils.exceptions.SpiceyError:
+            return False
+        if len(pool) != len(builtin) or any(a != b for a, b in zip(pool, builtin, strict=True)):
+            return False
+    return True
+
+
 def add_geometry(
     ds: xr.Dataset,
     cal: MessengerCalibration,
@@ -806,7 +843,9 @@ def add_geometry(
     of `FRAMES`; ``pos_j2000`` (MESSENGER relative to the Sun, J2000), ``pos_mso`` and
     ``pos_mbf`` (relative to Mercury in MSGR_MSO and IAU_MERCURY), ``pos_rtn`` (r km,
     latitude deg, azimuth deg of sec. 10.2) and ``sun_sc`` (unit Sun direction in
-    MSGR_SPACECRAFT, for the S flag).  Kernels must be loaded.
+    MSGR_SPACECRAFT, for the S flag).  Kernels must be loaded.  MBF produced with
+    fluxcal's built-in Mercury rotation (no mission PCK, `mercury_orientation_is_builtin`)
+    is logged as a warning and noted in the ``mbf_rotation`` attribute.
 
     Parameters
     ----------
@@ -863,7 +902,12 @@ def add_geometry(
                         "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)"),
         sun_sc=_vector(sun_sc, "1", "unit Sun direction in MSGR_SPACECRAFT"),
     )
-    return ds.assign(variables)
+    out_ds = ds.assign(variables)
+    if "mbf" in frames and mercury_orientation_is_builtin():
+        log.warning(MBF_BUILTIN_NOTE)
+        out_ds.attrs["mbf_rotation"] = MBF_BUILTIN_NOTE
+        out_ds["b_mbf"].attrs["rotation_model"] = "IAU 2009 (fluxcal built-in), no mission PCK"
+    return out_ds
 
 
 # ----------------------------------------------------------------------------------------
