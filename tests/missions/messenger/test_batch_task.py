@@ -41,9 +41,10 @@ def test_two_days_across_midnight(tmp_path):
                        out, scheduler="serial")
     status = {d.day: d.status for d in report.days}
     assert status == {"2012-06-01": "done", "2012-06-02": "done", "2012-06-03": "no_data"}
-    assert (out / "MAGMSOSCI12153.TAB").is_file() and (out / "MAGMSOSCI12154.TAB").is_file()
-    n1 = len((out / "MAGMSOSCI12153.TAB").read_text().splitlines())
-    n2 = len((out / "MAGMSOSCI12154.TAB").read_text().splitlines())
+    tab1, tab2 = out / "MAGMSOSCI12153_V01.TAB", out / "MAGMSOSCI12154_V01.TAB"
+    assert tab1.is_file() and tab2.is_file()
+    n1 = len(tab1.read_text().splitlines())
+    n2 = len(tab2.read_text().splitlines())
     assert n1 + n2 == sim["science"].sizes["time"]
     # a second run skips both days (manifests up to date)
     again = run_batch([dt.date(2012, 6, 1), dt.date(2012, 6, 2)], task, out, scheduler="serial")
@@ -74,8 +75,10 @@ def test_simulate_days_feeds_the_batch_task(tmp_path):
                       "2012-06-05": "done"}, [d.error for d in report.days]
     for day in days:
         assert (out / f"MAGMSOSCI{day:%y%j}_{day:%Y%m%d}.png").is_file()
-        prod = read_product(out / f"MAGMSOSCI{day:%y%j}.TAB")
+        prod = read_product(out / f"MAGMSOSCI{day:%y%j}_V01.TAB")
         truth = read_truth(inp / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
+        # products are in time order: the truth sorted the same way
+        truth = truth.isel(time=np.argsort(truth["epoch"].values, kind="stable"))
         assert prod.sizes["time"] == truth.sizes["time"]
         err = np.asarray(prod["b"].values, float) - truth["b_mso"].values
         fine = truth["range"].values == 0
