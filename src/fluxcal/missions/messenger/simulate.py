@@ -275,7 +275,10 @@ def simulate(
         offset[:, axis] += np.where(v10, np.interp(u, grid, delta[:, axis]), 0.0)
     since_edge = np.mod(u, period)
     d_sample = _block_duty(u, config)
-    powered = v10 & (u >= 0) & (d_sample >= tables.constants["heater"]["min_on_s"])
+    # the waveform belongs to the 100-s on/off cycle: none below the 10-s persistence (the
+    # spacecraft ignores the request, sec. 6) and none at 100 % (no cycle, no rising edge)
+    powered = (v10 & (u >= 0) & (d_sample >= tables.constants["heater"]["min_on_s"])
+               & (d_sample < 100))
     heater = np.zeros((et.size, 3))
     if powered.any():
         heater[powered] = forward.heater_waveform(since_edge[powered], d_sample[powered], tables)
