@@ -339,3 +339,90 @@ def test_the_cdflib_check_is_not_vacuous(written, tmp_path: Path,
     caplog.clear()
     cx.xarray_to_cdf(raw, str(tmp_path / "broken.cdf"), istp=True)
     assert any("VALIDMIN required for variable B" in r.getMessage() for r in caplog.records)
+
+
+# --- the products of the real pipelines ----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def pipeline_products(tmp_path_factory) -> list[Path]:
+    """One simulated MESSENGER day (6 frames, full resolution + 1 s + 60 s averages) and one
+    simulated Rosetta day (levels A, B, C, E, F, G of both sensors and HK), as CDF + netCDF."""
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_messenger_like_kernels
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.run import run_edr2cdr
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.rosetta.batch_task import make_day_task, simulate_days
+    from fluxcal.products.batch import run_batch
+
+    root = tmp_path_factory.mktemp("pipelines")
+    start = "2012-06-01T00:00:00"
+    config = SimulationConfig(start_utc=start, duration_s=600.0)
+    kernels = write_messenger_like_kernels(root / "k", start, 2600.0,
+                                           plus_y_sunward=[(100.0, 300.0)])
+    with KernelPool(kernels):
+        sim = simulate(config, load_calibration(start), SclkKernel.from_pool(-236))
+    files = write_inputs(sim, root / "msgr_in")
+    paths = run_edr2cdr([files["science"]], [files["heater"]], [files["temperature"]],
+                        kernels, root / "out", frames=("mso", "j2000", "mbf", "rtn", "sc", "vso"),
+                        averages=(1, 60), formats=("cdf", "nc"))
+    import datetime as dt
+
+    day = dt.date(2014, 11, 1)
+    simulate_days(root / "ros_in", [day], minutes=5.0, truth=False, seed=3)
+    task = make_day_task(root / "ros_in", root / "out", formats=("cdf", "nc"),
+                         frame="ECLIPJ2000")
+    report = run_batch([day], task, root / "out", scheduler="serial")
+    assert report.ok, report.days
+    paths += [root / "out" / p for d in report.days for p in d.products]
+    return sorted(set(paths))
+
+
+def test_pipeline_cdfs_pass_spacepy_and_cdflib_istp_checks(
+        pipeline_products, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    from spacepy import pycdf
+    from spacepy.pycdf import istp
+
+    cdfs = [p for p in pipeline_products if p.suffix == ".cdf"]
+    kinds = {p.name.split("_")[2] for p in cdfs}
+    # MESSENGER: 6 frames x (sci, avg1, avg60); Rosetta: A B C E F G x (OB, IB) + HK
+    assert len(cdfs) == 18 + 13, sorted(p.name for p in cdfs)
+    assert {"mso-sci", "rtn-avg60", "cla-hk", "clg-ib-a01"} <= kinds
+    problems = {}
+    caplog.set_level(logging.INFO, logger="cdflib")
+    for path in cdfs:
+        with pycdf.CDF(str(path)) as f:
+            errors = [e for e in istp.FileChecks.all(f) if not SPACEPY_TOLERATED.match(e)]
+        caplog.clear()
+        cx.xarray_to_cdf(cx.cdf_to_xarray(str(path), to_datetime=False),
+                         str(tmp_path / path.name), istp=True)
+        errors += [r.getMessage() for r in caplog.records if r.name.startswith("cdflib")]
+        if errors:
+            problems[path.name] = errors
+    assert problems == {}
+
+
+def test_pipeline_netcdf_opens_with_a_time_index(pipeline_products) -> None:
+    for path in (p for p in pipeline_products if p.suffix == ".nc"):
+        with xr.open_dataset(path) as ds:
+            assert ds["time"].dtype == np.dtype("M8[ns]"), path.name
+            assert ds.indexes["time"].is_monotonic_increasing, path.name
+            assert ds["epoch"].dtype == np.int64
+            np.testing.assert_array_equal(
+                ds["time"].values, cdflib.cdfepoch.to_datetime(ds["epoch"].values))
+            assert ds.resample(time="60s").mean().sizes["time"] >= 1
+
+
+def test_pipeline_rtn_product_in_pyspedas(pipeline_products) -> None:
+    pyspedas = pytest.importorskip("pyspedas")
+    (path,) = [p for p in pipeline_products
+               if p.name.startswith("messenger_mag_rtn-sci") and p.suffix == ".cdf"]
+    names = pyspedas.cdf_to_tplot(str(path))
+    back = read_product(path)
+    field = "b"
+    assert field in names and back[field].ndim == 2
+    assert back["b_component"].values.tolist() == ["B_R", "B_T", "B_N"]
+    assert pyspedas.get_coords(field) == back[field].attrs["coordinate_system"].split(">")[0]
+    np.testing.assert_array_equal(pyspedas.get_data(field).y, back[field].values)
