@@ -315,3 +315,30 @@ def format_int(values: np.ndarray, buf: np.ndarray, start: int, width: int,
         if neg:
             buf[i, pos - 1] = 45
     return OK, -1
+
+
+# Result codes of `copy_text` beyond the numeric ones.
+EMPTY, BLANK_INSIDE = 4, 5
+
+
+@njit(cache=True)
+def copy_text(src: np.ndarray, buf: np.ndarray, start: int, width: int) -> tuple[int, int]:
+    """Copy NUL-padded ASCII strings ``src`` (rows, itemsize) left-justified, blank-padded.
+
+    A string longer than ``width`` (``TOO_WIDE``), empty (``EMPTY``) or containing ASCII
+    whitespace (``BLANK_INSIDE``) is reported with its row.
+    """
+    k = src.shape[1]
+    for i in range(src.shape[0]):
+        if k == 0 or src[i, 0] == 0:
+            return EMPTY, i
+        for j in range(k):
+            c = src[i, j]
+            if c == 0:
+                break
+            if c == 32 or (9 <= c <= 13):
+                return BLANK_INSIDE, i
+            if j >= width:
+                return TOO_WIDE, i
+            buf[i, start + j] = c
+    return OK, -1

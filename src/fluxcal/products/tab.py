@@ -59,7 +59,6 @@ __all__ = ["CHUNK_ROWS", "format_chunk", "label_module", "read_label", "read_tab
 CHUNK_ROWS = 100_000
 EOL = b"\r\n"
 _DATA_TYPE = {"int": "ASCII_INTEGER", "real": "ASCII_REAL", "str": "CHARACTER"}
-_WHITESPACE = np.array([9, 10, 11, 12, 13, 32], np.uint8)
 # Keywords the writer owns: label_extra may not change the file's structure.
 _STRUCTURAL = {"PDS_VERSION_ID", "RECORD_TYPE", "RECORD_BYTES", "FILE_RECORDS", "^TABLE"}
 _WHY = {fw.TOO_WIDE: "does not fit the width", fw.NOT_FINITE: "is infinite",
@@ -80,33 +79,25 @@ def _column_array(ds: xr.Dataset, col: ResolvedColumn) -> np.ndarray:
     return var.values if col.index is None else var.values[:, col.index]
 
 
-def _string_bytes(values: np.ndarray, col: ResolvedColumn, first_row: int) -> np.ndarray:
-    """``(rows, width)`` uint8 of a string column, blank-padded; validated."""
-    width = col.fmt.width
+def _format_text(buf: np.ndarray, start: int, values: np.ndarray, col: ResolvedColumn,
+                 first_row: int) -> None:
+    """Copy a string column into its field (left-justified, blank-padded); validated."""
     try:
-        b = values.astype("S") if values.dtype.kind != "S" else values
+        b = values if values.dtype.kind == "S" else values.astype("S")
     except UnicodeEncodeError as exc:
         raise InputFormatError(f"string values must be ASCII: {exc}", field=col.label) from exc
-    rows = b.shape[0]
-    if b.dtype.itemsize > width:
-        lens = np.char.str_len(b)
-        bad = int(np.argmax(lens > width))
-        if lens[bad] > width:
-            raise InputFormatError(
-                f"value {b[bad].decode()!r} at row {first_row + bad} is longer than "
-                f"{col.fmt.fortran}", field=col.label, line=first_row + bad + 1)
-    raw = np.zeros((rows, width), np.uint8)
-    k = min(width, b.dtype.itemsize)
-    raw[:, :k] = np.frombuffer(b.tobytes(), np.uint8).reshape(rows, b.dtype.itemsize)[:, :k]
-    content = raw != 0
-    if rows and (not content[:, 0].all() or np.isin(raw[content], _WHITESPACE).any()):
+    b = np.ascontiguousarray(b)
+    src = b.view(np.uint8).reshape(b.shape[0], b.dtype.itemsize)
+    code, row = fw.copy_text(src, buf, start, col.fmt.width)
+    if code in (fw.EMPTY, fw.BLANK_INSIDE):
         raise InputFormatError(
             "string values printed in a whitespace-separated table must be non-empty "
-            "and contain no whitespace",
-            field=col.label,
-        )
-    raw[~content] = 32
-    return raw
+            f"and contain no whitespace (row {first_row + row}: {b[row]!r})",
+            field=col.label, line=first_row + row + 1)
+    if code != fw.OK:
+        raise InputFormatError(
+            f"value {b[row].decode()!r} at row {first_row + row} is longer than "
+            f"{col.fmt.fortran}", field=col.label, line=first_row + row + 1)
 
 
 def _check(code: int, row: int, values: np.ndarray, col: ResolvedColumn,
@@ -129,7 +120,7 @@ def _format_column(buf: np.ndarray, start: int, values: np.ndarray, col: Resolve
                    first_row: int) -> None:
     f: FieldFormat = col.fmt
     if col.kind == "str":
-        buf[:, start:start + f.width] = _string_bytes(values, col, first_row)
+        _format_text(buf, start, values, col, first_row)
         return
     if f.code == "I":
         v = np.ascontiguousarray(values)
@@ -351,7 +342,7 @@ def _parse_field(raw: np.ndarray, dtype: np.dtype) -> np.ndarray:
         return text.astype(np.int64).astype(dtype)
     if dtype.kind == "f":
         return text.astype(np.float64)
-    return np.char.strip(text).astype(dtype if dtype.kind == "U" else str)
+    return np.char.strip(text).astype(dtype if dtype.kind in "US" else str)
 
 
 def read_tab(path: Path) -> xr.Dataset:
