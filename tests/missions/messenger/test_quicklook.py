@@ -71,12 +71,11 @@ def test_quicklook_dataset_carries_the_applied_offsets(simulated, messenger_kern
     assert set(q.data_vars) == {"b_rtn", "offset", "quality", "distance"}
     assert q["offset"].attrs["units"] == "counts"
     np.testing.assert_array_equal(q["offset"].values, ds["offset"].values)
-    # forward-model truth of the offset (thermal + duty cycle, built from the declared
-    # schedule); tolerance 0.02 counts: the pipeline interpolates the 10-s temperature
-    # samples linearly (error h^2/8 |T''| ~ 2e-3 C in the 55 C excursion) times the
-    # Table 2 slopes (a few counts per C)
+    # forward-model truth of the offset (thermal + duty cycle, from the declared schedule,
+    # relaxed over the whole history): tolerance the 0.6 DN that sec. 7's five-change
+    # look-back neglects (test_round_trip.py::test_offsets_and_heater_recovered)
     np.testing.assert_allclose(q["offset"].values, simulated["truth"]["offset"].values,
-                               atol=0.02)
+                               atol=0.6)
     # distance = |MSO position| (independent: norm of the truth path is not stored, so
     # recompute from the product's own pos_mso with a loop)
     pos = ds["pos_mso"].values

@@ -84,6 +84,13 @@ class SimulationConfig:
     sunlit_temperature_c, shadow_temperature_c, stowed_temperature_c : float
         Sensor temperature before V10 (2007-03-09): deployed in sunlight (sec. 7: mean
         22.4 C), deployed in shadow (V9 regulation at -50 C), stowed (not in the seed).
+    jitter_every : int
+        If > 0, every ``jitter_every``-th heater period has its on-time in the bits
+        lengthened and shortened by 1 s in turn (the 1-s command iteration, sec. 6); the
+        commanded duty cycle, hence the physics, is the block's.
+    heater_gaps : list of (start_s, end_s)
+        Heater records dropped in these intervals (seconds after the heater schedule start,
+        i.e. ``lead_s`` before ``start_utc``): LAC gaps.
     """
 
     start_utc: str = "2012-06-01T00:00:00"
@@ -105,6 +112,8 @@ class SimulationConfig:
     sunlit_temperature_c: float = 22.4
     shadow_temperature_c: float = -50.0
     stowed_temperature_c: float = 0.0
+    jitter_every: int = 0
+    heater_gaps: list[tuple[float, float]] = field(default_factory=list)
 
 
 def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig) -> np.ndarray:
@@ -132,6 +141,22 @@ def _block_duty(u: np.ndarray, config: SimulationConfig) -> np.ndarray:
     d = np.asarray(config.duty_cycles_percent, dtype=int)
     block = np.floor(np.asarray(u, dtype=float) / config.block_s).astype(np.int64)
     return np.where(block >= 0, d[np.mod(np.maximum(block, 0), d.size)], 0)
+
+
+def _on_time(u: np.ndarray, config: SimulationConfig, tables: forward.SeedTables) -> np.ndarray:
+    """Return the heater-on seconds of the 100-s period containing each ``u`` (the bits).
+
+    The block's duty cycle, with the ``jitter_every`` +-1 s alternation of the bits.
+    """
+    period = float(tables.constants["heater"]["period_s"])
+    duty = _block_duty(u, config)
+    on_s = duty.astype(float)
+    if config.jitter_every > 0:
+        p = np.floor(np.asarray(u, dtype=float) / period).astype(np.int64)
+        jitter = (np.mod(p, config.jitter_every) == config.jitter_every - 1) & (
+            duty > tables.constants["heater"]["min_on_s"]) & (duty < 100)
+        on_s += np.where(jitter, np.where(np.mod(p // config.jitter_every, 2) == 0, 1, -1), 0)
+    return on_s
 
 
 def _regulated_temperature(u: np.ndarray, config: SimulationConfig) -> np.ndarray:
@@ -244,8 +269,11 @@ def simulate(
     h_zero = met0 - config.lead_s
     h_met = np.arange(h_zero - QUIET_LEAD_S, met0 + config.duration_s + 200.0, 1.0)
     u_h = h_met - h_zero
-    duty_h = _block_duty(u_h, config)
-    bits = ((np.mod(u_h, period) < duty_h) & (u_h >= 0)).astype(np.int8)
+    bits = ((np.mod(u_h, period) < _on_time(u_h, config, tables)) & (u_h >= 0)).astype(np.int8)
+    kept = np.ones(h_met.size, dtype=bool)
+    for a, b in config.heater_gaps:
+        kept &= ~((u_h >= a) & (u_h < b))
+    h_met, bits = h_met[kept], bits[kept]
     # --- science samples at their true times (recorded MET minus the net lag, sec. 5) ---
     met_rec, rate, rng = _sample_grid(config, met0, tables)
     met_true = met_rec - tables.net_lag_s[rate]
@@ -274,7 +302,7 @@ def simulate(
     for axis in range(3):
         offset[:, axis] += np.where(v10, np.interp(u, grid, delta[:, axis]), 0.0)
     since_edge = np.mod(u, period)
-    d_sample = _block_duty(u, config)
+    d_sample = _on_time(u, config, tables)  # the period's actual duty cycle (sec. 6)
     # the waveform belongs to the 100-s on/off cycle: none below the 10-s persistence (the
     # spacecraft ignores the request, sec. 6) and none at 100 % (no cycle, no rising edge)
     powered = (v10 & (u >= 0) & (d_sample >= tables.constants["heater"]["min_on_s"])
