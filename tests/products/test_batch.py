@@ -66,7 +66,7 @@ def test_five_days_one_corrupted(cluster, tmp_path: Path) -> None:
     assert isinstance(rep, BatchReport)
     assert [d.status for d in rep.days] == ["done", "done", "failed", "done", "done"]
     assert len(seen) == 5
-    assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS if d != BAD]
+    assert _products(out) == [f"SYNTH_{d:%Y%m%d}_v01.cdf" for d in DAYS if d != BAD]
     bad = rep.days[2]
     assert "SYNTH_20240303.csv" in bad.error and "line 7" in bad.error and "cx" in bad.error
     assert not list(out.glob("SYNTH_20240303*"))
@@ -74,7 +74,7 @@ def test_five_days_one_corrupted(cluster, tmp_path: Path) -> None:
     # products are complete and correct
     for d in DAYS:
         if d != BAD:
-            back = read_product(out / f"SYNTH_{d:%Y%m%d}.cdf")
+            back = read_product(out / f"SYNTH_{d:%Y%m%d}_v01.cdf")
             np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
     # JSON report of every day
     report = json.loads(Path(rep.report_path).read_text())
@@ -113,7 +113,7 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     statuses = {d.day: d.status for d in rep.days}
     # Every product that exists is complete; none is partial.
     for d in DAYS:
-        cdf = out / f"SYNTH_{d:%Y%m%d}.cdf"
+        cdf = out / f"SYNTH_{d:%Y%m%d}_v01.cdf"
         if statuses[d.isoformat()] == "done":
             back = read_product(cdf)
             np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
@@ -122,7 +122,7 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     rep2 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
     assert rep2.ok
     assert {d.status for d in rep2.days} <= {"done", "skipped"}
-    assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS]
+    assert _products(out) == [f"SYNTH_{d:%Y%m%d}_v01.cdf" for d in DAYS]
 
 
 def test_day_without_input_is_no_data(tmp_path: Path) -> None:
@@ -300,15 +300,15 @@ def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
     assert {d.status for d in rep.days} <= {"done", "failed"}
     assert all("KilledWorker" in (d.error or "") for d in rep.days if d.status == "failed")
     for day in DAYS:  # every product present is complete (even one whose manifest is missing)
-        cdf = out / f"SYNTH_{day:%Y%m%d}.cdf"
+        cdf = out / f"SYNTH_{day:%Y%m%d}_v01.cdf"
         if cdf.exists():
             np.testing.assert_allclose(read_product(cdf)["B"].values,
                                        _expected_field(inp, day), atol=1e-9)
     rep2 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
     assert rep2.ok and {d.status for d in rep2.days} <= {"done", "skipped"}
-    assert _products(out) == [f"SYNTH_{d:%Y%m%d}.cdf" for d in DAYS]
+    assert _products(out) == [f"SYNTH_{d:%Y%m%d}_v01.cdf" for d in DAYS]
     for d in DAYS:
-        np.testing.assert_allclose(read_product(out / f"SYNTH_{d:%Y%m%d}.cdf")["B"].values,
+        np.testing.assert_allclose(read_product(out / f"SYNTH_{d:%Y%m%d}_v01.cdf")["B"].values,
                                    _expected_field(inp, d), atol=1e-9)
 
 

@@ -346,8 +346,9 @@ def test_the_cdflib_check_is_not_vacuous(written, tmp_path: Path,
 
 @pytest.fixture(scope="module")
 def pipeline_products(tmp_path_factory) -> list[Path]:
-    """One simulated MESSENGER day (6 frames, full resolution + 1 s + 60 s averages) and one
-    simulated Rosetta day (levels A, B, C, E, F, G of both sensors and HK), as CDF + netCDF."""
+    """One simulated MESSENGER day (6 frames, full resolution + 1 s + 60 s averages), one
+    simulated Rosetta day (levels A, B, C, E, F, G of both sensors and HK) and one synthetic
+    batch day, as CDF + netCDF."""
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
@@ -377,6 +378,11 @@ def pipeline_products(tmp_path_factory) -> list[Path]:
     report = run_batch([day], task, root / "out", scheduler="serial")
     assert report.ok, report.days
     paths += [root / "out" / p for d in report.days for p in d.products]
+    from fluxcal.products.synthetic_task import SyntheticDayTask, write_synthetic_inputs
+
+    day = dt.date(2024, 3, 1)
+    write_synthetic_inputs(root / "synth_in", [day], n_per_day=2000)
+    paths += SyntheticDayTask(root / "synth_in", root / "out", formats=("cdf", "nc"))(day).products
     return sorted(set(paths))
 
 
@@ -387,8 +393,8 @@ def test_pipeline_cdfs_pass_spacepy_and_cdflib_istp_checks(
 
     cdfs = [p for p in pipeline_products if p.suffix == ".cdf"]
     kinds = {p.name.split("_")[2] for p in cdfs}
-    # MESSENGER: 6 frames x (sci, avg1, avg60); Rosetta: A B C E F G x (OB, IB) + HK
-    assert len(cdfs) == 18 + 13, sorted(p.name for p in cdfs)
+    # MESSENGER: 6 frames x (sci, avg1, avg60); Rosetta: A B C E F G x (OB, IB) + HK; synthetic
+    assert len(cdfs) == 18 + 13 + 1, sorted(p.name for p in cdfs)
     assert {"mso-sci", "rtn-avg60", "cla-hk", "clg-ib-a01"} <= kinds
     problems = {}
     caplog.set_level(logging.INFO, logger="cdflib")

@@ -3,7 +3,9 @@
 Input per day: ``<input_dir>/SYNTH_<yyyymmdd>.csv`` with header ``epoch_ns,cx,cy,cz``
 (sensor counts), and one calibration file ``<input_dir>/synthetic_calib.txt``
 (``offset = ox oy oz`` in counts, ``gain = g`` in nT/count).  Output per day:
-``<out_dir>/SYNTH_<yyyymmdd>.TAB/.LBL/.cdf`` with ``B = gain * (counts - offset)``.
+``<out_dir>/SYNTH_<yyyymmdd>.TAB/.LBL`` and the ISTP-named ``SYNTH_<yyyymmdd>_v01.cdf``
+(`fluxcal.products.cdf.istp_file_stem` of the ``Logical_source`` ``SYNTH``) with
+``B = gain * (counts - offset)``.
 
 Used by the batch tests, ``benchmarks/batch.py`` and ``fluxcal batch synthetic``.
 The ``crash_once_on`` option kills the worker process once, mid-write, on one day
@@ -26,11 +28,14 @@ import xarray as xr
 
 from fluxcal.errors import CalibrationError, InputFormatError
 from fluxcal.products.batch import DayInputs, DayResult, DayWithoutData
+from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.columns import Column
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.products.writer import write_product
 
 CALIB_NAME = "synthetic_calib.txt"
+#: ISTP ``Logical_source`` of the synthetic product (its CDF is ``SYNTH_<yyyymmdd>_v01.cdf``).
+LOGICAL_SOURCE = "SYNTH"
 _DAY_NS = 86_400 * 1_000_000_000
 
 
@@ -141,7 +146,9 @@ class SyntheticDayTask:
         if self.crash_once_on == day:
             self._maybe_crash(stem)
         cols = [Column("epoch", "%d"), Column("B", "%10.3f", label="B{c}")]
-        paths = write_product(ds, stem, formats=self.formats, columns=cols)
+        paths = write_product(ds, stem, formats=self.formats, columns=cols,
+                              label_extra={"Logical_source": LOGICAL_SOURCE},
+                              cdf_stem=stem.parent / istp_file_stem(LOGICAL_SOURCE, day, 1))
         if self.quicklook:
             from fluxcal.products.quicklook import write_quicklooks
 
