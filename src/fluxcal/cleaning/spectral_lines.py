@@ -308,6 +308,30 @@ def _neighbour_power(
     return p_left, p_right
 
 
+def _slow_part(
+    x: NDArray[np.float64], fs: float, f_pass: float, f_stop: float
+) -> NDArray[np.float64]:
+    """Low-pass (n, c) of a whole segment: 1 below ``f_pass``, cos^2 to 0 at ``f_stop``.
+
+    The segment is extended at both ends by odd reflection about its end values
+    (``2 x[0] - x[k]``), which continues the value and the slope, so the transform's
+    periodic wrap, placed four stop-band periods away from the data, does not leak
+    into the segment; the extension is removed after filtering.
+    """
+    n = x.shape[0]
+    p = int(min(n - 1, np.ceil(4.0 * fs / f_stop)))
+    head = 2.0 * x[:1] - x[p:0:-1]
+    tail = 2.0 * x[-1:] - x[-2 : -p - 2 : -1]
+    ext = np.concatenate([head, x, tail])
+    m = scipy.fft.next_fast_len(ext.shape[0], real=True)
+    ext = np.pad(ext, ((0, m - ext.shape[0]), (0, 0)), mode="edge")
+    f = scipy.fft.rfftfreq(m, 1.0 / fs)
+    ramp = np.clip((f - f_pass) / (f_stop - f_pass), 0.0, 1.0)
+    gain = np.cos(0.5 * np.pi * ramp) ** 2
+    low = scipy.fft.irfft(scipy.fft.rfft(ext, axis=0) * gain[:, None], n=m, axis=0)
+    return low[p : p + n]
+
+
 def _detrend_operator(length: int, degree: int) -> Callable[[NDArray], NDArray]:
     """Return a function removing the least-squares polynomial of ``degree`` (last axis).
 
@@ -345,15 +369,7 @@ def _clean_segment(
     starts = window_starts(n, length, overlap)
     nw = starts.size
     idx = starts[:, None] + np.arange(length)[None, :]
-    # The slow part of each window (field, trends: a low-order polynomial) is removed
-    # before the transforms and never enters them: only the change made in the band
-    # bins is transformed back and added to the series, so the polynomial needs no
-    # adding back.  Without this, the untapered window's leakage of a strong slow field
-    # sits in the band bins and replacing it adds a line (issue 11).
-    detrend = _detrend_operator(length, detrend_degree)
-    frames = detrend(x.T[:, idx])  # (c, nw, L)
-    spec = scipy.fft.rfft(frames, axis=-1)  # (c, nw, nb)
-    nb = spec.shape[-1]
+    nb = length // 2 + 1
     df = fs / length
     t_first, t_last = t[starts], t[starts + length - 1]
     t_mid = 0.5 * (t_first + t_last)
@@ -366,6 +382,24 @@ def _clean_segment(
     nbw = int(width.max()) if width.size else 0
     if nbw == 0:
         return x.copy(), starts, f_mid
+    # The slow part (field, trends, waves below the bands) is removed before the
+    # transforms and never enters them: only the change made in the band bins is
+    # transformed back and added to the series.  Without this, the untapered windows'
+    # leakage of a strong slow field sits in the band bins and replacing it adds a
+    # line (issue 11).  Two stages: a low-pass of the whole segment (`_slow_part`)
+    # stopping a power of two of bins >= 4 below each window's lowest band (guard
+    # bins off), then each window's least-squares polynomial of `detrend_degree`.
+    lowest = np.where(valid, lo, nb).min(axis=1) - _GUARD_BINS  # (nw,)
+    level = np.where(lowest >= 4, 2 ** np.floor(np.log2(np.maximum(lowest, 1))), 0)
+    frames = x.T[:, idx]  # (c, nw, L)
+    for stop_bins in np.unique(level[level > 0]):
+        sel = level == stop_bins
+        f_stop = float(stop_bins) * df
+        resid = x - _slow_part(x, fs, 0.5 * f_stop, f_stop)
+        frames[:, sel] = resid.T[:, idx[sel]]
+    detrend = _detrend_operator(length, detrend_degree)
+    frames = detrend(frames)
+    spec = scipy.fft.rfft(frames, axis=-1)  # (c, nw, nb)
     k_lines = lo.shape[1]
     bidx = lo[..., None] + np.arange(nbw)  # (nw, k, B): bins of each band, gathered
     bvalid = np.arange(nbw) < width[..., None]
@@ -511,10 +545,8 @@ def remove_spectral_lines(
     max_fill_samples : int
         Longest gap (in missing samples) bridged by interpolation inside a segment.
     detrend_degree : int
-        Degree of the least-squares polynomial removed from each window before the
-        transforms (the slow field and trends; it is not touched).  -1 disables it
-        (the literal seed procedure, which turns a strong slow field's leakage into
-        lines: +31 dB at 2.5 Hz for 100 nT at 600 s period).
+        Degree of the least-squares polynomial removed from each window (after the
+        segment's low-pass) before the transforms; -1 disables it.
     seed : int or numpy.random.Generator
         Seed of the substituted noise (reproducible).
 
@@ -530,10 +562,13 @@ def remove_spectral_lines(
 
     Notes
     -----
-    The slow part of each window (a polynomial of ``detrend_degree``) is removed
-    before the transforms and left in the series: an untapered window's leakage of a
-    strong slow field reaches the band bins, and replacing that leakage by background
-    noise would add a line (issue 11).  Each window is then transformed with a real FFT
+    The slow part is removed before the transforms and left in the series: an
+    untapered window's leakage of a strong slow field reaches the band bins, and
+    replacing that leakage by background noise would add a line (issue 11).  It is
+    removed in two stages: a low-pass of the whole segment (odd reflection at the
+    ends, cos^2 transition from half to all of a power of two of bins >= 4 that stays
+    `_GUARD_BINS` below the window's lowest band), then the window's least-squares
+    polynomial of ``detrend_degree``.  Each window is then transformed with a real FFT
     (the non-negative half of the complex
     FFT of a real series; replacing a bin and its mirror together keeps the series
     real), without a taper as in the seed.  Because an untapered window leaks a line
