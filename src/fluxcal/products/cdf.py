@@ -371,7 +371,7 @@ def _product_day(epoch: np.ndarray) -> np.datetime64:
     """UTC day of the median sample (the day a daily product is named after)."""
     from fluxcal.geometry.time import tt2000_to_datetime64
 
-    mid = np.sort(epoch)[epoch.size // 2]
+    mid = np.partition(epoch, epoch.size // 2)[epoch.size // 2]
     return tt2000_to_datetime64(np.array([mid]), default_lsk())[0].astype("M8[D]")
 
 

@@ -4,18 +4,21 @@ A plain ``xr.open_dataset(path)`` / ``xr.open_zarr(path)`` gives a ``datetime64[
 ``time`` index (``.sel``, ``.resample`` work) and the exact int64 TT2000 ``epoch``:
 
 * ``time`` is the UTC index of `fluxcal.products.timeindex.with_time_index` (added when
-  the Dataset has none), stored by xarray's CF encoding as int64
-  ``nanoseconds since 1970-01-01T00:00:00`` with the ``proleptic_gregorian`` calendar
-  (exact to the nanosecond; UTC without leap seconds, see `with_time_index`);
+  the Dataset has none), stored CF-encoded as int64 ``nanoseconds since
+  1970-01-01T00:00:00`` with the ``proleptic_gregorian`` calendar: the values and
+  attributes xarray's own datetime encoder writes for that encoding (exact to the
+  nanosecond; UTC without leap seconds, see `with_time_index`), formed directly from the
+  datetime64[ns] values (3x faster than the encoder for a 20 Hz day);
 * ``epoch`` is stored as it is, int64 (netCDF-4/HDF5 and Zarr hold int64);
 * attribute values that are not strings or numbers are JSON-encoded
   (`fluxcal.products.attrs`); booleans use xarray's own encoding (int8 + ``dtype``);
   fixed-width unicode variables are recorded in ``fluxcal_dtype`` so `read_netcdf`
   restores them exactly (netCDF-4 stores variable-length strings).
 
-The engine is ``netcdf4`` when the netCDF4 package is installed, else ``h5netcdf``
-(a dependency); both write netCDF-4 (HDF5) files.  Float NaN is stored as NaN with no
-``_FillValue`` attribute.
+The engine is always ``h5netcdf`` (a dependency; netCDF-4/HDF5 files): the file does not
+depend on whether the optional netCDF4 package is installed, and h5netcdf writes a 20 Hz
+day several times faster here.  Float NaN is stored as NaN with no ``_FillValue``
+attribute.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
@@ -33,13 +37,11 @@ from fluxcal.products.timeindex import TIME_COORD, with_time_index
 DTYPE_ATTR = "fluxcal_dtype"
 #: CF encoding of the ``time`` coordinate (int64 ns: exact).
 TIME_ENCODING = {"units": "nanoseconds since 1970-01-01T00:00:00",
-                 "calendar": "proleptic_gregorian", "dtype": "int64"}
+                 "calendar": "proleptic_gregorian"}
 
 
 def netcdf_engine() -> str:
-    """Return the xarray engine used for netCDF output (``netcdf4`` or ``h5netcdf``)."""
-    if importlib.util.find_spec("netCDF4") is not None:
-        return "netcdf4"
+    """Return the xarray engine used for netCDF products (``h5netcdf``)."""
     return "h5netcdf"
 
 
@@ -59,16 +61,17 @@ def encode_for_xarray(ds: xr.Dataset) -> xr.Dataset:
     ds = with_time_index(ds) if TIME_COORD in ds.dims else ds
     out = ds.copy(deep=False)
     out.attrs = encode_attrs(ds.attrs)
-    for name, var in out.variables.items():
+    for var in out.variables.values():
         attrs = encode_attrs(var.attrs)
         if var.dtype.kind == "U":
             attrs[DTYPE_ATTR] = "str"
         var.attrs = attrs
-        var.encoding = {}
-        if name == TIME_COORD and var.dtype.kind == "M":
-            var.encoding = dict(TIME_ENCODING)
-        elif var.dtype.kind == "f":
-            var.encoding = {"_FillValue": None}
+        var.encoding = {"_FillValue": None} if var.dtype.kind == "f" else {}
+    if TIME_COORD in out.variables and out[TIME_COORD].dtype == np.dtype("M8[ns]"):
+        t = out[TIME_COORD].variable
+        out = out.drop_vars(TIME_COORD).assign_coords(
+            {TIME_COORD: xr.Variable(t.dims, t.values.view(np.int64),
+                                     {**t.attrs, **TIME_ENCODING})})
     return out
 
 
