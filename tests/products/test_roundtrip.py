@@ -345,3 +345,20 @@ def test_time_index_needs_an_int64_epoch() -> None:
         with_time_index(ds)
     assert with_time_index(xr.Dataset({"c": ("x", [1])})).identical(
         xr.Dataset({"c": ("x", [1])}))
+
+
+def test_cf_time_is_what_xarrays_encoder_writes(dataset: xr.Dataset, tmp_path: Path) -> None:
+    write_product(dataset, tmp_path / "P", formats=("nc",))
+    ref = xr.Dataset(coords={"time": with_time_index(dataset)["time"].values})
+    ref["time"].encoding = {"units": "nanoseconds since 1970-01-01T00:00:00",
+                            "calendar": "proleptic_gregorian", "dtype": "int64"}
+    ref.to_netcdf(tmp_path / "ref.nc", engine="h5netcdf")
+    with xr.open_dataset(tmp_path / "P.nc", decode_times=False) as a, \
+            xr.open_dataset(tmp_path / "ref.nc", decode_times=False) as b:
+        assert a["time"].dtype == b["time"].dtype == np.int64
+        np.testing.assert_array_equal(a["time"].values, b["time"].values)
+        for key in ("units", "calendar"):
+            assert a["time"].attrs[key] == b["time"].attrs[key]
+    with xr.open_dataset(tmp_path / "P.nc") as plain:  # and decodes to the index
+        np.testing.assert_array_equal(plain["time"].values,
+                                      with_time_index(dataset)["time"].values)
