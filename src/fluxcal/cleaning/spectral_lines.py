@@ -332,22 +332,17 @@ def _slow_part(
     return low[p : p + n]
 
 
-def _detrend_operator(length: int, degree: int) -> Callable[[NDArray], NDArray]:
-    """Return a function removing the least-squares polynomial of ``degree`` (last axis).
+def _poly_basis(length: int, degree: int) -> NDArray[np.float64]:
+    """Orthonormal basis (length, degree + 1) of the polynomials on ``length`` points.
 
-    Orthonormal basis of the polynomials on ``length`` points (QR of a Vandermonde
-    matrix in ``[-1, 1]``); the residual is ``x - (x Q) Q^T``.  ``degree < 0``: identity.
+    QR of a Vandermonde matrix in ``[-1, 1]``; the least-squares polynomial of ``a``
+    (last axis) is ``(a Q) Q^T``.  ``degree < 0``: an empty basis (no detrending).
     """
     if degree < 0:
-        return lambda a: a
+        return np.zeros((length, 0))
     s = np.linspace(-1.0, 1.0, length)
     q, _ = np.linalg.qr(np.vander(s, min(degree, length - 1) + 1, increasing=True))
-
-    def apply(a: NDArray) -> NDArray:
-        qa = q.astype(a.dtype, copy=False)
-        return a - (a @ qa) @ qa.T
-
-    return apply
+    return q
 
 
 def _clean_segment(
@@ -397,8 +392,8 @@ def _clean_segment(
         f_stop = float(stop_bins) * df
         resid = x - _slow_part(x, fs, 0.5 * f_stop, f_stop)
         frames[:, sel] = resid.T[:, idx[sel]]
-    detrend = _detrend_operator(length, detrend_degree)
-    frames = detrend(frames)
+    q = _poly_basis(length, detrend_degree)
+    frames = frames - (frames @ q) @ q.T
     spec = scipy.fft.rfft(frames, axis=-1)  # (c, nw, nb)
     k_lines = lo.shape[1]
     bidx = lo[..., None] + np.arange(nbw)  # (nw, k, B): bins of each band, gathered
@@ -430,6 +425,8 @@ def _clean_segment(
     sb = gather(spec)  # (c, nw, k, B): current spectrum at the band bins
     model_t = np.zeros((c, nw, length), dtype=np.float32)
     nn = np.arange(length)
+    qf = q.astype(np.float32)
+    q_b = gather(np.broadcast_to(scipy.fft.rfft(q.T, axis=-1)[:, None, :], (q.shape[1], nw, nb)))
     for j in range(k_lines):  # loop over the few lines only
         wj = bvalid[:, j, :]  # (nw, B)
         if not wj.any():
@@ -441,10 +438,11 @@ def _clean_segment(
         # relative accuracy (-80 dB) and float32 cos/sin/FFT are several times faster
         phase = np.mod(phase, 2 * np.pi).astype(np.float32)
         u_t, v_t = np.cos(phase), np.sin(phase)  # (nw, L) float32
-        # fitted against the detrended window, so the basis is detrended too; the full
-        # sinusoid (u_t, v_t) is what is subtracted from the series
-        ub = gather(scipy.fft.rfft(detrend(u_t), axis=-1))  # (nw, k, B)
-        vb = gather(scipy.fft.rfft(detrend(v_t), axis=-1))
+        # fitted against the detrended window, so the basis is detrended too (in the
+        # spectrum: minus its polynomial's transform); the full sinusoid (u_t, v_t) is
+        # what is subtracted from the series
+        ub = gather(scipy.fft.rfft(u_t, axis=-1)) - np.einsum("wd,dwkb->wkb", u_t @ qf, q_b)
+        vb = gather(scipy.fft.rfft(v_t, axis=-1)) - np.einsum("wd,dwkb->wkb", v_t @ qf, q_b)
         uj, vj = ub[:, j, :], vb[:, j, :]
         uu = np.sum(wj * np.abs(uj) ** 2, axis=-1)
         vv = np.sum(wj * np.abs(vj) ** 2, axis=-1)
