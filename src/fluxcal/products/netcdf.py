@@ -4,9 +4,9 @@ A plain ``xr.open_dataset(path)`` / ``xr.open_zarr(path)`` gives a ``datetime64[
 ``time`` index (``.sel``, ``.resample`` work) and the exact int64 TT2000 ``epoch``:
 
 * ``time`` is the UTC index of `fluxcal.products.timeindex.with_time_index` (added when
-  the Dataset has none), stored CF-encoded as int64 ``nanoseconds since
-  1970-01-01T00:00:00`` with the ``proleptic_gregorian`` calendar: the values and
-  attributes xarray's own datetime encoder writes for that encoding (exact to the
+  the Dataset has none), stored CF-encoded as int64 ``nanoseconds since 1970-01-01``
+  with the ``proleptic_gregorian`` calendar: the values and attributes xarray's own
+  datetime encoder writes for that encoding (exact to the
   nanosecond; UTC without leap seconds, see `with_time_index`), formed directly from the
   datetime64[ns] values (3x faster than the encoder for a 20 Hz day);
 * ``epoch`` is stored as it is, int64 (netCDF-4/HDF5 and Zarr hold int64);
@@ -36,7 +36,7 @@ from fluxcal.products.timeindex import TIME_COORD, with_time_index
 
 DTYPE_ATTR = "fluxcal_dtype"
 #: CF encoding of the ``time`` coordinate (int64 ns: exact).
-TIME_ENCODING = {"units": "nanoseconds since 1970-01-01T00:00:00",
+TIME_ENCODING = {"units": "nanoseconds since 1970-01-01",
                  "calendar": "proleptic_gregorian"}
 
 
