@@ -1,6 +1,6 @@
 """Encoding of attribute values for formats that only hold strings and numbers.
 
-netCDF-3, CDF and the text label hold strings, numbers and (for some) lists of
+netCDF, Zarr, CDF and the text label hold strings, numbers and (for some) lists of
 numbers.  fluxcal's dataset attributes also carry lists and dicts (provenance).  Any
 value that is not a ``str``, ``int``, ``float`` or ``bool`` is stored as the string
 ``"json:" + json.dumps(value, sort_keys=True)``; `decode_value` reverses it, so
