@@ -6,7 +6,9 @@ Sub-commands are defined next to the code they drive (``missions/<m>/cli.py``,
 
 from __future__ import annotations
 
+import errno
 import logging
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -14,6 +16,7 @@ from pathlib import Path
 import typer
 
 from fluxcal import __version__
+from fluxcal.errors import FluxcalError
 
 app = typer.Typer(
     name="fluxcal",
@@ -30,6 +33,8 @@ app.add_typer(simulate_app, name="simulate")
 @app.callback()
 def _root(
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Log progress to stderr."),
+    debug: bool = typer.Option(False, "--debug", help="Show the full traceback of an error "
+                               "(also: FLUXCAL_DEBUG=1)."),
 ) -> None:
     logging.basicConfig(
         level=logging.INFO if verbose else logging.WARNING,
@@ -71,30 +76,136 @@ def _register() -> None:
 _register()
 
 
+DEBUG_ENV = "FLUXCAL_DEBUG"
+
+
+def _debug_requested(args: list[str]) -> bool:
+    """``--debug`` (removed from ``args``) or ``FLUXCAL_DEBUG=1``: show tracebacks."""
+    debug = "--debug" in args
+    while "--debug" in args:
+        args.remove("--debug")
+    return debug or os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
+
+
+def error_line(exc: BaseException) -> str:
+    """Return the one line ``fluxcal: error: ...`` printed for a user-facing error.
+
+    `FluxcalError` messages already name the file, record and field.  An `OSError`
+    names the path (and a second path for renames) and says what to do for the usual
+    causes (no space left, no permission, a file where a folder is expected).
+    """
+    if isinstance(exc, OSError) and not isinstance(exc, FluxcalError):
+        paths = " -> ".join(str(p) for p in (exc.filename, exc.filename2) if p)
+        what = exc.strerror or str(exc) or type(exc).__name__
+        hint = {
+            errno.ENOSPC: "free space on that disk or choose another --out",
+            errno.EDQUOT: "free space on that disk or choose another --out",
+            errno.EACCES: "choose a folder you can write to (--out) or fix its permissions",
+            errno.EPERM: "choose a folder you can write to (--out) or fix its permissions",
+            errno.EROFS: "the file system is read-only: choose another --out",
+            errno.ENOTDIR: "a file stands where a folder is expected: choose another path",
+            errno.EEXIST: "a file stands where a folder is expected: choose another path",
+            errno.ENOENT: "check the path",
+            errno.EISDIR: "give a file, not a folder",
+        }.get(exc.errno or -1, "")
+        text = f"{paths}: {what}" if paths else what
+        line = f"{text} ({hint})" if hint else text
+    else:
+        line = str(exc) or type(exc).__name__
+    return "fluxcal: error: " + " ".join(line.split())
+
+
+def _out_folder(args: list[str]) -> Path | None:
+    """Return the ``--out`` folder of a command other than ``batch`` (its days are atomic)."""
+    command = next((a for a in args if not a.startswith("-")), "")
+    if command == "batch" or "--help" in args:
+        return None
+    for i, a in enumerate(args):
+        if a == "--out" and i + 1 < len(args):
+            return Path(args[i + 1])
+        if a.startswith("--out="):
+            return Path(a.split("=", 1)[1])
+    return None
+
+
+class _LeaveNothing:
+    """Remove what a failed command created under its ``--out`` folder.
+
+    Products are written atomically already; this also covers multi-file outputs
+    (``simulate``: kernels, calibration files, CSVs) interrupted half-way, e.g. by a
+    full disk.  Files that existed before the command are kept.
+    """
+
+    def __init__(self, out: Path | None) -> None:
+        self.out = out
+        self.existed = out is not None and out.exists()
+        self.before: set[Path] = set()
+        if out is not None and out.is_dir():
+            self.before = set(out.rglob("*"))
+
+    def undo(self) -> None:
+        import shutil
+
+        out = self.out
+        if out is None or not out.exists():
+            return
+        if not self.existed:
+            shutil.rmtree(out, ignore_errors=True)
+            return
+        if not out.is_dir():
+            return
+        new = sorted(set(out.rglob("*")) - self.before, key=lambda p: len(p.parts),
+                     reverse=True)
+        for p in new:
+            try:
+                if p.is_dir() and not p.is_symlink():
+                    shutil.rmtree(p, ignore_errors=True)
+                else:
+                    p.unlink(missing_ok=True)
+            except OSError:
+                pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit code.
 
-    Usage errors print click's message and return its code (2); a `FluxcalError` prints
-    ``fluxcal: error: ...`` and returns 2; ``typer.Exit(code)`` returns ``code``.
+    Exit codes: 0 success; 1 a batch with a failed day, or an internal error (a bug:
+    one line, the traceback with ``--debug``); 2 every user-facing error -- usage errors
+    (click's message), `FluxcalError` and `OSError` (unwritable folder, full disk,
+    missing file) -- printed as one line ``fluxcal: error: ...`` naming the path and
+    what to do, leaving nothing new under ``--out`` (`_LeaveNothing`; not for
+    ``batch``, whose finished days stay).  ``--debug`` (anywhere on the line) or
+    ``FLUXCAL_DEBUG=1`` re-raises instead, with the full traceback.
+    ``typer.Exit(code)`` returns ``code``; Ctrl-C returns 130.
     """
-    from fluxcal.errors import FluxcalError
-
     args = list(sys.argv[1:] if argv is None else argv)
+    debug = _debug_requested(args)
+    guard = _LeaveNothing(_out_folder(args))
     try:
         code = app(args=args, prog_name="fluxcal", standalone_mode=False)
     except SystemExit as exc:
         return int(exc.code or 0)
-    except FluxcalError as exc:
-        typer.echo(f"fluxcal: error: {exc}", err=True)
+    except (FluxcalError, OSError) as exc:
+        guard.undo()
+        if debug:
+            raise
+        typer.echo(error_line(exc), err=True)
         return 2
-    except typer.Abort:
+    except (typer.Abort, KeyboardInterrupt):
+        guard.undo()
         typer.echo("Aborted.", err=True)
-        return 1
+        return 130
     except Exception as exc:
         # click's (and typer's vendored click's) usage errors and Exit carry exit_code
         exit_code = getattr(exc, "exit_code", None)
         if exit_code is None:
-            raise
+            guard.undo()
+            if debug:
+                raise
+            typer.echo(f"fluxcal: internal error: {type(exc).__name__}: "
+                       f"{' '.join(str(exc).split())[:300]} (a bug: please report it with "
+                       f"the traceback that --debug or {DEBUG_ENV}=1 shows)", err=True)
+            return 1
         show = getattr(exc, "show", None)
         if callable(show):
             show()

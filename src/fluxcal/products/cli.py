@@ -26,11 +26,18 @@ def plot(
                                           "B* vector in nT)."),
 ) -> None:
     """Render a quicklook PNG per day of a product."""
-    from fluxcal.products.quicklook import save_png, spectrogram_figure, write_quicklooks
+    from fluxcal import preflight
+    from fluxcal.products.quicklook import (
+        epoch_from_table,
+        save_png,
+        spectrogram_figure,
+        write_quicklooks,
+    )
     from fluxcal.products.writer import read_product
 
-    ds = read_product(product)
     out_dir = out or product.parent
+    preflight.writable_folder(out_dir, "--out")
+    ds = epoch_from_table(read_product(product))
     paths = write_quicklooks(ds, out_dir, product.stem, field=field)
     if spectrogram:
         paths.append(save_png(spectrogram_figure(ds, field),
@@ -73,9 +80,14 @@ def batch(
     if d1 < d0:
         raise InputFormatError(f"--end {d1} is before --start {d0}", field="--end")
     factory = task_factory(mission)
+    fmts = _preflight(out, kernels, calib, formats, scheduler)
     options = {"kernels": kernels, "calib": calib, "quicklook": quicklook or None,
-               "formats": tuple(f.strip() for f in formats.split(",") if f.strip())}
+               "formats": fmts}
     task = factory(input_dir, out, **{k: v for k, v in options.items() if v is not None})
+    if mission == "rosetta":
+        from fluxcal.missions.rosetta.cli import warn_placeholder_alignment
+
+        warn_placeholder_alignment(task.calib_dir())
     days = day_range(d0, d1)
     console = Console(stderr=True)
     if not logging.getLogger().isEnabledFor(logging.INFO):  # no --verbose
@@ -89,6 +101,32 @@ def batch(
         # SystemExit, not typer.Exit: fluxcal.cli.main runs click with
         # standalone_mode=False, where typer.Exit's code is returned and dropped.
         raise SystemExit(1)
+
+
+def _preflight(out: Path, kernels: Path | None, calib: Path | None, formats: str,
+               scheduler: str | None) -> tuple[str, ...]:
+    """Check what can be checked before the first day; return the product formats.
+
+    An unwritable ``--out``, a missing ``--kernels`` file or ``--calib`` folder, an
+    unknown format and an unreachable ``--scheduler`` each raise a `FluxcalError`
+    (one line, exit 2) before any day is computed or any file is written.
+    """
+    from fluxcal import preflight
+    from fluxcal.products.writer import FORMATS
+
+    fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
+    bad = [f for f in fmts if f not in FORMATS]
+    if bad or not fmts:
+        raise InputFormatError(f"{formats!r}: unknown product format(s) {bad}; choose from "
+                               f"{','.join(FORMATS)}", field="--formats")
+    if kernels is not None:
+        preflight.existing_file(kernels, "--kernels")
+    if calib is not None:
+        preflight.existing_folder(calib, "--calib")
+    preflight.writable_folder(out, "--out")
+    if scheduler is not None and scheduler != "serial":
+        preflight.reachable_scheduler(scheduler)
+    return fmts
 
 
 def _run_with_progress(days, task, out, scheduler, workers, force, name, console, quiet):

@@ -8,7 +8,7 @@ from typing import Any
 
 import xarray as xr
 
-from fluxcal.errors import InputFormatError
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.products.atomic import atomic_group
 from fluxcal.products.cdf import read_cdf, write_cdf
 from fluxcal.products.columns import Column
@@ -116,5 +116,15 @@ def read_product(path: Path) -> xr.Dataset:
                                f"{sorted(READERS)}", path=str(path))
     if path.suffix.lower() == ".lbl":
         path = path.with_suffix(".TAB")
-    ds = reader(path)
+    try:
+        ds = reader(path)
+    except (FluxcalError, FileNotFoundError, PermissionError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - e.g. MemoryError from a corrupt size field
+        # a truncated or foreign file breaks the format library in many ways (the
+        # cause stays chained: ``fluxcal --debug`` shows it)
+        raise InputFormatError(
+            f"not a readable {path.suffix.lstrip('.').upper()} product ({type(exc).__name__}: "
+            f"{' '.join(str(exc).split())[:200]}); give a product written by fluxcal",
+            path=str(path)) from exc
     return with_time_index(ds) if "epoch" in ds.coords else ds

@@ -1,0 +1,199 @@
+"""Every user-facing CLI error: one line on stderr, exit code 2, nothing left behind.
+
+A table of bad inputs walks the commands through `fluxcal.cli.main`.  For each case the
+test checks the exit code, that stderr holds exactly one line starting
+``fluxcal: error:`` (no traceback), that the line names the offending path or option,
+and that the output folder holds exactly what it held before (a ``keep.txt``).
+"""
+
+from __future__ import annotations
+
+import errno
+import gzip
+import socket
+from pathlib import Path
+
+import pytest
+
+from fluxcal.cli import main
+
+ROSETTA_CSV = ("time_utc,obt,sid,bx,by,bz,t_ob,t_ib,quality\n"
+               "2014-08-01T00:00:00.000000,365471901.094381,2,12267,-3093,21919,10193,10818,0\n")
+MESSENGER_SCI_HEADER = "partition,met,rate,range,cx,cy,cz\n"
+
+
+def _free_port() -> int:
+    with socket.socket() as s:  # bound then closed: nothing listens there afterwards
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture()
+def world(tmp_path: Path) -> dict[str, Path]:
+    """Small bad and good inputs, an output folder with one file, a file as 'folder'."""
+    w = {"tmp": tmp_path}
+    w["out"] = tmp_path / "out"
+    w["out"].mkdir()
+    (w["out"] / "keep.txt").write_text("kept\n")
+    w["file"] = tmp_path / "a_file"
+    w["file"].write_text("not a folder\n")
+    w["blocked"] = w["file"] / "out"  # a file where a folder is needed
+    w["csv"] = tmp_path / "RPCMAG_20140801_RAW_OB.csv"
+    w["csv"].write_text(ROSETTA_CSV)
+    w["gz"] = tmp_path / "RPCMAG_20140801_RAW_OB.csv.gz"
+    w["gz"].write_bytes(gzip.compress(ROSETTA_CSV.encode()))
+    w["header_only"] = tmp_path / "RPCMAG_20140801_RAW_IB.csv"
+    w["header_only"].write_text(ROSETTA_CSV.splitlines()[0] + "\n")
+    w["empty_cdf"] = tmp_path / "empty.cdf"
+    w["empty_cdf"].write_bytes(b"")
+    w["corrupt_cdf"] = tmp_path / "corrupt.cdf"
+    w["corrupt_cdf"].write_bytes(b"\xcd\xf3\x00\x01\x00\x00\xff\xff" + b"\x07" * 300)
+    w["inputs"] = tmp_path / "inputs"
+    w["inputs"].mkdir()
+    w["mess_hdr"] = tmp_path / "MAG_science.csv"
+    w["mess_hdr"].write_text(MESSENGER_SCI_HEADER)
+    return w
+
+
+def _batch(w, *extra: str) -> list[str]:
+    return ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-01",
+            "--input", str(w["inputs"]), "--scheduler", "serial", "--quiet", *extra]
+
+
+def _calibrate(w, science: str = "csv", *extra: str) -> list[str]:
+    return ["rosetta", "calibrate", "--science", str(w[science]), "--sensor", "OB", *extra]
+
+
+# (case id, argv builder, text the error line must contain)
+CASES = [
+    ("calibrate-out-is-a-file", lambda w: [*_calibrate(w), "--out", str(w["blocked"])],
+     "--out"),
+    ("calibrate-calib-missing", lambda w: [*_calibrate(w), "--out", str(w["out"]),
+                                           "--calib", str(w["tmp"] / "no_such_dir")],
+     "--calib"),
+    ("calibrate-kernels-missing", lambda w: [*_calibrate(w), "--out", str(w["out"]),
+                                             "--kernels", str(w["tmp"] / "none.tm")],
+     "--kernels"),
+    ("calibrate-gzip-input", lambda w: [*_calibrate(w, "gz"), "--out", str(w["out"])],
+     "gunzip"),
+    ("calibrate-header-only", lambda w: [*_calibrate(w, "header_only"), "--out",
+                                         str(w["out"])], "RPCMAG_20140801_RAW_IB.csv"),
+    ("simulate-rosetta-out-is-a-file",
+     lambda w: ["simulate", "rosetta", "--out", str(w["blocked"])], "--out"),
+    ("simulate-rosetta-negative-hours",
+     lambda w: ["simulate", "rosetta", "--out", str(w["out"]), "--hours", "-1"], "--hours"),
+    ("simulate-rosetta-zero-rate",
+     lambda w: ["simulate", "rosetta", "--out", str(w["out"]), "--rate", "0"], "--rate"),
+    ("simulate-rosetta-bad-start",
+     lambda w: ["simulate", "rosetta", "--out", str(w["out"]), "--start", "yesterday"],
+     "--start"),
+    ("simulate-rosetta-bad-primary",
+     lambda w: ["simulate", "rosetta", "--out", str(w["out"]), "--primary", "XB"],
+     "--primary"),
+    ("simulate-messenger-out-is-a-file",
+     lambda w: ["simulate", "messenger", "--out", str(w["blocked"])], "a_file"),
+    ("plot-empty-cdf", lambda w: ["plot", str(w["empty_cdf"]), "--out", str(w["out"])],
+     "empty.cdf"),
+    ("plot-corrupt-cdf", lambda w: ["plot", str(w["corrupt_cdf"]), "--out", str(w["out"])],
+     "corrupt.cdf"),
+    ("plot-out-is-a-file", lambda w: ["plot", str(w["corrupt_cdf"]), "--out",
+                                      str(w["blocked"])], "--out"),
+    ("clean-empty-cdf", lambda w: ["rosetta", "clean", "--level", "K", "--input",
+                                   str(w["empty_cdf"]), "--out", str(w["out"])], "empty.cdf"),
+    ("clean-corrupt-cdf", lambda w: ["rosetta", "clean", "--level", "K", "--input",
+                                     str(w["corrupt_cdf"]), "--out", str(w["out"])],
+     "corrupt.cdf"),
+    ("demo-out-is-a-file", lambda w: ["demo", "--out", str(w["blocked"])], "a_file"),
+    ("batch-out-is-a-file", lambda w: [*_batch(w), "--out", str(w["blocked"])], "--out"),
+    ("batch-kernels-missing", lambda w: [*_batch(w), "--out", str(w["out"]), "--kernels",
+                                         str(w["tmp"] / "none.tm")], "--kernels"),
+    ("batch-calib-missing", lambda w: [*_batch(w), "--out", str(w["out"]), "--calib",
+                                       str(w["tmp"] / "no_such_dir")], "--calib"),
+    ("batch-bad-format", lambda w: [*_batch(w), "--out", str(w["out"]), "--formats",
+                                    "tab,pdf"], "--formats"),
+    ("batch-unreachable-scheduler",
+     lambda w: ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-01",
+                "--input", str(w["inputs"]), "--out", str(w["out"]), "--quiet",
+                "--scheduler", f"tcp://127.0.0.1:{_free_port()}"], "--scheduler"),
+]
+
+
+def _snapshot(w) -> set[str]:
+    return {str(p.relative_to(w["tmp"])) for p in w["tmp"].rglob("*")}
+
+
+@pytest.mark.parametrize("build,expect", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_one_line_exit_2_nothing_left(world, capsys, build, expect) -> None:
+    before = _snapshot(world)
+    code = main(build(world))
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("fluxcal: error: "), err
+    assert expect in lines[0], lines[0]
+    assert "Traceback" not in err
+    assert _snapshot(world) == before  # nothing new anywhere, keep.txt untouched
+    assert (world["out"] / "keep.txt").read_text() == "kept\n"
+
+
+MESSENGER_NEEDS = ("needs messenger/cli.py (helper-4) to check its CSVs before reading: "
+                   "fluxcal.preflight.plain_text_file(path, '--sci', header_lines=1) for "
+                   "every --sci/--heater/--temperature file (or the reader to refuse)")
+
+
+@pytest.mark.xfail(reason=MESSENGER_NEEDS, strict=False)
+@pytest.mark.parametrize("kind", ["header-only", "gzip"])
+def test_messenger_bad_science_file(world, capsys, kind) -> None:
+    sci = world["mess_hdr"]
+    if kind == "gzip":
+        sci = world["tmp"] / "MAG_science.csv.gz"
+        sci.write_bytes(gzip.compress(b"partition,met,rate,range,cx,cy,cz\n1,2,3,0,1,2,3\n"))
+    heater, temp = world["tmp"] / "MAG_heater.csv", world["tmp"] / "MAG_temperature.csv"
+    heater.write_text("partition,met,heater\n1,246993728,0\n")
+    temp.write_text("partition,met,temperature_c\n1,246993728,20.0\n")
+    before = _snapshot(world)
+    code = main(["messenger", "edr2cdr", "--sci", str(sci), "--heater", str(heater),
+                 "--temperature", str(temp), "--kernels", str(world["file"]),
+                 "--out", str(world["out"])])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and sci.name in err, err
+    assert _snapshot(world) == before
+
+
+def test_full_disk_during_simulate_leaves_nothing(world, capsys, monkeypatch) -> None:
+    """ENOSPC half-way through ``simulate rosetta``: one line, exit 2, no partial set."""
+    from fluxcal.missions.rosetta import calib
+
+    def full(model, folder, *args, **kwargs):  # after the kernels and alignment are written
+        raise OSError(errno.ENOSPC, "No space left on device", str(Path(folder) / "x.TXT"))
+
+    monkeypatch.setattr(calib, "write_daily_offset_model", full)
+    target = world["out"] / "sim"
+    before = _snapshot(world)
+    code = main(["simulate", "rosetta", "--out", str(target), "--hours", "0.01"])
+    err = capsys.readouterr().err
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "No space left on device" in line and "free space" in line and "x.TXT" in line
+    assert _snapshot(world) == before
+
+
+def test_debug_shows_the_traceback(world, monkeypatch) -> None:
+    with pytest.raises(OSError):
+        main(["--debug", "demo", "--out", str(world["blocked"])])
+    monkeypatch.setenv("FLUXCAL_DEBUG", "1")
+    with pytest.raises(OSError):
+        main(["demo", "--out", str(world["blocked"])])
+
+
+def test_internal_error_is_one_line_exit_1(world, capsys, monkeypatch) -> None:
+    """A bug (not a user error) is one line pointing to --debug, exit 1."""
+    import fluxcal.demo
+
+    def bug(out):
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(fluxcal.demo, "run_demo", bug)
+    assert main(["demo", "--out", str(world["out"])]) == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "internal error" in line and "--debug" in line
