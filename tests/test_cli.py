@@ -35,3 +35,54 @@ def test_every_command_has_help(capsys):
                 ["simulate", "messenger"], ["simulate", "rosetta"], ["plot"], ["batch"],
                 ["demo"]):
         assert main([*cmd, "--help"]) == 0, cmd
+
+
+def _small_science(tmp_path):
+    from tests.missions.rosetta._raw import write_raw_csv
+
+    return write_raw_csv(tmp_path / "RPCMAG_20140801_RAW_OB.csv", "2014-08-01T10:00:00", 400,
+                         0.05)
+
+
+def test_rosetta_calib_folder_missing_is_an_error_not_a_fallback(capsys, tmp_path):
+    """Before: exit 0 with the shipped files (placeholder alignment) used silently."""
+    sci, out = _small_science(tmp_path), tmp_path / "out"
+    code = main(["rosetta", "calibrate", "--science", str(sci), "--sensor", "OB",
+                 "--levels", "A,B", "--calib", str(tmp_path / "no" / "such" / "dir"),
+                 "--out", str(out)])
+    assert code == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "--calib" in line and "does not exist" in line
+    assert not out.exists()
+
+
+def test_rosetta_placeholder_alignment_warns_and_is_recorded(capsys, tmp_path):
+    """The shipped alignment is marked PLACEHOLDER: terminal, CDF attribute and label say so."""
+    import cdflib
+
+    sci, out = _small_science(tmp_path), tmp_path / "out"
+    args = ["rosetta", "calibrate", "--science", str(sci), "--sensor", "OB",
+            "--levels", "A,B", "--formats", "tab,cdf", "--out", str(out)]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "warning" in err and "PLACEHOLDER" in err and "RPCMAG_SC_ALIGN.TXT" in err
+    (cdf,) = out.glob("*clb-ob*.cdf")
+    attrs = cdflib.CDF(str(cdf)).globalattsget()
+    assert "PLACEHOLDER" in " ".join(attrs["alignment"])
+    assert any("PLACEHOLDER" in p.read_text() for p in out.glob("*_CLB_OB_*.LBL"))
+    # every run, not once
+    assert main(args) == 0
+    assert "PLACEHOLDER" in capsys.readouterr().err
+
+
+def test_rosetta_measured_alignment_does_not_warn(capsys, tmp_path):
+    from fluxcal.missions.rosetta import calib
+    from fluxcal.missions.rosetta.simulate import synthetic_alignment
+
+    sci, out, cal = _small_science(tmp_path), tmp_path / "out", tmp_path / "calib"
+    cal.mkdir()
+    calib.write_alignment(synthetic_alignment(), cal / calib.ALIGN_FILE)
+    assert not calib.load_alignment(cal).placeholder
+    assert main(["rosetta", "calibrate", "--science", str(sci), "--sensor", "OB",
+                 "--levels", "A,B", "--calib", str(cal), "--out", str(out)]) == 0
+    assert "PLACEHOLDER" not in capsys.readouterr().err

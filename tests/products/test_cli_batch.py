@@ -79,3 +79,19 @@ def test_cli_batch_progress_and_summary_table(tmp_path: Path, capsys, monkeypatc
     assert "failed" in rows["2024-03-03"] and "InputFormatError" in rows["2024-03-03"]
     assert "2 done, 0 skipped, 0 no_data, 1 failed" in err
     assert str(out / "batch_report_synthetic.json") in err.replace("\n", "")
+
+
+def test_cli_batch_rosetta_placeholder_alignment_warns(tmp_path: Path, capsys) -> None:
+    """Before: the batch used the placeholder alignment without a word."""
+    inp, out = tmp_path / "in", tmp_path / "out"
+    inp.mkdir()
+    args = ["batch", "rosetta", "--start", "2014-08-01", "--end", "2014-08-01",
+            "--input", str(inp), "--out", str(out), "--scheduler", "serial", "--quiet",
+            "--formats", "cdf"]
+    assert main(args) == 0  # no data that day: nothing to compute, but the warning stands
+    err = capsys.readouterr().err
+    assert "PLACEHOLDER" in err and "RPCMAG_SC_ALIGN.TXT" in err
+    missing = tmp_path / "no_calib"
+    assert main([*args, "--calib", str(missing)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "--calib" in line and str(missing) in line
