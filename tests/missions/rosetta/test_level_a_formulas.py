@@ -305,3 +305,33 @@ def test_extended_model_fifth_order_closed_form():
     assert sources == ["2014-08-01"]
     # the fifth-order term matters at -140 C: 1e-10 * (-140)^5 = -5.4 nT in x
     assert abs(expected[0, 0] - sum(t[0] ** k * c[k, 0] for k in range(5))) > 5.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-50, 50), min_size=8, max_size=8),  # P_0, P_1 of both days, x y z
+    st.floats(-150, 40),
+    st.floats(-150, 40),
+    st.integers(1, 6 * 3600),
+)
+def test_stitching_continuity_any_models(coefs, t_last, t_first, gap_s):
+    """Sec. 4.2.3.3 for any pair of daily polynomials (both signs, any temperatures): within
+    the gap limit the first vector of the new day gets exactly the stored offset of the last
+    one; beyond it, the new day's own polynomial."""
+    ns = 1_000_000_000
+    c1, c2 = np.zeros((6, 3)), np.zeros((6, 3))
+    c1[0], c1[1] = coefs[0:3], [coefs[3] * 0.01] * 3
+    c2[0], c2[1] = coefs[4:7], [coefs[7] * 0.01] * 3
+    last = -((gap_s + 1) // 2)  # last vector of day 1 before midnight, first of day 2 after
+    epoch = np.array([last - 10, last, last + gap_s, last + gap_s + 10], dtype=np.int64) * ns
+    day_index = (epoch >= 0).astype(int)
+    t = np.array([t_last, t_last, t_first, t_first])
+    days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
+    models = _models({"2014-08-01": c1, "2014-08-02": c2})
+    off, state, _ = level_a.extended_offset(epoch, t, day_index, days, models)
+    p2 = c2[0] + c2[1] * t_first
+    if gap_s <= 3 * 3600:
+        np.testing.assert_allclose(off[2], off[1], rtol=0, atol=1e-9)
+    else:
+        np.testing.assert_allclose(off[2], p2, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(state.offset, off[3], rtol=0, atol=0)
