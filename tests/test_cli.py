@@ -86,3 +86,15 @@ def test_rosetta_measured_alignment_does_not_warn(capsys, tmp_path):
     assert main(["rosetta", "calibrate", "--science", str(sci), "--sensor", "OB",
                  "--levels", "A,B", "--calib", str(cal), "--out", str(out)]) == 0
     assert "PLACEHOLDER" not in capsys.readouterr().err
+
+
+def test_plot_rosetta_tab_product(capsys, tmp_path):
+    """Before: KeyError 'epoch' (archive tables carry time_utc text, not TT2000)."""
+    sci, out = _small_science(tmp_path), tmp_path / "out"
+    assert main(["rosetta", "calibrate", "--science", str(sci), "--sensor", "OB",
+                 "--levels", "A", "--formats", "tab", "--out", str(out)]) == 0
+    (tab,) = out.glob("*_CLA_OB_*.TAB")
+    capsys.readouterr()
+    assert main(["plot", str(tab), "--out", str(tmp_path / "ql"), "--spectrogram"]) == 0
+    names = sorted(p.name for p in (tmp_path / "ql").iterdir())
+    assert names == [f"{tab.stem}_20140801.png", f"{tab.stem}_spec.png"]

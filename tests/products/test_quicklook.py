@@ -128,3 +128,120 @@ def test_cli_plot(fmt: str, suffix: str, tmp_path: Path) -> None:
                  "--spectrogram"]) == 0
     assert sorted(p.name for p in (tmp_path / "ql").iterdir()) == ["P_20240101.png",
                                                                    "P_spec.png"]
+
+
+# --- issue 12: per-day PNGs, .TAB time columns, variable-rate spectrogram ------------------
+
+
+def _tt2000(y: int, mo: int, d: int, h: int = 0, mi: int = 0, s: int = 0) -> int:
+    import cdflib
+
+    return int(cdflib.cdfepoch.compute_tt2000([y, mo, d, h, mi, s, 0, 0, 0]))
+
+
+def test_run_over_two_days_gives_a_png_per_day(tmp_path: Path) -> None:
+    """20 h from 12:00 (before: one PNG, the run was within the old 25 h slack)."""
+    n = 2000
+    ds = make_dataset(n)
+    step = 20 * 3600 * 10**9 // n
+    epoch = _tt2000(2024, 1, 1, 12) + np.arange(n, dtype=np.int64) * step
+    ds = ds.assign_coords(epoch=("time", epoch))
+    days = split_days(ds)
+    assert [d for d, _ in days] == ["20240101", "20240102"]
+    # 12 h then 8 h of samples at a constant spacing
+    assert [sub.sizes["time"] for _, sub in days] == [1200, 800]
+    paths = write_quicklooks(ds, tmp_path, "P")
+    assert [p.name for p in paths] == ["P_20240101.png", "P_20240102.png"]
+
+
+def test_small_edge_at_the_end_is_drawn_with_its_day() -> None:
+    ds = make_dataset(1000)
+    # a day ending 2 samples (latency-shifted) past midnight: one day
+    epoch = _tt2000(2024, 1, 1) + 86_400 * 10**9 - 998 * 10**9 + np.arange(1000) * 10**9
+    ds = ds.assign_coords(epoch=("time", epoch.astype(np.int64)))
+    ((day, sub),) = split_days(ds)
+    assert day == "20240101" and sub.sizes["time"] == 1000
+
+
+def test_epoch_from_rosetta_time_utc() -> None:
+    from fluxcal.products.quicklook import epoch_from_table
+
+    utc = np.array(["2014-08-01T00:00:08.200000", "2015-06-30T23:59:60.500000",
+                    "2015-07-01T00:00:00.000001"])
+    ds = xr.Dataset({"time_utc": ("time", utc)})
+    got = epoch_from_table(ds)["epoch"].values
+    # cdflib's own leap-second table and calendar (independent of fluxcal's)
+    expect = [_tt2000(2014, 8, 1, 0, 0, 8) + 200_000_000,
+              _tt2000(2015, 6, 30, 23, 59, 59) + 1_500_000_000,  # inside the leap second
+              _tt2000(2015, 7, 1) + 1_000]
+    assert got.tolist() == expect
+
+
+def test_epoch_from_messenger_fields() -> None:
+    from fluxcal.products.quicklook import epoch_from_table
+
+    ds = xr.Dataset({"year": ("time", np.array([2012, 2012, 2013])),
+                     "doy": ("time", np.array([153, 366, 1])),
+                     "hour": ("time", np.array([0, 23, 0])),
+                     "minute": ("time", np.array([0, 59, 0])),
+                     "second": ("time", np.array([0.07, 59.5, 0.0]))})
+    got = epoch_from_table(ds)["epoch"].values
+    expect = [_tt2000(2012, 6, 1) + 70_000_000, _tt2000(2012, 12, 31, 23, 59, 59) + 500_000_000,
+              _tt2000(2013, 1, 1)]
+    assert got.tolist() == expect
+
+
+def test_epoch_from_table_without_time_is_an_error() -> None:
+    from fluxcal.products.quicklook import epoch_from_table
+
+    with pytest.raises(InputFormatError, match="time_utc"):
+        epoch_from_table(xr.Dataset({"b": ("time", np.zeros(3))}))
+
+
+def _variable_rate_dataset() -> tuple[xr.Dataset, float]:
+    """4000 s at 20 Hz (3 Hz line), then 4000 s at 1 Hz (0.2 Hz line), from 06:00."""
+    t20 = np.arange(80_000) / 20.0
+    t1 = 4000.0 + np.arange(4000) / 1.0
+    t = np.r_[t20, t1]
+    sig = np.r_[np.sin(2 * np.pi * 3.0 * t20), np.sin(2 * np.pi * 0.2 * t1)]
+    start = _tt2000(2024, 1, 1, 6)
+    epoch = start + np.round(t * 1e9).astype(np.int64)
+    ds = xr.Dataset({"B": (("time", "component"), np.column_stack([sig, sig, sig]),
+                           {"units": "nT"})},
+                    coords={"epoch": ("time", epoch)})
+    return ds, 6 * 3600.0
+
+
+def test_spectrogram_keeps_real_times_when_the_rate_changes() -> None:
+    """Before: 84,000 samples at the median 20 Hz were drawn over 4,200 s instead of 8,000 s."""
+    ds, t0 = _variable_rate_dataset()
+    fig = spectrogram_figure(ds)
+    ax = fig.axes[0]
+    meshes = ax.collections
+    assert len(meshes) == 2  # one per evenly sampled run
+    x_ranges = [m.get_coordinates()[0, [0, -1], 0] for m in meshes]
+    # each run spans its own real seconds of the day (within one segment, 256 samples)
+    assert x_ranges[0][0] == pytest.approx(t0, abs=256 / 20)
+    assert x_ranges[0][1] == pytest.approx(t0 + 4000, abs=256 / 20)
+    assert x_ranges[1][0] == pytest.approx(t0 + 4000, abs=256)
+    assert x_ranges[1][1] == pytest.approx(t0 + 8000, abs=256)
+    for mesh, line, fs in zip(meshes, (3.0, 0.2), (20.0, 1.0), strict=True):
+        # 'nearest' shading: cell edges around the nperseg/2 + 1 = 129 frequencies
+        power = np.asarray(mesh.get_array()).reshape(129, -1)
+        centres = np.linspace(0, fs / 2, 129)
+        assert centres[power.mean(axis=1).argmax()] == pytest.approx(line, abs=fs / 256)
+
+
+def test_spectrogram_titles_do_not_overlap_the_panel_above() -> None:
+    ds, _ = _variable_rate_dataset()
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = spectrogram_figure(ds)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    panels = [ax for ax in fig.axes if ax.get_ylabel() == "Frequency (Hz)"]
+    assert len(panels) == 3
+    for upper, lower in zip(panels[:-1], panels[1:], strict=True):
+        title = lower.title.get_window_extent(renderer)
+        above = upper.get_tightbbox(renderer)
+        assert title.y1 <= above.y0 + 0.5, (title, above)  # display pixels

@@ -205,7 +205,10 @@ def save_png(fig: Figure, path: Path) -> Path:
     return path
 
 
-ONE_DAY_SLACK_NS = 25 * NS_PER_HOUR
+#: An edge day holding less than this span of data ...
+EDGE_SPAN_NS = 30 * 60 * 1_000_000_000
+#: ... and fewer samples than this fraction of its neighbour's is drawn with it.
+EDGE_FRACTION = 0.10
 
 
 def _day_keys(epoch: np.ndarray) -> np.ndarray:
@@ -214,24 +217,70 @@ def _day_keys(epoch: np.ndarray) -> np.ndarray:
 
 
 def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
-    """Split ``ds`` at UTC midnights: ``[(yyyymmdd, day_ds), ...]``.
+    """Split ``ds`` at UTC midnights: ``[(yyyymmdd, day_ds), ...]``, one per UTC day.
 
-    A product spanning at most 25 h is one day (that of its median sample): a daily
+    A first or last day holding under 30 min of data and under 10 % of its
+    neighbour's samples is drawn with that neighbour (and named by it): a daily
     product whose first samples fall a few seconds before midnight (e.g. MESSENGER
-    days defined by the recorded time, before the latency correction) gives one PNG.
+    days defined by the recorded time, before the latency correction) gives one PNG,
+    while a run over several days gives one PNG per day, however short it is.
     """
     epoch = ds["epoch"].values.astype(np.int64)
     if epoch.size == 0:
         return []
-    if int(epoch.max()) - int(epoch.min()) <= ONE_DAY_SLACK_NS:
-        key = _day_keys(np.array([int(np.median(epoch))], dtype=np.int64))[0]
-        return [(f"{int(key):08d}", ds)]
     key = _day_keys(epoch)
-    out = []
-    for k in np.unique(key):
-        idx = np.flatnonzero(key == k)
-        out.append((f"{int(k):08d}", ds.isel(time=idx)))
-    return out
+    # day boundaries (epoch is in time order): start index of each day's run
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    bounds = list(np.r_[starts, epoch.size])
+    names = [int(key[i]) for i in starts]
+
+    def small(i: int, j: int) -> bool:  # run i is a small edge beside run j
+        n_i, n_j = bounds[i + 1] - bounds[i], bounds[j + 1] - bounds[j]
+        span = int(epoch[bounds[i + 1] - 1]) - int(epoch[bounds[i]])
+        return span < EDGE_SPAN_NS and n_i < EDGE_FRACTION * n_j
+
+    if len(names) > 1 and small(len(names) - 1, len(names) - 2):
+        del bounds[-2], names[-1]
+    if len(names) > 1 and small(0, 1):
+        del bounds[1], names[0]
+    return [(f"{k:08d}", ds.isel(time=slice(a, b)))
+            for k, a, b in zip(names, bounds[:-1], bounds[1:], strict=True)]
+
+
+def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
+    """Return ``ds`` with an int64 TT2000 ``epoch`` made from a table's time columns.
+
+    Archive tables (``.TAB``) carry time as text or fields, not TT2000: Rosetta's
+    ISO ``time_utc`` (microseconds) and MESSENGER's ``year``, ``doy``, ``hour``,
+    ``minute``, ``second``.  A dataset with ``epoch`` already is returned unchanged.
+
+    Raises
+    ------
+    InputFormatError
+        If the dataset has neither form of time.
+    """
+    from fluxcal.geometry.time import datetime64_to_tt2000, utc_to_tt2000
+    from fluxcal.products.timeindex import default_lsk
+
+    if "epoch" in ds.coords or "epoch" in ds:
+        return ds
+    lsk = lsk or default_lsk()
+    if "time_utc" in ds:
+        epoch = utc_to_tt2000(ds["time_utc"].values.astype(str), lsk)
+    elif all(n in ds for n in ("year", "doy", "hour", "minute", "second")):
+        # whole minutes as datetime64, the seconds added in ns (a leap second's 60.x
+        # lands in the next minute: 1 s on the plot's axis, once in years)
+        year = ds["year"].values.astype("int64") - 1970
+        minutes = (((ds["doy"].values.astype("int64") - 1) * 24
+                    + ds["hour"].values.astype("int64")) * 60
+                   + ds["minute"].values.astype("int64"))
+        dt64 = (year.astype("M8[Y]").astype("M8[m]") + minutes.astype("m8[m]")).astype("M8[ns]")
+        dt64 = dt64 + np.round(ds["second"].values.astype(float) * 1e9).astype("m8[ns]")
+        epoch = datetime64_to_tt2000(dt64, lsk)
+    else:
+        raise InputFormatError("no time in the table: expected 'time_utc' or the fields "
+                               "year, doy, hour, minute, second", field="time")
+    return ds.assign_coords(epoch=("time", np.asarray(epoch, dtype=np.int64)))
 
 
 def write_quicklooks(ds: xr.Dataset, out_dir: Path, stem: str, field: str | None = None,
@@ -251,11 +300,12 @@ def write_quicklooks(ds: xr.Dataset, out_dir: Path, stem: str, field: str | None
 
 
 def spectrogram_axes(ax, t_seconds: np.ndarray, signal: np.ndarray, fs: float,
-                     nperseg: int = 256, label: str = "") -> object:
+                     nperseg: int = 256, label: str = "", norm=None) -> object:
     """Draw a power spectrogram of ``signal`` (sampled at ``fs`` Hz) on ``ax``.
 
     Used where cleaning levels ran (spectral line removal): power in nT^2/Hz, log
-    colour scale.  Returns the QuadMesh (for a colour bar).
+    colour scale.  ``signal`` must be evenly sampled (see `uniform_runs`).  Returns
+    the QuadMesh (for a colour bar).
     """
     from scipy.signal import spectrogram
 
@@ -263,26 +313,87 @@ def spectrogram_axes(ax, t_seconds: np.ndarray, signal: np.ndarray, fs: float,
         raise InputFormatError(f"spectrogram needs at least nperseg={nperseg} samples, "
                                f"got {len(signal)}", field=label or "signal")
     f, t, sxx = spectrogram(np.asarray(signal, float), fs=fs, nperseg=nperseg)
-    mesh = ax.pcolormesh(t_seconds[0] + t, f, np.log10(sxx + 1e-30), shading="auto")
+    mesh = ax.pcolormesh(t_seconds[0] + t, f, np.log10(sxx + 1e-30), shading="auto",
+                         norm=norm)
     ax.set_ylabel("Frequency (Hz)")
     ax.set_xlabel("Time (s)")
     if label:
-        ax.set_title(label)
+        ax.set_title(label, fontsize=9, loc="left")
     return mesh
+
+
+#: Relative change of the sample spacing that starts a new evenly sampled run: rate
+#: changes are factors of 2 or more and gaps longer still, while time-tag jitter of a
+#: few per cent must not cut a run.
+RATE_TOLERANCE = 0.25
+
+
+def uniform_runs(t_seconds: np.ndarray, tolerance: float = RATE_TOLERANCE) -> list[slice]:
+    """Split sample times into runs of (nearly) constant spacing.
+
+    A run ends where the spacing differs from the run's previous spacing by more than
+    ``tolerance`` (relative): a change of vector rate (filter mode) or a gap.  Each run
+    is a slice of the samples; consecutive runs share no sample.
+    """
+    t = np.asarray(t_seconds, float)
+    if t.size < 3:
+        return [slice(0, t.size)]
+    dt = np.diff(t)
+    change = np.abs(dt[1:] - dt[:-1]) > tolerance * np.minimum(dt[1:], dt[:-1])
+    # a change between spacing k and k+1 puts sample k+2 into a new run
+    cuts = np.flatnonzero(change) + 2
+    edges = np.r_[0, cuts, t.size]
+    edges = np.unique(edges)
+    return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
 def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | None = None,
                        nperseg: int = 256) -> Figure:
-    """One spectrogram panel per component of a vector variable (default: the field)."""
+    """One spectrogram panel per component of a vector variable (default: the field).
+
+    The time axis is seconds of the UTC day, from each sample's own time: a day whose
+    vector rate changes (or that has gaps) is drawn as one spectrogram per evenly
+    sampled run (`uniform_runs`) at its own rate, placed at its real times, with one
+    colour scale; runs shorter than ``nperseg`` are left blank.  ``fs`` forces one rate
+    for the whole series (evenly sampled data only).
+    """
+    from matplotlib.colors import Normalize
+    from scipy.signal import spectrogram
+
     name = variable or field_variable(ds)
     epoch = ds["epoch"].values.astype(np.int64)
-    t = (epoch - epoch[0]) / 1e9
-    if fs is None:
-        fs = 1.0 / float(np.median(np.diff(t)))
-    data = ds[name].values
-    fig = Figure(figsize=(11, 7), dpi=100)
+    if epoch.size == 0:
+        raise InputFormatError("spectrogram of an empty product", field="epoch")
+    start, date = _day_start_ns(int(epoch[0]))
+    t = (epoch - start) / 1e9
+    runs = [slice(0, t.size)] if fs is not None else uniform_runs(t)
+    runs = [r for r in runs if r.stop - r.start >= nperseg]
+    if not runs:
+        raise InputFormatError(f"spectrogram needs an evenly sampled run of at least "
+                               f"nperseg={nperseg} samples", field=name)
+    data = ds[name].values.astype(float)
+    rates = [fs or 1.0 / float(np.median(np.diff(t[r]))) for r in runs]
+    specs = {(k, j): spectrogram(data[r, j], fs=f, nperseg=nperseg)
+             for k, (r, f) in enumerate(zip(runs, rates, strict=True))
+             for j in range(data.shape[1])}
+    logs = {key: np.log10(sxx + 1e-30) for key, (_, _, sxx) in specs.items()}
+    lo = min(float(np.percentile(v, 1)) for v in logs.values())  # one colour scale
+    hi = max(float(v.max()) for v in logs.values())
+    norm = Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+    fig = Figure(figsize=(11, 2.4 * data.shape[1] + 0.8), dpi=100, layout="constrained")
     axes = fig.subplots(data.shape[1], 1, sharex=True, squeeze=False)[:, 0]
+    comps = [str(c) for c in ds[ds[name].dims[1]].values] if ds[name].dims[1] in ds.coords \
+        else [str(j) for j in range(data.shape[1])]
     for j, ax in enumerate(axes):
-        mesh = spectrogram_axes(ax, t, data[:, j], fs, nperseg, label=f"{name}[{j}]")
+        for k, r in enumerate(runs):
+            f, tt, _ = specs[(k, j)]
+            mesh = ax.pcolormesh(t[r][0] + tt, f, logs[(k, j)], shading="auto", norm=norm)
+        ax.set_ylabel("Frequency (Hz)")
+        ax.set_title(f"{name} {comps[j]}", fontsize=9, loc="left")
+        ax.set_ylim(0, max(rates) / 2)
         fig.colorbar(mesh, ax=ax, label="log10 PSD (nT$^2$/Hz)")
+    axes[-1].set_xlabel(f"Seconds of {date} (UTC)")
+    if len(set(np.round(rates, 6))) > 1:
+        fig.suptitle(f"{len(runs)} evenly sampled runs, "
+                     f"{min(rates):g}-{max(rates):g} Hz", fontsize=9)
     return fig
