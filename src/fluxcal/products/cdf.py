@@ -222,7 +222,7 @@ def _valid_range(name: str, var: xr.Variable, entry: Mapping[str, Any],
 
 def _var_attrs(name: str, var: xr.Variable, table: Mapping[str, Any], cdf_type: str,
                rec_vary: bool, depends: Mapping[int, str], is_dimension: bool = False,
-               ) -> dict[str, Any]:
+               char_width: int = 1) -> dict[str, Any]:
     """ISTP attributes of one variable (values in cdflib's typed form)."""
     entry = table.get(name) or {}
     istp: dict[str, Any] = {}
@@ -266,7 +266,7 @@ def _var_attrs(name: str, var: xr.Variable, table: Mapping[str, Any], cdf_type: 
     key = _dtype_key(var)
     out: dict[str, Any] = {}
     if cdf_type == "CDF_CHAR":
-        istp["FORMAT"] = f"A{max(1, var.dtype.itemsize // 4)}"
+        istp["FORMAT"] = f"A{char_width}"
         istp.pop("VALIDMIN", None)
         istp.pop("VALIDMAX", None)
         out["FILLVAL"] = " "
@@ -479,7 +479,7 @@ def write_cdf(
                 depends = {i: str(d) for i, d in enumerate(var.dims[1:], 1)} if rv else {}
                 cdf_type, nelem, payload = _payload(name, var)
                 attrs = _var_attrs(name, var, vtable, cdf_type, rv, depends,
-                                   is_dimension=name in coord_of)
+                                   is_dimension=name in coord_of, char_width=nelem)
                 shape = var.shape[1:] if rv else var.shape
                 cdf.write_var(_spec(name, cdf_type, nelem, shape, rv), var_attrs=attrs,
                               var_data=None if var.size == 0 else payload)
