@@ -12,7 +12,7 @@ for
 The baseline, measured in the same run and also in a child process, is the calibration
 chain alone on the same inputs (the three CSV files read, then seed 000 sec. 5-13 in
 memory, no product).  Printed per case: wall seconds, vectors/s, the ratio to the
-baseline's time, peak RSS (``resource.getrusage(RUSAGE_SELF).ru_maxrss`` of the child)
+baseline's time, peak RSS of the child (`peak_rss_mb`: ``VmHWM``, else ``ru_maxrss``)
 CPU seconds (user + system; less sensitive to other load on the machine than the wall
 time) and seconds per stage (functions of `fluxcal.missions.messenger.run` and ``products``
 wrapped with a timer; nested stages are included in their callers).
@@ -69,6 +69,23 @@ def simulate_inputs(folder: Path, hours: float) -> dict[str, Path]:
     paths = write_inputs(sim, folder / "inputs")
     paths["kernels"] = mk
     return paths
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process (MB).
+
+    ``VmHWM`` of ``/proc/self/status`` (Linux): the high-water mark of this program's own
+    memory.  ``getrusage(RUSAGE_SELF).ru_maxrss`` is the fallback; on Linux it also counts
+    the parent's memory at ``fork`` (it survives ``exec``), so a child of a big parent
+    would report the parent's size.
+    """
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def _argv(paths: dict[str, Path], out: Path, case: str) -> list[str]:
@@ -138,7 +155,7 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
             n = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 24), b"")) - 1
     wall = time.perf_counter() - t0
     usage = resource.getrusage(resource.RUSAGE_SELF)
-    rss_mb = usage.ru_maxrss / 1024.0
+    rss_mb = peak_rss_mb()
     cpu = usage.ru_utime + usage.ru_stime - cpu0
     files = sorted(out.iterdir()) if out.exists() else []
     size = sum(p.stat().st_size for p in files if p.is_file())
@@ -173,6 +190,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=24.0)
     parser.add_argument("--cases", default="baseline,a,b")
+    parser.add_argument("--inputs", default=None,
+                        help="folder for the simulated inputs, reused when present")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--paths", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--out", default=None, help=argparse.SUPPRESS)
@@ -184,9 +203,16 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         t0 = time.perf_counter()
-        paths = simulate_inputs(folder / "sim", args.hours)
-        print(f"simulated {args.hours:g} h of inputs in {time.perf_counter() - t0:.1f} s",
-              flush=True)
+        sim = Path(args.inputs) if args.inputs else folder / "sim"
+        saved = sim / "paths.json"
+        if saved.is_file():
+            paths = {k: Path(v) for k, v in json.loads(saved.read_text()).items()}
+            print(f"inputs reused from {sim}", flush=True)
+        else:
+            paths = simulate_inputs(sim, args.hours)
+            saved.write_text(json.dumps({k: str(v) for k, v in paths.items()}))
+            print(f"simulated {args.hours:g} h of inputs in {time.perf_counter() - t0:.1f} s",
+                  flush=True)
         warm = simulate_inputs(folder / "warm", 0.05)
         t0 = time.perf_counter()
         run_case("b", warm, folder / "warm_out")
