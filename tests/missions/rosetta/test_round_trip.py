@@ -175,3 +175,28 @@ def test_round_trip_across_midnight_with_two_daily_files(pool):
     c1, c2 = (models["OB"][d].coefficients for d in days)
     np.testing.assert_allclose(state.correction, p(c2, tf) - p(c1, te), atol=1e-12)
     assert a.attrs["extended_temperature_model"].count("OB 2014-08-0") == 2
+
+
+@pytest.mark.parametrize(("residual", "reduced"), [
+    (True, "CALIBRATED"), (False, "CALIBRATED"), (True, "CALIBRATED_MINUS_T_OFF"),
+    (False, "CALIBRATED_MINUS_T_OFF"),
+])
+def test_round_trip_under_both_readings_of_the_switches(pool, residual, reduced):
+    # B_RES_IN_OFFSET (up to 21.9 nT) and REDUCED_TEMPERATURE (T_OFF = 1.5/2.7 C in a cubic):
+    # the forward model reads the same keys; the pipeline must honour them on every path
+    cals, ts, nom, al, jumps = _setup()
+    cals = {s: replace(c, residual_in_offset=residual, reduced_temperature=reduced)
+            for s, c in cals.items()}
+    day = np.datetime64("2014-08-01")
+    models = {}
+    for sensor, sign in (("OB", 1.0), ("IB", -1.0)):
+        c = np.zeros((6, 3))
+        c[0], c[1], c[2] = sign * np.array([2.0, -1.0, 0.5]), [0.05, -0.03, 0.02], 2e-4
+        models[sensor] = {day: DailyOffsetModel(day, sensor, c, f"{sensor} {day}")}
+    sim = simulate.simulate("2014-08-01T00:00:00", 300.0, calibrations=cals, time_shifts=ts,
+                            nominal=nom, alignment=al, jumps=jumps, daily_models=models,
+                            seed=11)
+    for sensor in ("OB", "IB"):
+        a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom,
+                            daily_models=models[sensor])
+        assert np.all(np.sqrt((_compare(a, sim.truth[sensor]) ** 2).mean(axis=0)) < RMS_NT)
