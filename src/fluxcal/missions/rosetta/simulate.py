@@ -133,6 +133,7 @@ def simulate(
     hk_period_s: float = 32.0,
     seed: int = 0,
     lsk=None,
+    gaps: list[tuple[float, float]] | None = None,
 ) -> Simulation:
     """Simulate raw science files of both sensors and an HK file from `truth_field`.
 
@@ -158,6 +159,9 @@ def simulate(
         Fraction of vectors flagged bad (counts scrambled).
     seed : int
         Random seed.
+    gaps : list of (start_s, end_s), optional
+        No vectors in these intervals (seconds after ``start_utc``): data gaps, e.g. to
+        test the midnight stitching limit of sec. 4.2.3.3.
 
     Returns
     -------
@@ -173,6 +177,12 @@ def simulate(
     t0 = int(utc_to_tt2000(np.array([start_utc]), lsk)[0])
     stamps = t0 + np.rint(np.arange(n) / rate_hz * NS).astype(np.int64)
     sid = mode_schedule(n)
+    if gaps:
+        rel = np.arange(n) / rate_hz
+        keep = np.ones(n, dtype=bool)
+        for a, b in gaps:
+            keep &= ~((rel >= a) & (rel < b))
+        stamps, sid, n = stamps[keep], sid[keep], int(keep.sum())
     sclk = None
     if with_kernels:
         from fluxcal.geometry.time import SclkKernel
