@@ -95,3 +95,52 @@ def test_cli_batch_rosetta_placeholder_alignment_warns(tmp_path: Path, capsys) -
     assert main([*args, "--calib", str(missing)]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "--calib" in line and str(missing) in line
+
+
+def test_second_batch_into_the_same_folder_refuses(tmp_path: Path, capsys) -> None:
+    """Before: two batches deleted each other's temporaries ([Errno 2] ... .tmp.LBL)."""
+    from fluxcal.products.batch import LOCK_NAME, output_lock
+
+    days = day_range(dt.date(2024, 3, 1), dt.date(2024, 3, 1))
+    inp, out = tmp_path / "in", tmp_path / "out"
+    write_synthetic_inputs(inp, days, n_per_day=20)
+    args = ["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-01",
+            "--input", str(inp), "--out", str(out), "--scheduler", "serial", "--quiet"]
+    out.mkdir()
+    with output_lock(out):  # another run holds the folder (a second open file: flock refuses)
+        assert main(args) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert "another fluxcal batch" in line and str(out) in line
+        assert not list(out.glob("SYNTH_*"))
+    assert not (out / LOCK_NAME).exists()  # released and removed
+    assert main(args) == 0
+    assert not (out / LOCK_NAME).exists()
+
+
+def test_temporaries_of_a_running_process_are_spared(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from fluxcal.products.atomic import atomic_path, temporary_owner
+    from fluxcal.products.batch import clean_stale_temporaries
+
+    with atomic_path(tmp_path / "P.TAB") as tmp:
+        assert temporary_owner(tmp) == os.getpid()  # pid + random: unique per run
+        tmp.write_text("x")
+    assert temporary_owner(tmp_path / "P.TAB") is None
+    alive = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    try:
+        running = tmp_path / f".A.TAB.{alive.pid}.abcd1234.tmp.TAB"
+        stale = tmp_path / f".B.TAB.{int(dead.stdout)}.abcd1234.tmp.TAB"
+        old_style = tmp_path / ".C.TAB.abcd1234.tmp.TAB"  # written before names had a pid
+        for p in (running, stale, old_style):
+            p.write_text("x")
+        removed = clean_stale_temporaries(tmp_path)
+        assert sorted(removed) == sorted([stale, old_style])
+        assert running.exists()
+    finally:
+        alive.kill()
+        alive.wait()

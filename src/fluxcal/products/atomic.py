@@ -8,6 +8,7 @@ are on the same file system, which a temporary name in the same folder guarantee
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -34,7 +35,9 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     ------
     Path
         A not-yet-existing temporary path in ``final``'s folder, with the same suffix
-        (some writers, e.g. cdflib, insist on the suffix).
+        (some writers, e.g. cdflib, insist on the suffix):
+        ``.<name>.<pid>.<random>.tmp<suffix>``.  The process id lets a clean-up of
+        stale temporaries (`temporary_owner`) spare those of a process still running.
 
     Notes
     -----
@@ -44,7 +47,7 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{final.name}.", suffix=f".tmp{final.suffix}", dir=final.parent
+        prefix=f".{final.name}.{os.getpid()}.", suffix=f".tmp{final.suffix}", dir=final.parent
     )
     os.close(fd)
     tmp = Path(tmp_name)
@@ -59,6 +62,26 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     except BaseException:
         _discard(tmp)
         raise
+
+
+_TMP_PID = re.compile(r"\.(\d+)\.[A-Za-z0-9_]+\.tmp[^/]*$")
+
+
+def temporary_owner(path: Path) -> int | None:
+    """Process id in a temporary name made by `atomic_path` (``None`` if it has none)."""
+    m = _TMP_PID.search(Path(path).name)
+    return int(m.group(1)) if m else None
+
+
+def process_alive(pid: int) -> bool:
+    """Whether a process with id ``pid`` exists (signal 0 probes without signalling)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
 
 
 def _commit(tmp: Path, final: Path, directory: bool) -> None:

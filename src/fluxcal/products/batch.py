@@ -26,6 +26,7 @@ reported (`DayStatus.error`).  The report of every day is written as JSON.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import importlib
 import json
@@ -34,14 +35,14 @@ import os
 import shutil
 import time
 import traceback
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
 import fluxcal
 from fluxcal.errors import FluxcalError
-from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.atomic import atomic_write_bytes, process_alive, temporary_owner
 from fluxcal.products.provenance import sha256_file
 
 log = logging.getLogger(__name__)
@@ -325,11 +326,17 @@ def clean_stale_temporaries(out_dir: Path) -> list[Path]:
     """Remove temporaries left by a killed writer (``.<name>.*.tmp<suffix>``).
 
     Files and directories (a Zarr store is written as a temporary directory) alike.
+    A temporary whose name carries the id of another process still running
+    (`fluxcal.products.atomic.temporary_owner`) is left alone: it is being written.
     """
     removed: list[Path] = []
+    me = os.getpid()
     for p in sorted(Path(out_dir).rglob(".*.tmp*")):
         if any(r in p.parents for r in removed):
             continue  # inside a temporary directory already removed
+        owner = temporary_owner(p)
+        if owner is not None and owner != me and process_alive(owner):
+            continue  # being written by another running process (a command, a worker)
         if p.is_dir():
             shutil.rmtree(p, ignore_errors=True)
         elif p.exists():
@@ -338,6 +345,56 @@ def clean_stale_temporaries(out_dir: Path) -> list[Path]:
             continue
         removed.append(p)
     return removed
+
+
+LOCK_NAME = ".fluxcal-batch.lock"
+
+
+class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
+    """Another batch holds the lock of the output folder."""
+
+
+@contextlib.contextmanager
+def output_lock(out_dir: Path) -> Iterator[Path]:
+    """Hold an exclusive lock on ``out_dir`` for one batch run (``<out>/.fluxcal-batch.lock``).
+
+    The lock is an ``flock`` on that file: the kernel drops it when the holder ends, even
+    killed, so a crash never leaves a stale lock.  The file holds the holder's pid and
+    is removed when the run ends.
+
+    Raises
+    ------
+    OutputFolderBusy
+        If another batch (another process) holds the lock: the second run refuses at
+        once instead of deleting the first one's temporary files.
+    """
+    import fcntl
+
+    path = Path(out_dir) / LOCK_NAME
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise OutputFolderBusy(
+                f"--out {out_dir}: another fluxcal batch (pid {holder}) is writing into this "
+                "folder; wait for it to finish, or choose another --out") from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)  # locked a file the previous holder had just removed: take the new one
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield path
+    finally:
+        path.unlink(missing_ok=True)  # still locked here: no other run is inside
+        os.close(fd)
 
 
 def make_local_cluster(n_workers: int = 2) -> Any:
@@ -402,9 +459,21 @@ def run_batch(
     -------
     BatchReport
         Status of every day, in day order.
+
+    Raises
+    ------
+    OutputFolderBusy
+        If another batch is writing into ``out_dir`` (`output_lock`).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    with output_lock(out_dir):
+        return _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name,
+                                 on_day_done, report_path)
+
+
+def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on_day_done,
+                      report_path) -> BatchReport:
     days = sorted(set(days))
     name = name or str(getattr(task, "name", type(task).__name__))
     for p in clean_stale_temporaries(out_dir):
