@@ -95,3 +95,20 @@ def test_cdf_logical_source_without_date(run):
         assert g["Logical_source"] in (source, [source])
         assert "2014" not in str(g["Logical_source"])
         assert "20140801" in str(g["Logical_file_id"])
+
+
+def test_labels_name_the_seed_columns(run):
+    """The PDS3 labels load with pvl and name the columns as the seed's tables, in order."""
+    import pvl
+
+    out, _, _ = run
+    expect = {
+        "RPCMAG140801T1001_CLA_OB_M3.LBL": ["TIME.UTC", "TIME.OBT", "BX", "BY", "BZ", "T",
+                                           "QUALITY"],
+        "RPCMAG140801_CLF_OB_A01.LBL": ["TIME.UTC", "TIME.OBT", "BX", "BY", "BZ", "QUALITY"],
+    }
+    for name, columns in expect.items():
+        label = pvl.load(str(out / name))
+        table = label["TABLE"]
+        assert [c["NAME"] for c in table.getall("COLUMN")] == columns
+        assert label["LEVEL"] == ("LEVEL_A" if "CLA" in name else "LEVEL_F")
