@@ -341,4 +341,6 @@ def test_label_extra_cannot_break_the_structure(tmp_path: Path) -> None:
     with pytest.raises(InputFormatError, match="30 characters"):
         write_tab(ds, tmp_path / "HK", cols,
                   label_extra={"FLUXCAL_DUPLICATE_EPOCHS_DROPPED": 0})
+    with pytest.raises(InputFormatError, match="TITLE"):
+        write_tab(ds, tmp_path / "HK", cols, label_extra={"TITLE": 'the "best" day'})
     assert list(tmp_path.iterdir()) == []

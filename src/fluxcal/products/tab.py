@@ -195,6 +195,10 @@ def _put_extra(module: pvl.PVLModule, label_extra: Mapping[str, Any]) -> None:
         if isinstance(value, Mapping) or (isinstance(value, (list, tuple)) and not value):
             raise InputFormatError(f"label_extra {k}: a PDS3 keyword holds a number, text or "
                                    "a non-empty sequence", field=k)
+        texts = value if isinstance(value, (list, tuple)) else [value]
+        if any(isinstance(t, str) and ('"' in t or not t.isascii()) for t in texts):
+            raise InputFormatError(f"label_extra {k}: PDS3 text must be ASCII without a "
+                                   f"double quote, got {value!r}", field=k)
         if k in module:
             module[k] = value
         else:
