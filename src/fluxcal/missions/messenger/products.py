@@ -76,23 +76,74 @@ def _position_source(frame: str) -> str | None:
             "vso": "pos_vso", "sc": None}[frame]
 
 
-def _needed(ds: xr.Dataset, frames: Sequence[str]) -> list[str]:
-    names = ["met_corrected", "quality"]
-    for f in frames:
-        names.append(f"b_{f}")
-        pos = _position_source(f)
-        if pos is not None and pos in ds and pos not in names:
-            names.append(pos)
-    return names
+def time_order(epoch: np.ndarray) -> tuple[np.ndarray | None, OrderReport]:
+    """Return the sample index that puts ``epoch`` in strictly increasing order, and the report.
+
+    A stable sort by the corrected epoch (samples at one epoch keep their recorded
+    order), then of several samples at one epoch the first is kept and the others
+    dropped.  ``reordered`` counts the samples whose epoch is earlier than the latest
+    epoch before them in the input (those the sort moves back).  The index is ``None``
+    when the epochs already increase strictly (nothing to copy).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1 net lags), sec. 9.
+    """
+    epoch = np.asarray(epoch)
+    n = epoch.size
+    if n < 2 or (np.diff(epoch) > 0).all():
+        return None, OrderReport(n, 0, 0)
+    latest = np.maximum.accumulate(epoch)
+    reordered = int(np.count_nonzero(epoch[1:] < latest[:-1]))
+    order = np.argsort(epoch, kind="stable") if reordered else np.arange(n)
+    ordered = epoch[order]
+    keep = np.ones(n, dtype=bool)
+    keep[1:] = ordered[1:] != ordered[:-1]
+    duplicates = int(n - np.count_nonzero(keep))
+    return (order[keep] if duplicates else order), OrderReport(n, reordered, duplicates)
+
+
+def _take(ds: xr.Dataset, names: Sequence[str], index: np.ndarray | None,
+          coords: bool = True) -> xr.Dataset:
+    """Variables ``names`` of ``ds`` (and ``epoch``) at ``index`` (views when ``None``)."""
+    variables = {name: ds[name].variable for name in names}
+    crd = {"epoch": ds["epoch"].variable} if coords else {}
+    if index is not None:
+        variables = {k: v[index] for k, v in variables.items()}
+        crd = {k: v[index] for k, v in crd.items()}
+    return xr.Dataset(variables, coords=crd, attrs=dict(ds.attrs))
+
+
+def _frame_variables(ds: xr.Dataset, frame: str) -> list[str]:
+    pos = _position_source(frame)
+    return [f"b_{frame}"] + ([pos] if pos is not None and pos in ds else [])
+
+
+def _with_frame(base: xr.Dataset, ds: xr.Dataset, frame: str,
+                index: np.ndarray | None) -> xr.Dataset:
+    """Add one frame's field and position, in the order of ``index``, to ``base``."""
+    out = base.assign(_take(ds, _frame_variables(ds, frame), index, coords=False).variables)
+    if frame == "vso" and "pos_vso" not in out:
+        out["pos_vso"] = xr.Variable(("time", "component"), _venus_position(out["et"].values),
+                                     {"units": "km",
+                                      "description": "MESSENGER relative to Venus, MSGR_VSO"})
+    return out
+
+
+def _log_order(ds: xr.Dataset, report: OrderReport) -> None:
+    if report.reordered or report.duplicates:
+        log.log(logging.WARNING if report.duplicates else logging.INFO,
+                "day %s: %d of %d samples moved back into time order, %d duplicate "
+                "epoch(s) dropped (first kept)", day_code(ds)[2], report.reordered,
+                report.samples, report.duplicates)
 
 
 def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderReport]:
     """Return the variables the products of ``frames`` need, in time order, and the report.
 
-    The samples are sorted by the corrected epoch with a stable sort (samples at the same
-    epoch keep their recorded order); of several samples at one epoch the first is kept
-    and the others dropped.  ``reordered`` counts the samples whose epoch is earlier than
-    the latest epoch before them in the input (those the sort moves back).
+    `time_order` applied to ``epoch``, ``et``, ``met_corrected``, ``quality``,
+    ``b_<frame>`` and the positions (``pos_vso`` added for a VSO product); `write_day`
+    does the same one frame at a time (less memory).
 
     Parameters
     ----------
@@ -102,47 +153,15 @@ def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderR
     frames : sequence of str
         Product frames (keys of `FRAMES`).
 
-    Returns
-    -------
-    (xarray.Dataset, OrderReport)
-        ``epoch``, ``et``, ``met_corrected``, ``quality``, ``b_<frame>`` and the positions
-        (``pos_vso`` added for a VSO product), strictly increasing in ``epoch``.
-
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1 net lags), sec. 9.
     """
-    epoch = ds["epoch"].values
-    n = epoch.size
-    step = np.diff(epoch)
-    if n < 2 or (step > 0).all():
-        index = None
-        reordered = duplicates = 0
-    else:
-        latest = np.maximum.accumulate(epoch)
-        reordered = int(np.count_nonzero(epoch[1:] < latest[:-1]))
-        order = np.argsort(epoch, kind="stable") if reordered else np.arange(n)
-        ordered = epoch[order]
-        keep = np.ones(n, dtype=bool)
-        keep[1:] = ordered[1:] != ordered[:-1]
-        duplicates = int(n - np.count_nonzero(keep))
-        index = order[keep] if duplicates else order
-    names = ["et", *_needed(ds, frames)]
-    variables = {name: ds[name].variable for name in names}
-    coords = {"epoch": ds["epoch"].variable}
-    if index is not None:
-        variables = {k: v[index] for k, v in variables.items()}
-        coords = {k: v[index] for k, v in coords.items()}
-    out = xr.Dataset(variables, coords=coords, attrs=dict(ds.attrs))
-    if "vso" in frames and "pos_vso" not in out:
-        out["pos_vso"] = xr.Variable(("time", "component"), _venus_position(out["et"].values),
-                                     {"units": "km",
-                                      "description": "MESSENGER relative to Venus, MSGR_VSO"})
-    report = OrderReport(n, reordered, duplicates)
-    if reordered or duplicates:
-        log.log(logging.WARNING if duplicates else logging.INFO,
-                "day %s: %d of %d samples moved back into time order, %d duplicate "
-                "epoch(s) dropped (first kept)", day_code(ds)[2], reordered, n, duplicates)
+    index, report = time_order(ds["epoch"].values)
+    out = _take(ds, ["et", "met_corrected", "quality"], index)
+    for frame in frames:
+        out = _with_frame(out, ds, frame, index)
+    _log_order(ds, report)
     return out, report
 
 
@@ -461,8 +480,10 @@ def write_day(
     out_dir.mkdir(parents=True, exist_ok=True)
     year, doy, yyddd = day_code(ds)
     day0 = day_start_tt2000(year, doy)
-    ordered, report = order_day(ds, frames)
-    epoch = ordered["epoch"].values
+    index, report = time_order(ds["epoch"].values)
+    _log_order(ds, report)
+    base = _take(ds, ["et", "met_corrected", "quality"], index)
+    epoch = base["epoch"].values
     bins = {int(s): averaging.bin_index(epoch, int(s) * NS, day0) for s in averages}
     sclk = SclkKernel.from_pool(SC_ID) if averages and epoch.size else None
     global_yaml, variable_yaml = istp_files()
@@ -474,7 +495,8 @@ def write_day(
     done = 0
     with atomic_group():
         for frame in frames:
-            prod = product_dataset(ordered, frame)
+            # one frame's field and position at a time: a sort copies only those
+            prod = product_dataset(_with_frame(base, ds, frame, index), frame)
             prod.attrs.update(provenance)
             for sec in (None, *averages):
                 name = product_name(frame, yyddd, version, sec)
