@@ -419,7 +419,7 @@ def _quality_keywords(quality: np.ndarray) -> dict:
 
 def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], columns: list,
            tab_extra: dict, cdf_extra: dict, istp: dict, day: np.datetime64,
-           version: int) -> list[Path]:
+           version: int, utc: dict[str, xr.Variable] | None = None) -> list[Path]:
     """Write the TAB (archive name, with its UTC columns) and the other formats.
 
     The CDF (and netCDF/Zarr) get the ISTP file name ``<logical_source>_<yyyymmdd>_v<nn>``
@@ -430,7 +430,7 @@ def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], c
     written: list[Path] = []
     quality = _quality_keywords(prod["quality"].values)
     if "tab" in formats:
-        tab = prod.assign(utc_columns(prod["epoch"].values))
+        tab = prod.assign(utc if utc is not None else utc_columns(prod["epoch"].values))
         written += write_product(tab, out_dir / name, ("tab",), columns,
                                  dict(tab_extra, **quality), **istp)
     others = tuple(f for f in formats if f != "tab")
@@ -490,6 +490,11 @@ def write_day(
     istp = {"global_yaml": global_yaml, "variable_yaml": variable_yaml}
     order_kw = report.label_keywords()
     day = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
+    # the table's UTC columns: once per time grid, shared by every frame
+    utc: dict = {}
+    if "tab" in formats:
+        utc[None] = utc_columns(epoch)
+        utc.update({s: utc_columns(b.centre) for s, b in bins.items()})
     written: list[Path] = []
     total = len(frames) * (1 + len(averages))
     done = 0
@@ -510,7 +515,7 @@ def write_day(
                     tab_extra["AVERAGING_INTERVAL_S"] = cdf_extra["AVERAGING_INTERVAL_S"] = sec
                 columns = table_columns(frame, sec is not None)
                 written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
-                                  istp, day, version)
+                                  istp, day, version, utc.get(None if sec is None else int(sec)))
                 done += 1
                 if progress is not None:
                     progress(f"{yyddd} {name}", done, total)
