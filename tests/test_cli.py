@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from fluxcal import __version__
 from fluxcal.cli import main
 
@@ -98,3 +100,51 @@ def test_plot_rosetta_tab_product(capsys, tmp_path):
     assert main(["plot", str(tab), "--out", str(tmp_path / "ql"), "--spectrogram"]) == 0
     names = sorted(p.name for p in (tmp_path / "ql").iterdir())
     assert names == [f"{tab.stem}_20140801.png", f"{tab.stem}_spec.png"]
+
+
+def test_moved_simulation_folder_still_loads(capsys, tmp_path, monkeypatch):
+    """Before: the meta-kernel listed absolute paths, so a moved folder failed to load."""
+    import shutil
+
+    import spiceypy
+
+    first, moved = tmp_path / "first", tmp_path / "elsewhere" / "sim"
+    assert main(["simulate", "rosetta", "--out", str(first), "--hours", "0.02"]) == 0
+    meta = first / "kernels" / "rosetta_synthetic.tm"
+    assert str(tmp_path) not in meta.read_text()  # nothing absolute
+    moved.parent.mkdir()
+    shutil.move(str(first), str(moved))
+    out = tmp_path / "out"
+    assert main(["rosetta", "calibrate", "--science",
+                 str(moved / "RPCMAG_20140801_RAW_OB.csv"), "--sensor", "OB",
+                 "--levels", "A,B,C", "--calib", str(moved / "calib"),
+                 "--kernels", str(moved / "kernels" / "rosetta_synthetic.tm"),
+                 "--frame", "ECLIPJ2000", "--out", str(out)]) == 0
+    assert list(out.glob("*_CLC_OB_*.TAB"))
+    # plain SPICE reads it the NAIF way: relative to the working directory
+    monkeypatch.chdir(moved / "kernels")
+    before = spiceypy.ktotal("ALL")
+    spiceypy.furnsh("rosetta_synthetic.tm")
+    try:
+        assert spiceypy.ktotal("ALL") == before + 5  # the meta-kernel and its 4 files
+    finally:
+        spiceypy.unload("rosetta_synthetic.tm")
+
+
+def test_meta_kernel_paths_with_symbols_and_continuations(tmp_path):
+    from fluxcal.geometry.kernels import relative_meta_kernel_files
+
+    meta = tmp_path / "mk" / "set.tm"
+    meta.parent.mkdir()
+    meta.write_text("KPL/MK\n\\begindata\nPATH_VALUES = ( '../data' 'sub' )\n"
+                    "PATH_SYMBOLS = ( 'D' 'DS' )\nKERNELS_TO_LOAD = ( '$D/a.tsc'\n"
+                    "  '$DS/very/long/na+'\n  'me.bc' '/abs/c.bsp' )\n\\begintext\n"
+                    "KERNELS_TO_LOAD = ( 'ignored.txt' )\n")
+    assert relative_meta_kernel_files(meta) == [
+        (tmp_path / "data" / "a.tsc").resolve(),  # '$DS' is not '$D' followed by 'S'
+        (tmp_path / "mk" / "sub" / "very" / "long" / "name.bc").resolve(),
+        Path("/abs/c.bsp")]
+    absolute = tmp_path / "abs.tm"
+    absolute.write_text("\\begindata\nPATH_VALUES = ( '/x' )\nPATH_SYMBOLS = ( 'X' )\n"
+                        "KERNELS_TO_LOAD = ( '$X/a.tsc' )\n")
+    assert relative_meta_kernel_files(absolute) is None  # SPICE loads it as it is

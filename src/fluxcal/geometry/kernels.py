@@ -101,6 +101,56 @@ def _expand(paths: Iterable[str | Path]) -> list[Path]:
     return out
 
 
+def _meta_kernel_strings(text: str, name: str) -> list[str]:
+    """Values of ``name = ( '...' ... )`` (and ``+=``) in a meta-kernel's data blocks.
+
+    Quoted strings with ``''`` for a quote; a value ending in ``+`` continues in the
+    next string (SPICE's continuation for long paths).
+    """
+    import re
+
+    data = " ".join(re.findall(r"\\begindata(.*?)(?:\\begintext|\Z)", text, flags=re.S))
+    values: list[str] = []
+    for m in re.finditer(rf"\b{name}\s*\+?=\s*\((.*?)\)", data, flags=re.S):
+        pending = ""
+        for q in re.findall(r"'((?:[^']|'')*)'", m.group(1)):
+            q = pending + q.replace("''", "'")
+            if q.endswith("+"):
+                pending = q[:-1]
+                continue
+            pending = ""
+            values.append(q)
+    return values
+
+
+def relative_meta_kernel_files(path: Path) -> list[Path] | None:
+    """Kernel files of a meta-kernel whose ``PATH_VALUES`` are relative paths.
+
+    NAIF's meta-kernels name their folder once, in ``PATH_VALUES``/``PATH_SYMBOLS``;
+    SPICE resolves a relative value against the process's working directory, which
+    breaks as soon as the program runs elsewhere.  fluxcal resolves it against the
+    meta-kernel's own folder instead, so a meta-kernel moved with its kernels (a
+    simulation folder) still loads.  Returns ``None`` for any other kernel (no
+    relative ``PATH_VALUES``: SPICE loads it itself).
+    """
+    if path.suffix.lower() != ".tm":
+        return None
+    text = path.read_text(encoding="utf-8", errors="replace")
+    values = _meta_kernel_strings(text, "PATH_VALUES")
+    if not values or all(Path(v).is_absolute() for v in values):
+        return None
+    symbols = _meta_kernel_strings(text, "PATH_SYMBOLS")
+    if len(symbols) != len(values):
+        raise KernelError(f"{path}: {len(symbols)} PATH_SYMBOLS for {len(values)} PATH_VALUES")
+    out = []
+    for name in _meta_kernel_strings(text, "KERNELS_TO_LOAD"):
+        for sym, val in sorted(zip(symbols, values, strict=True), key=lambda sv: -len(sv[0])):
+            name = name.replace(f"${sym}", val)
+        file = Path(name)
+        out.append(file if file.is_absolute() else (path.parent / file).resolve())
+    return out
+
+
 def loaded_kernels() -> list[tuple[str, str]]:
     """Return ``(file, source)`` of every loaded kernel, oldest first.
 
@@ -183,6 +233,14 @@ class KernelPool:
 
     # -- operations -------------------------------------------------------------------
     def _furnsh(self, path: Path) -> None:
+        files = relative_meta_kernel_files(path)
+        if files is not None:  # relative PATH_VALUES: relative to the meta-kernel's folder
+            for file in files:
+                if not file.is_file():
+                    raise KernelError(f"{path}: kernel {file} not found (KERNELS_TO_LOAD, "
+                                      "PATH_VALUES relative to the meta-kernel's folder)")
+                self._furnsh(file)
+            return
         with spice_errors(f"loading kernel {path}"):
             spiceypy.furnsh(str(path))
         self.loaded.append(path)

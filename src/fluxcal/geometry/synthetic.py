@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import spiceypy
 
+from fluxcal.errors import KernelError
 from fluxcal.geometry.kernels import KernelPool
 
 _GM_MERCURY = 22031.78  # km^3/s^2 (DE421 / pck00010)
@@ -41,17 +42,54 @@ def _split_path(path: str, width: int = 70) -> list[str]:
 
 
 def write_meta_kernel(path: Path, files: list[Path]) -> Path:
-    """Write a meta-kernel listing ``files`` (absolute paths, split to SPICE's 80 chars)."""
-    lines = ["KPL/MK", "", "fluxcal synthetic kernel set", "", "\\begindata", ""]
+    """Write a meta-kernel listing ``files`` relative to the meta-kernel's folder.
+
+    As NAIF recommends, the folder is named once, in ``PATH_VALUES`` (symbol
+    ``KERNELS``, value ``'.'`` or a relative path such as ``'kernels'``), and every file
+    as ``$KERNELS/<name>``: moving the folder with its meta-kernel keeps it valid.
+    `fluxcal.geometry.kernels.KernelPool` resolves the relative value against the
+    meta-kernel's folder (`relative_meta_kernel_files`); plain SPICE tools resolve it
+    against their working directory, so run them from the meta-kernel's folder.  Long
+    names are split to SPICE's 80 characters with ``+``.
+
+    References
+    ----------
+    .. [1] NAIF, Kernel Required Reading, "Path Symbols in Meta-kernels".
+    """
+    import os
+
+    path = Path(path)
+    base = path.parent.resolve()
+    rel = [os.path.relpath(Path(f).resolve(), base) for f in files]
+    common = os.path.commonpath([os.path.dirname(r) or "." for r in rel]) if rel else "."
+    lines = ["KPL/MK", "", "fluxcal synthetic kernel set; paths relative to this file's folder",
+             "", "\\begindata", ""]
+    lines += [f"PATH_VALUES  = ( '{common or '.'}' )", "PATH_SYMBOLS = ( 'KERNELS' )", ""]
     lines.append("KERNELS_TO_LOAD = (")
-    for file in files:
-        pieces = _split_path(str(Path(file).resolve()))
+    for r in rel:
+        tail = os.path.relpath(r, common or ".")
+        pieces = _split_path(f"$KERNELS/{Path(tail).as_posix()}")
         for j, piece in enumerate(pieces):
             continued = "+" if j < len(pieces) - 1 else ""
             lines.append(f"   '{piece}{continued}'")
     lines += [")", "", "\\begintext", ""]
     path.write_text("\n".join(lines))
     return path
+
+
+def copy_meta_kernel(source: Path, dest: Path) -> Path:
+    """Write at ``dest`` a meta-kernel loading the same files as ``source``.
+
+    A meta-kernel's paths are relative to its own folder (`write_meta_kernel`), so a
+    text copy elsewhere would point at the wrong place: this one is rewritten for
+    ``dest``'s folder.
+    """
+    from fluxcal.geometry.kernels import relative_meta_kernel_files
+
+    files = relative_meta_kernel_files(Path(source))
+    if files is None:
+        raise KernelError(f"{source}: not a meta-kernel with relative PATH_VALUES")
+    return write_meta_kernel(Path(dest), files)
 
 
 def _sclk_text(

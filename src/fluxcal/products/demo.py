@@ -59,7 +59,7 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
     (long benchmark stretches).  Returns the UTC days that received science data.
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
+    from fluxcal.geometry.synthetic import copy_meta_kernel, write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
@@ -86,7 +86,7 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
             written = _split_by_day(Path(paths[key]), stream, input_dir, sclk)
             if key == "science":
                 days = [_dt.datetime.strptime(p.stem[-7:], "%Y%j").date() for p in written]
-    (input_dir / "kernels.tm").write_text(Path(paths["kernels"]).read_text())
+    copy_meta_kernel(paths["kernels"], input_dir / "kernels.tm")  # paths relative to it
     return days
 
 

@@ -5,7 +5,7 @@ import datetime as dt
 import numpy as np
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
+from fluxcal.geometry.synthetic import copy_meta_kernel, write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
 from fluxcal.missions.messenger.calibration_data import load_calibration
@@ -19,7 +19,7 @@ def test_two_days_across_midnight(tmp_path):
                            coarse_intervals=[], lead_s=1200.0)
     inp = tmp_path / "in"
     mk = write_messenger_like_kernels(inp / "k", start, 10000.0)
-    (inp / "kernels.tm").write_text(mk.read_text())
+    copy_meta_kernel(mk, inp / "kernels.tm")  # its paths are relative to its folder
     cal = load_calibration(start)
     with KernelPool(mk):
         sim = simulate(cfg, cal, SclkKernel.from_pool(-236))
