@@ -62,4 +62,7 @@ class KernelError(FluxcalError, RuntimeError):
 
 
 class ValidationError(FluxcalError):
-    """A product failed a validation check (e.g. offset smoothness, seed 000 sec. 13)."""
+    """A product failed a validation check.
+
+    E.g. offset smoothness, "MESSENGER MAG EDR-to-CDR Processing" sec. 13.
+    """

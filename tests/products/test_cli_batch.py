@@ -144,3 +144,21 @@ def test_temporaries_of_a_running_process_are_spared(tmp_path: Path) -> None:
     finally:
         alive.kill()
         alive.wait()
+
+
+def test_simulate_rosetta_batch_layout_is_read_by_batch(tmp_path: Path, capsys) -> None:
+    """Before: simulate wrote a layout that 'fluxcal batch' could not read."""
+    sim, out = tmp_path / "sim", tmp_path / "out"
+    assert main(["simulate", "rosetta", "--layout", "batch", "--days", "2", "--start",
+                 "2014-08-01T10:00:00", "--hours", "0.03", "--out", str(sim)]) == 0
+    assert "fluxcal batch rosetta" in capsys.readouterr().out
+    assert (sim / "20140802" / "science_OB.csv").is_file() and (sim / "kernels.tm").is_file()
+    assert main(["batch", "rosetta", "--start", "2014-08-01", "--end", "2014-08-02",
+                 "--input", str(sim), "--out", str(out), "--scheduler", "serial",
+                 "--quiet"]) == 0
+    report = json.loads((out / "batch_report_rosetta.json").read_text())
+    assert report["counts"]["done"] == 2
+    # a day crossing midnight is refused before anything is written
+    assert main(["simulate", "rosetta", "--layout", "batch", "--start",
+                 "2014-08-01T23:00:00", "--hours", "2", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()

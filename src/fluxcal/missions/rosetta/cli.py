@@ -5,7 +5,8 @@
 
 References
 ----------
-.. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1 (calibration files), 4.3.1 (alignment).
+.. [1] RO-IGEP-TR0028 Rosetta RPC-MAG calibration (seed 003), sec. 4.1 (calibration
+   files), 4.3.1 (alignment).
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ def calibrate(
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
     levels: str = typer.Option("A,B", "--levels", help="Comma-separated levels: A,B,C,E,F,G."),
     hk: Path | None = typer.Option(
-        None, "--hk", help="Raw HK CSV (sec. 4.1.1), converted to HK LEVEL_A."
+        None, "--hk", help="Raw HK CSV (RO-IGEP-TR0028 sec. 4.1.1), converted to HK LEVEL_A."
     ),
     calib: Path | None = typer.Option(
         None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
@@ -65,7 +66,8 @@ def calibrate(
     average: float = typer.Option(1.0, "--average", help="Averaging interval of E, F, G (s)."),
     frame: str = typer.Option(
         "auto", "--frame",
-        help="LEVEL_C frame: ECLIPJ2000, CSEQ, or auto (CSEQ from 2014-01-20, sec. 4.4.1).",
+        help="LEVEL_C frame: ECLIPJ2000, CSEQ, or auto (CSEQ from 2014-01-20, "
+        "RO-IGEP-TR0028 sec. 4.4.1).",
     ),
     centre: str = typer.Option(
         "auto", "--centre",
@@ -73,7 +75,8 @@ def calibrate(
     ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     stitch_gap_hours: float = typer.Option(
-        3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps (sec. 4.2.3.3)."
+        3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps "
+        "(RO-IGEP-TR0028 sec. 4.2.3.3)."
     ),
     stitch_state: Path | None = typer.Option(
         None,
@@ -143,23 +146,72 @@ def calibrate(
 def simulate(
     out: Path = typer.Option(Path("rosetta-sim"), "--out", help="Folder for the simulated inputs."),
     start: str = typer.Option("2014-08-01T00:00:00", "--start", help="First time stamp (UTC)."),
-    hours: float = typer.Option(1.0, "--hours", help="Length of the simulation (h)."),
+    hours: float = typer.Option(1.0, "--hours", help="Length of the simulation (h); with "
+                                "--layout batch, the length of each day's data."),
     rate: float = typer.Option(20.0, "--rate", help="Vector rate (Hz)."),
     primary: str = typer.Option("OB", "--primary", help="Primary sensor."),
     seed: int = typer.Option(0, "--seed", help="Random seed (bad-quality vectors)."),
+    layout: str = typer.Option(
+        "files", "--layout",
+        help="files: the inputs of 'fluxcal rosetta calibrate'; batch: the input folder of "
+        "'fluxcal batch rosetta' (<out>/<yyyymmdd>/science_OB.csv ..., kernels.tm, calib/; "
+        "docs/formats/rosetta.md)."),
+    days: int = typer.Option(1, "--days", min=1, max=366,
+                             help="--layout batch: number of consecutive days."),
 ) -> None:
     """Write simulated raw Rosetta telemetry, calibration files and kernels from a known field."""
     from fluxcal import preflight
-    from fluxcal.missions.rosetta.simulate import write_simulation
 
     check_simulation_options(start, hours, rate, primary)
+    if layout not in ("files", "batch"):
+        raise InputFormatError(f"{layout!r}: choose files or batch", field="--layout")
     preflight.writable_folder(out, "--out")
+    if layout == "batch":
+        folders = simulate_batch_layout(out, start, hours, rate, primary, seed, days)
+        typer.echo(f"{len(folders)} day folders in {out}; run: fluxcal batch rosetta "
+                   f"--input {out} --start {folders[0].name[:4]}-{folders[0].name[4:6]}-"
+                   f"{folders[0].name[6:]} --end {folders[-1].name[:4]}-"
+                   f"{folders[-1].name[4:6]}-{folders[-1].name[6:]} --out OUT")
+        return
+    from fluxcal.missions.rosetta.simulate import write_simulation
 
     paths = write_simulation(
         out, start_utc=start, hours=hours, rate_hz=rate, primary=primary, seed=seed
     )
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")
+
+
+def simulate_batch_layout(out: Path, start: str, hours: float, rate: float, primary: str,
+                          seed: int, days: int) -> list[Path]:
+    """Write ``days`` simulated days in the input layout of ``fluxcal batch rosetta``.
+
+    Each day holds ``hours`` of both sensors from ``start``'s time of day
+    (`fluxcal.missions.rosetta.batch_task.simulate_days`, with kernels and each day's
+    truth); a day's data must end before midnight (a day folder holds its UTC day).
+
+    Raises
+    ------
+    InputFormatError
+        If a day's data would cross midnight, or ``primary`` is not OB (the batch
+        simulation uses OB as primary sensor).
+    """
+    from fluxcal.missions.rosetta.batch_task import simulate_days
+
+    t0 = _dt.datetime.fromisoformat(start)
+    seconds_of_day = t0.hour * 3600 + t0.minute * 60 + t0.second
+    if seconds_of_day + hours * 3600.0 > 86_400 - 1200:  # 1200 s: the filter time shifts
+        raise InputFormatError(
+            f"{hours} h from {t0.time()} reaches within 20 min of midnight; with --layout "
+            "batch each day's data must stay in its UTC day (time shifts of up to 1024 s): "
+            "start earlier or shorten --hours", field="--hours")
+    if primary.upper() != "OB":
+        raise InputFormatError("--layout batch simulates OB as the primary sensor",
+                               field="--primary")
+    dates = [t0.date() + _dt.timedelta(days=k) for k in range(days)]
+    return simulate_days(out, dates, start_time=t0.strftime("%H:%M:%S"),
+                         minutes=hours * 60.0, rate_hz=rate, seed=seed, kernels=True,
+                         truth=True)
 
 
 def check_simulation_options(start: str, hours: float, rate: float, primary: str) -> None:
