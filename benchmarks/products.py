@@ -169,7 +169,7 @@ def run_case(case: str, paths: dict[str, Path], out: Path) -> dict:
     proc = subprocess.run([sys.executable, __file__, "--child", case, "--paths", spec,
                            "--out", str(out)], capture_output=True, text=True, check=False)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
-    if proc.returncode != 0 or not lines:
+    if proc.returncode != 0 or not lines or json.loads(lines[-1])["code"] != 0:
         raise RuntimeError(f"case {case} failed:\n{proc.stdout}\n{proc.stderr}")
     return json.loads(lines[-1])
 
@@ -213,7 +213,7 @@ def main() -> None:
             saved.write_text(json.dumps({k: str(v) for k, v in paths.items()}))
             print(f"simulated {args.hours:g} h of inputs in {time.perf_counter() - t0:.1f} s",
                   flush=True)
-        warm = simulate_inputs(folder / "warm", 0.05)
+        warm = simulate_inputs(folder / "warm", 0.25)
         t0 = time.perf_counter()
         run_case("b", warm, folder / "warm_out")
         print(f"warm-up run (numba cache, imports): {time.perf_counter() - t0:.1f} s",
