@@ -232,7 +232,10 @@ def test_demo_writes_rosetta_inputs(tmp_path):
     task = make_day_task(tmp_path, tmp_path / "out")
     assert task.level_list() == ["A", "B", "C", "E", "F", "G"]
     for day in days:
-        assert len(task.inputs(day).files) == 4  # OB, IB, HK, kernels.tm
+        # OB, IB, HK, kernels.tm, and the previous day's OB and IB (the vectors their
+        # filter shift moves past midnight belong to this day, decision 30)
+        previous = day - dt.timedelta(days=1) in days
+        assert len(task.inputs(day).files) == 4 + 2 * previous
 
 
 def test_quicklook_temperatures_of_both_sensors_recover_truth(sim):

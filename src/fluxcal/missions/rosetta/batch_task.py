@@ -10,9 +10,14 @@ Input folder layout (decision, see ``docs/decisions/rosetta.md``)::
     <input>/<yyyymmdd>/science_IB.csv   raw science of the inboard sensor
     <input>/<yyyymmdd>/hk.csv           raw housekeeping (sec. 4.1.1, optional)
 
-A day folder holds the records of that UTC day only; a record of another day is an
-input error (the day's products are named by the day).  A day folder without science
-file is a day without data.  Either sensor may be missing (e.g. IB switched off).
+A day folder holds the records whose telemetry time stamp (before the filter time shift)
+is in that UTC day; a record stamped on another day is an input error naming file and
+line.  A day's products hold the vectors whose shifted time is in that day (decision 30,
+docs/formats/rosetta.md "Day edges"): the vectors of the previous day's raw file shifted
+past midnight (filter shifts up to 1023.95 s, sec. 4.2.3.5) are taken from that file, and
+this day's own such vectors are left to the next day (logged, and counted in the products'
+``vectors_to_next_day`` attribute).  A day folder without science file is a day without
+data.  Either sensor may be missing (e.g. IB switched off).
 
 Levels: A, B, E, F always; C and G too when kernels are given (LEVEL_C needs the
 SPICE attitude and ephemeris, sec. 4.4).  Without kernels the record times come from
@@ -42,10 +47,13 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import logging
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+log = logging.getLogger(__name__)
 
 SENSORS = ("OB", "IB")
 BASE_LEVELS = ("A", "B", "E", "F")
@@ -236,6 +244,14 @@ class RosettaDayTask:
             note = ""
         return state, note
 
+    def _carry(self, day: _dt.date, sensor: str):
+        """``(previous day's science file, its incoming state)`` or ``None`` (decision 30)."""
+        prev_day = day - _dt.timedelta(days=1)
+        prev = science_file(self.input_dir, prev_day, sensor)
+        if not prev.is_file():
+            return None
+        return prev, self.incoming_state(prev_day, sensor)
+
     def _incoming_text(self, day: _dt.date, sensor: str) -> str:
         state, note = self._chain(day, sensor)
         if state is None:
@@ -270,10 +286,17 @@ class RosettaDayTask:
                     cal[f"{key}/{p.name}"] = p
         for sensor in self._science(day):  # the chain of earlier days (decision 27)
             cal[f"stitch_in/{sensor}"] = self._incoming_text(day, sensor)
+            prev = science_file(self.input_dir, day - _dt.timedelta(days=1), sensor)
+            if prev.is_file():  # its tail shifted past midnight is in this day (decision 30)
+                files.append(prev)
+                cal[f"tail_in/{sensor}"] = self._incoming_text(
+                    day - _dt.timedelta(days=1), sensor)
         return DayInputs(tuple(files), cal)
 
     def __call__(self, day: _dt.date):
         """Process ``day``; raise `DayWithoutData` when it has no science file."""
+        import numpy as np
+
         from fluxcal.errors import InputFormatError
         from fluxcal.missions.rosetta.pipeline import calibrate_files
         from fluxcal.products.atomic import atomic_group
@@ -288,6 +311,7 @@ class RosettaDayTask:
         kern = self.kernel_file()
         pool = worker_kernel_pool(kern)
         levels = self.level_list()
+        stamp = np.datetime64(day.isoformat(), "D")
         paths: list[Path] = []
         n_vectors = 0
         ends = {}
@@ -300,20 +324,23 @@ class RosettaDayTask:
                     average_s=self.average_s, frame=self.frame, centre=self.centre,
                     boom=self.boom, formats=self.formats, quicklook=self.quicklook,
                     pool=pool, previous=self.incoming_state(day, sensor),
-                    stitch_gap_s=self.stitch_gap_s,
+                    stitch_gap_s=self.stitch_gap_s, day=stamp, carry=self._carry(day, sensor),
                 )
                 a = result.levels["A"]
-                n_vectors += int(a.sizes["time"]) + int(a.attrs.get("n_dropped_quality", 0))
+                n_vectors += result.n_records
                 paths += result.paths
+                if result.n_to_next_day:
+                    log.info("%s %s: %d vectors shifted past midnight belong to the product "
+                             "of %s", day, sensor, result.n_to_next_day,
+                             day + _dt.timedelta(days=1))
                 state = {k2: v for k2, v in a.attrs.items() if k2.startswith("stitch_")}
                 ends[sensor] = (result.edges, state or None)
             # archive tables carry RPCMAG<yymmdd>, ISTP CDFs / HK / quicklooks _<yyyymmdd>
             stamps = (f"RPCMAG{day:%y%m%d}", f"_{day:%Y%m%d}")
             stray = [p for p in paths if not any(s in Path(p).name for s in stamps)]
             if stray:
-                raise InputFormatError(
-                    f"records outside the day {day} (would write {Path(stray[0]).name}); "
-                    f"a day folder must hold that UTC day only",
+                raise InputFormatError(  # a safeguard: calibrate_files(day=) trims
+                    f"records outside the day {day} (would write {Path(stray[0]).name})",
                     path=str(day_folder(self.input_dir, day)), field="time_utc",
                 )
         for sensor, (edges, state) in ends.items():  # after the products are in place

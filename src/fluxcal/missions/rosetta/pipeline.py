@@ -294,6 +294,12 @@ class CalibrateResult:
     #: First and last good vector ``((epoch, word), (epoch, word))`` of the raw file
     #: (`level_a.stitch_edges`), for the batch's midnight-stitching chain.
     edges: tuple | None = None
+    #: Records read from the science file (good and bad).
+    n_records: int = 0
+    #: With ``day``: LEVEL_A vectors of this file whose shifted time is in the next UTC
+    #: day (left to that day's product), and vectors taken from the previous day's file.
+    n_to_next_day: int = 0
+    n_from_previous_day: int = 0
 
 
 def parse_levels(text: str) -> list[str]:
@@ -328,6 +334,8 @@ def calibrate_files(
     write: bool = True,
     quicklook: bool = False,
     pool=None,
+    day: np.datetime64 | str | None = None,
+    carry: tuple[Path, level_a.StitchState | None] | None = None,
 ) -> CalibrateResult:
     """Run ``fluxcal rosetta calibrate``: read raw CSV, make the levels, write products.
 
@@ -340,6 +348,13 @@ def calibrate_files(
     ``quicklook`` also writes a PNG per UTC day (`write_quicklook`).  ``pool`` is an
     already entered `KernelPool` holding ``kernels`` (batch workers keep theirs loaded,
     `fluxcal.products.batch.worker_kernel_pool`); by default a pool is opened here.
+
+    ``day`` (the batch) makes the products of one UTC day from a file split at midnight
+    of the telemetry (unshifted) time (docs/formats/rosetta.md, "Day edges"): every raw
+    record must be stamped in ``day``; LEVEL_A vectors whose filter-shifted time falls
+    in the next day are left out (they belong to that day's product); ``carry`` =
+    ``(previous day's science file, stitching state at the start of that day)`` adds
+    the vectors of that file whose shifted time falls in ``day`` (`previous_day_tail`).
 
     Raises
     ------
@@ -375,6 +390,12 @@ def calibrate_files(
         nominal = calib.load_nominal_conversion(calib_dir)
         models = calib.find_daily_offset_models(calib_dir, sensor)
         raw = io.read_science_csv(science, sensor, sclk=sclk, lsk=lsk)
+        result.n_records = int(raw.sizes["time"])
+        bounds = None
+        if day is not None:
+            bounds = day_bounds(day, lsk)
+            check_day_records(raw, bounds, science, lsk)
+            check_shifts_nonnegative(shifts)
         first, last = (np.datetime64(str(s)[:19]) for s in _utc(raw["epoch"].values[[0, -1]], lsk))
         cal.validity.check(first, last)
         used = {"ground": cal.source, "time_shift": shifts.source}
@@ -391,10 +412,32 @@ def calibrate_files(
             previous=previous if previous is not None else read_stitch_state(stitch_state),
             lsk=lsk,
         )
-        result.levels["A"] = a
         result.edges = level_a.stitch_edges(raw, sensor)
         if stitch_state is not None and write:
             write_stitch_state(a, stitch_state)
+        if bounds is not None:
+            after = a["epoch"].values >= bounds[1]
+            result.n_to_next_day = int(after.sum())
+            if result.n_to_next_day:  # the batch logs it; the attribute below records it
+                a = a.isel(time=np.flatnonzero(~after))
+            tail, carry_note = None, ""
+            if carry is not None:
+                try:
+                    tail = previous_day_tail(
+                        carry[0], sensor, day_bounds(np.datetime64(day, "D") - 1, lsk), cal,
+                        shifts, nominal, models,
+                        primary=primary, stitch_gap_s=stitch_gap_s, previous=carry[1],
+                        sclk=sclk, lsk=lsk,
+                    )
+                except FluxcalError as exc:  # that day fails on its own and is reported
+                    carry_note = f"previous day's file unreadable, its tail is missing: {exc}"
+                    log.warning("%s: %s", science, carry_note)
+            result.n_from_previous_day = 0 if tail is None else int(tail.sizes["time"])
+            if tail is not None:
+                a = merge_tail(tail, a)
+            a.attrs.update(vectors_to_next_day=result.n_to_next_day,
+                           vectors_from_previous_day=carry_note or result.n_from_previous_day)
+        result.levels["A"] = a
         if "B" in need:
             alignment = None if alignment_from_kernels else calib.load_alignment(calib_dir)
             table = calib.load_offset_jump_table(calib_dir) if jumps else None
@@ -412,9 +455,13 @@ def calibrate_files(
                 result.levels[dst] = averaged.average(result.levels[src], average_s, lsk=lsk)
         if hk_file is not None:
             hk_raw = io.read_hk_csv(hk_file, sclk=sclk, lsk=lsk)
+            if bounds is not None:
+                check_day_records(hk_raw, bounds, hk_file, lsk)
             result.levels["HK"] = hk.hk_level_a(hk_raw, cal.thermistor, nominal)
         if write:
             inputs = [science] + ([hk_file] if hk_file else [])
+            if result.n_from_previous_day:
+                inputs.append(carry[0])
             prov = provenance_attrs(
                 inputs=inputs, calibration=used, kernels=[Path(str(k)) for k in kernel_files]
             )
@@ -431,6 +478,134 @@ def calibrate_files(
                 temps = thermistor_temperatures(raw, cals, nominal)
                 result.paths += write_quicklook(result.levels, out, temps)
     return result
+
+
+def day_bounds(day: np.datetime64 | str, lsk=None) -> tuple[int, int]:
+    """TT2000 ns of 00:00 UTC of ``day`` and of the next day (leap seconds included)."""
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    d = np.datetime64(day, "D")
+    edges = utc_to_tt2000(np.array([f"{d}T00:00:00", f"{d + 1}T00:00:00"]), lsk)
+    return int(edges[0]), int(edges[1])
+
+
+def check_day_records(raw: xr.Dataset, bounds: tuple[int, int], path: Path, lsk=None) -> None:
+    """Refuse a raw file with a record stamped outside the UTC day ``bounds``.
+
+    The batch's day folders are split at midnight of the telemetry time (before the
+    filter shift, docs/formats/rosetta.md "Day edges").
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file, the line of the first such record and its time.
+    """
+    from fluxcal.errors import InputFormatError
+
+    epoch = raw["epoch"].values
+    outside = (epoch < bounds[0]) | (epoch >= bounds[1])
+    if not np.any(outside):
+        return
+    i = int(np.flatnonzero(outside)[0])
+    line = int(raw["row"].values[i]) if "row" in raw else i + 2
+    day = str(_utc(np.array([bounds[0]]), lsk)[0])[:10]
+    raise InputFormatError(
+        f"record stamped {_utc(epoch[i:i + 1], lsk)[0]} UTC is not in {day}, the day of "
+        f"its folder ({int(outside.sum())} such records); a day folder holds the records "
+        "whose telemetry time (before the filter shift) is in that UTC day",
+        path=str(path), line=line, field="time_utc",
+    )
+
+
+def check_shifts_nonnegative(shifts: calib.TimeShiftTable) -> None:
+    """Refuse a filter time-shift table with a negative shift (the batch's day edges).
+
+    Seed 003 sec. 4.2.3.5: the shifts are filter delays (0 to 1023.95 s), added to the
+    time stamp; a day's product then never needs the next day's raw file.
+    """
+    for name in ("primary", "secondary"):
+        col = np.asarray(getattr(shifts, name), dtype=float)
+        neg = np.flatnonzero(col < 0)
+        if neg.size:
+            raise FluxcalError(
+                f"{shifts.source}: SID {int(shifts.sid[neg[0]])} has a negative {name} "
+                f"filter time shift ({col[neg[0]]} s); the batch needs shifts >= 0 "
+                "(seed 003 sec. 4.2.3.5: filter delays)"
+            )
+
+
+def previous_day_tail(
+    path: Path,
+    sensor: str,
+    bounds: tuple[int, int],
+    cal: calib.GroundCalibration,
+    shifts: calib.TimeShiftTable,
+    nominal: dict,
+    models: dict,
+    *,
+    primary: str = "OB",
+    stitch_gap_s: float = level_a.STITCH_GAP_S,
+    previous: level_a.StitchState | None = None,
+    sclk=None,
+    lsk=None,
+) -> xr.Dataset | None:
+    """LEVEL_A vectors of the previous day's raw file shifted past its day's end.
+
+    ``bounds`` are the TT2000 of the start and end (``midnight``) of that file's UTC day
+    (`day_bounds`); the file's records must be stamped in it (`check_day_records`).
+
+    Calibrated exactly as that day's own run calibrates them: ``previous`` is the
+    stitching state at the start of that day, and LEVEL_A is computed on the file's
+    first good record plus the records within the largest filter shift of the table
+    (+1 s) before ``midnight``; the extended-model offset of a day depends on its
+    vectors' own temperatures and on the day's first and last good vectors only
+    (`extended_model.stitch_day`), so the values equal those of the whole file.
+    ``None`` when no vector crosses midnight.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (stitching), 4.2.3.5 (time shifts).
+    """
+    raw = io.read_science_csv(path, sensor, sclk=sclk, lsk=lsk)
+    check_day_records(raw, bounds, path, lsk)
+    midnight = bounds[1]
+    primary_sensor = calib.check_sensor(sensor) == calib.check_sensor(primary)
+    col = np.asarray(shifts.primary if primary_sensor else shifts.secondary, dtype=float)
+    reach = int(np.ceil((np.nanmax(col) + 1.0) * 1e9))
+    good = np.flatnonzero(level_a.good_vectors(raw["quality"].values))
+    near = np.flatnonzero(raw["epoch"].values >= midnight - reach)
+    if good.size == 0 or near.size == 0:
+        return None
+    sub = raw.isel(time=np.union1d(good[:1], near))
+    a = level_a.level_a(sub, cal, shifts, nominal, daily_models=models, primary=primary,
+                        stitch_gap_s=stitch_gap_s, previous=previous, lsk=lsk)
+    keep = np.flatnonzero(a["epoch"].values >= midnight)
+    return a.isel(time=keep) if keep.size else None
+
+
+def merge_tail(tail: xr.Dataset, a: xr.Dataset) -> xr.Dataset:
+    """Put the previous day's tail in front of the day's LEVEL_A, in time order.
+
+    Mode segments (one calibrated table each) continue across midnight: the tail's last
+    segment and the day's first are one segment when they have the same SID (a run of
+    one SID in telemetry order, docs/formats/rosetta.md).  Attributes are the day's.
+    """
+    seg_t = tail["mode_segment"].values.astype(np.int64)
+    seg_a = a["mode_segment"].values.astype(np.int64)
+    last = int(seg_t.max())
+    offset = last + 1
+    if seg_a.size:
+        first = int(seg_a.min())
+        same = tail["sid"].values[seg_t == last][0] == a["sid"].values[seg_a == first][0]
+        offset = last - first + (0 if same else 1)
+    a = a.assign_coords(mode_segment=("time", (seg_a + offset).astype(np.int32),
+                                      a["mode_segment"].attrs))
+    tail = tail.assign_coords(mode_segment=("time", seg_t.astype(np.int32),
+                                            a["mode_segment"].attrs))
+    merged = xr.concat([tail, a], dim="time", combine_attrs="override")
+    merged.attrs = dict(a.attrs)
+    order = np.argsort(merged["epoch"].values, kind="stable")
+    return merged.isel(time=order)
 
 
 def read_stitch_state(path: Path | None) -> level_a.StitchState | None:
