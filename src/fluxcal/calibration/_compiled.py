@@ -184,36 +184,49 @@ def _mode(values, lo, hi, ref):
 
 
 @njit(cache=True, nogil=True)
-def duty_cycle_levels_kernel(ppt, run_start, window, last_run_open, level, change):
+def duty_cycle_levels_kernel(ppt, fallback, bounds, run_start, window, first_run_cut,
+                             last_run_open, level, change):
     """Duty cycle commanded by the controller in each heater period (seed 000 sec. 7).
 
     The V10 controller sets a new duty cycle only at its evaluations, every ten heater
     periods, so a commanded duty cycle holds for ``window`` (10) periods while the
     on-count of single periods may jitter by a bit.  Walking the periods in order:
 
-    - the first period of a contiguous run starts a level (a change) with its own duty
-      cycle;
+    - the first period of a contiguous run starts a level (a change): a run after the
+      heater was quiet starts at an evaluation, so its level is the most frequent seen
+      value of its first ``window`` periods; a first run cut by the start of the data
+      (``first_run_cut``) may hold the end of an earlier level: its level is the first
+      value repeated by the next period among its first ``window`` periods (else the
+      most frequent);
     - a later period ``k`` whose duty cycle differs from the level changes it only when
       the most frequent value ``v`` among it and the ``window - 1`` periods after it
       (same run; ties: the first to occur) is another value, more frequent there than
-      the level.  The change is at the first of those periods whose duty cycle is closer
-      to ``v`` than to the level (so a jittered period just before a real change does not
-      move it earlier) and takes the value ``v``; otherwise ``k`` is jitter (no change).
+      the level and holding more than half of the seen periods there.  The change is
+      at the first of those periods whose duty cycle is closer to ``v`` than to the
+      level (so a jittered period just before a real change does not move it earlier),
+      or at an unseen period just before that one whose ``bounds`` allow ``v`` and not
+      the level, and takes the value ``v``; otherwise ``k`` is jitter (no change).
       A run that ends with the heater going quiet ends at an evaluation, so its last
       level holds ``window`` periods: fewer than ``window - 1`` periods before that end
       cannot start a level.  The last run may be cut by the end of the data instead
-      (``last_run_open``): there the periods that are left decide;
-    - a run whose first level lasts one period only (a jittered first period) takes the
-      level of the second period from its start.
+      (``last_run_open``): there the periods that are left decide.
 
     Parameters
     ----------
     ppt : ndarray, shape (n,)
-        Duty cycle of each period (parts per 1000, whole numbers).
+        Duty cycle of each period (parts per 1000, whole numbers); NaN for a period
+        whose on-phase was not fully seen (it does not vote and starts no level).
+    fallback : ndarray, shape (n,)
+        Duty cycle (bounds-resolved) of every period: the level of a run none of whose
+        periods has a seen value.
+    bounds : ndarray, shape (n, 2)
+        Least and largest duty cycle (ppt) the seen bits of each period allow.
     run_start : ndarray of bool, shape (n,)
         First period of a contiguous run (period 0 always starts one).
     window : int
         Periods per controller evaluation (10).
+    first_run_cut : bool
+        The first run is cut by the start of the data (heater operating at the start).
     last_run_open : bool
         The last run is cut by the end of the data (not ended by the heater going quiet).
     level : ndarray, shape (n,)
@@ -224,7 +237,6 @@ def duty_cycle_levels_kernel(ppt, run_start, window, last_run_open, level, chang
     n = ppt.size
     current = 0.0
     run_end = 0
-    first = 0
     k = 0
     while k < n:
         change[k] = False
@@ -232,31 +244,43 @@ def duty_cycle_levels_kernel(ppt, run_start, window, last_run_open, level, chang
             run_end = k + 1
             while run_end < n and not run_start[run_end]:
                 run_end += 1
-            first = k
-            current = ppt[k]
+            hi = min(k + window, run_end)
+            v, cv, cl = _mode(ppt, k, hi, ppt[k])
+            current = v if cv > 0 else fallback[k]  # a run after quiet: one evaluation
+            if k == 0 and first_run_cut:  # cut by the data start: the first repeated value
+                m = k
+                while m + 1 < hi and not (ppt[m] == ppt[m + 1]):
+                    m += 1
+                if m + 1 < hi:
+                    current = ppt[m]
             level[k] = current
             change[k] = True
             k += 1
             continue
         level[k] = current
-        if ppt[k] != current:
+        if ppt[k] == ppt[k] and ppt[k] != current:
             hi = min(k + window, run_end)
             if hi - k < window - 1 and not (last_run_open and run_end == n):
                 k += 1  # too close to a quiet end for a new level
                 continue
             v, cv, cl = _mode(ppt, k, hi, current)
-            if v != current and cv > cl:
-                j = k
-                while abs(ppt[j] - v) >= abs(ppt[j] - current):
+            n_seen = 0
+            for a in range(k, hi):
+                if ppt[a] == ppt[a]:
+                    n_seen += 1
+            if v != current and cv > cl and 2 * cv > n_seen:
+                j = k  # v holds the majority of [k, hi): some period there is closer
+                while ppt[j] != ppt[j] or abs(ppt[j] - v) >= abs(ppt[j] - current):
                     change[j] = False
                     level[j] = current
                     j += 1
-                if j == first + 1:  # the run's first period was jitter
-                    change[j - 1] = True
-                    level[j - 1] = v
-                    change[j] = False
-                else:
-                    change[j] = True
+                # unseen periods just before it whose bounds allow the new value and
+                # not the old one belong to it
+                while (j - 1 > 0 and not run_start[j - 1] and ppt[j - 1] != ppt[j - 1]
+                       and bounds[j - 1, 0] <= v <= bounds[j - 1, 1]
+                       and not bounds[j - 1, 0] <= current <= bounds[j - 1, 1]):
+                    j -= 1
+                change[j] = True
                 level[j] = v
                 current = v
                 k = j + 1

@@ -37,6 +37,11 @@ class HeaterPeriods:
         Length (s) of the run of ones that begins at the edge.
     applied : ndarray of bool, shape (k,)
         ``on_duration >= min_on`` (heater signal subtracted for this period).
+    complete : ndarray of bool, shape (k,), optional
+        The whole on-phase was seen (``duty_cycle`` measured, not inherited or a lower
+        bound); None: all complete.
+    duty_bounds : ndarray, shape (k, 2), optional
+        Least and largest duty cycle the seen bits allow (equal when complete).
     """
 
     start: np.ndarray
@@ -44,14 +49,16 @@ class HeaterPeriods:
     duty_cycle: np.ndarray
     on_duration: np.ndarray
     applied: np.ndarray
+    complete: np.ndarray | None = None
+    duty_bounds: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.size)
 
 
 def _hidden_edges(
-    times: np.ndarray, bits: np.ndarray, seen: np.ndarray, period: float, bit_step: float,
-    tolerance: float,
+    times: np.ndarray, bits: np.ndarray, t_seen: np.ndarray, period: float, bit_step: float,
+    tolerance: float, on_until: np.ndarray,
 ) -> np.ndarray:
     """Rising edges hidden in gaps of the bit series, on the 100-s grid of the last edge.
 
@@ -59,14 +66,17 @@ def _hidden_edges(
     one period) hides an edge when the grid point ``e + period`` of the last edge ``e``
     seen before the gap lies inside it and the heater was still cycling across it: the
     first bit after the gap is on, or the next seen edge is one period after the grid
-    point.  Returns the times of those grid points (the V10 controller starts one heater
-    period every 100 s, sec. 6, 7).
+    point.  Otherwise, when the first bit after the gap is on and a grid point ``n``
+    periods before the next seen edge lies in the gap (the heater started in the gap;
+    ``n > 1`` only when the bit stays on from the gap until a period before that edge,
+    ``on_until`` per record: end of its run of ones), that grid point.  Returns the
+    times of those grid points, unsorted (the V10 controller starts one heater period
+    every 100 s, sec. 6, 7).
     """
     eps = 1e-6 * bit_step
     gap = np.flatnonzero(np.diff(times) > bit_step + eps) + 1  # index of the record after
-    if gap.size == 0 or seen.size == 0:
+    if gap.size == 0 or t_seen.size == 0:
         return np.empty(0)
-    t_seen = times[seen]
     k = np.searchsorted(t_seen, times[gap - 1], side="right") - 1  # last edge before the gap
     has = k >= 0
     anchor = np.where(has, t_seen[np.maximum(k, 0)], np.nan)
@@ -74,7 +84,17 @@ def _hidden_edges(
     nxt = np.where(k + 1 < t_seen.size, t_seen[np.minimum(k + 1, t_seen.size - 1)], np.inf)
     inside = (grid > times[gap - 1] + eps) & (grid <= times[gap] + tolerance)
     cycling = (bits[gap] == 1) | (np.abs(nxt - grid - period) <= tolerance)
-    return grid[has & inside & cycling & (nxt > grid + tolerance)]
+    forward = has & inside & cycling & (nxt > grid + tolerance)
+    # no such grid point (the heater was quiet before): the bit after the gap is on and
+    # the next seen edge is one period later -> the grid point one period before it
+    finite = np.isfinite(nxt)
+    n = np.where(finite, np.floor((np.where(finite, nxt, 0.0) - times[gap - 1] - eps)
+                                  / period), 0.0)
+    back = np.where(finite, nxt - n * period, np.nan)
+    backward = (~forward & (bits[gap] == 1) & np.isfinite(nxt) & (n >= 1)
+                & (back > times[gap - 1] + eps) & (back <= times[gap] + tolerance)
+                & ((n == 1) | (on_until[gap] >= nxt - period - tolerance)))
+    return np.concatenate([grid[forward], back[backward]])
 
 
 def heater_periods(
@@ -112,8 +132,8 @@ def heater_periods(
     A rising edge is a 0 -> 1 step between *consecutive* bits (``bit_step`` apart).  A
     step across a gap is not an edge: the edge lies somewhere in the gap.  When the grid
     point one period after the last seen edge lies in the gap and the heater kept cycling
-    (see `_hidden_edges`) the period starts there; otherwise the period is not known (as
-    at the start of the series: no heater period, no signal).
+    (see `_hidden_edges`) the period starts there; with no grid point known, at the
+    first on-bit after the gap (the change time is then late by less than the gap).
 
     A bit that stays on for longer than a period (duty cycle 100 %) has no rising edge
     after the first: the periods go on every ``period`` seconds while the bit is on.  A
@@ -148,8 +168,6 @@ def heater_periods(
     consecutive = np.diff(times) <= bit_step + eps
     seen = np.flatnonzero((step == 1) & consecutive) + 1
     falling = np.flatnonzero(step == -1) + 1
-    start = np.sort(np.concatenate(
-        [times[seen], _hidden_edges(times, bits, seen, period, bit_step, tolerance)]))
     # the run of ones from each edge ends at the next 1 -> 0 step (or after the series)
     t_fall = times[falling]
     end_of_data = times[-1] + bit_step if times.size else 0.0
@@ -162,14 +180,40 @@ def heater_periods(
     # duty cycle 100 %: periods go on every `period` s while the bit is seen on (up to
     # the end of the last on-bit before the fall, not across a gap hiding the fall)
     last_on = np.concatenate([times[falling - 1] + bit_step, [end_of_data]])
-    run = last_on[np.searchsorted(t_fall, start, side="right")] - start
-    extra = np.maximum(np.ceil((run - eps) / period).astype(np.int64) - 1, 0)
-    if extra.any():
-        base = np.repeat(start, extra)
+
+    def continued(start: np.ndarray) -> np.ndarray:
+        run = last_on[np.searchsorted(t_fall, start, side="right")] - start
+        extra = np.maximum(np.ceil((run - eps) / period).astype(np.int64) - 1, 0)
         k = np.arange(extra.sum()) - np.repeat(np.cumsum(extra) - extra, extra) + 1
-        start = np.sort(np.concatenate([start, base + k * period]))
-        if start.size > 1:  # a hidden edge may coincide with a continued period
-            start = start[np.concatenate([[True], np.diff(start) > tolerance])]
+        return np.repeat(start, extra) + k * period
+
+    def merged(*parts: np.ndarray) -> np.ndarray:
+        out = np.unique(np.concatenate(parts))
+        if out.size > 1:  # a hidden edge may coincide with a continued period
+            out = out[np.concatenate([[True], np.diff(out) > tolerance])]
+        return out
+
+    on_until = last_on[np.searchsorted(t_fall, times, side="right")]
+    start = times[seen]
+    for _ in range(8):  # continued periods and hidden edges anchor further hidden edges
+        grown = merged(start, continued(start),
+                       _hidden_edges(times, bits, start, period, bit_step, tolerance,
+                                     on_until))
+        if grown.size == start.size:
+            break
+        start = grown
+    # a 0 -> 1 step across a gap with no grid point known (no edge before or after to
+    # anchor it, e.g. a bit that then stays on): the period starts at the first on-bit
+    gap = np.flatnonzero(~consecutive & (step == 1)) + 1
+    if gap.size:
+        j = np.searchsorted(start, times[gap - 1], side="right")
+        jj = np.minimum(j, max(start.size - 1, 0))
+        covered = ((j < start.size) & (start[jj] <= times[gap] + tolerance) if start.size
+                   else np.zeros(gap.size, dtype=bool))
+        lone = times[gap[~covered]]
+        start = merged(start, lone, continued(lone))
+    else:
+        lone = np.empty(0)
     nxt = np.append(start[1:], np.inf)
     end = np.minimum(start + period, nxt)
     # bits on within [start, end): cumulative count, searched by time
@@ -191,7 +235,15 @@ def heater_periods(
     # every bit of the on-run present: records in [start, fall) = its length in bits
     i_fall = np.searchsorted(times, fall_time - eps, side="left")
     whole_run = (i_fall - i0) == np.round((fall_time - start) / bit_step)
-    uncertain = (missing > 0) & ~(fall_seen & whole_run)
+    # the controller switches on once per period, at its start: with the start on the
+    # grid (not a lone first on-bit) and the fall seen inside the period, the on-phase is
+    # [start, fall) even where a gap hid some of its bits
+    known_start = ~np.isin(start, lone)
+    single_run = fall_seen & known_start & (fall_time < end + eps) & ~whole_run
+    duty = np.where(single_run, (fall_time - start) / period, duty)
+    uncertain = (missing > 0) & ~(fall_seen & (whole_run | single_run))
+    bounds = np.column_stack([duty, np.where(uncertain, (n_on + missing) * bit_step / period,
+                                             duty)])
     for k in np.flatnonzero(uncertain):  # a loop over the few uncertain periods
         if k > 0 and start[k] - start[k - 1] <= period + tolerance:
             upper = (n_on[k] + missing[k]) * bit_step / period
@@ -201,7 +253,8 @@ def heater_periods(
     always_on = duty >= 1.0 - eps  # no off phase: no heater-cycle waveform
     return HeaterPeriods(
         start=start, end=end, duty_cycle=duty, on_duration=on,
-        applied=(on >= min_on - 1e-9) & ~always_on,
+        applied=(on >= min_on - 1e-9) & ~always_on, complete=~uncertain,
+        duty_bounds=bounds,
     )
 
 

@@ -109,10 +109,16 @@ def duty_cycle_changes(
     run_start = np.concatenate([[True], gap_after[:-1]])
     level = np.empty_like(ppt)
     new = np.empty(ppt.size, dtype=bool)
-    duty_cycle_levels_kernel(np.ascontiguousarray(ppt), run_start, int(evaluation_periods),
+    seen = ppt.copy()  # periods whose on-phase was not fully seen do not vote
+    if periods.complete is not None:
+        seen[~np.asarray(periods.complete, dtype=bool)] = np.nan
+    bounds = (np.column_stack([ppt, ppt]) if periods.duty_bounds is None
+              else np.ascontiguousarray(np.round(np.asarray(periods.duty_bounds) * 1000.0)))
+    cut = data_start is not None and start[0] - data_start <= period + tolerance
+    duty_cycle_levels_kernel(seen, ppt, bounds, run_start, int(evaluation_periods), cut,
                              not bool(gap_after[-1]), level, new)
     change_at = start.copy()
-    if data_start is not None and start[0] - data_start <= period + tolerance:
+    if cut:
         change_at[0] = -np.inf  # the duty cycle before the data is unknown: steady since -inf
     times = [change_at[new], start[gap_after] + period]
     values = [level[new], np.zeros(int(gap_after.sum()))]
