@@ -17,8 +17,10 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import spiceypy
@@ -702,6 +704,12 @@ class SclkKernel:
     (most significant) field, fraction included: for MESSENGER (fields seconds and
     microseconds) ``seconds = 16458912.103412`` is ``1/16458912:103412``.  Offsets of the
     fields (``SCLK01_OFFSETS``) must be zero.
+
+    A reading within the float64 resolution of a whole tick (`SNAP_RELATIVE`) is taken
+    as that tick, and the TT2000 of a TT (TDT) clock is computed in int64 from the
+    integer ticks and the kernel's parallel times held as integer nanoseconds
+    (`ExactClock`): the rate product is the only floating-point step, and it is
+    confined to a term far below 1 ns of rounding (docs/decisions/geometry.md).
     """
 
     sc_id: int
@@ -756,9 +764,9 @@ class SclkKernel:
         return cls(
             sc_id=int(sc_id),
             moduli=get("SCLK01_MODULI"),
-            partition_start=get("SCLK_PARTITION_START"),
-            partition_end=get("SCLK_PARTITION_END"),
-            ticks=coeff[:, 0].copy(),
+            partition_start=_snap_whole(get("SCLK_PARTITION_START")),
+            partition_end=_snap_whole(get("SCLK_PARTITION_END")),
+            ticks=_snap_whole(coeff[:, 0]),
             parallel=coeff[:, 1].copy(),
             rate=coeff[:, 2].copy(),
             time_system=system,
@@ -776,8 +784,35 @@ class SclkKernel:
         lengths = self.partition_end - self.partition_start
         return np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
 
-    def encode(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
-        """Return encoded SCLK ticks (continuous across partitions) of clock readings.
+    @functools.cached_property
+    def exact(self) -> ExactClock:
+        """The kernel's ticks as int64 and parallel times as int64 ns (`ExactClock`).
+
+        Raises
+        ------
+        KernelError
+            Naming the field and record of a tick count (partition limit, coefficient
+            tick, modulus) that is not a whole number.
+        """
+        where = f"SCLK of spacecraft {self.sc_id}"
+        return ExactClock(
+            ticks_per_count=int(_whole_ticks(np.array([self.ticks_per_count]), where,
+                                             "SCLK01_MODULI")[0]),
+            partition_start=_whole_ticks(self.partition_start, where, "SCLK_PARTITION_START"),
+            partition_offsets=_whole_ticks(self.partition_offsets, where,
+                                           "SCLK_PARTITION_START/END"),
+            ticks=_whole_ticks(self.ticks, where, "SCLK01_COEFFICIENTS (encoded SCLK)"),
+            parallel_ns=seconds_to_exact_ns(self.parallel),
+            rate_minus_one=_rate_minus_one(self.rate),
+        )
+
+    def _reading(
+        self, partition: np.ndarray, seconds: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Validate readings; return (partition index, whole ticks, reading, tick rest).
+
+        The reading ``seconds * ticks_per_count`` is split into the nearest whole tick
+        and the rest; a rest within float64 resolution (`SNAP_RELATIVE`) is zero.
 
         Raises
         ------
@@ -798,7 +833,11 @@ class SclkKernel:
                 field="partition",
             )
         p = partition.astype(np.int64) - 1
-        reading = seconds * self.ticks_per_count
+        raw = seconds * self.ticks_per_count
+        whole = np.rint(raw)
+        rest = raw - whole
+        rest = np.where(np.abs(rest) <= np.abs(raw) * SNAP_RELATIVE, 0.0, rest)
+        reading = whole + rest
         start = self.partition_start[p]
         end = self.partition_end[p]
         outside = (reading < start) | (reading > end)
@@ -810,7 +849,20 @@ class SclkKernel:
                 f"({start[i] / self.ticks_per_count:.6f} .. {end[i] / self.ticks_per_count:.6f})",
                 field="met",
             )
-        return self.partition_offsets[p] + (reading - start)
+        return p, whole, reading, rest
+
+    def encode(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+        """Return encoded SCLK ticks (continuous across partitions) of clock readings.
+
+        A reading within float64 resolution of a whole tick is that tick (`_reading`).
+
+        Raises
+        ------
+        InputFormatError
+            Naming the first reading outside its partition (or an unknown partition).
+        """
+        p, _, reading, _ = self._reading(partition, seconds)
+        return self.partition_offsets[p] + (reading - self.partition_start[p])
 
     def decode(self, encoded: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (partition, seconds) of encoded SCLK ticks."""
@@ -844,7 +896,7 @@ class SclkKernel:
         InputFormatError
             Naming the first reading outside its partition (or an unknown partition).
         """
-        out = self._compiled(partition, seconds, want_tt2000=False)
+        out = self._compiled(partition, seconds, None, want_tt2000=False)
         return self.to_et_reference(partition, seconds) if out is None else out[0]
 
     def to_et_reference(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
@@ -852,28 +904,38 @@ class SclkKernel:
         return self.encoded_to_et(self.encode(partition, seconds))
 
     def _compiled(
-        self, partition: np.ndarray, seconds: np.ndarray, *, want_tt2000: bool
+        self, partition: np.ndarray, seconds: np.ndarray | None, ticks: np.ndarray | None,
+        *, want_tt2000: bool,
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """(ET, TT2000) from `_sclk_kernel`; None when the reference must decide.
 
-        The kernel stops at a reading the reference would reject (unknown partition,
-        reading outside its partition) or treat specially (NaN); the caller then runs
-        the numpy reference, which raises its error or returns its values.
+        Readings are ``seconds`` (float, most significant field) or, when ``seconds``
+        is None, whole ``ticks`` (int64).  The kernel stops at a reading the reference
+        would reject (unknown partition, reading outside its partition) or treat
+        specially (NaN); the caller then runs the numpy reference, which raises its
+        error or returns its values.
         """
-        partition, seconds = np.broadcast_arrays(np.asarray(partition),
-                                                 np.asarray(seconds, dtype=float))
+        values = np.asarray(ticks, dtype=np.int64) if seconds is None else np.asarray(
+            seconds, dtype=float)
+        partition, values = np.broadcast_arrays(np.asarray(partition), values)
         if partition.dtype.kind not in "iuf" or self.ticks.size == 0:
             return None
-        shape = seconds.shape
+        shape = values.shape
         part = partition.ravel()
-        sec = seconds.ravel()
-        et = np.empty(sec.size)
-        tt2000 = np.empty(sec.size if want_tt2000 else 0, dtype=np.int64)
+        flat = values.ravel()
+        exact = self.exact if self.time_system == 2 and want_tt2000 else _NO_EXACT
+        et = np.empty(flat.size)
+        tt2000 = np.empty(flat.size if want_tt2000 else 0, dtype=np.int64)
         lsk = self.lsk
+        no_ticks = np.empty(0, dtype=np.int64)
         bad = _sclk_kernel(
-            part, sec, float(len(self.partition_start)), self.ticks_per_count,
+            part, flat if seconds is not None else np.empty(0),
+            flat if seconds is None else no_ticks, seconds is None,
+            float(len(self.partition_start)), self.ticks_per_count,
             self.partition_start, self.partition_end, self.partition_offsets,
             self.ticks, self.parallel, self.rate, self.time_system == 2,
+            exact.ticks_per_count, exact.partition_start, exact.partition_offsets,
+            exact.ticks, exact.parallel_ns, exact.rate_minus_one,
             lsk.k, lsk.eb, lsk.m0, lsk.m1, et, tt2000, want_tt2000,
         )
         if bad >= 0:
@@ -884,9 +946,13 @@ class SclkKernel:
 
     def _parallel(self, encoded: np.ndarray) -> np.ndarray:
         """Convert encoded ticks to parallel time (TDB or TT seconds past J2000)."""
-        last = len(self.ticks) - 1
-        i = np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, last)
+        i = self._record(encoded)
         return self.parallel[i] + (encoded - self.ticks[i]) * (self.rate[i] / self.ticks_per_count)
+
+    def _record(self, encoded: np.ndarray) -> np.ndarray:
+        """Index of the coefficient record of each encoded tick (the first for earlier ones)."""
+        last = len(self.ticks) - 1
+        return np.clip(np.searchsorted(self.ticks, encoded, side="right") - 1, 0, last)
 
     def to_et_and_tt2000(
         self, partition: np.ndarray, seconds: np.ndarray
@@ -894,35 +960,203 @@ class SclkKernel:
         """Clock readings -> (ephemeris time, int64 TT2000 ns), sharing the work.
 
         With a TT (TDT) parallel time the TT2000 epoch comes straight from the clock
-        correlation, without a TDB round trip.  One compiled pass (`_sclk_kernel`);
-        `to_et_and_tt2000_reference` is the numpy version the tests compare with.
+        correlation in integer nanoseconds (`exact_tt2000`), without a TDB round trip:
+        a reading on the clock's tick grid gives the TT2000 of the kernel's values
+        exactly (the ``1/0`` of MESSENGER is 2004-08-03T05:59:16.000000000 UTC).  One
+        compiled pass (`_sclk_kernel`); `to_et_and_tt2000_reference` is the numpy
+        version the tests compare with.
 
         Raises
         ------
         InputFormatError
             Naming the first reading outside its partition (or an unknown partition).
         """
-        out = self._compiled(partition, seconds, want_tt2000=True)
+        out = self._compiled(partition, seconds, None, want_tt2000=True)
         return self.to_et_and_tt2000_reference(partition, seconds) if out is None else out
 
     def to_et_and_tt2000_reference(
         self, partition: np.ndarray, seconds: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Numpy reference of `to_et_and_tt2000` (`encode`, `_parallel`, whole arrays)."""
-        parallel = self._parallel(self.encode(partition, seconds))
+        """Numpy reference of `to_et_and_tt2000` (`_reading`, `_parallel`, `exact_tt2000`)."""
+        p, whole, reading, rest = self._reading(partition, seconds)
+        encoded = self.partition_offsets[p] + (reading - self.partition_start[p])
+        parallel = self._parallel(encoded)
         if self.time_system != 2:
             return parallel, et_to_tt2000(parallel, self.lsk)
-        whole = np.floor(parallel)
-        tt2000 = whole.astype(np.int64) * _NS + np.rint((parallel - whole) * 1e9).astype(np.int64)
-        return self.lsk.tt_to_tdb(parallel), tt2000
+        exact = self.exact
+        with np.errstate(invalid="ignore"):  # NaN readings: NaN ET, meaningless TT2000
+            ticks = whole.astype(np.int64)
+        enc = exact.partition_offsets[p] + (ticks - exact.partition_start[p])
+        return self.lsk.tt_to_tdb(parallel), self.exact_tt2000(enc, rest, self._record(encoded))
+
+    def exact_tt2000(self, encoded: np.ndarray, rest: np.ndarray, record: np.ndarray
+                     ) -> np.ndarray:
+        """TT2000 ns of whole encoded ticks (int64) plus ``rest`` ticks, TT clock only.
+
+        ``TT = parallel_ns[j] + (encoded - ticks[j]) * 1e9 / tpc * rate[j]`` with the
+        nominal part ``(encoded - ticks[j]) * 1e9 / tpc`` split into an int64 count and
+        a fraction (floor division); only ``fraction + nominal * (rate - 1)`` and the
+        ``rest`` term are float (rate - 1 from `_rate_minus_one`), then rounded once to
+        the ns (numpy version of the
+        arithmetic in `_sclk_kernel`).
+        """
+        exact = self.exact
+        tpc = exact.ticks_per_count
+        dt = encoded - exact.ticks[record]
+        q, r = np.divmod(dt, tpc)
+        nominal, left = np.divmod(r * _NS, tpc)
+        nominal += q * _NS
+        frac = left / tpc
+        rate = self.rate[record]
+        small = (frac + (nominal + frac) * exact.rate_minus_one[record]
+                 + rest * (_NS / tpc) * rate)
+        with np.errstate(invalid="ignore"):
+            return exact.parallel_ns[record] + nominal + np.rint(small).astype(np.int64)
 
     def to_tt2000(self, partition: np.ndarray, seconds: np.ndarray) -> np.ndarray:
         """Clock readings -> int64 TT2000 nanoseconds."""
         return self.to_et_and_tt2000(partition, seconds)[1]
 
+    def to_et_and_tt2000_ticks(
+        self, partition: np.ndarray, ticks: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Whole-tick clock readings -> (ET, int64 TT2000 ns), the TT2000 exact.
+
+        Parameters
+        ----------
+        partition : array_like of int
+        ticks : array_like of int
+            The reading in ticks of the least significant field (MESSENGER: microseconds,
+            ``1/16458912:103412`` is 16458912103412; Rosetta: 1/65536 s).
+
+        Raises
+        ------
+        InputFormatError
+            Naming the first reading outside its partition (or an unknown partition).
+        KernelError
+            If the parallel time is TDB (the TT2000 would not be exact).
+        """
+        if self.time_system != 2:
+            raise KernelError(
+                f"SCLK of spacecraft {self.sc_id}: exact TT2000 from ticks needs a TDT "
+                f"(TT) parallel time, the kernel's is TDB (SCLK01_TIME_SYSTEM = 1)"
+            )
+        ticks = np.asarray(ticks)
+        if ticks.dtype.kind not in "iu":
+            raise InputFormatError(
+                f"SCLK ticks of spacecraft {self.sc_id} must be integers, got {ticks.dtype}",
+                field="ticks",
+            )
+        out = self._compiled(partition, None, ticks, want_tt2000=True)
+        if out is not None:
+            return out
+        # rejected reading: the reference names it (ticks -> seconds only for the message)
+        return self.to_et_and_tt2000_reference(partition, ticks / self.ticks_per_count)
+
+    def to_tt2000_ticks(self, partition: np.ndarray, ticks: np.ndarray) -> np.ndarray:
+        """Whole-tick clock readings -> exact int64 TT2000 ns (`to_et_and_tt2000_ticks`)."""
+        return self.to_et_and_tt2000_ticks(partition, ticks)[1]
+
     def from_et(self, et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ephemeris time -> clock readings (partition, seconds)."""
         return self.decode(self.et_to_encoded(et))
+
+
+#: A clock reading ``r = seconds * ticks_per_count`` within ``|r| * SNAP_RELATIVE`` of a
+#: whole tick is that tick: twice the largest error of ``r`` when ``seconds`` is the
+#: float64 nearest to a whole-tick reading (half an ulp of ``seconds``, scaled, plus half
+#: an ulp of the product), e.g. 0.12 tick (120 ns) for MESSENGER at 2.7e8 s.
+SNAP_RELATIVE = 2.0**-51
+
+
+class ExactClock(NamedTuple):
+    """Integer form of a type 1 SCLK (`SclkKernel.exact`).
+
+    Attributes
+    ----------
+    ticks_per_count : int
+    partition_start, partition_offsets : ndarray of int64
+    ticks : ndarray of int64
+        Encoded SCLK of each coefficient record.
+    parallel_ns : ndarray of int64
+        Parallel time of each record in ns past J2000 (`seconds_to_exact_ns`).
+    rate_minus_one : ndarray of float
+        Each record's rate - 1 (`_rate_minus_one`).
+    """
+
+    ticks_per_count: int
+    partition_start: np.ndarray
+    partition_offsets: np.ndarray
+    ticks: np.ndarray
+    parallel_ns: np.ndarray
+    rate_minus_one: np.ndarray
+
+
+_NO_EXACT = ExactClock(1, *(np.zeros(1, dtype=np.int64) for _ in range(4)), np.zeros(1))
+
+
+#: Decimal places of the SCLK rates that `_rate_minus_one` recovers.
+RATE_DECIMALS = 14
+
+
+def _rate_minus_one(rate: np.ndarray) -> np.ndarray:
+    """Return rate - 1 of each record, from the kernel's decimal rate when it has one.
+
+    The kernels state the rates with at most 14 decimals (MESSENGER ``1.00001013271``,
+    Rosetta ``9.9849419388587E-01``); the pool's float64 is up to ~2 ulp (4.4e-16) off the
+    decimal, i.e. up to 0.3 ns over the 7e5 s of a Rosetta record.  When every rate lies
+    within 0.1 of the 1e-14 grid (an accident for other kernels: each would have a 20 %
+    chance), rate - 1 is taken from the nearest grid value, an integer count of 1e-14
+    computed exactly; otherwise it is the float64 ``rate - 1`` (itself exact).
+    """
+    scaled = np.asarray(rate, dtype=float) * 10.0**RATE_DECIMALS
+    grid = np.rint(scaled)
+    if np.all(np.abs(scaled - grid) <= 0.1):
+        return (grid - 10.0**RATE_DECIMALS) / 10.0**RATE_DECIMALS
+    return np.asarray(rate, dtype=float) - 1.0
+
+
+def _snap_whole(values: np.ndarray) -> np.ndarray:
+    """Return ``values`` with each one within float64 resolution of a whole number made whole.
+
+    The kernel pool's parser is not always correctly rounded: MESSENGER's
+    ``2.68435455999999e+14`` is read as 268435455999998.97 and Rosetta's encoded ticks
+    are up to 0.004 tick off; left so, a reading exactly at a coefficient record would
+    fall in the record before it.  Tolerance `SNAP_RELATIVE` (about 2 ulp).
+    """
+    values = np.asarray(values, dtype=float)
+    whole = np.rint(values)
+    return np.where(np.abs(values - whole) <= np.abs(values) * SNAP_RELATIVE, whole, values)
+
+
+def _whole_ticks(values: np.ndarray, where: str, field: str) -> np.ndarray:
+    """Return whole tick counts (float64, `_snap_whole`) as int64; KernelError for others."""
+    values = _snap_whole(values)
+    bad = ~(np.isfinite(values) & (values == np.rint(values)) & (np.abs(values) < 2.0**53))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise KernelError(
+            f"{where}: {field} value {i + 1} ({values[i]!r}) is not a whole number of ticks"
+        )
+    return values.astype(np.int64)
+
+
+def seconds_to_exact_ns(seconds: np.ndarray) -> np.ndarray:
+    """Float64 seconds stated to the microsecond (or not) -> int64 nanoseconds.
+
+    A value within float64 resolution (2 ulp) of a whole microsecond is that microsecond
+    (the SCLK kernels state their parallel times to the microsecond: MESSENGER
+    ``@03-AUG-2004-06:00:20.184000``, Rosetta ``1.3146108418400E+08``); any other value
+    is rounded to the nearest nanosecond of its float64 value.
+    """
+    seconds = np.asarray(seconds, dtype=float)
+    whole = np.floor(seconds)
+    micro = (seconds - whole) * 1e6
+    micro_whole = np.rint(micro)
+    tol = 2.0 * np.spacing(np.abs(seconds)) * 1e6
+    on_grid = np.abs(micro - micro_whole) <= tol
+    frac_ns = np.where(on_grid, micro_whole * 1000.0, np.rint((seconds - whole) * 1e9))
+    return whole.astype(np.int64) * _NS + frac_ns.astype(np.int64)
 
 
 # ----------------------------------------------------------------------------------------
@@ -988,19 +1222,26 @@ def _tdb_minus_tt_taylor(t, k, eb, m0, m1, cache):
 
 @njit(cache=True, nogil=True)
 def _sclk_kernel(
-    partition, seconds, n_part, ticks_per_count, part_start, part_end, part_offsets,
-    ticks, parallel, rate, tt_clock, k, eb, m0, m1, et, tt2000, want_tt2000,
+    partition, seconds, ticks_in, from_ticks, n_part, ticks_per_count, part_start, part_end,
+    part_offsets, ticks, parallel, rate, tt_clock, tpc_i, part_start_i, part_offsets_i,
+    ticks_i, parallel_ns, rate_m1, k, eb, m0, m1, et, tt2000, want_tt2000,
 ):
     """Type 1 SCLK readings -> ET (and TT2000 ns), one pass (seed 000 sec. 9, ``scs2e``).
 
-    Per reading, the arithmetic of `SclkKernel.encode`, `SclkKernel._parallel`,
-    `LeapSecondTable.tt_to_tdb` (TT clock) or `LeapSecondTable.tdb_to_tt` (TDB clock)
-    and the TT2000 split into whole seconds and rounded nanoseconds, in the same order.
+    Per reading, the arithmetic of `SclkKernel._reading`, `SclkKernel.encode`,
+    `SclkKernel._parallel`, `LeapSecondTable.tt_to_tdb` (TT clock) or
+    `LeapSecondTable.tdb_to_tt` (TDB clock) and, for the TT2000 of a TT clock,
+    `SclkKernel.exact_tt2000` (int64), in the same order.
 
     Parameters
     ----------
-    partition, seconds : ndarray, shape (n,)
-        Clock readings (partition number, seconds of the most significant field).
+    partition : ndarray, shape (n,)
+        Partition numbers.
+    seconds : ndarray, shape (n,) or (0,)
+        Readings in units of the most significant field (unless ``from_ticks``).
+    ticks_in : ndarray of int64, shape (n,) or (0,)
+        Readings in whole ticks (when ``from_ticks``).
+    from_ticks : bool
     n_part : float
         Number of partitions.
     ticks_per_count : float
@@ -1010,6 +1251,8 @@ def _sclk_kernel(
         SCLK01 coefficient triplets.
     tt_clock : bool
         Parallel time is TT (TDT); else TDB.
+    tpc_i, part_start_i, part_offsets_i, ticks_i, parallel_ns, rate_m1 : int, ndarray
+        `ExactClock` fields (used for the TT2000 of a TT clock).
     k, eb, m0, m1 : float
         DELTET constants of the leapseconds kernel.
     et : ndarray, shape (n,)
@@ -1032,12 +1275,25 @@ def _sclk_kernel(
     last = ticks.size - 1
     hint = 0
     cache = np.full(5, np.nan)  # node index and Taylor coefficients of TDB - TT
-    for i in range(seconds.size):
+    ns_per_tick = 1e9 / tpc_i
+    n = ticks_in.size if from_ticks else seconds.size
+    for i in range(n):
         pv = partition[i]
         if not (pv >= 1 and pv <= n_part):
             return i
         p = int(pv) - 1
-        reading = seconds[i] * ticks_per_count
+        if from_ticks:
+            whole_i = ticks_in[i]
+            rest = 0.0
+            reading = float(whole_i)
+        else:
+            raw = seconds[i] * ticks_per_count
+            whole = np.rint(raw)
+            rest = raw - whole
+            if abs(rest) <= abs(raw) * SNAP_RELATIVE:
+                rest = 0.0
+            reading = whole + rest
+            whole_i = np.int64(0)
         start = part_start[p]
         if not (reading >= start and reading <= part_end[p]):
             return i
@@ -1048,14 +1304,25 @@ def _sclk_kernel(
         par = parallel[j] + (encoded - ticks[j]) * (rate[j] / ticks_per_count)
         if tt_clock:
             et[i] = par + _tdb_minus_tt_taylor(par, k, eb, m0, m1, cache)
-            tt = par
+            if not want_tt2000:
+                continue
+            if not from_ticks:
+                whole_i = np.int64(whole)
+            dt = part_offsets_i[p] + (whole_i - part_start_i[p]) - ticks_i[j]
+            q = dt // tpc_i
+            rn = (dt - q * tpc_i) * _NS
+            nominal = rn // tpc_i
+            frac = (rn - nominal * tpc_i) / tpc_i
+            nominal += q * _NS
+            small = (frac + (float(nominal) + frac) * rate_m1[j]
+                     + rest * ns_per_tick * rate[j])
+            tt2000[i] = parallel_ns[j] + nominal + np.int64(np.rint(small))
         else:
             et[i] = par
             if not want_tt2000:
                 continue
             inner = par - _tdb_minus_tt_taylor(par, k, eb, m0, m1, cache)
             tt = par - _tdb_minus_tt_taylor(inner, k, eb, m0, m1, cache)
-        if want_tt2000:
-            whole = np.floor(tt)
-            tt2000[i] = np.int64(whole) * _NS + np.int64(np.rint((tt - whole) * 1e9))
+            whole_s = np.floor(tt)
+            tt2000[i] = np.int64(whole_s) * _NS + np.int64(np.rint((tt - whole_s) * 1e9))
     return -1
