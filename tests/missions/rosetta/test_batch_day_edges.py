@@ -223,3 +223,22 @@ def test_negative_filter_shift_is_refused_with_table_and_sid():
     bad.primary[1] = -2.0
     with pytest.raises(FluxcalError, match=rf"my_shifts.csv: SID {int(seed.sid[1])} .*-2.0"):
         check_shifts_nonnegative(bad)
+
+
+def test_cli_batch_both_days_done(sim, tmp_path):
+    # through the command line (issue 12): before, day 1 failed with "records outside the
+    # day 2014-11-01 ... a day folder must hold that UTC day only" and exit 1
+    import json
+
+    from fluxcal.cli import main
+
+    out = tmp_path / "out"
+    code = main(["batch", "rosetta", "--start", D1.isoformat(), "--end", D2.isoformat(),
+                 "--input", str(sim), "--out", str(out), "--quiet", "--scheduler", "serial",
+                 "--formats", "cdf"])
+    report = json.loads((out / "batch_report_rosetta.json").read_text())
+    assert code == 0, report
+    assert report["counts"] == {"done": 2, "skipped": 0, "no_data": 0, "failed": 0}
+    for sensor in ("OB", "IB"):
+        exp = _expected(sim, sensor)
+        assert _level_a(out, D2, sensor).sizes["time"] == exp[D2][0].size
