@@ -109,3 +109,38 @@ def test_quiet_start_is_seen():
     ch = duty_cycle_changes(heater_periods(t, np.array(bits)), data_end=t[-1] + 1,
                             data_start=t[0])
     np.testing.assert_array_equal(ch.time, [102, 202])
+
+
+def brute_force_span(ts, change_t, cstar, span=5000.0, tau=TAU, dt=DT):
+    """Eq. 6a-6f with a look-back of at least five changes and at least ``span`` s.
+
+    Written as a plain recursion: the state is zero at ``t_D``, the deepest of the fifth
+    change back and the last change at least ``span`` before ``t_0`` (the first change
+    if there is none that old), then relaxes change by change.
+    """
+    prior = [i for i in range(len(change_t)) if change_t[i] <= ts]
+    if not prior:
+        return 0.0
+    i0 = prior[-1]
+    old = [i for i in range(i0 + 1) if change_t[i] <= change_t[i0] - span]
+    first = max(min(i0 - 5, old[-1] if old else -1), 0)
+    state = 0.0  # zero at t_D (or before the first change)
+    for i in range(first, i0):  # eq. 6a-6e: relax from change i to change i + 1
+        e = math.exp(-max(change_t[i + 1] - change_t[i] - dt, 0.0) / tau)
+        state = cstar[i] - (cstar[i] - state) * e
+    return cstar[i0] - (cstar[i0] - state) * math.exp(-max(ts - change_t[i0] - dt, 0.0) / tau)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    gaps=st.lists(st.floats(5.0, 3000.0), min_size=0, max_size=14),
+    values=st.lists(st.floats(-200, 200), min_size=15, max_size=15),
+    samples=st.lists(st.floats(-100.0, 60000.0), min_size=1, max_size=30),
+)
+def test_look_back_span_equals_brute_force(gaps, values, samples):
+    change_t = np.cumsum(np.array([0.0] + gaps))
+    cstar = np.array(values[: change_t.size])
+    got = relaxed_offset(np.array(samples), change_t, cstar[:, None], tau=TAU, delay=DT,
+                         look_back_s=5000.0)[:, 0]
+    want = [brute_force_span(s, change_t, cstar) for s in samples]
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
