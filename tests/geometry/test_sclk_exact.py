@@ -216,3 +216,23 @@ def test_exact_path_errors(clocks):
     shifted = dataclasses.replace(clock, ticks=clock.ticks + 0.5)
     with pytest.raises(KernelError, match=r"SCLK01_COEFFICIENTS.*value 1 .*whole number"):
         shifted.to_tt2000([1], [0.0])
+
+
+def test_messenger_lag_is_subtracted_in_whole_nanoseconds(clocks):
+    # levels.correct_time: TT2000 of the recorded MET (exact) minus the Table 1 net lag,
+    # whole milliseconds (0.042 s at rate setting 10, 2.358 s at 0) taken to int64 ns
+    import xarray as xr
+
+    from fluxcal.missions.messenger import levels
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+
+    clock, text = clocks[-236]
+    ds = xr.Dataset({"partition": ("time", np.array([1, 1])),
+                     "met": ("time", np.array([0.042, 2.358])),
+                     "rate": ("time", np.array([10, 0]))})
+    out = levels.correct_time(ds, load_calibration("2004-08-04"), clock)
+    # record 0 rate 1.00001013271 s/s: 42 ms of clock are 42,000,425.57 ns of TT
+    want = [round(text.parallel_ns[0] + Fraction(m * 1000) * text.rates[0]) - m * 1000
+            for m in (42_000, 2_358_000)]
+    np.testing.assert_array_equal(out["epoch"].values, want)
+    assert want[0] - text.parallel_ns[0] == 426
