@@ -122,10 +122,10 @@ def _numeric(table: np.ndarray, j: int, name: str, kind: type, path: Path) -> np
 
 
 def _epoch(table: np.ndarray, obt: np.ndarray, path: Path, sclk, lsk) -> tuple[np.ndarray, str]:
-    from fluxcal.geometry.time import et_to_tt2000, utc_to_tt2000
+    from fluxcal.geometry.time import utc_to_tt2000
 
-    if sclk is not None:
-        epoch = et_to_tt2000(sclk.to_et(np.ones(obt.size, dtype=np.int64), obt), lsk)
+    if sclk is not None:  # TT2000 straight from the TDT clock, exact on the OBT tick grid
+        epoch = sclk.to_tt2000(np.ones(obt.size, dtype=np.int64), obt)
         field = "obt"
     else:
         try:
