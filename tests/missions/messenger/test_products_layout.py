@@ -121,3 +121,18 @@ def test_order_and_quality_reported_in_label_and_cdf(out):
     flags = re.search(r"DATA_QUALITY_ID\s*=\s*\(?([^)\r\n]*)", label).group(1)
     assert sorted(re.findall(r"\d{3}", flags)) == [f"{q:03d}" for q in np.unique(v["quality"])]
     np.testing.assert_allclose(v["b_total"], np.linalg.norm(v["b"], axis=1), rtol=1e-12)
+
+
+def test_pvl_and_pdr_read_the_products(out):
+    """The archive's own tools: pvl parses the label, pdr reads the table by it."""
+    import pdr
+    import pvl
+
+    for stem in ("MAGMSOSCI12153_V03", "MAGRTNSCIAVG12153_60_V03", "MAGSCSCI12153_V03"):
+        label = pvl.load(out / f"{stem}.LBL")
+        assert label["PRODUCT_ID"] == stem
+        assert label["FLUXCAL_DUPLICATES_DROPPED"] == 0
+        table = pdr.read(out / f"{stem}.LBL")["TABLE"]
+        plain = _table(out / f"{stem}.TAB")
+        assert table.shape == plain.shape
+        np.testing.assert_array_equal(table[table.columns[-1]].to_numpy(), plain[:, -1])
