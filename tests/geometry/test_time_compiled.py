@@ -26,6 +26,9 @@ def clocks(shared_kernels):
             "rosetta": SclkKernel.from_pool(-226),  # TT, 1 partition
             # the same coefficients read as a TDB clock: the tdb_to_tt branch of TT2000
             "messenger_tdb": dataclasses.replace(msgr, time_system=1),
+            # 3e6 ticks per count: 1e9 / tpc = 1000 / 3, the integer-division branch of
+            # the exact TT2000 (the real clocks take the shift branch: den 1 and 128)
+            "messenger_3mhz": dataclasses.replace(msgr, moduli=np.array([2.0**28, 3.0e6])),
         }
 
 
@@ -168,7 +171,7 @@ def test_expansion_of_non_finite_times_is_nan(clocks):
     assert np.isnan(got[:3]).all() and np.isfinite(got[3])
 
 
-@pytest.mark.parametrize("name", ["messenger", "rosetta"])
+@pytest.mark.parametrize("name", ["messenger", "rosetta", "messenger_3mhz"])
 def test_whole_tick_readings_match_reference(clocks, name):
     # the compiled integer-tick path against the numpy reference fed the same readings
     # as float seconds (exact for Rosetta's 1/65536 s, snapped for MESSENGER's us)
