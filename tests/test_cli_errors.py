@@ -197,3 +197,17 @@ def test_internal_error_is_one_line_exit_1(world, capsys, monkeypatch) -> None:
     assert main(["demo", "--out", str(world["out"])]) == 1
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "internal error" in line and "--debug" in line
+
+
+@pytest.mark.parametrize("argv,expect", [
+    (["no-such-command"], "no-such-command"),
+    (["simulate", "rosetta", "--hours", "many"], "--hours"),
+    (["batch", "synthetic", "--start", "2024-03-01", "--end", "2024-03-01",
+      "--input", "/no/such/input", "--out", "x"], "--input"),
+    (["batch"], "mission"),
+])
+def test_usage_errors_are_one_line_too(capsys, argv, expect) -> None:
+    """Before: click's three-line 'Usage: ... Try ... Error: ...' block."""
+    assert main(argv) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("fluxcal: error: ") and expect in line and "--help" in line

@@ -206,6 +206,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                        f"{' '.join(str(exc).split())[:300]} (a bug: please report it with "
                        f"the traceback that --debug or {DEBUG_ENV}=1 shows)", err=True)
             return 1
+        message = getattr(exc, "format_message", None)
+        ctx = getattr(exc, "ctx", None)
+        if callable(message) and ctx is not None and type(exc).__name__ != "NoArgsIsHelpError":
+            # a usage error: one line, like every other error
+            text = " ".join(str(message()).split())
+            typer.echo(f"fluxcal: error: {text} (see '{ctx.command_path} --help')", err=True)
+            return int(exit_code)
         show = getattr(exc, "show", None)
         if callable(show):
             show()
