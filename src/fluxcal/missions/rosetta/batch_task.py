@@ -391,7 +391,7 @@ def simulate_days(
     import numpy as np
 
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.geometry.synthetic import copy_meta_kernel, write_rosetta_like_kernels
     from fluxcal.geometry.time import leapseconds
     from fluxcal.missions.rosetta import calib, io
     from fluxcal.missions.rosetta.simulate import (
@@ -417,7 +417,7 @@ def simulate_days(
         first = f"{days[0].isoformat()}T{start_time}"
         span = (days[-1] - days[0]).total_seconds() + duration
         meta = write_rosetta_like_kernels(input_dir / "kernels", first, span, margin_s=3600.0)
-        (input_dir / "kernels.tm").write_text(Path(meta).read_text())
+        copy_meta_kernel(meta, input_dir / "kernels.tm")  # paths relative to its folder
     cals = {s: calib.load_ground_calibration(s) for s in SENSORS}
     shifts = calib.load_time_shift_table()
     nominal = calib.load_nominal_conversion()
