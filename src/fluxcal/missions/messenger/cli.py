@@ -54,6 +54,11 @@ def edr2cdr(
         ) from None
     if any(a <= 0 for a in averages):
         raise InputFormatError(f"{average!r}: intervals must be positive", field="--average")
+    from fluxcal.preflight import plain_text_file
+
+    for option, paths in (("--sci", sci), ("--heater", heater), ("--temperature", temperature)):
+        for path in paths:  # before any work: not compressed, a data line after the header
+            plain_text_file(path, option, header_lines=1)
     with compilation_notice(), progress_display() as progress:
         written = run_edr2cdr(
             sci, heater, temperature, kernels, out,
