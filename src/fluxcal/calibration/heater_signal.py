@@ -85,8 +85,8 @@ def _hidden_edges(
     inside = (grid > times[gap - 1] + eps) & (grid <= times[gap] + tolerance)
     cycling = (bits[gap] == 1) | (np.abs(nxt - grid - period) <= tolerance)
     forward = has & inside & cycling & (nxt > grid + tolerance)
-    # no such grid point (the heater was quiet before): the bit after the gap is on and
-    # the next seen edge is one period later -> the grid point one period before it
+    # no such grid point (the heater was quiet before): the bit after the gap is on -> the
+    # grid point n periods before the next start (n > 1 only if the bit stays on till then)
     finite = np.isfinite(nxt)
     n = np.where(finite, np.floor((np.where(finite, nxt, 0.0) - times[gap - 1] - eps)
                                   / period), 0.0)
