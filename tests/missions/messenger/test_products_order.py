@@ -141,3 +141,20 @@ def test_product_names():
     assert products.product_name("mso", "11095", 1, 5) == "MAGMSOSCIAVG11095_05_V01"
     with pytest.raises(ValueError):
         products.product_name("mso", "11095", 100)
+
+
+def test_split_days_at_utc_midnight_of_the_recorded_time():
+    from fluxcal.errors import InputFormatError
+    from fluxcal.geometry.time import utc_to_et
+
+    utc = ["2012-06-01T23:59:59.90", "2012-06-01T23:59:59.95", "2012-06-02T00:00:00.00",
+           "2012-06-02T12:00:00", "2012-06-04T00:00:01"]
+    et = utc_to_et(np.array(utc))
+    day = xr.Dataset({"et_recorded": ("time", et), "et": ("time", et - 0.2)},
+                     coords={"epoch": ("time", np.arange(5, dtype=np.int64))})
+    days = products.split_days(day)
+    # a day without samples (06-03) gives no dataset; the corrected time does not decide
+    assert [d.sizes["time"] for d in days] == [2, 2, 1]
+    assert [products.day_code(d)[2] for d in days] == ["12153", "12154", "12156"]
+    with pytest.raises(InputFormatError):
+        products.split_days(day.isel(time=[1, 0]))

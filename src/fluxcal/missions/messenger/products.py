@@ -38,6 +38,7 @@ import xarray as xr
 import yaml
 
 from fluxcal.calibration import averaging
+from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.levels import FRAMES, SC_ID
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
@@ -599,7 +600,8 @@ def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
     if et.size == 0:
         return []
     if et.size > 1 and not (np.diff(et) >= 0).all():
-        raise ValueError("recorded times must not decrease")  # the readers guarantee it
+        raise InputFormatError("recorded (EDR) times go backwards; the science files must "
+                               "be in time order", field="met")  # the readers check it
     (y0, y1), (d0, d1) = _year_doy(et[[0, -1]])
     first = np.datetime64(f"{y0}-01-01") + np.timedelta64(int(d0) - 1, "D")
     last = np.datetime64(f"{y1}-01-01") + np.timedelta64(int(d1) - 1, "D")
