@@ -236,3 +236,18 @@ def test_messenger_lag_is_subtracted_in_whole_nanoseconds(clocks):
             for m in (42_000, 2_358_000)]
     np.testing.assert_array_equal(out["epoch"].values, want)
     assert want[0] - text.parallel_ns[0] == 426
+
+
+@pytest.mark.parametrize("sc_id", [-236, -226])
+def test_readings_before_the_first_record_extrapolate_exactly(clocks, sc_id):
+    # negative tick differences (floor division and remainder of a negative count): the
+    # records moved 1e9 ticks later, readings in the first 1e9 ticks of partition 1
+    clock, text = clocks[sc_id]
+    late = dataclasses.replace(clock, ticks=clock.ticks + 1e9)
+    late_text = dataclasses.replace(text, ticks=[t + 10**9 for t in text.ticks])
+    tick = text.starts[0] + np.random.default_rng(1).integers(0, 10**9, 500)
+    got = late.to_tt2000_ticks(np.ones(tick.size, dtype=int), tick)
+    for k, g in zip(tick.tolist(), got.tolist(), strict=True):
+        exact = late_text.tt2000(late_text.encoded(1, k))
+        assert exact < late_text.parallel_ns[0]  # really before the first record
+        assert abs(g - exact) <= Fraction(1, 2) + Fraction(1, 1000), (k, g, float(exact))

@@ -27,8 +27,10 @@ def clocks(shared_kernels):
             # the same coefficients read as a TDB clock: the tdb_to_tt branch of TT2000
             "messenger_tdb": dataclasses.replace(msgr, time_system=1),
             # 3e6 ticks per count: 1e9 / tpc = 1000 / 3, the integer-division branch of
-            # the exact TT2000 (the real clocks take the shift branch: den 1 and 128)
-            "messenger_3mhz": dataclasses.replace(msgr, moduli=np.array([2.0**28, 3.0e6])),
+            # the exact TT2000 (the real clocks take the shift branch: den 1 and 128); the
+            # records 1e9 ticks later, so readings before the first give negative counts
+            "messenger_3mhz": dataclasses.replace(msgr, moduli=np.array([2.0**28, 3.0e6]),
+                                                  ticks=msgr.ticks + 1e9),
         }
 
 
