@@ -488,11 +488,11 @@ def test_clean_files_errors(tmp_path, lsk):
     with pytest.raises(FluxcalError, match="kernels"):
         clean_files("L", [tmp_path / "a.cdf"], tmp_path)
     with pytest.raises(InputFormatError, match="not found"):
-        clean_files("H", [tmp_path / "missing.cdf"], tmp_path)
+        clean_files("H", [tmp_path / "missing.cdf"], tmp_path, lap_lines_hz=[2.5])
     hds, *_ = _heater_case(lsk, n=400)
     files = _write(hds, tmp_path / "b", lsk)  # a LEVEL_B product
     with pytest.raises(InputFormatError, match="LEVEL_B product; LEVEL_H is made from LEVEL_C"):
-        clean_files("H", [files[".cdf"]], tmp_path / "out")
+        clean_files("H", [files[".cdf"]], tmp_path / "out", lap_lines_hz=[2.5])
 
 
 def test_read_intervals(tmp_path, lsk):

@@ -350,8 +350,8 @@ def clean_files(
     Raises
     ------
     FluxcalError
-        Unknown level, wrong number of inputs, missing kernels for L, and every
-        input error.
+        Unknown level, wrong number of inputs, missing kernels for L, H with neither
+        wheels nor LAP lines (it would change nothing), and every input error.
     """
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import leapseconds
@@ -370,6 +370,11 @@ def clean_files(
         )
     if level == "L" and kernels is None:
         raise FluxcalError("LEVEL_L needs SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
+    if level == "H" and wheels is None and not len(lap_lines_hz):
+        raise FluxcalError(
+            "LEVEL_H removes reaction-wheel and LAP lines and none were given: pass --wheels "
+            "CSV and/or --lap-lines HZ[,HZ...]"
+        )
     result = CleanResult()
     out = Path(out)
     with KernelPool(kernels) as pool:
