@@ -49,7 +49,21 @@ def test_stream_starting_inside_heater_operation(messenger_kernels, simulated, c
                                                       SclkKernel.from_pool(-236))
     assert np.isneginf(changes.time[0]) and changes.duty_cycle_ppt[0] == 360
     assert np.all(np.isfinite(changes.time[1:]))
-    assert "starts inside heater operation" in caplog.text
+    # the warning (pipeline.warn_unseen_duty_cycle) needs science samples within the
+    # 5000-s look-back of the stream start: the simulated science starts 95 s after it
+    from fluxcal.missions.messenger.pipeline import warn_unseen_duty_cycle
+
+    with KernelPool(messenger_kernels), caplog.at_level("WARNING"):
+        sclk = SclkKernel.from_pool(-236)
+        ds = levels.correct_time(simulated["science"], calibration, sclk)
+        assert warn_unseen_duty_cycle(ds, heat, changes, calibration, sclk)
+        # the same stream 5000 s or more before every sample: quiet (the batch case)
+        # (+10 s: the science ET is lag-corrected, up to 2.4 s earlier than recorded)
+        late = ds.isel(time=ds["et"].values >= ds["et"].values[0] - 95.0 + 5010.0)
+        assert late.sizes["time"] > 0
+        assert not warn_unseen_duty_cycle(late, heat, changes, calibration, sclk)
+    assert caplog.text.count("starts inside heater operation") == 1
+    assert ";" not in caplog.text.split("first file")[1].split(")")[0]
     # the full simulated stream starts quiet (110 s of zeros): no such assumption
     with KernelPool(messenger_kernels):
         _, full = levels.find_heater_periods(simulated["heater"], calibration,

@@ -150,7 +150,8 @@ def find_heater_periods(
 
     A heater stream that starts inside heater operation (less than one heater period of
     data before the first rising edge) gives a first change at ``-inf``: that duty cycle
-    is taken as steady before the data (logged as a warning).  A last period cut inside
+    is taken as steady before the data (`fluxcal.missions.messenger.pipeline.calibrate`
+    warns when that enters a science sample).  A last period cut inside
     its on-phase by the end of the stream keeps the previous period's duty cycle.
 
     References
@@ -163,13 +164,6 @@ def find_heater_periods(
     changes = duty_cycle_changes(periods, period=h["period_s"], data_end=float(t[-1]) + 1.0,
                                  data_start=float(t[0]),
                                  evaluation_periods=int(h["evaluation_periods"]))
-    if len(changes) and np.isneginf(changes.time[0]):
-        log.warning(
-            "the heater stream (%s) starts inside heater operation: the duty cycle before "
-            "it (%.0f ppt) is taken as steady; give the previous day's heater file for the "
-            "sec. 7 look-back", heater.attrs.get("inputs", "in memory"),
-            changes.duty_cycle_ppt[0],
-        )
     return periods, changes
 
 

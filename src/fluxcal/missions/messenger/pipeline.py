@@ -71,6 +71,7 @@ def calibrate(
     ds = levels.correct_time(science, cal, sclk)
     levels.check_heater_coverage(ds, heater, cal, sclk)
     periods, changes = levels.find_heater_periods(heater, cal, sclk)
+    warn_unseen_duty_cycle(ds, heater, changes, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
     ds = levels.mark_sunlit(ds, cal, method=method)
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
@@ -94,6 +95,46 @@ def calibrate(
     )
     log.info("calibrated %d samples, %d heater periods", ds.sizes["time"], len(periods))
     return ds
+
+
+def warn_unseen_duty_cycle(
+    ds: xr.Dataset, heater: xr.Dataset, changes, cal: MessengerCalibration, sclk: SclkKernel
+) -> bool:
+    """Warn when the duty cycle assumed before the heater stream enters the science.
+
+    A heater stream that starts inside heater operation has its first duty cycle taken
+    as steady before it (a change at ``-inf``, `levels.find_heater_periods`).  That
+    assumption matters only for heater-modelled (V10) samples less than the sec. 7
+    look-back interval (``look_back_s``, 5000 s) after the first heater record: later
+    samples see it decayed by at least exp(-5000 s / 872 s) = 0.3 %, the look-back's own
+    truncation.  A batch day given the previous day's heater file is therefore quiet.
+
+    Returns
+    -------
+    bool
+        Whether the warning was logged.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7.
+    """
+    if not len(changes) or not np.isneginf(changes.time[0]) or heater.sizes.get(
+            "heater_time", 0) == 0:
+        return False
+    t0 = float(levels.aux_times_et(heater.isel(heater_time=slice(0, 1)), sclk)[0])
+    et = ds["et"].values
+    look_back_s = float(cal.constants["relaxation"]["look_back_s"])
+    hit = (et >= levels._date_et(cal, "heater_mode_v10")) & (et < t0 + look_back_s)
+    if not hit.any():
+        return False
+    first_file = str(heater.attrs.get("inputs", "in memory")).split(";")[0]
+    log.warning(
+        "the heater stream starts inside heater operation (first file %s): the duty cycle "
+        "before it (%.0f ppt) is taken as steady for %d science samples within the sec. 7 "
+        "look-back (%.0f s) of its start; give the previous day's heater file",
+        first_file, changes.duty_cycle_ppt[0], int(hit.sum()), look_back_s,
+    )
+    return True
 
 
 def day_of(science: xr.Dataset) -> np.datetime64:
