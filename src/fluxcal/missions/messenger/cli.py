@@ -132,11 +132,60 @@ def progress_display() -> Iterator[object | None]:
 def simulate(
     out: Path = typer.Option(Path("messenger-sim"), "--out", help="Output folder."),
     start: str = typer.Option("2012-06-01T00:00:00", help="Start (ISO UTC)."),
-    duration: float = typer.Option(7200.0, help="Length (s)."),
+    duration: float = typer.Option(7200.0, help="Length (s); with --layout batch, the "
+                                   "length of each day's science from 00:00 UTC (<= 86400)."),
+    layout: str = typer.Option(
+        "files", "--layout",
+        help="files: the inputs of 'fluxcal messenger edr2cdr'; batch: the input folder of "
+        "'fluxcal batch messenger' (<out>/MAGSCI_YYYYDDD.csv, MAGHTR_..., MAGTMP_..., "
+        "kernels.tm; docs/formats/messenger.md)."),
+    days: int = typer.Option(1, "--days", min=1, max=366,
+                             help="--layout batch: number of consecutive days."),
 ) -> None:
     """Write simulated raw Messenger telemetry and kernels from a known field."""
+    if layout not in ("files", "batch"):
+        from fluxcal.errors import InputFormatError
+
+        raise InputFormatError(f"{layout!r}: choose files or batch", field="--layout")
+    if layout == "batch":
+        written = simulate_batch_layout(out, start, duration, days)
+        typer.echo(f"{len(written)} days in {out}; run: fluxcal batch messenger --input {out} "
+                   f"--start {written[0]} --end {written[-1]} --out OUT")
+        return
     from fluxcal.missions.messenger.demo import simulate_to_dir
 
     paths = simulate_to_dir(out, start, duration)
     for key, path in paths.items():
         typer.echo(f"{key}: {path}")
+
+
+def simulate_batch_layout(out: Path, start: str, duration: float, days: int) -> list:
+    """Write ``days`` simulated days in the input layout of ``fluxcal batch messenger``.
+
+    Each day holds ``duration`` s of science from 00:00 UTC
+    (`fluxcal.missions.messenger.batch_task.simulate_days`, with kernels, the previous
+    day's heater and temperature lead, and each day's truth).
+
+    Raises
+    ------
+    InputFormatError
+        If ``start`` is not a midnight or ``duration`` is not in (0, 86400] s.
+    """
+    import datetime as _dt
+
+    from fluxcal.errors import InputFormatError
+    from fluxcal.missions.messenger.batch_task import DAY_S, simulate_days
+
+    try:
+        t0 = _dt.datetime.fromisoformat(start)
+    except ValueError:
+        raise InputFormatError(f"{start!r}: expected an ISO UTC time such as "
+                               "2012-06-01T00:00:00", field="--start") from None
+    if t0.time() != _dt.time(0):
+        raise InputFormatError(f"{start!r}: with --layout batch each day's science starts at "
+                               "00:00 UTC: give a date or a midnight", field="--start")
+    if not 0.0 < duration <= DAY_S:
+        raise InputFormatError(f"{duration}: with --layout batch the length of each day's "
+                               "science must be in (0, 86400] s", field="--duration")
+    dates = [t0.date() + _dt.timedelta(days=k) for k in range(days)]
+    return simulate_days(out, dates, seconds_per_day=duration)
