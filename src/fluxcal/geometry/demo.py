@@ -55,7 +55,7 @@ def run_geometry_demo(out: Path, rate_hz: float = 1.0) -> str:
     alt = np.linalg.norm(pos_mso, axis=1) - MERCURY_RADIUS_KM
     lines += [
         f"{met.size} clock readings (MET {met[0]:.3f} .. {met[-1]:.3f} s, partition {part0[0]})",
-        f"  UTC {doy[0]} .. {doy[-1]}  (archive form, seed 000 sec. 9)",
+        f"  UTC {doy[0]} .. {doy[-1]}  (archive form, MESSENGER MAG EDR-to-CDR Processing, sec. 9)",
         f"  SCLK -> ET -> TT2000 in {t_time:.3f} s",
         f"Altitude over Mercury: {alt.min():.1f} .. {alt.max():.1f} km",
         f"Distance from the Sun: {r_sun.min() / 1.495978707e8:.4f} .. "

@@ -42,7 +42,10 @@ def edr2cdr(
         help="Product version: the _V<nn> of the file names."
     ),
 ) -> None:
-    """Calibrate MESSENGER MAG EDR streams into CDR products (seed 000 sec. 5-13)."""
+    """Calibrate MESSENGER MAG EDR streams into CDR products.
+
+    Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
+    """
     from fluxcal.errors import InputFormatError
     from fluxcal.missions.messenger.run import run_edr2cdr
 

@@ -1070,6 +1070,7 @@ def validate_offsets(ds: xr.Dataset, threshold_counts: float = 2.0) -> dict:
             utc = et_to_utc(np.array([item["et"]]))[0]
             raise ValidationError(
                 f"offset {axis}: step of {item['step_counts']:.3f} counts at {utc} exceeds the "
-                f"smoothness threshold {threshold_counts} counts (seed 000 sec. 13)"
+                f"smoothness threshold {threshold_counts} counts (MESSENGER MAG EDR-to-CDR "
+                "Processing, sec. 13)"
             )
     return report

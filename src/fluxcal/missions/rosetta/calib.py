@@ -53,7 +53,7 @@ def check_sensor(sensor: str) -> str:
     if name not in SENSORS:
         raise CalibrationError(
             f"unknown RPC-MAG sensor {sensor!r}: only OB and IB have a ground calibration "
-            "(seed 003, sec. 3.3)"
+            "(RO-IGEP-TR0028 (Rosetta RPC-MAG calibration), sec. 3.3)"
         )
     return name
 
@@ -298,7 +298,7 @@ def write_ground_calibration(cal: GroundCalibration, path: Path) -> Path:
     """Write ``cal`` as a ground-calibration file readable by `read_ground_calibration`."""
     vec = lambda v: " ".join(repr(float(x)) for x in np.ravel(v))  # noqa: E731
     lines = [
-        "# RPC-MAG ground calibration written by fluxcal (seed 003, sec. 3.3 format)",
+        "# RPC-MAG ground calibration written by fluxcal (RO-IGEP-TR0028, sec. 3.3 format)",
         f"VERSION = {cal.version or '001'}",
         f"SENSOR = {cal.sensor}",
         f"A_0 = {vec(cal.offset[0])}",
@@ -384,7 +384,7 @@ def write_daily_offset_model(model: DailyOffsetModel, folder: Path) -> Path:
     day = model.day.astype(dt.date)
     path = Path(folder) / f"RPCMAG_{day:%y%m%d}_006_CALIB_{model.sensor}.TXT"
     lines = [
-        "# RPC-MAG extended temperature model 006 (seed 003, sec. 4.2.3.3), nT per degC^k",
+        "# RPC-MAG extended temperature model 006 (RO-IGEP-TR0028, sec. 4.2.3.3), nT per degC^k",
         f"SENSOR = {model.sensor}",
     ]
     lines += [
@@ -458,7 +458,7 @@ def load_alignment(calib_dir: Path | None = None) -> Alignment:
 def write_alignment(alignment: Alignment, path: Path) -> Path:
     """Write ``alignment`` in the ``RPCMAG_SC_ALIGN.TXT`` format."""
     lines = [
-        "# RPC-MAG R_UVW2SC, row-major (seed 003, sec. 4.3.1), written by fluxcal",
+        "# RPC-MAG R_UVW2SC, row-major (RO-IGEP-TR0028, sec. 4.3.1), written by fluxcal",
         f"VERSION = {alignment.version or '001'}",
     ]
     for (sensor, boom), m in sorted(alignment.matrices.items()):

@@ -310,7 +310,8 @@ def level_a(
         i = int(np.flatnonzero(wrong)[0])
         raise InputFormatError(
             f"quality {int(raw['quality'].values[i])} does not belong to a {sensor} vector "
-            f"(bit 3 must be {int(sensor == 'IB')}, bits above 3 must be 0; seed 003 sec. 4.1.2)",
+            f"(bit 3 must be {int(sensor == 'IB')}, bits above 3 must be 0; "
+            f"RO-IGEP-TR0028 (Rosetta RPC-MAG calibration), sec. 4.1.2)",
             path=source,
             line=int(row[i]),
             field="quality",
@@ -369,7 +370,7 @@ def level_a(
         table = "primary" if sensor == check_sensor(primary) else "secondary"
         raise InputFormatError(
             f"filter mode SID {sid} has no time shift in the {table}-sensor table "
-            f"{time_shifts.source} (seed 003, sec. 4.2.3.5)",
+            f"{time_shifts.source} (RO-IGEP-TR0028 (Rosetta RPC-MAG calibration), sec. 4.2.3.5)",
             path=source,
             line=int(row[i]),
             field="sid",

@@ -123,7 +123,7 @@ def product_columns(level: str) -> list:
     if level in ("A", "B"):
         cols.append(Column("temperature", "F8.2", "K", "sensor temperature", label="T"))
     cols.append(
-        Column("quality", "I2", "1", "quality flag (seed 003 sec. 4.1.2)", label="QUALITY")
+        Column("quality", "I2", "1", "quality flag (RO-IGEP-TR0028 sec. 4.1.2)", label="QUALITY")
     )
     return cols
 
@@ -530,7 +530,7 @@ def check_shifts_nonnegative(shifts: calib.TimeShiftTable) -> None:
             raise FluxcalError(
                 f"{shifts.source}: SID {int(shifts.sid[neg[0]])} has a negative {name} "
                 f"filter time shift ({col[neg[0]]} s); the batch needs shifts >= 0 "
-                "(seed 003 sec. 4.2.3.5: filter delays)"
+                "(RO-IGEP-TR0028 (Rosetta RPC-MAG calibration), sec. 4.2.3.5: filter delays)"
             )
 
 
