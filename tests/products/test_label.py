@@ -87,3 +87,17 @@ def test_keyword_longer_than_30_characters_is_refused() -> None:
 def test_unparsable_label_is_an_input_format_error() -> None:
     with pytest.raises(InputFormatError, match="not a PDS3 label"):
         parse_label("A = (1, \r\nEND\r\n")
+
+
+def test_fast_grammar_character_check_agrees_with_pvl():
+    """The label encoder's set-lookup character check gives pvl's own verdict.
+
+    Reference: ``pvl.grammar.PDSGrammar.char_allowed`` itself, over the first 12,288 code
+    points (ASCII, latin-1 and beyond, where ODL allows nothing).
+    """
+    from pvl.grammar import PDSGrammar
+
+    from fluxcal.products.label import _Grammar
+
+    fast, ref = _Grammar(), PDSGrammar()
+    assert all(fast.char_allowed(chr(o)) == ref.char_allowed(chr(o)) for o in range(0x3000))
