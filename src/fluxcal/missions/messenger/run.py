@@ -11,6 +11,7 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError, ValidationError
@@ -103,7 +104,10 @@ def calibrate_and_write(
     prov["calibration_tables"] = cal.provenance()
     written: list[Path] = []
     failures: list[str] = []
-    for day in split_days(ds):
+    days = split_days(ds)
+    if only_day is None:
+        days = merge_tail_fragment(ds, days, float(np.max(cal.net_lag_s)))
+    for day in days:
         yyddd = day_code(day)[2]
         if only_day is not None and yyddd != only_day:
             continue
@@ -118,6 +122,52 @@ def calibrate_and_write(
     if failures:
         raise ValidationError("; ".join(failures))
     return written
+
+
+def merge_tail_fragment(
+    ds: xr.Dataset, days: list[xr.Dataset], max_lag_s: float
+) -> list[xr.Dataset]:
+    """Merge a last EDR day that is only a lag-sized fragment into the day before it.
+
+    A product day holds the samples recorded (EDR time) in that UTC day (`split_days`).
+    An input cut at midnight of the corrected (true) time, as a simulation or a
+    hand-made extract is, leaves its last samples recorded up to one net lag
+    (Table 1, at most 2.358 s) after that midnight; they would make a whole second
+    product set of a few samples.  When the last day's samples were all recorded less
+    than ``max_lag_s`` after its midnight they join the previous day's product
+    (a warning says how many); the field values are untouched (0 nT), the product
+    then ends at most ``max_lag_s`` after its UTC day (docs/decisions/messenger.md).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The calibrated run, of which ``days`` are consecutive slices.
+    days : list of xarray.Dataset
+        `split_days` of ``ds``.
+    max_lag_s : float
+        Largest net lag of the calibration (s).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1 net lags).
+    """
+    from fluxcal.geometry.time import utc_to_et
+
+    if len(days) < 2:
+        return days
+    last = days[-1]
+    year, doy, _ = day_code(last)
+    midnight = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
+    rec = last["et_recorded"].values if "et_recorded" in last else last["et"].values
+    if float(rec.max()) - float(utc_to_et(np.array([f"{midnight}T00:00:00"]))[0]) >= max_lag_s:
+        return days
+    n = last.sizes["time"] + days[-2].sizes["time"]
+    log.warning(
+        "%d sample(s) recorded less than %.3f s (the largest net lag) after %s 00:00 UTC "
+        "join the previous day's product instead of making a product set of their own",
+        last.sizes["time"], max_lag_s, midnight,
+    )
+    return [*days[:-2], ds.isel(time=slice(ds.sizes["time"] - n, None))]
 
 
 def write_day_outputs(
