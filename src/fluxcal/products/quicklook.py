@@ -3,11 +3,14 @@
 Panels, top to bottom (a panel is drawn only when the Dataset has its variable):
 
 1. the three field components (the first vector variable in nT, preferring ``B*``);
-2. the field magnitude;
+2. the field magnitude, on a log scale when it spans more than a factor of 20 (a
+   MESSENGER orbit: periapsis and the rest both readable);
 3. applied offsets (MESSENGER; a vector variable whose name starts with ``offset``);
 4. temperatures (Rosetta; variables named ``temperature*``/``T_*`` in degC or K);
-5. quality flags (``quality*``/``flag*``);
-6. spacecraft distance (``distance``, or the norm of a ``position*`` vector in km).
+5. quality flags (``quality*``/``flag*``), as categories: one tick per value seen
+   (named by CF ``flag_values``/``flag_meanings`` when given) when there are few;
+6. spacecraft distance (``distance`` with its ``label`` attr, e.g. "Sun distance" in
+   AU, or the norm of a ``position*`` vector in km).
 
 The time axis is hours since the first sample's UTC day start, converted from the
 int64 TT2000 ``epoch`` with cdflib (no SPICE needed).  Long days are reduced for
@@ -165,8 +168,11 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
             ax.set_ylabel(f"B {frame} (nT)".replace("  ", " "))
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         elif kind == "magnitude":
-            ax.plot(*envelope(hours, np.linalg.norm(b, axis=1)), lw=0.6, color="k")
+            m = np.linalg.norm(b, axis=1)
+            ax.plot(*envelope(hours, m), lw=0.6, color="k")
             ax.set_ylabel("|B| (nT)")
+            if _wide_range(m):
+                ax.set_yscale("log")
         elif kind == "offsets":
             o = ds[arg].values.astype(float)
             for j in range(o.shape[1]):
@@ -180,12 +186,11 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
             ax.set_ylabel(f"T ({_units(ds[arg[0]])})")
             ax.legend(loc="upper right", fontsize=8)
         elif kind == "quality":
-            q = ds[arg].values
-            ax.step(*envelope(hours, q.astype(float)), lw=0.8, where="post", color="tab:purple")
+            _quality_panel(ax, hours, ds[arg])
             ax.set_ylabel(f"{arg}")
         elif kind == "distance":
             ax.plot(*envelope(hours, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
-            ax.set_ylabel(f"distance ({_units(ds[arg])})")
+            ax.set_ylabel(f"{ds[arg].attrs.get('label', 'distance')} ({_units(ds[arg])})")
         else:
             r = np.linalg.norm(ds[arg].values.astype(float), axis=1)
             ax.plot(*envelope(hours, r), lw=0.8, color="tab:brown")
@@ -195,6 +200,40 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
     fig.suptitle(title or f"{bname} {date}")
     fig.align_ylabels(axes)
     return fig
+
+
+#: |B| spanning more than this ratio (1st to 99th percentile) is drawn on a log scale.
+LOG_RATIO = 20.0
+#: A quality variable with at most this many distinct values is drawn as categories.
+MAX_CATEGORIES = 16
+
+
+def _wide_range(m: np.ndarray) -> bool:
+    """Whether ``m`` (>= 0) spans more than `LOG_RATIO` between its 1st and 99th percentile."""
+    good = m[np.isfinite(m) & (m > 0)]
+    if good.size < 2:
+        return False
+    lo, hi = np.percentile(good, [1.0, 99.0])
+    return bool(hi > LOG_RATIO * lo)
+
+
+def _quality_panel(ax, hours: np.ndarray, var: xr.DataArray) -> None:
+    """Draw a quality flag as categories (one tick per value seen), else as a line."""
+    q = var.values
+    values, index = np.unique(q, return_inverse=True)
+    if values.size > MAX_CATEGORIES or q.dtype.kind == "f":
+        ax.step(*envelope(hours, q.astype(float)), lw=0.8, where="post", color="tab:purple")
+        return
+    names = {}
+    flag_values = np.atleast_1d(var.attrs.get("flag_values", []))
+    meanings = str(var.attrs.get("flag_meanings", "")).split()
+    if len(meanings) == flag_values.size:
+        names = {int(v): m for v, m in zip(flag_values, meanings, strict=True)}
+    ax.plot(*envelope(hours, index.astype(float)), ls="none", marker="|", ms=6,
+            color="tab:purple")
+    ax.set_yticks(np.arange(values.size))
+    ax.set_yticklabels([names.get(int(v), str(int(v))) for v in values], fontsize=7)
+    ax.set_ylim(-0.5, values.size - 0.5)
 
 
 def save_png(fig: Figure, path: Path) -> Path:

@@ -232,6 +232,28 @@ def quicklook_dataset(levels: dict[str, xr.Dataset]) -> xr.Dataset:
     raise FluxcalError("quicklook needs LEVEL_A, B or C")
 
 
+#: Astronomical unit (km), IAU 2012 Resolution B2 (exact).
+AU_KM = 149_597_870.7
+
+
+def with_distance(ds: xr.Dataset) -> xr.Dataset:
+    """Add the quicklook's ``distance``: from the Sun in AU, from another centre in km.
+
+    LEVEL_C carries ``position`` (km) from its ``position_centre`` attr (the Sun before
+    the comet phase, the comet in CSEQ); without a position the dataset is unchanged.
+    """
+    if "position" not in ds or ds["position"].ndim != 2:
+        return ds
+    centre = str(ds.attrs.get("position_centre", "")).strip()
+    r = np.linalg.norm(ds["position"].values.astype(float), axis=1)
+    if centre.upper() in ("SUN", "10"):
+        attrs = {"units": "AU", "label": "Sun distance"}
+        r = r / AU_KM
+    else:
+        attrs = {"units": "km", "label": f"distance from {centre.title() or 'centre'}"}
+    return ds.assign(distance=("time", r, attrs))
+
+
 def thermistor_temperatures(
     raw: xr.Dataset, calibrations: dict, nominal: dict
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -280,6 +302,7 @@ def write_quicklook(
                 extra[f"temperature_{sensor}"] = ("time", values, {"units": "K"})
         if extra:
             ds = ds.drop_vars("temperature", errors="ignore").assign(extra)
+    ds = with_distance(ds)
     frame = str(ds["b"].attrs.get("frame", ds.attrs.get("frame", "")) or "") or None
     stem = QUICKLOOK_STEM.format(sensor=ds.attrs["sensor"])
     return write_quicklooks(ds, Path(out_dir), stem, field="b", frame=frame)
