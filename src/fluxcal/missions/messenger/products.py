@@ -520,6 +520,8 @@ def write_day(
                 done += 1
                 if progress is not None:
                     progress(f"{yyddd} {name}", done, total)
+            # free this frame's copies before the next frame's are made (peak memory)
+            del prod, out
     return written
 
 
