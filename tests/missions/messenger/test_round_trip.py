@@ -172,3 +172,24 @@ def test_heater_bits_with_jitter_or_gap_round_trip(tmp_path, bits):
     np.testing.assert_allclose(ds["offset"].values, truth["offset"].values, atol=0.6)
     err = np.abs(ds["b_mso"].values - truth["b_mso"].values)
     assert err.max() < 0.1, err.max(axis=0)  # fine range, issue 3's bound
+
+
+def test_calibrate_without_intermediates(messenger_kernels, simulated, calibration):
+    """``keep_intermediates=False`` (what ``edr2cdr`` uses) drops exactly the unwritten steps.
+
+    Reference: the same call keeping every intermediate; every variable left must be
+    identical (same bits, same attributes), since the drop only frees memory.
+    """
+    from fluxcal.missions.messenger.pipeline import (
+        UNWRITTEN_AFTER_QUALITY,
+        UNWRITTEN_BEFORE_GEOMETRY,
+    )
+
+    sci = simulated["science"].isel(time=slice(0, 4000))
+    with KernelPool(messenger_kernels):
+        full = calibrate(sci, simulated["heater"], simulated["temperature"], calibration)
+        lean = calibrate(sci, simulated["heater"], simulated["temperature"], calibration,
+                         keep_intermediates=False)
+    dropped = set(UNWRITTEN_BEFORE_GEOMETRY) | set(UNWRITTEN_AFTER_QUALITY)
+    assert set(full.variables) - set(lean.variables) == dropped
+    assert lean.identical(full.drop_vars(sorted(dropped)))

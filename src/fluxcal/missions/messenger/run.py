@@ -36,12 +36,6 @@ log = logging.getLogger(__name__)
 
 DEFAULT_FRAMES = ("mso", "j2000", "mbf", "rtn", "sc")
 
-#: Variables of `calibrate` that `calibrate_and_write` drops once calibrated: steps of sec.
-#: 6-9 that no product, offset report (``et``, ``rate``, ``sunlit``, ``offset``) or quicklook
-#: reads (about 280 MB of a 20 Hz day; peak memory).
-UNWRITTEN = ("heater_signal", "heater_applied", "temperature", "duty_cycle_offset",
-             "offset_applied", "counts_corrected", "b_sensor", "sun_sc", "lag")
-
 
 def calibrate_and_write(
     sci: xr.Dataset,
@@ -99,9 +93,8 @@ def calibrate_and_write(
     cal = load_calibration(day_of(sci), calibration_folder)
     if progress is not None:
         progress("calibrating (sec. 5-12)", 0, 1)
-    ds = calibrate(sci, heat, temp, cal, frames=calib_frames, max_offset_step=None)
-    # intermediates no product, report or quicklook reads: freed before the day's copies
-    ds = ds.drop_vars([v for v in UNWRITTEN if v in ds.variables])
+    ds = calibrate(sci, heat, temp, cal, frames=calib_frames, max_offset_step=None,
+                   keep_intermediates=False)
     if progress is not None:
         progress("calibrated", 1, 1)
     prov = provenance_attrs(
