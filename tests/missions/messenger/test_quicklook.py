@@ -46,7 +46,8 @@ def test_edr2cdr_quicklook_panels(tmp_path, simulated_files, messenger_kernels, 
     assert len(figures) == 1  # one day, one quicklook (in the first product frame, MSO)
     axes = figures[0].axes
     labels = [ax.get_ylabel() for ax in axes]
-    assert labels == ["B MSGR_MSO (nT)", "|B| (nT)", "offset (counts)", "quality",
+    # issue 12: offsets in nT (before: counts), through the fine-range matrix of eq. 8
+    assert labels == ["B MSGR_MSO (nT)", "|B| (nT)", "offset (nT)", "quality",
                       "distance (km)"]
     assert axes[-1].get_xlabel() == "Hours of 2012-06-01 (UTC)"
     assert [t.get_text() for t in axes[0].get_legend().get_texts()] == ["Bx", "By", "Bz"]
@@ -54,8 +55,9 @@ def test_edr2cdr_quicklook_panels(tmp_path, simulated_files, messenger_kernels, 
     assert [line.get_label() for line in axes[2].get_lines()] == ["x", "y", "z"]
     # the 2-h simulation runs over heater duty-cycle steps and a heater-off temperature
     # excursion: the plotted offset must vary by many counts (cT slope ~ counts per C)
+    # (5 counts x 0.0467 nT/count, the Table 4 fine-range y gain: > 0.2 nT)
     y = axes[2].get_lines()[1].get_ydata()
-    assert np.ptp(y) > 5.0
+    assert np.ptp(y) > 0.2
     # distance from Mercury's centre of the synthetic 200 x 15,200 km altitude orbit
     d = axes[4].get_lines()[0].get_ydata()
     assert 2440.0 + 150.0 < d.min() and d.max() < 2440.0 + 15_300.0

@@ -538,14 +538,15 @@ def quicklook_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
     """
     vec = ("time", "component")
     b = f"b_{frame}"
+    nt = "offset_nt" in ds  # edr2cdr --quicklook adds it (run.calibrate_and_write)
     return xr.Dataset(
         {
             b: (vec, ds[b].values, {"units": "nT", "frame": FRAMES[frame][0],
                                     "description": f"magnetic field in {FRAMES[frame][0]}"}),
-            "offset": (vec, ds["offset"].values, {
-                "units": "counts",
+            "offset": (vec, ds["offset_nt" if nt else "offset"].values, {
+                "units": "nT" if nt else "counts",
                 "description": "applied offset cT(T) + Delta(t) (thermal + duty cycle), "
-                               "fine-range counts (sec. 7)"}),
+                               "fine-range counts or, given offset_nt, nT (sec. 7, eq. 8)"}),
             "quality": ("time", ds["quality"].values, {"units": "1",
                         "description": "SHC data quality flag (Table 5)"}),
             "distance": ("time", np.linalg.norm(ds["pos_mso"].values, axis=1), {

@@ -95,6 +95,12 @@ def calibrate_and_write(
         progress("calibrating (sec. 5-12)", 0, 1)
     ds = calibrate(sci, heat, temp, cal, frames=calib_frames, max_offset_step=None,
                    keep_intermediates=False)
+    if quicklook:  # the quicklook's offsets in nT: fine-range matrix of eq. 8 (Table 4)
+        from fluxcal.calibration.gain_matrix import counts_to_nt
+
+        fine = np.zeros(ds.sizes["time"], dtype=np.int8)
+        ds = ds.assign(offset_nt=(("time", "component"), counts_to_nt(
+            ds["offset"].values, fine, cal.matrices), {"units": "nT"}))
     if progress is not None:
         progress("calibrated", 1, 1)
     prov = provenance_attrs(
