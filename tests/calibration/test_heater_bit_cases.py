@@ -11,6 +11,7 @@ waveform from Tables 6-8 at the scheduled periods.  Tolerances are stated per te
 import math
 
 import numpy as np
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -234,6 +235,15 @@ def test_changes_follow_the_block_schedule(blocks, jitter_seed, gaps):
                     i + 1] == 0
                 if d and (quiet or (first and i == 0)):
                     assume(not (g0 <= ps and g0 + length >= ps + on[k]))
+        # known limit, left out here and pinned by the xfail tests below: a gap that hides
+        # the fall of an on-phase (or cuts a 100 % run) makes the cut on-run read as a
+        # measured duty cycle, which can move or hide the change
+        for k, d in enumerate(on):
+            ps = QUIET + 100 * k
+            if 0 < d < 100:
+                assume(not (g0 <= ps + d <= g0 + length))
+            elif d >= 100:
+                assume(not (g0 < ps + 100 and g0 + length > ps))
     p = heater_periods(t[keep], b[keep])
     ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
     # expected from the schedule: a change at each block start where the duty cycle
@@ -258,3 +268,24 @@ def test_changes_follow_the_block_schedule(blocks, jitter_seed, gaps):
     assert ch.time.size == len(want_t), (ch.time, want_t)
     assert np.all(np.abs(ch.time - want_t) <= slack), (ch.time, want_t)
     np.testing.assert_array_equal(ch.duty_cycle_ppt, want_d)
+
+
+# --- known limit: a gap that cuts an on-run -------------------------------------------
+# Found by the hypothesis test above late in the session that added it.  The on-run cut by
+# the gap is read as a measured duty cycle (0.91 in a 100 % block; 0.12 in the first 25 %
+# period), so the 100 % block is lost (about D0 * 880: ~7 nT) or the change lands one period
+# late (100 s).  Strict xfail: when the heater-period logic treats a gap-cut on-run as
+# unseen, these pass and the marks must go.
+@pytest.mark.xfail(strict=True, reason="a gap-cut on-run is read as a measured duty cycle")
+@pytest.mark.parametrize("blocks, g0, length, want_t", [
+    ([12, 100, 0, 0, 0], 1291, 10, [200.0, 1200.0, 2200.0]),
+    ([12, 25, 0, 0, 0], 1212, 13, [200.0, 1200.0, 2200.0]),
+])
+def test_gap_cutting_an_on_run(blocks, g0, length, want_t):
+    on = [d for d in blocks for _ in range(10)]
+    t, b = _bits(on)
+    keep = np.ones(t.size, dtype=bool)
+    keep[g0:g0 + length] = False
+    p = heater_periods(t[keep], b[keep])
+    ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
+    np.testing.assert_array_equal(ch.time, want_t)
