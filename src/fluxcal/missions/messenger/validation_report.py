@@ -20,7 +20,7 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None) -> str:
     from fluxcal.geometry.time import et_to_utc
 
     rep = offset_step_report(ds)
-    lines = ["# MESSENGER MAG offset smoothness (seed 000 sec. 13)",
+    lines = ["# MESSENGER MAG offset smoothness (MESSENGER MAG EDR-to-CDR Processing, sec. 13)",
              f"# threshold_counts: {threshold_counts}", "axis,largest_step_counts,utc"]
     for axis, item in rep.items():
         utc = et_to_utc(np.array([item["et"]]))[0]
