@@ -37,3 +37,11 @@ def test_compile_notice_once(capsys):
     with compilation_notice():
         pass  # nothing compiled: nothing said
     assert capsys.readouterr().err == ""
+
+
+def test_simulate_status_is_quiet_off_a_terminal(capsys):
+    from fluxcal.missions.messenger.cli import status_display
+
+    with status_display("simulating"):
+        pass
+    assert capsys.readouterr().err == ""

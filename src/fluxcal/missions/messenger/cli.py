@@ -101,6 +101,18 @@ def compilation_notice() -> Iterator[None]:
 
 
 @contextmanager
+def status_display(text: str) -> Iterator[None]:
+    """Show a rich spinner with ``text`` on a terminal (stderr) while a long step runs."""
+    if not sys.stderr.isatty():
+        yield
+        return
+    from rich.console import Console
+
+    with Console(stderr=True).status(text):
+        yield
+
+
+@contextmanager
 def progress_display() -> Iterator[object | None]:
     """Show a rich progress bar on a terminal (stderr), nothing otherwise.
 
@@ -157,7 +169,9 @@ def simulate(
         return
     from fluxcal.missions.messenger.demo import simulate_to_dir
 
-    paths = simulate_to_dir(out, start, duration)
+    with compilation_notice(), status_display(f"simulating {duration:.0f} s of MESSENGER "
+                                              "telemetry and kernels"):
+        paths = simulate_to_dir(out, start, duration)
     for key, path in paths.items():
         typer.echo(f"{key}: {path}")
 
