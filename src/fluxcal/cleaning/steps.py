@@ -198,6 +198,20 @@ def _off_candidates(
     return (s - base) < 0.5 * adjacent
 
 
+def _extremes(heights: NDArray[np.float64], sign: int) -> NDArray[np.bool_]:
+    """Segments below both adjacent levels of ``sign * level`` (one neighbour at the ends).
+
+    For a switching heater these are all the segments of one side (off or on), with no
+    tolerance: the constancy test compares every off level with every on level.  (The
+    tolerant ``_off_candidates`` keep, on the on side, only the on levels near a local
+    extreme, whose steps are smaller than those of all on levels: issue 11 follow-up.)
+    """
+    s = sign * heights
+    falls = np.concatenate([[True], s < 0])  # the jump into the segment goes down
+    rises = np.concatenate([s > 0, [True]])  # the jump out of it goes up
+    return falls & rises
+
+
 def heater_off_segments(
     level: ArrayLike,
     heights: ArrayLike,
@@ -221,8 +235,9 @@ def heater_off_segments(
        off; each votes with the side (below or above its neighbours) it lies on.
     2. ``constancy``: the off level repeats from period to period while the on levels
        change with the heater (several heaters, different currents: seed sec. 4.12.1);
-       the sign whose off segments have the smaller median step between consecutive
-       off levels wins if it is below ``constancy_ratio`` times the other's; failing
+       the sign whose troughs (segments below both neighbours of ``sign * level``)
+       have the smaller median step between consecutive levels wins if it is below
+       ``constancy_ratio`` times the other's; failing
        that, the sign with at most half as many (minus one) steps beyond 10 robust
        standard deviations of that median (rare heater changes).
     3. ``first segment``: the data before the first jump are undisturbed, as in the
@@ -277,7 +292,7 @@ def heater_off_segments(
                 return vote, _off_candidates(lev, h, vote, window), "quiet"
     steps = {}
     for sg in (1, -1):
-        off = _off_candidates(lev, h, sg, window)
+        off = _extremes(h, sg)
         if np.count_nonzero(off) >= 3:
             steps[sg] = np.abs(np.diff(lev[off]))
     if len(steps) == 2:
