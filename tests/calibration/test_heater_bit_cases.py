@@ -235,15 +235,14 @@ def test_changes_follow_the_block_schedule(blocks, jitter_seed, gaps):
                     i + 1] == 0
                 if d and (quiet or (first and i == 0)):
                     assume(not (g0 <= ps and g0 + length >= ps + on[k]))
-        # known limit, left out here and pinned by the xfail tests below: a gap that hides
-        # the fall of an on-phase (or cuts a 100 % run) makes the cut on-run read as a
-        # measured duty cycle, which can move or hide the change
-        for k, d in enumerate(on):
-            ps = QUIET + 100 * k
-            if 0 < d < 100:
-                assume(not (g0 <= ps + d <= g0 + length))
-            elif d >= 100:
-                assume(not (g0 < ps + 100 and g0 + length > ps))
+    # known limit, left out here and pinned by test_lone_start_then_hidden_on_phase: a gap
+    # hiding the edge that starts a run after quiet (its periods then start at the first
+    # on-bit, late by up to the gap) and a later gap hiding a whole on-phase
+    starts = [QUIET + 100 * k for k, d in enumerate(on) if d and (k == 0 or not on[k - 1])]
+    shifted = any(g0 <= ps < g0 + length for ps in starts for g0, length in spans)
+    hidden = any(d and g0 <= QUIET + 100 * k and g0 + length >= QUIET + 100 * k + d
+                 for k, d in enumerate(on) for g0, length in spans)
+    assume(not (shifted and hidden))
     p = heater_periods(t[keep], b[keep])
     ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
     # expected from the schedule: a change at each block start where the duty cycle
@@ -270,13 +269,12 @@ def test_changes_follow_the_block_schedule(blocks, jitter_seed, gaps):
     np.testing.assert_array_equal(ch.duty_cycle_ppt, want_d)
 
 
-# --- known limit: a gap that cuts an on-run -------------------------------------------
-# Found by the hypothesis test above late in the session that added it.  The on-run cut by
-# the gap is read as a measured duty cycle (0.91 in a 100 % block; 0.12 in the first 25 %
-# period), so the 100 % block is lost (about D0 * 880: ~7 nT) or the change lands one period
-# late (100 s).  Strict xfail: when the heater-period logic treats a gap-cut on-run as
-# unseen, these pass and the marks must go.
-@pytest.mark.xfail(strict=True, reason="a gap-cut on-run is read as a measured duty cycle")
+# --- a gap that cuts an on-run -----------------------------------------------------------
+# Found by the hypothesis test above.  The on-run cut by the gap is unseen (bounds 0.91..1 in
+# a 100 % block; 0.12..0.25 in the first 25 % period); before the fix the 100 % block was
+# lost (about D0 * 880: ~7 nT) or the change landed one period late (100 s).  Expected from
+# the schedule: each block holds ten periods (one 1000-s evaluation, sec. 7), so the change
+# is at the block start, 1200 s.
 @pytest.mark.parametrize("blocks, g0, length, want_t", [
     ([12, 100, 0, 0, 0], 1291, 10, [200.0, 1200.0, 2200.0]),
     ([12, 25, 0, 0, 0], 1212, 13, [200.0, 1200.0, 2200.0]),
@@ -289,3 +287,23 @@ def test_gap_cutting_an_on_run(blocks, g0, length, want_t):
     p = heater_periods(t[keep], b[keep])
     ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
     np.testing.assert_array_equal(ch.time, want_t)
+    np.testing.assert_array_equal(ch.duty_cycle_ppt, [10 * blocks[0], 10 * blocks[1], 0])
+
+
+# --- known limit: a lone start, then a gap hiding a whole on-phase -----------------------
+# The first gap hides the edge that starts the 100 % run after quiet: its periods start at
+# the first on-bit (2 s late).  The second gap hides the fall of the run and the whole
+# on-phase of the first 12 % period: its grid point (1202) misses the next seen edge (1300)
+# by 2 s > tolerance, so no period is placed there and the change lands at 1300 (100 s late).
+@pytest.mark.xfail(strict=True, reason="grid phase from a lone start is off by the gap")
+def test_lone_start_then_hidden_on_phase():
+    on = [d for d in [100, 12, 0, 0] for _ in range(10)]
+    t, b = _bits(on)
+    keep = np.ones(t.size, dtype=bool)
+    keep[200:202] = False
+    keep[1196:1212] = False
+    p = heater_periods(t[keep], b[keep])
+    ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
+    # slack: the run start may be late by the first gap (2 s), the change by the second
+    assert ch.time.size == 3
+    assert np.all(np.abs(ch.time - [200.0, 1200.0, 2200.0]) <= [2.0, 12.0, 2.0])

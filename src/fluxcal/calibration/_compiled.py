@@ -205,7 +205,10 @@ def duty_cycle_levels_kernel(ppt, fallback, bounds, run_start, window, first_run
       at the first of those periods whose duty cycle is closer to ``v`` than to the
       level (so a jittered period just before a real change does not move it earlier),
       or at an unseen period just before that one whose ``bounds`` allow ``v`` and not
-      the level, and takes the value ``v``; otherwise ``k`` is jitter (no change).
+      the level (or allow ``v`` where the level needs that period to hold ``window``
+      periods before a quiet end, or to start on the evaluation grid of a run that began
+      after quiet: a gap cutting an on-run), and takes the value ``v``; otherwise ``k``
+      is jitter (no change).
       A run that ends with the heater going quiet ends at an evaluation, so its last
       level holds ``window`` periods: fewer than ``window - 1`` periods before that end
       cannot start a level.  The last run may be cut by the end of the data instead
@@ -237,10 +240,14 @@ def duty_cycle_levels_kernel(ppt, fallback, bounds, run_start, window, first_run
     n = ppt.size
     current = 0.0
     run_end = 0
+    r0 = 0
+    phase_known = False
     k = 0
     while k < n:
         change[k] = False
         if run_start[k] or k == 0:
+            r0 = k  # evaluations at r0 + m * window when the run starts after quiet
+            phase_known = not (k == 0 and first_run_cut)
             run_end = k + 1
             while run_end < n and not run_start[run_end]:
                 run_end += 1
@@ -260,10 +267,15 @@ def duty_cycle_levels_kernel(ppt, fallback, bounds, run_start, window, first_run
         level[k] = current
         if ppt[k] == ppt[k] and ppt[k] != current:
             hi = min(k + window, run_end)
-            if hi - k < window - 1 and not (last_run_open and run_end == n):
+            quiet_end = not (last_run_open and run_end == n)
+            v, cv, cl = _mode(ppt, k, hi, current)
+            m = k  # unseen periods just before k that allow v may belong to the new level
+            while (m - 1 > 0 and not run_start[m - 1] and ppt[m - 1] != ppt[m - 1]
+                   and bounds[m - 1, 0] <= v <= bounds[m - 1, 1]):
+                m -= 1
+            if hi - m < window - 1 and quiet_end:
                 k += 1  # too close to a quiet end for a new level
                 continue
-            v, cv, cl = _mode(ppt, k, hi, current)
             n_seen = 0
             for a in range(k, hi):
                 if ppt[a] == ppt[a]:
@@ -274,11 +286,14 @@ def duty_cycle_levels_kernel(ppt, fallback, bounds, run_start, window, first_run
                     change[j] = False
                     level[j] = current
                     j += 1
-                # unseen periods just before it whose bounds allow the new value and
-                # not the old one belong to it
+                # unseen periods just before it whose bounds allow the new value belong
+                # to it when they exclude the old one, or when the new level needs them
+                # to hold `window` periods before a quiet end
                 while (j - 1 > 0 and not run_start[j - 1] and ppt[j - 1] != ppt[j - 1]
                        and bounds[j - 1, 0] <= v <= bounds[j - 1, 1]
-                       and not bounds[j - 1, 0] <= current <= bounds[j - 1, 1]):
+                       and (not bounds[j - 1, 0] <= current <= bounds[j - 1, 1]
+                            or (quiet_end and run_end - j < window)
+                            or (phase_known and (j - r0) % window != 0))):
                     j -= 1
                 change[j] = True
                 level[j] = v

@@ -84,7 +84,11 @@ def _hidden_edges(
     nxt = np.where(k + 1 < t_seen.size, t_seen[np.minimum(k + 1, t_seen.size - 1)], np.inf)
     inside = (grid > times[gap - 1] + eps) & (grid <= times[gap] + tolerance)
     cycling = (bits[gap] == 1) | (np.abs(nxt - grid - period) <= tolerance)
-    forward = has & inside & cycling & (nxt > grid + tolerance)
+    # a grid point after the gap at a record whose bit is off is no edge (the heater was
+    # on across the gap from the period before; a real edge there is seen on the bits)
+    at = np.minimum(np.searchsorted(times, np.where(has, grid, -np.inf) - eps), times.size - 1)
+    off_there = (grid > times[gap] + eps) & (np.abs(times[at] - grid) <= eps) & (bits[at] == 0)
+    forward = has & inside & cycling & (nxt > grid + tolerance) & ~off_there
     # no such grid point (the heater was quiet before): the bit after the gap is on -> the
     # grid point n periods before the next start (n > 1 only if the bit stays on till then)
     finite = np.isfinite(nxt)
