@@ -136,12 +136,6 @@ def test_bad_input_is_one_line_exit_2_nothing_left(world, capsys, build, expect)
     assert (world["out"] / "keep.txt").read_text() == "kept\n"
 
 
-MESSENGER_NEEDS = ("needs messenger/cli.py (helper-4) to check its CSVs before reading: "
-                   "fluxcal.preflight.plain_text_file(path, '--sci', header_lines=1) for "
-                   "every --sci/--heater/--temperature file (or the reader to refuse)")
-
-
-@pytest.mark.xfail(reason=MESSENGER_NEEDS, strict=False)
 @pytest.mark.parametrize("kind", ["header-only", "gzip"])
 def test_messenger_bad_science_file(world, capsys, kind) -> None:
     sci = world["mess_hdr"]
