@@ -1,0 +1,558 @@
+"""Binned and superposed-epoch sufficient statistics that merge exactly across days.
+
+Each day (or any chunk of data) reduces to a `BinnedMoments`: per bin the number of
+samples and, per component, the sums of ``v - shift`` and ``(v - shift)**2``.  Two
+reductions over the same bin edges add; the sum of the per-day reductions equals the
+reduction of the concatenated data (to float64 rounding of the sums), so a month or a
+mission runs as a map-reduce whose partial results can be saved to netCDF
+(`BinnedMoments.to_dataset`) and merged later.
+
+Numerics
+--------
+Sums of squares of values with a large common offset cancel catastrophically when the
+variance is formed (``S2/n - (S1/n)**2``).  Every `BinnedMoments` therefore stores a
+per-component reference ``shift`` and accumulates ``v - shift``.  By default the shift
+is the mean of the finite samples of the first reduction; merging two reductions with
+different shifts re-expresses the second about the first's shift exactly in algebra
+(``sum (v-a) = sum (v-b) + n (b-a)``, ``sum (v-a)**2 = sum (v-b)**2 + 2 (b-a) sum (v-b)
++ n (b-a)**2``), which loses nothing measurable because both shifts lie within the data.
+A caller that wants bit-for-bit reproducible merges passes one fixed ``shift`` to every
+reduction (e.g. a nominal offset).  See docs/decisions/fits.md, entry 1.
+
+Bins are half-open ``[edges[i], edges[i+1])`` including the last one; samples outside
+the edges, or with a NaN in any component or in ``x``, are ignored.  An empty bin has
+``count == 0``; its mean is NaN; a bin with fewer than two samples has a NaN variance.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 (superposed epoch of the heater
+   cycle, 4 % duty-cycle bins), sec. 7 (10 C temperature bins, 4 % duty-cycle bins,
+   the 1200-s superposed epoch of duty-cycle changes).
+.. [2] T. F. Chan, G. H. Golub, R. J. LeVeque, "Algorithms for computing the sample
+   variance: analysis and recommendations", Am. Stat. 37 (1983) 242-247 (shifted data).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.errors import InputFormatError
+
+__all__ = ["BinnedMoments", "phase_binned", "superposed_epoch"]
+
+#: Number of (sample, event) pairs handled at once by `superposed_epoch`.
+_EPOCH_CHUNK = 4_000_000
+
+
+def _as_edges(edges: np.ndarray) -> np.ndarray:
+    edges = np.asarray(edges, dtype=np.float64)
+    if edges.ndim != 1 or edges.size < 2:
+        raise InputFormatError(
+            f"bin edges must be a 1-D array of at least 2 values, got shape {edges.shape}",
+            field="edges",
+        )
+    if not np.all(np.isfinite(edges)) or np.any(np.diff(edges) <= 0):
+        raise InputFormatError("bin edges must be finite and strictly increasing", field="edges")
+    return edges
+
+
+def _as_values(values: np.ndarray, n: int, name: str = "values") -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 1:
+        values = values[:, None]
+    if values.ndim != 2 or values.shape[0] != n:
+        raise InputFormatError(
+            f"{name} must have shape (n,) or (n, n_comp) with n = {n}, got {values.shape}",
+            field=name,
+        )
+    return values
+
+
+@dataclass
+class BinnedMoments:
+    """Per-bin counts and shifted sums (sufficient statistics for mean and variance).
+
+    Attributes
+    ----------
+    edges : ndarray, shape (n_bins + 1,)
+        Strictly increasing bin edges; bins are ``[edges[i], edges[i+1])``.
+    count : ndarray of int64, shape (n_bins,)
+        Number of samples in each bin.
+    total : ndarray, shape (n_bins, n_comp)
+        Sum of ``value - shift`` in each bin, per component.
+    total_sq : ndarray, shape (n_bins, n_comp)
+        Sum of ``(value - shift)**2`` in each bin, per component.
+    shift : ndarray, shape (n_comp,)
+        Reference subtracted from every value before summing (see module Notes).
+    label : str
+        What the bin coordinate is (e.g. ``"temperature"``, ``"lag"``).
+    units : str
+        Units of the bin coordinate.
+    value_units : str
+        Units of the values.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and 7.
+    """
+
+    edges: np.ndarray
+    count: np.ndarray
+    total: np.ndarray
+    total_sq: np.ndarray
+    shift: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    label: str = ""
+    units: str = ""
+    value_units: str = ""
+
+    def __post_init__(self) -> None:
+        self.edges = _as_edges(self.edges)
+        n_bins = self.edges.size - 1
+        self.count = np.asarray(self.count, dtype=np.int64)
+        self.total = np.asarray(self.total, dtype=np.float64)
+        self.total_sq = np.asarray(self.total_sq, dtype=np.float64)
+        if self.total.ndim == 1:
+            self.total = self.total[:, None]
+        if self.total_sq.ndim == 1:
+            self.total_sq = self.total_sq[:, None]
+        n_comp = self.total.shape[1]
+        self.shift = np.broadcast_to(np.asarray(self.shift, dtype=np.float64), (n_comp,)).copy()
+        if (
+            self.count.shape != (n_bins,)
+            or self.total.shape != (n_bins, n_comp)
+            or self.total_sq.shape != (n_bins, n_comp)
+        ):
+            raise InputFormatError(
+                f"inconsistent shapes: edges {self.edges.shape}, count {self.count.shape}, "
+                f"total {self.total.shape}, total_sq {self.total_sq.shape}",
+                field="count",
+            )
+
+    # -- construction -------------------------------------------------------------------
+    @property
+    def n_bins(self) -> int:
+        """Number of bins."""
+        return int(self.count.size)
+
+    @property
+    def n_comp(self) -> int:
+        """Number of value components."""
+        return int(self.total.shape[1])
+
+    @property
+    def centers(self) -> np.ndarray:
+        """Bin centres, shape (n_bins,)."""
+        return 0.5 * (self.edges[:-1] + self.edges[1:])
+
+    @classmethod
+    def empty(
+        cls,
+        edges: np.ndarray,
+        n_comp: int = 1,
+        *,
+        shift: np.ndarray | float = 0.0,
+        label: str = "",
+        units: str = "",
+        value_units: str = "",
+    ) -> BinnedMoments:
+        """Return a reduction with no samples (the identity of `merge`)."""
+        edges = _as_edges(edges)
+        n_bins = edges.size - 1
+        return cls(
+            edges=edges,
+            count=np.zeros(n_bins, dtype=np.int64),
+            total=np.zeros((n_bins, n_comp)),
+            total_sq=np.zeros((n_bins, n_comp)),
+            shift=np.broadcast_to(np.asarray(shift, dtype=np.float64), (n_comp,)).copy(),
+            label=label,
+            units=units,
+            value_units=value_units,
+        )
+
+    @classmethod
+    def accumulate(
+        cls,
+        x: np.ndarray,
+        values: np.ndarray,
+        edges: np.ndarray,
+        *,
+        shift: np.ndarray | float | None = None,
+        label: str = "",
+        units: str = "",
+        value_units: str = "",
+    ) -> BinnedMoments:
+        """Reduce samples ``(x, values)`` to per-bin counts and shifted sums.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            Bin coordinate of each sample (temperature, duty cycle, lag, phase, ...).
+        values : ndarray, shape (n,) or (n, n_comp)
+            Values to average.  A sample with a NaN in ``x`` or in any component is
+            ignored, as is a sample outside ``[edges[0], edges[-1])``.
+        edges : ndarray, shape (n_bins + 1,)
+            Strictly increasing bin edges.
+        shift : float or ndarray (n_comp,), optional
+            Reference subtracted before summing.  Default: the mean of the samples kept
+            (0 where none).
+        label, units, value_units : str
+            Metadata carried to `to_dataset`.
+
+        Returns
+        -------
+        BinnedMoments
+        """
+        edges = _as_edges(edges)
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim != 1:
+            raise InputFormatError(f"x must be 1-D, got shape {x.shape}", field="x")
+        values = _as_values(values, x.size)
+        n_bins = edges.size - 1
+        n_comp = values.shape[1]
+        idx = np.searchsorted(edges, x, side="right") - 1
+        keep = (idx >= 0) & (idx < n_bins) & np.isfinite(x) & np.all(np.isfinite(values), axis=1)
+        idx = idx[keep]
+        kept = values[keep]
+        if shift is None:
+            shift_arr = kept.mean(axis=0) if kept.shape[0] else np.zeros(n_comp)
+        else:
+            shift_arr = np.broadcast_to(np.asarray(shift, dtype=np.float64), (n_comp,)).copy()
+        count = np.bincount(idx, minlength=n_bins).astype(np.int64)
+        total = np.empty((n_bins, n_comp))
+        total_sq = np.empty((n_bins, n_comp))
+        for k in range(n_comp):  # components (a handful), never samples
+            d = kept[:, k] - shift_arr[k]
+            total[:, k] = np.bincount(idx, weights=d, minlength=n_bins)
+            total_sq[:, k] = np.bincount(idx, weights=d * d, minlength=n_bins)
+        return cls(
+            edges=edges,
+            count=count,
+            total=total,
+            total_sq=total_sq,
+            shift=shift_arr,
+            label=label,
+            units=units,
+            value_units=value_units,
+        )
+
+    # -- merging ------------------------------------------------------------------------
+    def reshifted(self, shift: np.ndarray | float) -> BinnedMoments:
+        """Return the same statistics expressed about another reference ``shift``."""
+        new = np.broadcast_to(np.asarray(shift, dtype=np.float64), (self.n_comp,)).copy()
+        delta = self.shift - new  # v - new = (v - old) + delta
+        if np.all(delta == 0.0):
+            return BinnedMoments(
+                self.edges, self.count.copy(), self.total.copy(), self.total_sq.copy(),
+                new, self.label, self.units, self.value_units,
+            )
+        n = self.count[:, None].astype(np.float64)
+        total = self.total + n * delta
+        total_sq = self.total_sq + 2.0 * delta * self.total + n * delta * delta
+        return BinnedMoments(
+            self.edges, self.count.copy(), total, total_sq, new,
+            self.label, self.units, self.value_units,
+        )
+
+    def merge(self, other: BinnedMoments) -> BinnedMoments:
+        """Return the reduction of both data sets (bin edges must be identical).
+
+        The result uses this reduction's shift; ``other`` is re-expressed about it.
+
+        Raises
+        ------
+        InputFormatError
+            If the edges or the number of components differ.
+        """
+        if not isinstance(other, BinnedMoments):
+            raise TypeError(f"cannot merge BinnedMoments with {type(other).__name__}")
+        if self.edges.shape != other.edges.shape or not np.array_equal(self.edges, other.edges):
+            raise InputFormatError(
+                f"cannot merge binned statistics with different bin edges "
+                f"({self.edges.size - 1} bins on [{self.edges[0]}, {self.edges[-1]}] vs "
+                f"{other.edges.size - 1} bins on [{other.edges[0]}, {other.edges[-1]}])",
+                field="edges",
+            )
+        if self.n_comp != other.n_comp:
+            raise InputFormatError(
+                f"cannot merge binned statistics of {self.n_comp} and {other.n_comp} components",
+                field="total",
+            )
+        o = other.reshifted(self.shift)
+        return BinnedMoments(
+            edges=self.edges,
+            count=self.count + o.count,
+            total=self.total + o.total,
+            total_sq=self.total_sq + o.total_sq,
+            shift=self.shift.copy(),
+            label=self.label or other.label,
+            units=self.units or other.units,
+            value_units=self.value_units or other.value_units,
+        )
+
+    def __add__(self, other: BinnedMoments) -> BinnedMoments:
+        """Merge (see `merge`)."""
+        return self.merge(other)
+
+    # -- statistics ---------------------------------------------------------------------
+    def mean(self) -> np.ndarray:
+        """Per-bin mean, shape (n_bins, n_comp); NaN in empty bins."""
+        n = self.count[:, None].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n > 0, self.total / n, np.nan) + self.shift
+
+    def variance(self) -> np.ndarray:
+        """Per-bin unbiased sample variance, shape (n_bins, n_comp); NaN where count < 2."""
+        n = self.count[:, None].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m2 = self.total_sq - self.total * self.total / n
+            var = np.where(n > 1, np.maximum(m2, 0.0) / (n - 1.0), np.nan)
+        return var
+
+    def standard_error(self) -> np.ndarray:
+        """Per-bin standard error of the mean ``sqrt(variance / count)``; NaN where count < 2."""
+        n = self.count[:, None].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.sqrt(self.variance() / n)
+
+    # -- persistence --------------------------------------------------------------------
+    def to_dataset(self) -> xr.Dataset:
+        """Return the statistics as an xarray Dataset (netCDF-ready, `from_dataset` reads it).
+
+        Variables: ``count (bin)``, ``total (bin, component)``, ``total_sq (bin,
+        component)``, ``shift (component)``, ``bin_edges (edge)``; coordinate
+        ``bin_center (bin)``; convenience ``mean``/``standard_error`` are *not* stored
+        (they follow from the sums).
+        """
+        return xr.Dataset(
+            data_vars={
+                "count": (("bin",), self.count),
+                "total": (("bin", "component"), self.total),
+                "total_sq": (("bin", "component"), self.total_sq),
+                "shift": (("component",), self.shift),
+                "bin_edges": (("edge",), self.edges, {"units": self.units}),
+            },
+            coords={"bin_center": (("bin",), self.centers, {"units": self.units})},
+            attrs={
+                "title": "fluxcal binned sufficient statistics",
+                "label": self.label,
+                "units": self.units,
+                "value_units": self.value_units,
+                "comment": (
+                    "total = sum(value - shift), total_sq = sum((value - shift)^2) per bin "
+                    "[edges[i], edges[i+1]); merge by adding after re-expressing about one shift"
+                ),
+            },
+        )
+
+    @classmethod
+    def from_dataset(cls, ds: xr.Dataset) -> BinnedMoments:
+        """Rebuild from `to_dataset`'s form.
+
+        Raises
+        ------
+        InputFormatError
+            If a variable is missing.
+        """
+        for name in ("count", "total", "total_sq", "shift", "bin_edges"):
+            if name not in ds:
+                src = ds.encoding.get("source")
+                raise InputFormatError(
+                    "not a fluxcal binned-statistics dataset", path=src, field=name
+                )
+        return cls(
+            edges=np.asarray(ds["bin_edges"].values, dtype=np.float64),
+            count=np.asarray(ds["count"].values, dtype=np.int64),
+            total=np.asarray(ds["total"].transpose("bin", "component").values),
+            total_sq=np.asarray(ds["total_sq"].transpose("bin", "component").values),
+            shift=np.asarray(ds["shift"].values, dtype=np.float64),
+            label=str(ds.attrs.get("label", "")),
+            units=str(ds.attrs.get("units", "")),
+            value_units=str(ds.attrs.get("value_units", "")),
+        )
+
+
+def _sorted_time(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1:
+        raise InputFormatError(f"t must be 1-D, got shape {t.shape}", field="t")
+    values = _as_values(values, t.size)
+    if t.size > 1 and np.any(np.diff(t) < 0):
+        order = np.argsort(t, kind="stable")
+        t, values = t[order], values[order]
+    return t, values
+
+
+def superposed_epoch(
+    t: np.ndarray,
+    values: np.ndarray,
+    event_t: np.ndarray,
+    lag_edges: np.ndarray,
+    weights: np.ndarray | None = None,
+    *,
+    shift: np.ndarray | float | None = None,
+    label: str = "lag",
+    units: str = "s",
+    value_units: str = "",
+) -> BinnedMoments:
+    """Superposed-epoch statistics of ``values * weight_e`` against lag ``t - event_t[e]``.
+
+    Every sample within ``[event + lag_edges[0], event + lag_edges[-1])`` of an event
+    contributes once per such event (windows may overlap).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s); need not be sorted.
+    values : ndarray, shape (n,) or (n, n_comp)
+        Sample values; NaN samples are ignored.
+    event_t : ndarray, shape (m,)
+        Event times (s), e.g. the duty-cycle changes.
+    lag_edges : ndarray, shape (n_bins + 1,)
+        Lag bin edges (s), e.g. ``np.arange(-200, 1001, 10)``.
+    weights : ndarray, shape (m,), optional
+        Per-event factor applied to the values, e.g. ``1 / delta_d`` so that positive and
+        negative duty-cycle steps combine normalised (sec. 7).  Default 1.
+    shift, label, units, value_units
+        As for `BinnedMoments.accumulate`.
+
+    Returns
+    -------
+    BinnedMoments
+        Over lag.
+
+    Notes
+    -----
+    Window bounds come from ``searchsorted`` on the sorted times for every event; the
+    (sample, event) index pairs are concatenated with ``np.repeat`` and reduced by
+    ``np.bincount`` in chunks of at most a few million pairs.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (1200-s epoch starting 200 s
+       before each duty-cycle change, steps normalised and of both signs combined).
+    """
+    lag_edges = _as_edges(lag_edges)
+    t, values = _sorted_time(t, values)
+    event_t = np.asarray(event_t, dtype=np.float64).ravel()
+    if weights is None:
+        w = np.ones(event_t.size)
+    else:
+        w = np.asarray(weights, dtype=np.float64).ravel()
+        if w.shape != event_t.shape:
+            raise InputFormatError(
+                f"weights must have one value per event ({event_t.size}), got {w.shape}",
+                field="weights",
+            )
+    ok = np.isfinite(event_t) & np.isfinite(w)
+    event_t, w = event_t[ok], w[ok]
+    n_comp = values.shape[1]
+    lo = np.searchsorted(t, event_t + lag_edges[0], side="left")
+    hi = np.searchsorted(t, event_t + lag_edges[-1], side="left")
+    length = hi - lo
+    if shift is None:
+        # One reference for every chunk: the weighted mean over the events' windows
+        # would need a pass of its own; the weighted overall mean is as good a centre.
+        finite = np.all(np.isfinite(values), axis=1)
+        base = values[finite].mean(axis=0) if finite.any() else np.zeros(n_comp)
+        mean_w = float(np.mean(w)) if w.size else 1.0
+        shift = base * mean_w
+    result = BinnedMoments.empty(
+        lag_edges, n_comp, shift=shift, label=label, units=units, value_units=value_units
+    )
+    # chunk boundaries over events so that each chunk holds at most _EPOCH_CHUNK pairs
+    cum = np.concatenate(([0], np.cumsum(length)))
+    bounds = np.searchsorted(cum, np.arange(0, cum[-1], _EPOCH_CHUNK), side="right") - 1
+    bounds = np.unique(np.concatenate((bounds, [event_t.size])))
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if b <= a:
+            continue
+        n_pairs = length[a:b]
+        tot = int(n_pairs.sum())
+        if tot == 0:
+            continue
+        ev = np.repeat(np.arange(a, b), n_pairs)
+        start = np.repeat(cum[a:b] - cum[a], n_pairs)
+        sample = lo[ev] + (np.arange(tot) - start)
+        lag = t[sample] - event_t[ev]
+        part = BinnedMoments.accumulate(
+            lag, values[sample] * w[ev][:, None], lag_edges, shift=result.shift
+        )
+        result = result.merge(part)
+    return result
+
+
+def phase_binned(
+    t: np.ndarray,
+    values: np.ndarray,
+    cycle_start_t: np.ndarray,
+    period: float,
+    n_bins: int,
+    *,
+    centered: bool = True,
+    shift: np.ndarray | float | None = None,
+    label: str = "phase",
+    units: str = "s",
+    value_units: str = "",
+) -> BinnedMoments:
+    """Statistics of a periodic waveform against time since the most recent cycle start.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s).
+    values : ndarray, shape (n,) or (n, n_comp)
+        Sample values.
+    cycle_start_t : ndarray, shape (m,)
+        Cycle start times (s), e.g. the rising edges of the heater bit (sec. 6).
+    period : float
+        Nominal cycle length (s), 100 s for the MESSENGER heater.  Samples more than one
+        period after their cycle start, and samples before the first start, are excluded.
+    n_bins : int
+        Number of phase bins over one period.
+    centered : bool
+        If True (default) bin ``k`` is centred on phase ``k * period / n_bins`` (so 100
+        bins are centred on t = 0, 1, ..., 99 s, the grid of Tables 6-8) and phases in
+        the last half bin ``[period - step/2, period)`` fold into bin 0 (the waveform is
+        periodic: Tables 6-8 give the same value at 0 and 100 s).  If False the bins are
+        ``[k step, (k+1) step)``.
+    shift, label, units, value_units
+        As for `BinnedMoments.accumulate`.
+
+    Returns
+    -------
+    BinnedMoments
+        Over phase; with ``centered`` the edges run from ``-step/2`` to
+        ``period - step/2``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and Appendix Tables 6-8.
+    """
+    if not (np.isfinite(period) and period > 0):
+        raise InputFormatError(f"period must be positive, got {period}", field="period")
+    if int(n_bins) != n_bins or n_bins < 1:
+        raise InputFormatError(f"n_bins must be a positive integer, got {n_bins}", field="n_bins")
+    n_bins = int(n_bins)
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1:
+        raise InputFormatError(f"t must be 1-D, got shape {t.shape}", field="t")
+    values = _as_values(values, t.size)
+    starts = np.sort(np.asarray(cycle_start_t, dtype=np.float64).ravel())
+    starts = starts[np.isfinite(starts)]
+    k = np.searchsorted(starts, t, side="right") - 1
+    phase = np.full(t.shape, np.nan)
+    has = k >= 0
+    phase[has] = t[has] - starts[k[has]]
+    phase[phase >= period] = np.nan
+    step = period / n_bins
+    if centered:
+        edges = (np.arange(n_bins + 1) - 0.5) * step
+        phase = np.where(phase >= period - 0.5 * step, phase - period, phase)
+    else:
+        edges = np.arange(n_bins + 1) * step
+    return BinnedMoments.accumulate(
+        phase, values, edges, shift=shift, label=label, units=units, value_units=value_units
+    )

@@ -1,0 +1,685 @@
+"""Weighted, constrained fits of binned averages (MESSENGER sec. 6 and 7 forms).
+
+* `fit_two_segment`: two lines joined continuously at a free break (eq. 3a, 3b, 4;
+  Table 2 form ``A0, B0, A1, B1, T_m``).
+* `fit_line_fixed_intercept`: a line held through one point (eq. 5a with the intercept at
+  d = 0 held at ``c_T(-50 C)``; Table 3 form ``C0, D0``).
+* `fit_relaxation`: exponential relaxation after a (delayed) step, fitted to a normalised
+  superposed epoch of duty-cycle changes (sec. 7, tau = 872 s).
+* `fit_periodic_spline`: a smoothing cubic spline of a periodic waveform (sec. 6,
+  Appendix Tables 6-8, evaluated on t = 0..100 s).
+
+Weights
+-------
+``weights`` are *amplitude* weights, ``1/sigma`` up to a common factor: the fits minimise
+``chi2 = sum (w_i (y_i - f(x_i)))**2`` (the convention of ``numpy.polyfit``).  The
+seed's "square root of the number of samples in each bin as a weight" is then exactly the
+inverse standard error of a bin mean with a common scatter.  Because such weights are only
+relative, parameter errors are by default scaled by ``chi2 / dof`` (as
+``scipy.optimize.curve_fit(absolute_sigma=False)``); pass ``absolute_weights=True`` when
+``w = 1/sigma`` exactly.  See docs/decisions/fits.md.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 3a, 3b, 4, 5a,
+   Tables 2, 3, Appendix Tables 6-8.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import BSpline, make_smoothing_spline
+from scipy.optimize import least_squares, minimize_scalar
+
+from fluxcal.errors import FluxcalError, InputFormatError
+
+__all__ = [
+    "LineFit",
+    "PeriodicSplineFit",
+    "RelaxationFit",
+    "TwoSegmentFit",
+    "fit_line_fixed_intercept",
+    "fit_periodic_spline",
+    "fit_relaxation",
+    "fit_two_segment",
+]
+
+
+class FitError(FluxcalError, ValueError):
+    """A fit cannot be made from the data given (too few points, degenerate)."""
+
+
+def _prepare(
+    x: np.ndarray, y: np.ndarray, weights: np.ndarray | None, min_points: int, what: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return finite, positive-weight points sorted by x."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    y = np.asarray(y, dtype=np.float64).ravel()
+    w = np.ones_like(x) if weights is None else np.asarray(weights, dtype=np.float64).ravel()
+    if not (x.shape == y.shape == w.shape):
+        raise InputFormatError(
+            f"{what}: x, y and weights must have the same length, got "
+            f"{x.shape}, {y.shape}, {w.shape}",
+            field="weights",
+        )
+    if np.any(w < 0):
+        raise InputFormatError(f"{what}: weights must be >= 0", field="weights")
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(w) & (w > 0)
+    x, y, w = x[ok], y[ok], w[ok]
+    if x.size < min_points:
+        raise FitError(
+            f"{what}: needs at least {min_points} points with finite values and weight > 0, "
+            f"got {x.size}"
+        )
+    order = np.argsort(x, kind="stable")
+    return x[order], y[order], w[order]
+
+
+def _covariance(jac_w: np.ndarray, chi2: float, dof: int, absolute: bool) -> np.ndarray:
+    """Parameter covariance from the weighted Jacobian; inf where not determined."""
+    jtj = jac_w.T @ jac_w
+    try:
+        cov = np.linalg.inv(jtj)
+    except np.linalg.LinAlgError:
+        return np.full(jtj.shape, np.inf)
+    if not np.all(np.isfinite(cov)) or np.linalg.cond(jtj) > 1e14:
+        return np.full(jtj.shape, np.inf)
+    if not absolute:
+        cov = cov * (chi2 / dof if dof > 0 else np.inf)
+    return cov
+
+
+def _errors(cov: np.ndarray) -> np.ndarray:
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.abs(np.diag(cov)))
+
+
+# -------------------------------------------------------------------------------------
+# two-segment line (eq. 3a, 3b, 4)
+# -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TwoSegmentFit:
+    """Two lines joined at ``x_m`` (eq. 3a/3b, 4), Table 2 form.
+
+    ``y = a0 + b0 x`` for ``x <= x_m`` and ``y = a1 + b1 x`` for ``x >= x_m`` with
+    ``x_m = (a0 - a1) / (b1 - b0)``.
+
+    Attributes
+    ----------
+    a0, b0, a1, b1, x_m : float
+        Coefficients (Table 2's A0, B0, A1, B1, T_m).
+    a0_err, b0_err, a1_err, b1_err, x_m_err : float
+        Standard errors (inf where the data do not determine a parameter, e.g. x_m when
+        the slopes are equal).
+    covariance : ndarray, shape (5, 5)
+        Covariance of ``(a0, b0, a1, b1, x_m)``.
+    chi2 : float
+        ``sum (w r)**2`` at the optimum.
+    dof : int
+        Points minus 4 free parameters.
+    """
+
+    a0: float
+    b0: float
+    a1: float
+    b1: float
+    x_m: float
+    a0_err: float
+    b0_err: float
+    a1_err: float
+    b1_err: float
+    x_m_err: float
+    covariance: np.ndarray
+    chi2: float
+    dof: int
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Evaluate the fit."""
+        x = np.asarray(x, dtype=np.float64)
+        return np.where(x <= self.x_m, self.a0 + self.b0 * x, self.a1 + self.b1 * x)
+
+    def table_row(self) -> dict[str, float]:
+        """Return Table 2's columns ``A_0, B_0, A_1, B_1, T_m``."""
+        return {"A_0": self.a0, "B_0": self.b0, "A_1": self.a1, "B_1": self.b1, "T_m": self.x_m}
+
+
+def _hinge_linear(
+    x: np.ndarray, y: np.ndarray, w: np.ndarray, xm: float
+) -> tuple[np.ndarray, float]:
+    """Weighted LS of ``y = c + b0 min(x-xm, 0) + b1 max(x-xm, 0)``; return params, chi2."""
+    u = x - xm
+    design = np.column_stack((np.ones_like(x), np.minimum(u, 0.0), np.maximum(u, 0.0)))
+    dw = design * w[:, None]
+    p, *_ = np.linalg.lstsq(dw, y * w, rcond=None)
+    r = (y - design @ p) * w
+    return p, float(r @ r)
+
+
+def fit_two_segment(
+    x: np.ndarray,
+    y: np.ndarray,
+    weights: np.ndarray | None = None,
+    *,
+    absolute_weights: bool = False,
+    n_grid: int = 400,
+) -> TwoSegmentFit:
+    """Fit two lines joined continuously at a free break (eq. 3a, 3b, 4).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Bin coordinate (e.g. temperature bin centres, C).
+    y : ndarray, shape (n,)
+        Bin averages (e.g. offsets, counts).
+    weights : ndarray, shape (n,), optional
+        Amplitude weights (the seed uses ``sqrt(N)`` per bin).  Non-finite points and
+        zero weights are dropped.
+    absolute_weights : bool
+        If True, ``weights = 1/sigma`` exactly and errors are not rescaled by chi2/dof.
+    n_grid : int
+        Break values tried before the bounded refinement.
+
+    Returns
+    -------
+    TwoSegmentFit
+
+    Raises
+    ------
+    FitError
+        With fewer than 5 usable points.
+
+    Notes
+    -----
+    For a fixed break the model ``c + b0 min(x - x_m, 0) + b1 max(x - x_m, 0)`` is
+    linear; chi2 is profiled over ``x_m`` on a grid between the second and the
+    second-to-last point (each segment keeps at least two points), then refined by a
+    bounded scalar minimisation around the best grid value.  Errors come from the
+    Jacobian of all four parameters ``(c, b0, b1, x_m)`` at the optimum, propagated to
+    ``(A0, B0, A1, B1, x_m)``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 3a, 3b, 4, Table 2.
+    """
+    x, y, w = _prepare(x, y, weights, 5, "fit_two_segment")
+    lo, hi = x[1], x[-2]
+    if not hi > lo:
+        raise FitError("fit_two_segment: the points span no interval for a break")
+    grid = np.linspace(lo, hi, n_grid)
+    chi = np.array([_hinge_linear(x, y, w, g)[1] for g in grid])  # grid points, not samples
+    i = int(np.argmin(chi))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]
+    res = minimize_scalar(
+        lambda g: _hinge_linear(x, y, w, g)[1], bounds=(a, b), method="bounded",
+        options={"xatol": 1e-10 * max(1.0, abs(hi - lo))},
+    )
+    xm = float(res.x) if res.fun <= chi[i] else float(grid[i])
+    (c, b0, b1), chi2 = _hinge_linear(x, y, w, xm)
+    u = x - xm
+    below = u <= 0
+    jac = np.column_stack(
+        (np.ones_like(x), np.where(below, u, 0.0), np.where(below, 0.0, u),
+         np.where(below, -b0, -b1))
+    )
+    dof = x.size - 4
+    cov_p = _covariance(jac * w[:, None], chi2, dof, absolute_weights)
+    a0, a1 = c - b0 * xm, c - b1 * xm
+    # d(a0, b0, a1, b1, xm) / d(c, b0, b1, xm)
+    tr = np.array(
+        [[1.0, -xm, 0.0, -b0],
+         [0.0, 1.0, 0.0, 0.0],
+         [1.0, 0.0, -xm, -b1],
+         [0.0, 0.0, 1.0, 0.0],
+         [0.0, 0.0, 0.0, 1.0]]
+    )
+    if np.all(np.isfinite(cov_p)):
+        cov = tr @ cov_p @ tr.T
+    else:
+        # x_m not determined (equal slopes): report the slopes and intercepts of the
+        # joined line with the break held, and an infinite error on the break.
+        cov3 = _covariance(jac[:, :3] * w[:, None], chi2, x.size - 3, absolute_weights)
+        cov = np.full((5, 5), np.inf)
+        cov[:4, :4] = tr[:4, :3] @ cov3 @ tr[:4, :3].T
+    err = _errors(cov)
+    return TwoSegmentFit(
+        a0=float(a0), b0=float(b0), a1=float(a1), b1=float(b1), x_m=xm,
+        a0_err=float(err[0]), b0_err=float(err[1]), a1_err=float(err[2]),
+        b1_err=float(err[3]), x_m_err=float(err[4]),
+        covariance=cov, chi2=chi2, dof=dof,
+    )
+
+
+# -------------------------------------------------------------------------------------
+# line through a fixed point (eq. 5a)
+# -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LineFit:
+    """A line ``y = intercept + slope x`` held through ``(x0, y0)`` (eq. 5a, Table 3 form).
+
+    Attributes
+    ----------
+    slope, slope_err : float
+        Table 3's D0 and its standard error.
+    intercept : float
+        Value at x = 0 (Table 3's C0 when ``x0 = 0``); exact, not fitted, when ``x0 = 0``.
+    intercept_err : float
+        Standard error of ``intercept`` (``|x0| slope_err``; 0 when x0 = 0).
+    x0, y0 : float
+        The fixed point.
+    chi2 : float
+    dof : int
+        Points minus 1.
+    """
+
+    slope: float
+    slope_err: float
+    intercept: float
+    intercept_err: float
+    x0: float
+    y0: float
+    chi2: float
+    dof: int
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Evaluate the line."""
+        return self.y0 + self.slope * (np.asarray(x, dtype=np.float64) - self.x0)
+
+
+def fit_line_fixed_intercept(
+    x: np.ndarray,
+    y: np.ndarray,
+    weights: np.ndarray | None,
+    x0: float,
+    y0: float,
+    *,
+    absolute_weights: bool = False,
+) -> LineFit:
+    """Fit ``y = y0 + D (x - x0)``: a weighted line through a fixed point.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (n,)
+        Bin coordinate (duty cycle, ppt) and bin averages.
+    weights : ndarray, shape (n,) or None
+        Amplitude weights (``sqrt(N)`` per bin in the seed).
+    x0, y0 : float
+        The fixed point: ``x0 = 0`` and ``y0 = c_T(-50 C)`` for eq. 5a.
+    absolute_weights : bool
+        See `fit_two_segment`.
+
+    Returns
+    -------
+    LineFit
+
+    Notes
+    -----
+    Closed form: ``D = sum w^2 u v / sum w^2 u^2`` with ``u = x - x0``, ``v = y - y0``;
+    ``var D = s^2 / sum w^2 u^2`` where ``s^2 = chi2/dof`` (relative weights) or 1.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 5a, Table 3 ("the
+       intercept at 0 duty cycle was held fixed to the -50 C values").
+    """
+    x, y, w = _prepare(x, y, weights, 2, "fit_line_fixed_intercept")
+    u, v, w2 = x - x0, y - y0, w * w
+    suu = float(np.sum(w2 * u * u))
+    if suu <= 0.0:
+        raise FitError("fit_line_fixed_intercept: every point lies at x0; slope undetermined")
+    slope = float(np.sum(w2 * u * v)) / suu
+    r = (v - slope * u) * w
+    chi2 = float(r @ r)
+    dof = x.size - 1
+    s2 = 1.0 if absolute_weights else chi2 / dof
+    slope_err = float(np.sqrt(s2 / suu))
+    return LineFit(
+        slope=slope, slope_err=slope_err, intercept=float(y0 - slope * x0),
+        intercept_err=float(abs(x0) * slope_err), x0=float(x0), y0=float(y0),
+        chi2=chi2, dof=dof,
+    )
+
+
+# -------------------------------------------------------------------------------------
+# relaxation after a step (sec. 7)
+# -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RelaxationFit:
+    """``y = y0`` for ``lag < dt``; ``y0 + A (1 - exp(-(lag - dt)/tau))`` after.
+
+    Attributes
+    ----------
+    tau, tau_err : float
+        Relaxation time (s) and error.
+    dt, dt_err : float
+        Delay of the step (s); ``dt_err = 0`` when held.
+    amplitude, amplitude_err : float
+        Steady-state step ``A`` (per unit of the normalisation).
+    y0, y0_err : float
+        Level before the step.
+    fit_delay : bool
+        Whether ``dt`` was fitted.
+    covariance : ndarray
+        Covariance of ``(y0, A, tau[, dt])``.
+    chi2 : float
+    dof : int
+    """
+
+    tau: float
+    tau_err: float
+    dt: float
+    dt_err: float
+    amplitude: float
+    amplitude_err: float
+    y0: float
+    y0_err: float
+    fit_delay: bool
+    covariance: np.ndarray
+    chi2: float
+    dof: int
+
+    def __call__(self, lag: np.ndarray) -> np.ndarray:
+        """Evaluate the model."""
+        return _relax(np.asarray(lag, dtype=np.float64), self.y0, self.amplitude, self.tau,
+                      self.dt)
+
+
+def _relax(lag: np.ndarray, y0: float, amp: float, tau: float, dt: float) -> np.ndarray:
+    s = np.maximum(lag - dt, 0.0)
+    return y0 + amp * -np.expm1(-s / tau)
+
+
+def _relax_linear(
+    lag: np.ndarray, y: np.ndarray, w: np.ndarray, tau: float, dt: float
+) -> tuple[np.ndarray, float]:
+    """Best (y0, A) for fixed (tau, dt) and the chi2."""
+    g = -np.expm1(-np.maximum(lag - dt, 0.0) / tau)
+    design = np.column_stack((np.ones_like(lag), g))
+    p, *_ = np.linalg.lstsq(design * w[:, None], y * w, rcond=None)
+    r = (y - design @ p) * w
+    return p, float(r @ r)
+
+
+def fit_relaxation(
+    lag: np.ndarray,
+    y: np.ndarray,
+    weights: np.ndarray | None = None,
+    *,
+    fit_delay: bool = True,
+    delay: float = 0.0,
+    absolute_weights: bool = False,
+) -> RelaxationFit:
+    """Fit an exponential relaxation to a normalised superposed epoch of steps.
+
+    Parameters
+    ----------
+    lag : ndarray, shape (n,)
+        Lag from the commanded change (s), e.g. the bin centres of a `superposed_epoch`
+        over -200..1000 s.
+    y : ndarray, shape (n,)
+        Normalised epoch averages (offset change per unit duty-cycle step).
+    weights : ndarray, shape (n,), optional
+        Amplitude weights (``1 / standard error`` or ``sqrt(N)``).
+    fit_delay : bool
+        Fit the heater delay ``dt`` (sec. 7: 10 s); otherwise hold it at ``delay``.
+    delay : float
+        The held delay (s) when ``fit_delay`` is False, and ignored otherwise.
+    absolute_weights : bool
+        See `fit_two_segment`.
+
+    Returns
+    -------
+    RelaxationFit
+
+    Raises
+    ------
+    FitError
+        With too few points or no lag after the step.
+
+    Notes
+    -----
+    Starting values are robust by construction: for fixed ``(tau, dt)`` the model is
+    linear in ``(y0, A)``, so chi2 is profiled on a log grid of ``tau`` (from the lag
+    spacing to 20 times the span after the step) times a grid of ``dt`` (over the
+    first third of the post-step lags), and ``scipy.optimize.least_squares`` polishes
+    all parameters from the best grid point.  A ``tau`` much longer than the window is
+    poorly determined (``A`` and ``tau`` trade off); the errors then say so.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (1200-s superposed epoch
+       starting 200 s before each duty-cycle change; tau = 872 s; dt = 10 s).
+    """
+    lag, y, w = _prepare(lag, y, weights, 5 if fit_delay else 4, "fit_relaxation")
+    span = float(lag[-1] - lag[0])
+    if span <= 0:
+        raise FitError("fit_relaxation: the lags span no interval")
+    start = 0.0 if fit_delay else float(delay)
+    post = lag[lag > start]
+    if post.size < 3:
+        raise FitError("fit_relaxation: fewer than 3 points after the step")
+    post_span = float(lag[-1] - max(start, lag[0]))
+    step = float(np.median(np.diff(lag))) if lag.size > 1 else 1.0
+    taus = np.geomspace(max(step, 1e-3 * post_span) / 2.0, 20.0 * post_span, 60)
+    if fit_delay:
+        dts = np.linspace(max(lag[0], -0.1 * post_span), lag[0] + 0.35 * span, 25)
+    else:
+        dts = np.array([float(delay)])
+    best = (np.inf, taus[0], dts[0])
+    for tau in taus:  # a coarse grid of parameters, not a loop over samples
+        for dt in dts:
+            _, c2 = _relax_linear(lag, y, w, tau, dt)
+            if c2 < best[0]:
+                best = (c2, tau, dt)
+    _, tau_s, dt_s = best
+    (y0_s, a_s), _ = _relax_linear(lag, y, w, tau_s, dt_s)
+
+    if fit_delay:
+        p0 = np.array([y0_s, a_s, np.log(tau_s), dt_s])
+
+        def resid(p: np.ndarray) -> np.ndarray:
+            return (y - _relax(lag, p[0], p[1], np.exp(p[2]), p[3])) * w
+
+        lb = [-np.inf, -np.inf, np.log(taus[0]) - 3, lag[0] - span]
+        ub = [np.inf, np.inf, np.log(taus[-1]) + 3, lag[-1]]
+    else:
+        p0 = np.array([y0_s, a_s, np.log(tau_s)])
+
+        def resid(p: np.ndarray) -> np.ndarray:
+            return (y - _relax(lag, p[0], p[1], np.exp(p[2]), float(delay))) * w
+
+        lb = [-np.inf, -np.inf, np.log(taus[0]) - 3]
+        ub = [np.inf, np.inf, np.log(taus[-1]) + 3]
+    p0 = np.clip(p0, np.array(lb) + 1e-12, np.array(ub) - 1e-12)
+    sol = least_squares(resid, p0, bounds=(lb, ub), x_scale="jac", xtol=1e-12, ftol=1e-12)
+    p = sol.x
+    tau = float(np.exp(p[2]))
+    dt = float(p[3]) if fit_delay else float(delay)
+    y0, amp = float(p[0]), float(p[1])
+    r = resid(p)
+    chi2 = float(r @ r)
+    # analytic Jacobian of the model in (y0, A, tau, dt) for the covariance
+    s = lag - dt
+    after = s > 0
+    e = np.where(after, np.exp(-np.maximum(s, 0.0) / tau), 1.0)
+    cols = [
+        np.ones_like(lag),
+        np.where(after, 1.0 - e, 0.0),
+        np.where(after, -amp * e * s / tau**2, 0.0),
+    ]
+    if fit_delay:
+        cols.append(np.where(after, -amp * e / tau, 0.0))
+    jac = np.column_stack(cols) * w[:, None]
+    dof = lag.size - jac.shape[1]
+    cov = _covariance(jac, chi2, dof, absolute_weights)
+    err = _errors(cov)
+    return RelaxationFit(
+        tau=tau, tau_err=float(err[2]), dt=dt, dt_err=float(err[3]) if fit_delay else 0.0,
+        amplitude=amp, amplitude_err=float(err[1]), y0=y0, y0_err=float(err[0]),
+        fit_delay=fit_delay, covariance=cov, chi2=chi2, dof=dof,
+    )
+
+
+# -------------------------------------------------------------------------------------
+# periodic smoothing spline (sec. 6, Tables 6-8)
+# -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PeriodicSplineFit:
+    """A smoothing cubic spline of a periodic waveform.
+
+    Attributes
+    ----------
+    period : float
+        Period (s).
+    spline : scipy.interpolate.BSpline
+        Spline fitted over three tiled periods; evaluate through `__call__`, which
+        folds the argument into ``[0, period)``.
+    lam : float
+        Smoothing parameter of ``scipy.interpolate.make_smoothing_spline``.
+    phase : ndarray, shape (n,)
+        The data phases (folded into ``[0, period)``, sorted).
+    value_err : ndarray, shape (n,)
+        Standard error of the fitted curve at ``phase`` (linear propagation through the
+        smoother; scaled by chi2/dof unless ``absolute_weights``).
+    chi2 : float
+        ``sum (w r)**2`` over one period of data.
+    dof : float
+        ``n - trace(S)``, the effective residual degrees of freedom of the smoother.
+    """
+
+    period: float
+    spline: BSpline
+    lam: float
+    phase: np.ndarray
+    value_err: np.ndarray
+    chi2: float
+    dof: float
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        """Evaluate the waveform at cycle times ``t`` (folded by the period)."""
+        t = np.asarray(t, dtype=np.float64)
+        return self.spline(np.mod(t, self.period))
+
+    def table(self, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """Return ``(t, value)`` on ``t = 0, step, ..., period`` (Tables 6-8 form)."""
+        t = np.arange(0.0, self.period + 0.5 * step, step)
+        return t, self(t)
+
+
+def fit_periodic_spline(
+    phase: np.ndarray,
+    y: np.ndarray,
+    weights: np.ndarray | None,
+    period: float,
+    smoothing: float | None = None,
+    *,
+    absolute_weights: bool = False,
+) -> PeriodicSplineFit:
+    """Fit a periodic smoothing spline to a waveform binned over one cycle.
+
+    Parameters
+    ----------
+    phase : ndarray, shape (n,)
+        Cycle time of each point (s), e.g. the bin centres of `phase_binned`; folded
+        into ``[0, period)``.  Phases must be distinct after folding (give bin
+        averages, not raw samples).
+    y : ndarray, shape (n,)
+        Bin averages.
+    weights : ndarray, shape (n,) or None
+        Amplitude weights (``sqrt(N)`` or ``1/standard error``).
+    period : float
+        Period (s), 100 s for the MESSENGER heater.
+    smoothing : float, optional
+        Regularisation ``lam`` of ``scipy.interpolate.make_smoothing_spline`` (its
+        objective is ``sum w^2 r^2 + lam * integral f''^2`` here, with weights
+        normalised to mean ``w^2 = 1``).  Default: chosen by generalised cross-validation
+        (GCV) on the tiled data.
+    absolute_weights : bool
+        See `fit_two_segment`.
+
+    Returns
+    -------
+    PeriodicSplineFit
+
+    Notes
+    -----
+    Periodicity is imposed by tiling the data over three periods (``phase - P``,
+    ``phase``, ``phase + P``) and fitting one smoothing spline to the 3n points; the
+    middle period is free of end effects, and evaluation folds the argument into it.
+    The smoother is linear in ``y``; its n x n matrix (middle-period fit values against
+    the n data) is obtained by one batched fit to the unit vectors, giving the
+    effective degrees of freedom ``n - trace S`` and the propagated ``value_err``.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and Appendix Tables 6-8.
+    """
+    if not (np.isfinite(period) and period > 0):
+        raise InputFormatError(f"period must be positive, got {period}", field="period")
+    phase = np.mod(np.asarray(phase, dtype=np.float64).ravel(), period)
+    x, yy, w = _prepare(phase, y, weights, 5, "fit_periodic_spline")
+    if np.any(np.diff(x) <= 0):
+        raise InputFormatError(
+            "fit_periodic_spline: phases repeat after folding by the period; give one "
+            "average per phase bin", field="phase",
+        )
+    n = x.size
+    w2 = w * w
+    w2n = w2 / np.mean(w2)
+    xt = np.concatenate((x - period, x, x + period))
+    wt = np.tile(w2n, 3)
+    if smoothing is None:
+        lam = _gcv_lambda(x, yy, w2n, period)
+    else:
+        lam = float(smoothing)
+        if not lam >= 0:
+            raise InputFormatError(f"smoothing must be >= 0, got {smoothing}", field="smoothing")
+    try:
+        spl = make_smoothing_spline(xt, np.tile(yy, 3), w=wt, lam=lam)
+    except ValueError as exc:
+        raise FitError(f"fit_periodic_spline: {exc}") from exc
+    smat = _smoother(x, w2n, period, lam)
+    fitted = spl(x)
+    r = (yy - fitted) * w
+    chi2 = float(r @ r)
+    dof = float(n - np.trace(smat))
+    scale = 1.0 if absolute_weights else (chi2 / dof if dof > 0 else np.inf)
+    value_err = np.sqrt(np.sum(smat**2 / w2[None, :], axis=1) * scale)
+    return PeriodicSplineFit(
+        period=float(period), spline=spl, lam=float(lam), phase=x, value_err=value_err,
+        chi2=chi2, dof=dof,
+    )
+
+
+def _smoother(x: np.ndarray, w2n: np.ndarray, period: float, lam: float) -> np.ndarray:
+    """Return the n x n matrix ``S[i, j] = d f(x_i) / d y_j`` of the tiled smoother."""
+    n = x.size
+    xt = np.concatenate((x - period, x, x + period))
+    eye = np.tile(np.eye(n), (3, 1))  # unit vectors, tiled; one batched fit
+    return make_smoothing_spline(xt, eye, w=np.tile(w2n, 3), lam=lam)(x)
+
+
+def _gcv_lambda(x: np.ndarray, y: np.ndarray, w2n: np.ndarray, period: float) -> float:
+    """``lam`` minimising the GCV score of the periodic smoother over one period.
+
+    ``GCV(lam) = mean(w^2 r^2) / (1 - trace(S)/n)^2`` (Craven & Wahba 1979), computed
+    on the n distinct data (not the 3n tiled copies, which would count each point
+    three times).  Log-grid search then bounded refinement.
+    """
+    n = x.size
+
+    def score(log_lam: float) -> float:
+        smat = _smoother(x, w2n, period, float(np.exp(log_lam)))
+        r = y - smat @ y
+        den = 1.0 - np.trace(smat) / n
+        return float(np.mean(w2n * r * r) / max(den, 1e-12) ** 2)
+
+    # the penalty integral scales as period**-3; cover interpolation .. straight line
+    base = np.log(period**3)
+    grid = base + np.linspace(np.log(1e-10), np.log(1e4), 43)
+    scores = np.array([score(g) for g in grid])  # a grid of lam values, not samples
+    k = int(np.argmin(scores))
+    a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+    res = minimize_scalar(score, bounds=(a, b), method="bounded", options={"xatol": 1e-3})
+    return float(np.exp(res.x if res.fun <= scores[k] else grid[k]))
