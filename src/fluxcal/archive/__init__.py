@@ -1,0 +1,15 @@
+"""Readers of archived (PDS3) products: the label-driven table reader and product readers.
+
+* `fluxcal.archive.pds3`: `read_label`, `read_table`, `read_table_columns` -- any PDS3
+  ``TABLE`` (ASCII or binary) described by a detached or attached label, into an
+  xarray Dataset with units and descriptions from the label.
+* `fluxcal.archive.products`: `read_product` -- archived calibrated products of MESSENGER
+  MAG (CDR, RDR) and Rosetta RPC-MAG (CALIBRATED, RESAMPLED) in the Dataset shape of
+  fluxcal's own products.
+
+See ``docs/formats/archive.md``.
+"""
+
+from fluxcal.archive.pds3 import read_label, read_table, read_table_columns
+
+__all__ = ["read_label", "read_table", "read_table_columns"]
