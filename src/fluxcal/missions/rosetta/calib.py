@@ -379,12 +379,18 @@ def find_daily_offset_models(
     return out
 
 
-def write_daily_offset_model(model: DailyOffsetModel, folder: Path) -> Path:
-    """Write ``model`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``folder``."""
+def write_daily_offset_model(
+    model: DailyOffsetModel, folder: Path, *, comments: tuple[str, ...] | list[str] = ()
+) -> Path:
+    """Write ``model`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``folder``.
+
+    ``comments`` are written as ``#`` lines after the header (e.g. fit provenance).
+    """
     day = model.day.astype(dt.date)
     path = Path(folder) / f"RPCMAG_{day:%y%m%d}_006_CALIB_{model.sensor}.TXT"
     lines = [
         "# RPC-MAG extended temperature model 006 (RO-IGEP-TR0028, sec. 4.2.3.3), nT per degC^k",
+        *("# " + " ".join(str(c).split()) for c in comments),
         f"SENSOR = {model.sensor}",
     ]
     lines += [

@@ -143,6 +143,74 @@ def calibrate(
     )
 
 
+@app.command()
+def fit(
+    science: Path = typer.Option(
+        ..., "--science", help="Raw science CSV of one sensor (RO-IGEP-TR0028 sec. 4.1.2)."
+    ),
+    sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
+    out: Path = typer.Option(..., "--out", help="Folder for the fitted calibration files."),
+    hk: Path | None = typer.Option(
+        None, "--hk", help="Raw HK CSV (checked and recorded; temperatures come from the "
+        "science records)."
+    ),
+    calib: Path | None = typer.Option(
+        None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
+    ),
+    kernels: Path | None = typer.Option(
+        None, "--kernels", help="Meta-kernel (SCLK -226, CK, SPK); needed with --jumps."
+    ),
+    primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
+    degree: int = typer.Option(3, "--degree", help="Degree of the daily polynomial (0-5)."),
+    block: float | None = typer.Option(
+        None, "--block-seconds", help="Block length of the fit (s; default 1800)."
+    ),
+    jumps: bool = typer.Option(
+        False, "--jumps", help="Fit the post-hibernation offset jumps (sec. 4.2.3.4, "
+        "Appendix B) instead of the daily temperature model."
+    ),
+    intervals: Path | None = typer.Option(
+        None, "--intervals", help="--jumps: CSV start_utc,end_utc of the intervals "
+        "(default: those of the jump table that overlap the data)."
+    ),
+    boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
+    alignment_from_kernels: bool = typer.Option(
+        False, "--alignment-from-kernels",
+        help="--jumps: URF -> s/c from the frames kernel instead of RPCMAG_SC_ALIGN.TXT.",
+    ),
+) -> None:
+    """Derive calibration files from flight data (RO-IGEP-TR0028 sec. 4.2.3.3, 4.2.3.4).
+
+    Writes the daily RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT files (or, with --jumps,
+    RPCMAG_OFFSET_JUMPS.csv) that 'fluxcal rosetta calibrate --calib OUT' reads.
+    """
+    from fluxcal import preflight
+    from fluxcal.missions.rosetta.fit import fit_files
+
+    preflight.plain_text_file(science, "--science")
+    if hk is not None:
+        preflight.plain_text_file(hk, "--hk")
+    if calib is not None:
+        preflight.existing_folder(calib, "--calib")
+    if kernels is not None:
+        preflight.existing_file(kernels, "--kernels")
+    if intervals is not None:
+        preflight.plain_text_file(intervals, "--intervals")
+    if not 0 <= degree <= 5:
+        raise InputFormatError(f"{degree}: the daily files hold degrees 0 to 5", field="--degree")
+    if block is not None and not block > 0:
+        raise InputFormatError(f"{block} s: give a positive block length",
+                               field="--block-seconds")
+    preflight.writable_folder(out, "--out")
+    paths = fit_files(
+        science, sensor, out, hk_file=hk, calib_dir=calib, kernels=kernels, primary=primary,
+        degree=degree, block_s=block, jumps=jumps, intervals=intervals, boom=boom,
+        alignment_from_kernels=alignment_from_kernels,
+    )
+    for path in paths:
+        typer.echo(str(path))
+
+
 def simulate(
     out: Path = typer.Option(Path("rosetta-sim"), "--out", help="Folder for the simulated inputs."),
     start: str = typer.Option("2014-08-01T00:00:00", "--start", help="First time stamp (UTC)."),

@@ -1,0 +1,761 @@
+"""In-flight calibration of RPC-MAG: daily extended temperature model and offset jumps.
+
+Two fits that *make* the tables the pipeline applies (issue 13):
+
+- `fit_extended_model`: the daily polynomial ``P_0 .. P_5`` of the extended temperature
+  model 006 (seed 003, sec. 4.2.3.3) from a day of ground-calibrated LEVEL_A data: the
+  field of calm phases "fitted against the temperature by the means of a 3rd order
+  polynomial", so that the offset-free field averages to zero (the ambient field of calm
+  phases has no long-term mean); `write_daily_model` writes it as the daily
+  ``RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT`` file that ``rosetta calibrate --calib`` reads.
+- `fit_offset_jumps`: the post-hibernation offsets of Appendix B (sec. 4.2.3.4): per
+  interval, the constant offset in s/c coordinates that makes the long-term average of
+  ``B_z`` in CSEQ zero and removes the correlation of the CSEQ field with the spacecraft
+  rotation; `write_offset_jump_table` writes them in the columns of
+  ``RPCMAG_OFFSET_JUMPS.csv``.
+
+Both reduce the data to time blocks (count, mean) first: the ambient field is correlated
+over minutes to hours, so the block means, not the samples, are the independent
+measurements; parameter uncertainties come from the scatter of the block means about the
+fit (docs/decisions/rosetta_fit.md).  Pure functions: arrays and Datasets in, estimates
+with uncertainties out; no I/O except the two writers.
+
+References
+----------
+.. [1] I. Richter, "Step by Step Calibration Procedure for RPC-MAG Data", RO-IGEP-TR0028
+   issue 3 rev. 1 (2015) (seed 003), sec. 4.2.3.3, 4.2.3.4, Appendix B.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from numpy.polynomial import polynomial as npoly
+
+from fluxcal.errors import FluxcalError
+from fluxcal.missions.rosetta.calib import (
+    DailyOffsetModel,
+    GroundCalibration,
+    check_sensor,
+    write_daily_offset_model,
+)
+
+NS = 1_000_000_000
+KELVIN = 273.15
+#: Highest polynomial degree of the daily files (six parameters P_0 .. P_5, sec. 4.2.3.3).
+MAX_DEGREE = 5
+#: Default degree: "usually only polynomials up to 3rd order are used" (sec. 4.2.3.3).
+DEFAULT_DEGREE = 3
+#: Default block length (s) of the extended-model fit (decision 1 of rosetta_fit.md).
+MODEL_BLOCK_S = 1800.0
+#: Default block length (s) of the offset-jump fit.
+JUMP_BLOCK_S = 1800.0
+
+
+# ----------------------------------------------------------------------------------------
+# Block reduction and weighted least squares
+# ----------------------------------------------------------------------------------------
+def block_means(
+    epoch: np.ndarray, values: np.ndarray, block_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-block count, mean and within-block variance of ``values`` (columns).
+
+    Blocks are ``[t0 + k block_s, t0 + (k + 1) block_s)`` with ``t0`` the first epoch;
+    empty blocks are dropped.
+
+    Parameters
+    ----------
+    epoch : ndarray of int64, shape (n,)
+        TT2000 ns.
+    values : ndarray, shape (n, m)
+    block_s : float
+        Block length (s), > 0.
+
+    Returns
+    -------
+    index : ndarray of int, shape (b,)
+        Block number of each non-empty block.
+    count : ndarray, shape (b,)
+    mean : ndarray, shape (b, m)
+    variance : ndarray, shape (b, m)
+        Population variance within the block (0 for one sample).
+    """
+    if not block_s > 0:
+        raise FluxcalError(f"block length must be positive, not {block_s} s")
+    epoch = np.asarray(epoch, dtype=np.int64)
+    values = np.asarray(values, dtype=float)
+    if epoch.size == 0:
+        return (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, values.shape[1])),
+                np.zeros((0, values.shape[1])))
+    k = ((epoch - epoch.min()) // int(round(block_s * NS))).astype(np.int64)
+    nblk = int(k.max()) + 1
+    count = np.bincount(k, minlength=nblk).astype(float)
+    sums = np.stack([np.bincount(k, values[:, j], nblk) for j in range(values.shape[1])], 1)
+    keep = count > 0
+    mean = sums[keep] / count[keep, None]
+    dev = values - (sums / np.maximum(count, 1.0)[:, None])[k]
+    sq = np.stack([np.bincount(k, dev[:, j] ** 2, nblk) for j in range(values.shape[1])], 1)
+    return np.flatnonzero(keep), count[keep], mean, sq[keep] / count[keep, None]
+
+
+def weighted_lstsq(
+    design: np.ndarray, target: np.ndarray, weight: np.ndarray, *, what: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weighted least squares with the covariance from the residual scatter.
+
+    Minimises ``sum w (target - design @ q)^2``.  The unit variance is estimated from the
+    weighted residuals, ``s^2 = sum w r^2 / (N - p)``, and ``cov = s^2 (A^T W A)^-1``
+    (the block means' scatter is the measured noise; Bevington & Robinson, "Data
+    Reduction and Error Analysis", ch. 7, eq. 7.27 with the sample variance).
+
+    Parameters
+    ----------
+    design : ndarray, shape (N, p)
+    target : ndarray, shape (N,)
+    weight : ndarray, shape (N,)
+    what : str
+        Names the fit in errors.
+
+    Returns
+    -------
+    q : ndarray, shape (p,)
+    cov : ndarray, shape (p, p)
+    residual : ndarray, shape (N,)
+
+    Raises
+    ------
+    FluxcalError
+        Fewer equations than parameters + 1, or a rank-deficient design.
+    """
+    n, p = design.shape
+    if n < p + 1:
+        raise FluxcalError(
+            f"{what}: {n} block(s) for {p} parameter(s); need at least {p + 1} "
+            "(more data, shorter blocks or a lower degree)"
+        )
+    sw = np.sqrt(np.asarray(weight, dtype=float))
+    a = design * sw[:, None]
+    q, _, rank, sv = np.linalg.lstsq(a, target * sw, rcond=None)
+    if rank < p:
+        raise FluxcalError(
+            f"{what}: the data do not determine all {p} parameters (rank {rank}); "
+            "the temperature or attitude does not vary enough"
+        )
+    residual = target - design @ q
+    s2 = float(np.sum(weight * residual**2) / (n - p))
+    cov = s2 * np.linalg.inv(a.T @ a)
+    return q, cov, residual
+
+
+# ----------------------------------------------------------------------------------------
+# Extended temperature model (sec. 4.2.3.3)
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DailyModelFit:
+    """Fitted daily extended-temperature polynomial of one sensor, with its statistics.
+
+    The polynomial variable is the reduced temperature ``T~`` (deg C) of sec. 4.2.3.3.
+    Internally the fit is made in ``x = (T~ - centre) / scale`` (well conditioned);
+    ``coefficients`` are the power-basis ``P_k`` the daily file holds.
+
+    Attributes
+    ----------
+    day : numpy.datetime64[D]
+    sensor : str
+    degree : int
+    coefficients : ndarray, shape (6, 3)
+        ``P_0 .. P_5`` (x, y, z; nT per deg C^k); zero above ``degree``.
+    sigma : ndarray, shape (6, 3)
+        Standard errors of ``coefficients`` (0 above ``degree``).
+    centre, scale : float
+        Of the fit variable ``x``.
+    q : ndarray, shape (degree + 1, 3)
+        Coefficients in ``x``.
+    covariance_q : ndarray, shape (3, degree + 1, degree + 1)
+        Covariance of ``q`` per axis.
+    temperature_range : tuple of float
+        Smallest and largest ``T~`` of the data (deg C): where the model is determined.
+    n_samples, n_blocks : int
+    block_s : float
+    rms : ndarray, shape (3,)
+        Weighted rms of the block-mean residuals (nT).
+    chi2 : ndarray, shape (3,)
+        Sum of squared block-mean residuals over their within-block standard errors
+        (blocks with >= 2 samples); ``chi2 / dof`` >> 1 says the ambient field varies on
+        scales longer than a block (expected), which the covariance accounts for.
+    dof : int
+        ``n_blocks - degree - 1``.
+    """
+
+    day: np.datetime64
+    sensor: str
+    degree: int
+    coefficients: np.ndarray
+    sigma: np.ndarray
+    centre: float
+    scale: float
+    q: np.ndarray
+    covariance_q: np.ndarray
+    temperature_range: tuple[float, float]
+    n_samples: int
+    n_blocks: int
+    block_s: float
+    rms: np.ndarray
+    chi2: np.ndarray
+    dof: int
+    notes: dict = field(default_factory=dict)
+
+    def offset(self, temperature: np.ndarray) -> np.ndarray:
+        """Return the fitted offset ``P(T~)`` (nT), shape (n, 3)."""
+        x = (np.asarray(temperature, dtype=float) - self.centre) / self.scale
+        return np.vander(x, self.degree + 1, increasing=True) @ self.q
+
+    def offset_sigma(self, temperature: np.ndarray) -> np.ndarray:
+        """Return the standard error of `offset` (nT), shape (n, 3), from the fit covariance."""
+        x = (np.asarray(temperature, dtype=float) - self.centre) / self.scale
+        g = np.vander(x, self.degree + 1, increasing=True)
+        return np.sqrt(np.stack([np.einsum("ij,jk,ik->i", g, c, g)
+                                 for c in self.covariance_q], axis=1))
+
+    def to_model(self, source: str = "") -> DailyOffsetModel:
+        """Return the `DailyOffsetModel` the pipeline applies."""
+        return DailyOffsetModel(self.day, self.sensor, self.coefficients.copy(), source)
+
+
+def reduced_temperature(level_a: xr.Dataset, calibration: GroundCalibration) -> np.ndarray:
+    """Reduced temperature ``T~`` (deg C) of each LEVEL_A vector, the polynomial's variable.
+
+    LEVEL_A carries the calibrated sensor temperature ``T^c`` in K; ``T~`` follows the
+    ground file's ``REDUCED_TEMPERATURE`` reading (docs/decisions/rosetta.md, decision 26).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 ("the reduced temperature
+       ``T~ = T_s - T_s^O`` has to be used").
+    """
+    return calibration.extended_model_temperature(level_a["temperature"].values - KELVIN)
+
+
+def _power_basis(centre: float, scale: float, degree: int) -> np.ndarray:
+    """Matrix ``C`` with ``p = C q``: power coefficients in T of ``sum q_k ((T-c)/s)^k``."""
+    c = np.zeros((degree + 1, degree + 1))
+    for k in range(degree + 1):  # loop over polynomial orders, not samples
+        col = npoly.polypow([-centre / scale, 1.0 / scale], k)
+        c[: col.size, k] = col
+    return c
+
+
+def fit_extended_model(
+    level_a: xr.Dataset,
+    temperature: np.ndarray,
+    *,
+    degree: int = DEFAULT_DEGREE,
+    block_s: float = MODEL_BLOCK_S,
+    day: np.datetime64 | str | None = None,
+) -> DailyModelFit:
+    """Fit the daily extended-temperature polynomial ``P_0 .. P_5`` (sec. 4.2.3.3).
+
+    The ground-calibrated field ``B^c = B_amb + P(T~)`` is fitted per axis by a polynomial
+    of degree ``degree`` in ``T~``: the offset is the part of the field that follows the
+    temperature, and the constant ``P_0`` is fixed by the criterion that the ambient field
+    of calm phases has no long-term mean (the offset-free field averages to zero over the
+    day).  The data are reduced to blocks of ``block_s``: the block mean of the field is
+    fitted by the block means of ``T~^k`` (exact for a polynomial, however the temperature
+    varies within the block), with count weights (``sqrt(N)`` weights on the means) and
+    the covariance from the residual scatter of the block means (`weighted_lstsq`).
+
+    Parameters
+    ----------
+    level_a : xarray.Dataset
+        LEVEL_A of one sensor from the *ground calibration alone* (`level_a.level_a`
+        without daily models): ``b`` (nT, URF), ``epoch``; attributes ``sensor``,
+        ``level``.
+    temperature : ndarray, shape (n,)
+        Reduced temperature ``T~`` (deg C) of each vector (`reduced_temperature`).
+    degree : int
+        Polynomial degree, 0 .. 5 (default 3, as the seed usually uses).
+    block_s : float
+        Block length (s); choose it at least as long as the correlation time of the
+        ambient field (default 1800 s).
+    day : datetime64[D] or str, optional
+        Day of the file; default the UTC day of the first vector.
+
+    Returns
+    -------
+    DailyModelFit
+
+    Raises
+    ------
+    FluxcalError
+        Not LEVEL_A, a daily model already applied, degree out of range, too few blocks,
+        temperature range too narrow for the degree (rank deficient), a field or
+        temperature that is not finite.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (daily polynomials ``p_{s,k,i}``, six
+       parameters per component, "usually ... up to 3rd order"; calm phases).
+    """
+    source = level_a.attrs.get("source", "LEVEL_A dataset")
+    if str(level_a.attrs.get("level", "A")) != "A":
+        raise FluxcalError(
+            f"{source}: the extended model is fitted on LEVEL_A (URF, where the daily "
+            f"file applies), not LEVEL_{level_a.attrs.get('level')}"
+        )
+    applied = str(level_a.attrs.get("extended_temperature_model", "none"))
+    if applied.startswith("model 006"):
+        raise FluxcalError(
+            f"{source}: LEVEL_A already has a daily model subtracted ({applied}); fit the "
+            "ground-calibrated field (level_a without daily models)"
+        )
+    if not 0 <= int(degree) <= MAX_DEGREE:
+        raise FluxcalError(f"degree {degree}: the daily files hold degrees 0 .. {MAX_DEGREE}")
+    degree = int(degree)
+    sensor = check_sensor(level_a.attrs.get("sensor", ""))
+    b = np.asarray(level_a["b"].values, dtype=float)
+    t = np.asarray(temperature, dtype=float)
+    epoch = np.asarray(level_a["epoch"].values, dtype=np.int64)
+    if t.shape != (b.shape[0],):
+        raise FluxcalError(f"{source}: {t.size} temperatures for {b.shape[0]} vectors")
+    bad = ~(np.isfinite(t) & np.isfinite(b).all(axis=1))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise FluxcalError(f"{source}: vector {i} has a non-finite field or temperature")
+    if day is None:
+        from fluxcal.geometry.time import tt2000_to_utc
+
+        day = str(tt2000_to_utc(epoch[:1], digits=0)[0])[:10]
+    day = np.datetime64(day, "D")
+    lo, hi = (float(t.min()), float(t.max())) if t.size else (0.0, 0.0)
+    centre, scale = 0.5 * (lo + hi), max(0.5 * (hi - lo), 1.0)
+    x = (t - centre) / scale
+    powers = np.vander(x, degree + 1, increasing=True)
+    _, count, mean, var = block_means(epoch, np.concatenate([b, powers], axis=1), block_s)
+    design = mean[:, 3:]
+    what = f"{source}: extended model {sensor} {day} (degree {degree}, {block_s:g}-s blocks)"
+    q = np.zeros((degree + 1, 3))
+    cov = np.zeros((3, degree + 1, degree + 1))
+    rms, chi2 = np.zeros(3), np.zeros(3)
+    multi = count >= 2
+    for i in range(3):  # three axes
+        q[:, i], cov[i], r = weighted_lstsq(design, mean[:, i], count, what=what)
+        rms[i] = np.sqrt(np.sum(count * r**2) / np.sum(count))
+        se2 = np.maximum(var[multi, i], 1e-12) / (count[multi] - 1)
+        chi2[i] = float(np.sum(r[multi] ** 2 / se2))
+    c = _power_basis(centre, scale, degree)
+    coefficients = np.zeros((MAX_DEGREE + 1, 3))
+    sigma = np.zeros((MAX_DEGREE + 1, 3))
+    coefficients[: degree + 1] = c @ q
+    for i in range(3):
+        sigma[: degree + 1, i] = np.sqrt(np.diag(c @ cov[i] @ c.T))
+    return DailyModelFit(
+        day=day, sensor=sensor, degree=degree, coefficients=coefficients, sigma=sigma,
+        centre=centre, scale=scale, q=q, covariance_q=cov, temperature_range=(lo, hi),
+        n_samples=int(b.shape[0]), n_blocks=int(count.size), block_s=float(block_s),
+        rms=rms, chi2=chi2, dof=int(count.size - degree - 1),
+        notes={"source": str(source)},
+    )
+
+
+def write_daily_model(
+    fit: DailyModelFit,
+    out_dir: Path,
+    day: np.datetime64 | str | None = None,
+    sensor: str | None = None,
+    *,
+    provenance: dict | None = None,
+) -> Path:
+    """Write ``fit`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``out_dir``.
+
+    The format `calib.read_daily_offset_model` reads (keys ``SENSOR``, ``P_0`` .. ``P_5``)
+    with ``#`` comment lines recording the fit: inputs, degree, blocks, temperature range,
+    residual rms, chi2, and the standard error of every coefficient.
+
+    Raises
+    ------
+    FluxcalError
+        ``day`` or ``sensor`` contradict the fit.
+    """
+    day = fit.day if day is None else np.datetime64(day, "D")
+    sensor = fit.sensor if sensor is None else check_sensor(sensor)
+    if day != fit.day or sensor != fit.sensor:
+        raise FluxcalError(
+            f"the fit is for {fit.sensor} {fit.day}, not {sensor} {day}: refusing to write it "
+            "under another day or sensor"
+        )
+    vec = lambda v: " ".join(f"{float(x):.6g}" for x in v)  # noqa: E731
+    lines = [
+        "fitted by fluxcal rosetta fit (issue 13; docs/decisions/rosetta_fit.md)",
+        f"written {dt.datetime.now(dt.UTC).strftime('%Y-%m-%dT%H:%M:%SZ')}",
+        f"criterion: offset-free field averages to zero (calm phase), "
+        f"degree {fit.degree}, {fit.block_s:g}-s blocks, count weights",
+        f"samples {fit.n_samples}, blocks {fit.n_blocks}, dof {fit.dof}",
+        f"reduced temperature range {fit.temperature_range[0]:.2f} .. "
+        f"{fit.temperature_range[1]:.2f} degC (the model is determined only there)",
+        f"block-mean residual rms x y z (nT): {vec(fit.rms)}",
+        f"chi2 vs within-block errors x y z: {vec(fit.chi2)}",
+        *(f"sigma P_{k} x y z: {vec(fit.sigma[k])}" for k in range(fit.degree + 1)),
+        *(f"{k}: {v}" for k, v in {**fit.notes, **(provenance or {})}.items()),
+    ]
+    model = fit.to_model()
+    return write_daily_offset_model(model, Path(out_dir), comments=lines)
+
+
+# ----------------------------------------------------------------------------------------
+# Offset jumps (sec. 4.2.3.4, Appendix B)
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class OffsetJumpFit:
+    """Fitted post-hibernation offsets of one sensor, one row per interval.
+
+    Attributes
+    ----------
+    sensor : str
+    start_utc, end_utc : ndarray of str
+        Intervals ``[start, end)`` (UTC, ISO).
+    jumps : ndarray, shape (m, 3)
+        Offset in s/c coordinates (nT) to subtract from LEVEL_B (Appendix B form).
+    sigma : ndarray, shape (m, 3)
+        Standard errors (nT).
+    mean_field : ndarray, shape (m, 2)
+        Fitted long-term mean of the CSEQ ``B_x``, ``B_y`` (nT; ``B_z`` is held at 0).
+    rms : ndarray, shape (m,)
+        Weighted rms of the block-mean residuals (nT).
+    n_blocks, n_samples : ndarray of int, shape (m,)
+    block_s : float
+    """
+
+    sensor: str
+    start_utc: np.ndarray
+    end_utc: np.ndarray
+    jumps: np.ndarray
+    sigma: np.ndarray
+    mean_field: np.ndarray
+    rms: np.ndarray
+    n_blocks: np.ndarray
+    n_samples: np.ndarray
+    block_s: float
+
+
+def fit_offset_jumps(
+    epoch: np.ndarray,
+    b_sc: np.ndarray,
+    rotation: np.ndarray,
+    start_utc: np.ndarray,
+    end_utc: np.ndarray,
+    *,
+    sensor: str,
+    block_s: float = JUMP_BLOCK_S,
+    lsk=None,
+) -> OffsetJumpFit:
+    """Fit the Appendix B offset of each interval (sec. 4.2.3.4).
+
+    In an interval the LEVEL_B field (s/c coordinates, no jump subtracted) is
+    ``B_sc = B_true,sc + J``, so in CSEQ ``B_cseq = M B_sc = B_true,cseq + M J`` with
+    ``M`` the s/c -> CSEQ rotation.  Per interval the fit finds ``J`` (3) and the
+    long-term mean CSEQ field ``m_x, m_y`` (2) from the block means::
+
+        <B_cseq,x> = m_x + <M_x.> J,  <B_cseq,y> = m_y + <M_y.> J,  <B_cseq,z> = <M_z.> J
+
+    i.e. the long-term average of ``B_z`` in CSEQ is driven to zero ("compatible with the
+    usual long term solar wind properties") and, through the rotation-dependent terms
+    ``<M> J``, whatever of the CSEQ field follows the spacecraft rotation is assigned to
+    the s/c offset (the "decorrelation from spacecraft rotation").  The x/y parts of ``J``
+    are determined only as far as the attitude varies (sec. 4.2.3.4: "does not adjust them
+    perfectly"); the covariance says how well.  Count weights, covariance from the
+    residual scatter (`weighted_lstsq`).
+
+    Parameters
+    ----------
+    epoch : ndarray of int64, shape (n,)
+        TT2000 ns of the LEVEL_B vectors.
+    b_sc : ndarray, shape (n, 3)
+        LEVEL_B field (nT, s/c coordinates) *without* offset jumps subtracted.
+    rotation : ndarray, shape (n, 3, 3)
+        s/c -> CSEQ rotation matrices (``B_cseq = rotation @ B_sc``).
+    start_utc, end_utc : array of str
+        Intervals (UTC, ISO), sorted and disjoint, ``[start, end)``.
+    sensor : {"OB", "IB"}
+    block_s : float
+        Block length (s).
+
+    Returns
+    -------
+    OffsetJumpFit
+        Intervals without data are an error (no row is invented).
+
+    Raises
+    ------
+    FluxcalError
+        Shapes, unsorted/overlapping intervals, an interval with too few blocks or an
+        attitude that does not vary enough to separate ``J`` from the mean field.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.4 and Appendix B (B.1, B.2).
+    """
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    sensor = check_sensor(sensor)
+    epoch = np.asarray(epoch, dtype=np.int64)
+    b_sc = np.asarray(b_sc, dtype=float)
+    rotation = np.asarray(rotation, dtype=float)
+    n = epoch.size
+    if b_sc.shape != (n, 3) or rotation.shape != (n, 3, 3):
+        raise FluxcalError(
+            f"offset jumps: shapes epoch {epoch.shape}, b_sc {b_sc.shape}, rotation "
+            f"{rotation.shape}; expected (n,), (n, 3), (n, 3, 3)"
+        )
+    start_utc, end_utc = np.asarray(start_utc, dtype=str), np.asarray(end_utc, dtype=str)
+    starts, ends = utc_to_tt2000(start_utc, lsk), utc_to_tt2000(end_utc, lsk)
+    if np.any(ends <= starts) or np.any(np.diff(starts) <= 0) or np.any(ends[:-1] > starts[1:]):
+        raise FluxcalError("offset jumps: intervals must be sorted, disjoint and non-empty")
+    b_cseq = np.einsum("nij,nj->ni", rotation, b_sc)
+    k = np.searchsorted(starts, epoch, side="right") - 1
+    inside = (k >= 0) & (epoch < ends[np.maximum(k, 0)])
+    m = starts.size
+    jumps, sigma = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
+    mean_field, rms = np.full((m, 2), np.nan), np.full(m, np.nan)
+    n_blocks, n_samples = np.zeros(m, dtype=int), np.zeros(m, dtype=int)
+    order = np.argsort(np.where(inside, k, m), kind="stable")
+    bounds = np.searchsorted(np.where(inside, k, m)[order], np.arange(m + 1))
+    for j in range(m):  # loop over intervals
+        sel = order[bounds[j]: bounds[j + 1]]
+        what = f"offset jump {sensor} {start_utc[j]} .. {end_utc[j]}"
+        if sel.size == 0:
+            raise FluxcalError(f"{what}: no vectors in the interval (leave it out)")
+        values = np.concatenate([b_cseq[sel], rotation[sel].reshape(-1, 9)], axis=1)
+        _, count, mean, _ = block_means(epoch[sel], values, block_s)
+        rot = mean[:, 3:].reshape(-1, 3, 3)
+        nb = count.size
+        # unknowns: J_x, J_y, J_z, m_x, m_y; three equations per block
+        design = np.zeros((3 * nb, 5))
+        design[:, :3] = rot.reshape(3 * nb, 3)
+        design[0::3, 3] = 1.0
+        design[1::3, 4] = 1.0
+        target = mean[:, :3].reshape(-1)
+        q, cov, r = weighted_lstsq(design, target, np.repeat(count, 3), what=what)
+        jumps[j], sigma[j] = q[:3], np.sqrt(np.diag(cov)[:3])
+        mean_field[j] = q[3:]
+        rms[j] = np.sqrt(np.sum(np.repeat(count, 3) * r**2) / (3 * np.sum(count)))
+        n_blocks[j], n_samples[j] = nb, sel.size
+    return OffsetJumpFit(sensor, start_utc, end_utc, jumps, sigma, mean_field, rms,
+                         n_blocks, n_samples, float(block_s))
+
+
+def write_offset_jump_table(
+    fits: list[OffsetJumpFit], path: Path, *, provenance: dict | None = None
+) -> Path:
+    """Write fitted offsets as ``RPCMAG_OFFSET_JUMPS.csv`` (Appendix B, applied form).
+
+    Columns ``start_utc,end_utc,ob_x,ob_y,ob_z,ib_x,ib_y,ib_z`` as the shipped table;
+    the fits of both sensors must share their intervals.  A sensor not fitted is written
+    ``nan`` (the pipeline then refuses that sensor's data in those intervals instead of
+    applying a made-up value).  ``#`` comment lines hold the standard errors, the fitted
+    CSEQ mean field and the provenance.
+
+    Raises
+    ------
+    FluxcalError
+        No fits, two fits of one sensor, or fits with different intervals.
+    """
+    if not fits:
+        raise FluxcalError("no offset-jump fit to write")
+    by_sensor = {}
+    for f in fits:
+        if f.sensor in by_sensor:
+            raise FluxcalError(f"two offset-jump fits for sensor {f.sensor}")
+        by_sensor[f.sensor] = f
+    first = fits[0]
+    for f in fits[1:]:
+        if not (np.array_equal(f.start_utc, first.start_utc)
+                and np.array_equal(f.end_utc, first.end_utc)):
+            raise FluxcalError("the OB and IB offset-jump fits must have the same intervals")
+    m = first.start_utc.size
+    cols = {s: by_sensor[s].jumps if s in by_sensor else np.full((m, 3), np.nan)
+            for s in ("OB", "IB")}
+    lines = [
+        "# RPC-MAG post-hibernation offsets (nT, s/c coordinates) fitted by fluxcal rosetta fit",
+        "# (RO-IGEP-TR0028 sec. 4.2.3.4, Appendix B form): B_corrected = B - JUMP on "
+        "[start_utc, end_utc).",
+        "# criterion: CSEQ B_z long-term mean 0, CSEQ field decorrelated from the s/c rotation;"
+        " docs/decisions/rosetta_fit.md",
+    ]
+    for f in fits:
+        for j in range(m):
+            lines.append(
+                f"# {f.sensor} {f.start_utc[j]}: sigma x y z "
+                + " ".join(f"{v:.4f}" for v in f.sigma[j])
+                + " nT; CSEQ mean Bx By " + " ".join(f"{v:.3f}" for v in f.mean_field[j])
+                + f" nT; rms {f.rms[j]:.3f} nT; blocks {f.n_blocks[j]} of {f.block_s:g} s; "
+                f"samples {f.n_samples[j]}"
+            )
+    lines += [f"# {k}: {v}" for k, v in (provenance or {}).items()]
+    lines.append("start_utc,end_utc,ob_x,ob_y,ob_z,ib_x,ib_y,ib_z")
+    for j in range(m):
+        values = [*cols["OB"][j], *cols["IB"][j]]
+        lines.append(f"{first.start_utc[j]},{first.end_utc[j]},"
+                     + ",".join("nan" if np.isnan(v) else f"{v:.4f}" for v in values))
+    path = Path(path)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+# ----------------------------------------------------------------------------------------
+# File driver of ``fluxcal rosetta fit``
+# ----------------------------------------------------------------------------------------
+def read_intervals_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read ``start_utc,end_utc`` rows (``#`` comments allowed; extra columns ignored).
+
+    Raises
+    ------
+    InputFormatError
+        Missing column or a time that is not ISO UTC, naming file, line and field.
+    """
+    import csv
+
+    from fluxcal.errors import InputFormatError
+
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as exc:
+        raise InputFormatError(f"cannot read: {exc.strerror}", path=str(path)) from None
+    numbered = [(i, s) for i, s in enumerate(lines, 1) if s.strip() and not s.startswith("#")]
+    if not numbered:
+        raise InputFormatError("no header line start_utc,end_utc", path=str(path))
+    reader = csv.DictReader([s for _, s in numbered])
+    for name in ("start_utc", "end_utc"):
+        if name not in (reader.fieldnames or []):
+            raise InputFormatError(f"missing column {name} (header {reader.fieldnames})",
+                                   path=str(path), line=numbered[0][0], field=name)
+    start, end = [], []
+    for (line, _), row in zip(numbered[1:], reader, strict=True):
+        for name, out in (("start_utc", start), ("end_utc", end)):
+            try:
+                out.append(str(np.datetime64(str(row[name]).strip(), "s")))
+            except ValueError:
+                raise InputFormatError(f"{row[name]!r} is not an ISO UTC time", path=str(path),
+                                       line=line, field=name) from None
+    if not start:
+        raise InputFormatError("no intervals", path=str(path))
+    return np.array(start), np.array(end)
+
+
+def fit_files(
+    science: Path,
+    sensor: str,
+    out: Path,
+    *,
+    hk_file: Path | None = None,
+    calib_dir: Path | None = None,
+    kernels: Path | None = None,
+    primary: str = "OB",
+    degree: int = DEFAULT_DEGREE,
+    block_s: float | None = None,
+    jumps: bool = False,
+    intervals: Path | None = None,
+    boom: str = "deployed",
+    alignment_from_kernels: bool = False,
+) -> list[Path]:
+    """Run ``fluxcal rosetta fit``: raw science CSV in, calibration files out.
+
+    Without ``jumps``: one daily extended-temperature file per UTC day of the telemetry
+    time (the day the pipeline applies it to, `extended_model.utc_days`), fitted on the
+    ground-calibrated LEVEL_A of that day (daily files in ``calib_dir`` are not applied:
+    the fit is of the residual after the ground calibration).  With ``jumps``: LEVEL_B as
+    ``rosetta calibrate`` makes it (daily files of ``calib_dir`` applied, *no* jump
+    table), rotated to CSEQ with the loaded kernels, fitted per interval of ``intervals``
+    (CSV ``start_utc,end_utc``) or, by default, of the jump table (``calib_dir`` or
+    fluxcal's) that overlap the data; written as ``RPCMAG_OFFSET_JUMPS.csv``.
+
+    ``hk_file`` is read (checked) and recorded as an input; the temperatures come from
+    the science records' thermistor words (sec. 4.1.2), at the vector rate.
+
+    Returns
+    -------
+    list of Path
+        Files written.
+
+    Raises
+    ------
+    FluxcalError
+        Every input, calibration and fit error (naming file, line, field, day, interval).
+    """
+    import contextlib
+
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import SclkKernel, leapseconds
+    from fluxcal.missions.rosetta import calib, io, level_a, level_b
+
+    sensor = check_sensor(sensor)
+    out = Path(out)
+    if jumps and kernels is None:
+        raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame)")
+    scope = KernelPool(kernels) if kernels is not None or jumps else KernelPool()
+    with contextlib.ExitStack() as stack:
+        pool = stack.enter_context(scope)
+        lsk = leapseconds()
+        sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
+        cal = calib.load_ground_calibration(sensor, calib_dir)
+        shifts = calib.load_time_shift_table(calib_dir)
+        nominal = calib.load_nominal_conversion(calib_dir)
+        raw = io.read_science_csv(science, sensor, sclk=sclk, lsk=lsk)
+        if hk_file is not None:
+            io.read_hk_csv(hk_file, sclk=sclk, lsk=lsk)
+        prov = {
+            "inputs": " ".join(str(p) for p in [science, hk_file] if p is not None),
+            "ground calibration": cal.source,
+            "kernels": " ".join(str(k) for k in pool.loaded) if kernels is not None else "LSK",
+        }
+        out.mkdir(parents=True, exist_ok=True)
+        if not jumps:
+            day_index, days, _ = level_a.utc_days(raw["epoch"].values, lsk)
+            written = []
+            for d, day in enumerate(days):  # loop over days
+                sel = np.flatnonzero(day_index == d)
+                if sel.size == 0:
+                    continue
+                a = level_a.level_a(raw.isel(time=sel), cal, shifts, nominal, primary=primary,
+                                    lsk=lsk)
+                fit = fit_extended_model(a, reduced_temperature(a, cal), degree=degree,
+                                         block_s=block_s or MODEL_BLOCK_S, day=day)
+                written.append(write_daily_model(fit, out, provenance=prov))
+            return written
+        from fluxcal.geometry.frames import rotate
+        from fluxcal.geometry.time import tt2000_to_et, tt2000_to_utc
+        from fluxcal.missions.rosetta.level_c import FRAMES, SPACECRAFT_FRAME
+
+        models = calib.find_daily_offset_models(calib_dir, sensor)
+        a = level_a.level_a(raw, cal, shifts, nominal, daily_models=models, primary=primary,
+                            lsk=lsk)
+        alignment = None if alignment_from_kernels else calib.load_alignment(calib_dir)
+        b = level_b.level_b(a, alignment, None, boom=boom, lsk=lsk)
+        epoch = b["epoch"].values.astype(np.int64)
+        if intervals is not None:
+            start, end = read_intervals_csv(intervals)
+        else:
+            table = calib.load_offset_jump_table(calib_dir)
+            first, last = (np.datetime64(str(s)[:19], "s")
+                           for s in tt2000_to_utc(epoch[[0, -1]], digits=0, lsk=lsk))
+            s_all = table.start_utc.astype("M8[s]")
+            e_all = table.end_utc.astype("M8[s]")
+            use = (e_all > first) & (s_all <= last)
+            if not use.any():
+                raise FluxcalError(
+                    f"{science}: no interval of {table.source} overlaps the data "
+                    f"({first} .. {last}); give --intervals CSV"
+                )
+            start, end = table.start_utc[use], table.end_utc[use]
+            prov["intervals"] = table.source
+        _, rotation = rotate(b["b"].values, tt2000_to_et(epoch, lsk), SPACECRAFT_FRAME,
+                             FRAMES["CSEQ"], return_matrices=True)
+        fit = fit_offset_jumps(epoch, b["b"].values, rotation, start, end, sensor=sensor,
+                               block_s=block_s or JUMP_BLOCK_S, lsk=lsk)
+        prov["alignment"] = b.attrs["alignment"]
+        prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
+        return [write_offset_jump_table([fit], out / calib.JUMPS_FILE, provenance=prov)]
