@@ -39,7 +39,23 @@ ALIGN_FILE = "RPCMAG_SC_ALIGN.TXT"
 TIMESHIFT_FILE = "RPCMAG_FILTER_TIMESHIFT.csv"
 JUMPS_FILE = "RPCMAG_OFFSET_JUMPS.csv"
 NOMINAL_FILE = "nominal_conversion.toml"
-_DAILY_RE = re.compile(r"^RPCMAG_(\d{6})_006_CALIB_(IB|OB)\.TXT$", re.IGNORECASE)
+_DAILY_RE = re.compile(r"^RPCMAG_(\d{6})_006_CALIB_(IB|OB)\.(TXT|ASC)$", re.IGNORECASE)
+#: The archive's names of the files fluxcal names as the seed does (issue 14): the ground
+#: calibration is ``RPCMAG_GND_CALIB_FSDPU_FM<S>`` in the archive's CALIB folder; the
+#: archive's extension is ``.TXT`` (early deliveries) or ``.ASC`` (later ones), each with a
+#: detached ``.LBL`` that fluxcal does not need (docs/decisions/rosetta_archive.md).
+ARCHIVE_NAMES = {
+    GROUND_FILE["OB"]: "RPCMAG_GND_CALIB_FSDPU_FMOB.TXT",
+    GROUND_FILE["IB"]: "RPCMAG_GND_CALIB_FSDPU_FMIB.TXT",
+}
+
+
+def names_of(name: str) -> list[str]:
+    """Every accepted name of calibration file ``name``: fluxcal's, the archive's, ``.ASC``."""
+    out = [name, ARCHIVE_NAMES.get(name, name)]
+    out += [n[:-4] + ".ASC" for n in out if n.upper().endswith(".TXT")]
+    out += [n.lower() for n in out]  # mirrors that lower-case the archive's names
+    return list(dict.fromkeys(out))
 
 
 def default_dir() -> Path:
@@ -59,11 +75,25 @@ def check_sensor(sensor: str) -> str:
 
 
 def resolve(name: str, calib_dir: Path | None) -> Path:
-    """Return ``calib_dir / name`` when that file exists, else fluxcal's default file."""
+    """Return the file ``name`` of ``calib_dir`` when it exists, else fluxcal's default file.
+
+    In ``calib_dir`` the file may carry any of its names (`names_of`: the seed's, the
+    archive's, ``.TXT`` or ``.ASC``); two of them present is an error naming both.
+    """
     if calib_dir is not None:
-        candidate = Path(calib_dir) / name
-        if candidate.is_file():
-            return candidate
+        found: dict[tuple[int, int], Path] = {}
+        for candidate in (Path(calib_dir) / n for n in names_of(name)):
+            if candidate.is_file():  # one file seen under two names (case-blind disks) once
+                st = candidate.stat()
+                found.setdefault((st.st_dev, st.st_ino), candidate)
+        if len(found) > 1:
+            a, b = list(found.values())[:2]
+            raise CalibrationError(
+                f"{calib_dir}: both {a.name} and {b.name} are present; they name the same "
+                "calibration file (the seed's and the archive's name): keep one"
+            )
+        if found:
+            return next(iter(found.values()))
     path = default_dir() / name
     if not path.is_file():
         raise CalibrationError(
@@ -346,7 +376,8 @@ def read_daily_offset_model(path: Path) -> DailyOffsetModel:
     match = _DAILY_RE.match(path.name)
     if match is None:
         raise CalibrationError(
-            f"{path}: name does not follow RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT (sec. 4.2.3.3)"
+            f"{path}: name does not follow RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT (or .ASC) "
+            "(sec. 4.2.3.3)"
         )
     yymmdd, sensor = match.group(1), match.group(2).upper()
     try:
@@ -375,6 +406,11 @@ def find_daily_offset_models(
         match = _DAILY_RE.match(path.name)
         if match and match.group(2).upper() == sensor:
             model = read_daily_offset_model(path)
+            if model.day in out:  # e.g. the .TXT and the .ASC of one day
+                raise CalibrationError(
+                    f"{calib_dir}: both {Path(out[model.day].source).name} and {path.name} "
+                    f"hold the {sensor} model of {model.day}: keep one"
+                )
             out[model.day] = model
     return out
 

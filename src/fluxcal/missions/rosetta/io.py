@@ -121,38 +121,55 @@ def _numeric(table: np.ndarray, j: int, name: str, kind: type, path: Path) -> np
     return values
 
 
-def _epoch(table: np.ndarray, obt: np.ndarray, path: Path, sclk, lsk) -> tuple[np.ndarray, str]:
+def _epoch(
+    utc: np.ndarray,
+    obt: np.ndarray,
+    path: Path,
+    sclk,
+    lsk,
+    *,
+    rows: np.ndarray | None = None,
+    names: tuple[str, str] = ("time_utc", "obt"),
+) -> tuple[np.ndarray, str]:
+    """TT2000 of each record (from ``obt`` with ``sclk``, else from ``utc``), non-decreasing.
+
+    ``rows`` are the record numbers errors name (default: CSV lines, ``i + 2``);
+    ``names`` the UTC and OBT field names (the archive tables call them TIME.UTC, TIME.OBT).
+    """
     from fluxcal.geometry.time import utc_to_tt2000
+
+    def line_of(i: int) -> int:
+        return i + 2 if rows is None else int(rows[i])
 
     if sclk is not None:  # TT2000 straight from the TDT clock, exact on the OBT tick grid
         epoch = sclk.to_tt2000(np.ones(obt.size, dtype=np.int64), obt)
-        field = "obt"
+        field = names[1]
     else:
         try:
-            epoch = utc_to_tt2000(table[:, 0], lsk)
+            epoch = utc_to_tt2000(utc, lsk)
         except InputFormatError:
             line, text = None, ""
-            for i, item in enumerate(np.char.strip(table[:, 0])):
+            for i, item in enumerate(np.char.strip(np.asarray(utc, dtype=str))):
                 try:
                     utc_to_tt2000(np.array([item]), lsk)
                 except InputFormatError:
-                    line, text = i + 2, str(item)
+                    line, text = line_of(i), str(item)
                     break
             raise InputFormatError(
                 f"cannot parse UTC time {text!r} (ISO 8601 expected)",
                 path=str(path),
                 line=line,
-                field="time_utc",
+                field=names[0],
             ) from None
-        field = "time_utc"
+        field = names[0]
     back = np.flatnonzero(np.diff(epoch) < 0)
     if back.size:
         i = int(back[0]) + 1
         raise InputFormatError(
-            f"time goes backwards ({table[i, 0]} after {table[i - 1, 0]}, "
+            f"time goes backwards ({utc[i]} after {utc[i - 1]}, "
             f"obt {obt[i]} after {obt[i - 1]})",
             path=str(path),
-            line=i + 2,
+            line=line_of(i),
             field=field,
         )
     return epoch, field
@@ -192,7 +209,7 @@ def read_science_csv(path: Path, sensor: str, *, sclk=None, lsk=None) -> xr.Data
         name: _numeric(table, col[name], name, int, path)
         for name in ("sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
     }
-    epoch, time_source = _epoch(table, obt, path, sclk, lsk)
+    epoch, time_source = _epoch(table[:, 0], obt, path, sclk, lsk)
     n = obt.size
     return xr.Dataset(
         {
@@ -224,7 +241,7 @@ def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
     ints = {
         name: _numeric(table, j, name, int, path) for j, name in enumerate(HK_COLUMNS) if j >= 2
     }
-    epoch, time_source = _epoch(table, obt, path, sclk, lsk)
+    epoch, time_source = _epoch(table[:, 0], obt, path, sclk, lsk)
     data = {
         "obt": ("time", obt, {"units": "s"}),
         "t_ob_counts": ("time", ints["t_ob"], {"units": "count"}),
@@ -312,3 +329,45 @@ def write_hk_csv(raw: xr.Dataset, path: Path, *, lsk=None) -> Path:
         b[:, 2],
     ]
     return _write_atomic(path, HK_COLUMNS, cols)
+
+
+# ----------------------------------------------------------------------------------------
+# One entry for both input layouts: today's CSV files and the archive's EDITED products
+# ----------------------------------------------------------------------------------------
+def read_science(source, sensor: str, *, sclk=None, lsk=None) -> xr.Dataset:
+    """Read raw science of ``sensor`` from a CSV file or from EDITED archive products.
+
+    ``source`` is a CSV file (`read_science_csv`), or a folder of EDITED products, one
+    ``.LBL``/``.TAB`` product, or a sequence of labels
+    (`fluxcal.missions.rosetta.archive.read_science_products`); both give the same Dataset.
+    """
+    from fluxcal.missions.rosetta import archive
+
+    if archive.is_archive_source(source):
+        return archive.read_science_products(
+            archive.science_labels(source, sensor), sensor, sclk=sclk, lsk=lsk
+        )
+    return read_science_csv(source, sensor, sclk=sclk, lsk=lsk)
+
+
+def read_hk(source, *, sclk=None, lsk=None) -> xr.Dataset:
+    """Read raw HK from a CSV file or from EDITED archive HK products (see `read_science`)."""
+    from fluxcal.missions.rosetta import archive
+
+    if archive.is_archive_source(source):
+        return archive.read_hk_products(archive.hk_labels(source), sclk=sclk, lsk=lsk)
+    return read_hk_csv(source, sclk=sclk, lsk=lsk)
+
+
+def source_files(source, sensor: str | None = None) -> list[Path]:
+    """Return the files of a raw source (provenance, manifests): the CSV, or labels, tables.
+
+    ``sensor`` picks the science products of one sensor in a folder (``None``: HK).
+    """
+    from fluxcal.missions.rosetta import archive
+
+    if not archive.is_archive_source(source):
+        return [Path(source)]
+    labels = archive.hk_labels(source) if sensor is None else archive.science_labels(
+        source, sensor)
+    return [p for label in labels for p in (label, archive.table_of(label))]

@@ -24,7 +24,7 @@ References
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -386,6 +386,7 @@ def write_simulation(
     rate_hz: float = 20.0,
     primary: str = "OB",
     seed: int = 0,
+    layouts: Sequence[str] = ("files",),
 ) -> dict[str, Path]:
     """Write a complete simulated input set into ``out`` and return the paths.
 
@@ -394,6 +395,12 @@ def write_simulation(
     raw science CSVs ``RPCMAG_<yyyymmdd>_RAW_<OB|IB>.csv``, the HK CSV
     ``RPCMAG_<yyyymmdd>_RAW_HK.csv`` and the truth ``RPCMAG_<yyyymmdd>_TRUTH_<OB|IB>.csv``.
     The ground calibration is fluxcal's default.
+
+    ``layouts`` containing ``"archive"`` also (or, without ``"files"``, instead of the
+    CSVs) writes the same simulation as archive-style EDITED products under
+    ``out/DATA/EDITED/`` (`archive_write`; key ``"archive"``), names the calibration
+    folder ``out/CALIB`` with the archived ground-calibration names, and copies the
+    meta-kernel to ``out/kernels.tm`` (the input folder of ``fluxcal batch rosetta``).
     """
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.synthetic import write_rosetta_like_kernels
@@ -401,10 +408,17 @@ def write_simulation(
     from fluxcal.missions.rosetta import calib, io
 
     out = Path(out)
-    calib_dir = out / "calib"
+    archive = "archive" in layouts
+    calib_dir = out / ("CALIB" if archive else "calib")
     calib_dir.mkdir(parents=True, exist_ok=True)
     duration = float(hours) * 3600.0
     meta = write_rosetta_like_kernels(out / "kernels", start_utc, duration, margin_s=3600.0)
+    if archive:
+        from fluxcal.geometry.synthetic import copy_meta_kernel
+        from fluxcal.missions.rosetta.archive_write import write_archive_calibration
+
+        copy_meta_kernel(meta, out / "kernels.tm")
+        write_archive_calibration(calib_dir)
     alignment = synthetic_alignment()
     calib.write_alignment(alignment, calib_dir / calib.ALIGN_FILE)
     first = np.datetime64(start_utc[:10], "D")
@@ -437,13 +451,22 @@ def write_simulation(
             lsk=lsk,
         )
         for sensor in ("OB", "IB"):
-            paths[f"science_{sensor}"] = io.write_science_csv(
-                sim.science[sensor], out / f"RPCMAG_{stamp}_RAW_{sensor}.csv", lsk=lsk
-            )
+            if "files" in layouts:
+                paths[f"science_{sensor}"] = io.write_science_csv(
+                    sim.science[sensor], out / f"RPCMAG_{stamp}_RAW_{sensor}.csv", lsk=lsk
+                )
             paths[f"truth_{sensor}"] = write_truth_csv(
                 sim.truth[sensor], out / f"RPCMAG_{stamp}_TRUTH_{sensor}.csv", lsk=lsk
             )
-        paths["hk"] = io.write_hk_csv(sim.hk, out / f"RPCMAG_{stamp}_RAW_HK.csv", lsk=lsk)
+        if "files" in layouts:
+            paths["hk"] = io.write_hk_csv(sim.hk, out / f"RPCMAG_{stamp}_RAW_HK.csv", lsk=lsk)
+        if archive:
+            from fluxcal.missions.rosetta import archive_write
+
+            for sensor in ("OB", "IB"):
+                archive_write.write_science_products(sim.science[sensor], out, lsk=lsk)
+            archive_write.write_hk_products(sim.hk, out, lsk=lsk)
+            paths["archive"] = out.joinpath(*archive_write.EDITED)
     return paths
 
 
