@@ -1,0 +1,194 @@
+"""Offsets from compressive, linearly polarised fluctuations (mirror-mode method).
+
+In a mirror-mode structure the field magnitude changes while its direction stays
+fixed, so the measured vectors ``B_meas = O + |B(t)| e`` of one interval lie on a
+straight line along ``e`` that passes through the offset ``O`` [1]_.  The line is
+found as the interval's mean vector and maximum-variance direction; many such lines
+with different directions meet (in the least-squares sense) at ``O``:
+
+    ``sum_k P_k O = sum_k P_k <B_meas>_k``,  ``P_k = I - e_k e_k^T``,
+
+i.e. ``O`` minimises the summed squared perpendicular distances to the lines, each
+interval weighted equally.  Plaschke and Narita used one component (the spin-axis
+offset, the spin-plane ones being known) [1]_; here all three are solved for, as
+on a three-axis stabilised spacecraft such as MESSENGER or BepiColombo [2]_.
+
+Selection criteria (each a parameter; the first failed one is the reason):
+
+1. ``too_few_samples``: fewer than ``min_samples`` valid samples.
+2. ``not_linear``: ``lambda_max / lambda_int`` below ``min_linearity`` -- the
+   fluctuations do not lie along one direction.
+3. ``small_fluctuations``: ``sqrt(lambda_max)`` below ``min_relative_amplitude``
+   times ``|<B_meas> - O|`` -- the line direction is then poorly defined.
+4. ``oblique``: angle between the maximum-variance direction and the mean field
+   ``<B_meas> - O`` above ``max_angle_deg`` -- not compressive along the field
+   (e.g. a linearly polarised transverse wave) [1]_, [2]_.
+
+Criteria 3-4 use the current offset estimate, as in
+`fluxcal.calibration.variance_offsets`.
+
+References
+----------
+.. [1] Plaschke, F. and Narita, Y., "On determining fluxgate magnetometer spin axis
+   offsets from mirror mode observations", Ann. Geophys. 34, 759-766 (2016).
+.. [2] Schmid, D. et al., "Magnetometer in-flight offset accuracy for the
+   BepiColombo spacecraft", Ann. Geophys. 38, 823-832 (2020): mirror-mode offsets
+   from MESSENGER magnetosheath data agree with the solar-wind (Alfvenic) ones.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fluxcal.calibration.solar_wind_offsets import (
+    OffsetEstimate,
+    bootstrap_covariance,
+    check_offset_guess,
+    count_reasons,
+    first_failure,
+    interval_moments,
+    solve_pooled,
+    split_intervals,
+)
+from fluxcal.errors import FluxcalError
+
+__all__ = ["mirror_mode_offsets"]
+
+
+def mirror_mode_offsets(
+    b: ArrayLike,
+    interval_index: ArrayLike | None = None,
+    *,
+    interval_length: int | None = None,
+    min_samples: int = 60,
+    min_linearity: float = 10.0,
+    min_relative_amplitude: float = 0.05,
+    max_angle_deg: float = 10.0,
+    offset_guess: ArrayLike | None = None,
+    max_selection_passes: int = 10,
+    n_bootstrap: int = 1000,
+    seed: int | np.random.Generator | None = None,
+) -> OffsetEstimate:
+    """Offsets as the common point of the lines traced by compressive intervals.
+
+    Parameters
+    ----------
+    b : array_like, shape (n, 3)
+        Measured field (offset not removed); rows with a NaN are gaps.
+    interval_index : array_like of int, shape (n,), optional
+        Interval label per sample (negative: not used).  Or give ``interval_length``.
+    interval_length : int, optional
+        Consecutive blocks of this many samples as intervals.
+    min_samples, min_linearity, min_relative_amplitude, max_angle_deg
+        Selection criteria (module docstring); defaults and reasons in
+        ``docs/decisions/solar_wind_offsets.md``.
+    offset_guess : array_like, shape (3,), optional
+        Offset at which criteria 3-4 are first evaluated; without it the first
+        estimate uses criteria 1-2 only.
+    max_selection_passes : int
+        Passes of select-then-solve before giving up on a stable selection.
+    n_bootstrap : int
+        Bootstrap resamples of the accepted intervals (0: no uncertainty).
+    seed : int or Generator, optional
+        For the bootstrap.
+
+    Returns
+    -------
+    OffsetEstimate
+        ``per_interval`` is the point of each line closest to the pooled offset
+        (criteria 1-2 passed, else NaN); its distance from ``offset`` is the
+        interval's residual.
+
+    Raises
+    ------
+    InputFormatError
+        Bad shapes or arguments.
+    FluxcalError
+        The lines do not fix all three components (e.g. all parallel), or the
+        selection does not settle.
+
+    References
+    ----------
+    .. [1] Plaschke and Narita (2016), Schmid et al. (2020) (see module).
+    """
+    bv, codes, labels = split_intervals(b, interval_index, interval_length)
+    o = check_offset_guess(offset_guess)
+    k = labels.size
+    m = interval_moments(bv, codes, k)
+    w, v = np.linalg.eigh(m.cov)
+    e = v[:, :, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        linearity = np.where(w[:, 1] > 0, w[:, 2] / w[:, 1], np.inf)
+    linearity[w[:, 2] <= 0] = 0.0
+    projector = np.eye(3) - e[:, :, None] * e[:, None, :]
+    foot_rhs = np.einsum("kij,kj->ki", projector, m.mean)
+    static = [
+        ("too_few_samples", m.count >= min_samples),
+        ("not_linear", linearity >= min_linearity),
+    ]
+
+    def solve(reason):
+        use = reason == ""
+        return solve_pooled(projector[use].sum(0), foot_rhs[use].sum(0), "mirror_mode", reason)
+
+    def checks(offset):
+        mean_field = m.mean - offset
+        norm = np.linalg.norm(mean_field, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cos = np.abs(np.einsum("ki,ki->k", e, mean_field)) / norm
+            amplitude = np.sqrt(np.maximum(w[:, 2], 0.0)) / norm
+        angle = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+        return first_failure(
+            static
+            + [
+                ("small_fluctuations", amplitude >= min_relative_amplitude),
+                ("oblique", angle <= max_angle_deg),
+            ],
+            k,
+        )
+
+    if offset_guess is None:
+        o = solve(first_failure(static, k))
+    previous = None
+    passes = 0
+    for _ in range(max_selection_passes):
+        passes += 1
+        reason = checks(o)
+        o = solve(reason)
+        if previous is not None and np.array_equal(reason, previous):
+            break
+        previous = reason
+    else:
+        raise FluxcalError(
+            f"mirror_mode: the interval selection did not settle in {max_selection_passes} passes"
+        )
+    use = reason == ""
+    good = first_failure(static, k) == ""
+    per_interval = np.full((k, 3), np.nan)
+    along = np.einsum("ki,ki->k", e, o - m.mean)
+    per_interval[good] = (m.mean + along[:, None] * e)[good]
+    covariance, n_boot = bootstrap_covariance(
+        projector[use], foot_rhs[use], n_bootstrap, seed, "mirror_mode"
+    )
+    return OffsetEstimate(
+        method="mirror_mode",
+        offset=o,
+        standard_error=np.sqrt(np.diag(covariance)),
+        covariance=covariance,
+        n_used=int(use.sum()),
+        n_rejected=int(k - use.sum()),
+        rejections=count_reasons(reason),
+        labels=labels,
+        accepted=use,
+        reason=reason,
+        per_interval=per_interval,
+        n_bootstrap=n_boot,
+        iterations=passes,
+        criteria={
+            "min_samples": int(min_samples),
+            "min_linearity": float(min_linearity),
+            "min_relative_amplitude": float(min_relative_amplitude),
+            "max_angle_deg": float(max_angle_deg),
+        },
+    )

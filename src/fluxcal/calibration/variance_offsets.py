@@ -1,0 +1,351 @@
+"""Offsets that make ``|B|`` least variable under Alfvenic fluctuations.
+
+Two estimators over many intervals, both with the same interval selection:
+
+* `davis_smith_offsets`: the linear least-squares form.  Within an interval of
+  constant ``|B|``, ``|B_meas - O|^2 = const`` gives, for the fluctuations about the
+  interval means, ``delta(|B_meas|^2) = 2 delta(B_meas) . O``; least squares over all
+  samples of all accepted intervals leads to the 3x3 system
+  ``sum_k n_k C_k (2 O) = sum_k n_k c_k`` with ``C_k`` the covariance matrix of
+  ``B_meas`` and ``c_k`` the covariance of ``B_meas`` with ``|B_meas|^2`` in
+  interval ``k`` [1]_, [4]_.
+* `hedgecock_offsets`: minimises the variance of ``|B_meas - O|`` itself (not of its
+  square) summed over the intervals, by Gauss-Newton steps: the step solves
+  ``sum_k n_k Cov_k(u, u) dO = sum_k n_k Cov_k(u, |B'|)`` with ``u`` the unit vector
+  of ``B' = B_meas - O``, i.e. it correlates the magnitude changes with the
+  direction-cosine changes [3]_, as Belcher's variant does for the magnitude [2]_;
+  the selection is re-evaluated on the corrected field at every step.
+
+Selection criteria (each a parameter; an interval is rejected for the first one it
+fails, in this order; see ``docs/decisions/solar_wind_offsets.md``):
+
+1. ``too_few_samples``: fewer than ``min_samples`` valid samples.
+2. ``ill_conditioned``: ``lambda_min / lambda_max`` of the interval's covariance
+   matrix below ``min_eigenvalue_ratio`` -- the fluctuations do not sample all three
+   directions, so the interval's own 3x3 system is singular (one-directional or
+   planar fluctuations) [4]_.
+3. ``small_fluctuations``: rms vector fluctuation ``sqrt(trace C)`` below
+   ``min_relative_amplitude`` times ``|B - O|``: the offset leverage scales with
+   ``dB / |B|`` [4]_, [5]_.
+4. ``compressive``: compressibility ``var(|B - O|) / trace C`` above
+   ``max_compressibility``: not a rotation at constant magnitude [4]_, [5]_.
+
+Criteria 3 and 4 depend on the offset: they are evaluated at the current estimate.
+The first estimate uses criteria 1-2 only, unless ``offset_guess`` is given; the
+selection is then repeated until it no longer changes.
+
+References
+----------
+.. [1] Davis, L. Jr. and Smith, E. J., EOS Trans. AGU 49, 257 (1968).
+.. [2] Belcher, J. W., J. Geophys. Res. 78, 6480 (1973).
+.. [3] Hedgecock, P. C., Space Sci. Instrum. 1, 83-90 (1975).
+.. [4] Leinweber, H. K. et al., Meas. Sci. Technol. 19, 055104 (2008): the
+   Davis-Smith method as a correlation technique; selection of pure rotations.
+.. [5] Plaschke, F., Geosci. Instrum. Method. Data Syst. 8, 285-291 (2019):
+   accuracy versus amount of solar-wind data (0.2 nT from ~40 h of real data).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fluxcal.calibration.solar_wind_offsets import (
+    OffsetEstimate,
+    bootstrap_covariance,
+    check_offset_guess,
+    count_reasons,
+    eigenvalue_ratio,
+    first_failure,
+    interval_moments,
+    solve_pooled,
+    split_intervals,
+)
+from fluxcal.errors import FluxcalError
+
+__all__ = ["davis_smith_offsets", "hedgecock_offsets"]
+
+DEFAULT_MIN_SAMPLES = 60
+DEFAULT_MIN_EIGENVALUE_RATIO = 1e-3
+DEFAULT_MIN_RELATIVE_AMPLITUDE = 0.05
+DEFAULT_MAX_COMPRESSIBILITY = 0.1
+
+
+def _static_checks(count, cov, min_samples, min_eigenvalue_ratio):
+    return [
+        ("too_few_samples", count >= min_samples),
+        ("ill_conditioned", eigenvalue_ratio(cov) >= min_eigenvalue_ratio),
+    ]
+
+
+def _criteria(min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility):
+    return {
+        "min_samples": int(min_samples),
+        "min_eigenvalue_ratio": float(min_eigenvalue_ratio),
+        "min_relative_amplitude": float(min_relative_amplitude),
+        "max_compressibility": float(max_compressibility),
+    }
+
+
+def davis_smith_offsets(
+    b: ArrayLike,
+    interval_index: ArrayLike | None = None,
+    *,
+    interval_length: int | None = None,
+    min_samples: int = DEFAULT_MIN_SAMPLES,
+    min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO,
+    min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE,
+    max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY,
+    offset_guess: ArrayLike | None = None,
+    max_selection_passes: int = 10,
+    n_bootstrap: int = 1000,
+    seed: int | np.random.Generator | None = None,
+) -> OffsetEstimate:
+    """Offsets from Alfvenic fluctuations by the Davis-Smith least-squares method.
+
+    Parameters
+    ----------
+    b : array_like, shape (n, 3)
+        Measured field (offset not removed), any unit; rows with a NaN are gaps.
+    interval_index : array_like of int, shape (n,), optional
+        Interval label per sample (negative: not used).  Or give ``interval_length``.
+    interval_length : int, optional
+        Consecutive blocks of this many samples as intervals.
+    min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility
+        Selection criteria (module docstring); defaults and reasons in
+        ``docs/decisions/solar_wind_offsets.md``.
+    offset_guess : array_like, shape (3,), optional
+        Offset at which the offset-dependent criteria are first evaluated.
+    max_selection_passes : int
+        Passes of select-then-solve before giving up on a stable selection.
+    n_bootstrap : int
+        Bootstrap resamples of the accepted intervals (0: no uncertainty).
+    seed : int or Generator, optional
+        For the bootstrap.
+
+    Returns
+    -------
+    OffsetEstimate
+        ``per_interval`` is the solution of each interval's own 3x3 system
+        ``C_k (2 O_k) = c_k`` (intervals passing criteria 1-2, else NaN); the pooled
+        offset is their weighted mean with weights ``n_k C_k``.
+
+    Raises
+    ------
+    InputFormatError
+        Bad shapes or arguments.
+    FluxcalError
+        The accepted intervals do not determine all three components, or the
+        selection does not settle within ``max_selection_passes``.
+
+    Notes
+    -----
+    Uses ``|B|^2``, which makes the problem linear in ``O`` (no iteration for a fixed
+    selection).  The compressibility of criterion 4 is computed exactly from the
+    interval moments for any ``O`` as ``var(|B'|^2) / (4 <|B'|^2> trace C)``, the
+    squared-magnitude form of ``var(|B'|) / trace C``.  White sensor noise of
+    variance ``s^2`` moves each interval's solution by ``s^2 C_k^-1 <B>`` (along its
+    mean field); over intervals with different mean-field directions this averages
+    out.
+
+    References
+    ----------
+    .. [1] Davis and Smith (1968); Leinweber et al. (2008), sec. 2-3 (see module).
+    """
+    bv, codes, labels = split_intervals(b, interval_index, interval_length)
+    shift = check_offset_guess(offset_guess)
+    bs = bv - shift
+    k = labels.size
+    m = interval_moments(np.column_stack([bs, np.einsum("ij,ij->i", bs, bs)]), codes, k)
+    n, cov, cov_bsq = m.count, m.cov[:, :3, :3], m.cov[:, :3, 3]
+    var_bsq, mean, mean_bsq = m.cov[:, 3, 3], m.mean[:, :3], m.mean[:, 3]
+    trace = np.trace(cov, axis1=1, axis2=2)
+    static = _static_checks(n, cov, min_samples, min_eigenvalue_ratio)
+
+    def solve(reason):
+        use = reason == ""
+        a = np.einsum("k,kij->ij", n[use], cov[use])
+        r = 0.5 * np.einsum("k,ki->i", n[use], cov_bsq[use])
+        return solve_pooled(a, r, "davis_smith", reason)
+
+    def checks(o):
+        bsq = mean_bsq - 2.0 * mean @ o + o @ o
+        var_o = var_bsq - 4.0 * cov_bsq @ o + 4.0 * np.einsum("i,kij,j->k", o, cov, o)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            amplitude = np.sqrt(trace / bsq)
+            compressibility = var_o / (4.0 * bsq * trace)
+        return first_failure(
+            static
+            + [
+                ("small_fluctuations", amplitude >= min_relative_amplitude),
+                ("compressive", compressibility <= max_compressibility),
+            ],
+            k,
+        )
+
+    o = np.zeros(3) if offset_guess is not None else solve(first_failure(static, k))
+    previous = None
+    passes = 0
+    for _ in range(max_selection_passes):
+        passes += 1
+        reason = checks(o)
+        o = solve(reason)
+        if previous is not None and np.array_equal(reason, previous):
+            break
+        previous = reason
+    else:
+        raise FluxcalError(
+            f"davis_smith: the interval selection did not settle in {max_selection_passes} passes"
+        )
+    use = reason == ""
+    good = first_failure(static, k) == ""
+    per_interval = np.full((k, 3), np.nan)
+    per_interval[good] = 0.5 * np.linalg.solve(cov[good], cov_bsq[good][:, :, None])[:, :, 0]
+    covariance, n_boot = bootstrap_covariance(
+        n[use, None, None] * cov[use],
+        0.5 * n[use, None] * cov_bsq[use],
+        n_bootstrap,
+        seed,
+        "davis_smith",
+    )
+    return OffsetEstimate(
+        method="davis_smith",
+        offset=o + shift,
+        standard_error=np.sqrt(np.diag(covariance)),
+        covariance=covariance,
+        n_used=int(use.sum()),
+        n_rejected=int(k - use.sum()),
+        rejections=count_reasons(reason),
+        labels=labels,
+        accepted=use,
+        reason=reason,
+        per_interval=per_interval + shift,
+        n_bootstrap=n_boot,
+        iterations=passes,
+        criteria=_criteria(
+            min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility
+        ),
+    )
+
+
+def hedgecock_offsets(
+    b: ArrayLike,
+    interval_index: ArrayLike | None = None,
+    *,
+    interval_length: int | None = None,
+    min_samples: int = DEFAULT_MIN_SAMPLES,
+    min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO,
+    min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE,
+    max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY,
+    offset_guess: ArrayLike | None = None,
+    max_iterations: int = 50,
+    tolerance: float = 1e-6,
+    n_bootstrap: int = 1000,
+    seed: int | np.random.Generator | None = None,
+) -> OffsetEstimate:
+    """Offsets that minimise the summed within-interval variance of ``|B_meas - O|``.
+
+    Parameters
+    ----------
+    b, interval_index, interval_length
+        As `davis_smith_offsets`.
+    min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility
+        As `davis_smith_offsets`; criteria 3-4 use ``|B_meas - O|`` at the current
+        iterate directly (``var(|B'|) / trace C`` and ``sqrt(trace C) / <|B'|>``).
+    offset_guess : array_like, shape (3,), optional
+        Starting offset; without it the first step uses criteria 1-2 only.
+    max_iterations : int
+        Gauss-Newton steps allowed.
+    tolerance : float
+        Converged when a step is shorter than this (units of ``b``) and the selection
+        did not change.
+    n_bootstrap, seed
+        Bootstrap of the intervals on the linearised system at convergence.
+
+    Returns
+    -------
+    OffsetEstimate
+        ``per_interval`` is ``O + dO_k`` with ``dO_k`` the step interval ``k`` alone
+        would take from the converged ``O`` (criteria 1-2 passed, else NaN).
+
+    Raises
+    ------
+    InputFormatError
+        Bad shapes or arguments.
+    FluxcalError
+        Undetermined offsets, or no convergence in ``max_iterations``.
+
+    Notes
+    -----
+    Minimising the variance of ``|B|`` rather than ``|B|^2`` weights intervals in
+    strong and weak fields alike (the ``|B|^2`` form weights by ``|B|^2``); the price
+    is iteration.  Each step costs one vectorised pass over the samples.
+
+    References
+    ----------
+    .. [1] Hedgecock (1975); Belcher (1973); Leinweber et al. (2008) (see module).
+    """
+    bv, codes, labels = split_intervals(b, interval_index, interval_length)
+    o = check_offset_guess(offset_guess)
+    k = labels.size
+    mb = interval_moments(bv, codes, k)
+    n = mb.count
+    trace = np.trace(mb.cov, axis1=1, axis2=2)
+    static = _static_checks(n, mb.cov, min_samples, min_eigenvalue_ratio)
+    reason = first_failure(static, k) if offset_guess is None else None
+    for step in range(1, max_iterations + 1):
+        bp = bv - o
+        mag = np.sqrt(np.einsum("ij,ij->i", bp, bp))
+        mu = interval_moments(np.column_stack([bp / mag[:, None], mag]), codes, k)
+        cov_u, cov_um, var_m = mu.cov[:, :3, :3], mu.cov[:, :3, 3], mu.cov[:, 3, 3]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            amplitude = np.sqrt(trace) / mu.mean[:, 3]
+            compressibility = var_m / trace
+        previous = reason
+        if step > 1 or offset_guess is not None:
+            reason = first_failure(
+                static
+                + [
+                    ("small_fluctuations", amplitude >= min_relative_amplitude),
+                    ("compressive", compressibility <= max_compressibility),
+                ],
+                k,
+            )
+        use = reason == ""
+        a = np.einsum("k,kij->ij", n[use], cov_u[use])
+        g = np.einsum("k,ki->i", n[use], cov_um[use])
+        delta = solve_pooled(a, g, "hedgecock", reason)
+        o = o + delta
+        settled = np.array_equal(reason, previous) and (step > 1 or offset_guess is not None)
+        if np.linalg.norm(delta) < tolerance and settled:
+            break
+    else:
+        raise FluxcalError(f"hedgecock: no convergence in {max_iterations} Gauss-Newton steps")
+    good = first_failure(static, k) == ""
+    per_interval = np.full((k, 3), np.nan)
+    per_interval[good] = o + np.linalg.solve(cov_u[good], cov_um[good][:, :, None])[:, :, 0]
+    covariance, n_boot = bootstrap_covariance(
+        n[use, None, None] * cov_u[use],
+        n[use, None] * cov_um[use],
+        n_bootstrap,
+        seed,
+        "hedgecock",
+    )
+    return OffsetEstimate(
+        method="hedgecock",
+        offset=o,
+        standard_error=np.sqrt(np.diag(covariance)),
+        covariance=covariance,
+        n_used=int(use.sum()),
+        n_rejected=int(k - use.sum()),
+        rejections=count_reasons(reason),
+        labels=labels,
+        accepted=use,
+        reason=reason,
+        per_interval=per_interval,
+        n_bootstrap=n_boot,
+        iterations=step,
+        criteria=_criteria(
+            min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility
+        ),
+    )
