@@ -48,13 +48,15 @@ app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True)
 @app.command()
 def calibrate(
     science: Path = typer.Option(
-        ..., "--science", help="Raw science CSV of one sensor (RO-IGEP-TR0028 sec. 4.1.2)."
+        ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a CSV "
+        "file, or the archive's EDITED products (a folder searched recursively, or one .LBL)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
     levels: str = typer.Option("A,B", "--levels", help="Comma-separated levels: A,B,C,E,F,G."),
     hk: Path | None = typer.Option(
-        None, "--hk", help="Raw HK CSV (RO-IGEP-TR0028 sec. 4.1.1), converted to HK LEVEL_A."
+        None, "--hk", help="Raw HK (RO-IGEP-TR0028 sec. 4.1.1), converted to HK LEVEL_A: a CSV "
+        "file, or EDITED HK products (folder or .LBL)."
     ),
     calib: Path | None = typer.Option(
         None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
@@ -105,9 +107,9 @@ def calibrate(
     from fluxcal import preflight
     from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
 
-    preflight.plain_text_file(science, "--science")
+    check_raw_source(science, "--science")
     if hk is not None:
-        preflight.plain_text_file(hk, "--hk")
+        check_raw_source(hk, "--hk")
     if calib is not None:
         preflight.existing_folder(calib, "--calib")
     if kernels is not None:
@@ -223,7 +225,9 @@ def simulate(
         "files", "--layout",
         help="files: the inputs of 'fluxcal rosetta calibrate'; batch: the input folder of "
         "'fluxcal batch rosetta' (<out>/<yyyymmdd>/science_OB.csv ..., kernels.tm, calib/; "
-        "docs/formats/rosetta.md)."),
+        "docs/formats/rosetta.md); archive: archive-style EDITED products "
+        "(<out>/DATA/EDITED/<yyyy>/<MON>/<OB|IB|HK>/*.LBL/.TAB, CALIB/, kernels.tm), input "
+        "of both."),
     days: int = typer.Option(1, "--days", min=1, max=366,
                              help="--layout batch: number of consecutive days."),
 ) -> None:
@@ -231,9 +235,12 @@ def simulate(
     from fluxcal import preflight
 
     check_simulation_options(start, hours, rate, primary)
-    if layout not in ("files", "batch"):
-        raise InputFormatError(f"{layout!r}: choose files or batch", field="--layout")
+    if layout not in ("files", "batch", "archive"):
+        raise InputFormatError(f"{layout!r}: choose files, batch or archive", field="--layout")
     preflight.writable_folder(out, "--out")
+    if layout == "archive":
+        simulate_archive_layout(out, start, hours, rate, primary, seed)
+        return
     if layout == "batch":
         folders = simulate_batch_layout(out, start, hours, rate, primary, seed, days)
         typer.echo(f"{len(folders)} day folders in {out}; run: fluxcal batch rosetta "
@@ -248,6 +255,44 @@ def simulate(
     )
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")
+
+
+def check_raw_source(path: Path, option: str) -> None:
+    """Check a raw input before anything runs: a CSV file, or EDITED products (folder, .LBL).
+
+    Raises
+    ------
+    FluxcalError
+        Naming the option: a missing folder or file, a CSV that is not plain text.
+    """
+    from fluxcal import preflight
+    from fluxcal.missions.rosetta.archive import is_archive_source
+
+    if Path(path).is_dir():
+        preflight.existing_folder(path, option)
+    elif is_archive_source(path):
+        preflight.existing_file(path, option)
+    else:
+        preflight.plain_text_file(path, option)
+
+
+def simulate_archive_layout(out: Path, start: str, hours: float, rate: float, primary: str,
+                            seed: int) -> None:
+    """Write the simulation as archive-style EDITED products and say how to calibrate them.
+
+    `fluxcal.missions.rosetta.simulate.write_simulation` with ``layouts=("archive",)``:
+    ``<out>/DATA/EDITED/...``, ``<out>/CALIB`` (archived names), kernels, truth CSVs.
+    """
+    from fluxcal.missions.rosetta.simulate import write_simulation
+
+    paths = write_simulation(out, start_utc=start, hours=hours, rate_hz=rate,
+                             primary=primary, seed=seed, layouts=("archive",))
+    for name, path in paths.items():
+        typer.echo(f"{name}: {path}")
+    edited, day = paths["archive"], start[:10]
+    typer.echo(f"run: fluxcal rosetta calibrate --science {edited} --hk {edited} --sensor OB "
+               f"--calib {paths['calib']} --kernels {out / 'kernels.tm'} --out OUT; or: "
+               f"fluxcal batch rosetta --input {out} --start {day} --end {day} --out OUT")
 
 
 def simulate_batch_layout(out: Path, start: str, hours: float, rate: float, primary: str,
