@@ -554,7 +554,7 @@ def _ascii_values(field: np.ndarray, col: _Column, lay: _Layout) -> np.ndarray:
         i = _first_bad(flat, convert)
         row = i // text.shape[1] + 1
         what = "an integer" if as_int else "a number"
-        raise _err(f"row {row}: {flat[i].decode('ascii', 'replace')!r} is not {what} "
+        raise _err(f"row {row}: {flat[i].decode('ascii', 'replace').strip()!r} is not {what} "
                    f"({col.data_type})", lay.data_path, lay.record(row), col.name) from None
 
 
