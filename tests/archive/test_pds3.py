@@ -350,6 +350,6 @@ def test_error_non_numeric_field_names_row_and_column(tmp_path: Path) -> None:
 
 
 def test_error_column_outside_the_row(tmp_path: Path) -> None:
-    bad = _ascii_label('"HAND.TAB"').replace("START_BYTE = 10", "START_BYTE = 24")
+    bad = _ascii_label('"HAND.TAB"').replace("START_BYTE = 10", "START_BYTE = 25")
     e = _error(_hand(tmp_path, "".join(_ROWS).encode(), bad))
     assert e.field == "S" and "outside the row" in str(e)
