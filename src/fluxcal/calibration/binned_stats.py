@@ -13,7 +13,7 @@ Sums of squares of values with a large common offset cancel catastrophically whe
 variance is formed (``S2/n - (S1/n)**2``).  Every `BinnedMoments` therefore stores a
 per-component reference ``shift`` and accumulates ``v - shift``.  By default the shift
 is the mean of the finite samples of the first reduction; merging two reductions with
-different shifts re-expresses the second about the first's shift exactly in algebra
+different shifts re-expresses the smaller about the larger's shift exactly in algebra
 (``sum (v-a) = sum (v-b) + n (b-a)``, ``sum (v-a)**2 = sum (v-b)**2 + 2 (b-a) sum (v-b)
 + n (b-a)**2``), which loses nothing measurable because both shifts lie within the data.
 A caller that wants bit-for-bit reproducible merges passes one fixed ``shift`` to every
@@ -259,7 +259,9 @@ class BinnedMoments:
     def merge(self, other: BinnedMoments) -> BinnedMoments:
         """Return the reduction of both data sets (bin edges must be identical).
 
-        The result uses this reduction's shift; ``other`` is re-expressed about it.
+        The result keeps the shift of the operand with more samples (this one on a tie)
+        and re-expresses the other about it, so merging into an empty accumulator never
+        forces a far-away reference on the data.
 
         Raises
         ------
@@ -280,13 +282,16 @@ class BinnedMoments:
                 f"cannot merge binned statistics of {self.n_comp} and {other.n_comp} components",
                 field="total",
             )
-        o = other.reshifted(self.shift)
+        # keep the reference of the operand holding more samples (ties: this one), so an
+        # empty accumulator never imposes its (arbitrary) shift on the data
+        base, extra = (other, self) if other.count.sum() > self.count.sum() else (self, other)
+        o = extra.reshifted(base.shift)
         return BinnedMoments(
             edges=self.edges,
-            count=self.count + o.count,
-            total=self.total + o.total,
-            total_sq=self.total_sq + o.total_sq,
-            shift=self.shift.copy(),
+            count=base.count + o.count,
+            total=base.total + o.total,
+            total_sq=base.total_sq + o.total_sq,
+            shift=base.shift.copy(),
             label=self.label or other.label,
             units=self.units or other.units,
             value_units=self.value_units or other.value_units,

@@ -145,6 +145,27 @@ class TwoSegmentFit:
         return {"A_0": self.a0, "B_0": self.b0, "A_1": self.a1, "B_1": self.b1, "T_m": self.x_m}
 
 
+def _profile_chi2(design: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Chi2 of the weighted linear fit for a stack of designs ``(G, n, p)``, shape (G,).
+
+    Batched normal equations (pseudo-inverse, so a degenerate grid point costs nothing);
+    used only to screen grid values, the chosen one is refitted with ``lstsq``.
+    """
+    dw = design * w[None, :, None]
+    yw = y * w
+    normal = np.einsum("gni,gnj->gij", dw, dw)
+    rhs = np.einsum("gni,n->gi", dw, yw)
+    p = np.einsum("gij,gj->gi", np.linalg.pinv(normal), rhs)
+    r = yw[None, :] - np.einsum("gni,gi->gn", dw, p)
+    return np.einsum("gn,gn->g", r, r)
+
+
+def _hinge_design(x: np.ndarray, xm: np.ndarray) -> np.ndarray:
+    """Designs ``(1, min(x - xm, 0), max(x - xm, 0))`` for each break, ``(G, n, 3)``."""
+    u = x[None, :] - np.asarray(xm, dtype=np.float64).reshape(-1, 1)
+    return np.stack((np.ones_like(u), np.minimum(u, 0.0), np.maximum(u, 0.0)), axis=-1)
+
+
 def _hinge_linear(
     x: np.ndarray, y: np.ndarray, w: np.ndarray, xm: float
 ) -> tuple[np.ndarray, float]:
@@ -208,7 +229,7 @@ def fit_two_segment(
     if not hi > lo:
         raise FitError("fit_two_segment: the points span no interval for a break")
     grid = np.linspace(lo, hi, n_grid)
-    chi = np.array([_hinge_linear(x, y, w, g)[1] for g in grid])  # grid points, not samples
+    chi = _profile_chi2(_hinge_design(x, grid), y, w)
     i = int(np.argmin(chi))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]
     res = minimize_scalar(
@@ -466,13 +487,11 @@ def fit_relaxation(
         dts = np.linspace(max(lag[0], -0.1 * post_span), lag[0] + 0.35 * span, 25)
     else:
         dts = np.array([float(delay)])
-    best = (np.inf, taus[0], dts[0])
-    for tau in taus:  # a coarse grid of parameters, not a loop over samples
-        for dt in dts:
-            _, c2 = _relax_linear(lag, y, w, tau, dt)
-            if c2 < best[0]:
-                best = (c2, tau, dt)
-    _, tau_s, dt_s = best
+    tt, dd = (a.ravel() for a in np.meshgrid(taus, dts, indexing="ij"))
+    g = -np.expm1(-np.maximum(lag[None, :] - dd[:, None], 0.0) / tt[:, None])
+    chi = _profile_chi2(np.stack((np.ones_like(g), g), axis=-1), y, w)
+    k = int(np.argmin(chi))
+    tau_s, dt_s = float(tt[k]), float(dd[k])
     (y0_s, a_s), _ = _relax_linear(lag, y, w, tau_s, dt_s)
 
     if fit_delay:
