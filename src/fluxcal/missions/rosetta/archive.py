@@ -25,6 +25,7 @@ References
 from __future__ import annotations
 
 import datetime as _dt
+import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -120,9 +121,28 @@ def table_of(label: Path) -> Path:
     return _sibling(Path(label), ".TAB")
 
 
-def _ci(pattern: str) -> str:
-    """Return a glob pattern matching ``pattern`` in any letter case (no flag in 3.11)."""
-    return "".join(f"[{c.upper()}{c.lower()}]" if c.isalpha() else c for c in pattern)
+#: Per-folder index of EDITED product names, keyed by the folder's mtime (a batch looks
+#: up every day many times; a folder's mtime changes when a file is added or removed).
+_FOLDER_INDEX: dict[str, tuple[int, list[str], list[RawProduct]]] = {}
+
+
+def _folder(path: str) -> tuple[list[str], list[RawProduct]]:
+    """Sub-folders and products (by label) of one folder, from the index when unchanged."""
+    mtime = os.stat(path).st_mtime_ns
+    cached = _FOLDER_INDEX.get(path)
+    if cached is not None and cached[0] == mtime:
+        return cached[1], cached[2]
+    folders, products = [], []
+    with os.scandir(path) as entries:
+        for entry in entries:
+            if entry.is_dir():
+                folders.append(entry.path)
+            elif entry.name.upper().endswith(".LBL"):
+                product = parse_name(Path(entry.path))
+                if product is not None:
+                    products.append(product)
+    _FOLDER_INDEX[path] = (mtime, folders, products)
+    return folders, products
 
 
 def find_products(
@@ -139,15 +159,13 @@ def find_products(
     day : datetime.date, optional
         Only the products whose name carries this date (``RPCMAG<yymmdd>T...``).
     """
-    yymmdd = "??????" if day is None else f"{day:%y%m%d}"
-    tail = "RAW_*" if kind is None else ("RAW_HK" if kind == "HK" else f"RAW_{kind}_M*")
-    pattern = _ci(f"RPCMAG{yymmdd}T????_{tail}.LBL")
-    found = {}
-    for path in Path(folder).rglob(pattern):
-        product = parse_name(path)
-        if product is not None and (kind is None or product.kind == kind):
-            found[path] = product
-    return sorted(found.values(), key=lambda p: (p.start, p.label.name.upper()))
+    found, stack = [], [str(folder)]
+    while stack:
+        folders, products = _folder(stack.pop())
+        stack += folders
+        found += [p for p in products if (kind is None or p.kind == kind)
+                  and (day is None or p.start.date() == day)]
+    return sorted(found, key=lambda p: (p.start, p.label.name.upper()))
 
 
 def is_archive_source(source) -> bool:

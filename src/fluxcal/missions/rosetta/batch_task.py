@@ -58,7 +58,7 @@ log = logging.getLogger(__name__)
 SENSORS = ("OB", "IB")
 BASE_LEVELS = ("A", "B", "E", "F")
 KERNEL_LEVELS = ("A", "B", "C", "E", "F", "G")
-_DAILY_CALIB = re.compile(r"^RPCMAG_(\d{6})_\d{3}_CALIB_(OB|IB)\.TXT$", re.IGNORECASE)
+_DAILY_CALIB = re.compile(r"^RPCMAG_(\d{6})_\d{3}_CALIB_(OB|IB)\.(TXT|ASC)$", re.IGNORECASE)
 
 
 STITCH_DIR = "stitch"
@@ -90,6 +90,38 @@ def science_file(input_dir: Path, day: _dt.date, sensor: str) -> Path:
 def hk_file(input_dir: Path, day: _dt.date) -> Path:
     """Return ``<input>/<yyyymmdd>/hk.csv``."""
     return day_folder(input_dir, day) / "hk.csv"
+
+
+def _source(csv: Path, input_dir: Path, day: _dt.date, kind: str):
+    """Return the day's CSV, else its EDITED archive products (labels), else ``None``.
+
+    Archive products (issue 14) are found anywhere below ``input_dir`` by the date in
+    their names (`fluxcal.missions.rosetta.archive.find_products`); the CSV day folder
+    is looked at first (docs/decisions/rosetta_archive.md).
+    """
+    from fluxcal.missions.rosetta.archive import find_products
+
+    if csv.is_file():
+        return csv
+    labels = tuple(p.label for p in find_products(input_dir, kind=kind, day=day))
+    return labels or None
+
+
+def science_source(input_dir: Path, day: _dt.date, sensor: str):
+    """Return the day's raw science of ``sensor``: ``science_<S>.csv`` or EDITED labels."""
+    return _source(science_file(input_dir, day, sensor), input_dir, day, sensor)
+
+
+def hk_source(input_dir: Path, day: _dt.date):
+    """Return the day's raw HK: ``hk.csv`` or EDITED HK labels, or ``None``."""
+    return _source(hk_file(input_dir, day), input_dir, day, "HK")
+
+
+def _source_files(source, sensor: str | None = None) -> list[Path]:
+    """Return `fluxcal.missions.rosetta.io.source_files` (imported when called)."""
+    from fluxcal.missions.rosetta.io import source_files
+
+    return source_files(source, sensor)
 
 
 @dataclass(frozen=True)
@@ -136,8 +168,11 @@ class RosettaDayTask:
         """Return the calibration folder used (explicit, else ``<input>/calib`` if present)."""
         if self.calib is not None:
             return Path(self.calib)
-        default = Path(self.input_dir) / "calib"
-        return default if default.is_dir() else None
+        for name in ("calib", "CALIB"):  # CALIB: the archive's folder name
+            default = Path(self.input_dir) / name
+            if default.is_dir():
+                return default
+        return None
 
     def level_list(self) -> list[str]:
         """Levels made for each sensor."""
@@ -148,13 +183,14 @@ class RosettaDayTask:
         return list(KERNEL_LEVELS if self.kernel_file() is not None else BASE_LEVELS)
 
     def _science(self, day: _dt.date) -> dict[str, Path]:
-        files = {s: science_file(self.input_dir, day, s) for s in SENSORS}
-        return {s: p for s, p in files.items() if p.is_file()}
+        files = {s: science_source(self.input_dir, day, s) for s in SENSORS}
+        return {s: p for s, p in files.items() if p is not None}
 
     # --- midnight stitching across days (sec. 4.2.3.3, decision 27) -----------------------
     def _edge_key(self, day: _dt.date, sensor: str) -> list:
-        return [_file_key(science_file(self.input_dir, day, sensor)),
-                _file_key(self.kernel_file())]
+        source = science_source(self.input_dir, day, sensor)
+        files = [] if source is None else _source_files(source, sensor)
+        return [[_file_key(p) for p in files], _file_key(self.kernel_file())]
 
     def _read_stitch(self, day: _dt.date, sensor: str) -> dict | None:
         path = stitch_file(self.out_dir, day, sensor)
@@ -189,7 +225,7 @@ class RosettaDayTask:
         kern = self.kernel_file()
         worker_kernel_pool(kern)
         sclk = SclkKernel.from_pool(io.SCLK_ID) if kern is not None else None
-        raw = io.read_science_csv(science_file(self.input_dir, day, sensor), sensor,
+        raw = io.read_science(science_source(self.input_dir, day, sensor), sensor,
                                   sclk=sclk, lsk=leapseconds())
         edges = stitch_edges(raw, sensor)
         self._write_stitch(day, sensor, edges, None)
@@ -217,7 +253,7 @@ class RosettaDayTask:
         models = calib.find_daily_offset_models(self.calib_dir(), sensor)
         chain = []
         d = day - _dt.timedelta(days=1)
-        while (science_file(self.input_dir, d, sensor).is_file()
+        while (science_source(self.input_dir, d, sensor) is not None
                and models.get(np.datetime64(d.isoformat(), "D")) is not None):
             chain.append(d)
             d -= _dt.timedelta(days=1)
@@ -247,8 +283,8 @@ class RosettaDayTask:
     def _carry(self, day: _dt.date, sensor: str):
         """``(previous day's science file, its incoming state)`` or ``None`` (decision 30)."""
         prev_day = day - _dt.timedelta(days=1)
-        prev = science_file(self.input_dir, prev_day, sensor)
-        if not prev.is_file():
+        prev = science_source(self.input_dir, prev_day, sensor)
+        if prev is None:
             return None
         return prev, self.incoming_state(prev_day, sensor)
 
@@ -267,10 +303,11 @@ class RosettaDayTask:
         """
         from fluxcal.products.batch import DayInputs
 
-        files = list(self._science(day).values())
-        hk = hk_file(self.input_dir, day)
-        if hk.is_file():
-            files.append(hk)
+        files = [p for sensor, source in self._science(day).items()
+                 for p in _source_files(source, sensor)]
+        hk = hk_source(self.input_dir, day)
+        if hk is not None:
+            files += _source_files(hk)
         kern = self.kernel_file()
         if kern is not None:
             files.append(kern)
@@ -286,9 +323,9 @@ class RosettaDayTask:
                     cal[f"{key}/{p.name}"] = p
         for sensor in self._science(day):  # the chain of earlier days (decision 27)
             cal[f"stitch_in/{sensor}"] = self._incoming_text(day, sensor)
-            prev = science_file(self.input_dir, day - _dt.timedelta(days=1), sensor)
-            if prev.is_file():  # its tail shifted past midnight is in this day (decision 30)
-                files.append(prev)
+            prev = science_source(self.input_dir, day - _dt.timedelta(days=1), sensor)
+            if prev is not None:  # its tail shifted past midnight is in this day (decision 30)
+                files += _source_files(prev, sensor)
                 cal[f"tail_in/{sensor}"] = self._incoming_text(
                     day - _dt.timedelta(days=1), sensor)
         return DayInputs(tuple(files), cal)
@@ -305,9 +342,11 @@ class RosettaDayTask:
         science = self._science(day)
         if not science:
             raise DayWithoutData(
-                f"no science_OB.csv or science_IB.csv in {day_folder(self.input_dir, day)}"
+                f"no science_OB.csv or science_IB.csv in {day_folder(self.input_dir, day)} "
+                f"and no EDITED products RPCMAG{day:%y%m%d}T<hhmm>_RAW_<OB|IB>_M<mode> in "
+                f"{self.input_dir}"
             )
-        hk = hk_file(self.input_dir, day)
+        hk = hk_source(self.input_dir, day)
         kern = self.kernel_file()
         pool = worker_kernel_pool(kern)
         levels = self.level_list()
@@ -319,7 +358,7 @@ class RosettaDayTask:
             for k, (sensor, path) in enumerate(science.items()):
                 result = calibrate_files(
                     path, sensor, Path(self.out_dir), levels=levels,
-                    hk_file=hk if (k == 0 and hk.is_file()) else None,
+                    hk_file=hk if k == 0 else None,
                     calib_dir=self.calib_dir(), kernels=kern, primary=self.primary,
                     average_s=self.average_s, frame=self.frame, centre=self.centre,
                     boom=self.boom, formats=self.formats, quicklook=self.quicklook,
