@@ -22,11 +22,14 @@ SRC = Path(fluxcal.__file__).parent
 SIMULATORS = [
     "fluxcal.missions.messenger.simulate",
     "fluxcal.missions.messenger.forward",
+    "fluxcal.missions.messenger.flight_sim",
     "fluxcal.missions.rosetta.simulate",
     "fluxcal.missions.rosetta.forward",
 ]
 FORBIDDEN = (
-    "fluxcal.calibration",
+    "fluxcal.calibration",  # also binned_stats, constrained_fits, solar_wind_offsets (fit)
+    "fluxcal.missions.messenger.fit",  # the in-flight calibration fit (issue 13), any fit*
+    "fluxcal.missions.messenger.batch_task",  # calls the pipeline's calibration loader
     "fluxcal.cleaning",
     "fluxcal.missions.messenger.levels",
     "fluxcal.missions.messenger.pipeline",
@@ -45,7 +48,8 @@ FORBIDDEN = (
 
 
 def _forbidden(module: str) -> bool:
-    return any(module == f or module.startswith(f + ".") for f in FORBIDDEN)
+    return any(module == f or module.startswith(f + ".") for f in FORBIDDEN) or (
+        module.startswith("fluxcal.missions.messenger.fit"))
 
 
 def _file(module: str) -> Path | None:
