@@ -71,6 +71,7 @@ def _register() -> None:
     simulate_app.command("rosetta")(rosetta_cli.simulate)
     app.command("plot")(products_cli.plot)
     app.command("batch")(products_cli.batch)
+    app.command("compare")(products_cli.compare)
 
 
 _register()

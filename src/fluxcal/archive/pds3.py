@@ -58,6 +58,7 @@ from fluxcal.errors import InputFormatError
 
 __all__ = [
     "ROW_DIM",
+    "column_names",
     "find_label",
     "read_label",
     "read_table",
@@ -155,6 +156,15 @@ def find_label(path: Path | str) -> Path:
 def table_names(label: Mapping[str, Any]) -> list[str]:
     """Names of the table objects the label points to (``^TABLE``, ``^MAG_TABLE``...)."""
     return [k[1:] for k in label.keys() if k.startswith("^") and k.upper().endswith("TABLE")]
+
+
+def column_names(label: Mapping[str, Any], table: str | None = None) -> list[str]:
+    """Names of the COLUMN objects of a table of ``label`` (the only one by default)."""
+    names = table_names(label)
+    obj = _find_object(label, table or (names[0] if len(names) == 1 else ""))
+    if obj is None:
+        return []
+    return [str(v.get("NAME")) for k, v in obj.items() if k == "COLUMN" and isinstance(v, Mapping)]
 
 
 # --- the table's layout -----------------------------------------------------------------

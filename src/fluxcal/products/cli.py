@@ -180,3 +180,36 @@ def _summary(report, console, full: bool = True) -> None:
     console.print(table)
     console.print(f"{counts}; report: {report.report_path}", soft_wrap=True)
 
+
+
+def compare(
+    product_a: Path = typer.Argument(..., help="Product A (.TAB/.LBL, .cdf, .nc or .zarr), "
+                                     "e.g. an archived CDR."),
+    product_b: Path = typer.Argument(..., help="Product B, e.g. fluxcal's reprocessing."),
+    tolerance: str = typer.Option("0.01s", "--tolerance",
+                                  help="Largest time difference of a matched pair "
+                                       "(s, ms, us or ns; default 0.01s)."),
+    out: Path | None = typer.Option(None, "--out", help="Folder for the difference plot "
+                                    "(default: the current folder)."),
+    force: bool = typer.Option(False, "--force", help="Compare even if the frames differ."),
+) -> None:
+    """Match two products in time; print A - B statistics per component and quality flag."""
+    from fluxcal import preflight
+    from fluxcal.products.compare import (
+        compare as run_compare,
+    )
+    from fluxcal.products.compare import (
+        format_report,
+        load_product,
+        parse_tolerance,
+        write_difference_plot,
+    )
+
+    tol = parse_tolerance(tolerance)
+    out_dir = out or Path.cwd()
+    preflight.writable_folder(out_dir, "--out")
+    a, b = load_product(product_a), load_product(product_b)
+    result = run_compare(a, b, tol, path_a=str(product_a), path_b=str(product_b), force=force)
+    png = write_difference_plot(result, out_dir)
+    typer.echo(format_report(result))
+    typer.echo(f"plot: {png}")
