@@ -148,16 +148,19 @@ class TwoSegmentFit:
 def _profile_chi2(design: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Chi2 of the weighted linear fit for a stack of designs ``(G, n, p)``, shape (G,).
 
-    Batched normal equations (pseudo-inverse, so a degenerate grid point costs nothing);
-    used only to screen grid values, the chosen one is refitted with ``lstsq``.
+    Batched normal equations (a 1e-12 relative ridge keeps a degenerate grid point
+    solvable); used only to screen grid values, the chosen one is refitted with lstsq.
     """
     dw = design * w[None, :, None]
     yw = y * w
-    normal = np.einsum("gni,gnj->gij", dw, dw)
-    rhs = np.einsum("gni,n->gi", dw, yw)
-    p = np.einsum("gij,gj->gi", np.linalg.pinv(normal), rhs)
-    r = yw[None, :] - np.einsum("gni,gi->gn", dw, p)
-    return np.einsum("gn,gn->g", r, r)
+    dwt = np.swapaxes(dw, 1, 2)
+    normal = dwt @ dw
+    ridge = 1e-12 * np.trace(normal, axis1=1, axis2=2)[:, None, None] + 1e-300
+    normal = normal + ridge * np.eye(design.shape[2])[None]
+    rhs = dwt @ yw
+    p = np.linalg.solve(normal, rhs[..., None])[..., 0]
+    r = yw[None, :] - (dw @ p[..., None])[..., 0]
+    return np.sum(r * r, axis=1)
 
 
 def _hinge_design(x: np.ndarray, xm: np.ndarray) -> np.ndarray:
@@ -233,7 +236,9 @@ def fit_two_segment(
     i = int(np.argmin(chi))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]
     res = minimize_scalar(
-        lambda g: _hinge_linear(x, y, w, g)[1], bounds=(a, b), method="bounded",
+        lambda g: _hinge_linear(x, y, w, g)[1],
+        bounds=(a, b),
+        method="bounded",
         options={"xatol": 1e-10 * max(1.0, abs(hi - lo))},
     )
     xm = float(res.x) if res.fun <= chi[i] else float(grid[i])
@@ -241,19 +246,25 @@ def fit_two_segment(
     u = x - xm
     below = u <= 0
     jac = np.column_stack(
-        (np.ones_like(x), np.where(below, u, 0.0), np.where(below, 0.0, u),
-         np.where(below, -b0, -b1))
+        (
+            np.ones_like(x),
+            np.where(below, u, 0.0),
+            np.where(below, 0.0, u),
+            np.where(below, -b0, -b1),
+        )
     )
     dof = x.size - 4
     cov_p = _covariance(jac * w[:, None], chi2, dof, absolute_weights)
     a0, a1 = c - b0 * xm, c - b1 * xm
     # d(a0, b0, a1, b1, xm) / d(c, b0, b1, xm)
     tr = np.array(
-        [[1.0, -xm, 0.0, -b0],
-         [0.0, 1.0, 0.0, 0.0],
-         [1.0, 0.0, -xm, -b1],
-         [0.0, 0.0, 1.0, 0.0],
-         [0.0, 0.0, 0.0, 1.0]]
+        [
+            [1.0, -xm, 0.0, -b0],
+            [0.0, 1.0, 0.0, 0.0],
+            [1.0, 0.0, -xm, -b1],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
     )
     if np.all(np.isfinite(cov_p)):
         cov = tr @ cov_p @ tr.T
@@ -265,10 +276,19 @@ def fit_two_segment(
         cov[:4, :4] = tr[:4, :3] @ cov3 @ tr[:4, :3].T
     err = _errors(cov)
     return TwoSegmentFit(
-        a0=float(a0), b0=float(b0), a1=float(a1), b1=float(b1), x_m=xm,
-        a0_err=float(err[0]), b0_err=float(err[1]), a1_err=float(err[2]),
-        b1_err=float(err[3]), x_m_err=float(err[4]),
-        covariance=cov, chi2=chi2, dof=dof,
+        a0=float(a0),
+        b0=float(b0),
+        a1=float(a1),
+        b1=float(b1),
+        x_m=xm,
+        a0_err=float(err[0]),
+        b0_err=float(err[1]),
+        a1_err=float(err[2]),
+        b1_err=float(err[3]),
+        x_m_err=float(err[4]),
+        covariance=cov,
+        chi2=chi2,
+        dof=dof,
     )
 
 
@@ -356,9 +376,14 @@ def fit_line_fixed_intercept(
     s2 = 1.0 if absolute_weights else chi2 / dof
     slope_err = float(np.sqrt(s2 / suu))
     return LineFit(
-        slope=slope, slope_err=slope_err, intercept=float(y0 - slope * x0),
-        intercept_err=float(abs(x0) * slope_err), x0=float(x0), y0=float(y0),
-        chi2=chi2, dof=dof,
+        slope=slope,
+        slope_err=slope_err,
+        intercept=float(y0 - slope * x0),
+        intercept_err=float(abs(x0) * slope_err),
+        x0=float(x0),
+        y0=float(y0),
+        chi2=chi2,
+        dof=dof,
     )
 
 
@@ -402,8 +427,7 @@ class RelaxationFit:
 
     def __call__(self, lag: np.ndarray) -> np.ndarray:
         """Evaluate the model."""
-        return _relax(np.asarray(lag, dtype=np.float64), self.y0, self.amplitude, self.tau,
-                      self.dt)
+        return _relax(np.asarray(lag, dtype=np.float64), self.y0, self.amplitude, self.tau, self.dt)
 
 
 def _relax(lag: np.ndarray, y0: float, amp: float, tau: float, dt: float) -> np.ndarray:
@@ -534,9 +558,18 @@ def fit_relaxation(
     cov = _covariance(jac, chi2, dof, absolute_weights)
     err = _errors(cov)
     return RelaxationFit(
-        tau=tau, tau_err=float(err[2]), dt=dt, dt_err=float(err[3]) if fit_delay else 0.0,
-        amplitude=amp, amplitude_err=float(err[1]), y0=y0, y0_err=float(err[0]),
-        fit_delay=fit_delay, covariance=cov, chi2=chi2, dof=dof,
+        tau=tau,
+        tau_err=float(err[2]),
+        dt=dt,
+        dt_err=float(err[3]) if fit_delay else 0.0,
+        amplitude=amp,
+        amplitude_err=float(err[1]),
+        y0=y0,
+        y0_err=float(err[0]),
+        fit_delay=fit_delay,
+        covariance=cov,
+        chi2=chi2,
+        dof=dof,
     )
 
 
@@ -641,7 +674,8 @@ def fit_periodic_spline(
     if np.any(np.diff(x) <= 0):
         raise InputFormatError(
             "fit_periodic_spline: phases repeat after folding by the period; give one "
-            "average per phase bin", field="phase",
+            "average per phase bin",
+            field="phase",
         )
     n = x.size
     w2 = w * w
@@ -666,8 +700,13 @@ def fit_periodic_spline(
     scale = 1.0 if absolute_weights else (chi2 / dof if dof > 0 else np.inf)
     value_err = np.sqrt(np.sum(smat**2 / w2[None, :], axis=1) * scale)
     return PeriodicSplineFit(
-        period=float(period), spline=spl, lam=float(lam), phase=x, value_err=value_err,
-        chi2=chi2, dof=dof,
+        period=float(period),
+        spline=spl,
+        lam=float(lam),
+        phase=x,
+        value_err=value_err,
+        chi2=chi2,
+        dof=dof,
     )
 
 
