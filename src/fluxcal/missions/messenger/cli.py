@@ -18,9 +18,14 @@ def _split(text: str) -> list[str]:
 
 @app.command("edr2cdr")
 def edr2cdr(
-    sci: list[Path] = typer.Option(..., "--sci", help="Science CSV file(s)."),
-    heater: list[Path] = typer.Option(..., "--heater", help="Heater-bit CSV file(s)."),
-    temperature: list[Path] = typer.Option(..., "--temperature", help="Temperature CSV file(s)."),
+    sci: list[Path] = typer.Option([], "--sci", help="Science CSV file(s)."),
+    heater: list[Path] = typer.Option([], "--heater", help="Heater-bit CSV file(s)."),
+    temperature: list[Path] = typer.Option([], "--temperature", help="Temperature CSV file(s)."),
+    edr: Path = typer.Option(None, "--edr", help="Folder of archived MAG EDRs (PDS3 labels "
+                             "+ tables), instead of --sci/--heater/--temperature; needs "
+                             "--mapping."),
+    mapping: Path = typer.Option(None, "--mapping", help="EDR column mapping (TOML; template: "
+                                 "fluxcal/missions/messenger/data/edr_mapping_template.toml)."),
     kernels: list[Path] = typer.Option(..., "--kernels", help="Meta-kernel or kernel files."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
     frames: str = typer.Option("mso,j2000,mbf,rtn,sc", help="Frames (also: vso)."),
@@ -59,19 +64,51 @@ def edr2cdr(
         raise InputFormatError(f"{average!r}: intervals must be positive", field="--average")
     from fluxcal.preflight import plain_text_file
 
+    _check_input_style(sci, heater, temperature, edr, mapping)
     for option, paths in (("--sci", sci), ("--heater", heater), ("--temperature", temperature)):
         for path in paths:  # before any work: not compressed, a data line after the header
             plain_text_file(path, option, header_lines=1)
+    options = dict(frames=_split(frames), formats=_split(formats), averages=averages,
+                   max_offset_step=max_offset_step if max_offset_step > 0 else None,
+                   quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
+                   version=version)
     with compilation_notice(), progress_display() as progress:
-        written = run_edr2cdr(
-            sci, heater, temperature, kernels, out,
-            frames=_split(frames), formats=_split(formats),
-            averages=averages,
-            max_offset_step=max_offset_step if max_offset_step > 0 else None,
-            quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
-            version=version, progress=progress,
-        )
+        if edr is not None:
+            from fluxcal.missions.messenger.edr import run_edr_archive
+
+            written = run_edr_archive(edr, mapping, kernels, out, progress=progress, **options)
+        else:
+            written = run_edr2cdr(sci, heater, temperature, kernels, out, progress=progress,
+                                  **options)
     typer.echo(f"wrote {len(written)} files to {out}")
+
+
+def _check_input_style(sci: list[Path], heater: list[Path], temperature: list[Path],
+                       edr: Path | None, mapping: Path | None) -> None:
+    """Exactly one input style: the three CSV streams, or --edr with --mapping."""
+    from fluxcal.errors import InputFormatError
+
+    csv = bool(sci or heater or temperature)
+    if edr is not None and csv:
+        raise InputFormatError("give either --edr/--mapping or --sci/--heater/--temperature, "
+                               "not both", field="--edr")
+    if edr is None:
+        if mapping is not None:
+            raise InputFormatError("--mapping goes with --edr DIR", field="--mapping")
+        for option, paths in (("--sci", sci), ("--heater", heater),
+                              ("--temperature", temperature)):
+            if not paths:
+                raise InputFormatError(f"missing {option} (or give --edr DIR --mapping FILE)",
+                                       field=option)
+        return
+    if mapping is None:
+        raise InputFormatError("--edr needs --mapping FILE (template: "
+                               "fluxcal/missions/messenger/data/edr_mapping_template.toml)",
+                               field="--mapping")
+    if not edr.is_dir():
+        raise InputFormatError(f"{edr}: not a folder of EDR labels and tables", field="--edr")
+    if not mapping.is_file():
+        raise InputFormatError(f"{mapping}: no such mapping file", field="--mapping")
 
 
 @contextmanager
@@ -153,15 +190,24 @@ def simulate(
         "files", "--layout",
         help="files: the inputs of 'fluxcal messenger edr2cdr'; batch: the input folder of "
         "'fluxcal batch messenger' (<out>/MAGSCI_YYYYDDD.csv, MAGHTR_..., MAGTMP_..., "
-        "kernels.tm; docs/formats/messenger.md)."),
+        "kernels.tm; docs/formats/messenger.md); edr: archive-style EDRs (PDS3 labels + "
+        "tables, two versions a day) with their mapping, for 'edr2cdr --edr --mapping'."),
     days: int = typer.Option(1, "--days", min=1, max=366,
                              help="--layout batch: number of consecutive days."),
 ) -> None:
     """Write simulated raw Messenger telemetry and kernels from a known field."""
-    if layout not in ("files", "batch"):
+    if layout not in ("files", "batch", "edr"):
         from fluxcal.errors import InputFormatError
 
-        raise InputFormatError(f"{layout!r}: choose files or batch", field="--layout")
+        raise InputFormatError(f"{layout!r}: choose files, batch or edr", field="--layout")
+    if layout == "edr":
+        from fluxcal.missions.messenger.edr_write import simulate_edr_layout
+
+        with compilation_notice(), status_display("simulating MESSENGER EDRs"):
+            paths = simulate_edr_layout(out, start, duration)
+        for key, path in paths.items():
+            typer.echo(f"{key}: {path}")
+        return
     if layout == "batch":
         written = simulate_batch_layout(out, start, duration, days)
         typer.echo(f"{len(written)} days in {out}; run: fluxcal batch messenger --input {out} "

@@ -617,3 +617,47 @@ def edr_days(folder: str | Path, mapping: str | Path | EdrMapping) -> list[_dt.d
     """Days (from the file names) that have a science EDR under ``folder``."""
     m = mapping if isinstance(mapping, EdrMapping) else load_mapping(mapping)
     return sorted({f.day for f in select_files(folder, m, "science")})
+
+
+def run_edr_archive(
+    edr_dir: str | Path,
+    mapping: str | Path,
+    kernels: Path | Sequence[Path],
+    out_dir: Path,
+    **options: Any,
+) -> list[Path]:
+    """``edr2cdr`` on an EDR folder: `read_edr`, then the CSV route's calibrate-and-write.
+
+    ``options`` are those of `fluxcal.missions.messenger.run.calibrate_and_write`
+    (frames, formats, averages, max_offset_step, quicklook, quicklook_frame, version,
+    progress).  The product provenance lists every EDR table read and the mapping file.
+
+    Returns
+    -------
+    list of Path
+        Every file written.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.missions.messenger.run import calibrate_and_write
+
+    progress = options.get("progress")
+    if progress is not None:
+        progress("reading EDRs", 0, 1)
+    m = load_mapping(mapping)
+    sci, heat, temp = read_edr(edr_dir, m)
+    labels = [Path(p) for ds in (sci, heat, temp) for p in ds.attrs["inputs"].split(";")]
+    tables = []
+    for p in labels:  # the data files the labels point to, checksummed with them
+        from fluxcal.archive.pds3 import read_label, table_names
+
+        label = read_label(p)
+        for name in table_names(label):
+            ptr = label[f"^{name}"]
+            data = p.parent / str(ptr[0] if isinstance(ptr, (list, tuple)) else ptr)
+            if data != p and data.exists():
+                tables.append(data)
+    with KernelPool(kernels) as pool:
+        return calibrate_and_write(
+            sci, heat, temp, Path(out_dir),
+            inputs=[*labels, *tables, m.path], kernel_list=pool.kernel_list(), **options,
+        )

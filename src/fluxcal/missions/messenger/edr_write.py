@@ -369,6 +369,46 @@ def filled_mapping(template: str | Path, out: str | Path,
     return Path(out)
 
 
+def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
+                        duration_s: float = 7200.0) -> dict[str, Path]:
+    """Simulate MAG telemetry and write it as archive-style EDRs, with a filled mapping.
+
+    Writes ``kernels/``, ``edr/`` (`write_edr_archive`: versions 1 (wrong) and 2 of
+    every day), ``edr_mapping.toml`` (the template with the simulation's temperature
+    conversion), and ``inputs/`` (the same streams as CSV, and the truth).  Sensor
+    temperatures are quantised to the conversion's 1/16 degC counts before both are
+    written, so the EDR and CSV routes see the same numbers.
+
+    Returns
+    -------
+    dict
+        Paths keyed ``kernels``, ``edr``, ``mapping``, ``science``, ``heater``,
+        ``temperature``, ``truth``.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import write_messenger_like_kernels
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
+    mk = write_messenger_like_kernels(
+        out / "kernels", start_utc, duration_s + 2 * config.lead_s,
+        plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)],
+    )
+    mapping = filled_mapping(template_path(), out / "edr_mapping.toml")
+    c0, c1 = -150.0, 0.0625
+    with KernelPool(mk):
+        sclk = SclkKernel.from_pool(-236)
+        sim = simulate(config, None, sclk)
+        t = sim["temperature"]["temperature_c"]
+        sim["temperature"]["temperature_c"] = c0 + c1 * np.rint((t - c0) / c1)
+        write_edr_archive(sim, out / "edr", mapping, sclk)
+    paths = write_inputs(sim, out / "inputs")
+    return {"kernels": mk, "edr": out / "edr", "mapping": mapping, **paths}
+
+
 def template_path() -> Path:
     """Return the path of the packaged mapping template."""
     from importlib import resources

@@ -207,7 +207,9 @@ def _sample_grid(
         hz = tables.sample_rate_hz[rate]
         a = met0 + frac * config.duration_s
         b = met0 + end * config.duration_s
-        grid = np.arange(np.ceil(a * hz) / hz, b, 1.0 / hz)
+        # whole multiples of the sample period, each divided once: exactly on the grid
+        # (np.arange's accumulated step left 1-us jitter after rounding at MET ~ 2.5e8 s)
+        grid = np.arange(np.ceil(a * hz), np.ceil(b * hz)) / hz
         met_parts.append(grid)
         rate_parts.append(np.full(grid.size, rate, dtype=np.int8))
     met_rec = np.round(np.concatenate(met_parts), 6)
