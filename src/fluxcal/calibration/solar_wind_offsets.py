@@ -53,7 +53,7 @@ from fluxcal.errors import FluxcalError, InputFormatError
 __all__ = ["IntervalMoments", "OffsetEstimate", "interval_moments", "split_intervals"]
 
 #: A pooled 3x3 system with a larger condition number cannot fix all three offsets.
-MAX_POOLED_CONDITION = 1e10
+MAX_POOLED_CONDITION = 1e6
 
 
 @dataclass(frozen=True)

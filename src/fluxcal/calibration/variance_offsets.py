@@ -30,9 +30,13 @@ fails, in this order; see ``docs/decisions/solar_wind_offsets.md``):
 4. ``compressive``: compressibility ``var(|B - O|) / trace C`` above
    ``max_compressibility``: not a rotation at constant magnitude [4]_, [5]_.
 
-Criteria 3 and 4 depend on the offset: they are evaluated at the current estimate.
-The first estimate uses criteria 1-2 only, unless ``offset_guess`` is given; the
-selection is then repeated until it no longer changes.
+Criteria 3 and 4 depend on the offset: they are evaluated at the current estimate,
+and the selection is repeated until it no longer changes.  Without ``offset_guess``
+the Davis-Smith start is a consensus: of the intervals' own 3x3 solutions (at most
+`MAX_START_CANDIDATES`), the one under which most intervals pass criterion 4.  (A
+pooled start would be dragged by strong compressive intervals far enough to turn
+the selection against the Alfvenic ones.)  The Hedgecock iteration starts from
+the Davis-Smith estimate.
 
 References
 ----------
@@ -69,6 +73,8 @@ DEFAULT_MIN_SAMPLES = 60
 DEFAULT_MIN_EIGENVALUE_RATIO = 1e-3
 DEFAULT_MIN_RELATIVE_AMPLITUDE = 0.05
 DEFAULT_MAX_COMPRESSIBILITY = 0.1
+#: At most this many interval solutions are tried as the Davis-Smith start.
+MAX_START_CANDIDATES = 500
 
 
 def _static_checks(count, cov, min_samples, min_eigenvalue_ratio):
@@ -168,22 +174,45 @@ def davis_smith_offsets(
         r = 0.5 * np.einsum("k,ki->i", n[use], cov_bsq[use])
         return solve_pooled(a, r, "davis_smith", reason)
 
-    def checks(o):
-        bsq = mean_bsq - 2.0 * mean @ o + o @ o
-        var_o = var_bsq - 4.0 * cov_bsq @ o + 4.0 * np.einsum("i,kij,j->k", o, cov, o)
+    def compressibility_at(o):
+        """Criteria 3-4 quantities of every interval at offsets ``o`` (m, 3) -> (k, m).
+
+        Compressibility ``var(|B'|^2) / (4 <|B'|^2> trace C)`` and relative amplitude
+        ``sqrt(trace C / <|B'|^2>)``, exactly from the interval moments.
+        """
+        bsq = mean_bsq[:, None] - 2.0 * mean @ o.T + np.einsum("mi,mi->m", o, o)[None]
+        var_o = var_bsq[:, None] - 4.0 * cov_bsq @ o.T + 4.0 * np.einsum("mi,kij,mj->km", o, cov, o)
         with np.errstate(invalid="ignore", divide="ignore"):
-            amplitude = np.sqrt(trace / bsq)
-            compressibility = var_o / (4.0 * bsq * trace)
+            return var_o / (4.0 * bsq * trace[:, None]), np.sqrt(trace[:, None] / bsq)
+
+    def checks(o):
+        compressibility, amplitude = compressibility_at(o[None])
         return first_failure(
             static
             + [
-                ("small_fluctuations", amplitude >= min_relative_amplitude),
-                ("compressive", compressibility <= max_compressibility),
+                ("small_fluctuations", amplitude[:, 0] >= min_relative_amplitude),
+                ("compressive", compressibility[:, 0] <= max_compressibility),
             ],
             k,
         )
 
-    o = np.zeros(3) if offset_guess is not None else solve(first_failure(static, k))
+    good = first_failure(static, k) == ""
+    own = np.full((k, 3), np.nan)
+    own[good] = 0.5 * np.linalg.solve(cov[good], cov_bsq[good][:, :, None])[:, :, 0]
+    if offset_guess is not None:
+        o = np.zeros(3)
+    else:
+        # consensus start: the interval solution under which most intervals pass
+        # criterion 4 (a pooled start would be dragged by strong compressive intervals)
+        candidates = np.flatnonzero(good)
+        if candidates.size == 0:
+            solve(first_failure(static, k))  # raises, naming the reasons
+        if candidates.size > MAX_START_CANDIDATES:
+            pick = np.linspace(0, candidates.size - 1, MAX_START_CANDIDATES).astype(int)
+            candidates = candidates[pick]
+        compressibility = compressibility_at(own[candidates])[0]
+        votes = np.count_nonzero(good[:, None] & (compressibility <= max_compressibility), axis=0)
+        o = own[candidates[np.argmax(votes)]]
     previous = None
     passes = 0
     for _ in range(max_selection_passes):
@@ -198,9 +227,6 @@ def davis_smith_offsets(
             f"davis_smith: the interval selection did not settle in {max_selection_passes} passes"
         )
     use = reason == ""
-    good = first_failure(static, k) == ""
-    per_interval = np.full((k, 3), np.nan)
-    per_interval[good] = 0.5 * np.linalg.solve(cov[good], cov_bsq[good][:, :, None])[:, :, 0]
     covariance, n_boot = bootstrap_covariance(
         n[use, None, None] * cov[use],
         0.5 * n[use, None] * cov_bsq[use],
@@ -219,7 +245,7 @@ def davis_smith_offsets(
         labels=labels,
         accepted=use,
         reason=reason,
-        per_interval=per_interval + shift,
+        per_interval=own + shift,
         n_bootstrap=n_boot,
         iterations=passes,
         criteria=_criteria(
@@ -253,7 +279,8 @@ def hedgecock_offsets(
         As `davis_smith_offsets`; criteria 3-4 use ``|B_meas - O|`` at the current
         iterate directly (``var(|B'|) / trace C`` and ``sqrt(trace C) / <|B'|>``).
     offset_guess : array_like, shape (3,), optional
-        Starting offset; without it the first step uses criteria 1-2 only.
+        Starting offset; without it the iteration starts from `davis_smith_offsets`
+        (same criteria).
     max_iterations : int
         Gauss-Newton steps allowed.
     tolerance : float
@@ -292,8 +319,20 @@ def hedgecock_offsets(
     n = mb.count
     trace = np.trace(mb.cov, axis1=1, axis2=2)
     static = _static_checks(n, mb.cov, min_samples, min_eigenvalue_ratio)
-    reason = first_failure(static, k) if offset_guess is None else None
-    for step in range(1, max_iterations + 1):
+    if offset_guess is None:
+        o = davis_smith_offsets(
+            bv,
+            codes,
+            min_samples=min_samples,
+            min_eigenvalue_ratio=min_eigenvalue_ratio,
+            min_relative_amplitude=min_relative_amplitude,
+            max_compressibility=max_compressibility,
+            n_bootstrap=0,
+        ).offset
+    reason = None
+    step = 0
+    for _ in range(max_iterations):
+        step += 1
         bp = bv - o
         mag = np.sqrt(np.einsum("ij,ij->i", bp, bp))
         mu = interval_moments(np.column_stack([bp / mag[:, None], mag]), codes, k)
@@ -302,22 +341,20 @@ def hedgecock_offsets(
             amplitude = np.sqrt(trace) / mu.mean[:, 3]
             compressibility = var_m / trace
         previous = reason
-        if step > 1 or offset_guess is not None:
-            reason = first_failure(
-                static
-                + [
-                    ("small_fluctuations", amplitude >= min_relative_amplitude),
-                    ("compressive", compressibility <= max_compressibility),
-                ],
-                k,
-            )
+        reason = first_failure(
+            static
+            + [
+                ("small_fluctuations", amplitude >= min_relative_amplitude),
+                ("compressive", compressibility <= max_compressibility),
+            ],
+            k,
+        )
         use = reason == ""
         a = np.einsum("k,kij->ij", n[use], cov_u[use])
         g = np.einsum("k,ki->i", n[use], cov_um[use])
         delta = solve_pooled(a, g, "hedgecock", reason)
         o = o + delta
-        settled = np.array_equal(reason, previous) and (step > 1 or offset_guess is not None)
-        if np.linalg.norm(delta) < tolerance and settled:
+        if np.linalg.norm(delta) < tolerance and np.array_equal(reason, previous):
             break
     else:
         raise FluxcalError(f"hedgecock: no convergence in {max_iterations} Gauss-Newton steps")
