@@ -175,6 +175,9 @@ def fit(
         None, "--intervals", help="--jumps: CSV start_utc,end_utc of the intervals "
         "(default: those of the jump table that overlap the data)."
     ),
+    max_sigma: float = typer.Option(
+        1.0, "--max-sigma", help="--jumps: refuse a jump known worse than this (nT)."
+    ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     alignment_from_kernels: bool = typer.Option(
         False, "--alignment-from-kernels",
@@ -206,7 +209,8 @@ def fit(
     preflight.writable_folder(out, "--out")
     paths = fit_files(
         science, sensor, out, hk_file=hk, calib_dir=calib, kernels=kernels, primary=primary,
-        degree=degree, block_s=block, jumps=jumps, intervals=intervals, boom=boom,
+        degree=degree, block_s=block, jumps=jumps, intervals=intervals, max_sigma=max_sigma,
+        boom=boom,
         alignment_from_kernels=alignment_from_kernels,
     )
     for path in paths:

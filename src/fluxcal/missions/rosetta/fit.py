@@ -54,6 +54,8 @@ DEFAULT_DEGREE = 3
 MODEL_BLOCK_S = 1800.0
 #: Default block length (s) of the offset-jump fit.
 JUMP_BLOCK_S = 1800.0
+#: Largest standard error (nT) of a fitted jump accepted by default (decision 4).
+JUMP_MAX_SIGMA = 1.0
 
 
 # ----------------------------------------------------------------------------------------
@@ -450,6 +452,7 @@ def fit_offset_jumps(
     *,
     sensor: str,
     block_s: float = JUMP_BLOCK_S,
+    max_sigma: float | None = JUMP_MAX_SIGMA,
     lsk=None,
 ) -> OffsetJumpFit:
     """Fit the Appendix B offset of each interval (sec. 4.2.3.4).
@@ -482,6 +485,9 @@ def fit_offset_jumps(
     sensor : {"OB", "IB"}
     block_s : float
         Block length (s).
+    max_sigma : float or None
+        Refuse an interval whose jump has a larger standard error (nT) in any axis (the
+        attitude did not vary enough in it); ``None``: accept any.
 
     Returns
     -------
@@ -540,6 +546,13 @@ def fit_offset_jumps(
         target = mean[:, :3].reshape(-1)
         q, cov, r = weighted_lstsq(design, target, np.repeat(count, 3), what=what)
         jumps[j], sigma[j] = q[:3], np.sqrt(np.diag(cov)[:3])
+        if max_sigma is not None and np.any(sigma[j] > max_sigma):
+            raise FluxcalError(
+                f"{what}: the jump is determined only to sigma "
+                + " ".join(f"{v:.3g}" for v in sigma[j])
+                + f" nT (limit {max_sigma:g} nT): the attitude does not vary enough in "
+                f"{sel.size} vectors; use a longer interval or raise the limit (--max-sigma)"
+            )
         mean_field[j] = q[3:]
         rms[j] = np.sqrt(np.sum(np.repeat(count, 3) * r**2) / (3 * np.sum(count)))
         n_blocks[j], n_samples[j] = nb, sel.size
@@ -659,6 +672,7 @@ def fit_files(
     block_s: float | None = None,
     jumps: bool = False,
     intervals: Path | None = None,
+    max_sigma: float | None = JUMP_MAX_SIGMA,
     boom: str = "deployed",
     alignment_from_kernels: bool = False,
 ) -> list[Path]:
@@ -755,7 +769,7 @@ def fit_files(
         _, rotation = rotate(b["b"].values, tt2000_to_et(epoch, lsk), SPACECRAFT_FRAME,
                              FRAMES["CSEQ"], return_matrices=True)
         fit = fit_offset_jumps(epoch, b["b"].values, rotation, start, end, sensor=sensor,
-                               block_s=block_s or JUMP_BLOCK_S, lsk=lsk)
+                               block_s=block_s or JUMP_BLOCK_S, max_sigma=max_sigma, lsk=lsk)
         prov["alignment"] = b.attrs["alignment"]
         prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
         return [write_offset_jump_table([fit], out / calib.JUMPS_FILE, provenance=prov)]
