@@ -262,9 +262,16 @@ def _integers(values: np.ndarray, name: str, csv_name: str, label: Path) -> np.n
     return v
 
 
+def _data_file(ds: xr.Dataset, label: Path) -> Path:
+    """Return the table file holding the rows of ``ds`` (errors about a row name it)."""
+    return Path(ds.attrs.get("pds3_data_file", table_of(label)))
+
+
 def _times(ds: xr.Dataset, label: Path, sclk, lsk) -> tuple[np.ndarray, np.ndarray]:
     """``(epoch TT2000, obt)`` of one table, as the CSV reader makes them (rows 1-based)."""
     from fluxcal.missions.rosetta.io import _epoch
+
+    table = _data_file(ds, label)
 
     utc = _column(ds, "TIME.UTC", label).values
     if utc.dtype.kind == "M":  # a reader that decoded the TIME column: back to its text
@@ -272,15 +279,15 @@ def _times(ds: xr.Dataset, label: Path, sclk, lsk) -> tuple[np.ndarray, np.ndarr
     utc = np.char.strip(np.asarray(utc, dtype=str))
     obt = np.asarray(_column(ds, "TIME.OBT", label).values)
     if obt.dtype.kind not in "iuf":
-        raise InputFormatError(f"values of type {obt.dtype} are not numbers", path=str(label),
+        raise InputFormatError(f"values of type {obt.dtype} are not numbers", path=str(table),
                                field="TIME.OBT")
     obt = obt.astype(np.float64)
     bad = np.flatnonzero(~np.isfinite(obt))
     if bad.size:
-        raise InputFormatError(f"{obt[bad[0]]!r} is not a finite number", path=str(label),
+        raise InputFormatError(f"{obt[bad[0]]!r} is not a finite number", path=str(table),
                                line=int(bad[0]) + 1, field="TIME.OBT")
     rows = np.arange(1, obt.size + 1)
-    epoch, _ = _epoch(utc, obt, label, sclk, lsk, rows=rows, names=TIME_COLUMNS)
+    epoch, _ = _epoch(utc, obt, table, sclk, lsk, rows=rows, names=TIME_COLUMNS)
     return epoch, obt
 
 
@@ -350,7 +357,7 @@ def read_science_products(
         epoch, obt = _times(ds, label, sclk, lsk)
         ints = {
             csv_name: _integers(_column(ds, name.format(s=sensor), label).values,
-                                name.format(s=sensor), csv_name, label)
+                                name.format(s=sensor), csv_name, _data_file(ds, label))
             for name, csv_name in SCIENCE_FIELDS.items()
         }
         wrong = wrong_quality(ints["quality"], sensor)
@@ -360,7 +367,7 @@ def read_science_products(
                 f"quality {int(ints['quality'][i])} does not belong to a {sensor} vector "
                 "(bit 3 must be " + str(int(sensor == "IB")) + ", bits above 3 must be 0; "
                 "RO-IGEP-TR0028 (Rosetta RPC-MAG calibration), sec. 4.1.2)",
-                path=str(label), line=i + 1, field="QUALITY")
+                path=str(_data_file(ds, label)), line=i + 1, field="QUALITY")
         pieces.append({"label": label, "epoch": epoch, "obt": obt, "ints": ints,
                        "sid": np.full(obt.size, product.mode, dtype=np.int16),
                        "row": np.arange(1, obt.size + 1)})
@@ -415,7 +422,8 @@ def read_hk_products(labels: Sequence[Path], *, sclk=None, lsk=None) -> xr.Datas
                 path=str(label))
         ds = _read(label)
         epoch, obt = _times(ds, label, sclk, lsk)
-        ints = {csv_name: _integers(_column(ds, name, label).values, name, csv_name, label)
+        ints = {csv_name: _integers(_column(ds, name, label).values, name, csv_name,
+                                    _data_file(ds, label))
                 for name, csv_name in HK_FIELDS.items()}
         pieces.append({"label": label, "epoch": epoch, "obt": obt, "ints": ints})
     if not pieces:
