@@ -307,3 +307,33 @@ def test_phase_binned_centred_on_table_grid():
     expect = np.sin(2 * np.pi * m.centers / period) + 0.3 * np.cos(6 * np.pi * m.centers / period)
     np.testing.assert_allclose(m.mean()[:, 0], expect, atol=1e-12)
     assert np.all(m.count == 100)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), max_gap=st.sampled_from([1.5, 5.0, 40.0]))
+def test_superposed_epoch_max_gap_keeps_only_covered_windows(seed, max_gap):
+    """Events whose window meets a data gap or the data ends are dropped (brute force)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 5000.0, 1.0)
+    cut = rng.uniform(500, 4500, 3)
+    width = rng.choice([3.0, 30.0, 300.0], 3)
+    keep = np.ones(t.size, bool)
+    for c, wdt in zip(cut, width, strict=True):
+        keep &= ~((t > c) & (t < c + wdt))
+    t = t[keep]
+    v = rng.normal(0.0, 1.0, t.size)
+    events = np.round(rng.uniform(-100.0, 5100.0, 12))
+    lag_edges = np.arange(-200.0, 801.0, 100.0)
+    got = superposed_epoch(t, v, events, lag_edges, max_gap=max_gap)
+    covered = []
+    for e in events:  # brute force: every gap between consecutive samples in the window
+        inside = t[(t >= e + lag_edges[0]) & (t < e + lag_edges[-1])]
+        ok = inside.size > 0
+        if ok:
+            pts = np.concatenate(([e + lag_edges[0]], inside, [e + lag_edges[-1]]))
+            ok = bool(np.all(np.diff(inside) <= max_gap)) and inside[0] - pts[0] <= max_gap
+            ok = ok and pts[-1] - inside[-1] <= max_gap
+        covered.append(ok)
+    want = superposed_epoch(t, v, events[np.array(covered, bool)], lag_edges)
+    np.testing.assert_array_equal(got.count, want.count)
+    np.testing.assert_allclose(got.mean(), want.mean(), rtol=1e-12, equal_nan=True)

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from scipy.optimize import curve_fit
 
+from fluxcal.calibration.binned_stats import superposed_epoch
 from fluxcal.calibration.constrained_fits import (
     FitError,
     fit_line_fixed_intercept,
@@ -343,3 +344,52 @@ def test_periodic_spline_errors_match_scatter_over_seeds():
 def test_periodic_spline_refuses_repeated_phases():
     with pytest.raises(Exception, match="phases repeat"):
         fit_periodic_spline(np.r_[np.arange(10.0), 105.0], np.zeros(11), None, 100.0)
+
+
+def forward_heater_offsets(seed, *, tau, dt, d0, days=2, sigma=5.0):
+    """1-Hz offsets of a heater changing duty cycle only at 1000-s evaluations.
+
+    Written independently of fluxcal: each change's steady-state step ``d0 * delta_d``
+    (eq. 5a with ``c* = D0 d``; d is 0 or 120..400 ppt) relaxes as
+    ``1 - exp(-(t - t_k - dt)/tau)`` and the responses add (a linear system with
+    unlimited look-back).  About 30 % of evaluations change nothing.
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 86400.0 * days)
+    tk = np.arange(1000.0, t[-1], 1000.0)
+    d = np.where(rng.random(tk.size) < 0.2, 0.0, rng.uniform(120, 400, tk.size))
+    same = rng.random(tk.size) < 0.3
+    same[0] = False
+    for i in np.flatnonzero(same):  # keep the previous duty cycle (test-side loop)
+        d[i] = d[i - 1]
+    step = np.diff(np.r_[0.0, d])
+    tk, step = tk[step != 0], step[step != 0]
+    off = np.zeros(t.size)
+    for a, s in zip(tk, step, strict=True):
+        u = t - a - dt
+        m = u > 0
+        off[m] += d0 * s * (1.0 - np.exp(-u[m] / tau))
+    return t, off + sigma * rng.standard_normal(t.size), tk, step
+
+
+@pytest.mark.parametrize("seed,tau,d0", [(0, 872.0, 0.33), (1, 600.0, -0.25), (2, 1300.0, 0.2)])
+def test_superposed_epoch_then_relaxation_recovers_forward_model(seed, tau, d0):
+    """Sec. 7 end to end: epoch of all changes (both signs), fit with the prior decay.
+
+    Regression normalisation ``delta_d / mean(delta_d^2)``, complete windows only
+    (max_gap), 10-s lag bins centred on the 1-s samples.  tau, A = D0 and dt = 10 s
+    within 4 reported sigma (the fit's chi2/dof-scaled errors) and tau within the
+    issue's 10 %.  The flat-baseline model (prior_decay=False) is biased here: the
+    previous change, 1000 s earlier, is still relaxing (A low by ~15 %, dt high by
+    ~15 s; docs/decisions/fits.md) -- asserted so that the default stays honest.
+    """
+    t, y, tk, step = forward_heater_offsets(seed, tau=tau, dt=10.0, d0=d0)
+    lag_edges = np.arange(-200.5, 1000.0, 10.0)
+    epoch = superposed_epoch(t, y, tk, lag_edges, step / np.mean(step**2), max_gap=1.5)
+    x, yy, w = epoch.centers, epoch.mean()[:, 0], np.sqrt(epoch.count)
+    f = fit_relaxation(x, yy, w, prior_decay=True)
+    assert abs(f.tau - tau) < 4 * f.tau_err and abs(f.tau - tau) < 0.1 * tau, f
+    assert abs(f.amplitude - d0) < 4 * f.amplitude_err, f
+    assert abs(f.dt - 10.0) < 4 * f.dt_err, f
+    flat = fit_relaxation(x, yy, w, prior_decay=False)
+    assert abs(flat.amplitude - d0) > 4 * flat.amplitude_err

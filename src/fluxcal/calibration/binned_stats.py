@@ -397,6 +397,7 @@ def superposed_epoch(
     lag_edges: np.ndarray,
     weights: np.ndarray | None = None,
     *,
+    max_gap: float | None = None,
     shift: np.ndarray | float | None = None,
     label: str = "lag",
     units: str = "s",
@@ -419,7 +420,17 @@ def superposed_epoch(
         Lag bin edges (s), e.g. ``np.arange(-200, 1001, 10)``.
     weights : ndarray, shape (m,), optional
         Per-event factor applied to the values, e.g. ``1 / delta_d`` so that positive and
-        negative duty-cycle steps combine normalised (sec. 7).  Default 1.
+        negative duty-cycle steps combine normalised (sec. 7).  Default 1.  For
+        steps ``delta_d`` of various sizes, ``delta_d / mean(delta_d**2)`` gives the
+        least-squares (minimum-variance) normalisation: the bin mean is then the
+        regression of the offset change on ``delta_d``; ``1 / delta_d`` amplifies the
+        noise of small steps (see docs/decisions/fits.md).
+    max_gap : float, optional
+        If given, only events whose whole window is covered by samples no more than
+        ``max_gap`` apart (and within ``max_gap`` of both window ends) are used, so that
+        every bin sees the same set of events.  An event with a partial window puts its
+        own (weighted) baseline into some bins and not others: a spurious step in the
+        epoch.  Default: every event, partial windows included.
     shift, label, units, value_units
         As for `BinnedMoments.accumulate`.
 
@@ -456,6 +467,10 @@ def superposed_epoch(
     n_comp = values.shape[1]
     lo = np.searchsorted(t, event_t + lag_edges[0], side="left")
     hi = np.searchsorted(t, event_t + lag_edges[-1], side="left")
+    if max_gap is not None:
+        full = _window_covered(t, event_t + lag_edges[0], event_t + lag_edges[-1], lo, hi,
+                               float(max_gap))
+        event_t, w, lo, hi = event_t[full], w[full], lo[full], hi[full]
     length = hi - lo
     if shift is None:
         # One reference for every chunk: the weighted mean over the events' windows
@@ -487,6 +502,25 @@ def superposed_epoch(
         )
         result = result.merge(part)
     return result
+
+
+def _window_covered(
+    t: np.ndarray, start: np.ndarray, stop: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+    max_gap: float,
+) -> np.ndarray:
+    """Return True where samples ``t[lo:hi]`` cover ``[start, stop)`` with no gap > max_gap."""
+    if not max_gap > 0:
+        raise InputFormatError(f"max_gap must be positive, got {max_gap}", field="max_gap")
+    gap = np.concatenate(([0], np.cumsum(np.diff(t) > max_gap)))  # gaps before sample i
+    nonempty = hi > lo
+    first = np.where(nonempty, lo, 0)
+    last = np.where(nonempty, hi - 1, 0)
+    out = nonempty.copy()
+    if t.size:
+        out &= gap[last] == gap[first]
+        out &= t[first] - start <= max_gap
+        out &= stop - t[last] <= max_gap
+    return out
 
 
 def phase_binned(

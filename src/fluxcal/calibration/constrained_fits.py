@@ -392,7 +392,11 @@ def fit_line_fixed_intercept(
 # -------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class RelaxationFit:
-    """``y = y0`` for ``lag < dt``; ``y0 + A (1 - exp(-(lag - dt)/tau))`` after.
+    """Exponential relaxation after a delayed step, optionally on a decaying background.
+
+    ``y = y0 + A g + B h`` with ``g = 1 - exp(-max(lag - dt, 0) / tau)`` (the step,
+    flat before ``dt``) and, only with ``prior_decay``, ``h = exp(-lag / tau)`` (what
+    is left at lag 0 of the relaxations after earlier changes, same ``tau``).
 
     Attributes
     ----------
@@ -403,11 +407,13 @@ class RelaxationFit:
     amplitude, amplitude_err : float
         Steady-state step ``A`` (per unit of the normalisation).
     y0, y0_err : float
-        Level before the step.
-    fit_delay : bool
-        Whether ``dt`` was fitted.
+        Asymptotic level before the step.
+    prior_amplitude, prior_amplitude_err : float
+        ``B`` (0 and 0 when ``prior_decay`` was False).
+    fit_delay, prior_decay : bool
+        Which optional parameters were fitted.
     covariance : ndarray
-        Covariance of ``(y0, A, tau[, dt])``.
+        Covariance of ``(y0, A[, B], tau[, dt])``.
     chi2 : float
     dof : int
     """
@@ -424,26 +430,23 @@ class RelaxationFit:
     covariance: np.ndarray
     chi2: float
     dof: int
+    prior_amplitude: float = 0.0
+    prior_amplitude_err: float = 0.0
+    prior_decay: bool = False
 
     def __call__(self, lag: np.ndarray) -> np.ndarray:
         """Evaluate the model."""
-        return _relax(np.asarray(lag, dtype=np.float64), self.y0, self.amplitude, self.tau, self.dt)
+        lag = np.asarray(lag, dtype=np.float64)
+        lin = [self.y0, self.amplitude] + ([self.prior_amplitude] if self.prior_decay else [])
+        return _relax_design(lag, self.tau, self.dt, self.prior_decay) @ np.array(lin)
 
 
-def _relax(lag: np.ndarray, y0: float, amp: float, tau: float, dt: float) -> np.ndarray:
-    s = np.maximum(lag - dt, 0.0)
-    return y0 + amp * -np.expm1(-s / tau)
-
-
-def _relax_linear(
-    lag: np.ndarray, y: np.ndarray, w: np.ndarray, tau: float, dt: float
-) -> tuple[np.ndarray, float]:
-    """Best (y0, A) for fixed (tau, dt) and the chi2."""
-    g = -np.expm1(-np.maximum(lag - dt, 0.0) / tau)
-    design = np.column_stack((np.ones_like(lag), g))
-    p, *_ = np.linalg.lstsq(design * w[:, None], y * w, rcond=None)
-    r = (y - design @ p) * w
-    return p, float(r @ r)
+def _relax_design(lag: np.ndarray, tau: float, dt: float, prior: bool) -> np.ndarray:
+    """Columns ``(1, g[, h])`` of the model linear part, shape (n, 2 or 3)."""
+    cols = [np.ones_like(lag), -np.expm1(-np.maximum(lag - dt, 0.0) / tau)]
+    if prior:
+        cols.append(np.exp(-lag / tau))
+    return np.column_stack(cols)
 
 
 def fit_relaxation(
@@ -453,6 +456,7 @@ def fit_relaxation(
     *,
     fit_delay: bool = True,
     delay: float = 0.0,
+    prior_decay: bool = False,
     absolute_weights: bool = False,
 ) -> RelaxationFit:
     """Fit an exponential relaxation to a normalised superposed epoch of steps.
@@ -470,6 +474,12 @@ def fit_relaxation(
         Fit the heater delay ``dt`` (sec. 7: 10 s); otherwise hold it at ``delay``.
     delay : float
         The held delay (s) when ``fit_delay`` is False, and ignored otherwise.
+    prior_decay : bool
+        Add ``B exp(-lag / tau)``: the still-running relaxation after earlier changes.
+        With the controller's 1000-s evaluations the previous change lies 1000 s
+        before each event and has relaxed only ``1 - exp(-1000/872) = 68 %``; its
+        remainder (correlated with the normalised step) bends the pre-step baseline
+        with the same ``tau``.  Off by default (the seed's flat-baseline reading).
     absolute_weights : bool
         See `fit_two_segment`.
 
@@ -485,27 +495,29 @@ def fit_relaxation(
     Notes
     -----
     Starting values are robust by construction: for fixed ``(tau, dt)`` the model is
-    linear in ``(y0, A)``, so chi2 is profiled on a log grid of ``tau`` (from the lag
-    spacing to 20 times the span after the step) times a grid of ``dt`` (over the
-    first third of the post-step lags), and ``scipy.optimize.least_squares`` polishes
-    all parameters from the best grid point.  A ``tau`` much longer than the window is
-    poorly determined (``A`` and ``tau`` trade off); the errors then say so.
+    linear in ``(y0, A[, B])``, so chi2 is profiled on a log grid of ``tau`` (from the
+    lag spacing to 20 times the span after the step) times a grid of ``dt`` (over the
+    first third of the lags), and ``scipy.optimize.least_squares`` polishes all
+    parameters (``tau`` as its logarithm) from the best grid point.  A ``tau`` much
+    longer than the window is poorly determined (``A`` and ``tau`` trade off); the
+    errors then say so.  Errors come from the analytic Jacobian at the optimum.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (1200-s superposed epoch
        starting 200 s before each duty-cycle change; tau = 872 s; dt = 10 s).
     """
-    lag, y, w = _prepare(lag, y, weights, 5 if fit_delay else 4, "fit_relaxation")
+    n_lin = 3 if prior_decay else 2
+    n_par = n_lin + 1 + int(fit_delay)
+    lag, y, w = _prepare(lag, y, weights, n_par + 1, "fit_relaxation")
     span = float(lag[-1] - lag[0])
     if span <= 0:
         raise FitError("fit_relaxation: the lags span no interval")
     start = 0.0 if fit_delay else float(delay)
-    post = lag[lag > start]
-    if post.size < 3:
+    if np.count_nonzero(lag > start) < 3:
         raise FitError("fit_relaxation: fewer than 3 points after the step")
     post_span = float(lag[-1] - max(start, lag[0]))
-    step = float(np.median(np.diff(lag))) if lag.size > 1 else 1.0
+    step = float(np.median(np.diff(lag)))
     taus = np.geomspace(max(step, 1e-3 * post_span) / 2.0, 20.0 * post_span, 60)
     if fit_delay:
         dts = np.linspace(max(lag[0], -0.1 * post_span), lag[0] + 0.35 * span, 25)
@@ -513,63 +525,63 @@ def fit_relaxation(
         dts = np.array([float(delay)])
     tt, dd = (a.ravel() for a in np.meshgrid(taus, dts, indexing="ij"))
     g = -np.expm1(-np.maximum(lag[None, :] - dd[:, None], 0.0) / tt[:, None])
-    chi = _profile_chi2(np.stack((np.ones_like(g), g), axis=-1), y, w)
+    cols = [np.ones_like(g), g]
+    if prior_decay:
+        cols.append(np.exp(-lag[None, :] / tt[:, None]))
+    chi = _profile_chi2(np.stack(cols, axis=-1), y, w)
     k = int(np.argmin(chi))
     tau_s, dt_s = float(tt[k]), float(dd[k])
-    (y0_s, a_s), _ = _relax_linear(lag, y, w, tau_s, dt_s)
+    design = _relax_design(lag, tau_s, dt_s, prior_decay)
+    lin_s, *_ = np.linalg.lstsq(design * w[:, None], y * w, rcond=None)
 
-    if fit_delay:
-        p0 = np.array([y0_s, a_s, np.log(tau_s), dt_s])
+    def unpack(p: np.ndarray) -> tuple[np.ndarray, float, float]:
+        dt_p = float(p[n_lin + 1]) if fit_delay else float(delay)
+        return p[:n_lin], float(np.exp(p[n_lin])), dt_p
 
-        def resid(p: np.ndarray) -> np.ndarray:
-            return (y - _relax(lag, p[0], p[1], np.exp(p[2]), p[3])) * w
+    def resid(p: np.ndarray) -> np.ndarray:
+        lin, tau_p, dt_p = unpack(p)
+        return (y - _relax_design(lag, tau_p, dt_p, prior_decay) @ lin) * w
 
-        lb = [-np.inf, -np.inf, np.log(taus[0]) - 3, lag[0] - span]
-        ub = [np.inf, np.inf, np.log(taus[-1]) + 3, lag[-1]]
-    else:
-        p0 = np.array([y0_s, a_s, np.log(tau_s)])
-
-        def resid(p: np.ndarray) -> np.ndarray:
-            return (y - _relax(lag, p[0], p[1], np.exp(p[2]), float(delay))) * w
-
-        lb = [-np.inf, -np.inf, np.log(taus[0]) - 3]
-        ub = [np.inf, np.inf, np.log(taus[-1]) + 3]
-    p0 = np.clip(p0, np.array(lb) + 1e-12, np.array(ub) - 1e-12)
+    p0 = np.concatenate((lin_s, [np.log(tau_s)], [dt_s] if fit_delay else []))
+    lb = np.r_[np.full(n_lin, -np.inf), np.log(taus[0]) - 3, [lag[0] - span] if fit_delay else []]
+    ub = np.r_[np.full(n_lin, np.inf), np.log(taus[-1]) + 3, [lag[-1]] if fit_delay else []]
+    p0 = np.clip(p0, lb + 1e-12, ub - 1e-12)
     sol = least_squares(resid, p0, bounds=(lb, ub), x_scale="jac", xtol=1e-12, ftol=1e-12)
-    p = sol.x
-    tau = float(np.exp(p[2]))
-    dt = float(p[3]) if fit_delay else float(delay)
-    y0, amp = float(p[0]), float(p[1])
-    r = resid(p)
+    lin, tau, dt = unpack(sol.x)
+    r = resid(sol.x)
     chi2 = float(r @ r)
-    # analytic Jacobian of the model in (y0, A, tau, dt) for the covariance
+    # analytic Jacobian of the model in (y0, A[, B], tau[, dt]) for the covariance
+    amp = float(lin[1])
     s = lag - dt
     after = s > 0
     e = np.where(after, np.exp(-np.maximum(s, 0.0) / tau), 1.0)
-    cols = [
-        np.ones_like(lag),
-        np.where(after, 1.0 - e, 0.0),
-        np.where(after, -amp * e * s / tau**2, 0.0),
-    ]
+    jcols = list(_relax_design(lag, tau, dt, prior_decay).T)
+    d_tau = np.where(after, -amp * e * s / tau**2, 0.0)
+    if prior_decay:
+        d_tau = d_tau + lin[2] * np.exp(-lag / tau) * lag / tau**2
+    jcols.append(d_tau)
     if fit_delay:
-        cols.append(np.where(after, -amp * e / tau, 0.0))
-    jac = np.column_stack(cols) * w[:, None]
-    dof = lag.size - jac.shape[1]
+        jcols.append(np.where(after, -amp * e / tau, 0.0))
+    jac = np.column_stack(jcols) * w[:, None]
+    dof = lag.size - n_par
     cov = _covariance(jac, chi2, dof, absolute_weights)
     err = _errors(cov)
     return RelaxationFit(
         tau=tau,
-        tau_err=float(err[2]),
+        tau_err=float(err[n_lin]),
         dt=dt,
-        dt_err=float(err[3]) if fit_delay else 0.0,
+        dt_err=float(err[n_lin + 1]) if fit_delay else 0.0,
         amplitude=amp,
         amplitude_err=float(err[1]),
-        y0=y0,
+        y0=float(lin[0]),
         y0_err=float(err[0]),
         fit_delay=fit_delay,
         covariance=cov,
         chi2=chi2,
         dof=dof,
+        prior_amplitude=float(lin[2]) if prior_decay else 0.0,
+        prior_amplitude_err=float(err[2]) if prior_decay else 0.0,
+        prior_decay=prior_decay,
     )
 
 
