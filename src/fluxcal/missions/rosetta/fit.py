@@ -63,11 +63,12 @@ JUMP_MAX_SIGMA = 1.0
 # ----------------------------------------------------------------------------------------
 def block_means(
     epoch: np.ndarray, values: np.ndarray, block_s: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per-block count, mean and within-block variance of ``values`` (columns).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-block count, mean and standard error of the mean of ``values`` (columns).
 
     Blocks are ``[t0 + k block_s, t0 + (k + 1) block_s)`` with ``t0`` the first epoch;
-    empty blocks are dropped.
+    empty blocks are dropped.  The reduction is `fluxcal.calibration.binned_stats`'s
+    (sufficient statistics, exact merges).
 
     Parameters
     ----------
@@ -79,29 +80,26 @@ def block_means(
 
     Returns
     -------
-    index : ndarray of int, shape (b,)
-        Block number of each non-empty block.
     count : ndarray, shape (b,)
     mean : ndarray, shape (b, m)
-    variance : ndarray, shape (b, m)
-        Population variance within the block (0 for one sample).
+    standard_error : ndarray, shape (b, m)
+        ``sqrt(sample variance / count)``; NaN for a block of one sample.
     """
+    from fluxcal.calibration.binned_stats import BinnedMoments
+
     if not block_s > 0:
         raise FluxcalError(f"block length must be positive, not {block_s} s")
     epoch = np.asarray(epoch, dtype=np.int64)
     values = np.asarray(values, dtype=float)
     if epoch.size == 0:
-        return (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, values.shape[1])),
-                np.zeros((0, values.shape[1])))
-    k = ((epoch - epoch.min()) // int(round(block_s * NS))).astype(np.int64)
-    nblk = int(k.max()) + 1
-    count = np.bincount(k, minlength=nblk).astype(float)
-    sums = np.stack([np.bincount(k, values[:, j], nblk) for j in range(values.shape[1])], 1)
-    keep = count > 0
-    mean = sums[keep] / count[keep, None]
-    dev = values - (sums / np.maximum(count, 1.0)[:, None])[k]
-    sq = np.stack([np.bincount(k, dev[:, j] ** 2, nblk) for j in range(values.shape[1])], 1)
-    return np.flatnonzero(keep), count[keep], mean, sq[keep] / count[keep, None]
+        empty = np.zeros((0, values.shape[1]))
+        return np.zeros(0), empty, empty
+    seconds = (epoch - epoch.min()) / NS
+    edges = np.arange(int(seconds.max() // block_s) + 2) * float(block_s)
+    moments = BinnedMoments.accumulate(seconds, values, edges, label="time", units="s")
+    keep = moments.count > 0
+    return (moments.count[keep].astype(float), moments.mean()[keep],
+            moments.standard_error()[keep])
 
 
 def weighted_lstsq(
@@ -336,7 +334,7 @@ def fit_extended_model(
     centre, scale = 0.5 * (lo + hi), max(0.5 * (hi - lo), 1.0)
     x = (t - centre) / scale
     powers = np.vander(x, degree + 1, increasing=True)
-    _, count, mean, var = block_means(epoch, np.concatenate([b, powers], axis=1), block_s)
+    count, mean, se = block_means(epoch, np.concatenate([b, powers], axis=1), block_s)
     design = mean[:, 3:]
     what = f"{source}: extended model {sensor} {day} (degree {degree}, {block_s:g}-s blocks)"
     q = np.zeros((degree + 1, 3))
@@ -346,7 +344,7 @@ def fit_extended_model(
     for i in range(3):  # three axes
         q[:, i], cov[i], r = weighted_lstsq(design, mean[:, i], count, what=what)
         rms[i] = np.sqrt(np.sum(count * r**2) / np.sum(count))
-        se2 = np.maximum(var[multi, i], 1e-12) / (count[multi] - 1)
+        se2 = np.maximum(se[multi, i] ** 2, 1e-12)
         chi2[i] = float(np.sum(r[multi] ** 2 / se2))
     c = _power_basis(centre, scale, degree)
     coefficients = np.zeros((MAX_DEGREE + 1, 3))
@@ -535,7 +533,7 @@ def fit_offset_jumps(
         if sel.size == 0:
             raise FluxcalError(f"{what}: no vectors in the interval (leave it out)")
         values = np.concatenate([b_cseq[sel], rotation[sel].reshape(-1, 9)], axis=1)
-        _, count, mean, _ = block_means(epoch[sel], values, block_s)
+        count, mean, _ = block_means(epoch[sel], values, block_s)
         rot = mean[:, 3:].reshape(-1, 3, 3)
         nb = count.size
         # unknowns: J_x, J_y, J_z, m_x, m_y; three equations per block
