@@ -182,7 +182,14 @@ def split_intervals(
     keep = np.isfinite(arr).all(axis=1) & (index >= 0)
     if not keep.any():
         raise InputFormatError("no finite sample inside an interval", field="b")
-    labels, codes = np.unique(index[keep], return_inverse=True)
+    index = index[keep]
+    if np.all(index[1:] >= index[:-1]):  # sorted labels (the usual case): no sort needed
+        new = np.empty(index.size, dtype=bool)
+        new[0] = True
+        np.not_equal(index[1:], index[:-1], out=new[1:])
+        labels, codes = index[new], np.cumsum(new) - 1
+    else:
+        labels, codes = np.unique(index, return_inverse=True)
     return arr[keep], codes.astype(np.intp), labels.astype(np.int64)
 
 
@@ -268,7 +275,7 @@ def bootstrap_covariance(
 ) -> tuple[NDArray[np.float64], int]:
     """Covariance of ``(sum_k A_k)^-1 sum_k r_k`` when intervals are resampled.
 
-    Each resample draws the accepted intervals with replacement (multinomial counts),
+    Each resample draws the accepted intervals with replacement (counts per interval),
     so the pooled system of a resample is a weighted sum of the per-interval systems:
     all resamples are solved at once.  Resamples whose system is singular (condition
     number above `MAX_POOLED_CONDITION`) are left out and not counted.
@@ -301,7 +308,10 @@ def bootstrap_covariance(
             "(pass n_bootstrap=0 for no uncertainty)"
         )
     rng = np.random.default_rng(seed)
-    weights = rng.multinomial(k, np.full(k, 1.0 / k), size=int(n_bootstrap)).astype(float)
+    draws = rng.integers(0, k, size=(int(n_bootstrap), k))  # k intervals per resample
+    rows = np.arange(int(n_bootstrap))[:, None] * k
+    weights = np.bincount((rows + draws).ravel(), minlength=draws.size)
+    weights = weights.reshape(draws.shape).astype(float)  # times each interval is drawn
     a = np.einsum("bk,kij->bij", weights, matrices)
     r = weights @ vectors
     ok = np.linalg.cond(a) < MAX_POOLED_CONDITION
