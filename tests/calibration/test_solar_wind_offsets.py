@@ -11,12 +11,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from fluxcal.calibration.mirror_mode_offsets import mirror_mode_offsets
-from fluxcal.calibration.variance_offsets import davis_smith_offsets, hedgecock_offsets
+from fluxcal.calibration.mirror_mode_offsets import (
+    mirror_mode_offsets,
+    mirror_mode_offsets_from_moments,
+)
+from fluxcal.calibration.solar_wind_offsets import concatenate_moments, field_moments
+from fluxcal.calibration.variance_offsets import (
+    davis_smith_offsets,
+    davis_smith_offsets_from_moments,
+    hedgecock_offsets,
+)
 from fluxcal.errors import FluxcalError, InputFormatError
 
 L_ALF = 600  # 10-min intervals at 1 Hz
@@ -309,3 +319,74 @@ def test_entry_points_importable_from_solar_wind_offsets():
     assert swo.davis_smith_offsets is davis_smith_offsets
     assert swo.hedgecock_offsets is hedgecock_offsets
     assert swo.mirror_mode_offsets is mirror_mode_offsets
+
+
+def test_mirror_mode_bootstrap_error_matches_scatter_over_seeds():
+    # As for Davis-Smith: 25 seeds x 3 components, std of error / SE within
+    # [0.65, 1.4] (> 4 sigma of its sampling error 1 / sqrt(150) = 0.08).
+    z = []
+    for seed in range(25):
+        rng = np.random.default_rng(2000 + seed)
+        offset = random_offset(rng)
+        est = mirror_mode_offsets(
+            mirror_modes(rng, 200) + offset, interval_length=120, seed=seed, n_bootstrap=300
+        )
+        z.append((est.offset - offset) / est.standard_error)
+    z = np.concatenate(z)
+    assert 0.65 < z.std() < 1.4, z.std()
+    assert abs(z.mean()) < 4 / np.sqrt(z.size)
+
+
+@pytest.mark.parametrize("kind", ["davis_smith", "mirror_mode"])
+def test_days_reduced_separately_join_exactly(kind):
+    # map-reduce: moments of three "days" (whole intervals each, own labels) joined
+    # give the same estimate as the whole series.
+    rng = np.random.default_rng(21)
+    offset = np.array([3.0, -1.0, 2.0])
+    if kind == "davis_smith":
+        b, length = with_gaps(rng, alfvenic(rng, 60) + offset), L_ALF
+        whole_fn, from_moments, squared = (
+            davis_smith_offsets,
+            davis_smith_offsets_from_moments,
+            True,
+        )
+    else:
+        b, length = mirror_modes(rng, 90) + offset, 120
+        whole_fn, from_moments, squared = (
+            mirror_mode_offsets,
+            mirror_mode_offsets_from_moments,
+            False,
+        )
+    labels = np.arange(b.shape[0]) // length
+    whole = whole_fn(b, labels, seed=4, n_bootstrap=100)
+    cuts = np.array_split(
+        np.arange(b.shape[0]),
+        [b.shape[0] // 3 // length * length, 2 * b.shape[0] // 3 // length * length],
+    )
+    parts = [field_moments(b[c], labels[c], squared=squared) for c in cuts]
+    joined = from_moments(concatenate_moments(parts), seed=4, n_bootstrap=100)
+    np.testing.assert_allclose(joined.offset, whole.offset, atol=1e-9)
+    np.testing.assert_allclose(joined.covariance, whole.covariance, rtol=1e-6)
+    np.testing.assert_array_equal(joined.labels, whole.labels)
+    with pytest.raises(InputFormatError, match="more than one part"):
+        concatenate_moments([parts[0], parts[0]])
+
+
+_SMALL = alfvenic(np.random.default_rng(31), 24, length=300) + np.array([2.0, -3.0, 1.0])
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    shift=st.tuples(*[st.floats(-50, 50)] * 3),
+    rotvec=st.tuples(*[st.floats(-3, 3)] * 3),
+)
+def test_davis_smith_is_rotation_and_translation_equivariant(shift, rotvec):
+    # Rotating the sensor frame rotates the offset; adding a constant adds it (both
+    # signs, any direction): the selection and the estimate do not depend on the frame.
+    rot = Rotation.from_rotvec(rotvec)
+    base = davis_smith_offsets(_SMALL, interval_length=300, n_bootstrap=0)
+    moved = davis_smith_offsets(
+        rot.apply(_SMALL) + np.array(shift), interval_length=300, n_bootstrap=0
+    )
+    np.testing.assert_allclose(moved.offset, rot.apply(base.offset) + np.array(shift), atol=1e-6)
+    np.testing.assert_array_equal(moved.reason, base.reason)

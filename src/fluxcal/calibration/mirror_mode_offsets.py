@@ -38,22 +38,24 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from fluxcal.calibration.solar_wind_offsets import (
+    IntervalMoments,
     OffsetEstimate,
     bootstrap_covariance,
     check_offset_guess,
     count_reasons,
+    field_moments,
     first_failure,
-    interval_moments,
     solve_pooled,
-    split_intervals,
 )
-from fluxcal.errors import FluxcalError
+from fluxcal.errors import FluxcalError, InputFormatError
 
-__all__ = ["mirror_mode_offsets"]
+__all__ = ["mirror_mode_offsets", "mirror_mode_offsets_from_moments"]
 
 
 def mirror_mode_offsets(
@@ -61,16 +63,12 @@ def mirror_mode_offsets(
     interval_index: ArrayLike | None = None,
     *,
     interval_length: int | None = None,
-    min_samples: int = 60,
-    min_linearity: float = 10.0,
-    min_relative_amplitude: float = 0.05,
-    max_angle_deg: float = 10.0,
-    offset_guess: ArrayLike | None = None,
-    max_selection_passes: int = 10,
-    n_bootstrap: int = 1000,
-    seed: int | np.random.Generator | None = None,
+    **options: Any,
 ) -> OffsetEstimate:
     """Offsets as the common point of the lines traced by compressive intervals.
+
+    ``field_moments(b, ...)`` followed by `mirror_mode_offsets_from_moments`, whose
+    keyword ``options`` it takes.
 
     Parameters
     ----------
@@ -80,6 +78,41 @@ def mirror_mode_offsets(
         Interval label per sample (negative: not used).  Or give ``interval_length``.
     interval_length : int, optional
         Consecutive blocks of this many samples as intervals.
+    **options
+        Selection criteria, ``offset_guess``, ``max_selection_passes``,
+        ``n_bootstrap``, ``seed`` of `mirror_mode_offsets_from_moments`.
+
+    Returns
+    -------
+    OffsetEstimate
+
+    References
+    ----------
+    .. [1] Plaschke and Narita (2016), Schmid et al. (2020) (see module).
+    """
+    moments = field_moments(b, interval_index, interval_length=interval_length)
+    return mirror_mode_offsets_from_moments(moments, **options)
+
+
+def mirror_mode_offsets_from_moments(
+    moments: IntervalMoments,
+    *,
+    min_samples: int = 60,
+    min_linearity: float = 10.0,
+    min_relative_amplitude: float = 0.05,
+    max_angle_deg: float = 10.0,
+    offset_guess: ArrayLike | None = None,
+    max_selection_passes: int = 10,
+    n_bootstrap: int = 1000,
+    seed: int | np.random.Generator | None = None,
+) -> OffsetEstimate:
+    """Mirror-mode offsets from per-interval moments of ``B``.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        From ``field_moments(b, ...)`` (not ``squared``), or several joined by
+        `concatenate_moments`.
     min_samples, min_linearity, min_relative_amplitude, max_angle_deg
         Selection criteria (module docstring); defaults and reasons in
         ``docs/decisions/solar_wind_offsets.md``.
@@ -112,10 +145,14 @@ def mirror_mode_offsets(
     ----------
     .. [1] Plaschke and Narita (2016), Schmid et al. (2020) (see module).
     """
-    bv, codes, labels = split_intervals(b, interval_index, interval_length)
+    m = moments
+    if m.mean.ndim != 2 or m.mean.shape[1] != 3:
+        raise InputFormatError(
+            f"expected moments of B, dimension 3, got {m.mean.shape}", field="moments"
+        )
     o = check_offset_guess(offset_guess)
-    k = labels.size
-    m = interval_moments(bv, codes, k)
+    k = m.count.size
+    labels = np.arange(k, dtype=np.int64) if m.labels is None else m.labels
     w, v = np.linalg.eigh(m.cov)
     e = v[:, :, 2]
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -12,9 +12,11 @@ geometry:
   through ``O`` (`fluxcal.calibration.mirror_mode_offsets`).
 
 This module holds what the methods share: the result type `OffsetEstimate`, the
-reduction of samples to per-interval moments (one vectorised pass, no loop per
-sample or per interval), the bookkeeping of rejected intervals and the bootstrap
-over intervals.  The three entry points are importable from here as well
+reduction of samples to per-interval moments (`field_moments`: one vectorised pass,
+no loop per sample or per interval), their exact joining across chunks
+(`concatenate_moments`, so Davis-Smith and mirror-mode offsets of a month run as a
+map-reduce over days), the bookkeeping of rejected intervals and the bootstrap over
+intervals.  The three entry points are importable from here as well
 (``from fluxcal.calibration.solar_wind_offsets import davis_smith_offsets``).
 
 Everything works in the units of the input (nT, or counts of a linear sensor).
@@ -50,7 +52,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from fluxcal.errors import FluxcalError, InputFormatError
 
-__all__ = ["IntervalMoments", "OffsetEstimate", "interval_moments", "split_intervals"]
+__all__ = [
+    "IntervalMoments",
+    "OffsetEstimate",
+    "concatenate_moments",
+    "field_moments",
+    "interval_moments",
+    "split_intervals",
+]
 
 #: A pooled 3x3 system with a larger condition number cannot fix all three offsets.
 MAX_POOLED_CONDITION = 1e6
@@ -120,11 +129,67 @@ class IntervalMoments:
     mean : ndarray, shape (k, d)
     cov : ndarray, shape (k, d, d)
         ``<(x - <x>)(x - <x>)^T>`` over the interval (divided by the count).
+    labels : ndarray of int64, shape (k,), optional
+        Interval labels (see `split_intervals`).
     """
 
     count: NDArray[np.float64]
     mean: NDArray[np.float64]
     cov: NDArray[np.float64]
+    labels: NDArray[np.int64] | None = None
+
+
+def field_moments(
+    b: ArrayLike,
+    interval_index: ArrayLike | None = None,
+    *,
+    interval_length: int | None = None,
+    squared: bool = False,
+) -> IntervalMoments:
+    """Reduce a field series to per-interval moments (the "map" step of a batch).
+
+    Parameters
+    ----------
+    b, interval_index, interval_length
+        As `split_intervals`.
+    squared : bool
+        Moments of ``(Bx, By, Bz, |B|^2)`` (what Davis-Smith needs) instead of
+        ``(Bx, By, Bz)`` (mirror mode).
+
+    Returns
+    -------
+    IntervalMoments
+        With ``labels``.  Moments of separate chunks (e.g. days) join exactly with
+        `concatenate_moments` when no interval spans two chunks (give each chunk its
+        own labels).
+    """
+    bv, codes, labels = split_intervals(b, interval_index, interval_length)
+    x = np.column_stack([bv, np.einsum("ij,ij->i", bv, bv)]) if squared else bv
+    m = interval_moments(x, codes, labels.size)
+    return IntervalMoments(count=m.count, mean=m.mean, cov=m.cov, labels=labels)
+
+
+def concatenate_moments(parts: list[IntervalMoments]) -> IntervalMoments:
+    """Join per-interval moments of several chunks (the "reduce" step).
+
+    Raises
+    ------
+    InputFormatError
+        Parts of different dimension, or a label that occurs in two parts.
+    """
+    if not parts or len({p.mean.shape[1] for p in parts}) != 1:
+        raise InputFormatError("expected parts of one dimension", field="parts")
+    labels = np.concatenate(
+        [np.arange(p.count.size) if p.labels is None else p.labels for p in parts]
+    )
+    if np.unique(labels).size != labels.size:
+        raise InputFormatError("an interval label occurs in more than one part", field="labels")
+    return IntervalMoments(
+        count=np.concatenate([p.count for p in parts]),
+        mean=np.concatenate([p.mean for p in parts]),
+        cov=np.concatenate([p.cov for p in parts]),
+        labels=labels.astype(np.int64),
+    )
 
 
 def split_intervals(
@@ -335,8 +400,10 @@ def __getattr__(name: str) -> Any:
     """Give the entry points from here as well (PEP 562, no import cycle)."""
     modules = {
         "davis_smith_offsets": "variance_offsets",
+        "davis_smith_offsets_from_moments": "variance_offsets",
         "hedgecock_offsets": "variance_offsets",
         "mirror_mode_offsets": "mirror_mode_offsets",
+        "mirror_mode_offsets_from_moments": "mirror_mode_offsets",
     }
     if name in modules:
         module = importlib.import_module(f"fluxcal.calibration.{modules[name]}")

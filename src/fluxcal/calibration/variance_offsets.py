@@ -51,23 +51,27 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from fluxcal.calibration.solar_wind_offsets import (
+    IntervalMoments,
     OffsetEstimate,
     bootstrap_covariance,
     check_offset_guess,
     count_reasons,
     eigenvalue_ratio,
+    field_moments,
     first_failure,
     interval_moments,
     solve_pooled,
     split_intervals,
 )
-from fluxcal.errors import FluxcalError
+from fluxcal.errors import FluxcalError, InputFormatError
 
-__all__ = ["davis_smith_offsets", "hedgecock_offsets"]
+__all__ = ["davis_smith_offsets", "davis_smith_offsets_from_moments", "hedgecock_offsets"]
 
 DEFAULT_MIN_SAMPLES = 60
 DEFAULT_MIN_EIGENVALUE_RATIO = 1e-3
@@ -98,16 +102,12 @@ def davis_smith_offsets(
     interval_index: ArrayLike | None = None,
     *,
     interval_length: int | None = None,
-    min_samples: int = DEFAULT_MIN_SAMPLES,
-    min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO,
-    min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE,
-    max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY,
-    offset_guess: ArrayLike | None = None,
-    max_selection_passes: int = 10,
-    n_bootstrap: int = 1000,
-    seed: int | np.random.Generator | None = None,
+    **options: Any,
 ) -> OffsetEstimate:
     """Offsets from Alfvenic fluctuations by the Davis-Smith least-squares method.
+
+    ``field_moments(b, ..., squared=True)`` followed by
+    `davis_smith_offsets_from_moments`, whose keyword ``options`` it takes.
 
     Parameters
     ----------
@@ -117,6 +117,41 @@ def davis_smith_offsets(
         Interval label per sample (negative: not used).  Or give ``interval_length``.
     interval_length : int, optional
         Consecutive blocks of this many samples as intervals.
+    **options
+        Selection criteria, ``offset_guess``, ``max_selection_passes``,
+        ``n_bootstrap``, ``seed`` of `davis_smith_offsets_from_moments`.
+
+    Returns
+    -------
+    OffsetEstimate
+
+    References
+    ----------
+    .. [1] Davis and Smith (1968); Leinweber et al. (2008), sec. 2-3 (see module).
+    """
+    moments = field_moments(b, interval_index, interval_length=interval_length, squared=True)
+    return davis_smith_offsets_from_moments(moments, **options)
+
+
+def davis_smith_offsets_from_moments(
+    moments: IntervalMoments,
+    *,
+    min_samples: int = DEFAULT_MIN_SAMPLES,
+    min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO,
+    min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE,
+    max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY,
+    offset_guess: ArrayLike | None = None,
+    max_selection_passes: int = 10,
+    n_bootstrap: int = 1000,
+    seed: int | np.random.Generator | None = None,
+) -> OffsetEstimate:
+    """Davis-Smith offsets from per-interval moments of ``(Bx, By, Bz, |B|^2)``.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        From ``field_moments(b, ..., squared=True)``, or several of those joined by
+        `concatenate_moments` (a month as a map-reduce over days).
     min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility
         Selection criteria (module docstring); defaults and reasons in
         ``docs/decisions/solar_wind_offsets.md``.
@@ -158,11 +193,14 @@ def davis_smith_offsets(
     ----------
     .. [1] Davis and Smith (1968); Leinweber et al. (2008), sec. 2-3 (see module).
     """
-    bv, codes, labels = split_intervals(b, interval_index, interval_length)
-    shift = check_offset_guess(offset_guess)
-    bs = bv - shift
-    k = labels.size
-    m = interval_moments(np.column_stack([bs, np.einsum("ij,ij->i", bs, bs)]), codes, k)
+    m = moments
+    if m.mean.ndim != 2 or m.mean.shape[1] != 4:
+        raise InputFormatError(
+            f"expected moments of (B, |B|^2), dimension 4, got {m.mean.shape}", field="moments"
+        )
+    k = m.count.size
+    labels = np.arange(k, dtype=np.int64) if m.labels is None else m.labels
+    guess = check_offset_guess(offset_guess)
     n, cov, cov_bsq = m.count, m.cov[:, :3, :3], m.cov[:, :3, 3]
     var_bsq, mean, mean_bsq = m.cov[:, 3, 3], m.mean[:, :3], m.mean[:, 3]
     trace = np.trace(cov, axis1=1, axis2=2)
@@ -200,7 +238,7 @@ def davis_smith_offsets(
     own = np.full((k, 3), np.nan)
     own[good] = 0.5 * np.linalg.solve(cov[good], cov_bsq[good][:, :, None])[:, :, 0]
     if offset_guess is not None:
-        o = np.zeros(3)
+        o = guess
     else:
         # consensus start: the interval solution under which most intervals pass
         # criterion 4 (a pooled start would be dragged by strong compressive intervals)
@@ -236,7 +274,7 @@ def davis_smith_offsets(
     )
     return OffsetEstimate(
         method="davis_smith",
-        offset=o + shift,
+        offset=o,
         standard_error=np.sqrt(np.diag(covariance)),
         covariance=covariance,
         n_used=int(use.sum()),
@@ -245,7 +283,7 @@ def davis_smith_offsets(
         labels=labels,
         accepted=use,
         reason=reason,
-        per_interval=own + shift,
+        per_interval=own,
         n_bootstrap=n_boot,
         iterations=passes,
         criteria=_criteria(
