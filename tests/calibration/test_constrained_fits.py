@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import curve_fit
 
 from fluxcal.calibration.binned_stats import superposed_epoch
@@ -393,3 +395,47 @@ def test_superposed_epoch_then_relaxation_recovers_forward_model(seed, tau, d0):
     assert abs(f.dt - 10.0) < 4 * f.dt_err, f
     flat = fit_relaxation(x, yy, w, prior_decay=False)
     assert abs(flat.amplitude - d0) > 4 * flat.amplitude_err
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    a0=st.floats(-500, 500),
+    b0=st.floats(-5, 5),
+    db=st.floats(0.2, 8) | st.floats(-8, -0.2),
+    frac=st.floats(0.0, 1.0),
+)
+def test_two_segment_noise_free_property(a0, b0, db, frac):
+    """Any break between the second and second-to-last bins, either kink sign: exact.
+
+    Noise-free data, so the only error is the optimiser's: 1e-6 absolute on the
+    coefficients (values of order 1e3) and 1e-6 C on the break.
+    """
+    t = np.arange(-65.0, 40.0, 10.0)
+    xm = t[1] + 0.2 + frac * (t[-2] - t[1] - 0.4)
+    b1 = b0 + db
+    a1 = a0 + (b0 - b1) * xm  # continuity at xm (eq. 4)
+    y = two_lines(t, a0, b0, a1, b1)
+    f = fit_two_segment(t, y, np.ones(t.size))
+    np.testing.assert_allclose([f.a0, f.b0, f.a1, f.b1], [a0, b0, a1, b1], atol=1e-6, rtol=1e-9)
+    np.testing.assert_allclose(f.x_m, xm, atol=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    tau=st.floats(300.0, 2000.0),
+    dt=st.floats(0.0, 30.0),
+    amp=st.floats(0.05, 2.0),
+    sign=st.sampled_from([-1.0, 1.0]),
+    y0=st.floats(-1.0, 1.0),
+)
+def test_relaxation_noise_free_property(tau, dt, amp, sign, y0):
+    """tau in 300..2000 s, delay 0..30 s, steps of both signs: recovered from exact data.
+
+    1e-4 relative on tau (the longest tau, 2000 s, over a 1000-s window has A and tau
+    strongly correlated, so the optimiser stops at ~1e-6 relative chi2 changes).
+    """
+    y = relax_model(LAG, y0, sign * amp, tau, dt)
+    f = fit_relaxation(LAG, y, None)
+    np.testing.assert_allclose(f.tau, tau, rtol=1e-4)
+    np.testing.assert_allclose(f.amplitude, sign * amp, rtol=1e-4)
+    np.testing.assert_allclose(f.dt, dt, atol=1e-2)

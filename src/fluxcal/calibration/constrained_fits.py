@@ -181,6 +181,41 @@ def _hinge_linear(
     return p, float(r @ r)
 
 
+def _polish_hinge(
+    x: np.ndarray,
+    y: np.ndarray,
+    w: np.ndarray,
+    start: tuple[float, float, float, float],
+    chi2: float,
+    lo: float,
+    hi: float,
+) -> tuple[float, float, float, float, float]:
+    """Refine ``(c, b0, b1, x_m)`` by least squares; keep the start if not better."""
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        u = x - p[3]
+        return (y - (p[0] + p[1] * np.minimum(u, 0.0) + p[2] * np.maximum(u, 0.0))) * w
+
+    def jac(p: np.ndarray) -> np.ndarray:
+        u = x - p[3]
+        below = u <= 0
+        cols = (np.ones_like(x), np.where(below, u, 0.0), np.where(below, 0.0, u),
+                np.where(below, -p[1], -p[2]))
+        return -np.column_stack(cols) * w[:, None]
+
+    p0 = np.array(start, dtype=np.float64)
+    if not hi > lo:
+        return (*start, chi2)
+    p0[3] = min(max(p0[3], lo), hi)
+    sol = least_squares(resid, p0, jac=jac, bounds=([-np.inf] * 3 + [lo], [np.inf] * 3 + [hi]),
+                        xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    r = resid(sol.x)
+    c2 = float(r @ r)
+    if c2 <= chi2:
+        return float(sol.x[0]), float(sol.x[1]), float(sol.x[2]), float(sol.x[3]), c2
+    return (*start, chi2)
+
+
 def fit_two_segment(
     x: np.ndarray,
     y: np.ndarray,
@@ -243,6 +278,9 @@ def fit_two_segment(
     )
     xm = float(res.x) if res.fun <= chi[i] else float(grid[i])
     (c, b0, b1), chi2 = _hinge_linear(x, y, w, xm)
+    # Brent on chi2 resolves x_m only to ~sqrt(eps); Gauss-Newton on the residuals
+    # (least_squares, x_m bounded to the same interval) takes it to ~eps.
+    c, b0, b1, xm, chi2 = _polish_hinge(x, y, w, (c, b0, b1, xm), chi2, lo, hi)
     u = x - xm
     below = u <= 0
     jac = np.column_stack(
