@@ -8,6 +8,11 @@ Input folder layout (one file per stream and day, day = UTC day of the recorded 
     MAGTMP_YYYYDDD.csv   sensor temperatures (previous and next day read when present)
     kernels.tm           meta-kernel (or ``--kernels``)
 
+or, when the folder holds ``edr_mapping.toml`` (`EDR_MAPPING`), archived MAG EDRs (PDS3
+labels + tables, any sub-folders) read through that mapping
+(`fluxcal.missions.messenger.edr.read_edr`; day D reads the science EDRs of D, the
+header and LAC EDRs of D-1 and D, the status EDRs of D-1..D+1).
+
 `simulate_days` writes this layout from the forward model (demos, tests, benchmarks).
 
 References
@@ -32,6 +37,8 @@ DAY_S = 86_400.0
 #: (fractions of the window): rate settings 10, 8, 6, 9, 10 (20, 5, 1, 10, 20 Hz).
 WINDOW_RATES = ((0.0, 10), (0.45, 8), (0.55, 6), (0.62, 9), (0.7, 10))
 WINDOW_COARSE = ((0.3, 0.38),)
+#: Name of the mapping file that makes an input folder an EDR folder (issue 14).
+EDR_MAPPING = "edr_mapping.toml"
 
 
 def day_file(folder: Path, stream: str, day: _dt.date) -> Path:
@@ -57,7 +64,27 @@ class MessengerDayTask:
     def _kernels(self) -> Path:
         return Path(self.kernels) if self.kernels else Path(self.input_dir) / "kernels.tm"
 
+    def _mapping(self) -> Path | None:
+        path = Path(self.input_dir) / EDR_MAPPING
+        return path if path.is_file() else None
+
+    def _edr_files(self, day: _dt.date) -> dict[str, list[Path]]:
+        """Return the EDR labels and tables day ``day`` reads, per kind (highest versions)."""
+        from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, select_files
+
+        mapping = load_mapping(self._mapping())
+        out: dict[str, list[Path]] = {}
+        for kind, offsets in DAY_OFFSETS.items():
+            days = [day + _dt.timedelta(days=k) for k in offsets]
+            labels = [f.path for f in select_files(self.input_dir, mapping, kind, days)]
+            out[kind] = labels + [p.with_suffix(".TAB") for p in labels
+                                  if p.with_suffix(".TAB").is_file()]
+        out["mapping"] = [mapping.path]
+        return out
+
     def _files(self, day: _dt.date) -> dict[str, list[Path]]:
+        if self._mapping() is not None:
+            return self._edr_files(day)
         one = _dt.timedelta(days=1)
         sci = [day_file(self.input_dir, "SCI", day)]
         heat = [p for p in (day_file(self.input_dir, "HTR", day - one),
@@ -91,11 +118,19 @@ class MessengerDayTask:
         from fluxcal.products.batch import DayResult, DayWithoutData, worker_kernel_pool
 
         files = self._files(day)
-        if not files["science"][0].exists():
+        if self._mapping() is not None:
+            from fluxcal.missions.messenger.edr import read_edr
+
+            if not files["science"]:
+                raise DayWithoutData(f"no science EDR of {day} in {self.input_dir}")
+            sci, heat, temp = read_edr(self.input_dir, self._mapping(), days=[day],
+                                       calibration_folder=self.calib)
+        elif not files["science"][0].exists():
             raise DayWithoutData(f"no science file {files['science'][0]}")
-        sci = read_science(files["science"])
-        heat = read_heater(files["heater"])
-        temp = read_temperature(files["temperature"])
+        else:
+            sci = read_science(files["science"])
+            heat = read_heater(files["heater"])
+            temp = read_temperature(files["temperature"])
         pool = worker_kernel_pool(self._kernels())
         paths = calibrate_and_write(
             sci, heat, temp, Path(self.out_dir),

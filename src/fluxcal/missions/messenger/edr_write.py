@@ -374,8 +374,9 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
     """Simulate MAG telemetry and write it as archive-style EDRs, with a filled mapping.
 
     Writes ``kernels/``, ``edr/`` (`write_edr_archive`: versions 1 (wrong) and 2 of
-    every day), ``edr_mapping.toml`` (the template with the simulation's temperature
-    conversion), and ``inputs/`` (the same streams as CSV, and the truth).  Sensor
+    every day, and ``edr/edr_mapping.toml``: the template with the simulation's
+    temperature conversion; the name `fluxcal batch messenger` recognises), and
+    ``inputs/`` (the same streams as CSV, and the truth).  Sensor
     temperatures are quantised to the conversion's 1/16 degC counts before both are
     written, so the EDR and CSV routes see the same numbers.
 
@@ -397,7 +398,8 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
         out / "kernels", start_utc, duration_s + 2 * config.lead_s,
         plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)],
     )
-    mapping = filled_mapping(template_path(), out / "edr_mapping.toml")
+    (out / "edr").mkdir(exist_ok=True)
+    mapping = filled_mapping(template_path(), out / "edr" / "edr_mapping.toml")
     c0, c1 = -150.0, 0.0625
     with KernelPool(mk):
         sclk = SclkKernel.from_pool(-236)
