@@ -30,7 +30,9 @@ from fluxcal.missions.rosetta.calib import DailyOffsetModel
 from fluxcal.missions.rosetta.fit import (
     fit_extended_model,
     fit_offset_jumps,
+    reduce_offset_jumps,
     reduced_temperature,
+    solve_offset_jumps,
     write_daily_model,
     write_offset_jump_table,
 )
@@ -348,6 +350,25 @@ def test_offset_jumps_recovered(pool, seed, tmp_path):
     assert np.array_equal(idx, second.astype(int))
 
 
+def test_offset_jump_reductions_merge_exactly(pool):
+    """Two files (days) reduced apart and solved together equal one reduction.
+
+    The split, 2014-08-03T00:00, is 96 blocks after the first interval's start, so both
+    ways make the same blocks: equal to float rounding.
+    """
+    from fluxcal.geometry.time import utc_to_tt2000
+
+    epoch, b_sc, rot, _, _ = simulate_jumps(1)
+    start, end = (np.array(c) for c in zip(*JUMP_INTERVALS, strict=True))
+    whole = fit_offset_jumps(epoch, b_sc, rot, start, end, sensor="IB")
+    cut = epoch < utc_to_tt2000(np.array(["2014-08-03T00:00:00"]))[0]
+    parts = [reduce_offset_jumps(epoch[m], b_sc[m], rot[m], start, end) for m in (cut, ~cut)]
+    merged = solve_offset_jumps(parts[::-1], start, end, sensor="IB")
+    np.testing.assert_allclose(merged.jumps, whole.jumps, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(merged.sigma, whole.sigma, rtol=1e-9)
+    assert np.array_equal(merged.n_samples, whole.n_samples) and merged.sensor == "IB"
+
+
 def test_offset_jumps_without_rotation_is_refused(pool):
     epoch, b_sc, rot, _, _ = simulate_jumps(0)
     fixed = np.broadcast_to(rot[0], rot.shape)
@@ -438,7 +459,7 @@ def test_cli_errors(day_fit, tmp_path, capsys):
     intervals = tmp_path / "intervals.csv"
     intervals.write_text("start_utc,end_utc\n2014-08-01T00:00:00,yesterday\n")
     from fluxcal.errors import InputFormatError
-    from fluxcal.missions.rosetta.fit import read_intervals_csv
+    from fluxcal.missions.rosetta.fit_run import read_intervals_csv
 
     with pytest.raises(InputFormatError, match="line 2, field 'end_utc'"):
         read_intervals_csv(intervals)

@@ -147,8 +147,9 @@ def calibrate(
 
 @app.command()
 def fit(
-    science: Path = typer.Option(
-        ..., "--science", help="Raw science CSV of one sensor (RO-IGEP-TR0028 sec. 4.1.2)."
+    science: list[Path] = typer.Option(
+        ..., "--science", help="Raw science CSV of one sensor (RO-IGEP-TR0028 sec. 4.1.2); "
+        "repeat for several files (days)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the fitted calibration files."),
@@ -190,9 +191,10 @@ def fit(
     RPCMAG_OFFSET_JUMPS.csv) that 'fluxcal rosetta calibrate --calib OUT' reads.
     """
     from fluxcal import preflight
-    from fluxcal.missions.rosetta.fit import fit_files
+    from fluxcal.missions.rosetta.fit_run import fit_files
 
-    preflight.plain_text_file(science, "--science")
+    for path in science:
+        preflight.plain_text_file(path, "--science")
     if hk is not None:
         preflight.plain_text_file(hk, "--hk")
     if calib is not None:

@@ -502,9 +502,63 @@ def fit_offset_jumps(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.4 and Appendix B (B.1, B.2).
     """
+    sensor = check_sensor(sensor)
+    start_utc, end_utc = np.asarray(start_utc, dtype=str), np.asarray(end_utc, dtype=str)
+    blocks = reduce_offset_jumps(epoch, b_sc, rotation, start_utc, end_utc, block_s=block_s,
+                                 lsk=lsk)
+    return solve_offset_jumps([blocks], start_utc, end_utc, sensor=sensor,
+                              max_sigma=max_sigma)
+
+
+@dataclass(frozen=True)
+class JumpBlocks:
+    """Block reduction of LEVEL_B data for the offset-jump fit (mergeable by concatenation).
+
+    Attributes
+    ----------
+    interval : ndarray of int, shape (b,)
+        Index of the interval each block belongs to.
+    count : ndarray, shape (b,)
+    mean : ndarray, shape (b, 12)
+        Block means of ``B_cseq`` (3) and of the s/c -> CSEQ matrix (9, row-major).
+    block_s : float
+    """
+
+    interval: np.ndarray
+    count: np.ndarray
+    mean: np.ndarray
+    block_s: float
+
+
+def interval_bounds(start_utc: np.ndarray, end_utc: np.ndarray, lsk=None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """TT2000 of the interval limits; `FluxcalError` unless sorted, disjoint, non-empty."""
     from fluxcal.geometry.time import utc_to_tt2000
 
-    sensor = check_sensor(sensor)
+    starts = utc_to_tt2000(np.asarray(start_utc, dtype=str), lsk)
+    ends = utc_to_tt2000(np.asarray(end_utc, dtype=str), lsk)
+    if (starts.size == 0 or np.any(ends <= starts) or np.any(np.diff(starts) <= 0)
+            or np.any(ends[:-1] > starts[1:])):
+        raise FluxcalError("offset jumps: intervals must be sorted, disjoint and non-empty")
+    return starts, ends
+
+
+def reduce_offset_jumps(
+    epoch: np.ndarray,
+    b_sc: np.ndarray,
+    rotation: np.ndarray,
+    start_utc: np.ndarray,
+    end_utc: np.ndarray,
+    *,
+    block_s: float = JUMP_BLOCK_S,
+    lsk=None,
+) -> JumpBlocks:
+    """Reduce one stretch of LEVEL_B data to the block means the jump fit needs.
+
+    Parameters as `fit_offset_jumps`.  Vectors outside every interval are ignored;
+    blocks start at each interval's first vector of this stretch, so reductions of
+    different days (files) concatenate into one fit (`solve_offset_jumps`).
+    """
     epoch = np.asarray(epoch, dtype=np.int64)
     b_sc = np.asarray(b_sc, dtype=float)
     rotation = np.asarray(rotation, dtype=float)
@@ -514,26 +568,61 @@ def fit_offset_jumps(
             f"offset jumps: shapes epoch {epoch.shape}, b_sc {b_sc.shape}, rotation "
             f"{rotation.shape}; expected (n,), (n, 3), (n, 3, 3)"
         )
-    start_utc, end_utc = np.asarray(start_utc, dtype=str), np.asarray(end_utc, dtype=str)
-    starts, ends = utc_to_tt2000(start_utc, lsk), utc_to_tt2000(end_utc, lsk)
-    if np.any(ends <= starts) or np.any(np.diff(starts) <= 0) or np.any(ends[:-1] > starts[1:]):
-        raise FluxcalError("offset jumps: intervals must be sorted, disjoint and non-empty")
+    starts, ends = interval_bounds(start_utc, end_utc, lsk)
     b_cseq = np.einsum("nij,nj->ni", rotation, b_sc)
     k = np.searchsorted(starts, epoch, side="right") - 1
     inside = (k >= 0) & (epoch < ends[np.maximum(k, 0)])
     m = starts.size
+    key = np.where(inside, k, m)
+    order = np.argsort(key, kind="stable")
+    bounds = np.searchsorted(key[order], np.arange(m + 1))
+    parts = []
+    for j in range(m):  # loop over intervals
+        sel = order[bounds[j]: bounds[j + 1]]
+        if sel.size == 0:
+            continue
+        values = np.concatenate([b_cseq[sel], rotation[sel].reshape(-1, 9)], axis=1)
+        count, mean, _ = block_means(epoch[sel], values, block_s)
+        parts.append((np.full(count.size, j), count, mean))
+    if not parts:
+        return JumpBlocks(np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12)), float(block_s))
+    return JumpBlocks(*(np.concatenate(c) for c in zip(*parts, strict=True)), float(block_s))
+
+
+def solve_offset_jumps(
+    blocks: list[JumpBlocks],
+    start_utc: np.ndarray,
+    end_utc: np.ndarray,
+    *,
+    sensor: str,
+    max_sigma: float | None = JUMP_MAX_SIGMA,
+) -> OffsetJumpFit:
+    """Solve the jump model of `fit_offset_jumps` from block reductions (any number).
+
+    Raises
+    ------
+    FluxcalError
+        An interval without data, too few blocks, a rank-deficient design, a sigma above
+        ``max_sigma``, reductions with different block lengths.
+    """
+    sensor = check_sensor(sensor)
+    start_utc, end_utc = np.asarray(start_utc, dtype=str), np.asarray(end_utc, dtype=str)
+    if len({b.block_s for b in blocks}) > 1:
+        raise FluxcalError("offset jumps: reductions with different block lengths")
+    interval = np.concatenate([b.interval for b in blocks]) if blocks else np.zeros(0, int)
+    count_all = np.concatenate([b.count for b in blocks]) if blocks else np.zeros(0)
+    mean_all = np.concatenate([b.mean for b in blocks]) if blocks else np.zeros((0, 12))
+    block_s = blocks[0].block_s if blocks else JUMP_BLOCK_S
+    m = start_utc.size
     jumps, sigma = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
     mean_field, rms = np.full((m, 2), np.nan), np.full(m, np.nan)
     n_blocks, n_samples = np.zeros(m, dtype=int), np.zeros(m, dtype=int)
-    order = np.argsort(np.where(inside, k, m), kind="stable")
-    bounds = np.searchsorted(np.where(inside, k, m)[order], np.arange(m + 1))
     for j in range(m):  # loop over intervals
-        sel = order[bounds[j]: bounds[j + 1]]
         what = f"offset jump {sensor} {start_utc[j]} .. {end_utc[j]}"
-        if sel.size == 0:
+        rows = interval == j
+        if not rows.any():
             raise FluxcalError(f"{what}: no vectors in the interval (leave it out)")
-        values = np.concatenate([b_cseq[sel], rotation[sel].reshape(-1, 9)], axis=1)
-        count, mean, _ = block_means(epoch[sel], values, block_s)
+        count, mean = count_all[rows], mean_all[rows]
         rot = mean[:, 3:].reshape(-1, 3, 3)
         nb = count.size
         # unknowns: J_x, J_y, J_z, m_x, m_y; three equations per block
@@ -549,11 +638,12 @@ def fit_offset_jumps(
                 f"{what}: the jump is determined only to sigma "
                 + " ".join(f"{v:.3g}" for v in sigma[j])
                 + f" nT (limit {max_sigma:g} nT): the attitude does not vary enough in "
-                f"{sel.size} vectors; use a longer interval or raise the limit (--max-sigma)"
+                f"{int(count.sum())} vectors; use a longer interval or raise the limit "
+                "(--max-sigma)"
             )
         mean_field[j] = q[3:]
         rms[j] = np.sqrt(np.sum(np.repeat(count, 3) * r**2) / (3 * np.sum(count)))
-        n_blocks[j], n_samples[j] = nb, sel.size
+        n_blocks[j], n_samples[j] = nb, int(count.sum())
     return OffsetJumpFit(sensor, start_utc, end_utc, jumps, sigma, mean_field, rms,
                          n_blocks, n_samples, float(block_s))
 
@@ -614,160 +704,3 @@ def write_offset_jump_table(
     path = Path(path)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
-
-
-# ----------------------------------------------------------------------------------------
-# File driver of ``fluxcal rosetta fit``
-# ----------------------------------------------------------------------------------------
-def read_intervals_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read ``start_utc,end_utc`` rows (``#`` comments allowed; extra columns ignored).
-
-    Raises
-    ------
-    InputFormatError
-        Missing column or a time that is not ISO UTC, naming file, line and field.
-    """
-    import csv
-
-    from fluxcal.errors import InputFormatError
-
-    path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as exc:
-        raise InputFormatError(f"cannot read: {exc.strerror}", path=str(path)) from None
-    numbered = [(i, s) for i, s in enumerate(lines, 1) if s.strip() and not s.startswith("#")]
-    if not numbered:
-        raise InputFormatError("no header line start_utc,end_utc", path=str(path))
-    reader = csv.DictReader([s for _, s in numbered])
-    for name in ("start_utc", "end_utc"):
-        if name not in (reader.fieldnames or []):
-            raise InputFormatError(f"missing column {name} (header {reader.fieldnames})",
-                                   path=str(path), line=numbered[0][0], field=name)
-    start, end = [], []
-    for (line, _), row in zip(numbered[1:], reader, strict=True):
-        for name, out in (("start_utc", start), ("end_utc", end)):
-            try:
-                out.append(str(np.datetime64(str(row[name]).strip(), "s")))
-            except ValueError:
-                raise InputFormatError(f"{row[name]!r} is not an ISO UTC time", path=str(path),
-                                       line=line, field=name) from None
-    if not start:
-        raise InputFormatError("no intervals", path=str(path))
-    return np.array(start), np.array(end)
-
-
-def fit_files(
-    science: Path,
-    sensor: str,
-    out: Path,
-    *,
-    hk_file: Path | None = None,
-    calib_dir: Path | None = None,
-    kernels: Path | None = None,
-    primary: str = "OB",
-    degree: int = DEFAULT_DEGREE,
-    block_s: float | None = None,
-    jumps: bool = False,
-    intervals: Path | None = None,
-    max_sigma: float | None = JUMP_MAX_SIGMA,
-    boom: str = "deployed",
-    alignment_from_kernels: bool = False,
-) -> list[Path]:
-    """Run ``fluxcal rosetta fit``: raw science CSV in, calibration files out.
-
-    Without ``jumps``: one daily extended-temperature file per UTC day of the telemetry
-    time (the day the pipeline applies it to, `extended_model.utc_days`), fitted on the
-    ground-calibrated LEVEL_A of that day (daily files in ``calib_dir`` are not applied:
-    the fit is of the residual after the ground calibration).  With ``jumps``: LEVEL_B as
-    ``rosetta calibrate`` makes it (daily files of ``calib_dir`` applied, *no* jump
-    table), rotated to CSEQ with the loaded kernels, fitted per interval of ``intervals``
-    (CSV ``start_utc,end_utc``) or, by default, of the jump table (``calib_dir`` or
-    fluxcal's) that overlap the data; written as ``RPCMAG_OFFSET_JUMPS.csv``.
-
-    ``hk_file`` is read (checked) and recorded as an input; the temperatures come from
-    the science records' thermistor words (sec. 4.1.2), at the vector rate.
-
-    Returns
-    -------
-    list of Path
-        Files written.
-
-    Raises
-    ------
-    FluxcalError
-        Every input, calibration and fit error (naming file, line, field, day, interval).
-    """
-    import contextlib
-
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import SclkKernel, leapseconds
-    from fluxcal.missions.rosetta import calib, io, level_a, level_b
-
-    sensor = check_sensor(sensor)
-    out = Path(out)
-    if jumps and kernels is None:
-        raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame)")
-    scope = KernelPool(kernels) if kernels is not None or jumps else KernelPool()
-    with contextlib.ExitStack() as stack:
-        pool = stack.enter_context(scope)
-        lsk = leapseconds()
-        sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
-        cal = calib.load_ground_calibration(sensor, calib_dir)
-        shifts = calib.load_time_shift_table(calib_dir)
-        nominal = calib.load_nominal_conversion(calib_dir)
-        raw = io.read_science_csv(science, sensor, sclk=sclk, lsk=lsk)
-        if hk_file is not None:
-            io.read_hk_csv(hk_file, sclk=sclk, lsk=lsk)
-        prov = {
-            "inputs": " ".join(str(p) for p in [science, hk_file] if p is not None),
-            "ground calibration": cal.source,
-            "kernels": " ".join(str(k) for k in pool.loaded) if kernels is not None else "LSK",
-        }
-        out.mkdir(parents=True, exist_ok=True)
-        if not jumps:
-            day_index, days, _ = level_a.utc_days(raw["epoch"].values, lsk)
-            written = []
-            for d, day in enumerate(days):  # loop over days
-                sel = np.flatnonzero(day_index == d)
-                if sel.size == 0:
-                    continue
-                a = level_a.level_a(raw.isel(time=sel), cal, shifts, nominal, primary=primary,
-                                    lsk=lsk)
-                fit = fit_extended_model(a, reduced_temperature(a, cal), degree=degree,
-                                         block_s=block_s or MODEL_BLOCK_S, day=day)
-                written.append(write_daily_model(fit, out, provenance=prov))
-            return written
-        from fluxcal.geometry.frames import rotate
-        from fluxcal.geometry.time import tt2000_to_et, tt2000_to_utc
-        from fluxcal.missions.rosetta.level_c import FRAMES, SPACECRAFT_FRAME
-
-        models = calib.find_daily_offset_models(calib_dir, sensor)
-        a = level_a.level_a(raw, cal, shifts, nominal, daily_models=models, primary=primary,
-                            lsk=lsk)
-        alignment = None if alignment_from_kernels else calib.load_alignment(calib_dir)
-        b = level_b.level_b(a, alignment, None, boom=boom, lsk=lsk)
-        epoch = b["epoch"].values.astype(np.int64)
-        if intervals is not None:
-            start, end = read_intervals_csv(intervals)
-        else:
-            table = calib.load_offset_jump_table(calib_dir)
-            first, last = (np.datetime64(str(s)[:19], "s")
-                           for s in tt2000_to_utc(epoch[[0, -1]], digits=0, lsk=lsk))
-            s_all = table.start_utc.astype("M8[s]")
-            e_all = table.end_utc.astype("M8[s]")
-            use = (e_all > first) & (s_all <= last)
-            if not use.any():
-                raise FluxcalError(
-                    f"{science}: no interval of {table.source} overlaps the data "
-                    f"({first} .. {last}); give --intervals CSV"
-                )
-            start, end = table.start_utc[use], table.end_utc[use]
-            prov["intervals"] = table.source
-        _, rotation = rotate(b["b"].values, tt2000_to_et(epoch, lsk), SPACECRAFT_FRAME,
-                             FRAMES["CSEQ"], return_matrices=True)
-        fit = fit_offset_jumps(epoch, b["b"].values, rotation, start, end, sensor=sensor,
-                               block_s=block_s or JUMP_BLOCK_S, max_sigma=max_sigma, lsk=lsk)
-        prov["alignment"] = b.attrs["alignment"]
-        prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
-        return [write_offset_jump_table([fit], out / calib.JUMPS_FILE, provenance=prov)]
