@@ -337,3 +337,22 @@ def test_superposed_epoch_max_gap_keeps_only_covered_windows(seed, max_gap):
     want = superposed_epoch(t, v, events[np.array(covered, bool)], lag_edges)
     np.testing.assert_array_equal(got.count, want.count)
     np.testing.assert_allclose(got.mean(), want.mean(), rtol=1e-12, equal_nan=True)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    e0=st.sampled_from([-70.0, 0.0, 0.3, -200.5]),
+    step=st.sampled_from([0.1, 1.0, 4.0 / 3.0, 10.0, 40.0]),
+    n_bins=st.integers(1, 30),
+    picks=st.lists(st.integers(-3, 33), min_size=1, max_size=40),
+    jitter=st.lists(st.sampled_from([0.0, 1e-12, -1e-12, 0.5, -0.5]), min_size=40,
+                    max_size=40),
+)
+def test_uniform_edge_fast_path_matches_definition(e0, step, n_bins, picks, jitter):
+    """Floor-based bin index == the half-open definition, also exactly on edges."""
+    edges = e0 + step * np.arange(n_bins + 1)
+    x = np.array([e0 + step * p + jitter[k] * step for k, p in enumerate(picks)])
+    x = np.concatenate((x, edges, [np.nan, np.inf, -np.inf]))
+    m = BinnedMoments.accumulate(x, np.ones(x.size), edges)
+    want = [sum(1 for v in x if edges[i] <= v < edges[i + 1]) for i in range(n_bins)]
+    np.testing.assert_array_equal(m.count, want)

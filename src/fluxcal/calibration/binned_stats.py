@@ -12,8 +12,9 @@ Numerics
 Sums of squares of values with a large common offset cancel catastrophically when the
 variance is formed (``S2/n - (S1/n)**2``).  Every `BinnedMoments` therefore stores a
 per-component reference ``shift`` and accumulates ``v - shift``.  By default the shift
-is the mean of the finite samples of the first reduction; merging two reductions with
-different shifts re-expresses the smaller about the larger's shift exactly in algebra
+is the median of the first (up to) 1024 samples kept by that reduction; merging two
+reductions with different shifts re-expresses the smaller about the larger's shift
+exactly in algebra
 (``sum (v-a) = sum (v-b) + n (b-a)``, ``sum (v-a)**2 = sum (v-b)**2 + 2 (b-a) sum (v-b)
 + n (b-a)**2``), which loses nothing measurable because both shifts lie within the data.
 A caller that wants bit-for-bit reproducible merges passes one fixed ``shift`` to every
@@ -196,8 +197,9 @@ class BinnedMoments:
         edges : ndarray, shape (n_bins + 1,)
             Strictly increasing bin edges.
         shift : float or ndarray (n_comp,), optional
-            Reference subtracted before summing.  Default: the mean of the samples kept
-            (0 where none).
+            Reference subtracted before summing.  Default: the median of the first
+            (up to) 1024 samples kept, per component (0 where none): within a few
+            standard deviations of the bin means, which is all the shifted sums need.
         label, units, value_units : str
             Metadata carried to `to_dataset`.
 
@@ -212,21 +214,22 @@ class BinnedMoments:
         values = _as_values(values, x.size)
         n_bins = edges.size - 1
         n_comp = values.shape[1]
-        idx = np.searchsorted(edges, x, side="right") - 1
-        keep = (idx >= 0) & (idx < n_bins) & np.isfinite(x) & np.all(np.isfinite(values), axis=1)
-        idx = idx[keep]
-        kept = values[keep]
+        # invalid samples (outside, NaN x or any NaN component) go to a dump bin n_bins,
+        # dropped after the bincounts: no copy of the kept values is made
+        idx = _bin_index(edges, x)
+        for k in range(n_comp):  # components (a handful), never samples
+            idx[~np.isfinite(values[:, k])] = n_bins
         if shift is None:
-            shift_arr = kept.mean(axis=0) if kept.shape[0] else np.zeros(n_comp)
+            shift_arr = _default_shift(values, idx < n_bins)
         else:
             shift_arr = np.broadcast_to(np.asarray(shift, dtype=np.float64), (n_comp,)).copy()
-        count = np.bincount(idx, minlength=n_bins).astype(np.int64)
+        count = np.bincount(idx, minlength=n_bins + 1)[:n_bins].astype(np.int64)
         total = np.empty((n_bins, n_comp))
         total_sq = np.empty((n_bins, n_comp))
-        for k in range(n_comp):  # components (a handful), never samples
-            d = kept[:, k] - shift_arr[k]
-            total[:, k] = np.bincount(idx, weights=d, minlength=n_bins)
-            total_sq[:, k] = np.bincount(idx, weights=d * d, minlength=n_bins)
+        for k in range(n_comp):
+            d = values[:, k] - shift_arr[k]
+            total[:, k] = np.bincount(idx, weights=d, minlength=n_bins + 1)[:n_bins]
+            total_sq[:, k] = np.bincount(idx, weights=d * d, minlength=n_bins + 1)[:n_bins]
         return cls(
             edges=edges,
             count=count,
@@ -377,6 +380,38 @@ class BinnedMoments:
             units=str(ds.attrs.get("units", "")),
             value_units=str(ds.attrs.get("value_units", "")),
         )
+
+
+def _bin_index(edges: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Bin of each ``x`` in half-open ``[edges[i], edges[i+1])``; ``n_bins`` if outside/NaN.
+
+    Uniform edges take ``floor`` plus a one-step correction against the edges
+    themselves (same result as ``searchsorted``, ~5x faster); others ``searchsorted``.
+    """
+    n_bins = edges.size - 1
+    step = np.diff(edges)
+    if np.allclose(step, step[0], rtol=1e-9, atol=0.0):
+        with np.errstate(invalid="ignore"):
+            f = np.floor((x - edges[0]) / step[0])
+        i = np.clip(np.where(np.isfinite(f), f, 0.0), 0, n_bins - 1).astype(np.intp)
+        i -= x < edges[i]
+        np.clip(i, 0, n_bins - 1, out=i)
+        i += x >= edges[i + 1]
+        np.clip(i, 0, n_bins - 1, out=i)
+        inside = (x >= edges[0]) & (x < edges[-1])
+        return np.where(inside, i, n_bins)
+    i = np.searchsorted(edges, x, side="right") - 1  # NaN sorts last: i = n_bins
+    return np.where((i >= 0) & (i < n_bins), i, n_bins)
+
+
+def _default_shift(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Median of the first (up to) 1024 valid samples, per component; 0 if none."""
+    head = np.flatnonzero(valid[: 1 << 16])
+    if head.size == 0:
+        head = np.flatnonzero(valid)
+    if head.size == 0:
+        return np.zeros(values.shape[1])
+    return np.median(values[head[:1024]], axis=0)
 
 
 def _sorted_time(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
