@@ -451,6 +451,8 @@ def test_cli_errors(day_fit, tmp_path, capsys):
     code, err = _cli(base + ["--science", str(short)], capsys)  # 1 h of data
     assert code == 2 and len(err) == 1 and "short.csv" in err[0] and "2009-11-13" in err[0]
     assert not (tmp_path / "o").exists()  # nothing left behind
+    code, err = _cli(base + ["--science", str(short), "--science", str(short)], capsys)
+    assert code == 2 and len(err) == 1 and "also in" in err[0] and "2009-11-13" in err[0]
     bad = tmp_path / "bad.csv"
     bad.write_text("time_utc,obt,sid,bx,by,bz,t_ob,t_ib,quality\n"
                    "2009-11-13T00:00:00.000000,1.0,2,x,0,0,0,0,0\n")

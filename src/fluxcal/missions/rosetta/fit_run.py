@@ -137,7 +137,7 @@ def fit_files(
         }
         out.mkdir(parents=True, exist_ok=True)
         if not jumps:
-            fits, seen = [], {}
+            pieces, seen = [], {}
             for path, raw in zip(files, raws, strict=True):
                 day_index, days, _ = level_a.utc_days(raw["epoch"].values, lsk)
                 for d, day in enumerate(days):  # loop over days
@@ -150,11 +150,13 @@ def fit_files(
                             "day's records in one file (one fit per day, sec. 4.2.3.3)"
                         )
                     seen[day] = path
-                    a = level_a.level_a(raw.isel(time=sel), cal, shifts, nominal,
-                                        primary=primary, lsk=lsk)
-                    fits.append(fit_extended_model(
-                        a, reduced_temperature(a, cal), degree=degree,
-                        block_s=block_s or MODEL_BLOCK_S, day=day))
+                    pieces.append((day, raw.isel(time=sel)))
+            fits = []
+            for day, part in pieces:
+                a = level_a.level_a(part, cal, shifts, nominal, primary=primary, lsk=lsk)
+                fits.append(fit_extended_model(
+                    a, reduced_temperature(a, cal), degree=degree,
+                    block_s=block_s or MODEL_BLOCK_S, day=day))
             return [write_daily_model(f, out, provenance=prov) for f in fits]
         return [_fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov,
                            calib_dir=calib_dir, primary=primary, block_s=block_s or JUMP_BLOCK_S,
