@@ -206,6 +206,18 @@ class BinnedMoments:
         Returns
         -------
         BinnedMoments
+
+        Examples
+        --------
+        Two days reduced separately merge to the reduction of both:
+
+        >>> import numpy as np
+        >>> edges = np.array([-60.0, -50.0, -40.0])
+        >>> day1 = BinnedMoments.accumulate([-55.0, -45.0], [400.0, 410.0], edges)
+        >>> day2 = BinnedMoments.accumulate([-52.0, np.nan], [402.0, 1.0], edges)
+        >>> both = day1 + day2
+        >>> both.count.tolist(), both.mean()[:, 0].tolist()
+        ([2, 1], [401.0, 410.0])
         """
         edges = _as_edges(edges)
         x = np.asarray(x, dtype=np.float64)
@@ -473,6 +485,17 @@ def superposed_epoch(
     -------
     BinnedMoments
         Over lag.
+
+    Examples
+    --------
+    A unit step up and a step of -2 down, normalised by ``1/delta``, combine:
+
+    >>> import numpy as np
+    >>> t = np.arange(0.0, 40.0)
+    >>> v = np.where(t < 10, 0.0, 1.0) + np.where(t < 30, 0.0, -2.0)
+    >>> e = superposed_epoch(t, v, [10.0, 30.0], [-4.0, 0.0, 4.0], weights=[1.0, -0.5])
+    >>> e.mean()[:, 0].tolist()
+    [-0.25, 0.75]
 
     Notes
     -----
