@@ -54,6 +54,7 @@ import pvl
 import xarray as xr
 from pvl.collections import Quantity
 
+from fluxcal.archive.fixedparse import parse_ints, parse_reals, pow10
 from fluxcal.errors import InputFormatError
 
 __all__ = [
@@ -548,8 +549,8 @@ def _first_bad(text: np.ndarray, convert: Any) -> int:
 
 def _ascii_values(field: np.ndarray, col: _Column, lay: _Layout) -> np.ndarray:
     width = field.shape[-1]
-    text = np.ascontiguousarray(field).view(f"S{width}")[..., 0]
     if col.data_type in _TEXT:
+        text = np.ascontiguousarray(field).view(f"S{width}")[..., 0]
         try:
             return np.char.strip(text).astype(str)
         except UnicodeDecodeError as exc:
@@ -557,15 +558,21 @@ def _ascii_values(field: np.ndarray, col: _Column, lay: _Layout) -> np.ndarray:
                        column=col.name) from exc
     as_int = col.data_type in _ASCII_INT
     dtype, convert = (np.int64, int) if as_int else (np.float64, float)
-    try:
-        return text.astype(dtype)
-    except ValueError:
-        flat = text.reshape(-1)
-        i = _first_bad(flat, convert)
-        row = i // text.shape[1] + 1
-        what = "an integer" if as_int else "a number"
-        raise _err(f"row {row}: {flat[i].decode('ascii', 'replace').strip()!r} is not {what} "
-                   f"({col.data_type})", lay.data_path, lay.record(row), col.name) from None
+    flat = field.reshape(-1, width)
+    values, ok = parse_ints(flat) if as_int else parse_reals(flat, pow10())
+    if not ok.all():  # rows off the compiled fast path: numpy's exact parser
+        slow = np.flatnonzero(~ok)
+        slow_text = np.ascontiguousarray(flat[slow]).view(f"S{width}")[:, 0]
+        try:
+            values[slow] = slow_text.astype(dtype)
+        except ValueError:
+            i = int(slow[_first_bad(slow_text, convert)])
+            row = i // field.shape[1] + 1
+            what = "an integer" if as_int else "a number"
+            bad = bytes(flat[i]).decode("ascii", "replace").strip()
+            raise _err(f"row {row}: {bad!r} is not {what} ({col.data_type})", lay.data_path,
+                       lay.record(row), col.name) from None
+    return values.reshape(field.shape[:-1])
 
 
 def _binary_values(field: np.ndarray, col: _Column) -> np.ndarray:
@@ -613,6 +620,7 @@ def read_table(
     *,
     columns: Sequence[str] | None = None,
     required: Sequence[str] = (),
+    label: Mapping[str, Any] | None = None,
 ) -> xr.Dataset:
     """Read one PDS3 table, as its label describes it, into an xarray Dataset.
 
@@ -628,6 +636,9 @@ def read_table(
         Read only these columns (label names), in this order; default all.
     required : sequence of str
         Column names that must be in the label.
+    label : mapping, optional
+        The label of ``label_path`` already parsed by `read_label` (parsed again when
+        not given; pvl takes a sizeable fraction of a second per label).
 
     Returns
     -------
@@ -647,7 +658,8 @@ def read_table(
     PDS3 Standards Reference, ch. 5 (pointers), ch. 15 (TABLE, COLUMN), Appendix C.
     """
     label_path = find_label(label_path)
-    label = read_label(label_path)
+    if label is None:
+        label = read_label(label_path)
     lay = _layout(label, label_path, table)
     by_name = {c.name: c for c in lay.columns}
     wanted = list(required) + [n for n in (columns or ()) if n not in required]

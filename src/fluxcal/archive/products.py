@@ -280,7 +280,7 @@ def read_product(path: Path | str) -> xr.Dataset:
 
     label_path = find_label(path)
     label = read_label(label_path)
-    table = read_table(label_path)
+    table = read_table(label_path, label=label)
     try:
         mission = identify([str(n) for n in table.data_vars])
     except InputFormatError as exc:
