@@ -101,7 +101,7 @@ def load_mapping(path: str | Path) -> EdrMapping:
         pattern without the ``yyddd``/``version`` groups, a partition with neither a
         column nor ``from_label``, ``counts`` without one vector or three columns, a
         non-positive ``delta_ts.unit_s``, and a missing or malformed temperature
-        conversion (required: the seed gives none).
+        conversion (required: the procedure document gives none).
     """
     path = Path(path)
     try:
@@ -163,9 +163,10 @@ def _check_field(path: Path, kind: str, name: str, spec: Any) -> None:
 
 def _check_conversion(path: Path, conv: Any) -> None:
     entry = "status.temperature.conversion"
-    missing = ("no conversion of the raw temperature counts to degC is declared (the seed "
-               "gives none): set kind = 'polynomial' with coefficients = [c0, c1, ...] or "
-               "kind = 'table' with counts and degc, from the MAG EDR SIS")
+    missing = ("no conversion of the raw temperature counts to degC is declared (the "
+               "MESSENGER MAG EDR-to-CDR Processing document gives none): set kind = "
+               "'polynomial' with coefficients = [c0, c1, ...] or kind = 'table' with "
+               "counts and degc, from the MAG EDR SIS")
     if not isinstance(conv, dict):
         raise _mapping_error(path, entry, missing)
     kind = conv.get("kind")

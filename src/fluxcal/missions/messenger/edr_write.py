@@ -355,7 +355,7 @@ def filled_mapping(template: str | Path, out: str | Path,
                    coefficients: Sequence[float] = (-150.0, 0.0625)) -> Path:
     """Copy the mapping template with a simulation's temperature conversion declared.
 
-    The template has no conversion (the seed gives none); the simulator declares its
+    The template has no conversion (the procedure document gives none); the simulator declares its
     own (default ``degC = -150 + n / 16``) so its EDRs can be read back.
     """
     text = Path(template).read_text(encoding="utf-8")
