@@ -473,7 +473,7 @@ def _read_bytes(label: Mapping[str, Any], lay: _Layout) -> np.ndarray:
                    f"({size} bytes, the label needs {need}); column {col.name} is cut",
                    lay.data_path, lay.record(row), col.name)
     extra = size - need
-    if extra and lay.data_path != lay.label_path and not _other_pointers_after(label, lay):
+    if extra and not _other_pointers_after(label, lay):
         if extra % lay.stride == 0:
             raise _err(f"wrong row count: the file holds {lay.rows + extra // lay.stride} "
                        f"rows of {lay.stride} bytes, the label says ROWS = {lay.rows}",
