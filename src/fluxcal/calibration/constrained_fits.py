@@ -6,8 +6,8 @@
   d = 0 held at ``c_T(-50 C)``; Table 3 form ``C0, D0``).
 * `fit_relaxation`: exponential relaxation after a (delayed) step, fitted to a normalised
   superposed epoch of duty-cycle changes (sec. 7, tau = 872 s).
-* `fit_periodic_spline`: a smoothing cubic spline of a periodic waveform (sec. 6,
-  Appendix Tables 6-8, evaluated on t = 0..100 s).
+* `fit_periodic_spline`: a periodic smoothing cubic spline of a waveform (sec. 6,
+  Appendix Tables 6-8, evaluated on t = 0..100 s), smoothing by GCV.
 
 Weights
 -------
@@ -27,10 +27,12 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import BSpline, make_smoothing_spline
+from scipy.interpolate import BSpline
+from scipy.linalg import cholesky, eigh, solve_triangular
 from scipy.optimize import least_squares, minimize_scalar
 
 from fluxcal.errors import FluxcalError, InputFormatError
@@ -639,24 +641,29 @@ def fit_relaxation(
 # -------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class PeriodicSplineFit:
-    """A smoothing cubic spline of a periodic waveform.
+    """A periodic smoothing cubic spline of a waveform over one cycle.
 
     Attributes
     ----------
     period : float
         Period (s).
     spline : scipy.interpolate.BSpline
-        Spline fitted over three tiled periods; evaluate through `__call__`, which
-        folds the argument into ``[0, period)``.
+        The fitted curve, ``extrapolate="periodic"`` (any time folds into the cycle);
+        value, slope and curvature are continuous across the wrap.
     lam : float
-        Smoothing parameter of ``scipy.interpolate.make_smoothing_spline``.
+        Smoothing parameter: the fit minimises ``sum w^2 r^2 / mean(w^2) +
+        lam * integral over one period of f''^2``.
+    n_knots : int
+        Uniform knots over one period (also the number of free coefficients).
+    coef_cov : ndarray, shape (n_knots, n_knots)
+        Covariance of the periodic coefficients (scaled by chi2/dof unless
+        ``absolute_weights``).
     phase : ndarray, shape (n,)
         The data phases (folded into ``[0, period)``, sorted).
     value_err : ndarray, shape (n,)
-        Standard error of the fitted curve at ``phase`` (linear propagation through the
-        smoother; scaled by chi2/dof unless ``absolute_weights``).
+        Standard error of the fitted curve at ``phase``.
     chi2 : float
-        ``sum (w r)**2`` over one period of data.
+        ``sum (w r)**2``.
     dof : float
         ``n - trace(S)``, the effective residual degrees of freedom of the smoother.
     """
@@ -664,6 +671,8 @@ class PeriodicSplineFit:
     period: float
     spline: BSpline
     lam: float
+    n_knots: int
+    coef_cov: np.ndarray
     phase: np.ndarray
     value_err: np.ndarray
     chi2: float
@@ -671,13 +680,55 @@ class PeriodicSplineFit:
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         """Evaluate the waveform at cycle times ``t`` (folded by the period)."""
-        t = np.asarray(t, dtype=np.float64)
-        return self.spline(np.mod(t, self.period))
+        return self.spline(np.mod(np.asarray(t, dtype=np.float64), self.period))
+
+    def standard_error(self, t: np.ndarray) -> np.ndarray:
+        """Return the standard error of the fitted curve at cycle times ``t``."""
+        b = _periodic_design(np.atleast_1d(np.asarray(t, dtype=np.float64)), self.period,
+                             self.n_knots)
+        return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", b, self.coef_cov, b), 0.0))
 
     def table(self, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(t, value)`` on ``t = 0, step, ..., period`` (Tables 6-8 form)."""
         t = np.arange(0.0, self.period + 0.5 * step, step)
         return t, self(t)
+
+
+def _periodic_knots(period: float, m: int) -> np.ndarray:
+    """Uniform cubic knot vector whose base interval ``[t[3], t[m+3]]`` is one period."""
+    return (period / m) * np.arange(-3, m + 4, dtype=np.float64)
+
+
+def _fold_columns(a: np.ndarray, m: int) -> np.ndarray:
+    """Sum the m + 3 extended-basis columns into m periodic ones (column j -> j mod m)."""
+    out = np.zeros((a.shape[0], m))
+    np.add.at(out.T, np.arange(a.shape[1]) % m, a.T)
+    return out
+
+
+def _periodic_design(x: np.ndarray, period: float, m: int) -> np.ndarray:
+    """Periodic cubic B-spline basis at ``x`` (folded into the period), shape (n, m)."""
+    knots = _periodic_knots(period, m)
+    xf = np.mod(x, period)
+    xf = np.where(xf >= period, 0.0, xf)  # mod can round up to the period itself
+    dm = BSpline.design_matrix(xf, knots, 3, extrapolate=False).toarray()
+    return _fold_columns(dm, m)
+
+
+def _periodic_penalty(period: float, m: int) -> np.ndarray:
+    """``Omega[i, j] = integral over one period of B_i'' B_j''`` (periodic basis).
+
+    The second derivatives are linear on each knot interval, so two-point
+    Gauss-Legendre per interval is exact.
+    """
+    knots = _periodic_knots(period, m)
+    h = period / m
+    g = np.array([-1.0, 1.0]) / np.sqrt(3.0)
+    left = h * np.arange(m)
+    xq = (left[:, None] + 0.5 * h * (1.0 + g[None, :])).ravel()
+    basis = BSpline(knots, np.eye(m + 3), 3, extrapolate=False)
+    d2 = _fold_columns(np.nan_to_num(basis.derivative(2)(xq)), m)
+    return (d2.T * (0.5 * h)) @ d2  # both Gauss weights are 1, times h/2
 
 
 def fit_periodic_spline(
@@ -687,27 +738,28 @@ def fit_periodic_spline(
     period: float,
     smoothing: float | None = None,
     *,
+    n_knots: int | None = None,
     absolute_weights: bool = False,
 ) -> PeriodicSplineFit:
-    """Fit a periodic smoothing spline to a waveform binned over one cycle.
+    """Fit a periodic smoothing spline to a waveform over one cycle.
 
     Parameters
     ----------
     phase : ndarray, shape (n,)
-        Cycle time of each point (s), e.g. the bin centres of `phase_binned`; folded
-        into ``[0, period)``.  Phases must be distinct after folding (give bin
-        averages, not raw samples).
+        Cycle time of each point (s), e.g. the bin centres or mean phases of
+        `phase_binned`; folded into ``[0, period)``.  Repeated phases are allowed.
     y : ndarray, shape (n,)
-        Bin averages.
+        Values (bin averages, or samples).
     weights : ndarray, shape (n,) or None
         Amplitude weights (``sqrt(N)`` or ``1/standard error``).
     period : float
         Period (s), 100 s for the MESSENGER heater.
     smoothing : float, optional
-        Regularisation ``lam`` of ``scipy.interpolate.make_smoothing_spline`` (its
-        objective is ``sum w^2 r^2 + lam * integral f''^2`` here, with weights
-        normalised to mean ``w^2 = 1``).  Default: chosen by generalised cross-validation
-        (GCV) on the tiled data.
+        ``lam`` of the objective ``sum w^2 r^2 / mean(w^2) + lam * integral f''^2``.
+        Default: chosen by generalised cross-validation (GCV).
+    n_knots : int, optional
+        Uniform knots per period.  Default: the number of distinct phases, at most 200
+        (100 for the 1-s bins of Tables 6-8: the full smoothing spline).
     absolute_weights : bool
         See `fit_two_segment`.
 
@@ -715,90 +767,103 @@ def fit_periodic_spline(
     -------
     PeriodicSplineFit
 
+    Raises
+    ------
+    FitError
+        With fewer than 5 points or more knots than distinct phases.
+
     Notes
     -----
-    Periodicity is imposed by tiling the data over three periods (``phase - P``,
-    ``phase``, ``phase + P``) and fitting one smoothing spline to the 3n points; the
-    middle period is free of end effects, and evaluation folds the argument into it.
-    The smoother is linear in ``y``; its n x n matrix (middle-period fit values against
-    the n data) is obtained by one batched fit to the unit vectors, giving the
-    effective degrees of freedom ``n - trace S`` and the propagated ``value_err``.
+    Penalised regression on a periodic cubic B-spline basis (uniform knots, the
+    extended basis folded modulo the number of knots), so the curve and its first two
+    derivatives are continuous across the wrap by construction.  For a given ``lam``
+    the coefficients solve ``(B' W B + lam' Omega) c = B' W y`` with ``Omega`` the
+    exact Gram matrix of second derivatives.  GCV: ``n RSS_w / (n - trace S)^2`` with
+    ``trace S = trace((B' W B + lam' Omega)^-1 B' W B)``, minimised over log lam on a
+    grid, then by bounded Brent; a Demmler-Reinsch diagonalisation makes each lam
+    O(n m).  Errors: ``cov(c) = s^2 M^-1 B' W B M^-1``.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and Appendix Tables 6-8.
+    .. [2] P. Craven, G. Wahba, "Smoothing noisy data with spline functions",
+       Numer. Math. 31 (1979) 377-403 (GCV).
     """
     if not (np.isfinite(period) and period > 0):
         raise InputFormatError(f"period must be positive, got {period}", field="period")
     phase = np.mod(np.asarray(phase, dtype=np.float64).ravel(), period)
     x, yy, w = _prepare(phase, y, weights, 5, "fit_periodic_spline")
-    if np.any(np.diff(x) <= 0):
-        raise InputFormatError(
-            "fit_periodic_spline: phases repeat after folding by the period; give one "
-            "average per phase bin",
-            field="phase",
-        )
     n = x.size
-    w2 = w * w
-    w2n = w2 / np.mean(w2)
-    xt = np.concatenate((x - period, x, x + period))
-    wt = np.tile(w2n, 3)
+    distinct = np.unique(x).size
+    m = min(distinct, 200) if n_knots is None else int(n_knots)
+    if m < 4 or m > distinct:
+        raise FitError(
+            f"fit_periodic_spline: {m} knots need between 4 and the {distinct} distinct "
+            "phases given"
+        )
+    w2 = w * w / np.mean(w * w)
+    b = _periodic_design(x, period, m)
+    btwb = (b.T * w2) @ b
+    omega = _periodic_penalty(period, m)
+    # Demmler-Reinsch: with G = B'WB + Omega = L L' (positive definite: Omega's null
+    # space, the constants, is seen by every point) and L^-1 Omega L^-T = U diag(mu) U',
+    # M(lam) = B'WB + lam Omega = L U diag(1 + (lam - 1) mu) U' L'.  One Cholesky and
+    # one eigh; every lam afterwards costs O(n m).
+    try:
+        chol = cholesky(btwb + omega, lower=True)
+    except np.linalg.LinAlgError as exc:
+        raise FitError(f"fit_periodic_spline: ill-posed system ({exc})") from exc
+    k_mat = solve_triangular(chol, solve_triangular(chol, omega, lower=True).T, lower=True)
+    mu, u = eigh(0.5 * (k_mat + k_mat.T))
+    mu = np.clip(mu, 0.0, 1.0)
+    v = solve_triangular(chol.T, u, lower=False)  # L^-T U
+    z = v.T @ ((b.T * w2) @ yy)
+    bv = b @ v
+
+    def diag(lam: float) -> np.ndarray:
+        return 1.0 + (lam - 1.0) * mu
+
+    def gcv(log_lam: float) -> float:
+        d = diag(float(np.exp(log_lam)))
+        r = yy - bv @ (z / d)
+        tr = float(np.sum((1.0 - mu) / d))
+        return float(n * np.sum(w2 * r * r) / max(n - tr, 1e-9) ** 2)
+
     if smoothing is None:
-        lam = _gcv_lambda(x, yy, w2n, period)
+        lam = _gcv_lambda(gcv, period)
     else:
         lam = float(smoothing)
         if not lam >= 0:
             raise InputFormatError(f"smoothing must be >= 0, got {smoothing}", field="smoothing")
-    try:
-        spl = make_smoothing_spline(xt, np.tile(yy, 3), w=wt, lam=lam)
-    except ValueError as exc:
-        raise FitError(f"fit_periodic_spline: {exc}") from exc
-    smat = _smoother(x, w2n, period, lam)
-    fitted = spl(x)
-    r = (yy - fitted) * w
+    d = diag(lam)
+    if np.any(d <= 1e-12 * np.max(d)):
+        raise FitError(
+            f"fit_periodic_spline: lam={lam:g} leaves coefficients undetermined (knot "
+            "intervals without data); use smoothing > 0 or fewer knots"
+        )
+    coef = v @ (z / d)
+    r = (yy - b @ coef) * w
     chi2 = float(r @ r)
-    dof = float(n - np.trace(smat))
-    scale = 1.0 if absolute_weights else (chi2 / dof if dof > 0 else np.inf)
-    value_err = np.sqrt(np.sum(smat**2 / w2[None, :], axis=1) * scale)
+    dof = float(n - np.sum((1.0 - mu) / d))
+    # cov(c) = M^-1 B'W Sigma W B M^-1, Sigma = s^2 diag(1/w^2), W = diag(w^2)/mean(w^2)
+    s2 = 1.0 if absolute_weights else (chi2 / dof if dof > 0 else np.inf)
+    coef_cov = (s2 / np.mean(w * w)) * ((v * ((1.0 - mu) / d**2)) @ v.T)
+    value_err = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", b, coef_cov, b), 0.0))
+    spline = BSpline(_periodic_knots(period, m), coef[np.arange(m + 3) % m], 3,
+                     extrapolate="periodic")
     return PeriodicSplineFit(
-        period=float(period),
-        spline=spl,
-        lam=float(lam),
-        phase=x,
-        value_err=value_err,
-        chi2=chi2,
-        dof=dof,
+        period=float(period), spline=spline, lam=float(lam), n_knots=m, coef_cov=coef_cov,
+        phase=x, value_err=value_err, chi2=chi2, dof=dof,
     )
 
 
-def _smoother(x: np.ndarray, w2n: np.ndarray, period: float, lam: float) -> np.ndarray:
-    """Return the n x n matrix ``S[i, j] = d f(x_i) / d y_j`` of the tiled smoother."""
-    n = x.size
-    xt = np.concatenate((x - period, x, x + period))
-    eye = np.tile(np.eye(n), (3, 1))  # unit vectors, tiled; one batched fit
-    return make_smoothing_spline(xt, eye, w=np.tile(w2n, 3), lam=lam)(x)
-
-
-def _gcv_lambda(x: np.ndarray, y: np.ndarray, w2n: np.ndarray, period: float) -> float:
-    """``lam`` minimising the GCV score of the periodic smoother over one period.
-
-    ``GCV(lam) = mean(w^2 r^2) / (1 - trace(S)/n)^2`` (Craven & Wahba 1979), computed
-    on the n distinct data (not the 3n tiled copies, which would count each point
-    three times).  Log-grid search then bounded refinement.
-    """
-    n = x.size
-
-    def score(log_lam: float) -> float:
-        smat = _smoother(x, w2n, period, float(np.exp(log_lam)))
-        r = y - smat @ y
-        den = 1.0 - np.trace(smat) / n
-        return float(np.mean(w2n * r * r) / max(den, 1e-12) ** 2)
-
-    # the penalty integral scales as period**-3; cover interpolation .. straight line
+def _gcv_lambda(score: Callable[[float], float], period: float) -> float:
+    """``lam`` minimising the GCV score (Craven & Wahba 1979) over log lam."""
+    # the penalty integral scales as period**-3: cover interpolation .. a constant
     base = np.log(period**3)
-    grid = base + np.linspace(np.log(1e-10), np.log(1e4), 43)
+    grid = base + np.linspace(np.log(1e-12), np.log(1e6), 55)
     scores = np.array([score(g) for g in grid])  # a grid of lam values, not samples
     k = int(np.argmin(scores))
-    a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-    res = minimize_scalar(score, bounds=(a, b), method="bounded", options={"xatol": 1e-3})
+    a, c = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+    res = minimize_scalar(score, bounds=(a, c), method="bounded", options={"xatol": 1e-3})
     return float(np.exp(res.x if res.fun <= scores[k] else grid[k]))
