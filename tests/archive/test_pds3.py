@@ -398,3 +398,50 @@ def test_fast_parser_flags_what_it_cannot_read() -> None:
     assert ok.tolist() == [True, True, False, False, False, False, False, True]
     assert values[0] == 1500.0 and values[1] == 0.25
     assert values[7] == 0.0 and np.signbit(values[7])
+
+
+def _structure_label(pointer: str) -> str:
+    return _label(f"""
+        PDS_VERSION_ID = PDS3
+        RECORD_TYPE = FIXED_LENGTH
+        RECORD_BYTES = 25
+        FILE_RECORDS = 3
+        ^TABLE = {pointer}
+        OBJECT = TABLE
+        INTERCHANGE_FORMAT = ASCII
+        ROWS = 3
+        COLUMNS = 4
+        ROW_BYTES = 25
+        {_column("N", "ASCII_INTEGER", 1, 2)}
+        ^STRUCTURE = "HAND.FMT"
+        END_OBJECT = TABLE
+        END
+    """)
+
+
+_FMT = _label(f"""
+    {_column("V", "ASCII_REAL", 4, 5, unit='"nT"', description='"a value"', format='"F5.2"')}
+    ^STRUCTURE = "MORE.FMT"
+""")
+_MORE = _label(f"""
+    {_column("S", "CHARACTER", 10, 2)}
+    {_column("W", "ASCII_INTEGER", 13, 11, items=3, item_bytes=3, item_offset=4,
+             missing_constant=-99, scaling_factor=0.5, offset=1)}
+""")
+
+
+def test_structure_file_beside_the_label_and_in_a_label_folder(tmp_path: Path) -> None:
+    """^STRUCTURE: format files (nested) beside the label or in LABEL/ of the volume."""
+    data = tmp_path / "DATA" / "2014"
+    data.mkdir(parents=True)
+    (data / "HAND.TAB").write_bytes("".join(_ROWS).encode())
+    (data / "HAND.LBL").write_text(_structure_label('"HAND.TAB"'), newline="")
+    (data / "HAND.FMT").write_text(_FMT, newline="")
+    (tmp_path / "LABEL").mkdir()
+    (tmp_path / "LABEL" / "MORE.FMT").write_text(_MORE, newline="")
+    ds = read_table(data / "HAND.LBL")
+    assert list(ds.data_vars) == ["N", "V", "S", "W"]
+    _check_hand_table(ds.assign_attrs(START_TIME="2014-08-01T00:00:00"))
+    (tmp_path / "LABEL" / "MORE.FMT").unlink()
+    e = _error(data / "HAND.LBL")
+    assert "MORE.FMT" in str(e) and "^STRUCTURE" in str(e)

@@ -159,12 +159,17 @@ def table_names(label: Mapping[str, Any]) -> list[str]:
     return [k[1:] for k in label.keys() if k.startswith("^") and k.upper().endswith("TABLE")]
 
 
-def column_names(label: Mapping[str, Any], table: str | None = None) -> list[str]:
-    """Names of the COLUMN objects of a table of ``label`` (the only one by default)."""
+def column_names(label: Mapping[str, Any], label_path: Path | str,
+                 table: str | None = None) -> list[str]:
+    """Names of the COLUMN objects of a table of ``label`` (the only one by default).
+
+    ``^STRUCTURE`` format files are followed (looked up from ``label_path``).
+    """
     names = table_names(label)
     obj = _find_object(label, table or (names[0] if len(names) == 1 else ""))
     if obj is None:
         return []
+    obj = _expand_structure(obj, Path(label_path))
     return [str(v.get("NAME")) for k, v in obj.items() if k == "COLUMN" and isinstance(v, Mapping)]
 
 
@@ -382,6 +387,65 @@ def _find_object(label: Mapping[str, Any], name: str) -> Mapping[str, Any] | Non
     return None
 
 
+_MAX_STRUCTURE_DEPTH = 8
+
+
+def _format_file(name: Any, label_path: Path) -> Path:
+    """Find a ``^STRUCTURE`` file: beside the label, else in a ``LABEL`` folder above it.
+
+    The second place is where PDS3 volumes keep shared format files (``LABEL/*.FMT``);
+    names are matched case-insensitively there too (`_locate_file`).
+    """
+    if not isinstance(name, str):
+        raise _err(f"^STRUCTURE = {name!r}: expected a file name", label_path)
+    try:
+        return _locate_file(label_path.parent, name, label_path)
+    except InputFormatError:
+        pass
+    for folder in label_path.resolve().parents:
+        for sub in (p for p in folder.iterdir() if p.is_dir() and p.name.upper() == "LABEL") \
+                if folder.is_dir() else ():
+            try:
+                return _locate_file(sub, name, label_path)
+            except InputFormatError:
+                continue
+    raise _err(f"format file {name!r} named by ^STRUCTURE not found beside the label or in "
+               "a LABEL folder above it", label_path)
+
+
+def _expand_structure(obj: Mapping[str, Any], label_path: Path,
+                      depth: int = 0) -> Mapping[str, Any]:
+    """Replace each ``^STRUCTURE`` pointer of ``obj`` by the objects of its format file.
+
+    A format file holding one TABLE object is unpacked into the referencing table (as
+    pdr does); pointers inside format files are followed (at most 8 levels).
+    """
+    if not any(str(k).upper() == "^STRUCTURE" for k in obj.keys()):
+        return obj
+    if depth >= _MAX_STRUCTURE_DEPTH:
+        raise _err("^STRUCTURE files nest more than 8 levels deep", label_path)
+    out = pvl.PVLObject()
+    for key, value in obj.items():
+        if str(key).upper() != "^STRUCTURE":
+            out.append(key, value)
+            continue
+        path = _format_file(value, label_path)
+        try:
+            fmt = pvl.loads(path.read_text(encoding="ascii"))
+        except Exception as exc:  # pvl's parse errors, UnicodeDecodeError
+            raise InputFormatError(f"not a PDS3 format file: {' '.join(str(exc).split())}",
+                                   path=str(path), line=getattr(exc, "lineno", None)) from exc
+        items = list(fmt.items())
+        if len(items) == 1 and isinstance(items[0][1], Mapping) and "TABLE" in items[0][0]:
+            items = list(items[0][1].items())
+        inner = pvl.PVLObject()
+        for k, v in items:
+            inner.append(k, v)
+        for k, v in _expand_structure(inner, path, depth + 1).items():
+            out.append(k, v)
+    return out
+
+
 def _layout(label: Mapping[str, Any], label_path: Path, table: str | None) -> _Layout:
     names = table_names(label)
     if table is None:
@@ -393,6 +457,7 @@ def _layout(label: Mapping[str, Any], label_path: Path, table: str | None) -> _L
     obj = _find_object(label, table)
     if obj is None:
         raise _err(f"label has no OBJECT = {table}", label_path)
+    obj = _expand_structure(obj, label_path)
     data_path, offset = _pointer(label, label_path, table)
     fmt = obj.get("INTERCHANGE_FORMAT")
     if fmt is None:

@@ -68,7 +68,7 @@ def load_product(path: Path | str) -> xr.Dataset:
         from fluxcal.archive.products import identify, read_product
 
         label = find_label(path)
-        names = column_names(read_label(label))
+        names = column_names(read_label(label), label)
         try:
             identify(names)
         except InputFormatError:
