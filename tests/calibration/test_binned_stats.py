@@ -356,3 +356,16 @@ def test_uniform_edge_fast_path_matches_definition(e0, step, n_bins, picks, jitt
     m = BinnedMoments.accumulate(x, np.ones(x.size), edges)
     want = [sum(1 for v in x if edges[i] <= v < edges[i + 1]) for i in range(n_bins)]
     np.testing.assert_array_equal(m.count, want)
+
+
+def test_non_finite_events_weights_or_cycle_starts_are_refused():
+    """No silent dropping: a 1/0 weight (zero step) or a NaN event time names the field."""
+    t = np.arange(100.0)
+    with pytest.raises(InputFormatError, match="weights.*first at event 1"):
+        superposed_epoch(t, t, [10.0, 20.0], [-5.0, 0.0, 5.0], weights=[1.0, np.inf])
+    with pytest.raises(InputFormatError, match="event_t"):
+        superposed_epoch(t, t, [np.nan], [-5.0, 0.0, 5.0])
+    with pytest.raises(InputFormatError, match="cycle_start_t"):
+        phase_binned(t, t, [0.0, np.nan], 100.0, 10)
+    with pytest.raises(InputFormatError, match="max_gap"):
+        superposed_epoch(t, t, [10.0], [-5.0, 0.0, 5.0], max_gap=0.0)

@@ -72,7 +72,7 @@ def _as_values(values: np.ndarray, n: int, name: str = "values") -> np.ndarray:
     return values
 
 
-@dataclass
+@dataclass(eq=False)
 class BinnedMoments:
     """Per-bin counts and shifted sums (sufficient statistics for mean and variance).
 
@@ -466,7 +466,8 @@ def superposed_epoch(
     lag_edges : ndarray, shape (n_bins + 1,)
         Lag bin edges (s), e.g. ``np.arange(-200, 1001, 10)``.
     weights : ndarray, shape (m,), optional
-        Per-event factor applied to the values, e.g. ``1 / delta_d`` so that positive and
+        Per-event factor applied to the values (finite; an event time or weight that
+        is not raises), e.g. ``1 / delta_d`` so that positive and
         negative duty-cycle steps combine normalised (sec. 7).  Default 1.  For
         steps ``delta_d`` of various sizes, ``delta_d / mean(delta_d**2)`` gives the
         least-squares (minimum-variance) normalisation: the bin mean is then the
@@ -520,8 +521,14 @@ def superposed_epoch(
                 f"weights must have one value per event ({event_t.size}), got {w.shape}",
                 field="weights",
             )
-    ok = np.isfinite(event_t) & np.isfinite(w)
-    event_t, w = event_t[ok], w[ok]
+    for name, arr in (("event_t", event_t), ("weights", w)):
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise InputFormatError(
+                f"{bad.size} non-finite value(s), first at event {bad[0]} ({arr[bad[0]]}); "
+                "a zero duty-cycle step normalised by 1/delta_d is not an event",
+                field=name,
+            )
     n_comp = values.shape[1]
     lo = np.searchsorted(t, event_t + lag_edges[0], side="left")
     hi = np.searchsorted(t, event_t + lag_edges[-1], side="left")
@@ -638,7 +645,8 @@ def phase_binned(
         raise InputFormatError(f"t must be 1-D, got shape {t.shape}", field="t")
     values = _as_values(values, t.size)
     starts = np.sort(np.asarray(cycle_start_t, dtype=np.float64).ravel())
-    starts = starts[np.isfinite(starts)]
+    if not np.all(np.isfinite(starts)):
+        raise InputFormatError("cycle start times must be finite", field="cycle_start_t")
     k = np.searchsorted(starts, t, side="right") - 1
     phase = np.full(t.shape, np.nan)
     has = k >= 0
