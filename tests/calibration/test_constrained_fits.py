@@ -247,6 +247,30 @@ def test_relaxation_recovers_tau_and_delay(tau, amp, dt):
     )
 
 
+def relax_prior_model(lag, y0, amp, prior, tau, dt):
+    return relax_model(lag, y0, amp, tau, dt) + prior * np.exp(-lag / tau)
+
+
+@pytest.mark.parametrize("tau,prior", [(600.0, 0.05), (872.0, -0.08), (1500.0, 0.1)])
+def test_relaxation_prior_decay_errors_are_the_jacobian_ones(tau, prior):
+    """With the prior-decay term: parameters within 4 CR sigma; reported errors equal the
+    CR errors at the fitted parameters times sqrt(chi2/dof) (2 %, finite differences).
+    """
+    rng = np.random.default_rng(int(tau))
+    sigma = np.full(LAG.size, 0.004)
+    truth = np.array([0.02, 0.33, prior, tau, 13.0])
+    y = relax_prior_model(LAG, *truth) + sigma * rng.standard_normal(LAG.size)
+    f = fit_relaxation(LAG, y, 1.0 / sigma, prior_decay=True)
+    got = np.array([f.y0, f.amplitude, f.prior_amplitude, f.tau, f.dt])
+    cr = cramer_rao(relax_prior_model, truth, LAG, sigma, h=1e-7)
+    assert np.all(np.abs(got - truth) < 4 * cr), (got, truth, cr)
+    cr_hat = cramer_rao(relax_prior_model, got, LAG, sigma, h=1e-7) * np.sqrt(f.chi2 / f.dof)
+    rep = [f.y0_err, f.amplitude_err, f.prior_amplitude_err, f.tau_err, f.dt_err]
+    np.testing.assert_allclose(rep, cr_hat, rtol=0.02)
+    np.testing.assert_allclose(f(LAG), relax_prior_model(LAG, *got), atol=1e-12)
+    assert f.covariance.shape == (5, 5) and f.dof == LAG.size - 5
+
+
 @pytest.mark.parametrize("tau", [300.0, 2000.0])
 def test_relaxation_held_delay(tau):
     """With dt held at its true 10 s the fit returns dt exactly and tau within 4 sigma."""
