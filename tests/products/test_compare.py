@@ -210,3 +210,19 @@ def test_match_equals_brute_force(a: list[int], b: list[int], tol: int) -> None:
     ea, eb = np.sort(np.array(a, dtype=np.int64)), np.sort(np.array(b, dtype=np.int64))
     ia, ib = match(ea, eb, tol)
     assert set(zip(ia.tolist(), ib.tolist(), strict=True)) == _brute_force(ea, eb, tol)
+
+
+def test_ambiguous_matches_are_counted() -> None:
+    """B holds two samples 300 ns apart (as where two mode segments overlap): counted."""
+    from fluxcal.products.compare import compare, format_report
+
+    epoch = T0 + np.arange(10, dtype=np.int64) * STEP
+    b = np.zeros((10, 3))
+    q = np.zeros(10, int)
+    e_b = np.sort(np.concatenate([epoch, [epoch[4] + 300]]))
+    b_b = np.zeros((11, 3))
+    b_b[5] = 7.0  # the extra sample, farther from A's epoch[4] than B's own epoch[4]
+    c = compare(_product(b, epoch, q), _product(b_b, e_b, np.zeros(11, int)), 10_000_000)
+    assert c.matched == 10 and c.ambiguous == 1
+    assert c.overall[0].max_abs == 0.0  # the nearest (exact) sample was taken
+    assert "1 of the matched A samples had more than one B sample" in format_report(c)

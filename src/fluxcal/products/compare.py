@@ -134,6 +134,7 @@ class Comparison:
     diff: np.ndarray  # (pairs, 3) A - B
     quality: np.ndarray | None  # flag of each pair
     quality_source: str | None
+    ambiguous: int = 0  # matched A samples with more than one B sample within tolerance
     overall: list[ComponentStats] = field(default_factory=list)
     by_quality: dict[str, list[ComponentStats]] = field(default_factory=dict)
 
@@ -248,6 +249,10 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
             break
     result = Comparison(path_a, path_b, int(ea.size), int(eb.size), int(tolerance_ns), comps,
                         ua or ub, fa, fb, ea[ia], ea[ia] - eb[ib], diff, quality, source)
+    ta = ea[ia]
+    within = (np.searchsorted(eb, ta + tolerance_ns, side="right")
+              - np.searchsorted(eb, ta - tolerance_ns, side="left"))
+    result.ambiguous = int(np.count_nonzero(within > 1))
     result.overall = _stats(diff)[0]
     if quality is not None and quality.size:
         flags, groups = np.unique(quality, return_inverse=True)
@@ -267,6 +272,9 @@ def format_report(c: Comparison) -> str:
              f"B: {c.path_b} ({c.n_b} samples, frame {c.frame_b or 'unknown'})",
              f"tolerance {c.tolerance_ns / 1e9:g} s: {c.matched} matched, "
              f"{c.n_a - c.matched} only in A, {c.n_b - c.matched} only in B"]
+    if c.ambiguous:
+        lines.append(f"{c.ambiguous} of the matched A samples had more than one B sample "
+                     "within the tolerance (the nearest was taken)")
     if not c.matched:
         lines.append("no pair matched: the products do not overlap in time within the "
                      "tolerance")
