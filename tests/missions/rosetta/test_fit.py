@@ -248,17 +248,24 @@ def test_extended_model_recovers_offset_curve(day_fit):
     assert fit.n_blocks == 48 - 7 and fit.dof == fit.n_blocks - 4
 
 
-@pytest.mark.parametrize("sign", [1.0, -1.0])
-@pytest.mark.parametrize("degree", [1, 3, 5])
-def test_extended_model_exact_without_ambient_field(pool, sign, degree):
+@pytest.mark.parametrize(("sign", "degree", "reading"), [
+    (1.0, 1, "CALIBRATED"), (-1.0, 1, "CALIBRATED"), (1.0, 3, "CALIBRATED"),
+    (-1.0, 3, "CALIBRATED"), (1.0, 5, "CALIBRATED"), (-1.0, 5, "CALIBRATED"),
+    (1.0, 3, "CALIBRATED_MINUS_T_OFF"), (-1.0, 3, "CALIBRATED_MINUS_T_OFF"),
+])
+def test_extended_model_exact_without_ambient_field(pool, sign, degree, reading):
     """Zero ambient field: the fit returns the true polynomial up to the ADC step.
 
     Closed form: ``B^c = P(T~)`` exactly except the 20-bit quantisation (step 0.0286 nT,
     error <= 0.0143 nT per sample) and the 16-bit thermistor word (0.0195 C per word near
     -110 C, error <= 0.0098 C times the slope |P'| <= 2.25 nT/C here: each term is at most
     3 nT at the ends of +-20 C): <= 0.036 nT per sample; tolerance 0.05 nT on the curve.
-    Both signs of the offset; degrees 1 (a line), 3, 5.
+    Both signs of the offset; degrees 1 (a line), 3, 5; both readings of the reduced
+    temperature (rosetta.md decision 26: the fit must use the variable the pipeline
+    applies the file with; the other one would be off by P' x 2.7 C, ~0.3-6 nT here).
     """
+    import dataclasses
+
     from fluxcal.missions.rosetta import level_a
 
     rng = np.random.default_rng(3)
@@ -269,7 +276,7 @@ def test_extended_model_exact_without_ambient_field(pool, sign, degree):
         coeffs[: degree + 1, i] = Polynomial(c)(u).coef[: degree + 1]
     model = DailyOffsetModel(np.datetime64(DAY, "D"), "OB", coeffs, "truth")
     raw, _, temp = simulate_raw(DAY + "T00:00:00", 24.0, model, seed=5, rate_hz=0.05)
-    cal = calib.load_ground_calibration("OB")
+    cal = dataclasses.replace(calib.load_ground_calibration("OB"), reduced_temperature=reading)
     raw["b_counts"].values[:] = forward.science_counts(
         forward.raw_field(poly(coeffs, forward.reduced_temperature(temp, cal)), temp, cal),
         calib.load_nominal_conversion())
