@@ -7,10 +7,14 @@ tables, (c) Table 1's sample rates typed from the seed.
 """
 
 import logging
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fluxcal.cli import main
 from fluxcal.errors import InputFormatError
@@ -116,6 +120,7 @@ def _write_table(folder, name, columns, start="1/0"):
         v = np.asarray(values)
         items = v.shape[1] if v.ndim == 2 else 1
         v2 = v.reshape(n, items)
+        width = max(width, *(len(str(x)) for x in v2.ravel().tolist()))
         fields.append([" ".join(f"{x:>{width}}" for x in row) for row in v2.tolist()])
         nbytes = items * width + items - 1
         item = (f"    ITEMS = {items}\r\n    ITEM_BYTES = {width}\r\n    ITEM_OFFSET = "
@@ -184,6 +189,22 @@ def test_packet_time_rule_closed_form(tmp_path, tiny_mapping, rate):
     # status counts 1600 -> -150 + 1600 / 16 = -50 degC (the declared polynomial)
     np.testing.assert_array_equal(temp["temperature_c"].values, -50.0)
     assert heat["heater"].values.sum() > 0
+
+
+@settings(max_examples=40, deadline=None)
+@given(met_us=st.integers(1_000_000_000, 340_000_000_000_000), dts=st.integers(0, 19),
+       rate=st.integers(0, 10), n=st.integers(1, 12))
+def test_packet_time_rule_property(tiny_mapping, met_us, dts, rate, n):
+    # packet MET with a microsecond fraction (an ASCII_REAL column), up to MET 3.4e8 s
+    hz = TABLE1_HZ[rate]
+    met = met_us / 1e6
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "edr"
+        _tiny_archive(folder, [(met, dts, n)], [(np.floor(met), rate)])
+        sci = read_edr(folder, tiny_mapping)[0]
+    expected = met + 0.05 * dts + np.arange(n) / hz
+    # 2e-7 s: a few float64 steps at MET 3.4e8 s (the closed form rounds, the reader not)
+    np.testing.assert_allclose(sci["met"].values, expected, rtol=0, atol=2e-7)
 
 
 def test_header_state_changes_between_packets(tmp_path, tiny_mapping):
