@@ -58,6 +58,8 @@ PERIOD_S = 100.0
 BLOCK_S = 1000.0
 #: Sensor temperature while the heater regulates (sec. 7).
 REGULATED_C = -50.0
+#: Excursion peaks are drawn one per stratum in groups of this many.
+PEAK_STRATA = 6
 #: Heater-off seconds before the first heater period (> one period: a quiet start).
 QUIET_LEAD_S = 110.0
 
@@ -112,7 +114,9 @@ class HeaterModel:
     change_probability : float
         Probability that an evaluation changes the duty cycle.
     peak_c, dip_c : tuple of float
-        Ranges of an excursion's peak temperature and of its dip below -50 C at the end.
+        Ranges of an excursion's peak temperature (stratified: each group of
+        `PEAK_STRATA` excursions has one peak in every sixth of the range) and of its
+        dip below -50 C at the end (uniform).
     """
 
     regulated_blocks: tuple[int, int] = (3, 24)
@@ -120,7 +124,7 @@ class HeaterModel:
     duty_percent: tuple[int, int] = (10, 45)
     duty_step_percent: int = 8
     change_probability: float = 0.75
-    peak_c: tuple[float, float] = (-42.0, 42.0)
+    peak_c: tuple[float, float] = (-45.0, 55.0)
     dip_c: tuple[float, float] = (0.0, 12.0)
 
 
@@ -357,6 +361,7 @@ def heater_schedule(rng: np.random.Generator, n_blocks: int, lead_blocks: int,
     k, regulated = lead_blocks, True
     lo, hi = model.duty_percent
     d = int(rng.integers(lo, hi + 1))
+    peaks: list[float] = []
     while k < n_blocks:
         if regulated:
             length = int(rng.integers(model.regulated_blocks[0], model.regulated_blocks[1] + 1))
@@ -373,7 +378,10 @@ def heater_schedule(rng: np.random.Generator, n_blocks: int, lead_blocks: int,
             length = int(rng.integers(model.off_blocks[0], model.off_blocks[1] + 1))
             a, b = int(k * BLOCK_S), int(min(n_blocks, k + length) * BLOCK_S)
             x = (np.arange(a, b) - a) / float(length * BLOCK_S)
-            peak = rng.uniform(*model.peak_c) - REGULATED_C
+            if not peaks:  # stratified: every group of excursions spans the range
+                strata = rng.permutation(PEAK_STRATA) + rng.random(PEAK_STRATA)
+                peaks = list(model.peak_c[0] + np.diff(model.peak_c)[0] * strata / PEAK_STRATA)
+            peak = peaks.pop() - REGULATED_C
             dip = rng.uniform(*model.dip_c)
             rise = REGULATED_C + peak * np.sin(np.pi * np.minimum(x / 0.8, 1.0)) ** 2
             fall = REGULATED_C - dip * np.sin(np.pi * np.clip((x - 0.8) / 0.2, 0, 1)) ** 2

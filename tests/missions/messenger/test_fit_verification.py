@@ -1,0 +1,167 @@
+"""Issue 13 verification: the in-flight fit recovers calibration tables it was not given.
+
+`fluxcal.missions.messenger.flight_sim` (a forward model sharing no code with the fit or
+the pipeline, tests/missions/test_forward_independence.py) simulates cruise days from
+*true* tables that differ from the seed's (Table 2/3 coefficients and tau changed by
+25-60 %, Tables 6-8 scaled by 0.7-1.4 per axis).  The fit (`fit_days`, started from the
+shipped tables) must recover them, and the tables it writes must calibrate an unseen day.
+
+Two solar winds (docs/decisions/messenger_fit_verification.md):
+
+* ``quiet``: the heater schedule, temperature excursions and instrument of a real cruise,
+  but a weak zero-mean field (0.02 nT, 60-s rotations) plus 0.02 nT noise.  The
+  statistical error of every binned average is then far below the issue's tolerances
+  (derived at each assertion), so these check the *estimators*: any bias (binning,
+  iteration, the look-back) shows up.  The tolerances are the issue's numbers.
+* ``realistic``: 5-10 nT Alfvenic rotations with sector changes.  In days, a binned
+  average of such a field cannot reach the issue's numbers (sigma / sqrt(N) with an
+  hour-long correlation time: tens of counts per temperature bin); the test checks
+  the fit against that statistical bound and that the fitted tables still beat the
+  shipped ones.  The issue's numbers need ~1-2 years of such data (the decision note).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.missions.messenger import forward
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.flight_sim import (
+    FlightConfig,
+    SolarWindModel,
+    read_flight_truth,
+    simulate_flight,
+)
+
+fit = pytest.importorskip("fluxcal.missions.messenger.fit",
+                          reason="the issue 13 fit (helper H3) is not in the tree yet")
+if not all(hasattr(fit, n) for n in ("fit_days", "day_chunks")):
+    pytest.skip("fluxcal.missions.messenger.fit lacks fit_days/day_chunks", allow_module_level=True)
+fit_write = pytest.importorskip("fluxcal.missions.messenger.fit_write")
+
+START = dt.date(2010, 3, 1)
+#: Fine-range nT per count (Table 4 kx ~ 0.047): 2 counts ~ 0.094 nT.
+NT_PER_COUNT = 1530.0 / 32768.0
+
+
+def _law(tables: forward.SeedTables | np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Table 2 offset (counts) at temperatures ``t``: the larger of the two lines."""
+    c = tables if isinstance(tables, np.ndarray) else np.column_stack(
+        [tables.a0, tables.b0, tables.a1, tables.b1])
+    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
+
+
+def _day_streams(inp: Path, day: dt.date):
+    from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+
+    one = dt.timedelta(days=1)
+
+    def f(code, d):
+        return inp / f"MAG{code}_{d:%Y%j}.csv"
+
+    return (read_science([f("SCI", day)]),
+            read_heater([p for p in (f("HTR", day - one), f("HTR", day)) if p.exists()]),
+            read_temperature([p for p in (f("TMP", day - one), f("TMP", day),
+                                          f("TMP", day + one)) if p.exists()]))
+
+
+def _recalibrate_rms(inp: Path, day: dt.date, folder: Path | None) -> np.ndarray:
+    """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth."""
+    from fluxcal.missions.messenger.pipeline import calibrate
+
+    sci, htr, tmp = _day_streams(inp, day)
+    cal = load_calibration(np.datetime64(str(day)), folder)
+    with KernelPool(inp / "kernels.tm"):
+        ds = calibrate(sci, htr, tmp, cal, frames=("sc",), max_offset_step=None)
+    truth = read_flight_truth(inp, day)
+    assert np.array_equal(ds["met"].values, truth["met"])
+    return np.sqrt(((ds["b_sensor"].values - truth["b_sensor"]) ** 2).mean(axis=0))
+
+
+def _run(tmp: Path, config: FlightConfig, fit_days: int, passes: int):
+    """Simulate ``fit_days`` + 1 days, fit the first ones, write the folder."""
+    run = simulate_flight(tmp / "sim", config)
+    days = run.days[:fit_days]
+    base = load_calibration(np.datetime64(str(START)))
+    result = fit.fit_days(fit.day_chunks(run.input_dir, days), base, passes=passes)
+    out = tmp / "fitted"
+    fit_write.write_calibration_folder(result, out, None, {
+        "inputs": {}, "intervals": "all data", "days": f"{days[0]}..{days[-1]}",
+        "command": "test_fit_verification"})
+    true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
+    return run, result, true, out
+
+
+# --------------------------------------------------------------------------------------
+# quiet wind: the issue's tolerances
+# --------------------------------------------------------------------------------------
+QUIET = SolarWindModel(b_median_nt=0.02, parker_strength=0.0, alfven_correlation_s=30.0,
+                       compressive_correlation_s=30.0, noise_nt=0.02)
+#: Per-sample scatter of the counts about the zero level (counts): field (0.02 nT over
+#: three axes, 0.012 nT each), noise 0.02 nT, rounding 1/sqrt(12): sqrt(0.25^2 + 0.43^2
+#: + 0.29^2) = 0.57 counts; correlated over ~4 tau = 120 s (two cascaded 30-s stages).
+QUIET_SIGMA_COUNTS = 0.57
+QUIET_CORRELATION_S = 120.0
+QUIET_FIT_DAYS = 3
+
+
+def test_fit_recovers_altered_tables_in_a_quiet_wind(tmp_path):
+    # one test, one fit (~30-60 s): under pytest-xdist separate tests would each redo it
+    config = FlightConfig(start=str(START), days=QUIET_FIT_DAYS + 1, seed=1313,
+                          solar_wind=QUIET)
+    run, result, true, folder = _run(tmp_path, config, QUIET_FIT_DAYS, passes=3)
+    cal = result.calibration
+    errors = {}
+    # --- temperature law -----------------------------------------------------------------
+    # every 10-C bin centred on -60..+40 C holds >= 1000 s of 1-Hz heater-off data, so its
+    # mean has sigma <= 0.57 * sqrt(120 / 1000) = 0.2 counts (most bins 10x more data);
+    # the two-segment fit's value at any temperature is a weighted mix of a few bins:
+    # <= 0.3 counts at 1 sigma.  The issue's 2 counts is > 6 sigma: a miss is a bias.
+    centres = result.stats.temperature.centers
+    counts = result.stats.temperature.count[(centres >= -60) & (centres <= 40)]
+    assert counts.min() >= 1000, counts
+    t = np.arange(-60.0, 40.01, 0.5)
+    law = np.abs(_law(cal.temperature_coefficients, t) - _law(true, t)).max(axis=0)
+    errors["temperature law max |error| (counts), tol 2"] = (law, 2.0)
+    # --- duty-cycle law -------------------------------------------------------------------
+    # D0 from ~8 4-% bins over 100-450 ppt, each > 10^4 samples: statistical error
+    # ~0.57 * sqrt(120 / 10^4) / 300 ppt = 2e-4 counts/ppt, < 1 % of the smallest D0 (z,
+    # 0.024); the held intercept (temperature law at -50 C, <= 0.3 count at 1 sigma)
+    # moves it by <= 0.3 / 280 ppt = 1e-3 (4 % of z at 1 sigma, < 1.5 % of x and y).
+    d0 = np.abs(cal.duty_cycle_d0 / true.d0 - 1.0)
+    errors["D0 relative error, tol 0.05"] = (d0, 0.05)
+    # --- relaxation time ------------------------------------------------------------------
+    # ~40 changes of >= 50 ppt per day, ~120 events in 3 days: per 5-s lag bin the
+    # epoch (counts per ppt of step) scatters 0.57 counts / 100 ppt / sqrt(120 events)
+    # = 5e-4, 0.2 % of the unit response (D0 of y, 0.23); an exponential through ~200
+    # such bins pins tau far below 1 %.  Issue: 10 %.
+    tau = cal.constants["relaxation"]["tau_s"] / true.constants["relaxation"]["tau_s"] - 1
+    errors["tau relative error, tol 0.10"] = (np.array([abs(tau)]), 0.10)
+    # --- heater waveforms -----------------------------------------------------------------
+    # per phase second of one 4-% bin: >= 150 heater cycles in 3 days, scatter 0.57
+    # counts, decorrelated between cycles (the field's 2-min correlation < the 100-s
+    # period spacing x a few) -> 0.57 / sqrt(150) = 0.05 counts per phase; the rms over
+    # the cycle the same: the issue's 0.3 is 6 sigma.  A column's mean over the cycle
+    # belongs to the duty-cycle law (fit_reduce): both sides compared without it.
+    f0 = cal.heater_signal - cal.heater_signal[:, :-1].mean(axis=1, keepdims=True)
+    r0 = true.heater - true.heater[:, :-1].mean(axis=1, keepdims=True)
+    rms = np.sqrt(((f0 - r0)[:, :-1] ** 2).mean(axis=1))  # (axis, duty bin)
+    errors["waveform rms (counts) per axis x bin, tol 0.3"] = (rms, 0.3)
+    # --- recalibrating an unseen day ------------------------------------------------------
+    # the fitted zero level errs by <~1 count (the laws above), 0.05 nT; rounding adds
+    # 0.047 / sqrt(12) = 0.014 nT: 0.1 nT rms holds if the fit is unbiased.
+    unseen = run.days[-1]
+    fitted = _recalibrate_rms(run.input_dir, unseen, folder)
+    errors["unseen day rms (nT), fitted tables, tol 0.1"] = (fitted, 0.1)
+    shipped = _recalibrate_rms(run.input_dir, unseen, None)
+    report = "\n".join(f"{k}: {np.round(v, 4).tolist()}" for k, (v, _) in errors.items())
+    print(report + f"\nunseen day rms (nT), shipped tables: {shipped.round(3).tolist()}")
+    failed = [k for k, (v, tol) in errors.items() if not np.all(v <= tol)]
+    assert not failed, f"{failed}\n{report}"
+    # the shipped tables miss the altered offsets by tens of counts: several nT
+    assert shipped.max() >= 1.0, shipped
