@@ -645,7 +645,8 @@ def run_edr_archive(
     if progress is not None:
         progress("reading EDRs", 0, 1)
     m = load_mapping(mapping)
-    sci, heat, temp = read_edr(edr_dir, m)
+    sci, heat, temp = read_edr(edr_dir, m,
+                               calibration_folder=options.get("calibration_folder"))
     labels = [Path(p) for ds in (sci, heat, temp) for p in ds.attrs["inputs"].split(";")]
     tables = []
     for p in labels:  # the data files the labels point to, checksummed with them
