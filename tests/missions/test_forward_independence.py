@@ -144,3 +144,18 @@ print(json.dumps(sorted(m for m in sys.modules if m.startswith("fluxcal"))))
     loaded = json.loads(out.stdout.strip().splitlines()[-1])
     assert "fluxcal.missions.rosetta.forward" in loaded
     assert not [m for m in loaded if _forbidden(m)]
+
+
+def test_sys_modules_after_a_flight_simulation(tmp_path):
+    code = f"""
+import json, sys
+from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
+run = simulate_flight({str(tmp_path)!r}, FlightConfig(days=1, rate_setting=3))
+assert run.n_samples == 8640
+print(json.dumps(sorted(m for m in sys.modules if m.startswith("fluxcal"))))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=300)
+    loaded = json.loads(out.stdout.strip().splitlines()[-1])
+    assert "fluxcal.missions.messenger.forward" in loaded
+    assert not [m for m in loaded if _forbidden(m)]
