@@ -346,3 +346,38 @@ def test_archive_demo_round_trip(tmp_path):
     # 20-bit LSB = 30000 nT / 2**20 = 0.029 nT (sec. 4.2.3.1): quantisation alone gives
     # ~0.008 nT rms per axis; 0.05 nT rms is under two LSBs
     assert len(rms) == 6 and max(rms) < 0.05
+
+
+def test_batch_archive_layout_across_midnight_equals_csv_layout(tmp_path, capsys):
+    """Two days, data across midnight: the archive layout and the CSV day folders (split
+    here from the simulation's CSV by the date of each line) give the same tables."""
+    src = tmp_path / "sim"
+    paths = write_simulation(src, start_utc="2014-08-01T23:52:00", hours=0.15,
+                             layouts=("files", "archive"))
+    csv_in, arch_in = tmp_path / "csv_in", tmp_path / "arch_in"
+    for folder in (csv_in, arch_in):
+        shutil.copytree(paths["calib"], folder / "calib")
+        shutil.copytree(paths["kernels"].parent, folder / "kernels")
+        shutil.copy(src / "kernels.tm", folder / "kernels.tm")
+    shutil.copytree(paths["archive"].parent, arch_in / "DATA")
+    for key, name in (("science_OB", "science_OB.csv"), ("science_IB", "science_IB.csv"),
+                      ("hk", "hk.csv")):
+        header, *lines = paths[key].read_text().splitlines()
+        for day in sorted({line[:10] for line in lines}):
+            folder = csv_in / day.replace("-", "")
+            folder.mkdir(exist_ok=True)
+            (folder / name).write_text("\n".join([header] + [x for x in lines
+                                                             if x.startswith(day)]) + "\n")
+    assert sorted(p.name for p in (arch_in / "DATA").rglob("*_RAW_OB_*.LBL")) == [
+        "RPCMAG140801T2352_RAW_OB_M2.LBL", "RPCMAG140801T2354_RAW_OB_M3.LBL",
+        "RPCMAG140801T2356_RAW_OB_M4.LBL", "RPCMAG140801T2358_RAW_OB_M5.LBL",
+        "RPCMAG140802T0000_RAW_OB_M5.LBL"]  # the mode-5 run split at midnight
+    for inp in (csv_in, arch_in):
+        code = main(["batch", "rosetta", "--start", "2014-08-01", "--end", "2014-08-02",
+                     "--input", str(inp), "--out", str(tmp_path / f"out_{inp.name}"),
+                     "--scheduler", "serial", "--quiet", "--formats", "tab"])
+        assert code == 0, capsys.readouterr().err
+    a, b = _products(tmp_path / "out_csv_in"), _products(tmp_path / "out_arch_in")
+    assert a.keys() == b.keys() and "RPCMAG140802T0000_CLA_OB_M5.TAB" in a
+    for name in a:
+        assert a[name] == b[name], name
