@@ -445,3 +445,29 @@ def test_structure_file_beside_the_label_and_in_a_label_folder(tmp_path: Path) -
     (tmp_path / "LABEL" / "MORE.FMT").unlink()
     e = _error(data / "HAND.LBL")
     assert "MORE.FMT" in str(e) and "^STRUCTURE" in str(e)
+
+
+def test_label_decoding_equals_pvl_default(tmp_path: Path) -> None:
+    """The faster decoder gives pvl's own values: dates, times, symbols, numbers, units."""
+    import pvl
+
+    from fluxcal.archive.pds3 import parse_label_text
+    from fluxcal.missions.messenger.products import table_columns
+
+    extra = _label("""
+        A = 2014-08-01T00:00:00.000
+        B = 2014-213T12:30:00
+        C = 2014-08-01
+        D = 12:30:00.5
+        E = ASCII_REAL
+        F = 16#FF#
+        G = 1.5 <nT>
+        H = (1, "x", N/A)
+        I = 2014-08-01T00:00:00Z
+        END
+    """)
+    assert parse_label_text(extra) == pvl.loads(extra)
+    write_product(_messenger_like(3), tmp_path / "MAGMSOSCI12153_V01", ("tab",),
+                  table_columns("mso", False))
+    text = (tmp_path / "MAGMSOSCI12153_V01.LBL").read_text()
+    assert parse_label_text(text) == pvl.loads(text)
