@@ -1,4 +1,4 @@
-"""``fluxcal messenger edr2cdr`` and ``fluxcal simulate messenger`` commands."""
+"""``fluxcal messenger edr2cdr``, ``fluxcal messenger fit`` and ``fluxcal simulate messenger``."""
 
 from __future__ import annotations
 
@@ -46,6 +46,10 @@ def edr2cdr(
         1, "--version", "--product-version", min=1, max=99,
         help="Product version: the _V<nn> of the file names."
     ),
+    calib: Path | None = typer.Option(
+        None, "--calib", help="Calibration folder to use in place of the shipped tables "
+        "(e.g. the --out of 'fluxcal messenger fit'; docs/formats/calibration.md)."
+    ),
 ) -> None:
     """Calibrate MESSENGER MAG EDR streams into CDR products.
 
@@ -71,7 +75,9 @@ def edr2cdr(
     options = dict(frames=_split(frames), formats=_split(formats), averages=averages,
                    max_offset_step=max_offset_step if max_offset_step > 0 else None,
                    quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
-                   version=version)
+                   version=version, calibration_folder=calib)
+    if calib is not None:
+        check_calibration_folder(calib)
     with compilation_notice(), progress_display() as progress:
         if edr is not None:
             from fluxcal.missions.messenger.edr import run_edr_archive
@@ -81,6 +87,73 @@ def edr2cdr(
             written = run_edr2cdr(sci, heater, temperature, kernels, out, progress=progress,
                                   **options)
     typer.echo(f"wrote {len(written)} files to {out}")
+
+
+def check_calibration_folder(folder: Path) -> None:
+    """Refuse a ``--calib`` that is not a folder holding every calibration table.
+
+    Raises
+    ------
+    FluxcalError
+        Naming the folder and the missing tables.
+    """
+    from fluxcal.errors import FluxcalError
+    from fluxcal.missions.messenger.calibration_data import TABLE_NAMES
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FluxcalError(f"{folder}: --calib must be a folder of calibration tables")
+    missing = [n for n in TABLE_NAMES if not any(folder.glob(f"{n}_v*.*"))]
+    if missing:
+        raise FluxcalError(f"{folder}: --calib lacks the table(s) {', '.join(missing)} "
+                           "(<name>_v<version>.csv|toml; docs/formats/calibration.md)")
+
+
+@app.command("fit")
+def fit(
+    sci: list[Path] = typer.Option([], "--sci", help="Science CSV file(s)."),
+    heater: list[Path] = typer.Option([], "--heater", help="Heater-bit CSV file(s)."),
+    temperature: list[Path] = typer.Option([], "--temperature",
+                                           help="Temperature CSV file(s)."),
+    kernels: list[Path] = typer.Option([], "--kernels", help="Meta-kernel or kernel files "
+                                       "(default with --input-dir: <input-dir>/kernels.tm)."),
+    input_dir: Path | None = typer.Option(
+        None, "--input-dir", help="Input folder in the layout of 'fluxcal batch messenger' "
+        "(MAGSCI_YYYYDDD.csv ...); one reduction per day."),
+    days: str = typer.Option(
+        "", "--days", help="With --input-dir: FIRST:LAST (ISO dates, inclusive) or a comma "
+        "list; default: every day with a science file."),
+    intervals: Path | None = typer.Option(
+        None, "--intervals", help="CSV of solar-wind intervals 'start,stop' (ISO UTC); "
+        "default: all data."),
+    out: Path = typer.Option(..., "--out", help="Calibration folder to write."),
+    calib: Path | None = typer.Option(
+        None, "--calib", help="Starting/base calibration folder (default: shipped tables)."),
+    passes: int = typer.Option(6, "--passes", min=1, max=20,
+                               help="Most reduce-and-fit passes."),
+    fit_delay: bool = typer.Option(True, "--fit-delay/--hold-delay",
+                                   help="Fit the heater delay dt, or hold the base value."),
+    scheduler: str = typer.Option(
+        "serial", "--scheduler", help="'serial' (this process), 'local' (a local Dask "
+        "cluster of --workers processes) or the address of a running Dask scheduler."),
+    workers: int = typer.Option(2, "--workers", min=1, help="Workers of the local cluster."),
+) -> None:
+    """Fit the offset and heater calibration tables to flight data (solar wind).
+
+    Temperature law (Table 2 form), duty-cycle law (Table 3 form), relaxation time and
+    heater delay, heater waveforms (Tables 6-8 form) from long-term averages, as in
+    MESSENGER MAG EDR-to-CDR Processing, sec. 6-7; writes a folder for 'edr2cdr --calib'.
+    """
+    from fluxcal.missions.messenger.fit_cli import run_fit
+
+    if calib is not None:
+        check_calibration_folder(calib)
+    with compilation_notice(), progress_display() as progress:
+        text = run_fit(sci=sci, heater=heater, temperature=temperature, kernels=kernels,
+                       input_dir=input_dir, days=days, intervals=intervals, out=out,
+                       calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
+                       workers=workers, progress=progress)
+    typer.echo(text)
 
 
 def _check_input_style(sci: list[Path], heater: list[Path], temperature: list[Path],

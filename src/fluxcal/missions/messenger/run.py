@@ -224,6 +224,7 @@ def run_edr2cdr(
     quicklook_frame: str | None = None,
     version: int = DEFAULT_VERSION,
     progress: Progress | None = None,
+    calibration_folder: Path | None = None,
 ) -> list[Path]:
     """Run the MESSENGER MAG EDR -> CDR chain on files and write the products of every day.
 
@@ -231,7 +232,8 @@ def run_edr2cdr(
     days are written, then `ValidationError` is raised naming the failed days.
 
     ``version`` is the product version ``_V<nn>``; ``progress(description, done, total)``
-    is called after reading, calibrating and each product (the CLI draws it).
+    is called after reading, calibrating and each product (the CLI draws it);
+    ``calibration_folder`` replaces the shipped tables (``edr2cdr --calib``).
 
     Returns
     -------
@@ -250,5 +252,5 @@ def run_edr2cdr(
             kernel_list=pool.kernel_list(), frames=frames, formats=formats,
             averages=averages, max_offset_step=max_offset_step,
             quicklook=quicklook, quicklook_frame=quicklook_frame, version=version,
-            progress=progress,
+            progress=progress, calibration_folder=calibration_folder,
         )

@@ -1,0 +1,544 @@
+"""In-flight MESSENGER MAG calibration: flight data in, calibration tables out.
+
+The offsets of sec. 7 (Table 2 temperature law, Table 3 duty-cycle law, the relaxation
+time tau and the heater delay dt) and the heater waveforms of sec. 6 (Tables 6-8) are
+estimated from long-term averages of solar-wind data, whose mean field is zero:
+
+* `fluxcal.missions.messenger.fit_reduce.reduce_day` reduces each day to mergeable
+  `DayStatistics` given the current estimate of every term;
+* `fit_calibration` turns merged statistics into new estimates (`FitResult`);
+* `fit_days` iterates: reduce all days (serially or on a Dask cluster), merge, fit, and
+  reduce again with the new estimates, ``passes`` times (each step then removes the
+  others' current estimates, sec. 7: "iterative");
+* `fluxcal.missions.messenger.fit_write.write_calibration_folder` writes a versioned
+  folder that `load_calibration(day, folder)` and ``edr2cdr --calib`` read.
+
+Order inside one pass (docs/decisions/messenger_fit.md, entry 1): the statistics of all
+four analyses are reduced with the previous pass's estimates; then (1) the temperature
+law is fitted, (2) the duty-cycle law with its intercept held at the *new* temperature
+law at -50 C, (3) tau (and dt) from the epoch with the own step added back using the
+previous D0, combined over the axes with the *new* D0, (4) the waveforms, with zero mean
+over the heater cycle (the shipped Tables 6-8 have means below 0.01 count; the mean of
+each duty-cycle bin belongs to the duty-cycle law).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-7, Tables 2-3,
+   Appendix Tables 6-8.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import reduce
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fluxcal.calibration.constrained_fits import (
+    LineFit,
+    PeriodicSplineFit,
+    RelaxationFit,
+    TwoSegmentFit,
+    fit_line_fixed_intercept,
+    fit_periodic_spline,
+    fit_relaxation,
+    fit_two_segment,
+)
+from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.errors import FluxcalError
+from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.missions.messenger.fit_reduce import (
+    DayStatistics,
+    FitSettings,
+    reduce_day,
+    relaxation_response,
+)
+
+__all__ = ["FitResult", "fit_calibration", "fit_days", "reduce_day"]
+
+AXES = ("x", "y", "z")
+#: Fewest samples in a bin for it to enter a fit (the variance needs two; a bin mean of
+#: a few samples of a 5-nT field is noise, its sqrt(N) weight makes it harmless).
+MIN_BIN_SAMPLES = 2
+#: Fewest filled temperature bins (the two-segment fit has 4 free parameters + 1 dof).
+MIN_TEMPERATURE_BINS = 5
+#: Alternations of steps 1 and 2 on the merged statistics (`_fit_offsets`).
+INNER_ITERATIONS = 50
+#: Fewest duty-cycle changes for tau.
+MIN_EVENTS = 3
+#: Fewest filled phase bins (of 100) for a heater-waveform column to be fitted.
+MIN_PHASE_BINS = 50
+#: The fitted delay dt is adopted only when its standard error is below this (s).
+MAX_DELAY_ERROR_S = 3.0
+
+
+@dataclass
+class FitResult:
+    """Outcome of `fit_calibration`: the new calibration and the fits behind it.
+
+    Attributes
+    ----------
+    calibration : MessengerCalibration
+        The base calibration with the fitted terms replaced.
+    temperature : list of TwoSegmentFit
+        Per axis x, y, z (Table 2 form, total offset in fine counts).
+    duty : list of LineFit
+        Per axis (Table 3 form; ``intercept`` = C0 = cT(-50 C)).
+    relaxation : RelaxationFit
+        Fit of the axis-combined normalised epoch (tau, dt).
+    delay_fitted : bool
+        Whether the fitted dt was adopted (else the base value was held).
+    waveform : list of list of PeriodicSplineFit or None
+        ``[axis][duty bin]``; None where the bin had too little data (base column kept).
+    stats : DayStatistics
+        The merged statistics the fits used.
+    epoch_curve : ndarray, shape (n_lag, 4)
+        Lag bin centre, axis-combined normalised epoch, its standard error, samples.
+    passes : list of dict
+        Summary of every pass (`fit_days`).
+    """
+
+    calibration: MessengerCalibration
+    temperature: list[TwoSegmentFit]
+    duty: list[LineFit]
+    relaxation: RelaxationFit
+    delay_fitted: bool
+    waveform: list[list[PeriodicSplineFit | None]]
+    stats: DayStatistics
+    epoch_curve: np.ndarray
+    passes: list[dict[str, Any]] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        """Return the headline numbers (for the pass history and the report)."""
+        cal = self.calibration
+        return {
+            "temperature_coefficients": np.round(cal.temperature_coefficients, 5).tolist(),
+            "D0": [round(float(v), 6) for v in cal.duty_cycle_d0],
+            "tau_s": round(float(cal.constants["relaxation"]["tau_s"]), 2),
+            "delay_s": round(float(cal.constants["relaxation"]["delay_s"]), 2),
+        }
+
+
+def _usable(moments, column: int = 0) -> np.ndarray:
+    mean = moments.mean()
+    return (moments.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, column])
+
+
+def _fit_temperature(stats: DayStatistics, d0: np.ndarray) -> list[TwoSegmentFit]:
+    t = stats.temperature
+    ok = _usable(t)
+    if ok.sum() < MIN_TEMPERATURE_BINS:
+        centres = t.centers
+        empty = ", ".join(f"{c:.0f}" for c in centres[~ok])
+        filled = ", ".join(f"{c:.0f}" for c in centres[ok]) or "none"
+        raise FluxcalError(
+            f"temperature law (sec. 7): heater-off samples fill only {int(ok.sum())} of the "
+            f"10-C bins (need {MIN_TEMPERATURE_BINS}); filled bins (C): {filled}; empty "
+            f"bins (C): {empty}. Give more days or intervals with the heater off"
+        )
+    mean = t.mean()[ok]
+    w = np.sqrt(t.count[ok].astype(float))
+    # the duty-cycle offset still decaying after the heater stopped: D0 times the mean
+    # relaxed duty cycle of the bin
+    y = mean[:, :3] - mean[:, 4:5] * np.asarray(d0, dtype=float)[None, :]
+    return [fit_two_segment(mean[:, 3], y[:, j], w) for j in range(3)]
+
+
+def _fit_duty(stats: DayStatistics, c_ref: np.ndarray) -> list[LineFit]:
+    d = stats.duty
+    ok = _usable(d)
+    if not ok.any():
+        raise FluxcalError(
+            "duty-cycle law (sec. 7): no sample inside heater periods with a duty cycle of "
+            "10 % or more; give days or intervals with the heater regulating"
+        )
+    if ok.sum() < 2:
+        raise FluxcalError(
+            f"duty-cycle law (sec. 7): samples in only one 4-% bin (centre "
+            f"{d.centers[ok][0] / 10:.0f} %); need two for an error estimate"
+        )
+    mean = d.mean()[ok]
+    w = np.sqrt(d.count[ok].astype(float))
+    return [fit_line_fixed_intercept(mean[:, 3], mean[:, j], w, 0.0, float(c_ref[j]))
+            for j in range(3)]
+
+
+def _fit_offsets(
+    stats: DayStatistics, base: MessengerCalibration
+) -> tuple[list[TwoSegmentFit], list[LineFit], np.ndarray]:
+    """Fit steps 1 and 2 alternately on the merged statistics until D0 settles.
+
+    The temperature law needs D0 (the decaying duty-cycle offset of heater-off samples)
+    and the duty-cycle law needs the temperature law at -50 C (its intercept); both are
+    linear in the stored bin means, so they are alternated here without a data pass.
+    """
+    t_ref = float(base.constants["relaxation"].get("reference_temperature_c", -50.0))
+    d0 = np.asarray(base.duty_cycle_d0, dtype=float)
+    for _ in range(INNER_ITERATIONS):
+        temperature = _fit_temperature(stats, d0)
+        total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
+        c_ref = two_segment_offset(np.array([t_ref]), total)[0]
+        duty = _fit_duty(stats, c_ref)
+        new = np.array([f.slope for f in duty])
+        settled = np.all(np.abs(new - d0) <= 1e-7 + 1e-6 * np.abs(new))
+        d0 = new
+        if settled:
+            break
+    return temperature, duty, np.asarray(c_ref, dtype=float)
+
+
+def _fit_relaxation(
+    stats: DayStatistics, base: MessengerCalibration, d0_new: np.ndarray, fit_delay: bool
+) -> tuple[RelaxationFit, bool, np.ndarray]:
+    n_events = int(stats.n_samples.get("events", 0))
+    if n_events < MIN_EVENTS:
+        raise FluxcalError(
+            f"relaxation time (sec. 7): {n_events} duty-cycle change(s) of at least the "
+            f"minimum step in the data, need {MIN_EVENTS}; give more days with the heater "
+            "regulating"
+        )
+    ep = stats.epoch
+    rel = base.constants["relaxation"]
+    lag = ep.centers
+    own = relaxation_response(lag, float(rel["tau_s"]), float(rel["delay_s"]))
+    d0 = np.asarray(d0_new, dtype=float)
+    d0_old = np.asarray(base.duty_cycle_d0, dtype=float)
+    mean = ep.mean()
+    # residual with the new D0 (the relaxed duty cycle is column 3), own step added back
+    y = (mean[:, :3] - mean[:, 3:4] * (d0 - d0_old)[None, :]
+         + own[:, None] * d0[None, :])
+    se = ep.standard_error()[:, :3]
+    norm = float(d0 @ d0)
+    combined = (y @ d0) / norm
+    combined_se = np.sqrt((se**2) @ (d0**2)) / norm
+    curve = np.column_stack([lag, combined, combined_se, ep.count])
+    ok = (ep.count >= MIN_BIN_SAMPLES) & np.isfinite(combined) & (combined_se > 0)
+    w = 1.0 / combined_se[ok]
+    fit = fit_relaxation(lag[ok], combined[ok], w, fit_delay=fit_delay,
+                         delay=float(rel["delay_s"]))
+    adopted = fit_delay and np.isfinite(fit.dt_err) and fit.dt_err < MAX_DELAY_ERROR_S and (
+        fit.dt >= 0.0)
+    if fit_delay and not adopted:
+        fit = fit_relaxation(lag[ok], combined[ok], w, fit_delay=False,
+                             delay=float(rel["delay_s"]))
+    return fit, bool(adopted), curve
+
+
+def unmix_waveforms(stats: DayStatistics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per phase bin, the waveform columns whose interpolation gives the bin averages.
+
+    A duty-cycle bin holds periods of several duty cycles; each period's waveform is the
+    pipeline's linear interpolation between the columns (sec. 6), so the average of bin
+    ``b`` at phase ``p`` is ``sum_j A[b, j] W_j(p)`` with ``A`` the mean interpolation
+    weights (`fluxcal.missions.messenger.fit_reduce.interpolation_weights`).  Solved for
+    ``W`` by weighted least squares (``sqrt(N)`` per bin) at each phase bin; a column no
+    period leans on stays NaN.
+
+    Returns
+    -------
+    phase : ndarray, shape (n_phase,)
+        Mean phase of each phase bin (s).
+    columns : ndarray, shape (n_phase, n_columns, 3)
+        Unmixed waveform (counts), NaN where undetermined.
+    support : ndarray, shape (n_phase, n_columns)
+        Samples leaning on each column (sum of weights).
+    """
+    nb = len(stats.waveform)
+    count = np.stack([w.count for w in stats.waveform])  # (nb, n_phase)
+    mean = np.stack([w.mean() for w in stats.waveform])  # (nb, n_phase, 4 + nb)
+    n_phase = count.shape[1]
+    usable = count >= MIN_BIN_SAMPLES
+    with np.errstate(invalid="ignore"):
+        phase = np.nansum(np.where(usable, mean[:, :, 3] * count, 0.0), axis=0) / np.sum(
+            np.where(usable, count, 0), axis=0)
+    support = np.einsum("bp,bpj->pj", np.where(usable, count, 0).astype(float),
+                        np.where(usable[:, :, None], np.abs(mean[:, :, 4:]), 0.0))
+    columns = np.full((n_phase, nb, 3), np.nan)
+    for p in range(n_phase):  # phase bins (100), each a small least-squares problem
+        rows = usable[:, p]
+        cols = support[p] >= MIN_BIN_SAMPLES
+        if not rows.any() or not cols.any():
+            continue
+        w = np.sqrt(count[rows, p].astype(float))[:, None]
+        a = mean[rows, p, 4:][:, cols] * w
+        y = mean[rows, p, :3] * w
+        sol, *_ = np.linalg.lstsq(a, y, rcond=None)
+        columns[p, cols] = sol
+    return phase, columns, support
+
+
+def _fit_waveforms(
+    stats: DayStatistics, base: MessengerCalibration
+) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]]]:
+    table = np.array(base.heater_signal, dtype=float)
+    nb = len(stats.waveform)
+    fits: list[list[PeriodicSplineFit | None]] = [[None] * nb for _ in AXES]
+    phase, columns, support = unmix_waveforms(stats)
+    for b in range(nb):
+        ok = np.isfinite(phase) & np.all(np.isfinite(columns[:, b]), axis=1)
+        if ok.sum() < MIN_PHASE_BINS:
+            continue
+        w = np.sqrt(support[ok, b])
+        for j in range(3):
+            spline = fit_periodic_spline(phase[ok], columns[ok, b, j], w, 100.0)
+            _, values = spline.table(1.0)
+            table[j, :, b] = values - values[:-1].mean()  # zero mean over the cycle
+            fits[j][b] = spline
+    return table, fits
+
+
+def fit_calibration(
+    stats: DayStatistics,
+    base: MessengerCalibration,
+    *,
+    fit_delay: bool = True,
+) -> FitResult:
+    """Fit the four calibration terms of sec. 6-7 to merged statistics (one pass).
+
+    Parameters
+    ----------
+    stats : DayStatistics
+        Reduced with ``base`` as the current estimate (`reduce_day`).
+    base : MessengerCalibration
+        The calibration the statistics were reduced with; its unfitted terms (Table 1,
+        Table 4, dates) are kept.
+    fit_delay : bool
+        Also fit the heater delay dt (adopted when its error is below 3 s).
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    FluxcalError
+        Naming the analysis and what is missing: too few heater-off temperature bins
+        (listing the empty ones), no heater periods, too few duty-cycle changes.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-5, Tables 2-3,
+       Appendix Tables 6-8.
+    """
+    temperature, duty, c_ref = _fit_offsets(stats, base)
+    total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
+    d0 = np.array([f.slope for f in duty])
+    relaxation, delay_fitted, curve = _fit_relaxation(stats, base, d0, fit_delay)
+    heater, waveform = _fit_waveforms(stats, base)
+    table2 = total.copy()
+    if base.prelaunch_offsets_reading == "added_to_table2":
+        table2[:, 0] -= base.prelaunch_offsets[0]
+        table2[:, 2] -= base.prelaunch_offsets[0]
+    constants = copy.deepcopy(base.constants)
+    constants["relaxation"]["tau_s"] = float(relaxation.tau)
+    constants["relaxation"]["delay_s"] = float(relaxation.dt)
+    cal = dataclasses.replace(
+        base,
+        temperature_coefficients=table2,
+        breakpoint_temperature_c=np.array([f.x_m for f in temperature]),
+        duty_cycle_c0=np.asarray(c_ref, dtype=float),
+        duty_cycle_d0=d0,
+        heater_signal=heater,
+        constants=constants,
+    )
+    return FitResult(calibration=cal, temperature=temperature, duty=duty,
+                     relaxation=relaxation, delay_fitted=delay_fitted, waveform=waveform,
+                     stats=stats, epoch_curve=curve)
+
+
+# ---------------------------------------------------------------------------------------
+# the driver: map (days) -> reduce (merge) -> fit, repeated
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Chunk:
+    """The input files of one reduction (a day of the batch layout, or all given files)."""
+
+    label: str
+    science: tuple[Path, ...]
+    heater: tuple[Path, ...]
+    temperature: tuple[Path, ...]
+    kernels: tuple[Path, ...]
+
+    def files(self) -> list[Path]:
+        """All stream files of the chunk."""
+        return [*self.science, *self.heater, *self.temperature]
+
+
+def day_chunks(input_dir: Path, days: Sequence, kernels: Path | None = None) -> list[Chunk]:
+    """One `Chunk` per day of the ``fluxcal batch messenger`` input layout.
+
+    A day's science file only (each sample counted once); the heater files of the day
+    before and the day (look-back, sec. 7); the temperatures of the days around it —
+    the files `fluxcal.missions.messenger.batch_task.MessengerDayTask` reads.  Days
+    without a science file are skipped.
+    """
+    from fluxcal.missions.messenger.batch_task import MessengerDayTask
+
+    task = MessengerDayTask(Path(input_dir), Path(input_dir), kernels=kernels)
+    k = (Path(kernels),) if kernels else (Path(input_dir) / "kernels.tm",)
+    out = []
+    for day in days:
+        files = task._files(day)
+        if not files["science"][0].exists():
+            continue
+        out.append(Chunk(f"{day:%Y-%m-%d}", tuple(files["science"]), tuple(files["heater"]),
+                         tuple(files["temperature"]), k))
+    return out
+
+
+def reduce_chunk(
+    chunk: Chunk,
+    cal: MessengerCalibration,
+    intervals: np.ndarray | None,
+    settings: FitSettings,
+    hash_inputs: bool = False,
+) -> DayStatistics:
+    """Read one chunk's streams and reduce them (`reduce_day`); runs on a worker."""
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+    from fluxcal.products.batch import worker_kernel_pool
+    from fluxcal.products.provenance import sha256_file
+
+    worker_kernel_pool(list(chunk.kernels))
+    sclk = SclkKernel.from_pool(-236)
+    inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
+    return reduce_day(read_science(list(chunk.science)), read_heater(list(chunk.heater)),
+                      read_temperature(list(chunk.temperature)), sclk, cal, intervals,
+                      settings, label=chunk.label, inputs=inputs)
+
+
+Progress = Callable[[str, int, int], None]
+
+
+def _relative_change(old: MessengerCalibration, new: MessengerCalibration) -> float:
+    """Largest relative change of tau and D0 between two passes."""
+    tau = [float(c.constants["relaxation"]["tau_s"]) for c in (old, new)]
+    d0_old, d0_new = (np.asarray(c.duty_cycle_d0, dtype=float) for c in (old, new))
+    return float(max(abs(tau[1] - tau[0]) / tau[1],
+                     np.max(np.abs(d0_new - d0_old) / np.maximum(np.abs(d0_new), 1e-12))))
+
+
+def fit_days(
+    chunks: Sequence[Chunk],
+    base: MessengerCalibration,
+    *,
+    intervals: np.ndarray | None = None,
+    passes: int = 6,
+    tolerance: float = 2e-3,
+    scheduler: str | None = "serial",
+    n_workers: int = 2,
+    settings: FitSettings | None = None,
+    fit_delay: bool = True,
+    progress: Progress | None = None,
+) -> FitResult:
+    """Fit the calibration to many days: reduce each (map), merge, fit; ``passes`` times.
+
+    Parameters
+    ----------
+    chunks : sequence of Chunk
+        `day_chunks` of a batch input folder, or one `Chunk` of given files.
+    base : MessengerCalibration
+        Starting estimate (the shipped tables) and the unfitted terms.
+    intervals : ndarray, shape (k, 2), optional
+        Solar-wind intervals (ET); None: all data.
+    passes : int
+        Most reduce-and-fit iterations (each pass removes the others' terms with the
+        previous estimates; docs/decisions/messenger_fit.md, entry 1).
+    tolerance : float
+        Stop after a pass that changed tau and every D0 by less than this fraction.
+    scheduler : str or None
+        ``"serial"``: in this process; None: a local Dask cluster of ``n_workers``
+        single-threaded processes (`fluxcal.products.batch.make_local_cluster`); else
+        the address of a running Dask scheduler.
+    n_workers : int
+        Workers of the local cluster.
+    settings : FitSettings, optional
+    fit_delay : bool
+        Also fit dt (`fit_calibration`).
+    progress : callable, optional
+        ``progress(description, done, total)`` after every reduced chunk.
+
+    Returns
+    -------
+    FitResult
+        Of the last pass, with ``passes`` holding every pass's summary.
+
+    Raises
+    ------
+    FluxcalError
+        No chunk, or the fit's own errors (`fit_calibration`).
+    """
+    if not chunks:
+        raise FluxcalError("no day with a science file to fit")
+    if passes < 1:
+        raise FluxcalError(f"passes must be at least 1, got {passes}")
+    s = settings or FitSettings()
+    total = passes * len(chunks)
+    history: list[dict[str, Any]] = []
+    cal = base
+    result: FitResult | None = None
+
+    def run(mapper: Callable[[MessengerCalibration, bool, int], list[DayStatistics]]
+            ) -> FitResult:
+        nonlocal cal, result
+        inputs: dict[str, str] = {}
+        for p in range(passes):
+            parts = mapper(cal, p == 0, p)
+            stats = reduce(DayStatistics.merge, parts, DayStatistics.empty(s))
+            inputs = inputs or stats.inputs  # hashed on the first pass only
+            stats.inputs = inputs
+            result = fit_calibration(stats, cal, fit_delay=fit_delay)
+            history.append({"pass": p + 1, **result.summary()})
+            change = _relative_change(cal, result.calibration)
+            cal = result.calibration
+            if change < tolerance:
+                break
+        assert result is not None
+        result.passes = history
+        return result
+
+    def tick(p: int, i: int) -> None:
+        if progress is not None:
+            progress(f"pass {p + 1}/{passes}: reducing days", p * len(chunks) + i, total)
+
+    if scheduler == "serial":
+        from fluxcal.products.batch import release_worker_kernel_pool
+
+        def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[DayStatistics]:
+            out = []
+            for i, chunk in enumerate(chunks):
+                out.append(reduce_chunk(chunk, c, intervals, s, hashing))
+                tick(p, i + 1)
+            return out
+
+        try:
+            return run(serial)
+        finally:
+            release_worker_kernel_pool()
+    from distributed import Client, as_completed
+
+    from fluxcal.products.batch import make_local_cluster
+
+    cluster = make_local_cluster(n_workers) if scheduler is None else None
+    try:
+        with Client(cluster if cluster is not None else scheduler) as client:
+
+            def distributed(c: MessengerCalibration, hashing: bool, p: int
+                            ) -> list[DayStatistics]:
+                futures = client.map(reduce_chunk, list(chunks), cal=c, intervals=intervals,
+                                     settings=s, hash_inputs=hashing, pure=False)
+                out = []
+                for i, fut in enumerate(as_completed(futures)):
+                    out.append(fut.result())
+                    tick(p, i + 1)
+                return sorted(out, key=lambda st: st.days)
+
+            return run(distributed)
+    finally:
+        if cluster is not None:
+            cluster.close()

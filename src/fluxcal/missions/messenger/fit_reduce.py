@@ -1,0 +1,410 @@
+"""Per-day sufficient statistics for the in-flight MESSENGER MAG calibration fit.
+
+`reduce_day` turns one day (or any chunk) of raw streams into a `DayStatistics`: binned
+sums of the fine-range counts in sensor axes, each corrected by the *current* estimate
+of the other calibration terms, for the four analyses of sec. 6 and 7:
+
+1. ``temperature``: heater off (duty cycle in force below 100 ppt, no powered heater
+   period), counts minus the heater signal, in 10 C bins of the sensor temperature
+   (value columns x, y, z, the temperature itself, whose bin mean is the abscissa of
+   the fit, and the relaxed duty cycle `relaxed_duty`, whose mean times D0 is the
+   duty-cycle offset still decaying after the heater stopped);
+2. ``duty``: inside heater periods with a duty cycle of at least 100 ppt, counts minus
+   the temperature variation ``cT(T) - cT(-50 C)`` and the heater signal, in 40-ppt (4 %)
+   bins of the duty cycle the offset has relaxed to (`relaxed_duty`; columns x, y, z and
+   that duty cycle), so that the line through ``cT(-50 C)`` has the slope ``D0``;
+3. ``epoch``: the 1200-s superposed epoch (-200 s .. +1000 s) of the duty-cycle changes
+   of the model residual (counts minus the whole current offset model, and the relaxed
+   duty cycle as a fourth column), each change weighted by ``1 / delta`` (``delta`` =
+   change of the eq. 5 steady-state duty cycle, ppt), so positive and negative steps
+   combine normalised;
+4. ``waveform``: per duty-cycle bin 12..40 % of the heater period, counts minus the
+   current offsets ``cT(T) + Delta(t)`` against seconds since the heater-bit rising
+   edge (100 bins of 1 s centred on 0..99 s; columns x, y, z, the phase and the
+   weights of the eight duty-cycle columns in the pipeline's interpolation at the
+   period's duty cycle, which `fluxcal.missions.messenger.fit` unmixes).
+
+Everything is a `fluxcal.calibration.binned_stats.BinnedMoments`, so days merge exactly
+(`DayStatistics.merge`) and a month runs as a map-reduce (`fluxcal.missions.messenger.fit`).
+
+Only fine-range samples after MAG FSW V10 (2007-03-09) inside the solar-wind intervals
+enter (docs/decisions/messenger_fit.md).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 (superposed epoch of the heater
+   cycle, 4 % duty-cycle bins, centres 12-40 %), sec. 7 (10 C bins, heater off; 4 %
+   duty-cycle bins; the 1200-s epoch starting 200 s before each change), eq. 2-7.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration.binned_stats import BinnedMoments, phase_binned, superposed_epoch
+from fluxcal.calibration.heater_signal import heater_waveform, period_index
+from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
+from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+
+__all__ = ["DayStatistics", "FitSettings", "read_intervals", "reduce_day"]
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Bins of the four analyses (sec. 6, 7).
+
+    Attributes
+    ----------
+    temperature_edges_c : tuple of float
+        10 C bins (sec. 7), centred on multiples of 10 C.
+    duty_edges_ppt : tuple of float
+        4 % (40 ppt) bins of the duty cycle in force from 10 % (eq. 5b threshold) up.
+    lag_edges_s : tuple of float
+        Superposed-epoch lag bins, -200 s .. +1000 s (sec. 7), 5 s wide (resolves dt).
+    waveform_bins_percent : tuple of float
+        Duty-cycle bin centres of the heater waveform (12..40 %, 4 % wide; sec. 6).
+    phase_bins : int
+        Phase bins over the 100-s heater period (1 s, centred on 0..99 s, Tables 6-8).
+    min_step_ppt : float
+        Least change of the steady-state duty cycle entering the epoch (smaller steps
+        would amplify the field noise by ``1 / delta``).
+    """
+
+    temperature_edges_c: tuple[float, ...] = tuple(np.arange(-105.0, 106.0, 10.0))
+    duty_edges_ppt: tuple[float, ...] = tuple(np.arange(100.0, 1001.0, 40.0))
+    lag_edges_s: tuple[float, ...] = tuple(np.arange(-200.0, 1001.0, 5.0))
+    waveform_bins_percent: tuple[float, ...] = (12.0, 16.0, 20.0, 24.0, 28.0, 32.0, 36.0, 40.0)
+    phase_bins: int = 100
+    min_step_ppt: float = 50.0
+
+
+@dataclass
+class DayStatistics:
+    """Mergeable sufficient statistics of one or more days (see module docstring).
+
+    Attributes
+    ----------
+    temperature, duty, epoch : BinnedMoments
+        Analyses 1-3.
+    waveform : list of BinnedMoments
+        Analysis 4, one per waveform duty-cycle bin.
+    n_samples : dict
+        Sample counts: ``total``, ``used`` (fine, V10, inside intervals), ``coarse``,
+        ``outside_intervals``, ``before_v10``; ``events`` (duty-cycle changes in the
+        epoch) and ``events_positive``.
+    inputs : dict
+        Input file name -> sha256 (provenance).
+    days : list of str
+        Days (or chunk labels) reduced.
+    """
+
+    temperature: BinnedMoments
+    duty: BinnedMoments
+    epoch: BinnedMoments
+    waveform: list[BinnedMoments]
+    n_samples: dict[str, int] = field(default_factory=dict)
+    inputs: dict[str, str] = field(default_factory=dict)
+    days: list[str] = field(default_factory=list)
+
+    @classmethod
+    def empty(cls, settings: FitSettings | None = None) -> DayStatistics:
+        """Return statistics of no data (the identity of `merge`)."""
+        s = settings or FitSettings()
+        return cls(
+            temperature=BinnedMoments.empty(s.temperature_edges_c, 5, label="temperature",
+                                            units="degC", value_units="counts"),
+            duty=BinnedMoments.empty(s.duty_edges_ppt, 4, label="duty cycle", units="ppt",
+                                     value_units="counts"),
+            epoch=BinnedMoments.empty(s.lag_edges_s, 4, label="lag", units="s",
+                                      value_units="counts per ppt"),
+            waveform=[BinnedMoments.empty(_phase_edges(s), 4 + len(s.waveform_bins_percent),
+                                          label="phase", units="s",
+                                          value_units="counts")
+                      for _ in s.waveform_bins_percent],
+        )
+
+    def merge(self, other: DayStatistics) -> DayStatistics:
+        """Return the statistics of both (bins must agree)."""
+        keys = set(self.n_samples) | set(other.n_samples)
+        return DayStatistics(
+            temperature=self.temperature.merge(other.temperature),
+            duty=self.duty.merge(other.duty),
+            epoch=self.epoch.merge(other.epoch),
+            waveform=[a.merge(b) for a, b in zip(self.waveform, other.waveform, strict=True)],
+            n_samples={k: self.n_samples.get(k, 0) + other.n_samples.get(k, 0) for k in keys},
+            inputs={**self.inputs, **other.inputs},
+            days=[*self.days, *other.days],
+        )
+
+    def __add__(self, other: DayStatistics) -> DayStatistics:
+        """Merge (see `merge`)."""
+        return self.merge(other)
+
+    def to_datasets(self) -> dict[str, xr.Dataset]:
+        """Return every `BinnedMoments` as a dataset (``temperature``, ``waveform_12``...)."""
+        out = {"temperature": self.temperature.to_dataset(), "duty": self.duty.to_dataset(),
+               "epoch": self.epoch.to_dataset()}
+        for pct, w in zip(FitSettings().waveform_bins_percent, self.waveform, strict=False):
+            out[f"waveform_{pct:.0f}"] = w.to_dataset()
+        return out
+
+
+def _phase_edges(s: FitSettings) -> np.ndarray:
+    step = 100.0 / s.phase_bins
+    return (np.arange(s.phase_bins + 1) - 0.5) * step
+
+
+def read_intervals(path: Path) -> np.ndarray:
+    """Read solar-wind intervals (CSV ``start,stop`` in ISO UTC) as ET pairs, shape (k, 2).
+
+    A header line naming ``start,stop`` is optional; ``#`` lines and blank lines are
+    skipped.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file, line and field: a line without two fields, a time that is not
+        ISO UTC, or a stop before its start.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise InputFormatError(f"cannot read the intervals file: {exc}", path=str(path)) from exc
+    rows: list[tuple[float, float]] = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        fields = [f.strip() for f in line.split(",")]
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        if [f.lower() for f in fields] == ["start", "stop"]:
+            continue
+        if len(fields) != 2:
+            raise InputFormatError(f"expected two fields 'start,stop' (ISO UTC), got "
+                                   f"{len(fields)}", path=str(path), line=lineno)
+        pair = []
+        for name, value in zip(("start", "stop"), fields, strict=True):
+            try:
+                stamp = np.datetime64(value, "ms")
+            except ValueError:
+                raise InputFormatError(f"{value!r} is not an ISO UTC time such as "
+                                       "2012-06-01T00:00:00", path=str(path), line=lineno,
+                                       field=name) from None
+            if np.isnat(stamp):
+                raise InputFormatError(f"{value!r} is not a time", path=str(path), line=lineno,
+                                       field=name)
+            pair.append(str(stamp))
+        et = utc_to_et(np.array(pair))
+        if et[1] < et[0]:
+            raise InputFormatError(f"stop {pair[1]} lies before start {pair[0]}",
+                                   path=str(path), line=lineno, field="stop")
+        rows.append((float(et[0]), float(et[1])))
+    if not rows:
+        raise InputFormatError("no interval (expected lines 'start,stop' in ISO UTC)",
+                               path=str(path))
+    return np.array(rows)
+
+
+def inside_intervals(et: np.ndarray, intervals: np.ndarray | None) -> np.ndarray:
+    """Return True for times inside any ``[start, stop)`` of ``intervals`` (all if None)."""
+    et = np.asarray(et, dtype=float)
+    if intervals is None:
+        return np.ones(et.shape, dtype=bool)
+    iv = np.asarray(intervals, dtype=float).reshape(-1, 2)
+    opened = np.searchsorted(np.sort(iv[:, 0]), et, side="right")
+    closed = np.searchsorted(np.sort(iv[:, 1]), et, side="right")
+    return opened > closed
+
+
+def relaxation_response(lag: np.ndarray, tau: float, delay: float) -> np.ndarray:
+    """Normalised step response ``1 - exp(-(lag - dt) / tau)`` after ``dt``, else 0 (eq. 6f).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 6f.
+    """
+    lag = np.asarray(lag, dtype=float)
+    return np.where(lag > delay, -np.expm1(-np.maximum(lag - delay, 0.0) / tau), 0.0)
+
+
+def effective_duty(ppt: np.ndarray, threshold_ppt: float) -> np.ndarray:
+    """Duty cycle entering eq. 5: ``d`` for ``d >= threshold`` (100 ppt), else 0 (eq. 5b)."""
+    d = np.asarray(ppt, dtype=float)
+    return np.where(d >= threshold_ppt, d, 0.0)
+
+
+def relaxed_duty(et: np.ndarray, changes, cal: MessengerCalibration) -> np.ndarray:
+    """Duty cycle (ppt) the offset has relaxed to at ``et``: eq. 6a-6f with ``D0 = 1``.
+
+    The steady-state duty cycle of eq. 5 (``d`` from 100 ppt, else 0) relaxed with the
+    calibration's tau, dt and look-back (`fluxcal.calibration.relaxation.relaxed_offset`);
+    ``D0 * relaxed_duty`` is the duty-cycle offset the pipeline applies.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 5a, 5b, 6a-6f.
+    """
+    rel = cal.constants["relaxation"]
+    target = steady_state_offset(changes.duty_cycle_ppt, np.ones(1),
+                                 float(rel["min_duty_cycle_ppt"]))
+    return relaxed_offset(np.asarray(et, dtype=float), changes.time, target,
+                          tau=float(rel["tau_s"]), delay=float(rel["delay_s"]),
+                          look_back=int(rel["look_back"]),
+                          look_back_s=float(rel["look_back_s"]))[:, 0]
+
+
+def reduce_day(
+    science: xr.Dataset,
+    heater: xr.Dataset,
+    temperature: xr.Dataset,
+    sclk: SclkKernel,
+    cal: MessengerCalibration,
+    intervals: np.ndarray | None = None,
+    settings: FitSettings | None = None,
+    *,
+    label: str = "",
+    inputs: dict[str, str] | None = None,
+) -> DayStatistics:
+    """Reduce raw streams to the `DayStatistics` of the four fits (module docstring).
+
+    Parameters
+    ----------
+    science, heater, temperature : xarray.Dataset
+        Raw streams (`fluxcal.missions.messenger.readers`); the heater stream should
+        start at least 5000 s before the science (look-back of sec. 7).
+    sclk : SclkKernel
+        MESSENGER clock.
+    cal : MessengerCalibration
+        The current estimate of every term (the shipped tables on the first pass).
+    intervals : ndarray, shape (k, 2), optional
+        Solar-wind intervals (ET); None: all samples.
+    settings : FitSettings, optional
+    label : str
+        Day label recorded in ``days``.
+    inputs : dict, optional
+        File name -> sha256 recorded for provenance.
+
+    Returns
+    -------
+    DayStatistics
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, 7, eq. 2-7.
+    """
+    s = settings or FitSettings()
+    out = DayStatistics.empty(s)
+    out.days = [label] if label else []
+    out.inputs = dict(inputs or {})
+    n_total = int(science.sizes.get("time", 0))
+    if n_total == 0:
+        out.n_samples = {"total": 0, "used": 0}
+        return out
+    ds = levels.correct_time(science, cal, sclk)
+    et_all = ds["et"].values
+    v10 = et_all >= levels._date_et(cal, "heater_mode_v10")
+    fine = ds["range"].values == 0
+    inside = inside_intervals(et_all, intervals)
+    keep = v10 & fine & inside
+    out.n_samples = {
+        "total": n_total, "before_v10": int((~v10).sum()), "coarse": int((v10 & ~fine).sum()),
+        "outside_intervals": int((v10 & fine & ~inside).sum()), "used": int(keep.sum()),
+        "events": 0, "events_positive": 0,
+    }
+    if not keep.any():
+        return out
+    ds = ds.isel(time=np.flatnonzero(keep))
+    et = ds["et"].values
+    counts = ds["counts"].values.astype(float)
+    periods, changes = levels.find_heater_periods(heater, cal, sclk)
+    heat = levels.correct_heater_signal(ds, periods, cal)
+    w_est = heat["heater_signal"].values
+    powered = heat["heater_applied"].values
+    temp_c = levels.interpolate_temperature(
+        et, levels.aux_times_et(temperature, sclk), temperature["temperature_c"].values)
+    coeff = cal.offset_coefficients()
+    c_t = two_segment_offset(temp_c, coeff)
+    offset = levels.offset_model(et, temp_c, changes, cal)
+    rel = cal.constants["relaxation"]
+    threshold = float(rel["min_duty_cycle_ppt"])
+    k = np.searchsorted(changes.time, et, side="right") - 1
+    level = np.where(k >= 0, changes.duty_cycle_ppt[np.maximum(k, 0)] if len(changes) else 0.0,
+                     0.0)
+    level_eff = effective_duty(level, threshold)
+    relaxed = relaxed_duty(et, changes, cal)
+    # 1. temperature law: heater off; counts minus the heater signal, with the relaxed
+    # duty cycle (the fit removes D0 times its mean, with its own D0)
+    off = (level_eff == 0) & ~powered
+    out.temperature = BinnedMoments.accumulate(
+        temp_c[off], np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off]]),
+        s.temperature_edges_c, label="temperature", units="degC", value_units="counts")
+    # 2. duty-cycle law: counts minus the temperature variation and the heater signal,
+    # binned by the duty cycle the offset has relaxed to (eq. 6f with unit slope), in
+    # heater periods with a finite duty cycle (docs/decisions/messenger_fit.md, entry 2)
+    t_ref = float(rel.get("reference_temperature_c", -50.0))
+    c_ref = two_segment_offset(np.array([t_ref]), coeff)[0]
+    p = period_index(et, periods)
+    on = (level_eff > 0) & (p >= 0)
+    steady = (counts - (c_t - c_ref) - w_est)[on]
+    out.duty = BinnedMoments.accumulate(
+        relaxed[on], np.column_stack([steady, relaxed[on]]), s.duty_edges_ppt,
+        label="duty cycle", units="ppt", value_units="counts")
+    # 3. superposed epoch of the duty-cycle changes, normalised by the step
+    residual = np.column_stack([counts - offset - w_est, relaxed])
+    finite = np.isfinite(changes.time)
+    prev = np.concatenate([[0.0], changes.duty_cycle_ppt[:-1]])
+    step = (effective_duty(changes.duty_cycle_ppt, threshold)
+            - effective_duty(prev, threshold))
+    ev = finite & (np.abs(step) >= s.min_step_ppt) & (
+        changes.time >= levels._date_et(cal, "heater_mode_v10"))
+    out.n_samples["events"] = int(ev.sum())
+    out.n_samples["events_positive"] = int((ev & (step > 0)).sum())
+    if ev.any():
+        out.epoch = superposed_epoch(et, residual, changes.time[ev], s.lag_edges_s,
+                                     weights=1.0 / step[ev], shift=0.0,
+                                     value_units="counts per ppt")
+    # 4. heater waveform per duty-cycle bin: counts minus the current offsets, with the
+    # weights of the bins' linear duty-cycle interpolation (sec. 6) of each sample
+    if len(periods):
+        pp = np.maximum(p, 0)
+        duty_pct = np.where(p >= 0, periods.duty_cycle[pp] * 100.0, np.nan)
+        phase = np.where(p >= 0, et - periods.start[pp], np.nan)
+        half = 0.5 * 100.0 / s.phase_bins
+        phase = np.where(phase >= 100.0 - half, phase - 100.0, phase)
+        centres = np.asarray(s.waveform_bins_percent)
+        width = centres[1] - centres[0]
+        lower = centres[0] - width / 2
+        b = np.floor((duty_pct - lower) / width)
+        weights = interpolation_weights(duty_pct, centres)
+        r4 = np.column_stack([counts - offset, phase, weights])
+        period_bin = np.floor((periods.duty_cycle * 100.0 - lower) / width)
+        for j in range(centres.size):
+            sel = powered & (b == j)
+            starts = periods.start[periods.applied & (period_bin == j)]
+            if sel.any() and starts.size:
+                out.waveform[j] = phase_binned(et[sel], r4[sel], starts, 100.0, s.phase_bins,
+                                               value_units="counts")
+    return out
+
+
+def interpolation_weights(duty_percent: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Weight of each duty-cycle column in the pipeline's waveform at ``duty_percent``.
+
+    `fluxcal.calibration.heater_signal.heater_waveform` of an identity table: linear
+    between bins, the edge slopes extended below 12 % and above 40 % (sec. 6).  Returns
+    shape (n, n_bins); NaN duty cycles give NaN rows.
+    """
+    nb = np.asarray(centres).size
+    identity = np.broadcast_to(np.eye(nb)[:, None, :], (nb, 101, nb))
+    d = np.asarray(duty_percent, dtype=float)
+    out = np.full((d.size, nb), np.nan)
+    ok = np.isfinite(d)
+    out[ok] = heater_waveform(np.zeros(int(ok.sum())), d[ok], identity, centres)
+    return out

@@ -1,0 +1,338 @@
+"""Write a fitted MESSENGER MAG calibration as a versioned calibration folder.
+
+The folder holds the eight tables `load_calibration(day, folder)` reads: the fitted ones
+(``offsets_temperature``, ``offsets_duty_cycle``, ``heater_signal_x/y/z`` and
+``processing`` with tau and dt replaced) one version above the base's, with headers
+naming their source (``fitted by fluxcal messenger fit``), the base file, the inputs
+(names and sha256), the solar-wind intervals and the fit statistics; the unfitted ones
+(``latency``, ``gain_matrix``) copied byte for byte; and ``fit_report.toml`` /
+``fit_report.txt``.  The layout is documented in ``docs/formats/calibration.md``.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, 7, Tables 2, 3, Appendix
+   Tables 6-8.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fluxcal import __version__
+from fluxcal.errors import CalibrationError
+from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES
+from fluxcal.missions.messenger.fit import AXES, FitResult
+from fluxcal.products.atomic import atomic_group, atomic_write_bytes
+from fluxcal.products.provenance import creation_time, sha256_file
+
+__all__ = ["write_calibration_folder"]
+
+FITTED = ("offsets_temperature", "offsets_duty_cycle", "heater_signal_x", "heater_signal_y",
+          "heater_signal_z", "processing")
+SOURCE = "fitted by fluxcal messenger fit"
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        if np.isnan(f):
+            return "nan"
+        if np.isinf(f):
+            return "inf" if f > 0 else "-inf"
+        return repr(f)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    text = str(v).replace("\\", "\\\\").replace('"', '\\"')
+    return f'"{text}"'
+
+
+def dump_toml(doc: Mapping[str, Any], prefix: str = "") -> str:
+    """Return ``doc`` (scalars, strings, lists, nested dicts) as TOML text."""
+    lines = [f"{k} = {_toml_value(v)}" for k, v in doc.items() if not isinstance(v, Mapping)]
+    for k, v in doc.items():
+        if isinstance(v, Mapping):
+            name = f"{prefix}.{k}" if prefix else k
+            lines += ["", f"[{name}]", dump_toml(v, name)]
+    return "\n".join(lines)
+
+
+def _next_version(base_folder: Path, name: str, current: int) -> int:
+    versions = [int(m["version"]) for p in base_folder.glob(f"{name}_v*.*")
+                if (m := _NAME_RE.match(p.name)) and m["name"] == name]
+    return max([current, *versions]) + 1
+
+
+def _header(title: str, form: str, version: int, base_file: Path, base_header: dict,
+            provenance: Mapping[str, Any], extra: list[str]) -> list[str]:
+    lines = [
+        f"# {title}",
+        f"# source: {SOURCE} {__version__} from flight data ({form})",
+        f"# version: {version}",
+        f"# valid_from: {base_header['valid_from']}",
+        f"# valid_to: {base_header['valid_to']}",
+        f"# created: {creation_time()}",
+        f"# based on: {base_file.name} sha256={sha256_file(base_file)}",
+        f"# intervals: {provenance.get('intervals', 'all data')}",
+        f"# days: {provenance.get('days', '')}",
+    ]
+    lines += [f"# input: {name} sha256={sha}"
+              for name, sha in sorted(provenance.get("inputs", {}).items())]
+    return lines + [f"# fit {e}" for e in extra]
+
+
+def _fmt(values: np.ndarray, digits: int = 6) -> str:
+    return ",".join(f"{v:.{digits}g}" for v in np.asarray(values, dtype=float))
+
+
+def write_calibration_folder(
+    result: FitResult,
+    out_dir: Path,
+    base_folder: Path | None,
+    provenance: Mapping[str, Any],
+) -> list[Path]:
+    """Write ``result`` as a calibration folder that ``load_calibration`` reads.
+
+    Parameters
+    ----------
+    result : FitResult
+        From `fluxcal.missions.messenger.fit.fit_days` or `fit_calibration`.
+    out_dir : Path
+        Folder to write (created; must not already hold calibration tables).
+    base_folder : Path or None
+        Folder of the base tables (None: the packaged ones), for the version numbers.
+    provenance : mapping
+        ``inputs`` (name -> sha256), ``intervals`` (text), ``days`` (text),
+        ``command`` (text); recorded in every header and the report.
+
+    Returns
+    -------
+    list of Path
+        The files written (eight tables and the two reports).
+
+    Raises
+    ------
+    CalibrationError
+        When ``out_dir`` already holds calibration tables (versions would mix).
+    """
+    from fluxcal.missions.messenger.calibration_data import _read_table, data_dir
+
+    out = Path(out_dir)
+    base_folder = data_dir() if base_folder is None else Path(base_folder)
+    cal = result.calibration
+    stale = sorted(p.name for p in out.glob("*_v*.*") if _NAME_RE.match(p.name)) if (
+        out.exists()) else []
+    if stale:
+        raise CalibrationError(f"{out}: already holds calibration tables ({', '.join(stale)});"
+                               " give an empty or new folder")
+    base_files = {_NAME_RE.match(p.name)["name"]: p for p in cal.paths}
+    missing = [n for n in TABLE_NAMES if n not in base_files]
+    if missing:
+        raise CalibrationError(f"base calibration lacks tables {missing}")
+    base = {n: _read_table(base_files[n]) for n in TABLE_NAMES}
+    version = {n: _next_version(base_folder, n, base[n].version) for n in FITTED}
+    texts: dict[str, str] = {}
+    # Table 2 form
+    t = result.temperature
+    extra = [f"{a}: chi2 {f.chi2:.4g} dof {f.dof}; errors A0 {f.a0_err:.3g} B0 {f.b0_err:.3g} "
+             f"A1 {f.a1_err:.3g} B1 {f.b1_err:.3g} Tm {f.x_m_err:.3g}"
+             for a, f in zip(AXES, t, strict=True)]
+    tm = result.stats.temperature
+    extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}"]
+    rows = ["axis,A0,B0,A1,B1,Tm_c"] + [
+        f"{a},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{c[3]:.6f},{tmv:.4f}"
+        for a, c, tmv in zip(AXES, cal.temperature_coefficients, cal.breakpoint_temperature_c,
+                             strict=True)]
+    texts["offsets_temperature"] = "\n".join(_header(
+        "MESSENGER MAG offsets versus sensor temperature, two-segment line (eq. 3a, 3b, 4)",
+        "MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, Table 2 form; heater off, 10-C bins,"
+        " sqrt(N) weights", version["offsets_temperature"], base_files["offsets_temperature"],
+        base["offsets_temperature"].header, provenance,
+        ["units: A0, A1 = counts (fine range); B0, B1 = counts per degC; Tm_c = degC", *extra],
+    ) + rows) + "\n"
+    # Table 3 form
+    d = result.duty
+    dm = result.stats.duty
+    extra = [f"{a}: chi2 {f.chi2:.4g} dof {f.dof}; D0 error {f.slope_err:.3g}"
+             for a, f in zip(AXES, d, strict=True)]
+    extra += [f"bins (ppt): {_fmt(dm.centers, 4)}", f"N per bin: {_fmt(dm.count, 12)}",
+              "C0 = cT(-50 C) of the fitted temperature law (held, eq. 5a)"]
+    rows = ["axis,C0,D0"] + [f"{a},{c:.4f},{s:.6f}" for a, c, s in zip(
+        AXES, cal.duty_cycle_c0, cal.duty_cycle_d0, strict=True)]
+    texts["offsets_duty_cycle"] = "\n".join(_header(
+        "MESSENGER MAG steady-state offsets versus heater duty cycle (eq. 5a, 5b)",
+        "MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, Table 3 form; 4-% bins, sqrt(N) "
+        "weights, intercept held", version["offsets_duty_cycle"],
+        base_files["offsets_duty_cycle"], base["offsets_duty_cycle"].header, provenance,
+        ["units: C0 = counts (fine range); D0 = counts per part-per-1000 of duty cycle",
+         *extra]) + rows) + "\n"
+    # Tables 6-8 form
+    bins = cal.heater_duty_bins_percent
+    for j, axis in enumerate(AXES):
+        name = f"heater_signal_{axis}"
+        table_no = 6 + j
+        fitted = [f"{b:.0f}" for b, fit in zip(bins, result.waveform[j], strict=True) if fit]
+        kept = [f"{b:.0f}" for b, fit in zip(bins, result.waveform[j], strict=True) if not fit]
+        extra = [f"duty bins fitted (%): {' '.join(fitted) or 'none'}",
+                 f"duty bins kept from {base_files[name].name} (too little data): "
+                 f"{' '.join(kept) or 'none'}",
+                 f"N per duty bin: {_fmt([w.count.sum() for w in result.stats.waveform], 12)}",
+                 "zero mean over the 100-s cycle (the mean belongs to the duty-cycle law)"]
+        extra += [f"{b:.0f}%: chi2 {fit.chi2:.4g} dof {fit.dof:.4g} max error "
+                  f"{np.max(fit.value_err):.3g}" for b, fit in zip(bins, result.waveform[j],
+                                                                   strict=True) if fit]
+        rows = ["t_s," + ",".join(f"{b:.0f}" for b in bins)] + [
+            f"{t_s}," + ",".join(f"{v:.5f}" for v in cal.heater_signal[j, t_s])
+            for t_s in range(cal.heater_signal.shape[1])]
+        texts[name] = "\n".join(_header(
+            f"MESSENGER MAG heater signal, sensor {axis.upper()} axis, counts (fine range)",
+            f"MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Table {table_no} form;"
+            " periodic smoothing spline of the phase-binned residual", version[name],
+            base_files[name], base[name].header, provenance,
+            ["units: counts; t_s = seconds since the heater-bit rising edge; columns = "
+             "duty-cycle bin centres in percent", *extra]) + rows) + "\n"
+    # processing: tau and dt replaced
+    r = result.relaxation
+    text = base_files["processing"].read_text()
+    text = re.sub(r"(?m)^version\s*=.*$", f"version = {version['processing']}\n"
+                  f'source = "{SOURCE} {__version__}: [relaxation] tau_s and delay_s; the rest '
+                  f'copied from {base_files["processing"].name}"', text, count=1)
+    text = re.sub(r"(?m)^tau_s\s*=.*$", f"tau_s = {r.tau:.3f}  # fitted, error {r.tau_err:.3g} s",
+                  text, count=1)
+    note = (f"fitted, error {r.dt_err:.3g} s" if result.delay_fitted
+            else "held at the base value (the data did not determine it)")
+    text = re.sub(r"(?m)^delay_s\s*=.*$", f"delay_s = {r.dt:.3f}  # {note}", text, count=1)
+    text = text.rstrip("\n") + "\n\n" + dump_toml({"fit": {
+        "source": SOURCE, "based_on": base_files["processing"].name,
+        "based_on_sha256": sha256_file(base_files["processing"]),
+        "tau_s": r.tau, "tau_err_s": r.tau_err, "delay_s": r.dt, "delay_err_s": r.dt_err,
+        "delay_fitted": result.delay_fitted, "amplitude": r.amplitude,
+        "amplitude_err": r.amplitude_err, "chi2": r.chi2, "dof": r.dof,
+        "events": int(result.stats.n_samples.get("events", 0)),
+        "intervals": str(provenance.get("intervals", "all data")),
+    }}) + "\n"
+    texts["processing"] = text
+    written: list[Path] = []
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_group():
+        for name in FITTED:
+            ext = "toml" if name == "processing" else "csv"
+            path = out / f"{name}_v{version[name]}.{ext}"
+            written.append(atomic_write_bytes(path, texts[name].encode()))
+        for name in ("latency", "gain_matrix"):
+            written.append(atomic_write_bytes(out / base_files[name].name,
+                                              base_files[name].read_bytes()))
+        report = fit_report(result, base_files, version, provenance)
+        written.append(atomic_write_bytes(out / "fit_report.toml",
+                                          (dump_toml(report) + "\n").encode()))
+        written.append(atomic_write_bytes(out / "fit_report.txt",
+                                          (report_text(result, provenance) + "\n").encode()))
+    return written
+
+
+def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mapping[str, int],
+               provenance: Mapping[str, Any]) -> dict[str, Any]:
+    """Return the ``fit_report.toml`` document (every number of the fit)."""
+    cal = result.calibration
+    st = result.stats
+    doc: dict[str, Any] = {
+        "source": f"{SOURCE} {__version__}",
+        "created": creation_time(),
+        "command": str(provenance.get("command", "")),
+        "intervals": str(provenance.get("intervals", "all data")),
+        "days": list(st.days),
+        "samples": {k: int(v) for k, v in sorted(st.n_samples.items())},
+        "files": {n: (f"{n}_v{version[n]}." + ("toml" if n == "processing" else "csv"))
+                  if n in version else base_files[n].name for n in base_files},
+        "base": {p.name: sha256_file(p) for p in base_files.values()},
+        "inputs": dict(sorted(provenance.get("inputs", {}).items())),
+        "temperature": {
+            "bin_centre_c": st.temperature.centers, "n": st.temperature.count,
+            **{a: {"A0": f.a0, "B0": f.b0, "A1": f.a1, "B1": f.b1, "Tm": f.x_m,
+                   "A0_err": f.a0_err, "B0_err": f.b0_err, "A1_err": f.a1_err,
+                   "B1_err": f.b1_err, "Tm_err": f.x_m_err, "chi2": f.chi2, "dof": f.dof,
+                   "bin_mean": st.temperature.mean()[:, j]}
+               for j, (a, f) in enumerate(zip(AXES, result.temperature, strict=True))},
+        },
+        "duty_cycle": {
+            "bin_centre_ppt": st.duty.centers, "n": st.duty.count,
+            **{a: {"C0": f.intercept, "D0": f.slope, "D0_err": f.slope_err, "chi2": f.chi2,
+                   "dof": f.dof, "bin_mean": st.duty.mean()[:, j]}
+               for j, (a, f) in enumerate(zip(AXES, result.duty, strict=True))},
+        },
+        "relaxation": {
+            "tau_s": result.relaxation.tau, "tau_err_s": result.relaxation.tau_err,
+            "delay_s": result.relaxation.dt, "delay_err_s": result.relaxation.dt_err,
+            "delay_fitted": result.delay_fitted, "amplitude": result.relaxation.amplitude,
+            "chi2": result.relaxation.chi2, "dof": result.relaxation.dof,
+            "events": int(st.n_samples.get("events", 0)),
+            "lag_s": result.epoch_curve[:, 0], "normalised_epoch": result.epoch_curve[:, 1],
+        },
+        "waveform": {
+            "duty_bins_percent": cal.heater_duty_bins_percent,
+            "n": [int(w.count.sum()) for w in st.waveform],
+            **{a: {"fitted": [fit is not None for fit in result.waveform[j]],
+                   "rms_counts": np.sqrt(np.mean(cal.heater_signal[j, :100] ** 2, axis=0))}
+               for j, a in enumerate(AXES)},
+        },
+        "passes": {f"pass_{p['pass']}": {k: v for k, v in p.items() if k != "pass"}
+                   for p in result.passes},
+    }
+    return _plain(doc)
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, Mapping):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, np.ndarray):
+        return [_plain(x) for x in v.tolist()]
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
+
+
+def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
+    """Return the human summary ``fit_report.txt``."""
+    cal = result.calibration
+    st = result.stats
+    r = result.relaxation
+    lines = [
+        f"MESSENGER MAG in-flight calibration ({SOURCE} {__version__})",
+        f"days: {len(st.days)} ({', '.join(st.days[:3])}{' ...' if len(st.days) > 3 else ''})",
+        f"intervals: {provenance.get('intervals', 'all data')}",
+        f"samples used: {st.n_samples.get('used', 0)} of {st.n_samples.get('total', 0)} "
+        f"(coarse {st.n_samples.get('coarse', 0)}, outside intervals "
+        f"{st.n_samples.get('outside_intervals', 0)}, before V10 "
+        f"{st.n_samples.get('before_v10', 0)})",
+        "",
+        "temperature law (Table 2 form, fine counts):",
+    ]
+    for a, f in zip(AXES, result.temperature, strict=True):
+        lines.append(f"  {a}: A0 {f.a0:9.3f} +- {f.a0_err:.3f}  B0 {f.b0:7.4f} +- {f.b0_err:.4f}"
+                     f"  A1 {f.a1:9.3f} +- {f.a1_err:.3f}  B1 {f.b1:7.4f} +- {f.b1_err:.4f}"
+                     f"  Tm {f.x_m:7.2f} +- {f.x_m_err:.2f} C")
+    lines.append("duty-cycle law (Table 3 form):")
+    for a, f in zip(AXES, result.duty, strict=True):
+        lines.append(f"  {a}: C0 {f.intercept:9.3f} (held)  D0 {f.slope:.5f} +- {f.slope_err:.5f}")
+    lines.append(f"relaxation: tau {r.tau:.1f} +- {r.tau_err:.1f} s; dt {r.dt:.1f} s "
+                 + (f"+- {r.dt_err:.1f} (fitted)" if result.delay_fitted else "(held)")
+                 + f"; {st.n_samples.get('events', 0)} duty-cycle changes")
+    lines.append("heater waveform rms (counts) per duty bin "
+                 + " ".join(f"{b:.0f}%" for b in cal.heater_duty_bins_percent) + ":")
+    for j, a in enumerate(AXES):
+        rms = np.sqrt(np.mean(cal.heater_signal[j, :100] ** 2, axis=0))
+        marks = ["" if fit else "*" for fit in result.waveform[j]]
+        lines.append(f"  {a}: " + " ".join(f"{v:.2f}{m}" for v, m in zip(rms, marks,
+                                                                         strict=True)))
+    lines.append("  (* kept from the base table: too little data)")
+    lines.append("passes: " + "; ".join(
+        f"{p['pass']}: tau {p['tau_s']} s, D0 {p['D0']}" for p in result.passes))
+    return "\n".join(lines)
