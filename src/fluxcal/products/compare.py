@@ -132,7 +132,7 @@ class Comparison:
     epoch: np.ndarray  # epochs of A at the matched pairs
     dt_ns: np.ndarray  # epoch A - epoch B of each pair
     diff: np.ndarray  # (pairs, 3) A - B
-    quality: np.ndarray | None  # flag of each pair
+    quality: np.ndarray | None  # flag of each pair (as stored: integer or text)
     quality_source: str | None
     ambiguous: int = 0  # matched A samples with more than one B sample within tolerance
     overall: list[ComponentStats] = field(default_factory=list)
@@ -190,10 +190,19 @@ def match(epoch_a: np.ndarray, epoch_b: np.ndarray, tolerance_ns: int
     dist = np.minimum(d_left, d_right)
     ia = np.flatnonzero(dist <= tolerance_ns)
     ib, dist = ib[ia], dist[ia]
-    order = np.lexsort((ia, dist, ib))  # by B sample, then distance, then A index
+    # A and B sorted: the nearest B index never decreases with A, so the A samples that
+    # share a B sample are adjacent; only those few are sorted to find the nearest
+    shared = np.zeros(ib.size, dtype=bool)
+    same = ib[1:] == ib[:-1]
+    shared[1:] |= same
+    shared[:-1] |= same
+    if not shared.any():
+        return ia, ib
+    sub = np.flatnonzero(shared)
+    order = sub[np.lexsort((ia[sub], dist[sub], ib[sub]))]  # by B, distance, A index
     first = np.ones(order.size, dtype=bool)
     first[1:] = ib[order][1:] != ib[order][:-1]
-    keep = np.sort(order[first])
+    keep = np.sort(np.concatenate([np.flatnonzero(~shared), order[first]]))
     return ia[keep], ib[keep]
 
 
@@ -245,7 +254,7 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
     quality, source = None, None
     for ds, idx, p in ((a, ia, path_a), (b, ib, path_b)):
         if "quality" in ds and ds["quality"].dims == ("time",):
-            quality, source = np.asarray(ds["quality"].values[idx]).astype(str), p
+            quality, source = np.asarray(ds["quality"].values[idx]), p
             break
     result = Comparison(path_a, path_b, int(ea.size), int(eb.size), int(tolerance_ns), comps,
                         ua or ub, fa, fb, ea[ia], ea[ia] - eb[ib], diff, quality, source)
@@ -257,7 +266,8 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
     if quality is not None and quality.size:
         flags, groups = np.unique(quality, return_inverse=True)
         per = _stats(diff, groups.astype(np.intp), flags.size)
-        result.by_quality = {str(f): s for f, s in zip(flags, per, strict=True)}
+        result.by_quality = {str(f.item() if hasattr(f, "item") else f): s
+                             for f, s in zip(flags, per, strict=True)}
     return result
 
 
@@ -299,16 +309,20 @@ def difference_figure(c: Comparison) -> Any:
     from matplotlib.figure import Figure
 
     from fluxcal.geometry.time import tt2000_to_datetime64
+    from fluxcal.products.quicklook import envelope
     from fluxcal.products.timeindex import default_lsk
 
     fig = Figure(figsize=(10, 7), layout="constrained")
     axes = fig.subplots(len(c.components) + 1, 1, sharex=True)
     t = tt2000_to_datetime64(c.epoch, default_lsk()) if c.matched else np.array([], "M8[ns]")
+    # min/max envelope per equal-count bin when long (quicklook's): a day of 20 Hz
+    # pairs drawn point by point would take minutes and show the same picture
     for ax, name, k in zip(axes, c.components, range(len(c.components)), strict=False):
-        ax.plot(t, c.diff[:, k], ".", ms=1.5, color=("tab:blue", "tab:green", "tab:red")[k])
+        ax.plot(*envelope(t, c.diff[:, k]), ".", ms=1.5,
+                color=("tab:blue", "tab:green", "tab:red")[k])
         ax.axhline(0.0, color="0.6", lw=0.8)
         ax.set_ylabel(f"{name} A-B ({c.units})" if c.units else f"{name} A-B")
-    axes[-1].plot(t, c.dt_ns / 1e6, ".", ms=1.5, color="0.3")
+    axes[-1].plot(*envelope(t, c.dt_ns / 1e6), ".", ms=1.5, color="0.3")
     axes[-1].set_ylabel("t A-B (ms)")
     axes[-1].set_xlabel("UTC")
     fig.suptitle(f"{Path(c.path_a).name} - {Path(c.path_b).name}: {c.matched} pairs, "
