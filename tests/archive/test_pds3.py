@@ -471,3 +471,40 @@ def test_label_decoding_equals_pvl_default(tmp_path: Path) -> None:
                   table_columns("mso", False))
     text = (tmp_path / "MAGMSOSCI12153_V01.LBL").read_text()
     assert parse_label_text(text) == pvl.loads(text)
+
+
+_COLUMN_KINDS = st.sampled_from([("I6", "i"), ("I3.3", "i"), ("F10.3", "f"), ("F12.6", "f"),
+                                 ("E15.7", "f"), ("E24.16", "f"), ("A5", "s")])
+
+
+@settings(max_examples=10, deadline=None)  # each example parses two labels (~1 s)
+@given(st.lists(_COLUMN_KINDS, min_size=1, max_size=6), st.integers(1, 15),
+       st.integers(0, 2**32 - 1))
+def test_random_fluxcal_tables_read_as_pdr_reads_them(tmp_path_factory, kinds, rows: int,
+                                                      seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    data, cols = {}, []
+    for i, (fmt, kind) in enumerate(kinds):
+        name = f"C{i}"
+        if kind == "i":
+            values = rng.integers(0, 999, rows)
+        elif kind == "f":
+            values = rng.uniform(-999, 999, rows)
+        else:
+            values = np.array(["".join(rng.choice(list("ABCXYZ019"), rng.integers(1, 6)))
+                               for _ in range(rows)])
+        data[name] = ("time", values)
+        cols.append(Column(name, fmt))
+    folder = tmp_path_factory.mktemp("random_table")
+    ds = xr.Dataset(data, attrs={"creation_time": "2026-01-01T00:00:00Z"})
+    write_product(ds, folder / "R", ("tab",), cols)
+    ours = read_table(folder / "R.LBL")
+    _assert_same_as_pdr(ours, pdr.read(folder / "R.LBL")["TABLE"])
+    for name, (fmt, kind) in zip(data, kinds, strict=True):
+        if kind == "f":  # printed decimals: half a unit of the last printed digit
+            digits = int(fmt.split(".")[1])
+            scale = 10.0 ** (3 - digits) if fmt[0] == "E" else 10.0 ** -digits
+            np.testing.assert_allclose(ours[name].values, ds[name].values,
+                                       atol=0.5 * scale * (1 + 1e-9), rtol=0)
+        else:
+            np.testing.assert_array_equal(ours[name].values, ds[name].values)

@@ -88,7 +88,7 @@ def identify(columns: list[str]) -> str:
     raise InputFormatError(
         "not an archived MESSENGER MAG CDR/RDR (columns YEAR DAY_OF_YEAR HOUR MINUTE "
         "SECOND) or Rosetta RPC-MAG CALIBRATED/RESAMPLED table (column TIME.UTC); it has "
-        f"{' '.join(columns)}", field="YEAR" if "YEAR" in " ".join(columns) else "TIME.UTC")
+        f"{' '.join(columns)}")
 
 
 def _need(table: xr.Dataset, names: tuple[str, ...], label: Path) -> list[np.ndarray]:
