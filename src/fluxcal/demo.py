@@ -19,6 +19,10 @@ PARTS = [
     ("Rosetta disturbance removal", "fluxcal.missions.rosetta.cleaning_demo", "run_demo",
      "rosetta_cleaning"),
     ("Batch processing on Dask", "fluxcal.products.demo", "run_demo", "batch"),
+    ("MESSENGER in-flight calibration: simulate, fit, recalibrate, compare",
+     "fluxcal.missions.messenger.fit_demo", "run_demo", "messenger_fit"),
+    ("Rosetta archive round trip: EDITED raw -> calibrate -> archived products -> compare",
+     "fluxcal.missions.rosetta.archive_demo", "run_demo", "rosetta_archive"),
 ]
 
 
