@@ -14,6 +14,8 @@ import numpy as np
 import pvl
 import pytest
 import xarray as xr
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from fluxcal.cli import main
 from fluxcal.errors import CalibrationError, InputFormatError
@@ -162,8 +164,8 @@ def test_lower_case_names_and_label_or_table_given(pool, tmp_path):
         p.rename(p.with_name(p.name.lower()))
     found = archive.find_products(tmp_path, kind="OB")
     assert [p.label.name for p in found] == ["rpcmag140802t0300_raw_ob_m3.lbl"]
-    for given in (tmp_path, found[0].label, found[0].label.with_suffix(".tab")):
-        np.testing.assert_array_equal(io.read_science(given, "OB")["b_counts"].values,
+    for source in (tmp_path, found[0].label, found[0].label.with_suffix(".tab")):
+        np.testing.assert_array_equal(io.read_science(source, "OB")["b_counts"].values,
                                       raw["b_counts"].values)
 
 
@@ -381,3 +383,29 @@ def test_batch_archive_layout_across_midnight_equals_csv_layout(tmp_path, capsys
     assert a.keys() == b.keys() and "RPCMAG140802T0000_CLA_OB_M5.TAB" in a
     for name in a:
         assert a[name] == b[name], name
+
+
+@given(runs=st.lists(st.tuples(st.integers(1, 6), st.integers(61, 200), st.integers(0, 3000)),
+                     min_size=1, max_size=5),
+       start=st.integers(86_400 - 900, 86_400 + 60))
+@settings(max_examples=12, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_mode_runs_gaps_and_midnight_round_trip(pool, tmp_path_factory, runs, start):
+    """Any SID schedule with gaps, around midnight: one product per run and UTC day, and
+    the reader gives back every value, the SID of every record and the time order."""
+    runs = [r for k, r in enumerate(runs) if k == 0 or r[0] != runs[k - 1][0]]
+    sid = np.concatenate([np.full(n, s) for s, n, _ in runs])
+    gaps = np.concatenate([np.r_[g, np.zeros(n - 1, int)] for _, n, g in runs])
+    seconds = start + np.cumsum(1 + gaps) - 1 - gaps[0]  # 1 s cadence, gap before a run
+    raw = _hand_made("OB", sid)
+    t0 = utc_to_tt2000(np.array(["2014-08-01T00:00:00"]))[0]
+    raw = raw.assign_coords(epoch=("time", t0 + seconds.astype(np.int64) * 10**9))
+    folder = tmp_path_factory.mktemp("runs")
+    written = archive_write.write_science_products(raw, folder, flat=True)
+    day = seconds // 86_400
+    expected = 1 + int(np.sum((np.diff(sid) != 0) | (np.diff(day) != 0)))
+    assert len(written) == 2 * expected
+    back = io.read_science(folder, "OB")
+    for name in ("sid", "b_counts", "quality", "obt"):
+        np.testing.assert_array_equal(back[name].values, raw[name].values, err_msg=name)
+    np.testing.assert_array_equal(back["epoch"].values, raw["epoch"].values)
