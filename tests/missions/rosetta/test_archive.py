@@ -169,6 +169,16 @@ def test_lower_case_names_and_label_or_table_given(pool, tmp_path):
                                       raw["b_counts"].values)
 
 
+def test_table_without_label_refused(pool, tmp_path):
+    raw = _hand_made("OB", np.full(20, 3))
+    written = archive_write.write_science_products(raw, tmp_path, flat=True)
+    lbl = next(p for p in written if p.suffix == ".LBL")
+    lbl.unlink()
+    with pytest.raises(InputFormatError, match="without its detached label") as err:
+        io.read_science(tmp_path, "OB")
+    assert err.value.path == str(lbl.with_suffix(".TAB"))
+
+
 def test_overlapping_files_refused(pool, tmp_path):
     raw = _hand_made("OB", np.repeat([2, 3], [70, 70]))
     written = archive_write.write_science_products(raw, tmp_path, flat=True)

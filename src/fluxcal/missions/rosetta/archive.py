@@ -132,15 +132,20 @@ def _folder(path: str) -> tuple[list[str], list[RawProduct]]:
     cached = _FOLDER_INDEX.get(path)
     if cached is not None and cached[0] == mtime:
         return cached[1], cached[2]
-    folders, products = [], []
+    folders, products, stems = [], [], {}
     with os.scandir(path) as entries:
         for entry in entries:
             if entry.is_dir():
                 folders.append(entry.path)
-            elif entry.name.upper().endswith(".LBL"):
-                product = parse_name(Path(entry.path))
-                if product is not None:
-                    products.append(product)
+            elif _NAME.match(entry.name):
+                stems.setdefault(entry.name[:-4].upper(), []).append(entry.name)
+    for names in stems.values():
+        labels = [n for n in names if n.upper().endswith(".LBL")]
+        if not labels:  # a table of the pattern without its label: refused, not skipped
+            raise InputFormatError("EDITED table without its detached label (.LBL): fluxcal "
+                                   "reads the table through the label",
+                                   path=os.path.join(path, names[0]))
+        products.append(parse_name(Path(path) / labels[0]))
     _FOLDER_INDEX[path] = (mtime, folders, products)
     return folders, products
 
