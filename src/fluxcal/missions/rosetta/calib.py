@@ -10,6 +10,8 @@ plus two CSV tables shipped with fluxcal: the filter-mode time shifts
 (``RPCMAG_FILTER_TIMESHIFT.csv``, sec. 4.2.3.5) and the post-hibernation offset jumps
 (``RPCMAG_OFFSET_JUMPS.csv``, Appendix B).  A user directory given with ``--calib DIR``
 overrides any of them file by file; fluxcal's defaults live in ``missions/rosetta/data``.
+In that folder a file may also carry the archive's name (``RPCMAG_GND_CALIB_FSDPU_FM<S>``
+for the ground calibration) and the extension ``.ASC`` (`names_of`, `resolve`).
 
 References
 ----------
