@@ -55,6 +55,7 @@ from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import (
     DayStatistics,
     FitSettings,
+    intervals_to_et,
     reduce_day,
     relaxation_response,
 )
@@ -408,7 +409,8 @@ def reduce_chunk(
     sclk = SclkKernel.from_pool(-236)
     inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
     return reduce_day(read_science(list(chunk.science)), read_heater(list(chunk.heater)),
-                      read_temperature(list(chunk.temperature)), sclk, cal, intervals,
+                      read_temperature(list(chunk.temperature)), sclk, cal,
+                      intervals_to_et(intervals),
                       settings, label=chunk.label, inputs=inputs)
 
 
@@ -445,7 +447,7 @@ def fit_days(
     base : MessengerCalibration
         Starting estimate (the shipped tables) and the unfitted terms.
     intervals : ndarray, shape (k, 2), optional
-        Solar-wind intervals (ET); None: all data.
+        Solar-wind intervals, UTC ``datetime64`` (`read_intervals`) or ET; None: all data.
     passes : int
         Most reduce-and-fit iterations (each pass removes the others' terms with the
         previous estimates; docs/decisions/messenger_fit.md, entry 1).

@@ -50,7 +50,7 @@ from fluxcal.calibration.heater_signal import heater_waveform, period_index
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
 from fluxcal.errors import InputFormatError
-from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.geometry.time import SclkKernel, datetime64_to_tt2000, tt2000_to_et
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
@@ -163,10 +163,10 @@ def _phase_edges(s: FitSettings) -> np.ndarray:
 
 
 def read_intervals(path: Path) -> np.ndarray:
-    """Read solar-wind intervals (CSV ``start,stop`` in ISO UTC) as ET pairs, shape (k, 2).
+    """Read solar-wind intervals (CSV ``start,stop`` in ISO UTC), shape (k, 2) datetime64.
 
     A header line naming ``start,stop`` is optional; ``#`` lines and blank lines are
-    skipped.
+    skipped.  `intervals_to_et` converts them where kernels are loaded.
 
     Raises
     ------
@@ -200,16 +200,28 @@ def read_intervals(path: Path) -> np.ndarray:
             if np.isnat(stamp):
                 raise InputFormatError(f"{value!r} is not a time", path=str(path), line=lineno,
                                        field=name)
-            pair.append(str(stamp))
-        et = utc_to_et(np.array(pair))
-        if et[1] < et[0]:
+            pair.append(stamp)
+        if pair[1] < pair[0]:
             raise InputFormatError(f"stop {pair[1]} lies before start {pair[0]}",
                                    path=str(path), line=lineno, field="stop")
-        rows.append((float(et[0]), float(et[1])))
+        rows.append((pair[0], pair[1]))
     if not rows:
         raise InputFormatError("no interval (expected lines 'start,stop' in ISO UTC)",
                                path=str(path))
-    return np.array(rows)
+    return np.array(rows, dtype="datetime64[ms]")
+
+
+def intervals_to_et(intervals: np.ndarray | None) -> np.ndarray | None:
+    """Return UTC ``datetime64`` interval pairs (`read_intervals`) as ET (None: None).
+
+    A leap-second kernel must be loaded; float pairs are taken as ET already.
+    """
+    if intervals is None:
+        return None
+    iv = np.asarray(intervals)
+    if iv.dtype.kind != "M":
+        return iv.astype(float)
+    return tt2000_to_et(datetime64_to_tt2000(iv.ravel())).reshape(iv.shape)
 
 
 def inside_intervals(et: np.ndarray, intervals: np.ndarray | None) -> np.ndarray:

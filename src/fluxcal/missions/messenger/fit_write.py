@@ -55,12 +55,17 @@ def _toml_value(v: Any) -> str:
     return f'"{text}"'
 
 
+def _toml_key(key: str) -> str:
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_value(str(key))
+
+
 def dump_toml(doc: Mapping[str, Any], prefix: str = "") -> str:
     """Return ``doc`` (scalars, strings, lists, nested dicts) as TOML text."""
-    lines = [f"{k} = {_toml_value(v)}" for k, v in doc.items() if not isinstance(v, Mapping)]
+    lines = [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in doc.items()
+             if not isinstance(v, Mapping)]
     for k, v in doc.items():
         if isinstance(v, Mapping):
-            name = f"{prefix}.{k}" if prefix else k
+            name = f"{prefix}.{_toml_key(k)}" if prefix else _toml_key(k)
             lines += ["", f"[{name}]", dump_toml(v, name)]
     return "\n".join(lines)
 
