@@ -617,9 +617,9 @@ def _rotate_interpolated(
     the spacecraft frame, inverted) in one compiled pass over the samples.  The
     J2000 -> frame legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000;
     its J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY rotations also turn ``mercury_j2000``
-    (MESSENGER relative to Mercury, J2000) into ``pos_mso`` and ``pos_mbf`` (what
-    ``spkpos`` returns in those frames without aberration correction: the frame is
-    evaluated at the same epoch).
+    (MESSENGER relative to Mercury, J2000) into ``pos_mso`` and, when MBF is requested,
+    ``pos_mbf`` (what ``spkpos`` returns in those frames without aberration correction:
+    the frame is evaluated at the same epoch).
     """
     from fluxcal.geometry import compiled
     from fluxcal.geometry.frames import Rotator
@@ -633,7 +633,7 @@ def _rotate_interpolated(
     if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
         out["rtn"] = rtn_from_position(b_j2000, sun, et)
     from_j2000 = Rotator("J2000", et)
-    for f in ("mso", "mbf"):  # positions always; the field when that frame is requested
+    for f in position_frames(frames):  # the field too when that frame is requested
         arrays = [mercury_j2000, b_j2000] if f in frames else [mercury_j2000]
         out[f"pos_{f}"], *field = from_j2000.rotate_many(FRAMES[f][0], arrays)
         if field:
@@ -642,6 +642,16 @@ def _rotate_interpolated(
         if f not in out:
             out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
     return out
+
+
+def position_frames(frames: tuple[str, ...]) -> tuple[str, ...]:
+    """Mercury-centred position frames `add_geometry` computes for the field ``frames``.
+
+    ``mso`` always (the quicklook's distance from Mercury and the MSO product), ``mbf``
+    only when the MBF field is requested: an unrequested position is a 40-MB array per
+    20 Hz day and, for MBF, a whole J2000 -> IAU_MERCURY leg.
+    """
+    return ("mso", "mbf") if "mbf" in frames else ("mso",)
 
 
 #: The MSGR_RTN definition `rtn_from_position` reproduces (fluxcal's msgr_rtn.tf):
@@ -834,10 +844,13 @@ def add_geometry(
     The field goes sensor -> MSGR_SPACECRAFT (fixed mounting of MSGR_MAG, or
     MSGR_MAG_STOWED before boom deployment) -> J2000 (attitude, CK) -> each frame, the
     composition SPICE's ``pxform`` performs.  Adds ``b_<frame>`` for each requested key
-    of `FRAMES`; ``pos_j2000`` (MESSENGER relative to the Sun, J2000), ``pos_mso`` and
-    ``pos_mbf`` (relative to Mercury in MSGR_MSO and IAU_MERCURY), ``pos_rtn`` (r km,
-    latitude deg, azimuth deg of sec. 10.2) and ``sun_sc`` (unit Sun direction in
-    MSGR_SPACECRAFT, for the S flag).  Kernels must be loaded.  MBF produced with
+    of `FRAMES`, ``sun_sc`` (unit Sun direction in MSGR_SPACECRAFT, for the S flag) and
+    ``pos_mso`` (relative to Mercury in MSGR_MSO, for the MSO product and the quicklook's
+    distance); the other positions only with their frame (`position_frames`):
+    ``pos_j2000`` (MESSENGER relative to the Sun, J2000) with J2000, ``pos_mbf``
+    (relative to Mercury in IAU_MERCURY) with MBF and ``pos_rtn`` (r km, latitude deg,
+    azimuth deg of sec. 10.2) with RTN.  What is computed for a requested frame does not
+    depend on the other frames requested.  Kernels must be loaded.  MBF produced with
     fluxcal's built-in Mercury rotation (no mission PCK, `mercury_orientation_is_builtin`)
     is logged as a warning and noted in the ``mbf_rotation`` attribute.
 
@@ -877,25 +890,28 @@ def add_geometry(
         sun = sun_at(et)
     if method == "oracle":
         out = _rotate_oracle(b_sc, sun, et, frames)
-        mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et, method=method)
-        mbf = position("MESSENGER", "MERCURY", "IAU_MERCURY", et, method=method)
+        for f in position_frames(frames):
+            out[f"pos_{f}"] = position("MESSENGER", "MERCURY", FRAMES[f][0], et,
+                                       method=method)
     else:
         mercury = position("MESSENGER", "MERCURY", "J2000", et, method=method)
         out = _rotate_interpolated(b_sc, sun, et, frames, mercury_j2000=mercury)
-        mso, mbf = out.pop("pos_mso"), out.pop("pos_mbf")
-    sun_sc = out.pop("sun_sc")
-    pos_rtn = spherical_rtn(sun, et, method=method, sun_at=sun_at)
+        del mercury
     variables = {
         f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
     }
-    variables.update(
-        pos_j2000=_vector(sun, "km", "MESSENGER relative to the Sun, J2000"),
-        pos_mso=_vector(mso, "km", "MESSENGER relative to Mercury, MSGR_MSO"),
-        pos_mbf=_vector(mbf, "km", "MESSENGER relative to Mercury, IAU_MERCURY"),
-        pos_rtn=_vector(pos_rtn, "km, deg, deg",
-                        "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)"),
-        sun_sc=_vector(sun_sc, "1", "unit Sun direction in MSGR_SPACECRAFT"),
-    )
+    if "j2000" in frames:
+        variables["pos_j2000"] = _vector(sun, "km", "MESSENGER relative to the Sun, J2000")
+    for f in position_frames(frames):
+        variables[f"pos_{f}"] = _vector(out.pop(f"pos_{f}"), "km",
+                                        f"MESSENGER relative to Mercury, {FRAMES[f][0]}")
+    if "rtn" in frames:
+        variables["pos_rtn"] = _vector(
+            spherical_rtn(sun, et, method=method, sun_at=sun_at), "km, deg, deg",
+            "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)")
+    variables["sun_sc"] = _vector(out.pop("sun_sc"), "1",
+                                  "unit Sun direction in MSGR_SPACECRAFT")
+    del out, sun  # b_j2000 and the Sun position stay only when J2000 is requested
     out_ds = ds.assign(variables)
     if "mbf" in frames and mercury_orientation_is_builtin():
         log.warning(MBF_BUILTIN_NOTE)
