@@ -376,6 +376,11 @@ def reduce_day(
             - effective_duty(prev, threshold))
     ev = finite & (np.abs(step) >= s.min_step_ppt) & (
         changes.time >= levels._date_et(cal, "heater_mode_v10"))
+    # only changes whose epoch window holds used samples count
+    t_sorted = np.sort(et)
+    lag = np.asarray(s.lag_edges_s)
+    ev &= (np.searchsorted(t_sorted, changes.time + lag[-1], side="left")
+           > np.searchsorted(t_sorted, changes.time + lag[0], side="left"))
     out.n_samples["events"] = int(ev.sum())
     out.n_samples["events_positive"] = int((ev & (step > 0)).sum())
     if ev.any():
