@@ -16,7 +16,7 @@ demo: $(STAMP)
 	$(BIN)/fluxcal demo --out demo-output
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
