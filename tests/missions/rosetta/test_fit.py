@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.polynomial import Polynomial
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
@@ -497,3 +499,34 @@ def test_cli_jumps_with_kernels(tmp_path, capsys):
     table = calib.read_offset_jump_table(tmp_path / "out" / calib.JUMPS_FILE)
     assert list(table.start_utc) == ["2014-07-25T02:00:00"]
     assert np.isfinite(table.jumps["OB"]).all() and np.isnan(table.jumps["IB"]).all()
+
+
+@given(
+    jump=st.lists(st.floats(-30, 30), min_size=3, max_size=3),
+    mean_xy=st.lists(st.floats(-5, 5), min_size=2, max_size=2),
+    amplitude=st.lists(st.floats(30, 180), min_size=3, max_size=3),
+    phase=st.lists(st.floats(0, 2 * np.pi), min_size=3, max_size=3),
+)
+@settings(max_examples=25, deadline=None)
+def test_offset_jumps_exact_for_a_steady_field(jump, mean_xy, amplitude, phase):
+    """Closed form: a steady CSEQ field (m_x, m_y, 0) seen through any attitude history.
+
+    ``B_sc = M^T m + J`` exactly, so the fit returns J and m to rounding (1e-6 nT), for
+    offsets of either sign and attitudes swinging 30-180 deg about three axes.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+
+    secs = np.arange(0.0, 2 * 86400.0, 60.0)
+    angles = np.stack([a * np.sin(2 * np.pi * secs / p + f) for a, p, f in
+                       zip(amplitude, (97_000.0, 61_000.0, 43_000.0), phase, strict=True)], 1)
+    rot = Rotation.from_euler("zyx", angles, degrees=True).as_matrix()
+    m = np.array([*mean_xy, 0.0])
+    b_sc = np.einsum("nji,j->ni", rot, m) + np.array(jump)
+    with KernelPool():
+        from fluxcal.geometry.time import utc_to_tt2000
+
+        epoch = utc_to_tt2000(np.array(["2014-08-01T00:00:00"]))[0] + (secs * NS).astype(np.int64)
+        fit = fit_offset_jumps(epoch, b_sc, rot, np.array(["2014-08-01T00:00:00"]),
+                               np.array(["2014-08-03T00:00:00"]), sensor="OB")
+    np.testing.assert_allclose(fit.jumps[0], jump, atol=1e-6)
+    np.testing.assert_allclose(fit.mean_field[0], mean_xy, atol=1e-6)
