@@ -897,9 +897,12 @@ def add_geometry(
         mercury = position("MESSENGER", "MERCURY", "J2000", et, method=method)
         out = _rotate_interpolated(b_sc, sun, et, frames, mercury_j2000=mercury)
         del mercury
+    del b_sc  # b_sc and b_j2000 stay only as requested frames (out["sc"], out["j2000"])
     variables = {
-        f"b_{f}": _vector(out[f], "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
+        f"b_{f}": _vector(out.pop(f), "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
     }
+    for f in ("sc", "j2000"):  # when not requested: freed before sec. 10.2
+        out.pop(f, None)
     if "j2000" in frames:
         variables["pos_j2000"] = _vector(sun, "km", "MESSENGER relative to the Sun, J2000")
     for f in position_frames(frames):
@@ -911,7 +914,7 @@ def add_geometry(
             "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)")
     variables["sun_sc"] = _vector(out.pop("sun_sc"), "1",
                                   "unit Sun direction in MSGR_SPACECRAFT")
-    del out, sun  # b_j2000 and the Sun position stay only when J2000 is requested
+    del out, sun  # the Sun position stays only as pos_j2000 (J2000 requested)
     out_ds = ds.assign(variables)
     if "mbf" in frames and mercury_orientation_is_builtin():
         log.warning(MBF_BUILTIN_NOTE)

@@ -218,7 +218,9 @@ def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
     return xr.Dataset(
         {
             "partition": ("time", data[:, 0].astype(np.int8), {"units": "1"}),
-            "met": ("time", data[:, 1], {"units": "s", "description": "MET as recorded"}),
+            # a copy: a view would keep the whole (n, 7) parsed table (95 MB a 20 Hz day)
+            "met": ("time", np.ascontiguousarray(data[:, 1]),
+                    {"units": "s", "description": "MET as recorded"}),
             "rate": ("time", data[:, 2].astype(np.int8), {"units": "1"}),
             "range": ("time", data[:, 3].astype(np.int8), {"units": "1"}),
             "counts": (("time", "component"), data[:, 4:7].astype(np.int32), {"units": "counts"}),
