@@ -219,7 +219,7 @@ def test_header_state_changes_between_packets(tmp_path, tiny_mapping):
 
 def test_packet_before_any_header_is_an_error(tmp_path, tiny_mapping):
     _tiny_archive(tmp_path / "edr", [(5000, 0, 5), (5010, 0, 3)], [(5005, 9)])
-    with pytest.raises(InputFormatError, match=r"MAGSCI121530000_V1\.LBL, line 1.*no "
+    with pytest.raises(InputFormatError, match=r"MAGSCI121530000_V1\.TAB, line 1.*no "
                        "science-header state"):
         read_edr(tmp_path / "edr", tiny_mapping)
 
@@ -307,6 +307,25 @@ def test_missing_column_names_the_mapping_entry_and_label(tmp_path, tiny_mapping
     msg = str(exc.value)
     assert "MAGSCI121530000_V1.LBL" in msg and "[science.counts]" in msg
     assert "'MAG_XYZ'" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize(("table", "old", "new", "where"), [
+    ("MAGSHD121530000_V1.TAB", b"  8\r\n", b" 11\r\n", "MAGSHD121530000_V1.TAB, line 1, "
+     "field 'RATE': value 11 outside the rate settings"),
+    ("MAGSCI121530000_V1.TAB", b"   0 0      2", b"   0 2      2", "MAGSCI121530000_V1.TAB, "
+     "line 3, field 'RANGE': value 2 outside the range flags"),
+    ("MAGSCI121530000_V1.TAB", b"     1     -1", b" 40000     -1", "MAGSCI121530000_V1.TAB, "
+     "line 2, field 'MAG_COUNTS': value 40000 outside the signed 16-bit"),
+])
+def test_value_errors_name_file_row_and_column(tmp_path, tiny_mapping, table, old, new, where):
+    _tiny_archive(tmp_path / "edr", [(5000, 0, 4)], [(5000, 8)])
+    path = tmp_path / "edr" / table
+    data = path.read_bytes()
+    assert old in data
+    path.write_bytes(data.replace(old, new, 1))
+    with pytest.raises(InputFormatError) as exc:
+        read_edr(tmp_path / "edr", tiny_mapping)
+    assert where in str(exc.value)
 
 
 def _cli(edr, mapping, kernels, out, *extra):

@@ -259,7 +259,8 @@ def select_files(folder: str | Path, mapping: EdrMapping, kind: str,
 class _Stream:
     """Rows of one EDR kind over its files, in time order, with their origin."""
 
-    files: list[Path]
+    files: list[Path]       # the labels
+    data_files: list[Path]  # the tables they point to (rows are counted there)
     file_index: np.ndarray  # per row: index into files
     row: np.ndarray         # per row: 0-based row in its file
     partition: np.ndarray   # int64
@@ -268,8 +269,8 @@ class _Stream:
     columns: dict[str, tuple[str, ...]]  # field -> its label column name(s)
 
     def where(self, i: int) -> tuple[str, int]:
-        """(file, 1-based row) of stream row ``i``."""
-        return str(self.files[int(self.file_index[i])]), int(self.row[i]) + 1
+        """Return (data file, 1-based row) of stream row ``i``."""
+        return str(self.data_files[int(self.file_index[i])]), int(self.row[i]) + 1
 
 
 def _column(ds: xr.Dataset, mapping: EdrMapping, entry: str, name: str,
@@ -356,12 +357,14 @@ def _read_stream(files: Sequence[EdrFile], mapping: EdrMapping, kind: str,
         for name, cols in extra.items():
             arrs = [_column(ds, mapping, f"{kind}.{name}", c, f.path) for c in cols]
             values[name] = arrs[0] if len(arrs) == 1 else np.column_stack(arrs)
-        parts.append((f.path, part, met_us, values))
+        parts.append((f.path, part, met_us, values,
+                      Path(ds.attrs.get("pds3_data_file", f.path))))
     parts.sort(key=lambda t: (t[1][0], t[2][0]) if t[2].size else (np.inf, np.inf))
     files_sorted = [p[0] for p in parts]
     n = [p[2].size for p in parts]
     stream = _Stream(
         files=files_sorted,
+        data_files=[p[4] for p in parts],
         file_index=np.repeat(np.arange(len(parts)), n),
         row=np.concatenate([np.arange(k) for k in n]) if n else np.zeros(0, int),
         partition=np.concatenate([p[1] for p in parts]),
@@ -393,7 +396,7 @@ def _check_range(stream: _Stream, name: str, lo: float, hi: float, what: str) ->
     if bad.any():
         i, j = (int(k) for k in np.argwhere(bad)[0])
         path, row = stream.where(i)
-        raise InputFormatError(f"value {flat[i, j]!r} outside {what}", path=path,
+        raise InputFormatError(f"value {flat[i, j]:g} outside {what}", path=path,
                                line=row, field=col[min(j, len(col) - 1)])
     return v.astype(np.int64)
 
