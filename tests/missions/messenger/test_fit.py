@@ -53,13 +53,17 @@ def _known_statistics(truth: dict, base, rng) -> DayStatistics:
     r_off = rng.uniform(0.0, 20.0, temps.size)
     law = np.column_stack([_two_segment(temps, *coeff[j]) for j in range(3)])
     vals = law + r_off[:, None] * d0[None, :]
+    # (the last column, the relaxed duty cycle's derivative in tau, is zero here: the
+    # statistics are those of a model already at the true tau, tested separately below)
     temperature = BinnedMoments.accumulate(
-        temps, np.column_stack([vals, temps, r_off]), s.temperature_edges_c)
+        temps, np.column_stack([vals, temps, r_off, np.zeros_like(r_off)]),
+        s.temperature_edges_c)
     # 2. duty: relaxed duty cycles inside the 40-ppt bins
     r_on = np.repeat(np.arange(110.0, 420.0, 40.0), 30) + rng.uniform(0, 20, 240)
     c_ref = np.array([_two_segment(-50.0, *coeff[j]) for j in range(3)])
     duty = BinnedMoments.accumulate(
-        r_on, np.column_stack([c_ref[None, :] + r_on[:, None] * d0[None, :], r_on]),
+        r_on, np.column_stack([c_ref[None, :] + r_on[:, None] * d0[None, :], r_on,
+                               np.zeros_like(r_on)]),
         s.duty_edges_ppt)
     # 3. epoch: residual of the base model for a lone step, normalised
     lag = np.repeat(np.arange(-197.5, 1000.0, 5.0), 20)
@@ -70,7 +74,11 @@ def _known_statistics(truth: dict, base, rng) -> DayStatistics:
     g_base = np.where(lag > b_dt, 1.0 - np.exp(-(lag - b_dt) / b_tau), 0.0)
     resid = (g_true[:, None] * d0[None, :] - g_base[:, None] * base.duty_cycle_d0[None, :]
              + rng.normal(0.0, 1e-4, (lag.size, 3)))  # spread for the standard errors
-    epoch = BinnedMoments.accumulate(lag, np.column_stack([resid, g_base]), s.lag_edges_s)
+    # the base model's relaxed duty cycle of a lone unit step and its derivative in tau
+    dg_base = np.where(lag > b_dt, -(lag - b_dt) / b_tau**2 * np.exp(-(lag - b_dt) / b_tau),
+                       0.0)
+    epoch = BinnedMoments.accumulate(lag, np.column_stack([resid, g_base, dg_base]),
+                                     s.lag_edges_s)
     # 4. waveforms: periods at the bin centres (one-hot interpolation weights)
     phase = np.tile(np.arange(0.0, 100.0), 3)
     waveform = []
@@ -158,7 +166,7 @@ def test_fit_errors_name_what_is_missing():
     stats = _known_statistics(_truth(), base, np.random.default_rng(0))
     few = DayStatistics(
         temperature=BinnedMoments.accumulate(
-            np.array([-50.0, -50.0, -40.0, -40.0]), np.zeros((4, 5)),
+            np.array([-50.0, -50.0, -40.0, -40.0]), np.zeros((4, 6)),
             FitSettings().temperature_edges_c),
         duty=stats.duty, epoch=stats.epoch, waveform=stats.waveform,
         n_samples=stats.n_samples)

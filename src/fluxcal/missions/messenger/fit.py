@@ -53,6 +53,7 @@ from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.errors import FluxcalError
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import (
+    TAU_STEP,
     DayStatistics,
     FitSettings,
     intervals_to_et,
@@ -70,6 +71,10 @@ MIN_BIN_SAMPLES = 2
 MIN_TEMPERATURE_BINS = 5
 #: Alternations of steps 1 and 2 on the merged statistics (`_fit_offsets`).
 INNER_ITERATIONS = 50
+#: Iterations of tau inside one pass, on the statistics linearised in tau (`fit_calibration`).
+TAU_ITERATIONS = 30
+#: Largest tau change per pass (fraction) for which that linearisation is used.
+MAX_TAU_SHIFT = 0.3
 #: Fewest duty-cycle changes for tau.
 MIN_EVENTS = 3
 #: Fewest filled phase bins (of 100) for a heater-waveform column to be fitted.
@@ -130,7 +135,8 @@ def _usable(moments, column: int = 0) -> np.ndarray:
     return (moments.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, column])
 
 
-def _fit_temperature(stats: DayStatistics, d0: np.ndarray) -> list[TwoSegmentFit]:
+def _fit_temperature(stats: DayStatistics, d0: np.ndarray, shift: float
+                     ) -> list[TwoSegmentFit]:
     t = stats.temperature
     ok = _usable(t)
     if ok.sum() < MIN_TEMPERATURE_BINS:
@@ -145,12 +151,13 @@ def _fit_temperature(stats: DayStatistics, d0: np.ndarray) -> list[TwoSegmentFit
     mean = t.mean()[ok]
     w = np.sqrt(t.count[ok].astype(float))
     # the duty-cycle offset still decaying after the heater stopped: D0 times the mean
-    # relaxed duty cycle of the bin
-    y = mean[:, :3] - mean[:, 4:5] * np.asarray(d0, dtype=float)[None, :]
+    # relaxed duty cycle of the bin (at tau + shift, to first order)
+    relaxed = mean[:, 4:5] + shift * mean[:, 5:6]
+    y = mean[:, :3] - relaxed * np.asarray(d0, dtype=float)[None, :]
     return [fit_two_segment(mean[:, 3], y[:, j], w) for j in range(3)]
 
 
-def _fit_duty(stats: DayStatistics, c_ref: np.ndarray) -> list[LineFit]:
+def _fit_duty(stats: DayStatistics, c_ref: np.ndarray, shift: float) -> list[LineFit]:
     d = stats.duty
     ok = _usable(d)
     if not ok.any():
@@ -165,12 +172,13 @@ def _fit_duty(stats: DayStatistics, c_ref: np.ndarray) -> list[LineFit]:
         )
     mean = d.mean()[ok]
     w = np.sqrt(d.count[ok].astype(float))
-    return [fit_line_fixed_intercept(mean[:, 3], mean[:, j], w, 0.0, float(c_ref[j]))
+    relaxed = mean[:, 3] + shift * mean[:, 4]
+    return [fit_line_fixed_intercept(relaxed, mean[:, j], w, 0.0, float(c_ref[j]))
             for j in range(3)]
 
 
 def _fit_offsets(
-    stats: DayStatistics, base: MessengerCalibration
+    stats: DayStatistics, base: MessengerCalibration, shift: float = 0.0
 ) -> tuple[list[TwoSegmentFit], list[LineFit], np.ndarray]:
     """Fit steps 1 and 2 alternately on the merged statistics until D0 settles.
 
@@ -181,10 +189,10 @@ def _fit_offsets(
     t_ref = float(base.constants["relaxation"].get("reference_temperature_c", -50.0))
     d0 = np.asarray(base.duty_cycle_d0, dtype=float)
     for _ in range(INNER_ITERATIONS):
-        temperature = _fit_temperature(stats, d0)
+        temperature = _fit_temperature(stats, d0, shift)
         total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
         c_ref = two_segment_offset(np.array([t_ref]), total)[0]
-        duty = _fit_duty(stats, c_ref)
+        duty = _fit_duty(stats, c_ref, shift)
         new = np.array([f.slope for f in duty])
         settled = np.all(np.abs(new - d0) <= 1e-7 + 1e-6 * np.abs(new))
         d0 = new
@@ -194,7 +202,8 @@ def _fit_offsets(
 
 
 def _fit_relaxation(
-    stats: DayStatistics, base: MessengerCalibration, d0_new: np.ndarray, fit_delay: bool
+    stats: DayStatistics, base: MessengerCalibration, d0_new: np.ndarray, fit_delay: bool,
+    shift: float = 0.0,
 ) -> tuple[RelaxationFit, bool, np.ndarray]:
     n_events = int(stats.n_samples.get("events", 0))
     if n_events < MIN_EVENTS:
@@ -206,13 +215,20 @@ def _fit_relaxation(
     ep = stats.epoch
     rel = base.constants["relaxation"]
     lag = ep.centers
-    own = relaxation_response(lag, float(rel["tau_s"]), float(rel["delay_s"]))
+    tau_p, dt_p = float(rel["tau_s"]), float(rel["delay_s"])
+    own = relaxation_response(lag, tau_p, dt_p)
+    # the own step in the stored columns, linearised in tau the same way (the finite
+    # difference of `fit_reduce.reduce_day`), so that it cancels exactly and only the
+    # other changes are removed with the shifted tau
+    own = own + shift * (relaxation_response(lag, tau_p * (1.0 + TAU_STEP), dt_p) - own) / (
+        tau_p * TAU_STEP)
     d0 = np.asarray(d0_new, dtype=float)
     d0_old = np.asarray(base.duty_cycle_d0, dtype=float)
     mean = ep.mean()
-    # residual with the new D0 (the relaxed duty cycle is column 3), own step added back
+    # residual with the new D0 and tau + shift (relaxed duty cycle and its tau derivative
+    # are columns 3, 4; first order in the shift), the change's own step added back
     y = (mean[:, :3] - mean[:, 3:4] * (d0 - d0_old)[None, :]
-         + own[:, None] * d0[None, :])
+         - shift * mean[:, 4:5] * d0[None, :] + own[:, None] * d0[None, :])
     se = ep.standard_error()[:, :3]
     norm = float(d0 @ d0)
     combined = (y @ d0) / norm
@@ -326,10 +342,19 @@ def fit_calibration(
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-5, Tables 2-3,
        Appendix Tables 6-8.
     """
-    temperature, duty, c_ref = _fit_offsets(stats, base)
+    tau_base = float(base.constants["relaxation"]["tau_s"])
+    tau = tau_base
+    for _ in range(TAU_ITERATIONS):  # tau inside the pass, to first order (entry 1)
+        shift = float(np.clip(tau - tau_base, -MAX_TAU_SHIFT * tau_base,
+                              MAX_TAU_SHIFT * tau_base))
+        temperature, duty, c_ref = _fit_offsets(stats, base, shift)
+        d0 = np.array([f.slope for f in duty])
+        relaxation, delay_fitted, curve = _fit_relaxation(stats, base, d0, fit_delay, shift)
+        done = abs(relaxation.tau - tau) <= 1e-4 * tau
+        tau = relaxation.tau
+        if done or abs(tau - tau_base) > MAX_TAU_SHIFT * tau_base:
+            break
     total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
-    d0 = np.array([f.slope for f in duty])
-    relaxation, delay_fitted, curve = _fit_relaxation(stats, base, d0, fit_delay)
     heater, waveform = _fit_waveforms(stats, base)
     table2 = total.copy()
     if base.prelaunch_offsets_reading == "added_to_table2":

@@ -7,15 +7,17 @@ of the other calibration terms, for the four analyses of sec. 6 and 7:
 1. ``temperature``: heater off (duty cycle in force below 100 ppt, no powered heater
    period), counts minus the heater signal, in 10 C bins of the sensor temperature
    (value columns x, y, z, the temperature itself, whose bin mean is the abscissa of
-   the fit, and the relaxed duty cycle `relaxed_duty`, whose mean times D0 is the
-   duty-cycle offset still decaying after the heater stopped);
+   the fit, the relaxed duty cycle `relaxed_duty`, whose mean times D0 is the
+   duty-cycle offset still decaying after the heater stopped, and its derivative in tau);
 2. ``duty``: inside heater periods with a duty cycle of at least 100 ppt, counts minus
    the temperature variation ``cT(T) - cT(-50 C)`` and the heater signal, in 40-ppt (4 %)
-   bins of the duty cycle the offset has relaxed to (`relaxed_duty`; columns x, y, z and
-   that duty cycle), so that the line through ``cT(-50 C)`` has the slope ``D0``;
+   bins of the duty cycle the offset has relaxed to (`relaxed_duty`; columns x, y, z, that
+   duty cycle and its derivative in tau), so that the line through ``cT(-50 C)`` has the
+   slope ``D0``;
 3. ``epoch``: the 1200-s superposed epoch (-200 s .. +1000 s) of the duty-cycle changes
-   of the model residual (counts minus the whole current offset model, and the relaxed
-   duty cycle as a fourth column), each change weighted by ``1 / delta`` (``delta`` =
+   of the model residual (counts minus the whole current offset model; the relaxed duty
+   cycle and its derivative in tau as columns 4, 5), each change weighted by ``1 / delta``
+   (``delta`` =
    change of the eq. 5 steady-state duty cycle, ppt), so positive and negative steps
    combine normalised;
 4. ``waveform``: per duty-cycle bin 12..40 % of the heater period, counts minus the
@@ -55,6 +57,10 @@ from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
 __all__ = ["DayStatistics", "FitSettings", "read_intervals", "reduce_day"]
+
+
+#: Relative step of tau for the derivative of the relaxed duty cycle (``slope`` columns).
+TAU_STEP = 0.01
 
 
 @dataclass(frozen=True)
@@ -119,11 +125,11 @@ class DayStatistics:
         """Return statistics of no data (the identity of `merge`)."""
         s = settings or FitSettings()
         return cls(
-            temperature=BinnedMoments.empty(s.temperature_edges_c, 5, label="temperature",
+            temperature=BinnedMoments.empty(s.temperature_edges_c, 6, label="temperature",
                                             units="degC", value_units="counts"),
-            duty=BinnedMoments.empty(s.duty_edges_ppt, 4, label="duty cycle", units="ppt",
+            duty=BinnedMoments.empty(s.duty_edges_ppt, 5, label="duty cycle", units="ppt",
                                      value_units="counts"),
-            epoch=BinnedMoments.empty(s.lag_edges_s, 4, label="lag", units="s",
+            epoch=BinnedMoments.empty(s.lag_edges_s, 5, label="lag", units="s",
                                       value_units="counts per ppt"),
             waveform=[BinnedMoments.empty(_phase_edges(s), 4 + len(s.waveform_bins_percent),
                                           label="phase", units="s",
@@ -252,12 +258,14 @@ def effective_duty(ppt: np.ndarray, threshold_ppt: float) -> np.ndarray:
     return np.where(d >= threshold_ppt, d, 0.0)
 
 
-def relaxed_duty(et: np.ndarray, changes, cal: MessengerCalibration) -> np.ndarray:
+def relaxed_duty(et: np.ndarray, changes, cal: MessengerCalibration,
+                 tau: float | None = None) -> np.ndarray:
     """Duty cycle (ppt) the offset has relaxed to at ``et``: eq. 6a-6f with ``D0 = 1``.
 
     The steady-state duty cycle of eq. 5 (``d`` from 100 ppt, else 0) relaxed with the
-    calibration's tau, dt and look-back (`fluxcal.calibration.relaxation.relaxed_offset`);
-    ``D0 * relaxed_duty`` is the duty-cycle offset the pipeline applies.
+    calibration's tau (or ``tau``), dt and look-back
+    (`fluxcal.calibration.relaxation.relaxed_offset`); ``D0 * relaxed_duty`` is the
+    duty-cycle offset the pipeline applies.
 
     References
     ----------
@@ -267,7 +275,8 @@ def relaxed_duty(et: np.ndarray, changes, cal: MessengerCalibration) -> np.ndarr
     target = steady_state_offset(changes.duty_cycle_ppt, np.ones(1),
                                  float(rel["min_duty_cycle_ppt"]))
     return relaxed_offset(np.asarray(et, dtype=float), changes.time, target,
-                          tau=float(rel["tau_s"]), delay=float(rel["delay_s"]),
+                          tau=float(rel["tau_s"] if tau is None else tau),
+                          delay=float(rel["delay_s"]),
                           look_back=int(rel["look_back"]),
                           look_back_s=float(rel["look_back_s"]))[:, 0]
 
@@ -351,11 +360,16 @@ def reduce_day(
                      0.0)
     level_eff = effective_duty(level, threshold)
     relaxed = relaxed_duty(et, changes, cal)
+    # its derivative in tau (per second), for the in-pass tau iteration of the fit
+    rel_tau = float(cal.constants["relaxation"]["tau_s"])
+    slope = (relaxed_duty(et, changes, cal, tau=rel_tau * (1.0 + TAU_STEP)) - relaxed) / (
+        rel_tau * TAU_STEP)
     # 1. temperature law: heater off; counts minus the heater signal, with the relaxed
     # duty cycle (the fit removes D0 times its mean, with its own D0)
     off = (level_eff == 0) & ~powered
     out.temperature = BinnedMoments.accumulate(
-        temp_c[off], np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off]]),
+        temp_c[off], np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off],
+                                     slope[off]]),
         s.temperature_edges_c, label="temperature", units="degC", value_units="counts")
     # 2. duty-cycle law: counts minus the temperature variation and the heater signal,
     # binned by the duty cycle the offset has relaxed to (eq. 6f with unit slope), in
@@ -366,10 +380,10 @@ def reduce_day(
     on = (level_eff > 0) & (p >= 0)
     steady = (counts - (c_t - c_ref) - w_est)[on]
     out.duty = BinnedMoments.accumulate(
-        relaxed[on], np.column_stack([steady, relaxed[on]]), s.duty_edges_ppt,
+        relaxed[on], np.column_stack([steady, relaxed[on], slope[on]]), s.duty_edges_ppt,
         label="duty cycle", units="ppt", value_units="counts")
     # 3. superposed epoch of the duty-cycle changes, normalised by the step
-    residual = np.column_stack([counts - offset - w_est, relaxed])
+    residual = np.column_stack([counts - offset - w_est, relaxed, slope])
     finite = np.isfinite(changes.time)
     prev = np.concatenate([[0.0], changes.duty_cycle_ppt[:-1]])
     step = (effective_duty(changes.duty_cycle_ppt, threshold)
