@@ -109,6 +109,22 @@ def test_header_rows_only_at_state_changes_join_the_same(archive, simulated,
     _assert_same(read_edr(tmp_path / "edr", archive["mapping"]), _csv_streams(archive["csv"]))
 
 
+@pytest.mark.parametrize("counts", ["three_columns", "one_column"])
+def test_packet_per_row_layout(archive, simulated, messenger_kernels, tmp_path, counts):
+    # one row per packet, samples as ITEMS (I = item number), a valid-sample count
+    text = archive["mapping"].read_text().replace('from = "rows"', 'from = "items"')
+    text += '\n[science.sample_count]\ncolumn = "NSAMPLES"\n'
+    if counts == "three_columns":  # x, y, z columns of N items each
+        text = text.replace('column = "MAG_COUNTS"', 'columns = ["BX", "BY", "BZ"]')
+    (tmp_path / "m.toml").write_text(text)  # else MAG_COUNTS of 3N items x1 y1 z1 x2 ...
+    with KernelPool(messenger_kernels):
+        write_edr_archive(_quantised(simulated), tmp_path / "edr", tmp_path / "m.toml",
+                          SclkKernel.from_pool(-236), superseded=())
+    sci_tab = next((tmp_path / "edr").rglob("MAGSCI*.TAB"))
+    assert b"ITEMS = 7" in sci_tab.with_suffix(".LBL").read_bytes()
+    _assert_same(read_edr(tmp_path / "edr", tmp_path / "m.toml"), _csv_streams(archive["csv"]))
+
+
 # --- hand-written tables: the packet time rule in closed form -------------------------------
 
 

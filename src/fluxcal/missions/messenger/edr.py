@@ -150,6 +150,9 @@ def _check_field(path: Path, kind: str, name: str, spec: Any) -> None:
                                  "columns = ['<X>', '<Y>', '<Z>']")
     elif name != "sample_index" and not column:
         raise _mapping_error(path, entry, "needs column = '<label COLUMN NAME>'")
+    if name == "sample_index" and spec.get("from", "rows") not in ("rows", "items"):
+        raise _mapping_error(path, entry, "from must be 'rows' (one row per sample) or "
+                             "'items' (one row per packet, samples as ITEMS)")
     if name == "delta_ts":
         unit = spec.get("unit_s")
         if not isinstance(unit, (int, float)) or unit <= 0:
@@ -356,7 +359,8 @@ def _read_stream(files: Sequence[EdrFile], mapping: EdrMapping, kind: str,
         values = {}
         for name, cols in extra.items():
             arrs = [_column(ds, mapping, f"{kind}.{name}", c, f.path) for c in cols]
-            values[name] = arrs[0] if len(arrs) == 1 else np.column_stack(arrs)
+            # three scalar columns -> (rows, 3); three ITEMS columns -> (rows, items, 3)
+            values[name] = arrs[0] if len(arrs) == 1 else np.stack(arrs, axis=-1)
         parts.append((f.path, part, met_us, values,
                       Path(ds.attrs.get("pds3_data_file", f.path))))
     parts.sort(key=lambda t: (t[1][0], t[2][0]) if t[2].size else (np.inf, np.inf))
@@ -425,6 +429,50 @@ def _sample_rates(day: _dt.date, calibration_folder: Path | None) -> np.ndarray:
     return np.asarray(lat["sample_rate_hz"], dtype=float)[order]
 
 
+def _packet_rows_to_samples(sci: _Stream, mapping: EdrMapping) -> _Stream:
+    """One row per packet (samples as ITEMS) -> one row per sample, ``I`` = item + 1.
+
+    Counts: three columns of N items (x, y, z) or one of 3N items (x1 y1 z1 x2 ...);
+    range: N items or one value per packet; ``[science.sample_count]`` (optional) gives
+    the valid samples of each packet (the remaining items are padding).
+    """
+    c = np.asarray(sci.values["counts"])
+    if c.ndim == 2 and len(sci.columns["counts"]) == 1:
+        if c.shape[1] % 3:
+            raise InputFormatError(
+                f"mapping entry [science.counts] of {mapping.path.name}: with sample_index "
+                f"from = 'items' column {sci.columns['counts'][0]!r} needs 3N items "
+                f"(x1 y1 z1 x2 ...), has {c.shape[1]}", path=str(sci.files[0]),
+                field=sci.columns["counts"][0])
+        c = c.reshape(c.shape[0], -1, 3)
+    if c.ndim != 3:
+        raise InputFormatError(
+            f"mapping entry [science.sample_index] of {mapping.path.name}: from = 'items' "
+            "needs counts with ITEMS (one row per packet)", path=str(sci.files[0]),
+            field=sci.columns["counts"][0])
+    rows, n_items = c.shape[:2]
+    index = np.tile(np.arange(1, n_items + 1), rows)
+    valid = np.ones(rows * n_items, dtype=bool)
+    if "sample_count" in sci.values:
+        count = _check_range(sci, "sample_count", 0, n_items,
+                             f"0..{n_items} samples (the ITEMS of the counts)")
+        valid = index <= np.repeat(count, n_items)
+    rng = np.asarray(sci.values["range"])
+    rng = rng.reshape(-1) if rng.ndim == 2 else np.repeat(rng, n_items)
+    rep = {name: np.repeat(np.asarray(sci.values[name]), n_items)[valid]
+           for name in sci.values if name not in ("counts", "range", "sample_count")}
+    return _Stream(
+        files=sci.files, data_files=sci.data_files,
+        file_index=np.repeat(sci.file_index, n_items)[valid],
+        row=np.repeat(sci.row, n_items)[valid],
+        partition=np.repeat(sci.partition, n_items)[valid],
+        met_us=np.repeat(sci.met_us, n_items)[valid],
+        values={**rep, "counts": c.reshape(-1, 3)[valid], "range": rng[valid],
+                "sample_index": index[valid]},
+        columns={**sci.columns, "sample_index": ("(item number)",)},
+    )
+
+
 def _science(folder: Path, mapping: EdrMapping, days: Sequence[_dt.date] | None,
              calibration_folder: Path | None) -> xr.Dataset:
     sci_files = select_files(folder, mapping, "science", _days(days, "science"))
@@ -435,9 +483,15 @@ def _science(folder: Path, mapping: EdrMapping, days: Sequence[_dt.date] | None,
         "range": (spec["range"]["column"],),
         "counts": (counts["column"],) if counts.get("column") else tuple(counts["columns"]),
     }
-    if spec["sample_index"].get("column"):
+    items = spec["sample_index"].get("from", "rows") == "items"
+    if spec["sample_index"].get("column") and not items:
         extra["sample_index"] = (spec["sample_index"]["column"],)
+    count_col = mapping.entries["science"].get("sample_count", {}).get("column", "")
+    if items and count_col:
+        extra["sample_count"] = (count_col,)
     sci = _read_stream(sci_files, mapping, "science", extra)
+    if items:
+        sci = _packet_rows_to_samples(sci, mapping)
     hdr = _read_stream(select_files(folder, mapping, "science_header",
                                     _days(days, "science_header")),
                        mapping, "science_header",
@@ -458,7 +512,7 @@ def _science(folder: Path, mapping: EdrMapping, days: Sequence[_dt.date] | None,
     new = np.ones(n, dtype=bool)
     new[1:] = ((sci.partition[1:] != sci.partition[:-1]) | (sci.met_us[1:] != sci.met_us[:-1])
                | (dts[1:] != dts[:-1]))
-    if "sample_index" in extra:
+    if "sample_index" in sci.values:
         index = _check_range(sci, "sample_index", 1, np.inf, "whole sample indices >= 1")
     else:
         starts = np.flatnonzero(new)

@@ -243,7 +243,9 @@ def write_edr_archive(
                 values = {k: a[rows] for k, (a, _) in data.items()}
                 if v != version and spoil:
                     values = {k: spoil[k](a) if k in spoil else a for k, a in values.items()}
-                ds = xr.Dataset({k: (("time", "component") if a.ndim == 2 else ("time",), a)
+                ds = xr.Dataset({k: (("time",) if a.ndim == 1 else ("time", "component")
+                                     if a.shape[1] == 3 and k == counts_name
+                                     else ("time", f"{k}_item"), a)
                                  for k, a in values.items()},
                                 coords={"component": ["x", "y", "z"]})
                 columns = [Column(k, fmt, unit=doc.get(k, ("", ""))[0],
@@ -302,10 +304,33 @@ def write_edr_archive(
         for j, name in enumerate(counts["columns"]):
             data[name] = (c[:, j], "I6")
         vectors = {}
-    emit("science", data, spart, pk["met"].astype(float), sminutes, vectors,
-         {counts.get("column") or counts["columns"][0]: lambda a: np.clip(a + 100, -32768,
-                                                                         32767)})
+    spoil = {counts.get("column") or counts["columns"][0]:
+             lambda a: np.clip(a + 100, -32768, 32767)}
     first = pk["first"]
+    if m["science"]["sample_index"].get("from", "rows") == "items":
+        # one row per packet, the samples as ITEMS (padded with 0 after the last sample)
+        rows, n_items = first.size, packet_samples
+        slot = (pk["packet"], pk["index"] - 1)
+        packed = {}
+        for name, (values, fmt) in data.items():
+            if name in (col("science", "met"), col("science", "delta_ts")):
+                packed[name] = (values[first], fmt)
+                continue
+            grid = np.zeros((rows, n_items, *values.shape[1:]), dtype=values.dtype)
+            grid[slot] = values
+            if grid.ndim == 3:  # one counts column of 3N items: x1 y1 z1 x2 ...
+                grid = grid.reshape(rows, -1)
+            packed[name] = (grid, fmt)
+        count_col = m["science"].get("sample_count", {}).get("column", "")
+        if count_col:
+            packed[count_col] = (np.bincount(pk["packet"], minlength=rows), "I3")
+            doc[count_col] = ("N/A", "Number of valid samples (items) in the packet")
+        data = packed
+        vectors = {name: name for name, (v, _) in data.items() if v.ndim == 2}
+        emit("science", data, spart[first], pk["met"][first].astype(float), sminutes[first],
+             vectors, spoil)
+    else:
+        emit("science", data, spart, pk["met"].astype(float), sminutes, vectors, spoil)
     rate = sci["rate"].values.astype(np.int64)[first]
     hday = sminutes[first].astype("datetime64[D]")
     keep = np.ones(first.size, dtype=bool)
