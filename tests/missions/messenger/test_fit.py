@@ -90,8 +90,10 @@ def _known_statistics(truth: dict, base, rng) -> DayStatistics:
         waveform.append(BinnedMoments.accumulate(
             folded, np.column_stack([w + 7.0, folded, onehot]),
             (np.arange(101) - 0.5)))
+    # one unit step: the squared-step weights are 1
+    weight = BinnedMoments.accumulate(lag, np.ones(lag.size), s.lag_edges_s)
     return DayStatistics(temperature=temperature, duty=duty, epoch=epoch, waveform=waveform,
-                         n_samples={"events": 40, "used": 1})
+                         epoch_weight=weight, n_samples={"events": 40, "used": 1})
 
 
 def _truth():
@@ -169,7 +171,7 @@ def test_fit_errors_name_what_is_missing():
             np.array([-50.0, -50.0, -40.0, -40.0]), np.zeros((4, 6)),
             FitSettings().temperature_edges_c),
         duty=stats.duty, epoch=stats.epoch, waveform=stats.waveform,
-        n_samples=stats.n_samples)
+        epoch_weight=stats.epoch_weight, n_samples=stats.n_samples)
     with pytest.raises(FluxcalError, match=r"temperature law.*only 2 .*empty bins \(C\): "
                                            r"-100.*-30"):
         fit_calibration(few, base)
@@ -199,6 +201,7 @@ def _moments(stats: DayStatistics):
     yield stats.temperature
     yield stats.duty
     yield stats.epoch
+    yield stats.epoch_weight
     yield from stats.waveform
 
 
@@ -266,7 +269,7 @@ def test_statistics_round_trip_through_datasets(reduced):
     whole, _ = reduced
     for name, ds in whole.to_datasets().items():
         back = BinnedMoments.from_dataset(ds)
-        orig = getattr(whole, name) if not name.startswith("waveform") else whole.waveform[
+        orig = getattr(whole, name) if not name.startswith("waveform_") else whole.waveform[
             FitSettings().waveform_bins_percent.index(float(name.split("_")[1]))]
         np.testing.assert_array_equal(back.count, orig.count)
 

@@ -224,12 +224,15 @@ def _fit_relaxation(
         tau_p * TAU_STEP)
     d0 = np.asarray(d0_new, dtype=float)
     d0_old = np.asarray(base.duty_cycle_d0, dtype=float)
-    mean = ep.mean()
+    den = stats.epoch_weight.mean()[:, 0]  # mean squared step per lag bin
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = ep.mean() / den[:, None]
     # residual with the new D0 and tau + shift (relaxed duty cycle and its tau derivative
     # are columns 3, 4; first order in the shift), the change's own step added back
     y = (mean[:, :3] - mean[:, 3:4] * (d0 - d0_old)[None, :]
          - shift * mean[:, 4:5] * d0[None, :] + own[:, None] * d0[None, :])
-    se = ep.standard_error()[:, :3]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se = ep.standard_error()[:, :3] / den[:, None]
     norm = float(d0 @ d0)
     combined = (y @ d0) / norm
     combined_se = np.sqrt((se**2) @ (d0**2)) / norm

@@ -16,10 +16,11 @@ of the other calibration terms, for the four analyses of sec. 6 and 7:
    slope ``D0``;
 3. ``epoch``: the 1200-s superposed epoch (-200 s .. +1000 s) of the duty-cycle changes
    of the model residual (counts minus the whole current offset model; the relaxed duty
-   cycle and its derivative in tau as columns 4, 5), each change weighted by ``1 / delta``
-   (``delta`` =
-   change of the eq. 5 steady-state duty cycle, ppt), so positive and negative steps
-   combine normalised;
+   cycle and its derivative in tau as columns 4, 5) times each change's ``delta`` (change
+   of the eq. 5 steady-state duty cycle, ppt), and ``delta**2`` over the same lags
+   (``epoch_weight``): their ratio is the least-squares response to a unit step, positive
+   and negative steps combined (sec. 7's normalised epoch, each step weighted by its
+   size squared, i.e. by the inverse variance of its normalised values);
 4. ``waveform``: per duty-cycle bin 12..40 % of the heater period, counts minus the
    current offsets ``cT(T) + Delta(t)`` against seconds since the heater-bit rising
    edge (100 bins of 1 s centred on 0..99 s; columns x, y, z, the phase and the
@@ -79,9 +80,12 @@ class FitSettings:
         Duty-cycle bin centres of the heater waveform (12..40 %, 4 % wide; sec. 6).
     phase_bins : int
         Phase bins over the 100-s heater period (1 s, centred on 0..99 s, Tables 6-8).
+    max_relaxed_off_ppt : float
+        Heater-off samples enter the temperature law once the duty cycle their offset has
+        relaxed to is below this (the decaying term then weighs little on cT).
     min_step_ppt : float
-        Least change of the steady-state duty cycle entering the epoch (smaller steps
-        would amplify the field noise by ``1 / delta``).
+        Least change of the steady-state duty cycle entering the epoch (1 %: a step
+        carries weight ``delta**2``, so small ones add little either way).
     """
 
     temperature_edges_c: tuple[float, ...] = tuple(np.arange(-105.0, 106.0, 10.0))
@@ -89,7 +93,8 @@ class FitSettings:
     lag_edges_s: tuple[float, ...] = tuple(np.arange(-200.0, 1001.0, 5.0))
     waveform_bins_percent: tuple[float, ...] = (12.0, 16.0, 20.0, 24.0, 28.0, 32.0, 36.0, 40.0)
     phase_bins: int = 100
-    min_step_ppt: float = 50.0
+    min_step_ppt: float = 10.0
+    max_relaxed_off_ppt: float = 50.0
 
 
 @dataclass
@@ -99,7 +104,10 @@ class DayStatistics:
     Attributes
     ----------
     temperature, duty, epoch : BinnedMoments
-        Analyses 1-3.
+        Analyses 1-3 (``epoch`` holds the residual columns times each change's step).
+    epoch_weight : BinnedMoments
+        The squared steps over the same lags: ``epoch.mean() / epoch_weight.mean()`` is
+        the least-squares response to a unit step (sec. 7's normalised epoch).
     waveform : list of BinnedMoments
         Analysis 4, one per waveform duty-cycle bin.
     n_samples : dict
@@ -116,6 +124,7 @@ class DayStatistics:
     duty: BinnedMoments
     epoch: BinnedMoments
     waveform: list[BinnedMoments]
+    epoch_weight: BinnedMoments | None = None
     n_samples: dict[str, int] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
     days: list[str] = field(default_factory=list)
@@ -135,7 +144,14 @@ class DayStatistics:
                                           label="phase", units="s",
                                           value_units="counts")
                       for _ in s.waveform_bins_percent],
+            epoch_weight=BinnedMoments.empty(s.lag_edges_s, 1, label="lag", units="s",
+                                             value_units="ppt^2"),
         )
+
+    def __post_init__(self) -> None:
+        if self.epoch_weight is None:
+            self.epoch_weight = BinnedMoments.empty(self.epoch.edges, 1, label="lag",
+                                                    units="s", value_units="ppt^2")
 
     def merge(self, other: DayStatistics) -> DayStatistics:
         """Return the statistics of both (bins must agree)."""
@@ -145,6 +161,7 @@ class DayStatistics:
             duty=self.duty.merge(other.duty),
             epoch=self.epoch.merge(other.epoch),
             waveform=[a.merge(b) for a, b in zip(self.waveform, other.waveform, strict=True)],
+            epoch_weight=self.epoch_weight.merge(other.epoch_weight),
             n_samples={k: self.n_samples.get(k, 0) + other.n_samples.get(k, 0) for k in keys},
             inputs={**self.inputs, **other.inputs},
             days=[*self.days, *other.days],
@@ -157,7 +174,7 @@ class DayStatistics:
     def to_datasets(self) -> dict[str, xr.Dataset]:
         """Return every `BinnedMoments` as a dataset (``temperature``, ``waveform_12``...)."""
         out = {"temperature": self.temperature.to_dataset(), "duty": self.duty.to_dataset(),
-               "epoch": self.epoch.to_dataset()}
+               "epoch": self.epoch.to_dataset(), "epoch_weight": self.epoch_weight.to_dataset()}
         for pct, w in zip(FitSettings().waveform_bins_percent, self.waveform, strict=False):
             out[f"waveform_{pct:.0f}"] = w.to_dataset()
         return out
@@ -366,7 +383,7 @@ def reduce_day(
         rel_tau * TAU_STEP)
     # 1. temperature law: heater off; counts minus the heater signal, with the relaxed
     # duty cycle (the fit removes D0 times its mean, with its own D0)
-    off = (level_eff == 0) & ~powered
+    off = (level_eff == 0) & ~powered & (relaxed < s.max_relaxed_off_ppt)
     out.temperature = BinnedMoments.accumulate(
         temp_c[off], np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off],
                                      slope[off]]),
@@ -382,7 +399,8 @@ def reduce_day(
     out.duty = BinnedMoments.accumulate(
         relaxed[on], np.column_stack([steady, relaxed[on], slope[on]]), s.duty_edges_ppt,
         label="duty cycle", units="ppt", value_units="counts")
-    # 3. superposed epoch of the duty-cycle changes, normalised by the step
+    # 3. superposed epoch of the duty-cycle changes, weighted by the step (the fit divides
+    # by the mean squared step: least squares for the response to a unit step)
     residual = np.column_stack([counts - offset - w_est, relaxed, slope])
     finite = np.isfinite(changes.time)
     prev = np.concatenate([[0.0], changes.duty_cycle_ppt[:-1]])
@@ -399,8 +417,11 @@ def reduce_day(
     out.n_samples["events_positive"] = int((ev & (step > 0)).sum())
     if ev.any():
         out.epoch = superposed_epoch(et, residual, changes.time[ev], s.lag_edges_s,
-                                     weights=1.0 / step[ev], shift=0.0,
-                                     value_units="counts per ppt")
+                                     weights=step[ev], shift=0.0,
+                                     value_units="counts ppt")
+        out.epoch_weight = superposed_epoch(et, np.ones(et.size), changes.time[ev],
+                                            s.lag_edges_s, weights=step[ev] ** 2, shift=0.0,
+                                            value_units="ppt^2")
     # 4. heater waveform per duty-cycle bin: counts minus the current offsets, with the
     # weights of the bins' linear duty-cycle interpolation (sec. 6) of each sample
     if len(periods):
