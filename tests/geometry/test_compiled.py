@@ -159,3 +159,28 @@ def test_apply_matrix_is_a_matrix_product():
     out = np.empty_like(v)
     compiled.apply_matrix(m, v, out)
     np.testing.assert_allclose(out, v @ m.T, rtol=0, atol=1e-14)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-540.0, 540.0, allow_nan=False), min_size=0, max_size=60),
+       st.sampled_from([None, 2]))
+def test_unwrap_degrees_is_numpys_unwrap_bit_for_bit(values, stride):
+    # expected: numpy's own unwrap; steps of exactly +-180 and multiples of 360 included
+    # by the edge list below, any sign; strided input as the products pass a column
+    base = np.array(values + [180.0, 0.0, -180.0, 0.0, 360.0, -359.5, 179.75, -180.25])
+    x = np.repeat(base, 2)[::stride] if stride else base
+    out = np.empty(x.size)
+    compiled.unwrap_degrees(x, out)
+    np.testing.assert_array_equal(out, np.unwrap(x, period=360.0))
+    assert np.array_equal(np.signbit(out), np.signbit(np.unwrap(x, period=360.0)))
+
+
+def test_unwrap_degrees_on_a_day_of_azimuths():
+    # a wrapped linear drift crossing +-180 many times, with noise: exactly numpy's
+    rng = np.random.default_rng(7)
+    true = np.cumsum(rng.normal(0.05, 3.0, 200_000))
+    wrapped = (true + 180.0) % 360.0 - 180.0
+    out = np.empty(wrapped.size)
+    compiled.unwrap_degrees(wrapped, out)
+    np.testing.assert_array_equal(out, np.unwrap(wrapped, period=360.0))
+    compiled.unwrap_degrees(np.zeros(0), np.zeros(0))  # empty: nothing to do, no error

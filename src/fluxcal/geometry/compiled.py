@@ -239,6 +239,31 @@ def row_norms(v, out):
         out[j] = np.sqrt(v[j, 0] * v[j, 0] + v[j, 1] * v[j, 1] + v[j, 2] * v[j, 2])
 
 
+@njit(cache=True, nogil=True)
+def unwrap_degrees(angle, out):
+    """``out[:] = np.unwrap(angle, period=360.0)`` in one pass, no temporaries.
+
+    The same operations in the same order as numpy's ``unwrap`` (floor-mod of the step
+    + 180, -180 turned to +180 for a positive step, no correction below 180 deg,
+    sequential sum of the corrections), so the result is bit for bit numpy's.
+    """
+    n = angle.shape[0]
+    if n == 0:
+        return
+    out[0] = angle[0]
+    correction = 0.0
+    for j in range(1, n):
+        step = angle[j] - angle[j - 1]
+        wrapped = (step + 180.0) % 360.0 - 180.0
+        if wrapped == -180.0 and step > 0.0:
+            wrapped = 180.0
+        if abs(step) >= 180.0:
+            correction += wrapped - step
+        else:
+            correction += 0.0
+        out[j] = angle[j] + correction
+
+
 def slerp_table(nodes: np.ndarray, quats: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per-interval SLERP terms ``(nodes, q0, ortho, theta)`` of a leg.
 

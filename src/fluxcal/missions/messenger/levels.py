@@ -790,7 +790,9 @@ def spherical_rtn(
         "MESSENGER", grid, target_position=None if sun_at is None else sun_at(grid))
     compiled.row_norms(np.ascontiguousarray(sun, dtype=float), out[:, 0])
     out[:, 1] = np.interp(et, grid, lat)
-    az = np.interp(et, grid, np.unwrap(az, period=360.0))
+    unwrapped = np.empty(az.shape)
+    compiled.unwrap_degrees(np.asarray(az, dtype=float), unwrapped)  # = np.unwrap(az, 360)
+    az = np.interp(et, grid, unwrapped)
     out[:, 2] = np.where(np.abs(az) > 180.0, (az + 180.0) % 360.0 - 180.0, az)
     return out
 

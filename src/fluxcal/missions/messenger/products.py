@@ -278,7 +278,7 @@ def average(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9 (time), sec. 12 (flag).
     """
-    from fluxcal.geometry.compiled import row_norms
+    from fluxcal.geometry.compiled import row_norms, unwrap_degrees
 
     epoch = prod["epoch"].values
     width = int(seconds) * NS
@@ -303,8 +303,10 @@ def average(
         if name in prod:
             var = prod[name]
             data[name] = (var.dims, averaging.bin_mean(bins, var.values), dict(var.attrs))
-    if "azimuth" in prod:
-        az = averaging.bin_mean(bins, np.unwrap(prod["azimuth"].values, period=360.0))
+    if "azimuth" in prod:  # unwrapped as np.unwrap(period=360) does, without temporaries
+        az = np.empty(prod.sizes["time"])
+        unwrap_degrees(prod["azimuth"].values, az)
+        az = averaging.bin_mean(bins, az)
         data["azimuth"] = ("time", (az + 180.0) % 360.0 - 180.0, dict(prod["azimuth"].attrs))
     if "met" in prod:
         data["met"] = ("time", _met_at(bins.centre, sclk), dict(
@@ -483,7 +485,8 @@ def write_day(
     day0 = day_start_tt2000(year, doy)
     index, report = time_order(ds["epoch"].values)
     _log_order(ds, report)
-    base = _take(ds, ["et", "met_corrected", "quality"], index)
+    # ``et`` only for the VSO position (`_with_frame`): a sorted copy is 14 MB a day
+    base = _take(ds, ["met_corrected", "quality"] + (["et"] if "vso" in frames else []), index)
     epoch = base["epoch"].values
     bins = {int(s): averaging.bin_index(epoch, int(s) * NS, day0) for s in averages}
     sclk = SclkKernel.from_pool(SC_ID) if averages and epoch.size else None
