@@ -113,7 +113,10 @@ def test_average_std_at_40000_nT(sign):
     np.testing.assert_allclose(np.abs(avg["azimuth"].values), 180.0, atol=1e-9)
 
 
-def test_utc_columns_against_cdflib_breakdown():
+@pytest.mark.parametrize("chunk", [None, 7])  # 7: many chunk boundaries, a short last one
+def test_utc_columns_against_cdflib_breakdown(monkeypatch, chunk):
+    if chunk is not None:
+        monkeypatch.setattr(products, "UTC_CHUNK", chunk)
     rng = np.random.default_rng(5)
     # 2004-2015 including the leap seconds of 2005-12-31, 2008-12-31, 2012-06-30
     epoch = rng.integers(150_000_000 * NS, 480_000_000 * NS, size=2000)

@@ -173,12 +173,18 @@ def _venus_position(et: np.ndarray) -> np.ndarray:
     return position("MESSENGER", "VENUS", "MSGR_VSO", et)
 
 
+#: Samples per call of `tt2000_to_utc_fields` in `utc_columns` (its eight int64 fields
+#: of a whole 20 Hz day would be 110 MB of temporaries; a chunk's are 17 MB).
+UTC_CHUNK = 1 << 18
+
+
 def utc_columns(epoch: np.ndarray) -> dict[str, xr.Variable]:
     """Return the UTC columns YEAR, DAY_OF_YEAR, HOUR, MINUTE, SECOND of int64 TT2000.
 
     ``second`` is the second of the minute with the milliseconds truncated
     (``SS.sss``, what SPICE ``timout`` prints with ``SC.###``), computed from the integer
-    epoch (`fluxcal.geometry.time.tt2000_to_utc_fields`), never from a float time.
+    epoch (`fluxcal.geometry.time.tt2000_to_utc_fields`, `UTC_CHUNK` samples at a time),
+    never from a float time.
 
     References
     ----------
@@ -186,16 +192,25 @@ def utc_columns(epoch: np.ndarray) -> dict[str, xr.Variable]:
     """
     from fluxcal.geometry.time import tt2000_to_utc_fields
 
-    f = tt2000_to_utc_fields(epoch)
-    second = f["second"] + (f["nanosecond"] // 1_000_000) / 1000.0
+    epoch = np.asarray(epoch)
+    n = epoch.size
+    cols = {"year": np.empty(n, np.int16), "doy": np.empty(n, np.int16),
+            "hour": np.empty(n, np.int8), "minute": np.empty(n, np.int8),
+            "second": np.empty(n)}
+    for a in range(0, n, UTC_CHUNK):
+        part = slice(a, min(n, a + UTC_CHUNK))
+        f = tt2000_to_utc_fields(epoch[part])
+        for name in ("year", "doy", "hour", "minute"):
+            cols[name][part] = f[name]
+        cols["second"][part] = f["second"] + (f["nanosecond"] // 1_000_000) / 1000.0
     t = ("time",)
     return {
-        "year": xr.Variable(t, f["year"].astype(np.int16), {"units": "year"}),
-        "doy": xr.Variable(t, f["doy"].astype(np.int16), {"units": "day"}),
-        "hour": xr.Variable(t, f["hour"].astype(np.int8), {"units": "h"}),
-        "minute": xr.Variable(t, f["minute"].astype(np.int8), {"units": "min"}),
-        "second": xr.Variable(t, second, {"units": "s",
-                                          "description": "second of the minute, ms truncated"}),
+        "year": xr.Variable(t, cols["year"], {"units": "year"}),
+        "doy": xr.Variable(t, cols["doy"], {"units": "day"}),
+        "hour": xr.Variable(t, cols["hour"], {"units": "h"}),
+        "minute": xr.Variable(t, cols["minute"], {"units": "min"}),
+        "second": xr.Variable(t, cols["second"], {"units": "s", "description":
+                                                  "second of the minute, ms truncated"}),
     }
 
 
