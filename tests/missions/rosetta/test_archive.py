@@ -39,8 +39,8 @@ def sim(tmp_path_factory) -> dict[str, Path]:
 def _read_both(sim, sensor):
     with KernelPool(sim["kernels"]):
         lsk, sclk = leapseconds(), SclkKernel.from_pool(io.SCLK_ID)
-        csv = io.read_science(sim[f"science_{sensor}"], sensor, sclk=sclk, lsk=lsk)
-        arch = io.read_science(sim["archive"], sensor, sclk=sclk, lsk=lsk)
+        csv = archive.read_science(sim[f"science_{sensor}"], sensor, sclk=sclk, lsk=lsk)
+        arch = archive.read_science(sim["archive"], sensor, sclk=sclk, lsk=lsk)
     return csv, arch
 
 
@@ -84,8 +84,8 @@ def test_tables_and_labels_read_by_outside_tools(sim):
 def test_hk_reader_gives_the_csv_readers_dataset(sim):
     with KernelPool(sim["kernels"]):
         lsk, sclk = leapseconds(), SclkKernel.from_pool(io.SCLK_ID)
-        a = io.read_hk(sim["hk"], sclk=sclk, lsk=lsk)
-        b = io.read_hk(sim["archive"], sclk=sclk, lsk=lsk)
+        a = archive.read_hk(sim["hk"], sclk=sclk, lsk=lsk)
+        b = archive.read_hk(sim["archive"], sclk=sclk, lsk=lsk)
     a.attrs, b.attrs = {}, {}  # source file names differ; variables, dtypes, units do not
     xr.testing.assert_identical(a, b)
     for name in a.variables:
@@ -150,7 +150,7 @@ def test_mode_change_and_return_flat_folder(pool, tmp_path, sensor):
                      f"RPCMAG140802T0301_RAW_{sensor}_M3.LBL",
                      f"RPCMAG140802T0302_RAW_{sensor}_M2.LBL",
                      f"RPCMAG140802T0303_RAW_{sensor}_M6.LBL"]
-    back = io.read_science(tmp_path, sensor)  # time from TIME.UTC (no SCLK)
+    back = archive.read_science(tmp_path, sensor)  # time from TIME.UTC (no SCLK)
     np.testing.assert_array_equal(back["sid"].values, sid)
     np.testing.assert_array_equal(back["b_counts"].values, raw["b_counts"].values)
     np.testing.assert_array_equal(back["epoch"].values, raw["epoch"].values)
@@ -165,7 +165,7 @@ def test_lower_case_names_and_label_or_table_given(pool, tmp_path):
     found = archive.find_products(tmp_path, kind="OB")
     assert [p.label.name for p in found] == ["rpcmag140802t0300_raw_ob_m3.lbl"]
     for source in (tmp_path, found[0].label, found[0].label.with_suffix(".tab")):
-        np.testing.assert_array_equal(io.read_science(source, "OB")["b_counts"].values,
+        np.testing.assert_array_equal(archive.read_science(source, "OB")["b_counts"].values,
                                       raw["b_counts"].values)
 
 
@@ -175,7 +175,7 @@ def test_table_without_label_refused(pool, tmp_path):
     lbl = next(p for p in written if p.suffix == ".LBL")
     lbl.unlink()
     with pytest.raises(InputFormatError, match="without its detached label") as err:
-        io.read_science(tmp_path, "OB")
+        archive.read_science(tmp_path, "OB")
     assert err.value.path == str(lbl.with_suffix(".TAB"))
 
 
@@ -195,17 +195,17 @@ def test_other_sensor_and_other_kind_refused(pool, tmp_path):
     raw = _hand_made("IB", np.full(20, 3))
     archive_write.write_science_products(raw, tmp_path, flat=True)
     with pytest.raises(InputFormatError, match="no EDITED OB science products"):
-        io.read_science(tmp_path, "OB")
+        archive.read_science(tmp_path, "OB")
     lbl = next(tmp_path.glob("*.LBL"))
     with pytest.raises(InputFormatError, match="not an EDITED OB science product name"):
-        io.read_science(lbl, "OB")
+        archive.read_science(lbl, "OB")
     # an IB table renamed as an OB product: its columns are BX.IB..., the OB ones missing
     for p in tmp_path.glob("RPCMAG*"):
         p.rename(p.with_name(p.name.replace("_IB_", "_OB_")))
     lbl = next(tmp_path.glob("*.LBL"))
     lbl.write_text(lbl.read_text().replace("_IB_", "_OB_"))
     with pytest.raises(InputFormatError) as err:
-        io.read_science(tmp_path, "OB")
+        archive.read_science(tmp_path, "OB")
     assert err.value.field == "BX.OB" and str(lbl) in str(err.value)
 
 
@@ -415,7 +415,7 @@ def test_mode_runs_gaps_and_midnight_round_trip(pool, tmp_path_factory, runs, st
     day = seconds // 86_400
     expected = 1 + int(np.sum((np.diff(sid) != 0) | (np.diff(day) != 0)))
     assert len(written) == 2 * expected
-    back = io.read_science(folder, "OB")
+    back = archive.read_science(folder, "OB")
     for name in ("sid", "b_counts", "quality", "obt"):
         np.testing.assert_array_equal(back[name].values, raw[name].values, err_msg=name)
     np.testing.assert_array_equal(back["epoch"].values, raw["epoch"].values)

@@ -37,8 +37,6 @@ import xarray as xr
 from fluxcal.errors import InputFormatError
 
 SENSORS = ("OB", "IB")
-#: Month folders of the archive tree (``DATA/EDITED/<yyyy>/<MON>/``).
-MONTHS = ("JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC")
 _NAME = re.compile(
     r"^RPCMAG(\d{6})T(\d{4})_RAW_(?:(OB|IB)_M(\d+)|(HK))\.(LBL|TAB)$", re.IGNORECASE
 )
@@ -464,3 +462,42 @@ def read_hk_products(labels: Sequence[Path], *, sclk=None, lsk=None) -> xr.Datas
         attrs={"source": source, "files": files,
                "time_source": "obt" if sclk is not None else "time_utc"},
     )
+
+
+# ----------------------------------------------------------------------------------------
+# One entry for both input layouts: today's CSV files and the archive's EDITED products
+# (here, not in `io`: the simulator uses `io`'s writers and must not reach `level_a`)
+# ----------------------------------------------------------------------------------------
+def read_science(source, sensor: str, *, sclk=None, lsk=None) -> xr.Dataset:
+    """Read raw science of ``sensor`` from a CSV file or from EDITED archive products.
+
+    ``source`` is a CSV file (`io.read_science_csv`), or a folder of EDITED products, one
+    ``.LBL``/``.TAB`` product, or a sequence of labels (`read_science_products`); both
+    give the same Dataset.
+    """
+    from fluxcal.missions.rosetta.io import read_science_csv
+
+    if is_archive_source(source):
+        return read_science_products(science_labels(source, sensor), sensor, sclk=sclk,
+                                     lsk=lsk)
+    return read_science_csv(source, sensor, sclk=sclk, lsk=lsk)
+
+
+def read_hk(source, *, sclk=None, lsk=None) -> xr.Dataset:
+    """Read raw HK from a CSV file or from EDITED archive HK products (see `read_science`)."""
+    from fluxcal.missions.rosetta.io import read_hk_csv
+
+    if is_archive_source(source):
+        return read_hk_products(hk_labels(source), sclk=sclk, lsk=lsk)
+    return read_hk_csv(source, sclk=sclk, lsk=lsk)
+
+
+def source_files(source, sensor: str | None = None) -> list[Path]:
+    """Return the files of a raw source (provenance, manifests): the CSV, or labels, tables.
+
+    ``sensor`` picks the science products of one sensor in a folder (``None``: HK).
+    """
+    if not is_archive_source(source):
+        return [Path(source)]
+    labels = hk_labels(source) if sensor is None else science_labels(source, sensor)
+    return [p for label in labels for p in (label, table_of(label))]

@@ -24,9 +24,10 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
-from fluxcal.missions.rosetta.archive import MONTHS
 
 EDITED = ("DATA", "EDITED")
+#: Month folders of the archive tree (``DATA/EDITED/<yyyy>/<MON>/``).
+MONTHS = ("JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC")
 #: Archived names of the ground calibration files (the seed's ``RPCMAG_001_CALIB_...``).
 GROUND_ARCHIVE_NAME = {s: f"RPCMAG_GND_CALIB_FSDPU_FM{s}.TXT" for s in ("OB", "IB")}
 

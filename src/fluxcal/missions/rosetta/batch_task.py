@@ -118,8 +118,8 @@ def hk_source(input_dir: Path, day: _dt.date):
 
 
 def _source_files(source, sensor: str | None = None) -> list[Path]:
-    """Return `fluxcal.missions.rosetta.io.source_files` (imported when called)."""
-    from fluxcal.missions.rosetta.io import source_files
+    """Return `fluxcal.missions.rosetta.archive.source_files` (imported when called)."""
+    from fluxcal.missions.rosetta.archive import source_files
 
     return source_files(source, sensor)
 
@@ -214,6 +214,7 @@ class RosettaDayTask:
         """First and last good vector ``((epoch, word), (epoch, word))`` of a day, cached."""
         from fluxcal.geometry.time import SclkKernel, leapseconds
         from fluxcal.missions.rosetta import io
+        from fluxcal.missions.rosetta.archive import read_science
         from fluxcal.products.batch import worker_kernel_pool
 
         cached = self._read_stitch(day, sensor)
@@ -225,7 +226,7 @@ class RosettaDayTask:
         kern = self.kernel_file()
         worker_kernel_pool(kern)
         sclk = SclkKernel.from_pool(io.SCLK_ID) if kern is not None else None
-        raw = io.read_science(science_source(self.input_dir, day, sensor), sensor,
+        raw = read_science(science_source(self.input_dir, day, sensor), sensor,
                                   sclk=sclk, lsk=leapseconds())
         edges = stitch_edges(raw, sensor)
         self._write_stitch(day, sensor, edges, None)

@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
-from fluxcal.missions.rosetta import averaged, calib, hk, io, level_a, level_b, level_c
+from fluxcal.missions.rosetta import archive, averaged, calib, hk, io, level_a, level_b, level_c
 
 log = logging.getLogger(__name__)
 
@@ -412,7 +412,7 @@ def calibrate_files(
         shifts = calib.load_time_shift_table(calib_dir)
         nominal = calib.load_nominal_conversion(calib_dir)
         models = calib.find_daily_offset_models(calib_dir, sensor)
-        raw = io.read_science(science, sensor, sclk=sclk, lsk=lsk)
+        raw = archive.read_science(science, sensor, sclk=sclk, lsk=lsk)
         result.n_records = int(raw.sizes["time"])
         bounds = None
         if day is not None:
@@ -477,15 +477,16 @@ def calibrate_files(
             if dst in need:
                 result.levels[dst] = averaged.average(result.levels[src], average_s, lsk=lsk)
         if hk_file is not None:
-            hk_raw = io.read_hk(hk_file, sclk=sclk, lsk=lsk)
+            hk_raw = archive.read_hk(hk_file, sclk=sclk, lsk=lsk)
             if bounds is not None:
                 check_day_records(hk_raw, bounds, hk_file, lsk)
             result.levels["HK"] = hk.hk_level_a(hk_raw, cal.thermistor, nominal)
         if write:
-            inputs = io.source_files(science, sensor) + (io.source_files(hk_file) if hk_file
-                                                         else [])
+            inputs = archive.source_files(science, sensor)
+            if hk_file is not None:
+                inputs += archive.source_files(hk_file)
             if result.n_from_previous_day:
-                inputs += io.source_files(carry[0], sensor)
+                inputs += archive.source_files(carry[0], sensor)
             prov = provenance_attrs(
                 inputs=inputs, calibration=used, kernels=[Path(str(k)) for k in kernel_files]
             )
@@ -590,7 +591,7 @@ def previous_day_tail(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (stitching), 4.2.3.5 (time shifts).
     """
-    raw = io.read_science(path, sensor, sclk=sclk, lsk=lsk)
+    raw = archive.read_science(path, sensor, sclk=sclk, lsk=lsk)
     check_day_records(raw, bounds, path, lsk)
     midnight = bounds[1]
     primary_sensor = calib.check_sensor(sensor) == calib.check_sensor(primary)
