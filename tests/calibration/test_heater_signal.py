@@ -130,3 +130,17 @@ def test_gap_duty_outside_the_bounds_is_not_inherited():
     keep = (t < 165) | (t >= 175)
     p = heater_periods(t[keep], b[keep])
     np.testing.assert_allclose(p.duty_cycle, [0.40, 0.15])
+
+
+@pytest.mark.parametrize("rate_error", [-1e-5, -5e-8, 0.0, 5e-8, 1e-5])
+@pytest.mark.parametrize("on_bits, applied", [(9, False), (10, True), (11, True)])
+def test_persistence_counts_bits_whatever_the_clock_rate(rate_error, on_bits, applied):
+    # sec. 6: the signal is applied when the bit persisted for at least 10 s (ten 1-s bits).
+    # Bit times in ET from a clock running fast or slow by `rate_error`: the on-time is
+    # on_bits * (1 + rate_error) s, so ten bits may last 9.9999995 s and still count.
+    n_periods = 5
+    b = np.tile(np.r_[np.ones(on_bits), np.zeros(100 - on_bits)], n_periods).astype(np.int8)
+    t = 1000.0 + np.arange(b.size) * (1.0 + rate_error)
+    p = heater_periods(np.r_[t[0] - (1.0 + rate_error), t], np.r_[0, b])
+    assert p.start.size == n_periods
+    assert (p.applied == applied).all()

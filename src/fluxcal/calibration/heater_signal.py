@@ -121,7 +121,10 @@ def heater_periods(
     period : float
         Heater period (s).
     min_on : float
-        Persistence (s) the bit must stay on for the signal to be applied.
+        Persistence (s) the bit must stay on for the signal to be applied.  The on-time
+        is a whole number of bits measured in the time scale of ``times`` (ET): a clock
+        running slow or fast by parts per million makes ten on-bits last 9.9999995 s, so
+        the comparison allows half a ``bit_step`` (docs/decisions/messenger.md).
     bit_step : float
         Time each bit stands for (s); a bit at ``t`` covers ``[t, t + bit_step)``.
     tolerance : float
@@ -257,7 +260,7 @@ def heater_periods(
     always_on = duty >= 1.0 - eps  # no off phase: no heater-cycle waveform
     return HeaterPeriods(
         start=start, end=end, duty_cycle=duty, on_duration=on,
-        applied=(on >= min_on - 1e-9) & ~always_on, complete=~uncertain,
+        applied=(on >= min_on - 0.5 * bit_step) & ~always_on, complete=~uncertain,
         duty_bounds=bounds,
     )
 

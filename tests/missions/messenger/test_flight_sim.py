@@ -166,11 +166,6 @@ def test_pipeline_with_the_true_tables_gives_back_the_field(tmp_path):
     assert shipped.max() > 1.0, shipped
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "pipeline: heater_periods applies the waveform when the bit's on-time >= 10 s - 1e-9 s "
-    "measured in ET; the synthetic SCLK runs 5e-8 slow in 2010, so a 10-bit on-phase "
-    "lasts 9.9999995 s and 10-% periods get no waveform (0.35 nT, sec. 6: 'persistence "
-    "at least 10 s')"))
 def test_ten_percent_duty_cycle_gets_its_waveform(tmp_path):
     _check_field(tmp_path, FlightConfig(days=1, seed=5, heater=HeaterModel(
         duty_percent=(10, 10))))
