@@ -148,8 +148,8 @@ def calibrate(
 @app.command()
 def fit(
     science: list[Path] = typer.Option(
-        ..., "--science", help="Raw science CSV of one sensor (RO-IGEP-TR0028 sec. 4.1.2); "
-        "repeat for several files (days)."
+        ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a "
+        "CSV, or EDITED archive products (folder or .LBL); repeat for several files (days)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the fitted calibration files."),
@@ -194,9 +194,9 @@ def fit(
     from fluxcal.missions.rosetta.fit_run import fit_files
 
     for path in science:
-        preflight.plain_text_file(path, "--science")
+        check_raw_source(path, "--science")
     if hk is not None:
-        preflight.plain_text_file(hk, "--hk")
+        check_raw_source(hk, "--hk")
     if calib is not None:
         preflight.existing_folder(calib, "--calib")
     if kernels is not None:

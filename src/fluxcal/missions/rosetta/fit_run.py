@@ -112,7 +112,7 @@ def fit_files(
     """
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel, leapseconds
-    from fluxcal.missions.rosetta import calib, io, level_a
+    from fluxcal.missions.rosetta import archive, calib, io, level_a
 
     files = [Path(science)] if isinstance(science, (str, Path)) else [Path(s) for s in science]
     if not files:
@@ -127,9 +127,9 @@ def fit_files(
         cal = calib.load_ground_calibration(sensor, calib_dir)
         shifts = calib.load_time_shift_table(calib_dir)
         nominal = calib.load_nominal_conversion(calib_dir)
-        raws = [io.read_science_csv(f, sensor, sclk=sclk, lsk=lsk) for f in files]
+        raws = [archive.read_science(f, sensor, sclk=sclk, lsk=lsk) for f in files]
         if hk_file is not None:
-            io.read_hk_csv(hk_file, sclk=sclk, lsk=lsk)
+            archive.read_hk(hk_file, sclk=sclk, lsk=lsk)
         prov = {
             "inputs": " ".join(str(p) for p in [*files, hk_file] if p is not None),
             "ground calibration": cal.source,
