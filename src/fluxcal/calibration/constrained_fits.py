@@ -54,9 +54,13 @@ class FitError(FluxcalError, ValueError):
 
 
 def _prepare(
-    x: np.ndarray, y: np.ndarray, weights: np.ndarray | None, min_points: int, what: str
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return finite, positive-weight points sorted by x."""
+    x: np.ndarray, y: np.ndarray, weights: np.ndarray | None, min_points: int, what: str,
+    extra_ok: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return finite, positive-weight points sorted by x, and their input indices.
+
+    ``extra_ok`` (shape of ``x``) drops further points (e.g. a bin without distribution).
+    """
     x = np.asarray(x, dtype=np.float64).ravel()
     y = np.asarray(y, dtype=np.float64).ravel()
     w = np.ones_like(x) if weights is None else np.asarray(weights, dtype=np.float64).ravel()
@@ -69,6 +73,9 @@ def _prepare(
     if np.any(w < 0):
         raise InputFormatError(f"{what}: weights must be >= 0", field="weights")
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(w) & (w > 0)
+    if extra_ok is not None:
+        ok &= np.asarray(extra_ok, dtype=bool).ravel()
+    index = np.flatnonzero(ok)
     x, y, w = x[ok], y[ok], w[ok]
     if x.size < min_points:
         raise FitError(
@@ -76,7 +83,7 @@ def _prepare(
             f"got {x.size}"
         )
     order = np.argsort(x, kind="stable")
-    return x[order], y[order], w[order]
+    return x[order], y[order], w[order], index[order]
 
 
 def _covariance(jac_w: np.ndarray, chi2: float, dof: int, absolute: bool) -> np.ndarray:
@@ -165,18 +172,33 @@ def _profile_chi2(design: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarra
     return np.sum(r * r, axis=1)
 
 
-def _hinge_design(x: np.ndarray, xm: np.ndarray) -> np.ndarray:
-    """Designs ``(1, min(x - xm, 0), max(x - xm, 0))`` for each break, ``(G, n, 3)``."""
+def _hinge_design(x: np.ndarray, xm: np.ndarray,
+                  average: np.ndarray | None = None) -> np.ndarray:
+    """Designs ``(1, min(x - xm, 0), max(x - xm, 0))`` for each break, ``(G, n, 3)``.
+
+    With ``average`` (shape (n, m), rows summing to 1) ``x`` holds the m sub-bin
+    abscissae and each row of the design is the ``average``-weighted mean over them.
+    """
     u = x[None, :] - np.asarray(xm, dtype=np.float64).reshape(-1, 1)
-    return np.stack((np.ones_like(u), np.minimum(u, 0.0), np.maximum(u, 0.0)), axis=-1)
+    lo, hi = np.minimum(u, 0.0), np.maximum(u, 0.0)
+    if average is not None:
+        lo, hi = lo @ average.T, hi @ average.T
+    return np.stack((np.ones_like(lo), lo, hi), axis=-1)
+
+
+def _hinge_break_column(x: np.ndarray, xm: float, b0: float, b1: float,
+                        average: np.ndarray | None) -> np.ndarray:
+    """Return the derivative of the (averaged) hinge model in ``x_m``, shape (n,)."""
+    col = np.where(x - xm <= 0, -b0, -b1)
+    return col if average is None else average @ col
 
 
 def _hinge_linear(
-    x: np.ndarray, y: np.ndarray, w: np.ndarray, xm: float
+    x: np.ndarray, y: np.ndarray, w: np.ndarray, xm: float,
+    average: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
     """Weighted LS of ``y = c + b0 min(x-xm, 0) + b1 max(x-xm, 0)``; return params, chi2."""
-    u = x - xm
-    design = np.column_stack((np.ones_like(x), np.minimum(u, 0.0), np.maximum(u, 0.0)))
+    design = _hinge_design(x, np.array([xm]), average)[0]
     dw = design * w[:, None]
     p, *_ = np.linalg.lstsq(dw, y * w, rcond=None)
     r = (y - design @ p) * w
@@ -191,19 +213,17 @@ def _polish_hinge(
     chi2: float,
     lo: float,
     hi: float,
+    average: np.ndarray | None = None,
 ) -> tuple[float, float, float, float, float]:
     """Refine ``(c, b0, b1, x_m)`` by least squares; keep the start if not better."""
 
     def resid(p: np.ndarray) -> np.ndarray:
-        u = x - p[3]
-        return (y - (p[0] + p[1] * np.minimum(u, 0.0) + p[2] * np.maximum(u, 0.0))) * w
+        return (y - _hinge_design(x, np.array([p[3]]), average)[0] @ p[:3]) * w
 
     def jac(p: np.ndarray) -> np.ndarray:
-        u = x - p[3]
-        below = u <= 0
-        cols = (np.ones_like(x), np.where(below, u, 0.0), np.where(below, 0.0, u),
-                np.where(below, -p[1], -p[2]))
-        return -np.column_stack(cols) * w[:, None]
+        design = _hinge_design(x, np.array([p[3]]), average)[0]
+        cols = np.column_stack((design, _hinge_break_column(x, p[3], p[1], p[2], average)))
+        return -cols * w[:, None]
 
     p0 = np.array(start, dtype=np.float64)
     if not hi > lo:
@@ -218,6 +238,34 @@ def _polish_hinge(
     return (*start, chi2)
 
 
+def _bin_distribution(
+    x_distribution: tuple[np.ndarray, np.ndarray], n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Check ``(sub_x, weights_per_bin)`` and return its parts.
+
+    Returns the used sub-bins, the row-normalised averaging matrix (n, m') and a mask
+    of the bins that have a distribution.
+    """
+    sub = np.asarray(x_distribution[0], dtype=np.float64).ravel()
+    wts = np.asarray(x_distribution[1], dtype=np.float64)
+    if wts.shape != (n, sub.size):
+        raise InputFormatError(
+            f"fit_two_segment: x_distribution weights must have shape (n bins, n sub-bins) "
+            f"= ({n}, {sub.size}), got {wts.shape}", field="x_distribution")
+    if np.any(wts < 0) or not np.all(np.isfinite(wts)):
+        raise InputFormatError("fit_two_segment: x_distribution weights must be finite and "
+                               ">= 0", field="x_distribution")
+    used = wts.sum(axis=0) > 0
+    if not np.all(np.isfinite(sub[used])):
+        raise InputFormatError("fit_two_segment: x_distribution sub-bin abscissae of used "
+                               "sub-bins must be finite", field="x_distribution")
+    total = wts.sum(axis=1)
+    has = total > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        average = np.where(has[:, None], wts[:, used] / total[:, None], 0.0)
+    return sub[used], average, has
+
+
 def fit_two_segment(
     x: np.ndarray,
     y: np.ndarray,
@@ -225,13 +273,16 @@ def fit_two_segment(
     *,
     absolute_weights: bool = False,
     n_grid: int = 400,
+    x_distribution: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> TwoSegmentFit:
     """Fit two lines joined continuously at a free break (eq. 3a, 3b, 4).
 
     Parameters
     ----------
     x : ndarray, shape (n,)
-        Bin coordinate (e.g. temperature bin centres, C).
+        Bin coordinate (e.g. the bins' mean temperatures, C).  With ``x_distribution``
+        it only orders the bins and bounds the break (between the second and the
+        second-to-last bin).
     y : ndarray, shape (n,)
         Bin averages (e.g. offsets, counts).
     weights : ndarray, shape (n,), optional
@@ -241,6 +292,16 @@ def fit_two_segment(
         If True, ``weights = 1/sigma`` exactly and errors are not rescaled by chi2/dof.
     n_grid : int
         Break values tried before the bounded refinement.
+    x_distribution : (sub_x, weights_per_bin), optional
+        The distribution of the samples' coordinate inside each bin: ``sub_x`` shape
+        (m,) the abscissae of fine sub-bins (e.g. their mean temperatures), and
+        ``weights_per_bin`` shape (n, m) the samples of bin ``i`` in sub-bin ``k``.
+        The model of bin ``i`` is then the bin average of the law,
+        ``sum_k weights[i, k] f(sub_x[k]) / sum_k weights[i, k]``, instead of
+        ``f(x[i])``: a bin average of the convex (or concave) two-segment law lies off
+        the law at the bin's mean coordinate wherever the break falls inside the bin
+        (docs/decisions/messenger_fit.md, entry 8).  Bins without weight are dropped.
+        Without it, each bin is modelled at ``x`` (the seed's estimator).
 
     Returns
     -------
@@ -250,6 +311,8 @@ def fit_two_segment(
     ------
     FitError
         With fewer than 5 usable points.
+    InputFormatError
+        If ``x_distribution`` has the wrong shape or negative weights.
 
     Examples
     --------
@@ -264,46 +327,49 @@ def fit_two_segment(
 
     Notes
     -----
-    For a fixed break the model ``c + b0 min(x - x_m, 0) + b1 max(x - x_m, 0)`` is
-    linear; chi2 is profiled over ``x_m`` on a grid between the second and the
-    second-to-last point (each segment keeps at least two points), then refined by a
-    bounded scalar minimisation around the best grid value.  Errors come from the
-    Jacobian of all four parameters ``(c, b0, b1, x_m)`` at the optimum, propagated to
-    ``(A0, B0, A1, B1, x_m)``.
+    For a fixed break the model ``c + b0 min(x - x_m, 0) + b1 max(x - x_m, 0)`` (or its
+    bin average over ``x_distribution``) is linear; chi2 is profiled over ``x_m`` on a
+    grid between the second and the second-to-last point (each segment keeps at least
+    two points), then refined by a bounded scalar minimisation around the best grid
+    value.  Errors come from the Jacobian of all four parameters ``(c, b0, b1, x_m)`` at
+    the optimum, propagated to ``(A0, B0, A1, B1, x_m)``.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 3a, 3b, 4, Table 2.
     """
-    x, y, w = _prepare(x, y, weights, 5, "fit_two_segment")
+    n_in = np.asarray(x).size
+    average = None
+    has = None
+    if x_distribution is not None:
+        sub, average_all, has = _bin_distribution(x_distribution, n_in)
+    x, y, w, index = _prepare(x, y, weights, 5, "fit_two_segment", extra_ok=has)
     lo, hi = x[1], x[-2]
     if not hi > lo:
         raise FitError("fit_two_segment: the points span no interval for a break")
+    if x_distribution is not None:
+        average = average_all[index]
+        keep = average.sum(axis=0) > 0
+        sx, average = sub[keep], average[:, keep]
+    else:
+        sx = x
     grid = np.linspace(lo, hi, n_grid)
-    chi = _profile_chi2(_hinge_design(x, grid), y, w)
+    chi = _profile_chi2(_hinge_design(sx, grid, average), y, w)
     i = int(np.argmin(chi))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]
     res = minimize_scalar(
-        lambda g: _hinge_linear(x, y, w, g)[1],
+        lambda g: _hinge_linear(sx, y, w, g, average)[1],
         bounds=(a, b),
         method="bounded",
         options={"xatol": 1e-10 * max(1.0, abs(hi - lo))},
     )
     xm = float(res.x) if res.fun <= chi[i] else float(grid[i])
-    (c, b0, b1), chi2 = _hinge_linear(x, y, w, xm)
+    (c, b0, b1), chi2 = _hinge_linear(sx, y, w, xm, average)
     # Brent on chi2 resolves x_m only to ~sqrt(eps); Gauss-Newton on the residuals
     # (least_squares, x_m bounded to the same interval) takes it to ~eps.
-    c, b0, b1, xm, chi2 = _polish_hinge(x, y, w, (c, b0, b1, xm), chi2, lo, hi)
-    u = x - xm
-    below = u <= 0
-    jac = np.column_stack(
-        (
-            np.ones_like(x),
-            np.where(below, u, 0.0),
-            np.where(below, 0.0, u),
-            np.where(below, -b0, -b1),
-        )
-    )
+    c, b0, b1, xm, chi2 = _polish_hinge(sx, y, w, (c, b0, b1, xm), chi2, lo, hi, average)
+    jac = np.column_stack((_hinge_design(sx, np.array([xm]), average)[0],
+                           _hinge_break_column(sx, xm, b0, b1, average)))
     dof = x.size - 4
     cov_p = _covariance(jac * w[:, None], chi2, dof, absolute_weights)
     a0, a1 = c - b0 * xm, c - b1 * xm
@@ -415,7 +481,7 @@ def fit_line_fixed_intercept(
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 5a, Table 3 ("the
        intercept at 0 duty cycle was held fixed to the -50 C values").
     """
-    x, y, w = _prepare(x, y, weights, 2, "fit_line_fixed_intercept")
+    x, y, w, _ = _prepare(x, y, weights, 2, "fit_line_fixed_intercept")
     u, v, w2 = x - x0, y - y0, w * w
     suu = float(np.sum(w2 * u * u))
     if suu <= 0.0:
@@ -560,7 +626,7 @@ def fit_relaxation(
     """
     n_lin = 3 if prior_decay else 2
     n_par = n_lin + 1 + int(fit_delay)
-    lag, y, w = _prepare(lag, y, weights, n_par + 1, "fit_relaxation")
+    lag, y, w, _ = _prepare(lag, y, weights, n_par + 1, "fit_relaxation")
     span = float(lag[-1] - lag[0])
     if span <= 0:
         raise FitError("fit_relaxation: the lags span no interval")
@@ -792,7 +858,7 @@ def fit_periodic_spline(
     if not (np.isfinite(period) and period > 0):
         raise InputFormatError(f"period must be positive, got {period}", field="period")
     phase = np.mod(np.asarray(phase, dtype=np.float64).ravel(), period)
-    x, yy, w = _prepare(phase, y, weights, 5, "fit_periodic_spline")
+    x, yy, w, _ = _prepare(phase, y, weights, 5, "fit_periodic_spline")
     n = x.size
     distinct = np.unique(x).size
     m = min(distinct, 200) if n_knots is None else int(n_knots)
