@@ -92,8 +92,11 @@ def _known_statistics(truth: dict, base, rng) -> DayStatistics:
             (np.arange(101) - 0.5)))
     # one unit step: the squared-step weights are 1
     weight = BinnedMoments.accumulate(lag, np.ones(lag.size), s.lag_edges_s)
+    # the temperatures' distribution: each bin's samples at one temperature
+    fine = BinnedMoments.accumulate(temps, temps, s.temperature_fine_edges())
     return DayStatistics(temperature=temperature, duty=duty, epoch=epoch, waveform=waveform,
-                         epoch_weight=weight, n_samples={"events": 40, "used": 1})
+                         epoch_weight=weight, temperature_fine=fine,
+                         n_samples={"events": 40, "used": 1})
 
 
 def _truth():
@@ -199,6 +202,7 @@ def reduced(simulated, messenger_kernels, calibration):
 
 def _moments(stats: DayStatistics):
     yield stats.temperature
+    yield stats.temperature_fine
     yield stats.duty
     yield stats.epoch
     yield stats.epoch_weight
@@ -221,6 +225,41 @@ def test_merged_halves_equal_one_pass(reduced):
                                    atol=1e-8)
     assert whole.n_samples["used"] > 0 and whole.temperature.count.sum() > 0
     assert whole.duty.count.sum() > 0 and whole.epoch.count.sum() > 0
+
+
+def test_temperature_sub_bins_hold_the_temperature_law_samples(reduced):
+    # the 0.25-C sub-bins nest in the 10-C bins and hold the same samples; their mean
+    # temperatures lie inside them and average to the bins' mean temperatures
+    whole, _ = reduced
+    t, f = whole.temperature, whole.temperature_fine
+    assert np.all(np.isin(t.edges, f.edges)) and np.allclose(np.diff(f.edges), 0.25)
+    owner = np.digitize(f.centers, t.edges) - 1
+    np.testing.assert_array_equal(np.bincount(owner, f.count, t.n_bins).astype(int), t.count)
+    used = f.count > 0
+    m = f.mean()[used, 0]
+    assert np.all((m >= f.edges[:-1][used]) & (m < f.edges[1:][used]))
+    back = np.bincount(owner[used], m * f.count[used], t.n_bins)
+    filled = t.count > 0
+    np.testing.assert_allclose(back[filled] / t.count[filled], t.mean()[filled, 3],
+                               rtol=0, atol=1e-9)
+    assert t.count.sum() > 0
+
+
+def test_fit_refuses_an_unknown_temperature_law_and_a_missing_distribution():
+    base = load_calibration(START)
+    stats = _known_statistics(_truth(), base, np.random.default_rng(1))
+    with pytest.raises(FluxcalError, match="temperature_law must be one of"):
+        fit_calibration(stats, base, temperature_law="median")
+    stats.temperature_fine = BinnedMoments.empty(FitSettings().temperature_fine_edges(), 1)
+    with pytest.raises(FluxcalError, match="sub-bins hold 0 samples.*binned-mean"):
+        fit_calibration(stats, base)
+    # the seed's estimator needs no distribution: noise-free points on the law, exact
+    res = fit_calibration(stats, base, temperature_law="binned-mean")
+    t = np.linspace(-60.0, 40.0, 101)
+    for j in range(3):
+        np.testing.assert_allclose(
+            _two_segment(t, *res.calibration.temperature_coefficients[j]),
+            _two_segment(t, *_truth()["coeff"][j]), rtol=0, atol=1e-4)
 
 
 def test_coarse_and_interval_selection(simulated, messenger_kernels, calibration):

@@ -151,23 +151,37 @@ def test_fit_recovers_altered_tables_in_a_quiet_wind(tmp_path):
     errors = {}
     # --- temperature law -----------------------------------------------------------------
     # every 10-C bin centred on -60..+40 C holds >= 1000 s of 1-Hz heater-off data, so its
-    # mean has sigma <= 0.57 * sqrt(120 / 1000) = 0.2 counts (most bins 10x more data);
-    # the two-segment fit's value at any temperature is a weighted mix of a few bins:
-    # <= 0.3 counts at 1 sigma.  The issue's 2 counts is > 6 sigma: a miss is a bias.
+    # mean has sigma <= 0.57 * sqrt(120 / 1000) = 0.2 counts (most bins 10x more data,
+    # ~0.06 counts); the two-segment fit's value at any temperature is a weighted mix of
+    # a few bins: <= 0.3 counts at 1 sigma where it leans on the sparsest bin, ~0.1
+    # elsewhere.  The default estimator (bin averages of the law over each bin's
+    # temperatures, docs/decisions/messenger_fit.md entry 8) has no bias of its own
+    # (tests/calibration/test_constrained_fits.py), so it must reach that statistical
+    # error: 0.3 counts (0.014 nT), besides the issue's 2 counts.
     centres = result.stats.temperature.centers
     counts = result.stats.temperature.count[(centres >= -60) & (centres <= 40)]
     assert counts.min() >= 1000, counts
+    assert result.temperature_law == "distribution"
     t = np.arange(-60.0, 40.01, 0.5)
     law = np.abs(_law(cal.temperature_coefficients, t) - _law(true, t)).max(axis=0)
     errors["temperature law max |error| (counts), tol 2"] = (law, 2.0)
-    # and it is the seed's binned estimator's own error (here up to 1.7 counts on z, the
-    # break inside a bin), computed without noise from the true heater-off temperatures:
-    # the fit equals it within its statistical error (0.3 count, above)
+    errors["temperature law max |error| (counts), statistical tol 0.3"] = (law, 0.3)
+    # the seed's estimator (law at the bins' mean temperatures), selected for one more
+    # pass from the converged tables, is the binned estimator's own error (here up to
+    # 1.7 counts on z, the break inside a bin), computed without noise from the true
+    # heater-off temperatures: the fit equals it within its statistical error (0.3 count)
+    seed_fit = fit.fit_days(fit.day_chunks(run.input_dir, run.days[:-1]), cal, passes=1,
+                            temperature_law="binned-mean")
+    assert seed_fit.temperature_law == "binned-mean"
+    seed_law = np.abs(_law(seed_fit.calibration.temperature_coefficients, t)
+                      - _law(true, t)).max(axis=0)
     truths = [read_flight_truth(run.input_dir, d) for d in run.days[:-1]]
     temps = np.concatenate([tr["temperature_c"][tr["duty_percent"] == 0] for tr in truths])
     expected = _binned_law_error(temps, true, np.arange(-105.0, 106.0, 10.0), t)
-    errors["|fit error - binned-estimator error| (counts), tol 0.3"] = (
-        np.abs(law - expected), 0.3)
+    errors["binned-mean: |fit error - binned-estimator error| (counts), tol 0.3"] = (
+        np.abs(seed_law - expected), 0.3)
+    # the bias is there to be removed: > 1 count on z with the seed's estimator
+    assert expected[2] > 1.0 and seed_law[2] > 1.0, (expected, seed_law)
     # --- duty-cycle law -------------------------------------------------------------------
     # D0 from ~8 4-% bins over 100-450 ppt, each > 10^4 samples: statistical error
     # ~0.57 * sqrt(120 / 10^4) / 300 ppt = 2e-4 counts/ppt, < 1 % of the smallest D0 (z,
@@ -200,7 +214,9 @@ def test_fit_recovers_altered_tables_in_a_quiet_wind(tmp_path):
     errors["unseen day rms (nT), fitted tables, tol 0.1"] = (fitted, 0.1)
     shipped = _recalibrate_rms(run.input_dir, unseen, None)
     report = "\n".join(f"{k}: {np.round(v, 4).tolist()}" for k, (v, _) in errors.items())
-    print(report + f"\nunseen day rms (nT), shipped tables: {shipped.round(3).tolist()}")
+    print(report + f"\nunseen day rms (nT), shipped tables: {shipped.round(3).tolist()}"
+          f"\nbinned-mean temperature law max |error| (counts): {seed_law.round(3).tolist()}"
+          f", noise-free binned estimator: {expected.round(3).tolist()}")
     failed = [k for k, (v, tol) in errors.items() if not np.all(v <= tol)]
     assert not failed, f"{failed}\n{report}"
     # the shipped tables miss the altered offsets by tens of counts: several nT
@@ -215,21 +231,28 @@ def test_temperature_law_with_the_break_at_a_bin_centre(tmp_path):
     # on the fit's bin centre -10 C (seed T_m(z) = -14.7866 C).  The bin's mean then
     # lies above the law at its mean temperature by 1.25 (B1 - B0) = 3.0 counts for a
     # uniform spread in the bin (docs/decisions/messenger_fit_verification.md, finding
-    # 2); the fit must not pass that on beyond the issue's 2 counts.  Statistical error
-    # as in the quiet test (<= 0.3 count).
+    # 2).  The default estimator models that bin as the law's average over its samples:
+    # within the statistical error of the quiet test (<= 0.3 count); the seed's estimator
+    # (selected) equals the noise-free binned estimator's own error within the same.
     changes = CalibrationChanges(tm_shift_c=(-6.0, 5.0, 4.7866))
     config = FlightConfig(start=str(START), days=QUIET_FIT_DAYS, seed=1313, solar_wind=QUIET)
     run = simulate_flight(tmp_path / "sim", config, changes)
     base = load_calibration(np.datetime64(str(START)))
-    result = fit.fit_days(fit.day_chunks(run.input_dir, run.days), base, passes=3)
+    chunks = fit.day_chunks(run.input_dir, run.days)
+    result = fit.fit_days(chunks, base, passes=3)
     true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
     assert abs(-(true.a0[2] - true.a1[2]) / (true.b0[2] - true.b1[2]) + 10.0) < 1e-3
     t = np.arange(-60.0, 40.01, 0.5)
     err = np.abs(_law(result.calibration.temperature_coefficients, t) - _law(true, t))
+    seed_fit = fit.fit_days(chunks, result.calibration, passes=1,
+                            temperature_law="binned-mean")
+    seed_err = np.abs(_law(seed_fit.calibration.temperature_coefficients, t) - _law(true, t))
     truths = [read_flight_truth(run.input_dir, d) for d in run.days]
     temps = np.concatenate([tr["temperature_c"][tr["duty_percent"] == 0] for tr in truths])
     expected = _binned_law_error(temps, true, np.arange(-105.0, 106.0, 10.0), t)
     print("temperature law max |error| with T_m(z) at a bin centre:", err.max(axis=0),
-          "binned estimator without noise:", expected)
-    assert err.max() <= 2.0, err.max(axis=0)
-    assert np.abs(err.max(axis=0) - expected).max() <= 0.3, (err.max(axis=0), expected)
+          "binned-mean:", seed_err.max(axis=0), "binned estimator without noise:", expected)
+    assert err.max() <= 0.3, err.max(axis=0)
+    assert seed_err.max() <= 2.0, seed_err.max(axis=0)
+    assert np.abs(seed_err.max(axis=0) - expected).max() <= 0.3, (seed_err.max(axis=0),
+                                                                  expected)

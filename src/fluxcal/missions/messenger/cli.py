@@ -137,6 +137,10 @@ def fit(
         "serial", "--scheduler", help="'serial' (this process), 'local' (a local Dask "
         "cluster of --workers processes) or the address of a running Dask scheduler."),
     workers: int = typer.Option(2, "--workers", min=1, help="Workers of the local cluster."),
+    temperature_law: str = typer.Option(
+        "distribution", "--temperature-law", help="'distribution': each 10-C bin modelled "
+        "as the law averaged over its samples' temperatures (unbiased at the break); "
+        "'binned-mean': the seed's law at the bins' mean temperatures."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
@@ -152,7 +156,7 @@ def fit(
         text = run_fit(sci=sci, heater=heater, temperature=temperature, kernels=kernels,
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
-                       workers=workers, progress=progress)
+                       workers=workers, progress=progress, temperature_law=temperature_law)
     typer.echo(text)
 
 

@@ -61,7 +61,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     relaxation_response,
 )
 
-__all__ = ["FitResult", "fit_calibration", "fit_days", "reduce_day"]
+__all__ = ["TEMPERATURE_LAWS", "FitResult", "fit_calibration", "fit_days", "reduce_day"]
 
 AXES = ("x", "y", "z")
 #: Fewest samples in a bin for it to enter a fit (the variance needs two; a bin mean of
@@ -81,6 +81,11 @@ MIN_EVENTS = 3
 MIN_PHASE_BINS = 50
 #: The fitted delay dt is adopted only when its standard error is below this (s).
 MAX_DELAY_ERROR_S = 3.0
+#: Estimators of the temperature law (docs/decisions/messenger_fit.md, entry 8):
+#: ``distribution`` models each 10-C bin as the average of the law over its samples'
+#: temperatures (default); ``binned-mean`` is the seed's, the law at the bin's mean
+#: temperature (biased by up to 1.25 (B1 - B0) in the bin holding the break).
+TEMPERATURE_LAWS = ("distribution", "binned-mean")
 
 
 @dataclass
@@ -107,6 +112,8 @@ class FitResult:
         Lag bin centre, axis-combined normalised epoch, its standard error, samples.
     passes : list of dict
         Summary of every pass (`fit_days`).
+    temperature_law : str
+        Estimator of the temperature law (`TEMPERATURE_LAWS`).
     """
 
     calibration: MessengerCalibration
@@ -118,6 +125,7 @@ class FitResult:
     stats: DayStatistics
     epoch_curve: np.ndarray
     passes: list[dict[str, Any]] = field(default_factory=list)
+    temperature_law: str = "distribution"
 
     def summary(self) -> dict[str, Any]:
         """Return the headline numbers (for the pass history and the report)."""
@@ -135,8 +143,31 @@ def _usable(moments, column: int = 0) -> np.ndarray:
     return (moments.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, column])
 
 
-def _fit_temperature(stats: DayStatistics, d0: np.ndarray, shift: float
-                     ) -> list[TwoSegmentFit]:
+def _temperature_distribution(stats: DayStatistics, ok: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """Sub-bin mean temperatures and samples per (used 10-C bin, sub-bin).
+
+    ``temperature_fine`` nests in the 10-C bins; each sub-bin belongs to the bin holding
+    its centre.  Raises if the two do not hold the same samples (a reduction without the
+    distribution, e.g. statistics saved before it existed).
+    """
+    fine = stats.temperature_fine
+    owner = np.searchsorted(stats.temperature.edges, fine.centers, side="right") - 1
+    per_bin = np.bincount(owner[(owner >= 0) & (owner < stats.temperature.n_bins)],
+                          weights=fine.count[(owner >= 0) & (owner < stats.temperature.n_bins)],
+                          minlength=stats.temperature.n_bins)
+    if not np.array_equal(per_bin.astype(np.int64), stats.temperature.count):
+        raise FluxcalError(
+            "temperature law (distribution estimator): the temperature sub-bins hold "
+            f"{int(fine.count.sum())} samples, the 10-C bins {int(stats.temperature.count.sum())}"
+            "; reduce the days again, or choose the binned-mean estimator")
+    bins = np.flatnonzero(ok)
+    weights = np.where(owner[None, :] == bins[:, None], fine.count[None, :], 0).astype(float)
+    return fine.mean()[:, 0], weights
+
+
+def _fit_temperature(stats: DayStatistics, d0: np.ndarray, shift: float,
+                     law: str = "distribution") -> list[TwoSegmentFit]:
     t = stats.temperature
     ok = _usable(t)
     if ok.sum() < MIN_TEMPERATURE_BINS:
@@ -154,7 +185,10 @@ def _fit_temperature(stats: DayStatistics, d0: np.ndarray, shift: float
     # relaxed duty cycle of the bin (at tau + shift, to first order)
     relaxed = mean[:, 4:5] + shift * mean[:, 5:6]
     y = mean[:, :3] - relaxed * np.asarray(d0, dtype=float)[None, :]
-    return [fit_two_segment(mean[:, 3], y[:, j], w) for j in range(3)]
+    # the seed's estimator models a bin at its mean temperature; the default models it
+    # as the bin average of the law over the samples' temperatures (entry 8)
+    dist = _temperature_distribution(stats, ok) if law == "distribution" else None
+    return [fit_two_segment(mean[:, 3], y[:, j], w, x_distribution=dist) for j in range(3)]
 
 
 def _fit_duty(stats: DayStatistics, c_ref: np.ndarray, shift: float) -> list[LineFit]:
@@ -178,7 +212,8 @@ def _fit_duty(stats: DayStatistics, c_ref: np.ndarray, shift: float) -> list[Lin
 
 
 def _fit_offsets(
-    stats: DayStatistics, base: MessengerCalibration, shift: float = 0.0
+    stats: DayStatistics, base: MessengerCalibration, shift: float = 0.0,
+    law: str = "distribution",
 ) -> tuple[list[TwoSegmentFit], list[LineFit], np.ndarray]:
     """Fit steps 1 and 2 alternately on the merged statistics until D0 settles.
 
@@ -189,7 +224,7 @@ def _fit_offsets(
     t_ref = float(base.constants["relaxation"].get("reference_temperature_c", -50.0))
     d0 = np.asarray(base.duty_cycle_d0, dtype=float)
     for _ in range(INNER_ITERATIONS):
-        temperature = _fit_temperature(stats, d0, shift)
+        temperature = _fit_temperature(stats, d0, shift, law)
         total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
         c_ref = two_segment_offset(np.array([t_ref]), total)[0]
         duty = _fit_duty(stats, c_ref, shift)
@@ -317,6 +352,7 @@ def fit_calibration(
     base: MessengerCalibration,
     *,
     fit_delay: bool = True,
+    temperature_law: str = "distribution",
 ) -> FitResult:
     """Fit the four calibration terms of sec. 6-7 to merged statistics (one pass).
 
@@ -329,6 +365,11 @@ def fit_calibration(
         Table 4, dates) are kept.
     fit_delay : bool
         Also fit the heater delay dt (adopted when its error is below 3 s).
+    temperature_law : {"distribution", "binned-mean"}
+        ``distribution`` (default) fits the Table 2 law so that its average over each
+        10-C bin's heater-off temperatures matches the bin mean; ``binned-mean`` is the
+        seed's estimator, the law at the bins' mean temperatures
+        (docs/decisions/messenger_fit.md, entry 8).
 
     Returns
     -------
@@ -338,19 +379,23 @@ def fit_calibration(
     ------
     FluxcalError
         Naming the analysis and what is missing: too few heater-off temperature bins
-        (listing the empty ones), no heater periods, too few duty-cycle changes.
+        (listing the empty ones), no heater periods, too few duty-cycle changes; an
+        unknown ``temperature_law``.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-5, Tables 2-3,
        Appendix Tables 6-8.
     """
+    if temperature_law not in TEMPERATURE_LAWS:
+        raise FluxcalError(f"temperature_law must be one of {', '.join(TEMPERATURE_LAWS)}, "
+                           f"got {temperature_law!r}")
     tau_base = float(base.constants["relaxation"]["tau_s"])
     tau = tau_base
     for _ in range(TAU_ITERATIONS):  # tau inside the pass, to first order (entry 1)
         shift = float(np.clip(tau - tau_base, -MAX_TAU_SHIFT * tau_base,
                               MAX_TAU_SHIFT * tau_base))
-        temperature, duty, c_ref = _fit_offsets(stats, base, shift)
+        temperature, duty, c_ref = _fit_offsets(stats, base, shift, temperature_law)
         d0 = np.array([f.slope for f in duty])
         relaxation, delay_fitted, curve = _fit_relaxation(stats, base, d0, fit_delay, shift)
         done = abs(relaxation.tau - tau) <= 1e-4 * tau
@@ -377,7 +422,7 @@ def fit_calibration(
     )
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=delay_fitted, waveform=waveform,
-                     stats=stats, epoch_curve=curve)
+                     stats=stats, epoch_curve=curve, temperature_law=temperature_law)
 
 
 # ---------------------------------------------------------------------------------------
@@ -465,6 +510,7 @@ def fit_days(
     settings: FitSettings | None = None,
     fit_delay: bool = True,
     progress: Progress | None = None,
+    temperature_law: str = "distribution",
 ) -> FitResult:
     """Fit the calibration to many days: reduce each (map), merge, fit; ``passes`` times.
 
@@ -492,6 +538,8 @@ def fit_days(
         Also fit dt (`fit_calibration`).
     progress : callable, optional
         ``progress(description, done, total)`` after every reduced chunk.
+    temperature_law : {"distribution", "binned-mean"}
+        Estimator of the temperature law (`fit_calibration`).
 
     Returns
     -------
@@ -507,6 +555,9 @@ def fit_days(
         raise FluxcalError("no day with a science file to fit")
     if passes < 1:
         raise FluxcalError(f"passes must be at least 1, got {passes}")
+    if temperature_law not in TEMPERATURE_LAWS:
+        raise FluxcalError(f"temperature_law must be one of {', '.join(TEMPERATURE_LAWS)}, "
+                           f"got {temperature_law!r}")
     s = settings or FitSettings()
     total = passes * len(chunks)
     history: list[dict[str, Any]] = []
@@ -522,7 +573,8 @@ def fit_days(
             stats = reduce(DayStatistics.merge, parts, DayStatistics.empty(s))
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
-            result = fit_calibration(stats, cal, fit_delay=fit_delay)
+            result = fit_calibration(stats, cal, fit_delay=fit_delay,
+                                     temperature_law=temperature_law)
             history.append({"pass": p + 1, **result.summary()})
             change = _relative_change(cal, result.calibration)
             cal = result.calibration

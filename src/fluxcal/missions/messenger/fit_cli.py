@@ -67,6 +67,7 @@ def run_fit(
     scheduler: str = "serial",
     workers: int = 2,
     progress: Callable[[str, int, int], None] | None = None,
+    temperature_law: str = "distribution",
 ) -> str:
     """Run ``fluxcal messenger fit`` and return the summary text (`report_text`).
 
@@ -122,7 +123,8 @@ def run_fit(
 
         preflight.reachable_scheduler(sched)
     result = fit_days(chunks, base, intervals=iv, passes=passes, scheduler=sched,
-                      n_workers=workers, fit_delay=fit_delay, progress=progress)
+                      n_workers=workers, fit_delay=fit_delay, progress=progress,
+                      temperature_law=temperature_law)
     provenance = {
         "inputs": result.stats.inputs,
         "intervals": (f"{Path(intervals).name} sha256={sha256_file(intervals)} "

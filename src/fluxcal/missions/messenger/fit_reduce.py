@@ -9,6 +9,10 @@ of the other calibration terms, for the four analyses of sec. 6 and 7:
    (value columns x, y, z, the temperature itself, whose bin mean is the abscissa of
    the fit, the relaxed duty cycle `relaxed_duty`, whose mean times D0 is the
    duty-cycle offset still decaying after the heater stopped, and its derivative in tau);
+   ``temperature_fine`` keeps the same samples' temperature distribution in 0.25-C
+   sub-bins nested in the 10-C bins (count and mean temperature), so that the fit can
+   model each bin as the average of the law over its samples (docs/decisions/
+   messenger_fit.md, entry 8);
 2. ``duty``: inside heater periods with a duty cycle of at least 100 ppt, counts minus
    the temperature variation ``cT(T) - cT(-50 C)`` and the heater signal, in 40-ppt (4 %)
    bins of the duty cycle the offset has relaxed to (`relaxed_duty`; columns x, y, z, that
@@ -83,6 +87,8 @@ class FitSettings:
     max_relaxed_off_ppt : float
         Heater-off samples enter the temperature law once the duty cycle their offset has
         relaxed to is below this (the decaying term then weighs little on cT).
+    temperature_sub_bin_c : float
+        Width of the sub-bins of ``temperature_fine`` (must divide the 10-C bins).
     min_step_ppt : float
         Least change of the steady-state duty cycle entering the epoch (1 %: a step
         carries weight ``delta**2``, so small ones add little either way).
@@ -95,6 +101,18 @@ class FitSettings:
     phase_bins: int = 100
     min_step_ppt: float = 10.0
     max_relaxed_off_ppt: float = 50.0
+    temperature_sub_bin_c: float = 0.25
+
+    def temperature_fine_edges(self) -> np.ndarray:
+        """Sub-bin edges of ``temperature_fine``, nested in ``temperature_edges_c``."""
+        edges = np.asarray(self.temperature_edges_c, dtype=float)
+        h = float(self.temperature_sub_bin_c)
+        steps = np.diff(edges) / h
+        if h <= 0 or not np.allclose(steps, np.round(steps), rtol=0, atol=1e-9):
+            raise InputFormatError(f"temperature sub-bins of {h} C do not divide the "
+                                   "temperature bins", field="temperature_sub_bin_c")
+        return np.concatenate([edges[:1], *[e0 + h * np.arange(1, int(round(k)) + 1)
+                                            for e0, k in zip(edges[:-1], steps, strict=True)]])
 
 
 @dataclass
@@ -110,6 +128,9 @@ class DayStatistics:
         the least-squares response to a unit step (sec. 7's normalised epoch).
     waveform : list of BinnedMoments
         Analysis 4, one per waveform duty-cycle bin.
+    temperature_fine : BinnedMoments
+        The temperature-law samples in 0.25-C sub-bins; its one value column is the
+        temperature (count and mean temperature per sub-bin).
     n_samples : dict
         Sample counts: ``total``, ``used`` (fine, V10, inside intervals), ``coarse``,
         ``outside_intervals``, ``before_v10``; ``events`` (duty-cycle changes in the
@@ -125,6 +146,7 @@ class DayStatistics:
     epoch: BinnedMoments
     waveform: list[BinnedMoments]
     epoch_weight: BinnedMoments | None = None
+    temperature_fine: BinnedMoments | None = None
     n_samples: dict[str, int] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
     days: list[str] = field(default_factory=list)
@@ -146,12 +168,17 @@ class DayStatistics:
                       for _ in s.waveform_bins_percent],
             epoch_weight=BinnedMoments.empty(s.lag_edges_s, 1, label="lag", units="s",
                                              value_units="ppt^2"),
+            temperature_fine=_empty_fine(s.temperature_fine_edges()),
         )
 
     def __post_init__(self) -> None:
         if self.epoch_weight is None:
             self.epoch_weight = BinnedMoments.empty(self.epoch.edges, 1, label="lag",
                                                     units="s", value_units="ppt^2")
+        if self.temperature_fine is None:
+            edges = self.temperature.edges
+            self.temperature_fine = _empty_fine(FitSettings(
+                temperature_edges_c=tuple(edges)).temperature_fine_edges())
 
     def merge(self, other: DayStatistics) -> DayStatistics:
         """Return the statistics of both (bins must agree)."""
@@ -162,6 +189,7 @@ class DayStatistics:
             epoch=self.epoch.merge(other.epoch),
             waveform=[a.merge(b) for a, b in zip(self.waveform, other.waveform, strict=True)],
             epoch_weight=self.epoch_weight.merge(other.epoch_weight),
+            temperature_fine=self.temperature_fine.merge(other.temperature_fine),
             n_samples={k: self.n_samples.get(k, 0) + other.n_samples.get(k, 0) for k in keys},
             inputs={**self.inputs, **other.inputs},
             days=[*self.days, *other.days],
@@ -174,10 +202,16 @@ class DayStatistics:
     def to_datasets(self) -> dict[str, xr.Dataset]:
         """Return every `BinnedMoments` as a dataset (``temperature``, ``waveform_12``...)."""
         out = {"temperature": self.temperature.to_dataset(), "duty": self.duty.to_dataset(),
-               "epoch": self.epoch.to_dataset(), "epoch_weight": self.epoch_weight.to_dataset()}
+               "epoch": self.epoch.to_dataset(), "epoch_weight": self.epoch_weight.to_dataset(),
+               "temperature_fine": self.temperature_fine.to_dataset()}
         for pct, w in zip(FitSettings().waveform_bins_percent, self.waveform, strict=False):
             out[f"waveform_{pct:.0f}"] = w.to_dataset()
         return out
+
+
+def _empty_fine(edges: np.ndarray) -> BinnedMoments:
+    return BinnedMoments.empty(edges, 1, label="temperature", units="degC",
+                               value_units="degC")
 
 
 def _phase_edges(s: FitSettings) -> np.ndarray:
@@ -384,10 +418,16 @@ def reduce_day(
     # 1. temperature law: heater off; counts minus the heater signal, with the relaxed
     # duty cycle (the fit removes D0 times its mean, with its own D0)
     off = (level_eff == 0) & ~powered & (relaxed < s.max_relaxed_off_ppt)
+    values = np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off], slope[off]])
     out.temperature = BinnedMoments.accumulate(
-        temp_c[off], np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off],
-                                     slope[off]]),
-        s.temperature_edges_c, label="temperature", units="degC", value_units="counts")
+        temp_c[off], values, s.temperature_edges_c, label="temperature", units="degC",
+        value_units="counts")
+    # the same samples' temperatures in nested sub-bins (a sample accumulate drops, with
+    # a NaN in any column, is dropped here too): the distribution within each bin
+    t_fine = np.where(np.all(np.isfinite(values), axis=1), temp_c[off], np.nan)
+    out.temperature_fine = BinnedMoments.accumulate(
+        t_fine, t_fine, s.temperature_fine_edges(), label="temperature", units="degC",
+        value_units="degC")
     # 2. duty-cycle law: counts minus the temperature variation and the heater signal,
     # binned by the duty cycle the offset has relaxed to (eq. 6f with unit slope), in
     # heater periods with a finite duty cycle (docs/decisions/messenger_fit.md, entry 2)

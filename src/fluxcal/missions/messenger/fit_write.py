@@ -151,7 +151,10 @@ def write_calibration_folder(
              f"A1 {f.a1_err:.3g} B1 {f.b1_err:.3g} Tm {f.x_m_err:.3g}"
              for a, f in zip(AXES, t, strict=True)]
     tm = result.stats.temperature
-    extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}"]
+    extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}",
+              f"estimator: {result.temperature_law} (bin "
+              "averages of the law over each bin's temperatures, or the law at the bins' "
+              "mean temperatures)"]
     rows = ["axis,A0,B0,A1,B1,Tm_c"] + [
         f"{a},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{c[3]:.6f},{tmv:.4f}"
         for a, c, tmv in zip(AXES, cal.temperature_coefficients, cal.breakpoint_temperature_c,
