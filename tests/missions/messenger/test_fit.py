@@ -348,6 +348,7 @@ def test_cli_fit_then_edr2cdr_calib(tmp_path, training, simulated_files, messeng
                                          "offsets_duty_cycle_v2.csv", "processing_v2.toml"}
     header = (fitted / "offsets_duty_cycle_v2.csv").read_text()
     assert "# source: fitted by fluxcal messenger fit" in header
+    assert "estimator: distribution" in (fitted / "offsets_temperature_v2.csv").read_text()
     assert f"# input: {training['science'].name} sha256=" in header
     products = tmp_path / "products"
     rc = main(["messenger", "edr2cdr", *_stream_args(simulated_files, messenger_kernels),
@@ -385,6 +386,11 @@ def test_cli_fit_error_lines(tmp_path, training, simulated_files, messenger_kern
                "--out", str(tmp_path / "c"), "--calib", str(tmp_path / "empty")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "--calib lacks the table(s) latency" in err
+    # an unknown temperature-law estimator
+    rc = main(["messenger", "fit", *_stream_args(training), "--temperature-law", "median",
+               "--out", str(tmp_path / "e")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "temperature_law must be one of distribution, binned-mean" in err
     # both input styles
     rc = main(["messenger", "fit", *_stream_args(training),
                "--input-dir", str(tmp_path), "--out", str(tmp_path / "d")])
