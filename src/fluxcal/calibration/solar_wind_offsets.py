@@ -105,18 +105,38 @@ class OffsetEstimate:
 
     method: str
     offset: NDArray[np.float64]
-    standard_error: NDArray[np.float64]
     covariance: NDArray[np.float64]
-    n_used: int
-    n_rejected: int
-    rejections: dict[str, int]
     labels: NDArray[np.int64]
-    accepted: NDArray[np.bool_]
     reason: NDArray[np.str_]
     per_interval: NDArray[np.float64]
     n_bootstrap: int
     iterations: int
     criteria: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def standard_error(self) -> NDArray[np.float64]:
+        """Bootstrap standard error per component, ``sqrt(diag(covariance))``."""
+        return np.sqrt(np.diag(self.covariance))
+
+    @property
+    def accepted(self) -> NDArray[np.bool_]:
+        """Whether each interval entered the final estimate (no rejection reason)."""
+        return self.reason == ""
+
+    @property
+    def n_used(self) -> int:
+        """Intervals used in the final estimate."""
+        return int(np.count_nonzero(self.accepted))
+
+    @property
+    def n_rejected(self) -> int:
+        """Intervals rejected by a selection criterion."""
+        return int(self.reason.size - self.n_used)
+
+    @property
+    def rejections(self) -> dict[str, int]:
+        """Number of rejected intervals per reason."""
+        return count_reasons(self.reason)
 
 
 @dataclass(frozen=True)
