@@ -39,6 +39,19 @@ def _digits(row, j, n):
 
 
 @njit(cache=True)
+def _sign(row, n):  # pragma: no cover - compiled
+    """Skip leading blanks and one sign: ``(negative, index of the first digit)``."""
+    j = 0
+    while j < n and row[j] == 32:
+        j += 1
+    negative = False
+    if j < n and (row[j] == 45 or row[j] == 43):
+        negative = row[j] == 45
+        j += 1
+    return negative, j
+
+
+@njit(cache=True)
 def parse_reals(field, pow10):  # pragma: no cover - compiled
     """Return ``(values, ok)``; ``ok[i]`` is False where row ``i`` needs the slow path."""
     rows, n = field.shape
@@ -46,13 +59,7 @@ def parse_reals(field, pow10):  # pragma: no cover - compiled
     ok = np.ones(rows, np.bool_)
     for i in range(rows):
         row = field[i]
-        j = 0
-        while j < n and row[j] == 32:
-            j += 1
-        negative = False
-        if j < n and (row[j] == 45 or row[j] == 43):
-            negative = row[j] == 45
-            j += 1
+        negative, j = _sign(row, n)
         mant, c1, sig, j = _digits(row, j, n)
         c2 = 0
         if j < n and row[j] == 46:
@@ -104,13 +111,7 @@ def parse_ints(field):  # pragma: no cover - compiled
     ok = np.ones(rows, np.bool_)
     for i in range(rows):
         row = field[i]
-        j = 0
-        while j < n and row[j] == 32:
-            j += 1
-        negative = False
-        if j < n and (row[j] == 45 or row[j] == 43):
-            negative = row[j] == 45
-            j += 1
+        negative, j = _sign(row, n)
         value, count, significant, j = _digits(row, j, n)
         while j < n and row[j] == 32:
             j += 1
