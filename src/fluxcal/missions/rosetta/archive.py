@@ -35,6 +35,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta.io import hk_dataset, science_dataset
 
 SENSORS = ("OB", "IB")
 _NAME = re.compile(
@@ -383,26 +384,10 @@ def read_science_products(
     cat = lambda key: np.concatenate([p[key] for p in pieces])  # noqa: E731
     ints = {k: np.concatenate([p["ints"][k] for p in pieces]) for k in pieces[0]["ints"]}
     source = files[0] if len(files) == 1 else f"{files[0]} + {len(files) - 1} more"
-    return xr.Dataset(
-        {
-            "obt": ("time", cat("obt"), {"units": "s"}),
-            "sid": ("time", cat("sid"), {"units": "1"}),
-            "b_counts": (
-                ("time", "component"),
-                np.stack([ints["bx"], ints["by"], ints["bz"]], axis=1).astype(np.int32),
-                {"units": "count"},
-            ),
-            "t_ob_counts": ("time", ints["t_ob"].astype(np.int32), {"units": "count"}),
-            "t_ib_counts": ("time", ints["t_ib"].astype(np.int32), {"units": "count"}),
-            "quality": ("time", ints["quality"].astype(np.int16), {"units": "1"}),
-            "row": ("time", cat("row"), {"units": "1", "description": "row in its table"}),
-        },
-        coords={
-            "epoch": ("time", cat("epoch"), {"units": "ns", "time_base": "TT2000"}),
-            "component": ["x", "y", "z"],
-        },
-        attrs={"sensor": sensor, "source": source, "files": files,
-               "time_source": "obt" if sclk is not None else "time_utc"},
+    return science_dataset(
+        cat("epoch"), cat("obt"), cat("sid"), ints, cat("row"), "row in its table",
+        {"sensor": sensor, "source": source, "files": files,
+         "time_source": "obt" if sclk is not None else "time_utc"},
     )
 
 
@@ -437,30 +422,11 @@ def read_hk_products(labels: Sequence[Path], *, sclk=None, lsk=None) -> xr.Datas
         raise InputFormatError("no data records", path=files[0], line=1)
     cat = lambda key: np.concatenate([p[key] for p in pieces])  # noqa: E731
     ints = {k: np.concatenate([p["ints"][k] for p in pieces]) for k in pieces[0]["ints"]}
-    data = {
-        "obt": ("time", cat("obt"), {"units": "s"}),
-        "t_ob_counts": ("time", ints["t_ob"], {"units": "count"}),
-        "t_ib_counts": ("time", ints["t_ib"], {"units": "count"}),
-        "ref_voltage_counts": ("time", ints["ref_voltage"], {"units": "count"}),
-        "neg_voltage_counts": ("time", ints["neg_voltage"], {"units": "count"}),
-        "pos_voltage_counts": ("time", ints["pos_voltage"], {"units": "count"}),
-        "b_ob_counts": (
-            ("time", "component"),
-            np.stack([ints["bx_ob"], ints["by_ob"], ints["bz_ob"]], axis=1),
-            {"units": "count"},
-        ),
-    }
-    for name in ("stage_a_id", "stage_b_id", "filter_cfg"):
-        data[name] = ("time", ints[name], {"units": "1"})
     source = files[0] if len(files) == 1 else f"{files[0]} + {len(files) - 1} more"
-    return xr.Dataset(
-        data,
-        coords={
-            "epoch": ("time", cat("epoch"), {"units": "ns", "time_base": "TT2000"}),
-            "component": ["x", "y", "z"],
-        },
-        attrs={"source": source, "files": files,
-               "time_source": "obt" if sclk is not None else "time_utc"},
+    return hk_dataset(
+        cat("epoch"), cat("obt"), ints,
+        {"source": source, "files": files,
+         "time_source": "obt" if sclk is not None else "time_utc"},
     )
 
 

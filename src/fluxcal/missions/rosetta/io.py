@@ -210,11 +210,24 @@ def read_science_csv(path: Path, sensor: str, *, sclk=None, lsk=None) -> xr.Data
         for name in ("sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
     }
     epoch, time_source = _epoch(table[:, 0], obt, path, sclk, lsk)
-    n = obt.size
+    return science_dataset(
+        epoch, obt, ints["sid"].astype(np.int16), ints,
+        np.arange(2, obt.size + 2), "line in file",
+        {"sensor": check_sensor(sensor), "source": str(path), "time_source": time_source},
+    )
+
+
+def science_dataset(epoch: np.ndarray, obt: np.ndarray, sid: np.ndarray, ints: dict,
+                    row: np.ndarray, row_description: str, attrs: dict) -> xr.Dataset:
+    """Build the raw science Dataset both input layouts give (sec. 4.1.2 columns as counts).
+
+    ``ints`` holds the integer columns ``bx, by, bz, t_ob, t_ib, quality``; ``row`` says
+    where each record was read (``row_description``: line in a CSV, row in a table).
+    """
     return xr.Dataset(
         {
             "obt": ("time", obt, {"units": "s"}),
-            "sid": ("time", ints["sid"].astype(np.int16), {"units": "1"}),
+            "sid": ("time", sid, {"units": "1"}),
             "b_counts": (
                 ("time", "component"),
                 np.stack([ints["bx"], ints["by"], ints["bz"]], axis=1).astype(np.int32),
@@ -223,13 +236,13 @@ def read_science_csv(path: Path, sensor: str, *, sclk=None, lsk=None) -> xr.Data
             "t_ob_counts": ("time", ints["t_ob"].astype(np.int32), {"units": "count"}),
             "t_ib_counts": ("time", ints["t_ib"].astype(np.int32), {"units": "count"}),
             "quality": ("time", ints["quality"].astype(np.int16), {"units": "1"}),
-            "row": ("time", np.arange(2, n + 2), {"units": "1", "description": "line in file"}),
+            "row": ("time", row, {"units": "1", "description": row_description}),
         },
         coords={
             "epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
             "component": ["x", "y", "z"],
         },
-        attrs={"sensor": check_sensor(sensor), "source": str(path), "time_source": time_source},
+        attrs=attrs,
     )
 
 
@@ -242,6 +255,11 @@ def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
         name: _numeric(table, j, name, int, path) for j, name in enumerate(HK_COLUMNS) if j >= 2
     }
     epoch, time_source = _epoch(table[:, 0], obt, path, sclk, lsk)
+    return hk_dataset(epoch, obt, ints, {"source": str(path), "time_source": time_source})
+
+
+def hk_dataset(epoch: np.ndarray, obt: np.ndarray, ints: dict, attrs: dict) -> xr.Dataset:
+    """Build the raw HK Dataset both input layouts give (sec. 4.1.1 words as counts)."""
     data = {
         "obt": ("time", obt, {"units": "s"}),
         "t_ob_counts": ("time", ints["t_ob"], {"units": "count"}),
@@ -263,7 +281,7 @@ def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
             "epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
             "component": ["x", "y", "z"],
         },
-        attrs={"source": str(path), "time_source": time_source},
+        attrs=attrs,
     )
 
 
