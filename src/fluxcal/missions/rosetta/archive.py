@@ -309,6 +309,22 @@ def _check_order(pieces: list[dict], key: str = "epoch") -> list[dict]:
     return pieces
 
 
+def _join(pieces: list[dict], what: str, sclk) -> tuple[dict, dict, dict]:
+    """Join the per-file pieces in time order: columns, integer columns, Dataset attrs."""
+    if not pieces:
+        raise InputFormatError(f"no EDITED {what} products given")
+    files = [str(p["label"]) for p in pieces]
+    pieces = _check_order(pieces)
+    if not pieces:
+        raise InputFormatError("no data records", path=files[0], line=1)
+    cat = {k: np.concatenate([p[k] for p in pieces])
+           for k in pieces[0] if k not in ("label", "ints")}
+    ints = {k: np.concatenate([p["ints"][k] for p in pieces]) for k in pieces[0]["ints"]}
+    source = files[0] if len(files) == 1 else f"{files[0]} + {len(files) - 1} more"
+    return cat, ints, {"source": source, "files": files,
+                       "time_source": "obt" if sclk is not None else "time_utc"}
+
+
 def read_science_products(
     labels: Sequence[Path], sensor: str, *, sclk=None, lsk=None
 ) -> xr.Dataset:
@@ -375,20 +391,9 @@ def read_science_products(
         pieces.append({"label": label, "epoch": epoch, "obt": obt, "ints": ints,
                        "sid": np.full(obt.size, product.mode, dtype=np.int16),
                        "row": np.arange(1, obt.size + 1)})
-    if not pieces:
-        raise InputFormatError(f"no EDITED {sensor} science products given")
-    files = [str(p["label"]) for p in pieces]
-    pieces = _check_order(pieces)
-    if not pieces:
-        raise InputFormatError("no data records", path=files[0], line=1)
-    cat = lambda key: np.concatenate([p[key] for p in pieces])  # noqa: E731
-    ints = {k: np.concatenate([p["ints"][k] for p in pieces]) for k in pieces[0]["ints"]}
-    source = files[0] if len(files) == 1 else f"{files[0]} + {len(files) - 1} more"
-    return science_dataset(
-        cat("epoch"), cat("obt"), cat("sid"), ints, cat("row"), "row in its table",
-        {"sensor": sensor, "source": source, "files": files,
-         "time_source": "obt" if sclk is not None else "time_utc"},
-    )
+    cat, ints, attrs = _join(pieces, f"{sensor} science", sclk)
+    return science_dataset(cat["epoch"], cat["obt"], cat["sid"], ints, cat["row"],
+                           "row in its table", {"sensor": sensor, **attrs})
 
 
 def read_hk_products(labels: Sequence[Path], *, sclk=None, lsk=None) -> xr.Dataset:
@@ -414,20 +419,8 @@ def read_hk_products(labels: Sequence[Path], *, sclk=None, lsk=None) -> xr.Datas
                                     _data_file(ds, label))
                 for name, csv_name in HK_FIELDS.items()}
         pieces.append({"label": label, "epoch": epoch, "obt": obt, "ints": ints})
-    if not pieces:
-        raise InputFormatError("no EDITED HK products given")
-    files = [str(p["label"]) for p in pieces]
-    pieces = _check_order(pieces)
-    if not pieces:
-        raise InputFormatError("no data records", path=files[0], line=1)
-    cat = lambda key: np.concatenate([p[key] for p in pieces])  # noqa: E731
-    ints = {k: np.concatenate([p["ints"][k] for p in pieces]) for k in pieces[0]["ints"]}
-    source = files[0] if len(files) == 1 else f"{files[0]} + {len(files) - 1} more"
-    return hk_dataset(
-        cat("epoch"), cat("obt"), ints,
-        {"source": source, "files": files,
-         "time_source": "obt" if sclk is not None else "time_utc"},
-    )
+    cat, ints, attrs = _join(pieces, "HK", sclk)
+    return hk_dataset(cat["epoch"], cat["obt"], ints, attrs)
 
 
 # ----------------------------------------------------------------------------------------
