@@ -253,8 +253,7 @@ def heater_periods(
                                              duty)])
     for k in np.flatnonzero(uncertain):  # a loop over the few uncertain periods
         if k > 0 and start[k] - start[k - 1] <= period + tolerance:
-            upper = (n_on[k] + missing[k]) * bit_step / period
-            if duty[k] <= duty[k - 1] <= upper + eps:
+            if duty[k] <= duty[k - 1] <= bounds[k, 1] + eps:
                 duty[k] = duty[k - 1]
                 on[k] = max(on[k], on[k - 1])
     always_on = duty >= 1.0 - eps  # no off phase: no heater-cycle waveform
