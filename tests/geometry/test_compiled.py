@@ -184,3 +184,12 @@ def test_unwrap_degrees_on_a_day_of_azimuths():
     compiled.unwrap_degrees(wrapped, out)
     np.testing.assert_array_equal(out, np.unwrap(wrapped, period=360.0))
     compiled.unwrap_degrees(np.zeros(0), np.zeros(0))  # empty: nothing to do, no error
+
+
+def test_unwrap_degrees_nan_as_numpy():
+    # np.unwrap: a NaN step is not below the discontinuity, so all later values are NaN
+    x = np.array([0.0, 10.0, np.nan, 350.0, -170.0, 200.0])
+    out = np.empty(x.size)
+    compiled.unwrap_degrees(x, out)
+    np.testing.assert_array_equal(out, np.unwrap(x, period=360.0))
+    assert np.isnan(out[2:]).all()

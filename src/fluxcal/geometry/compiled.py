@@ -245,7 +245,8 @@ def unwrap_degrees(angle, out):
 
     The same operations in the same order as numpy's ``unwrap`` (floor-mod of the step
     + 180, -180 turned to +180 for a positive step, no correction below 180 deg,
-    sequential sum of the corrections), so the result is bit for bit numpy's.
+    sequential sum of the corrections, a NaN step making the rest NaN), so the result
+    is bit for bit numpy's.
     """
     n = angle.shape[0]
     if n == 0:
@@ -257,10 +258,8 @@ def unwrap_degrees(angle, out):
         wrapped = (step + 180.0) % 360.0 - 180.0
         if wrapped == -180.0 and step > 0.0:
             wrapped = 180.0
-        if abs(step) >= 180.0:
+        if not abs(step) < 180.0:  # numpy zeroes only where |step| < 180: NaN propagates
             correction += wrapped - step
-        else:
-            correction += 0.0
         out[j] = angle[j] + correction
 
 
