@@ -343,6 +343,20 @@ def test_undetermined_and_bad_inputs_raise():
         mirror_mode_offsets(parallel, interval_length=120)
 
 
+def test_selection_that_cannot_repeat_is_refused():
+    # a selection is settled only when one pass gives the same reasons as the one before:
+    # one pass never settles, and a settled run took at least two
+    rng = np.random.default_rng(10)
+    b = alfvenic(rng, 20)
+    with pytest.raises(FluxcalError, match="davis_smith: .* did not settle in 1 passes"):
+        davis_smith_offsets(b, interval_length=L_ALF, max_selection_passes=1, n_bootstrap=0)
+    lines = mirror_modes(rng, 30)
+    with pytest.raises(FluxcalError, match="mirror_mode: .* did not settle in 1 passes"):
+        mirror_mode_offsets(lines, interval_length=120, max_selection_passes=1, n_bootstrap=0)
+    assert davis_smith_offsets(b, interval_length=L_ALF, n_bootstrap=0).iterations >= 2
+    assert mirror_mode_offsets(lines, interval_length=120, n_bootstrap=0).iterations >= 2
+
+
 def test_entry_points_importable_from_solar_wind_offsets():
     from fluxcal.calibration import solar_wind_offsets as swo
 

@@ -50,9 +50,10 @@ from fluxcal.calibration.solar_wind_offsets import (
     check_offset_guess,
     field_moments,
     first_failure,
+    settle_selection,
     solve_pooled,
 )
-from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.errors import InputFormatError
 
 __all__ = ["mirror_mode_offsets", "mirror_mode_offsets_from_moments"]
 
@@ -186,19 +187,7 @@ def mirror_mode_offsets_from_moments(
 
     if offset_guess is None:
         o = solve(first_failure(static, k))
-    previous = None
-    passes = 0
-    for _ in range(max_selection_passes):
-        passes += 1
-        reason = checks(o)
-        o = solve(reason)
-        if previous is not None and np.array_equal(reason, previous):
-            break
-        previous = reason
-    else:
-        raise FluxcalError(
-            f"mirror_mode: the interval selection did not settle in {max_selection_passes} passes"
-        )
+    o, reason, passes = settle_selection(checks, solve, o, max_selection_passes, "mirror_mode")
     use = reason == ""
     good = first_failure(static, k) == ""
     per_interval = np.full((k, 3), np.nan)

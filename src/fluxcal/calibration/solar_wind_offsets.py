@@ -44,6 +44,7 @@ References
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -349,6 +350,35 @@ def solve_pooled(
             f"components (condition number {cond:.3g}); rejected: {count_reasons(reason)}"
         )
     return np.linalg.solve(matrix, vector)
+
+
+def settle_selection(
+    checks: Callable[[NDArray[np.float64]], NDArray[np.str_]],
+    solve: Callable[[NDArray[np.str_]], NDArray[np.float64]],
+    offset: NDArray[np.float64],
+    max_passes: int,
+    method: str,
+) -> tuple[NDArray[np.float64], NDArray[np.str_], int]:
+    """Select the intervals at ``offset``, solve, repeat until the selection repeats.
+
+    Returns the offset, the per-interval rejection reasons of the last selection and
+    the number of passes.
+
+    Raises
+    ------
+    FluxcalError
+        The selection does not settle within ``max_passes``.
+    """
+    previous = None
+    for passes in range(1, max_passes + 1):
+        reason = checks(offset)
+        offset = solve(reason)
+        if previous is not None and np.array_equal(reason, previous):
+            return offset, reason, passes
+        previous = reason
+    raise FluxcalError(
+        f"{method}: the interval selection did not settle in {max_passes} passes"
+    )
 
 
 def bootstrap_covariance(

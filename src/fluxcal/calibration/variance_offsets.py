@@ -65,6 +65,7 @@ from fluxcal.calibration.solar_wind_offsets import (
     field_moments,
     first_failure,
     interval_moments,
+    settle_selection,
     solve_pooled,
     split_intervals,
 )
@@ -250,19 +251,7 @@ def davis_smith_offsets_from_moments(
         compressibility = compressibility_at(own[candidates])[0]
         votes = np.count_nonzero(good[:, None] & (compressibility <= max_compressibility), axis=0)
         o = own[candidates[np.argmax(votes)]]
-    previous = None
-    passes = 0
-    for _ in range(max_selection_passes):
-        passes += 1
-        reason = checks(o)
-        o = solve(reason)
-        if previous is not None and np.array_equal(reason, previous):
-            break
-        previous = reason
-    else:
-        raise FluxcalError(
-            f"davis_smith: the interval selection did not settle in {max_selection_passes} passes"
-        )
+    o, reason, passes = settle_selection(checks, solve, o, max_selection_passes, "davis_smith")
     use = reason == ""
     covariance, n_boot = bootstrap_covariance(
         n[use, None, None] * cov[use],
