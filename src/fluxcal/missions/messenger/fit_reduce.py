@@ -304,9 +304,11 @@ def relaxation_response(lag: np.ndarray, tau: float, delay: float) -> np.ndarray
 
 
 def effective_duty(ppt: np.ndarray, threshold_ppt: float) -> np.ndarray:
-    """Duty cycle entering eq. 5: ``d`` for ``d >= threshold`` (100 ppt), else 0 (eq. 5b)."""
-    d = np.asarray(ppt, dtype=float)
-    return np.where(d >= threshold_ppt, d, 0.0)
+    """Duty cycle (1-D) entering eq. 5: ``d`` for ``d >= threshold`` (100 ppt), else 0 (eq. 5b).
+
+    `fluxcal.calibration.relaxation.steady_state_offset` with a unit slope.
+    """
+    return steady_state_offset(ppt, np.ones(1), threshold_ppt)[:, 0]
 
 
 def relaxed_duty(et: np.ndarray, changes, cal: MessengerCalibration,
