@@ -28,8 +28,6 @@ from fluxcal.errors import FluxcalError
 EDITED = ("DATA", "EDITED")
 #: Month folders of the archive tree (``DATA/EDITED/<yyyy>/<MON>/``).
 MONTHS = ("JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC")
-#: Archived names of the ground calibration files (the seed's ``RPCMAG_001_CALIB_...``).
-GROUND_ARCHIVE_NAME = {s: f"RPCMAG_GND_CALIB_FSDPU_FM{s}.TXT" for s in ("OB", "IB")}
 
 
 def edited_folder(root: Path, day: str, kind: str) -> Path:
@@ -168,8 +166,8 @@ def write_archive_calibration(calib_dir: Path) -> list[Path]:
     from fluxcal.missions.rosetta import calib
 
     out = []
-    for sensor, name in GROUND_ARCHIVE_NAME.items():
-        dest = Path(calib_dir) / name
-        shutil.copyfile(calib.default_dir() / calib.GROUND_FILE[sensor], dest)
+    for name in calib.GROUND_FILE.values():  # the archive's names: calib.ARCHIVE_NAMES
+        dest = Path(calib_dir) / calib.ARCHIVE_NAMES[name]
+        shutil.copyfile(calib.default_dir() / name, dest)
         out.append(dest)
     return out
