@@ -257,12 +257,7 @@ class BinnedMoments:
     def reshifted(self, shift: np.ndarray | float) -> BinnedMoments:
         """Return the same statistics expressed about another reference ``shift``."""
         new = np.broadcast_to(np.asarray(shift, dtype=np.float64), (self.n_comp,)).copy()
-        delta = self.shift - new  # v - new = (v - old) + delta
-        if np.all(delta == 0.0):
-            return BinnedMoments(
-                self.edges, self.count.copy(), self.total.copy(), self.total_sq.copy(),
-                new, self.label, self.units, self.value_units,
-            )
+        delta = self.shift - new  # v - new = (v - old) + delta (exact when delta == 0)
         n = self.count[:, None].astype(np.float64)
         total = self.total + n * delta
         total_sq = self.total_sq + 2.0 * delta * self.total + n * delta * delta
