@@ -147,6 +147,16 @@ def test_unmixing_recovers_columns_from_off_centre_duty_cycles():
     from fluxcal.missions.messenger.fit_reduce import interpolation_weights
 
     s = FitSettings()
+    # the weights themselves, by hand: linear between the 4-% bins, the edge slopes
+    # extended outside 12..40 % (sec. 6)
+    want = np.zeros((4, 8))
+    want[0, :2] = [0.75, 0.25]  # 13 %
+    want[1, 1:3] = [0.5, 0.5]  # 18 %
+    want[2, :2] = [1.5, -0.5]  # 10 %
+    want[3, 6:] = [-0.5, 1.5]  # 42 %
+    np.testing.assert_allclose(interpolation_weights(
+        np.array([13.0, 18.0, 10.0, 42.0]), np.asarray(s.waveform_bins_percent)), want,
+        rtol=0, atol=1e-12)
     cols = {12.0: 1.0, 16.0: -2.0, 20.0: 0.5}  # per-column constant waveform (counts)
     phase = np.tile(np.arange(0.0, 100.0), 2)
     waveform = [BinnedMoments.empty(np.arange(101) - 0.5, 12) for _ in range(8)]
