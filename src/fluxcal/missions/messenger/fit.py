@@ -454,7 +454,7 @@ def day_chunks(input_dir: Path, days: Sequence, kernels: Path | None = None) -> 
     from fluxcal.missions.messenger.batch_task import MessengerDayTask
 
     task = MessengerDayTask(Path(input_dir), Path(input_dir), kernels=kernels)
-    k = (Path(kernels),) if kernels else (Path(input_dir) / "kernels.tm",)
+    k = (task._kernels(),)
     out = []
     for day in days:
         files = task._files(day)
