@@ -423,3 +423,17 @@ def test_fit_report_toml_is_readable(tmp_path, training, capsys):
     assert set(report["inputs"]) == {p.name for k, p in training.items()
                                      if k in ("science", "heater", "temperature")}
     assert json.dumps(report["temperature"]["x"]["A0"])  # a number
+
+
+def test_cli_fit_refuses_an_edr_batch_folder(tmp_path, capsys):
+    """An --input-dir of archived EDRs (edr_mapping.toml) is refused in one line, exit 2."""
+    from fluxcal.cli import main
+    from fluxcal.missions.messenger.batch_task import EDR_MAPPING
+
+    (tmp_path / EDR_MAPPING).write_text("# mapping\n")
+    for days in ([], ["--days", "2010-03-01"]):
+        rc = main(["messenger", "fit", "--input-dir", str(tmp_path), *days,
+                   "--out", str(tmp_path / "fitted")])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1 and EDR_MAPPING in err[0], err
+        assert not (tmp_path / "fitted").exists()

@@ -50,7 +50,7 @@ from fluxcal.calibration.constrained_fits import (
     fit_two_segment,
 )
 from fluxcal.calibration.offsets import two_segment_offset
-from fluxcal.errors import FluxcalError
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import (
     TAU_STEP,
@@ -443,6 +443,24 @@ class Chunk:
         return [*self.science, *self.heater, *self.temperature]
 
 
+def refuse_edr_folder(input_dir: Path) -> None:
+    """Refuse a batch folder of archived EDRs: the fit reads the CSV batch layout only.
+
+    Raises
+    ------
+    InputFormatError
+        When ``input_dir`` holds ``edr_mapping.toml`` (`batch_task.EDR_MAPPING`).
+    """
+    from fluxcal.missions.messenger.batch_task import EDR_MAPPING
+
+    if (Path(input_dir) / EDR_MAPPING).is_file():
+        raise InputFormatError(
+            f"holds {EDR_MAPPING}: 'fluxcal messenger fit' reads the CSV batch layout "
+            "(MAGSCI/MAGHTR/MAGTMP_YYYYDDD.csv), not archived EDRs; convert them first or "
+            "give the CSV streams with --sci/--heater/--temperature",
+            path=str(input_dir), field="--input-dir")
+
+
 def day_chunks(input_dir: Path, days: Sequence, kernels: Path | None = None) -> list[Chunk]:
     """One `Chunk` per day of the ``fluxcal batch messenger`` input layout.
 
@@ -453,6 +471,7 @@ def day_chunks(input_dir: Path, days: Sequence, kernels: Path | None = None) -> 
     """
     from fluxcal.missions.messenger.batch_task import MessengerDayTask
 
+    refuse_edr_folder(Path(input_dir))
     task = MessengerDayTask(Path(input_dir), Path(input_dir), kernels=kernels)
     k = (task._kernels(),)
     out = []

@@ -81,7 +81,7 @@ def run_fit(
         data, and the fit's own errors (`fluxcal.missions.messenger.fit.fit_calibration`).
     """
     from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days
+    from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days, refuse_edr_folder
     from fluxcal.missions.messenger.fit_reduce import read_intervals
     from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
     from fluxcal.preflight import plain_text_file
@@ -109,6 +109,7 @@ def run_fit(
             raise FluxcalError(f"{input_dir}: --input-dir is not a folder")
         if len(kernels) > 1:
             raise InputFormatError("with --input-dir give one meta-kernel", field="--kernels")
+        refuse_edr_folder(Path(input_dir))
         wanted = parse_days(days, Path(input_dir))
         chunks = day_chunks(Path(input_dir), wanted, kernels[0] if kernels else None)
         if not chunks:
