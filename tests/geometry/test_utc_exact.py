@@ -28,6 +28,7 @@ from fluxcal.geometry.time import (
     tt2000_to_datetime64,
     tt2000_to_utc,
     tt2000_to_utc_fields,
+    utc_fields_to_tt2000,
     utc_to_tt2000,
 )
 
@@ -136,6 +137,19 @@ def test_cdflib_compute_tt2000_of_our_fields_is_the_epoch(lsk, epochs):
     fields = np.stack([f["year"], f["month"], f["day"], f["hour"], f["minute"], f["second"],
                        ns // 1_000_000, ns // 1000 % 1000, ns % 1000], axis=1)
     np.testing.assert_array_equal(np.asarray(CDFepoch.compute_tt2000(fields)), epochs)
+
+
+def test_fields_with_float_seconds_give_cdflib_epoch(lsk, epochs):
+    # the table form (MESSENGER CDR): year, day of year, hour, minute, float second; the
+    # fields come from cdflib's breakdown and the day of year from the standard library,
+    # so nothing of fluxcal's forward conversion is involved.  Exact to the ns: a float
+    # second below 61 s carries < 1e-14 s of representation error.
+    ref = CDFepoch.breakdown_tt2000(epochs)  # y, m, d, h, mi, s, ms, us, ns
+    doy = np.array([datetime.date(*map(int, r[:3])).timetuple().tm_yday for r in ref])
+    second = ref[:, 5] + (ref[:, 6] * 1_000_000 + ref[:, 7] * 1000 + ref[:, 8]) / 1e9
+    got = utc_fields_to_tt2000(ref[:, 0], doy, ref[:, 3], ref[:, 4], second, lsk)
+    np.testing.assert_array_equal(got, epochs)
+    assert (ref[:, 5] == 60).sum() > 400  # leap seconds are in the sample
 
 
 def test_fill_and_pad_fields_match_cdflib(lsk):

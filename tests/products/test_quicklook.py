@@ -191,6 +191,22 @@ def test_epoch_from_messenger_fields() -> None:
     assert got.tolist() == expect
 
 
+def test_epoch_from_messenger_fields_in_a_leap_second() -> None:
+    # 2012-06-30 (day 182) ended with 23:59:60; the second after it is 2012-07-01 00:00:00
+    from fluxcal.products.quicklook import epoch_from_table
+
+    ds = xr.Dataset({"year": ("time", np.full(3, 2012)),
+                     "doy": ("time", np.array([182, 182, 183])),
+                     "hour": ("time", np.array([23, 23, 0])),
+                     "minute": ("time", np.array([59, 59, 0])),
+                     "second": ("time", np.array([59.95, 60.25, 0.05]))})
+    got = epoch_from_table(ds)["epoch"].values
+    expect = [_tt2000(2012, 6, 30, 23, 59, 59) + 950_000_000,
+              _tt2000(2012, 6, 30, 23, 59, 60) + 250_000_000,
+              _tt2000(2012, 7, 1) + 50_000_000]
+    assert got.tolist() == expect
+
+
 def test_epoch_from_table_without_time_is_an_error() -> None:
     from fluxcal.products.quicklook import epoch_from_table
 

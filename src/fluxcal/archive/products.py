@@ -128,23 +128,15 @@ def messenger_epoch(year: np.ndarray, doy: np.ndarray, hour: np.ndarray, minute:
         A field out of range (DAY_OF_YEAR 1..366, HOUR 0..23, MINUTE 0..59, SECOND
         0..<61), naming the row and column.
     """
-    from fluxcal.geometry.time import datetime64_to_tt2000
+    from fluxcal.geometry.time import utc_fields_to_tt2000
     from fluxcal.products.timeindex import default_lsk
 
     where = label or Path("table")
     for values, lo, hi, name in ((doy, 1, 366, "DAY_OF_YEAR"), (hour, 0, 23, "HOUR"),
                                  (minute, 0, 59, "MINUTE"), (second, 0, 60.999, "SECOND")):
         _check_range(np.asarray(values), lo, hi, name, where)
-    ms = np.rint(np.asarray(second, dtype=np.float64) * 1000.0).astype(np.int64)
-    leap = ms >= 60_000
-    minutes = (((np.asarray(doy, np.int64) - 1) * 24 + np.asarray(hour, np.int64)) * 60
-               + np.asarray(minute, np.int64))
-    start = (np.asarray(year, np.int64) - 1970).astype("M8[Y]").astype("M8[m]")
-    stamp = (start + minutes.astype("m8[m]")).astype("M8[ns]") \
-        + (ms - np.where(leap, 1000, 0)).astype("m8[ms]").astype("m8[ns]")
-    # a leap second 23:59:60.x is 23:59:59.x of the old TAI - UTC plus one second
-    epoch = datetime64_to_tt2000(stamp, default_lsk()) + np.where(leap, 1_000_000_000, 0)
-    return epoch.astype(np.int64)
+    ms = np.rint(np.asarray(second, dtype=np.float64) * 1000.0)
+    return utc_fields_to_tt2000(year, doy, hour, minute, ms / 1000.0, default_lsk())
 
 
 def _fluxcal_attrs(label: Mapping[str, Any]) -> dict[str, Any]:

@@ -447,6 +447,54 @@ def tt2000_to_utc_fields(
             for name, value in fields.items()}
 
 
+def utc_fields_to_tt2000(
+    year: np.ndarray,
+    doy: np.ndarray,
+    hour: np.ndarray,
+    minute: np.ndarray,
+    second: np.ndarray,
+    lsk: LeapSecondTable | None = None,
+) -> np.ndarray:
+    """TT2000 (int64 ns) from UTC fields: year, day of year, hour, minute, float second.
+
+    The inverse of `tt2000_to_utc_fields` for tables that print the time as fields
+    (MESSENGER CDR/RDR ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND``).  ``second`` is rounded
+    to the nearest nanosecond, which removes the float's representation error of any
+    value printed with up to 6 decimals (|error| < 1e-14 s for seconds below 61).  A
+    second of 60 or more is a leap second: it is counted from ``23:59:59`` of the old
+    TAI - UTC plus one second, so ``23:59:60.5`` is 1.5 s after ``23:59:59.0``.
+
+    Parameters
+    ----------
+    year, doy, hour, minute : array_like of int
+        UTC calendar fields (day of year 1-366).
+    second : array_like of float
+        Seconds of the minute, 0 to < 61.
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+
+    Returns
+    -------
+    ndarray of int64
+        TT2000 nanoseconds, shape of the broadcast fields.
+
+    Notes
+    -----
+    Whole minutes are built as ``datetime64`` (integer), the nanoseconds of the second
+    added as integers, then `datetime64_to_tt2000` applies TAI - UTC: no float holds an
+    epoch, so the result is exact to the nanosecond of the rounded second.
+    """
+    ns = np.rint(np.asarray(second, dtype=np.float64) * 1e9).astype(np.int64)
+    leap = ns >= 60 * _NS
+    minutes = (((np.asarray(doy, np.int64) - 1) * 24 + np.asarray(hour, np.int64)) * 60
+               + np.asarray(minute, np.int64))
+    start = (np.asarray(year, np.int64) - 1970).astype("M8[Y]").astype("M8[m]")
+    stamp = (start + minutes.astype("m8[m]")).astype("M8[ns]") \
+        + (ns - np.where(leap, _NS, 0)).astype("m8[ns]")
+    tt2000 = datetime64_to_tt2000(stamp, lsk) + np.where(leap, _NS, 0)
+    return np.asarray(tt2000, dtype=np.int64)
+
+
 def _civil_from_days(days: np.ndarray) -> tuple[np.ndarray, ...]:
     """Days past 1970-01-01 -> (year, month, day, day of year), proleptic Gregorian.
 

@@ -298,7 +298,7 @@ def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
     InputFormatError
         If the dataset has neither form of time.
     """
-    from fluxcal.geometry.time import datetime64_to_tt2000, utc_to_tt2000
+    from fluxcal.geometry.time import utc_fields_to_tt2000, utc_to_tt2000
     from fluxcal.products.timeindex import default_lsk
 
     if "epoch" in ds.coords or "epoch" in ds:
@@ -307,15 +307,8 @@ def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
     if "time_utc" in ds:
         epoch = utc_to_tt2000(ds["time_utc"].values.astype(str), lsk)
     elif all(n in ds for n in ("year", "doy", "hour", "minute", "second")):
-        # whole minutes as datetime64, the seconds added in ns (a leap second's 60.x
-        # lands in the next minute: 1 s on the plot's axis, once in years)
-        year = ds["year"].values.astype("int64") - 1970
-        minutes = (((ds["doy"].values.astype("int64") - 1) * 24
-                    + ds["hour"].values.astype("int64")) * 60
-                   + ds["minute"].values.astype("int64"))
-        dt64 = (year.astype("M8[Y]").astype("M8[m]") + minutes.astype("m8[m]")).astype("M8[ns]")
-        dt64 = dt64 + np.round(ds["second"].values.astype(float) * 1e9).astype("m8[ns]")
-        epoch = datetime64_to_tt2000(dt64, lsk)
+        epoch = utc_fields_to_tt2000(*(ds[n].values for n in ("year", "doy", "hour", "minute",
+                                                              "second")), lsk)
     else:
         raise InputFormatError("no time in the table: expected 'time_utc' or the fields "
                                "year, doy, hour, minute, second", field="time")
