@@ -193,3 +193,51 @@ def test_unwrap_degrees_nan_as_numpy():
     compiled.unwrap_degrees(x, out)
     np.testing.assert_array_equal(out, np.unwrap(x, period=360.0))
     assert np.isnan(out[2:]).all()
+
+
+def _rtn_spherical_numpy(sun, et, grid, lat, az):
+    """The numpy expressions `spherical_rtn` used before the compiled pass (the reference)."""
+    out = np.empty((et.size, 3))
+    out[:, 0] = np.linalg.norm(sun, axis=1)
+    out[:, 1] = np.interp(et, grid, lat)
+    a = np.interp(et, grid, az)
+    out[:, 2] = np.where(np.abs(a) > 180.0, (a + 180.0) % 360.0 - 180.0, a)
+    return out
+
+
+@pytest.mark.parametrize("order", ["sorted", "shuffled"])
+@pytest.mark.parametrize("m", [1, 2, 7, 1000])
+def test_rtn_spherical_interp_is_numpy_bit_for_bit(order, m):
+    # expected: np.interp and numpy's wrap; epochs outside the grid on both sides, on the
+    # nodes themselves, at the last node; azimuths unwrapped far beyond +-180 (both signs)
+    rng = np.random.default_rng(m)
+    grid = np.linspace(0.0, 1000.0, m) if m > 1 else np.array([500.0])
+    lat = rng.uniform(-90.0, 90.0, m)
+    az = np.cumsum(rng.normal(0.0, 200.0, m)) + rng.choice([-720.0, 0.0, 720.0])
+    et = np.concatenate([rng.uniform(-50.0, 1050.0, 5000), grid, [grid[-1]] * 3])
+    if order == "sorted":
+        et.sort()
+    sun = rng.normal(size=(et.size, 3)) * 5e7
+    out = np.empty((et.size, 3))
+    compiled.rtn_spherical_interp(sun, et, grid, lat, az, out)
+    expected = _rtn_spherical_numpy(sun, et, grid, lat, az)
+    np.testing.assert_array_equal(out[:, 1:], expected[:, 1:])
+    # |sun|: the same sum of squares as row_norms (np.linalg.norm may sum differently)
+    norms = np.empty(et.size)
+    compiled.row_norms(sun, norms)
+    np.testing.assert_array_equal(out[:, 0], norms)
+    np.testing.assert_allclose(out[:, 0], expected[:, 0], rtol=1e-15)
+
+
+def test_interp_at_non_finite_cases_as_numpy():
+    # NaN epoch -> NaN; an infinite value at a node: numpy's fall-back from the right node
+    grid = np.array([0.0, 1.0, 2.0, 3.0])
+    lat = np.array([0.0, np.inf, np.inf, 1.0])
+    az = np.array([10.0, 20.0, 30.0, 40.0])
+    et = np.array([np.nan, 0.5, 1.0, 1.5, 2.5, 3.0, -1.0, 4.0])
+    sun = np.ones((et.size, 3))
+    out = np.empty((et.size, 3))
+    with np.errstate(invalid="ignore"):
+        expected = _rtn_spherical_numpy(sun, et, grid, lat, az)
+    compiled.rtn_spherical_interp(sun, et, grid, lat, az, out)
+    np.testing.assert_array_equal(out[:, 1:], expected[:, 1:])

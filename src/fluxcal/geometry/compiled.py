@@ -239,6 +239,56 @@ def row_norms(v, out):
         out[j] = np.sqrt(v[j, 0] * v[j, 0] + v[j, 1] * v[j, 1] + v[j, 2] * v[j, 2])
 
 
+@njit(cache=True, nogil=True, inline="always")
+def interp_at(xp, fp, x, hint):
+    """``(np.interp(x, xp, fp), j)`` for increasing ``xp`` (size >= 1); ``j`` the next hint.
+
+    numpy's ``arr_interp`` (``compiled_base.c``) case by case, so the value is numpy's bit
+    for bit: the end values outside ``xp``, ``fp[-1]`` at ``xp[-1]``, ``fp[j]`` at a
+    node, else ``slope * (x - xp[j]) + fp[j]`` (from the right node when that is NaN);
+    NaN for a NaN ``x``.  ``hint`` is the previous answer (`count_le`).
+    """
+    m = xp.size
+    if x != x:
+        return x, hint
+    if x > xp[m - 1] or m == 1 and x >= xp[0]:
+        return fp[m - 1], hint
+    if x < xp[0]:
+        return fp[0], hint
+    k = count_le(xp, x, hint)
+    j = k - 1
+    if j == m - 1 or xp[j] == x:
+        return fp[j], k
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    value = slope * (x - xp[j]) + fp[j]
+    if value != value:
+        value = slope * (x - xp[j + 1]) + fp[j + 1]
+        if value != value and fp[j] == fp[j + 1]:
+            value = fp[j]
+    return value, k
+
+
+@njit(cache=True, nogil=True)
+def rtn_spherical_interp(sun, et, grid, lat, az, out):
+    """Sec. 10.2 per sample from angles on a grid, in one pass.
+
+    ``out[:, 0] = |sun|``; ``out[:, 1] = np.interp(et, grid, lat)``; ``out[:, 2] =
+    np.interp(et, grid, az)`` (``az`` unwrapped), wrapped back by ``(a + 180) % 360 -
+    180`` where ``|a| > 180`` -- the numpy expressions of
+    `fluxcal.missions.messenger.levels.spherical_rtn`, bit for bit.
+    """
+    hint = 0
+    for j in range(et.size):
+        x, y, z = sun[j, 0], sun[j, 1], sun[j, 2]
+        out[j, 0] = np.sqrt(x * x + y * y + z * z)
+        t = et[j]
+        out[j, 1], _ = interp_at(grid, lat, t, hint)
+        a, hint = interp_at(grid, az, t, hint)  # the same interval as lat's
+        if abs(a) > 180.0:
+            a = (a + 180.0) % 360.0 - 180.0
+        out[j, 2] = a
+
+
 @njit(cache=True, nogil=True)
 def unwrap_degrees(angle, out):
     """``out[:] = np.unwrap(angle, period=360.0)`` in one pass, no temporaries.

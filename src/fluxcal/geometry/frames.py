@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from fluxcal.errors import KernelError
 from fluxcal.geometry import compiled
+from fluxcal.geometry.cspice_loops import pxform_into
 from fluxcal.geometry.kernels import spice_errors
 
 log = logging.getLogger(__name__)
@@ -55,6 +56,9 @@ def _utc(et: float) -> str:
 def pxform_oracle(from_frame: str, to_frame: str, et: np.ndarray) -> np.ndarray:
     """Return ``pxform`` matrices, one SPICE call per epoch (the reference path).
 
+    The calls go through `fluxcal.geometry.cspice_loops.pxform_into` (``pxform_c``
+    without spiceypy's per-call wrapping, the same values).
+
     Raises
     ------
     KernelError
@@ -62,7 +66,9 @@ def pxform_oracle(from_frame: str, to_frame: str, et: np.ndarray) -> np.ndarray:
     """
     et = np.atleast_1d(np.asarray(et, dtype=float))
     out = np.empty((et.size, 3, 3))
-    i = 0
+    if pxform_into(from_frame, to_frame, et, out):  # the same CSPICE call, one loop
+        return out
+    i = 0  # an error: repeat through spiceypy to raise naming the epoch
     try:
         for i, t in enumerate(et):
             out[i] = spiceypy.pxform(from_frame, to_frame, float(t))

@@ -18,6 +18,7 @@ import spiceypy
 
 from fluxcal.errors import KernelError
 from fluxcal.geometry import compiled
+from fluxcal.geometry.cspice_loops import spkezr_into
 from fluxcal.geometry.kernels import spice_errors
 
 #: Default accuracy of interpolated positions (km).
@@ -32,10 +33,16 @@ def _utc(et: float) -> str:
 
 
 def states_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> np.ndarray:
-    """Return (n, 6) states (km, km/s) with one ``spkezr`` call per epoch, abcorr NONE."""
+    """Return (n, 6) states (km, km/s) with one ``spkezr`` call per epoch, abcorr NONE.
+
+    The calls go through `fluxcal.geometry.cspice_loops.spkezr_into` (``spkezr_c``
+    without spiceypy's per-call wrapping, the same values).
+    """
     et = np.atleast_1d(np.asarray(et, dtype=float))
     out = np.empty((et.size, 6))
-    i = 0
+    if spkezr_into(target, observer, frame, et, out):  # the same CSPICE call, one loop
+        return out
+    i = 0  # an error: repeat through spiceypy to raise naming the epoch
     try:
         for i, t in enumerate(et):
             out[i] = spiceypy.spkezr(target, float(t), frame, "NONE", observer)[0]

@@ -788,12 +788,12 @@ def spherical_rtn(
     grid = np.linspace(et[0], et[-1], int(np.ceil(span / step)) + 1)
     _r, lat, az = rtn_spherical(
         "MESSENGER", grid, target_position=None if sun_at is None else sun_at(grid))
-    compiled.row_norms(np.ascontiguousarray(sun, dtype=float), out[:, 0])
-    out[:, 1] = np.interp(et, grid, lat)
     unwrapped = np.empty(az.shape)
     compiled.unwrap_degrees(np.asarray(az, dtype=float), unwrapped)  # = np.unwrap(az, 360)
-    az = np.interp(et, grid, unwrapped)
-    out[:, 2] = np.where(np.abs(az) > 180.0, (az + 180.0) % 360.0 - 180.0, az)
+    # |sun|, np.interp of lat and of the unwrapped az, az wrapped back: one compiled pass
+    compiled.rtn_spherical_interp(np.ascontiguousarray(sun, dtype=float),
+                                  np.ascontiguousarray(et, dtype=float), grid,
+                                  np.ascontiguousarray(lat, dtype=float), unwrapped, out)
     return out
 
 
