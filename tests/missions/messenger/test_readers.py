@@ -2,8 +2,11 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger import readers
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 
 SCI_HEADER = "partition,met,rate,range,cx,cy,cz"
@@ -180,3 +183,56 @@ def test_header_only_and_blank_padded_numbers(tmp_path):
     assert read_science(_write(tmp_path, "empty.csv", [SCI_HEADER])).sizes["time"] == 0
     ds = read_science(_write(tmp_path, "pad.csv", [SCI_HEADER, "1, 1000.5,10,0,1,2,3"]))
     assert ds["met"].values.tolist() == [1000.5]
+
+
+# The compiled reader of plain decimal fields (`readers._parse_plain`) against Python's
+# ``float`` (correctly rounded, an independent parser): bit-identical doubles, no tolerance.
+_decimal = st.builds(
+    lambda neg, whole, frac: ("-" if neg else "") + whole + ("." + frac if frac else ""),
+    st.booleans(), st.text("0123456789", min_size=1, max_size=9),
+    st.text("0123456789", min_size=0, max_size=6),  # <= 15 digits: mantissa < 2**53
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(met=st.lists(_decimal, min_size=1, max_size=20),
+       counts=st.lists(st.integers(-32768, 32767), min_size=3, max_size=3),
+       final_newline=st.booleans())
+def test_plain_fields_parse_as_python_float(tmp_path_factory, met, counts, final_newline):
+    tmp = tmp_path_factory.mktemp("plain")
+    lines = [f"1,{m},10,{i % 2},{counts[0]},{counts[1]},{counts[2]}" for i, m in enumerate(met)]
+    path = tmp / "s.csv"
+    path.write_text("\n".join([SCI_HEADER, *lines]) + ("\n" if final_newline else ""))
+    data = readers._parse_plain(path, 7, list(range(7)))
+    assert data is not None and data.shape == (7, len(met))
+    expected = np.array([float(m) for m in met])
+    assert data[1].tobytes() == expected.tobytes()  # sign of zero included
+    np.testing.assert_array_equal(data[4:7].T, np.tile(counts, (len(met), 1)))
+
+
+@pytest.mark.parametrize(
+    "field",
+    ["+5", "1e3", "5.", ".5", " 12", "12345678901234567890", "0.1234567890123456789",
+     "9007199254740993"],
+)
+def test_other_number_forms_go_to_the_general_parser(tmp_path, field):
+    """Forms outside ``-?digits[.digits]`` (or beyond exact conversion) are left to pyarrow.
+
+    The result is still Python's ``float`` of the field (correctly rounded both ways).
+    """
+    path = _write(tmp_path, "s.csv", [SCI_HEADER, f"1,{field},10,0,1,2,3"])
+    assert readers._parse_plain(path, 7, list(range(7))) is None
+    assert read_science(path)["met"].values.tolist() == [float(field)]
+
+
+def test_crlf_lines_and_column_order(tmp_path):
+    """CRLF files take the general path; a permuted header is mapped in both paths."""
+    path = tmp_path / "crlf.csv"
+    path.write_bytes(b"partition,met,rate,range,cx,cy,cz\r\n1,1000.5,10,0,1,2,3\r\n")
+    assert readers._parse_plain(path, 7, list(range(7))) is None
+    assert read_science(path)["met"].values.tolist() == [1000.5]
+    order = [1, 0, 2, 3, 6, 5, 4]  # expected column j is file column order[j]
+    lines = ["met,partition,rate,range,cz,cy,cx", "1000.0,1,10,0,3,2,1", "1000.5,2,9,1,-3,-2,-1"]
+    data = readers._parse_plain(_write(tmp_path, "p.csv", lines), 7, order)
+    np.testing.assert_array_equal(data.T, [[1, 1000.0, 10, 0, 1, 2, 3],
+                                           [2, 1000.5, 9, 1, -1, -2, -3]])

@@ -18,11 +18,13 @@ References
 
 from __future__ import annotations
 
+import mmap
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from numba import njit
 
 from fluxcal.errors import InputFormatError
 
@@ -39,7 +41,7 @@ TEMPERATURE_MAX_GAP_S = 600.0
 
 
 def _read_table(path: Path, expected: Sequence[str]) -> np.ndarray:
-    """Return a (n, len(expected)) float array of the CSV's columns in ``expected`` order."""
+    """Return a (len(expected), n) float array: the CSV's columns in ``expected`` order."""
     path = Path(path)
     try:
         with path.open() as fh:
@@ -61,25 +63,135 @@ def _read_table(path: Path, expected: Sequence[str]) -> np.ndarray:
             )
     if len(set(names)) != len(names):
         raise InputFormatError("duplicate column names", path=str(path), line=1)
-    data = _parse_numbers(path, names, [names.index(n) for n in expected])
-    bad = ~np.isfinite(data)
-    if bad.any():
-        row, col = np.argwhere(bad)[0]
-        raise InputFormatError(
-            "non-finite value; expected a finite number", path=str(path), line=int(row) + 2,
-            field=expected[col],
-        )
+    order = [names.index(n) for n in expected]
+    data = _parse_plain(path, len(names), order)
+    if data is None:  # not plain decimal numbers: the general parser decides
+        data = _parse_numbers(path, names, order)
+        bad = ~np.isfinite(data)
+        if bad.any():
+            row, col = np.argwhere(bad.T)[0]
+            raise InputFormatError(
+                "non-finite value; expected a finite number", path=str(path),
+                line=int(row) + 2, field=expected[col],
+            )
     return data
 
 
+#: Exact powers of ten (10**22 is the largest double that is one).
+_POW10 = np.array([10.0**e for e in range(23)])
+#: Largest mantissa whose conversion to double is exact.
+_MAX_MANTISSA = 2**53
+
+
+@njit(cache=True, nogil=True)
+def _count_records(buf, start):  # pragma: no cover - compiled
+    """Lines of ``buf[start:]`` (a last line without a newline counts)."""
+    n = 0
+    for i in range(start, buf.size):
+        n += buf[i] == 10
+    if buf.size > start and buf[buf.size - 1] != 10:
+        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _parse_plain_kernel(buf, start, column, pow10, max_mantissa, out):  # pragma: no cover
+    """Parse lines of ``-?digits[.digits]`` fields separated by ``,`` into ``out``.
+
+    Field ``f`` of record ``r`` goes to ``out[column[f], r]`` (``out`` has one column
+    per record of ``buf[start:]``, `_count_records`).  A field is
+    ``mantissa / 10**fraction_digits`` (negated after a ``-``): one correctly rounded
+    division of two exact doubles (mantissa <= 2**53, at most 18 digits), so the value
+    is the correctly rounded one, as a full decimal parser gives.
+
+    Returns
+    -------
+    int
+        -1, or the index of the first record not in that form (any other byte, an empty
+        field or line, a field count other than ``column.size``, more digits); the loop
+        stops there.
+    """
+    k = column.size
+    size = buf.size
+    i = start
+    for row in range(out.shape[1]):
+        for f in range(k):
+            neg = i < size and buf[i] == 45  # "-"
+            if neg:
+                i += 1
+            mant = 0
+            digits = 0
+            while i < size:
+                c = np.int64(buf[i]) - 48
+                if c < 0 or c > 9:
+                    break
+                mant = mant * 10 + c
+                digits += 1
+                i += 1
+            frac = 0
+            if digits and i < size and buf[i] == 46:  # "."
+                i += 1
+                while i < size:
+                    c = np.int64(buf[i]) - 48
+                    if c < 0 or c > 9:
+                        break
+                    mant = mant * 10 + c
+                    frac += 1
+                    i += 1
+                if frac == 0:
+                    return row
+            if digits == 0 or digits + frac > 18 or mant > max_mantissa:
+                return row
+            v = float(mant)
+            if frac:
+                v = v / pow10[frac]
+            out[column[f], row] = -v if neg else v
+            if f < k - 1:  # a comma, then the next field
+                if i >= size or buf[i] != 44:
+                    return row
+            elif i < size and buf[i] != 10:  # the line (or the file) ends
+                return row
+            i += 1
+    return -1
+
+
+def _parse_plain(path: Path, n_fields: int, order: list[int]) -> np.ndarray | None:
+    """Parse a body of plain decimal numbers, shape ``(len(order), n)``; None otherwise.
+
+    Fields of ``-?digits[.digits]`` with LF line ends (every file fluxcal writes)
+    are parsed in one compiled pass over the memory-mapped file (`_parse_plain_kernel`);
+    anything else (other number forms, CR line ends, defects) returns None for
+    `_parse_numbers`, which parses or names the defect.  Both give the correctly
+    rounded double of each field.
+    """
+    with path.open("rb") as fh:
+        size = fh.seek(0, 2)
+        if size == 0:
+            return None
+        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+            start = mm.find(b"\n") + 1
+            if start == 0 or mm.find(b"\r", 0, start) >= 0:
+                return None  # the header line is read as text (universal newlines)
+            buf = np.frombuffer(mm, dtype=np.uint8)
+            try:
+                out = np.empty((len(order), _count_records(buf, start)))
+                column = np.full(n_fields, -1, dtype=np.int64)
+                column[order] = np.arange(len(order))
+                bad = _parse_plain_kernel(buf, start, column, _POW10, _MAX_MANTISSA, out)
+            finally:
+                del buf  # releases the map
+    return out if bad < 0 else None
+
+
 def _parse_numbers(path: Path, names: list[str], order: list[int]) -> np.ndarray:
-    """Parse the CSV body as float64, shape (n, len(names)), columns ``names[order]``.
+    """Parse the CSV body as float64, shape (len(order), n), columns ``names[order]``.
 
-    Uses pyarrow's CSV reader.
+    The general reader (any number form ``float`` takes), for files `_parse_plain`
+    does not take.  Uses pyarrow's CSV reader on one thread.
 
-    pyarrow parses in C++ (~20x ``np.loadtxt``).  Empty fields are not taken as missing
-    values and empty lines are not skipped, so every defect fails the parse; the slow
-    line-by-line `_diagnose` then names the file, line and field.
+    Empty fields are not taken as missing values and empty lines are not skipped, so
+    every defect fails the parse; the slow line-by-line `_diagnose` then names the
+    file, line and field.
     """
     import pyarrow as pa
     from pyarrow import csv as pacsv
@@ -88,7 +200,7 @@ def _parse_numbers(path: Path, names: list[str], order: list[int]) -> np.ndarray
         table = pacsv.read_csv(
             path,
             read_options=pacsv.ReadOptions(skip_rows=1, column_names=names,
-                                           block_size=1 << 24),
+                                           block_size=1 << 24, use_threads=False),
             parse_options=pacsv.ParseOptions(delimiter=",", ignore_empty_lines=False),
             convert_options=pacsv.ConvertOptions(
                 column_types={n: pa.float64() for n in names}, null_values=[],
@@ -101,13 +213,13 @@ def _parse_numbers(path: Path, names: list[str], order: list[int]) -> np.ndarray
             full = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
         except ValueError as exc:
             raise InputFormatError(f"malformed CSV: {exc}", path=str(path)) from None
-        return full.reshape(-1, len(names))[:, order]
-    data = np.empty((table.num_rows, len(names)))
+        return np.ascontiguousarray(full.reshape(-1, len(names))[:, order].T)
+    data = np.empty((len(order), table.num_rows))
     for j, k in enumerate(order):
         column = table.column(k)
         if column.null_count:  # pragma: no cover - null_values=[] leaves none
             raise InputFormatError("missing value", path=str(path), field=names[k])
-        data[:, j] = column.to_numpy()
+        data[j] = column.to_numpy()
     return data
 
 
@@ -137,12 +249,21 @@ def _diagnose(path: Path, names: list[str]) -> None:
                     ) from None
 
 
+@njit(cache=True, nogil=True)
+def _first_outside(values, lo, hi):  # pragma: no cover - compiled
+    """Index of the first value that is not a whole number in ``[lo, hi]``, or -1."""
+    for i in range(values.size):
+        v = values[i]
+        if np.floor(v) != v or v < lo or v > hi:  # NaN: floor(NaN) != NaN
+            return i
+    return -1
+
+
 def _check_integer(
     path: Path, values: np.ndarray, name: str, lo: float, hi: float, what: str
 ) -> None:
-    bad = (values != np.round(values)) | (values < lo) | (values > hi)
-    if bad.any():
-        row = int(np.flatnonzero(bad)[0])
+    row = _first_outside(np.ascontiguousarray(values, dtype=np.float64), float(lo), float(hi))
+    if row >= 0:
         raise InputFormatError(
             f"value {values[row]!r} outside {what}", path=str(path), line=row + 2, field=name
         )
@@ -152,9 +273,9 @@ def _check_order(paths: list[Path], tables: list[np.ndarray], stream: str) -> No
     """MET (within the clock partition order) must never go backwards, across files too."""
     prev: tuple[float, float, Path, int] | None = None
     for path, data in zip(paths, tables, strict=True):
-        if data.shape[0] == 0:
+        if data.shape[1] == 0:
             continue
-        key_p, key_m = data[:, 0], data[:, 1]
+        key_p, key_m = data[0], data[1]
         back = (np.diff(key_p) < 0) | ((np.diff(key_p) == 0) & (np.diff(key_m) < 0))
         if back.any():
             row = int(np.flatnonzero(back)[0]) + 1
@@ -167,7 +288,7 @@ def _check_order(paths: list[Path], tables: list[np.ndarray], stream: str) -> No
                 f"{stream}: MET goes backwards across files ({prev[1]!r} at the end of "
                 f"{prev[2]} -> {key_m[0]!r})", path=str(path), line=2, field="met",
             )
-        prev = (key_p[-1], key_m[-1], path, data.shape[0] + 1)
+        prev = (key_p[-1], key_m[-1], path, data.shape[1] + 1)
 
 
 def _read_stream(
@@ -180,11 +301,11 @@ def _read_stream(
         raise InputFormatError(f"no {stream} file given")
     tables = [_read_table(p, columns) for p in plist]
     for path, data in zip(plist, tables, strict=True):
-        _check_integer(path, data[:, 0], "partition", 1, 2, "the clock partitions 1..2")
+        _check_integer(path, data[0], "partition", 1, 2, "the clock partitions 1..2")
     # files in time order of their first record
     order = sorted(
         range(len(plist)),
-        key=lambda i: (tuple(tables[i][0, :2]) if tables[i].shape[0] else (np.inf, np.inf)),
+        key=lambda i: (tuple(tables[i][:2, 0]) if tables[i].shape[1] else (np.inf, np.inf)),
     )
     plist = [plist[i] for i in order]
     tables = [tables[i] for i in order]
@@ -208,22 +329,22 @@ def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
     """
     plist, tables = _read_stream(paths, SCIENCE_COLUMNS, "science")
     for path, data in zip(plist, tables, strict=True):
-        _check_integer(path, data[:, 2], "rate", 0, MAX_RATE_SETTING,
+        _check_integer(path, data[2], "rate", 0, MAX_RATE_SETTING,
                        f"the rate settings 0..{MAX_RATE_SETTING} (Table 1)")
-        _check_integer(path, data[:, 3], "range", 0, 1, "the range flags 0 (fine) and 1 (coarse)")
+        _check_integer(path, data[3], "range", 0, 1, "the range flags 0 (fine) and 1 (coarse)")
         for j, name in enumerate(("cx", "cy", "cz")):
-            _check_integer(path, data[:, 4 + j], name, *COUNT_LIMITS,
+            _check_integer(path, data[4 + j], name, *COUNT_LIMITS,
                            f"the signed 16-bit count limits {COUNT_LIMITS}")
-    data = tables[0] if len(tables) == 1 else np.concatenate(tables)
+    data = tables[0] if len(tables) == 1 else np.concatenate(tables, axis=1)
     return xr.Dataset(
         {
-            "partition": ("time", data[:, 0].astype(np.int8), {"units": "1"}),
-            # a copy: a view would keep the whole (n, 7) parsed table (95 MB a 20 Hz day)
-            "met": ("time", np.ascontiguousarray(data[:, 1]),
-                    {"units": "s", "description": "MET as recorded"}),
-            "rate": ("time", data[:, 2].astype(np.int8), {"units": "1"}),
-            "range": ("time", data[:, 3].astype(np.int8), {"units": "1"}),
-            "counts": (("time", "component"), data[:, 4:7].astype(np.int32), {"units": "counts"}),
+            "partition": ("time", data[0].astype(np.int8), {"units": "1"}),
+            # a copy: a view would keep the whole (7, n) parsed table (95 MB a 20 Hz day)
+            "met": ("time", data[1].copy(), {"units": "s", "description": "MET as recorded"}),
+            "rate": ("time", data[2].astype(np.int8), {"units": "1"}),
+            "range": ("time", data[3].astype(np.int8), {"units": "1"}),
+            "counts": (("time", "component"), data[4:7].T.astype(np.int32, order="C"),
+                       {"units": "counts"}),
         },
         coords={"component": ["x", "y", "z"]},
         attrs={"inputs": ";".join(str(p) for p in plist)},
@@ -241,15 +362,15 @@ def read_heater(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
     """
     plist, tables = _read_stream(paths, HEATER_COLUMNS, "heater")
     for path, data in zip(plist, tables, strict=True):
-        _check_integer(path, data[:, 2], "heater", 0, 1, "the heater bit values 0 and 1")
+        _check_integer(path, data[2], "heater", 0, 1, "the heater bit values 0 and 1")
     _check_gaps(plist, tables, HEATER_PERIOD_S, "heater stream",
                 f"one heater period ({HEATER_PERIOD_S:.0f} s)")
-    data = np.concatenate(tables)
+    data = np.concatenate(tables, axis=1)
     return xr.Dataset(
         {
-            "partition": ("heater_time", data[:, 0].astype(np.int8), {"units": "1"}),
-            "met": ("heater_time", data[:, 1], {"units": "s"}),
-            "heater": ("heater_time", data[:, 2].astype(np.int8), {"units": "1"}),
+            "partition": ("heater_time", data[0].astype(np.int8), {"units": "1"}),
+            "met": ("heater_time", data[1].copy(), {"units": "s"}),
+            "heater": ("heater_time", data[2].astype(np.int8), {"units": "1"}),
         },
         attrs={"inputs": ";".join(str(p) for p in plist)},
     )
@@ -266,19 +387,19 @@ def _check_gaps(
     """
     limit = limit or f"{max_gap:.0f} s"
     for path, data in zip(plist, tables, strict=True):
-        gaps = (np.diff(data[:, 1]) > max_gap) & (np.diff(data[:, 0]) == 0)
+        gaps = (np.diff(data[1]) > max_gap) & (np.diff(data[0]) == 0)
         if gaps.any():
             row = int(np.flatnonzero(gaps)[0]) + 1
             raise InputFormatError(
-                f"{what} gap of {data[row, 1] - data[row - 1, 1]:.0f} s exceeds {limit}",
+                f"{what} gap of {data[1, row] - data[1, row - 1]:.0f} s exceeds {limit}",
                 path=str(path), line=row + 2, field="met",
             )
     for (p0, d0), (p1, d1) in zip(
         zip(plist[:-1], tables[:-1], strict=True), zip(plist[1:], tables[1:], strict=True),
         strict=True,
     ):
-        if d0.shape[0] and d1.shape[0] and d0[-1, 0] == d1[0, 0]:
-            gap = d1[0, 1] - d0[-1, 1]
+        if d0.shape[1] and d1.shape[1] and d0[0, -1] == d1[0, 0]:
+            gap = d1[1, 0] - d0[1, -1]
             if gap > max_gap:
                 raise InputFormatError(
                     f"{what} gap of {gap:.0f} s between {p0} and this file exceeds {limit}",
@@ -309,20 +430,20 @@ def read_temperature(
     """
     plist, tables = _read_stream(paths, TEMPERATURE_COLUMNS, "temperature")
     for path, data in zip(plist, tables, strict=True):
-        bad = (data[:, 2] < -150) | (data[:, 2] > 150)
+        bad = (data[2] < -150) | (data[2] > 150)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
             raise InputFormatError(
-                f"temperature {data[row, 2]} degC outside -150..150 degC", path=str(path),
+                f"temperature {data[2, row]} degC outside -150..150 degC", path=str(path),
                 line=row + 2, field="temperature_c",
             )
     _check_gaps(plist, tables, max_gap_s, "temperature stream")
-    data = np.concatenate(tables)
+    data = np.concatenate(tables, axis=1)
     return xr.Dataset(
         {
-            "partition": ("temperature_time", data[:, 0].astype(np.int8), {"units": "1"}),
-            "met": ("temperature_time", data[:, 1], {"units": "s"}),
-            "temperature_c": ("temperature_time", data[:, 2], {"units": "degC"}),
+            "partition": ("temperature_time", data[0].astype(np.int8), {"units": "1"}),
+            "met": ("temperature_time", data[1].copy(), {"units": "s"}),
+            "temperature_c": ("temperature_time", data[2].copy(), {"units": "degC"}),
         },
         attrs={"inputs": ";".join(str(p) for p in plist)},
     )
