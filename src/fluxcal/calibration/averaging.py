@@ -65,6 +65,12 @@ def bin_index(epoch: np.ndarray, width_ns: int, origin: int = 0) -> Bins:
     if int(width_ns) <= 0:
         raise ValueError(f"width_ns must be positive, not {width_ns}")
     epoch = np.asarray(epoch, dtype=np.int64)
+    if epoch.ndim == 1:  # one compiled pass when the times are in bin order
+        starts = np.empty(epoch.size, dtype=np.int64)
+        uniq = np.empty(epoch.size, dtype=np.int64)
+        m = _bin_runs_kernel(epoch, np.int64(origin), np.int64(width_ns), starts, uniq)
+        if m >= 0:
+            return _bins(None, starts[:m].copy(), epoch.size, uniq[:m].copy(), width_ns, origin)
     number = (epoch - np.int64(origin)) // np.int64(width_ns)
     order = None
     if number.size > 1 and np.any(number[1:] < number[:-1]):
@@ -74,10 +80,35 @@ def bin_index(epoch: np.ndarray, width_ns: int, origin: int = 0) -> Bins:
         starts = np.zeros(0, dtype=np.int64)
     else:
         starts = np.concatenate([[0], np.flatnonzero(number[1:] != number[:-1]) + 1])
-    counts = np.diff(np.append(starts, number.size))
-    uniq = number[starts]
+    return _bins(order, starts, number.size, number[starts], width_ns, origin)
+
+
+def _bins(order: np.ndarray | None, starts: np.ndarray, n: int, uniq: np.ndarray,
+          width_ns: int, origin: int) -> Bins:
+    counts = np.diff(np.append(starts, n))
     centre = np.int64(origin) + uniq * np.int64(width_ns) + np.int64(width_ns) // 2
     return Bins(order, starts, counts, uniq, centre)
+
+
+@njit(cache=True, nogil=True)
+def _bin_runs_kernel(epoch, origin, width, starts, number):  # pragma: no cover - compiled
+    """Find the runs of equal bin number ``(epoch - origin) // width`` (floor), in order.
+
+    Writes the first sample and the bin number of each run; returns the number of runs,
+    or -1 at the first time whose bin number is below the previous one (not in order).
+    """
+    m = 0
+    prev = 0
+    for i in range(epoch.size):
+        k = (epoch[i] - origin) // width
+        if i == 0 or k != prev:
+            if i > 0 and k < prev:
+                return -1
+            starts[m] = i
+            number[m] = k
+            m += 1
+            prev = k
+    return m
 
 
 def _ordered(bins: Bins, values: np.ndarray) -> np.ndarray:
@@ -86,8 +117,11 @@ def _ordered(bins: Bins, values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _mean_std_kernel(v, starts, counts, ddof, mean, std):  # pragma: no cover - compiled
-    """Per bin and column: shifted mean, then the corrected two-pass sum of squares."""
+def _mean_std_kernel(v, starts, counts, ddof, with_std, mean, std):  # pragma: no cover
+    """Per bin and column: shifted mean, then the corrected two-pass sum of squares.
+
+    Without ``with_std`` only the mean (the same first pass) is written.
+    """
     for b in range(starts.size):
         s, n = starts[b], counts[b]
         for j in range(v.shape[1]):
@@ -96,13 +130,15 @@ def _mean_std_kernel(v, starts, counts, ddof, mean, std):  # pragma: no cover - 
             for i in range(s, s + n):
                 acc += v[i, j] - shift
             m = shift + acc / n
+            mean[b, j] = m
+            if not with_std:
+                continue
             d_sum = 0.0
             d_sq = 0.0
             for i in range(s, s + n):
                 d = v[i, j] - m
                 d_sum += d
                 d_sq += d * d
-            mean[b, j] = m
             if n - ddof > 0:
                 ss = d_sq - d_sum * d_sum / n
                 std[b, j] = math.sqrt(ss / (n - ddof)) if ss > 0.0 else 0.0
@@ -132,25 +168,32 @@ def bin_mean_std(bins: Bins, values: np.ndarray, ddof: int = 0) -> tuple[np.ndar
     -------
     mean, std : numpy.ndarray, shape (m,) or (m, k)
     """
+    return _bin_stats(bins, values, int(ddof), True)
+
+
+def _bin_stats(bins: Bins, values: np.ndarray, ddof: int, with_std: bool
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+    """`_mean_std_kernel` over ``values`` reshaped to (n, k); ``std`` None without it."""
     v = _ordered(bins, values)
     k = int(np.prod(v.shape[1:], dtype=np.int64))
     v2 = np.ascontiguousarray(v.reshape(v.shape[0], k), dtype=np.float64)
     m = bins.starts.size
-    mean = np.empty((m, v2.shape[1]))
-    std = np.empty((m, v2.shape[1]))
+    mean = np.empty((m, k))
+    std = np.empty((m, k) if with_std else (0, k))
     if m:
         _mean_std_kernel(v2, bins.starts.astype(np.int64), bins.counts.astype(np.int64),
-                         int(ddof), mean, std)
+                         ddof, with_std, mean, std)
     shape = (m,) + v.shape[1:]
-    return mean.reshape(shape), std.reshape(shape)
+    return mean.reshape(shape), (std.reshape(shape) if with_std else None)
 
 
 def bin_mean(bins: Bins, values: np.ndarray) -> np.ndarray:
     """Mean of ``values`` (shape ``(n, ...)``) in each bin of `bin_index`, shape ``(m, ...)``.
 
-    The mean of `bin_mean_std` (one implementation of the average).
+    The mean of `bin_mean_std` (the same compiled first pass, one implementation of the
+    average), without the second pass of the standard deviation.
     """
-    return bin_mean_std(bins, values)[0]
+    return _bin_stats(bins, values, 0, False)[0]
 
 
 def bin_max(bins: Bins, values: np.ndarray) -> np.ndarray:
