@@ -114,7 +114,7 @@ class MessengerDayTask:
             read_science,
             read_temperature,
         )
-        from fluxcal.missions.messenger.run import calibrate_and_write
+        from fluxcal.missions.messenger.run import calibrate_run, quicklook_frame_of, write_run
         from fluxcal.products.batch import DayResult, DayWithoutData, worker_kernel_pool
 
         files = self._files(day)
@@ -132,15 +132,19 @@ class MessengerDayTask:
             heat = read_heater(files["heater"])
             temp = read_temperature(files["temperature"])
         pool = worker_kernel_pool(self._kernels())
-        paths = calibrate_and_write(
-            sci, heat, temp, Path(self.out_dir),
+        n_vectors = int(sci.sizes["time"])
+        ql_frame = quicklook_frame_of(self.frames, self.quicklook, self.quicklook_frame)
+        ds, cal = calibrate_run(sci, heat, temp, frames=self.frames, quicklook_frame=ql_frame,
+                                calibration_folder=self.calib)
+        del sci, heat, temp  # what the products need is in ``ds``; the rest is freed
+        paths = write_run(
+            ds, cal, Path(self.out_dir),
             inputs=[p for group in files.values() for p in group],
             kernel_list=pool.kernel_list(), frames=self.frames, formats=self.formats,
             averages=self.averages, max_offset_step=self.max_offset_step,
-            calibration_folder=self.calib, only_day=f"{day:%y%j}",
-            quicklook=self.quicklook, quicklook_frame=self.quicklook_frame,
+            only_day=f"{day:%y%j}", quicklook_frame=ql_frame,
         )
-        return DayResult(day, paths, n_vectors=int(sci.sizes["time"]))
+        return DayResult(day, paths, n_vectors=n_vectors)
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask:

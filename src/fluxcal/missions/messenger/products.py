@@ -40,6 +40,7 @@ import yaml
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.levels import FRAMES, SC_ID
+from fluxcal.missions.messenger.product_geometry import POSITION_VARIABLE, frame_variables
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
 
@@ -71,12 +72,6 @@ class OrderReport:
                 "FLUXCAL_DUPLICATES_DROPPED": self.duplicates}
 
 
-def _position_source(frame: str) -> str | None:
-    """Variable of the calibrated dataset holding the frame's position (None for SC)."""
-    return {"mso": "pos_mso", "j2000": "pos_j2000", "mbf": "pos_mbf", "rtn": "pos_rtn",
-            "vso": "pos_vso", "sc": None}[frame]
-
-
 def time_order(epoch: np.ndarray) -> tuple[np.ndarray | None, OrderReport]:
     """Return the sample index that puts ``epoch`` in strictly increasing order, and the report.
 
@@ -104,31 +99,25 @@ def time_order(epoch: np.ndarray) -> tuple[np.ndarray | None, OrderReport]:
     return (order[keep] if duplicates else order), OrderReport(n, reordered, duplicates)
 
 
-def _take(ds: xr.Dataset, names: Sequence[str], index: np.ndarray | None,
-          coords: bool = True) -> xr.Dataset:
-    """Variables ``names`` of ``ds`` (and ``epoch``) at ``index`` (views when ``None``)."""
-    variables = {name: ds[name].variable for name in names}
-    crd = {"epoch": ds["epoch"].variable} if coords else {}
-    if index is not None:
-        variables = {k: v[index] for k, v in variables.items()}
-        crd = {k: v[index] for k, v in crd.items()}
-    return xr.Dataset(variables, coords=crd, attrs=dict(ds.attrs))
+def _at(var: xr.Variable, index: np.ndarray | None) -> xr.Variable:
+    """``var`` at the sample ``index`` along its first axis (itself when ``None``)."""
+    if index is None:
+        return var
+    return xr.Variable(var.dims, np.take(var.values, index, axis=0), var.attrs)
 
 
-def _frame_variables(ds: xr.Dataset, frame: str) -> list[str]:
-    pos = _position_source(frame)
-    return [f"b_{frame}"] + ([pos] if pos is not None and pos in ds else [])
+def _take(ds: xr.Dataset, names: Sequence[str], index: np.ndarray | None) -> xr.Dataset:
+    """Variables ``names`` of ``ds`` and ``epoch`` at ``index`` (views when ``None``)."""
+    return xr.Dataset({name: _at(ds[name].variable, index) for name in names},
+                      coords={"epoch": _at(ds["epoch"].variable, index)},
+                      attrs=dict(ds.attrs))
 
 
 def _with_frame(base: xr.Dataset, ds: xr.Dataset, frame: str,
                 index: np.ndarray | None) -> xr.Dataset:
-    """Add one frame's field and position, in the order of ``index``, to ``base``."""
-    out = base.assign(_take(ds, _frame_variables(ds, frame), index, coords=False).variables)
-    if frame == "vso" and "pos_vso" not in out:
-        out["pos_vso"] = xr.Variable(("time", "component"), _venus_position(out["et"].values),
-                                     {"units": "km",
-                                      "description": "MESSENGER relative to Venus, MSGR_VSO"})
-    return out
+    """Add one frame's field and position (`frame_variables`), in ``index`` order, to ``base``."""
+    return base.assign({name: _at(var, index)
+                        for name, var in frame_variables(ds, frame).items()})
 
 
 def _log_order(ds: xr.Dataset, report: OrderReport) -> None:
@@ -143,8 +132,9 @@ def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderR
     """Return the variables the products of ``frames`` need, in time order, and the report.
 
     `time_order` applied to ``epoch``, ``et``, ``met_corrected``, ``quality``,
-    ``b_<frame>`` and the positions (``pos_vso`` added for a VSO product); `write_day`
-    does the same one frame at a time (less memory).
+    ``b_<frame>`` and the frame's position (`frame_variables`: taken from ``ds`` or
+    computed from its J2000 field); `write_day` does the same one frame at a time (less
+    memory).
 
     Parameters
     ----------
@@ -164,13 +154,6 @@ def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderR
         out = _with_frame(out, ds, frame, index)
     _log_order(ds, report)
     return out, report
-
-
-def _venus_position(et: np.ndarray) -> np.ndarray:
-    """MESSENGER relative to Venus in MSGR_VSO (km), the VSO product's position."""
-    from fluxcal.geometry.positions import position
-
-    return position("MESSENGER", "VENUS", "MSGR_VSO", et)
 
 
 #: Samples per call of `tt2000_to_utc_fields` in `utc_columns` (its eight int64 fields
@@ -253,7 +236,7 @@ def product_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
         "quality": ("time", ds["quality"].values,
                     {"units": "1", "description": "SHC data quality flag (Table 5)"}),
     }
-    pos_name = _position_source(frame)
+    pos_name = POSITION_VARIABLE[frame]
     coords: dict[str, tuple] = {"epoch": ("time", ds["epoch"].values, ds["epoch"].attrs),
                                 "b_component": ("b_component", _component_labels(frame))}
     if frame == "rtn":
@@ -416,7 +399,7 @@ def table_columns(frame: str, averaged: bool) -> list:
     if frame == "rtn":
         cols += [Column("r", "%14.1f", label="R"), Column("latitude", "%10.5f", label="LATITUDE"),
                  Column("azimuth", "%10.5f", label="AZIMUTH")]
-    elif _position_source(frame) is not None:
+    elif POSITION_VARIABLE[frame] is not None:
         cols += [Column("position", "%14.3f", component=c, label=c) for c in "XYZ"]
     axes = "RTN" if frame == "rtn" else "XYZ"
     labels = _component_labels(frame)
@@ -480,8 +463,11 @@ def write_day(
 ) -> list[Path]:
     """Write every product of one UTC day (all or nothing) and return the final paths.
 
-    The day is put in time order first (`order_day`); the bins of each averaging interval
-    are computed once and shared by all frames.  Every file is written under a temporary
+    The day is put in time order first (`order_day`), one frame at a time: each frame's
+    field and position are taken from ``ds`` or computed from its J2000 field when that
+    frame is written (`frame_variables`), so only one frame's arrays (and their sorted
+    copies) exist at a time.  The bins of each averaging interval and the table's UTC
+    columns are computed once and shared by all frames.  Every file is written under a temporary
     name; the renames into place happen only when every product of the day is complete
     (`fluxcal.products.atomic.atomic_group`; inside a caller's group, at the end of it).
 
@@ -500,8 +486,7 @@ def write_day(
     day0 = day_start_tt2000(year, doy)
     index, report = time_order(ds["epoch"].values)
     _log_order(ds, report)
-    # ``et`` only for the VSO position (`_with_frame`): a sorted copy is 14 MB a day
-    base = _take(ds, ["met_corrected", "quality"] + (["et"] if "vso" in frames else []), index)
+    base = _take(ds, ["met_corrected", "quality"], index)
     epoch = base["epoch"].values
     bins = {int(s): averaging.bin_index(epoch, int(s) * NS, day0) for s in averages}
     sclk = SclkKernel.from_pool(SC_ID) if averages and epoch.size else None
@@ -556,10 +541,11 @@ def quicklook_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
     """
     vec = ("time", "component")
     b = f"b_{frame}"
+    field = frame_variables(ds, frame)[b].values
     nt = "offset_nt" in ds  # edr2cdr --quicklook adds it (run.calibrate_and_write)
     return xr.Dataset(
         {
-            b: (vec, ds[b].values, {"units": "nT", "frame": FRAMES[frame][0],
+            b: (vec, field, {"units": "nT", "frame": FRAMES[frame][0],
                                     "description": f"magnetic field in {FRAMES[frame][0]}"}),
             "offset": (vec, ds["offset_nt" if nt else "offset"].values, {
                 "units": "nT" if nt else "counts",
