@@ -131,3 +131,17 @@ def test_mean_only_path_is_the_mean_of_mean_std():
     assert averaging.bin_mean(bins, b).tobytes() == averaging.bin_mean_std(bins, b)[0].tobytes()
     bins = averaging.bin_index(np.array([0, 1, 2], dtype=np.int64), 10)
     assert averaging.bin_mean(bins, np.array([1.0, 2.0, 6.0])).tolist() == [3.0]
+
+
+def test_vector_columns_side_by_side_equal_one_column_at_a_time():
+    """The three-column loop sums each column in the same order as a single column."""
+    rng = np.random.default_rng(5)
+    epoch = np.sort(rng.integers(0, 10**7, size=4000)).astype(np.int64)
+    b = -40_000.0 + rng.normal(size=(epoch.size, 3))
+    bins = averaging.bin_index(epoch, 10**5)
+    for ddof in (0, 1):
+        mean, std = averaging.bin_mean_std(bins, b, ddof=ddof)
+        for j in range(3):
+            m_j, s_j = averaging.bin_mean_std(bins, b[:, j], ddof=ddof)
+            assert mean[:, j].tobytes() == m_j.tobytes()
+            assert std[:, j].tobytes() == s_j.tobytes()

@@ -116,15 +116,61 @@ def _ordered(bins: Bins, values: np.ndarray) -> np.ndarray:
     return v if bins.order is None else v[bins.order]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _std(d_sum, d_sq, n, ddof):  # pragma: no cover - compiled
+    """Corrected two-pass standard deviation from the sums of the deviations."""
+    if n - ddof <= 0:
+        return math.nan
+    ss = d_sq - d_sum * d_sum / n
+    return math.sqrt(ss / (n - ddof)) if ss > 0.0 else 0.0
+
+
 @njit(cache=True, nogil=True)
 def _mean_std_kernel(v, starts, counts, ddof, with_std, mean, std):  # pragma: no cover
     """Per bin and column: shifted mean, then the corrected two-pass sum of squares.
 
-    Without ``with_std`` only the mean (the same first pass) is written.
+    Without ``with_std`` only the mean (the same first pass) is written.  Each column
+    is summed in sample order; three columns (vectors) are summed side by side in one
+    loop (independent sums, the same operations per column, the same bits).
     """
+    k = v.shape[1]
     for b in range(starts.size):
         s, n = starts[b], counts[b]
-        for j in range(v.shape[1]):
+        if k == 3:
+            h0 = v[s, 0]
+            h1 = v[s, 1]
+            h2 = v[s, 2]
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            for i in range(s, s + n):
+                a0 += v[i, 0] - h0
+                a1 += v[i, 1] - h1
+                a2 += v[i, 2] - h2
+            m0 = h0 + a0 / n
+            m1 = h1 + a1 / n
+            m2 = h2 + a2 / n
+            mean[b, 0] = m0
+            mean[b, 1] = m1
+            mean[b, 2] = m2
+            if not with_std:
+                continue
+            s0 = s1 = s2 = q0 = q1 = q2 = 0.0
+            for i in range(s, s + n):
+                d0 = v[i, 0] - m0
+                d1 = v[i, 1] - m1
+                d2 = v[i, 2] - m2
+                s0 += d0
+                s1 += d1
+                s2 += d2
+                q0 += d0 * d0
+                q1 += d1 * d1
+                q2 += d2 * d2
+            std[b, 0] = _std(s0, q0, n, ddof)
+            std[b, 1] = _std(s1, q1, n, ddof)
+            std[b, 2] = _std(s2, q2, n, ddof)
+            continue
+        for j in range(k):
             shift = v[s, j]
             acc = 0.0
             for i in range(s, s + n):
@@ -139,11 +185,7 @@ def _mean_std_kernel(v, starts, counts, ddof, with_std, mean, std):  # pragma: n
                 d = v[i, j] - m
                 d_sum += d
                 d_sq += d * d
-            if n - ddof > 0:
-                ss = d_sq - d_sum * d_sum / n
-                std[b, j] = math.sqrt(ss / (n - ddof)) if ss > 0.0 else 0.0
-            else:
-                std[b, j] = math.nan
+            std[b, j] = _std(d_sum, d_sq, n, ddof)
 
 
 def bin_mean_std(bins: Bins, values: np.ndarray, ddof: int = 0) -> tuple[np.ndarray, np.ndarray]:
