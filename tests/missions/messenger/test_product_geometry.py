@@ -1,0 +1,143 @@
+"""Product frames computed when written (`product_geometry`, issue 10 item 8, memory).
+
+A run is calibrated with the J2000 field only; each product frame's field and position
+are evaluated when that frame is written.  Checked against SPICE per sample
+(``pxform``/``spkpos``, independent of fluxcal's interpolated legs), against the
+run calibrated with every frame (the same legs on the same samples: equal bit for bit),
+and end to end: the products of both runs are byte-identical files.
+"""
+
+import logging
+
+import numpy as np
+import pytest
+import spiceypy
+
+from fluxcal.errors import InputFormatError
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.product_geometry import (
+    calibration_frames,
+    frame_variables,
+    note_mbf_rotation,
+)
+from fluxcal.missions.messenger.products import write_day
+from fluxcal.missions.messenger.run import RAW_UNWRITTEN, calibrate_run
+
+ALL = ("mso", "j2000", "mbf", "rtn", "sc", "vso")
+
+
+@pytest.fixture(scope="module")
+def runs(messenger_kernels, simulated, calibration):
+    """The same samples calibrated with J2000 only and with every frame (kernels loaded)."""
+    sci = simulated["science"].isel(time=slice(0, None, 50))  # 20 Hz -> ~0.4 Hz, every rate
+    with KernelPool(messenger_kernels):
+        only = calibrate(sci, simulated["heater"], simulated["temperature"], calibration,
+                         frames=("j2000",), max_offset_step=None, keep_intermediates=False)
+        full = calibrate(sci, simulated["heater"], simulated["temperature"], calibration,
+                         frames=ALL, max_offset_step=None, keep_intermediates=False)
+        yield only, full
+
+
+def test_calibration_frames():
+    assert calibration_frames(("mso", "rtn")) == ("j2000",)
+    assert calibration_frames(("mso", "j2000", "mbf", "rtn", "sc")) == ("j2000", "sc")
+    assert calibration_frames(("sc",)) == ("sc",)  # the SC field needs no J2000 leg
+    assert calibration_frames(()) == ()
+
+
+@pytest.mark.parametrize("frame", ["mso", "mbf", "rtn", "vso"])
+def test_frame_equals_the_run_calibrated_with_it(runs, frame):
+    only, full = runs
+    assert f"b_{frame}" not in only
+    got = frame_variables(only, frame)
+    # the same interpolated legs on the same samples: equal bit for bit
+    np.testing.assert_array_equal(got[f"b_{frame}"].values, full[f"b_{frame}"].values)
+    # add_geometry also notes the MBF rotation model on b_mbf (no product reads it)
+    expected = {k: v for k, v in full[f"b_{frame}"].attrs.items() if k != "rotation_model"}
+    assert got[f"b_{frame}"].attrs == expected
+    pos = {"mso": "pos_mso", "mbf": "pos_mbf", "rtn": "pos_rtn", "vso": "pos_vso"}[frame]
+    if pos in full:  # add_geometry has no VSO position (the VSO case is below)
+        np.testing.assert_array_equal(got[pos].values, full[pos].values)
+        assert got[pos].attrs == full[pos].attrs
+
+
+@pytest.mark.parametrize("frame", ["mso", "mbf", "rtn", "vso"])
+def test_frame_against_spice_per_sample(runs, messenger_kernels, frame):
+    only, _ = runs
+    et = only["et"].values
+    with KernelPool(messenger_kernels):
+        got = frame_variables(only, frame)
+        spice = levels.FRAMES[frame][0]
+        m = np.array([spiceypy.pxform("J2000", spice, float(t)) for t in et])
+        expected = np.einsum("nij,nj->ni", m, only["b_j2000"].values)
+        # interpolated rotation legs: 5e-10 rad (frames.DEFAULT_TOLERANCE) of |B| < 1e5 nT,
+        # 5e-5 nT, with margin
+        np.testing.assert_allclose(got[f"b_{frame}"].values, expected, rtol=0, atol=2e-4)
+        if frame == "rtn":  # sec. 10.2 distance from the Sun (km); angles: test_geometry_fast
+            sun = np.array([spiceypy.spkpos("MESSENGER", float(t), "J2000", "NONE", "SUN")[0]
+                            for t in et])
+            np.testing.assert_allclose(got["pos_rtn"].values[:, 0],
+                                       np.linalg.norm(sun, axis=1), rtol=0, atol=1e-3)
+        else:  # 1e-4 km Hermite tolerance plus 5e-10 rad x 1e8 km (VSO), margin
+            target = {"mso": "MERCURY", "mbf": "MERCURY", "vso": "VENUS"}[frame]
+            expected = np.array([spiceypy.spkpos("MESSENGER", float(t), spice, "NONE", target)[0]
+                                 for t in et])
+            np.testing.assert_allclose(got[f"pos_{frame}"].values, expected, rtol=0, atol=0.1)
+
+
+def test_frames_present_are_taken_not_recomputed(runs):
+    _, full = runs
+    for frame in ("mso", "sc", "j2000", "rtn"):
+        got = frame_variables(full, frame)
+        for name, var in got.items():
+            assert np.shares_memory(var.values, full[name].values)
+
+
+def test_sc_and_j2000_are_never_recomputed(runs):
+    only, _ = runs
+    with pytest.raises(InputFormatError, match="b_sc"):
+        frame_variables(only, "sc")
+    with pytest.raises(InputFormatError, match="b_j2000"):
+        frame_variables(only.drop_vars("b_j2000"), "mso")
+
+
+def test_mbf_note_goes_where_add_geometry_puts_it(runs, messenger_kernels, caplog):
+    only, full = runs
+    with KernelPool(messenger_kernels), caplog.at_level(logging.WARNING):
+        noted = note_mbf_rotation(only, ("mso", "mbf"))
+        assert "no mission PCK" in caplog.text
+        caplog.clear()
+        assert note_mbf_rotation(only, ("mso", "rtn")) is only and not caplog.text
+    assert list(noted.attrs) == list(full.attrs)  # same keys, same order (label layout)
+    assert "mbf_rotation" not in only.attrs  # the input is not changed
+
+
+def test_products_equal_to_those_of_a_run_with_every_frame(runs, messenger_kernels, tmp_path,
+                                                           monkeypatch):
+    """Byte-identical files: frames written from J2000 or from the all-frame run."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")
+    only, full = runs
+    frames = ("mso", "mbf", "rtn", "sc", "j2000")
+    with KernelPool(messenger_kernels):
+        only = note_mbf_rotation(only, frames)
+        sc = full[["b_sc"]]
+        a = write_day(only.assign(sc), tmp_path / "a", frames, ("tab", "cdf"), (60,), {})
+        b = write_day(full, tmp_path / "b", frames, ("tab", "cdf"), (60,), {})
+    assert [p.name for p in a] == [p.name for p in b] and len(a) == 5 * 2 * 3
+    for pa, pb in zip(a, b, strict=True):
+        assert pa.read_bytes() == pb.read_bytes(), pa.name
+
+
+def test_calibrate_run_keeps_no_product_frame_and_no_raw_column(messenger_kernels, simulated):
+    sci = simulated["science"].isel(time=slice(0, None, 50))
+    with KernelPool(messenger_kernels):
+        ds, _ = calibrate_run(sci, simulated["heater"], simulated["temperature"],
+                              frames=("mso", "rtn"), quicklook_frame="mbf")
+    assert {"b_j2000", "pos_j2000", "pos_mso", "offset_nt"} <= set(ds.variables)
+    assert not {"b_mso", "b_rtn", "b_mbf", "pos_rtn", "pos_mbf", "b_sc"} & set(ds.variables)
+    assert not set(RAW_UNWRITTEN) & set(ds.variables)
+    with pytest.raises(InputFormatError, match="quicklook"):
+        calibrate_run(sci, simulated["heater"], simulated["temperature"],
+                      quicklook_frame="gse")
