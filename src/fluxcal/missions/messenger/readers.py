@@ -84,37 +84,29 @@ _MAX_MANTISSA = 2**53
 
 
 @njit(cache=True, nogil=True)
-def _count_records(buf, start):  # pragma: no cover - compiled
-    """Lines of ``buf[start:]`` (a last line without a newline counts)."""
-    n = 0
-    for i in range(start, buf.size):
-        n += buf[i] == 10
-    if buf.size > start and buf[buf.size - 1] != 10:
-        n += 1
-    return n
-
-
-@njit(cache=True, nogil=True)
 def _parse_plain_kernel(buf, start, column, pow10, max_mantissa, out):  # pragma: no cover
     """Parse lines of ``-?digits[.digits]`` fields separated by ``,`` into ``out``.
 
-    Field ``f`` of record ``r`` goes to ``out[column[f], r]`` (``out`` has one column
-    per record of ``buf[start:]``, `_count_records`).  A field is
-    ``mantissa / 10**fraction_digits`` (negated after a ``-``): one correctly rounded
-    division of two exact doubles (mantissa <= 2**53, at most 18 digits), so the value
-    is the correctly rounded one, as a full decimal parser gives.
+    Field ``f`` of record ``r`` goes to ``out[column[f], r]`` (``out`` has room for
+    every record of ``buf[start:]``).  A field is ``mantissa / 10**fraction_digits``
+    (negated after a ``-``): one correctly rounded division of two exact doubles
+    (mantissa <= 2**53, at most 18 digits), so the value is the correctly rounded one,
+    as a full decimal parser gives.
 
     Returns
     -------
     int
-        -1, or the index of the first record not in that form (any other byte, an empty
-        field or line, a field count other than ``column.size``, more digits); the loop
-        stops there.
+        The number of records, or -1 at the first record not in that form (any other
+        byte, an empty field or line, a field count other than ``column.size``, more
+        digits); the loop stops there.
     """
     k = column.size
     size = buf.size
     i = start
-    for row in range(out.shape[1]):
+    row = 0
+    while i < size:
+        if row == out.shape[1]:
+            return -1
         for f in range(k):
             neg = i < size and buf[i] == 45  # "-"
             if neg:
@@ -139,20 +131,21 @@ def _parse_plain_kernel(buf, start, column, pow10, max_mantissa, out):  # pragma
                     frac += 1
                     i += 1
                 if frac == 0:
-                    return row
+                    return -1
             if digits == 0 or digits + frac > 18 or mant > max_mantissa:
-                return row
+                return -1
             v = float(mant)
             if frac:
                 v = v / pow10[frac]
             out[column[f], row] = -v if neg else v
             if f < k - 1:  # a comma, then the next field
                 if i >= size or buf[i] != 44:
-                    return row
+                    return -1
             elif i < size and buf[i] != 10:  # the line (or the file) ends
-                return row
+                return -1
             i += 1
-    return -1
+        row += 1
+    return row
 
 
 def _parse_plain(path: Path, n_fields: int, order: list[int]) -> np.ndarray | None:
@@ -174,13 +167,15 @@ def _parse_plain(path: Path, n_fields: int, order: list[int]) -> np.ndarray | No
                 return None  # the header line is read as text (universal newlines)
             buf = np.frombuffer(mm, dtype=np.uint8)
             try:
-                out = np.empty((len(order), _count_records(buf, start)))
+                # room for the most records the body can hold (2 bytes a field at
+                # least); pages past the records read are never touched
+                out = np.empty((len(order), (size - start) // (2 * n_fields) + 1))
                 column = np.full(n_fields, -1, dtype=np.int64)
                 column[order] = np.arange(len(order))
-                bad = _parse_plain_kernel(buf, start, column, _POW10, _MAX_MANTISSA, out)
+                n = _parse_plain_kernel(buf, start, column, _POW10, _MAX_MANTISSA, out)
             finally:
                 del buf  # releases the map
-    return out if bad < 0 else None
+    return out[:, :n] if n >= 0 else None
 
 
 def _parse_numbers(path: Path, names: list[str], order: list[int]) -> np.ndarray:
