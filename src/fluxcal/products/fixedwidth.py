@@ -185,59 +185,6 @@ def _write_nan(buf: np.ndarray, row: int, start: int, width: int) -> bool:
 
 
 @njit(cache=True)
-def format_fixed(values: np.ndarray, buf: np.ndarray, start: int, width: int, decimals: int,
-                 zero_pad: bool) -> tuple[int, int]:
-    """Write ``"%{w}.{d}f"`` of every value into ``buf[:, start:start + width]``.
-
-    Returns ``(code, row)``: ``OK`` or the first failing row and why.
-    """
-    scale_digits = decimals + 1 if decimals > 0 else 0
-    n = values.shape[0]
-    if n and width < scale_digits + 1:
-        return TOO_WIDE, 0
-    ten = np.uint64(10)
-    zero = np.uint64(48)
-    end = start + width
-    for i in range(n):
-        x = values[i]
-        if math.isnan(x):
-            if not _write_nan(buf, i, start, width):
-                return TOO_WIDE, i
-            continue
-        if math.isinf(x):
-            return NOT_FINITE, i
-        neg = math.copysign(1.0, x) < 0.0
-        k, ok = _scaled_round(abs(x), decimals)
-        if not ok:
-            return TOO_LARGE, i
-        q = np.uint64(k)  # unsigned: digit division without floor-division fix-ups
-        pos = end
-        for _ in range(decimals):
-            pos -= 1
-            buf[i, pos] = zero + q % ten
-            q //= ten
-        if decimals > 0:
-            pos -= 1
-            buf[i, pos] = 46  # .
-        lim = start + 1 if neg else start
-        while True:  # integer part, at least one digit
-            if pos <= lim:
-                return TOO_WIDE, i
-            pos -= 1
-            buf[i, pos] = zero + q % ten
-            q //= ten
-            if q == 0:
-                break
-        if zero_pad:
-            while pos > lim:
-                pos -= 1
-                buf[i, pos] = 48
-        if neg:
-            buf[i, pos - 1] = 45  # -
-    return OK, -1
-
-
-@njit(cache=True)
 def format_exp(values: np.ndarray, buf: np.ndarray, start: int, width: int,
                decimals: int) -> tuple[int, int]:
     """Write ``"%{w}.{d}E"`` of every value into ``buf[:, start:start + width]``."""
@@ -298,25 +245,6 @@ def format_exp(values: np.ndarray, buf: np.ndarray, start: int, width: int,
     return OK, -1
 
 
-@njit(cache=True)
-def format_int(values: np.ndarray, buf: np.ndarray, start: int, width: int,
-               min_digits: int) -> tuple[int, int]:
-    """Write ``"%{w}.{m}d"`` of every int64 value into ``buf[:, start:start + width]``."""
-    for i in range(values.shape[0]):
-        v = values[i]
-        neg = v < 0
-        if v == -9223372036854775807 - 1:  # cannot be negated in int64
-            return TOO_LARGE, i
-        a = -v if neg else v
-        nd = max(_ndigits(a), min_digits)
-        if nd + (1 if neg else 0) > width:
-            return TOO_WIDE, i
-        pos = _write_uint(buf, i, start + width, a, min_digits if min_digits > 0 else 1)
-        if neg:
-            buf[i, pos - 1] = 45
-    return OK, -1
-
-
 # Result codes of `copy_text` beyond the numeric ones.
 EMPTY, BLANK_INSIDE = 4, 5
 
@@ -342,3 +270,176 @@ def copy_text(src: np.ndarray, buf: np.ndarray, start: int, width: int) -> tuple
                 return TOO_WIDE, i
             buf[i, start + j] = c
     return OK, -1
+
+
+# --- whole rows in one pass ------------------------------------------------------------
+
+#: Column kinds of `format_rows`: left blank (filled by another kernel), ``Iw.m``, ``Fw.d``.
+SKIP, INT, FIXED = 0, 1, 2
+#: Spec fields of `format_rows` (one row of ``spec`` per column).
+S_KIND, S_SLOT, S_COMP, S_START, S_WIDTH, S_DEC, S_ZPAD, S_FILL = range(8)
+#: Rows per block: a block of rows (a few KiB) stays in the L1 cache while every column
+#: writes its digits into it.
+BLOCK_ROWS = 64
+#: Source arrays of each kind per `format_rows` call (unused slots: empty arrays), so that
+#: one compiled signature serves every table.
+SLOTS = 8
+_PAIRS = np.frombuffer("".join(f"{i:02d}" for i in range(100)).encode(), np.uint8).copy()
+_U64_MAX = np.uint64(2**64 - 1)
+
+
+def integer_limit(digits: int) -> int:
+    """``10**digits`` as the bound of an integer part of ``digits`` places (0: none fit).
+
+    ``2**64 - 1`` stands for "any int64 fits" (``digits >= 19``).
+    """
+    if digits <= 0:
+        return 0
+    return 10**digits if digits < 19 else 2**64 - 1
+
+
+@njit(cache=True, inline="always")
+def _put_digits(buf: np.ndarray, i: int, end: int, q: np.uint64, pairs: np.ndarray) -> int:
+    """Write ``q`` (at least one digit) into row ``i`` ending before ``end``; return start."""
+    pos = end
+    hundred = np.uint64(100)
+    while q >= hundred:
+        r = np.intp(q % hundred) * 2
+        q //= hundred
+        pos -= 2
+        buf[i, pos] = pairs[r]
+        buf[i, pos + 1] = pairs[r + 1]
+    if q >= np.uint64(10):
+        r = np.intp(q) * 2
+        pos -= 2
+        buf[i, pos] = pairs[r]
+        buf[i, pos + 1] = pairs[r + 1]
+    else:
+        pos -= 1
+        buf[i, pos] = np.uint8(48 + np.intp(q))
+    return pos
+
+
+@njit(cache=True, inline="always")
+def _round_scaled(ax: float, dec: int, scale: float) -> tuple[int, bool]:
+    """`_scaled_round` with the common case (``ax * 10**dec < 2**52``) branch-free."""
+    p = ax * scale
+    if dec > 22 or not p < _TWO52:
+        return _scaled_round(ax, dec)
+    fl = math.floor(p)
+    f = p - fl
+    k = np.int64(fl) + np.int64(f > 0.5)
+    if f == 0.5:  # an exact product decides the tie (rare)
+        e = _two_prod_err(ax, scale, p)
+        if e > 0.0 or (e == 0.0 and k % 2 == 1):
+            k += 1
+    return k, True
+
+
+@njit(cache=True)
+def format_rows(buf: np.ndarray, reals: tuple, ints: tuple, spec: np.ndarray,
+                fills: np.ndarray, limits: np.ndarray, blank: bool) -> tuple[int, int, int]:
+    """Write whole rows: blanks, ``Iw.m`` and ``Fw.d`` fields, CR LF at the end.
+
+    ``reals``/``ints`` are tuples of 2-D float64/int64 arrays (``(rows, components)``,
+    rows aligned with ``buf``); column ``c`` prints component ``spec[c, S_COMP]`` of
+    array ``spec[c, S_SLOT]`` of its kind.  ``limits[c]`` bounds the integer part
+    (non-negative, negative value: `integer_limit` of the places left).  ``SKIP``
+    columns stay blank.  With ``blank`` False the rows are not blanked first (a further
+    group of columns of rows already written).
+
+    ``Fw.d`` is ``"%w.df"`` (``"%0w.df"`` with ``S_ZPAD``), NaN printed as ``NaN`` unless
+    ``S_FILL`` (then ``fills[c]`` is printed instead); ``Iw.m`` is ``"%w.md"``.  Returns
+    ``(code, row, column)`` of the first failure found, or ``(OK, -1, -1)``.
+    """
+    n, width_row = buf.shape
+    ncol = spec.shape[0]
+    pairs = _PAIRS
+    ten = np.uint64(10)
+    hundred = np.uint64(100)
+    for b0 in range(0, n, BLOCK_ROWS):
+        b1 = min(n, b0 + BLOCK_ROWS)
+        if blank:
+            for i in range(b0, b1):
+                for j in range(width_row - 2):
+                    buf[i, j] = 32
+                buf[i, width_row - 2] = 13
+                buf[i, width_row - 1] = 10
+        for c in range(ncol):
+            kind = spec[c, S_KIND]
+            if kind == SKIP:
+                continue
+            comp = spec[c, S_COMP]
+            start = spec[c, S_START]
+            width = spec[c, S_WIDTH]
+            end = start + width
+            dec = spec[c, S_DEC]
+            lim_pos = limits[c, 0]
+            lim_neg = limits[c, 1]
+            if kind == INT:
+                arr_i = ints[spec[c, S_SLOT]]
+                for i in range(b0, b1):
+                    v = arr_i[i, comp]
+                    neg = v < 0
+                    if v == -9223372036854775807 - 1:
+                        return TOO_LARGE, i, c
+                    q = np.uint64(-v if neg else v)
+                    if q >= (lim_neg if neg else lim_pos):
+                        return TOO_WIDE, i, c
+                    pos = _put_digits(buf, i, end, q, pairs)
+                    while end - pos < dec:  # at least `dec` digits (``Iw.m``)
+                        pos -= 1
+                        buf[i, pos] = 48
+                    if neg:
+                        buf[i, pos - 1] = 45
+                continue
+            places = width - (dec + 1 if dec > 0 else 0)
+            if places < 1:  # no room for the point and the decimals (any value)
+                return TOO_WIDE, b0, c
+            arr_f = reals[spec[c, S_SLOT]]
+            has_fill = spec[c, S_FILL] != 0
+            zpad = spec[c, S_ZPAD] != 0
+            fill = fills[c]
+            scale = _P10_EXACT[dec] if dec <= 22 else 1.0
+            point = end - dec - 1
+            for i in range(b0, b1):
+                x = arr_f[i, comp]
+                if has_fill and math.isnan(x):
+                    x = fill
+                if math.isnan(x):
+                    if width < 3:
+                        return TOO_WIDE, i, c
+                    buf[i, end - 3] = 78
+                    buf[i, end - 2] = 97
+                    buf[i, end - 1] = 78
+                    continue
+                if math.isinf(x):
+                    return NOT_FINITE, i, c
+                neg = math.copysign(1.0, x) < 0.0
+                k, ok = _round_scaled(abs(x), dec, scale)
+                if not ok:
+                    return TOO_LARGE, i, c
+                q = np.uint64(k)
+                pos = end
+                for _ in range(dec // 2):
+                    r = np.intp(q % hundred) * 2
+                    q //= hundred
+                    pos -= 2
+                    buf[i, pos] = pairs[r]
+                    buf[i, pos + 1] = pairs[r + 1]
+                if dec % 2 == 1:
+                    buf[i, pos - 1] = np.uint8(48 + np.intp(q % ten))
+                    q //= ten
+                if dec > 0:
+                    buf[i, point] = 46
+                if q >= (lim_neg if neg else lim_pos):
+                    return TOO_WIDE, i, c
+                pos = _put_digits(buf, i, end - (dec + 1 if dec > 0 else 0), q, pairs)
+                if zpad:
+                    lim = start + 1 if neg else start
+                    while pos > lim:
+                        pos -= 1
+                        buf[i, pos] = 48
+                if neg:
+                    buf[i, pos - 1] = 45
+    return OK, -1, -1

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pvl
@@ -38,7 +38,6 @@ from fluxcal.products.columns import (
     DEFAULT_REAL,
     TIME_DIM,
     Column,
-    FieldFormat,
     ResolvedColumn,
     resolve_columns,
 )
@@ -116,31 +115,6 @@ def _real_values(arr: np.ndarray, col: ResolvedColumn) -> np.ndarray:
     return v
 
 
-def _format_column(buf: np.ndarray, start: int, values: np.ndarray, col: ResolvedColumn,
-                   first_row: int) -> None:
-    f: FieldFormat = col.fmt
-    if col.kind == "str":
-        _format_text(buf, start, values, col, first_row)
-        return
-    if f.code == "I":
-        v = np.ascontiguousarray(values)
-        if v.dtype == np.uint64 and v.size and v.max() > np.iinfo(np.int64).max:
-            raise InputFormatError("uint64 values beyond int64 cannot be printed",
-                                   field=col.label)
-        v = v.astype(np.int64, copy=False)
-        code, row = fw.format_int(v, buf, start, f.width, f.decimals)
-        _check(code, row, v, col, first_row)
-        return
-    v = _real_values(values, col)
-    if f.code == "F":
-        code, row = fw.format_fixed(v, buf, start, f.width, f.decimals, f.zero_pad)
-    else:
-        code, row = fw.format_exp(v, buf, start, f.width, f.decimals)
-    _check(code, row, v, col, first_row)
-    if f == DEFAULT_REAL:
-        _ensure_roundtrip(buf, start, v)
-
-
 def _ensure_roundtrip(buf: np.ndarray, start: int, v: np.ndarray) -> None:
     """Guarantee the default ``E24.16`` text reads back as the same float64.
 
@@ -157,25 +131,161 @@ def _ensure_roundtrip(buf: np.ndarray, start: int, v: np.ndarray) -> None:
             (f"%{width}.{DEFAULT_REAL.decimals}E" % v[i]).encode(), np.uint8)
 
 
+class _Group(NamedTuple):
+    """Columns formatted by one `fixedwidth.format_rows` call, and their sources."""
+
+    columns: list[int]  # indices into the table's columns
+    spec: np.ndarray
+    fills: np.ndarray
+    limits: np.ndarray
+    reals: list[int]  # source index per float64 slot
+    ints: list[int]  # source index per int64 slot
+
+
+class _Rows:
+    """How one table's rows are formatted.
+
+    ``I`` and ``F`` columns are written by `fixedwidth.format_rows` (whole rows, one
+    compiled pass per chunk, read straight from the variables' arrays); ``E`` and ``A``
+    columns by their own kernels afterwards, into the fields left blank.  A source is a
+    variable as a 2-D ``(rows, components)`` array; `fixedwidth.SLOTS` sources of each
+    kind per call, so a table with more variables takes several calls (groups).
+    """
+
+    def __init__(self, cols: Sequence[ResolvedColumn], sources: Sequence[np.ndarray],
+                 source_of: Sequence[tuple[int, int]]) -> None:
+        self.cols = list(cols)
+        self.starts, self.row_bytes = layout(cols)
+        self.sources = list(sources)
+        self.source_of = list(source_of)  # per column: (source index, component)
+        self.others = [j for j, c in enumerate(self.cols) if c.fmt.code in "EA"]
+        self.groups: list[_Group] = []
+        members: list[int] = []
+        slots: dict[str, dict[int, int]] = {"I": {}, "F": {}}
+        for j, c in enumerate(self.cols):
+            if c.fmt.code in "EA":
+                continue
+            keys = slots[c.fmt.code]
+            src = self.source_of[j][0]
+            if src not in keys and len(keys) == fw.SLOTS:
+                self.groups.append(self._group(members, slots))
+                members, slots = [], {"I": {}, "F": {}}
+                keys = slots[c.fmt.code]
+            keys.setdefault(src, len(keys))
+            members.append(j)
+        if members or not self.groups:
+            self.groups.append(self._group(members, slots))
+
+    def _group(self, members: list[int], slots: dict[str, dict[int, int]]) -> _Group:
+        spec = np.zeros((len(members), 8), np.int64)
+        fills = np.zeros(len(members))
+        limits = np.zeros((len(members), 2), np.uint64)
+        for g, j in enumerate(members):
+            c, f = self.cols[j], self.cols[j].fmt
+            src, comp = self.source_of[j]
+            if f.code == "I":  # at least `decimals` digits, a sign takes one place
+                places = f.width if f.decimals <= f.width else 0
+                places_neg = f.width - 1 if f.decimals <= f.width - 1 else 0
+            else:
+                places = f.width - (f.decimals + 1 if f.decimals > 0 else 0)
+                places_neg = places - 1
+            has_fill = c.fill is not None and c.kind == "real"
+            spec[g] = (fw.INT if f.code == "I" else fw.FIXED, slots[f.code][src], comp,
+                       self.starts[j], f.width, f.decimals, int(f.zero_pad), int(has_fill))
+            fills[g] = float(c.fill) if has_fill else 0.0
+            limits[g] = (fw.integer_limit(places), fw.integer_limit(places_neg))
+        return _Group(list(members), spec, fills, limits, list(slots["F"]), list(slots["I"]))
+
+    def _slot_arrays(self, sources: list[int], dtype: type, start: int,
+                     stop: int) -> tuple[np.ndarray, ...]:
+        out = []
+        for src in sources:
+            a = self.sources[src][start:stop]
+            if dtype is np.int64 and a.dtype == np.uint64 and a.size \
+                    and a.max() > np.iinfo(np.int64).max:
+                j = next(j for j, s in enumerate(self.source_of) if s[0] == src)
+                raise InputFormatError("uint64 values beyond int64 cannot be printed",
+                                       field=self.cols[j].label)
+            out.append(np.ascontiguousarray(a, dtype=dtype))
+        pad = np.zeros((0, 1), dtype)
+        return tuple(out + [pad] * (fw.SLOTS - len(out)))
+
+    def format(self, start: int, stop: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Rows ``start:stop`` as a ``(rows, row_bytes)`` uint8 array (``out`` reused)."""
+        if out is None:
+            out = np.empty((stop - start, self.row_bytes), np.uint8)
+        buf = out[: stop - start]
+        for k, g in enumerate(self.groups):
+            reals = self._slot_arrays(g.reals, np.float64, start, stop)
+            ints = self._slot_arrays(g.ints, np.int64, start, stop)
+            code, _, _ = fw.format_rows(buf, reals, ints, g.spec, g.fills, g.limits, k == 0)
+            if code != fw.OK:
+                self._raise_first(g, reals, ints, start)
+        for j in self.others:
+            self._format_other(buf, j, start, stop)
+        return buf
+
+    def _values(self, j: int, start: int, stop: int) -> np.ndarray:
+        src, comp = self.source_of[j]
+        return self.sources[src][start:stop, comp]
+
+    def _format_other(self, buf: np.ndarray, j: int, start: int, stop: int) -> None:
+        c, s = self.cols[j], self.starts[j]
+        values = self._values(j, start, stop)
+        if c.fmt.code == "A":
+            _format_text(buf, s, values, c, start)
+            return
+        v = _real_values(values, c)
+        code, row = fw.format_exp(v, buf, s, c.fmt.width, c.fmt.decimals)
+        _check(code, row, v, c, start)
+        if c.fmt == DEFAULT_REAL:
+            _ensure_roundtrip(buf, s, v)
+
+    def _raise_first(self, g: _Group, reals: tuple[np.ndarray, ...],
+                     ints: tuple[np.ndarray, ...], start: int) -> None:
+        """Raise for the first failing row of the first failing column (column order)."""
+        n = reals[0].shape[0] if g.reals else ints[0].shape[0]
+        scratch = np.empty((n, self.row_bytes), np.uint8)
+        for k, j in enumerate(g.columns):
+            code, row, _ = fw.format_rows(scratch, reals, ints, g.spec[k:k + 1],
+                                          g.fills[k:k + 1], g.limits[k:k + 1], True)
+            if code != fw.OK:
+                c = self.cols[j]
+                v = self._values(j, start, start + n)
+                _check(code, row, _real_values(v, c) if c.fmt.code == "F" else v, c, start)
+        raise AssertionError("format_rows failed, but no column alone")  # unreachable
+
+
+def _sources(ds: xr.Dataset, cols: Sequence[ResolvedColumn]
+             ) -> tuple[list[np.ndarray], list[tuple[int, int]]]:
+    """Each variable once, as ``(rows, components)``; per column (source, component)."""
+    index: dict[str, int] = {}
+    sources: list[np.ndarray] = []
+    source_of = []
+    for c in cols:
+        if c.variable not in index:
+            a = ds[c.variable].values
+            index[c.variable] = len(sources)
+            sources.append(a.reshape(a.shape[0], 1) if a.ndim == 1 else a)
+        source_of.append((index[c.variable], 0 if c.index is None else c.index))
+    return sources, source_of
+
+
 def format_chunk(ds: xr.Dataset, cols: Sequence[ResolvedColumn], start: int,
                  stop: int, arrays: Sequence[np.ndarray] | None = None,
                  out: np.ndarray | None = None) -> np.ndarray:
     """Rows ``start:stop`` of the table as a ``(rows, row_bytes)`` uint8 array.
 
-    ``out`` (at least ``stop - start`` rows) is reused when given: a fresh buffer per
-    chunk would cost a page fault per 4 KiB, about as much as the formatting.
+    ``arrays`` (one per column, optional) replace the dataset's values.  ``out`` (at
+    least ``stop - start`` rows) is reused when given: a fresh buffer per chunk would
+    cost a page fault per 4 KiB, about as much as the formatting.
     """
-    starts, row_bytes = layout(cols)
-    if out is None:
-        out = np.empty((stop - start, row_bytes), np.uint8)
-    buf = out[: stop - start]
-    buf.fill(32)
-    buf[:, -2:] = np.frombuffer(EOL, np.uint8)
     if arrays is None:
-        arrays = [_column_array(ds, c) for c in cols]
-    for c, s, arr in zip(cols, starts, arrays, strict=True):
-        _format_column(buf, s, arr[start:stop], c, start)
-    return buf
+        sources, source_of = _sources(ds, cols)
+    else:
+        sources = [a.reshape(a.shape[0], 1) for a in arrays]
+        source_of = [(j, 0) for j in range(len(cols))]
+    return _Rows(cols, sources, source_of).format(start, stop, out)
 
 
 def _text(s: str) -> str:
@@ -329,12 +439,12 @@ def write_tab(
     tab = stem.with_name(stem.name + ".TAB")
     lbl = stem.with_name(stem.name + ".LBL")
     label = render_label(label_module(ds, cols, tab.name, label_extra))
-    arrays = [_column_array(ds, c) for c in cols]
+    rows = _Rows(cols, *_sources(ds, cols))
     with atomic_group(), atomic_path(tab) as tmp_tab, atomic_path(lbl) as tmp_lbl:
-        out = np.empty((min(n, CHUNK_ROWS), layout(cols)[1]), np.uint8)
+        out = np.empty((min(n, CHUNK_ROWS), rows.row_bytes), np.uint8)
         with open(tmp_tab, "wb") as f:
             for start in range(0, n, CHUNK_ROWS):
-                f.write(format_chunk(ds, cols, start, min(n, start + CHUNK_ROWS), arrays, out))
+                f.write(rows.format(start, min(n, start + CHUNK_ROWS), out))
         tmp_lbl.write_text(label, encoding="ascii", newline="")
     return [tab, lbl]
 
