@@ -101,3 +101,37 @@ def test_fast_grammar_character_check_agrees_with_pvl():
 
     fast, ref = _Grammar(), PDSGrammar()
     assert all(fast.char_allowed(chr(o)) == ref.char_allowed(chr(o)) for o in range(0x3000))
+
+
+def _fresh(module: pvl.PVLModule) -> str:
+    """pvl's text with a new encoder: nothing remembered from earlier labels."""
+    from fluxcal.products.label import _Encoder
+
+    return pvl.dumps(module, encoder=_Encoder())
+
+
+def _block(value: object) -> pvl.PVLModule:
+    col = pvl.PVLObject([("NAME", "BX"), ("VALUE", value)])
+    return pvl.PVLModule([("PDS_VERSION_ID", Symbol("PDS3")), ("COLUMN", col)])
+
+
+def test_remembered_blocks_tell_apart_values_that_compare_equal() -> None:
+    """0.0/-0.0, 1/True/1.0, a symbol and the same letters as text: one text each.
+
+    Expected texts from a fresh pvl encoder (nothing remembered) for each label, after
+    every other label was rendered once through the shared encoder.
+    """
+    values = [0.0, -0.0, 1, True, 1.0, Symbol("ABC"), "ABC", [1, 2], [1.0, 2.0]]
+    for v in values:  # fill the shared encoder's memory with every variant first
+        render_label(_block(v))
+    texts = [render_label(_block(v)) for v in values]
+    assert texts == [_fresh(_block(v)) for v in values]
+    assert len(set(texts)) == len(values)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.dictionaries(_text, _values, max_size=4), st.dictionaries(_text, _values, max_size=4))
+def test_label_text_does_not_depend_on_earlier_labels(a: dict, b: dict) -> None:
+    """Rendering ``a``, ``b`` and ``a`` again gives pvl's fresh text of each every time."""
+    mods = [pvl.PVLModule([("DATASET_ATTRIBUTES", attributes_object(x))]) for x in (a, b, a)]
+    assert [render_label(m) for m in mods] == [_fresh(m) for m in mods]

@@ -3,7 +3,9 @@
 Writing goes through `pvl.PDSLabelEncoder` (uppercase keywords, ``OBJECT``/
 ``END_OBJECT`` blocks, CRLF, ``END``), with one change: every text value is
 double-quoted and bare symbols are marked explicitly with `Symbol`, so a string never
-turns into another type on reading.  Reading goes through ``pvl.loads`` with the PDS
+turns into another type on reading.  The encoder remembers the text of each OBJECT and
+GROUP block by content (`_frozen`): the COLUMN objects and shared attributes of a day's
+products are encoded once, not once per product.  Reading goes through ``pvl.loads`` with the PDS
 grammar and decoder.
 
 PDS3 text strings cannot hold a double quote and readers fold whitespace, so a string
@@ -77,6 +79,7 @@ class _Encoder(pvl.PDSLabelEncoder):
 
     def __init__(self) -> None:
         super().__init__(grammar=_Grammar(), symbol_single_quote=False)
+        self._blocks: dict[tuple[Any, ...], str] = {}
 
     def encode_module(self, module: Mapping[str, Any], level: int = 0) -> str:
         """One ``KEY = value`` per line, not padded to align (stable, greppable lines)."""
@@ -86,6 +89,25 @@ class _Encoder(pvl.PDSLabelEncoder):
             for k, v in module.items()
         ]
         return self.newline.join(lines)
+
+    def encode_aggregation_block(self, key: str, value: Mapping[str, Any],
+                                 level: int = 0) -> str:
+        """Return pvl's text of the block, remembered by content.
+
+        Identical blocks (the COLUMN objects of every frame and day, the shared
+        ATTRIBUTE objects) are encoded once.
+        """
+        content = _frozen(value)
+        if content is None:
+            return super().encode_aggregation_block(key, value, level)
+        memo_key = (key, level, type(value), content)
+        text = self._blocks.get(memo_key)
+        if text is None:
+            text = super().encode_aggregation_block(key, value, level)
+            if len(self._blocks) >= _MAX_BLOCKS:
+                self._blocks.clear()
+            self._blocks[memo_key] = text
+        return text
 
     def encode_string(self, value: Any) -> str:
         s = str(value)
@@ -98,9 +120,41 @@ class _Encoder(pvl.PDSLabelEncoder):
         return '"' + s + '"'
 
 
+_MAX_BLOCKS = 4096  # remembered block texts (a few MB at most)
+
+
+def _frozen(value: Any) -> tuple[Any, ...] | None:
+    """Return a hashable image of a label value that tells apart every encoding.
+
+    Types are kept (a `Symbol` is not the text of the same letters, ``True`` is not
+    ``1``) and floats by their ``repr`` (``-0.0`` is not ``0.0``); None for a value of
+    another kind (such a block is not remembered).
+    """
+    if isinstance(value, Mapping):
+        items = []
+        for k, v in value.items():
+            f = _frozen(v)
+            if f is None:
+                return None
+            items.append((k, f))
+        return (type(value), tuple(items))
+    if isinstance(value, (list, tuple)):
+        parts = [_frozen(v) for v in value]
+        return None if any(p is None for p in parts) else (type(value), tuple(parts))
+    if type(value) in (str, Symbol, int, bool):
+        return (type(value), value)
+    if type(value) is float:
+        return (float, repr(value))
+    return None
+
+
 @lru_cache(maxsize=1)
 def _encoder() -> _Encoder:
-    """One encoder for every label (building one costs about 25 ms; it keeps no state)."""
+    """One encoder for every label (building one costs about 25 ms).
+
+    Its only state is the text of blocks already encoded
+    (`_Encoder.encode_aggregation_block`), a pure function of their content.
+    """
     return _Encoder()
 
 
