@@ -161,3 +161,28 @@ def test_split_days_at_utc_midnight_of_the_recorded_time():
     assert [products.day_code(d)[2] for d in days] == ["12153", "12154", "12156"]
     with pytest.raises(InputFormatError):
         products.split_days(day.isel(time=[1, 0]))
+
+
+def test_computed_frame_is_reordered_in_place_like_a_copy():
+    """A frame computed for its product is put in time order in its own array (no copy)."""
+    epoch = T0 + np.array([0, 50, 100, 100, 150, 150, 150, 120], dtype=np.int64) * 1_000_000
+    index, _ = products.time_order(epoch)
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=(epoch.size, 3))
+    expected = values[index]  # numpy fancy indexing: the independent reference
+    var = xr.Variable(("time", "component"), values.copy())
+    got = products._reorder_owned(var, index, np.empty(epoch.size))
+    np.testing.assert_array_equal(got.values, expected)
+    assert np.shares_memory(got.values, var.values) and got.values.flags.c_contiguous
+    scalar = xr.Variable(("time",), values[:, 0].copy())
+    np.testing.assert_array_equal(
+        products._reorder_owned(scalar, index, np.empty(epoch.size)).values, expected[:, 0])
+
+
+@pytest.mark.parametrize("quality", [np.array([222, 100, 100, 0, 212], dtype=np.int16),
+                                     np.array([110.0, 110.0, 211.0])])
+def test_quality_keywords_count_each_flag(quality):
+    flags, counts = np.unique(quality, return_counts=True)  # numpy's count as reference
+    kw = products._quality_keywords(quality)
+    assert kw == {"DATA_QUALITY_ID": [f"{int(q):03d}" for q in flags],
+                  "FLUXCAL_QUALITY_SAMPLES": counts.tolist()}

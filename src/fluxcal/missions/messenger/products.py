@@ -113,11 +113,37 @@ def _take(ds: xr.Dataset, names: Sequence[str], index: np.ndarray | None) -> xr.
                       attrs=dict(ds.attrs))
 
 
+def _reorder_owned(var: xr.Variable, index: np.ndarray, buffer: np.ndarray) -> xr.Variable:
+    """``var`` at ``index``, reordered in its own array one column at a time through ``buffer``.
+
+    For arrays nothing else holds (a frame computed for this product): no second copy of
+    the whole array; the result is the first ``index.size`` rows of the same array.
+    """
+    values = var.values
+    m = index.size
+    if values.ndim == 1:
+        np.take(values, index, out=buffer[:m])
+        values[:m] = buffer[:m]
+    else:
+        for c in range(values.shape[1]):
+            np.take(values[:, c], index, out=buffer[:m])
+            values[:m, c] = buffer[:m]
+    return xr.Variable(var.dims, values[:m], var.attrs)
+
+
 def _with_frame(base: xr.Dataset, ds: xr.Dataset, frame: str,
-                index: np.ndarray | None) -> xr.Dataset:
-    """Add one frame's field and position (`frame_variables`), in ``index`` order, to ``base``."""
-    return base.assign({name: _at(var, index)
-                        for name, var in frame_variables(ds, frame).items()})
+                index: np.ndarray | None, buffer: np.ndarray | None = None) -> xr.Dataset:
+    """Add one frame's field and position (`frame_variables`), in ``index`` order, to ``base``.
+
+    Variables of ``ds`` are copied in that order; those computed for this frame are
+    reordered in place (`_reorder_owned`) when a float ``buffer`` of ``ds``'s length is given.
+    """
+    out = {}
+    for name, var in frame_variables(ds, frame).items():
+        owned = (index is not None and buffer is not None and name not in ds
+                 and var.dtype == buffer.dtype and var.values.flags.c_contiguous)
+        out[name] = _reorder_owned(var, index, buffer) if owned else _at(var, index)
+    return base.assign(out)
 
 
 def _log_order(ds: xr.Dataset, report: OrderReport) -> None:
@@ -262,6 +288,7 @@ def average(
     *,
     bins: averaging.Bins | None = None,
     sclk=None,
+    met: np.ndarray | None = None,
 ) -> xr.Dataset:
     """Average a product over ``seconds``-long bins counted from the day start.
 
@@ -270,7 +297,8 @@ def average(
     ``b_std`` (population standard deviation per component, two-pass:
     `fluxcal.calibration.averaging.bin_mean_std`), ``b_total`` (|mean B|), ``quality``
     (the largest flag in the bin) and, when the product has ``met``, the lag-corrected
-    MET of the bin centre (through the SCLK kernel ``sclk``, default the loaded one).
+    MET of the bin centre (``met`` when given, e.g. shared by several frames; else through
+    the SCLK kernel ``sclk``, default the loaded one).
 
     References
     ----------
@@ -307,7 +335,8 @@ def average(
         az = averaging.bin_mean(bins, az)
         data["azimuth"] = ("time", (az + 180.0) % 360.0 - 180.0, dict(prod["azimuth"].attrs))
     if "met" in prod:
-        data["met"] = ("time", _met_at(bins.centre, sclk), dict(
+        met = _met_at(bins.centre, sclk) if met is None else met
+        data["met"] = ("time", met, dict(
             prod["met"].attrs, description="lag-corrected MET of the interval centre"))
     coords = {k: v for k, v in prod.coords.items() if k != "epoch"}
     coords["epoch"] = ("time", bins.centre, prod["epoch"].attrs)
@@ -413,15 +442,25 @@ def table_columns(frame: str, averaged: bool) -> list:
 
 def _quality_keywords(quality: np.ndarray) -> dict:
     """Return the SHC flags present, for the label and the CDF (not a table column)."""
-    flags, counts = np.unique(quality, return_counts=True)
+    quality = np.asarray(quality)
+    if quality.dtype.kind in "iu" and quality.size and quality.min() >= 0:  # Table 5: 0..222
+        counts = np.bincount(quality.ravel())
+        flags = np.flatnonzero(counts)
+        counts = counts[flags]
+    else:
+        flags, counts = np.unique(quality, return_counts=True)
     return {"DATA_QUALITY_ID": [f"{int(q):03d}" for q in flags],
             "FLUXCAL_QUALITY_SAMPLES": [int(c) for c in counts]}
 
 
 def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], columns: list,
            tab_extra: dict, cdf_extra: dict, istp: dict, day: np.datetime64,
-           version: int, utc: dict[str, xr.Variable] | None = None) -> list[Path]:
+           version: int, utc: dict[str, xr.Variable] | None = None,
+           quality: dict | None = None) -> list[Path]:
     """Write the TAB (archive name, with its UTC columns) and the other formats.
+
+    ``utc`` and ``quality`` (`_quality_keywords`) are computed from ``prod`` when not given
+    (`write_day` shares them between the frames of one time grid).
 
     The CDF (and netCDF/Zarr) get the ISTP file name ``<logical_source>_<yyyymmdd>_v<nn>``
     (`fluxcal.products.cdf.istp_file_stem`, equal to their ``Logical_file_id``).
@@ -429,7 +468,8 @@ def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], c
     from fluxcal.products.cdf import istp_file_stem
 
     written: list[Path] = []
-    quality = _quality_keywords(prod["quality"].values)
+    if quality is None:
+        quality = _quality_keywords(prod["quality"].values)
     if "tab" in formats:
         tab = prod.assign(utc if utc is not None else utc_columns(prod["epoch"].values))
         written += write_product(tab, out_dir / name, ("tab",), columns,
@@ -494,36 +534,44 @@ def write_day(
     istp = {"global_yaml": global_yaml, "variable_yaml": variable_yaml}
     order_kw = report.label_keywords()
     day = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
-    # the table's UTC columns: once per time grid, shared by every frame
+    # per time grid, shared by every frame: the table's UTC columns, the averages' MET
+    # (interval centres) and the quality keywords
     utc: dict = {}
     if "tab" in formats:
         utc[None] = utc_columns(epoch)
         utc.update({s: utc_columns(b.centre) for s, b in bins.items()})
+    met = {s: _met_at(b.centre, sclk) for s, b in bins.items()}
+    quality: dict = {None: _quality_keywords(base["quality"].values)}
+    # a fast -> slow day's computed frames are put in time order in place through this
+    buffer = np.empty(epoch.size) if index is not None else None
     written: list[Path] = []
     total = len(frames) * (1 + len(averages))
     done = 0
     with atomic_group():
         for frame in frames:
-            # one frame's field and position at a time: a sort copies only those
-            prod = product_dataset(_with_frame(base, ds, frame, index), frame)
+            # one frame's field and position at a time (computed here, `frame_variables`)
+            prod = product_dataset(_with_frame(base, ds, frame, index, buffer), frame)
             prod.attrs.update(provenance)
             for sec in (None, *averages):
                 name = product_name(frame, yyddd, version, sec)
                 tab_extra = {"PRODUCT_ID": name, "PRODUCT_VERSION_ID": f"V{int(version):02d}",
                              "COORDINATE_SYSTEM_NAME": FRAMES[frame][0], **order_kw}
                 cdf_extra = {**istp_product_attrs(frame, sec), **order_kw}
-                if sec is None:
+                key = None if sec is None else int(sec)
+                if key is None:
                     out = prod
                 else:
-                    out = average(prod, int(sec), day0, bins=bins[int(sec)], sclk=sclk)
+                    out = average(prod, key, day0, bins=bins[key], sclk=sclk, met=met[key])
                     tab_extra["AVERAGING_INTERVAL_S"] = cdf_extra["AVERAGING_INTERVAL_S"] = sec
+                    if key not in quality:  # the largest flag per interval: frame-independent
+                        quality[key] = _quality_keywords(out["quality"].values)
                 columns = table_columns(frame, sec is not None)
                 written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
-                                  istp, day, version, utc.get(None if sec is None else int(sec)))
+                                  istp, day, version, utc.get(key), quality[key])
                 done += 1
                 if progress is not None:
                     progress(f"{yyddd} {name}", done, total)
-            # free this frame's copies before the next frame's are made (peak memory)
+            # free this frame's arrays before the next frame's are made (peak memory)
             del prod, out
     return written
 
