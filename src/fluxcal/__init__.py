@@ -5,11 +5,25 @@ voltages) into calibrated magnetic-field products in physical frames.  Implement
 MESSENGER MAG EDR-to-CDR procedure and the Rosetta RPC-MAG step-by-step calibration.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("fluxcal")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0.0.0+unknown"
+from functools import cache
 
 __all__ = ["__version__"]
+
+
+@cache
+def _version() -> str:
+    """Return the installed distribution's version (``importlib.metadata``, read once)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("fluxcal")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0.0.0+unknown"
+
+
+def __getattr__(name: str) -> str:
+    # ``__version__`` is looked up on first use (PEP 562): importing importlib.metadata
+    # and scanning the installed distributions is not needed for ``fluxcal --help``.
+    if name == "__version__":
+        return _version()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -6,16 +6,18 @@ Sub-commands are defined next to the code they drive (``missions/<m>/cli.py``,
 
 from __future__ import annotations
 
+import atexit
 import errno
+import gc
 import logging
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
-from fluxcal import __version__
 from fluxcal.errors import FluxcalError
 
 app = typer.Typer(
@@ -45,6 +47,8 @@ def _root(
 @app.command()
 def version() -> None:
     """Print the fluxcal version."""
+    from fluxcal import __version__
+
     typer.echo(__version__)
 
 
@@ -78,6 +82,47 @@ _register()
 
 
 DEBUG_ENV = "FLUXCAL_DEBUG"
+
+#: Full (generation-2) collections during a command: at most one per this many
+#: generation-1 collections (CPython's default: 10).
+FULL_COLLECTION_EVERY = 100
+
+
+@contextmanager
+def _long_lived_imports() -> Iterator[None]:
+    """Keep the cyclic garbage collector off the imported modules while a command runs.
+
+    A command's process holds some 250,000 container objects of imported modules
+    (xarray, pandas, numba, dask, matplotlib) that live until exit.  CPython's full
+    collection walks all of them; with its default thresholds a cold ``edr2cdr`` ran
+    three during the run (0.3-0.5 s on the benchmark machine).  Here the objects alive
+    at the start are frozen (`gc.freeze`: never walked, never collected) and full
+    collections are ten times rarer; young collections run as usual, so short-lived
+    cycles are still freed promptly.  Both are undone on leaving, so a caller's process
+    (tests, a notebook) keeps its collector as it was.
+    """
+    threshold = gc.get_threshold()
+    gc.freeze()
+    gc.set_threshold(threshold[0], threshold[1], max(threshold[2], FULL_COLLECTION_EVERY))
+    try:
+        yield
+    finally:
+        gc.set_threshold(*threshold)
+        gc.unfreeze()
+
+
+def _freeze_at_exit() -> None:
+    """Skip the interpreter's final walks over every object (0.3-0.6 s of exit).
+
+    Runs as an `atexit` handler, after the command: every product is written and
+    closed by then; objects alive at exit are freed by reference counting as usual,
+    only cycles are left to the operating system (Python never promised their
+    ``__del__`` at exit).
+    """
+    gc.freeze()
+
+
+atexit.register(_freeze_at_exit)
 
 
 def _debug_requested(args: list[str]) -> bool:
@@ -183,7 +228,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = _debug_requested(args)
     guard = _LeaveNothing(_out_folder(args))
     try:
-        code = app(args=args, prog_name="fluxcal", standalone_mode=False)
+        with _long_lived_imports():
+            code = app(args=args, prog_name="fluxcal", standalone_mode=False)
     except SystemExit as exc:
         return int(exc.code or 0)
     except (FluxcalError, OSError) as exc:

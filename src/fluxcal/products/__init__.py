@@ -39,20 +39,30 @@ Formats: ``tab`` (fixed-width ``.TAB`` + PDS3 ``.LBL``, via pvl), ``cdf`` (ISTP,
 are atomic.  See ``docs/formats/products.md``.
 """
 
-from fluxcal.products.cdf import read_cdf, write_cdf
-from fluxcal.products.columns import Column
-from fluxcal.products.netcdf import (
-    netcdf_engine,
-    read_netcdf,
-    read_zarr,
-    write_netcdf,
-    write_zarr,
-    zarr_available,
-)
-from fluxcal.products.provenance import provenance_attrs, sha256_file
-from fluxcal.products.tab import read_tab, write_tab
-from fluxcal.products.writer import FORMATS, read_product, write_product
+from importlib import import_module
+from typing import Any
 
+#: Public name -> module that defines it; imported on first use (PEP 562), so that
+#: ``fluxcal.products.cli`` and the ``fluxcal --help`` listing do not load xarray,
+#: cdflib and pvl.
+_SOURCE = {
+    "FORMATS": "writer",
+    "Column": "columns",
+    "netcdf_engine": "netcdf",
+    "provenance_attrs": "provenance",
+    "read_cdf": "cdf",
+    "read_netcdf": "netcdf",
+    "read_product": "writer",
+    "read_tab": "tab",
+    "read_zarr": "netcdf",
+    "sha256_file": "provenance",
+    "write_cdf": "cdf",
+    "write_netcdf": "netcdf",
+    "write_product": "writer",
+    "write_tab": "tab",
+    "write_zarr": "netcdf",
+    "zarr_available": "netcdf",
+}
 __all__ = [
     "FORMATS",
     "Column",
@@ -71,3 +81,16 @@ __all__ = [
     "write_zarr",
     "zarr_available",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _SOURCE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_SOURCE})

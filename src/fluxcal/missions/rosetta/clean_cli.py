@@ -23,12 +23,15 @@ import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
-import xarray as xr
 
 from fluxcal.errors import FluxcalError, InputFormatError
+
+if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
+    import numpy as np
+    import xarray as xr
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +79,8 @@ def _columns(level: str, ds: xr.Dataset) -> list:
 
 
 def _day(epoch: np.ndarray, lsk) -> str:
+    import numpy as np
+
     from fluxcal.geometry.time import tt2000_to_utc
 
     return str(tt2000_to_utc(np.asarray(epoch[:1]), digits=0, lsk=lsk)[0])[:10].replace("-", "")
@@ -125,6 +130,8 @@ def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
     InputFormatError
         Wrong header or field count, unparsable time, or stop <= start (names the line).
     """
+    import numpy as np
+
     from fluxcal.geometry.time import utc_to_tt2000
 
     path = Path(path)
@@ -187,6 +194,8 @@ def read_heater_states(path: Path, lsk=None) -> tuple[np.ndarray, np.ndarray, li
     InputFormatError
         Wrong header, field count, unparsable time or state (names the line).
     """
+    import numpy as np
+
     from fluxcal.geometry.time import utc_to_tt2000
 
     path = Path(path)
@@ -233,6 +242,7 @@ def read_heater_states(path: Path, lsk=None) -> tuple[np.ndarray, np.ndarray, li
 def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: str) -> Path:
     """Before/after dynamic spectra (trace PSD) of the longest cleaned mode, as PNG."""
     import matplotlib
+    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -306,6 +316,8 @@ def _save(fig, path: Path) -> Path:
 
 def _read(path: Path, lsk=None) -> xr.Dataset:
     """Read a level product; a table (no ``epoch`` column) gets ``epoch`` from TIME.UTC."""
+    import numpy as np
+
     from fluxcal.geometry.time import utc_to_tt2000
     from fluxcal.products import read_product
 

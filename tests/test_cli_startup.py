@@ -1,0 +1,93 @@
+"""Start-up cost of the ``fluxcal`` command (issue 10 item 8).
+
+``import fluxcal.cli`` (and so ``fluxcal --help``) loads no numerical library: every
+sub-command imports what it needs when it runs.  `fluxcal.cli.main` keeps the cyclic
+garbage collector off the objects alive when it starts and gives the caller's
+collector back unchanged.
+"""
+
+from __future__ import annotations
+
+import gc
+import json
+import subprocess
+import sys
+
+import pytest
+
+import fluxcal.products
+from fluxcal.cli import main
+
+HEAVY = ("numpy", "xarray", "pandas", "numba", "scipy", "dask", "matplotlib", "cdflib",
+         "pvl", "spiceypy", "pyarrow", "importlib.metadata")
+
+
+def _modules_after(code: str) -> set[str]:
+    out = subprocess.run([sys.executable, "-c", code + "\nimport sys, json\n"
+                          "print(json.dumps(sorted(sys.modules)))"],
+                         capture_output=True, text=True, check=True).stdout
+    return set(json.loads(out.splitlines()[-1]))
+
+
+def test_import_of_the_cli_loads_no_numerical_library():
+    loaded = _modules_after("import fluxcal.cli")
+    assert not [m for m in HEAVY if m in loaded]
+
+
+def test_help_lists_every_command_without_numerical_libraries():
+    code = ("import contextlib, io\nfrom fluxcal.cli import main\nbuf = io.StringIO()\n"
+            "with contextlib.redirect_stdout(buf):\n    main(['--help'])\n"
+            "assert all(c in buf.getvalue() for c in ('messenger', 'rosetta', 'simulate', "
+            "'plot', 'batch', 'compare', 'version', 'demo')), buf.getvalue()")
+    loaded = _modules_after(code)
+    assert not [m for m in HEAVY if m in loaded]
+
+
+@pytest.mark.parametrize("argv", [["version"], ["no-such-command"],
+                                  ["messenger", "edr2cdr", "--help"]])
+def test_main_gives_the_garbage_collector_back_unchanged(argv, capsys):
+    threshold, frozen = gc.get_threshold(), gc.get_freeze_count()
+    main(argv)
+    assert gc.get_threshold() == threshold
+    assert gc.get_freeze_count() == frozen
+
+
+def test_main_freezes_the_objects_alive_at_its_start(monkeypatch):
+    seen = {}
+
+    def command(*args, **kwargs):
+        seen["frozen"] = gc.get_freeze_count()
+        seen["threshold"] = gc.get_threshold()
+        return 0
+
+    import fluxcal.cli
+
+    before = gc.get_freeze_count()
+    monkeypatch.setattr(fluxcal.cli, "app", command)
+    assert main(["anything"]) == 0
+    assert seen["frozen"] > before
+    assert seen["threshold"][2] >= fluxcal.cli.FULL_COLLECTION_EVERY
+    assert gc.get_freeze_count() == before
+
+
+def test_products_names_load_on_first_use():
+    from fluxcal.products import Column, write_product
+    from fluxcal.products.columns import Column as column_class
+    from fluxcal.products.writer import write_product as writer_function
+
+    assert Column is column_class and write_product is writer_function
+    assert set(fluxcal.products.__all__) <= set(dir(fluxcal.products))
+    for name in fluxcal.products.__all__:
+        assert getattr(fluxcal.products, name) is not None
+    with pytest.raises(AttributeError, match="no_such_name"):
+        fluxcal.products.no_such_name  # noqa: B018
+
+
+def test_version_attribute_is_the_installed_distribution():
+    from importlib.metadata import version
+
+    import fluxcal
+
+    assert fluxcal.__version__ == version("fluxcal")
+    with pytest.raises(AttributeError, match="__no_such__"):
+        fluxcal.__no_such__  # noqa: B018
