@@ -236,3 +236,15 @@ def test_crlf_lines_and_column_order(tmp_path):
     data = readers._parse_plain(_write(tmp_path, "p.csv", lines), 7, order)
     np.testing.assert_array_equal(data.T, [[1, 1000.0, 10, 0, 1, 2, 3],
                                            [2, 1000.5, 9, 1, -1, -2, -3]])
+
+
+def test_partition_order_decides_before_met(tmp_path):
+    """A new clock partition may restart MET; a partition going back is an error."""
+    ok = _write(tmp_path, "ok.csv", [SCI_HEADER, "1,5000.0,10,0,1,2,3", "2,10.0,10,0,1,2,3",
+                                     "2,10.05,10,0,1,2,3"])
+    assert read_science(ok)["partition"].values.tolist() == [1, 2, 2]
+    bad = _write(tmp_path, "bad.csv", [SCI_HEADER, "2,10.0,10,0,1,2,3", "2,11.0,10,0,1,2,3",
+                                       "1,5000.0,10,0,1,2,3"])
+    with pytest.raises(InputFormatError, match="backwards") as info:
+        read_science(bad)
+    assert info.value.line == 4 and info.value.field == "met"

@@ -264,6 +264,20 @@ def _check_integer(
         )
 
 
+@njit(cache=True, nogil=True)
+def _first_backwards(partition, met):  # pragma: no cover - compiled
+    """First ``i`` whose (partition, MET) step goes back, or -1.
+
+    A step goes back when ``partition[i] - partition[i-1] < 0``, or when that difference
+    is zero and ``met[i] - met[i-1] < 0`` (NaN differences do not).
+    """
+    for i in range(1, partition.size):
+        dp = partition[i] - partition[i - 1]
+        if dp < 0.0 or (dp == 0.0 and met[i] - met[i - 1] < 0.0):
+            return i
+    return -1
+
+
 def _check_order(paths: list[Path], tables: list[np.ndarray], stream: str) -> None:
     """MET (within the clock partition order) must never go backwards, across files too."""
     prev: tuple[float, float, Path, int] | None = None
@@ -271,9 +285,8 @@ def _check_order(paths: list[Path], tables: list[np.ndarray], stream: str) -> No
         if data.shape[1] == 0:
             continue
         key_p, key_m = data[0], data[1]
-        back = (np.diff(key_p) < 0) | ((np.diff(key_p) == 0) & (np.diff(key_m) < 0))
-        if back.any():
-            row = int(np.flatnonzero(back)[0]) + 1
+        row = _first_backwards(key_p, key_m)
+        if row >= 0:
             raise InputFormatError(
                 f"{stream}: MET goes backwards ({key_m[row - 1]!r} -> {key_m[row]!r})",
                 path=str(path), line=row + 2, field="met",
