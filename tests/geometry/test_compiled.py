@@ -229,7 +229,7 @@ def test_rtn_spherical_interp_is_numpy_bit_for_bit(order, m):
     np.testing.assert_allclose(out[:, 0], expected[:, 0], rtol=1e-15)
 
 
-def test_interp_at_non_finite_cases_as_numpy():
+def test_interp_into_non_finite_cases_as_numpy():
     # NaN epoch -> NaN; an infinite value at a node: numpy's fall-back from the right node
     grid = np.array([0.0, 1.0, 2.0, 3.0])
     lat = np.array([0.0, np.inf, np.inf, 1.0])
@@ -241,3 +241,72 @@ def test_interp_at_non_finite_cases_as_numpy():
         expected = _rtn_spherical_numpy(sun, et, grid, lat, az)
     compiled.rtn_spherical_interp(sun, et, grid, lat, az, out)
     np.testing.assert_array_equal(out[:, 1:], expected[:, 1:])
+
+
+def _table(rng: np.random.Generator, kind: str):
+    if kind == "identity":
+        return compiled.IDENTITY_TABLE
+    if kind == "single":
+        return compiled.slerp_table(np.array([500.0]), Rotation.random(
+            1, random_state=rng).as_quat())
+    return compiled.slerp_table(*_leg(rng, int(rng.integers(2, 40))))
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    attitude=st.sampled_from(["moving", "single"]),
+    legs=st.tuples(st.sampled_from(["moving", "single", "identity"]),
+                   st.sampled_from(["moving", "single", "identity"])),
+    order=st.sampled_from(["sorted", "shuffled"]),
+    pole=st.sampled_from(["none", "fixed", "per sample"]),
+    write=st.tuples(st.booleans(), st.booleans(), st.booleans(), st.booleans()),
+)
+def test_attitude_frames_is_the_separate_passes_bit_for_bit(seed, attitude, legs, order, pole,
+                                                            write):
+    # expected: slerp_rotate (itself checked against scipy matrices above), unit_rows and
+    # rtn_rotate, each in its own pass; equality, not a tolerance (a frame computed later
+    # from the J2000 field with Rotator must equal the one computed in the single pass)
+    rng = np.random.default_rng(seed)
+    et = _epochs(rng, 300, 1000.0, order)
+    n = et.size
+    source = _table(rng, attitude)
+    targets = [_table(rng, kind) for kind in legs]
+    field = rng.normal(size=(n, 3)) * 3e4
+    sun = rng.normal(size=(n, 3)) * 5e7
+    planet = rng.normal(size=(n, 3)) * 1e4
+    axis = {"none": np.empty((0, 3)), "fixed": np.array([[0.12, -0.21, 0.97]]),
+            "per sample": rng.normal(size=(n, 3))}[pole]
+    write_inertial, write_sun, write_pos, write_field = write
+    empty = np.empty((0, 3))
+
+    def buffer(wanted):
+        return np.full((n, 3), np.nan) if wanted else empty
+
+    got = {"inertial": buffer(write_inertial), "sun": buffer(write_sun),
+           "rtn": buffer(pole != "none")}
+    leg_outs = [(buffer(write_pos), buffer(write_field)) for _ in targets]
+    compiled.attitude_frames(source, *targets, et, field, sun, planet, axis, got["inertial"],
+                             got["sun"], *leg_outs, got["rtn"])
+
+    unit = np.empty_like(sun)
+    compiled.unit_rows(sun, -1.0, unit)
+    inertial, sun_body = np.empty_like(field), np.empty_like(field)
+    compiled.slerp_rotate(*source, *compiled.IDENTITY_TABLE, et, (field, unit), (False, True),
+                          (inertial, sun_body))
+    if write_inertial:
+        np.testing.assert_array_equal(got["inertial"], inertial)
+    if write_sun:
+        np.testing.assert_array_equal(got["sun"], sun_body)
+    if pole != "none":
+        expected = np.empty_like(field)
+        compiled.rtn_rotate(sun, axis, inertial, expected)
+        np.testing.assert_array_equal(got["rtn"], expected)
+    for table, (pos_out, field_out) in zip(targets, leg_outs, strict=True):
+        pos, rotated = np.empty_like(field), np.empty_like(field)
+        compiled.slerp_rotate(*compiled.IDENTITY_TABLE, *table, et, (planet, inertial),
+                              (False, False), (pos, rotated))
+        if write_pos:
+            np.testing.assert_array_equal(pos_out, pos)
+        if write_field:
+            np.testing.assert_array_equal(field_out, rotated)

@@ -77,15 +77,52 @@ def _interval(nodes, t, hint):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _rotate_into(x, y, z, w, v, out, j):
-    """``out[j] = R(q) v[j]`` for ``q = (x, y, z, w)``, via ``t = 2 u x v``."""
-    vx, vy, vz = v[j, 0], v[j, 1], v[j, 2]
+def _rotate(x, y, z, w, vx, vy, vz):
+    """``R(q) v`` for ``q = (x, y, z, w)``, via ``t = 2 u x v``."""
     tx = 2.0 * (y * vz - z * vy)
     ty = 2.0 * (z * vx - x * vz)
     tz = 2.0 * (x * vy - y * vx)
-    out[j, 0] = vx + w * tx + (y * tz - z * ty)
-    out[j, 1] = vy + w * ty + (z * tx - x * tz)
-    out[j, 2] = vz + w * tz + (x * ty - y * tx)
+    return (vx + w * tx + (y * tz - z * ty),
+            vy + w * ty + (z * tx - x * tz),
+            vz + w * tz + (x * ty - y * tx))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rotate_into(x, y, z, w, v, out, j):
+    """``out[j] = R(q) v[j]`` for ``q = (x, y, z, w)``."""
+    out[j, 0], out[j, 1], out[j, 2] = _rotate(x, y, z, w, v[j, 0], v[j, 1], v[j, 2])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _slerp_at(nodes, q0, ortho, theta, t, hint):
+    """``(x, y, z, w, i)``: a leg's SLERPed quaternion at ``t`` (``nodes.size >= 2``).
+
+    ``i`` is the interval of ``t`` (`_interval`, from the interval ``hint``).
+    """
+    i = _interval(nodes, t, hint)
+    s = (t - nodes[i]) / (nodes[i + 1] - nodes[i])
+    angle = s * theta[i]
+    c, sn = np.cos(angle), np.sin(angle)
+    return (q0[i, 0] * c + ortho[i, 0] * sn, q0[i, 1] * c + ortho[i, 1] * sn,
+            q0[i, 2] * c + ortho[i, 2] * sn, q0[i, 3] * c + ortho[i, 3] * sn, i)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _fixed_quaternion(nodes, q0):
+    """Return a still leg's quaternion: its single node, or the identity (J2000 itself)."""
+    if nodes.size == 1:
+        return q0[0, 0], q0[0, 1], q0[0, 2], q0[0, 3]
+    return 0.0, 0.0, 0.0, 1.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _compose(tx, ty, tz, tw, sx, sy, sz, sw):
+    """``conj(qt) * qs`` (Hamilton product, scalar last): source -> J2000 -> target."""
+    px, py, pz, pw = -tx, -ty, -tz, tw
+    return (pw * sx + px * sw + py * sz - pz * sy,
+            pw * sy - px * sz + py * sw + pz * sx,
+            pw * sz + px * sy - py * sx + pz * sw,
+            pw * sw - px * sx - py * sy - pz * sz)
 
 
 @njit(cache=True, nogil=True)
@@ -114,47 +151,128 @@ def slerp_rotate(
     """
     has_source = source_nodes.size >= 2
     has_target = target_nodes.size >= 2
-    sx, sy, sz, sw = 0.0, 0.0, 0.0, 1.0
-    tx, ty, tz, tw = 0.0, 0.0, 0.0, 1.0
-    if source_nodes.size == 1:
-        sx, sy, sz, sw = source_q0[0, 0], source_q0[0, 1], source_q0[0, 2], source_q0[0, 3]
-    if target_nodes.size == 1:
-        tx, ty, tz, tw = target_q0[0, 0], target_q0[0, 1], target_q0[0, 2], target_q0[0, 3]
+    sx, sy, sz, sw = _fixed_quaternion(source_nodes, source_q0)
+    tx, ty, tz, tw = _fixed_quaternion(target_nodes, target_q0)
     i = 0
     k = 0
     for j in range(et.size):
         t = et[j]
-        # the SLERP of each leg is written out here: numba compiles a helper returning
-        # the quaternion as a tuple 3-4x slower than this flat form
         if has_source:
-            i = _interval(source_nodes, t, i)
-            s = (t - source_nodes[i]) / (source_nodes[i + 1] - source_nodes[i])
-            angle = s * source_theta[i]
-            c, sn = np.cos(angle), np.sin(angle)
-            sx = source_q0[i, 0] * c + source_ortho[i, 0] * sn
-            sy = source_q0[i, 1] * c + source_ortho[i, 1] * sn
-            sz = source_q0[i, 2] * c + source_ortho[i, 2] * sn
-            sw = source_q0[i, 3] * c + source_ortho[i, 3] * sn
+            sx, sy, sz, sw, i = _slerp_at(source_nodes, source_q0, source_ortho,
+                                          source_theta, t, i)
         if has_target:
-            k = _interval(target_nodes, t, k)
-            s = (t - target_nodes[k]) / (target_nodes[k + 1] - target_nodes[k])
-            angle = s * target_theta[k]
-            c, sn = np.cos(angle), np.sin(angle)
-            tx = target_q0[k, 0] * c + target_ortho[k, 0] * sn
-            ty = target_q0[k, 1] * c + target_ortho[k, 1] * sn
-            tz = target_q0[k, 2] * c + target_ortho[k, 2] * sn
-            tw = target_q0[k, 3] * c + target_ortho[k, 3] * sn
-        # q = conj(qt) * qs (Hamilton product, scalar last)
-        px, py, pz, pw = -tx, -ty, -tz, tw
-        x = pw * sx + px * sw + py * sz - pz * sy
-        y = pw * sy - px * sz + py * sw + pz * sx
-        z = pw * sz + px * sy - py * sx + pz * sw
-        w = pw * sw - px * sx - py * sy - pz * sz
+            tx, ty, tz, tw, k = _slerp_at(target_nodes, target_q0, target_ortho,
+                                          target_theta, t, k)
+        x, y, z, w = _compose(tx, ty, tz, tw, sx, sy, sz, sw)
         for a in range(len(vectors)):
             if inverse[a]:
                 _rotate_into(-x, -y, -z, w, vectors[a], outs[a], j)
             else:
                 _rotate_into(x, y, z, w, vectors[a], outs[a], j)
+
+
+@njit(cache=True, nogil=True)
+def attitude_frames(
+    attitude, first, second, et, field, sun, position, pole,
+    field_inertial, sun_body, first_out, second_out, field_rtn,
+):
+    """Rotate a field through an attitude leg into up to three frames, in one pass.
+
+    Per epoch: the ``body -> J2000`` attitude is interpolated once and gives the J2000
+    field and the unit Sun direction in the body frame; each of two ``J2000 -> frame``
+    legs (``first``, ``second``) then rotates that J2000 field and a J2000 position;
+    RTN is built from the Sun -> body position and the solar rotation axis.  Every
+    value is bit for bit what the separate passes give (the same operations in the same
+    order): ``slerp_rotate(attitude, J2000, [field, unit_rows(sun, -1)], inverse=[False,
+    True])``, ``slerp_rotate(J2000, leg, [position, field_inertial])`` per leg and
+    ``rtn_rotate(sun, pole, field_inertial)`` -- so a frame computed later from the J2000
+    field alone (`fluxcal.geometry.frames.Rotator`) equals the one computed here.  One
+    pass instead of four: ~10 % less time than the separate loops, no Sun-direction
+    temporary.
+
+    Parameters
+    ----------
+    attitude : tuple of ndarray
+        SLERP table ``(nodes, q0, ortho, theta)`` of the leg ``body -> J2000``
+        (`slerp_table`).
+    first, second : tuple of ndarray
+        SLERP tables of two legs ``frame -> J2000`` (applied inverted); a leg with no
+        output written is skipped (pass `IDENTITY_TABLE` for it).
+    et : ndarray, shape (n,)
+        Epochs.
+    field : ndarray, shape (n, 3)
+        Field in the body frame.
+    sun : ndarray, shape (n, 3)
+        Body relative to the Sun, J2000 (km): the Sun direction is ``-sun / |sun|``.
+    position : ndarray, shape (n, 3)
+        A J2000 position rotated into both frames (e.g. relative to a planet).
+    pole : ndarray, shape (0, 3), (1, 3) or (n, 3)
+        Solar rotation axis in J2000 (fixed or per sample); empty: no RTN.
+    field_inertial, sun_body, field_rtn : ndarray, shape (n, 3) or (0, 3)
+        Outputs: J2000 field, unit Sun direction in the body frame, RTN field; an
+        empty array is not written.
+    first_out, second_out : tuple of two ndarray, shape (n, 3) or (0, 3)
+        Outputs per leg: ``(position, field)`` in that frame (empty: not written).
+    """
+    nodes, q0, ortho, theta = attitude
+    n1, q1, o1, th1 = first
+    n2, q2, o2, th2 = second
+    has_attitude = nodes.size >= 2
+    sx, sy, sz, sw = _fixed_quaternion(nodes, q0)
+    first_pos, first_field = first_out
+    second_pos, second_field = second_out
+    write_first_pos = first_pos.shape[0] > 0
+    write_first_field = first_field.shape[0] > 0
+    write_second_pos = second_pos.shape[0] > 0
+    write_second_field = second_field.shape[0] > 0
+    first_leg = write_first_pos or write_first_field
+    second_leg = write_second_pos or write_second_field
+    first_moving = n1.size >= 2
+    second_moving = n2.size >= 2
+    tx1, ty1, tz1, tw1 = _fixed_quaternion(n1, q1)
+    tx2, ty2, tz2, tw2 = _fixed_quaternion(n2, q2)
+    write_inertial = field_inertial.shape[0] > 0
+    write_sun = sun_body.shape[0] > 0
+    rtn = pole.shape[0] > 0
+    pole_per_sample = pole.shape[0] > 1
+    i = 0
+    h1 = 0
+    h2 = 0
+    for j in range(et.size):
+        t = et[j]
+        if has_attitude:
+            sx, sy, sz, sw, i = _slerp_at(nodes, q0, ortho, theta, t, i)
+        x, y, z, w = _compose(0.0, 0.0, 0.0, 1.0, sx, sy, sz, sw)
+        bx, by, bz = _rotate(x, y, z, w, field[j, 0], field[j, 1], field[j, 2])
+        if write_inertial:
+            field_inertial[j, 0], field_inertial[j, 1], field_inertial[j, 2] = bx, by, bz
+        px, py, pz = sun[j, 0], sun[j, 1], sun[j, 2]
+        if write_sun:
+            ux, uy, uz = _unit(px, py, pz, -1.0)
+            sun_body[j, 0], sun_body[j, 1], sun_body[j, 2] = _rotate(-x, -y, -z, w, ux, uy, uz)
+        if rtn:
+            p = j if pole_per_sample else 0
+            field_rtn[j, 0], field_rtn[j, 1], field_rtn[j, 2] = _rtn(
+                px, py, pz, pole[p, 0], pole[p, 1], pole[p, 2], bx, by, bz)
+        # each J2000 -> frame leg as slerp_rotate forms it with J2000 as source (conj(qt) * 1)
+        if first_leg:
+            if first_moving:
+                tx1, ty1, tz1, tw1, h1 = _slerp_at(n1, q1, o1, th1, t, h1)
+            x, y, z, w = _compose(tx1, ty1, tz1, tw1, 0.0, 0.0, 0.0, 1.0)
+            if write_first_pos:
+                _rotate_into(x, y, z, w, position, first_pos, j)
+            if write_first_field:
+                first_field[j, 0], first_field[j, 1], first_field[j, 2] = _rotate(
+                    x, y, z, w, bx, by, bz)
+        if second_leg:
+            if second_moving:
+                tx2, ty2, tz2, tw2, h2 = _slerp_at(n2, q2, o2, th2, t, h2)
+            x, y, z, w = _compose(tx2, ty2, tz2, tw2, 0.0, 0.0, 0.0, 1.0)
+            if write_second_pos:
+                _rotate_into(x, y, z, w, position, second_pos, j)
+            if write_second_field:
+                second_field[j, 0], second_field[j, 1], second_field[j, 2] = _rotate(
+                    x, y, z, w, bx, by, bz)
 
 
 @njit(cache=True, nogil=True)
@@ -188,6 +306,19 @@ def hermite_positions(nodes, coefficients, et, out):
                          + coefficients[i, 1, k]) * s + coefficients[i, 0, k]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _rtn(sx, sy, sz, ox, oy, oz, vx, vy, vz):
+    """``(R.v, T.v, N.v)``: ``R = sun / |sun|``, ``T = unit(pole x R)``, ``N = R x T``."""
+    norm = np.sqrt(sx * sx + sy * sy + sz * sz)
+    rx, ry, rz = sx / norm, sy / norm, sz / norm
+    tx, ty, tz = oy * rz - oz * ry, oz * rx - ox * rz, ox * ry - oy * rx
+    norm = np.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / norm, ty / norm, tz / norm
+    nx, ny, nz = ry * tz - rz * ty, rz * tx - rx * tz, rx * ty - ry * tx
+    return (rx * vx + ry * vy + rz * vz, tx * vx + ty * vy + tz * vz,
+            nx * vx + ny * vy + nz * vz)
+
+
 @njit(cache=True, nogil=True)
 def rtn_rotate(sun, pole, vectors, out):
     """Rotate J2000 vectors into RTN built from the Sun -> spacecraft position per sample.
@@ -198,18 +329,9 @@ def rtn_rotate(sun, pole, vectors, out):
     per_sample = pole.shape[0] > 1
     for j in range(sun.shape[0]):
         p = j if per_sample else 0
-        sx, sy, sz = sun[j, 0], sun[j, 1], sun[j, 2]
-        norm = np.sqrt(sx * sx + sy * sy + sz * sz)
-        rx, ry, rz = sx / norm, sy / norm, sz / norm
-        ox, oy, oz = pole[p, 0], pole[p, 1], pole[p, 2]
-        tx, ty, tz = oy * rz - oz * ry, oz * rx - ox * rz, ox * ry - oy * rx
-        norm = np.sqrt(tx * tx + ty * ty + tz * tz)
-        tx, ty, tz = tx / norm, ty / norm, tz / norm
-        nx, ny, nz = ry * tz - rz * ty, rz * tx - rx * tz, rx * ty - ry * tx
-        vx, vy, vz = vectors[j, 0], vectors[j, 1], vectors[j, 2]
-        out[j, 0] = rx * vx + ry * vy + rz * vz
-        out[j, 1] = tx * vx + ty * vy + tz * vz
-        out[j, 2] = nx * vx + ny * vy + nz * vz
+        out[j, 0], out[j, 1], out[j, 2] = _rtn(
+            sun[j, 0], sun[j, 1], sun[j, 2], pole[p, 0], pole[p, 1], pole[p, 2],
+            vectors[j, 0], vectors[j, 1], vectors[j, 2])
 
 
 @njit(cache=True, nogil=True)
@@ -221,15 +343,18 @@ def apply_matrix(matrix, vectors, out):
             out[j, k] = matrix[k, 0] * vx + matrix[k, 1] * vy + matrix[k, 2] * vz
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _unit(x, y, z, sign):
+    """``sign * v / |v|``."""
+    scale = sign / np.sqrt(x * x + y * y + z * z)
+    return x * scale, y * scale, z * scale
+
+
 @njit(cache=True, nogil=True)
 def unit_rows(v, sign, out):
     """``out[j] = sign * v[j] / |v[j]|``; returns nothing (in place into ``out``)."""
     for j in range(v.shape[0]):
-        x, y, z = v[j, 0], v[j, 1], v[j, 2]
-        scale = sign / np.sqrt(x * x + y * y + z * z)
-        out[j, 0] = x * scale
-        out[j, 1] = y * scale
-        out[j, 2] = z * scale
+        out[j, 0], out[j, 1], out[j, 2] = _unit(v[j, 0], v[j, 1], v[j, 2], sign)
 
 
 @njit(cache=True, nogil=True)
@@ -239,54 +364,68 @@ def row_norms(v, out):
         out[j] = np.sqrt(v[j, 0] * v[j, 0] + v[j, 1] * v[j, 1] + v[j, 2] * v[j, 2])
 
 
-@njit(cache=True, nogil=True, inline="always")
-def interp_at(xp, fp, x, hint):
-    """``(np.interp(x, xp, fp), j)`` for increasing ``xp`` (size >= 1); ``j`` the next hint.
+@njit(cache=True, nogil=True)
+def _slopes(xp, fp):
+    """``(fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])`` per interval (numpy's ``slopes``)."""
+    out = np.empty(max(xp.size - 1, 0))
+    for j in range(out.size):
+        out[j] = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    return out
 
-    numpy's ``arr_interp`` (``compiled_base.c``) case by case, so the value is numpy's bit
-    for bit: the end values outside ``xp``, ``fp[-1]`` at ``xp[-1]``, ``fp[j]`` at a
-    node, else ``slope * (x - xp[j]) + fp[j]`` (from the right node when that is NaN);
-    NaN for a NaN ``x``.  ``hint`` is the previous answer (`count_le`).
+
+@njit(cache=True, nogil=True)
+def interp_into(x, xp, fp, out):
+    """``out[:] = np.interp(x, xp, fp)`` bit for bit, for increasing ``xp`` (size >= 1).
+
+    numpy's ``arr_interp`` (``compiled_base.c``) case by case: NaN for a NaN ``x``, the
+    end values outside ``xp``, ``fp[j]`` at a node ``j``, else ``slopes[j] * (x - xp[j])
+    + fp[j]`` (from the right node when that is NaN) with numpy's ``slopes``.  The
+    interval is found from the previous one (`count_le`): O(1) for sorted ``x``.  (Written
+    out flat: numba compiles this as a helper with several returns ~5x slower.)
     """
     m = xp.size
-    if x != x:
-        return x, hint
-    if x > xp[m - 1] or m == 1 and x >= xp[0]:
-        return fp[m - 1], hint
-    if x < xp[0]:
-        return fp[0], hint
-    k = count_le(xp, x, hint)
-    j = k - 1
-    if j == m - 1 or xp[j] == x:
-        return fp[j], k
-    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
-    value = slope * (x - xp[j]) + fp[j]
-    if value != value:
-        value = slope * (x - xp[j + 1]) + fp[j + 1]
-        if value != value and fp[j] == fp[j + 1]:
-            value = fp[j]
-    return value, k
+    slopes = _slopes(xp, fp)
+    k = 0
+    for i in range(x.size):
+        t = x[i]
+        if t != t:
+            v = t
+        elif t > xp[m - 1]:
+            v = fp[m - 1]
+        elif t < xp[0]:
+            v = fp[0]
+        else:
+            k = count_le(xp, t, k)
+            j = k - 1
+            if j == m - 1 or xp[j] == t:
+                v = fp[j]
+            else:
+                v = slopes[j] * (t - xp[j]) + fp[j]
+                if v != v:
+                    v = slopes[j] * (t - xp[j + 1]) + fp[j + 1]
+                    if v != v and fp[j] == fp[j + 1]:
+                        v = fp[j]
+        out[i] = v
 
 
 @njit(cache=True, nogil=True)
 def rtn_spherical_interp(sun, et, grid, lat, az, out):
-    """Sec. 10.2 per sample from angles on a grid, in one pass.
+    """Sec. 10.2 per sample from angles on a grid (`interp_into`, no temporaries).
 
     ``out[:, 0] = |sun|``; ``out[:, 1] = np.interp(et, grid, lat)``; ``out[:, 2] =
     np.interp(et, grid, az)`` (``az`` unwrapped), wrapped back by ``(a + 180) % 360 -
     180`` where ``|a| > 180`` -- the numpy expressions of
-    `fluxcal.missions.messenger.levels.spherical_rtn`, bit for bit.
+    `fluxcal.missions.messenger.levels.spherical_rtn`, bit for bit (``grid``
+    increasing).
     """
-    hint = 0
+    interp_into(et, grid, lat, out[:, 1])
+    interp_into(et, grid, az, out[:, 2])
     for j in range(et.size):
         x, y, z = sun[j, 0], sun[j, 1], sun[j, 2]
         out[j, 0] = np.sqrt(x * x + y * y + z * z)
-        t = et[j]
-        out[j, 1], _ = interp_at(grid, lat, t, hint)
-        a, hint = interp_at(grid, az, t, hint)  # the same interval as lat's
+        a = out[j, 2]
         if abs(a) > 180.0:
-            a = (a + 180.0) % 360.0 - 180.0
-        out[j, 2] = a
+            out[j, 2] = (a + 180.0) % 360.0 - 180.0
 
 
 @njit(cache=True, nogil=True)

@@ -531,6 +531,16 @@ class Rotator:
                 self._legs[key] = _Leg(frame, self.et, self.tolerance, self.grid_step, self._sclk)
         return self._legs[key]
 
+    def leg_table(self, frame: str) -> tuple[np.ndarray, ...]:
+        """SLERP table ``(nodes, q0, ortho, theta)`` of the leg ``frame -> J2000``.
+
+        The verified leg over these epochs (built once per frame and shared with
+        `rotate_many`), for the compiled loops of `fluxcal.geometry.compiled`;
+        `compiled.IDENTITY_TABLE` for J2000 itself.
+        """
+        leg = self._leg(frame)
+        return compiled.IDENTITY_TABLE if leg is None else leg.table
+
     def _block_quaternions(self, target: _Leg | None, block: slice) -> np.ndarray:
         et = self.et[block]
         source = None if self._source is None else self._source.quaternions(et)
@@ -595,12 +605,9 @@ class Rotator:
             raise ValueError("inverse needs one flag per array")
         if not arrays:
             return []
-        target = self._leg(to_frame)
-        source_table = compiled.IDENTITY_TABLE if self._source is None else self._source.table
-        target_table = compiled.IDENTITY_TABLE if target is None else target.table
         outs = [np.empty_like(v) for v in arrays]
-        compiled.slerp_rotate(*source_table, *target_table, np.ascontiguousarray(self.et),
-                              tuple(arrays), inverse, tuple(outs))
+        compiled.slerp_rotate(*self.leg_table(self.from_frame), *self.leg_table(to_frame),
+                              np.ascontiguousarray(self.et), tuple(arrays), inverse, tuple(outs))
         return outs
 
 

@@ -610,37 +610,55 @@ def _rotate_interpolated(
     frames: tuple[str, ...],
     mercury_j2000: np.ndarray,
 ) -> dict[str, np.ndarray]:
-    """Field in every frame and ``sun_sc``, one compiled pass per frame leg.
+    """Field in every frame and ``sun_sc``: one compiled pass over the samples.
 
-    The attitude leg (MSGR_SPACECRAFT -> J2000, from the CK records) is built once;
-    its interpolated rotation serves both the field (to J2000) and the Sun direction (to
-    the spacecraft frame, inverted) in one compiled pass over the samples.  The
-    J2000 -> frame legs are shared by a `fluxcal.geometry.frames.Rotator` from J2000;
-    its J2000 -> MSGR_MSO and J2000 -> IAU_MERCURY rotations also turn ``mercury_j2000``
-    (MESSENGER relative to Mercury, J2000) into ``pos_mso`` and, when MBF is requested,
-    ``pos_mbf`` (what ``spkpos`` returns in those frames without aberration correction:
-    the frame is evaluated at the same epoch).
+    `fluxcal.geometry.compiled.attitude_frames` interpolates the attitude leg
+    (MSGR_SPACECRAFT -> J2000, from the CK records) once per sample and gives the J2000
+    field, the Sun direction in the spacecraft frame, RTN (when MSGR_RTN is fluxcal's
+    two-vector frame, `rtn_from_position`'s construction) and, through the J2000 ->
+    MSGR_MSO and (MBF requested) J2000 -> IAU_MERCURY legs, the field and
+    ``mercury_j2000`` (MESSENGER relative to Mercury, J2000) in those frames: ``pos_mso``
+    and ``pos_mbf``, what ``spkpos`` returns in those frames without aberration
+    correction (the frame is evaluated at the same epoch).  The values are bit for bit
+    those of `fluxcal.geometry.frames.Rotator` from J2000 and `rtn_from_position`
+    applied to the J2000 field.  Other frames (VSO, an RTN defined otherwise) are one
+    `Rotator` pass from the J2000 field.
     """
     from fluxcal.geometry import compiled
     from fluxcal.geometry.frames import Rotator
 
-    sun_unit = np.empty_like(sun)
-    compiled.unit_rows(np.ascontiguousarray(sun), -1.0, sun_unit)  # spacecraft -> Sun
-    b_j2000, sun_sc = Rotator("MSGR_SPACECRAFT", et).rotate_many(
-        "J2000", [b_sc, sun_unit], inverse=[False, True])
-    del sun_unit
-    out = {"sc": b_sc, "j2000": b_j2000, "sun_sc": sun_sc}
-    if "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0]):
-        out["rtn"] = rtn_from_position(b_j2000, sun, et)
-    from_j2000 = Rotator("J2000", et)
-    for f in position_frames(frames):  # the field too when that frame is requested
-        arrays = [mercury_j2000, b_j2000] if f in frames else [mercury_j2000]
-        out[f"pos_{f}"], *field = from_j2000.rotate_many(FRAMES[f][0], arrays)
-        if field:
-            out[f] = field[0]
-    for f in frames:
-        if f not in out:
-            out[f] = from_j2000.rotate(FRAMES[f][0], b_j2000)
+    n = et.size
+    empty = np.empty((0, 3))
+    rotator = Rotator("MSGR_SPACECRAFT", et)
+    rtn = "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0])
+    legs = position_frames(frames)
+    later = [f for f in frames if f not in ("sc", "j2000", *legs) and not (f == "rtn" and rtn)]
+    out = {"sc": b_sc, "sun_sc": np.empty((n, 3))}
+    if "j2000" in frames or later:
+        out["j2000"] = np.empty((n, 3))
+    if rtn:
+        out["rtn"] = np.empty((n, 3))
+    tables, leg_outs = [], []
+    for f in legs:
+        out[f"pos_{f}"] = np.empty((n, 3))
+        if f in frames:
+            out[f] = np.empty((n, 3))
+        tables.append(rotator.leg_table(FRAMES[f][0]))
+        leg_outs.append((out[f"pos_{f}"], out.get(f, empty)))
+    while len(tables) < 2:
+        tables.append(compiled.IDENTITY_TABLE)
+        leg_outs.append((empty, empty))
+    compiled.attitude_frames(
+        rotator.leg_table("MSGR_SPACECRAFT"), tables[0], tables[1],
+        np.ascontiguousarray(et, dtype=float), np.ascontiguousarray(b_sc, dtype=float),
+        np.ascontiguousarray(sun, dtype=float),
+        np.ascontiguousarray(mercury_j2000, dtype=float), _solar_axis(et) if rtn else empty,
+        out.get("j2000", empty), out["sun_sc"], leg_outs[0], leg_outs[1],
+        out.get("rtn", empty))
+    if later:
+        from_j2000 = Rotator("J2000", et)
+        for f in later:
+            out[f] = from_j2000.rotate(FRAMES[f][0], out["j2000"])
     return out
 
 
@@ -721,17 +739,22 @@ def rtn_from_position(b_j2000: np.ndarray, sun: np.ndarray, et: np.ndarray) -> n
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 3.5, sec. 11.
     """
     from fluxcal.geometry import compiled
+
+    out = np.empty_like(b_j2000)
+    compiled.rtn_rotate(np.ascontiguousarray(sun, dtype=float), _solar_axis(et),
+                        np.ascontiguousarray(b_j2000, dtype=float), out)
+    return out
+
+
+def _solar_axis(et: np.ndarray) -> np.ndarray:
+    """IAU_SUN +Z in J2000: (1, 3) when fixed over ``et``, else (n, 3) per sample."""
     from fluxcal.geometry.frames import Rotator, rotation_matrices
 
     ends = rotation_matrices("IAU_SUN", "J2000", et[[0, -1]], method="oracle")[:, :, 2]
     if np.allclose(ends[0], ends[1], rtol=0.0, atol=1e-15):
-        pole = ends[:1].copy()
-    else:  # a precessing pole model: the axis per sample
-        pole = Rotator("IAU_SUN", et).rotate("J2000", np.tile([0.0, 0.0, 1.0], (et.size, 1)))
-    out = np.empty_like(b_j2000)
-    compiled.rtn_rotate(np.ascontiguousarray(sun, dtype=float), pole,
-                        np.ascontiguousarray(b_j2000, dtype=float), out)
-    return out
+        return ends[:1].copy()
+    # a precessing pole model: the axis per sample
+    return Rotator("IAU_SUN", et).rotate("J2000", np.tile([0.0, 0.0, 1.0], (et.size, 1)))
 
 
 #: Grid step (s) of the sec. 10.2 angles when the samples are denser (see `spherical_rtn`).
