@@ -81,10 +81,11 @@ def frame_variables(ds: xr.Dataset, frame: str) -> dict[str, xr.Variable]:
     Taken from ``ds`` when it holds them (a run calibrated with that frame), else
     evaluated from ``et``, ``b_j2000`` and ``pos_j2000`` (`calibration_frames`) with the
     interpolated legs of `levels.add_geometry`: MSO, MBF and VSO through
-    `fluxcal.geometry.frames.Rotator` from J2000 (the MBF position and field in one pass,
-    from MESSENGER relative to Mercury in J2000), RTN by `levels.rtn_from_position` (or
-    the frame's own leg when a kernel defines MSGR_RTN otherwise) with the sec. 10.2
-    position of `levels.spherical_rtn`, VSO's position from SPICE.
+    `fluxcal.geometry.frames.Rotator` from J2000 (the MBF position from MESSENGER
+    relative to Mercury in J2000, through the same leg as the field), RTN by
+    `levels.rtn_from_position` (or the frame's own leg when a kernel defines MSGR_RTN
+    otherwise) with the sec. 10.2 position of `levels.spherical_rtn`, VSO's position
+    from SPICE.
 
     Raises
     ------
@@ -118,10 +119,10 @@ def frame_variables(ds: xr.Dataset, frame: str) -> dict[str, xr.Variable]:
         pos = levels.spherical_rtn(sun, et, sun_at=_sun_interpolator(et))
         pos_attrs = {"units": "km, deg, deg", "description":
                      "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)"}
-    elif frame == "mbf":  # position and field through one leg
-        mercury = position("MESSENGER", "MERCURY", "J2000", et)
-        pos, field = Rotator("J2000", et).rotate_many(spice_frame, [mercury, b_j2000])
-        del mercury
+    elif frame == "mbf":  # position and field through one leg, one after the other
+        rotator = Rotator("J2000", et)  # (Mercury's J2000 position freed before the field)
+        pos = rotator.rotate(spice_frame, position("MESSENGER", "MERCURY", "J2000", et))
+        field = rotator.rotate(spice_frame, b_j2000)
         pos_attrs = {"units": "km", "description": f"MESSENGER relative to Mercury, {spice_frame}"}
     else:  # MSO (its position is in every calibrated run) and VSO
         field = Rotator("J2000", et).rotate(spice_frame, b_j2000)
