@@ -1,8 +1,11 @@
 """Vectorized fixed-width text formatting of numbers (FORTRAN ``Iw.m``, ``Fw.d``, ``Ew.d``).
 
 The kernels write the decimal digits of each value straight into a preallocated
-``(rows, row_bytes)`` ``uint8`` buffer (one compiled loop per column, no Python string
-per value).  The printed text is exactly Python's own printf output:
+``(rows, row_bytes)`` ``uint8`` buffer, no Python string per value.  `format_rows`
+writes whole rows (blanks, every ``Iw.m`` and ``Fw.d`` field, CR LF) in one pass, a
+block of rows at a time so that the block stays in the L1 cache while every column
+writes into it; `format_exp` (``Ew.d``) and `copy_text` (``Aw``) fill one column's
+fields afterwards.  The printed text is exactly Python's own printf output:
 
 - ``Fw.d`` == ``"%w.df" % x`` (``"%0w.df"`` with ``zero_pad``),
 - ``Ew.d`` == ``"%w.dE" % x`` (at least two exponent digits),
@@ -17,8 +20,8 @@ rounding decision is exact for ``d <= 22``; ``Ew.d`` is exact while the decimal 
 (106 bits) beyond (tiny or huge values), where an exact decimal tie cannot occur.
 
 A value that does not fit its width, or is infinite, is reported (first bad row),
-never written as ``*****``; NaN is written as ``NaN`` right-justified (the caller
-substitutes a fill value first when the column has one).
+never written as ``*****``; NaN is written as ``NaN`` right-justified (or the column's
+fill value, when it has one).
 """
 
 from __future__ import annotations

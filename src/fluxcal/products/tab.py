@@ -5,11 +5,14 @@ space, no header, CRLF line ends: every row has the same length, so the label's
 ``RECORD_BYTES``/``ROW_BYTES`` and each column's ``START_BYTE``/``BYTES`` slice it
 exactly.  Each value is printed with its column's FORTRAN format (`FieldFormat`).
 
-Formatting is vectorized: compiled kernels (`fluxcal.products.fixedwidth`) write the
-digits of every value of a column into a ``(rows, row_bytes)`` byte buffer, 100,000
-rows at a time, and each chunk is written to the temporary file of the atomic pair
-(`fluxcal.products.atomic`).  The bytes depend only on the values and formats, and
-equal Python's printf output of the same format (``"%10.3f" % x``).
+Formatting is compiled: `fluxcal.products.fixedwidth.format_rows` writes whole rows
+(every ``I`` and ``F`` field) into a ``(rows, row_bytes)`` byte buffer, 100,000 rows at
+a time, reading the variables' arrays in place; ``E`` and ``A`` fields follow column
+by column.  Each chunk is written once, as it is, to the temporary file of the atomic
+pair (`fluxcal.products.atomic`).  The bytes depend only on the values and formats,
+and equal Python's printf output of the same format (``"%10.3f" % x``).  Runs of
+columns printed from the same arrays as an earlier table (one day's frames share their
+time columns) are copied from that table's bytes (`fluxcal.products.tabshare`).
 
 The label is written and read with `pvl` (PDS3 encoder and grammar):
 ``PDS_VERSION_ID = PDS3``, ``RECORD_TYPE = FIXED_LENGTH``, ``RECORD_BYTES``,
@@ -51,6 +54,7 @@ from fluxcal.products.label import (
     render_label,
     text_value,
 )
+from fluxcal.products.tabshare import SHARED, Run
 
 __all__ = ["CHUNK_ROWS", "format_chunk", "label_module", "read_label", "read_tab",
            "write_tab"]
@@ -153,7 +157,7 @@ class _Rows:
     """
 
     def __init__(self, cols: Sequence[ResolvedColumn], sources: Sequence[np.ndarray],
-                 source_of: Sequence[tuple[int, int]]) -> None:
+                 source_of: Sequence[tuple[int, int]], skip: Sequence[int] = ()) -> None:
         self.cols = list(cols)
         self.starts, self.row_bytes = layout(cols)
         self.sources = list(sources)
@@ -163,7 +167,7 @@ class _Rows:
         members: list[int] = []
         slots: dict[str, dict[int, int]] = {"I": {}, "F": {}}
         for j, c in enumerate(self.cols):
-            if c.fmt.code in "EA":
+            if c.fmt.code in "EA" or j in skip:  # skip: left blank (copied in by the caller)
                 continue
             keys = slots[c.fmt.code]
             src = self.source_of[j][0]
@@ -269,6 +273,16 @@ def _sources(ds: xr.Dataset, cols: Sequence[ResolvedColumn]
             sources.append(a.reshape(a.shape[0], 1) if a.ndim == 1 else a)
         source_of.append((index[c.variable], 0 if c.index is None else c.index))
     return sources, source_of
+
+
+def _shared_runs(ds: xr.Dataset, cols: Sequence[ResolvedColumn], starts: Sequence[int],
+                 n: int) -> list[Run]:
+    """Return the runs of ``I``/``F`` columns whose arrays earlier tables printed."""
+    arrays = [ds[c.variable].values for c in cols]
+    formats = [(c.fmt, c.kind, c.fill) for c in cols]
+    return SHARED.runs(arrays, [-1 if c.index is None else c.index for c in cols], formats,
+                       [c.fmt.code in "IF" for c in cols], starts,
+                       [c.fmt.width for c in cols], n)
 
 
 def format_chunk(ds: xr.Dataset, cols: Sequence[ResolvedColumn], start: int,
@@ -439,13 +453,25 @@ def write_tab(
     tab = stem.with_name(stem.name + ".TAB")
     lbl = stem.with_name(stem.name + ".LBL")
     label = render_label(label_module(ds, cols, tab.name, label_extra))
-    rows = _Rows(cols, *_sources(ds, cols))
+    runs = _shared_runs(ds, cols, layout(cols)[0], n)
+    rows = _Rows(cols, *_sources(ds, cols),
+                 skip=[j for r in runs if r.found for j in range(r.first, r.stop)])
     with atomic_group(), atomic_path(tab) as tmp_tab, atomic_path(lbl) as tmp_lbl:
         out = np.empty((min(n, CHUNK_ROWS), rows.row_bytes), np.uint8)
         with open(tmp_tab, "wb") as f:
             for start in range(0, n, CHUNK_ROWS):
-                f.write(rows.format(start, min(n, start + CHUNK_ROWS), out))
+                stop = min(n, start + CHUNK_ROWS)
+                buf = rows.format(start, stop, out)
+                for r in runs:
+                    if r.found:
+                        buf[:, r.lo:r.hi] = r.text[start:stop]
+                    else:
+                        r.text[start:stop] = buf[:, r.lo:r.hi]
+                f.write(buf)
         tmp_lbl.write_text(label, encoding="ascii", newline="")
+    for r in runs:
+        if not r.found:
+            SHARED.keep(r)
     return [tab, lbl]
 
 

@@ -1,0 +1,124 @@
+"""Formatted table fields shared by tables printed from the same arrays.
+
+The products of one day print the same time columns (UTC year, day, hour, minute,
+second, MET of a time grid) in every frame: the same arrays, the same formats, the
+same bytes.  `SharedFields` keeps the bytes of such a run of adjacent columns once it
+has seen their arrays in an earlier table, and later tables copy them instead of
+formatting them again.
+
+An entry is used only while its arrays are alive (weak references: it goes with
+them) and only when they still hold the bytes they held when it was made (each array
+is compared with a copy taken then), so a table never depends on what was written
+before it.  Only columns whose arrays were already seen in an earlier table are kept,
+so a table of arrays printed once costs no memory here.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Entries kept at most (a day: the full-resolution grid and one per average).
+MAX_ENTRIES = 8
+
+
+@dataclass
+class Run:
+    """Adjacent columns ``first:stop`` at bytes ``lo:hi`` of a row, kept or to keep."""
+
+    first: int
+    stop: int
+    lo: int
+    hi: int
+    key: tuple
+    text: np.ndarray  # (rows, hi - lo) uint8
+    found: bool  # True: copy ``text`` in; False: fill ``text`` while formatting
+    arrays: list[np.ndarray] = field(default_factory=list)
+
+
+def _bytes_of(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a).reshape(-1).view(np.uint8)
+
+
+class SharedFields:
+    """Bytes of column runs by the identity of their arrays (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self._seen: dict[int, weakref.ref] = {}
+        self._entries: dict[tuple, tuple[list[weakref.ref], list[np.ndarray], np.ndarray]] = {}
+
+    def _known(self, a: np.ndarray) -> bool:
+        ref = self._seen.get(id(a))
+        return ref is not None and ref() is a
+
+    def _note(self, a: np.ndarray) -> None:
+        if self._known(a):
+            return
+        key = id(a)
+
+        def gone(ref: weakref.ref, key: int = key) -> None:
+            if self._seen.get(key) is ref:
+                del self._seen[key]
+            for k in [k for k, e in self._entries.items() if any(r is ref for r in e[0])]:
+                del self._entries[k]
+
+        self._seen[key] = weakref.ref(a, gone)
+
+    def runs(self, arrays: Sequence[np.ndarray], components: Sequence[int],
+             formats: Sequence[tuple], shareable: Sequence[bool], starts: Sequence[int],
+             widths: Sequence[int], rows: int) -> list[Run]:
+        """Return the runs of adjacent shareable columns whose arrays were seen before.
+
+        Every array is noted as seen.  ``arrays[j]`` is column ``j``'s array as the
+        dataset holds it, ``formats[j]`` everything else its text depends on.
+        """
+        out: list[Run] = []
+        j, n = 0, len(arrays)
+        while j < n:
+            if not (shareable[j] and self._known(arrays[j])):
+                j += 1
+                continue
+            k = j
+            while k < n and shareable[k] and self._known(arrays[k]):
+                k += 1
+            key = (rows, tuple((id(arrays[i]), components[i], formats[i]) for i in range(j, k)))
+            lo, hi = starts[j], starts[k - 1] + widths[k - 1]
+            text = self._lookup(key, arrays[j:k])
+            run_arrays = list({id(a): a for a in arrays[j:k]}.values())
+            if text is None:
+                out.append(Run(j, k, lo, hi, key, np.empty((rows, hi - lo), np.uint8), False,
+                               run_arrays))
+            else:
+                out.append(Run(j, k, lo, hi, key, text, True))
+            j = k
+        for a in arrays:
+            self._note(a)
+        return out
+
+    def _lookup(self, key: tuple, arrays: Sequence[np.ndarray]) -> np.ndarray | None:
+        entry = self._entries.get(key)
+        if entry is None:
+            return None
+        refs, copies, text = entry
+        current = list({id(a): a for a in arrays}.values())
+        same = len(refs) == len(current) and all(
+            r() is a and np.array_equal(_bytes_of(a), c)
+            for r, a, c in zip(refs, current, copies, strict=True))
+        if not same:  # changed in place since: format again
+            del self._entries[key]
+            return None
+        return text
+
+    def keep(self, run: Run) -> None:
+        """Keep a run's bytes, filled while its table was written completely."""
+        if len(self._entries) >= MAX_ENTRIES:
+            self._entries.pop(next(iter(self._entries)))
+        refs = [self._seen[id(a)] for a in run.arrays]
+        self._entries[run.key] = (refs, [_bytes_of(a).copy() for a in run.arrays], run.text)
+
+
+#: The process's shared fields (used by `fluxcal.products.tab.write_tab`).
+SHARED = SharedFields()
