@@ -310,3 +310,25 @@ def test_attitude_frames_is_the_separate_passes_bit_for_bit(seed, attitude, legs
             np.testing.assert_array_equal(pos_out, pos)
         if write_field:
             np.testing.assert_array_equal(field_out, rotated)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_windows=st.integers(1, 6),
+       order=st.sampled_from(["sorted", "shuffled"]))
+def test_first_outside_matches_the_numpy_window_test(seed, n_windows, order):
+    # expected: the numpy test it replaces (searchsorted on the window starts); epochs on
+    # the window edges, between windows, before/after all windows, and NaN
+    rng = np.random.default_rng(seed)
+    edges = np.sort(rng.choice(np.arange(0.0, 100.0, 0.5), 2 * n_windows, replace=False))
+    starts, ends = edges[0::2].copy(), edges[1::2].copy()
+    et = np.concatenate([rng.uniform(-5.0, 105.0, 40), edges, [np.nan]])
+    if order == "sorted":
+        et.sort()
+    else:
+        rng.shuffle(et)
+    for size in range(et.size + 1):
+        part = et[:size]
+        idx = np.searchsorted(starts, part, side="right") - 1
+        ok = (idx >= 0) & (part <= ends[np.clip(idx, 0, None)])
+        expected = int(np.flatnonzero(~ok)[0]) if not ok.all() else -1
+        assert compiled.first_outside(starts, ends, part) == expected

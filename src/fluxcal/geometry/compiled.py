@@ -276,6 +276,22 @@ def attitude_frames(
 
 
 @njit(cache=True, nogil=True)
+def first_outside(starts, ends, et):
+    """Index of the first epoch outside every window ``[starts[k], ends[k]]``, or -1.
+
+    The windows are sorted and disjoint (a SPICE window); NaN is outside.  The window of
+    each epoch is found from the previous one (`count_le`): O(1) per sorted epoch.
+    """
+    k = 0
+    for j in range(et.size):
+        t = et[j]
+        k = count_le(starts, t, k)
+        if k == 0 or not t <= ends[k - 1]:
+            return j
+    return -1
+
+
+@njit(cache=True, nogil=True)
 def slerp_quaternions(nodes, q0, ortho, theta, et, out):
     """Write the SLERPed (n, 4) quaternions of one leg at ``et`` into ``out``."""
     i = 0

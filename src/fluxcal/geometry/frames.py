@@ -335,10 +335,11 @@ class _Leg:
         windows = _ck_coverage(instrument, segments)
         if windows.size == 0:
             raise KernelError(f"frame {self.frame}: no CK coverage for instrument {instrument}")
-        idx = np.searchsorted(windows[:, 0], et, side="right") - 1
-        ok = (idx >= 0) & (et <= windows[np.clip(idx, 0, None), 1])
-        if not ok.all():
-            bad = float(et[np.flatnonzero(~ok)[0]])
+        first = compiled.first_outside(np.ascontiguousarray(windows[:, 0]),
+                                       np.ascontiguousarray(windows[:, 1]),
+                                       np.ascontiguousarray(et, dtype=float))
+        if first >= 0:
+            bad = float(et[first])
             files = sorted({Path(s.path).name for s in segments if s.instrument == instrument})
             raise KernelError(
                 f"frame {self.frame}: no C-kernel pointing for instrument {instrument} at "
