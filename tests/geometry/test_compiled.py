@@ -200,7 +200,7 @@ def _rtn_spherical_numpy(sun, et, grid, lat, az):
     out = np.empty((et.size, 3))
     out[:, 0] = np.linalg.norm(sun, axis=1)
     out[:, 1] = np.interp(et, grid, lat)
-    a = np.interp(et, grid, az)
+    a = np.interp(et, grid, np.unwrap(az, period=360.0))
     out[:, 2] = np.where(np.abs(a) > 180.0, (a + 180.0) % 360.0 - 180.0, a)
     return out
 
@@ -209,7 +209,7 @@ def _rtn_spherical_numpy(sun, et, grid, lat, az):
 @pytest.mark.parametrize("m", [1, 2, 7, 1000])
 def test_rtn_spherical_interp_is_numpy_bit_for_bit(order, m):
     # expected: np.interp and numpy's wrap; epochs outside the grid on both sides, on the
-    # nodes themselves, at the last node; azimuths unwrapped far beyond +-180 (both signs)
+    # nodes themselves, at the last node; azimuths wrapped and far beyond +-180 (both signs)
     rng = np.random.default_rng(m)
     grid = np.linspace(0.0, 1000.0, m) if m > 1 else np.array([500.0])
     lat = rng.uniform(-90.0, 90.0, m)

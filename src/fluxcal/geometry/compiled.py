@@ -429,13 +429,15 @@ def rtn_spherical_interp(sun, et, grid, lat, az, out):
     """Sec. 10.2 per sample from angles on a grid (`interp_into`, no temporaries).
 
     ``out[:, 0] = |sun|``; ``out[:, 1] = np.interp(et, grid, lat)``; ``out[:, 2] =
-    np.interp(et, grid, az)`` (``az`` unwrapped), wrapped back by ``(a + 180) % 360 -
-    180`` where ``|a| > 180`` -- the numpy expressions of
+    np.interp(et, grid, np.unwrap(az, period=360))`` (`unwrap_degrees`), wrapped back by
+    ``(a + 180) % 360 - 180`` where ``|a| > 180`` -- the numpy expressions of
     `fluxcal.missions.messenger.levels.spherical_rtn`, bit for bit (``grid``
-    increasing).
+    increasing).  One compiled function for the whole step: one numba cache load.
     """
+    unwrapped = np.empty(az.size)
+    unwrap_degrees(az, unwrapped)
     interp_into(et, grid, lat, out[:, 1])
-    interp_into(et, grid, az, out[:, 2])
+    interp_into(et, grid, unwrapped, out[:, 2])
     for j in range(et.size):
         x, y, z = sun[j, 0], sun[j, 1], sun[j, 2]
         out[j, 0] = np.sqrt(x * x + y * y + z * z)

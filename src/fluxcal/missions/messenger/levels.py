@@ -811,12 +811,11 @@ def spherical_rtn(
     grid = np.linspace(et[0], et[-1], int(np.ceil(span / step)) + 1)
     _r, lat, az = rtn_spherical(
         "MESSENGER", grid, target_position=None if sun_at is None else sun_at(grid))
-    unwrapped = np.empty(az.shape)
-    compiled.unwrap_degrees(np.asarray(az, dtype=float), unwrapped)  # = np.unwrap(az, 360)
-    # |sun|, np.interp of lat and of the unwrapped az, az wrapped back: one compiled pass
+    # |sun|, np.interp of lat and of np.unwrap(az, period=360), az wrapped back
     compiled.rtn_spherical_interp(np.ascontiguousarray(sun, dtype=float),
                                   np.ascontiguousarray(et, dtype=float), grid,
-                                  np.ascontiguousarray(lat, dtype=float), unwrapped, out)
+                                  np.ascontiguousarray(lat, dtype=float),
+                                  np.ascontiguousarray(az, dtype=float), out)
     return out
 
 
