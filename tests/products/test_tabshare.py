@@ -95,3 +95,17 @@ def test_entries_go_with_their_arrays(shared: SharedFields, tmp_path: Path) -> N
     del grid
     gc.collect()
     assert shared._entries == {} and shared._seen == {}
+
+
+@pytest.mark.parametrize("n", [1, 7, 8, 13, 1001])
+def test_fingerprint_sees_any_one_changed_byte(n: int) -> None:
+    """Equal for an equal copy; different after changing any single byte (tail too)."""
+    from fluxcal.products.tabshare import fingerprint
+
+    a = np.random.default_rng(n).integers(0, 256, n).astype(np.uint8)
+    assert fingerprint(a) == fingerprint(a.copy())
+    for i in range(n):
+        b = a.copy()
+        b[i] ^= 1
+        assert fingerprint(b) != fingerprint(a)
+    assert fingerprint(a.view(np.int8)) != fingerprint(a)  # the dtype is part of it

@@ -7,10 +7,11 @@ has seen their arrays in an earlier table, and later tables copy them instead of
 formatting them again.
 
 An entry is used only while its arrays are alive (weak references: it goes with
-them) and only when they still hold the bytes they held when it was made (each array
-is compared with a copy taken then), so a table never depends on what was written
-before it.  Only columns whose arrays were already seen in an earlier table are kept,
-so a table of arrays printed once costs no memory here.
+them) and only when they still hold the bytes they held when it was made (a 128-bit
+fingerprint of each array's bytes, taken then, is compared; no copy is kept), so a
+table does not depend on what was written before it.  Only columns whose arrays were
+already seen in an earlier table are kept, so a table of arrays printed once costs no
+memory here.
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
-#: Entries kept at most (a day: the full-resolution grid and one per average).
+#: Entries kept at most (a day: the full-resolution grid and one per average); 0 turns
+#: sharing off (a day's full-resolution time columns are ~40 bytes a row: 66 MB).
 MAX_ENTRIES = 8
 
 
@@ -39,8 +42,27 @@ class Run:
     arrays: list[np.ndarray] = field(default_factory=list)
 
 
-def _bytes_of(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a).reshape(-1).view(np.uint8)
+@njit(cache=True)
+def _mix(words: np.ndarray, h1: np.uint64, h2: np.uint64) -> tuple[np.uint64, np.uint64]:
+    """Two independent 64-bit multiply-xorshift hashes of a word sequence, continued."""
+    for w in words:
+        h1 = (h1 ^ w) * np.uint64(0xFF51AFD7ED558CCD)
+        h1 ^= h1 >> np.uint64(33)
+        h2 = (h2 + w) * np.uint64(0x100000001B3)
+        h2 ^= h2 >> np.uint64(29)
+    return h1, h2
+
+
+def fingerprint(a: np.ndarray) -> tuple:
+    """Dtype, shape and a 128-bit hash of the bytes of ``a`` (C order, no copy if C)."""
+    raw = np.ascontiguousarray(a).reshape(-1).view(np.uint8)
+    whole = raw.size - raw.size % 8
+    tail = np.zeros(8, np.uint8)
+    tail[:raw.size - whole] = raw[whole:]
+    h = _mix(raw[:whole].view(np.uint64), np.uint64(0x9E3779B97F4A7C15),
+             np.uint64(0xC2B2AE3D27D4EB4F))
+    h = _mix(tail.view(np.uint64), np.uint64(h[0]), np.uint64(h[1]))
+    return a.dtype.str, a.shape, int(h[0]), int(h[1])
 
 
 class SharedFields:
@@ -48,7 +70,7 @@ class SharedFields:
 
     def __init__(self) -> None:
         self._seen: dict[int, weakref.ref] = {}
-        self._entries: dict[tuple, tuple[list[weakref.ref], list[np.ndarray], np.ndarray]] = {}
+        self._entries: dict[tuple, tuple[list[weakref.ref], list[tuple], np.ndarray]] = {}
 
     def _known(self, a: np.ndarray) -> bool:
         ref = self._seen.get(id(a))
@@ -102,11 +124,11 @@ class SharedFields:
         entry = self._entries.get(key)
         if entry is None:
             return None
-        refs, copies, text = entry
+        refs, prints, text = entry
         current = list({id(a): a for a in arrays}.values())
         same = len(refs) == len(current) and all(
-            r() is a and np.array_equal(_bytes_of(a), c)
-            for r, a, c in zip(refs, current, copies, strict=True))
+            r() is a and fingerprint(a) == f
+            for r, a, f in zip(refs, current, prints, strict=True))
         if not same:  # changed in place since: format again
             del self._entries[key]
             return None
@@ -114,10 +136,12 @@ class SharedFields:
 
     def keep(self, run: Run) -> None:
         """Keep a run's bytes, filled while its table was written completely."""
-        if len(self._entries) >= MAX_ENTRIES:
+        if MAX_ENTRIES <= 0:  # sharing switched off
+            return
+        while len(self._entries) >= MAX_ENTRIES:
             self._entries.pop(next(iter(self._entries)))
         refs = [self._seen[id(a)] for a in run.arrays]
-        self._entries[run.key] = (refs, [_bytes_of(a).copy() for a in run.arrays], run.text)
+        self._entries[run.key] = (refs, [fingerprint(a) for a in run.arrays], run.text)
 
 
 #: The process's shared fields (used by `fluxcal.products.tab.write_tab`).
