@@ -248,3 +248,10 @@ def test_partition_order_decides_before_met(tmp_path):
     with pytest.raises(InputFormatError, match="backwards") as info:
         read_science(bad)
     assert info.value.line == 4 and info.value.field == "met"
+
+
+def test_header_without_newline_takes_the_general_path(tmp_path):
+    path = tmp_path / "h.csv"
+    path.write_text(SCI_HEADER)
+    assert readers._parse_plain(path, 7, list(range(7))) is None
+    assert read_science(path).sizes["time"] == 0

@@ -158,10 +158,12 @@ def _parse_plain(path: Path, n_fields: int, order: list[int]) -> np.ndarray | No
     rounded double of each field.
     """
     with path.open("rb") as fh:
-        size = fh.seek(0, 2)
-        if size == 0:
+        try:
+            mm = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+        except (OSError, ValueError):  # an empty file, a pipe: the general reader decides
             return None
-        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+        with mm:
+            size = len(mm)
             start = mm.find(b"\n") + 1
             if start == 0 or mm.find(b"\r", 0, start) >= 0:
                 return None  # the header line is read as text (universal newlines)
