@@ -119,8 +119,16 @@ class _Writer(CDFWriter):
     ``tobytes``): 80 MB more for a 20 Hz day's vector.  A C-contiguous array of the
     variable's type in the file's byte order (host encoding) is handed over as a
     ``memoryview`` of its bytes, the very bytes ``tobytes`` gives; anything else goes
-    through cdflib's conversion.
+    through cdflib's conversion.  Attribute entries are linked without reading the
+    file back (`_update_aedr_link`).
     """
+
+    def __init__(self, path: Path, cdf_spec: dict[str, Any]) -> None:
+        super().__init__(path, cdf_spec=cdf_spec)
+        #: (attribute number, zVar) -> [first entry's offset, entries, largest entry]
+        self._chains: dict[tuple[int, bool], list[int]] = {}
+        self._entry_num: dict[int, int] = {}  # entry offset -> its variable number
+        self._entry_next: dict[int, int] = {}  # entry offset -> next entry's (0: none)
 
     def _convert_data(self, data_type: int, num_elems: int, num_values: int,
                       indata: Any) -> tuple[int, Any]:
@@ -135,6 +143,46 @@ class _Writer(CDFWriter):
         else:
             recs = len(indata)
         return recs, memoryview(indata).cast("B")
+
+    def _update_aedr_link(self, f: Any, attrNum: int, zVar: bool, varNum: int,
+                          offset: int) -> None:
+        """Link a variable's new attribute entry into its attribute's chain of entries.
+
+        cdflib's own version reads the chain back from the file (two seeks and reads
+        per entry already linked, for every new entry); here the chain is remembered
+        (`_chains`, `_entry_num`, `_entry_next`) and only the same words are written
+        to the same places as cdflib writes them: the file's bytes are the same.
+        """
+        adr = self.attrsinfo[attrNum][2]
+        # ADR fields: head of the entry chain, number of entries, largest entry number
+        head_at, count_at, max_at = (adr + 48, adr + 56, adr + 60) if zVar else (
+            adr + 20, adr + 36, adr + 40)
+        chains, num, nxt = self._chains, self._entry_num, self._entry_next
+        num[offset] = varNum
+        state = chains.get((attrNum, zVar))
+        if state is None:  # the first entry
+            self._update_offset_value(f, head_at, 8, offset)
+            self._update_offset_value(f, count_at, 4, 1)
+            self._update_offset_value(f, max_at, 4, varNum)
+            chains[(attrNum, zVar)] = [offset, 1, varNum]
+            return
+        head, entries, max_entry = state
+        entry = previous = head
+        for _ in range(entries):  # the walk of cdflib's version, on the remembered chain
+            if num[entry] > varNum:
+                self._update_offset_value(f, previous + 12, 8, offset)
+                self._update_offset_value(f, offset + 12, 8, entry)
+                nxt[previous], nxt[offset] = offset, entry
+                break
+            previous, entry = entry, nxt.get(entry, 0)
+        else:
+            self._update_offset_value(f, previous + 12, 8, offset)
+            nxt[previous] = offset
+        self._update_offset_value(f, count_at, 4, entries + 1)
+        state[1] = entries + 1
+        if max_entry < varNum:
+            self._update_offset_value(f, max_at, 4, varNum)
+            state[2] = varNum
 
 
 # ----------------------------------------------------------------------------------------
@@ -345,7 +393,10 @@ def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
     values = var.values
     if key == "bool":
         values = values.astype(np.uint8)
-    elif values.dtype.kind == "f":
+    elif values.dtype.kind == "f" and values.size and not (
+            values.min() > values.dtype.type(_TYPES[key][1])):
+        # one pass (no temporary) clears the usual case: every value above the fill
+        # value -1e31 of the variable's type and no NaN (a NaN makes the minimum NaN)
         fill = values.dtype.type(_TYPES[key][1])
         if np.any(values == fill):
             raise InputFormatError(
