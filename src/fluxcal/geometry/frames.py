@@ -32,7 +32,6 @@ from pathlib import Path
 
 import numpy as np
 import spiceypy
-from scipy.spatial.transform import Rotation
 
 from fluxcal.errors import KernelError
 from fluxcal.geometry import compiled
@@ -240,6 +239,72 @@ def slerp(nodes: np.ndarray, quats: np.ndarray, et: np.ndarray) -> np.ndarray:
     return out
 
 
+def _quaternions_of_matrices(m: np.ndarray) -> np.ndarray:
+    """``Rotation.from_matrix(m).as_quat()`` of scipy, bit for bit, without importing it.
+
+    scipy's algorithm for orthonormal matrices (the largest of the diagonal and the
+    trace picks the formula; the quaternion is divided by its norm
+    ``sqrt(x^2 + y^2 + z^2 + w^2)``); importing ``scipy.spatial`` costs ~0.15 s of a
+    run's start.  Matrices scipy would orthonormalise first (Gram matrix not within
+    1e-12 of the identity) or reject (determinant <= 0) go to scipy itself.
+    """
+    m = np.asarray(m, dtype=float)
+    gram = m @ np.transpose(m, (0, 2, 1))
+    if not (np.isclose(gram, np.eye(3), atol=1e-12).all() and (np.linalg.det(m) > 0).all()):
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_matrix(m).as_quat()
+    trace = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
+    decision = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], trace], axis=1)
+    choice = np.argmax(decision, axis=1)
+    q = np.empty((m.shape[0], 4))
+    for i in range(3):
+        sel = choice == i
+        j, k = (i + 1) % 3, (i + 2) % 3
+        ms = m[sel]
+        q[sel, i] = 1 - trace[sel] + 2 * ms[:, i, i]
+        q[sel, j] = ms[:, j, i] + ms[:, i, j]
+        q[sel, k] = ms[:, k, i] + ms[:, i, k]
+        q[sel, 3] = ms[:, k, j] - ms[:, j, k]
+    sel = choice == 3
+    ms = m[sel]
+    q[sel, 0] = ms[:, 2, 1] - ms[:, 1, 2]
+    q[sel, 1] = ms[:, 0, 2] - ms[:, 2, 0]
+    q[sel, 2] = ms[:, 1, 0] - ms[:, 0, 1]
+    q[sel, 3] = 1 + trace[sel]
+    return q / np.sqrt(q[:, 0] ** 2 + q[:, 1] ** 2 + q[:, 2] ** 2 + q[:, 3] ** 2)[:, None]
+
+
+def _matrices_of_quaternions(q: np.ndarray) -> np.ndarray:
+    """``Rotation.from_quat(q).as_matrix()`` of scipy (scalar last), bit for bit.
+
+    The quaternions are divided by their norms, then scipy's products (which differ in
+    rounding from `quat_to_matrix`'s, hence this second form).  A zero quaternion goes
+    to scipy (which rejects it).
+    """
+    q = np.asarray(q, dtype=float)
+    norm = np.sqrt(q[:, 0] ** 2 + q[:, 1] ** 2 + q[:, 2] ** 2 + q[:, 3] ** 2)
+    if not (norm > 0).all():
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_quat(q).as_matrix()
+    q = q / norm[:, None]
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    out = np.empty((q.shape[0], 3, 3))
+    out[:, 0, 0] = x2 - y2 - z2 + w2
+    out[:, 1, 0] = 2 * (xy + zw)
+    out[:, 2, 0] = 2 * (xz - yw)
+    out[:, 0, 1] = 2 * (xy - zw)
+    out[:, 1, 1] = -x2 + y2 - z2 + w2
+    out[:, 2, 1] = 2 * (yz + xw)
+    out[:, 0, 2] = 2 * (xz + yw)
+    out[:, 1, 2] = 2 * (yz - xw)
+    out[:, 2, 2] = -x2 - y2 + z2 + w2
+    return out
+
+
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product of (n, 4) scalar-last quaternions: ``R(p*q) = R(p) @ R(q)``."""
     px, py, pz, pw = p[:, 0], p[:, 1], p[:, 2], p[:, 3]
@@ -395,7 +460,7 @@ class _Leg:
         where = np.searchsorted(record_et, nodes)
         where = np.clip(where, 0, record_et.size - 1)
         is_record = record_et[where] == nodes
-        c = Rotation.from_quat(quats[where[is_record]][:, [1, 2, 3, 0]]).as_matrix()
+        c = _matrices_of_quaternions(quats[where[is_record]][:, [1, 2, 3, 0]])
         out = np.empty((nodes.size, 3, 3))
         out[is_record] = fixed_a[0] @ np.transpose(c, (0, 2, 1)) @ fixed_b[0]
         if (~is_record).any():
@@ -436,7 +501,7 @@ class _Leg:
 
     def _set(self, nodes: np.ndarray, matrices: np.ndarray) -> None:
         self.nodes = nodes
-        self.quats = _continuous(Rotation.from_matrix(matrices).as_quat())
+        self.quats = _continuous(_quaternions_of_matrices(matrices))
         self._table: tuple[np.ndarray, ...] | None = None
 
     def _sampled_error(self) -> float:
