@@ -213,6 +213,11 @@ def attitude_frames(
         empty array is not written.
     first_out, second_out : tuple of two ndarray, shape (n, 3) or (0, 3)
         Outputs per leg: ``(position, field)`` in that frame (empty: not written).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i (seed 000), sec. 3.5 (RTN), sec. 10.1
+           (positions in MSO and MBF), sec. 11 (``cspice_pxform`` + ``cspice_mxv``).
     """
     nodes, q0, ortho, theta = attitude
     n1, q1, o1, th1 = first
