@@ -91,3 +91,19 @@ def test_version_attribute_is_the_installed_distribution():
     assert fluxcal.__version__ == version("fluxcal")
     with pytest.raises(AttributeError, match="__no_such__"):
         fluxcal.__no_such__  # noqa: B018
+
+
+def test_a_cdf_only_product_loads_no_table_writer(tmp_path):
+    code = f"""
+import numpy as np, xarray as xr
+from pathlib import Path
+from fluxcal.products import write_product, read_product
+ds = xr.Dataset({{"b": (("time",), np.arange(3.0), {{"units": "nT", "valid_min": -9.0,
+                                                      "valid_max": 9.0}})}},
+                coords={{"epoch": ("time", 757339269184000000 + np.arange(3) * 50000000)}})
+(path,) = write_product(ds, Path({str(tmp_path)!r}) / "P", formats=("cdf",))
+assert read_product(path)["b"].values.tolist() == [0.0, 1.0, 2.0]
+"""
+    loaded = _modules_after(code)
+    assert not [m for m in ("pvl", "fluxcal.products.tab", "fluxcal.products.netcdf")
+                if m in loaded]

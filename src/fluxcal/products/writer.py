@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from importlib import import_module
 from pathlib import Path
-from typing import Any
-
-import xarray as xr
+from typing import TYPE_CHECKING, Any
 
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.products.atomic import atomic_group
-from fluxcal.products.cdf import read_cdf, write_cdf
-from fluxcal.products.columns import Column
-from fluxcal.products.netcdf import read_netcdf, read_zarr, write_netcdf, write_zarr
-from fluxcal.products.tab import read_tab, write_tab
 from fluxcal.products.timeindex import with_time_index
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from fluxcal.products.columns import Column
 
 FORMATS = ("tab", "cdf", "nc", "zarr")
 SUFFIX = {"tab": ".TAB", "cdf": ".cdf", "nc": ".nc", "zarr": ".zarr"}
@@ -77,15 +77,23 @@ def write_product(
     stem = Path(stem)
     written: list[Path] = []
     with atomic_group():  # all formats complete, or none renamed into place
-        for fmt in formats:
+        for fmt in formats:  # each format's module is imported when first used
             if fmt == "tab":
+                from fluxcal.products.tab import write_tab
+
                 written += write_tab(ds, stem, columns, label_extra)
             elif fmt == "cdf":
+                from fluxcal.products.cdf import write_cdf
+
                 written.append(write_cdf(ds, _with(Path(cdf_stem or stem), "cdf"), label_extra,
                                          variable_yaml, global_yaml))
             elif fmt == "nc":
+                from fluxcal.products.netcdf import write_netcdf
+
                 written.append(write_netcdf(ds, _with(stem, "nc")))
             else:
+                from fluxcal.products.netcdf import write_zarr
+
                 written.append(write_zarr(ds, _with(stem, "zarr")))
     return written
 
@@ -94,12 +102,14 @@ def _with(stem: Path, fmt: str) -> Path:
     return stem.with_name(stem.name + SUFFIX[fmt])
 
 
-READERS: dict[str, Callable[[Path], xr.Dataset]] = {
-    ".tab": read_tab,
-    ".lbl": read_tab,
-    ".cdf": read_cdf,
-    ".nc": read_netcdf,
-    ".zarr": read_zarr,
+#: Suffix -> (module of `fluxcal.products`, reader function), imported when first used:
+#: a CDF-only run loads neither pvl nor the table writer.
+READERS: dict[str, tuple[str, str]] = {
+    ".tab": ("tab", "read_tab"),
+    ".lbl": ("tab", "read_tab"),
+    ".cdf": ("cdf", "read_cdf"),
+    ".nc": ("netcdf", "read_netcdf"),
+    ".zarr": ("netcdf", "read_zarr"),
 }
 
 
@@ -110,10 +120,11 @@ def read_product(path: Path) -> xr.Dataset:
     (`fluxcal.products.timeindex.with_time_index`) whenever it has ``epoch``.
     """
     path = Path(path)
-    reader = READERS.get(path.suffix.lower())
-    if reader is None:
+    source = READERS.get(path.suffix.lower())
+    if source is None:
         raise InputFormatError(f"unknown product suffix {path.suffix!r}; expected one of "
                                f"{sorted(READERS)}", path=str(path))
+    reader = getattr(import_module(f"fluxcal.products.{source[0]}"), source[1])
     if path.suffix.lower() == ".lbl":
         path = path.with_suffix(".TAB")
     try:
