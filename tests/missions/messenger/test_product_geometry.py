@@ -141,3 +141,36 @@ def test_calibrate_run_keeps_no_product_frame_and_no_raw_column(messenger_kernel
     with pytest.raises(InputFormatError, match="quicklook"):
         calibrate_run(sci, simulated["heater"], simulated["temperature"],
                       quicklook_frame="gse")
+
+
+def test_batch_products_equal_to_those_of_runs_with_every_frame(tmp_path, monkeypatch):
+    """``fluxcal batch messenger``: same bytes whether frames come from calibrate or later."""
+    import datetime as dt
+
+    from fluxcal.missions.messenger import run
+    from fluxcal.missions.messenger.batch_task import make_day_task, simulate_days
+    from fluxcal.products.batch import run_batch
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")
+    days = [dt.date(2012, 6, 1), dt.date(2012, 6, 2)]
+    inp = tmp_path / "in"
+    simulate_days(inp, days, seconds_per_day=300.0)
+    frames = ("mso", "j2000", "mbf", "rtn", "sc")
+    outs, calls = {}, []
+
+    def every_frame(wanted):  # every frame computed by levels.add_geometry up front
+        calls.append(wanted)
+        return tuple(wanted)
+
+    for mode in ("later", "calibrate"):
+        if mode == "calibrate":
+            monkeypatch.setattr(run, "calibration_frames", every_frame)
+        out = tmp_path / mode
+        task = make_day_task(inp, out, formats=("tab", "cdf"), frames=frames,
+                             averages=(1, 60))
+        report = run_batch(days, task, out, scheduler="serial")
+        assert {d.status for d in report.days} == {"done"}, [d.error for d in report.days]
+        outs[mode] = {p.name: p.read_bytes() for p in out.iterdir()
+                      if p.suffix in (".TAB", ".LBL", ".cdf")}
+    assert len(outs["later"]) == 2 * 5 * 3 * 3  # days x frames x (sci + 2 averages) x files
+    assert len(calls) == 2 and outs["later"] == outs["calibrate"]
