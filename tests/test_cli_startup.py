@@ -107,3 +107,23 @@ assert read_product(path)["b"].values.tolist() == [0.0, 1.0, 2.0]
     loaded = _modules_after(code)
     assert not [m for m in ("pvl", "fluxcal.products.tab", "fluxcal.products.netcdf")
                 if m in loaded]
+
+
+def test_freeze_imports_acts_only_under_main(monkeypatch):
+    import fluxcal.cli
+
+    before = gc.get_freeze_count()
+    fluxcal.cli.freeze_imports()  # not under main: the caller's collector is untouched
+    assert gc.get_freeze_count() == before
+    seen = {}
+
+    def command(*args, **kwargs):
+        fluxcal.cli.freeze_imports()
+        fluxcal.cli.freeze_imports()
+        seen["frozen"] = gc.get_freeze_count()
+        return 0
+
+    monkeypatch.setattr(fluxcal.cli, "app", command)
+    assert main(["anything"]) == 0
+    assert seen["frozen"] > before
+    assert gc.get_freeze_count() == before

@@ -104,11 +104,27 @@ def _long_lived_imports() -> Iterator[None]:
     threshold = gc.get_threshold()
     gc.freeze()
     gc.set_threshold(threshold[0], threshold[1], max(threshold[2], FULL_COLLECTION_EVERY))
+    _IN_COMMAND.append(True)
     try:
         yield
     finally:
+        _IN_COMMAND.pop()
         gc.set_threshold(*threshold)
         gc.unfreeze()
+
+
+_IN_COMMAND: list[bool] = []
+
+
+def freeze_imports() -> None:
+    """Freeze the objects alive now, when a command runs under `main` (else do nothing).
+
+    For a command to call right after importing its libraries, before it makes any
+    data: the modules join those `_long_lived_imports` keeps off the collector (the
+    data stays collectable).  `main` unfreezes everything when the command ends.
+    """
+    if _IN_COMMAND:
+        gc.freeze()
 
 
 def _freeze_at_exit() -> None:

@@ -55,9 +55,11 @@ def edr2cdr(
 
     Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
     """
+    from fluxcal.cli import freeze_imports
     from fluxcal.errors import InputFormatError
     from fluxcal.missions.messenger.run import run_edr2cdr
 
+    freeze_imports()  # xarray, numba, matplotlib ... are loaded: off the collector's walks
     try:
         averages = [int(a) for a in _split(average)]
     except ValueError:

@@ -12,6 +12,12 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+# Imported with this module, not inside `write_report`: importing matplotlib raises and
+# catches pyparsing errors whose tracebacks keep every calling frame alive in reference
+# cycles; from inside `write_report` those frames hold the day's whole Dataset, freed
+# only by a later full collection of the garbage collector.
+from matplotlib.figure import Figure
+
 from fluxcal.missions.messenger.levels import offset_step_report
 
 
@@ -34,8 +40,6 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None) -> 
     Both files go through `fluxcal.products.atomic.atomic_path`, so inside a caller's
     `atomic_group` they appear only with the rest of the day's products.
     """
-    from matplotlib.figure import Figure
-
     from fluxcal.products.atomic import atomic_path, atomic_write_bytes
 
     stem = Path(stem)
