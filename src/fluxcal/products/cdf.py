@@ -261,7 +261,7 @@ def _typed(value: Any, cdf_type: str) -> Any:
 
 def _dtype_key(var: xr.Variable) -> str:
     """Key of `_TYPES` for a variable's dtype."""
-    return "bool" if var.dtype == np.bool_ else str(var.dtype)
+    return "bool" if var.dtype.kind == "b" else str(var.dtype)
 
 
 def _inferred_dims(name: str, rec_vary: bool, ndim: int,
