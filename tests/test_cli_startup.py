@@ -127,3 +127,13 @@ def test_freeze_imports_acts_only_under_main(monkeypatch):
     assert main(["anything"]) == 0
     assert seen["frozen"] > before
     assert gc.get_freeze_count() == before
+
+
+def test_objects_the_caller_froze_stay_frozen():
+    gc.freeze()
+    try:
+        main(["version"])
+        # not unfrozen (a frozen object freed by reference counting leaves the count)
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()

@@ -99,9 +99,11 @@ def _long_lived_imports() -> Iterator[None]:
     at the start are frozen (`gc.freeze`: never walked, never collected) and full
     collections are ten times rarer; young collections run as usual, so short-lived
     cycles are still freed promptly.  Both are undone on leaving, so a caller's process
-    (tests, a notebook) keeps its collector as it was.
+    (tests, a notebook) keeps its collector as it was (objects the caller had frozen
+    itself stay frozen, with those frozen here).
     """
     threshold = gc.get_threshold()
+    caller_froze = gc.get_freeze_count() > 0
     gc.freeze()
     gc.set_threshold(threshold[0], threshold[1], max(threshold[2], FULL_COLLECTION_EVERY))
     _IN_COMMAND.append(True)
@@ -110,7 +112,8 @@ def _long_lived_imports() -> Iterator[None]:
     finally:
         _IN_COMMAND.pop()
         gc.set_threshold(*threshold)
-        gc.unfreeze()
+        if not caller_froze:
+            gc.unfreeze()
 
 
 _IN_COMMAND: list[bool] = []
