@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 import yaml
+from numba import njit
 
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
@@ -113,22 +114,28 @@ def _take(ds: xr.Dataset, names: Sequence[str], index: np.ndarray | None) -> xr.
                       attrs=dict(ds.attrs))
 
 
+@njit(cache=True, nogil=True)
+def _reorder_rows_kernel(values, index, buffer):  # pragma: no cover - compiled
+    """``values[:m] = values[index]`` (``m = index.size``), one column at a time via ``buffer``."""
+    m = index.size
+    for c in range(values.shape[1]):
+        for i in range(m):
+            buffer[i] = values[index[i], c]
+        for i in range(m):
+            values[i, c] = buffer[i]
+
+
 def _reorder_owned(var: xr.Variable, index: np.ndarray, buffer: np.ndarray) -> xr.Variable:
     """``var`` at ``index``, reordered in its own array one column at a time through ``buffer``.
 
     For arrays nothing else holds (a frame computed for this product): no second copy of
-    the whole array; the result is the first ``index.size`` rows of the same array.
+    the whole array; the result is the first ``index.size`` rows of the same array
+    (`_reorder_rows_kernel`, one compiled pass per column).
     """
     values = var.values
-    m = index.size
-    if values.ndim == 1:
-        np.take(values, index, out=buffer[:m])
-        values[:m] = buffer[:m]
-    else:
-        for c in range(values.shape[1]):
-            np.take(values[:, c], index, out=buffer[:m])
-            values[:m, c] = buffer[:m]
-    return xr.Variable(var.dims, values[:m], var.attrs)
+    rows = values.reshape(values.shape[0], -1)  # a view: (n,) -> (n, 1)
+    _reorder_rows_kernel(rows, np.ascontiguousarray(index, dtype=np.int64), buffer)
+    return xr.Variable(var.dims, values[:index.size], var.attrs)
 
 
 def _with_frame(base: xr.Dataset, ds: xr.Dataset, frame: str,
