@@ -116,13 +116,22 @@ def _take(ds: xr.Dataset, names: Sequence[str], index: np.ndarray | None) -> xr.
 
 @njit(cache=True, nogil=True)
 def _reorder_rows_kernel(values, index, buffer):  # pragma: no cover - compiled
-    """``values[:m] = values[index]`` (``m = index.size``), one column at a time via ``buffer``."""
+    """``values[:m] = values[index]`` (``m = index.size``), one column at a time via ``buffer``.
+
+    Rows already in place (``index[i] == i``, most of a day) are neither read nor written.
+    """
     m = index.size
     for c in range(values.shape[1]):
+        k = 0
         for i in range(m):
-            buffer[i] = values[index[i], c]
+            if index[i] != i:
+                buffer[k] = values[index[i], c]
+                k += 1
+        k = 0
         for i in range(m):
-            values[i, c] = buffer[i]
+            if index[i] != i:
+                values[i, c] = buffer[k]
+                k += 1
 
 
 def _reorder_owned(var: xr.Variable, index: np.ndarray, buffer: np.ndarray) -> xr.Variable:
