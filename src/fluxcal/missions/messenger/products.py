@@ -606,7 +606,7 @@ def quicklook_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
     vec = ("time", "component")
     b = f"b_{frame}"
     field = frame_variables(ds, frame)[b].values
-    nt = "offset_nt" in ds  # edr2cdr --quicklook adds it (run.calibrate_and_write)
+    nt = "offset_nt" in ds  # edr2cdr --quicklook adds it (run.calibrate_run)
     return xr.Dataset(
         {
             b: (vec, field, {"units": "nT", "frame": FRAMES[frame][0],
