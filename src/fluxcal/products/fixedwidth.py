@@ -277,8 +277,8 @@ def copy_text(src: np.ndarray, buf: np.ndarray, start: int, width: int) -> tuple
 
 # --- whole rows in one pass ------------------------------------------------------------
 
-#: Column kinds of `format_rows`: left blank (filled by another kernel), ``Iw.m``, ``Fw.d``.
-SKIP, INT, FIXED = 0, 1, 2
+#: Column kinds of `format_rows`: ``Iw.m``, ``Fw.d``.
+INT, FIXED = 1, 2
 #: Spec fields of `format_rows` (one row of ``spec`` per column).
 S_KIND, S_SLOT, S_COMP, S_START, S_WIDTH, S_DEC, S_ZPAD, S_FILL = range(8)
 #: Rows per block: a block of rows (a few KiB) stays in the L1 cache while every column
@@ -288,7 +288,6 @@ BLOCK_ROWS = 64
 #: one compiled signature serves every table.
 SLOTS = 8
 _PAIRS = np.frombuffer("".join(f"{i:02d}" for i in range(100)).encode(), np.uint8).copy()
-_U64_MAX = np.uint64(2**64 - 1)
 
 
 def integer_limit(digits: int) -> int:
@@ -347,9 +346,9 @@ def format_rows(buf: np.ndarray, reals: tuple, ints: tuple, spec: np.ndarray,
     ``reals``/``ints`` are tuples of 2-D float64/int64 arrays (``(rows, components)``,
     rows aligned with ``buf``); column ``c`` prints component ``spec[c, S_COMP]`` of
     array ``spec[c, S_SLOT]`` of its kind.  ``limits[c]`` bounds the integer part
-    (non-negative, negative value: `integer_limit` of the places left).  ``SKIP``
-    columns stay blank.  With ``blank`` False the rows are not blanked first (a further
-    group of columns of rows already written).
+    (non-negative, negative value: `integer_limit` of the places left).  Fields of
+    other columns stay blank.  With ``blank`` False the rows are not blanked first (a
+    further group of columns of rows already written).
 
     ``Fw.d`` is ``"%w.df"`` (``"%0w.df"`` with ``S_ZPAD``), NaN printed as ``NaN`` unless
     ``S_FILL`` (then ``fills[c]`` is printed instead); ``Iw.m`` is ``"%w.md"``.  Returns
@@ -370,8 +369,6 @@ def format_rows(buf: np.ndarray, reals: tuple, ints: tuple, spec: np.ndarray,
                 buf[i, width_row - 1] = 10
         for c in range(ncol):
             kind = spec[c, S_KIND]
-            if kind == SKIP:
-                continue
             comp = spec[c, S_COMP]
             start = spec[c, S_START]
             width = spec[c, S_WIDTH]
