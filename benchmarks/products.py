@@ -18,8 +18,8 @@ CPU seconds (user + system; less sensitive to other load on the machine than the
 time) and seconds per stage (functions of `fluxcal.missions.messenger.run` and ``products``
 wrapped with a timer; nested stages are included in their callers).
 
-The numba cache is warmed first (one short ``edr2cdr`` run), so the figures do not
-include the one-off compilation.
+The numba cache and Python's bytecode cache are warmed first (one short ``edr2cdr``
+run), so the figures do not include the one-off compilation.
 
 Usage: .venv/bin/python benchmarks/products.py [--hours 24] [--cases baseline,a,b]
 """
@@ -189,6 +189,9 @@ def run_case(case: str, paths: dict[str, Path], out: Path) -> dict:
     spec = json.dumps({k: str(v) for k, v in paths.items()})
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
                NUMBA_NUM_THREADS="1")
+    # as on a user's machine, Python keeps its compiled bytecode (the warm-up run writes it;
+    # some sandboxes set PYTHONDONTWRITEBYTECODE, recompiling every module on every run)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, __file__, "--child", case, "--paths", spec,
                            "--out", str(out)], capture_output=True, text=True, check=False,
