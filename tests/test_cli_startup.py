@@ -137,3 +137,28 @@ def test_objects_the_caller_froze_stay_frozen():
         assert gc.get_freeze_count() > 0
     finally:
         gc.unfreeze()
+
+
+def _hugepage_advice(env_value: str | None) -> bool:
+    """numpy's huge-page advice after `numpy_allocation_defaults` in a fresh interpreter."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
+    if env_value is not None:
+        env["NUMPY_MADVISE_HUGEPAGE"] = env_value
+    code = ("from fluxcal.cli import numpy_allocation_defaults\n"
+            "numpy_allocation_defaults()\nimport numpy\n"
+            "print(numpy._core.multiarray._get_madvise_hugepage())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env=env).stdout
+    return out.split()[-1] == "True"
+
+
+def test_the_command_turns_numpy_huge_page_advice_off():
+    # numpy's own report of its switch (numpy reference, "Global state")
+    assert _hugepage_advice(None) is False
+
+
+@pytest.mark.parametrize("value, advised", [("1", True), ("0", False)])
+def test_a_users_huge_page_setting_is_kept(value, advised):
+    assert _hugepage_advice(value) is advised
