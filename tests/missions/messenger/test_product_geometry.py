@@ -1,10 +1,12 @@
-"""Product frames computed when written (`product_geometry`, issue 10 item 8, memory).
+"""A frame's field and position from J2000 (`levels.frame_variables`, issue 10 item 8).
 
 A run is calibrated with the J2000 field only; each product frame's field and position
-are evaluated when that frame is written.  Checked against SPICE per sample
-(``pxform``/``spkpos``, independent of fluxcal's interpolated legs), against the
-run calibrated with every frame (the same legs on the same samples: equal bit for bit),
-and end to end: the products of both runs are byte-identical files.
+are evaluated when that frame is written, by the function `levels.add_geometry` uses
+for every frame but J2000 and SC.  Checked against SPICE per sample (``pxform``/
+``spkpos``, independent of fluxcal's interpolated legs), against one fused compiled
+pass through every leg (`compiled.attitude_frames`, the former `add_geometry`: equal bit
+for bit), against the run calibrated with every frame, and end to end: the products of
+both runs are byte-identical files.
 """
 
 import logging
@@ -16,12 +18,12 @@ import spiceypy
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
-from fluxcal.missions.messenger.pipeline import calibrate
-from fluxcal.missions.messenger.product_geometry import (
+from fluxcal.missions.messenger.levels import (
     calibration_frames,
     frame_variables,
     note_mbf_rotation,
 )
+from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.products import write_day
 from fluxcal.missions.messenger.run import RAW_UNWRITTEN, calibrate_run
 
@@ -58,9 +60,51 @@ def test_frame_equals_the_run_calibrated_with_it(runs, frame):
     expected = {k: v for k, v in full[f"b_{frame}"].attrs.items() if k != "rotation_model"}
     assert got[f"b_{frame}"].attrs == expected
     pos = {"mso": "pos_mso", "mbf": "pos_mbf", "rtn": "pos_rtn", "vso": "pos_vso"}[frame]
-    if pos in full:  # add_geometry has no VSO position (the VSO case is below)
+    if frame != "vso":  # (add_geometry is not asked for VSO in ``runs``)
         np.testing.assert_array_equal(got[pos].values, full[pos].values)
         assert got[pos].attrs == full[pos].attrs
+
+
+def test_add_geometry_equals_one_fused_pass_through_every_leg(runs):
+    """Every frame equals one `compiled.attitude_frames` pass through both Mercury legs
+    and RTN (the fused evaluation add_geometry used before the frames came from J2000
+    through `frame_variables`): the same operations in the same order, bit for bit."""
+    from fluxcal.geometry import compiled
+    from fluxcal.geometry.frames import Rotator
+    from fluxcal.geometry.positions import position
+
+    _, full = runs
+    et = np.ascontiguousarray(full["et"].values)
+    n = et.size
+    got = {k: np.empty((n, 3)) for k in ("b_j2000", "pos_mso", "b_mso", "pos_mbf", "b_mbf",
+                                         "b_rtn")}
+    sun_sc = np.empty((n, 3))  # (not kept in ``runs``: keep_intermediates=False)
+    # under the pool ``runs`` loaded (a nested KernelPool reloads the kernels, and the
+    # legs built then may differ in the last bits: 3e-9 nT seen)
+    leg = Rotator("MSGR_SPACECRAFT", et).leg_table
+    pole = np.ascontiguousarray(spiceypy.pxform("IAU_SUN", "J2000", float(et[0]))[:, 2:].T)
+    assert np.array_equal(pole, spiceypy.pxform("IAU_SUN", "J2000", float(et[-1]))[:, 2:].T)
+    compiled.attitude_frames(
+        leg("MSGR_SPACECRAFT"), leg("MSGR_MSO"), leg("IAU_MERCURY"), et,
+        np.ascontiguousarray(full["b_sc"].values), np.ascontiguousarray(full["pos_j2000"]),
+        position("MESSENGER", "MERCURY", "J2000", et), pole, got["b_j2000"], sun_sc,
+        (got["pos_mso"], got["b_mso"]), (got["pos_mbf"], got["b_mbf"]), got["b_rtn"])
+    for name, values in got.items():
+        np.testing.assert_array_equal(full[name].values, values, err_msg=name)
+
+
+def test_add_geometry_vso_is_frame_variables(runs, calibration, simulated):
+    """VSO's field and (Venus) position from add_geometry are those the writer computes."""
+    only, _ = runs
+    sci = simulated["science"].isel(time=slice(0, None, 50))
+    # under the pool ``runs`` loaded, as ``only`` (see the test above)
+    vso = calibrate(sci, simulated["heater"], simulated["temperature"], calibration,
+                    frames=("vso",), max_offset_step=None, keep_intermediates=False)
+    got = frame_variables(only, "vso")
+    assert "b_j2000" not in vso and "pos_j2000" not in vso  # not requested: not kept
+    for name, var in got.items():
+        np.testing.assert_array_equal(vso[name].values, var.values)
+        assert vso[name].attrs == var.attrs
 
 
 @pytest.mark.parametrize("frame", ["mso", "mbf", "rtn", "vso"])

@@ -22,7 +22,7 @@ References
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import xarray as xr
@@ -604,25 +604,17 @@ def _rotate_oracle(
 
 
 def _rotate_interpolated(
-    b_sc: np.ndarray,
-    sun: np.ndarray,
-    et: np.ndarray,
-    frames: tuple[str, ...],
-    mercury_j2000: np.ndarray,
+    b_sc: np.ndarray, sun: np.ndarray, et: np.ndarray, j2000: bool, mercury_j2000: np.ndarray,
 ) -> dict[str, np.ndarray]:
-    """Field in every frame and ``sun_sc``: one compiled pass over the samples.
+    """J2000 field (``j2000``: when wanted), ``sun_sc`` and ``pos_mso``: one compiled pass.
 
     `fluxcal.geometry.compiled.attitude_frames` interpolates the attitude leg
     (MSGR_SPACECRAFT -> J2000, from the CK records) once per sample and gives the J2000
-    field, the Sun direction in the spacecraft frame, RTN (when MSGR_RTN is fluxcal's
-    two-vector frame, `rtn_from_position`'s construction) and, through the J2000 ->
-    MSGR_MSO and (MBF requested) J2000 -> IAU_MERCURY legs, the field and
-    ``mercury_j2000`` (MESSENGER relative to Mercury, J2000) in those frames: ``pos_mso``
-    and ``pos_mbf``, what ``spkpos`` returns in those frames without aberration
-    correction (the frame is evaluated at the same epoch).  The values are bit for bit
-    those of `fluxcal.geometry.frames.Rotator` from J2000 and `rtn_from_position`
-    applied to the J2000 field.  Other frames (VSO, an RTN defined otherwise) are one
-    `Rotator` pass from the J2000 field.
+    field, the Sun direction in the spacecraft frame and, through the J2000 -> MSGR_MSO
+    leg, ``mercury_j2000`` (MESSENGER relative to Mercury, J2000) in MSGR_MSO: what
+    ``spkpos`` returns in that frame without aberration correction (the frame is
+    evaluated at the same epoch).  Every product frame is then one leg from the J2000
+    field (`frame_variables`).
     """
     from fluxcal.geometry import compiled
     from fluxcal.geometry.frames import Rotator
@@ -630,46 +622,130 @@ def _rotate_interpolated(
     n = et.size
     empty = np.empty((0, 3))
     rotator = Rotator("MSGR_SPACECRAFT", et)
-    rtn = "rtn" in frames and rtn_is_sun_pole_two_vector(FRAMES["rtn"][0])
-    legs = position_frames(frames)
-    later = [f for f in frames if f not in ("sc", "j2000", *legs) and not (f == "rtn" and rtn)]
-    out = {"sc": b_sc, "sun_sc": np.empty((n, 3))}
-    if "j2000" in frames or later:
+    out = {"sun_sc": np.empty((n, 3)), "pos_mso": np.empty((n, 3))}
+    if j2000:
         out["j2000"] = np.empty((n, 3))
-    if rtn:
-        out["rtn"] = np.empty((n, 3))
-    tables, leg_outs = [], []
-    for f in legs:
-        out[f"pos_{f}"] = np.empty((n, 3))
-        if f in frames:
-            out[f] = np.empty((n, 3))
-        tables.append(rotator.leg_table(FRAMES[f][0]))
-        leg_outs.append((out[f"pos_{f}"], out.get(f, empty)))
-    while len(tables) < 2:
-        tables.append(compiled.IDENTITY_TABLE)
-        leg_outs.append((empty, empty))
     compiled.attitude_frames(
-        rotator.leg_table("MSGR_SPACECRAFT"), tables[0], tables[1],
+        rotator.leg_table("MSGR_SPACECRAFT"), rotator.leg_table(FRAMES["mso"][0]),
+        compiled.IDENTITY_TABLE,
         np.ascontiguousarray(et, dtype=float), np.ascontiguousarray(b_sc, dtype=float),
         np.ascontiguousarray(sun, dtype=float),
-        np.ascontiguousarray(mercury_j2000, dtype=float), _solar_axis(et) if rtn else empty,
-        out.get("j2000", empty), out["sun_sc"], leg_outs[0], leg_outs[1],
-        out.get("rtn", empty))
-    if later:
-        from_j2000 = Rotator("J2000", et)
-        for f in later:
-            out[f] = from_j2000.rotate(FRAMES[f][0], out["j2000"])
+        np.ascontiguousarray(mercury_j2000, dtype=float), empty,
+        out.get("j2000", empty), out["sun_sc"], (out["pos_mso"], empty), (empty, empty), empty)
     return out
 
 
-def position_frames(frames: tuple[str, ...]) -> tuple[str, ...]:
-    """Mercury-centred position frames `add_geometry` computes for the field ``frames``.
+#: Position variable of each frame (None: the SC frame has none).
+POSITION_VARIABLE: dict[str, str | None] = {
+    "mso": "pos_mso", "j2000": "pos_j2000", "mbf": "pos_mbf", "rtn": "pos_rtn",
+    "vso": "pos_vso", "sc": None,
+}
 
-    ``mso`` always (the quicklook's distance from Mercury and the MSO product), ``mbf``
-    only when the MBF field is requested: an unrequested position is a 40-MB array per
-    20 Hz day and, for MBF, a whole J2000 -> IAU_MERCURY leg.
+
+def _field_variable(frame: str, values: np.ndarray) -> xr.Variable:
+    """Return ``b_<frame>`` with its attributes."""
+    return _vector(values, "nT", f"magnetic field in {FRAMES[frame][0]}")
+
+
+def _position_variable(frame: str, values: np.ndarray) -> xr.Variable:
+    """Return the frame's position variable (`POSITION_VARIABLE`) with its attributes."""
+    spice = FRAMES[frame][0]
+    if frame == "j2000":
+        return _vector(values, "km", "MESSENGER relative to the Sun, J2000")
+    if frame == "rtn":
+        return _vector(values, "km, deg, deg",
+                       "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)")
+    if frame == "vso":
+        return _vector(values, "km", f"MESSENGER relative to Venus, {spice}")
+    return _vector(values, "km", f"MESSENGER relative to Mercury, {spice}")
+
+
+def position_frames(frames: tuple[str, ...]) -> tuple[str, ...]:
+    """Frames whose position `add_geometry` adds for the field ``frames``, in order.
+
+    ``mso`` always (the quicklook's distance from Mercury and the MSO product), every
+    other frame's position only with its field: an unrequested position is a 40-MB array
+    per 20 Hz day and, for MBF, a whole J2000 -> IAU_MERCURY leg.
     """
-    return ("mso", "mbf") if "mbf" in frames else ("mso",)
+    return tuple(f for f in ("j2000", "mso", "mbf", "rtn", "vso") if f == "mso" or f in frames)
+
+
+def calibration_frames(frames: Sequence[str]) -> tuple[str, ...]:
+    """Frames `add_geometry` computes for the products of ``frames`` (`frame_variables`).
+
+    J2000 when any frame but SC is requested (every other frame is one leg from it, and
+    ``pos_j2000`` is the Sun position of RTN and sec. 10.2); SC when requested (its field
+    is the attitude leg's input, not recomputed).  A run calibrated with these holds one
+    product frame's field and position at a time, each evaluated when that frame is
+    written, instead of every frame's (about 40 MB per array of a 20 Hz day).
+    """
+    frames = tuple(frames)
+    return (("j2000",) if any(f != "sc" for f in frames) else ()) + (
+        ("sc",) if "sc" in frames else ())
+
+
+def _sun_interpolator(et: np.ndarray):
+    """MESSENGER relative to the Sun (J2000) over ``et`` (None: < 4 samples)."""
+    from fluxcal.geometry.positions import StateInterpolator
+
+    if et.size < 4:
+        return None
+    return StateInterpolator("MESSENGER", "SUN", "J2000", float(et.min()), float(et.max()))
+
+
+def frame_variables(ds: xr.Dataset, frame: str) -> dict[str, xr.Variable]:
+    """Return ``b_<frame>`` and the frame's position variable (`POSITION_VARIABLE`) of ``ds``.
+
+    Taken from ``ds`` when it holds them, else evaluated from ``et``, ``b_j2000``,
+    ``pos_j2000`` and ``pos_mso`` (what `add_geometry` gives with `calibration_frames`)
+    through the interpolated legs: MSO, MBF and VSO through
+    `fluxcal.geometry.frames.Rotator` from J2000 (the MBF position from MESSENGER
+    relative to Mercury in J2000, through the same leg as the field), RTN by
+    `rtn_from_position` (or the frame's own leg when a kernel defines MSGR_RTN
+    otherwise) with the sec. 10.2 position of `spherical_rtn`, VSO's position from
+    SPICE.  `add_geometry` obtains every frame but J2000 and SC here, and the product
+    writer each frame when it is written: one implementation, the same bits.
+
+    Raises
+    ------
+    InputFormatError
+        When ``ds`` lacks the frame's variables and cannot give them (SC and J2000 are
+        taken, never recomputed; the other frames need ``b_j2000``).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2, 11.
+    """
+    from fluxcal.geometry.frames import Rotator
+    from fluxcal.geometry.positions import position
+
+    pos_name = POSITION_VARIABLE[frame]
+    names = [f"b_{frame}"] + ([pos_name] if pos_name is not None else [])
+    if all(name in ds for name in names):
+        return {name: ds[name].variable for name in names}
+    if frame in ("sc", "j2000") or "b_j2000" not in ds:
+        raise InputFormatError(f"the calibrated day has no {' or '.join(names)} and no "
+                               "b_j2000 to compute them from", field=f"b_{frame}")
+    et = ds["et"].values
+    b_j2000 = ds["b_j2000"].values
+    spice_frame = FRAMES[frame][0]
+    if frame == "rtn":
+        sun = ds["pos_j2000"].values
+        if rtn_is_sun_pole_two_vector(spice_frame):
+            field = rtn_from_position(b_j2000, sun, et)
+        else:
+            field = Rotator("J2000", et).rotate(spice_frame, b_j2000)
+        pos = spherical_rtn(sun, et, sun_at=_sun_interpolator(et))
+    elif frame == "mbf":  # position and field through one leg, one after the other
+        rotator = Rotator("J2000", et)  # (Mercury's J2000 position freed before the field)
+        pos = rotator.rotate(spice_frame, position("MESSENGER", "MERCURY", "J2000", et))
+        field = rotator.rotate(spice_frame, b_j2000)
+    else:  # MSO (its position is in every calibrated run) and VSO
+        field = Rotator("J2000", et).rotate(spice_frame, b_j2000)
+        if frame == "mso":
+            return {"b_mso": _field_variable(frame, field), "pos_mso": ds["pos_mso"].variable}
+        pos = position("MESSENGER", "VENUS", spice_frame, et)
+    return {f"b_{frame}": _field_variable(frame, field), pos_name: _position_variable(frame, pos)}
 
 
 #: The MSGR_RTN definition `rtn_from_position` reproduces (fluxcal's msgr_rtn.tf):
@@ -856,6 +932,33 @@ def mercury_orientation_is_builtin() -> bool:
     return True
 
 
+def note_mbf_rotation(ds: xr.Dataset, frames: Sequence[str]) -> xr.Dataset:
+    """Log and record the built-in Mercury rotation when MBF is in ``frames``.
+
+    When MBF is produced with fluxcal's built-in Mercury rotation (no mission PCK,
+    `mercury_orientation_is_builtin`): logs `MBF_BUILTIN_NOTE` as a warning, sets it as
+    the ``mbf_rotation`` attribute (which every product of the run carries; placed before
+    ``software_version`` when present, the attributes `pipeline.calibrate` adds last, so
+    the labels list it in the same place whether MBF is computed by `add_geometry` or
+    when written) and notes ``rotation_model`` on ``b_mbf`` when ``ds`` holds it.
+    Otherwise returns ``ds`` itself.
+    """
+    if "mbf" not in frames or not mercury_orientation_is_builtin():
+        return ds
+    log.warning(MBF_BUILTIN_NOTE)
+    attrs = dict(ds.attrs)
+    keys = list(attrs)
+    at = keys.index("software_version") if "software_version" in keys else len(keys)
+    ordered = {k: attrs[k] for k in keys[:at]}
+    ordered["mbf_rotation"] = MBF_BUILTIN_NOTE
+    ordered.update((k, attrs[k]) for k in keys[at:])
+    out = ds.copy(deep=False)
+    out.attrs = ordered
+    if "b_mbf" in out:
+        out["b_mbf"].attrs["rotation_model"] = "IAU 2009 (fluxcal built-in), no mission PCK"
+    return out
+
+
 def add_geometry(
     ds: xr.Dataset,
     cal: MessengerCalibration,
@@ -870,13 +973,15 @@ def add_geometry(
     composition SPICE's ``pxform`` performs.  Adds ``b_<frame>`` for each requested key
     of `FRAMES`, ``sun_sc`` (unit Sun direction in MSGR_SPACECRAFT, for the S flag) and
     ``pos_mso`` (relative to Mercury in MSGR_MSO, for the MSO product and the quicklook's
-    distance); the other positions only with their frame (`position_frames`):
-    ``pos_j2000`` (MESSENGER relative to the Sun, J2000) with J2000, ``pos_mbf``
-    (relative to Mercury in IAU_MERCURY) with MBF and ``pos_rtn`` (r km, latitude deg,
-    azimuth deg of sec. 10.2) with RTN.  What is computed for a requested frame does not
-    depend on the other frames requested.  Kernels must be loaded.  MBF produced with
-    fluxcal's built-in Mercury rotation (no mission PCK, `mercury_orientation_is_builtin`)
-    is logged as a warning and noted in the ``mbf_rotation`` attribute.
+    distance); the other positions (`POSITION_VARIABLE`) only with their frame
+    (`position_frames`): ``pos_j2000`` (MESSENGER relative to the Sun, J2000),
+    ``pos_mbf`` (relative to Mercury in IAU_MERCURY), ``pos_rtn`` (r km, latitude deg,
+    azimuth deg of sec. 10.2) and ``pos_vso`` (relative to Venus in MSGR_VSO).  With
+    ``method="interpolate"`` the J2000 field, ``sun_sc`` and ``pos_mso`` come from one
+    compiled pass and every other frame from them through `frame_variables` (what the
+    product writer uses).  What is computed for a requested frame does not depend on the
+    other frames requested.  Kernels must be loaded.  MBF produced with fluxcal's
+    built-in Mercury rotation is noted (`note_mbf_rotation`).
 
     Parameters
     ----------
@@ -912,39 +1017,48 @@ def add_geometry(
         sun_at = StateInterpolator("MESSENGER", "SUN", "J2000", float(et.min()),
                                    float(et.max()))
         sun = sun_at(et)
+    fields: dict[str, xr.Variable] = {}
+    positions: dict[str, xr.Variable] = {}
     if method == "oracle":
         out = _rotate_oracle(b_sc, sun, et, frames)
         for f in position_frames(frames):
-            out[f"pos_{f}"] = position("MESSENGER", "MERCURY", FRAMES[f][0], et,
-                                       method=method)
+            if f == "j2000":
+                pos = sun
+            elif f == "rtn":
+                pos = spherical_rtn(sun, et, method=method, sun_at=sun_at)
+            else:
+                target = "VENUS" if f == "vso" else "MERCURY"
+                pos = position("MESSENGER", target, FRAMES[f][0], et, method=method)
+            positions[f] = _position_variable(f, pos)
+        fields = {f: _field_variable(f, out.pop(f)) for f in frames}
+        sun_sc = out.pop("sun_sc")
     else:
         mercury = position("MESSENGER", "MERCURY", "J2000", et, method=method)
-        out = _rotate_interpolated(b_sc, sun, et, frames, mercury_j2000=mercury)
+        out = _rotate_interpolated(b_sc, sun, et, any(f != "sc" for f in frames),
+                                   mercury_j2000=mercury)
         del mercury
-    del b_sc  # b_sc and b_j2000 stay only as requested frames (out["sc"], out["j2000"])
-    variables = {
-        f"b_{f}": _vector(out.pop(f), "nT", f"magnetic field in {FRAMES[f][0]}") for f in frames
-    }
-    for f in ("sc", "j2000"):  # when not requested: freed before sec. 10.2
-        out.pop(f, None)
-    if "j2000" in frames:
-        variables["pos_j2000"] = _vector(sun, "km", "MESSENGER relative to the Sun, J2000")
-    for f in position_frames(frames):
-        variables[f"pos_{f}"] = _vector(out.pop(f"pos_{f}"), "km",
-                                        f"MESSENGER relative to Mercury, {FRAMES[f][0]}")
-    if "rtn" in frames:
-        variables["pos_rtn"] = _vector(
-            spherical_rtn(sun, et, method=method, sun_at=sun_at), "km, deg, deg",
-            "distance from the Sun, ecliptic latitude, azimuth (sec. 10.2)")
-    variables["sun_sc"] = _vector(out.pop("sun_sc"), "1",
-                                  "unit Sun direction in MSGR_SPACECRAFT")
-    del out, sun  # the Sun position stays only as pos_j2000 (J2000 requested)
-    out_ds = ds.assign(variables)
-    if "mbf" in frames and mercury_orientation_is_builtin():
-        log.warning(MBF_BUILTIN_NOTE)
-        out_ds.attrs["mbf_rotation"] = MBF_BUILTIN_NOTE
-        out_ds["b_mbf"].attrs["rotation_model"] = "IAU 2009 (fluxcal built-in), no mission PCK"
-    return out_ds
+        sun_sc = out.pop("sun_sc")
+        positions["mso"] = _position_variable("mso", out.pop("pos_mso"))
+        if "sc" in frames:
+            fields["sc"] = _field_variable("sc", b_sc)
+        if "j2000" in out:  # every other frame is one leg from J2000 (sec. 10.1, 11)
+            fields["j2000"] = _field_variable("j2000", out.pop("j2000"))
+            positions["j2000"] = _position_variable("j2000", sun)
+            legs = xr.Dataset({"et": ds["et"].variable, "b_j2000": fields["j2000"],
+                               "pos_j2000": positions["j2000"], "pos_mso": positions["mso"]})
+            for f in frames:
+                if f not in ("sc", "j2000"):
+                    got = frame_variables(legs, f)
+                    fields[f] = got[f"b_{f}"]
+                    if f != "mso":
+                        positions[f] = got[POSITION_VARIABLE[f]]
+            del legs
+    del b_sc, out, sun  # the Sun position stays only as pos_j2000 (J2000 requested)
+    variables = {f"b_{f}": fields[f] for f in frames}
+    variables.update((POSITION_VARIABLE[f], positions[f]) for f in position_frames(frames))
+    variables["sun_sc"] = _vector(sun_sc, "1", "unit Sun direction in MSGR_SPACECRAFT")
+    del fields, positions
+    return note_mbf_rotation(ds.assign(variables), frames)
 
 
 # ----------------------------------------------------------------------------------------

@@ -40,8 +40,7 @@ from numba import njit
 
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
-from fluxcal.missions.messenger.levels import FRAMES, SC_ID
-from fluxcal.missions.messenger.product_geometry import POSITION_VARIABLE, frame_variables
+from fluxcal.missions.messenger.levels import FRAMES, POSITION_VARIABLE, SC_ID, frame_variables
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
 

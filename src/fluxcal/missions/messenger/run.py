@@ -18,8 +18,8 @@ from fluxcal.errors import InputFormatError, ValidationError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
+from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
 from fluxcal.missions.messenger.pipeline import calibrate, day_of
-from fluxcal.missions.messenger.product_geometry import calibration_frames, note_mbf_rotation
 from fluxcal.missions.messenger.products import (
     AVERAGES_S,
     DEFAULT_VERSION,
@@ -56,8 +56,8 @@ def calibrate_run(
     """Calibrate loaded streams (kernels loaded) for the products of ``frames``.
 
     The run keeps the J2000 (and, for an SC product, the spacecraft) field, the Sun and
-    Mercury positions of `product_geometry.calibration_frames`; each product frame is
-    computed when its products are written (`product_geometry.frame_variables`), so the
+    Mercury positions of `levels.calibration_frames`; each product frame is
+    computed when its products are written (`levels.frame_variables`), so the
     run never holds every frame at once.  The raw columns no output reads
     (`RAW_UNWRITTEN`) are dropped: once the caller drops the streams too, their memory
     is free.  With ``quicklook_frame`` the applied offsets in nT (``offset_nt``, fine
