@@ -28,6 +28,7 @@ from fluxcal.geometry.time import (
     tt2000_to_datetime64,
     tt2000_to_utc,
     tt2000_to_utc_fields,
+    utc_day_start_tt2000,
     utc_fields_to_tt2000,
     utc_to_tt2000,
 )
@@ -150,6 +151,17 @@ def test_fields_with_float_seconds_give_cdflib_epoch(lsk, epochs):
     got = utc_fields_to_tt2000(ref[:, 0], doy, ref[:, 3], ref[:, 4], second, lsk)
     np.testing.assert_array_equal(got, epochs)
     assert (ref[:, 5] == 60).sum() > 400  # leap seconds are in the sample
+
+
+@pytest.mark.parametrize("y, m, d", [*LEAP_DAYS, (2012, 7, 1), (2000, 2, 29), (2011, 3, 21)])
+def test_day_start_is_cdflibs_midnight(lsk, y, m, d):
+    day = np.datetime64(f"{y:04d}-{m:02d}-{d:02d}")
+    start = utc_day_start_tt2000(day, lsk)
+    assert start == _cdf([y, m, d, 0, 0, 0, 0, 0, 0])
+    nxt = (datetime.date(y, m, d) + datetime.timedelta(days=1)).timetuple()[:3]
+    length = utc_day_start_tt2000(day + 1, lsk) - start
+    assert length == (86_401 if (y, m, d) in LEAP_DAYS else 86_400) * NS
+    assert utc_day_start_tt2000(day + 1, lsk) == _cdf([*nxt, 0, 0, 0, 0, 0, 0])
 
 
 def test_fill_and_pad_fields_match_cdflib(lsk):

@@ -495,6 +495,24 @@ def utc_fields_to_tt2000(
     return np.asarray(tt2000, dtype=np.int64)
 
 
+def utc_day_start_tt2000(day: np.datetime64 | str, lsk: LeapSecondTable | None = None) -> int:
+    """TT2000 (int64 ns) of 00:00:00 UTC of the date ``day`` (leap seconds included).
+
+    The one day edge of the products: a MESSENGER day's averaging origin and a Rosetta
+    day folder's bounds (``utc_day_start_tt2000(d)`` to ``utc_day_start_tt2000(d + 1)``,
+    86,401 s across a leap second).
+
+    Parameters
+    ----------
+    day : numpy.datetime64 or str
+        The date (any datetime64 unit; the time of day is dropped).
+    lsk : LeapSecondTable, optional
+        Leapseconds constants; default the loaded LSK.
+    """
+    midnight = np.datetime64(day, "D").astype("M8[ns]")
+    return int(datetime64_to_tt2000(np.array([midnight]), lsk)[0])
+
+
 def _civil_from_days(days: np.ndarray) -> tuple[np.ndarray, ...]:
     """Days past 1970-01-01 -> (year, month, day, day of year), proleptic Gregorian.
 

@@ -499,11 +499,10 @@ def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], c
 
 
 def day_start_tt2000(year: int, doy: int) -> int:
-    """TT2000 of 00:00:00 UTC of day ``doy`` of ``year``."""
-    from fluxcal.geometry.time import utc_to_tt2000
+    """TT2000 of 00:00:00 UTC of day ``doy`` of ``year`` (`utc_day_start_tt2000`)."""
+    from fluxcal.geometry.time import utc_day_start_tt2000
 
-    day0 = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
-    return int(utc_to_tt2000(np.array([f"{day0}T00:00:00"]))[0])
+    return utc_day_start_tt2000(np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D"))
 
 
 def write_day(

@@ -506,12 +506,11 @@ def calibrate_files(
 
 
 def day_bounds(day: np.datetime64 | str, lsk=None) -> tuple[int, int]:
-    """TT2000 ns of 00:00 UTC of ``day`` and of the next day (leap seconds included)."""
-    from fluxcal.geometry.time import utc_to_tt2000
+    """TT2000 ns of 00:00 UTC of ``day`` and of the next day (`utc_day_start_tt2000`)."""
+    from fluxcal.geometry.time import utc_day_start_tt2000
 
     d = np.datetime64(day, "D")
-    edges = utc_to_tt2000(np.array([f"{d}T00:00:00", f"{d + 1}T00:00:00"]), lsk)
-    return int(edges[0]), int(edges[1])
+    return utc_day_start_tt2000(d, lsk), utc_day_start_tt2000(d + 1, lsk)
 
 
 def check_day_records(raw: xr.Dataset, bounds: tuple[int, int], path: Path, lsk=None) -> None:
