@@ -291,11 +291,11 @@ def write_day_outputs(
     """
     yyddd = day_code(day)[2]
     with atomic_group():  # any exception below: no file of the day appears
-        if max_offset_step is not None:
-            levels.validate_offsets(day, max_offset_step)
+        steps = (levels.validate_offsets(day, max_offset_step)
+                 if max_offset_step is not None else None)
         written = write_day(day, out_dir, frames, formats, averages, provenance, version,
                             progress)
-        written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step)
+        written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step, steps)
         if quicklook_frame is not None:
             written += write_quicklook(day, out_dir, quicklook_frame)
     return written

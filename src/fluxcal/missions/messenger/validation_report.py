@@ -21,11 +21,16 @@ from matplotlib.figure import Figure
 from fluxcal.missions.messenger.levels import offset_step_report
 
 
-def report_text(ds: xr.Dataset, threshold_counts: float | None) -> str:
-    """Return the step report as text: largest step per axis, where, and the threshold."""
+def report_text(ds: xr.Dataset, threshold_counts: float | None,
+                report: dict | None = None) -> str:
+    """Return the step report as text: largest step per axis, where, and the threshold.
+
+    ``report`` is `offset_step_report` of ``ds`` when the caller has it already (e.g.
+    from `levels.validate_offsets`); it is computed otherwise.
+    """
     from fluxcal.geometry.time import et_to_utc
 
-    rep = offset_step_report(ds)
+    rep = offset_step_report(ds) if report is None else report
     lines = ["# MESSENGER MAG offset smoothness (MESSENGER MAG EDR-to-CDR Processing, sec. 13)",
              f"# threshold_counts: {threshold_counts}", "axis,largest_step_counts,utc"]
     for axis, item in rep.items():
@@ -34,8 +39,11 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None) -> list[Path]:
+def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
+                 report: dict | None = None) -> list[Path]:
     """Write ``stem.txt`` and ``stem.png`` (applied offsets versus time) atomically.
+
+    ``report``: the day's `offset_step_report`, when already computed (`report_text`).
 
     Both files go through `fluxcal.products.atomic.atomic_path`, so inside a caller's
     `atomic_group` they appear only with the rest of the day's products.
@@ -44,7 +52,7 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None) -> 
 
     stem = Path(stem)
     txt = stem.with_name(stem.name + ".txt")
-    atomic_write_bytes(txt, report_text(ds, threshold_counts).encode())
+    atomic_write_bytes(txt, report_text(ds, threshold_counts, report).encode())
     png = stem.with_name(stem.name + ".png")
     hours = (ds["et"].values - ds["et"].values[0]) / 3600.0
     fig = Figure(figsize=(8, 6))
