@@ -77,11 +77,6 @@ def layout(cols: Sequence[ResolvedColumn]) -> tuple[list[int], int]:
     return starts, pos - 1 + len(EOL)
 
 
-def _column_array(ds: xr.Dataset, col: ResolvedColumn) -> np.ndarray:
-    var = ds[col.variable]
-    return var.values if col.index is None else var.values[:, col.index]
-
-
 def _format_text(buf: np.ndarray, start: int, values: np.ndarray, col: ResolvedColumn,
                  first_row: int) -> None:
     """Copy a string column into its field (left-justified, blank-padded); validated."""
