@@ -30,6 +30,7 @@ from pathlib import Path
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+from _control import control  # noqa: E402  (benchmarks/_control.py, beside this script)
 from distributed import Client  # noqa: E402
 
 from fluxcal.errors import FluxcalError  # noqa: E402
@@ -42,27 +43,6 @@ from fluxcal.products.batch import (  # noqa: E402
 
 MESSENGER_DAYS = (dt.date(2015, 4, 30) - dt.date(2011, 3, 18)).days + 1
 VECTORS_PER_DAY_20HZ = 20 * 86_400
-
-
-def _burn(_: int) -> float:
-    """A pure-CPU control task (~0.5 s): measures the parallelism the machine offers now."""
-    t = time.perf_counter()
-    x = 0
-    for k in range(8_000_000):
-        x += k
-    return time.perf_counter() - t
-
-
-def _control(cluster, n: int) -> float:
-    t = time.perf_counter()
-    for i in range(n):
-        _burn(i)
-    serial = time.perf_counter() - t
-    with Client(cluster) as client:
-        t = time.perf_counter()
-        client.gather(client.map(_burn, range(n), pure=False))
-        parallel = time.perf_counter() - t
-    return serial / parallel
 
 
 def _quiet_fluxcal_logs() -> None:
@@ -136,7 +116,7 @@ def main() -> None:
                       force=True)
             rep_p = run_batch(days, task, par_out, scheduler=cluster.scheduler_address,
                               force=True)
-            control = _control(cluster, 2 * args.workers)
+            ctrl = control(cluster, 2 * args.workers)
         finally:
             cluster.close()
     finally:
@@ -154,7 +134,7 @@ def main() -> None:
           f"{n / rep_p.wall_seconds:6.3f} days/s  {vec / rep_p.wall_seconds:12,.0f} vectors/s"
           f"  (cluster start-up {startup:.1f} s, not included)")
     speedup = rep_s.wall_seconds / rep_p.wall_seconds
-    print(f"control: a pure-CPU task reaches {control:.2f}x on this cluster right now "
+    print(f"control: a pure-CPU task reaches {ctrl:.2f}x on this cluster right now "
           "(the parallelism the machine offers)")
     print(f"load average during the runs: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
           "(other processes on the machine lower the speed-up)")

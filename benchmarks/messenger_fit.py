@@ -31,33 +31,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
+from _control import control  # noqa: E402  (benchmarks/_control.py, beside this script)
 
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
 START = dt.date(2010, 3, 1)
-
-
-def _burn(_: int) -> float:
-    """A pure-CPU task (~0.5 s), as in benchmarks/batch.py."""
-    t = time.perf_counter()
-    x = 0
-    for k in range(8_000_000):
-        x += k
-    return time.perf_counter() - t
-
-
-def _control(cluster, n: int) -> float:
-    from distributed import Client
-
-    t = time.perf_counter()
-    for i in range(n):
-        _burn(i)
-    serial = time.perf_counter() - t
-    with Client(cluster) as client:
-        t = time.perf_counter()
-        client.gather(client.map(_burn, range(n), pure=False))
-        return serial / (time.perf_counter() - t)
 
 
 def _fit(run, passes: int, scheduler: str | None, out: Path, days=None) -> float:
@@ -99,7 +78,7 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
     print(f"  speed-up serial/parallel: {serial / parallel:.2f}x "
           f"(ideal {len(cluster.workers)}x; load average {os.getloadavg()[0]:.2f} on "
           f"{os.cpu_count()} cores)")
-    print(f"  control: a pure-CPU task reaches {_control(cluster, 2 * len(cluster.workers)):.2f}x"
+    print(f"  control: a pure-CPU task reaches {control(cluster, 2 * len(cluster.workers)):.2f}x"
           " on this cluster right now (the parallelism the machine offers)")
     shutil.rmtree(work / label, ignore_errors=True)
 
