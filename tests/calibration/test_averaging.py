@@ -11,6 +11,13 @@ from hypothesis import strategies as st
 
 from fluxcal.calibration import averaging
 
+#: Strategies of (times, bin width, origin): both signs of ``time - origin`` occur.
+TIMES_WIDTH_ORIGIN = (
+    st.lists(st.integers(-(10**12), 10**12), min_size=1, max_size=200),
+    st.integers(1, 10**10),
+    st.integers(-(10**11), 10**11),
+)
+
 
 def brute(epoch, values, width, origin):
     groups = {}
@@ -25,11 +32,7 @@ def brute(epoch, values, width, origin):
 
 
 @settings(max_examples=60, deadline=None)
-@given(
-    st.lists(st.integers(-(10**12), 10**12), min_size=1, max_size=200),
-    st.integers(1, 10**10),
-    st.integers(-(10**11), 10**11),
-)
+@given(*TIMES_WIDTH_ORIGIN)
 def test_matches_brute_force(times, width, origin):
     epoch = np.array(times, dtype=np.int64)
     values = np.sin(epoch.astype(float) * 1e-9)
@@ -102,11 +105,7 @@ def test_empty():
 
 
 @settings(max_examples=60, deadline=None)
-@given(
-    st.lists(st.integers(-(10**12), 10**12), min_size=1, max_size=200),
-    st.integers(1, 10**10),
-    st.integers(-(10**11), 10**11),
-)
+@given(*TIMES_WIDTH_ORIGIN)
 def test_sorted_times_one_pass_matches_brute_force(times, width, origin):
     """Times in order take the compiled single pass (no sort, no copy): same bins.
 
