@@ -172,32 +172,26 @@ def slerp_rotate(
 
 
 @njit(cache=True, nogil=True)
-def attitude_frames(
-    attitude, first, second, et, field, sun, position, pole,
-    field_inertial, sun_body, first_out, second_out, field_rtn,
-):
-    """Rotate a field through an attitude leg into up to three frames, in one pass.
+def attitude_frames(attitude, leg, et, field, sun, position, field_inertial, sun_body, leg_out):
+    """Rotate a field through an attitude leg into J2000 and one more frame, in one pass.
 
     Per epoch: the ``body -> J2000`` attitude is interpolated once and gives the J2000
-    field and the unit Sun direction in the body frame; each of two ``J2000 -> frame``
-    legs (``first``, ``second``) then rotates that J2000 field and a J2000 position;
-    RTN is built from the Sun -> body position and the solar rotation axis.  Every
-    value is bit for bit what the separate passes give (the same operations in the same
-    order): ``slerp_rotate(attitude, J2000, [field, unit_rows(sun, -1)], inverse=[False,
-    True])``, ``slerp_rotate(J2000, leg, [position, field_inertial])`` per leg and
-    ``rtn_rotate(sun, pole, field_inertial)`` -- so a frame computed later from the J2000
-    field alone (`fluxcal.geometry.frames.Rotator`) equals the one computed here.  One
-    pass instead of four: ~10 % less time than the separate loops, no Sun-direction
-    temporary.
+    field and the unit Sun direction in the body frame; the ``J2000 -> frame`` leg
+    (``leg``) then rotates that J2000 field and a J2000 position.  Every value is bit for
+    bit what the separate passes give (the same operations in the same order):
+    ``slerp_rotate(attitude, J2000, [field, unit_rows(sun, -1)], inverse=[False, True])``
+    and ``slerp_rotate(J2000, leg, [position, field_inertial])`` -- so a frame computed
+    later from the J2000 field alone (`fluxcal.geometry.frames.Rotator`) equals the one
+    computed here.  One pass instead of three, no Sun-direction temporary.
 
     Parameters
     ----------
     attitude : tuple of ndarray
         SLERP table ``(nodes, q0, ortho, theta)`` of the leg ``body -> J2000``
         (`slerp_table`).
-    first, second : tuple of ndarray
-        SLERP tables of two legs ``frame -> J2000`` (applied inverted); a leg with no
-        output written is skipped (pass `IDENTITY_TABLE` for it).
+    leg : tuple of ndarray
+        SLERP table of a leg ``frame -> J2000`` (applied inverted); skipped when no
+        output of it is written.
     et : ndarray, shape (n,)
         Epochs.
     field : ndarray, shape (n, 3)
@@ -205,44 +199,32 @@ def attitude_frames(
     sun : ndarray, shape (n, 3)
         Body relative to the Sun, J2000 (km): the Sun direction is ``-sun / |sun|``.
     position : ndarray, shape (n, 3)
-        A J2000 position rotated into both frames (e.g. relative to a planet).
-    pole : ndarray, shape (0, 3), (1, 3) or (n, 3)
-        Solar rotation axis in J2000 (fixed or per sample); empty: no RTN.
-    field_inertial, sun_body, field_rtn : ndarray, shape (n, 3) or (0, 3)
-        Outputs: J2000 field, unit Sun direction in the body frame, RTN field; an
-        empty array is not written.
-    first_out, second_out : tuple of two ndarray, shape (n, 3) or (0, 3)
-        Outputs per leg: ``(position, field)`` in that frame (empty: not written).
+        A J2000 position rotated into the frame (e.g. relative to a planet).
+    field_inertial, sun_body : ndarray, shape (n, 3) or (0, 3)
+        Outputs: J2000 field, unit Sun direction in the body frame; an empty array is
+        not written.
+    leg_out : tuple of two ndarray, shape (n, 3) or (0, 3)
+        Outputs of the leg: ``(position, field)`` in that frame (empty: not written).
 
     References
     ----------
-    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i (seed 000), sec. 3.5 (RTN), sec. 10.1
-           (positions in MSO and MBF), sec. 11 (``cspice_pxform`` + ``cspice_mxv``).
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i (seed 000), sec. 10.1 (positions in
+           MSO), sec. 11 (``cspice_pxform`` + ``cspice_mxv``).
     """
     nodes, q0, ortho, theta = attitude
-    n1, q1, o1, th1 = first
-    n2, q2, o2, th2 = second
+    n1, q1, o1, th1 = leg
     has_attitude = nodes.size >= 2
     sx, sy, sz, sw = _fixed_quaternion(nodes, q0)
-    first_pos, first_field = first_out
-    second_pos, second_field = second_out
-    write_first_pos = first_pos.shape[0] > 0
-    write_first_field = first_field.shape[0] > 0
-    write_second_pos = second_pos.shape[0] > 0
-    write_second_field = second_field.shape[0] > 0
-    first_leg = write_first_pos or write_first_field
-    second_leg = write_second_pos or write_second_field
-    first_moving = n1.size >= 2
-    second_moving = n2.size >= 2
-    tx1, ty1, tz1, tw1 = _fixed_quaternion(n1, q1)
-    tx2, ty2, tz2, tw2 = _fixed_quaternion(n2, q2)
+    leg_pos, leg_field = leg_out
+    write_pos = leg_pos.shape[0] > 0
+    write_field = leg_field.shape[0] > 0
+    use_leg = write_pos or write_field
+    leg_moving = n1.size >= 2
+    tx, ty, tz, tw = _fixed_quaternion(n1, q1)
     write_inertial = field_inertial.shape[0] > 0
     write_sun = sun_body.shape[0] > 0
-    rtn = pole.shape[0] > 0
-    pole_per_sample = pole.shape[0] > 1
     i = 0
-    h1 = 0
-    h2 = 0
+    h = 0
     for j in range(et.size):
         t = et[j]
         if has_attitude:
@@ -251,32 +233,18 @@ def attitude_frames(
         bx, by, bz = _rotate(x, y, z, w, field[j, 0], field[j, 1], field[j, 2])
         if write_inertial:
             field_inertial[j, 0], field_inertial[j, 1], field_inertial[j, 2] = bx, by, bz
-        px, py, pz = sun[j, 0], sun[j, 1], sun[j, 2]
         if write_sun:
-            ux, uy, uz = _unit(px, py, pz, -1.0)
+            ux, uy, uz = _unit(sun[j, 0], sun[j, 1], sun[j, 2], -1.0)
             sun_body[j, 0], sun_body[j, 1], sun_body[j, 2] = _rotate(-x, -y, -z, w, ux, uy, uz)
-        if rtn:
-            p = j if pole_per_sample else 0
-            field_rtn[j, 0], field_rtn[j, 1], field_rtn[j, 2] = _rtn(
-                px, py, pz, pole[p, 0], pole[p, 1], pole[p, 2], bx, by, bz)
-        # each J2000 -> frame leg as slerp_rotate forms it with J2000 as source (conj(qt) * 1)
-        if first_leg:
-            if first_moving:
-                tx1, ty1, tz1, tw1, h1 = _slerp_at(n1, q1, o1, th1, t, h1)
-            x, y, z, w = _compose(tx1, ty1, tz1, tw1, 0.0, 0.0, 0.0, 1.0)
-            if write_first_pos:
-                _rotate_into(x, y, z, w, position, first_pos, j)
-            if write_first_field:
-                first_field[j, 0], first_field[j, 1], first_field[j, 2] = _rotate(
-                    x, y, z, w, bx, by, bz)
-        if second_leg:
-            if second_moving:
-                tx2, ty2, tz2, tw2, h2 = _slerp_at(n2, q2, o2, th2, t, h2)
-            x, y, z, w = _compose(tx2, ty2, tz2, tw2, 0.0, 0.0, 0.0, 1.0)
-            if write_second_pos:
-                _rotate_into(x, y, z, w, position, second_pos, j)
-            if write_second_field:
-                second_field[j, 0], second_field[j, 1], second_field[j, 2] = _rotate(
+        # the J2000 -> frame leg as slerp_rotate forms it with J2000 as source (conj(qt) * 1)
+        if use_leg:
+            if leg_moving:
+                tx, ty, tz, tw, h = _slerp_at(n1, q1, o1, th1, t, h)
+            x, y, z, w = _compose(tx, ty, tz, tw, 0.0, 0.0, 0.0, 1.0)
+            if write_pos:
+                _rotate_into(x, y, z, w, position, leg_pos, j)
+            if write_field:
+                leg_field[j, 0], leg_field[j, 1], leg_field[j, 2] = _rotate(
                     x, y, z, w, bx, by, bz)
 
 

@@ -3,9 +3,9 @@
 A run is calibrated with the J2000 field only; each product frame's field and position
 are evaluated when that frame is written, by the function `levels.add_geometry` uses
 for every frame but J2000 and SC.  Checked against SPICE per sample (``pxform``/
-``spkpos``, independent of fluxcal's interpolated legs), against one fused compiled
-pass through every leg (`compiled.attitude_frames`, the former `add_geometry`: equal bit
-for bit), against the run calibrated with every frame, and end to end: the products of
+``spkpos``, independent of fluxcal's interpolated legs), against the compiled passes
+of the former `add_geometry` (`compiled.attitude_frames` and the per-leg loops: equal
+bit for bit), against the run calibrated with every frame, and end to end: the products of
 both runs are byte-identical files.
 """
 
@@ -66,9 +66,10 @@ def test_frame_equals_the_run_calibrated_with_it(runs, frame):
 
 
 def test_add_geometry_equals_one_fused_pass_through_every_leg(runs):
-    """Every frame equals one `compiled.attitude_frames` pass through both Mercury legs
-    and RTN (the fused evaluation add_geometry used before the frames came from J2000
-    through `frame_variables`): the same operations in the same order, bit for bit."""
+    """Every frame equals the compiled passes add_geometry used before the frames came
+    from J2000 through `frame_variables` (`compiled.attitude_frames` through the MSO leg,
+    `compiled.slerp_rotate` through the MBF leg, `compiled.rtn_rotate`): the same
+    operations in the same order, bit for bit."""
     from fluxcal.geometry import compiled
     from fluxcal.geometry.frames import Rotator
     from fluxcal.geometry.positions import position
@@ -84,11 +85,15 @@ def test_add_geometry_equals_one_fused_pass_through_every_leg(runs):
     leg = Rotator("MSGR_SPACECRAFT", et).leg_table
     pole = np.ascontiguousarray(spiceypy.pxform("IAU_SUN", "J2000", float(et[0]))[:, 2:].T)
     assert np.array_equal(pole, spiceypy.pxform("IAU_SUN", "J2000", float(et[-1]))[:, 2:].T)
+    sun = np.ascontiguousarray(full["pos_j2000"])
+    mercury = position("MESSENGER", "MERCURY", "J2000", et)
     compiled.attitude_frames(
-        leg("MSGR_SPACECRAFT"), leg("MSGR_MSO"), leg("IAU_MERCURY"), et,
-        np.ascontiguousarray(full["b_sc"].values), np.ascontiguousarray(full["pos_j2000"]),
-        position("MESSENGER", "MERCURY", "J2000", et), pole, got["b_j2000"], sun_sc,
-        (got["pos_mso"], got["b_mso"]), (got["pos_mbf"], got["b_mbf"]), got["b_rtn"])
+        leg("MSGR_SPACECRAFT"), leg("MSGR_MSO"), et, np.ascontiguousarray(full["b_sc"].values),
+        sun, mercury, got["b_j2000"], sun_sc, (got["pos_mso"], got["b_mso"]))
+    compiled.slerp_rotate(*compiled.IDENTITY_TABLE, *leg("IAU_MERCURY"), et,
+                          (mercury, got["b_j2000"]), (False, False),
+                          (got["pos_mbf"], got["b_mbf"]))
+    compiled.rtn_rotate(sun, pole, got["b_j2000"], got["b_rtn"])
     for name, values in got.items():
         np.testing.assert_array_equal(full[name].values, values, err_msg=name)
 

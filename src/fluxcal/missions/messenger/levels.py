@@ -627,11 +627,9 @@ def _rotate_interpolated(
         out["j2000"] = np.empty((n, 3))
     compiled.attitude_frames(
         rotator.leg_table("MSGR_SPACECRAFT"), rotator.leg_table(FRAMES["mso"][0]),
-        compiled.IDENTITY_TABLE,
         np.ascontiguousarray(et, dtype=float), np.ascontiguousarray(b_sc, dtype=float),
-        np.ascontiguousarray(sun, dtype=float),
-        np.ascontiguousarray(mercury_j2000, dtype=float), empty,
-        out.get("j2000", empty), out["sun_sc"], (out["pos_mso"], empty), (empty, empty), empty)
+        np.ascontiguousarray(sun, dtype=float), np.ascontiguousarray(mercury_j2000, dtype=float),
+        out.get("j2000", empty), out["sun_sc"], (out["pos_mso"], empty))
     return out
 
 
