@@ -133,15 +133,13 @@ def freeze_imports() -> None:
 def _freeze_at_exit() -> None:
     """Skip the interpreter's final walks over every object (0.3-0.6 s of exit).
 
-    Runs as an `atexit` handler, after the command: every product is written and
-    closed by then; objects alive at exit are freed by reference counting as usual,
-    only cycles are left to the operating system (Python never promised their
-    ``__del__`` at exit).
+    Registered as an `atexit` handler by `main` (once per process; a process that only
+    imports this module keeps its usual exit), so it runs after the command: every
+    product is written and closed by then; objects alive at exit are freed by reference
+    counting as usual, only cycles are left to the operating system (Python never
+    promised their ``__del__`` at exit).
     """
     gc.freeze()
-
-
-atexit.register(_freeze_at_exit)
 
 
 #: numpy's import-time switch for ``madvise(MADV_HUGEPAGE)`` on large arrays (numpy
@@ -267,6 +265,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ``typer.Exit(code)`` returns ``code``; Ctrl-C returns 130.
     """
     numpy_allocation_defaults()
+    atexit.unregister(_freeze_at_exit)  # registered once, however often main runs
+    atexit.register(_freeze_at_exit)
     args = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_requested(args)
     guard = _LeaveNothing(_out_folder(args))
