@@ -996,7 +996,7 @@ def add_geometry(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.1, 10.2, 11.
     """
-    from fluxcal.geometry.positions import StateInterpolator, position
+    from fluxcal.geometry.positions import position
 
     et = ds["et"].values
     b = ds["b_sensor"].values
@@ -1008,12 +1008,10 @@ def add_geometry(
         elif sel.any():
             b_sc[sel] = _apply(_sensor_to_spacecraft(name, et[sel], method), b[sel])
     # MESSENGER relative to the Sun (J2000): pos_j2000, the Sun direction and sec. 10.2
-    sun_at = None
-    if method == "oracle" or et.size < 4:
+    sun_at = None if method == "oracle" else _sun_interpolator(et)
+    if sun_at is None:
         sun = position("MESSENGER", "SUN", "J2000", et, method=method)
     else:
-        sun_at = StateInterpolator("MESSENGER", "SUN", "J2000", float(et.min()),
-                                   float(et.max()))
         sun = sun_at(et)
     fields: dict[str, xr.Variable] = {}
     positions: dict[str, xr.Variable] = {}
