@@ -407,11 +407,8 @@ def format_rows(buf: np.ndarray, reals: tuple, ints: tuple, spec: np.ndarray,
                 if has_fill and math.isnan(x):
                     x = fill
                 if math.isnan(x):
-                    if width < 3:
+                    if not _write_nan(buf, i, start, width):
                         return TOO_WIDE, i, c
-                    buf[i, end - 3] = 78
-                    buf[i, end - 2] = 97
-                    buf[i, end - 1] = 78
                     continue
                 if math.isinf(x):
                     return NOT_FINITE, i, c
