@@ -411,9 +411,8 @@ def rtn_spherical_interp(sun, et, grid, lat, az, out):
     unwrap_degrees(az, unwrapped)
     interp_into(et, grid, lat, out[:, 1])
     interp_into(et, grid, unwrapped, out[:, 2])
+    row_norms(sun, out[:, 0])
     for j in range(et.size):
-        x, y, z = sun[j, 0], sun[j, 1], sun[j, 2]
-        out[j, 0] = np.sqrt(x * x + y * y + z * z)
         a = out[j, 2]
         if abs(a) > 180.0:
             out[j, 2] = (a + 180.0) % 360.0 - 180.0
