@@ -108,8 +108,8 @@ class SharedFields:
                 k += 1
             key = (rows, tuple((id(arrays[i]), components[i], formats[i]) for i in range(j, k)))
             lo, hi = starts[j], starts[k - 1] + widths[k - 1]
-            text = self._lookup(key, arrays[j:k])
-            run_arrays = list({id(a): a for a in arrays[j:k]}.values())
+            run_arrays = list({id(a): a for a in arrays[j:k]}.values())  # each once
+            text = self._lookup(key, run_arrays)
             if text is None:
                 out.append(Run(j, k, lo, hi, key, np.empty((rows, hi - lo), np.uint8), False,
                                run_arrays))
@@ -121,14 +121,14 @@ class SharedFields:
         return out
 
     def _lookup(self, key: tuple, arrays: Sequence[np.ndarray]) -> np.ndarray | None:
+        """Return the kept bytes of ``key``; ``arrays``: the run's arrays, each once."""
         entry = self._entries.get(key)
         if entry is None:
             return None
         refs, prints, text = entry
-        current = list({id(a): a for a in arrays}.values())
-        same = len(refs) == len(current) and all(
+        same = len(refs) == len(arrays) and all(
             r() is a and fingerprint(a) == f
-            for r, a, f in zip(refs, current, prints, strict=True))
+            for r, a, f in zip(refs, arrays, prints, strict=True))
         if not same:  # changed in place since: format again
             del self._entries[key]
             return None
