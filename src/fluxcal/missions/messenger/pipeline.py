@@ -8,6 +8,7 @@ References
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
@@ -29,6 +30,16 @@ DEFAULT_FRAMES = ("mso", "j2000", "mbf", "rtn", "sc")
 UNWRITTEN_BEFORE_GEOMETRY = ("heater_signal", "temperature", "offset_applied",
                              "counts_corrected", "lag")
 UNWRITTEN_AFTER_QUALITY = ("heater_applied", "duty_cycle_offset", "b_sensor", "sun_sc")
+
+
+def check_frames(frames: Sequence[str]) -> None:
+    """Refuse a frame key that is not one of `levels.FRAMES` (one line, field ``frames``)."""
+    unknown = set(frames) - set(levels.FRAMES)
+    if unknown:
+        raise InputFormatError(
+            f"unknown frame(s) {sorted(unknown)}; expected some of {sorted(levels.FRAMES)}",
+            field="frames",
+        )
 
 
 def calibrate(
@@ -71,12 +82,7 @@ def calibrate(
     ValidationError
         When the offsets are not smooth (sec. 13).
     """
-    unknown = set(frames) - set(levels.FRAMES)
-    if unknown:
-        raise InputFormatError(
-            f"unknown frame(s) {sorted(unknown)}; expected some of {sorted(levels.FRAMES)}",
-            field="frames",
-        )
+    check_frames(frames)
     if science.sizes.get("time", 0) == 0:
         raise InputFormatError("no science samples", field="met")
     sclk = SclkKernel.from_pool(levels.SC_ID)

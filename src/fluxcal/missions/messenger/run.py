@@ -19,7 +19,7 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
-from fluxcal.missions.messenger.pipeline import calibrate, day_of
+from fluxcal.missions.messenger.pipeline import calibrate, check_frames, day_of
 from fluxcal.missions.messenger.products import (
     AVERAGES_S,
     DEFAULT_VERSION,
@@ -77,12 +77,7 @@ def calibrate_run(
             f"quicklook frame {quicklook_frame!r}; expected one of {sorted(levels.FRAMES)}",
             field="quicklook_frame",
         )
-    unknown = set(frames) - set(levels.FRAMES)
-    if unknown:
-        raise InputFormatError(
-            f"unknown frame(s) {sorted(unknown)}; expected some of {sorted(levels.FRAMES)}",
-            field="frames",
-        )
+    check_frames(frames)
     cal = load_calibration(day_of(sci), calibration_folder)
     if progress is not None:
         progress("calibrating (sec. 5-12)", 0, 1)
