@@ -1030,7 +1030,7 @@ def add_geometry(
         sun_sc = out.pop("sun_sc")
     else:
         mercury = position("MESSENGER", "MERCURY", "J2000", et, method=method)
-        out = _rotate_interpolated(b_sc, sun, et, any(f != "sc" for f in frames),
+        out = _rotate_interpolated(b_sc, sun, et, "j2000" in calibration_frames(frames),
                                    mercury_j2000=mercury)
         del mercury
         sun_sc = out.pop("sun_sc")
