@@ -78,7 +78,7 @@ def load_product(path: Path | str) -> xr.Dataset:
 
 
 def _units(var: xr.DataArray) -> str:
-    """Return the ``units`` attr, or ISTP ``UNITS`` (as `fluxcal.products.quicklook` does)."""
+    """Return the ``units`` attr, or ISTP ``UNITS`` (also used by `fluxcal.products.quicklook`)."""
     return str(var.attrs.get("units", var.attrs.get("UNITS", ""))).strip()
 
 

@@ -35,17 +35,13 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from fluxcal.errors import InputFormatError  # noqa: E402
 from fluxcal.products.atomic import atomic_path  # noqa: E402
+from fluxcal.products.compare import _units  # noqa: E402
 
 log = logging.getLogger(__name__)
 
 NS_PER_HOUR = 3_600 * 1_000_000_000
 MAX_POINTS = 4000  # envelope bins per panel (about the pixel width of the figure)
 COLORS = ("tab:blue", "tab:green", "tab:red")
-
-
-def _units(var: xr.DataArray) -> str:
-    """Return the ``units`` attr, or ISTP ``UNITS`` (CDFs written by other software)."""
-    return str(var.attrs.get("units", var.attrs.get("UNITS", ""))).strip()
 
 
 def _find(ds: xr.Dataset, prefixes: Sequence[str], vector: bool | None = None,
