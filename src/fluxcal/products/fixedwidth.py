@@ -431,7 +431,7 @@ def format_rows(buf: np.ndarray, reals: tuple, ints: tuple, spec: np.ndarray,
                     buf[i, point] = 46
                 if q >= (lim_neg if neg else lim_pos):
                     return TOO_WIDE, i, c
-                pos = _put_digits(buf, i, end - (dec + 1 if dec > 0 else 0), q, pairs)
+                pos = _put_digits(buf, i, start + places, q, pairs)
                 if zpad:
                     lim = start + 1 if neg else start
                     while pos > lim:
