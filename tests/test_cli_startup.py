@@ -109,17 +109,17 @@ assert read_product(path)["b"].values.tolist() == [0.0, 1.0, 2.0]
                 if m in loaded]
 
 
-def test_freeze_imports_acts_only_under_main(monkeypatch):
+def test_imports_loaded_acts_only_under_main(monkeypatch):
     import fluxcal.cli
 
     before = gc.get_freeze_count()
-    fluxcal.cli.freeze_imports()  # not under main: the caller's collector is untouched
+    fluxcal.cli.imports_loaded()  # not under main: the caller's collector is untouched
     assert gc.get_freeze_count() == before
     seen = {}
 
     def command(*args, **kwargs):
-        fluxcal.cli.freeze_imports()
-        fluxcal.cli.freeze_imports()
+        fluxcal.cli.imports_loaded()
+        fluxcal.cli.imports_loaded()
         seen["frozen"] = gc.get_freeze_count()
         return 0
 
@@ -146,7 +146,7 @@ def _hugepage_advice(env_value: str | None) -> bool:
     env = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
     if env_value is not None:
         env["NUMPY_MADVISE_HUGEPAGE"] = env_value
-    code = ("from fluxcal.cli import numpy_allocation_defaults\n"
+    code = ("from fluxcal.process import numpy_allocation_defaults\n"
             "numpy_allocation_defaults()\nimport numpy\n"
             "print(numpy._core.multiarray._get_madvise_hugepage())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

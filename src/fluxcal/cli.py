@@ -19,6 +19,7 @@ from pathlib import Path
 import typer
 
 from fluxcal.errors import FluxcalError
+from fluxcal.process import defer_dask_array_import, malloc_defaults, numpy_allocation_defaults
 
 app = typer.Typer(
     name="fluxcal",
@@ -119,14 +120,18 @@ def _long_lived_imports() -> Iterator[None]:
 _IN_COMMAND: list[bool] = []
 
 
-def freeze_imports() -> None:
-    """Freeze the objects alive now, when a command runs under `main` (else do nothing).
+def imports_loaded() -> None:
+    """Settle the libraries a command has just imported, when it runs under `main`.
 
     For a command to call right after importing its libraries, before it makes any
-    data: the modules join those `_long_lived_imports` keeps off the collector (the
-    data stays collectable).  `main` unfreezes everything when the command ends.
+    data: the modules join those `_long_lived_imports` keeps off the collector
+    (`gc.freeze`; the data stays collectable, and `main` unfreezes everything when the
+    command ends), and xarray checks for dask arrays without importing ``dask.array``
+    (`fluxcal.process.defer_dask_array_import`).  Outside `main` (tests, a notebook)
+    it does nothing.
     """
     if _IN_COMMAND:
+        defer_dask_array_import()
         gc.freeze()
 
 
@@ -140,29 +145,6 @@ def _freeze_at_exit() -> None:
     promised their ``__del__`` at exit).
     """
     gc.freeze()
-
-
-#: numpy's import-time switch for ``madvise(MADV_HUGEPAGE)`` on large arrays (numpy
-#: reference, "Global state"); a user's own setting is kept.
-HUGEPAGE_ENV = "NUMPY_MADVISE_HUGEPAGE"
-
-
-def numpy_allocation_defaults() -> None:
-    """Ask numpy not to advise transparent huge pages, unless the user chose otherwise.
-
-    With the common Linux setting ``transparent_hugepage/defrag = madvise`` the kernel
-    compacts memory synchronously on the first touch of every advised array. A
-    command allocates hundreds of short-lived day-long arrays (40 MB each at 20 Hz),
-    and on the benchmark machine the compaction cost more than the huge pages saved:
-    the system time of a CSV -> CDF ``edr2cdr`` of a 20 Hz day went from 1.8 s to 1.1 s,
-    the wall time by 0.5-0.9 s, the bytes written unchanged (docs/decisions/products.md,
-    decision 41). The switch is read when numpy is imported, so this runs first in
-    `main` (``import fluxcal.cli`` loads no numpy); a process that already imported
-    numpy, or set ``NUMPY_MADVISE_HUGEPAGE`` itself, keeps its setting. Child
-    processes (Dask workers of ``batch``) inherit it through the environment.
-    """
-    if "numpy" not in sys.modules:
-        os.environ.setdefault(HUGEPAGE_ENV, "0")
 
 
 def _debug_requested(args: list[str]) -> bool:
@@ -263,8 +245,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ``batch``, whose finished days stay).  ``--debug`` (anywhere on the line) or
     ``FLUXCAL_DEBUG=1`` re-raises instead, with the full traceback.
     ``typer.Exit(code)`` returns ``code``; Ctrl-C returns 130.
+
+    First the process-wide allocation settings (`fluxcal.process`: numpy's huge-page
+    advice, glibc's heap reuse; a user's own settings are kept).
     """
     numpy_allocation_defaults()
+    malloc_defaults()
     atexit.unregister(_freeze_at_exit)  # registered once, however often main runs
     atexit.register(_freeze_at_exit)
     args = list(sys.argv[1:] if argv is None else argv)

@@ -67,7 +67,9 @@ def batch(
     workers: int = typer.Option(2, "--workers", min=1, help="Workers of the local cluster."),
     kernels: Path | None = typer.Option(None, "--kernels", help="Meta-kernel for the days."),
     calib: Path | None = typer.Option(None, "--calib", help="Calibration folder."),
-    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats."),
+    formats: str | None = typer.Option(
+        None, "--formats", help="Product formats (default: the mission's: tab,cdf for "
+        "rosetta; tab,cdf,png for messenger, png being the offset report's figure)."),
     quicklook: bool = typer.Option(False, "--quicklook", help="Also write a PNG per day."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar; one-line summary."),
 ) -> None:
@@ -80,7 +82,7 @@ def batch(
     if d1 < d0:
         raise InputFormatError(f"--end {d1} is before --start {d0}", field="--end")
     factory = task_factory(mission)
-    fmts = _preflight(out, kernels, calib, formats, scheduler)
+    fmts = _preflight(out, kernels, calib, formats, scheduler, mission)
     options = {"kernels": kernels, "calib": calib, "quicklook": quicklook or None,
                "formats": fmts}
     task = factory(input_dir, out, **{k: v for k, v in options.items() if v is not None})
@@ -103,22 +105,30 @@ def batch(
         raise SystemExit(1)
 
 
-def _preflight(out: Path, kernels: Path | None, calib: Path | None, formats: str,
-               scheduler: str | None) -> tuple[str, ...]:
-    """Check what can be checked before the first day; return the product formats.
+def _preflight(out: Path, kernels: Path | None, calib: Path | None, formats: str | None,
+               scheduler: str | None, mission: str = "") -> tuple[str, ...] | None:
+    """Check what can be checked before the first day; return the formats.
 
     An unwritable ``--out``, a missing ``--kernels`` file or ``--calib`` folder, an
     unknown format and an unreachable ``--scheduler`` each raise a `FluxcalError`
-    (one line, exit 2) before any day is computed or any file is written.
+    (one line, exit 2) before any day is computed or any file is written.  ``formats``
+    None (no ``--formats``) returns None: the mission's task keeps its default.
     """
     from fluxcal import preflight
     from fluxcal.products.writer import FORMATS
 
-    fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
-    bad = [f for f in fmts if f not in FORMATS]
-    if bad or not fmts:
-        raise InputFormatError(f"{formats!r}: unknown product format(s) {bad}; choose from "
-                               f"{','.join(FORMATS)}", field="--formats")
+    fmts = None
+    if formats is not None:
+        known = FORMATS
+        if mission == "messenger":
+            from fluxcal.missions.messenger.validation_report import REPORT_FIGURE
+
+            known = (*FORMATS, REPORT_FIGURE)
+        fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
+        bad = [f for f in fmts if f not in known]
+        if bad or not fmts:
+            raise InputFormatError(f"{formats!r}: unknown product format(s) {bad}; choose "
+                                   f"from {','.join(known)}", field="--formats")
     if kernels is not None:
         preflight.existing_file(kernels, "--kernels")
     if calib is not None:

@@ -19,7 +19,7 @@ class Injected(RuntimeError):
 def _run(files, kernels, out, **kw):
     kw.setdefault("frames", FRAMES)
     kw.setdefault("averages", (60,))
-    kw.setdefault("formats", ("tab", "cdf"))
+    kw.setdefault("formats", ("tab", "cdf", "png"))
     return run_edr2cdr([files["science"]], [files["heater"]], [files["temperature"]],
                        kernels, out, **kw)
 

@@ -15,7 +15,7 @@ def _args(files, kernels, out, *extra):
 def test_edr2cdr_writes_archive_named_products(tmp_path, simulated_files, messenger_kernels):
     out = tmp_path / "out"
     code = main(_args(simulated_files, messenger_kernels, out, "--frames", "mso,rtn",
-                      "--average", "60", "--formats", "tab,cdf"))
+                      "--average", "60", "--formats", "tab,cdf,png"))
     assert code == 0
     names = sorted(p.name for p in out.iterdir())
     # the first corrected times fall before midnight but stay in their EDR day (12153)
@@ -30,6 +30,26 @@ def test_edr2cdr_writes_archive_named_products(tmp_path, simulated_files, messen
     np.testing.assert_allclose(np.asarray(tab["b"].values, float), cdf["b"].values, atol=5e-4)
     label = (out / "MAGMSOSCI12153_V01.LBL").read_text()
     assert "offsets_temperature" in label and "msgr_synthetic" in label
+
+
+def test_formats_without_png_write_the_report_text_only(tmp_path, simulated_files,
+                                                        messenger_kernels):
+    out = tmp_path / "out"
+    code = main(_args(simulated_files, messenger_kernels, out, "--frames", "mso",
+                      "--average", "", "--formats", "cdf"))
+    assert code == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["MAGOFFSETS12153.txt", "messenger_mag_mso-sci_20120601_v01.cdf"]
+
+
+def test_an_unknown_format_fails_before_any_work(tmp_path, simulated_files, messenger_kernels,
+                                                 capsys):
+    out = tmp_path / "out"
+    code = main(_args(simulated_files, messenger_kernels, out, "--formats", "cdf,pgn"))
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "pgn" in err and "png" in err and err.count("\n") == 1
+    assert not out.exists() or not any(out.iterdir())
 
 
 def test_failed_day_writes_nothing(tmp_path, simulated_files, messenger_kernels):
@@ -60,3 +80,22 @@ def test_bad_options_are_errors(tmp_path, simulated_files, messenger_kernels, ca
     assert main(_args(simulated_files, messenger_kernels, out, "--average", "1,x")) == 2
     assert "--average" in capsys.readouterr().err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_cdf_only_run_loads_neither_matplotlib_nor_dask_array(tmp_path, simulated_files,
+                                                                  messenger_kernels):
+    # the 1 s of start-up they cost is paid only when a figure or dask is used
+    # (docs/decisions/products.md, decisions 48-49)
+    import json
+    import subprocess
+    import sys
+
+    args = _args(simulated_files, messenger_kernels, tmp_path / "out", "--frames", "mso,rtn",
+                 "--formats", "cdf")
+    code = ("import json, sys\nfrom fluxcal.cli import main\n"
+            f"assert main({args!r}) == 0\n"
+            "print(json.dumps([m for m in ('matplotlib', 'dask.array', 'xarray') "
+            "if m in sys.modules]))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert json.loads(out.splitlines()[-1]) == ["xarray"]

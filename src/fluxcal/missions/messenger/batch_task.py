@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.missions.messenger.products import AVERAGES_S
+from fluxcal.missions.messenger.run import DEFAULT_FORMATS, DEFAULT_FRAMES
 
 DAY_S = 86_400.0
 #: Default science rate/range schedule inside each simulated day's science window
@@ -53,8 +54,8 @@ class MessengerDayTask:
     input_dir: Path
     out_dir: Path
     kernels: Path | None = None
-    formats: tuple[str, ...] = ("tab", "cdf")
-    frames: tuple[str, ...] = ("mso", "j2000", "mbf", "rtn", "sc")
+    formats: tuple[str, ...] = DEFAULT_FORMATS
+    frames: tuple[str, ...] = DEFAULT_FRAMES
     averages: tuple[int, ...] = AVERAGES_S
     max_offset_step: float | None = 2.0
     calib: Path | None = None

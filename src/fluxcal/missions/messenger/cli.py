@@ -29,7 +29,9 @@ def edr2cdr(
     kernels: list[Path] = typer.Option(..., "--kernels", help="Meta-kernel or kernel files."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
     frames: str = typer.Option("mso,j2000,mbf,rtn,sc", help="Frames (also: vso)."),
-    formats: str = typer.Option("tab,cdf", help="Product formats."),
+    formats: str = typer.Option(
+        "tab,cdf,png", help="What to write: tab (PDS3 tables), cdf, nc, zarr, png (the "
+        "offset report's figure; its text is always written)."),
     average: str = typer.Option("1,5,10,60", help="Averaging intervals (s); '' for none."),
     max_offset_step: float = typer.Option(
         2.0, help="Sec. 13 smoothness threshold (fine-range counts); <= 0 disables."
@@ -55,11 +57,11 @@ def edr2cdr(
 
     Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
     """
-    from fluxcal.cli import freeze_imports
+    from fluxcal.cli import imports_loaded
     from fluxcal.errors import InputFormatError
     from fluxcal.missions.messenger.run import run_edr2cdr
 
-    freeze_imports()  # xarray, numba, matplotlib ... are loaded: off the collector's walks
+    imports_loaded()  # xarray, numba, matplotlib ... are loaded: settle them before data
     try:
         averages = [int(a) for a in _split(average)]
     except ValueError:

@@ -19,7 +19,7 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
-from fluxcal.missions.messenger.pipeline import calibrate, check_frames, day_of
+from fluxcal.missions.messenger.pipeline import DEFAULT_FRAMES, calibrate, check_frames, day_of
 from fluxcal.missions.messenger.products import (
     AVERAGES_S,
     DEFAULT_VERSION,
@@ -30,12 +30,32 @@ from fluxcal.missions.messenger.products import (
     write_quicklook,
 )
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
-from fluxcal.missions.messenger.validation_report import write_report
+from fluxcal.missions.messenger.validation_report import (
+    REPORT_FIGURE,
+    load_figure_support,
+    write_report,
+)
 from fluxcal.products.atomic import atomic_group
 
 log = logging.getLogger(__name__)
 
-DEFAULT_FRAMES = ("mso", "j2000", "mbf", "rtn", "sc")
+#: What ``edr2cdr`` writes unless told otherwise: PDS3 tables, CDF and the figure of the
+#: offset report (`REPORT_FIGURE`; the report's text is always written).
+DEFAULT_FORMATS = ("tab", "cdf", REPORT_FIGURE)
+
+
+def check_formats(formats: Sequence[str]) -> None:
+    """Refuse an unknown format before any work (one line, field ``formats``).
+
+    Known: the product formats of `fluxcal.products.write_product` and `REPORT_FIGURE`.
+    """
+    from fluxcal.products.writer import FORMATS
+
+    known = (*FORMATS, REPORT_FIGURE)
+    unknown = [f for f in formats if f not in known]
+    if unknown:
+        raise InputFormatError(f"unknown format(s) {unknown}; expected some of {list(known)}",
+                               field="formats")
 
 
 #: Raw telemetry columns of the science stream that no product, report or quicklook
@@ -104,7 +124,7 @@ def write_run(
     inputs: Sequence[Path],
     kernel_list: Sequence[str],
     frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = ("tab", "cdf"),
+    formats: Sequence[str] = DEFAULT_FORMATS,
     averages: Sequence[int] = AVERAGES_S,
     max_offset_step: float | None = 2.0,
     only_day: str | None = None,
@@ -127,6 +147,7 @@ def write_run(
     """
     from fluxcal.products import provenance_attrs
 
+    check_formats(formats)
     prov = provenance_attrs(
         inputs=list(inputs),
         calibration={path.name: path for path in cal.paths},
@@ -164,7 +185,7 @@ def calibrate_and_write(
     inputs: Sequence[Path],
     kernel_list: Sequence[str],
     frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = ("tab", "cdf"),
+    formats: Sequence[str] = DEFAULT_FORMATS,
     averages: Sequence[int] = AVERAGES_S,
     max_offset_step: float | None = 2.0,
     calibration_folder: Path | None = None,
@@ -279,6 +300,9 @@ def write_day_outputs(
 ) -> list[Path]:
     """Validate one calibrated day and write all its files, all or nothing.
 
+    ``formats``: product formats (`fluxcal.products.write_product`), and `REPORT_FIGURE`
+    for the offset report's figure (its text is always written).
+
     Raises
     ------
     ValidationError
@@ -288,9 +312,11 @@ def write_day_outputs(
     with atomic_group():  # any exception below: no file of the day appears
         steps = (levels.validate_offsets(day, max_offset_step)
                  if max_offset_step is not None else None)
-        written = write_day(day, out_dir, frames, formats, averages, provenance, version,
+        products = [f for f in formats if f != REPORT_FIGURE]
+        written = write_day(day, out_dir, frames, products, averages, provenance, version,
                             progress)
-        written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step, steps)
+        written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step, steps,
+                                figure=REPORT_FIGURE in formats)
         if quicklook_frame is not None:
             written += write_quicklook(day, out_dir, quicklook_frame)
     return written
@@ -304,7 +330,7 @@ def run_edr2cdr(
     out_dir: Path,
     *,
     frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = ("tab", "cdf"),
+    formats: Sequence[str] = DEFAULT_FORMATS,
     averages: Sequence[int] = AVERAGES_S,
     max_offset_step: float | None = 2.0,
     quicklook: bool = False,
@@ -327,6 +353,9 @@ def run_edr2cdr(
     list of Path
         Every file written.
     """
+    check_formats(formats)
+    if REPORT_FIGURE in formats:
+        load_figure_support()  # before any data exists (see there)
     if progress is not None:
         progress("reading inputs", 0, 1)
     sci = read_science(science)

@@ -1,4 +1,7 @@
-"""Offset-smoothness report of a calibrated day: text summary and PNG (sec. 13).
+"""Offset-smoothness report of a calibrated day: text summary and figure (sec. 13).
+
+The text is always written; the figure (PNG) when the run's formats include
+`REPORT_FIGURE`.
 
 References
 ----------
@@ -12,13 +15,23 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-# Imported with this module, not inside `write_report`: importing matplotlib raises and
-# catches pyparsing errors whose tracebacks keep every calling frame alive in reference
-# cycles; from inside `write_report` those frames hold the day's whole Dataset, freed
-# only by a later full collection of the garbage collector.
-from matplotlib.figure import Figure
-
 from fluxcal.missions.messenger.levels import offset_step_report
+
+#: The ``--formats`` entry that asks for the report's figure (``MAGOFFSETS<yyddd>.png``).
+REPORT_FIGURE = "png"
+
+
+def load_figure_support() -> None:
+    """Import matplotlib's figure module; for a run to call before it makes any data.
+
+    Importing matplotlib raises and catches pyparsing errors whose tracebacks keep
+    every calling frame alive in reference cycles; imported from inside `write_report`,
+    those frames would hold the day's whole Dataset until a full collection of the
+    garbage collector (212 MB at 20 Hz).  A run that writes the figure therefore
+    imports it first (`fluxcal.missions.messenger.run.run_edr2cdr`); `write_report`
+    imports it itself when nobody did.
+    """
+    import matplotlib.figure  # noqa: F401
 
 
 def report_text(ds: xr.Dataset, threshold_counts: float | None,
@@ -40,8 +53,8 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None,
 
 
 def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
-                 report: dict | None = None) -> list[Path]:
-    """Write ``stem.txt`` and ``stem.png`` (applied offsets versus time) atomically.
+                 report: dict | None = None, *, figure: bool = True) -> list[Path]:
+    """Write ``stem.txt`` and, with ``figure``, ``stem.png`` (applied offsets versus time).
 
     ``report``: the day's `offset_step_report`, when already computed (`report_text`).
 
@@ -53,6 +66,10 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
     stem = Path(stem)
     txt = stem.with_name(stem.name + ".txt")
     atomic_write_bytes(txt, report_text(ds, threshold_counts, report).encode())
+    if not figure:
+        return [txt]
+    from matplotlib.figure import Figure
+
     png = stem.with_name(stem.name + ".png")
     hours = (ds["et"].values - ds["et"].values[0]) / 3600.0
     fig = Figure(figsize=(8, 6))
