@@ -51,6 +51,10 @@ STAGES = (
 )
 
 
+#: Libraries a case loads only when it needs them (printed per case).
+OPTIONAL_IMPORTS = ("matplotlib", "dask.array", "pvl")
+
+
 def simulate_inputs(folder: Path, hours: float) -> dict[str, Path]:
     """Write the kernels and the three CSV input streams of ``hours`` of 20 Hz data."""
     from fluxcal.geometry.kernels import KernelPool
@@ -155,6 +159,11 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
         from fluxcal.cli import main
 
         times["import fluxcal.cli"] = time.perf_counter() - t
+        # the stage timers import the modules they wrap, and with them numpy, before
+        # `main` would set numpy's import-time option: set it first, as `main` does
+        from fluxcal.process import numpy_allocation_defaults
+
+        numpy_allocation_defaults()
         _wrap_stages(times)
         code = main(_argv(paths, out, case))
     wall = time.perf_counter() - t0
@@ -166,7 +175,10 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
     files = sorted(out.iterdir()) if out.exists() else []
     size = sum(p.stat().st_size for p in files if p.is_file())
     return {"case": case, "code": code, "wall": wall, "cpu": cpu, "stages": dict(times), "n": n,
+            "system": usage.ru_stime - start.ru_stime,
+            "page_faults": usage.ru_minflt + usage.ru_majflt,
             "rss_mb": rss_mb, "files": len(files), "bytes": size,
+            "loaded": [m for m in OPTIONAL_IMPORTS if m in sys.modules],
             "numpy": sys.modules["numpy"].__version__}
 
 
@@ -213,9 +225,11 @@ def report(res: dict, base: dict | None) -> None:
     ratio = f", {wall / base['process_wall']:.1f}x the baseline time" if base else ""
     print(f"case {res['case']}: {wall:.2f} s end to end (process), {n / wall:,.0f} vectors/s"
           f"{ratio}, "
-          f"CPU {res['cpu']:.2f} s ({n / res['cpu']:,.0f} vectors per CPU second), "
+          f"CPU {res['cpu']:.2f} s ({n / res['cpu']:,.0f} vectors per CPU second; system "
+          f"{res['system']:.2f} s, {res['page_faults']:,} page faults), "
           f"peak RSS {res['rss_mb']:.0f} MB, {res['files']} files, "
-          f"{res['bytes'] / 1e6:.0f} MB written")
+          f"{res['bytes'] / 1e6:.0f} MB written; loaded: "
+          f"{', '.join(res.get('loaded', [])) or 'none of ' + ', '.join(OPTIONAL_IMPORTS)}")
     for name, sec in res["stages"].items():
         print(f"    {name:18s} {sec:7.2f} s")
     sys.stdout.flush()
