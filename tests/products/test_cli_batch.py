@@ -162,3 +162,22 @@ def test_simulate_rosetta_batch_layout_is_read_by_batch(tmp_path: Path, capsys) 
     assert main(["simulate", "rosetta", "--layout", "batch", "--start",
                  "2014-08-01T23:00:00", "--hours", "2", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()
+
+
+def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, capsys) -> None:
+    """``png`` (the MESSENGER offset report's figure) is a format of messenger batches only."""
+    from fluxcal.missions.messenger.batch_task import make_day_task
+    from fluxcal.products.cli import _preflight
+
+    out = tmp_path / "out"
+    for mission in ("rosetta", "synthetic"):
+        args = ["batch", mission, "--start", "2024-03-01", "--end", "2024-03-01",
+                "--input", str(tmp_path), "--out", str(out), "--scheduler", "serial",
+                "--formats", "cdf,png"]
+        assert main(args) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert "'png'" in line and "--formats" in line
+    assert _preflight(out, None, None, "CDF, png", None, "messenger") == ("cdf", "png")
+    assert _preflight(out, None, None, None, None, "messenger") is None  # the task's default
+    assert make_day_task(tmp_path, out).formats == ("tab", "cdf", "png")
+    assert make_day_task(tmp_path, out, formats=["cdf"]).formats == ("cdf",)
