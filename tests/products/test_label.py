@@ -135,3 +135,17 @@ def test_label_text_does_not_depend_on_earlier_labels(a: dict, b: dict) -> None:
     """Rendering ``a``, ``b`` and ``a`` again gives pvl's fresh text of each every time."""
     mods = [pvl.PVLModule([("DATASET_ATTRIBUTES", attributes_object(x))]) for x in (a, b, a)]
     assert [render_label(m) for m in mods] == [_fresh(m) for m in mods]
+
+
+def test_labels_render_quantities_without_importing_astropy() -> None:
+    # pvl's own Quantity is still encoded in ODL's "value <unit>" form; astropy.units
+    # (0.4 s to import) is left alone (docs/decisions/products.md, decision 51)
+    import subprocess
+    import sys
+
+    code = ("import sys, pvl\nfrom fluxcal.products.label import render_label\n"
+            "m = pvl.PVLModule([('SAMPLING', pvl.collections.Quantity(0.05, 's'))])\n"
+            "print(repr(render_label(m).splitlines()[0]), 'astropy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "'SAMPLING = 0.05 <s>' False"

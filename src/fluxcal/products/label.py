@@ -81,6 +81,15 @@ class _Encoder(pvl.PDSLabelEncoder):
         super().__init__(grammar=_Grammar(), symbol_single_quote=False)
         self._blocks: dict[tuple[Any, ...], str] = {}
 
+    def _import_quantities(self) -> None:
+        """Register no astropy or pint quantity class (pvl's hook, called by its encoder).
+
+        pvl imports ``astropy.units`` and pint, when installed, to encode their quantity
+        objects. fluxcal's labels hold none (a value with units is pvl's own `Quantity`,
+        which stays registered), and importing ``astropy.units`` cost 0.4 s of a
+        ``edr2cdr`` run (docs/decisions/products.md, decision 51).
+        """
+
     def encode_module(self, module: Mapping[str, Any], level: int = 0) -> str:
         """One ``KEY = value`` per line, not padded to align (stable, greppable lines)."""
         lines = [
