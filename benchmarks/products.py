@@ -182,6 +182,31 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
             "numpy": sys.modules["numpy"].__version__}
 
 
+def write_control(total_bytes: int, files: int, out: Path) -> dict:
+    """Write ``total_bytes`` into ``files`` new files by plain 8 MiB writes; time them.
+
+    The machine's own cost of putting that many new bytes into the page cache, for
+    comparison with a case that wrote them (on the development VM it varies with the
+    state of the host's memory, from ~0.4 s to ~4 s per 1.7 GB).
+    """
+    import numpy as np
+
+    out.mkdir(parents=True, exist_ok=True)
+    block = memoryview(np.random.default_rng(0).integers(0, 256, 8 << 20, dtype=np.uint8))
+    per_file = total_bytes // max(files, 1)
+    start = resource.getrusage(resource.RUSAGE_SELF)
+    t0 = time.perf_counter()
+    for k in range(files):
+        with open(out / f"control_{k}", "wb") as fh:
+            left = per_file
+            while left > 0:
+                left -= fh.write(block[:min(left, len(block))])
+    wall = time.perf_counter() - t0
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return {"case": "write control", "code": 0, "wall": wall,
+            "system": usage.ru_stime - start.ru_stime}
+
+
 def count_vectors(science: Path) -> int:
     """Number of data records of the science CSV (lines minus the header)."""
     with open(science, "rb") as fh:
@@ -215,7 +240,7 @@ def run_case(case: str, paths: dict[str, Path], out: Path) -> dict:
     if proc.returncode != 0 or not lines or json.loads(lines[-1])["code"] != 0:
         raise RuntimeError(f"case {case} failed:\n{proc.stdout}\n{proc.stderr}")
     res = {**json.loads(lines[-1]), "process_wall": process_wall}
-    if case != "baseline":
+    if case in ("a", "b"):
         res["n"] = count_vectors(paths["science"])
     return res
 
@@ -247,7 +272,12 @@ def main() -> None:
     args = parser.parse_args()
     if args.child:
         paths = {k: Path(v) for k, v in json.loads(args.paths).items()}
-        print(json.dumps(child(args.child, paths, Path(args.out))), flush=True)
+        if args.child.startswith("write:"):
+            _, total, files = args.child.split(":")
+            res = write_control(int(total), int(files), Path(args.out))
+        else:
+            res = child(args.child, paths, Path(args.out))
+        print(json.dumps(res), flush=True)
         return
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -274,6 +304,14 @@ def main() -> None:
             if case == "baseline":
                 base = res
             report(res, base if case != "baseline" else None)
+            if res["bytes"]:
+                ctl = run_case(f"write:{res['bytes']}:{res['files']}", paths,
+                               folder / f"control_{case}")
+                print(f"    write control: the same {res['bytes'] / 1e6:.0f} MB in "
+                      f"{res['files']} new files by plain 8 MiB writes took "
+                      f"{ctl['wall']:.2f} s here (system {ctl['system']:.2f} s); "
+                      f"case {case} without it: {res['process_wall'] - ctl['wall']:.2f} s",
+                      flush=True)
 
 
 if __name__ == "__main__":
