@@ -87,20 +87,26 @@ before = "dask.array" in sys.modules
 import dask.array as da
 lazy = xr.DataArray(da.ones((4, 2), chunks=(2, 2)), dims=("time", "c"))
 chunked = xr.DataArray(np.arange(6.0), dims="t").chunk(3)
+# xarray fills a masked dask array's masked values with NaN only when it knows dask's
+# Array type (Variable's own check; `.chunks` would not notice a stand-in answering "none")
+masked = da.from_array(np.ma.masked_array([1.0, 2.0, 3.0], mask=[0, 1, 0]), chunks=3)
+filled = xr.DataArray(masked, dims="t").values
 print(acted, before, lazy.chunks == ((2, 2), (2,)), chunked.chunks == ((3, 3),),
-      float(lazy.sum().compute()), float(chunked.mean().compute()))
+      float(lazy.sum().compute()), float(chunked.mean().compute()),
+      bool(np.isnan(filled[1])) and filled[[0, 2]].tolist() == [1.0, 3.0])
 """
 
 
 def test_xarray_works_without_dask_array_until_someone_imports_it():
     out = subprocess.run([sys.executable, "-c", DEFER], capture_output=True, text=True,
                          check=True).stdout.split()
-    acted, before, lazy_chunks, chunked_chunks, total, mean = out[:6]
+    acted, before, lazy_chunks, chunked_chunks, total, mean, masked_filled = out[:7]
     assert acted == "True"
     assert before == "False"  # a numpy-only session never imported dask.array
     # once imported, dask arrays are dask arrays to xarray again
     assert lazy_chunks == "True" and chunked_chunks == "True"
     assert float(total) == 8.0 and float(mean) == 2.5
+    assert masked_filled == "True"  # the masked value is NaN, the others kept
 
 
 def test_deferral_leaves_a_session_that_already_uses_dask_alone():
