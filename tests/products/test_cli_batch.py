@@ -4,6 +4,8 @@ import datetime as dt
 import json
 from pathlib import Path
 
+import pytest
+
 from fluxcal.cli import main
 from fluxcal.products.batch import day_range
 from fluxcal.products.synthetic_task import input_path, write_synthetic_inputs
@@ -181,3 +183,8 @@ def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, c
     assert _preflight(out, None, None, None, None, "messenger") is None  # the task's default
     assert make_day_task(tmp_path, out).formats == ("tab", "cdf", "png")
     assert make_day_task(tmp_path, out, formats=["cdf"]).formats == ("cdf",)
+    # the task itself refuses an unknown format before looking for the day's files
+    from fluxcal.errors import InputFormatError
+
+    with pytest.raises(InputFormatError, match="pgn"):
+        make_day_task(tmp_path, out, formats=["pgn"])(dt.date(2024, 3, 1))

@@ -52,6 +52,19 @@ def test_an_unknown_format_fails_before_any_work(tmp_path, simulated_files, mess
     assert not out.exists() or not any(out.iterdir())
 
 
+def test_an_unknown_format_fails_before_the_edrs_are_read(tmp_path, messenger_kernels, capsys):
+    """The EDR route too: an empty EDR folder would fail later, at reading, naming no format."""
+    (tmp_path / "edr").mkdir()
+    mapping = tmp_path / "mapping.toml"
+    mapping.write_text("")
+    code = main(["messenger", "edr2cdr", "--edr", str(tmp_path / "edr"), "--mapping",
+                 str(mapping), "--kernels", str(messenger_kernels), "--out",
+                 str(tmp_path / "out"), "--formats", "cdf,pgn"])
+    assert code == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "pgn" in line and "formats" in line
+
+
 def test_failed_day_writes_nothing(tmp_path, simulated_files, messenger_kernels):
     out = tmp_path / "out"
     # a threshold below the real (smooth) steps fails every day

@@ -115,9 +115,15 @@ class MessengerDayTask:
             read_science,
             read_temperature,
         )
-        from fluxcal.missions.messenger.run import calibrate_run, quicklook_frame_of, write_run
+        from fluxcal.missions.messenger.run import (
+            calibrate_run,
+            prepare_formats,
+            quicklook_frame_of,
+            write_run,
+        )
         from fluxcal.products.batch import DayResult, DayWithoutData, worker_kernel_pool
 
+        prepare_formats(self.formats)
         files = self._files(day)
         if self._mapping() is not None:
             from fluxcal.missions.messenger.edr import read_edr

@@ -59,8 +59,9 @@ def edr2cdr(
     """
     from fluxcal.cli import imports_loaded
     from fluxcal.errors import InputFormatError
-    from fluxcal.missions.messenger.run import run_edr2cdr
+    from fluxcal.missions.messenger.run import prepare_formats, run_edr2cdr
 
+    prepare_formats(_split(formats))  # both routes: before any EDR or CSV is read
     imports_loaded()  # xarray, numba, matplotlib ... are loaded: settle them before data
     try:
         averages = [int(a) for a in _split(average)]

@@ -58,6 +58,16 @@ def check_formats(formats: Sequence[str]) -> None:
                                field="formats")
 
 
+def prepare_formats(formats: Sequence[str]) -> None:
+    """`check_formats`, then `load_figure_support` when the figure is asked for.
+
+    For every route that writes MESSENGER products to call before it reads any data.
+    """
+    check_formats(formats)
+    if REPORT_FIGURE in formats:
+        load_figure_support()  # before any data exists (see there)
+
+
 #: Raw telemetry columns of the science stream that no product, report or quicklook
 #: reads after calibration (33 MB of a 20 Hz day): dropped from the calibrated run.
 RAW_UNWRITTEN = ("counts", "met", "partition", "range")
@@ -353,9 +363,7 @@ def run_edr2cdr(
     list of Path
         Every file written.
     """
-    check_formats(formats)
-    if REPORT_FIGURE in formats:
-        load_figure_support()  # before any data exists (see there)
+    prepare_formats(formats)
     if progress is not None:
         progress("reading inputs", 0, 1)
     sci = read_science(science)
