@@ -56,11 +56,10 @@ def malloc_defaults() -> bool:
     glibc serves blocks above a threshold (at most 32 MB, adjusted as blocks are freed)
     with a fresh ``mmap`` and returns them to the system on ``free``; the next array of
     the same size is mapped again and each of its pages faulted in and zeroed by the
-    kernel.  A 20 Hz day's command made about 340,000 such page faults, 1.3 GB of first
-    touches for a peak of 0.8 GB.  With blocks up to `HEAP_REUSE_BYTES` taken from the
-    heap and that much free memory kept at its top, freed arrays are reused: half the
-    page faults, 0.3-0.4 s less system time and about +40 MB of peak memory for a
-    CSV -> CDF ``edr2cdr`` of a 20 Hz day (docs/decisions/products.md, decision 47).
+    kernel.  With blocks up to `HEAP_REUSE_BYTES` taken from the heap and that much
+    free memory kept at its top, freed arrays are reused: for a CSV -> CDF ``edr2cdr``
+    of a 20 Hz day, page faults 513k -> 169k, system time 2.1-3.1 s -> 0.8-1.5 s and
+    peak memory 727 -> 777 MB (docs/decisions/products.md, decision 47).
 
     Applied only on Linux with glibc's ``mallopt``, and not when the user set glibc's
     own allocator variables (`MALLOC_ENV`), which glibc read at start-up.  Returns
@@ -84,9 +83,10 @@ class _DaskArrayWhenImported:
     xarray asks ``isinstance(data, dask.array.Array)`` of every new variable and, with
     dask installed, imports ``dask.array`` to ask it (0.5 s on the benchmark machine).
     As long as ``dask.array`` is not imported no object can be one of its arrays, so the
-    answer is an empty tuple of types; from the first import on (by the user, by
-    ``xr.open_dataset(chunks=...)``, by ``fluxcal batch``) the entry is replaced by
-    xarray's own, and every other question goes to xarray's own entry at once.
+    answer is an empty tuple of types; once it is imported (by the user, by
+    ``xr.open_dataset(chunks=...)``, by ``fluxcal batch``) the next question replaces
+    the entry by xarray's own.  Every other question (``version``, ``available``,
+    ``module``) makes xarray's own entry at once, importing ``dask.array``.
     """
 
     def __init__(self, cache: dict, module_class: type) -> None:
