@@ -15,15 +15,16 @@ import pytest
 GLIBC = sys.platform.startswith("linux") and os.confstr("CS_GNU_LIBC_VERSION") is not None
 
 
-def _run(code: str, **env_changes: str | None) -> str:
+def _run(code: str, *args: str, **env_changes: str | None) -> list[str]:
+    """The words ``code`` prints in a fresh interpreter (an env value None unsets it)."""
     env = dict(os.environ)
     for name, value in env_changes.items():
         if value is None:
             env.pop(name, None)
         else:
             env[name] = value
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          check=True, env=env).stdout.split()[-1]
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
+                          text=True, check=True, env=env).stdout.split()
 
 
 #: Page faults of the second allocation and touch of a 40 MB array (a 20 Hz day of
@@ -46,11 +47,7 @@ print(applied, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 
 def _refaults(apply: bool, **env: str | None) -> tuple[str, int]:
     env.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")  # 4 KiB pages: faults = pages touched
-    out = subprocess.run([sys.executable, "-c", REFAULT, "apply" if apply else "keep"],
-                         capture_output=True, text=True, check=True,
-                         env={**{k: v for k, v in os.environ.items() if k not in env},
-                              **{k: v for k, v in env.items() if v is not None}}).stdout
-    applied, faults = out.split()[-2:]
+    applied, faults = _run(REFAULT, "apply" if apply else "keep", **env)[-2:]
     return applied, int(faults)
 
 
@@ -98,8 +95,7 @@ print(acted, before, lazy.chunks == ((2, 2), (2,)), chunked.chunks == ((3, 3),),
 
 
 def test_xarray_works_without_dask_array_until_someone_imports_it():
-    out = subprocess.run([sys.executable, "-c", DEFER], capture_output=True, text=True,
-                         check=True).stdout.split()
+    out = _run(DEFER)
     acted, before, lazy_chunks, chunked_chunks, total, mean, masked_filled = out[:7]
     assert acted == "True"
     assert before == "False"  # a numpy-only session never imported dask.array
@@ -112,7 +108,7 @@ def test_xarray_works_without_dask_array_until_someone_imports_it():
 def test_deferral_leaves_a_session_that_already_uses_dask_alone():
     code = ("import dask.array, xarray\nfrom fluxcal.process import defer_dask_array_import\n"
             "print(defer_dask_array_import())")
-    assert _run(code) == "False"
+    assert _run(code)[-1] == "False"
     code = ("from fluxcal.process import defer_dask_array_import\n"
             "print(defer_dask_array_import())")  # xarray not imported: nothing to do
-    assert _run(code) == "False"
+    assert _run(code)[-1] == "False"
