@@ -60,7 +60,8 @@ def main() -> None:
     ap.add_argument("--input", type=Path, help="input folder (mission tasks)")
     ap.add_argument("--start", default=None, help="first day (default 2024-01-01, "
                     "MESSENGER 2012-06-01)")
-    ap.add_argument("--formats", default="tab,cdf")
+    ap.add_argument("--formats", default=None,
+                    help="product formats (default: the task's own, as `fluxcal batch`)")
     ap.add_argument("--verbose", action="store_true", help="keep the pipelines' warnings")
     args = ap.parse_args()
     if not args.verbose:
@@ -76,7 +77,7 @@ def main() -> None:
     days = day_range(dt.date.fromisoformat(start),
                      dt.date.fromisoformat(start) + dt.timedelta(days=args.days - 1))
     work = Path(tempfile.mkdtemp(prefix="fluxcal-bench-"))
-    formats = tuple(args.formats.split(","))
+    options = {} if args.formats is None else {"formats": tuple(args.formats.split(","))}
     try:
         if args.task == "synthetic":
             from fluxcal.products.synthetic_task import write_synthetic_inputs
@@ -97,7 +98,7 @@ def main() -> None:
         factory = task_factory(args.task)
 
         serial_out = work / "serial"
-        task = factory(inp, serial_out, formats=formats)
+        task = factory(inp, serial_out, **options)
         run_batch(days[:1], task, serial_out, scheduler="serial", force=True)  # warm-up
         rep_s = run_batch(days, task, serial_out, scheduler="serial", force=True)
 
@@ -110,7 +111,7 @@ def main() -> None:
         startup = time.perf_counter() - t0
         try:
             par_out = work / "parallel"
-            task = factory(inp, par_out, formats=formats)
+            task = factory(inp, par_out, **options)
             # warm-up (first-call costs on each worker), as for the serial run
             run_batch(days[: args.workers], task, par_out, scheduler=cluster.scheduler_address,
                       force=True)
@@ -127,7 +128,7 @@ def main() -> None:
             raise SystemExit(f"{len(rep.failed)} day(s) failed: {rep.failed[0].error}")
     n = len(days)
     vec = rep_s.n_vectors
-    print(f"task={args.task} days={n} vectors/day={vec // n:,} formats={','.join(formats)}")
+    print(f"task={args.task} days={n} vectors/day={vec // n:,} formats={','.join(task.formats)}")
     print(f"serial:           {rep_s.wall_seconds:7.2f} s  {n / rep_s.wall_seconds:6.3f} days/s"
           f"  {vec / rep_s.wall_seconds:12,.0f} vectors/s")
     print(f"LocalCluster x{args.workers}: {rep_p.wall_seconds:7.2f} s  "

@@ -143,6 +143,7 @@ def test_labels_render_quantities_without_importing_astropy() -> None:
     import subprocess
     import sys
 
+    pytest.importorskip("astropy")  # (without it, nothing could import it anyway)
     code = ("import sys, pvl\nfrom fluxcal.products.label import render_label\n"
             "m = pvl.PVLModule([('SAMPLING', pvl.collections.Quantity(0.05, 's'))])\n"
             "print(repr(render_label(m).splitlines()[0]), 'astropy' in sys.modules)")

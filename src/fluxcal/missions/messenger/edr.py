@@ -696,8 +696,13 @@ def run_edr_archive(
         Every file written.
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.missions.messenger.run import calibrate_and_write
+    from fluxcal.missions.messenger.run import (
+        DEFAULT_FORMATS,
+        calibrate_and_write,
+        prepare_formats,
+    )
 
+    prepare_formats(options.get("formats", DEFAULT_FORMATS))  # before any EDR is read
     progress = options.get("progress")
     if progress is not None:
         progress("reading EDRs", 0, 1)
