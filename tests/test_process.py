@@ -33,6 +33,9 @@ REFAULT = """
 import resource, sys
 from fluxcal.process import malloc_defaults
 applied = malloc_defaults() if sys.argv[-1] == "apply" else False
+if sys.argv[-1] == "command":  # a `fluxcal` command ran first in this process
+    from fluxcal.cli import main
+    applied = main(["version"]) == 0
 import numpy as np
 def touch():
     a = np.empty(5_000_000)
@@ -45,9 +48,10 @@ print(applied, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 """
 
 
-def _refaults(apply: bool, **env: str | None) -> tuple[str, int]:
+def _refaults(apply: bool | str, **env: str | None) -> tuple[str, int]:
     env.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")  # 4 KiB pages: faults = pages touched
-    applied, faults = _run(REFAULT, "apply" if apply else "keep", **env)[-2:]
+    mode = apply if isinstance(apply, str) else "apply" if apply else "keep"
+    applied, faults = _run(REFAULT, mode, **env)[-2:]
     return applied, int(faults)
 
 
@@ -61,6 +65,13 @@ def test_heap_reuse_removes_the_page_faults_of_a_reallocated_day_array():
     assert faults < 500
     _, default_faults = _refaults(False)
     assert default_faults > 9_000
+
+
+@pytest.mark.skipif(not GLIBC, reason="glibc's mallopt")
+def test_a_fluxcal_command_applies_the_heap_reuse():
+    ran, faults = _refaults("command")
+    assert ran == "True"
+    assert faults < 500
 
 
 @pytest.mark.skipif(not GLIBC, reason="glibc's mallopt")
