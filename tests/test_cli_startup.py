@@ -140,14 +140,14 @@ def test_objects_the_caller_froze_stay_frozen():
 
 
 def _hugepage_advice(env_value: str | None) -> bool:
-    """numpy's huge-page advice after `numpy_allocation_defaults` in a fresh interpreter."""
+    """numpy's huge-page advice after a ``fluxcal`` command (`main`) in a fresh interpreter."""
     import os
 
     env = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
     if env_value is not None:
         env["NUMPY_MADVISE_HUGEPAGE"] = env_value
-    code = ("from fluxcal.process import numpy_allocation_defaults\n"
-            "numpy_allocation_defaults()\nimport numpy\n"
+    code = ("from fluxcal.cli import main\n"
+            "main(['version'])\nimport numpy\n"
             "print(numpy._core.multiarray._get_madvise_hugepage())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env=env).stdout
