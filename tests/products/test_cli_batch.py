@@ -179,6 +179,11 @@ def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, c
         assert main(args) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
         assert "'png'" in line and "--formats" in line
+    from fluxcal.products.batch import accepted_formats
+    from fluxcal.products.writer import FORMATS
+
+    assert accepted_formats("rosetta") == accepted_formats("synthetic") == FORMATS
+    assert accepted_formats("messenger") == (*FORMATS, "png")
     assert _preflight(out, None, None, "CDF, png", None, "messenger") == ("cdf", "png")
     assert _preflight(out, None, None, None, None, "messenger") is None  # the task's default
     assert make_day_task(tmp_path, out).formats == ("tab", "cdf", "png")

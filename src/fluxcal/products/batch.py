@@ -535,6 +535,20 @@ BUILTIN_TASKS = {"synthetic": "fluxcal.products.synthetic_task"}
 MISSIONS = ("messenger", "rosetta")
 
 
+def accepted_formats(mission: str) -> tuple[str, ...]:
+    """Return the ``--formats`` a mission's day task accepts.
+
+    Its task module's ``FORMATS`` when it defines one (MESSENGER adds ``png``, the offset
+    report's figure), else the product writer's (`fluxcal.products.writer.FORMATS`).
+    """
+    from fluxcal.products.writer import FORMATS
+
+    task_factory(mission)  # the same errors for an unknown mission
+    module = importlib.import_module(
+        BUILTIN_TASKS.get(mission, f"fluxcal.missions.{mission}.batch_task"))
+    return tuple(getattr(module, "FORMATS", FORMATS))
+
+
 def task_factory(mission: str) -> Callable[..., Any]:
     """Return ``make_day_task(input_dir, out_dir, **options)`` for a mission.
 

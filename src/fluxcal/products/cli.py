@@ -106,7 +106,7 @@ def batch(
 
 
 def _preflight(out: Path, kernels: Path | None, calib: Path | None, formats: str | None,
-               scheduler: str | None, mission: str = "") -> tuple[str, ...] | None:
+               scheduler: str | None, mission: str) -> tuple[str, ...] | None:
     """Check what can be checked before the first day; return the formats.
 
     An unwritable ``--out``, a missing ``--kernels`` file or ``--calib`` folder, an
@@ -115,15 +115,11 @@ def _preflight(out: Path, kernels: Path | None, calib: Path | None, formats: str
     None (no ``--formats``) returns None: the mission's task keeps its default.
     """
     from fluxcal import preflight
-    from fluxcal.products.writer import FORMATS
+    from fluxcal.products.batch import accepted_formats
 
     fmts = None
     if formats is not None:
-        known = FORMATS
-        if mission == "messenger":
-            from fluxcal.missions.messenger.validation_report import REPORT_FIGURE
-
-            known = (*FORMATS, REPORT_FIGURE)
+        known = accepted_formats(mission)
         fmts = tuple(f.strip().lower() for f in formats.split(",") if f.strip())
         bad = [f for f in fmts if f not in known]
         if bad or not fmts:

@@ -30,8 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
+from fluxcal.missions.messenger import run as messenger_run
 from fluxcal.missions.messenger.products import AVERAGES_S
 from fluxcal.missions.messenger.run import DEFAULT_FORMATS, DEFAULT_FRAMES
+
+#: What ``fluxcal batch messenger --formats`` accepts (`products.batch.accepted_formats`).
+FORMATS = messenger_run.FORMATS
 
 DAY_S = 86_400.0
 #: Default science rate/range schedule inside each simulated day's science window

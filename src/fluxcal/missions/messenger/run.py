@@ -36,6 +36,7 @@ from fluxcal.missions.messenger.validation_report import (
     write_report,
 )
 from fluxcal.products.atomic import atomic_group
+from fluxcal.products.writer import FORMATS as PRODUCT_FORMATS
 
 log = logging.getLogger(__name__)
 
@@ -44,17 +45,16 @@ log = logging.getLogger(__name__)
 DEFAULT_FORMATS = ("tab", "cdf", REPORT_FIGURE)
 
 
+#: Every format a MESSENGER run writes: the product formats of
+#: `fluxcal.products.write_product` and `REPORT_FIGURE`.
+FORMATS = (*PRODUCT_FORMATS, REPORT_FIGURE)
+
+
 def check_formats(formats: Sequence[str]) -> None:
-    """Refuse an unknown format before any work (one line, field ``formats``).
-
-    Known: the product formats of `fluxcal.products.write_product` and `REPORT_FIGURE`.
-    """
-    from fluxcal.products.writer import FORMATS
-
-    known = (*FORMATS, REPORT_FIGURE)
-    unknown = [f for f in formats if f not in known]
+    """Refuse a format not in `FORMATS` before any work (one line, field ``formats``)."""
+    unknown = [f for f in formats if f not in FORMATS]
     if unknown:
-        raise InputFormatError(f"unknown format(s) {unknown}; expected some of {list(known)}",
+        raise InputFormatError(f"unknown format(s) {unknown}; expected some of {list(FORMATS)}",
                                field="formats")
 
 
