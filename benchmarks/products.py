@@ -16,7 +16,9 @@ start-up, imports and all: what a user waits for), vectors/s from it, the ratio 
 baseline's time, peak RSS of the child (`peak_rss_mb`: ``VmHWM``, else ``ru_maxrss``)
 CPU seconds (user + system; less sensitive to other load on the machine than the wall
 time) and seconds per stage (functions of `fluxcal.missions.messenger.run` and ``products``
-wrapped with a timer; nested stages are included in their callers).
+wrapped with a timer; nested stages are included in their callers), system time, page
+faults, the optional libraries the case loaded, and a write control (`write_control`).
+Every case starts after ``sync`` with the files of the cases before it deleted.
 
 The numba cache and Python's bytecode cache are warmed first (a short ``edr2cdr`` run
 of each case), so the figures do not include the one-off compilation.
@@ -30,6 +32,7 @@ import argparse
 import json
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -186,8 +189,11 @@ def write_control(total_bytes: int, files: int, out: Path) -> dict:
     """Write ``total_bytes`` into ``files`` new files by plain 8 MiB writes; time them.
 
     The machine's own cost of putting that many new bytes into the page cache, for
-    comparison with a case that wrote them (on the development VM it varies with the
-    state of the host's memory, from ~0.4 s to ~4 s per 1.7 GB).
+    comparison with a case that wrote them.  It runs right after the case's files are
+    deleted, so it can reuse the memory they held: on the development VM, whose first
+    touch of memory is expensive, that makes it a lower bound of what the case paid
+    (1.5 s for 1.7 GB there, against 5.6-7.3 s for the same writes after a case whose
+    files were kept).
     """
     import numpy as np
 
@@ -226,6 +232,7 @@ def run_case(case: str, paths: dict[str, Path], out: Path) -> dict:
     user sees; ``wall`` (measured in the child) leaves out the interpreter start-up.
     """
     spec = json.dumps({k: str(v) for k, v in paths.items()})
+    os.sync()  # every case starts with no other case's writes pending
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
                NUMBA_NUM_THREADS="1")
     # as on a user's machine, Python keeps its compiled bytecode (the warm-up run writes it;
@@ -304,14 +311,15 @@ def main() -> None:
             if case == "baseline":
                 base = res
             report(res, base if case != "baseline" else None)
+            shutil.rmtree(folder / f"out_{case}", ignore_errors=True)  # (its page cache too)
             if res["bytes"]:
                 ctl = run_case(f"write:{res['bytes']}:{res['files']}", paths,
                                folder / f"control_{case}")
+                shutil.rmtree(folder / f"control_{case}", ignore_errors=True)
                 print(f"    write control: the same {res['bytes'] / 1e6:.0f} MB in "
                       f"{res['files']} new files by plain 8 MiB writes took "
-                      f"{ctl['wall']:.2f} s here (system {ctl['system']:.2f} s); "
-                      f"case {case} without it: {res['process_wall'] - ctl['wall']:.2f} s",
-                      flush=True)
+                      f"{ctl['wall']:.2f} s here (system {ctl['system']:.2f} s), just after "
+                      f"the case's own files were deleted", flush=True)
 
 
 if __name__ == "__main__":
