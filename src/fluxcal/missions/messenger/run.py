@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -195,32 +196,25 @@ def calibrate_and_write(
     inputs: Sequence[Path],
     kernel_list: Sequence[str],
     frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = DEFAULT_FORMATS,
-    averages: Sequence[int] = AVERAGES_S,
-    max_offset_step: float | None = 2.0,
     calibration_folder: Path | None = None,
-    only_day: str | None = None,
     quicklook: bool = False,
     quicklook_frame: str | None = None,
-    version: int = DEFAULT_VERSION,
     progress: Progress | None = None,
+    **write_options: Any,
 ) -> list[Path]:
     """Calibrate loaded streams (kernels already loaded) and write every day's products.
 
-    `calibrate_run` then `write_run`.  A caller that can drop the streams between the
-    two (as `run_edr2cdr` does) frees their memory before the products are written.
+    `calibrate_run`, then `write_run` with ``write_options`` (formats, averages,
+    max_offset_step, only_day, version).  The streams are released once calibrated: a
+    caller that passes them without keeping references of its own (as `run_edr2cdr`
+    does) has their memory freed before the products are written.
 
     Parameters
     ----------
-    only_day : str, optional
-        ``yyddd`` of the one day to write (other days in the data are dropped), e.g.
-        when the previous day's files were given for the look-back.
     quicklook : bool
         Also write a quicklook PNG per day (`write_quicklook`).
     quicklook_frame : str, optional
         Frame key of the quicklook's field (default: the first of ``frames``).
-    version : int
-        Product version ``_V<nn>`` of the file names.
     progress : callable, optional
         ``progress(description, done, total)``, called after each step and product.
 
@@ -232,10 +226,10 @@ def calibrate_and_write(
     ql_frame = quicklook_frame_of(frames, quicklook, quicklook_frame)
     ds, cal = calibrate_run(sci, heat, temp, frames=frames, quicklook_frame=ql_frame,
                             calibration_folder=calibration_folder, progress=progress)
+    del sci, heat, temp  # what the products need is in ``ds``
     return write_run(ds, cal, Path(out_dir), inputs=inputs, kernel_list=kernel_list,
-                     frames=frames, formats=formats, averages=averages,
-                     max_offset_step=max_offset_step, only_day=only_day,
-                     quicklook_frame=ql_frame, version=version, progress=progress)
+                     frames=frames, quicklook_frame=ql_frame, progress=progress,
+                     **write_options)
 
 
 def quicklook_frame_of(frames: Sequence[str], quicklook: bool,
@@ -366,18 +360,14 @@ def run_edr2cdr(
     prepare_formats(formats)
     if progress is not None:
         progress("reading inputs", 0, 1)
-    sci = read_science(science)
-    heat = read_heater(heater)
-    temp = read_temperature(temperature)
-    ql_frame = quicklook_frame_of(frames, quicklook, quicklook_frame)
     with KernelPool(kernels) as pool:
-        ds, cal = calibrate_run(sci, heat, temp, frames=frames, quicklook_frame=ql_frame,
-                                calibration_folder=calibration_folder, progress=progress)
-        del sci, heat, temp  # what the products need is in ``ds``; the rest is freed
-        return write_run(
-            ds, cal, Path(out_dir),
+        # the streams are passed, not kept here: freed once calibrated (calibrate_and_write)
+        return calibrate_and_write(
+            read_science(science), read_heater(heater), read_temperature(temperature),
+            Path(out_dir),
             inputs=[*map(Path, science), *map(Path, heater), *map(Path, temperature)],
             kernel_list=pool.kernel_list(), frames=frames, formats=formats,
-            averages=averages, max_offset_step=max_offset_step, quicklook_frame=ql_frame,
-            version=version, progress=progress,
+            averages=averages, max_offset_step=max_offset_step,
+            calibration_folder=calibration_folder, quicklook=quicklook,
+            quicklook_frame=quicklook_frame, version=version, progress=progress,
         )
