@@ -38,6 +38,7 @@ import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from types import ModuleType
 from typing import Any, Protocol
 
 import fluxcal
@@ -543,10 +544,19 @@ def accepted_formats(mission: str) -> tuple[str, ...]:
     """
     from fluxcal.products.writer import FORMATS
 
-    task_factory(mission)  # the same errors for an unknown mission
-    module = importlib.import_module(
-        BUILTIN_TASKS.get(mission, f"fluxcal.missions.{mission}.batch_task"))
-    return tuple(getattr(module, "FORMATS", FORMATS))
+    return tuple(getattr(_task_module(mission), "FORMATS", FORMATS))
+
+
+def _task_module(mission: str) -> ModuleType:
+    """Import ``fluxcal.missions.<mission>.batch_task`` (or a built-in task module)."""
+    module_name = BUILTIN_TASKS.get(mission, f"fluxcal.missions.{mission}.batch_task")
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        raise FluxcalError(
+            f"mission {mission!r} has no batch day task (module {module_name} not found; "
+            f"known: {', '.join(MISSIONS + tuple(BUILTIN_TASKS))})"
+        ) from exc
 
 
 def task_factory(mission: str) -> Callable[..., Any]:
@@ -559,15 +569,8 @@ def task_factory(mission: str) -> Callable[..., Any]:
     FluxcalError
         If the mission has no batch task module or no ``make_day_task`` in it.
     """
-    module_name = BUILTIN_TASKS.get(mission, f"fluxcal.missions.{mission}.batch_task")
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        raise FluxcalError(
-            f"mission {mission!r} has no batch day task (module {module_name} not found; "
-            f"known: {', '.join(MISSIONS + tuple(BUILTIN_TASKS))})"
-        ) from exc
+    module = _task_module(mission)
     factory = getattr(module, "make_day_task", None)
     if not callable(factory):
-        raise FluxcalError(f"{module_name} defines no make_day_task(input_dir, out_dir, ...)")
+        raise FluxcalError(f"{module.__name__} defines no make_day_task(input_dir, out_dir, ...)")
     return factory
