@@ -28,7 +28,7 @@ def load_figure_support() -> None:
     every calling frame alive in reference cycles; imported from inside `write_report`,
     those frames would hold the day's whole Dataset until a full collection of the
     garbage collector (212 MB at 20 Hz).  A run that writes the figure therefore
-    imports it first (`fluxcal.missions.messenger.run.run_edr2cdr`); `write_report`
+    imports it first (`fluxcal.missions.messenger.run.prepare_formats`); `write_report`
     imports it itself when nobody did.
     """
     import matplotlib.figure  # noqa: F401
