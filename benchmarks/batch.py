@@ -34,7 +34,7 @@ from _control import control  # noqa: E402  (benchmarks/_control.py, beside this
 from distributed import Client  # noqa: E402
 
 from fluxcal.errors import FluxcalError  # noqa: E402
-from fluxcal.products.batch import (  # noqa: E402
+from fluxcal.runs.batch import (  # noqa: E402
     day_range,
     make_local_cluster,
     run_batch,
@@ -80,12 +80,12 @@ def main() -> None:
     options = {} if args.formats is None else {"formats": tuple(args.formats.split(","))}
     try:
         if args.task == "synthetic":
-            from fluxcal.products.synthetic_task import write_synthetic_inputs
+            from fluxcal.runs.synthetic_task import write_synthetic_inputs
 
             inp = work / "in"
             write_synthetic_inputs(inp, days, n_per_day=args.vectors)
         elif args.input is None and args.task == "messenger":
-            from fluxcal.products.demo import simulate_messenger_days
+            from fluxcal.runs.batch_demo import simulate_messenger_days
 
             inp = work / "in"
             start = dt.datetime.combine(days[0], dt.time())

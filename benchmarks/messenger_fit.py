@@ -99,7 +99,7 @@ def main() -> None:
 
     from distributed import Client
 
-    from fluxcal.products.batch import make_local_cluster
+    from fluxcal.runs.batch import make_local_cluster
 
     work = Path(tempfile.mkdtemp(prefix="fluxcal-bench-fit-"))
     t = time.perf_counter()

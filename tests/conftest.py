@@ -48,6 +48,6 @@ def rosetta_kernels(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _release_cached_worker_kernels():
     """Unload kernels a day task called in-process cached for its worker (test isolation)."""
     yield
-    from fluxcal.products.batch import release_worker_kernel_pool
+    from fluxcal.runs.batch import release_worker_kernel_pool
 
     release_worker_kernel_pool()

@@ -182,12 +182,12 @@ def test_debug_shows_the_traceback(world, monkeypatch) -> None:
 
 def test_internal_error_is_one_line_exit_1(world, capsys, monkeypatch) -> None:
     """A bug (not a user error) is one line pointing to --debug, exit 1."""
-    import fluxcal.demo
+    import fluxcal.runs.demo
 
     def bug(out):
         raise ZeroDivisionError("division by zero")
 
-    monkeypatch.setattr(fluxcal.demo, "run_demo", bug)
+    monkeypatch.setattr(fluxcal.runs.demo, "run_demo", bug)
     assert main(["demo", "--out", str(world["out"])]) == 1
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "internal error" in line and "--debug" in line

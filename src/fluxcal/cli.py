@@ -1,7 +1,9 @@
 """The ``fluxcal`` command line.
 
-Sub-commands are defined next to the code they drive (``missions/<m>/cli.py``,
-``products/cli.py``) and registered here.  `main` takes ``argv`` so tests can call it.
+The command is built from the registered missions (`build_app`, `fluxcal.runs.registry`):
+each mission's commands are defined next to the code they drive and declared in its
+`~fluxcal.runs.contract.Mission`; ``batch`` and ``demo`` come from `fluxcal.runs`, ``plot``
+and ``compare`` from `fluxcal.product_commands`.  `main` takes ``argv`` so tests can call it.
 """
 
 from __future__ import annotations
@@ -18,22 +20,14 @@ from pathlib import Path
 
 import typer
 
+from fluxcal import product_commands
 from fluxcal.errors import FluxcalError
 from fluxcal.process import defer_dask_array_import, malloc_defaults, numpy_allocation_defaults
-
-app = typer.Typer(
-    name="fluxcal",
-    help="Calibrate fluxgate-magnetometer telemetry into science-ready magnetic-field products.",
-    no_args_is_help=True,
-    add_completion=False,
-)
-simulate_app = typer.Typer(
-    help="Forward models: write raw telemetry and kernels from a known field."
-)
-app.add_typer(simulate_app, name="simulate")
+from fluxcal.runs import registry
+from fluxcal.runs.cli import batch_app
+from fluxcal.runs.contract import Mission
 
 
-@app.callback()
 def _root(
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Log progress to stderr."),
     debug: bool = typer.Option(False, "--debug", help="Show the full traceback of an error "
@@ -45,7 +39,6 @@ def _root(
     )
 
 
-@app.command()
 def version() -> None:
     """Print the fluxcal version."""
     from fluxcal import __version__
@@ -53,33 +46,51 @@ def version() -> None:
     typer.echo(__version__)
 
 
-@app.command()
 def demo(
     out: Path = typer.Option(Path("demo-output"), help="Folder for the demo products."),
 ) -> None:
     """Run the main job on the embedded default data and say where the products are."""
-    from fluxcal.demo import run_demo
+    from fluxcal.runs.demo import run_demo
 
     run_demo(out)
 
 
-def _register() -> None:
-    from fluxcal.missions.messenger import cli as messenger_cli
-    from fluxcal.missions.rosetta import clean_cli
-    from fluxcal.missions.rosetta import cli as rosetta_cli
-    from fluxcal.products import cli as products_cli
+def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
+    """Build the ``fluxcal`` command from the registered missions (`fluxcal.runs.registry`).
 
-    app.add_typer(messenger_cli.app, name="messenger")
-    rosetta_cli.app.command("clean")(clean_cli.clean)
-    app.add_typer(rosetta_cli.app, name="rosetta")
-    simulate_app.command("messenger")(messenger_cli.simulate)
-    simulate_app.command("rosetta")(rosetta_cli.simulate)
-    app.command("plot")(products_cli.plot)
-    app.command("batch")(products_cli.batch)
-    app.command("compare")(products_cli.compare)
+    Each mission adds its commands (``fluxcal <mission> ...``), its simulator
+    (``fluxcal simulate <mission>``) and its batch command (``fluxcal batch <mission>``,
+    from its day task and options dataclass); ``plot``, ``compare``, ``demo`` and
+    ``version`` work on every mission's products.
+    """
+    missions = registry.missions() if missions is None else missions
+    root = typer.Typer(
+        name="fluxcal",
+        help="Calibrate fluxgate-magnetometer telemetry into science-ready magnetic-field "
+             "products.",
+        no_args_is_help=True,
+        add_completion=False,
+    )
+    root.callback()(_root)
+    root.command()(version)
+    root.command()(demo)
+    simulate_app = typer.Typer(
+        help="Forward models: write raw telemetry and kernels from a known field.")
+    for name, mission in sorted(missions.items()):
+        if mission.commands is not None:
+            commands = mission.load("commands")
+            commands = commands if isinstance(commands, typer.Typer) else commands()
+            root.add_typer(commands, name=name, help=mission.title or None)
+        if mission.simulate is not None:
+            simulate_app.command(name)(mission.load("simulate"))
+    root.add_typer(simulate_app, name="simulate")
+    root.add_typer(batch_app(missions), name="batch")
+    root.command("plot")(product_commands.plot)
+    root.command("compare")(product_commands.compare)
+    return root
 
 
-_register()
+app = build_app()
 
 
 DEBUG_ENV = "FLUXCAL_DEBUG"

@@ -13,7 +13,7 @@ import pytest
 
 from fluxcal.products import read_product
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.batch import (
+from fluxcal.runs.batch import (
     BatchReport,
     DayResult,
     day_range,
@@ -23,7 +23,7 @@ from fluxcal.products.batch import (
     run_batch,
     task_factory,
 )
-from fluxcal.products.synthetic_task import (
+from fluxcal.runs.synthetic_task import (
     SyntheticDayTask,
     input_path,
     write_synthetic_inputs,
@@ -134,7 +134,7 @@ def test_day_without_input_is_no_data(tmp_path: Path) -> None:
 
 
 def test_task_factory_registry() -> None:
-    assert task_factory("synthetic").__module__ == "fluxcal.products.synthetic_task"
+    assert task_factory("synthetic").__module__ == "fluxcal.runs.synthetic_task"
     from fluxcal.errors import FluxcalError
 
     with pytest.raises(FluxcalError, match="no batch day task"):
@@ -163,7 +163,7 @@ def test_worker_loads_kernels_once(cluster) -> None:
 
         import spiceypy
 
-        from fluxcal.products.batch import worker_kernel_pool
+        from fluxcal.runs.batch import worker_kernel_pool
 
         pool = worker_kernel_pool([])
         again = worker_kernel_pool([])
@@ -184,7 +184,7 @@ def test_worker_kernel_pool_switches_lists() -> None:
     import spiceypy
 
     from fluxcal.geometry.kernels import frame_kernel_path
-    from fluxcal.products.batch import release_worker_kernel_pool, worker_kernel_pool
+    from fluxcal.runs.batch import release_worker_kernel_pool, worker_kernel_pool
 
     # an earlier in-process (serial) batch test may have left its pool cached here
     release_worker_kernel_pool()
@@ -225,7 +225,7 @@ class KernelDayTask:
         import spiceypy
 
         from fluxcal.geometry.kernels import frame_kernel_path
-        from fluxcal.products.batch import worker_kernel_pool
+        from fluxcal.runs.batch import worker_kernel_pool
 
         worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
         path = atomic_write_bytes(Path(self.out_dir) / f"K_{day:%Y%m%d}.txt",
@@ -313,7 +313,7 @@ def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
 
 
 def test_clean_stale_temporaries_files_and_store_directories(tmp_path: Path) -> None:
-    from fluxcal.products.batch import clean_stale_temporaries
+    from fluxcal.runs.batch import clean_stale_temporaries
 
     (tmp_path / "P.zarr" / "B").mkdir(parents=True)  # a finished store: kept
     (tmp_path / "P.zarr" / "B" / "0.0").write_bytes(b"x")

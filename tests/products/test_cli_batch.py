@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from fluxcal.cli import main
-from fluxcal.products.batch import day_range
-from fluxcal.products.synthetic_task import input_path, write_synthetic_inputs
+from fluxcal.runs.batch import day_range
+from fluxcal.runs.synthetic_task import input_path, write_synthetic_inputs
 
 
 def test_cli_batch_failure_exit_code_and_rerun(tmp_path: Path) -> None:
@@ -101,7 +101,7 @@ def test_cli_batch_rosetta_placeholder_alignment_warns(tmp_path: Path, capsys) -
 
 def test_second_batch_into_the_same_folder_refuses(tmp_path: Path, capsys) -> None:
     """Before: two batches deleted each other's temporaries ([Errno 2] ... .tmp.LBL)."""
-    from fluxcal.products.batch import LOCK_NAME, output_lock
+    from fluxcal.runs.batch import LOCK_NAME, output_lock
 
     days = day_range(dt.date(2024, 3, 1), dt.date(2024, 3, 1))
     inp, out = tmp_path / "in", tmp_path / "out"
@@ -125,7 +125,7 @@ def test_temporaries_of_a_running_process_are_spared(tmp_path: Path) -> None:
     import sys
 
     from fluxcal.products.atomic import atomic_path, temporary_owner
-    from fluxcal.products.batch import clean_stale_temporaries
+    from fluxcal.runs.batch import clean_stale_temporaries
 
     with atomic_path(tmp_path / "P.TAB") as tmp:
         assert temporary_owner(tmp) == os.getpid()  # pid + random: unique per run
@@ -169,7 +169,8 @@ def test_simulate_rosetta_batch_layout_is_read_by_batch(tmp_path: Path, capsys) 
 def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, capsys) -> None:
     """``png`` (the MESSENGER offset report's figure) is a format of messenger batches only."""
     from fluxcal.missions.messenger.batch_task import make_day_task
-    from fluxcal.products.cli import _preflight
+    from fluxcal.missions.messenger.options import MessengerOptions
+    from fluxcal.runs.options import from_command_line
 
     out = tmp_path / "out"
     for mission in ("rosetta", "synthetic"):
@@ -179,13 +180,13 @@ def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, c
         assert main(args) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
         assert "'png'" in line and "--formats" in line
-    from fluxcal.products.batch import accepted_formats
+    from fluxcal.runs.batch import accepted_formats
     from fluxcal.products.writer import FORMATS
 
     assert accepted_formats("rosetta") == accepted_formats("synthetic") == FORMATS
     assert accepted_formats("messenger") == (*FORMATS, "png")
-    assert _preflight(out, None, None, "CDF, png", None, "messenger") == ("cdf", "png")
-    assert _preflight(out, None, None, None, None, "messenger") is None  # the task's default
+    assert from_command_line(MessengerOptions, {"formats": "CDF, png"}).formats == ("cdf", "png")
+    assert MessengerOptions().formats == ("tab", "cdf", "png")  # the task's default
     assert make_day_task(tmp_path, out).formats == ("tab", "cdf", "png")
     assert make_day_task(tmp_path, out, formats=["cdf"]).formats == ("cdf",)
     # the task itself refuses an unknown format before looking for the day's files

@@ -356,7 +356,7 @@ def pipeline_products(tmp_path_factory) -> list[Path]:
     from fluxcal.missions.messenger.run import run_edr2cdr
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
     from fluxcal.missions.rosetta.batch_task import make_day_task, simulate_days
-    from fluxcal.products.batch import run_batch
+    from fluxcal.runs.batch import run_batch
 
     root = tmp_path_factory.mktemp("pipelines")
     start = "2012-06-01T00:00:00"
@@ -378,7 +378,7 @@ def pipeline_products(tmp_path_factory) -> list[Path]:
     report = run_batch([day], task, root / "out", scheduler="serial")
     assert report.ok, report.days
     paths += [root / "out" / p for d in report.days for p in d.products]
-    from fluxcal.products.synthetic_task import SyntheticDayTask, write_synthetic_inputs
+    from fluxcal.runs.synthetic_task import SyntheticDayTask, write_synthetic_inputs
 
     day = dt.date(2024, 3, 1)
     write_synthetic_inputs(root / "synth_in", [day], n_per_day=2000)

@@ -20,8 +20,8 @@ import pytest
 import xarray as xr
 
 from fluxcal.products import read_product, write_product, zarr_available
-from fluxcal.products.batch import manifest_path, run_batch
-from fluxcal.products.synthetic_task import SyntheticDayTask, write_synthetic_inputs
+from fluxcal.runs.batch import manifest_path, run_batch
+from fluxcal.runs.synthetic_task import SyntheticDayTask, write_synthetic_inputs
 
 #: The only attributes / label keywords allowed to change between two identical runs.
 CREATION_KEYS = {"creation_time", "Generation_date", "PRODUCT_CREATION_TIME"}

@@ -43,7 +43,7 @@ from importlib import import_module
 from typing import Any
 
 #: Public name -> module that defines it; imported on first use (PEP 562), so that
-#: ``fluxcal.products.cli`` and the ``fluxcal --help`` listing do not load xarray,
+#: ``fluxcal.runs.cli`` and the ``fluxcal --help`` listing do not load xarray,
 #: cdflib and pvl.
 _SOURCE = {
     "FORMATS": "writer",

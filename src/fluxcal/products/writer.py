@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.products.atomic import atomic_group
+from fluxcal.products.format_names import FORMATS
 from fluxcal.products.timeindex import with_time_index
 
 if TYPE_CHECKING:
@@ -16,7 +17,6 @@ if TYPE_CHECKING:
 
     from fluxcal.products.columns import Column
 
-FORMATS = ("tab", "cdf", "nc", "zarr")
 SUFFIX = {"tab": ".TAB", "cdf": ".cdf", "nc": ".nc", "zarr": ".zarr"}
 
 

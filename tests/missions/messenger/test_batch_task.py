@@ -10,7 +10,7 @@ from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
-from fluxcal.products.batch import run_batch
+from fluxcal.runs.batch import run_batch
 
 
 def test_two_days_across_midnight(tmp_path):
@@ -55,7 +55,7 @@ def test_simulate_days_feeds_the_batch_task(tmp_path):
     """Short simulated days with a gap; the batch recovers the forward model's field."""
     from fluxcal.missions.messenger.simulate import read_truth
     from fluxcal.products import read_product
-    from fluxcal.products.demo import _mission_inputs
+    from fluxcal.runs.batch_demo import _mission_inputs
 
     days = [dt.date(2012, 6, 1), dt.date(2012, 6, 2), dt.date(2012, 6, 5)]
     inp = tmp_path / "in"

@@ -198,7 +198,7 @@ def test_batch_products_equal_to_those_of_runs_with_every_frame(tmp_path, monkey
 
     from fluxcal.missions.messenger import run
     from fluxcal.missions.messenger.batch_task import make_day_task, simulate_days
-    from fluxcal.products.batch import run_batch
+    from fluxcal.runs.batch import run_batch
 
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")
     days = [dt.date(2012, 6, 1), dt.date(2012, 6, 2)]

@@ -24,7 +24,7 @@ from fluxcal.missions.rosetta import simulate as simulate_module
 from fluxcal.missions.rosetta.batch_task import make_day_task, science_file, simulate_days
 from fluxcal.missions.rosetta.simulate import read_truth_csv
 from fluxcal.products import read_product
-from fluxcal.products.batch import run_batch
+from fluxcal.runs.batch import run_batch
 
 D1, D2 = dt.date(2014, 11, 1), dt.date(2014, 11, 2)
 RATE_HZ = 4.0

@@ -17,7 +17,7 @@ from fluxcal.cli import main
 from fluxcal.missions.rosetta.batch_task import make_day_task, science_file, simulate_days
 from fluxcal.missions.rosetta.simulate import read_truth_csv
 from fluxcal.products import read_product
-from fluxcal.products.batch import DayWithoutData, run_batch
+from fluxcal.runs.batch import DayWithoutData, run_batch
 
 DAYS = [dt.date(2014, 11, 1), dt.date(2014, 11, 2), dt.date(2014, 11, 3)]
 BAD = DAYS[1]
@@ -225,7 +225,7 @@ def test_quicklook_figure_panels(sim, serial_products):
 
 def test_demo_writes_rosetta_inputs(tmp_path):
     # `make demo` simulates the two Rosetta demo days through batch_task.simulate_days
-    from fluxcal.products.demo import ROSETTA_DAYS, _mission_inputs
+    from fluxcal.runs.batch_demo import ROSETTA_DAYS, _mission_inputs
 
     days = _mission_inputs("rosetta", tmp_path)
     assert days == list(ROSETTA_DAYS)

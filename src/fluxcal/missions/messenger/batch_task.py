@@ -22,6 +22,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import shutil
 from collections.abc import Sequence
@@ -30,12 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from fluxcal.missions.messenger import run as messenger_run
-from fluxcal.missions.messenger.products import AVERAGES_S
-from fluxcal.missions.messenger.run import DEFAULT_FORMATS, DEFAULT_FRAMES
-
-#: What ``fluxcal batch messenger --formats`` accepts (`products.batch.accepted_formats`).
-FORMATS = messenger_run.FORMATS
+from fluxcal.missions.messenger.options import (
+    AVERAGES_S,
+    DEFAULT_FORMATS,
+    DEFAULT_FRAMES,
+    DEFAULT_VERSION,
+    MessengerOptions,
+)
 
 DAY_S = 86_400.0
 #: Default science rate/range schedule inside each simulated day's science window
@@ -65,6 +67,7 @@ class MessengerDayTask:
     calib: Path | None = None
     quicklook: bool = False
     quicklook_frame: str | None = None
+    version: int = DEFAULT_VERSION
 
     def _kernels(self) -> Path:
         return Path(self.kernels) if self.kernels else Path(self.input_dir) / "kernels.tm"
@@ -103,7 +106,7 @@ class MessengerDayTask:
         """Return the day's input files, kernels and calibration folder."""
         from fluxcal.missions.messenger.calibration_data import data_dir
         from fluxcal.missions.messenger.products import istp_files
-        from fluxcal.products.batch import DayInputs
+        from fluxcal.runs.batch import DayInputs
 
         files = [p for group in self._files(day).values() for p in group if p.exists()]
         folder = Path(self.calib) if self.calib else data_dir()
@@ -125,7 +128,7 @@ class MessengerDayTask:
             quicklook_frame_of,
             write_run,
         )
-        from fluxcal.products.batch import DayResult, DayWithoutData, worker_kernel_pool
+        from fluxcal.runs.batch import DayResult, DayWithoutData, worker_kernel_pool
 
         prepare_formats(self.formats)
         files = self._files(day)
@@ -153,7 +156,7 @@ class MessengerDayTask:
             inputs=[p for group in files.values() for p in group],
             kernel_list=pool.kernel_list(), frames=self.frames, formats=self.formats,
             averages=self.averages, max_offset_step=self.max_offset_step,
-            only_day=f"{day:%y%j}", quicklook_frame=ql_frame,
+            only_day=f"{day:%y%j}", quicklook_frame=ql_frame, version=self.version,
         )
         return DayResult(day, paths, n_vectors=n_vectors)
 
@@ -161,14 +164,17 @@ class MessengerDayTask:
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask:
     """Build the task for ``fluxcal batch messenger``.
 
-    Options: kernels, formats, calib, frames, averages, max_offset_step, quicklook,
-    quicklook_frame; unknown options are ignored.
+    Options: kernels and the fields of `MessengerOptions` (formats, calib, frames,
+    averages, max_offset_step, quicklook, quicklook_frame, version); unknown options are
+    ignored.
     """
-    allowed = {"kernels", "formats", "calib", "frames", "averages", "max_offset_step",
-               "quicklook", "quicklook_frame"}
-    opts = {k: v for k, v in options.items() if k in allowed and v is not None}
-    for key in ("formats", "frames", "averages"):
-        if key in opts:
+    allowed = {"kernels", *(f.name for f in dataclasses.fields(MessengerOptions))}
+    # None is a value here (no sec. 13 check, the default quicklook frame), not "unset"
+    opts = {k: v for k, v in options.items() if k in allowed}
+    for key in ("kernels", "formats", "frames", "averages", "version"):
+        if opts.get(key) is None:
+            opts.pop(key, None)
+        elif key in ("formats", "frames", "averages"):
             opts[key] = tuple(opts[key])
     return MessengerDayTask(Path(input_dir), Path(out_dir), **opts)
 
@@ -284,3 +290,65 @@ def simulate_days(
     write_meta_kernel(input_dir / "kernels.tm", kernel_files)
     return sorted(done)
 
+
+#: The two days of the batch demo (a stretch across the midnight between them).
+DEMO_DAYS = (_dt.date(2012, 6, 1), _dt.date(2012, 6, 2))
+
+
+def _split_by_day(path: Path, stream: str, out_dir: Path, sclk) -> list[Path]:
+    """Split a MESSENGER CSV (``partition,met,...``) into ``MAG<stream>_YYYYDDD.csv``."""
+    from fluxcal.geometry.time import et_to_utc
+
+    lines = path.read_text().splitlines()
+    header, rows = lines[0], np.array(lines[1:])
+    pm = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(0, 1), ndmin=2)
+    et = sclk.to_et(pm[:, 0].astype(int), pm[:, 1])
+    days = np.array([u[:10] for u in et_to_utc(et, style="iso", digits=0)])
+    written = []
+    for day in np.unique(days):
+        d = _dt.date.fromisoformat(str(day))
+        dest = out_dir / f"MAG{stream}_{d:%Y%j}.csv"
+        dest.write_text("\n".join([header, *rows[days == day].tolist()]) + "\n")
+        written.append(dest)
+    return written
+
+
+def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
+                            start: _dt.datetime | None = None,
+                            rate_setting: int | None = None) -> list[_dt.date]:
+    """Simulate MESSENGER MAG telemetry; write the batch input layout (one file per day).
+
+    By default ``duration_s`` centred on the midnight between the two demo days.  With
+    ``rate_setting`` (Table 1, e.g. 6 = 1 vector/s) the whole stretch uses that rate
+    (long benchmark stretches).  Returns the UTC days that received science data.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.synthetic import copy_meta_kernel, write_messenger_like_kernels
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+
+    input_dir = Path(input_dir)
+    work = input_dir / "simulation"
+    if start is None:
+        start = _dt.datetime.combine(DEMO_DAYS[1], _dt.time()) - _dt.timedelta(
+            seconds=duration_s / 2)
+    start_utc = start.strftime("%Y-%m-%dT%H:%M:%S")
+    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
+    if rate_setting is not None:
+        config.rate_segments = [(0.0, rate_setting)]
+    mk = write_messenger_like_kernels(work / "kernels", start_utc,
+                                      duration_s + 2 * config.lead_s,
+                                      plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)])
+    with KernelPool(mk):
+        sim = simulate(config, load_calibration(start_utc), SclkKernel.from_pool(-236))
+    paths = {"kernels": mk, **write_inputs(sim, work / "inputs")}
+    with KernelPool(paths["kernels"]):
+        sclk = SclkKernel.from_pool(-236)
+        days = []
+        for key, stream in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
+            written = _split_by_day(Path(paths[key]), stream, input_dir, sclk)
+            if key == "science":
+                days = [_dt.datetime.strptime(p.stem[-7:], "%Y%j").date() for p in written]
+    copy_meta_kernel(paths["kernels"], input_dir / "kernels.tm")  # paths relative to it
+    return days

@@ -9,14 +9,14 @@ from pathlib import Path
 
 import typer
 
+from fluxcal.missions.messenger.options import MessengerOptions
+from fluxcal.runs.options import with_options
+
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True)
 
 
-def _split(text: str) -> list[str]:
-    return [t.strip() for t in text.split(",") if t.strip()]
-
-
 @app.command("edr2cdr")
+@with_options(MessengerOptions)
 def edr2cdr(
     sci: list[Path] = typer.Option([], "--sci", help="Science CSV file(s)."),
     heater: list[Path] = typer.Option([], "--heater", help="Heater-bit CSV file(s)."),
@@ -28,69 +28,39 @@ def edr2cdr(
                                  "fluxcal/missions/messenger/data/edr_mapping_template.toml)."),
     kernels: list[Path] = typer.Option(..., "--kernels", help="Meta-kernel or kernel files."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
-    frames: str = typer.Option("mso,j2000,mbf,rtn,sc", help="Frames (also: vso)."),
-    formats: str = typer.Option(
-        "tab,cdf,png", help="What to write: tab (PDS3 tables), cdf, nc, zarr, png (the "
-        "offset report's figure; its text is always written)."),
-    average: str = typer.Option("1,5,10,60", help="Averaging intervals (s); '' for none."),
-    max_offset_step: float = typer.Option(
-        2.0, help="Sec. 13 smoothness threshold (fine-range counts); <= 0 disables."
-    ),
-    quicklook: bool = typer.Option(
-        False, "--quicklook", help="Also write a quicklook PNG per day (field, |B|, offsets, "
-        "quality flag, distance from Mercury)."
-    ),
-    quicklook_frame: str = typer.Option(
-        "", "--quicklook-frame", help="Frame of the quicklook's field (default: the first "
-        "of --frames)."
-    ),
-    version: int = typer.Option(
-        1, "--version", "--product-version", min=1, max=99,
-        help="Product version: the _V<nn> of the file names."
-    ),
-    calib: Path | None = typer.Option(
-        None, "--calib", help="Calibration folder to use in place of the shipped tables "
-        "(e.g. the --out of 'fluxcal messenger fit'; docs/formats/calibration.md)."
-    ),
+    options: MessengerOptions = None,  # type: ignore[assignment] - from the command line
 ) -> None:
     """Calibrate MESSENGER MAG EDR streams into CDR products.
 
     Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
     """
     from fluxcal.cli import imports_loaded
-    from fluxcal.errors import InputFormatError
     from fluxcal.missions.messenger.run import prepare_formats, run_edr2cdr
 
-    prepare_formats(_split(formats))  # both routes: before any EDR or CSV is read
+    prepare_formats(options.formats)  # both routes: before any EDR or CSV is read
     imports_loaded()  # xarray, numba, matplotlib ... are loaded: settle them before data
-    try:
-        averages = [int(a) for a in _split(average)]
-    except ValueError:
-        raise InputFormatError(
-            f"{average!r}: expected whole seconds separated by commas", field="--average"
-        ) from None
-    if any(a <= 0 for a in averages):
-        raise InputFormatError(f"{average!r}: intervals must be positive", field="--average")
     from fluxcal.preflight import plain_text_file
 
     _check_input_style(sci, heater, temperature, edr, mapping)
     for option, paths in (("--sci", sci), ("--heater", heater), ("--temperature", temperature)):
         for path in paths:  # before any work: not compressed, a data line after the header
             plain_text_file(path, option, header_lines=1)
-    options = dict(frames=_split(frames), formats=_split(formats), averages=averages,
-                   max_offset_step=max_offset_step if max_offset_step > 0 else None,
-                   quicklook=quicklook, quicklook_frame=quicklook_frame.strip() or None,
-                   version=version, calibration_folder=calib)
+    calib = options.calib
+    run_options = dict(frames=list(options.frames), formats=list(options.formats),
+                       averages=list(options.averages),
+                       max_offset_step=options.max_offset_step,
+                       quicklook=options.quicklook, quicklook_frame=options.quicklook_frame,
+                       version=options.version, calibration_folder=calib)
     if calib is not None:
         check_calibration_folder(calib)
     with compilation_notice(), progress_display() as progress:
         if edr is not None:
             from fluxcal.missions.messenger.edr import run_edr_archive
 
-            written = run_edr_archive(edr, mapping, kernels, out, progress=progress, **options)
+            written = run_edr_archive(edr, mapping, kernels, out, progress=progress, **run_options)
         else:
             written = run_edr2cdr(sci, heater, temperature, kernels, out, progress=progress,
-                                  **options)
+                                  **run_options)
     typer.echo(f"wrote {len(written)} files to {out}")
 
 

@@ -494,8 +494,8 @@ def reduce_chunk(
     """Read one chunk's streams and reduce them (`reduce_day`); runs on a worker."""
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
-    from fluxcal.products.batch import worker_kernel_pool
     from fluxcal.products.provenance import sha256_file
+    from fluxcal.runs.batch import worker_kernel_pool
 
     worker_kernel_pool(list(chunk.kernels))
     sclk = SclkKernel.from_pool(-236)
@@ -548,7 +548,7 @@ def fit_days(
         Stop after a pass that changed tau and every D0 by less than this fraction.
     scheduler : str or None
         ``"serial"``: in this process; None: a local Dask cluster of ``n_workers``
-        single-threaded processes (`fluxcal.products.batch.make_local_cluster`); else
+        single-threaded processes (`fluxcal.runs.batch.make_local_cluster`); else
         the address of a running Dask scheduler.
     n_workers : int
         Workers of the local cluster.
@@ -608,7 +608,7 @@ def fit_days(
             progress(f"pass {p + 1}/{passes}: reducing days", p * len(chunks) + i, total)
 
     if scheduler == "serial":
-        from fluxcal.products.batch import release_worker_kernel_pool
+        from fluxcal.runs.batch import release_worker_kernel_pool
 
         def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[DayStatistics]:
             out = []
@@ -623,7 +623,7 @@ def fit_days(
             release_worker_kernel_pool()
     from distributed import Client, as_completed
 
-    from fluxcal.products.batch import make_local_cluster
+    from fluxcal.runs.batch import make_local_cluster
 
     cluster = make_local_cluster(n_workers) if scheduler is None else None
     try:

@@ -18,10 +18,10 @@ from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.missions.messenger.options import DEFAULT_FRAMES
 
 log = logging.getLogger(__name__)
 
-DEFAULT_FRAMES = ("mso", "j2000", "mbf", "rtn", "sc")
 
 #: Intermediates of sec. 6-9 that no product, offset report (``et``, ``rate``, ``sunlit``,
 #: ``offset``) or quicklook reads, by the last step that needs them: dropped after

@@ -41,14 +41,12 @@ from numba import njit
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.levels import FRAMES, POSITION_VARIABLE, SC_ID, frame_variables
+from fluxcal.missions.messenger.options import DEFAULT_VERSION
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
 
 log = logging.getLogger(__name__)
 
-AVERAGES_S = (1, 5, 10, 60)
-#: Product version ``_V<nn>`` when none is given.
-DEFAULT_VERSION = 1
 NS = 1_000_000_000
 
 #: Progress callback: (description, steps done, steps in total).

@@ -20,10 +20,16 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
-from fluxcal.missions.messenger.pipeline import DEFAULT_FRAMES, calibrate, check_frames, day_of
-from fluxcal.missions.messenger.products import (
+from fluxcal.missions.messenger.options import (
     AVERAGES_S,
+    DEFAULT_FORMATS,
+    DEFAULT_FRAMES,
     DEFAULT_VERSION,
+    FORMATS,
+    REPORT_FIGURE,
+)
+from fluxcal.missions.messenger.pipeline import calibrate, check_frames, day_of
+from fluxcal.missions.messenger.products import (
     Progress,
     day_code,
     split_days,
@@ -32,24 +38,12 @@ from fluxcal.missions.messenger.products import (
 )
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.validation_report import (
-    REPORT_FIGURE,
     load_figure_support,
     write_report,
 )
 from fluxcal.products.atomic import atomic_group
-from fluxcal.products.writer import FORMATS as PRODUCT_FORMATS
 
 log = logging.getLogger(__name__)
-
-#: What ``edr2cdr`` writes unless told otherwise: PDS3 tables, CDF and the figure of the
-#: offset report (`REPORT_FIGURE`; the report's text is always written).
-DEFAULT_FORMATS = ("tab", "cdf", REPORT_FIGURE)
-
-
-#: Every format a MESSENGER run writes: the product formats of
-#: `fluxcal.products.write_product` and `REPORT_FIGURE`.
-FORMATS = (*PRODUCT_FORMATS, REPORT_FIGURE)
-
 
 def check_formats(formats: Sequence[str]) -> None:
     """Refuse a format not in `FORMATS` before any work (one line, field ``formats``)."""

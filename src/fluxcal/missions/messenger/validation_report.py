@@ -17,9 +17,6 @@ import xarray as xr
 
 from fluxcal.missions.messenger.levels import offset_step_report
 
-#: The ``--formats`` entry that asks for the report's figure (``MAGOFFSETS<yyddd>.png``).
-REPORT_FIGURE = "png"
-
 
 def load_figure_support() -> None:
     """Import matplotlib's figure module; for a run to call before it makes any data.

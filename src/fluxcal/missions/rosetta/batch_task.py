@@ -215,7 +215,7 @@ class RosettaDayTask:
         from fluxcal.geometry.time import SclkKernel, leapseconds
         from fluxcal.missions.rosetta import io
         from fluxcal.missions.rosetta.archive import read_science
-        from fluxcal.products.batch import worker_kernel_pool
+        from fluxcal.runs.batch import worker_kernel_pool
 
         cached = self._read_stitch(day, sensor)
         if cached is not None:
@@ -302,7 +302,7 @@ class RosettaDayTask:
         folder, except other days' daily offset models (adding a day's model must not
         invalidate the other days).
         """
-        from fluxcal.products.batch import DayInputs
+        from fluxcal.runs.batch import DayInputs
 
         files = [p for sensor, source in self._science(day).items()
                  for p in _source_files(source, sensor)]
@@ -338,7 +338,7 @@ class RosettaDayTask:
         from fluxcal.errors import InputFormatError
         from fluxcal.missions.rosetta.pipeline import calibrate_files
         from fluxcal.products.atomic import atomic_group
-        from fluxcal.products.batch import DayResult, DayWithoutData, worker_kernel_pool
+        from fluxcal.runs.batch import DayResult, DayWithoutData, worker_kernel_pool
 
         science = self._science(day)
         if not science:

@@ -370,7 +370,7 @@ def calibrate_files(
     both is an error.
     ``quicklook`` also writes a PNG per UTC day (`write_quicklook`).  ``pool`` is an
     already entered `KernelPool` holding ``kernels`` (batch workers keep theirs loaded,
-    `fluxcal.products.batch.worker_kernel_pool`); by default a pool is opened here.
+    `fluxcal.runs.batch.worker_kernel_pool`); by default a pool is opened here.
 
     ``day`` (the batch) makes the products of one UTC day from a file split at midnight
     of the telemetry (unshifted) time (docs/formats/rosetta.md, "Day edges"): every raw

@@ -10,7 +10,7 @@ products atomically (`fluxcal.products.write_product`).  It may also define
 ``task.inputs(day) -> DayInputs`` (its input files and calibration), which lets the
 runner decide *before* running whether a day is up to date.  Missions expose a
 factory ``make_day_task(input_dir, out_dir, **options)`` in
-``fluxcal.missions.<mission>.batch_task`` (see `task_factory`).
+the mission's contract (`fluxcal.runs.contract.Mission.day_task`, see `task_factory`).
 
 Idempotence: after a day succeeds, a JSON manifest ``<out>/manifests/<name>_<day>.json``
 records the products (size, SHA-256), the inputs and calibration with their SHA-256
@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
-import importlib
 import json
 import logging
 import os
@@ -38,13 +37,13 @@ import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from types import ModuleType
 from typing import Any, Protocol
 
 import fluxcal
 from fluxcal.errors import FluxcalError
 from fluxcal.products.atomic import atomic_write_bytes, process_alive, temporary_owner
 from fluxcal.products.provenance import sha256_file
+from fluxcal.runs import registry
 
 log = logging.getLogger(__name__)
 
@@ -530,47 +529,20 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
     return report
 
 
-# --- mission registry --------------------------------------------------------------------
-
-BUILTIN_TASKS = {"synthetic": "fluxcal.products.synthetic_task"}
-MISSIONS = ("messenger", "rosetta")
+# --- missions ----------------------------------------------------------------------------
 
 
 def accepted_formats(mission: str) -> tuple[str, ...]:
-    """Return the ``--formats`` a mission's day task accepts.
-
-    Its task module's ``FORMATS`` when it defines one (MESSENGER adds ``png``, the offset
-    report's figure), else the product writer's (`fluxcal.products.writer.FORMATS`).
-    """
-    from fluxcal.products.writer import FORMATS
-
-    return tuple(getattr(_task_module(mission), "FORMATS", FORMATS))
-
-
-def _task_module(mission: str) -> ModuleType:
-    """Import ``fluxcal.missions.<mission>.batch_task`` (or a built-in task module)."""
-    module_name = BUILTIN_TASKS.get(mission, f"fluxcal.missions.{mission}.batch_task")
-    try:
-        return importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        raise FluxcalError(
-            f"mission {mission!r} has no batch day task (module {module_name} not found; "
-            f"known: {', '.join(MISSIONS + tuple(BUILTIN_TASKS))})"
-        ) from exc
+    """Return the ``--formats`` the registered ``mission``'s runs accept."""
+    return registry.get(mission).accepted_formats()
 
 
 def task_factory(mission: str) -> Callable[..., Any]:
-    """Return ``make_day_task(input_dir, out_dir, **options)`` for a mission.
-
-    Looks in ``fluxcal.missions.<mission>.batch_task`` (or a built-in task module).
+    """Return ``make_day_task(input_dir, out_dir, **options)`` of a registered mission.
 
     Raises
     ------
     FluxcalError
-        If the mission has no batch task module or no ``make_day_task`` in it.
+        If no such mission is registered or it has no day task.
     """
-    module = _task_module(mission)
-    factory = getattr(module, "make_day_task", None)
-    if not callable(factory):
-        raise FluxcalError(f"{module.__name__} defines no make_day_task(input_dir, out_dir, ...)")
-    return factory
+    return registry.get(mission).load("day_task")

@@ -27,11 +27,11 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import CalibrationError, InputFormatError
-from fluxcal.products.batch import DayInputs, DayResult, DayWithoutData
 from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.columns import Column
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.products.writer import write_product
+from fluxcal.runs.batch import DayInputs, DayResult, DayWithoutData
 
 CALIB_NAME = "synthetic_calib.txt"
 #: ISTP ``Logical_source`` of the synthetic product (its CDF is ``SYNTH_<yyyymmdd>_v01.cdf``).
@@ -172,3 +172,8 @@ def make_day_task(input_dir: Path, out_dir: Path, **options) -> SyntheticDayTask
     if "formats" in opts:
         opts["formats"] = tuple(opts["formats"])
     return SyntheticDayTask(Path(input_dir), Path(out_dir), **opts)
+
+
+def simulate_days(input_dir: Path, days: list[_dt.date]) -> None:
+    """Write the synthetic inputs of ``days`` (a full day of 1 Hz counts each)."""
+    write_synthetic_inputs(input_dir, list(days), n_per_day=86_400)

@@ -1,0 +1,71 @@
+"""``fluxcal plot`` and ``fluxcal compare``: commands on products of any mission."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def plot(
+    product: Path = typer.Argument(..., exists=True, help="Product (.cdf, .nc or .TAB)."),
+    out: Path | None = typer.Option(None, "--out", help="Folder for the PNGs "
+                                    "(default: beside the product)."),
+    spectrogram: bool = typer.Option(False, "--spectrogram",
+                                     help="Also write a spectrogram PNG of the field."),
+    field: str | None = typer.Option(None, "--field",
+                                     help="Field variable to plot (default: the first "
+                                          "B* vector in nT)."),
+) -> None:
+    """Render a quicklook PNG per day of a product."""
+    from fluxcal import preflight
+    from fluxcal.products.quicklook import (
+        epoch_from_table,
+        save_png,
+        spectrogram_figure,
+        write_quicklooks,
+    )
+    from fluxcal.products.writer import read_product
+
+    out_dir = out or product.parent
+    preflight.writable_folder(out_dir, "--out")
+    ds = epoch_from_table(read_product(product))
+    paths = write_quicklooks(ds, out_dir, product.stem, field=field)
+    if spectrogram:
+        paths.append(save_png(spectrogram_figure(ds, field),
+                              out_dir / f"{product.stem}_spec.png"))
+    for p in paths:
+        typer.echo(str(p))
+
+
+def compare(
+    product_a: Path = typer.Argument(..., help="Product A (.TAB/.LBL, .cdf, .nc or .zarr), "
+                                     "e.g. an archived CDR."),
+    product_b: Path = typer.Argument(..., help="Product B, e.g. fluxcal's reprocessing."),
+    tolerance: str = typer.Option("0.01s", "--tolerance",
+                                  help="Largest time difference of a matched pair "
+                                       "(s, ms, us or ns; default 0.01s)."),
+    out: Path | None = typer.Option(None, "--out", help="Folder for the difference plot "
+                                    "(default: the current folder)."),
+    force: bool = typer.Option(False, "--force", help="Compare even if the frames differ."),
+) -> None:
+    """Match two products in time; print A - B statistics per component and quality flag."""
+    from fluxcal import preflight
+    from fluxcal.products.compare import (
+        compare as run_compare,
+    )
+    from fluxcal.products.compare import (
+        format_report,
+        load_product,
+        parse_tolerance,
+        write_difference_plot,
+    )
+
+    tol = parse_tolerance(tolerance)
+    out_dir = out or Path.cwd()
+    preflight.writable_folder(out_dir, "--out")
+    a, b = load_product(product_a), load_product(product_b)
+    result = run_compare(a, b, tol, path_a=str(product_a), path_b=str(product_b), force=force)
+    png = write_difference_plot(result, out_dir)
+    typer.echo(format_report(result))
+    typer.echo(f"plot: {png}")

@@ -1,0 +1,35 @@
+"""The synthetic "mission" on the contract: the batch machinery without a mission pipeline.
+
+Its day task (`fluxcal.runs.synthetic_task`) calibrates synthetic counts with one gain
+and offset; ``fluxcal batch synthetic`` and the batch demo use it.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass, field
+
+from fluxcal.products.format_names import FORMATS
+from fluxcal.runs.contract import Mission
+
+
+@dataclass(frozen=True)
+class SyntheticOptions:
+    """Options of a synthetic batch day."""
+
+    formats: tuple[str, ...] = field(default=("tab", "cdf"), metadata={
+        "help": "Product formats: tab, cdf, nc, zarr.", "choices": FORMATS,
+        "empty_ok": False})
+    quicklook: bool = field(default=False, metadata={"help": "Also write a PNG per day."})
+
+
+#: The synthetic "mission": the batch machinery with no mission pipeline behind it.
+MISSION = Mission(
+    name="synthetic",
+    title="Synthetic counts (exercises the batch machinery)",
+    day_task="fluxcal.runs.synthetic_task:make_day_task",
+    options="fluxcal.runs.synthetic:SyntheticOptions",
+    formats=FORMATS,
+    simulate_days="fluxcal.runs.synthetic_task:simulate_days",
+    demo_days=(_dt.date(2024, 1, 1), _dt.date(2024, 1, 2)),
+)

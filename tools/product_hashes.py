@@ -1,0 +1,94 @@
+"""Make the default product sets and list every file's SHA-256, or compare two listings.
+
+Used to show that a refactoring leaves every product byte-identical (issue 20):
+
+    python tools/product_hashes.py make OUT.sha [--work DIR]   # runs `fluxcal demo`
+    python tools/product_hashes.py compare BEFORE.sha AFTER.sha
+
+``make`` runs ``fluxcal demo`` (every mission's `make demo` runs: MESSENGER ``edr2cdr``
+and ``batch``, Rosetta ``calibrate``, ``clean`` and ``batch``, the fits and the archive
+round trip) with ``SOURCE_DATE_EPOCH`` fixed, so provenance times are the same in
+both runs, and writes one line ``<sha256>  <path relative to the demo folder>`` per
+file.  ``compare`` prints every path that differs, is missing or is new, and exits 1
+when any does.  Files that cannot be byte-identical by construction (the demo's own
+timing logs, batch reports with wall-clock seconds) are listed under ``VOLATILE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+#: Name patterns whose content holds wall-clock times or process ids by design.
+VOLATILE = ("batch_report_", "manifests/", ".fluxcal-batch.lock")
+
+
+def listing(folder: Path) -> dict[str, str]:
+    """Map each file under ``folder`` (relative path) to its SHA-256."""
+    out = {}
+    for p in sorted(folder.rglob("*")):
+        if p.is_file():
+            out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+def make(target: Path, work: Path | None) -> None:
+    """Run the demo with a fixed SOURCE_DATE_EPOCH and write its listing to ``target``."""
+    folder = Path(work or tempfile.mkdtemp(prefix="fluxcal-hashes-")) / "demo"
+    env = dict(os.environ, SOURCE_DATE_EPOCH="1700000000")
+    subprocess.run([sys.executable, "-m", "fluxcal.cli", "demo", "--out", str(folder)],
+                   check=True, env=env)
+    lines = [f"{h}  {p}" for p, h in listing(folder).items()]
+    target.write_text("\n".join(lines) + "\n")
+    print(f"{len(lines)} files listed in {target} (products in {folder})")
+
+
+def compare(before: Path, after: Path) -> int:
+    """Print the paths that differ between two listings; return 1 if any (volatile aside)."""
+    def read(p: Path) -> dict[str, str]:
+        rows = (line.split("  ", 1) for line in p.read_text().splitlines() if line)
+        return {path: digest for digest, path in rows}
+
+    a, b = read(before), read(after)
+    bad = 0
+    for path in sorted(set(a) | set(b)):
+        volatile = any(v in path for v in VOLATILE)
+        if path not in b:
+            status = "missing"
+        elif path not in a:
+            status = "new"
+        elif a[path] != b[path]:
+            status = "differs"
+        else:
+            continue
+        print(f"{status:8s} {'(volatile) ' if volatile else ''}{path}")
+        bad += not volatile
+    same = sum(1 for p in set(a) & set(b) if a[p] == b[p])
+    print(f"{same} identical, {bad} non-volatile differences")
+    return 1 if bad else 0
+
+
+def main() -> int:
+    """Command line (see the module docstring)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    m = sub.add_parser("make")
+    m.add_argument("target", type=Path)
+    m.add_argument("--work", type=Path)
+    c = sub.add_parser("compare")
+    c.add_argument("before", type=Path)
+    c.add_argument("after", type=Path)
+    args = parser.parse_args()
+    if args.command == "make":
+        make(args.target, args.work)
+        return 0
+    return compare(args.before, args.after)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
