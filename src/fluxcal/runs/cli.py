@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import click
 import typer
 
 from fluxcal import preflight
@@ -131,11 +132,16 @@ def batch_command(mission: Mission) -> Any:
 
 def batch_app(missions: dict[str, Mission]) -> typer.Typer:
     """Return the ``fluxcal batch`` group: one command per mission with a day task."""
-    app = typer.Typer(help="Process many days on Dask, one task per day; resumable.",
-                      no_args_is_help=True)
-    for name, mission in sorted(missions.items()):
-        if mission.day_task is not None:
-            app.command(name)(batch_command(mission))
+    app = typer.Typer(help="Process many days on Dask, one task per day; resumable.")
+    names = sorted(name for name, m in missions.items() if m.day_task is not None)
+    for name in names:
+        app.command(name)(batch_command(missions[name]))
+
+    @app.callback(invoke_without_command=True)
+    def _needs_a_mission(ctx: typer.Context) -> None:
+        if ctx.invoked_subcommand is None:
+            raise click.UsageError(f"Missing mission: one of {', '.join(names)}", ctx=ctx)
+
     return app
 
 
