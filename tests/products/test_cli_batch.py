@@ -180,8 +180,8 @@ def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, c
         assert main(args) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
         assert "'png'" in line and "--formats" in line
-    from fluxcal.runs.batch import accepted_formats
     from fluxcal.products.writer import FORMATS
+    from fluxcal.runs.batch import accepted_formats
 
     assert accepted_formats("rosetta") == accepted_formats("synthetic") == FORMATS
     assert accepted_formats("messenger") == (*FORMATS, "png")

@@ -7,7 +7,7 @@ import pytest
 import fluxcal.missions.messenger.products as msgr_products
 import fluxcal.missions.messenger.run as msgr_run
 from fluxcal.errors import ValidationError
-from fluxcal.missions.messenger.run import run_edr2cdr
+from fluxcal.missions.messenger.routes import run_edr2cdr
 
 FRAMES = ("mso", "j2000", "mbf", "rtn", "sc")
 

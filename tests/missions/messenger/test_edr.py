@@ -21,14 +21,14 @@ from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.messenger.edr import load_mapping, read_edr, run_edr_archive
+from fluxcal.missions.messenger.edr import load_mapping, read_edr
 from fluxcal.missions.messenger.edr_write import (
     filled_mapping,
     template_path,
     write_edr_archive,
 )
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
-from fluxcal.missions.messenger.run import run_edr2cdr
+from fluxcal.missions.messenger.routes import run_edr2cdr, run_edr_archive
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.products import read_product
 

@@ -4,7 +4,7 @@ import numpy as np
 from numba import njit
 
 from fluxcal.missions.messenger.cli import compilation_notice, progress_display
-from fluxcal.missions.messenger.run import run_edr2cdr
+from fluxcal.missions.messenger.routes import run_edr2cdr
 
 
 def test_progress_reports_every_product(tmp_path, simulated_files, messenger_kernels):

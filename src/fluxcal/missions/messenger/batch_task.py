@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.options import (
     AVERAGES_S,
     DEFAULT_FORMATS,
@@ -38,24 +39,31 @@ from fluxcal.missions.messenger.options import (
     DEFAULT_VERSION,
     MessengerOptions,
 )
+from fluxcal.missions.messenger.products import istp_files
+from fluxcal.missions.messenger.routes import (
+    EDR_MAPPING,
+    MessengerRun,
+    csv_day_files,
+    day_file,
+    edr_day_files,
+)
+from fluxcal.runs import driver
+from fluxcal.runs.batch import DayInputs, DayResult
 
 DAY_S = 86_400.0
 #: Default science rate/range schedule inside each simulated day's science window
 #: (fractions of the window): rate settings 10, 8, 6, 9, 10 (20, 5, 1, 10, 20 Hz).
 WINDOW_RATES = ((0.0, 10), (0.45, 8), (0.55, 6), (0.62, 9), (0.7, 10))
 WINDOW_COARSE = ((0.3, 0.38),)
-#: Name of the mapping file that makes an input folder an EDR folder (issue 14).
-EDR_MAPPING = "edr_mapping.toml"
-
-
-def day_file(folder: Path, stream: str, day: _dt.date) -> Path:
-    """Return ``folder/MAG<stream>_YYYYDDD.csv``."""
-    return Path(folder) / f"MAG{stream}_{day:%Y%j}.csv"
 
 
 @dataclass(frozen=True)
 class MessengerDayTask:
-    """Calibrate one MESSENGER MAG day and write its products (picklable)."""
+    """Calibrate one MESSENGER MAG day and write its products (picklable).
+
+    The day runs through the generic driver (`fluxcal.runs.driver.run_day`) with
+    `fluxcal.missions.messenger.routes.MessengerRun`, as ``edr2cdr`` does.
+    """
 
     input_dir: Path
     out_dir: Path
@@ -69,45 +77,23 @@ class MessengerDayTask:
     quicklook_frame: str | None = None
     version: int = DEFAULT_VERSION
 
+    @property
+    def options(self) -> MessengerOptions:
+        """The run options of every day."""
+        return MessengerOptions(**{f.name: getattr(self, f.name)
+                                   for f in dataclasses.fields(MessengerOptions)})
+
     def _kernels(self) -> Path:
         return Path(self.kernels) if self.kernels else Path(self.input_dir) / "kernels.tm"
 
-    def _mapping(self) -> Path | None:
-        path = Path(self.input_dir) / EDR_MAPPING
-        return path if path.is_file() else None
-
-    def _edr_files(self, day: _dt.date) -> dict[str, list[Path]]:
-        """Return the EDR labels and tables day ``day`` reads, per kind (highest versions)."""
-        from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, select_files
-
-        mapping = load_mapping(self._mapping())
-        out: dict[str, list[Path]] = {}
-        for kind, offsets in DAY_OFFSETS.items():
-            days = [day + _dt.timedelta(days=k) for k in offsets]
-            labels = [f.path for f in select_files(self.input_dir, mapping, kind, days)]
-            out[kind] = labels + [p.with_suffix(".TAB") for p in labels
-                                  if p.with_suffix(".TAB").is_file()]
-        out["mapping"] = [mapping.path]
-        return out
-
     def _files(self, day: _dt.date) -> dict[str, list[Path]]:
-        if self._mapping() is not None:
-            return self._edr_files(day)
-        one = _dt.timedelta(days=1)
-        sci = [day_file(self.input_dir, "SCI", day)]
-        heat = [p for p in (day_file(self.input_dir, "HTR", day - one),
-                            day_file(self.input_dir, "HTR", day)) if p.exists()]
-        temp = [p for p in (day_file(self.input_dir, "TMP", day - one),
-                            day_file(self.input_dir, "TMP", day),
-                            day_file(self.input_dir, "TMP", day + one)) if p.exists()]
-        return {"science": sci, "heater": heat, "temperature": temp}
+        mapping = Path(self.input_dir) / EDR_MAPPING
+        if mapping.is_file():
+            return edr_day_files(self.input_dir, mapping, day)
+        return csv_day_files(self.input_dir, day)
 
-    def inputs(self, day: _dt.date):
+    def inputs(self, day: _dt.date) -> DayInputs:
         """Return the day's input files, kernels and calibration folder."""
-        from fluxcal.missions.messenger.calibration_data import data_dir
-        from fluxcal.missions.messenger.products import istp_files
-        from fluxcal.runs.batch import DayInputs
-
         files = [p for group in self._files(day).values() for p in group if p.exists()]
         folder = Path(self.calib) if self.calib else data_dir()
         cal = {p.name: p for p in sorted(folder.glob("*_v*.*"))}
@@ -115,50 +101,10 @@ class MessengerDayTask:
         cal.update({p.name: p for p in (*istp_files(), data_dir() / "istp_products.yaml")})
         return DayInputs(tuple(files + [self._kernels()]), cal)
 
-    def __call__(self, day: _dt.date):
+    def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day``; raise `DayWithoutData` when its science file is missing."""
-        from fluxcal.missions.messenger.readers import (
-            read_heater,
-            read_science,
-            read_temperature,
-        )
-        from fluxcal.missions.messenger.run import (
-            calibrate_run,
-            prepare_formats,
-            quicklook_frame_of,
-            write_run,
-        )
-        from fluxcal.runs.batch import DayResult, DayWithoutData, worker_kernel_pool
-
-        prepare_formats(self.formats)
-        files = self._files(day)
-        if self._mapping() is not None:
-            from fluxcal.missions.messenger.edr import read_edr
-
-            if not files["science"]:
-                raise DayWithoutData(f"no science EDR of {day} in {self.input_dir}")
-            sci, heat, temp = read_edr(self.input_dir, self._mapping(), days=[day],
-                                       calibration_folder=self.calib)
-        elif not files["science"][0].exists():
-            raise DayWithoutData(f"no science file {files['science'][0]}")
-        else:
-            sci = read_science(files["science"])
-            heat = read_heater(files["heater"])
-            temp = read_temperature(files["temperature"])
-        pool = worker_kernel_pool(self._kernels())
-        n_vectors = int(sci.sizes["time"])
-        ql_frame = quicklook_frame_of(self.frames, self.quicklook, self.quicklook_frame)
-        ds, cal = calibrate_run(sci, heat, temp, frames=self.frames, quicklook_frame=ql_frame,
-                                calibration_folder=self.calib)
-        del sci, heat, temp  # what the products need is in ``ds``; the rest is freed
-        paths = write_run(
-            ds, cal, Path(self.out_dir),
-            inputs=[p for group in files.values() for p in group],
-            kernel_list=pool.kernel_list(), frames=self.frames, formats=self.formats,
-            averages=self.averages, max_offset_step=self.max_offset_step,
-            only_day=f"{day:%y%j}", quicklook_frame=ql_frame, version=self.version,
-        )
-        return DayResult(day, paths, n_vectors=n_vectors)
+        return driver.run_day(MessengerRun(), Path(self.input_dir), Path(self.out_dir), day,
+                              self.options, self._kernels())
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask:

@@ -35,7 +35,8 @@ def edr2cdr(
     Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
     """
     from fluxcal.cli import imports_loaded
-    from fluxcal.missions.messenger.run import prepare_formats, run_edr2cdr
+    from fluxcal.missions.messenger.routes import run_edr2cdr
+    from fluxcal.missions.messenger.run import prepare_formats
 
     prepare_formats(options.formats)  # both routes: before any EDR or CSV is read
     imports_loaded()  # xarray, numba, matplotlib ... are loaded: settle them before data
@@ -55,7 +56,7 @@ def edr2cdr(
         check_calibration_folder(calib)
     with compilation_notice(), progress_display() as progress:
         if edr is not None:
-            from fluxcal.missions.messenger.edr import run_edr_archive
+            from fluxcal.missions.messenger.routes import run_edr_archive
 
             written = run_edr_archive(edr, mapping, kernels, out, progress=progress, **run_options)
         else:

@@ -68,7 +68,7 @@ def compare(product_tabs: list[Path], truth_path: Path) -> dict[str, np.ndarray]
 
 def run_demo(out: Path) -> str:
     """Simulate ~2 h of MESSENGER MAG data, run edr2cdr, return the error statistics text."""
-    from fluxcal.missions.messenger.run import run_edr2cdr
+    from fluxcal.missions.messenger.routes import run_edr2cdr
 
     out = Path(out)
     paths = simulate_to_dir(out / "simulation")

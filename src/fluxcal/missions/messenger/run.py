@@ -10,13 +10,11 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError, ValidationError
-from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
@@ -36,7 +34,6 @@ from fluxcal.missions.messenger.products import (
     write_day,
     write_quicklook,
 )
-from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.validation_report import (
     load_figure_support,
     write_report,
@@ -181,51 +178,6 @@ def write_run(
     return written
 
 
-def calibrate_and_write(
-    sci: xr.Dataset,
-    heat: xr.Dataset,
-    temp: xr.Dataset,
-    out_dir: Path,
-    *,
-    inputs: Sequence[Path],
-    kernel_list: Sequence[str],
-    frames: Sequence[str] = DEFAULT_FRAMES,
-    calibration_folder: Path | None = None,
-    quicklook: bool = False,
-    quicklook_frame: str | None = None,
-    progress: Progress | None = None,
-    **write_options: Any,
-) -> list[Path]:
-    """Calibrate loaded streams (kernels already loaded) and write every day's products.
-
-    `calibrate_run`, then `write_run` with ``write_options`` (formats, averages,
-    max_offset_step, only_day, version).  The streams are released once calibrated: a
-    caller that passes them without keeping references of its own (as `run_edr2cdr`
-    does) has their memory freed before the products are written.
-
-    Parameters
-    ----------
-    quicklook : bool
-        Also write a quicklook PNG per day (`write_quicklook`).
-    quicklook_frame : str, optional
-        Frame key of the quicklook's field (default: the first of ``frames``).
-    progress : callable, optional
-        ``progress(description, done, total)``, called after each step and product.
-
-    Raises
-    ------
-    ValidationError
-        After writing the good days, naming every day that failed the sec. 13 check.
-    """
-    ql_frame = quicklook_frame_of(frames, quicklook, quicklook_frame)
-    ds, cal = calibrate_run(sci, heat, temp, frames=frames, quicklook_frame=ql_frame,
-                            calibration_folder=calibration_folder, progress=progress)
-    del sci, heat, temp  # what the products need is in ``ds``
-    return write_run(ds, cal, Path(out_dir), inputs=inputs, kernel_list=kernel_list,
-                     frames=frames, quicklook_frame=ql_frame, progress=progress,
-                     **write_options)
-
-
 def quicklook_frame_of(frames: Sequence[str], quicklook: bool,
                        quicklook_frame: str | None) -> str | None:
     """Frame of the quicklook: ``quicklook_frame``, else the first of ``frames`` (else MSO).
@@ -318,50 +270,3 @@ def write_day_outputs(
         if quicklook_frame is not None:
             written += write_quicklook(day, out_dir, quicklook_frame)
     return written
-
-
-def run_edr2cdr(
-    science: Sequence[Path],
-    heater: Sequence[Path],
-    temperature: Sequence[Path],
-    kernels: Path | Sequence[Path],
-    out_dir: Path,
-    *,
-    frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = DEFAULT_FORMATS,
-    averages: Sequence[int] = AVERAGES_S,
-    max_offset_step: float | None = 2.0,
-    quicklook: bool = False,
-    quicklook_frame: str | None = None,
-    version: int = DEFAULT_VERSION,
-    progress: Progress | None = None,
-    calibration_folder: Path | None = None,
-) -> list[Path]:
-    """Run the MESSENGER MAG EDR -> CDR chain on files and write the products of every day.
-
-    A day whose offsets fail the smoothness check (sec. 13) gets no file; the other
-    days are written, then `ValidationError` is raised naming the failed days.
-
-    ``version`` is the product version ``_V<nn>``; ``progress(description, done, total)``
-    is called after reading, calibrating and each product (the CLI draws it);
-    ``calibration_folder`` replaces the shipped tables (``edr2cdr --calib``).
-
-    Returns
-    -------
-    list of Path
-        Every file written.
-    """
-    prepare_formats(formats)
-    if progress is not None:
-        progress("reading inputs", 0, 1)
-    with KernelPool(kernels) as pool:
-        # the streams are passed, not kept here: freed once calibrated (calibrate_and_write)
-        return calibrate_and_write(
-            read_science(science), read_heater(heater), read_temperature(temperature),
-            Path(out_dir),
-            inputs=[*map(Path, science), *map(Path, heater), *map(Path, temperature)],
-            kernel_list=pool.kernel_list(), frames=frames, formats=formats,
-            averages=averages, max_offset_step=max_offset_step,
-            calibration_folder=calibration_folder, quicklook=quicklook,
-            quicklook_frame=quicklook_frame, version=version, progress=progress,
-        )

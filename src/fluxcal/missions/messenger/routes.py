@@ -1,0 +1,256 @@
+"""Every MESSENGER route on the generic driver (`fluxcal.runs.driver`).
+
+`MessengerRun` is MESSENGER's `~fluxcal.runs.driver.Pipeline`: check the options, read
+a source (`CsvSource`: the three CSV streams; `EdrSource`: a folder of archived EDRs
+through a mapping), calibrate (`fluxcal.missions.messenger.run.calibrate_run`) and
+write every day (`~fluxcal.missions.messenger.run.write_run`).  ``edr2cdr`` on CSV
+files (`run_edr2cdr`) or on an EDR folder (`run_edr_archive`) and the batch day task
+(`fluxcal.missions.messenger.batch_task`) are the same driver with another source.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-13.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fluxcal.archive.pds3 import read_label, table_names
+from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
+from fluxcal.missions.messenger.options import (
+    AVERAGES_S,
+    DEFAULT_FORMATS,
+    DEFAULT_FRAMES,
+    DEFAULT_VERSION,
+    MessengerOptions,
+)
+from fluxcal.missions.messenger.products import Progress
+from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+from fluxcal.missions.messenger.run import (
+    calibrate_run,
+    prepare_formats,
+    quicklook_frame_of,
+    write_run,
+)
+from fluxcal.runs import driver
+from fluxcal.runs.batch import DayWithoutData
+
+#: Name of the mapping file that makes an input folder an EDR folder (issue 14).
+EDR_MAPPING = "edr_mapping.toml"
+
+
+@dataclass(frozen=True)
+class CsvSource:
+    """The three CSV streams of a run (docs/formats/messenger.md)."""
+
+    science: tuple[Path, ...]
+    heater: tuple[Path, ...]
+    temperature: tuple[Path, ...]
+
+
+@dataclass(frozen=True)
+class EdrSource:
+    """A folder of archived MAG EDRs read through a column mapping.
+
+    ``days`` limits the science EDRs read (a batch day); ``inputs`` lists the files the
+    products' provenance names (default: every label read, its tables and the mapping).
+    """
+
+    folder: Path
+    mapping: Path
+    days: tuple[_dt.date, ...] | None = None
+    inputs: tuple[Path, ...] | None = None
+
+
+def day_file(folder: Path, stream: str, day: _dt.date) -> Path:
+    """Return ``folder/MAG<stream>_YYYYDDD.csv`` (the batch input layout)."""
+    return Path(folder) / f"MAG{stream}_{day:%Y%j}.csv"
+
+
+def edr_day_files(folder: Path, mapping: Path, day: _dt.date) -> dict[str, list[Path]]:
+    """Return the EDR labels and tables day ``day`` reads, per kind (highest versions)."""
+    m = load_mapping(mapping)
+    out: dict[str, list[Path]] = {}
+    for kind, offsets in DAY_OFFSETS.items():
+        days = [day + _dt.timedelta(days=k) for k in offsets]
+        labels = [f.path for f in select_files(folder, m, kind, days)]
+        out[kind] = labels + [p.with_suffix(".TAB") for p in labels
+                              if p.with_suffix(".TAB").is_file()]
+    out["mapping"] = [m.path]
+    return out
+
+
+def csv_day_files(folder: Path, day: _dt.date) -> dict[str, list[Path]]:
+    """Return a batch day's CSV streams: its science file, heater D-1..D, temperature D-1..D+1.
+
+    The previous day's heater file serves the 5-change look-back of sec. 7.
+    """
+    one = _dt.timedelta(days=1)
+    heat = [p for p in (day_file(folder, "HTR", day - one), day_file(folder, "HTR", day))
+            if p.exists()]
+    temp = [p for p in (day_file(folder, "TMP", day - one), day_file(folder, "TMP", day),
+                        day_file(folder, "TMP", day + one)) if p.exists()]
+    return {"science": [day_file(folder, "SCI", day)], "heater": heat, "temperature": temp}
+
+
+def _edr_tables(labels: Sequence[Path]) -> list[Path]:
+    """Return the data files the labels point to (checksummed with them in provenance)."""
+    tables = []
+    for p in labels:
+        label = read_label(p)
+        for name in table_names(label):
+            ptr = label[f"^{name}"]
+            data = p.parent / str(ptr[0] if isinstance(ptr, (list, tuple)) else ptr)
+            if data != p and data.exists():
+                tables.append(data)
+    return tables
+
+
+@dataclass(frozen=True)
+class MessengerRun:
+    """MESSENGER MAG EDR -> CDR as a `fluxcal.runs.driver.Pipeline` (picklable)."""
+
+    def check(self, options: MessengerOptions) -> None:
+        """Check the formats and load the figure's support before any data is read."""
+        prepare_formats(options.formats)
+
+    def read(self, source: CsvSource | EdrSource,
+             options: MessengerOptions) -> tuple[tuple[Any, Any, Any], list[Path]]:
+        """Read the science, heater and temperature streams; return them and the inputs."""
+        if isinstance(source, EdrSource):
+            m = load_mapping(source.mapping)
+            days = list(source.days) if source.days is not None else None
+            streams = read_edr(source.folder, m, days=days, calibration_folder=options.calib)
+            if source.inputs is not None:
+                return streams, list(source.inputs)
+            labels = [Path(p) for ds in streams for p in ds.attrs["inputs"].split(";")]
+            return streams, [*labels, *_edr_tables(labels), m.path]
+        streams = (read_science(source.science), read_heater(source.heater),
+                   read_temperature(source.temperature))
+        return streams, [*map(Path, source.science), *map(Path, source.heater),
+                         *map(Path, source.temperature)]
+
+    def size(self, raw: tuple[Any, Any, Any]) -> int:
+        """Return the number of science vectors."""
+        return int(raw[0].sizes["time"])
+
+    def calibrate(self, raw: tuple[Any, Any, Any], options: MessengerOptions,
+                  progress: Progress | None) -> tuple[Any, Any]:
+        """`calibrate_run` for the products and quicklook the options ask for."""
+        sci, heat, temp = raw
+        return calibrate_run(sci, heat, temp, frames=options.frames,
+                             quicklook_frame=self._quicklook_frame(options),
+                             calibration_folder=options.calib, progress=progress)
+
+    def write(self, calibrated: tuple[Any, Any], out_dir: Path, options: MessengerOptions,
+              *, inputs: Sequence[Path], kernel_list: Sequence[str],
+              only_day: _dt.date | None, progress: Progress | None) -> list[Path]:
+        """`write_run`: every day (or ``only_day``), each all or nothing."""
+        ds, cal = calibrated
+        return write_run(ds, cal, out_dir, inputs=inputs, kernel_list=kernel_list,
+                         frames=options.frames, formats=options.formats,
+                         averages=options.averages, max_offset_step=options.max_offset_step,
+                         only_day=None if only_day is None else f"{only_day:%y%j}",
+                         quicklook_frame=self._quicklook_frame(options),
+                         version=options.version, progress=progress)
+
+    def day_source(self, input_dir: Path, day: _dt.date,
+                   options: MessengerOptions) -> CsvSource | EdrSource:
+        """Return the batch day's EDRs (a folder with `EDR_MAPPING`) or CSV streams.
+
+        Raises
+        ------
+        DayWithoutData
+            When the day has no science file.
+        """
+        mapping = input_dir / EDR_MAPPING
+        if mapping.is_file():
+            files = edr_day_files(input_dir, mapping, day)
+            if not files["science"]:
+                raise DayWithoutData(f"no science EDR of {day} in {input_dir}")
+            return EdrSource(input_dir, mapping, days=(day,),
+                             inputs=tuple(p for group in files.values() for p in group))
+        files = csv_day_files(input_dir, day)
+        if not files["science"][0].exists():
+            raise DayWithoutData(f"no science file {files['science'][0]}")
+        return CsvSource(*(tuple(files[k]) for k in ("science", "heater", "temperature")))
+
+    @staticmethod
+    def _quicklook_frame(options: MessengerOptions) -> str | None:
+        return quicklook_frame_of(options.frames, options.quicklook, options.quicklook_frame)
+
+
+def _options(**kwargs: Any) -> MessengerOptions:
+    """`MessengerOptions` from the keyword arguments of the function routes."""
+    if "calibration_folder" in kwargs:
+        kwargs["calib"] = kwargs.pop("calibration_folder")
+    return MessengerOptions(**kwargs)
+
+
+def run_edr2cdr(
+    science: Sequence[Path],
+    heater: Sequence[Path],
+    temperature: Sequence[Path],
+    kernels: Path | Sequence[Path],
+    out_dir: Path,
+    *,
+    frames: Sequence[str] = DEFAULT_FRAMES,
+    formats: Sequence[str] = DEFAULT_FORMATS,
+    averages: Sequence[int] = AVERAGES_S,
+    max_offset_step: float | None = 2.0,
+    quicklook: bool = False,
+    quicklook_frame: str | None = None,
+    version: int = DEFAULT_VERSION,
+    progress: Progress | None = None,
+    calibration_folder: Path | None = None,
+) -> list[Path]:
+    """Run the MESSENGER MAG EDR -> CDR chain on CSV files; write every day's products.
+
+    A day whose offsets fail the smoothness check (sec. 13) gets no file; the other
+    days are written, then `ValidationError` is raised naming the failed days.
+    ``version`` is the product version ``_V<nn>``; ``progress(description, done,
+    total)`` is called after reading, calibrating and each product (the CLI draws it);
+    ``calibration_folder`` replaces the shipped tables (``edr2cdr --calib``).
+
+    Returns
+    -------
+    list of Path
+        Every file written.
+    """
+    options = _options(frames=frames, formats=formats, averages=averages,
+                       max_offset_step=max_offset_step, quicklook=quicklook,
+                       quicklook_frame=quicklook_frame, version=version,
+                       calibration_folder=calibration_folder)
+    source = CsvSource(tuple(map(Path, science)), tuple(map(Path, heater)),
+                       tuple(map(Path, temperature)))
+    return driver.run(MessengerRun(), source, kernels, out_dir, options, progress=progress)[0]
+
+
+def run_edr_archive(
+    edr_dir: str | Path,
+    mapping: str | Path,
+    kernels: Path | Sequence[Path],
+    out_dir: Path,
+    *,
+    progress: Progress | None = None,
+    **options: Any,
+) -> list[Path]:
+    """``edr2cdr`` on an EDR folder: `read_edr`, then the same driver as the CSV route.
+
+    ``options`` are those of `run_edr2cdr` (frames, formats, averages, max_offset_step,
+    quicklook, quicklook_frame, version, calibration_folder).  The product provenance
+    lists every EDR label and table read and the mapping file.
+
+    Returns
+    -------
+    list of Path
+        Every file written.
+    """
+    source = EdrSource(Path(edr_dir), Path(mapping))
+    return driver.run(MessengerRun(), source, kernels, out_dir, _options(**options),
+                      progress=progress)[0]
