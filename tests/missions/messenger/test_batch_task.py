@@ -55,7 +55,7 @@ def test_simulate_days_feeds_the_batch_task(tmp_path):
     """Short simulated days with a gap; the batch recovers the forward model's field."""
     from fluxcal.missions.messenger.simulate import read_truth
     from fluxcal.products import read_product
-    from fluxcal.runs.batch_demo import _mission_inputs
+    from fluxcal.runs import registry
 
     days = [dt.date(2012, 6, 1), dt.date(2012, 6, 2), dt.date(2012, 6, 5)]
     inp = tmp_path / "in"
@@ -87,7 +87,9 @@ def test_simulate_days_feeds_the_batch_task(tmp_path):
         # rounding), 1.6 nT max in coarse range
         assert np.abs(err[fine]).max() < 0.1 + 5e-4
         assert np.abs(err[~fine]).max() < 1.6
-    # products/demo.py uses simulate_days (not its own fallback) when it exists
+    # the batch demo (runs/batch_demo.py) simulates the mission's demo days with simulate_days
     demo_in = tmp_path / "demo"
-    assert _mission_inputs("messenger", demo_in) == [dt.date(2012, 6, 1), dt.date(2012, 6, 2)]
+    messenger = registry.get("messenger")  # the batch demo simulates its demo days so
+    assert messenger.demo_days == (dt.date(2012, 6, 1), dt.date(2012, 6, 2))
+    messenger.load("simulate_days")(demo_in, list(messenger.demo_days))
     assert day_file(demo_in, "SCI", dt.date(2012, 6, 2)).is_file()
