@@ -208,7 +208,8 @@ def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
     date : datetime.date, numpy.datetime64 or str
         The product's UTC day (``"2011-04-10"``, ``"20110410"`` or a date).
     version : int or str
-        Data version: ``1``, ``"1"``, ``"01"`` or ``"v01"`` all give ``v01``.
+        Data version: ``1``, ``"1"``, ``"01"`` or ``"v01"`` all give ``v01``; a string
+        with more digits keeps its width (``"001"`` gives ``v001``).
 
     Returns
     -------
@@ -227,7 +228,8 @@ def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
     if m is None:
         raise InputFormatError(f"data version {version!r} is not a number (e.g. 1 or 'v01')",
                                field="Data_version")
-    return f"{logical_source}_{day}_v{int(m.group(1)):02d}"
+    width = max(2, len(m.group(1)))
+    return f"{logical_source}_{day}_v{int(m.group(1)):0{width}d}"
 
 
 # ----------------------------------------------------------------------------------------
