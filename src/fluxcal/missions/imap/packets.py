@@ -23,6 +23,7 @@ References
 from __future__ import annotations
 
 import functools
+import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -103,7 +104,10 @@ def read_packets(source: Path | str | bytes, *, xtce: Path | str | None = None,
     vectors: list[bytes] = []
     raw: list[bytes] = []
     used = 0
-    for i, packet in enumerate(ccsds_generator(data, show_progress=False)):
+    with warnings.catch_warnings():  # a short last packet: the check below names it
+        warnings.filterwarnings("ignore", ".*bytes left to read", UserWarning)
+        generated = list(ccsds_generator(data, show_progress=False))
+    for i, packet in enumerate(generated):
         head = bytes(packet[:6])
         apid = int.from_bytes(head[:2], "big") & 0x7FF
         seq = int.from_bytes(head[2:4], "big") & 0x3FFF
