@@ -40,7 +40,7 @@ def calibrate(l1a: xr.Dataset, calibration: MagCalibration) -> xr.Dataset:
     ds = l1a[keep].assign(
         b=(("time", "component"), b, {"units": "nT", "description":
                                       "Magnetic field, sensor unit reference frame"}),
-    ).assign_coords(epoch=("time", epoch))
+    ).assign_coords(epoch=("time", epoch), component=l1a["component"].values)
     ds.attrs = {**l1a.attrs, "level": "l1b", "calibration_file": calibration.path.name,
                 "calibration_valid": "yes" if inside.all() else
                 f"no: {int((~inside).sum())} samples outside the file's validity"}
