@@ -112,6 +112,7 @@ def test_compare_reads_an_imap_layout_l1b(imap_data: Path, tmp_path: Path) -> No
     assert cdflib.CDF(str(counts)).varinq("epoch").Data_Type_Description == "CDF_TIME_TT2000"
 
 
+@pytest.mark.slow
 def test_products_pass_spacepy_and_cdflib_istp_checks(imap_data: Path, tmp_path: Path,
                                                        caplog: pytest.LogCaptureFixture) -> None:
     import logging
