@@ -39,9 +39,9 @@ def calibrate(
     Products are named imap_mag_<level>_<norm|burst>-<mago|magi>_<yyyymmdd>_v001.
     """
     from fluxcal import preflight
-    from fluxcal.missions.imap.pipeline import process, write_products
-    from fluxcal.missions.imap.pipeline import DEFAULT_SCLK
+    from fluxcal.missions.imap.calibration import DEFAULT_CALIBRATION
     from fluxcal.missions.imap.packets import data_file
+    from fluxcal.missions.imap.pipeline import DEFAULT_SCLK, process, write_products
     from fluxcal.products.provenance import provenance_attrs
 
     for path in inputs:
@@ -52,8 +52,6 @@ def calibrate(
         preflight.existing_file(path, "--kernels")
     preflight.writable_folder(out, "--out")
     datasets = process(inputs, level=level, calib=calib, kernels=kernels or None)
-    from fluxcal.missions.imap.calibration import DEFAULT_CALIBRATION
-
     cal_file = calib or data_file(DEFAULT_CALIBRATION)
     prov = provenance_attrs(inputs, {"imap_mag_l1b": cal_file} if level == "l1b" else {},
                             kernels or [data_file(DEFAULT_SCLK)])

@@ -53,7 +53,7 @@ def data_file(name: str) -> Path:
 
 @functools.lru_cache(maxsize=4)
 def packet_definition(path: str | None = None) -> spp.XtcePacketDefinition:
-    """The XTCE definition (default: the shipped ``MAG_SCI_COMBINED.xml``), parsed once."""
+    """Return the XTCE definition (default: the shipped ``MAG_SCI_COMBINED.xml``), parsed once."""
     return spp.load_xtce(path or data_file("MAG_SCI_COMBINED.xml"))
 
 
@@ -146,7 +146,7 @@ def vectors_per_second(code: np.ndarray) -> np.ndarray:
 
 
 def l0_table(packets: MagPackets) -> dict[str, np.ndarray]:
-    """The team's L0 columns (``mag_l0_test_output.csv``) of decoded packets.
+    """Return the team's L0 columns (``mag_l0_test_output.csv``) of decoded packets.
 
     ``PHAPID``, ``PHSEQCNT``, ``PHDLEN`` are the CCSDS APID, sequence count and length;
     ``FOB_ACT``/``FIB_ACT`` the MAGo/MAGi active flags; ``PRI_VECSEC``/``SEC_VECSEC`` in
@@ -195,7 +195,7 @@ def unpack_vectors(vector_bytes: bytes, count: int, *, where: str = "",
 
 def packet_vectors(packets: MagPackets, i: int) -> tuple[tuple[np.ndarray, np.ndarray],
                                                          tuple[np.ndarray, np.ndarray]]:
-    """((counts, range) of the primary sensor, (counts, range) of the secondary) of packet i.
+    """Return ((counts, range) of the primary, (counts, range) of the secondary) of packet i.
 
     Raises
     ------
