@@ -100,7 +100,8 @@ def test_compare_reads_an_imap_layout_l1b(imap_data: Path, tmp_path: Path) -> No
     _write_imap_layout(team, epoch, vec, "nT")
     ds = read_product(team)
     assert ds["vectors"].dims == ("time", "direction") and ds.sizes["time"] == 16
-    _run("--input", str(T010_L1A), "--out", str(tmp_path / "ours"))
+    _run("--input", str(T010_L1A), "--out", str(tmp_path / "ours"), "--quicklook")
+    assert (tmp_path / "ours" / "imap_mag_ql_norm-mago_20250206.png").is_file()
     ours = load_product(tmp_path / "ours" / "imap_mag_l1b_norm-mago_20250206_v001.cdf")
     c = compare(ours, load_product(team), 1000)
     assert c.matched == 16 and c.components == ["x", "y", "z"]

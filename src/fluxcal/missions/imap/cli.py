@@ -33,6 +33,8 @@ def calibrate(
         "(default: the shipped imap_sclk_0036.tsc)."),
     level: str = typer.Option("l1b", "--level", help="l1a (counts) or l1b (nT)."),
     formats: str = typer.Option("cdf", "--formats", help="Product formats: cdf,nc,tab,zarr."),
+    quicklook: bool = typer.Option(False, "--quicklook", help="Also write a PNG quicklook "
+                                   "per mode, sensor and UTC day (L1B)."),
 ) -> None:
     """Decode, time and calibrate IMAP MAG vectors; one product per mode and sensor.
 
@@ -56,6 +58,6 @@ def calibrate(
     prov = provenance_attrs(inputs, {"imap_mag_l1b": cal_file} if level == "l1b" else {},
                             kernels or [data_file(DEFAULT_SCLK)])
     paths = write_products(datasets, out, [f.strip() for f in formats.split(",") if f.strip()],
-                           prov)
+                           prov, quicklook=quicklook)
     counts = ", ".join(f"{m}-{s} {ds.sizes['time']}" for (m, s), ds in datasets.items())
     typer.echo(f"{level.upper()} vectors: {counts}; {len(paths)} files in {out}")

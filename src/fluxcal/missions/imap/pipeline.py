@@ -84,11 +84,12 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
 
 def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
                    formats: Sequence[str] = ("cdf",), provenance: dict | None = None,
-                   version: str = DATA_VERSION) -> list[Path]:
+                   version: str = DATA_VERSION, quicklook: bool = False) -> list[Path]:
     """Write one product per (mode, sensor) and UTC day; return the paths written.
 
-    All products of the call are written as one group (`atomic_group`): on an error no
-    file of the call appears.
+    With ``quicklook``, L1B datasets also get ``imap_mag_ql_<mode>-<sensor>_<yyyymmdd>.png``
+    (`fluxcal.products.quicklook.write_quicklooks`).  All files of the call are written as
+    one group (`atomic_group`): on an error no file of the call appears.
     """
     from fluxcal.products import write_product
     from fluxcal.products.atomic import atomic_group
@@ -110,4 +111,9 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
                               "Data_type": f"{level.upper()}>{level.upper()} {mode}"}
                 stem = out / istp_file_stem(source, day, version)
                 written += write_product(part, stem, formats=formats, **yaml)
+            if quicklook and level == "l1b":
+                from fluxcal.products.quicklook import write_quicklooks
+
+                written += write_quicklooks(ds, out, f"imap_mag_ql_{mode}-{sensor}", field="b",
+                                            frame="sensor unit frame")
     return written
