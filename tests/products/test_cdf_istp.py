@@ -157,6 +157,8 @@ def test_istp_file_stem() -> None:
     assert istp_file_stem("a_b_c", np.datetime64("2014-08-01T12:00"), "v12") == \
         "a_b_c_20140801_v12"
     assert istp_file_stem("a_b_c", "20140801", "03") == "a_b_c_20140801_v03"
+    assert istp_file_stem("imap_mag_l1b_norm-mago", "20250206", "001") == \
+        "imap_mag_l1b_norm-mago_20250206_v001"
     with pytest.raises(InputFormatError, match="version"):
         istp_file_stem("a_b_c", "20140801", "beta")
     assert istp_logical_source("ROSETTA>x", "RPCMAG>y", "CLC-OB>z") == "rosetta_rpcmag_clc-ob"

@@ -208,7 +208,8 @@ def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
     date : datetime.date, numpy.datetime64 or str
         The product's UTC day (``"2011-04-10"``, ``"20110410"`` or a date).
     version : int or str
-        Data version: ``1``, ``"1"``, ``"01"`` or ``"v01"`` all give ``v01``.
+        Data version: ``1``, ``"1"``, ``"01"`` or ``"v01"`` all give ``v01``; a string
+        with more digits keeps its width (``"001"`` gives ``v001``).
 
     Returns
     -------
@@ -227,7 +228,8 @@ def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
     if m is None:
         raise InputFormatError(f"data version {version!r} is not a number (e.g. 1 or 'v01')",
                                field="Data_version")
-    return f"{logical_source}_{day}_v{int(m.group(1)):02d}"
+    width = max(2, len(m.group(1)))
+    return f"{logical_source}_{day}_v{int(m.group(1)):0{width}d}"
 
 
 # ----------------------------------------------------------------------------------------
@@ -582,8 +584,10 @@ def read_cdf(path: Path) -> xr.Dataset:
     (`ISTP_NAME` reversed: ``UNITS`` -> ``units`` ...); the derived ones (``FIELDNAM``,
     ``FILLVAL``, ``DEPEND_i``, ``LABL_PTR_i``, ``MONOTON``) are dropped; any other is
     kept as stored.  Float values equal to ``FILLVAL`` become NaN.  For a CDF written
-    by other ISTP software the variables with ``DEPEND_0 = Epoch`` are read with dims
-    ``("time", <DEPEND_i or LABL_PTR_i>...)``; ``Epoch`` must be CDF_TIME_TT2000.
+    by other ISTP software the time variable is ``Epoch``, else the CDF_TIME_TT2000
+    variable most data variables name in ``DEPEND_0`` (e.g. ``epoch``); the variables
+    with that ``DEPEND_0`` are read with dims ``("time", <DEPEND_i or LABL_PTR_i>...)``,
+    record-varying variables on another time base are left out.
     """
     path = Path(path)
     cdf = cdflib.CDF(str(path))
@@ -593,6 +597,7 @@ def read_cdf(path: Path) -> xr.Dataset:
     coords: dict[str, xr.Variable] = {}
     n_epoch = 0
     all_raw = {n: {k: _plain_attr(v) for k, v in cdf.varattsget(n).items()} for n in names}
+    time_var = _time_variable(cdf, names, all_raw)
     # label variables of a dimension that has its own DEPEND_i variable are derived
     derived_labels = {str(a[f"LABL_PTR_{i}"]) for a in all_raw.values() for i in range(1, 10)
                       if a.get(f"LABL_PTR_{i}") and a.get(f"DEPEND_{i}")
@@ -608,7 +613,7 @@ def read_cdf(path: Path) -> xr.Dataset:
         depends = {i: str(raw.get(f"DEPEND_{i}") or raw.get(f"LABL_PTR_{i}"))
                    for i in range(1, len(vinfo.Dim_Sizes) + 1)
                    if raw.get(f"DEPEND_{i}") or raw.get(f"LABL_PTR_{i}")}
-        foreign_skip = vinfo.Rec_Vary and raw.get("DEPEND_0") != EPOCH and name != EPOCH
+        foreign_skip = vinfo.Rec_Vary and raw.get("DEPEND_0") != time_var and name != time_var
         attrs = {_FROM_ISTP.get(k, k): ("" if v == " " else v) for k, v in raw.items()
                  if not _DERIVED.match(k)}
         nrec = vinfo.Last_Rec + 1 if vinfo.Rec_Vary else 1
@@ -617,7 +622,7 @@ def read_cdf(path: Path) -> xr.Dataset:
             values = np.zeros([0, *vinfo.Dim_Sizes], dtype=str if is_char else None)
         else:
             values = np.asarray(cdf.varget(name))
-        if name == EPOCH:
+        if name == time_var:
             values = values.astype(np.int64).reshape(-1)
             n_epoch = values.size
             coords["epoch"] = xr.Variable((TIME_DIM,), values, attrs)
@@ -651,6 +656,16 @@ def read_cdf(path: Path) -> xr.Dataset:
     if n_epoch and ds.sizes.get(TIME_DIM, n_epoch) != n_epoch:
         raise InputFormatError("Epoch and data variables differ in length", path=str(path))
     return with_time_index(ds) if "epoch" in ds.coords else ds
+
+
+def _time_variable(cdf: Any, names: list[str], raw: Mapping[str, Mapping[str, Any]]) -> str:
+    """``Epoch``, else the CDF_TIME_TT2000 variable most often named in ``DEPEND_0``."""
+    if EPOCH in names:
+        return EPOCH
+    named = [str(a.get("DEPEND_0")) for a in raw.values() if a.get("DEPEND_0")]
+    tt2000 = [n for n in set(named) if n in names
+              and cdf.varinq(n).Data_Type_Description == "CDF_TIME_TT2000"]
+    return max(sorted(tt2000), key=named.count) if tt2000 else EPOCH
 
 
 def _plain_attr(v: Any) -> Any:

@@ -83,15 +83,28 @@ def _units(var: xr.DataArray) -> str:
 
 
 def field_name(ds: xr.Dataset, path: Path | str) -> str:
-    """Return the field variable: ``b``, else the first (time, 3) variable in nT."""
+    """Return the field variable: ``b``, else the first (time, 3) variable in nT.
+
+    Without one, the first (time, 4) variable in nT (x, y, z and a fourth column such as
+    the magnitude or the sensor range, as some ISTP products store it), of which `compare`
+    uses the first three components.  A vector in counts is refused by name.
+    """
     if "b" in ds and ds["b"].ndim == 2 and ds["b"].shape[1] == 3:
         return "b"
-    for name, var in ds.data_vars.items():
-        if var.dims[:1] == ("time",) and var.ndim == 2 and var.shape[1] == 3 \
-                and _units(var) == "nT":
-            return str(name)
-    raise InputFormatError("no field vector (variable 'b', or a (time, 3) variable in nT)",
-                           path=str(path))
+    vectors = {w: [str(n) for n, v in ds.data_vars.items() if v.dims[:1] == ("time",)
+                   and v.ndim == 2 and v.shape[1] == w] for w in (3, 4)}
+    for width in (3, 4):
+        for name in vectors[width]:
+            if _units(ds[name]) == "nT":
+                return name
+    counts = [n for n in vectors[3] + vectors[4]
+              if _units(ds[n]).lower() in ("count", "counts", "dn", "adu")]
+    if counts:
+        raise InputFormatError(
+            f"variable '{counts[0]}' is in {_units(ds[counts[0]])}, not nT: compare "
+            "calibrated products (e.g. L1B, not L1A)", path=str(path))
+    raise InputFormatError("no field vector (variable 'b', or a (time, 3) or (time, 4) "
+                           "variable in nT)", path=str(path))
 
 
 def product_frame(ds: xr.Dataset, var: str) -> str | None:
@@ -240,7 +253,9 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
     """
     for ds, p in ((a, path_a), (b, path_b)):
         if "epoch" not in ds.coords and "epoch" not in ds:
-            raise InputFormatError("product has no epoch (TT2000) along time", path=p)
+            raise InputFormatError(
+                "product has no epoch (TT2000) along time: no variable 'Epoch' and no "
+                "CDF_TIME_TT2000 variable named by a DEPEND_0", path=p)
     a, b = _sorted(a), _sorted(b)
     va, vb = field_name(a, path_a), field_name(b, path_b)
     fa, fb = product_frame(a, va), product_frame(b, vb)
@@ -252,9 +267,10 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
         raise FluxcalError(f"the field units differ: {path_a} has {ua}, {path_b} has {ub}")
     ea, eb = a["epoch"].values.astype(np.int64), b["epoch"].values.astype(np.int64)
     ia, ib = match(ea, eb, tolerance_ns)
-    diff = a[va].values[ia].astype(np.float64) - b[vb].values[ib].astype(np.float64)
+    diff = (a[va].values[ia, :3].astype(np.float64)
+            - b[vb].values[ib, :3].astype(np.float64))
     dim = a[va].dims[1]
-    comps = [str(c) for c in a[dim].values] if dim in a.coords else ["1", "2", "3"]
+    comps = [str(c) for c in a[dim].values[:3]] if dim in a.coords else ["1", "2", "3"]
     quality, source = None, None
     for ds, idx, p in ((a, ia, path_a), (b, ib, path_b)):
         if "quality" in ds and ds["quality"].dims == ("time",):

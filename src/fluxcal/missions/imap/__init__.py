@@ -1,0 +1,6 @@
+"""IMAP MAG: CCSDS packets (XTCE) -> L1A counts with SCLK times -> L1B nT (issue 24).
+
+Pure functions for the mission contract: `packets.read_packets`, `l1a.from_packets`,
+`l1a.read_l1a_csv`, `l1b.calibrate`, `calibration.load_calibration`,
+`pipeline.process` / `pipeline.write_products`; the command is `cli.app`.
+"""
