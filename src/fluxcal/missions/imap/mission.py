@@ -1,0 +1,23 @@
+"""IMAP MAG on the mission contract (`fluxcal.runs.contract`).
+
+Registered in fluxcal's ``pyproject.toml`` under the entry-point group
+``fluxcal.missions``: ``fluxcal imap calibrate`` and the demo part come from `MISSION`.
+"""
+
+from __future__ import annotations
+
+from fluxcal.products.format_names import FORMATS
+from fluxcal.runs.contract import DemoPart, Mission
+
+#: NAIF id of IMAP (its SCLK kernel's id).
+SPACECRAFT_ID = -43
+
+MISSION = Mission(
+    name="imap",
+    title="IMAP MAG: CCSDS packets -> L1A counts -> L1B nT (real ground-test data)",
+    spacecraft_id=SPACECRAFT_ID,
+    commands="fluxcal.missions.imap.cli:app",
+    formats=FORMATS,
+    demo_parts=(DemoPart("IMAP MAG from real packets: L0 -> L1A -> L1B",
+                         "fluxcal.missions.imap.demo:run_demo", "imap", 80),),
+)
