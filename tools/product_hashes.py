@@ -2,13 +2,14 @@
 
 Used to show that a refactoring leaves every product byte-identical (issue 20):
 
-    python tools/product_hashes.py make OUT.sha [--work DIR]   # runs `fluxcal demo`
+    python tools/product_hashes.py make REV OUT.sha     # `fluxcal demo` of commit REV
     python tools/product_hashes.py compare BEFORE.sha AFTER.sha
 
-``make`` runs ``fluxcal demo`` (every mission's `make demo` runs: MESSENGER ``edr2cdr``
-and ``batch``, Rosetta ``calibrate``, ``clean`` and ``batch``, the fits and the archive
-round trip) with ``SOURCE_DATE_EPOCH`` fixed, so provenance times are the same in
-both runs, and writes one line ``<sha256>  <path relative to the demo folder>`` per
+``make`` checks commit ``REV`` out at a fixed path (`SOURCE`), runs its ``fluxcal
+demo`` (every mission's `make demo` runs: MESSENGER ``edr2cdr`` and ``batch``, Rosetta
+``calibrate``, ``clean`` and ``batch``, the fits and the archive round trip) into a fixed
+folder (`WORK`) with ``SOURCE_DATE_EPOCH`` fixed, so that the provenance (times, input
+and calibration paths) is the same for both commits, and writes one line ``<sha256>  <path relative to the demo folder>`` per
 file.  ``compare`` prints every path that differs, is missing or is new, and exits 1
 when any does.  Files that cannot be byte-identical by construction (the demo's own
 timing logs, batch reports with wall-clock seconds) are listed under ``VOLATILE``.
@@ -19,11 +20,15 @@ from __future__ import annotations
 import argparse
 import hashlib
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
+#: Where each commit is checked out and where its demo writes (the same for every commit).
+SOURCE = Path(tempfile.gettempdir()) / "fluxcal-product-hashes" / "src"
+WORK = Path(tempfile.gettempdir()) / "fluxcal-product-hashes" / "demo"
 #: Name patterns whose content holds wall-clock times or process ids by design.
 VOLATILE = ("batch_report_", "manifests/", ".fluxcal-batch.lock")
 
@@ -37,15 +42,26 @@ def listing(folder: Path) -> dict[str, str]:
     return out
 
 
-def make(target: Path, work: Path | None) -> None:
-    """Run the demo with a fixed SOURCE_DATE_EPOCH and write its listing to ``target``."""
-    folder = Path(work or tempfile.mkdtemp(prefix="fluxcal-hashes-")) / "demo"
-    env = dict(os.environ, SOURCE_DATE_EPOCH="1700000000")
-    subprocess.run([sys.executable, "-m", "fluxcal.cli", "demo", "--out", str(folder)],
-                   check=True, env=env)
-    lines = [f"{h}  {p}" for p, h in listing(folder).items()]
+def make(rev: str, target: Path) -> None:
+    """Run the demo of commit ``rev`` (fixed paths, SOURCE_DATE_EPOCH) and list its files."""
+    repo = Path(__file__).resolve().parents[1]
+    for path in (SOURCE, WORK):
+        if path.exists():
+            subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(path)],
+                           capture_output=True)
+            shutil.rmtree(path, ignore_errors=True)
+    subprocess.run(["git", "-C", str(repo), "worktree", "add", "--detach", str(SOURCE), rev],
+                   check=True)
+    env = dict(os.environ, SOURCE_DATE_EPOCH="1700000000", PYTHONPATH=str(SOURCE / "src"))
+    try:
+        subprocess.run([sys.executable, "-m", "fluxcal.cli", "demo", "--out", str(WORK)],
+                       check=True, env=env, cwd=SOURCE)
+    finally:
+        subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(SOURCE)],
+                       check=False)
+    lines = [f"{h}  {p}" for p, h in listing(WORK).items()]
     target.write_text("\n".join(lines) + "\n")
-    print(f"{len(lines)} files listed in {target} (products in {folder})")
+    print(f"{len(lines)} files of {rev} listed in {target} (products in {WORK})")
 
 
 def compare(before: Path, after: Path) -> int:
@@ -78,14 +94,14 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     m = sub.add_parser("make")
+    m.add_argument("rev")
     m.add_argument("target", type=Path)
-    m.add_argument("--work", type=Path)
     c = sub.add_parser("compare")
     c.add_argument("before", type=Path)
     c.add_argument("after", type=Path)
     args = parser.parse_args()
     if args.command == "make":
-        make(args.target, args.work)
+        make(args.rev, args.target)
         return 0
     return compare(args.before, args.after)
 

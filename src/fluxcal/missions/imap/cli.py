@@ -1,8 +1,8 @@
 """``fluxcal imap ...``: IMAP MAG from raw packets or the team's L1A CSV to L1A/L1B products.
 
 Declared in `fluxcal.missions.imap.mission.MISSION` (the registry builds ``fluxcal
-imap``); errors are `FluxcalError` subclasses, which ``fluxcal.cli.main`` prints as one line and turns into
-exit code 2, leaving nothing new in ``--out``.
+imap``); errors are `FluxcalError` subclasses, which ``fluxcal.cli.main`` prints as one
+line and turns into exit code 2, leaving nothing new in ``--out``.
 """
 
 from __future__ import annotations
