@@ -10,9 +10,10 @@ demo`` (every mission's `make demo` runs: MESSENGER ``edr2cdr`` and ``batch``, R
 ``calibrate``, ``clean`` and ``batch``, the fits and the archive round trip) into a fixed
 folder (`WORK`) with ``SOURCE_DATE_EPOCH`` fixed, so that the provenance (times, input
 and calibration paths) is the same for both commits, and writes one line
-``<sha256>  <path relative to the demo folder>`` per file.  ``compare`` prints every path that differs, is missing or is new, and exits 1
-when any does.  Files that cannot be byte-identical by construction (the demo's own
-timing logs, batch reports with wall-clock seconds) are listed under ``VOLATILE``.
+``<sha256>  <path relative to the demo folder>`` per file.  ``compare`` prints every
+path that differs, is missing or is new, and exits 1 when any does.  Files that cannot
+be byte-identical by construction (batch reports and manifests, with wall-clock seconds)
+are listed under ``VOLATILE``.
 """
 
 from __future__ import annotations
