@@ -112,26 +112,6 @@ assert read_product(path)["b"].values.tolist() == [0.0, 1.0, 2.0]
                 if m in loaded]
 
 
-def test_imports_loaded_acts_only_under_main(monkeypatch):
-    import fluxcal.cli
-
-    before = gc.get_freeze_count()
-    fluxcal.cli.imports_loaded()  # not under main: the caller's collector is untouched
-    assert gc.get_freeze_count() == before
-    seen = {}
-
-    def command(*args, **kwargs):
-        fluxcal.cli.imports_loaded()
-        fluxcal.cli.imports_loaded()
-        seen["frozen"] = gc.get_freeze_count()
-        return 0
-
-    monkeypatch.setattr(fluxcal.cli, "app", command)
-    assert main(["anything"]) == 0
-    assert seen["frozen"] > before
-    assert gc.get_freeze_count() == before
-
-
 def test_objects_the_caller_froze_stay_frozen():
     gc.freeze()
     try:

@@ -22,7 +22,7 @@ import typer
 
 from fluxcal import product_commands
 from fluxcal.errors import FluxcalError
-from fluxcal.process import defer_dask_array_import, malloc_defaults, numpy_allocation_defaults
+from fluxcal.process import malloc_defaults, numpy_allocation_defaults
 from fluxcal.runs import registry
 from fluxcal.runs.cli import batch_app
 from fluxcal.runs.contract import Mission
@@ -118,32 +118,12 @@ def _long_lived_imports() -> Iterator[None]:
     caller_froze = gc.get_freeze_count() > 0
     gc.freeze()
     gc.set_threshold(threshold[0], threshold[1], max(threshold[2], FULL_COLLECTION_EVERY))
-    _IN_COMMAND.append(True)
     try:
         yield
     finally:
-        _IN_COMMAND.pop()
         gc.set_threshold(*threshold)
         if not caller_froze:
             gc.unfreeze()
-
-
-_IN_COMMAND: list[bool] = []
-
-
-def imports_loaded() -> None:
-    """Settle the libraries a command has just imported, when it runs under `main`.
-
-    For a command to call right after importing its libraries, before it makes any
-    data: the modules join those `_long_lived_imports` keeps off the collector
-    (`gc.freeze`; the data stays collectable, and `main` unfreezes everything when the
-    command ends), and xarray checks for dask arrays without importing ``dask.array``
-    (`fluxcal.process.defer_dask_array_import`).  Outside `main` (tests, a notebook)
-    it does nothing.
-    """
-    if _IN_COMMAND:
-        defer_dask_array_import()
-        gc.freeze()
 
 
 def _freeze_at_exit() -> None:

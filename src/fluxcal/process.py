@@ -2,11 +2,13 @@
 
 A command is one short process that allocates hundreds of day-long arrays (40 MB each
 at 20 Hz) and imports a large scientific stack once.  The defaults of numpy, glibc's
-allocator and xarray are tuned for other programs; `fluxcal.cli.main` applies the three
-settings below, each kept out of the way of a user who chose otherwise and each a
+allocator are tuned for other programs; `fluxcal.cli.main` applies the two settings
+below, each kept out of the way of a user who chose otherwise and each a
 no-op where it does not apply.  They change no number in any product (the benchmark
 products are byte-identical with and without them; docs/decisions/products.md,
-decisions 41 and 47-48).
+decisions 41 and 47).  Decision 48 (keeping xarray from importing ``dask.array`` through
+an entry in xarray's private duck-array cache) is withdrawn: fluxcal does not reach into
+another library's internals (decision 52).
 
 This module imports nothing heavy: ``import fluxcal.cli`` must load no numpy.
 """
@@ -75,56 +77,3 @@ def malloc_defaults() -> bool:
     mallopt.restype = ctypes.c_int
     return bool(mallopt(M_MMAP_THRESHOLD, HEAP_REUSE_BYTES)
                 and mallopt(M_TRIM_THRESHOLD, HEAP_REUSE_BYTES))
-
-
-class _DaskArrayWhenImported:
-    """Stands for dask in xarray's cache of duck-array modules until dask.array is used.
-
-    xarray asks ``isinstance(data, dask.array.Array)`` of every new variable and, with
-    dask installed, imports ``dask.array`` to ask it (0.5 s on the benchmark machine).
-    As long as ``dask.array`` is not imported no object can be one of its arrays, so the
-    answer is an empty tuple of types; once it is imported (by the user, by
-    ``xr.open_dataset(chunks=...)``, by ``fluxcal batch``) the next question replaces
-    the entry by xarray's own.  Every other question (``version``, ``available``,
-    ``module``) makes xarray's own entry at once, importing ``dask.array``.
-    """
-
-    def __init__(self, cache: dict, module_class: type) -> None:
-        self._cache = cache
-        self._module_class = module_class
-
-    def _resolve(self):
-        real = self._module_class("dask")
-        self._cache["dask"] = real
-        return real
-
-    @property
-    def type(self) -> tuple:
-        if "dask.array" not in sys.modules:
-            return ()
-        return self._resolve().type
-
-    def __getattr__(self, name: str):
-        return getattr(self._resolve(), name)
-
-
-def defer_dask_array_import() -> bool:
-    """Keep xarray from importing ``dask.array`` before anyone uses a dask array.
-
-    To call once xarray is imported, before the command makes data (`fluxcal.cli`
-    calls it when a command says its libraries are loaded).  Saves the 0.5 s import of
-    ``dask.array`` in commands that never use dask (docs/decisions/products.md,
-    decision 48); commands that do use it import it as before.  It acts on xarray's
-    cache of duck-array modules (``xarray.namedarray.pycompat``, not public API): when
-    that cache is not there as expected, or already knows dask, it does nothing.
-    Returns whether it acted.
-    """
-    pycompat = sys.modules.get("xarray.namedarray.pycompat")
-    if pycompat is None or "dask.array" in sys.modules:
-        return False
-    cache = getattr(pycompat, "_cached_duck_array_modules", None)
-    module_class = getattr(pycompat, "DuckArrayModule", None)
-    if not isinstance(cache, dict) or module_class is None or "dask" in cache:
-        return False
-    cache["dask"] = _DaskArrayWhenImported(cache, module_class)
-    return True

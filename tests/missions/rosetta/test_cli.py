@@ -184,22 +184,3 @@ def test_stitch_state_file_between_runs(tmp_path):
     a_whole, a2 = whole.levels["A"], r2.levels["A"]
     sel = np.isin(a_whole["epoch"].values, a2["epoch"].values)
     np.testing.assert_allclose(a2["b"].values, a_whole["b"].values[sel], atol=1e-9)
-
-
-def test_calibrate_does_not_load_dask_array(sim, tmp_path):
-    # `rosetta calibrate` settles its imports (`fluxcal.cli.imports_loaded`), so xarray
-    # makes its variables without importing dask.array (docs/decisions/products.md, 48)
-    import json
-    import subprocess
-    import sys
-
-    args = ["rosetta", "calibrate", "--science", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-            "--sensor", "OB", "--levels", "A,B,C", "--calib", str(sim / "calib"),
-            "--kernels", str(sim / "kernels" / "rosetta_synthetic.tm"), "--out", str(tmp_path)]
-    code = ("import json, sys\nfrom fluxcal.cli import main\n"
-            f"assert main({args!r}) == 0\n"
-            "print(json.dumps([m for m in ('dask.array', 'xarray') if m in sys.modules]))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout
-    assert json.loads(out.splitlines()[-1]) == ["xarray"]
-    assert sorted(tmp_path.glob("RPCMAG140801T*_CLC_OB_M*.TAB"))  # the products were made

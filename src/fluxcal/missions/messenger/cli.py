@@ -34,12 +34,10 @@ def edr2cdr(
 
     Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
     """
-    from fluxcal.cli import imports_loaded
     from fluxcal.missions.messenger.routes import run_edr2cdr
     from fluxcal.missions.messenger.run import prepare_formats
 
     prepare_formats(options.formats)  # both routes: before any EDR or CSV is read
-    imports_loaded()  # xarray, numba, matplotlib ... are loaded: settle them before data
     from fluxcal.preflight import plain_text_file
 
     _check_input_style(sci, heater, temperature, edr, mapping)

@@ -105,10 +105,8 @@ def calibrate(
     Follows "RO-IGEP-TR0028 Rosetta RPC-MAG calibration" sec. 4.1-4.8.
     """
     from fluxcal import preflight
-    from fluxcal.cli import imports_loaded
     from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
 
-    imports_loaded()  # xarray, numba ... are loaded: settle them before data
     check_raw_source(science, "--science")
     if hk is not None:
         check_raw_source(hk, "--hk")
