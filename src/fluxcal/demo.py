@@ -13,7 +13,8 @@ log = logging.getLogger(__name__)
 
 #: Parts of the demo, in order: (title, module, function(out: Path) -> str, sub-folder).
 PARTS = [
-    ("Geometry core", "fluxcal.geometry.demo", "run_geometry_demo", "geometry"),
+    ("Geometry core", "fluxcal.missions.messenger.geometry_demo", "run_geometry_demo",
+     "geometry"),
     ("MESSENGER MAG EDR -> CDR", "fluxcal.missions.messenger.demo", "run_demo", "messenger"),
     ("Rosetta RPC-MAG levels", "fluxcal.missions.rosetta.demo", "run_demo", "rosetta"),
     ("Rosetta disturbance removal", "fluxcal.missions.rosetta.cleaning_demo", "run_demo",

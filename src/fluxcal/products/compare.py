@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.products.attrs import variable_units
 
 __all__ = ["Comparison", "ComponentStats", "compare", "difference_figure", "format_report",
            "load_product", "parse_tolerance", "product_frame"]
@@ -77,18 +78,13 @@ def load_product(path: Path | str) -> xr.Dataset:
     return read_fluxcal(path)
 
 
-def _units(var: xr.DataArray) -> str:
-    """Return the ``units`` attr, or ISTP ``UNITS`` (also used by `fluxcal.products.quicklook`)."""
-    return str(var.attrs.get("units", var.attrs.get("UNITS", ""))).strip()
-
-
 def field_name(ds: xr.Dataset, path: Path | str) -> str:
     """Return the field variable: ``b``, else the first (time, 3) variable in nT."""
     if "b" in ds and ds["b"].ndim == 2 and ds["b"].shape[1] == 3:
         return "b"
     for name, var in ds.data_vars.items():
         if var.dims[:1] == ("time",) and var.ndim == 2 and var.shape[1] == 3 \
-                and _units(var) == "nT":
+                and variable_units(var) == "nT":
             return str(name)
     raise InputFormatError("no field vector (variable 'b', or a (time, 3) variable in nT)",
                            path=str(path))
@@ -247,7 +243,7 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
     if fa and fb and fa != fb and not force:
         raise FluxcalError(f"the products are in different frames: {path_a} is {fa}, "
                            f"{path_b} is {fb} (compare the same frame, or --force)")
-    ua, ub = _units(a[va]), _units(b[vb])
+    ua, ub = variable_units(a[va]), variable_units(b[vb])
     if ua and ub and ua != ub:
         raise FluxcalError(f"the field units differ: {path_a} has {ua}, {path_b} has {ub}")
     ea, eb = a["epoch"].values.astype(np.int64), b["epoch"].values.astype(np.int64)

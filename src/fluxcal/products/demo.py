@@ -59,10 +59,11 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
     (long benchmark stretches).  Returns the UTC days that received science data.
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import copy_meta_kernel, write_messenger_like_kernels
+    from fluxcal.geometry.synthetic import copy_meta_kernel
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     input_dir = Path(input_dir)
     work = input_dir / "simulation"

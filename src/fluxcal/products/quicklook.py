@@ -35,7 +35,7 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from fluxcal.errors import InputFormatError  # noqa: E402
 from fluxcal.products.atomic import atomic_path  # noqa: E402
-from fluxcal.products.compare import _units  # noqa: E402
+from fluxcal.products.attrs import variable_units  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,7 @@ def _find(ds: xr.Dataset, prefixes: Sequence[str], vector: bool | None = None,
             continue
         if vector is not None and (var.ndim == 2) != vector:
             continue
-        if units is not None and _units(var) not in units:
+        if units is not None and variable_units(var) not in units:
             continue
         if var.dtype.kind not in "iufb":
             continue
@@ -174,19 +174,19 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
             for j in range(o.shape[1]):
                 ax.plot(*envelope(hours, o[:, j]), lw=0.8, color=COLORS[j % 3],
                         label=f"{comps[j] if j < len(comps) else j}")
-            ax.set_ylabel(f"{arg} ({_units(ds[arg])})")
+            ax.set_ylabel(f"{arg} ({variable_units(ds[arg])})")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         elif kind == "temperature":
             for name in arg:
                 ax.plot(*envelope(hours, ds[name].values.astype(float)), lw=0.8, label=name)
-            ax.set_ylabel(f"T ({_units(ds[arg[0]])})")
+            ax.set_ylabel(f"T ({variable_units(ds[arg[0]])})")
             ax.legend(loc="upper right", fontsize=8)
         elif kind == "quality":
             _quality_panel(ax, hours, ds[arg])
             ax.set_ylabel(f"{arg}")
         elif kind == "distance":
             ax.plot(*envelope(hours, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
-            ax.set_ylabel(f"{ds[arg].attrs.get('label', 'distance')} ({_units(ds[arg])})")
+            ax.set_ylabel(f"{ds[arg].attrs.get('label', 'distance')} ({variable_units(ds[arg])})")
         else:
             r = np.linalg.norm(ds[arg].values.astype(float), axis=1)
             ax.plot(*envelope(hours, r), lw=0.8, color="tab:brown")

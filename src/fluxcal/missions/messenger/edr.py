@@ -46,6 +46,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.identity import FRAME_KERNELS
 from fluxcal.missions.messenger.readers import (
     COUNT_LIMITS,
     HEATER_PERIOD_S,
@@ -720,7 +721,7 @@ def run_edr_archive(
             data = p.parent / str(ptr[0] if isinstance(ptr, (list, tuple)) else ptr)
             if data != p and data.exists():
                 tables.append(data)
-    with KernelPool(kernels) as pool:
+    with KernelPool(kernels, frames=FRAME_KERNELS) as pool:
         return calibrate_and_write(
             sci, heat, temp, Path(out_dir),
             inputs=[*labels, *tables, m.path], kernel_list=pool.kernel_list(), **options,
