@@ -55,9 +55,9 @@ def parse_tolerance(text: str) -> int:
 def load_product(path: Path | str) -> xr.Dataset:
     """Read one product for comparison (see the module docstring).
 
-    A PDS3 table is read as an archived product when its columns are a MESSENGER
-    CDR/RDR or Rosetta calibrated layout, else (a fluxcal table with other columns) by
-    fluxcal's own table reader.
+    A PDS3 table is read as an archived product when a mission's archived-product reader
+    accepts its columns (`fluxcal.archive.products.identify`), else (a fluxcal table
+    with other columns) by fluxcal's own table reader.
     """
     from fluxcal.products.writer import read_product as read_fluxcal
 
