@@ -20,8 +20,8 @@ import spiceypy
 
 from fluxcal.geometry import frames, positions
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 TARGETS = ["J2000", "MSGR_MSO", "IAU_MERCURY", "MSGR_RTN"]
 

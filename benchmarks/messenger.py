@@ -30,11 +30,11 @@ import numpy as np
 import spiceypy
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 #: glibc ``mallopt`` parameters (malloc.h): M_TRIM_THRESHOLD, M_MMAP_MAX.
 _M_TRIM_THRESHOLD, _M_MMAP_MAX = -1, -4

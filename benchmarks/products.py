@@ -61,10 +61,10 @@ OPTIONAL_IMPORTS = ("matplotlib", "dask.array", "pvl")
 def simulate_inputs(folder: Path, hours: float) -> dict[str, Path]:
     """Write the kernels and the three CSV input streams of ``hours`` of 20 Hz data."""
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     duration = hours * 3600.0
     config = SimulationConfig(duration_s=duration, rate_segments=[(0.0, 10), (0.98, 8)],

@@ -24,9 +24,9 @@ def main() -> None:
     args = parser.parse_args()
 
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
     from fluxcal.geometry.time import leapseconds
     from fluxcal.missions.rosetta import averaged, calib, level_a, level_b, level_c, simulate
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     start = "2014-08-01T00:00:00"
     duration = args.hours * 3600.0

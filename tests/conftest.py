@@ -27,7 +27,7 @@ def shared_kernels() -> Path:
 @pytest.fixture(scope="session")
 def messenger_kernels(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Meta-kernel of a synthetic MESSENGER-like day (2012-06-01), +Y sunward 08:20-09:26."""
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     folder = tmp_path_factory.mktemp("msgr_kernels")
     return write_messenger_like_kernels(
@@ -38,7 +38,7 @@ def messenger_kernels(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def rosetta_kernels(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Meta-kernel of a synthetic Rosetta-like day (2014-09-01) escorting comet 67P."""
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     folder = tmp_path_factory.mktemp("ros_kernels")
     return write_rosetta_like_kernels(folder, "2014-09-01T00:00:00", 86400.0)

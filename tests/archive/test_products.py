@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from fluxcal.archive.products import messenger_epoch, read_product
+from fluxcal.archive.products import read_product
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.archive_products import messenger_epoch
 from fluxcal.products import Column, write_product
 
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluxcal.calibration._compiled import offset_chain_kernel
 from fluxcal.calibration.heater_signal import (
     HeaterPeriods,
     heater_signal,
@@ -19,6 +18,7 @@ from fluxcal.calibration.heater_signal import (
 )
 from fluxcal.calibration.offset_steps import largest_steps, largest_steps_reference
 from fluxcal.calibration.offsets import breakpoint_temperature, two_segment_offset
+from fluxcal.missions.messenger._compiled import offset_chain_kernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
 
 CAL = load_calibration("2012-01-01")

@@ -422,7 +422,7 @@ def test_clean_command_h_i_k(tmp_path, lsk):
 
 
 def test_clean_level_l_rotation_preserves_magnitude(tmp_path, lsk):
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     meta = write_rosetta_like_kernels(tmp_path / "k", START, 600.0, margin_s=1200.0)
     hds, *_ = _heater_case(lsk, n=2000)
@@ -450,8 +450,8 @@ def test_level_l_matches_scalar_spice_rotation(tmp_path, lsk):
     """
     import spiceypy
 
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
     from fluxcal.missions.rosetta.level_c import SPACECRAFT_FRAME
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     meta = write_rosetta_like_kernels(tmp_path / "k", START, 600.0, margin_s=1200.0)
     hds, *_ = _heater_case(lsk, n=2000)
@@ -593,7 +593,7 @@ def test_level_f_from_level_k(lsk):
 
 
 def test_clean_command_f_and_g(tmp_path, lsk):
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     meta = write_rosetta_like_kernels(tmp_path / "k", START, 600.0, margin_s=1200.0)
     hds, *_ = _heater_case(lsk, n=2000)

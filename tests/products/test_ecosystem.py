@@ -350,11 +350,11 @@ def pipeline_products(tmp_path_factory) -> list[Path]:
     simulated Rosetta day (levels A, B, C, E, F, G of both sensors and HK) and one synthetic
     batch day, as CDF + netCDF."""
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.routes import run_edr2cdr
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
     from fluxcal.missions.rosetta.batch_task import make_day_task, simulate_days
     from fluxcal.runs.batch import run_batch
 

@@ -9,8 +9,8 @@ Bjorck/Chan), never as ``E[b^2] - E[b]^2``, which loses every digit when the spr
 small against the mean (0.01 nT at 40,000 nT: 1e-10 relative, below the ~1e-12 left by
 the difference of two sums of 1e9-sized squares).
 
-Used by the MESSENGER averaged products (seed 000; ``missions/messenger/products.py``) and
-the Rosetta LEVEL_E/F/G (seed 003; ``missions/rosetta/averaged.py``).
+Used by the averaged products of seed 000 (the archive's RDR) and the LEVEL_E/F/G of
+seed 003 (each mission's folder under ``fluxcal/missions``).
 
 References
 ----------

@@ -607,7 +607,7 @@ def phase_binned(
     cycle_start_t : ndarray, shape (m,)
         Cycle start times (s), e.g. the rising edges of the heater bit (sec. 6).
     period : float
-        Nominal cycle length (s), 100 s for the MESSENGER heater.  Samples more than one
+        Nominal cycle length (s), 100 s for the heater of seed 000.  Samples more than one
         period after their cycle start, and samples before the first start, are excluded.
     n_bins : int
         Number of phase bins over one period.

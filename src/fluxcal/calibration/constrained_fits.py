@@ -1,4 +1,4 @@
-"""Weighted, constrained fits of binned averages (MESSENGER sec. 6 and 7 forms).
+"""Weighted, constrained fits of binned averages (seed 000 sec. 6 and 7 forms).
 
 * `fit_two_segment`: two lines joined continuously at a free break (eq. 3a, 3b, 4;
   Table 2 form ``A0, B0, A1, B1, T_m``).
@@ -819,7 +819,7 @@ def fit_periodic_spline(
     weights : ndarray, shape (n,) or None
         Amplitude weights (``sqrt(N)`` or ``1/standard error``).
     period : float
-        Period (s), 100 s for the MESSENGER heater.
+        Period (s), 100 s for the heater of seed 000.
     smoothing : float, optional
         ``lam`` of the objective ``sum w^2 r^2 / mean(w^2) + lam * integral f''^2``.
         Default: chosen by generalised cross-validation (GCV).

@@ -129,7 +129,7 @@ def nt_to_counts(field_nt: np.ndarray, range_flag: np.ndarray, matrices: np.ndar
 def range_conversion(matrices: np.ndarray, reference: int = 0) -> np.ndarray:
     """Return ``M_r^-1 M_ref`` for every range ``r`` (shape (m, 3, 3)).
 
-    An offset known in counts of range ``reference`` (the fine range for MESSENGER)
+    An offset known in counts of range ``reference`` (the fine range in seed 000)
     expressed in counts of range ``r`` is ``M_r^-1 M_ref c_ref`` (same field in nT).
     """
     return np.linalg.inv(matrices) @ matrices[reference]

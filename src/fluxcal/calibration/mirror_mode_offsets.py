@@ -11,7 +11,7 @@ with different directions meet (in the least-squares sense) at ``O``:
 i.e. ``O`` minimises the summed squared perpendicular distances to the lines, each
 interval weighted equally.  Plaschke and Narita used one component (the spin-axis
 offset, the spin-plane ones being known) [1]_; here all three are solved for, as
-on a three-axis stabilised spacecraft such as MESSENGER or BepiColombo [2]_.
+on a three-axis stabilised spacecraft such as BepiColombo and its predecessor at Mercury [2]_.
 
 Selection criteria (each a parameter; the first failed one is the reason):
 
@@ -33,7 +33,7 @@ References
    offsets from mirror mode observations", Ann. Geophys. 34, 759-766 (2016).
 .. [2] Schmid, D. et al., "Magnetometer in-flight offset accuracy for the
    BepiColombo spacecraft", Ann. Geophys. 38, 823-832 (2020): mirror-mode offsets
-   from MESSENGER magnetosheath data agree with the solar-wind (Alfvenic) ones.
+   from magnetosheath data at Mercury agree with the solar-wind (Alfvenic) ones.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Offsets that relax toward a new steady state after each heater duty-cycle change.
 
-Implements the assignment sequence 6a-6f of the MESSENGER procedure: the offset at a
+Implements the assignment sequence 6a-6f of the seed 000 procedure: the offset at a
 sample time ``t_s`` is built from the steady-state offsets ``c*_0..c*_5`` set at the
 last six duty-cycle changes ``t_0 > t_1 > ... > t_5``, starting from zero at ``t_5``,
 each relaxing with time constant ``tau`` after a delay ``dt``::
@@ -251,7 +251,7 @@ def relaxed_offset(
     look_back : int
         Least number of earlier changes (5).
     look_back_s : float
-        Least look-back interval (s; 5000 in the MESSENGER processing constants, 0: five
+        Least look-back interval (s; 5000 in the seed 000 processing constants, 0: five
         changes whatever their span), see `look_back_depth`.
 
     Returns

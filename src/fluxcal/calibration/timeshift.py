@@ -18,7 +18,7 @@ def mode_shifts(
     Parameters
     ----------
     mode : array_like of int, shape (n,)
-        Mode identifier per sample (e.g. Rosetta SID).
+        Mode identifier per sample (e.g. the filter mode SID of seed 003).
     table_modes : array_like of int, shape (m,)
         Modes of the table.
     table_shifts_s : array_like of float, shape (m,)

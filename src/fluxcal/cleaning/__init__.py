@@ -11,7 +11,7 @@ Pure array functions (any magnetometer; arrays and parameters in, arrays out):
 - `resample_two_sensors` (two series onto a common time base, gap-aware linear
   interpolation; `common_time_base`, `interpolate_linear`).
 
-The Rosetta levels H-L built on them are in `fluxcal.missions.rosetta.cleaning_levels`.
+The levels H-L of seed 003 built on them are in that mission's folder (``cleaning_levels``).
 
 References
 ----------

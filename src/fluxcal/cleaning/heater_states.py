@@ -1,6 +1,6 @@
 """Stage 1 of the assisted heater removal: heater states and disturbed intervals.
 
-The Rosetta method 2 (seed 003 sec. 4.12.2) is a two-stage procedure: first all
+Method 2 of seed 003 (sec. 4.12.2) is a two-stage procedure: first all
 disturbed times are identified in the data of a sensor next to the heaters (the lander
 magnetometer ROMAP, disturbed by 1000-2000 nT) and assigned to the activated heaters;
 then the RPC-MAG offsets are removed in those intervals

@@ -4,7 +4,7 @@ The eigenvectors of the 3x3 covariance matrix of the field define the
 *minimum variance frame*.  fluxcal orders and signs them deterministically:
 
 * order: ``x`` = maximum variance, ``y`` = intermediate, ``z`` = minimum variance
-  (the Rosetta heater procedure works on the maximum variance component, which the
+  (the heater procedure of seed 003 works on the maximum variance component, which the
   seed calls "B_x of the minimum variance system");
 * sign: the minimum variance axis points along the mean vector
   (``e_min . <B> >= 0``); the maximum variance axis has its largest Cartesian

@@ -1,6 +1,6 @@
 """Two-sensor principal component analysis: external field versus sensor-local noise.
 
-Two magnetometers on one boom (Rosetta: outboard OB and inboard IB) see the same
+Two magnetometers on one boom (seed 003: outboard OB and inboard IB) see the same
 external field but different spacecraft disturbances.  Per Cartesian component, the
 2x2 covariance of the two sensors' series is decomposed: its leading principal
 component is the correlated (common) signal, the external field; what each sensor

@@ -1,6 +1,6 @@
 """Removal of narrow spectral lines (reaction wheels, LAP) from a vector time series.
 
-The procedure of the Rosetta RPC-MAG LEVEL_H product, in a form usable for any
+The procedure of the LEVEL_H product of seed 003, in a form usable for any
 magnetometer: the series is cut into windows of 1024 samples overlapping by 25 %, each
 window is Fourier transformed without a taper, and in a band of width ``delta_f``
 around every (aliased) line frequency the spectrum is replaced by complex Gaussian
@@ -45,9 +45,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Band width used by the Rosetta team in BURST mode (20 vectors/s), seed 003 sec. 4.9.
+#: Band width used by the instrument team in BURST mode (20 vectors/s), seed 003 sec. 4.9.
 BURST_BANDWIDTH_HZ = 0.06
-#: Sampling rate of Rosetta BURST mode, at which `BURST_BANDWIDTH_HZ` applies.
+#: Sampling rate of the BURST mode of seed 003, at which `BURST_BANDWIDTH_HZ` applies.
 BURST_RATE_HZ = 20.0
 
 #: Bins skipped on each side of a band before the neighbourhood starts (Hann main lobe).

@@ -1,14 +1,14 @@
 """Removal of square-wave (heater) steps from a vector time series.
 
-Two methods, after the Rosetta RPC-MAG LEVEL_K procedure:
+Two methods, after the LEVEL_K procedure of seed 003:
 
 * `remove_heater_steps` (method 1, automatic): rotate into the minimum variance frame
   of the steps, find the jumps of the maximum variance component with a moving
   variance and a robust threshold, estimate each jump's height from short fits just
   before and after it, flatten the disturbed levels, interpolate over the cut-out jump
   samples and rotate back.
-* `remove_labelled_offsets` (method 2, assisted): another instrument (ROMAP for
-  Rosetta) supplies the disturbed intervals and which heater (label) was active; the
+* `remove_labelled_offsets` (method 2, assisted): another instrument (ROMAP in
+  seed 003) supplies the disturbed intervals and which heater (label) was active; the
   offset of each label is subtracted inside its intervals (estimated from the data
   when not given).
 

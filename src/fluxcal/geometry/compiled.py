@@ -404,7 +404,7 @@ def rtn_spherical_interp(sun, et, grid, lat, az, out):
     ``out[:, 0] = |sun|``; ``out[:, 1] = np.interp(et, grid, lat)``; ``out[:, 2] =
     np.interp(et, grid, np.unwrap(az, period=360))`` (`unwrap_degrees`), wrapped back by
     ``(a + 180) % 360 - 180`` where ``|a| > 180`` -- the numpy expressions of
-    `fluxcal.missions.messenger.levels.spherical_rtn`, bit for bit (``grid``
+    `fluxcal.geometry.axes.spherical_rtn`, bit for bit (``grid``
     increasing).  One compiled function for the whole step: one numba cache load.
     """
     unwrapped = np.empty(az.size)

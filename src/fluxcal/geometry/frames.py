@@ -19,7 +19,7 @@ References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i (seed 000), sec. 11 "Coordinate System
        Transformation" (``cspice_pxform`` + ``cspice_mxv``).
-.. [2] Rosetta RPC-MAG calibration (seed 003), sec. 4.4.1.
+.. [2] Rosetta RPC-MAG Calibration Procedure (seed 003), sec. 4.4.1.
 .. [3] NAIF, "CK Required Reading", type 3 interpolation.
 """
 
@@ -547,7 +547,7 @@ class Rotator:
     Parameters
     ----------
     from_frame : str
-        Frame the vectors are given in (e.g. ``"MSGR_MAG"``).
+        Frame the vectors are given in (e.g. a sensor frame of the mission FK).
     et : ndarray
         Ephemeris times of the samples.
     tolerance : float
@@ -559,9 +559,9 @@ class Rotator:
     --------
     ::
 
-        rot = Rotator("MSGR_MAG", et)
-        b_mso = apply(rot.matrices("MSGR_MSO"), b_mag)
-        b_mbf = apply(rot.matrices("IAU_MERCURY"), b_mag)
+        rot = Rotator(sensor_frame, et)
+        b_j2000 = apply(rot.matrices("J2000"), b_sensor)
+        b_mbf = apply(rot.matrices("IAU_MERCURY"), b_sensor)
     """
 
     #: Samples per block: keeps the temporaries of one block in the CPU cache.
@@ -742,7 +742,7 @@ def rotate(
     et : array_like, shape (n,)
         Ephemeris times of the vectors.
     from_frame, to_frame : str
-        SPICE frame names (e.g. ``"MSGR_MAG"``, ``"MSGR_MSO"``).
+        SPICE frame names (e.g. a sensor frame and ``"J2000"``).
     method : {"interpolate", "oracle"}
         See `rotation_matrices`.
     return_matrices : bool

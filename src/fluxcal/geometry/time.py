@@ -458,7 +458,7 @@ def utc_fields_to_tt2000(
     """TT2000 (int64 ns) from UTC fields: year, day of year, hour, minute, float second.
 
     The inverse of `tt2000_to_utc_fields` for tables that print the time as fields
-    (MESSENGER CDR/RDR ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND``).  ``second`` is rounded
+    (the seed 000 CDR/RDR ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND``).  ``second`` is rounded
     to the nearest nanosecond, which removes the float's representation error of any
     value printed with up to 6 decimals (|error| < 1e-14 s for seconds below 61).  A
     second of 60 or more is a leap second: it is counted from ``23:59:59`` of the old
@@ -498,7 +498,7 @@ def utc_fields_to_tt2000(
 def utc_day_start_tt2000(day: np.datetime64 | str, lsk: LeapSecondTable | None = None) -> int:
     """TT2000 (int64 ns) of 00:00:00 UTC of the date ``day`` (leap seconds included).
 
-    The one day edge of the products: a MESSENGER day's averaging origin and a Rosetta
+    The one day edge of the products: a seed 000 day's averaging origin and a seed 003
     day folder's bounds (``utc_day_start_tt2000(d)`` to ``utc_day_start_tt2000(d + 1)``,
     86,401 s across a leap second).
 
@@ -593,7 +593,7 @@ def tt2000_to_utc(
     tt2000 : array_like of int64
         TT2000 nanoseconds.
     style : {"iso", "doy"}
-        ``"iso"``: ``YYYY-MM-DDTHH:MM:SS.fff``; ``"doy"``: the MESSENGER archive form
+        ``"iso"``: ``YYYY-MM-DDTHH:MM:SS.fff``; ``"doy"``: the archive form
         ``YYYY DOY HH MM SS.fff`` of seed 000 sec. 9 (``timout`` picture
         ``YYYY DOY HR MN SC.###``).
     digits : int
@@ -753,7 +753,7 @@ class SclkKernel:
     Attributes
     ----------
     sc_id : int
-        NAIF spacecraft id (MESSENGER -236, Rosetta -226).
+        NAIF spacecraft id (the clock's id, negative).
     moduli : ndarray
         Field moduli (``SCLK01_MODULI``).
     partition_start, partition_end : ndarray
@@ -767,8 +767,8 @@ class SclkKernel:
     Notes
     -----
     A clock reading is given as a partition number and the reading in units of the first
-    (most significant) field, fraction included: for MESSENGER (fields seconds and
-    microseconds) ``seconds = 16458912.103412`` is ``1/16458912:103412``.  Offsets of the
+    (most significant) field, fraction included: for a clock with fields seconds and
+    microseconds (seed 000) ``seconds = 16458912.103412`` is ``1/16458912:103412``.  Offsets of the
     fields (``SCLK01_OFFSETS``) must be zero.
 
     A reading within the float64 resolution of a whole tick (`SNAP_RELATIVE`) is taken
@@ -1029,7 +1029,7 @@ class SclkKernel:
         With a TT (TDT) parallel time the TT2000 epoch comes straight from the clock
         correlation in integer nanoseconds (`exact_tt2000`), without a TDB round trip:
         a reading on the clock's tick grid gives the TT2000 of the kernel's values
-        exactly (the ``1/0`` of MESSENGER is 2004-08-03T05:59:16.000000000 UTC).  One
+        exactly (the ``1/0`` of the seed 000 clock is 2004-08-03T05:59:16.000000000 UTC).  One
         compiled pass (`_sclk_kernel`); `to_et_and_tt2000_reference` is the numpy
         version the tests compare with.
 
@@ -1093,8 +1093,8 @@ class SclkKernel:
         ----------
         partition : array_like of int
         ticks : array_like of int
-            The reading in ticks of the least significant field (MESSENGER: microseconds,
-            ``1/16458912:103412`` is 16458912103412; Rosetta: 1/65536 s).
+            The reading in ticks of the least significant field (seed 000: microseconds,
+            ``1/16458912:103412`` is 16458912103412; seed 003: 1/65536 s).
 
         Raises
         ------
@@ -1132,7 +1132,7 @@ class SclkKernel:
 #: A clock reading ``r = seconds * ticks_per_count`` within ``|r| * SNAP_RELATIVE`` of a
 #: whole tick is that tick: twice the largest error of ``r`` when ``seconds`` is the
 #: float64 nearest to a whole-tick reading (half an ulp of ``seconds``, scaled, plus half
-#: an ulp of the product), e.g. 0.12 tick (120 ns) for MESSENGER at 2.7e8 s.
+#: an ulp of the product), e.g. 0.12 tick (120 ns) for the seed 000 clock at 2.7e8 s.
 SNAP_RELATIVE = 2.0**-51
 
 
@@ -1179,9 +1179,9 @@ RATE_DECIMALS = 14
 def _rate_minus_one(rate: np.ndarray) -> np.ndarray:
     """Return rate - 1 of each record, from the kernel's decimal rate when it has one.
 
-    The kernels state the rates with at most 14 decimals (MESSENGER ``1.00001013271``,
-    Rosetta ``9.9849419388587E-01``); the pool's float64 is up to ~2 ulp (4.4e-16) off the
-    decimal, i.e. up to 0.3 ns over the 7e5 s of a Rosetta record.  When every rate lies
+    The kernels state the rates with at most 14 decimals (seed 000 ``1.00001013271``,
+    seed 003 ``9.9849419388587E-01``); the pool's float64 is up to ~2 ulp (4.4e-16) off the
+    decimal, i.e. up to 0.3 ns over the 7e5 s of a seed 003 record.  When every rate lies
     within 0.1 of the 1e-14 grid (an accident for other kernels: each would have a 20 %
     chance), rate - 1 is taken from the nearest grid value, an integer count of 1e-14
     computed exactly; otherwise it is the float64 ``rate - 1`` (itself exact).
@@ -1196,8 +1196,8 @@ def _rate_minus_one(rate: np.ndarray) -> np.ndarray:
 def _snap_whole(values: np.ndarray) -> np.ndarray:
     """Return ``values`` with each one within float64 resolution of a whole number made whole.
 
-    The kernel pool's parser is not always correctly rounded: MESSENGER's
-    ``2.68435455999999e+14`` is read as 268435455999998.97 and Rosetta's encoded ticks
+    The kernel pool's parser is not always correctly rounded: seed 000's
+    ``2.68435455999999e+14`` is read as 268435455999998.97 and seed 003's encoded ticks
     are up to 0.004 tick off; left so, a reading exactly at a coefficient record would
     fall in the record before it.  Tolerance `SNAP_RELATIVE` (about 2 ulp).
     """
@@ -1222,8 +1222,8 @@ def seconds_to_exact_ns(seconds: np.ndarray) -> np.ndarray:
     """Float64 seconds stated to the microsecond (or not) -> int64 nanoseconds.
 
     A value within float64 resolution (2 ulp) of a whole microsecond is that microsecond
-    (the SCLK kernels state their parallel times to the microsecond: MESSENGER
-    ``@03-AUG-2004-06:00:20.184000``, Rosetta ``1.3146108418400E+08``); any other value
+    (the SCLK kernels state their parallel times to the microsecond: seed 000
+    ``@03-AUG-2004-06:00:20.184000``, seed 003 ``1.3146108418400E+08``); any other value
     is rounded to the nearest nanosecond of its float64 value.
     """
     seconds = np.asarray(seconds, dtype=float)

@@ -48,3 +48,11 @@ def encode_attrs(attrs: Mapping[str, Any]) -> dict[str, str | int | float]:
 def decode_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:
     """Decode every value of ``attrs`` with `decode_value`."""
     return {str(k): decode_value(v) for k, v in attrs.items()}
+
+
+def variable_units(var: Any) -> str:
+    """Return a variable's ``units`` attr, else its ISTP ``UNITS``, stripped (``""``: neither).
+
+    Used by `fluxcal.products.compare` and `fluxcal.products.quicklook` alike.
+    """
+    return str(var.attrs.get("units", var.attrs.get("UNITS", ""))).strip()

@@ -191,8 +191,8 @@ class _Writer(CDFWriter):
 def istp_logical_source(source_name: str, descriptor: str, data_type: str) -> str:
     """ISTP ``Logical_source``: the short forms (before ``>``) joined by ``_``, lower case.
 
-    >>> istp_logical_source("MESSENGER>MErcury ...", "MAG>Magnetometer", "MSO-SCI>Full")
-    'messenger_mag_mso-sci'
+    >>> istp_logical_source("SC1>Spacecraft One", "MAG>Magnetometer", "MSO-SCI>Full")
+    'sc1_mag_mso-sci'
     """
     return "_".join(str(x).split(">")[0].strip() for x in
                     (source_name, descriptor, data_type)).lower()
@@ -204,7 +204,7 @@ def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
     Parameters
     ----------
     logical_source : str
-        The product's ``Logical_source`` (e.g. ``messenger_mag_mso-sci``).
+        The product's ``Logical_source`` (e.g. ``sc1_mag_mso-sci``).
     date : datetime.date, numpy.datetime64 or str
         The product's UTC day (``"2011-04-10"``, ``"20110410"`` or a date).
     version : int or str
@@ -214,11 +214,11 @@ def istp_file_stem(logical_source: str, date: Any, version: int | str) -> str:
     Returns
     -------
     str
-        E.g. ``messenger_mag_mso-sci_20110410_v01``; the writer stores the same string as
+        E.g. ``sc1_mag_mso-sci_20110410_v01``; the writer stores the same string as
         ``Logical_file_id``, so a CDF named ``<stem>.cdf`` passes the ISTP file-name checks.
 
-    >>> istp_file_stem("rosetta_rpcmag_clc-ob", "2014-08-01", 1)
-    'rosetta_rpcmag_clc-ob_20140801_v01'
+    >>> istp_file_stem("sc1_mag_clc-ob", "2014-08-01", 1)
+    'sc1_mag_clc-ob_20140801_v01'
     """
     if isinstance(date, str) and re.fullmatch(r"\d{8}", date):
         day = date

@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.products.attrs import variable_units
 
 __all__ = ["Comparison", "ComponentStats", "compare", "difference_figure", "format_report",
            "load_product", "parse_tolerance", "product_frame"]
@@ -54,9 +55,9 @@ def parse_tolerance(text: str) -> int:
 def load_product(path: Path | str) -> xr.Dataset:
     """Read one product for comparison (see the module docstring).
 
-    A PDS3 table is read as an archived product when its columns are a MESSENGER
-    CDR/RDR or Rosetta calibrated layout, else (a fluxcal table with other columns) by
-    fluxcal's own table reader.
+    A PDS3 table is read as an archived product when a mission's archived-product reader
+    accepts its columns (`fluxcal.archive.products.identify`), else (a fluxcal table
+    with other columns) by fluxcal's own table reader.
     """
     from fluxcal.products.writer import read_product as read_fluxcal
 
@@ -77,11 +78,6 @@ def load_product(path: Path | str) -> xr.Dataset:
     return read_fluxcal(path)
 
 
-def _units(var: xr.DataArray) -> str:
-    """Return the ``units`` attr, or ISTP ``UNITS`` (also used by `fluxcal.products.quicklook`)."""
-    return str(var.attrs.get("units", var.attrs.get("UNITS", ""))).strip()
-
-
 def field_name(ds: xr.Dataset, path: Path | str) -> str:
     """Return the field variable: ``b``, else the first (time, 3) variable in nT.
 
@@ -95,13 +91,13 @@ def field_name(ds: xr.Dataset, path: Path | str) -> str:
                    and v.ndim == 2 and v.shape[1] == w] for w in (3, 4)}
     for width in (3, 4):
         for name in vectors[width]:
-            if _units(ds[name]) == "nT":
+            if variable_units(ds[name]) == "nT":
                 return name
     counts = [n for n in vectors[3] + vectors[4]
-              if _units(ds[n]).lower() in ("count", "counts", "dn", "adu")]
+              if variable_units(ds[n]).lower() in ("count", "counts", "dn", "adu")]
     if counts:
         raise InputFormatError(
-            f"variable '{counts[0]}' is in {_units(ds[counts[0]])}, not nT: compare "
+            f"variable '{counts[0]}' is in {variable_units(ds[counts[0]])}, not nT: compare "
             "calibrated products (e.g. L1B, not L1A)", path=str(path))
     raise InputFormatError("no field vector (variable 'b', or a (time, 3) or (time, 4) "
                            "variable in nT)", path=str(path))
@@ -262,7 +258,7 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
     if fa and fb and fa != fb and not force:
         raise FluxcalError(f"the products are in different frames: {path_a} is {fa}, "
                            f"{path_b} is {fb} (compare the same frame, or --force)")
-    ua, ub = _units(a[va]), _units(b[vb])
+    ua, ub = variable_units(a[va]), variable_units(b[vb])
     if ua and ub and ua != ub:
         raise FluxcalError(f"the field units differ: {path_a} has {ua}, {path_b} has {ub}")
     ea, eb = a["epoch"].values.astype(np.int64), b["epoch"].values.astype(np.int64)

@@ -4,9 +4,9 @@ Panels, top to bottom (a panel is drawn only when the Dataset has its variable):
 
 1. the three field components (the first vector variable in nT, preferring ``B*``);
 2. the field magnitude, on a log scale when it spans more than a factor of 20 (a
-   MESSENGER orbit: periapsis and the rest both readable);
-3. applied offsets (MESSENGER; a vector variable whose name starts with ``offset``);
-4. temperatures (Rosetta; variables named ``temperature*``/``T_*`` in degC or K);
+   Mercury orbit of seed 000: periapsis and the rest both readable);
+3. applied offsets (seed 000; a vector variable whose name starts with ``offset``);
+4. temperatures (seed 003; variables named ``temperature*``/``T_*`` in degC or K);
 5. quality flags (``quality*``/``flag*``), as categories: one tick per value seen
    (named by CF ``flag_values``/``flag_meanings`` when given) when there are few;
 6. spacecraft distance (``distance`` with its ``label`` attr, e.g. "Sun distance" in
@@ -35,7 +35,7 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from fluxcal.errors import InputFormatError  # noqa: E402
 from fluxcal.products.atomic import atomic_path  # noqa: E402
-from fluxcal.products.compare import _units  # noqa: E402
+from fluxcal.products.attrs import variable_units  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,7 @@ def _find(ds: xr.Dataset, prefixes: Sequence[str], vector: bool | None = None,
             continue
         if vector is not None and (var.ndim == 2) != vector:
             continue
-        if units is not None and _units(var) not in units:
+        if units is not None and variable_units(var) not in units:
             continue
         if var.dtype.kind not in "iufb":
             continue
@@ -174,19 +174,19 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
             for j in range(o.shape[1]):
                 ax.plot(*envelope(hours, o[:, j]), lw=0.8, color=COLORS[j % 3],
                         label=f"{comps[j] if j < len(comps) else j}")
-            ax.set_ylabel(f"{arg} ({_units(ds[arg])})")
+            ax.set_ylabel(f"{arg} ({variable_units(ds[arg])})")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         elif kind == "temperature":
             for name in arg:
                 ax.plot(*envelope(hours, ds[name].values.astype(float)), lw=0.8, label=name)
-            ax.set_ylabel(f"T ({_units(ds[arg[0]])})")
+            ax.set_ylabel(f"T ({variable_units(ds[arg[0]])})")
             ax.legend(loc="upper right", fontsize=8)
         elif kind == "quality":
             _quality_panel(ax, hours, ds[arg])
             ax.set_ylabel(f"{arg}")
         elif kind == "distance":
             ax.plot(*envelope(hours, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
-            ax.set_ylabel(f"{ds[arg].attrs.get('label', 'distance')} ({_units(ds[arg])})")
+            ax.set_ylabel(f"{ds[arg].attrs.get('label', 'distance')} ({variable_units(ds[arg])})")
         else:
             r = np.linalg.norm(ds[arg].values.astype(float), axis=1)
             ax.plot(*envelope(hours, r), lw=0.8, color="tab:brown")
@@ -256,7 +256,7 @@ def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
 
     A first or last day holding under 30 min of data and under 10 % of its
     neighbour's samples is drawn with that neighbour (and named by it): a daily
-    product whose first samples fall a few seconds before midnight (e.g. MESSENGER
+    product whose first samples fall a few seconds before midnight (e.g. seed 000's
     days defined by the recorded time, before the latency correction) gives one PNG,
     while a run over several days gives one PNG per day, however short it is.
     """
@@ -285,8 +285,8 @@ def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
 def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
     """Return ``ds`` with an int64 TT2000 ``epoch`` made from a table's time columns.
 
-    Archive tables (``.TAB``) carry time as text or fields, not TT2000: Rosetta's
-    ISO ``time_utc`` (microseconds) and MESSENGER's ``year``, ``doy``, ``hour``,
+    Archive tables (``.TAB``) carry time as text or fields, not TT2000: seed 003's
+    ISO ``time_utc`` (microseconds) and seed 000's ``year``, ``doy``, ``hour``,
     ``minute``, ``second``.  A dataset with ``epoch`` already is returned unchanged.
 
     Raises

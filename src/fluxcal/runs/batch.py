@@ -404,7 +404,7 @@ def make_local_cluster(n_workers: int = 2) -> Any:
     -----
     Dask starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which also freezes
     glibc's dynamic mmap threshold: every large numpy temporary is then a fresh mmap
-    and page-faults on first touch.  A MESSENGER day task ran ~15-25 % slower so; the
+    and page-faults on first touch.  A 20 Hz day task (seed 000) ran ~15-25 % slower so; the
     local cluster here starts its workers without it (the one-thread BLAS/OpenMP
     limits are kept).
     """

@@ -1,10 +1,10 @@
 import pytest
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 START = "2012-06-01T00:00:00"
 

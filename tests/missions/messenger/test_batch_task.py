@@ -5,11 +5,12 @@ import datetime as dt
 import numpy as np
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import copy_meta_kernel, write_messenger_like_kernels
+from fluxcal.geometry.synthetic import copy_meta_kernel
 from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.runs.batch import run_batch
 
 

@@ -11,6 +11,8 @@ reference's relaxed offset is itself compiled), so every comparison here is exac
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -46,8 +48,13 @@ def _compiled_only(monkeypatch, name):
     def fallback(*args, **kwargs):
         raise AssertionError(f"{name} ran: the compiled path fell back")
 
-    monkeypatch.setattr(levels, name, fallback)
+    monkeypatch.setattr(_home(name), name, fallback)
     return ref
+
+
+def _home(name):
+    """The module of the levels package that defines ``name`` (where its callers look it up)."""
+    return sys.modules[getattr(levels, name).__module__]
 
 
 def _assert_same_dataset(got: xr.Dataset, ref: xr.Dataset) -> None:
@@ -133,7 +140,8 @@ def test_correct_offsets_matches_reference(monkeypatch, dates, seed, counts_dtyp
     ds, temp, changes = _offset_case(dates, rng, 20000, counts_dtype=counts_dtype)
     clock = _IdentityClock()
     reference = _compiled_only(monkeypatch, "correct_offsets_reference")
-    monkeypatch.setattr(levels, "interpolate_temperature", None)  # interpolated in the pass
+    monkeypatch.setattr(_home("interpolate_temperature"), "interpolate_temperature",
+                        None)  # interpolated in the pass
     got = levels.correct_offsets(ds, temp, changes, CAL, clock)
     monkeypatch.undo()
     _assert_same_dataset(got, reference(ds, temp, changes, CAL, clock))

@@ -19,7 +19,6 @@ from hypothesis import strategies as st
 from fluxcal.cli import main
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.edr import load_mapping, read_edr
 from fluxcal.missions.messenger.edr_write import (
@@ -30,6 +29,7 @@ from fluxcal.missions.messenger.edr_write import (
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.routes import run_edr2cdr, run_edr_archive
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.products import read_product
 
 #: Table 1 of the seed (sec. 5): sample rate (1/s) per rate setting 0..10.

@@ -120,10 +120,10 @@ def test_heater_always_on_round_trip(tmp_path):
     # a bit that stays on (100 % duty, sec. 6-7: no rising edge inside the run) keeps the
     # steady state D0 * 1000 (8.4/15.3/0.7 nT if read as the heater stopping); the forward
     # model puts no cyclic waveform there (no on/off cycle)
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     cfg = SimulationConfig(start_utc="2012-06-01T00:00:00", duration_s=4000.0,
                            rate_segments=[(0.0, 6)], coarse_intervals=[],
@@ -150,10 +150,10 @@ def test_heater_always_on_round_trip(tmp_path):
     {"heater_gaps": [(3050.0, 3110.0)]},
 ])
 def test_heater_bits_with_jitter_or_gap_round_trip(tmp_path, bits):
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     cfg = SimulationConfig(start_utc="2012-06-01T00:00:00", duration_s=7200.0,
                            rate_segments=[(0.0, 6)], coarse_intervals=[],

@@ -5,11 +5,11 @@ import pytest
 
 from fluxcal.cli import main
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 # Table 2 at 22.4 C, straight from the seed (sec. 7 last paragraph; T > T_m: eq. 3b)
 CT_22_4 = np.array([2.8435, -18.176, 455.4]) + np.array([2.5445, 6.6181, 2.016]) * 22.4

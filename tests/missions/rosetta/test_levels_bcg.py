@@ -9,9 +9,9 @@ from scipy.spatial.transform import Rotation
 
 from fluxcal.errors import CalibrationError, FluxcalError
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_rosetta_like_kernels
 from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
 from fluxcal.missions.rosetta import averaged, calib, level_a, level_b, level_c, simulate
+from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
 START = "2014-08-01T00:00:00"
 DURATION = 600.0

@@ -175,10 +175,11 @@ def simulate_days(
         The days that received science data (sorted).
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels, write_meta_kernel
+    from fluxcal.geometry.synthetic import write_meta_kernel
     from fluxcal.geometry.time import SclkKernel, utc_to_et
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     if not 0.0 < seconds_per_day <= DAY_S:
         raise ValueError(f"seconds_per_day must be in (0, 86400], got {seconds_per_day}")
@@ -269,10 +270,11 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
     (long benchmark stretches).  Returns the UTC days that received science data.
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import copy_meta_kernel, write_messenger_like_kernels
+    from fluxcal.geometry.synthetic import copy_meta_kernel
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     input_dir = Path(input_dir)
     work = input_dir / "simulation"

@@ -8,15 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.simulate import (
     SimulationConfig,
     read_truth,
     simulate,
     write_inputs,
 )
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 log = logging.getLogger(__name__)
 
@@ -40,8 +41,8 @@ def simulate_to_dir(
         plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)],
     )
     cal = load_calibration(start_utc)
-    with KernelPool(mk):
-        sim = simulate(config, cal, SclkKernel.from_pool(-236))
+    with KernelPool(mk, frames=FRAME_KERNELS):
+        sim = simulate(config, cal, SclkKernel.from_pool(SPACECRAFT_ID))
     paths = write_inputs(sim, out / "inputs")
     return {"kernels": mk, **paths}
 

@@ -32,6 +32,7 @@ import pvl
 import xarray as xr
 
 from fluxcal.missions.messenger import forward
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.products.columns import Column
 from fluxcal.products.label import Symbol, read_label, render_label
 from fluxcal.products.tab import write_tab
@@ -412,9 +413,9 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
         ``temperature``, ``truth``.
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -426,8 +427,8 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
     (out / "edr").mkdir(exist_ok=True)
     mapping = filled_mapping(template_path(), out / "edr" / "edr_mapping.toml")
     c0, c1 = -150.0, 0.0625
-    with KernelPool(mk):
-        sclk = SclkKernel.from_pool(-236)
+    with KernelPool(mk, frames=FRAME_KERNELS):
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = simulate(config, None, sclk)
         t = sim["temperature"]["temperature_c"]
         sim["temperature"]["temperature_c"] = c0 + c1 * np.rint((t - c0) / c1)

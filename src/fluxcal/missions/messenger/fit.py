@@ -60,6 +60,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     reduce_day,
     relaxation_response,
 )
+from fluxcal.missions.messenger.identity import SPACECRAFT_ID
 
 __all__ = ["TEMPERATURE_LAWS", "FitResult", "fit_calibration", "fit_days", "reduce_day"]
 
@@ -498,7 +499,7 @@ def reduce_chunk(
     from fluxcal.runs.batch import worker_kernel_pool
 
     worker_kernel_pool(list(chunk.kernels))
-    sclk = SclkKernel.from_pool(-236)
+    sclk = SclkKernel.from_pool(SPACECRAFT_ID)
     inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
     return reduce_day(read_science(list(chunk.science)), read_heater(list(chunk.heater)),
                       read_temperature(list(chunk.temperature)), sclk, cal,

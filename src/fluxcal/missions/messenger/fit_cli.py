@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.missions.messenger.identity import FRAME_KERNELS
 
 _DAY_FILE = re.compile(r"^MAGSCI_(\d{4})(\d{3})\.csv$")
 
@@ -148,5 +149,5 @@ def _first_time(chunk) -> str:
     from fluxcal.missions.messenger.readers import read_science
 
     sci = read_science(list(chunk.science[:1]))
-    with KernelPool(list(chunk.kernels)):
+    with KernelPool(list(chunk.kernels), frames=FRAME_KERNELS):
         return str(day_of(sci))

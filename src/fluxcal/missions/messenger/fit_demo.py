@@ -26,6 +26,7 @@ import numpy as np
 
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 
 #: Heater duty cycle (percent) of consecutive 1000-s blocks in the training data: every
 #: waveform bin 12..40 %, steps of both signs, and heater-off runs (temperature law).
@@ -101,10 +102,10 @@ def simulate_training(out: Path, truth: Path, start: str, days: float, *, sigma_
     verification model, `fluxcal.missions.messenger.flight_sim`, has the realistic one).
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import forward
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     duration = days * 86400.0
     config = SimulationConfig(
@@ -113,8 +114,8 @@ def simulate_training(out: Path, truth: Path, start: str, days: float, *, sigma_
         waves=[], lead_s=6000.0)
     mk = write_messenger_like_kernels(out / "kernels", start, duration + config.lead_s + 600)
     cal = load_calibration(start, truth)
-    with KernelPool(mk):
-        sim = simulate(config, cal, SclkKernel.from_pool(-236))
+    with KernelPool(mk, frames=FRAME_KERNELS):
+        sim = simulate(config, cal, SclkKernel.from_pool(SPACECRAFT_ID))
     tables = forward.read_tables(cal.paths)
     tr = sim["truth"]
     field = solar_wind_field(tr.sizes["time"], 1.0, sigma_nt, correlation_s, seed)
@@ -135,13 +136,13 @@ def run_demo(out: Path, *, days: float = 1.0) -> str:
         Length of the training data (days at 1 vector/s).
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.fit import Chunk, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
     from fluxcal.missions.messenger.simulate import simulate as forward_simulate
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     out = Path(out)
     start = "2012-06-01T00:00:00"
@@ -164,8 +165,8 @@ def run_demo(out: Path, *, days: float = 1.0) -> str:
                                       plus_y_sunward=[(1800.0, 3240.0)])
     truth_cal = load_calibration(unseen, truth)
     lines = []
-    with KernelPool(mk):
-        sim = forward_simulate(config, truth_cal, SclkKernel.from_pool(-236))
+    with KernelPool(mk, frames=FRAME_KERNELS):
+        sim = forward_simulate(config, truth_cal, SclkKernel.from_pool(SPACECRAFT_ID))
         tr = sim["truth"]
         fine = tr["range"].values == 0
         for name, folder in (("shipped tables", None), ("fitted folder", fitted)):

@@ -51,6 +51,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from fluxcal.missions.messenger import forward
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 
 DAY_S = 86_400.0
 #: Heater period (s) and the controller's evaluation interval (s), sec. 6 and 7.
@@ -499,8 +500,9 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
        from the bit's rising edge), sec. 7 (eq. 2-5, relaxation), sec. 8 (eq. 8).
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_messenger_like_kernels, write_meta_kernel
+    from fluxcal.geometry.synthetic import write_meta_kernel
     from fluxcal.geometry.time import SclkKernel, utc_to_et
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     config = config or FlightConfig()
     out = Path(out_dir)
@@ -519,8 +521,8 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
     heater_c = tables.constants["heater"]
     min_on = float(heater_c["min_on_s"])
     days = [first + _dt.timedelta(days=k) for k in range(-1, config.days + 1)]
-    with KernelPool(mk):
-        sclk = SclkKernel.from_pool(-236)
+    with KernelPool(mk, frames=FRAME_KERNELS):
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         edges_et = utc_to_et(np.array([f"{d}T00:00:00" for d in days]))
         parts, edges_met = sclk.from_et(edges_et)
         if np.any(parts != parts[0]):

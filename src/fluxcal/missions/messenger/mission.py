@@ -29,7 +29,7 @@ MISSION = Mission(
     simulate_days=f"{_M}.batch_task:simulate_days",
     demo_days=(_dt.date(2012, 6, 1), _dt.date(2012, 6, 2)),
     demo_parts=(
-        DemoPart("Geometry core", "fluxcal.geometry.demo:run_geometry_demo", "geometry", 10),
+        DemoPart("Geometry core", f"{_M}.geometry_demo:run_geometry_demo", "geometry", 10),
         DemoPart("MESSENGER MAG EDR -> CDR", f"{_M}.demo:run_demo", "messenger", 20),
         DemoPart("MESSENGER in-flight calibration: simulate, fit, recalibrate, compare",
                  f"{_M}.fit_demo:run_demo", "messenger_fit", 60),

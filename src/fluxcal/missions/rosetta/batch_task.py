@@ -431,7 +431,7 @@ def simulate_days(
     import numpy as np
 
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import copy_meta_kernel, write_rosetta_like_kernels
+    from fluxcal.geometry.synthetic import copy_meta_kernel
     from fluxcal.geometry.time import leapseconds
     from fluxcal.missions.rosetta import calib, io
     from fluxcal.missions.rosetta.simulate import (
@@ -440,6 +440,7 @@ def simulate_days(
         synthetic_daily_models,
         write_truth_csv,
     )
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     input_dir = Path(input_dir)
     days = sorted(days)

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
     import numpy as np
@@ -389,7 +390,7 @@ def clean_files(
         )
     result = CleanResult()
     out = Path(out)
-    with KernelPool(kernels) as pool:
+    with KernelPool(kernels, frames=FRAME_KERNELS) as pool:
         lsk = leapseconds()
         data = [_read(p, lsk) for p in inputs]
         for path, ds in zip(inputs, data, strict=True):

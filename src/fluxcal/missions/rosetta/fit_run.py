@@ -31,6 +31,7 @@ from fluxcal.missions.rosetta.fit import (
     write_daily_model,
     write_offset_jump_table,
 )
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 
 
 def read_intervals_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -121,7 +122,7 @@ def fit_files(
     out = Path(out)
     if jumps and kernels is None:
         raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame)")
-    with KernelPool(kernels) as pool:
+    with KernelPool(kernels, frames=FRAME_KERNELS) as pool:
         lsk = leapseconds()
         sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
         cal = calib.load_ground_calibration(sensor, calib_dir)

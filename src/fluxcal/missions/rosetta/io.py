@@ -23,6 +23,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
 HK_COLUMNS = (
@@ -59,7 +60,7 @@ _RANGES = {
     "stage_b_id": (0, 2**16 - 1),
     "filter_cfg": (0, 2**16 - 1),
 }
-SCLK_ID = -226
+SCLK_ID = SPACECRAFT_ID
 
 
 def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:

@@ -40,6 +40,7 @@ from fluxcal.missions.rosetta.calib import (
     TimeShiftTable,
     check_sensor,
 )
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS, SPACECRAFT_ID
 
 log = logging.getLogger(__name__)
 NS = 1_000_000_000
@@ -187,7 +188,7 @@ def simulate(
     if with_kernels:
         from fluxcal.geometry.time import SclkKernel
 
-        sclk = SclkKernel.from_pool(-226)
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         stamps_et = tt2000_to_et(stamps, lsk)
         obt = np.ceil(sclk.from_et(stamps_et)[1] * 1e6) / 1e6  # 6 digits, never before start
         stamps = et_to_tt2000(sclk.to_et(np.ones(n, dtype=np.int64), obt), lsk)
@@ -403,9 +404,9 @@ def write_simulation(
     meta-kernel to ``out/kernels.tm`` (the input folder of ``fluxcal batch rosetta``).
     """
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_rosetta_like_kernels
     from fluxcal.geometry.time import leapseconds
     from fluxcal.missions.rosetta import calib, io
+    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
     out = Path(out)
     archive = "archive" in layouts
@@ -432,7 +433,7 @@ def write_simulation(
             calib.write_daily_offset_model(model, calib_dir)
     stamp = start_utc[:10].replace("-", "")
     paths = {"kernels": meta, "calib": calib_dir}
-    with KernelPool(meta):
+    with KernelPool(meta, frames=FRAME_KERNELS):
         lsk = leapseconds()
         cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
         sim = simulate(

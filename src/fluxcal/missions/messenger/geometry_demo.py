@@ -10,8 +10,9 @@ import numpy as np
 from fluxcal.geometry.frames import Rotator
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.positions import position, rtn_spherical
-from fluxcal.geometry.synthetic import write_messenger_like_kernels
 from fluxcal.geometry.time import SclkKernel, et_to_tt2000, tt2000_to_utc
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, NAIF_NAME, SPACECRAFT_ID
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 MERCURY_RADIUS_KM = 2440.0
 
@@ -35,8 +36,8 @@ def run_geometry_demo(out: Path, rate_hz: float = 1.0) -> str:
     meta = write_messenger_like_kernels(out / "kernels", "2012-06-01T00:00:00", 86400.0,
                                         plus_y_sunward=[(30000.0, 34000.0)])
     lines = [f"Synthetic MESSENGER-like kernels: {meta}"]
-    with KernelPool([meta]):
-        clock = SclkKernel.from_pool(-236)
+    with KernelPool([meta], frames=FRAME_KERNELS):
+        clock = SclkKernel.from_pool(SPACECRAFT_ID)
         part0, met0 = clock.from_et(np.array([_str2et("2012-06-01T00:00:00")]))
         met = met0[0] + np.arange(0.0, 86400.0, 1.0 / rate_hz)
         t0 = time.perf_counter()
@@ -49,8 +50,8 @@ def run_geometry_demo(out: Path, rate_hz: float = 1.0) -> str:
         mats = {f: rot.matrices(f) for f in ("J2000", "MSGR_MSO", "IAU_MERCURY", "MSGR_RTN")}
         t_rot = time.perf_counter() - t0
         t0 = time.perf_counter()
-        pos_mso = position("MESSENGER", "MERCURY", "MSGR_MSO", et)
-        r_sun, lat, az = rtn_spherical("MESSENGER", et)
+        pos_mso = position(NAIF_NAME, "MERCURY", "MSGR_MSO", et)
+        r_sun, lat, az = rtn_spherical(NAIF_NAME, et)
         t_pos = time.perf_counter() - t0
     alt = np.linalg.norm(pos_mso, axis=1) - MERCURY_RADIUS_KM
     lines += [
