@@ -35,10 +35,9 @@ __all__ = ["ArchivedReader", "DEFAULT_READERS", "FRAME_CODES", "default_readers"
 #: Frame codes of the frames that belong to no mission.
 FRAME_CODES = {"J2000": "J2000", "ECLIPJ2000": "ECLIPJ2000"}
 
-#: ``module:attribute`` of the readers `read_product` uses when given none: a mapping
-#: name -> `ArchivedReader`, kept outside the generic packages (replaced by the mission
-#: registry, issue 20).
-DEFAULT_READERS = "fluxcal.missions:ARCHIVED_READERS"
+#: ``module:function`` returning the readers `read_product` uses when given none (name ->
+#: `ArchivedReader` of every registered mission, `fluxcal.runs.registry.archived_readers`).
+DEFAULT_READERS = "fluxcal.runs.registry:archived_readers"
 
 #: What a reader's ``read`` returns: data variables, coordinates and dataset attrs.
 Parts = tuple[dict[str, Any], dict[str, Any], dict[str, Any]]
@@ -72,7 +71,7 @@ class ArchivedReader:
 def default_readers() -> Mapping[str, ArchivedReader]:
     """Return the readers named by `DEFAULT_READERS` (imported on first use)."""
     module, _, attr = DEFAULT_READERS.partition(":")
-    return getattr(importlib.import_module(module), attr)
+    return getattr(importlib.import_module(module), attr)()
 
 
 def frame_codes(readers: Mapping[str, ArchivedReader] | None = None) -> dict[str, str]:

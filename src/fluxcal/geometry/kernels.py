@@ -28,14 +28,14 @@ log = logging.getLogger(__name__)
 #: ``module:attribute`` of the frame definitions a pool loads when given none
 #: (``frames=None``): a mapping frame name -> frames kernel that the missions ship, kept
 #: outside the generic packages (replaced by the mission registry, issue 20).
-DEFAULT_FRAMES = "fluxcal.missions:FRAME_KERNELS"
+DEFAULT_FRAMES = "fluxcal.runs.registry:frame_kernels"
 
 
 def default_frames() -> dict[str, Path]:
     """Return the frame definitions named by `DEFAULT_FRAMES` (imported on first use)."""
     module, _, attr = DEFAULT_FRAMES.partition(":")
     return {name: Path(path) for name, path in
-            getattr(importlib.import_module(module), attr).items()}
+            getattr(importlib.import_module(module), attr)().items()}
 
 
 def leapseconds_kernel() -> Path:

@@ -110,8 +110,12 @@ class Mission:
     demo_parts : tuple of DemoPart
         The mission's parts of ``fluxcal demo``.
     archived_products : str, optional
-        Reference to ``read(path) -> xarray.Dataset | None``: reads the mission's archived
-        products (``None`` when the file is not one of them).
+        Reference to the mission's `fluxcal.archive.products.ArchivedReader` (how its
+        archived calibrated tables are recognised and read).
+    frame_kernels : str, optional
+        Reference to a mapping frame name -> frames kernel: the frames fluxcal defines for
+        the mission, loaded by `fluxcal.geometry.kernels.KernelPool` for names the user's
+        kernels do not define.
     before_batch : str, optional
         Reference to ``check(task) -> None`` called once before the days run (warnings
         about the calibration the task will use).
@@ -129,6 +133,7 @@ class Mission:
     demo_days: tuple[_dt.date, ...] = ()
     demo_parts: tuple[DemoPart, ...] = field(default_factory=tuple)
     archived_products: str | None = None
+    frame_kernels: str | None = None
     before_batch: str | None = None
 
     def load(self, piece: str) -> Any:

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import os
 from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Any
 
 from fluxcal.errors import FluxcalError
 from fluxcal.runs.contract import Mission, load_reference
@@ -68,3 +70,24 @@ def get(name: str) -> Mission:
         raise FluxcalError(f"no mission {name!r} is registered (entry-point group {GROUP}; "
                            f"known: {', '.join(sorted(known)) or 'none'})")
     return known[name]
+
+
+def frame_kernels() -> dict[str, Path]:
+    """Return frame name -> frames kernel of every registered mission (their union).
+
+    The default of `fluxcal.geometry.kernels.KernelPool` (`DEFAULT_FRAMES` there).
+    """
+    out: dict[str, Path] = {}
+    for mission in missions().values():
+        if mission.frame_kernels is not None:
+            out.update({name: Path(p) for name, p in mission.load("frame_kernels").items()})
+    return out
+
+
+def archived_readers() -> dict[str, Any]:
+    """Return mission name -> archived-product reader of every mission that has one.
+
+    The default of `fluxcal.archive.products.read_product`.
+    """
+    return {name: m.load("archived_products") for name, m in missions().items()
+            if m.archived_products is not None}

@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import datetime as _dt
 
+from fluxcal.missions.messenger.identity import SPACECRAFT_ID
 from fluxcal.missions.messenger.options import FORMATS
 from fluxcal.runs.contract import DemoPart, Mission
-
-#: NAIF id of MESSENGER (its SCLK kernel's id).
-SPACECRAFT_ID = -236
 
 _M = "fluxcal.missions.messenger"
 
@@ -34,5 +32,6 @@ MISSION = Mission(
         DemoPart("MESSENGER in-flight calibration: simulate, fit, recalibrate, compare",
                  f"{_M}.fit_demo:run_demo", "messenger_fit", 60),
     ),
-    archived_products=None,
+    archived_products=f"{_M}.archive_products:READER",
+    frame_kernels=f"{_M}.identity:FRAME_KERNELS",
 )

@@ -11,10 +11,8 @@ import datetime as _dt
 
 import typer
 
+from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
 from fluxcal.runs.contract import DemoPart, Mission
-
-#: NAIF id of Rosetta (its SCLK kernel's id).
-SPACECRAFT_ID = -226
 
 _M = "fluxcal.missions.rosetta"
 
@@ -53,4 +51,6 @@ MISSION = Mission(
                  "-> compare", f"{_M}.archive_demo:run_demo", "rosetta_archive", 70),
     ),
     before_batch=f"{_M}.mission:before_batch",
+    archived_products=f"{_M}.archive_products:READER",
+    frame_kernels=f"{_M}.identity:FRAME_KERNELS",
 )
