@@ -18,29 +18,75 @@ from pathlib import Path
 
 import typer
 
+from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import FluxcalError
 from fluxcal.process import defer_dask_array_import, malloc_defaults, numpy_allocation_defaults
 
+# rich_markup_mode=None: click's plain help, which wraps long option names and paths
+# instead of cutting them with an ellipsis and shows no metavar for flags (issue 25)
 app = typer.Typer(
     name="fluxcal",
     help="Calibrate fluxgate-magnetometer telemetry into science-ready magnetic-field products.",
     no_args_is_help=True,
     add_completion=False,
+    rich_markup_mode=None,
+    cls=HelpGroup,
 )
 simulate_app = typer.Typer(
-    help="Forward models: write raw telemetry and kernels from a known field."
+    help="Forward models: write raw telemetry and kernels from a known field.",
+    rich_markup_mode=None,
+    cls=HelpGroup,
 )
 app.add_typer(simulate_app, name="simulate")
 
 
-@app.callback()
+#: Set by ``fluxcal -q``: commands show no progress display (`progress_wanted`).
+_quiet = False
+
+#: Help is wrapped to the terminal, up to this many columns (click's default: 80).
+HELP_WIDTH = 120
+
+
+def quiet_requested() -> bool:
+    """Return whether the running command was started as ``fluxcal -q/--quiet``."""
+    return _quiet
+
+
+def progress_wanted() -> bool:
+    """Return whether a command may show a progress display (a bar, a spinner) on stderr.
+
+    False under ``fluxcal -q/--quiet`` and when stderr is not a terminal (logs, pipes).
+    """
+    return not _quiet and sys.stderr.isatty()
+
+
+def _print_version(value: bool) -> None:
+    """Print the version and stop (``fluxcal --version``, eager: before any command)."""
+    if value:
+        from fluxcal import __version__
+
+        typer.echo(__version__)
+        raise typer.Exit()
+
+
+@app.callback(context_settings={"max_content_width": HELP_WIDTH})
 def _root(
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Log progress to stderr."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Only errors: no warnings, no "
+                               "progress display."),
     debug: bool = typer.Option(False, "--debug", help="Show the full traceback of an error "
                                "(also: FLUXCAL_DEBUG=1)."),
+    show_version: bool = typer.Option(False, "--version", is_eager=True,
+                                      callback=_print_version,
+                                      help="Print the fluxcal version and exit."),
 ) -> None:
+    if verbose and quiet:
+        raise typer.BadParameter("-v/--verbose and -q/--quiet exclude each other",
+                                 param_hint="'--quiet'")
+    global _quiet
+    _quiet = quiet
     logging.basicConfig(
-        level=logging.INFO if verbose else logging.WARNING,
+        level=logging.ERROR if quiet else logging.INFO if verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
 

@@ -91,11 +91,15 @@ def batch(
 
         warn_placeholder_alignment(task.calib_dir())
     days = day_range(d0, d1)
+    from fluxcal.cli import quiet_requested
+
+    quiet = quiet or quiet_requested()  # fluxcal -q batch ...
     console = Console(stderr=True)
     if not logging.getLogger().isEnabledFor(logging.INFO):  # no --verbose
         import distributed  # noqa: F401 - its import sets the 'distributed' logger to INFO
 
-        logging.getLogger("distributed").setLevel(logging.WARNING)
+        logging.getLogger("distributed").setLevel(
+            logging.ERROR if quiet_requested() else logging.WARNING)
     report = _run_with_progress(days, task, out, scheduler, workers, force, mission, console,
                                 quiet)
     _summary(report, console, full=not quiet)

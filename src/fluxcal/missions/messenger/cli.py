@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
-app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True)
+from fluxcal.cli_help import HelpGroup
+
+app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
+                  rich_markup_mode=None, cls=HelpGroup)
 
 
 def _split(text: str) -> list[str]:
@@ -199,8 +201,13 @@ def compilation_notice() -> Iterator[None]:
 
     Listens to numba's ``numba:compile`` event, which fires only for a real compilation
     (a kernel loaded from numba's on-disk cache does not raise it), so later runs are
-    quiet.
+    quiet; ``fluxcal -q`` says nothing.
     """
+    from fluxcal.cli import quiet_requested
+
+    if quiet_requested():
+        yield
+        return
     from numba.core import event
 
     class Notice(event.Listener):
@@ -222,7 +229,9 @@ def compilation_notice() -> Iterator[None]:
 @contextmanager
 def status_display(text: str) -> Iterator[None]:
     """Show a rich spinner with ``text`` on a terminal (stderr) while a long step runs."""
-    if not sys.stderr.isatty():
+    from fluxcal.cli import progress_wanted
+
+    if not progress_wanted():
         yield
         return
     from rich.console import Console
@@ -237,9 +246,11 @@ def progress_display() -> Iterator[object | None]:
 
     Yields the ``progress(description, done, total)`` callback of
     `fluxcal.missions.messenger.run.run_edr2cdr`, or ``None`` when stderr is not a
-    terminal (logs and pipes stay quiet).
+    terminal (logs and pipes stay quiet) or under ``fluxcal -q``.
     """
-    if not sys.stderr.isatty():
+    from fluxcal.cli import progress_wanted
+
+    if not progress_wanted():
         yield None
         return
     from rich.console import Console
