@@ -72,3 +72,21 @@ def test_rosetta_daily_model(tmp_path):
     path.write_text("SENSOR = OB\n" + "".join(f"P_{k} = 0.0 0.0 0.0\n" for k in range(6)))
     text = _short(calib.read_daily_offset_model(path))
     assert text == f"DailyOffsetModel(2014-08-01, OB, degree 5, {path.name})"
+
+
+def test_batch_report_and_day_status():
+    from fluxcal.products.batch import BatchReport, DayStatus
+
+    days = [DayStatus("2012-06-01", "done", ["a.cdf", "b.cdf"], 1000, 2.5),
+            DayStatus("2012-06-02", "failed", error="x.csv, line 3, field bx: not a number",
+                      traceback="Traceback ...\n" * 200),
+            DayStatus("2012-06-03", "skipped")]
+    report = BatchReport("messenger", days, 12.34, "local", 2, "/very/long/out/report.json")
+    text = _short(report)
+    assert text.startswith("BatchReport(messenger: 3 days: 1 done, 1 skipped, 0 no_data, "
+                           "1 failed (2012-06-02)")
+    assert "1000 vectors in 12.3 s on local, 2 workers; report out/report.json" in text
+    failed = _short(days[1])
+    assert "2012-06-02 failed" in failed and "field bx: not a number" in failed
+    assert "Traceback" not in failed
+    assert _short(days[0]) == "DayStatus(2012-06-01 done, 1000 vectors, 2 products, 2.5 s)"
