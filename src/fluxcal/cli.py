@@ -21,6 +21,7 @@ from pathlib import Path
 import typer
 
 from fluxcal import product_commands
+from fluxcal.cli_help import HELP_WIDTH, HelpGroup
 from fluxcal.errors import FluxcalError
 from fluxcal.process import malloc_defaults, numpy_allocation_defaults
 from fluxcal.runs import registry
@@ -28,13 +29,30 @@ from fluxcal.runs.cli import batch_app
 from fluxcal.runs.contract import Mission
 
 
+def _print_version(value: bool) -> None:
+    """Print the version and stop (``fluxcal --version``, eager: before any command)."""
+    if value:
+        from fluxcal import __version__
+
+        typer.echo(__version__)
+        raise typer.Exit()
+
+
 def _root(
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Log progress to stderr."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Only errors: no warnings, no "
+                               "progress display."),
     debug: bool = typer.Option(False, "--debug", help="Show the full traceback of an error "
                                "(also: FLUXCAL_DEBUG=1)."),
+    show_version: bool = typer.Option(False, "--version", is_eager=True,
+                                      callback=_print_version,
+                                      help="Print the fluxcal version and exit."),
 ) -> None:
+    if verbose and quiet:
+        raise typer.BadParameter("-v/--verbose and -q/--quiet exclude each other",
+                                 param_hint="'--quiet'")
     logging.basicConfig(
-        level=logging.INFO if verbose else logging.WARNING,
+        level=logging.ERROR if quiet else logging.INFO if verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
 
@@ -64,18 +82,23 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
     ``version`` work on every mission's products.
     """
     missions = registry.missions() if missions is None else missions
+    # rich_markup_mode=None: click's plain help, which wraps long option names and paths
+    # instead of cutting them with an ellipsis and shows no metavar for flags (issue 25)
     root = typer.Typer(
         name="fluxcal",
         help="Calibrate fluxgate-magnetometer telemetry into science-ready magnetic-field "
              "products.",
         no_args_is_help=True,
         add_completion=False,
+        rich_markup_mode=None,
+        cls=HelpGroup,
     )
-    root.callback()(_root)
+    root.callback(context_settings={"max_content_width": HELP_WIDTH})(_root)
     root.command()(version)
     root.command()(demo)
     simulate_app = typer.Typer(
-        help="Forward models: write raw telemetry and kernels from a known field.")
+        help="Forward models: write raw telemetry and kernels from a known field.",
+        rich_markup_mode=None, cls=HelpGroup)
     for name, mission in sorted(missions.items()):
         if mission.commands is not None:
             commands = mission.load("commands")

@@ -504,17 +504,6 @@ def test_relaxation_noise_free_property(tau, dt, amp, sign, y0):
     np.testing.assert_allclose(f.dt, dt, atol=1e-2)
 
 
-def test_docstring_examples_run():
-    """The Examples sections of both modules are doctests and pass."""
-    import doctest
-
-    from fluxcal.calibration import binned_stats, constrained_fits
-
-    for mod in (binned_stats, constrained_fits):
-        res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)
-        assert res.failed == 0 and res.attempted > 0, (mod.__name__, res)
-
-
 # --------------------------------------------------------------------------------------
 # two-segment line fitted as bin averages over the samples' distribution in each bin
 # --------------------------------------------------------------------------------------

@@ -220,6 +220,16 @@ class KernelPool:
         self.loaded: list[Path] = []
         self._before: list[tuple[str, str]] = []
 
+    def __repr__(self) -> str:
+        """One line: state, the loaded kernels by name (first few) and their count."""
+        names = [p.name for p in (self.loaded or self.user_kernels)]
+        shown = ", ".join(names[:4]) + (f", ... (+{len(names) - 4})" if len(names) > 4 else "")
+        state = f"{len(self.loaded)} kernels loaded" if self.loaded else (
+            f"not entered, {len(self.user_kernels)} user kernels")
+        flags = "".join([" +generic" if self.generic else "",
+                         " +fluxcal_frames" if self.fluxcal_frames else ""])
+        return f"KernelPool({state}: [{shown}]{flags})"
+
     # -- context manager -------------------------------------------------------------
     def __enter__(self) -> KernelPool:
         self._before = loaded_kernels()

@@ -460,7 +460,7 @@ def utc_fields_to_tt2000(
     The inverse of `tt2000_to_utc_fields` for tables that print the time as fields
     (the seed 000 CDR/RDR ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND``).  ``second`` is rounded
     to the nearest nanosecond, which removes the float's representation error of any
-    value printed with up to 6 decimals (|error| < 1e-14 s for seconds below 61).  A
+    value printed with up to 6 decimals (``|error|`` < 1e-14 s for seconds below 61).  A
     second of 60 or more is a leap second: it is counted from ``23:59:59`` of the old
     TAI - UTC plus one second, so ``23:59:60.5`` is 1.5 s after ``23:59:59.0``.
 

@@ -5,7 +5,7 @@
 `fluxcal.products.read_product`), or a fluxcal CDF / netCDF / Zarr product.
 `compare` matches every sample of A to the nearest sample of B in time (TT2000
 ``epoch``), keeps the pairs closer than the tolerance, one B sample per A sample at
-most, and returns the statistics of ``A - B`` per field component: mean, rms, max |diff|
+most, and returns the statistics of ``A - B`` per field component: mean, rms, max ``|diff|``
 and N, overall and per quality flag (of A, else of B), with the matched / unmatched
 counts and the time differences.  `format_report` prints them; `difference_figure`
 draws the differences against time.
@@ -236,7 +236,7 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
     a, b : xarray.Dataset
         Products with an int64 TT2000 ``epoch`` along ``time`` and a field vector.
     tolerance_ns : int
-        Largest |epoch A - epoch B| of a pair, ns.
+        Largest ``|epoch A - epoch B|`` of a pair, ns.
     path_a, path_b : str
         Names for messages and the report.
     force : bool

@@ -198,7 +198,7 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
     return fig
 
 
-#: |B| spanning more than this ratio (1st to 99th percentile) is drawn on a log scale.
+#: ``|B|`` spanning more than this ratio (1st to 99th percentile) is drawn on a log scale.
 LOG_RATIO = 20.0
 #: A quality variable with at most this many distinct values is drawn as categories.
 MAX_CATEGORIES = 16

@@ -121,6 +121,12 @@ class DayStatus:
     traceback: str | None = None
     worker: str | None = None
 
+    def __repr__(self) -> str:
+        """One line: day, status, vectors, seconds, and the error's first 120 characters."""
+        error = f": {' '.join(self.error.split())[:120]}" if self.error else ""
+        return (f"DayStatus({self.day} {self.status}, {self.n_vectors} vectors, "
+                f"{len(self.products)} products, {self.seconds:.1f} s{error})")
+
 
 @dataclass
 class BatchReport:
@@ -132,6 +138,18 @@ class BatchReport:
     scheduler: str
     n_workers: int
     report_path: str | None = None
+
+    def __repr__(self) -> str:
+        """Two lines: the counts (failed days named), then vectors, time, cluster, report."""
+        counts = ", ".join(f"{self.count(s)} {s}" for s in ("done", "skipped", "no_data",
+                                                            "failed"))
+        failed = [d.day for d in self.failed]
+        named = f" ({', '.join(failed[:3])}{', ...' if len(failed) > 3 else ''})" if failed else ""
+        report = (f"; report {Path(self.report_path).parent.name}/"
+                  f"{Path(self.report_path).name}" if self.report_path else "")
+        return (f"BatchReport({self.name}: {len(self.days)} days: {counts}{named}\n"
+                f"  {self.n_vectors} vectors in {self.wall_seconds:.1f} s on {self.scheduler}, "
+                f"{self.n_workers} workers{report})")
 
     def count(self, status: str) -> int:
         """Return the number of days with ``status``."""

@@ -18,6 +18,7 @@ import click
 import typer
 
 from fluxcal import preflight
+from fluxcal.cli_help import HelpGroup, quiet_requested
 from fluxcal.errors import InputFormatError
 from fluxcal.runs import options as run_options
 from fluxcal.runs.contract import Mission
@@ -65,11 +66,13 @@ def batch(
     if mission.before_batch is not None:
         mission.load("before_batch")(task)
     days = day_range(d0, d1)
+    quiet = quiet or quiet_requested()  # fluxcal -q batch ...
     console = Console(stderr=True)
     if not logging.getLogger().isEnabledFor(logging.INFO):  # no --verbose
         import distributed  # noqa: F401 - its import sets the 'distributed' logger to INFO
 
-        logging.getLogger("distributed").setLevel(logging.WARNING)
+        logging.getLogger("distributed").setLevel(
+            logging.ERROR if quiet_requested() else logging.WARNING)
     report = _run_with_progress(days, task, out, scheduler, workers, force, mission.name,
                                 console, quiet)
     _summary(report, console, full=not quiet)
@@ -132,7 +135,8 @@ def batch_command(mission: Mission) -> Any:
 
 def batch_app(missions: dict[str, Mission]) -> typer.Typer:
     """Return the ``fluxcal batch`` group: one command per mission with a day task."""
-    app = typer.Typer(help="Process many days on Dask, one task per day; resumable.")
+    app = typer.Typer(help="Process many days on Dask, one task per day; resumable.",
+                      rich_markup_mode=None, cls=HelpGroup)
     names = sorted(name for name, m in missions.items() if m.day_task is not None)
     for name in names:
         app.command(name)(batch_command(missions[name]))

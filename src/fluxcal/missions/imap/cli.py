@@ -11,7 +11,10 @@ from pathlib import Path
 
 import typer
 
-app = typer.Typer(help="IMAP MAG pipeline commands.", no_args_is_help=True)
+from fluxcal.cli_help import HelpGroup
+
+app = typer.Typer(help="IMAP MAG pipeline commands.", no_args_is_help=True,
+                  rich_markup_mode=None, cls=HelpGroup)
 
 
 @app.callback()

@@ -201,6 +201,24 @@ class MessengerCalibration:
     files: list[tuple[str, int]]
     paths: tuple[Path, ...] = ()
 
+    def __repr__(self) -> str:
+        """Two lines: the tables by version and folder, then validity and key constants."""
+        by_version: dict[int, list[str]] = {}
+        for name, version in self.files:
+            stem = Path(name).stem.removesuffix(f"_v{version}")
+            by_version.setdefault(version, []).append(stem)
+        files = "; ".join(f"v{v}: {', '.join(n)}" for v, n in sorted(by_version.items()))
+        folders = sorted({p.parent for p in self.paths})
+        # a folder by its name only: the full paths are in ``paths``
+        where = ("packaged" if folders == [data_dir()] else
+                 ", ".join(f"{f.name}/" for f in folders) or "no files")
+        relax = self.constants.get("relaxation", {})
+        valid = [str(self.constants.get(k, "?"))[:10] for k in ("valid_from", "valid_to")]
+        return (f"MessengerCalibration({files} [{where}]\n"
+                f"  processing valid {valid[0]} .. {valid[1]}; tau {relax.get('tau_s')} s, "
+                f"heater delay {relax.get('delay_s')} s; Table 4 offsets "
+                f"{self.constants.get('offsets', {}).get('prelaunch_offsets')})")
+
     @property
     def prelaunch_offsets_reading(self) -> str:
         """How Table 4's pre-launch offsets enter the offset model (``[offsets]`` table).

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
+from fluxcal.cli_help import HelpGroup, progress_wanted, quiet_requested
 from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.runs.options import with_options
 
-app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True)
+app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
+                  rich_markup_mode=None, cls=HelpGroup)
 
 
 @app.command("edr2cdr")
@@ -168,8 +169,11 @@ def compilation_notice() -> Iterator[None]:
 
     Listens to numba's ``numba:compile`` event, which fires only for a real compilation
     (a kernel loaded from numba's on-disk cache does not raise it), so later runs are
-    quiet.
+    quiet; ``fluxcal -q`` says nothing.
     """
+    if quiet_requested():
+        yield
+        return
     from numba.core import event
 
     class Notice(event.Listener):
@@ -191,7 +195,7 @@ def compilation_notice() -> Iterator[None]:
 @contextmanager
 def status_display(text: str) -> Iterator[None]:
     """Show a rich spinner with ``text`` on a terminal (stderr) while a long step runs."""
-    if not sys.stderr.isatty():
+    if not progress_wanted():
         yield
         return
     from rich.console import Console
@@ -206,9 +210,9 @@ def progress_display() -> Iterator[object | None]:
 
     Yields the ``progress(description, done, total)`` callback of
     `fluxcal.missions.messenger.run.run_edr2cdr`, or ``None`` when stderr is not a
-    terminal (logs and pipes stay quiet).
+    terminal (logs and pipes stay quiet) or under ``fluxcal -q``.
     """
-    if not sys.stderr.isatty():
+    if not progress_wanted():
         yield None
         return
     from rich.console import Console

@@ -35,7 +35,7 @@ References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-8, Tables 1-4, 6-8.
 .. [2] Belcher, J. W., and L. Davis (1971), Large-amplitude Alfven waves in the
-   interplanetary medium, 2, J. Geophys. Res., 76, 3534 (constant-|B| rotations).
+   interplanetary medium, 2, J. Geophys. Res., 76, 3534 (constant-``|B|`` rotations).
 """
 
 from __future__ import annotations

@@ -250,7 +250,7 @@ def product_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
 
     ``ds`` is the ordered day of `order_day`.  Variables: ``met`` (TIME_TAG, lag-corrected
     MET s), ``b`` (time, b_component) nT with frame-specific component labels, ``b_total``
-    (|B|, nT), ``quality`` (SHC flag), and the position: ``position`` (time,
+    (``|B|``, nT), ``quality`` (SHC flag), and the position: ``position`` (time,
     position_component) km for MSO, MBF (Mercury-centred), J2000 (Sun-centred) and VSO
     (Venus-centred); ``r`` (km), ``latitude`` and ``azimuth`` (deg) for RTN; none for SC.
 
@@ -308,7 +308,7 @@ def average(
     Returns the bin centre ``epoch`` (exact integer ns), ``count`` (NAVG), the mean of the
     position variables (the azimuth unwrapped across +-180 deg first), the mean ``b``,
     ``b_std`` (population standard deviation per component, two-pass:
-    `fluxcal.calibration.averaging.bin_mean_std`), ``b_total`` (|mean B|), ``quality``
+    `fluxcal.calibration.averaging.bin_mean_std`), ``b_total`` (``|mean B|``), ``quality``
     (the largest flag in the bin) and, when the product has ``met``, the lag-corrected
     MET of the bin centre (``met`` when given, e.g. shared by several frames; else through
     the SCLK kernel ``sclk``, default the loaded one).

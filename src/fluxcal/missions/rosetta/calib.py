@@ -174,6 +174,16 @@ def _validity(entries: dict, path: Path) -> tuple[np.datetime64 | None, np.datet
     return out[0], out[1]
 
 
+def _file_name(source: str) -> str:
+    """Return the file name of a ``source`` path (reprs name files, not folders)."""
+    return Path(source).name if source else "?"
+
+
+def _span(start: object, end: object) -> str:
+    """Return ``start .. end`` with open ends as ``-``."""
+    return f"{start if start is not None else '-'} .. {end if end is not None else '-'}"
+
+
 @dataclass(frozen=True)
 class Validity:
     """Validity interval ``[start, end]`` (UTC, ``None`` = open) of a calibration file."""
@@ -247,6 +257,13 @@ class GroundCalibration:
     validity: Validity = field(default_factory=lambda: Validity(""))
     residual_in_offset: bool = True
     reduced_temperature: str = "CALIBRATED"
+
+    def __repr__(self) -> str:
+        """One line: sensor, file, version, validity, the two readings (decisions 25, 26)."""
+        return (f"GroundCalibration({self.sensor}, {_file_name(self.source)} "
+                f"v{self.version or '?'}, valid {_span(self.validity.start, self.validity.end)}, "
+                f"B_RES_IN_OFFSET={int(self.residual_in_offset)}, "
+                f"REDUCED_TEMPERATURE={self.reduced_temperature})")
 
     def extended_model_temperature(self, calibrated: np.ndarray) -> np.ndarray:
         """Return the reduced temperature ``T~`` of sec. 4.2.3.3 from the calibrated ``T^c``."""
@@ -366,6 +383,11 @@ class DailyOffsetModel:
     coefficients: np.ndarray
     source: str = ""
 
+    def __repr__(self) -> str:
+        """One line: day, sensor, polynomial degree, file."""
+        return (f"DailyOffsetModel({self.day}, {self.sensor}, degree "
+                f"{len(self.coefficients) - 1}, {_file_name(self.source)})")
+
 
 def read_daily_offset_model(path: Path) -> DailyOffsetModel:
     """Parse ``RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT`` (keys ``P_0`` .. ``P_5``).
@@ -452,6 +474,12 @@ class Alignment:
     source: str = ""
     version: str = ""
     placeholder: bool = False
+
+    def __repr__(self) -> str:
+        """One line: file, version, the sensor/boom matrices held, placeholder or not."""
+        keys = ", ".join(f"{s}/{b}" for s, b in sorted(self.matrices))
+        return (f"Alignment({_file_name(self.source)} v{self.version or '?'}: {keys}"
+                f"{'; PLACEHOLDER' if self.placeholder else ''})")
 
     def matrix(self, sensor: str, boom: str = "deployed") -> np.ndarray:
         """Return R_UVW2SC of ``sensor`` for boom state ``boom``."""
@@ -542,6 +570,12 @@ class TimeShiftTable:
     secondary: np.ndarray
     source: str = ""
 
+    def __repr__(self) -> str:
+        """One line: file and the primary shift (s) of each SID."""
+        shifts = ", ".join(f"SID{int(i)} {p:g}" for i, p in zip(self.sid, self.primary,
+                                                               strict=True))
+        return f"TimeShiftTable({_file_name(self.source)}: primary s {shifts})"
+
 
 def read_time_shift_table(path: Path) -> TimeShiftTable:
     """Parse ``RPCMAG_FILTER_TIMESHIFT.csv`` (columns sid, primary_shift_s, secondary_shift_s)."""
@@ -582,6 +616,12 @@ class OffsetJumpTable:
     end_utc: np.ndarray
     jumps: dict[str, np.ndarray]
     source: str = ""
+
+    def __repr__(self) -> str:
+        """One line: file, number of intervals, the span they cover, sensors."""
+        span = _span(min(self.start_utc), max(self.end_utc)) if len(self.start_utc) else "-"
+        return (f"OffsetJumpTable({_file_name(self.source)}: {len(self.start_utc)} intervals "
+                f"{span}, sensors {', '.join(sorted(self.jumps))})")
 
 
 def read_offset_jump_table(path: Path) -> OffsetJumpTable:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import typer
 
+from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
@@ -42,7 +43,8 @@ def warn_placeholder_alignment(calib_dir: Path | None) -> bool:
             "--alignment-from-kernels", err=True)
     return alignment.placeholder
 
-app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True)
+app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True,
+                  rich_markup_mode=None, cls=HelpGroup)
 
 
 @app.command()

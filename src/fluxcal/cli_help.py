@@ -1,0 +1,73 @@
+"""Help pages of the ``fluxcal`` command groups: never cut (issue 25).
+
+Imported by every module that builds a command group (`fluxcal.cli` and the missions'
+``cli`` modules), so it imports nothing of fluxcal's.  `quiet_requested` and
+`progress_wanted` read ``fluxcal -q`` from the command line being run.
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+from typing import Any
+
+import click
+from typer.core import TyperGroup
+
+#: Help is wrapped to the terminal, up to this many columns (click's default: 80).
+HELP_WIDTH = 120
+
+
+def quiet_requested() -> bool:
+    """Return whether the running command was started as ``fluxcal -q/--quiet``.
+
+    Read from the command line being run (click's root context), so there is no
+    process-wide flag: outside a command (a library call, a test) it is False.
+    """
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and ctx.find_root().params.get("quiet"))
+
+
+def progress_wanted() -> bool:
+    """Return whether a command may show a progress display (a bar, a spinner) on stderr.
+
+    False under ``fluxcal -q/--quiet`` and when stderr is not a terminal (logs, pipes).
+    """
+    return not quiet_requested() and sys.stderr.isatty()
+
+
+def command_summary(cmd: Any) -> str:
+    """Return a command's summary for its group's list: the whole first paragraph.
+
+    Click's list keeps the first sentence and cuts it with ``...`` at the terminal's
+    width (and takes ``sec. 4.2`` for a sentence end); here the first paragraph of the
+    help (or ``short_help`` when given) is kept whole and the list wraps it.
+
+    Parameters
+    ----------
+    cmd : click.Command
+        A command or group of the ``fluxcal`` tree.
+
+    Returns
+    -------
+    str
+        The summary on one line (the help formatter wraps it).
+    """
+    text = cmd.short_help or cmd.help or ""
+    first = inspect.cleandoc(text).split("\n\n")[0]
+    return " ".join(first.replace("\b", "").split())
+
+
+class HelpGroup(TyperGroup):
+    """A command group whose list of commands wraps each summary instead of cutting it."""
+
+    def format_commands(self, ctx: Any, formatter: Any) -> None:
+        """Write the ``Commands:`` section: name and whole first paragraph of each."""
+        rows = []
+        for name in self.list_commands(ctx):
+            cmd = self.get_command(ctx, name)
+            if cmd is not None and not cmd.hidden:
+                rows.append((name, command_summary(cmd)))
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
