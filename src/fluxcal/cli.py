@@ -21,7 +21,7 @@ from pathlib import Path
 import typer
 
 from fluxcal import product_commands
-from fluxcal.cli_help import HELP_WIDTH, HelpGroup
+from fluxcal.cli_help import HELP_WIDTH, QUIET, HelpGroup
 from fluxcal.errors import FluxcalError
 from fluxcal.process import malloc_defaults, numpy_allocation_defaults
 from fluxcal.runs import registry
@@ -51,6 +51,7 @@ def _root(
     if verbose and quiet:
         raise typer.BadParameter("-v/--verbose and -q/--quiet exclude each other",
                                  param_hint="'--quiet'")
+    QUIET.set(quiet)
     logging.basicConfig(
         level=logging.ERROR if quiet else logging.INFO if verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

@@ -9,23 +9,23 @@ from __future__ import annotations
 
 import inspect
 import sys
+from contextvars import ContextVar
 from typing import Any
 
-import click
 from typer.core import TyperGroup
 
 #: Help is wrapped to the terminal, up to this many columns (click's default: 80).
 HELP_WIDTH = 120
 
 
-def quiet_requested() -> bool:
-    """Return whether the running command was started as ``fluxcal -q/--quiet``.
+#: ``fluxcal -q/--quiet`` of the command being run: set by the root callback, given back
+#: by `fluxcal.cli.main` when the command ends (outside a command it is False).
+QUIET: ContextVar[bool] = ContextVar("fluxcal_quiet", default=False)
 
-    Read from the command line being run (click's root context), so there is no
-    process-wide flag: outside a command (a library call, a test) it is False.
-    """
-    ctx = click.get_current_context(silent=True)
-    return bool(ctx is not None and ctx.find_root().params.get("quiet"))
+
+def quiet_requested() -> bool:
+    """Return whether the running command was started as ``fluxcal -q/--quiet``."""
+    return QUIET.get()
 
 
 def progress_wanted() -> bool:
