@@ -11,6 +11,7 @@ import errno
 import gc
 import logging
 import os
+import signal
 import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -20,6 +21,7 @@ import typer
 
 from fluxcal.errors import FluxcalError
 from fluxcal.process import defer_dask_array_import, malloc_defaults, numpy_allocation_defaults
+from fluxcal.products.staging import interrupt_signals, interrupted_signal, owned_run
 
 app = typer.Typer(
     name="fluxcal",
@@ -196,44 +198,6 @@ def _out_folder(args: list[str]) -> Path | None:
     return None
 
 
-class _LeaveNothing:
-    """Remove what a failed command created under its ``--out`` folder.
-
-    Products are written atomically already; this also covers multi-file outputs
-    (``simulate``: kernels, calibration files, CSVs) interrupted half-way, e.g. by a
-    full disk.  Files that existed before the command are kept.
-    """
-
-    def __init__(self, out: Path | None) -> None:
-        self.out = out
-        self.existed = out is not None and out.exists()
-        self.before: set[Path] = set()
-        if out is not None and out.is_dir():
-            self.before = set(out.rglob("*"))
-
-    def undo(self) -> None:
-        import shutil
-
-        out = self.out
-        if out is None or not out.exists():
-            return
-        if not self.existed:
-            shutil.rmtree(out, ignore_errors=True)
-            return
-        if not out.is_dir():
-            return
-        new = sorted(set(out.rglob("*")) - self.before, key=lambda p: len(p.parts),
-                     reverse=True)
-        for p in new:
-            try:
-                if p.is_dir() and not p.is_symlink():
-                    shutil.rmtree(p, ignore_errors=True)
-                else:
-                    p.unlink(missing_ok=True)
-            except OSError:
-                pass
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit code.
 
@@ -255,27 +219,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     atexit.register(_freeze_at_exit)
     args = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_requested(args)
-    guard = _LeaveNothing(_out_folder(args))
     try:
-        with _long_lived_imports():
+        with interrupt_signals(), _long_lived_imports(), owned_run(_out_folder(args)):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)
     except SystemExit as exc:
         return int(exc.code or 0)
     except (FluxcalError, OSError) as exc:
-        guard.undo()
         if debug:
             raise
         typer.echo(error_line(exc), err=True)
         return 2
-    except (typer.Abort, KeyboardInterrupt):
-        guard.undo()
-        typer.echo("Aborted.", err=True)
-        return 130
+    except (typer.Abort, KeyboardInterrupt) as exc:
+        signum = interrupted_signal(exc)
+        typer.echo(f"fluxcal: interrupted: {signal.Signals(signum).name}; this run's "
+                   "temporary and partial files were removed", err=True)
+        return 128 + signum
     except Exception as exc:
         # click's (and typer's vendored click's) usage errors and Exit carry exit_code
         exit_code = getattr(exc, "exit_code", None)
         if exit_code is None:
-            guard.undo()
             if debug:
                 raise
             typer.echo(f"fluxcal: internal error: {type(exc).__name__}: "

@@ -32,7 +32,6 @@ import importlib
 import json
 import logging
 import os
-import shutil
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -43,8 +42,15 @@ from typing import Any, Protocol
 
 import fluxcal
 from fluxcal.errors import FluxcalError
-from fluxcal.products.atomic import atomic_write_bytes, process_alive, temporary_owner
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.provenance import sha256_file
+from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBusy: re-exported
+    LOCK_NAME,
+    OutputFolderBusy,
+    clean_stale_temporaries,
+    output_lock,
+    report_stale,
+)
 
 log = logging.getLogger(__name__)
 
@@ -109,9 +115,16 @@ class DayTask(Protocol):
         ...
 
 
+#: Every status a day can have in a report.
+STATUSES = ("done", "skipped", "no_data", "failed", "interrupted")
+
+
 @dataclass
 class DayStatus:
-    """Outcome of one day: ``done``, ``skipped``, ``no_data`` or ``failed``."""
+    """Outcome of one day: ``done``, ``skipped``, ``no_data``, ``failed`` or ``interrupted``.
+
+    ``interrupted``: the batch was stopped (Ctrl-C, SIGTERM) before the day finished.
+    """
 
     day: str
     status: str
@@ -162,7 +175,7 @@ class BatchReport:
             "scheduler": self.scheduler,
             "n_workers": self.n_workers,
             "wall_seconds": round(self.wall_seconds, 3),
-            "counts": {s: self.count(s) for s in ("done", "skipped", "no_data", "failed")},
+            "counts": {s: self.count(s) for s in STATUSES},
             "vectors": self.n_vectors,
             "vectors_per_second": (self.n_vectors / self.wall_seconds
                                    if self.wall_seconds > 0 else 0.0),
@@ -323,81 +336,6 @@ def day_range(start: _dt.date, end: _dt.date) -> list[_dt.date]:
     return [start + _dt.timedelta(days=i) for i in range((end - start).days + 1)]
 
 
-def clean_stale_temporaries(out_dir: Path) -> list[Path]:
-    """Remove temporaries left by a killed writer (``.<name>.*.tmp<suffix>``).
-
-    Files and directories (a Zarr store is written as a temporary directory) alike.
-    A temporary whose name carries the id of another process still running
-    (`fluxcal.products.atomic.temporary_owner`) is left alone: it is being written.
-    """
-    removed: list[Path] = []
-    me = os.getpid()
-    for p in sorted(Path(out_dir).rglob(".*.tmp*")):
-        if any(r in p.parents for r in removed):
-            continue  # inside a temporary directory already removed
-        owner = temporary_owner(p)
-        if owner is not None and owner != me and process_alive(owner):
-            continue  # being written by another running process (a command, a worker)
-        if p.is_dir():
-            shutil.rmtree(p, ignore_errors=True)
-        elif p.exists():
-            p.unlink(missing_ok=True)
-        else:
-            continue
-        removed.append(p)
-    return removed
-
-
-LOCK_NAME = ".fluxcal-batch.lock"
-
-
-class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
-    """Another batch holds the lock of the output folder."""
-
-
-@contextlib.contextmanager
-def output_lock(out_dir: Path) -> Iterator[Path]:
-    """Hold an exclusive lock on ``out_dir`` for one batch run (``<out>/.fluxcal-batch.lock``).
-
-    The lock is an ``flock`` on that file: the kernel drops it when the holder ends, even
-    killed, so a crash never leaves a stale lock.  The file holds the holder's pid and
-    is removed when the run ends.
-
-    Raises
-    ------
-    OutputFolderBusy
-        If another batch (another process) holds the lock: the second run refuses at
-        once instead of deleting the first one's temporary files.
-    """
-    import fcntl
-
-    path = Path(out_dir) / LOCK_NAME
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
-            os.close(fd)
-            raise OutputFolderBusy(
-                f"--out {out_dir}: another fluxcal batch (pid {holder}) is writing into this "
-                "folder; wait for it to finish, or choose another --out") from None
-        try:
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)  # locked a file the previous holder had just removed: take the new one
-    try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        yield path
-    finally:
-        path.unlink(missing_ok=True)  # still locked here: no other run is inside
-        os.close(fd)
-
-
 def make_local_cluster(n_workers: int = 2) -> Any:
     """Return a `LocalCluster` of single-threaded worker processes (SPICE-safe).
 
@@ -412,9 +350,31 @@ def make_local_cluster(n_workers: int = 2) -> Any:
     import dask
     from distributed import LocalCluster
 
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+    with (dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}),
+          _sigint_ignored()):
         return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                             dashboard_address=":0", silence_logs=logging.ERROR)
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Start worker processes that ignore SIGINT (they inherit the disposition).
+
+    Ctrl-C in a terminal signals the whole process group: the workers of a local cluster
+    would each die with a traceback.  Ignoring it there leaves the interruption to this
+    process, which cancels the days, closes the cluster and writes the report.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def run_batch(
@@ -477,8 +437,7 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
                       report_path) -> BatchReport:
     days = sorted(set(days))
     name = name or str(getattr(task, "name", type(task).__name__))
-    for p in clean_stale_temporaries(out_dir):
-        log.info("removed stale temporary %s", p)
+    report_stale(clean_stale_temporaries(out_dir), out_dir)
     t0 = time.perf_counter()
     statuses: dict[str, DayStatus] = {}
 
@@ -487,6 +446,35 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
         if on_day_done is not None:
             on_day_done(st)
 
+    used, workers = str(scheduler or "local cluster"), 1 if scheduler == "serial" else n_workers
+    interrupted: KeyboardInterrupt | None = None
+    try:
+        used, workers = _run_days(days, task, out_dir, scheduler, n_workers, force, name,
+                                  record)
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM (fluxcal.products.staging)
+        interrupted = exc
+    for p in clean_stale_temporaries(out_dir):  # left by a worker killed during this run
+        log.info("removed stale temporary %s", p)
+    report = BatchReport(
+        name,
+        [statuses.get(d.isoformat()) or DayStatus(d.isoformat(), INTERRUPTED) for d in days],
+        time.perf_counter() - t0, used, workers)
+    rpath = Path(report_path) if report_path else out_dir / REPORT_NAME.format(name=name)
+    report.report_path = str(rpath)
+    atomic_write_bytes(rpath, json.dumps(report.to_dict(), indent=1).encode())
+    if interrupted is not None:
+        interrupted.batch_report = report  # type: ignore[attr-defined]
+        raise interrupted
+    return report
+
+
+#: Status of a day a batch did not finish because the run was interrupted.
+INTERRUPTED = "interrupted"
+
+
+def _run_days(days, task, out_dir, scheduler, n_workers, force, name,
+              record) -> tuple[str, int]:
+    """Run the days serially or on Dask, recording each status; return (scheduler, workers)."""
     if scheduler == "serial":
         had_pool = "pool" in _KERNEL_CACHE
         try:
@@ -495,20 +483,20 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
         finally:
             if not had_pool:  # this process is not a worker: leave its SPICE pool as found
                 release_worker_kernel_pool()
-        used, workers = "serial", 1
-    else:
-        from distributed import Client, as_completed
+        return "serial", 1
+    from distributed import Client, as_completed
 
-        cluster = make_local_cluster(n_workers) if scheduler is None else None
-        try:
-            with Client(cluster if cluster is not None else scheduler) as client:
-                used = str(client.scheduler.address)
-                workers = len(client.scheduler_info().get("workers", {}))
-                futures = {
-                    client.submit(run_day, task, day, out_dir, name, force, pure=False,
-                                  key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
-                    for day in days
-                }
+    cluster = make_local_cluster(n_workers) if scheduler is None else None
+    try:
+        with Client(cluster if cluster is not None else scheduler) as client:
+            used = str(client.scheduler.address)
+            workers = len(client.scheduler_info().get("workers", {}))
+            futures = {
+                client.submit(run_day, task, day, out_dir, name, force, pure=False,
+                              key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
+                for day in days
+            }
+            try:
                 for fut in as_completed(futures):
                     day = futures[fut]
                     try:
@@ -517,17 +505,13 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
                         st = DayStatus(day.isoformat(), "failed",
                                        error=f"{type(exc).__name__}: {exc}")
                     record(st)
-        finally:
-            if cluster is not None:
-                cluster.close()
-    for p in clean_stale_temporaries(out_dir):  # left by a worker killed during this run
-        log.info("removed stale temporary %s", p)
-    report = BatchReport(name, [statuses[d.isoformat()] for d in days],
-                         time.perf_counter() - t0, used, workers)
-    rpath = Path(report_path) if report_path else out_dir / REPORT_NAME.format(name=name)
-    report.report_path = str(rpath)
-    atomic_write_bytes(rpath, json.dumps(report.to_dict(), indent=1).encode())
-    return report
+            except KeyboardInterrupt:
+                client.cancel(list(futures))  # an external scheduler stops the days too
+                raise
+    finally:
+        if cluster is not None:
+            cluster.close()
+    return used, workers
 
 
 # --- mission registry --------------------------------------------------------------------

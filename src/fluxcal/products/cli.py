@@ -96,8 +96,14 @@ def batch(
         import distributed  # noqa: F401 - its import sets the 'distributed' logger to INFO
 
         logging.getLogger("distributed").setLevel(logging.WARNING)
-    report = _run_with_progress(days, task, out, scheduler, workers, force, mission, console,
-                                quiet)
+    try:
+        report = _run_with_progress(days, task, out, scheduler, workers, force, mission,
+                                    console, quiet)
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM: the report is written; say so
+        partial = getattr(exc, "batch_report", None)
+        if partial is not None:
+            _summary(partial, console, full=not quiet)
+        raise
     _summary(report, console, full=not quiet)
     if not report.ok:
         # SystemExit, not typer.Exit: fluxcal.cli.main runs click with
@@ -169,7 +175,9 @@ def _run_with_progress(days, task, out, scheduler, workers, force, name, console
 def _summary(report, console, full: bool = True) -> None:
     from rich.table import Table
 
-    counts = ", ".join(f"{report.count(s)} {s}" for s in ("done", "skipped", "no_data", "failed"))
+    statuses = ("done", "skipped", "no_data", "failed")
+    statuses += ("interrupted",) if report.count("interrupted") else ()
+    counts = ", ".join(f"{report.count(s)} {s}" for s in statuses)
     if not full:
         console.print(f"fluxcal batch {report.name}: {counts}; report: {report.report_path}",
                       soft_wrap=True)
@@ -179,7 +187,8 @@ def _summary(report, console, full: bool = True) -> None:
                         f"{report.scheduler} ({report.n_workers} workers)")
     for col in ("day", "status", "vectors", "seconds", "error"):
         table.add_column(col)
-    style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red"}
+    style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red",
+             "interrupted": "magenta"}
     for d in report.days:
         table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}", f"{d.n_vectors:,}",
                       f"{d.seconds:.2f}", (d.error or "")[:120])
