@@ -21,7 +21,12 @@ import typer
 
 from fluxcal.errors import FluxcalError
 from fluxcal.process import defer_dask_array_import, malloc_defaults, numpy_allocation_defaults
-from fluxcal.products.staging import interrupt_signals, interrupted_signal, owned_run
+from fluxcal.products.staging import (
+    Interrupted,
+    interrupt_signals,
+    interrupted_signal,
+    owned_run,
+)
 
 app = typer.Typer(
     name="fluxcal",
@@ -222,6 +227,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with interrupt_signals(), _long_lived_imports(), owned_run(_out_folder(args)):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)
+            if code == 130:  # typer's return for a KeyboardInterrupt it caught
+                raise Interrupted(signal.SIGINT)
+            if isinstance(code, int) and code != 0:
+                raise SystemExit(code)  # a failed command: owned_run removes its files
     except SystemExit as exc:
         return int(exc.code or 0)
     except (FluxcalError, OSError) as exc:
@@ -229,10 +238,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         typer.echo(error_line(exc), err=True)
         return 2
-    except (typer.Abort, KeyboardInterrupt) as exc:
+    except (typer.Abort, KeyboardInterrupt, Interrupted) as exc:
         signum = interrupted_signal(exc)
         typer.echo(f"fluxcal: interrupted: {signal.Signals(signum).name}; this run's "
-                   "temporary and partial files were removed", err=True)
+                   "unfinished files were removed", err=True)
         return 128 + signum
     except Exception as exc:
         # click's (and typer's vendored click's) usage errors and Exit carry exit_code

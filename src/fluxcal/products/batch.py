@@ -46,6 +46,7 @@ from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.provenance import sha256_file
 from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBusy: re-exported
     LOCK_NAME,
+    Interrupted,
     OutputFolderBusy,
     clean_stale_temporaries,
     output_lock,
@@ -356,6 +357,25 @@ def make_local_cluster(n_workers: int = 2) -> Any:
                             dashboard_address=":0", silence_logs=logging.ERROR)
 
 
+def _quiet_shutdown(client: Any, cluster: Any) -> None:
+    """Silence the cluster's logs before an interrupted batch closes it.
+
+    Workers busy with a day cannot answer the closing scheduler: each would log its
+    lost heartbeat with a traceback, and the nanny its kill.  The interruption and the
+    days it stopped are in the summary and the report instead.
+    """
+    if cluster is None:
+        return  # an external cluster: its logs are its owner's
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    with contextlib.suppress(Exception):
+        client.run(_silence_distributed_logs)
+
+
+def _silence_distributed_logs() -> None:
+    """On a worker: log nothing below CRITICAL from ``distributed``."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+
+
 @contextlib.contextmanager
 def _sigint_ignored() -> Iterator[None]:
     """Start worker processes that ignore SIGINT (they inherit the disposition).
@@ -447,11 +467,11 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
             on_day_done(st)
 
     used, workers = str(scheduler or "local cluster"), 1 if scheduler == "serial" else n_workers
-    interrupted: KeyboardInterrupt | None = None
+    interrupted: BaseException | None = None
     try:
         used, workers = _run_days(days, task, out_dir, scheduler, n_workers, force, name,
                                   record)
-    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM (fluxcal.products.staging)
+    except (KeyboardInterrupt, Interrupted) as exc:  # Ctrl-C, SIGTERM (products.staging)
         interrupted = exc
     for p in clean_stale_temporaries(out_dir):  # left by a worker killed during this run
         log.info("removed stale temporary %s", p)
@@ -505,8 +525,9 @@ def _run_days(days, task, out_dir, scheduler, n_workers, force, name,
                         st = DayStatus(day.isoformat(), "failed",
                                        error=f"{type(exc).__name__}: {exc}")
                     record(st)
-            except KeyboardInterrupt:
+            except (KeyboardInterrupt, Interrupted):
                 client.cancel(list(futures))  # an external scheduler stops the days too
+                _quiet_shutdown(client, cluster)
                 raise
     finally:
         if cluster is not None:

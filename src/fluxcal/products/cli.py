@@ -77,6 +77,7 @@ def batch(
     from rich.console import Console
 
     from fluxcal.products.batch import day_range, task_factory
+    from fluxcal.products.staging import Interrupted
 
     d0, d1 = _parse_date(start, "--start"), _parse_date(end, "--end")
     if d1 < d0:
@@ -99,7 +100,7 @@ def batch(
     try:
         report = _run_with_progress(days, task, out, scheduler, workers, force, mission,
                                     console, quiet)
-    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM: the report is written; say so
+    except (KeyboardInterrupt, Interrupted) as exc:  # Ctrl-C, SIGTERM: report written
         partial = getattr(exc, "batch_report", None)
         if partial is not None:
             _summary(partial, console, full=not quiet)

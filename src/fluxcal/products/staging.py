@@ -44,11 +44,12 @@ class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
     """Another fluxcal run holds the lock of the output folder."""
 
 
-class Interrupted(KeyboardInterrupt):  # noqa: N818 - reads as what happened
+class Interrupted(BaseException):  # noqa: N818 - reads as what happened
     """SIGINT or SIGTERM arrived during a command (`interrupt_signals`).
 
-    A `KeyboardInterrupt`, so ``except Exception`` clauses let it through and the
-    libraries that handle Ctrl-C (click, Dask's client) handle it as one.
+    A `BaseException` (as `KeyboardInterrupt` is), so ``except Exception`` clauses let
+    it through; not a `KeyboardInterrupt`, which typer turns into a return value
+    (exit code 130) before the command's clean-up could run.
 
     Parameters
     ----------
@@ -254,7 +255,7 @@ def interrupt_signals() -> Iterator[None]:
 
 
 def interrupted_signal(exc: BaseException) -> int:
-    """Return the signal behind an interruption (`Interrupted`, or click's Abort of one)."""
+    """Return the signal behind an interruption (`Interrupted`; else SIGINT)."""
     seen: set[int] = set()
     e: BaseException | None = exc
     while e is not None and id(e) not in seen:
