@@ -176,7 +176,9 @@ class BatchReport:
             "scheduler": self.scheduler,
             "n_workers": self.n_workers,
             "wall_seconds": round(self.wall_seconds, 3),
-            "counts": {s: self.count(s) for s in STATUSES},
+            # "interrupted" only when a day has it: uninterrupted reports keep their form
+            "counts": {s: self.count(s) for s in STATUSES
+                       if s != INTERRUPTED or self.count(s)},
             "vectors": self.n_vectors,
             "vectors_per_second": (self.n_vectors / self.wall_seconds
                                    if self.wall_seconds > 0 else 0.0),
