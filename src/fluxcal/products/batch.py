@@ -34,7 +34,7 @@ import logging
 import os
 import time
 import traceback
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -353,10 +353,10 @@ def make_local_cluster(n_workers: int = 2) -> Any:
     import dask
     from distributed import LocalCluster
 
-    with (dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}),
-          _sigint_ignored()):
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
         return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", silence_logs=logging.ERROR)
+                            dashboard_address=":0", silence_logs=logging.ERROR,
+                            preload=[__name__])  # dask_setup: workers leave Ctrl-C to us
 
 
 def _quiet_shutdown(client: Any, cluster: Any) -> None:
@@ -378,25 +378,18 @@ def _silence_distributed_logs() -> None:
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
 
 
-@contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Start worker processes that ignore SIGINT (they inherit the disposition).
+def dask_setup(worker: Any) -> None:
+    """Dask preload hook of `make_local_cluster`'s workers: ignore SIGINT.
 
     Ctrl-C in a terminal signals the whole process group: the workers of a local cluster
-    would each die with a traceback.  Ignoring it there leaves the interruption to this
-    process, which cancels the days, closes the cluster and writes the report.
+    would each stop with a traceback.  Ignoring it there leaves the interruption to the
+    batch process, which cancels the days, closes the cluster and writes the report.
     """
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def run_batch(
