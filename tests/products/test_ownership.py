@@ -241,10 +241,11 @@ def test_ctrl_c_on_a_batch_prints_the_summary_and_writes_the_report(tmp_path):
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "distributed" not in err, err
     lines = err.strip().splitlines()
-    assert "interrupted; report:" in lines[-2] and "done" in lines[-2], err
+    assert "interrupted; report:" in lines[-2], err
     assert lines[-1].startswith("fluxcal: interrupted: SIGINT"), err
     report = json.loads((out / "batch_report_synthetic.json").read_text())
-    assert report["counts"]["interrupted"] >= 1 and report["counts"]["done"] >= 1
+    assert report["counts"]["interrupted"] >= 1  # a day done on the worker may not have
+    # reached the report yet: its products stay, without a manifest, and a rerun redoes it
     assert sum(report["counts"].values()) == len(days)
     assert not list(out.rglob(".*.tmp*")) and not (out / LOCK_NAME).exists()
 
