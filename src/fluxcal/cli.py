@@ -210,10 +210,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     one line, the traceback with ``--debug``); 2 every user-facing error -- usage errors
     (click's message), `FluxcalError` and `OSError` (unwritable folder, full disk,
     missing file) -- printed as one line ``fluxcal: error: ...`` naming the path and
-    what to do, leaving nothing new under ``--out`` (`_LeaveNothing`; not for
-    ``batch``, whose finished days stay).  ``--debug`` (anywhere on the line) or
-    ``FLUXCAL_DEBUG=1`` re-raises instead, with the full traceback.
-    ``typer.Exit(code)`` returns ``code``; Ctrl-C returns 130.
+    what to do.  A command with ``--out`` runs as the folder's owner
+    (`fluxcal.products.staging.owned_run`: its lock, products staged until the command
+    succeeds, only its own files removed on failure; ``batch`` takes the lock itself and
+    keeps its finished days).  ``--debug`` (anywhere on the line) or ``FLUXCAL_DEBUG=1``
+    re-raises instead, with the full traceback.  ``typer.Exit(code)`` returns ``code``
+    (a non-zero code counts as a failure); SIGINT and SIGTERM clean up, print one line
+    ``fluxcal: interrupted: ...`` and return 130 and 143
+    (`fluxcal.products.staging.interrupt_signals`).
 
     First the process-wide allocation settings (`fluxcal.process`: numpy's huge-page
     advice, glibc's heap reuse; a user's own settings are kept).
