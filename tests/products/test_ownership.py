@@ -317,3 +317,27 @@ def test_enospc_names_the_product_not_the_temporary(tmp_path):
     assert info.value.errno == errno.ENOSPC and info.value.filename == str(tmp_path / "P.TAB")
     assert info.value.strerror == os.strerror(errno.ENOSPC)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupted_serial_batch_writes_its_report(tmp_path):
+    import datetime as dt
+    import json
+
+    from fluxcal.products.batch import DayResult, run_batch
+    from fluxcal.products.staging import Interrupted, interrupt_signals
+
+    days = [dt.date(2024, 3, d) for d in (1, 2, 3)]
+
+    def task(day):
+        if day == days[1]:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return DayResult(day, [])
+
+    with interrupt_signals(), pytest.raises(Interrupted) as info:
+        run_batch(days, task, tmp_path, scheduler="serial", name="t")
+    assert info.value.signum == signal.SIGTERM
+    statuses = [d.status for d in info.value.batch_report.days]
+    assert statuses == ["done", "interrupted", "interrupted"]
+    report = json.loads((tmp_path / "batch_report_t.json").read_text())
+    assert report["counts"]["interrupted"] == 2 and report["counts"]["done"] == 1
+    assert not (tmp_path / LOCK_NAME).exists()
