@@ -131,6 +131,7 @@ def test_a_signal_cleans_up_then_a_rerun_completes(sim, good, capsys, monkeypatc
     assert sorted(_snapshot(out)) == sorted(snap)
 
 
+@pytest.mark.slow
 def test_sigkill_leaves_temporaries_that_the_next_run_removes(sim, good, caplog):
     """Before: an OOM-killed edr2cdr left hidden .*.tmp.* files that no run removed."""
     out, snap = good
