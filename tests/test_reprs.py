@@ -75,7 +75,7 @@ def test_rosetta_daily_model(tmp_path):
 
 
 def test_batch_report_and_day_status():
-    from fluxcal.products.batch import BatchReport, DayStatus
+    from fluxcal.runs.batch import BatchReport, DayStatus
 
     days = [DayStatus("2012-06-01", "done", ["a.cdf", "b.cdf"], 1000, 2.5),
             DayStatus("2012-06-02", "failed", error="x.csv, line 3, field bx: not a number",

@@ -13,6 +13,7 @@ import errno
 import gc
 import logging
 import os
+import signal
 import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -24,6 +25,12 @@ from fluxcal import product_commands
 from fluxcal.cli_help import HELP_WIDTH, QUIET, HelpGroup
 from fluxcal.errors import FluxcalError
 from fluxcal.process import malloc_defaults, numpy_allocation_defaults
+from fluxcal.products.staging import (
+    Interrupted,
+    interrupt_signals,
+    interrupted_signal,
+    owned_run,
+)
 from fluxcal.runs import registry
 from fluxcal.runs.cli import batch_app
 from fluxcal.runs.contract import Mission
@@ -211,44 +218,6 @@ def _out_folder(args: list[str]) -> Path | None:
     return None
 
 
-class _LeaveNothing:
-    """Remove what a failed command created under its ``--out`` folder.
-
-    Products are written atomically already; this also covers multi-file outputs
-    (``simulate``: kernels, calibration files, CSVs) interrupted half-way, e.g. by a
-    full disk.  Files that existed before the command are kept.
-    """
-
-    def __init__(self, out: Path | None) -> None:
-        self.out = out
-        self.existed = out is not None and out.exists()
-        self.before: set[Path] = set()
-        if out is not None and out.is_dir():
-            self.before = set(out.rglob("*"))
-
-    def undo(self) -> None:
-        import shutil
-
-        out = self.out
-        if out is None or not out.exists():
-            return
-        if not self.existed:
-            shutil.rmtree(out, ignore_errors=True)
-            return
-        if not out.is_dir():
-            return
-        new = sorted(set(out.rglob("*")) - self.before, key=lambda p: len(p.parts),
-                     reverse=True)
-        for p in new:
-            try:
-                if p.is_dir() and not p.is_symlink():
-                    shutil.rmtree(p, ignore_errors=True)
-                else:
-                    p.unlink(missing_ok=True)
-            except OSError:
-                pass
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit code.
 
@@ -256,10 +225,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     one line, the traceback with ``--debug``); 2 every user-facing error -- usage errors
     (click's message), `FluxcalError` and `OSError` (unwritable folder, full disk,
     missing file) -- printed as one line ``fluxcal: error: ...`` naming the path and
-    what to do, leaving nothing new under ``--out`` (`_LeaveNothing`; not for
-    ``batch``, whose finished days stay).  ``--debug`` (anywhere on the line) or
-    ``FLUXCAL_DEBUG=1`` re-raises instead, with the full traceback.
-    ``typer.Exit(code)`` returns ``code``; Ctrl-C returns 130.
+    what to do.  A command with ``--out`` runs as the folder's owner
+    (`fluxcal.products.staging.owned_run`: its lock, products staged until the command
+    succeeds, only its own files removed on failure; ``batch`` takes the lock itself and
+    keeps its finished days).  ``--debug`` (anywhere on the line) or ``FLUXCAL_DEBUG=1``
+    re-raises instead, with the full traceback.  ``typer.Exit(code)`` returns ``code``
+    (a non-zero code counts as a failure); SIGINT and SIGTERM clean up, print one line
+    ``fluxcal: interrupted: ...`` and return 130 and 143
+    (`fluxcal.products.staging.interrupt_signals`).
 
     First the process-wide allocation settings (`fluxcal.process`: numpy's huge-page
     advice, glibc's heap reuse; a user's own settings are kept).
@@ -270,27 +243,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     atexit.register(_freeze_at_exit)
     args = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_requested(args)
-    guard = _LeaveNothing(_out_folder(args))
+    quiet = QUIET.set(False)  # set by the root callback for this command only
     try:
-        with _long_lived_imports():
+        with interrupt_signals(), _long_lived_imports(), owned_run(_out_folder(args)):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)
+            if code == 130:  # typer's return for a KeyboardInterrupt it caught
+                raise Interrupted(signal.SIGINT)
+            if isinstance(code, int) and code != 0:
+                raise SystemExit(code)  # a failed command: owned_run removes its files
     except SystemExit as exc:
         return int(exc.code or 0)
     except (FluxcalError, OSError) as exc:
-        guard.undo()
         if debug:
             raise
         typer.echo(error_line(exc), err=True)
         return 2
-    except (typer.Abort, KeyboardInterrupt):
-        guard.undo()
-        typer.echo("Aborted.", err=True)
-        return 130
+    except (typer.Abort, KeyboardInterrupt, Interrupted) as exc:
+        signum = interrupted_signal(exc)
+        typer.echo(f"fluxcal: interrupted: {signal.Signals(signum).name}; this run's "
+                   "unfinished files were removed", err=True)
+        return 128 + signum
     except Exception as exc:
         # click's (and typer's vendored click's) usage errors and Exit carry exit_code
         exit_code = getattr(exc, "exit_code", None)
         if exit_code is None:
-            guard.undo()
             if debug:
                 raise
             typer.echo(f"fluxcal: internal error: {type(exc).__name__}: "
@@ -308,6 +284,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if callable(show):
             show()
         return int(exit_code)
+    finally:
+        QUIET.reset(quiet)
     return int(code) if isinstance(code, int) else 0
 
 

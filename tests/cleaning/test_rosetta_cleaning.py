@@ -603,8 +603,12 @@ def test_clean_command_f_and_g(tmp_path, lsk):
     k = read_product(kfile[".cdf"])
     # tolerance: the K product stores B with 3 decimals
     np.testing.assert_allclose(f["b"].values, _one_second_means(k["b"].values), atol=1e-9)
-    # written like F from B: archive name RPCMAG<yymmdd>_CLF_<sensor>_A<NN> (issue 10)
-    first = (out / "RPCMAG140801_CLF_OB_A01.TAB").read_text().splitlines()[0].split()
+    # written like F from B (archive columns), its name saying the source level so that
+    # it never replaces calibrate's F from B: RPCMAG<yymmdd>_CLF_<sensor>_A<NN>_FROMK
+    # (issue 22, docs/decisions/products.md decision 55)
+    first = (out / "RPCMAG140801_CLF_OB_A01_FROMK.TAB").read_text().splitlines()[0].split()
+    assert not (out / "RPCMAG140801_CLF_OB_A01.TAB").exists()
+    assert (out / "rosetta_rpcmag_clf-ob-a01-fromk_20140801_v01.cdf").exists()
     assert len(first) == 6  # TIME.UTC, TIME.OBT, BX, BY, BZ, QUALITY (seed sec. 4.7)
 
     lres = clean_files("L", [kfile[".cdf"]], out, kernels=meta)
@@ -616,7 +620,7 @@ def test_clean_command_f_and_g(tmp_path, lsk):
     np.testing.assert_allclose(
         g["position"].values, _one_second_means(ldata["position"].values), rtol=1e-12
     )
-    first = (out / "RPCMAG140801_CLG_OB_A01.TAB").read_text().splitlines()[0].split()
+    first = (out / "RPCMAG140801_CLG_OB_A01_FROML.TAB").read_text().splitlines()[0].split()
     assert len(first) == 9  # with POSITION.X/Y/Z (seed sec. 4.8)
     with pytest.raises(InputFormatError, match="LEVEL_G is made from LEVEL_L"):
         clean_files("G", [kfile[".cdf"]], out)

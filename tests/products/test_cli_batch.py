@@ -112,7 +112,7 @@ def test_second_batch_into_the_same_folder_refuses(tmp_path: Path, capsys) -> No
     with output_lock(out):  # another run holds the folder (a second open file: flock refuses)
         assert main(args) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
-        assert "another fluxcal batch" in line and str(out) in line
+        assert "another fluxcal run" in line and str(out) in line
         assert not list(out.glob("SYNTH_*"))
     assert not (out / LOCK_NAME).exists()  # released and removed
     assert main(args) == 0

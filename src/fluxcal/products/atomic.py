@@ -7,6 +7,7 @@ are on the same file system, which a temporary name in the same folder guarantee
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 import shutil
@@ -42,7 +43,9 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     Notes
     -----
     On any exception the temporary file (or folder) is removed and the exception
-    propagates; the final name is left untouched (an older product stays intact).
+    propagates; the final name is left untouched (an older product stays intact).  A
+    full disk (``ENOSPC``, ``EDQUOT``) is re-raised as a plain `OSError` naming
+    ``final`` (the libraries' own messages name the temporary, or nothing).
     """
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
@@ -59,6 +62,11 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
             group.append((tmp, final, directory))
         else:
             _commit(tmp, final, directory)
+    except OSError as exc:
+        _discard(tmp)
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):  # one plain line naming the product
+            raise OSError(exc.errno, os.strerror(exc.errno), str(final)) from exc
+        raise
     except BaseException:
         _discard(tmp)
         raise

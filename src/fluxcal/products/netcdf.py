@@ -104,8 +104,43 @@ def write_netcdf(ds: xr.Dataset, path: Path) -> Path:
     path = Path(path)
     enc = encode_for_xarray(ds)
     with atomic_path(path) as tmp:
-        enc.to_netcdf(tmp, engine=netcdf_engine())
+        if _room_for(enc, tmp.parent):
+            enc.to_netcdf(tmp, engine=netcdf_engine())
+        else:
+            # Near a full disk: after a write HDF5 could not finish, the process crashes
+            # when it exits (segmentation fault, h5py 3.16).  Build the file in memory,
+            # then write it with Python: a full disk is then a plain OSError, no crash.
+            data = enc.to_netcdf(engine=netcdf_engine())
+            with open(tmp, "wb") as fh:
+                fh.write(data)
     return path
+
+
+#: Free space kept beyond the estimated size of a netCDF file before it is written
+#: straight to disk (`_room_for`): estimate x 1.5 + 16 MiB.
+ROOM_FACTOR, ROOM_MARGIN = 1.5, 16 << 20
+
+
+def _room_for(enc: xr.Dataset, folder: Path) -> bool:
+    """Whether ``folder``'s file system has clearly room for ``enc`` as netCDF-4.
+
+    The estimate is the variables' bytes (a variable-length string as its characters
+    plus 16 bytes), times `ROOM_FACTOR`, plus `ROOM_MARGIN` (HDF5 metadata, chunk
+    indexes).  Unknown free space (an error asking) counts as room.
+    """
+    import shutil
+
+    size = 0
+    for var in enc.variables.values():
+        if var.dtype.kind == "U":
+            size += var.size * (var.dtype.itemsize // 4 + 16)
+        else:
+            size += var.nbytes
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return True
+    return free >= size * ROOM_FACTOR + ROOM_MARGIN
 
 
 def read_netcdf(path: Path) -> xr.Dataset:

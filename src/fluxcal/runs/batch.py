@@ -31,18 +31,25 @@ import datetime as _dt
 import json
 import logging
 import os
-import shutil
 import time
 import traceback
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
 import fluxcal
 from fluxcal.errors import FluxcalError
-from fluxcal.products.atomic import atomic_write_bytes, process_alive, temporary_owner
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.provenance import sha256_file
+from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBusy: re-exported
+    LOCK_NAME,
+    Interrupted,
+    OutputFolderBusy,
+    clean_stale_temporaries,
+    output_lock,
+    report_stale,
+)
 from fluxcal.runs import registry
 
 log = logging.getLogger(__name__)
@@ -108,9 +115,16 @@ class DayTask(Protocol):
         ...
 
 
+#: Every status a day can have in a report.
+STATUSES = ("done", "skipped", "no_data", "failed", "interrupted")
+
+
 @dataclass
 class DayStatus:
-    """Outcome of one day: ``done``, ``skipped``, ``no_data`` or ``failed``."""
+    """Outcome of one day: ``done``, ``skipped``, ``no_data``, ``failed`` or ``interrupted``.
+
+    ``interrupted``: the batch was stopped (Ctrl-C, SIGTERM) before the day finished.
+    """
 
     day: str
     status: str
@@ -179,7 +193,9 @@ class BatchReport:
             "scheduler": self.scheduler,
             "n_workers": self.n_workers,
             "wall_seconds": round(self.wall_seconds, 3),
-            "counts": {s: self.count(s) for s in ("done", "skipped", "no_data", "failed")},
+            # "interrupted" only when a day has it: uninterrupted reports keep their form
+            "counts": {s: self.count(s) for s in STATUSES
+                       if s != INTERRUPTED or self.count(s)},
             "vectors": self.n_vectors,
             "vectors_per_second": (self.n_vectors / self.wall_seconds
                                    if self.wall_seconds > 0 else 0.0),
@@ -340,81 +356,6 @@ def day_range(start: _dt.date, end: _dt.date) -> list[_dt.date]:
     return [start + _dt.timedelta(days=i) for i in range((end - start).days + 1)]
 
 
-def clean_stale_temporaries(out_dir: Path) -> list[Path]:
-    """Remove temporaries left by a killed writer (``.<name>.*.tmp<suffix>``).
-
-    Files and directories (a Zarr store is written as a temporary directory) alike.
-    A temporary whose name carries the id of another process still running
-    (`fluxcal.products.atomic.temporary_owner`) is left alone: it is being written.
-    """
-    removed: list[Path] = []
-    me = os.getpid()
-    for p in sorted(Path(out_dir).rglob(".*.tmp*")):
-        if any(r in p.parents for r in removed):
-            continue  # inside a temporary directory already removed
-        owner = temporary_owner(p)
-        if owner is not None and owner != me and process_alive(owner):
-            continue  # being written by another running process (a command, a worker)
-        if p.is_dir():
-            shutil.rmtree(p, ignore_errors=True)
-        elif p.exists():
-            p.unlink(missing_ok=True)
-        else:
-            continue
-        removed.append(p)
-    return removed
-
-
-LOCK_NAME = ".fluxcal-batch.lock"
-
-
-class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
-    """Another batch holds the lock of the output folder."""
-
-
-@contextlib.contextmanager
-def output_lock(out_dir: Path) -> Iterator[Path]:
-    """Hold an exclusive lock on ``out_dir`` for one batch run (``<out>/.fluxcal-batch.lock``).
-
-    The lock is an ``flock`` on that file: the kernel drops it when the holder ends, even
-    killed, so a crash never leaves a stale lock.  The file holds the holder's pid and
-    is removed when the run ends.
-
-    Raises
-    ------
-    OutputFolderBusy
-        If another batch (another process) holds the lock: the second run refuses at
-        once instead of deleting the first one's temporary files.
-    """
-    import fcntl
-
-    path = Path(out_dir) / LOCK_NAME
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
-            os.close(fd)
-            raise OutputFolderBusy(
-                f"--out {out_dir}: another fluxcal batch (pid {holder}) is writing into this "
-                "folder; wait for it to finish, or choose another --out") from None
-        try:
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)  # locked a file the previous holder had just removed: take the new one
-    try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        yield path
-    finally:
-        path.unlink(missing_ok=True)  # still locked here: no other run is inside
-        os.close(fd)
-
-
 def make_local_cluster(n_workers: int = 2) -> Any:
     """Return a `LocalCluster` of single-threaded worker processes (SPICE-safe).
 
@@ -431,7 +372,41 @@ def make_local_cluster(n_workers: int = 2) -> Any:
 
     with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
         return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", silence_logs=logging.ERROR)
+                            dashboard_address=":0", silence_logs=logging.ERROR,
+                            preload=[__name__])  # dask_setup: workers leave Ctrl-C to us
+
+
+def _quiet_shutdown(client: Any, cluster: Any) -> None:
+    """Silence the cluster's logs before an interrupted batch closes it.
+
+    Workers busy with a day cannot answer the closing scheduler: each would log its
+    lost heartbeat with a traceback, and the nanny its kill.  The interruption and the
+    days it stopped are in the summary and the report instead.
+    """
+    if cluster is None:
+        return  # an external cluster: its logs are its owner's
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    with contextlib.suppress(Exception):
+        client.run(_silence_distributed_logs)
+
+
+def _silence_distributed_logs() -> None:
+    """On a worker: log nothing below CRITICAL from ``distributed``."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+
+
+def dask_setup(worker: Any) -> None:
+    """Dask preload hook of `make_local_cluster`'s workers: ignore SIGINT.
+
+    Ctrl-C in a terminal signals the whole process group: the workers of a local cluster
+    would each stop with a traceback.  Ignoring it there leaves the interruption to the
+    batch process, which cancels the days, closes the cluster and writes the report.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def run_batch(
@@ -494,8 +469,7 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
                       report_path) -> BatchReport:
     days = sorted(set(days))
     name = name or str(getattr(task, "name", type(task).__name__))
-    for p in clean_stale_temporaries(out_dir):
-        log.info("removed stale temporary %s", p)
+    report_stale(clean_stale_temporaries(out_dir), out_dir)
     t0 = time.perf_counter()
     statuses: dict[str, DayStatus] = {}
 
@@ -504,6 +478,35 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
         if on_day_done is not None:
             on_day_done(st)
 
+    used, workers = str(scheduler or "local cluster"), 1 if scheduler == "serial" else n_workers
+    interrupted: BaseException | None = None
+    try:
+        used, workers = _run_days(days, task, out_dir, scheduler, n_workers, force, name,
+                                  record)
+    except (KeyboardInterrupt, Interrupted) as exc:  # Ctrl-C, SIGTERM (products.staging)
+        interrupted = exc
+    for p in clean_stale_temporaries(out_dir):  # left by a worker killed during this run
+        log.info("removed stale temporary %s", p)
+    report = BatchReport(
+        name,
+        [statuses.get(d.isoformat()) or DayStatus(d.isoformat(), INTERRUPTED) for d in days],
+        time.perf_counter() - t0, used, workers)
+    rpath = Path(report_path) if report_path else out_dir / REPORT_NAME.format(name=name)
+    report.report_path = str(rpath)
+    atomic_write_bytes(rpath, json.dumps(report.to_dict(), indent=1).encode())
+    if interrupted is not None:
+        interrupted.batch_report = report  # type: ignore[attr-defined]
+        raise interrupted
+    return report
+
+
+#: Status of a day a batch did not finish because the run was interrupted.
+INTERRUPTED = "interrupted"
+
+
+def _run_days(days, task, out_dir, scheduler, n_workers, force, name,
+              record) -> tuple[str, int]:
+    """Run the days serially or on Dask, recording each status; return (scheduler, workers)."""
     if scheduler == "serial":
         had_pool = "pool" in _KERNEL_CACHE
         try:
@@ -512,20 +515,20 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
         finally:
             if not had_pool:  # this process is not a worker: leave its SPICE pool as found
                 release_worker_kernel_pool()
-        used, workers = "serial", 1
-    else:
-        from distributed import Client, as_completed
+        return "serial", 1
+    from distributed import Client, as_completed
 
-        cluster = make_local_cluster(n_workers) if scheduler is None else None
-        try:
-            with Client(cluster if cluster is not None else scheduler) as client:
-                used = str(client.scheduler.address)
-                workers = len(client.scheduler_info().get("workers", {}))
-                futures = {
-                    client.submit(run_day, task, day, out_dir, name, force, pure=False,
-                                  key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
-                    for day in days
-                }
+    cluster = make_local_cluster(n_workers) if scheduler is None else None
+    try:
+        with Client(cluster if cluster is not None else scheduler) as client:
+            used = str(client.scheduler.address)
+            workers = len(client.scheduler_info().get("workers", {}))
+            futures = {
+                client.submit(run_day, task, day, out_dir, name, force, pure=False,
+                              key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
+                for day in days
+            }
+            try:
                 for fut in as_completed(futures):
                     day = futures[fut]
                     try:
@@ -534,17 +537,14 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
                         st = DayStatus(day.isoformat(), "failed",
                                        error=f"{type(exc).__name__}: {exc}")
                     record(st)
-        finally:
-            if cluster is not None:
-                cluster.close()
-    for p in clean_stale_temporaries(out_dir):  # left by a worker killed during this run
-        log.info("removed stale temporary %s", p)
-    report = BatchReport(name, [statuses[d.isoformat()] for d in days],
-                         time.perf_counter() - t0, used, workers)
-    rpath = Path(report_path) if report_path else out_dir / REPORT_NAME.format(name=name)
-    report.report_path = str(rpath)
-    atomic_write_bytes(rpath, json.dumps(report.to_dict(), indent=1).encode())
-    return report
+            except (KeyboardInterrupt, Interrupted):
+                client.cancel(list(futures))  # an external scheduler stops the days too
+                _quiet_shutdown(client, cluster)
+                raise
+    finally:
+        if cluster is not None:
+            cluster.close()
+    return used, workers
 
 
 # --- missions ----------------------------------------------------------------------------

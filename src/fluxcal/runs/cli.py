@@ -20,6 +20,7 @@ import typer
 from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup, quiet_requested
 from fluxcal.errors import InputFormatError
+from fluxcal.products.staging import Interrupted
 from fluxcal.runs import options as run_options
 from fluxcal.runs.contract import Mission
 
@@ -73,8 +74,14 @@ def batch(
 
         logging.getLogger("distributed").setLevel(
             logging.ERROR if quiet_requested() else logging.WARNING)
-    report = _run_with_progress(days, task, out, scheduler, workers, force, mission.name,
-                                console, quiet)
+    try:
+        report = _run_with_progress(days, task, out, scheduler, workers, force, mission.name,
+                                    console, quiet)
+    except (KeyboardInterrupt, Interrupted) as exc:  # Ctrl-C, SIGTERM: report written
+        partial = getattr(exc, "batch_report", None)
+        if partial is not None:
+            _summary(partial, console, full=not quiet)
+        raise
     _summary(report, console, full=not quiet)
     if not report.ok:
         # SystemExit, not typer.Exit: fluxcal.cli.main runs click with
@@ -179,7 +186,9 @@ def _run_with_progress(days, task, out, scheduler, workers, force, name, console
 def _summary(report, console, full: bool = True) -> None:
     from rich.table import Table
 
-    counts = ", ".join(f"{report.count(s)} {s}" for s in ("done", "skipped", "no_data", "failed"))
+    statuses = ("done", "skipped", "no_data", "failed")
+    statuses += ("interrupted",) if report.count("interrupted") else ()
+    counts = ", ".join(f"{report.count(s)} {s}" for s in statuses)
     if not full:
         console.print(f"fluxcal batch {report.name}: {counts}; report: {report.report_path}",
                       soft_wrap=True)
@@ -189,7 +198,8 @@ def _summary(report, console, full: bool = True) -> None:
                         f"{report.scheduler} ({report.n_workers} workers)")
     for col in ("day", "status", "vectors", "seconds", "error"):
         table.add_column(col)
-    style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red"}
+    style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red",
+             "interrupted": "magenta"}
     for d in report.days:
         table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}", f"{d.n_vectors:,}",
                       f"{d.seconds:.2f}", (d.error or "")[:120])

@@ -140,7 +140,10 @@ def write_run(
     under temporary names and renamed into place only when all of them succeeded
     (`fluxcal.products.atomic.atomic_group`).  ``only_day`` (``yyddd``) writes that day
     only (other days in the data are dropped, e.g. the previous day's files given for the
-    look-back); ``quicklook_frame`` writes a quicklook per day in that frame.
+    look-back); a last lag-sized fragment recorded just after the next midnight joins its
+    day first (`merge_tail_fragment`), so a batch day (``only_day``) holds the same
+    samples as a run of the same files without it.  ``quicklook_frame`` writes a
+    quicklook per day in that frame.
 
     Raises
     ------
@@ -158,9 +161,8 @@ def write_run(
     prov["calibration_tables"] = cal.provenance()
     written: list[Path] = []
     failures: list[str] = []
-    days = split_days(ds)
-    if only_day is None:
-        days = merge_tail_fragment(ds, days, float(np.max(cal.net_lag_s)))
+    # before ``only_day`` selects: a batch day and a single run split days the same way
+    days = merge_tail_fragment(ds, split_days(ds), float(np.max(cal.net_lag_s)))
     for day in days:
         yyddd = day_code(day)[2]
         if only_day is not None and yyddd != only_day:

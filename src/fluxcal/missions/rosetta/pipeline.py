@@ -71,21 +71,48 @@ def calibrated_tab_stem(time_utc: str, level: str, sensor: str, mode: int) -> st
     return f"RPCMAG{t[2:4]}{t[5:7]}{t[8:10]}T{t[11:13]}{t[14:16]}_CL{level}_{sensor}_M{int(mode)}"
 
 
-def resampled_tab_stem(day: np.datetime64, level: str, sensor: str, seconds: float) -> str:
-    """Archive name of a resampled table: ``RPCMAG<yymmdd>_CL<E|F|G>_<sensor>_A<NN>``."""
+#: Level each resampled level averages in the calibration chain (seed 003 sec. 4.6-4.8);
+#: made from another level (F from K, G from L: the heater paths of sec. 4.7-4.13), its
+#: names say so (`made_from`).
+AVERAGED_FROM = {"E": "A", "F": "B", "G": "C"}
+
+
+def made_from(attrs: dict, level: str) -> str | None:
+    """Return the source level of a resampled level made from an unusual one, else None.
+
+    ``attrs["averaged_from"]`` (``"LEVEL_K"``) names it; F from B, G from C and E from A
+    (`AVERAGED_FROM`), and calibrated levels, return None.
+    """
+    src = str(attrs.get("averaged_from", "")).upper().removeprefix("LEVEL_")
+    if not src or level in CALIBRATED_LEVELS or AVERAGED_FROM.get(level) == src:
+        return None
+    return src
+
+
+def resampled_tab_stem(day: np.datetime64, level: str, sensor: str, seconds: float,
+                       source: str | None = None) -> str:
+    """Archive name of a resampled table: ``RPCMAG<yymmdd>_CL<E|F|G>_<sensor>_A<NN>``.
+
+    ``source`` (`made_from`) appends ``_FROM<source>``: LEVEL_F from LEVEL_K is
+    ``RPCMAG<yymmdd>_CLF_<sensor>_A<NN>_FROMK``, beside the F from B of the same day.
+    """
     d = str(np.datetime64(day, "D"))
-    return f"RPCMAG{d[2:4]}{d[5:7]}{d[8:10]}_CL{level}_{sensor}_{average_code(seconds)}"
+    stem = f"RPCMAG{d[2:4]}{d[5:7]}{d[8:10]}_CL{level}_{sensor}_{average_code(seconds)}"
+    return f"{stem}_FROM{source.upper()}" if source else stem
 
 
-def logical_source(level: str, sensor: str, seconds: float | None = None) -> str:
+def logical_source(level: str, sensor: str, seconds: float | None = None,
+                   source: str | None = None) -> str:
     """ISTP ``Logical_source`` of a level product, without date (e.g. ``rosetta_rpcmag_cla-ob``).
 
-    Resampled levels carry the interval: ``rosetta_rpcmag_clf-ob-a01``.
+    Resampled levels carry the interval: ``rosetta_rpcmag_clf-ob-a01``; one made from an
+    unusual level (``source``, `made_from`) also that: ``rosetta_rpcmag_clf-ob-a01-fromk``.
     """
     base = f"rosetta_rpcmag_cl{level}-{sensor}".lower()
     if level in CALIBRATED_LEVELS or seconds is None:
         return base
-    return f"{base}-{average_code(seconds).lower()}"
+    base = f"{base}-{average_code(seconds).lower()}"
+    return f"{base}-from{source.lower()}" if source else base
 
 
 def product_columns(level: str) -> list:
@@ -161,7 +188,8 @@ def write_level(
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors left to write")
-    source = logical_source(level, sensor, seconds)
+    src_level = made_from(ds.attrs, level)
+    source = logical_source(level, sensor, seconds, src_level)
     ds = ds.assign(
         time_utc=(
             "time",
@@ -194,7 +222,7 @@ def write_level(
         if "tab" not in formats:
             continue
         if level not in CALIBRATED_LEVELS:
-            stem = resampled_tab_stem(day, level, sensor, seconds or 1.0)
+            stem = resampled_tab_stem(day, level, sensor, seconds or 1.0, src_level)
             written += write_product(part, out_dir / stem, formats=("tab",),
                                      columns=product_columns(level), label_extra=extra)
             continue
