@@ -85,7 +85,7 @@ def main() -> None:
             inp = work / "in"
             write_synthetic_inputs(inp, days, n_per_day=args.vectors)
         elif args.input is None and args.task == "messenger":
-            from fluxcal.runs.batch_demo import simulate_messenger_days
+            from fluxcal.missions.messenger.batch_task import simulate_messenger_days
 
             inp = work / "in"
             start = dt.datetime.combine(days[0], dt.time())

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fluxcal.runs.batch_demo import simulate_messenger_days
+from fluxcal.missions.messenger.batch_task import simulate_messenger_days
 
 
 def test_messenger_streams_split_by_utc_day(tmp_path: Path) -> None:
