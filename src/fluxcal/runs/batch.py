@@ -307,12 +307,14 @@ def run_day(task: Any, day: _dt.date, out_dir: Path, name: str, force: bool) -> 
 _KERNEL_CACHE: dict[str, Any] = {}
 
 
-def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None) -> Any:
+def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None,
+                       frames: Mapping[str, str | Path] | None = None) -> Any:
     """Load ``kernels`` once per worker process and keep them loaded.
 
     Day tasks call this instead of ``with KernelPool(...)``: the first call in a process
     furnishes the kernels; later calls with the same list return the same pool; a
     different list unloads the previous one first (SPICE has one pool per process).
+    ``frames``: the mission's frame kernels (`fluxcal.geometry.kernels.KernelPool`).
 
     Returns
     -------
@@ -327,13 +329,14 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None) -> Any
         key_items = [str(kernels)]
     else:
         key_items = [str(k) for k in kernels]
-    key = "\n".join(key_items)
+    key = "\n".join(key_items + [f"{n}={p}" for n, p in sorted((frames or {}).items())]
+                    + (["frames:default"] if frames is None else []))
     pool = _KERNEL_CACHE.get("pool")
     if pool is not None and _KERNEL_CACHE.get("key") == key:
         return pool
     if pool is not None:
         release_worker_kernel_pool()
-    pool = KernelPool(key_items).__enter__()
+    pool = KernelPool(key_items, frames=frames).__enter__()
     _KERNEL_CACHE.update(pool=pool, key=key)
     return pool
 

@@ -12,25 +12,32 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.runs.batch import DayResult, worker_kernel_pool
+from fluxcal.runs.batch import DayInputs, DayResult, worker_kernel_pool
 
 #: Progress callback: (description, steps done, steps in total).
 Progress = Callable[[str, int, int], None]
 
 
 class Pipeline(Protocol):
-    """What a mission hands the driver for one run (a picklable object for batch days)."""
+    """What a mission hands the driver for one run (a picklable object for batch days).
+
+    ``frame_kernels`` (frame name -> frames kernel, or None for the registry's) are the
+    frames the kernel pool defines when the user's kernels do not.
+    """
+
+    frame_kernels: Mapping[str, Path] | None
 
     def check(self, options: Any) -> None:
         """Refuse bad options before any input is read (one line, `FluxcalError`)."""
 
     def read(self, source: Any, options: Any) -> tuple[Any, list[Path]]:
-        """Read a source; return the raw telemetry and the input files (provenance)."""
+        """Read a source (kernels loaded); return the raw telemetry and the input files."""
 
     def size(self, raw: Any) -> int:
         """Return the number of field vectors in ``raw`` (the batch's vectors/s)."""
@@ -42,6 +49,9 @@ class Pipeline(Protocol):
               kernel_list: Sequence[str], only_day: _dt.date | None,
               progress: Progress | None) -> list[Path]:
         """Write the products of every day (or of ``only_day``) atomically; return them."""
+
+    def day_files(self, input_dir: Path, day: _dt.date, options: Any) -> list[Path]:
+        """Return the files one batch day reads (its manifest checksums them)."""
 
     def day_source(self, input_dir: Path, day: _dt.date, options: Any) -> Any:
         """Return one batch day's source; raise `~fluxcal.runs.batch.DayWithoutData` if none."""
@@ -57,7 +67,7 @@ def run(
     only_day: _dt.date | None = None,
     progress: Progress | None = None,
 ) -> tuple[list[Path], int]:
-    """Check, read, calibrate (kernels loaded) and write one run; return (files, vectors).
+    """Check, then (kernels loaded) read, calibrate and write one run; return (files, vectors).
 
     Parameters
     ----------
@@ -77,13 +87,14 @@ def run(
         ``progress(description, done, total)``.
     """
     pipeline.check(options)
-    if progress is not None:
-        progress("reading inputs", 0, 1)
-    raw, inputs = pipeline.read(source, options)
-    n_vectors = pipeline.size(raw)
     loaded = (contextlib.nullcontext(kernels) if isinstance(kernels, KernelPool)
-              else KernelPool(kernels if kernels is not None else []))
+              else KernelPool(kernels if kernels is not None else [],
+                              frames=pipeline.frame_kernels))
     with loaded as pool:
+        if progress is not None:
+            progress("reading inputs", 0, 1)
+        raw, inputs = pipeline.read(source, options)
+        n_vectors = pipeline.size(raw)
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
         written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
@@ -109,6 +120,35 @@ def run_day(
     """
     pipeline.check(options)  # before looking for the day's files
     source = pipeline.day_source(Path(input_dir), day, options)
-    pool = worker_kernel_pool(kernels)
+    pool = worker_kernel_pool(kernels, pipeline.frame_kernels)
     paths, n_vectors = run(pipeline, source, pool, out_dir, options, only_day=day)
     return DayResult(day, paths, n_vectors=n_vectors)
+
+
+@dataclass(frozen=True)
+class DayTask:
+    """A batch day task made of a `Pipeline` (picklable; `fluxcal.runs.batch.run_batch`).
+
+    A mission whose day needs nothing but its pipeline returns one of these from its
+    ``make_day_task``; ``inputs(day)`` lists the day's files (``pipeline.day_files``)
+    so that an unchanged day is skipped.
+    """
+
+    pipeline: Pipeline
+    input_dir: Path
+    out_dir: Path
+    options: Any
+    kernels: Path | Sequence[Path] | None = None
+    name: str = "day"
+
+    def inputs(self, day: _dt.date) -> DayInputs:
+        """Return the day's input files and kernels (checksummed in the manifest)."""
+        files = self.pipeline.day_files(Path(self.input_dir), day, self.options)
+        kernels = [] if self.kernels is None else (
+            [self.kernels] if isinstance(self.kernels, (str, Path)) else list(self.kernels))
+        return DayInputs(tuple(Path(p) for p in [*files, *kernels]))
+
+    def __call__(self, day: _dt.date) -> DayResult:
+        """Process ``day`` (`run_day`)."""
+        return run_day(self.pipeline, Path(self.input_dir), Path(self.out_dir), day,
+                       self.options, self.kernels)

@@ -6,6 +6,8 @@ Registered in fluxcal's ``pyproject.toml`` under the entry-point group
 
 from __future__ import annotations
 
+import datetime as _dt
+
 from fluxcal.products.format_names import FORMATS
 from fluxcal.runs.contract import DemoPart, Mission
 
@@ -17,6 +19,10 @@ MISSION = Mission(
     title="IMAP MAG: CCSDS packets -> L1A counts -> L1B nT (real ground-test data)",
     spacecraft_id=SPACECRAFT_ID,
     commands="fluxcal.missions.imap.cli:app",
+    day_task="fluxcal.missions.imap.routes:make_day_task",
+    options="fluxcal.missions.imap.options:ImapOptions",
+    simulate_days="fluxcal.missions.imap.routes:simulate_days",
+    demo_days=(_dt.date(2023, 10, 25), _dt.date(2023, 11, 30)),  # the real samples
     formats=FORMATS,
     demo_parts=(DemoPart("IMAP MAG from real packets: L0 -> L1A -> L1B",
                          "fluxcal.missions.imap.demo:run_demo", "imap", 80),),

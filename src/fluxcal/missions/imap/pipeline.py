@@ -45,9 +45,36 @@ def _merge(parts: list[dict[tuple[str, str], xr.Dataset]]) -> dict[tuple[str, st
     return out
 
 
+def read_l1a(inputs: Sequence[Path], clock: SclkKernel) -> dict[tuple[str, str], xr.Dataset]:
+    """L1A datasets of packet and L1A CSV files, keyed by (mode, sensor), sorted in time.
+
+    ``clock`` is the IMAP SCLK (`SclkKernel.from_pool` with the kernels loaded).
+    """
+    parts = []
+    for path in map(Path, inputs):
+        if path.suffix.lower() == ".csv":
+            parts.append(l1a.read_l1a_csv(path, clock))
+        else:
+            parts.append(l1a.from_packets(read_packets(path), clock))
+    return _merge(parts)
+
+
+def to_level(l1a_sets: dict[tuple[str, str], xr.Dataset], level: str,
+             calib: Path | None = None) -> dict[tuple[str, str], xr.Dataset]:
+    """Return the L1A datasets as they are (``level="l1a"``) or calibrated to L1B in nT."""
+    if level not in LEVELS:
+        raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
+    if level == "l1a":
+        return l1a_sets
+    cal = load_calibration(calib)
+    return {key: l1b.calibrate(ds, cal) for key, ds in l1a_sets.items()}
+
+
 def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = None,
             kernels: Path | Sequence[Path] | None = None) -> dict[tuple[str, str], xr.Dataset]:
     """L1A or L1B datasets of packet and L1A CSV files, keyed by (mode, sensor).
+
+    `read_l1a` with the SCLK kernel loaded, then `to_level`.
 
     Parameters
     ----------
@@ -66,26 +93,21 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
     """
     if level not in LEVELS:
         raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
-    cal = load_calibration(calib) if level == "l1b" else None
+    if level == "l1b":
+        load_calibration(calib)  # a bad calibration file fails before any packet is read
     with KernelPool(kernels if kernels is not None else [data_file(DEFAULT_SCLK)],
                     fluxcal_frames=False):
-        clock = SclkKernel.from_pool(l1a.IMAP_SCLK_ID)
-        parts = []
-        for path in map(Path, inputs):
-            if path.suffix.lower() == ".csv":
-                parts.append(l1a.read_l1a_csv(path, clock))
-            else:
-                parts.append(l1a.from_packets(read_packets(path), clock))
-    merged = _merge(parts)
-    if cal is None:
-        return merged
-    return {key: l1b.calibrate(ds, cal) for key, ds in merged.items()}
+        merged = read_l1a(inputs, SclkKernel.from_pool(l1a.IMAP_SCLK_ID))
+    return to_level(merged, level, calib)
 
 
 def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
                    formats: Sequence[str] = ("cdf",), provenance: dict | None = None,
-                   version: str = DATA_VERSION, quicklook: bool = False) -> list[Path]:
+                   version: str = DATA_VERSION, quicklook: bool = False,
+                   only_day: np.datetime64 | None = None) -> list[Path]:
     """Write one product per (mode, sensor) and UTC day; return the paths written.
+
+    ``only_day`` (a batch day) writes that UTC day's products only.
 
     With ``quicklook``, L1B datasets also get ``imap_mag_ql_<mode>-<sensor>_<yyyymmdd>.png``
     (`fluxcal.products.quicklook.write_quicklooks`).  All files of the call are written as
@@ -105,6 +127,8 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
             source = logical_source(level, mode, sensor)
             days = tt2000_to_datetime64(ds["epoch"].values, default_lsk()).astype("M8[D]")
             for day in np.unique(days):
+                if only_day is not None and day != np.datetime64(only_day, "D"):
+                    continue
                 part = ds.isel(time=np.flatnonzero(days == day))
                 part.attrs = {**ds.attrs, **(provenance or {}), "Logical_source": source,
                               "Data_version": version,

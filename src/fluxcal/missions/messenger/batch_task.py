@@ -94,7 +94,7 @@ class MessengerDayTask:
 
     def inputs(self, day: _dt.date) -> DayInputs:
         """Return the day's input files, kernels and calibration folder."""
-        files = [p for group in self._files(day).values() for p in group if p.exists()]
+        files = MessengerRun().day_files(Path(self.input_dir), day, self.options)
         folder = Path(self.calib) if self.calib else data_dir()
         cal = {p.name: p for p in sorted(folder.glob("*_v*.*"))}
         # product metadata: a changed ISTP attribute file redoes the day too

@@ -15,13 +15,14 @@ References
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from fluxcal.archive.pds3 import read_label, table_names
 from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
+from fluxcal.missions.messenger.identity import FRAME_KERNELS
 from fluxcal.missions.messenger.options import (
     AVERAGES_S,
     DEFAULT_FORMATS,
@@ -115,6 +116,8 @@ def _edr_tables(labels: Sequence[Path]) -> list[Path]:
 class MessengerRun:
     """MESSENGER MAG EDR -> CDR as a `fluxcal.runs.driver.Pipeline` (picklable)."""
 
+    frame_kernels: Mapping[str, Path] | None = field(default_factory=lambda: FRAME_KERNELS)
+
     def check(self, options: MessengerOptions) -> None:
         """Check the formats and load the figure's support before any data is read."""
         prepare_formats(options.formats)
@@ -158,6 +161,14 @@ class MessengerRun:
                          only_day=None if only_day is None else f"{only_day:%y%j}",
                          quicklook_frame=self._quicklook_frame(options),
                          version=options.version, progress=progress)
+
+    def day_files(self, input_dir: Path, day: _dt.date,
+                  options: MessengerOptions) -> list[Path]:
+        """Return the EDRs or CSV streams a batch day reads (those that exist)."""
+        mapping = input_dir / EDR_MAPPING
+        files = (edr_day_files(input_dir, mapping, day) if mapping.is_file()
+                 else csv_day_files(input_dir, day))
+        return [p for group in files.values() for p in group if p.exists()]
 
     def day_source(self, input_dir: Path, day: _dt.date,
                    options: MessengerOptions) -> CsvSource | EdrSource:
