@@ -7,7 +7,11 @@ Every module under ``src/fluxcal`` is parsed with `ast` (nothing is imported):
     ``msgr``, the NAIF ids ``-236``/``-226``), except the seed documents' titles and the
     docs/ files a docstring cites (`ALLOWED`);
 (c) the module-level imports among fluxcal modules form no cycle (strongly connected
-    components of the import graph).
+    components of the import graph), nor do all imports, those inside functions included,
+    but for `KNOWN_CYCLES`.
+
+`KNOWN_VIOLATIONS` and `KNOWN_CYCLES` list the exceptions: none since the run driver,
+batch runner and command line moved to ``fluxcal.runs`` and the missions (issue 20).
 """
 
 from __future__ import annotations
@@ -93,8 +97,7 @@ def test_every_module_is_found():
 def test_generic_module_imports_no_mission(module):
     if module in KNOWN_VIOLATIONS:
         pytest.skip("moved to runs/ by the lead (issue 20)")
-    bad = sorted(n for n in _imports(module, top_level_only=False)
-                 if n == "fluxcal.missions" or n.startswith("fluxcal.missions."))
+    bad = _mission_imports(module)
     assert not bad, f"{module} imports {bad}"
 
 
@@ -102,12 +105,27 @@ def test_generic_module_imports_no_mission(module):
 def test_generic_module_names_no_mission(module):
     if module in KNOWN_VIOLATIONS:
         pytest.skip("moved to runs/ by the lead (issue 20)")
-    hits = []
-    for number, line in enumerate(MODULES[module].read_text(encoding="utf-8").splitlines(), 1):
-        text = ALLOWED.sub("", line)
-        if MISSION_WORDS.search(text):
-            hits.append(f"{number}: {line.strip()}")
+    hits = _mission_lines(module)
     assert not hits, f"{module} names a mission:\n" + "\n".join(hits)
+
+
+def _mission_imports(module: str) -> list[str]:
+    return sorted(n for n in _imports(module, top_level_only=False)
+                  if n == "fluxcal.missions" or n.startswith("fluxcal.missions."))
+
+
+def _mission_lines(module: str) -> list[str]:
+    lines = MODULES[module].read_text(encoding="utf-8").splitlines()
+    return [f"{number}: {line.strip()}" for number, line in enumerate(lines, 1)
+            if MISSION_WORDS.search(ALLOWED.sub("", line))]
+
+
+@pytest.mark.parametrize("module", sorted(KNOWN_VIOLATIONS))
+def test_known_violations_are_current(module):
+    """An entry leaves `KNOWN_VIOLATIONS` once its module is moved or clean."""
+    if module not in MODULES:
+        pytest.skip("moved")
+    assert _mission_imports(module) or _mission_lines(module), f"{module} is clean now"
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -166,3 +184,15 @@ def test_no_import_cycle():
     # a module's package is imported before it: that edge is not a dependency of the code
     cycles = _cycles(graph)
     assert not cycles, f"import cycles among fluxcal modules: {cycles}"
+
+
+#: Cycles through imports inside functions that remain today: the CLI modules the lead
+#: moves to runs/ (issue 20).
+KNOWN_CYCLES: list[list[str]] = []
+
+
+def test_no_import_cycle_through_function_imports():
+    graph = {m: {n for n in _imports(m, top_level_only=False) if n in MODULES and n != m}
+             for m in MODULES}
+    cycles = [c for c in _cycles(graph) if c not in KNOWN_CYCLES]
+    assert not cycles, f"import cycles (imports inside functions included): {cycles}"

@@ -81,7 +81,7 @@ def test_spherical_rtn_azimuth_wraps():
     et = np.linspace(0.0, 100.0, 2001)
     sun = np.tile([1.0e8, 0.0, 0.0], (et.size, 1))
     fake = mock.Mock(return_value=(np.ones(grid_et.size), np.zeros(grid_et.size), az_grid))
-    with mock.patch("fluxcal.geometry.positions.rtn_spherical", fake):
+    with mock.patch("fluxcal.geometry.axes.rtn_spherical", fake):
         out = levels.spherical_rtn(sun, et)
     expected = ((179.0 + 0.02 * et) + 180.0) % 360.0 - 180.0
     d = (out[:, 2] - expected + 180.0) % 360.0 - 180.0
