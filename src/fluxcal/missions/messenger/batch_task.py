@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.missions.messenger.calibration_data import data_dir
+from fluxcal.missions.messenger.identity import SPACECRAFT_ID
 from fluxcal.missions.messenger.options import (
     AVERAGES_S,
     DEFAULT_FORMATS,
@@ -209,7 +210,7 @@ def simulate_days(
         kernel_files += listed if not kernel_files else [k for k in listed
                                                          if k.suffix in (".bsp", ".bc")]
         with KernelPool(mk):
-            sclk = SclkKernel.from_pool(-236)
+            sclk = SclkKernel.from_pool(SPACECRAFT_ID)
             sim = simulate(config, load_calibration(start), sclk)
             first = run[0] - _dt.timedelta(days=1)
             edges = utc_to_et(np.array([f"{first + _dt.timedelta(days=k)}T00:00:00"
@@ -289,10 +290,10 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
                                       duration_s + 2 * config.lead_s,
                                       plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)])
     with KernelPool(mk):
-        sim = simulate(config, load_calibration(start_utc), SclkKernel.from_pool(-236))
+        sim = simulate(config, load_calibration(start_utc), SclkKernel.from_pool(SPACECRAFT_ID))
     paths = {"kernels": mk, **write_inputs(sim, work / "inputs")}
     with KernelPool(paths["kernels"]):
-        sclk = SclkKernel.from_pool(-236)
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         days = []
         for key, stream in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
             written = _split_by_day(Path(paths[key]), stream, input_dir, sclk)
