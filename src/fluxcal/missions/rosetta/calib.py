@@ -685,6 +685,13 @@ def read_time_shift_table(path: Path) -> TimeShiftTable:
             raise CalibrationError(
                 f"{path}, line {number}: bad time-shift row {row}: {exc}"
             ) from None
+        for name, value in (("primary_shift_s", primary[-1]), ("secondary_shift_s", secondary[-1])):
+            if value < 0:  # NaN (no entry) passes
+                raise CalibrationError(
+                    f"{path}, line {number}, field '{name}': negative filter time shift "
+                    f"({value} s) for SID {sid[-1]}; the shifts are filter delays >= 0 "
+                    "(RO-IGEP-TR0028 sec. 4.2.3.5)"
+                )
     return TimeShiftTable(np.array(sid), np.array(primary), np.array(secondary), str(path))
 
 

@@ -387,6 +387,11 @@ def clean_files(
             "LEVEL_H removes reaction-wheel and LAP lines and none were given: pass --wheels "
             "CSV and/or --lap-lines HZ[,HZ...]"
         )
+    if bandwidth_hz is not None and not bandwidth_hz > 0:
+        raise FluxcalError(f"--bandwidth {bandwidth_hz:g}: the replaced band width must be > 0 Hz")
+    negative = [f for f in lap_lines_hz if not f > 0]
+    if negative:
+        raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be > 0 Hz")
     result = CleanResult()
     out = Path(out)
     with KernelPool(kernels) as pool:

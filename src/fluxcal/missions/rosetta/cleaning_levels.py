@@ -188,6 +188,7 @@ def level_h(
                 )
                 continue
             bw = default_bandwidth(fs) if bandwidth_hz is None else float(bandwidth_hz)
+            check_line_arguments(name, fs, bw, lap)
             try:
                 res = remove_spectral_lines(b[idx], fs, lines, times=t, bandwidth=bw, seed=rng)
             except InputFormatError as exc:
@@ -216,6 +217,41 @@ def level_h(
         line_removal_seed=int(seed),
     )
     return out
+
+
+def check_line_arguments(
+    name: str, fs: float, bandwidth_hz: float, lap_lines_hz: NDArray[np.float64]
+) -> None:
+    """Refuse a band width or LAP line that the sampling of a mode cannot hold.
+
+    The replaced band (width ``bandwidth_hz``) must be narrower than the Nyquist
+    frequency ``fs / 2`` (a band at least that wide replaces the whole spectrum: at
+    20 Hz a 50-Hz band changed the data by 3.2 nT); a LAP line, given as seen in the
+    mode's spectrum, must lie in ``(0, fs / 2]``.
+
+    Raises
+    ------
+    InputFormatError
+        One line naming the mode, its rate and the offending value.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9.
+    """
+    nyquist = 0.5 * fs
+    if not 0 < bandwidth_hz < nyquist:
+        raise InputFormatError(
+            f"{name} at {fs:g} Hz: band width {bandwidth_hz:g} Hz is not in (0, {nyquist:g}) "
+            "Hz, below the Nyquist frequency; give a smaller --bandwidth",
+            field="bandwidth",
+        )
+    bad = lap_lines_hz[~((lap_lines_hz > 0) & (lap_lines_hz <= nyquist))]
+    if bad.size:
+        raise InputFormatError(
+            f"{name} at {fs:g} Hz: LAP line {bad[0]:g} Hz is not in (0, {nyquist:g}] Hz, "
+            "the spectrum of the mode (LAP lines are given as seen in it); fix --lap-lines",
+            field="lap_lines_hz",
+        )
 
 
 def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
