@@ -354,6 +354,7 @@ def clean_files(
     max_gap_samples: float = 2.0,
     formats: Sequence[str] = ("tab", "cdf"),
     plot: bool = True,
+    pca_estimator: str = "robust",
 ) -> CleanResult:
     """Run one cleaning level on earlier-level product files and write the products.
 
@@ -372,6 +373,9 @@ def clean_files(
     from fluxcal.products import provenance_attrs
 
     level = level.strip().upper()
+    if pca_estimator not in ("robust", "common-mode", "projection"):
+        raise FluxcalError(f"--pca-estimator {pca_estimator}: choose robust, common-mode or "
+                           "projection")
     if level not in CLEAN_LEVELS:
         raise FluxcalError(f"unknown level {level!r}; choose one of {','.join(CLEAN_LEVELS)}")
     need = 2 if level == "J" else 1
@@ -422,7 +426,8 @@ def clean_files(
         elif level == "G":
             made = {sensor: cl.level_g(src, average_s, lsk=lsk)}
         elif level == "J":
-            made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples)
+            made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples,
+                              estimator=pca_estimator)
         elif level == "K":
             if intervals is not None and heater_states is not None:
                 raise FluxcalError("give either --intervals or --heater-states, not both")
@@ -506,6 +511,11 @@ def clean(
     max_gap: float = typer.Option(
         2.0, "--max-gap", help="J: longest gap bridged by interpolation (sample intervals)."
     ),
+    pca_estimator: str = typer.Option(
+        "robust", "--pca-estimator",
+        help="J: robust (default; noise variances from the high-passed series), common-mode "
+        "(from the series themselves) or projection (literal principal components).",
+    ),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
@@ -527,6 +537,7 @@ def clean(
         max_gap_samples=max_gap,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
         plot=not no_plot,
+        pca_estimator=pca_estimator,
     )
     for tag, ds in result.levels.items():
         typer.echo(f"LEVEL_{level.upper()} {tag}: {ds.sizes['time']} vectors")

@@ -219,6 +219,10 @@ def level_h(
     return out
 
 
+#: Estimators of LEVEL_J (`fluxcal.cleaning.pca.two_sensor_pca` methods), default first.
+PCA_ESTIMATORS = ("robust", "common-mode", "projection")
+
+
 def check_line_arguments(
     name: str, fs: float, bandwidth_hz: float, lap_lines_hz: NDArray[np.float64]
 ) -> None:
@@ -346,6 +350,7 @@ def level_j(
     step_s: float | None = None,
     max_gap_samples: float = 2.0,
     max_gap_s: float | None = None,
+    estimator: str = "robust",
 ) -> dict[str, xr.Dataset]:
     """LEVEL_G/I of OB and IB -> LEVEL_J: external field and each sensor's own part.
 
@@ -372,6 +377,11 @@ def level_j(
         intervals (default 2: one missing vector is bridged).
     max_gap_s : float, optional
         The same in seconds for both sensors (overrides ``max_gap_samples``).
+    estimator : {"robust", "common-mode", "projection"}
+        `fluxcal.cleaning.pca.two_sensor_pca`'s ``method``: ``"robust"`` (default,
+        noise variances from the high-passed series), ``"common-mode"`` (from the
+        series themselves) or ``"projection"`` (the literal principal component
+        projection of sec. 4.11); recorded as ``pca_estimator``.
 
     Returns
     -------
@@ -419,7 +429,12 @@ def level_j(
             "both sensors over a common time span",
             field="epoch",
         )
-    pca = two_sensor_pca(res.a, res.b)
+    if estimator not in PCA_ESTIMATORS:
+        raise InputFormatError(
+            f"unknown PCA estimator {estimator!r}; choose one of {', '.join(PCA_ESTIMATORS)}",
+            field="estimator",
+        )
+    pca = two_sensor_pca(res.a, res.b, method=estimator)  # type: ignore[arg-type]
     if step_ns is None:
         base = ob.isel(time=res.primary_index)
         time_base = "OB time tags inside the OB/IB overlap"
@@ -430,6 +445,7 @@ def level_j(
     outside = [int(np.count_nonzero((e < span[0]) | (e > span[1]))) for e in (e_ob, e_ib)]
     stats = dict(
         level="J",
+        pca_estimator=estimator,
         pca_noise_variance_nT2=[float(v) for v in pca.noise_variance.ravel()],
         pca_weights=[float(v) for v in pca.weights.ravel()],
         pca_external_variance_nT2=[float(v) for v in pca.external_variance],
