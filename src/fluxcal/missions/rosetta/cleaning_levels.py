@@ -501,10 +501,14 @@ def level_k(
 ) -> xr.Dataset:
     """LEVEL_B -> LEVEL_K: remove heater square waves automatically (method 1).
 
-    Each stretch without gaps longer than ``max_gap_s`` (a few dropped vectors do not
-    split it) and without overlapping modes, of at least ``min_segment`` vectors, is
-    cleaned by `fluxcal.cleaning.steps.remove_heater_steps`
-    (parameters passed through); shorter stretches are left unchanged.
+    The vectors of each instrument mode (``sid``; all vectors when there is none) are
+    taken in time order on their own, so the vectors of a new mode that overlap in time
+    the end of the previous one (the filter time shifts differ: 8 s Normal, 28 s Low,
+    224 s Minimum, sec. 4.2.3.5) are cleaned with their mode rather than left between
+    two interleaved series.  Each stretch of a mode without gaps longer than
+    ``max_gap_s`` (a few dropped vectors do not split it), of at least ``min_segment``
+    vectors, is cleaned by `fluxcal.cleaning.steps.remove_heater_steps` (parameters
+    passed through); shorter stretches are left unchanged.
 
     Returns
     -------
@@ -525,19 +529,23 @@ def level_k(
     thresholds: list[float] = []
     off_rules: list[str] = []
     unchanged = 0
-    for a, c in _uniform_segments(epoch, max_gap_s):
-        if c - a < max(min_segment, 2 * width + 2):
-            unchanged += c - a
+    stretches = []
+    for _, group in _groups(level_b):
+        group = group[np.argsort(epoch[group], kind="stable")]
+        stretches += [group[a:c] for a, c in _uniform_segments(epoch[group], max_gap_s)]
+    for idx in stretches:
+        if idx.size < max(min_segment, 2 * width + 2):
+            unchanged += idx.size
             continue
         res = remove_heater_steps(
-            b[a:c],
+            b[idx],
             width=width,
             threshold=threshold,
             k_mad=k_mad,
             average_samples=average_samples,
             baseline_segments=baseline_segments,
         )
-        out_b[a:c] = res.values
+        out_b[idx] = res.values
         n_jumps += int(res.jump_indices.size)
         thresholds.append(float(res.threshold))
         if res.jump_indices.size:
