@@ -355,6 +355,7 @@ def clean_files(
     formats: Sequence[str] = ("tab", "cdf"),
     plot: bool = True,
     pca_estimator: str = "robust",
+    heater_direction: Sequence[float] | None = None,
 ) -> CleanResult:
     """Run one cleaning level on earlier-level product files and write the products.
 
@@ -442,7 +443,7 @@ def clean_files(
                 spans = intervals_from_states(epoch, states, names)
                 made = {sensor: cl.level_k_assisted(src, spans)}
             else:
-                made = {sensor: cl.level_k(src)}
+                made = {sensor: cl.level_k(src, heater_direction=heater_direction)}
         else:
             made = {sensor: cl.level_l(src, lsk=lsk)}
         prov = provenance_attrs(inputs=used_inputs, kernels=[Path(str(k)) for k in pool.loaded])
@@ -473,6 +474,19 @@ def _floats(text: str, option: str) -> list[float]:
     except ValueError:
         raise typer.BadParameter(f"expected comma-separated Hz values, got {text!r}",
                                  param_hint=option) from None  # fmt: skip
+
+
+def _direction(text: str) -> list[float] | None:
+    if not text.strip():
+        return None
+    try:
+        values = [float(t) for t in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not any(values):
+        raise typer.BadParameter(f"expected a non-zero vector X,Y,Z, got {text!r}",
+                                 param_hint="--heater-direction")
+    return values
 
 
 def clean(
@@ -516,6 +530,11 @@ def clean(
         help="J: robust (default; noise variances from the high-passed series), common-mode "
         "(from the series themselves) or projection (literal principal components).",
     ),
+    heater_direction: str = typer.Option(
+        "", "--heater-direction",
+        help="K: direction X,Y,Z (s/c frame) of the heater field when on, where the data "
+        "cannot tell which level is heater-off (a constant current seen 'on' first).",
+    ),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
@@ -538,6 +557,7 @@ def clean(
         formats=[f.strip() for f in formats.split(",") if f.strip()],
         plot=not no_plot,
         pca_estimator=pca_estimator,
+        heater_direction=_direction(heater_direction),
     )
     for tag, ds in result.levels.items():
         typer.echo(f"LEVEL_{level.upper()} {tag}: {ds.sizes['time']} vectors")

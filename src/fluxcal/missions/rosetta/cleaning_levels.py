@@ -498,6 +498,7 @@ def level_k(
     baseline_segments: int | None = 2,
     min_segment: int = 200,
     max_gap_s: float = 1.0,
+    heater_direction: ArrayLike | None = None,
 ) -> xr.Dataset:
     """LEVEL_B -> LEVEL_K: remove heater square waves automatically (method 1).
 
@@ -510,6 +511,28 @@ def level_k(
     vectors, is cleaned by `fluxcal.cleaning.steps.remove_heater_steps` (parameters
     passed through); shorter stretches are left unchanged.
 
+    Which level of a square wave is "heater off" is read from the data
+    (`fluxcal.cleaning.steps.heater_off_segments`); where no rule decides (a constant
+    heater current seen from its first vector "on": the fallback rule ``first segment``
+    takes the first level as off) the stretch is counted in ``heater_off_undecided`` and
+    a warning says so.  ``heater_direction`` states the answer: the direction (s/c
+    frame) in which the heater field points when the heater is on, so the level
+    further along it is "on".
+
+    Parameters
+    ----------
+    level_b : xarray.Dataset
+        LEVEL_B (s/c frame, ``sid`` optional).
+    heater_direction : array_like (3,), optional
+        Direction of the heater field when on (s/c frame, any length); the disturbance
+        axis and its sign are then taken as given, not estimated.
+    width, threshold, k_mad, average_samples, baseline_segments
+        Passed to `fluxcal.cleaning.steps.remove_heater_steps`.
+    min_segment : int
+        Shortest stretch (vectors) that is cleaned.
+    max_gap_s : float
+        Longest gap (s) inside a stretch.
+
     Returns
     -------
     xarray.Dataset
@@ -517,7 +540,9 @@ def level_k(
         the removed signal, nT), ``level = "K"`` and attributes ``heater_method``,
         ``heater_jumps``, ``heater_thresholds_nT2``, ``heater_off_rules`` (per cleaned
         stretch with jumps: how the heater-off level was identified, and the heater
-        sign along the disturbance axis; `fluxcal.cleaning.steps.heater_off_segments`).
+        sign along the disturbance axis; `fluxcal.cleaning.steps.heater_off_segments`),
+        ``heater_off_undecided`` (stretches where the data could not decide) and
+        ``heater_direction`` (the stated direction, or ``"estimated"``).
 
     References
     ----------
@@ -529,6 +554,15 @@ def level_k(
     thresholds: list[float] = []
     off_rules: list[str] = []
     unchanged = 0
+    undecided = 0
+    direction = None
+    if heater_direction is not None:
+        direction = np.asarray(heater_direction, dtype=float)
+        if direction.shape != (3,) or not np.linalg.norm(direction) > 0:
+            raise InputFormatError(
+                f"heater direction must be a non-zero 3-vector, got {heater_direction!r}",
+                field="heater_direction",
+            )
     stretches = []
     for _, group in _groups(level_b):
         group = group[np.argsort(epoch[group], kind="stable")]
@@ -544,12 +578,21 @@ def level_k(
             k_mad=k_mad,
             average_samples=average_samples,
             baseline_segments=baseline_segments,
+            direction=direction,
+            heater_sign=None if direction is None else 1,
         )
         out_b[idx] = res.values
         n_jumps += int(res.jump_indices.size)
         thresholds.append(float(res.threshold))
         if res.jump_indices.size:
             off_rules.append(f"{res.off_rule} (sign {res.heater_sign:+d})")
+            if res.off_rule.startswith("first segment"):
+                undecided += 1
+                log.warning(
+                    "LEVEL_K: %d vectors from TT2000 %d ns: which level is heater-off is not "
+                    "decidable from the data (taken: the first); state the heater field direction "
+                    "(--heater-direction X,Y,Z, s/c frame)", idx.size, int(epoch[idx[0]]),
+                )
     out = _with_b(level_b, out_b, "calibrated field, s/c frame, heater disturbance eliminated")
     out["heater_disturbance"] = (
         ("time", "component"),
@@ -563,6 +606,9 @@ def level_k(
         heater_thresholds_nT2=thresholds,
         heater_off_rules=off_rules,
         heater_unchanged_vectors=unchanged,
+        heater_off_undecided=undecided,
+        heater_direction=("estimated" if direction is None
+                          else [float(v) for v in direction / np.linalg.norm(direction)]),
     )
     return out
 
