@@ -115,3 +115,41 @@ def test_transition_among_short_runs_changes_the_fewest_bits():
     b = np.array([0] * 20 + [1] * 37 + [0] + [1] * 2 + [0] * 60, dtype=np.int8)
     t = np.arange(b.size, dtype=float)
     np.testing.assert_array_equal(persistent_bits(t, b), [0] * 20 + [1] * 40 + [0] * 60)
+
+
+# --- a LAC gap under 100 s hiding the first on-phase after a quiet spell ---------------
+# Restarts happen at the 1000-s controller evaluations (sec. 7).  Before: the first period
+# started at the first seen edge, 100 s late (0.56 nT of waveform, > 0.06 nT of offset for
+# 40 min).  Schedule: 40 % for 1000 s from 200 s (a restart seen whole: the grid's phase),
+# quiet for 1000 s, 40 % again from 2200 s; the gap hides [2195, 2250).
+@pytest.mark.parametrize("gap", [(2195, 2250), (2199, 2241), (2150, 2245)])
+def test_gap_hiding_the_first_on_phase_after_quiet(gap):
+    blocks = [40, 0, 40, 40]
+    out = [0] * QUIET
+    for d in blocks:
+        for _ in range(10):
+            out += [1] * d + [0] * (100 - d)
+    out += [0] * 300
+    t = np.arange(len(out), dtype=float)
+    clean = np.array(out, dtype=np.int8)
+    keep = (t < gap[0]) | (t >= gap[1])
+    s = np.arange(0.0, t[-1], 0.5)
+    p0, ch0, d0, w0, a0 = _run(t, clean, s)
+    p1, ch1, d1, w1, a1 = _run(t[keep], clean[keep], s)
+    np.testing.assert_array_equal(p1.start, p0.start)
+    np.testing.assert_allclose(p1.duty_cycle, p0.duty_cycle)
+    np.testing.assert_array_equal(ch1.time, ch0.time)
+    np.testing.assert_array_equal(ch1.duty_cycle_ppt, ch0.duty_cycle_ppt)
+    np.testing.assert_allclose(w1, w0, atol=1e-9)
+    np.testing.assert_allclose(d1, d0, atol=1e-9)
+
+
+def test_restart_off_the_grid_is_not_moved():
+    # the first start after quiet at 2250 is not on the 1000-s grid of 200 and neither
+    # is 2150: no grid point in a gap, nothing added (the data are taken as they are)
+    out = [0] * QUIET + ([1] * 40 + [0] * 60) * 10 + [0] * 1050 + ([1] * 40 + [0] * 60) * 5
+    t = np.arange(len(out), dtype=float)
+    b = np.array(out, dtype=np.int8)
+    keep = (t < 2160) | (t >= 2200)
+    p = heater_periods(t[keep], b[keep])
+    assert 2150.0 not in p.start and 2250.0 in p.start

@@ -183,6 +183,45 @@ def _hidden_edges(
     return np.concatenate([grid[forward], back[backward]])
 
 
+def _hidden_restarts(
+    times: np.ndarray, bits: np.ndarray, start: np.ndarray, period: float, bit_step: float,
+    tolerance: float, evaluation_s: float,
+) -> np.ndarray:
+    """Restarts after a quiet spell whose whole first on-phase a gap hid (sec. 6, 7).
+
+    The V10 controller changes the duty cycle only at its evaluations, every
+    ``evaluation_s`` (10 periods), so the heater restarts after a quiet spell on that
+    grid.  The grid's phase is that of a restart seen whole: a start preceded by a full
+    period of records, all off.  A start ``E`` that follows a quiet spell but lies off
+    the grid, while ``E - period`` lies on it and inside a gap, started one period late
+    in the data: the restart was at ``E - period``, its on-phase in the gap.  Returns
+    those grid points (the caller checks that the on-phase fits the gap).
+    """
+    eps = 1e-6 * bit_step
+    if start.size == 0 or not evaluation_s > 0:
+        return np.empty(0)
+    csum = np.concatenate([[0], np.cumsum(bits, dtype=np.int64)])
+    i0 = np.searchsorted(times, start - period - eps)
+    i1 = np.searchsorted(times, start - eps)
+    quiet = ((i1 - i0) >= np.round(period / bit_step) - 0.5) & (csum[i1] == csum[i0])
+    if not quiet.any():
+        return np.empty(0)
+    anchor = start[np.flatnonzero(quiet)[0]]
+
+    def off_grid(x: np.ndarray) -> np.ndarray:
+        r = np.mod(x - anchor, evaluation_s)
+        return np.minimum(r, evaluation_s - r)
+
+    prev = np.r_[-np.inf, start[:-1]]
+    grid = start - period
+    j = np.clip(np.searchsorted(times, grid - eps), 1, max(times.size - 1, 1))
+    missing = np.abs(times[np.minimum(j, times.size - 1)] - grid) > eps
+    in_gap = missing & (times[j] - times[j - 1] > 1.5 * bit_step) & (times[j - 1] < grid)
+    hidden = ((start - prev > 2 * period - tolerance) & (off_grid(start) > tolerance)
+              & (off_grid(grid) <= tolerance) & in_gap)
+    return grid[hidden]
+
+
 def heater_periods(
     times: np.ndarray,
     bits: np.ndarray,
@@ -192,6 +231,7 @@ def heater_periods(
     bit_step: float = 1.0,
     tolerance: float = 1.5,
     persistence: int | None = None,
+    evaluation_periods: int = 10,
 ) -> HeaterPeriods:
     """Find the heater periods of a heater-bit series (sec. 6).
 
@@ -216,6 +256,9 @@ def heater_periods(
         Counts a change of the bit must persist before the heater follows it
         (`persistent_bits`); default ``round(min_on / bit_step)`` (10, sec. 6).  ``1``
         takes every bit change as it comes.
+    evaluation_periods : int
+        Heater periods per controller evaluation (10: 1000 s, sec. 7); the heater
+        restarts after a quiet spell on that grid (`_hidden_restarts`; ``0`` disables).
 
     Returns
     -------
@@ -315,6 +358,10 @@ def heater_periods(
         start = merged(start, lone, continued(lone))
     else:
         lone = np.empty(0)
+    restarts = _hidden_restarts(times, bits, start, period, bit_step, tolerance,
+                                evaluation_periods * period)
+    if restarts.size:
+        start = merged(start, restarts)
     nxt = np.append(start[1:], np.inf)
     end = np.minimum(start + period, nxt)
     # bits on within [start, end): cumulative count, searched by time
@@ -350,6 +397,13 @@ def heater_periods(
             if duty[k] <= duty[k - 1] <= bounds[k, 1] + eps:
                 duty[k] = duty[k - 1]
                 on[k] = max(on[k], on[k - 1])
+    # a restart hidden in a gap: the period after it lies in the same evaluation block
+    # (one duty cycle) and, if its on-phase fits the gap, gives the duty cycle
+    for k in np.flatnonzero(np.isin(start, restarts)):
+        after = times[min(np.searchsorted(times, start[k] + eps), times.size - 1)]
+        if (k + 1 < start.size and bounds[k, 1] >= duty[k + 1] - eps
+                and after >= start[k] + on[k + 1] - tolerance):
+            duty[k], on[k] = duty[k + 1], on[k + 1]
     always_on = duty >= 1.0 - eps  # no off phase: no heater-cycle waveform
     return HeaterPeriods(
         start=start, end=end, duty_cycle=duty, on_duration=on,
