@@ -16,7 +16,7 @@ import xarray as xr
 from fluxcal import __version__
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 
 log = logging.getLogger(__name__)
@@ -98,6 +98,7 @@ def calibrate(
         ds = ds.drop_vars(UNWRITTEN_BEFORE_GEOMETRY)
     ds = levels.add_geometry(ds, cal, frames, method=method)
     ds = levels.assign_quality(ds, cal)
+    ds = defects.flag_stream_gaps(ds, heater, temperature, cal, sclk)  # issue 23
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_AFTER_QUALITY)
     report = (
