@@ -81,7 +81,8 @@ def test_sizes_inside_the_spans(gapped, simulated_files, messenger_kernels, cali
     truth = read_truth(simulated_files["truth"])
     fine = truth["range"].values == 0
     worst = {}
-    for cause, bit in DEFECT_FLAGS.items():
+    for cause in ("heater_gap", "temperature_gap"):
+        bit = DEFECT_FLAGS[cause]
         sel = fine & (ds["defect_flag"].values & bit > 0)
         worst[cause] = np.abs(ds["b_mso"].values[sel] - truth["b_mso"].values[sel]).max()
     assert worst["heater_gap"] > 0.5 and worst["temperature_gap"] > 0.05
@@ -103,3 +104,43 @@ def test_edr2cdr_writes_the_day_with_its_defects(gapped, simulated_files, messen
     cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
     spans = str(cdf.attrs["defect_spans"])
     assert "heater_gap (flag 1)" in spans and "temperature_gap (flag 2)" in spans
+
+
+@pytest.mark.parametrize("where, size_c", [("warmest", 100.0), ("middle", 5.0), ("middle", -2.0)])
+def test_temperature_glitch_is_dropped_and_flagged(simulated_files, messenger_kernels,
+                                                   calibration, tmp_path, where, size_c,
+                                                   monkeypatch):
+    # one temperature record off by size_c; at the warmest record (Table 2's steep
+    # segment) +100 C tripped the sec. 13 check and refused the day (checked below)
+    from fluxcal.errors import ValidationError
+    from fluxcal.missions.messenger import defects
+
+    lines = simulated_files["temperature"].read_text().splitlines()
+    temps = [float(line.split(",")[2]) for line in lines[1:]]
+    i = 1 + (int(np.argmax(temps)) if where == "warmest" else len(temps) // 2)
+    cells = lines[i].split(",")
+    cells[2] = f"{float(cells[2]) + size_c:.3f}"
+    lines[i] = ",".join(cells)
+    path = tmp_path / "temperature.csv"
+    path.write_text("\n".join(lines) + "\n")
+    raw = read_temperature(path)
+    assert len(defects.drop_temperature_glitches(raw).attrs["temperature_glitches"]) == 1
+    assert defects.drop_temperature_glitches(read_temperature(simulated_files["temperature"])
+                                             ).attrs["temperature_glitches"] == []  # clean
+    sci = read_science(simulated_files["science"])
+    heat = read_heater(simulated_files["heater"])
+    with KernelPool(messenger_kernels):
+        ds = calibrate(sci, heat, raw, calibration)
+        if size_c == 100.0:  # without the glitch removal: the day is refused
+            monkeypatch.setattr(defects, "drop_temperature_glitches",
+                                lambda t: t.assign_attrs(temperature_glitches=[]))
+            with pytest.raises(ValidationError, match="sec. 13"):
+                calibrate(sci, heat, raw, calibration)
+    truth = read_truth(simulated_files["truth"])
+    flag = ds["defect_flag"].values
+    bit = DEFECT_FLAGS["temperature_glitch"]
+    assert (flag & bit).any() and "temperature_glitch" in ds.attrs["defect_spans"]
+    ok = (flag == 0) & (truth["range"].values == 0)
+    err = ds["b_mso"].values[ok] - truth["b_mso"].values[ok]
+    assert np.all(np.sqrt((err**2).mean(axis=0)) < 0.05)
+    assert np.all(np.abs(err).max(axis=0) < 0.1)

@@ -92,6 +92,7 @@ def calibrate(
     warn_unseen_duty_cycle(ds, heater, changes, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
     ds = levels.mark_sunlit(ds, cal, method=method)
+    temperature = defects.drop_temperature_glitches(temperature)  # issue 23
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
     ds = levels.counts_to_field(ds, cal)
     if not keep_intermediates:
