@@ -144,3 +144,27 @@ def test_temperature_glitch_is_dropped_and_flagged(simulated_files, messenger_ke
     err = ds["b_mso"].values[ok] - truth["b_mso"].values[ok]
     assert np.all(np.sqrt((err**2).mean(axis=0)) < 0.05)
     assert np.all(np.abs(err).max(axis=0) < 0.1)
+
+
+def test_batch_day_with_a_heater_gap_is_done_and_flagged(tmp_path):
+    # the same in batch: the day is "done", its product carries the span
+    import datetime as dt
+
+    from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
+    from fluxcal.products import read_product
+    from fluxcal.products.batch import run_batch
+
+    day = dt.date(2012, 6, 1)
+    inp = tmp_path / "in"
+    assert simulate_days(inp, [day], seconds_per_day=600.0) == [day]
+    htr = day_file(inp, "HTR", day)
+    lines = htr.read_text().splitlines()
+    mets = [float(line.split(",")[1]) for line in lines[1:]]
+    mid = 0.5 * (mets[0] + mets[-1])
+    _cut(htr, htr, mid - 75.0, mid + 75.0)  # 150 s > one heater period
+    out = tmp_path / "out"
+    task = make_day_task(inp, out, formats=("cdf",), frames=("mso",), averages=())
+    report = run_batch([day], task, out, scheduler="serial")
+    assert [d.status for d in report.days] == ["done"], [d.error for d in report.days]
+    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
+    assert "heater_gap (flag 1)" in str(cdf.attrs["defect_spans"])
