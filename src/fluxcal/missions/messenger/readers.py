@@ -373,7 +373,7 @@ def read_heater(
     paths : path or sequence of paths
     on_gap : {"report", "raise"}
         Two consecutive records more than one heater period (100 s) apart: recorded in
-        ``attrs["stream_gaps"]`` (``[[partition, met_before, met_after], ...]``) and
+        ``attrs["stream_gaps"]`` (absent when there is none) (``[[partition, met_before, met_after], ...]``) and
         flagged by `fluxcal.missions.messenger.defects` (default: the day is processed),
         or an error.
 
@@ -395,8 +395,13 @@ def read_heater(
             "met": ("heater_time", data[1].copy(), {"units": "s"}),
             "heater": ("heater_time", data[2].astype(np.int8), {"units": "1"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in plist), "stream_gaps": gaps},
+        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps)},
     )
+
+
+def _gap_attrs(gaps: list[list[float]]) -> dict:
+    """``{"stream_gaps": gaps}`` when there are gaps, else nothing (the EDR route's form)."""
+    return {"stream_gaps": gaps} if gaps else {}
 
 
 def _check_gaps(
@@ -482,5 +487,5 @@ def read_temperature(
             "met": ("temperature_time", data[1].copy(), {"units": "s"}),
             "temperature_c": ("temperature_time", data[2].copy(), {"units": "degC"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in plist), "stream_gaps": gaps},
+        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps)},
     )
