@@ -374,8 +374,8 @@ def read_heater(
     on_gap : {"report", "raise"}
         Two consecutive records more than one heater period (100 s) apart: recorded in
         ``attrs["stream_gaps"]`` (``[[partition, met_before, met_after], ...]``; absent
-        when there is none) and flagged by `fluxcal.missions.messenger.defects` (default: the day is processed),
-        or an error.
+        when there is none) and flagged by `fluxcal.missions.messenger.defects`
+        (default: the day is processed), or an error.
 
     Raises
     ------
