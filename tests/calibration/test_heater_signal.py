@@ -56,13 +56,20 @@ def _bits(pattern):
 
 
 def test_periods_duty_and_persistence():
+    # persistence=1: every bit change taken as it comes; the 5-s on-run is a period whose
+    # signal is not applied (on < 10 s)
     t, b = _bits([(40, 100), (40, 100), (25, 100), (5, 100)])
-    p = heater_periods(t, b)
+    p = heater_periods(t, b, persistence=1)
     np.testing.assert_array_equal(p.start, [50, 150, 250, 350])
     np.testing.assert_allclose(p.duty_cycle, [0.40, 0.40, 0.25, 0.05])
     np.testing.assert_allclose(p.on_duration, [40, 40, 25, 5])
     np.testing.assert_array_equal(p.applied, [True, True, True, False])
     np.testing.assert_array_equal(p.end, [150, 250, 350, 450])
+    # the default 10-count persistence (sec. 6): the spacecraft ignored the 5-s request,
+    # no heater period there (duty cycle 0 % rather than 5 %)
+    q = heater_periods(t, b)
+    np.testing.assert_array_equal(q.start, [50, 150, 250])
+    np.testing.assert_allclose(q.duty_cycle, [0.40, 0.40, 0.25])
 
 
 def test_signal_only_in_applied_periods():
@@ -141,6 +148,11 @@ def test_persistence_counts_bits_whatever_the_clock_rate(rate_error, on_bits, ap
     n_periods = 5
     b = np.tile(np.r_[np.ones(on_bits), np.zeros(100 - on_bits)], n_periods).astype(np.int8)
     t = 1000.0 + np.arange(b.size) * (1.0 + rate_error)
-    p = heater_periods(np.r_[t[0] - (1.0 + rate_error), t], np.r_[0, b])
+    p = heater_periods(np.r_[t[0] - (1.0 + rate_error), t], np.r_[0, b], persistence=1)
     assert p.start.size == n_periods
     assert (p.applied == applied).all()
+    # the 10-count persistence of the bit itself counts records too: 9 bits are no
+    # heater change at all, 10 and 11 are, whatever the clock rate
+    q = heater_periods(np.r_[t[0] - (1.0 + rate_error), t], np.r_[0, b])
+    assert q.start.size == (n_periods if applied else 0)
+    assert q.applied.all()

@@ -56,6 +56,88 @@ class HeaterPeriods:
         return int(self.start.size)
 
 
+def persistent_bits(
+    times: np.ndarray, bits: np.ndarray, *, persistence: int = 10, bit_step: float = 1.0
+) -> np.ndarray:
+    """Return the heater request bits with the changes shorter than ``persistence`` removed.
+
+    The spacecraft turns the heater on or off only after the request bit has held its new
+    value for ``persistence`` consecutive counts (sec. 6), so a run of equal bits shorter
+    than that (one 0 inside an on-phase, one 1 inside an off-phase) is no heater change:
+    a run that persisted (``>= persistence`` records, or touching a gap or an end of the
+    series, where its length is not known) is *decisive*; the short runs between two
+    decisive runs of the same value take that value; between two of different values
+    they hold the one transition, placed where it changes the fewest bits (the
+    earliest such place on a tie).
+
+    Parameters
+    ----------
+    times : ndarray, shape (n,)
+        Increasing times (s) of the bits.
+    bits : ndarray of {0, 1}, shape (n,)
+        Heater request bit.
+    persistence : int
+        Counts a change must persist; ``<= 1`` returns ``bits`` unchanged.
+    bit_step : float
+        Time each bit stands for (s); a gap is a missing record (consecutive records more
+        than 1.5 ``bit_step`` apart).
+
+    Returns
+    -------
+    ndarray of int8, shape (n,)
+
+    Notes
+    -----
+    Runs are counted in records, not seconds, so a clock running fast or slow does not
+    change which runs persist.  A request shorter than the persistence (a duty cycle
+    below 10 %) is no heater period: the spacecraft ignored it (sec. 6).  The controller
+    sets the bit once per period; a short run is read as a telemetry bit error, so the
+    fewest bits are changed (the edges of the clean request stay where they were).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 ("a 10-count persistence in a
+       change of the heater state bit before turning the heater either on or off").
+
+    Examples
+    --------
+    >>> t = np.arange(12.0)
+    >>> persistent_bits(t, np.array([0] * 5 + [1] + [0] * 6), persistence=3).tolist()
+    [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+    """
+    times = np.asarray(times, dtype=float)
+    out = np.asarray(bits).astype(np.int8)
+    if out.size == 0 or persistence <= 1:
+        return out
+    gap = np.diff(times) > 1.5 * bit_step  # a missing record (clock rates differ by ppm)
+    start = np.r_[0, np.flatnonzero((np.diff(out) != 0) | gap) + 1]
+    length = np.diff(np.r_[start, out.size])
+    value = out[start]
+    gap_before = np.r_[True, gap[start[1:] - 1]]
+    gap_after = np.r_[gap_before[1:], True]
+    decisive = (length >= persistence) | gap_before | gap_after
+    if decisive.all():
+        return out
+    idx = np.arange(start.size)
+    prev = np.maximum.accumulate(np.where(decisive, idx, -1))  # first run is decisive
+    nxt = np.minimum.accumulate(np.where(decisive, idx, start.size)[::-1])[::-1]
+    new = value.copy()
+    short = ~decisive
+    new[short] = value[nxt[short]]  # same value on both sides: a glitch, filled
+    # a transition among short runs (different values either side, no gap: the runs
+    # alternate): cut where the fewest bits change; few such places, a loop over them
+    for p in np.unique(prev[short & (value[prev] != value[nxt])]):
+        q = nxt[p + 1]
+        lens, vals = length[p + 1:q], value[p + 1:q]
+        a = value[p]
+        before = np.r_[0, np.cumsum(np.where(vals != a, lens, 0))]  # flipped to a
+        after = np.r_[np.cumsum(np.where(vals == a, lens, 0)[::-1])[::-1], 0]  # flipped to b
+        cut = int(np.argmin(before + after))
+        new[p + 1:p + 1 + cut] = a
+        new[p + 1 + cut:q] = value[q]
+    return np.repeat(new, length)
+
+
 def _hidden_edges(
     times: np.ndarray, bits: np.ndarray, t_seen: np.ndarray, period: float, bit_step: float,
     tolerance: float, on_until: np.ndarray,
@@ -101,6 +183,45 @@ def _hidden_edges(
     return np.concatenate([grid[forward], back[backward]])
 
 
+def _hidden_restarts(
+    times: np.ndarray, bits: np.ndarray, start: np.ndarray, period: float, bit_step: float,
+    tolerance: float, evaluation_s: float,
+) -> np.ndarray:
+    """Restarts after a quiet spell whose whole first on-phase a gap hid (sec. 6, 7).
+
+    The V10 controller changes the duty cycle only at its evaluations, every
+    ``evaluation_s`` (10 periods), so the heater restarts after a quiet spell on that
+    grid.  The grid's phase is that of a restart seen whole: a start preceded by a full
+    period of records, all off.  A start ``E`` that follows a quiet spell but lies off
+    the grid, while ``E - period`` lies on it and inside a gap, started one period late
+    in the data: the restart was at ``E - period``, its on-phase in the gap.  Returns
+    those grid points (the caller checks that the on-phase fits the gap).
+    """
+    eps = 1e-6 * bit_step
+    if start.size == 0 or not evaluation_s > 0:
+        return np.empty(0)
+    csum = np.concatenate([[0], np.cumsum(bits, dtype=np.int64)])
+    i0 = np.searchsorted(times, start - period - eps)
+    i1 = np.searchsorted(times, start - eps)
+    quiet = ((i1 - i0) >= np.round(period / bit_step) - 0.5) & (csum[i1] == csum[i0])
+    if not quiet.any():
+        return np.empty(0)
+    anchor = start[np.flatnonzero(quiet)[0]]
+
+    def off_grid(x: np.ndarray) -> np.ndarray:
+        r = np.mod(x - anchor, evaluation_s)
+        return np.minimum(r, evaluation_s - r)
+
+    prev = np.r_[-np.inf, start[:-1]]
+    grid = start - period
+    j = np.clip(np.searchsorted(times, grid - eps), 1, max(times.size - 1, 1))
+    missing = np.abs(times[np.minimum(j, times.size - 1)] - grid) > eps
+    in_gap = missing & (times[j] - times[j - 1] > 1.5 * bit_step) & (times[j - 1] < grid)
+    hidden = ((start - prev > 2 * period - tolerance) & (off_grid(start) > tolerance)
+              & (off_grid(grid) <= tolerance) & in_gap)
+    return grid[hidden]
+
+
 def heater_periods(
     times: np.ndarray,
     bits: np.ndarray,
@@ -109,6 +230,8 @@ def heater_periods(
     min_on: float = 10.0,
     bit_step: float = 1.0,
     tolerance: float = 1.5,
+    persistence: int | None = None,
+    evaluation_periods: int = 10,
 ) -> HeaterPeriods:
     """Find the heater periods of a heater-bit series (sec. 6).
 
@@ -129,6 +252,13 @@ def heater_periods(
         Time each bit stands for (s); a bit at ``t`` covers ``[t, t + bit_step)``.
     tolerance : float
         Slack (s) when deciding that two periods are contiguous.
+    persistence : int, optional
+        Counts a change of the bit must persist before the heater follows it
+        (`persistent_bits`); default ``round(min_on / bit_step)`` (10, sec. 6).  ``1``
+        takes every bit change as it comes.
+    evaluation_periods : int
+        Heater periods per controller evaluation (10: 1000 s, sec. 7); the heater
+        restarts after a quiet spell on that grid (`_hidden_restarts`; ``0`` disables).
 
     Returns
     -------
@@ -141,6 +271,10 @@ def heater_periods(
     point one period after the last seen edge lies in the gap and the heater kept cycling
     (see `_hidden_edges`) the period starts there; with no grid point known, at the
     first on-bit after the gap (the change time is then late by less than the gap).
+
+    The bits are first reduced to the changes that persisted ``persistence`` counts
+    (`persistent_bits`): a single 0 inside an on-phase or a single 1 inside an off-phase
+    makes no edge, and a request shorter than the persistence makes no period.
 
     A bit that stays on for longer than a period (duty cycle 100 %) has no rising edge
     after the first: the periods go on every ``period`` seconds while the bit is on.  A
@@ -170,6 +304,9 @@ def heater_periods(
     bits = np.asarray(bits).astype(np.int8)
     if times.shape != bits.shape or times.ndim != 1:
         raise ValueError("times, bits: must be 1-D arrays of equal length")
+    if persistence is None:
+        persistence = int(round(min_on / bit_step))
+    bits = persistent_bits(times, bits, persistence=persistence, bit_step=bit_step)
     eps = 1e-6 * bit_step
     step = np.diff(bits)
     consecutive = np.diff(times) <= bit_step + eps
@@ -221,6 +358,10 @@ def heater_periods(
         start = merged(start, lone, continued(lone))
     else:
         lone = np.empty(0)
+    restarts = _hidden_restarts(times, bits, start, period, bit_step, tolerance,
+                                evaluation_periods * period)
+    if restarts.size:
+        start = merged(start, restarts)
     nxt = np.append(start[1:], np.inf)
     end = np.minimum(start + period, nxt)
     # bits on within [start, end): cumulative count, searched by time
@@ -256,6 +397,13 @@ def heater_periods(
             if duty[k] <= duty[k - 1] <= bounds[k, 1] + eps:
                 duty[k] = duty[k - 1]
                 on[k] = max(on[k], on[k - 1])
+    # a restart hidden in a gap: the period after it lies in the same evaluation block
+    # (one duty cycle) and, if its on-phase fits the gap, gives the duty cycle
+    for k in np.flatnonzero(np.isin(start, restarts)):
+        after = times[min(np.searchsorted(times, start[k] + eps), times.size - 1)]
+        if (k + 1 < start.size and bounds[k, 1] >= duty[k + 1] - eps
+                and after >= start[k] + on[k + 1] - tolerance):
+            duty[k], on[k] = duty[k + 1], on[k + 1]
     always_on = duty >= 1.0 - eps  # no off phase: no heater-cycle waveform
     return HeaterPeriods(
         start=start, end=end, duty_cycle=duty, on_duration=on,

@@ -83,7 +83,7 @@ def test_heater_gap_longer_than_period(tmp_path):
     lines = ["partition,met,heater"] + [f"1,{t},0" for t in range(10)] + ["1,111,1"]
     path = _write(tmp_path, "h.csv", lines)
     with pytest.raises(InputFormatError, match="exceeds one heater period") as info:
-        read_heater(path)
+        read_heater(path, on_gap="raise")
     assert info.value.line == 12 and info.value.field == "met"
 
 
@@ -91,7 +91,8 @@ def test_heater_gap_between_files(tmp_path):
     a = _write(tmp_path, "a.csv", ["partition,met,heater", "1,0,0", "1,1,0"])
     b = _write(tmp_path, "b.csv", ["partition,met,heater", "1,200,0"])
     with pytest.raises(InputFormatError, match="heater period"):
-        read_heater([a, b])
+        read_heater([a, b], on_gap="raise")
+    assert read_heater([a, b]).attrs["stream_gaps"] == [[1.0, 1.0, 200.0]]  # issue 23
 
 
 def test_temperature_gap_longer_than_limit(tmp_path):
@@ -100,7 +101,8 @@ def test_temperature_gap_longer_than_limit(tmp_path):
     lines.append("1,691.0,21.0")  # 90 -> 691: 601 s > 600 s
     path = _write(tmp_path, "t.csv", lines)
     with pytest.raises(InputFormatError, match="temperature stream gap of 601 s") as info:
-        read_temperature(path)
+        read_temperature(path, on_gap="raise")
+    assert read_temperature(path).attrs["stream_gaps"] == [[1.0, 90.0, 691.0]]  # issue 23
     assert info.value.line == 12 and info.value.field == "met" and "t.csv" in str(info.value)
     read_temperature(path, max_gap_s=700.0)  # an explicit, longer limit accepts it
     lines[-1] = "1,690.0,21.0"  # exactly 600 s: accepted
@@ -111,7 +113,7 @@ def test_temperature_gap_between_files(tmp_path):
     a = _write(tmp_path, "a.csv", ["partition,met,temperature_c", "1,0,20", "1,10,20"])
     b = _write(tmp_path, "b.csv", ["partition,met,temperature_c", "1,1000,20"])
     with pytest.raises(InputFormatError, match="between") as info:
-        read_temperature([a, b])
+        read_temperature([a, b], on_gap="raise")
     assert info.value.line == 2 and "b.csv" in str(info.value)
 
 

@@ -16,7 +16,7 @@ import xarray as xr
 from fluxcal import __version__
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.options import DEFAULT_FRAMES
 
@@ -92,12 +92,14 @@ def calibrate(
     warn_unseen_duty_cycle(ds, heater, changes, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
     ds = levels.mark_sunlit(ds, cal, method=method)
+    temperature = defects.drop_temperature_glitches(temperature)  # issue 23
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
     ds = levels.counts_to_field(ds, cal)
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_BEFORE_GEOMETRY)
     ds = levels.add_geometry(ds, cal, frames, method=method)
     ds = levels.assign_quality(ds, cal)
+    ds = defects.flag_stream_gaps(ds, heater, temperature, cal, sclk)  # issue 23
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_AFTER_QUALITY)
     report = (

@@ -6,8 +6,10 @@
 
 Several files per stream are concatenated in time order.  Every defect (unknown or
 missing column, non-numeric field, rate or range out of range, counts beyond the
-range's limits, MET going backwards, a heater gap longer than a heater period) raises
-`fluxcal.errors.InputFormatError` naming the file, line and field.  The format is
+range's limits, MET going backwards) raises `fluxcal.errors.InputFormatError` naming
+the file, line and field.  A heater gap longer than a heater period or a temperature gap
+longer than 600 s is recorded in ``attrs["stream_gaps"]`` and the span flagged
+(`fluxcal.missions.messenger.defects`; ``on_gap="raise"`` refuses it instead).  The format is
 documented in ``docs/formats/messenger.md``.
 
 References
@@ -361,20 +363,31 @@ def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
     )
 
 
-def read_heater(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
+def read_heater(
+    paths: Sequence[str | Path] | str | Path, *, on_gap: str = "report"
+) -> xr.Dataset:
     """Read heater-bit CSV files (1-s LAC stream) into a dataset on ``heater_time``.
+
+    Parameters
+    ----------
+    paths : path or sequence of paths
+    on_gap : {"report", "raise"}
+        Two consecutive records more than one heater period (100 s) apart: recorded in
+        ``attrs["stream_gaps"]`` (``[[partition, met_before, met_after], ...]``; absent
+        when there is none) and flagged by `fluxcal.missions.messenger.defects`
+        (default: the day is processed), or an error.
 
     Raises
     ------
     InputFormatError
-        Also when two consecutive heater records are more than one heater period
-        (100 s) apart.
+        Also, with ``on_gap="raise"``, when two consecutive heater records are more than
+        one heater period (100 s) apart.
     """
     plist, tables = _read_stream(paths, HEATER_COLUMNS, "heater")
     for path, data in zip(plist, tables, strict=True):
         _check_integer(path, data[2], "heater", 0, 1, "the heater bit values 0 and 1")
-    _check_gaps(plist, tables, HEATER_PERIOD_S, "heater stream",
-                f"one heater period ({HEATER_PERIOD_S:.0f} s)")
+    gaps = _check_gaps(plist, tables, HEATER_PERIOD_S, "heater stream",
+                       f"one heater period ({HEATER_PERIOD_S:.0f} s)", on_gap=on_gap)
     data = np.concatenate(tables, axis=1)
     return xr.Dataset(
         {
@@ -382,43 +395,59 @@ def read_heater(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
             "met": ("heater_time", data[1].copy(), {"units": "s"}),
             "heater": ("heater_time", data[2].astype(np.int8), {"units": "1"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in plist)},
+        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps)},
     )
+
+
+def _gap_attrs(gaps: list[list[float]]) -> dict:
+    """``{"stream_gaps": gaps}`` when there are gaps, else nothing (the EDR route's form)."""
+    return {"stream_gaps": gaps} if gaps else {}
 
 
 def _check_gaps(
     plist: Sequence[Path], tables: Sequence[np.ndarray], max_gap: float, what: str,
-    limit: str | None = None,
-) -> None:
-    """Raise when consecutive records of one partition are more than ``max_gap`` apart.
+    limit: str | None = None, *, on_gap: str = "raise",
+) -> list[list[float]]:
+    """Find consecutive records of one partition more than ``max_gap`` apart.
 
-    Checked within each file and across consecutive files; the error names the file and
-    the line of the record after the gap; ``limit`` words the limit (default seconds).
+    Checked within each file and across consecutive files.  ``on_gap="raise"``: an
+    error naming the file and the line of the record after the gap (``limit`` words the
+    limit, default seconds); ``"report"``: return ``[[partition, met_before, met_after],
+    ...]``.
     """
+    if on_gap not in ("raise", "report"):
+        raise ValueError(f"on_gap: 'raise' or 'report', not {on_gap!r}")
     limit = limit or f"{max_gap:.0f} s"
+    found: list[list[float]] = []
     for path, data in zip(plist, tables, strict=True):
         gaps = (np.diff(data[1]) > max_gap) & (np.diff(data[0]) == 0)
-        if gaps.any():
+        if gaps.any() and on_gap == "raise":
             row = int(np.flatnonzero(gaps)[0]) + 1
             raise InputFormatError(
                 f"{what} gap of {data[1, row] - data[1, row - 1]:.0f} s exceeds {limit}",
                 path=str(path), line=row + 2, field="met",
             )
+        for row in np.flatnonzero(gaps) + 1:
+            found.append([float(data[0, row]), float(data[1, row - 1]), float(data[1, row])])
     for (p0, d0), (p1, d1) in zip(
         zip(plist[:-1], tables[:-1], strict=True), zip(plist[1:], tables[1:], strict=True),
         strict=True,
     ):
         if d0.shape[1] and d1.shape[1] and d0[0, -1] == d1[0, 0]:
             gap = d1[1, 0] - d0[1, -1]
-            if gap > max_gap:
+            if gap > max_gap and on_gap == "raise":
                 raise InputFormatError(
                     f"{what} gap of {gap:.0f} s between {p0} and this file exceeds {limit}",
                     path=str(p1), line=2, field="met",
                 )
+            if gap > max_gap:
+                found.append([float(d1[0, 0]), float(d0[1, -1]), float(d1[1, 0])])
+    return sorted(found)
 
 
 def read_temperature(
-    paths: Sequence[str | Path] | str | Path, max_gap_s: float = TEMPERATURE_MAX_GAP_S
+    paths: Sequence[str | Path] | str | Path, max_gap_s: float = TEMPERATURE_MAX_GAP_S,
+    *, on_gap: str = "report",
 ) -> xr.Dataset:
     """Read sensor-temperature CSV files into a dataset on ``temperature_time``.
 
@@ -431,12 +460,15 @@ def read_temperature(
         interpolation to the sample times (seed 000 sec. 7) may bridge.  With Table 2's
         steepest slope (6.62 counts/degC, ~0.3 nT/degC) a temperature the interpolation
         misses by 0.2 degC already costs 0.06 nT.
+    on_gap : {"report", "raise"}
+        A longer gap: bridged by the interpolation, recorded in ``attrs["stream_gaps"]``
+        and flagged by `fluxcal.missions.messenger.defects` (default), or an error.
 
     Raises
     ------
     InputFormatError
-        Naming file, line and field: a temperature outside -150..150 degC, or a gap
-        longer than ``max_gap_s``.
+        Naming file, line and field: a temperature outside -150..150 degC, or (with
+        ``on_gap="raise"``) a gap longer than ``max_gap_s``.
     """
     plist, tables = _read_stream(paths, TEMPERATURE_COLUMNS, "temperature")
     for path, data in zip(plist, tables, strict=True):
@@ -447,7 +479,7 @@ def read_temperature(
                 f"temperature {data[2, row]} degC outside -150..150 degC", path=str(path),
                 line=row + 2, field="temperature_c",
             )
-    _check_gaps(plist, tables, max_gap_s, "temperature stream")
+    gaps = _check_gaps(plist, tables, max_gap_s, "temperature stream", on_gap=on_gap)
     data = np.concatenate(tables, axis=1)
     return xr.Dataset(
         {
@@ -455,5 +487,5 @@ def read_temperature(
             "met": ("temperature_time", data[1].copy(), {"units": "s"}),
             "temperature_c": ("temperature_time", data[2].copy(), {"units": "degC"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in plist)},
+        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps)},
     )

@@ -52,6 +52,131 @@ ARCHIVE_NAMES = {
 }
 
 
+@dataclass(frozen=True)
+class ArchiveFileKind:
+    """One kind of calibration file the RPC-MAG archive's ``CALIB`` folder holds.
+
+    Attributes
+    ----------
+    kind : str
+        Short name of the kind.
+    pattern : re.Pattern
+        Its file names (any case, ``.TXT`` or ``.ASC``).
+    read : bool
+        Whether fluxcal reads it (``False``: recognised and refused, see ``reason``).
+    reason : str
+        What the file holds (from the archive's ``CALINFO.TXT``), and for a refused kind
+        why fluxcal does not read it and what to do instead.
+    """
+
+    kind: str
+    pattern: re.Pattern
+    read: bool
+    reason: str
+
+
+_EXT = r"\.(?:TXT|ASC)$"
+#: Every calibration-file name of the RPC-MAG archive (the ``CALINFO.TXT`` of the data
+#: sets from the Earth flybys to the final V9.0 delivery, and the ESC4 corrigenda), with
+#: what fluxcal does with it (docs/formats/rosetta.md, "Archive calibration files";
+#: docs/decisions/rosetta_archive.md, decision 10).  The archive's texts describe what
+#: each file is for, not the layout of the refused kinds, so these are refused by name
+#: rather than read by a guessed layout.
+ARCHIVE_KINDS: tuple[ArchiveFileKind, ...] = (
+    ArchiveFileKind(
+        "ground calibration",
+        re.compile(r"^RPCMAG_(?:GND|001)_CALIB_FSDPU_FM(?:IB|OB)" + _EXT, re.I),
+        True, "temperature-dependent offset, sensitivity and misalignment (seed 003 sec. 3.3)",
+    ),
+    ArchiveFileKind(
+        "daily temperature model 006", _DAILY_RE, True,
+        "daily extended temperature model P_0..P_5 (seed 003 sec. 4.2.3.3)",
+    ),
+    ArchiveFileKind(
+        "alignment", re.compile(r"^RPCMAG_SC_ALIGN" + _EXT, re.I), True,
+        "R_UVW2SC, stowed and deployed boom (seed 003 sec. 4.3.1)",
+    ),
+    ArchiveFileKind(
+        "boom alignment correction", re.compile(r"^RPCMAG_BOOM_ALIGN_CORR_EF1" + _EXT, re.I),
+        False,
+        "sensor-orientation correction from the first Earth flyby against the POMME model "
+        "(a few hundredths of a degree: up to ~0.1 nT per 100 nT of field, CALINFO.TXT); its "
+        "layout is not publicly documented: multiply the correction into the matrices of "
+        "RPCMAG_SC_ALIGN.TXT and remove this file from the folder",
+    ),
+    ArchiveFileKind(
+        "temperature model 008",
+        re.compile(
+            r"^RPCMAG_(?:\d{4}_\d{2}_)?(?:[A-Z0-9]+_)?008_CALIB_(?:IB|OB)" + _EXT
+            + r"|^RPCMAG_INFLIGHT_08_CALIB_\w*" + _EXT,
+            re.I,
+        ),
+        False,
+        "in-flight temperature model 008 per mission phase (comet-phase archives; "
+        "RPCMAG_INFLIGHT_08_CALIB_* in the corrigenda); its layout is not publicly "
+        "documented and fluxcal implements the daily model 006 of seed 003 sec. 4.2.3.3: "
+        "convert it to daily RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT files (keys P_0..P_5) "
+        "and remove it from the folder",
+    ),
+    ArchiveFileKind(
+        "temperature model 009 parameters",
+        re.compile(r"^INFCAL_PARA_(?:IB|OB)_\d{8}_\d{3}" + _EXT, re.I),
+        False,
+        "in-flight model 009 parameters (final V9.0 archive); its layout is not publicly "
+        "documented and fluxcal implements the daily model 006 of seed 003 sec. 4.2.3.3: "
+        "convert it to daily RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT files (keys P_0..P_5) "
+        "and remove it from the folder",
+    ),
+    ArchiveFileKind(
+        "temperature model 009 offsets",
+        re.compile(r"^INFCAL_OFF__(?:IB|OB)_\d{8}_\d{3}" + _EXT, re.I),
+        False,
+        "in-flight model 009 offsets (final V9.0 archive); its layout is not publicly "
+        "documented: convert it to daily RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT files "
+        "(keys P_0..P_5) or RPCMAG_OFFSET_JUMPS.csv rows, and remove it from the folder",
+    ),
+    ArchiveFileKind(
+        "temperature model 002",
+        re.compile(r"^RPCMAG_002_CALIB_(?:IB|OB)" + _EXT, re.I),
+        False,
+        "in-flight temperature model 002 (Earth-flyby archives); its layout is not publicly "
+        "documented: convert it to daily RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT files "
+        "(keys P_0..P_5) and remove it from the folder",
+    ),
+)
+
+
+def archive_kind(name: str) -> ArchiveFileKind | None:
+    """Return the `ArchiveFileKind` whose names include ``name``, or ``None``."""
+    for kind in ARCHIVE_KINDS:
+        if kind.pattern.match(Path(name).name):
+            return kind
+    return None
+
+
+def refuse_unread_archive_files(calib_dir: Path | None) -> None:
+    """Raise `CalibrationError` for the first archive calibration file fluxcal cannot read.
+
+    A ``--calib`` folder holding one of the archive's calibration files whose layout no
+    public description confirms (`ARCHIVE_KINDS` with ``read=False``) is refused in one
+    line naming the file, what it holds and what to do, rather than read by a guessed
+    layout or silently ignored (a calibration left out changes the field).  Detached
+    ``.LBL`` labels are not looked at.
+
+    References
+    ----------
+    .. [1] The RPC-MAG data sets' ``CALIB/CALINFO.TXT`` (e.g. RO-C-RPCMAG-4-EXT2-RESAMPLED-V9.0,
+       RO-C-RPCMAG-3-ESC4-CALIBRATED-V6.0, RO-A-RPCMAG-3-AST1-CALIBRATED-V3.0) and the ESC4
+       ``CORRIGENDA/CORRINFO.TXT``.
+    """
+    if calib_dir is None or not Path(calib_dir).is_dir():
+        return
+    for path in sorted(Path(calib_dir).iterdir()):
+        kind = archive_kind(path.name)
+        if kind is not None and not kind.read and path.is_file():
+            raise CalibrationError(f"{path}: not read: {kind.kind} file, {kind.reason}")
+
+
 def names_of(name: str) -> list[str]:
     """Every accepted name of calibration file ``name``: fluxcal's, the archive's, ``.ASC``."""
     out = [name, ARCHIVE_NAMES.get(name, name)]
@@ -83,6 +208,7 @@ def resolve(name: str, calib_dir: Path | None) -> Path:
     archive's, ``.TXT`` or ``.ASC``); two of them present is an error naming both.
     """
     if calib_dir is not None:
+        refuse_unread_archive_files(calib_dir)
         found: dict[tuple[int, int], Path] = {}
         for candidate in (Path(calib_dir) / n for n in names_of(name)):
             if candidate.is_file():  # one file seen under two names (case-blind disks) once
@@ -426,6 +552,7 @@ def find_daily_offset_models(
     out: dict[np.datetime64, DailyOffsetModel] = {}
     if calib_dir is None:
         return out
+    refuse_unread_archive_files(calib_dir)
     for path in sorted(Path(calib_dir).glob("*")):
         match = _DAILY_RE.match(path.name)
         if match and match.group(2).upper() == sensor:
@@ -592,6 +719,13 @@ def read_time_shift_table(path: Path) -> TimeShiftTable:
             raise CalibrationError(
                 f"{path}, line {number}: bad time-shift row {row}: {exc}"
             ) from None
+        for name, value in (("primary_shift_s", primary[-1]), ("secondary_shift_s", secondary[-1])):
+            if value < 0:  # NaN (no entry) passes
+                raise CalibrationError(
+                    f"{path}, line {number}, field '{name}': negative filter time shift "
+                    f"({value} s) for SID {sid[-1]}; the shifts are filter delays >= 0 "
+                    "(RO-IGEP-TR0028 sec. 4.2.3.5)"
+                )
     return TimeShiftTable(np.array(sid), np.array(primary), np.array(secondary), str(path))
 
 

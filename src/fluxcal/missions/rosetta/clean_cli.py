@@ -355,6 +355,8 @@ def clean_files(
     max_gap_samples: float = 2.0,
     formats: Sequence[str] = ("tab", "cdf"),
     plot: bool = True,
+    pca_estimator: str = "robust",
+    heater_direction: Sequence[float] | None = None,
 ) -> CleanResult:
     """Run one cleaning level on earlier-level product files and write the products.
 
@@ -373,6 +375,9 @@ def clean_files(
     from fluxcal.products import provenance_attrs
 
     level = level.strip().upper()
+    if pca_estimator not in ("robust", "common-mode", "projection"):
+        raise FluxcalError(f"--pca-estimator {pca_estimator}: choose robust, common-mode or "
+                           "projection")
     if level not in CLEAN_LEVELS:
         raise FluxcalError(f"unknown level {level!r}; choose one of {','.join(CLEAN_LEVELS)}")
     need = 2 if level == "J" else 1
@@ -388,6 +393,11 @@ def clean_files(
             "LEVEL_H removes reaction-wheel and LAP lines and none were given: pass --wheels "
             "CSV and/or --lap-lines HZ[,HZ...]"
         )
+    if bandwidth_hz is not None and not bandwidth_hz > 0:
+        raise FluxcalError(f"--bandwidth {bandwidth_hz:g}: the replaced band width must be > 0 Hz")
+    negative = [f for f in lap_lines_hz if not f > 0]
+    if negative:
+        raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be > 0 Hz")
     result = CleanResult()
     out = Path(out)
     with KernelPool(kernels, frames=FRAME_KERNELS) as pool:
@@ -418,7 +428,8 @@ def clean_files(
         elif level == "G":
             made = {sensor: cl.level_g(src, average_s, lsk=lsk)}
         elif level == "J":
-            made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples)
+            made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples,
+                              estimator=pca_estimator)
         elif level == "K":
             if intervals is not None and heater_states is not None:
                 raise FluxcalError("give either --intervals or --heater-states, not both")
@@ -433,7 +444,7 @@ def clean_files(
                 spans = intervals_from_states(epoch, states, names)
                 made = {sensor: cl.level_k_assisted(src, spans)}
             else:
-                made = {sensor: cl.level_k(src)}
+                made = {sensor: cl.level_k(src, heater_direction=heater_direction)}
         else:
             made = {sensor: cl.level_l(src, lsk=lsk)}
         prov = provenance_attrs(inputs=used_inputs, kernels=[Path(str(k)) for k in pool.loaded])
@@ -464,6 +475,19 @@ def _floats(text: str, option: str) -> list[float]:
     except ValueError:
         raise typer.BadParameter(f"expected comma-separated Hz values, got {text!r}",
                                  param_hint=option) from None  # fmt: skip
+
+
+def _direction(text: str) -> list[float] | None:
+    if not text.strip():
+        return None
+    try:
+        values = [float(t) for t in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not any(values):
+        raise typer.BadParameter(f"expected a non-zero vector X,Y,Z, got {text!r}",
+                                 param_hint="--heater-direction")
+    return values
 
 
 def clean(
@@ -502,6 +526,16 @@ def clean(
     max_gap: float = typer.Option(
         2.0, "--max-gap", help="J: longest gap bridged by interpolation (sample intervals)."
     ),
+    pca_estimator: str = typer.Option(
+        "robust", "--pca-estimator",
+        help="J: robust (default; noise variances from the high-passed series), common-mode "
+        "(from the series themselves) or projection (literal principal components).",
+    ),
+    heater_direction: str = typer.Option(
+        "", "--heater-direction",
+        help="K: direction X,Y,Z (s/c frame) of the heater field when on, where the data "
+        "cannot tell which level is heater-off (a constant current seen 'on' first).",
+    ),
     formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
@@ -523,6 +557,8 @@ def clean(
         max_gap_samples=max_gap,
         formats=[f.strip() for f in formats.split(",") if f.strip()],
         plot=not no_plot,
+        pca_estimator=pca_estimator,
+        heater_direction=_direction(heater_direction),
     )
     for tag, ds in result.levels.items():
         typer.echo(f"LEVEL_{level.upper()} {tag}: {ds.sizes['time']} vectors")

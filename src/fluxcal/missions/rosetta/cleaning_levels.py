@@ -188,6 +188,7 @@ def level_h(
                 )
                 continue
             bw = default_bandwidth(fs) if bandwidth_hz is None else float(bandwidth_hz)
+            check_line_arguments(name, fs, bw, lap)
             try:
                 res = remove_spectral_lines(b[idx], fs, lines, times=t, bandwidth=bw, seed=rng)
             except InputFormatError as exc:
@@ -216,6 +217,45 @@ def level_h(
         line_removal_seed=int(seed),
     )
     return out
+
+
+#: Estimators of LEVEL_J (`fluxcal.cleaning.pca.two_sensor_pca` methods), default first.
+PCA_ESTIMATORS = ("robust", "common-mode", "projection")
+
+
+def check_line_arguments(
+    name: str, fs: float, bandwidth_hz: float, lap_lines_hz: NDArray[np.float64]
+) -> None:
+    """Refuse a band width or LAP line that the sampling of a mode cannot hold.
+
+    The replaced band (width ``bandwidth_hz``) must be narrower than the Nyquist
+    frequency ``fs / 2`` (a band at least that wide replaces the whole spectrum: at
+    20 Hz a 50-Hz band changed the data by 3.2 nT); a LAP line, given as seen in the
+    mode's spectrum, must lie in ``(0, fs / 2]``.
+
+    Raises
+    ------
+    InputFormatError
+        One line naming the mode, its rate and the offending value.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9.
+    """
+    nyquist = 0.5 * fs
+    if not 0 < bandwidth_hz < nyquist:
+        raise InputFormatError(
+            f"{name} at {fs:g} Hz: band width {bandwidth_hz:g} Hz is not in (0, {nyquist:g}) "
+            "Hz, below the Nyquist frequency; give a smaller --bandwidth",
+            field="bandwidth",
+        )
+    bad = lap_lines_hz[~((lap_lines_hz > 0) & (lap_lines_hz <= nyquist))]
+    if bad.size:
+        raise InputFormatError(
+            f"{name} at {fs:g} Hz: LAP line {bad[0]:g} Hz is not in (0, {nyquist:g}] Hz, "
+            "the spectrum of the mode (LAP lines are given as seen in it); fix --lap-lines",
+            field="lap_lines_hz",
+        )
 
 
 def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
@@ -310,6 +350,7 @@ def level_j(
     step_s: float | None = None,
     max_gap_samples: float = 2.0,
     max_gap_s: float | None = None,
+    estimator: str = "robust",
 ) -> dict[str, xr.Dataset]:
     """LEVEL_G/I of OB and IB -> LEVEL_J: external field and each sensor's own part.
 
@@ -336,6 +377,11 @@ def level_j(
         intervals (default 2: one missing vector is bridged).
     max_gap_s : float, optional
         The same in seconds for both sensors (overrides ``max_gap_samples``).
+    estimator : {"robust", "common-mode", "projection"}
+        `fluxcal.cleaning.pca.two_sensor_pca`'s ``method``: ``"robust"`` (default,
+        noise variances from the high-passed series), ``"common-mode"`` (from the
+        series themselves) or ``"projection"`` (the literal principal component
+        projection of sec. 4.11); recorded as ``pca_estimator``.
 
     Returns
     -------
@@ -383,7 +429,12 @@ def level_j(
             "both sensors over a common time span",
             field="epoch",
         )
-    pca = two_sensor_pca(res.a, res.b)
+    if estimator not in PCA_ESTIMATORS:
+        raise InputFormatError(
+            f"unknown PCA estimator {estimator!r}; choose one of {', '.join(PCA_ESTIMATORS)}",
+            field="estimator",
+        )
+    pca = two_sensor_pca(res.a, res.b, method=estimator)  # type: ignore[arg-type]
     if step_ns is None:
         base = ob.isel(time=res.primary_index)
         time_base = "OB time tags inside the OB/IB overlap"
@@ -394,6 +445,7 @@ def level_j(
     outside = [int(np.count_nonzero((e < span[0]) | (e > span[1]))) for e in (e_ob, e_ib)]
     stats = dict(
         level="J",
+        pca_estimator=estimator,
         pca_noise_variance_nT2=[float(v) for v in pca.noise_variance.ravel()],
         pca_weights=[float(v) for v in pca.weights.ravel()],
         pca_external_variance_nT2=[float(v) for v in pca.external_variance],
@@ -446,13 +498,40 @@ def level_k(
     baseline_segments: int | None = 2,
     min_segment: int = 200,
     max_gap_s: float = 1.0,
+    heater_direction: ArrayLike | None = None,
 ) -> xr.Dataset:
     """LEVEL_B -> LEVEL_K: remove heater square waves automatically (method 1).
 
-    Each stretch without gaps longer than ``max_gap_s`` (a few dropped vectors do not
-    split it) and without overlapping modes, of at least ``min_segment`` vectors, is
-    cleaned by `fluxcal.cleaning.steps.remove_heater_steps`
-    (parameters passed through); shorter stretches are left unchanged.
+    The vectors of each instrument mode (``sid``; all vectors when there is none) are
+    taken in time order on their own, so the vectors of a new mode that overlap in time
+    the end of the previous one (the filter time shifts differ: 8 s Normal, 28 s Low,
+    224 s Minimum, sec. 4.2.3.5) are cleaned with their mode rather than left between
+    two interleaved series.  Each stretch of a mode without gaps longer than
+    ``max_gap_s`` (a few dropped vectors do not split it), of at least ``min_segment``
+    vectors, is cleaned by `fluxcal.cleaning.steps.remove_heater_steps` (parameters
+    passed through); shorter stretches are left unchanged.
+
+    Which level of a square wave is "heater off" is read from the data
+    (`fluxcal.cleaning.steps.heater_off_segments`); where no rule decides (a constant
+    heater current seen from its first vector "on": the fallback rule ``first segment``
+    takes the first level as off) the stretch is counted in ``heater_off_undecided`` and
+    a warning says so.  ``heater_direction`` states the answer: the direction (s/c
+    frame) in which the heater field points when the heater is on, so the level
+    further along it is "on".
+
+    Parameters
+    ----------
+    level_b : xarray.Dataset
+        LEVEL_B (s/c frame, ``sid`` optional).
+    heater_direction : array_like (3,), optional
+        Direction of the heater field when on (s/c frame, any length); the disturbance
+        axis and its sign are then taken as given, not estimated.
+    width, threshold, k_mad, average_samples, baseline_segments
+        Passed to `fluxcal.cleaning.steps.remove_heater_steps`.
+    min_segment : int
+        Shortest stretch (vectors) that is cleaned.
+    max_gap_s : float
+        Longest gap (s) inside a stretch.
 
     Returns
     -------
@@ -461,7 +540,9 @@ def level_k(
         the removed signal, nT), ``level = "K"`` and attributes ``heater_method``,
         ``heater_jumps``, ``heater_thresholds_nT2``, ``heater_off_rules`` (per cleaned
         stretch with jumps: how the heater-off level was identified, and the heater
-        sign along the disturbance axis; `fluxcal.cleaning.steps.heater_off_segments`).
+        sign along the disturbance axis; `fluxcal.cleaning.steps.heater_off_segments`),
+        ``heater_off_undecided`` (stretches where the data could not decide) and
+        ``heater_direction`` (the stated direction, or ``"estimated"``).
 
     References
     ----------
@@ -473,23 +554,45 @@ def level_k(
     thresholds: list[float] = []
     off_rules: list[str] = []
     unchanged = 0
-    for a, c in _uniform_segments(epoch, max_gap_s):
-        if c - a < max(min_segment, 2 * width + 2):
-            unchanged += c - a
+    undecided = 0
+    direction = None
+    if heater_direction is not None:
+        direction = np.asarray(heater_direction, dtype=float)
+        if direction.shape != (3,) or not np.linalg.norm(direction) > 0:
+            raise InputFormatError(
+                f"heater direction must be a non-zero 3-vector, got {heater_direction!r}",
+                field="heater_direction",
+            )
+    stretches = []
+    for _, group in _groups(level_b):
+        group = group[np.argsort(epoch[group], kind="stable")]
+        stretches += [group[a:c] for a, c in _uniform_segments(epoch[group], max_gap_s)]
+    for idx in stretches:
+        if idx.size < max(min_segment, 2 * width + 2):
+            unchanged += idx.size
             continue
         res = remove_heater_steps(
-            b[a:c],
+            b[idx],
             width=width,
             threshold=threshold,
             k_mad=k_mad,
             average_samples=average_samples,
             baseline_segments=baseline_segments,
+            direction=direction,
+            heater_sign=None if direction is None else 1,
         )
-        out_b[a:c] = res.values
+        out_b[idx] = res.values
         n_jumps += int(res.jump_indices.size)
         thresholds.append(float(res.threshold))
         if res.jump_indices.size:
             off_rules.append(f"{res.off_rule} (sign {res.heater_sign:+d})")
+            if res.off_rule.startswith("first segment"):
+                undecided += 1
+                log.warning(
+                    "LEVEL_K: %d vectors from TT2000 %d ns: which level is heater-off is not "
+                    "decidable from the data (taken: the first); state the heater field direction "
+                    "(--heater-direction X,Y,Z, s/c frame)", idx.size, int(epoch[idx[0]]),
+                )
     out = _with_b(level_b, out_b, "calibrated field, s/c frame, heater disturbance eliminated")
     out["heater_disturbance"] = (
         ("time", "component"),
@@ -503,6 +606,9 @@ def level_k(
         heater_thresholds_nT2=thresholds,
         heater_off_rules=off_rules,
         heater_unchanged_vectors=unchanged,
+        heater_off_undecided=undecided,
+        heater_direction=("estimated" if direction is None
+                          else [float(v) for v in direction / np.linalg.norm(direction)]),
     )
     return out
 

@@ -29,6 +29,7 @@ References
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +44,8 @@ from fluxcal.missions.rosetta.calib import (
     check_sensor,
     write_daily_offset_model,
 )
+
+log = logging.getLogger(__name__)
 
 NS = 1_000_000_000
 KELVIN = 273.15
@@ -189,6 +192,9 @@ class DailyModelFit:
         scales longer than a block (expected), which the covariance accounts for.
     dof : int
         ``n_blocks - degree - 1``.
+    noise : ndarray, shape (3,), optional
+        Median within-block standard deviation of the field (nT): the fluctuation level
+        block means of a calm, zero-mean field scatter well below (`fit_warnings`).
     """
 
     day: np.datetime64
@@ -208,6 +214,7 @@ class DailyModelFit:
     chi2: np.ndarray
     dof: int
     notes: dict = field(default_factory=dict)
+    noise: np.ndarray | None = None
 
     def offset(self, temperature: np.ndarray) -> np.ndarray:
         """Return the fitted offset ``P(T~)`` (nT), shape (n, 3)."""
@@ -346,6 +353,8 @@ def fit_extended_model(
         rms[i] = np.sqrt(np.sum(count * r**2) / np.sum(count))
         se2 = np.maximum(se[multi, i] ** 2, 1e-12)
         chi2[i] = float(np.sum(r[multi] ** 2 / se2))
+    noise = (np.median(se[multi, :3] * np.sqrt(count[multi])[:, None], axis=0)
+             if multi.any() else np.full(3, np.nan))
     c = _power_basis(centre, scale, degree)
     coefficients = np.zeros((MAX_DEGREE + 1, 3))
     sigma = np.zeros((MAX_DEGREE + 1, 3))
@@ -357,8 +366,40 @@ def fit_extended_model(
         centre=centre, scale=scale, q=q, covariance_q=cov, temperature_range=(lo, hi),
         n_samples=int(b.shape[0]), n_blocks=int(count.size), block_s=float(block_s),
         rms=rms, chi2=chi2, dof=int(count.size - degree - 1),
-        notes={"source": str(source)},
+        notes={"source": str(source)}, noise=noise,
     )
+
+
+#: A fit whose block-mean residual rms exceeds this multiple of the within-block standard
+#: deviation (`DailyModelFit.noise`) is reported (docs/decisions/rosetta_fit.md, issue 23).
+RESIDUAL_NOISE_FACTOR = 1.75
+
+
+def fit_warnings(fit: DailyModelFit, factor: float = RESIDUAL_NOISE_FACTOR) -> list[str]:
+    """Say where the fit's residuals are far above the noise (the criterion does not hold).
+
+    The daily model assumes the offset-free field averages to zero over the fit's blocks
+    (a calm phase, sec. 4.2.3.3).  Block means of such a field scatter well below its
+    within-block standard deviation; a block-mean residual rms above ``factor`` times
+    that deviation says the ambient field (or an unmodelled offset) did not average out,
+    and the fitted offsets hold it.  Returns one message per such axis (none: empty).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (daily fit from calm phases).
+    """
+    if fit.noise is None:
+        return []
+    out = []
+    for axis, (rms, noise) in enumerate(zip(fit.rms, fit.noise, strict=True)):
+        if np.isfinite(noise) and rms > factor * noise:
+            out.append(
+                f"{fit.sensor} {fit.day} {'xyz'[axis]}: block-mean residual rms {rms:.3g} nT "
+                f"is {rms / max(noise, 1e-12):.1f} x the within-block standard deviation "
+                f"{noise:.3g} nT: the field did not average to zero over the "
+                f"{fit.block_s:g}-s blocks (not a calm phase?); check the offsets before use"
+            )
+    return out
 
 
 def write_daily_model(
@@ -388,6 +429,9 @@ def write_daily_model(
             "under another day or sensor"
         )
     vec = lambda v: " ".join(f"{float(x):.6g}" for x in v)  # noqa: E731
+    warnings = fit_warnings(fit)
+    for text in warnings:
+        log.warning("%s", text)
     lines = [
         "fitted by fluxcal rosetta fit (issue 13; docs/decisions/rosetta_fit.md)",
         f"written {dt.datetime.now(dt.UTC).strftime('%Y-%m-%dT%H:%M:%SZ')}",
@@ -398,6 +442,9 @@ def write_daily_model(
         f"{fit.temperature_range[1]:.2f} degC (the model is determined only there)",
         f"block-mean residual rms x y z (nT): {vec(fit.rms)}",
         f"chi2 vs within-block errors x y z: {vec(fit.chi2)}",
+        *([f"within-block standard deviation x y z (nT): {vec(fit.noise)}"]
+          if fit.noise is not None else []),
+        *(f"warning: {w}" for w in warnings),
         *(f"sigma P_{k} x y z: {vec(fit.sigma[k])}" for k in range(fit.degree + 1)),
         *(f"{k}: {v}" for k, v in {**fit.notes, **(provenance or {})}.items()),
     ]

@@ -24,6 +24,7 @@ import xarray as xr
 
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
+from fluxcal.missions.rosetta.input_checks import report_time_defects
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
 HK_COLUMNS = (
@@ -173,6 +174,8 @@ def _epoch(
             line=line_of(i),
             field=field,
         )
+    report_time_defects(epoch, utc, obt, path=path, line_of=line_of, names=names,
+                        from_obt=sclk is not None, lsk=lsk)
     return epoch, field
 
 
