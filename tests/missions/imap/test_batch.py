@@ -33,6 +33,7 @@ def test_batch_day_equals_the_single_run(tmp_path: Path) -> None:
     assert made == ["imap_mag_l1b_burst-magi_20231025_v001.cdf",
                     "imap_mag_l1b_burst-mago_20231025_v001.cdf"]
     for name in made:
-        a, b = cdflib.CDF(str(tmp_path / "single" / name)), cdflib.CDF(str(tmp_path / "batch" / name))
+        a = cdflib.CDF(str(tmp_path / "single" / name))
+        b = cdflib.CDF(str(tmp_path / "batch" / name))
         for var in ("epoch", "b"):
             np.testing.assert_array_equal(a.varget(var), b.varget(var))
