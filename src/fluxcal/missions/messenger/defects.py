@@ -123,7 +123,7 @@ def flag_stream_gaps(
     -------
     xarray.Dataset
         ``ds`` with ``defect_flag`` (uint8, bits of `DEFECT_FLAGS`) and the attribute
-        ``defect_spans`` (one string per span; empty when none).
+        ``defect_spans`` (one string per span; absent when there is none).
     """
     from fluxcal.geometry.time import et_to_utc
 
@@ -157,5 +157,6 @@ def flag_stream_gaps(
         {"units": "1", "description": "local telemetry defects, bits: "
          + ", ".join(f"{v} {k}" for k, v in DEFECT_FLAGS.items())},
     ))
-    out.attrs["defect_spans"] = "; ".join(spans) if spans else "none"
+    if spans:  # a day without defects keeps its products as they were (byte for byte)
+        out.attrs["defect_spans"] = "; ".join(spans)
     return out
