@@ -245,7 +245,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = _debug_requested(args)
     quiet = QUIET.set(False)  # set by the root callback for this command only
     try:
-        with interrupt_signals(), _long_lived_imports(), owned_run(_out_folder(args)):
+        # the demo tour reads back what its steps wrote: each step writes atomically
+        staged = next((a for a in args if not a.startswith("-")), "") != "demo"
+        with interrupt_signals(), _long_lived_imports(), \
+                owned_run(_out_folder(args), stage=staged):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)
             if code == 130:  # typer's return for a KeyboardInterrupt it caught
                 raise Interrupted(signal.SIGINT)

@@ -177,14 +177,16 @@ class _NewFiles:
 
 
 @contextlib.contextmanager
-def owned_run(out: Path | None) -> Iterator[None]:
+def owned_run(out: Path | None, stage: bool = True) -> Iterator[None]:
     """Run a command that writes into ``out`` so that it owns only what it wrote.
 
     Takes ``out``'s lock (`output_lock`; creating ``out`` for it, removed again if the
     run fails), removes stale temporaries of killed runs (logged, `report_stale`),
     stages every product of the run (`fluxcal.products.atomic.atomic_group`: renamed
-    into place only at the successful end) and, on any exception (an error, an
-    interruption), removes what the run created and re-raises.
+    into place only at the successful end; ``stage=False`` for a command that reads
+    back what it wrote, such as the demo tour, whose steps each write atomically) and,
+    on any exception (an error, an interruption), removes what the run created and
+    re-raises.
 
     ``out`` None (a command without ``--out``), or a path that cannot hold a lock (a
     file, an unwritable parent), runs the command unguarded: its own checks then report
@@ -215,7 +217,7 @@ def owned_run(out: Path | None) -> Iterator[None]:
         report_stale(clean_stale_temporaries(out), out)
         created = _NewFiles(out, existed)
         try:
-            with atomic_group():
+            with atomic_group() if stage else contextlib.nullcontext():
                 yield
         except BaseException:
             created.undo()
