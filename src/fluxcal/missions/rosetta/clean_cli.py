@@ -277,19 +277,23 @@ def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: s
 
 
 def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: str) -> Path:
-    """Before (grey) / after (colour) components, as PNG (decimated to <= 200k points)."""
+    """Before (grey) / after (colour) components, as PNG (min/max envelope of every sample)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from fluxcal.products.quicklook import envelope
+
     epoch = before["epoch"].values
-    step = max(1, epoch.size // 200_000)
-    hours = (epoch[::step] - epoch[0]) / 3.6e12
+    hours = (epoch - epoch[0]) / 3.6e12
+    hours_after = (after["epoch"].values - epoch[0]) / 3.6e12
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
     for c, ax in enumerate(axes):
-        ax.plot(hours, before["b"].values[::step, c], color="0.6", lw=0.6, label="before")
-        ax.plot(hours, after["b"].values[::step, c], color="C1", lw=0.6, label="after")
+        ax.plot(*envelope(hours, before["b"].values[:, c]), color="0.6", lw=0.6,
+                label="before")
+        ax.plot(*envelope(hours_after, after["b"].values[:, c]), color="C1", lw=0.6,
+                label="after")
         ax.set_ylabel(f"B{'xyz'[c]} (nT)")
     axes[0].legend(loc="upper right")
     axes[0].set_title(title)
