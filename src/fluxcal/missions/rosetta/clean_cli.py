@@ -19,6 +19,7 @@ References
 from __future__ import annotations
 
 import csv
+import io
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
     import numpy as np
@@ -140,7 +142,7 @@ def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
     out: list[tuple[int, int, str]] = []
     header = ("start_utc", "stop_utc", "label")
     seen = False
-    with path.open(newline="") as fh:
+    with io.StringIO(read_text(path, "a CSV text file"), newline="") as fh:
         for lineno, row in enumerate(csv.reader(fh), start=1):
             cells = [c.strip() for c in row]
             if not cells or not "".join(cells) or cells[0].startswith("#"):
@@ -204,7 +206,7 @@ def read_heater_states(path: Path, lsk=None) -> tuple[np.ndarray, np.ndarray, li
     names: list[str] | None = None
     times: list[str] = []
     rows: list[list[bool]] = []
-    with path.open(newline="") as fh:
+    with io.StringIO(read_text(path, "a CSV text file"), newline="") as fh:
         for lineno, row in enumerate(csv.reader(fh), start=1):
             cells = [c.strip() for c in row]
             if not cells or not "".join(cells) or cells[0].startswith("#"):
@@ -391,10 +393,23 @@ def clean_files(
             "LEVEL_H removes reaction-wheel and LAP lines and none were given: pass --wheels "
             "CSV and/or --lap-lines HZ[,HZ...]"
         )
+    if level == "K" and intervals is not None and heater_states is not None:
+        raise FluxcalError("give either --intervals or --heater-states, not both")
+    if level in ("F", "G", "I"):
+        from fluxcal.missions.rosetta.cli import check_average
+
+        check_average(average_s)
     result = CleanResult()
     out = Path(out)
     with KernelPool(kernels) as pool:
         lsk = leapseconds()
+        # the small side tables first: a defect there is reported before the products load
+        table = read_reaction_wheels(wheels, lsk) if level == "H" and wheels is not None \
+            else None
+        spans = read_intervals(intervals, lsk) if level == "K" and intervals is not None \
+            else None
+        states = read_heater_states(heater_states, lsk) \
+            if level == "K" and heater_states is not None else None
         data = [_read(p, lsk) for p in inputs]
         for path, ds in zip(inputs, data, strict=True):
             have = str(ds.attrs.get("level", "")).upper()
@@ -408,7 +423,6 @@ def clean_files(
         src = data[0]
         sensor = str(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")))
         if level == "H":
-            table = read_reaction_wheels(wheels, lsk) if wheels is not None else None
             if wheels is not None:
                 used_inputs.append(Path(wheels))
             made = {
@@ -423,18 +437,14 @@ def clean_files(
         elif level == "J":
             made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples)
         elif level == "K":
-            if intervals is not None and heater_states is not None:
-                raise FluxcalError("give either --intervals or --heater-states, not both")
-            if intervals is not None:
+            if spans is not None:
                 used_inputs.append(Path(intervals))
-                made = {sensor: cl.level_k_assisted(src, read_intervals(intervals, lsk))}
-            elif heater_states is not None:
+                made = {sensor: cl.level_k_assisted(src, spans)}
+            elif states is not None:
                 from fluxcal.cleaning.heater_states import intervals_from_states
 
                 used_inputs.append(Path(heater_states))
-                epoch, states, names = read_heater_states(heater_states, lsk)
-                spans = intervals_from_states(epoch, states, names)
-                made = {sensor: cl.level_k_assisted(src, spans)}
+                made = {sensor: cl.level_k_assisted(src, intervals_from_states(*states))}
             else:
                 made = {sensor: cl.level_k(src)}
         else:

@@ -23,6 +23,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.textfile import decode_text
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
 HK_COLUMNS = (
@@ -65,11 +66,13 @@ SCLK_ID = -226
 def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     path = Path(path)
     try:
-        with open(path, encoding="ascii") as fh:
-            header = fh.readline()
-            body = fh.read()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFormatError(f"cannot read: {exc}", path=str(path)) from None
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputFormatError(f"cannot read: {exc.strerror or exc}", path=str(path)) from None
+    # a UTF-8 BOM is dropped; binary bytes are one line naming the file and line
+    header, _, body = decode_text(data, path, f"a CSV text file with the columns "
+                                              f"{','.join(columns)}").partition("\n")
+    del data
     names = tuple(h.strip() for h in header.strip().split(","))
     if names != columns:
         raise InputFormatError(
@@ -95,15 +98,19 @@ def _numeric(table: np.ndarray, j: int, name: str, kind: type, path: Path) -> np
     col = np.char.strip(table[:, j])
     try:
         values = col.astype(np.float64) if kind is float else col.astype(np.int64)
-    except ValueError:
+    except (ValueError, OverflowError):
         for i, text in enumerate(col):
             try:
-                float(text) if kind is float else int(text)
+                number = float(text) if kind is float else int(text)
             except ValueError:
                 expected = "a number" if kind is float else "an integer"
                 raise InputFormatError(
                     f"{str(text)!r} is not {expected}", path=str(path), line=i + 2, field=name
                 ) from None
+            if kind is int and not -(2**63) <= number < 2**63:
+                lo, hi = _RANGES.get(name, (-(2**63), 2**63 - 1))
+                raise InputFormatError(f"{number} outside {lo}..{hi}", path=str(path),
+                                       line=i + 2, field=name) from None
         raise  # pragma: no cover
     if kind is float and not np.all(np.isfinite(values)):
         i = int(np.flatnonzero(~np.isfinite(values))[0])
