@@ -17,6 +17,7 @@ the file, line and field.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -292,16 +293,37 @@ def hk_dataset(epoch: np.ndarray, obt: np.ndarray, ints: dict, attrs: dict) -> x
     )
 
 
-def _write_atomic(path: Path, header: tuple[str, ...], columns: list[np.ndarray]) -> Path:
+#: Records formatted and written at a time: a day's text (and its temporaries, ~3 GB for
+#: 1.7 M records) is never held whole.
+WRITE_CHUNK = 1 << 14
+
+#: A column to write: an array (written as ``astype(str)``), or an array and the function
+#: that formats a slice of it as text.
+Column = np.ndarray | tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]
+
+
+def _write_atomic(path: Path, header: tuple[str, ...], columns: Sequence[Column]) -> Path:
+    """Write a CSV (header, then one line per record) atomically, `WRITE_CHUNK` rows at a time.
+
+    The bytes are those of formatting every column whole and joining all lines at once.
+    """
     path = Path(path)
-    rows = columns[0].astype(str)
-    for c in columns[1:]:
-        rows = np.char.add(np.char.add(rows, ","), c.astype(str))
+    cols = [c if isinstance(c, tuple) else (c, None) for c in columns]
+    n = len(cols[0][0])
     tmp = path.with_name(path.name + ".tmp")
     try:
         with open(tmp, "w", encoding="ascii") as fh:
             fh.write(",".join(header) + "\n")
-            fh.write("\n".join(rows.tolist()) + "\n")
+            if n == 0:
+                fh.write("\n")
+            for a in range(0, n, WRITE_CHUNK):
+                part = slice(a, a + WRITE_CHUNK)
+                text = [values[part].astype(str) if fmt is None else fmt(values[part])
+                        for values, fmt in cols]
+                rows = text[0]
+                for c in text[1:]:
+                    rows = np.char.add(np.char.add(rows, ","), c)
+                fh.write("\n".join(rows.tolist()) + "\n")
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -322,8 +344,8 @@ def write_science_csv(raw: xr.Dataset, path: Path, *, lsk=None) -> Path:
     """Write a raw science dataset (as `read_science_csv` returns) to CSV, atomically."""
     b = raw["b_counts"].values
     cols = [
-        _utc(raw["epoch"].values, lsk),
-        _obt_text(raw["obt"].values),
+        (raw["epoch"].values, lambda e: _utc(e, lsk)),
+        (raw["obt"].values, _obt_text),
         raw["sid"].values,
         b[:, 0],
         b[:, 1],
@@ -339,8 +361,8 @@ def write_hk_csv(raw: xr.Dataset, path: Path, *, lsk=None) -> Path:
     """Write a raw HK dataset (as `read_hk_csv` returns) to CSV, atomically."""
     b = raw["b_ob_counts"].values
     cols = [
-        _utc(raw["epoch"].values, lsk),
-        _obt_text(raw["obt"].values),
+        (raw["epoch"].values, lambda e: _utc(e, lsk)),
+        (raw["obt"].values, _obt_text),
         raw["t_ob_counts"].values,
         raw["t_ib_counts"].values,
         raw["stage_a_id"].values,
