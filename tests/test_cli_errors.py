@@ -205,3 +205,156 @@ def test_usage_errors_are_one_line_too(capsys, argv, expect) -> None:
     assert main(argv) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert line.startswith("fluxcal: error: ") and expect in line and "--help" in line
+
+
+# --- issue 22: hostile inputs (binary files, huge or fractional counts, BOM, bad options) ---
+
+#: Bytes of a binary file (a NUL, then every byte value): what a user gives by mistake.
+BINARY = bytes(range(256)) * 8
+MESSENGER_ROWS = ("1,246995038.000000,10,0,-197,-507,527\n"
+                  "1,246995038.050000,10,0,-219,-508,532\n"
+                  "1,246995038.100000,10,0,-212,-501,530\n")
+
+
+@pytest.fixture()
+def hostile(world) -> dict[str, Path]:
+    """Inputs a hostile tester gives: binary files, out-of-range numbers, a BOM header."""
+    import shutil
+
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    w = dict(world)
+    tmp = w["tmp"]
+
+    def put(name: str, content: str | bytes) -> Path:
+        p = tmp / name
+        (p.write_bytes if isinstance(content, bytes) else p.write_text)(content)
+        return p
+
+    w["bin_csv"] = put("RPCMAG_20140801_RAW_OB_bin.csv", BINARY)
+    w["bin_body_csv"] = put("RPCMAG_20140801_RAW_OB_body.csv",
+                            ROSETTA_CSV.encode() + BINARY)
+    row = ROSETTA_CSV.splitlines()[1].split(",")
+    w["r_20digit"] = put("RAW_OB_20digit.csv", ROSETTA_CSV.splitlines()[0] + "\n" + ",".join(
+        [*row[:3], "12345678901234567890", *row[4:]]) + "\n")
+    w["r_fraction"] = put("RAW_OB_fraction.csv", ROSETTA_CSV.splitlines()[0] + "\n" + ",".join(
+        [*row[:3], "12267.5", *row[4:]]) + "\n")
+    w["r_bom_fraction"] = put("RAW_OB_bom.csv", "\ufeff" + w["r_fraction"].read_text())
+    w["m_bin"] = put("MAG_science_bin.csv", BINARY)
+    w["m_bin_body"] = put("MAG_science_body.csv", (MESSENGER_SCI_HEADER + MESSENGER_ROWS)
+                          .encode() + BINARY)
+    w["m_20digit"] = put("MAG_science_20digit.csv", MESSENGER_SCI_HEADER + MESSENGER_ROWS
+                         + "1,246995038.150000,10,0,12345678901234567890,-501,530\n")
+    w["m_fraction"] = put("MAG_science_fraction.csv", MESSENGER_SCI_HEADER + MESSENGER_ROWS
+                          + "1,246995038.150000,10,0,-212.5,-501,530\n")
+    w["m_bom_fraction"] = put("MAG_science_bom.csv", "\ufeff" + w["m_fraction"].read_text())
+    w["m_sci"] = put("MAG_science_good.csv", MESSENGER_SCI_HEADER + MESSENGER_ROWS)
+    w["m_heater"] = put("MAG_heater.csv", "partition,met,heater\n1,246993728,0\n")
+    w["m_temp"] = put("MAG_temperature.csv", "partition,met,temperature_c\n1,246993728,20.0\n")
+    w["bin_intervals"] = put("intervals.csv", BINARY)
+    # a calibration folder of every shipped MESSENGER table, its TOML replaced by binary bytes
+    w["m_calib"] = tmp / "messenger_calib"
+    shutil.copytree(data_dir(), w["m_calib"], ignore=shutil.ignore_patterns("*.py", "*.yaml",
+                                                                            "edr_*"))
+    (w["m_calib"] / "processing_v1.toml").write_bytes(BINARY)
+    # a Rosetta calibration folder whose daily CALIB file is binary
+    w["r_calib"] = tmp / "rosetta_calib"
+    w["r_calib"].mkdir()
+    (w["r_calib"] / "RPCMAG_140801_006_CALIB_OB.TXT").write_bytes(BINARY)
+    return w
+
+
+def _edr2cdr(w, sci: str = "m_sci", *extra: str) -> list[str]:
+    return ["messenger", "edr2cdr", "--sci", str(w[sci]), "--heater", str(w["m_heater"]),
+            "--temperature", str(w["m_temp"]), "--kernels", str(w["file"]),
+            "--out", str(w["out"]), *extra]
+
+
+def _sim_messenger(w, *extra: str) -> list[str]:
+    return ["simulate", "messenger", "--out", str(w["out"] / "sim"), *extra]
+
+
+# (case id, argv builder, texts the error line must contain)
+HOSTILE = [
+    # binary bytes where text is expected
+    ("rosetta-csv-binary", lambda w: [*_calibrate(w, "bin_csv"), "--out", str(w["out"])],
+     ["RPCMAG_20140801_RAW_OB_bin.csv", "line 1", "binary"]),
+    ("rosetta-csv-binary-body", lambda w: [*_calibrate(w, "bin_body_csv"), "--out",
+                                           str(w["out"])],
+     ["RPCMAG_20140801_RAW_OB_body.csv", "line 3", "binary"]),
+    ("messenger-csv-binary", lambda w: _edr2cdr(w, "m_bin"),
+     ["MAG_science_bin.csv", "line 1", "binary"]),
+    ("messenger-csv-binary-body", lambda w: _edr2cdr(w, "m_bin_body"),
+     ["MAG_science_body.csv", "line 5", "binary"]),
+    ("messenger-calib-toml-binary", lambda w: _edr2cdr(w, "m_sci", "--calib",
+                                                       str(w["m_calib"])),
+     ["processing_v1.toml", "line 1", "binary"]),
+    ("rosetta-daily-calib-binary", lambda w: [*_calibrate(w), "--out", str(w["out"]),
+                                              "--calib", str(w["r_calib"])],
+     ["RPCMAG_140801_006_CALIB_OB.TXT", "line 1", "binary"]),
+    ("messenger-fit-intervals-binary",
+     lambda w: ["messenger", "fit", "--sci", str(w["m_sci"]), "--heater", str(w["m_heater"]),
+                "--temperature", str(w["m_temp"]), "--kernels", str(w["file"]),
+                "--intervals", str(w["bin_intervals"]), "--out", str(w["out"] / "fit")],
+     ["intervals.csv", "line 1", "binary"]),
+    ("rosetta-clean-intervals-binary",
+     lambda w: ["rosetta", "clean", "--level", "K", "--input", str(w["empty_cdf"]),
+                "--intervals", str(w["bin_intervals"]), "--out", str(w["out"])],
+     ["intervals.csv", "line 1", "binary"]),
+    # numbers: a 20-digit count, a fractional count (plain numbers, no np.float64(...))
+    ("rosetta-20-digit-count", lambda w: [*_calibrate(w, "r_20digit"), "--out",
+                                          str(w["out"])],
+     ["RAW_OB_20digit.csv", "line 2", "field 'bx'", "12345678901234567890", "outside"]),
+    ("messenger-20-digit-count", lambda w: _edr2cdr(w, "m_20digit"),
+     ["MAG_science_20digit.csv", "line 5", "field 'cx'", "outside the signed 16-bit"]),
+    ("rosetta-fractional-count", lambda w: [*_calibrate(w, "r_fraction"), "--out",
+                                            str(w["out"])],
+     ["RAW_OB_fraction.csv", "line 2", "field 'bx'", "not an integer"]),
+    ("messenger-fractional-count", lambda w: _edr2cdr(w, "m_fraction"),
+     ["MAG_science_fraction.csv", "line 5", "field 'cx'", "-212.5 is not an integer"]),
+    # a UTF-8 BOM is not part of the first column's name: the next defect is reported
+    ("rosetta-bom-header", lambda w: [*_calibrate(w, "r_bom_fraction"), "--out",
+                                      str(w["out"])],
+     ["RAW_OB_bom.csv", "line 2", "field 'bx'", "not an integer"]),
+    ("messenger-bom-header", lambda w: _edr2cdr(w, "m_bom_fraction"),
+     ["MAG_science_bom.csv", "line 5", "field 'cx'", "not an integer"]),
+    # options
+    ("messenger-average-0", lambda w: _edr2cdr(w, "m_sci", "--average", "0"), ["--average"]),
+    ("messenger-average-negative", lambda w: _edr2cdr(w, "m_sci", "--average", "-5"),
+     ["--average"]),
+    ("rosetta-average-0", lambda w: [*_calibrate(w), "--out", str(w["out"]), "--levels",
+                                     "A,B,E", "--average", "0"], ["--average", "above 0"]),
+    ("rosetta-average-negative", lambda w: [*_calibrate(w), "--out", str(w["out"]),
+                                            "--average", "-5"], ["--average", "above 0"]),
+    ("rosetta-clean-average-0", lambda w: ["rosetta", "clean", "--level", "I", "--input",
+                                           str(w["empty_cdf"]), "--average", "0", "--out",
+                                           str(w["out"])], ["--average", "above 0"]),
+    ("simulate-messenger-duration-0", lambda w: _sim_messenger(w, "--duration", "0"),
+     ["--duration", "86400"]),
+    ("simulate-messenger-duration-negative", lambda w: _sim_messenger(w, "--duration", "-5"),
+     ["--duration", "86400"]),
+    ("simulate-messenger-duration-huge", lambda w: _sim_messenger(w, "--duration", "1e9"),
+     ["--duration", "at most 86400 s"]),
+    ("simulate-messenger-bad-start", lambda w: _sim_messenger(w, "--start", "garbage"),
+     ["--start", "garbage"]),
+    ("simulate-rosetta-hours-huge",
+     lambda w: ["simulate", "rosetta", "--out", str(w["out"] / "sim"), "--hours", "1e9"],
+     ["--hours", "at most 744 h"]),
+]
+
+
+@pytest.mark.parametrize("build,expect", [c[1:] for c in HOSTILE], ids=[c[0] for c in HOSTILE])
+def test_hostile_input_is_one_line_exit_2(hostile, capsys, build, expect) -> None:
+    """Before: 'internal error ... a bug' (exit 1), np.float64(...), '\\ufeffpartition'."""
+    before = _snapshot(hostile)
+    code = main(build(hostile))
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines()
+             if ln.strip() and not ln.startswith("fluxcal: compiling")]  # first-run notice
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("fluxcal: error: "), err
+    for text in expect:
+        assert text in lines[0], lines[0]
+    for wrong in ("np.float64", "np.int64", "\\ufeff", "\ufeff", "internal error", "Error:"):
+        assert wrong not in lines[0], lines[0]
+    assert _snapshot(hostile) == before  # nothing new in --out (or anywhere)

@@ -8,7 +8,7 @@ no-op where it does not apply.  They change no number in any product (the benchm
 products are byte-identical with and without them; docs/decisions/products.md,
 decisions 41 and 47).  Decision 48 (keeping xarray from importing ``dask.array`` through
 an entry in xarray's private duck-array cache) is withdrawn: fluxcal does not reach into
-another library's internals (decision 52).
+another library's internals (docs/decisions/runs.md, R5).
 
 This module imports nothing heavy: ``import fluxcal.cli`` must load no numpy.
 """

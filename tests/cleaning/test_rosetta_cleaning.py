@@ -655,3 +655,26 @@ def test_clean_k_with_heater_states(tmp_path, lsk):
     states.write_text("time_utc,A\n2014-08-01T00:00:01,2\n")
     with pytest.raises(InputFormatError, match="not 0 or 1"):
         clean_files("K", [files[".cdf"]], tmp_path / "out", heater_states=states)
+
+
+def test_timeseries_plot_draws_a_spike_in_the_last_samples(tmp_path):
+    """The before/after PNG keeps every sample (min/max envelope), the last ones too (issue 22)."""
+    import matplotlib.pyplot as plt
+
+    from fluxcal.missions.rosetta import clean_cli
+
+    n = 500_123
+    epoch = np.int64(441_000_000_000_000_000) + np.arange(n, dtype=np.int64) * 50_000_000
+    b = np.zeros((n, 3))
+    b[n - 4, 0] = 300.0  # an odd index: a stride-2 decimation skips it
+    ds = xr.Dataset({"b": (("time", "component"), b)}, coords={"epoch": ("time", epoch)})
+    figs = []
+    real = clean_cli._save
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plt, "close", lambda fig=None: None)
+        mp.setattr(clean_cli, "_save", lambda fig, path: (figs.append(fig), real(fig, path))[1])
+        clean_cli.plot_timeseries(ds, ds, tmp_path / "k.png", "K")
+    (fig,) = figs
+    for line in fig.axes[0].get_lines():
+        assert np.max(line.get_ydata()) == 300.0
+    plt.close(fig)

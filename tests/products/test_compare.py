@@ -226,3 +226,26 @@ def test_ambiguous_matches_are_counted() -> None:
     assert c.matched == 10 and c.ambiguous == 1
     assert c.overall[0].max_abs == 0.0  # the nearest (exact) sample was taken
     assert "1 of the matched A samples had more than one B sample" in format_report(c)
+
+
+def test_plot_draws_a_difference_in_the_last_samples(tmp_path: Path, capsys,
+                                                     monkeypatch) -> None:
+    """A 300 nT difference in the last 10 of 10,001 pairs is in the plotted line (issue 22)."""
+    from fluxcal.products import quicklook
+
+    n = 10_001  # more than 2 x 4000 pairs: the plot draws an envelope, n mod 4000 = 2001
+    epoch = T0 + np.arange(n, dtype=np.int64) * STEP
+    b = np.random.default_rng(3).normal(0.0, 1.0, (n, 3))
+    a_b = b.copy()
+    a_b[n - 6, 1] += 300.0
+    q = np.zeros(n, int)
+    a = write_product(_product(a_b, epoch, q), tmp_path / "A", ("nc",))[0]
+    bp = write_product(_product(b, epoch, q), tmp_path / "B", ("nc",))[0]
+    figs = []
+    save = quicklook.save_png
+    monkeypatch.setattr(quicklook, "save_png", lambda fig, path: (figs.append(fig),
+                                                                   save(fig, path))[1])
+    assert main(["compare", str(a), str(bp), "--out", str(tmp_path / "cmp")]) == 0
+    (fig,) = figs
+    y = fig.axes[1].get_lines()[0].get_ydata()
+    assert len(y) < n and np.max(y) == pytest.approx(300.0)

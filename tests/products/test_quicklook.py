@@ -261,3 +261,59 @@ def test_spectrogram_titles_do_not_overlap_the_panel_above() -> None:
         title = lower.title.get_window_extent(renderer)
         above = upper.get_tightbbox(renderer)
         assert title.y1 <= above.y0 + 0.5, (title, above)  # display pixels
+
+
+# --- issue 22: every sample is drawn, the last (partial) envelope bin included -------------
+
+SPIKE_NT = 300.0
+
+
+@pytest.mark.parametrize("n,bins", [(10_001, 4000), (8_001, 4000), (99_999, 1000), (5, 2)])
+def test_envelope_represents_every_sample(n: int, bins: int) -> None:
+    """Each sample lies between the min and max drawn for its bin (checked by brute force)."""
+    rng = np.random.default_rng(n)
+    x = np.arange(n, dtype=float)
+    y = rng.normal(0.0, 1.0, n)
+    y[-3] = SPIKE_NT
+    xs, ys = envelope(x, y, bins=bins)
+    assert SPIKE_NT in ys
+    if len(xs) == n:  # short series are drawn sample by sample
+        return
+    assert len(ys) <= 2 * bins
+    starts = xs[::2]
+    assert starts[0] == 0.0 and starts[-1] <= n - 1
+    lo, hi = ys[0::2], ys[1::2]
+    k = np.searchsorted(starts, x, side="right") - 1  # the bin of every sample
+    assert np.all((lo[k] <= y) & (y <= hi[k]))
+
+
+def _spike_at_the_end(n: int = 10_001) -> xr.Dataset:
+    """A quiet product (|B| < 60 nT) with a 300 nT spike in its last 10 samples."""
+    ds = make_dataset(n)
+    t = np.arange(n) / n
+    ds["B_mso"].values[:] = 40.0 * np.sin(2 * np.pi * t)[:, None] + [5.0, -5.0, 10.0]
+    ds["B_mso"].values[n - 4, 2] = SPIKE_NT  # within the last n mod 4000 samples
+    return ds
+
+
+def test_quicklook_draws_a_spike_in_the_last_samples() -> None:
+    fig = quicklook_figure(_spike_at_the_end())
+    bz = fig.axes[0].get_lines()[2].get_ydata()
+    assert np.max(bz) == SPIKE_NT
+    assert np.max(fig.axes[1].get_lines()[0].get_ydata()) > SPIKE_NT  # |B| too
+
+
+@pytest.mark.parametrize("fmt,suffix", [("nc", ".nc"), ("cdf", ".cdf")])
+def test_cli_plot_draws_a_spike_in_the_last_samples(fmt: str, suffix: str, tmp_path: Path,
+                                                    monkeypatch) -> None:
+    from fluxcal.cli import main
+    from fluxcal.products import quicklook
+
+    figs = []
+    save = quicklook.save_png
+    monkeypatch.setattr(quicklook, "save_png", lambda fig, path: (figs.append(fig),
+                                                                   save(fig, path))[1])
+    write_product(_spike_at_the_end(), tmp_path / "P", formats=(fmt,))
+    assert main(["plot", str(tmp_path / f"P{suffix}"), "--out", str(tmp_path / "ql")]) == 0
+    (fig,) = figs
+    assert np.max(fig.axes[0].get_lines()[2].get_ydata()) == SPIKE_NT

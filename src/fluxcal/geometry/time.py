@@ -721,7 +721,7 @@ def utc_to_tt2000(utc: np.ndarray, lsk: LeapSecondTable | None = None) -> np.nda
         false_leap = ~np.isin(ends, lsk.epochs_naive_ns())
         if false_leap.any():
             raise InputFormatError(
-                f"UTC time {np.asarray(utc).ravel()[leap][false_leap][0]!r} has seconds 60 "
+                f"UTC time {str(np.asarray(utc).ravel()[leap][false_leap][0])!r} has seconds 60 "
                 "but is not in a leap second of the leapseconds kernel",
                 field="time_utc",
             )
@@ -1213,7 +1213,7 @@ def _whole_ticks(values: np.ndarray, where: str, field: str) -> np.ndarray:
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise KernelError(
-            f"{where}: {field} value {i + 1} ({values[i]!r}) is not a whole number of ticks"
+            f"{where}: {field} value {i + 1} ({float(values[i])!r}) is not a whole number of ticks"
         )
     return values.astype(np.int64)
 

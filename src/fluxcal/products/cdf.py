@@ -110,6 +110,8 @@ _NUMPY_OF_TYPE: dict[int, np.dtype] = {
     if name != "bool"  # bool is written as uint8
 }
 _NUMPY_OF_TYPE[_TYPE_NUM["CDF_TIME_TT2000"]] = np.dtype(np.int64)
+#: CDF text types (cdflib's ``CDF_CHAR``, ``CDF_UCHAR``).
+_CDF_CHAR, _CDF_UCHAR = 51, 52
 
 
 class _Writer(CDFWriter):
@@ -118,9 +120,11 @@ class _Writer(CDFWriter):
     cdflib converts every array to bytes with two copies (``np.array`` of it, then
     ``tobytes``): 80 MB more for a 20 Hz day's vector.  A C-contiguous array of the
     variable's type in the file's byte order (host encoding) is handed over as a
-    ``memoryview`` of its bytes, the very bytes ``tobytes`` gives; anything else goes
-    through cdflib's conversion.  Attribute entries are linked without reading the
-    file back (`_update_aedr_link`).
+    ``memoryview`` of its bytes, the very bytes ``tobytes`` gives; so is a C-contiguous
+    ``S<num_elems>`` array of CDF_CHAR text (NUL-padded, as cdflib pads each string of
+    a list; `_payload`), where cdflib would build one Python string of the whole
+    column.  Anything else goes through cdflib's conversion.  Attribute entries are
+    linked without reading the file back (`_update_aedr_link`).
     """
 
     def __init__(self, path: Path, cdf_spec: dict[str, Any]) -> None:
@@ -132,6 +136,13 @@ class _Writer(CDFWriter):
 
     def _convert_data(self, data_type: int, num_elems: int, num_values: int,
                       indata: Any) -> tuple[int, Any]:
+        if (data_type in (_CDF_CHAR, _CDF_UCHAR) and isinstance(indata, np.ndarray)
+                and indata.dtype.kind == "S" and indata.dtype.itemsize == num_elems
+                and indata.flags.c_contiguous and indata.size):
+            # cdflib's list path: recs = len(list) / num_values, bytes = each string
+            # ljust(num_elems, NUL), joined and encoded (ASCII: the same bytes)
+            return (indata.size // max(num_values, 1),
+                    memoryview(indata.reshape(-1).view(np.uint8)))
         dtype = _NUMPY_OF_TYPE.get(data_type)
         if (dtype is None or not isinstance(indata, np.ndarray) or indata.dtype != dtype
                 or not indata.flags.c_contiguous or self._convert_option() != "="):
@@ -385,6 +396,17 @@ def _var_attrs(name: str, var: xr.Variable, table: Mapping[str, Any], cdf_type: 
 
 def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
     """CDF type, element count and data of a variable (NaN -> FILLVAL)."""
+    if var.dtype.kind in "US":
+        try:  # ASCII text as fixed-width bytes (`_Writer._convert_data`), no Python list
+            data = np.ascontiguousarray(var.values).astype("S").reshape(-1)
+        except UnicodeEncodeError:
+            data = None
+        if data is not None and (var.dtype.kind == "U" or not (  # U: ASCII already
+                data.size and data.view(np.uint8).max() >= 0x80)):
+            nelem = max(1, int(np.char.str_len(data).max(initial=1)))
+            if data.dtype.itemsize != nelem:
+                data = data.astype(f"S{nelem}")
+            return "CDF_CHAR", nelem, data
     if var.dtype.kind in "USO":
         data = var.values.astype(str)
         nelem = max(1, max((len(s) for s in data.ravel().tolist()), default=1))

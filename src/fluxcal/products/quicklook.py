@@ -75,20 +75,37 @@ def field_variable(ds: xr.Dataset) -> str:
 
 
 def envelope(x: np.ndarray, y: np.ndarray, bins: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
-    """Min/max envelope of ``y`` in ``bins`` equal-count bins (vectorized), for drawing.
+    """Min/max envelope of ``y`` in at most ``bins`` equal-count bins (vectorized), for drawing.
 
-    Returns ``x`` and ``y`` unchanged when they are short already.
+    Every sample belongs to a bin, the last (shorter) bin included, so a spike in
+    the last samples of a product is drawn like one anywhere else.  Each bin gives
+    two points at its first ``x``: its minimum and its maximum (NaN ignored; an
+    all-NaN bin gives NaN, a gap in the line).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Abscissa (numbers or datetime64), one per sample.
+    y : numpy.ndarray
+        Values, one per sample.
+    bins : int
+        Most bins (about the pixel width of the figure).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(xs, ys)`` of ``2 * ceil(n / ceil(n / bins))`` points, or ``x`` and ``y``
+        unchanged when they are no longer than ``2 * bins`` already.
     """
     n = len(y)
     if n <= 2 * bins:
         return x, y
-    per = n // bins
-    m = per * bins
-    yb = y[:m].reshape(bins, per)
-    xb = x[:m].reshape(bins, per)
-    with np.errstate(invalid="ignore"):
-        lo, hi = np.nanmin(yb, axis=1), np.nanmax(yb, axis=1)
-    xs = np.repeat(xb[:, 0], 2)
+    per = -(-n // bins)  # ceil: at most `bins` bins cover all n samples
+    starts = np.arange(0, n, per)
+    yf = np.asarray(y, dtype=float)
+    lo = np.fmin.reduceat(yf, starts)  # fmin/fmax skip NaN
+    hi = np.fmax.reduceat(yf, starts)
+    xs = np.repeat(np.asarray(x)[starts], 2)
     ys = np.column_stack([lo, hi]).ravel()
     return xs, ys
 

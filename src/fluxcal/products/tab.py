@@ -102,7 +102,7 @@ def _check(code: int, row: int, values: np.ndarray, col: ResolvedColumn,
            first_row: int) -> None:
     if code != fw.OK:
         raise InputFormatError(
-            f"value {values[row]!r} at row {first_row + row} {_WHY[code]} of "
+            f"value {np.asarray(values[row]).item()!r} at row {first_row + row} {_WHY[code]} of "
             f"{col.fmt.fortran}" + (f" (fill {col.fill!r})" if col.fill is not None else ""),
             field=col.label, line=first_row + row + 1)
 

@@ -46,7 +46,7 @@ def test_column_order_free(tmp_path):
         ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1,2,-32769"], 3, "cz", "count limits"),
         ([SCI_HEADER, GOOD_SCI[0], "1,999.0,10,0,1,2,3"], 3, "met", "backwards"),
         ([SCI_HEADER, GOOD_SCI[0], "3,1001.0,10,0,1,2,3"], 3, "partition", "partitions"),
-        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1.5,2,3"], 3, "cx", "count limits"),
+        ([SCI_HEADER, GOOD_SCI[0], "1,1000.05,10,0,1.5,2,3"], 3, "cx", "1.5 is not an integer"),
     ],
 )
 def test_bad_science(tmp_path, lines, line, field, match):

@@ -188,3 +188,73 @@ def test_obt_through_real_rosetta_sclk(tmp_path):
     assert ds.attrs["time_source"] == "obt"
     assert utc[0] == "2014-09-22T09:47:49.694"
     assert abs(np.diff(ds["epoch"].values)[0] - 50_000_000) < 100  # clock rate ~1
+
+
+# --- issue 22 item 5: memory-lean reading and writing give the same arrays and bytes -------
+
+
+def _random_rows(n: int, seed: int = 3) -> list[str]:
+    """Valid records with awkward numbers: signs, leading zeros, long OBT fractions."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        b = rng.integers(-524288, 524288, 3)
+        obt = 366076800.0 + i * 0.05 + float(rng.uniform(0, 1e-6))
+        lead = "0" if i % 7 == 0 and b[0] >= 0 else ""
+        rows.append(f"2014-08-01T00:{i // 1200:02d}:{(i % 1200) / 20:09.6f},{obt!r},"
+                    f"{2 + i // 500},{lead}{b[0]},{b[1]},{b[2]},{16000 + i % 9},"
+                    f"{17000 - i % 5},{int(rng.integers(0, 8))}")
+    return rows
+
+
+@pytest.mark.parametrize("sclk", [False, True])
+def test_fast_reader_equals_the_text_reader(pool, tmp_path, sclk):
+    """pyarrow's parse (`io._read_fast`) gives the arrays of the line-by-line text reader."""
+    path = _file(tmp_path, _random_rows(2000))
+    kinds = {"obt": float} | {n: int for n in ("sid", "bx", "by", "bz", "t_ob", "t_ib",
+                                               "quality")}
+    utc, fast = io._read_fast(path, io.SCIENCE_COLUMNS, kinds, utc_text=not sclk)
+    table = io._read_table(path, io.SCIENCE_COLUMNS)
+    for j, name in enumerate(io.SCIENCE_COLUMNS):
+        if name in kinds:
+            slow = io._numeric(table, j, name, kinds[name], path)
+            assert fast[name].dtype == slow.dtype
+            np.testing.assert_array_equal(fast[name], slow)  # bit for bit
+    assert [utc[i] for i in (0, 999, 1999)] == [str(table[i, 0]) for i in (0, 999, 1999)]
+
+
+@pytest.mark.parametrize("defect", ["1.5", "1_000", "12345678901234567890", "nan", '"12"'])
+def test_fast_reader_leaves_unusual_fields_to_the_text_reader(tmp_path, defect):
+    rows = [GOOD[0], GOOD[1].replace("1001", defect), GOOD[2]]
+    kinds = {"obt": float, "bx": int}
+    assert io._read_fast(_file(tmp_path, rows), io.SCIENCE_COLUMNS, kinds) is None
+
+
+def test_chunked_csv_writer_gives_the_same_bytes(tmp_path, monkeypatch):
+    """Written 16k records at a time (`io.WRITE_CHUNK`): the bytes of one whole pass."""
+    n = 1000
+    rng = np.random.default_rng(0)
+    cols = [(np.arange(n) * 0.05 + 366076800.0, lambda v: np.char.mod("%.6f", v)),
+            rng.integers(-9, 9, n), rng.normal(0, 1, n)]
+    whole = io._write_atomic(tmp_path / "whole.csv", ("a", "b", "c"), cols).read_bytes()
+    monkeypatch.setattr(io, "WRITE_CHUNK", 7)
+    parts = io._write_atomic(tmp_path / "parts.csv", ("a", "b", "c"), cols).read_bytes()
+    assert parts == whole
+    expected = "a,b,c\n" + "".join(f"{x:.6f},{i},{z}\n" for x, i, z in
+                                   zip(cols[0][0], cols[1], cols[2], strict=True))
+    assert whole.decode() == expected  # Python's own formatting of each number
+
+
+def test_chunked_forward_counts_equal_one_pass(monkeypatch):
+    from fluxcal.missions.rosetta import simulate
+
+    cal = calib.load_ground_calibration("OB")
+    nominal = calib.load_nominal_conversion()
+    rng = np.random.default_rng(1)
+    b = rng.normal(0, 200, (500, 3))
+    temp = rng.uniform(-100, 30, 500)
+    ext = rng.normal(0, 1, (500, 3))
+    whole = simulate.raw_counts(b, temp, cal, nominal, extended=ext)
+    monkeypatch.setattr(simulate, "FORWARD_CHUNK", 64)
+    np.testing.assert_array_equal(simulate.raw_counts(b, temp, cal, nominal, extended=ext),
+                                  whole)

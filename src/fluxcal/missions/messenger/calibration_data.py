@@ -24,6 +24,7 @@ import numpy as np
 
 from fluxcal.calibration.gain_matrix import lower_triangular_matrix
 from fluxcal.errors import CalibrationError, CalibrationRangeError
+from fluxcal.textfile import read_text
 
 TABLE_NAMES = (
     "latency",
@@ -61,7 +62,8 @@ def _parse_csv(path: Path) -> tuple[dict[str, str], dict[str, np.ndarray]]:
     header: dict[str, str] = {}
     rows: list[list[str]] = []
     names: list[str] | None = None
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+    text = read_text(path, "a CSV calibration table", CalibrationError)
+    for lineno, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         if line.startswith("#"):
@@ -95,7 +97,10 @@ def _read_table(path: Path) -> TableFile:
     if match is None:
         raise CalibrationError(f"{path}: file name must be <name>_v<version>.csv|toml")
     if match["ext"] == "toml":
-        doc = tomllib.loads(path.read_text())
+        try:
+            doc = tomllib.loads(read_text(path, "a TOML calibration file", CalibrationError))
+        except tomllib.TOMLDecodeError as exc:
+            raise CalibrationError(f"{path}: not valid TOML: {exc}") from None
         header = {k: str(v) for k, v in doc.items() if not isinstance(v, dict)}
         columns: dict[str, np.ndarray] = {}
     else:
@@ -104,20 +109,47 @@ def _read_table(path: Path) -> TableFile:
     for key in ("version", "valid_from", "valid_to"):
         if key not in header:
             raise CalibrationError(f"{path}: header lacks '{key}'")
-    if int(header["version"]) != int(match["version"]):
+    try:
+        version = int(header["version"])
+    except ValueError:
+        raise CalibrationError(f"{path}: header version {header['version']!r} is not a whole "
+                               "number") from None
+    if version != int(match["version"]):
         raise CalibrationError(
             f"{path}: header version {header['version']} differs from the file name"
         )
+    valid = {}
+    for key in ("valid_from", "valid_to"):
+        try:
+            valid[key] = np.datetime64(header[key], "s")
+        except ValueError:
+            raise CalibrationError(f"{path}: header {key} {header[key]!r} is not an ISO UTC "
+                                   "time such as 2004-08-03T00:00:00") from None
     return TableFile(
         name=match["name"],
         version=int(match["version"]),
-        valid_from=np.datetime64(header["valid_from"], "s"),
-        valid_to=np.datetime64(header["valid_to"], "s"),
+        valid_from=valid["valid_from"],
+        valid_to=valid["valid_to"],
         path=path,
         header=header,
         columns=columns,
         toml=doc,
     )
+
+
+def read_tables(folder: Path) -> list[TableFile]:
+    """Read every calibration table file (``<name>_v<version>.csv|toml``) of ``folder``.
+
+    For checking a user's ``--calib`` folder up front, before any data are read.
+
+    Raises
+    ------
+    CalibrationError
+        Naming the file (and line) of the first table that cannot be read: not text,
+        not valid TOML or CSV, a header without version or validity.
+    """
+    return [_read_table(p) for p in sorted(Path(folder).iterdir())
+            if (m := _NAME_RE.match(p.name)) and m["name"] in TABLE_NAMES]
 
 
 def resolve_table(name: str, day: np.datetime64 | str, folder: Path | None = None) -> TableFile:

@@ -67,13 +67,16 @@ def edr2cdr(
 def check_calibration_folder(folder: Path) -> None:
     """Refuse a ``--calib`` that is not a folder holding every calibration table.
 
+    Every table is read here, before any data: a table that is not text, TOML or CSV
+    fails now, in one line naming its file.
+
     Raises
     ------
     FluxcalError
-        Naming the folder and the missing tables.
+        Naming the folder and the missing tables, or the first unreadable table.
     """
     from fluxcal.errors import FluxcalError
-    from fluxcal.missions.messenger.calibration_data import TABLE_NAMES
+    from fluxcal.missions.messenger.calibration_data import TABLE_NAMES, read_tables
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -82,6 +85,7 @@ def check_calibration_folder(folder: Path) -> None:
     if missing:
         raise FluxcalError(f"{folder}: --calib lacks the table(s) {', '.join(missing)} "
                            "(<name>_v<version>.csv|toml; docs/formats/calibration.md)")
+    read_tables(folder)  # every table readable, before any data are read
 
 
 @app.command("fit")
@@ -255,6 +259,7 @@ def simulate(
         from fluxcal.errors import InputFormatError
 
         raise InputFormatError(f"{layout!r}: choose files, batch or edr", field="--layout")
+    check_simulation_options(start, duration)
     if layout == "edr":
         from fluxcal.missions.messenger.edr_write import simulate_edr_layout
 
@@ -275,6 +280,37 @@ def simulate(
         paths = simulate_to_dir(out, start, duration)
     for key, path in paths.items():
         typer.echo(f"{key}: {path}")
+
+
+#: Longest ``fluxcal simulate messenger --duration`` (s): one day (about 1.7 M vectors at
+#: 20 Hz); more days with ``--layout batch --days N``.
+MAX_DURATION_S = 86_400.0
+
+
+def check_simulation_options(start: str, duration: float) -> None:
+    """Check ``fluxcal simulate messenger``'s ``--start`` and ``--duration`` up front.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the option: a start that is not an ISO UTC time (without a UTC offset),
+        a length that is not above 0 s and at most `MAX_DURATION_S`.
+    """
+    import datetime as _dt
+
+    from fluxcal.errors import InputFormatError
+
+    try:
+        t0 = _dt.datetime.fromisoformat(start)
+    except ValueError:
+        t0 = None
+    if t0 is None or t0.tzinfo is not None:
+        raise InputFormatError(f"{start!r} is not an ISO UTC time such as "
+                               "2012-06-01T00:00:00", field="--start")
+    if not 0.0 < duration <= MAX_DURATION_S:
+        raise InputFormatError(f"{duration:g} s: give a length above 0 s and at most "
+                               f"{MAX_DURATION_S:.0f} s (one day; more days: --layout batch "
+                               "--days N)", field="--duration")
 
 
 def simulate_batch_layout(out: Path, start: str, duration: float, days: int) -> list:

@@ -52,6 +52,7 @@ from fluxcal.missions.messenger.readers import (
     MAX_RATE_SETTING,
     TEMPERATURE_MAX_GAP_S,
 )
+from fluxcal.textfile import read_text
 
 log = logging.getLogger(__name__)
 
@@ -105,7 +106,7 @@ def load_mapping(path: str | Path) -> EdrMapping:
     """
     path = Path(path)
     try:
-        entries = tomllib.loads(path.read_text(encoding="utf-8"))
+        entries = tomllib.loads(read_text(path, "a TOML mapping file"))
     except OSError as exc:
         raise InputFormatError(f"cannot read the mapping file: {exc.strerror}",
                                path=str(path)) from None

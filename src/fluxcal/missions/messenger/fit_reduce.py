@@ -60,6 +60,7 @@ from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel, datetime64_to_tt2000, tt2000_to_et
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.textfile import read_text
 
 __all__ = ["DayStatistics", "FitSettings", "read_intervals", "reduce_day"]
 
@@ -233,7 +234,7 @@ def read_intervals(path: Path) -> np.ndarray:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = read_text(path, "a CSV text file of intervals 'start,stop' (ISO UTC)")
     except OSError as exc:
         raise InputFormatError(f"cannot read the intervals file: {exc}", path=str(path)) from exc
     rows: list[tuple[float, float]] = []

@@ -29,6 +29,7 @@ import xarray as xr
 from numba import njit
 
 from fluxcal.errors import InputFormatError
+from fluxcal.textfile import decode_text
 
 SCIENCE_COLUMNS = ("partition", "met", "rate", "range", "cx", "cy", "cz")
 HEATER_COLUMNS = ("partition", "met", "heater")
@@ -46,10 +47,12 @@ def _read_table(path: Path, expected: Sequence[str]) -> np.ndarray:
     """Return a (len(expected), n) float array: the CSV's columns in ``expected`` order."""
     path = Path(path)
     try:
-        with path.open() as fh:
-            header = fh.readline()
+        with path.open("rb") as fh:
+            first = fh.readline()
     except OSError as exc:
         raise InputFormatError(f"cannot read file: {exc}", path=str(path)) from exc
+    # a UTF-8 BOM is dropped (not part of the first name); binary bytes are an error
+    header = decode_text(first, path, f"a CSV text file with the columns {','.join(expected)}")
     names = [h.strip() for h in header.strip().split(",")]
     for name in names:
         if name not in expected:
@@ -228,9 +231,11 @@ def _diagnose(path: Path, names: list[str]) -> None:
     Returns without raising when every line has the right number of fields, each of
     which Python's ``float`` accepts.
     """
-    with path.open() as fh:
+    with path.open("rb") as fh:
         fh.readline()
-        for lineno, line in enumerate(fh, start=2):
+        for lineno, raw in enumerate(fh, start=2):
+            line = decode_text(raw, path, "a CSV text file of numbers",
+                               first_line=lineno).replace("\r", "")
             if not line.strip():
                 raise InputFormatError("empty line", path=str(path), line=lineno)
             fields = line.rstrip("\n").split(",")
@@ -258,14 +263,24 @@ def _first_outside(values, lo, hi):  # pragma: no cover - compiled
     return -1
 
 
+def plain_number(value: float) -> str:
+    """``value`` as a user wrote it: ``12``, ``12.5``, ``1.2345678901234567e+19``, ``nan``."""
+    v = float(value)
+    if v.is_integer() and abs(v) < 2**53:
+        return str(int(v))
+    return repr(v)
+
+
 def _check_integer(
     path: Path, values: np.ndarray, name: str, lo: float, hi: float, what: str
 ) -> None:
     row = _first_outside(np.ascontiguousarray(values, dtype=np.float64), float(lo), float(hi))
     if row >= 0:
-        raise InputFormatError(
-            f"value {values[row]!r} outside {what}", path=str(path), line=row + 2, field=name
-        )
+        v = float(values[row])
+        problem = "is not an integer" if np.isfinite(v) and not v.is_integer() \
+            else f"outside {what}"
+        raise InputFormatError(f"value {plain_number(v)} {problem}", path=str(path),
+                               line=row + 2, field=name)
 
 
 @njit(cache=True, nogil=True)
@@ -292,13 +307,15 @@ def _check_order(paths: list[Path], tables: list[np.ndarray], stream: str) -> No
         row = _first_backwards(key_p, key_m)
         if row >= 0:
             raise InputFormatError(
-                f"{stream}: MET goes backwards ({key_m[row - 1]!r} -> {key_m[row]!r})",
+                f"{stream}: MET goes backwards ({plain_number(key_m[row - 1])} -> "
+                f"{plain_number(key_m[row])})",
                 path=str(path), line=row + 2, field="met",
             )
         if prev is not None and (key_p[0], key_m[0]) < prev[:2]:
             raise InputFormatError(
-                f"{stream}: MET goes backwards across files ({prev[1]!r} at the end of "
-                f"{prev[2]} -> {key_m[0]!r})", path=str(path), line=2, field="met",
+                f"{stream}: MET goes backwards across files ({plain_number(prev[1])} at "
+                f"the end of {prev[2]} -> {plain_number(key_m[0])})", path=str(path), line=2,
+                field="met",
             )
         prev = (key_p[-1], key_m[-1], path, data.shape[1] + 1)
 

@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.calibration import averaging
+from fluxcal.errors import InputFormatError
 
 NEXT_LEVEL = {"A": "E", "B": "F", "C": "G"}
 
@@ -37,8 +38,9 @@ def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.6-4.8.
     """
-    if seconds <= 0:
-        raise ValueError(f"seconds must be positive, not {seconds}")
+    if not seconds > 0:  # NaN too
+        raise InputFormatError(f"{seconds:g} s: an averaging interval must be above 0 s",
+                               field="seconds")
     epoch = level["epoch"].values.astype(np.int64)
     width = int(round(seconds * 1e9))
     origin = utc_midnight(int(epoch[0]), lsk) if epoch.size else 0

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.errors import CalibrationError, CalibrationRangeError
+from fluxcal.textfile import read_text
 
 SENSORS = ("OB", "IB")
 
@@ -242,7 +243,7 @@ def read_key_file(path: Path) -> dict[str, tuple[list[str], int]]:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path, "a 'KEY = values' calibration text file", CalibrationError)
     except OSError as exc:
         raise CalibrationError(f"cannot read calibration file {path}: {exc}") from None
     out: dict[str, tuple[list[str], int]] = {}
@@ -671,7 +672,7 @@ def write_alignment(alignment: Alignment, path: Path) -> Path:
 # ----------------------------------------------------------------------------------------
 def _csv_rows(path: Path) -> list[tuple[int, dict[str, str]]]:
     try:
-        lines = Path(path).read_text(encoding="utf-8").splitlines()
+        lines = read_text(path, "a CSV calibration table", CalibrationError).splitlines()
     except OSError as exc:
         raise CalibrationError(f"cannot read calibration table {path}: {exc}") from None
     numbered = [
@@ -792,6 +793,6 @@ def load_nominal_conversion(calib_dir: Path | None = None) -> dict:
     """Load the nominal ADC conversion constants (sec. 4.2.1-4.2.3.1) as a dict of sections."""
     path = resolve(NOMINAL_FILE, calib_dir)
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(read_text(path, "a TOML calibration file", CalibrationError))
     except tomllib.TOMLDecodeError as exc:
         raise CalibrationError(f"{path}: {exc}") from None

@@ -19,6 +19,7 @@ References
 from __future__ import annotations
 
 import csv
+import io
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ import typer
 
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
+from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
     import numpy as np
@@ -141,7 +143,7 @@ def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
     out: list[tuple[int, int, str]] = []
     header = ("start_utc", "stop_utc", "label")
     seen = False
-    with path.open(newline="") as fh:
+    with io.StringIO(read_text(path, "a CSV text file"), newline="") as fh:
         for lineno, row in enumerate(csv.reader(fh), start=1):
             cells = [c.strip() for c in row]
             if not cells or not "".join(cells) or cells[0].startswith("#"):
@@ -205,7 +207,7 @@ def read_heater_states(path: Path, lsk=None) -> tuple[np.ndarray, np.ndarray, li
     names: list[str] | None = None
     times: list[str] = []
     rows: list[list[bool]] = []
-    with path.open(newline="") as fh:
+    with io.StringIO(read_text(path, "a CSV text file"), newline="") as fh:
         for lineno, row in enumerate(csv.reader(fh), start=1):
             cells = [c.strip() for c in row]
             if not cells or not "".join(cells) or cells[0].startswith("#"):
@@ -278,19 +280,23 @@ def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: s
 
 
 def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: str) -> Path:
-    """Before (grey) / after (colour) components, as PNG (decimated to <= 200k points)."""
+    """Before (grey) / after (colour) components, as PNG (min/max envelope of every sample)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from fluxcal.products.quicklook import envelope
+
     epoch = before["epoch"].values
-    step = max(1, epoch.size // 200_000)
-    hours = (epoch[::step] - epoch[0]) / 3.6e12
+    hours = (epoch - epoch[0]) / 3.6e12
+    hours_after = (after["epoch"].values - epoch[0]) / 3.6e12
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
     for c, ax in enumerate(axes):
-        ax.plot(hours, before["b"].values[::step, c], color="0.6", lw=0.6, label="before")
-        ax.plot(hours, after["b"].values[::step, c], color="C1", lw=0.6, label="after")
+        ax.plot(*envelope(hours, before["b"].values[:, c]), color="0.6", lw=0.6,
+                label="before")
+        ax.plot(*envelope(hours_after, after["b"].values[:, c]), color="C1", lw=0.6,
+                label="after")
         ax.set_ylabel(f"B{'xyz'[c]} (nT)")
     axes[0].legend(loc="upper right")
     axes[0].set_title(title)
@@ -398,10 +404,23 @@ def clean_files(
     negative = [f for f in lap_lines_hz if not f > 0]
     if negative:
         raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be > 0 Hz")
+    if level == "K" and intervals is not None and heater_states is not None:
+        raise FluxcalError("give either --intervals or --heater-states, not both")
+    if level in ("F", "G", "I"):
+        from fluxcal.missions.rosetta.cli import check_average
+
+        check_average(average_s)
     result = CleanResult()
     out = Path(out)
     with KernelPool(kernels, frames=FRAME_KERNELS) as pool:
         lsk = leapseconds()
+        # the small side tables first: a defect there is reported before the products load
+        table = read_reaction_wheels(wheels, lsk) if level == "H" and wheels is not None \
+            else None
+        spans = read_intervals(intervals, lsk) if level == "K" and intervals is not None \
+            else None
+        states = read_heater_states(heater_states, lsk) \
+            if level == "K" and heater_states is not None else None
         data = [_read(p, lsk) for p in inputs]
         for path, ds in zip(inputs, data, strict=True):
             have = str(ds.attrs.get("level", "")).upper()
@@ -415,7 +434,6 @@ def clean_files(
         src = data[0]
         sensor = str(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")))
         if level == "H":
-            table = read_reaction_wheels(wheels, lsk) if wheels is not None else None
             if wheels is not None:
                 used_inputs.append(Path(wheels))
             made = {
@@ -431,18 +449,14 @@ def clean_files(
             made = cl.level_j(data[0], data[1], step_s=step_s, max_gap_samples=max_gap_samples,
                               estimator=pca_estimator)
         elif level == "K":
-            if intervals is not None and heater_states is not None:
-                raise FluxcalError("give either --intervals or --heater-states, not both")
-            if intervals is not None:
+            if spans is not None:
                 used_inputs.append(Path(intervals))
-                made = {sensor: cl.level_k_assisted(src, read_intervals(intervals, lsk))}
-            elif heater_states is not None:
+                made = {sensor: cl.level_k_assisted(src, spans)}
+            elif states is not None:
                 from fluxcal.cleaning.heater_states import intervals_from_states
 
                 used_inputs.append(Path(heater_states))
-                epoch, states, names = read_heater_states(heater_states, lsk)
-                spans = intervals_from_states(epoch, states, names)
-                made = {sensor: cl.level_k_assisted(src, spans)}
+                made = {sensor: cl.level_k_assisted(src, intervals_from_states(*states))}
             else:
                 made = {sensor: cl.level_k(src, heater_direction=heater_direction)}
         else:

@@ -109,6 +109,7 @@ def calibrate(
     from fluxcal import preflight
     from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
 
+    check_average(average)
     check_raw_source(science, "--science")
     if hk is not None:
         check_raw_source(hk, "--hk")
@@ -333,6 +334,23 @@ def simulate_batch_layout(out: Path, start: str, hours: float, rate: float, prim
     return simulate_days(out, dates, start_time=t0.strftime("%H:%M:%S"),
                          minutes=hours * 60.0, rate_hz=rate, seed=seed, kernels=True,
                          truth=True)
+
+
+#: Longest averaging interval of LEVEL_E, F, G (s): one day, the span of a daily product.
+MAX_AVERAGE_S = 86_400.0
+
+
+def check_average(seconds: float, option: str = "--average") -> None:
+    """Check an averaging interval (LEVEL_E, F, G; RO-IGEP-TR0028 sec. 4.6-4.8) up front.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the option: an interval that is not above 0 s and at most one day.
+    """
+    if not 0.0 < seconds <= MAX_AVERAGE_S:
+        raise InputFormatError(f"{seconds:g} s: give an averaging interval above 0 s and at "
+                               f"most {MAX_AVERAGE_S:.0f} s (one day)", field=option)
 
 
 def check_simulation_options(start: str, hours: float, rate: float, primary: str) -> None:

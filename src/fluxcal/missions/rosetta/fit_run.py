@@ -32,6 +32,7 @@ from fluxcal.missions.rosetta.fit import (
     write_offset_jump_table,
 )
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
+from fluxcal.textfile import read_text
 
 
 def read_intervals_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -44,7 +45,7 @@ def read_intervals_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """
     path = Path(path)
     try:
-        lines = path.read_text(encoding="utf-8").splitlines()
+        lines = read_text(path, "a CSV text file of intervals start_utc,end_utc").splitlines()
     except OSError as exc:
         raise InputFormatError(f"cannot read: {exc.strerror}", path=str(path)) from None
     numbered = [(i, s) for i, s in enumerate(lines, 1) if s.strip() and not s.startswith("#")]

@@ -352,7 +352,7 @@ def level_a(
             )
         except ValueError as exc:
             raise FluxcalError(f"{source}: midnight stitching (sec. 4.2.3.3): {exc}") from None
-        b_c = b_c - ext
+        b_c -= ext  # in place: a 20 Hz day's (n, 3) copy is 41 MB
     else:
         state, sources = None, []
     attrs["extended_temperature_model"] = (

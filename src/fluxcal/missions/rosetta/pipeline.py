@@ -210,7 +210,8 @@ def write_level(
         sel = np.flatnonzero(day_index == d)
         if sel.size == 0:
             continue
-        part = ds.isel(time=sel)
+        # a one-day level is written as it is (a copy of a 20 Hz day is ~400 MB)
+        part = ds.copy(deep=False) if sel.size == epoch.size else ds.isel(time=sel)
         part.attrs = dict(attrs)
         segment = part["mode_segment"].values if "mode_segment" in part.coords else None
         part = part.drop_vars("mode_segment", errors="ignore")
@@ -464,6 +465,8 @@ def calibrate_files(
             lsk=lsk,
         )
         result.edges = level_a.stitch_edges(raw, sensor)
+        if not (quicklook and write):
+            del raw  # only the quicklook reads the raw day again (~90 MB a 20 Hz day)
         if stitch_state is not None and write:
             write_stitch_state(a, stitch_state)
         if bounds is not None:

@@ -90,6 +90,10 @@ class Simulation:
     attrs: dict = field(default_factory=dict)
 
 
+#: Samples `raw_counts` computes at a time: its temporaries stay ~15 MB.
+FORWARD_CHUNK = 1 << 16
+
+
 def raw_counts(
     b_urf: np.ndarray,
     temperature: np.ndarray,
@@ -102,10 +106,23 @@ def raw_counts(
 
     ``extended`` (the extended-temperature-model offset, nT) is added to the field the
     sensor's ground calibration sees (sec. 4.2.3.3), then `forward.raw_field` and
-    `forward.science_counts`.
+    `forward.science_counts`, `FORWARD_CHUNK` samples at a time (each sample's counts
+    depend on that sample only; the (n, 3, 3) matrices of a day would take ~600 MB).
     """
-    b_c = np.asarray(b_urf, dtype=float) + (0.0 if extended is None else extended)
-    return forward.science_counts(forward.raw_field(b_c, temperature, cal), nominal)
+    temperature = np.asarray(temperature, dtype=float)
+    n = temperature.shape[0] if temperature.ndim == 1 else 0
+    if n <= FORWARD_CHUNK:
+        b_c = np.asarray(b_urf, dtype=float) + (0.0 if extended is None else extended)
+        return forward.science_counts(forward.raw_field(b_c, temperature, cal), nominal)
+    out = None
+    for a in range(0, n, FORWARD_CHUNK):
+        part = slice(a, a + FORWARD_CHUNK)
+        counts = raw_counts(b_urf[part], temperature[part], cal, nominal,
+                            extended=None if extended is None else extended[part])
+        if out is None:
+            out = np.empty((n, *counts.shape[1:]), dtype=counts.dtype)
+        out[part] = counts
+    return out
 
 
 def thermistor_words(temperature: np.ndarray, cal: GroundCalibration, nominal: dict) -> np.ndarray:
@@ -234,11 +251,13 @@ def simulate(
         counts[bad] = rng.integers(-(2**19), 2**19, size=(int(bad.sum()), 3))
         if sensor == "IB":
             quality |= 8
+        counts = counts.astype(np.int32)
+        del jump, extended, secs, delay  # before the next sensor's temporaries
         science[sensor] = xr.Dataset(
             {
                 "obt": ("time", obt, {"units": "s"}),
                 "sid": ("time", sid, {"units": "1"}),
-                "b_counts": (("time", "component"), counts.astype(np.int32), {"units": "count"}),
+                "b_counts": (("time", "component"), counts, {"units": "count"}),
                 "t_ob_counts": ("time", words["OB"].astype(np.int32), {"units": "count"}),
                 "t_ib_counts": ("time", words["IB"].astype(np.int32), {"units": "count"}),
                 "quality": ("time", quality, {"units": "1"}),
@@ -336,13 +355,17 @@ def write_truth_csv(truth: xr.Dataset, path: Path, *, lsk=None) -> Path:
     """Write the truth of one sensor (event time, b_urf, b_sc, b_ref, T) as CSV."""
     from fluxcal.geometry.time import tt2000_to_utc
 
-    cols = [tt2000_to_utc(truth["epoch"].values, digits=6, lsk=lsk), truth["epoch"].values]
+    def six(v: np.ndarray) -> np.ndarray:
+        return np.char.mod("%.6f", v)
+
+    epoch = truth["epoch"].values
+    cols: list = [(epoch, lambda e: tt2000_to_utc(e, digits=6, lsk=lsk)), epoch]
     header = ["time_utc", "epoch_tt2000_ns"]
     for name in ("b_urf", "b_sc", "b_ref"):
         for j, c in enumerate("xyz"):
-            cols.append(np.char.mod("%.6f", truth[name].values[:, j]))
+            cols.append((truth[name].values[:, j], six))
             header.append(f"{name}_{c}")
-    cols.append(np.char.mod("%.4f", truth["temperature"].values))
+    cols.append((truth["temperature"].values, lambda v: np.char.mod("%.4f", v)))
     cols.append(truth["good"].values.astype(int))
     header += ["temperature_k", "good"]
     from fluxcal.missions.rosetta.io import _write_atomic
