@@ -126,6 +126,9 @@ app = build_app()
 
 DEBUG_ENV = "FLUXCAL_DEBUG"
 
+#: Commands whose outputs are not staged as one group (`owned_run`'s ``stage``).
+UNSTAGED = ("demo", "simulate")
+
 #: Full (generation-2) collections during a command: at most one per this many
 #: generation-1 collections (CPython's default: 10).
 FULL_COLLECTION_EVERY = 100
@@ -245,8 +248,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = _debug_requested(args)
     quiet = QUIET.set(False)  # set by the root callback for this command only
     try:
-        # the demo tour reads back what its steps wrote: each step writes atomically
-        staged = next((a for a in args if not a.startswith("-")), "") != "demo"
+        # the demo tour and the simulators read back what they wrote (each file is written
+        # atomically); they are locked and cleaned on failure but not staged as one group
+        staged = next((a for a in args if not a.startswith("-")), "") not in UNSTAGED
         with interrupt_signals(), _long_lived_imports(), \
                 owned_run(_out_folder(args), stage=staged):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)

@@ -137,7 +137,7 @@ def test_task_factory_registry() -> None:
     assert task_factory("synthetic").__module__ == "fluxcal.runs.synthetic_task"
     from fluxcal.errors import FluxcalError
 
-    with pytest.raises(FluxcalError, match="no batch day task"):
+    with pytest.raises(FluxcalError, match="no mission 'voyager' is registered"):
         task_factory("voyager")
 
 
@@ -236,7 +236,7 @@ class KernelDayTask:
 def test_serial_run_leaves_the_callers_spice_pool_as_found(tmp_path: Path) -> None:
     """In-process runs must not leak a task's kernels into the caller (or the next test)."""
     from fluxcal.geometry.kernels import loaded_kernels
-    from fluxcal.products import batch as batch_mod
+    from fluxcal.runs import batch as batch_mod
 
     batch_mod.release_worker_kernel_pool()  # whatever an earlier test may have cached
     before = loaded_kernels()

@@ -99,6 +99,6 @@ def test_bad_quicklook_frame_is_an_error(tmp_path, simulated_files, messenger_ke
     code = main(_args(simulated_files, messenger_kernels, out, "--frames", "mso",
                       "--quicklook", "--quicklook-frame", "gse"))
     assert code == 2
-    assert "quicklook_frame" in capsys.readouterr().err
+    assert "--quicklook-frame" in capsys.readouterr().err  # the option, by its name
     assert not out.exists() or not any(out.iterdir())
 

@@ -225,10 +225,11 @@ def test_quicklook_figure_panels(sim, serial_products):
 
 def test_demo_writes_rosetta_inputs(tmp_path):
     # `make demo` simulates the two Rosetta demo days through batch_task.simulate_days
-    from fluxcal.runs.batch_demo import ROSETTA_DAYS, _mission_inputs
+    from fluxcal.runs import registry
 
-    days = _mission_inputs("rosetta", tmp_path)
-    assert days == list(ROSETTA_DAYS)
+    rosetta = registry.get("rosetta")
+    days = list(rosetta.demo_days)
+    rosetta.load("simulate_days")(tmp_path, days)
     task = make_day_task(tmp_path, tmp_path / "out")
     assert task.level_list() == ["A", "B", "C", "E", "F", "G"]
     for day in days:

@@ -87,15 +87,16 @@ ARCHIVE_KINDS: tuple[ArchiveFileKind, ...] = (
     ArchiveFileKind(
         "ground calibration",
         re.compile(r"^RPCMAG_(?:GND|001)_CALIB_FSDPU_FM(?:IB|OB)" + _EXT, re.I),
-        True, "temperature-dependent offset, sensitivity and misalignment (seed 003 sec. 3.3)",
+        True,
+        "temperature-dependent offset, sensitivity and misalignment (RO-IGEP-TR0028 sec. 3.3)",
     ),
     ArchiveFileKind(
         "daily temperature model 006", _DAILY_RE, True,
-        "daily extended temperature model P_0..P_5 (seed 003 sec. 4.2.3.3)",
+        "daily extended temperature model P_0..P_5 (RO-IGEP-TR0028 sec. 4.2.3.3)",
     ),
     ArchiveFileKind(
         "alignment", re.compile(r"^RPCMAG_SC_ALIGN" + _EXT, re.I), True,
-        "R_UVW2SC, stowed and deployed boom (seed 003 sec. 4.3.1)",
+        "R_UVW2SC, stowed and deployed boom (RO-IGEP-TR0028 sec. 4.3.1)",
     ),
     ArchiveFileKind(
         "boom alignment correction", re.compile(r"^RPCMAG_BOOM_ALIGN_CORR_EF1" + _EXT, re.I),
@@ -115,7 +116,7 @@ ARCHIVE_KINDS: tuple[ArchiveFileKind, ...] = (
         False,
         "in-flight temperature model 008 per mission phase (comet-phase archives; "
         "RPCMAG_INFLIGHT_08_CALIB_* in the corrigenda); its layout is not publicly "
-        "documented and fluxcal implements the daily model 006 of seed 003 sec. 4.2.3.3: "
+        "documented and fluxcal implements the daily model 006 of RO-IGEP-TR0028 sec. 4.2.3.3: "
         "convert it to daily RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT files (keys P_0..P_5) "
         "and remove it from the folder",
     ),
@@ -124,7 +125,7 @@ ARCHIVE_KINDS: tuple[ArchiveFileKind, ...] = (
         re.compile(r"^INFCAL_PARA_(?:IB|OB)_\d{8}_\d{3}" + _EXT, re.I),
         False,
         "in-flight model 009 parameters (final V9.0 archive); its layout is not publicly "
-        "documented and fluxcal implements the daily model 006 of seed 003 sec. 4.2.3.3: "
+        "documented and fluxcal implements the daily model 006 of RO-IGEP-TR0028 sec. 4.2.3.3: "
         "convert it to daily RPCMAG_<yymmdd>_006_CALIB_<IB|OB>.TXT files (keys P_0..P_5) "
         "and remove it from the folder",
     ),
