@@ -62,7 +62,10 @@ def make(rev: str, target: Path) -> None:
                        check=False)
     lines = [f"{h}  {p}" for p, h in listing(WORK).items()]
     target.write_text("\n".join(lines) + "\n")
-    print(f"{len(lines)} files of {rev} listed in {target} (products in {WORK})")
+    kept = target.with_suffix(".demo")
+    shutil.rmtree(kept, ignore_errors=True)
+    shutil.move(str(WORK), kept)  # for `compare --products`
+    print(f"{len(lines)} files of {rev} listed in {target} (products in {kept})")
 
 
 def compare(before: Path, after: Path) -> int:
