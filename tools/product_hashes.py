@@ -3,7 +3,7 @@
 Used to show that a refactoring leaves every product byte-identical (issue 20):
 
     python tools/product_hashes.py make REV OUT.sha     # `fluxcal demo` of commit REV
-    python tools/product_hashes.py compare BEFORE.sha AFTER.sha
+    python tools/product_hashes.py compare BEFORE.sha AFTER.sha [--explain --same OLD=NEW]
 
 ``make`` checks commit ``REV`` out at a fixed path (`SOURCE`), runs its ``fluxcal
 demo`` (every mission's `make demo` runs: MESSENGER ``edr2cdr`` and ``batch``, Rosetta
@@ -93,6 +93,64 @@ def compare(before: Path, after: Path) -> int:
     return 1 if bad else 0
 
 
+def explain(before: Path, after: Path, same: list[str]) -> int:
+    """For every file that differs between two kept demos, say what differs in it.
+
+    ``same`` holds ``OLD=NEW`` text substitutions applied to the "before" side first
+    (a moved data folder in the provenance, say).  Text files (labels, tables, reports)
+    are compared line by line; CDF files variable by variable and attribute by attribute
+    (cdflib); other binary files are only named.  Returns the number of files whose
+    differences are not explained by the substitutions.
+    """
+    import cdflib  # the project's CDF reader: a dependency of fluxcal
+
+    subs = [tuple(pair.split("=", 1)) for pair in same]
+
+    def norm(text: str) -> str:
+        for old, new in subs:
+            text = text.replace(old, new)
+        return text
+
+    a_dir, b_dir = before.with_suffix(".demo"), after.with_suffix(".demo")
+    left = 0
+    for path in sorted(set(listing(a_dir)) & set(listing(b_dir))):
+        pa, pb = a_dir / path, b_dir / path
+        if pa.read_bytes() == pb.read_bytes() or any(v in path for v in VOLATILE):
+            continue
+        if pa.suffix.lower() == ".cdf":
+            ca, cb = cdflib.CDF(str(pa)), cdflib.CDF(str(pb))
+            va, vb = ca.cdf_info().zVariables, cb.cdf_info().zVariables
+            what = [f"variables {sorted(set(va) ^ set(vb))}"] if set(va) != set(vb) else []
+            for v in sorted(set(va) & set(vb)):
+                xa, xb = ca.varget(v), cb.varget(v)
+                if not (type(xa) is type(xb) and str(xa) == str(xb)) and not (
+                        hasattr(xa, "shape") and getattr(xa, "shape", None) == xb.shape
+                        and (xa == xb).all()):
+                    what.append(f"variable {v}")
+                if norm(str(ca.varattsget(v))) != str(cb.varattsget(v)):
+                    what.append(f"attributes of {v}")
+            ga, gb = ca.globalattsget(), cb.globalattsget()
+            what += [f"global {k}" for k in sorted(set(ga) | set(gb))
+                     if norm(str(ga.get(k))) != str(gb.get(k))]
+        else:
+            try:
+                ta, tb = norm(pa.read_text()), pb.read_text()
+            except UnicodeDecodeError:
+                print(f"binary   {path}")
+                left += 1
+                continue
+            what = [f"line {i + 1}" for i, (x, y) in enumerate(zip(ta.splitlines(),
+                                                                   tb.splitlines(),
+                                                                   strict=False)) if x != y]
+            if len(ta.splitlines()) != len(tb.splitlines()):
+                what.append("number of lines")
+        if what:
+            print(f"content  {path}: {', '.join(what[:6])}{' ...' if len(what) > 6 else ''}")
+            left += 1
+    print(f"{left} files differ beyond the substitutions {same}")
+    return 1 if left else 0
+
+
 def main() -> int:
     """Command line (see the module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -103,10 +161,16 @@ def main() -> int:
     c = sub.add_parser("compare")
     c.add_argument("before", type=Path)
     c.add_argument("after", type=Path)
+    c.add_argument("--explain", action="store_true",
+                   help="say what differs inside each file (kept demos)")
+    c.add_argument("--same", action="append", default=[], metavar="OLD=NEW",
+                   help="text substitution on the before side (with --explain)")
     args = parser.parse_args()
     if args.command == "make":
         make(args.rev, args.target)
         return 0
+    if args.explain:
+        return explain(args.before, args.after, args.same)
     return compare(args.before, args.after)
 
 
