@@ -297,7 +297,16 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
         },
         "passes": {f"pass_{p['pass']}": {k: v for k, v in p.items() if k != "pass"}
                    for p in result.passes},
+        "estimator": result.estimator,
     }
+    v = result.variance
+    if v is not None:
+        doc["variance_intervals"] = {
+            "accepted": int(np.count_nonzero(v.reason == "")), "total": int(v.reason.size),
+            "rejected_by_reason": v.rejections(),
+            "rejected_start_et": v.interval_start[v.reason != ""],
+            "rejected_reason": [str(x) for x in v.reason[v.reason != ""]],
+            "bootstrap_blocks": int(v.block_start.size)}
     return _plain(doc)
 
 
@@ -324,6 +333,23 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
         f"(coarse {st.n_samples.get('coarse', 0)}, outside intervals "
         f"{st.n_samples.get('outside_intervals', 0)}, before V10 "
         f"{st.n_samples.get('before_v10', 0)})",
+        f"estimator: {result.estimator} (temperature law, D0, tau, dt; "
+        + ("|B| least variable within intervals: rotations at nearly constant |B|)"
+           if result.estimator == "variance" else
+           "long-term averages: the field averages to zero over each bin's samples)"),
+    ]
+    v = result.variance
+    if v is not None:
+        accepted = int(np.count_nonzero(v.reason == ""))
+        lines.append(f"intervals: {accepted} accepted of {v.reason.size}; rejected by "
+                     f"reason: {v.rejections() or 'none'}; errors: bootstrap over "
+                     f"{v.block_start.size} blocks")
+        bad = np.flatnonzero(v.reason != "")
+        lines += [f"  rejected: interval at ET {v.interval_start[i]:.0f} s: {v.reason[i]}"
+                  for i in bad[:20]]
+        if bad.size > 20:
+            lines.append(f"  ... and {bad.size - 20} more")
+    lines += [
         "",
         "temperature law (Table 2 form, fine counts):",
     ]
