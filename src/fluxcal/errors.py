@@ -66,3 +66,11 @@ class ValidationError(FluxcalError):
 
     E.g. offset smoothness, "MESSENGER MAG EDR-to-CDR Processing" sec. 13.
     """
+
+
+class FitRefusedError(FluxcalError):
+    """A fitted calibration parameter is outside its physical range or undetermined.
+
+    The message names the parameter, its value and error, and the data that would
+    constrain it; nothing is written.
+    """

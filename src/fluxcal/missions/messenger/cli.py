@@ -120,6 +120,12 @@ def fit(
         "distribution", "--temperature-law", help="'distribution': each 10-C bin modelled "
         "as the law averaged over its samples' temperatures (unbiased at the break); "
         "'binned-mean': the seed's law at the bins' mean temperatures."),
+    estimator: str = typer.Option(
+        "zero-mean", "--estimator", help="'zero-mean': the seed's long-term averages, "
+        "which assume the field averages to zero over each bin's samples (quiet or very "
+        "long data); 'variance': |B| least variable within 15-min intervals, which assumes "
+        "rotations at nearly constant |B| (Alfvenic solar wind), any mean field. "
+        "Temperature law, D0, tau and dt; the waveforms are phase-binned either way."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
@@ -135,7 +141,8 @@ def fit(
         text = run_fit(sci=sci, heater=heater, temperature=temperature, kernels=kernels,
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
-                       workers=workers, progress=progress, temperature_law=temperature_law)
+                       workers=workers, progress=progress, temperature_law=temperature_law,
+                       estimator=estimator)
     typer.echo(text)
 
 

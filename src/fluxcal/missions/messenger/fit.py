@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import reduce
@@ -50,7 +51,7 @@ from fluxcal.calibration.constrained_fits import (
     fit_two_segment,
 )
 from fluxcal.calibration.offsets import two_segment_offset
-from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.errors import FitRefusedError, FluxcalError, InputFormatError
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import (
     TAU_STEP,
@@ -62,7 +63,8 @@ from fluxcal.missions.messenger.fit_reduce import (
 )
 from fluxcal.missions.messenger.identity import SPACECRAFT_ID
 
-__all__ = ["TEMPERATURE_LAWS", "FitResult", "fit_calibration", "fit_days", "reduce_day"]
+__all__ = ["ESTIMATORS", "TEMPERATURE_LAWS", "FitResult", "check_fit", "fit_calibration",
+           "fit_days", "fit_variance_calibration", "reduce_day"]
 
 AXES = ("x", "y", "z")
 #: Fewest samples in a bin for it to enter a fit (the variance needs two; a bin mean of
@@ -87,6 +89,23 @@ MAX_DELAY_ERROR_S = 3.0
 #: temperatures (default); ``binned-mean`` is the seed's, the law at the bin's mean
 #: temperature (biased by up to 1.25 (B1 - B0) in the bin holding the break).
 TEMPERATURE_LAWS = ("distribution", "binned-mean")
+#: Estimators of the temperature law, D0, tau and dt (docs/decisions/messenger_fit.md,
+#: entry 11): ``zero-mean`` (the seed's long-term averages: the field averages to zero
+#: over each bin's samples) and ``variance`` (`fit_variance`: |B| nearly constant within
+#: 15-min intervals while the field rotates; no condition on its mean).
+ESTIMATORS = ("zero-mean", "variance")
+#: Guards (`check_fit`; docs/decisions/messenger_fit.md, entry 9): a fitted tau must lie
+#: within this factor of the shipped 872 s, D0 keep the shipped sign and lie within this
+#: factor of it, an adopted dt within `DELAY_RANGE_S`, the break temperature inside the
+#: heater-off data and known to `MAX_BREAK_ERROR_C`; tau and D0 need a relative standard
+#: error below `MAX_RELATIVE_ERROR`.
+TAU_RANGE_FACTOR = 2.0
+D0_RANGE_FACTOR = 3.0
+DELAY_RANGE_S = (0.0, 50.0)
+MAX_BREAK_ERROR_C = 10.0
+MAX_RELATIVE_ERROR = 0.3
+#: A day inside the shipped tables' validity, to load them as the guards' reference.
+_SHIPPED_DAY = "2010-01-01"
 
 
 @dataclass
@@ -115,6 +134,11 @@ class FitResult:
         Summary of every pass (`fit_days`).
     temperature_law : str
         Estimator of the temperature law (`TEMPERATURE_LAWS`).
+    estimator : str
+        `ESTIMATORS`: which estimator gave the temperature law, D0, tau and dt.
+    variance : VarianceStatistics or None
+        The variance estimator's statistics (intervals accepted and rejected, with
+        their reasons), when it was used.
     """
 
     calibration: MessengerCalibration
@@ -127,6 +151,8 @@ class FitResult:
     epoch_curve: np.ndarray
     passes: list[dict[str, Any]] = field(default_factory=list)
     temperature_law: str = "distribution"
+    estimator: str = "zero-mean"
+    variance: Any = None
 
     def summary(self) -> dict[str, Any]:
         """Return the headline numbers (for the pass history and the report)."""
@@ -167,19 +193,50 @@ def _temperature_distribution(stats: DayStatistics, ok: np.ndarray
     return fine.mean()[:, 0], weights
 
 
+def _bin_list(centres: np.ndarray) -> str:
+    return ", ".join(f"{c:.0f}" for c in centres) or "none"
+
+
+def _too_few_temperature_bins(stats: DayStatistics, ok: np.ndarray,
+                              tau: float | None) -> str:
+    """Return the true reason the temperature law has too few bins (decision entry 3).
+
+    Tells a lack of heater-off data apart from heater-off data that all lie within the
+    decay of the preceding heater period's offset (relaxed duty cycle above the cut of
+    `FitSettings.max_relaxed_off_ppt`, which a wrong tau stretches).
+    """
+    t = stats.temperature
+    centres = t.centers
+    need = (f"the temperature law (sec. 7) needs heater-off samples in at least "
+            f"{MIN_TEMPERATURE_BINS} of the 10-C bins (at least {MIN_BIN_SAMPLES} samples "
+            "each) after the offset of the preceding heater period has decayed (relaxed "
+            f"duty cycle below {FitSettings().max_relaxed_off_ppt:.0f} ppt)")
+    off = stats.heater_off
+    any_off = off is not None and off.count.sum() > 0
+    off_ok = (off.count >= MIN_BIN_SAMPLES) if any_off else np.zeros(t.n_bins, dtype=bool)
+    if off_ok.sum() >= MIN_TEMPERATURE_BINS:
+        decay = ("" if tau is None else
+                 f" at tau = {tau:.0f} s (a 400-ppt offset takes {tau * np.log(8.0):.0f} s "
+                 "to decay below 50 ppt)")
+        return (f"{need}: heater-off samples fill {int(off_ok.sum())} bins (C: "
+                f"{_bin_list(centres[off_ok])}; {int(off.count.sum())} samples), but only "
+                f"{int(ok.sum())} of them (C: {_bin_list(centres[ok])}) hold samples whose "
+                f"offset has decayed{decay}; the heater-off stretches are too short for "
+                "that decay, or tau is wrong: check the relaxation time of the previous "
+                "pass, or give longer heater-off stretches")
+    return (f"{need}: heater-off samples fill only {int(off_ok.sum() if any_off else ok.sum())}"
+            f" bins; filled bins (C): {_bin_list(centres[off_ok if any_off else ok])}; empty "
+            f"bins (C): {_bin_list(centres[~(off_ok if any_off else ok)])}. Give more days or "
+            "intervals with the heater off, over a wider temperature range")
+
+
 def _fit_temperature(stats: DayStatistics, d0: np.ndarray, shift: float,
-                     law: str = "distribution") -> list[TwoSegmentFit]:
+                     law: str = "distribution", tau: float | None = None
+                     ) -> list[TwoSegmentFit]:
     t = stats.temperature
     ok = _usable(t)
     if ok.sum() < MIN_TEMPERATURE_BINS:
-        centres = t.centers
-        empty = ", ".join(f"{c:.0f}" for c in centres[~ok])
-        filled = ", ".join(f"{c:.0f}" for c in centres[ok]) or "none"
-        raise FluxcalError(
-            f"temperature law (sec. 7): heater-off samples fill only {int(ok.sum())} of the "
-            f"10-C bins (need {MIN_TEMPERATURE_BINS}); filled bins (C): {filled}; empty "
-            f"bins (C): {empty}. Give more days or intervals with the heater off"
-        )
+        raise FluxcalError(_too_few_temperature_bins(stats, ok, tau))
     mean = t.mean()[ok]
     w = np.sqrt(t.count[ok].astype(float))
     # the duty-cycle offset still decaying after the heater stopped: D0 times the mean
@@ -224,8 +281,9 @@ def _fit_offsets(
     """
     t_ref = float(base.constants["relaxation"].get("reference_temperature_c", -50.0))
     d0 = np.asarray(base.duty_cycle_d0, dtype=float)
+    tau = float(base.constants["relaxation"]["tau_s"])  # the reduction's decay cut used it
     for _ in range(INNER_ITERATIONS):
-        temperature = _fit_temperature(stats, d0, shift, law)
+        temperature = _fit_temperature(stats, d0, shift, law, tau)
         total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
         c_ref = two_segment_offset(np.array([t_ref]), total)[0]
         duty = _fit_duty(stats, c_ref, shift)
@@ -348,6 +406,25 @@ def _fit_waveforms(
     return table, fits
 
 
+def look_back_for(tau: float) -> float:
+    """Look-back interval (s) of sec. 7 for a relaxation time ``tau`` (entry 10).
+
+    Sec. 7 looks back 5000 s for tau = 872 s: an offset assumed zero before the look-back
+    errs by at most ``200 exp(-5000 / tau) = 0.6`` DN, below one count.  The fit keeps
+    that ratio ``k = 5000 / 872`` (the shipped ``look_back_s / tau_s``) for a longer
+    tau, so the truncation stays below the 0.65-count bound, and never looks back less
+    than the shipped 5000 s (a shorter tau then truncates less).  The shipped tau gives
+    back exactly the shipped 5000 s.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (the 5000-s look-back).
+    """
+    rel = _shipped().constants["relaxation"]
+    shipped = float(rel["look_back_s"])
+    return round(float(max(shipped, shipped / float(rel["tau_s"]) * float(tau))), 1)
+
+
 def fit_calibration(
     stats: DayStatistics,
     base: MessengerCalibration,
@@ -412,6 +489,7 @@ def fit_calibration(
     constants = copy.deepcopy(base.constants)
     constants["relaxation"]["tau_s"] = float(relaxation.tau)
     constants["relaxation"]["delay_s"] = float(relaxation.dt)
+    constants["relaxation"]["look_back_s"] = look_back_for(float(relaxation.tau))
     cal = dataclasses.replace(
         base,
         temperature_coefficients=table2,
@@ -424,6 +502,208 @@ def fit_calibration(
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=delay_fitted, waveform=waveform,
                      stats=stats, epoch_curve=curve, temperature_law=temperature_law)
+
+
+@functools.lru_cache(maxsize=1)
+def _shipped() -> MessengerCalibration:
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+
+    return load_calibration(_SHIPPED_DAY)
+
+
+def check_fit(result: FitResult, reference: MessengerCalibration | None = None, *,
+              final: bool = True) -> None:
+    """Refuse a fit whose parameters are outside their physical range or undetermined.
+
+    Checks, in this order (the first failure is raised): tau within
+    `TAU_RANGE_FACTOR` of the reference and its relative error below
+    `MAX_RELATIVE_ERROR`; an adopted dt inside `DELAY_RANGE_S`; per axis, D0 of the
+    reference's sign, within `D0_RANGE_FACTOR` of it, relative error below
+    `MAX_RELATIVE_ERROR`; the break temperature T_m inside the mean temperatures of the
+    filled heater-off bins and known to `MAX_BREAK_ERROR_C`.
+
+    Parameters
+    ----------
+    result : FitResult
+    reference : MessengerCalibration, optional
+        The physical reference (default: the shipped tables, seed 000 Table 3 and
+        tau = 872 s of sec. 7).
+    final : bool
+        False for an intermediate pass: only tau's range is checked (tau steers the next
+        reduction's decay cut and look-back; the other parameters may still be on their
+        way from a far-off start, entry 9).
+
+    Raises
+    ------
+    FitRefusedError
+        One line: the parameter, its value and error, the allowed range and the data
+        that would constrain it.
+    """
+    ref = reference if reference is not None else _shipped()
+    tau_ref = float(ref.constants["relaxation"]["tau_s"])
+    r = result.relaxation
+    what_tau = ("more duty-cycle changes (heater regulating, steps of several %), or "
+                "solar-wind intervals where the field does not mask the steps")
+    lo, hi = tau_ref / TAU_RANGE_FACTOR, tau_ref * TAU_RANGE_FACTOR
+    if not (lo <= r.tau <= hi):
+        raise FitRefusedError(
+            f"relaxation time (sec. 7): fitted tau = {r.tau:.0f} +- {r.tau_err:.0f} s lies "
+            f"outside {lo:.0f}..{hi:.0f} s ({TAU_RANGE_FACTOR:g}x the shipped {tau_ref:.0f} s)"
+            f"; not written. Needs {what_tau}")
+    if not final:
+        return
+    if not (np.isfinite(r.tau_err) and r.tau_err <= MAX_RELATIVE_ERROR * r.tau):
+        raise FitRefusedError(
+            f"relaxation time (sec. 7): fitted tau = {r.tau:.0f} +- {r.tau_err:.0f} s, a "
+            f"relative error above {MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_tau}")
+    if result.delay_fitted and not (DELAY_RANGE_S[0] <= r.dt <= DELAY_RANGE_S[1]):
+        raise FitRefusedError(
+            f"heater delay (sec. 7): fitted dt = {r.dt:.1f} +- {r.dt_err:.1f} s lies outside "
+            f"{DELAY_RANGE_S[0]:g}..{DELAY_RANGE_S[1]:g} s (half a heater period); not "
+            f"written. Needs more heater on/off transitions, or hold it (--hold-delay)")
+    d0_ref = np.asarray(ref.duty_cycle_d0, dtype=float)
+    what_d0 = "more heater-regulated samples over a wider range of duty cycles"
+    for a, f, ref_j in zip(AXES, result.duty, d0_ref, strict=True):
+        ratio = f.slope / ref_j if ref_j != 0 else np.inf
+        if not (1.0 / D0_RANGE_FACTOR <= ratio <= D0_RANGE_FACTOR):
+            raise FitRefusedError(
+                f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
+                f"{f.slope_err:.2g} counts/ppt is {ratio:.2g}x the shipped {ref_j:.4g} "
+                f"(allowed: same sign, 1/{D0_RANGE_FACTOR:g}..{D0_RANGE_FACTOR:g}x); not "
+                f"written. Needs {what_d0}")
+        if not (np.isfinite(f.slope_err) and f.slope_err <= MAX_RELATIVE_ERROR * abs(f.slope)):
+            raise FitRefusedError(
+                f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
+                f"{f.slope_err:.2g} counts/ppt, a relative error above "
+                f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}")
+    t = result.stats.temperature
+    ok = _usable(t)
+    if ok.any() and result.temperature:
+        t_mean = t.mean()[ok, 3]
+        t_lo, t_hi = float(np.nanmin(t_mean)), float(np.nanmax(t_mean))
+        what_t = "heater-off samples over a wider temperature range around the break"
+        for a, f in zip(AXES, result.temperature, strict=True):
+            if not (t_lo <= f.x_m <= t_hi):
+                raise FitRefusedError(
+                    f"temperature law (sec. 7, Table 2): fitted break T_m {a} = {f.x_m:.1f} "
+                    f"+- {f.x_m_err:.2g} C lies outside the heater-off data ({t_lo:.1f}.."
+                    f"{t_hi:.1f} C); not written. Needs {what_t}")
+            if not (np.isfinite(f.x_m_err) and f.x_m_err <= MAX_BREAK_ERROR_C):
+                raise FitRefusedError(
+                    f"temperature law (sec. 7, Table 2): fitted break T_m {a} = {f.x_m:.1f} "
+                    f"+- {f.x_m_err:.2g} C, an error above {MAX_BREAK_ERROR_C:g} C; not "
+                    f"written. Needs {what_t}")
+
+
+def fit_variance_calibration(
+    stats: DayStatistics,
+    vstats: Any,
+    base: MessengerCalibration,
+    *,
+    fit_delay: bool = True,
+    n_bootstrap: int = 200,
+) -> FitResult:
+    """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
+
+    The temperature law, D0, tau and dt come from the normal equations ``vstats``
+    (reduced with ``base`` as the linearisation point); their errors are the standard
+    deviations over a bootstrap of the blocks; the waveforms from ``stats`` as in
+    `fit_calibration`.  dt is adopted under the same rule as there (error below 3 s,
+    not negative), else held.
+
+    Parameters
+    ----------
+    stats : DayStatistics
+        Reduced with ``base`` (`reduce_day`), for the waveforms.
+    vstats : VarianceStatistics
+        Reduced with ``base`` (`fluxcal.missions.messenger.fit_variance.reduce_variance`).
+    base : MessengerCalibration
+    fit_delay : bool
+    n_bootstrap : int
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    FluxcalError
+        No accepted interval (the rejections counted by reason), or too few blocks for
+        a bootstrap.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-7.
+    """
+    from fluxcal.missions.messenger import fit_variance as fv
+
+    accepted = int(np.count_nonzero(vstats.reason == ""))
+    if accepted == 0 or vstats.normal.shape[0] == 0:
+        raise FluxcalError(
+            f"variance estimator: no interval of {fv.VarianceSettings().interval_s:.0f} s "
+            f"passes the selection (rejected: {vstats.rejections() or 'none'}); give "
+            "solar-wind data with rotating field, or choose --estimator zero-mean")
+    if vstats.normal.shape[0] < 3:
+        raise FluxcalError(
+            f"variance estimator: {vstats.normal.shape[0]} bootstrap block(s) of "
+            f"{fv.VarianceSettings().block_s / 3600:.0f} h hold accepted intervals, need 3 "
+            "for an error estimate; give more data")
+    sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap)
+    law, d0, tau, dt = fv.apply_step(base, sol.step)
+    boots = [fv.apply_step(base, b) for b in sol.boot]
+    b_law = np.stack([x[0] for x in boots])
+    b_d0 = np.stack([x[1] for x in boots])
+    b_tau = np.array([x[2] for x in boots])
+    b_dt = np.array([x[3] for x in boots])
+    dt_err = float(np.std(b_dt))
+    adopted = fit_delay and dt_err < MAX_DELAY_ERROR_S and dt >= 0.0
+    if fit_delay and not adopted:
+        return fit_variance_calibration(stats, vstats, base, fit_delay=False,
+                                        n_bootstrap=n_bootstrap)
+    rel = base.constants["relaxation"]
+    if not fit_delay:
+        dt, dt_err = float(rel["delay_s"]), 0.0
+    total = fv.law_to_table(law)
+    b_total = np.stack([fv.law_to_table(x) for x in b_law])
+    t_ref = float(rel.get("reference_temperature_c", -50.0))
+    c_ref = fv.law_at(law, t_ref)
+    chi2 = sol.chi2
+    temperature = []
+    for j in range(3):
+        cols = np.column_stack([b_total[:, j, :], b_law[:, j, 3]])
+        cov = np.cov(cols, rowvar=False)
+        err = np.sqrt(np.diag(cov))
+        temperature.append(TwoSegmentFit(
+            a0=float(total[j, 0]), b0=float(total[j, 1]), a1=float(total[j, 2]),
+            b1=float(total[j, 3]), x_m=float(law[j, 3]), a0_err=float(err[0]),
+            b0_err=float(err[1]), a1_err=float(err[2]), b1_err=float(err[3]),
+            x_m_err=float(err[4]), covariance=cov, chi2=chi2, dof=sol.dof))
+    duty = [LineFit(slope=float(d0[j]), slope_err=float(np.std(b_d0[:, j])),
+                    intercept=float(c_ref[j]), intercept_err=0.0, x0=0.0, y0=float(c_ref[j]),
+                    chi2=chi2, dof=sol.dof) for j in range(3)]
+    relaxation = RelaxationFit(
+        tau=float(tau), tau_err=float(np.std(b_tau)), dt=float(dt), dt_err=dt_err,
+        amplitude=1.0, amplitude_err=0.0, y0=0.0, y0_err=0.0, fit_delay=bool(fit_delay),
+        covariance=np.cov(np.column_stack([b_tau, b_dt]), rowvar=False), chi2=chi2,
+        dof=sol.dof)
+    heater, waveform = _fit_waveforms(stats, base)
+    table2 = total.copy()
+    if base.prelaunch_offsets_reading == "added_to_table2":
+        table2[:, 0] -= base.prelaunch_offsets[0]
+        table2[:, 2] -= base.prelaunch_offsets[0]
+    constants = copy.deepcopy(base.constants)
+    constants["relaxation"]["tau_s"] = float(tau)
+    constants["relaxation"]["delay_s"] = float(dt)
+    constants["relaxation"]["look_back_s"] = look_back_for(float(tau))
+    cal = dataclasses.replace(
+        base, temperature_coefficients=table2,
+        breakpoint_temperature_c=np.asarray(law[:, 3], dtype=float),
+        duty_cycle_c0=np.asarray(c_ref, dtype=float), duty_cycle_d0=np.asarray(d0, dtype=float),
+        heater_signal=heater, constants=constants)
+    return FitResult(calibration=cal, temperature=temperature, duty=duty,
+                     relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
+                     stats=stats, epoch_curve=np.empty((0, 4)), estimator="variance",
+                     variance=vstats)
 
 
 # ---------------------------------------------------------------------------------------
@@ -491,8 +771,12 @@ def reduce_chunk(
     intervals: np.ndarray | None,
     settings: FitSettings,
     hash_inputs: bool = False,
-) -> DayStatistics:
-    """Read one chunk's streams and reduce them (`reduce_day`); runs on a worker."""
+    estimator: str = "zero-mean",
+) -> DayStatistics | tuple[DayStatistics, Any]:
+    """Read one chunk's streams and reduce them (`reduce_day`); runs on a worker.
+
+    With ``estimator="variance"`` also `fit_variance.reduce_variance`: returns both.
+    """
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
     from fluxcal.products.provenance import sha256_file
@@ -501,10 +785,16 @@ def reduce_chunk(
     worker_kernel_pool(list(chunk.kernels))
     sclk = SclkKernel.from_pool(SPACECRAFT_ID)
     inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
-    return reduce_day(read_science(list(chunk.science)), read_heater(list(chunk.heater)),
-                      read_temperature(list(chunk.temperature)), sclk, cal,
-                      intervals_to_et(intervals),
-                      settings, label=chunk.label, inputs=inputs)
+    sci, htr = read_science(list(chunk.science)), read_heater(list(chunk.heater))
+    tmp = read_temperature(list(chunk.temperature))
+    iv = intervals_to_et(intervals)
+    stats = reduce_day(sci, htr, tmp, sclk, cal, iv, settings, label=chunk.label,
+                       inputs=inputs)
+    if estimator != "variance":
+        return stats
+    from fluxcal.missions.messenger.fit_variance import reduce_variance
+
+    return stats, reduce_variance(sci, htr, tmp, sclk, cal, iv)
 
 
 Progress = Callable[[str, int, int], None]
@@ -531,6 +821,8 @@ def fit_days(
     fit_delay: bool = True,
     progress: Progress | None = None,
     temperature_law: str = "distribution",
+    estimator: str = "zero-mean",
+    guard: bool = True,
 ) -> FitResult:
     """Fit the calibration to many days: reduce each (map), merge, fit; ``passes`` times.
 
@@ -560,6 +852,14 @@ def fit_days(
         ``progress(description, done, total)`` after every reduced chunk.
     temperature_law : {"distribution", "binned-mean"}
         Estimator of the temperature law (`fit_calibration`).
+    estimator : {"zero-mean", "variance"}
+        ``zero-mean``: the seed's long-term averages (`fit_calibration`), which assume
+        the field averages to zero over each bin's samples; ``variance``: |B| least
+        variable within 15-min intervals (`fit_variance_calibration`), which assumes
+        rotations at nearly constant |B| (docs/decisions/messenger_fit.md, entry 11).
+    guard : bool
+        Refuse a pass outside the physical ranges (`check_fit`); False only for studies
+        of the estimators themselves (the result must then not be written).
 
     Returns
     -------
@@ -570,6 +870,8 @@ def fit_days(
     ------
     FluxcalError
         No chunk, or the fit's own errors (`fit_calibration`).
+    FitRefusedError
+        A pass's parameter outside its physical range or undetermined (`check_fit`).
     """
     if not chunks:
         raise FluxcalError("no day with a science file to fit")
@@ -578,25 +880,39 @@ def fit_days(
     if temperature_law not in TEMPERATURE_LAWS:
         raise FluxcalError(f"temperature_law must be one of {', '.join(TEMPERATURE_LAWS)}, "
                            f"got {temperature_law!r}")
+    if estimator not in ESTIMATORS:
+        raise FluxcalError(f"estimator must be one of {', '.join(ESTIMATORS)}, "
+                           f"got {estimator!r}")
     s = settings or FitSettings()
     total = passes * len(chunks)
     history: list[dict[str, Any]] = []
     cal = base
     result: FitResult | None = None
 
-    def run(mapper: Callable[[MessengerCalibration, bool, int], list[DayStatistics]]
-            ) -> FitResult:
+    def run(mapper: Callable[[MessengerCalibration, bool, int], list[Any]]) -> FitResult:
         nonlocal cal, result
         inputs: dict[str, str] = {}
         for p in range(passes):
             parts = mapper(cal, p == 0, p)
+            if estimator == "variance":
+                from fluxcal.missions.messenger.fit_variance import VarianceStatistics
+
+                vstats = reduce(VarianceStatistics.merge, [v for _, v in parts],
+                                VarianceStatistics())
+                parts = [d for d, _ in parts]
             stats = reduce(DayStatistics.merge, parts, DayStatistics.empty(s))
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
-            result = fit_calibration(stats, cal, fit_delay=fit_delay,
-                                     temperature_law=temperature_law)
-            history.append({"pass": p + 1, **result.summary()})
+            if estimator == "variance":
+                result = fit_variance_calibration(stats, vstats, cal, fit_delay=fit_delay)
+            else:
+                result = fit_calibration(stats, cal, fit_delay=fit_delay,
+                                         temperature_law=temperature_law)
+            last = p == passes - 1
             change = _relative_change(cal, result.calibration)
+            if guard:  # never carry a tau out of range; refuse an unphysical final pass
+                check_fit(result, final=last or change < tolerance)
+            history.append({"pass": p + 1, **result.summary()})
             cal = result.calibration
             if change < tolerance:
                 break
@@ -614,7 +930,7 @@ def fit_days(
         def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[DayStatistics]:
             out = []
             for i, chunk in enumerate(chunks):
-                out.append(reduce_chunk(chunk, c, intervals, s, hashing))
+                out.append(reduce_chunk(chunk, c, intervals, s, hashing, estimator))
                 tick(p, i + 1)
             return out
 
@@ -633,12 +949,13 @@ def fit_days(
             def distributed(c: MessengerCalibration, hashing: bool, p: int
                             ) -> list[DayStatistics]:
                 futures = client.map(reduce_chunk, list(chunks), cal=c, intervals=intervals,
-                                     settings=s, hash_inputs=hashing, pure=False)
+                                     settings=s, hash_inputs=hashing, estimator=estimator,
+                                     pure=False)
                 out = []
                 for i, fut in enumerate(as_completed(futures)):
                     out.append(fut.result())
                     tick(p, i + 1)
-                return sorted(out, key=lambda st: st.days)
+                return sorted(out, key=lambda st: (st[0] if isinstance(st, tuple) else st).days)
 
             return run(distributed)
     finally:

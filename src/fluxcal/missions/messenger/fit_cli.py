@@ -69,6 +69,7 @@ def run_fit(
     workers: int = 2,
     progress: Callable[[str, int, int], None] | None = None,
     temperature_law: str = "distribution",
+    estimator: str = "zero-mean",
 ) -> str:
     """Run ``fluxcal messenger fit`` and return the summary text (`report_text`).
 
@@ -126,7 +127,7 @@ def run_fit(
         preflight.reachable_scheduler(sched)
     result = fit_days(chunks, base, intervals=iv, passes=passes, scheduler=sched,
                       n_workers=workers, fit_delay=fit_delay, progress=progress,
-                      temperature_law=temperature_law)
+                      temperature_law=temperature_law, estimator=estimator)
     provenance = {
         "inputs": result.stats.inputs,
         "intervals": (f"{Path(intervals).name} sha256={sha256_file(intervals)} "

@@ -132,6 +132,12 @@ class DayStatistics:
     temperature_fine : BinnedMoments
         The temperature-law samples in 0.25-C sub-bins; its one value column is the
         temperature (count and mean temperature per sub-bin).
+    heater_off : BinnedMoments
+        Every heater-off sample (duty cycle in force below 100 ppt, no powered period) in
+        the 10-C bins, before the cut on the decaying duty-cycle offset
+        (``max_relaxed_off_ppt``); its one value column is the relaxed duty cycle.  Only
+        for the error message of the temperature law (`fluxcal.missions.messenger.fit`),
+        which must tell a lack of heater-off data from a decay that has not ended.
     n_samples : dict
         Sample counts: ``total``, ``used`` (fine, V10, inside intervals), ``coarse``,
         ``outside_intervals``, ``before_v10``; ``events`` (duty-cycle changes in the
@@ -148,6 +154,7 @@ class DayStatistics:
     waveform: list[BinnedMoments]
     epoch_weight: BinnedMoments | None = None
     temperature_fine: BinnedMoments | None = None
+    heater_off: BinnedMoments | None = None
     n_samples: dict[str, int] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
     days: list[str] = field(default_factory=list)
@@ -170,6 +177,7 @@ class DayStatistics:
             epoch_weight=BinnedMoments.empty(s.lag_edges_s, 1, label="lag", units="s",
                                              value_units="ppt^2"),
             temperature_fine=_empty_fine(s.temperature_fine_edges()),
+            heater_off=_empty_off(s.temperature_edges_c),
         )
 
     def __post_init__(self) -> None:
@@ -180,6 +188,8 @@ class DayStatistics:
             edges = self.temperature.edges
             self.temperature_fine = _empty_fine(FitSettings(
                 temperature_edges_c=tuple(edges)).temperature_fine_edges())
+        if self.heater_off is None:
+            self.heater_off = _empty_off(self.temperature.edges)
 
     def merge(self, other: DayStatistics) -> DayStatistics:
         """Return the statistics of both (bins must agree)."""
@@ -191,6 +201,7 @@ class DayStatistics:
             waveform=[a.merge(b) for a, b in zip(self.waveform, other.waveform, strict=True)],
             epoch_weight=self.epoch_weight.merge(other.epoch_weight),
             temperature_fine=self.temperature_fine.merge(other.temperature_fine),
+            heater_off=self.heater_off.merge(other.heater_off),
             n_samples={k: self.n_samples.get(k, 0) + other.n_samples.get(k, 0) for k in keys},
             inputs={**self.inputs, **other.inputs},
             days=[*self.days, *other.days],
@@ -204,7 +215,8 @@ class DayStatistics:
         """Return every `BinnedMoments` as a dataset (``temperature``, ``waveform_12``...)."""
         out = {"temperature": self.temperature.to_dataset(), "duty": self.duty.to_dataset(),
                "epoch": self.epoch.to_dataset(), "epoch_weight": self.epoch_weight.to_dataset(),
-               "temperature_fine": self.temperature_fine.to_dataset()}
+               "temperature_fine": self.temperature_fine.to_dataset(),
+               "heater_off": self.heater_off.to_dataset()}
         for pct, w in zip(FitSettings().waveform_bins_percent, self.waveform, strict=False):
             out[f"waveform_{pct:.0f}"] = w.to_dataset()
         return out
@@ -213,6 +225,11 @@ class DayStatistics:
 def _empty_fine(edges: np.ndarray) -> BinnedMoments:
     return BinnedMoments.empty(edges, 1, label="temperature", units="degC",
                                value_units="degC")
+
+
+def _empty_off(edges) -> BinnedMoments:
+    return BinnedMoments.empty(edges, 1, label="temperature", units="degC",
+                               value_units="ppt")
 
 
 def _phase_edges(s: FitSettings) -> np.ndarray:
@@ -420,7 +437,11 @@ def reduce_day(
         rel_tau * TAU_STEP)
     # 1. temperature law: heater off; counts minus the heater signal, with the relaxed
     # duty cycle (the fit removes D0 times its mean, with its own D0)
-    off = (level_eff == 0) & ~powered & (relaxed < s.max_relaxed_off_ppt)
+    off_all = (level_eff == 0) & ~powered
+    out.heater_off = BinnedMoments.accumulate(
+        temp_c[off_all], relaxed[off_all], s.temperature_edges_c, label="temperature",
+        units="degC", value_units="ppt")
+    off = off_all & (relaxed < s.max_relaxed_off_ppt)
     values = np.column_stack([counts[off] - w_est[off], temp_c[off], relaxed[off], slope[off]])
     out.temperature = BinnedMoments.accumulate(
         temp_c[off], values, s.temperature_edges_c, label="temperature", units="degC",

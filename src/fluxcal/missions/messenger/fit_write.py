@@ -2,7 +2,7 @@
 
 The folder holds the eight tables `load_calibration(day, folder)` reads: the fitted ones
 (``offsets_temperature``, ``offsets_duty_cycle``, ``heater_signal_x/y/z`` and
-``processing`` with tau and dt replaced) one version above the base's, with headers
+``processing`` with tau, dt and the look-back replaced) one version above the base's, with headers
 naming their source (``fitted by fluxcal messenger fit``), the base file, the inputs
 (names and sha256), the solar-wind intervals and the fit statistics; the unfitted ones
 (``latency``, ``gain_matrix``) copied byte for byte; and ``fit_report.toml`` /
@@ -207,14 +207,18 @@ def write_calibration_folder(
             base_files[name], base[name].header, provenance,
             ["units: counts; t_s = seconds since the heater-bit rising edge; columns = "
              "duty-cycle bin centres in percent", *extra]) + rows) + "\n"
-    # processing: tau and dt replaced
+    # processing: tau, dt and the look-back that follows tau replaced
     r = result.relaxation
     text = base_files["processing"].read_text()
     text = re.sub(r"(?m)^version\s*=.*$", f"version = {version['processing']}\n"
-                  f'source = "{SOURCE} {__version__}: [relaxation] tau_s and delay_s; the rest '
+                  f'source = "{SOURCE} {__version__}: [relaxation] tau_s, delay_s, look_back_s; '
+                  f'the rest '
                   f'copied from {base_files["processing"].name}"', text, count=1)
     text = re.sub(r"(?m)^tau_s\s*=.*$", f"tau_s = {r.tau:.3f}  # fitted, error {r.tau_err:.3g} s",
                   text, count=1)
+    look_back = float(cal.constants["relaxation"]["look_back_s"])
+    text = re.sub(r"(?m)^look_back_s\s*=.*$", f"look_back_s = {look_back:.1f}  # follows the "
+                  f"fitted tau (5000 s x tau / 872 s, at least 5000 s)", text, count=1)
     note = (f"fitted, error {r.dt_err:.3g} s" if result.delay_fitted
             else "held at the base value (the data did not determine it)")
     text = re.sub(r"(?m)^delay_s\s*=.*$", f"delay_s = {r.dt:.3f}  # {note}", text, count=1)
@@ -293,7 +297,16 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
         },
         "passes": {f"pass_{p['pass']}": {k: v for k, v in p.items() if k != "pass"}
                    for p in result.passes},
+        "estimator": result.estimator,
     }
+    v = result.variance
+    if v is not None:
+        doc["variance_intervals"] = {
+            "accepted": int(np.count_nonzero(v.reason == "")), "total": int(v.reason.size),
+            "rejected_by_reason": v.rejections(),
+            "rejected_start_et": v.interval_start[v.reason != ""],
+            "rejected_reason": [str(x) for x in v.reason[v.reason != ""]],
+            "bootstrap_blocks": int(v.block_start.size)}
     return _plain(doc)
 
 
@@ -320,6 +333,23 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
         f"(coarse {st.n_samples.get('coarse', 0)}, outside intervals "
         f"{st.n_samples.get('outside_intervals', 0)}, before V10 "
         f"{st.n_samples.get('before_v10', 0)})",
+        f"estimator: {result.estimator} (temperature law, D0, tau, dt; "
+        + ("|B| least variable within intervals: rotations at nearly constant |B|)"
+           if result.estimator == "variance" else
+           "long-term averages: the field averages to zero over each bin's samples)"),
+    ]
+    v = result.variance
+    if v is not None:
+        accepted = int(np.count_nonzero(v.reason == ""))
+        lines.append(f"intervals: {accepted} accepted of {v.reason.size}; rejected by "
+                     f"reason: {v.rejections() or 'none'}; errors: bootstrap over "
+                     f"{v.block_start.size} blocks")
+        bad = np.flatnonzero(v.reason != "")
+        lines += [f"  rejected: interval at ET {v.interval_start[i]:.0f} s: {v.reason[i]}"
+                  for i in bad[:20]]
+        if bad.size > 20:
+            lines.append(f"  ... and {bad.size - 20} more")
+    lines += [
         "",
         "temperature law (Table 2 form, fine counts):",
     ]

@@ -43,6 +43,7 @@ from __future__ import annotations
 import datetime as _dt
 import re
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -468,7 +469,8 @@ def _day_samples(met_a: float, met_b: float, t0_met: float, config: FlightConfig
 
 
 def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
-                    changes: CalibrationChanges | None = None, *, truth: bool = True
+                    changes: CalibrationChanges | None = None, *, truth: bool = True,
+                    wind: Callable[[np.random.Generator, int], np.ndarray] | None = None,
                     ) -> FlightRun:
     """Simulate ``config.days`` days of cruise solar wind into a batch input folder.
 
@@ -489,6 +491,10 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
         The true tables' differences from the seed (default `CalibrationChanges()`).
     truth : bool
         Write the truth files.
+    wind : callable, optional
+        ``wind(rng, n)`` -> field (nT, sensor axes) on the 1-s grid, shape (n, 3), used
+        instead of `solar_wind` with ``config.solar_wind`` (e.g. an independent
+        solar-wind model written elsewhere); ``config.solar_wind.noise_nt`` still adds.
 
     Returns
     -------
@@ -534,7 +540,9 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
         n_blocks = n // int(BLOCK_S) + 1
         sched = heater_schedule(rng, n_blocks, int(np.ceil(config.lead_s / BLOCK_S)),
                                 config.heater)
-        field_grid = solar_wind(rng, sched.temperature_c.size, config.solar_wind)
+        field_grid = (solar_wind(rng, sched.temperature_c.size, config.solar_wind)
+                      if wind is None else np.asarray(wind(rng, sched.temperature_c.size),
+                                                      dtype=float))
         grid = np.arange(sched.temperature_c.size, dtype=float)  # seconds since origin
         duty_grid = sched.duty_percent[(grid // BLOCK_S).astype(np.int64)]
         delta = forward.relaxed_duty_offset(grid, 10.0 * duty_grid, tables)

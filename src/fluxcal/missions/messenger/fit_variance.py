@@ -1,0 +1,403 @@
+"""MESSENGER in-flight fit by variance minimisation of ``|B|`` (issue 21, estimator ``variance``).
+
+The seed's estimators (sec. 7; `fluxcal.missions.messenger.fit`) take the offset as a
+long-term average of the measured counts: they assume the field averages to zero over
+each bin's samples.  A real solar wind does not (sectors, hour-long rotations): each bin
+mean carries the field's own mean, tens of counts after days.  This estimator assumes
+instead that the field's *magnitude* is nearly constant within short intervals while its
+direction rotates (Alfvenic fluctuations, Davis and Smith 1968), and fits the *laws* of
+the offset through that condition:
+
+* the offset of every sample is the current model (Table 2 two-segment law of the
+  sensor temperature, eq. 3-4; the duty-cycle offset ``D0 x relaxed duty cycle``, eq.
+  5-6; the heater waveform, sec. 6) plus a correction linear in the parameters:
+  per axis ``da + db T + dc max(0, T - T_m) - c dT_m [T > T_m] + dD0 R`` and, shared by
+  the axes, ``D0 (dR/dtau dtau + dR/ddt ddt)`` (``R``: relaxed duty cycle, ppt);
+* the corrected field ``B' = M (counts - offset)`` (eq. 8, nT) is split into intervals
+  of ``interval_s``; in each, ``|B' - M dO(t)|^2 = const`` linearised is
+  ``|B'|^2 - 2 (M^T B') . dO(t) = c_k``: least squares over all samples of the accepted
+  intervals, each interval's mean removed (the Davis-Smith system with the offset
+  parametrised by the seed's laws; the temperature moving inside an interval is in
+  ``dO(t)``);
+* intervals are accepted by the named criteria of `fluxcal.calibration.variance_offsets`
+  (too_few_samples, ill_conditioned, small_fluctuations, compressive), evaluated on
+  ``B'``; each rejected interval is kept with its reason;
+* the normal equations are summed per bootstrap block (``block_s``) so that days merge
+  exactly (map-reduce) and the errors come from a bootstrap over blocks;
+* `fluxcal.missions.messenger.fit.fit_days` repeats reduce-and-solve (Gauss-Newton):
+  each pass re-linearises about the previous pass's tables.
+
+The heater waveforms keep the phase-binned estimator of sec. 6 (it needs the field to
+be uncorrelated with the heater phase, not zero-mean: a bin's mean level is removed).
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2-7, sec. 8 eq. 8.
+.. [2] Davis, L. Jr. and Smith, E. J., EOS Trans. AGU 49, 257 (1968); Leinweber, H. K.
+   et al., Meas. Sci. Technol. 19, 055104 (2008) (selection of pure rotations).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
+from fluxcal.calibration.solar_wind_offsets import (
+    count_reasons,
+    eigenvalue_ratio,
+    first_failure,
+    interval_moments,
+)
+from fluxcal.calibration.variance_offsets import (
+    DEFAULT_MAX_COMPRESSIBILITY,
+    DEFAULT_MIN_EIGENVALUE_RATIO,
+    DEFAULT_MIN_RELATIVE_AMPLITUDE,
+)
+from fluxcal.geometry.time import SclkKernel
+from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
+
+__all__ = ["N_PARAMETERS", "VarianceSettings", "VarianceStatistics", "reduce_variance",
+           "solve_variance"]
+
+#: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then the
+#: shared d(tau) and d(dt).
+PER_AXIS = 5
+N_PARAMETERS = 3 * PER_AXIS + 2
+#: Step of dt (s) for the derivative of the relaxed duty cycle in dt.
+DELAY_STEP_S = 1.0
+
+
+@dataclass(frozen=True)
+class VarianceSettings:
+    """Intervals, selection criteria and bootstrap blocks of the variance estimator.
+
+    Attributes
+    ----------
+    interval_s : float
+        Interval length (s): ``|B|`` is taken constant within one (the seed's field has
+        a 12-h log-normal magnitude: a few % change in 15 min).
+    min_samples : int
+        ``too_few_samples`` below this many samples (a third of 15 min at 1 Hz).
+    min_eigenvalue_ratio, min_relative_amplitude, max_compressibility : float
+        ``ill_conditioned``, ``small_fluctuations``, ``compressive``
+        (`fluxcal.calibration.variance_offsets` defaults; docs/decisions/
+        solar_wind_offsets.md entry 4).
+    block_s : float
+        Bootstrap block (s): normal equations are kept per block; blocks much longer
+        than the field's correlation time are nearly independent.
+    """
+
+    interval_s: float = 900.0
+    min_samples: int = 300
+    min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
+    min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
+    max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
+    block_s: float = 3 * 3600.0
+
+
+@dataclass
+class VarianceStatistics:
+    """Mergeable normal equations of the variance estimator, per bootstrap block.
+
+    Attributes
+    ----------
+    normal : ndarray, shape (n_blocks, N_PARAMETERS, N_PARAMETERS)
+    rhs : ndarray, shape (n_blocks, N_PARAMETERS)
+    yy : ndarray, shape (n_blocks,)
+        Sum of the squared interval-demeaned ``|B'|^2`` (nT^4), for the residual.
+    samples : ndarray, shape (n_blocks,)
+    block_start : ndarray, shape (n_blocks,)
+        ET of each block's start.
+    interval_start : ndarray, shape (n_intervals,)
+        ET of every interval's start (accepted and rejected).
+    reason : ndarray of str, shape (n_intervals,)
+        ``""`` for accepted intervals, else the first failed criterion.
+    """
+
+    normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
+                                                                 N_PARAMETERS)))
+    rhs: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS)))
+    yy: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    samples: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    block_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    interval_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reason: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="<U24"))
+
+    def merge(self, other: VarianceStatistics) -> VarianceStatistics:
+        """Return the statistics of both (blocks of the same start are summed)."""
+        starts = np.concatenate([self.block_start, other.block_start])
+        uniq, inv = np.unique(starts, return_inverse=True)
+
+        def add(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            both = np.concatenate([a, b])
+            out = np.zeros((uniq.size, *both.shape[1:]))
+            np.add.at(out, inv, both)
+            return out
+
+        return VarianceStatistics(
+            normal=add(self.normal, other.normal), rhs=add(self.rhs, other.rhs),
+            yy=add(self.yy, other.yy), samples=add(self.samples, other.samples),
+            block_start=uniq,
+            interval_start=np.concatenate([self.interval_start, other.interval_start]),
+            reason=np.concatenate([self.reason, other.reason]).astype("<U24"))
+
+    def rejections(self) -> dict[str, int]:
+        """Return ``{reason: count}`` of the rejected intervals."""
+        return count_reasons(self.reason)
+
+
+def _relaxed(et: np.ndarray, changes, cal: MessengerCalibration, tau: float,
+             delay: float) -> np.ndarray:
+    """Relaxed duty cycle (ppt) at ``et`` for ``tau`` and ``delay`` (eq. 6a-6f, D0 = 1)."""
+    rel = cal.constants["relaxation"]
+    target = steady_state_offset(changes.duty_cycle_ppt, np.ones(1),
+                                 float(rel["min_duty_cycle_ppt"]))
+    return relaxed_offset(et, changes.time, target, tau=tau, delay=delay,
+                          look_back=int(rel["look_back"]),
+                          look_back_s=float(rel["look_back_s"]))[:, 0]
+
+
+def law_parameters(cal: MessengerCalibration) -> np.ndarray:
+    """Per axis ``(a, b, c, T_m)`` of the total Table 2 law: ``a + b T + c max(0, T - T_m)``."""
+    coeff = np.asarray(cal.offset_coefficients(), dtype=float)  # A0, B0, A1, B1
+    c = coeff[:, 3] - coeff[:, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tm = np.where(c != 0, (coeff[:, 0] - coeff[:, 2]) / np.where(c != 0, c, 1.0), 0.0)
+    return np.column_stack([coeff[:, 0], coeff[:, 1], c, tm])
+
+
+def reduce_variance(
+    science: xr.Dataset,
+    heater: xr.Dataset,
+    temperature: xr.Dataset,
+    sclk: SclkKernel,
+    cal: MessengerCalibration,
+    intervals: np.ndarray | None = None,
+    settings: VarianceSettings | None = None,
+) -> VarianceStatistics:
+    """Reduce one chunk's raw streams to the variance estimator's normal equations.
+
+    Parameters
+    ----------
+    science, heater, temperature : xarray.Dataset
+        Raw streams (`fluxcal.missions.messenger.readers`), as for
+        `fluxcal.missions.messenger.fit_reduce.reduce_day`.
+    sclk : SclkKernel
+    cal : MessengerCalibration
+        Current estimate of every term (the linearisation point).
+    intervals : ndarray, shape (k, 2), optional
+        Solar-wind intervals (ET); None: all samples.
+    settings : VarianceSettings, optional
+
+    Returns
+    -------
+    VarianceStatistics
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2-7, sec. 8 eq. 8.
+    """
+    s = settings or VarianceSettings()
+    out = VarianceStatistics()
+    if int(science.sizes.get("time", 0)) == 0:
+        return out
+    ds = levels.correct_time(science, cal, sclk)
+    et_all = ds["et"].values
+    keep = ((et_all >= levels._date_et(cal, "heater_mode_v10")) & (ds["range"].values == 0)
+            & inside_intervals(et_all, intervals))
+    if not keep.any():
+        return out
+    ds = ds.isel(time=np.flatnonzero(keep))
+    et = ds["et"].values
+    counts = ds["counts"].values.astype(float)
+    periods, changes = levels.find_heater_periods(heater, cal, sclk)
+    heat = levels.correct_heater_signal(ds, periods, cal)
+    temp_c = levels.interpolate_temperature(
+        et, levels.aux_times_et(temperature, sclk), temperature["temperature_c"].values)
+    offset = levels.offset_model(et, temp_c, changes, cal)
+    m = np.asarray(cal.matrices[0], dtype=float)  # fine range, eq. 8
+    b = (counts - offset - heat["heater_signal"].values) @ m.T
+    rel = cal.constants["relaxation"]
+    tau, delay = float(rel["tau_s"]), float(rel["delay_s"])
+    r = _relaxed(et, changes, cal, tau, delay)
+    dr_tau = (_relaxed(et, changes, cal, tau * (1.0 + TAU_STEP), delay) - r) / (tau * TAU_STEP)
+    dr_dt = (_relaxed(et, changes, cal, tau, delay + DELAY_STEP_S) - r) / DELAY_STEP_S
+    valid = np.all(np.isfinite(b), axis=1) & np.isfinite(temp_c)
+    if not valid.any():
+        return out
+    sel = np.flatnonzero(valid)
+    et, b, temp_c, r, dr_tau, dr_dt = (x[sel] for x in (et, b, temp_c, r, dr_tau, dr_dt))
+    mag = np.sqrt(np.einsum("ij,ij->i", b, b))
+    label = np.floor(et / s.interval_s).astype(np.int64)
+    labels, codes = np.unique(label, return_inverse=True)
+    k = labels.size
+    mom = interval_moments(np.column_stack([b, mag]), codes, k)
+    cov = mom.cov[:, :3, :3]
+    trace = np.trace(cov, axis1=1, axis2=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        reason = first_failure([
+            ("too_few_samples", mom.count >= s.min_samples),
+            ("ill_conditioned", eigenvalue_ratio(cov) >= s.min_eigenvalue_ratio),
+            ("small_fluctuations", np.sqrt(trace) >= s.min_relative_amplitude * mom.mean[:, 3]),
+            ("compressive", mom.cov[:, 3, 3] / trace <= s.max_compressibility),
+        ], k)
+    out.interval_start = labels * s.interval_s
+    out.reason = reason
+    ok = (reason == "")[codes]
+    if not ok.any():
+        return out
+    codes = codes[ok]
+    b, temp_c, r, dr_tau, dr_dt, et, mag = (x[ok] for x in (b, temp_c, r, dr_tau, dr_dt, et,
+                                                            mag))
+    # M^T of the unit vector per sample: d|B'| / d(offset counts) = -u (the |B| form: the
+    # regressors are direction cosines, independent of the compressive |B| changes;
+    # the |B|^2 form's regressors carry them and bias the along-field offset)
+    u = (b / mag[:, None]) @ m
+    law = law_parameters(cal)
+    d0 = np.asarray(cal.duty_cycle_d0, dtype=float)
+    cols = []
+    for j in range(3):
+        above = temp_c > law[j, 3]
+        basis = (np.ones_like(temp_c), temp_c, np.where(above, temp_c - law[j, 3], 0.0),
+                 above.astype(float), r)
+        cols += [u[:, j] * f for f in basis]
+    cols.append((u @ d0) * dr_tau)
+    cols.append((u @ d0) * dr_dt)
+    x = np.column_stack(cols)
+    y = mag
+    n_k = np.bincount(codes, minlength=k).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = np.where(n_k > 0, 1.0 / n_k, 0.0)
+    x -= np.stack([np.bincount(codes, x[:, p], k) for p in range(x.shape[1])],
+                  axis=1)[codes] * inv[codes, None]
+    y = y - (np.bincount(codes, y, k) * inv)[codes]
+    block = np.floor(et / s.block_s).astype(np.int64)
+    starts, bcode = np.unique(block, return_inverse=True)
+    nb = starts.size
+    out.normal = np.zeros((nb, N_PARAMETERS, N_PARAMETERS))
+    out.rhs = np.zeros((nb, N_PARAMETERS))
+    out.yy = np.bincount(bcode, y * y, nb)
+    out.samples = np.bincount(bcode, minlength=nb).astype(float)
+    bounds = np.searchsorted(bcode, np.arange(nb + 1)) if np.all(np.diff(bcode) >= 0) else None
+    for i in range(nb):  # bootstrap blocks (a few per day), each one matrix product
+        if bounds is not None:
+            xi, yi = x[bounds[i]:bounds[i + 1]], y[bounds[i]:bounds[i + 1]]
+        else:
+            xi, yi = x[bcode == i], y[bcode == i]
+        out.normal[i] = xi.T @ xi
+        out.rhs[i] = xi.T @ yi
+    out.block_start = starts * s.block_s
+    return out
+
+
+@dataclass
+class VarianceSolution:
+    """One Gauss-Newton step of the variance estimator and its bootstrap.
+
+    Attributes
+    ----------
+    step : ndarray, shape (N_PARAMETERS,)
+        Correction to the linearisation point (see module docstring for the order).
+    boot : ndarray, shape (n_bootstrap, N_PARAMETERS)
+        The step re-solved on blocks resampled with replacement.
+    chi2 : float
+        Residual sum of squares (nT^4).
+    dof : int
+        Samples minus parameters minus intervals.
+    """
+
+    step: np.ndarray
+    boot: np.ndarray
+    chi2: float
+    dof: int
+
+
+def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
+                   n_bootstrap: int = 200, seed: int = 0) -> VarianceSolution:
+    """Solve the summed normal equations; bootstrap over blocks for the errors.
+
+    Parameters
+    ----------
+    stats : VarianceStatistics
+    fit_delay : bool
+        Solve for dt too (else its step is 0).
+    n_bootstrap : int
+        Resamples of the blocks (with replacement).
+    seed : int
+        Seed of the resampling.
+
+    Returns
+    -------
+    VarianceSolution
+    """
+    free = np.ones(N_PARAMETERS, dtype=bool)
+    free[-1] = fit_delay
+    a = stats.normal[:, free][:, :, free]
+    v = stats.rhs[:, free]
+
+    def solve(aa: np.ndarray, vv: np.ndarray) -> np.ndarray:
+        d = np.sqrt(np.abs(np.diagonal(aa, axis1=-2, axis2=-1)))
+        d = np.where(d > 0, d, 1.0)
+        scaled = aa / (d[..., :, None] * d[..., None, :])
+        sol = np.linalg.lstsq(scaled, vv / d, rcond=1e-12)[0] if aa.ndim == 2 else (
+            np.linalg.solve(scaled + 1e-12 * np.eye(aa.shape[-1]), (vv / d)[..., None])[..., 0])
+        return sol / d
+
+    total_a, total_v = a.sum(axis=0), v.sum(axis=0)
+    step = np.zeros(N_PARAMETERS)
+    step[free] = solve(total_a, total_v)
+    chi2 = float(stats.yy.sum() - 2 * step[free] @ total_v + step[free] @ total_a @ step[free])
+    rng = np.random.default_rng(seed)
+    nb = a.shape[0]
+    picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
+                      for _ in range(n_bootstrap)]).astype(float)
+    boot_a = np.einsum("rb,bij->rij", picks, a)
+    boot_v = picks @ v
+    boot = np.zeros((n_bootstrap, N_PARAMETERS))
+    boot[:, free] = solve(boot_a, boot_v)
+    n_intervals = int(np.count_nonzero(stats.reason == ""))
+    dof = int(stats.samples.sum()) - int(free.sum()) - n_intervals
+    return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof)
+
+
+def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float = 0.3,
+               max_break_shift_c: float = 10.0) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Return the stepped law ``(a, b, c, T_m)`` per axis, D0, tau and dt.
+
+    The break moves by ``-(step on [T > T_m]) / c``, at most ``max_break_shift_c`` per
+    step; tau by at most ``max_tau_shift`` of itself (the linearisation's range).
+    """
+    law = law_parameters(cal).copy()
+    d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
+    st = np.asarray(step, dtype=float).reshape(-1)
+    for j in range(3):
+        da, db, dc, dstep, dd0 = st[PER_AXIS * j:PER_AXIS * (j + 1)]
+        c = law[j, 2]
+        dtm = -dstep / c if c != 0 else 0.0
+        law[j, 0] += da
+        law[j, 1] += db
+        law[j, 2] += dc
+        law[j, 3] += float(np.clip(dtm, -max_break_shift_c, max_break_shift_c))
+        d0[j] += dd0
+    rel = cal.constants["relaxation"]
+    tau = float(rel["tau_s"])
+    tau_new = tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau))
+    dt_new = float(rel["delay_s"]) + float(st[-1])
+    return law, d0, tau_new, dt_new
+
+
+def law_to_table(law: np.ndarray) -> np.ndarray:
+    """Convert ``(a, b, c, T_m)`` per axis to Table 2's total ``(A0, B0, A1, B1)`` (eq. 4)."""
+    a, b, c, tm = law.T
+    return np.column_stack([a, b, a - c * tm, b + c])
+
+
+def law_at(law: np.ndarray, t: float) -> np.ndarray:
+    """Return the law's offset (counts) per axis at temperature ``t``."""
+    return two_segment_offset(np.array([t]), law_to_table(law))[0]

@@ -1,0 +1,137 @@
+"""Issue 21, item 2: a fit outside its physical range is refused, with the true reason.
+
+The fits are run on the closed-form statistics of test_fit (`_known_statistics`), then
+one parameter is moved outside its range; the guard (`check_fit`) must name it, its
+value and error, and what data would constrain it.  The temperature law's abort must
+count the heater-off bins that hold samples, and say when they are there but inside
+the decay of the preceding heater period's offset.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fluxcal.calibration.binned_stats import BinnedMoments
+from fluxcal.errors import FitRefusedError, FluxcalError
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit import check_fit, fit_calibration
+from fluxcal.missions.messenger.fit_reduce import FitSettings
+from tests.missions.messenger.test_fit import START, _known_statistics, _truth
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    base = load_calibration(START)
+    stats = _known_statistics(_truth(), base, np.random.default_rng(3))
+    return base, fit_calibration(stats, base)
+
+
+def test_a_sound_fit_passes(fitted):
+    # truth: tau 1050 s (1.2x the shipped 872 s), D0 within 1.1x, breaks inside the data
+    check_fit(fitted[1])
+
+
+def _with(result, **relaxation):
+    return dataclasses.replace(result, relaxation=dataclasses.replace(result.relaxation,
+                                                                      **relaxation))
+
+
+def test_tau_outside_its_range_is_refused(fitted):
+    # the issue's 4-day realistic wind: tau 7138 +- 8659 s was accepted and written
+    bad = _with(fitted[1], tau=7138.0, tau_err=8659.0)
+    with pytest.raises(FitRefusedError, match=r"tau = 7138 \+- 8659 s lies outside "
+                                              r"436\.\.1744 s .*duty-cycle changes"):
+        check_fit(bad)
+    vague = _with(fitted[1], tau=1000.0, tau_err=400.0)  # 40 %
+    with pytest.raises(FitRefusedError, match=r"tau = 1000 \+- 400 s, a relative error"):
+        check_fit(vague)
+
+
+def test_delay_outside_its_range_is_refused(fitted):
+    bad = _with(fitted[1], dt=72.0, dt_err=2.0)
+    with pytest.raises(FitRefusedError, match=r"dt = 72\.0 \+- 2\.0 s .*heater on/off "
+                                              "transitions"):
+        check_fit(bad)
+
+
+def test_d0_sign_change_and_error_are_refused(fitted):
+    base, res = fitted
+    duty = list(res.duty)
+    duty[1] = dataclasses.replace(duty[1], slope=-0.2)
+    with pytest.raises(FitRefusedError, match=r"D0 y = -0\.2 .*same sign.*duty cycles"):
+        check_fit(dataclasses.replace(res, duty=duty))
+    duty[1] = dataclasses.replace(res.duty[1], slope_err=0.5 * res.duty[1].slope)
+    with pytest.raises(FitRefusedError, match=r"D0 y = .* relative error above 30%"):
+        check_fit(dataclasses.replace(res, duty=duty))
+
+
+def test_break_outside_the_data_is_refused(fitted):
+    res = fitted[1]
+    temp = list(res.temperature)
+    temp[2] = dataclasses.replace(temp[2], x_m=75.0)  # data: bins at -60..+40 C
+    with pytest.raises(FitRefusedError, match=r"T_m z = 75\.0 .*outside the heater-off "
+                                              r"data \(-60\.0\.\.40\.0 C\).*wider temperature"):
+        check_fit(dataclasses.replace(res, temperature=temp))
+
+
+def test_temperature_abort_counts_the_heater_off_bins_and_names_the_decay():
+    """12 bins hold heater-off samples, 4 of them after the offset's decay."""
+    base = load_calibration(START)
+    stats = _known_statistics(_truth(), base, np.random.default_rng(3))
+    s = FitSettings()
+    kept = np.repeat([-50.0, -40.0, -30.0, -20.0], 5)
+    every = np.repeat(np.arange(-60.0, 51.0, 10.0), 5)  # 12 bins
+    few = dataclasses.replace(
+        stats,
+        temperature=BinnedMoments.accumulate(kept, np.zeros((kept.size, 6)),
+                                             s.temperature_edges_c),
+        temperature_fine=BinnedMoments.accumulate(kept, kept, s.temperature_fine_edges()),
+        heater_off=BinnedMoments.accumulate(every, np.full(every.size, 120.0),
+                                            s.temperature_edges_c))
+    with pytest.raises(FluxcalError) as err:
+        fit_calibration(few, base)
+    text = str(err.value)
+    assert "heater-off samples fill 12 bins" in text, text
+    assert "only 4 of them" in text and "decayed at tau = 872 s" in text, text
+    assert "fill only" not in text
+    # without heater-off data at all: the old reason, counted right, with the empty bins
+    none = dataclasses.replace(few, heater_off=BinnedMoments.accumulate(
+        kept, np.zeros(kept.size), s.temperature_edges_c))
+    with pytest.raises(FluxcalError, match=r"fill only 4 bins; filled bins \(C\): -50, -40, "
+                                           r"-30, -20; empty bins \(C\): -100.*wider"):
+        fit_calibration(none, base)
+
+
+# ---------------------------------------------------------------------------------------
+# item 5: the look-back of sec. 7 follows the tau in force
+# ---------------------------------------------------------------------------------------
+def test_look_back_follows_tau():
+    from fluxcal.missions.messenger.fit import look_back_for
+
+    # the shipped tau gives back the shipped 5000 s (products with shipped tables unchanged)
+    assert look_back_for(872.0) == 5000.0
+    # a longer tau keeps the seed's truncation: 200 DN x exp(-L / tau) = 0.65 DN
+    for tau in (1150.0, 1744.0):
+        lb = look_back_for(tau)
+        assert 200.0 * np.exp(-lb / tau) == pytest.approx(200.0 * np.exp(-5000.0 / 872.0),
+                                                          rel=1e-3)
+    # a shorter one never looks back less than 5000 s
+    assert look_back_for(654.0) == 5000.0
+
+
+def test_fitted_folder_carries_the_look_back(fitted, tmp_path):
+    from fluxcal.missions.messenger.fit_write import write_calibration_folder
+
+    res = fitted[1]
+    tau = res.calibration.constants["relaxation"]["tau_s"]  # ~1050 s
+    assert res.calibration.constants["relaxation"]["look_back_s"] == pytest.approx(
+        5000.0 * tau / 872.0, abs=0.05)
+    write_calibration_folder(res, tmp_path / "out", None, {
+        "inputs": {}, "intervals": "all data", "days": "x", "command": "test"})
+    back = load_calibration(START, tmp_path / "out")
+    assert back.constants["relaxation"]["look_back_s"] == pytest.approx(
+        5000.0 * tau / 872.0, abs=0.05)
+    assert back.constants["relaxation"]["tau_s"] == pytest.approx(tau, abs=1e-3)

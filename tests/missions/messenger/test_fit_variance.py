@@ -1,0 +1,133 @@
+"""Issue 21, item 1: the variance estimator on an independent realistic solar wind.
+
+The wind (`tests/missions/messenger/_realistic_wind.py`, numpy only) is 18 nT with
+Alfvenic rotations (f^-5/3, dB/B ~ 0.5), Parker sectors of 1-3 days fixed in sensor
+axes: its mean over any bin of the seed's averages is far from zero, so the zero-mean
+estimator cannot hold, while |B| is constant within an hour up to the compressive part.
+`flight_sim` turns it into raw streams with true tables that differ from the seed's
+(Table 2/3 and tau changed by 25-60 %).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import functools
+
+import numpy as np
+import pytest
+
+from fluxcal.errors import FitRefusedError, FluxcalError
+from fluxcal.missions.messenger import forward
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit import Chunk, check_fit, day_chunks, fit_days
+from fluxcal.missions.messenger.fit_variance import (
+    N_PARAMETERS,
+    VarianceStatistics,
+    law_parameters,
+    law_to_table,
+    solve_variance,
+)
+from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
+from tests.missions.messenger._realistic_wind import realistic_wind
+
+START = dt.date(2010, 3, 1)
+
+
+def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Table 2 offset (counts): the larger of the two lines (eq. 3a, 3b; convex)."""
+    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
+
+
+def test_law_parametrisation_round_trips():
+    cal = load_calibration(str(START))
+    np.testing.assert_allclose(law_to_table(law_parameters(cal)), cal.offset_coefficients(),
+                               atol=1e-9)
+
+
+def _stats(starts, rng, truth):
+    """Normal equations of blocks whose data follow ``y = X truth`` plus noise."""
+    n = len(starts)
+    x = rng.normal(size=(n, 400, N_PARAMETERS))
+    y = x @ truth + 1e-3 * rng.normal(size=(n, 400))
+    return VarianceStatistics(
+        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
+        yy=np.einsum("bn,bn->b", y, y), samples=np.full(n, 400.0),
+        block_start=np.asarray(starts, dtype=float), interval_start=np.zeros(n),
+        reason=np.array(["", "compressive"] * (n // 2) + [""] * (n % 2)))
+
+
+def test_statistics_merge_sums_shared_blocks_and_solve_recovers_the_step():
+    rng = np.random.default_rng(5)
+    truth = rng.normal(size=N_PARAMETERS)
+    a = _stats([0.0, 10800.0, 21600.0], rng, truth)
+    b = _stats([21600.0, 32400.0], rng, truth)  # a day boundary inside block 21600
+    m = a.merge(b)
+    np.testing.assert_array_equal(m.block_start, [0.0, 10800.0, 21600.0, 32400.0])
+    np.testing.assert_allclose(m.normal[2], a.normal[2] + b.normal[0])
+    np.testing.assert_allclose(m.normal.sum(axis=0), a.normal.sum(axis=0) + b.normal.sum(axis=0))
+    assert m.rejections() == {"compressive": 2} and m.reason.size == 5
+    sol = solve_variance(m, n_bootstrap=50)
+    np.testing.assert_allclose(sol.step, truth, atol=1e-4)
+    # the bootstrap spread is the noise's: 1e-3 / sqrt(2000 samples) per parameter
+    assert np.all(sol.boot.std(axis=0) < 1e-4)
+
+
+def test_unknown_estimator_is_refused(tmp_path):
+    chunk = Chunk("x", (tmp_path / "s.csv",), (), (), ())
+    with pytest.raises(FluxcalError, match="estimator must be one of zero-mean, variance"):
+        fit_days([chunk], load_calibration(str(START)), estimator="mean")
+
+
+@pytest.mark.slow
+def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
+    # two days of a rotating 18-nT wind without its compressive part (|B| constant
+    # within an hour up to the 12-h log-normal drift): the premise of the estimator
+    # holds, the field's mean does not vanish (sectors fixed in sensor axes)
+    wind = functools.partial(realistic_wind, compressive=0.0)
+    run = simulate_flight(tmp_path / "sim", FlightConfig(start=str(START), days=2, seed=2121),
+                          wind=wind, truth=False)
+    true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
+    base = load_calibration(str(START))
+    chunks = day_chunks(run.input_dir, run.days)
+    # guard off to see the estimator's own errors; the guards are checked below
+    res = fit_days(chunks, base, passes=4, estimator="variance", guard=False)
+    cal = res.calibration
+    assert res.estimator == "variance" and res.variance is not None
+    t = np.arange(-60.0, 40.01, 1.0)
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    law = np.abs(_law(cal.temperature_coefficients, t) - _law(tc, t)).max(axis=0)
+    d0 = cal.duty_cycle_d0 / true.d0 - 1.0
+    tau = cal.constants["relaxation"]["tau_s"] / true.constants["relaxation"]["tau_s"] - 1.0
+    d0_pull = (cal.duty_cycle_d0 - true.d0) / [f.slope_err for f in res.duty]
+    print(f"law max |error| counts {law.round(2)}, D0 rel {d0.round(3)} pulls "
+          f"{d0_pull.round(2)}, tau rel {tau:.3f} +- "
+          f"{res.relaxation.tau_err / true.constants['relaxation']['tau_s']:.3f}")
+    # measured (seed 2121): see docs/decisions/messenger_fit.md entry 11; the issue's
+    # numbers: law 0.15 nT (3.2 counts), D0 5 % (x, y; z's D0 is 10x smaller), tau 5 %
+    assert np.all(law < 3.2), law
+    assert np.all(np.abs(d0[:2]) < 0.05), d0
+    assert np.all(np.abs(d0_pull) < 3.0), d0_pull
+    assert abs(tau) < 0.05, tau
+    # the stated errors cover the truth at 3 sigma (bootstrap over 3-h blocks)
+    assert abs(cal.constants["relaxation"]["tau_s"] - true.constants["relaxation"]["tau_s"]
+               ) < 3 * res.relaxation.tau_err + 1.0
+    # z's D0 (10x smaller than x, y) is not determined by two days: the guard refuses
+    # the fit naming it, or passes it within its stated error
+    try:
+        check_fit(res)
+    except FitRefusedError as exc:
+        print(f"variance: refused: {exc}")
+        assert "D0 z" in str(exc), exc
+    # every interval is accounted for: accepted or rejected with a named reason
+    assert set(res.variance.rejections()) <= {"too_few_samples", "ill_conditioned",
+                                              "small_fluctuations", "compressive"}
+    # the seed's estimator on the same days: the field's own mean fills its bins; it is
+    # refused by the guards, or misses by far more
+    try:
+        zm = fit_days(chunks, base, passes=1, estimator="zero-mean")
+    except FluxcalError as exc:
+        print(f"zero-mean: refused: {exc}")
+    else:
+        zm_law = np.abs(_law(zm.calibration.temperature_coefficients, t) - _law(tc, t))
+        print(f"zero-mean law max |error| counts {zm_law.max(axis=0).round(2)}")
+        assert zm_law.max() > 3 * law.max()
