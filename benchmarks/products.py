@@ -17,7 +17,8 @@ baseline's time, peak RSS of the child (`peak_rss_mb`: ``VmHWM``, else ``ru_maxr
 CPU seconds (user + system; less sensitive to other load on the machine than the wall
 time) and seconds per stage (functions of `fluxcal.missions.messenger.routes`, ``run``
 and ``products`` wrapped with a timer; nested stages are included in their callers),
-system time, page faults, the optional libraries the case loaded, and a write control (`write_control`).
+system time, page faults, the optional libraries the case loaded, and a write control
+(`write_control`).
 Every case starts after ``sync`` with the files of the cases before it deleted.
 
 The numba cache and Python's bytecode cache are warmed first (a short ``edr2cdr`` run
