@@ -150,10 +150,9 @@ def test_batch_day_with_a_heater_gap_is_done_and_flagged(tmp_path):
     # the same in batch: the day is "done", its product carries the span
     import datetime as dt
 
-    from fluxcal.products.batch import run_batch
-
     from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
     from fluxcal.products import read_product
+    from fluxcal.runs.batch import run_batch
 
     day = dt.date(2012, 6, 1)
     inp = tmp_path / "in"
