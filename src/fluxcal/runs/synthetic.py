@@ -21,6 +21,11 @@ class SyntheticOptions:
         "help": "Product formats: tab, cdf, nc, zarr.", "choices": FORMATS,
         "empty_ok": False})
     quicklook: bool = field(default=False, metadata={"help": "Also write a PNG per day."})
+    delay: float = field(default=0.0, metadata={
+        "help": "Seconds each day waits before it writes (tests: a day in flight)."})
+    hog_mb_on: str = field(default="", metadata={
+        "help": "YYYY-MM-DD:MB: that day holds MB of memory for 5 s (tests: a worker out of "
+                "memory)."})
 
 
 #: The synthetic "mission": the batch machinery with no mission pipeline behind it.

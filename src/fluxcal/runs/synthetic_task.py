@@ -8,7 +8,8 @@ Input per day: ``<input_dir>/SYNTH_<yyyymmdd>.csv`` with header ``epoch_ns,cx,cy
 ``B = gain * (counts - offset)``.
 
 Used by the batch tests, ``benchmarks/batch.py`` and ``fluxcal batch synthetic``.
-The ``crash_once_on`` option kills the worker process once, mid-write, on one day
+The ``crash_once_on`` option kills the worker process once, mid-write, on one day;
+``delay`` makes every day slower and ``hog_mb_on`` makes one day hold a lot of memory
 (fault injection for the tests).
 """
 
@@ -117,6 +118,7 @@ class SyntheticDayTask:
     delay: float = 0.0
     crash_once_on: _dt.date | None = None
     quicklook: bool = False
+    hog_mb_on: tuple[str, float] | None = None
     name: str = "synthetic"
 
     def inputs(self, day: _dt.date) -> DayInputs:
@@ -134,6 +136,10 @@ class SyntheticDayTask:
         data = read_day_csv(src)
         if self.delay:
             time.sleep(self.delay)
+        if self.hog_mb_on is not None and self.hog_mb_on[0] == day.isoformat():
+            hog = np.ones(int(self.hog_mb_on[1] * 2**20 // 8))  # touched: resident memory
+            time.sleep(5.0)  # long enough for a memory-limited worker's nanny to act
+            del hog
         b = gain * (data[:, 1:] - offset)
         ds = xr.Dataset(
             {"B": (("time", "component"), b, {"units": "nT", "description": "Synthetic field"})},
@@ -166,11 +172,18 @@ class SyntheticDayTask:
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> SyntheticDayTask:
-    """Build the task for ``fluxcal batch synthetic`` (options: formats, delay, quicklook)."""
-    allowed = {"formats", "delay", "quicklook"}
-    opts = {k: v for k, v in options.items() if k in allowed and v is not None}
+    """Build the task for ``fluxcal batch synthetic``.
+
+    Options: formats, delay, quicklook, and (fault injection for the tests) ``hog_mb_on``
+    as ``"YYYY-MM-DD:MB"``: on that day the task holds that many MB for 5 s.
+    """
+    allowed = {"formats", "delay", "quicklook", "hog_mb_on"}
+    opts = {k: v for k, v in options.items() if k in allowed and v not in (None, "")}
     if "formats" in opts:
         opts["formats"] = tuple(opts["formats"])
+    if "hog_mb_on" in opts:
+        day, _, mb = str(opts["hog_mb_on"]).partition(":")
+        opts["hog_mb_on"] = (day, float(mb))
     return SyntheticDayTask(Path(input_dir), Path(out_dir), **opts)
 
 
