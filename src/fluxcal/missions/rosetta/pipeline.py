@@ -22,6 +22,7 @@ import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -352,6 +353,38 @@ class CalibrateResult:
     #: day (left to that day's product), and vectors taken from the previous day's file.
     n_to_next_day: int = 0
     n_from_previous_day: int = 0
+    #: What the products' provenance names: input files, calibration (name -> file or
+    #: version), kernel files; the levels asked for; the sensors' temperatures for the
+    #: quicklook (None without one).
+    inputs: list[Path] = field(default_factory=list)
+    used: dict[str, Any] = field(default_factory=dict)
+    kernel_files: list[Path] = field(default_factory=list)
+    wanted: tuple[str, ...] = ()
+    temperatures: Any = None
+
+
+def write_result(result: CalibrateResult, out: Path, *, formats: Sequence[str] = ("tab", "cdf"),
+                 quicklook: bool = False) -> list[Path]:
+    """Write the levels asked for, the HK product and the quicklook of a computed run.
+
+    Kernels loaded (the leap seconds of the pool).  Returns the files written.
+    """
+    from fluxcal.geometry.time import leapseconds
+    from fluxcal.products import provenance_attrs
+
+    lsk = leapseconds()
+    prov = provenance_attrs(inputs=result.inputs, calibration=result.used,
+                            kernels=result.kernel_files)
+    paths: list[Path] = []
+    for lev in LEVELS:
+        if lev in result.wanted:
+            paths += write_level(result.levels[lev], out, formats=formats, provenance=prov,
+                                 lsk=lsk)
+    if "HK" in result.levels:
+        paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
+    if quicklook:
+        paths += write_quicklook(result.levels, out, result.temperatures)
+    return paths
 
 
 def parse_levels(text: str) -> list[str]:
@@ -415,7 +448,6 @@ def calibrate_files(
     """
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel, leapseconds
-    from fluxcal.products import provenance_attrs
 
     sensor = calib.check_sensor(sensor)
     if previous is not None and stitch_state is not None:
@@ -512,27 +544,20 @@ def calibrate_files(
             if bounds is not None:
                 check_day_records(hk_raw, bounds, hk_file, lsk)
             result.levels["HK"] = hk.hk_level_a(hk_raw, cal.thermistor, nominal)
+        result.inputs = archive.source_files(science, sensor)
+        if hk_file is not None:
+            result.inputs += archive.source_files(hk_file)
+        if result.n_from_previous_day:
+            result.inputs += archive.source_files(carry[0], sensor)
+        result.used = used
+        result.kernel_files = [Path(str(k)) for k in kernel_files]
+        result.wanted = tuple(lev for lev in LEVELS if lev in wanted)
+        if quicklook:
+            cals = {s: cal if s == sensor else calib.load_ground_calibration(s, calib_dir)
+                    for s in ("OB", "IB")}
+            result.temperatures = thermistor_temperatures(raw, cals, nominal)
         if write:
-            inputs = archive.source_files(science, sensor)
-            if hk_file is not None:
-                inputs += archive.source_files(hk_file)
-            if result.n_from_previous_day:
-                inputs += archive.source_files(carry[0], sensor)
-            prov = provenance_attrs(
-                inputs=inputs, calibration=used, kernels=[Path(str(k)) for k in kernel_files]
-            )
-            for lev in LEVELS:
-                if lev in wanted:
-                    result.paths += write_level(
-                        result.levels[lev], out, formats=formats, provenance=prov, lsk=lsk
-                    )
-            if hk_file is not None:
-                result.paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
-            if quicklook:
-                cals = {s: cal if s == sensor else calib.load_ground_calibration(s, calib_dir)
-                        for s in ("OB", "IB")}
-                temps = thermistor_temperatures(raw, cals, nominal)
-                result.paths += write_quicklook(result.levels, out, temps)
+            result.paths += write_result(result, out, formats=formats, quicklook=quicklook)
     return result
 
 
