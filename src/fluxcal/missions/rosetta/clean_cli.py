@@ -407,7 +407,7 @@ def clean_files(
     if level == "K" and intervals is not None and heater_states is not None:
         raise FluxcalError("give either --intervals or --heater-states, not both")
     if level in ("F", "G", "I"):
-        from fluxcal.missions.rosetta.cli import check_average
+        from fluxcal.missions.rosetta.options import check_average
 
         check_average(average_s)
     result = CleanResult()

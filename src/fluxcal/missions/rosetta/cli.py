@@ -18,6 +18,8 @@ import typer
 
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.runs.options import with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
 ALIGNED_LEVELS = frozenset("BCFG")
@@ -48,6 +50,7 @@ app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True,
 
 
 @app.command()
+@with_options(RosettaOptions)
 def calibrate(
     science: Path = typer.Option(
         ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a CSV "
@@ -55,29 +58,13 @@ def calibrate(
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
-    levels: str = typer.Option("A,B", "--levels", help="Comma-separated levels: A,B,C,E,F,G."),
     hk: Path | None = typer.Option(
         None, "--hk", help="Raw HK (RO-IGEP-TR0028 sec. 4.1.1), converted to HK LEVEL_A: a CSV "
         "file, or EDITED HK products (folder or .LBL)."
     ),
-    calib: Path | None = typer.Option(
-        None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
-    ),
     kernels: Path | None = typer.Option(
         None, "--kernels", help="Meta-kernel (SCLK -226, CK, SPK): times from OBT; needed for C, G."
     ),
-    primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
-    average: float = typer.Option(1.0, "--average", help="Averaging interval of E, F, G (s)."),
-    frame: str = typer.Option(
-        "auto", "--frame",
-        help="LEVEL_C frame: ECLIPJ2000, CSEQ, or auto (CSEQ from 2014-01-20, "
-        "RO-IGEP-TR0028 sec. 4.4.1).",
-    ),
-    centre: str = typer.Option(
-        "auto", "--centre",
-        help="Body the LEVEL_C position is relative to (auto: the comet for CSEQ, else SUN).",
-    ),
-    boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     stitch_gap_hours: float = typer.Option(
         3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps "
         "(RO-IGEP-TR0028 sec. 4.2.3.3)."
@@ -94,13 +81,7 @@ def calibrate(
         "instead of RPCMAG_SC_ALIGN.TXT.",
     ),
     no_jumps: bool = typer.Option(False, "--no-jumps", help="Skip the Appendix B offset jumps."),
-    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
-    quicklook: bool = typer.Option(
-        False,
-        "--quicklook",
-        help="Also write RPCMAG_QL_<sensor>_<yyyymmdd>.png per day (field of the highest "
-        "level made among C, B, A; sensor temperature; quality; distance).",
-    ),
+    options: RosettaOptions = None,  # type: ignore[assignment] - from the command line
 ) -> None:
     """Calibrate raw RPC-MAG telemetry into LEVEL_A, B, C, E, F, G products.
 
@@ -109,7 +90,7 @@ def calibrate(
     from fluxcal import preflight
     from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
 
-    check_average(average)
+    calib = options.calib
     check_raw_source(science, "--science")
     if hk is not None:
         check_raw_source(hk, "--hk")
@@ -118,7 +99,7 @@ def calibrate(
     if kernels is not None:
         preflight.existing_file(kernels, "--kernels")
     preflight.writable_folder(out, "--out")
-    level_list = parse_levels(levels)
+    level_list = parse_levels(",".join(options.levels or ("A", "B")))
     result = calibrate_files(
         science,
         sensor,
@@ -127,17 +108,17 @@ def calibrate(
         hk_file=hk,
         calib_dir=calib,
         kernels=kernels,
-        primary=primary,
-        average_s=average,
-        frame=frame,
-        centre=centre,
-        boom=boom,
+        primary=options.primary,
+        average_s=options.average_s,
+        frame=options.frame,
+        centre=options.centre,
+        boom=options.boom,
         stitch_gap_s=stitch_gap_hours * 3600.0,
         stitch_state=stitch_state,
         alignment_from_kernels=alignment_from_kernels,
         jumps=not no_jumps,
-        formats=[f.strip() for f in formats.split(",") if f.strip()],
-        quicklook=quicklook,
+        formats=list(options.formats),
+        quicklook=options.quicklook,
     )
     if ALIGNED_LEVELS & set(level_list) and not alignment_from_kernels:
         warn_placeholder_alignment(calib)
@@ -334,23 +315,6 @@ def simulate_batch_layout(out: Path, start: str, hours: float, rate: float, prim
     return simulate_days(out, dates, start_time=t0.strftime("%H:%M:%S"),
                          minutes=hours * 60.0, rate_hz=rate, seed=seed, kernels=True,
                          truth=True)
-
-
-#: Longest averaging interval of LEVEL_E, F, G (s): one day, the span of a daily product.
-MAX_AVERAGE_S = 86_400.0
-
-
-def check_average(seconds: float, option: str = "--average") -> None:
-    """Check an averaging interval (LEVEL_E, F, G; RO-IGEP-TR0028 sec. 4.6-4.8) up front.
-
-    Raises
-    ------
-    InputFormatError
-        Naming the option: an interval that is not above 0 s and at most one day.
-    """
-    if not 0.0 < seconds <= MAX_AVERAGE_S:
-        raise InputFormatError(f"{seconds:g} s: give an averaging interval above 0 s and at "
-                               f"most {MAX_AVERAGE_S:.0f} s (one day)", field=option)
 
 
 def check_simulation_options(start: str, hours: float, rate: float, primary: str) -> None:

@@ -1,7 +1,8 @@
-"""The run options of a Rosetta RPC-MAG batch day (``fluxcal batch rosetta``).
+"""The run options of Rosetta RPC-MAG processing: one dataclass for a run and a batch day.
 
 The fields are those of `fluxcal.missions.rosetta.batch_task.RosettaDayTask` beside its
-folders; their command-line names are those of ``fluxcal rosetta calibrate``.  This
+folders; ``fluxcal rosetta calibrate`` and ``fluxcal batch rosetta`` both take them
+(`fluxcal.runs.options.with_options`).  This
 module imports nothing numerical: the command line reads it at start-up.
 
 References
@@ -14,7 +15,26 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fluxcal.errors import InputFormatError
 from fluxcal.products.format_names import FORMATS
+
+#: Longest averaging interval of LEVEL_E, F, G (s): one day, the span of a daily product.
+MAX_AVERAGE_S = 86_400.0
+
+
+def check_average(seconds: float, option: str = "--average") -> float:
+    """Check an averaging interval (LEVEL_E, F, G; RO-IGEP-TR0028 sec. 4.6-4.8) up front.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the option: an interval that is not above 0 s and at most one day.
+    """
+    if not 0.0 < seconds <= MAX_AVERAGE_S:
+        raise InputFormatError(f"{seconds:g} s: give an averaging interval above 0 s and at "
+                               f"most {MAX_AVERAGE_S:.0f} s (one day)", field=option)
+    return seconds
+
 
 #: LEVEL_C frames (``auto``: CSEQ from 2014-01-20, RO-IGEP-TR0028 sec. 4.4.1).
 FRAMES = ("auto", "ECLIPJ2000", "CSEQ")
@@ -22,22 +42,25 @@ FRAMES = ("auto", "ECLIPJ2000", "CSEQ")
 
 @dataclass(frozen=True)
 class RosettaOptions:
-    """Options of a Rosetta batch day."""
+    """Options of a Rosetta run: ``rosetta calibrate`` and a ``batch rosetta`` day alike."""
 
     formats: tuple[str, ...] = field(default=("tab", "cdf"), metadata={
         "help": "Product formats: tab, cdf, nc, zarr.", "choices": FORMATS,
         "empty_ok": False})
     calib: Path | None = field(default=None, metadata={
-        "help": "Calibration folder (default: <input>/calib when it exists, else "
-                "fluxcal's)."})
-    quicklook: bool = field(default=False, metadata={"help": "Also write a PNG per day."})
+        "help": "Folder with calibration files overriding fluxcal's defaults (batch: default "
+                "<input>/calib when it exists)."})
+    quicklook: bool = field(default=False, metadata={
+        "help": "Also write RPCMAG_QL_<sensor>_<yyyymmdd>.png per day (field of the highest "
+                "level made among C, B, A; sensor temperature; quality; distance)."})
     levels: tuple[str, ...] | None = field(default=None, metadata={
-        "help": "Comma-separated levels (default: A,B,C,E,F,G with kernels, else those "
-                "that need none)."})
+        "help": "Comma-separated levels: A,B,C,E,F,G (default: A,B for one file; for a batch "
+                "day A,B,C,E,F,G with kernels, else those that need none)."})
     primary: str = field(default="OB", metadata={
         "help": "Primary sensor (time-shift table).", "choices": ("OB", "IB")})
     average_s: float = field(default=1.0, metadata={
-        "help": "Averaging interval of E, F, G (s).", "flags": ("--average",)})
+        "help": "Averaging interval of E, F, G (s).", "flags": ("--average",),
+        "parse": check_average})
     frame: str = field(default="auto", metadata={
         "help": "LEVEL_C frame: ECLIPJ2000, CSEQ, or auto (CSEQ from 2014-01-20, "
                 "RO-IGEP-TR0028 sec. 4.4.1).", "choices": FRAMES})
