@@ -2,12 +2,18 @@
 
 Turns raw magnetometer telemetry (ADC counts, clock ticks, heater bits, thermistor
 voltages) into calibrated magnetic-field products in physical frames.  Implements the
-MESSENGER MAG EDR-to-CDR procedure and the Rosetta RPC-MAG step-by-step calibration.
+MESSENGER MAG EDR-to-CDR procedure and the Rosetta RPC-MAG step-by-step calibration, and
+IMAP MAG from raw packets.  One call each: `calibrate_messenger`, `calibrate_rosetta`,
+`calibrate_imap`, `read_product` (`fluxcal.api`).
 """
 
 from functools import cache
 
-__all__ = ["__version__"]
+__all__ = ["__version__", "calibrate_imap", "calibrate_messenger", "calibrate_rosetta",
+           "read_product"]
+
+#: The one-call API (`fluxcal.api`), imported on first use: ``import fluxcal`` stays light.
+_API = ("calibrate_imap", "calibrate_messenger", "calibrate_rosetta", "read_product")
 
 
 @cache
@@ -21,9 +27,13 @@ def _version() -> str:
         return "0.0.0+unknown"
 
 
-def __getattr__(name: str) -> str:
+def __getattr__(name: str) -> object:
     # ``__version__`` is looked up on first use (PEP 562): importing importlib.metadata
     # and scanning the installed distributions is not needed for ``fluxcal --help``.
     if name == "__version__":
         return _version()
+    if name in _API:
+        from fluxcal import api
+
+        return getattr(api, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

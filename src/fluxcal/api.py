@@ -1,0 +1,168 @@
+"""The one-call Python API: calibrate a day or a run, open any product.
+
+Each function returns xarray Datasets indexed by UTC ``time`` (``ds.sel(time=...)`` and
+``ds.resample(time=...)`` work) with the exact TT2000 ``epoch`` beside it.  They are
+reached as ``fluxcal.calibrate_messenger``, ``fluxcal.calibrate_rosetta``,
+``fluxcal.calibrate_imap`` and ``fluxcal.read_product``.
+
+Examples
+--------
+>>> import fluxcal
+>>> from pathlib import Path
+>>> ds = fluxcal.read_product(Path("MAGMSOSCI12153_V01.cdf"))  # doctest: +SKIP
+>>> ds["b"].sel(time=slice("2012-06-01T00:10", "2012-06-01T00:20"))  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.products.timeindex import with_time_index
+
+#: Suffixes read as PDS3 tables (the archive's and fluxcal's labels alike).
+TABLE_SUFFIXES = (".lbl", ".tab")
+
+
+def read_product(path: str | Path) -> xr.Dataset:
+    """Read any product: fluxcal's (TAB/LBL, CDF, netCDF, Zarr) or an archived table.
+
+    PDS3 tables go through the label-driven archive reader
+    (`fluxcal.archive.products.read_product`, which also reads fluxcal's own labels);
+    the other formats through `fluxcal.products.read_product`.
+
+    Raises
+    ------
+    fluxcal.errors.InputFormatError
+        A file that is not a product (naming the file, row and column where it can).
+    """
+    path = Path(path)
+    if path.suffix.lower() in TABLE_SUFFIXES:
+        from fluxcal.archive.products import read_product as read_table_product
+
+        return read_table_product(path)
+    from fluxcal.products import read_product as read_fluxcal_product
+
+    return read_fluxcal_product(path)
+
+
+def calibrate_messenger(
+    science: Sequence[str | Path],
+    heater: Sequence[str | Path],
+    temperature: Sequence[str | Path],
+    kernels: str | Path | Sequence[str | Path],
+    *,
+    frames: Sequence[str] = ("mso",),
+    calib: str | Path | None = None,
+) -> xr.Dataset:
+    """Calibrate MESSENGER MAG streams (CSV files) in one call; nothing is written.
+
+    Parameters
+    ----------
+    science, heater, temperature : sequence of path
+        The three CSV streams (docs/formats/messenger.md).
+    kernels : path or sequence of paths
+        Meta-kernel or kernel files (SCLK, FK, SPK, CK).
+    frames : sequence of str
+        Frames of the field to return (``mso``, ``j2000``, ``mbf``, ``rtn``, ``sc``,
+        ``vso``): one variable ``b_<frame>`` (nT) and its position variable each.
+    calib : path, optional
+        A calibration folder in place of the shipped tables.
+
+    Returns
+    -------
+    xarray.Dataset
+        Indexed by UTC ``time`` (in time order); ``b_<frame>`` per frame, positions,
+        ``quality`` and the applied offsets, as the products hold them.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-12.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.missions.messenger.levels import frame_variables
+    from fluxcal.missions.messenger.options import MessengerOptions
+    from fluxcal.missions.messenger.routes import CsvSource, MessengerRun
+
+    run = MessengerRun()
+    options = MessengerOptions(frames=tuple(frames), formats=("cdf",),
+                               calib=None if calib is None else Path(calib))
+    run.check(options)
+    source = CsvSource(tuple(map(Path, science)), tuple(map(Path, heater)),
+                       tuple(map(Path, temperature)))
+    with KernelPool(kernels, frames=run.frame_kernels):
+        raw, _ = run.read(source, options)
+        ds, _cal = run.calibrate(raw, options, None)
+        del raw
+        for frame in frames:
+            ds = ds.assign(frame_variables(ds, frame))
+    return _in_time_order(with_time_index(ds))
+
+
+def calibrate_rosetta(
+    science: str | Path,
+    sensor: str,
+    *,
+    levels: Sequence[str] = ("A", "B"),
+    hk: str | Path | None = None,
+    calib: str | Path | None = None,
+    kernels: str | Path | None = None,
+) -> dict[str, xr.Dataset]:
+    """Calibrate one Rosetta RPC-MAG sensor's raw file in one call; nothing is written.
+
+    Parameters
+    ----------
+    science : path
+        Raw science CSV, or the archive's EDITED products (folder or ``.LBL``).
+    sensor : {"OB", "IB"}
+    levels : sequence of str
+        Levels to make (A, B, C, E, F, G; C and G need ``kernels``).
+    hk, calib, kernels : path, optional
+        Raw HK, a calibration folder, a meta-kernel (as ``fluxcal rosetta calibrate``).
+
+    Returns
+    -------
+    dict of str -> xarray.Dataset
+        Each level made (and ``HK`` with ``hk``), indexed by UTC ``time``.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1-4.8.
+    """
+    from fluxcal.missions.rosetta.pipeline import calibrate_files
+
+    result = calibrate_files(Path(science), sensor, Path("."), levels=list(levels),
+                             hk_file=None if hk is None else Path(hk),
+                             calib_dir=None if calib is None else Path(calib),
+                             kernels=None if kernels is None else Path(kernels), write=False)
+    return {name: _in_time_order(with_time_index(ds)) if "epoch" in ds.coords else ds
+            for name, ds in result.levels.items()}
+
+
+def calibrate_imap(inputs: Sequence[str | Path], *, level: str = "l1b",
+                   calib: str | Path | None = None) -> dict[tuple[str, str], xr.Dataset]:
+    """Decode and calibrate IMAP MAG packet (or L1A CSV) files in one call.
+
+    Returns
+    -------
+    dict of (mode, sensor) -> xarray.Dataset
+        ``("norm", "mago")`` ...: L1A counts or L1B nT, indexed by UTC ``time``.
+    """
+    from fluxcal.missions.imap.pipeline import process
+
+    out = process([Path(p) for p in inputs], level=level,
+                  calib=None if calib is None else Path(calib))
+    return {key: _in_time_order(with_time_index(ds)) for key, ds in out.items()}
+
+
+def _in_time_order(ds: xr.Dataset) -> xr.Dataset:
+    """Return ``ds`` sorted by ``epoch`` (stable), so that ``resample`` works.
+
+    A run is in recorded order; its corrected times can step back where the latency
+    changes with the rate (seed 000 sec. 5) and packets can overlap.
+    """
+    order = np.argsort(ds["epoch"].values, kind="stable")
+    return ds if (order == np.arange(order.size)).all() else ds.isel(time=order)
