@@ -7,8 +7,6 @@ IMAP MAG from raw packets.  One call each: `calibrate_messenger`, `calibrate_ros
 `calibrate_imap`, `read_product` (`fluxcal.api`).
 """
 
-from functools import cache
-
 __all__ = ["__version__", "calibrate_imap", "calibrate_messenger", "calibrate_rosetta",
            "read_product"]
 
@@ -16,22 +14,13 @@ __all__ = ["__version__", "calibrate_imap", "calibrate_messenger", "calibrate_ro
 _API = ("calibrate_imap", "calibrate_messenger", "calibrate_rosetta", "read_product")
 
 
-@cache
-def _version() -> str:
-    """Return the installed distribution's version (``importlib.metadata``, read once)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("fluxcal")
-    except PackageNotFoundError:  # pragma: no cover - running from a source tree
-        return "0.0.0+unknown"
-
-
 def __getattr__(name: str) -> object:
     # ``__version__`` is looked up on first use (PEP 562): importing importlib.metadata
     # and scanning the installed distributions is not needed for ``fluxcal --help``.
     if name == "__version__":
-        return _version()
+        from fluxcal.version import software_version
+
+        return software_version()
     if name in _API:
         from fluxcal import api
 

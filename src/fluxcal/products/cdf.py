@@ -53,13 +53,13 @@ import xarray as xr
 import yaml
 from cdflib.cdfwrite import CDF as CDFWriter
 
-import fluxcal
 from fluxcal.errors import InputFormatError
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_value, encode_value
 from fluxcal.products.columns import TIME_DIM
 from fluxcal.products.provenance import creation_time
 from fluxcal.products.timeindex import TIME_COORD, default_lsk, with_time_index
+from fluxcal.version import software_version
 
 EPOCH = "Epoch"
 DIMS_ATTR = "fluxcal_dims"
@@ -503,7 +503,7 @@ def _global_attrs(ds: xr.Dataset, path: Path, label_extra: Mapping[str, Any] | N
         gattrs["Logical_file_id"] = path.stem
     created = str(ds.attrs.get("creation_time") or creation_time())
     gattrs["Generation_date"] = created[:10].replace("-", "")
-    gattrs.setdefault("Software_version", fluxcal.__version__)
+    gattrs.setdefault("Software_version", software_version())
     parents = [r.get("name", "") for r in ds.attrs.get("inputs", []) or []]
     out: dict[str, dict[int, Any]] = {
         k: {0: _cdf_attr(v)} for k, v in gattrs.items() if v is not None and k != "Parents"

@@ -19,7 +19,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-import fluxcal
+from fluxcal.version import software_version
 
 _CHUNK = 1 << 20
 
@@ -95,7 +95,7 @@ def provenance_attrs(
             for k in kernels]
     return {
         "software": "fluxcal",
-        "software_version": fluxcal.__version__,
+        "software_version": software_version(),
         "inputs": [file_record(p) for p in inputs],
         "calibration": cal,
         "kernels": kern,

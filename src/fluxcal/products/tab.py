@@ -33,7 +33,6 @@ import numpy as np
 import pvl
 import xarray as xr
 
-import fluxcal
 from fluxcal.errors import InputFormatError
 from fluxcal.products import fixedwidth as fw
 from fluxcal.products.atomic import atomic_group, atomic_path
@@ -55,6 +54,7 @@ from fluxcal.products.label import (
     text_value,
 )
 from fluxcal.products.tabshare import SHARED, Run
+from fluxcal.version import software_version
 
 __all__ = ["CHUNK_ROWS", "format_chunk", "label_module", "read_label", "read_tab",
            "write_tab"]
@@ -367,7 +367,7 @@ def label_module(
     m["PRODUCT_ID"] = Path(table_name).stem
     m["PRODUCT_CREATION_TIME"] = str(attrs.get("creation_time", "")) or "N/A"
     m["SOFTWARE_NAME"] = "fluxcal"
-    m["SOFTWARE_VERSION_ID"] = str(attrs.get("software_version", fluxcal.__version__))
+    m["SOFTWARE_VERSION_ID"] = str(attrs.get("software_version", software_version()))
     _put_extra(m, label_extra or {})
     prov = _provenance(attrs)
     if prov:

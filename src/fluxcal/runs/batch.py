@@ -38,7 +38,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-import fluxcal
 from fluxcal.errors import FluxcalError
 from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.provenance import sha256_file
@@ -51,6 +50,7 @@ from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBu
     report_stale,
 )
 from fluxcal.runs import registry
+from fluxcal.version import software_version
 
 log = logging.getLogger(__name__)
 
@@ -189,7 +189,7 @@ class BatchReport:
         done = [d for d in self.days if d.status == "done"]
         return {
             "name": self.name,
-            "software_version": fluxcal.__version__,
+            "software_version": software_version(),
             "scheduler": self.scheduler,
             "n_workers": self.n_workers,
             "wall_seconds": round(self.wall_seconds, 3),
@@ -230,7 +230,7 @@ def is_up_to_date(task: Any, day: _dt.date, out_dir: Path, name: str) -> bool:
         man = json.loads(path.read_text())
     except (OSError, ValueError):
         return False
-    if man.get("software_version") != fluxcal.__version__:
+    if man.get("software_version") != software_version():
         return False
     for prod in man.get("products", []):
         p = Path(out_dir) / prod["path"]
@@ -262,7 +262,7 @@ def _write_manifest(out_dir: Path, name: str, day: _dt.date, result: DayResult,
     man = {
         "name": name,
         "day": day.isoformat(),
-        "software_version": fluxcal.__version__,
+        "software_version": software_version(),
         "products": prods,
         "inputs": inputs.checksums() if inputs is not None else {},
         "n_vectors": result.n_vectors,

@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from fluxcal import __version__
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES
 from fluxcal.missions.messenger.fit import AXES, FitResult
 from fluxcal.products.atomic import atomic_group, atomic_write_bytes
 from fluxcal.products.provenance import creation_time, sha256_file
+from fluxcal.version import software_version
 
 __all__ = ["write_calibration_folder"]
 
@@ -80,7 +80,7 @@ def _header(title: str, form: str, version: int, base_file: Path, base_header: d
             provenance: Mapping[str, Any], extra: list[str]) -> list[str]:
     lines = [
         f"# {title}",
-        f"# source: {SOURCE} {__version__} from flight data ({form})",
+        f"# source: {SOURCE} {software_version()} from flight data ({form})",
         f"# version: {version}",
         f"# valid_from: {base_header['valid_from']}",
         f"# valid_to: {base_header['valid_to']}",
@@ -211,8 +211,8 @@ def write_calibration_folder(
     r = result.relaxation
     text = base_files["processing"].read_text()
     text = re.sub(r"(?m)^version\s*=.*$", f"version = {version['processing']}\n"
-                  f'source = "{SOURCE} {__version__}: [relaxation] tau_s, delay_s, look_back_s; '
-                  f'the rest '
+                  f'source = "{SOURCE} {software_version()}: [relaxation] tau_s, delay_s, '
+                  f'look_back_s; the rest '
                   f'copied from {base_files["processing"].name}"', text, count=1)
     text = re.sub(r"(?m)^tau_s\s*=.*$", f"tau_s = {r.tau:.3f}  # fitted, error {r.tau_err:.3g} s",
                   text, count=1)
@@ -256,7 +256,7 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
     cal = result.calibration
     st = result.stats
     doc: dict[str, Any] = {
-        "source": f"{SOURCE} {__version__}",
+        "source": f"{SOURCE} {software_version()}",
         "created": creation_time(),
         "command": str(provenance.get("command", "")),
         "intervals": str(provenance.get("intervals", "all data")),
@@ -326,7 +326,7 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
     st = result.stats
     r = result.relaxation
     lines = [
-        f"MESSENGER MAG in-flight calibration ({SOURCE} {__version__})",
+        f"MESSENGER MAG in-flight calibration ({SOURCE} {software_version()})",
         f"days: {len(st.days)} ({', '.join(st.days[:3])}{' ...' if len(st.days) > 3 else ''})",
         f"intervals: {provenance.get('intervals', 'all data')}",
         f"samples used: {st.n_samples.get('used', 0)} of {st.n_samples.get('total', 0)} "

@@ -13,12 +13,12 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-from fluxcal import __version__
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.options import DEFAULT_FRAMES
+from fluxcal.version import software_version
 
 log = logging.getLogger(__name__)
 
@@ -108,7 +108,7 @@ def calibrate(
         else levels.offset_step_report(ds)
     )
     ds.attrs.update(
-        software_version=f"fluxcal {__version__}",
+        software_version=f"fluxcal {software_version()}",
         calibration_files=cal.provenance(),
         offset_largest_step_counts=", ".join(
             f"{a}: {r['step_counts']:.4f}" for a, r in report.items()
