@@ -8,15 +8,15 @@ same options with the same defaults, parsing and checks.
 
 Field types and their command-line form:
 
-=========================  ============================================================
-field type                 command line
-=========================  ============================================================
-``tuple[str, ...]``        ``--frames mso,rtn`` (comma-separated; ``''`` for none)
-``tuple[int, ...]``        ``--average 1,5,10`` (whole numbers, comma-separated)
-``bool``                   ``--quicklook`` (a flag)
-``Path | None``            ``--calib DIR``
-``str``, ``int``, ``float``  one value (``| None``: empty or absent means None)
-=========================  ============================================================
+=============================  ========================================================
+field type                     command line
+=============================  ========================================================
+``tuple[str, ...]``            ``--frames mso,rtn`` (comma-separated; ``''`` for none)
+``tuple[int, ...]``            ``--average 1,5,10`` (whole numbers, comma-separated)
+``bool``                       ``--quicklook`` (a flag)
+``Path | None``                ``--calib DIR``
+``str``, ``int``, ``float``    one value (``| None``: empty or absent means None)
+=============================  ========================================================
 
 Metadata keys: ``help`` (required), ``flags`` (tuple of option names, default
 ``--<field-name>``), ``parse`` (callable applied to the parsed value, e.g. "<= 0

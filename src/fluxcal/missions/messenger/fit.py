@@ -91,7 +91,7 @@ MAX_DELAY_ERROR_S = 3.0
 TEMPERATURE_LAWS = ("distribution", "binned-mean")
 #: Estimators of the temperature law, D0, tau and dt (docs/decisions/messenger_fit.md,
 #: entry 11): ``zero-mean`` (the seed's long-term averages: the field averages to zero
-#: over each bin's samples) and ``variance`` (`fit_variance`: |B| nearly constant within
+#: over each bin's samples) and ``variance`` (`fit_variance`: ``|B|`` nearly constant within
 #: 15-min intervals while the field rotates; no condition on its mean).
 ESTIMATORS = ("zero-mean", "variance")
 #: Guards (`check_fit`; docs/decisions/messenger_fit.md, entry 9): a fitted tau must lie
@@ -854,9 +854,9 @@ def fit_days(
         Estimator of the temperature law (`fit_calibration`).
     estimator : {"zero-mean", "variance"}
         ``zero-mean``: the seed's long-term averages (`fit_calibration`), which assume
-        the field averages to zero over each bin's samples; ``variance``: |B| least
+        the field averages to zero over each bin's samples; ``variance``: ``|B|`` least
         variable within 15-min intervals (`fit_variance_calibration`), which assumes
-        rotations at nearly constant |B| (docs/decisions/messenger_fit.md, entry 11).
+        rotations at nearly constant ``|B|`` (docs/decisions/messenger_fit.md, entry 11).
     guard : bool
         Refuse a pass outside the physical ranges (`check_fit`); False only for studies
         of the estimators themselves (the result must then not be written).
