@@ -428,7 +428,7 @@ def test_fit_report_toml_is_readable(tmp_path, training, capsys):
 def test_cli_fit_refuses_an_edr_batch_folder(tmp_path, capsys):
     """An --input-dir of archived EDRs (edr_mapping.toml) is refused in one line, exit 2."""
     from fluxcal.cli import main
-    from fluxcal.missions.messenger.batch_task import EDR_MAPPING
+    from fluxcal.missions.messenger.routes import EDR_MAPPING
 
     (tmp_path / EDR_MAPPING).write_text("# mapping\n")
     for days in ([], ["--days", "2010-03-01"]):

@@ -8,7 +8,7 @@ Input folder layout (one file per stream and day, day = UTC day of the recorded 
     MAGTMP_YYYYDDD.csv   sensor temperatures (previous and next day read when present)
     kernels.tm           meta-kernel (or ``--kernels``)
 
-or, when the folder holds ``edr_mapping.toml`` (`EDR_MAPPING`), archived MAG EDRs (PDS3
+or, when the folder holds ``edr_mapping.toml`` (`routes.EDR_MAPPING`), archived MAG EDRs (PDS3
 labels + tables, any sub-folders) read through that mapping
 (`fluxcal.missions.messenger.edr.read_edr`; day D reads the science EDRs of D, the
 header and LAC EDRs of D-1 and D, the status EDRs of D-1..D+1).
@@ -42,11 +42,9 @@ from fluxcal.missions.messenger.options import (
 )
 from fluxcal.missions.messenger.products import istp_files
 from fluxcal.missions.messenger.routes import (
-    EDR_MAPPING,
     MessengerRun,
-    csv_day_files,
     day_file,
-    edr_day_files,
+    day_file_groups,
 )
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayInputs, DayResult
@@ -88,10 +86,7 @@ class MessengerDayTask:
         return Path(self.kernels) if self.kernels else Path(self.input_dir) / "kernels.tm"
 
     def _files(self, day: _dt.date) -> dict[str, list[Path]]:
-        mapping = Path(self.input_dir) / EDR_MAPPING
-        if mapping.is_file():
-            return edr_day_files(self.input_dir, mapping, day)
-        return csv_day_files(self.input_dir, day)
+        return day_file_groups(Path(self.input_dir), day)
 
     def inputs(self, day: _dt.date) -> DayInputs:
         """Return the day's input files, kernels and calibration folder."""

@@ -730,9 +730,9 @@ def refuse_edr_folder(input_dir: Path) -> None:
     Raises
     ------
     InputFormatError
-        When ``input_dir`` holds ``edr_mapping.toml`` (`batch_task.EDR_MAPPING`).
+        When ``input_dir`` holds ``edr_mapping.toml`` (`routes.EDR_MAPPING`).
     """
-    from fluxcal.missions.messenger.batch_task import EDR_MAPPING
+    from fluxcal.missions.messenger.routes import EDR_MAPPING
 
     if (Path(input_dir) / EDR_MAPPING).is_file():
         raise InputFormatError(

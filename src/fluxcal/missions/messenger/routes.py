@@ -99,6 +99,17 @@ def csv_day_files(folder: Path, day: _dt.date) -> dict[str, list[Path]]:
     return {"science": [day_file(folder, "SCI", day)], "heater": heat, "temperature": temp}
 
 
+def day_file_groups(input_dir: Path, day: _dt.date) -> dict[str, list[Path]]:
+    """Return a batch day's files per stream: its EDRs (a folder with `EDR_MAPPING`) or CSVs.
+
+    `edr_day_files` when the folder holds the mapping, else `csv_day_files`.
+    """
+    mapping = Path(input_dir) / EDR_MAPPING
+    if mapping.is_file():
+        return edr_day_files(input_dir, mapping, day)
+    return csv_day_files(input_dir, day)
+
+
 def _edr_tables(labels: Sequence[Path]) -> list[Path]:
     """Return the data files the labels point to (checksummed with them in provenance)."""
     tables = []
@@ -165,9 +176,7 @@ class MessengerRun:
     def day_files(self, input_dir: Path, day: _dt.date,
                   options: MessengerOptions) -> list[Path]:
         """Return the EDRs or CSV streams a batch day reads (those that exist)."""
-        mapping = input_dir / EDR_MAPPING
-        files = (edr_day_files(input_dir, mapping, day) if mapping.is_file()
-                 else csv_day_files(input_dir, day))
+        files = day_file_groups(input_dir, day)
         return [p for group in files.values() for p in group if p.exists()]
 
     def day_source(self, input_dir: Path, day: _dt.date,
@@ -179,14 +188,12 @@ class MessengerRun:
         DayWithoutData
             When the day has no science file.
         """
-        mapping = input_dir / EDR_MAPPING
-        if mapping.is_file():
-            files = edr_day_files(input_dir, mapping, day)
+        files = day_file_groups(input_dir, day)
+        if "mapping" in files:
             if not files["science"]:
                 raise DayWithoutData(f"no science EDR of {day} in {input_dir}")
-            return EdrSource(input_dir, mapping, days=(day,),
+            return EdrSource(input_dir, files["mapping"][0], days=(day,),
                              inputs=tuple(p for group in files.values() for p in group))
-        files = csv_day_files(input_dir, day)
         if not files["science"][0].exists():
             raise DayWithoutData(f"no science file {files['science'][0]}")
         return CsvSource(*(tuple(files[k]) for k in ("science", "heater", "temperature")))
