@@ -2,7 +2,9 @@
 
 Every file in ``missions/messenger/data`` is named ``<name>_v<version>.<csv|toml>`` and
 carries a header citing its seed section/table, its version and its validity interval
-``[valid_from, valid_to)``.  `load_calibration` returns, for one day, the highest version
+``[valid_from, valid_to)``; headers, versions, validity and a user folder over these
+defaults are `fluxcal.calibration.store`'s (this module parses the bodies).
+`load_calibration` returns, for one day, the highest version
 of every table whose interval covers that day; a day outside every interval of a table
 raises `fluxcal.errors.CalibrationRangeError`.
 
@@ -23,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.calibration.gain_matrix import lower_triangular_matrix
-from fluxcal.errors import CalibrationError, CalibrationRangeError
+from fluxcal.calibration.store import CalibrationStore, TableHeader, read_header, user_folder
+from fluxcal.errors import CalibrationError
 from fluxcal.textfile import read_text
 
 TABLE_NAMES = (
@@ -36,6 +39,8 @@ TABLE_NAMES = (
     "heater_signal_z",
     "processing",
 )
+#: Header fields every MESSENGER table carries (docs/formats/calibration.md).
+REQUIRED_FIELDS = ("version", "valid_from", "valid_to")
 _NAME_RE = re.compile(r"^(?P<name>[a-z_]+)_v(?P<version>\d+)\.(?P<ext>csv|toml)$")
 
 
@@ -58,18 +63,13 @@ class TableFile:
     toml: dict = field(repr=False, default_factory=dict)
 
 
-def _parse_csv(path: Path) -> tuple[dict[str, str], dict[str, np.ndarray]]:
-    header: dict[str, str] = {}
+def _parse_csv(path: Path) -> dict[str, np.ndarray]:
+    """Return the columns of a CSV table (its ``#`` header lines are the store's)."""
     rows: list[list[str]] = []
     names: list[str] | None = None
     text = read_text(path, "a CSV calibration table", CalibrationError)
     for lineno, line in enumerate(text.splitlines(), start=1):
-        if not line.strip():
-            continue
-        if line.startswith("#"):
-            key, sep, value = line[1:].partition(":")
-            if sep:
-                header.setdefault(key.strip(), value.strip())
+        if not line.strip() or line.startswith("#"):
             continue
         fields = line.split(",")
         if names is None:
@@ -89,52 +89,45 @@ def _parse_csv(path: Path) -> tuple[dict[str, str], dict[str, np.ndarray]]:
             columns[name] = np.array([float(v) for v in values])
         except ValueError:
             columns[name] = np.array(values)
-    return header, columns
+    return columns
 
 
-def _read_table(path: Path) -> TableFile:
+def _read_table(path: Path, header: TableHeader | None = None) -> TableFile:
+    """Read one table: its header through the calibration store, its body here."""
     match = _NAME_RE.match(path.name)
     if match is None:
         raise CalibrationError(f"{path}: file name must be <name>_v<version>.csv|toml")
+    header = header or read_header(path, match["name"], require=REQUIRED_FIELDS)
+    doc: dict = {}
+    columns: dict[str, np.ndarray] = {}
     if match["ext"] == "toml":
         try:
             doc = tomllib.loads(read_text(path, "a TOML calibration file", CalibrationError))
         except tomllib.TOMLDecodeError as exc:
             raise CalibrationError(f"{path}: not valid TOML: {exc}") from None
-        header = {k: str(v) for k, v in doc.items() if not isinstance(v, dict)}
-        columns: dict[str, np.ndarray] = {}
     else:
-        doc = {}
-        header, columns = _parse_csv(path)
-    for key in ("version", "valid_from", "valid_to"):
-        if key not in header:
-            raise CalibrationError(f"{path}: header lacks '{key}'")
-    try:
-        version = int(header["version"])
-    except ValueError:
-        raise CalibrationError(f"{path}: header version {header['version']!r} is not a whole "
-                               "number") from None
-    if version != int(match["version"]):
-        raise CalibrationError(
-            f"{path}: header version {header['version']} differs from the file name"
-        )
-    valid = {}
-    for key in ("valid_from", "valid_to"):
-        try:
-            valid[key] = np.datetime64(header[key], "s")
-        except ValueError:
-            raise CalibrationError(f"{path}: header {key} {header[key]!r} is not an ISO UTC "
-                                   "time such as 2004-08-03T00:00:00") from None
+        columns = _parse_csv(path)
     return TableFile(
         name=match["name"],
-        version=int(match["version"]),
-        valid_from=valid["valid_from"],
-        valid_to=valid["valid_to"],
+        version=int(header.version),
+        valid_from=header.valid_from,
+        valid_to=header.valid_to,
         path=path,
-        header=header,
+        header=dict(header.fields),
         columns=columns,
         toml=doc,
     )
+
+
+def calibration_store(folder: Path | None = None) -> CalibrationStore:
+    """Return the store of MESSENGER tables: ``folder`` over the packaged tables.
+
+    ``folder`` None: ``$FLUXCAL_CALIBRATION_DIR`` when set (`user_folder`).  A table
+    present in the user folder (any version) hides the packaged files of that table
+    (`fluxcal.calibration.store`).
+    """
+    return CalibrationStore(data_dir(), user_folder(folder), names=TABLE_NAMES,
+                            require=REQUIRED_FIELDS)
 
 
 def read_tables(folder: Path) -> list[TableFile]:
@@ -162,31 +155,20 @@ def resolve_table(name: str, day: np.datetime64 | str, folder: Path | None = Non
     day : numpy.datetime64 or str
         Any instant of the day being processed (UTC).
     folder : Path, optional
-        Folder of calibration files (default: the packaged ``data`` folder).
+        User folder of calibration files over the packaged ``data`` folder (default:
+        ``$FLUXCAL_CALIBRATION_DIR`` if set, else the packaged tables only); a table it
+        holds hides the packaged files of that table.
 
     Raises
     ------
     CalibrationRangeError
         When no version of the table is valid at ``day``.
     CalibrationError
-        When no file of that name exists or a header is malformed.
+        When no file of that name exists, a header is malformed, or two files of the
+        table share the winning version.
     """
-    folder = data_dir() if folder is None else Path(folder)
-    when = np.datetime64(day, "s")
-    candidates = [
-        _read_table(p)
-        for p in sorted(folder.glob(f"{name}_v*.*"))
-        if (m := _NAME_RE.match(p.name)) and m["name"] == name
-    ]
-    if not candidates:
-        raise CalibrationError(f"no calibration file named {name}_v*.csv|toml in {folder}")
-    valid = [c for c in candidates if c.valid_from <= when < c.valid_to]
-    if not valid:
-        spans = ", ".join(f"v{c.version} [{c.valid_from}, {c.valid_to})" for c in candidates)
-        raise CalibrationRangeError(
-            f"calibration table {name}: {when} lies outside every validity interval ({spans})"
-        )
-    return max(valid, key=lambda c: c.version)
+    header = calibration_store(folder).resolve(name, day)
+    return _read_table(header.path, header)
 
 
 @dataclass(frozen=True)
@@ -296,7 +278,7 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
     day : numpy.datetime64 or str
         An instant of the processed day (UTC).
     folder : Path, optional
-        Folder of calibration files (default: packaged).
+        User folder of calibration files over the packaged ones (`resolve_table`).
 
     Returns
     -------

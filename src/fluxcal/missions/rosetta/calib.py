@@ -11,7 +11,9 @@ plus two CSV tables shipped with fluxcal: the filter-mode time shifts
 (``RPCMAG_OFFSET_JUMPS.csv``, Appendix B).  A user directory given with ``--calib DIR``
 overrides any of them file by file; fluxcal's defaults live in ``missions/rosetta/data``.
 In that folder a file may also carry the archive's name (``RPCMAG_GND_CALIB_FSDPU_FM<S>``
-for the ground calibration) and the extension ``.ASC`` (`names_of`, `resolve`).
+for the ground calibration) and the extension ``.ASC`` (`names_of`, `resolve`): the
+generic `fluxcal.calibration.store` resolves them (registered as aliases), this module
+parses the files.
 
 References
 ----------
@@ -32,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fluxcal.calibration.store import CalibrationStore, user_folder
 from fluxcal.errors import CalibrationError, CalibrationRangeError
 from fluxcal.textfile import read_text
 
@@ -203,33 +206,31 @@ def check_sensor(sensor: str) -> str:
     return name
 
 
+#: The calibration files a ``--calib`` folder may replace (`calibration_store`).
+CALIBRATION_FILES = (*GROUND_FILE.values(), ALIGN_FILE, TIMESHIFT_FILE, JUMPS_FILE, NOMINAL_FILE)
+
+
+def calibration_store(calib_dir: Path | None = None,
+                      extra: tuple[str, ...] = ()) -> CalibrationStore:
+    """Return the store of RPC-MAG files: ``calib_dir`` over fluxcal's defaults.
+
+    ``calib_dir`` None: ``$FLUXCAL_CALIBRATION_DIR`` when set (`user_folder`).  Each file
+    registers its other names (`names_of`) as aliases; ``extra`` adds names to serve.
+    """
+    names = tuple(dict.fromkeys((*CALIBRATION_FILES, *extra)))
+    return CalibrationStore(default_dir(), user_folder(calib_dir),
+                            aliases={n: names_of(n)[1:] for n in names})
+
+
 def resolve(name: str, calib_dir: Path | None) -> Path:
     """Return the file ``name`` of ``calib_dir`` when it exists, else fluxcal's default file.
 
     In ``calib_dir`` the file may carry any of its names (`names_of`: the seed's, the
-    archive's, ``.TXT`` or ``.ASC``); two of them present is an error naming both.
+    archive's, ``.TXT`` or ``.ASC``); two of them with the same version is an error naming
+    both (`fluxcal.calibration.store.CalibrationStore.resolve`).
     """
-    if calib_dir is not None:
-        refuse_unread_archive_files(calib_dir)
-        found: dict[tuple[int, int], Path] = {}
-        for candidate in (Path(calib_dir) / n for n in names_of(name)):
-            if candidate.is_file():  # one file seen under two names (case-blind disks) once
-                st = candidate.stat()
-                found.setdefault((st.st_dev, st.st_ino), candidate)
-        if len(found) > 1:
-            a, b = list(found.values())[:2]
-            raise CalibrationError(
-                f"{calib_dir}: both {a.name} and {b.name} are present; they name the same "
-                "calibration file (the seed's and the archive's name): keep one"
-            )
-        if found:
-            return next(iter(found.values()))
-    path = default_dir() / name
-    if not path.is_file():
-        raise CalibrationError(
-            f"calibration file {name} found neither in {calib_dir} nor in {path.parent}"
-        )
-    return path
+    refuse_unread_archive_files(user_folder(calib_dir))
+    return calibration_store(calib_dir, (name,)).resolve(name).path
 
 
 # ----------------------------------------------------------------------------------------
@@ -552,6 +553,7 @@ def find_daily_offset_models(
     """Return the daily extended-temperature models of ``sensor`` found in ``calib_dir``."""
     sensor = check_sensor(sensor)
     out: dict[np.datetime64, DailyOffsetModel] = {}
+    calib_dir = user_folder(calib_dir)
     if calib_dir is None:
         return out
     refuse_unread_archive_files(calib_dir)
