@@ -331,8 +331,12 @@ class CalibrationStore:
         Raises
         ------
         CalibrationError
-            When no folder holds a file of the table, or a header is malformed.
+            When the user folder is not a folder, no folder holds a file of the table, or
+            a header is malformed.
         """
+        if self.user is not None and not self.user.is_dir():
+            raise CalibrationError(f"{self.user}: the user calibration folder does not exist "
+                                   "or is not a folder")
         for folder in self.folders:
             files = self._files(folder, name)
             if files:

@@ -188,3 +188,42 @@ def test_prelaunch_offsets_switch(tmp_path, cal):
 def test_prelaunch_offsets_unknown_reading_is_an_error(tmp_path):
     with pytest.raises(CalibrationError, match="prelaunch_offsets"):
         _with_reading(tmp_path, "subtracted_twice")
+
+
+# --- the generic calibration store (issue 20 item 5) -----------------------------------
+def test_user_folder_overrides_one_table_and_keeps_the_packaged_others(tmp_path, cal):
+    """A folder holding only Table 3 as v2 (D0 doubled by hand) changes only Table 3."""
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    text = (data_dir() / "offsets_duty_cycle_v1.csv").read_text()
+    text = text.replace("# version: 1", "# version: 2").replace("0.17885", "0.3577")
+    (tmp_path / "offsets_duty_cycle_v2.csv").write_text(text)
+    mine = load_calibration("2012-06-01", tmp_path)
+    assert mine.duty_cycle_d0[0] == 0.3577 and mine.duty_cycle_d0[1] == 0.32851
+    np.testing.assert_array_equal(mine.temperature_coefficients, cal.temperature_coefficients)
+    assert ("offsets_duty_cycle_v2.csv", 2) in mine.files and ("latency_v1.csv", 1) in mine.files
+    assert sum(p.parent == tmp_path for p in mine.paths) == 1
+
+
+def test_environment_variable_names_the_user_folder(tmp_path, monkeypatch):
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    text = (data_dir() / "latency_v1.csv").read_text().replace("# version: 1", "# version: 3")
+    (tmp_path / "latency_v3.csv").write_text(text)
+    monkeypatch.setenv("FLUXCAL_CALIBRATION_DIR", str(tmp_path))
+    assert resolve_table("latency", "2012-06-01").path == tmp_path / "latency_v3.csv"
+    monkeypatch.delenv("FLUXCAL_CALIBRATION_DIR")
+    assert resolve_table("latency", "2012-06-01").path == data_dir() / "latency_v1.csv"
+
+
+def test_list_calibration_command(tmp_path, capsys):
+    from fluxcal.cli import main
+
+    assert main(["messenger", "list-calibration", "--day", "2012-06-01"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 8 and all(line.startswith("* ") for line in lines)
+    assert "offsets_temperature" in lines[1] and "v1" in lines[1] and "Table 2" in lines[1]
+    assert main(["messenger", "list-calibration", "--calib", str(tmp_path / "nope")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"fluxcal: error: {tmp_path / 'nope'}: the user calibration folder does not exist "
+        "or is not a folder")

@@ -256,3 +256,30 @@ def test_data_files_have_header_citation():
     ):
         head = Path(DATA / name).read_text()[:1500]
         assert "seed 003" in head and "version" in head.lower() and "valid" in head.lower(), name
+
+
+# --- the generic calibration store (issue 20 item 5) -----------------------------------
+def test_shipped_files_carry_the_store_header():
+    """Every shipped file gives the store a version and a validity (one header format)."""
+    store = calib.calibration_store()
+    for header in store.tables()[: len(store.names)]:
+        assert header.version is not None and header.valid_from is not None, header
+        assert header.valid_to is not None, header
+        assert header.path.parent == DATA
+
+
+def test_environment_folder_and_list_command(tmp_path, monkeypatch, capsys):
+    import shutil
+
+    from fluxcal.cli import main
+
+    shutil.copy(DATA / calib.GROUND_FILE["OB"], tmp_path / "RPCMAG_GND_CALIB_FSDPU_FMOB.ASC")
+    monkeypatch.setenv("FLUXCAL_CALIBRATION_DIR", str(tmp_path))
+    assert calib.load_ground_calibration("OB").source == str(
+        tmp_path / "RPCMAG_GND_CALIB_FSDPU_FMOB.ASC")
+    assert calib.load_ground_calibration("IB").source == str(DATA / calib.GROUND_FILE["IB"])
+    assert main(["rosetta", "list-calibration"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("* RPCMAG_001_CALIB_FSDPU_FMOB.TXT")
+    assert f"{tmp_path.name}/RPCMAG_GND_CALIB_FSDPU_FMOB.ASC" in out[0]
+    assert out[-1].startswith("  RPCMAG_001_CALIB_FSDPU_FMOB.TXT")  # the hidden default

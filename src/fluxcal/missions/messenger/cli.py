@@ -64,6 +64,22 @@ def edr2cdr(
     typer.echo(f"wrote {len(written)} files to {out}")
 
 
+@app.command("list-calibration")
+def list_calibration(
+    calib: Path | None = typer.Option(None, "--calib", help="User calibration folder over "
+                                      "the packaged tables (default: $FLUXCAL_CALIBRATION_DIR)."),
+    day: str | None = typer.Option(None, "--day", help="UTC day the tables must cover "
+                                   "(default: the highest version of each)."),
+) -> None:
+    """List the calibration tables a run would use (*), then every other version."""
+    from fluxcal.calibration.store import describe
+    from fluxcal.missions.messenger.calibration_data import calibration_store
+
+    store = calibration_store(calib)
+    for line in describe(store.tables(day), len(store.names)):
+        typer.echo(line)
+
+
 def check_calibration_folder(folder: Path) -> None:
     """Refuse a ``--calib`` that is not a folder holding every calibration table.
 

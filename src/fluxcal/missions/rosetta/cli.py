@@ -203,6 +203,21 @@ def fit(
         typer.echo(str(path))
 
 
+@app.command("list-calibration")
+def list_calibration(
+    calib: Path | None = typer.Option(None, "--calib", help="User calibration folder over "
+                                      "fluxcal's files (default: $FLUXCAL_CALIBRATION_DIR)."),
+) -> None:
+    """List the calibration files a run would use (*), then the ones they hide."""
+    from fluxcal.calibration.store import describe, user_folder
+    from fluxcal.missions.rosetta.calib import calibration_store, refuse_unread_archive_files
+
+    refuse_unread_archive_files(user_folder(calib))
+    store = calibration_store(calib)
+    for line in describe(store.tables(), len(store.names)):
+        typer.echo(line)
+
+
 def simulate(
     out: Path = typer.Option(Path("rosetta-sim"), "--out", help="Folder for the simulated inputs."),
     start: str = typer.Option("2014-08-01T00:00:00", "--start", help="First time stamp (UTC)."),
