@@ -142,6 +142,18 @@ def test_resolution_matches_brute_force(tmp_path_factory, tables, day):
         assert store.resolve("T.TXT", when).version == max(covering)
 
 
+def test_text_versions_resolve_alone_and_never_compete(tmp_path):
+    """``VERSION = sim-1`` (the simulator's) reads as text: fine alone, not orderable."""
+    d = tmp_path / "data"
+    _table(d, "ALIGN.TXT", "sim-1", None)
+    store = CalibrationStore(d, aliases={"ALIGN.TXT": ["ALIGN.ASC"]})
+    assert store.resolve("ALIGN.TXT").version == "sim-1"
+    _table(d, "ALIGN.ASC", "2", None)
+    with pytest.raises(CalibrationError, match=r"ALIGN.TXT: version 'sim-1' is not a whole "
+                       r"number, so it cannot be ordered against ALIGN.ASC \(version 2\)"):
+        store.resolve("ALIGN.TXT")
+
+
 # ---------------------------------------------------------------------------------------
 # user folder over shipped defaults
 # ---------------------------------------------------------------------------------------
@@ -210,7 +222,7 @@ def test_two_names_of_one_table_same_version_is_ambiguous(tmp_path):
     ("file_name", "version", "valid", "expected"),
     [
         ("gain_v1.csv", "one", ("2010-01-01", "2011-01-01"),
-         r"gain_v1.csv, line 3: header field 'version' 'one' is not a whole number"),
+         r"gain_v1.csv, line 3: header field 'version' one differs from the file name's v1"),
         ("gain_v1.csv", 2, ("2010-01-01", "2011-01-01"),
          r"gain_v1.csv, line 3: header field 'version' 2 differs from the file name's v1"),
         ("gain_v1.csv", 1, ("2010-13-01", "2011-01-01"),

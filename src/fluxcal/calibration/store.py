@@ -7,7 +7,7 @@ A *table* is a calibration file known by a name.  Its file is named either
 - or one of the *aliases* a mission registers for ``<name>`` (e.g. the name an archive
   gives the same file, another extension, lower case).
 
-Every text table carries the same header (docs/formats/calibration_store.md):
+Every text table carries the same header (docs/decisions/calibration_store.md):
 
 - lines ``# key: value`` among the comment lines (any text format: CSV, ``KEY = values``,
   TOML), the first occurrence of a key counting;
@@ -16,7 +16,8 @@ Every text table carries the same header (docs/formats/calibration_store.md):
   case-blind.
 
 The header fields are ``name`` (optional, the file name gives it), ``version`` (a whole
-number; it must equal the file name's where the name carries one), ``valid_from`` and
+number, compared as one; any other text is kept but cannot be ordered; it must equal the
+file name's where the name carries one), ``valid_from`` and
 ``valid_to`` (ISO UTC, interval ``[valid_from, valid_to)``, either end open when absent) and
 ``source`` (where the values come from).  The store adds the SHA-256 ``checksum`` of the
 file's bytes.
@@ -123,8 +124,10 @@ class TableHeader:
     ----------
     name : str
         The table's name (not the file's: an alias resolves to its table).
-    version : int or None
-        Version; ``None`` when neither the header nor the file name gives one.
+    version : int, str or None
+        Version: a whole number (``001`` reads 1), else the text as written (e.g.
+        ``sim-1``, which `CalibrationStore.resolve` cannot order against another file);
+        ``None`` when neither the header nor the file name gives one.
     valid_from, valid_to : numpy.datetime64 or None
         Validity ``[valid_from, valid_to)`` (UTC, s); ``None`` is an open end.
     source : str
@@ -138,7 +141,7 @@ class TableHeader:
     """
 
     name: str
-    version: int | None
+    version: int | str | None
     valid_from: np.datetime64 | None
     valid_to: np.datetime64 | None
     source: str
@@ -167,6 +170,13 @@ class TableHeader:
         return default
 
 
+def _rank(header: TableHeader) -> int:
+    """Order of versions for listing: none < text < 0 < 1 < ... (text never competes)."""
+    if header.version is None:
+        return -2
+    return header.version if isinstance(header.version, int) else -1
+
+
 def _end(value: np.datetime64 | None) -> str:
     return "-" if value is None else str(value)
 
@@ -192,7 +202,7 @@ def read_header(path: Path | str, name: str | None = None, *,
     ------
     CalibrationError
         One line naming the file, the line and the field: not text, a required field
-        absent, a version that is not a whole number or differs from the file name's, a
+        absent, a version that differs from the file name's, a
         validity end that is not an ISO UTC time, an interval that ends before it starts.
     """
     path = Path(path)
@@ -209,13 +219,10 @@ def read_header(path: Path | str, name: str | None = None, *,
             raise CalibrationError(f"{path}: header field '{key}' is missing "
                                    f"(a line '# {key}: ...')")
     named = VERSIONED_NAME.match(path.name)
-    version = None
+    version: int | str | None = None
     if "version" in by_key:
         text_version = by_key["version"]
-        if not text_version.isdigit():
-            raise CalibrationError(f"{path}, line {lines['version']}: header field 'version' "
-                                   f"{text_version!r} is not a whole number")
-        version = int(text_version)
+        version = int(text_version) if text_version.isdigit() else text_version
         if named is not None and version != int(named["version"]):
             raise CalibrationError(f"{path}, line {lines['version']}: header field 'version' "
                                    f"{text_version} differs from the file name's "
@@ -341,8 +348,7 @@ class CalibrationStore:
             files = self._files(folder, name)
             if files:
                 headers = [read_header(p, name, require=self.require) for p in files]
-                return sorted(headers, key=lambda h: (-1 if h.version is None else h.version,
-                                                      h.path.name))
+                return sorted(headers, key=lambda h: (_rank(h), str(h.version), h.path.name))
         accepted = ", ".join(dict.fromkeys([f"{name}_v<N>.*", name, *self.aliases.get(name, ())]))
         if self.user is None:
             raise CalibrationError(f"calibration table {name} not found in {self.defaults} "
@@ -385,8 +391,15 @@ class CalibrationStore:
                     f"every validity interval ({spans})")
         else:
             valid = candidates
+        text = [h for h in valid if isinstance(h.version, str)]
+        if len(valid) > 1 and text:
+            other = next(h for h in valid if h is not text[0])
+            raise CalibrationError(
+                f"{text[0].path}: version {text[0].version!r} is not a whole number, so it "
+                f"cannot be ordered against {other.path.name} (version {other.version}), "
+                f"another file of calibration table {name}: keep one")
         best = valid[-1]
-        tied = [h for h in valid if h.version == best.version]
+        tied = [h for h in valid if _rank(h) == _rank(best)]
         if len(tied) > 1:
             a, b = tied[0].path, tied[1].path
             version = "(none)" if best.version is None else best.version
