@@ -73,6 +73,11 @@ def test_header_from_toml_top_level_keys_only(tmp_path):
     h = read_header(path)
     assert (h.name, h.version, h.source) == ("processing", 2, "sec. 7")
     assert h.valid_to == np.datetime64("2015-05-01")
+    # a fitted file keeps the base's comment and adds a top-level source: the key wins
+    path.write_text('# source: sec. 7\n# version: 1\nversion = 2\nsource = "fitted"\n',
+                    encoding="utf-8")
+    h = read_header(path)
+    assert (h.version, h.source, h.field("source")) == (2, "fitted", "fitted")
 
 
 def test_repr_is_one_short_line(tmp_path):

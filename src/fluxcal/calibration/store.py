@@ -13,7 +13,7 @@ Every text table carries the same header (docs/decisions/calibration_store.md):
   TOML), the first occurrence of a key counting;
 - or, for the header fields only, a line ``key = value`` before the first ``[section]``
   (a TOML file's top-level keys, a ``KEY = values`` file's ``VERSION = 001``), keys read
-  case-blind.
+  case-blind; such a line wins over a comment line of the same key.
 
 The header fields are ``name`` (optional, the file name gives it), ``version`` (a whole
 number, compared as one; any other text is kept but cannot be ordered; it must equal the
@@ -97,23 +97,29 @@ def _value(text: str) -> str:
 
 
 def _fields(text: str) -> tuple[dict[str, str], dict[str, int]]:
-    """Header fields of a text table and the line of each (first occurrence counts)."""
-    fields: dict[str, str] = {}
-    lines: dict[str, int] = {}
+    """Header fields of a text table and the line of each.
+
+    The first occurrence of a key counts; a ``key = value`` line (the file's own data, e.g.
+    a TOML top-level key) wins over a ``# key: value`` comment of the same key.
+    """
+    found: dict[bool, tuple[dict[str, str], dict[str, int]]] = {True: ({}, {}), False: ({}, {})}
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if line.startswith("["):  # a TOML section: top-level keys are over
             break
-        if line.startswith("#"):
-            match = _COMMENT_FIELD.match(line)
-        else:
-            match = _ASSIGN_FIELD.match(line)
-            if match is not None and _key(match["key"]) not in HEADER_FIELDS:
-                match = None
-        if match is not None and _key(match["key"]) not in lines:
+        comment = line.startswith("#")
+        match = (_COMMENT_FIELD if comment else _ASSIGN_FIELD).match(line)
+        if match is None or (not comment and _key(match["key"]) not in HEADER_FIELDS):
+            continue
+        fields, lines = found[comment]
+        if _key(match["key"]) not in lines:
             fields[match["key"].strip()] = _value(match["value"])
             lines[_key(match["key"])] = number
-    return fields, lines
+    fields, lines = found[True]
+    for key, value in found[False][0].items():  # assignments over comments
+        fields = {k: v for k, v in fields.items() if _key(k) != _key(key)}
+        fields[key] = value
+    return fields, {**lines, **found[False][1]}
 
 
 @dataclass(frozen=True)
