@@ -29,12 +29,8 @@ highest version wins; two files of one table with that same version is an error 
 both.  The user folder is an explicit argument, or the folder named by the environment
 variable ``FLUXCAL_CALIBRATION_DIR`` (`user_folder`); nothing is cached between calls.
 
-References
-----------
-.. [1] MESSENGER MAG EDR-to-CDR Processing v2i (Korth and Anderson, 2016), sec. 5-8, 12 and
-   Appendix: tables with a version and a validity interval.
-.. [2] RO-IGEP-TR0028 (seed 003), sec. 3.3, 4.2.3.5, 4.3.1, Appendix B: calibration files
-   that a ``--calib`` folder replaces file by file.
+The decisions behind these rules (and what each mission registers) are in
+docs/decisions/calibration_store.md.
 """
 
 from __future__ import annotations
