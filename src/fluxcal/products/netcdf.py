@@ -161,6 +161,7 @@ def write_zarr(ds: xr.Dataset, path: Path) -> Path:
 
 
 def read_zarr(path: Path) -> xr.Dataset:
-    """Read a fluxcal Zarr store back into a Dataset."""
+    """Read a fluxcal Zarr store back into a Dataset (needs the ``zarr`` extra)."""
+    require("zarr", f"reading the Zarr store {path}")
     with xr.open_zarr(path, mask_and_scale=False, decode_timedelta=False) as f:
         return decode_from_xarray(f.load())
