@@ -44,8 +44,8 @@ def test_a_clone_without_tags_gets_a_dev_version(tmp_path):
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=src, check=True,
                           capture_output=True, text=True).stdout.strip()
     version = _scm_version(src)
-    # no tag: 0.1.dev<commits since the first>+g<hash> (PEP 440; sorts before 0.1.0)
-    assert re.fullmatch(rf"0\.1\.dev{commits - 1}\+g{head[:7]}\w*", version), version
+    # no tag: 0.1.dev<number of commits>+g<hash> (PEP 440; sorts before 0.1.0)
+    assert re.fullmatch(rf"0\.1\.dev{commits}\+g{head[:7]}\w*", version), version
     subprocess.run(["git", "tag", "v0.1.0"], cwd=src, check=True)
     assert _scm_version(src) == "0.1.0"  # a release is a tag
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from fluxcal.extras import require
 from fluxcal.missions.messenger.levels import offset_step_report
 
 
@@ -29,6 +30,7 @@ def load_figure_support() -> None:
     imports it itself when nobody did.  Without the ``plot`` extra it raises
     `~fluxcal.errors.MissingExtraError` (one line, exit 2, nothing read or written).
     """
+    require("plot", "--formats png (the offset report figure)")
     import fluxcal.products.quicklook  # noqa: F401 - matplotlib, behind the plot extra's guard
 
 
