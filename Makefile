@@ -40,4 +40,4 @@ wheel-check: $(STAMP)
 	$(BIN)/python tools/wheel_check.py
 
 clean:
-	rm -rf $(VENV) demo-output docs/_build docs/api
+	rm -rf $(VENV) demo-output docs/_build docs/api docs/gallery
