@@ -62,7 +62,6 @@ sphinx_gallery_conf = {
     "remove_config_comments": True,
     "matplotlib_animations": False,
     "min_reported_time": 1,
-    "reference_url": {"fluxcal": None},  # link names in the code to the API pages
     "image_scrapers": ("matplotlib",),
 }
 

@@ -467,7 +467,11 @@ def _run_days(days, task, out_dir, scheduler, n_workers, force, name,
         return "serial", 1
     from fluxcal.runs.cluster import run_days_on_dask  # the batch extra's module
 
-    return run_days_on_dask(days, task, out_dir, scheduler, n_workers, force, name, record)
+    return run_days_on_dask(
+        days, run_day, lambda day: (task, day, out_dir, name, force), name, scheduler,
+        n_workers, record,
+        lambda day, exc: DayStatus(day.isoformat(), "failed",
+                                   error=f"{type(exc).__name__}: {exc}"))
 
 
 #: Dask helpers that live in `fluxcal.runs.cluster` (the ``batch`` extra), still importable

@@ -1,8 +1,8 @@
 """Running batch days on Dask: the ``batch`` extra (dask, distributed) behind one guard.
 
 Imported only where days run on a cluster: `fluxcal.runs.batch.run_batch` without
-``scheduler="serial"``, ``fluxcal batch`` and ``fluxcal messenger fit`` on a local
-cluster or an existing scheduler.  A core install (no Dask) gets
+``scheduler="serial"`` (``fluxcal batch``) and the in-flight fits that reduce days on a
+local cluster or an existing scheduler.  A core install (no Dask) gets
 `~fluxcal.errors.MissingExtraError` from the import, one line naming
 ``fluxcal[batch]``; ``--scheduler serial`` runs the same days without Dask.
 """
@@ -10,10 +10,12 @@ cluster or an existing scheduler.  A core install (no Dask) gets
 from __future__ import annotations
 
 import contextlib
+import datetime as _dt
 import logging
 import signal
 import threading
 import time
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from fluxcal.extras import guard
@@ -25,7 +27,7 @@ except ImportError as _exc:
     raise guard("batch", "running days on Dask (a local cluster or --scheduler ADDRESS; "
                 "--scheduler serial needs no Dask)", _exc) from _exc
 
-from fluxcal.runs.batch import DayStatus, Interrupted, run_day
+from fluxcal.products.staging import Interrupted
 
 __all__ = ["Client", "as_completed", "dask_setup", "make_local_cluster", "run_days_on_dask"]
 
@@ -78,12 +80,16 @@ def dask_setup(worker: Any) -> None:
 
 
 
-def run_days_on_dask(days, task, out_dir, scheduler, n_workers, force, name,
-                     record) -> tuple[str, int]:
-    """Run the days on a new local cluster (``scheduler`` None) or at ``scheduler``.
+def run_days_on_dask(days: Iterable[_dt.date], func: Callable[..., Any],
+                     args: Callable[[_dt.date], tuple], name: str, scheduler: str | None,
+                     n_workers: int, record: Callable[[Any], None],
+                     failed: Callable[[_dt.date, Exception], Any]) -> tuple[str, int]:
+    """Run ``func(*args(day))`` for every day on Dask; return (scheduler address, workers).
 
-    `fluxcal.runs.batch.run_batch`'s Dask path: each day's `DayStatus` goes to
-    ``record`` as it arrives; returns (scheduler address, workers).
+    `fluxcal.runs.batch.run_batch`'s Dask path: on a new local cluster of ``n_workers``
+    (``scheduler`` None) or at the address ``scheduler``.  Each result goes to ``record``
+    as it arrives; a task that raised (e.g. ``KilledWorker``) is recorded as
+    ``failed(day, exc)``.  Ctrl-C or SIGTERM cancels the days and re-raises.
     """
     cluster = make_local_cluster(n_workers) if scheduler is None else None
     try:
@@ -91,7 +97,7 @@ def run_days_on_dask(days, task, out_dir, scheduler, n_workers, force, name,
             used = str(client.scheduler.address)
             workers = len(client.scheduler_info().get("workers", {}))
             futures = {
-                client.submit(run_day, task, day, out_dir, name, force, pure=False,
+                client.submit(func, *args(day), pure=False,
                               key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
                 for day in days
             }
@@ -101,8 +107,7 @@ def run_days_on_dask(days, task, out_dir, scheduler, n_workers, force, name,
                     try:
                         st = fut.result()
                     except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
-                        st = DayStatus(day.isoformat(), "failed",
-                                       error=f"{type(exc).__name__}: {exc}")
+                        st = failed(day, exc)
                     record(st)
             except (KeyboardInterrupt, Interrupted):
                 client.cancel(list(futures))  # an external scheduler stops the days too
