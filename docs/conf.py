@@ -61,7 +61,7 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "remove_config_comments": True,
     "matplotlib_animations": False,
-    "min_reported_time": 1,
+    "write_computation_times": False,  # no sg_execution_times pages outside the toctree
     "image_scrapers": ("matplotlib",),
 }
 

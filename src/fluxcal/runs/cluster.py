@@ -29,8 +29,6 @@ except ImportError as _exc:
 
 from fluxcal.products.staging import Interrupted
 
-__all__ = ["Client", "as_completed", "dask_setup", "make_local_cluster", "run_days_on_dask"]
-
 
 def make_local_cluster(n_workers: int = 2) -> Any:
     """Return a `LocalCluster` of single-threaded worker processes (SPICE-safe).
