@@ -34,4 +34,4 @@ for k, axis in enumerate("XYZ"):
 ax.set_ylabel(f"B ({ds['b'].attrs.get('units', '')})")
 ax.set_xlabel("UTC")
 ax.legend(fontsize=8, ncols=3)
-ax.set_title(path.name)
+ax.set_title(f"{path.name}: L1B field in the sensor frame")
