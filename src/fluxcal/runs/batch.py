@@ -3,7 +3,9 @@
 `run_batch` sends one task per day to a Dask cluster (by default a `LocalCluster` of
 single-threaded worker *processes*, because SPICE keeps one global, non-thread-safe
 kernel pool per process) or to an existing scheduler (``scheduler="tcp://host:8786"``),
-or runs the days in this process (``scheduler="serial"``).
+or runs the days in this process (``scheduler="serial"``).  The Dask half lives in
+`fluxcal.runs.cluster` (the ``batch`` extra), imported only when days go to Dask; this
+module (day types, manifests, the serial runner) needs no Dask.
 
 A *day task* is a picklable callable ``task(day) -> DayResult`` that writes the day's
 products atomically (`fluxcal.products.write_product`).  It may also define
