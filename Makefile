@@ -5,12 +5,12 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.fluxcal-installed
 DOCS_STAMP := $(VENV)/.fluxcal-docs-installed
 
-.PHONY: demo test lint bench docs clean
+.PHONY: demo test lint bench docs wheel-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test,lint,interop]"
+	$(BIN)/python -m pip install --quiet -e ".[test,lint,interop,plot,batch,zarr]"
 	touch $(STAMP)
 
 $(DOCS_STAMP): $(STAMP)
@@ -34,5 +34,10 @@ docs: $(DOCS_STAMP)
 	$(BIN)/sphinx-build -W --keep-going -b html docs docs/_build/html
 	@echo "fluxcal: documentation in docs/_build/html/index.html"
 
+# build the sdist and wheel from a clean clone, install the wheel (core, no extras) in a
+# fresh venv, run `fluxcal --version` and a CDF-only edr2cdr; prints the installed size
+wheel-check: $(STAMP)
+	$(BIN)/python tools/wheel_check.py
+
 clean:
-	rm -rf $(VENV) demo-output docs/_build docs/api
+	rm -rf $(VENV) demo-output docs/_build docs/api docs/gallery

@@ -27,13 +27,15 @@ extensions = [
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
     "numpydoc",
+    "sphinx_gallery.gen_gallery",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
 # `name` in a docstring links to that object where Sphinx knows it, plain text otherwise
 default_role = "py:obj"
-exclude_patterns = ["_build", "Thumbs.db", ".DS_Store"]
+# examples/: the gallery's scripts (sphinx-gallery renders them into gallery/)
+exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "examples"]
 templates_path = ["_templates"]
 
 # --- API reference ------------------------------------------------------------------
@@ -49,6 +51,19 @@ numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks: set[str] = set()
+
+# --- Gallery (sphinx-gallery): docs/examples/plot_*.py run at build time ----------------
+sphinx_gallery_conf = {
+    "examples_dirs": "examples",
+    "gallery_dirs": "gallery",  # generated, not committed (.gitignore)
+    "filename_pattern": r"/plot_",  # every example runs, its figures are kept
+    "abort_on_example_error": True,  # a failing example fails the build
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "matplotlib_animations": False,
+    "write_computation_times": False,  # no sg_execution_times pages outside the toctree
+    "image_scrapers": ("matplotlib",),
+}
 
 # --- Markdown (the decision records and format notes are MyST) ------------------------
 myst_enable_extensions = ["dollarmath", "amsmath", "deflist", "colon_fence"]

@@ -42,7 +42,7 @@ def test_every_page_is_reachable_from_the_index():
                     for p in DOCS.glob(entry + ".*") if p.suffix in (".md", ".rst")}
     pages = {p.relative_to(DOCS).with_suffix("").as_posix()
              for p in [*DOCS.rglob("*.md"), *DOCS.rglob("*.rst")]
-             if not p.relative_to(DOCS).parts[0].startswith(("_", "api"))
+             if not p.relative_to(DOCS).parts[0].startswith(("_", "api", "examples", "gallery"))
              and p.name != "index.md"}
     assert pages - reached == set()
     assert {"decisions", "decisions/messenger", "formats/products", "api",
@@ -81,3 +81,8 @@ def test_the_site_builds_without_warnings(tmp_path):
     index = (out / "index.html").read_text()
     assert "MESSENGER MAG EDR to CDR" in index and "api.html" in index
     assert (out / "api" / "fluxcal.missions.messenger.levels.html").exists()
+    # the gallery ran at build time: one page and at least one figure per example
+    for example in ("plot_messenger_day", "plot_rosetta_run", "plot_imap_product"):
+        page = (out / "gallery" / f"{example}.html").read_text()
+        assert f"sphx_glr_{example}_001.png" in page, example
+        assert (out / "_images" / f"sphx_glr_{example}_001.png").exists(), example

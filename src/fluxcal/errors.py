@@ -74,3 +74,25 @@ class FitRefusedError(FluxcalError):
     The message names the parameter, its value and error, and the data that would
     constrain it; nothing is written.
     """
+
+
+class MissingExtraError(FluxcalError, ImportError):
+    """An optional part of fluxcal is not installed (`fluxcal.extras`).
+
+    The message names what needed it and the extra to install, e.g.
+    ``quicklooks need matplotlib: install fluxcal[plot]``.
+
+    Parameters
+    ----------
+    extra : str
+        The pip extra that provides it (``plot``, ``batch``, ``zarr``).
+    what : str
+        What the user asked for that needs it (an option, a command).
+    missing : str
+        The package that is missing.
+    """
+
+    def __init__(self, extra: str, what: str, missing: str) -> None:
+        self.extra = extra
+        super().__init__(f"{what} needs {missing}: install fluxcal[{extra}] "
+                         f"(pip install 'fluxcal[{extra}]')")

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from fluxcal.extras import require
+
 
 def plot(
     product: Path = typer.Argument(..., exists=True, help="Product (.cdf, .nc or .TAB)."),
@@ -50,6 +52,7 @@ def compare(
     force: bool = typer.Option(False, "--force", help="Compare even if the frames differ."),
 ) -> None:
     """Match two products in time; print A - B statistics per component and quality flag."""
+    require("plot", "fluxcal compare (its difference plot)")  # before reading the products
     from fluxcal import preflight
     from fluxcal.products.compare import (
         compare as run_compare,

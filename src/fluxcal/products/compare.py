@@ -319,13 +319,8 @@ def format_report(c: Comparison) -> str:
 
 def difference_figure(c: Comparison) -> Any:
     """Draw a figure with one panel of ``A - B`` per component against UTC time."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-
     from fluxcal.geometry.time import tt2000_to_datetime64
-    from fluxcal.products.quicklook import envelope
+    from fluxcal.products.quicklook import Figure, envelope  # the plot extra's module
     from fluxcal.products.timeindex import default_lsk
 
     fig = Figure(figsize=(10, 7), layout="constrained")

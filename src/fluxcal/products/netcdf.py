@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from fluxcal.errors import InputFormatError
+from fluxcal.extras import require
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_attrs, encode_attrs
 from fluxcal.products.timeindex import TIME_COORD, with_time_index
@@ -152,8 +152,7 @@ def read_netcdf(path: Path) -> xr.Dataset:
 
 def write_zarr(ds: xr.Dataset, path: Path) -> Path:
     """Write ``ds`` as a Zarr store (directory) atomically; needs the ``zarr`` package."""
-    if not zarr_available():
-        raise InputFormatError("Zarr output needs the optional 'zarr' package", field="zarr")
+    require("zarr", "Zarr output (--formats zarr)")
     path = Path(path)
     enc = encode_for_xarray(ds)
     with atomic_path(path, directory=True) as tmp:
@@ -162,6 +161,7 @@ def write_zarr(ds: xr.Dataset, path: Path) -> Path:
 
 
 def read_zarr(path: Path) -> xr.Dataset:
-    """Read a fluxcal Zarr store back into a Dataset."""
+    """Read a fluxcal Zarr store back into a Dataset (needs the ``zarr`` extra)."""
+    require("zarr", f"reading the Zarr store {path}")
     with xr.open_zarr(path, mask_and_scale=False, decode_timedelta=False) as f:
         return decode_from_xarray(f.load())

@@ -23,7 +23,12 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+from fluxcal.extras import guard
+
+try:  # the plot extra: a core install (no matplotlib) stops here, in one line
+    import matplotlib
+except ImportError as _exc:
+    raise guard("plot", "quicklooks and figures", _exc) from _exc
 
 matplotlib.use("Agg")
 

@@ -3,7 +3,9 @@
 `run_batch` sends one task per day to a Dask cluster (by default a `LocalCluster` of
 single-threaded worker *processes*, because SPICE keeps one global, non-thread-safe
 kernel pool per process) or to an existing scheduler (``scheduler="tcp://host:8786"``),
-or runs the days in this process (``scheduler="serial"``).
+or runs the days in this process (``scheduler="serial"``).  The Dask half lives in
+`fluxcal.runs.cluster` (the ``batch`` extra), imported only when days go to Dask; this
+module (day types, manifests, the serial runner) needs no Dask.
 
 A *day task* is a picklable callable ``task(day) -> DayResult`` that writes the day's
 products atomically (`fluxcal.products.write_product`).  It may also define
@@ -26,7 +28,6 @@ reported (`DayStatus.error`).  The report of every day is written as JSON.
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import json
 import logging
@@ -359,59 +360,6 @@ def day_range(start: _dt.date, end: _dt.date) -> list[_dt.date]:
     return [start + _dt.timedelta(days=i) for i in range((end - start).days + 1)]
 
 
-def make_local_cluster(n_workers: int = 2) -> Any:
-    """Return a `LocalCluster` of single-threaded worker processes (SPICE-safe).
-
-    Notes
-    -----
-    Dask starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which also freezes
-    glibc's dynamic mmap threshold: every large numpy temporary is then a fresh mmap
-    and page-faults on first touch.  A 20 Hz day task (seed 000) ran ~15-25 % slower so; the
-    local cluster here starts its workers without it (the one-thread BLAS/OpenMP
-    limits are kept).
-    """
-    import dask
-    from distributed import LocalCluster
-
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
-        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", silence_logs=logging.ERROR,
-                            preload=[__name__])  # dask_setup: workers leave Ctrl-C to us
-
-
-def _quiet_shutdown(client: Any, cluster: Any) -> None:
-    """Silence the cluster's logs before an interrupted batch closes it.
-
-    Workers busy with a day cannot answer the closing scheduler: each would log its
-    lost heartbeat with a traceback, and the nanny its kill.  The interruption and the
-    days it stopped are in the summary and the report instead.
-    """
-    if cluster is None:
-        return  # an external cluster: its logs are its owner's
-    logging.getLogger("distributed").setLevel(logging.CRITICAL)
-    with contextlib.suppress(Exception):
-        client.run(_silence_distributed_logs)
-
-
-def _silence_distributed_logs() -> None:
-    """On a worker: log nothing below CRITICAL from ``distributed``."""
-    logging.getLogger("distributed").setLevel(logging.CRITICAL)
-
-
-def dask_setup(worker: Any) -> None:
-    """Dask preload hook of `make_local_cluster`'s workers: ignore SIGINT.
-
-    Ctrl-C in a terminal signals the whole process group: the workers of a local cluster
-    would each stop with a traceback.  Ignoring it there leaves the interruption to the
-    batch process, which cancels the days, closes the cluster and writes the report.
-    """
-    import signal
-    import threading
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def run_batch(
     days: Iterable[_dt.date],
     task: Callable[[_dt.date], DayResult],
@@ -519,35 +467,26 @@ def _run_days(days, task, out_dir, scheduler, n_workers, force, name,
             if not had_pool:  # this process is not a worker: leave its SPICE pool as found
                 release_worker_kernel_pool()
         return "serial", 1
-    from distributed import Client, as_completed
+    from fluxcal.runs.cluster import run_days_on_dask  # the batch extra's module
 
-    cluster = make_local_cluster(n_workers) if scheduler is None else None
-    try:
-        with Client(cluster if cluster is not None else scheduler) as client:
-            used = str(client.scheduler.address)
-            workers = len(client.scheduler_info().get("workers", {}))
-            futures = {
-                client.submit(run_day, task, day, out_dir, name, force, pure=False,
-                              key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
-                for day in days
-            }
-            try:
-                for fut in as_completed(futures):
-                    day = futures[fut]
-                    try:
-                        st = fut.result()
-                    except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
-                        st = DayStatus(day.isoformat(), "failed",
-                                       error=f"{type(exc).__name__}: {exc}")
-                    record(st)
-            except (KeyboardInterrupt, Interrupted):
-                client.cancel(list(futures))  # an external scheduler stops the days too
-                _quiet_shutdown(client, cluster)
-                raise
-    finally:
-        if cluster is not None:
-            cluster.close()
-    return used, workers
+    return run_days_on_dask(
+        days, run_day, lambda day: (task, day, out_dir, name, force), name, scheduler,
+        n_workers, record,
+        lambda day, exc: DayStatus(day.isoformat(), "failed",
+                                   error=f"{type(exc).__name__}: {exc}"))
+
+
+#: Dask helpers that live in `fluxcal.runs.cluster` (the ``batch`` extra), still importable
+#: from here: ``from fluxcal.runs.batch import make_local_cluster``.
+_CLUSTER_NAMES = ("make_local_cluster", "dask_setup")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _CLUSTER_NAMES:
+        from fluxcal.runs import cluster  # raises MissingExtraError without fluxcal[batch]
+
+        return getattr(cluster, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # --- missions ----------------------------------------------------------------------------

@@ -20,6 +20,7 @@ import typer
 from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup, quiet_requested
 from fluxcal.errors import InputFormatError
+from fluxcal.extras import require, require_for_options
 from fluxcal.products.staging import Interrupted
 from fluxcal.runs import options as run_options
 from fluxcal.runs.contract import Mission
@@ -60,6 +61,9 @@ def batch(
         raise InputFormatError(f"--end {d1} is before --start {d0}", field="--end")
     factory = mission.load("day_task")
     values = run_options.as_keywords(options) if options is not None else {}
+    require_for_options(options)  # plot/zarr extras the options ask for
+    if scheduler != "serial":
+        require("batch", "fluxcal batch on Dask (--scheduler serial runs without it)")
     _preflight(out, kernels, values.get("calib"), scheduler)
     if kernels is not None:
         values["kernels"] = kernels
@@ -69,8 +73,8 @@ def batch(
     days = day_range(d0, d1)
     quiet = quiet or quiet_requested()  # fluxcal -q batch ...
     console = Console(stderr=True)
-    if not logging.getLogger().isEnabledFor(logging.INFO):  # no --verbose
-        import distributed  # noqa: F401 - its import sets the 'distributed' logger to INFO
+    if scheduler != "serial" and not logging.getLogger().isEnabledFor(logging.INFO):
+        import fluxcal.runs.cluster  # noqa: F401 - importing distributed sets its logger to INFO
 
         logging.getLogger("distributed").setLevel(
             logging.ERROR if quiet_requested() else logging.WARNING)

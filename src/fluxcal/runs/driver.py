@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from fluxcal.extras import require_for_options
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.runs.batch import DayInputs, DayResult, worker_kernel_pool
 
@@ -86,6 +87,7 @@ def run(
     progress : callable, optional
         ``progress(description, done, total)``.
     """
+    require_for_options(options)  # a missing plot/zarr extra: one line, nothing read
     pipeline.check(options)
     loaded = (contextlib.nullcontext(kernels) if isinstance(kernels, KernelPool)
               else KernelPool(kernels if kernels is not None else [],

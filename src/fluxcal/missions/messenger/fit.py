@@ -938,9 +938,7 @@ def fit_days(
             return run(serial)
         finally:
             release_worker_kernel_pool()
-    from distributed import Client, as_completed
-
-    from fluxcal.runs.batch import make_local_cluster
+    from fluxcal.runs.cluster import Client, as_completed, make_local_cluster  # batch extra
 
     cluster = make_local_cluster(n_workers) if scheduler is None else None
     try:

@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.extras import require
 from fluxcal.missions.messenger.identity import FRAME_KERNELS
 
 _DAY_FILE = re.compile(r"^MAGSCI_(\d{4})(\d{3})\.csv$")
@@ -89,6 +90,8 @@ def run_fit(
     from fluxcal.preflight import plain_text_file
     from fluxcal.products.provenance import sha256_file
 
+    if scheduler != "serial":  # before any input is read
+        require("batch", f"--scheduler {scheduler}")
     streams = bool(sci or heater or temperature)
     if input_dir is not None and streams:
         raise InputFormatError("give either --input-dir or --sci/--heater/--temperature, "

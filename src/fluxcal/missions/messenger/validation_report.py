@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from fluxcal.extras import require
 from fluxcal.missions.messenger.levels import offset_step_report
 
 
@@ -26,9 +27,11 @@ def load_figure_support() -> None:
     those frames would hold the day's whole Dataset until a full collection of the
     garbage collector (212 MB at 20 Hz).  A run that writes the figure therefore
     imports it first (`fluxcal.missions.messenger.run.prepare_formats`); `write_report`
-    imports it itself when nobody did.
+    imports it itself when nobody did.  Without the ``plot`` extra it raises
+    `~fluxcal.errors.MissingExtraError` (one line, exit 2, nothing read or written).
     """
-    import matplotlib.figure  # noqa: F401
+    require("plot", "--formats png (the offset report figure)")
+    import fluxcal.products.quicklook  # noqa: F401 - matplotlib, behind the plot extra's guard
 
 
 def report_text(ds: xr.Dataset, threshold_counts: float | None,
@@ -65,7 +68,7 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
     atomic_write_bytes(txt, report_text(ds, threshold_counts, report).encode())
     if not figure:
         return [txt]
-    from matplotlib.figure import Figure
+    from fluxcal.products.quicklook import Figure  # the plot extra's module
 
     png = stem.with_name(stem.name + ".png")
     hours = (ds["et"].values - ds["et"].values[0]) / 3600.0

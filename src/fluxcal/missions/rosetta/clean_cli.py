@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.textfile import read_text
 
@@ -555,6 +556,8 @@ def clean(
 ) -> None:
     """Remove s/c disturbances: LEVEL_H (wheel/LAP lines), I, J (PCA), K, L (heaters), F, G."""
     inputs = list(input) + ([input_ib] if input_ib is not None else [])
+    if not no_plot and level.upper() in ("H", "K"):  # before any input is read
+        require("plot", f"the before/after PNG of LEVEL_{level.upper()} (or --no-plot)")
     result = clean_files(
         level,
         inputs,
