@@ -1,0 +1,157 @@
+"""Every MESSENGER telemetry defect class on one forward-model day (issue 23, item 1).
+
+The day (tests/missions/messenger/_defect_days.py) carries a heater gap, a temperature gap
+and glitch, a science gap, a rate change and a range change at gaps and two clock jumps
+(a time spike and a block sent twice).  Before: exit 2 and no products (the clock jumps,
+the EDR route's gaps).  Now: products for every hour, each span flagged with its bit and
+listed in the day's report and in the batch report, and outside the flagged spans the
+field within 0.05 nT of the truth (fine range), for both field signs and two rate
+settings, by the CSV route, in batch and (gaps) by the EDR route.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from fluxcal.cli import main
+from fluxcal.products import read_product
+from tests.missions.messenger import _defect_days as dd
+
+#: Table 5 bit of each cause, typed from docs/formats/messenger.md ("Defect flag").
+BITS = {"heater_gap": 1, "temperature_gap": 2, "temperature_glitch": 4, "science_gap": 8,
+        "rate_change_at_gap": 16, "range_change_at_gap": 32, "clock_jump": 64}
+
+
+@pytest.fixture(scope="module")
+def mk(tmp_path_factory):
+    return dd.kernels(tmp_path_factory.mktemp("defect_kernels"))
+
+
+def _check_day(out, paths, causes=dd.CAUSES):
+    from fluxcal.missions.messenger.simulate import read_truth
+    from fluxcal.missions.messenger.validation_report import read_defect_spans
+
+    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
+    truth = read_truth(paths["truth"])
+    t_epoch = truth["epoch"].values.astype(np.int64)
+    p_epoch = _epoch_ns(cdf)
+    i = np.clip(np.searchsorted(t_epoch, p_epoch), 1, t_epoch.size - 1)
+    i = np.where(np.abs(t_epoch[i - 1] - p_epoch) < np.abs(t_epoch[i] - p_epoch), i - 1, i)
+    assert np.all(np.abs(t_epoch[i] - p_epoch) < 1_000_000)  # every sample is a true one
+    flag = cdf["defect_flag"].values.astype(int)
+    for cause in causes:  # each cause flagged with its bit, and listed in the report
+        assert np.any(flag & BITS[cause]), cause
+    spans = read_defect_spans(out / "MAGOFFSETS12153.txt")
+    assert {s["cause"] for s in spans} == set(causes)
+    assert all(s["samples"] > 0 and s["seconds"] > 0 for s in spans)
+    # products for every hour, and right outside the flagged spans (fine range)
+    hours = (p_epoch - t_epoch[0]) // 3_600_000_000_000
+    ok = (flag == 0) & (truth["range"].values[i] == 0)
+    for h in range(6):
+        assert np.sum(ok & (hours == h)) > 100, h
+    err = cdf["b"].values[ok] - truth["b_mso"].values[i][ok]
+    assert np.abs(err).max() < 0.05, np.abs(err).max(axis=0)
+    return cdf, spans
+
+
+def _epoch_ns(ds):
+    e = ds["epoch"].values if "epoch" in ds else ds["time"].values
+    return e.astype("datetime64[ns]").astype(np.int64) if e.dtype.kind == "M" else \
+        e.astype(np.int64)
+
+
+@pytest.mark.parametrize("rate, other, sign", [(6, 8, 1.0), (6, 8, -1.0), (8, 6, 1.0),
+                                               (8, 6, -1.0)])
+def test_csv_route_every_defect_class(tmp_path, mk, rate, other, sign):
+    _, paths = dd.day(tmp_path / "in", mk, rate, other, sign)
+    out = tmp_path / "out"
+    code = main(["messenger", "edr2cdr", "--sci", str(paths["science"]), "--heater",
+                 str(paths["heater"]), "--temperature", str(paths["temperature"]),
+                 "--kernels", str(mk), "--out", str(out), "--frames", "mso",
+                 "--average", "60", "--formats", "cdf,tab"])
+    assert code == 0
+    cdf, spans = _check_day(out, paths)
+    assert "clock_jump" in str(cdf.attrs["defect_spans"])
+    # the clock jumps (after the rate change): the spike's samples and one copy of the
+    # repeated block dropped, each counted once (Table 1: rate 6 1/s, rate 8 5/s)
+    n_rate = {6: 1.0, 8: 5.0}
+    jumps = [s for s in spans if s["cause"] == "clock_jump"]
+    assert sorted(s["samples"] for s in jumps) == sorted(
+        [round((dd.SPIKE[1] - dd.SPIKE[0]) * n_rate[other]),
+         round((dd.REPEAT[1] - dd.REPEAT[0]) * n_rate[other])])
+    assert len([s for s in spans if s["cause"] == "science_gap"]) == 3
+    gap = next(s for s in spans if s["cause"] == "science_gap"
+               and abs(s["seconds"] - 300) < 5)
+    assert abs(gap["samples"] - 300 * n_rate[rate]) <= 2 * n_rate[rate]
+    # the TAB carries the flag column with its label entry; the 60-s average ORs the bits
+    from fluxcal.archive import read_table
+
+    tab = read_table(out / "MAGMSOSCI12153_V01.LBL")
+    np.testing.assert_array_equal(tab["DEFECT_FLAG"].values,
+                                  cdf["defect_flag"].values.astype(int))
+    avg = read_table(out / "MAGMSOSCIAVG12153_60_V01.LBL")
+    assert set(np.unique(avg["DEFECT_FLAG"].values) & 127) >= {0, 1}
+
+
+def test_batch_day_with_every_defect_class(tmp_path, mk):
+    import datetime as dt
+
+    from fluxcal.missions.messenger.batch_task import day_file, make_day_task
+    from fluxcal.runs.batch import run_batch
+
+    _, paths = dd.day(tmp_path / "sim", mk, 6, 8, 1.0)
+    inp = tmp_path / "in"
+    inp.mkdir()
+    day = dt.date(2012, 6, 1)
+    for key, code in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
+        paths[key].replace(day_file(inp, code, day))
+    out = tmp_path / "out"
+    task = make_day_task(inp, out, kernels=mk, formats=("cdf",), frames=("mso",),
+                         averages=())
+    report = run_batch([day], task, out, scheduler="serial")
+    assert [d.status for d in report.days] == ["done"], [d.error for d in report.days]
+    _check_day(out, paths)
+    data = json.loads(next(out.glob("batch_report_*.json")).read_text())
+    listed = data["days"][0]["defects"]
+    assert {s["cause"] for s in listed} == set(dd.CAUSES)
+    assert all({"start", "end", "seconds", "samples", "flag"} <= set(s) for s in listed)
+
+
+def test_edr_route_processes_and_flags_the_gaps(tmp_path, mk):
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.edr_write import (
+        filled_mapping,
+        template_path,
+        write_edr_archive,
+    )
+
+    sim, paths = dd.day(tmp_path / "sim", mk, 6, 8, 1.0, clock=False)
+    t = sim["temperature"]["temperature_c"]  # on the mapping's 1/16 degC counts
+    sim["temperature"] = sim["temperature"].assign(
+        temperature_c=-150.0 + 0.0625 * np.rint((t + 150.0) / 0.0625))
+    mapping = filled_mapping(template_path(), tmp_path / "mapping.toml")
+    with KernelPool(mk):
+        write_edr_archive(sim, tmp_path / "edr", mapping, SclkKernel.from_pool(-236))
+    out = tmp_path / "out"
+    code = main(["messenger", "edr2cdr", "--edr", str(tmp_path / "edr"), "--mapping",
+                 str(mapping), "--kernels", str(mk), "--out", str(out), "--frames", "mso",
+                 "--average", "", "--formats", "cdf"])
+    assert code == 0  # before: exit 2 on the heater gap
+    _check_day(out, paths, causes=[c for c in dd.CAUSES if c != "clock_jump"])
+
+
+def test_a_stream_without_a_trustworthy_clock_is_refused(tmp_path):
+    # fewer than half the samples on one time-ordered run: refused, saying why
+    from fluxcal.errors import InputFormatError
+    from fluxcal.missions.messenger.readers import read_science
+
+    rows = ["partition,met,rate,range,cx,cy,cz"]
+    met = [1000, 5, 1001, 6, 1002, 7, 3, 2]  # no ordered run of more than 3 of 8
+    rows += [f"1,{m}.0,6,0,1,2,3" for m in met]
+    path = tmp_path / "sci.csv"
+    path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputFormatError, match="clock cannot be trusted") as info:
+        read_science(path)
+    assert str(path) in str(info.value)
