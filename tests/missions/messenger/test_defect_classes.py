@@ -139,7 +139,8 @@ def test_defect_flag_passes_istp_and_pds3_interop_checks(csv_run):
         assert int(x["defect_flag"].values.max()) <= 127
     lbl = out / "MAGMSOSCI12153_V01.LBL"
     label = pvl.load(str(lbl))
-    col = [c for _, c in label["TABLE"].items() if c.get("NAME") == "DEFECT_FLAG"]
+    col = [c for k, c in label["TABLE"].items()
+           if k == "COLUMN" and c["NAME"] == "DEFECT_FLAG"]
     assert col and "clock_jump" in col[0]["DESCRIPTION"]
     ours = read_table(lbl)
     np.testing.assert_array_equal(ours["DEFECT_FLAG"].values,

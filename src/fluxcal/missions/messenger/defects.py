@@ -15,7 +15,7 @@ cause                     value  action   span (science samples, ET)
                                           change relaxes with tau: eq. 6f)
 ``temperature_gap``       2      flagged  last temperature record before .. first after
 ``temperature_glitch``    4      flagged  the records either side of a dropped glitch
-``science_gap``           8      counted  the two samples bounding a science gap (more than
+``science_gap``           8      missing  the two samples bounding a science gap (more than
                                           `GAP_SPACINGS` sample spacings); the missing
                                           samples are counted
 ``rate_change_at_gap``    16     flagged  first sample after a science gap whose two sides

@@ -99,7 +99,7 @@ def calibrate(
         ds = ds.drop_vars(UNWRITTEN_BEFORE_GEOMETRY)
     ds = levels.add_geometry(ds, cal, frames, method=method)
     ds = levels.assign_quality(ds, cal)
-    ds = defects.flag_stream_gaps(ds, heater, temperature, cal, sclk)  # issue 23
+    ds = defects.flag_defects(ds, heater, temperature, cal, sclk)  # issue 23
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_AFTER_QUALITY)
     report = (
