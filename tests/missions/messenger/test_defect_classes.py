@@ -208,3 +208,54 @@ def test_a_stream_without_a_trustworthy_clock_is_refused(tmp_path):
     with pytest.raises(InputFormatError, match="clock cannot be trusted") as info:
         read_science(path)
     assert str(path) in str(info.value)
+
+
+# --- the clock-order rule and the per-day split, in closed form ------------------------------
+
+
+@pytest.mark.parametrize("met, strict, dropped", [
+    ([0, 1, 2, 1000, 3, 4, 5], False, [3]),  # a time spike: only itself
+    ([0, 1, 2, 3, 1, 2, 3, 4], True, [4, 5, 6]),  # a block sent twice: one copy (either)
+    ([0, 1, 2, 3, 4, 5, 6, 7], False, []),  # in order: untouched
+    ([0, 1, 1, 2], False, []),  # equal MET without a step back: kept as before
+])
+def test_ordered_records(met, strict, dropped):
+    from fluxcal.missions.messenger.defects import clock_jumps, ordered_records
+
+    met = np.asarray(met, dtype=float)
+    part = np.ones(met.size)
+    keep = ordered_records(part, met, strict=strict)
+    if strict and np.flatnonzero(~keep).tolist() == [1, 2, 3]:
+        dropped = [1, 2, 3]  # the first copy dropped: as good (the same content twice)
+    assert np.flatnonzero(~keep).tolist() == dropped
+    runs = clock_jumps(part, met, keep, stream="test")
+    assert [r[3] for r in runs] == ([len(dropped)] if dropped else [])
+    if dropped:  # bounded by the kept records either side
+        assert runs[0][1] == met[dropped[0] - 1] and runs[0][2] == met[dropped[-1] + 1]
+
+
+def test_a_new_partition_may_restart_met():
+    from fluxcal.missions.messenger.defects import ordered_records
+
+    assert ordered_records(np.array([1, 2, 2]), np.array([5000.0, 10.0, 11.0])).all()
+    assert ordered_records(np.array([2, 2, 1]), np.array([10.0, 11.0, 5000.0])).tolist() == \
+        [True, True, False]
+
+
+def test_spans_go_to_the_days_they_touch():
+    from fluxcal.missions.messenger.defects import day_spans
+
+    spans = [{"start_et": 0.0, "end_et": 10.0}, {"start_et": 95.0, "end_et": 105.0},
+             {"start_et": 150.0, "end_et": 160.0}]
+    assert day_spans(spans, np.array([0.0, 100.0])) == spans[:2]
+    assert day_spans(spans, np.array([100.0, 200.0])) == spans[1:]
+    assert day_spans(spans, np.array([])) == []
+
+
+def test_average_ors_the_bits():
+    from fluxcal.calibration.averaging import bin_bitwise_or, bin_index
+
+    epoch = np.array([0, 10, 20, 1000, 1010], dtype=np.int64)
+    bins = bin_index(epoch, 100)
+    flags = np.array([1, 2, 0, 64, 0], dtype=np.uint8)
+    assert bin_bitwise_or(bins, flags).tolist() == [3, 64]

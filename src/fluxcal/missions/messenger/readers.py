@@ -447,7 +447,7 @@ def read_heater(
         _check_integer(path, data[2], "heater", 0, 1, "the heater bit values 0 and 1")
     data = np.concatenate(tables, axis=1)
     data, jumps = _drop_clock_jumps(plist, tables, data, "heater", on_clock_jump)
-    gaps = _check_gaps(*_gap_tables(plist, tables, data, jumps), HEATER_PERIOD_S,
+    gaps = _check_gaps(*_gap_tables(plist, tables, data, jumps, on_gap), HEATER_PERIOD_S,
                        "heater stream", f"one heater period ({HEATER_PERIOD_S:.0f} s)",
                        on_gap=on_gap)
     return xr.Dataset(
@@ -461,9 +461,13 @@ def read_heater(
 
 
 def _gap_tables(plist: list[Path], tables: list[np.ndarray], data: np.ndarray,
-                jumps: dict) -> tuple[list[Path], list[np.ndarray]]:
-    """Return the tables the gap check reads: per file, or the ordered records."""
-    return (plist[:1], [data]) if jumps else (plist, tables)
+                jumps: dict, on_gap: str) -> tuple[list[Path], list[np.ndarray]]:
+    """Return the tables the gap check reads: per file, or the ordered records.
+
+    Per file for an error (its line numbers); the ordered records when some were dropped
+    and gaps are reported (the gaps the drop leaves count too).
+    """
+    return (plist[:1], [data]) if jumps and on_gap == "report" else (plist, tables)
 
 
 def _gap_attrs(gaps: list[list[float]]) -> dict:
@@ -550,7 +554,7 @@ def read_temperature(
             )
     data = np.concatenate(tables, axis=1)
     data, jumps = _drop_clock_jumps(plist, tables, data, "temperature", on_clock_jump)
-    gaps = _check_gaps(*_gap_tables(plist, tables, data, jumps), max_gap_s,
+    gaps = _check_gaps(*_gap_tables(plist, tables, data, jumps, on_gap), max_gap_s,
                        "temperature stream", on_gap=on_gap)
     return xr.Dataset(
         {
