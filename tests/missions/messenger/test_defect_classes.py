@@ -259,3 +259,24 @@ def test_average_ors_the_bits():
     bins = bin_index(epoch, 100)
     flags = np.array([1, 2, 0, 64, 0], dtype=np.uint8)
     assert bin_bitwise_or(bins, flags).tolist() == [3, 64]
+
+
+def test_edr_overlapping_packets_are_dropped_and_counted(tmp_path):
+    # before: "sample time goes backwards: packets overlap", exit 2.  Rate 6 (1 Hz): the
+    # packet at 5003 repeats 5003 and 5004 of the one at 5000 (hand-written EDR tables)
+    from fluxcal.errors import InputFormatError
+    from fluxcal.missions.messenger.edr import read_edr
+    from fluxcal.missions.messenger.edr_write import filled_mapping, template_path
+    from tests.missions.messenger.test_edr import _tiny_archive
+
+    mapping = filled_mapping(template_path(), tmp_path / "mapping.toml")
+    _tiny_archive(tmp_path / "edr", [(5000, 0, 5), (5003, 0, 5), (5010, 0, 3)], [(4990, 6)])
+    sci = read_edr(tmp_path / "edr", mapping)[0]
+    kept = sci["met"].values.tolist()
+    assert kept == [5000, 5001, 5002, 5003, 5004, 5005, 5006, 5007, 5010, 5011, 5012]
+    assert [j[3] for j in sci.attrs["clock_jumps"]] == [2.0]
+    # most packets out of order: nothing can be trusted, the stream is refused
+    _tiny_archive(tmp_path / "bad", [(5000, 0, 2), (4000, 0, 2), (3000, 0, 2), (2000, 0, 2)],
+                  [(1990, 6)])
+    with pytest.raises(InputFormatError, match="clock cannot be trusted"):
+        read_edr(tmp_path / "bad", mapping)
