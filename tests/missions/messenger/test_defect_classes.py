@@ -81,15 +81,15 @@ def csv_run(tmp_path_factory, mk):
     return run
 
 
-@pytest.mark.parametrize("rate, other, sign", [(6, 8, 1.0), (6, 8, -1.0), (8, 6, 1.0),
-                                               (8, 6, -1.0)])
+@pytest.mark.parametrize("rate, other, sign", [(6, 7, 1.0), (6, 7, -1.0), (7, 6, 1.0),
+                                               (7, 6, -1.0)])
 def test_csv_route_every_defect_class(csv_run, rate, other, sign):
     out, paths = csv_run(rate, other, sign)
     cdf, spans = _check_day(out, paths)
     assert "clock_jump" in str(cdf.attrs["defect_spans"])
     # the clock jumps (after the rate change): the spike's samples and one copy of the
-    # repeated block dropped, each counted once (Table 1: rate 6 1/s, rate 8 5/s)
-    n_rate = {6: 1.0, 8: 5.0}
+    # repeated block dropped, each counted once (Table 1: rate 6 1/s, rate 7 2/s)
+    n_rate = {6: 1.0, 7: 2.0}
     jumps = [s for s in spans if s["cause"] == "clock_jump"]
     assert sorted(s["samples"] for s in jumps) == sorted(
         [round((dd.SPIKE[1] - dd.SPIKE[0]) * n_rate[other]),
@@ -121,7 +121,7 @@ def test_defect_flag_passes_istp_and_pds3_interop_checks(csv_run):
     from fluxcal.archive import read_table
     from tests.products.test_ecosystem import SPACEPY_TOLERATED
 
-    out, _ = csv_run(6, 8, 1.0)
+    out, _ = csv_run(6, 7, 1.0)
     for name in ("messenger_mag_mso-sci_20120601_v01", "messenger_mag_mso-avg60_20120601_v01"):
         path = out / f"{name}.cdf"
         with pycdf.CDF(str(path)) as f:
@@ -153,7 +153,7 @@ def test_batch_day_with_every_defect_class(tmp_path, mk):
     from fluxcal.missions.messenger.batch_task import day_file, make_day_task
     from fluxcal.runs.batch import run_batch
 
-    _, paths = dd.day(tmp_path / "sim", mk, 6, 8, 1.0)
+    _, paths = dd.day(tmp_path / "sim", mk, 6, 7, 1.0)
     inp = tmp_path / "in"
     inp.mkdir()
     day = dt.date(2012, 6, 1)
@@ -180,7 +180,7 @@ def test_edr_route_processes_and_flags_the_gaps(tmp_path, mk):
         write_edr_archive,
     )
 
-    sim, paths = dd.day(tmp_path / "sim", mk, 6, 8, 1.0, clock=False)
+    sim, paths = dd.day(tmp_path / "sim", mk, 6, 7, 1.0, clock=False)
     t = sim["temperature"]["temperature_c"]  # on the mapping's 1/16 degC counts
     sim["temperature"] = sim["temperature"].assign(
         temperature_c=-150.0 + 0.0625 * np.rint((t + 150.0) / 0.0625))
