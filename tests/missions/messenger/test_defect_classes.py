@@ -280,3 +280,30 @@ def test_edr_overlapping_packets_are_dropped_and_counted(tmp_path):
                   [(1990, 6)])
     with pytest.raises(InputFormatError, match="clock cannot be trusted"):
         read_edr(tmp_path / "bad", mapping)
+
+
+def test_batch_lists_each_span_under_its_own_day(tmp_path):
+    # two short simulated days (the batch layout's own simulation); a 150-s LAC gap in the
+    # first: the first day's report and batch entry list it, the second's do not
+    import datetime as dt
+
+    from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
+    from fluxcal.runs.batch import run_batch
+
+    days = [dt.date(2012, 6, 1), dt.date(2012, 6, 2)]
+    inp = tmp_path / "in"
+    assert simulate_days(inp, days, seconds_per_day=600.0, rate_setting=6) == days
+    htr = day_file(inp, "HTR", days[0])
+    lines = htr.read_text().splitlines()
+    mets = [float(line.split(",")[1]) for line in lines[1:]]
+    cut = mets[0] + 300.0  # the file starts at the day's 00:00; its science: the first 600 s
+    htr.write_text("\n".join([lines[0]] + [ln for ln in lines[1:]
+                                           if not cut - 75 < float(ln.split(",")[1]) < cut + 75])
+                   + "\n")
+    out = tmp_path / "out"
+    task = make_day_task(inp, out, formats=("cdf",), frames=("mso",), averages=())
+    report = run_batch(days, task, out, scheduler="serial")
+    assert [d.status for d in report.days] == ["done", "done"], [d.error for d in report.days]
+    data = json.loads(next(out.glob("batch_report_*.json")).read_text())
+    causes = [{s["cause"] for s in d["defects"]} for d in data["days"]]
+    assert "heater_gap" in causes[0] and "heater_gap" not in causes[1]
