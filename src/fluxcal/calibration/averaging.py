@@ -246,6 +246,14 @@ def bin_max(bins: Bins, values: np.ndarray) -> np.ndarray:
     return np.maximum.reduceat(v, bins.starts, axis=0)
 
 
+def bin_bitwise_or(bins: Bins, values: np.ndarray) -> np.ndarray:
+    """Bitwise OR of integer ``values`` in each bin (for bit flags: any sample's bit)."""
+    v = _ordered(bins, values)
+    if bins.starts.size == 0:
+        return np.zeros((0,) + v.shape[1:], dtype=v.dtype)
+    return np.bitwise_or.reduceat(v, bins.starts, axis=0)
+
+
 def boxcar_average(
     epoch: np.ndarray, values: np.ndarray, width_ns: int, origin: int = 0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -101,12 +101,15 @@ class DayResult:
         Number of field vectors processed (for the vectors/s rate).
     inputs : DayInputs, optional
         The inputs used (recorded in the manifest); default ``task.inputs(day)``.
+    defects : list of dict
+        The day's local defect spans (cause, size), for the batch report (issue 23).
     """
 
     day: _dt.date
     products: list[Path]
     n_vectors: int = 0
     inputs: DayInputs | None = None
+    defects: list[dict] = field(default_factory=list)
 
 
 class DayTask(Protocol):
@@ -135,6 +138,7 @@ class DayStatus:
     error: str | None = None
     traceback: str | None = None
     worker: str | None = None
+    defects: list[dict] = field(default_factory=list)
 
     def __repr__(self) -> str:
         """One line: day, status, vectors, seconds, and the error's first 120 characters."""
@@ -292,7 +296,8 @@ def run_day(task: Any, day: _dt.date, out_dir: Path, name: str, force: bool) -> 
         return DayStatus(day.isoformat(), "done",
                          products=[os.path.relpath(p, out_dir) for p in result.products],
                          n_vectors=int(result.n_vectors), worker=worker,
-                         seconds=time.perf_counter() - t0)
+                         seconds=time.perf_counter() - t0,
+                         defects=list(getattr(result, "defects", None) or []))
     except DayWithoutData as exc:
         return DayStatus(day.isoformat(), "no_data", error=str(exc), worker=worker,
                          seconds=time.perf_counter() - t0)

@@ -52,7 +52,7 @@ def test_column_order_free(tmp_path):
 def test_bad_science(tmp_path, lines, line, field, match):
     path = _write(tmp_path, "bad.csv", lines)
     with pytest.raises(InputFormatError, match=match) as info:
-        read_science(path)
+        read_science(path, on_clock_jump="raise")  # the default drops MET going back
     err = info.value
     assert err.path == str(path) and err.line == line and err.field == field
     assert str(path) in str(err) and f"line {line}" in str(err)
@@ -69,7 +69,11 @@ def test_backwards_across_files(tmp_path):
     a = _write(tmp_path, "a.csv", [SCI_HEADER, "1,2000.0,10,0,1,2,3", "1,2001.0,10,0,1,2,3"])
     b = _write(tmp_path, "b.csv", [SCI_HEADER, "1,2000.5,10,0,1,2,3"])
     with pytest.raises(InputFormatError, match="across files"):
-        read_science([a, b])
+        read_science([a, b], on_clock_jump="raise")
+    # issue 23: by default the sample off the time-ordered run is dropped and counted
+    ds = read_science([a, b])
+    assert ds["met"].values.tolist() in ([2000.0, 2001.0], [2000.0, 2000.5])
+    assert ds.attrs["clock_jumps"][0][3] == 1.0
 
 
 def test_files_sorted_by_time(tmp_path):
@@ -248,8 +252,9 @@ def test_partition_order_decides_before_met(tmp_path):
     bad = _write(tmp_path, "bad.csv", [SCI_HEADER, "2,10.0,10,0,1,2,3", "2,11.0,10,0,1,2,3",
                                        "1,5000.0,10,0,1,2,3"])
     with pytest.raises(InputFormatError, match="backwards") as info:
-        read_science(bad)
+        read_science(bad, on_clock_jump="raise")
     assert info.value.line == 4 and info.value.field == "met"
+    assert read_science(bad)["partition"].values.tolist() == [2, 2]  # issue 23: dropped
 
 
 def test_header_without_newline_takes_the_general_path(tmp_path):

@@ -98,9 +98,18 @@ class MessengerDayTask:
         return DayInputs(tuple(files + [self._kernels()]), cal)
 
     def __call__(self, day: _dt.date) -> DayResult:
-        """Process ``day``; raise `DayWithoutData` when its science file is missing."""
-        return driver.run_day(MessengerRun(), Path(self.input_dir), Path(self.out_dir), day,
-                              self.options, self._kernels())
+        """Process ``day``; raise `DayWithoutData` when its science file is missing.
+
+        The defect spans the day's report lists go to the batch report (issue 23).
+        """
+        from fluxcal.missions.messenger.validation_report import read_defect_spans
+
+        result = driver.run_day(MessengerRun(), Path(self.input_dir), Path(self.out_dir), day,
+                                self.options, self._kernels())
+        reports = [p for p in result.products
+                   if Path(p).name.startswith("MAGOFFSETS") and Path(p).suffix == ".txt"]
+        result.defects = [s for p in reports for s in read_defect_spans(p)]
+        return result
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask:

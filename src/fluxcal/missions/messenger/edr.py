@@ -46,6 +46,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.defects import clock_jumps, ordered_records
 from fluxcal.missions.messenger.readers import (
     COUNT_LIMITS,
     HEATER_PERIOD_S,
@@ -272,9 +273,36 @@ class _Stream:
     values: dict[str, np.ndarray]
     columns: dict[str, tuple[str, ...]]  # field -> its label column name(s)
 
+    jumps: list[list[float]] | None = None  # clock jumps dropped (`_drop_clock_jumps`)
+
     def where(self, i: int) -> tuple[str, int]:
         """Return (data file, 1-based row) of stream row ``i``."""
         return str(self.data_files[int(self.file_index[i])]), int(self.row[i]) + 1
+
+    def take(self, keep: np.ndarray) -> _Stream:
+        """Return the rows of ``keep`` (a mask)."""
+        return _Stream(files=self.files, data_files=self.data_files,
+                       file_index=self.file_index[keep], row=self.row[keep],
+                       partition=self.partition[keep], met_us=self.met_us[keep],
+                       values={k: v[keep] for k, v in self.values.items()},
+                       columns=self.columns, jumps=self.jumps)
+
+
+def _drop_clock_jumps(stream: _Stream, met_us: np.ndarray, what: str) -> _Stream:
+    """Drop the rows off the longest run in (partition, ``met_us``) order (issue 23).
+
+    The dropped runs are added to ``stream.jumps`` (`fluxcal.missions.messenger.defects.
+    clock_jumps`: ``[partition, met_before, met_after, n]``, MET in seconds); fewer than
+    half the rows in order refuses the stream, naming the file of the first dropped row.
+    """
+    keep = ordered_records(stream.partition, met_us)
+    if keep.all():
+        return stream
+    path, _ = stream.where(int(np.flatnonzero(~keep)[0]))
+    found = clock_jumps(stream.partition, met_us / US, keep, stream=what, where=path)
+    out = stream.take(keep)
+    out.jumps = (stream.jumps or []) + found
+    return out
 
 
 def _column(ds: xr.Dataset, mapping: EdrMapping, entry: str, name: str,
@@ -339,8 +367,8 @@ def _read_stream(files: Sequence[EdrFile], mapping: EdrMapping, kind: str,
     """Read every file of ``kind``: MET, partition and the ``extra`` fields' columns.
 
     ``extra`` maps a field name to its label column names (one or three).  Files are
-    ordered by their first (partition, MET); MET must not go backwards within a
-    partition (in a file and across files).
+    ordered by their first (partition, MET); rows off the longest run in (partition,
+    MET) order (MET going back in a file or across files) are dropped and counted.
     """
     from fluxcal.archive.pds3 import read_table
 
@@ -377,18 +405,9 @@ def _read_stream(files: Sequence[EdrFile], mapping: EdrMapping, kind: str,
         values={name: np.concatenate([p[3][name] for p in parts]) for name in extra},
         columns=dict(extra),
     )
-    key = stream.partition * _KEY + stream.met_us
-    back = np.diff(key) < 0
-    if back.any():
-        i = int(np.flatnonzero(back)[0]) + 1
-        path, row = stream.where(i)
-        prev_path, prev_row = stream.where(i - 1)
-        across = "" if prev_path == path else f" (after row {prev_row} of {prev_path})"
-        raise InputFormatError(
-            f"{kind}: MET goes backwards ({stream.met_us[i - 1] / US:.6f} -> "
-            f"{stream.met_us[i] / US:.6f}, partition {stream.partition[i]}){across}",
-            path=path, line=row, field=met_col)
-    return stream
+    # MET going back within a partition (a jump back, a spike, files that overlap): the
+    # rows off the longest time-ordered run are dropped and counted (issue 23)
+    return _drop_clock_jumps(stream, stream.met_us, f"{kind} EDR")
 
 
 def _check_range(stream: _Stream, name: str, lo: float, hi: float, what: str) -> np.ndarray:
@@ -406,16 +425,34 @@ def _check_range(stream: _Stream, name: str, lo: float, hi: float, what: str) ->
     return v.astype(np.int64)
 
 
-def _check_gaps(stream: _Stream, max_gap_s: float, what: str, limit: str) -> None:
-    """Consecutive records of one partition more than ``max_gap_s`` apart are errors."""
+def _check_gaps(stream: _Stream, max_gap_s: float, what: str, limit: str,
+                on_gap: str = "report") -> list[list[float]]:
+    """Consecutive records of one partition more than ``max_gap_s`` apart.
+
+    ``on_gap="report"`` (default, as the CSV readers): return ``[[partition, met_before,
+    met_after], ...]`` for ``attrs["stream_gaps"]`` (processed and flagged,
+    `fluxcal.missions.messenger.defects`); ``"raise"``: an error naming the row.
+    """
     gap = np.diff(stream.met_us) > max_gap_s * US
     gap &= np.diff(stream.partition) == 0
-    if gap.any():
+    if gap.any() and on_gap == "raise":
         i = int(np.flatnonzero(gap)[0]) + 1
         path, row = stream.where(i)
         raise InputFormatError(
             f"{what} gap of {(stream.met_us[i] - stream.met_us[i - 1]) / US:.0f} s "
             f"exceeds {limit}", path=path, line=row, field="met")
+    return [[float(stream.partition[i]), stream.met_us[i - 1] / US, stream.met_us[i] / US]
+            for i in np.flatnonzero(gap) + 1]
+
+
+def _stream_attrs(stream: _Stream, gaps: list[list[float]] | None = None) -> dict:
+    """``stream_gaps`` and ``clock_jumps`` when there are any (the CSV readers' attrs)."""
+    out: dict[str, Any] = {}
+    if gaps:
+        out["stream_gaps"] = gaps
+    if stream.jumps:
+        out["clock_jumps"] = stream.jumps
+    return out
 
 
 # --- the three streams ----------------------------------------------------------------------
@@ -471,6 +508,7 @@ def _packet_rows_to_samples(sci: _Stream, mapping: EdrMapping) -> _Stream:
         values={**rep, "counts": c.reshape(-1, 3)[valid], "range": rng[valid],
                 "sample_index": index[valid]},
         columns={**sci.columns, "sample_index": ("(item number)",)},
+        jumps=sci.jumps,
     )
 
 
@@ -541,24 +579,26 @@ def _science(folder: Path, mapping: EdrMapping, days: Sequence[_dt.date] | None,
         raise _mapping_error(mapping.path, "science.delta_ts",
                              "unit_s must be a whole number of microseconds")
     t_us = sci.met_us + int(round(unit_us)) * dts + (index - 1) * period_us[rate]
-    key = sci.partition * _KEY + t_us
-    back = np.diff(key) < 0
-    if back.any():
-        i = int(np.flatnonzero(back)[0]) + 1
-        path, row = sci.where(i)
-        raise InputFormatError(
-            f"sample time goes backwards ({t_us[i - 1] / US:.6f} -> {t_us[i] / US:.6f}): "
-            "packets overlap", path=path, line=row, field=extra["delta_ts"][0])
+    # overlapping packets (sample times going back): the samples off the longest
+    # time-ordered run are dropped and counted (issue 23)
+    jumps = list(sci.jumps or [])
+    keep = ordered_records(sci.partition, t_us, strict=True)
+    part = sci.partition
+    if not keep.all():
+        path, _ = sci.where(int(np.flatnonzero(~keep)[0]))
+        jumps += clock_jumps(part, t_us / US, keep, stream="science EDR samples", where=path)
+        part, t_us, rate, rng, cts = (a[keep] for a in (part, t_us, rate, rng, cts))
     return xr.Dataset(
         {
-            "partition": ("time", sci.partition.astype(np.int8), {"units": "1"}),
+            "partition": ("time", part.astype(np.int8), {"units": "1"}),
             "met": ("time", t_us / US, {"units": "s", "description": "MET as recorded"}),
             "rate": ("time", rate.astype(np.int8), {"units": "1"}),
             "range": ("time", rng.astype(np.int8), {"units": "1"}),
             "counts": (("time", "component"), cts.astype(np.int32), {"units": "counts"}),
         },
         coords={"component": ["x", "y", "z"]},
-        attrs={"inputs": ";".join(str(p) for p in sci.files + hdr.files)},
+        attrs={"inputs": ";".join(str(p) for p in sci.files + hdr.files),
+               **({"clock_jumps": jumps} if jumps else {})},
     )
 
 
@@ -571,15 +611,15 @@ def _heater(folder: Path, mapping: EdrMapping, days: Sequence[_dt.date] | None) 
         bits = (word >> int(spec["bit"])) & 1
     else:
         bits = _check_range(lac, "heater", 0, 1, "the heater bit values 0 and 1")
-    _check_gaps(lac, HEATER_PERIOD_S, "heater stream",
-                f"one heater period ({HEATER_PERIOD_S:.0f} s)")
+    gaps = _check_gaps(lac, HEATER_PERIOD_S, "heater stream",
+                       f"one heater period ({HEATER_PERIOD_S:.0f} s)")
     return xr.Dataset(
         {
             "partition": ("heater_time", lac.partition.astype(np.int8), {"units": "1"}),
             "met": ("heater_time", lac.met_us / US, {"units": "s"}),
             "heater": ("heater_time", bits.astype(np.int8), {"units": "1"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in lac.files)},
+        attrs={"inputs": ";".join(str(p) for p in lac.files), **_stream_attrs(lac, gaps)},
     )
 
 
@@ -603,15 +643,15 @@ def _temperature(folder: Path, mapping: EdrMapping,
             f"temperature {temp[i]} degC (from {raw[i]:g} counts by the mapping's "
             "conversion; NaN: outside its table) outside -150..150 degC",
             path=path, line=row, field=spec["column"])
-    _check_gaps(st, TEMPERATURE_MAX_GAP_S, "temperature stream",
-                f"{TEMPERATURE_MAX_GAP_S:.0f} s")
+    gaps = _check_gaps(st, TEMPERATURE_MAX_GAP_S, "temperature stream",
+                       f"{TEMPERATURE_MAX_GAP_S:.0f} s")
     return xr.Dataset(
         {
             "partition": ("temperature_time", st.partition.astype(np.int8), {"units": "1"}),
             "met": ("temperature_time", st.met_us / US, {"units": "s"}),
             "temperature_c": ("temperature_time", temp, {"units": "degC"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in st.files)},
+        attrs={"inputs": ";".join(str(p) for p in st.files), **_stream_attrs(st, gaps)},
     )
 
 
@@ -657,8 +697,11 @@ def read_edr(
     InputFormatError
         Naming the file, row and column: everything `fluxcal.archive.pds3.read_table`
         raises, a mapped column not in the label (naming the mapping entry), values out
-        of range, MET going backwards, a packet without header state, overlapping
-        packets, heater or temperature gaps as for the CSV streams.
+        of range, a packet without header state, a stream with fewer than half its
+        rows in time order.  As for the CSV streams, heater and temperature gaps are
+        recorded (``attrs["stream_gaps"]``) and rows or samples off the time-ordered
+        run (MET going back, overlapping packets) dropped and counted
+        (``attrs["clock_jumps"]``), for `fluxcal.missions.messenger.defects` to flag.
 
     References
     ----------

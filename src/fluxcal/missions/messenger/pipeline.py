@@ -99,7 +99,7 @@ def calibrate(
         ds = ds.drop_vars(UNWRITTEN_BEFORE_GEOMETRY)
     ds = levels.add_geometry(ds, cal, frames, method=method)
     ds = levels.assign_quality(ds, cal)
-    ds = defects.flag_stream_gaps(ds, heater, temperature, cal, sclk)  # issue 23
+    ds = defects.flag_defects(ds, heater, temperature, cal, sclk)  # issue 23
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_AFTER_QUALITY)
     report = (
@@ -117,6 +117,9 @@ def calibrate(
         duty_cycle_changes=int(len(changes)),
         references="MESSENGER MAG EDR-to-CDR Processing v2i (Korth and Anderson, 2016)",
     )
+    for key in ("defect_spans", "defect_records"):  # last: after any attribute that
+        if key in ds.attrs:  # `levels.note_mbf_rotation` places before software_version
+            ds.attrs[key] = ds.attrs.pop(key)
     log.info("calibrated %d samples, %d heater periods", ds.sizes["time"], len(periods))
     return ds
 

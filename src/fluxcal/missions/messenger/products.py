@@ -13,7 +13,10 @@ TT2000 epoch (milliseconds truncated, as SPICE ``timout`` prints them), ``TIME_T
 lag-corrected MET; for an average both are the centre of the interval and ``DB*`` are the
 population standard deviations of the field components in it.  The SC product has no
 position columns; RTN positions are ``R LATITUDE AZIMUTH`` (km, deg, deg, sec. 10.2); the
-SHC quality flag (sec. 12) is in the label and the CDF, not in the table.
+SHC quality flag (sec. 12) is in the label and the CDF, not in the table.  fluxcal adds
+one last column, ``DEFECT_FLAG`` (the bits of
+`fluxcal.missions.messenger.defects.DEFECT_FLAGS`; in an average the OR of its samples'
+bits), also a CDF variable ``defect_flag`` (issue 23; not in the archived tables).
 
 Samples are written in time order: the lag correction moves samples recorded after a
 fast -> slow rate switch before the last fast ones (the net lag grows), so each day is
@@ -95,6 +98,24 @@ def time_order(epoch: np.ndarray) -> tuple[np.ndarray | None, OrderReport]:
     keep[1:] = ordered[1:] != ordered[:-1]
     duplicates = int(n - np.count_nonzero(keep))
     return (order[keep] if duplicates else order), OrderReport(n, reordered, duplicates)
+
+
+def _flags(ds: xr.Dataset) -> list[str]:
+    """``["defect_flag"]`` when the calibrated day has it (`defects.flag_defects`)."""
+    return ["defect_flag"] if "defect_flag" in ds else []
+
+
+def _defect_flag_variable(values: np.ndarray, averaged: bool = False) -> tuple:
+    """Return the products' ``defect_flag`` (uint8 bits; ISTP attrs: istp_variables.yaml)."""
+    from fluxcal.missions.messenger.defects import DEFECT_FLAGS, FLAG_MEANINGS
+
+    what = "OR of the samples' defect bits in the interval" if averaged else \
+        "local telemetry defect bits"
+    return ("time", np.asarray(values, dtype=np.uint8), {
+        "units": "1", "description": f"{what} (0: none; "
+        + ", ".join(f"{v} {k}" for k, v in DEFECT_FLAGS.items()) + ")",
+        "flag_masks": [int(v) for v in DEFECT_FLAGS.values()],
+        "flag_meanings": FLAG_MEANINGS})
 
 
 def _at(var: xr.Variable, index: np.ndarray | None) -> xr.Variable:
@@ -188,7 +209,7 @@ def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderR
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1 net lags), sec. 9.
     """
     index, report = time_order(ds["epoch"].values)
-    out = _take(ds, ["et", "met_corrected", "quality"], index)
+    out = _take(ds, ["et", "met_corrected", "quality", *_flags(ds)], index)
     for frame in frames:
         out = _with_frame(out, ds, frame, index)
     _log_order(ds, report)
@@ -275,6 +296,8 @@ def product_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
         "quality": ("time", ds["quality"].values,
                     {"units": "1", "description": "SHC data quality flag (Table 5)"}),
     }
+    if "defect_flag" in ds:
+        data["defect_flag"] = _defect_flag_variable(ds["defect_flag"].values)
     pos_name = POSITION_VARIABLE[frame]
     coords: dict[str, tuple] = {"epoch": ("time", ds["epoch"].values, ds["epoch"].attrs),
                                 "b_component": ("b_component", _component_labels(frame))}
@@ -338,6 +361,9 @@ def average(
         "quality": ("time", averaging.bin_max(bins, prod["quality"].values),
                     {"units": "1", "description": "largest SHC flag in the interval"}),
     }
+    if "defect_flag" in prod:
+        data["defect_flag"] = _defect_flag_variable(
+            averaging.bin_bitwise_or(bins, prod["defect_flag"].values), averaged=True)
     for name in ("position", "r", "latitude"):
         if name in prod:
             var = prod[name]
@@ -423,12 +449,13 @@ def product_name(frame: str, yyddd: str, version: int, seconds: int | None = Non
     return f"{stem}AVG{yyddd}_{int(seconds):02d}_V{int(version):02d}"
 
 
-def table_columns(frame: str, averaged: bool) -> list:
+def table_columns(frame: str, averaged: bool, defect_flag: bool = False) -> list:
     """Return the archive's table columns (names as archived; formats are fluxcal's).
 
     CDR: ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG X Y Z BX BY BZ``; RDR adds ``NAVG``
     after ``TIME_TAG`` and ``DBX DBY DBZ`` at the end.  RTN: ``R LATITUDE AZIMUTH`` and
     ``BR BT BN`` (``DBR DBT DBN``) in the same positions; SC: no position columns.
+    ``defect_flag``: fluxcal's last column ``DEFECT_FLAG`` (issue 23, not archived).
     """
     from fluxcal.products import Column
 
@@ -450,6 +477,8 @@ def table_columns(frame: str, averaged: bool) -> list:
     if averaged:
         cols += [Column("b_std", "%9.3f", component=lab, label=f"DB{a}")
                  for lab, a in zip(labels, axes, strict=True)]
+    if defect_flag:
+        cols.append(Column("defect_flag", "%3d", label="DEFECT_FLAG"))
     return cols
 
 
@@ -538,7 +567,7 @@ def write_day(
     day0 = day_start_tt2000(year, doy)
     index, report = time_order(ds["epoch"].values)
     _log_order(ds, report)
-    base = _take(ds, ["met_corrected", "quality"], index)
+    base = _take(ds, ["met_corrected", "quality", *_flags(ds)], index)
     epoch = base["epoch"].values
     bins = {int(s): averaging.bin_index(epoch, int(s) * NS, day0) for s in averages}
     sclk = SclkKernel.from_pool(SC_ID) if averages and epoch.size else None
@@ -577,7 +606,7 @@ def write_day(
                     tab_extra["AVERAGING_INTERVAL_S"] = cdf_extra["AVERAGING_INTERVAL_S"] = sec
                     if key not in quality:  # the largest flag per interval: frame-independent
                         quality[key] = _quality_keywords(out["quality"].values)
-                columns = table_columns(frame, sec is not None)
+                columns = table_columns(frame, sec is not None, "defect_flag" in out)
                 written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
                                   istp, day, version, utc.get(key), quality[key])
                 done += 1

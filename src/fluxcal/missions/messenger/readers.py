@@ -6,10 +6,13 @@
 
 Several files per stream are concatenated in time order.  Every defect (unknown or
 missing column, non-numeric field, rate or range out of range, counts beyond the
-range's limits, MET going backwards) raises `fluxcal.errors.InputFormatError` naming
-the file, line and field.  A heater gap longer than a heater period or a temperature gap
-longer than 600 s is recorded in ``attrs["stream_gaps"]`` and the span flagged
-(`fluxcal.missions.messenger.defects`; ``on_gap="raise"`` refuses it instead).  The format is
+range's limits) raises `fluxcal.errors.InputFormatError` naming the file, line and
+field.  A heater gap longer than a heater period or a temperature gap longer than 600 s
+is recorded in ``attrs["stream_gaps"]`` and the span flagged
+(`fluxcal.missions.messenger.defects`; ``on_gap="raise"`` refuses it instead).  Records
+whose MET breaks the clock's order (a jump back, a spike) are dropped, counted in
+``attrs["clock_jumps"]`` and their span flagged (``on_clock_jump="raise"`` refuses them
+instead); a stream with fewer than half its records in order is refused.  The format is
 documented in ``docs/formats/messenger.md``.
 
 References
@@ -29,6 +32,7 @@ import xarray as xr
 from numba import njit
 
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.defects import clock_jumps, ordered_records
 from fluxcal.textfile import decode_text
 
 SCIENCE_COLUMNS = ("partition", "met", "rate", "range", "cx", "cy", "cz")
@@ -321,7 +325,8 @@ def _check_order(paths: list[Path], tables: list[np.ndarray], stream: str) -> No
 
 
 def _read_stream(
-    paths: Sequence[str | Path], columns: Sequence[str], stream: str
+    paths: Sequence[str | Path], columns: Sequence[str], stream: str,
+    on_clock_jump: str = "raise",
 ) -> tuple[list[Path], list[np.ndarray]]:
     if isinstance(paths, (str, Path)):
         paths = [paths]
@@ -338,25 +343,58 @@ def _read_stream(
     )
     plist = [plist[i] for i in order]
     tables = [tables[i] for i in order]
-    _check_order(plist, tables, stream)
+    if on_clock_jump not in ("raise", "drop"):
+        raise ValueError(f"on_clock_jump: 'raise' or 'drop', not {on_clock_jump!r}")
+    if on_clock_jump == "raise":
+        _check_order(plist, tables, stream)
     return plist, tables
 
 
-def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
+def _drop_clock_jumps(plist: list[Path], tables: list[np.ndarray], data: np.ndarray,
+                      stream: str, on_clock_jump: str) -> tuple[np.ndarray, dict]:
+    """Drop the records off the longest time-ordered run (issue 23); return the attrs.
+
+    ``{"clock_jumps": [[partition, met_before, met_after, n], ...]}`` when records were
+    dropped (`fluxcal.missions.messenger.defects.clock_jumps`), else nothing.
+    """
+    if on_clock_jump == "raise" or data.shape[1] < 2:
+        return data, {}
+    keep = ordered_records(data[0], data[1], strict=stream == "science")
+    if keep.all():
+        return data, {}
+    first = int(np.flatnonzero(~keep)[0])
+    sizes = np.cumsum([t.shape[1] for t in tables])
+    where = str(plist[int(np.searchsorted(sizes, first, side="right"))])
+    jumps = clock_jumps(data[0], data[1], keep, stream=f"{stream} stream", where=where)
+    return data[:, keep], {"clock_jumps": jumps}
+
+
+def read_science(
+    paths: Sequence[str | Path] | str | Path, *, on_clock_jump: str = "drop"
+) -> xr.Dataset:
     """Read science-sample CSV files into a raw dataset on dimension ``time``.
+
+    Parameters
+    ----------
+    paths : path or sequence of paths
+    on_clock_jump : {"drop", "raise"}
+        Samples off the longest run in (partition, MET) order (MET going back, a time
+        spike, files that overlap): dropped and listed in ``attrs["clock_jumps"]``
+        (``[[partition, met_before, met_after, n], ...]``, the kept samples around each
+        run; `fluxcal.missions.messenger.defects`), or an error naming the line.
 
     Returns
     -------
     xarray.Dataset
         ``partition`` (int8), ``met`` (s), ``rate`` (int8), ``range`` (int8), ``counts``
-        (time, component) int32; attrs ``inputs``.
+        (time, component) int32; attrs ``inputs`` (and ``clock_jumps``).
 
     Raises
     ------
     InputFormatError
         For every defect listed in the module docstring.
     """
-    plist, tables = _read_stream(paths, SCIENCE_COLUMNS, "science")
+    plist, tables = _read_stream(paths, SCIENCE_COLUMNS, "science", on_clock_jump)
     for path, data in zip(plist, tables, strict=True):
         _check_integer(path, data[2], "rate", 0, MAX_RATE_SETTING,
                        f"the rate settings 0..{MAX_RATE_SETTING} (Table 1)")
@@ -365,6 +403,7 @@ def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
             _check_integer(path, data[4 + j], name, *COUNT_LIMITS,
                            f"the signed 16-bit count limits {COUNT_LIMITS}")
     data = tables[0] if len(tables) == 1 else np.concatenate(tables, axis=1)
+    data, jumps = _drop_clock_jumps(plist, tables, data, "science", on_clock_jump)
     return xr.Dataset(
         {
             "partition": ("time", data[0].astype(np.int8), {"units": "1"}),
@@ -376,12 +415,13 @@ def read_science(paths: Sequence[str | Path] | str | Path) -> xr.Dataset:
                        {"units": "counts"}),
         },
         coords={"component": ["x", "y", "z"]},
-        attrs={"inputs": ";".join(str(p) for p in plist)},
+        attrs={"inputs": ";".join(str(p) for p in plist), **jumps},
     )
 
 
 def read_heater(
-    paths: Sequence[str | Path] | str | Path, *, on_gap: str = "report"
+    paths: Sequence[str | Path] | str | Path, *, on_gap: str = "report",
+    on_clock_jump: str = "drop",
 ) -> xr.Dataset:
     """Read heater-bit CSV files (1-s LAC stream) into a dataset on ``heater_time``.
 
@@ -393,6 +433,8 @@ def read_heater(
         ``attrs["stream_gaps"]`` (``[[partition, met_before, met_after], ...]``; absent
         when there is none) and flagged by `fluxcal.missions.messenger.defects`
         (default: the day is processed), or an error.
+    on_clock_jump : {"drop", "raise"}
+        As for `read_science` (``attrs["clock_jumps"]``).
 
     Raises
     ------
@@ -400,20 +442,32 @@ def read_heater(
         Also, with ``on_gap="raise"``, when two consecutive heater records are more than
         one heater period (100 s) apart.
     """
-    plist, tables = _read_stream(paths, HEATER_COLUMNS, "heater")
+    plist, tables = _read_stream(paths, HEATER_COLUMNS, "heater", on_clock_jump)
     for path, data in zip(plist, tables, strict=True):
         _check_integer(path, data[2], "heater", 0, 1, "the heater bit values 0 and 1")
-    gaps = _check_gaps(plist, tables, HEATER_PERIOD_S, "heater stream",
-                       f"one heater period ({HEATER_PERIOD_S:.0f} s)", on_gap=on_gap)
     data = np.concatenate(tables, axis=1)
+    data, jumps = _drop_clock_jumps(plist, tables, data, "heater", on_clock_jump)
+    gaps = _check_gaps(*_gap_tables(plist, tables, data, jumps, on_gap), HEATER_PERIOD_S,
+                       "heater stream", f"one heater period ({HEATER_PERIOD_S:.0f} s)",
+                       on_gap=on_gap)
     return xr.Dataset(
         {
             "partition": ("heater_time", data[0].astype(np.int8), {"units": "1"}),
             "met": ("heater_time", data[1].copy(), {"units": "s"}),
             "heater": ("heater_time", data[2].astype(np.int8), {"units": "1"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps)},
+        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps), **jumps},
     )
+
+
+def _gap_tables(plist: list[Path], tables: list[np.ndarray], data: np.ndarray,
+                jumps: dict, on_gap: str) -> tuple[list[Path], list[np.ndarray]]:
+    """Return the tables the gap check reads: per file, or the ordered records.
+
+    Per file for an error (its line numbers); the ordered records when some were dropped
+    and gaps are reported (the gaps the drop leaves count too).
+    """
+    return (plist[:1], [data]) if jumps and on_gap == "report" else (plist, tables)
 
 
 def _gap_attrs(gaps: list[list[float]]) -> dict:
@@ -464,7 +518,7 @@ def _check_gaps(
 
 def read_temperature(
     paths: Sequence[str | Path] | str | Path, max_gap_s: float = TEMPERATURE_MAX_GAP_S,
-    *, on_gap: str = "report",
+    *, on_gap: str = "report", on_clock_jump: str = "drop",
 ) -> xr.Dataset:
     """Read sensor-temperature CSV files into a dataset on ``temperature_time``.
 
@@ -480,6 +534,8 @@ def read_temperature(
     on_gap : {"report", "raise"}
         A longer gap: bridged by the interpolation, recorded in ``attrs["stream_gaps"]``
         and flagged by `fluxcal.missions.messenger.defects` (default), or an error.
+    on_clock_jump : {"drop", "raise"}
+        As for `read_science` (``attrs["clock_jumps"]``).
 
     Raises
     ------
@@ -487,7 +543,7 @@ def read_temperature(
         Naming file, line and field: a temperature outside -150..150 degC, or (with
         ``on_gap="raise"``) a gap longer than ``max_gap_s``.
     """
-    plist, tables = _read_stream(paths, TEMPERATURE_COLUMNS, "temperature")
+    plist, tables = _read_stream(paths, TEMPERATURE_COLUMNS, "temperature", on_clock_jump)
     for path, data in zip(plist, tables, strict=True):
         bad = (data[2] < -150) | (data[2] > 150)
         if bad.any():
@@ -496,13 +552,15 @@ def read_temperature(
                 f"temperature {data[2, row]} degC outside -150..150 degC", path=str(path),
                 line=row + 2, field="temperature_c",
             )
-    gaps = _check_gaps(plist, tables, max_gap_s, "temperature stream", on_gap=on_gap)
     data = np.concatenate(tables, axis=1)
+    data, jumps = _drop_clock_jumps(plist, tables, data, "temperature", on_clock_jump)
+    gaps = _check_gaps(*_gap_tables(plist, tables, data, jumps, on_gap), max_gap_s,
+                       "temperature stream", on_gap=on_gap)
     return xr.Dataset(
         {
             "partition": ("temperature_time", data[0].astype(np.int8), {"units": "1"}),
             "met": ("temperature_time", data[1].copy(), {"units": "s"}),
             "temperature_c": ("temperature_time", data[2].copy(), {"units": "degC"}),
         },
-        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps)},
+        attrs={"inputs": ";".join(str(p) for p in plist), **_gap_attrs(gaps), **jumps},
     )

@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError, ValidationError
-from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
 from fluxcal.missions.messenger.options import (
@@ -163,10 +163,13 @@ def write_run(
     failures: list[str] = []
     # before ``only_day`` selects: a batch day and a single run split days the same way
     days = merge_tail_fragment(ds, split_days(ds), float(np.max(cal.net_lag_s)))
+    spans = defects.span_records(ds)
     for day in days:
         yyddd = day_code(day)[2]
         if only_day is not None and yyddd != only_day:
             continue
+        # each day's products and report list the defect spans that touch it (issue 23)
+        day = defects.set_span_attrs(day, defects.day_spans(spans, day["et"].values))
         try:
             written += write_day_outputs(
                 day, Path(out_dir), frames, formats, averages, prov, max_offset_step,

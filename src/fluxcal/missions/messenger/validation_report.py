@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.extras import require
+from fluxcal.missions.messenger.defects import span_records
 from fluxcal.missions.messenger.levels import offset_step_report
 
 
@@ -39,7 +40,10 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None,
     """Return the step report as text: largest step per axis, where, and the threshold.
 
     ``report`` is `offset_step_report` of ``ds`` when the caller has it already (e.g.
-    from `levels.validate_offsets`); it is computed otherwise.
+    from `levels.validate_offsets`); it is computed otherwise.  A day with defect spans
+    (`fluxcal.missions.messenger.defects`, issue 23) gets a second table, one line per
+    span: ``cause,flag,action,stream,start_utc,end_utc,seconds,samples``
+    (`read_defect_spans` reads it back).
     """
     from fluxcal.geometry.time import et_to_utc
 
@@ -49,7 +53,37 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None,
     for axis, item in rep.items():
         utc = et_to_utc(np.array([item["et"]]))[0]
         lines.append(f"{axis},{item['step_counts']:.6f},{utc}")
+    spans = span_records(ds)
+    if spans:
+        lines += [DEFECT_HEADER, ",".join(DEFECT_COLUMNS)]
+        lines += [",".join(str(s[k]) for k in DEFECT_COLUMNS) for s in spans]
     return "\n".join(lines) + "\n"
+
+
+#: The report's defect table: its title line and columns.
+DEFECT_HEADER = "# defect spans (issue 23; docs/formats/messenger.md, \"Defect flag\")"
+DEFECT_COLUMNS = ("cause", "flag", "action", "stream", "start", "end", "seconds", "samples")
+
+
+def read_defect_spans(path: Path) -> list[dict]:
+    """Return the defect spans a day report (`report_text`) lists ([] when none).
+
+    Each span: ``cause``, ``flag`` (int), ``action``, ``stream``, ``start``/``end``
+    (UTC), ``seconds`` (float), ``samples`` (int).
+    """
+    lines = Path(path).read_text().splitlines()
+    if DEFECT_HEADER not in lines:
+        return []
+    rows = lines[lines.index(DEFECT_HEADER) + 2:]
+    out = []
+    for row in rows:
+        if not row.strip():
+            continue
+        span: dict = dict(zip(DEFECT_COLUMNS, row.split(","), strict=True))
+        span["flag"], span["samples"] = int(span["flag"]), int(span["samples"])
+        span["seconds"] = float(span["seconds"])
+        out.append(span)
+    return out
 
 
 def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
