@@ -53,7 +53,7 @@ FLAG_VARIABLE = re.compile(r"quality|flag|defect", re.IGNORECASE)
 
 _KINDS = {".cdf": "CDF", ".nc": "netCDF", ".zarr": "Zarr", ".tab": "PDS3 table",
           ".lbl": "PDS3 label", ".png": "quicklook", ".txt": "text report",
-          ".json": "JSON report", ".csv": "CSV", ".toml": "TOML"}
+          ".json": "JSON report", ".csv": "CSV", ".toml": "TOML", ".html": "run report"}
 #: Kinds whose data-quality is read (the first found per product stem, in this order).
 _READABLE = ("CDF", "netCDF", "Zarr")
 
@@ -151,8 +151,8 @@ def time_quality(times: np.ndarray) -> Quality:
     """Return the samples, span, cadence, gaps and backward steps of a time series.
 
     A gap is an interval longer than `GAP_FACTOR` times both neighbouring intervals and
-    the median interval, so a change of sampling rate or jittered times are no gap; an interval <= 0 is a backward step (time
-    not in order, or a repeated time).
+    the median interval, so a change of sampling rate or jittered times are no gap; an
+    interval <= 0 is a backward step (time not in order, or a repeated time).
 
     Parameters
     ----------
@@ -465,14 +465,23 @@ def render(title: str, products: Sequence[ProductFile],
            qualities: Sequence[tuple[ProductFile, Quality]], n_readable: int,
            version: str = "") -> str:
     """Return the report page (HTML5, inline CSS, relative links, no script)."""
-    nav = " | ".join(f'<a href="#{a}">{t}</a>' for a, t in (
-        ("products", "Products"), ("quicklooks", "Quicklooks"), ("quality", "Data quality"),
-        ("reports", "Reports")))
+    sections = (("runs", "Run reports"), ("quicklooks", "Quicklooks"), ("products", "Products"))
+    if not any(p.kind == "run report" for p in products):
+        sections = (("quicklooks", "Quicklooks"), ("quality", "Data quality"),
+                    ("reports", "Reports"), ("products", "Products"))
+    nav = " | ".join(f'<a href="#{a}">{t}</a>' for a, t in sections)
+    runs = [p for p in products if p.kind == "run report"]
     body = [f"<h1>{_e(title)}</h1>",
             f'<p class="sub">Written by fluxcal {_e(version)}; open this file from its '
-            "folder: every link is relative to it.</p>", f"<p>{nav}</p>",
-            *_quicklook_section(products), *_quality_section(qualities, n_readable),
-            *_reports_section(products), *_products_section(products)]
+            "folder: every link is relative to it.</p>", f"<p>{nav}</p>"]
+    if runs:  # an overview of several runs (the demo): their reports first
+        body += ["<h2 id=\"runs\">Run reports</h2>", "<p>Each run's products, quicklooks "
+                 "and data quality:</p>", "<ul>", *[f"<li>{_link(p)}</li>" for p in runs],
+                 "</ul>", *_quicklook_section(products)]
+    else:
+        body += [*_quicklook_section(products), *_quality_section(qualities, n_readable),
+                 *_reports_section(products)]
+    body += _products_section(products)
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
             f"<title>{_e(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
