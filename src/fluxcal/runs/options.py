@@ -187,8 +187,8 @@ def config_keys(cls: type) -> dict[str, dataclasses.Field]:
 
 
 def _key_line(text: str, key: str) -> int | None:
-    """1-based line of ``key = ...`` in a TOML text (None where not found)."""
-    pattern = re.compile(r"^\s*[\"']?" + re.escape(key) + r"[\"']?\s*=")
+    """1-based line of ``key = ...`` (or of a table ``[key]``) in a TOML text, else None."""
+    pattern = re.compile(r"^\s*\[?\s*[\"']?" + re.escape(key) + r"[\"']?\s*(=|\])")
     for number, line in enumerate(text.splitlines(), start=1):
         if pattern.match(line):
             return number
@@ -282,8 +282,9 @@ def read_config(path: Path, cls: type) -> dict[str, Any]:
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        line = getattr(exc, "lineno", None)
-        message = getattr(exc, "msg", None) or re.sub(r"\s*\(at line.*\)$", "", str(exc))
+        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))
+        line = int(where.group(1)) if where else None
+        message = re.sub(r"\s*\(at (line .*|end of document)\)$", "", str(exc))
         raise InputFormatError(f"not valid TOML: {message}", path=str(path),
                                line=line) from None
     keys = config_keys(cls)
