@@ -141,3 +141,12 @@ def test_every_options_command_offers_config(capsys) -> None:
                 ["batch", "messenger"], ["batch", "rosetta"], ["batch", "imap"]):
         assert main([*cmd, "--help"]) == 0
         assert "--config" in capsys.readouterr().out, cmd
+
+
+def test_the_documented_examples_read() -> None:
+    docs = Path(__file__).resolve().parents[2] / "docs" / "examples"
+    msgr = read_config(docs / "edr2cdr.toml", MessengerOptions)
+    assert msgr["frames"] == ("mso", "rtn") and msgr["averages"] == (1, 60)
+    assert msgr["version"] == 2 and msgr["max_offset_step"] == 2.0
+    ros = read_config(docs / "rosetta.toml", RosettaOptions)
+    assert ros["levels"] == ("A", "B", "C", "F", "G") and ros["average_s"] == 60.0
