@@ -22,7 +22,7 @@ from __future__ import annotations
 import html
 import json
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -147,7 +147,8 @@ def _attribute_text(value: Any) -> str:
     return text if len(text) <= 200 else text[:197] + "..."
 
 
-def time_quality(times: np.ndarray) -> Quality:
+def time_quality(times: np.ndarray,
+                 iso: Callable[[np.ndarray], list[str]] | None = None) -> Quality:
     """Return the samples, span, cadence, gaps and backward steps of a time series.
 
     A gap is an interval longer than `GAP_FACTOR` times both neighbouring intervals and
@@ -157,7 +158,11 @@ def time_quality(times: np.ndarray) -> Quality:
     Parameters
     ----------
     times : numpy.ndarray
-        ``datetime64`` sample times, in the product's order.
+        ``datetime64`` sample times, or int64 nanoseconds on any uniform scale (a CDF's
+        TT2000), in the product's order; NaT and the int64 fill value are skipped.
+    iso : callable, optional
+        ``iso(indices)`` -> ISO UTC strings of those samples (needed for int64 times:
+        only the first, last and gap samples are converted, not every one).
 
     Examples
     --------
@@ -168,15 +173,27 @@ def time_quality(times: np.ndarray) -> Quality:
     (7, 1, 57.0, 1.0)
     """
     q = Quality()
-    t = np.asarray(times, dtype="datetime64[ns]")
-    t = t[~np.isnat(t)]
-    q.samples = int(t.size)
-    if t.size == 0:
+    t = np.asarray(times)
+    if np.issubdtype(t.dtype, np.datetime64):
+        t = t.astype("datetime64[ns]")
+        kept = np.flatnonzero(~np.isnat(t))
+        ns = t[kept].astype(np.int64)
+        if iso is None:
+            def iso(idx: np.ndarray) -> list[str]:
+                return _iso(t[idx])
+    else:
+        ns = t.astype(np.int64)
+        kept = np.flatnonzero(ns != np.iinfo(np.int64).min)
+        ns = ns[kept]
+    if iso is None:
+        raise ValueError("time_quality: int64 times need iso(indices)")
+    q.samples = int(ns.size)
+    if ns.size == 0:
         return q
-    q.start, q.stop = _iso(t[[0, -1]])
-    if t.size < 2:
+    q.start, q.stop = iso(kept[[0, -1]])
+    if ns.size < 2:
         return q
-    dt = np.diff(t).astype(np.int64) / 1e9
+    dt = np.diff(ns) / 1e9
     q.backwards = int(np.count_nonzero(dt <= 0))
     positive = dt[dt > 0]
     if positive.size:
@@ -190,32 +207,49 @@ def time_quality(times: np.ndarray) -> Quality:
         gap = np.zeros(dt.size, dtype=bool)
     idx = np.flatnonzero(gap)
     q.n_gaps = int(idx.size)
-    longest = idx[np.argsort(-dt[idx], kind="stable")][:MAX_LISTED]
-    for i in sorted(longest):
-        a, b = _iso(t[[i, i + 1]])
-        q.gaps.append((a, b, float(dt[i])))
+    longest = np.sort(idx[np.argsort(-dt[idx], kind="stable")][:MAX_LISTED])
+    edges = iso(kept[np.concatenate([longest, longest + 1])]) if longest.size else []
+    for k, i in enumerate(longest):
+        q.gaps.append((edges[k], edges[k + longest.size], float(dt[i])))
     return q
 
 
-def flag_quality(q: Quality, name: str, times: np.ndarray, values: np.ndarray) -> None:
-    """Add a flag variable to ``q``: the count of each value and the non-zero spans."""
+def flag_quality(q: Quality, name: str, times: np.ndarray, values: np.ndarray,
+                 iso: Callable[[np.ndarray], list[str]] | None = None) -> None:
+    """Add a flag variable to ``q``: the count of each value and the non-zero spans.
+
+    ``times`` and ``iso`` as in `time_quality` (the spans' first and last samples).
+    """
     v = np.asarray(values)
     if v.ndim != 1 or v.size == 0:
         return
-    distinct, counts = np.unique(v, return_counts=True)
+    if v.min() >= 0 and v.max() < 65536:  # small codes: a count, no sort
+        counts = np.bincount(v.astype(np.int64))
+        distinct = np.flatnonzero(counts)
+        counts = counts[distinct]
+    else:
+        distinct, counts = np.unique(v, return_counts=True)
     q.flags[name] = {int(d): int(c) for d, c in zip(distinct, counts, strict=True)}
-    t = np.asarray(times, dtype="datetime64[ns]")
-    if t.shape != v.shape:
+    if np.shape(times) != v.shape:
         return
-    change = np.flatnonzero(np.diff(v) != 0) + 1
+    if iso is None:
+        t = np.asarray(times, dtype="datetime64[ns]")
+
+        def iso(idx: np.ndarray) -> list[str]:
+            return _iso(t[idx])
+    change = np.flatnonzero(v[1:] != v[:-1]) + 1
     starts = np.concatenate([[0], change])
     stops = np.concatenate([change, [v.size]]) - 1
     nonzero = v[starts] != 0
     starts, stops = starts[nonzero], stops[nonzero]
     q.n_flag_spans[name] = int(starts.size)
-    q.flag_spans[name] = [(a, b, int(v[i])) for i, a, b in zip(
-        starts[:MAX_LISTED], _iso(t[starts[:MAX_LISTED]]), _iso(t[stops[:MAX_LISTED]]),
-        strict=True)]
+    first, last = starts[:MAX_LISTED], stops[:MAX_LISTED]
+    if first.size:
+        edges = iso(np.concatenate([first, last]))
+        q.flag_spans[name] = [(edges[k], edges[k + first.size], int(v[i]))
+                              for k, i in enumerate(first)]
+    else:
+        q.flag_spans[name] = []
 
 
 def _quality_attributes(attrs: dict[str, Any]) -> dict[str, str]:
@@ -234,14 +268,21 @@ def _cdf_quality(path: Path) -> Quality:
         q = Quality(note="no time variable")
     else:
         raw = f.varget(time_var)
-        times = (np.asarray(cdflib.cdfepoch.to_datetime(raw), dtype="datetime64[ns]")
-                 if raw is not None and np.size(raw) else np.array([], "datetime64[ns]"))
-        q = time_quality(times)
+        raw = np.atleast_1d(np.asarray(raw if raw is not None else [], dtype=np.int64)
+                            if f.varinq(time_var).Data_Type_Description == "CDF_TIME_TT2000"
+                            else np.asarray(cdflib.cdfepoch.to_datetime(raw)
+                                            if raw is not None else [], "datetime64[ns]"))
+
+        def iso(idx: np.ndarray) -> list[str]:  # only the samples shown are converted
+            return _iso(np.asarray(cdflib.cdfepoch.to_datetime(raw[idx]), "datetime64[ns]")
+                        if raw.dtype == np.int64 else raw[idx])
+
+        q = time_quality(raw, iso)
         for n in names:
             if n != time_var and FLAG_VARIABLE.search(n):
                 values = f.varget(n)
                 if values is not None and np.issubdtype(np.asarray(values).dtype, np.integer):
-                    flag_quality(q, n, times, np.asarray(values))
+                    flag_quality(q, n, raw, np.asarray(values), iso)
     q.attributes = _quality_attributes(f.globalattsget())
     return q
 
@@ -276,6 +317,35 @@ def product_quality(product: ProductFile) -> Quality | None:
             return _xarray_quality(product.source, product.kind)
     except Exception as exc:  # noqa: BLE001 - the report says so and goes on
         return Quality(note=f"not readable for the summary: {type(exc).__name__}: {exc}"[:200])
+    return None
+
+
+def time_axis_key(product: ProductFile) -> tuple | None:
+    """Return (records, first time, last time, flag variables) of a CDF, else None.
+
+    Products with the same key share their time axis (one day in several frames or
+    levels): the summary reads one of them (`write_run_report`).  Only the first and
+    last records are read.
+    """
+    if product.kind != "CDF":
+        return None
+    try:
+        import cdflib
+
+        f = cdflib.CDF(str(product.source))
+        names = f.cdf_info().zVariables
+        for n in names:
+            info = f.varinq(n)
+            if info.Data_Type_Description in ("CDF_TIME_TT2000", "CDF_EPOCH", "CDF_EPOCH16"):
+                last = int(info.Last_Rec)
+                if last < 0:
+                    return None
+                ends = [np.asarray(f.varget(n, startrec=r, endrec=r)).tobytes()
+                        for r in (0, last)]
+                flags = tuple(sorted(v for v in names if v != n and FLAG_VARIABLE.search(v)))
+                return (n, last, *ends, flags)
+    except Exception:  # noqa: BLE001 - read in full (and reported) by product_quality
+        return None
     return None
 
 
@@ -368,22 +438,25 @@ def _flags_text(q: Quality) -> str:
     return "<br>".join(parts)
 
 
-def _quality_section(qualities: Sequence[tuple[ProductFile, Quality]],
+def _quality_section(qualities: Sequence[tuple[Sequence[ProductFile], Quality]],
                      n_readable: int) -> list[str]:
     lines = ["<h2 id=\"quality\">Data quality</h2>"]
     if not qualities:
         return [*lines, "<p>No CDF, netCDF or Zarr product to read the data quality from "
                 "(the reports below, if any, hold it).</p>"]
-    if n_readable > len(qualities):
-        lines.append(f"<p>The first {len(qualities)} of {n_readable} products.</p>")
+    shown = sum(len(members) for members, _q in qualities)
+    if n_readable > shown:
+        lines.append(f"<p>The first {shown} of {n_readable} products.</p>")
     lines.append("<p>A gap is a sample interval longer than "
                  f"{GAP_FACTOR:g} times both its neighbours and the median interval (the "
                  "cadence); a backward step is an interval "
-                 "&le; 0 (time not in order, or repeated).</p>")
+                 "&le; 0 (time not in order, or repeated). Products on the same times "
+                 "(a day in several frames or levels) share a row, read from the first; "
+                 "what it records is the first's.</p>")
     lines.append("<table><tr><th>product</th><th>samples</th><th>first</th><th>last</th>"
                  "<th>cadence (s)</th><th>gaps</th><th>backward steps</th><th>flags</th>"
                  "<th>recorded by the product</th></tr>")
-    for p, q in qualities:
+    for members, q in qualities:
         gaps = (f'<span class="{"warn" if q.n_gaps else "ok"}">{q.n_gaps:,}</span>'
                 + (f" (longest {max(g[2] for g in q.gaps):,.1f} s)" if q.gaps else ""))
         back = f'<span class="{"bad" if q.backwards else "ok"}">{q.backwards:,}</span>'
@@ -391,16 +464,19 @@ def _quality_section(qualities: Sequence[tuple[ProductFile, Quality]],
         if q.note:
             attrs = (attrs + "<br>" if attrs else "") + f'<span class="warn">{_e(q.note)}</span>'
         cadence = "" if q.cadence_s is None else f"{q.cadence_s:.6g}"
-        lines.append(f"<tr><td>{_link(p)}</td><td class=\"num\">{q.samples:,}</td>"
+        names = "<br>".join(_link(p) for p in members)
+        lines.append(f"<tr><td>{names}</td><td class=\"num\">{q.samples:,}</td>"
                      f"<td>{_e(q.start)}</td><td>{_e(q.stop)}</td><td class=\"num\">{cadence}"
                      f"</td><td>{gaps}</td><td>{back}</td><td>{_flags_text(q)}</td>"
                      f"<td>{attrs}</td></tr>")
     lines.append("</table>")
-    for p, q in qualities:
+    for members, q in qualities:
         spans = [(n, s) for n, s in q.flag_spans.items() if s]
         if not q.gaps and not spans:
             continue
-        lines.append(f"<details><summary>{_e(p.rel)}: gaps and flag spans</summary>")
+        lines.append(f"<details><summary>{_e(members[0].rel)}"
+                     + (f" and {len(members) - 1} more on the same times" if len(members) > 1
+                        else "") + ": gaps and flag spans</summary>")
         if q.gaps:
             lines.append(f"<p>{len(q.gaps)} longest of {q.n_gaps} gap(s):</p><table><tr>"
                          "<th>last sample before</th><th>first sample after</th>"
@@ -462,7 +538,7 @@ def _reports_section(products: Sequence[ProductFile]) -> list[str]:
 
 
 def render(title: str, products: Sequence[ProductFile],
-           qualities: Sequence[tuple[ProductFile, Quality]], n_readable: int,
+           qualities: Sequence[tuple[Sequence[ProductFile], Quality]], n_readable: int,
            version: str = "") -> str:
     """Return the report page (HTML5, inline CSS, relative links, no script)."""
     sections = (("runs", "Run reports"), ("quicklooks", "Quicklooks"), ("products", "Products"))
@@ -511,8 +587,11 @@ def write_run_report(out: Path, title: str | None = None,
     files = list(run_products(out) if products is None else products)
     if not files:
         return None
-    readable = quality_products(files)
-    qualities = [(p, q) for p in readable if (q := product_quality(p)) is not None]
+    groups: dict[tuple, list[ProductFile]] = {}
+    for p in quality_products(files):  # one read per time axis (frames, levels of a day)
+        groups.setdefault(time_axis_key(p) or (p.rel,), []).append(p)
+    qualities = [(members, q) for members in groups.values()
+                 if (q := product_quality(members[0])) is not None]
     page = render(title or f"fluxcal run: {out.resolve().name}", files, qualities,
                   len({_stem(p.rel) for p in files if p.kind in _READABLE}),
                   software_version())
