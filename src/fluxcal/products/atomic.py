@@ -106,14 +106,14 @@ def _discard(tmp: Path) -> None:
         tmp.unlink()
 
 
-def pending_renames() -> list[tuple[Path, Path]]:
+def pending_renames() -> list[tuple[Path, Path]] | None:
     """Return the (temporary, final) paths the innermost `atomic_group` will rename.
 
-    Empty outside a group.  A run's report can list its products under their final
+    None outside a group.  A run's report can list its products under their final
     names while reading them from their temporaries (`fluxcal.products.html_report`).
     """
     group = _GROUP.get()
-    return [] if group is None else [(tmp, final) for tmp, final, _directory in group]
+    return None if group is None else [(tmp, final) for tmp, final, _directory in group]
 
 
 @contextmanager

@@ -106,7 +106,7 @@ def run_products(out: Path) -> list[ProductFile]:
     out = Path(out).resolve()
     found: dict[str, Path] = {}
     staged = pending_renames()
-    if staged:
+    if staged is not None:
         for tmp, final in staged:
             try:
                 rel = Path(final).resolve().relative_to(out)
