@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.fluxcal-installed
 DOCS_STAMP := $(VENV)/.fluxcal-docs-installed
 
-.PHONY: demo test lint bench docs wheel-check clean
+.PHONY: demo demo-full test lint bench docs wheel-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,8 +17,13 @@ $(DOCS_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e ".[docs]"
 	touch $(DOCS_STAMP)
 
+# a first run: a calibrated product, a quicklook and an HTML report per mission (seconds)
 demo: $(STAMP)
 	$(BIN)/fluxcal demo --out demo-output
+
+# the full tour: fits, batch on Dask, cleaning, archive round trip (minutes)
+demo-full: $(STAMP)
+	$(BIN)/fluxcal demo --full --out demo-output-full
 
 test: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2
@@ -40,4 +45,4 @@ wheel-check: $(STAMP)
 	$(BIN)/python tools/wheel_check.py
 
 clean:
-	rm -rf $(VENV) demo-output docs/_build docs/api docs/gallery
+	rm -rf $(VENV) demo-output demo-output-full docs/_build docs/api docs/gallery

@@ -70,7 +70,7 @@ def test_every_command_summary_is_whole_in_its_group(capsys):
         in text
     assert main(["--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
-    assert "say where the products are." in text
+    assert "with its quicklook and HTML report (seconds)." in text  # the demo's summary
 
 
 def test_help_uses_wide_terminals_up_to_120_columns(monkeypatch, capsys):

@@ -2,12 +2,14 @@
 
 Used to show that a refactoring leaves every product byte-identical (issue 20):
 
-    python tools/product_hashes.py make REV OUT.sha     # `fluxcal demo` of commit REV
+    python tools/product_hashes.py make REV OUT.sha     # the demo tour of commit REV
     python tools/product_hashes.py compare BEFORE.sha AFTER.sha [--explain --same OLD=NEW]
 
-``make`` checks commit ``REV`` out at a fixed path (`SOURCE`), runs its ``fluxcal
-demo`` (every mission's `make demo` runs: MESSENGER ``edr2cdr`` and ``batch``, Rosetta
-``calibrate``, ``clean`` and ``batch``, the fits and the archive round trip) into a fixed
+``make`` checks commit ``REV`` out at a fixed path (`SOURCE`), runs its full demo tour
+(``fluxcal demo --full``, or ``fluxcal demo`` for a commit from before the quick first
+run, whose ``demo`` was the tour: `demo_command`; every mission's demo runs: MESSENGER
+``edr2cdr`` and ``batch``, Rosetta ``calibrate``, ``clean`` and ``batch``, the fits, the
+archive round trip and the runs' HTML reports) into a fixed
 folder (`WORK`) with ``SOURCE_DATE_EPOCH`` fixed, so that the provenance (times, input
 and calibration paths) is the same for both commits, and writes one line
 ``<sha256>  <path relative to the demo folder>`` per file.  ``compare`` prints every
@@ -43,6 +45,18 @@ def listing(folder: Path) -> dict[str, str]:
     return out
 
 
+def demo_command(source: Path, env: dict[str, str]) -> list[str]:
+    """Return the command running the full demo tour of the checkout at ``source``.
+
+    ``fluxcal demo --full`` where the commit has the option (the quick first run is
+    ``fluxcal demo`` since issue 25), else ``fluxcal demo``, which was the tour.
+    """
+    base = [sys.executable, "-m", "fluxcal.cli", "demo"]
+    shown = subprocess.run([*base, "--help"], capture_output=True, text=True, env=env,
+                           cwd=source)
+    return [*base, "--full"] if "--full" in shown.stdout else base
+
+
 def make(rev: str, target: Path) -> None:
     """Run the demo of commit ``rev`` (fixed paths, SOURCE_DATE_EPOCH) and list its files."""
     repo = Path(__file__).resolve().parents[1]
@@ -55,7 +69,7 @@ def make(rev: str, target: Path) -> None:
                    check=True)
     env = dict(os.environ, SOURCE_DATE_EPOCH="1700000000", PYTHONPATH=str(SOURCE / "src"))
     try:
-        subprocess.run([sys.executable, "-m", "fluxcal.cli", "demo", "--out", str(WORK)],
+        subprocess.run([*demo_command(SOURCE, env), "--out", str(WORK)],
                        check=True, env=env, cwd=SOURCE)
     finally:
         subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(SOURCE)],

@@ -74,11 +74,16 @@ def version() -> None:
 
 def demo(
     out: Path = typer.Option(Path("demo-output"), help="Folder for the demo products."),
+    full: bool = typer.Option(False, "--full", help="The full tour: fits, batch on Dask, "
+                              "cleaning, archive round trip (minutes)."),
 ) -> None:
-    """Run the main job on the embedded default data and say where the products are."""
+    """Calibrate a product of each mission, with its quicklook and HTML report (seconds).
+
+    ``--full`` runs the whole tour instead.
+    """
     from fluxcal.runs.demo import run_demo
 
-    run_demo(out)
+    run_demo(out, full=full)
 
 
 def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:

@@ -54,7 +54,9 @@ def good(sim: Path, tmp_path: Path) -> tuple[Path, dict[str, bytes]]:
     out = tmp_path / "out"
     assert main(_calibrate(sim, out)) == 0
     snap = _snapshot(out)
-    assert len(snap) == 24 and not [n for n in snap if n.startswith(".")]
+    # 24 products and the run's report (index.html)
+    assert len(snap) == 25 and "index.html" in snap
+    assert not [n for n in snap if n.startswith(".")]
     return out, snap
 
 

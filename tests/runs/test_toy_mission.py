@@ -72,11 +72,24 @@ def test_toy_demo_part_is_in_the_tour(toy_cli, tmp_path: Path, monkeypatch) -> N
     assert "Toy mission" in [p.title for p in demo.parts()]
     toy = registry.get("toy")
     monkeypatch.setattr(registry, "missions", lambda: {"toy": toy})  # a tour of toy alone
-    assert main(["demo", "--out", str(tmp_path / "d")]) == 0
+    assert main(["demo", "--full", "--out", str(tmp_path / "d")]) == 0
     assert (tmp_path / "d" / "toy" / "products" / "TOY_20240101.cdf").exists()
     report = tmp_path / "d" / "batch" / "toy" / "products" / "batch_report_toy.json"
     assert json.loads(report.read_text())["counts"]["skipped"] == 2  # the demo's rerun
     assert len(list(report.parent.glob("TOY_*.cdf"))) == 2
+
+
+def test_quick_demo_runs_the_quick_parts_only(toy_cli, tmp_path: Path, monkeypatch) -> None:
+    """``fluxcal demo``: the quick parts, each run's report and an overview linking them."""
+    assert [p.title for p in demo.parts(full=False) if "Toy" in p.title] == ["Toy first run"]
+    toy = registry.get("toy")
+    monkeypatch.setattr(registry, "missions", lambda: {"toy": toy})
+    assert main(["demo", "--out", str(tmp_path / "d")]) == 0
+    assert (tmp_path / "d" / "toy" / "products" / "TOY_20240101.cdf").exists()
+    assert (tmp_path / "d" / "toy" / "products" / "index.html").exists()
+    assert not (tmp_path / "d" / "batch").exists()  # the batch part is the full tour's
+    overview = (tmp_path / "d" / "index.html").read_text()
+    assert 'href="toy/products/index.html"' in overview
 
 
 def test_unknown_mission_names_the_registry(tmp_path: Path) -> None:

@@ -10,6 +10,7 @@ B = gain * counts with the gain of ``--gain`` (nT/count).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,3 +134,18 @@ MISSION = Mission(
     demo_days=(dt.date(2024, 1, 1), dt.date(2024, 1, 2)),
     demo_parts=(DemoPart("Toy mission", "tests.runs.toy_mission:run_demo", "toy", 5),),
 )
+
+
+def run_quick_demo(out: Path) -> str:
+    """Quick demo part: one calibrated day and the run's HTML report."""
+    from fluxcal.products.html_report import write_run_report
+
+    simulate_days(out / "input", [dt.date(2024, 1, 1)])
+    result = make_day_task(out / "input", out / "products")(dt.date(2024, 1, 1))
+    report = write_run_report(out / "products")
+    return f"toy: {len(result.products)} product(s); report {report}"
+
+
+MISSION = dataclasses.replace(MISSION, demo_parts=(
+    *MISSION.demo_parts,
+    DemoPart("Toy first run", "tests.runs.toy_mission:run_quick_demo", "toy", 5, quick=True)))

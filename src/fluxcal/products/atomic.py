@@ -106,6 +106,16 @@ def _discard(tmp: Path) -> None:
         tmp.unlink()
 
 
+def pending_renames() -> list[tuple[Path, Path]] | None:
+    """Return the (temporary, final) paths the innermost `atomic_group` will rename.
+
+    None outside a group.  A run's report can list its products under their final
+    names while reading them from their temporaries (`fluxcal.products.html_report`).
+    """
+    group = _GROUP.get()
+    return None if group is None else [(tmp, final) for tmp, final, _directory in group]
+
+
 @contextmanager
 def atomic_group() -> Iterator[None]:
     """Defer the renames of every `atomic_path` inside the block to its successful end.

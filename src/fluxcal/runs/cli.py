@@ -137,7 +137,8 @@ def batch_command(mission: Mission) -> Any:
     command.__doc__ = (f"{mission.title or mission.name}: process many days on Dask, one "
                        "task per day; resumable; exits 1 if a day failed.")
     if mission.options is not None:
-        return run_options.with_options(mission.load("options"))(command)
+        # the batch writes its folder's HTML report itself (fluxcal.runs.batch.run_batch)
+        return run_options.with_options(mission.load("options"), report=False)(command)
     signature = inspect.signature(command)
     command.__signature__ = signature.replace(  # type: ignore[attr-defined]
         parameters=[p for p in signature.parameters.values() if p.name != "options"])

@@ -68,12 +68,17 @@ class DemoPart:
         Sub-folder of the demo's ``--out`` for this part.
     order : int
         Position in the tour (parts of every mission sorted by it).
+    quick : bool
+        A part of the quick first run (``fluxcal demo``, ``make demo``: a calibrated
+        product, a quicklook and the HTML report in seconds); the others make the full
+        tour (``fluxcal demo --full``, ``make demo-full``).
     """
 
     title: str
     run: str
     folder: str
     order: int = 100
+    quick: bool = False
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,10 @@
-"""``make demo``: run every pipeline on simulated data and say where the products are."""
+"""``make demo``: a first run of every mission in seconds; ``--full``: the whole tour.
+
+The quick demo (`DemoPart.quick <fluxcal.runs.contract.DemoPart>`) gives each mission a
+calibrated product, a quicklook and the run's HTML report, and writes ``<out>/index.html``
+linking them; the full tour (``fluxcal demo --full``, ``make demo-full``) runs every
+other part: fits, batch on Dask, cleaning, the archive round trip.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +14,7 @@ from pathlib import Path
 
 import typer
 
+from fluxcal.products.html_report import REPORT_NAME, ProductFile, write_run_report
 from fluxcal.runs import registry
 from fluxcal.runs.contract import DemoPart, load_reference
 
@@ -18,17 +25,35 @@ BATCH_PART = DemoPart("Batch processing on Dask", "fluxcal.runs.batch_demo:run_d
                       50)
 
 
-def parts() -> list[DemoPart]:
-    """Every registered mission's demo parts and the batch part, in tour order."""
-    found = [p for m in registry.missions().values() for p in m.demo_parts]
-    return sorted([*found, BATCH_PART], key=lambda p: (p.order, p.folder))
+def parts(full: bool = True) -> list[DemoPart]:
+    """Every registered mission's demo parts of the tour, in tour order.
+
+    ``full``: the full tour (every part but the quick ones, and the batch part); else
+    the quick first run (`DemoPart.quick`).
+    """
+    found = [p for m in registry.missions().values() for p in m.demo_parts
+             if p.quick != full]
+    found += [BATCH_PART] if full else []
+    return sorted(found, key=lambda p: (p.order, p.folder))
 
 
-def run_demo(out: Path) -> None:
-    """Run the demo into ``out`` and print a summary of each part."""
+def _overview(out: Path) -> Path | None:
+    """Write ``out/index.html``: each part's report and quicklooks, linked."""
+    files = []
+    for report in sorted(out.glob(f"*/**/{REPORT_NAME}")):
+        rel = report.relative_to(out)
+        files.append(ProductFile(rel.as_posix(), report, "run report", None))
+        for png in sorted(report.parent.glob("*.png")):
+            files.append(ProductFile(png.relative_to(out).as_posix(), png, "quicklook",
+                                     png.stat().st_size))
+    return write_run_report(out, title="fluxcal demo", products=files) if files else None
+
+
+def run_demo(out: Path, full: bool = False) -> None:
+    """Run the demo into ``out`` (the quick one, or with ``full`` the tour) and summarise."""
     out = out.resolve()
     out.mkdir(parents=True, exist_ok=True)
-    for part in parts():
+    for part in parts(full):
         run = load_reference(part.run)
         folder = out / part.folder
         typer.secho(f"\n== {part.title} ==", bold=True)
@@ -36,4 +61,10 @@ def run_demo(out: Path) -> None:
         summary = run(folder)
         typer.echo(summary)
         typer.echo(f"({time.perf_counter() - start:.1f} s; products in {folder})")
-    typer.secho(f"\nAll demo products are in {out}", bold=True)
+    if full:
+        typer.secho(f"\nAll demo products are in {out}", bold=True)
+        return
+    overview = _overview(out)
+    typer.secho(f"\nAll demo products are in {out}; open {overview or out} in a browser.\n"
+                "The full tour (fits, batch on Dask, cleaning, archive round trip): "
+                "fluxcal demo --full (make demo-full).", bold=True)

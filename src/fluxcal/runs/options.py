@@ -21,6 +21,13 @@ field type                     command line
 Metadata keys: ``help`` (required), ``flags`` (tuple of option names, default
 ``--<field-name>``), ``parse`` (callable applied to the parsed value, e.g. "<= 0
 disables"), ``choices`` (allowed values; each element of a tuple field is checked).
+
+Every such command also takes ``--config FILE.toml`` (`read_config`): a run-configuration
+file whose keys are the fields (``max_offset_step``) or their long options
+(``max-offset-step``, ``average``); its values are merged *under* the command line (an
+option given on the command line wins) and go through the same checks.  An unknown key,
+a value of the wrong type or an unreadable file is one error naming the file, the key and
+its line (exit 2), before anything is read or written (docs/guide/run_config.md).
 """
 
 from __future__ import annotations
@@ -28,6 +35,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import re
+import tomllib
 import types
 import typing
 from collections.abc import Callable
@@ -134,8 +143,12 @@ def _parse_one(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> A
     return parse(value) if parse is not None else value
 
 
-def from_command_line(cls: type[T], values: dict[str, Any]) -> T:
+def from_command_line(cls: type[T], values: dict[str, Any],
+                      preset: dict[str, Any] | None = None) -> T:
     """Build ``cls`` from the command-line values of its fields (missing ones: defaults).
+
+    ``preset`` holds values already parsed (a run-configuration file's, `read_config`)
+    for the fields not in ``values``.
 
     Raises
     ------
@@ -143,7 +156,7 @@ def from_command_line(cls: type[T], values: dict[str, Any]) -> T:
         If a value does not parse or is not one of the field's choices (names the flag).
     """
     hints = typing.get_type_hints(cls)
-    kwargs = {}
+    kwargs = dict(preset or {})
     for f in dataclasses.fields(cls):
         if f.name in values:
             kind, optional = _kind(hints[f.name])
@@ -151,11 +164,192 @@ def from_command_line(cls: type[T], values: dict[str, Any]) -> T:
     return cls(**kwargs)
 
 
-def with_options(cls: type, name: str = "options") -> Callable[[Callable], Callable]:
-    """Give a command every field of ``cls`` as a command-line option.
+#: The option naming a run-configuration file (every command made by `with_options`).
+CONFIG_FLAG = "--config"
+#: What each field kind takes in a run-configuration file (for the error message).
+_TOML_TYPES = {"strs": "an array of strings", "ints": "an array of whole numbers",
+               "bool": "true or false", "int": "a whole number", "float": "a number",
+               "path": "a path string", "str": "a string"}
+
+
+def config_keys(cls: type) -> dict[str, dataclasses.Field]:
+    """Map every key a run-configuration file may use for ``cls`` to its field.
+
+    A field is named by its name (``max_offset_step``) or by any of its long options
+    without the dashes (``max-offset-step``, ``average`` for ``averages``); ``-`` and
+    ``_`` are the same.
+    """
+    keys: dict[str, dataclasses.Field] = {}
+    for f in dataclasses.fields(cls):
+        for name in (f.name, *(n.lstrip("-") for n in flags(f) if n.startswith("--"))):
+            keys[name.replace("-", "_")] = f
+    return keys
+
+
+def _key_line(text: str, key: str) -> int | None:
+    """1-based line of ``key = ...`` (or of a table ``[key]``) in a TOML text, else None."""
+    pattern = re.compile(r"^\s*\[?\s*[\"']?" + re.escape(key) + r"[\"']?\s*(=|\])")
+    for number, line in enumerate(text.splitlines(), start=1):
+        if pattern.match(line):
+            return number
+    return None
+
+
+def _toml_value(kind: str, value: Any, folder: Path) -> Any:
+    """Return a TOML value as a command-line value of ``kind`` (None: wrong type)."""
+    def whole(v: Any) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    if kind == "strs":
+        if isinstance(value, str):
+            return value
+        if isinstance(value, list) and all(isinstance(v, str) for v in value):
+            return ",".join(value)
+    elif kind == "ints":
+        if whole(value):
+            return str(value)
+        if isinstance(value, list) and all(whole(v) for v in value):
+            return ",".join(str(v) for v in value)
+    elif kind == "bool":
+        if isinstance(value, bool):
+            return value
+    elif kind == "int":
+        if whole(value):
+            return value
+    elif kind == "float":
+        if whole(value) or isinstance(value, float):
+            return float(value)
+    elif kind == "path":
+        if isinstance(value, str) and value.strip():
+            path = Path(value).expanduser()
+            return path if path.is_absolute() else folder / path
+    elif isinstance(value, str):
+        return value
+    return None
+
+
+def read_config(path: Path, cls: type) -> dict[str, Any]:
+    r"""Read a run-configuration file (TOML) for the options dataclass ``cls``.
+
+    Keys are the fields of ``cls`` or their long options (`config_keys`); values are
+    TOML values of the field's kind (an array of strings or a comma-separated string
+    for a list of names, an array of whole numbers, a number, true/false, a string); a
+    relative path is relative to the file's folder.  Each value goes through the same
+    checks as on the command line.
+
+    Parameters
+    ----------
+    path : Path
+        The ``--config`` file.
+    cls : type
+        The command's run-options dataclass.
+
+    Returns
+    -------
+    dict
+        Field name -> parsed value, for the fields the file sets.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file (and the key and its line): the file cannot be read or is not
+        TOML, a key is not an option of the command, a key is given twice (as field and
+        as option name), or a value has the wrong type or does not pass the option's
+        checks.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from dataclasses import dataclass, field
+    >>> @dataclass(frozen=True)
+    ... class Opts:
+    ...     frames: tuple[str, ...] = field(default=("mso",), metadata={"help": "Frames."})
+    ...     max_step: float = field(default=2.0, metadata={"help": "Threshold."})
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> _ = (folder / "run.toml").write_text('frames = ["mso", "rtn"]\nmax-step = 3\n')
+    >>> read_config(folder / "run.toml", Opts)
+    {'frames': ('mso', 'rtn'), 'max_step': 3.0}
+    """
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else (
+            "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc))
+        raise InputFormatError(f"cannot read the run-configuration file: {what} (give a "
+                               "TOML file, docs/guide/run_config.md)",
+                               path=str(path), field=CONFIG_FLAG) from None
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))
+        line = int(where.group(1)) if where else None
+        message = re.sub(r"\s*\(at (line .*|end of document)\)$", "", str(exc))
+        raise InputFormatError(f"not valid TOML: {message}", path=str(path),
+                               line=line) from None
+    keys = config_keys(cls)
+    hints = typing.get_type_hints(cls)
+    parsed: dict[str, Any] = {}
+    seen: dict[str, str] = {}
+    for key, value in table.items():
+        line = _key_line(text, key)
+        f = keys.get(key.replace("-", "_"))
+        if f is None:
+            known = sorted({f.name for f in dataclasses.fields(cls)})
+            raise InputFormatError(f"unknown key; this command's run options are "
+                                   f"{', '.join(known)} (other options go on the command "
+                                   "line)", path=str(path), line=line, field=key)
+        if f.name in seen:
+            raise InputFormatError(f"sets {f.name} again (also as {seen[f.name]!r})",
+                                   path=str(path), line=line, field=key)
+        seen[f.name] = key
+        kind, optional = _kind(hints[f.name])
+        cli_value = _toml_value(kind, value, path.parent)
+        if cli_value is None:
+            raise InputFormatError(f"{value!r} ({type(value).__name__}): expected "
+                                   f"{_TOML_TYPES[kind]}", path=str(path), line=line,
+                                   field=key)
+        try:
+            parsed[f.name] = _parse_one(f, kind, optional, cli_value)
+        except InputFormatError as exc:
+            reason = str(exc).split(": ", 1)[-1]
+            raise InputFormatError(reason, path=str(path), line=line, field=key) from None
+    return parsed
+
+
+#: Name of the click context parameter `with_options` adds (the options' sources).
+_CONTEXT = "fluxcal_run_context"
+
+
+def _config_parameters() -> list[inspect.Parameter]:
+    """Return the ``--config`` option and the context parameter of every options command."""
+    config = typer.Option(None, CONFIG_FLAG, help="Run-configuration file (TOML): run "
+                          "options by name, merged under the command line "
+                          "(docs/guide/run_config.md).")
+    return [inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY, default=config,
+                              annotation=Path | None),
+            inspect.Parameter(_CONTEXT, inspect.Parameter.KEYWORD_ONLY,
+                              annotation=typer.Context)]
+
+
+def _given(context: Any, name: str) -> bool:
+    """Whether option ``name`` was given on the command line (not left at its default)."""
+    if context is None:
+        return True
+    source = context.get_parameter_source(name)
+    return source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP")
+
+
+def with_options(cls: type, name: str = "options",
+                 report: bool = True) -> Callable[[Callable], Callable]:
+    """Give a command every field of ``cls`` as a command-line option, and ``--config``.
 
     The decorated function takes ``<name>: cls``; the returned command takes the fields
     as typer options instead, builds ``cls`` with `from_command_line` and passes it on.
+    ``--config FILE`` adds the file's values (`read_config`) for the options not given
+    on the command line.  With ``report``, a command run from the command line with an
+    ``out`` folder ends by writing the run's HTML report there, staged with the run's
+    products (`fluxcal.products.html_report.write_run_report`).
 
     Examples
     --------
@@ -177,11 +371,24 @@ def with_options(cls: type, name: str = "options") -> Callable[[Callable], Calla
 
         @functools.wraps(func)
         def command(*args: Any, **kwargs: Any) -> Any:
+            context = kwargs.pop(_CONTEXT, None)
+            config = kwargs.pop("config", None)
             values = {k: kwargs.pop(k) for k in list(kwargs) if k in field_names}
-            kwargs[name] = from_command_line(cls, values)
-            return func(*args, **kwargs)
+            preset = {}
+            if config is not None:  # the file's values under the command line's
+                preset = read_config(Path(config), cls)
+                values = {k: v for k, v in values.items()
+                          if k not in preset or _given(context, k)}
+            kwargs[name] = from_command_line(cls, values, preset)
+            result = func(*args, **kwargs)
+            if report and context is not None and kwargs.get("out") is not None:
+                from fluxcal.products.html_report import write_run_report
+
+                write_run_report(Path(kwargs["out"]))
+            return result
 
         hints = typing.get_type_hints(func)
+        extra += _config_parameters()
         command.__signature__ = signature.replace(  # type: ignore[attr-defined]
             parameters=[p.replace(annotation=hints.get(p.name, p.annotation)) for p in own]
             + extra)

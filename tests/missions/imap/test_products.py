@@ -48,7 +48,7 @@ def test_cdf_product_names_and_contents(imap_data: Path, tmp_path: Path) -> None
          "--formats", "cdf,nc")
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == [f"imap_mag_l1a_norm-{s}_20250206_v001.{x}"
-                     for s in ("magi", "mago") for x in ("cdf", "nc")]
+                     for s in ("magi", "mago") for x in ("cdf", "nc")] + ["index.html"]
     ds = read_product(tmp_path / "imap_mag_l1a_norm-mago_20250206_v001.cdf")
     assert ds.attrs["Logical_file_id"] == "imap_mag_l1a_norm-mago_20250206_v001"
     assert ds["counts"].attrs["units"] == "count"

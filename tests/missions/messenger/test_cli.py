@@ -39,7 +39,8 @@ def test_formats_without_png_write_the_report_text_only(tmp_path, simulated_file
                       "--average", "", "--formats", "cdf"))
     assert code == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["MAGOFFSETS12153.txt", "messenger_mag_mso-sci_20120601_v01.cdf"]
+    assert names == ["MAGOFFSETS12153.txt", "index.html",  # index.html: the run's report
+                     "messenger_mag_mso-sci_20120601_v01.cdf"]
 
 
 def test_an_unknown_format_fails_before_any_work(tmp_path, simulated_files, messenger_kernels,

@@ -28,3 +28,19 @@ def run_demo(out: Path) -> str:
         lines.append(f"{level.upper()} from real IMAP MAG ground-test packets: {counts} "
                      f"vectors; {len(paths)} files in {out / level}")
     return "\n".join(lines)
+
+
+def run_quick_demo(out: Path) -> str:
+    """``make demo``: the shipped real packets -> L1B CDFs, quicklooks and the HTML report."""
+    from fluxcal.products.html_report import write_run_report
+
+    out = Path(out)
+    inputs = [data_file(name) for name in SAMPLES]
+    datasets = process(inputs, level="l1b")
+    prov = provenance_attrs(inputs, {"imap_mag_l1b": data_file(DEFAULT_CALIBRATION)},
+                            [data_file(DEFAULT_SCLK)])
+    paths = write_products(datasets, out, ["cdf"], prov, quicklook=True)
+    report = write_run_report(out, title="fluxcal demo: IMAP MAG L1B from real packets")
+    counts = ", ".join(f"{m}-{s} {ds.sizes['time']}" for (m, s), ds in datasets.items())
+    return (f"IMAP MAG L1B from real ground-test packets: {counts} vectors; {len(paths)} "
+            f"files in {out}\n  report: {report}")

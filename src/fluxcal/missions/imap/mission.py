@@ -25,5 +25,7 @@ MISSION = Mission(
     demo_days=(_dt.date(2023, 10, 25), _dt.date(2023, 11, 30)),  # the real samples
     formats=FORMATS,
     demo_parts=(DemoPart("IMAP MAG from real packets: L0 -> L1A -> L1B",
-                         "fluxcal.missions.imap.demo:run_demo", "imap", 80),),
+                         "fluxcal.missions.imap.demo:run_demo", "imap", 80),
+                DemoPart("IMAP MAG from real packets: L1B", "fluxcal.missions.imap.demo:"
+                         "run_quick_demo", "imap", 80, quick=True)),
 )

@@ -27,6 +27,8 @@ MISSION = Mission(
     simulate_days=f"{_M}.batch_task:simulate_days",
     demo_days=(_dt.date(2012, 6, 1), _dt.date(2012, 6, 2)),
     demo_parts=(
+        DemoPart("MESSENGER MAG EDR -> CDR (30 min simulated)", f"{_M}.demo:run_quick_demo",
+                 "messenger", 20, quick=True),
         DemoPart("Geometry core", f"{_M}.geometry_demo:run_geometry_demo", "geometry", 10),
         DemoPart("MESSENGER MAG EDR -> CDR", f"{_M}.demo:run_demo", "messenger", 20),
         DemoPart("MESSENGER in-flight calibration: simulate, fit, recalibrate, compare",

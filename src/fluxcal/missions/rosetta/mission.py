@@ -44,6 +44,8 @@ MISSION = Mission(
     simulate_days=f"{_M}.batch_task:simulate_days",
     demo_days=(_dt.date(2014, 11, 1), _dt.date(2014, 11, 2)),
     demo_parts=(
+        DemoPart("Rosetta RPC-MAG levels (15 min simulated)", f"{_M}.demo:run_quick_demo",
+                 "rosetta", 30, quick=True),
         DemoPart("Rosetta RPC-MAG levels", f"{_M}.demo:run_demo", "rosetta", 30),
         DemoPart("Rosetta disturbance removal", f"{_M}.cleaning_demo:run_demo",
                  "rosetta_cleaning", 40),

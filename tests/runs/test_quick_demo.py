@@ -1,0 +1,34 @@
+"""``fluxcal demo`` (``make demo``): each mission's calibrated product, quicklook and report.
+
+Issue 25 item 7: the first run a newcomer makes shows, for MESSENGER, Rosetta and IMAP, a
+calibrated CDF, a quicklook and the run's HTML report, and an overview page linking them;
+the full tour (fits, batch, cleaning, archive) is ``--full`` and is not run here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from fluxcal.cli import main
+from tests.products.test_html_report import static_check
+
+
+@pytest.mark.slow  # ~20 s of CPU: the three missions' pipelines on short inputs
+def test_quick_demo_shows_a_product_quicklook_and_report_per_mission(tmp_path: Path,
+                                                                     capsys) -> None:
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    for folder in ("messenger/products", "rosetta/products", "imap"):
+        report = out / folder / "index.html"
+        assert report.exists(), folder
+        assert list(report.parent.glob("*.cdf")) and list(report.parent.glob("*.png")), folder
+        assert static_check(report) == [], folder
+        assert f'href="{folder}/index.html"' in (out / "index.html").read_text()
+    assert static_check(out / "index.html") == []
+    assert not (out / "batch").exists() and not (out / "messenger_fit").exists()
+    assert "fluxcal demo --full" in text
+    # the accuracy lines of the chains (recovered - true), as in the full tour
+    assert "fine_rms" in text and "LEVEL_C recovered - true rms" in text
