@@ -86,7 +86,7 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
 
     Each mission adds its commands (``fluxcal <mission> ...``), its simulator
     (``fluxcal simulate <mission>``) and its batch command (``fluxcal batch <mission>``,
-    from its day task and options dataclass); ``plot``, ``compare``, ``demo`` and
+    from its day task and options dataclass); ``plot``, ``compare``, ``provenance``, ``demo`` and
     ``version`` work on every mission's products.
     """
     missions = registry.missions() if missions is None else missions
@@ -118,6 +118,7 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
     root.add_typer(batch_app(missions), name="batch")
     root.command("plot")(product_commands.plot)
     root.command("compare")(product_commands.compare)
+    root.command("provenance")(product_commands.provenance)
     return root
 
 
