@@ -2,8 +2,9 @@
 
 File I/O around the pure level functions of `fluxcal.missions.rosetta.cleaning_levels`:
 read earlier-level products (``.cdf``, ``.nc`` or ``.TAB``), run one level, write
-``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` products in the formats of the other levels
-(table + label + CDF), plus a before/after spectrogram PNG for H and a before/after
+``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` tables and ISTP-named
+``rosetta_rpcmag_cl<level>-<sensor>_<yyyymmdd>_v01`` CDF, netCDF or Zarr
+(`write_clean_level`), plus a before/after spectrogram PNG for H and a before/after
 time-series PNG for K.
 
 Registration (in ``fluxcal/cli.py``)::
@@ -89,6 +90,36 @@ def _day(epoch: np.ndarray, lsk) -> str:
     return str(tt2000_to_utc(np.asarray(epoch[:1]), digits=0, lsk=lsk)[0])[:10].replace("-", "")
 
 
+#: What each cleaned level holds (RO-IGEP-TR0028 sec. 4.9-4.13): the long part of its
+#: ISTP ``Data_type`` and its ``Logical_source_description``.
+CLEAN_DESCRIPTION = {
+    "H": "reaction-wheel and LAP lines removed",
+    "I": "LEVEL_H averaged",
+    "J": "two-sensor PCA residual field",
+    "K": "heater disturbance removed",
+    "L": "LEVEL_K rotated into the output frame",
+}
+
+
+def clean_logical_source(level: str, sensor: str) -> tuple[str, str]:
+    """ISTP ``Data_type`` and ``Logical_source`` of a cleaned level H-L of one sensor.
+
+    ``Data_type`` is ``CL<level>-<sensor>>LEVEL_<level> <what it holds>``, so that the
+    ISTP rule ``Logical_source = source_descriptor_datatype`` (short forms, lower case)
+    gives ``rosetta_rpcmag_cl<level>-<sensor>``, the name family of the calibrated
+    levels: each level has its own ``Logical_source`` and file names
+    ``rosetta_rpcmag_clh-ob_20140801_v01.cdf`` (docs/decisions/products.md).
+
+    Examples
+    --------
+    >>> clean_logical_source("H", "OB")
+    ('CLH-OB>LEVEL_H reaction-wheel and LAP lines removed', 'rosetta_rpcmag_clh-ob')
+    """
+    level, sensor = level.upper(), sensor.upper()
+    data_type = f"CL{level}-{sensor}>LEVEL_{level} {CLEAN_DESCRIPTION[level]}"
+    return data_type, f"rosetta_rpcmag_cl{level}-{sensor}".lower()
+
+
 def write_clean_level(
     ds: xr.Dataset,
     out_dir: Path,
@@ -99,9 +130,18 @@ def write_clean_level(
     provenance: dict | None = None,
     lsk=None,
 ) -> list[Path]:
-    """Write one cleaned level of one sensor (one day) as ``RPCMAG_<day>_CL<level>_<sensor>``."""
+    """Write one cleaned level of one sensor (one day); return the paths written.
+
+    The table is ``RPCMAG_<yyyymmdd>_CL<level>_<sensor>.TAB`` (+ label); CDF, netCDF and
+    Zarr have the ISTP names of the calibrated levels,
+    ``rosetta_rpcmag_cl<level>-<sensor>_<yyyymmdd>_v01``, with the level's own
+    ``Logical_source`` and ``Data_type`` (`clean_logical_source`) and the Rosetta ISTP
+    attribute files.
+    """
     from fluxcal.geometry.time import tt2000_to_utc
+    from fluxcal.missions.rosetta.pipeline import DATA_VERSION, istp_yaml
     from fluxcal.products import write_product
+    from fluxcal.products.cdf import istp_file_stem
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -114,15 +154,23 @@ def write_clean_level(
         if key in attrs:
             attrs[f"parent_{key}"] = attrs.pop(key)
     attrs.update(provenance or {})
+    data_type, source = clean_logical_source(level, sensor)
+    attrs.update(Data_type=data_type, Logical_source=source, Data_version=str(DATA_VERSION),
+                 Logical_source_description=f"Rosetta RPC-MAG LEVEL_{level}, "
+                                            f"{CLEAN_DESCRIPTION[level.upper()]}")
     part.attrs = attrs
-    stem = out_dir / f"RPCMAG_{_day(epoch, lsk)}_CL{level}_{sensor}"
-    return write_product(
-        part,
-        stem,
-        formats=formats,
-        columns=_columns(level, part),
-        label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor},
-    )
+    day = _day(epoch, lsk)
+    extra = {"LEVEL": f"LEVEL_{level}", "SENSOR": sensor}
+    written: list[Path] = []
+    if "tab" in formats:
+        written += write_product(part, out_dir / f"RPCMAG_{day}_CL{level}_{sensor}",
+                                 formats=("tab",), columns=_columns(level, part),
+                                 label_extra=extra)
+    other = [f for f in formats if f != "tab"]
+    if other:
+        written += write_product(part, out_dir / istp_file_stem(source, day, DATA_VERSION),
+                                 formats=other, label_extra=extra, **istp_yaml())
+    return written
 
 
 def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
@@ -550,7 +598,8 @@ def clean(
         help="K: direction X,Y,Z (s/c frame) of the heater field when on, where the data "
         "cannot tell which level is heater-off (a constant current seen 'on' first).",
     ),
-    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
+    formats: str = typer.Option("tab,cdf", "--formats",
+                                help="Product formats: tab, cdf, nc, zarr."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
     """Remove s/c disturbances: LEVEL_H (wheel/LAP lines), I, J (PCA), K, L (heaters), F, G."""
