@@ -3,6 +3,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib.image as mpimg
+import matplotlib.dates as mdates
 import numpy as np
 import pytest
 import xarray as xr
@@ -40,10 +41,12 @@ def test_panels_follow_the_dataset() -> None:
     assert "T (degC)" in labels  # the float32 'temperature' variable
     assert "quality" in labels
     assert labels[-1] == "distance (km)"
-    assert fig.axes[-1].get_xlabel().startswith("Hours of 2024-01-01")
+    # UTC date ticks (before: decimal "Hours of 2024-01-01")
+    assert fig.axes[-1].get_xlabel() == "Time (UTC)"
+    assert isinstance(fig.axes[-1].xaxis.get_major_formatter(), mdates.ConciseDateFormatter)
     assert fig._suptitle.get_text() == "MAGMSOSCI24001"
     legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert legend == ["Bx", "By", "Bz"]
+    assert legend == ["B_X", "B_Y", "B_Z"]  # the components x, y, z of B_mso
     # the magnitude panel draws |B| (envelope keeps the extremes)
     ymax = max(line.get_ydata().max() for line in fig.axes[1].get_lines())
     ds = _messenger_like()
