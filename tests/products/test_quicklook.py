@@ -2,8 +2,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib.image as mpimg
 import matplotlib.dates as mdates
+import matplotlib.image as mpimg
 import numpy as np
 import pytest
 import xarray as xr
