@@ -24,6 +24,7 @@ import os
 import re
 import sys
 from collections.abc import Iterable, Mapping, Sequence
+from contextvars import ContextVar
 from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import TYPE_CHECKING, Any
 
@@ -33,6 +34,11 @@ if TYPE_CHECKING:
     import xarray as xr
 
 _CHUNK = 1 << 20
+
+#: The command line of the running ``fluxcal`` command (`fluxcal.cli.main` sets it, also
+#: when called with ``argv`` from Python); ``None``: ``sys.argv``.
+COMMAND_ARGS: ContextVar[tuple[str, ...] | None] = ContextVar("fluxcal_command_args",
+                                                              default=None)
 
 #: Characters that end a path inside a text (quotes of JSON, separators of lists).
 _TOKEN = re.compile(r"[^\s\"'(),;=\[\]{}<>]+")
@@ -159,7 +165,7 @@ def portable_command_line(argv: Sequence[str] | None = None) -> str:
     >>> portable_command_line(["/venv/bin/fluxcal", "plot", "/data/x/a.cdf", "--out=/tmp/q"])
     'fluxcal plot a.cdf --out=q'
     """
-    args = list(sys.argv if argv is None else argv)
+    args = list((COMMAND_ARGS.get() or sys.argv) if argv is None else argv)
 
     def one(arg: str) -> str:
         opt, eq, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
@@ -189,7 +195,8 @@ def provenance_attrs(
         SPICE kernels loaded (existing files get a SHA-256; others, e.g. a kernel
         named inside a meta-kernel that is not on disk, are recorded by name).
     command_line : str, optional
-        Default: ``sys.argv`` through `portable_command_line`; a given text passes
+        Default: the running command (`COMMAND_ARGS`, else ``sys.argv``) through
+        `portable_command_line`; a given text passes
         through `portable_text`.
 
     Returns
