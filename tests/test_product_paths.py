@@ -204,3 +204,58 @@ def test_command_line_and_records_name_no_folder(tmp_path: Path) -> None:
     assert attrs["kernels"][1] == {"name": "gone.bsp"}
     assert attrs["calibration"] == {"ground": {"name": "a.csv", "sha256": attrs["inputs"][0][
         "sha256"]}, "jumps": {"version": "v2"}}
+
+
+@pytest.mark.slow
+def test_rosetta_cdfs_tag_their_frame_and_pass_the_istp_checks(runs, tmp_path: Path,
+                                                                caplog) -> None:
+    """COORDINATE_SYSTEM from each level's frame (pyspedas tags it); cleaned K its own names."""
+    import logging
+
+    import cdflib.xarray as cx
+    import pyspedas
+    from spacepy import pycdf
+    from spacepy.pycdf import istp
+
+    tolerated = "Multi dim variable with time_series display type."
+    cdfs = sorted(runs["rosetta"].glob("*.cdf")) + sorted(runs["clean"].glob("*.cdf"))
+    assert [p.name for p in runs["clean"].glob("*.cdf")] == [
+        "rosetta_rpcmag_clk-ob_20140801_v01.cdf"]
+    frames = {}
+    caplog.set_level(logging.INFO, logger="cdflib")
+    for path in cdfs:
+        f = cdflib.CDF(str(path))
+        g = f.globalattsget()
+        assert g["Logical_file_id"] == [path.stem]
+        if "b" in f.cdf_info().zVariables:
+            frame = f.varattsget("b")["frame"]
+            assert f.varattsget("b")["COORDINATE_SYSTEM"] == frame
+            assert "b" in pyspedas.cdf_to_tplot(str(path))
+            assert pyspedas.get_coords("b") == frame
+            frames[g["Logical_source"][0]] = frame
+        with pycdf.CDF(str(path)) as c:
+            assert [e for e in istp.FileChecks.all(c) if not e.endswith(tolerated)] == []
+        caplog.clear()
+        cx.xarray_to_cdf(cx.cdf_to_xarray(str(path), to_datetime=False),
+                         str(tmp_path / path.name), istp=True)
+        assert [r.getMessage() for r in caplog.records if r.name.startswith("cdflib")] == []
+    assert frames["rosetta_rpcmag_cla-ob"] == "ROS_RPC_MAG_OB (URF)"
+    assert frames["rosetta_rpcmag_clb-ob"] == "ROS_SPACECRAFT"
+    assert frames["rosetta_rpcmag_clk-ob"] == "ROS_SPACECRAFT"
+    g = cdflib.CDF(str(cdfs[-1])).globalattsget()
+    assert g["Data_type"] == ["CLK-OB>LEVEL_K heater disturbance removed"]
+
+
+def test_each_cleaning_level_has_its_own_istp_names() -> None:
+    from fluxcal.missions.rosetta.clean_cli import CLEAN_DESCRIPTION, clean_logical_source
+    from fluxcal.products.cdf import istp_file_stem, istp_logical_source
+
+    names = {}
+    for level in CLEAN_DESCRIPTION:
+        for sensor in ("OB", "IB", "EXT"):
+            data_type, source = clean_logical_source(level, sensor)
+            # the ISTP rule: Logical_source = source_descriptor_datatype (short forms)
+            assert source == istp_logical_source("ROSETTA>x", "RPCMAG>y", data_type)
+            names[(level, sensor)] = istp_file_stem(source, "2014-08-01", 1)
+    assert len(set(names.values())) == len(names)
+    assert names[("H", "OB")] == "rosetta_rpcmag_clh-ob_20140801_v01"
