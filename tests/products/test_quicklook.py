@@ -238,7 +238,10 @@ def test_spectrogram_keeps_real_times_when_the_rate_changes() -> None:
     ax = fig.axes[0]
     meshes = ax.collections
     assert len(meshes) == 2  # one per evenly sampled run
-    x_ranges = [m.get_coordinates()[0, [0, -1], 0] for m in meshes]
+    # UTC date ticks; x in matplotlib days from 2024-01-01 00:00 UTC, turned into seconds
+    assert isinstance(ax.xaxis.get_major_formatter(), mdates.ConciseDateFormatter)
+    day0 = mdates.date2num(np.datetime64("2024-01-01T00:00", "ns"))
+    x_ranges = [(m.get_coordinates()[0, [0, -1], 0] - day0) * 86_400.0 for m in meshes]
     # each run spans its own real seconds of the day (within one segment, 256 samples)
     assert x_ranges[0][0] == pytest.approx(t0, abs=256 / 20)
     assert x_ranges[0][1] == pytest.approx(t0 + 4000, abs=256 / 20)

@@ -218,10 +218,7 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
             ax.set_ylabel("distance (km)")
         ax.grid(alpha=0.3)
         plain_numbers(ax)
-    locator = mdates.AutoDateLocator(minticks=4, maxticks=10)
-    axes[-1].xaxis.set_major_locator(locator)
-    axes[-1].xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
-    axes[-1].set_xlabel("Time (UTC)")  # the date is under the ticks (ConciseDateFormatter)
+    date_axis(axes[-1])
     fig.suptitle(title or f"{bname} {date}")
     fig.align_ylabels(axes)
     return fig
@@ -242,6 +239,25 @@ def utc_times(epoch: np.ndarray, day_start: int, date: str) -> np.ndarray:
     '2000-01-01T01:00:00.000000000'
     """
     return np.datetime64(date, "ns") + (np.asarray(epoch, np.int64) - day_start).astype("m8[ns]")
+
+
+def plot_times(epoch: np.ndarray) -> np.ndarray:
+    """Return UTC ``datetime64[ns]`` of TT2000 ``epoch`` for a time axis (`utc_times`)."""
+    epoch = np.asarray(epoch, np.int64)
+    start, date = _day_start_ns(int(epoch[0])) if epoch.size else (0, "2000-01-01")
+    return utc_times(epoch, start, date)
+
+
+def date_axis(ax) -> None:
+    """UTC date ticks on ``ax``'s time axis (`matplotlib.dates.ConciseDateFormatter`).
+
+    Ticks at round times (``00:05``, ``06:00``, ...) with the date written once beneath;
+    the axis label is ``Time (UTC)``.
+    """
+    locator = mdates.AutoDateLocator(minticks=4, maxticks=10)
+    ax.xaxis.set_major_locator(locator)
+    ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+    ax.set_xlabel("Time (UTC)")
 
 
 def component_label(component: str) -> str:
@@ -464,10 +480,11 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
                        nperseg: int = 256) -> Figure:
     """One spectrogram panel per component of a vector variable (default: the field).
 
-    The time axis is seconds of the UTC day, from each sample's own time: a day whose
+    The time axis is UTC, from each sample's own time: a day whose
     vector rate changes (or that has gaps) is drawn as one spectrogram per evenly
     sampled run (`uniform_runs`) at its own rate, placed at its real times, with one
-    colour scale; runs shorter than ``nperseg`` are left blank.  ``fs`` forces one rate
+    colour scale; runs shorter than ``nperseg`` are left blank; UTC date ticks
+    (`date_axis`).  ``fs`` forces one rate
     for the whole series (evenly sampled data only).
     """
     from matplotlib.colors import Normalize
@@ -479,6 +496,7 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
         raise InputFormatError("spectrogram of an empty product", field="epoch")
     start, date = _day_start_ns(int(epoch[0]))
     t = (epoch - start) / 1e9
+    day0 = float(mdates.date2num(np.datetime64(date, "ns")))
     runs = [slice(0, t.size)] if fs is not None else uniform_runs(t)
     runs = [r for r in runs if r.stop - r.start >= nperseg]
     if not runs:
@@ -500,12 +518,13 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
     for j, ax in enumerate(axes):
         for k, r in enumerate(runs):
             f, tt, _ = specs[(k, j)]
-            mesh = ax.pcolormesh(t[r][0] + tt, f, logs[(k, j)], shading="auto", norm=norm)
+            x = day0 + (t[r][0] + tt) / 86_400.0  # matplotlib date numbers (days)
+            mesh = ax.pcolormesh(x, f, logs[(k, j)], shading="auto", norm=norm)
         ax.set_ylabel("Frequency (Hz)")
-        ax.set_title(f"{name} {comps[j]}", fontsize=9, loc="left")
+        ax.set_title(f"{component_label(comps[j])} ({name})", fontsize=9, loc="left")
         ax.set_ylim(0, max(rates) / 2)
         fig.colorbar(mesh, ax=ax, label="log10 PSD (nT$^2$/Hz)")
-    axes[-1].set_xlabel(f"Seconds of {date} (UTC)")
+    date_axis(axes[-1])
     if len(set(np.round(rates, 6))) > 1:
         fig.suptitle(f"{len(runs)} evenly sampled runs, "
                      f"{min(rates):g}-{max(rates):g} Hz", fontsize=9)

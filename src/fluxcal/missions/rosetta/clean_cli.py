@@ -296,10 +296,12 @@ def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: s
     import numpy as np
 
     matplotlib.use("Agg")
+    import matplotlib.dates as mdates
     import matplotlib.pyplot as plt
 
     from fluxcal.cleaning.spectral_lines import dynamic_spectrum
     from fluxcal.missions.rosetta.cleaning_levels import _groups
+    from fluxcal.products.quicklook import date_axis, plot_times
 
     groups = _groups(before)
     _, idx = max(groups, key=lambda g: g[1].size)
@@ -316,14 +318,14 @@ def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: s
         for c in range(3):
             starts, freqs, p = dynamic_spectrum(b[:, c], fs, window_length=length)
             psd = psd + p
-        hours = (epoch[starts + length // 2] - epoch[0]) / 3.6e12
+        x = mdates.date2num(plot_times(epoch[starts + length // 2]))
         mesh = ax.pcolormesh(
-            hours, freqs[1:], np.log10(np.maximum(psd[:, 1:].T, 1e-12)), shading="nearest"
+            x, freqs[1:], np.log10(np.maximum(psd[:, 1:].T, 1e-12)), shading="nearest"
         )
         ax.set_ylabel("frequency (Hz)")
         ax.set_title(f"{title}: {name} line removal")
         fig.colorbar(mesh, ax=ax, label="log10 trace PSD (nT^2/Hz)")
-    axes[1].set_xlabel("hours since first vector")
+    date_axis(axes[1])
     return _save(fig, path)
 
 
@@ -334,21 +336,21 @@ def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: st
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fluxcal.products.quicklook import envelope
+    from fluxcal.products.quicklook import component_label, date_axis, envelope, plot_times
 
     epoch = before["epoch"].values
-    hours = (epoch - epoch[0]) / 3.6e12
-    hours_after = (after["epoch"].values - epoch[0]) / 3.6e12
+    hours = plot_times(epoch)
+    hours_after = plot_times(after["epoch"].values)
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
     for c, ax in enumerate(axes):
         ax.plot(*envelope(hours, before["b"].values[:, c]), color="0.6", lw=0.6,
                 label="before")
         ax.plot(*envelope(hours_after, after["b"].values[:, c]), color="C1", lw=0.6,
                 label="after")
-        ax.set_ylabel(f"B{'xyz'[c]} (nT)")
+        ax.set_ylabel(f"{component_label('xyz'[c])} (nT)")
     axes[0].legend(loc="upper right")
     axes[0].set_title(title)
-    axes[-1].set_xlabel("hours since first vector")
+    date_axis(axes[-1])
     return _save(fig, path)
 
 
