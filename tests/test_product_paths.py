@@ -259,3 +259,13 @@ def test_each_cleaning_level_has_its_own_istp_names() -> None:
             names[(level, sensor)] = istp_file_stem(source, "2014-08-01", 1)
     assert len(set(names.values())) == len(names)
     assert names[("H", "OB")] == "rosetta_rpcmag_clh-ob_20140801_v01"
+
+
+@pytest.mark.parametrize("name", ["not_a_product.cdf", "notes.txt", "x.nc"])
+def test_provenance_of_a_non_product_is_one_line_exit_2(name: str, tmp_path: Path,
+                                                         capsys) -> None:
+    bad = tmp_path / name
+    bad.write_text("hello\n")
+    assert main(["provenance", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and name in err[0]
