@@ -25,8 +25,8 @@ from fluxcal.products.provenance import (
     portable_command_line,
     portable_text,
     provenance_attrs,
-    read_provenance,
 )
+from fluxcal.products.provenance_read import read_provenance
 from tests.conftest import SHARED_DATA
 
 T010_L1A = (SHARED_DATA / "imap" / "validation" / "T010"

@@ -79,7 +79,7 @@ def provenance(
     """Print what a product was made from: inputs, calibration, kernels (name, SHA-256)."""
     import json
 
-    from fluxcal.products.provenance import format_provenance, read_provenance
+    from fluxcal.products.provenance_read import format_provenance, read_provenance
 
     prov = read_provenance(product)
     typer.echo(json.dumps(prov, indent=1, default=str) if as_json else format_provenance(prov))
