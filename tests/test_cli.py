@@ -34,8 +34,8 @@ def test_fluxcal_error_is_reported_with_exit_code_2(capsys, tmp_path):
 
 def test_every_command_has_help(capsys):
     for cmd in (["messenger", "edr2cdr"], ["rosetta", "calibrate"], ["rosetta", "clean"],
-                ["simulate", "messenger"], ["simulate", "rosetta"], ["plot"], ["batch"],
-                ["demo"]):
+                ["simulate", "messenger"], ["simulate", "rosetta"], ["plot"], ["provenance"],
+                ["batch"], ["demo"]):
         assert main([*cmd, "--help"]) == 0, cmd
 
 

@@ -25,6 +25,7 @@ from fluxcal import product_commands
 from fluxcal.cli_help import HELP_WIDTH, QUIET, HelpGroup
 from fluxcal.errors import FluxcalError
 from fluxcal.process import malloc_defaults, numpy_allocation_defaults
+from fluxcal.products.provenance import COMMAND_ARGS
 from fluxcal.products.staging import (
     Interrupted,
     interrupt_signals,
@@ -91,7 +92,7 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
 
     Each mission adds its commands (``fluxcal <mission> ...``), its simulator
     (``fluxcal simulate <mission>``) and its batch command (``fluxcal batch <mission>``,
-    from its day task and options dataclass); ``plot``, ``compare``, ``demo`` and
+    from its day task and options dataclass); ``plot``, ``compare``, ``provenance``, ``demo`` and
     ``version`` work on every mission's products.
     """
     missions = registry.missions() if missions is None else missions
@@ -123,6 +124,7 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
     root.add_typer(batch_app(missions), name="batch")
     root.command("plot")(product_commands.plot)
     root.command("compare")(product_commands.compare)
+    root.command("provenance")(product_commands.provenance)
     return root
 
 
@@ -252,6 +254,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_requested(args)
     quiet = QUIET.set(False)  # set by the root callback for this command only
+    command = COMMAND_ARGS.set(("fluxcal", *args))  # what products record (not pytest's argv)
     try:
         # the demo tour and the simulators read back what they wrote (each file is written
         # atomically); they are locked and cleaned on failure but not staged as one group
@@ -298,6 +301,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exit_code)
     finally:
         QUIET.reset(quiet)
+        COMMAND_ARGS.reset(command)
     return int(code) if isinstance(code, int) else 0
 
 

@@ -1,4 +1,4 @@
-"""``fluxcal plot`` and ``fluxcal compare``: commands on products of any mission."""
+"""``fluxcal plot``, ``compare`` and ``provenance``: commands on products of any mission."""
 
 from __future__ import annotations
 
@@ -72,3 +72,17 @@ def compare(
     png = write_difference_plot(result, out_dir)
     typer.echo(format_report(result))
     typer.echo(f"plot: {png}")
+
+
+def provenance(
+    product: Path = typer.Argument(..., exists=True, help="Product (.cdf, .nc, .zarr, "
+                                   ".LBL or .TAB) written by fluxcal."),
+    as_json: bool = typer.Option(False, "--json", help="Print the provenance as JSON."),
+) -> None:
+    """Print what a product was made from: inputs, calibration, kernels (name, SHA-256)."""
+    import json
+
+    from fluxcal.products.provenance_read import format_provenance, read_provenance
+
+    prov = read_provenance(product)
+    typer.echo(json.dumps(prov, indent=1, default=str) if as_json else format_provenance(prov))

@@ -59,7 +59,7 @@ def test_heater_direction_from_the_command(tmp_path, lsk):  # noqa: F811
     res = CliRunner().invoke(app, ["clean", "--level", "K", "--input", str(files[".cdf"]),
                                    "--out", str(out), "--heater-direction", arg, "--no-plot"])
     assert res.exit_code == 0, res.output
-    k = read_product(out / "RPCMAG_20140801_CLK_OB.cdf")
+    k = read_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
     assert abs(np.mean((k["b"].values - bg) @ d)) < 0.01
     bad = CliRunner().invoke(app, ["clean", "--level", "K", "--input", str(files[".cdf"]),
                                    "--out", str(out), "--heater-direction", "0,0,0"])

@@ -78,7 +78,7 @@ def test_level_j_estimator_from_the_command(tmp_path, lsk, estimator):
             str(f_ib[".cdf"]), "--out", str(out), "--pca-estimator", estimator]
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
-    back = read_product(out / "RPCMAG_20140801_CLJ_EXT.cdf")
+    back = read_product(out / "rosetta_rpcmag_clj-ext_20140801_v01.cdf")
     assert back.attrs["pca_estimator"] == estimator
     want = two_sensor_pca(ob["b"].values, ib["b"].values, method=estimator).external
     np.testing.assert_allclose(back["b"].values, want, atol=2e-3)  # the table's 3 decimals

@@ -383,10 +383,10 @@ def test_clean_command_h_i_k(tmp_path, lsk):
     assert names == [
         "RPCMAG_20140801_CLH_OB.LBL",
         "RPCMAG_20140801_CLH_OB.TAB",
-        "RPCMAG_20140801_CLH_OB.cdf",
         "RPCMAG_20140801_CLH_OB.png",
+        "rosetta_rpcmag_clh-ob_20140801_v01.cdf",
     ]
-    h = read_product(out / "RPCMAG_20140801_CLH_OB.cdf")
+    h = read_product(out / "rosetta_rpcmag_clh-ob_20140801_v01.cdf")
     assert h.attrs["level"] == "H"
     assert np.sqrt(np.mean((h["b"].values - bg[:8000]) ** 2)) < 0.05
     assert (out / "RPCMAG_20140801_CLH_OB.png").read_bytes()[:4] == b"\x89PNG"
@@ -401,13 +401,13 @@ def test_clean_command_h_i_k(tmp_path, lsk):
             "--level",
             "I",
             "--input",
-            str(out / "RPCMAG_20140801_CLH_OB.cdf"),
+            str(out / "rosetta_rpcmag_clh-ob_20140801_v01.cdf"),
             "--out",
             str(out),
         ],
     )
     assert res.exit_code == 0, res.output
-    i = read_product(out / "RPCMAG_20140801_CLI_OB.cdf")
+    i = read_product(out / "rosetta_rpcmag_cli-ob_20140801_v01.cdf")
     assert i.sizes["time"] == 400 and i.attrs["level"] == "I"
 
     hds, *_ = _heater_case(lsk, n=6000)
@@ -417,7 +417,7 @@ def test_clean_command_h_i_k(tmp_path, lsk):
     )
     assert res.exit_code == 0, res.output
     assert (out / "RPCMAG_20140801_CLK_OB.png").exists()
-    k = read_product(out / "RPCMAG_20140801_CLK_OB.cdf")
+    k = read_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
     assert k.attrs["heater_jumps"] > 0 and "temperature" in k
 
 
@@ -518,7 +518,7 @@ def test_clean_command_j_writes_three_products(tmp_path, lsk):
     res = clean_files("J", [f_ob[".cdf"], f_ib[".cdf"]], tmp_path / "out")
     assert set(res.levels) == {"EXT", "OB", "IB"}
     for tag in ("EXT", "OB", "IB"):
-        back = read_product(tmp_path / "out" / f"RPCMAG_20140801_CLJ_{tag}.cdf")
+        back = read_product(tmp_path / "out" / f"rosetta_rpcmag_clj-{tag.lower()}_20140801_v01.cdf")
         assert back.attrs["pca_part"] == tag and back.sizes["time"] == n
     # the command with a regular grid and a gap limit (IB shifted by 0.25 s, a 4 s gap)
     ib2 = _dataset(np.delete(epoch, range(100, 103)) + 250_000_000, ib["b"].values[3:],
@@ -531,7 +531,7 @@ def test_clean_command_j_writes_three_products(tmp_path, lsk):
     out = tmp_path / "out2"
     res = CliRunner().invoke(app, args + ["--out", str(out), "--step", "1", "--max-gap", "3"])
     assert res.exit_code == 0, res.output
-    back = read_product(out / "RPCMAG_20140801_CLJ_EXT.cdf")
+    back = read_product(out / "rosetta_rpcmag_clj-ext_20140801_v01.cdf")
     assert str(back.attrs["pca_time_base"]).startswith("regular grid of 1 s")
     # grid every 1 s from IB's first tag (the overlap start), n - 1 times; IB's gap of
     # 4 s (> 3 samples) holds 3 of them strictly inside, OB has none
@@ -555,7 +555,7 @@ def test_fluxcal_rosetta_clean_k_with_romap_intervals(tmp_path, lsk):
     out = tmp_path / "out"
     args = ["rosetta", "clean", "--level", "K", "--input", str(files[".cdf"]), "--out", str(out)]
     assert main(args + ["--intervals", str(csv_path)]) == 0
-    k = read_product(out / "RPCMAG_20140801_CLK_OB.cdf")
+    k = read_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
     assert "assisted" in k.attrs["heater_method"]
     assert set(k.attrs["heater_offsets_nT"]) == set(offsets)
     # same as the level function on the same intervals (products store B to 1 pT)

@@ -31,9 +31,9 @@ def make_dataset(n: int = 50, seed: int = 0) -> xr.Dataset:
         attrs={
             "software": "fluxcal",
             "software_version": "0.1.0",
-            "inputs": [{"name": "a.csv", "path": "in/a.csv", "sha256": "ab" * 32}],
+            "inputs": [{"name": "a.csv", "sha256": "ab" * 32}],  # by name, no folder
             "calibration": {"table2": {"version": "v1"}},
-            "kernels": [{"name": "k.tsc", "path": "k/k.tsc", "sha256": "cd" * 32}],
+            "kernels": [{"name": "k.tsc", "sha256": "cd" * 32}],
             "command_line": "fluxcal test",
             "creation_time": "2026-01-01T00:00:00Z",
             "mission": "MESSENGER",

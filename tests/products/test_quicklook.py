@@ -2,6 +2,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.dates as mdates
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
@@ -40,10 +41,12 @@ def test_panels_follow_the_dataset() -> None:
     assert "T (degC)" in labels  # the float32 'temperature' variable
     assert "quality" in labels
     assert labels[-1] == "distance (km)"
-    assert fig.axes[-1].get_xlabel().startswith("Hours of 2024-01-01")
+    # UTC date ticks (before: decimal "Hours of 2024-01-01")
+    assert fig.axes[-1].get_xlabel() == "Time (UTC)"
+    assert isinstance(fig.axes[-1].xaxis.get_major_formatter(), mdates.ConciseDateFormatter)
     assert fig._suptitle.get_text() == "MAGMSOSCI24001"
     legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert legend == ["Bx", "By", "Bz"]
+    assert legend == ["B_X", "B_Y", "B_Z"]  # the components x, y, z of B_mso
     # the magnitude panel draws |B| (envelope keeps the extremes)
     ymax = max(line.get_ydata().max() for line in fig.axes[1].get_lines())
     ds = _messenger_like()
@@ -235,7 +238,10 @@ def test_spectrogram_keeps_real_times_when_the_rate_changes() -> None:
     ax = fig.axes[0]
     meshes = ax.collections
     assert len(meshes) == 2  # one per evenly sampled run
-    x_ranges = [m.get_coordinates()[0, [0, -1], 0] for m in meshes]
+    # UTC date ticks; x in matplotlib days from 2024-01-01 00:00 UTC, turned into seconds
+    assert isinstance(ax.xaxis.get_major_formatter(), mdates.ConciseDateFormatter)
+    day0 = mdates.date2num(np.datetime64("2024-01-01T00:00", "ns"))
+    x_ranges = [(m.get_coordinates()[0, [0, -1], 0] - day0) * 86_400.0 for m in meshes]
     # each run spans its own real seconds of the day (within one segment, 256 samples)
     assert x_ranges[0][0] == pytest.approx(t0, abs=256 / 20)
     assert x_ranges[0][1] == pytest.approx(t0 + 4000, abs=256 / 20)
@@ -317,3 +323,38 @@ def test_cli_plot_draws_a_spike_in_the_last_samples(fmt: str, suffix: str, tmp_p
     assert main(["plot", str(tmp_path / f"P{suffix}"), "--out", str(tmp_path / "ql")]) == 0
     (fig,) = figs
     assert np.max(fig.axes[0].get_lines()[2].get_ydata()) == SPIKE_NT
+
+
+def test_talk_ready_axes_rtn_legend_and_a_flat_distance() -> None:
+    """Before: legend 'BB_R BB_T BB_N', x in decimal hours, distance axis '1e-11+3e1'."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.ticker import ScalarFormatter
+
+    n = 400
+    epoch = EPOCH0 + np.arange(n, dtype=np.int64) * 10_000_000_000
+    rng = np.random.default_rng(5)
+    # a comet distance of 30 km +- 1e-11 km: rounding noise of a constant
+    position = np.column_stack([30.0 + 1e-11 * rng.standard_normal(n), np.zeros(n),
+                                np.zeros(n)])
+    ds = xr.Dataset(
+        {"b": (("time", "b_component"), rng.normal(0, 5, (n, 3)), {"units": "nT"}),
+         "position": (("time", "position_component"), position, {"units": "km"})},
+        coords={"epoch": ("time", epoch),
+                "b_component": ["B_R", "B_T", "B_N"], "position_component": ["X", "Y", "Z"]})
+    fig = quicklook_figure(ds, frame="RTN")
+    FigureCanvasAgg(fig).draw()
+    comps, _, dist = fig.axes
+    assert [t.get_text() for t in comps.get_legend().get_texts()] == ["B_R", "B_T", "B_N"]
+    assert comps.get_ylabel() == "B RTN (nT)"
+    assert isinstance(dist.xaxis.get_major_formatter(), mdates.ConciseDateFormatter)
+    assert isinstance(dist.xaxis.get_major_locator(), mdates.AutoDateLocator)
+    # the x data are UTC datetimes: 2024-01-01 00:00:00 plus the samples' seconds
+    first = comps.get_lines()[0].get_xdata()[0]
+    assert str(np.datetime64(first, "s")) == "2024-01-01T00:00:00"
+    fmt = dist.yaxis.get_major_formatter()
+    assert isinstance(fmt, ScalarFormatter) and not fmt.get_useOffset()
+    assert dist.yaxis.get_offset_text().get_text() == ""
+    labels = [t.get_text() for t in dist.get_yticklabels() if t.get_text()]
+    assert labels and all("e" not in t for t in labels)
+    lo, hi = dist.get_ylim()
+    assert lo < 30.0 < hi and hi - lo == pytest.approx(0.06)  # 30 +- 1e-3 x 30

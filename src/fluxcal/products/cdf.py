@@ -11,7 +11,9 @@
   ISTP name only (`ISTP_NAME`: ``units`` -> ``UNITS``, ``description`` -> ``CATDESC``,
   ``long_name`` -> ``LABLAXIS``, ``valid_min``/``valid_max`` -> ``VALIDMIN``/``VALIDMAX``,
   ``coordinate_system`` -> ``COORDINATE_SYSTEM``, ``var_type`` -> ``VAR_TYPE``) and
-  `read_cdf` maps them back; other attrs are stored verbatim.
+  `read_cdf` maps them back; other attrs are stored verbatim.  A variable with a
+  ``frame`` attr and no ``coordinate_system`` gets ``COORDINATE_SYSTEM`` = its frame
+  (the attribute pyspedas tags the frame with) and keeps ``frame``.
 * Attribute values: the variable's attrs, then the per-name entries of the YAML table
   (``products/data/istp_variables.yaml`` or a mission's ``variable_yaml``), then its
   ``defaults``.  ``VALIDMIN``/``VALIDMAX`` are physical: the variable's
@@ -41,7 +43,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -57,7 +59,7 @@ from fluxcal.errors import InputFormatError
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_value, encode_value
 from fluxcal.products.columns import TIME_DIM
-from fluxcal.products.provenance import creation_time
+from fluxcal.products.provenance import creation_time, portable_attrs, portable_dataset
 from fluxcal.products.timeindex import TIME_COORD, default_lsk, with_time_index
 from fluxcal.version import software_version
 
@@ -333,6 +335,9 @@ def _var_attrs(name: str, var: xr.Variable, table: Mapping[str, Any], cdf_type: 
             istp[k] = v
         else:
             custom[k] = v
+    if "COORDINATE_SYSTEM" not in istp and str(var.attrs.get("frame") or "").strip():
+        # a variable's SPICE frame is its ISTP coordinate system (pyspedas tags it)
+        istp["COORDINATE_SYSTEM"] = str(var.attrs["frame"]).strip()
     istp = {k: v for k, v in istp.items() if not _DERIVED.match(k)}
     if is_dimension:
         istp["VAR_TYPE"] = "support_data"
@@ -504,12 +509,39 @@ def _global_attrs(ds: xr.Dataset, path: Path, label_extra: Mapping[str, Any] | N
     created = str(ds.attrs.get("creation_time") or creation_time())
     gattrs["Generation_date"] = created[:10].replace("-", "")
     gattrs.setdefault("Software_version", software_version())
-    parents = [r.get("name", "") for r in ds.attrs.get("inputs", []) or []]
+    parents = istp_parents(r.get("name", "") for r in ds.attrs.get("inputs", []) or [])
     out: dict[str, dict[int, Any]] = {
         k: {0: _cdf_attr(v)} for k, v in gattrs.items() if v is not None and k != "Parents"
     }
     if parents:
-        out["Parents"] = {i: f"CDF>{p}" for i, p in enumerate(parents)}
+        out["Parents"] = dict(enumerate(parents))
+    return out
+
+
+def istp_parents(names: Iterable[str]) -> list[str]:
+    """ISTP ``Parents`` entries of a product's input files (one per file, in order).
+
+    ISTP defines the entry of a parent CDF as ``CDF>logical_file_id`` [1]_ (the file
+    name without ``.cdf``); a parent in another format (CSV, PDS3 label or table, CCSDS
+    packets, a mapping file) is named by its file name, suffix included, with no
+    ``CDF>`` (it is no CDF).  Empty names are left out.
+
+    Examples
+    --------
+    >>> istp_parents(["imap_mag_l1a_norm-mago_20250206_v001.cdf", "RPCMAG_RAW_OB.csv"])
+    ['CDF>imap_mag_l1a_norm-mago_20250206_v001', 'RPCMAG_RAW_OB.csv']
+
+    References
+    ----------
+    .. [1] ISTP Metadata Guidelines, global attribute ``Parents``,
+           https://spdf.gsfc.nasa.gov/istp_guide/gattributes.html.
+    """
+    out = []
+    for name in names:
+        name = Path(str(name)).name
+        if not name:
+            continue
+        out.append(f"CDF>{name[:-4]}" if name.lower().endswith(".cdf") else name)
     return out
 
 
@@ -546,6 +578,8 @@ def write_cdf(
     if "epoch" not in ds.coords or ds["epoch"].dims != (TIME_DIM,) or ds["epoch"].dtype != np.int64:
         raise InputFormatError("a CDF product needs an int64 'epoch' coordinate along 'time'",
                                field="epoch")
+    ds = portable_dataset(ds)  # no folder of this machine in the product
+    label_extra = portable_attrs(label_extra or {})
     vtable = _load_yaml(None if variable_yaml is None else str(variable_yaml),
                         "istp_variables.yaml")
     gtable = _load_yaml(None if global_yaml is None else str(global_yaml), "istp_global.yaml")
@@ -700,4 +734,5 @@ def _plain_attr(v: Any) -> Any:
     return decode_value(v)
 
 
-__all__ = ["ISTP_NAME", "istp_file_stem", "istp_logical_source", "read_cdf", "write_cdf"]
+__all__ = ["ISTP_NAME", "istp_file_stem", "istp_logical_source", "istp_parents", "read_cdf",
+           "write_cdf"]

@@ -32,6 +32,7 @@ import xarray as xr
 from fluxcal.extras import require
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_attrs, encode_attrs
+from fluxcal.products.provenance import portable_dataset
 from fluxcal.products.timeindex import TIME_COORD, with_time_index
 
 DTYPE_ATTR = "fluxcal_dtype"
@@ -59,6 +60,7 @@ def encode_for_xarray(ds: xr.Dataset) -> xr.Dataset:
         If ``ds`` has a ``time`` dimension but no int64 ``epoch`` coordinate.
     """
     ds = with_time_index(ds) if TIME_COORD in ds.dims else ds
+    ds = portable_dataset(ds)  # no folder of this machine in the product
     out = ds.copy(deep=False)
     out.attrs = encode_attrs(ds.attrs)
     for var in out.variables.values():

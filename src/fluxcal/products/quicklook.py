@@ -12,9 +12,14 @@ Panels, top to bottom (a panel is drawn only when the Dataset has its variable):
 6. spacecraft distance (``distance`` with its ``label`` attr, e.g. "Sun distance" in
    AU, or the norm of a ``position*`` vector in km).
 
-The time axis is hours since the first sample's UTC day start, converted from the
-int64 TT2000 ``epoch`` with cdflib (no SPICE needed).  Long days are reduced for
-drawing by a min/max envelope per pixel column, so every excursion stays visible.
+The time axis is UTC with matplotlib date ticks (`matplotlib.dates.AutoDateLocator`,
+`matplotlib.dates.ConciseDateFormatter`: ``03:00``, ``06:00`` ... under the date), from
+the int64 TT2000 ``epoch`` with cdflib (no SPICE needed).  The legend names the field
+components as the product does (``B_R B_T B_N``, ``B_X B_Y B_Z``); every axis label
+carries the variable's units; a linear value axis never prints an offset or a power of
+ten (a nearly constant distance reads ``30.000``, not ``1e-11+3e1``).  Long days are
+reduced for drawing by a min/max envelope per pixel column, so every excursion stays
+visible.
 """
 
 from __future__ import annotations
@@ -33,10 +38,12 @@ except ImportError as _exc:
 matplotlib.use("Agg")
 
 import cdflib  # noqa: E402
+import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.ticker import ScalarFormatter  # noqa: E402
 
 from fluxcal.errors import InputFormatError  # noqa: E402
 from fluxcal.products.atomic import atomic_path  # noqa: E402
@@ -146,7 +153,7 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
     if epoch.size == 0:
         raise InputFormatError("quicklook of an empty product", field="epoch")
     start, date = _day_start_ns(int(np.median(epoch)))
-    hours = (epoch - start) / NS_PER_HOUR
+    times = utc_times(epoch, start, date)
     bname = field or field_variable(ds)
     if bname not in ds or ds[bname].ndim != 2:
         raise InputFormatError(f"field {bname!r} is not a (time, component) variable of the "
@@ -181,43 +188,120 @@ def quicklook_figure(ds: xr.Dataset, title: str = "", frame: str | None = None,
     for ax, (kind, arg) in zip(axes, panels, strict=True):
         if kind == "components":
             for j in range(b.shape[1]):
-                ax.plot(*envelope(hours, b[:, j]), lw=0.6, color=COLORS[j % 3],
-                        label=f"B{comps[j]}")
-            ax.set_ylabel(f"B {frame} (nT)".replace("  ", " "))
+                ax.plot(*envelope(times, b[:, j]), lw=0.6, color=COLORS[j % 3],
+                        label=component_label(comps[j]))
+            units = variable_units(ds[bname]) or "nT"
+            ax.set_ylabel(f"B {frame} ({units})".replace("  ", " "))
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         elif kind == "magnitude":
             m = np.linalg.norm(b, axis=1)
-            ax.plot(*envelope(hours, m), lw=0.6, color="k")
-            ax.set_ylabel("|B| (nT)")
+            ax.plot(*envelope(times, m), lw=0.6, color="k")
+            ax.set_ylabel(f"|B| ({variable_units(ds[bname]) or 'nT'})")
             if _wide_range(m):
                 ax.set_yscale("log")
         elif kind == "offsets":
             o = ds[arg].values.astype(float)
             for j in range(o.shape[1]):
-                ax.plot(*envelope(hours, o[:, j]), lw=0.8, color=COLORS[j % 3],
+                ax.plot(*envelope(times, o[:, j]), lw=0.8, color=COLORS[j % 3],
                         label=f"{comps[j] if j < len(comps) else j}")
             ax.set_ylabel(f"{arg} ({variable_units(ds[arg])})")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         elif kind == "temperature":
             for name in arg:
-                ax.plot(*envelope(hours, ds[name].values.astype(float)), lw=0.8, label=name)
+                ax.plot(*envelope(times, ds[name].values.astype(float)), lw=0.8, label=name)
             ax.set_ylabel(f"T ({variable_units(ds[arg[0]])})")
             ax.legend(loc="upper right", fontsize=8)
         elif kind == "quality":
-            _quality_panel(ax, hours, ds[arg])
+            _quality_panel(ax, times, ds[arg])
             ax.set_ylabel(f"{arg}")
         elif kind == "distance":
-            ax.plot(*envelope(hours, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
+            ax.plot(*envelope(times, ds[arg].values.astype(float)), lw=0.8, color="tab:brown")
             ax.set_ylabel(f"{ds[arg].attrs.get('label', 'distance')} ({variable_units(ds[arg])})")
         else:
             r = np.linalg.norm(ds[arg].values.astype(float), axis=1)
-            ax.plot(*envelope(hours, r), lw=0.8, color="tab:brown")
+            ax.plot(*envelope(times, r), lw=0.8, color="tab:brown")
             ax.set_ylabel("distance (km)")
         ax.grid(alpha=0.3)
-    axes[-1].set_xlabel(f"Hours of {date} (UTC)")
+        plain_numbers(ax)
+    date_axis(axes[-1])
     fig.suptitle(title or f"{bname} {date}")
     fig.align_ylabels(axes)
     return fig
+
+
+def utc_times(epoch: np.ndarray, day_start: int, date: str) -> np.ndarray:
+    """UTC ``datetime64[ns]`` of TT2000 ``epoch`` for plotting, from 00:00 UTC of ``date``.
+
+    ``day_start`` is the TT2000 of that midnight (`_day_start_ns`): a sample's UTC is the
+    date plus its nanoseconds since then, exact within the day (a leap second at its end
+    puts the 1 s after it 1 s late on the axis).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> start, date = _day_start_ns(0)
+    >>> str(utc_times(np.array([start + 3_600_000_000_000]), start, date)[0])
+    '2000-01-01T01:00:00.000000000'
+    """
+    return np.datetime64(date, "ns") + (np.asarray(epoch, np.int64) - day_start).astype("m8[ns]")
+
+
+def plot_times(epoch: np.ndarray) -> np.ndarray:
+    """Return UTC ``datetime64[ns]`` of TT2000 ``epoch`` for a time axis (`utc_times`)."""
+    epoch = np.asarray(epoch, np.int64)
+    start, date = _day_start_ns(int(epoch[0])) if epoch.size else (0, "2000-01-01")
+    return utc_times(epoch, start, date)
+
+
+def date_axis(ax) -> None:
+    """UTC date ticks on ``ax``'s time axis (`matplotlib.dates.ConciseDateFormatter`).
+
+    Ticks at round times (``00:05``, ``06:00``, ...) with the date written once beneath;
+    the axis label is ``Time (UTC)``.
+    """
+    locator = mdates.AutoDateLocator(minticks=4, maxticks=10)
+    ax.xaxis.set_major_locator(locator)
+    ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+    ax.set_xlabel("Time (UTC)")
+
+
+def component_label(component: str) -> str:
+    """Legend name of a field component: ``B_R`` stays, ``x`` becomes ``B_X``.
+
+    >>> [component_label(c) for c in ("B_R", "x", "Bz")]
+    ['B_R', 'B_X', 'Bz']
+    """
+    c = str(component).strip()
+    return c if len(c) > 1 and c[0] in "Bb" else f"B_{c.upper()}"
+
+
+#: A linear value axis whose data span less than this fraction of their magnitude (or
+#: than `FLAT_ABSOLUTE`) is widened to ``value * (1 +- FLAT_RELATIVE)``: a constant drawn
+#: on a readable scale, not rounding noise magnified.
+FLAT_RELATIVE = 1e-6
+FLAT_ABSOLUTE = 1e-9
+
+
+def plain_numbers(ax) -> None:
+    """Value-axis ticks as plain numbers: no offset text, no ``1e..`` multiplier.
+
+    A nearly constant line (a comet distance of 30 km +- 1e-11) would otherwise be
+    labelled ``1e-11+3e1``; its axis is widened (`FLAT_RELATIVE`) before.  Log axes
+    (their own formatter) are left as they are.
+    """
+    if ax.get_yscale() != "linear" or not isinstance(ax.yaxis.get_major_formatter(),
+                                                      ScalarFormatter):
+        return
+    ys = [np.asarray(line.get_ydata(), float) for line in ax.get_lines()]
+    ys = [y[np.isfinite(y)] for y in ys if y.size]
+    ys = [y for y in ys if y.size]
+    if ys:
+        lo, hi = min(float(y.min()) for y in ys), max(float(y.max()) for y in ys)
+        mid = 0.5 * (lo + hi)
+        if hi - lo < max(FLAT_RELATIVE * abs(mid), FLAT_ABSOLUTE):
+            pad = max(FLAT_RELATIVE * 1e3 * abs(mid), 1e-3)
+            ax.set_ylim(mid - pad, mid + pad)
+    ax.ticklabel_format(axis="y", style="plain", useOffset=False)
 
 
 #: ``|B|`` spanning more than this ratio (1st to 99th percentile) is drawn on a log scale.
@@ -235,19 +319,19 @@ def _wide_range(m: np.ndarray) -> bool:
     return bool(hi > LOG_RATIO * lo)
 
 
-def _quality_panel(ax, hours: np.ndarray, var: xr.DataArray) -> None:
+def _quality_panel(ax, times: np.ndarray, var: xr.DataArray) -> None:
     """Draw a quality flag as categories (one tick per value seen), else as a line."""
     q = var.values
     values, index = np.unique(q, return_inverse=True)
     if values.size > MAX_CATEGORIES or q.dtype.kind == "f":
-        ax.step(*envelope(hours, q.astype(float)), lw=0.8, where="post", color="tab:purple")
+        ax.step(*envelope(times, q.astype(float)), lw=0.8, where="post", color="tab:purple")
         return
     names = {}
     flag_values = np.atleast_1d(var.attrs.get("flag_values", []))
     meanings = str(var.attrs.get("flag_meanings", "")).split()
     if len(meanings) == flag_values.size:
         names = {int(v): m for v, m in zip(flag_values, meanings, strict=True)}
-    ax.plot(*envelope(hours, index.astype(float)), ls="none", marker="|", ms=6,
+    ax.plot(*envelope(times, index.astype(float)), ls="none", marker="|", ms=6,
             color="tab:purple")
     ax.set_yticks(np.arange(values.size))
     ax.set_yticklabels([names.get(int(v), str(int(v))) for v in values], fontsize=7)
@@ -401,10 +485,11 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
                        nperseg: int = 256) -> Figure:
     """One spectrogram panel per component of a vector variable (default: the field).
 
-    The time axis is seconds of the UTC day, from each sample's own time: a day whose
+    The time axis is UTC, from each sample's own time: a day whose
     vector rate changes (or that has gaps) is drawn as one spectrogram per evenly
     sampled run (`uniform_runs`) at its own rate, placed at its real times, with one
-    colour scale; runs shorter than ``nperseg`` are left blank.  ``fs`` forces one rate
+    colour scale; runs shorter than ``nperseg`` are left blank; UTC date ticks
+    (`date_axis`).  ``fs`` forces one rate
     for the whole series (evenly sampled data only).
     """
     from matplotlib.colors import Normalize
@@ -416,6 +501,7 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
         raise InputFormatError("spectrogram of an empty product", field="epoch")
     start, date = _day_start_ns(int(epoch[0]))
     t = (epoch - start) / 1e9
+    day0 = float(mdates.date2num(np.datetime64(date, "ns")))
     runs = [slice(0, t.size)] if fs is not None else uniform_runs(t)
     runs = [r for r in runs if r.stop - r.start >= nperseg]
     if not runs:
@@ -437,12 +523,13 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
     for j, ax in enumerate(axes):
         for k, r in enumerate(runs):
             f, tt, _ = specs[(k, j)]
-            mesh = ax.pcolormesh(t[r][0] + tt, f, logs[(k, j)], shading="auto", norm=norm)
+            x = day0 + (t[r][0] + tt) / 86_400.0  # matplotlib date numbers (days)
+            mesh = ax.pcolormesh(x, f, logs[(k, j)], shading="auto", norm=norm)
         ax.set_ylabel("Frequency (Hz)")
-        ax.set_title(f"{name} {comps[j]}", fontsize=9, loc="left")
+        ax.set_title(f"{component_label(comps[j])} ({name})", fontsize=9, loc="left")
         ax.set_ylim(0, max(rates) / 2)
         fig.colorbar(mesh, ax=ax, label="log10 PSD (nT$^2$/Hz)")
-    axes[-1].set_xlabel(f"Seconds of {date} (UTC)")
+    date_axis(axes[-1])
     if len(set(np.round(rates, 6))) > 1:
         fig.suptitle(f"{len(runs)} evenly sampled runs, "
                      f"{min(rates):g}-{max(rates):g} Hz", fontsize=9)

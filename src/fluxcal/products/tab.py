@@ -53,6 +53,7 @@ from fluxcal.products.label import (
     render_label,
     text_value,
 )
+from fluxcal.products.provenance import portable_attrs
 from fluxcal.products.tabshare import SHARED, Run
 from fluxcal.version import software_version
 
@@ -333,15 +334,15 @@ def _provenance(attrs: Mapping[str, Any]) -> pvl.PVLGroup:
             g[key] = [text_value(str(v))[0] for v in values]
 
     inputs = attrs.get("inputs") or []
-    put("INPUT_FILE_NAME", [r.get("path", r.get("name", "")) or "N/A" for r in inputs])
+    put("INPUT_FILE_NAME", [r.get("name", "") or "N/A" for r in inputs])
     put("INPUT_FILE_SHA256", [r.get("sha256", "") or "N/A" for r in inputs])
     cal = attrs.get("calibration") or {}
     put("CALIBRATION_NAME", list(cal))
-    put("CALIBRATION_SOURCE", [r.get("path", r.get("version", "")) or "N/A"
+    put("CALIBRATION_SOURCE", [r.get("name", r.get("version", "")) or "N/A"
                                for r in cal.values()])
     put("CALIBRATION_SHA256", [r.get("sha256", "") or "N/A" for r in cal.values()])
     kernels = attrs.get("kernels") or []
-    put("KERNEL_NAME", [r.get("path", r.get("name", "")) or "N/A" for r in kernels])
+    put("KERNEL_NAME", [r.get("name", "") or "N/A" for r in kernels])
     put("KERNEL_SHA256", [r.get("sha256", "") or "N/A" for r in kernels])
     if "command_line" in attrs:
         g["COMMAND_LINE"] = text_value(str(attrs["command_line"]))[0]
@@ -356,7 +357,8 @@ def label_module(
 ) -> pvl.PVLModule:
     """Build the PDS3 label of a table (pure).  Every keyword appears once per block."""
     n = ds.sizes.get(TIME_DIM, 0)
-    attrs = dict(ds.attrs)
+    attrs = portable_attrs(ds.attrs)  # no folder of this machine in the label
+    label_extra = portable_attrs(label_extra or {})
     starts, row_bytes = layout(cols)
     m = pvl.PVLModule()
     m["PDS_VERSION_ID"] = Symbol("PDS3")

@@ -41,7 +41,7 @@ from typing import Any, Protocol
 
 from fluxcal.errors import FluxcalError
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.provenance import sha256_file
+from fluxcal.products.provenance import file_checksums, portable_value, sha256_file
 from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBusy: re-exported
     LOCK_NAME,
     Interrupted,
@@ -79,8 +79,12 @@ class DayInputs:
     calibration: Mapping[str, str | Path] = field(default_factory=dict)
 
     def checksums(self) -> dict[str, str]:
-        """Map ``"input:<path>"``/``"calibration:<name>"`` to SHA-256 (or version)."""
-        out = {f"input:{p}": sha256_file(p) for p in self.files}
+        """Map ``"input:<file name>"``/``"calibration:<name>"`` to SHA-256 (or version).
+
+        Files are keyed by name (a repeated name numbered ``#2``...), never by folder:
+        the manifest, like the products, holds no path of this machine.
+        """
+        out = file_checksums(self.files)
         for name, v in self.calibration.items():
             p = Path(str(v))
             out[f"calibration:{name}"] = sha256_file(p) if p.is_file() else str(v)
@@ -205,7 +209,8 @@ class BatchReport:
             "vectors_per_second": (self.n_vectors / self.wall_seconds
                                    if self.wall_seconds > 0 else 0.0),
             "days_per_second": len(done) / self.wall_seconds if self.wall_seconds > 0 else 0.0,
-            "days": [asdict(d) for d in self.days],
+            # errors and tracebacks name files by name: the report holds no folder
+            "days": [portable_value(asdict(d)) for d in self.days],
         }
 
 
@@ -227,8 +232,9 @@ def is_up_to_date(task: Any, day: _dt.date, out_dir: Path, name: str) -> bool:
 
     Conditions: manifest present and readable; same fluxcal version; every recorded
     product exists with its recorded size; every recorded input/calibration checksum
-    equals the current one; and, if the task declares ``inputs(day)``, the current
-    inputs are exactly the recorded ones.
+    equals the current one; and the task declares ``inputs(day)`` and the current
+    inputs are exactly the recorded ones (inputs are recorded by file name and
+    checksum, so a task without ``inputs(day)`` is always redone).
     """
     path = manifest_path(out_dir, name, day)
     try:
@@ -244,15 +250,11 @@ def is_up_to_date(task: Any, day: _dt.date, out_dir: Path, name: str) -> bool:
     recorded: dict[str, str] = man.get("inputs", {})
     try:
         current = _current_inputs(task, day)
-        if current is not None:
-            return current.checksums() == recorded
-        for key, value in recorded.items():
-            kind, _, ref = key.partition(":")
-            if kind == "input" and sha256_file(ref) != value:
-                return False
+        # the manifest names inputs by file name only: a task that cannot say its
+        # current inputs cannot be checked, and its day is redone
+        return current is not None and current.checksums() == recorded
     except OSError:
         return False
-    return True
 
 
 def _write_manifest(out_dir: Path, name: str, day: _dt.date, result: DayResult,

@@ -49,8 +49,8 @@ def test_edr2cdr_quicklook_panels(tmp_path, simulated_files, messenger_kernels, 
     # issue 12: offsets in nT (before: counts), through the fine-range matrix of eq. 8
     assert labels == ["B MSGR_MSO (nT)", "|B| (nT)", "offset (nT)", "quality",
                       "distance (km)"]
-    assert axes[-1].get_xlabel() == "Hours of 2012-06-01 (UTC)"
-    assert [t.get_text() for t in axes[0].get_legend().get_texts()] == ["Bx", "By", "Bz"]
+    assert axes[-1].get_xlabel() == "Time (UTC)"
+    assert [t.get_text() for t in axes[0].get_legend().get_texts()] == ["B_X", "B_Y", "B_Z"]
     # the offsets panel shows three per-axis series (x, y, z)
     assert [line.get_label() for line in axes[2].get_lines()] == ["x", "y", "z"]
     # the 2-h simulation runs over heater duty-cycle steps and a heater-off temperature

@@ -104,15 +104,17 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
         return [txt]
     from fluxcal.products.quicklook import Figure  # the plot extra's module
 
+    from fluxcal.products.quicklook import date_axis, plot_times
+
     png = stem.with_name(stem.name + ".png")
-    hours = (ds["et"].values - ds["et"].values[0]) / 3600.0
+    times = plot_times(ds["epoch"].values)  # UTC date ticks (issue 25 item 6)
     fig = Figure(figsize=(8, 6))
     axes = fig.subplots(3, 1, sharex=True)
-    step = max(1, hours.size // 20000)
+    step = max(1, times.size // 20000)
     for j, axis in enumerate("xyz"):
-        axes[j].plot(hours[::step], ds["offset"].values[::step, j], lw=0.8)
+        axes[j].plot(times[::step], ds["offset"].values[::step, j], lw=0.8)
         axes[j].set_ylabel(f"offset {axis} (counts)")
-    axes[-1].set_xlabel("hours since first sample")
+    date_axis(axes[-1])
     fig.suptitle("Applied thermal offsets (fine-range counts)")
     with atomic_path(png) as tmp:
         fig.savefig(tmp, dpi=80, format="png")

@@ -2,8 +2,9 @@
 
 File I/O around the pure level functions of `fluxcal.missions.rosetta.cleaning_levels`:
 read earlier-level products (``.cdf``, ``.nc`` or ``.TAB``), run one level, write
-``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` products in the formats of the other levels
-(table + label + CDF), plus a before/after spectrogram PNG for H and a before/after
+``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` tables and ISTP-named
+``rosetta_rpcmag_cl<level>-<sensor>_<yyyymmdd>_v01`` CDF, netCDF or Zarr
+(`write_clean_level`), plus a before/after spectrogram PNG for H and a before/after
 time-series PNG for K.
 
 Registration (in ``fluxcal/cli.py``)::
@@ -90,6 +91,36 @@ def _day(epoch: np.ndarray, lsk) -> str:
     return str(tt2000_to_utc(np.asarray(epoch[:1]), digits=0, lsk=lsk)[0])[:10].replace("-", "")
 
 
+#: What each cleaned level holds (RO-IGEP-TR0028 sec. 4.9-4.13): the long part of its
+#: ISTP ``Data_type`` and its ``Logical_source_description``.
+CLEAN_DESCRIPTION = {
+    "H": "reaction-wheel and LAP lines removed",
+    "I": "LEVEL_H averaged",
+    "J": "two-sensor PCA residual field",
+    "K": "heater disturbance removed",
+    "L": "LEVEL_K rotated into the output frame",
+}
+
+
+def clean_logical_source(level: str, sensor: str) -> tuple[str, str]:
+    """ISTP ``Data_type`` and ``Logical_source`` of a cleaned level H-L of one sensor.
+
+    ``Data_type`` is ``CL<level>-<sensor>>LEVEL_<level> <what it holds>``, so that the
+    ISTP rule ``Logical_source = source_descriptor_datatype`` (short forms, lower case)
+    gives ``rosetta_rpcmag_cl<level>-<sensor>``, the name family of the calibrated
+    levels: each level has its own ``Logical_source`` and file names
+    ``rosetta_rpcmag_clh-ob_20140801_v01.cdf`` (docs/decisions/products.md).
+
+    Examples
+    --------
+    >>> clean_logical_source("H", "OB")
+    ('CLH-OB>LEVEL_H reaction-wheel and LAP lines removed', 'rosetta_rpcmag_clh-ob')
+    """
+    level, sensor = level.upper(), sensor.upper()
+    data_type = f"CL{level}-{sensor}>LEVEL_{level} {CLEAN_DESCRIPTION[level]}"
+    return data_type, f"rosetta_rpcmag_cl{level}-{sensor}".lower()
+
+
 def write_clean_level(
     ds: xr.Dataset,
     out_dir: Path,
@@ -100,9 +131,18 @@ def write_clean_level(
     provenance: dict | None = None,
     lsk=None,
 ) -> list[Path]:
-    """Write one cleaned level of one sensor (one day) as ``RPCMAG_<day>_CL<level>_<sensor>``."""
+    """Write one cleaned level of one sensor (one day); return the paths written.
+
+    The table is ``RPCMAG_<yyyymmdd>_CL<level>_<sensor>.TAB`` (+ label); CDF, netCDF and
+    Zarr have the ISTP names of the calibrated levels,
+    ``rosetta_rpcmag_cl<level>-<sensor>_<yyyymmdd>_v01``, with the level's own
+    ``Logical_source`` and ``Data_type`` (`clean_logical_source`) and the Rosetta ISTP
+    attribute files.
+    """
     from fluxcal.geometry.time import tt2000_to_utc
+    from fluxcal.missions.rosetta.pipeline import DATA_VERSION, istp_yaml
     from fluxcal.products import write_product
+    from fluxcal.products.cdf import istp_file_stem
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -115,15 +155,23 @@ def write_clean_level(
         if key in attrs:
             attrs[f"parent_{key}"] = attrs.pop(key)
     attrs.update(provenance or {})
+    data_type, source = clean_logical_source(level, sensor)
+    attrs.update(Data_type=data_type, Logical_source=source, Data_version=str(DATA_VERSION),
+                 Logical_source_description=f"Rosetta RPC-MAG LEVEL_{level}, "
+                                            f"{CLEAN_DESCRIPTION[level.upper()]}")
     part.attrs = attrs
-    stem = out_dir / f"RPCMAG_{_day(epoch, lsk)}_CL{level}_{sensor}"
-    return write_product(
-        part,
-        stem,
-        formats=formats,
-        columns=_columns(level, part),
-        label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor},
-    )
+    day = _day(epoch, lsk)
+    extra = {"LEVEL": f"LEVEL_{level}", "SENSOR": sensor}
+    written: list[Path] = []
+    if "tab" in formats:
+        written += write_product(part, out_dir / f"RPCMAG_{day}_CL{level}_{sensor}",
+                                 formats=("tab",), columns=_columns(level, part),
+                                 label_extra=extra)
+    other = [f for f in formats if f != "tab"]
+    if other:
+        written += write_product(part, out_dir / istp_file_stem(source, day, DATA_VERSION),
+                                 formats=other, label_extra=extra, **istp_yaml())
+    return written
 
 
 def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
@@ -249,10 +297,12 @@ def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: s
     import numpy as np
 
     matplotlib.use("Agg")
+    import matplotlib.dates as mdates
     import matplotlib.pyplot as plt
 
     from fluxcal.cleaning.spectral_lines import dynamic_spectrum
     from fluxcal.missions.rosetta.cleaning_levels import _groups
+    from fluxcal.products.quicklook import date_axis, plot_times
 
     groups = _groups(before)
     _, idx = max(groups, key=lambda g: g[1].size)
@@ -269,14 +319,14 @@ def plot_spectrogram(before: xr.Dataset, after: xr.Dataset, path: Path, title: s
         for c in range(3):
             starts, freqs, p = dynamic_spectrum(b[:, c], fs, window_length=length)
             psd = psd + p
-        hours = (epoch[starts + length // 2] - epoch[0]) / 3.6e12
+        x = mdates.date2num(plot_times(epoch[starts + length // 2]))
         mesh = ax.pcolormesh(
-            hours, freqs[1:], np.log10(np.maximum(psd[:, 1:].T, 1e-12)), shading="nearest"
+            x, freqs[1:], np.log10(np.maximum(psd[:, 1:].T, 1e-12)), shading="nearest"
         )
         ax.set_ylabel("frequency (Hz)")
         ax.set_title(f"{title}: {name} line removal")
         fig.colorbar(mesh, ax=ax, label="log10 trace PSD (nT^2/Hz)")
-    axes[1].set_xlabel("hours since first vector")
+    date_axis(axes[1])
     return _save(fig, path)
 
 
@@ -287,21 +337,21 @@ def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: st
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fluxcal.products.quicklook import envelope
+    from fluxcal.products.quicklook import component_label, date_axis, envelope, plot_times
 
     epoch = before["epoch"].values
-    hours = (epoch - epoch[0]) / 3.6e12
-    hours_after = (after["epoch"].values - epoch[0]) / 3.6e12
+    hours = plot_times(epoch)
+    hours_after = plot_times(after["epoch"].values)
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
     for c, ax in enumerate(axes):
         ax.plot(*envelope(hours, before["b"].values[:, c]), color="0.6", lw=0.6,
                 label="before")
         ax.plot(*envelope(hours_after, after["b"].values[:, c]), color="C1", lw=0.6,
                 label="after")
-        ax.set_ylabel(f"B{'xyz'[c]} (nT)")
+        ax.set_ylabel(f"{component_label('xyz'[c])} (nT)")
     axes[0].legend(loc="upper right")
     axes[0].set_title(title)
-    axes[-1].set_xlabel("hours since first vector")
+    date_axis(axes[-1])
     return _save(fig, path)
 
 
@@ -551,7 +601,8 @@ def clean(
         help="K: direction X,Y,Z (s/c frame) of the heater field when on, where the data "
         "cannot tell which level is heater-off (a constant current seen 'on' first).",
     ),
-    formats: str = typer.Option("tab,cdf", "--formats", help="Product formats: tab,cdf,nc."),
+    formats: str = typer.Option("tab,cdf", "--formats",
+                                help="Product formats: tab, cdf, nc, zarr."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Skip the before/after PNG (H, K)."),
 ) -> None:
     """Remove s/c disturbances: LEVEL_H (wheel/LAP lines), I, J (PCA), K, L (heaters), F, G."""
