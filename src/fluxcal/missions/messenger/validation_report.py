@@ -102,9 +102,8 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
     atomic_write_bytes(txt, report_text(ds, threshold_counts, report).encode())
     if not figure:
         return [txt]
-    from fluxcal.products.quicklook import Figure  # the plot extra's module
-
-    from fluxcal.products.quicklook import date_axis, plot_times
+    # the plot extra's module, imported only when a figure is asked for
+    from fluxcal.products.quicklook import Figure, date_axis, plot_times
 
     png = stem.with_name(stem.name + ".png")
     times = plot_times(ds["epoch"].values)  # UTC date ticks (issue 25 item 6)
