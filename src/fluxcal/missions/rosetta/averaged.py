@@ -16,16 +16,9 @@ import xarray as xr
 
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.days import day_midnight
 
 NEXT_LEVEL = {"A": "E", "B": "F", "C": "G"}
-
-
-def utc_midnight(epoch: int, lsk=None) -> int:
-    """TT2000 of 00:00 UTC of the day containing ``epoch``."""
-    from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
-
-    day = str(tt2000_to_utc(np.array([epoch]), digits=0, lsk=lsk)[0])[:10]
-    return int(utc_to_tt2000(np.array([f"{day}T00:00:00"]), lsk)[0])
 
 
 def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
@@ -43,7 +36,7 @@ def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
                                field="seconds")
     epoch = level["epoch"].values.astype(np.int64)
     width = int(round(seconds * 1e9))
-    origin = utc_midnight(int(epoch[0]), lsk) if epoch.size else 0
+    origin = day_midnight(int(epoch[0]), lsk) if epoch.size else 0
     bins = averaging.bin_index(epoch, width, origin)
     data = {}
     rel = (epoch - origin).astype(float) if epoch.size else epoch.astype(float)

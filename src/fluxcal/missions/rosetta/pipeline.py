@@ -28,6 +28,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
+from fluxcal.geometry.days import utc_days
 from fluxcal.missions.rosetta import archive, calib, hk, level_a
 
 log = logging.getLogger(__name__)
@@ -205,7 +206,7 @@ def write_level(
     if seconds is not None:
         extra["AVERAGE_SECONDS"] = float(seconds)
     other = [f for f in formats if f != "tab"]
-    day_index, days, _ = level_a.utc_days(epoch, lsk)
+    day_index, days, _ = utc_days(epoch, lsk)
     written: list[Path] = []
     for d, day in enumerate(days):
         sel = np.flatnonzero(day_index == d)
@@ -375,14 +376,6 @@ def parse_levels(text: str) -> list[str]:
     return levels
 
 
-def day_bounds(day: np.datetime64 | str, lsk=None) -> tuple[int, int]:
-    """TT2000 ns of 00:00 UTC of ``day`` and of the next day (`utc_day_start_tt2000`)."""
-    from fluxcal.geometry.time import utc_day_start_tt2000
-
-    d = np.datetime64(day, "D")
-    return utc_day_start_tt2000(d, lsk), utc_day_start_tt2000(d + 1, lsk)
-
-
 def check_day_records(raw: xr.Dataset, bounds: tuple[int, int], path: Path, lsk=None) -> None:
     """Refuse a raw file with a record stamped outside the UTC day ``bounds``.
 
@@ -441,7 +434,8 @@ def previous_day_records(
     """Raw records of the previous day's file that its tail past midnight is made from.
 
     ``bounds`` are the TT2000 of the start and end (``midnight``) of that file's UTC day
-    (`day_bounds`); the file's records must be stamped in it (`check_day_records`).
+    (`fluxcal.geometry.days.day_bounds`); the file's records must be stamped in it
+    (`check_day_records`).
     Returned: the file's first good record plus the records within the largest filter
     shift of the table (+1 s) before ``midnight`` (`previous_day_tail` calibrates them);
     ``None`` when there are none.

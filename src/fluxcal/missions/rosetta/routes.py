@@ -33,6 +33,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.geometry.days import day_bounds
 from fluxcal.geometry.time import SclkKernel, leapseconds
 from fluxcal.missions.rosetta import (
     archive,
@@ -50,7 +51,6 @@ from fluxcal.missions.rosetta.pipeline import (
     LEVELS,
     check_day_records,
     check_shifts_nonnegative,
-    day_bounds,
     merge_tail,
     parse_levels,
     previous_day_records,
