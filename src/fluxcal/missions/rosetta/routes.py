@@ -25,7 +25,7 @@ import dataclasses
 import datetime as _dt
 import logging
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ from fluxcal.missions.rosetta import (
     level_b,
     level_c,
 )
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import RosettaOptions
 from fluxcal.missions.rosetta.pipeline import (
     LEVELS,
@@ -219,13 +220,13 @@ class RosettaRun:
         A batch's folder of stitch files (``<out>/stitch``): the days' first and last
         vectors and end-of-day states (`fluxcal.missions.rosetta.batch_task.DayChain`).
     frame_kernels : mapping, optional
-        Frames the kernel pool defines when the user's kernels do not (None: the
-        registry's).
+        Frames the kernel pool defines when the user's kernels do not: Rosetta's own
+        (`identity.FRAME_KERNELS`, the comet's CSEQ), not every mission's.
     """
 
     kernels: Path | None = None
     stitch_dir: Path | None = None
-    frame_kernels: Mapping[str, Path] | None = None
+    frame_kernels: Mapping[str, Path] | None = field(default_factory=lambda: FRAME_KERNELS)
 
     # --- the driver's steps ----------------------------------------------------------
     def check(self, options: RosettaOptions) -> None:
