@@ -175,13 +175,6 @@ class RosettaLevels:
     day: _dt.date | None = None
     state_file: Path | None = None
 
-    def __getitem__(self, sensor: str) -> dict[str, xr.Dataset]:
-        """Return the levels of ``sensor``."""
-        for s in self.sensors:
-            if s.sensor == sensor:
-                return s.levels
-        raise KeyError(sensor)
-
 
 def needed_levels(wanted: Sequence[str]) -> set[str]:
     """Levels computed to make ``wanted``: G needs C, C and F need B, all need A."""
@@ -312,7 +305,7 @@ class RosettaRun:
                                       formats=options.formats, quicklook=options.quicklook,
                                       temperatures=s.temperatures, lsk=lsk)
             if day is not None:
-                _check_day_names(paths, day)
+                _check_day_names(paths, day, calibrated.sensors[0].science)
         if calibrated.state_file is not None:
             for s in calibrated.sensors:
                 write_stitch_state(s.end_state, calibrated.state_file)
@@ -445,7 +438,7 @@ def _unreadable(source: SensorSource, exc: Exception) -> str:
     return note
 
 
-def _check_day_names(paths: Sequence[Path], day: _dt.date) -> None:
+def _check_day_names(paths: Sequence[Path], day: _dt.date, source: Any) -> None:
     """Refuse a batch day's product named for another day (a safeguard: LEVEL_A is trimmed).
 
     Archive tables carry ``RPCMAG<yymmdd>``, ISTP CDFs, HK and quicklooks ``_<yyyymmdd>``.
@@ -454,7 +447,7 @@ def _check_day_names(paths: Sequence[Path], day: _dt.date) -> None:
     stray = [p for p in paths if not any(s in Path(p).name for s in stamps)]
     if stray:
         raise InputFormatError(f"records outside the day {day} (would write "
-                               f"{Path(stray[0]).name})", field="time_utc")
+                               f"{Path(stray[0]).name})", path=str(source), field="time_utc")
 
 
 def file_source(science: Any, sensor: str, *, hk: Any = None,
