@@ -132,14 +132,15 @@ def calibrate_rosetta(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1-4.8.
     """
-    from fluxcal.missions.rosetta.pipeline import calibrate_files
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import calibrate_levels
 
-    result = calibrate_files(Path(science), sensor, Path("."), levels=list(levels),
-                             hk_file=None if hk is None else Path(hk),
-                             calib_dir=None if calib is None else Path(calib),
-                             kernels=None if kernels is None else Path(kernels), write=False)
+    made = calibrate_levels(Path(science), sensor, hk=None if hk is None else Path(hk),
+                            kernels=None if kernels is None else Path(kernels),
+                            options=RosettaOptions(calib=None if calib is None else Path(calib),
+                                                   levels=tuple(levels)))
     return {name: _in_time_order(with_time_index(ds)) if "epoch" in ds.coords else ds
-            for name, ds in result.levels.items()}
+            for name, ds in made.items()}
 
 
 def calibrate_imap(inputs: Sequence[str | Path], *, level: str = "l1b",

@@ -144,3 +144,33 @@ def test_vector_columns_side_by_side_equal_one_column_at_a_time():
             m_j, s_j = averaging.bin_mean_std(bins, b[:, j], ddof=ddof)
             assert mean[:, j].tobytes() == m_j.tobytes()
             assert std[:, j].tobytes() == s_j.tobytes()
+
+
+def test_average_dataset_means_flags_clock_and_coordinates():
+    # hand-computed: two 10-s bins from origin 1000 ns; clock "obt" counts seconds with
+    # epoch, so its bin value is the clock at the bin centre
+    import xarray as xr
+
+    from fluxcal.calibration.averaging import average_dataset, bin_index
+
+    ns = 1_000_000_000
+    origin = 1000
+    epoch = origin + np.array([1, 3, 12, 14, 16]) * ns
+    b = np.array([[1.0, 2, 3], [3, 4, 5], [10, 10, 10], [20, 20, 20], [30, 30, 30]])
+    ds = xr.Dataset(
+        {"b": (("time", "component"), b, {"units": "nT"}),
+         "quality": ("time", np.array([0, 2, 1, 0, 0])),
+         "obt": ("time", 100.0 + (epoch - origin) / ns),
+         "sid": ("time", np.array([2, 2, 3, 3, 3])),
+         "count_like": ("time", np.arange(5))},  # integers, not a flag: left out
+        coords={"epoch": ("time", epoch, {"units": "ns"}), "component": ["x", "y", "z"]},
+        attrs={"level": "A"})
+    out = average_dataset(ds, bin_index(epoch, 10 * ns, origin), origin,
+                          centred=("obt",), drop=("sid",))
+    np.testing.assert_allclose(out["b"].values, [[2, 3, 4], [20, 20, 20]])
+    assert out["quality"].values.tolist() == [2, 1]
+    np.testing.assert_allclose(out["obt"].values, [105.0, 115.0])  # the centres 5 s, 15 s
+    assert out["n_samples"].values.tolist() == [2, 3]
+    assert out["epoch"].values.tolist() == [origin + 5 * ns, origin + 15 * ns]
+    assert list(out.coords) == ["epoch", "component"] and out.attrs == {"level": "A"}
+    assert "sid" not in out and "count_like" not in out and out["b"].attrs == {"units": "nT"}

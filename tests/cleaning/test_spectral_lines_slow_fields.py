@@ -131,18 +131,21 @@ def test_clean_h_on_simulated_level_c_adds_no_line(tmp_path):
     # LEVEL_C of the (independent) simulator; before the fix the 2.5 Hz band rose to
     # 18-22 dB above its neighbourhood in every mode segment (0.4-2.3 dB before cleaning)
     from fluxcal.missions.rosetta.clean_cli import clean_files
-    from fluxcal.missions.rosetta.pipeline import calibrate_files
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import run_files
     from fluxcal.missions.rosetta.simulate import write_simulation
 
     paths = write_simulation(tmp_path / "raw", hours=0.5)
-    cal = calibrate_files(
-        paths["science_OB"], "OB", tmp_path / "c", levels=("A", "B", "C"),
-        hk_file=paths["hk"], calib_dir=paths["calib"], kernels=paths["kernels"],
-        frame="ECLIPJ2000", formats=("cdf",),
+    made = {}
+    written = run_files(
+        paths["science_OB"], "OB", tmp_path / "c", hk=paths["hk"], kernels=paths["kernels"],
+        options=RosettaOptions(calib=paths["calib"], levels=("A", "B", "C"),
+                               frame="ECLIPJ2000", formats=("cdf",)),
+        on_calibrated=lambda run: made.update(run.sensors[0].levels),
     )  # fmt: skip
-    c_file = [p for p in cal.paths if p.suffix == ".cdf" and "clc" in p.name][0]
+    c_file = [p for p in written if p.suffix == ".cdf" and "clc" in p.name][0]
     h = clean_files("H", [c_file], tmp_path / "h", lap_lines_hz=[2.5], plot=False)
-    before, after = cal.levels["C"], h.levels["OB"]
+    before, after = made["C"], h.levels["OB"]
     sid = before["sid"].values
     for mode in np.unique(sid):
         idx = np.flatnonzero(sid == mode)

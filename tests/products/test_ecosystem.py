@@ -355,7 +355,8 @@ def pipeline_products(tmp_path_factory) -> list[Path]:
     from fluxcal.missions.messenger.routes import run_edr2cdr
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
     from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-    from fluxcal.missions.rosetta.batch_task import make_day_task, simulate_days
+    from fluxcal.missions.rosetta.batch_task import simulate_days
+    from fluxcal.missions.rosetta.routes import make_day_task
     from fluxcal.runs.batch import run_batch
 
     root = tmp_path_factory.mktemp("pipelines")

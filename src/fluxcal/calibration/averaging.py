@@ -24,9 +24,11 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
+import xarray as xr
 from numba import njit
 
 
@@ -252,6 +254,59 @@ def bin_bitwise_or(bins: Bins, values: np.ndarray) -> np.ndarray:
     if bins.starts.size == 0:
         return np.zeros((0,) + v.shape[1:], dtype=v.dtype)
     return np.bitwise_or.reduceat(v, bins.starts, axis=0)
+
+
+def average_dataset(
+    ds: xr.Dataset,
+    bins: Bins,
+    origin: int,
+    *,
+    maximum: Collection[str] = ("quality",),
+    centred: Collection[str] = (),
+    drop: Collection[str] = (),
+    count: str | None = "n_samples",
+    epoch: str = "epoch",
+    dim: str = "time",
+) -> xr.Dataset:
+    """Average every variable of a dataset over the bins of `bin_index`.
+
+    Along ``dim``: float variables become their bin means (`bin_mean`); ``maximum``
+    variables (flags) their largest value (`bin_max`); ``centred`` variables (clocks
+    counting seconds with ``epoch``) their mean moved to the bin centre, ``mean +
+    (centre - mean epoch)``; other variables and ``drop`` are left out.  ``count`` names
+    the variable of the number of samples per bin.  ``epoch`` becomes the bin centres;
+    coordinates not along ``dim`` and the attributes are kept.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Samples with a TT2000 (int64 ns) variable ``epoch`` along ``dim``.
+    bins : Bins
+        `bin_index` of ``ds[epoch]``.
+    origin : int
+        The bins' origin (int64 ns): time differences are taken from it in float64.
+    """
+    t = ds[epoch].values.astype(np.int64)
+    rel = (t - origin).astype(float)
+    mean_rel = bin_mean(bins, rel)
+    data = {}
+    for name, var in ds.data_vars.items():
+        if name in drop or dim not in var.dims:
+            continue
+        if name in maximum:
+            data[name] = (var.dims, bin_max(bins, var.values), var.attrs)
+        elif name in centred:
+            centre_rel = (bins.centre - origin).astype(float)
+            clock = bin_mean(bins, var.values) + (centre_rel - mean_rel) * 1e-9
+            data[name] = (var.dims, clock, var.attrs)
+        elif np.issubdtype(var.dtype, np.floating):
+            data[name] = (var.dims, bin_mean(bins, var.values), var.attrs)
+    if count is not None:
+        data[count] = (dim, bins.counts, {"units": "1"})
+    coords = {epoch: (dim, bins.centre, dict(ds[epoch].attrs))}
+    coords.update({k: (v.dims, v.values, v.attrs) for k, v in ds.coords.items()
+                   if k != epoch and dim not in v.dims})
+    return xr.Dataset(data, coords=coords, attrs=dict(ds.attrs))
 
 
 def boxcar_average(

@@ -57,6 +57,16 @@ class Pipeline(Protocol):
     def day_source(self, input_dir: Path, day: _dt.date, options: Any) -> Any:
         """Return one batch day's source; raise `~fluxcal.runs.batch.DayWithoutData` if none."""
 
+    # Optional: ``day_calibration(input_dir, day, options) -> {name: path or version}``,
+    # what else a day depends on (checksummed in its manifest beside `day_files`).
+
+
+def _pool(pipeline: Pipeline, kernels: Path | Sequence[Path] | KernelPool | None) -> Any:
+    """Return the kernel pool of a run: ``kernels`` if already loaded, else a new scoped pool."""
+    if isinstance(kernels, KernelPool):
+        return contextlib.nullcontext(kernels)
+    return KernelPool(kernels if kernels is not None else [], frames=pipeline.frame_kernels)
+
 
 def run(
     pipeline: Pipeline,
@@ -67,6 +77,7 @@ def run(
     *,
     only_day: _dt.date | None = None,
     progress: Progress | None = None,
+    on_calibrated: Callable[[Any], None] | None = None,
 ) -> tuple[list[Path], int]:
     """Check, then (kernels loaded) read, calibrate and write one run; return (files, vectors).
 
@@ -86,23 +97,41 @@ def run(
         Write that UTC day only (a batch day; inputs may reach into the days around it).
     progress : callable, optional
         ``progress(description, done, total)``.
+    on_calibrated : callable, optional
+        Called with the calibrated data before it is written (a command's summary, a
+        demo's comparison with the truth).
     """
     require_for_options(options)  # a missing plot/zarr extra: one line, nothing read
     pipeline.check(options)
-    loaded = (contextlib.nullcontext(kernels) if isinstance(kernels, KernelPool)
-              else KernelPool(kernels if kernels is not None else [],
-                              frames=pipeline.frame_kernels))
-    with loaded as pool:
+    with _pool(pipeline, kernels) as pool:
         if progress is not None:
             progress("reading inputs", 0, 1)
         raw, inputs = pipeline.read(source, options)
         n_vectors = pipeline.size(raw)
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
+        if on_calibrated is not None:
+            on_calibrated(calibrated)
         written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
                                  kernel_list=pool.kernel_list(), only_day=only_day,
                                  progress=progress)
     return written, n_vectors
+
+
+def calibrate(
+    pipeline: Pipeline,
+    source: Any,
+    kernels: Path | Sequence[Path] | KernelPool | None,
+    options: Any,
+) -> Any:
+    """Check, then (kernels loaded) read and calibrate one source; write nothing.
+
+    The calibrated data of `run` without products (the library's one-call API).
+    """
+    pipeline.check(options)
+    with _pool(pipeline, kernels):
+        raw, _inputs = pipeline.read(source, options)
+        return pipeline.calibrate(raw, options, None)
 
 
 def run_day(
@@ -133,7 +162,8 @@ class DayTask:
 
     A mission whose day needs nothing but its pipeline returns one of these from its
     ``make_day_task``; ``inputs(day)`` lists the day's files (``pipeline.day_files``)
-    so that an unchanged day is skipped.
+    and, when the pipeline has one, ``pipeline.day_calibration``, so that an unchanged
+    day is skipped.
     """
 
     pipeline: Pipeline
@@ -148,7 +178,10 @@ class DayTask:
         files = self.pipeline.day_files(Path(self.input_dir), day, self.options)
         kernels = [] if self.kernels is None else (
             [self.kernels] if isinstance(self.kernels, (str, Path)) else list(self.kernels))
-        return DayInputs(tuple(Path(p) for p in [*files, *kernels]))
+        day_calibration = getattr(self.pipeline, "day_calibration", None)
+        calibration = ({} if day_calibration is None
+                       else day_calibration(Path(self.input_dir), day, self.options))
+        return DayInputs(tuple(Path(p) for p in [*files, *kernels]), calibration)
 
     def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day`` (`run_day`)."""

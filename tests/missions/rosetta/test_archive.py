@@ -22,7 +22,8 @@ from fluxcal.errors import CalibrationError, InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel, leapseconds, utc_to_tt2000
 from fluxcal.missions.rosetta import archive, archive_write, calib, io
-from fluxcal.missions.rosetta.pipeline import calibrate_files
+from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.missions.rosetta.routes import run_files
 from fluxcal.missions.rosetta.simulate import write_simulation
 
 START = "2014-08-01T10:00:00"
@@ -104,9 +105,9 @@ def test_archive_route_products_equal_csv_route(sim, tmp_path):
               "archive": {s: sim["archive"] for s in ("OB", "IB")} | {"hk": sim["archive"]}}
     for route, src in routes.items():
         for sensor in ("OB", "IB"):
-            calibrate_files(src[sensor], sensor, tmp_path / route, levels=list("ABCEFG"),
-                            hk_file=src["hk"] if sensor == "OB" else None,
-                            calib_dir=sim["calib"], kernels=sim["kernels"])
+            run_files(src[sensor], sensor, tmp_path / route,
+                      hk=src["hk"] if sensor == "OB" else None, kernels=sim["kernels"],
+                      options=RosettaOptions(calib=sim["calib"], levels=tuple("ABCEFG")))
     a, b = _products(tmp_path / "csv"), _products(tmp_path / "archive")
     assert len(a) == 2 * (3 * 4 + 3) + 1  # A, B, C x 4 modes, E, F, G, per sensor; HK
     assert a.keys() == b.keys()

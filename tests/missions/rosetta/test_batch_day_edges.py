@@ -21,7 +21,8 @@ from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.rosetta import simulate as simulate_module
-from fluxcal.missions.rosetta.batch_task import make_day_task, science_file, simulate_days
+from fluxcal.missions.rosetta.batch_task import science_file, simulate_days
+from fluxcal.missions.rosetta.routes import make_day_task
 from fluxcal.missions.rosetta.simulate import read_truth_csv
 from fluxcal.products import read_product
 from fluxcal.runs.batch import run_batch

@@ -2,7 +2,7 @@
 in any order, give what one run over the whole campaign gives (decision 27).
 
 Raw files are hand-made (constant counts, stepped thermistor words), so no forward model
-is involved; the reference is a single `calibrate_files` run over the concatenated days,
+is involved; the reference is a single `calibrate_levels` run over the concatenated days,
 whose in-run stitching is checked against the closed form in test_level_a_formulas.py.
 """
 
@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from fluxcal.missions.rosetta import calib
-from fluxcal.missions.rosetta.batch_task import make_day_task, science_file, stitch_file
+from fluxcal.missions.rosetta.batch_task import science_file, stitch_file
 from fluxcal.missions.rosetta.calib import DailyOffsetModel
-from fluxcal.missions.rosetta.pipeline import calibrate_files
+from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.missions.rosetta.routes import calibrate_levels, make_day_task
 
 from ._raw import HEADER, write_raw_csv
 
@@ -48,9 +49,15 @@ def campaign(tmp_path):
     return inp, whole
 
 
-def _a(path, inp, **kw):
-    return calibrate_files(path, "OB", inp / "unused", calib_dir=inp / "calib", write=False,
-                           **kw).levels["A"]
+def _a(path, inp, previous=None, stitch_gap_s=3 * 3600.0):
+    options = RosettaOptions(calib=inp / "calib", levels=("A",),
+                             stitch_gap_hours=stitch_gap_s / 3600.0)
+    return calibrate_levels(path, "OB", options=options, previous=previous)["A"]
+
+
+def _incoming(task, day):
+    """The stitching state ``day`` starts from (the batch's chain of earlier days)."""
+    return task.pipeline.chain(task.input_dir, task.options).incoming_state(day, "OB")
 
 
 def test_incoming_state_equals_one_run(campaign, tmp_path, pool):
@@ -59,7 +66,7 @@ def test_incoming_state_equals_one_run(campaign, tmp_path, pool):
     task = make_day_task(inp, tmp_path / "out", formats=("cdf",), levels=("A",))
     for order in ((D3, D2, D1), (D1, D2, D3)):  # any order: the chain is resolved from files
         for day in order:
-            a = _a(science_file(inp, day, "OB"), inp, previous=task.incoming_state(day, "OB"))
+            a = _a(science_file(inp, day, "OB"), inp, previous=_incoming(task, day))
             sel = np.isin(ref["epoch"].values, a["epoch"].values)
             assert sel.sum() == a.sizes["time"]
             # same arithmetic on the same numbers as the one run (1e-9 nT: summation order)
@@ -78,8 +85,8 @@ def test_incoming_state_equals_one_run(campaign, tmp_path, pool):
 def test_chain_breaks_without_model_or_across_gap(campaign, tmp_path, pool):
     inp, _ = campaign
     task = make_day_task(inp, tmp_path / "out", formats=("cdf",), levels=("A",))
-    assert task.incoming_state(D1, "OB") is None  # no day before
-    state = task.incoming_state(D2, "OB")
+    assert _incoming(task, D1) is None  # no day before
+    state = _incoming(task, D2)
     assert state is not None
     # D1 ends 23:59:00, D2 starts 00:00:00: a 60-s gap continues with a 60-s limit only
     alone = _a(science_file(inp, D2, "OB"), inp)
@@ -87,7 +94,7 @@ def test_chain_breaks_without_model_or_across_gap(campaign, tmp_path, pool):
         a = _a(science_file(inp, D2, "OB"), inp, previous=state, stitch_gap_s=limit)
         assert (np.abs(a["b"].values - alone["b"].values).max() > 1.0) == stitched
     (inp / "calib" / "RPCMAG_141102_006_CALIB_OB.TXT").unlink()  # D2 without a model
-    assert task.incoming_state(D3, "OB") is None
+    assert _incoming(task, D3) is None
 
 
 def test_changed_earlier_day_changes_later_inputs(campaign, tmp_path, pool):

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from fluxcal.cli import main
-from fluxcal.missions.rosetta.batch_task import make_day_task, science_file, simulate_days
+from fluxcal.missions.rosetta.batch_task import science_file, simulate_days
+from fluxcal.missions.rosetta.routes import make_day_task
 from fluxcal.missions.rosetta.simulate import read_truth_csv
 from fluxcal.products import read_product
 from fluxcal.runs.batch import DayWithoutData, run_batch
@@ -183,7 +184,7 @@ def test_without_kernels_levels_a_b_e_f(tmp_path):
     assert not (inp / "kernels.tm").exists()
     out = tmp_path / "out"
     task = make_day_task(inp, out, formats=("cdf",))
-    assert task.level_list() == ["A", "B", "E", "F"]
+    assert task.options.levels == ("A", "B", "E", "F")
     result = task(day)
     codes = sorted({p.name.split("_")[2] for p in result.products})
     assert codes == ["cla-hk", "cla-ib", "cla-ob", "clb-ib", "clb-ob", "cle-ib-a01",
@@ -232,7 +233,7 @@ def test_demo_writes_rosetta_inputs(tmp_path):
     days = list(rosetta.demo_days)
     rosetta.load("simulate_days")(tmp_path, days)
     task = make_day_task(tmp_path, tmp_path / "out")
-    assert task.level_list() == ["A", "B", "C", "E", "F", "G"]
+    assert task.options.levels == ("A", "B", "C", "E", "F", "G")
     for day in days:
         # OB, IB, HK, kernels.tm, and the previous day's OB and IB (the vectors their
         # filter shift moves past midnight belong to this day, decision 30)

@@ -151,36 +151,25 @@ def test_stitch_state_file_between_runs(tmp_path):
 
     sim = write_simulation(tmp_path / "sim", start_utc="2014-08-01T23:58:00", hours=0.05)
     state = tmp_path / "state.json"
-    from fluxcal.missions.rosetta.pipeline import calibrate_files, read_stitch_state
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.pipeline import read_stitch_state
+    from fluxcal.missions.rosetta.routes import calibrate_levels, run_files
 
-    whole = calibrate_files(
-        sim["science_OB"], "OB", tmp_path / "p0", calib_dir=sim["calib"], write=False
-    )
+    options = RosettaOptions(calib=sim["calib"], formats=("tab",))
+    whole = calibrate_levels(sim["science_OB"], "OB", options=options)
     # split the raw file at midnight and process the halves one after the other
     lines = sim["science_OB"].read_text().splitlines()
     day1 = [ln for ln in lines[1:] if ln.startswith("2014-08-01")]
     day2 = [ln for ln in lines[1:] if ln.startswith("2014-08-02")]
     (tmp_path / "d1.csv").write_text("\n".join([lines[0], *day1]) + "\n")
     (tmp_path / "d2.csv").write_text("\n".join([lines[0], *day2]) + "\n")
-    calibrate_files(
-        tmp_path / "d1.csv",
-        "OB",
-        tmp_path / "p1",
-        calib_dir=sim["calib"],
-        stitch_state=state,
-        formats=("tab",),
-    )
+    run_files(tmp_path / "d1.csv", "OB", tmp_path / "p1", options=options, state_file=state)
     assert read_stitch_state(state) is not None and "stitch_correction_nt" in json.loads(
         state.read_text()
     )
-    r2 = calibrate_files(
-        tmp_path / "d2.csv",
-        "OB",
-        tmp_path / "p2",
-        calib_dir=sim["calib"],
-        stitch_state=state,
-        formats=("tab",),
-    )
-    a_whole, a2 = whole.levels["A"], r2.levels["A"]
+    made = {}
+    run_files(tmp_path / "d2.csv", "OB", tmp_path / "p2", options=options, state_file=state,
+              on_calibrated=lambda run: made.update(run.sensors[0].levels))
+    a_whole, a2 = whole["A"], made["A"]
     sel = np.isin(a_whole["epoch"].values, a2["epoch"].values)
     np.testing.assert_allclose(a2["b"].values, a_whole["b"].values[sel], atol=1e-9)

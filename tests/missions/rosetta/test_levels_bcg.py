@@ -8,6 +8,7 @@ import spiceypy
 from scipy.spatial.transform import Rotation
 
 from fluxcal.errors import CalibrationError, FluxcalError
+from fluxcal.geometry.days import day_midnight
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
 from fluxcal.missions.rosetta import averaged, calib, level_a, level_b, level_c, simulate
@@ -182,7 +183,7 @@ def test_average_against_brute_force(run, seconds):
 
 
 def test_average_origin_is_utc_midnight(pool):
-    origin = averaged.utc_midnight(int(utc_to_tt2000(np.array(["2014-08-01T13:14:15.5"]))[0]))
+    origin = day_midnight(int(utc_to_tt2000(np.array(["2014-08-01T13:14:15.5"]))[0]))
     assert origin == utc_to_tt2000(np.array(["2014-08-01T00:00:00"]))[0]
 
 

@@ -12,7 +12,8 @@ import cdflib
 import numpy as np
 import pytest
 
-from fluxcal.missions.rosetta.pipeline import calibrate_files
+from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.missions.rosetta.routes import run_files
 
 from ._raw import write_raw_csv
 
@@ -27,8 +28,10 @@ def run(tmp_path, pool):
     raw = write_raw_csv(tmp_path / "raw.csv", "2014-08-01T10:00:00", 180, 1.0, sid=sid,
                         t_words=words)
     out = tmp_path / "out"
-    res = calibrate_files(raw, "OB", out, levels=("A", "B", "E", "F"), average_s=1.0)
-    return out, res, sid
+    made = {}
+    run_files(raw, "OB", out, options=RosettaOptions(levels=("A", "B", "E", "F"), average_s=1.0),
+              on_calibrated=lambda run: made.update(run.sensors[0].levels))
+    return out, made, sid
 
 
 def _rows(path):
@@ -49,7 +52,7 @@ def test_calibrated_files_split_by_mode(run):
 @pytest.mark.parametrize("level", ["A", "B"])
 def test_calibrated_table_archive_columns(run, level):
     out, res, sid = run
-    ds = res.levels[level]
+    ds = res[level]
     epoch = ds["epoch"].values
     for path, mode, first in (("T1000", 2, 0), ("T1001", 3, 60), ("T1002", 2, 120)):
         rows = _rows(out / f"RPCMAG140801{path}_CL{level}_OB_M{mode}.TAB")
@@ -75,7 +78,7 @@ def test_calibrated_table_archive_columns(run, level):
 @pytest.mark.parametrize("level", ["E", "F"])
 def test_resampled_table_archive_columns(run, level):
     out, res, _ = run
-    ds = res.levels[level]
+    ds = res[level]
     rows = _rows(out / f"RPCMAG140801_CL{level}_OB_A01.TAB")
     assert len(rows) == ds.sizes["time"] and all(len(r) == 6 for r in rows)
     utc = np.array([r[0] for r in rows], dtype="M8[us]")

@@ -15,8 +15,9 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.days import split_days
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.time import SclkKernel, tt2000_to_datetime64
+from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.imap import l1a, l1b
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.packets import data_file, read_packets
@@ -125,11 +126,9 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
         for (mode, sensor), ds in datasets.items():
             level = ds.attrs["level"]
             source = logical_source(level, mode, sensor)
-            days = tt2000_to_datetime64(ds["epoch"].values, default_lsk()).astype("M8[D]")
-            for day in np.unique(days):
+            for day, part in split_days(ds, lsk=default_lsk()):
                 if only_day is not None and day != np.datetime64(only_day, "D"):
                     continue
-                part = ds.isel(time=np.flatnonzero(days == day))
                 part.attrs = {**ds.attrs, **(provenance or {}), "Logical_source": source,
                               "Data_version": version,
                               "Data_type": f"{level.upper()}>{level.upper()} {mode}"}

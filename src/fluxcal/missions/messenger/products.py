@@ -43,6 +43,7 @@ from numba import njit
 
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.days import day_start, from_day_of_year
 from fluxcal.missions.messenger.levels import FRAMES, POSITION_VARIABLE, SC_ID, frame_variables
 from fluxcal.missions.messenger.options import DEFAULT_VERSION
 from fluxcal.products import write_product
@@ -525,13 +526,6 @@ def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], c
     return written
 
 
-def day_start_tt2000(year: int, doy: int) -> int:
-    """TT2000 of 00:00:00 UTC of day ``doy`` of ``year`` (`utc_day_start_tt2000`)."""
-    from fluxcal.geometry.time import utc_day_start_tt2000
-
-    return utc_day_start_tt2000(np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D"))
-
-
 def write_day(
     ds: xr.Dataset,
     out_dir: Path,
@@ -564,7 +558,8 @@ def write_day(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     year, doy, yyddd = day_code(ds)
-    day0 = day_start_tt2000(year, doy)
+    day = from_day_of_year(year, doy)
+    day0 = day_start(day)
     index, report = time_order(ds["epoch"].values)
     _log_order(ds, report)
     base = _take(ds, ["met_corrected", "quality", *_flags(ds)], index)
@@ -574,7 +569,6 @@ def write_day(
     global_yaml, variable_yaml = istp_files()
     istp = {"global_yaml": global_yaml, "variable_yaml": variable_yaml}
     order_kw = report.label_keywords()
-    day = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
     # per time grid, shared by every frame: the table's UTC columns, the averages' MET
     # (interval centres) and the quality keywords
     utc: dict = {}
@@ -699,8 +693,7 @@ def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
         raise InputFormatError("recorded (EDR) times go backwards; the science files must "
                                "be in time order", field="met")  # the readers check it
     (y0, y1), (d0, d1) = _year_doy(et[[0, -1]])
-    first = np.datetime64(f"{y0}-01-01") + np.timedelta64(int(d0) - 1, "D")
-    last = np.datetime64(f"{y1}-01-01") + np.timedelta64(int(d1) - 1, "D")
+    first, last = from_day_of_year(y0, d0), from_day_of_year(y1, d1)
     midnights = np.arange(first + 1, last + 1, dtype="datetime64[D]")
     edges = np.searchsorted(et, utc_to_et(np.array([f"{d}T00:00:00" for d in midnights])))
     bounds = [0, *edges.tolist(), et.size]

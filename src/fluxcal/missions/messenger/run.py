@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError, ValidationError
+from fluxcal.geometry.days import from_day_of_year
 from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
@@ -227,7 +228,7 @@ def merge_tail_fragment(
         return days
     last = days[-1]
     year, doy, _ = day_code(last)
-    midnight = np.datetime64(f"{year}-01-01") + np.timedelta64(doy - 1, "D")
+    midnight = from_day_of_year(year, doy)
     rec = last["et_recorded"].values if "et_recorded" in last else last["et"].values
     if float(rec.max()) - float(utc_to_et(np.array([f"{midnight}T00:00:00"]))[0]) >= max_lag_s:
         return days

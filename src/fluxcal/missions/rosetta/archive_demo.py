@@ -58,7 +58,8 @@ def run_demo(out: Path, *, hours: float = 0.25) -> str:
         `compare` statistics (archive route - CSV route; archive route - truth).
     """
     from fluxcal.missions.rosetta.archive import find_products
-    from fluxcal.missions.rosetta.pipeline import calibrate_files
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import run_files
     from fluxcal.missions.rosetta.simulate import write_simulation
     from fluxcal.products.compare import compare
 
@@ -73,11 +74,10 @@ def run_demo(out: Path, *, hours: float = 0.25) -> str:
               "csv": {"OB": paths["science_OB"], "IB": paths["science_IB"], "hk": paths["hk"]}}
     for route, src in routes.items():
         for sensor in ("OB", "IB"):
-            calibrate_files(src[sensor], sensor, out / f"products_{route}",
-                            levels=("A", "B", "C", "E", "F", "G"),
-                            hk_file=src["hk"] if sensor == "OB" else None,
-                            calib_dir=paths["calib"], kernels=paths["kernels"],
-                            frame="ECLIPJ2000", formats=("tab",))
+            run_files(src[sensor], sensor, out / f"products_{route}",
+                      hk=src["hk"] if sensor == "OB" else None, kernels=paths["kernels"],
+                      options=RosettaOptions(calib=paths["calib"], levels=tuple("ABCEFG"),
+                                             frame="ECLIPJ2000", formats=("tab",)))
     tabs = {r: {p.name: p.read_bytes() for p in (out / f"products_{r}").glob("*.TAB")}
             for r in routes}
     same = sum(tabs["archive"].get(k) == v for k, v in tabs["csv"].items())

@@ -16,16 +16,9 @@ import xarray as xr
 
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.days import day_midnight
 
 NEXT_LEVEL = {"A": "E", "B": "F", "C": "G"}
-
-
-def utc_midnight(epoch: int, lsk=None) -> int:
-    """TT2000 of 00:00 UTC of the day containing ``epoch``."""
-    from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
-
-    day = str(tt2000_to_utc(np.array([epoch]), digits=0, lsk=lsk)[0])[:10]
-    return int(utc_to_tt2000(np.array([f"{day}T00:00:00"]), lsk)[0])
 
 
 def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
@@ -43,31 +36,10 @@ def average(level: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dataset:
                                field="seconds")
     epoch = level["epoch"].values.astype(np.int64)
     width = int(round(seconds * 1e9))
-    origin = utc_midnight(int(epoch[0]), lsk) if epoch.size else 0
+    origin = day_midnight(int(epoch[0]), lsk) if epoch.size else 0
     bins = averaging.bin_index(epoch, width, origin)
-    data = {}
-    rel = (epoch - origin).astype(float) if epoch.size else epoch.astype(float)
-    mean_rel = averaging.bin_mean(bins, rel)
-    for name, var in level.data_vars.items():
-        if name in ("quality",):
-            data[name] = ("time", averaging.bin_max(bins, var.values), var.attrs)
-        elif name == "obt":
-            centre_rel = (bins.centre - origin).astype(float)
-            obt = averaging.bin_mean(bins, var.values) + (centre_rel - mean_rel) * 1e-9
-            data[name] = ("time", obt, var.attrs)
-        elif name in ("sid", "row", "et"):
-            continue
-        elif np.issubdtype(var.dtype, np.floating):
-            data[name] = (var.dims, averaging.bin_mean(bins, var.values), var.attrs)
-    data["n_samples"] = ("time", bins.counts, {"units": "1"})
-    out = xr.Dataset(
-        data,
-        coords={
-            "epoch": ("time", bins.centre, {"units": "ns", "time_base": "TT2000"}),
-            "component": ["x", "y", "z"],
-        },
-        attrs=dict(level.attrs),
-    )
+    out = averaging.average_dataset(level, bins, origin, maximum=("quality",),
+                                    centred=("obt",), drop=("sid", "row", "et"))
     src = level.attrs.get("level", "?")
     out.attrs.update(
         level=NEXT_LEVEL.get(src, src + "avg"),

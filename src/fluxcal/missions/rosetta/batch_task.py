@@ -1,4 +1,8 @@
-"""Day task for ``fluxcal batch rosetta`` (one day of raw RPC-MAG telemetry -> its levels).
+"""The days of ``fluxcal batch rosetta``: input layout, day edges, stitching chain, simulation.
+
+A batch day runs through the generic driver (`fluxcal.runs.driver.DayTask` over
+`fluxcal.missions.rosetta.routes.RosettaRun`); this module finds a day's inputs and the
+state it starts from (`DayChain`).
 
 Input folder layout (decision, see ``docs/decisions/rosetta.md``)::
 
@@ -36,7 +40,7 @@ does not matter, and the incoming state is part of the day's manifest inputs, so
 in an earlier day redoes the later days of its campaign.
 
 Every file of a day (both sensors, every level and format, HK, quicklooks) is renamed
-into place only when the whole day succeeded (`fluxcal.products.atomic.atomic_group`).
+into place only when the whole day succeeded (`RosettaRun.write`).
 
 References
 ----------
@@ -49,9 +53,10 @@ import datetime as _dt
 import json
 import logging
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -65,9 +70,14 @@ STITCH_DIR = "stitch"
 _STITCH_GAP_S = 3 * 3600.0  # extended_model.STITCH_GAP_S (no import at module load)
 
 
+def stitch_name(day: _dt.date, sensor: str) -> str:
+    """Return ``RPCMAG_<yyyymmdd>_STITCH_<sensor>.json``."""
+    return f"RPCMAG_{day:%Y%m%d}_STITCH_{sensor}.json"
+
+
 def stitch_file(out_dir: Path, day: _dt.date, sensor: str) -> Path:
     """Return ``<out>/stitch/RPCMAG_<yyyymmdd>_STITCH_<sensor>.json``."""
-    return Path(out_dir) / STITCH_DIR / f"RPCMAG_{day:%Y%m%d}_STITCH_{sensor}.json"
+    return Path(out_dir) / STITCH_DIR / stitch_name(day, sensor)
 
 
 def _file_key(path: Path | None) -> list | None:
@@ -124,112 +134,75 @@ def _source_files(source, sensor: str | None = None) -> list[Path]:
     return source_files(source, sensor)
 
 
-@dataclass(frozen=True)
-class RosettaDayTask:
-    """Calibrate one RPC-MAG day (both sensors) and write its products (picklable).
+def day_science(input_dir: Path, day: _dt.date) -> dict[str, Any]:
+    """Return the day's raw science per sensor that has one (`science_source`)."""
+    files = {s: science_source(input_dir, day, s) for s in SENSORS}
+    return {s: p for s, p in files.items() if p is not None}
 
-    Parameters
-    ----------
-    input_dir, out_dir : Path
-        Raw input folder (layout in the module docstring) and product folder.
-    kernels : Path, optional
-        Meta-kernel; default ``<input>/kernels.tm`` when it exists, else none.
-    calib : Path, optional
-        Calibration folder; default ``<input>/calib`` when it exists, else fluxcal's.
-    levels : sequence of str, optional
-        Default `BASE_LEVELS`, or `KERNEL_LEVELS` with kernels.
-    quicklook : bool
-        Also write ``RPCMAG_QL_<sensor>_<yyyymmdd>.png``.
+
+def edge_key(science: Any, sensor: str, kernels: Path | None) -> list:
+    """Key of a stitch file: the raw files (path, size, mtime) and meta-kernel it came from."""
+    files = [] if science is None else _source_files(science, sensor)
+    return [[_file_key(p) for p in files], _file_key(kernels)]
+
+
+def write_stitch(stitch_dir: Path, day: _dt.date, sensor: str, key: list, edges,
+                 end_state: dict | None) -> None:
+    """Write a day's stitch file: its key, first and last good vectors, end-of-day state."""
+    from fluxcal.products.atomic import atomic_write_bytes
+
+    data = {"key": key,
+            "first": list(edges[0]) if edges else None,
+            "last": list(edges[1]) if edges else None,
+            "end_state": end_state}
+    atomic_write_bytes(Path(stitch_dir) / stitch_name(day, sensor),
+                       json.dumps(data, indent=1).encode())
+
+
+@dataclass(frozen=True)
+class DayChain:
+    """The days of a batch input folder and the midnight-stitching chain across them.
+
+    Everything the chain depends on is a field: the input folder, the folder of the
+    stitch files (``<out>/stitch``), the meta-kernel and frames the raw files are read
+    with, the calibration folder and the stitching gap (sec. 4.2.3.3, decision 27).
     """
 
     input_dir: Path
-    out_dir: Path
+    stitch_dir: Path
     kernels: Path | None = None
+    frame_kernels: Mapping[str, Path] | None = None
     calib: Path | None = None
-    formats: tuple[str, ...] = ("tab", "cdf")
-    levels: tuple[str, ...] | None = None
-    quicklook: bool = False
-    primary: str = "OB"
-    average_s: float = 1.0
-    frame: str = "auto"
-    centre: str = "auto"
-    boom: str = "deployed"
     stitch_gap_s: float = _STITCH_GAP_S
-    name: str = "rosetta"
-
-    def kernel_file(self) -> Path | None:
-        """Return the meta-kernel used (explicit, else ``<input>/kernels.tm`` if present)."""
-        if self.kernels is not None:
-            return Path(self.kernels)
-        default = Path(self.input_dir) / "kernels.tm"
-        return default if default.is_file() else None
-
-    def calib_dir(self) -> Path | None:
-        """Return the calibration folder used (explicit, else ``<input>/calib`` if present)."""
-        if self.calib is not None:
-            return Path(self.calib)
-        for name in ("calib", "CALIB"):  # CALIB: the archive's folder name
-            default = Path(self.input_dir) / name
-            if default.is_dir():
-                return default
-        return None
-
-    def level_list(self) -> list[str]:
-        """Levels made for each sensor."""
-        from fluxcal.missions.rosetta.pipeline import parse_levels
-
-        if self.levels:
-            return parse_levels(",".join(self.levels))
-        return list(KERNEL_LEVELS if self.kernel_file() is not None else BASE_LEVELS)
-
-    def _science(self, day: _dt.date) -> dict[str, Path]:
-        files = {s: science_source(self.input_dir, day, s) for s in SENSORS}
-        return {s: p for s, p in files.items() if p is not None}
-
-    # --- midnight stitching across days (sec. 4.2.3.3, decision 27) -----------------------
-    def _edge_key(self, day: _dt.date, sensor: str) -> list:
-        source = science_source(self.input_dir, day, sensor)
-        files = [] if source is None else _source_files(source, sensor)
-        return [[_file_key(p) for p in files], _file_key(self.kernel_file())]
 
     def _read_stitch(self, day: _dt.date, sensor: str) -> dict | None:
-        path = stitch_file(self.out_dir, day, sensor)
+        path = Path(self.stitch_dir) / stitch_name(day, sensor)
         try:
             data = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
-        return data if data.get("key") == self._edge_key(day, sensor) else None
-
-    def _write_stitch(self, day: _dt.date, sensor: str, edges, end_state: dict | None) -> None:
-        from fluxcal.products.atomic import atomic_write_bytes
-
-        data = {"key": self._edge_key(day, sensor),
-                "first": list(edges[0]) if edges else None,
-                "last": list(edges[1]) if edges else None,
-                "end_state": end_state}
-        atomic_write_bytes(stitch_file(self.out_dir, day, sensor),
-                           json.dumps(data, indent=1).encode())
+        key = edge_key(science_source(self.input_dir, day, sensor), sensor, self.kernels)
+        return data if data.get("key") == key else None
 
     def _edges(self, day: _dt.date, sensor: str):
         """First and last good vector ``((epoch, word), (epoch, word))`` of a day, cached."""
         from fluxcal.geometry.time import SclkKernel, leapseconds
         from fluxcal.missions.rosetta import io
         from fluxcal.missions.rosetta.archive import read_science
+        from fluxcal.missions.rosetta.level_a import stitch_edges
         from fluxcal.runs.batch import worker_kernel_pool
 
         cached = self._read_stitch(day, sensor)
         if cached is not None:
             return None if cached["first"] is None else (tuple(cached["first"]),
                                                          tuple(cached["last"]))
-        from fluxcal.missions.rosetta.level_a import stitch_edges
-
-        kern = self.kernel_file()
-        worker_kernel_pool(kern)
-        sclk = SclkKernel.from_pool(io.SCLK_ID) if kern is not None else None
-        raw = read_science(science_source(self.input_dir, day, sensor), sensor,
-                                  sclk=sclk, lsk=leapseconds())
+        worker_kernel_pool(self.kernels, self.frame_kernels)  # the day's own pool
+        sclk = SclkKernel.from_pool(io.SCLK_ID) if self.kernels is not None else None
+        source = science_source(self.input_dir, day, sensor)
+        raw = read_science(source, sensor, sclk=sclk, lsk=leapseconds())
         edges = stitch_edges(raw, sensor)
-        self._write_stitch(day, sensor, edges, None)
+        write_stitch(self.stitch_dir, day, sensor, edge_key(source, sensor, self.kernels),
+                     edges, None)
         return edges
 
     def incoming_state(self, day: _dt.date, sensor: str):
@@ -240,7 +213,7 @@ class RosettaDayTask:
         last vectors (`extended_model.stitch_day`), exactly as one run over all the days
         would.  A day whose raw file cannot be read has no products (its own task fails
         and is reported) and breaks the chain like a day without data; the break is in
-        this day's manifest inputs (`inputs`), so repairing that day redoes this one.
+        this day's manifest inputs (`calibration`), so repairing that day redoes this one.
         """
         return self._chain(day, sensor)[0]
 
@@ -251,7 +224,7 @@ class RosettaDayTask:
         from fluxcal.missions.rosetta import calib, level_a
         from fluxcal.missions.rosetta.extended_model import stitch_day
 
-        models = calib.find_daily_offset_models(self.calib_dir(), sensor)
+        models = calib.find_daily_offset_models(self.calib, sensor)
         chain = []
         d = day - _dt.timedelta(days=1)
         while (science_source(self.input_dir, d, sensor) is not None
@@ -260,8 +233,8 @@ class RosettaDayTask:
             d -= _dt.timedelta(days=1)
         if not chain:
             return None, ""
-        cal = calib.load_ground_calibration(sensor, self.calib_dir())
-        nominal = calib.load_nominal_conversion(self.calib_dir())
+        cal = calib.load_ground_calibration(sensor, self.calib)
+        nominal = calib.load_nominal_conversion(self.calib)
         state, note = None, ""
         for d in reversed(chain):
             try:
@@ -281,8 +254,8 @@ class RosettaDayTask:
             note = ""
         return state, note
 
-    def _carry(self, day: _dt.date, sensor: str):
-        """``(previous day's science file, its incoming state)`` or ``None`` (decision 30)."""
+    def previous_day(self, day: _dt.date, sensor: str):
+        """``(previous day's science source, its incoming state)`` or ``None`` (decision 30)."""
         prev_day = day - _dt.timedelta(days=1)
         prev = science_source(self.input_dir, prev_day, sensor)
         if prev is None:
@@ -295,118 +268,63 @@ class RosettaDayTask:
             return f"none {note}".strip()
         return json.dumps(state.to_attrs(), sort_keys=True)
 
-    def inputs(self, day: _dt.date):
-        """Return the day's raw files, meta-kernel and calibration files (manifest).
-
-        Calibration: every file of fluxcal's Rosetta data folder and of the override
-        folder, except other days' daily offset models (adding a day's model must not
-        invalidate the other days).
-        """
-        from fluxcal.runs.batch import DayInputs
-
-        files = [p for sensor, source in self._science(day).items()
+    def files(self, day: _dt.date) -> list[Path]:
+        """Return the day's raw files (both sensors, HK) and the previous day's science."""
+        files = [p for sensor, source in day_science(self.input_dir, day).items()
                  for p in _source_files(source, sensor)]
         hk = hk_source(self.input_dir, day)
         if hk is not None:
             files += _source_files(hk)
-        kern = self.kernel_file()
-        if kern is not None:
-            files.append(kern)
+        for sensor in day_science(self.input_dir, day):  # its tail is in this day
+            prev = science_source(self.input_dir, day - _dt.timedelta(days=1), sensor)
+            if prev is not None:
+                files += _source_files(prev, sensor)
+        return files
+
+    def calibration(self, day: _dt.date) -> dict[str, Any]:
+        """Return what else the day depends on: calibration files and incoming states.
+
+        Calibration: every file of fluxcal's Rosetta data folder and of the override
+        folder, except other days' daily offset models (adding a day's model must not
+        invalidate the other days); the stitching state the day starts from and the one
+        its previous day's tail starts from (decisions 27, 30).
+        """
         stamp = f"{day:%y%m%d}"
-        cal: dict[str, Path] = {}
+        cal: dict[str, Any] = {}
         folders = {"fluxcal": Path(__file__).resolve().parent / "data"}
-        if self.calib_dir() is not None:
-            folders["calib"] = self.calib_dir()
+        if self.calib is not None:
+            folders["calib"] = Path(self.calib)
         for key, folder in folders.items():
             for p in sorted(folder.glob("*")):
                 m = _DAILY_CALIB.match(p.name)
                 if p.is_file() and (m is None or m.group(1) == stamp):
                     cal[f"{key}/{p.name}"] = p
-        for sensor in self._science(day):  # the chain of earlier days (decision 27)
+        for sensor in day_science(self.input_dir, day):  # the chain of earlier days
             cal[f"stitch_in/{sensor}"] = self._incoming_text(day, sensor)
             prev = science_source(self.input_dir, day - _dt.timedelta(days=1), sensor)
-            if prev is not None:  # its tail shifted past midnight is in this day (decision 30)
-                files += _source_files(prev, sensor)
+            if prev is not None:  # its tail shifted past midnight is in this day
                 cal[f"tail_in/{sensor}"] = self._incoming_text(
                     day - _dt.timedelta(days=1), sensor)
-        return DayInputs(tuple(files), cal)
-
-    def __call__(self, day: _dt.date):
-        """Process ``day``; raise `DayWithoutData` when it has no science file."""
-        import numpy as np
-
-        from fluxcal.errors import InputFormatError
-        from fluxcal.missions.rosetta.pipeline import calibrate_files
-        from fluxcal.products.atomic import atomic_group
-        from fluxcal.runs.batch import DayResult, DayWithoutData, worker_kernel_pool
-
-        science = self._science(day)
-        if not science:
-            raise DayWithoutData(
-                f"no science_OB.csv or science_IB.csv in {day_folder(self.input_dir, day)} "
-                f"and no EDITED products RPCMAG{day:%y%m%d}T<hhmm>_RAW_<OB|IB>_M<mode> in "
-                f"{self.input_dir}"
-            )
-        hk = hk_source(self.input_dir, day)
-        kern = self.kernel_file()
-        pool = worker_kernel_pool(kern)
-        levels = self.level_list()
-        stamp = np.datetime64(day.isoformat(), "D")
-        paths: list[Path] = []
-        n_vectors = 0
-        ends = {}
-        with atomic_group():  # nothing of the day appears unless every file is complete
-            for k, (sensor, path) in enumerate(science.items()):
-                result = calibrate_files(
-                    path, sensor, Path(self.out_dir), levels=levels,
-                    hk_file=hk if k == 0 else None,
-                    calib_dir=self.calib_dir(), kernels=kern, primary=self.primary,
-                    average_s=self.average_s, frame=self.frame, centre=self.centre,
-                    boom=self.boom, formats=self.formats, quicklook=self.quicklook,
-                    pool=pool, previous=self.incoming_state(day, sensor),
-                    stitch_gap_s=self.stitch_gap_s, day=stamp, carry=self._carry(day, sensor),
-                )
-                a = result.levels["A"]
-                n_vectors += result.n_records
-                paths += result.paths
-                if result.n_to_next_day:
-                    log.info("%s %s: %d vectors shifted past midnight belong to the product "
-                             "of %s", day, sensor, result.n_to_next_day,
-                             day + _dt.timedelta(days=1))
-                state = {k2: v for k2, v in a.attrs.items() if k2.startswith("stitch_")}
-                ends[sensor] = (result.edges, state or None)
-            # archive tables carry RPCMAG<yymmdd>, ISTP CDFs / HK / quicklooks _<yyyymmdd>
-            stamps = (f"RPCMAG{day:%y%m%d}", f"_{day:%Y%m%d}")
-            stray = [p for p in paths if not any(s in Path(p).name for s in stamps)]
-            if stray:
-                raise InputFormatError(  # a safeguard: calibrate_files(day=) trims
-                    f"records outside the day {day} (would write {Path(stray[0]).name})",
-                    path=str(day_folder(self.input_dir, day)), field="time_utc",
-                )
-        for sensor, (edges, state) in ends.items():  # after the products are in place
-            self._write_stitch(day, sensor, edges, state)
-        return DayResult(day, [Path(p) for p in paths], n_vectors=n_vectors)
+        return cal
 
 
-def make_day_task(input_dir: Path, out_dir: Path, **options) -> RosettaDayTask:
-    """Build the task for ``fluxcal batch rosetta``.
+def default_kernels(input_dir: Path, kernels: Path | None) -> Path | None:
+    """Return the meta-kernel of a batch: ``kernels``, else ``<input>/kernels.tm`` if present."""
+    if kernels is not None:
+        return Path(kernels)
+    default = Path(input_dir) / "kernels.tm"
+    return default if default.is_file() else None
 
-    Options: ``kernels``, ``calib``, ``formats``, ``quicklook``, ``levels``, ``primary``,
-    ``average_s``, ``frame``, ``centre``, ``boom``, ``stitch_gap_s``; others are ignored.
-    """
-    allowed = {"kernels", "calib", "formats", "quicklook", "levels", "primary", "average_s",
-               "frame", "centre", "boom", "stitch_gap_s"}
-    opts = {k: v for k, v in options.items() if k in allowed and v is not None}
-    for key in ("formats", "levels"):
-        if key in opts:
-            value = opts[key]
-            opts[key] = tuple(value.split(",")) if isinstance(value, str) else tuple(value)
-    for key in ("kernels", "calib"):
-        if key in opts:
-            opts[key] = Path(opts[key])
-    if "quicklook" in opts:
-        opts["quicklook"] = bool(opts["quicklook"])
-    return RosettaDayTask(Path(input_dir), Path(out_dir), **opts)
+
+def default_calib(input_dir: Path, calib: Path | None) -> Path | None:
+    """Return the calibration folder of a batch: ``calib``, else ``<input>/calib`` if present."""
+    if calib is not None:
+        return Path(calib)
+    for name in ("calib", "CALIB"):  # CALIB: the archive's folder name
+        default = Path(input_dir) / name
+        if default.is_dir():
+            return default
+    return None
 
 
 def simulate_days(

@@ -65,22 +65,11 @@ def calibrate(
     kernels: Path | None = typer.Option(
         None, "--kernels", help="Meta-kernel (SCLK -226, CK, SPK): times from OBT; needed for C, G."
     ),
-    stitch_gap_hours: float = typer.Option(
-        3.0, "--stitch-gap-hours", help="No midnight stitching across longer gaps "
-        "(RO-IGEP-TR0028 sec. 4.2.3.3)."
-    ),
     stitch_state: Path | None = typer.Option(
         None,
         "--stitch-state",
         help="JSON file carrying the midnight-stitching state from one day's run to the next.",
     ),
-    alignment_from_kernels: bool = typer.Option(
-        False,
-        "--alignment-from-kernels",
-        help="Take URF -> s/c from the frames ROS_RPC_MAG_OB/IB (needs the boom CK) "
-        "instead of RPCMAG_SC_ALIGN.TXT.",
-    ),
-    no_jumps: bool = typer.Option(False, "--no-jumps", help="Skip the Appendix B offset jumps."),
     options: RosettaOptions = None,  # type: ignore[assignment] - from the command line
 ) -> None:
     """Calibrate raw RPC-MAG telemetry into LEVEL_A, B, C, E, F, G products.
@@ -88,7 +77,8 @@ def calibrate(
     Follows "RO-IGEP-TR0028 Rosetta RPC-MAG calibration" sec. 4.1-4.8.
     """
     from fluxcal import preflight
-    from fluxcal.missions.rosetta.pipeline import calibrate_files, parse_levels
+    from fluxcal.missions.rosetta.pipeline import parse_levels
+    from fluxcal.missions.rosetta.routes import FILE_LEVELS, run_files
 
     calib = options.calib
     check_raw_source(science, "--science")
@@ -99,34 +89,19 @@ def calibrate(
     if kernels is not None:
         preflight.existing_file(kernels, "--kernels")
     preflight.writable_folder(out, "--out")
-    level_list = parse_levels(",".join(options.levels or ("A", "B")))
-    result = calibrate_files(
-        science,
-        sensor,
-        out,
-        levels=level_list,
-        hk_file=hk,
-        calib_dir=calib,
-        kernels=kernels,
-        primary=options.primary,
-        average_s=options.average_s,
-        frame=options.frame,
-        centre=options.centre,
-        boom=options.boom,
-        stitch_gap_s=stitch_gap_hours * 3600.0,
-        stitch_state=stitch_state,
-        alignment_from_kernels=alignment_from_kernels,
-        jumps=not no_jumps,
-        formats=list(options.formats),
-        quicklook=options.quicklook,
-    )
-    if ALIGNED_LEVELS & set(level_list) and not alignment_from_kernels:
+    level_list = parse_levels(",".join(options.levels or FILE_LEVELS))
+    summary = {}
+
+    def count(levels) -> None:
+        a = levels.sensors[0].levels["A"]
+        summary.update(n=a.sizes["time"], dropped=a.attrs["n_dropped_quality"])
+
+    paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
+                      state_file=stitch_state, on_calibrated=count)
+    if ALIGNED_LEVELS & set(level_list) and not options.alignment_from_kernels:
         warn_placeholder_alignment(calib)
-    a = result.levels["A"]
-    typer.echo(
-        f"{a.sizes['time']} vectors calibrated ({a.attrs['n_dropped_quality']} dropped for "
-        f"quality); {len(result.paths)} files in {out}"
-    )
+    typer.echo(f"{summary['n']} vectors calibrated ({summary['dropped']} dropped for "
+               f"quality); {len(paths)} files in {out}")
 
 
 @app.command()

@@ -24,7 +24,8 @@ def run_demo(out: Path, *, hours: float = 1.0) -> str:
     str
         A few lines: files written, recovered-minus-true rms per level and sensor.
     """
-    from fluxcal.missions.rosetta.pipeline import calibrate_files
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import run_files
     from fluxcal.missions.rosetta.simulate import read_truth_csv, write_simulation
 
     t0 = time.perf_counter()
@@ -33,28 +34,30 @@ def run_demo(out: Path, *, hours: float = 1.0) -> str:
     lines = [f"Rosetta RPC-MAG: simulated {hours:g} h at 20 Hz into {out / 'raw'}"]
     n_files = 0
     for sensor in ("OB", "IB"):
-        res = calibrate_files(
+        made: dict = {}
+        written = run_files(
             paths[f"science_{sensor}"],
             sensor,
             out / "products",
-            levels=("A", "B", "C", "E", "F", "G"),
-            hk_file=paths["hk"] if sensor == "OB" else None,
-            calib_dir=paths["calib"],
+            hk=paths["hk"] if sensor == "OB" else None,
             kernels=paths["kernels"],
-            frame="ECLIPJ2000",  # the frame of the simulator's truth (default: CSEQ by date)
+            # the frame of the simulator's truth (default: CSEQ by date)
+            options=RosettaOptions(calib=paths["calib"], levels=tuple("ABCEFG"),
+                                   frame="ECLIPJ2000"),
+            on_calibrated=lambda run: made.update(run.sensors[0].levels),  # noqa: B023
         )
-        n_files += len(res.paths)
+        n_files += len(written)
         truth = read_truth_csv(paths[f"truth_{sensor}"])
         good = truth["good"]
         order = np.argsort(truth["epoch"][good], kind="stable")
         parts = []
         for level, name in (("A", "b_urf"), ("B", "b_sc"), ("C", "b_ref")):
-            diff = res.levels[level]["b"].values - truth[name][good][order]
+            diff = made[level]["b"].values - truth[name][good][order]
             parts.append(f"{level} {_rms(diff)}")
-        g = res.levels["G"]
+        g = made["G"]
         lines.append(
-            f"  {sensor}: {res.levels['A'].sizes['time']} vectors "
-            f"({res.levels['A'].attrs['n_dropped_quality']} bad dropped), {g.sizes['time']} 1-s "
+            f"  {sensor}: {made['A'].sizes['time']} vectors "
+            f"({made['A'].attrs['n_dropped_quality']} bad dropped), {g.sizes['time']} 1-s "
             f"averages; recovered-true rms x y z [nT]: " + "; ".join(parts)
         )
     lines.append(

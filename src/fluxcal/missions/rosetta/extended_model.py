@@ -220,22 +220,3 @@ def extended_offset(
             index, grid = lookup
             out[i0:i1] = (thermal.polynomial(model.coefficients, grid) - correction)[index[i0:i1]]
     return out, state, sources
-
-
-def utc_days(epoch: np.ndarray, lsk=None) -> tuple[np.ndarray, list[np.datetime64], np.ndarray]:
-    """UTC day of each time: ``(day_index, days, midnight_tt2000)``.
-
-    ``midnight_tt2000[k]`` is the TT2000 of 00:00 UTC of ``days[k]``; vectors are assigned by
-    comparison with these boundaries (correct across leap seconds).
-    """
-    from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
-
-    epoch = np.asarray(epoch, dtype=np.int64)
-    if epoch.size == 0:
-        return np.zeros(0, dtype=np.int64), [], np.zeros(0, dtype=np.int64)
-    ends = tt2000_to_utc(np.array([epoch.min(), epoch.max()]), digits=0, lsk=lsk)
-    first, last = (np.datetime64(str(s)[:10], "D") for s in ends)
-    days = list(np.arange(first, last + np.timedelta64(1, "D"), dtype="M8[D]"))
-    midnight = utc_to_tt2000(np.array([f"{d}T00:00:00" for d in days]), lsk=lsk)
-    day_index = np.searchsorted(midnight, epoch, side="right") - 1
-    return day_index, days, midnight

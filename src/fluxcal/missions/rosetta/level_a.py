@@ -22,6 +22,7 @@ from fluxcal.calibration import counts as cnt
 from fluxcal.calibration import matrices as mat
 from fluxcal.calibration import thermal, timeshift
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.geometry.days import utc_days
 from fluxcal.missions.rosetta import hk
 from fluxcal.missions.rosetta.calib import (
     DailyOffsetModel,
@@ -33,7 +34,6 @@ from fluxcal.missions.rosetta.extended_model import (
     STITCH_GAP_S,
     StitchState,
     extended_offset,
-    utc_days,
 )
 
 log = logging.getLogger(__name__)

@@ -30,7 +30,9 @@ def before_batch(task: object) -> None:
     """Warn when the batch's alignment is fluxcal's placeholder (before the first day)."""
     from fluxcal.missions.rosetta.cli import warn_placeholder_alignment
 
-    warn_placeholder_alignment(task.calib_dir())  # type: ignore[attr-defined]
+    options = task.options  # type: ignore[attr-defined]
+    if not options.alignment_from_kernels:
+        warn_placeholder_alignment(options.calib)
 
 
 MISSION = Mission(
@@ -39,7 +41,7 @@ MISSION = Mission(
     spacecraft_id=SPACECRAFT_ID,
     commands=f"{_M}.mission:commands",
     simulate=f"{_M}.cli:simulate",
-    day_task=f"{_M}.batch_task:make_day_task",
+    day_task=f"{_M}.routes:make_day_task",
     options=f"{_M}.options:RosettaOptions",
     simulate_days=f"{_M}.batch_task:simulate_days",
     demo_days=(_dt.date(2014, 11, 1), _dt.date(2014, 11, 2)),

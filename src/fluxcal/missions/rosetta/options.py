@@ -1,8 +1,7 @@
 """The run options of Rosetta RPC-MAG processing: one dataclass for a run and a batch day.
 
-The fields are those of `fluxcal.missions.rosetta.batch_task.RosettaDayTask` beside its
-folders; ``fluxcal rosetta calibrate`` and ``fluxcal batch rosetta`` both take them
-(`fluxcal.runs.options.with_options`).  This
+The options of `fluxcal.missions.rosetta.routes.RosettaRun`; ``fluxcal rosetta calibrate``
+and ``fluxcal batch rosetta`` both take them (`fluxcal.runs.options.with_options`).  This
 module imports nothing numerical: the command line reads it at start-up.
 
 References
@@ -69,3 +68,10 @@ class RosettaOptions:
                 "else SUN)."})
     boom: str = field(default="deployed", metadata={
         "help": "Boom state: deployed or stowed.", "choices": ("deployed", "stowed")})
+    stitch_gap_hours: float = field(default=3.0, metadata={
+        "help": "No midnight stitching across longer gaps (RO-IGEP-TR0028 sec. 4.2.3.3)."})
+    alignment_from_kernels: bool = field(default=False, metadata={
+        "help": "Take URF -> s/c from the frames ROS_RPC_MAG_OB/IB (needs the boom CK) "
+                "instead of RPCMAG_SC_ALIGN.TXT."})
+    no_jumps: bool = field(default=False, metadata={
+        "help": "Skip the Appendix B offset jumps."})

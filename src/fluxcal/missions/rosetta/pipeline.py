@@ -1,7 +1,9 @@
-"""File-level driver of the RPC-MAG pipeline: read, run the levels, write products.
+"""The products of the RPC-MAG pipeline (names, columns, writers) and its day edges.
 
-The level functions (`level_a`, `level_b`, `level_c`, `averaged.average`) are pure; this
-module does the I/O around them for the ``fluxcal rosetta calibrate`` command and the demo.
+The level functions (`level_a`, `level_b`, `level_c`, `averaged.average`) are pure; the
+run around them is `fluxcal.missions.rosetta.routes.RosettaRun` on the generic driver.
+This module names and writes the products and holds the checks and the previous day's
+tail of a batch day (docs/formats/rosetta.md, "Day edges").
 
 Tables carry the archive's names (`write_level`): calibrated levels
 ``RPCMAG<yymmdd>T<hhmm>_CL<A|B|C>_<OB|IB>_M<mode>.TAB`` (a new file at each mode change),
@@ -17,10 +19,8 @@ References
 
 from __future__ import annotations
 
-import contextlib
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,8 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
-from fluxcal.missions.rosetta import archive, averaged, calib, hk, io, level_a, level_b, level_c
+from fluxcal.geometry.days import utc_days
+from fluxcal.missions.rosetta import archive, calib, hk, level_a
 
 log = logging.getLogger(__name__)
 
@@ -205,7 +206,7 @@ def write_level(
     if seconds is not None:
         extra["AVERAGE_SECONDS"] = float(seconds)
     other = [f for f in formats if f != "tab"]
-    day_index, days, _ = level_a.utc_days(epoch, lsk)
+    day_index, days, _ = utc_days(epoch, lsk)
     written: list[Path] = []
     for d, day in enumerate(days):
         sel = np.flatnonzero(day_index == d)
@@ -338,52 +339,31 @@ def write_quicklook(
     return write_quicklooks(ds, Path(out_dir), stem, field="b", frame=frame)
 
 
-@dataclass
-class CalibrateResult:
-    """Datasets made by `calibrate_files` and the files written."""
+def write_sensor(
+    levels: dict[str, xr.Dataset],
+    wanted: Sequence[str],
+    out: Path,
+    provenance: dict,
+    *,
+    formats: Sequence[str] = ("tab", "cdf"),
+    quicklook: bool = False,
+    temperatures: dict | None = None,
+    lsk=None,
+) -> list[Path]:
+    """Write one sensor's levels asked for, its HK product and its quicklook.
 
-    levels: dict[str, xr.Dataset] = field(default_factory=dict)
-    paths: list[Path] = field(default_factory=list)
-    #: First and last good vector ``((epoch, word), (epoch, word))`` of the raw file
-    #: (`level_a.stitch_edges`), for the batch's midnight-stitching chain.
-    edges: tuple | None = None
-    #: Records read from the science file (good and bad).
-    n_records: int = 0
-    #: With ``day``: LEVEL_A vectors of this file whose shifted time is in the next UTC
-    #: day (left to that day's product), and vectors taken from the previous day's file.
-    n_to_next_day: int = 0
-    n_from_previous_day: int = 0
-    #: What the products' provenance names: input files, calibration (name -> file or
-    #: version), kernel files; the levels asked for; the sensors' temperatures for the
-    #: quicklook (None without one).
-    inputs: list[Path] = field(default_factory=list)
-    used: dict[str, Any] = field(default_factory=dict)
-    kernel_files: list[Path] = field(default_factory=list)
-    wanted: tuple[str, ...] = ()
-    temperatures: Any = None
-
-
-def write_result(result: CalibrateResult, out: Path, *, formats: Sequence[str] = ("tab", "cdf"),
-                 quicklook: bool = False) -> list[Path]:
-    """Write the levels asked for, the HK product and the quicklook of a computed run.
-
-    Kernels loaded (the leap seconds of the pool).  Returns the files written.
+    ``levels`` maps level names (and ``"HK"``) to datasets; ``wanted`` the levels written
+    (in `LEVELS` order).  Kernels loaded.  Returns the files written.
     """
-    from fluxcal.geometry.time import leapseconds
-    from fluxcal.products import provenance_attrs
-
-    lsk = leapseconds()
-    prov = provenance_attrs(inputs=result.inputs, calibration=result.used,
-                            kernels=result.kernel_files)
     paths: list[Path] = []
     for lev in LEVELS:
-        if lev in result.wanted:
-            paths += write_level(result.levels[lev], out, formats=formats, provenance=prov,
+        if lev in wanted:
+            paths += write_level(levels[lev], out, formats=formats, provenance=provenance,
                                  lsk=lsk)
-    if "HK" in result.levels:
-        paths += _write_hk(result.levels["HK"], out, prov, formats, lsk)
+    if "HK" in levels:
+        paths += _write_hk(levels["HK"], out, provenance, formats, lsk)
     if quicklook:
-        paths += write_quicklook(result.levels, out, result.temperatures)
+        paths += write_quicklook(levels, out, temperatures)
     return paths
 
 
@@ -394,179 +374,6 @@ def parse_levels(text: str) -> list[str]:
     if bad or not levels:
         raise FluxcalError(f"unknown level(s) {bad or text!r}; choose from {','.join(LEVELS)}")
     return levels
-
-
-def calibrate_files(
-    science: Path,
-    sensor: str,
-    out: Path,
-    *,
-    levels: Sequence[str] = ("A",),
-    hk_file: Path | None = None,
-    calib_dir: Path | None = None,
-    kernels: Path | None = None,
-    primary: str = "OB",
-    average_s: float = 1.0,
-    frame: str = "auto",
-    centre: str = "auto",
-    boom: str = "deployed",
-    stitch_gap_s: float = level_a.STITCH_GAP_S,
-    stitch_state: Path | None = None,
-    previous: level_a.StitchState | None = None,
-    jumps: bool = True,
-    alignment_from_kernels: bool = False,
-    formats: Sequence[str] = ("tab", "cdf"),
-    write: bool = True,
-    quicklook: bool = False,
-    pool=None,
-    day: np.datetime64 | str | None = None,
-    carry: tuple[Path, level_a.StitchState | None] | None = None,
-) -> CalibrateResult:
-    """Run ``fluxcal rosetta calibrate``: read raw CSV, make the levels, write products.
-
-    Parameters mirror the command's options (see `fluxcal.missions.rosetta.cli`).
-    ``stitch_state`` is a JSON file holding the end-of-day state of the extended
-    temperature model (sec. 4.2.3.3: "the offset values at the end of a day are stored in a
-    separate file"): read before LEVEL_A when it exists, rewritten after.  ``previous``
-    passes that state directly instead (the batch, `batch_task.RosettaDayTask`); giving
-    both is an error.
-    ``quicklook`` also writes a PNG per UTC day (`write_quicklook`).  ``pool`` is an
-    already entered `KernelPool` holding ``kernels`` (batch workers keep theirs loaded,
-    `fluxcal.runs.batch.worker_kernel_pool`); by default a pool is opened here.
-
-    ``day`` (the batch) makes the products of one UTC day from a file split at midnight
-    of the telemetry (unshifted) time (docs/formats/rosetta.md, "Day edges"): every raw
-    record must be stamped in ``day``; LEVEL_A vectors whose filter-shifted time falls
-    in the next day are left out (they belong to that day's product); ``carry`` =
-    ``(previous day's science file, stitching state at the start of that day)`` adds
-    the vectors of that file whose shifted time falls in ``day`` (`previous_day_tail`).
-
-    Raises
-    ------
-    FluxcalError
-        Level C/G without kernels, unknown level, and every input/calibration error.
-    """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import SclkKernel, leapseconds
-
-    sensor = calib.check_sensor(sensor)
-    if previous is not None and stitch_state is not None:
-        raise FluxcalError("give the stitching state either as a file or as a state, not both")
-    wanted = set(levels)
-    if alignment_from_kernels and kernels is None:
-        raise FluxcalError("--alignment-from-kernels needs --kernels (frames kernel + boom CK)")
-    if wanted & {"C", "G"} and kernels is None:
-        raise FluxcalError("levels C and G need SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
-    need = set(wanted)
-    if "G" in need:
-        need.add("C")
-    if "C" in need or "F" in need:
-        need.add("B")
-    need.add("A")
-
-    result = CalibrateResult()
-    scope = KernelPool(kernels) if pool is None else contextlib.nullcontext(pool)
-    with scope as pool:
-        lsk = leapseconds()
-        sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
-        cal = calib.load_ground_calibration(sensor, calib_dir)
-        shifts = calib.load_time_shift_table(calib_dir)
-        nominal = calib.load_nominal_conversion(calib_dir)
-        models = calib.find_daily_offset_models(calib_dir, sensor)
-        raw = archive.read_science(science, sensor, sclk=sclk, lsk=lsk)
-        result.n_records = int(raw.sizes["time"])
-        bounds = None
-        if day is not None:
-            bounds = day_bounds(day, lsk)
-            check_day_records(raw, bounds, science, lsk)
-            check_shifts_nonnegative(shifts)
-        first, last = (np.datetime64(str(s)[:19]) for s in _utc(raw["epoch"].values[[0, -1]], lsk))
-        cal.validity.check(first, last)
-        used = {"ground": cal.source, "time_shift": shifts.source}
-        used.update({f"daily_{m.day}": m.source for m in models.values()})
-        kernel_files = list(pool.loaded)
-        a = level_a.level_a(
-            raw,
-            cal,
-            shifts,
-            nominal,
-            daily_models=models,
-            primary=primary,
-            stitch_gap_s=stitch_gap_s,
-            previous=previous if previous is not None else read_stitch_state(stitch_state),
-            lsk=lsk,
-        )
-        result.edges = level_a.stitch_edges(raw, sensor)
-        if not (quicklook and write):
-            del raw  # only the quicklook reads the raw day again (~90 MB a 20 Hz day)
-        if stitch_state is not None and write:
-            write_stitch_state(a, stitch_state)
-        if bounds is not None:
-            after = a["epoch"].values >= bounds[1]
-            result.n_to_next_day = int(after.sum())
-            if result.n_to_next_day:  # the batch logs it; the attribute below records it
-                a = a.isel(time=np.flatnonzero(~after))
-            tail, carry_note = None, ""
-            if carry is not None:
-                try:
-                    tail = previous_day_tail(
-                        carry[0], sensor, day_bounds(np.datetime64(day, "D") - 1, lsk), cal,
-                        shifts, nominal, models,
-                        primary=primary, stitch_gap_s=stitch_gap_s, previous=carry[1],
-                        sclk=sclk, lsk=lsk,
-                    )
-                except FluxcalError as exc:  # that day fails on its own and is reported
-                    carry_note = f"previous day's file unreadable, its tail is missing: {exc}"
-                    log.warning("%s: %s", science, carry_note)
-            result.n_from_previous_day = 0 if tail is None else int(tail.sizes["time"])
-            if tail is not None:
-                a = merge_tail(tail, a)
-            a.attrs.update(vectors_to_next_day=result.n_to_next_day,
-                           vectors_from_previous_day=carry_note or result.n_from_previous_day)
-        result.levels["A"] = a
-        if "B" in need:
-            alignment = None if alignment_from_kernels else calib.load_alignment(calib_dir)
-            table = calib.load_offset_jump_table(calib_dir) if jumps else None
-            if alignment is not None:
-                used["alignment"] = alignment.source
-            if table is not None:
-                used["offset_jumps"] = table.source
-            result.levels["B"] = level_b.level_b(a, alignment, table, boom=boom, lsk=lsk)
-        if "C" in need:
-            result.levels["C"] = level_c.level_c(
-                result.levels["B"], frame=frame, centre=centre, lsk=lsk
-            )
-        for src, dst in (("A", "E"), ("B", "F"), ("C", "G")):
-            if dst in need:
-                result.levels[dst] = averaged.average(result.levels[src], average_s, lsk=lsk)
-        if hk_file is not None:
-            hk_raw = archive.read_hk(hk_file, sclk=sclk, lsk=lsk)
-            if bounds is not None:
-                check_day_records(hk_raw, bounds, hk_file, lsk)
-            result.levels["HK"] = hk.hk_level_a(hk_raw, cal.thermistor, nominal)
-        result.inputs = archive.source_files(science, sensor)
-        if hk_file is not None:
-            result.inputs += archive.source_files(hk_file)
-        if result.n_from_previous_day:
-            result.inputs += archive.source_files(carry[0], sensor)
-        result.used = used
-        result.kernel_files = [Path(str(k)) for k in kernel_files]
-        result.wanted = tuple(lev for lev in LEVELS if lev in wanted)
-        if quicklook:
-            cals = {s: cal if s == sensor else calib.load_ground_calibration(s, calib_dir)
-                    for s in ("OB", "IB")}
-            result.temperatures = thermistor_temperatures(raw, cals, nominal)
-        if write:
-            result.paths += write_result(result, out, formats=formats, quicklook=quicklook)
-    return result
-
-
-def day_bounds(day: np.datetime64 | str, lsk=None) -> tuple[int, int]:
-    """TT2000 ns of 00:00 UTC of ``day`` and of the next day (`utc_day_start_tt2000`)."""
-    from fluxcal.geometry.time import utc_day_start_tt2000
-
-    d = np.datetime64(day, "D")
-    return utc_day_start_tt2000(d, lsk), utc_day_start_tt2000(d + 1, lsk)
 
 
 def check_day_records(raw: xr.Dataset, bounds: tuple[int, int], path: Path, lsk=None) -> None:
@@ -614,33 +421,24 @@ def check_shifts_nonnegative(shifts: calib.TimeShiftTable) -> None:
             )
 
 
-def previous_day_tail(
-    path: Path,
+def previous_day_records(
+    path: Any,
     sensor: str,
     bounds: tuple[int, int],
-    cal: calib.GroundCalibration,
     shifts: calib.TimeShiftTable,
-    nominal: dict,
-    models: dict,
     *,
     primary: str = "OB",
-    stitch_gap_s: float = level_a.STITCH_GAP_S,
-    previous: level_a.StitchState | None = None,
     sclk=None,
     lsk=None,
 ) -> xr.Dataset | None:
-    """LEVEL_A vectors of the previous day's raw file shifted past its day's end.
+    """Raw records of the previous day's file that its tail past midnight is made from.
 
     ``bounds`` are the TT2000 of the start and end (``midnight``) of that file's UTC day
-    (`day_bounds`); the file's records must be stamped in it (`check_day_records`).
-
-    Calibrated exactly as that day's own run calibrates them: ``previous`` is the
-    stitching state at the start of that day, and LEVEL_A is computed on the file's
-    first good record plus the records within the largest filter shift of the table
-    (+1 s) before ``midnight``; the extended-model offset of a day depends on its
-    vectors' own temperatures and on the day's first and last good vectors only
-    (`extended_model.stitch_day`), so the values equal those of the whole file.
-    ``None`` when no vector crosses midnight.
+    (`fluxcal.geometry.days.day_bounds`); the file's records must be stamped in it
+    (`check_day_records`).
+    Returned: the file's first good record plus the records within the largest filter
+    shift of the table (+1 s) before ``midnight`` (`previous_day_tail` calibrates them);
+    ``None`` when there are none.
 
     References
     ----------
@@ -656,8 +454,35 @@ def previous_day_tail(
     near = np.flatnonzero(raw["epoch"].values >= midnight - reach)
     if good.size == 0 or near.size == 0:
         return None
-    sub = raw.isel(time=np.union1d(good[:1], near))
-    a = level_a.level_a(sub, cal, shifts, nominal, daily_models=models, primary=primary,
+    return raw.isel(time=np.union1d(good[:1], near))
+
+
+def previous_day_tail(
+    records: xr.Dataset,
+    midnight: int,
+    cal: calib.GroundCalibration,
+    shifts: calib.TimeShiftTable,
+    nominal: dict,
+    models: dict,
+    *,
+    primary: str = "OB",
+    stitch_gap_s: float = level_a.STITCH_GAP_S,
+    previous: level_a.StitchState | None = None,
+    lsk=None,
+) -> xr.Dataset | None:
+    """LEVEL_A vectors of the previous day's records (`previous_day_records`) past midnight.
+
+    Calibrated exactly as that day's own run calibrates them: ``previous`` is the
+    stitching state at the start of that day; the extended-model offset of a day depends
+    on its vectors' own temperatures and on the day's first and last good vectors only
+    (`extended_model.stitch_day`), so the values equal those of the whole file.
+    ``None`` when no vector crosses ``midnight`` (TT2000 ns).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (stitching), 4.2.3.5 (time shifts).
+    """
+    a = level_a.level_a(records, cal, shifts, nominal, daily_models=models, primary=primary,
                         stitch_gap_s=stitch_gap_s, previous=previous, lsk=lsk)
     keep = np.flatnonzero(a["epoch"].values >= midnight)
     return a.isel(time=keep) if keep.size else None
@@ -700,16 +525,16 @@ def read_stitch_state(path: Path | None) -> level_a.StitchState | None:
         raise FluxcalError(f"{path}: not a fluxcal stitching state file ({exc})") from None
 
 
-def write_stitch_state(level_a_ds: xr.Dataset, path: Path) -> Path | None:
-    """Write the stitching state of a LEVEL_A dataset as JSON (atomically).
+def write_stitch_state(state: dict | None, path: Path) -> Path | None:
+    """Write the end-of-day stitching state (``stitch_*`` attributes) as JSON, atomically.
 
-    A stale file is removed when the last day had no extended model (the chain is broken).
+    A stale file is removed when the day had no extended model (``state`` empty: the
+    chain is broken).
     """
     import json
     import os
 
     path = Path(path)
-    state = {k: v for k, v in level_a_ds.attrs.items() if k.startswith("stitch_")}
     if not state:
         path.unlink(missing_ok=True)
         return None
