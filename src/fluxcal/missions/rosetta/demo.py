@@ -72,24 +72,28 @@ def run_quick_demo(out: Path, *, hours: float = 0.25) -> str:
     The outboard sensor of `run_demo`'s simulation (RO-IGEP-TR0028 sec. 4.1-4.4), written
     as CDF with its quicklook and the run's HTML report (``products/index.html``).
     """
-    from fluxcal.missions.rosetta.pipeline import calibrate_files
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import run_files
     from fluxcal.missions.rosetta.simulate import read_truth_csv, write_simulation
     from fluxcal.products.html_report import write_run_report
 
     out = Path(out)
     paths = write_simulation(out / "raw", hours=hours)
     products = out / "products"
-    res = calibrate_files(paths["science_OB"], "OB", products, levels=("A", "B", "C"),
-                          hk_file=paths["hk"], calib_dir=paths["calib"],
-                          kernels=paths["kernels"], frame="ECLIPJ2000", formats=("cdf",),
-                          quicklook=True)
+    levels: dict = {}
+    written = run_files(
+        paths["science_OB"], "OB", products, hk=paths["hk"], kernels=paths["kernels"],
+        options=RosettaOptions(calib=paths["calib"], levels=("A", "B", "C"),
+                               frame="ECLIPJ2000", formats=("cdf",), quicklook=True),
+        on_calibrated=lambda run: levels.update(run.sensors[0].levels),
+    )
     truth = read_truth_csv(paths["truth_OB"])
     good = truth["good"]
     order = np.argsort(truth["epoch"][good], kind="stable")
-    diff = res.levels["C"]["b"].values - truth["b_ref"][good][order]
+    diff = levels["C"]["b"].values - truth["b_ref"][good][order]
     report = write_run_report(products, title="fluxcal demo: Rosetta RPC-MAG levels")
     return "\n".join([
         f"Rosetta RPC-MAG: {hours * 60:g} min simulated at 20 Hz (OB), "
-        f"{res.levels['A'].sizes['time']} vectors, {len(res.paths)} product files in "
+        f"{levels['A'].sizes['time']} vectors, {len(written)} product files in "
         f"{products}", f"  report: {report}",
         f"  LEVEL_C recovered - true rms x y z [nT]: {_rms(diff)}"])
