@@ -115,7 +115,10 @@ def test_losing_a_worker_midway_loses_no_product(cluster: Cluster, tmp_path: Pat
     assert killed, "no day finished before the deadline"
     assert code == 0
     report = json.loads((out / "batch_report_synthetic.json").read_text())
-    assert report["counts"]["done"] == len(DAYS)
+    # a day the killed worker finished (products and manifest in place) just before it died
+    # is resubmitted by the scheduler and found up to date: "skipped", nothing lost
+    counts = report["counts"]
+    assert counts["done"] + counts["skipped"] == len(DAYS) and counts["failed"] == 0
     assert not list(out.rglob(".*.tmp*"))  # the lost worker's temporaries are gone
     assert _batch(inp, serial, "serial") == 0
     for day in DAYS:
