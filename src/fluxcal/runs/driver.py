@@ -59,6 +59,8 @@ class Pipeline(Protocol):
 
     # Optional: ``day_calibration(input_dir, day, options) -> {name: path or version}``,
     # what else a day depends on (checksummed in its manifest beside `day_files`).
+    # Optional: ``day_defects(products) -> [span, ...]``, the telemetry-defect spans the
+    # day's products record (cause, start, end, samples), listed in the batch report.
 
 
 def _pool(pipeline: Pipeline, kernels: Path | Sequence[Path] | KernelPool | None) -> Any:
@@ -153,7 +155,11 @@ def run_day(
     source = pipeline.day_source(Path(input_dir), day, options)
     pool = worker_kernel_pool(kernels, pipeline.frame_kernels)
     paths, n_vectors = run(pipeline, source, pool, out_dir, options, only_day=day)
-    return DayResult(day, paths, n_vectors=n_vectors)
+    result = DayResult(day, paths, n_vectors=n_vectors)
+    day_defects = getattr(pipeline, "day_defects", None)
+    if day_defects is not None:
+        result.defects = list(day_defects(paths))
+    return result
 
 
 @dataclass(frozen=True)

@@ -26,28 +26,19 @@ import dataclasses
 import datetime as _dt
 import shutil
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.identity import SPACECRAFT_ID
 from fluxcal.missions.messenger.options import (
-    AVERAGES_S,
-    DEFAULT_FORMATS,
-    DEFAULT_FRAMES,
-    DEFAULT_VERSION,
     MessengerOptions,
 )
-from fluxcal.missions.messenger.products import istp_files
 from fluxcal.missions.messenger.routes import (
     MessengerRun,
     day_file,
-    day_file_groups,
 )
 from fluxcal.runs import driver
-from fluxcal.runs.batch import DayInputs, DayResult
 
 DAY_S = 86_400.0
 #: Default science rate/range schedule inside each simulated day's science window
@@ -56,78 +47,31 @@ WINDOW_RATES = ((0.0, 10), (0.45, 8), (0.55, 6), (0.62, 9), (0.7, 10))
 WINDOW_COARSE = ((0.3, 0.38),)
 
 
-@dataclass(frozen=True)
-class MessengerDayTask:
-    """Calibrate one MESSENGER MAG day and write its products (picklable).
+def default_kernels(input_dir: Path, kernels: Path | None) -> Path:
+    """Return ``kernels``, or the input folder's ``kernels.tm`` (the batch layout)."""
+    return Path(kernels) if kernels else Path(input_dir) / "kernels.tm"
 
-    The day runs through the generic driver (`fluxcal.runs.driver.run_day`) with
-    `fluxcal.missions.messenger.routes.MessengerRun`, as ``edr2cdr`` does.
+
+def make_day_task(input_dir: Path, out_dir: Path, **options) -> driver.DayTask:
+    """Build the task for ``fluxcal batch messenger``: `MessengerRun` on the generic driver.
+
+    Options: ``kernels`` (default ``<input>/kernels.tm``) and the fields of
+    `MessengerOptions` (formats, calib, frames, averages, max_offset_step, quicklook,
+    quicklook_frame, version); unknown options are ignored.  A day's manifest checksums
+    its inputs, kernels and calibration tables (`MessengerRun.day_calibration`).
     """
-
-    input_dir: Path
-    out_dir: Path
-    kernels: Path | None = None
-    formats: tuple[str, ...] = DEFAULT_FORMATS
-    frames: tuple[str, ...] = DEFAULT_FRAMES
-    averages: tuple[int, ...] = AVERAGES_S
-    max_offset_step: float | None = 2.0
-    calib: Path | None = None
-    quicklook: bool = False
-    quicklook_frame: str | None = None
-    version: int = DEFAULT_VERSION
-
-    @property
-    def options(self) -> MessengerOptions:
-        """The run options of every day."""
-        return MessengerOptions(**{f.name: getattr(self, f.name)
-                                   for f in dataclasses.fields(MessengerOptions)})
-
-    def _kernels(self) -> Path:
-        return Path(self.kernels) if self.kernels else Path(self.input_dir) / "kernels.tm"
-
-    def _files(self, day: _dt.date) -> dict[str, list[Path]]:
-        return day_file_groups(Path(self.input_dir), day)
-
-    def inputs(self, day: _dt.date) -> DayInputs:
-        """Return the day's input files, kernels and calibration folder."""
-        files = MessengerRun().day_files(Path(self.input_dir), day, self.options)
-        folder = Path(self.calib) if self.calib else data_dir()
-        cal = {p.name: p for p in sorted(folder.glob("*_v*.*"))}
-        # product metadata: a changed ISTP attribute file redoes the day too
-        cal.update({p.name: p for p in (*istp_files(), data_dir() / "istp_products.yaml")})
-        return DayInputs(tuple(files + [self._kernels()]), cal)
-
-    def __call__(self, day: _dt.date) -> DayResult:
-        """Process ``day``; raise `DayWithoutData` when its science file is missing.
-
-        The defect spans the day's report lists go to the batch report (issue 23).
-        """
-        from fluxcal.missions.messenger.validation_report import read_defect_spans
-
-        result = driver.run_day(MessengerRun(), Path(self.input_dir), Path(self.out_dir), day,
-                                self.options, self._kernels())
-        reports = [p for p in result.products
-                   if Path(p).name.startswith("MAGOFFSETS") and Path(p).suffix == ".txt"]
-        result.defects = [s for p in reports for s in read_defect_spans(p)]
-        return result
-
-
-def make_day_task(input_dir: Path, out_dir: Path, **options) -> MessengerDayTask:
-    """Build the task for ``fluxcal batch messenger``.
-
-    Options: kernels and the fields of `MessengerOptions` (formats, calib, frames,
-    averages, max_offset_step, quicklook, quicklook_frame, version); unknown options are
-    ignored.
-    """
-    allowed = {"kernels", *(f.name for f in dataclasses.fields(MessengerOptions))}
+    allowed = {f.name for f in dataclasses.fields(MessengerOptions)}
     # None is a value here (no sec. 13 check, the default quicklook frame), not "unset"
     opts = {k: v for k, v in options.items() if k in allowed}
-    for key in ("kernels", "formats", "frames", "averages", "version"):
+    for key in ("formats", "frames", "averages", "version"):
         if opts.get(key) is None:
             opts.pop(key, None)
         elif key in ("formats", "frames", "averages"):
             opts[key] = tuple(opts[key])
-    return MessengerDayTask(Path(input_dir), Path(out_dir), **opts)
+    return driver.DayTask(MessengerRun(), Path(input_dir), Path(out_dir),
+                          MessengerOptions(**opts),
+                          default_kernels(input_dir, options.get("kernels")),
+                          name="messenger")
 
 
 def _runs(days: Sequence[_dt.date]) -> list[list[_dt.date]]:
@@ -148,7 +92,7 @@ def simulate_days(
     *,
     rate_setting: int | None = None,
 ) -> list[_dt.date]:
-    """Simulate raw MAG telemetry for ``days`` in the layout `MessengerDayTask` reads.
+    """Simulate raw MAG telemetry for ``days`` in the layout of ``fluxcal batch messenger``.
 
     Each run of consecutive days is one forward-model simulation
     (`fluxcal.missions.messenger.simulate.simulate`) with continuous heater and

@@ -747,17 +747,17 @@ def day_chunks(input_dir: Path, days: Sequence, kernels: Path | None = None) -> 
 
     A day's science file only (each sample counted once); the heater files of the day
     before and the day (look-back, sec. 7); the temperatures of the days around it —
-    the files `fluxcal.missions.messenger.batch_task.MessengerDayTask` reads.  Days
+    the files a ``fluxcal batch messenger`` day reads (`routes.day_file_groups`).  Days
     without a science file are skipped.
     """
-    from fluxcal.missions.messenger.batch_task import MessengerDayTask
+    from fluxcal.missions.messenger.batch_task import default_kernels
+    from fluxcal.missions.messenger.routes import day_file_groups
 
     refuse_edr_folder(Path(input_dir))
-    task = MessengerDayTask(Path(input_dir), Path(input_dir), kernels=kernels)
-    k = (task._kernels(),)
+    k = (default_kernels(Path(input_dir), kernels),)
     out = []
     for day in days:
-        files = task._files(day)
+        files = day_file_groups(Path(input_dir), day)
         if not files["science"][0].exists():
             continue
         out.append(Chunk(f"{day:%Y-%m-%d}", tuple(files["science"]), tuple(files["heater"]),

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from fluxcal.archive.pds3 import read_label, table_names
+from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
 from fluxcal.missions.messenger.identity import FRAME_KERNELS
 from fluxcal.missions.messenger.options import (
@@ -30,7 +31,7 @@ from fluxcal.missions.messenger.options import (
     DEFAULT_VERSION,
     MessengerOptions,
 )
-from fluxcal.missions.messenger.products import Progress
+from fluxcal.missions.messenger.products import Progress, istp_files
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.run import (
     calibrate_run,
@@ -38,6 +39,7 @@ from fluxcal.missions.messenger.run import (
     quicklook_frame_of,
     write_run,
 )
+from fluxcal.missions.messenger.validation_report import read_defect_spans
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
 
@@ -178,6 +180,24 @@ class MessengerRun:
         """Return the EDRs or CSV streams a batch day reads (those that exist)."""
         files = day_file_groups(input_dir, day)
         return [p for group in files.values() for p in group if p.exists()]
+
+    def day_calibration(self, input_dir: Path, day: _dt.date,
+                        options: MessengerOptions) -> dict[str, Path]:
+        """Return the calibration tables and product-metadata files a batch day uses.
+
+        The tables in force (``--calib`` or the shipped ones) and the ISTP attribute
+        files: a changed one redoes the day (its manifest checksums them).
+        """
+        folder = Path(options.calib) if options.calib else data_dir()
+        files = {p.name: p for p in sorted(folder.glob("*_v*.*"))}
+        files.update({p.name: p for p in (*istp_files(), data_dir() / "istp_products.yaml")})
+        return files
+
+    def day_defects(self, products: Sequence[Path]) -> list[dict]:
+        """Return the defect spans the day's offsets reports list (for the batch report)."""
+        return [span for p in products
+                if Path(p).name.startswith("MAGOFFSETS") and Path(p).suffix == ".txt"
+                for span in read_defect_spans(p)]
 
     def day_source(self, input_dir: Path, day: _dt.date,
                    options: MessengerOptions) -> CsvSource | EdrSource:
