@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.browser import browser, browser_check
+
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
@@ -86,3 +88,12 @@ def test_the_site_builds_without_warnings(tmp_path):
         page = (out / "gallery" / f"{example}.html").read_text()
         assert f"sphx_glr_{example}_001.png" in page, example
         assert (out / "_images" / f"sphx_glr_{example}_001.png").exists(), example
+    # a reader's browser opens the built index from its folder: every image decodes and
+    # every link inside the site loads (links to other sites are not followed offline)
+    if browser() is not None:
+        seen = browser_check(out / "index.html")
+        assert seen["links"], "no link found on the index page"
+        assert all(ok for _src, ok in seen["images"]), seen["images"]
+        broken = [href for href, ok in seen["links"]
+                  if not ok and not href.startswith(("http://", "https://", "mailto:"))]
+        assert not broken, broken
