@@ -31,6 +31,7 @@ from fluxcal.products.staging import (
     interrupt_signals,
     interrupted_signal,
     owned_run,
+    reads_back,
 )
 from fluxcal.runs import registry
 from fluxcal.runs.cli import batch_app
@@ -109,7 +110,7 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
     )
     root.callback(context_settings={"max_content_width": HELP_WIDTH})(_root)
     root.command()(version)
-    root.command()(demo)
+    root.command()(reads_back(demo))
     simulate_app = typer.Typer(
         help="Forward models: write raw telemetry and kernels from a known field.",
         rich_markup_mode=None, cls=HelpGroup)
@@ -119,7 +120,7 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
             commands = commands if isinstance(commands, typer.Typer) else commands()
             root.add_typer(commands, name=name, help=mission.title or None)
         if mission.simulate is not None:
-            simulate_app.command(name)(mission.load("simulate"))
+            simulate_app.command(name)(reads_back(mission.load("simulate")))
     root.add_typer(simulate_app, name="simulate")
     root.add_typer(batch_app(missions), name="batch")
     root.command("plot")(product_commands.plot)
@@ -133,8 +134,6 @@ app = build_app()
 
 DEBUG_ENV = "FLUXCAL_DEBUG"
 
-#: Commands whose outputs are not staged as one group (`owned_run`'s ``stage``).
-UNSTAGED = ("demo", "simulate")
 
 #: Full (generation-2) collections during a command: at most one per this many
 #: generation-1 collections (CPython's default: 10).
@@ -256,11 +255,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     quiet = QUIET.set(False)  # set by the root callback for this command only
     command = COMMAND_ARGS.set(("fluxcal", *args))  # what products record (not pytest's argv)
     try:
-        # the demo tour and the simulators read back what they wrote (each file is written
-        # atomically); they are locked and cleaned on failure but not staged as one group
-        staged = next((a for a in args if not a.startswith("-")), "") not in UNSTAGED
-        with interrupt_signals(), _long_lived_imports(), \
-                owned_run(_out_folder(args), stage=staged):
+        # commands that read back what they wrote declare it (`staging.reads_back`)
+        with interrupt_signals(), _long_lived_imports(), owned_run(_out_folder(args)):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)
             if code == 130:  # typer's return for a KeyboardInterrupt it caught
                 raise Interrupted(signal.SIGINT)

@@ -117,6 +117,21 @@ def pending_renames() -> list[tuple[Path, Path]] | None:
 
 
 @contextmanager
+def ungrouped() -> Iterator[None]:
+    """Rename each `atomic_path` into place as soon as it is complete, inside a group too.
+
+    For work that reads back what it wrote (a demo tour, a simulator writing inputs that
+    the next step reads): each file is still written atomically, but does not wait for
+    the enclosing `atomic_group`'s end.
+    """
+    token = _GROUP.set(None)
+    try:
+        yield
+    finally:
+        _GROUP.reset(token)
+
+
+@contextmanager
 def atomic_group() -> Iterator[None]:
     """Defer the renames of every `atomic_path` inside the block to its successful end.
 

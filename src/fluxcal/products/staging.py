@@ -22,17 +22,19 @@ runs before the command exits 130 or 143 (docs/decisions/products.md, decisions 
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import shutil
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
+from typing import Any, TypeVar
 
 from fluxcal.errors import FluxcalError
-from fluxcal.products.atomic import atomic_group, process_alive, temporary_owner
+from fluxcal.products.atomic import atomic_group, process_alive, temporary_owner, ungrouped
 
 log = logging.getLogger(__name__)
 
@@ -177,14 +179,14 @@ class _NewFiles:
 
 
 @contextlib.contextmanager
-def owned_run(out: Path | None, stage: bool = True) -> Iterator[None]:
+def owned_run(out: Path | None) -> Iterator[None]:
     """Run a command that writes into ``out`` so that it owns only what it wrote.
 
     Takes ``out``'s lock (`output_lock`; creating ``out`` for it, removed again if the
     run fails), removes stale temporaries of killed runs (logged, `report_stale`),
     stages every product of the run (`fluxcal.products.atomic.atomic_group`: renamed
-    into place only at the successful end; ``stage=False`` for a command that reads
-    back what it wrote, such as the demo tour, whose steps each write atomically) and,
+    into place only at the successful end; a command that reads back what it wrote,
+    such as the demo tour, declares it with `reads_back`) and,
     on any exception (an error, an interruption), removes what the run created and
     re-raises.
 
@@ -217,7 +219,7 @@ def owned_run(out: Path | None, stage: bool = True) -> Iterator[None]:
         report_stale(clean_stale_temporaries(out), out)
         created = _NewFiles(out, existed)
         try:
-            with atomic_group() if stage else contextlib.nullcontext():
+            with atomic_group():
                 yield
         except BaseException:
             created.undo()
@@ -266,3 +268,22 @@ def interrupted_signal(exc: BaseException) -> int:
             return e.signum
         e = e.__cause__ or e.__context__
     return int(signal.SIGINT)
+
+
+_Command = TypeVar("_Command", bound=Callable[..., Any])
+
+
+def reads_back(command: _Command) -> _Command:
+    """Declare a command that reads back the files it writes (a demo tour, a simulator).
+
+    `owned_run` stages a command's products as one group, renamed at its successful end;
+    such a command instead has each file renamed into place as soon as it is complete
+    (`fluxcal.products.atomic.ungrouped`; each file is still written atomically, and a
+    failed run still removes what it created).  The signature is kept for the CLI.
+    """
+    @functools.wraps(command)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        with ungrouped():
+            return command(*args, **kwargs)
+
+    return run  # type: ignore[return-value]
