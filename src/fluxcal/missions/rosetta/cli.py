@@ -168,6 +168,13 @@ def fit(
         False, "--alignment-from-kernels",
         help="--jumps: URF -> s/c from the frames kernel instead of RPCMAG_SC_ALIGN.TXT.",
     ),
+    estimator: str = typer.Option(
+        "zero-mean", "--estimator",
+        help="What the fit assumes about the field: 'zero-mean' (the seed's criteria: the "
+        "day's field, or CSEQ B_z, averages to zero) or 'variance' (rotations at nearly "
+        "constant |B| within --block-seconds intervals, default 1200 s; refused above "
+        "--max-sigma).",
+    ),
 ) -> None:
     """Derive calibration files from flight data (RO-IGEP-TR0028 sec. 4.2.3.3, 4.2.3.4).
 
@@ -192,12 +199,14 @@ def fit(
     if block is not None and not block > 0:
         raise InputFormatError(f"{block} s: give a positive block length",
                                field="--block-seconds")
+    if estimator not in ("zero-mean", "variance"):
+        raise InputFormatError(f"{estimator}: choose zero-mean or variance", field="--estimator")
     preflight.writable_folder(out, "--out")
     paths = fit_files(
         science, sensor, out, hk_file=hk, calib_dir=calib, kernels=kernels, primary=primary,
         degree=degree, block_s=block, jumps=jumps, intervals=intervals, max_sigma=max_sigma,
         boom=boom,
-        alignment_from_kernels=alignment_from_kernels,
+        alignment_from_kernels=alignment_from_kernels, estimator=estimator,
     )
     for path in paths:
         typer.echo(str(path))
