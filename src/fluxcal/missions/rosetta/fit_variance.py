@@ -210,7 +210,7 @@ def fit_extended_model_variance(
     Minimises ``sum_k sum_{t in k} (|B^c(t) - P(T~(t))| - mean_k)^2`` over the accepted
     intervals ``k`` of ``settings.interval_s``: the offset curve that makes the field
     magnitude least variable within each interval.  Starts from the seed's zero-mean fit
-    (`fluxcal.missions.rosetta.fit.fit_extended_model`, 1800-s blocks), takes
+    (`fluxcal.missions.rosetta.fit.fit_extended_model`, blocks of the interval length), takes
     Gauss-Newton steps with only the sample-count and conditioning criteria until the
     curve settles, then with all four criteria until curve and selection are stable.
     The covariance is that of the Gauss-Newton solution over bootstrap resamples of
@@ -254,7 +254,8 @@ def fit_extended_model_variance(
     .. [2] Hedgecock (1975); Leinweber et al. (2008) (see module).
     """
     s = settings or VarianceSettings()
-    start = fit_extended_model(level_a, temperature, degree=degree, day=day)
+    start = fit_extended_model(level_a, temperature, degree=degree, day=day,
+                               block_s=s.interval_s)
     degree, sensor, day = start.degree, start.sensor, start.day
     source = start.notes.get("source", "LEVEL_A dataset")
     what = f"{source}: extended model {sensor} {day} (variance, degree {degree})"
@@ -282,9 +283,10 @@ def fit_extended_model_variance(
         if np.count_nonzero(accepted) < p + 1:
             raise FitRefusedError(
                 f"{what}: {np.count_nonzero(accepted)} of {k} intervals of "
-                f"{s.interval_s:g} s accepted for {p} parameters (rejected: "
-                f"{_reasons_text(reason)}); give a day with more rotating (Alfvenic) "
-                "intervals, or use --estimator zero-mean if the field averages to zero"
+                f"{s.interval_s:g} s accepted for {p} parameters, need {p + 1} (rejected: "
+                f"{_reasons_text(reason)}); give a longer stretch with more rotating "
+                "(Alfvenic) intervals or a lower --degree, or use --estimator zero-mean if "
+                "the field averages to zero"
             )
         normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, accepted, block, nb)
         step = _solve(normal.sum(axis=0), rhs.sum(axis=0)).reshape(3, degree + 1).T
