@@ -111,8 +111,8 @@ class VarianceSettings:
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
-    block_s: float = 3600.0
-    n_bootstrap: int = 200
+    block_s: float = 1200.0
+    n_bootstrap: int = 1000
     max_iterations: int = 40
     tolerance: float = 1e-4
     max_sigma: float = 1.0
@@ -310,7 +310,9 @@ def fit_extended_model_variance(
     picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
                       for _ in range(s.n_bootstrap)]).astype(float)
     boot = _solve(np.einsum("rb,bij->rij", picks, normal), picks @ rhs)
-    cov_full = np.cov(boot, rowvar=False).reshape(3, degree + 1, 3, degree + 1)
+    # finite-sample correction of the pairs bootstrap (like the n - p of a regression)
+    inflate = nb / max(nb - p, 1)
+    cov_full = inflate * np.cov(boot, rowvar=False).reshape(3, degree + 1, 3, degree + 1)
     cov = np.stack([cov_full[i, :, i, :] for i in range(3)])
     c = _power_basis(start.centre, start.scale, degree)
     coefficients = np.zeros((MAX_DEGREE + 1, 3))
