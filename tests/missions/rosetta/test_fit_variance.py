@@ -133,8 +133,9 @@ def test_cli_variance_file_calibrates_an_unseen_stretch(day, tmp_path):
                      "--calib", str(fitted)]) == 0
         a = read_product(out / "rosetta_rpcmag_cla-ob_20091113_v01.cdf")
         errors[estimator] = np.sqrt(((a["b"].values - b_unseen) ** 2).mean(axis=0))
-    assert np.all(errors["variance"] < TARGET), errors
-    assert errors["zero-mean"].max() > 3 * TARGET, errors
+    print({k: v.round(3) for k, v in errors.items()})
+    assert np.all(errors["variance"] < TARGET), errors  # measured 0.025 / 0.039 / 0.015 nT
+    assert errors["zero-mean"].max() > 3 * TARGET, errors  # measured 0.90 / 1.11 / 0.44 nT
     assert main(["rosetta", "fit", "--science", str(tmp_path / "day.csv"), "--sensor", "OB",
                  "--out", str(tmp_path / "x"), "--estimator", "median"]) == 2
 

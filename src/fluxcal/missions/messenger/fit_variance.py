@@ -91,6 +91,14 @@ class VarianceSettings:
     block_s : float
         Bootstrap block (s): normal equations are kept per block; blocks much longer
         than the field's correlation time are nearly independent.
+    detrend : bool
+        Remove a straight line in time per interval (from ``|B'|`` and the regressors)
+        instead of the mean only: the slow drift of ``|B|`` within an interval is then
+        not taken for an offset.
+    weighting : {"none", "inverse_variance"}
+        ``inverse_variance``: each interval's samples weighted by ``1 / var(|B'|)`` of
+        the interval at the linearisation point (floored at a tenth of the median), so
+        that intervals with a strong compressive part count less.
     """
 
     interval_s: float = 900.0
@@ -99,6 +107,8 @@ class VarianceSettings:
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
     block_s: float = 3 * 3600.0
+    detrend: bool = False
+    weighting: str = "none"
 
 
 @dataclass
@@ -277,6 +287,20 @@ def reduce_variance(
     x -= np.stack([np.bincount(codes, x[:, p], k) for p in range(x.shape[1])],
                   axis=1)[codes] * inv[codes, None]
     y = y - (np.bincount(codes, y, k) * inv)[codes]
+    if s.detrend:
+        tc = et - (np.bincount(codes, et, k) * inv)[codes]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tt = np.bincount(codes, tc * tc, k)
+            tinv = np.where(tt > 0, 1.0 / np.where(tt > 0, tt, 1.0), 0.0)
+        x -= tc[:, None] * (np.stack([np.bincount(codes, tc * x[:, p], k)
+                                      for p in range(x.shape[1])], axis=1) * tinv[:, None])[codes]
+        y = y - tc * (np.bincount(codes, tc * y, k) * tinv)[codes]
+    if s.weighting == "inverse_variance":
+        var_k = np.bincount(codes, y * y, k) * inv
+        floor = 0.1 * np.median(var_k[n_k > 0])
+        w = 1.0 / np.sqrt(np.maximum(var_k, floor))
+        x *= w[codes, None]
+        y = y * w[codes]
     block = np.floor(et / s.block_s).astype(np.int64)
     starts, bcode = np.unique(block, return_inverse=True)
     nb = starts.size
