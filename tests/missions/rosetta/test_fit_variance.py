@@ -194,3 +194,26 @@ def test_variance_jumps_refused_without_rotation(pool):
     start, end = (np.array(c) for c in zip(*INTERVALS, strict=True))
     with pytest.raises(FitRefusedError, match="do not determine the offset"):
         fit_offset_jumps_variance(epoch, steady, start, end, sensor="IB")
+
+
+def test_cli_variance_jumps_need_no_kernels(tmp_path):
+    """``--jumps --estimator variance`` without kernels: a stretch with no jump gives J ~ 0.
+
+    The forward model adds no jump and no daily offset here, so the true J is 0 in every
+    axis; 6 h at 0.5 Hz (18 sub-intervals) determine it to the 0.2-nT target.
+    """
+    from fluxcal.geometry.kernels import KernelPool
+
+    with KernelPool():
+        raw, _, _ = wind.simulate_raw("2014-08-01", 3600.0, 6.0, np.zeros((6, 3)), seed=4,
+                                      rate_hz=0.5)
+        io.write_science_csv(raw, tmp_path / "day.csv")
+    (tmp_path / "iv.csv").write_text("start_utc,end_utc\n2014-08-01T00:00:00,"
+                                     "2014-08-02T00:00:00\n")
+    args = ["rosetta", "fit", "--science", str(tmp_path / "day.csv"), "--sensor", "OB",
+            "--jumps", "--intervals", str(tmp_path / "iv.csv"), "--out", str(tmp_path / "f")]
+    assert main(args) == 2  # zero-mean needs the attitude (--kernels)
+    assert main([*args, "--estimator", "variance"]) == 0
+    table = calib.read_offset_jump_table(tmp_path / "f" / calib.JUMPS_FILE)
+    assert np.all(np.abs(table.jumps["OB"]) < TARGET), table.jumps
+    assert np.isnan(table.jumps["IB"]).all()
