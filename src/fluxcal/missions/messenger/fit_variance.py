@@ -106,9 +106,9 @@ class VarianceSettings:
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
-    block_s: float = 3 * 3600.0
-    detrend: bool = False
-    weighting: str = "none"
+    block_s: float = 3600.0
+    detrend: bool = True
+    weighting: str = "inverse_variance"
 
 
 @dataclass
@@ -359,6 +359,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     Returns
     -------
     VarianceSolution
+        ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
+        (``n`` blocks, ``p`` free parameters; ``sqrt(2)`` when ``n <= 2 p``).
     """
     free = np.ones(N_PARAMETERS, dtype=bool)
     free[-1] = fit_delay
@@ -385,6 +387,11 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     boot_v = picks @ v
     boot = np.zeros((n_bootstrap, N_PARAMETERS))
     boot[:, free] = solve(boot_a, boot_v)
+    # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
+    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks)
+    p_free = int(free.sum())
+    inflate = np.sqrt(nb / (nb - p_free)) if nb > 2 * p_free else np.sqrt(2.0)
+    boot = step + inflate * (boot - boot.mean(axis=0))
     n_intervals = int(np.count_nonzero(stats.reason == ""))
     dof = int(stats.samples.sum()) - int(free.sum()) - n_intervals
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof)
