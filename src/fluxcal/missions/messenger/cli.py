@@ -123,7 +123,7 @@ def fit(
     estimator: str = typer.Option(
         "zero-mean", "--estimator", help="'zero-mean': the seed's long-term averages, "
         "which assume the field averages to zero over each bin's samples (quiet or very "
-        "long data); 'variance': |B| least variable within 10-min intervals, which assumes "
+        "long data); 'variance': |B| least variable within 15-min intervals, which assumes "
         "rotations at nearly constant |B| (Alfvenic solar wind), any mean field. "
         "Temperature law, D0, tau and dt; the waveforms are phase-binned either way."),
 ) -> None:

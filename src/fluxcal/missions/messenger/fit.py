@@ -92,7 +92,7 @@ TEMPERATURE_LAWS = ("distribution", "binned-mean")
 #: Estimators of the temperature law, D0, tau and dt (docs/decisions/messenger_fit.md,
 #: entry 11): ``zero-mean`` (the seed's long-term averages: the field averages to zero
 #: over each bin's samples) and ``variance`` (`fit_variance`: ``|B|`` nearly constant within
-#: 10-min intervals while the field rotates; no condition on its mean).
+#: 15-min intervals while the field rotates; no condition on its mean).
 ESTIMATORS = ("zero-mean", "variance")
 #: Guards (`check_fit`; docs/decisions/messenger_fit.md, entry 9): a fitted tau must lie
 #: within this factor of the shipped 872 s, D0 keep the shipped sign and lie within this
@@ -855,7 +855,7 @@ def fit_days(
     estimator : {"zero-mean", "variance"}
         ``zero-mean``: the seed's long-term averages (`fit_calibration`), which assume
         the field averages to zero over each bin's samples; ``variance``: ``|B|`` least
-        variable within 10-min intervals (`fit_variance_calibration`), which assumes
+        variable within 15-min intervals (`fit_variance_calibration`), which assumes
         rotations at nearly constant ``|B|`` (docs/decisions/messenger_fit.md, entry 11).
     guard : bool
         Refuse a pass outside the physical ranges (`check_fit`); False only for studies

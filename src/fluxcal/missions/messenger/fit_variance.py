@@ -81,10 +81,10 @@ class VarianceSettings:
     ----------
     interval_s : float
         Interval length (s): ``|B|`` is taken constant within one (the seed's field has
-        a 12-h log-normal magnitude: a few % change in 10 min; docs/decisions/
-        messenger_fit.md entry 12 for 600 s against 900 s).
+        a 12-h log-normal magnitude: a few % change in 15 min; docs/decisions/
+        messenger_fit.md entry 12 for 600 and 750 s).
     min_samples : int
-        ``too_few_samples`` below this many samples (a third of 10 min at 1 Hz).
+        ``too_few_samples`` below this many samples (a third of 15 min at 1 Hz).
     min_eigenvalue_ratio, min_relative_amplitude, max_compressibility : float
         ``ill_conditioned``, ``small_fluctuations``, ``compressive``
         (`fluxcal.calibration.variance_offsets` defaults; docs/decisions/
@@ -102,8 +102,8 @@ class VarianceSettings:
         that intervals with a strong compressive part count less.
     """
 
-    interval_s: float = 600.0
-    min_samples: int = 200
+    interval_s: float = 900.0
+    min_samples: int = 300
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
