@@ -150,7 +150,8 @@ def fit(
     primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
     degree: int = typer.Option(3, "--degree", help="Degree of the daily polynomial (0-5)."),
     block: float | None = typer.Option(
-        None, "--block-seconds", help="Block length of the fit (s; default 1800)."
+        None, "--block-seconds", help="Block length of the fit (s; default 1800; with "
+        "--estimator variance the interval length, default 1200)."
     ),
     jumps: bool = typer.Option(
         False, "--jumps", help="Fit the post-hibernation offset jumps (sec. 4.2.3.4, "
@@ -161,7 +162,8 @@ def fit(
         "(default: those of the jump table that overlap the data)."
     ),
     max_sigma: float = typer.Option(
-        1.0, "--max-sigma", help="--jumps: refuse a jump known worse than this (nT)."
+        1.0, "--max-sigma", help="Refuse a jump (and, with --estimator variance, a daily "
+        "curve) known worse than this (nT)."
     ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     alignment_from_kernels: bool = typer.Option(
