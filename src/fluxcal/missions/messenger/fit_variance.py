@@ -81,7 +81,8 @@ class VarianceSettings:
     ----------
     interval_s : float
         Interval length (s): ``|B|`` is taken constant within one (the seed's field has
-        a 12-h log-normal magnitude: a few % change in 15 min).
+        a 12-h log-normal magnitude: a few % change in 15 min; docs/decisions/
+        messenger_fit.md entry 12 for 600 and 750 s).
     min_samples : int
         ``too_few_samples`` below this many samples (a third of 15 min at 1 Hz).
     min_eigenvalue_ratio, min_relative_amplitude, max_compressibility : float
@@ -91,6 +92,14 @@ class VarianceSettings:
     block_s : float
         Bootstrap block (s): normal equations are kept per block; blocks much longer
         than the field's correlation time are nearly independent.
+    detrend : bool
+        Remove a straight line in time per interval (from ``|B'|`` and the regressors)
+        instead of the mean only: the slow drift of ``|B|`` within an interval is then
+        not taken for an offset.
+    weighting : {"none", "inverse_variance"}
+        ``inverse_variance``: each interval's samples weighted by ``1 / var(|B'|)`` of
+        the interval at the linearisation point (floored at a tenth of the median), so
+        that intervals with a strong compressive part count less.
     """
 
     interval_s: float = 900.0
@@ -98,7 +107,9 @@ class VarianceSettings:
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
-    block_s: float = 3 * 3600.0
+    block_s: float = 3600.0
+    detrend: bool = True
+    weighting: str = "inverse_variance"
 
 
 @dataclass
@@ -277,6 +288,20 @@ def reduce_variance(
     x -= np.stack([np.bincount(codes, x[:, p], k) for p in range(x.shape[1])],
                   axis=1)[codes] * inv[codes, None]
     y = y - (np.bincount(codes, y, k) * inv)[codes]
+    if s.detrend:
+        tc = et - (np.bincount(codes, et, k) * inv)[codes]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tt = np.bincount(codes, tc * tc, k)
+            tinv = np.where(tt > 0, 1.0 / np.where(tt > 0, tt, 1.0), 0.0)
+        x -= tc[:, None] * (np.stack([np.bincount(codes, tc * x[:, p], k)
+                                      for p in range(x.shape[1])], axis=1) * tinv[:, None])[codes]
+        y = y - tc * (np.bincount(codes, tc * y, k) * tinv)[codes]
+    if s.weighting == "inverse_variance":
+        var_k = np.bincount(codes, y * y, k) * inv
+        floor = 0.1 * np.median(var_k[n_k > 0])
+        w = 1.0 / np.sqrt(np.maximum(var_k, floor))
+        x *= w[codes, None]
+        y = y * w[codes]
     block = np.floor(et / s.block_s).astype(np.int64)
     starts, bcode = np.unique(block, return_inverse=True)
     nb = starts.size
@@ -335,6 +360,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     Returns
     -------
     VarianceSolution
+        ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
+        (``n`` blocks, ``p`` free parameters; ``sqrt(2)`` when ``n <= 2 p``).
     """
     free = np.ones(N_PARAMETERS, dtype=bool)
     free[-1] = fit_delay
@@ -361,6 +388,11 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     boot_v = picks @ v
     boot = np.zeros((n_bootstrap, N_PARAMETERS))
     boot[:, free] = solve(boot_a, boot_v)
+    # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
+    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks)
+    p_free = int(free.sum())
+    inflate = np.sqrt(nb / (nb - p_free)) if nb > 2 * p_free else np.sqrt(2.0)
+    boot = step + inflate * (boot - boot.mean(axis=0))
     n_intervals = int(np.count_nonzero(stats.reason == ""))
     dof = int(stats.samples.sum()) - int(free.sum()) - n_intervals
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof)

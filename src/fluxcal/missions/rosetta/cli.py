@@ -125,7 +125,8 @@ def fit(
     primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
     degree: int = typer.Option(3, "--degree", help="Degree of the daily polynomial (0-5)."),
     block: float | None = typer.Option(
-        None, "--block-seconds", help="Block length of the fit (s; default 1800)."
+        None, "--block-seconds", help="Block length of the fit (s; default 1800; with "
+        "--estimator variance the interval length, default 1200)."
     ),
     jumps: bool = typer.Option(
         False, "--jumps", help="Fit the post-hibernation offset jumps (sec. 4.2.3.4, "
@@ -136,12 +137,20 @@ def fit(
         "(default: those of the jump table that overlap the data)."
     ),
     max_sigma: float = typer.Option(
-        1.0, "--max-sigma", help="--jumps: refuse a jump known worse than this (nT)."
+        1.0, "--max-sigma", help="Refuse a jump (and, with --estimator variance, a daily "
+        "curve) known worse than this (nT)."
     ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     alignment_from_kernels: bool = typer.Option(
         False, "--alignment-from-kernels",
         help="--jumps: URF -> s/c from the frames kernel instead of RPCMAG_SC_ALIGN.TXT.",
+    ),
+    estimator: str = typer.Option(
+        "zero-mean", "--estimator",
+        help="What the fit assumes about the field: 'zero-mean' (the seed's criteria: the "
+        "day's field, or CSEQ B_z, averages to zero) or 'variance' (rotations at nearly "
+        "constant |B| within --block-seconds intervals, default 1200 s; refused above "
+        "--max-sigma).",
     ),
 ) -> None:
     """Derive calibration files from flight data (RO-IGEP-TR0028 sec. 4.2.3.3, 4.2.3.4).
@@ -167,12 +176,14 @@ def fit(
     if block is not None and not block > 0:
         raise InputFormatError(f"{block} s: give a positive block length",
                                field="--block-seconds")
+    if estimator not in ("zero-mean", "variance"):
+        raise InputFormatError(f"{estimator}: choose zero-mean or variance", field="--estimator")
     preflight.writable_folder(out, "--out")
     paths = fit_files(
         science, sensor, out, hk_file=hk, calib_dir=calib, kernels=kernels, primary=primary,
         degree=degree, block_s=block, jumps=jumps, intervals=intervals, max_sigma=max_sigma,
         boom=boom,
-        alignment_from_kernels=alignment_from_kernels,
+        alignment_from_kernels=alignment_from_kernels, estimator=estimator,
     )
     for path in paths:
         typer.echo(str(path))

@@ -195,6 +195,10 @@ class DailyModelFit:
     noise : ndarray, shape (3,), optional
         Median within-block standard deviation of the field (nT): the fluctuation level
         block means of a calm, zero-mean field scatter well below (`fit_warnings`).
+    estimator : str
+        ``"zero-mean"`` (this module: the day's field averages to zero) or
+        ``"variance"`` (`fluxcal.missions.rosetta.fit_variance`: ``|B|`` nearly constant
+        within intervals); docs/decisions/rosetta_fit.md.
     """
 
     day: np.datetime64
@@ -215,6 +219,7 @@ class DailyModelFit:
     dof: int
     notes: dict = field(default_factory=dict)
     noise: np.ndarray | None = None
+    estimator: str = "zero-mean"
 
     def offset(self, temperature: np.ndarray) -> np.ndarray:
         """Return the fitted offset ``P(T~)`` (nT), shape (n, 3)."""
@@ -435,8 +440,11 @@ def write_daily_model(
     lines = [
         "fitted by fluxcal rosetta fit (issue 13; docs/decisions/rosetta_fit.md)",
         f"written {dt.datetime.now(dt.UTC).strftime('%Y-%m-%dT%H:%M:%SZ')}",
-        f"criterion: offset-free field averages to zero (calm phase), "
-        f"degree {fit.degree}, {fit.block_s:g}-s blocks, count weights",
+        (f"criterion: offset-free field averages to zero (calm phase), "
+         f"degree {fit.degree}, {fit.block_s:g}-s blocks, count weights"
+         if fit.estimator == "zero-mean" else
+         f"criterion ({fit.estimator}): least within-interval variance of |B| (rotations "
+         f"at nearly constant |B|), degree {fit.degree}, {fit.block_s:g}-s intervals"),
         f"samples {fit.n_samples}, blocks {fit.n_blocks}, dof {fit.dof}",
         f"reduced temperature range {fit.temperature_range[0]:.2f} .. "
         f"{fit.temperature_range[1]:.2f} degC (the model is determined only there)",
@@ -474,6 +482,9 @@ class OffsetJumpFit:
         Weighted rms of the block-mean residuals (nT).
     n_blocks, n_samples : ndarray of int, shape (m,)
     block_s : float
+    estimator : str
+        ``"zero-mean"`` (`fit_offset_jumps`) or ``"variance"``
+        (`fluxcal.missions.rosetta.fit_variance.fit_offset_jumps_variance`).
     """
 
     sensor: str
@@ -486,6 +497,7 @@ class OffsetJumpFit:
     n_blocks: np.ndarray
     n_samples: np.ndarray
     block_s: float
+    estimator: str = "zero-mean"
 
 
 def fit_offset_jumps(
@@ -730,8 +742,11 @@ def write_offset_jump_table(
         "# RPC-MAG post-hibernation offsets (nT, s/c coordinates) fitted by fluxcal rosetta fit",
         "# (RO-IGEP-TR0028 sec. 4.2.3.4, Appendix B form): B_corrected = B - JUMP on "
         "[start_utc, end_utc).",
-        "# criterion: CSEQ B_z long-term mean 0, CSEQ field decorrelated from the s/c rotation;"
-        " docs/decisions/rosetta_fit.md",
+        ("# criterion: CSEQ B_z long-term mean 0, CSEQ field decorrelated from the s/c "
+         "rotation; docs/decisions/rosetta_fit.md"
+         if first.estimator == "zero-mean" else
+         f"# criterion ({first.estimator}): least variance of |B - JUMP| within "
+         f"{first.block_s:g}-s sub-intervals; docs/decisions/rosetta_fit.md"),
     ]
     for f in fits:
         for j in range(m):

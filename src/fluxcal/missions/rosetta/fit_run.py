@@ -31,6 +31,12 @@ from fluxcal.missions.rosetta.fit import (
     write_daily_model,
     write_offset_jump_table,
 )
+from fluxcal.missions.rosetta.fit_variance import (
+    ESTIMATORS,
+    VarianceSettings,
+    fit_extended_model_variance,
+    fit_offset_jumps_variance,
+)
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.textfile import read_text
 
@@ -85,6 +91,7 @@ def fit_files(
     max_sigma: float | None = JUMP_MAX_SIGMA,
     boom: str = "deployed",
     alignment_from_kernels: bool = False,
+    estimator: str = "zero-mean",
 ) -> list[Path]:
     """Run ``fluxcal rosetta fit`` on one or more raw science files of one sensor.
 
@@ -101,6 +108,12 @@ def fit_files(
 
     ``hk_file`` is read (checked) and recorded as an input; the temperatures come from
     the science records' thermistor words (sec. 4.1.2), at the vector rate.
+
+    ``estimator`` names what the fit assumes about the field (issue 21): ``"zero-mean"``
+    (the seed's criteria: the day's field, or the CSEQ ``B_z``, averages to zero) or
+    ``"variance"`` (`fluxcal.missions.rosetta.fit_variance`: rotations at nearly
+    constant ``|B|`` within intervals of ``block_s``, default 1200 s; no attitude needed
+    for the jumps).  A variance fit whose error exceeds ``max_sigma`` (nT) is refused.
 
     Returns
     -------
@@ -121,8 +134,14 @@ def fit_files(
         raise FluxcalError("no science file given (--science)")
     sensor = check_sensor(sensor)
     out = Path(out)
-    if jumps and kernels is None:
-        raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame)")
+    if estimator not in ESTIMATORS:
+        raise FluxcalError(f"estimator {estimator!r}: choose one of {', '.join(ESTIMATORS)}")
+    variance = estimator == "variance"
+    vset = VarianceSettings(**({"interval_s": block_s} if block_s else {}),
+                            **({"max_sigma": max_sigma} if max_sigma is not None else {}))
+    if jumps and kernels is None and not variance:
+        raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame; "
+                           "--estimator variance needs none)")
     with KernelPool(kernels, frames=FRAME_KERNELS) as pool:
         lsk = leapseconds()
         sclk = SclkKernel.from_pool(io.SCLK_ID) if kernels is not None else None
@@ -156,18 +175,24 @@ def fit_files(
             fits = []
             for day, part in pieces:
                 a = level_a.level_a(part, cal, shifts, nominal, primary=primary, lsk=lsk)
-                fits.append(fit_extended_model(
-                    a, reduced_temperature(a, cal), degree=degree,
-                    block_s=block_s or MODEL_BLOCK_S, day=day))
+                if variance:
+                    fits.append(fit_extended_model_variance(
+                        a, reduced_temperature(a, cal), degree=degree, settings=vset, day=day))
+                else:
+                    fits.append(fit_extended_model(
+                        a, reduced_temperature(a, cal), degree=degree,
+                        block_s=block_s or MODEL_BLOCK_S, day=day))
             return [write_daily_model(f, out, provenance=prov) for f in fits]
         return [_fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov,
                            calib_dir=calib_dir, primary=primary, block_s=block_s or JUMP_BLOCK_S,
                            intervals=intervals, max_sigma=max_sigma, boom=boom,
-                           alignment_from_kernels=alignment_from_kernels, lsk=lsk)]
+                           alignment_from_kernels=alignment_from_kernels, lsk=lsk,
+                           variance=vset if variance else None)]
 
 
 def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_dir, primary,
-               block_s, intervals, max_sigma, boom, alignment_from_kernels, lsk) -> Path:
+               block_s, intervals, max_sigma, boom, alignment_from_kernels, lsk,
+               variance=None) -> Path:
     """Run the ``--jumps`` branch of `fit_files` (kernels loaded); return the table path."""
     from fluxcal.geometry.frames import rotate
     from fluxcal.geometry.time import tt2000_to_et, tt2000_to_utc
@@ -199,6 +224,15 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
             )
         start, end = table.start_utc[use], table.end_utc[use]
         prov["intervals"] = table.source
+    if variance is not None:
+        epoch = np.concatenate([b["epoch"].values.astype(np.int64) for b in levels_b])
+        b_sc = np.concatenate([b["b"].values for b in levels_b])
+        order = np.argsort(epoch, kind="stable")
+        fit = fit_offset_jumps_variance(epoch[order], b_sc[order], start, end, sensor=sensor,
+                                        settings=variance, lsk=lsk)
+        prov["alignment"] = levels_b[0].attrs["alignment"]
+        prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
+        return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE, provenance=prov)
     blocks = []
     for b in levels_b:
         epoch = b["epoch"].values.astype(np.int64)

@@ -1,0 +1,449 @@
+"""RPC-MAG in-flight fits by variance minimisation of ``|B|`` (issue 21, estimator ``variance``).
+
+The seed's estimators (`fluxcal.missions.rosetta.fit`) fix the offset by a long-term
+average: the daily polynomial's ``P_0`` makes the day's mean field zero (sec. 4.2.3.3),
+the Appendix B jumps make the CSEQ ``B_z`` average zero and take whatever follows the
+attitude (sec. 4.2.3.4).  A solar wind with a mean field over the day (a sector, a
+Parker spiral) puts that mean into the offsets.  These estimators assume instead that
+the field's *magnitude* is nearly constant within intervals of tens of minutes while its
+direction rotates (Alfvenic fluctuations, Davis and Smith 1968; Hedgecock 1975), and
+assume nothing about its mean:
+
+* `fit_extended_model_variance`: the daily polynomial ``P(T~)`` per axis (degree 0-5,
+  the ``P_0 .. P_5`` of sec. 4.2.3.3) minimises the summed within-interval variance of
+  ``|B^c - P(T~(t))|``.  Gauss-Newton: about the current curve, ``|B' - dP(T~(t))| ~
+  |B'| - u . dP(T~(t))`` (``u`` the unit vector of ``B'``) is linear in the polynomial
+  coefficients; each interval's mean is removed; the temperature moving inside an
+  interval is in ``dP(T~(t))`` sample by sample.
+* `fit_offset_jumps_variance`: one constant s/c offset per Appendix B interval by
+  `fluxcal.calibration.variance_offsets.hedgecock_offsets` over the interval's
+  sub-intervals (no attitude and no CSEQ frame needed: ``|B|`` does not depend on them).
+
+Intervals are accepted by the named criteria of `fluxcal.calibration.variance_offsets`
+(too_few_samples, ill_conditioned, small_fluctuations, compressive) evaluated on the
+corrected field; each rejected interval is counted by its reason and the counts go into
+the written file and any refusal.  Errors: bootstrap over blocks of intervals (daily
+model) or over intervals (jumps).  A fit whose error makes it meaningless is refused
+(`fluxcal.errors.FitRefusedError`), naming the parameter, its value and error, and the
+data that would constrain it.  Decisions: docs/decisions/rosetta_fit.md, entries 9-11.
+
+References
+----------
+.. [1] I. Richter, "Step by Step Calibration Procedure for RPC-MAG Data", RO-IGEP-TR0028
+   issue 3 rev. 1 (2015) (seed 003), sec. 4.2.3.3, 4.2.3.4, Appendix B.
+.. [2] Davis, L. Jr. and Smith, E. J., EOS Trans. AGU 49, 257 (1968); Hedgecock, P. C.,
+   Space Sci. Instrum. 1, 83-90 (1975); Leinweber, H. K. et al., Meas. Sci. Technol. 19,
+   055104 (2008) (selection of pure rotations).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from fluxcal.calibration.solar_wind_offsets import (
+    count_reasons,
+    eigenvalue_ratio,
+    first_failure,
+    interval_moments,
+)
+from fluxcal.calibration.variance_offsets import (
+    DEFAULT_MAX_COMPRESSIBILITY,
+    DEFAULT_MIN_EIGENVALUE_RATIO,
+    DEFAULT_MIN_RELATIVE_AMPLITUDE,
+    hedgecock_offsets,
+)
+from fluxcal.errors import FitRefusedError, FluxcalError
+from fluxcal.missions.rosetta.calib import check_sensor
+from fluxcal.missions.rosetta.fit import (
+    DEFAULT_DEGREE,
+    MAX_DEGREE,
+    NS,
+    DailyModelFit,
+    OffsetJumpFit,
+    _power_basis,
+    fit_extended_model,
+    interval_bounds,
+)
+
+__all__ = ["ESTIMATORS", "VarianceSettings", "fit_extended_model_variance",
+           "fit_offset_jumps_variance"]
+
+#: Estimators of ``fluxcal rosetta fit --estimator``, named by what they assume.
+ESTIMATORS = ("zero-mean", "variance")
+
+
+@dataclass(frozen=True)
+class VarianceSettings:
+    """Intervals, selection criteria, bootstrap and guard of the variance estimators.
+
+    Attributes
+    ----------
+    interval_s : float
+        Interval length (s) over which ``|B|`` is taken constant (tens of minutes, issue
+        21; 1200 s, the correlation time of the calm-wind direction in the tests).
+    min_samples : int
+        ``too_few_samples`` below this many samples, or below half of what the interval
+        holds at the data's median sampling interval (gaps, edges).
+    min_eigenvalue_ratio, min_relative_amplitude, max_compressibility : float
+        ``ill_conditioned``, ``small_fluctuations``, ``compressive`` (defaults of
+        `fluxcal.calibration.variance_offsets`; docs/decisions/solar_wind_offsets.md).
+    block_s : float
+        Bootstrap block (s) of the daily model: blocks of intervals are resampled (the
+        field is correlated over neighbouring intervals).
+    n_bootstrap : int
+        Bootstrap resamples.
+    max_iterations : int
+        Gauss-Newton steps allowed.
+    tolerance : float
+        Converged when the curve moves less than this (nT) and the selection is stable.
+    max_sigma : float
+        Refuse a curve (daily model) or jump whose standard error exceeds this (nT)
+        anywhere over the fitted temperature range (1 nT: the jump fit's limit,
+        rosetta_fit.md decision 4).
+    """
+
+    interval_s: float = 1200.0
+    min_samples: int = 30
+    min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
+    min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
+    max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
+    block_s: float = 1200.0
+    n_bootstrap: int = 1000
+    max_iterations: int = 40
+    tolerance: float = 1e-4
+    max_sigma: float = 1.0
+
+
+def _intervals(epoch: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Interval label (from the first epoch) and its code per sample."""
+    label = (epoch - epoch.min()) // int(round(interval_s * NS))
+    labels, codes = np.unique(label, return_inverse=True)
+    return labels, codes
+
+
+def _min_count(epoch: np.ndarray, s: VarianceSettings) -> float:
+    """Return the samples an interval must hold: ``min_samples``, half the nominal count."""
+    step = np.median(np.diff(epoch)) / NS if epoch.size > 1 else s.interval_s
+    return max(float(s.min_samples), 0.5 * s.interval_s / max(float(step), 1e-9))
+
+
+def _select(b: np.ndarray, codes: np.ndarray, k: int, min_count: float,
+            s: VarianceSettings, static_only: bool = False) -> np.ndarray:
+    """First failed criterion per interval (``""``: accepted), evaluated on ``b``."""
+    mag = np.sqrt(np.einsum("ij,ij->i", b, b))
+    mom = interval_moments(np.column_stack([b, mag]), codes, k)
+    cov = mom.cov[:, :3, :3]
+    trace = np.trace(cov, axis1=1, axis2=2)
+    checks = [("too_few_samples", mom.count >= min_count),
+              ("ill_conditioned", eigenvalue_ratio(cov) >= s.min_eigenvalue_ratio)]
+    if not static_only:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            checks += [
+                ("small_fluctuations",
+                 np.sqrt(trace) >= s.min_relative_amplitude * mom.mean[:, 3]),
+                ("compressive", mom.cov[:, 3, 3] / trace <= s.max_compressibility),
+            ]
+    return first_failure(checks, k)
+
+
+def _reasons_text(reason: np.ndarray) -> str:
+    counts = count_reasons(reason)
+    return ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) or "none"
+
+
+def _normal_equations(b: np.ndarray, powers: np.ndarray, codes: np.ndarray, k: int,
+                      accepted: np.ndarray, block: np.ndarray, nb: int
+                      ) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Per-block normal equations of the linearised variance of ``|b - dP|``.
+
+    Columns ``u_i x^k`` (axis-major); target ``|b|``; both with each interval's mean
+    removed.  Returns ``(normal (nb, p, p), rhs (nb, p), residual sum, samples)``.
+    """
+    ok = accepted[codes]
+    b, powers, codes, block = b[ok], powers[ok], codes[ok], block[ok]
+    mag = np.sqrt(np.einsum("ij,ij->i", b, b))
+    u = b / mag[:, None]
+    x = (u[:, :, None] * powers[:, None, :]).reshape(mag.size, -1)
+    n_k = np.bincount(codes, minlength=k).astype(float)
+    inv = np.where(n_k > 0, 1.0 / np.maximum(n_k, 1.0), 0.0)
+    x = x - np.stack([np.bincount(codes, x[:, j], k) for j in range(x.shape[1])],
+                     axis=1)[codes] * inv[codes, None]
+    y = mag - (np.bincount(codes, mag, k) * inv)[codes]
+    p = x.shape[1]
+    normal = np.zeros((nb, p, p))
+    rhs = np.zeros((nb, p))
+    order = np.argsort(block, kind="stable")
+    bounds = np.searchsorted(block[order], np.arange(nb + 1))
+    for i in range(nb):  # bootstrap blocks (about 24 a day), one matrix product each
+        rows = order[bounds[i]:bounds[i + 1]]
+        normal[i] = x[rows].T @ x[rows]
+        rhs[i] = x[rows].T @ y[rows]
+    return normal, rhs, float(y @ y), int(mag.size)
+
+
+def _solve(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Solve (stacked) normal equations after scaling by the diagonal."""
+    d = np.sqrt(np.abs(np.diagonal(a, axis1=-2, axis2=-1)))
+    d = np.where(d > 0, d, 1.0)
+    scaled = a / (d[..., :, None] * d[..., None, :])
+    if a.ndim == 2:
+        return np.linalg.lstsq(scaled, v / d, rcond=1e-12)[0] / d
+    eye = 1e-12 * np.eye(a.shape[-1])
+    return np.linalg.solve(scaled + eye, (v / d)[..., None])[..., 0] / d
+
+
+def fit_extended_model_variance(
+    level_a: xr.Dataset,
+    temperature: np.ndarray,
+    *,
+    degree: int = DEFAULT_DEGREE,
+    settings: VarianceSettings | None = None,
+    day: np.datetime64 | str | None = None,
+    seed: int = 0,
+) -> DailyModelFit:
+    """Fit the daily polynomial ``P_0 .. P_5`` (sec. 4.2.3.3) by variance minimisation.
+
+    Minimises ``sum_k sum_{t in k} (|B^c(t) - P(T~(t))| - mean_k)^2`` over the accepted
+    intervals ``k`` of ``settings.interval_s``: the offset curve that makes the field
+    magnitude least variable within each interval.  Starts from the seed's zero-mean fit
+    (`fluxcal.missions.rosetta.fit.fit_extended_model`, blocks of the interval length), takes
+    Gauss-Newton steps with only the sample-count and conditioning criteria until the
+    curve settles, then with all four criteria until curve and selection are stable.
+    The covariance is that of the Gauss-Newton solution over bootstrap resamples of
+    ``settings.block_s`` blocks.
+
+    Parameters
+    ----------
+    level_a : xarray.Dataset
+        LEVEL_A from the ground calibration alone, as for `fit_extended_model`.
+    temperature : ndarray, shape (n,)
+        Reduced temperature ``T~`` (deg C) of each vector.
+    degree : int
+        0 .. 5.
+    settings : VarianceSettings, optional
+    day : datetime64[D] or str, optional
+        Day of the file; default the UTC day of the first vector.
+    seed : int
+        Of the bootstrap.
+
+    Returns
+    -------
+    DailyModelFit
+        ``estimator = "variance"``; ``n_blocks`` counts the accepted intervals,
+        ``block_s`` is the interval length, ``rms`` the rms of ``|B'|`` about its
+        interval means (same for the three axes), ``chi2`` NaN; ``notes`` hold the
+        rejected intervals by reason.
+
+    Raises
+    ------
+    FluxcalError
+        Input errors of `fit_extended_model` (not LEVEL_A, model already applied,
+        degree, non-finite values, too few blocks for the start).
+    FitRefusedError
+        Too few accepted intervals (naming the rejections), no convergence, or a curve
+        whose standard error exceeds ``settings.max_sigma`` somewhere in the fitted
+        temperature range (naming axis, temperature, value and error).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (six parameters per component).
+    .. [2] Hedgecock (1975); Leinweber et al. (2008) (see module).
+    """
+    s = settings or VarianceSettings()
+    start = fit_extended_model(level_a, temperature, degree=degree, day=day,
+                               block_s=s.interval_s)
+    degree, sensor, day = start.degree, start.sensor, start.day
+    source = start.notes.get("source", "LEVEL_A dataset")
+    what = f"{source}: extended model {sensor} {day} (variance, degree {degree})"
+    b = np.asarray(level_a["b"].values, dtype=float)
+    t = np.asarray(temperature, dtype=float)
+    epoch = np.asarray(level_a["epoch"].values, dtype=np.int64)
+    x = (t - start.centre) / start.scale
+    powers = np.vander(x, degree + 1, increasing=True)
+    labels, codes = _intervals(epoch, s.interval_s)
+    k = labels.size
+    min_count = _min_count(epoch, s)
+    block_of_interval = (labels * s.interval_s // s.block_s).astype(np.int64)
+    block_ids, block_code = np.unique(block_of_interval, return_inverse=True)
+    nb = block_ids.size
+    block = block_code[codes]
+    q = start.q.copy()
+    p = 3 * (degree + 1)
+    reason = previous = None
+    converged = False
+    static_phase = True
+    for _ in range(s.max_iterations):  # Gauss-Newton steps
+        bp = b - powers @ q
+        previous, reason = reason, _select(bp, codes, k, min_count, s, static_only=static_phase)
+        accepted = reason == ""
+        if np.count_nonzero(accepted) < p + 1:
+            raise FitRefusedError(
+                f"{what}: {np.count_nonzero(accepted)} of {k} intervals of "
+                f"{s.interval_s:g} s accepted for {p} parameters, need {p + 1} (rejected: "
+                f"{_reasons_text(reason)}); give a longer stretch with more rotating "
+                "(Alfvenic) intervals or a lower --degree, or use --estimator zero-mean if "
+                "the field averages to zero"
+            )
+        normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, accepted, block, nb)
+        step = _solve(normal.sum(axis=0), rhs.sum(axis=0)).reshape(3, degree + 1).T
+        q = q + step
+        moved = float(np.abs(powers @ step).max())
+        if moved < s.tolerance and np.array_equal(reason, previous):
+            if not static_phase:
+                converged = True
+                break
+            static_phase = False
+    if not converged:
+        raise FitRefusedError(
+            f"{what}: no convergence in {s.max_iterations} Gauss-Newton steps (last step "
+            f"moved the curve by up to {moved:.3g} nT; rejected intervals: "
+            f"{_reasons_text(reason)}); the field is not rotating at a nearly constant "
+            "magnitude: use --estimator zero-mean, or another day"
+        )
+    bp = b - powers @ q
+    normal, rhs, yy, n_used = _normal_equations(bp, powers, codes, k, reason == "", block, nb)
+    rng = np.random.default_rng(seed)
+    picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
+                      for _ in range(s.n_bootstrap)]).astype(float)
+    boot = _solve(np.einsum("rb,bij->rij", picks, normal), picks @ rhs)
+    # finite-sample correction of the pairs bootstrap (like the n - p of a regression)
+    inflate = nb / max(nb - p, 1)
+    cov_full = inflate * np.cov(boot, rowvar=False).reshape(3, degree + 1, 3, degree + 1)
+    cov = np.stack([cov_full[i, :, i, :] for i in range(3)])
+    c = _power_basis(start.centre, start.scale, degree)
+    coefficients = np.zeros((MAX_DEGREE + 1, 3))
+    sigma = np.zeros((MAX_DEGREE + 1, 3))
+    coefficients[: degree + 1] = c @ q
+    for i in range(3):
+        sigma[: degree + 1, i] = np.sqrt(np.diag(c @ cov[i] @ c.T))
+    n_acc = int(np.count_nonzero(reason == ""))
+    rms = np.sqrt(yy / max(n_used, 1))
+    fit = dataclasses.replace(
+        start, coefficients=coefficients, sigma=sigma, q=q, covariance_q=cov,
+        n_blocks=n_acc, block_s=float(s.interval_s), rms=np.full(3, rms),
+        chi2=np.full(3, np.nan), dof=n_used - p - n_acc, noise=None, estimator="variance",
+        notes={**start.notes,
+               "intervals": f"{n_acc} of {k} accepted; rejected: {_reasons_text(reason)}",
+               "bootstrap": f"{s.n_bootstrap} resamples of {nb} blocks of {s.block_s:g} s"})
+    grid = np.linspace(*fit.temperature_range, 101)
+    curve_sigma = fit.offset_sigma(grid)
+    worst = np.unravel_index(np.argmax(curve_sigma), curve_sigma.shape)
+    if not curve_sigma[worst] <= s.max_sigma:
+        tw, axis = float(grid[worst[0]]), int(worst[1])
+        value = float(fit.offset(np.array([tw]))[0, axis])
+        raise FitRefusedError(
+            f"{what}: offset curve {'xyz'[axis]} = {value:.3g} +- {curve_sigma[worst]:.3g} nT "
+            f"at T~ = {tw:.1f} C (limit {s.max_sigma:g} nT; {n_acc} of {k} intervals "
+            f"accepted, rejected: {_reasons_text(reason)}); constrain it with more rotating "
+            "intervals over the temperature range, a lower --degree, or --max-sigma"
+        )
+    return fit
+
+
+def fit_offset_jumps_variance(
+    epoch: np.ndarray,
+    b_sc: np.ndarray,
+    start_utc: np.ndarray,
+    end_utc: np.ndarray,
+    *,
+    sensor: str,
+    settings: VarianceSettings | None = None,
+    lsk=None,
+    seed: int = 0,
+) -> OffsetJumpFit:
+    """Fit the Appendix B offset of each interval by variance minimisation (sec. 4.2.3.4).
+
+    Per jump interval, the constant s/c offset ``J`` that makes ``|B_sc - J|`` least
+    variable within its sub-intervals of ``settings.interval_s``
+    (`fluxcal.calibration.variance_offsets.hedgecock_offsets`, criteria as
+    `VarianceSettings`; bootstrap over the sub-intervals).  Unlike the seed's estimator
+    (`fluxcal.missions.rosetta.fit.fit_offset_jumps`) it needs no attitude and assumes no
+    zero mean of CSEQ ``B_z``.
+
+    Parameters
+    ----------
+    epoch : ndarray of int64, shape (n,)
+        TT2000 ns of the LEVEL_B vectors (several files concatenated in time order).
+    b_sc : ndarray, shape (n, 3)
+        LEVEL_B field (nT, s/c coordinates) without offset jumps subtracted.
+    start_utc, end_utc : array of str
+        Intervals (UTC, ISO), sorted and disjoint, ``[start, end)``.
+    sensor : {"OB", "IB"}
+    settings : VarianceSettings, optional
+        ``max_sigma`` is the refusal limit (nT).
+    seed : int
+        Of the bootstrap.
+
+    Returns
+    -------
+    OffsetJumpFit
+        ``mean_field`` NaN (no CSEQ frame), ``rms`` the rms of ``|B_sc - J|`` about
+        its sub-interval means, ``n_blocks`` the accepted sub-intervals.
+
+    Raises
+    ------
+    FluxcalError
+        Shapes, intervals, an interval without data.
+    FitRefusedError
+        An interval whose sub-intervals do not determine ``J`` (naming the rejections),
+        or whose ``J`` has a standard error above ``settings.max_sigma``.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.4 and Appendix B.
+    .. [2] Hedgecock (1975); Leinweber et al. (2008) (see module).
+    """
+    s = settings or VarianceSettings()
+    sensor = check_sensor(sensor)
+    start_utc, end_utc = np.asarray(start_utc, dtype=str), np.asarray(end_utc, dtype=str)
+    epoch = np.asarray(epoch, dtype=np.int64)
+    b_sc = np.asarray(b_sc, dtype=float)
+    if b_sc.shape != (epoch.size, 3):
+        raise FluxcalError(f"offset jumps: shapes epoch {epoch.shape}, b_sc {b_sc.shape}; "
+                           "expected (n,), (n, 3)")
+    starts, ends = interval_bounds(start_utc, end_utc, lsk)
+    m = starts.size
+    jumps, sigma = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
+    rms = np.full(m, np.nan)
+    n_blocks, n_samples = np.zeros(m, dtype=int), np.zeros(m, dtype=int)
+    for j in range(m):  # loop over jump intervals
+        what = f"offset jump {sensor} {start_utc[j]} .. {end_utc[j]} (variance)"
+        sel = (epoch >= starts[j]) & (epoch < ends[j])
+        if not sel.any():
+            raise FluxcalError(f"{what}: no vectors in the interval (leave it out)")
+        e, b = epoch[sel], b_sc[sel]
+        sub = (e - starts[j]) // int(round(s.interval_s * NS))
+        try:
+            est = hedgecock_offsets(
+                b, sub, min_samples=int(np.ceil(_min_count(e, s))),
+                min_eigenvalue_ratio=s.min_eigenvalue_ratio,
+                min_relative_amplitude=s.min_relative_amplitude,
+                max_compressibility=s.max_compressibility,
+                max_iterations=s.max_iterations, n_bootstrap=s.n_bootstrap, seed=seed)
+        except FluxcalError as exc:
+            raise FitRefusedError(
+                f"{what}: the sub-intervals of {s.interval_s:g} s do not determine the "
+                f"offset ({exc}); give more rotating (Alfvenic) data in the interval, or "
+                "use --estimator zero-mean with an attitude that varies"
+            ) from None
+        jumps[j], sigma[j] = est.offset, est.standard_error
+        if not np.all(sigma[j] <= s.max_sigma):
+            raise FitRefusedError(
+                f"{what}: J = " + " ".join(f"{v:.3g}" for v in jumps[j]) + " +- "
+                + " ".join(f"{v:.3g}" for v in sigma[j])
+                + f" nT (limit {s.max_sigma:g} nT; {est.n_used} of {est.labels.size} "
+                f"sub-intervals accepted, rejected: {_reasons_text(est.reason)}); give more "
+                "rotating data in the interval, or raise --max-sigma"
+            )
+        used = np.isin(sub, est.labels[est.accepted])
+        mag = np.linalg.norm(b[used] - est.offset, axis=1)
+        _, codes = np.unique(sub[used], return_inverse=True)
+        mean = np.bincount(codes, mag) / np.bincount(codes)
+        rms[j] = float(np.sqrt(np.mean((mag - mean[codes]) ** 2)))
+        n_blocks[j], n_samples[j] = est.n_used, int(sel.sum())
+    return OffsetJumpFit(sensor, start_utc, end_utc, jumps, sigma, np.full((m, 2), np.nan),
+                         rms, n_blocks, n_samples, float(s.interval_s), estimator="variance")
