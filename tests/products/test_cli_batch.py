@@ -187,8 +187,8 @@ def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, c
     assert accepted_formats("messenger") == (*FORMATS, "png")
     assert from_command_line(MessengerOptions, {"formats": "CDF, png"}).formats == ("cdf", "png")
     assert MessengerOptions().formats == ("tab", "cdf", "png")  # the task's default
-    assert make_day_task(tmp_path, out).formats == ("tab", "cdf", "png")
-    assert make_day_task(tmp_path, out, formats=["cdf"]).formats == ("cdf",)
+    assert make_day_task(tmp_path, out).options.formats == ("tab", "cdf", "png")
+    assert make_day_task(tmp_path, out, formats=["cdf"]).options.formats == ("cdf",)
     # the task itself refuses an unknown format before looking for the day's files
     from fluxcal.errors import InputFormatError
 

@@ -81,7 +81,7 @@ def science_content(path: Path) -> Any:
 
 def _products(out: Path) -> dict[str, Path]:
     return {p.name: p for p in sorted(out.iterdir()) if not p.name.startswith((".", "batch_"))
-            and p.name != "manifests"}
+            and p.name not in ("manifests", "index.html")}
 
 
 def _run(inp: Path, out: Path, sde: str, monkeypatch: pytest.MonkeyPatch):
@@ -126,6 +126,9 @@ def test_pinned_creation_time_gives_identical_files(tmp_path: Path,
             if pa.is_dir() else [Path()]
         for rel in files:
             assert (pa / rel).read_bytes() == (pb / rel).read_bytes(), (name, rel)
+    # the folder's HTML report too (it names no folder, time or path)
+    assert (tmp_path / "a" / "index.html").read_bytes() == \
+        (tmp_path / "b" / "index.html").read_bytes()
     # the manifests record the same product checksums
     for day in DAYS:
         ma = json.loads(manifest_path(tmp_path / "a", "synthetic", day).read_text())

@@ -455,8 +455,9 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
     if interrupted is None:  # the folder's HTML report: every day's products, the report
         from fluxcal.products.html_report import run_products, write_run_report
 
-        write_run_report(out_dir, products=[p for p in run_products(out_dir)
-                                            if not p.rel.startswith("manifests/")])
+        write_run_report(out_dir, title=f"fluxcal batch {name}",
+                         products=[p for p in run_products(out_dir)
+                                   if not p.rel.startswith("manifests/")])
     if interrupted is not None:
         interrupted.batch_report = report  # type: ignore[attr-defined]
         raise interrupted

@@ -90,8 +90,8 @@ def test_quicklook_dataset_carries_the_applied_offsets(simulated, messenger_kern
 def test_batch_task_quicklook_option(tmp_path):
     task = make_day_task(tmp_path, tmp_path / "out", quicklook=True, quicklook_frame="rtn",
                          unknown_option=3)
-    assert task.quicklook is True and task.quicklook_frame == "rtn"
-    assert make_day_task(tmp_path, tmp_path).quicklook is False
+    assert task.options.quicklook is True and task.options.quicklook_frame == "rtn"
+    assert make_day_task(tmp_path, tmp_path).options.quicklook is False
 
 
 def test_bad_quicklook_frame_is_an_error(tmp_path, simulated_files, messenger_kernels, capsys):
