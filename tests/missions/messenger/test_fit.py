@@ -360,6 +360,9 @@ def test_cli_fit_then_edr2cdr_calib(tmp_path, training, simulated_files, messeng
     assert "# source: fitted by fluxcal messenger fit" in header
     assert "estimator: distribution" in (fitted / "offsets_temperature_v2.csv").read_text()
     assert f"# input: {training['science'].name} sha256=" in header
+    # the fitted tables name their inputs by file name: no folder of this machine (issue 25)
+    folders = {str(training["science"].parent).encode(), str(tmp_path).encode()}
+    assert not [p.name for p in fitted.iterdir() for f in folders if f in p.read_bytes()]
     products = tmp_path / "products"
     rc = main(["messenger", "edr2cdr", *_stream_args(simulated_files, messenger_kernels),
                "--out", str(products), "--formats", "tab", "--average", "",

@@ -499,6 +499,8 @@ def test_cli_jumps_with_kernels(tmp_path, capsys):
     table = calib.read_offset_jump_table(tmp_path / "out" / calib.JUMPS_FILE)
     assert list(table.start_utc) == ["2014-07-25T02:00:00"]
     assert np.isfinite(table.jumps["OB"]).all() and np.isnan(table.jumps["IB"]).all()
+    # its provenance names files, not the folders of this machine (issue 25)
+    assert str(tmp_path).encode() not in (tmp_path / "out" / calib.JUMPS_FILE).read_bytes()
 
 
 @given(

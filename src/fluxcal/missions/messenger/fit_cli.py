@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import datetime as _dt
 import re
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.messenger.identity import FRAME_KERNELS
+from fluxcal.products.provenance import portable_command_line, portable_text
 
 _DAY_FILE = re.compile(r"^MAGSCI_(\d{4})(\d{3})\.csv$")
 
@@ -136,8 +136,10 @@ def run_fit(
         "intervals": (f"{Path(intervals).name} sha256={sha256_file(intervals)} "
                       f"({len(iv)} intervals)" if iv is not None else "all data"),
         "days": ", ".join(result.stats.days),
-        "command": " ".join(["fluxcal", *sys.argv[1:]]),
+        "command": portable_command_line(),
     }
+    provenance = {key: portable_text(value) if isinstance(value, str) else value
+                  for key, value in provenance.items()}
     written = write_calibration_folder(result, Path(out), calib, provenance)
     return report_text(result, provenance) + f"\nwrote {len(written)} files to {out}"
 

@@ -38,8 +38,13 @@ from fluxcal.missions.rosetta.fit_variance import (
     fit_offset_jumps_variance,
 )
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
+from fluxcal.products.provenance import portable_text
 from fluxcal.textfile import read_text
 
+
+def _portable(prov: dict) -> dict[str, str]:
+    """Return the provenance with every path reduced to its file name."""
+    return {key: portable_text(str(value)) for key, value in prov.items()}
 
 def read_intervals_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Read ``start_utc,end_utc`` rows (``#`` comments allowed; extra columns ignored).
@@ -182,7 +187,7 @@ def fit_files(
                     fits.append(fit_extended_model(
                         a, reduced_temperature(a, cal), degree=degree,
                         block_s=block_s or MODEL_BLOCK_S, day=day))
-            return [write_daily_model(f, out, provenance=prov) for f in fits]
+            return [write_daily_model(f, out, provenance=_portable(prov)) for f in fits]
         return [_fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov,
                            calib_dir=calib_dir, primary=primary, block_s=block_s or JUMP_BLOCK_S,
                            intervals=intervals, max_sigma=max_sigma, boom=boom,
@@ -232,7 +237,8 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
                                         settings=variance, lsk=lsk)
         prov["alignment"] = levels_b[0].attrs["alignment"]
         prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
-        return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE, provenance=prov)
+        return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE,
+                                      provenance=_portable(prov))
     blocks = []
     for b in levels_b:
         epoch = b["epoch"].values.astype(np.int64)
@@ -243,4 +249,5 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
     fit = solve_offset_jumps(blocks, start, end, sensor=sensor, max_sigma=max_sigma)
     prov["alignment"] = levels_b[0].attrs["alignment"]
     prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
-    return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE, provenance=prov)
+    return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE,
+                                      provenance=_portable(prov))
