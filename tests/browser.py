@@ -9,6 +9,7 @@ the tests that need it skip.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -25,8 +26,10 @@ window.addEventListener('load', function () {
   });
   document.querySelectorAll('a[href]').forEach(function (a) {
     var h = a.getAttribute('href');
-    if (h.charAt(0) === '#') { out.links.push([h, !!document.getElementById(h.slice(1))]);
-                               return; }
+    if (h.charAt(0) === '#') {
+      out.links.push([h, h === '#' || !!document.getElementById(h.slice(1))]);
+      return;
+    }
     var ok = false;
     try { var x = new XMLHttpRequest(); x.open('GET', a.href, false); x.send();
           ok = x.status === 0 || x.status === 200; } catch (e) { ok = false; }
@@ -55,5 +58,8 @@ def browser_check(page: Path) -> dict[str, list[list]]:
     finally:
         probe.unlink()
     dom = done.stdout
-    start = dom.index('<pre id="fluxcal-check">') + len('<pre id="fluxcal-check">')
-    return json.loads(dom[start:dom.index("</pre>", start)].replace("&amp;", "&"))
+    # the page's own scripts may add attributes to the element (a theme's tabindex)
+    found = re.search(r'<pre id="fluxcal-check"[^>]*>(.*?)</pre>', dom, re.S)
+    if found is None:
+        raise AssertionError(f"the page's check did not run: {done.stderr[-500:]}")
+    return json.loads(found.group(1).replace("&amp;", "&"))

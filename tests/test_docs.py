@@ -84,7 +84,8 @@ def test_the_site_builds_without_warnings(tmp_path):
     assert "MESSENGER MAG EDR to CDR" in index and "api.html" in index
     assert (out / "api" / "fluxcal.missions.messenger.levels.html").exists()
     # the gallery ran at build time: one page and at least one figure per example
-    for example in ("plot_messenger_day", "plot_rosetta_run", "plot_imap_product"):
+    for example in ("plot_tutorial_first_run", "plot_messenger_day", "plot_rosetta_run",
+                    "plot_imap_product"):
         page = (out / "gallery" / f"{example}.html").read_text()
         assert f"sphx_glr_{example}_001.png" in page, example
         assert (out / "_images" / f"sphx_glr_{example}_001.png").exists(), example
