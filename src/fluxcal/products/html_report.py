@@ -328,8 +328,6 @@ def time_axis_key(product: ProductFile) -> tuple | None:
     if product.kind != "CDF":
         return None
     try:
-        import cdflib
-
         f = cdflib.CDF(str(product.source))
         names = f.cdf_info().zVariables
         for n in names:
