@@ -196,3 +196,58 @@ def test_no_import_cycle_through_function_imports():
              for m in MODULES}
     cycles = [c for c in _cycles(graph) if c not in KNOWN_CYCLES]
     assert not cycles, f"import cycles (imports inside functions included): {cycles}"
+
+
+#: Modules whose imports inside functions are kept on purpose (issue 20 item 3): the command
+#: bodies (``fluxcal --help`` loads no numerical library, tests/test_cli_startup.py), the
+#: demos, and the boundaries of the optional extras (tests/test_extras.py).
+LAZY_MODULES = re.compile(r"fluxcal\.((\w+\.)*(cli|clean_cli|fit_cli|\w*demo)|"
+                          r"product_commands|products\.quicklook|runs\.cluster)")
+#: The optional extras, and fluxcal's modules that import them at their top.
+EXTRA_IMPORTS = ("matplotlib", "dask", "distributed", "zarr", "sphinx", "pyspedas",
+                 "fluxcal.products.quicklook", "fluxcal.runs.cluster")
+#: Imports inside functions of the other (library) modules, extras left out: 208
+#: before issue 20 item 3 moved them up.  Those left: ``import fluxcal`` stays light
+#: (``fluxcal.__getattr__``), a table writer loads when its format is asked for
+#: (`fluxcal.products.writer`, tests/test_cli_startup.py), a mission's command module loads
+#: when the command line is built (``rosetta.mission``), the run report's numerical
+#: libraries load after the command ran (`fluxcal.runs.options`), ``fcntl`` is POSIX only
+#: (`fluxcal.products.staging`).  A ratchet: lower it when one moves up, never raise it.
+MAX_FUNCTION_IMPORTS = 10
+
+
+def _function_imports(module: str) -> list[str]:
+    """``line: import`` of each import inside a function of ``module``, extras left out."""
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    found: dict[int, str] = {}
+    for func in ast.walk(tree):
+        if not isinstance(func, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        for node in ast.walk(func):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = _resolve(module, node)
+                names = [f"{base}.{alias.name}" for alias in node.names] + [base]
+            else:
+                continue
+            if not any(n == e or n.startswith(e + ".") for n in names for e in EXTRA_IMPORTS):
+                found[node.lineno] = f"{node.lineno}: {ast.unparse(node)}"
+    return [found[k] for k in sorted(found)]
+
+
+def test_function_imports_of_library_modules_do_not_grow_back():
+    """Imports at the top of library modules; laziness only where start-up time is won."""
+    inner = {m: _function_imports(m) for m in MODULES if not LAZY_MODULES.fullmatch(m)}
+    count = sum(len(v) for v in inner.values())
+    listing = "\n".join(f"{m}:{line}" for m, lines in sorted(inner.items()) for line in lines)
+    assert count <= MAX_FUNCTION_IMPORTS, (
+        f"{count} imports inside functions of library modules (at most "
+        f"{MAX_FUNCTION_IMPORTS}): move them to the top of their module\n{listing}")
+
+
+def test_the_lazy_modules_are_the_command_and_extras_modules():
+    lazy = sorted(m for m in MODULES if LAZY_MODULES.fullmatch(m))
+    assert "fluxcal.cli" in lazy and "fluxcal.missions.rosetta.clean_cli" in lazy
+    assert "fluxcal.missions.messenger.fit_demo" in lazy and "fluxcal.runs.cluster" in lazy
+    assert "fluxcal.missions.rosetta.pipeline" not in lazy and "fluxcal.api" not in lazy

@@ -21,6 +21,15 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from fluxcal.archive.products import read_product as read_table_product
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.missions.imap.pipeline import process
+from fluxcal.missions.messenger.levels import frame_variables
+from fluxcal.missions.messenger.options import MessengerOptions
+from fluxcal.missions.messenger.routes import CsvSource, MessengerRun
+from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.missions.rosetta.routes import calibrate_levels
+from fluxcal.products import read_product as read_fluxcal_product
 from fluxcal.products.timeindex import with_time_index
 
 #: Suffixes read as PDS3 tables (the archive's and fluxcal's labels alike).
@@ -41,11 +50,7 @@ def read_product(path: str | Path) -> xr.Dataset:
     """
     path = Path(path)
     if path.suffix.lower() in TABLE_SUFFIXES:
-        from fluxcal.archive.products import read_product as read_table_product
-
         return read_table_product(path)
-    from fluxcal.products import read_product as read_fluxcal_product
-
     return read_fluxcal_product(path)
 
 
@@ -82,11 +87,6 @@ def calibrate_messenger(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-12.
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.missions.messenger.levels import frame_variables
-    from fluxcal.missions.messenger.options import MessengerOptions
-    from fluxcal.missions.messenger.routes import CsvSource, MessengerRun
-
     run = MessengerRun()
     options = MessengerOptions(frames=tuple(frames), formats=("cdf",),
                                calib=None if calib is None else Path(calib))
@@ -132,9 +132,6 @@ def calibrate_rosetta(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1-4.8.
     """
-    from fluxcal.missions.rosetta.options import RosettaOptions
-    from fluxcal.missions.rosetta.routes import calibrate_levels
-
     made = calibrate_levels(Path(science), sensor, hk=None if hk is None else Path(hk),
                             kernels=None if kernels is None else Path(kernels),
                             options=RosettaOptions(calib=None if calib is None else Path(calib),
@@ -152,8 +149,6 @@ def calibrate_imap(inputs: Sequence[str | Path], *, level: str = "l1b",
     dict of (mode, sensor) -> xarray.Dataset
         ``("norm", "mago")`` ...: L1A counts or L1B nT, indexed by UTC ``time``.
     """
-    from fluxcal.missions.imap.pipeline import process
-
     out = process([Path(p) for p in inputs], level=level,
                   calib=None if calib is None else Path(calib))
     return {key: _in_time_order(with_time_index(ds)) for key, ds in out.items()}

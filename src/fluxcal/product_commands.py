@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import typer
 
+from fluxcal import preflight
 from fluxcal.extras import require
 
 
@@ -20,7 +22,6 @@ def plot(
                                           "B* vector in nT)."),
 ) -> None:
     """Render a quicklook PNG per day of a product."""
-    from fluxcal import preflight
     from fluxcal.products.quicklook import (
         epoch_from_table,
         save_png,
@@ -53,7 +54,6 @@ def compare(
 ) -> None:
     """Match two products in time; print A - B statistics per component and quality flag."""
     require("plot", "fluxcal compare (its difference plot)")  # before reading the products
-    from fluxcal import preflight
     from fluxcal.products.compare import (
         compare as run_compare,
     )
@@ -80,8 +80,6 @@ def provenance(
     as_json: bool = typer.Option(False, "--json", help="Print the provenance as JSON."),
 ) -> None:
     """Print what a product was made from: inputs, calibration, kernels (name, SHA-256)."""
-    import json
-
     from fluxcal.products.provenance_read import format_provenance, read_provenance
 
     prov = read_provenance(product)

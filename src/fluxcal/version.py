@@ -5,13 +5,12 @@ version without importing the ``fluxcal`` package namespace (and the API it expo
 """
 
 from functools import cache
+from importlib.metadata import PackageNotFoundError, version
 
 
 @cache
 def software_version() -> str:
     """Return the installed distribution's version (``importlib.metadata``, read once)."""
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version("fluxcal")
     except PackageNotFoundError:  # pragma: no cover - running from a source tree

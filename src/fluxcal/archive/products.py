@@ -28,6 +28,8 @@ import xarray as xr
 
 from fluxcal.archive.pds3 import find_label, read_label, read_table
 from fluxcal.errors import InputFormatError
+from fluxcal.products.label import decode_attributes, find_objects
+from fluxcal.products.timeindex import with_time_index
 
 __all__ = ["ArchivedReader", "DEFAULT_READERS", "FRAME_CODES", "default_readers", "frame_code",
            "frame_codes", "identify", "normalise_frame", "read_product"]
@@ -144,8 +146,6 @@ def check_range(values: np.ndarray, lo: float, hi: float, name: str, label: Path
 
 def fluxcal_attrs(label: Mapping[str, Any]) -> dict[str, Any]:
     """Return the decoded fluxcal ``DATASET_ATTRIBUTES`` object of a label, or ``{}``."""
-    from fluxcal.products.label import decode_attributes, find_objects
-
     objs = find_objects(label, "DATASET_ATTRIBUTES")
     return decode_attributes(objs[0]) if objs else {}
 
@@ -182,8 +182,6 @@ def read_product(path: Path | str, readers: Mapping[str, ArchivedReader] | None 
         what the reader raises (a needed column missing, a time field out of range,
         naming row and column).
     """
-    from fluxcal.products.timeindex import with_time_index
-
     readers = default_readers() if readers is None else readers
     label_path = find_label(path)
     label = read_label(label_path)

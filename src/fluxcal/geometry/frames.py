@@ -32,11 +32,13 @@ from pathlib import Path
 
 import numpy as np
 import spiceypy
+from scipy.spatial.transform import Rotation
 
 from fluxcal.errors import KernelError
 from fluxcal.geometry import compiled
 from fluxcal.geometry.cspice_loops import pxform_into
 from fluxcal.geometry.kernels import spice_errors
+from fluxcal.geometry.time import SclkKernel
 
 log = logging.getLogger(__name__)
 
@@ -251,8 +253,6 @@ def _quaternions_of_matrices(m: np.ndarray) -> np.ndarray:
     m = np.asarray(m, dtype=float)
     gram = m @ np.transpose(m, (0, 2, 1))
     if not (np.isclose(gram, np.eye(3), atol=1e-12).all() and (np.linalg.det(m) > 0).all()):
-        from scipy.spatial.transform import Rotation
-
         return Rotation.from_matrix(m).as_quat()
     trace = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
     decision = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], trace], axis=1)
@@ -285,8 +285,6 @@ def _matrices_of_quaternions(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     norm = np.sqrt(q[:, 0] ** 2 + q[:, 1] ** 2 + q[:, 2] ** 2 + q[:, 3] ** 2)
     if not (norm > 0).all():
-        from scipy.spatial.transform import Rotation
-
         return Rotation.from_quat(q).as_matrix()
     q = q / norm[:, None]
     x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
@@ -383,8 +381,6 @@ class _Leg:
     def _ck_nodes(
         self, instrument: int, segments: list[_CkSegment], tmin: float, tmax: float, cache: dict
     ) -> np.ndarray:
-        from fluxcal.geometry.time import SclkKernel
-
         clock = spiceypy.ckmeta(instrument, "SCLK")
         if clock not in cache:
             cache[clock] = SclkKernel.from_pool(clock)

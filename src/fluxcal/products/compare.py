@@ -28,8 +28,13 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from fluxcal.archive.pds3 import column_names, find_label, read_label
+from fluxcal.archive.products import identify, normalise_frame, read_product
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.geometry.time import tt2000_to_datetime64
 from fluxcal.products.attrs import variable_units
+from fluxcal.products.timeindex import default_lsk
+from fluxcal.products.writer import read_product as read_fluxcal
 
 __all__ = ["Comparison", "ComponentStats", "compare", "difference_figure", "format_report",
            "load_product", "parse_tolerance", "product_frame"]
@@ -59,15 +64,10 @@ def load_product(path: Path | str) -> xr.Dataset:
     accepts its columns (`fluxcal.archive.products.identify`), else (a fluxcal table
     with other columns) by fluxcal's own table reader.
     """
-    from fluxcal.products.writer import read_product as read_fluxcal
-
     path = Path(path)
     if not path.exists():
         raise InputFormatError("file not found", path=str(path))
     if path.suffix.lower() in (".tab", ".lbl"):
-        from fluxcal.archive.pds3 import column_names, find_label, read_label
-        from fluxcal.archive.products import identify, read_product
-
         label = find_label(path)
         names = column_names(read_label(label), label)
         try:
@@ -105,8 +105,6 @@ def field_name(ds: xr.Dataset, path: Path | str) -> str:
 
 def product_frame(ds: xr.Dataset, var: str) -> str | None:
     """Frame code of a product's field (attrs ``frame``/``coordinate_system``), or None."""
-    from fluxcal.archive.products import normalise_frame
-
     attrs = ds[var].attrs
     for key in ("coordinate_system", "COORDINATE_SYSTEM", "frame"):
         code = normalise_frame(attrs.get(key))
@@ -319,10 +317,7 @@ def format_report(c: Comparison) -> str:
 
 def difference_figure(c: Comparison) -> Any:
     """Draw a figure with one panel of ``A - B`` per component against UTC time."""
-    from fluxcal.geometry.time import tt2000_to_datetime64
     from fluxcal.products.quicklook import Figure, envelope  # the plot extra's module
-    from fluxcal.products.timeindex import default_lsk
-
     fig = Figure(figsize=(10, 7), layout="constrained")
     axes = fig.subplots(len(c.components) + 1, 1, sharex=True)
     t = tt2000_to_datetime64(c.epoch, default_lsk()) if c.matched else np.array([], "M8[ns]")

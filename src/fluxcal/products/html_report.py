@@ -28,7 +28,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+import cdflib
 import numpy as np
+import xarray as xr
 
 from fluxcal.products.atomic import atomic_write_bytes, pending_renames
 from fluxcal.version import software_version
@@ -258,8 +260,6 @@ def _quality_attributes(attrs: dict[str, Any]) -> dict[str, str]:
 
 
 def _cdf_quality(path: Path) -> Quality:
-    import cdflib
-
     f = cdflib.CDF(str(path))
     names = f.cdf_info().zVariables
     time_var = next((n for n in names if f.varinq(n).Data_Type_Description
@@ -288,8 +288,6 @@ def _cdf_quality(path: Path) -> Quality:
 
 
 def _xarray_quality(path: Path, kind: str) -> Quality:
-    import xarray as xr
-
     ds = xr.open_zarr(path) if kind == "Zarr" else xr.open_dataset(path)
     with ds:
         time_name = next((n for n in [*ds.coords, *ds.data_vars]
@@ -330,8 +328,6 @@ def time_axis_key(product: ProductFile) -> tuple | None:
     if product.kind != "CDF":
         return None
     try:
-        import cdflib
-
         f = cdflib.CDF(str(product.source))
         names = f.cdf_info().zVariables
         for n in names:

@@ -24,6 +24,7 @@ attribute.
 from __future__ import annotations
 
 import importlib.util
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -130,8 +131,6 @@ def _room_for(enc: xr.Dataset, folder: Path) -> bool:
     plus 16 bytes), times `ROOM_FACTOR`, plus `ROOM_MARGIN` (HDF5 metadata, chunk
     indexes).  Unknown free space (an error asking) counts as room.
     """
-    import shutil
-
     size = 0
     for var in enc.variables.values():
         if var.dtype.kind == "U":

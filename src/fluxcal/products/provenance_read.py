@@ -11,6 +11,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import cdflib
+import xarray as xr
+
+from fluxcal.errors import InputFormatError
+from fluxcal.products.attrs import decode_attrs
+from fluxcal.products.label import decode_attributes, find_objects, read_label
+from fluxcal.products.netcdf import netcdf_engine
+
 #: Global attributes a provenance summary shows, beside the provenance records.
 SUMMARY_KEYS = ("Logical_file_id", "Logical_source", "Data_type", "Parents", "software",
                 "software_version", "creation_time", "command_line")
@@ -32,15 +40,10 @@ def read_provenance(path: Path | str) -> dict[str, Any]:
     fluxcal.errors.InputFormatError
         An unknown suffix, or a file that is not a readable product.
     """
-    from fluxcal.errors import InputFormatError
-    from fluxcal.products.attrs import decode_attrs
-
     p = Path(path)
     suffix = p.suffix.lower()
     try:
         if suffix == ".cdf":
-            import cdflib
-
             raw = cdflib.CDF(str(p)).globalattsget()
             attrs = {k: (v if k == "Parents" else v[0] if isinstance(v, list) and len(v) == 1
                          else v) for k, v in raw.items()}
@@ -48,17 +51,11 @@ def read_provenance(path: Path | str) -> dict[str, Any]:
             if "Software_version" in attrs:
                 attrs.setdefault("software_version", attrs.pop("Software_version"))
         elif suffix in (".nc", ".zarr"):
-            import xarray as xr
-
-            from fluxcal.products.netcdf import netcdf_engine
-
             opened = (xr.open_zarr(p, decode_times=False) if suffix == ".zarr" else
                       xr.open_dataset(p, engine=netcdf_engine(), decode_times=False))
             with opened as f:
                 attrs = dict(f.attrs)
         elif suffix in (".lbl", ".tab"):
-            from fluxcal.products.label import decode_attributes, find_objects, read_label
-
             label = read_label(p.with_suffix(".LBL") if suffix == ".tab" else p)
             found = find_objects(label, "DATASET_ATTRIBUTES")
             attrs = decode_attributes(found[0]) if found else {}

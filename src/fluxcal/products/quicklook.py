@@ -42,12 +42,16 @@ import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import ScalarFormatter  # noqa: E402
+from scipy.signal import spectrogram  # noqa: E402
 
 from fluxcal.errors import InputFormatError  # noqa: E402
+from fluxcal.geometry.time import utc_fields_to_tt2000, utc_to_tt2000  # noqa: E402
 from fluxcal.products.atomic import atomic_path  # noqa: E402
 from fluxcal.products.attrs import variable_units  # noqa: E402
+from fluxcal.products.timeindex import default_lsk  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -400,9 +404,6 @@ def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
     InputFormatError
         If the dataset has neither form of time.
     """
-    from fluxcal.geometry.time import utc_fields_to_tt2000, utc_to_tt2000
-    from fluxcal.products.timeindex import default_lsk
-
     if "epoch" in ds.coords or "epoch" in ds:
         return ds
     lsk = lsk or default_lsk()
@@ -441,8 +442,6 @@ def spectrogram_axes(ax, t_seconds: np.ndarray, signal: np.ndarray, fs: float,
     colour scale.  ``signal`` must be evenly sampled (see `uniform_runs`).  Returns
     the QuadMesh (for a colour bar).
     """
-    from scipy.signal import spectrogram
-
     if len(signal) < nperseg:
         raise InputFormatError(f"spectrogram needs at least nperseg={nperseg} samples, "
                                f"got {len(signal)}", field=label or "signal")
@@ -492,9 +491,6 @@ def spectrogram_figure(ds: xr.Dataset, variable: str | None = None, fs: float | 
     (`date_axis`).  ``fs`` forces one rate
     for the whole series (evenly sampled data only).
     """
-    from matplotlib.colors import Normalize
-    from scipy.signal import spectrogram
-
     name = variable or field_variable(ds)
     epoch = ds["epoch"].values.astype(np.int64)
     if epoch.size == 0:

@@ -118,7 +118,7 @@ def output_lock(out_dir: Path) -> Iterator[Path]:
         If another run (another process, or another lock in this one) holds the lock:
         the second run refuses at once instead of touching the first one's files.
     """
-    import fcntl
+    import fcntl  # POSIX only: imported where the lock is taken
 
     path = Path(out_dir) / LOCK_NAME
     while True:

@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError, KernelError
+from fluxcal.geometry.kernels import KernelPool, leapseconds_kernel
 from fluxcal.geometry.time import LeapSecondTable, leapseconds, tt2000_to_datetime64
 from fluxcal.products.columns import TIME_DIM
 
@@ -43,8 +44,6 @@ TIME_ATTRS = {
 
 @lru_cache(maxsize=1)
 def _shipped_lsk() -> LeapSecondTable:
-    from fluxcal.geometry.kernels import KernelPool, leapseconds_kernel
-
     with KernelPool([leapseconds_kernel()], generic=False, fluxcal_frames=False):
         return LeapSecondTable.from_pool()
 

@@ -40,7 +40,9 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from fluxcal.errors import FluxcalError
+from fluxcal.geometry.kernels import KernelPool
 from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.html_report import run_products, write_run_report
 from fluxcal.products.provenance import file_checksums, portable_value, sha256_file
 from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBusy: re-exported
     LOCK_NAME,
@@ -329,8 +331,6 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None,
     fluxcal.geometry.kernels.KernelPool
         The entered pool (its ``kernel_list()`` serves provenance).
     """
-    from fluxcal.geometry.kernels import KernelPool
-
     if kernels is None:
         key_items: list[str] = []
     elif isinstance(kernels, (str, Path)):
@@ -453,8 +453,6 @@ def _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name, on
     report.report_path = str(rpath)
     atomic_write_bytes(rpath, json.dumps(report.to_dict(), indent=1).encode())
     if interrupted is None:  # the folder's HTML report: every day's products, the report
-        from fluxcal.products.html_report import run_products, write_run_report
-
         write_run_report(out_dir, title=f"fluxcal batch {name}",
                          products=[p for p in run_products(out_dir)
                                    if not p.rel.startswith("manifests/")])

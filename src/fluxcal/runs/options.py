@@ -382,6 +382,7 @@ def with_options(cls: type, name: str = "options",
             kwargs[name] = from_command_line(cls, values, preset)
             result = func(*args, **kwargs)
             if report and context is not None and kwargs.get("out") is not None:
+                # numpy/xarray: not loaded by ``fluxcal --help`` (test_cli_startup)
                 from fluxcal.products.html_report import write_run_report
 
                 write_run_report(Path(kwargs["out"]))

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import typer
 
+from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.runs.options import with_options
@@ -40,7 +41,6 @@ def calibrate(
 
     Products are named imap_mag_<level>_<norm|burst>-<mago|magi>_<yyyymmdd>_v001.
     """
-    from fluxcal import preflight
     from fluxcal.missions.imap.routes import ImapRun, default_kernels
     from fluxcal.runs import driver
 

@@ -21,6 +21,9 @@ from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.imap import l1a, l1b
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.packets import data_file, read_packets
+from fluxcal.products import write_product
+from fluxcal.products.atomic import atomic_group
+from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.timeindex import default_lsk
 
 #: The SCLK kernel shipped with fluxcal.
@@ -114,10 +117,6 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
     (`fluxcal.products.quicklook.write_quicklooks`).  All files of the call are written as
     one group (`atomic_group`): on an error no file of the call appears.
     """
-    from fluxcal.products import write_product
-    from fluxcal.products.atomic import atomic_group
-    from fluxcal.products.cdf import istp_file_stem
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []

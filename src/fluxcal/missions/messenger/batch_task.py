@@ -30,6 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.synthetic import copy_meta_kernel, write_meta_kernel
+from fluxcal.geometry.time import SclkKernel, et_to_utc, utc_to_et
+from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.identity import SPACECRAFT_ID
 from fluxcal.missions.messenger.options import (
     MessengerOptions,
@@ -38,6 +42,8 @@ from fluxcal.missions.messenger.routes import (
     MessengerRun,
     day_file,
 )
+from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.runs import driver
 
 DAY_S = 86_400.0
@@ -123,13 +129,6 @@ def simulate_days(
     list of datetime.date
         The days that received science data (sorted).
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_meta_kernel
-    from fluxcal.geometry.time import SclkKernel, utc_to_et
-    from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-
     if not 0.0 < seconds_per_day <= DAY_S:
         raise ValueError(f"seconds_per_day must be in (0, 86400], got {seconds_per_day}")
     input_dir = Path(input_dir)
@@ -193,8 +192,6 @@ DEMO_DAYS = (_dt.date(2012, 6, 1), _dt.date(2012, 6, 2))
 
 def _split_by_day(path: Path, stream: str, out_dir: Path, sclk) -> list[Path]:
     """Split a MESSENGER CSV (``partition,met,...``) into ``MAG<stream>_YYYYDDD.csv``."""
-    from fluxcal.geometry.time import et_to_utc
-
     lines = path.read_text().splitlines()
     header, rows = lines[0], np.array(lines[1:])
     pm = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(0, 1), ndmin=2)
@@ -218,13 +215,6 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
     ``rate_setting`` (Table 1, e.g. 6 = 1 vector/s) the whole stretch uses that rate
     (long benchmark stretches).  Returns the UTC days that received science data.
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import copy_meta_kernel
-    from fluxcal.geometry.time import SclkKernel
-    from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-
     input_dir = Path(input_dir)
     work = input_dir / "simulation"
     if start is None:

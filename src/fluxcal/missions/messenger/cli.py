@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as _dt
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -9,7 +10,9 @@ from pathlib import Path
 import typer
 
 from fluxcal.cli_help import HelpGroup, progress_wanted, quiet_requested
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.options import MessengerOptions
+from fluxcal.preflight import plain_text_file
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
@@ -39,8 +42,6 @@ def edr2cdr(
     from fluxcal.missions.messenger.run import prepare_formats
 
     prepare_formats(options.formats)  # both routes: before any EDR or CSV is read
-    from fluxcal.preflight import plain_text_file
-
     _check_input_style(sci, heater, temperature, edr, mapping)
     for option, paths in (("--sci", sci), ("--heater", heater), ("--temperature", temperature)):
         for path in paths:  # before any work: not compressed, a data line after the header
@@ -91,7 +92,6 @@ def check_calibration_folder(folder: Path) -> None:
     FluxcalError
         Naming the folder and the missing tables, or the first unreadable table.
     """
-    from fluxcal.errors import FluxcalError
     from fluxcal.missions.messenger.calibration_data import TABLE_NAMES, read_tables
 
     folder = Path(folder)
@@ -165,8 +165,6 @@ def fit(
 def _check_input_style(sci: list[Path], heater: list[Path], temperature: list[Path],
                        edr: Path | None, mapping: Path | None) -> None:
     """Exactly one input style: the three CSV streams, or --edr with --mapping."""
-    from fluxcal.errors import InputFormatError
-
     csv = bool(sci or heater or temperature)
     if edr is not None and csv:
         raise InputFormatError("give either --edr/--mapping or --sci/--heater/--temperature, "
@@ -279,8 +277,6 @@ def simulate(
 ) -> None:
     """Write simulated raw Messenger telemetry and kernels from a known field."""
     if layout not in ("files", "batch", "edr"):
-        from fluxcal.errors import InputFormatError
-
         raise InputFormatError(f"{layout!r}: choose files, batch or edr", field="--layout")
     check_simulation_options(start, duration)
     if layout == "edr":
@@ -319,10 +315,6 @@ def check_simulation_options(start: str, duration: float) -> None:
         Naming the option: a start that is not an ISO UTC time (without a UTC offset),
         a length that is not above 0 s and at most `MAX_DURATION_S`.
     """
-    import datetime as _dt
-
-    from fluxcal.errors import InputFormatError
-
     try:
         t0 = _dt.datetime.fromisoformat(start)
     except ValueError:
@@ -348,9 +340,6 @@ def simulate_batch_layout(out: Path, start: str, duration: float, days: int) -> 
     InputFormatError
         If ``start`` is not a midnight or ``duration`` is not in (0, 86400] s.
     """
-    import datetime as _dt
-
-    from fluxcal.errors import InputFormatError
     from fluxcal.missions.messenger.batch_task import DAY_S, simulate_days
 
     try:

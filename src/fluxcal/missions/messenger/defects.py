@@ -63,6 +63,7 @@ import xarray as xr
 from numba import njit
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import et_to_utc
 
 log = logging.getLogger(__name__)
 
@@ -271,8 +272,6 @@ def science_gaps(ds: xr.Dataset, cal) -> list[dict]:
 
 def _span(cause: str, a: float, b: float, samples: int, stream: str) -> dict:
     """One span record (JSON-ready)."""
-    from fluxcal.geometry.time import et_to_utc
-
     utc = et_to_utc(np.array([a, b]), digits=0)
     return {"cause": cause, "flag": DEFECT_FLAGS[cause], "action": DEFECT_ACTIONS[cause],
             "stream": stream, "start": str(utc[0]), "end": str(utc[1]),

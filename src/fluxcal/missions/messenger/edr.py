@@ -45,7 +45,9 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from fluxcal.archive.pds3 import read_table
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.calibration_data import resolve_table
 from fluxcal.missions.messenger.defects import clock_jumps, ordered_records
 from fluxcal.missions.messenger.readers import (
     COUNT_LIMITS,
@@ -370,8 +372,6 @@ def _read_stream(files: Sequence[EdrFile], mapping: EdrMapping, kind: str,
     ordered by their first (partition, MET); rows off the longest run in (partition,
     MET) order (MET going back in a file or across files) are dropped and counted.
     """
-    from fluxcal.archive.pds3 import read_table
-
     if not files:
         rx, _ = mapping.file(kind)
         raise InputFormatError(f"no {kind} EDR label matching {rx.pattern!r} "
@@ -460,8 +460,6 @@ def _stream_attrs(stream: _Stream, gaps: list[list[float]] | None = None) -> dic
 
 def _sample_rates(day: _dt.date, calibration_folder: Path | None) -> np.ndarray:
     """Sample rate (Hz) per rate setting 0..10: Table 1 as the calibration tables hold it."""
-    from fluxcal.missions.messenger.calibration_data import resolve_table
-
     lat = resolve_table("latency", np.datetime64(day, "s"), calibration_folder).columns
     order = np.argsort(lat["rate_setting"])
     return np.asarray(lat["sample_rate_hz"], dtype=float)[order]

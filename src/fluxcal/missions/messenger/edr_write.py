@@ -24,21 +24,23 @@ from __future__ import annotations
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
+from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pvl
 import xarray as xr
 
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.time import SclkKernel, et_to_tt2000, tt2000_to_datetime64
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
+from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.products.columns import Column
 from fluxcal.products.label import Symbol, read_label, render_label
 from fluxcal.products.tab import write_tab
-
-if TYPE_CHECKING:
-    from fluxcal.geometry.time import SclkKernel
 
 #: Samples per simulated science packet (fluxcal's fixture choice: odd, so packets start
 #: at varied fractions of a second and ``delta_ts`` takes many values).
@@ -63,8 +65,6 @@ def _name(pattern: str, yyddd: str, hhmm: str, version: int) -> str:
 
 def _utc_days(partition: np.ndarray, met: np.ndarray, sclk: SclkKernel) -> np.ndarray:
     """UTC ``datetime64[m]`` of each clock reading (kernels loaded)."""
-    from fluxcal.geometry.time import et_to_tt2000, tt2000_to_datetime64
-
     et = sclk.to_et(partition.astype(np.int64), met)
     return tt2000_to_datetime64(et_to_tt2000(et)).astype("datetime64[m]")
 
@@ -412,11 +412,6 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
         Paths keyed ``kernels``, ``edr``, ``mapping``, ``science``, ``heater``,
         ``temperature``, ``truth``.
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import SclkKernel
-    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
@@ -439,8 +434,6 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
 
 def template_path() -> Path:
     """Return the path of the packaged mapping template."""
-    from importlib import resources
-
     return Path(str(resources.files("fluxcal.missions.messenger") / "data"
                     / "edr_mapping_template.toml"))
 

@@ -52,7 +52,10 @@ from fluxcal.calibration.constrained_fits import (
 )
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.errors import FitRefusedError, FluxcalError, InputFormatError
-from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.geometry.time import SclkKernel
+from fluxcal.missions.messenger import fit_variance as fv
+from fluxcal.missions.messenger.batch_task import default_kernels
+from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.fit_reduce import (
     TAU_STEP,
     DayStatistics,
@@ -61,7 +64,12 @@ from fluxcal.missions.messenger.fit_reduce import (
     reduce_day,
     relaxation_response,
 )
+from fluxcal.missions.messenger.fit_variance import VarianceStatistics, reduce_variance
 from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+from fluxcal.missions.messenger.routes import EDR_MAPPING, day_file_groups
+from fluxcal.products.provenance import sha256_file
+from fluxcal.runs.batch import release_worker_kernel_pool, worker_kernel_pool
 
 __all__ = ["ESTIMATORS", "TEMPERATURE_LAWS", "FitResult", "check_fit", "fit_calibration",
            "fit_days", "fit_variance_calibration", "reduce_day"]
@@ -506,8 +514,6 @@ def fit_calibration(
 
 @functools.lru_cache(maxsize=1)
 def _shipped() -> MessengerCalibration:
-    from fluxcal.missions.messenger.calibration_data import load_calibration
-
     return load_calibration(_SHIPPED_DAY)
 
 
@@ -635,8 +641,6 @@ def fit_variance_calibration(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-7.
     """
-    from fluxcal.missions.messenger import fit_variance as fv
-
     accepted = int(np.count_nonzero(vstats.reason == ""))
     if accepted == 0 or vstats.normal.shape[0] == 0:
         raise FluxcalError(
@@ -732,8 +736,6 @@ def refuse_edr_folder(input_dir: Path) -> None:
     InputFormatError
         When ``input_dir`` holds ``edr_mapping.toml`` (`routes.EDR_MAPPING`).
     """
-    from fluxcal.missions.messenger.routes import EDR_MAPPING
-
     if (Path(input_dir) / EDR_MAPPING).is_file():
         raise InputFormatError(
             f"holds {EDR_MAPPING}: 'fluxcal messenger fit' reads the CSV batch layout "
@@ -750,9 +752,6 @@ def day_chunks(input_dir: Path, days: Sequence, kernels: Path | None = None) -> 
     the files a ``fluxcal batch messenger`` day reads (`routes.day_file_groups`).  Days
     without a science file are skipped.
     """
-    from fluxcal.missions.messenger.batch_task import default_kernels
-    from fluxcal.missions.messenger.routes import day_file_groups
-
     refuse_edr_folder(Path(input_dir))
     k = (default_kernels(Path(input_dir), kernels),)
     out = []
@@ -777,11 +776,6 @@ def reduce_chunk(
 
     With ``estimator="variance"`` also `fit_variance.reduce_variance`: returns both.
     """
-    from fluxcal.geometry.time import SclkKernel
-    from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
-    from fluxcal.products.provenance import sha256_file
-    from fluxcal.runs.batch import worker_kernel_pool
-
     worker_kernel_pool(list(chunk.kernels))
     sclk = SclkKernel.from_pool(SPACECRAFT_ID)
     inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
@@ -792,8 +786,6 @@ def reduce_chunk(
                        inputs=inputs)
     if estimator != "variance":
         return stats
-    from fluxcal.missions.messenger.fit_variance import reduce_variance
-
     return stats, reduce_variance(sci, htr, tmp, sclk, cal, iv)
 
 
@@ -895,8 +887,6 @@ def fit_days(
         for p in range(passes):
             parts = mapper(cal, p == 0, p)
             if estimator == "variance":
-                from fluxcal.missions.messenger.fit_variance import VarianceStatistics
-
                 vstats = reduce(VarianceStatistics.merge, [v for _, v in parts],
                                 VarianceStatistics())
                 parts = [d for d, _ in parts]
@@ -925,8 +915,6 @@ def fit_days(
             progress(f"pass {p + 1}/{passes}: reducing days", p * len(chunks) + i, total)
 
     if scheduler == "serial":
-        from fluxcal.runs.batch import release_worker_kernel_pool
-
         def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[DayStatistics]:
             out = []
             for i, chunk in enumerate(chunks):

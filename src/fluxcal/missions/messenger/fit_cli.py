@@ -12,9 +12,11 @@ import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from fluxcal import preflight
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.messenger.identity import FRAME_KERNELS
+from fluxcal.preflight import plain_text_file
 from fluxcal.products.provenance import portable_command_line, portable_text
 
 _DAY_FILE = re.compile(r"^MAGSCI_(\d{4})(\d{3})\.csv$")
@@ -87,7 +89,6 @@ def run_fit(
     from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days, refuse_edr_folder
     from fluxcal.missions.messenger.fit_reduce import read_intervals
     from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
-    from fluxcal.preflight import plain_text_file
     from fluxcal.products.provenance import sha256_file
 
     if scheduler != "serial":  # before any input is read
@@ -125,8 +126,6 @@ def run_fit(
     base = load_calibration(first, calib)
     sched = None if scheduler == "local" else scheduler
     if sched not in (None, "serial"):
-        from fluxcal import preflight
-
         preflight.reachable_scheduler(sched)
     result = fit_days(chunks, base, intervals=iv, passes=passes, scheduler=sched,
                       n_workers=workers, fit_delay=fit_delay, progress=progress,

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from fluxcal.errors import CalibrationError
-from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES
+from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
 from fluxcal.missions.messenger.fit import AXES, FitResult
 from fluxcal.products.atomic import atomic_group, atomic_write_bytes
 from fluxcal.products.provenance import creation_time, sha256_file
@@ -128,8 +128,6 @@ def write_calibration_folder(
     CalibrationError
         When ``out_dir`` already holds calibration tables (versions would mix).
     """
-    from fluxcal.missions.messenger.calibration_data import _read_table, data_dir
-
     out = Path(out_dir)
     base_folder = data_dir() if base_folder is None else Path(base_folder)
     cal = result.calibration

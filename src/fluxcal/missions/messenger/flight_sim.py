@@ -49,10 +49,16 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
 from scipy.signal import lfilter
 
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.synthetic import write_meta_kernel
+from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
+from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 DAY_S = 86_400.0
 #: Heater period (s) and the controller's evaluation interval (s), sec. 6 and 7.
@@ -438,9 +444,6 @@ def _write(path: Path, header: str, columns: list[np.ndarray]) -> None:
     Integers as such, floats as the shortest text that reads back to the same float64
     (MET and temperatures stay exact).
     """
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
     table = pa.table(dict(zip(header.split(","), columns, strict=True)))
     tmp = path.with_name(path.name + ".tmp")
     with tmp.open("wb") as fh:
@@ -505,11 +508,6 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (net lag), sec. 6 (waveform
        from the bit's rising edge), sec. 7 (eq. 2-5, relaxation), sec. 8 (eq. 8).
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import write_meta_kernel
-    from fluxcal.geometry.time import SclkKernel, utc_to_et
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-
     config = config or FlightConfig()
     out = Path(out_dir)
     cal_dir = out / "calibration"

@@ -14,7 +14,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
-from fluxcal.geometry.time import SclkKernel
+from fluxcal.geometry.time import SclkKernel, et_to_utc
 from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.options import DEFAULT_FRAMES
@@ -168,6 +168,4 @@ def day_of(science: xr.Dataset) -> np.datetime64:
     """Return the UTC instant of the first science sample (selects the calibration)."""
     sclk = SclkKernel.from_pool(levels.SC_ID)
     et = sclk.to_et(science["partition"].values[:1], science["met"].values[:1])
-    from fluxcal.geometry.time import et_to_utc
-
     return np.datetime64(str(et_to_utc(et, digits=0)[0]), "s")

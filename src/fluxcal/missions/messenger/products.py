@@ -43,11 +43,22 @@ from numba import njit
 
 from fluxcal.calibration import averaging
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.compiled import row_norms, unwrap_degrees
 from fluxcal.geometry.days import day_start, from_day_of_year
+from fluxcal.geometry.time import (
+    SclkKernel,
+    et_to_tt2000,
+    tt2000_to_et,
+    tt2000_to_utc_fields,
+    utc_to_et,
+)
+from fluxcal.missions.messenger.calibration_data import data_dir
+from fluxcal.missions.messenger.defects import DEFECT_FLAGS, FLAG_MEANINGS
 from fluxcal.missions.messenger.levels import FRAMES, POSITION_VARIABLE, SC_ID, frame_variables
 from fluxcal.missions.messenger.options import DEFAULT_VERSION
-from fluxcal.products import write_product
+from fluxcal.products import Column, write_product
 from fluxcal.products.atomic import atomic_group
+from fluxcal.products.cdf import istp_file_stem
 
 log = logging.getLogger(__name__)
 
@@ -108,8 +119,6 @@ def _flags(ds: xr.Dataset) -> list[str]:
 
 def _defect_flag_variable(values: np.ndarray, averaged: bool = False) -> tuple:
     """Return the products' ``defect_flag`` (uint8 bits; ISTP attrs: istp_variables.yaml)."""
-    from fluxcal.missions.messenger.defects import DEFECT_FLAGS, FLAG_MEANINGS
-
     what = "OR of the samples' defect bits in the interval" if averaged else \
         "local telemetry defect bits"
     return ("time", np.asarray(values, dtype=np.uint8), {
@@ -234,8 +243,6 @@ def utc_columns(epoch: np.ndarray) -> dict[str, xr.Variable]:
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9.
     """
-    from fluxcal.geometry.time import tt2000_to_utc_fields
-
     epoch = np.asarray(epoch)
     n = epoch.size
     cols = {"year": np.empty(n, np.int16), "doy": np.empty(n, np.int16),
@@ -280,8 +287,6 @@ def product_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9-12.
     """
-    from fluxcal.geometry.compiled import row_norms
-
     spice_frame = FRAMES[frame][0]
     b = ds[f"b_{frame}"].values
     total = np.empty(b.shape[0])
@@ -341,8 +346,6 @@ def average(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9 (time), sec. 12 (flag).
     """
-    from fluxcal.geometry.compiled import row_norms, unwrap_degrees
-
     epoch = prod["epoch"].values
     width = int(seconds) * NS
     if bins is None:
@@ -385,8 +388,6 @@ def average(
 
 def _met_at(tt2000: np.ndarray, sclk) -> np.ndarray:
     """Clock reading (MET s) at TT2000 epochs through the SCLK kernel."""
-    from fluxcal.geometry.time import SclkKernel, tt2000_to_et
-
     if tt2000.size == 0:
         return np.zeros(0)
     sclk = sclk or SclkKernel.from_pool(SC_ID)
@@ -395,15 +396,11 @@ def _met_at(tt2000: np.ndarray, sclk) -> np.ndarray:
 
 def istp_files() -> tuple[Path, Path]:
     """Return the mission's ISTP (global, variable) attribute files for `write_product`."""
-    from fluxcal.missions.messenger.calibration_data import data_dir
-
     return data_dir() / "istp_global.yaml", data_dir() / "istp_variables.yaml"
 
 
 @lru_cache(maxsize=1)
 def _istp_products() -> tuple[dict, dict]:
-    from fluxcal.missions.messenger.calibration_data import data_dir
-
     glob = yaml.safe_load((data_dir() / "istp_global.yaml").read_text())
     table = yaml.safe_load((data_dir() / "istp_products.yaml").read_text())
     return glob, table
@@ -458,8 +455,6 @@ def table_columns(frame: str, averaged: bool, defect_flag: bool = False) -> list
     ``BR BT BN`` (``DBR DBT DBN``) in the same positions; SC: no position columns.
     ``defect_flag``: fluxcal's last column ``DEFECT_FLAG`` (issue 23, not archived).
     """
-    from fluxcal.products import Column
-
     cols = [Column("year", "%4d", label="YEAR"), Column("doy", "%03d", label="DAY_OF_YEAR"),
             Column("hour", "%02d", label="HOUR"), Column("minute", "%02d", label="MINUTE"),
             Column("second", "%06.3f", label="SECOND"),
@@ -508,8 +503,6 @@ def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], c
     The CDF (and netCDF/Zarr) get the ISTP file name ``<logical_source>_<yyyymmdd>_v<nn>``
     (`fluxcal.products.cdf.istp_file_stem`, equal to their ``Logical_file_id``).
     """
-    from fluxcal.products.cdf import istp_file_stem
-
     written: list[Path] = []
     if quality is None:
         quality = _quality_keywords(prod["quality"].values)
@@ -553,8 +546,6 @@ def write_day(
     progress : callable, optional
         Called with ``(description, done, total)`` after each product.
     """
-    from fluxcal.geometry.time import SclkKernel
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     year, doy, yyddd = day_code(ds)
@@ -663,8 +654,6 @@ def _day_et(ds: xr.Dataset) -> np.ndarray:
 
 
 def _year_doy(et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    from fluxcal.geometry.time import et_to_tt2000, tt2000_to_utc_fields
-
     f = tt2000_to_utc_fields(et_to_tt2000(np.atleast_1d(et)))
     return f["year"], f["doy"]
 
@@ -684,8 +673,6 @@ def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
     boundaries are found by binary search of each UTC midnight; the days are slices
     (views) of ``ds``.
     """
-    from fluxcal.geometry.time import utc_to_et
-
     et = _day_et(ds)
     if et.size == 0:
         return []

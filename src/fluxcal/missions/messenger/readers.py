@@ -28,8 +28,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import xarray as xr
 from numba import njit
+from pyarrow import csv as pacsv
 
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.defects import clock_jumps, ordered_records
@@ -199,9 +201,6 @@ def _parse_numbers(path: Path, names: list[str], order: list[int]) -> np.ndarray
     every defect fails the parse; the slow line-by-line `_diagnose` then names the
     file, line and field.
     """
-    import pyarrow as pa
-    from pyarrow import csv as pacsv
-
     try:
         table = pacsv.read_csv(
             path,

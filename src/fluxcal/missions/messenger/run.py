@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from fluxcal.calibration.gain_matrix import counts_to_nt
 from fluxcal.errors import InputFormatError, ValidationError
 from fluxcal.geometry.days import from_day_of_year
+from fluxcal.geometry.time import utc_to_et
 from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
@@ -39,6 +41,7 @@ from fluxcal.missions.messenger.validation_report import (
     load_figure_support,
     write_report,
 )
+from fluxcal.products import provenance_attrs
 from fluxcal.products.atomic import atomic_group
 
 log = logging.getLogger(__name__)
@@ -109,8 +112,6 @@ def calibrate_run(
                    max_offset_step=None, keep_intermediates=False)
     ds = note_mbf_rotation(ds.drop_vars([v for v in RAW_UNWRITTEN if v in ds]), wanted)
     if quicklook_frame is not None:  # the quicklook's offsets in nT: fine-range matrix of eq. 8
-        from fluxcal.calibration.gain_matrix import counts_to_nt
-
         fine = np.zeros(ds.sizes["time"], dtype=np.int8)
         ds = ds.assign(offset_nt=(("time", "component"), counts_to_nt(
             ds["offset"].values, fine, cal.matrices), {"units": "nT"}))
@@ -151,8 +152,6 @@ def write_run(
     ValidationError
         After writing the good days, naming every day that failed the sec. 13 check.
     """
-    from fluxcal.products import provenance_attrs
-
     check_formats(formats)
     prov = provenance_attrs(
         inputs=list(inputs),
@@ -222,8 +221,6 @@ def merge_tail_fragment(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (Table 1 net lags).
     """
-    from fluxcal.geometry.time import utc_to_et
-
     if len(days) < 2:
         return days
     last = days[-1]

@@ -32,6 +32,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import xarray as xr
 
+from fluxcal.geometry.frames import rotate
+from fluxcal.geometry.positions import position
+from fluxcal.geometry.time import et_to_tt2000, utc_to_et
 from fluxcal.missions.messenger import forward
 
 if TYPE_CHECKING:
@@ -175,9 +178,6 @@ def _regulated_temperature(u: np.ndarray, config: SimulationConfig) -> np.ndarra
 
 def _sunlit(et: np.ndarray) -> np.ndarray:
     """Sensor side sunlit: the Sun has a positive +Y component in MSGR_SPACECRAFT."""
-    from fluxcal.geometry.frames import rotate
-    from fluxcal.geometry.positions import position
-
     sun = rotate(position("SUN", "MESSENGER", "J2000", et), et, "J2000", "MSGR_SPACECRAFT")
     return sun[:, 1] > 0
 
@@ -255,10 +255,6 @@ def simulate(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-8 (forward).
     """
-    from fluxcal.geometry.frames import rotate
-    from fluxcal.geometry.positions import position
-    from fluxcal.geometry.time import et_to_tt2000, utc_to_et
-
     tables = forward.read_tables(None if cal is None or not cal.paths else cal.paths)
     et_of = {k: float(utc_to_et(np.array([str(tables.date(k))]))[0])
              for k in ("boom_deployment", "heater_mode_v10")}

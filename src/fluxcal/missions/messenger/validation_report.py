@@ -16,8 +16,10 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.extras import require
+from fluxcal.geometry.time import et_to_utc
 from fluxcal.missions.messenger.defects import span_records
 from fluxcal.missions.messenger.levels import offset_step_report
+from fluxcal.products.atomic import atomic_path, atomic_write_bytes
 
 
 def load_figure_support() -> None:
@@ -45,8 +47,6 @@ def report_text(ds: xr.Dataset, threshold_counts: float | None,
     span: ``cause,flag,action,stream,start_utc,end_utc,seconds,samples``
     (`read_defect_spans` reads it back).
     """
-    from fluxcal.geometry.time import et_to_utc
-
     rep = offset_step_report(ds) if report is None else report
     lines = ["# MESSENGER MAG offset smoothness (MESSENGER MAG EDR-to-CDR Processing, sec. 13)",
              f"# threshold_counts: {threshold_counts}", "axis,largest_step_counts,utc"]
@@ -95,8 +95,6 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
     Both files go through `fluxcal.products.atomic.atomic_path`, so inside a caller's
     `atomic_group` they appear only with the rest of the day's products.
     """
-    from fluxcal.products.atomic import atomic_path, atomic_write_bytes
-
     stem = Path(stem)
     txt = stem.with_name(stem.name + ".txt")
     atomic_write_bytes(txt, report_text(ds, threshold_counts, report).encode())

@@ -34,8 +34,18 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from fluxcal.archive.pds3 import read_table
 from fluxcal.errors import InputFormatError
-from fluxcal.missions.rosetta.io import hk_dataset, science_dataset
+from fluxcal.missions.rosetta.calib import check_sensor
+from fluxcal.missions.rosetta.io import (
+    _RANGES,
+    _epoch,
+    hk_dataset,
+    read_hk_csv,
+    read_science_csv,
+    science_dataset,
+)
+from fluxcal.missions.rosetta.level_a import wrong_quality
 
 SENSORS = ("OB", "IB")
 _NAME = re.compile(
@@ -214,8 +224,6 @@ def science_labels(source, sensor: str) -> list[Path]:
         No product of the sensor in the folder; a name of another sensor, of HK or not
         of the pattern; a missing label.
     """
-    from fluxcal.missions.rosetta.calib import check_sensor
-
     sensor = check_sensor(sensor)
     return _labels(source, sensor, f"{sensor} science")
 
@@ -229,8 +237,6 @@ def hk_labels(source) -> list[Path]:
 # Reading
 # ----------------------------------------------------------------------------------------
 def _read(label: Path) -> xr.Dataset:
-    from fluxcal.archive.pds3 import read_table
-
     return read_table(label)
 
 
@@ -244,8 +250,6 @@ def _column(ds: xr.Dataset, name: str, label: Path) -> xr.DataArray:
 
 def _integers(values: np.ndarray, name: str, csv_name: str, label: Path) -> np.ndarray:
     """Whole numbers of a column, range-checked as the CSV reader checks them."""
-    from fluxcal.missions.rosetta.io import _RANGES
-
     v = np.asarray(values)
     if v.dtype.kind == "f":
         bad = np.flatnonzero(~np.isfinite(v) | (v != np.round(v)))
@@ -273,8 +277,6 @@ def _data_file(ds: xr.Dataset, label: Path) -> Path:
 
 def _times(ds: xr.Dataset, label: Path, sclk, lsk) -> tuple[np.ndarray, np.ndarray]:
     """``(epoch TT2000, obt)`` of one table, as the CSV reader makes them (rows 1-based)."""
-    from fluxcal.missions.rosetta.io import _epoch
-
     table = _data_file(ds, label)
 
     utc = _column(ds, "TIME.UTC", label).values
@@ -361,9 +363,6 @@ def read_science_products(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1.2 (columns), 4.2.3.5 (SID).
     """
-    from fluxcal.missions.rosetta.calib import check_sensor
-    from fluxcal.missions.rosetta.level_a import wrong_quality
-
     sensor = check_sensor(sensor)
     pieces = []
     for label in labels:
@@ -434,8 +433,6 @@ def read_science(source, sensor: str, *, sclk=None, lsk=None) -> xr.Dataset:
     ``.LBL``/``.TAB`` product, or a sequence of labels (`read_science_products`); both
     give the same Dataset.
     """
-    from fluxcal.missions.rosetta.io import read_science_csv
-
     if is_archive_source(source):
         return read_science_products(science_labels(source, sensor), sensor, sclk=sclk,
                                      lsk=lsk)
@@ -444,8 +441,6 @@ def read_science(source, sensor: str, *, sclk=None, lsk=None) -> xr.Dataset:
 
 def read_hk(source, *, sclk=None, lsk=None) -> xr.Dataset:
     """Read raw HK from a CSV file or from EDITED archive HK products (see `read_science`)."""
-    from fluxcal.missions.rosetta.io import read_hk_csv
-
     if is_archive_source(source):
         return read_hk_products(hk_labels(source), sclk=sclk, lsk=lsk)
     return read_hk_csv(source, sclk=sclk, lsk=lsk)

@@ -24,6 +24,10 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
+from fluxcal.missions.rosetta import calib
+from fluxcal.missions.rosetta.io import _utc
+from fluxcal.products import Column
+from fluxcal.products.tab import write_tab
 
 EDITED = ("DATA", "EDITED")
 #: Month folders of the archive tree (``DATA/EDITED/<yyyy>/<MON>/``).
@@ -43,8 +47,6 @@ def product_stem(first_utc: str, kind: str, mode: int | None = None) -> str:
 
 
 def _science_columns(sensor: str) -> list:
-    from fluxcal.products import Column
-
     return [
         Column("time_utc", "A26", "UTC", "UTC time of observation", label="TIME.UTC",
                data_type="TIME"),
@@ -63,8 +65,6 @@ def _science_columns(sensor: str) -> list:
 
 
 def _hk_columns() -> list:
-    from fluxcal.products import Column
-
     words = [("t_ob_counts", "I5", "T.OB"), ("t_ib_counts", "I5", "T.IB"),
              ("stage_a_id", "I5", "STAGE.A.ID"), ("stage_b_id", "I5", "STAGE.B.ID"),
              ("filter_cfg", "I5", "FILTER.CFG"), ("ref_voltage_counts", "I7", "MAG.REF.VOLTAGE"),
@@ -93,8 +93,6 @@ def _runs(day: np.ndarray, sid: np.ndarray | None) -> list[np.ndarray]:
 
 def _write(ds: xr.Dataset, rows: np.ndarray, stem: Path, columns, extra: dict,
            seen: set) -> list[Path]:
-    from fluxcal.products.tab import write_tab
-
     if stem.name in seen:
         raise FluxcalError(f"two EDITED products would be named {stem.name} (the same mode "
                            "starting twice within one minute)")
@@ -118,8 +116,6 @@ def write_science_products(raw: xr.Dataset, root: Path, *, flat: bool = False,
     FluxcalError
         Two runs of one mode starting within one minute (their names would clash).
     """
-    from fluxcal.missions.rosetta.io import _utc
-
     sensor = str(raw.attrs["sensor"]).upper()
     utc = _utc(raw["epoch"].values, lsk)
     ds = raw.assign(time_utc=("time", utc))
@@ -139,8 +135,6 @@ def write_science_products(raw: xr.Dataset, root: Path, *, flat: bool = False,
 def write_hk_products(hk: xr.Dataset, root: Path, *, flat: bool = False,
                       lsk=None) -> list[Path]:
     """Write raw HK as EDITED HK products, one per UTC day; return labels and tables."""
-    from fluxcal.missions.rosetta.io import _utc
-
     utc = _utc(hk["epoch"].values, lsk)
     ds = hk.assign(time_utc=("time", utc))
     day = np.char.ljust(utc, 10).astype("U10")
@@ -163,8 +157,6 @@ def write_archive_calibration(calib_dir: Path) -> list[Path]:
     ``RPCMAG_SC_ALIGN.TXT`` and the daily ``RPCMAG_<yymmdd>_006_CALIB_<S>.TXT`` already
     carry the archived names.
     """
-    from fluxcal.missions.rosetta import calib
-
     out = []
     for name in calib.GROUND_FILE.values():  # the archive's names: calib.ARCHIVE_NAMES
         dest = Path(calib_dir) / calib.ARCHIVE_NAMES[name]

@@ -58,6 +58,26 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from fluxcal.errors import FluxcalError
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.synthetic import copy_meta_kernel
+from fluxcal.geometry.time import SclkKernel, leapseconds
+from fluxcal.missions.rosetta import calib, io, level_a
+from fluxcal.missions.rosetta.archive import find_products, read_science, source_files
+from fluxcal.missions.rosetta.extended_model import stitch_day
+from fluxcal.missions.rosetta.level_a import stitch_edges
+from fluxcal.missions.rosetta.simulate import (
+    simulate,
+    synthetic_alignment,
+    synthetic_daily_models,
+    write_truth_csv,
+)
+from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.runs.batch import worker_kernel_pool
+
 log = logging.getLogger(__name__)
 
 SENSORS = ("OB", "IB")
@@ -109,8 +129,6 @@ def _source(csv: Path, input_dir: Path, day: _dt.date, kind: str):
     their names (`fluxcal.missions.rosetta.archive.find_products`); the CSV day folder
     is looked at first (docs/decisions/rosetta_archive.md).
     """
-    from fluxcal.missions.rosetta.archive import find_products
-
     if csv.is_file():
         return csv
     labels = tuple(p.label for p in find_products(input_dir, kind=kind, day=day))
@@ -128,9 +146,7 @@ def hk_source(input_dir: Path, day: _dt.date):
 
 
 def _source_files(source, sensor: str | None = None) -> list[Path]:
-    """Return `fluxcal.missions.rosetta.archive.source_files` (imported when called)."""
-    from fluxcal.missions.rosetta.archive import source_files
-
+    """Return `fluxcal.missions.rosetta.archive.source_files`."""
     return source_files(source, sensor)
 
 
@@ -149,8 +165,6 @@ def edge_key(science: Any, sensor: str, kernels: Path | None) -> list:
 def write_stitch(stitch_dir: Path, day: _dt.date, sensor: str, key: list, edges,
                  end_state: dict | None) -> None:
     """Write a day's stitch file: its key, first and last good vectors, end-of-day state."""
-    from fluxcal.products.atomic import atomic_write_bytes
-
     data = {"key": key,
             "first": list(edges[0]) if edges else None,
             "last": list(edges[1]) if edges else None,
@@ -186,12 +200,6 @@ class DayChain:
 
     def _edges(self, day: _dt.date, sensor: str):
         """First and last good vector ``((epoch, word), (epoch, word))`` of a day, cached."""
-        from fluxcal.geometry.time import SclkKernel, leapseconds
-        from fluxcal.missions.rosetta import io
-        from fluxcal.missions.rosetta.archive import read_science
-        from fluxcal.missions.rosetta.level_a import stitch_edges
-        from fluxcal.runs.batch import worker_kernel_pool
-
         cached = self._read_stitch(day, sensor)
         if cached is not None:
             return None if cached["first"] is None else (tuple(cached["first"]),
@@ -218,12 +226,6 @@ class DayChain:
         return self._chain(day, sensor)[0]
 
     def _chain(self, day: _dt.date, sensor: str):
-        import numpy as np
-
-        from fluxcal.errors import FluxcalError
-        from fluxcal.missions.rosetta import calib, level_a
-        from fluxcal.missions.rosetta.extended_model import stitch_day
-
         models = calib.find_daily_offset_models(self.calib, sensor)
         chain = []
         d = day - _dt.timedelta(days=1)
@@ -346,20 +348,6 @@ def simulate_days(
     ``kernels``) ``<input>/kernels/`` one Rosetta-like kernel set covering every day,
     referenced by ``<input>/kernels.tm``.  ``truth`` also writes ``truth_<sensor>.csv``.
     """
-    import numpy as np
-
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.synthetic import copy_meta_kernel
-    from fluxcal.geometry.time import leapseconds
-    from fluxcal.missions.rosetta import calib, io
-    from fluxcal.missions.rosetta.simulate import (
-        simulate,
-        synthetic_alignment,
-        synthetic_daily_models,
-        write_truth_csv,
-    )
-    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
-
     input_dir = Path(input_dir)
     days = sorted(days)
     duration = float(minutes) * 60.0

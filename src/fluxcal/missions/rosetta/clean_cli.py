@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +33,7 @@ import typer
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
+from fluxcal.missions.rosetta.options import check_average
 from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
@@ -356,8 +358,6 @@ def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: st
 
 
 def _save(fig, path: Path) -> Path:
-    import os
-
     import matplotlib.pyplot as plt
 
     path = Path(path)
@@ -458,8 +458,6 @@ def clean_files(
     if level == "K" and intervals is not None and heater_states is not None:
         raise FluxcalError("give either --intervals or --heater-states, not both")
     if level in ("F", "G", "I"):
-        from fluxcal.missions.rosetta.options import check_average
-
         check_average(average_s)
     result = CleanResult()
     out = Path(out)

@@ -43,6 +43,8 @@ from fluxcal.cleaning.spectral_lines import (
 )
 from fluxcal.cleaning.steps import remove_heater_steps, remove_labelled_offsets
 from fluxcal.errors import InputFormatError
+from fluxcal.missions.rosetta import averaged
+from fluxcal.missions.rosetta.level_c import level_c
 from fluxcal.missions.rosetta.reaction_wheels import ReactionWheelTable
 
 __all__ = [
@@ -267,8 +269,6 @@ def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dat
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.10.
     """
-    from fluxcal.missions.rosetta import averaged
-
     out = averaged.average(level_h_ds, seconds, lsk=lsk)
     out.attrs.update(level="I")
     return out
@@ -277,8 +277,6 @@ def level_i(level_h_ds: xr.Dataset, seconds: float = 1.0, *, lsk=None) -> xr.Dat
 def _average_heater_corrected(
     ds: xr.Dataset, source: str, target: str, seconds: float, lsk
 ) -> xr.Dataset:
-    from fluxcal.missions.rosetta import averaged
-
     have = str(ds.attrs.get("level", source)).upper()
     if have != source:
         raise InputFormatError(
@@ -671,8 +669,6 @@ def level_l(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.13.
     """
-    from fluxcal.missions.rosetta.level_c import level_c
-
     src = level_k_ds.drop_vars(["heater_disturbance"], errors="ignore")
     out = level_c(src, frame=frame, centre=centre, method=method, lsk=lsk)
     out["b"].attrs["description"] = "calibrated field, heater disturbance eliminated"

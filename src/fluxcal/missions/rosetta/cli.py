@@ -16,6 +16,7 @@ from pathlib import Path
 
 import typer
 
+from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
@@ -76,7 +77,6 @@ def calibrate(
 
     Follows "RO-IGEP-TR0028 Rosetta RPC-MAG calibration" sec. 4.1-4.8.
     """
-    from fluxcal import preflight
     from fluxcal.missions.rosetta.pipeline import parse_levels
     from fluxcal.missions.rosetta.routes import FILE_LEVELS, run_files
 
@@ -158,7 +158,6 @@ def fit(
     Writes the daily RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT files (or, with --jumps,
     RPCMAG_OFFSET_JUMPS.csv) that 'fluxcal rosetta calibrate --calib OUT' reads.
     """
-    from fluxcal import preflight
     from fluxcal.missions.rosetta.fit_run import fit_files
 
     for path in science:
@@ -223,8 +222,6 @@ def simulate(
                              help="--layout batch: number of consecutive days."),
 ) -> None:
     """Write simulated raw Rosetta telemetry, calibration files and kernels from a known field."""
-    from fluxcal import preflight
-
     check_simulation_options(start, hours, rate, primary)
     if layout not in ("files", "batch", "archive"):
         raise InputFormatError(f"{layout!r}: choose files, batch or archive", field="--layout")
@@ -256,7 +253,6 @@ def check_raw_source(path: Path, option: str) -> None:
     FluxcalError
         Naming the option: a missing folder or file, a CSV that is not plain text.
     """
-    from fluxcal import preflight
     from fluxcal.missions.rosetta.archive import is_archive_source
 
     if Path(path).is_dir():

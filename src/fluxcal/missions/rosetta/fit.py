@@ -37,7 +37,9 @@ import numpy as np
 import xarray as xr
 from numpy.polynomial import polynomial as npoly
 
+from fluxcal.calibration.binned_stats import BinnedMoments
 from fluxcal.errors import FluxcalError
+from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
 from fluxcal.missions.rosetta.calib import (
     DailyOffsetModel,
     GroundCalibration,
@@ -88,8 +90,6 @@ def block_means(
     standard_error : ndarray, shape (b, m)
         ``sqrt(sample variance / count)``; NaN for a block of one sample.
     """
-    from fluxcal.calibration.binned_stats import BinnedMoments
-
     if not block_s > 0:
         raise FluxcalError(f"block length must be positive, not {block_s} s")
     epoch = np.asarray(epoch, dtype=np.int64)
@@ -338,8 +338,6 @@ def fit_extended_model(
         i = int(np.flatnonzero(bad)[0])
         raise FluxcalError(f"{source}: vector {i} has a non-finite field or temperature")
     if day is None:
-        from fluxcal.geometry.time import tt2000_to_utc
-
         day = str(tt2000_to_utc(epoch[:1], digits=0)[0])[:10]
     day = np.datetime64(day, "D")
     lo, hi = (float(t.min()), float(t.max())) if t.size else (0.0, 0.0)
@@ -592,8 +590,6 @@ class JumpBlocks:
 def interval_bounds(start_utc: np.ndarray, end_utc: np.ndarray, lsk=None
                     ) -> tuple[np.ndarray, np.ndarray]:
     """TT2000 of the interval limits; `FluxcalError` unless sorted, disjoint, non-empty."""
-    from fluxcal.geometry.time import utc_to_tt2000
-
     starts = utc_to_tt2000(np.asarray(start_utc, dtype=str), lsk)
     ends = utc_to_tt2000(np.asarray(end_utc, dtype=str), lsk)
     if (starts.size == 0 or np.any(ends <= starts) or np.any(np.diff(starts) <= 0)

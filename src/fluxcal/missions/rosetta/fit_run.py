@@ -18,6 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.geometry.frames import rotate
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.time import SclkKernel, leapseconds, tt2000_to_et, tt2000_to_utc
+from fluxcal.missions.rosetta import archive, calib, io, level_a, level_b
 from fluxcal.missions.rosetta.calib import check_sensor
 from fluxcal.missions.rosetta.fit import (
     DEFAULT_DEGREE,
@@ -38,6 +42,7 @@ from fluxcal.missions.rosetta.fit_variance import (
     fit_offset_jumps_variance,
 )
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
+from fluxcal.missions.rosetta.level_c import FRAMES, SPACECRAFT_FRAME
 from fluxcal.products.provenance import portable_text
 from fluxcal.textfile import read_text
 
@@ -130,10 +135,6 @@ def fit_files(
     FluxcalError
         Every input, calibration and fit error (naming file, line, field, day, interval).
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import SclkKernel, leapseconds
-    from fluxcal.missions.rosetta import archive, calib, io, level_a
-
     files = [Path(science)] if isinstance(science, (str, Path)) else [Path(s) for s in science]
     if not files:
         raise FluxcalError("no science file given (--science)")
@@ -199,11 +200,6 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
                block_s, intervals, max_sigma, boom, alignment_from_kernels, lsk,
                variance=None) -> Path:
     """Run the ``--jumps`` branch of `fit_files` (kernels loaded); return the table path."""
-    from fluxcal.geometry.frames import rotate
-    from fluxcal.geometry.time import tt2000_to_et, tt2000_to_utc
-    from fluxcal.missions.rosetta import calib, level_a, level_b
-    from fluxcal.missions.rosetta.level_c import FRAMES, SPACECRAFT_FRAME
-
     models = calib.find_daily_offset_models(calib_dir, sensor)
     alignment = None if alignment_from_kernels else calib.load_alignment(calib_dir)
     levels_b = []

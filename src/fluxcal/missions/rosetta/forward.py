@@ -29,6 +29,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
 from fluxcal.missions.rosetta.calib import (
     DailyOffsetModel,
     GroundCalibration,
@@ -182,8 +183,6 @@ def jump_field(event_tt2000: np.ndarray, table: OffsetJumpTable, sensor: str, ls
     The pipeline removes it from LEVEL_B data; the forward model adds it.  Intervals
     ``[start, end)`` (docs/decisions/rosetta.md); outside every interval 0.
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     starts = utc_to_tt2000(np.asarray(table.start_utc), lsk)
     ends = utc_to_tt2000(np.asarray(table.end_utc), lsk)
     t = np.asarray(event_tt2000, dtype=np.int64)
@@ -212,8 +211,6 @@ def extended_offset(
     of the following day will be shifted in that way that a possible midnight jump
     disappears"); otherwise ``s_d = 0``.  Days without a model have no extended offset.
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     t = np.asarray(stamps_tt2000, dtype=np.int64)
     temp = np.asarray(temperature_c, dtype=float)
     out = np.zeros((t.size, 3))
@@ -242,6 +239,4 @@ def extended_offset(
 
 
 def _utc_day(tt2000: int, lsk) -> str:
-    from fluxcal.geometry.time import tt2000_to_utc
-
     return str(tt2000_to_utc(np.array([tt2000]), lsk=lsk)[0])[:10]

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import utc_to_tt2000
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +73,6 @@ def report_time_defects(
     list of str
         One message per defect found (also logged as warnings).
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     out: list[str] = []
     epoch = np.asarray(epoch, dtype=np.int64)
     if epoch.size < 1:

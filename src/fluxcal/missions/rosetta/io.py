@@ -21,9 +21,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import xarray as xr
+from pyarrow import csv as pacsv
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
+from fluxcal.missions.rosetta.calib import check_sensor
 from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
 from fluxcal.missions.rosetta.input_checks import report_time_defects
 from fluxcal.textfile import decode_text
@@ -125,9 +129,6 @@ def _read_fast(path: Path, columns: tuple[str, ...], kinds: dict[str, type],
     written (a `_TextColumn` unless ``utc_text``).  The text path holds ~1.7 GB of
     strings for a 20 Hz day; this one the columns (~170 MB).
     """
-    import pyarrow as pa
-    from pyarrow import csv as pacsv
-
     try:
         with open(path, "rb") as fh:
             header = fh.readline()
@@ -227,8 +228,6 @@ def _epoch(
     ``rows`` are the record numbers errors name (default: CSV lines, ``i + 2``);
     ``names`` the UTC and OBT field names (the archive tables call them TIME.UTC, TIME.OBT).
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     def line_of(i: int) -> int:
         return i + 2 if rows is None else int(rows[i])
 
@@ -292,8 +291,6 @@ def read_science_csv(path: Path, sensor: str, *, sclk=None, lsk=None) -> xr.Data
         Wrong header, wrong field count, non-numeric field, value out of range, time going
         backwards; naming file, line and field.
     """
-    from fluxcal.missions.rosetta.calib import check_sensor
-
     path = Path(path)
     kinds = {"obt": float} | {name: int for name in ("sid", "bx", "by", "bz", "t_ob", "t_ib",
                                                      "quality")}
@@ -415,8 +412,6 @@ def _write_atomic(path: Path, header: tuple[str, ...], columns: Sequence[Column]
 
 
 def _utc(epoch: np.ndarray, lsk) -> np.ndarray:
-    from fluxcal.geometry.time import tt2000_to_utc
-
     return tt2000_to_utc(epoch, digits=6, lsk=lsk)
 
 

@@ -15,6 +15,8 @@ import xarray as xr
 
 from fluxcal.calibration import matrices as mat
 from fluxcal.errors import CalibrationError
+from fluxcal.geometry.frames import rotate
+from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
 from fluxcal.missions.rosetta.calib import Alignment, OffsetJumpTable, check_sensor
 
 
@@ -36,8 +38,6 @@ def offset_jumps(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), Appendix B.1 (OB) and B.2 (IB).
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     sensor = check_sensor(sensor)
     starts = utc_to_tt2000(table.start_utc, lsk)
     ends = utc_to_tt2000(table.end_utc, lsk)
@@ -114,9 +114,6 @@ def level_b(
     """
     sensor = check_sensor(level_a.attrs["sensor"])
     if alignment is None:
-        from fluxcal.geometry.frames import rotate
-        from fluxcal.geometry.time import tt2000_to_et
-
         mag_frame = f"ROS_RPC_MAG_{sensor}"
         et = tt2000_to_et(level_a["epoch"].values, lsk)
         b_sc = rotate(level_a["b"].values, et, mag_frame, spacecraft_frame)

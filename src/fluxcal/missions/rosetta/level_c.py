@@ -15,6 +15,9 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
+from fluxcal.geometry.frames import rotate
+from fluxcal.geometry.positions import position
+from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
 
 SPACECRAFT_FRAME = "ROS_SPACECRAFT"
 SPACECRAFT = "ROSETTA"
@@ -40,8 +43,6 @@ def default_frame(epoch: np.ndarray, lsk=None) -> tuple[str, str]:
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.4.1 ("Update 2014: ... the standard
        coordinate system for the LEVEL C data is the CSEQ-system").
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     epoch = np.asarray(epoch, dtype=np.int64)
     start = int(utc_to_tt2000(np.array([COMET_PHASE_START]), lsk)[0])
     comet = epoch >= start
@@ -106,10 +107,6 @@ def level_c(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.4.1.
     """
-    from fluxcal.geometry.frames import rotate
-    from fluxcal.geometry.positions import position
-    from fluxcal.geometry.time import tt2000_to_et
-
     to_frame, centre = resolve_frame(level_b["epoch"].values, frame, centre, lsk)
     et = tt2000_to_et(level_b["epoch"].values, lsk)
     b = rotate(level_b["b"].values, et, spacecraft_frame, to_frame, method=method)

@@ -19,6 +19,7 @@ _M = "fluxcal.missions.rosetta"
 
 def commands() -> typer.Typer:
     """Return the ``fluxcal rosetta`` commands (calibrate, fit, clean)."""
+    # the command modules load when the command line is built, not with the registry
     from fluxcal.missions.rosetta import clean_cli, cli
 
     if not any(c.name == "clean" for c in cli.app.registered_commands):
@@ -28,7 +29,7 @@ def commands() -> typer.Typer:
 
 def before_batch(task: object) -> None:
     """Warn when the batch's alignment is fluxcal's placeholder (before the first day)."""
-    from fluxcal.missions.rosetta.cli import warn_placeholder_alignment
+    from fluxcal.missions.rosetta.cli import warn_placeholder_alignment  # as in `commands`
 
     options = task.options  # type: ignore[attr-defined]
     if not options.alignment_from_kernels:

@@ -19,7 +19,9 @@ References
 
 from __future__ import annotations
 
+import json
 import logging
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -27,9 +29,12 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from fluxcal.errors import FluxcalError
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.days import utc_days
+from fluxcal.geometry.time import tt2000_to_utc
 from fluxcal.missions.rosetta import archive, calib, hk, level_a
+from fluxcal.products import Column, write_product
+from fluxcal.products.cdf import istp_file_stem
 
 log = logging.getLogger(__name__)
 
@@ -119,8 +124,6 @@ def logical_source(level: str, sensor: str, seconds: float | None = None,
 
 def product_columns(level: str) -> list:
     """Table columns of a level (seed 003 tables of sec. 4.2.3.5, 4.3.1, 4.4.1, 4.6-4.8)."""
-    from fluxcal.products import Column
-
     cols = [
         Column("time_utc", "A26", "UTC", "TIME.UTC, UTC time of observation, microseconds",
                label="TIME.UTC", data_type="TIME"),
@@ -179,10 +182,6 @@ def write_level(
         No vectors, or two mode segments of one day that would get the same table name
         (same mode starting twice within one minute).
     """
-    from fluxcal.geometry.time import tt2000_to_utc
-    from fluxcal.products import write_product
-    from fluxcal.products.cdf import istp_file_stem
-
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]
     seconds = ds.attrs.get("average_seconds")
     out_dir = Path(out_dir)
@@ -387,8 +386,6 @@ def check_day_records(raw: xr.Dataset, bounds: tuple[int, int], path: Path, lsk=
     InputFormatError
         Naming the file, the line of the first such record and its time.
     """
-    from fluxcal.errors import InputFormatError
-
     epoch = raw["epoch"].values
     outside = (epoch < bounds[0]) | (epoch >= bounds[1])
     if not np.any(outside):
@@ -515,8 +512,6 @@ def merge_tail(tail: xr.Dataset, a: xr.Dataset) -> xr.Dataset:
 
 def read_stitch_state(path: Path | None) -> level_a.StitchState | None:
     """Read the end-of-day stitching state written by `write_stitch_state` (``None`` if absent)."""
-    import json
-
     if path is None or not Path(path).is_file():
         return None
     try:
@@ -531,9 +526,6 @@ def write_stitch_state(state: dict | None, path: Path) -> Path | None:
     A stale file is removed when the day had no extended model (``state`` empty: the
     chain is broken).
     """
-    import json
-    import os
-
     path = Path(path)
     if not state:
         path.unlink(missing_ok=True)
@@ -550,17 +542,11 @@ def _round_us(epoch: np.ndarray) -> np.ndarray:
 
 
 def _utc(epoch: np.ndarray, lsk) -> np.ndarray:
-    from fluxcal.geometry.time import tt2000_to_utc
-
     return tt2000_to_utc(epoch, digits=0, lsk=lsk)
 
 
 def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]:
     """HK LEVEL_A: table ``RPCMAG_<yyyymmdd>_HKA`` (fluxcal's name), ISTP-named CDF."""
-    from fluxcal.geometry.time import tt2000_to_utc
-    from fluxcal.products import Column, write_product
-    from fluxcal.products.cdf import istp_file_stem
-
     ds = ds.assign(
         time_utc=(
             "time",

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import utc_to_tt2000
 
 __all__ = ["REACTION_WHEEL_COLUMNS", "ReactionWheelTable", "read_reaction_wheels"]
 
@@ -72,8 +73,6 @@ def read_reaction_wheels(path: Path | str, lsk=None) -> ReactionWheelTable:
         times not strictly increasing, or no data rows; the message names file, line
         and field.
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-
     path = Path(path)
     if not path.is_file():
         raise InputFormatError("reaction wheel file not found", path=str(path))

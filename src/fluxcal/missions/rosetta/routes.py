@@ -34,7 +34,7 @@ import xarray as xr
 
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.days import day_bounds
-from fluxcal.geometry.time import SclkKernel, leapseconds
+from fluxcal.geometry.time import SclkKernel, leapseconds, tt2000_to_utc
 from fluxcal.missions.rosetta import (
     archive,
     averaged,
@@ -426,8 +426,6 @@ class RosettaRun:
 
 
 def _utc(epoch: np.ndarray, lsk: Any) -> np.ndarray:
-    from fluxcal.geometry.time import tt2000_to_utc
-
     return tt2000_to_utc(epoch, digits=0, lsk=lsk)
 
 

@@ -30,8 +30,21 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from scipy.spatial.transform import Rotation
 
-from fluxcal.missions.rosetta import forward
+from fluxcal.geometry.frames import rotate
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.synthetic import copy_meta_kernel
+from fluxcal.geometry.time import (
+    SclkKernel,
+    et_to_tt2000,
+    leapseconds,
+    tt2000_to_et,
+    tt2000_to_utc,
+    utc_to_tt2000,
+)
+from fluxcal.missions.rosetta import archive_write, calib, forward, io
+from fluxcal.missions.rosetta.archive_write import write_archive_calibration
 from fluxcal.missions.rosetta.calib import (
     Alignment,
     DailyOffsetModel,
@@ -41,6 +54,8 @@ from fluxcal.missions.rosetta.calib import (
     check_sensor,
 )
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS, SPACECRAFT_ID
+from fluxcal.missions.rosetta.io import _write_atomic
+from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 
 log = logging.getLogger(__name__)
 NS = 1_000_000_000
@@ -188,8 +203,6 @@ def simulate(
         ``truth[sensor]`` with ``b_urf`` (LEVEL_A truth), ``b_sc`` (LEVEL_B truth after
         the jump correction), ``b_ref`` (ECLIPJ2000 or s/c) at the event times.
     """
-    from fluxcal.geometry.time import et_to_tt2000, tt2000_to_et, utc_to_tt2000
-
     rng = np.random.default_rng(seed)
     n = int(round(duration_s * rate_hz))
     t0 = int(utc_to_tt2000(np.array([start_utc]), lsk)[0])
@@ -203,8 +216,6 @@ def simulate(
         stamps, sid, n = stamps[keep], sid[keep], int(keep.sum())
     sclk = None
     if with_kernels:
-        from fluxcal.geometry.time import SclkKernel
-
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         stamps_et = tt2000_to_et(stamps, lsk)
         obt = np.ceil(sclk.from_et(stamps_et)[1] * 1e6) / 1e6  # 6 digits, never before start
@@ -228,8 +239,6 @@ def simulate(
         secs = (event - t0) / NS
         b_ref = truth_field(secs)
         if with_kernels:
-            from fluxcal.geometry.frames import rotate
-
             b_sc_true = rotate(b_ref, tt2000_to_et(event, lsk), "ECLIPJ2000", "ROS_SPACECRAFT")
         else:
             b_sc_true = b_ref
@@ -353,8 +362,6 @@ def simulate_hk(
 
 def write_truth_csv(truth: xr.Dataset, path: Path, *, lsk=None) -> Path:
     """Write the truth of one sensor (event time, b_urf, b_sc, b_ref, T) as CSV."""
-    from fluxcal.geometry.time import tt2000_to_utc
-
     def six(v: np.ndarray) -> np.ndarray:
         return np.char.mod("%.6f", v)
 
@@ -368,15 +375,11 @@ def write_truth_csv(truth: xr.Dataset, path: Path, *, lsk=None) -> Path:
     cols.append((truth["temperature"].values, lambda v: np.char.mod("%.4f", v)))
     cols.append(truth["good"].values.astype(int))
     header += ["temperature_k", "good"]
-    from fluxcal.missions.rosetta.io import _write_atomic
-
     return _write_atomic(Path(path), tuple(header), cols)
 
 
 def synthetic_alignment() -> Alignment:
     """Return a non-trivial alignment for simulations (boom axes tilted as in ROS_V38.TF)."""
-    from scipy.spatial.transform import Rotation
-
     angles = {
         ("OB", "deployed"): [-90.234, 89.944, 0.145],
         ("OB", "stowed"): [0.0, 45.0, 0.0],
@@ -426,11 +429,6 @@ def write_simulation(
     folder ``out/CALIB`` with the archived ground-calibration names, and copies the
     meta-kernel to ``out/kernels.tm`` (the input folder of ``fluxcal batch rosetta``).
     """
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import leapseconds
-    from fluxcal.missions.rosetta import calib, io
-    from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
-
     out = Path(out)
     archive = "archive" in layouts
     calib_dir = out / ("CALIB" if archive else "calib")
@@ -438,9 +436,6 @@ def write_simulation(
     duration = float(hours) * 3600.0
     meta = write_rosetta_like_kernels(out / "kernels", start_utc, duration, margin_s=3600.0)
     if archive:
-        from fluxcal.geometry.synthetic import copy_meta_kernel
-        from fluxcal.missions.rosetta.archive_write import write_archive_calibration
-
         copy_meta_kernel(meta, out / "kernels.tm")
         write_archive_calibration(calib_dir)
     alignment = synthetic_alignment()
@@ -485,8 +480,6 @@ def write_simulation(
         if "files" in layouts:
             paths["hk"] = io.write_hk_csv(sim.hk, out / f"RPCMAG_{stamp}_RAW_HK.csv", lsk=lsk)
         if archive:
-            from fluxcal.missions.rosetta import archive_write
-
             for sensor in ("OB", "IB"):
                 archive_write.write_science_products(sim.science[sensor], out, lsk=lsk)
             archive_write.write_hk_products(sim.hk, out, lsk=lsk)
