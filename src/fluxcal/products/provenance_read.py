@@ -102,7 +102,9 @@ def format_provenance(prov: Mapping[str, Any]) -> str:
     lines += [f"  {r.get('name', '?'):<40} {rec(r)}" for r in inputs]
     cal = prov.get("calibration") or {}
     lines.append(f"calibration ({len(cal)}):")
-    lines += [f"  {name:<24} {r.get('name', '')} {rec(r)}".rstrip() for name, r in cal.items()]
+    # a table's role, where it differs from its file name (Rosetta: "ground calibration")
+    lines += [f"  {r.get('name', name):<40} {rec(r)}"
+              + (f"  ({name})" if r.get("name", name) != name else "") for name, r in cal.items()]
     kernels = prov.get("kernels") or []
     lines.append(f"kernels ({len(kernels)}):")
     lines += [f"  {r.get('name', '?'):<40} {rec(r)}" for r in kernels]
