@@ -102,7 +102,7 @@ def format_provenance(prov: Mapping[str, Any]) -> str:
     lines += [f"  {r.get('name', '?'):<40} {rec(r)}" for r in inputs]
     cal = prov.get("calibration") or {}
     lines.append(f"calibration ({len(cal)}):")
-    # a table's role, where it differs from its file name (Rosetta: "ground calibration")
+    # a table's role (e.g. "ground"), where it differs from its file name
     lines += [f"  {r.get('name', name):<40} {rec(r)}"
               + (f"  ({name})" if r.get("name", name) != name else "") for name, r in cal.items()]
     kernels = prov.get("kernels") or []
