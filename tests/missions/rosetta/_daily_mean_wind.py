@@ -23,6 +23,10 @@ import xarray as xr
 from numpy.polynomial import Polynomial
 from scipy.signal import lfilter
 
+from fluxcal.geometry.time import utc_to_tt2000
+from fluxcal.missions.rosetta import calib, forward
+from fluxcal.missions.rosetta.calib import DailyOffsetModel
+
 NS = 1_000_000_000
 B0 = 3.0
 MEAN_DIRECTION = np.array([0.6, -0.7, 0.39])
@@ -73,10 +77,6 @@ def simulate_raw(day: str, start_s: float, hours: float, coefficients: np.ndarra
     Returns ``(raw, b_true_urf, temperature_c)`` (truth at the event times).  Filter
     mode SID 2.
     """
-    from fluxcal.geometry.time import utc_to_tt2000
-    from fluxcal.missions.rosetta import calib, forward
-    from fluxcal.missions.rosetta.calib import DailyOffsetModel
-
     rng = np.random.default_rng(seed)
     cal = calib.load_ground_calibration("OB")
     nominal = calib.load_nominal_conversion()
@@ -92,12 +92,30 @@ def simulate_raw(day: str, start_s: float, hours: float, coefficients: np.ndarra
     model = DailyOffsetModel(np.datetime64(day, "D"), "OB", coefficients, "truth")
     ext = forward.extended_offset(stamps, forward.reduced_temperature(temp, cal),
                                   {model.day: model})
-    counts = forward.science_counts(forward.raw_field(b + ext, temp, cal), nominal)
+    raw = instrument_raw(stamps, sid, b + ext, temp, cal, nominal,
+                         f"daily-mean wind seed {seed}")
+    return raw, b, temp
+
+
+def curve(coefficients: np.ndarray, reduced_t: np.ndarray) -> np.ndarray:
+    """``sum P_k T~^k`` per axis with numpy's Polynomial, (n, 3)."""
+    return np.stack([Polynomial(coefficients[:, i])(reduced_t) for i in range(3)], axis=1)
+
+
+def instrument_raw(stamps: np.ndarray, sid: np.ndarray, field: np.ndarray, temp: np.ndarray,
+                   cal, nominal, source: str) -> xr.Dataset:
+    """Return the OB sensor's raw telemetry for ``field`` (nT, with the offset) at ``temp``.
+
+    The seed's instrument run forward (`fluxcal.missions.rosetta.forward`): counts of the
+    field, thermistor words of OB at ``temp`` and IB 10 C warmer, OBT from 2003-01-01.
+    """
+    counts = forward.science_counts(forward.raw_field(field, temp, cal), nominal)
     words = forward.thermistor_words(temp, cal, nominal)
     ib_words = forward.thermistor_words(temp + 10.0, calib.load_ground_calibration("IB"),
                                         nominal)
     obt0 = int(utc_to_tt2000(np.array(["2003-01-01T00:00:00"]))[0])
-    raw = xr.Dataset(
+    n = len(stamps)
+    return xr.Dataset(
         {
             "obt": ("time", np.round((stamps - obt0) / NS, 6)),
             "sid": ("time", sid),
@@ -107,11 +125,5 @@ def simulate_raw(day: str, start_s: float, hours: float, coefficients: np.ndarra
             "quality": ("time", np.zeros(n, dtype=np.int16)),
         },
         coords={"epoch": ("time", stamps), "component": ["x", "y", "z"]},
-        attrs={"sensor": "OB", "source": f"daily-mean wind seed {seed}"},
+        attrs={"sensor": "OB", "source": source},
     )
-    return raw, b, temp
-
-
-def curve(coefficients: np.ndarray, reduced_t: np.ndarray) -> np.ndarray:
-    """``sum P_k T~^k`` per axis with numpy's Polynomial, (n, 3)."""
-    return np.stack([Polynomial(coefficients[:, i])(reduced_t) for i in range(3)], axis=1)

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.polynomial import Polynomial
@@ -38,6 +37,8 @@ from fluxcal.missions.rosetta.fit import (
     write_daily_model,
     write_offset_jump_table,
 )
+
+from ._daily_mean_wind import instrument_raw
 
 NS = 1_000_000_000
 DAY = "2009-11-13"  # cruise, cold sensor (the extended model's phase, sec. 4.2.3.3)
@@ -114,23 +115,8 @@ def simulate_raw(start: str, hours: float, model, *, seed: int,
                                   model if isinstance(model, dict) else {model.day: model})
     if offsets is not None:
         offsets.append(ext)
-    counts = forward.science_counts(forward.raw_field(b + ext, temp, cal), nominal)
-    words = forward.thermistor_words(temp, cal, nominal)
-    ib_words = forward.thermistor_words(temp + 10.0, calib.load_ground_calibration("IB"),
-                                        nominal)
-    obt0 = int(utc_to_tt2000(np.array(["2003-01-01T00:00:00"]))[0])
-    raw = xr.Dataset(
-        {
-            "obt": ("time", np.round((stamps - obt0) / NS, 6)),
-            "sid": ("time", sid),
-            "b_counts": (("time", "component"), counts.astype(np.int32)),
-            "t_ob_counts": ("time", words.astype(np.int32)),
-            "t_ib_counts": ("time", ib_words.astype(np.int32)),
-            "quality": ("time", np.zeros(n, dtype=np.int16)),
-        },
-        coords={"epoch": ("time", stamps), "component": ["x", "y", "z"]},
-        attrs={"sensor": "OB", "source": f"forward model seed {seed}"},
-    )
+    raw = instrument_raw(stamps, sid, b + ext, temp, cal, nominal,
+                         f"forward model seed {seed}")
     return raw, b, temp
 
 
