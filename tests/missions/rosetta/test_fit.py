@@ -290,7 +290,7 @@ def test_fitted_file_calibrates_unseen_stretch(day_fit, tmp_path):
         io.write_science_csv(unseen, tmp_path / "unseen.csv")
     fitted = tmp_path / "fitted"
     assert main(["rosetta", "fit", "--science", str(tmp_path / "day.csv"), "--sensor", "OB",
-                 "--out", str(fitted)]) == 0
+                 "--estimator", "zero-mean", "--out", str(fitted)]) == 0
     written = fitted / "RPCMAG_091113_006_CALIB_OB.TXT"
     text = written.read_text()
     assert "# fitted by fluxcal rosetta fit" in text and "day.csv" in text
@@ -414,7 +414,7 @@ def test_cli_fits_each_day_of_a_two_day_file(tmp_path):
                                          rate_hz=0.5, offsets=offsets)
         io.write_science_csv(raw, tmp_path / "two.csv")
     assert main(["rosetta", "fit", "--science", str(tmp_path / "two.csv"), "--sensor", "OB",
-                 "--out", str(tmp_path / "fit")]) == 0
+                 "--estimator", "zero-mean", "--out", str(tmp_path / "fit")]) == 0
     second = np.arange(raw.sizes["time"]) >= raw.sizes["time"] // 2
     for name, m in (("091113", ~second), ("091114", second)):
         fitted = calib.read_daily_offset_model(tmp_path / "fit" / f"RPCMAG_{name}_006_CALIB_OB.TXT")
@@ -436,7 +436,8 @@ def test_cli_errors(day_fit, tmp_path, capsys):
 
     with KernelPool():
         io.write_science_csv(raw.isel(time=slice(0, 3600)), short)
-    base = ["rosetta", "fit", "--sensor", "OB", "--out", str(tmp_path / "o")]
+    base = ["rosetta", "fit", "--sensor", "OB", "--estimator", "zero-mean", "--out",
+            str(tmp_path / "o")]
     code, err = _cli(base + ["--science", str(tmp_path / "missing.csv")], capsys)
     assert code == 2 and len(err) == 1 and "missing.csv" in err[0]
     code, err = _cli(base + ["--science", str(short), "--degree", "7"], capsys)
@@ -444,6 +445,10 @@ def test_cli_errors(day_fit, tmp_path, capsys):
     code, err = _cli(base + ["--science", str(short), "--jumps"], capsys)
     assert code == 2 and len(err) == 1 and "--kernels" in err[0]
     code, err = _cli(base + ["--science", str(short)], capsys)  # 1 h of data
+    assert code == 2 and len(err) == 1 and "short.csv" in err[0] and "2009-11-13" in err[0]
+    # the default estimator (variance) refuses the hour too, naming file, day and cause
+    default = ["rosetta", "fit", "--sensor", "OB", "--out", str(tmp_path / "o")]
+    code, err = _cli(default + ["--science", str(short)], capsys)
     assert code == 2 and len(err) == 1 and "short.csv" in err[0] and "2009-11-13" in err[0]
     assert not (tmp_path / "o").exists()  # nothing left behind
     code, err = _cli(base + ["--science", str(short), "--science", str(short)], capsys)
@@ -476,7 +481,8 @@ def test_cli_jumps_with_kernels(tmp_path, capsys):
     capsys.readouterr()
     args = ["rosetta", "fit", "--science", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
             "--sensor", "OB", "--kernels", str(sim / "kernels" / "rosetta_synthetic.tm"),
-            "--calib", str(sim / "calib"), "--jumps", "--block-seconds", "60",
+            "--calib", str(sim / "calib"), "--jumps", "--estimator", "zero-mean",
+            "--block-seconds", "60",
             "--out", str(tmp_path / "out")]
     code, err = _cli(args, capsys)
     assert code == 2 and len(err) == 1

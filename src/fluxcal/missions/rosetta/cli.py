@@ -120,13 +120,14 @@ def fit(
         None, "--calib", help="Folder with calibration files overriding fluxcal's defaults."
     ),
     kernels: Path | None = typer.Option(
-        None, "--kernels", help="Meta-kernel (SCLK -226, CK, SPK); needed with --jumps."
+        None, "--kernels", help="Meta-kernel (SCLK -226, CK, SPK); needed with --jumps "
+        "--estimator zero-mean."
     ),
     primary: str = typer.Option("OB", "--primary", help="Primary sensor (time-shift table)."),
     degree: int = typer.Option(3, "--degree", help="Degree of the daily polynomial (0-5)."),
     block: float | None = typer.Option(
-        None, "--block-seconds", help="Block length of the fit (s; default 1800; with "
-        "--estimator variance the interval length, default 1200)."
+        None, "--block-seconds", help="Interval length of the variance fit (s; default "
+        "1200); with --estimator zero-mean the block length (default 1800)."
     ),
     jumps: bool = typer.Option(
         False, "--jumps", help="Fit the post-hibernation offset jumps (sec. 4.2.3.4, "
@@ -138,7 +139,7 @@ def fit(
     ),
     max_sigma: float = typer.Option(
         1.0, "--max-sigma", help="Refuse a jump (and, with --estimator variance, a daily "
-        "curve) known worse than this (nT)."
+        "curve anywhere over the day's temperatures) known worse than this (nT)."
     ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     alignment_from_kernels: bool = typer.Option(
@@ -146,11 +147,12 @@ def fit(
         help="--jumps: URF -> s/c from the frames kernel instead of RPCMAG_SC_ALIGN.TXT.",
     ),
     estimator: str = typer.Option(
-        "zero-mean", "--estimator",
-        help="What the fit assumes about the field: 'zero-mean' (the seed's criteria: the "
-        "day's field, or CSEQ B_z, averages to zero) or 'variance' (rotations at nearly "
-        "constant |B| within --block-seconds intervals, default 1200 s; refused above "
-        "--max-sigma).",
+        "variance", "--estimator",
+        help="What the fit assumes about the field. 'variance' (default): rotations at "
+        "nearly constant |B| within --block-seconds intervals (default 1200 s), nothing about "
+        "the mean field; needs no --kernels for --jumps; refused above --max-sigma. "
+        "'zero-mean': the seed's criteria, the day's field (or the CSEQ B_z) averages to "
+        "zero; a mean field goes into the offsets.",
     ),
 ) -> None:
     """Derive calibration files from flight data (RO-IGEP-TR0028 sec. 4.2.3.3, 4.2.3.4).

@@ -101,7 +101,7 @@ def fit_files(
     max_sigma: float | None = JUMP_MAX_SIGMA,
     boom: str = "deployed",
     alignment_from_kernels: bool = False,
-    estimator: str = "zero-mean",
+    estimator: str = "variance",
 ) -> list[Path]:
     """Run ``fluxcal rosetta fit`` on one or more raw science files of one sensor.
 
@@ -119,11 +119,12 @@ def fit_files(
     ``hk_file`` is read (checked) and recorded as an input; the temperatures come from
     the science records' thermistor words (sec. 4.1.2), at the vector rate.
 
-    ``estimator`` names what the fit assumes about the field (issue 21): ``"zero-mean"``
-    (the seed's criteria: the day's field, or the CSEQ ``B_z``, averages to zero) or
-    ``"variance"`` (`fluxcal.missions.rosetta.fit_variance`: rotations at nearly
-    constant ``|B|`` within intervals of ``block_s``, default 1200 s; no attitude needed
-    for the jumps).  A variance fit whose error exceeds ``max_sigma`` (nT) is refused.
+    ``estimator`` names what the fit assumes about the field (issue 21): ``"variance"``
+    (default; `fluxcal.missions.rosetta.fit_variance`: rotations at nearly constant
+    ``|B|`` within intervals of ``block_s``, default 1200 s, nothing about the mean
+    field; no attitude needed for the jumps) or ``"zero-mean"`` (the seed's criteria:
+    the day's field, or the CSEQ ``B_z``, averages to zero).  A variance fit whose error
+    exceeds ``max_sigma`` (nT) is refused.
 
     Returns
     -------

@@ -57,6 +57,7 @@ from fluxcal.calibration.variance_offsets import (
     hedgecock_offsets,
 )
 from fluxcal.errors import FitRefusedError, FluxcalError
+from fluxcal.geometry.time import tt2000_to_utc
 from fluxcal.missions.rosetta.calib import check_sensor
 from fluxcal.missions.rosetta.fit import (
     DEFAULT_DEGREE,
@@ -104,6 +105,13 @@ class VarianceSettings:
         Refuse a curve (daily model) or jump whose standard error exceeds this (nT)
         anywhere over the fitted temperature range (1 nT: the jump fit's limit,
         rosetta_fit.md decision 4).
+    max_offset : float
+        Physical range of the daily curve (nT): refused where ``|P(T~)|`` exceeds it
+        over the day's temperatures (the residual after the ground calibration; the
+        ground laws change by at most ``|A_1|`` x 70 K = 116 nT between the calibrated
+        -70 C and the -140 C of flight; rosetta_fit.md decision 13).
+    max_jump : float
+        Physical range of an Appendix B jump (nT): 4 x the largest shipped (25 nT).
     """
 
     interval_s: float = 1200.0
@@ -116,6 +124,8 @@ class VarianceSettings:
     max_iterations: int = 40
     tolerance: float = 1e-4
     max_sigma: float = 1.0
+    max_offset: float = 200.0
+    max_jump: float = 100.0
 
 
 def _intervals(epoch: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -254,6 +264,7 @@ def fit_extended_model_variance(
     .. [2] Hedgecock (1975); Leinweber et al. (2008) (see module).
     """
     s = settings or VarianceSettings()
+    _check_determined(level_a, temperature, degree, s, day)
     start = fit_extended_model(level_a, temperature, degree=degree, day=day,
                                block_s=s.interval_s)
     degree, sensor, day = start.degree, start.sensor, start.day
@@ -298,11 +309,17 @@ def fit_extended_model_variance(
                 break
             static_phase = False
     if not converged:
+        flipped = 0 if previous is None else int(np.count_nonzero(reason != previous))
+        cause = (f"the selection still changes ({flipped} of {k} intervals flipped between "
+                 "accepted and rejected on the last step: intervals at the compressive "
+                 "limit)" if flipped else
+                 f"the curve still moves (last step {moved:.3g} nT, tolerance "
+                 f"{s.tolerance:g} nT)")
         raise FitRefusedError(
-            f"{what}: no convergence in {s.max_iterations} Gauss-Newton steps (last step "
-            f"moved the curve by up to {moved:.3g} nT; rejected intervals: "
-            f"{_reasons_text(reason)}); the field is not rotating at a nearly constant "
-            "magnitude: use --estimator zero-mean, or another day"
+            f"{what}: no convergence in {s.max_iterations} Gauss-Newton steps: {cause}; "
+            f"rejected intervals: {_reasons_text(reason)}; give a day with more rotating "
+            "(Alfvenic) intervals, a lower --degree, or use --estimator zero-mean if the "
+            "field averages to zero"
         )
     bp = b - powers @ q
     normal, rhs, yy, n_used = _normal_equations(bp, powers, codes, k, reason == "", block, nb)
@@ -341,7 +358,56 @@ def fit_extended_model_variance(
             f"accepted, rejected: {_reasons_text(reason)}); constrain it with more rotating "
             "intervals over the temperature range, a lower --degree, or --max-sigma"
         )
+    curve = fit.offset(grid)
+    worst = np.unravel_index(np.argmax(np.abs(curve)), curve.shape)
+    if not abs(curve[worst]) <= s.max_offset:
+        tw, axis = float(grid[worst[0]]), int(worst[1])
+        raise FitRefusedError(
+            f"{what}: offset curve {'xyz'[axis]} = {curve[worst]:.4g} +- "
+            f"{curve_sigma[worst]:.3g} nT at T~ = {tw:.1f} C is outside the physical range "
+            f"+-{s.max_offset:g} nT of a residual offset after the ground calibration (a "
+            "field taken for an offset, or a wrong ground calibration); check --calib, "
+            "or fit a day with rotating field over the temperature range"
+        )
     return fit
+
+
+def _check_determined(level_a: xr.Dataset, temperature: np.ndarray, degree: int,
+                      s: VarianceSettings, day) -> None:
+    """Refuse, before any fit, data that cannot determine the daily polynomial.
+
+    Names the actual cause: too few intervals of ``s.interval_s`` for the parameters, or
+    a temperature that takes fewer distinct values than the polynomial has coefficients.
+    """
+    t = np.asarray(temperature, dtype=float)
+    if ("epoch" not in level_a.coords and "epoch" not in level_a) or t.ndim != 1 \
+            or t.size != level_a["epoch"].size or t.size == 0 \
+            or not 0 <= int(degree) <= MAX_DEGREE:
+        return  # input errors are named by fit_extended_model
+    epoch = np.asarray(level_a["epoch"].values, dtype=np.int64)
+    if day is None:
+        day = str(tt2000_to_utc(epoch[:1], digits=0)[0])[:10]
+    label = (f"{level_a.attrs.get('source', 'LEVEL_A dataset')}: extended model "
+             f"{level_a.attrs.get('sensor', '')} {np.datetime64(day, 'D')} (variance, degree "
+             f"{degree})")
+    p = 3 * (int(degree) + 1)
+    _, codes = _intervals(epoch, s.interval_s)
+    full = int(np.count_nonzero(np.bincount(codes) >= _min_count(epoch, s)))
+    if full < p + 1:
+        raise FitRefusedError(
+            f"{label}: {full} interval(s) of {s.interval_s:g} s hold enough samples "
+            f"(>= {_min_count(epoch, s):.0f}) for {p} parameters, need {p + 1}; give at least "
+            f"{(p + 1) * s.interval_s / 3600:.1f} h of data, a lower --degree, or shorter "
+            "--block-seconds"
+        )
+    distinct = np.unique(t[np.isfinite(t)]).size
+    if 0 < distinct < int(degree) + 1:
+        raise FitRefusedError(
+            f"{label}: the reduced temperature takes {distinct} distinct value(s) "
+            f"({np.nanmin(t):.2f} .. {np.nanmax(t):.2f} C), a degree-{degree} polynomial needs "
+            f"{int(degree) + 1}: P_1 .. P_{degree} are not determined; give a day over which "
+            f"the temperature changes, or --degree {distinct - 1}"
+        )
 
 
 def fit_offset_jumps_variance(
@@ -438,6 +504,14 @@ def fit_offset_jumps_variance(
                 + f" nT (limit {s.max_sigma:g} nT; {est.n_used} of {est.labels.size} "
                 f"sub-intervals accepted, rejected: {_reasons_text(est.reason)}); give more "
                 "rotating data in the interval, or raise --max-sigma"
+            )
+        if not np.all(np.abs(jumps[j]) <= s.max_jump):
+            axis = int(np.argmax(np.abs(jumps[j])))
+            raise FitRefusedError(
+                f"{what}: J_{'xyz'[axis]} = {jumps[j, axis]:.4g} +- {sigma[j, axis]:.3g} nT is "
+                f"outside the physical range +-{s.max_jump:g} nT of an Appendix B jump (the "
+                "largest shipped is 25 nT): a field taken for an offset or data of another "
+                "sensor state; check the interval's data and --calib"
             )
         used = np.isin(sub, est.labels[est.accepted])
         mag = np.linalg.norm(b[used] - est.offset, axis=1)
