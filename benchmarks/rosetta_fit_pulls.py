@@ -40,6 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.missions.rosetta import _daily_mean_wind as wind  # noqa: E402
 
+from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
 from fluxcal.geometry.time import utc_to_tt2000  # noqa: E402
 from fluxcal.missions.rosetta import calib, forward, level_a  # noqa: E402
@@ -78,13 +79,20 @@ def curve_pulls(k: int, rate: float, compressive: float) -> dict:
     truth_coef = np.stack([Polynomial.fit(tt, carried[:, i], 3).convert().coef
                            for i in range(3)], axis=1)
     out = {}
-    for name, fit in (("variance", fit_extended_model_variance(a, tt, seed=k)),
-                      ("zero-mean", fit_extended_model(a, tt))):
+    try:
+        variance = fit_extended_model_variance(a, tt, seed=k)
+    except FitRefusedError as exc:  # a refusal is an outcome: counted, not a pull
+        out["refused"] = str(exc)
+        variance = None
+    for name, fit in (("variance", variance), ("zero-mean", fit_extended_model(a, tt))):
+        if fit is None:
+            continue
         err = np.stack([(fit.offset(tt[m])).mean(axis=0) for m in bands]) - truth_at
         out[name] = {
             "pull": err / fit.offset_sigma(at),
             "coef": (fit.coefficients[:4] - truth_coef) / fit.sigma[:4],
             "rms": np.sqrt(((fit.offset(tt) - carried) ** 2).mean(axis=0)),
+            "intervals": fit.notes.get("intervals", ""),
             "rms_polynomial": np.sqrt(((wind.curve(fit.coefficients, true_tt)
                                         - wind.curve(coef, true_tt)) ** 2).mean(axis=0)),
         }
@@ -144,17 +152,30 @@ def main() -> None:
         for k in range(args.first, args.first + args.realisations):
             t0 = time.perf_counter()
             r = curve_pulls(k, args.rate, args.compressive)
-            jp, je = jump_pulls(k, args.compressive)
+            try:
+                jp, je = jump_pulls(k, args.compressive)
+                jumps.append((jp, je))
+            except FitRefusedError as exc:
+                print(f"{k:3d} jumps refused: {exc}", flush=True)
+                jp = je = np.full((2, 3), np.nan)
             rows.append(r)
-            jumps.append((jp, je))
+            if "refused" in r:
+                print(f"{k:3d} variance refused: {r['refused']}", flush=True)
+                continue
             print(f"{k:3d} {time.perf_counter() - t0:5.1f} s  variance rms "
                   f"{np.round(r['variance']['rms'], 3)} pulls "
                   f"{np.round(r['variance']['pull'].ravel(), 1)}  zero-mean rms "
-                  f"{np.round(r['zero-mean']['rms'], 2)}  jump err {np.round(je.ravel(), 3)}",
+                  f"{np.round(r['zero-mean']['rms'], 2)}  jump err {np.round(je.ravel(), 3)}  "
+                  f"intervals: {r['variance']['intervals']}",
                   flush=True)
     print(f"\n{args.realisations} realisations from {args.first}, rate {args.rate} Hz, "
           f"compressive {args.compressive}, {time.perf_counter() - start:.0f} s")
+    refused = [r for r in rows if "refused" in r]
+    print(f"variance refused {len(refused)} of {len(rows)} days")
+    rows = [r for r in rows if "refused" not in r] or rows[:0]
     for name in ("variance", "zero-mean"):
+        if not rows:
+            break
         pulls = np.array([r[name]["pull"] for r in rows])
         rms = np.array([r[name]["rms"] for r in rows])
         rms_p = np.array([r[name]["rms_polynomial"] for r in rows])
@@ -162,11 +183,14 @@ def main() -> None:
               + f"; curve rms {rms.min():.3f}..{rms.max():.3f} nT (against the polynomial "
               f"alone {rms_p.min():.3f}..{rms_p.max():.3f})")
         print(summary(f"P_0..P_3 pulls, {name}", np.array([r[name]["coef"] for r in rows])))
+    print(f"jumps refused {args.realisations - len(jumps)} of {args.realisations}")
+    if not jumps:
+        return
     jp = np.array([j[0] for j in jumps])
     je = np.array([j[1] for j in jumps])
     print(summary("jump pulls, variance", jp)
           + f"; |error| max {np.abs(je).max():.3f} nT, rms {np.sqrt((je**2).mean()):.3f} nT")
-    if args.table:
+    if args.table and rows:
         print("\n| parameter | N | mean | std | max abs |\n|---|---|---|---|---|")
         v = "variance"
         print("\n".join(

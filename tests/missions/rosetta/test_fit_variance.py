@@ -158,6 +158,29 @@ def test_variance_names_why_it_did_not_converge(day, pool):
         fit_extended_model_variance(a, tt, settings=VarianceSettings(max_iterations=2))
 
 
+def _compressive_share(b: np.ndarray, seconds: np.ndarray) -> float:
+    """Share of 1200-s intervals of the *true* field with var(|B|) / trace C above 0.1."""
+    k = (seconds // 1200).astype(int)
+    mag = np.linalg.norm(b, axis=1)
+    n = np.bincount(k)
+    var = lambda v: np.bincount(k, v**2) / n - (np.bincount(k, v) / n) ** 2  # noqa: E731
+    trace = sum(var(b[:, i]) for i in range(3))
+    return float(np.mean(var(mag) / trace > 0.1))
+
+
+def test_variance_refuses_a_compressive_day(pool):
+    """|B| fluctuating by 25 %: most intervals are not rotations; refused with the count."""
+    from fluxcal.missions.rosetta.fit_variance import fit_extended_model_variance
+
+    raw, b, _ = wind.simulate_raw(DAY, 0.0, 24.0, wind.true_coefficients(), seed=8,
+                                  rate_hz=0.1, compression=0.25)
+    assert _compressive_share(b, np.arange(b.shape[0]) * 10.0) > 0.5  # the truth says so
+    a, tt = _level_a(raw)
+    with pytest.raises(FitRefusedError, match=r"\d+ of 72 intervals of 1200 s rejected as "
+                       r"compressive \(limit 33%\)"):
+        fit_extended_model_variance(a, tt)
+
+
 @pytest.mark.slow
 def test_variance_errors_cover_the_truth_over_realisations(pool):
     """Pulls over 6 realisations (54): spread near 1 and none beyond 4.
@@ -229,7 +252,7 @@ INTERVALS = (("2014-08-01T00:00:00", "2014-08-03T00:00:00"),
              ("2014-08-03T00:00:00", "2014-08-05T00:00:00"))
 
 
-def _jump_data(seed: int, rate_hz: float = 0.1):
+def _jump_data(seed: int, rate_hz: float = 0.1, compression: float = wind.COMPRESSION):
     from fluxcal.geometry.time import utc_to_tt2000
 
     rng = np.random.default_rng(seed)
@@ -238,7 +261,7 @@ def _jump_data(seed: int, rate_hz: float = 0.1):
     secs = np.arange(0.0, 4 * 86400.0, 1.0 / rate_hz)
     epoch = t0 + np.rint(secs * wind.NS).astype(np.int64)
     second = epoch >= split
-    b_cseq = wind.daily_mean_field(secs.size, 1.0 / rate_hz, rng)
+    b_cseq = wind.daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
     rot = Rotation.from_euler("zyx", np.stack([60 * np.sin(secs / 40_000.0),
                                                20 * np.sin(secs / 25_000.0),
                                                10 * np.cos(secs / 17_000.0)], 1),
@@ -286,6 +309,17 @@ def test_variance_jumps_refused_outside_the_physical_range(pool):
     start, end = (np.array(c) for c in zip(*INTERVALS, strict=True))
     with pytest.raises(FitRefusedError, match=r"2014-08-01T00:00:00 .*J_y = 142\.\d* \+- .* nT "
                        r"is outside the physical range \+-100 nT"):
+        fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB")
+
+
+def test_variance_jumps_refused_for_a_compressive_field(pool):
+    from fluxcal.missions.rosetta.fit_variance import fit_offset_jumps_variance
+
+    epoch, b_sc, _, b_cseq = _jump_data(6, rate_hz=0.05, compression=0.25)
+    assert _compressive_share(b_cseq, (epoch - epoch[0]) / wind.NS) > 0.5
+    start, end = (np.array(c) for c in zip(*INTERVALS, strict=True))
+    with pytest.raises(FitRefusedError, match=r"2014-08-01T00:00:00 .* sub-intervals of 1200 s "
+                       r"rejected as compressive \(limit 33%\)"):
         fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB")
 
 

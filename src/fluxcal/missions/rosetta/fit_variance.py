@@ -112,6 +112,10 @@ class VarianceSettings:
         -70 C and the -140 C of flight; rosetta_fit.md decision 13).
     max_jump : float
         Physical range of an Appendix B jump (nT): 4 x the largest shipped (25 nT).
+    max_compressive_share : float
+        Refuse a day (or jump interval) whose intervals are rejected as ``compressive``
+        for more than this share of those passing the static criteria: the selection
+        then depends on the fit and the errors understate (rosetta_fit.md decision 13).
     """
 
     interval_s: float = 1200.0
@@ -126,6 +130,7 @@ class VarianceSettings:
     max_sigma: float = 1.0
     max_offset: float = 200.0
     max_jump: float = 100.0
+    max_compressive_share: float = 1.0 / 3.0
 
 
 def _intervals(epoch: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -309,6 +314,13 @@ def fit_extended_model_variance(
                 break
             static_phase = False
     if not converged:
+        bp = b - powers @ q
+        full = _select(bp, codes, k, min_count, s)
+        too_compressive = _compressive_refusal(
+            what, full, _select(bp, codes, k, min_count, s, static_only=True) == "", s)
+        if too_compressive:
+            raise FitRefusedError(f"{too_compressive} (no convergence in "
+                                  f"{s.max_iterations} Gauss-Newton steps)")
         flipped = 0 if previous is None else int(np.count_nonzero(reason != previous))
         cause = (f"the selection still changes ({flipped} of {k} intervals flipped between "
                  "accepted and rejected on the last step: intervals at the compressive "
@@ -317,18 +329,47 @@ def fit_extended_model_variance(
                  f"{s.tolerance:g} nT)")
         raise FitRefusedError(
             f"{what}: no convergence in {s.max_iterations} Gauss-Newton steps: {cause}; "
-            f"rejected intervals: {_reasons_text(reason)}; give a day with more rotating "
+            f"rejected intervals at the last curve: {_reasons_text(full)}; give a day with "
+            "more rotating "
             "(Alfvenic) intervals, a lower --degree, or use --estimator zero-mean if the "
             "field averages to zero"
         )
+    accepted = reason == ""
+    n_acc = int(np.count_nonzero(accepted))
     bp = b - powers @ q
-    normal, rhs, yy, n_used = _normal_equations(bp, powers, codes, k, reason == "", block, nb)
+    static = _select(bp, codes, k, min_count, s, static_only=True) == ""
+    too_compressive = _compressive_refusal(what, reason, static, s)
+    if too_compressive:
+        raise FitRefusedError(too_compressive)
+    # per-interval normal equations of every interval that passes the static criteria
+    normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, static, codes, k)
+    mag = np.sqrt(np.einsum("ij,ij->i", bp, bp))
+    count = np.bincount(codes, minlength=k).astype(float)
+    centred = mag - (np.bincount(codes, mag, k) / np.maximum(count, 1.0))[codes]
+    yy_k = np.bincount(codes, centred**2, k)
+    trace_k = np.trace(interval_moments(bp, codes, k).cov, axis1=1, axis2=2)
+    yy, n_used = float(yy_k[accepted].sum()), int(count[accepted].sum())
+    eligible = static & (reason != "small_fluctuations")  # kept as selected
+
+    def compressive_ok(d: np.ndarray) -> np.ndarray:
+        """Intervals passing ``compressive`` after the curve moves by ``d`` (linearised)."""
+        var = (yy_k - 2.0 * d @ rhs.T + np.einsum("ri,kij,rj->rk", d, normal, d)) / np.maximum(
+            count, 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return eligible & (var / trace_k <= s.max_compressibility)
+
     rng = np.random.default_rng(seed)
     picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
-                      for _ in range(s.n_bootstrap)]).astype(float)
-    boot = _solve(np.einsum("rb,bij->rij", picks, normal), picks @ rhs)
+                      for _ in range(s.n_bootstrap)]).astype(float)[:, block_code]
+    # resample blocks of intervals; the selection is re-made on each resample's curve
+    # (twice, linearised), so the errors include the selection's dependence on the fit
+    use = picks * accepted
+    for _ in range(3):
+        boot = _solve(np.einsum("rk,kij->rij", use, normal), use @ rhs)
+        use = picks * compressive_ok(boot)
     # finite-sample correction of the pairs bootstrap (like the n - p of a regression)
-    inflate = nb / max(nb - p, 1)
+    n_blocks_used = np.unique(block_code[accepted]).size
+    inflate = n_blocks_used / max(n_blocks_used - p, 1)
     cov_full = inflate * np.cov(boot, rowvar=False).reshape(3, degree + 1, 3, degree + 1)
     cov = np.stack([cov_full[i, :, i, :] for i in range(3)])
     c = _power_basis(start.centre, start.scale, degree)
@@ -337,7 +378,6 @@ def fit_extended_model_variance(
     coefficients[: degree + 1] = c @ q
     for i in range(3):
         sigma[: degree + 1, i] = np.sqrt(np.diag(c @ cov[i] @ c.T))
-    n_acc = int(np.count_nonzero(reason == ""))
     rms = np.sqrt(yy / max(n_used, 1))
     fit = dataclasses.replace(
         start, coefficients=coefficients, sigma=sigma, q=q, covariance_q=cov,
@@ -370,6 +410,20 @@ def fit_extended_model_variance(
             "or fit a day with rotating field over the temperature range"
         )
     return fit
+
+
+def _compressive_refusal(what: str, reason: np.ndarray, static: np.ndarray,
+                         s: VarianceSettings) -> str:
+    """Return the refusal text when too many intervals are compressive, else ``""``."""
+    n_compressive = int(np.count_nonzero(reason == "compressive"))
+    n_static = int(np.count_nonzero(static))
+    if n_compressive <= s.max_compressive_share * n_static:
+        return ""
+    return (f"{what}: {n_compressive} of {n_static} intervals of {s.interval_s:g} s rejected "
+            f"as compressive (limit {s.max_compressive_share:.0%}): |B| varies too much "
+            "within the intervals; the selection then depends on the fitted curve and the "
+            "stated errors would be too small (rosetta_fit.md decision 13); give a calmer "
+            "(Alfvenic) day, or use --estimator zero-mean if the field averages to zero")
 
 
 def _check_determined(level_a: xr.Dataset, temperature: np.ndarray, degree: int,
@@ -497,6 +551,16 @@ def fit_offset_jumps_variance(
                 "use --estimator zero-mean with an attitude that varies"
             ) from None
         jumps[j], sigma[j] = est.offset, est.standard_error
+        eligible = ~np.isin(est.reason, ("too_few_samples", "ill_conditioned"))
+        n_compressive = int(np.count_nonzero(est.reason == "compressive"))
+        if n_compressive > s.max_compressive_share * np.count_nonzero(eligible):
+            raise FitRefusedError(
+                f"{what}: {n_compressive} of {np.count_nonzero(eligible)} sub-intervals of "
+                f"{s.interval_s:g} s rejected as compressive (limit "
+                f"{s.max_compressive_share:.0%}): |B| varies too much; the selection then "
+                "depends on the fitted offset and its error would be too small "
+                "(rosetta_fit.md decision 13); give calmer data in the interval"
+            )
         if not np.all(sigma[j] <= s.max_sigma):
             raise FitRefusedError(
                 f"{what}: J = " + " ".join(f"{v:.3g}" for v in jumps[j]) + " +- "
