@@ -22,10 +22,12 @@ assume nothing about its mean:
 Intervals are accepted by the named criteria of `fluxcal.calibration.variance_offsets`
 (too_few_samples, ill_conditioned, small_fluctuations, compressive) evaluated on the
 corrected field; each rejected interval is counted by its reason and the counts go into
-the written file and any refusal.  Errors: bootstrap over blocks of intervals (daily
-model) or over intervals (jumps).  A fit whose error makes it meaningless is refused
-(`fluxcal.errors.FitRefusedError`), naming the parameter, its value and error, and the
-data that would constrain it.  Decisions: docs/decisions/rosetta_fit.md, entries 9-11.
+the written file and any refusal.  Errors: bootstrap over blocks of intervals, the
+selection re-made on each resample's curve (daily model), or over intervals (jumps).  A
+fit whose error makes it meaningless, whose value is outside its physical range, or whose
+intervals are mostly compressive is refused (`fluxcal.errors.FitRefusedError`), naming
+the parameter, its value and error, and the data that would constrain it.  Decisions:
+docs/decisions/rosetta_fit.md, entries 9-14.
 
 References
 ----------
@@ -229,7 +231,8 @@ def fit_extended_model_variance(
     Gauss-Newton steps with only the sample-count and conditioning criteria until the
     curve settles, then with all four criteria until curve and selection are stable.
     The covariance is that of the Gauss-Newton solution over bootstrap resamples of
-    ``settings.block_s`` blocks.
+    ``settings.block_s`` blocks, each resample's ``compressive`` selection re-made on its
+    own curve (linearised), times ``n / (n - p)``.
 
     Parameters
     ----------
@@ -259,9 +262,12 @@ def fit_extended_model_variance(
         Input errors of `fit_extended_model` (not LEVEL_A, model already applied,
         degree, non-finite values, too few blocks for the start).
     FitRefusedError
-        Too few accepted intervals (naming the rejections), no convergence, or a curve
-        whose standard error exceeds ``settings.max_sigma`` somewhere in the fitted
-        temperature range (naming axis, temperature, value and error).
+        Too few intervals for the parameters, a temperature with fewer distinct values
+        than coefficients, too few accepted intervals (naming the rejections), more than
+        ``settings.max_compressive_share`` of them compressive, no convergence (naming
+        why), a curve whose standard error exceeds ``settings.max_sigma`` or whose value
+        exceeds ``settings.max_offset`` somewhere in the fitted temperature range (naming
+        axis, temperature, value and error).
 
     References
     ----------
@@ -510,7 +516,8 @@ def fit_offset_jumps_variance(
         Shapes, intervals, an interval without data.
     FitRefusedError
         An interval whose sub-intervals do not determine ``J`` (naming the rejections),
-        or whose ``J`` has a standard error above ``settings.max_sigma``.
+        are mostly compressive, or whose ``J`` has a standard error above
+        ``settings.max_sigma`` or a value above ``settings.max_jump``.
 
     References
     ----------
