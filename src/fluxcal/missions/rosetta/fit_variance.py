@@ -369,10 +369,10 @@ def fit_extended_model_variance(
                       for _ in range(s.n_bootstrap)]).astype(float)[:, block_code]
     # resample blocks of intervals; the selection is re-made on each resample's curve
     # (twice, linearised), so the errors include the selection's dependence on the fit
-    use = picks * accepted
-    for _ in range(3):
-        boot = _solve(np.einsum("rk,kij->rij", use, normal), use @ rhs)
+    boot = _solve(np.einsum("rk,kij->rij", picks * accepted, normal), (picks * accepted) @ rhs)
+    for _ in range(2):
         use = picks * compressive_ok(boot)
+        boot = _solve(np.einsum("rk,kij->rij", use, normal), use @ rhs)
     # finite-sample correction of the pairs bootstrap (like the n - p of a regression)
     n_blocks_used = np.unique(block_code[accepted]).size
     inflate = n_blocks_used / max(n_blocks_used - p, 1)
