@@ -45,12 +45,13 @@ def _slope(x: np.ndarray, lo: float = 1e-4, hi: float = 1e-1) -> float:
 def test_magnitude_is_log_normal_around_18_nt(wind):
     model, b = wind
     mag = np.linalg.norm(b, axis=1)
-    # 8 days hold ~16 independent 12-h values of the slow part (sigma 0.15): the median
-    # is 18 nT within 0.15 / 4 = 4 % at 1 sigma; allow 3 sigma (2.1 nT)
-    assert abs(np.median(mag) - 18.0) < 2.1
+    # the slow part (sigma 0.15) relaxes in two stages of 6 h: autocorrelation
+    # (1 + t/6 h) exp(-t/6 h), integral time 2 x 12 h, so 8 days hold ~8 independent
+    # values: log of the median within 0.15 / sqrt(8) = 0.053 of log 18 at 1 sigma; 3 sigma
+    assert abs(np.log(np.median(mag) / 18.0)) < 3 * 0.15 / np.sqrt(8)
     # log |B| spreads by sqrt(0.15^2 + 0.03^2) = 0.153 (slow part and compressive factor);
-    # from ~16 independent values its spread is known to ~20 %
-    assert 0.10 < np.log(mag).std() < 0.20
+    # from ~8 independent values its spread is known to ~25 %
+    assert 0.09 < np.log(mag).std() < 0.21
 
 
 def test_magnitude_nearly_constant_within_15_min_compressive_3_percent(wind):
@@ -83,15 +84,18 @@ def test_rotation_db_over_b_is_0_55(wind):
 
 def test_spectrum_falls_as_f_to_the_minus_five_thirds(wind):
     model, b = wind
-    # the soft knee of the relaxations at 1/(12 h) flattens the lowest decade (-1.53 for
-    # v alone; docs/decisions/messenger_fit_verification.md section 2): tolerance 0.15
-    assert _slope(b) == pytest.approx(-5.0 / 3.0, abs=0.15)
+    # the rotations v have the f^-5/3 from 12 h to 2 s; the field u |B| mixes in
+    # the normalisation, sectors and magnitude (-1.60 .. -1.66 per decade in a 40-day run,
+    # docs/decisions/messenger_fit_verification.md section 2): tolerance 0.1
+    assert _slope(b) == pytest.approx(-5.0 / 3.0, abs=0.1)
     v = power_law_process(np.random.default_rng(5), 4 * DAY, 3)
-    assert v.std(axis=0) == pytest.approx(np.ones(3), abs=0.15)
-    assert _slope(v) == pytest.approx(-5.0 / 3.0, abs=0.12)
-    # towards 1/(12 h) = 2.3e-5 Hz the spectrum flattens (the outer scale): the slope at
-    # 2-6e-5 Hz is shallower than inside the band (-1.2 against -1.6 here)
-    assert _slope(v, 2e-5, 6e-5) > _slope(v, 1e-3, 1e-2) + 0.2
+    assert v.std(axis=0) == pytest.approx(np.ones(3), abs=0.1)
+    assert _slope(v) == pytest.approx(-5.0 / 3.0, abs=0.05)
+    # a short series is a piece of a long one (synthesised over >= 2 days), not renormalised
+    # to unit variance: 15 min hold only the periods up to 15 min, whose share of the
+    # variance is about (900 / 43200)^(2/3) ~ 8 %, and a mean of the rest
+    short = power_law_process(np.random.default_rng(6), 900, 3)
+    assert short.std(axis=0).max() < 1.0 and np.abs(short.mean(axis=0)).max() > 0.1
 
 
 def test_sectors_flip_after_one_to_three_days(wind):

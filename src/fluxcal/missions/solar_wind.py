@@ -11,15 +11,15 @@ section 2):
   ``s = +-1`` the sector polarity, flipping after dwell times drawn uniformly from
   ``sector_days``, ``v`` three independent unit-variance Gaussian components with a
   power spectrum ``f^-5/3`` between the periods ``longest_s`` (12 h) and ``shortest_s``
-  (2 s) (`power_law_process`), ``c`` the weight that gives the rms rotation ``dB/B``:
+  (2 s), synthesised in Fourier space (`power_law_process`), ``c`` the weight that
+  gives the rms rotation ``dB/B``:
   Alfvenic rotations at nearly constant ``|B|`` (Belcher and Davis 1971);
 * **magnitude** ``|B| = b_median exp(sigma g) (1 + f h)``: ``g`` a smooth unit-variance
   process of correlation time about ``b_correlation_s`` (two cascaded relaxations of half
   that time each: almost no change within an hour), ``h`` a unit-variance relaxation of
   ``compressive_correlation_s``, ``f`` the compressive fraction (3 %).
 
-A run is a function of the `numpy.random.Generator` passed in; no per-sample Python loop
-(a loop over the ~18 relaxation stages and the sector dwell times only).
+A run is a function of the `numpy.random.Generator` passed in; no per-sample Python loop.
 
 References
 ----------
@@ -34,6 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.fft import irfft, next_fast_len
 from scipy.signal import lfilter
 
 DAY_S = 86_400.0
@@ -55,10 +56,7 @@ class AlfvenicWind:
         ``v``'s power spectrum falls as ``f^-spectral_index`` between the periods
         ``longest_s`` and ``shortest_s``.
     longest_s, shortest_s : float
-        Periods (s) bounding the power law (flat below ``1/longest_s``, ``f^-2`` above
-        ``1/shortest_s``).
-    stages_per_decade : int
-        Relaxation stages per decade of the power law (4: ripple of a few percent).
+        Periods (s) bounding the power law (no power outside).
     compressive_fraction, compressive_correlation_s : float
         Relative rms and correlation time of the compressive factor ``1 + f h``.
     mean_direction : tuple of float
@@ -74,7 +72,6 @@ class AlfvenicWind:
     spectral_index: float = 5.0 / 3.0
     longest_s: float = 12 * 3600.0
     shortest_s: float = 2.0
-    stages_per_decade: int = 4
     compressive_fraction: float = 0.03
     compressive_correlation_s: float = 300.0
     mean_direction: tuple[float, float, float] = (0.55, -0.6, 0.58)
@@ -112,27 +109,30 @@ def smooth_process(rng: np.random.Generator, n: int, correlation_s: float, dims:
 
 def power_law_process(rng: np.random.Generator, n: int, dims: int = 3, *,
                       spectral_index: float = 5.0 / 3.0, longest_s: float = 12 * 3600.0,
-                      shortest_s: float = 2.0, stages_per_decade: int = 4,
-                      step_s: float = 1.0) -> np.ndarray:
+                      shortest_s: float = 2.0, step_s: float = 1.0) -> np.ndarray:
     """Unit-variance Gaussian process with a power spectrum ``f^-spectral_index``, (n, dims).
 
-    A weighted sum of independent stationary relaxations (`relaxation`) whose corner
-    frequencies ``1 / (2 pi tau_k)`` are spaced ``stages_per_decade`` per decade from
-    ``1 / longest_s`` to ``1 / shortest_s``: each stage has the Lorentzian spectrum
-    ``2 tau / (1 + (2 pi f tau)^2)``, and weights ``w_k^2 ~ tau_k^(index - 1)`` make the sum
-    follow ``f^-index`` between the corners (flat below, ``f^-2`` above).  Memory: two
-    (n, dims) arrays; time: one IIR pass per stage.
+    Synthesised in Fourier space: independent complex Gaussian coefficients of amplitude
+    ``f^(-index/2)`` for ``1/longest_s <= f <= 1/shortest_s`` (none outside: no aliasing
+    onto the grid), one real inverse FFT per component over at least four times
+    ``longest_s`` (a short series keeps the power of the long periods), the first ``n``
+    samples kept.  Normalised by the spectrum's own variance, not the sample's.
     """
-    if not 0.0 < spectral_index < 2.0:
-        raise ValueError(f"spectral_index must be in (0, 2), got {spectral_index}")
-    decades = np.log10(longest_s / shortest_s)
-    count = max(int(np.ceil(decades * stages_per_decade)) + 1, 2)
-    tau = np.logspace(np.log10(shortest_s), np.log10(longest_s), count) / (2.0 * np.pi)
-    weight = tau ** (0.5 * (spectral_index - 1.0))
-    weight /= np.sqrt(np.sum(weight**2))
-    out = np.zeros((n, dims))
-    for w, t in zip(weight, tau, strict=True):
-        out += w * relaxation(rng, n, float(t), dims, step_s)
+    m = next_fast_len(max(n, int(np.ceil(4.0 * longest_s / step_s))), real=True)
+    f = np.fft.rfftfreq(m, d=step_s)
+    amp = np.zeros_like(f)
+    band = (f >= 1.0 / longest_s) & (f <= 1.0 / shortest_s) & (f < 0.5 / step_s)
+    if not band.any():
+        raise ValueError(f"no frequency of a {step_s:g}-s grid lies between 1/{longest_s:g} "
+                         f"and 1/{shortest_s:g} Hz")
+    amp[band] = f[band] ** (-0.5 * spectral_index)
+    # irfft of X_k = amp_k (a + i b) adds (2 / m) Re(X_k exp(2 pi i k t / m)) for each
+    # interior k, of variance 4 amp_k^2 / m^2 (a, b unit normals)
+    scale = m / (2.0 * np.sqrt(np.sum(amp**2)))
+    out = np.empty((n, dims))
+    for j in range(dims):
+        coef = amp * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+        out[:, j] = irfft(coef, n=m)[:n] * scale
     return out
 
 
@@ -158,8 +158,7 @@ def alfvenic_wind(rng: np.random.Generator, n: int, model: AlfvenicWind | None =
     p = np.asarray(m.mean_direction, dtype=float)
     p = p / np.linalg.norm(p)
     v = power_law_process(rng, n, 3, spectral_index=m.spectral_index, longest_s=m.longest_s,
-                          shortest_s=m.shortest_s, stages_per_decade=m.stages_per_decade,
-                          step_s=step_s)
+                          shortest_s=m.shortest_s, step_s=step_s)
     s = (sector_polarity(rng, n, m.sector_days, step_s) if m.sector_days is not None
          else np.ones(n))
     u = s[:, None] * p + m.rotation_weight * v
