@@ -83,7 +83,8 @@ class SimulationConfig:
         Peak temperature rise above -50 C in a block run with the heater off.
     imf_nt : tuple of float
         Interplanetary field (MSO, nT): added as it is with ``solar_wind="quiet"``; its
-        direction is the mean direction of the realistic wind.
+        direction is the mean direction of the realistic wind (zero: no interplanetary
+        field in either).
     solar_wind : {"realistic", "quiet"}
         ``realistic`` (default): the interplanetary field is
         `fluxcal.missions.solar_wind.alfvenic_wind` (18 nT log-normal, Alfvenic rotations
