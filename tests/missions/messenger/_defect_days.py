@@ -70,7 +70,7 @@ def config(rate: int, other_rate: int, sign: float) -> SimulationConfig:
         coarse_intervals=[(COARSE[0] / DAY_S, COARSE[1] / DAY_S)],
         science_windows=windows,
         heater_gaps=[(HEATER_GAP[0] + LEAD_S, HEATER_GAP[1] + LEAD_S)],
-        imf_nt=(12.0 * sign, -8.0 * sign, 5.0 * sign),
+        imf_nt=(12.0 * sign, -8.0 * sign, 5.0 * sign), solar_wind="quiet",  # the sign flips
         waves=[(3.0 * sign, 2.0), (1.0 * sign, 0.31)],
     )
 

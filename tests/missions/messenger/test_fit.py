@@ -332,7 +332,8 @@ def training(tmp_path_factory):
     from fluxcal.missions.messenger.fit_demo import perturbed_folder, simulate_training
 
     out = tmp_path_factory.mktemp("fit_training")
-    return simulate_training(out, perturbed_folder(out / "truth"), START, 0.25, sigma_nt=0.1)
+    return simulate_training(out, perturbed_folder(out / "truth"), START, 0.25, field="quiet",
+                             sigma_nt=0.1)
 
 
 def _stream_args(files, kernels=None):

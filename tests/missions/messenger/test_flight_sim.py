@@ -20,11 +20,13 @@ from fluxcal.missions.messenger.flight_sim import (
     CalibrationChanges,
     FlightConfig,
     HeaterModel,
+    RealisticWindModel,
     SolarWindModel,
     heater_schedule,
     read_flight_truth,
     simulate_flight,
     solar_wind,
+    wind_model,
     write_true_calibration,
 )
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
@@ -84,7 +86,19 @@ def test_controller_schedule_and_temperatures():
     assert hist.min() >= 1000, hist
 
 
-def test_solar_wind_statistics():
+def test_the_default_wind_is_the_realistic_one_and_quiet_is_an_option():
+    assert isinstance(wind_model(FlightConfig().solar_wind), RealisticWindModel)
+    assert wind_model("realistic").b_median_nt == 18.0
+    assert isinstance(wind_model("quiet"), SolarWindModel)
+    with pytest.raises(ValueError, match="choose one of realistic, quiet"):
+        wind_model("calm")
+    # the quiet name draws the same field as the quiet model (today's, issue 13)
+    a = solar_wind(np.random.default_rng(1), 5000, "quiet")
+    np.testing.assert_array_equal(a, solar_wind(np.random.default_rng(1), 5000,
+                                                SolarWindModel()))
+
+
+def test_quiet_solar_wind_statistics():
     rng = np.random.default_rng(3)
     model = SolarWindModel()
     n = 40 * 86_400

@@ -97,6 +97,7 @@ def simulate_days(
     seconds_per_day: float = 3600.0,
     *,
     rate_setting: int | None = None,
+    solar_wind: str = "realistic",
 ) -> list[_dt.date]:
     """Simulate raw MAG telemetry for ``days`` in the layout of ``fluxcal batch messenger``.
 
@@ -123,6 +124,8 @@ def simulate_days(
         Length of each day's science window from 00:00 UTC (s), at most 86400.
     rate_setting : int, optional
         One Table 1 rate setting for all samples (e.g. 6 = 1 vector/s).
+    solar_wind : {"realistic", "quiet"}
+        The interplanetary field (`fluxcal.missions.messenger.simulate.SimulationConfig`).
 
     Returns
     -------
@@ -139,7 +142,8 @@ def simulate_days(
         start = f"{run[0]:%Y-%m-%d}T00:00:00"
         duration = (len(run) - 1) * DAY_S + seconds_per_day
         windows = [(k * DAY_S, k * DAY_S + seconds_per_day) for k in range(len(run))]
-        config = SimulationConfig(start_utc=start, duration_s=duration, science_windows=windows)
+        config = SimulationConfig(start_utc=start, duration_s=duration, science_windows=windows,
+                                  solar_wind=solar_wind)
         if rate_setting is not None:
             config.rate_segments = [(0.0, rate_setting)]
         else:

@@ -274,21 +274,29 @@ def simulate(
         "tables, two versions a day) with their mapping, for 'edr2cdr --edr --mapping'."),
     days: int = typer.Option(1, "--days", min=1, max=366,
                              help="--layout batch: number of consecutive days."),
+    field: str = typer.Option(
+        "realistic", "--field",
+        help="The interplanetary field added to Mercury's dipole: realistic (default): "
+        "an 18-nT solar wind with Alfvenic rotations dB/B ~ 0.55 (f^-5/3 spectrum from "
+        "12 h to 2 s), 3 % compressive, sectors of 1-3 days; quiet: a uniform (12, -8, 5) "
+        "nT MSO (the field before issue 21)."),
 ) -> None:
     """Write simulated raw Messenger telemetry and kernels from a known field."""
     if layout not in ("files", "batch", "edr"):
         raise InputFormatError(f"{layout!r}: choose files, batch or edr", field="--layout")
+    if field not in ("realistic", "quiet"):
+        raise InputFormatError(f"{field!r}: choose realistic or quiet", field="--field")
     check_simulation_options(start, duration)
     if layout == "edr":
         from fluxcal.missions.messenger.edr_write import simulate_edr_layout
 
         with compilation_notice(), status_display("simulating MESSENGER EDRs"):
-            paths = simulate_edr_layout(out, start, duration)
+            paths = simulate_edr_layout(out, start, duration, solar_wind=field)
         for key, path in paths.items():
             typer.echo(f"{key}: {path}")
         return
     if layout == "batch":
-        written = simulate_batch_layout(out, start, duration, days)
+        written = simulate_batch_layout(out, start, duration, days, field)
         typer.echo(f"{len(written)} days in {out}; run: fluxcal batch messenger --input {out} "
                    f"--start {written[0]} --end {written[-1]} --out OUT")
         return
@@ -296,7 +304,7 @@ def simulate(
 
     with compilation_notice(), status_display(f"simulating {duration:.0f} s of MESSENGER "
                                               "telemetry and kernels"):
-        paths = simulate_to_dir(out, start, duration)
+        paths = simulate_to_dir(out, start, duration, solar_wind=field)
     for key, path in paths.items():
         typer.echo(f"{key}: {path}")
 
@@ -328,7 +336,8 @@ def check_simulation_options(start: str, duration: float) -> None:
                                "--days N)", field="--duration")
 
 
-def simulate_batch_layout(out: Path, start: str, duration: float, days: int) -> list:
+def simulate_batch_layout(out: Path, start: str, duration: float, days: int,
+                          field: str = "realistic") -> list:
     """Write ``days`` simulated days in the input layout of ``fluxcal batch messenger``.
 
     Each day holds ``duration`` s of science from 00:00 UTC
@@ -354,4 +363,4 @@ def simulate_batch_layout(out: Path, start: str, duration: float, days: int) -> 
         raise InputFormatError(f"{duration}: with --layout batch the length of each day's "
                                "science must be in (0, 86400] s", field="--duration")
     dates = [t0.date() + _dt.timedelta(days=k) for k in range(days)]
-    return simulate_days(out, dates, seconds_per_day=duration)
+    return simulate_days(out, dates, seconds_per_day=duration, solar_wind=field)

@@ -23,9 +23,13 @@ log = logging.getLogger(__name__)
 
 
 def simulate_to_dir(
-    out: str | Path, start_utc: str = "2012-06-01T00:00:00", duration_s: float = 7200.0
+    out: str | Path, start_utc: str = "2012-06-01T00:00:00", duration_s: float = 7200.0,
+    solar_wind: str = "realistic",
 ) -> dict[str, Path]:
     """Write synthetic kernels, the three input streams and the truth into ``out``.
+
+    ``solar_wind``: the interplanetary field, ``realistic`` or ``quiet``
+    (`SimulationConfig`).
 
     Returns
     -------
@@ -34,7 +38,8 @@ def simulate_to_dir(
         ``truth``.
     """
     out = Path(out)
-    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
+    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s,
+                              solar_wind=solar_wind)
     # the sensor sees the Sun (+Y sunward) in the second quarter of the interval
     mk = write_messenger_like_kernels(
         out / "kernels", start_utc, duration_s + 2 * config.lead_s,

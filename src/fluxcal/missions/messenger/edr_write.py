@@ -396,7 +396,8 @@ def filled_mapping(template: str | Path, out: str | Path,
 
 
 def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
-                        duration_s: float = 7200.0) -> dict[str, Path]:
+                        duration_s: float = 7200.0, solar_wind: str = "realistic"
+                        ) -> dict[str, Path]:
     """Simulate MAG telemetry and write it as archive-style EDRs, with a filled mapping.
 
     Writes ``kernels/``, ``edr/`` (`write_edr_archive`: versions 1 (wrong) and 2 of
@@ -404,7 +405,8 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
     temperature conversion; the name `fluxcal batch messenger` recognises), and
     ``inputs/`` (the same streams as CSV, and the truth).  Sensor
     temperatures are quantised to the conversion's 1/16 degC counts before both are
-    written, so the EDR and CSV routes see the same numbers.
+    written, so the EDR and CSV routes see the same numbers.  ``solar_wind``: the
+    interplanetary field, ``realistic`` or ``quiet`` (`SimulationConfig`).
 
     Returns
     -------
@@ -414,7 +416,8 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s)
+    config = SimulationConfig(start_utc=start_utc, duration_s=duration_s,
+                              solar_wind=solar_wind)
     mk = write_messenger_like_kernels(
         out / "kernels", start_utc, duration_s + 2 * config.lead_s,
         plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)],

@@ -14,14 +14,17 @@ synthetic kernels.  Checked by ``tests/missions/test_forward_independence.py``.
 
 Model (docs/decisions/messenger_fit_verification.md):
 
-- **solar wind** in sensor axes, ``B = |B| u``: the direction ``u`` is the normalised sum of
-  a sector mean ``s(t) m p`` (``p`` a fixed Parker-spiral direction, ``s = +-1`` flipping
-  after dwell times drawn from ``sector_days``) and a 3-D Gaussian process of unit variance
-  per component (two cascaded first-order relaxations, correlation time about
-  ``2 alfven_correlation_s``): Alfvenic rotations, a random walk of the direction on the
-  sphere at constant ``|B|``.  ``|B|`` is log-normal around ``b_median_nt`` with a slow
-  (``b_correlation_s``) and a compressive (``compressive_correlation_s``, relative rms
-  ``compressive_fraction``) part;
+- **solar wind** in sensor axes (``FlightConfig.solar_wind``, `WINDS`):
+  ``"realistic"`` (the default, `RealisticWindModel`, `fluxcal.missions.solar_wind`): 18 nT
+  log-normal ``|B|``, Alfvenic rotations ``dB/B`` ~ 0.55 with an f^-5/3 spectrum from 12 h
+  to 2 s, a 3 % compressive part, a Parker-spiral direction fixed in sensor axes and
+  sectors of 1-3 days (issue 21); ``"quiet"`` (`SolarWindModel`, the model of issue 13):
+  ``B = |B| u``, the direction ``u`` the normalised sum of a sector mean ``s(t) m p`` (``p``
+  a fixed Parker-spiral direction, ``s = +-1`` flipping after dwell times drawn from
+  ``sector_days``) and a 3-D Gaussian process of unit variance per component (two
+  cascaded first-order relaxations, correlation time about ``2 alfven_correlation_s``),
+  ``|B|`` log-normal around 7 nT with a slow (``b_correlation_s``) and a compressive
+  (``compressive_correlation_s``, relative rms ``compressive_fraction``) part;
 - **heater and temperature**: the V10 controller sets a duty cycle per 1000-s evaluation
   (ten 100-s periods, sec. 7); runs of regulated blocks (sensor at -50 C, duty cycle a
   random walk in 10..45 %) alternate with heater-off runs (duty 0) in which the
@@ -59,6 +62,7 @@ from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
 
 DAY_S = 86_400.0
 #: Heater period (s) and the controller's evaluation interval (s), sec. 6 and 7.
@@ -74,7 +78,11 @@ QUIET_LEAD_S = 110.0
 
 @dataclass
 class SolarWindModel:
-    """Statistics of the simulated solar wind (sensor axes, nT, s).
+    """Statistics of the *quiet* solar wind (sensor axes, nT, s): ``solar_wind="quiet"``.
+
+    The wind of issue 13: 7 nT, rotations of a two-stage relaxation (f^-4 spectrum above
+    its corner), sectors of 2-6 days (docs/decisions/messenger_fit_verification.md,
+    section 2).
 
     Attributes
     ----------
@@ -105,6 +113,43 @@ class SolarWindModel:
     parker_direction: tuple[float, float, float] = (0.55, -0.6, 0.58)
     sector_days: tuple[float, float] = (2.0, 6.0)
     noise_nt: float = 0.01
+
+
+@dataclass
+class RealisticWindModel(AlfvenicWind):
+    """Statistics of the *realistic* solar wind (the default, ``solar_wind="realistic"``).
+
+    `fluxcal.missions.solar_wind.AlfvenicWind` (18 nT, ``dB/B`` 0.55, f^-5/3 from 12 h to
+    2 s, 3 % compressive, sectors of 1-3 days along the Parker direction in sensor axes)
+    plus the white noise of the sensor.
+
+    Attributes
+    ----------
+    noise_nt : float
+        White noise per sample (nT).
+    """
+
+    noise_nt: float = 0.01
+
+
+#: The solar winds `simulate_flight` knows by name (``FlightConfig.solar_wind``).
+WINDS = {"realistic": RealisticWindModel, "quiet": SolarWindModel}
+
+
+def wind_model(wind: str | SolarWindModel | RealisticWindModel
+               ) -> SolarWindModel | RealisticWindModel:
+    """Return the wind model of a name in `WINDS` (a model is returned as it is).
+
+    Raises
+    ------
+    ValueError
+        An unknown name.
+    """
+    if isinstance(wind, str):
+        if wind not in WINDS:
+            raise ValueError(f"solar wind {wind!r}: choose one of {', '.join(WINDS)}")
+        return WINDS[wind]()
+    return wind
 
 
 @dataclass
@@ -151,7 +196,9 @@ class FlightConfig:
         Table 1 rate setting (6 = 1 vector/s, 10 = 20 vectors/s).
     seed : int
         Seed of the random generator (the whole simulation is a function of it).
-    solar_wind, heater : SolarWindModel, HeaterModel
+    solar_wind : str, RealisticWindModel or SolarWindModel
+        ``"realistic"`` (default) or ``"quiet"`` (`WINDS`), or a model.
+    heater : HeaterModel
     lead_s : float
         Heater-off lead (at -50 C) before the first day, in the previous day's files.
     temperature_step_s : float
@@ -168,7 +215,7 @@ class FlightConfig:
     days: int = 7
     rate_setting: int = 6
     seed: int = 13
-    solar_wind: SolarWindModel = field(default_factory=SolarWindModel)
+    solar_wind: str | RealisticWindModel | SolarWindModel = "realistic"
     heater: HeaterModel = field(default_factory=HeaterModel)
     lead_s: float = 2000.0
     temperature_step_s: float = 10.0
@@ -324,12 +371,17 @@ def _sectors(rng: np.random.Generator, n: int, days: tuple[float, float]) -> np.
     return sign * np.where(count % 2 == 0, 1.0, -1.0)
 
 
-def solar_wind(rng: np.random.Generator, n: int, model: SolarWindModel) -> np.ndarray:
+def solar_wind(rng: np.random.Generator, n: int,
+               model: str | SolarWindModel | RealisticWindModel = "realistic") -> np.ndarray:
     """Solar-wind field (nT, sensor axes) on a 1-s grid, shape (n, 3).
 
-    Direction: ``normalise(s m p + v)``; magnitude: log-normal slow part times the
-    compressive factor (see the module docstring).
+    Realistic (`RealisticWindModel`): `fluxcal.missions.solar_wind.alfvenic_wind`.  Quiet
+    (`SolarWindModel`): direction ``normalise(s m p + v)``, magnitude a log-normal slow
+    part times the compressive factor (see the module docstring).
     """
+    model = wind_model(model)
+    if isinstance(model, AlfvenicWind):
+        return alfvenic_wind(rng, n, model)
     p = np.asarray(model.parker_direction, dtype=float)
     p /= np.linalg.norm(p)
     v = _relaxation(rng, n, model.alfven_correlation_s, dims=3, order=2)
@@ -497,7 +549,7 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
     wind : callable, optional
         ``wind(rng, n)`` -> field (nT, sensor axes) on the 1-s grid, shape (n, 3), used
         instead of `solar_wind` with ``config.solar_wind`` (e.g. an independent
-        solar-wind model written elsewhere); ``config.solar_wind.noise_nt`` still adds.
+        solar-wind model written elsewhere); the noise of ``config.solar_wind`` still adds.
 
     Returns
     -------
@@ -509,6 +561,7 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
        from the bit's rising edge), sec. 7 (eq. 2-5, relaxation), sec. 8 (eq. 8).
     """
     config = config or FlightConfig()
+    wind_stats = wind_model(config.solar_wind)
     out = Path(out_dir)
     cal_dir = out / "calibration"
     tables = forward.read_tables(write_true_calibration(cal_dir, changes))
@@ -538,7 +591,7 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
         n_blocks = n // int(BLOCK_S) + 1
         sched = heater_schedule(rng, n_blocks, int(np.ceil(config.lead_s / BLOCK_S)),
                                 config.heater)
-        field_grid = (solar_wind(rng, sched.temperature_c.size, config.solar_wind)
+        field_grid = (solar_wind(rng, sched.temperature_c.size, wind_stats)
                       if wind is None else np.asarray(wind(rng, sched.temperature_c.size),
                                                       dtype=float))
         grid = np.arange(sched.temperature_c.size, dtype=float)  # seconds since origin
@@ -578,8 +631,8 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
             rng_flag = _intervals_mask(rel, config.coarse_intervals).astype(np.int64)
             u = met_rec - tables.net_lag_s[rate] - origin  # true time since the origin
             b = np.column_stack([np.interp(u, grid, field_grid[:, j]) for j in range(3)])
-            if config.solar_wind.noise_nt > 0:
-                b += config.solar_wind.noise_nt * rng.standard_normal(b.shape)
+            if wind_stats.noise_nt > 0:
+                b += wind_stats.noise_nt * rng.standard_normal(b.shape)
             temp = np.interp(u, grid, sched.temperature_c)
             zero = forward.temperature_offset(temp, tables)
             for j in range(3):

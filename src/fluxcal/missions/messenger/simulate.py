@@ -8,7 +8,10 @@ The instrument is run forward, from the seed and its tables only (no pipeline co
    period); the sensor temperature is -50 C while the heater regulates and rises over
    heater-off runs (before V10: 22.4 C in sunlight, -50 C in shadow, a fixed value stowed);
 2. a known field in MSO (offset dipole, interplanetary field, waves) at the true sample
-   times, rotated into the sensor frame with SPICE;
+   times, rotated into the sensor frame with SPICE; the interplanetary field is by
+   default the realistic solar wind of `fluxcal.missions.solar_wind` (18 nT, Alfvenic
+   rotations with an f^-5/3 spectrum, 3 % compressive, about the direction of
+   ``imf_nt``), or ``solar_wind="quiet"`` the uniform ``imf_nt`` (issue 21);
 3. the zero level: Table 2 at the true temperature, plus (from V10) the duty-cycle offset
    relaxing by explicit time stepping and the heater waveform of Tables 6-8 in powered
    periods (sec. 6, 7);
@@ -36,6 +39,7 @@ from fluxcal.geometry.frames import rotate
 from fluxcal.geometry.positions import position
 from fluxcal.geometry.time import et_to_tt2000, utc_to_et
 from fluxcal.missions.messenger import forward
+from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
 
 if TYPE_CHECKING:
     from fluxcal.geometry.time import SclkKernel
@@ -78,7 +82,16 @@ class SimulationConfig:
     excursion_c : float
         Peak temperature rise above -50 C in a block run with the heater off.
     imf_nt : tuple of float
-        Uniform interplanetary field added (MSO, nT).
+        Interplanetary field (MSO, nT): added as it is with ``solar_wind="quiet"``; its
+        direction is the mean direction of the realistic wind (zero: no interplanetary
+        field in either).
+    solar_wind : {"realistic", "quiet"}
+        ``realistic`` (default): the interplanetary field is
+        `fluxcal.missions.solar_wind.alfvenic_wind` (18 nT log-normal, Alfvenic rotations
+        dB/B ~ 0.55 with an f^-5/3 spectrum from 12 h to 2 s, 3 % compressive, sectors of
+        1-3 days) about the direction of ``imf_nt``; ``quiet``: the uniform ``imf_nt``.
+    seed : int
+        Seed of the realistic wind (with the start time: each day its own wind).
     waves : list of (amplitude_nT, period_s)
         Circularly polarised waves in the MSO Y-Z plane.
     science_windows : list of (start_s, end_s), optional
@@ -110,6 +123,8 @@ class SimulationConfig:
     temperature_step_s: float = 10.0
     excursion_c: float = 55.0
     imf_nt: tuple[float, float, float] = (12.0, -8.0, 5.0)
+    solar_wind: str = "realistic"
+    seed: int = 0
     waves: list[tuple[float, float]] = field(default_factory=lambda: [(3.0, 2.0), (1.0, 0.31)])
     science_windows: list[tuple[float, float]] | None = None
     sunlit_temperature_c: float = 22.4
@@ -119,15 +134,51 @@ class SimulationConfig:
     heater_gaps: list[tuple[float, float]] = field(default_factory=list)
 
 
-def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig) -> np.ndarray:
-    """Offset-dipole Mercury field plus a uniform field (nT) at MSO positions (km)."""
+def mercury_field_mso(pos_mso_km: np.ndarray, config: SimulationConfig,
+                      imf: np.ndarray | None = None) -> np.ndarray:
+    """Offset-dipole Mercury field plus the interplanetary field (nT) at MSO positions (km).
+
+    ``imf``: the interplanetary field per position, (n, 3); None: the uniform
+    ``config.imf_nt``.
+    """
     r = pos_mso_km - np.array([0.0, 0.0, DIPOLE_OFFSET_KM])
     rn = np.linalg.norm(r, axis=1)[:, None]
     rhat = r / rn
     m = np.array([0.0, 0.0, -1.0])  # southward moment: field points north at the equator
     m_dot_r = (rhat * m).sum(axis=1, keepdims=True)
     b = MERCURY_DIPOLE_NT * (MERCURY_RADIUS_KM / rn) ** 3 * (3 * m_dot_r * rhat - m)
-    return b + np.asarray(config.imf_nt)
+    return b + (np.asarray(config.imf_nt) if imf is None else imf)
+
+
+#: The interplanetary fields `SimulationConfig.solar_wind` names.
+SOLAR_WINDS = ("realistic", "quiet")
+
+
+def interplanetary_field(t: np.ndarray, et_start: float, config: SimulationConfig
+                         ) -> np.ndarray:
+    """Interplanetary field (MSO, nT) at ``t`` seconds after the start, shape (n, 3).
+
+    ``quiet``: the uniform ``imf_nt``.  ``realistic``: `alfvenic_wind` on a 1-s grid over
+    the samples' span (mean direction along ``imf_nt``, generator seeded with ``seed`` and
+    the start's whole ET second), linearly interpolated to ``t``.
+
+    Raises
+    ------
+    ValueError
+        ``solar_wind`` not in `SOLAR_WINDS`.
+    """
+    if config.solar_wind not in SOLAR_WINDS:
+        raise ValueError(f"solar_wind {config.solar_wind!r}: choose one of "
+                         f"{', '.join(SOLAR_WINDS)}")
+    t = np.asarray(t, dtype=float)
+    imf = np.asarray(config.imf_nt, dtype=float)
+    if config.solar_wind == "quiet" or t.size == 0 or not np.any(imf):
+        return np.broadcast_to(imf, (t.size, 3)).copy()
+    t0 = np.floor(t.min()) - 1.0
+    grid = t0 + np.arange(int(np.ceil(t.max() - t0)) + 2, dtype=float)
+    rng = np.random.default_rng([config.seed, int(np.floor(et_start)) & 0x7FFFFFFF])
+    wind = alfvenic_wind(rng, grid.size, AlfvenicWind(mean_direction=tuple(imf)))
+    return np.column_stack([np.interp(t, grid, wind[:, j]) for j in range(3)])
 
 
 def _waves(t: np.ndarray, config: SimulationConfig) -> np.ndarray:
@@ -285,7 +336,9 @@ def simulate(
     temp_true = _temperature(u, et, config, tables, et_of)
     # --- truth field ---------------------------------------------------------------------
     pos = position("MESSENGER", "MERCURY", "MSGR_MSO", et)
-    b_mso = mercury_field_mso(pos, config) + _waves(et - et_start, config)
+    imf = (None if config.solar_wind == "quiet"
+           else interplanetary_field(et - et_start, et_start, config))
+    b_mso = mercury_field_mso(pos, config, imf) + _waves(et - et_start, config)
     deployed = et >= et_of["boom_deployment"]
     b_sensor = np.empty_like(b_mso)
     for frame, sel in (("MSGR_MAG", deployed), ("MSGR_MAG_STOWED", ~deployed)):

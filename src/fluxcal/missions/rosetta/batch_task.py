@@ -339,6 +339,7 @@ def simulate_days(
     seed: int = 0,
     kernels: bool = True,
     truth: bool = False,
+    field: str = "realistic",
 ) -> list[Path]:
     """Write simulated raw inputs of ``days`` in the batch layout; return the day folders.
 
@@ -347,6 +348,7 @@ def simulate_days(
     gets a synthetic alignment and each day's extended temperature models, and (with
     ``kernels``) ``<input>/kernels/`` one Rosetta-like kernel set covering every day,
     referenced by ``<input>/kernels.tm``.  ``truth`` also writes ``truth_<sensor>.csv``.
+    ``field``: the truth field of `simulate` (``realistic`` or ``quiet``).
     """
     input_dir = Path(input_dir)
     days = sorted(days)
@@ -379,7 +381,7 @@ def simulate_days(
                 f"{day.isoformat()}T{start_time}", duration, calibrations=cals,
                 time_shifts=shifts, nominal=nominal, alignment=alignment, jumps=jumps,
                 daily_models=models, rate_hz=rate_hz, with_kernels=kernels,
-                seed=seed + k, lsk=lsk,
+                seed=seed + k, lsk=lsk, field=field,
             )
             for sensor in SENSORS:
                 io.write_science_csv(sim.science[sensor], folder / f"science_{sensor}.csv",

@@ -212,7 +212,8 @@ def simulate(
                                 "--layout batch, the length of each day's data."),
     rate: float = typer.Option(20.0, "--rate", help="Vector rate (Hz)."),
     primary: str = typer.Option("OB", "--primary", help="Primary sensor."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (bad-quality vectors)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (bad-quality vectors, the "
+                             "realistic field)."),
     layout: str = typer.Option(
         "files", "--layout",
         help="files: the inputs of 'fluxcal rosetta calibrate'; batch: the input folder of "
@@ -222,17 +223,25 @@ def simulate(
         "of both."),
     days: int = typer.Option(1, "--days", min=1, max=366,
                              help="--layout batch: number of consecutive days."),
+    field: str = typer.Option(
+        "realistic", "--field",
+        help="The known field: realistic (default): a 3-nT solar wind with a daily mean "
+        "(about 2.5 nT along a sector direction) and Alfvenic rotations dB/B ~ 0.55 with "
+        "an f^-5/3 spectrum from 12 h to 2 s, 3 % compressive; quiet: slow deterministic "
+        "waves of tens of nT (the field before issue 21)."),
 ) -> None:
     """Write simulated raw Rosetta telemetry, calibration files and kernels from a known field."""
     check_simulation_options(start, hours, rate, primary)
+    if field not in ("realistic", "quiet"):
+        raise InputFormatError(f"{field!r}: choose realistic or quiet", field="--field")
     if layout not in ("files", "batch", "archive"):
         raise InputFormatError(f"{layout!r}: choose files, batch or archive", field="--layout")
     preflight.writable_folder(out, "--out")
     if layout == "archive":
-        simulate_archive_layout(out, start, hours, rate, primary, seed)
+        simulate_archive_layout(out, start, hours, rate, primary, seed, field)
         return
     if layout == "batch":
-        folders = simulate_batch_layout(out, start, hours, rate, primary, seed, days)
+        folders = simulate_batch_layout(out, start, hours, rate, primary, seed, days, field)
         typer.echo(f"{len(folders)} day folders in {out}; run: fluxcal batch rosetta "
                    f"--input {out} --start {folders[0].name[:4]}-{folders[0].name[4:6]}-"
                    f"{folders[0].name[6:]} --end {folders[-1].name[:4]}-"
@@ -241,8 +250,8 @@ def simulate(
     from fluxcal.missions.rosetta.simulate import write_simulation
 
     paths = write_simulation(
-        out, start_utc=start, hours=hours, rate_hz=rate, primary=primary, seed=seed
-    )
+        out, start_utc=start, hours=hours, rate_hz=rate, primary=primary, seed=seed,
+        field=field)
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")
 
@@ -266,7 +275,7 @@ def check_raw_source(path: Path, option: str) -> None:
 
 
 def simulate_archive_layout(out: Path, start: str, hours: float, rate: float, primary: str,
-                            seed: int) -> None:
+                            seed: int, field: str = "realistic") -> None:
     """Write the simulation as archive-style EDITED products and say how to calibrate them.
 
     `fluxcal.missions.rosetta.simulate.write_simulation` with ``layouts=("archive",)``:
@@ -275,7 +284,7 @@ def simulate_archive_layout(out: Path, start: str, hours: float, rate: float, pr
     from fluxcal.missions.rosetta.simulate import write_simulation
 
     paths = write_simulation(out, start_utc=start, hours=hours, rate_hz=rate,
-                             primary=primary, seed=seed, layouts=("archive",))
+                             primary=primary, seed=seed, layouts=("archive",), field=field)
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")
     edited, day = paths["archive"], start[:10]
@@ -285,7 +294,7 @@ def simulate_archive_layout(out: Path, start: str, hours: float, rate: float, pr
 
 
 def simulate_batch_layout(out: Path, start: str, hours: float, rate: float, primary: str,
-                          seed: int, days: int) -> list[Path]:
+                          seed: int, days: int, field: str = "realistic") -> list[Path]:
     """Write ``days`` simulated days in the input layout of ``fluxcal batch rosetta``.
 
     Each day holds ``hours`` of both sensors from ``start``'s time of day
@@ -313,7 +322,7 @@ def simulate_batch_layout(out: Path, start: str, hours: float, rate: float, prim
     dates = [t0.date() + _dt.timedelta(days=k) for k in range(days)]
     return simulate_days(out, dates, start_time=t0.strftime("%H:%M:%S"),
                          minutes=hours * 60.0, rate_hz=rate, seed=seed, kernels=True,
-                         truth=True)
+                         truth=True, field=field)
 
 
 def check_simulation_options(start: str, hours: float, rate: float, primary: str) -> None:

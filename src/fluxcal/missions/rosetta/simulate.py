@@ -5,7 +5,10 @@ The instrument is run forward from seed 003 and its tables only (the physics is 
 ``tests/missions/test_forward_independence.py``):
 
 1. truth ``B_ref(t)`` at the physical event times, in ECLIPJ2000 (with kernels, rotated by
-   SPICE) or directly in s/c coordinates;
+   SPICE) or directly in s/c coordinates: by default (``field="realistic"``,
+   `realistic_field`) a 3-nT solar wind with a daily mean and Alfvenic rotations
+   (`fluxcal.missions.solar_wind`, issue 21), or (``field="quiet"``) the slow
+   deterministic waves of `truth_field`;
 2. the time stamp of each vector is its event time minus the filter-mode delay of its SID
    (sec. 4.2.3.5): the truth is delayed, not the stamps corrected;
 3. the Appendix B offset present at the event is added in s/c coordinates; the URF field
@@ -56,6 +59,7 @@ from fluxcal.missions.rosetta.calib import (
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.rosetta.io import _write_atomic
 from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
+from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
 
 log = logging.getLogger(__name__)
 NS = 1_000_000_000
@@ -75,6 +79,27 @@ def truth_field(seconds: np.ndarray) -> np.ndarray:
         ],
         axis=1,
     )
+
+
+#: The truth fields `simulate` knows: the realistic wind (default) and the quiet waves.
+FIELDS = ("realistic", "quiet")
+#: The realistic field near 67P: 3 nT, Alfvenic rotations dB/B ~ 0.55 about a sector
+#: direction fixed in the truth frame (mean field over a day about 2.5 nT), f^-5/3 from
+#: 12 h to 2 s, 3 % compressive, sectors of 1-3 days.
+ROSETTA_WIND = AlfvenicWind(b_median_nt=3.0, mean_direction=(0.6, -0.7, 0.39))
+#: Margin (s) of the realistic field's 1-s grid around the run (filter-mode delays).
+FIELD_MARGIN_S = 120.0
+
+
+def realistic_field(duration_s: float, rng: np.random.Generator
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Return a 1-s grid (seconds after the start) and the realistic field (nT) on it.
+
+    `ROSETTA_WIND` over the run plus `FIELD_MARGIN_S` either side; one draw per run, so
+    that both sensors see the same field, each interpolated at its own event times.
+    """
+    grid = np.arange(-FIELD_MARGIN_S, duration_s + FIELD_MARGIN_S + 1.0)
+    return grid, alfvenic_wind(rng, grid.size, ROSETTA_WIND)
 
 
 def temperature_profile(seconds: np.ndarray, duration_s: float, sensor: str) -> np.ndarray:
@@ -167,8 +192,9 @@ def simulate(
     seed: int = 0,
     lsk=None,
     gaps: list[tuple[float, float]] | None = None,
+    field: str = "realistic",
 ) -> Simulation:
-    """Simulate raw science files of both sensors and an HK file from `truth_field`.
+    """Simulate raw science files of both sensors and an HK file from a known field.
 
     Parameters
     ----------
@@ -195,6 +221,10 @@ def simulate(
     gaps : list of (start_s, end_s), optional
         No vectors in these intervals (seconds after ``start_utc``): data gaps, e.g. to
         test the midnight stitching limit of sec. 4.2.3.3.
+    field : {"realistic", "quiet"}
+        ``realistic``: `realistic_field` (3 nT with a daily mean and Alfvenic rotations;
+        its generator seeded with ``seed`` and the start second, apart from the bad-vector
+        draws); ``quiet``: `truth_field` (slow waves, tens of nT).
 
     Returns
     -------
@@ -203,9 +233,20 @@ def simulate(
         ``truth[sensor]`` with ``b_urf`` (LEVEL_A truth), ``b_sc`` (LEVEL_B truth after
         the jump correction), ``b_ref`` (ECLIPJ2000 or s/c) at the event times.
     """
+    if field not in FIELDS:
+        raise ValueError(f"field {field!r}: choose one of {', '.join(FIELDS)}")
     rng = np.random.default_rng(seed)
     n = int(round(duration_s * rate_hz))
     t0 = int(utc_to_tt2000(np.array([start_utc]), lsk)[0])
+    if field == "realistic":
+        grid, wind = realistic_field(
+            duration_s, np.random.default_rng([seed, (t0 // NS) & 0x7FFFFFFF]))
+
+    def ambient(secs: np.ndarray) -> np.ndarray:
+        if field == "quiet":
+            return truth_field(secs)
+        return np.column_stack([np.interp(secs, grid, wind[:, j]) for j in range(3)])
+
     stamps = t0 + np.rint(np.arange(n) / rate_hz * NS).astype(np.int64)
     sid = mode_schedule(n)
     if gaps:
@@ -237,7 +278,7 @@ def simulate(
         delay = forward.filter_delay(sid, time_shifts, secondary=secondary)
         event = stamps + np.rint(delay * NS).astype(np.int64)
         secs = (event - t0) / NS
-        b_ref = truth_field(secs)
+        b_ref = ambient(secs)
         if with_kernels:
             b_sc_true = rotate(b_ref, tt2000_to_et(event, lsk), "ECLIPJ2000", "ROS_SPACECRAFT")
         else:
@@ -414,6 +455,7 @@ def write_simulation(
     primary: str = "OB",
     seed: int = 0,
     layouts: Sequence[str] = ("files",),
+    field: str = "realistic",
 ) -> dict[str, Path]:
     """Write a complete simulated input set into ``out`` and return the paths.
 
@@ -428,6 +470,7 @@ def write_simulation(
     ``out/DATA/EDITED/`` (`archive_write`; key ``"archive"``), names the calibration
     folder ``out/CALIB`` with the archived ground-calibration names, and copies the
     meta-kernel to ``out/kernels.tm`` (the input folder of ``fluxcal batch rosetta``).
+    ``field`` is `simulate`'s (``realistic`` or ``quiet``).
     """
     out = Path(out)
     archive = "archive" in layouts
@@ -468,6 +511,7 @@ def write_simulation(
             with_kernels=True,
             seed=seed,
             lsk=lsk,
+            field=field,
         )
         for sensor in ("OB", "IB"):
             if "files" in layouts:
