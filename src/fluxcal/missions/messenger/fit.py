@@ -887,12 +887,10 @@ def fit_days(
         nonlocal cal, result
         inputs: dict[str, str] = {}
         for p in range(passes):
-            parts = mapper(cal, p == 0, p)
-            if estimator == "variance":
-                vstats = reduce(VarianceStatistics.merge, [v for _, v in parts],
-                                VarianceStatistics())
-                parts = [d for d, _ in parts]
-            stats = reduce(DayStatistics.merge, parts, DayStatistics.empty(s))
+            # merged in groups, level by level: linear in the days (a left fold copies
+            # the growing variance blocks at every day), the same sums as on Dask
+            merged = _merge_all(mapper(cal, p == 0, p))
+            stats, vstats = merged if estimator == "variance" else (merged, None)
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
             if estimator == "variance":
@@ -977,11 +975,20 @@ def _merge_parts(*parts: Any) -> Any:
     return reduce(DayStatistics.merge, parts)
 
 
+def _merge_all(parts: list[Any]) -> Any:
+    """Merge `reduce_chunk` outputs here, in the groups and levels of `_merge_tree`."""
+    level = list(parts)
+    while len(level) > 1:
+        level = [_merge_parts(*level[i:i + MERGE_FAN_IN])
+                 for i in range(0, len(level), MERGE_FAN_IN)]
+    return level[0]
+
+
 def _merge_tree(client: Any, futures: list[Any]) -> Any:
     """Merge the days' statistics on the workers: consecutive groups, level by level.
 
-    Day order is kept (the merged ``days`` and ``inputs`` list the days as the serial
-    fold does); the sums differ from the serial left fold by float64 rounding only.
+    Day order is kept (the merged ``days`` and ``inputs`` list the days in order); the
+    groups are those of `_merge_all`, so the sums are the serial run's, bit for bit.
     Merges run before pending reductions (priority), as soon as their days are in.
     """
     level = list(futures)
