@@ -16,13 +16,15 @@
 #
 # Writes $OUT/device_fit_scaling.log (environment, each run's output) and per run
 # $OUT/fit_<days>d_<workers>w_<estimator>.{txt,json}.  RUNS lists days:workers[:estimator]
-# in order; a run starts only if BUDGET_S seconds (default 400) minus the time used leave
-# its estimate (EST_S_PER_DAY per day plus 60 s); a run is killed after 300 s or when
-# BUDGET_S + 120 s have passed since the start.
+# in order; a run starts only if BUDGET_S seconds (default 300) minus the time used leave
+# its estimate (EST_S_PER_DAY per day plus 60 s; the per-day figure is raised to what the
+# runs before took); a run is killed after 300 s or when BUDGET_S + 100 s have passed since
+# the start, so the script ends within ~7 min.
 # Estimate for 16 cores from the 2-core VM's per-core speeds (simulate 0.45 s CPU per day,
 # reduce 0.28 s per day and pass, fit 0.25 s per pass, numba's first compile ~15 s, the
 # control 0.5 s per task): install and imports 15 s, 16 d x 16 w 70 s (with the compile),
-# 64 d x 16 w 120 s, 16 d x 8 w 45 s, 16 d zero-mean 50 s: about 5 min in all.
+# 64 d x 16 w 120 s, 16 d x 8 w 45 s: ~4.2 min; the zero-mean run (~50 s) only if the
+# machine is faster than that.
 set -u
 OUT=${OUT:?set OUT to the output folder}
 PY=${PY:-/opt/torch/.venv/bin/python3}
@@ -30,7 +32,7 @@ PY=${PY:-/opt/torch/.venv/bin/python3}
 SITE=${SITE:-/tmp/site}
 WORKERS=${WORKERS:-16}
 RUNS=${RUNS-"16:$WORKERS 64:$WORKERS 16:8 16:$WORKERS:zero-mean"}
-BUDGET_S=${BUDGET_S:-400}
+BUDGET_S=${BUDGET_S:-300}
 EST_S_PER_DAY=${EST_S_PER_DAY:-1.2}
 mkdir -p "$OUT" "$SITE"
 LOG=$OUT/device_fit_scaling.log
@@ -79,14 +81,17 @@ for run in $RUNS; do
         continue
     fi
     name=fit_${days}d_${workers}w_${estimator}
-    limit=$(( BUDGET_S + 120 - used ))  # the whole script ends by BUDGET_S + 120 s
+    limit=$(( BUDGET_S + 100 - used ))  # the whole script ends by BUDGET_S + 100 s
     [ "$limit" -gt 300 ] && limit=300
     say "# run $name at $used s (killed after $limit s)"
+    t_run=$(date +%s)
     timeout "$limit" "$PY" benchmarks/messenger_fit.py --days-1hz "$days" --days-20hz 0 \
         --workers "$workers" --estimator "$estimator" --json "$OUT/$name.json" \
         >"$OUT/$name.txt" 2>&1
     rc=$?
     grep -v -E "^\s*$" "$OUT/$name.txt" | grep -v -i "warning" | tail -n 16 | tee -a "$LOG"
     say "# $name: exit $rc after $(( $(date +%s) - t0 )) s"
+    EST_S_PER_DAY=$(awk -v s="$(( $(date +%s) - t_run ))" -v d="$days" -v e="$EST_S_PER_DAY" \
+        'BEGIN { r = (s - 45) / d; printf "%.2f", (r > e ? r : e) }')
 done
 say "# done in $(( $(date +%s) - t0 )) s"
