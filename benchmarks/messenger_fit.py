@@ -22,8 +22,8 @@ workers), the gather of the merged statistics, and the client's serial part (set
 fit of each pass, the folder written).  That serial share ``f`` of the serial run's time
 bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the bound is
 also given at the parallelism the pure-CPU control measures (`_control.control`).  A fit
-that the guards refuse (`fit.check_fit`) is reported and still timed (serial and Dask do
-the same work up to the refusal).
+that the guards refuse (`fit.check_fit`), or that stops on too little data, is reported
+and still timed (serial and Dask do the same work up to there).
 """
 
 from __future__ import annotations
@@ -80,6 +80,8 @@ def _fit(run, passes: int, scheduler: str, workers: int, out: Path, estimator: s
         outcome = "written"
     except FitRefusedError as exc:  # same work in both runs; the folder is not written
         outcome = f"refused: {exc}"
+    except FluxcalError as exc:  # e.g. too little data for a pass: timed up to there
+        outcome = f"stopped: {exc}"
     return time.perf_counter() - t, outcome
 
 
