@@ -1,87 +1,178 @@
-"""In-flight calibration fit benchmark (issue 13): simulated cruise days through the fit.
+"""In-flight calibration fit benchmark (issues 13, 21): simulated cruise days through the fit.
 
     .venv/bin/python benchmarks/messenger_fit.py                  # month at 1 Hz, week at 20 Hz
     .venv/bin/python benchmarks/messenger_fit.py --quick          # 3 days at 1 Hz, 1 at 20 Hz
     FLUXCAL_BENCH_QUICK=1 .venv/bin/python benchmarks/messenger_fit.py
-    .venv/bin/python benchmarks/messenger_fit.py --days-1hz 10 --days-20hz 0 --workers 2
+    .venv/bin/python benchmarks/messenger_fit.py --days-1hz 8 --days-20hz 0 --workers 2
+    .venv/bin/python benchmarks/messenger_fit.py --estimator zero-mean --json out.json
 
 Each data set is simulated by `fluxcal.missions.messenger.flight_sim` into the batch input
-layout (CSV per stream and day, as a user's input folder), then fitted end to end the way
-``fluxcal messenger fit`` does it: `fit.day_chunks` + `fit.fit_days` (every pass reads
-and reduces every day's CSVs, merges, fits) + `fit_write.write_calibration_folder`,
-first serially, then on a local Dask cluster of ``--workers`` single-threaded processes
-(started beforehand, its start-up printed separately; one untimed warm-up pass over one
-day per worker first, as benchmarks/batch.py does).  Prints seconds and input samples
-per second for both and their ratio, plus the simulator's own speed.
+layout (CSV per stream and day, as a user's input folder), then fitted end to end through
+the entry point of ``fluxcal messenger fit --input-dir`` (`fit_cli.run_fit`: the days'
+chunks, every pass reading and reducing every day's CSVs, merging, fitting; the folder
+written), with ``--estimator`` (default ``variance``), first serially, then on a local
+Dask cluster of ``--workers`` single-threaded processes (started beforehand, its start-up
+printed separately; one untimed warm-up fit over one day per worker first, as
+benchmarks/batch.py does).
+
+Prints seconds and input samples per second for both and their ratio, the simulator's
+own speed, and for the Dask run the split of its wall time (from the DEBUG timing records
+of `fit.fit_days`): the parallel reduce per pass (map over the days and the merge on the
+workers), the gather of the merged statistics, and the client's serial part (set-up, the
+fit of each pass, the folder written).  That serial share ``f`` of the serial run's time
+bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the bound is
+also given at the parallelism the pure-CPU control measures (`_control.control`).  A fit
+that the guards refuse (`fit.check_fit`), or that stops on too little data, is reported
+and still timed (serial and Dask do the same work up to there).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
+import json
 import logging
 import os
 import shutil
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 # One BLAS/OpenMP thread here as on Dask's workers (see benchmarks/batch.py)
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import numpy as np  # noqa: E402
 from _control import control  # noqa: E402  (benchmarks/_control.py, beside this script)
 
-from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
+from fluxcal.errors import FitRefusedError, FluxcalError  # noqa: E402
+from fluxcal.missions.messenger.fit import ESTIMATORS  # noqa: E402
+from fluxcal.missions.messenger.fit_cli import run_fit  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
 START = dt.date(2010, 3, 1)
+FIT_LOGGER = "fluxcal.missions.messenger.fit"
 
 
-def _fit(run, passes: int, scheduler: str | None, out: Path, days=None) -> float:
-    from fluxcal.missions.messenger import fit, fit_write
+class _Timings(logging.Handler):
+    """Collects the ``fit_timing`` records of `fit.fit_days`'s Dask passes."""
 
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.passes: list[dict[str, float]] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        timing = getattr(record, "fit_timing", None)
+        if timing is not None:
+            self.passes.append(dict(timing))
+
+
+def _fit(run, passes: int, scheduler: str, workers: int, out: Path, estimator: str,
+         days=None) -> tuple[float, str]:
+    """Run ``fluxcal messenger fit --input-dir`` (`run_fit`); return (seconds, outcome)."""
     days = run.days if days is None else days
     t = time.perf_counter()
-    chunks = fit.day_chunks(run.input_dir, days)
-    base = load_calibration(np.datetime64(str(days[0])))
-    # speed only: the guards (check_fit) may refuse a zero-mean fit of this wind
-    result = fit.fit_days(chunks, base, passes=passes, scheduler=scheduler, guard=False)
-    fit_write.write_calibration_folder(result, out, None, {
-        "inputs": {}, "intervals": "all data", "days": f"{days[0]}..{days[-1]}",
-        "command": "benchmarks/messenger_fit.py"})
-    return time.perf_counter() - t
+    try:
+        run_fit(sci=[], heater=[], temperature=[], kernels=[], input_dir=run.input_dir,
+                days=f"{days[0]}:{days[-1]}", intervals=None, out=out, passes=passes,
+                scheduler=scheduler, workers=workers, estimator=estimator)
+        outcome = "written"
+    except FitRefusedError as exc:  # same work in both runs; the folder is not written
+        outcome = f"refused: {exc}"
+    except FluxcalError as exc:  # e.g. too little data for a pass: timed up to there
+        outcome = f"stopped: {exc}"
+    return time.perf_counter() - t, outcome
 
 
-def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: Path) -> None:
+def _split(t0: float, t1: float, passes: list[dict[str, float]]) -> dict[str, Any]:
+    """Wall time of one Dask fit split into parallel reduce, gather and client serial part.
+
+    Without timing records (a `fit_days` that logs none) everything counts as serial.
+    """
+    if not passes:
+        return {"setup_s": 0.0, "reduce_s": [], "gather_s": [], "client_s": [],
+                "serial_s": t1 - t0, "parallel_s": 0.0}
+    reduce_s = [p["reduced"] - p["start"] for p in passes]
+    gather_s = [p["gathered"] - p["reduced"] for p in passes]
+    ends = [p["start"] for p in passes[1:]] + [t1]
+    client_s = [end - p["gathered"] for p, end in zip(passes, ends, strict=True)]
+    setup = passes[0]["start"] - t0
+    return {"setup_s": setup, "reduce_s": reduce_s, "gather_s": gather_s,
+            "client_s": client_s,
+            "serial_s": setup + sum(gather_s) + sum(client_s), "parallel_s": sum(reduce_s)}
+
+
+def _amdahl(f: float, n: float) -> float:
+    return 1.0 / (f + (1.0 - f) / n)
+
+
+def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: Path,
+          estimator: str) -> dict[str, Any]:
+    n_workers = len(cluster.workers)
     t, cpu = time.perf_counter(), time.process_time()
     run = simulate_flight(work / label, FlightConfig(start=str(START), days=days,
                                                      rate_setting=rate_setting), truth=False)
     sim_s, sim_cpu = time.perf_counter() - t, time.process_time() - cpu
     n = run.n_samples
     # warm-up (imports, numba cache loads, first-call costs) in this process and on every
-    # worker: one pass over one day per worker, not timed
-    warm = run.days[: len(cluster.workers)]
-    _fit(run, 1, "serial", work / label / "warm_serial", warm)
-    _fit(run, 1, cluster.scheduler_address, work / label / "warm_parallel", warm)
+    # worker: one fit over one day here, over one day per worker on the cluster, not timed
+    address = cluster.scheduler_address
+    with contextlib.suppress(FluxcalError):  # a day or a few may be too little to fit
+        _fit(run, 1, "serial", n_workers, work / label / "warm_serial", estimator,
+             run.days[:1])
+    with contextlib.suppress(FluxcalError):
+        _fit(run, 1, address, n_workers, work / label / "warm_parallel", estimator,
+             run.days[:n_workers])
     cpu = time.process_time()
-    serial = _fit(run, passes, "serial", work / label / "fit_serial")
+    serial, outcome = _fit(run, passes, "serial", n_workers, work / label / "fit_serial",
+                           estimator)
     serial_cpu = time.process_time() - cpu
-    parallel = _fit(run, passes, cluster.scheduler_address, work / label / "fit_parallel")
-    print(f"{label}: {days} day(s), {n:,} samples, {passes} passes")
+    handler = _Timings()
+    log = logging.getLogger(FIT_LOGGER)
+    log.addHandler(handler)
+    log.setLevel(logging.DEBUG)
+    try:
+        t0 = time.perf_counter()
+        parallel, outcome_p = _fit(run, passes, address, n_workers,
+                                   work / label / "fit_parallel", estimator)
+        t1 = time.perf_counter()
+    finally:
+        log.removeHandler(handler)
+        log.setLevel(logging.NOTSET)
+    ctrl = control(cluster, 2 * n_workers)
+    split = _split(t0, t1, handler.passes)
+    f = min(split["serial_s"] / serial, 1.0)
+    speed_up = serial / parallel
+    print(f"{label}: {days} day(s), {n:,} samples, estimator {estimator}, at most {passes} "
+          f"passes ({len(handler.passes)} run)")
     print(f"  simulate:            {sim_s:8.2f} s  {n / sim_s:12,.0f} samples/s"
           f"  (CPU {sim_cpu:.1f} s)")
     print(f"  fit serial:          {serial:8.2f} s  {n / serial:12,.0f} samples/s"
-          f"  (CPU {serial_cpu:.1f} s)")
-    print(f"  fit Dask x{len(cluster.workers)} workers: {parallel:8.2f} s  "
-          f"{n / parallel:12,.0f} samples/s")
-    print(f"  speed-up serial/parallel: {serial / parallel:.2f}x "
-          f"(ideal {len(cluster.workers)}x; load average {os.getloadavg()[0]:.2f} on "
-          f"{os.cpu_count()} cores)")
-    print(f"  control: a pure-CPU task reaches {control(cluster, 2 * len(cluster.workers)):.2f}x"
-          " on this cluster right now (the parallelism the machine offers)")
+          f"  (CPU {serial_cpu:.1f} s)  [{outcome.splitlines()[0][:100]}]")
+    print(f"  fit Dask x{n_workers} workers: {parallel:8.2f} s  {n / parallel:12,.0f} samples/s"
+          + ("" if outcome_p == outcome else f"  [{outcome_p.splitlines()[0][:100]}]"))
+    print(f"    split: set-up {split['setup_s']:.3f} s; per pass: parallel reduce (map over "
+          "the days + merge on the workers) / gather / client fit (and, last, write):")
+    for p, (r, g, c) in enumerate(zip(split["reduce_s"], split["gather_s"], split["client_s"],
+                                      strict=True)):
+        print(f"      pass {p + 1}: {r:7.3f} s / {g:6.3f} s / {c:6.3f} s")
+    print(f"    client serial part {split['serial_s']:.2f} s = {f:.1%} of the serial run; "
+          f"Amdahl bound {_amdahl(f, n_workers):.2f}x on {n_workers} workers, "
+          f"{_amdahl(f, ctrl):.2f}x at the control's {ctrl:.2f}x")
+    print(f"  speed-up serial/parallel: {speed_up:.2f}x (ideal {n_workers}x; load average "
+          f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores)")
+    print(f"  control: a pure-CPU task reaches {ctrl:.2f}x on this cluster right now (the "
+          "parallelism the machine offers)")
+    print(f"  speed-up / control: {speed_up / ctrl:.0%}")
     shutil.rmtree(work / label, ignore_errors=True)
+    return {"label": label, "days": days, "samples": n, "estimator": estimator,
+            "workers": n_workers, "passes_run": len(handler.passes), "simulate_s": sim_s,
+            "serial_s": serial, "parallel_s": parallel, "speed_up": speed_up,
+            "control": ctrl, "ratio_to_control": speed_up / ctrl, "serial_share": f,
+            "amdahl_workers": _amdahl(f, n_workers), "amdahl_control": _amdahl(f, ctrl),
+            "split": split, "outcome": outcome, "outcome_parallel": outcome_p,
+            "cpu_count": os.cpu_count(), "load_average": os.getloadavg()[0]}
 
 
 def main() -> None:
@@ -91,8 +182,11 @@ def main() -> None:
                     help="3 days at 1 Hz and 1 day at 20 Hz (also FLUXCAL_BENCH_QUICK=1)")
     ap.add_argument("--days-1hz", type=int, default=None, help="days at 1 Hz (default 30)")
     ap.add_argument("--days-20hz", type=int, default=None, help="days at 20 Hz (default 7)")
-    ap.add_argument("--passes", type=int, default=3, help="fit passes (default 3)")
+    ap.add_argument("--passes", type=int, default=3, help="most fit passes (default 3)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--estimator", choices=ESTIMATORS, default="variance",
+                    help="the fit's --estimator (default variance)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = ap.parse_args()
     d1 = args.days_1hz if args.days_1hz is not None else (3 if args.quick else 30)
     d20 = args.days_20hz if args.days_20hz is not None else (1 if args.quick else 7)
@@ -109,13 +203,17 @@ def main() -> None:
         client.run(lambda: logging.getLogger("fluxcal").setLevel(logging.ERROR))
     print(f"local Dask cluster: {args.workers} workers, start-up {time.perf_counter() - t:.1f} s"
           " (not included below)")
+    results = []
     try:
         for label, days, rate in (("1 Hz", d1, 6), ("20 Hz", d20, 10)):
             if days > 0:
-                _case(label, days, rate, args.passes, cluster, work)
+                results.append(_case(label, days, rate, args.passes, cluster, work,
+                                     args.estimator))
     finally:
         cluster.close()
         shutil.rmtree(work, ignore_errors=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps(results, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ References
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -768,7 +769,9 @@ def _periodic_knots(period: float, m: int) -> np.ndarray:
 def _fold_columns(a: np.ndarray, m: int) -> np.ndarray:
     """Sum the m + 3 extended-basis columns into m periodic ones (column j -> j mod m)."""
     out = np.zeros((a.shape[0], m))
-    np.add.at(out.T, np.arange(a.shape[1]) % m, a.T)
+    for k in range(0, a.shape[1], m):  # m + 3 columns, m >= 4: two blocks, as np.add.at
+        block = a[:, k:k + m]
+        out[:, :block.shape[1]] += block
     return out
 
 
@@ -781,11 +784,13 @@ def _periodic_design(x: np.ndarray, period: float, m: int) -> np.ndarray:
     return _fold_columns(dm, m)
 
 
+@functools.lru_cache(maxsize=16)
 def _periodic_penalty(period: float, m: int) -> np.ndarray:
     """``Omega[i, j] = integral over one period of B_i'' B_j''`` (periodic basis).
 
     The second derivatives are linear on each knot interval, so two-point
-    Gauss-Legendre per interval is exact.
+    Gauss-Legendre per interval is exact.  Cached (read-only): a waveform fit asks for
+    the same period and knots per axis and duty-cycle bin, every pass.
     """
     knots = _periodic_knots(period, m)
     h = period / m
@@ -794,7 +799,9 @@ def _periodic_penalty(period: float, m: int) -> np.ndarray:
     xq = (left[:, None] + 0.5 * h * (1.0 + g[None, :])).ravel()
     basis = BSpline(knots, np.eye(m + 3), 3, extrapolate=False)
     d2 = _fold_columns(np.nan_to_num(basis.derivative(2)(xq)), m)
-    return (d2.T * (0.5 * h)) @ d2  # both Gauss weights are 1, times h/2
+    omega = (d2.T * (0.5 * h)) @ d2  # both Gauss weights are 1, times h/2
+    omega.flags.writeable = False
+    return omega
 
 
 def fit_periodic_spline(
@@ -914,7 +921,7 @@ def fit_periodic_spline(
     # cov(c) = M^-1 B'W Sigma W B M^-1, Sigma = s^2 diag(1/w^2), W = diag(w^2)/mean(w^2)
     s2 = 1.0 if absolute_weights else (chi2 / dof if dof > 0 else np.inf)
     coef_cov = (s2 / np.mean(w * w)) * ((v * ((1.0 - mu) / d**2)) @ v.T)
-    value_err = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", b, coef_cov, b), 0.0))
+    value_err = np.sqrt(np.maximum(np.sum((b @ coef_cov) * b, axis=1), 0.0))
     spline = BSpline(_periodic_knots(period, m), coef[np.arange(m + 3) % m], 3,
                      extrapolate="periodic")
     return PeriodicSplineFit(

@@ -32,6 +32,8 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
+import logging
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import reduce
@@ -885,12 +887,10 @@ def fit_days(
         nonlocal cal, result
         inputs: dict[str, str] = {}
         for p in range(passes):
-            parts = mapper(cal, p == 0, p)
-            if estimator == "variance":
-                vstats = reduce(VarianceStatistics.merge, [v for _, v in parts],
-                                VarianceStatistics())
-                parts = [d for d, _ in parts]
-            stats = reduce(DayStatistics.merge, parts, DayStatistics.empty(s))
+            # merged in groups, level by level: linear in the days (a left fold copies
+            # the growing variance blocks at every day), the same sums as on Dask
+            merged = _merge_all(mapper(cal, p == 0, p))
+            stats, vstats = merged if estimator == "variance" else (merged, None)
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
             if estimator == "variance":
@@ -932,18 +932,68 @@ def fit_days(
     try:
         with Client(cluster if cluster is not None else scheduler) as client:
 
-            def distributed(c: MessengerCalibration, hashing: bool, p: int
-                            ) -> list[DayStatistics]:
-                futures = client.map(reduce_chunk, list(chunks), cal=c, intervals=intervals,
-                                     settings=s, hash_inputs=hashing, estimator=estimator,
-                                     pure=False)
-                out = []
+            def distributed(c: MessengerCalibration, hashing: bool, p: int) -> list[Any]:
+                # the calibration travels once per pass (not once per day); the days'
+                # statistics are merged on the workers in day order (`_merge_tree`), so
+                # the client receives one merged object per pass
+                start = time.perf_counter()
+                cal_future = client.scatter(c, hash=False)
+                futures = client.map(reduce_chunk, list(chunks), cal=cal_future,
+                                     intervals=intervals, settings=s, hash_inputs=hashing,
+                                     estimator=estimator, pure=False)
+                merged = _merge_tree(client, futures)
                 for i, fut in enumerate(as_completed(futures)):
-                    out.append(fut.result())
+                    if fut.status == "error":
+                        fut.result()  # the day's own error, at once
                     tick(p, i + 1)
-                return sorted(out, key=lambda st: (st[0] if isinstance(st, tuple) else st).days)
+                reduced = time.perf_counter()
+                out = merged.result()
+                _log.debug("pass %d: %d chunks reduced on the workers in %.3f s, merged "
+                           "statistics gathered in %.3f s", p + 1, len(chunks),
+                           reduced - start, time.perf_counter() - reduced,
+                           extra={"fit_timing": {"pass": p + 1, "start": start,
+                                                 "reduced": reduced,
+                                                 "gathered": time.perf_counter()}})
+                return [out]
 
             return run(distributed)
     finally:
         if cluster is not None:
             cluster.close()
+
+
+_log = logging.getLogger(__name__)
+#: Statistics merged per task of the Dask tree reduction (`_merge_tree`).
+MERGE_FAN_IN = 4
+
+
+def _merge_parts(*parts: Any) -> Any:
+    """Merge `reduce_chunk` outputs left to right (one node of `_merge_tree`)."""
+    if isinstance(parts[0], tuple):
+        return (reduce(DayStatistics.merge, [d for d, _ in parts]),
+                reduce(VarianceStatistics.merge, [v for _, v in parts]))
+    return reduce(DayStatistics.merge, parts)
+
+
+def _merge_all(parts: list[Any]) -> Any:
+    """Merge `reduce_chunk` outputs here, in the groups and levels of `_merge_tree`."""
+    level = list(parts)
+    while len(level) > 1:
+        level = [_merge_parts(*level[i:i + MERGE_FAN_IN])
+                 for i in range(0, len(level), MERGE_FAN_IN)]
+    return level[0]
+
+
+def _merge_tree(client: Any, futures: list[Any]) -> Any:
+    """Merge the days' statistics on the workers: consecutive groups, level by level.
+
+    Day order is kept (the merged ``days`` and ``inputs`` list the days in order); the
+    groups are those of `_merge_all`, so the sums are the serial run's, bit for bit.
+    Merges run before pending reductions (priority), as soon as their days are in.
+    """
+    level = list(futures)
+    while len(level) > 1:
+        level = [client.submit(_merge_parts, *level[i:i + MERGE_FAN_IN], pure=False,
+                               priority=1) if len(level[i:i + MERGE_FAN_IN]) > 1
+                 else level[i] for i in range(0, len(level), MERGE_FAN_IN)]
+    return level[0]
