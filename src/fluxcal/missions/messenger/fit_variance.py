@@ -62,8 +62,8 @@ from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
-__all__ = ["N_PARAMETERS", "VarianceSettings", "VarianceStatistics", "reduce_variance",
-           "solve_variance"]
+__all__ = ["MIN_RANGE_SAMPLES", "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings",
+           "VarianceStatistics", "reduce_variance", "solve_variance"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then the
 #: shared d(tau) and d(dt).
@@ -71,6 +71,11 @@ PER_AXIS = 5
 N_PARAMETERS = 3 * PER_AXIS + 2
 #: Step of dt (s) for the derivative of the relaxed duty cycle in dt.
 DELAY_STEP_S = 1.0
+#: Edges (C) of the histogram of the accepted samples' temperatures (`fitted_range`).
+TEMPERATURE_EDGES_C = np.arange(-100.0, 100.1, 5.0)
+#: Fewest accepted samples in a 5-C bin for the bin to count as fitted: half an hour at
+#: 1 Hz, two 900-s intervals (docs/decisions/messenger_fit.md entry 13).
+MIN_RANGE_SAMPLES = 1800
 
 
 @dataclass(frozen=True)
@@ -129,6 +134,8 @@ class VarianceStatistics:
         ET of every interval's start (accepted and rejected).
     reason : ndarray of str, shape (n_intervals,)
         ``""`` for accepted intervals, else the first failed criterion.
+    temperature_count : ndarray, shape (len(TEMPERATURE_EDGES_C) - 1,)
+        Accepted samples per 5-C bin of the sensor temperature (`fitted_range`).
     """
 
     normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
@@ -139,6 +146,8 @@ class VarianceStatistics:
     block_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     interval_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     reason: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="<U24"))
+    temperature_count: np.ndarray = field(
+        default_factory=lambda: np.zeros(TEMPERATURE_EDGES_C.size - 1))
 
     def merge(self, other: VarianceStatistics) -> VarianceStatistics:
         """Return the statistics of both (blocks of the same start are summed)."""
@@ -156,11 +165,24 @@ class VarianceStatistics:
             yy=add(self.yy, other.yy), samples=add(self.samples, other.samples),
             block_start=uniq,
             interval_start=np.concatenate([self.interval_start, other.interval_start]),
-            reason=np.concatenate([self.reason, other.reason]).astype("<U24"))
+            reason=np.concatenate([self.reason, other.reason]).astype("<U24"),
+            temperature_count=self.temperature_count + other.temperature_count)
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
         return count_reasons(self.reason)
+
+    def fitted_range(self, min_samples: int = MIN_RANGE_SAMPLES) -> tuple[float, float]:
+        """Return the temperature range (C) over which the data constrain the law.
+
+        From the lower edge of the first to the upper edge of the last 5-C bin holding
+        at least ``min_samples`` accepted samples; ``(nan, nan)`` when none does.  The
+        law is stated (fit_report, Table 2 header) and verified over this range only.
+        """
+        full = np.flatnonzero(self.temperature_count >= min_samples)
+        if full.size == 0:
+            return float("nan"), float("nan")
+        return float(TEMPERATURE_EDGES_C[full[0]]), float(TEMPERATURE_EDGES_C[full[-1] + 1])
 
 
 def _relaxed(et: np.ndarray, changes, cal: MessengerCalibration, tau: float,
@@ -264,6 +286,7 @@ def reduce_variance(
     if not ok.any():
         return out
     codes = codes[ok]
+    out.temperature_count = np.histogram(temp_c[ok], TEMPERATURE_EDGES_C)[0].astype(float)
     b, temp_c, r, dr_tau, dr_dt, et, mag = (x[ok] for x in (b, temp_c, r, dr_tau, dr_dt, et,
                                                             mag))
     # M^T of the unit vector per sample: d|B'| / d(offset counts) = -u (the |B| form: the
