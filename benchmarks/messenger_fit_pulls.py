@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import functools
+import pickle
 import sys
 import tempfile
 import time
@@ -48,8 +49,8 @@ def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
 
 
-def one(k: int, days: int, compressive: float, passes: int) -> dict:
-    """Simulate, fit and compare realisation ``k``."""
+def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None) -> dict:
+    """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth)."""
     with tempfile.TemporaryDirectory() as tmp:
         wind = functools.partial(realistic_wind, compressive=compressive)
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01", days=days,
@@ -59,6 +60,9 @@ def one(k: int, days: int, compressive: float, passes: int) -> dict:
         base = load_calibration(np.datetime64("2010-03-01"))
         res = fit_days(day_chunks(run.input_dir, run.days), base, passes=passes,
                        estimator="variance", guard=False)
+    if save is not None:
+        save.mkdir(parents=True, exist_ok=True)
+        (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     lo, hi = res.fitted_range
@@ -103,12 +107,14 @@ def main() -> None:
     ap.add_argument("--compressive", type=float, default=0.03)
     ap.add_argument("--passes", type=int, default=4)
     ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--save", type=Path, default=None,
+                    help="Folder to pickle each realisation's fit and true tables into.")
     args = ap.parse_args()
     rows = []
     t_start = time.perf_counter()
     for k in range(args.realisations):
         t0 = time.perf_counter()
-        r = one(k, args.days, args.compressive, args.passes)
+        r = one(k, args.days, args.compressive, args.passes, args.save)
         rows.append(r)
         print(f"{k:3d} {time.perf_counter() - t0:6.1f} s  tau pull {r['tau_pull']:+.2f} "
               f"({r['tau_rel']:+.3f})  dt pull {r['dt_pull']:+.2f}  D0 pulls "

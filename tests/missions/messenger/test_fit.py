@@ -403,8 +403,8 @@ def test_cli_fit_error_lines(tmp_path, training, simulated_files, messenger_kern
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "--calib lacks the table(s) latency" in err
     # an unknown temperature-law estimator
-    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN, "--temperature-law", "median",
-               "--out", str(tmp_path / "e")])
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
+               "--temperature-law", "median", "--out", str(tmp_path / "e")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "temperature_law must be one of distribution, binned-mean" in err
     # both input styles
@@ -443,3 +443,20 @@ def test_cli_fit_refuses_an_edr_batch_folder(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2 and len(err) == 1 and EDR_MAPPING in err[0], err
         assert not (tmp_path / "fitted").exists()
+
+
+def test_cli_fit_default_is_the_variance_estimator(tmp_path, training, capsys):
+    """Without --estimator the command minimises the variance of |B| (issue 21, item 4).
+
+    The training streams hold a 0.1-nT zero-mean field: no interval rotates enough for
+    the variance estimator; the abort names it, counts the rejections by reason and
+    points to the zero-mean estimator, and nothing is written.
+    """
+    from fluxcal.cli import main
+
+    rc = main(["messenger", "fit", *_stream_args(training), "--out", str(tmp_path / "v")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1, err
+    assert "variance estimator" in err and "--estimator zero-mean" in err, err
+    assert "passes the selection (rejected: {" in err, err
+    assert not (tmp_path / "v").exists() or not any((tmp_path / "v").iterdir())

@@ -10,6 +10,7 @@ estimator cannot hold, while |B| is constant within an hour up to the compressiv
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import functools
 
@@ -131,3 +132,97 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
         zm_law = np.abs(_law(zm.calibration.temperature_coefficients, t) - _law(tc, t))
         print(f"zero-mean law max |error| counts {zm_law.max(axis=0).round(2)}")
         assert zm_law.max() > 3 * law.max()
+
+
+# ---------------------------------------------------------------------------------------
+# item 2: the guards on the variance path (closed-form normal equations)
+# ---------------------------------------------------------------------------------------
+def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0):
+    """`fit_variance_calibration` on normal equations whose solution is ``step``.
+
+    48 one-hour blocks of 400 rows ``y = X step + noise``; accepted samples' temperatures
+    fill the 5-C bins from ``counts_from_c`` to ``counts_to_c`` (3000 each); no heater
+    phase data (the waveforms are kept from ``base``).
+    """
+    from fluxcal.missions.messenger.fit import fit_variance_calibration
+    from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
+    from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
+
+    rng = np.random.default_rng(11)
+    v = _stats(np.arange(48) * 3600.0, rng, np.zeros(N_PARAMETERS))
+    x = rng.normal(size=(48, 400, N_PARAMETERS))
+    y = x @ step + noise * rng.normal(size=(48, 400))
+    centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
+    v.normal, v.rhs = np.einsum("bni,bnj->bij", x, x), np.einsum("bni,bn->bi", x, y)
+    v.reason = np.full(48, "")
+    v.temperature_count = np.where((centre > counts_from_c) & (centre < counts_to_c),
+                                   3000.0, 0.0)
+    return fit_variance_calibration(DayStatistics.empty(FitSettings()), v, base)
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    return load_calibration(str(START))
+
+
+def test_variance_fit_inside_its_ranges_passes_the_guards(shipped):
+    step = np.zeros(N_PARAMETERS)
+    step[-2] = 100.0  # tau 872 -> 972 s
+    res = _variance_result(shipped, step)
+    assert res.estimator == "variance" and res.fitted_range == (-60.0, 40.0)
+    assert res.relaxation.tau == pytest.approx(972.0, abs=0.01)
+    check_fit(res)
+
+
+def test_variance_break_outside_the_fitted_range_is_refused(shipped):
+    # accepted samples only at -60..-30 C: the shipped breaks (-15..-10 C) are not in
+    # the data, whatever their stated error
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
+    assert res.fitted_range == (-60.0, -30.0)
+    with pytest.raises(FitRefusedError, match=r"T_m x = -10\.2 \+- .* C lies outside the "
+                                              r"accepted intervals' fitted range \(-60\.0\.\."
+                                              r"-30\.0 C\).*both sides of the break"):
+        check_fit(res)
+
+
+def test_variance_tau_outside_its_range_is_refused(shipped):
+    # a pass that starts at 1.9x the shipped tau and steps +25 %: 2071 s > 2 x 872 s
+    base = shipped
+    rel = {**base.constants["relaxation"], "tau_s": 1.9 * 872.0}
+    base = dataclasses.replace(base, constants={**base.constants, "relaxation": rel})
+    step = np.zeros(N_PARAMETERS)
+    step[-2] = 0.25 * 1.9 * 872.0
+    res = _variance_result(base, step)
+    with pytest.raises(FitRefusedError, match=r"tau = 2071 \+- 0 s lies outside 436\.\.1744 "
+                                              r"s .*duty-cycle changes"):
+        check_fit(res)
+
+
+def test_variance_meaningless_error_is_refused(shipped):
+    # noise 1e8 times the closed-form one: tau's bootstrap error exceeds 30 % of tau
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), noise=1e5)
+    assert res.relaxation.tau_err > 0.3 * res.relaxation.tau
+    with pytest.raises(FitRefusedError, match=r"tau = \d+ \+- \d+ s, a relative error above "
+                                              r"30%.*duty-cycle changes"):
+        check_fit(res)
+
+
+def test_variance_without_a_fitted_temperature_bin_aborts_naming_it(shipped):
+    with pytest.raises(FluxcalError, match=r"no 5-C temperature bin holds 1800 accepted "
+                                           r"samples .*not constrained"):
+        _variance_result(shipped, np.zeros(N_PARAMETERS), counts_from_c=0.0,
+                         counts_to_c=0.0)
+
+
+def test_fitted_range_needs_enough_samples_per_bin():
+    from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
+
+    v = VarianceStatistics()
+    assert np.isnan(v.fitted_range()).all()
+    counts = np.zeros(TEMPERATURE_EDGES_C.size - 1)
+    i0 = int(np.searchsorted(TEMPERATURE_EDGES_C, -55.0))  # bin -55..-50 C
+    counts[i0], counts[i0 + 1], counts[i0 + 14] = 1800, 1799, 5000  # -55, -50, +15 C
+    v.temperature_count = counts
+    assert v.fitted_range() == (-55.0, 20.0)
+    assert v.merge(v).fitted_range(min_samples=3600) == (-55.0, 20.0)
+    assert v.fitted_range(min_samples=1801) == (15.0, 20.0)

@@ -692,7 +692,10 @@ def fit_variance_calibration(
             "most); the temperature law is not constrained: give more days of solar wind")
     sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap)
     law, d0, tau, dt = fv.apply_step(base, sol.step)
-    boots = [fv.apply_step(base, b) for b in sol.boot]
+    # the errors from the unclipped resamples: clipping them to the step's range (30 % of
+    # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
+    boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf)
+             for b in sol.boot]
     b_law = np.stack([x[0] for x in boots])
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])
