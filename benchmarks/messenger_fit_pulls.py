@@ -6,7 +6,7 @@
 Each realisation simulates ``--days`` days of the independent realistic wind of
 ``tests/missions/messenger/_realistic_wind.py`` (18 nT, Alfvenic rotations, sectors;
 ``--compressive`` relative |B| fluctuation) through `flight_sim` at 1 Hz with seed
-``1000 + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
+``--first-seed + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
 errors), and prints, per realisation and then over all, the pulls ``(fit - truth) /
 stated error`` of tau, dt (when adopted), D0 (x, y, z) and the temperature law at
 -50, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
@@ -49,12 +49,13 @@ def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
 
 
-def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None) -> dict:
+def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
+        first_seed: int = 1000) -> dict:
     """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth)."""
     with tempfile.TemporaryDirectory() as tmp:
         wind = functools.partial(realistic_wind, compressive=compressive)
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01", days=days,
-                                                              seed=1000 + k),
+                                                              seed=first_seed + k),
                               wind=wind, truth=False)
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
@@ -107,6 +108,8 @@ def main() -> None:
     ap.add_argument("--compressive", type=float, default=0.03)
     ap.add_argument("--passes", type=int, default=4)
     ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--first-seed", type=int, default=1000,
+                    help="Seed of the first realisation (then +1 each).")
     ap.add_argument("--save", type=Path, default=None,
                     help="Folder to pickle each realisation's fit and true tables into.")
     args = ap.parse_args()
@@ -114,7 +117,7 @@ def main() -> None:
     t_start = time.perf_counter()
     for k in range(args.realisations):
         t0 = time.perf_counter()
-        r = one(k, args.days, args.compressive, args.passes, args.save)
+        r = one(k, args.days, args.compressive, args.passes, args.save, args.first_seed)
         rows.append(r)
         print(f"{k:3d} {time.perf_counter() - t0:6.1f} s  tau pull {r['tau_pull']:+.2f} "
               f"({r['tau_rel']:+.3f})  dt pull {r['dt_pull']:+.2f}  D0 pulls "
@@ -122,7 +125,8 @@ def main() -> None:
               f"{np.round(np.nanmax(np.abs(r['law_pull']), axis=0), 2)}  law max "
               f"{np.round(r['law_max_nt'], 3)} nT over {r['range'][0]:+.0f}.."
               f"{r['range'][1]:+.0f} C", flush=True)
-    print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations, "
+    print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
+          f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
           f"{args.days} days at 1 Hz, compressive {args.compressive}, {args.passes} passes, "
           f"{time.perf_counter() - t_start:.0f} s")
     if args.markdown:

@@ -679,11 +679,6 @@ def fit_variance_calibration(
             f"variance estimator: no interval of {fv.VarianceSettings().interval_s:.0f} s "
             f"passes the selection (rejected: {vstats.rejections() or 'none'}); give "
             "solar-wind data with rotating field, or choose --estimator zero-mean")
-    if vstats.normal.shape[0] < 3:
-        raise FluxcalError(
-            f"variance estimator: {vstats.normal.shape[0]} bootstrap block(s) of "
-            f"{fv.VarianceSettings().block_s / 3600:.0f} h hold accepted intervals, need 3 "
-            "for an error estimate; give more data")
     t_range = vstats.fitted_range()
     if not np.all(np.isfinite(t_range)):
         raise FluxcalError(

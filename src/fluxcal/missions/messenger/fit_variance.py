@@ -57,6 +57,7 @@ from fluxcal.calibration.variance_offsets import (
     DEFAULT_MIN_EIGENVALUE_RATIO,
     DEFAULT_MIN_RELATIVE_AMPLITUDE,
 )
+from fluxcal.errors import FluxcalError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
@@ -76,6 +77,8 @@ TEMPERATURE_EDGES_C = np.arange(-100.0, 100.1, 5.0)
 #: Fewest accepted samples in a 5-C bin for the bin to count as fitted: half an hour at
 #: 1 Hz, two 900-s intervals (docs/decisions/messenger_fit.md entry 13).
 MIN_RANGE_SAMPLES = 1800
+#: Blocks beyond the free parameters needed for the bootstrap's error estimate.
+MIN_SPARE_BLOCKS = 2
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,8 @@ class VarianceSettings:
         solar_wind_offsets.md entry 4).
     block_s : float
         Bootstrap block (s): normal equations are kept per block; blocks much longer
-        than the field's correlation time are nearly independent.
+        than the field's correlation time are nearly independent (2 h: the compressive
+        |B| part is correlated up to an hour; docs/decisions/messenger_fit.md entry 13).
     detrend : bool
         Remove a straight line in time per interval (from ``|B'|`` and the regressors)
         instead of the mean only: the slow drift of ``|B|`` within an interval is then
@@ -112,7 +116,7 @@ class VarianceSettings:
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
-    block_s: float = 3600.0
+    block_s: float = 7200.0
     detrend: bool = True
     weighting: str = "inverse_variance"
 
@@ -384,7 +388,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     -------
     VarianceSolution
         ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
-        (``n`` blocks, ``p`` free parameters; ``sqrt(2)`` when ``n <= 2 p``).
+        (``n`` blocks, ``p`` free parameters).
+
+    Raises
+    ------
+    FluxcalError
+        ``n <= p + MIN_SPARE_BLOCKS``: too few blocks for an error estimate.
     """
     free = np.ones(N_PARAMETERS, dtype=bool)
     free[-1] = fit_delay
@@ -399,12 +408,17 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
             np.linalg.solve(scaled + 1e-12 * np.eye(aa.shape[-1]), (vv / d)[..., None])[..., 0])
         return sol / d
 
+    nb, p_free = a.shape[0], int(free.sum())
+    if nb <= p_free + MIN_SPARE_BLOCKS:
+        raise FluxcalError(
+            f"variance estimator: {nb} bootstrap blocks of {VarianceSettings().block_s / 3600:g}"
+            f" h hold accepted intervals, need more than {p_free + MIN_SPARE_BLOCKS} for the "
+            f"errors of {p_free} parameters; give more days of solar wind")
     total_a, total_v = a.sum(axis=0), v.sum(axis=0)
     step = np.zeros(N_PARAMETERS)
     step[free] = solve(total_a, total_v)
     chi2 = float(stats.yy.sum() - 2 * step[free] @ total_v + step[free] @ total_a @ step[free])
     rng = np.random.default_rng(seed)
-    nb = a.shape[0]
     picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
                       for _ in range(n_bootstrap)]).astype(float)
     boot_a = np.einsum("rb,bij->rij", picks, a)
@@ -412,10 +426,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     boot = np.zeros((n_bootstrap, N_PARAMETERS))
     boot[:, free] = solve(boot_a, boot_v)
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
-    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks)
-    p_free = int(free.sum())
-    inflate = np.sqrt(nb / (nb - p_free)) if nb > 2 * p_free else np.sqrt(2.0)
-    boot = step + inflate * (boot - boot.mean(axis=0))
+    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks;
+    # entry 13: on 2 days of 2-h blocks this brings the pulls' spread to 0.95-1.04)
+    boot = step + np.sqrt(nb / (nb - p_free)) * (boot - boot.mean(axis=0))
     n_intervals = int(np.count_nonzero(stats.reason == ""))
     dof = int(stats.samples.sum()) - int(free.sum()) - n_intervals
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof)
