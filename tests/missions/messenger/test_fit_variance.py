@@ -67,10 +67,16 @@ def test_statistics_merge_sums_shared_blocks_and_solve_recovers_the_step():
     np.testing.assert_allclose(m.normal[2], a.normal[2] + b.normal[0])
     np.testing.assert_allclose(m.normal.sum(axis=0), a.normal.sum(axis=0) + b.normal.sum(axis=0))
     assert m.rejections() == {"compressive": 2} and m.reason.size == 5
-    sol = solve_variance(m, n_bootstrap=50)
+    # 4 blocks cannot give the errors of 17 parameters: refused, naming the count
+    with pytest.raises(FluxcalError, match=r"4 bootstrap blocks of 2 h .* need more than "
+                                           r"19 for the errors of 17 parameters"):
+        solve_variance(m, n_bootstrap=50)
+    many = m.merge(_stats(np.arange(4, 24) * 7200.0, rng, truth))
+    sol = solve_variance(many, n_bootstrap=50)
     np.testing.assert_allclose(sol.step, truth, atol=1e-4)
-    # the bootstrap spread is the noise's: 1e-3 / sqrt(2000 samples) per parameter
-    assert np.all(sol.boot.std(axis=0) < 1e-4)
+    # the bootstrap spread is the noise's: 1e-3 / sqrt(9600 samples) = 1e-5 per
+    # parameter, widened by sqrt(24 / (24 - 17))
+    assert np.all(sol.boot.std(axis=0) < 5e-5)
 
 
 def test_unknown_estimator_is_refused(tmp_path):
