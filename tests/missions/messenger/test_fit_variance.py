@@ -115,7 +115,7 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
     assert np.all(np.abs(d0[:2]) < 0.05), d0
     assert np.all(np.abs(d0_pull) < 3.0), d0_pull
     assert abs(tau) < 0.05, tau
-    # the stated errors cover the truth at 3 sigma (bootstrap over 3-h blocks)
+    # the stated errors cover the truth at 3 sigma (bootstrap over 2-h blocks)
     assert abs(cal.constants["relaxation"]["tau_s"] - true.constants["relaxation"]["tau_s"]
                ) < 3 * res.relaxation.tau_err + 1.0
     # z's D0 (10x smaller than x, y) is not determined by two days: the guard refuses
@@ -143,11 +143,13 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
 # ---------------------------------------------------------------------------------------
 # item 2: the guards on the variance path (closed-form normal equations)
 # ---------------------------------------------------------------------------------------
-def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0):
+def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0,
+                     sparse_to_c=None):
     """`fit_variance_calibration` on normal equations whose solution is ``step``.
 
     48 one-hour blocks of 400 rows ``y = X step + noise``; accepted samples' temperatures
-    fill the 5-C bins from ``counts_from_c`` to ``counts_to_c`` (3000 each); no heater
+    fill the 5-C bins from ``counts_from_c`` to ``counts_to_c`` (3000 each; 500 each on
+    to ``sparse_to_c``, fewer than `MIN_RANGE_SAMPLES`); no heater
     phase data (the waveforms are kept from ``base``).
     """
     from fluxcal.missions.messenger.fit import fit_variance_calibration
@@ -163,6 +165,8 @@ def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c
     v.reason = np.full(48, "")
     v.temperature_count = np.where((centre > counts_from_c) & (centre < counts_to_c),
                                    3000.0, 0.0)
+    if sparse_to_c is not None:
+        v.temperature_count[(centre > counts_to_c) & (centre < sparse_to_c)] = 500.0
     return fit_variance_calibration(DayStatistics.empty(FitSettings()), v, base)
 
 
@@ -186,9 +190,16 @@ def test_variance_break_outside_the_fitted_range_is_refused(shipped):
     res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
     assert res.fitted_range == (-60.0, -30.0)
     with pytest.raises(FitRefusedError, match=r"T_m x = -10\.2 \+- .* C lies outside the "
-                                              r"accepted intervals' fitted range \(-60\.0\.\."
-                                              r"-30\.0 C\).*both sides of the break"):
+                                              r"temperatures of the accepted intervals "
+                                              r"\(-60\.0\.\.-30\.0 C\).*both sides of the "
+                                              r"break"):
         check_fit(res)
+    # fewer samples (500 per bin) on to 0 C: the law is stated over -60..-30 C only, but
+    # the breaks lie inside the data and pass
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
+                           sparse_to_c=0.0)
+    assert res.fitted_range == (-60.0, -30.0)
+    check_fit(res)
 
 
 def test_variance_tau_outside_its_range_is_refused(shipped):

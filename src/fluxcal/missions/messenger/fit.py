@@ -609,9 +609,14 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}")
     t = result.stats.temperature
     ok = _usable(t)
-    if np.all(np.isfinite(result.fitted_range)):  # the variance estimator's data
-        t_lo, t_hi = result.fitted_range
-        data = "accepted intervals' fitted range"
+    # the variance estimator's data: 5-C bins holding an interval's worth of accepted
+    # samples (the law is stated over the narrower `fitted_range`; a break just beyond it
+    # can still be determined to a fraction of a degree, entry 13)
+    span = (result.variance.fitted_range(fv.VarianceSettings().min_samples)
+            if result.variance is not None else (np.nan, np.nan))
+    if np.all(np.isfinite(span)):
+        t_lo, t_hi = span
+        data = "temperatures of the accepted intervals"
         what_t = ("solar-wind intervals at sensor temperatures on both sides of the break "
                   "(heater-off runs)")
     elif ok.any():
@@ -619,7 +624,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
         t_lo, t_hi = float(np.nanmin(t_mean)), float(np.nanmax(t_mean))
         data = "heater-off data"
         what_t = "heater-off samples over a wider temperature range around the break"
-    if (np.all(np.isfinite(result.fitted_range)) or ok.any()) and result.temperature:
+    if (np.all(np.isfinite(span)) or ok.any()) and result.temperature:
         for a, f in zip(AXES, result.temperature, strict=True):
             if not (t_lo <= f.x_m <= t_hi):
                 raise FitRefusedError(
