@@ -243,3 +243,20 @@ def test_fitted_range_needs_enough_samples_per_bin():
     assert v.fitted_range() == (-55.0, 20.0)
     assert v.merge(v).fitted_range(min_samples=3600) == (-55.0, 20.0)
     assert v.fitted_range(min_samples=1801) == (15.0, 20.0)
+
+
+def test_fitted_range_is_stated_in_the_written_folder(shipped, tmp_path):
+    import tomllib
+
+    from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
+                           sparse_to_c=0.0)
+    prov = {"inputs": {}, "intervals": "all data", "days": "x", "command": "test"}
+    write_calibration_folder(res, tmp_path / "out", None, prov)
+    header = next((tmp_path / "out").glob("offsets_temperature_v*.csv")).read_text()
+    assert "fitted range: -60..-30 C (5-C bins holding >= 1800 samples" in header
+    assert "the law is not constrained outside it" in header
+    report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
+    assert report["temperature"]["fitted_range_c"] == [-60.0, -30.0]
+    assert "fitted range: -60..-30 C" in report_text(res, prov)
