@@ -260,3 +260,22 @@ def test_fitted_range_is_stated_in_the_written_folder(shipped, tmp_path):
     report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
     assert report["temperature"]["fitted_range_c"] == [-60.0, -30.0]
     assert "fitted range: -60..-30 C" in report_text(res, prov)
+
+
+def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
+    # 72 two-hour blocks for 17 parameters: runs of k = 72 // 34 = 2 consecutive blocks
+    # are resampled together; the same normal equations summed by hand into 36 blocks
+    # (36 < 2 x 17: resampled one by one) give the identical bootstrap
+    rng = np.random.default_rng(8)
+    truth = rng.normal(size=N_PARAMETERS)
+    fine = _stats(np.arange(72) * 7200.0, rng, truth)
+    pairs = VarianceStatistics(
+        normal=fine.normal.reshape(36, 2, N_PARAMETERS, N_PARAMETERS).sum(axis=1),
+        rhs=fine.rhs.reshape(36, 2, N_PARAMETERS).sum(axis=1),
+        yy=fine.yy.reshape(36, 2).sum(axis=1), samples=fine.samples.reshape(36, 2).sum(axis=1),
+        block_start=fine.block_start[::2], interval_start=fine.interval_start,
+        reason=fine.reason)
+    a, b = solve_variance(fine, n_bootstrap=40, seed=3), solve_variance(pairs, n_bootstrap=40,
+                                                                        seed=3)
+    np.testing.assert_allclose(a.step, b.step, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(a.boot, b.boot, rtol=1e-9, atol=1e-12)

@@ -79,6 +79,8 @@ TEMPERATURE_EDGES_C = np.arange(-100.0, 100.1, 5.0)
 MIN_RANGE_SAMPLES = 1800
 #: Blocks beyond the free parameters needed for the bootstrap's error estimate.
 MIN_SPARE_BLOCKS = 2
+#: Most consecutive blocks resampled together (`solve_variance`): 12 h of 2-h blocks.
+MAX_GROUP = 6
 
 
 @dataclass(frozen=True)
@@ -388,7 +390,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     -------
     VarianceSolution
         ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
-        (``n`` blocks, ``p`` free parameters).
+        (``n`` resampled units, ``p`` free parameters). The units are runs of ``k``
+        consecutive blocks, ``k`` the largest that leaves ``2 p`` units, at most
+        `MAX_GROUP` (2 h on 2-4 days, 10 h on 16 days).
 
     Raises
     ------
@@ -414,6 +418,17 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
             f"variance estimator: {nb} bootstrap blocks of {VarianceSettings().block_s / 3600:g}"
             f" h hold accepted intervals, need more than {p_free + MIN_SPARE_BLOCKS} for the "
             f"errors of {p_free} parameters; give more days of solar wind")
+    # resampling units as long as the days allow (entry 13: the error is correlated over
+    # hours): consecutive blocks grouped k at a time, k the largest that keeps 2 p units,
+    # at most MAX_GROUP blocks (12 h of 2-h blocks)
+    k = int(min(MAX_GROUP, max(1, nb // (2 * p_free))))
+    if k > 1:
+        group = np.arange(nb) // k
+        n_units = int(group[-1]) + 1
+        a_g, v_g = np.zeros((n_units, *a.shape[1:])), np.zeros((n_units, v.shape[1]))
+        np.add.at(a_g, group, a)
+        np.add.at(v_g, group, v)
+        a, v, nb = a_g, v_g, n_units
     total_a, total_v = a.sum(axis=0), v.sum(axis=0)
     step = np.zeros(N_PARAMETERS)
     step[free] = solve(total_a, total_v)
