@@ -1,16 +1,18 @@
 """Pull study of the MESSENGER variance estimator (issue 21, item 3).
 
-    .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 2
-    .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 6 --compressive 0.03
+    .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 2 \\
+        --compressive 0.03
 
 Each realisation simulates ``--days`` days of the independent realistic wind of
 ``tests/missions/messenger/_realistic_wind.py`` (18 nT, Alfvenic rotations, sectors;
-``--compressive`` relative |B| fluctuation) through `flight_sim` with seed ``1000 + k``,
-fits it with ``--estimator variance`` (guards off: the estimator's own errors), and
-prints, per realisation and then over all, the pulls ``(fit - truth) / stated error`` of
-tau and D0 (x, y, z) and the law's largest error over -60..+40 C.  The stated errors are
-the bootstrap over 3-h blocks.  Pulls with mean ~0 and spread ~1 mean the errors mean
-what they say.
+``--compressive`` relative |B| fluctuation) through `flight_sim` at 1 Hz with seed
+``--first-seed + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
+errors), and prints, per realisation and then over all, the pulls ``(fit - truth) /
+stated error`` of tau, dt (when adopted), D0 (x, y, z) and the temperature law at
+-50, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
+error (nT) over the fitted range.  Pulls with mean ~0 and spread ~1, all within
+[-3, 3], mean the errors say what they mean.  ``--markdown`` prints the table for
+docs/decisions/messenger_fit_verification.md.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import functools
+import pickle
 import sys
 import tempfile
 import time
@@ -31,36 +34,70 @@ from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E40
 
 from fluxcal.missions.messenger import forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
-from fluxcal.missions.messenger.fit import day_chunks, fit_days  # noqa: E402
+from fluxcal.missions.messenger.fit import day_chunks, fit_days, law_sigma  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
+#: Temperatures (C) of the law's pulls: the heater-regulated level, both sides of the
+#: breaks (-18..-8 C in the true tables), the upper segment.
+LAW_T = (-50.0, -20.0, 0.0, 30.0)
+#: Counts to nT (fine range, eq. 8's diagonal, ~0.047 nT per count).
+NT_PER_COUNT = 0.047
 
-def one(k: int, days: int, compressive: float, passes: int) -> dict:
-    """Simulate, fit and compare realisation ``k``."""
+
+def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Table 2 law (counts), the larger of the two lines (eq. 3a, 3b), shape (t, axis)."""
+    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
+
+
+def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
+        first_seed: int = 1000) -> dict:
+    """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth)."""
     with tempfile.TemporaryDirectory() as tmp:
         wind = functools.partial(realistic_wind, compressive=compressive)
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01", days=days,
-                                                              seed=1000 + k),
+                                                              seed=first_seed + k),
                               wind=wind, truth=False)
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
         res = fit_days(day_chunks(run.input_dir, run.days), base, passes=passes,
                        estimator="variance", guard=False)
+    if save is not None:
+        save.mkdir(parents=True, exist_ok=True)
+        (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
     cal = res.calibration
-    t = np.arange(-60.0, 40.01, 1.0)
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
-
-    def law(c):
-        return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
-
-    tau_true = true.constants["relaxation"]["tau_s"]
+    lo, hi = res.fitted_range
+    t_all = np.arange(lo, hi + 0.01, 1.0)
+    law_t = np.array(LAW_T)
+    inside = (law_t >= lo) & (law_t <= hi)
+    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+                / law_sigma(res.temperature, law_t))
+    law_pull[~inside] = np.nan
+    rel = true.constants["relaxation"]
+    r = res.relaxation
     return {
-        "tau_pull": (res.relaxation.tau - tau_true) / res.relaxation.tau_err,
-        "tau_rel": res.relaxation.tau / tau_true - 1.0,
+        "tau_pull": (r.tau - rel["tau_s"]) / r.tau_err,
+        "tau_rel": r.tau / rel["tau_s"] - 1.0,
+        "dt_pull": (r.dt - rel["delay_s"]) / r.dt_err if res.delay_fitted else np.nan,
         "d0_pull": (cal.duty_cycle_d0 - true.d0) / np.array([f.slope_err for f in res.duty]),
         "d0_rel": cal.duty_cycle_d0 / true.d0 - 1.0,
-        "law_max": np.abs(law(cal.temperature_coefficients) - law(tc)).max(axis=0),
+        "law_pull": law_pull,  # (temperature, axis)
+        "law_max_nt": NT_PER_COUNT * np.abs(_law(cal.temperature_coefficients, t_all)
+                                            - _law(tc, t_all)).max(axis=0),
+        "range": (lo, hi),
     }
+
+
+def table(rows: list[dict]) -> list[tuple[str, np.ndarray]]:
+    """``(parameter, pulls over realisations)`` for every parameter."""
+    out = [("tau", np.array([r["tau_pull"] for r in rows])),
+           ("dt", np.array([r["dt_pull"] for r in rows]))]
+    d0 = np.stack([r["d0_pull"] for r in rows])
+    law = np.stack([r["law_pull"] for r in rows])
+    out += [(f"D0 {a}", d0[:, j]) for j, a in enumerate("xyz")]
+    out += [(f"law {a} at {t:+.0f} C", law[:, i, j]) for j, a in enumerate("xyz")
+            for i, t in enumerate(LAW_T)]
+    return out
 
 
 def main() -> None:
@@ -68,27 +105,47 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--realisations", type=int, default=20)
     ap.add_argument("--days", type=int, default=2)
-    ap.add_argument("--compressive", type=float, default=0.0)
+    ap.add_argument("--compressive", type=float, default=0.03)
     ap.add_argument("--passes", type=int, default=4)
+    ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--first-seed", type=int, default=1000,
+                    help="Seed of the first realisation (then +1 each).")
+    ap.add_argument("--save", type=Path, default=None,
+                    help="Folder to pickle each realisation's fit and true tables into.")
     args = ap.parse_args()
     rows = []
+    t_start = time.perf_counter()
     for k in range(args.realisations):
         t0 = time.perf_counter()
-        r = one(k, args.days, args.compressive, args.passes)
+        r = one(k, args.days, args.compressive, args.passes, args.save, args.first_seed)
         rows.append(r)
         print(f"{k:3d} {time.perf_counter() - t0:6.1f} s  tau pull {r['tau_pull']:+.2f} "
-              f"({r['tau_rel']:+.3f})  D0 pulls {np.round(r['d0_pull'], 2)} "
-              f"({np.round(r['d0_rel'], 3)})  law max {np.round(r['law_max'], 2)} counts",
-              flush=True)
-    tau = np.array([r["tau_pull"] for r in rows])
-    d0 = np.stack([r["d0_pull"] for r in rows])
-    print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations, "
-          f"{args.days} days, compressive {args.compressive}")
-    print(f"tau pull: mean {tau.mean():+.2f} std {tau.std(ddof=1):.2f} "
-          f"range {tau.min():+.2f}..{tau.max():+.2f}")
-    for j, a in enumerate("xyz"):
-        print(f"D0 {a} pull: mean {d0[:, j].mean():+.2f} std {d0[:, j].std(ddof=1):.2f} "
-              f"range {d0[:, j].min():+.2f}..{d0[:, j].max():+.2f}")
+              f"({r['tau_rel']:+.3f})  dt pull {r['dt_pull']:+.2f}  D0 pulls "
+              f"{np.round(r['d0_pull'], 2)} ({np.round(r['d0_rel'], 3)})  law pulls max "
+              f"{np.round(np.nanmax(np.abs(r['law_pull']), axis=0), 2)}  law max "
+              f"{np.round(r['law_max_nt'], 3)} nT over {r['range'][0]:+.0f}.."
+              f"{r['range'][1]:+.0f} C", flush=True)
+    print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
+          f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
+          f"{args.days} days at 1 Hz, compressive {args.compressive}, {args.passes} passes, "
+          f"{time.perf_counter() - t_start:.0f} s")
+    if args.markdown:
+        print("| parameter | N | mean pull | spread (std) | max abs pull |")
+        print("|---|---|---|---|---|")
+    for name, p in table(rows):
+        p = p[np.isfinite(p)]
+        if p.size == 0:
+            continue
+        spread = p.std(ddof=1) if p.size > 1 else np.nan
+        if args.markdown:
+            print(f"| {name} | {p.size} | {p.mean():+.2f} | {spread:.2f} | "
+                  f"{np.abs(p).max():.2f} |")
+        else:
+            print(f"{name}: N {p.size} mean {p.mean():+.2f} std {spread:.2f} "
+                  f"max |pull| {np.abs(p).max():.2f}")
+    law_max = np.stack([r["law_max_nt"] for r in rows])
+    print(f"law's largest error over the fitted range (nT): median "
+          f"{np.round(np.median(law_max, axis=0), 3)}, max {np.round(law_max.max(axis=0), 3)}")
 
 
 if __name__ == "__main__":

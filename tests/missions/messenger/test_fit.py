@@ -28,6 +28,9 @@ from fluxcal.missions.messenger.fit_reduce import (
 )
 
 START = "2012-06-01T00:00:00"
+#: The training streams below have a zero-mean 0.1-nT field (the demo's): the seed's
+#: estimator, selected explicitly since the command's default is ``variance``.
+ZERO_MEAN = ("--estimator", "zero-mean")
 
 
 # ---------------------------------------------------------------------------------------
@@ -347,7 +350,7 @@ def test_cli_fit_then_edr2cdr_calib(tmp_path, training, simulated_files, messeng
     from fluxcal.cli import main
 
     fitted = tmp_path / "fitted"
-    rc = main(["messenger", "fit", *_stream_args(training), "--out", str(fitted),
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN, "--out", str(fitted),
                "--passes", "2"])
     out = capsys.readouterr()
     assert rc == 0, out.err
@@ -381,14 +384,14 @@ def test_cli_fit_error_lines(tmp_path, training, simulated_files, messenger_kern
 
     iv = tmp_path / "iv.csv"
     iv.write_text("start,stop\n2012-06-01T01:00:00,2012-06-01T00:00:00\n")
-    rc = main(["messenger", "fit", *_stream_args(training),
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                "--intervals", str(iv), "--out", str(tmp_path / "a")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1
     assert "iv.csv, line 2, field 'stop'" in err
     # the first 10 minutes hold heater-on data only (36 %): no temperature law
     iv.write_text("2012-06-01T00:00:00,2012-06-01T00:10:00\n")
-    rc = main(["messenger", "fit", *_stream_args(training),
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                "--intervals", str(iv), "--out", str(tmp_path / "b")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1
@@ -401,12 +404,12 @@ def test_cli_fit_error_lines(tmp_path, training, simulated_files, messenger_kern
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "--calib lacks the table(s) latency" in err
     # an unknown temperature-law estimator
-    rc = main(["messenger", "fit", *_stream_args(training), "--temperature-law", "median",
-               "--out", str(tmp_path / "e")])
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
+               "--temperature-law", "median", "--out", str(tmp_path / "e")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "temperature_law must be one of distribution, binned-mean" in err
     # both input styles
-    rc = main(["messenger", "fit", *_stream_args(training),
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                "--input-dir", str(tmp_path), "--out", str(tmp_path / "d")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "either --input-dir or --sci" in err
@@ -418,7 +421,7 @@ def test_fit_report_toml_is_readable(tmp_path, training, capsys):
     from fluxcal.cli import main
 
     fitted = tmp_path / "fitted"
-    assert main(["messenger", "fit", *_stream_args(training),
+    assert main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                  "--out", str(fitted), "--passes", "1", "--hold-delay"]) == 0
     capsys.readouterr()
     report = tomllib.loads((fitted / "fit_report.toml").read_text())
@@ -441,3 +444,20 @@ def test_cli_fit_refuses_an_edr_batch_folder(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2 and len(err) == 1 and EDR_MAPPING in err[0], err
         assert not (tmp_path / "fitted").exists()
+
+
+def test_cli_fit_default_is_the_variance_estimator(tmp_path, training, capsys):
+    """Without --estimator the command minimises the variance of |B| (issue 21, item 4).
+
+    The training streams hold a 0.1-nT zero-mean field: no interval rotates enough for
+    the variance estimator; the abort names it, counts the rejections by reason and
+    points to the zero-mean estimator, and nothing is written.
+    """
+    from fluxcal.cli import main
+
+    rc = main(["messenger", "fit", *_stream_args(training), "--out", str(tmp_path / "v")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1, err
+    assert "variance estimator" in err and "--estimator zero-mean" in err, err
+    assert "passes the selection (rejected: {" in err, err
+    assert not (tmp_path / "v").exists() or not any((tmp_path / "v").iterdir())

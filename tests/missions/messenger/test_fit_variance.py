@@ -10,6 +10,7 @@ estimator cannot hold, while |B| is constant within an hour up to the compressiv
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import functools
 
@@ -66,10 +67,16 @@ def test_statistics_merge_sums_shared_blocks_and_solve_recovers_the_step():
     np.testing.assert_allclose(m.normal[2], a.normal[2] + b.normal[0])
     np.testing.assert_allclose(m.normal.sum(axis=0), a.normal.sum(axis=0) + b.normal.sum(axis=0))
     assert m.rejections() == {"compressive": 2} and m.reason.size == 5
-    sol = solve_variance(m, n_bootstrap=50)
+    # 4 blocks cannot give the errors of 17 parameters: refused, naming the count
+    with pytest.raises(FluxcalError, match=r"4 bootstrap blocks of 2 h .* need more than "
+                                           r"19 for the errors of 17 parameters"):
+        solve_variance(m, n_bootstrap=50)
+    many = m.merge(_stats(np.arange(4, 24) * 7200.0, rng, truth))
+    sol = solve_variance(many, n_bootstrap=50)
     np.testing.assert_allclose(sol.step, truth, atol=1e-4)
-    # the bootstrap spread is the noise's: 1e-3 / sqrt(2000 samples) per parameter
-    assert np.all(sol.boot.std(axis=0) < 1e-4)
+    # the bootstrap spread is the noise's: 1e-3 / sqrt(9600 samples) = 1e-5 per
+    # parameter, widened by sqrt(24 / (24 - 17))
+    assert np.all(sol.boot.std(axis=0) < 5e-5)
 
 
 def test_unknown_estimator_is_refused(tmp_path):
@@ -108,7 +115,7 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
     assert np.all(np.abs(d0[:2]) < 0.05), d0
     assert np.all(np.abs(d0_pull) < 3.0), d0_pull
     assert abs(tau) < 0.05, tau
-    # the stated errors cover the truth at 3 sigma (bootstrap over 3-h blocks)
+    # the stated errors cover the truth at 3 sigma (bootstrap over 2-h blocks)
     assert abs(cal.constants["relaxation"]["tau_s"] - true.constants["relaxation"]["tau_s"]
                ) < 3 * res.relaxation.tau_err + 1.0
     # z's D0 (10x smaller than x, y) is not determined by two days: the guard refuses
@@ -131,3 +138,144 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
         zm_law = np.abs(_law(zm.calibration.temperature_coefficients, t) - _law(tc, t))
         print(f"zero-mean law max |error| counts {zm_law.max(axis=0).round(2)}")
         assert zm_law.max() > 3 * law.max()
+
+
+# ---------------------------------------------------------------------------------------
+# item 2: the guards on the variance path (closed-form normal equations)
+# ---------------------------------------------------------------------------------------
+def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0,
+                     sparse_to_c=None):
+    """`fit_variance_calibration` on normal equations whose solution is ``step``.
+
+    48 one-hour blocks of 400 rows ``y = X step + noise``; accepted samples' temperatures
+    fill the 5-C bins from ``counts_from_c`` to ``counts_to_c`` (3000 each; 500 each on
+    to ``sparse_to_c``, fewer than `MIN_RANGE_SAMPLES`); no heater
+    phase data (the waveforms are kept from ``base``).
+    """
+    from fluxcal.missions.messenger.fit import fit_variance_calibration
+    from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
+    from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
+
+    rng = np.random.default_rng(11)
+    v = _stats(np.arange(48) * 3600.0, rng, np.zeros(N_PARAMETERS))
+    x = rng.normal(size=(48, 400, N_PARAMETERS))
+    y = x @ step + noise * rng.normal(size=(48, 400))
+    centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
+    v.normal, v.rhs = np.einsum("bni,bnj->bij", x, x), np.einsum("bni,bn->bi", x, y)
+    v.reason = np.full(48, "")
+    v.temperature_count = np.where((centre > counts_from_c) & (centre < counts_to_c),
+                                   3000.0, 0.0)
+    if sparse_to_c is not None:
+        v.temperature_count[(centre > counts_to_c) & (centre < sparse_to_c)] = 500.0
+    return fit_variance_calibration(DayStatistics.empty(FitSettings()), v, base)
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    return load_calibration(str(START))
+
+
+def test_variance_fit_inside_its_ranges_passes_the_guards(shipped):
+    step = np.zeros(N_PARAMETERS)
+    step[-2] = 100.0  # tau 872 -> 972 s
+    res = _variance_result(shipped, step)
+    assert res.estimator == "variance" and res.fitted_range == (-60.0, 40.0)
+    assert res.relaxation.tau == pytest.approx(972.0, abs=0.01)
+    check_fit(res)
+
+
+def test_variance_break_outside_the_fitted_range_is_refused(shipped):
+    # accepted samples only at -60..-30 C: the shipped breaks (-15..-10 C) are not in
+    # the data, whatever their stated error
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
+    assert res.fitted_range == (-60.0, -30.0)
+    with pytest.raises(FitRefusedError, match=r"T_m x = -10\.2 \+- .* C lies outside the "
+                                              r"temperatures of the accepted intervals "
+                                              r"\(-60\.0\.\.-30\.0 C\).*both sides of the "
+                                              r"break"):
+        check_fit(res)
+    # fewer samples (500 per bin) on to 0 C: the law is stated over -60..-30 C only, but
+    # the breaks lie inside the data and pass
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
+                           sparse_to_c=0.0)
+    assert res.fitted_range == (-60.0, -30.0)
+    check_fit(res)
+
+
+def test_variance_tau_outside_its_range_is_refused(shipped):
+    # a pass that starts at 1.9x the shipped tau and steps +25 %: 2071 s > 2 x 872 s
+    base = shipped
+    rel = {**base.constants["relaxation"], "tau_s": 1.9 * 872.0}
+    base = dataclasses.replace(base, constants={**base.constants, "relaxation": rel})
+    step = np.zeros(N_PARAMETERS)
+    step[-2] = 0.25 * 1.9 * 872.0
+    res = _variance_result(base, step)
+    with pytest.raises(FitRefusedError, match=r"tau = 2071 \+- 0 s lies outside 436\.\.1744 "
+                                              r"s .*duty-cycle changes"):
+        check_fit(res)
+
+
+def test_variance_meaningless_error_is_refused(shipped):
+    # noise 1e8 times the closed-form one: tau's bootstrap error exceeds 30 % of tau
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), noise=1e5)
+    assert res.relaxation.tau_err > 0.3 * res.relaxation.tau
+    with pytest.raises(FitRefusedError, match=r"tau = \d+ \+- \d+ s, a relative error above "
+                                              r"30%.*duty-cycle changes"):
+        check_fit(res)
+
+
+def test_variance_without_a_fitted_temperature_bin_aborts_naming_it(shipped):
+    with pytest.raises(FluxcalError, match=r"no 5-C temperature bin holds 1800 accepted "
+                                           r"samples .*not constrained"):
+        _variance_result(shipped, np.zeros(N_PARAMETERS), counts_from_c=0.0,
+                         counts_to_c=0.0)
+
+
+def test_fitted_range_needs_enough_samples_per_bin():
+    from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
+
+    v = VarianceStatistics()
+    assert np.isnan(v.fitted_range()).all()
+    counts = np.zeros(TEMPERATURE_EDGES_C.size - 1)
+    i0 = int(np.searchsorted(TEMPERATURE_EDGES_C, -55.0))  # bin -55..-50 C
+    counts[i0], counts[i0 + 1], counts[i0 + 14] = 1800, 1799, 5000  # -55, -50, +15 C
+    v.temperature_count = counts
+    assert v.fitted_range() == (-55.0, 20.0)
+    assert v.merge(v).fitted_range(min_samples=3600) == (-55.0, 20.0)
+    assert v.fitted_range(min_samples=1801) == (15.0, 20.0)
+
+
+def test_fitted_range_is_stated_in_the_written_folder(shipped, tmp_path):
+    import tomllib
+
+    from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
+                           sparse_to_c=0.0)
+    prov = {"inputs": {}, "intervals": "all data", "days": "x", "command": "test"}
+    write_calibration_folder(res, tmp_path / "out", None, prov)
+    header = next((tmp_path / "out").glob("offsets_temperature_v*.csv")).read_text()
+    assert "fitted range: -60..-30 C (5-C bins holding >= 1800 samples" in header
+    assert "the law is not constrained outside it" in header
+    report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
+    assert report["temperature"]["fitted_range_c"] == [-60.0, -30.0]
+    assert "fitted range: -60..-30 C" in report_text(res, prov)
+
+
+def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
+    # 72 two-hour blocks for 17 parameters: runs of k = 72 // 34 = 2 consecutive blocks
+    # are resampled together; the same normal equations summed by hand into 36 blocks
+    # (36 < 2 x 17: resampled one by one) give the identical bootstrap
+    rng = np.random.default_rng(8)
+    truth = rng.normal(size=N_PARAMETERS)
+    fine = _stats(np.arange(72) * 7200.0, rng, truth)
+    pairs = VarianceStatistics(
+        normal=fine.normal.reshape(36, 2, N_PARAMETERS, N_PARAMETERS).sum(axis=1),
+        rhs=fine.rhs.reshape(36, 2, N_PARAMETERS).sum(axis=1),
+        yy=fine.yy.reshape(36, 2).sum(axis=1), samples=fine.samples.reshape(36, 2).sum(axis=1),
+        block_start=fine.block_start[::2], interval_start=fine.interval_start,
+        reason=fine.reason)
+    a, b = solve_variance(fine, n_bootstrap=40, seed=3), solve_variance(pairs, n_bootstrap=40,
+                                                                        seed=3)
+    np.testing.assert_allclose(a.step, b.step, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(a.boot, b.boot, rtol=1e-9, atol=1e-12)

@@ -137,11 +137,12 @@ def fit(
         "as the law averaged over its samples' temperatures (unbiased at the break); "
         "'binned-mean': the seed's law at the bins' mean temperatures."),
     estimator: str = typer.Option(
-        "zero-mean", "--estimator", help="'zero-mean': the seed's long-term averages, "
-        "which assume the field averages to zero over each bin's samples (quiet or very "
-        "long data); 'variance': |B| least variable within 15-min intervals, which assumes "
-        "rotations at nearly constant |B| (Alfvenic solar wind), any mean field. "
-        "Temperature law, D0, tau and dt; the waveforms are phase-binned either way."),
+        "variance", "--estimator", help="'variance' (default): |B| least variable within "
+        "15-min intervals, which assumes rotations at nearly constant |B| (Alfvenic solar "
+        "wind) and nothing about the mean field; 'zero-mean': the seed's long-term "
+        "averages, which assume the field averages to zero over each bin's samples (a "
+        "quiet field, e.g. the demo's). Temperature law, D0, tau and dt; the waveforms are "
+        "phase-binned either way."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 

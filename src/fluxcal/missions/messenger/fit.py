@@ -74,7 +74,7 @@ from fluxcal.products.provenance import sha256_file
 from fluxcal.runs.batch import release_worker_kernel_pool, worker_kernel_pool
 
 __all__ = ["ESTIMATORS", "TEMPERATURE_LAWS", "FitResult", "check_fit", "fit_calibration",
-           "fit_days", "fit_variance_calibration", "reduce_day"]
+           "fit_days", "fit_variance_calibration", "law_sigma", "reduce_day"]
 
 AXES = ("x", "y", "z")
 #: Fewest samples in a bin for it to enter a fit (the variance needs two; a bin mean of
@@ -149,6 +149,10 @@ class FitResult:
     variance : VarianceStatistics or None
         The variance estimator's statistics (intervals accepted and rejected, with
         their reasons), when it was used.
+    fitted_range : tuple of float
+        Temperature range (C) over which the data constrain the law (the variance
+        estimator: `VarianceStatistics.fitted_range`); ``(nan, nan)``: the filled
+        heater-off bins (`check_fit`).
     """
 
     calibration: MessengerCalibration
@@ -163,6 +167,7 @@ class FitResult:
     temperature_law: str = "distribution"
     estimator: str = "zero-mean"
     variance: Any = None
+    fitted_range: tuple[float, float] = (float("nan"), float("nan"))
 
     def summary(self) -> dict[str, Any]:
         """Return the headline numbers (for the pass history and the report)."""
@@ -514,6 +519,26 @@ def fit_calibration(
                      stats=stats, epoch_curve=curve, temperature_law=temperature_law)
 
 
+def law_sigma(temperature: Sequence[TwoSegmentFit], t: np.ndarray) -> np.ndarray:
+    """Stated standard error (counts) of the fitted law at temperatures ``t``, per axis.
+
+    Propagated from each axis's covariance of ``(A0, B0, A1, B1)`` through the line in
+    force at ``t`` (the larger of the two, eq. 3a/3b); shape ``(len(t), 3)``.
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    out = np.zeros((t.size, len(temperature)))
+    for j, f in enumerate(temperature):
+        cov = np.asarray(f.covariance, dtype=float)[:4, :4]
+        upper = f.a1 + f.b1 * t > f.a0 + f.b0 * t
+        g = np.zeros((t.size, 4))
+        g[:, 0] = np.where(upper, 0.0, 1.0)
+        g[:, 1] = np.where(upper, 0.0, t)
+        g[:, 2] = np.where(upper, 1.0, 0.0)
+        g[:, 3] = np.where(upper, t, 0.0)
+        out[:, j] = np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", g, cov, g), 0.0))
+    return out
+
+
 @functools.lru_cache(maxsize=1)
 def _shipped() -> MessengerCalibration:
     return load_calibration(_SHIPPED_DAY)
@@ -586,15 +611,27 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}")
     t = result.stats.temperature
     ok = _usable(t)
-    if ok.any() and result.temperature:
+    # the variance estimator's data: 5-C bins holding an interval's worth of accepted
+    # samples (the law is stated over the narrower `fitted_range`; a break just beyond it
+    # can still be determined to a fraction of a degree, entry 13)
+    span = (result.variance.fitted_range(fv.VarianceSettings().min_samples)
+            if result.variance is not None else (np.nan, np.nan))
+    if np.all(np.isfinite(span)):
+        t_lo, t_hi = span
+        data = "temperatures of the accepted intervals"
+        what_t = ("solar-wind intervals at sensor temperatures on both sides of the break "
+                  "(heater-off runs)")
+    elif ok.any():
         t_mean = t.mean()[ok, 3]
         t_lo, t_hi = float(np.nanmin(t_mean)), float(np.nanmax(t_mean))
+        data = "heater-off data"
         what_t = "heater-off samples over a wider temperature range around the break"
+    if (np.all(np.isfinite(span)) or ok.any()) and result.temperature:
         for a, f in zip(AXES, result.temperature, strict=True):
             if not (t_lo <= f.x_m <= t_hi):
                 raise FitRefusedError(
                     f"temperature law (sec. 7, Table 2): fitted break T_m {a} = {f.x_m:.1f} "
-                    f"+- {f.x_m_err:.2g} C lies outside the heater-off data ({t_lo:.1f}.."
+                    f"+- {f.x_m_err:.2g} C lies outside the {data} ({t_lo:.1f}.."
                     f"{t_hi:.1f} C); not written. Needs {what_t}")
             if not (np.isfinite(f.x_m_err) and f.x_m_err <= MAX_BREAK_ERROR_C):
                 raise FitRefusedError(
@@ -649,14 +686,18 @@ def fit_variance_calibration(
             f"variance estimator: no interval of {fv.VarianceSettings().interval_s:.0f} s "
             f"passes the selection (rejected: {vstats.rejections() or 'none'}); give "
             "solar-wind data with rotating field, or choose --estimator zero-mean")
-    if vstats.normal.shape[0] < 3:
+    t_range = vstats.fitted_range()
+    if not np.all(np.isfinite(t_range)):
         raise FluxcalError(
-            f"variance estimator: {vstats.normal.shape[0]} bootstrap block(s) of "
-            f"{fv.VarianceSettings().block_s / 3600:.0f} h hold accepted intervals, need 3 "
-            "for an error estimate; give more data")
+            f"variance estimator: no 5-C temperature bin holds {fv.MIN_RANGE_SAMPLES} "
+            f"accepted samples (accepted per bin: {int(vstats.temperature_count.max())} at "
+            "most); the temperature law is not constrained: give more days of solar wind")
     sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap)
     law, d0, tau, dt = fv.apply_step(base, sol.step)
-    boots = [fv.apply_step(base, b) for b in sol.boot]
+    # the errors from the unclipped resamples: clipping them to the step's range (30 % of
+    # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
+    boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf)
+             for b in sol.boot]
     b_law = np.stack([x[0] for x in boots])
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])
@@ -709,7 +750,7 @@ def fit_variance_calibration(
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
                      stats=stats, epoch_curve=np.empty((0, 4)), estimator="variance",
-                     variance=vstats)
+                     variance=vstats, fitted_range=t_range)
 
 
 # ---------------------------------------------------------------------------------------

@@ -72,7 +72,7 @@ def run_fit(
     workers: int = 2,
     progress: Callable[[str, int, int], None] | None = None,
     temperature_law: str = "distribution",
-    estimator: str = "zero-mean",
+    estimator: str = "variance",
 ) -> str:
     """Run ``fluxcal messenger fit`` and return the summary text (`report_text`).
 

@@ -57,13 +57,14 @@ from fluxcal.calibration.variance_offsets import (
     DEFAULT_MIN_EIGENVALUE_RATIO,
     DEFAULT_MIN_RELATIVE_AMPLITUDE,
 )
+from fluxcal.errors import FluxcalError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
-__all__ = ["N_PARAMETERS", "VarianceSettings", "VarianceStatistics", "reduce_variance",
-           "solve_variance"]
+__all__ = ["MIN_RANGE_SAMPLES", "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings",
+           "VarianceStatistics", "reduce_variance", "solve_variance"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then the
 #: shared d(tau) and d(dt).
@@ -71,6 +72,15 @@ PER_AXIS = 5
 N_PARAMETERS = 3 * PER_AXIS + 2
 #: Step of dt (s) for the derivative of the relaxed duty cycle in dt.
 DELAY_STEP_S = 1.0
+#: Edges (C) of the histogram of the accepted samples' temperatures (`fitted_range`).
+TEMPERATURE_EDGES_C = np.arange(-100.0, 100.1, 5.0)
+#: Fewest accepted samples in a 5-C bin for the bin to count as fitted: half an hour at
+#: 1 Hz, two 900-s intervals (docs/decisions/messenger_fit.md entry 13).
+MIN_RANGE_SAMPLES = 1800
+#: Blocks beyond the free parameters needed for the bootstrap's error estimate.
+MIN_SPARE_BLOCKS = 2
+#: Most consecutive blocks resampled together (`solve_variance`): 12 h of 2-h blocks.
+MAX_GROUP = 6
 
 
 @dataclass(frozen=True)
@@ -91,7 +101,8 @@ class VarianceSettings:
         solar_wind_offsets.md entry 4).
     block_s : float
         Bootstrap block (s): normal equations are kept per block; blocks much longer
-        than the field's correlation time are nearly independent.
+        than the field's correlation time are nearly independent (2 h: the compressive
+        |B| part is correlated up to an hour; docs/decisions/messenger_fit.md entry 13).
     detrend : bool
         Remove a straight line in time per interval (from ``|B'|`` and the regressors)
         instead of the mean only: the slow drift of ``|B|`` within an interval is then
@@ -107,7 +118,7 @@ class VarianceSettings:
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
     max_compressibility: float = DEFAULT_MAX_COMPRESSIBILITY
-    block_s: float = 3600.0
+    block_s: float = 7200.0
     detrend: bool = True
     weighting: str = "inverse_variance"
 
@@ -129,6 +140,8 @@ class VarianceStatistics:
         ET of every interval's start (accepted and rejected).
     reason : ndarray of str, shape (n_intervals,)
         ``""`` for accepted intervals, else the first failed criterion.
+    temperature_count : ndarray, shape (len(TEMPERATURE_EDGES_C) - 1,)
+        Accepted samples per 5-C bin of the sensor temperature (`fitted_range`).
     """
 
     normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
@@ -139,6 +152,8 @@ class VarianceStatistics:
     block_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     interval_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     reason: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="<U24"))
+    temperature_count: np.ndarray = field(
+        default_factory=lambda: np.zeros(TEMPERATURE_EDGES_C.size - 1))
 
     def merge(self, other: VarianceStatistics) -> VarianceStatistics:
         """Return the statistics of both (blocks of the same start are summed)."""
@@ -156,11 +171,24 @@ class VarianceStatistics:
             yy=add(self.yy, other.yy), samples=add(self.samples, other.samples),
             block_start=uniq,
             interval_start=np.concatenate([self.interval_start, other.interval_start]),
-            reason=np.concatenate([self.reason, other.reason]).astype("<U24"))
+            reason=np.concatenate([self.reason, other.reason]).astype("<U24"),
+            temperature_count=self.temperature_count + other.temperature_count)
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
         return count_reasons(self.reason)
+
+    def fitted_range(self, min_samples: int = MIN_RANGE_SAMPLES) -> tuple[float, float]:
+        """Return the temperature range (C) over which the data constrain the law.
+
+        From the lower edge of the first to the upper edge of the last 5-C bin holding
+        at least ``min_samples`` accepted samples; ``(nan, nan)`` when none does.  The
+        law is stated (fit_report, Table 2 header) and verified over this range only.
+        """
+        full = np.flatnonzero(self.temperature_count >= min_samples)
+        if full.size == 0:
+            return float("nan"), float("nan")
+        return float(TEMPERATURE_EDGES_C[full[0]]), float(TEMPERATURE_EDGES_C[full[-1] + 1])
 
 
 def _relaxed(et: np.ndarray, changes, cal: MessengerCalibration, tau: float,
@@ -264,6 +292,7 @@ def reduce_variance(
     if not ok.any():
         return out
     codes = codes[ok]
+    out.temperature_count = np.histogram(temp_c[ok], TEMPERATURE_EDGES_C)[0].astype(float)
     b, temp_c, r, dr_tau, dr_dt, et, mag = (x[ok] for x in (b, temp_c, r, dr_tau, dr_dt, et,
                                                             mag))
     # M^T of the unit vector per sample: d|B'| / d(offset counts) = -u (the |B| form: the
@@ -361,7 +390,14 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     -------
     VarianceSolution
         ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
-        (``n`` blocks, ``p`` free parameters; ``sqrt(2)`` when ``n <= 2 p``).
+        (``n`` resampled units, ``p`` free parameters). The units are runs of ``k``
+        consecutive blocks, ``k`` the largest that leaves ``2 p`` units, at most
+        `MAX_GROUP` (2 h on 2-4 days, 10 h on 16 days).
+
+    Raises
+    ------
+    FluxcalError
+        ``n <= p + MIN_SPARE_BLOCKS``: too few blocks for an error estimate.
     """
     free = np.ones(N_PARAMETERS, dtype=bool)
     free[-1] = fit_delay
@@ -376,12 +412,28 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
             np.linalg.solve(scaled + 1e-12 * np.eye(aa.shape[-1]), (vv / d)[..., None])[..., 0])
         return sol / d
 
+    nb, p_free = a.shape[0], int(free.sum())
+    if nb <= p_free + MIN_SPARE_BLOCKS:
+        raise FluxcalError(
+            f"variance estimator: {nb} bootstrap blocks of {VarianceSettings().block_s / 3600:g}"
+            f" h hold accepted intervals, need more than {p_free + MIN_SPARE_BLOCKS} for the "
+            f"errors of {p_free} parameters; give more days of solar wind")
+    # resampling units as long as the days allow (entry 13: the error is correlated over
+    # hours): consecutive blocks grouped k at a time, k the largest that keeps 2 p units,
+    # at most MAX_GROUP blocks (12 h of 2-h blocks)
+    k = int(min(MAX_GROUP, max(1, nb // (2 * p_free))))
+    if k > 1:
+        group = np.arange(nb) // k
+        n_units = int(group[-1]) + 1
+        a_g, v_g = np.zeros((n_units, *a.shape[1:])), np.zeros((n_units, v.shape[1]))
+        np.add.at(a_g, group, a)
+        np.add.at(v_g, group, v)
+        a, v, nb = a_g, v_g, n_units
     total_a, total_v = a.sum(axis=0), v.sum(axis=0)
     step = np.zeros(N_PARAMETERS)
     step[free] = solve(total_a, total_v)
     chi2 = float(stats.yy.sum() - 2 * step[free] @ total_v + step[free] @ total_a @ step[free])
     rng = np.random.default_rng(seed)
-    nb = a.shape[0]
     picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
                       for _ in range(n_bootstrap)]).astype(float)
     boot_a = np.einsum("rb,bij->rij", picks, a)
@@ -389,10 +441,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     boot = np.zeros((n_bootstrap, N_PARAMETERS))
     boot[:, free] = solve(boot_a, boot_v)
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
-    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks)
-    p_free = int(free.sum())
-    inflate = np.sqrt(nb / (nb - p_free)) if nb > 2 * p_free else np.sqrt(2.0)
-    boot = step + inflate * (boot - boot.mean(axis=0))
+    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks;
+    # entry 13: on 2 days of 2-h blocks this brings the pulls' spread to 0.95-1.04)
+    boot = step + np.sqrt(nb / (nb - p_free)) * (boot - boot.mean(axis=0))
     n_intervals = int(np.count_nonzero(stats.reason == ""))
     dof = int(stats.samples.sum()) - int(free.sum()) - n_intervals
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof)

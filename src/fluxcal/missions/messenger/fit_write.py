@@ -25,7 +25,8 @@ import numpy as np
 
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
-from fluxcal.missions.messenger.fit import AXES, FitResult
+from fluxcal.missions.messenger.fit import AXES, FitResult, law_sigma
+from fluxcal.missions.messenger.fit_variance import MIN_RANGE_SAMPLES, TEMPERATURE_EDGES_C
 from fluxcal.products.atomic import atomic_group, atomic_write_bytes
 from fluxcal.products.provenance import creation_time, sha256_file
 from fluxcal.version import software_version
@@ -149,10 +150,13 @@ def write_calibration_folder(
              f"A1 {f.a1_err:.3g} B1 {f.b1_err:.3g} Tm {f.x_m_err:.3g}"
              for a, f in zip(AXES, t, strict=True)]
     tm = result.stats.temperature
-    extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}",
-              f"estimator: {result.temperature_law} (bin "
-              "averages of the law over each bin's temperatures, or the law at the bins' "
-              "mean temperatures)"]
+    if result.estimator == "variance":
+        extra += [_range_line(result)]
+    else:
+        extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}",
+                  f"estimator: {result.temperature_law} (bin "
+                  "averages of the law over each bin's temperatures, or the law at the bins' "
+                  "mean temperatures)"]
     rows = ["axis,A0,B0,A1,B1,Tm_c"] + [
         f"{a},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{c[3]:.6f},{tmv:.4f}"
         for a, c, tmv in zip(AXES, cal.temperature_coefficients, cal.breakpoint_temperature_c,
@@ -248,6 +252,16 @@ def write_calibration_folder(
     return written
 
 
+def _range_line(result: FitResult) -> str:
+    """Return the fitted temperature range and the law's stated error at its ends."""
+    lo, hi = result.fitted_range
+    err = law_sigma(result.temperature, np.array([lo, hi]))
+    return (f"fitted range: {lo:.0f}..{hi:.0f} C (5-C bins holding >= {MIN_RANGE_SAMPLES} "
+            "samples of accepted intervals); the law is not constrained outside it; stated "
+            f"error at {lo:.0f} C {_fmt(err[0], 3)} counts, at {hi:.0f} C {_fmt(err[1], 3)} "
+            "counts (x, y, z)")
+
+
 def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mapping[str, int],
                provenance: Mapping[str, Any]) -> dict[str, Any]:
     """Return the ``fit_report.toml`` document (every number of the fit)."""
@@ -305,6 +319,11 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
             "rejected_start_et": v.interval_start[v.reason != ""],
             "rejected_reason": [str(x) for x in v.reason[v.reason != ""]],
             "bootstrap_blocks": int(v.block_start.size)}
+        doc["temperature"]["fitted_range_c"] = list(result.fitted_range)
+        doc["temperature"]["fitted_range_rule"] = (
+            f"5-C bins holding >= {MIN_RANGE_SAMPLES} samples of accepted intervals")
+        doc["temperature"]["variance_bin_edges_c"] = TEMPERATURE_EDGES_C
+        doc["temperature"]["variance_bin_samples"] = v.temperature_count
     return _plain(doc)
 
 
@@ -351,6 +370,8 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
         "",
         "temperature law (Table 2 form, fine counts):",
     ]
+    if result.estimator == "variance":
+        lines.append(f"  {_range_line(result)}")
     for a, f in zip(AXES, result.temperature, strict=True):
         lines.append(f"  {a}: A0 {f.a0:9.3f} +- {f.a0_err:.3f}  B0 {f.b0:7.4f} +- {f.b0_err:.4f}"
                      f"  A1 {f.a1:9.3f} +- {f.a1_err:.3f}  B1 {f.b1:7.4f} +- {f.b1_err:.4f}"
