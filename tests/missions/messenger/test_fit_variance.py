@@ -144,7 +144,7 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
 # item 2: the guards on the variance path (closed-form normal equations)
 # ---------------------------------------------------------------------------------------
 def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0,
-                     sparse_to_c=None):
+                     sparse_to_c=None, hold_d0=()):
     """`fit_variance_calibration` on normal equations whose solution is ``step``.
 
     48 one-hour blocks of 400 rows ``y = X step + noise``; accepted samples' temperatures
@@ -167,7 +167,8 @@ def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c
                                    3000.0, 0.0)
     if sparse_to_c is not None:
         v.temperature_count[(centre > counts_to_c) & (centre < sparse_to_c)] = 500.0
-    return fit_variance_calibration(DayStatistics.empty(FitSettings()), v, base)
+    return fit_variance_calibration(DayStatistics.empty(FitSettings()), v, base,
+                                    hold_d0=hold_d0)
 
 
 @pytest.fixture(scope="module")
@@ -222,6 +223,61 @@ def test_variance_meaningless_error_is_refused(shipped):
     with pytest.raises(FitRefusedError, match=r"tau = \d+ \+- \d+ s, a relative error above "
                                               r"30%.*duty-cycle changes"):
         check_fit(res)
+
+
+def test_d0_the_data_put_out_of_range_is_refused_naming_the_hold_option(shipped):
+    # D0 z stepped to 5x its shipped value (outside 1/3..3x): refused, and the message
+    # names the way out (the user keeps the base value of that axis)
+    d0 = np.asarray(shipped.duty_cycle_d0, dtype=float)
+    step = np.zeros(N_PARAMETERS)
+    step[2 * 5 + 4] = 4.0 * d0[2]   # D0 z -> 5x
+    step[0 * 5 + 4] = 0.1 * d0[0]   # D0 x -> 1.1x
+    res = _variance_result(shipped, step)
+    assert res.duty[2].slope == pytest.approx(5.0 * d0[2], rel=1e-3)
+    with pytest.raises(FitRefusedError, match=r"D0 z = .* is 5x the shipped .*not written\. "
+                                              r"Needs .*, or keep the base value of this "
+                                              r"axis \(--hold-d0 z\)"):
+        check_fit(res)
+
+
+def test_held_d0_keeps_the_base_value_and_the_other_parameters(shipped, tmp_path):
+    import tomllib
+
+    from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
+
+    d0 = np.asarray(shipped.duty_cycle_d0, dtype=float)
+    step = np.zeros(N_PARAMETERS)
+    step[0 * 5 + 4] = 0.1 * d0[0]   # D0 x -> 1.1x (free)
+    step[-2] = 50.0                 # tau 872 -> 922 s
+    res = _variance_result(shipped, step, hold_d0=("z",))
+    # z is the base value exactly, with no error; x and tau still come from the data
+    assert res.duty[2].slope == d0[2] and res.duty[2].slope_err == 0.0
+    assert res.duty[0].slope == pytest.approx(1.1 * d0[0], rel=1e-4)
+    assert res.relaxation.tau == pytest.approx(922.0, abs=0.05)
+    assert res.held_d0 == ("z",)
+    check_fit(res)
+    prov = {"inputs": {}, "intervals": "all data", "days": "x", "command": "test"}
+    write_calibration_folder(res, tmp_path / "out", None, prov)
+    header = next((tmp_path / "out").glob("offsets_duty_cycle_v*.csv")).read_text()
+    assert "z: D0 held at the base value (--hold-d0)" in header
+    report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
+    assert report["duty_cycle"]["z"]["D0_held"] and not report["duty_cycle"]["x"]["D0_held"]
+    assert "D0 held" not in report_text(res, prov).split("x: C0")[1].split("\n")[0]
+    assert "(held at the base value: --hold-d0)" in report_text(res, prov)
+
+
+def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
+    from fluxcal.cli import main
+
+    base = ["messenger", "fit", "--input-dir", str(tmp_path / "missing"), "--out",
+            str(tmp_path / "out")]
+    for extra, message in ((["--hold-d0", "w"], "--hold-d0 takes a comma list of the axes"),
+                           (["--hold-d0", "z", "--estimator", "zero-mean"],
+                            "--hold-d0 needs --estimator variance")):
+        assert main([*base, *extra]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "--hold-d0" in err and err.count("\n") == 1
+        assert not (tmp_path / "out").exists()
 
 
 def test_variance_without_a_fitted_temperature_bin_aborts_naming_it(shipped):

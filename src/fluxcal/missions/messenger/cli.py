@@ -143,12 +143,18 @@ def fit(
         "averages, which assume the field averages to zero over each bin's samples (a "
         "quiet field, e.g. the demo's). Temperature law, D0, tau and dt; the waveforms are "
         "phase-binned either way."),
+    hold_d0: str = typer.Option(
+        "", "--hold-d0", help="Comma list of axes (x, y, z) whose duty-cycle coefficient "
+        "D0 keeps the base value (variance estimator): for an axis whose D0 the data do "
+        "not determine, which the fit otherwise refuses; the report marks it held."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
     Temperature law (Table 2 form), duty-cycle law (Table 3 form), relaxation time and
-    heater delay, heater waveforms (Tables 6-8 form) from long-term averages, as in
-    MESSENGER MAG EDR-to-CDR Processing, sec. 6-7; writes a folder for 'edr2cdr --calib'.
+    heater delay (by default from the variance of |B| in short intervals; or from the
+    seed's long-term averages, sec. 7), heater waveforms (Tables 6-8 form, phase-binned,
+    sec. 6), as in MESSENGER MAG EDR-to-CDR Processing; writes a folder for
+    'edr2cdr --calib'.
     """
     from fluxcal.missions.messenger.fit_cli import run_fit
 
@@ -159,7 +165,7 @@ def fit(
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
                        workers=workers, progress=progress, temperature_law=temperature_law,
-                       estimator=estimator)
+                       estimator=estimator, hold_d0=hold_d0)
     typer.echo(text)
 
 

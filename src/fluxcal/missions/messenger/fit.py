@@ -153,6 +153,8 @@ class FitResult:
         Temperature range (C) over which the data constrain the law (the variance
         estimator: `VarianceStatistics.fitted_range`); ``(nan, nan)``: the filled
         heater-off bins (`check_fit`).
+    held_d0 : tuple of str
+        Axes whose D0 kept the base value at the user's request (``--hold-d0``).
     """
 
     calibration: MessengerCalibration
@@ -168,6 +170,7 @@ class FitResult:
     estimator: str = "zero-mean"
     variance: Any = None
     fitted_range: tuple[float, float] = (float("nan"), float("nan"))
+    held_d0: tuple[str, ...] = ()
 
     def summary(self) -> dict[str, Any]:
         """Return the headline numbers (for the pass history and the report)."""
@@ -603,12 +606,14 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
                 f"{f.slope_err:.2g} counts/ppt is {ratio:.2g}x the shipped {ref_j:.4g} "
                 f"(allowed: same sign, 1/{D0_RANGE_FACTOR:g}..{D0_RANGE_FACTOR:g}x); not "
-                f"written. Needs {what_d0}")
+                f"written. Needs {what_d0}, or keep the base value of this axis "
+                f"(--hold-d0 {a})")
         if not (np.isfinite(f.slope_err) and f.slope_err <= MAX_RELATIVE_ERROR * abs(f.slope)):
             raise FitRefusedError(
                 f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
                 f"{f.slope_err:.2g} counts/ppt, a relative error above "
-                f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}")
+                f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}, or keep the base "
+                f"value of this axis (--hold-d0 {a})")
     t = result.stats.temperature
     ok = _usable(t)
     # the variance estimator's data: 5-C bins holding an interval's worth of accepted
@@ -647,6 +652,7 @@ def fit_variance_calibration(
     *,
     fit_delay: bool = True,
     n_bootstrap: int = 200,
+    hold_d0: tuple[str, ...] = (),
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
@@ -665,6 +671,8 @@ def fit_variance_calibration(
     base : MessengerCalibration
     fit_delay : bool
     n_bootstrap : int
+    hold_d0 : tuple of str
+        Axes (``"x"``, ``"y"``, ``"z"``) whose D0 keeps the base value (error 0).
 
     Returns
     -------
@@ -692,7 +700,8 @@ def fit_variance_calibration(
             f"variance estimator: no 5-C temperature bin holds {fv.MIN_RANGE_SAMPLES} "
             f"accepted samples (accepted per bin: {int(vstats.temperature_count.max())} at "
             "most); the temperature law is not constrained: give more days of solar wind")
-    sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap)
+    sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
+                            hold_d0=tuple(AXES.index(a) for a in hold_d0))
     law, d0, tau, dt = fv.apply_step(base, sol.step)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
@@ -706,7 +715,7 @@ def fit_variance_calibration(
     adopted = fit_delay and dt_err < MAX_DELAY_ERROR_S and dt >= 0.0
     if fit_delay and not adopted:
         return fit_variance_calibration(stats, vstats, base, fit_delay=False,
-                                        n_bootstrap=n_bootstrap)
+                                        n_bootstrap=n_bootstrap, hold_d0=hold_d0)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
@@ -725,7 +734,8 @@ def fit_variance_calibration(
             b1=float(total[j, 3]), x_m=float(law[j, 3]), a0_err=float(err[0]),
             b0_err=float(err[1]), a1_err=float(err[2]), b1_err=float(err[3]),
             x_m_err=float(err[4]), covariance=cov, chi2=chi2, dof=sol.dof))
-    duty = [LineFit(slope=float(d0[j]), slope_err=float(np.std(b_d0[:, j])),
+    duty = [LineFit(slope=float(d0[j]),
+                    slope_err=0.0 if AXES[j] in hold_d0 else float(np.std(b_d0[:, j])),
                     intercept=float(c_ref[j]), intercept_err=0.0, x0=0.0, y0=float(c_ref[j]),
                     chi2=chi2, dof=sol.dof) for j in range(3)]
     relaxation = RelaxationFit(
@@ -750,7 +760,7 @@ def fit_variance_calibration(
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
                      stats=stats, epoch_curve=np.empty((0, 4)), estimator="variance",
-                     variance=vstats, fitted_range=t_range)
+                     variance=vstats, fitted_range=t_range, held_d0=tuple(hold_d0))
 
 
 # ---------------------------------------------------------------------------------------
@@ -858,6 +868,7 @@ def fit_days(
     temperature_law: str = "distribution",
     estimator: str = "zero-mean",
     guard: bool = True,
+    hold_d0: tuple[str, ...] = (),
 ) -> FitResult:
     """Fit the calibration to many days: reduce each (map), merge, fit; ``passes`` times.
 
@@ -895,6 +906,10 @@ def fit_days(
     guard : bool
         Refuse a pass outside the physical ranges (`check_fit`); False only for studies
         of the estimators themselves (the result must then not be written).
+    hold_d0 : tuple of str
+        Axes (``"x"``, ``"y"``, ``"z"``) whose D0 keeps the base value (variance
+        estimator only): the user's choice for an axis whose D0 the data do not
+        determine (``--hold-d0``; docs/decisions/messenger_fit.md, entry 15).
 
     Returns
     -------
@@ -918,6 +933,11 @@ def fit_days(
     if estimator not in ESTIMATORS:
         raise FluxcalError(f"estimator must be one of {', '.join(ESTIMATORS)}, "
                            f"got {estimator!r}")
+    if hold_d0 and estimator != "variance":
+        raise FluxcalError("holding D0 (--hold-d0) needs the variance estimator "
+                           f"(--estimator variance), got {estimator!r}")
+    if set(hold_d0) - set(AXES):
+        raise FluxcalError(f"--hold-d0 takes axes x, y, z, got {', '.join(hold_d0)}")
     s = settings or FitSettings()
     total = passes * len(chunks)
     history: list[dict[str, Any]] = []
@@ -935,7 +955,8 @@ def fit_days(
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
             if estimator == "variance":
-                result = fit_variance_calibration(stats, vstats, cal, fit_delay=fit_delay)
+                result = fit_variance_calibration(stats, vstats, cal, fit_delay=fit_delay,
+                                                  hold_d0=hold_d0)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)

@@ -73,17 +73,22 @@ def run_fit(
     progress: Callable[[str, int, int], None] | None = None,
     temperature_law: str = "distribution",
     estimator: str = "variance",
+    hold_d0: str = "",
 ) -> str:
     """Run ``fluxcal messenger fit`` and return the summary text (`report_text`).
 
     Either the three streams (``sci``, ``heater``, ``temperature``, with ``kernels``) as
     one reduction, or ``input_dir`` in the batch layout with one reduction per day.
 
+    ``hold_d0`` is the ``--hold-d0`` text: a comma list of axes whose D0 keeps the base
+    value.
+
     Raises
     ------
     FluxcalError
-        Conflicting or missing inputs, a bad ``--intervals`` or ``--days``, no day with
-        data, and the fit's own errors (`fluxcal.missions.messenger.fit.fit_calibration`).
+        Conflicting or missing inputs, a bad ``--hold-d0``, ``--intervals`` or
+        ``--days``, no day with data, and the fit's own errors
+        (`fluxcal.missions.messenger.fit.fit_calibration`).
     """
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days, refuse_edr_folder
@@ -91,6 +96,12 @@ def run_fit(
     from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
     from fluxcal.products.provenance import sha256_file
 
+    held = tuple(a.strip().lower() for a in hold_d0.split(",") if a.strip())
+    if set(held) - {"x", "y", "z"} or len(set(held)) != len(held):
+        raise InputFormatError(f"--hold-d0 takes a comma list of the axes x, y, z, got "
+                               f"{hold_d0!r}", field="--hold-d0")
+    if held and estimator != "variance":
+        raise InputFormatError("--hold-d0 needs --estimator variance", field="--hold-d0")
     if scheduler != "serial":  # before any input is read
         require("batch", f"--scheduler {scheduler}")
     streams = bool(sci or heater or temperature)
@@ -129,7 +140,7 @@ def run_fit(
         preflight.reachable_scheduler(sched)
     result = fit_days(chunks, base, intervals=iv, passes=passes, scheduler=sched,
                       n_workers=workers, fit_delay=fit_delay, progress=progress,
-                      temperature_law=temperature_law, estimator=estimator)
+                      temperature_law=temperature_law, estimator=estimator, hold_d0=held)
     provenance = {
         "inputs": result.stats.inputs,
         "intervals": (f"{Path(intervals).name} sha256={sha256_file(intervals)} "

@@ -373,7 +373,8 @@ class VarianceSolution:
 
 
 def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
-                   n_bootstrap: int = 200, seed: int = 0) -> VarianceSolution:
+                   n_bootstrap: int = 200, seed: int = 0,
+                   hold_d0: tuple[int, ...] = ()) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
     Parameters
@@ -385,6 +386,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         Resamples of the blocks (with replacement).
     seed : int
         Seed of the resampling.
+    hold_d0 : tuple of int
+        Axes (0, 1, 2) whose D0 step is held at 0 (the base value kept; the user's
+        choice where the data do not determine it, ``--hold-d0``).
 
     Returns
     -------
@@ -401,6 +405,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     """
     free = np.ones(N_PARAMETERS, dtype=bool)
     free[-1] = fit_delay
+    for j in hold_d0:
+        free[j * PER_AXIS + 4] = False
     a = stats.normal[:, free][:, :, free]
     v = stats.rhs[:, free]
 

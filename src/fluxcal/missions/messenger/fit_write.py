@@ -171,7 +171,8 @@ def write_calibration_folder(
     # Table 3 form
     d = result.duty
     dm = result.stats.duty
-    extra = [f"{a}: chi2 {f.chi2:.4g} dof {f.dof}; D0 error {f.slope_err:.3g}"
+    extra = [f"{a}: D0 held at the base value (--hold-d0)" if a in result.held_d0 else
+             f"{a}: chi2 {f.chi2:.4g} dof {f.dof}; D0 error {f.slope_err:.3g}"
              for a, f in zip(AXES, d, strict=True)]
     extra += [f"bins (ppt): {_fmt(dm.centers, 4)}", f"N per bin: {_fmt(dm.count, 12)}",
               "C0 = cT(-50 C) of the fitted temperature law (held, eq. 5a)"]
@@ -288,7 +289,8 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
         },
         "duty_cycle": {
             "bin_centre_ppt": st.duty.centers, "n": st.duty.count,
-            **{a: {"C0": f.intercept, "D0": f.slope, "D0_err": f.slope_err, "chi2": f.chi2,
+            **{a: {"C0": f.intercept, "D0": f.slope, "D0_err": f.slope_err,
+                   "D0_held": a in result.held_d0, "chi2": f.chi2,
                    "dof": f.dof, "bin_mean": st.duty.mean()[:, j]}
                for j, (a, f) in enumerate(zip(AXES, result.duty, strict=True))},
         },
@@ -378,7 +380,9 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
                      f"  Tm {f.x_m:7.2f} +- {f.x_m_err:.2f} C")
     lines.append("duty-cycle law (Table 3 form):")
     for a, f in zip(AXES, result.duty, strict=True):
-        lines.append(f"  {a}: C0 {f.intercept:9.3f} (held)  D0 {f.slope:.5f} +- {f.slope_err:.5f}")
+        d0 = (f"D0 {f.slope:.5f} (held at the base value: --hold-d0)" if a in result.held_d0
+              else f"D0 {f.slope:.5f} +- {f.slope_err:.5f}")
+        lines.append(f"  {a}: C0 {f.intercept:9.3f} (held)  {d0}")
     lines.append(f"relaxation: tau {r.tau:.1f} +- {r.tau_err:.1f} s; dt {r.dt:.1f} s "
                  + (f"+- {r.dt_err:.1f} (fitted)" if result.delay_fitted else "(held)")
                  + f"; {st.n_samples.get('events', 0)} duty-cycle changes")
