@@ -151,10 +151,10 @@ def fit(
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
     Temperature law (Table 2 form), duty-cycle law (Table 3 form), relaxation time and
-    heater delay (by default from the variance of |B| in short intervals; or from the
-    seed's long-term averages, sec. 7), heater waveforms (Tables 6-8 form, phase-binned,
-    sec. 6), as in MESSENGER MAG EDR-to-CDR Processing; writes a folder for
-    'edr2cdr --calib'.
+    heater delay (by default from the variance of the field magnitude in short
+    intervals; or from the seed's long-term averages, sec. 7), heater waveforms (Tables
+    6-8 form, phase-binned, sec. 6), as in MESSENGER MAG EDR-to-CDR Processing; writes
+    a folder for 'edr2cdr --calib'.
     """
     from fluxcal.missions.messenger.fit_cli import run_fit
 

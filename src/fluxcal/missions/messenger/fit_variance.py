@@ -102,7 +102,7 @@ class VarianceSettings:
     block_s : float
         Bootstrap block (s): normal equations are kept per block; blocks much longer
         than the field's correlation time are nearly independent (2 h: the compressive
-        |B| part is correlated up to an hour; docs/decisions/messenger_fit.md entry 13).
+        ``|B|`` part is correlated up to an hour; docs/decisions/messenger_fit.md entry 13).
     detrend : bool
         Remove a straight line in time per interval (from ``|B'|`` and the regressors)
         instead of the mean only: the slow drift of ``|B|`` within an interval is then
