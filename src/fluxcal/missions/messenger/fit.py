@@ -845,6 +845,22 @@ def reduce_chunk(
 Progress = Callable[[str, int, int], None]
 
 
+#: A pass converges when, besides tau and D0 (``tolerance``), the Table 2 law moved by less
+#: than this many fine counts (0.2 x 0.047 = 0.009 nT) anywhere in -65..+55 C: the law and
+#: its break can still move after tau and D0 have settled (docs/decisions/messenger_fit.md,
+#: entry 16: 0.19 nT left on y in a 32-day fit that stopped on tau and D0 alone).
+LAW_TOLERANCE_COUNTS = 0.2
+#: Temperatures (C) over which the law's change between passes is taken.
+LAW_CHANGE_GRID_C = np.arange(-65.0, 55.5, 1.0)
+
+
+def _law_change(old: MessengerCalibration, new: MessengerCalibration) -> float:
+    """Largest change (fine counts) of the Table 2 law over `LAW_CHANGE_GRID_C`."""
+    return float(np.max(np.abs(
+        two_segment_offset(LAW_CHANGE_GRID_C, new.offset_coefficients())
+        - two_segment_offset(LAW_CHANGE_GRID_C, old.offset_coefficients()))))
+
+
 def _relative_change(old: MessengerCalibration, new: MessengerCalibration) -> float:
     """Largest relative change of tau and D0 between two passes."""
     tau = [float(c.constants["relaxation"]["tau_s"]) for c in (old, new)]
@@ -884,7 +900,8 @@ def fit_days(
         Most reduce-and-fit iterations (each pass removes the others' terms with the
         previous estimates; docs/decisions/messenger_fit.md, entry 1).
     tolerance : float
-        Stop after a pass that changed tau and every D0 by less than this fraction.
+        Stop after a pass that changed tau and every D0 by less than this fraction and
+        the Table 2 law by less than `LAW_TOLERANCE_COUNTS`.
     scheduler : str or None
         ``"serial"``: in this process; None: a local Dask cluster of ``n_workers``
         single-threaded processes (`fluxcal.runs.batch.make_local_cluster`); else
@@ -961,12 +978,13 @@ def fit_days(
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)
             last = p == passes - 1
-            change = _relative_change(cal, result.calibration)
+            converged = (_relative_change(cal, result.calibration) < tolerance
+                         and _law_change(cal, result.calibration) < LAW_TOLERANCE_COUNTS)
             if guard:  # never carry a tau out of range; refuse an unphysical final pass
-                check_fit(result, final=last or change < tolerance)
+                check_fit(result, final=last or converged)
             history.append({"pass": p + 1, **result.summary()})
             cal = result.calibration
-            if change < tolerance:
+            if converged:
                 break
         assert result is not None
         result.passes = history
