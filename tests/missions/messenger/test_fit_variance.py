@@ -335,3 +335,22 @@ def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
                                                                         seed=3)
     np.testing.assert_allclose(a.step, b.step, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(a.boot, b.boot, rtol=1e-9, atol=1e-12)
+
+
+def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
+    # entry 16: a pass converges only when the law has settled; its change is the largest
+    # shift of the Table 2 law (counts) over -65..+55 C, here in closed form
+    from fluxcal.missions.messenger.fit import LAW_TOLERANCE_COUNTS, _law_change
+
+    coeff = np.asarray(shipped.temperature_coefficients, dtype=float)
+    shifted = coeff.copy()
+    shifted[:, [0, 2]] += 0.3  # both lines of every axis up by 0.3 counts
+    moved = dataclasses.replace(shipped, temperature_coefficients=shifted)
+    assert _law_change(shipped, moved) == pytest.approx(0.3, abs=1e-9)
+    assert _law_change(shipped, moved) > LAW_TOLERANCE_COUNTS
+    # the upper line's slope of x up by 0.01 counts/C: the upper segment turns about
+    # T = 0 C of its own line (A1 + B1 T), largest at +55 C: 0.55 counts
+    steeper = coeff.copy()
+    steeper[0, 3] += 0.01
+    assert _law_change(shipped, dataclasses.replace(
+        shipped, temperature_coefficients=steeper)) == pytest.approx(0.55, abs=1e-9)
