@@ -34,7 +34,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.polynomial import Polynomial
-from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -42,7 +41,6 @@ from tests.missions.rosetta import _daily_mean_wind as wind  # noqa: E402
 
 from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
-from fluxcal.geometry.time import utc_to_tt2000  # noqa: E402
 from fluxcal.missions.rosetta import calib, forward, level_a  # noqa: E402
 from fluxcal.missions.rosetta.fit import fit_extended_model, reduced_temperature  # noqa: E402
 from fluxcal.missions.rosetta.fit_variance import (  # noqa: E402
@@ -51,11 +49,10 @@ from fluxcal.missions.rosetta.fit_variance import (  # noqa: E402
 )
 
 DAY = "2009-11-13"
-JUMPS = np.array([[4.1, -7.3, 2.6], [-3.8, 5.2, -9.4]])
+JUMPS = wind.TRUE_JUMPS
 #: Share of a unit Gaussian beyond 3 (two-sided).
 GAUSS_BEYOND_3 = 0.0026998
-INTERVALS = (np.array(["2014-08-01T00:00:00", "2014-08-03T00:00:00"]),
-             np.array(["2014-08-03T00:00:00", "2014-08-05T00:00:00"]))
+INTERVALS = tuple(np.array(iv) for iv in wind.JUMP_INTERVALS)
 
 
 def curve_pulls(k: int, rate: float, compressive: float) -> dict:
@@ -101,18 +98,7 @@ def curve_pulls(k: int, rate: float, compressive: float) -> dict:
 
 def jump_pulls(k: int, compressive: float, rate: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """Jumps of realisation ``k``: pulls and errors (2 x 3)."""
-    rng = np.random.default_rng(3000 + k)
-    t0 = int(utc_to_tt2000(INTERVALS[0][:1])[0])
-    split = int(utc_to_tt2000(INTERVALS[0][1:])[0])
-    secs = np.arange(0.0, 4 * 86400.0, 1.0 / rate)
-    epoch = t0 + np.rint(secs * wind.NS).astype(np.int64)
-    second = epoch >= split
-    b = wind.daily_mean_field(secs.size, 1.0 / rate, rng, compression=compressive)
-    rot = Rotation.from_euler("zyx", np.stack([60 * np.sin(secs / 40_000.0),
-                                               20 * np.sin(secs / 25_000.0),
-                                               10 * np.cos(secs / 17_000.0)], 1),
-                              degrees=True).as_matrix()
-    b_sc = np.einsum("nji,nj->ni", rot, b) + np.where(second[:, None], JUMPS[1], JUMPS[0])
+    epoch, b_sc, _, _ = wind.jump_data(3000 + k, rate, compressive, JUMPS)
     fit = fit_offset_jumps_variance(epoch, b_sc, *INTERVALS, sensor="OB", seed=k)
     err = fit.jumps - JUMPS
     return err / fit.sigma, err

@@ -22,6 +22,7 @@ import numpy as np
 import xarray as xr
 from numpy.polynomial import Polynomial
 from scipy.signal import lfilter
+from scipy.spatial.transform import Rotation
 
 from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.rosetta import calib, forward
@@ -127,3 +128,32 @@ def instrument_raw(stamps: np.ndarray, sid: np.ndarray, field: np.ndarray, temp:
         coords={"epoch": ("time", stamps), "component": ["x", "y", "z"]},
         attrs={"sensor": "OB", "source": source},
     )
+
+
+#: Appendix B offset jumps of the jump studies (nT, spacecraft frame), one row per interval.
+TRUE_JUMPS = np.array([[4.1, -7.3, 2.6], [-3.8, 5.2, -9.4]])
+#: The two 2-day intervals of the jump studies.
+JUMP_INTERVALS = (("2014-08-01T00:00:00", "2014-08-03T00:00:00"),
+                  ("2014-08-03T00:00:00", "2014-08-05T00:00:00"))
+
+
+def jump_data(seed: int, rate_hz: float = 0.1, compression: float = COMPRESSION,
+              jumps: np.ndarray = TRUE_JUMPS):
+    """Four days of the daily-mean wind in CSEQ, turned into the spacecraft frame by a
+    slow attitude, plus ``jumps[0]`` / ``jumps[1]`` over the two `JUMP_INTERVALS`.
+
+    Returns ``(epoch tt2000, b_sc, rotation matrices, b_cseq)``.
+    """
+    rng = np.random.default_rng(seed)
+    t0 = int(utc_to_tt2000(np.array([JUMP_INTERVALS[0][0]]))[0])
+    split = int(utc_to_tt2000(np.array([JUMP_INTERVALS[1][0]]))[0])
+    secs = np.arange(0.0, 4 * 86400.0, 1.0 / rate_hz)
+    epoch = t0 + np.rint(secs * NS).astype(np.int64)
+    second = epoch >= split
+    b_cseq = daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
+    rot = Rotation.from_euler("zyx", np.stack([60 * np.sin(secs / 40_000.0),
+                                               20 * np.sin(secs / 25_000.0),
+                                               10 * np.cos(secs / 17_000.0)], 1),
+                              degrees=True).as_matrix()
+    jump = np.where(second[:, None], jumps[1], jumps[0])
+    return epoch, np.einsum("nji,nj->ni", rot, b_cseq) + jump, rot, b_cseq

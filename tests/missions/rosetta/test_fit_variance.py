@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from fluxcal.cli import main
 from fluxcal.errors import FitRefusedError
@@ -247,27 +246,9 @@ def test_cli_variance_file_calibrates_an_unseen_stretch(day, tmp_path):
 # ----------------------------------------------------------------------------------------
 # Appendix B jumps: a field with a mean (B_z in CSEQ not zero), any attitude
 # ----------------------------------------------------------------------------------------
-TRUE_JUMPS = np.array([[4.1, -7.3, 2.6], [-3.8, 5.2, -9.4]])
-INTERVALS = (("2014-08-01T00:00:00", "2014-08-03T00:00:00"),
-             ("2014-08-03T00:00:00", "2014-08-05T00:00:00"))
-
-
-def _jump_data(seed: int, rate_hz: float = 0.1, compression: float = wind.COMPRESSION):
-    from fluxcal.geometry.time import utc_to_tt2000
-
-    rng = np.random.default_rng(seed)
-    t0 = int(utc_to_tt2000(np.array([INTERVALS[0][0]]))[0])
-    split = int(utc_to_tt2000(np.array([INTERVALS[1][0]]))[0])
-    secs = np.arange(0.0, 4 * 86400.0, 1.0 / rate_hz)
-    epoch = t0 + np.rint(secs * wind.NS).astype(np.int64)
-    second = epoch >= split
-    b_cseq = wind.daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
-    rot = Rotation.from_euler("zyx", np.stack([60 * np.sin(secs / 40_000.0),
-                                               20 * np.sin(secs / 25_000.0),
-                                               10 * np.cos(secs / 17_000.0)], 1),
-                              degrees=True).as_matrix()
-    jump = np.where(second[:, None], TRUE_JUMPS[1], TRUE_JUMPS[0])
-    return epoch, np.einsum("nji,nj->ni", rot, b_cseq) + jump, rot, b_cseq
+TRUE_JUMPS = wind.TRUE_JUMPS
+INTERVALS = wind.JUMP_INTERVALS
+_jump_data = wind.jump_data
 
 
 def test_variance_jumps_recovered_with_a_mean_field(pool, tmp_path):
