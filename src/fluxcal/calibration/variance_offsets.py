@@ -54,7 +54,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from fluxcal.calibration.solar_wind_offsets import (
     IntervalMoments,
@@ -71,7 +71,8 @@ from fluxcal.calibration.solar_wind_offsets import (
 )
 from fluxcal.errors import FluxcalError, InputFormatError
 
-__all__ = ["davis_smith_offsets", "davis_smith_offsets_from_moments", "hedgecock_offsets"]
+__all__ = ["davis_smith_offsets", "davis_smith_offsets_from_moments", "hedgecock_offsets",
+           "interval_reasons"]
 
 DEFAULT_MIN_SAMPLES = 60
 DEFAULT_MIN_EIGENVALUE_RATIO = 1e-3
@@ -86,6 +87,41 @@ def _static_checks(count, cov, min_samples, min_eigenvalue_ratio):
         ("too_few_samples", count >= min_samples),
         ("ill_conditioned", eigenvalue_ratio(cov) >= min_eigenvalue_ratio),
     ]
+
+
+def interval_reasons(
+    b: NDArray[np.float64],
+    codes: NDArray[np.intp],
+    k: int,
+    *,
+    min_samples: float,
+    min_eigenvalue_ratio: float,
+    min_relative_amplitude: float,
+    max_compressibility: float,
+    static_only: bool = False,
+) -> NDArray[np.str_]:
+    """First failed selection criterion of each interval (``""``: accepted), on ``b``.
+
+    The four named criteria of this module, in order: ``too_few_samples``,
+    ``ill_conditioned`` (smallest/largest eigenvalue of the field's covariance),
+    ``small_fluctuations`` (``sqrt(trace C) / <|B|>``) and ``compressive``
+    (``var |B| / trace C``), evaluated on the vectors ``b`` (n, 3) as they are (offsets
+    already removed); ``static_only``: the first two only (those that do not depend on
+    the offsets). ``codes`` maps each sample to its interval ``0..k-1``.
+    """
+    mag = np.sqrt(np.einsum("ij,ij->i", b, b))
+    mom = interval_moments(np.column_stack([b, mag]), codes, k)
+    cov = mom.cov[:, :3, :3]
+    with np.errstate(invalid="ignore", divide="ignore"):  # empty or flat intervals
+        checks = _static_checks(mom.count, cov, min_samples, min_eigenvalue_ratio)
+        if not static_only:
+            trace = np.trace(cov, axis1=1, axis2=2)
+            checks += [
+                ("small_fluctuations",
+                 np.sqrt(trace) >= min_relative_amplitude * mom.mean[:, 3]),
+                ("compressive", mom.cov[:, 3, 3] / trace <= max_compressibility),
+            ]
+    return first_failure(checks, k)
 
 
 def _criteria(min_samples, min_eigenvalue_ratio, min_relative_amplitude, max_compressibility):

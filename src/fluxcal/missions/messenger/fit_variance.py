@@ -48,14 +48,12 @@ from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
 from fluxcal.calibration.solar_wind_offsets import (
     count_reasons,
-    eigenvalue_ratio,
-    first_failure,
-    interval_moments,
 )
 from fluxcal.calibration.variance_offsets import (
     DEFAULT_MAX_COMPRESSIBILITY,
     DEFAULT_MIN_EIGENVALUE_RATIO,
     DEFAULT_MIN_RELATIVE_AMPLITUDE,
+    interval_reasons,
 )
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.time import SclkKernel
@@ -276,16 +274,10 @@ def reduce_variance(
     label = np.floor(et / s.interval_s).astype(np.int64)
     labels, codes = np.unique(label, return_inverse=True)
     k = labels.size
-    mom = interval_moments(np.column_stack([b, mag]), codes, k)
-    cov = mom.cov[:, :3, :3]
-    trace = np.trace(cov, axis1=1, axis2=2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        reason = first_failure([
-            ("too_few_samples", mom.count >= s.min_samples),
-            ("ill_conditioned", eigenvalue_ratio(cov) >= s.min_eigenvalue_ratio),
-            ("small_fluctuations", np.sqrt(trace) >= s.min_relative_amplitude * mom.mean[:, 3]),
-            ("compressive", mom.cov[:, 3, 3] / trace <= s.max_compressibility),
-        ], k)
+    reason = interval_reasons(b, codes, k, min_samples=s.min_samples,
+                              min_eigenvalue_ratio=s.min_eigenvalue_ratio,
+                              min_relative_amplitude=s.min_relative_amplitude,
+                              max_compressibility=s.max_compressibility)
     out.interval_start = labels * s.interval_s
     out.reason = reason
     ok = (reason == "")[codes]

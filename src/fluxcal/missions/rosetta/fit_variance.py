@@ -48,8 +48,6 @@ import xarray as xr
 
 from fluxcal.calibration.solar_wind_offsets import (
     count_reasons,
-    eigenvalue_ratio,
-    first_failure,
     interval_moments,
 )
 from fluxcal.calibration.variance_offsets import (
@@ -57,6 +55,7 @@ from fluxcal.calibration.variance_offsets import (
     DEFAULT_MIN_EIGENVALUE_RATIO,
     DEFAULT_MIN_RELATIVE_AMPLITUDE,
     hedgecock_offsets,
+    interval_reasons,
 )
 from fluxcal.errors import FitRefusedError, FluxcalError
 from fluxcal.geometry.time import tt2000_to_utc
@@ -151,20 +150,10 @@ def _min_count(epoch: np.ndarray, s: VarianceSettings) -> float:
 def _select(b: np.ndarray, codes: np.ndarray, k: int, min_count: float,
             s: VarianceSettings, static_only: bool = False) -> np.ndarray:
     """First failed criterion per interval (``""``: accepted), evaluated on ``b``."""
-    mag = np.sqrt(np.einsum("ij,ij->i", b, b))
-    mom = interval_moments(np.column_stack([b, mag]), codes, k)
-    cov = mom.cov[:, :3, :3]
-    trace = np.trace(cov, axis1=1, axis2=2)
-    checks = [("too_few_samples", mom.count >= min_count),
-              ("ill_conditioned", eigenvalue_ratio(cov) >= s.min_eigenvalue_ratio)]
-    if not static_only:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            checks += [
-                ("small_fluctuations",
-                 np.sqrt(trace) >= s.min_relative_amplitude * mom.mean[:, 3]),
-                ("compressive", mom.cov[:, 3, 3] / trace <= s.max_compressibility),
-            ]
-    return first_failure(checks, k)
+    return interval_reasons(b, codes, k, min_samples=min_count,
+                            min_eigenvalue_ratio=s.min_eigenvalue_ratio,
+                            min_relative_amplitude=s.min_relative_amplitude,
+                            max_compressibility=s.max_compressibility, static_only=static_only)
 
 
 def _reasons_text(reason: np.ndarray) -> str:
