@@ -23,6 +23,8 @@ from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import Chunk, check_fit, day_chunks, fit_days
 from fluxcal.missions.messenger.fit_variance import (
     N_PARAMETERS,
+    N_SHIFTS,
+    PER_AXIS,
     VarianceStatistics,
     law_parameters,
     law_to_table,
@@ -57,9 +59,17 @@ def _stats(starts, rng, truth):
         reason=np.array(["", "compressive"] * (n // 2) + [""] * (n % 2)))
 
 
+def _truth(rng):
+    """A random step in the columns a solve without break shifts frees (the hinge
+    columns at shifted breaks are used only when `choose_breaks` takes a shift)."""
+    truth = rng.normal(size=N_PARAMETERS)
+    truth[3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = 0.0
+    return truth
+
+
 def test_statistics_merge_sums_shared_blocks_and_solve_recovers_the_step():
     rng = np.random.default_rng(5)
-    truth = rng.normal(size=N_PARAMETERS)
+    truth = _truth(rng)
     a = _stats([0.0, 10800.0, 21600.0], rng, truth)
     b = _stats([21600.0, 32400.0], rng, truth)  # a day boundary inside block 21600
     m = a.merge(b)
@@ -323,7 +333,7 @@ def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
     # are resampled together; the same normal equations summed by hand into 36 blocks
     # (36 < 2 x 17: resampled one by one) give the identical bootstrap
     rng = np.random.default_rng(8)
-    truth = rng.normal(size=N_PARAMETERS)
+    truth = _truth(rng)
     fine = _stats(np.arange(72) * 7200.0, rng, truth)
     pairs = VarianceStatistics(
         normal=fine.normal.reshape(36, 2, N_PARAMETERS, N_PARAMETERS).sum(axis=1),

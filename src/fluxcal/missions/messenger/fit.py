@@ -701,12 +701,13 @@ def fit_variance_calibration(
             f"accepted samples (accepted per bin: {int(vstats.temperature_count.max())} at "
             "most); the temperature law is not constrained: give more days of solar wind")
     sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                            hold_d0=tuple(AXES.index(a) for a in hold_d0))
-    law, d0, tau, dt = fv.apply_step(base, sol.step)
+                            hold_d0=tuple(AXES.index(a) for a in hold_d0),
+                            law=fv.law_parameters(base))
+    law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
-    boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf)
-             for b in sol.boot]
+    boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
+                           break_shift=sol.break_shift) for b in sol.boot]
     b_law = np.stack([x[0] for x in boots])
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])

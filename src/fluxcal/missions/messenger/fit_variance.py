@@ -14,11 +14,18 @@ the offset through that condition:
   per axis ``da + db T + dc max(0, T - T_m) - c dT_m [T > T_m] + dD0 R`` and, shared by
   the axes, ``D0 (dR/dtau dtau + dR/ddt ddt)`` (``R``: relaxed duty cycle, ppt);
 * the corrected field ``B' = M (counts - offset)`` (eq. 8, nT) is split into intervals
-  of ``interval_s``; in each, ``|B' - M dO(t)|^2 = const`` linearised is
-  ``|B'|^2 - 2 (M^T B') . dO(t) = c_k``: least squares over all samples of the accepted
-  intervals, each interval's mean removed (the Davis-Smith system with the offset
-  parametrised by the seed's laws; the temperature moving inside an interval is in
-  ``dO(t)``);
+  of ``interval_s``, selected as a whole, and each interval into segments of
+  ``segment_s``; in each segment, ``|B' - M dO(t)| = const`` linearised is
+  ``|B'| - u . M dO(t) = c_k`` (``u`` the unit vector of ``B'``): least squares over all
+  samples of the accepted intervals, each segment's mean and trend removed (the
+  Davis-Smith system with the offset parametrised by the seed's laws; the temperature
+  moving inside an interval is in ``dO(t)``).  Short segments drop the slow compressive
+  changes of ``|B|`` and keep the fast rotations (docs/decisions/messenger_fit.md
+  entry 17);
+* the break of each axis's law is also tried at `BREAK_SHIFTS_C` from the current
+  one (one hinge column each; `solve_variance` keeps the shift of least residual):
+  the linearised break step alone moves a distant break a fraction of the way per
+  pass (entry 17);
 * intervals are accepted by the named criteria of `fluxcal.calibration.variance_offsets`
   (too_few_samples, ill_conditioned, small_fluctuations, compressive), evaluated on
   ``B'``; each rejected interval is kept with its reason;
@@ -64,10 +71,15 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 __all__ = ["MIN_RANGE_SAMPLES", "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings",
            "VarianceStatistics", "reduce_variance", "solve_variance"]
 
-#: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then the
-#: shared d(tau) and d(dt).
+#: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
+#: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
+#: d(tau) and d(dt).
 PER_AXIS = 5
-N_PARAMETERS = 3 * PER_AXIS + 2
+#: Shifts (C) of the break tried besides the linearised step (entry 17): the shipped
+#: breaks can be several degrees off (the true y break of the flight model: +5 C).
+BREAK_SHIFTS_C = (-8.0, -4.0, -2.0, -1.0, -0.5, 0.5, 1.0, 2.0, 4.0, 8.0)
+N_SHIFTS = len(BREAK_SHIFTS_C)
+N_PARAMETERS = 3 * PER_AXIS + 3 * N_SHIFTS + 2
 #: Step of dt (s) for the derivative of the relaxed duty cycle in dt.
 DELAY_STEP_S = 1.0
 #: Edges (C) of the histogram of the accepted samples' temperatures (`fitted_range`).
@@ -88,9 +100,13 @@ class VarianceSettings:
     Attributes
     ----------
     interval_s : float
-        Interval length (s): ``|B|`` is taken constant within one (the seed's field has
-        a 12-h log-normal magnitude: a few % change in 15 min; docs/decisions/
-        messenger_fit.md entry 12 for 600 and 750 s).
+        Interval length (s) of the selection criteria (docs/decisions/messenger_fit.md
+        entry 12 for 600 and 750 s).
+    segment_s : float
+        Segment length (s): ``|B|`` is taken constant within one up to a straight line
+        in time (entry 17: 60 s keeps 3 % of the rotations' variance and drops all but
+        1 % of a compressive part correlated over minutes; 900 s, the interval, was the
+        default before).
     min_samples : int
         ``too_few_samples`` below this many samples (a third of 15 min at 1 Hz).
     min_eigenvalue_ratio, min_relative_amplitude, max_compressibility : float
@@ -102,16 +118,18 @@ class VarianceSettings:
         than the field's correlation time are nearly independent (2 h: the compressive
         ``|B|`` part is correlated up to an hour; docs/decisions/messenger_fit.md entry 13).
     detrend : bool
-        Remove a straight line in time per interval (from ``|B'|`` and the regressors)
-        instead of the mean only: the slow drift of ``|B|`` within an interval is then
+        Remove a straight line in time per segment (from ``|B'|`` and the regressors)
+        instead of the mean only: the slow drift of ``|B|`` within a segment is then
         not taken for an offset.
     weighting : {"none", "inverse_variance"}
         ``inverse_variance``: each interval's samples weighted by ``1 / var(|B'|)`` of
-        the interval at the linearisation point (floored at a tenth of the median), so
-        that intervals with a strong compressive part count less.
+        the interval (segment means and trends removed) at the linearisation point
+        (floored at a tenth of the median), so that intervals with a strong compressive
+        part count less.
     """
 
     interval_s: float = 900.0
+    segment_s: float = 60.0
     min_samples: int = 300
     min_eigenvalue_ratio: float = DEFAULT_MIN_EIGENVALUE_RATIO
     min_relative_amplitude: float = DEFAULT_MIN_RELATIVE_AMPLITUDE
@@ -140,6 +158,8 @@ class VarianceStatistics:
         ``""`` for accepted intervals, else the first failed criterion.
     temperature_count : ndarray, shape (len(TEMPERATURE_EDGES_C) - 1,)
         Accepted samples per 5-C bin of the sensor temperature (`fitted_range`).
+    segments : int
+        Segments of the accepted intervals (one constant each).
     """
 
     normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
@@ -152,6 +172,7 @@ class VarianceStatistics:
     reason: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="<U24"))
     temperature_count: np.ndarray = field(
         default_factory=lambda: np.zeros(TEMPERATURE_EDGES_C.size - 1))
+    segments: int = 0
 
     def merge(self, other: VarianceStatistics) -> VarianceStatistics:
         """Return the statistics of both (blocks of the same start are summed)."""
@@ -170,7 +191,8 @@ class VarianceStatistics:
             block_start=uniq,
             interval_start=np.concatenate([self.interval_start, other.interval_start]),
             reason=np.concatenate([self.reason, other.reason]).astype("<U24"),
-            temperature_count=self.temperature_count + other.temperature_count)
+            temperature_count=self.temperature_count + other.temperature_count,
+            segments=self.segments + other.segments)
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
@@ -299,10 +321,20 @@ def reduce_variance(
         basis = (np.ones_like(temp_c), temp_c, np.where(above, temp_c - law[j, 3], 0.0),
                  above.astype(float), r)
         cols += [u[:, j] * f for f in basis]
+    for j in range(3):
+        cols += [u[:, j] * np.maximum(0.0, temp_c - (law[j, 3] + d)) for d in BREAK_SHIFTS_C]
     cols.append((u @ d0) * dr_tau)
     cols.append((u @ d0) * dr_dt)
     x = np.column_stack(cols)
     y = mag
+    # the mean (and trend) per segment; the weights below per interval
+    interval_codes = codes
+    segment = np.floor(et / s.segment_s).astype(np.int64)
+    _, codes = np.unique(np.column_stack([interval_codes, segment]), axis=0,
+                         return_inverse=True)
+    codes = codes.reshape(-1)
+    k = int(codes.max()) + 1
+    out.segments = k
     n_k = np.bincount(codes, minlength=k).astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
         inv = np.where(n_k > 0, 1.0 / n_k, 0.0)
@@ -318,11 +350,13 @@ def reduce_variance(
                                       for p in range(x.shape[1])], axis=1) * tinv[:, None])[codes]
         y = y - tc * (np.bincount(codes, tc * y, k) * tinv)[codes]
     if s.weighting == "inverse_variance":
-        var_k = np.bincount(codes, y * y, k) * inv
-        floor = 0.1 * np.median(var_k[n_k > 0])
-        w = 1.0 / np.sqrt(np.maximum(var_k, floor))
-        x *= w[codes, None]
-        y = y * w[codes]
+        ki = labels.size
+        n_i = np.bincount(interval_codes, minlength=ki).astype(float)
+        var_i = np.bincount(interval_codes, y * y, ki) / np.maximum(n_i, 1.0)
+        floor = 0.1 * np.median(var_i[n_i > 0])
+        w = 1.0 / np.sqrt(np.maximum(var_i, floor))
+        x *= w[interval_codes, None]
+        y = y * w[interval_codes]
     block = np.floor(et / s.block_s).astype(np.int64)
     starts, bcode = np.unique(block, return_inverse=True)
     nb = starts.size
@@ -353,20 +387,101 @@ class VarianceSolution:
     boot : ndarray, shape (n_bootstrap, N_PARAMETERS)
         The step re-solved on blocks resampled with replacement.
     chi2 : float
-        Residual sum of squares (nT^4).
+        Residual sum of squares (nT^2, weighted).
     dof : int
-        Samples minus parameters minus intervals.
+        Samples minus parameters minus segments.
+    break_shift : ndarray, shape (3,)
+        Per axis, the break shift (C, one of `BREAK_SHIFTS_C`) taken instead of the
+        linearised step, or 0 (`apply_step`).
     """
 
     step: np.ndarray
     boot: np.ndarray
     chi2: float
     dof: int
+    break_shift: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+def _shift_column(axis: int, k: int) -> int:
+    """Index of axis ``axis``'s hinge column at the break shifted by BREAK_SHIFTS_C[k]."""
+    return 3 * PER_AXIS + axis * N_SHIFTS + k
+
+
+def _layout(shift: tuple[int, ...], base_free: np.ndarray,
+            slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Free columns and fixed values for break choices ``shift`` (-1: linearised step).
+
+    An axis moved to shift ``k`` cancels its current hinge (its d(c) fixed at ``-c``)
+    and fits the slope of the hinge at the shifted break; the linearised break step of
+    that axis is not used.
+    """
+    free = base_free.copy()
+    fixed = np.zeros(N_PARAMETERS)
+    free[3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = False
+    for j, k in enumerate(shift):
+        if k >= 0:
+            free[j * PER_AXIS + 2] = free[j * PER_AXIS + 3] = False
+            fixed[j * PER_AXIS + 2] = -slope[j]
+            free[_shift_column(j, k)] = True
+    return free, fixed
+
+
+def _solve(aa: np.ndarray, vv: np.ndarray) -> np.ndarray:
+    """Solve (stacks of) normal equations, scaled to unit diagonal."""
+    d = np.sqrt(np.abs(np.diagonal(aa, axis1=-2, axis2=-1)))
+    d = np.where(d > 0, d, 1.0)
+    scaled = aa / (d[..., :, None] * d[..., None, :])
+    sol = np.linalg.lstsq(scaled, vv / d, rcond=1e-12)[0] if aa.ndim == 2 else (
+        np.linalg.solve(scaled + 1e-12 * np.eye(aa.shape[-1]), (vv / d)[..., None])[..., 0])
+    return sol / d
+
+
+def _fit(a: np.ndarray, v: np.ndarray, free: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """Parameters (fixed ones at ``fixed``) minimising the residual of ``a``, ``v``."""
+    theta = np.broadcast_to(fixed, (*v.shape[:-1], N_PARAMETERS)).copy()
+    rhs = v[..., free] - (a[..., free, :] @ fixed)
+    theta[..., free] = _solve(a[..., free][..., free, :] if a.ndim == 2
+                              else a[:, free][:, :, free], rhs)
+    return theta
+
+
+def _residual(a: np.ndarray, v: np.ndarray, yy: float, theta: np.ndarray) -> float:
+    """Residual sum of squares of ``theta`` from the normal equations."""
+    return float(yy - 2.0 * theta @ v + theta @ a @ theta)
+
+
+def choose_breaks(a: np.ndarray, v: np.ndarray, yy: float, base_free: np.ndarray,
+                  law: np.ndarray, t_range: tuple[float, float],
+                  sweeps: int = 2) -> tuple[int, ...]:
+    """Per axis, the break shift of least residual (-1: keep the break, linearised step).
+
+    The exact two-segment law at each shifted break is compared with the law whose break
+    stays (its slope change free, no linearised step); axes in turn, ``sweeps`` times.
+    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried.
+    """
+    choice = [-1, -1, -1]
+    lo, hi = t_range
+    for _ in range(sweeps):
+        for j in range(3):
+            best, best_r = choice[j], np.inf
+            for k in (-1, *range(N_SHIFTS)):
+                if k >= 0 and not (lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
+                    continue
+                trial = tuple(choice[:j] + [k] + choice[j + 1:])
+                free, fixed = _layout(trial, base_free, law[:, 2])
+                if k == -1:  # the break kept: exact, without the linearised step
+                    free[j * PER_AXIS + 3] = False
+                r = _residual(a, v, yy, _fit(a, v, free, fixed))
+                if r < best_r:
+                    best, best_r = k, r
+            choice[j] = best
+    return tuple(choice)
 
 
 def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    n_bootstrap: int = 200, seed: int = 0,
-                   hold_d0: tuple[int, ...] = ()) -> VarianceSolution:
+                   hold_d0: tuple[int, ...] = (),
+                   law: np.ndarray | None = None) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
     Parameters
@@ -381,6 +496,10 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     hold_d0 : tuple of int
         Axes (0, 1, 2) whose D0 step is held at 0 (the base value kept; the user's
         choice where the data do not determine it, ``--hold-d0``).
+    law : ndarray, shape (3, 4), optional
+        The linearisation point's ``(a, b, c, T_m)`` per axis (`law_parameters`): the
+        breaks are then also tried at `BREAK_SHIFTS_C` inside the fitted range
+        (`choose_breaks`); None: the linearised step only.
 
     Returns
     -------
@@ -388,29 +507,26 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
         (``n`` resampled units, ``p`` free parameters). The units are runs of ``k``
         consecutive blocks, ``k`` the largest that leaves ``2 p`` units, at most
-        `MAX_GROUP` (2 h on 2-4 days, 10 h on 16 days).
+        `MAX_GROUP` (2 h on 2-4 days, 10 h on 16 days).  The resamples keep the
+        chosen breaks.
 
     Raises
     ------
     FluxcalError
         ``n <= p + MIN_SPARE_BLOCKS``: too few blocks for an error estimate.
     """
-    free = np.ones(N_PARAMETERS, dtype=bool)
-    free[-1] = fit_delay
+    base_free = np.ones(N_PARAMETERS, dtype=bool)
+    base_free[-1] = fit_delay
     for j in hold_d0:
-        free[j * PER_AXIS + 4] = False
-    a = stats.normal[:, free][:, :, free]
-    v = stats.rhs[:, free]
-
-    def solve(aa: np.ndarray, vv: np.ndarray) -> np.ndarray:
-        d = np.sqrt(np.abs(np.diagonal(aa, axis1=-2, axis2=-1)))
-        d = np.where(d > 0, d, 1.0)
-        scaled = aa / (d[..., :, None] * d[..., None, :])
-        sol = np.linalg.lstsq(scaled, vv / d, rcond=1e-12)[0] if aa.ndim == 2 else (
-            np.linalg.solve(scaled + 1e-12 * np.eye(aa.shape[-1]), (vv / d)[..., None])[..., 0])
-        return sol / d
-
-    nb, p_free = a.shape[0], int(free.sum())
+        base_free[j * PER_AXIS + 4] = False
+    a, v = stats.normal, stats.rhs
+    nb = a.shape[0]
+    choice = (-1, -1, -1)
+    total_a, total_v, yy = a.sum(axis=0), v.sum(axis=0), float(stats.yy.sum())
+    if law is not None:
+        choice = choose_breaks(total_a, total_v, yy, base_free, law, stats.fitted_range())
+    free, fixed = _layout(choice, base_free, law[:, 2] if law is not None else np.zeros(3))
+    p_free = int(free.sum())
     if nb <= p_free + MIN_SPARE_BLOCKS:
         raise FluxcalError(
             f"variance estimator: {nb} bootstrap blocks of {VarianceSettings().block_s / 3600:g}"
@@ -427,45 +543,50 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         np.add.at(a_g, group, a)
         np.add.at(v_g, group, v)
         a, v, nb = a_g, v_g, n_units
-    total_a, total_v = a.sum(axis=0), v.sum(axis=0)
-    step = np.zeros(N_PARAMETERS)
-    step[free] = solve(total_a, total_v)
-    chi2 = float(stats.yy.sum() - 2 * step[free] @ total_v + step[free] @ total_a @ step[free])
+    step = _fit(total_a, total_v, free, fixed)
+    chi2 = _residual(total_a, total_v, yy, step)
     rng = np.random.default_rng(seed)
     picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
                       for _ in range(n_bootstrap)]).astype(float)
-    boot_a = np.einsum("rb,bij->rij", picks, a)
-    boot_v = picks @ v
-    boot = np.zeros((n_bootstrap, N_PARAMETERS))
-    boot[:, free] = solve(boot_a, boot_v)
+    boot = _fit(np.einsum("rb,bij->rij", picks, a), picks @ v, free, fixed)
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
     # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks;
     # entry 13: on 2 days of 2-h blocks this brings the pulls' spread to 0.95-1.04)
     boot = step + np.sqrt(nb / (nb - p_free)) * (boot - boot.mean(axis=0))
-    n_intervals = int(np.count_nonzero(stats.reason == ""))
-    dof = int(stats.samples.sum()) - int(free.sum()) - n_intervals
-    return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof)
+    dof = int(stats.samples.sum()) - p_free - stats.segments
+    shift = np.array([BREAK_SHIFTS_C[c] if c >= 0 else 0.0 for c in choice])
+    return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof, break_shift=shift)
 
 
 def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float = 0.3,
-               max_break_shift_c: float = 10.0) -> tuple[np.ndarray, np.ndarray, float, float]:
+               max_break_shift_c: float = 10.0,
+               break_shift: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Return the stepped law ``(a, b, c, T_m)`` per axis, D0, tau and dt.
 
     The break moves by ``-(step on [T > T_m]) / c``, at most ``max_break_shift_c`` per
-    step; tau by at most ``max_tau_shift`` of itself (the linearisation's range).
+    step, or, on an axis with a nonzero ``break_shift`` (`solve_variance`), to the
+    shifted break with the slope change fitted there; tau by at most ``max_tau_shift``
+    of itself (the linearisation's range).
     """
     law = law_parameters(cal).copy()
     d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
     st = np.asarray(step, dtype=float).reshape(-1)
+    shifts = np.zeros(3) if break_shift is None else np.asarray(break_shift, dtype=float)
     for j in range(3):
         da, db, dc, dstep, dd0 = st[PER_AXIS * j:PER_AXIS * (j + 1)]
         c = law[j, 2]
-        dtm = -dstep / c if c != 0 else 0.0
         law[j, 0] += da
         law[j, 1] += db
+        d0[j] += dd0
+        if shifts[j] != 0.0:
+            k = BREAK_SHIFTS_C.index(float(shifts[j]))
+            law[j, 2] = st[_shift_column(j, k)]
+            law[j, 3] += shifts[j]
+            continue
+        dtm = -dstep / c if c != 0 else 0.0
         law[j, 2] += dc
         law[j, 3] += float(np.clip(dtm, -max_break_shift_c, max_break_shift_c))
-        d0[j] += dd0
     rel = cal.constants["relaxation"]
     tau = float(rel["tau_s"])
     tau_new = tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau))
