@@ -22,10 +22,12 @@ from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import Chunk, check_fit, day_chunks, fit_days
 from fluxcal.missions.messenger.fit_variance import (
+    BREAK_SHIFTS_C,
     N_PARAMETERS,
     N_SHIFTS,
     PER_AXIS,
     VarianceStatistics,
+    apply_step,
     law_parameters,
     law_to_table,
     solve_variance,
@@ -364,3 +366,74 @@ def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
     steeper[0, 3] += 0.01
     assert _law_change(shipped, dataclasses.replace(
         shipped, temperature_coefficients=steeper)) == pytest.approx(0.55, abs=1e-9)
+
+
+def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C):
+    """Normal equations of ``|B'| = u . (true law - current law)(T)``, written from the
+    column definitions of the module docstring (unit matrix, M = 1): per axis ``u_j``
+    times ``1, T, max(0, T - T_m), [T > T_m], R`` and the hinges at the shifted breaks,
+    then tau and dt (zero here); 48 two-hour blocks over -60..+40 C."""
+    n = 48 * 300
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    temp = rng.uniform(-60.0, 40.0, n)
+    ratio = rng.uniform(0.0, 400.0, n)
+
+    def offset(law):
+        a, b, c, tm = law.T
+        return a + b * temp[:, None] + c * np.maximum(0.0, temp[:, None] - tm)
+
+    y = np.einsum("ij,ij->i", u, offset(law_true) - offset(law_now))
+    cols = []
+    for j in range(3):
+        tm = law_now[j, 3]
+        cols += [u[:, j] * f for f in (np.ones(n), temp, np.maximum(0.0, temp - tm),
+                                       (temp > tm).astype(float), ratio)]
+    for j in range(3):
+        cols += [u[:, j] * np.maximum(0.0, temp - law_now[j, 3] - d) for d in shifts]
+    x = np.column_stack([*cols, rng.normal(size=n), rng.normal(size=n)])
+    xb, yb = x.reshape(48, 300, -1), y.reshape(48, 300)
+    from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
+
+    centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
+    return VarianceStatistics(
+        normal=np.einsum("bni,bnj->bij", xb, xb), rhs=np.einsum("bni,bn->bi", xb, yb),
+        yy=np.einsum("bn,bn->b", yb, yb), samples=np.full(48, 300.0),
+        block_start=np.arange(48) * 7200.0, interval_start=np.zeros(48),
+        reason=np.full(48, ""),
+        temperature_count=np.where((centre > -60) & (centre < 40), 3000.0, 0.0))
+
+
+def test_a_distant_break_is_moved_exactly_to_the_shift_of_least_residual(shipped):
+    # the true x break 4 C above the current one, y 2 C below, z unchanged but its
+    # slope 10 % larger: the linearised step alone would move a break a fraction of the
+    # way per pass; the shifted hinge fits the true law exactly in one step
+    now = law_parameters(shipped)
+    true = now.copy()
+    true[0, 3] += 4.0
+    true[1, 3] -= 2.0
+    true[2, 1] *= 1.1
+    stats = _hinge_statistics(now, true, np.random.default_rng(21))
+    sol = solve_variance(stats, n_bootstrap=20, law=now)
+    np.testing.assert_array_equal(sol.break_shift, [4.0, -2.0, 0.0])
+    law, d0, _, _ = apply_step(shipped, sol.step, break_shift=sol.break_shift)
+    np.testing.assert_allclose(law, true, atol=1e-8)
+    np.testing.assert_allclose(d0, shipped.duty_cycle_d0, atol=1e-9)
+    # without the law the shifts are not tried: the linearised step is taken
+    plain = solve_variance(stats, n_bootstrap=20)
+    np.testing.assert_array_equal(plain.break_shift, [0.0, 0.0, 0.0])
+
+
+def test_a_shift_outside_the_fitted_range_is_not_tried(shipped):
+    # the break moved 8 C, but only 4 C of it lie inside the data (-60..+40 C is the
+    # test's range; the bins above -10 C emptied): the shift is refused, the break stays
+    now = law_parameters(shipped)
+    true = now.copy()
+    true[0, 3] += 8.0
+    stats = _hinge_statistics(now, true, np.random.default_rng(22))
+    from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
+
+    stats.temperature_count[TEMPERATURE_EDGES_C[:-1] >= now[0, 3] + 5.0] = 0.0
+    sol = solve_variance(stats, n_bootstrap=20, law=now)
+    assert sol.break_shift[0] in (0.0, 0.5, 1.0, 2.0, 4.0)
+    assert now[0, 3] + sol.break_shift[0] <= stats.fitted_range()[1]
