@@ -329,10 +329,9 @@ def reduce_variance(
     y = mag
     # the mean (and trend) per segment; the weights below per interval
     interval_codes = codes
-    segment = np.floor(et / s.segment_s).astype(np.int64)
-    _, codes = np.unique(np.column_stack([interval_codes, segment]), axis=0,
-                         return_inverse=True)
-    codes = codes.reshape(-1)
+    per = int(np.ceil(s.interval_s / s.segment_s)) + 1
+    within = np.floor((et - labels[interval_codes] * s.interval_s) / s.segment_s)
+    _, codes = np.unique(interval_codes * per + within.astype(np.int64), return_inverse=True)
     k = int(codes.max()) + 1
     out.segments = k
     n_k = np.bincount(codes, minlength=k).astype(float)
