@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
+from scipy import sparse
 
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
@@ -337,16 +338,17 @@ def reduce_variance(
     n_k = np.bincount(codes, minlength=k).astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
         inv = np.where(n_k > 0, 1.0 / n_k, 0.0)
-    x -= np.stack([np.bincount(codes, x[:, p], k) for p in range(x.shape[1])],
-                  axis=1)[codes] * inv[codes, None]
+    # per-segment sums of every column at once: a (segments x samples) indicator matrix
+    member = sparse.csr_matrix((np.ones(codes.size), (codes, np.arange(codes.size))),
+                               shape=(k, codes.size))
+    x -= (member @ x)[codes] * inv[codes, None]
     y = y - (np.bincount(codes, y, k) * inv)[codes]
     if s.detrend:
         tc = et - (np.bincount(codes, et, k) * inv)[codes]
         with np.errstate(invalid="ignore", divide="ignore"):
             tt = np.bincount(codes, tc * tc, k)
             tinv = np.where(tt > 0, 1.0 / np.where(tt > 0, tt, 1.0), 0.0)
-        x -= tc[:, None] * (np.stack([np.bincount(codes, tc * x[:, p], k)
-                                      for p in range(x.shape[1])], axis=1) * tinv[:, None])[codes]
+        x -= tc[:, None] * ((member @ (tc[:, None] * x)) * tinv[:, None])[codes]
         y = y - tc * (np.bincount(codes, tc * y, k) * tinv)[codes]
     if s.weighting == "inverse_variance":
         ki = labels.size
