@@ -43,9 +43,15 @@ from tests.missions.messenger.test_fit_verification import (  # noqa: E402
     _recalibrate_rms as recalibrate_rms,
 )
 
+from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.missions.messenger import forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
-from fluxcal.missions.messenger.fit import day_chunks, fit_days, law_sigma  # noqa: E402
+from fluxcal.missions.messenger.fit import (  # noqa: E402
+    check_fit,
+    day_chunks,
+    fit_days,
+    law_sigma,
+)
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
@@ -75,6 +81,11 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         base = load_calibration(np.datetime64("2010-03-01"))
         res = fit_days(day_chunks(run.input_dir, run.days[:days]), base, passes=passes,
                        estimator="variance", guard=False)
+        try:  # what the command line would do with this fit (it writes nothing if refused)
+            check_fit(res)
+            verdict = "accepted"
+        except FitRefusedError as exc:
+            verdict = f"refused: {str(exc).split(';')[0]}"
         unseen_rms = np.full(3, np.nan)
         if unseen:
             folder = Path(tmp) / "fitted"
@@ -107,6 +118,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
                                             - _law(tc, t_all)).max(axis=0),
         "range": (lo, hi),
         "unseen_nt": unseen_rms,
+        "verdict": verdict,
     }
 
 
@@ -165,8 +177,8 @@ def main() -> None:
               f"{np.round(r['d0_pull'], 2)} ({np.round(r['d0_rel'], 3)})  law pulls max "
               f"{np.round(np.nanmax(np.abs(r['law_pull']), axis=0), 2)}  law max "
               f"{np.round(r['law_max_nt'], 3)} nT over {r['range'][0]:+.0f}.."
-              f"{r['range'][1]:+.0f} C  unseen day {np.round(r['unseen_nt'], 3)} nT",
-              flush=True)
+              f"{r['range'][1]:+.0f} C  unseen day {np.round(r['unseen_nt'], 3)} nT; guards: "
+              f"{r['verdict']}", flush=True)
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
           f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
           f"{args.days} days at 1 Hz, compressive {args.compressive}, {args.passes} passes, "
@@ -193,6 +205,14 @@ def main() -> None:
         print(f"unseen day rms (nT): median {np.round(np.median(un, axis=0), 3)}, max "
               f"{np.round(un.max(axis=0), 3)}; within 0.1 nT on every axis "
               f"{int(np.all(un <= 0.1, axis=1).sum())} of {len(rows)}")
+    accepted = [r for r in rows if r["verdict"] == "accepted"]
+    print(f"guards: {len(accepted)} of {len(rows)} accepted; refused: "
+          f"{sorted({r['verdict'] for r in rows} - {'accepted'})}")
+    if accepted:
+        worst = max(float(np.nanmax(np.abs(np.r_[r["tau_pull"], r["d0_pull"],
+                                                  r["law_pull"].ravel()])))
+                    for r in accepted)
+        print(f"largest |pull| of tau, D0 and the law among the accepted fits: {worst:.2f}")
     tau = np.abs([r["tau_rel"] for r in rows])
     d0 = np.abs(np.stack([r["d0_rel"] for r in rows]))
     print(f"targets met (issue 21) in {len(rows)} realisations: law <= 0.15 nT on every axis "
