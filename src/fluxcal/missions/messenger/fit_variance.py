@@ -105,8 +105,8 @@ class VarianceSettings:
         entry 12 for 600 and 750 s).
     segment_s : float
         Segment length (s): ``|B|`` is taken constant within one up to a straight line
-        in time (entry 17: 60 s keeps 3 % of the rotations' variance and drops all but
-        1 % of a compressive part correlated over minutes; 900 s, the interval, was the
+        in time (entry 17: with 60 s, 1.5 % of the rotations' power is left, and 0.011 %
+        of a compressive part correlated over 5-60 min; 900 s, the interval, was the
         default before).
     min_samples : int
         ``too_few_samples`` below this many samples (a third of 15 min at 1 Hz).
@@ -388,7 +388,7 @@ class VarianceSolution:
     boot : ndarray, shape (n_bootstrap, N_PARAMETERS)
         The step re-solved on blocks resampled with replacement.
     chi2 : float
-        Residual sum of squares (nT^2, weighted).
+        Residual sum of squares (weighted).
     dof : int
         Samples minus parameters minus segments.
     break_shift : ndarray, shape (3,)
