@@ -138,11 +138,11 @@ def fit(
         "'binned-mean': the seed's law at the bins' mean temperatures."),
     estimator: str = typer.Option(
         "variance", "--estimator", help="'variance' (default): |B| least variable within "
-        "15-min intervals, which assumes rotations at nearly constant |B| (Alfvenic solar "
-        "wind) and nothing about the mean field; 'zero-mean': the seed's long-term "
-        "averages, which assume the field averages to zero over each bin's samples (a "
-        "quiet field, e.g. the demo's). Temperature law, D0, tau and dt; the waveforms are "
-        "phase-binned either way."),
+        "1-min segments of selected 15-min intervals, which assumes rotations at nearly "
+        "constant |B| (Alfvenic solar wind) and nothing about the mean field; "
+        "'zero-mean': the seed's long-term averages, which assume the field averages to "
+        "zero over each bin's samples (a quiet field, e.g. the demo's). Temperature law, "
+        "D0, tau and dt; the waveforms are phase-binned either way."),
     hold_d0: str = typer.Option(
         "", "--hold-d0", help="Comma list of axes (x, y, z) whose duty-cycle coefficient "
         "D0 keeps the base value (variance estimator): for an axis whose D0 the data do "

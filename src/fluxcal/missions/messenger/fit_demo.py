@@ -11,8 +11,8 @@
    cycles 0-40 % changing every 1000 s and heater-off runs warming the sensor from -50 C
    to +40 C.
 3. `fit_days` with the variance estimator (``estimator="variance"``: ``|B|`` nearly
-   constant within 15-min intervals; the seed's zero-mean estimator is refused on a
-   realistic wind; D0 z held at the shipped value, ``--hold-d0 z``: two days do not
+   constant within 1-min segments of 15-min intervals; the seed's zero-mean estimator is
+   refused on a realistic wind; D0 z held at the shipped value, ``--hold-d0 z``: two days do not
    determine it), passes until tau and D0 settle, and `write_calibration_folder`.
 4. An unseen day (the forward model's own field: Mercury dipole, IMF, waves) calibrated
    with the shipped tables and with the fitted folder (``edr2cdr --calib``'s
