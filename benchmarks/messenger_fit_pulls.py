@@ -67,15 +67,34 @@ def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
 
 
+def defects(seed: int, days: int) -> dict:
+    """Telemetry defects over ``days`` days (FlightConfig fields): per day 5 science gaps
+    of 10 s to 20 min, one coarse-range span of 1-30 min, 3 heater-bit gaps of 5-90 s, 3
+    temperature gaps of 20-500 s; rate setting 7 over the middle 30 % of the span."""
+    rng = np.random.default_rng(seed)
+    span = days * 86400.0
+
+    def spans(per_day: int, lo: float, hi: float) -> list[tuple[float, float]]:
+        return [(t, t + rng.uniform(lo, hi))
+                for t in np.sort(rng.uniform(0, span, days * per_day))]
+
+    return {"science_gaps": spans(5, 10.0, 1200.0), "coarse_intervals": spans(1, 60.0, 1800.0),
+            "heater_gaps": spans(3, 5.0, 90.0), "temperature_gaps": spans(3, 20.0, 500.0),
+            "rate_changes": [(0.3 * span, 7), (0.6 * span, 6)]}
+
+
 def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
-        first_seed: int = 1000, unseen: bool = False) -> dict:
+        first_seed: int = 1000, unseen: bool = False, broadband: bool = False,
+        with_defects: bool = False) -> dict:
     """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth;
-    ``unseen``: one more day simulated, recalibrated with the fitted tables)."""
+    ``unseen``: one more day simulated, recalibrated with the fitted tables;
+    ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`)."""
     with tempfile.TemporaryDirectory() as tmp:
-        wind = functools.partial(realistic_wind, compressive=compressive)
+        wind = functools.partial(realistic_wind, compressive=compressive, broadband=broadband)
+        extra = defects(first_seed + k, days) if with_defects else {}
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01",
                                                               days=days + int(unseen),
-                                                              seed=first_seed + k),
+                                                              seed=first_seed + k, **extra),
                               wind=wind, truth=unseen)
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
@@ -156,6 +175,12 @@ def main() -> None:
     ap.add_argument("--unseen", action="store_true",
                     help="Simulate one more day and recalibrate it with the fitted tables "
                          "(rms against the truth per sensor axis, the issue's figure of merit).")
+    ap.add_argument("--broadband", action="store_true",
+                    help="Compressive part with an f^-5/3 spectrum from 1 h to 2 s (the "
+                         "estimator's assumption failing) instead of f^-2 from 1 h to 5 min.")
+    ap.add_argument("--defects", action="store_true",
+                    help="Telemetry defects: science, heater and temperature gaps, coarse "
+                         "range, a rate change (`defects`).")
     ap.add_argument("--save", type=Path, default=None,
                     help="Folder to pickle each realisation's fit and true tables into.")
     args = ap.parse_args()
@@ -163,7 +188,8 @@ def main() -> None:
     t_start = time.perf_counter()
     run = functools.partial(_timed, days=args.days, compressive=args.compressive,
                             passes=args.passes, save=args.save, first_seed=args.first_seed,
-                            unseen=args.unseen)
+                            unseen=args.unseen, broadband=args.broadband,
+                            with_defects=args.defects)
     if args.processes > 1:
         pool = ProcessPoolExecutor(max_workers=args.processes)
         done = (f.result() for f in as_completed([pool.submit(run, k)
@@ -181,7 +207,9 @@ def main() -> None:
               f"{r['verdict']}", flush=True)
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
           f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
-          f"{args.days} days at 1 Hz, compressive {args.compressive}, {args.passes} passes, "
+          f"{args.days} days at 1 Hz, compressive {args.compressive}"
+          f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}, "
+          f"{args.passes} passes, "
           f"{time.perf_counter() - t_start:.0f} s")
     if args.markdown:
         print("| parameter | N | mean pull | spread (std) | max abs pull |")

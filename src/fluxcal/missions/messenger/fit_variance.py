@@ -69,8 +69,9 @@ from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
-__all__ = ["MIN_RANGE_SAMPLES", "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings",
-           "VarianceStatistics", "reduce_variance", "solve_variance"]
+__all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "N_PARAMETERS", "TEMPERATURE_EDGES_C",
+           "VarianceSettings", "VarianceStatistics", "apply_step", "choose_breaks",
+           "reduce_variance", "solve_variance"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
