@@ -328,6 +328,10 @@ def test_fitted_range_is_stated_in_the_written_folder(shipped, tmp_path):
     report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
     assert report["temperature"]["fitted_range_c"] == [-60.0, -30.0]
     assert "fitted range: -60..-30 C" in report_text(res, prov)
+    # the method's lengths are in the report (entry 17: 60-s segments of 900-s intervals)
+    assert (report["variance_intervals"]["interval_s"],
+            report["variance_intervals"]["segment_s"]) == (900.0, 60.0)
+    assert "within 60-s segments of the accepted intervals" in report_text(res, prov)
 
 
 def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():

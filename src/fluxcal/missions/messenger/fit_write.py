@@ -26,7 +26,11 @@ import numpy as np
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
 from fluxcal.missions.messenger.fit import AXES, FitResult, law_sigma
-from fluxcal.missions.messenger.fit_variance import MIN_RANGE_SAMPLES, TEMPERATURE_EDGES_C
+from fluxcal.missions.messenger.fit_variance import (
+    MIN_RANGE_SAMPLES,
+    TEMPERATURE_EDGES_C,
+    VarianceSettings,
+)
 from fluxcal.products.atomic import atomic_group, atomic_write_bytes
 from fluxcal.products.provenance import creation_time, sha256_file
 from fluxcal.version import software_version
@@ -320,7 +324,9 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
             "rejected_by_reason": v.rejections(),
             "rejected_start_et": v.interval_start[v.reason != ""],
             "rejected_reason": [str(x) for x in v.reason[v.reason != ""]],
-            "bootstrap_blocks": int(v.block_start.size)}
+            "bootstrap_blocks": int(v.block_start.size),
+            "interval_s": VarianceSettings().interval_s,
+            "segment_s": VarianceSettings().segment_s, "segments": int(v.segments)}
         doc["temperature"]["fitted_range_c"] = list(result.fitted_range)
         doc["temperature"]["fitted_range_rule"] = (
             f"5-C bins holding >= {MIN_RANGE_SAMPLES} samples of accepted intervals")
@@ -353,7 +359,8 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
         f"{st.n_samples.get('outside_intervals', 0)}, before V10 "
         f"{st.n_samples.get('before_v10', 0)})",
         f"estimator: {result.estimator} (temperature law, D0, tau, dt; "
-        + ("|B| least variable within intervals: rotations at nearly constant |B|)"
+        + (f"|B| least variable within {VarianceSettings().segment_s:g}-s segments of the "
+           "accepted intervals: rotations at nearly constant |B|)"
            if result.estimator == "variance" else
            "long-term averages: the field averages to zero over each bin's samples)"),
     ]
