@@ -39,9 +39,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E402
-from tests.missions.messenger.test_fit_verification import (  # noqa: E402
-    _recalibrate_rms as recalibrate_rms,
-)
+from tests.missions.messenger._unseen_day import recalibrate_rms  # noqa: E402
 
 from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.missions.messenger import forward  # noqa: E402

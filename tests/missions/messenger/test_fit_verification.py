@@ -28,7 +28,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.flight_sim import (
@@ -37,6 +36,7 @@ from fluxcal.missions.messenger.flight_sim import (
     read_flight_truth,
     simulate_flight,
 )
+from tests.missions.messenger._unseen_day import recalibrate_rms
 
 fit = pytest.importorskip("fluxcal.missions.messenger.fit",
                           reason="the issue 13 fit (helper H3) is not in the tree yet")
@@ -86,33 +86,6 @@ def _binned_law_error(temps: np.ndarray, tables: forward.SeedTables, edges: np.n
         best = min(fits, key=lambda r: r.cost)
         out.append(np.abs(model(best.x, t) - _law(tables, t)[:, j]).max())
     return np.array(out)
-
-
-def _day_streams(inp: Path, day: dt.date):
-    from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
-
-    one = dt.timedelta(days=1)
-
-    def f(code, d):
-        return inp / f"MAG{code}_{d:%Y%j}.csv"
-
-    return (read_science([f("SCI", day)]),
-            read_heater([p for p in (f("HTR", day - one), f("HTR", day)) if p.exists()]),
-            read_temperature([p for p in (f("TMP", day - one), f("TMP", day),
-                                          f("TMP", day + one)) if p.exists()]))
-
-
-def _recalibrate_rms(inp: Path, day: dt.date, folder: Path | None) -> np.ndarray:
-    """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth."""
-    from fluxcal.missions.messenger.pipeline import calibrate
-
-    sci, htr, tmp = _day_streams(inp, day)
-    cal = load_calibration(np.datetime64(str(day)), folder)
-    with KernelPool(inp / "kernels.tm"):
-        ds = calibrate(sci, htr, tmp, cal, frames=("sc",), max_offset_step=None)
-    truth = read_flight_truth(inp, day)
-    assert np.array_equal(ds["met"].values, truth["met"])
-    return np.sqrt(((ds["b_sensor"].values - truth["b_sensor"]) ** 2).mean(axis=0))
 
 
 def _run(tmp: Path, config: FlightConfig, fit_days: int, passes: int):
@@ -210,9 +183,9 @@ def test_fit_recovers_altered_tables_in_a_quiet_wind(tmp_path):
     # the fitted zero level errs by <~1 count (the laws above), 0.05 nT; rounding adds
     # 0.047 / sqrt(12) = 0.014 nT: 0.1 nT rms holds if the fit is unbiased.
     unseen = run.days[-1]
-    fitted = _recalibrate_rms(run.input_dir, unseen, folder)
+    fitted = recalibrate_rms(run.input_dir, unseen, folder)
     errors["unseen day rms (nT), fitted tables, tol 0.1"] = (fitted, 0.1)
-    shipped = _recalibrate_rms(run.input_dir, unseen, None)
+    shipped = recalibrate_rms(run.input_dir, unseen, None)
     report = "\n".join(f"{k}: {np.round(v, 4).tolist()}" for k, (v, _) in errors.items())
     print(report + f"\nunseen day rms (nT), shipped tables: {shipped.round(3).tolist()}"
           f"\nbinned-mean temperature law max |error| (counts): {seed_law.round(3).tolist()}"

@@ -442,8 +442,7 @@ def _fit(a: np.ndarray, v: np.ndarray, free: np.ndarray, fixed: np.ndarray) -> n
     """Parameters (fixed ones at ``fixed``) minimising the residual of ``a``, ``v``."""
     theta = np.broadcast_to(fixed, (*v.shape[:-1], N_PARAMETERS)).copy()
     rhs = v[..., free] - (a[..., free, :] @ fixed)
-    theta[..., free] = _solve(a[..., free][..., free, :] if a.ndim == 2
-                              else a[:, free][:, :, free], rhs)
+    theta[..., free] = _solve(a[..., free][..., free, :], rhs)
     return theta
 
 

@@ -1,0 +1,43 @@
+"""An unseen day recalibrated with a calibration folder, against the flight model's truth.
+
+The figure of merit of issue 21 (an unseen day's rms error per sensor axis), shared by
+``test_fit_verification.py`` and ``benchmarks/messenger_fit_pulls.py --unseen``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+
+import numpy as np
+
+from fluxcal.geometry.kernels import KernelPool
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.flight_sim import read_flight_truth
+from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+
+
+def day_streams(inp: Path, day: dt.date):
+    """The raw streams of ``day`` in a batch input folder (heater and temperature with the
+    neighbouring days' records that reach into it)."""
+    one = dt.timedelta(days=1)
+
+    def f(code, d):
+        return inp / f"MAG{code}_{d:%Y%j}.csv"
+
+    return (read_science([f("SCI", day)]),
+            read_heater([p for p in (f("HTR", day - one), f("HTR", day)) if p.exists()]),
+            read_temperature([p for p in (f("TMP", day - one), f("TMP", day),
+                                          f("TMP", day + one)) if p.exists()]))
+
+
+def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None) -> np.ndarray:
+    """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth."""
+    sci, htr, tmp = day_streams(inp, day)
+    cal = load_calibration(np.datetime64(str(day)), folder)
+    with KernelPool(inp / "kernels.tm"):
+        ds = calibrate(sci, htr, tmp, cal, frames=("sc",), max_offset_step=None)
+    truth = read_flight_truth(inp, day)
+    assert np.array_equal(ds["met"].values, truth["met"])
+    return np.sqrt(((ds["b_sensor"].values - truth["b_sensor"]) ** 2).mean(axis=0))
