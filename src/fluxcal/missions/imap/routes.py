@@ -20,16 +20,16 @@ import xarray as xr
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.imap import l1a
-from fluxcal.missions.imap.calibration import DEFAULT_CALIBRATION, load_calibration
+from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.options import ImapOptions
-from fluxcal.missions.imap.packets import data_file
+from fluxcal.missions.imap.packets import packet_definition
 from fluxcal.missions.imap.pipeline import (
-    DEFAULT_SCLK,
     LEVELS,
     read_l1a,
     to_level,
     write_products,
 )
+from fluxcal.missions.imap.sources import sclk_kernels
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
@@ -40,11 +40,6 @@ Datasets = dict[tuple[str, str], xr.Dataset]
 DAY_PATTERNS = ("*{day:%Y%m%d}*.pkts", "*{day:%Y%m%d}*.bin", "MAGScience-*{day:%Y%m%d}*.csv")
 
 
-def default_kernels() -> list[Path]:
-    """Return the shipped SCLK kernel (the IMAP clock, NAIF id -43)."""
-    return [data_file(DEFAULT_SCLK)]
-
-
 @dataclass(frozen=True)
 class ImapRun:
     """IMAP MAG L0 -> L1A -> L1B as a `fluxcal.runs.driver.Pipeline` (picklable)."""
@@ -52,16 +47,24 @@ class ImapRun:
     frame_kernels: Mapping[str, Path] | None = field(default_factory=dict)
 
     def check(self, options: ImapOptions) -> None:
-        """Refuse an unknown level and an unreadable calibration file before any packet."""
+        """Refuse a bad level, calibration file or named packet definition before any input.
+
+        Without ``--xtce`` the packet definition is looked for when a packet file is
+        read (`fluxcal.missions.imap.packets.xtce_path`): L1A CSV inputs need none.
+        """
         if options.level not in LEVELS:
             raise InputFormatError(f"level {options.level!r}: expected one of {LEVELS}",
                                    field="--level")
         if options.level == "l1b":
             load_calibration(options.calib)
+        if options.xtce is not None:
+            packet_definition(options.xtce)
 
     def read(self, source: Sequence[Path], options: ImapOptions) -> tuple[Datasets, list[Path]]:
         """Decode the packets (or read the L1A CSVs) into L1A datasets (kernels loaded)."""
-        return read_l1a(source, SclkKernel.from_pool(l1a.IMAP_SCLK_ID)), list(map(Path, source))
+        clock = SclkKernel.from_pool(l1a.IMAP_SCLK_ID)
+        return (read_l1a(source, clock, xtce=options.xtce, csv_layout=options.csv_layout),
+                list(map(Path, source)))
 
     def size(self, raw: Datasets) -> int:
         """Return the number of vectors of both sensors."""
@@ -75,8 +78,7 @@ class ImapRun:
               inputs: Sequence[Path], kernel_list: Sequence[str],
               only_day: _dt.date | None, progress: Any) -> list[Path]:
         """One product per mode, sensor and UTC day (or ``only_day``), all or nothing."""
-        calibration = ({"imap_mag_l1b": options.calib or data_file(DEFAULT_CALIBRATION)}
-                       if options.level == "l1b" else {})
+        calibration = {"imap_mag_l1b": options.calib} if options.level == "l1b" else {}
         prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
         day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
         return write_products(calibrated, out_dir, options.formats, prov,
@@ -107,24 +109,4 @@ def make_day_task(input_dir: Path, out_dir: Path, **options: Any) -> driver.DayT
     fields = {f for f in ImapOptions.__dataclass_fields__}
     opts = ImapOptions(**{k: v for k, v in options.items() if k in fields})
     return driver.DayTask(ImapRun(), Path(input_dir), Path(out_dir), opts,
-                          kernels if kernels is not None else default_kernels(), name="imap")
-
-
-#: The shipped real packet samples and the UTC day of their vectors.
-SAMPLE_DAYS = {"mag_sample_burst.pkts": _dt.date(2023, 10, 25),
-               "mag_sample_norm.pkts": _dt.date(2023, 11, 30)}
-
-
-def simulate_days(input_dir: Path, days: Sequence[_dt.date]) -> None:
-    """Lay the shipped real packets out as the batch input of their days (the demo).
-
-    IMAP has no forward model in fluxcal: the batch demo runs on the real ground-test
-    packets (`SAMPLE_DAYS`); a day of ``days`` without a sample gets no file.
-    """
-    input_dir = Path(input_dir)
-    input_dir.mkdir(parents=True, exist_ok=True)
-    for name, day in SAMPLE_DAYS.items():
-        if day in days:
-            mode = name.split("_")[2].split(".")[0]
-            (input_dir / f"imap_mag_l0_{mode}_{day:%Y%m%d}_v001.pkts").write_bytes(
-                data_file(name).read_bytes())
+                          sclk_kernels(kernels), name="imap")
