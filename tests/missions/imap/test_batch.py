@@ -1,8 +1,9 @@
 """``fluxcal batch imap`` and ``fluxcal imap calibrate`` are the same driver: same products.
 
-The inputs are the real ground-test packets shipped with fluxcal; the expected values are
-the single run's products (a route the batch shares no per-mission code with beyond the
-pipeline), compared field by field and in time.
+The inputs are the IMAP MAG team's real ground-test packets from ../shared/data/imap (laid
+out under batch names of their days); the expected values are the single run's products
+(a route the batch shares no per-mission code with beyond the pipeline), compared field by
+field and in time.
 """
 
 from __future__ import annotations
@@ -14,24 +15,25 @@ import cdflib
 import numpy as np
 
 from fluxcal.cli import main
-from fluxcal.missions.imap.routes import SAMPLE_DAYS, simulate_days
+from tests.missions.imap.conftest import CALIBRATION, SCLK, XTCE
+
+TEAM_ARGS = ["--kernels", str(SCLK), "--calib", str(CALIBRATION), "--xtce", str(XTCE)]
 
 
-def test_batch_day_equals_the_single_run(tmp_path: Path) -> None:
-    simulate_days(tmp_path / "in", list(SAMPLE_DAYS.values()))
-    packets = sorted((tmp_path / "in").glob("*.pkts"))
-    single = ["imap", "calibrate", "--out", str(tmp_path / "single")]
-    for p in packets:
-        single += ["--input", str(p)]
-    assert main(single) == 0
-    assert main(["batch", "imap", "--start", "2023-10-25", "--end", "2023-10-26",
+def test_batch_day_equals_the_single_run(imap_data: Path, tmp_path: Path) -> None:
+    (tmp_path / "in").mkdir()
+    packets = tmp_path / "in" / "imap_mag_l0_raw_20231130_v001.pkts"
+    packets.write_bytes((imap_data / "mag_l1_test_data.pkts").read_bytes())
+    single = ["imap", "calibrate", "--out", str(tmp_path / "single"), "--input", str(packets)]
+    assert main(single + TEAM_ARGS) == 0
+    assert main(["batch", "imap", "--start", "2023-11-29", "--end", "2023-11-30",
                  "--input", str(tmp_path / "in"), "--out", str(tmp_path / "batch"),
-                 "--scheduler", "serial", "--quiet"]) == 0
+                 "--scheduler", "serial", "--quiet", *TEAM_ARGS]) == 0
     report = json.loads((tmp_path / "batch" / "batch_report_imap.json").read_text())
     assert report["counts"]["done"] == 1 and report["counts"]["no_data"] == 1
     made = sorted(p.name for p in (tmp_path / "batch").glob("*.cdf"))
-    assert made == ["imap_mag_l1b_burst-magi_20231025_v001.cdf",
-                    "imap_mag_l1b_burst-mago_20231025_v001.cdf"]
+    assert made == ["imap_mag_l1b_norm-magi_20231130_v001.cdf",
+                    "imap_mag_l1b_norm-mago_20231130_v001.cdf"]
     for name in made:
         a = cdflib.CDF(str(tmp_path / "single" / name))
         b = cdflib.CDF(str(tmp_path / "batch" / name))
