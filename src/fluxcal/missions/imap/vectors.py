@@ -84,10 +84,13 @@ def _bit(data, pos):
 
 @njit(cache=True, nogil=True, inline="always")
 def _unsigned(data, pos, n):
+    """The ``n`` bits (1..32) from bit ``pos`` on, most significant first, as an integer."""
+    first = pos >> 3
+    last = (pos + n - 1) >> 3
     v = 0
-    for k in range(n):
-        v = (v << 1) | _bit(data, pos + k)
-    return v
+    for i in range(first, last + 1):
+        v = (v << 8) | np.int64(data[i])
+    return (v >> ((last + 1) * 8 - pos - n)) & ((1 << n) - 1)
 
 
 @njit(cache=True, nogil=True, inline="always")
