@@ -141,7 +141,7 @@ def test_the_60_bit_switch_and_both_signs(template: bytes) -> None:
     assert decoded.range.tolist() == [0, 1, 2, 3, 0, 1, 3, 3, 2, 2, 1, 1]
 
 
-def test_l1b_rescales_compressed_counts_by_2_to_16_minus_w(template: bytes) -> None:
+def test_l1b_rescales_compressed_counts_by_2_to_16_minus_w() -> None:
     import xarray as xr
 
     ds = xr.Dataset({"compression": ("time", np.array([0, 1, 1, 1])),
