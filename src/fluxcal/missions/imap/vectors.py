@@ -84,7 +84,7 @@ def _bit(data, pos):
 
 @njit(cache=True, nogil=True, inline="always")
 def _unsigned(data, pos, n):
-    """The ``n`` bits (1..32) from bit ``pos`` on, most significant first, as an integer."""
+    """Return the ``n`` bits (1..32) from bit ``pos`` on, most significant first."""
     first = pos >> 3
     last = (pos + n - 1) >> 3
     v = 0
