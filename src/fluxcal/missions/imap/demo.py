@@ -15,7 +15,7 @@ from fluxcal.missions.imap.sources import TEAM_FILES, missing_team_files, shared
 from fluxcal.products.provenance import provenance_attrs
 
 
-def _run(out: Path, level: str, quicklook: bool) -> tuple[str, int, list[Path]] | None:
+def _run(out: Path, level: str, quicklook: bool) -> tuple[str, int] | None:
     """One level of the team's normal and burst packets into ``out``; None without them."""
     folder = shared_folder()
     if folder is None:
@@ -28,7 +28,7 @@ def _run(out: Path, level: str, quicklook: bool) -> tuple[str, int, list[Path]] 
                             [folder / TEAM_FILES["sclk"]])
     paths = write_products(datasets, out, ["cdf"], prov, quicklook=quicklook)
     counts = ", ".join(f"{m}-{s} {ds.sizes['time']}" for (m, s), ds in datasets.items())
-    return counts, len(paths), inputs
+    return counts, len(paths)
 
 
 def run_demo(out: Path) -> str:
@@ -39,7 +39,7 @@ def run_demo(out: Path) -> str:
         done = _run(out / level, level, quicklook=level == "l1b")
         if done is None:
             return f"IMAP MAG part skipped: {missing_team_files()}"
-        counts, n_files, _ = done
+        counts, n_files = done
         lines.append(f"{level.upper()} from real IMAP MAG ground-test packets: {counts} "
                      f"vectors; {n_files} files in {out / level}")
     return "\n".join(lines)
@@ -53,7 +53,7 @@ def run_quick_demo(out: Path) -> str:
     done = _run(out, "l1b", quicklook=True)
     if done is None:
         return f"IMAP MAG part skipped: {missing_team_files()}"
-    counts, n_files, _ = done
+    counts, n_files = done
     report = write_run_report(out, title="fluxcal demo: IMAP MAG L1B from real packets")
     return (f"IMAP MAG L1B from real ground-test packets: {counts} vectors; {n_files} "
             f"files in {out}\n  report: {report}")
