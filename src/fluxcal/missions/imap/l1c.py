@@ -1,0 +1,245 @@
+"""IMAP MAG L1C: normal-mode L1B with its gaps filled from burst-mode L1B, per sensor.
+
+The normal-mode samples are kept as they are (flag ``NORMAL``).  Where consecutive normal
+samples are further apart than the cadence allows (more than `GAP_TOLERANCE` over
+``1 / rate``), timestamps are laid out at the normal cadence inside the gap; burst samples
+around the gap are filtered down to the normal rate by the flight software's CIC filter
+(two cascaded boxcars of length ``burst_rate / normal_rate``, delay-compensated) and
+interpolated linearly to those timestamps (flag ``INTERPOLATED``).  Gap timestamps that no
+full burst filter window covers keep NaN (flag ``MISSING``).  With a ``day``, the edges of
+the day (to 30 minutes either side, as the team's window) are filled the same way where
+burst data covers them; edge timestamps without burst are not laid out.
+
+References
+----------
+IMAP MAG L1C algorithm as described by the IMAP Science Operations Center's public
+``imap_processing`` package (``mag/l1c``: gap tolerance 7.5 %, CIC filter then linear
+interpolation, the generated flag 0 / 1 / -1), and the team's validation cases
+T013-T016 (``../shared/data/imap/team/L1c``).  See docs/decisions/imap.md (L1C entries).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+from scipy.signal import lfilter
+
+from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import utc_day_start_tt2000
+from fluxcal.products.timeindex import default_lsk
+
+#: Vector rates the instrument can be commanded to (vectors per second).
+NOMINAL_RATES = np.array([1, 2, 4, 8, 16, 32, 64, 128])
+#: A spacing up to 7.5 % longer than ``1 / rate`` is clock drift, not a gap.
+GAP_TOLERANCE = 0.075
+#: A cadence must hold for this many consecutive intervals to count as a rate change.
+MIN_RUN = 4
+#: The team's L1C window: the UTC day plus 30 minutes either side.
+EDGE_NS = 30 * 60 * 1_000_000_000
+NORMAL, INTERPOLATED, MISSING = 0, 1, -1
+_SEC = 1_000_000_000
+
+
+def interval_rates(epoch: np.ndarray) -> np.ndarray:
+    """Vector rate that holds over each interval ``epoch[i] .. epoch[i+1]`` (n-1 values).
+
+    An interval matches a nominal rate when its length is within `GAP_TOLERANCE` of
+    ``1 / rate``; a run of at least `MIN_RUN` intervals of one rate sets the rate; every
+    other interval (a gap, or a short run such as one missed vector) takes the rate of the
+    run before it (the first run for intervals before any run; 2 per second without any).
+    """
+    d = np.diff(np.asarray(epoch, dtype=np.int64)).astype(np.float64)
+    if d.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    period = _SEC / NOMINAL_RATES
+    near = np.abs(d[:, None] - period[None, :]) <= GAP_TOLERANCE * period[None, :]
+    cls = np.where(near.any(axis=1), NOMINAL_RATES[np.argmax(near, axis=1)], 0)
+    start = np.r_[0, np.flatnonzero(np.diff(cls)) + 1]
+    length = np.diff(np.r_[start, cls.size])
+    good = (cls[start] > 0) & (length >= MIN_RUN)
+    run_rate = np.where(good, cls[start], 0)
+    if not good.any():
+        return np.full(cls.size, 2, dtype=np.int64)
+    # forward-fill the accepted run rates, back-fill before the first one
+    idx = np.where(good, np.arange(start.size), -1)
+    idx = np.maximum.accumulate(idx)
+    idx[idx < 0] = np.flatnonzero(good)[0]
+    return np.repeat(run_rate[idx], length).astype(np.int64)
+
+
+def find_gaps(epoch: np.ndarray, rates: np.ndarray | None = None) -> np.ndarray:
+    """Gaps of a normal-mode timeline: rows ``(start, end, rate)`` (int64 ns, vectors/s).
+
+    ``start`` and ``end`` are the normal samples on either side; an interval is a gap
+    when it is longer than ``(1 + GAP_TOLERANCE) / rate`` (`interval_rates` unless
+    ``rates`` is given per interval).
+    """
+    epoch = np.asarray(epoch, dtype=np.int64)
+    rates = interval_rates(epoch) if rates is None else np.asarray(rates, dtype=np.int64)
+    d = np.diff(epoch)
+    i = np.flatnonzero(d > (1 + GAP_TOLERANCE) * _SEC / np.maximum(rates, 1))
+    return np.stack([epoch[i], epoch[i + 1], rates[i]], axis=1).astype(np.int64)
+
+
+def gap_times(gap: np.ndarray) -> np.ndarray:
+    """Timestamps laid out in a gap: ``start + k / rate`` for k >= 1, before ``end``."""
+    start, end, rate = (int(v) for v in gap)
+    return np.arange(start, end, _SEC // rate, dtype=np.int64)[1:]
+
+
+def cic_filter(t: np.ndarray, b: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """Filter ``b`` (n, 3) by two cascaded boxcars of length ``factor``, delay removed.
+
+    Returns the times and values where the whole filter (``2 factor - 1`` samples,
+    centred) lies on data: sample ``i`` of the result is the triangular-weighted mean of
+    input samples ``i - factor + 1 .. i + factor - 1`` at time ``t[i]``.
+    """
+    box = np.full(factor, 1.0 / factor)
+    kernel = np.convolve(box, box)
+    delay = factor - 1
+    if t.size < kernel.size:
+        return t[:0], b[:0]
+    y = lfilter(kernel, 1.0, b, axis=0)[kernel.size - 1:]
+    return t[delay:t.size - delay], y
+
+
+def fill_from_burst(times: np.ndarray, norm_rate: int, burst_t: np.ndarray,
+                    burst_b: np.ndarray, burst_rate: int) -> np.ndarray:
+    """Field at ``times`` (m,) from burst samples: CIC filter to ``norm_rate``, then linear.
+
+    Timestamps outside the filtered burst span come back NaN (no extrapolation).
+    """
+    factor = max(int(burst_rate // norm_rate), 1)
+    tf, bf = cic_filter(burst_t, burst_b, factor)
+    out = np.full((times.size, 3), np.nan)
+    if tf.size < 2:
+        return out
+    inside = (times >= tf[0]) & (times <= tf[-1])
+    x = (tf - tf[0]).astype(np.float64)
+    xq = (times[inside] - tf[0]).astype(np.float64)
+    for k in range(3):
+        out[inside, k] = np.interp(xq, x, bf[:, k])
+    return out
+
+
+def _burst_rate(burst: xr.Dataset) -> int:
+    if "vectors_per_second" in burst:
+        return int(np.median(burst["vectors_per_second"].values))
+    rates = interval_rates(burst["epoch"].values)
+    return int(np.median(rates)) if rates.size else 0
+
+
+def _segments(burst_t: np.ndarray) -> list[slice]:
+    """Contiguous stretches of burst data (split where the spacing jumps)."""
+    d = np.diff(burst_t)
+    if d.size == 0:
+        return [slice(0, burst_t.size)]
+    cut = np.flatnonzero(d > (1 + GAP_TOLERANCE) * np.median(d)) + 1
+    edges = np.r_[0, cut, burst_t.size]
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
+def merge(norm: xr.Dataset, burst: xr.Dataset | None = None,
+          day: np.datetime64 | str | None = None) -> xr.Dataset:
+    """L1C of one sensor: the normal-mode L1B with its gaps filled from burst (see module).
+
+    Parameters
+    ----------
+    norm, burst : xarray.Dataset
+        L1B datasets of one sensor (``epoch`` int64 TT2000 along ``time``, ``b`` in nT,
+        ``range``, ``compression``, ``compression_width``); ``burst`` may be None
+        (then every gap timestamp is ``MISSING``).
+    day : datetime64 or str, optional
+        UTC day of the product: the day's edges (+-30 min) are filled where burst covers.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``b``, ``range``, ``compression``, ``compression_width`` and ``generated``
+        (0 normal, 1 interpolated from burst, -1 missing), sorted by ``epoch``.
+
+    Raises
+    ------
+    InputFormatError
+        The two inputs are of different sensors, or burst is not faster than normal.
+    """
+    sensor = norm.attrs.get("sensor")
+    if burst is not None and burst.attrs.get("sensor") not in (None, sensor):
+        raise InputFormatError(f"normal mode is {sensor}, burst is {burst.attrs['sensor']}: "
+                               "L1C merges one sensor's two modes", field="--input")
+    t = norm["epoch"].values.astype(np.int64)
+    rates = interval_rates(t)
+    gaps = find_gaps(t, rates)
+    if day is not None and t.size:
+        lo = utc_day_start_tt2000(np.datetime64(day, "D"), default_lsk()) - EDGE_NS
+        hi = utc_day_start_tt2000(np.datetime64(day, "D") + 1, default_lsk()) + EDGE_NS
+        first = rates[0] if rates.size else 2
+        last = rates[-1] if rates.size else 2
+        # edge gaps: timestamps continue the cadence of the first/last sample outward
+        pre = np.array([[t[0] - ((t[0] - lo) // (_SEC // first) + 1) * (_SEC // first),
+                         t[0], first]], dtype=np.int64) if t[0] > lo else np.zeros((0, 3), int)
+        post = np.array([[t[-1], hi, last]], dtype=np.int64) if t[-1] < hi else \
+            np.zeros((0, 3), int)
+        edges = np.concatenate([pre, post]).astype(np.int64)
+    else:
+        edges = np.zeros((0, 3), dtype=np.int64)
+    new_t, new_b, new_rng, new_cmp = [], [], [], []
+    burst_t = burst["epoch"].values.astype(np.int64) if burst is not None else None
+    for gap, interior in [(g, True) for g in gaps] + [(g, False) for g in edges]:
+        times = gap_times(gap)
+        b = np.full((times.size, 3), np.nan)
+        if burst is not None and burst_t.size:
+            brate = _burst_rate(burst)
+            if brate <= int(gap[2]):
+                raise InputFormatError(
+                    f"burst mode has {brate} vectors/s, normal mode {int(gap[2])}: burst "
+                    "must be faster to fill normal-mode gaps", field="--input")
+            for seg in _segments(burst_t):
+                b_seg = fill_from_burst(times, int(gap[2]), burst_t[seg],
+                                        burst["b"].values[seg], brate)
+                b = np.where(np.isnan(b), b_seg, b)
+        keep = np.ones(times.size, bool) if interior else ~np.isnan(b[:, 0])
+        times, b = times[keep], b[keep]
+        new_t.append(times)
+        new_b.append(b)
+        if burst is not None and burst_t.size and times.size:
+            j = np.clip(np.searchsorted(burst_t, times), 0, burst_t.size - 1)
+            new_rng.append(burst["range"].values[j])
+            new_cmp.append(np.stack([burst["compression"].values[j],
+                                     burst["compression_width"].values[j]], axis=1))
+        else:
+            new_rng.append(np.zeros(times.size, np.int64))
+            new_cmp.append(np.zeros((times.size, 2), np.int64))
+    gen_t = np.concatenate([np.zeros(0, np.int64), *new_t])
+    gen_b = np.concatenate([np.zeros((0, 3)), *new_b])
+    flag = np.where(np.isnan(gen_b[:, 0]), MISSING, INTERPOLATED).astype(np.int8)
+    epoch = np.concatenate([t, gen_t])
+    order = np.argsort(epoch, kind="stable")
+    cmp = np.concatenate([np.stack([norm["compression"].values,
+                                    norm["compression_width"].values], axis=1),
+                          *new_cmp]).astype(np.int64) if new_cmp else \
+        np.stack([norm["compression"].values, norm["compression_width"].values], axis=1)
+    ds = xr.Dataset(
+        {
+            "b": (("time", "component"), np.concatenate([norm["b"].values, gen_b])[order],
+                  dict(norm["b"].attrs)),
+            "range": ("time", np.concatenate([norm["range"].values.astype(np.int64),
+                                              *new_rng]).astype(np.int64)[order],
+                      dict(norm["range"].attrs)),
+            "compression": ("time", cmp[order, 0], dict(norm["compression"].attrs)),
+            "compression_width": ("time", cmp[order, 1],
+                                  dict(norm["compression_width"].attrs)),
+            "generated": ("time", np.concatenate([np.zeros(t.size, np.int8), flag])[order],
+                          {"units": "1", "flag_values": "0 1 -1",
+                           "flag_meanings": "normal interpolated_from_burst missing",
+                           "description": "Source of the row: normal-mode sample, burst "
+                                          "filtered and interpolated, or missing"}),
+        },
+        coords={"epoch": ("time", epoch[order]), "component": norm["component"].values},
+        attrs={**norm.attrs, "level": "l1c", "mode": "norm",
+               "interpolation_method": "linear_filtered (CIC to the normal rate, linear)",
+               "gaps": int(gaps.shape[0]),
+               "rows_interpolated": int((flag == INTERPOLATED).sum()),
+               "rows_missing": int((flag == MISSING).sum())},
+    )
+    return ds
