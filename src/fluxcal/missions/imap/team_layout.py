@@ -143,10 +143,10 @@ def to_team(ds: xr.Dataset, logical_source: str, version: str = "v001") -> xr.Da
                 "TIME_SCALE": "Terrestrial Time", "DISPLAY_TYPE": "time_series"}),
             "direction": ("direction", np.arange(4), _meta("Vector component index")),
             "direction_label": ("direction", np.array(["x", "y", "z", "range"]),
-                                _label("Vector component")),
+                                _label("Vector component", "direction")),
             "compression": ("compression", np.arange(2), _meta("Compression index")),
             "compression_label": ("compression", np.array(["flag", "width"]),
-                                  _label("Compression flag and width")),
+                                  _label("Compression flag and width", "compression")),
         },
     )
     if "generated" in ds:
@@ -208,8 +208,9 @@ def _meta(catdesc: str) -> dict:
             "VALIDMAX": np.int64(3), "VAR_TYPE": "support_data"}
 
 
-def _label(catdesc: str) -> dict:
-    return {"CATDESC": catdesc, "FIELDNAM": catdesc, "FORMAT": "A5", "VAR_TYPE": "metadata"}
+def _label(catdesc: str, dim: str) -> dict:
+    return {"CATDESC": catdesc, "FIELDNAM": catdesc, "FORMAT": "A5", "VAR_TYPE": "metadata",
+            "DEPEND_1": dim}
 
 
 def write_team_cdf(team: xr.Dataset, path: Path) -> Path:
