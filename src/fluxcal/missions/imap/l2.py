@@ -148,7 +148,7 @@ def calibrate(ds: xr.Dataset, cal: L2Calibration, day: np.datetime64 | str | Non
          "quality_flag": ("time", cal.quality_flag, {"units": "1"}),
          "quality_bitmask": ("time", cal.quality_bitmask, {"units": "1"})},
         coords={"epoch": ("time", epoch), "component": ds["component"].values},
-        attrs={**ds.attrs, "level": "l2", "frame": "sensor",
+        attrs={**ds.attrs, "level": "l2", "output_frame": "sensor",
                "l2_matrices_file": cal.matrices_file, "l2_offsets_file": cal.offsets_file},
     )
     if day is not None:
@@ -202,5 +202,5 @@ def to_frame(l2: xr.Dataset, frame: str) -> xr.Dataset:
     out = l2.copy()
     out["b"] = (("time", "component"), b, {**l2["b"].attrs, "frame": frame,
                                            "description": f"Magnetic field, {FRAMES[frame]}"})
-    out.attrs = {**l2.attrs, "frame": frame}
+    out.attrs = {**l2.attrs, "output_frame": frame}
     return out

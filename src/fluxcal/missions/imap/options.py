@@ -23,5 +23,9 @@ class ImapOptions:
     calib: Path | None = field(default=None, metadata={
         "help": "L1B calibration CDF (default: the shipped "
                 "imap_calibration_mag_20240229_v01.cdf)."})
+    layout: str = field(default="fluxcal", metadata={
+        "help": "fluxcal (b in nT, Epoch) or team (the IMAP MAG team's CDF variables: "
+                "epoch, vectors, compression_flags ...; CDF only).",
+        "choices": ("fluxcal", "team")})
     quicklook: bool = field(default=False, metadata={
         "help": "Also write a PNG quicklook per mode, sensor and UTC day (L1B)."})

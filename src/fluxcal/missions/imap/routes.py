@@ -79,6 +79,10 @@ class ImapRun:
                        if options.level == "l1b" else {})
         prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
         day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
+        if options.layout == "team":  # the team's variable names (issue 33 item 4)
+            from fluxcal.missions.imap import team_layout
+
+            return team_layout.write_products(calibrated, out_dir, prov, only_day=day)
         return write_products(calibrated, out_dir, options.formats, prov,
                               quicklook=options.quicklook, only_day=day)
 

@@ -115,17 +115,21 @@ def to_team(ds: xr.Dataset, logical_source: str, version: str = "v001") -> xr.Da
     if "generated" in ds:
         ds = ds.isel(time=ds["generated"].values >= 0)
     epoch = ds["epoch"].values.astype(np.int64)
-    vec = np.column_stack([ds["b"].values.astype(np.float64),
+    field = ds["b"] if "b" in ds else ds["counts"]
+    vec = np.column_stack([field.values.astype(np.float64),
                            ds["range"].values.astype(np.float64)])
-    cmp = np.column_stack([ds["compression"].values, ds["compression_width"].values]
+    units = "nT" if "b" in ds else "counts"
+    cmp = np.column_stack([ds["compression"].values if "compression" in ds else
+                           np.zeros(epoch.size), ds["compression_width"].values
+                           if "compression_width" in ds else np.zeros(epoch.size)]
                           ).astype(np.int8)
     level = logical_source.split("_")[2].upper()
     sensor = ds.attrs.get("sensor", logical_source[-4:])
     out = xr.Dataset(
         {
             "vectors": (("epoch", "direction"), vec, _attrs(
-                "Magnetic field x, y, z (nT) in the sensor frame and the sensor range "
-                "(4th column)", "Magnetic field", "F12.5", "nT", FILL_F8, -1e9, 1e9,
+                f"Magnetic field x, y, z ({units}) in the sensor frame and the sensor range "
+                "(4th column)", "Magnetic field", "F12.5", units, FILL_F8, -1e9, 1e9,
                 depend_1="direction", labl="direction_label")),
             "compression_flags": (("epoch", "compression"), cmp, _attrs(
                 "Compression flag and compression width (bits) per vector",
@@ -149,6 +153,24 @@ def to_team(ds: xr.Dataset, logical_source: str, version: str = "v001") -> xr.Da
                                   _label("Compression flag and width", "compression")),
         },
     )
+    if level == "L2":
+        frame = ds.attrs.get("output_frame", "sensor")
+        name = "vectors" if frame == "sensor" else f"b_{frame}"
+        out = out.drop_vars(["vectors", "compression_flags", "compression",
+                             "compression_label"]).isel(direction=slice(0, 3))
+        out[name] = (("epoch", "direction"), vec[:, :3], _attrs(
+            f"Magnetic field x, y, z (nT), frame {frame}", "Magnetic field", "F12.5", "nT",
+            FILL_F8, -1e9, 1e9, depend_1="direction", labl="direction_label"))
+        out["range"] = ("epoch", vec[:, 3].astype(np.int8), _attrs(
+            "Sensor range 0..3", "Range", "I1", " ", np.int8(-128), np.int8(0), np.int8(3),
+            var_type="support_data"))
+        out["magnitude"] = ("epoch", np.linalg.norm(vec[:, :3], axis=1), _attrs(
+            "Magnitude of the field", "Magnitude", "F12.5", "nT", FILL_F8, 0.0, 1e9))
+        for q, dtype in (("quality_flag", np.uint8), ("quality_bitmask", np.uint16)):
+            if q in ds:
+                out[q + ("s" if q == "quality_flag" else "")] = ("epoch", ds[q].values.astype(
+                    dtype), _attrs(q.replace("_", " "), q, "I5", " ", dtype(0), dtype(0),
+                                   np.iinfo(dtype).max - 1, var_type="support_data"))
     if "generated" in ds:
         out["generated_flag"] = ("epoch", ds["generated"].values.astype(np.int8), _attrs(
             "0 normal-mode sample, 1 filtered and interpolated from burst mode",
@@ -264,3 +286,64 @@ def from_team(path: Path) -> xr.Dataset:
                "level": source.split("_")[2] if source.count("_") >= 3 else "l1b",
                "Logical_source": source, "source_file": path.name},
     )
+
+
+def read_l1b(path: Path) -> xr.Dataset:
+    """Read an L1B (or L1C) file of any layout, recognised by content, into fluxcal's.
+
+    The team's CSV (first column ``t``), a team-layout CDF (``epoch`` + ``vectors``:
+    `from_team`), or a fluxcal product (`fluxcal.products.writer.read_product`).
+
+    Raises
+    ------
+    InputFormatError
+        None of these layouts, or a field not in nT (naming the file).
+    """
+    path = Path(path)
+    with path.open("rb") as fh:
+        head = fh.read(8)
+    if head.startswith(b"t,"):
+        return read_l1b_csv(path)
+    if head[:4] == bytes.fromhex("cdf30001"):
+        import cdflib
+
+        if "vectors" in cdflib.CDF(str(path)).cdf_info().zVariables:
+            return from_team(path)
+    from fluxcal.products.writer import read_product
+
+    ds = read_product(path)
+    if "b" not in ds or "range" not in ds or "epoch" not in ds.coords:
+        raise InputFormatError("not an IMAP MAG L1B/L1C product: expected fluxcal's ('b', "
+                               "'range', 'epoch'), the team's CDF ('epoch', 'vectors') or "
+                               "the team's CSV (t,coarse,fine,...,x,y,z,range)", path=str(path))
+    ds = ds.drop_vars("time", errors="ignore") if "time" in ds.coords else ds
+    return ds
+
+
+def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
+                   provenance: dict | None = None, version: str = "v001",
+                   only_day: np.datetime64 | None = None) -> list[Path]:
+    """Write team-layout CDFs, one per (mode, sensor-or-frame) and UTC day (all or none).
+
+    Named ``imap_mag_<level>_<mode>-<sensor|frame>_<yyyymmdd>_<version>.cdf`` as the
+    team's files; provenance goes into the global attributes.
+    """
+    from fluxcal.geometry.days import split_days
+    from fluxcal.products.atomic import atomic_group
+    from fluxcal.products.attrs import encode_attrs
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    with atomic_group():
+        for (mode, name), ds in datasets.items():
+            source = f"imap_mag_{ds.attrs['level']}_{mode}-{name}"
+            for day, part in split_days(ds, lsk=default_lsk()):
+                if only_day is not None and day != np.datetime64(only_day, "D"):
+                    continue
+                team = to_team(part, source, version)
+                team.attrs |= {k: v for k, v in encode_attrs(provenance or {}).items()
+                               if k not in team.attrs}
+                stem = f"{source}_{str(day).replace('-', '')}_{version}.cdf"
+                written.append(write_team_cdf(team, out / stem))
+    return written
