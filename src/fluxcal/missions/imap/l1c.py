@@ -51,9 +51,7 @@ def interval_rates(epoch: np.ndarray) -> np.ndarray:
     d = np.diff(np.asarray(epoch, dtype=np.int64)).astype(np.float64)
     if d.size == 0:
         return np.zeros(0, dtype=np.int64)
-    period = _SEC / NOMINAL_RATES
-    near = np.abs(d[:, None] - period[None, :]) <= GAP_TOLERANCE * period[None, :]
-    cls = np.where(near.any(axis=1), NOMINAL_RATES[np.argmax(near, axis=1)], 0)
+    cls = _nominal(d)
     start = np.r_[0, np.flatnonzero(np.diff(cls)) + 1]
     length = np.diff(np.r_[start, cls.size])
     good = (cls[start] > 0) & (length >= MIN_RUN)
@@ -65,6 +63,15 @@ def interval_rates(epoch: np.ndarray) -> np.ndarray:
     idx = np.maximum.accumulate(idx)
     idx[idx < 0] = np.flatnonzero(good)[0]
     return np.repeat(run_rate[idx], length).astype(np.int64)
+
+
+def _nominal(d: np.ndarray) -> np.ndarray:
+    """Nominal rate whose period ``d`` (ns, float) is within `GAP_TOLERANCE`, else 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.clip(np.rint(np.log2(_SEC / np.maximum(d, 1.0))), 0, 7)
+    rate = np.exp2(k).astype(np.int64)
+    period = _SEC / rate
+    return np.where(np.abs(d - period) <= GAP_TOLERANCE * period, rate, 0)
 
 
 def find_gaps(epoch: np.ndarray, rates: np.ndarray | None = None) -> np.ndarray:
@@ -103,15 +110,14 @@ def cic_filter(t: np.ndarray, b: np.ndarray, factor: int) -> tuple[np.ndarray, n
     return t[delay:t.size - delay], y
 
 
-def fill_from_burst(times: np.ndarray, norm_rate: int, burst_t: np.ndarray,
-                    burst_b: np.ndarray, burst_rate: int) -> np.ndarray:
-    """Field at ``times`` (m,) from burst samples: CIC filter to ``norm_rate``, then linear.
-
-    Timestamps outside the filtered burst span come back NaN (no extrapolation).
-    """
-    factor = max(int(burst_rate // norm_rate), 1)
-    tf, bf = cic_filter(burst_t, burst_b, factor)
+def interpolate_filtered(times: np.ndarray, tf: np.ndarray, bf: np.ndarray) -> np.ndarray:
+    """Linear interpolation of filtered samples ``(tf, bf)`` to ``times`` (NaN outside)."""
     out = np.full((times.size, 3), np.nan)
+    if tf.size < 2 or times.size == 0:
+        return out
+    lo = max(int(np.searchsorted(tf, times[0])) - 1, 0)
+    hi = int(np.searchsorted(tf, times[-1], side="right")) + 1
+    tf, bf = tf[lo:hi], bf[lo:hi]  # only the samples around these times
     if tf.size < 2:
         return out
     inside = (times >= tf[0]) & (times <= tf[-1])
@@ -123,10 +129,11 @@ def fill_from_burst(times: np.ndarray, norm_rate: int, burst_t: np.ndarray,
 
 
 def _burst_rate(burst: xr.Dataset) -> int:
+    """Burst vector rate: declared per sample, else the nominal rate of the median spacing."""
     if "vectors_per_second" in burst:
         return int(np.median(burst["vectors_per_second"].values))
-    rates = interval_rates(burst["epoch"].values)
-    return int(np.median(rates)) if rates.size else 0
+    d = np.diff(burst["epoch"].values.astype(np.int64))
+    return int(_nominal(np.array([np.median(d)]))[0]) if d.size else 0
 
 
 def _segments(burst_t: np.ndarray) -> list[slice]:
@@ -185,25 +192,30 @@ def merge(norm: xr.Dataset, burst: xr.Dataset | None = None,
         edges = np.zeros((0, 3), dtype=np.int64)
     new_t, new_b, new_rng, new_cmp = [], [], [], []
     burst_t = burst["epoch"].values.astype(np.int64) if burst is not None else None
+    has_burst = burst is not None and burst_t.size > 0
+    brate = _burst_rate(burst) if has_burst else 0
+    filtered: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}  # factor -> segments
     for gap, interior in [(g, True) for g in gaps] + [(g, False) for g in edges]:
         times = gap_times(gap)
         b = np.full((times.size, 3), np.nan)
-        if burst is not None and burst_t.size:
-            brate = _burst_rate(burst)
+        if has_burst:
             if brate <= int(gap[2]):
                 raise InputFormatError(
                     f"burst mode has {brate} vectors/s, normal mode {int(gap[2])}: burst "
                     "must be faster to fill normal-mode gaps", field="--input")
-            for seg in _segments(burst_t):
-                b_seg = fill_from_burst(times, int(gap[2]), burst_t[seg],
-                                        burst["b"].values[seg], brate)
-                b = np.where(np.isnan(b), b_seg, b)
+            factor = brate // int(gap[2])
+            if factor not in filtered:  # each burst stretch filtered once per rate ratio
+                filtered[factor] = [cic_filter(burst_t[seg], burst["b"].values[seg], factor)
+                                    for seg in _segments(burst_t)]
+            for tf, bf in filtered[factor]:
+                b = np.where(np.isnan(b), interpolate_filtered(times, tf, bf), b)
         keep = np.ones(times.size, bool) if interior else ~np.isnan(b[:, 0])
         times, b = times[keep], b[keep]
         new_t.append(times)
         new_b.append(b)
-        if burst is not None and burst_t.size and times.size:
-            j = np.clip(np.searchsorted(burst_t, times), 0, burst_t.size - 1)
+        if has_burst and times.size:  # range and compression of the nearest burst sample
+            j = np.clip(np.searchsorted(burst_t, times), 1, burst_t.size - 1)
+            j = np.where(times - burst_t[j - 1] < burst_t[j] - times, j - 1, j)
             new_rng.append(burst["range"].values[j])
             new_cmp.append(np.stack([burst["compression"].values[j],
                                      burst["compression_width"].values[j]], axis=1))
