@@ -89,8 +89,9 @@ def test_day_edges_filled_only_where_burst_covers() -> None:
     out = l1c.merge(norm, burst, day="2025-03-11")
     early = out["epoch"].values < norm["epoch"].values[0]
     assert early.any() and (out["generated"].values[early] == l1c.INTERPOLATED).all()
-    # the edge rows continue the normal cadence backwards and hold the known field
-    assert ((norm["epoch"].values[0] - out["epoch"].values[early]) % (SEC // 2) == 0).all()
+    # the edge rows are laid from the window's start (the day - 30 min), as the team does
+    window = utc_day_start_tt2000("2025-03-11", default_lsk()) - 1800 * SEC
+    assert ((out["epoch"].values[early] - window) % (SEC // 2) == 0).all()
     np.testing.assert_allclose(out["b"].values, truth(out["epoch"].values), rtol=0, atol=1e-9)
     # no burst after the normal data: no edge row at the end, none laid out missing
     assert out["epoch"].values[-1] == norm["epoch"].values[-1]
@@ -191,3 +192,38 @@ def test_team_l1c_on_fluxcal_team_layout_agrees(tmp_path: Path) -> None:
     assert np.abs(team["vectors"][j, :3] - b).max() < 2e-6
     # the team's one other row is the zero-started filter row (test above)
     assert te.size == t.size + 1
+
+
+def test_team_l1c_on_fluxcal_l1b_of_real_packets(imap_data: Path, tmp_path: Path) -> None:
+    """Real ground-test packets (normal + burst) -> fluxcal L1B -> both L1Cs."""
+    from typer.testing import CliRunner
+
+    from fluxcal.missions.imap.cli import app
+    from fluxcal.missions.imap.team_layout import from_team
+
+    result = CliRunner().invoke(app, [
+        "calibrate", "--input", str(imap_data / "mag_l0_test_data.pkts"), "--out",
+        str(tmp_path), "--kernels", str(imap_data / "imap_sclk_0036.tsc"), "--layout", "team"])
+    assert result.exit_code == 0, result.output
+    norm, burst = (tmp_path / f"imap_mag_l1b_{m}-mago_20231025_v001.cdf"
+                   for m in ("norm", "burst"))
+    team = run_team(
+        "import sys, numpy as np\n"
+        "from imap_processing.cdf.utils import load_cdf\n"
+        "from imap_processing.mag.l1c.mag_l1c import mag_l1c\n"
+        "out = mag_l1c(load_cdf(sys.argv[1]), np.datetime64('2023-10-25'), "
+        "load_cdf(sys.argv[2]))\n"
+        "np.savez(sys.argv[3], epoch=out['epoch'].values, vectors=out['vectors'].values, "
+        "gen=out['generated_flag'].values)\n", norm, burst, tmp_path / "team.npz")
+    ours = l1c.merge(from_team(norm), from_team(burst), day="2023-10-25")
+    keep = ours["generated"].values >= 0
+    t, b = ours["epoch"].values[keep], ours["b"].values[keep]
+    te = np.round(team["epoch"]).astype(np.int64)
+    near = np.abs(te[:, None] - t[None, :]) <= 64  # float64 epochs (entry 5)
+    # every fluxcal row is one of the team's; 5 team rows are not fluxcal's: the first
+    # (the zero-started filter) and 4 filtered across a 1.016 s hole in the burst data
+    assert near.any(axis=0).all() and (~near.any(axis=1)).sum() == 5
+    i, k = np.nonzero(near)
+    same_time = np.isin(t[k], t[np.flatnonzero(np.diff(t) == 0)])  # overlapping packets
+    diff = np.abs(team["vectors"][i, :3] - b[k]).max(axis=1)
+    assert diff[~same_time].max() < 1e-6

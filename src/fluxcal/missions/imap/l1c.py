@@ -182,9 +182,10 @@ def merge(norm: xr.Dataset, burst: xr.Dataset | None = None,
         hi = utc_day_start_tt2000(np.datetime64(day, "D") + 1, default_lsk()) + EDGE_NS
         first = rates[0] if rates.size else 2
         last = rates[-1] if rates.size else 2
-        # edge gaps: timestamps continue the cadence of the first/last sample outward
-        pre = np.array([[t[0] - ((t[0] - lo) // (_SEC // first) + 1) * (_SEC // first),
-                         t[0], first]], dtype=np.int64) if t[0] > lo else np.zeros((0, 3), int)
+        # edge gaps, as the team lays them: from the window's start (lo, lo + 1/rate, ...)
+        # up to the first sample; after the last sample, continuing its cadence
+        pre = np.array([[lo - _SEC // first, t[0], first]], dtype=np.int64) if t[0] > lo \
+            else np.zeros((0, 3), int)
         post = np.array([[t[-1], hi, last]], dtype=np.int64) if t[-1] < hi else \
             np.zeros((0, 3), int)
         edges = np.concatenate([pre, post]).astype(np.int64)
