@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import utc_day_start_tt2000
@@ -72,6 +74,27 @@ def test_rate_change_is_not_a_gap_and_one_lost_vector_is() -> None:
     # 7.5 % late is clock drift, 8 % is a gap
     drift = np.array([0, SEC // 2, SEC // 2 + int(0.075 * SEC // 2), SEC * 3 // 2 + 40_000_000])
     assert l1c.find_gaps(np.cumsum(drift) + T0, np.full(3, 2)).shape[0] == 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(rate=st.sampled_from([1, 2, 4, 8]),
+       drops=st.lists(st.tuples(st.integers(5, 380), st.integers(1, 12)), max_size=5),
+       jitter=st.integers(-3_000_000, 3_000_000))
+def test_gaps_are_exactly_the_dropped_vectors(rate: int, drops: list, jitter: int) -> None:
+    """Drop runs of vectors from a regular timeline (clock jitter < 7.5 %): the gaps laid
+    out again are exactly the dropped times, whatever the rate, the runs and the jitter."""
+    period = SEC // rate
+    t = T0 + np.arange(400, dtype=np.int64) * period + jitter * (np.arange(400) % 2) // rate
+    lost = np.zeros(t.size, bool)
+    for start, n in drops:
+        lost[start:start + n] = True
+    kept = t[~lost]
+    gaps = l1c.find_gaps(kept)
+    laid = np.concatenate([np.zeros(0, np.int64), *[l1c.gap_times(g) for g in gaps]])
+    assert (gaps[:, 2] == rate).all() if gaps.size else True
+    # laid times are the dropped ones to within the jitter, one for one
+    assert laid.size == lost.sum()
+    assert np.abs(laid - t[lost]).max(initial=0) <= abs(jitter) // rate + 1
 
 
 def test_gap_without_burst_is_flagged_missing() -> None:
@@ -145,7 +168,7 @@ def test_t015_magi_matches_the_team_expected_output() -> None:
 
 @pytest.mark.parametrize(("case", "sensor", "extra"), [
     ("T013", "magi", 0), ("T013", "mago", 0), ("T014", "magi", 0), ("T014", "mago", 0),
-    ("T015", "mago", 1), ("T016", "magi", 1), ("T016", "mago", 3)])
+    ("T015", "mago", 1), ("T016", "magi", 1), ("T016", "mago", 2)])
 def test_cases_without_burst_input_match_on_every_normal_row(case: str, sensor: str,
                                                              extra: int) -> None:
     """No burst file is published for these: normal rows and the gap timeline are checked."""
@@ -227,3 +250,26 @@ def test_team_l1c_on_fluxcal_l1b_of_real_packets(imap_data: Path, tmp_path: Path
     same_time = np.isin(t[k], t[np.flatnonzero(np.diff(t) == 0)])  # overlapping packets
     diff = np.abs(team["vectors"][i, :3] - b[k]).max(axis=1)
     assert diff[~same_time].max() < 1e-6
+
+
+def test_l1c_command_drops_repeated_rows_and_l2_refuses_mixed_inputs(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from fluxcal.missions.imap.cli import app
+
+    norm, burst = _case("T015", "magi", "normal-in"), _case("T015", "magi", "burst-in")
+    result = CliRunner().invoke(app, ["l1c", "--input", str(norm), "--input", str(norm),
+                                      "--input", str(burst), "--out", str(tmp_path / "a")])
+    assert result.exit_code == 0 and "960 repeated input rows dropped" in result.output
+    result = CliRunner().invoke(app, ["l1c", "--input", str(burst), "--out",
+                                      str(tmp_path / "b")])
+    assert isinstance(result.exception, InputFormatError)
+    assert "no normal-mode L1B" in str(result.exception) and not (tmp_path / "b").exists()
+    cal = team_dir() / "calibration"
+    result = CliRunner().invoke(app, [
+        "l2", "--input", str(norm), "--input", str(_case("T015", "mago", "normal-in")),
+        "--l2-matrices", str(cal / "imap_mag_l2-calibration-matrices_20251017_v004.cdf"),
+        "--l2-offsets", str(cal / "imap_mag_l2-offsets-norm_20251017_20251017_v001.cdf"),
+        "--out", str(tmp_path / "c")])
+    assert isinstance(result.exception, InputFormatError)
+    assert "mix" in str(result.exception) and not (tmp_path / "c").exists()

@@ -89,9 +89,15 @@ def find_gaps(epoch: np.ndarray, rates: np.ndarray | None = None) -> np.ndarray:
 
 
 def gap_times(gap: np.ndarray) -> np.ndarray:
-    """Timestamps laid out in a gap: ``start + k / rate`` for k >= 1, before ``end``."""
+    """Timestamps laid out in a gap: ``start + k / rate`` for k >= 1, before ``end``.
+
+    A timestamp closer to ``end`` than `GAP_TOLERANCE` of a period is not laid out: that
+    close, ``end`` is the sample due there, late by clock drift.
+    """
     start, end, rate = (int(v) for v in gap)
-    return np.arange(start, end, _SEC // rate, dtype=np.int64)[1:]
+    period = _SEC // rate
+    times = np.arange(start, end, period, dtype=np.int64)[1:]
+    return times[end - times > GAP_TOLERANCE * period]
 
 
 def cic_filter(t: np.ndarray, b: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:

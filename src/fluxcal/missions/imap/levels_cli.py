@@ -85,7 +85,9 @@ def register(app: typer.Typer) -> None:
                                                  _day(day, norm))
         paths = _write(merged, out, options, provenance_attrs(list(inputs)))
         n = sum(ds.sizes["time"] for ds in merged.values())
-        typer.echo(f"L1C: {n} rows; {len(paths)} files in {out}")
+        dup = sum(ds.attrs["duplicates_dropped"] for ds in joined.values())
+        typer.echo(f"L1C: {n} rows; {len(paths)} files in {out}"
+                   + (f" ({dup} repeated input rows dropped)" if dup else ""))
 
     @app.command("l2")
     @with_options(LevelOptions)
@@ -127,7 +129,13 @@ def register(app: typer.Typer) -> None:
         with KernelPool(list(kernels or []), fluxcal_frames=False):
             l2.check_frames(list(frame))
             cal = l2.load_l2_calibration(matrices, offsets)
-            ds = _join([team_layout.read_l1b(p) for p in inputs])
+            parts = [team_layout.read_l1b(p) for p in inputs]
+            kinds = {(d.attrs.get("mode", "norm"), d.attrs.get("sensor", "mago"))
+                     for d in parts}
+            if len(kinds) > 1:
+                raise InputFormatError(f"the inputs mix {sorted(kinds)}: give one mode and "
+                                       "sensor per run", field="--input")
+            ds = _join(parts)
             sensor, mode = ds.attrs.get("sensor", "mago"), ds.attrs.get("mode", "norm")
             sensor_frame = l2.calibrate(ds, cal, _day(day, ds))
             results = {(mode, sensor if name == "sensor" else name):
@@ -141,13 +149,22 @@ def register(app: typer.Typer) -> None:
 
 
 def _join(parts: list) -> object:
-    """One dataset of several L1B parts of one mode and sensor, sorted by time."""
+    """One dataset of several L1B parts of one mode and sensor, sorted by time.
+
+    Rows repeated exactly (same time and field, e.g. a file given twice) are dropped; their
+    count is ``attrs["duplicates_dropped"]``.
+    """
     import numpy as np
     import xarray as xr
 
     ds = parts[0] if len(parts) == 1 else xr.concat(parts, dim="time",
                                                      combine_attrs="override")
-    return ds.isel(time=np.argsort(ds["epoch"].values, kind="stable"))
+    ds = ds.isel(time=np.argsort(ds["epoch"].values, kind="stable"))
+    t, b = ds["epoch"].values, ds["b"].values
+    same = np.r_[False, (np.diff(t) == 0) & (b[1:] == b[:-1]).all(axis=1)]
+    ds = ds.isel(time=~same)
+    ds.attrs["duplicates_dropped"] = int(same.sum())
+    return ds
 
 
 def _day(day: str | None, ds: object) -> object:
