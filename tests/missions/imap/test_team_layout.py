@@ -107,3 +107,14 @@ def test_team_l1c_reads_fluxcal_l1b(imap_data: Path, tmp_path: Path) -> None:
     assert team["vectors"].shape == (96, 4) and (team["gen"] == 0).all()
     np.testing.assert_array_equal(team["vectors"][:, :3], ours["b"].values)
     assert np.abs(team["epoch"] - ours["epoch"].values).max() <= 64  # their float64 epoch
+
+
+def test_team_layout_is_cdf_only(imap_data: Path, tmp_path: Path) -> None:
+    for command in (["calibrate", "--input", str(imap_data / "mag_l1_test_data.pkts"),
+                     "--kernels", str(imap_data / "imap_sclk_0036.tsc")],
+                    ["l1c", "--input", str(team_dir() / "L1c" / "T013" /
+                                           "mag-l1b-l1c-t013-magi-normal-in.csv")]):
+        result = CliRunner().invoke(app, [*command, "--out", str(tmp_path / "x"),
+                                          "--layout", "team", "--formats", "cdf,nc"])
+        assert isinstance(result.exception, InputFormatError)
+        assert "CDFs only" in str(result.exception) and not (tmp_path / "x").exists()

@@ -32,11 +32,17 @@ class LevelOptions:
                 "epoch, vectors, compression_flags ...).", "choices": LAYOUTS})
 
 
+def _check(options: LevelOptions) -> None:
+    if options.layout == "team" and tuple(options.formats) != ("cdf",):
+        raise InputFormatError("--layout team writes the team's CDFs only: leave out "
+                               "--formats or give --formats cdf", field="--formats")
+
+
 def _write(datasets: dict, out: Path, options: LevelOptions, prov: dict) -> list[Path]:
     from fluxcal.missions.imap import pipeline, team_layout
 
     if options.layout == "team":
-        return team_layout.write_products(datasets, out, prov)
+        return team_layout.write_products(datasets, out, prov)  # formats: checked cdf
     return pipeline.write_products(datasets, out, options.formats, prov)
 
 
@@ -65,6 +71,7 @@ def register(app: typer.Typer) -> None:
         from fluxcal.missions.imap import l1c, team_layout
         from fluxcal.products.provenance import provenance_attrs
 
+        _check(options)
         for path in inputs:
             preflight.existing_file(path, "--input")
         preflight.writable_folder(out, "--out")
@@ -119,6 +126,7 @@ def register(app: typer.Typer) -> None:
         from fluxcal.missions.imap import l2, team_layout
         from fluxcal.products.provenance import provenance_attrs
 
+        _check(options)
         for path in inputs:
             preflight.existing_file(path, "--input")
         preflight.existing_file(matrices, "--l2-matrices")

@@ -58,6 +58,9 @@ class ImapRun:
                                    field="--level")
         if options.level == "l1b":
             load_calibration(options.calib)
+        if options.layout == "team" and tuple(options.formats) != ("cdf",):
+            raise InputFormatError("--layout team writes the team's CDFs only: leave out "
+                                   "--formats or give --formats cdf", field="--formats")
 
     def read(self, source: Sequence[Path], options: ImapOptions) -> tuple[Datasets, list[Path]]:
         """Decode the packets (or read the L1A CSVs) into L1A datasets (kernels loaded)."""

@@ -342,7 +342,12 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
                 if only_day is not None and day != np.datetime64(only_day, "D"):
                     continue
                 team = to_team(part, source, version)
-                team.attrs |= {k: v for k, v in encode_attrs(provenance or {}).items()
+                prov = provenance or {}
+                parents = [i["name"] for i in prov.get("inputs", [])] + [
+                    c["name"] for c in prov.get("calibration", {}).values()]
+                if parents:  # the team's Parents: the files this one was made from
+                    team.attrs["Parents"] = parents
+                team.attrs |= {k: v for k, v in encode_attrs(prov).items()
                                if k not in team.attrs}
                 stem = f"{source}_{str(day).replace('-', '')}_{version}.cdf"
                 written.append(write_team_cdf(team, out / stem))
