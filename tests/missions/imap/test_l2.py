@@ -208,3 +208,29 @@ def test_team_l2_agrees_to_1e9_nt(tmp_path: Path) -> None:
     np.testing.assert_allclose(team["vectors"], ours["b"].values, rtol=0, atol=1e-9)
     # the team shifts times in float64 ns (128 ns steps near 8.1e17 ns); fluxcal in int64
     assert np.abs(team["epoch"] - ours["epoch"].values).max() <= 128
+
+
+def test_team_mag_l2_in_srf_agrees(tmp_path: Path) -> None:
+    """The team's whole ``mag_l2`` (1.0.40) in SRF, with the frames kernel written here."""
+    ds, cal, _, _ = _synthetic(tmp_path)
+    write_team_cdf(to_team(ds, "imap_mag_l1b_norm-mago"), tmp_path / "l1b.cdf")
+    (tmp_path / "imap_test.tf").write_text(TK)
+    team = run_team(
+        "import sys, numpy as np, spiceypy, xarray as xr\n"
+        "from imap_processing.cdf.utils import load_cdf\n"
+        "from imap_processing.mag.l2.mag_l2 import mag_l2\n"
+        "from imap_processing.mag.l2.mag_l2_data import ValidFrames\n"
+        "spiceypy.furnsh(sys.argv[4])\n"
+        "l1b, m, o = (load_cdf(p) for p in sys.argv[1:4])\n"
+        "dims = ('epoch', 'row', 'column', 'range')\n"
+        "cal = xr.Dataset({k: (dims, m[k].values[None]) for k in ('URFTOORFO', 'URFTOORFI')},"
+        " coords={'epoch': [np.datetime64('2025-10-17', 'ns')]})\n"
+        "out = mag_l2(cal, o, l1b, np.datetime64('2025-10-17'), frames=[ValidFrames.SRF])[0]\n"
+        "np.savez(sys.argv[5], epoch=out['epoch'].values, b=out['b_srf'].values)\n",
+        tmp_path / "l1b.cdf", tmp_path / "m.cdf", tmp_path / "o.cdf", tmp_path / "imap_test.tf",
+        tmp_path / "team.npz")
+    with KernelPool([tmp_path / "imap_test.tf"], fluxcal_frames=False):
+        ours = l2.to_frame(l2.calibrate(ds, cal, DAY), "srf")
+    assert team["b"].shape == ours["b"].shape == (3504, 3)
+    np.testing.assert_allclose(team["b"], ours["b"].values, rtol=0, atol=1e-9)
+    assert np.abs(team["epoch"] - ours["epoch"].values).max() <= 128
