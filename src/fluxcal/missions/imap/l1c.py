@@ -26,52 +26,12 @@ from scipy.signal import lfilter
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import utc_day_start_tt2000
+from fluxcal.missions.imap.cadence import GAP_TOLERANCE, SEC, interval_rates, nominal_rate
 from fluxcal.products.timeindex import default_lsk
 
-#: Vector rates the instrument can be commanded to (vectors per second).
-NOMINAL_RATES = np.array([1, 2, 4, 8, 16, 32, 64, 128])
-#: A spacing up to 7.5 % longer than ``1 / rate`` is clock drift, not a gap.
-GAP_TOLERANCE = 0.075
-#: A cadence must hold for this many consecutive intervals to count as a rate change.
-MIN_RUN = 4
 #: The team's L1C window: the UTC day plus 30 minutes either side.
 EDGE_NS = 30 * 60 * 1_000_000_000
 NORMAL, INTERPOLATED, MISSING = 0, 1, -1
-_SEC = 1_000_000_000
-
-
-def interval_rates(epoch: np.ndarray) -> np.ndarray:
-    """Vector rate that holds over each interval ``epoch[i] .. epoch[i+1]`` (n-1 values).
-
-    An interval matches a nominal rate when its length is within `GAP_TOLERANCE` of
-    ``1 / rate``; a run of at least `MIN_RUN` intervals of one rate sets the rate; every
-    other interval (a gap, or a short run such as one missed vector) takes the rate of the
-    run before it (the first run for intervals before any run; 2 per second without any).
-    """
-    d = np.diff(np.asarray(epoch, dtype=np.int64)).astype(np.float64)
-    if d.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    cls = _nominal(d)
-    start = np.r_[0, np.flatnonzero(np.diff(cls)) + 1]
-    length = np.diff(np.r_[start, cls.size])
-    good = (cls[start] > 0) & (length >= MIN_RUN)
-    run_rate = np.where(good, cls[start], 0)
-    if not good.any():
-        return np.full(cls.size, 2, dtype=np.int64)
-    # forward-fill the accepted run rates, back-fill before the first one
-    idx = np.where(good, np.arange(start.size), -1)
-    idx = np.maximum.accumulate(idx)
-    idx[idx < 0] = np.flatnonzero(good)[0]
-    return np.repeat(run_rate[idx], length).astype(np.int64)
-
-
-def _nominal(d: np.ndarray) -> np.ndarray:
-    """Nominal rate whose period ``d`` (ns, float) is within `GAP_TOLERANCE`, else 0."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.clip(np.rint(np.log2(_SEC / np.maximum(d, 1.0))), 0, 7)
-    rate = np.exp2(k).astype(np.int64)
-    period = _SEC / rate
-    return np.where(np.abs(d - period) <= GAP_TOLERANCE * period, rate, 0)
 
 
 def find_gaps(epoch: np.ndarray, rates: np.ndarray | None = None) -> np.ndarray:
@@ -84,7 +44,7 @@ def find_gaps(epoch: np.ndarray, rates: np.ndarray | None = None) -> np.ndarray:
     epoch = np.asarray(epoch, dtype=np.int64)
     rates = interval_rates(epoch) if rates is None else np.asarray(rates, dtype=np.int64)
     d = np.diff(epoch)
-    i = np.flatnonzero(d > (1 + GAP_TOLERANCE) * _SEC / np.maximum(rates, 1))
+    i = np.flatnonzero(d > (1 + GAP_TOLERANCE) * SEC / np.maximum(rates, 1))
     return np.stack([epoch[i], epoch[i + 1], rates[i]], axis=1).astype(np.int64)
 
 
@@ -95,7 +55,7 @@ def gap_times(gap: np.ndarray) -> np.ndarray:
     close, ``end`` is the sample due there, late by clock drift.
     """
     start, end, rate = (int(v) for v in gap)
-    period = _SEC // rate
+    period = SEC // rate
     times = np.arange(start, end, period, dtype=np.int64)[1:]
     return times[end - times > GAP_TOLERANCE * period]
 
@@ -139,7 +99,7 @@ def _burst_rate(burst: xr.Dataset) -> int:
     if "vectors_per_second" in burst:
         return int(np.median(burst["vectors_per_second"].values))
     d = np.diff(burst["epoch"].values.astype(np.int64))
-    return int(_nominal(np.array([np.median(d)]))[0]) if d.size else 0
+    return int(nominal_rate(np.array([np.median(d)]))[0]) if d.size else 0
 
 
 def _segments(burst_t: np.ndarray) -> list[slice]:
@@ -190,7 +150,7 @@ def merge(norm: xr.Dataset, burst: xr.Dataset | None = None,
         last = rates[-1] if rates.size else 2
         # edge gaps, as the team lays them: from the window's start (lo, lo + 1/rate, ...)
         # up to the first sample; after the last sample, continuing its cadence
-        pre = np.array([[lo - _SEC // first, t[0], first]], dtype=np.int64) if t[0] > lo \
+        pre = np.array([[lo - SEC // first, t[0], first]], dtype=np.int64) if t[0] > lo \
             else np.zeros((0, 3), int)
         post = np.array([[t[-1], hi, last]], dtype=np.int64) if t[-1] < hi else \
             np.zeros((0, 3), int)

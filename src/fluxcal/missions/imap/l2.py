@@ -23,12 +23,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import cdflib
 import numpy as np
+import spiceypy
 import xarray as xr
 
 from fluxcal.calibration.matrices import apply_lookup
 from fluxcal.errors import InputFormatError
-from fluxcal.geometry.time import utc_day_start_tt2000
+from fluxcal.geometry.frames import rotate
+from fluxcal.geometry.time import tt2000_to_et, utc_day_start_tt2000
 from fluxcal.products.timeindex import default_lsk
 
 #: The sensor frame of the L2 field (after the L2 matrix).
@@ -58,9 +61,7 @@ class L2Calibration:
     offsets_file: str
 
 
-def _cdf(path: Path, option: str):
-    import cdflib
-
+def _cdf(path: Path, option: str) -> cdflib.CDF:
     try:
         return cdflib.CDF(str(path))
     except Exception as exc:  # noqa: BLE001 - cdflib raises many kinds on a bad file
@@ -166,8 +167,6 @@ def check_frames(frames: list[str]) -> None:
     InputFormatError
         Naming the frame and the kernels it needs.
     """
-    import spiceypy
-
     for name in frames:
         if name not in FRAMES:
             raise InputFormatError(f"frame {name!r}: expected one of {tuple(FRAMES)}",
@@ -194,9 +193,6 @@ def to_frame(l2: xr.Dataset, frame: str) -> xr.Dataset:
     if frame == "sensor":
         return l2
     check_frames([frame])
-    from fluxcal.geometry.frames import rotate
-    from fluxcal.geometry.time import tt2000_to_et
-
     et = tt2000_to_et(l2["epoch"].values.astype(np.int64), default_lsk())
     b = rotate(l2["b"].values, et, SENSOR_FRAME, FRAMES[frame])
     out = l2.copy()

@@ -19,7 +19,7 @@ import xarray as xr
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a
+from fluxcal.missions.imap import l1a, team_layout
 from fluxcal.missions.imap.calibration import DEFAULT_CALIBRATION, load_calibration
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.missions.imap.packets import data_file
@@ -83,8 +83,6 @@ class ImapRun:
         prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
         day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
         if options.layout == "team":  # the team's variable names (issue 33 item 4)
-            from fluxcal.missions.imap import team_layout
-
             return team_layout.write_products(calibrated, out_dir, prov, only_day=day)
         return write_products(calibrated, out_dir, options.formats, prov,
                               quicklook=options.quicklook, only_day=day)

@@ -20,14 +20,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cdflib
 import numpy as np
+import pandas as pd
 import xarray as xr
+from cdflib.xarray import xarray_to_cdf
 
 from fluxcal.errors import InputFormatError
-from fluxcal.geometry.time import datetime64_to_tt2000
-from fluxcal.missions.imap.l1c import interval_rates
-from fluxcal.products.atomic import atomic_path
+from fluxcal.geometry.days import split_days
+from fluxcal.geometry.time import datetime64_to_tt2000, tt2000_to_datetime64
+from fluxcal.missions.imap.cadence import interval_rates
+from fluxcal.products.atomic import atomic_group, atomic_path
+from fluxcal.products.attrs import encode_attrs
 from fluxcal.products.timeindex import default_lsk
+from fluxcal.products.writer import read_product
 
 COMPONENTS = np.array(["x", "y", "z"])
 #: CDF fill of the team's float vectors and of TT2000.
@@ -49,8 +55,6 @@ def read_l1b_csv(path: Path, *, sensor: str | None = None, mode: str | None = No
     InputFormatError
         A missing column or an unreadable value (naming the line and the column).
     """
-    import pandas as pd
-
     path = Path(path)
     try:
         table = pd.read_csv(path)
@@ -94,7 +98,7 @@ def read_l1b_csv(path: Path, *, sensor: str | None = None, mode: str | None = No
 def vectors_per_second(epoch: np.ndarray) -> str:
     """Return the team's ``vectors_per_second`` attribute: ``"<start ns>:<rate>,..."``.
 
-    Rates from the cadence (`fluxcal.missions.imap.l1c.interval_rates`), one entry per
+    Rates from the cadence (`fluxcal.missions.imap.cadence.interval_rates`), one entry per
     change, starting at the first sample.
     """
     epoch = np.asarray(epoch, dtype=np.int64)
@@ -204,8 +208,6 @@ def to_team(ds: xr.Dataset, logical_source: str, version: str = "v001") -> xr.Da
 
 
 def _day(epoch: np.ndarray) -> str:
-    from fluxcal.geometry.time import tt2000_to_datetime64
-
     if not epoch.size:
         return "00000000"
     return str(tt2000_to_datetime64(epoch[:1], default_lsk())[0].astype("M8[D]")).replace("-", "")
@@ -237,8 +239,6 @@ def _label(catdesc: str, dim: str) -> dict:
 
 def write_team_cdf(team: xr.Dataset, path: Path) -> Path:
     """Write a `to_team` dataset as a CDF at ``path`` (atomically; cdflib's ISTP checks)."""
-    from cdflib.xarray import xarray_to_cdf
-
     path = Path(path)
     with atomic_path(path) as tmp:
         xarray_to_cdf(team, str(tmp), istp=True, terminate_on_warning=False,
@@ -254,8 +254,6 @@ def from_team(path: Path) -> xr.Dataset:
     InputFormatError
         No ``epoch`` or no ``vectors`` (epoch, 4) variable.
     """
-    import cdflib
-
     path = Path(path)
     try:
         cdf = cdflib.CDF(str(path))
@@ -304,13 +302,9 @@ def read_l1b(path: Path) -> xr.Dataset:
         head = fh.read(8)
     if head.startswith(b"t,"):
         return read_l1b_csv(path)
-    if head[:4] == bytes.fromhex("cdf30001"):
-        import cdflib
-
-        if "vectors" in cdflib.CDF(str(path)).cdf_info().zVariables:
-            return from_team(path)
-    from fluxcal.products.writer import read_product
-
+    if head[:4] == bytes.fromhex("cdf30001") and \
+            "vectors" in cdflib.CDF(str(path)).cdf_info().zVariables:
+        return from_team(path)
     ds = read_product(path)
     if "b" not in ds or "range" not in ds or "epoch" not in ds.coords:
         raise InputFormatError("not an IMAP MAG L1B/L1C product: expected fluxcal's ('b', "
@@ -328,10 +322,6 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
     Named ``imap_mag_<level>_<mode>-<sensor|frame>_<yyyymmdd>_<version>.cdf`` as the
     team's files; provenance goes into the global attributes.
     """
-    from fluxcal.geometry.days import split_days
-    from fluxcal.products.atomic import atomic_group
-    from fluxcal.products.attrs import encode_attrs
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
