@@ -13,11 +13,15 @@ import typer
 
 from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
+from fluxcal.missions.imap.levels_cli import register as _register_levels
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="IMAP MAG pipeline commands.", no_args_is_help=True,
                   rich_markup_mode=None, cls=HelpGroup)
+
+
+_register_levels(app)  # imap l1c, imap l2
 
 
 @app.callback()

@@ -19,7 +19,7 @@ import xarray as xr
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a
+from fluxcal.missions.imap import l1a, team_layout
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.missions.imap.packets import packet_definition
@@ -59,6 +59,9 @@ class ImapRun:
             load_calibration(options.calib)
         if options.xtce is not None:
             packet_definition(options.xtce)
+        if options.layout == "team" and tuple(options.formats) != ("cdf",):
+            raise InputFormatError("--layout team writes the team's CDFs only: leave out "
+                                   "--formats or give --formats cdf", field="--formats")
 
     def read(self, source: Sequence[Path], options: ImapOptions) -> tuple[Datasets, list[Path]]:
         """Decode the packets (or read the L1A CSVs) into L1A datasets (kernels loaded)."""
@@ -81,6 +84,8 @@ class ImapRun:
         calibration = {"imap_mag_l1b": options.calib} if options.level == "l1b" else {}
         prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
         day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
+        if options.layout == "team":  # the team's variable names (issue 33 item 4)
+            return team_layout.write_products(calibrated, out_dir, prov, only_day=day)
         return write_products(calibrated, out_dir, options.formats, prov,
                               quicklook=options.quicklook, only_day=day)
 
