@@ -226,7 +226,9 @@ def test_team_l1c_on_fluxcal_l1b_of_real_packets(imap_data: Path, tmp_path: Path
 
     result = CliRunner().invoke(app, [
         "calibrate", "--input", str(imap_data / "mag_l0_test_data.pkts"), "--out",
-        str(tmp_path), "--kernels", str(imap_data / "imap_sclk_0036.tsc"), "--layout", "team"])
+        str(tmp_path), "--kernels", str(imap_data / "imap_sclk_0036.tsc"),
+        "--calib", str(imap_data / "imap_calibration_mag_20240229_v01.cdf"),
+        "--xtce", str(imap_data / "MAG_SCI_COMBINED.xml"), "--layout", "team"])
     assert result.exit_code == 0, result.output
     norm, burst = (tmp_path / f"imap_mag_l1b_{m}-mago_20231025_v001.cdf"
                    for m in ("norm", "burst"))

@@ -29,7 +29,9 @@ from tests.missions.imap._levels import run_team, team_dir
 def _calibrate(imap_data: Path, out: Path, *extra: str) -> None:
     result = CliRunner().invoke(app, [
         "calibrate", "--input", str(imap_data / "mag_l1_test_data.pkts"), "--out", str(out),
-        "--kernels", str(imap_data / "imap_sclk_0036.tsc"), *extra])
+        "--kernels", str(imap_data / "imap_sclk_0036.tsc"),
+        "--calib", str(imap_data / "imap_calibration_mag_20240229_v01.cdf"),
+        "--xtce", str(imap_data / "MAG_SCI_COMBINED.xml"), *extra])
     assert result.exit_code == 0, result.output
 
 
@@ -111,7 +113,9 @@ def test_team_l1c_reads_fluxcal_l1b(imap_data: Path, tmp_path: Path) -> None:
 
 def test_team_layout_is_cdf_only(imap_data: Path, tmp_path: Path) -> None:
     for command in (["calibrate", "--input", str(imap_data / "mag_l1_test_data.pkts"),
-                     "--kernels", str(imap_data / "imap_sclk_0036.tsc")],
+                     "--kernels", str(imap_data / "imap_sclk_0036.tsc"),
+                     "--calib", str(imap_data / "imap_calibration_mag_20240229_v01.cdf"),
+                     "--xtce", str(imap_data / "MAG_SCI_COMBINED.xml")],
                     ["l1c", "--input", str(team_dir() / "L1c" / "T013" /
                                            "mag-l1b-l1c-t013-magi-normal-in.csv")]):
         result = CliRunner().invoke(app, [*command, "--out", str(tmp_path / "x"),
