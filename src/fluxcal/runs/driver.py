@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +21,8 @@ from typing import Any, Protocol
 from fluxcal.extras import require_for_options
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.runs.batch import DayInputs, DayResult, worker_kernel_pool
+
+log = logging.getLogger(__name__)
 
 #: Progress callback: (description, steps done, steps in total).
 Progress = Callable[[str, int, int], None]
@@ -106,17 +109,26 @@ def run(
     require_for_options(options)  # a missing plot/zarr extra: one line, nothing read
     pipeline.check(options)
     with _pool(pipeline, kernels) as pool:
+        loaded = pool.kernel_list()
+        log.info("kernels loaded: %d file(s)%s", len(loaded),
+                 f" ({', '.join(Path(k).name for k in loaded)})" if loaded else "")
         if progress is not None:
             progress("reading inputs", 0, 1)
         raw, inputs = pipeline.read(source, options)
         n_vectors = pipeline.size(raw)
+        log.info("read %d input file(s): %s vectors", len(inputs), f"{n_vectors:,}")
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
         if on_calibrated is not None:
             on_calibrated(calibrated)
+        if progress is not None:
+            progress("writing products", 0, 1)
         written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
                                  kernel_list=pool.kernel_list(), only_day=only_day,
                                  progress=progress)
+        if progress is not None:
+            progress(f"wrote {len(written)} files", 1, 1)
+    log.info("wrote %d product file(s) to %s", len(written), out_dir)
     return written, n_vectors
 
 

@@ -595,6 +595,7 @@ def write_day(
                 written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
                                   istp, day, version, utc.get(key), quality[key])
                 done += 1
+                log.info("%s done: %s vectors", name, f"{out.sizes['time']:,}")
                 if progress is not None:
                     progress(f"{yyddd} {name}", done, total)
             # free this frame's arrays before the next frame's are made (peak memory)

@@ -20,6 +20,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.runs.display import compilation_notice, progress_display
 from fluxcal.runs.options import with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
@@ -96,8 +97,9 @@ def calibrate(
         a = levels.sensors[0].levels["A"]
         summary.update(n=a.sizes["time"], dropped=a.attrs["n_dropped_quality"])
 
-    paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
-                      state_file=stitch_state, on_calibrated=count)
+    with compilation_notice(), progress_display("rosetta calibrate") as progress:
+        paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
+                          state_file=stitch_state, on_calibrated=count, progress=progress)
     if ALIGNED_LEVELS & set(level_list) and not options.alignment_from_kernels:
         warn_placeholder_alignment(calib)
     typer.echo(f"{summary['n']} vectors calibrated ({summary['dropped']} dropped for "
