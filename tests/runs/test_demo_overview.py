@@ -1,4 +1,4 @@
-"""The demo's top ``index.html`` links every part's product files (issue 31).
+"""The demo's top ``index.html`` links every part's product files; a cold start says so.
 
 Before, its "Products" listed the parts' reports and quicklooks only: no CDF, table or
 text report could be reached from the page a newcomer opens first.
@@ -8,9 +8,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+from numba import njit
 from PIL import Image
 
-from fluxcal.runs.demo import _overview
+from fluxcal.runs import demo
+from fluxcal.runs.contract import DemoPart
+from fluxcal.runs.display import COMPILE_NOTICE
 from tests.products.test_html_report import static_check
 
 
@@ -31,7 +35,7 @@ def test_top_index_links_every_product_file_of_each_part(tmp_path: Path) -> None
     imap.mkdir()
     (imap / "index.html").write_text("<!DOCTYPE html><title>b</title>")
     (imap / "b_l1b_20231025_v001.cdf").write_bytes(b"x")
-    page = _overview(out)
+    page = demo._overview(out)
     assert page == out / "index.html"
     text = page.read_text()
     for name in ("mission_a/products/index.html", "mission_a/products/a_20240101_v01.cdf",
@@ -42,3 +46,19 @@ def test_top_index_links_every_product_file_of_each_part(tmp_path: Path) -> None
     assert "science.csv" not in text
     assert "<p>8 files.</p>" in text  # 2 reports + 6 product files
     assert static_check(page) == []  # every link resolves, relative to the page
+
+
+def compiling_part(out: Path) -> str:
+    """A demo part that compiles two fresh numba functions (a cold cache)."""
+    njit(lambda x: x + 1)(np.int64(1))
+    njit(lambda x: x * 2)(np.int64(1))
+    return "compiled"
+
+
+def test_demo_says_once_that_it_compiles(tmp_path: Path, monkeypatch, capsys) -> None:
+    part = DemoPart("compiling", "tests.runs.test_demo_overview:compiling_part", "c", 1, True)
+    monkeypatch.setattr(demo, "parts", lambda full: [part, part])
+    demo.run_demo(tmp_path / "demo")
+    captured = capsys.readouterr()
+    assert captured.err.count(COMPILE_NOTICE) == 1  # two parts, four compilations: once
+    assert captured.out.count("compiled") == 2

@@ -23,6 +23,7 @@ from fluxcal.products.html_report import (
 )
 from fluxcal.runs import registry
 from fluxcal.runs.contract import DemoPart, load_reference
+from fluxcal.runs.display import compilation_notice, status_display
 
 log = logging.getLogger(__name__)
 
@@ -64,14 +65,16 @@ def run_demo(out: Path, full: bool = False) -> None:
     """Run the demo into ``out`` (the quick one, or with ``full`` the tour) and summarise."""
     out = out.resolve()
     out.mkdir(parents=True, exist_ok=True)
-    for part in parts(full):
-        run = load_reference(part.run)
-        folder = out / part.folder
-        typer.secho(f"\n== {part.title} ==", bold=True)
-        start = time.perf_counter()
-        summary = run(folder)
-        typer.echo(summary)
-        typer.echo(f"({time.perf_counter() - start:.1f} s; products in {folder})")
+    with compilation_notice():  # a first run compiles the numerical kernels: say so
+        for part in parts(full):
+            run = load_reference(part.run)
+            folder = out / part.folder
+            typer.secho(f"\n== {part.title} ==", bold=True)
+            start = time.perf_counter()
+            with status_display(part.title):
+                summary = run(folder)
+            typer.echo(summary)
+            typer.echo(f"({time.perf_counter() - start:.1f} s; products in {folder})")
     if full:
         typer.secho(f"\nAll demo products are in {out}", bold=True)
         return

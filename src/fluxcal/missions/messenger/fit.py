@@ -1007,7 +1007,12 @@ def fit_days(
             return run(serial)
         finally:
             release_worker_kernel_pool()
-    from fluxcal.runs.cluster import Client, as_completed, make_local_cluster  # batch extra
+    from fluxcal.runs.cluster import (  # batch extra
+        Client,
+        as_completed,
+        close_local_cluster,
+        make_local_cluster,
+    )
 
     cluster = make_local_cluster(n_workers) if scheduler is None else None
     try:
@@ -1040,7 +1045,7 @@ def fit_days(
             return run(distributed)
     finally:
         if cluster is not None:
-            cluster.close()
+            close_local_cluster(cluster)
 
 
 _log = logging.getLogger(__name__)
