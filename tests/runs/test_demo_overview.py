@@ -14,7 +14,7 @@ from PIL import Image
 
 from fluxcal.runs import demo
 from fluxcal.runs.contract import DemoPart
-from fluxcal.runs.display import COMPILE_NOTICE
+from fluxcal.runs.display_cli import COMPILE_NOTICE
 from tests.products.test_html_report import static_check
 
 

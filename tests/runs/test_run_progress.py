@@ -1,7 +1,8 @@
 """Progress and ``-v`` account of a run (issue 31, "a user's daily friction").
 
 Every mission's single run reports its steps through the one progress callback of
-`fluxcal.runs.driver.run` (shown as a rich bar by `fluxcal.runs.display.progress_display`)
+`fluxcal.runs.driver.run` (a rich bar:
+`fluxcal.runs.display_cli.progress_display`)
 and logs one INFO line per step that matters: kernels loaded, inputs read with their
 counts, calibration chosen, each level done with its vectors, products written.  The
 counts expected here come from the inputs themselves (CSV rows, the products read back),

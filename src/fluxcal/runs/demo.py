@@ -23,7 +23,7 @@ from fluxcal.products.html_report import (
 )
 from fluxcal.runs import registry
 from fluxcal.runs.contract import DemoPart, load_reference
-from fluxcal.runs.display import compilation_notice, status_display
+from fluxcal.runs.display_cli import compilation_notice, status_display
 
 log = logging.getLogger(__name__)
 

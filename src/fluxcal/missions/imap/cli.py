@@ -15,7 +15,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.missions.imap.levels_cli import register as _register_levels
 from fluxcal.missions.imap.options import ImapOptions
-from fluxcal.runs.display import compilation_notice, progress_display
+from fluxcal.runs.display_cli import compilation_notice, progress_display
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="IMAP MAG pipeline commands.", no_args_is_help=True,

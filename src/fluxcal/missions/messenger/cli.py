@@ -11,7 +11,7 @@ from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.preflight import plain_text_file
-from fluxcal.runs.display import compilation_notice, progress_display, status_display
+from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,

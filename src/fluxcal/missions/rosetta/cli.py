@@ -20,7 +20,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
-from fluxcal.runs.display import compilation_notice, progress_display
+from fluxcal.runs.display_cli import compilation_notice, progress_display
 from fluxcal.runs.options import with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.

@@ -1,5 +1,8 @@
 """What a command shows on stderr while it runs: progress bar, spinner, compilation notice.
 
+A command module (its numerical and display libraries load when a command runs, not
+when the command line is built: tests/test_cli_startup.py).
+
 One mechanism for every mission and route: a command wraps its run in
 `progress_display` and hands the yielded callback to the run
 (`fluxcal.runs.driver.run`'s ``progress(description, done, total)``); a step without
