@@ -20,7 +20,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
-from fluxcal.runs.display_cli import compilation_notice, progress_display
+from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
 from fluxcal.runs.options import with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
@@ -239,6 +239,13 @@ def simulate(
     if layout not in ("files", "batch", "archive"):
         raise InputFormatError(f"{layout!r}: choose files, batch or archive", field="--layout")
     preflight.writable_folder(out, "--out")
+    with compilation_notice(), status_display(f"simulating {hours:g} h of Rosetta RPC-MAG"):
+        _simulate(out, start, hours, rate, primary, seed, layout, days, field)
+
+
+def _simulate(out: Path, start: str, hours: float, rate: float, primary: str, seed: int,
+              layout: str, days: int, field: str) -> None:
+    """``fluxcal simulate rosetta`` once its options are checked."""
     if layout == "archive":
         simulate_archive_layout(out, start, hours, rate, primary, seed, field)
         return

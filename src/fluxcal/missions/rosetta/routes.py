@@ -293,9 +293,9 @@ class RosettaRun:
                          len(raw.sensors))
             levels = self._sensor_levels(s, wanted, raw.day, options, lsk)
             for name, ds in levels.levels.items():
-                log.info("%s %s done: %s vectors", levels.sensor,
+                log.info("%s %s done: %s %s", levels.sensor,
                          "HK LEVEL_A" if name == "HK" else f"LEVEL_{name}",
-                         f"{ds.sizes['time']:,}")
+                         f"{ds.sizes['time']:,}", "records" if name == "HK" else "vectors")
             sensors.append(levels)
         if progress is not None:
             progress("calibrated", len(raw.sensors), len(raw.sensors))
