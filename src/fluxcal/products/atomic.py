@@ -9,13 +9,24 @@ from __future__ import annotations
 
 import errno
 import os
-import re
 import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
+
+from fluxcal.products.paths import (
+    check_write,
+    make_folder,
+    note_created,
+    old_copy,
+    temporary_affixes,
+    temporary_owner,
+)
+
+__all__ = ["atomic_group", "atomic_path", "atomic_write_bytes", "pending_renames",
+           "process_alive", "temporary_owner", "ungrouped"]
 
 # Pending (temporary, final, is_directory) renames of the innermost `atomic_group`.
 _GROUP: ContextVar[list[tuple[Path, Path, bool]] | None] = ContextVar("_GROUP", default=None)
@@ -37,7 +48,8 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     Path
         A not-yet-existing temporary path in ``final``'s folder, with the same suffix
         (some writers, e.g. cdflib, insist on the suffix):
-        ``.<name>.<pid>.<random>.tmp<suffix>``.  The process id lets a clean-up of
+        ``.<name>.<pid>.<random>.fluxcal-tmp<suffix>``
+        (`fluxcal.products.paths.temporary_affixes`).  The process id lets a clean-up of
         stale temporaries (`temporary_owner`) spare those of a process still running.
 
     Notes
@@ -47,11 +59,10 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     full disk (``ENOSPC``, ``EDQUOT``) is re-raised as a plain `OSError` naming
     ``final`` (the libraries' own messages name the temporary, or nothing).
     """
-    final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{final.name}.{os.getpid()}.", suffix=f".tmp{final.suffix}", dir=final.parent
-    )
+    final = check_write(Path(final))  # inside the run's --out (paths rule 1)
+    make_folder(final.parent)
+    prefix, suffix = temporary_affixes(final)
+    fd, tmp_name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=final.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     tmp.unlink()  # writers create it themselves (cdflib refuses an existing file)
@@ -72,15 +83,6 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
         raise
 
 
-_TMP_PID = re.compile(r"\.(\d+)\.[A-Za-z0-9_]+\.tmp[^/]*$")
-
-
-def temporary_owner(path: Path) -> int | None:
-    """Process id in a temporary name made by `atomic_path` (``None`` if it has none)."""
-    m = _TMP_PID.search(Path(path).name)
-    return int(m.group(1)) if m else None
-
-
 def process_alive(pid: int) -> bool:
     """Whether a process with id ``pid`` exists (signal 0 probes without signalling)."""
     try:
@@ -93,16 +95,19 @@ def process_alive(pid: int) -> bool:
 
 
 def _commit(tmp: Path, final: Path, directory: bool) -> None:
+    new = not os.path.lexists(final)
     if directory:
         _replace_dir(tmp, final)
     else:
-        os.replace(tmp, final)
+        os.replace(tmp, final)  # replaces a link at ``final``, never writes through it
+    if new:
+        note_created(final)  # a failed run removes it again (`fluxcal.products.staging`)
 
 
 def _discard(tmp: Path) -> None:
-    if tmp.is_dir():
+    if tmp.is_dir() and not tmp.is_symlink():
         shutil.rmtree(tmp, ignore_errors=True)
-    elif tmp.exists():
+    elif os.path.lexists(tmp):
         tmp.unlink()
 
 
@@ -166,10 +171,8 @@ def atomic_group() -> Iterator[None]:
 
 def _replace_dir(tmp: Path, final: Path) -> None:
     """Swap a finished directory in (a directory cannot be replaced in one syscall)."""
-    if final.exists():
-        old = final.with_name(f".{final.name}.old")
-        if old.exists():
-            shutil.rmtree(old)
+    if os.path.lexists(final):
+        old = old_copy(final)
         os.replace(final, old)
         os.replace(tmp, final)
         shutil.rmtree(old, ignore_errors=True)
