@@ -31,9 +31,10 @@ import errno
 import os
 import re
 import stat
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextvars import ContextVar
 from pathlib import Path
+from typing import Any
 
 from fluxcal.errors import FluxcalError, InputFormatError
 
@@ -244,6 +245,28 @@ def pointer_target(folder: Path, name: str, label_path: Path, pointer: str) -> P
             f"{pointer} = {name!r} is a link that leads out of the label's folder; copy the "
             "data file beside its label", path=str(label_path), field=pointer)
     return target
+
+
+def check_pointers(label: Mapping[str, Any], label_path: Path) -> None:
+    """Check every file pointer of a label (``^TABLE = "X.TAB"``, ``("X.TAB", 3)``).
+
+    Each must name a file in the label's folder (`pointer_target`), whether or not it is
+    read: a reader of the label alone (``fluxcal provenance``) refuses the same labels
+    as a reader of its table.
+
+    Raises
+    ------
+    InputFormatError
+        A pointer that leads out of the label's folder.
+    """
+    for key, value in label.items():
+        if not str(key).startswith("^"):
+            continue
+        name = value if isinstance(value, str) else \
+            value[0] if isinstance(value, (list, tuple)) and value and isinstance(value[0], str) \
+            else None
+        if name is not None:
+            pointer_target(Path(label_path).parent, name, label_path, str(key))
 
 
 def temporary_affixes(final: Path) -> tuple[str, str]:
