@@ -33,7 +33,7 @@ _GROUP: ContextVar[list[tuple[Path, Path, bool]] | None] = ContextVar("_GROUP", 
 
 
 @contextmanager
-def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
+def atomic_path(final: Path, *, directory: bool = False, now: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``final``; rename it to ``final`` on success.
 
     Parameters
@@ -42,6 +42,9 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
         The path the product must finally have.
     directory : bool
         The product is a directory (e.g. a Zarr store) rather than a file.
+    now : bool
+        Rename at once, inside an `atomic_group` too (an input, a kernel or a table the
+        same command reads back).
 
     Yields
     ------
@@ -66,7 +69,7 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     os.close(fd)
     tmp = Path(tmp_name)
     tmp.unlink()  # writers create it themselves (cdflib refuses an existing file)
-    group = _GROUP.get()
+    group = None if now else _GROUP.get()
     try:
         yield tmp
         if group is not None:
@@ -180,8 +183,13 @@ def _replace_dir(tmp: Path, final: Path) -> None:
         os.replace(tmp, final)
 
 
-def atomic_write_bytes(final: Path, data: bytes) -> Path:
-    """Write ``data`` to ``final`` atomically and return ``final``."""
-    with atomic_path(final) as tmp:
-        tmp.write_bytes(data)
+def atomic_write_bytes(final: Path, data: bytes | str, *, now: bool = False) -> Path:
+    """Write ``data`` (text as UTF-8) to ``final`` atomically and return ``final``.
+
+    Every file fluxcal writes goes through `atomic_path`, so the path rule holds for it
+    (`fluxcal.products.paths`: inside the run's ``--out``, recorded for a failed run's
+    clean-up, a temporary name fluxcal alone uses).  ``now``: see `atomic_path`.
+    """
+    with atomic_path(final, now=now) as tmp:
+        tmp.write_bytes(data.encode() if isinstance(data, str) else data)
     return Path(final)

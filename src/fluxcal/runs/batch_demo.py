@@ -17,6 +17,7 @@ import shutil
 from pathlib import Path
 
 from fluxcal.errors import FluxcalError
+from fluxcal.products.paths import make_folder
 from fluxcal.runs import registry
 from fluxcal.runs.cli import batch
 from fluxcal.runs.contract import Mission
@@ -78,7 +79,7 @@ def run_demo(out: Path) -> str:
     lines: list[str] = []
     for mission in _demo_missions():
         inp = out / mission.name / "input"
-        inp.mkdir(parents=True, exist_ok=True)
+        make_folder(inp)
         days = list(mission.demo_days)
         try:
             mission.load("simulate_days")(inp, days)

@@ -44,6 +44,8 @@ from fluxcal.missions.messenger.routes import (
 )
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 from fluxcal.runs import driver
 
 DAY_S = 86_400.0
@@ -135,7 +137,7 @@ def simulate_days(
     if not 0.0 < seconds_per_day <= DAY_S:
         raise ValueError(f"seconds_per_day must be in (0, 86400], got {seconds_per_day}")
     input_dir = Path(input_dir)
-    input_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(input_dir)
     kernel_files: list[Path] = []
     done: list[_dt.date] = []
     for run in _runs(days):
@@ -182,7 +184,7 @@ def simulate_days(
                 if part[key].sizes[dims[key]] and (key != "science" or has_science):
                     paths[key].replace(day_file(input_dir, code, day))
             if has_science:
-                (input_dir / "truth").mkdir(exist_ok=True)
+                make_folder(input_dir / "truth")
                 paths["truth"].replace(input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
                 done.append(day)
         shutil.rmtree(tmp, ignore_errors=True)
@@ -205,7 +207,7 @@ def _split_by_day(path: Path, stream: str, out_dir: Path, sclk) -> list[Path]:
     for day in np.unique(days):
         d = _dt.date.fromisoformat(str(day))
         dest = out_dir / f"MAG{stream}_{d:%Y%j}.csv"
-        dest.write_text("\n".join([header, *rows[days == day].tolist()]) + "\n")
+        atomic_write_bytes(dest, "\n".join([header, *rows[days == day].tolist()]) + "\n", now=True)
         written.append(dest)
     return written
 

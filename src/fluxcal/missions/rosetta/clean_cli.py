@@ -34,7 +34,7 @@ from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import check_average
 from fluxcal.products.atomic import atomic_path
-from fluxcal.products.paths import plain_name
+from fluxcal.products.paths import make_folder, plain_name
 from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
@@ -148,7 +148,7 @@ def write_clean_level(
     from fluxcal.products.cdf import istp_file_stem
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors to write")
