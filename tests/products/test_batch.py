@@ -317,11 +317,12 @@ def test_clean_stale_temporaries_files_and_store_directories(tmp_path: Path) -> 
 
     (tmp_path / "P.zarr" / "B").mkdir(parents=True)  # a finished store: kept
     (tmp_path / "P.zarr" / "B" / "0.0").write_bytes(b"x")
-    stale_dir = tmp_path / ".P.zarr.k3j2.tmp.zarr"  # a Zarr store a killed worker was writing
+    # a Zarr store a killed worker (pid 2**22 + 1: above Linux's pid_max) was writing
+    stale_dir = tmp_path / f".P.zarr.{2**22 + 1}.k3j2ab12.fluxcal-tmp.zarr"
     (stale_dir / "B").mkdir(parents=True)
     (stale_dir / "B" / "0.0.abc.partial").write_bytes(b"x")
     (stale_dir / ".zgroup").write_text("{}")
-    stale_file = tmp_path / "sub" / ".P.TAB.x1y2.tmp.TAB"
+    stale_file = tmp_path / "sub" / f".P.TAB.{2**22 + 1}.x1y2ab12.fluxcal-tmp.TAB"
     stale_file.parent.mkdir()
     stale_file.write_text("partial")
     (tmp_path / "P.TAB").write_text("done")

@@ -181,14 +181,15 @@ def _undo(out: Path, before: set[str], created: list[Path]) -> None:
     """Remove what a failed run created in ``out``, and nothing else.
 
     The files and folders the run's writers recorded (`fluxcal.products.paths.note_created`;
-    a folder only once empty), and new plain files directly in ``out`` (the lock is
-    held: no other run writes there).  Files that appear in a folder nested below
+    a folder only once empty), its temporaries (by name, `clean_stale_temporaries`), and
+    new plain files directly in ``out`` (the lock is held: no other run writes there).  Files that appear in a folder nested below
     ``out`` are not removed unless this run recorded them: another run may be writing
     there under its own ``--out``.
     """
     remove_created(created)
     if not out.is_dir():
         return
+    clean_stale_temporaries(out)  # its own, by name (a store a library was still writing)
     for entry in os.scandir(out):
         if entry.name not in before and entry.name != LOCK_NAME \
                 and entry.is_file(follow_symlinks=False):
@@ -299,10 +300,10 @@ def interrupt_signals() -> Iterator[Callable[[], None]]:
 
     Python runs a handler between two bytecodes of the main thread, which may be inside
     code that swallows exceptions (a ``__del__``, a weakref or garbage-collector
-    callback, a library's ``except BaseException``): the exception is then lost.  So a
-    signal that arrived is raised again when the block ends without it: a SIGTERM is
-    never ignored (exit 143), however early it comes.  The block gets a function that
-    raises it at once (a command calls it before its products are committed).
+    callback, a library's ``except BaseException``): the exception is then lost.  So the
+    block gets a function that raises `Interrupted` again if a signal arrived; the
+    command line (`fluxcal.cli.main`) calls it when the command returns, before its
+    products are committed: a SIGTERM is never ignored (exit 143).
     """
     fired: list[int] = []
 
@@ -323,10 +324,6 @@ def interrupt_signals() -> Iterator[Callable[[], None]]:
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield pending
-    except BaseException:
-        raise
-    else:
-        pending()  # the handler's exception was swallowed on its way up
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
