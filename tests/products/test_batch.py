@@ -109,7 +109,7 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     task = SyntheticDayTask(inp, out, delay=0.3, crash_once_on=DAYS[1])
     rep = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
     assert (out / ".crashed-SYNTH_20240302").exists()  # the worker really was killed
-    assert not list(out.glob(".*.tmp*"))  # its half-written temporary was removed
+    assert not list(out.glob("*fluxcal-tmp*"))  # its half-written temporary was removed
     statuses = {d.day: d.status for d in rep.days}
     # Every product that exists is complete; none is partial.
     for d in DAYS:
@@ -296,7 +296,7 @@ def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
     assert killed
     with pytest.raises(ProcessLookupError):
         os.kill(killed[0], 0)  # the worker process really is gone
-    assert not list(out.glob(".*.tmp*"))
+    assert not list(out.glob("*fluxcal-tmp*"))
     assert {d.status for d in rep.days} <= {"done", "failed"}
     assert all("KilledWorker" in (d.error or "") for d in rep.days if d.status == "failed")
     for day in DAYS:  # every product present is complete (even one whose manifest is missing)

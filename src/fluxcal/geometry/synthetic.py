@@ -24,7 +24,7 @@ from fluxcal.errors import KernelError
 from fluxcal.geometry.kernels import relative_meta_kernel_files
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.paths import make_folder
+from fluxcal.products.paths import make_folder, note_created
 
 GM_MERCURY = 22031.78  # km^3/s^2 (DE421 / pck00010)
 GM_SUN = 1.32712440018e11
@@ -125,6 +125,7 @@ def prepare_kernel_folder(out_dir: str | Path, prefix: str) -> tuple[Path, Path,
     spk, ck = out / f"{prefix}.bsp", out / f"{prefix}_sc.bc"
     for path in (spk, ck):  # the SPICE writers refuse to overwrite
         path.unlink(missing_ok=True)
+        note_created(path)  # written by SPICE itself: a failed run removes it
     return out, sclk, fk, spk, ck
 
 

@@ -30,6 +30,7 @@ import contextlib
 import errno
 import os
 import re
+import shutil
 import stat
 from collections.abc import Iterator, Mapping
 from contextvars import ContextVar
@@ -158,8 +159,6 @@ def remove_created(paths: list[Path]) -> None:
     Files (and links) are unlinked; a folder is removed only once it is empty, so a
     file someone else put into a folder the run created stays.
     """
-    import shutil
-
     for p in reversed(paths):
         try:
             st = os.lstat(p)

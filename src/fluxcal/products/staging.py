@@ -182,9 +182,9 @@ def _undo(out: Path, before: set[str], created: list[Path]) -> None:
 
     The files and folders the run's writers recorded (`fluxcal.products.paths.note_created`;
     a folder only once empty), its temporaries (by name, `clean_stale_temporaries`), and
-    new plain files directly in ``out`` (the lock is held: no other run writes there).  Files that appear in a folder nested below
-    ``out`` are not removed unless this run recorded them: another run may be writing
-    there under its own ``--out``.
+    new plain files directly in ``out`` (the lock is held: no other run writes there).
+    Files that appear in a folder nested below ``out`` are not removed unless this run
+    recorded them: another run may be writing there under its own ``--out``.
     """
     remove_created(created)
     if not out.is_dir():
