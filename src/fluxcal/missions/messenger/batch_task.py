@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import shutil
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -45,7 +46,7 @@ from fluxcal.missions.messenger.routes import (
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.paths import make_folder
+from fluxcal.products.paths import make_folder, temporary_affixes
 from fluxcal.runs import driver
 
 DAY_S = 86_400.0
@@ -173,7 +174,9 @@ def simulate_days(
                                             side="right") - 1
                          for k in ("science", "heater", "temperature")}
         dims = {"science": "time", "heater": "heater_time", "temperature": "temperature_time"}
-        tmp = input_dir / ".simulation"
+        # fluxcal's own temporary name: only such a folder is ever removed (paths rule 4)
+        prefix, suffix = temporary_affixes(input_dir / "simulation")
+        tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=input_dir))
         for k in range(len(run) + 1):
             day = first + _dt.timedelta(days=k)
             part = {key: sim[key].isel({dims[key]: day_index[key] == k}) for key in dims}

@@ -25,7 +25,6 @@ References
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -187,9 +186,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     except FitRefusedError as exc:
         verdict = f"REFUSED by the guards (the command would write nothing): {exc}"
         fitted = out / "fitted_refused"
-    for old in (out / "fitted", out / "fitted_refused"):
-        if old.exists():
-            shutil.rmtree(old)
+    # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
     write_calibration_folder(result, fitted, None, {
         "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"})
     # an unseen day (after the training): the forward model's own field and schedule
