@@ -73,6 +73,18 @@ def test_a_planted_lock_link_is_refused_and_its_target_untouched(tmp_path, capsy
     assert _tree(tmp_path) == before  # victim's bytes, and the link itself, unchanged
 
 
+def test_a_default_out_is_owned_too(tmp_path, capsys, monkeypatch):
+    """``simulate`` without --out writes into ./rosetta-sim: the same lock, the same rule."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "victim.txt").write_text("the user's own file\n")
+    (tmp_path / "rosetta-sim").mkdir()
+    (tmp_path / "rosetta-sim" / LOCK_NAME).symlink_to("../victim.txt")
+    before = _tree(tmp_path)
+    assert main(["simulate", "rosetta", "--rate", "0"]) == 2
+    assert "not a regular file" in _one_error_line(capsys)
+    assert _tree(tmp_path) == before
+
+
 def test_a_lock_that_is_a_folder_is_refused(tmp_path, capsys):
     out = tmp_path / "out"
     (out / LOCK_NAME).mkdir(parents=True)

@@ -121,6 +121,11 @@ def write_scope(folder: Path) -> Iterator[list[Path]]:
         _ROOT.reset(root)
 
 
+def current_folder() -> Path | None:
+    """Return the folder of the current `write_scope` (None outside one)."""
+    return _ROOT.get()
+
+
 def note_created(path: Path) -> None:
     """Record ``path`` as created by the current `write_scope` (a failed run removes it)."""
     created = _CREATED.get()

@@ -38,6 +38,7 @@ from fluxcal.preflight import writable_folder
 from fluxcal.products.atomic import atomic_group, process_alive, ungrouped
 from fluxcal.products.paths import (
     LOCK_NAME,
+    current_folder,
     open_lock_file,
     own_leftover,
     remove_created,
@@ -351,10 +352,17 @@ def reads_back(command: _Command) -> _Command:
     such a command instead has each file renamed into place as soon as it is complete
     (`fluxcal.products.atomic.ungrouped`; each file is still written atomically, and a
     failed run still removes what it created).  The signature is kept for the CLI.
+
+    Such commands have a default ``--out`` (``rosetta-sim``, ``demo-output``), which
+    `fluxcal.cli.main` cannot see on the command line: when no run owns a folder yet,
+    the command's ``out`` is owned here (`owned_run`: checked, locked, writes confined).
     """
     @functools.wraps(command)
     def run(*args: Any, **kwargs: Any) -> Any:
-        with ungrouped():
+        out = kwargs.get("out")
+        owner = owned_run(Path(out)) if out is not None and current_folder() is None \
+            else contextlib.nullcontext()
+        with owner, ungrouped():
             return command(*args, **kwargs)
 
     return run  # type: ignore[return-value]
