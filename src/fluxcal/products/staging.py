@@ -90,7 +90,7 @@ def clean_stale_temporaries(out_dir: Path) -> list[Path]:
     removed: list[Path] = []
     me = os.getpid()
     out_dir = Path(out_dir)
-    if not out_dir.is_dir() or out_dir.is_symlink() and not out_dir.resolve().is_dir():
+    if not out_dir.is_dir():
         return removed
     for folder, dirs, files in os.walk(out_dir, followlinks=False):
         here = Path(folder)
