@@ -30,7 +30,6 @@ from fluxcal.missions.imap.pipeline import (
     to_level,
     write_products,
 )
-from fluxcal.products.paths import make_folder
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
@@ -123,7 +122,7 @@ def simulate_days(input_dir: Path, days: Sequence[_dt.date]) -> None:
     packets (`SAMPLE_DAYS`); a day of ``days`` without a sample gets no file.
     """
     input_dir = Path(input_dir)
-    make_folder(input_dir)
+    input_dir.mkdir(parents=True, exist_ok=True)
     for name, day in SAMPLE_DAYS.items():
         if day in days:
             mode = name.split("_")[2].split(".")[0]
