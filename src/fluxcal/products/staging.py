@@ -353,7 +353,7 @@ def reads_back(command: _Command) -> _Command:
     (`fluxcal.products.atomic.ungrouped`; each file is still written atomically, and a
     failed run still removes what it created).  The signature is kept for the CLI.
 
-    Such commands have a default ``--out`` (``rosetta-sim``, ``demo-output``), which
+    Such commands have a default ``--out`` (a simulator's, the demo's), which
     `fluxcal.cli.main` cannot see on the command line: when no run owns a folder yet,
     the command's ``out`` is owned here (`owned_run`: checked, locked, writes confined).
     """
