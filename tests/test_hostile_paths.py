@@ -95,6 +95,21 @@ def test_a_lock_that_is_a_folder_is_refused(tmp_path, capsys):
     assert _tree(tmp_path) == before
 
 
+def test_a_batch_refuses_a_planted_lock_link_too(tmp_path):
+    from fluxcal.errors import FluxcalError
+    from fluxcal.runs.batch import run_batch
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's own file\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).symlink_to(victim)
+    before = _tree(tmp_path)
+    with pytest.raises(FluxcalError, match="not a regular file"):
+        run_batch([], lambda day: None, out, scheduler="serial")
+    assert _tree(tmp_path) == before
+
+
 def test_out_given_twice_is_refused_before_anything_is_made(tmp_path, capsys):
     """Before: ``--out A --out B`` locked A and wrote into B beside another run."""
     a, b = tmp_path / "A", tmp_path / "B"
