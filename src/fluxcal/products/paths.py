@@ -158,6 +158,22 @@ def make_folder(path: Path) -> Path:
     return path
 
 
+def move_into(source: Path, dest: Path) -> Path:
+    """Rename a finished file of this run to ``dest`` (checked, recorded; no link followed).
+
+    Returns
+    -------
+    Path
+        ``dest``.
+    """
+    dest = check_write(Path(dest))
+    new = not os.path.lexists(dest)
+    os.replace(source, dest)
+    if new:
+        note_created(dest)
+    return dest
+
+
 def remove_created(paths: list[Path]) -> None:
     """Remove what a failed run created (`note_created`), newest first; no link followed.
 

@@ -46,7 +46,7 @@ from fluxcal.missions.messenger.routes import (
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.paths import make_folder, temporary_affixes
+from fluxcal.products.paths import make_folder, move_into, temporary_affixes
 from fluxcal.runs import driver
 
 DAY_S = 86_400.0
@@ -185,10 +185,10 @@ def simulate_days(
             has_science = part["science"].sizes["time"] > 0
             for key, code in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
                 if part[key].sizes[dims[key]] and (key != "science" or has_science):
-                    paths[key].replace(day_file(input_dir, code, day))
+                    move_into(paths[key], day_file(input_dir, code, day))
             if has_science:
                 make_folder(input_dir / "truth")
-                paths["truth"].replace(input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
+                move_into(paths["truth"], input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
                 done.append(day)
         shutil.rmtree(tmp, ignore_errors=True)
     write_meta_kernel(input_dir / "kernels.tm", kernel_files)

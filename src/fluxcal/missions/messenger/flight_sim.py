@@ -651,9 +651,9 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
                     counts[:, 0], counts[:, 1], counts[:, 2]])
             if truth:
                 make_folder(inp / "truth")
-                np.savez(inp / "truth" / f"MAGTRUTH_{stem}.npz", met=met_rec, range=rng_flag,
-                         b_sensor=b, zero_level=zero, temperature_c=temp,
-                         duty_percent=d_sample)
+                with atomic_path(inp / "truth" / f"MAGTRUTH_{stem}.npz", now=True) as tmp:
+                    np.savez(tmp, met=met_rec, range=rng_flag, b_sensor=b, zero_level=zero,
+                             temperature_c=temp, duty_percent=d_sample)
             written.append(day)
             total += met_rec.size
     return FlightRun(inp, cal_dir, written, total, sched.duty_percent, origin)
