@@ -337,6 +337,19 @@ def test_a_pds3_pointer_through_a_link_out_of_the_folder_is_refused(tmp_path):
         fluxcal.read_product(label)
 
 
+def test_a_pds3_format_file_out_of_the_labels_folder_is_refused(tmp_path):
+    import fluxcal
+
+    label = _label(tmp_path, '"X.TAB"')
+    (label.parent / "X.TAB").write_bytes(b"4321\r\n")
+    (tmp_path / "X.FMT").write_text("OBJECT = COLUMN\nEND_OBJECT = COLUMN\n")
+    text = label.read_text().replace("  ROW_BYTES = 6\n",
+                                     '  ROW_BYTES = 6\n  ^STRUCTURE = "../../X.FMT"\n')
+    label.write_text(text)
+    with pytest.raises(InputFormatError, match=r"\^STRUCTURE .*leads out of the label's"):
+        fluxcal.read_product(label)
+
+
 def test_a_pds3_pointer_beside_its_label_is_read(tmp_path):
     from fluxcal.archive.pds3 import read_table
 
