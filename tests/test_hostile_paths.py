@@ -208,6 +208,29 @@ def test_every_write_of_a_run_stays_inside_its_out(tmp_path):
     assert inside(out / "sub" / "link-itself", out)
 
 
+@pytest.mark.parametrize("directory", [False, True], ids=["file", "store"])
+def test_a_link_at_a_products_name_is_replaced_never_written_through(tmp_path, directory):
+    target = tmp_path / "target"
+    target.mkdir()
+    (target / "keep").write_text("the user's own file\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "P.zarr").symlink_to(target)
+    (out / "P.TAB").symlink_to(target / "keep")
+    before = _tree(target)
+    with write_scope(out), atomic_path(out / ("P.zarr" if directory else "P.TAB"),
+                                       directory=directory, now=True) as tmp:
+        if directory:
+            tmp.mkdir()
+            (tmp / "x").write_text("new")
+        else:
+            tmp.write_text("new")
+    assert _tree(target) == before
+    name = "P.zarr/x" if directory else "P.TAB"
+    assert (out / name).read_text() == "new" and not (out / name).is_symlink()
+    assert [p.name for p in out.iterdir() if own_leftover(p.name)] == []
+
+
 # -- removal: only fluxcal's own temporaries -------------------------------------------
 
 def test_a_users_hidden_files_survive_every_command(tmp_path, capsys):

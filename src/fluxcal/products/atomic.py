@@ -178,7 +178,7 @@ def _replace_dir(tmp: Path, final: Path) -> None:
         old = old_copy(final)
         os.replace(final, old)
         os.replace(tmp, final)
-        shutil.rmtree(old, ignore_errors=True)
+        _discard(old)  # a link or a file that stood there is removed, not followed
     else:
         os.replace(tmp, final)
 
