@@ -215,16 +215,23 @@ def error_line(exc: BaseException) -> str:
 
 
 def _out_folder(args: list[str]) -> Path | None:
-    """Return the ``--out`` folder of a command other than ``batch`` (its days are atomic)."""
+    """Return the ``--out`` folder of a command other than ``batch`` (its days are atomic).
+
+    Raises
+    ------
+    FluxcalError
+        ``--out`` given more than once (the command would write into the last one while
+        the lock is taken on the first).
+    """
     command = next((a for a in args if not a.startswith("-")), "")
-    if command == "batch" or "--help" in args:
+    if "--help" in args:
         return None
-    for i, a in enumerate(args):
-        if a == "--out" and i + 1 < len(args):
-            return Path(args[i + 1])
-        if a.startswith("--out="):
-            return Path(a.split("=", 1)[1])
-    return None
+    found = [Path(args[i + 1]) for i, a in enumerate(args) if a == "--out" and i + 1 < len(args)]
+    found += [Path(a.split("=", 1)[1]) for a in args if a.startswith("--out=")]
+    if len(found) > 1:
+        raise FluxcalError(f"--out given {len(found)} times ({', '.join(map(str, found))}); "
+                           "give one output folder")
+    return found[0] if found and command != "batch" else None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -256,8 +263,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = COMMAND_ARGS.set(("fluxcal", *args))  # what products record (not pytest's argv)
     try:
         # commands that read back what they wrote declare it (`staging.reads_back`)
-        with interrupt_signals(), _long_lived_imports(), owned_run(_out_folder(args)):
+        with interrupt_signals() as signalled, _long_lived_imports(), \
+                owned_run(_out_folder(args)):
             code = app(args=args, prog_name="fluxcal", standalone_mode=False)
+            signalled()  # a signal whose exception a library swallowed: still 130/143
             if code == 130:  # typer's return for a KeyboardInterrupt it caught
                 raise Interrupted(signal.SIGINT)
             if isinstance(code, int) and code != 0:

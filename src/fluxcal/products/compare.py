@@ -33,6 +33,7 @@ from fluxcal.archive.products import identify, normalise_frame, read_product
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.time import tt2000_to_datetime64
 from fluxcal.products.attrs import variable_units
+from fluxcal.products.paths import make_folder
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.products.writer import read_product as read_fluxcal
 
@@ -348,6 +349,6 @@ def write_difference_plot(c: Comparison, out_dir: Path) -> Path:
     from fluxcal.products.quicklook import save_png
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     name = f"compare_{Path(c.path_a).stem}_vs_{Path(c.path_b).stem}.png"
     return save_png(difference_figure(c), out_dir / name)

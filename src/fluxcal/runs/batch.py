@@ -43,6 +43,7 @@ from fluxcal.errors import FluxcalError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.html_report import run_products, write_run_report
+from fluxcal.products.paths import write_scope
 from fluxcal.products.provenance import file_checksums, portable_value, sha256_file
 from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBusy: re-exported
     LOCK_NAME,
@@ -295,7 +296,8 @@ def run_day(task: Any, day: _dt.date, out_dir: Path, name: str, force: bool) -> 
             return DayStatus(day.isoformat(), "skipped", worker=worker,
                              seconds=time.perf_counter() - t0)
         inputs = _current_inputs(task, day)
-        result = task(day)
+        with write_scope(out_dir):  # every write of the day inside --out (decision 66)
+            result = task(day)
         _write_manifest(out_dir, name, day, result, result.inputs or inputs)
         return DayStatus(day.isoformat(), "done",
                          products=[os.path.relpath(p, out_dir) for p in result.products],

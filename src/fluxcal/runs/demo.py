@@ -15,6 +15,7 @@ from pathlib import Path
 import typer
 
 from fluxcal.products.html_report import REPORT_NAME, ProductFile, write_run_report
+from fluxcal.products.paths import make_folder
 from fluxcal.runs import registry
 from fluxcal.runs.contract import DemoPart, load_reference
 
@@ -52,7 +53,7 @@ def _overview(out: Path) -> Path | None:
 def run_demo(out: Path, full: bool = False) -> None:
     """Run the demo into ``out`` (the quick one, or with ``full`` the tour) and summarise."""
     out = out.resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     for part in parts(full):
         run = load_reference(part.run)
         folder = out / part.folder

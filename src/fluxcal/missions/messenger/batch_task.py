@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import shutil
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -44,6 +45,8 @@ from fluxcal.missions.messenger.routes import (
 )
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder, move_into, temporary_affixes
 from fluxcal.runs import driver
 
 DAY_S = 86_400.0
@@ -135,7 +138,7 @@ def simulate_days(
     if not 0.0 < seconds_per_day <= DAY_S:
         raise ValueError(f"seconds_per_day must be in (0, 86400], got {seconds_per_day}")
     input_dir = Path(input_dir)
-    input_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(input_dir)
     kernel_files: list[Path] = []
     done: list[_dt.date] = []
     for run in _runs(days):
@@ -171,7 +174,9 @@ def simulate_days(
                                             side="right") - 1
                          for k in ("science", "heater", "temperature")}
         dims = {"science": "time", "heater": "heater_time", "temperature": "temperature_time"}
-        tmp = input_dir / ".simulation"
+        # fluxcal's own temporary name: only such a folder is ever removed (paths rule 4)
+        prefix, suffix = temporary_affixes(input_dir / "simulation")
+        tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=input_dir))
         for k in range(len(run) + 1):
             day = first + _dt.timedelta(days=k)
             part = {key: sim[key].isel({dims[key]: day_index[key] == k}) for key in dims}
@@ -180,10 +185,10 @@ def simulate_days(
             has_science = part["science"].sizes["time"] > 0
             for key, code in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
                 if part[key].sizes[dims[key]] and (key != "science" or has_science):
-                    paths[key].replace(day_file(input_dir, code, day))
+                    move_into(paths[key], day_file(input_dir, code, day))
             if has_science:
-                (input_dir / "truth").mkdir(exist_ok=True)
-                paths["truth"].replace(input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
+                make_folder(input_dir / "truth")
+                move_into(paths["truth"], input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
                 done.append(day)
         shutil.rmtree(tmp, ignore_errors=True)
     write_meta_kernel(input_dir / "kernels.tm", kernel_files)
@@ -205,7 +210,7 @@ def _split_by_day(path: Path, stream: str, out_dir: Path, sclk) -> list[Path]:
     for day in np.unique(days):
         d = _dt.date.fromisoformat(str(day))
         dest = out_dir / f"MAG{stream}_{d:%Y%j}.csv"
-        dest.write_text("\n".join([header, *rows[days == day].tolist()]) + "\n")
+        atomic_write_bytes(dest, "\n".join([header, *rows[days == day].tolist()]) + "\n", now=True)
         written.append(dest)
     return written
 

@@ -59,6 +59,7 @@ from fluxcal.missions.messenger.options import DEFAULT_VERSION
 from fluxcal.products import Column, write_product
 from fluxcal.products.atomic import atomic_group
 from fluxcal.products.cdf import istp_file_stem
+from fluxcal.products.paths import make_folder
 
 log = logging.getLogger(__name__)
 
@@ -547,7 +548,7 @@ def write_day(
         Called with ``(description, done, total)`` after each product.
     """
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     year, doy, yyddd = day_code(ds)
     day = from_day_of_year(year, doy)
     day0 = day_start(day)

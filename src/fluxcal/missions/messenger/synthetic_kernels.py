@@ -33,6 +33,7 @@ from fluxcal.geometry.synthetic import (
     write_spk,
 )
 from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.products.atomic import atomic_write_bytes
 
 MESSENGER_FK = """KPL/FK
 
@@ -126,17 +127,15 @@ def write_messenger_like_kernels(
             (mid, t_mid, rate2),
             (p1_end, p1_end_parallel, 1.00000002),
         ]
-        sclk_path.write_text(
-            sclk_text(
+        atomic_write_bytes(sclk_path, sclk_text(
                 SPACECRAFT_ID,
                 (268435456, 1000000),
                 [(0.0, p1_end), (p2_start, 2.68435456e14)],
                 triplets,
                 f"fluxcal synthetic MESSENGER-like SCLK (id {SPACECRAFT_ID}): seconds and "
                 "microseconds.",
-            )
-        )
-        fk_path.write_text(MESSENGER_FK)
+            ), now=True)
+        atomic_write_bytes(fk_path, MESSENGER_FK, now=True)
         with furnished(sclk_path, fk_path):
             et0 = spiceypy.str2et(start_utc) - margin_s
             et1 = spiceypy.str2et(start_utc) + duration_s + margin_s

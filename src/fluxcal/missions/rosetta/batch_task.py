@@ -76,6 +76,7 @@ from fluxcal.missions.rosetta.simulate import (
 )
 from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 from fluxcal.runs.batch import worker_kernel_pool
 
 log = logging.getLogger(__name__)
@@ -354,7 +355,7 @@ def simulate_days(
     days = sorted(days)
     duration = float(minutes) * 60.0
     calib_dir = input_dir / "calib"
-    calib_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(calib_dir)
     alignment = synthetic_alignment()
     calib.write_alignment(alignment, calib_dir / calib.ALIGN_FILE)
     models = synthetic_daily_models([np.datetime64(d.isoformat(), "D") for d in days])
@@ -376,7 +377,7 @@ def simulate_days(
         lsk = leapseconds()
         for k, day in enumerate(days):
             folder = day_folder(input_dir, day)
-            folder.mkdir(parents=True, exist_ok=True)
+            make_folder(folder)
             sim = simulate(
                 f"{day.isoformat()}T{start_time}", duration, calibrations=cals,
                 time_shifts=shifts, nominal=nominal, alignment=alignment, jumps=jumps,

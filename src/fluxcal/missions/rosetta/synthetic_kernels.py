@@ -31,6 +31,7 @@ from fluxcal.geometry.synthetic import (
     write_spk,
 )
 from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
+from fluxcal.products.atomic import atomic_write_bytes
 
 ROSETTA_FK = """KPL/FK
 
@@ -84,8 +85,7 @@ def write_rosetta_like_kernels(
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "ros_synthetic")
     with KernelPool([], frames={}):
         epoch0 = tdt("2003-01-01T00:00:00")
-        sclk_path.write_text(
-            sclk_text(
+        atomic_write_bytes(sclk_path, sclk_text(
                 SPACECRAFT_ID,
                 (4294967296, 65536),
                 [(0.0, 2.81474976710655e14)],
@@ -95,9 +95,8 @@ def write_rosetta_like_kernels(
                 ],
                 f"fluxcal synthetic Rosetta-like SCLK (id {SPACECRAFT_ID}): OBT seconds since "
                 "2003-01-01.",
-            )
-        )
-        fk_path.write_text(ROSETTA_FK)
+            ), now=True)
+        atomic_write_bytes(fk_path, ROSETTA_FK, now=True)
         with furnished(sclk_path, fk_path):
             et0 = spiceypy.str2et(start_utc) - margin_s
             et1 = spiceypy.str2et(start_utc) + duration_s + margin_s
