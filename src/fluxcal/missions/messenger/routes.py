@@ -15,15 +15,20 @@ References
 from __future__ import annotations
 
 import datetime as _dt
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import xarray as xr
+
 from fluxcal.archive.pds3 import read_label, table_names
-from fluxcal.missions.messenger.calibration_data import data_dir
+from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
 from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
-from fluxcal.missions.messenger.identity import FRAME_KERNELS
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.options import (
     AVERAGES_S,
     DEFAULT_FORMATS,
@@ -34,6 +39,7 @@ from fluxcal.missions.messenger.options import (
 from fluxcal.missions.messenger.products import Progress, istp_files
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.run import (
+    batch_day_rows,
     calibrate_run,
     prepare_formats,
     quicklook_frame_of,
@@ -43,17 +49,24 @@ from fluxcal.missions.messenger.validation_report import read_defect_spans
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
 
+log = logging.getLogger(__name__)
+
 #: Name of the mapping file that makes an input folder an EDR folder (issue 14).
 EDR_MAPPING = "edr_mapping.toml"
 
 
 @dataclass(frozen=True)
 class CsvSource:
-    """The three CSV streams of a run (docs/formats/messenger.md)."""
+    """The three CSV streams of a run (docs/formats/messenger.md).
+
+    ``day``: a batch day, whose science files are those of the day before, the day and
+    the day after; only the samples of that day are kept (`run.batch_day_rows`).
+    """
 
     science: tuple[Path, ...]
     heater: tuple[Path, ...]
     temperature: tuple[Path, ...]
+    day: _dt.date | None = None
 
 
 @dataclass(frozen=True)
@@ -91,14 +104,22 @@ def edr_day_files(folder: Path, mapping: Path, day: _dt.date) -> dict[str, list[
 def csv_day_files(folder: Path, day: _dt.date) -> dict[str, list[Path]]:
     """Return a batch day's CSV streams: its science file, heater D-1..D, temperature D-1..D+1.
 
-    The previous day's heater file serves the 5-change look-back of sec. 7.
+    The previous day's heater file serves the 5-change look-back of sec. 7.  Besides
+    (``science_around``, ``heater_after``): the science files of D-1 and D+1 and the
+    heater file of D+1 that exist, which a batch day reads too, for its samples that a
+    file of the day beside holds (a stream across midnight given as one day's files;
+    `run.batch_day_rows`).
     """
     one = _dt.timedelta(days=1)
     heat = [p for p in (day_file(folder, "HTR", day - one), day_file(folder, "HTR", day))
             if p.exists()]
     temp = [p for p in (day_file(folder, "TMP", day - one), day_file(folder, "TMP", day),
                         day_file(folder, "TMP", day + one)) if p.exists()]
-    return {"science": [day_file(folder, "SCI", day)], "heater": heat, "temperature": temp}
+    around = [p for p in (day_file(folder, "SCI", day - one), day_file(folder, "SCI", day + one))
+              if p.exists()]
+    after = [p for p in (day_file(folder, "HTR", day + one),) if p.exists()]
+    return {"science": [day_file(folder, "SCI", day)], "heater": heat, "temperature": temp,
+            "science_around": around, "heater_after": after}
 
 
 def day_file_groups(input_dir: Path, day: _dt.date) -> dict[str, list[Path]]:
@@ -146,8 +167,10 @@ class MessengerRun:
                 return streams, list(source.inputs)
             labels = [Path(p) for ds in streams for p in ds.attrs["inputs"].split(";")]
             return streams, [*labels, *_edr_tables(labels), m.path]
-        streams = (read_science(source.science), read_heater(source.heater),
-                   read_temperature(source.temperature))
+        science = read_science(source.science)
+        if source.day is not None:
+            science = _batch_day_science(science, source, options)
+        streams = (science, read_heater(source.heater), read_temperature(source.temperature))
         return streams, [*map(Path, source.science), *map(Path, source.heater),
                          *map(Path, source.temperature)]
 
@@ -214,13 +237,51 @@ class MessengerRun:
                 raise DayWithoutData(f"no science EDR of {day} in {input_dir}")
             return EdrSource(input_dir, files["mapping"][0], days=(day,),
                              inputs=tuple(p for group in files.values() for p in group))
-        if not files["science"][0].exists():
-            raise DayWithoutData(f"no science file {files['science'][0]}")
-        return CsvSource(*(tuple(files[k]) for k in ("science", "heater", "temperature")))
+        science = [p for p in files["science"] if p.exists()] + files["science_around"]
+        if not science:
+            raise DayWithoutData(f"no science file {files['science'][0]}, nor of the days "
+                                 "beside it")
+        return CsvSource(tuple(science), (*files["heater"], *files["heater_after"]),
+                         tuple(files["temperature"]), day=day)
 
     @staticmethod
     def _quicklook_frame(options: MessengerOptions) -> str | None:
         return quicklook_frame_of(options.frames, options.quicklook, options.quicklook_frame)
+
+
+def _batch_day_science(science: xr.Dataset, source: CsvSource,
+                       options: MessengerOptions) -> xr.Dataset:
+    """Keep the science samples of the batch day ``source.day`` (`run.batch_day_rows`).
+
+    Kernels loaded.  Samples of a day beside it that has no science file of its own are
+    named in a warning: only that day's task writes them (a day outside the batch's
+    days gets no product).
+
+    Raises
+    ------
+    DayWithoutData
+        When no sample read belongs to the day.
+    """
+    day = source.day
+    assert day is not None
+    recorded = SclkKernel.from_pool(SPACECRAFT_ID).to_et(science["partition"].values,
+                                                         science["met"].values)
+    cal = load_calibration(f"{day}T00:00:00", options.calib)
+    keep, joined = batch_day_rows(recorded, day, float(np.max(cal.net_lag_s)))
+    names = [Path(p).name for p in source.science]
+    if joined is not None:
+        raise DayWithoutData(f"{day}: {joined}")
+    one = _dt.timedelta(days=1)
+    midnights = utc_to_et(np.array([f"{day + k * one}T00:00:00" for k in (-1, 0, 1, 2)]))
+    for k, other in ((0, day - one), (2, day + one)):
+        n = int(((recorded >= midnights[k]) & (recorded < midnights[k + 1]) & ~keep).sum())
+        if n and day_file(Path(), "SCI", other).name not in names:
+            log.warning("%d science sample(s) recorded on %s in %s: that day has no science "
+                        "file, its products hold them only when the batch runs %s too",
+                        n, other, ", ".join(names), other)
+    if not keep.any():
+        raise DayWithoutData(f"no science sample of {day} in {', '.join(names)}")
+    return science.isel(time=np.flatnonzero(keep))
 
 
 def _options(**kwargs: Any) -> MessengerOptions:
