@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,8 +29,9 @@ from fluxcal.geometry.synthetic import copy_meta_kernel
 from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger.batch_task import day_file, make_day_task
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.products import day_code, split_days
 from fluxcal.missions.messenger.routes import run_edr2cdr
-from fluxcal.missions.messenger.run import batch_day_rows
+from fluxcal.missions.messenger.run import batch_day_rows, merge_fragment_days
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.products import read_product
@@ -162,3 +164,13 @@ def _partition(samples) -> None:
         joins = fragment[d] and d - 1 in by_day and not fragment[d - 1]
         keep, joined = batch_day_rows(rec, base + dt.timedelta(days=d), LAG_S)
         assert (joined is not None) == joins
+    # and the single run's products (split_days, then merge_fragment_days) hold exactly the
+    # samples each batch day keeps
+    ds = xr.Dataset({"et_recorded": ("time", rec)})
+    products = merge_fragment_days(ds, split_days(ds), LAG_S)
+    assert sum(p.sizes["time"] for p in products) == rec.size
+    for product in products:
+        year, doy, _ = day_code(product)
+        day = dt.date(year, 1, 1) + dt.timedelta(days=doy - 1)
+        keep, _ = batch_day_rows(rec, day, LAG_S)
+        np.testing.assert_array_equal(rec[keep], product["et_recorded"].values)
