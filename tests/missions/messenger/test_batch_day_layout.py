@@ -27,9 +27,11 @@ from hypothesis import strategies as st
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.synthetic import copy_meta_kernel
 from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.missions.messenger.batch_day import holds_nothing_of
 from fluxcal.missions.messenger.batch_task import day_file, make_day_task
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.products import day_code, split_days
+from fluxcal.missions.messenger.readers import read_science
 from fluxcal.missions.messenger.routes import run_edr2cdr
 from fluxcal.missions.messenger.run import batch_day_rows, merge_fragment_days
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
@@ -82,7 +84,13 @@ def _split_layout(stream: dict, inp: Path) -> None:
 
 @pytest.mark.parametrize("layout", ["whole stream as day 1", "whole stream as day 2",
                                     "split at midnight"])
-def test_batch_equals_the_single_run_across_midnight(stream, tmp_path, layout):
+def test_batch_equals_the_single_run_across_midnight(stream, tmp_path, layout, monkeypatch):
+    from fluxcal.missions.messenger import batch_day
+
+    parsed = []  # the science files each day parses
+    monkeypatch.setattr(batch_day, "read_science",
+                        lambda files: parsed.append([p.name for p in files])
+                        or read_science(files))
     inp = tmp_path / "in"
     inp.mkdir()
     shutil.copy(stream["folder"] / "kernels.tm", inp / "kernels.tm")
@@ -111,6 +119,8 @@ def test_batch_equals_the_single_run_across_midnight(stream, tmp_path, layout):
             np.testing.assert_array_equal(a[var].values, b[var].values, err_msg=name)
     assert sum(read_product(out / f"MAGMSOSCI{d:%y%j}_V01.TAB").sizes["time"]
                for d in (D1, D2)) == n_science
+    if layout == "split at midnight":  # the neighbour's file holds none of the day's: unread
+        assert parsed == [["MAGSCI_2012153.csv"], ["MAGSCI_2012154.csv"]]
 
 
 def test_a_day_outside_the_batch_is_named(stream, tmp_path, caplog):
@@ -135,15 +145,17 @@ LAG_S = 2.358  # the largest net lag of Table 1 (s)
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 3), st.sampled_from([0.0, 0.5, 2.0, 2.3, 2.4, 600.0,
                                                                86399.0])),
-                min_size=1, max_size=12, unique=True))
-def test_every_sample_goes_to_exactly_one_batch_day(stream, samples):
+                min_size=1, max_size=12, unique=True),
+       st.lists(st.integers(1, 11), max_size=4))
+def test_every_sample_goes_to_exactly_one_batch_day(stream, samples, cuts):
     """Any day layout: the batch days' selections partition the samples (none lost or
-    doubled), a lag-sized fragment joining the whole day before it as in a single run."""
+    doubled), a lag-sized fragment joining the whole day before it as in a single run;
+    a file holding none of a day's samples decides by its first and last alone."""
     with KernelPool(stream["folder"] / "kernels.tm"):
-        _partition(samples)
+        _partition(samples, cuts)
 
 
-def _partition(samples) -> None:
+def _partition(samples, cuts) -> None:
     base = dt.date(2012, 6, 1)
     rec = np.sort(np.array([utc_to_et(np.array([f"{base + dt.timedelta(days=d)}T00:00:00"]))[0]
                             + s for d, s in samples]))
@@ -174,3 +186,21 @@ def _partition(samples) -> None:
         day = dt.date(year, 1, 1) + dt.timedelta(days=doy - 1)
         keep, _ = batch_day_rows(rec, day, LAG_S)
         np.testing.assert_array_equal(rec[keep], product["et_recorded"].values)
+
+    # files: the sorted samples cut anywhere; a day skips each file that holds none of its
+    # samples or of the next day's fragment, and sees only its first and last
+    bounds = sorted({0, rec.size, *[c for c in cuts if c < rec.size]})
+    files = [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    for day in days:
+        m = utc_to_et(np.array([f"{day + dt.timedelta(days=k)}T00:00:00" for k in (0, 1, 2)]))
+        read, context = [], []
+        for rows in files:
+            if holds_nothing_of(rec[rows[0]], rec[rows[-1]], m, LAG_S):
+                context += [rec[rows[0]], rec[rows[-1]]]
+            else:
+                read += list(rows)
+        full, joined = batch_day_rows(rec, day, LAG_S)
+        part, joined_part = batch_day_rows(rec[read], day, LAG_S, np.array(context))
+        assert joined_part == joined
+        np.testing.assert_array_equal(part, full[read])
+        assert full.sum() == part.sum()  # no kept sample in a skipped file

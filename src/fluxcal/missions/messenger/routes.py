@@ -15,20 +15,16 @@ References
 from __future__ import annotations
 
 import datetime as _dt
-import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import xarray as xr
-
 from fluxcal.archive.pds3 import read_label, table_names
-from fluxcal.geometry.time import SclkKernel, utc_to_et
-from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.batch_day import day_file, read_day_science
+from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
-from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS
 from fluxcal.missions.messenger.options import (
     AVERAGES_S,
     DEFAULT_FORMATS,
@@ -39,7 +35,6 @@ from fluxcal.missions.messenger.options import (
 from fluxcal.missions.messenger.products import Progress, istp_files
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.run import (
-    batch_day_rows,
     calibrate_run,
     prepare_formats,
     quicklook_frame_of,
@@ -48,8 +43,6 @@ from fluxcal.missions.messenger.run import (
 from fluxcal.missions.messenger.validation_report import read_defect_spans
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
-
-log = logging.getLogger(__name__)
 
 #: Name of the mapping file that makes an input folder an EDR folder (issue 14).
 EDR_MAPPING = "edr_mapping.toml"
@@ -81,11 +74,6 @@ class EdrSource:
     mapping: Path
     days: tuple[_dt.date, ...] | None = None
     inputs: tuple[Path, ...] | None = None
-
-
-def day_file(folder: Path, stream: str, day: _dt.date) -> Path:
-    """Return ``folder/MAG<stream>_YYYYDDD.csv`` (the batch input layout)."""
-    return Path(folder) / f"MAG{stream}_{day:%Y%j}.csv"
 
 
 def edr_day_files(folder: Path, mapping: Path, day: _dt.date) -> dict[str, list[Path]]:
@@ -167,12 +155,14 @@ class MessengerRun:
                 return streams, list(source.inputs)
             labels = [Path(p) for ds in streams for p in ds.attrs["inputs"].split(";")]
             return streams, [*labels, *_edr_tables(labels), m.path]
-        science = read_science(source.science)
-        if source.day is not None:
-            science = _batch_day_science(science, source, options)
+        if source.day is None:
+            science, read = read_science(source.science), list(map(Path, source.science))
+        else:  # a batch day: its samples, from its file or the files beside it
+            science, read = read_day_science(source.science,
+                                             day_file(Path(source.science[0]).parent, "SCI",
+                                                      source.day), source.day, options.calib)
         streams = (science, read_heater(source.heater), read_temperature(source.temperature))
-        return streams, [*map(Path, source.science), *map(Path, source.heater),
-                         *map(Path, source.temperature)]
+        return streams, [*read, *map(Path, source.heater), *map(Path, source.temperature)]
 
     def size(self, raw: tuple[Any, Any, Any]) -> int:
         """Return the number of science vectors."""
@@ -247,41 +237,6 @@ class MessengerRun:
     @staticmethod
     def _quicklook_frame(options: MessengerOptions) -> str | None:
         return quicklook_frame_of(options.frames, options.quicklook, options.quicklook_frame)
-
-
-def _batch_day_science(science: xr.Dataset, source: CsvSource,
-                       options: MessengerOptions) -> xr.Dataset:
-    """Keep the science samples of the batch day ``source.day`` (`run.batch_day_rows`).
-
-    Kernels loaded.  Samples of a day beside it that has no science file of its own are
-    named in a warning: only that day's task writes them (a day outside the batch's
-    days gets no product).
-
-    Raises
-    ------
-    DayWithoutData
-        When no sample read belongs to the day.
-    """
-    day = source.day
-    assert day is not None
-    recorded = SclkKernel.from_pool(SPACECRAFT_ID).to_et(science["partition"].values,
-                                                         science["met"].values)
-    cal = load_calibration(f"{day}T00:00:00", options.calib)
-    keep, joined = batch_day_rows(recorded, day, float(np.max(cal.net_lag_s)))
-    names = [Path(p).name for p in source.science]
-    if joined is not None:
-        raise DayWithoutData(f"{day}: {joined}")
-    one = _dt.timedelta(days=1)
-    midnights = utc_to_et(np.array([f"{day + k * one}T00:00:00" for k in (-1, 0, 1, 2)]))
-    for k, other in ((0, day - one), (2, day + one)):
-        n = int(((recorded >= midnights[k]) & (recorded < midnights[k + 1]) & ~keep).sum())
-        if n and day_file(Path(), "SCI", other).name not in names:
-            log.warning("%d science sample(s) recorded on %s in %s: that day has no science "
-                        "file, its products hold them only when the batch runs %s too",
-                        n, other, ", ".join(names), other)
-    if not keep.any():
-        raise DayWithoutData(f"no science sample of {day} in {', '.join(names)}")
-    return science.isel(time=np.flatnonzero(keep))
 
 
 def _options(**kwargs: Any) -> MessengerOptions:

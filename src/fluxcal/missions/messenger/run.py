@@ -256,8 +256,8 @@ def merge_fragment_days(
             for a, b in groups]
 
 
-def batch_day_rows(recorded_et: np.ndarray, day: _dt.date,
-                   max_lag_s: float) -> tuple[np.ndarray, str | None]:
+def batch_day_rows(recorded_et: np.ndarray, day: _dt.date, max_lag_s: float,
+                   context_et: np.ndarray | None = None) -> tuple[np.ndarray, str | None]:
     """Select the science samples a batch day's products hold, of all the samples it read.
 
     A batch day reads the science files of the day before, the day and the day after
@@ -278,11 +278,16 @@ def batch_day_rows(recorded_et: np.ndarray, day: _dt.date,
         The batch day.
     max_lag_s : float
         Largest net lag of the calibration (s, Table 1).
+    context_et : ndarray, optional
+        Recorded ET of samples not read, for the fragment decisions only: the first and
+        last samples of a neighbour's file that holds none of this day's (`batch_day`),
+        which decide them as all its samples would (its records are in time order).
 
     Returns
     -------
     ndarray of bool, str or None
-        The rows to keep; why none are kept when the day's samples join the day before.
+        The rows of ``recorded_et`` to keep; why none are kept when the day's samples
+        join the day before.
 
     References
     ----------
@@ -290,16 +295,18 @@ def batch_day_rows(recorded_et: np.ndarray, day: _dt.date,
     """
     one = _dt.timedelta(days=1)
     m = utc_to_et(np.array([f"{day + k * one}T00:00:00" for k in (-1, 0, 1, 2)]))
-    rec = np.asarray(recorded_et, dtype=float)
+    n = np.size(recorded_et)
+    rec = np.concatenate([np.asarray(recorded_et, dtype=float),
+                          np.asarray([] if context_et is None else context_et, dtype=float)])
     before, own, after = ((rec >= m[k]) & (rec < m[k + 1]) for k in range(3))
     own_fragment = _is_fragment(rec[own], float(m[1]), max_lag_s)
     if own_fragment and before.any() and not _is_fragment(rec[before], float(m[0]), max_lag_s):
-        return np.zeros(rec.size, dtype=bool), (
+        return np.zeros(n, dtype=bool), (
             f"its {int(own.sum())} sample(s), recorded less than {max_lag_s:.3f} s after "
             f"{day} 00:00 UTC, join the product of {day - one}")
     if own.any() and not own_fragment and _is_fragment(rec[after], float(m[2]), max_lag_s):
-        return own | after, None
-    return own, None
+        return (own | after)[:n], None
+    return own[:n], None
 
 
 def write_day_outputs(
