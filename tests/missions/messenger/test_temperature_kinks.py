@@ -23,6 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel, utc_to_et
@@ -149,3 +152,32 @@ def test_a_spike_of_either_sign_is_still_removed(kink_day, messenger_kernels, ca
         flagged = ds["defect_flag"].values != 0
         assert flagged.sum() <= 25
         assert np.abs(err[~flagged]).max() <= 0.1
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.data())
+def test_kinks_kept_and_spikes_found_on_any_broken_line(data):
+    """Brute force over broken lines: slopes of -2..2 C per 10-s record changing at kinks at
+    least 3 records apart (so each record has a straight pair of neighbours on at least the
+    sides the rule looks at); isolated spikes of 0.6-5 C of either sign, anywhere but next to
+    a kink (on one allowed).  Expected: exactly the spikes are dropped."""
+    n = 60
+    starts = sorted(data.draw(st.sets(st.integers(2, n - 3), max_size=8)))
+    kinks = [k for i, k in enumerate(starts) if i == 0 or k - starts[i - 1] >= 3]
+    slopes = data.draw(st.lists(st.floats(-2.0, 2.0), min_size=len(kinks) + 1,
+                                max_size=len(kinks) + 1))
+    step = np.full(n - 1, slopes[0])
+    for k, s in zip(kinks, slopes[1:], strict=True):
+        step[k:] = s  # the slope changes at record k
+    temp = np.round(-50.0 + np.concatenate([[0.0], np.cumsum(step)]), 4)
+    free = [i for i in range(1, n - 1) if not any(abs(i - k) in (1, 2) for k in kinks)]
+    picked = data.draw(st.lists(st.sampled_from(free), max_size=4, unique=True)) if free else []
+    spikes = [i for i in sorted(picked) if all(abs(i - j) >= 5 for j in picked if j != i)]
+    for i in spikes:
+        size = data.draw(st.floats(0.6, 5.0)) * data.draw(st.sampled_from([-1.0, 1.0]))
+        temp[i] = round(temp[i] + size, 4)
+    ds = xr.Dataset({"partition": ("temperature_time", np.ones(n, dtype=np.int8)),
+                     "met": ("temperature_time", 2.0e8 + 10.0 * np.arange(n)),
+                     "temperature_c": ("temperature_time", temp)})
+    dropped = drop_temperature_glitches(ds).attrs["temperature_glitches"]
+    assert [g[3] for g in dropped] == [2.0e8 + 10.0 * i for i in spikes]

@@ -59,6 +59,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+import scipy.ndimage
 import xarray as xr
 from numba import njit
 
@@ -214,6 +215,11 @@ def drop_temperature_glitches(
     chord through ``i - 1`` and ``i + 1`` stands in for it).  A spike of ``d`` is ``d``
     off both lines; its neighbours are not (each lies on the line of its far side).
 
+    A spike also bends the one-sided lines of the records two away from it, so of the
+    records found within two records of each other only the one with the largest score
+    (the smaller of its distances from the two lines plus its distance from the chord) is
+    a glitch.
+
     A kink -- a real turning point of the temperature, e.g. the apex of a heater-off warm
     excursion, where the slope changes at a record -- lies *on* both one-sided lines (the
     neighbours lie on their straight lines, which meet at the record), however far it is
@@ -235,23 +241,43 @@ def drop_temperature_glitches(
     part = np.asarray(temperature["partition"].values)
     if t.size < 3:
         return temperature.assign_attrs(temperature_glitches=[])
+    score = _spike_score(t, met, part, threshold_degc)
+    # a spike bends the lines of the records two away from it: of the spikes within two
+    # records of each other only the largest score is one (ties: the earlier record)
+    ranked = score - 1e-9 * np.arange(score.size) / max(score.size, 1)
+    best = scipy.ndimage.maximum_filter1d(ranked, 5, mode="constant", cval=-np.inf)
+    keep = ~((score > 0) & (ranked >= best))
+    bad = np.flatnonzero(~keep)
+    kept = np.flatnonzero(keep)
+    pos = np.searchsorted(kept, bad)
+    glitches = [[float(part[i]), float(met[kept[k - 1]]), float(met[kept[k]]), float(met[i]),
+                 float(t[i])] for i, k in zip(bad, pos, strict=True)]
+    return temperature.isel(temperature_time=keep).assign_attrs(temperature_glitches=glitches)
+
+
+def _spike_score(t: np.ndarray, met: np.ndarray, part: np.ndarray,
+                 threshold_degc: float) -> np.ndarray:
+    """Score of each record as a spike (`drop_temperature_glitches`); 0 where it is none.
+
+    A spike lies more than ``threshold_degc`` off both one-sided lines, on the same side;
+    its score is the smaller of those two distances plus its distance from the chord (a
+    record two away from a spike, or beside a kink, has one line bent and the chord
+    nearly through it).
+    """
+    n = t.size
     same = (part[1:-1] == part[:-2]) & (part[1:-1] == part[2:])
     # signed distance from the chord through the two neighbours (time-weighted: records
     # need not be evenly spaced): stands in for a side without two records
     w = (met[1:-1] - met[:-2]) / np.maximum(met[2:] - met[:-2], 1e-9)
-    chord = np.full(t.size, np.nan)
+    chord = np.full(n, np.nan)
     chord[1:-1] = np.where(same, t[1:-1] - ((1 - w) * t[:-2] + w * t[2:]), np.nan)
     left, right = (_line_departure(t, met, part, side) for side in (-1, 1))
     left, right = np.where(np.isnan(left), chord, left), np.where(np.isnan(right), chord, right)
     with np.errstate(invalid="ignore"):  # NaN: a side without records, never a glitch
         spike = ((np.abs(left) > threshold_degc) & (np.abs(right) > threshold_degc)
                  & (np.sign(left) == np.sign(right)))
-    bad = np.flatnonzero(spike)
-    glitches = [[float(part[i]), float(met[i - 1]), float(met[i + 1]), float(met[i]),
-                 float(t[i])] for i in bad]
-    keep = np.ones(t.size, dtype=bool)
-    keep[bad] = False
-    return temperature.isel(temperature_time=keep).assign_attrs(temperature_glitches=glitches)
+    return np.where(spike, np.minimum(np.abs(left), np.abs(right))
+                    + np.abs(np.nan_to_num(chord)), 0.0)
 
 
 def heater_settle_s(cal) -> float:
