@@ -201,7 +201,7 @@ def test_no_import_cycle_through_function_imports():
 #: Modules whose imports inside functions are kept on purpose (issue 20 item 3): the command
 #: bodies (``fluxcal --help`` loads no numerical library, tests/test_cli_startup.py), the
 #: demos, and the boundaries of the optional extras (tests/test_extras.py).
-LAZY_MODULES = re.compile(r"fluxcal\.((\w+\.)*(cli|clean_cli|fit_cli|\w*demo)|"
+LAZY_MODULES = re.compile(r"fluxcal\.((\w+\.)*(cli|\w+_cli|\w*demo)|"
                           r"product_commands|products\.quicklook|runs\.cluster)")
 #: The optional extras, and fluxcal's modules that import them at their top.
 EXTRA_IMPORTS = ("matplotlib", "dask", "distributed", "zarr", "sphinx", "pyspedas",

@@ -86,7 +86,10 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     # IMAP from the team's L1A CSV (../shared/data), when present
     if T010_L1A.is_file():
         out["imap"] = root / "i"
+        imap = T010_L1A.parents[2]
         assert main(["imap", "calibrate", "--input", str(T010_L1A), "--formats", "cdf,nc",
+                     "--kernels", str(imap / "imap_sclk_0036.tsc"), "--calib",
+                     str(imap / "imap_calibration_mag_20240229_v01.cdf"),
                      "--out", str(out["imap"])]) == 0
     # a batch: manifests and a report, one day failing (its error names its input)
     from fluxcal.runs.batch import run_batch

@@ -140,9 +140,15 @@ def calibrate_rosetta(
             for name, ds in made.items()}
 
 
-def calibrate_imap(inputs: Sequence[str | Path], *, level: str = "l1b",
-                   calib: str | Path | None = None) -> dict[tuple[str, str], xr.Dataset]:
+def calibrate_imap(inputs: Sequence[str | Path], *, kernels: str | Path | Sequence[str | Path],
+                   level: str = "l1b", calib: str | Path | None = None,
+                   xtce: str | Path | None = None
+                   ) -> dict[tuple[str, str], xr.Dataset]:
     """Decode and calibrate IMAP MAG packet (or L1A CSV) files in one call.
+
+    ``kernels``: the IMAP SCLK kernel; ``calib``: the team's calibration CDF (L1B);
+    ``xtce``: the team's packet definition (default: the installed team package's).
+    fluxcal ships none of them (`fluxcal.missions.imap.sources`).
 
     Returns
     -------
@@ -150,7 +156,10 @@ def calibrate_imap(inputs: Sequence[str | Path], *, level: str = "l1b",
         ``("norm", "mago")`` ...: L1A counts or L1B nT, indexed by UTC ``time``.
     """
     out = process([Path(p) for p in inputs], level=level,
-                  calib=None if calib is None else Path(calib))
+                  calib=None if calib is None else Path(calib),
+                  kernels=[Path(kernels)] if isinstance(kernels, (str, Path))
+                  else [Path(k) for k in kernels],
+                  xtce=None if xtce is None else Path(xtce))
     return {key: _in_time_order(with_time_index(ds)) for key, ds in out.items()}
 
 

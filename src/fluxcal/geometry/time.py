@@ -795,7 +795,8 @@ class SclkKernel:
         Raises
         ------
         KernelError
-            When no type 1 SCLK for ``sc_id`` is loaded.
+            When no type 1 SCLK for ``sc_id`` is loaded, or its coefficients or
+            partitions are not well formed (an edited kernel), in one line naming them.
         """
         cid = abs(int(sc_id))
 
@@ -826,12 +827,30 @@ class SclkKernel:
             system = int(get("SCLK01_TIME_SYSTEM")[0])
         except KernelError:
             system = 1
-        coeff = get("SCLK01_COEFFICIENTS").reshape(-1, 3)
+        moduli = get("SCLK01_MODULI")
+        if moduli.size == 0 or np.any(moduli < 1):
+            raise KernelError(f"SCLK of spacecraft {sc_id}: SCLK01_MODULI_{cid} {moduli} must "
+                              "be counts >= 1: a damaged or edited kernel")
+        raw = get("SCLK01_COEFFICIENTS")
+        if raw.size == 0 or raw.size % 3:
+            raise KernelError(f"SCLK of spacecraft {sc_id}: SCLK01_COEFFICIENTS_{cid} holds "
+                              f"{raw.size} numbers, not triples (encoded SCLK, parallel "
+                              "time, rate): a damaged or edited kernel")
+        coeff = raw.reshape(-1, 3)
+        starts, ends = get("SCLK_PARTITION_START"), get("SCLK_PARTITION_END")
+        if starts.size == 0 or starts.size != ends.size or np.any(ends < starts):
+            raise KernelError(f"SCLK of spacecraft {sc_id}: SCLK_PARTITION_START_{cid}/END "
+                              f"({starts.size}/{ends.size} values) are not matching "
+                              "intervals: a damaged or edited kernel")
+        if np.any(np.diff(coeff[:, 0]) < 0) or not np.all(np.isfinite(coeff)):
+            raise KernelError(f"SCLK of spacecraft {sc_id}: SCLK01_COEFFICIENTS_{cid} encoded "
+                              "clock values decrease or are not finite: a damaged or edited "
+                              "kernel")
         return cls(
             sc_id=int(sc_id),
-            moduli=get("SCLK01_MODULI"),
-            partition_start=_snap_whole(get("SCLK_PARTITION_START")),
-            partition_end=_snap_whole(get("SCLK_PARTITION_END")),
+            moduli=moduli,
+            partition_start=_snap_whole(starts),
+            partition_end=_snap_whole(ends),
             ticks=_snap_whole(coeff[:, 0]),
             parallel=coeff[:, 1].copy(),
             rate=coeff[:, 2].copy(),

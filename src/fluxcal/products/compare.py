@@ -83,7 +83,8 @@ def field_name(ds: xr.Dataset, path: Path | str) -> str:
 
     Without one, the first (time, 4) variable in nT (x, y, z and a fourth column such as
     the magnitude or the sensor range, as some ISTP products store it), of which `compare`
-    uses the first three components.  A vector in counts is refused by name.
+    uses the first three components; without that, the one (time, 3|4) variable with
+    blank units (units unknown in the report).  A vector in counts is refused by name.
     """
     if "b" in ds and ds["b"].ndim == 2 and ds["b"].shape[1] == 3:
         return "b"
@@ -93,6 +94,11 @@ def field_name(ds: xr.Dataset, path: Path | str) -> str:
         for name in vectors[width]:
             if variable_units(ds[name]) == "nT":
                 return name
+    # a field whose units are left blank (e.g. an ISTP ``UNITS`` of " " on a vector that
+    # also holds the sensor range): compared, and the report says "units unknown"
+    blank = [n for n in vectors[3] + vectors[4] if not variable_units(ds[n])]
+    if len(blank) == 1:
+        return blank[0]
     counts = [n for n in vectors[3] + vectors[4]
               if variable_units(ds[n]).lower() in ("count", "counts", "dn", "adu")]
     if counts:

@@ -97,14 +97,15 @@ def _preflight(out: Path, kernels: Path | None, calib: Path | None,
                scheduler: str | None) -> None:
     """Check what can be checked before the first day.
 
-    An unwritable ``--out``, a missing ``--kernels`` file or ``--calib`` folder and an
+    An unwritable ``--out``, a missing ``--kernels`` file or ``--calib`` folder (a file
+    for missions whose calibration is one file, e.g. IMAP's CDF) and an
     unreachable ``--scheduler`` each raise a `FluxcalError` (one line, exit 2) before
     any day is computed or any file is written (the mission's options were checked when
     they were parsed).
     """
     if kernels is not None:
         preflight.existing_file(kernels, "--kernels")
-    if calib is not None:
+    if calib is not None and not Path(calib).is_file():
         preflight.existing_folder(calib, "--calib")
     preflight.writable_folder(out, "--out")
     if scheduler is not None and scheduler != "serial":

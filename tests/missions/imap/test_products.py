@@ -18,11 +18,14 @@ from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.imap.cli import app
 from fluxcal.products import read_product
 from fluxcal.products.compare import compare, load_product
-from tests.missions.imap.conftest import T010, T010_L1A
+from tests.missions.imap.conftest import CALIBRATION, SCLK, T010, T010_L1A, XTCE
+
+#: The team's files fluxcal does not ship, named as a user names them.
+TEAM_ARGS = ("--kernels", str(SCLK), "--calib", str(CALIBRATION), "--xtce", str(XTCE))
 
 
-def _run(*args: str) -> None:
-    result = CliRunner().invoke(app, ["calibrate", *args])
+def _run(*args: str, team: bool = True) -> None:
+    result = CliRunner().invoke(app, ["calibrate", *args, *(TEAM_ARGS if team else ())])
     if result.exception is not None:
         raise result.exception
     assert result.exit_code == 0, result.output
@@ -65,6 +68,88 @@ def test_bad_input_leaves_nothing(imap_data: Path, tmp_path: Path) -> None:
         _run("--input", str(imap_data / "mag_l1_test_data.pkts"), "--input", str(cut),
              "--out", str(out))
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_duplicated_packets_are_dropped_counted_and_warned(
+        imap_data: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    packets = imap_data / "mag_l1_test_data.pkts"  # 6 packets, 16 vectors per sensor each
+    twice = tmp_path / "twice.pkts"
+    data = packets.read_bytes()
+    twice.write_bytes(data + data[: int.from_bytes(data[4:6], "big") + 7])  # packet 0 again
+    _run("--input", str(packets), "--out", str(tmp_path / "once"))
+    for name, inputs in (("given_twice", ("--input", str(packets), "--input", str(packets))),
+                         ("file_twice", ("--input", str(twice)))):
+        caplog.clear()
+        _run(*inputs, "--out", str(tmp_path / name))
+        warned = [r.getMessage() for r in caplog.records if "duplicated" in r.getMessage()]
+        n = 6 if name == "given_twice" else 1
+        assert warned == [f"IMAP MAG norm-{s}: {n} duplicated packet(s) dropped "
+                          f"({16 * n} vectors read twice)" for s in ("magi", "mago")]
+        for sensor in ("mago", "magi"):
+            product = f"imap_mag_l1b_norm-{sensor}_20231130_v001.cdf"
+            a = cdflib.CDF(str(tmp_path / "once" / product))
+            b = cdflib.CDF(str(tmp_path / name / product))
+            np.testing.assert_array_equal(a.varget("epoch"), b.varget("epoch"))
+            np.testing.assert_array_equal(a.varget("b"), b.varget("b"))
+            assert b.globalattsget()["FLUXCAL_DUPLICATES_DROPPED"] == [16 * n]
+
+
+def test_inputs_are_recognised_by_content(imap_data: Path, tmp_path: Path) -> None:
+    packets = tmp_path / "packets.csv"  # packets under a CSV's name
+    packets.write_bytes((imap_data / "mag_l1_test_data.pkts").read_bytes())
+    table = tmp_path / "l1a.bin"  # the team's L1A CSV under a packet file's name
+    table.write_bytes(T010_L1A.read_bytes())
+    _run("--input", str(packets), "--input", str(table), "--csv-layout", "normal-(2,2)-8s",
+         "--out", str(tmp_path / "out"))
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.cdf")) == [
+        f"imap_mag_l1b_norm-{s}_{d}_v001.cdf" for s in ("magi", "mago")
+        for d in ("20231130", "20250206")]
+
+
+def test_missing_team_files_are_one_line_each(imap_data: Path, tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture) -> None:
+    from fluxcal.cli import main
+    from fluxcal.missions.imap import packets
+
+    monkeypatch.setattr(packets, "team_package_xtce", lambda: None)
+    pk = str(imap_data / "mag_l1_test_data.pkts")
+    out = str(tmp_path / "out")
+    cases = {"--kernels": ["--calib", str(CALIBRATION), "--xtce", str(XTCE)],
+             "--calib": ["--kernels", str(SCLK), "--xtce", str(XTCE)],
+             "--xtce": ["--kernels", str(SCLK), "--calib", str(CALIBRATION)]}
+    for option, given in cases.items():
+        assert main(["imap", "calibrate", "--input", pk, "--out", out, *given]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and option in err[0] and f"give {option} PATH" in err[0]
+    assert not Path(out).exists() or not any(Path(out).iterdir())
+
+
+def _one_number_less(text: str) -> str:
+    rate = text.index(" 1.00000000000\n", text.index("SCLK01_COEFFICIENTS_43"))
+    return text[:rate] + text[rate + len(" 1.00000000000"):]
+
+
+def _zero_modulus(text: str) -> str:
+    start = text.index("SCLK01_MODULI_43")
+    end = text.index(")", start)
+    return text[:start] + "SCLK01_MODULI_43 = ( 4294967296 0 " + text[end:]
+
+
+@pytest.mark.parametrize(("edit", "named"), [(_one_number_less, "SCLK01_COEFFICIENTS_43"),
+                                             (_zero_modulus, "SCLK01_MODULI_43")])
+def test_a_damaged_sclk_kernel_is_one_line(edit, named: str, imap_data: Path, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture) -> None:
+    from fluxcal.cli import main
+
+    bad = tmp_path / "edited.tsc"
+    bad.write_text(edit(SCLK.read_text()))
+    code = main(["imap", "calibrate", "--input", str(imap_data / "mag_l1_test_data.pkts"),
+                 "--out", str(tmp_path / "out"), "--kernels", str(bad), "--calib",
+                 str(CALIBRATION), "--xtce", str(XTCE)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert named in err[0] and "damaged or edited kernel" in err[0]
 
 
 def _write_imap_layout(path: Path, epoch: np.ndarray, vectors: np.ndarray, units: str) -> None:

@@ -1,6 +1,8 @@
 """The IMAP MAG L1B calibration file: range matrices and time shifts per sensor.
 
-``imap_calibration_mag_<yyyymmdd>_v<nn>.cdf`` (shipped in ``data/``) holds, for MAGo
+The team's ``imap_calibration_mag_<yyyymmdd>_v<nn>.cdf`` (also published as
+``imap_mag_l1b-calibration_<yyyymmdd>_v<nnn>.cdf``; not shipped with fluxcal: the user
+names it with ``--calib``) holds, for MAGo
 (``MFOTOURFO``) and MAGi (``MFITOURFI``), a 3x3 matrix per range 0..3 stored as a
 (3, 3, 4) array (the last axis is the range), the sensors' time shifts ``OTS``/``ITS``
 (s) and the validity ``STARTVALIDITY``/``ENDVALIDITY`` (TT2000).
@@ -15,10 +17,7 @@ import cdflib
 import numpy as np
 
 from fluxcal.errors import CalibrationError
-from fluxcal.missions.imap.packets import data_file
 
-#: The calibration shipped with fluxcal.
-DEFAULT_CALIBRATION = "imap_calibration_mag_20240229_v01.cdf"
 _VARIABLES = {"mago": ("MFOTOURFO", "OTS"), "magi": ("MFITOURFI", "ITS")}
 
 
@@ -33,16 +32,20 @@ class MagCalibration:
     path: Path
 
 
-def load_calibration(path: Path | str | None = None) -> MagCalibration:
-    """Read a calibration CDF (default: the shipped one).
+def load_calibration(path: Path | str | None) -> MagCalibration:
+    """Read a calibration CDF.
 
     Raises
     ------
     CalibrationError
-        Naming the file and variable: unreadable file, missing variable, a matrix that
-        is not (3, 3, 4) or not finite.
+        None given (names ``--calib``), or naming the file and variable: unreadable
+        file, missing variable, a matrix that is not (3, 3, 4) or not finite.
     """
-    path = Path(path) if path is not None else data_file(DEFAULT_CALIBRATION)
+    if path is None:
+        raise CalibrationError("--calib: L1B needs the IMAP MAG team's calibration CDF "
+                               "(e.g. ../shared/data/imap/imap_calibration_mag_20240229_v01"
+                               ".cdf): give --calib PATH, or ask for --level l1a")
+    path = Path(path)
     try:
         cdf = cdflib.CDF(str(path))
     except Exception as exc:  # noqa: BLE001 - cdflib raises many kinds on a bad file

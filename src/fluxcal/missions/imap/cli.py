@@ -13,11 +13,15 @@ import typer
 
 from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
+from fluxcal.missions.imap.levels_cli import register as _register_levels
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="IMAP MAG pipeline commands.", no_args_is_help=True,
                   rich_markup_mode=None, cls=HelpGroup)
+
+
+_register_levels(app)  # imap l1c, imap l2
 
 
 @app.callback()
@@ -29,28 +33,30 @@ def _group() -> None:
 @with_options(ImapOptions)
 def calibrate(
     inputs: list[Path] = typer.Option(
-        ..., "--input", help="CCSDS MAG science packet file(s), or the team's L1A CSV "
-        "layout MAGScience-<mode>-(<pri>,<sec>)-<n>s-<date>.csv; repeat for several."),
+        ..., "--input", help="CCSDS MAG science packet file(s), compressed or not, or "
+        "files in the team's L1A CSV layout (told apart by content); repeat for several."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
     kernels: list[Path] | None = typer.Option(
-        None, "--kernels", help="SCLK kernel or meta-kernel with the IMAP clock (-43) "
-        "(default: the shipped imap_sclk_0036.tsc)."),
+        None, "--kernels", help="SCLK kernel or meta-kernel with the IMAP clock (-43), "
+        "e.g. the team's imap_sclk_0036.tsc (needed: fluxcal ships none)."),
     options: ImapOptions = None,  # type: ignore[assignment] - from the command line
 ) -> None:
     """Decode, time and calibrate IMAP MAG vectors; one product per mode and sensor.
 
     Products are named imap_mag_<level>_<norm|burst>-<mago|magi>_<yyyymmdd>_v001.
     """
-    from fluxcal.missions.imap.routes import ImapRun, default_kernels
+    from fluxcal.missions.imap.routes import ImapRun
+    from fluxcal.missions.imap.sources import sclk_kernels
     from fluxcal.runs import driver
 
     for path in inputs:
         preflight.existing_file(path, "--input")
-    if options.calib is not None:
-        preflight.existing_file(options.calib, "--calib")
+    for path, name in ((options.calib, "--calib"), (options.xtce, "--xtce")):
+        if path is not None:
+            preflight.existing_file(path, name)
     for path in kernels or []:
         preflight.existing_file(path, "--kernels")
     preflight.writable_folder(out, "--out")
-    paths, n_vectors = driver.run(ImapRun(), tuple(inputs), kernels or default_kernels(), out,
+    paths, n_vectors = driver.run(ImapRun(), tuple(inputs), sclk_kernels(kernels), out,
                                   options)
     typer.echo(f"{options.level.upper()}: {n_vectors} vectors; {len(paths)} files in {out}")

@@ -1,16 +1,20 @@
 """IMAP MAG L1A: per-sensor counts and range with exact TT2000 times.
 
 Two input routes give the same per-sensor datasets: decoded science packets
-(`from_packets`) and the team's L1A CSV layout ``MAGScience-<mode>-(<pri>,<sec>)-<n>s-
-<date>.csv`` (`read_l1a_csv`).  Vector ``k`` of a packet is sampled at the sensor's
-packet time (coarse seconds + fine/65536 s) plus ``k / vectors_per_second``; that clock
-reading goes through the IMAP SCLK kernel (NAIF -43) with fluxcal's exact SCLK path
-(`vector_tt2000`).  The team's own times differ by up to 15 us: docs/decisions/imap.md.
+(`from_packets`, compressed or not: `fluxcal.missions.imap.vectors`) and the team's L1A
+CSV layout (`read_l1a_csv`, recognised by its columns; the mode and rates come from a
+name ``MAGScience-<mode>-(<pri>,<sec>)-<n>s-<date>.csv`` or from ``--csv-layout``).
+Vector ``k`` of a packet is sampled at the sensor's packet time (coarse seconds +
+fine/65536 s) plus ``k / vectors_per_second``; that clock reading goes through the IMAP
+SCLK kernel (NAIF -43) with fluxcal's exact SCLK path (`vector_tt2000`).  The team's
+expected times divide the fine time by 65535 instead, up to 15.3 us later:
+docs/decisions/imap.md.
 
 A dataset per (mode, sensor) has dimension ``time`` with the int64 TT2000 coordinate
 ``epoch``, ``counts`` (time, component) int64, ``range`` 0..3, the packet's
 ``sequence``, ``coarse``, ``fine``, the vector's ``vector_index``, the
-``vectors_per_second``, ``compression`` and ``compression_width``.
+``vectors_per_second``, ``compression`` and ``compression_width`` (the packet's ``W``;
+0 for an uncompressed packet, as the team's L1A; the L1A CSV's value as written).
 """
 
 from __future__ import annotations
@@ -23,7 +27,8 @@ import xarray as xr
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap.packets import MODES, MagPackets, packet_vectors, vectors_per_second
+from fluxcal.missions.imap.packets import MODES, MagPackets, vectors_per_second
+from fluxcal.missions.imap.vectors import MAX_WIDTH, decode_vectors
 
 #: NAIF id of the IMAP spacecraft clock (``imap_sclk_0036.tsc``: SCLK01_*_43).
 IMAP_SCLK_ID = -43
@@ -32,6 +37,7 @@ FINE_PER_SECOND = 65536
 SENSORS = ("mago", "magi")
 COMPONENTS = np.array(["x", "y", "z"])
 _CSV_NAME = re.compile(r"MAGScience-(normal|burst)-\((\d+),(\d+)\)-(\d+)s-(\d{8})")
+_LAYOUT = re.compile(r"(normal|burst)-\((\d+),(\d+)\)-(\d+)s$")
 _CSV_COLUMNS = ("sequence", "x_pri", "y_pri", "z_pri", "rng_pri", "x_sec", "y_sec", "z_sec",
                 "rng_sec", "pri_coarse", "pri_fine", "sec_coarse", "sec_fine")
 
@@ -105,78 +111,133 @@ def from_packets(packets: MagPackets, clock: SclkKernel) -> dict[tuple[str, str]
     """L1A datasets of decoded packets, keyed by (mode, sensor): ``("norm", "mago")`` ...
 
     ``PRI_SENS = 0`` makes MAGo the primary sensor (its vectors first, its times
-    ``PRI_COARSETM``/``PRI_FNTM``), 1 MAGi.
+    ``PRI_COARSETM``/``PRI_FNTM``), 1 MAGi.  Every step is on whole arrays (the
+    vectors of every packet at once, `decode_vectors`).
 
     Raises
     ------
     InputFormatError
-        From `packet_vectors` (compressed or short packets), naming the packet.
+        From `decode_vectors` (a packet whose vectors cannot be decoded), naming it.
     """
     f = packets.fields
-    parts: dict[tuple[str, str], list[dict[str, np.ndarray]]] = {}
-    for i in range(len(packets)):
-        mode = MODES[int(f["PKT_APID"][i])]
-        pri, sec = packet_vectors(packets, i)
-        pri_is_mago = int(f["PRI_SENS"][i]) == 0
-        for (counts, rng), key in ((pri, "PRI"), (sec, "SEC")):
-            sensor = "mago" if (key == "PRI") == pri_is_mago else "magi"
-            n = len(rng)
-            parts.setdefault((mode, sensor), []).append({
-                "counts": counts, "rng": rng, "sequence": np.full(n, f["SRC_SEQ_CTR"][i]),
-                "coarse": np.full(n, f[f"{key}_COARSETM"][i]),
-                "fine": np.full(n, f[f"{key}_FNTM"][i]), "index": np.arange(n),
-                "per_second": np.full(n, vectors_per_second(f[f"{key}_VECSEC"][i])),
-                "compression": np.full(n, f["COMPRESSION"][i]), "width": np.zeros(n),
-            })
+    dec = decode_vectors(packets)
+    pk, sec = dec.packet, dec.secondary
+    mago = (f["PRI_SENS"][pk] == 0) != sec
+    apid = f["PKT_APID"][pk]
+    columns = {
+        "counts": dec.counts, "rng": dec.range, "sequence": f["SRC_SEQ_CTR"][pk],
+        "coarse": np.where(sec, f["SEC_COARSETM"][pk], f["PRI_COARSETM"][pk]),
+        "fine": np.where(sec, f["SEC_FNTM"][pk], f["PRI_FNTM"][pk]), "index": dec.index,
+        "per_second": vectors_per_second(np.where(sec, f["SEC_VECSEC"][pk],
+                                                  f["PRI_VECSEC"][pk])),
+        "compression": f["COMPRESSION"][pk], "width": dec.width[pk],
+    }
     out = {}
-    for (mode, sensor), chunks in parts.items():
-        cat = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
-        out[(mode, sensor)] = sensor_dataset(clock, **cat, mode=mode, sensor=sensor)
+    for code, mode in MODES.items():
+        for sensor, is_mago in (("mago", True), ("magi", False)):
+            take = (apid == code) & (mago == is_mago)
+            if take.any():
+                out[(mode, sensor)] = sensor_dataset(
+                    clock, **{k: v[take] for k, v in columns.items()}, mode=mode,
+                    sensor=sensor)
     return out
 
 
-def read_l1a_csv(path: Path | str, clock: SclkKernel) -> dict[tuple[str, str], xr.Dataset]:
-    """Read the team's L1A CSV layout into (mode, sensor) datasets like `from_packets`.
+def csv_header(path: Path | str) -> list[str] | None:
+    """Return the column names of a file in the team's L1A CSV layout, else None.
 
-    The name ``MAGScience-<normal|burst>-(<pri>,<sec>)-<n>s-<yyyymmdd>...csv`` gives the
-    mode and the vectors per second of the primary and secondary sensor; the columns are
-    ``sequence``, x/y/z/rng of ``pri`` and ``sec``, ``pri_coarse``, ``pri_fine``,
-    ``sec_coarse``, ``sec_fine`` and optionally ``compression``,
-    ``compression_width_bits``.  Consecutive rows with the same packet (sequence and
-    times) are its vectors 0, 1, ...; the primary sensor is MAGo (the layout has no
-    ``PRI_SENS``; the team's validation reads it so).
+    The file is the team's layout when its first line (read up to 4 KiB) is text naming
+    every column of `_CSV_COLUMNS`; the file name plays no part.
+    """
+    with open(path, "rb") as fh:
+        first = fh.readline(4096)
+    try:
+        names = first.decode("ascii").strip().split(",")
+    except UnicodeDecodeError:
+        return None
+    return names if set(_CSV_COLUMNS) <= set(names) else None
+
+
+def csv_layout(path: Path, layout: str | None) -> tuple[str, dict[str, int], int]:
+    """Mode, vectors per second (``pri``, ``sec``) and seconds per packet of an L1A CSV.
+
+    From ``layout`` (``--csv-layout``, e.g. ``normal-(2,2)-8s``) when given, else from
+    a name ``MAGScience-<normal|burst>-(<pri>,<sec>)-<n>s-<yyyymmdd>...`` (the team's
+    convention: the file's columns do not hold them).
 
     Raises
     ------
     InputFormatError
-        Naming the file, line and column: a name not in that layout, a missing column,
-        a value that is not an integer, more rows in a packet than it can hold.
+        Neither says (names the file and ``--csv-layout``), or a layout not in that form.
     """
-    path = Path(path)
-    m = _CSV_NAME.match(path.name)
-    if m is None:
-        raise InputFormatError("name is not MAGScience-<normal|burst>-(<pri>,<sec>)-<n>s-"
-                               "<yyyymmdd>...csv (the team's L1A CSV layout)", path=str(path))
+    if layout is not None:
+        m = _LAYOUT.match(layout)
+        if m is None:
+            raise InputFormatError(f"{layout!r} is not <normal|burst>-(<pri>,<sec>)-<n>s, "
+                                   "e.g. normal-(2,2)-8s", field="--csv-layout")
+    else:
+        m = _CSV_NAME.match(path.name)
+        if m is None:
+            raise InputFormatError(
+                "the team's L1A CSV layout, but its name does not give the mode and "
+                "vectors per second (MAGScience-<normal|burst>-(<pri>,<sec>)-<n>s-<date>"
+                ".csv): give them with --csv-layout, e.g. normal-(2,2)-8s", path=str(path))
     mode = "norm" if m.group(1) == "normal" else "burst"
     rate = {"pri": int(m.group(2)), "sec": int(m.group(3))}
-    seconds = int(m.group(4))
+    if min(rate.values()) < 1 or int(m.group(4)) < 1:
+        raise InputFormatError(f"layout {m.group(0)!r}: rates and seconds must be >= 1",
+                               path=str(path), field="--csv-layout")
+    return mode, rate, int(m.group(4))
+
+
+def read_l1a_csv(path: Path | str, clock: SclkKernel, *, layout: str | None = None
+                 ) -> dict[tuple[str, str], xr.Dataset]:
+    """Read the team's L1A CSV layout into (mode, sensor) datasets like `from_packets`.
+
+    The columns are ``sequence``, x/y/z/rng of ``pri`` and ``sec``, ``pri_coarse``,
+    ``pri_fine``, ``sec_coarse``, ``sec_fine`` and optionally ``compression``,
+    ``compression_width_bits``; the mode and rates come from `csv_layout`.
+    Consecutive rows with the same packet (sequence and times) are its vectors 0, 1,
+    ...; the primary sensor is MAGo (the layout has no ``PRI_SENS``; the team's
+    validation reads it so).
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file, line and column: not the layout, a missing column, a value
+        that is not an integer, more rows in a packet than it can hold, a compression
+        flag not 0/1 or a compressed row's width outside 1..20.
+    """
+    path = Path(path)
+    header = csv_header(path)
+    if header is None:
+        raise InputFormatError(f"not the team's L1A CSV layout (a first line naming "
+                               f"{', '.join(_CSV_COLUMNS)})", path=str(path), line=1)
+    mode, rate, seconds = csv_layout(path, layout)
     with path.open(newline="") as fh:
-        header = fh.readline().strip().split(",")
-        missing = [c for c in _CSV_COLUMNS if c not in header]
-        if missing:
-            raise InputFormatError(f"missing column(s) {missing}", path=str(path), line=1,
-                                   field=missing[0])
+        fh.readline()
         text = fh.read()
     try:
         table = np.loadtxt(text.splitlines(), delimiter=",", dtype=np.int64, ndmin=2)
     except ValueError as exc:
         raise InputFormatError(f"not a table of integers ({exc})", path=str(path)) from exc
+    if table.size == 0:
+        raise InputFormatError("no vector rows after the header", path=str(path), line=2)
     if table.shape[1] != len(header):
         raise InputFormatError(f"{table.shape[1]} columns, the header names {len(header)}",
                                path=str(path), line=2)
     col = {name: table[:, j] for j, name in enumerate(header)}
     n = table.shape[0]
     zeros = np.zeros(n, dtype=np.int64)
+    compression = col.get("compression", zeros)
+    width = col.get("compression_width_bits", zeros)
+    bad = ((compression != 0) & (compression != 1)) | (
+        (compression == 1) & ((width < 1) | (width > MAX_WIDTH)))
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputFormatError(f"compression {int(compression[k])} with width "
+                               f"{int(width[k])}: expected 0, or 1 with a width 1..{MAX_WIDTH}",
+                               path=str(path), line=k + 2, field="compression")
     out = {}
     for side, sensor in (("pri", "mago"), ("sec", "magi")):
         coarse, fine = col[f"{side}_coarse"], col[f"{side}_fine"]
@@ -194,6 +255,5 @@ def read_l1a_csv(path: Path | str, clock: SclkKernel) -> dict[tuple[str, str], x
         counts = np.stack([col[f"{a}_{side}"] for a in "xyz"], axis=1)
         out[(mode, sensor)] = sensor_dataset(
             clock, counts, col[f"rng_{side}"], col["sequence"], coarse, fine, index,
-            np.full(n, rate[side]), col.get("compression", zeros),
-            col.get("compression_width_bits", zeros), mode=mode, sensor=sensor)
+            np.full(n, rate[side]), compression, width, mode=mode, sensor=sensor)
     return out

@@ -1,8 +1,17 @@
 """IMAP MAG L1B: counts -> nT with the range-dependent matrices of the calibration file.
 
-``B = M[range] @ counts`` per vector (`fluxcal.calibration.matrices.apply_lookup`), the
-matrix of the sensor and range from `fluxcal.missions.imap.calibration`, and the time
-tag moved by the sensor's time shift (``OTS``/``ITS``).
+``B = M[range] @ (counts * 2**(16 - W))`` per vector
+(`fluxcal.calibration.matrices.apply_lookup`): a compressed packet's counts keep ``W``
+bits of the sensor's 16-bit output, so they are brought back to 16-bit counts first
+(``W = 18``: / 4; ``W = 13``: * 8; uncompressed vectors as they are); the matrix of the
+sensor and range from `fluxcal.missions.imap.calibration`; the time tag moved by the
+sensor's time shift (``OTS``/``ITS``).
+
+References
+----------
+.. [1] IMAP-Science-Operations-Center/imap_processing (MIT License),
+   ``mag/l1b/mag_l1b.py`` ``rescale_vector``: ``M = 2 ^ (16 - width)`` for compressed
+   vectors; the team's L1b validation cases T009 (W = 18) and T010 (W = 16).
 """
 
 from __future__ import annotations
@@ -13,6 +22,13 @@ import xarray as xr
 from fluxcal.calibration.matrices import apply_lookup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.imap.calibration import MagCalibration
+
+
+def compression_scale(l1a: xr.Dataset) -> np.ndarray:
+    """Per vector ``2**(16 - W)`` for compressed vectors (``compression = 1``), else 1."""
+    compressed = l1a["compression"].values == 1
+    width = l1a["compression_width"].values
+    return np.where(compressed, np.exp2(16.0 - np.where(compressed, width, 16)), 1.0)
 
 
 def calibrate(l1a: xr.Dataset, calibration: MagCalibration) -> xr.Dataset:
@@ -33,7 +49,8 @@ def calibrate(l1a: xr.Dataset, calibration: MagCalibration) -> xr.Dataset:
     if bad.any():
         raise InputFormatError(f"{sensor} sample {int(np.flatnonzero(bad)[0])}: range "
                                f"{int(rng[bad][0])} is not 0..3", field="range")
-    b = apply_lookup(calibration.matrices[sensor], rng, l1a["counts"].values)
+    b = apply_lookup(calibration.matrices[sensor], rng,
+                     l1a["counts"].values * compression_scale(l1a)[:, None])
     epoch = l1a["epoch"].values + calibration.time_shift_ns[sensor]
     inside = (epoch >= calibration.valid_from) & (epoch <= calibration.valid_to)
     keep = ["range", "sequence", "coarse", "fine", "compression", "compression_width"]

@@ -6,8 +6,6 @@ Registered in fluxcal's ``pyproject.toml`` under the entry-point group
 
 from __future__ import annotations
 
-import datetime as _dt
-
 from fluxcal.products.format_names import FORMATS
 from fluxcal.runs.contract import DemoPart, Mission
 
@@ -21,8 +19,8 @@ MISSION = Mission(
     commands="fluxcal.missions.imap.cli:app",
     day_task="fluxcal.missions.imap.routes:make_day_task",
     options="fluxcal.missions.imap.options:ImapOptions",
-    simulate_days="fluxcal.missions.imap.routes:simulate_days",
-    demo_days=(_dt.date(2023, 10, 25), _dt.date(2023, 11, 30)),  # the real samples
+    # no simulate_days: the batch tour needs files fluxcal does not ship (the team's
+    # SCLK kernel, calibration, packet definition: docs/decisions/imap.md)
     formats=FORMATS,
     demo_parts=(DemoPart("IMAP MAG from real packets: L0 -> L1A -> L1B",
                          "fluxcal.missions.imap.demo:run_demo", "imap", 80),

@@ -21,7 +21,17 @@ class ImapOptions:
         "help": "Product formats: cdf, nc, tab, zarr.", "choices": FORMATS,
         "empty_ok": False})
     calib: Path | None = field(default=None, metadata={
-        "help": "L1B calibration CDF (default: the shipped "
-                "imap_calibration_mag_20240229_v01.cdf)."})
+        "help": "L1B calibration CDF of the IMAP MAG team (e.g. "
+                "imap_calibration_mag_20240229_v01.cdf); needed for l1b."})
+    xtce: Path | None = field(default=None, metadata={
+        "help": "The team's XTCE packet definition MAG_SCI_COMBINED.xml (default: the "
+                "one of the installed imap-processing package, fluxcal[imap])."})
+    csv_layout: str | None = field(default=None, metadata={
+        "help": "Mode and rates of an L1A CSV whose name does not give them, as the "
+                "team's names do: <normal|burst>-(<pri>,<sec>)-<n>s, e.g. normal-(2,2)-8s."})
+    layout: str = field(default="fluxcal", metadata={
+        "help": "fluxcal (b in nT, Epoch) or team (the IMAP MAG team's CDF variables: "
+                "epoch, vectors, compression_flags ...; CDF only).",
+        "choices": ("fluxcal", "team")})
     quicklook: bool = field(default=False, metadata={
         "help": "Also write a PNG quicklook per mode, sensor and UTC day (L1B)."})

@@ -1,13 +1,15 @@
 """IMAP MAG runs: inputs -> L1A or L1B datasets per (mode, sensor) -> products.
 
-`process` reads packet files (``.pkts``/``.bin``/any non-CSV) and team L1A CSV files
-(``MAGScience-...csv``), makes L1A datasets through the SCLK kernel and, for L1B, applies
-the calibration; `write_products` writes one product per mode, sensor and UTC day named
+`process` reads packet files and the team's L1A CSV files (told apart by content, not by
+name: `fluxcal.missions.imap.l1a.csv_header`), makes L1A datasets through the SCLK
+kernel, drops duplicated packets (counted and warned) and, for L1B, applies the
+calibration; `write_products` writes one product per mode, sensor and UTC day named
 ``imap_mag_<level>_<mode>-<sensor>_<yyyymmdd>_v<nnn>`` with fluxcal's product writers.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,13 +23,14 @@ from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.imap import l1a, l1b
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.packets import data_file, read_packets
+from fluxcal.missions.imap.sources import sclk_kernels
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
 from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.timeindex import default_lsk
 
-#: The SCLK kernel shipped with fluxcal.
-DEFAULT_SCLK = "imap_sclk_0036.tsc"
+log = logging.getLogger(__name__)
+
 LEVELS = ("l1a", "l1b")
 DATA_VERSION = "001"
 
@@ -37,6 +40,38 @@ def logical_source(level: str, mode: str, sensor: str) -> str:
     return f"imap_mag_{level}_{mode}-{sensor}"
 
 
+#: Variables that make a vector the same vector (with ``epoch``).
+_IDENTITY = ("sequence", "vector_index", "coarse", "fine", "range", "compression",
+             "compression_width")
+
+
+def drop_duplicates(ds: xr.Dataset) -> tuple[xr.Dataset, int, int]:
+    """Drop vectors identical to an earlier one; return (dataset, vectors, packets) dropped.
+
+    Identical: same ``epoch``, counts and every variable of `_IDENTITY`, as when one
+    packet (or one L1A CSV row) is read twice (a file given twice, a file holding
+    packets twice).  The first is kept; the order is otherwise unchanged.  Packets
+    dropped count distinct (sequence, coarse, fine) among the dropped vectors.
+    """
+    n = ds.sizes["time"]
+    if n < 2:
+        return ds, 0, 0
+    keys = [ds[v].values for v in reversed(_IDENTITY)]
+    keys += [ds["counts"].values[:, j] for j in (2, 1, 0)] + [ds["epoch"].values]
+    order = np.lexsort(keys)
+    same = np.ones(n - 1, dtype=bool)
+    for k in keys:
+        same &= k[order[1:]] == k[order[:-1]]
+    drop = np.zeros(n, dtype=bool)
+    drop[np.maximum(order[1:], order[:-1])[same]] = True
+    n_drop = int(drop.sum())
+    if n_drop == 0:
+        return ds, 0, 0
+    packets = np.unique(np.stack([ds[v].values[drop] for v in ("sequence", "coarse", "fine")],
+                                 axis=1), axis=0).shape[0]
+    return ds.isel(time=np.flatnonzero(~drop)), n_drop, int(packets)
+
+
 def _merge(parts: list[dict[tuple[str, str], xr.Dataset]]) -> dict[tuple[str, str], xr.Dataset]:
     keys = sorted({k for p in parts for k in p})
     out = {}
@@ -44,22 +79,32 @@ def _merge(parts: list[dict[tuple[str, str], xr.Dataset]]) -> dict[tuple[str, st
         pieces = [p[key] for p in parts if key in p]
         ds = pieces[0] if len(pieces) == 1 else xr.concat(pieces, dim="time",
                                                            combine_attrs="override")
+        ds, n_vectors, n_packets = drop_duplicates(ds)
+        if n_vectors:
+            log.warning("IMAP MAG %s-%s: %d duplicated packet(s) dropped (%d vectors read "
+                        "twice)", *key, n_packets, n_vectors)
         order = np.argsort(ds["epoch"].values, kind="stable")
         out[key] = ds.isel(time=order)
+        out[key].attrs["FLUXCAL_DUPLICATES_DROPPED"] = n_vectors
     return out
 
 
-def read_l1a(inputs: Sequence[Path], clock: SclkKernel) -> dict[tuple[str, str], xr.Dataset]:
+def read_l1a(inputs: Sequence[Path], clock: SclkKernel, *, xtce: Path | None = None,
+             csv_layout: str | None = None) -> dict[tuple[str, str], xr.Dataset]:
     """L1A datasets of packet and L1A CSV files, keyed by (mode, sensor), sorted in time.
 
-    ``clock`` is the IMAP SCLK (`SclkKernel.from_pool` with the kernels loaded).
+    Each file is told apart by content (`fluxcal.missions.imap.l1a.csv_header`), not by
+    its name; vectors read twice are dropped (`drop_duplicates`).  ``clock`` is the IMAP
+    SCLK (`SclkKernel.from_pool` with the kernels loaded); ``xtce`` the packet definition
+    (`fluxcal.missions.imap.packets.xtce_path`); ``csv_layout`` as in
+    `fluxcal.missions.imap.l1a.csv_layout`.
     """
     parts = []
     for path in map(Path, inputs):
-        if path.suffix.lower() == ".csv":
-            parts.append(l1a.read_l1a_csv(path, clock))
+        if l1a.csv_header(path) is not None:
+            parts.append(l1a.read_l1a_csv(path, clock, layout=csv_layout))
         else:
-            parts.append(l1a.from_packets(read_packets(path), clock))
+            parts.append(l1a.from_packets(read_packets(path, xtce=xtce), clock))
     return _merge(parts)
 
 
@@ -75,7 +120,8 @@ def to_level(l1a_sets: dict[tuple[str, str], xr.Dataset], level: str,
 
 
 def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = None,
-            kernels: Path | Sequence[Path] | None = None) -> dict[tuple[str, str], xr.Dataset]:
+            kernels: Path | Sequence[Path] | None = None, xtce: Path | None = None,
+            csv_layout: str | None = None) -> dict[tuple[str, str], xr.Dataset]:
     """L1A or L1B datasets of packet and L1A CSV files, keyed by (mode, sensor).
 
     `read_l1a` with the SCLK kernel loaded, then `to_level`.
@@ -83,12 +129,16 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
     Parameters
     ----------
     inputs : sequence of Path
-        Packet files, or files in the team's L1A CSV layout (suffix ``.csv``).
+        Packet files, or files in the team's L1A CSV layout (by content).
     level : {"l1a", "l1b"}
     calib : Path, optional
-        Calibration CDF (default: the shipped one).
-    kernels : Path or sequence of Path, optional
-        SCLK kernel (or meta-kernel) with the IMAP clock -43 (default: the shipped one).
+        The team's calibration CDF (needed for L1B).
+    kernels : Path or sequence of Path
+        SCLK kernel (or meta-kernel) with the IMAP clock -43 (needed).
+    xtce : Path, optional
+        The team's XTCE packet definition (default: the installed team package's).
+    csv_layout : str, optional
+        Mode and rates of L1A CSVs whose names do not give them.
 
     Raises
     ------
@@ -99,9 +149,9 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
         raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
     if level == "l1b":
         load_calibration(calib)  # a bad calibration file fails before any packet is read
-    with KernelPool(kernels if kernels is not None else [data_file(DEFAULT_SCLK)],
-                    fluxcal_frames=False):
-        merged = read_l1a(inputs, SclkKernel.from_pool(l1a.IMAP_SCLK_ID))
+    with KernelPool(sclk_kernels(kernels), fluxcal_frames=False):
+        merged = read_l1a(inputs, SclkKernel.from_pool(l1a.IMAP_SCLK_ID), xtce=xtce,
+                          csv_layout=csv_layout)
     return to_level(merged, level, calib)
 
 

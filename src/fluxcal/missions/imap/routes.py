@@ -21,17 +21,17 @@ import xarray as xr
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.days import utc_day
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a
-from fluxcal.missions.imap.calibration import DEFAULT_CALIBRATION, load_calibration
+from fluxcal.missions.imap import l1a, team_layout
+from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.options import ImapOptions
-from fluxcal.missions.imap.packets import data_file
+from fluxcal.missions.imap.packets import packet_definition
 from fluxcal.missions.imap.pipeline import (
-    DEFAULT_SCLK,
     LEVELS,
     read_l1a,
     to_level,
     write_products,
 )
+from fluxcal.missions.imap.sources import sclk_kernels
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.runs import driver
@@ -45,11 +45,6 @@ Datasets = dict[tuple[str, str], xr.Dataset]
 DAY_PATTERNS = ("*{day:%Y%m%d}*.pkts", "*{day:%Y%m%d}*.bin", "MAGScience-*{day:%Y%m%d}*.csv")
 
 
-def default_kernels() -> list[Path]:
-    """Return the shipped SCLK kernel (the IMAP clock, NAIF id -43)."""
-    return [data_file(DEFAULT_SCLK)]
-
-
 @dataclass(frozen=True)
 class ImapRun:
     """IMAP MAG L0 -> L1A -> L1B as a `fluxcal.runs.driver.Pipeline` (picklable)."""
@@ -57,12 +52,21 @@ class ImapRun:
     frame_kernels: Mapping[str, Path] | None = field(default_factory=dict)
 
     def check(self, options: ImapOptions) -> None:
-        """Refuse an unknown level and an unreadable calibration file before any packet."""
+        """Refuse a bad level, calibration file or named packet definition before any input.
+
+        Without ``--xtce`` the packet definition is looked for when a packet file is
+        read (`fluxcal.missions.imap.packets.xtce_path`): L1A CSV inputs need none.
+        """
         if options.level not in LEVELS:
             raise InputFormatError(f"level {options.level!r}: expected one of {LEVELS}",
                                    field="--level")
         if options.level == "l1b":
             load_calibration(options.calib)
+        if options.xtce is not None:
+            packet_definition(options.xtce)
+        if options.layout == "team" and tuple(options.formats) != ("cdf",):
+            raise InputFormatError("--layout team writes the team's CDFs only: leave out "
+                                   "--formats or give --formats cdf", field="--formats")
 
     def read(self, source: Sequence[Path] | DaySource,
              options: ImapOptions) -> tuple[Datasets, list[Path]]:
@@ -71,7 +75,8 @@ class ImapRun:
         A `DaySource` (a batch day) keeps the vectors of its UTC day only (`day_vectors`).
         """
         files = list(map(Path, source.files if isinstance(source, DaySource) else source))
-        raw = read_l1a(files, SclkKernel.from_pool(l1a.IMAP_SCLK_ID))
+        clock = SclkKernel.from_pool(l1a.IMAP_SCLK_ID)
+        raw = read_l1a(files, clock, xtce=options.xtce, csv_layout=options.csv_layout)
         if isinstance(source, DaySource):
             raw = day_vectors(raw, source)
         return raw, files
@@ -88,10 +93,11 @@ class ImapRun:
               inputs: Sequence[Path], kernel_list: Sequence[str],
               only_day: _dt.date | None, progress: Any) -> list[Path]:
         """One product per mode, sensor and UTC day (or ``only_day``), all or nothing."""
-        calibration = ({"imap_mag_l1b": options.calib or data_file(DEFAULT_CALIBRATION)}
-                       if options.level == "l1b" else {})
+        calibration = {"imap_mag_l1b": options.calib} if options.level == "l1b" else {}
         prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
         day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
+        if options.layout == "team":  # the team's variable names (issue 33 item 4)
+            return team_layout.write_products(calibrated, out_dir, prov, only_day=day)
         return write_products(calibrated, out_dir, options.formats, prov,
                               quicklook=options.quicklook, only_day=day)
 
@@ -172,24 +178,4 @@ def make_day_task(input_dir: Path, out_dir: Path, **options: Any) -> driver.DayT
     fields = {f for f in ImapOptions.__dataclass_fields__}
     opts = ImapOptions(**{k: v for k, v in options.items() if k in fields})
     return driver.DayTask(ImapRun(), Path(input_dir), Path(out_dir), opts,
-                          kernels if kernels is not None else default_kernels(), name="imap")
-
-
-#: The shipped real packet samples and the UTC day of their vectors.
-SAMPLE_DAYS = {"mag_sample_burst.pkts": _dt.date(2023, 10, 25),
-               "mag_sample_norm.pkts": _dt.date(2023, 11, 30)}
-
-
-def simulate_days(input_dir: Path, days: Sequence[_dt.date]) -> None:
-    """Lay the shipped real packets out as the batch input of their days (the demo).
-
-    IMAP has no forward model in fluxcal: the batch demo runs on the real ground-test
-    packets (`SAMPLE_DAYS`); a day of ``days`` without a sample gets no file.
-    """
-    input_dir = Path(input_dir)
-    input_dir.mkdir(parents=True, exist_ok=True)
-    for name, day in SAMPLE_DAYS.items():
-        if day in days:
-            mode = name.split("_")[2].split(".")[0]
-            (input_dir / f"imap_mag_l0_{mode}_{day:%Y%m%d}_v001.pkts").write_bytes(
-                data_file(name).read_bytes())
+                          sclk_kernels(kernels), name="imap")
