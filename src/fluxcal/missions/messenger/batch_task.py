@@ -8,6 +8,10 @@ Input folder layout (one file per stream and day, day = UTC day of the recorded 
     MAGTMP_YYYYDDD.csv   sensor temperatures (previous and next day read when present)
     kernels.tm           meta-kernel (or ``--kernels``)
 
+A day's products hold the science samples recorded in that UTC day, read from the
+science files of the day before, the day and the day after (a stream across midnight may
+be given as one day's files; `routes.csv_day_files`, `run.batch_day_rows`).
+
 or, when the folder holds ``edr_mapping.toml`` (`routes.EDR_MAPPING`), archived MAG EDRs (PDS3
 labels + tables, any sub-folders) read through that mapping
 (`fluxcal.missions.messenger.edr.read_edr`; day D reads the science EDRs of D, the
