@@ -189,6 +189,7 @@ def _run_with_progress(days, task, out, scheduler, workers, force, name, console
         return run_batch(days, task, out, scheduler=scheduler, n_workers=workers, force=force,
                          name=name, on_day_done=done)
 def _summary(report, console, full: bool = True) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
     statuses = ("done", "skipped", "no_data", "failed")
@@ -201,13 +202,14 @@ def _summary(report, console, full: bool = True) -> None:
 
     table = Table(title=f"fluxcal batch {report.name}: {report.wall_seconds:.1f} s on "
                         f"{report.scheduler} ({report.n_workers} workers)")
-    for col in ("day", "status", "vectors", "seconds", "error"):
+    for col in ("day", "status", "why", "vectors", "seconds", "error"):
         table.add_column(col)
     style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red",
              "interrupted": "magenta"}
     for d in report.days:
-        table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}", f"{d.n_vectors:,}",
-                      f"{d.seconds:.2f}", (d.error or "")[:120])
+        table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}",
+                      escape((d.reason or "")[:60]), f"{d.n_vectors:,}", f"{d.seconds:.2f}",
+                      (d.error or "")[:120])
     console.print(table)
     console.print(f"{counts}; report: {report.report_path}", soft_wrap=True)
 

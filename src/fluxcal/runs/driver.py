@@ -11,6 +11,7 @@ day (`run_day`) are the same path, so they give the same products for the same d
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as _dt
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -168,8 +169,9 @@ class DayTask:
 
     A mission whose day needs nothing but its pipeline returns one of these from its
     ``make_day_task``; ``inputs(day)`` lists the day's files (``pipeline.day_files``)
-    and, when the pipeline has one, ``pipeline.day_calibration``, so that an unchanged
-    day is skipped.
+    and, when the pipeline has one, ``pipeline.day_calibration``, and ``settings()``
+    the run options, so that an unchanged day is skipped and a day whose inputs,
+    calibration or options changed is redone (`fluxcal.runs.batch.stale_reason`).
     """
 
     pipeline: Pipeline
@@ -188,6 +190,18 @@ class DayTask:
         calibration = ({} if day_calibration is None
                        else day_calibration(Path(self.input_dir), day, self.options))
         return DayInputs(tuple(Path(p) for p in [*files, *kernels]), calibration)
+
+    def settings(self) -> dict[str, Any]:
+        """Return the run options that change a product (the manifest key's options).
+
+        Every field of the options dataclass but those whose metadata says
+        ``"changes_products": False`` (a progress or test option).
+        """
+        if not dataclasses.is_dataclass(self.options):
+            return {}
+        return {f.name: getattr(self.options, f.name)
+                for f in dataclasses.fields(self.options)
+                if f.metadata.get("changes_products", True)}
 
     def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day`` (`run_day`)."""
