@@ -31,6 +31,7 @@ from fluxcal.missions.rosetta.options import RosettaOptions
 from fluxcal.missions.rosetta.routes import calibrate_levels
 from fluxcal.products import read_product as read_fluxcal_product
 from fluxcal.products.timeindex import with_time_index
+from fluxcal.runs import registry
 
 #: Suffixes read as PDS3 tables (the archive's and fluxcal's labels alike).
 TABLE_SUFFIXES = (".lbl", ".tab")
@@ -50,7 +51,7 @@ def read_product(path: str | Path) -> xr.Dataset:
     """
     path = Path(path)
     if path.suffix.lower() in TABLE_SUFFIXES:
-        return read_table_product(path)
+        return read_table_product(path, registry.archived_readers())
     return read_fluxcal_product(path)
 
 

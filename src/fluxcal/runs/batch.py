@@ -443,7 +443,8 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None,
     Day tasks call this instead of ``with KernelPool(...)``: the first call in a process
     furnishes the kernels; later calls with the same list return the same pool; a
     different list unloads the previous one first (SPICE has one pool per process).
-    ``frames``: the mission's frame kernels (`fluxcal.geometry.kernels.KernelPool`).
+    ``frames``: the mission's frame kernels (`fluxcal.geometry.kernels.KernelPool`;
+    None: none).
 
     Returns
     -------
@@ -456,8 +457,7 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None,
         key_items = [str(kernels)]
     else:
         key_items = [str(k) for k in kernels]
-    key = "\n".join(key_items + [f"{n}={p}" for n, p in sorted((frames or {}).items())]
-                    + (["frames:default"] if frames is None else []))
+    key = "\n".join(key_items + [f"{n}={p}" for n, p in sorted((frames or {}).items())])
     pool = _KERNEL_CACHE.get("pool")
     if pool is not None and _KERNEL_CACHE.get("key") == key:
         return pool

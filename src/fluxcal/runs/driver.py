@@ -29,8 +29,8 @@ Progress = Callable[[str, int, int], None]
 class Pipeline(Protocol):
     """What a mission hands the driver for one run (a picklable object for batch days).
 
-    ``frame_kernels`` (frame name -> frames kernel, or None for the registry's) are the
-    frames the kernel pool defines when the user's kernels do not.
+    ``frame_kernels`` (frame name -> frames kernel; None or empty: none) are the frames
+    the kernel pool defines when the user's kernels do not (the mission's own).
     """
 
     frame_kernels: Mapping[str, Path] | None

@@ -32,7 +32,7 @@ from fluxcal.geometry.synthetic import (
     write_meta_kernel,
     write_spk,
 )
-from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 
 MESSENGER_FK = """KPL/FK
 
@@ -107,7 +107,8 @@ def write_messenger_like_kernels(
     Returns
     -------
     Path
-        The meta-kernel ``messenger_synthetic.tm``.
+        The meta-kernel ``messenger_synthetic.tm`` (SCLK, FK, the dynamic frames of
+        `FRAME_KERNELS` copied beside them, SPK, CK).
     """
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "msgr_synthetic")
     with KernelPool([], frames={}):
@@ -156,7 +157,11 @@ def write_messenger_like_kernels(
                                          plus_y_sunward)
             write_ck(ck_path, SPACECRAFT_ID * 1000, SPACECRAFT_ID, att_epochs, cmat,
                      "MESSENGER-LIKE ATTITUDE")
-    files = [sclk_path, fk_path, spk_path, ck_path]
+    # the dynamic frames (MSO, VSO, RTN) in the set, as the real set's msgr_dyn FK has them
+    frames = [out / p.name for p in FRAME_KERNELS.values()]
+    for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
+        dest.write_bytes(Path(src).read_bytes())
+    files = [sclk_path, fk_path, *frames, spk_path, ck_path]
     return write_meta_kernel(out / "messenger_synthetic.tm", files)
 
 
