@@ -47,6 +47,7 @@ def test_synthetic_rerun_with_changed_formats_redoes_the_day(tmp_path: Path) -> 
     assert changed["status"] == "done"
     assert changed["reason"] == 'option formats ["tab", "cdf"] -> ["cdf", "nc"]'
     assert (out / "SYNTH_20240301.nc").is_file()  # the product the new option asks for
+    assert "option formats" in (out / "index.html").read_text()  # the folder's report says why
     # an option that changes no product (a test delay) keeps the day
     assert _synthetic(inp, out, "--formats", "cdf,nc", "--delay", "0.01")["status"] == "skipped"
     # the calibration's content is part of the key
