@@ -27,6 +27,8 @@ from typing import Any
 
 from xarray.backends import BackendEntrypoint
 
+import fluxcal
+
 #: Suffixes this engine claims when xarray guesses (netCDF and Zarr have xarray's own).
 GUESSED_SUFFIXES = (".cdf", ".tab", ".lbl")
 
@@ -47,11 +49,10 @@ class FluxcalBackendEntrypoint(BackendEntrypoint):
         fluxcal.errors.InputFormatError
             A file that is not a product (naming the file, row and column where it can).
         """
-        # imported here, not at the top: xarray imports every installed backend's module
-        # when it lists its engines, and fluxcal's readers (and missions) are not light
-        from fluxcal.api import read_product
-
-        ds = read_product(Path(os.fspath(filename_or_obj)))
+        # through ``fluxcal.read_product`` (PEP 562, imported on first use): xarray imports
+        # every installed backend's module when it lists its engines, and fluxcal's
+        # readers (and missions) are not light
+        ds = fluxcal.read_product(Path(os.fspath(filename_or_obj)))
         if drop_variables:
             names = [drop_variables] if isinstance(drop_variables, str) else drop_variables
             ds = ds.drop_vars(list(names), errors="ignore")
