@@ -156,8 +156,11 @@ def simulate_days(
                    for w0, _ in windows]
         mk = write_messenger_like_kernels(input_dir / "kernels" / f"run_{run[0]:%Y%j}", start,
                                           duration + config.lead_s, plus_y_sunward=sunward)
-        # the SCLK and frame kernels are the same for every run: list the first ones
-        listed = sorted(p for p in mk.parent.iterdir() if p.suffix != ".tm")
+        # the SCLK and frame kernels are the same for every run: list the first ones; the
+        # dynamic frames' copies are left out (the runs load fluxcal's, `FRAME_KERNELS`)
+        frames = {Path(p).name for p in FRAME_KERNELS.values()}
+        listed = sorted(p for p in mk.parent.iterdir()
+                        if p.suffix != ".tm" and p.name not in frames)
         kernel_files += listed if not kernel_files else [k for k in listed
                                                          if k.suffix in (".bsp", ".bc")]
         with KernelPool(mk, frames=FRAME_KERNELS):

@@ -107,8 +107,8 @@ def write_messenger_like_kernels(
     Returns
     -------
     Path
-        The meta-kernel ``messenger_synthetic.tm`` (SCLK, FK, the dynamic frames of
-        `FRAME_KERNELS` copied beside them, SPK, CK).
+        The meta-kernel ``messenger_synthetic.tm`` (SCLK, FK, SPK, CK, and the dynamic
+        frames of `FRAME_KERNELS` copied beside them).
     """
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "msgr_synthetic")
     with KernelPool([], frames={}):
@@ -161,7 +161,8 @@ def write_messenger_like_kernels(
     frames = [out / p.name for p in FRAME_KERNELS.values()]
     for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
         dest.write_bytes(Path(src).read_bytes())
-    files = [sclk_path, fk_path, *frames, spk_path, ck_path]
+    # listed last: loaded where `KernelPool` loaded them when they came from its ``frames``
+    files = [sclk_path, fk_path, spk_path, ck_path, *frames]
     return write_meta_kernel(out / "messenger_synthetic.tm", files)
 
 

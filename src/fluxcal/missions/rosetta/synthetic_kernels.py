@@ -79,8 +79,8 @@ def write_rosetta_like_kernels(
     Returns
     -------
     Path
-        The meta-kernel ``rosetta_synthetic.tm`` (SCLK, FK, the frames of `FRAME_KERNELS`
-        copied beside them, SPK, CK).
+        The meta-kernel ``rosetta_synthetic.tm`` (SCLK, FK, SPK, CK, and the frames of
+        `FRAME_KERNELS` copied beside them, listed last as a pool loaded them before).
     """
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "ros_synthetic")
     with KernelPool([], frames={}):
@@ -127,4 +127,4 @@ def write_rosetta_like_kernels(
     for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
         dest.write_bytes(Path(src).read_bytes())
     return write_meta_kernel(out / "rosetta_synthetic.tm",
-                             [sclk_path, fk_path, *frames, spk_path, ck_path])
+                             [sclk_path, fk_path, spk_path, ck_path, *frames])
