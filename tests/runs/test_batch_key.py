@@ -176,3 +176,30 @@ def test_messenger_rerun_with_changed_options_redoes_the_day(tmp_path: Path) -> 
     assert (out / "MAGSCSCI12153_V01.TAB").is_file()
     step = run(frames=("mso", "sc"), max_offset_step=3.0)
     assert (step.status, step.reason) == ("done", "option max_offset_step 2.0 -> 3.0")
+
+
+# --- a plugin's own task (the toy mission: a dataclass task, no settings()) ------------------
+
+def test_plugin_dataclass_task_rerun_with_changed_gain_redoes_the_day(tmp_path: Path) -> None:
+    """A dataclass task without ``settings()`` is keyed on its fields (gain, formats)."""
+    import cdflib
+    import numpy as np
+
+    from tests.runs.toy_mission import make_day_task, simulate_days
+
+    day = dt.date(2024, 1, 1)
+    inp, out = tmp_path / "in", tmp_path / "out"
+    simulate_days(inp, [day])
+
+    def run(gain: float) -> batch.DayStatus:
+        (status,) = run_batch([day], make_day_task(inp, out, gain=gain), out,
+                              scheduler="serial", name="toy").days
+        return status
+
+    assert run(0.5).status == "done"
+    assert run(0.5).reason == "up to date"
+    redo = run(0.25)
+    assert (redo.status, redo.reason) == ("done", "option gain 0.5 -> 0.25")
+    # counts 2, 4, 6 (simulate_days) at 0.25 nT/count
+    b = cdflib.CDF(str(out / "TOY_20240101.cdf")).varget("B")
+    np.testing.assert_array_equal(b[0], [0.5, 1.0, 1.5])
