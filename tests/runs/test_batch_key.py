@@ -104,6 +104,45 @@ def test_path_options_are_keyed_by_content_not_by_folder(tmp_path: Path) -> None
     assert task_settings(Task(b)) != key_a
 
 
+def _changed_value(f, value, tmp_path: Path):
+    """A different valid value of option field ``f`` (from its type and choices)."""
+    choices = f.metadata.get("choices")
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, tuple):
+        pool = [c for c in (choices or ()) if c not in value]
+        if pool:
+            return (*value[:1], pool[0])
+        return (*value, value[-1] + 1) if isinstance(value[-1], int) else value[:-1]
+    if isinstance(value, (int, float)):
+        return value + 1
+    if choices:
+        return next(c for c in choices if c != value)
+    if value is None or isinstance(value, Path):
+        folder = tmp_path / f"opt_{f.name}"
+        folder.mkdir(exist_ok=True)
+        (folder / "x.txt").write_text(f.name)
+        return folder
+    return f"{value}X"
+
+
+def _every_option_is_in_the_key(task, day: dt.date, out: Path, name: str,
+                                tmp_path: Path) -> None:
+    """Each field of the task's options, changed alone, makes the day stale, by name."""
+    import dataclasses
+
+    assert stale_reason(task, day, out, name) is None
+    for f in dataclasses.fields(task.options):
+        value = _changed_value(f, getattr(task.options, f.name), tmp_path)
+        other = dataclasses.replace(task, options=dataclasses.replace(task.options,
+                                                                      **{f.name: value}))
+        reason = stale_reason(other, day, out, name)
+        # a calibration folder's files are also the day's inputs: they may say it first
+        named = reason is not None and (reason.startswith(f"option {f.name} ") or (
+            f.name == "calib" and "calibration:" in reason))
+        assert named, (f.name, reason)
+
+
 # --- Rosetta (short simulated day: the forward model, 2 minutes per sensor) ---------------
 
 ROSETTA_DAY = dt.date(2014, 11, 1)
@@ -151,6 +190,12 @@ def test_rosetta_rerun_with_changed_options_or_calib_redoes_the_day(rosetta_sim,
     avg = _rosetta(rosetta_sim, out, "--levels", "A,B", "--formats", "tab", "--calib",
                    str(calib), "--average", "2")
     assert (avg["status"], avg["reason"]) == ("done", "option average_s 1.0 -> 2.0")
+    # and every other option of RosettaOptions, one at a time (no rerun needed to see it)
+    from fluxcal.missions.rosetta.routes import make_day_task
+
+    task = make_day_task(rosetta_sim, out, levels="A,B", formats=("tab",), calib=calib,
+                         average_s=2.0)
+    _every_option_is_in_the_key(task, ROSETTA_DAY, out, "rosetta", tmp_path)
 
 
 # --- MESSENGER (one short simulated day at 1 vector/s) ------------------------------------
@@ -176,6 +221,9 @@ def test_messenger_rerun_with_changed_options_redoes_the_day(tmp_path: Path) -> 
     assert (out / "MAGSCSCI12153_V01.TAB").is_file()
     step = run(frames=("mso", "sc"), max_offset_step=3.0)
     assert (step.status, step.reason) == ("done", "option max_offset_step 2.0 -> 3.0")
+    # and every other option of MessengerOptions, one at a time
+    task = make_day_task(inp, out, **{**opts, "frames": ("mso", "sc"), "max_offset_step": 3.0})
+    _every_option_is_in_the_key(task, day, out, "messenger", tmp_path)
 
 
 # --- a plugin's own task (the toy mission: a dataclass task, no settings()) ------------------
