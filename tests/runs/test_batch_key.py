@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from fluxcal.cli import main
-from fluxcal.runs import batch
+from fluxcal.runs import batch, manifest
 from fluxcal.runs.batch import run_batch, stale_reason, task_settings
 from fluxcal.runs.synthetic_task import SyntheticDayTask, write_synthetic_inputs
 
@@ -64,7 +64,7 @@ def test_software_version_and_missing_product_redo(tmp_path: Path,
     task = SyntheticDayTask(inp, out, formats=("cdf",))
     assert run_batch([DAY], task, out, scheduler="serial").days[0].status == "done"
     assert stale_reason(task, DAY, out, "synthetic") is None
-    monkeypatch.setattr(batch, "software_version", lambda: "99.0")
+    monkeypatch.setattr(manifest, "software_version", lambda: "99.0")
     assert stale_reason(task, DAY, out, "synthetic").endswith("-> 99.0")
     monkeypatch.undo()
     (out / "SYNTH_20240301_v01.cdf").unlink()

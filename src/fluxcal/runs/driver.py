@@ -171,7 +171,7 @@ class DayTask:
     ``make_day_task``; ``inputs(day)`` lists the day's files (``pipeline.day_files``)
     and, when the pipeline has one, ``pipeline.day_calibration``, and ``settings()``
     the run options, so that an unchanged day is skipped and a day whose inputs,
-    calibration or options changed is redone (`fluxcal.runs.batch.stale_reason`).
+    calibration or options changed is redone (`fluxcal.runs.manifest.stale_reason`).
     """
 
     pipeline: Pipeline
