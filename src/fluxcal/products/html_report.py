@@ -501,13 +501,14 @@ def _quality_section(qualities: Sequence[tuple[Sequence[ProductFile], Quality]],
 
 def _batch_table(report: dict[str, Any]) -> list[str]:
     counts = ", ".join(f"{v} {k}" for k, v in report.get("counts", {}).items())
-    lines = [f"<p>{_e(counts)}</p>", "<table><tr><th>day</th><th>status</th>"
+    lines = [f"<p>{_e(counts)}</p>", "<table><tr><th>day</th><th>status</th><th>why</th>"
              "<th>vectors</th><th>error</th></tr>"]
     for d in report.get("days", []):
         status = str(d.get("status", ""))
         css = {"done": "ok", "skipped": "ok", "failed": "bad"}.get(status, "warn")
         lines.append(f"<tr><td>{_e(d.get('day', ''))}</td><td class=\"{css}\">{_e(status)}"
-                     f"</td><td class=\"num\">{int(d.get('n_vectors', 0) or 0):,}</td>"
+                     f"</td><td>{_e(d.get('reason') or '')}</td>"
+                     f"<td class=\"num\">{int(d.get('n_vectors', 0) or 0):,}</td>"
                      f"<td>{_e(d.get('error') or '')}</td></tr>")
     lines.append("</table>")
     return lines

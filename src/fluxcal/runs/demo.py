@@ -21,6 +21,7 @@ from fluxcal.products.html_report import (
     run_products,
     write_run_report,
 )
+from fluxcal.products.paths import make_folder
 from fluxcal.runs import registry
 from fluxcal.runs.contract import DemoPart, load_reference
 from fluxcal.runs.display_cli import compilation_notice, status_display
@@ -64,7 +65,7 @@ def _overview(out: Path) -> Path | None:
 def run_demo(out: Path, full: bool = False) -> None:
     """Run the demo into ``out`` (the quick one, or with ``full`` the tour) and summarise."""
     out = out.resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     with compilation_notice():  # a first run compiles the numerical kernels: say so
         for part in parts(full):
             run = load_reference(part.run)

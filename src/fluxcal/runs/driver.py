@@ -11,6 +11,7 @@ day (`run_day`) are the same path, so they give the same products for the same d
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as _dt
 import logging
 from collections.abc import Callable, Mapping, Sequence
@@ -31,8 +32,8 @@ Progress = Callable[[str, int, int], None]
 class Pipeline(Protocol):
     """What a mission hands the driver for one run (a picklable object for batch days).
 
-    ``frame_kernels`` (frame name -> frames kernel, or None for the registry's) are the
-    frames the kernel pool defines when the user's kernels do not.
+    ``frame_kernels`` (frame name -> frames kernel; None or empty: none) are the frames
+    the kernel pool defines when the user's kernels do not (the mission's own).
     """
 
     frame_kernels: Mapping[str, Path] | None
@@ -180,8 +181,9 @@ class DayTask:
 
     A mission whose day needs nothing but its pipeline returns one of these from its
     ``make_day_task``; ``inputs(day)`` lists the day's files (``pipeline.day_files``)
-    and, when the pipeline has one, ``pipeline.day_calibration``, so that an unchanged
-    day is skipped.
+    and, when the pipeline has one, ``pipeline.day_calibration``, and ``settings()``
+    the run options, so that an unchanged day is skipped and a day whose inputs,
+    calibration or options changed is redone (`fluxcal.runs.manifest.stale_reason`).
     """
 
     pipeline: Pipeline
@@ -200,6 +202,18 @@ class DayTask:
         calibration = ({} if day_calibration is None
                        else day_calibration(Path(self.input_dir), day, self.options))
         return DayInputs(tuple(Path(p) for p in [*files, *kernels]), calibration)
+
+    def settings(self) -> dict[str, Any]:
+        """Return the run options that change a product (the manifest key's options).
+
+        Every field of the options dataclass but those whose metadata says
+        ``"changes_products": False`` (a progress or test option).
+        """
+        if not dataclasses.is_dataclass(self.options):
+            return {}
+        return {f.name: getattr(self.options, f.name)
+                for f in dataclasses.fields(self.options)
+                if f.metadata.get("changes_products", True)}
 
     def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day`` (`run_day`)."""

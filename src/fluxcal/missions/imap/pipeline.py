@@ -27,6 +27,7 @@ from fluxcal.missions.imap.sources import sclk_kernels
 from fluxcal.products import write_product
 from fluxcal.products.atomic import atomic_group
 from fluxcal.products.cdf import istp_file_stem
+from fluxcal.products.paths import make_folder
 from fluxcal.products.timeindex import default_lsk
 
 log = logging.getLogger(__name__)
@@ -190,7 +191,7 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
     one group (`atomic_group`): on an error no file of the call appears.
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     written: list[Path] = []
     yaml = {"global_yaml": data_file("istp_global.yaml")}
     with atomic_group():

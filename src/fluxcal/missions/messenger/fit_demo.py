@@ -25,7 +25,6 @@ References
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +33,8 @@ from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.solar_wind import alfvenic_wind
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 
 #: The training winds of `simulate_training`: ``realistic`` (the default) or ``quiet``.
 FIELDS = ("realistic", "quiet")
@@ -57,10 +58,10 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
     import re
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     src = data_dir()
     for p in src.glob("*_v1.*"):
-        shutil.copyfile(p, out / p.name)
+        atomic_write_bytes(out / p.name, p.read_bytes(), now=True)
     rows = []
     for line in (src / "offsets_temperature_v1.csv").read_text().splitlines():
         if line.startswith(("x,", "y,", "z,")):
@@ -69,14 +70,14 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
             b0, b1 = float(b0) * temperature_scale, float(b1) * temperature_scale
             line = f"{a},{a0:.6f},{b0:.6f},{a1:.6f},{b1:.6f},{(a0 - a1) / (b1 - b0):.6f}"
         rows.append(line.replace("# version: 1", "# version: 2"))
-    (out / "offsets_temperature_v2.csv").write_text("\n".join(rows) + "\n")
+    atomic_write_bytes(out / "offsets_temperature_v2.csv", "\n".join(rows) + "\n", now=True)
     rows = []
     for line in (src / "offsets_duty_cycle_v1.csv").read_text().splitlines():
         if line.startswith(("x,", "y,", "z,")):
             a, c0, d0 = line.split(",")
             line = f"{a},{c0},{float(d0) * d0_scale:.6f}"
         rows.append(line.replace("# version: 1", "# version: 2"))
-    (out / "offsets_duty_cycle_v2.csv").write_text("\n".join(rows) + "\n")
+    atomic_write_bytes(out / "offsets_duty_cycle_v2.csv", "\n".join(rows) + "\n", now=True)
     for axis in "xyz":
         rows = []
         for line in (src / f"heater_signal_{axis}_v1.csv").read_text().splitlines():
@@ -84,11 +85,11 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
                 t, *vals = line.split(",")
                 line = t + "," + ",".join(f"{float(v) * waveform_scale:.5f}" for v in vals)
             rows.append(line.replace("# version: 1", "# version: 2"))
-        (out / f"heater_signal_{axis}_v2.csv").write_text("\n".join(rows) + "\n")
+        atomic_write_bytes(out / f"heater_signal_{axis}_v2.csv", "\n".join(rows) + "\n", now=True)
     text = (src / "processing_v1.toml").read_text()
     text = re.sub(r"(?m)^version = 1", "version = 2", text)
     text = re.sub(r"(?m)^tau_s = .*$", f"tau_s = {tau_s}", text)
-    (out / "processing_v2.toml").write_text(text)
+    atomic_write_bytes(out / "processing_v2.toml", text, now=True)
     return out
 
 
@@ -185,9 +186,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     except FitRefusedError as exc:
         verdict = f"REFUSED by the guards (the command would write nothing): {exc}"
         fitted = out / "fitted_refused"
-    for old in (out / "fitted", out / "fitted_refused"):
-        if old.exists():
-            shutil.rmtree(old)
+    # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
     write_calibration_folder(result, fitted, None, {
         "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"})
     # an unseen day (after the training): the forward model's own field and schedule

@@ -32,6 +32,7 @@ from fluxcal.missions.messenger.fit_variance import (
     VarianceSettings,
 )
 from fluxcal.products.atomic import atomic_group, atomic_write_bytes
+from fluxcal.products.paths import make_folder
 from fluxcal.products.provenance import creation_time, sha256_file
 from fluxcal.version import software_version
 
@@ -240,7 +241,7 @@ def write_calibration_folder(
     }}) + "\n"
     texts["processing"] = text
     written: list[Path] = []
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     with atomic_group():
         for name in FITTED:
             ext = "toml" if name == "processing" else "csv"

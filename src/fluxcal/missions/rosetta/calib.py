@@ -36,6 +36,7 @@ import numpy as np
 
 from fluxcal.calibration.store import CalibrationStore, user_folder
 from fluxcal.errors import CalibrationError, CalibrationRangeError
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.textfile import read_text
 
 SENSORS = ("OB", "IB")
@@ -492,7 +493,7 @@ def write_ground_calibration(cal: GroundCalibration, path: Path) -> Path:
         f"B_RES_IN_OFFSET = {int(cal.residual_in_offset)}",
         f"REDUCED_TEMPERATURE = {cal.reduced_temperature}",
     ]
-    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    atomic_write_bytes(Path(path), "\n".join(lines) + "\n", now=True)
     return Path(path)
 
 
@@ -587,7 +588,7 @@ def write_daily_offset_model(
     lines += [
         f"P_{k} = " + " ".join(repr(float(v)) for v in model.coefficients[k]) for k in range(6)
     ]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    atomic_write_bytes(path, "\n".join(lines) + "\n", now=True)
     return path
 
 
@@ -666,7 +667,7 @@ def write_alignment(alignment: Alignment, path: Path) -> Path:
     ]
     for (sensor, boom), m in sorted(alignment.matrices.items()):
         lines.append(f"{sensor}_{boom.upper()} = " + " ".join(repr(float(v)) for v in m.ravel()))
-    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    atomic_write_bytes(Path(path), "\n".join(lines) + "\n", now=True)
     return Path(path)
 
 

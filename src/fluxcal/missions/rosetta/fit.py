@@ -46,6 +46,7 @@ from fluxcal.missions.rosetta.calib import (
     check_sensor,
     write_daily_offset_model,
 )
+from fluxcal.products.atomic import atomic_write_bytes
 
 log = logging.getLogger(__name__)
 
@@ -760,5 +761,5 @@ def write_offset_jump_table(
         lines.append(f"{first.start_utc[j]},{first.end_utc[j]},"
                      + ",".join("nan" if np.isnan(v) else f"{v:.4f}" for v in values))
     path = Path(path)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    atomic_write_bytes(path, "\n".join(lines) + "\n", now=True)
     return path

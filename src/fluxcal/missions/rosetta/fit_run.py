@@ -43,6 +43,7 @@ from fluxcal.missions.rosetta.fit_variance import (
 )
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.level_c import FRAMES, SPACECRAFT_FRAME
+from fluxcal.products.paths import make_folder
 from fluxcal.products.provenance import portable_text
 from fluxcal.textfile import read_text
 
@@ -163,7 +164,7 @@ def fit_files(
             "ground calibration": cal.source,
             "kernels": " ".join(str(k) for k in pool.loaded) if kernels is not None else "LSK",
         }
-        out.mkdir(parents=True, exist_ok=True)
+        make_folder(out)
         if not jumps:
             pieces, seen = [], {}
             for path, raw in zip(files, raws, strict=True):
