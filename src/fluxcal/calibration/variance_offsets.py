@@ -99,6 +99,7 @@ def interval_reasons(
     min_relative_amplitude: float,
     max_compressibility: float,
     static_only: bool = False,
+    compressibility: NDArray[np.float64] | None = None,
 ) -> NDArray[np.str_]:
     """First failed selection criterion of each interval (``""``: accepted), on ``b``.
 
@@ -108,6 +109,9 @@ def interval_reasons(
     (``var |B| / trace C``), evaluated on the vectors ``b`` (n, 3) as they are (offsets
     already removed); ``static_only``: the first two only (those that do not depend on
     the offsets). ``codes`` maps each sample to its interval ``0..k-1``.
+    ``compressibility`` (k,), optional, replaces ``var |B| / trace C`` in the
+    ``compressive`` criterion (e.g. the ratio of the powers left within short segments,
+    `fluxcal.calibration.segment_trends`).
     """
     mag = np.sqrt(np.einsum("ij,ij->i", b, b))
     mom = interval_moments(np.column_stack([b, mag]), codes, k)
@@ -116,10 +120,11 @@ def interval_reasons(
         checks = _static_checks(mom.count, cov, min_samples, min_eigenvalue_ratio)
         if not static_only:
             trace = np.trace(cov, axis1=1, axis2=2)
+            ratio = mom.cov[:, 3, 3] / trace if compressibility is None else compressibility
             checks += [
                 ("small_fluctuations",
                  np.sqrt(trace) >= min_relative_amplitude * mom.mean[:, 3]),
-                ("compressive", mom.cov[:, 3, 3] / trace <= max_compressibility),
+                ("compressive", ratio <= max_compressibility),
             ]
     return first_failure(checks, k)
 

@@ -46,10 +46,12 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from fluxcal.calibration.solar_wind_offsets import (
-    count_reasons,
-    interval_moments,
+from fluxcal.calibration.segment_trends import (
+    remove_segment_lines,
+    segment_codes,
+    segment_variance,
 )
+from fluxcal.calibration.solar_wind_offsets import count_reasons
 from fluxcal.calibration.variance_offsets import (
     DEFAULT_MAX_COMPRESSIBILITY,
     DEFAULT_MIN_EIGENVALUE_RATIO,
@@ -71,11 +73,14 @@ from fluxcal.missions.rosetta.fit import (
     interval_bounds,
 )
 
-__all__ = ["ESTIMATORS", "VarianceSettings", "fit_extended_model_variance",
-           "fit_offset_jumps_variance"]
+__all__ = ["ESTIMATORS", "GOAL_NT", "JumpScan", "VarianceSettings", "curve_error_text",
+           "fit_extended_model_variance", "fit_offset_jumps_variance", "predicted_error",
+           "scan_offset_step"]
 
 #: Estimators of ``fluxcal rosetta fit --estimator``, named by what they assume.
 ESTIMATORS = ("zero-mean", "variance")
+#: Default goal (nT) of a Rosetta daily curve's figure of merit (issue 34).
+GOAL_NT = 0.2
 
 
 @dataclass(frozen=True)
@@ -117,6 +122,28 @@ class VarianceSettings:
         Refuse a day (or jump interval) whose intervals are rejected as ``compressive``
         for more than this share of those passing the static criteria: the selection
         then depends on the fit and the errors understate (rosetta_fit.md decision 13).
+    segment_s : float
+        Daily model: ``|B|`` is taken constant up to a straight line in time within
+        segments of this length inside each interval (the slow compressive changes of
+        ``|B|`` are removed, the fast rotations kept; rosetta_fit.md decision 15); the
+        ``compressive`` criterion compares the powers left within the segments.  A
+        segment shorter than ``min_segment_samples`` samples at the data's median rate
+        is lengthened to hold them.  ``interval_s`` or more: one segment per interval,
+        its mean only removed (the estimator before issue 34).
+    min_segment_samples : int
+        Samples a segment holds at least (the line takes two of them).
+    jump_min_side : int
+        Daily model: the change-point scan (`scan_offset_step`) tries splits with at least
+        this many accepted intervals on each side.
+    max_jump_chi2 : float
+        Daily model: refuse a day whose largest step ``chi2`` (3 dof) exceeds this: an
+        offset jump inside the day, named with its time and size (rosetta_fit.md
+        decision 16).
+    goal : float
+        Figure of merit (nT): refuse a daily curve whose predicted error of the
+        recalibrated day, twice the rms of its stated error over the day's vectors, exceeds
+        this in any axis (issue 34: 0.2 nT for Rosetta; rosetta_fit.md decision 17).  A
+        larger value accepts a worse table and is written into it.
     """
 
     interval_s: float = 1200.0
@@ -132,6 +159,11 @@ class VarianceSettings:
     max_offset: float = 200.0
     max_jump: float = 100.0
     max_compressive_share: float = 1.0 / 3.0
+    segment_s: float = 60.0
+    min_segment_samples: int = 8
+    jump_min_side: int = 3
+    max_jump_chi2: float = 30.0
+    goal: float = GOAL_NT
 
 
 def _intervals(epoch: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -147,13 +179,59 @@ def _min_count(epoch: np.ndarray, s: VarianceSettings) -> float:
     return max(float(s.min_samples), 0.5 * s.interval_s / max(float(step), 1e-9))
 
 
+@dataclass(frozen=True)
+class _Segments:
+    """Segments of the intervals: per-sample code ``0..m-1``, time (s), line removed.
+
+    ``on`` False: one segment per interval, its mean only (the estimator before issue 34).
+    """
+
+    codes: np.ndarray
+    m: int
+    seconds: np.ndarray
+    on: bool
+    length_s: float
+
+    @classmethod
+    def of(cls, epoch: np.ndarray, codes: np.ndarray, labels: np.ndarray,
+           s: VarianceSettings) -> _Segments:
+        seconds = (epoch - epoch.min()) / NS
+        step = float(np.median(np.diff(epoch)) / NS) if epoch.size > 1 else s.interval_s
+        length = max(float(s.segment_s), s.min_segment_samples * step)
+        if length >= s.interval_s:
+            return cls(codes, int(labels.size), seconds, False, float(s.interval_s))
+        seg, m = segment_codes(seconds, codes, labels * s.interval_s, length)
+        return cls(seg, m, seconds, True, length)
+
+    def residual(self, values: np.ndarray) -> np.ndarray:
+        """``values`` less each segment's mean (and line)."""
+        return remove_segment_lines(values, self.codes, self.m, self.seconds, line=self.on)
+
+    def compressibility(self, b: np.ndarray, codes: np.ndarray, k: int) -> np.ndarray | None:
+        """Per interval, power of ``|b|`` over that of ``b`` left within the segments."""
+        if not self.on:
+            return None
+        mag = np.sqrt(np.einsum("ij,ij->i", b, b))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (segment_variance(self.residual(mag), codes, k)
+                    / segment_variance(self.residual(b), codes, k).sum(axis=1))
+
+
 def _select(b: np.ndarray, codes: np.ndarray, k: int, min_count: float,
-            s: VarianceSettings, static_only: bool = False) -> np.ndarray:
+            s: VarianceSettings, static_only: bool = False,
+            segments: _Segments | None = None) -> np.ndarray:
     """First failed criterion per interval (``""``: accepted), evaluated on ``b``."""
+    ratio = None if segments is None or static_only else segments.compressibility(b, codes, k)
     return interval_reasons(b, codes, k, min_samples=min_count,
                             min_eigenvalue_ratio=s.min_eigenvalue_ratio,
                             min_relative_amplitude=s.min_relative_amplitude,
-                            max_compressibility=s.max_compressibility, static_only=static_only)
+                            max_compressibility=s.max_compressibility, static_only=static_only,
+                            compressibility=ratio)
+
+
+def _history_text(history: list[tuple[float, int, int]]) -> str:
+    """Return the steps as ``curve moved, accepted, flipped`` text."""
+    return "; ".join(f"{m:.3g} nT, {a} accepted, {f} flipped" for m, a, f in history) or "none"
 
 
 def _reasons_text(reason: np.ndarray) -> str:
@@ -162,23 +240,22 @@ def _reasons_text(reason: np.ndarray) -> str:
 
 
 def _normal_equations(b: np.ndarray, powers: np.ndarray, codes: np.ndarray, k: int,
-                      accepted: np.ndarray, block: np.ndarray, nb: int
+                      accepted: np.ndarray, block: np.ndarray, nb: int, segments: _Segments
                       ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """Per-block normal equations of the linearised variance of ``|b - dP|``.
 
-    Columns ``u_i x^k`` (axis-major); target ``|b|``; both with each interval's mean
-    removed.  Returns ``(normal (nb, p, p), rhs (nb, p), residual sum, samples)``.
+    Columns ``u_i x^k`` (axis-major); target ``|b|``; both with each segment's mean (and
+    line in time) removed.  Returns ``(normal (nb, p, p), rhs (nb, p), residual sum,
+    samples)``.
     """
     ok = accepted[codes]
-    b, powers, codes, block = b[ok], powers[ok], codes[ok], block[ok]
+    b, powers, block = b[ok], powers[ok], block[ok]
+    part = _Segments(segments.codes[ok], segments.m, segments.seconds[ok], segments.on,
+                     segments.length_s)
     mag = np.sqrt(np.einsum("ij,ij->i", b, b))
     u = b / mag[:, None]
-    x = (u[:, :, None] * powers[:, None, :]).reshape(mag.size, -1)
-    n_k = np.bincount(codes, minlength=k).astype(float)
-    inv = np.where(n_k > 0, 1.0 / np.maximum(n_k, 1.0), 0.0)
-    x = x - np.stack([np.bincount(codes, x[:, j], k) for j in range(x.shape[1])],
-                     axis=1)[codes] * inv[codes, None]
-    y = mag - (np.bincount(codes, mag, k) * inv)[codes]
+    x = part.residual((u[:, :, None] * powers[:, None, :]).reshape(mag.size, -1))
+    y = part.residual(mag)
     p = x.shape[1]
     normal = np.zeros((nb, p, p))
     rhs = np.zeros((nb, p))
@@ -282,14 +359,17 @@ def fit_extended_model_variance(
     block_ids, block_code = np.unique(block_of_interval, return_inverse=True)
     nb = block_ids.size
     block = block_code[codes]
+    segments = _Segments.of(epoch, codes, labels, s)
     q = start.q.copy()
     p = 3 * (degree + 1)
     reason = previous = None
     converged = False
     static_phase = True
+    history: list[tuple[float, int, int]] = []  # per step: curve moved (nT), accepted, flips
     for _ in range(s.max_iterations):  # Gauss-Newton steps
         bp = b - powers @ q
-        previous, reason = reason, _select(bp, codes, k, min_count, s, static_only=static_phase)
+        previous, reason = reason, _select(bp, codes, k, min_count, s, static_only=static_phase,
+                                           segments=segments)
         accepted = reason == ""
         if np.count_nonzero(accepted) < p + 1:
             raise FitRefusedError(
@@ -299,10 +379,13 @@ def fit_extended_model_variance(
                 "(Alfvenic) intervals or a lower --degree, or use --estimator zero-mean if "
                 "the field averages to zero"
             )
-        normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, accepted, block, nb)
+        normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, accepted, block, nb,
+                                              segments)
         step = _solve(normal.sum(axis=0), rhs.sum(axis=0)).reshape(3, degree + 1).T
         q = q + step
         moved = float(np.abs(powers @ step).max())
+        history.append((moved, int(np.count_nonzero(accepted)),
+                        0 if previous is None else int(np.count_nonzero(reason != previous))))
         if moved < s.tolerance and np.array_equal(reason, previous):
             if not static_phase:
                 converged = True
@@ -310,7 +393,7 @@ def fit_extended_model_variance(
             static_phase = False
     if not converged:
         bp = b - powers @ q
-        full = _select(bp, codes, k, min_count, s)
+        full = _select(bp, codes, k, min_count, s, segments=segments)
         too_compressive = _compressive_refusal(
             what, full, _select(bp, codes, k, min_count, s, static_only=True) == "", s)
         if too_compressive:
@@ -324,6 +407,7 @@ def fit_extended_model_variance(
                  f"{s.tolerance:g} nT)")
         raise FitRefusedError(
             f"{what}: no convergence in {s.max_iterations} Gauss-Newton steps: {cause}; "
+            f"last steps {_history_text(history[-3:])}; "
             f"rejected intervals at the last curve: {_reasons_text(full)}; give a day with "
             "more rotating "
             "(Alfvenic) intervals, a lower --degree, or use --estimator zero-mean if the "
@@ -337,14 +421,14 @@ def fit_extended_model_variance(
     if too_compressive:
         raise FitRefusedError(too_compressive)
     # per-interval normal equations of every interval that passes the static criteria
-    normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, static, codes, k)
+    normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, static, codes, k, segments)
     mag = np.sqrt(np.einsum("ij,ij->i", bp, bp))
     count = np.bincount(codes, minlength=k).astype(float)
-    centred = mag - (np.bincount(codes, mag, k) / np.maximum(count, 1.0))[codes]
-    yy_k = np.bincount(codes, centred**2, k)
-    trace_k = np.trace(interval_moments(bp, codes, k).cov, axis1=1, axis2=2)
+    yy_k = segment_variance(segments.residual(mag), codes, k) * count
+    trace_k = segment_variance(segments.residual(bp), codes, k).sum(axis=1)
     yy, n_used = float(yy_k[accepted].sum()), int(count[accepted].sum())
     eligible = static & (reason != "small_fluctuations")  # kept as selected
+    scan = scan_offset_step(normal, rhs, accepted, degree, s.jump_min_side)
 
     def compressive_ok(d: np.ndarray) -> np.ndarray:
         """Intervals passing ``compressive`` after the curve moves by ``d`` (linearised)."""
@@ -380,7 +464,30 @@ def fit_extended_model_variance(
         chi2=np.full(3, np.nan), dof=n_used - p - n_acc, noise=None, estimator="variance",
         notes={**start.notes,
                "intervals": f"{n_acc} of {k} accepted; rejected: {_reasons_text(reason)}",
-               "bootstrap": f"{s.n_bootstrap} resamples of {nb} blocks of {s.block_s:g} s"})
+               "bootstrap": f"{s.n_bootstrap} resamples of {nb} blocks of {s.block_s:g} s",
+               "jump scan": (f"chi2 {scan.statistic:.1f} at interval {scan.split} step "
+                             + " ".join(f"{v:.3f}" for v in scan.step) + " +- "
+                             + " ".join(f"{v:.3f}" for v in scan.sigma)),
+               "segments": (f"|B| constant up to a line in time within {segments.length_s:g}-s "
+                            f"segments ({segments.m})" if segments.on else
+                            f"|B| constant within each {s.interval_s:g}-s interval"),
+               "convergence": (f"{len(history)} Gauss-Newton steps; stopped: the curve moved "
+                               f"{history[-1][0]:.2g} nT < {s.tolerance:g} nT with the "
+                               "selection unchanged; per step (curve moved, accepted, "
+                               f"flipped): {_history_text(history)}")})
+    if scan.statistic > s.max_jump_chi2:
+        at = int(epoch.min()) + int(round(labels[scan.split] * s.interval_s * NS))
+        before = at - int(round(s.interval_s * NS))
+        when = tt2000_to_utc(np.array([before, at]), digits=0)
+        raise FitRefusedError(
+            f"{what}: an offset jump of " + " ".join(f"{v:+.2f}" for v in scan.step)
+            + " +- " + " ".join(f"{v:.2f}" for v in scan.sigma)
+            + f" nT (x y z) between {when[0]} and {when[1]} UTC (change-point chi2 "
+            f"{scan.statistic:.0f} for 3 dof over {scan.splits} splits, limit "
+            f"{s.max_jump_chi2:g}): the daily polynomial cannot hold a jump and would "
+            "spread it over the day; fit the part of the day before or after it alone "
+            "(the jump itself belongs in an Appendix B table, fluxcal rosetta fit --jumps)"
+        )
     grid = np.linspace(*fit.temperature_range, 101)
     curve_sigma = fit.offset_sigma(grid)
     worst = np.unravel_index(np.argmax(curve_sigma), curve_sigma.shape)
@@ -404,7 +511,127 @@ def fit_extended_model_variance(
             "field taken for an offset, or a wrong ground calibration); check --calib, "
             "or fit a day with rotating field over the temperature range"
         )
-    return fit
+    merit = predicted_error(fit, t)
+    if not np.all(merit <= s.goal):
+        axis = int(np.argmax(merit))
+        raise FitRefusedError(
+            f"{what}: predicted error of the recalibrated day " + " ".join(
+                f"{v:.3f}" for v in merit) + f" nT (x y z; twice the rms of the curve's stated "
+            f"error over the day's vectors) is above the goal {s.goal:g} nT in "
+            f"{'xyz'[axis]} ({n_acc} of {k} intervals accepted, rejected: "
+            f"{_reasons_text(reason)}; |B| rms within {segments.length_s:g}-s segments "
+            f"{rms:.3g} nT); give a day with more rotation and less compression, a lower "
+            "--degree, or accept a worse table with --goal (written into the file)"
+        )
+    return dataclasses.replace(fit, notes={
+        **fit.notes, "curve error": curve_error_text(fit, t),
+        "figure of merit": (
+            "predicted error of the recalibrated day (2 x rms stated error over its "
+            "vectors) x y z " + " ".join(f"{v:.3f}" for v in merit) + f" nT; goal {s.goal:g} nT"
+            + ("" if s.goal <= GOAL_NT else f" (ACCEPTED ABOVE THE DEFAULT GOAL {GOAL_NT:g} "
+               "nT by --goal)"))})
+
+
+def predicted_error(fit: DailyModelFit, temperature: np.ndarray) -> np.ndarray:
+    """Twice the rms of the curve's stated error over ``temperature`` (nT, x y z).
+
+    The figure of merit of a daily curve (issue 34): the error a day recalibrated with it
+    is expected to stay within (95 %), from the fit's covariance alone.
+    """
+    return 2.0 * np.sqrt(np.mean(fit.offset_sigma(np.asarray(temperature)) ** 2, axis=0))
+
+
+def curve_error_text(fit: DailyModelFit, temperature: np.ndarray) -> str:
+    """Return the curve's stated error: rms over the day's vectors, largest over the range."""
+    grid = np.linspace(*fit.temperature_range, 101)
+    rms = np.sqrt(np.mean(fit.offset_sigma(np.asarray(temperature)) ** 2, axis=0))
+    worst = fit.offset_sigma(grid).max(axis=0)
+    return ("1-sigma x y z: rms over the day " + " ".join(f"{v:.3f}" for v in rms)
+            + " nT, largest over the range " + " ".join(f"{v:.3f}" for v in worst) + " nT")
+
+
+@dataclass(frozen=True)
+class JumpScan:
+    """Change-point scan of the residual interval offsets of a daily fit (issue 34).
+
+    Attributes
+    ----------
+    statistic : float
+        Largest ``chi2`` (3 dof) over the splits of the accepted intervals.
+    split : int
+        Index (into the intervals) of the first interval after the best split; -1: none.
+    step : ndarray, shape (3,)
+        The offset step (nT, x y z) at that split, the curve refitted with it.
+    sigma : ndarray, shape (3,)
+        Its standard error (nT).
+    splits : int
+        Splits scanned.
+    """
+
+    statistic: float
+    split: int
+    step: np.ndarray
+    sigma: np.ndarray
+    splits: int
+
+
+def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degree: int,
+                     min_side: int) -> JumpScan:
+    """Score test of a constant offset step between consecutive intervals, every split.
+
+    At the converged curve each accepted interval ``k`` has normal equations
+    ``(N_k, r_k)`` of the linearised variance of ``|B'|`` (``r_k``: its residual
+    scores).  A step ``D`` of the offset from interval ``j`` on adds the constant columns
+    ``c`` (``u_i x^0``) of the intervals ``k >= j``.  Its estimate with the curve refitted
+    is ``D_j = S_j^-1 (g_j - C_j^T N^-1 r)``, ``S_j = D_j - C_j^T N^-1 C_j``, with ``N, r``
+    the sums over all intervals, ``C_j, D_j, g_j`` those over ``k >= j`` of ``N_k[:, c]``,
+    ``N_k[c, c]``, ``r_k[c]``.  Its covariance is the sandwich over intervals (the scores'
+    own scatter: the compressive noise is correlated within an interval, not between
+    them) times ``n / (n - p - 3)``; ``chi2_j = D_j^T V_j^-1 D_j``.  Splits leave at
+    least ``min_side`` accepted intervals on each side.
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.4 and Appendix B (offset jumps: a
+       constant offset from a time on).
+    """
+    idx = np.flatnonzero(use)
+    n = idx.size
+    p = normal.shape[1]
+    cc = np.arange(3) * (degree + 1)
+    none = JumpScan(0.0, -1, np.zeros(3), np.full(3, np.nan), 0)
+    if n < 2 * min_side:
+        return none
+    nk, rk = normal[idx], rhs[idx]
+    n_all, r_all = nk.sum(axis=0), rk.sum(axis=0)
+    inv = np.linalg.pinv(n_all)
+    # suffix sums over intervals k >= j
+    c_suf = np.cumsum(nk[::-1][:, :, cc], axis=0)[::-1]           # (n, p, 3)
+    d_suf = np.cumsum(nk[::-1][:, cc][:, :, cc], axis=0)[::-1]    # (n, 3, 3)
+    g_suf = np.cumsum(rk[::-1][:, cc], axis=0)[::-1]              # (n, 3)
+    js = np.arange(min_side, n - min_side + 1)
+    c_j, d_j, g_j = c_suf[js], d_suf[js], g_suf[js]
+    proj = np.einsum("jpc,pq->jcq", c_j, inv)                      # C_j^T N^-1, (J, 3, p)
+    s_j = d_j - np.einsum("jcq,jqd->jcd", proj, c_j)
+    after = np.arange(n)[None, :] >= js[:, None]                   # (J, n)
+    s_inv = np.linalg.pinv(s_j)
+    step = np.einsum("jcd,jd->jc", s_inv, g_j - np.einsum("jcq,q->jc", proj, r_all))
+    # the curve's change with the step, and each interval's scores after both (the
+    # alternative's residuals: a real step must not inflate its own error)
+    moved = np.einsum("pq,jq->jp", inv, r_all[None] - np.einsum("jpc,jc->jp", c_j, step))
+    r_alt = (rk[None] - np.einsum("kpq,jq->jkp", nk, moved)
+             - after[:, :, None] * np.einsum("kpc,jc->jkp", nk[:, :, cc], step))
+    # the scores of an interval scatter as phi N_k (phi > 1: the compressive noise is
+    # correlated within a segment); phi pooled over all intervals, so that a split near
+    # the day's edge is not judged by the scatter of three intervals
+    own = np.linalg.pinv(nk[:, cc][:, :, cc])                      # (n, 3, 3)
+    phi = (np.einsum("jkc,kcd,jkd->j", r_alt[:, :, cc], own, r_alt[:, :, cc])
+           / max(3 * n - p - 3, 1))
+    cov = phi[:, None, None] * s_inv
+    chi2 = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(cov), step)
+    best = int(np.argmax(chi2))
+    return JumpScan(float(chi2[best]), int(idx[js[best]]), step[best],
+                    np.sqrt(np.diag(cov[best])), int(js.size))
 
 
 def _compressive_refusal(what: str, reason: np.ndarray, static: np.ndarray,
@@ -564,6 +791,14 @@ def fit_offset_jumps_variance(
                 + f" nT (limit {s.max_sigma:g} nT; {est.n_used} of {est.labels.size} "
                 f"sub-intervals accepted, rejected: {_reasons_text(est.reason)}); give more "
                 "rotating data in the interval, or raise --max-sigma"
+            )
+        if not np.all(2.0 * sigma[j] <= s.goal):
+            raise FitRefusedError(
+                f"{what}: J = " + " ".join(f"{v:.3g}" for v in jumps[j]) + " +- "
+                + " ".join(f"{v:.3g}" for v in sigma[j])
+                + f" nT: twice its error is above the goal {s.goal:g} nT ({est.n_used} of "
+                f"{est.labels.size} sub-intervals accepted); give more rotating data in the "
+                "interval, or accept a worse table with --goal (written into the file)"
             )
         if not np.all(np.abs(jumps[j]) <= s.max_jump):
             axis = int(np.argmax(np.abs(jumps[j])))
