@@ -234,8 +234,14 @@ class DailyModelFit:
                                  for c in self.covariance_q], axis=1))
 
     def to_model(self, source: str = "") -> DailyOffsetModel:
-        """Return the `DailyOffsetModel` the pipeline applies."""
-        return DailyOffsetModel(self.day, self.sensor, self.coefficients.copy(), source)
+        """Return the `DailyOffsetModel` the pipeline applies, with its range and error.
+
+        ``curve_sigma``: the largest stated error of the curve over the fitted range.
+        """
+        grid = np.linspace(*self.temperature_range, 101)
+        return DailyOffsetModel(self.day, self.sensor, self.coefficients.copy(), source,
+                                temperature_range=tuple(map(float, self.temperature_range)),
+                                curve_sigma=self.offset_sigma(grid).max(axis=0))
 
 
 def reduced_temperature(level_a: xr.Dataset, calibration: GroundCalibration) -> np.ndarray:

@@ -102,6 +102,7 @@ def fit_files(
     boom: str = "deployed",
     alignment_from_kernels: bool = False,
     estimator: str = "variance",
+    goal: float | None = None,
 ) -> list[Path]:
     """Run ``fluxcal rosetta fit`` on one or more raw science files of one sensor.
 
@@ -124,7 +125,9 @@ def fit_files(
     ``|B|`` within intervals of ``block_s``, default 1200 s, nothing about the mean
     field; no attitude needed for the jumps) or ``"zero-mean"`` (the seed's criteria:
     the day's field, or the CSEQ ``B_z``, averages to zero).  A variance fit whose error
-    exceeds ``max_sigma`` (nT) is refused.
+    exceeds ``max_sigma`` (nT) is refused, and so is one whose figure of merit (the
+    predicted error of a recalibrated day, or twice a jump's error) exceeds ``goal`` (nT;
+    default `fit_variance.GOAL_NT`, 0.2 nT; a larger value is written into the file).
 
     Returns
     -------
@@ -145,7 +148,8 @@ def fit_files(
         raise FluxcalError(f"estimator {estimator!r}: choose one of {', '.join(ESTIMATORS)}")
     variance = estimator == "variance"
     vset = VarianceSettings(**({"interval_s": block_s} if block_s else {}),
-                            **({"max_sigma": max_sigma} if max_sigma is not None else {}))
+                            **({"max_sigma": max_sigma} if max_sigma is not None else {}),
+                            **({"goal": goal} if goal is not None else {}))
     if jumps and kernels is None and not variance:
         raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame; "
                            "--estimator variance needs none)")
