@@ -23,6 +23,8 @@ from fluxcal.missions.rosetta.calib import DailyOffsetModel
 NS = 1_000_000_000
 #: Default largest gap (s) across which the midnight stitching of sec. 4.2.3.3 continues.
 STITCH_GAP_S = 3 * 3600.0
+#: Vectors within this of a daily model's fitted range (deg C) count as inside it.
+RANGE_TOLERANCE_C = 0.02
 
 
 @dataclass(frozen=True)
@@ -227,6 +229,7 @@ def outside_fitted_range(
     day_index: np.ndarray,
     days: list[np.datetime64],
     models: Mapping[np.datetime64, DailyOffsetModel],
+    tolerance_c: float = RANGE_TOLERANCE_C,
 ) -> list[str]:
     """Say, per day, which vectors a daily polynomial reaches outside its fitted range.
 
@@ -243,6 +246,10 @@ def outside_fitted_range(
         Index into ``days`` of each vector's UTC day.
     days : list of numpy.datetime64[D]
     models : mapping day -> DailyOffsetModel
+    tolerance_c : float
+        Vectors less than this outside (deg C) are not reported: two half steps of the
+        thermistor word (0.0098 C each, docs/decisions/rosetta_fit.md decision 6), the
+        resolution the range itself was measured with.
 
     Returns
     -------
@@ -261,7 +268,7 @@ def outside_fitted_range(
             continue
         lo, hi = model.temperature_range
         sel = t[np.asarray(day_index) == d]
-        below, above = sel < lo, sel > hi
+        below, above = sel < lo - tolerance_c, sel > hi + tolerance_c
         n = int(np.count_nonzero(below | above))
         if not n:
             continue

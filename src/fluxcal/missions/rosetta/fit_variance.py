@@ -161,7 +161,7 @@ class VarianceSettings:
     max_compressive_share: float = 1.0 / 3.0
     segment_s: float = 60.0
     min_segment_samples: int = 8
-    jump_min_side: int = 3
+    jump_min_side: int = 6
     max_jump_chi2: float = 30.0
     goal: float = GOAL_NT
 
@@ -627,8 +627,16 @@ def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degre
     own = np.linalg.pinv(nk[:, cc][:, :, cc])                      # (n, 3, 3)
     phi = (np.einsum("jkc,kcd,jkd->j", r_alt[:, :, cc], own, r_alt[:, :, cc])
            / max(3 * n - p - 3, 1))
-    cov = phi[:, None, None] * s_inv
-    chi2 = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(cov), step)
+    pooled = phi[:, None, None] * s_inv
+    # and the sandwich over intervals (robust where some intervals are much noisier than
+    # the rest, as near wave packets); the smaller chi2 of the two is the statistic
+    z = after[:, :, None] * r_alt[:, :, cc] - np.einsum("jcq,jkq->jkc", proj, r_alt)
+    meat = np.einsum("jkc,jkd->jcd", z, z) * n / max(n - p - 3, 1)
+    sandwich = np.einsum("jab,jbc,jdc->jad", s_inv, meat, s_inv)
+    chi2_pooled = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(pooled), step)
+    chi2_sandwich = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(sandwich), step)
+    chi2 = np.minimum(chi2_pooled, chi2_sandwich)
+    cov = np.where((chi2_pooled <= chi2_sandwich)[:, None, None], pooled, sandwich)
     best = int(np.argmax(chi2))
     return JumpScan(float(chi2[best]), int(idx[js[best]]), step[best],
                     np.sqrt(np.diag(cov[best])), int(js.size))
