@@ -107,7 +107,7 @@ def main() -> None:
     p.add_argument("--rate", type=float, default=0.25)
     p.add_argument("--segment", type=float, default=60.0, help="segment_s (1200: before)")
     p.add_argument("--goal", type=float, default=GOAL)
-    p.add_argument("--max-chi2", type=float, default=30.0)
+    p.add_argument("--max-chi2", type=float, default=25.0)
     p.add_argument("--max-sigma", type=float, default=1.0)
     p.add_argument("--jump", type=float, default=0.0, help="x (1.5, -1.0, 0.8) nT from noon")
     p.add_argument("--workers", type=int, default=1)

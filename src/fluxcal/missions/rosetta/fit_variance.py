@@ -162,7 +162,7 @@ class VarianceSettings:
     segment_s: float = 60.0
     min_segment_samples: int = 8
     jump_min_side: int = 6
-    max_jump_chi2: float = 30.0
+    max_jump_chi2: float = 25.0
     goal: float = GOAL_NT
 
 
