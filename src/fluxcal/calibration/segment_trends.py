@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["segment_codes", "remove_segment_lines", "segment_variance"]
+__all__ = ["interval_products", "remove_segment_lines", "segment_codes", "segment_variance"]
 
 
 def segment_codes(
@@ -111,3 +111,22 @@ def segment_variance(
         return np.bincount(interval_codes, r * r, k) * inv
     return np.stack([np.bincount(interval_codes, r[:, j] ** 2, k) for j in range(r.shape[1])],
                     axis=1) * inv[:, None]
+
+
+def interval_products(
+    residual: NDArray[np.float64], interval_codes: NDArray[np.intp], k: int,
+) -> NDArray[np.float64]:
+    """Mean products of segment residuals per interval, shape (k, d, d).
+
+    The covariance of the columns within an interval once every segment's mean (and line)
+    is removed (`remove_segment_lines`); its diagonal is `segment_variance`.
+    """
+    r = np.asarray(residual, dtype=float)
+    n_k = np.bincount(interval_codes, minlength=k).astype(float)
+    inv = np.where(n_k > 0, 1.0 / np.maximum(n_k, 1.0), np.nan)
+    d = r.shape[1]
+    out = np.empty((k, d, d))
+    for i in range(d):  # columns, not samples
+        for j in range(i, d):
+            out[:, i, j] = out[:, j, i] = np.bincount(interval_codes, r[:, i] * r[:, j], k) * inv
+    return out

@@ -23,11 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.rosetta import calib, forward
 from fluxcal.missions.rosetta.calib import DailyOffsetModel
 
-from ._daily_mean_wind import curve, instrument_raw, true_coefficients
+from ._daily_mean_wind import curve, instrument_raw, time_line, true_coefficients
 
 NS = 1_000_000_000
 COMPRESSION = 0.10
@@ -93,15 +92,8 @@ def comet_day(day: str, *, seed: int, b0: float = 18.0, rate_hz: float = 0.25,
     """
     rng = np.random.default_rng(seed)
     cal = calib.load_ground_calibration("OB")
-    nominal = calib.load_nominal_conversion()
-    shifts = calib.load_time_shift_table()
     coefficients = true_coefficients() if coefficients is None else coefficients
-    n = int(hours * 3600 * rate_hz)
-    midnight = int(utc_to_tt2000(np.array([day + "T00:00:00"]))[0])
-    secs = start_s + np.arange(n) / rate_hz
-    stamps = midnight + np.rint(secs * NS).astype(np.int64)
-    sid = np.full(n, 2, dtype=np.int16)
-    delay = forward.filter_delay(sid, shifts, secondary=False)
+    secs, stamps, sid, delay = time_line(day, start_s, hours, rate_hz)
     b = comet_field(secs, b0, rng, compression=compression)
     temp = temperature(secs + delay, mean_c, swing_c, phase) + temperature_shift_c
     model = DailyOffsetModel(np.datetime64(day, "D"), "OB", coefficients, "truth")
@@ -109,5 +101,6 @@ def comet_day(day: str, *, seed: int, b0: float = 18.0, rate_hz: float = 0.25,
                                   {model.day: model})
     if jump is not None:
         ext = ext + np.where((secs + delay >= jump_s)[:, None], np.asarray(jump), 0.0)
-    raw = instrument_raw(stamps, sid, b + ext, temp, cal, nominal, f"comet day seed {seed}")
+    raw = instrument_raw(stamps, sid, b + ext, temp, cal, calib.load_nominal_conversion(),
+                         f"comet day seed {seed}")
     return raw, b, temp, ext

@@ -37,6 +37,7 @@ from fluxcal.missions.rosetta.fit import (
 )
 from fluxcal.missions.rosetta.fit_variance import (
     ESTIMATORS,
+    GOAL_NT,
     VarianceSettings,
     fit_extended_model_variance,
     fit_offset_jumps_variance,
@@ -236,6 +237,9 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
         order = np.argsort(epoch, kind="stable")
         fit = fit_offset_jumps_variance(epoch[order], b_sc[order], start, end, sensor=sensor,
                                         settings=variance, lsk=lsk)
+        prov["goal"] = (f"{variance.goal:g} nT (twice each jump's error)" + (
+            "" if variance.goal <= GOAL_NT else
+            f" (ACCEPTED ABOVE THE DEFAULT GOAL {GOAL_NT:g} nT by --goal)"))
         prov["alignment"] = levels_b[0].attrs["alignment"]
         prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
         return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE,

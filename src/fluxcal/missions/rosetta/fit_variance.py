@@ -196,9 +196,8 @@ class _Segments:
     def of(cls, epoch: np.ndarray, codes: np.ndarray, labels: np.ndarray,
            s: VarianceSettings) -> _Segments:
         seconds = (epoch - epoch.min()) / NS
-        step = float(np.median(np.diff(epoch)) / NS) if epoch.size > 1 else s.interval_s
-        length = max(float(s.segment_s), s.min_segment_samples * step)
-        if length >= s.interval_s:
+        length = _segment_length(epoch, s)
+        if length is None:
             return cls(codes, int(labels.size), seconds, False, float(s.interval_s))
         seg, m = segment_codes(seconds, codes, labels * s.interval_s, length)
         return cls(seg, m, seconds, True, length)
@@ -215,6 +214,16 @@ class _Segments:
         with np.errstate(invalid="ignore", divide="ignore"):
             return (segment_variance(self.residual(mag), codes, k)
                     / segment_variance(self.residual(b), codes, k).sum(axis=1))
+
+
+def _segment_length(epoch: np.ndarray, s: VarianceSettings) -> float | None:
+    """Segment length (s): ``segment_s``, or ``min_segment_samples`` at the median rate.
+
+    ``None`` when that is an interval or more (one segment per interval, mean only).
+    """
+    step = float(np.median(np.diff(epoch)) / NS) if epoch.size > 1 else s.interval_s
+    length = max(float(s.segment_s), s.min_segment_samples * step)
+    return None if length >= s.interval_s else length
 
 
 def _select(b: np.ndarray, codes: np.ndarray, k: int, min_count: float,
@@ -774,7 +783,8 @@ def fit_offset_jumps_variance(
                 min_eigenvalue_ratio=s.min_eigenvalue_ratio,
                 min_relative_amplitude=s.min_relative_amplitude,
                 max_compressibility=s.max_compressibility,
-                max_iterations=s.max_iterations, n_bootstrap=s.n_bootstrap, seed=seed)
+                max_iterations=s.max_iterations, n_bootstrap=s.n_bootstrap, seed=seed,
+                seconds=(e - starts[j]) / NS, segment_s=_segment_length(e, s))
         except FluxcalError as exc:
             raise FitRefusedError(
                 f"{what}: the sub-intervals of {s.interval_s:g} s do not determine the "
@@ -792,21 +802,17 @@ def fit_offset_jumps_variance(
                 "depends on the fitted offset and its error would be too small "
                 "(rosetta_fit.md decision 13); give calmer data in the interval"
             )
-        if not np.all(sigma[j] <= s.max_sigma):
+        over_sigma = not np.all(sigma[j] <= s.max_sigma)
+        if over_sigma or not np.all(2.0 * sigma[j] <= s.goal):
+            why, advice = ((f"limit {s.max_sigma:g} nT", "raise --max-sigma") if over_sigma else
+                           (f"twice the error is above the goal {s.goal:g} nT",
+                            "accept a worse table with --goal (written into the file)"))
             raise FitRefusedError(
                 f"{what}: J = " + " ".join(f"{v:.3g}" for v in jumps[j]) + " +- "
                 + " ".join(f"{v:.3g}" for v in sigma[j])
-                + f" nT (limit {s.max_sigma:g} nT; {est.n_used} of {est.labels.size} "
+                + f" nT ({why}; {est.n_used} of {est.labels.size} "
                 f"sub-intervals accepted, rejected: {_reasons_text(est.reason)}); give more "
-                "rotating data in the interval, or raise --max-sigma"
-            )
-        if not np.all(2.0 * sigma[j] <= s.goal):
-            raise FitRefusedError(
-                f"{what}: J = " + " ".join(f"{v:.3g}" for v in jumps[j]) + " +- "
-                + " ".join(f"{v:.3g}" for v in sigma[j])
-                + f" nT: twice its error is above the goal {s.goal:g} nT ({est.n_used} of "
-                f"{est.labels.size} sub-intervals accepted); give more rotating data in the "
-                "interval, or accept a worse table with --goal (written into the file)"
+                f"rotating data in the interval, or {advice}"
             )
         if not np.all(np.abs(jumps[j]) <= s.max_jump):
             axis = int(np.argmax(np.abs(jumps[j])))
