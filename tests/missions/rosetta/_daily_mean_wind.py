@@ -142,9 +142,11 @@ JUMP_INTERVALS = (("2014-08-01T00:00:00", "2014-08-03T00:00:00"),
 
 
 def jump_data(seed: int, rate_hz: float = 0.1, compression: float = COMPRESSION,
-              jumps: np.ndarray = TRUE_JUMPS):
+              jumps: np.ndarray = TRUE_JUMPS, field=None):
     """Four days of the daily-mean wind in CSEQ, turned into the spacecraft frame by a
     slow attitude, plus ``jumps[0]`` / ``jumps[1]`` over the two `JUMP_INTERVALS`.
+
+    ``field(seconds, rng)``, optional, gives another CSEQ field (nT, (n, 3)).
 
     Returns ``(epoch tt2000, b_sc, rotation matrices, b_cseq)``.
     """
@@ -154,7 +156,8 @@ def jump_data(seed: int, rate_hz: float = 0.1, compression: float = COMPRESSION,
     secs = np.arange(0.0, 4 * 86400.0, 1.0 / rate_hz)
     epoch = t0 + np.rint(secs * NS).astype(np.int64)
     second = epoch >= split
-    b_cseq = daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
+    b_cseq = (daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
+              if field is None else field(secs, rng))
     rot = Rotation.from_euler("zyx", np.stack([60 * np.sin(secs / 40_000.0),
                                                20 * np.sin(secs / 25_000.0),
                                                10 * np.cos(secs / 17_000.0)], 1),

@@ -160,3 +160,31 @@ def test_cli_goal_accepts_a_worse_table_and_says_so(tmp_path, capsys):
     text = (tmp_path / "b" / "RPCMAG_150310_006_CALIB_OB.TXT").read_text()
     assert "goal 1 nT (ACCEPTED ABOVE THE DEFAULT GOAL 0.2 nT by --goal)" in text
     assert main([*args, "--out", str(tmp_path / "c"), "--goal", "0"]) == 2
+
+
+def test_appendix_b_jumps_at_a_comet_within_the_goal(pool):
+    """Two 2-day Appendix B intervals of the 18-nT comet field under a slow attitude: the
+    variance jump fit with 60-s segments is within 0.1 nT and its stated errors cover it;
+    with one constant |B| per 1200-s sub-interval (before issue 34) it was off by 0.34 nT
+    and its errors (0.1-0.15 nT) fail the goal."""
+    from fluxcal.missions.rosetta.fit_variance import (
+        VarianceSettings,
+        fit_offset_jumps_variance,
+    )
+
+    from . import _daily_mean_wind as wind
+
+    epoch, b_sc, _, _ = wind.jump_data(
+        0, rate_hz=0.1, field=lambda secs, rng: comet.comet_field(secs, 18.0, rng))
+    start, end = (np.array(c) for c in zip(*wind.JUMP_INTERVALS, strict=True))
+    fit = fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB")
+    err = fit.jumps - wind.TRUE_JUMPS
+    assert np.all(np.abs(err) < GOAL / 2), err  # measured 0.051 nT at most
+    assert np.all(np.abs(err) < 3 * fit.sigma + 0.01), (err, fit.sigma)
+    assert np.all(2 * fit.sigma <= GOAL)
+    before = fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB",
+                                       settings=VarianceSettings(segment_s=1200.0, goal=99.0))
+    assert np.abs(before.jumps - wind.TRUE_JUMPS).max() > GOAL  # measured 0.34 nT
+    with pytest.raises(FitRefusedError, match="twice the error is above the goal 0.2 nT"):
+        fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB",
+                                  settings=VarianceSettings(segment_s=1200.0))
