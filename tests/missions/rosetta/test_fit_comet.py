@@ -188,3 +188,33 @@ def test_appendix_b_jumps_at_a_comet_within_the_goal(pool):
     with pytest.raises(FitRefusedError, match="twice the error is above the goal 0.2 nT"):
         fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB",
                                   settings=VarianceSettings(segment_s=1200.0))
+
+
+def test_a_jump_inside_an_appendix_b_interval_is_refused_naming_where_to_split(pool):
+    """(1.5, -1.0, 0.8) nT more from 12:00 of the first interval's first day: one constant
+    per interval would spread it; the fit names the time (within one 1200-s sub-interval)
+    and the size (within 3 sigma) and asks for the interval to be split there."""
+    from fluxcal.geometry.time import utc_to_tt2000
+    from fluxcal.missions.rosetta.fit_variance import fit_offset_jumps_variance
+
+    from . import _daily_mean_wind as wind
+
+    epoch, b_sc, _, _ = wind.jump_data(
+        1, rate_hz=0.1, field=lambda secs, rng: comet.comet_field(secs, 18.0, rng))
+    noon = np.datetime64("2014-08-01T12:00:00")
+    jumped = ((epoch >= utc_to_tt2000(np.array([str(noon)]))[0])
+              & (epoch < utc_to_tt2000(np.array([wind.JUMP_INTERVALS[1][0]]))[0]))
+    b_sc = b_sc + np.where(jumped[:, None], JUMP, 0.0)
+    start, end = (np.array(c) for c in zip(*wind.JUMP_INTERVALS, strict=True))
+    with pytest.raises(FitRefusedError, match="inside the interval") as info:
+        fit_offset_jumps_variance(epoch, b_sc, start, end, sensor="OB")
+    text = str(info.value)
+    m = re.search(r"jump of (\S+) (\S+) (\S+) \+- (\S+) (\S+) (\S+) nT \(x y z\) inside the "
+                  r"interval, between (\S+) and (\S+) UTC .* split the interval at about", text)
+    assert m and "2014-08-01T00:00:00 .. 2014-08-03T00:00:00" in text, text
+    step, sigma = np.array(m.groups()[:3], float), np.array(m.groups()[3:6], float)
+    first, last = (np.datetime64(v) for v in m.groups()[6:])
+    one = np.timedelta64(1200, "s")
+    assert first - one <= noon <= last + one, text
+    # + 0.05 nT: the step is one linearised solve from the fit without it
+    assert np.all(np.abs(step - JUMP) < 3 * sigma + 0.05), (step, sigma)

@@ -651,6 +651,30 @@ def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degre
                     np.sqrt(np.diag(cov[best])), int(js.size))
 
 
+def _scan_jump_interval(epoch: np.ndarray, b: np.ndarray, sub: np.ndarray, est,
+                        start: int, s: VarianceSettings) -> JumpScan:
+    """`scan_offset_step` over the sub-intervals of one Appendix B interval.
+
+    The per-sub-interval normal equations of a constant offset (the daily model's with
+    degree 0) at the fitted offset, with the segments `hedgecock_offsets` used.
+    """
+    labels, codes = np.unique(sub, return_inverse=True)
+    k = labels.size
+    seconds = (epoch - start) / NS
+    length = _segment_length(epoch, s)
+    if length is None:
+        segments = _Segments(codes, k, seconds, False, float(s.interval_s))
+    else:
+        first = np.full(k, np.inf)
+        np.minimum.at(first, codes, seconds)
+        seg, m = segment_codes(seconds, codes, first, length)
+        segments = _Segments(seg, m, seconds, True, length)
+    accepted = np.isin(labels, est.labels[est.accepted])
+    normal, rhs, _, _ = _normal_equations(b - est.offset, np.ones((b.shape[0], 1)), codes, k,
+                                          accepted, codes, k, segments)
+    return scan_offset_step(normal, rhs, accepted, 0, s.jump_min_side)
+
+
 def _compressive_refusal(what: str, reason: np.ndarray, static: np.ndarray,
                          s: VarianceSettings) -> str:
     """Return the refusal text when too many intervals are compressive, else ``""``."""
@@ -821,6 +845,20 @@ def fit_offset_jumps_variance(
                 f"outside the physical range +-{s.max_jump:g} nT of an Appendix B jump (the "
                 "largest shipped is 25 nT): a field taken for an offset or data of another "
                 "sensor state; check the interval's data and --calib"
+            )
+        scan = _scan_jump_interval(e, b, sub, est, starts[j], s)
+        if scan.statistic > s.max_jump_chi2:
+            labels = est.labels
+            at = int(starts[j]) + int(round(labels[scan.split] * s.interval_s * NS))
+            when = tt2000_to_utc(np.array([at - int(round(s.interval_s * NS)), at]),
+                                 digits=0, lsk=lsk)
+            raise FitRefusedError(
+                f"{what}: an offset jump of " + " ".join(f"{v:+.2f}" for v in scan.step)
+                + " +- " + " ".join(f"{v:.2f}" for v in scan.sigma)
+                + f" nT (x y z) inside the interval, between {when[0]} and {when[1]} UTC "
+                f"(change-point chi2 {scan.statistic:.0f} for 3 dof over {scan.splits} "
+                f"splits, limit {s.max_jump_chi2:g}): one constant offset would spread it; "
+                f"split the interval at about {when[1]} (--intervals CSV) and fit again"
             )
         used = np.isin(sub, est.labels[est.accepted])
         mag = np.linalg.norm(b[used] - est.offset, axis=1)
