@@ -7,8 +7,9 @@
 
 Realisation ``k`` simulates one comet day of ``tests/missions/rosetta/_comet_field.py``
 (seed ``4000 + k``; ``|B|`` = ``--b0`` nT or, with ``random``, 5-50 nT log-uniform; 10 %
-compressive modulation, f^-2 from 6 h to 2 min; f^-5/3 rotations about a draped direction;
-40-mHz wave packets of 1-2 nT; a daily temperature swing of 15-30 C about -120..-90 C)
+compressive modulation, f^-2 from 6 h to 2 min; f^-5/3 rotations about a draped direction
+down to ``--rotation-cut`` s (2); 40-mHz wave packets of 1-2 nT; a daily temperature swing
+of 15-30 C about -120..-90 C)
 through the seed's instrument model and fits the daily polynomial (`variance`,
 degree 3).  ``--jump S`` adds ``S`` x (1.5, -1.0, 0.8) nT from noon on.  A written fit is
 judged against the truth: the curve's rms error over the day's vectors (truth ``B_A -
@@ -58,8 +59,9 @@ def one(k: int, args: argparse.Namespace) -> dict:
     sh, nom = calib.load_time_shift_table(), calib.load_nominal_conversion()
     out = {"k": k, "b0": b0, "swing": swing}
     with KernelPool():
-        raw, b, temp, _ = comet.comet_day(DAY, seed=4000 + k, b0=b0, rate_hz=args.rate,
-                                          mean_c=mean_c, swing_c=swing, jump=jump)
+        world = {"b0": b0, "rate_hz": args.rate, "mean_c": mean_c, "swing_c": swing,
+                 "jump": jump, "rotation_cut_s": args.rotation_cut}
+        raw, b, temp, _ = comet.comet_day(DAY, seed=4000 + k, **world)
         a = level_a.level_a(raw, cal, sh, nom)
         tt = reduced_temperature(a, cal)
         settings = VarianceSettings(segment_s=args.segment, goal=args.goal,
@@ -89,9 +91,8 @@ def one(k: int, args: argparse.Namespace) -> dict:
             e = fit.offset(tt[m]).mean(axis=0) - carried[m].mean(axis=0)
             pulls.append(e / fit.offset_sigma(np.array([tt[m].mean()]))[0])
         out["pulls"] = np.array(pulls).ravel()
-        raw_u, bu, _, _ = comet.comet_day(DAY, seed=5000 + k, b0=b0, rate_hz=args.rate,
-                                          start_s=50_000.0, hours=6.0, mean_c=mean_c,
-                                          swing_c=swing, jump=jump)
+        raw_u, bu, _, _ = comet.comet_day(DAY, seed=5000 + k, start_s=50_000.0, hours=6.0,
+                                          **world)
         au = level_a.level_a(raw_u, cal, sh, nom,
                              daily_models={np.datetime64(DAY): fit.to_model()})
         out["unseen"] = np.sqrt(((au["b"].values - bu) ** 2).mean(axis=0))
@@ -111,6 +112,8 @@ def main() -> None:
     p.add_argument("--max-sigma", type=float, default=1.0)
     p.add_argument("--jump", type=float, default=0.0, help="x (1.5, -1.0, 0.8) nT from noon")
     p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--rotation-cut", type=float, default=comet.ROTATION_CUT_S,
+                   help="shortest period (s) of the rotations (120: where the compression stops)")
     args = p.parse_args()
     ks = range(args.first, args.first + args.realisations)
     t0 = time.time()

@@ -7,8 +7,9 @@ Written from issue 34 and seed 003 alone; no fluxcal pipeline or fit code.  The 
   a unit-variance process with an ``f^-2`` spectrum from 6 h to 2 min, ``c`` = 10 % (the
   slow compressive modulation of the issue);
 * direction ``u = (k m + g) / |k m + g|``: ``m`` the day's draped direction, ``g`` three
-  unit-variance ``f^-5/3`` processes from 6 h to 2 min (rotations about the draped
-  direction, tens of degrees with ``k`` = 1.5);
+  unit-variance ``f^-5/3`` processes from 6 h to 2 s (or the Nyquist frequency; turbulent
+  rotations about the draped direction, tens of degrees with ``k`` = 1.5; the issue gives
+  no range for them, ``rotation_cut_s`` = 120 stops them where the compression stops);
 * 40-mHz wave packets of 1-2 nT transverse to ``u`` (Gaussian envelopes of 5 min, one
   every 20 min on average).
 
@@ -32,6 +33,8 @@ NS = 1_000_000_000
 COMPRESSION = 0.10
 ROTATION_WEIGHT = 1.5
 WAVE_HZ = 0.040
+#: Shortest period (s) of the rotations' f^-5/3 spectrum.
+ROTATION_CUT_S = 2.0
 
 __all__ = ["COMPRESSION", "comet_day", "curve", "true_coefficients"]
 
@@ -49,12 +52,13 @@ def power_law(n: int, dt: float, slope: float, rng: np.random.Generator, dims: i
 
 
 def comet_field(secs: np.ndarray, b0: float, rng: np.random.Generator, *,
-                compression: float = COMPRESSION, waves: bool = True) -> np.ndarray:
+                compression: float = COMPRESSION, waves: bool = True,
+                rotation_cut_s: float = ROTATION_CUT_S) -> np.ndarray:
     """The field of the module docstring at ``secs`` (evenly spaced), shape (n, 3), nT."""
     n, dt = secs.size, float(secs[1] - secs[0])
     m = rng.standard_normal(3)
     m /= np.linalg.norm(m)
-    v = ROTATION_WEIGHT * m + power_law(n, dt, 5.0 / 3.0, rng, 3)
+    v = ROTATION_WEIGHT * m + power_law(n, dt, 5.0 / 3.0, rng, 3, f_hi=1.0 / rotation_cut_s)
     u = v / np.linalg.norm(v, axis=1)[:, None]
     b = u * (b0 * (1.0 + compression * power_law(n, dt, 2.0, rng, 1)))
     if waves:
@@ -82,7 +86,7 @@ def comet_day(day: str, *, seed: int, b0: float = 18.0, rate_hz: float = 0.25,
               swing_c: float = 24.0, phase: float = 0.0, compression: float = COMPRESSION,
               coefficients: np.ndarray | None = None,
               jump: np.ndarray | None = None, jump_s: float = 43200.0,
-              temperature_shift_c: float = 0.0):
+              temperature_shift_c: float = 0.0, rotation_cut_s: float = ROTATION_CUT_S):
     """Raw OB science of the comet day: ``(raw, b_true_urf, temperature_c, offset_urf)``.
 
     ``offset_urf`` is the true extended offset ``P(T~)`` plus the jump (nT) the forward
@@ -94,7 +98,7 @@ def comet_day(day: str, *, seed: int, b0: float = 18.0, rate_hz: float = 0.25,
     cal = calib.load_ground_calibration("OB")
     coefficients = true_coefficients() if coefficients is None else coefficients
     secs, stamps, sid, delay = time_line(day, start_s, hours, rate_hz)
-    b = comet_field(secs, b0, rng, compression=compression)
+    b = comet_field(secs, b0, rng, compression=compression, rotation_cut_s=rotation_cut_s)
     temp = temperature(secs + delay, mean_c, swing_c, phase) + temperature_shift_c
     model = DailyOffsetModel(np.datetime64(day, "D"), "OB", coefficients, "truth")
     ext = forward.extended_offset(stamps, forward.reduced_temperature(temp, cal),

@@ -144,12 +144,14 @@ def test_cli_records_range_and_error_and_calibrate_flags_extrapolation(tmp_path,
 
 
 def test_cli_goal_accepts_a_worse_table_and_says_so(tmp_path, capsys):
-    """A 40-nT day: refused at the 0.2-nT goal naming it; --goal 1 writes the table and
-    its header says the goal was raised."""
+    """A 40-nT day whose rotations stop at 2 min, where its compression stops (little
+    rotation left within the 60-s segments): refused at the 0.2-nT goal naming it; --goal 1
+    writes the table and its header says the goal was raised."""
     from fluxcal.geometry.kernels import KernelPool
 
     with KernelPool():
-        raw, _, _, _ = comet.comet_day(DAY, seed=41, rate_hz=RATE, b0=40.0)
+        raw, _, _, _ = comet.comet_day(DAY, seed=41, rate_hz=RATE, b0=40.0,
+                                       rotation_cut_s=120.0)
         io.write_science_csv(raw, tmp_path / "day.csv")
     args = ["rosetta", "fit", "--science", str(tmp_path / "day.csv"), "--sensor", "OB"]
     assert main([*args, "--out", str(tmp_path / "a")]) == 2
