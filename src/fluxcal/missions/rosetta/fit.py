@@ -421,9 +421,11 @@ def write_daily_model(
 ) -> Path:
     """Write ``fit`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``out_dir``.
 
-    The format `calib.read_daily_offset_model` reads (keys ``SENSOR``, ``P_0`` .. ``P_5``)
-    with ``#`` comment lines recording the fit: inputs, degree, blocks, temperature range,
-    residual rms, chi2, and the standard error of every coefficient.
+    The format `calib.read_daily_offset_model` reads (keys ``SENSOR``, ``P_0`` .. ``P_5``,
+    ``T_RANGE`` (fitted reduced temperatures) and ``SIGMA_CURVE`` (the curve's largest
+    1-sigma over them)) with ``#`` comment lines recording the fit: inputs, degree, blocks,
+    temperature range, residual rms, chi2, the standard error of every coefficient and the
+    estimator's notes (curve error, figure of merit, convergence).
 
     Raises
     ------
