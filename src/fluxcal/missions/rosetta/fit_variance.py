@@ -619,6 +619,21 @@ def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degre
     d_suf = np.cumsum(nk[::-1][:, cc][:, :, cc], axis=0)[::-1]    # (n, 3, 3)
     g_suf = np.cumsum(rk[::-1][:, cc], axis=0)[::-1]              # (n, 3)
     js = np.arange(min_side, n - min_side + 1)
+    own = np.linalg.pinv(nk[:, cc][:, :, cc])                      # (n, 3, 3)
+    # splits in chunks: the per-split, per-interval arrays stay near 2e6 numbers (an
+    # Appendix B interval of months has thousands of sub-intervals)
+    per = max(1, int(2_000_000 // max(n * p, 1)))
+    parts = [_scan_splits(js[c:c + per], nk, rk, c_suf, d_suf, g_suf, inv, r_all, own, cc, p)
+             for c in range(0, js.size, per)]
+    chi2, step, cov = (np.concatenate(x) for x in zip(*parts, strict=True))
+    best = int(np.argmax(chi2))
+    return JumpScan(float(chi2[best]), int(idx[js[best]]), step[best],
+                    np.sqrt(np.diag(cov[best])), int(js.size))
+
+
+def _scan_splits(js, nk, rk, c_suf, d_suf, g_suf, inv, r_all, own, cc, p):
+    """``(chi2, step, cov)`` of the splits ``js`` (`scan_offset_step`)."""
+    n = nk.shape[0]
     c_j, d_j, g_j = c_suf[js], d_suf[js], g_suf[js]
     proj = np.einsum("jpc,pq->jcq", c_j, inv)                      # C_j^T N^-1, (J, 3, p)
     s_j = d_j - np.einsum("jcq,jqd->jcd", proj, c_j)
@@ -633,7 +648,6 @@ def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degre
     # the scores of an interval scatter as phi N_k (phi > 1: the compressive noise is
     # correlated within a segment); phi pooled over all intervals, so that a split near
     # the day's edge is not judged by the scatter of three intervals
-    own = np.linalg.pinv(nk[:, cc][:, :, cc])                      # (n, 3, 3)
     phi = (np.einsum("jkc,kcd,jkd->j", r_alt[:, :, cc], own, r_alt[:, :, cc])
            / max(3 * n - p - 3, 1))
     pooled = phi[:, None, None] * s_inv
@@ -646,9 +660,7 @@ def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degre
     chi2_sandwich = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(sandwich), step)
     chi2 = np.minimum(chi2_pooled, chi2_sandwich)
     cov = np.where((chi2_pooled <= chi2_sandwich)[:, None, None], pooled, sandwich)
-    best = int(np.argmax(chi2))
-    return JumpScan(float(chi2[best]), int(idx[js[best]]), step[best],
-                    np.sqrt(np.diag(cov[best])), int(js.size))
+    return chi2, step, cov
 
 
 def _scan_jump_interval(epoch: np.ndarray, b: np.ndarray, sub: np.ndarray, est,
