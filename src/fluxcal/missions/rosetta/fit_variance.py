@@ -485,17 +485,12 @@ def fit_extended_model_variance(
                                "selection unchanged; per step (curve moved, accepted, "
                                f"flipped): {_history_text(history)}")})
     if scan.statistic > s.max_jump_chi2:
-        at = int(epoch.min()) + int(round(labels[scan.split] * s.interval_s * NS))
-        before = at - int(round(s.interval_s * NS))
-        when = tt2000_to_utc(np.array([before, at]), digits=0)
+        size, first, last, stats = _jump_found(scan, int(epoch.min()), labels, s)
         raise FitRefusedError(
-            f"{what}: an offset jump of " + " ".join(f"{v:+.2f}" for v in scan.step)
-            + " +- " + " ".join(f"{v:.2f}" for v in scan.sigma)
-            + f" nT (x y z) between {when[0]} and {when[1]} UTC (change-point chi2 "
-            f"{scan.statistic:.0f} for 3 dof over {scan.splits} splits, limit "
-            f"{s.max_jump_chi2:g}): the daily polynomial cannot hold a jump and would "
-            "spread it over the day; fit the part of the day before or after it alone "
-            "(the jump itself belongs in an Appendix B table, fluxcal rosetta fit --jumps)"
+            f"{what}: {size} between {first} and {last} UTC {stats}: the daily polynomial "
+            "cannot hold a jump and would spread it over the day; fit the part of the day "
+            "before or after it alone (the jump itself belongs in an Appendix B table, "
+            "fluxcal rosetta fit --jumps)"
         )
     grid = np.linspace(*fit.temperature_range, 101)
     curve_sigma = fit.offset_sigma(grid)
@@ -629,6 +624,21 @@ def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degre
     best = int(np.argmax(chi2))
     return JumpScan(float(chi2[best]), int(idx[js[best]]), step[best],
                     np.sqrt(np.diag(cov[best])), int(js.size))
+
+
+def _jump_found(scan: JumpScan, origin: int, labels: np.ndarray, s: VarianceSettings,
+                lsk=None) -> tuple[str, str, str, str]:
+    """Return a detected jump's size, its interval's first and last time (UTC), statistics.
+
+    The intervals start at ``labels`` x ``s.interval_s`` from ``origin`` (TT2000).
+    """
+    at = origin + int(round(labels[scan.split] * s.interval_s * NS))
+    when = tt2000_to_utc(np.array([at - int(round(s.interval_s * NS)), at]), digits=0, lsk=lsk)
+    size = ("an offset jump of " + " ".join(f"{v:+.2f}" for v in scan.step) + " +- "
+            + " ".join(f"{v:.2f}" for v in scan.sigma) + " nT (x y z)")
+    stats = (f"(change-point chi2 {scan.statistic:.0f} for 3 dof over {scan.splits} splits, "
+             f"limit {s.max_jump_chi2:g})")
+    return size, str(when[0]), str(when[1]), stats
 
 
 def _scan_splits(js, nk, rk, c_suf, d_suf, g_suf, inv, r_all, own, cc, p):
@@ -860,17 +870,11 @@ def fit_offset_jumps_variance(
             )
         scan = _scan_jump_interval(e, b, sub, est, starts[j], s)
         if scan.statistic > s.max_jump_chi2:
-            labels = est.labels
-            at = int(starts[j]) + int(round(labels[scan.split] * s.interval_s * NS))
-            when = tt2000_to_utc(np.array([at - int(round(s.interval_s * NS)), at]),
-                                 digits=0, lsk=lsk)
+            size, first, last, stats = _jump_found(scan, int(starts[j]), est.labels, s, lsk)
             raise FitRefusedError(
-                f"{what}: an offset jump of " + " ".join(f"{v:+.2f}" for v in scan.step)
-                + " +- " + " ".join(f"{v:.2f}" for v in scan.sigma)
-                + f" nT (x y z) inside the interval, between {when[0]} and {when[1]} UTC "
-                f"(change-point chi2 {scan.statistic:.0f} for 3 dof over {scan.splits} "
-                f"splits, limit {s.max_jump_chi2:g}): one constant offset would spread it; "
-                f"split the interval at about {when[1]} (--intervals CSV) and fit again"
+                f"{what}: {size} inside the interval, between {first} and {last} UTC "
+                f"{stats}: one constant offset would spread it; split the interval at about "
+                f"{last} (--intervals CSV) and fit again"
             )
         used = np.isin(sub, est.labels[est.accepted])
         mag = np.linalg.norm(b[used] - est.offset, axis=1)
