@@ -129,7 +129,7 @@ def main() -> None:
             print(f"{head}  REFUSED ({r['cause']}): {r['text'][-260:]}")
         else:
             print(f"{head}  curve {fmt(r['curve'])}  unseen {fmt(r['unseen'])}  merit "
-                  f"{fmt(r['merit'])} max {fmt(r['merit_max'])}  {r['scan'][:90]}")
+                  f"{fmt(r['merit'])} max {fmt(r['merit_max'])}  {r['scan'][26:110]}")
     written = [r for r in rows if r["status"] == "written"]
     causes = {}
     for r in rows:

@@ -474,9 +474,10 @@ def fit_extended_model_variance(
         notes={**start.notes,
                "intervals": f"{n_acc} of {k} accepted; rejected: {_reasons_text(reason)}",
                "bootstrap": f"{s.n_bootstrap} resamples of {nb} blocks of {s.block_s:g} s",
-               "jump scan": (f"chi2 {scan.statistic:.1f} at interval {scan.split} step "
+               "jump scan": (f"largest change-point chi2 {scan.statistic:.1f} (limit "
+                             f"{s.max_jump_chi2:g}, 3 dof) at interval {scan.split} step "
                              + " ".join(f"{v:.3f}" for v in scan.step) + " +- "
-                             + " ".join(f"{v:.3f}" for v in scan.sigma)),
+                             + " ".join(f"{v:.3f}" for v in scan.sigma) + " nT"),
                "segments": (f"|B| constant up to a line in time within {segments.length_s:g}-s "
                             f"segments ({segments.m})" if segments.on else
                             f"|B| constant within each {s.interval_s:g}-s interval"),
