@@ -52,6 +52,7 @@ from fluxcal.calibration.segment_trends import (
     segment_variance,
 )
 from fluxcal.calibration.solar_wind_offsets import count_reasons
+from fluxcal.calibration.step_scan import JumpScan, scan_offset_step
 from fluxcal.calibration.variance_offsets import (
     DEFAULT_MAX_COMPRESSIBILITY,
     DEFAULT_MIN_EIGENVALUE_RATIO,
@@ -73,9 +74,8 @@ from fluxcal.missions.rosetta.fit import (
     interval_bounds,
 )
 
-__all__ = ["ESTIMATORS", "GOAL_NT", "JumpScan", "VarianceSettings", "curve_error_text",
-           "fit_extended_model_variance", "fit_offset_jumps_variance", "predicted_error",
-           "scan_offset_step"]
+__all__ = ["ESTIMATORS", "GOAL_NT", "VarianceSettings", "curve_error_text",
+           "fit_extended_model_variance", "fit_offset_jumps_variance", "predicted_error"]
 
 #: Estimators of ``fluxcal rosetta fit --estimator``, named by what they assume.
 ESTIMATORS = ("zero-mean", "variance")
@@ -437,7 +437,7 @@ def fit_extended_model_variance(
     trace_k = segment_variance(segments.residual(bp), codes, k).sum(axis=1)
     yy, n_used = float(yy_k[accepted].sum()), int(count[accepted].sum())
     eligible = static & (reason != "small_fluctuations")  # kept as selected
-    scan = scan_offset_step(normal, rhs, accepted, degree, s.jump_min_side)
+    scan = scan_offset_step(normal, rhs, accepted, np.arange(3) * (degree + 1), s.jump_min_side)
 
     def compressive_ok(d: np.ndarray) -> np.ndarray:
         """Intervals passing ``compressive`` after the curve moves by ``d`` (linearised)."""
@@ -555,78 +555,6 @@ def curve_error_text(fit: DailyModelFit, temperature: np.ndarray) -> str:
             + " nT, largest over the range " + " ".join(f"{v:.3f}" for v in worst) + " nT")
 
 
-@dataclass(frozen=True)
-class JumpScan:
-    """Change-point scan of the residual interval offsets of a daily fit (issue 34).
-
-    Attributes
-    ----------
-    statistic : float
-        Largest ``chi2`` (3 dof) over the splits of the accepted intervals.
-    split : int
-        Index (into the intervals) of the first interval after the best split; -1: none.
-    step : ndarray, shape (3,)
-        The offset step (nT, x y z) at that split, the curve refitted with it.
-    sigma : ndarray, shape (3,)
-        Its standard error (nT).
-    splits : int
-        Splits scanned.
-    """
-
-    statistic: float
-    split: int
-    step: np.ndarray
-    sigma: np.ndarray
-    splits: int
-
-
-def scan_offset_step(normal: np.ndarray, rhs: np.ndarray, use: np.ndarray, degree: int,
-                     min_side: int) -> JumpScan:
-    """Score test of a constant offset step between consecutive intervals, every split.
-
-    At the converged curve each accepted interval ``k`` has normal equations
-    ``(N_k, r_k)`` of the linearised variance of ``|B'|`` (``r_k``: its residual
-    scores).  A step ``D`` of the offset from interval ``j`` on adds the constant columns
-    ``c`` (``u_i x^0``) of the intervals ``k >= j``.  Its estimate with the curve refitted
-    is ``D_j = S_j^-1 (g_j - C_j^T N^-1 r)``, ``S_j = D_j - C_j^T N^-1 C_j``, with ``N, r``
-    the sums over all intervals, ``C_j, D_j, g_j`` those over ``k >= j`` of ``N_k[:, c]``,
-    ``N_k[c, c]``, ``r_k[c]``.  Its covariance is the sandwich over intervals (the scores'
-    own scatter: the compressive noise is correlated within an interval, not between
-    them) times ``n / (n - p - 3)``; ``chi2_j = D_j^T V_j^-1 D_j``.  Splits leave at
-    least ``min_side`` accepted intervals on each side.
-
-    References
-    ----------
-    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.4 and Appendix B (offset jumps: a
-       constant offset from a time on).
-    """
-    idx = np.flatnonzero(use)
-    n = idx.size
-    p = normal.shape[1]
-    cc = np.arange(3) * (degree + 1)
-    none = JumpScan(0.0, -1, np.zeros(3), np.full(3, np.nan), 0)
-    if n < 2 * min_side:
-        return none
-    nk, rk = normal[idx], rhs[idx]
-    n_all, r_all = nk.sum(axis=0), rk.sum(axis=0)
-    inv = np.linalg.pinv(n_all)
-    # suffix sums over intervals k >= j
-    c_suf = np.cumsum(nk[::-1][:, :, cc], axis=0)[::-1]           # (n, p, 3)
-    d_suf = np.cumsum(nk[::-1][:, cc][:, :, cc], axis=0)[::-1]    # (n, 3, 3)
-    g_suf = np.cumsum(rk[::-1][:, cc], axis=0)[::-1]              # (n, 3)
-    js = np.arange(min_side, n - min_side + 1)
-    own = np.linalg.pinv(nk[:, cc][:, :, cc])                      # (n, 3, 3)
-    # splits in chunks: the per-split, per-interval arrays stay near 2e6 numbers (an
-    # Appendix B interval of months has thousands of sub-intervals)
-    per = max(1, int(2_000_000 // max(n * p, 1)))
-    parts = [_scan_splits(js[c:c + per], nk, rk, c_suf, d_suf, g_suf, inv, r_all, own, cc, p)
-             for c in range(0, js.size, per)]
-    chi2, step, cov = (np.concatenate(x) for x in zip(*parts, strict=True))
-    best = int(np.argmax(chi2))
-    return JumpScan(float(chi2[best]), int(idx[js[best]]), step[best],
-                    np.sqrt(np.diag(cov[best])), int(js.size))
-
-
 def _jump_found(scan: JumpScan, origin: int, labels: np.ndarray, s: VarianceSettings,
                 lsk=None) -> tuple[str, str, str, str]:
     """Return a detected jump's size, its interval's first and last time (UTC), statistics.
@@ -640,38 +568,6 @@ def _jump_found(scan: JumpScan, origin: int, labels: np.ndarray, s: VarianceSett
     stats = (f"(change-point chi2 {scan.statistic:.0f} for 3 dof over {scan.splits} splits, "
              f"limit {s.max_jump_chi2:g})")
     return size, str(when[0]), str(when[1]), stats
-
-
-def _scan_splits(js, nk, rk, c_suf, d_suf, g_suf, inv, r_all, own, cc, p):
-    """``(chi2, step, cov)`` of the splits ``js`` (`scan_offset_step`)."""
-    n = nk.shape[0]
-    c_j, d_j, g_j = c_suf[js], d_suf[js], g_suf[js]
-    proj = np.einsum("jpc,pq->jcq", c_j, inv)                      # C_j^T N^-1, (J, 3, p)
-    s_j = d_j - np.einsum("jcq,jqd->jcd", proj, c_j)
-    after = np.arange(n)[None, :] >= js[:, None]                   # (J, n)
-    s_inv = np.linalg.pinv(s_j)
-    step = np.einsum("jcd,jd->jc", s_inv, g_j - np.einsum("jcq,q->jc", proj, r_all))
-    # the curve's change with the step, and each interval's scores after both (the
-    # alternative's residuals: a real step must not inflate its own error)
-    moved = np.einsum("pq,jq->jp", inv, r_all[None] - np.einsum("jpc,jc->jp", c_j, step))
-    r_alt = (rk[None] - np.einsum("kpq,jq->jkp", nk, moved)
-             - after[:, :, None] * np.einsum("kpc,jc->jkp", nk[:, :, cc], step))
-    # the scores of an interval scatter as phi N_k (phi > 1: the compressive noise is
-    # correlated within a segment); phi pooled over all intervals, so that a split near
-    # the day's edge is not judged by the scatter of three intervals
-    phi = (np.einsum("jkc,kcd,jkd->j", r_alt[:, :, cc], own, r_alt[:, :, cc])
-           / max(3 * n - p - 3, 1))
-    pooled = phi[:, None, None] * s_inv
-    # and the sandwich over intervals (robust where some intervals are much noisier than
-    # the rest, as near wave packets); the smaller chi2 of the two is the statistic
-    z = after[:, :, None] * r_alt[:, :, cc] - np.einsum("jcq,jkq->jkc", proj, r_alt)
-    meat = np.einsum("jkc,jkd->jcd", z, z) * n / max(n - p - 3, 1)
-    sandwich = np.einsum("jab,jbc,jdc->jad", s_inv, meat, s_inv)
-    chi2_pooled = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(pooled), step)
-    chi2_sandwich = np.einsum("ja,jab,jb->j", step, np.linalg.pinv(sandwich), step)
-    chi2 = np.minimum(chi2_pooled, chi2_sandwich)
-    cov = np.where((chi2_pooled <= chi2_sandwich)[:, None, None], pooled, sandwich)
-    return chi2, step, cov
 
 
 def _scan_jump_interval(epoch: np.ndarray, b: np.ndarray, sub: np.ndarray, est,
@@ -695,7 +591,7 @@ def _scan_jump_interval(epoch: np.ndarray, b: np.ndarray, sub: np.ndarray, est,
     accepted = np.isin(labels, est.labels[est.accepted])
     normal, rhs, _, _ = _normal_equations(b - est.offset, np.ones((b.shape[0], 1)), codes, k,
                                           accepted, codes, k, segments)
-    return scan_offset_step(normal, rhs, accepted, 0, s.jump_min_side)
+    return scan_offset_step(normal, rhs, accepted, np.arange(3), s.jump_min_side)
 
 
 def _compressive_refusal(what: str, reason: np.ndarray, static: np.ndarray,
