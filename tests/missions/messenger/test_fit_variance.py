@@ -247,8 +247,8 @@ def test_d0_the_data_put_out_of_range_is_refused_naming_the_hold_option(shipped)
     res = _variance_result(shipped, step)
     assert res.duty[2].slope == pytest.approx(5.0 * d0[2], rel=1e-3)
     with pytest.raises(FitRefusedError, match=r"D0 z = .* is 5x the shipped .*not written\. "
-                                              r"Needs .*, or keep the base value of this "
-                                              r"axis \(--hold-d0 z\)"):
+                                              r"Needs .*, or hold it with a stated width "
+                                              r"\(--hold-d0 z=VALUE\+-WIDTH\)"):
         check_fit(res)
 
 
@@ -262,8 +262,11 @@ def test_held_d0_keeps_the_base_value_and_the_other_parameters(shipped, tmp_path
     step[0 * 5 + 4] = 0.1 * d0[0]   # D0 x -> 1.1x (free)
     step[-2] = 50.0                 # tau 872 -> 922 s
     res = _variance_result(shipped, step, hold_d0=("z",))
-    # z is the base value exactly, with no error; x and tau still come from the data
-    assert res.duty[2].slope == d0[2] and res.duty[2].slope_err == 0.0
+    # z is the base value exactly, with the default width (half the held value, entry
+    # 18; 200 draws: the spread within 15 %); x and tau still come from the data
+    assert res.duty[2].slope == d0[2]
+    assert res.duty[2].slope_err == pytest.approx(0.5 * d0[2], rel=0.15)
+    assert res.held == {"z": (d0[2], 0.5 * d0[2])}
     assert res.duty[0].slope == pytest.approx(1.1 * d0[0], rel=1e-4)
     assert res.relaxation.tau == pytest.approx(922.0, abs=0.05)
     assert res.held_d0 == ("z",)

@@ -144,9 +144,15 @@ def fit(
         "zero over each bin's samples (a quiet field, e.g. the demo's). Temperature law, "
         "D0, tau and dt; the waveforms are phase-binned either way."),
     hold_d0: str = typer.Option(
-        "", "--hold-d0", help="Comma list of axes (x, y, z) whose duty-cycle coefficient "
-        "D0 keeps the base value (variance estimator): for an axis whose D0 the data do "
-        "not determine, which the fit otherwise refuses; the report marks it held."),
+        "", "--hold-d0", help="Comma list of AXIS[=VALUE][+-WIDTH] (x, y, z; counts/ppt): "
+        "the duty-cycle coefficient D0 of these axes is held at VALUE (default: the base "
+        "table's) with the stated WIDTH (default: half the value), which enters every "
+        "other stated error (variance estimator): for an axis whose D0 the data do not "
+        "determine, which the fit otherwise refuses; the report marks it held."),
+    error_goal: float | None = typer.Option(
+        None, "--error-goal", help="Largest predicted rms error (nT) of a day recalibrated "
+        "with the fitted tables (default 0.1); the fit refuses above it. A larger value "
+        "accepts a worse table and is written into every table header."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
@@ -165,7 +171,7 @@ def fit(
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
                        workers=workers, progress=progress, temperature_law=temperature_law,
-                       estimator=estimator, hold_d0=hold_d0)
+                       estimator=estimator, hold_d0=hold_d0, error_goal=error_goal)
     typer.echo(text)
 
 

@@ -31,7 +31,11 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.calibration.offsets import two_segment_offset
-from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.calibration_data import (
+    data_dir,
+    load_calibration,
+    required_look_back_s,
+)
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.solar_wind import alfvenic_wind
 
@@ -88,6 +92,9 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
     text = (src / "processing_v1.toml").read_text()
     text = re.sub(r"(?m)^version = 1", "version = 2", text)
     text = re.sub(r"(?m)^tau_s = .*$", f"tau_s = {tau_s}", text)
+    # the look-back follows tau (sec. 7's truncation; `calibration_data.check_look_back`)
+    text = re.sub(r"(?m)^look_back_s = .*$",
+                  f"look_back_s = {np.ceil(required_look_back_s(tau_s) * 10) / 10:.1f}", text)
     (out / "processing_v2.toml").write_text(text)
     return out
 
