@@ -801,10 +801,16 @@ def fit_variance_calibration(
     for a, (value, width) in held.items():
         held_step[AXES.index(a)] = value - d0_base[AXES.index(a)]
         held_width[AXES.index(a)] = width
-    sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                            hold_d0=tuple(AXES.index(a) for a in held),
-                            law=fv.law_parameters(base), held_step=held_step,
-                            held_width=held_width)
+    try:
+        sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
+                                hold_d0=tuple(AXES.index(a) for a in held),
+                                law=fv.law_parameters(base), held_step=held_step,
+                                held_width=held_width)
+    except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
+        cause = fit_merit.compressive_refusal(vstats.reason)
+        if cause:
+            raise FitRefusedError(f"{cause}; {exc}") from None
+        raise
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from fluxcal.missions.messenger.fit import FitResult
 
 __all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess", "check_merit",
-           "compressive_share", "predicted_error", "stated_range"]
+           "compressive_refusal", "compressive_share", "predicted_error", "stated_range"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -55,6 +55,18 @@ def compressive_share(reason: np.ndarray) -> tuple[int, int]:
     reason = np.asarray(reason)
     judged = ~np.isin(reason, ("too_few_samples", "ill_conditioned"))
     return int(np.count_nonzero(reason == "compressive")), int(np.count_nonzero(judged))
+
+
+def compressive_refusal(reason: np.ndarray,
+                        max_share: float = MAX_COMPRESSIVE_SHARE) -> str:
+    """Return why too many intervals are compressive (`compressive_share`), else ``""``."""
+    n_comp, judged = compressive_share(reason)
+    if not judged or n_comp <= max_share * judged:
+        return ""
+    return (f"variance estimator: {n_comp} of {judged} intervals of "
+            f"{fv.VarianceSettings().interval_s:g} s rejected as compressive (limit "
+            f"{max_share:.0%}): |B| varies too much within the intervals, the fit on the "
+            "rest is biased and its errors too small (messenger_fit.md entry 19)")
 
 
 def _nt_per_count(cal) -> np.ndarray:
@@ -192,16 +204,11 @@ def check_merit(result: FitResult, max_compressive_share: float = MAX_COMPRESSIV
     FitRefusedError
         One line naming the guard, its numbers and what would help.
     """
-    v = result.variance
     m = result.merit
-    n_comp, judged = compressive_share(v.reason)
-    if judged and n_comp > max_compressive_share * judged:
-        raise FitRefusedError(
-            f"variance estimator: {n_comp} of {judged} intervals of "
-            f"{fv.VarianceSettings().interval_s:g} s rejected as compressive (limit "
-            f"{max_compressive_share:.0%}): |B| varies too much within the intervals, the "
-            "fit on the rest is biased and its errors too small (messenger_fit.md entry "
-            "19); not written. Give calmer (Alfvenic) solar-wind days or intervals")
+    refusal = compressive_refusal(result.variance.reason, max_compressive_share)
+    if refusal:
+        raise FitRefusedError(f"{refusal}; not written. Give calmer (Alfvenic) solar-wind "
+                              "days or intervals")
     if not m["law_determined"]:
         f_lo, f_hi = m["data_range_c"]
         t = np.arange(f_lo, f_hi + 0.5, 1.0)
@@ -227,4 +234,5 @@ def check_merit(result: FitResult, max_compressive_share: float = MAX_COMPRESSIV
             f"{_axes(m['d0_nt'])}, tau and dt {_axes(m['relaxation_nt'])}, waveforms "
             f"{_axes(m['waveform_nt'])} nT); not written. "
             "Give more days, or accept the larger error with --error-goal "
-            f"{np.ceil(np.nanmax(total) * 100) / 100:g} (written into every table header)")
+            f"{np.ceil(round(float(np.nanmax(total)) * 100, 6)) / 100:g} (written into every "
+            "table header)")
