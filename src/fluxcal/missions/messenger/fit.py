@@ -783,15 +783,21 @@ def fit_variance_calibration(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-7.
     """
+    cause = fit_merit.compressive_refusal(vstats.reason)
+
+    def too_little(text: str) -> FluxcalError:
+        # too little accepted data: name the compressive wind when it is the cause
+        return FitRefusedError(f"{cause}; {text}") if cause else FluxcalError(text)
+
     accepted = int(np.count_nonzero(vstats.reason == ""))
     if accepted == 0 or vstats.normal.shape[0] == 0:
-        raise FluxcalError(
+        raise too_little(
             f"variance estimator: no interval of {fv.VarianceSettings().interval_s:.0f} s "
             f"passes the selection (rejected: {vstats.rejections() or 'none'}); give "
             "solar-wind data with rotating field, or choose --estimator zero-mean")
     t_range = vstats.fitted_range()
     if not np.all(np.isfinite(t_range)):
-        raise FluxcalError(
+        raise too_little(
             f"variance estimator: no 5-C temperature bin holds {fv.MIN_RANGE_SAMPLES} "
             f"accepted samples (accepted per bin: {int(vstats.temperature_count.max())} at "
             "most); the temperature law is not constrained: give more days of solar wind")
@@ -807,9 +813,8 @@ def fit_variance_calibration(
                                 law=fv.law_parameters(base), held_step=held_step,
                                 held_width=held_width)
     except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
-        cause = fit_merit.compressive_refusal(vstats.reason)
         if cause:
-            raise FitRefusedError(f"{cause}; {exc}") from None
+            raise too_little(str(exc)) from None
         raise
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
