@@ -110,7 +110,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             folder = Path(tmp) / "fitted"
             write_calibration_folder(res, folder, None, {
                 "inputs": {}, "intervals": "all data", "days": f"first {days}",
-                "command": "messenger_fit_pulls"})
+                "command": "messenger_fit_pulls"}, study=True)
             unseen_rms = recalibrate_rms(run.input_dir, run.days[-1], folder)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)

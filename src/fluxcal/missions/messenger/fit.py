@@ -1197,6 +1197,13 @@ def fit_days(
                      + ", ".join(last["over"])),
         }
         if guard:
+            # the named cause first: a wind too compressive for the variance estimator
+            # also keeps it from converging (entry 19)
+            cause = (fit_merit.compressive_refusal(result.variance.reason)
+                     if estimator == "variance" else "")
+            if cause:
+                raise FitRefusedError(f"{cause}; not written. Give calmer (Alfvenic) "
+                                      "solar-wind days or intervals")
             if not converged:
                 raise FitRefusedError(
                     f"{result.convergence['stop']}; not written (converged: "

@@ -169,6 +169,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.errors import FitRefusedError
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger import fit_merit
     from fluxcal.missions.messenger.fit import Chunk, check_fit, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.pipeline import calibrate
@@ -187,7 +188,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     # figures it refuses (the command line, `fluxcal messenger fit`, writes nothing then)
     result = fit_days([chunk], base, estimator="variance", guard=False, hold_d0=("z",))
     try:
+        if not result.convergence["converged"]:
+            raise FitRefusedError(result.convergence["stop"])
         check_fit(result)
+        fit_merit.check_merit(result)
         verdict, fitted = "accepted by the guards", out / "fitted"
     except FitRefusedError as exc:
         verdict = f"REFUSED by the guards (the command would write nothing): {exc}"
@@ -196,7 +200,8 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         if old.exists():
             shutil.rmtree(old)
     write_calibration_folder(result, fitted, None, {
-        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"})
+        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"},
+        study=fitted.name == "fitted_refused")
     # an unseen day (after the training): the forward model's own field and schedule
     unseen = "2012-06-04T00:00:00"
     config = SimulationConfig(start_utc=unseen, duration_s=7200.0)

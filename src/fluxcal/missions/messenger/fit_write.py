@@ -51,6 +51,8 @@ def merit_lines(result: FitResult) -> list[str]:
     c = result.convergence
     if c:
         lines.append(f"passes: {c['stop']}")
+        if not c["converged"]:
+            lines.append("NOT CONVERGED: written for a study of the estimator, not for use")
     m = result.merit
     if m and "total_nt" in m:
         goal = float(m["goal_nt"])
@@ -142,8 +144,13 @@ def write_calibration_folder(
     out_dir: Path,
     base_folder: Path | None,
     provenance: Mapping[str, Any],
+    *,
+    study: bool = False,
 ) -> list[Path]:
     """Write ``result`` as a calibration folder that ``load_calibration`` reads.
+
+    A result whose passes did not converge (``result.convergence``) is refused unless
+    ``study`` (a study of the estimator; every header then says so).
 
     Parameters
     ----------
@@ -165,9 +172,13 @@ def write_calibration_folder(
     Raises
     ------
     CalibrationError
-        When ``out_dir`` already holds calibration tables (versions would mix).
+        When ``out_dir`` already holds calibration tables (versions would mix), or the
+        fit did not converge (and not ``study``).
     """
     out = Path(out_dir)
+    if result.convergence and not result.convergence["converged"] and not study:
+        raise CalibrationError(f"{out}: {result.convergence['stop']}; not written (the "
+                               "last pass of a fit that has not converged is no result)")
     base_folder = data_dir() if base_folder is None else Path(base_folder)
     cal = result.calibration
     stale = sorted(p.name for p in out.glob("*_v*.*") if _NAME_RE.match(p.name)) if (
