@@ -357,22 +357,24 @@ def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
 
 
 def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
-    # entry 16: a pass converges only when the law has settled; its change is the largest
-    # shift of the Table 2 law (counts) over -65..+55 C, here in closed form
-    from fluxcal.missions.messenger.fit import LAW_TOLERANCE_COUNTS, _law_change
+    # entry 16/18: a pass's law change is the largest shift of the Table 2 law (counts)
+    # over -65..+55 C per axis, here in closed form
+    from fluxcal.missions.messenger.fit import LAW_TOLERANCE_COUNTS, pass_changes
 
-    coeff = np.asarray(shipped.temperature_coefficients, dtype=float)
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    coeff = np.asarray(res.calibration.temperature_coefficients, dtype=float)
     shifted = coeff.copy()
-    shifted[:, [0, 2]] += 0.3  # both lines of every axis up by 0.3 counts
-    moved = dataclasses.replace(shipped, temperature_coefficients=shifted)
-    assert _law_change(shipped, moved) == pytest.approx(0.3, abs=1e-9)
-    assert _law_change(shipped, moved) > LAW_TOLERANCE_COUNTS
-    # the upper line's slope of x up by 0.01 counts/C: the upper segment turns about
-    # T = 0 C of its own line (A1 + B1 T), largest at +55 C: 0.55 counts
+    shifted[:, [0, 2]] -= 0.3  # both lines of every axis down by 0.3 counts (old)
+    moved = dataclasses.replace(res.calibration, temperature_coefficients=shifted)
+    np.testing.assert_allclose(pass_changes(moved, res)["law_counts"], 0.3, atol=1e-9)
+    assert 0.3 > LAW_TOLERANCE_COUNTS
+    # the upper line's slope of x 0.01 counts/C smaller before: the upper segment turns
+    # about T = 0 C of its own line (A1 + B1 T), largest at +55 C: 0.55 counts
     steeper = coeff.copy()
-    steeper[0, 3] += 0.01
-    assert _law_change(shipped, dataclasses.replace(
-        shipped, temperature_coefficients=steeper)) == pytest.approx(0.55, abs=1e-9)
+    steeper[0, 3] -= 0.01
+    got = pass_changes(dataclasses.replace(res.calibration,
+                                           temperature_coefficients=steeper), res)
+    assert got["law_counts"][0] == pytest.approx(0.55, abs=1e-9)
 
 
 def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C):

@@ -984,13 +984,6 @@ LAW_TOLERANCE_COUNTS = 0.2
 LAW_CHANGE_GRID_C = np.arange(-65.0, 55.5, 1.0)
 
 
-def _law_change(old: MessengerCalibration, new: MessengerCalibration) -> float:
-    """Largest change (fine counts) of the Table 2 law over `LAW_CHANGE_GRID_C`."""
-    return float(np.max(np.abs(
-        two_segment_offset(LAW_CHANGE_GRID_C, new.offset_coefficients())
-        - two_segment_offset(LAW_CHANGE_GRID_C, old.offset_coefficients()))))
-
-
 #: A pass has converged when every parameter changed by less than the larger of its
 #: absolute tolerance and this fraction of its stated error (entry 18): what is left
 #: to move (at most about the last change for a contracting iteration) is then a tenth
