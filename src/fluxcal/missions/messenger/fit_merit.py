@@ -19,15 +19,15 @@ References
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger import fit_variance as fv
 
-if TYPE_CHECKING:
-    from fluxcal.missions.messenger.fit import FitResult
+#: `fluxcal.missions.messenger.fit.FitResult` (not imported: `fit` imports this module).
+FitResult = Any
 
 __all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess", "check_merit",
            "compressive_refusal", "compressive_share", "predicted_error", "stated_range"]
