@@ -260,3 +260,14 @@ def test_a_look_back_too_short_for_tau_is_refused(tmp_path):
     assert load_calibration(START, ok).constants["relaxation"]["look_back_s"] == 6594.1
     # a shorter tau keeps the seed's 5000 s
     assert load_calibration(START, _folder_with(tmp_path / "c", 654.0, 5000.0))
+
+
+def test_error_goal_is_checked_before_any_input_is_read(tmp_path, capsys):
+    from fluxcal.cli import main
+
+    rc = main(["messenger", "fit", "--input-dir", str(tmp_path / "missing"), "--out",
+               str(tmp_path / "out"), "--error-goal", "0"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert "--error-goal must be a positive number of nT" in err
+    assert not (tmp_path / "out").exists()
