@@ -205,6 +205,8 @@ def test_compressive_share_guard_names_the_count(shipped):
     with pytest.raises(FitRefusedError, match=r"6 of 9 intervals of 900 s rejected as "
                                               r"compressive \(limit 50%\)"):
         check_merit(res)
+    res.merit["max_compressive_share"] = 0.7  # --max-compressive-share 0.7 (6 / 9 = 67 %)
+    check_merit(res)
 
 
 def test_pass_changes_compare_each_change_with_its_allowance(shipped):

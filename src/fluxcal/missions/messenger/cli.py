@@ -153,6 +153,10 @@ def fit(
         None, "--error-goal", help="Largest predicted rms error (nT) of a day recalibrated "
         "with the fitted tables (default 0.1); the fit refuses above it. A larger value "
         "accepts a worse table and is written into every table header."),
+    max_compressive_share: float | None = typer.Option(
+        None, "--max-compressive-share", help="Largest share of the judged 15-min intervals "
+        "rejected as compressive (default 0.5); the fit refuses above it. A larger value is "
+        "written into every table header."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
@@ -171,7 +175,8 @@ def fit(
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
                        workers=workers, progress=progress, temperature_law=temperature_law,
-                       estimator=estimator, hold_d0=hold_d0, error_goal=error_goal)
+                       estimator=estimator, hold_d0=hold_d0, error_goal=error_goal,
+                       max_compressive_share=max_compressive_share)
     typer.echo(text)
 
 

@@ -747,6 +747,7 @@ def fit_variance_calibration(
     fit_delay: bool = True,
     n_bootstrap: int = 200,
     hold_d0: HoldD0 = (),
+    max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
@@ -768,6 +769,9 @@ def fit_variance_calibration(
     n_bootstrap : int
     hold_d0 : tuple of str or mapping
         Axes whose D0 is held (`held_d0_values`: value and width).
+    max_compressive_share : float
+        Named as the cause when too little accepted data remain
+        (`fit_merit.compressive_refusal`).
 
     Returns
     -------
@@ -783,7 +787,7 @@ def fit_variance_calibration(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-7.
     """
-    cause = fit_merit.compressive_refusal(vstats.reason)
+    cause = fit_merit.compressive_refusal(vstats.reason, max_compressive_share)
 
     def too_little(text: str) -> FluxcalError:
         # too little accepted data: name the compressive wind when it is the cause
@@ -841,7 +845,8 @@ def fit_variance_calibration(
     adopted = fit_delay and dt_err < MAX_DELAY_ERROR_S and dt >= 0.0
     if fit_delay and not adopted:
         return fit_variance_calibration(stats, vstats, base, fit_delay=False,
-                                        n_bootstrap=n_bootstrap, hold_d0=hold_d0)
+                                        n_bootstrap=n_bootstrap, hold_d0=hold_d0,
+                                        max_compressive_share=max_compressive_share)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
@@ -1065,6 +1070,7 @@ def fit_days(
     guard: bool = True,
     hold_d0: HoldD0 = (),
     error_goal: float = fit_merit.ERROR_GOAL_NT,
+    max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
 ) -> FitResult:
     """Fit the calibration to many days: reduce each (map), merge, fit; ``passes`` times.
 
@@ -1115,6 +1121,10 @@ def fit_days(
         every other error.
     error_goal : float
         Largest predicted rms error (nT) of a recalibrated day (`fit_merit`).
+    max_compressive_share : float
+        Largest share of the judged intervals rejected as compressive
+        (`fit_merit.compressive_refusal`; above the default it is written into every
+        header).
 
     Returns
     -------
@@ -1164,8 +1174,9 @@ def fit_days(
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
             if estimator == "variance":
-                result = fit_variance_calibration(stats, vstats, cal, fit_delay=fit_delay,
-                                                  hold_d0=hold_d0)
+                result = fit_variance_calibration(
+                    stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
+                    max_compressive_share=max_compressive_share)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)
@@ -1192,7 +1203,8 @@ def fit_days(
         if guard:
             # the named cause first: a wind too compressive for the variance estimator
             # also keeps it from converging (entry 19)
-            cause = (fit_merit.compressive_refusal(result.variance.reason)
+            cause = (fit_merit.compressive_refusal(result.variance.reason,
+                                                   max_compressive_share)
                      if estimator == "variance" else "")
             if cause:
                 raise FitRefusedError(f"{cause}; not written. Give calmer (Alfvenic) "
@@ -1204,7 +1216,7 @@ def fit_days(
                     f"{min(20, 2 * passes)}) or more days")
             check_fit(result)
         if estimator == "variance":
-            fit_merit.assess(result, error_goal)
+            fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
             if guard:
                 fit_merit.check_merit(result)
         return result

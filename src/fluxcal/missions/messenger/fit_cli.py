@@ -108,6 +108,7 @@ def run_fit(
     estimator: str = "variance",
     hold_d0: str = "",
     error_goal: float | None = None,
+    max_compressive_share: float | None = None,
 ) -> str:
     """Run ``fluxcal messenger fit`` and return the summary text (`report_text`).
 
@@ -115,7 +116,9 @@ def run_fit(
     one reduction, or ``input_dir`` in the batch layout with one reduction per day.
 
     ``hold_d0`` is the ``--hold-d0`` text (`parse_hold_d0`); ``error_goal`` the largest
-    predicted error (nT) of a recalibrated day (None: `fit_merit.ERROR_GOAL_NT`).
+    predicted error (nT) of a recalibrated day (None: `fit_merit.ERROR_GOAL_NT`);
+    ``max_compressive_share`` the compressive share allowed (None:
+    `fit_merit.MAX_COMPRESSIVE_SHARE`).
 
     Raises
     ------
@@ -133,12 +136,17 @@ def run_fit(
     held = parse_hold_d0(hold_d0)
     if held and estimator != "variance":
         raise InputFormatError("--hold-d0 needs --estimator variance", field="--hold-d0")
-    from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT
+    from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 
     goal = ERROR_GOAL_NT if error_goal is None else float(error_goal)
     if not goal > 0:
         raise InputFormatError(f"--error-goal must be a positive number of nT, got {goal}",
                                field="--error-goal")
+    share = MAX_COMPRESSIVE_SHARE if max_compressive_share is None else float(
+        max_compressive_share)
+    if not 0 < share <= 1:
+        raise InputFormatError(f"--max-compressive-share must lie in (0, 1], got {share}",
+                               field="--max-compressive-share")
     if scheduler != "serial":  # before any input is read
         require("batch", f"--scheduler {scheduler}")
     streams = bool(sci or heater or temperature)
@@ -178,7 +186,7 @@ def run_fit(
     result = fit_days(chunks, base, intervals=iv, passes=passes, scheduler=sched,
                       n_workers=workers, fit_delay=fit_delay, progress=progress,
                       temperature_law=temperature_law, estimator=estimator, hold_d0=held,
-                      error_goal=goal)
+                      error_goal=goal, max_compressive_share=share)
     provenance = {
         "inputs": result.stats.inputs,
         "intervals": (f"{Path(intervals).name} sha256={sha256_file(intervals)} "

@@ -176,28 +176,32 @@ def _axes(values) -> str:
 
 
 def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
-           band_limit_nt: float = LAW_BAND_LIMIT_NT) -> None:
+           band_limit_nt: float = LAW_BAND_LIMIT_NT,
+           max_compressive_share: float = MAX_COMPRESSIVE_SHARE) -> None:
     """Narrow ``result.fitted_range`` to `stated_range` and set ``result.merit``.
 
     ``result.merit`` is `predicted_error` (over the narrowed range) with
-    ``data_range_c`` (the range the data fill) and ``band_limit_nt``.
+    ``data_range_c`` (the range the data fill), ``band_limit_nt``, the intervals
+    ``compressive`` and ``judged`` (`compressive_share`) and ``max_compressive_share``.
     """
+    n_comp, judged = compressive_share(result.variance.reason)
     data = tuple(result.fitted_range)
     lo, hi = stated_range(result, band_limit_nt)
     if np.all(np.isfinite((lo, hi))):
         result.fitted_range = (lo, hi)
     result.merit = {**predicted_error(result, goal), "data_range_c": list(data),
                     "band_limit_nt": float(band_limit_nt),
-                    "law_determined": bool(np.all(np.isfinite((lo, hi))))}
+                    "law_determined": bool(np.all(np.isfinite((lo, hi)))),
+                    "compressive": n_comp, "judged": judged,
+                    "max_compressive_share": float(max_compressive_share)}
 
 
-def check_merit(result: FitResult, max_compressive_share: float = MAX_COMPRESSIVE_SHARE
-                ) -> None:
+def check_merit(result: FitResult) -> None:
     """Refuse a fit the data cannot support, or whose predicted error exceeds its goal.
 
     In this order (``result`` as left by `assess`): the compressive share
-    (`compressive_share` above ``max_compressive_share``); the law's band above its
-    limit everywhere in the data's range; the predicted error above its goal.
+    (`compressive_share` above ``merit["max_compressive_share"]``); the law's band above
+    its limit everywhere in the data's range; the predicted error above its goal.
 
     Raises
     ------
@@ -205,7 +209,8 @@ def check_merit(result: FitResult, max_compressive_share: float = MAX_COMPRESSIV
         One line naming the guard, its numbers and what would help.
     """
     m = result.merit
-    refusal = compressive_refusal(result.variance.reason, max_compressive_share)
+    refusal = compressive_refusal(result.variance.reason,
+                                  m.get("max_compressive_share", MAX_COMPRESSIVE_SHARE))
     if refusal:
         raise FitRefusedError(f"{refusal}; not written. Give calmer (Alfvenic) solar-wind "
                               "days or intervals")

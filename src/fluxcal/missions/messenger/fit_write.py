@@ -26,7 +26,7 @@ import numpy as np
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
 from fluxcal.missions.messenger.fit import AXES, FitResult
-from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT
+from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
     TEMPERATURE_EDGES_C,
@@ -66,6 +66,13 @@ def merit_lines(result: FitResult) -> list[str]:
         if goal > ERROR_GOAL_NT:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
                          f"{goal:g}")
+    if m and "judged" in m:
+        share = float(m["max_compressive_share"])
+        lines.append(f"intervals rejected as compressive: {m['compressive']} of {m['judged']} "
+                     f"judged (limit {share:.0%})")
+        if share > MAX_COMPRESSIVE_SHARE:
+            lines.append(f"ACCEPTED ABOVE THE DEFAULT COMPRESSIVE SHARE "
+                         f"{MAX_COMPRESSIVE_SHARE:.0%}: --max-compressive-share {share:g}")
     return lines
 
 
