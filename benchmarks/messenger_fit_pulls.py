@@ -10,11 +10,18 @@ Each realisation simulates ``--days`` days of the independent realistic wind of
 ``--compressive`` relative |B| fluctuation) through `flight_sim` at 1 Hz with seed
 ``--first-seed + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
 errors), and prints, per realisation and then over all, the pulls ``(fit - truth) /
-stated error`` of tau, dt (when adopted), D0 (x, y, z) and the temperature law at
+stated error`` of tau, dt (when adopted), D0 (x, y, z), the breaks T_m, and the temperature law at
 -50, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
 error (nT) over the fitted range.  Pulls with mean ~0 and spread ~1, all within
-[-3, 3], mean the errors say what they mean.  ``--markdown`` prints the table for
-docs/decisions/messenger_fit_verification.md.
+[-3, 3], mean the errors say what they mean.  Each line also gives the passes run, the
+predicted error of a recalibrated day (issue 34) and what the command line would have
+done (the compressive share, convergence, `check_fit`, `fit_merit.check_merit`).
+Issue 34's verification (20 realisations per world, 16 days; a 16-core machine)::
+
+    .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 16 \
+        --unseen --passes 6 --processes 16 [--broadband --compressive 0.05] [--hold-d0 z]
+
+``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.
 """
 
 from __future__ import annotations
@@ -98,6 +105,9 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         res = fit_days(day_chunks(run.input_dir, run.days[:days]), base, passes=passes,
                        estimator="variance", guard=False, hold_d0=hold_d0)
         try:  # what the command line would do with this fit (it writes nothing if refused)
+            cause = fit_merit.compressive_refusal(res.variance.reason)
+            if cause:
+                raise FitRefusedError(cause)
             if not res.convergence["converged"]:
                 raise FitRefusedError(res.convergence["stop"])
             check_fit(res)
