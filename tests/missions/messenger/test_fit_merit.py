@@ -273,3 +273,19 @@ def test_error_goal_is_checked_before_any_input_is_read(tmp_path, capsys):
     assert rc == 2 and err.count("\n") == 1, err
     assert "--error-goal must be a positive number of nT" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_period_mean_keeps_a_ramp_and_removes_the_waveform():
+    # a zero-mean 100-s waveform on a ramp, 1 Hz: the centred mean over one period is the
+    # ramp at the window's mean time (t - 0.5 s for the samples t-50..t+49), NaN where the
+    # window is not covered (the ends, a 30-s gap)
+    from fluxcal.missions.messenger.fit_reduce import _period_mean
+
+    t = np.arange(0.0, 1000.0)
+    t = t[(t < 400.0) | (t >= 430.0)]
+    x = 0.3 * t + 5.0 * np.sin(2 * np.pi * t / 100.0)
+    m = _period_mean(t, x[:, None], 100.0)[:, 0]
+    inner = (t >= 50.0) & (t < 950.0) & ((t < 350.0) | (t >= 480.0))
+    np.testing.assert_allclose(m[inner], 0.3 * (t[inner] - 0.5), atol=1e-9)
+    assert np.all(np.isnan(m[(t < 49.0) | (t > 951.0)]))
+    assert np.all(np.isnan(m[(t >= 360.0) & (t < 470.0)]))
