@@ -274,11 +274,14 @@ def test_held_d0_keeps_the_base_value_and_the_other_parameters(shipped, tmp_path
     prov = {"inputs": {}, "intervals": "all data", "days": "x", "command": "test"}
     write_calibration_folder(res, tmp_path / "out", None, prov)
     header = next((tmp_path / "out").glob("offsets_duty_cycle_v*.csv")).read_text()
-    assert "z: D0 held at the base value (--hold-d0)" in header
+    width = 0.5 * d0[2]
+    assert (f"z: D0 held at {d0[2]:.6g} +- {width:.3g} (--hold-d0; the width enters every "
+            "stated error)") in header
     report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
     assert report["duty_cycle"]["z"]["D0_held"] and not report["duty_cycle"]["x"]["D0_held"]
-    assert "D0 held" not in report_text(res, prov).split("x: C0")[1].split("\n")[0]
-    assert "(held at the base value: --hold-d0)" in report_text(res, prov)
+    assert report["duty_cycle"]["z"]["D0_held_width"] == pytest.approx(width)
+    assert "held at" not in report_text(res, prov).split("x: C0")[1].split("\n")[0]
+    assert f"(held at {d0[2]:.5g} +- {width:.3g}: --hold-d0)" in report_text(res, prov)
 
 
 def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
