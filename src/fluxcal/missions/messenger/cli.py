@@ -124,7 +124,7 @@ def fit(
     out: Path = typer.Option(..., "--out", help="Calibration folder to write."),
     calib: Path | None = typer.Option(
         None, "--calib", help="Starting/base calibration folder (default: shipped tables)."),
-    passes: int = typer.Option(6, "--passes", min=1, max=20,
+    passes: int = typer.Option(12, "--passes", min=1, max=20,
                                help="Most reduce-and-fit passes."),
     fit_delay: bool = typer.Option(True, "--fit-delay/--hold-delay",
                                    help="Fit the heater delay dt, or hold the base value."),

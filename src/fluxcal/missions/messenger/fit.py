@@ -1058,7 +1058,7 @@ def fit_days(
     base: MessengerCalibration,
     *,
     intervals: np.ndarray | None = None,
-    passes: int = 6,
+    passes: int = 12,
     tolerance: float = 2e-3,
     scheduler: str | None = "serial",
     n_workers: int = 2,

@@ -99,7 +99,7 @@ def run_fit(
     intervals: Path | None,
     out: Path,
     calib: Path | None = None,
-    passes: int = 6,
+    passes: int = 12,
     fit_delay: bool = True,
     scheduler: str = "serial",
     workers: int = 2,
