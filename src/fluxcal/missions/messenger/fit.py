@@ -1212,8 +1212,9 @@ def fit_days(
             if not converged:
                 raise FitRefusedError(
                     f"{result.convergence['stop']}; not written (converged: "
-                    f"{convergence_criterion(tolerance)}). Give more passes (--passes "
-                    f"{min(20, 2 * passes)}) or more days")
+                    f"{convergence_criterion(tolerance)}). Give "
+                    + (f"more passes (--passes {min(20, 2 * passes)}) or " if passes < 20
+                       else "") + "more days")
             check_fit(result)
         if estimator == "variance":
             fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
