@@ -289,3 +289,23 @@ def test_period_mean_keeps_a_ramp_and_removes_the_waveform():
     np.testing.assert_allclose(m[inner], 0.3 * (t[inner] - 0.5), atol=1e-9)
     assert np.all(np.isnan(m[(t < 49.0) | (t > 951.0)]))
     assert np.all(np.isnan(m[(t >= 360.0) & (t < 470.0)]))
+
+
+def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped):
+    # resampled laws differing only in their slope b (sigma 0.03 counts/C): the band is
+    # 0.03 |T| counts, within 0.05 nT for |T| <= 0.05 / (0.03 |M_jj|) = 35 C on every axis
+    # (inside the data's -60..40 C)
+    from fluxcal.missions.messenger.fit_merit import LAW_BAND_LIMIT_NT, stated_range
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    assert res.fitted_range == (-60.0, 40.0)
+    law = law_parameters(res.calibration)
+    rng = np.random.default_rng(2)
+    b_law = np.repeat(law[None], 4000, axis=0)
+    b_law[:, :, 1] += 0.03 * rng.standard_normal((4000, 1))
+    res = dataclasses.replace(res, bootstrap={"law": b_law})
+    limit = LAW_BAND_LIMIT_NT / (0.03 * np.abs(np.diag(res.calibration.matrices[0])).max())
+    lo, hi = stated_range(res)
+    assert lo == pytest.approx(-limit, abs=1.5) and hi == pytest.approx(limit, abs=1.5)
+    # a limit nowhere met: (nan, nan), which `check_merit` refuses
+    assert np.isnan(stated_range(res, limit_nt=-1.0)).all()

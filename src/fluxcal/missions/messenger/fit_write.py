@@ -320,8 +320,13 @@ def _range_line(result: FitResult) -> str:
     """Return the fitted temperature range and the law's stated error at its ends."""
     lo, hi = result.fitted_range
     err = result.law_error(np.array([lo, hi]))
+    data = result.merit.get("data_range_c") if result.merit else None
+    narrowed = (f", narrowed from {data[0]:.0f}..{data[1]:.0f} C to where the law's stated "
+                f"error is within {result.merit['band_limit_nt']:g} nT"
+                if data is not None and tuple(data) != (lo, hi) else "")
     return (f"fitted range: {lo:.0f}..{hi:.0f} C (5-C bins holding >= {MIN_RANGE_SAMPLES} "
-            "samples of accepted intervals); the law is not constrained outside it; stated "
+            f"samples of accepted intervals{narrowed}); the law is not constrained outside "
+            "it; stated "
             f"error at {lo:.0f} C {_fmt(err[0], 3)} counts, at {hi:.0f} C {_fmt(err[1], 3)} "
             "counts (x, y, z)")
 
