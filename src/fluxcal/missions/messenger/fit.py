@@ -739,6 +739,31 @@ def held_d0_values(hold_d0: HoldD0, base: MessengerCalibration
     return out
 
 
+def with_tables(base: MessengerCalibration, law: np.ndarray, d0: np.ndarray, tau: float,
+                dt: float, heater: np.ndarray) -> MessengerCalibration:
+    """Return ``base`` with the law ``(a, b, c, T_m)`` per axis, D0, tau, dt and waveforms.
+
+    C0 is the law at the reference temperature (eq. 5a); the look-back follows tau
+    (`look_back_for`); Table 2 is written without the pre-launch offsets where the base
+    adds them to it.
+    """
+    table2 = fv.law_to_table(law)
+    if base.prelaunch_offsets_reading == "added_to_table2":
+        table2[:, 0] -= base.prelaunch_offsets[0]
+        table2[:, 2] -= base.prelaunch_offsets[0]
+    constants = copy.deepcopy(base.constants)
+    rel = constants["relaxation"]
+    c_ref = fv.law_at(law, float(rel.get("reference_temperature_c", -50.0)))
+    rel["tau_s"] = float(tau)
+    rel["delay_s"] = float(dt)
+    rel["look_back_s"] = look_back_for(float(tau))
+    return dataclasses.replace(
+        base, temperature_coefficients=table2,
+        breakpoint_temperature_c=np.asarray(law[:, 3], dtype=float),
+        duty_cycle_c0=np.asarray(c_ref, dtype=float), duty_cycle_d0=np.asarray(d0, dtype=float),
+        heater_signal=np.asarray(heater, dtype=float), constants=constants)
+
+
 def fit_variance_calibration(
     stats: DayStatistics,
     vstats: Any,
@@ -875,19 +900,7 @@ def fit_variance_calibration(
         covariance=np.cov(np.column_stack([b_tau, b_dt]), rowvar=False), chi2=chi2,
         dof=sol.dof)
     heater, waveform, waveform_error = _fit_waveforms(stats, base)
-    table2 = total.copy()
-    if base.prelaunch_offsets_reading == "added_to_table2":
-        table2[:, 0] -= base.prelaunch_offsets[0]
-        table2[:, 2] -= base.prelaunch_offsets[0]
-    constants = copy.deepcopy(base.constants)
-    constants["relaxation"]["tau_s"] = float(tau)
-    constants["relaxation"]["delay_s"] = float(dt)
-    constants["relaxation"]["look_back_s"] = look_back_for(float(tau))
-    cal = dataclasses.replace(
-        base, temperature_coefficients=table2,
-        breakpoint_temperature_c=np.asarray(law[:, 3], dtype=float),
-        duty_cycle_c0=np.asarray(c_ref, dtype=float), duty_cycle_d0=np.asarray(d0, dtype=float),
-        heater_signal=heater, constants=constants)
+    cal = with_tables(base, law, d0, tau, dt, heater)
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
                      stats=stats, epoch_curve=np.empty((0, 4)), estimator="variance",
