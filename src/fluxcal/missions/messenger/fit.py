@@ -1057,6 +1057,48 @@ def pass_changes(old: MessengerCalibration, new: FitResult,
     }
 
 
+#: A pass reverses the previous one when the cosine of their steps (in units of the
+#: stated errors) is below this: the two-state cycle of entry 18.
+REVERSAL_COSINE = -0.5
+
+
+def _table_step(old: MessengerCalibration, new: FitResult) -> np.ndarray:
+    """Return the change of the law ``(a, b, c, T_m)``, D0 and tau in units of their errors."""
+    law_old, law_new = fv.law_parameters(old), fv.law_parameters(new.calibration)
+    err_law = np.array([[f.a0_err, f.b0_err, max(f.b0_err, f.b1_err), f.x_m_err]
+                        for f in new.temperature])
+    err_d0 = np.array([f.slope_err for f in new.duty])
+    tau = [float(c.constants["relaxation"]["tau_s"]) for c in (old, new.calibration)]
+
+    def scaled(d, e):
+        e = np.asarray(e, dtype=float)
+        return np.where(e > 0, np.asarray(d, dtype=float) / np.where(e > 0, e, 1.0), 0.0)
+
+    return np.concatenate([
+        scaled(law_new - law_old, err_law).ravel(),
+        scaled(np.asarray(new.calibration.duty_cycle_d0) - np.asarray(old.duty_cycle_d0),
+               err_d0),
+        scaled([tau[1] - tau[0]], [new.relaxation.tau_err])])
+
+
+def _reverses(before: np.ndarray, step: np.ndarray) -> bool:
+    """Whether ``step`` goes back along ``before`` (`REVERSAL_COSINE`)."""
+    norm = float(np.linalg.norm(before) * np.linalg.norm(step))
+    return norm > 0 and float(before @ step) / norm < REVERSAL_COSINE
+
+
+def _midpoint(old: MessengerCalibration, new: FitResult) -> MessengerCalibration:
+    """Return the calibration half way between two passes (the new waveforms kept)."""
+    rel_old, rel_new = old.constants["relaxation"], new.calibration.constants["relaxation"]
+    return with_tables(
+        new.calibration,
+        0.5 * (fv.law_parameters(old) + fv.law_parameters(new.calibration)),
+        0.5 * (np.asarray(old.duty_cycle_d0) + np.asarray(new.calibration.duty_cycle_d0)),
+        0.5 * (float(rel_old["tau_s"]) + float(rel_new["tau_s"])),
+        0.5 * (float(rel_old["delay_s"]) + float(rel_new["delay_s"])),
+        new.calibration.heater_signal)
+
+
 def convergence_criterion(tolerance: float) -> str:
     """Return the stated convergence criterion (report and refusal)."""
     return (f"every parameter changed by less than the larger of an absolute tolerance "
@@ -1197,11 +1239,18 @@ def fit_days(
             converged = changes["ratio"] <= 1.0
             if guard:  # never carry a tau out of range
                 check_fit(result, final=False)
-            history.append({"pass": p + 1, **result.summary(), "changes": changes})
-            cal = result.calibration
+            damped = (estimator == "variance" and not converged and len(history) >= 1
+                      and _reverses(history[-1]["step"], _table_step(cal, result)))
+            history.append({"pass": p + 1, **result.summary(), "changes": changes,
+                            "step": _table_step(cal, result), "damped": damped})
+            previous, cal = cal, result.calibration
             if converged:
                 break
+            if damped:  # a two-state cycle: the next pass starts half way (entry 18)
+                cal = _midpoint(previous, result)
         assert result is not None
+        for h in history:  # the scaled steps were for the cycle test only
+            h.pop("step", None)
         result.passes = history
         last = history[-1]["changes"]
         result.convergence = {
