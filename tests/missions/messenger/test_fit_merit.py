@@ -309,3 +309,27 @@ def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped)
     assert lo == pytest.approx(-limit, abs=1.5) and hi == pytest.approx(limit, abs=1.5)
     # a limit nowhere met: (nan, nan), which `check_merit` refuses
     assert np.isnan(stated_range(res, limit_nt=-1.0)).all()
+
+
+def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):
+    # closed form: two calibrations whose laws, D0 and tau differ; the midpoint is their
+    # average, and a step that goes back along the previous one is a reversal
+    from fluxcal.missions.messenger.fit import _midpoint, _reverses, _table_step
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(res.calibration)
+    moved = law.copy()
+    moved[:, 3] += 2.0
+    moved[:, 0] += 3.0
+    from fluxcal.missions.messenger.fit import with_tables
+
+    rel = res.calibration.constants["relaxation"]
+    d0 = np.asarray(res.calibration.duty_cycle_d0)
+    other = with_tables(res.calibration, moved, 1.2 * d0, rel["tau_s"] + 40.0,
+                        rel["delay_s"], res.calibration.heater_signal)
+    mid = _midpoint(other, res)
+    np.testing.assert_allclose(law_parameters(mid), 0.5 * (law + moved), atol=1e-9)
+    np.testing.assert_allclose(mid.duty_cycle_d0, 1.1 * d0, rtol=1e-12)
+    assert mid.constants["relaxation"]["tau_s"] == pytest.approx(rel["tau_s"] + 20.0)
+    step = _table_step(other, res)  # other -> res
+    assert _reverses(-step, step) and not _reverses(step, step)
