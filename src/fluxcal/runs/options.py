@@ -19,8 +19,18 @@ field type                     command line
 =============================  ========================================================
 
 Metadata keys: ``help`` (required), ``flags`` (tuple of option names, default
-``--<field-name>``), ``parse`` (callable applied to the parsed value, e.g. "<= 0
-disables"), ``choices`` (allowed values; each element of a tuple field is checked).
+``--<field-name>``; the first is the one messages name, the others are aliases),
+``parse`` (callable applied to the command-line value, e.g. "<= 0 disables"),
+``choices`` (allowed values; each element of a tuple field is checked), ``empty_ok``
+(False: a tuple field needs at least one value), ``check`` (callable taking the final
+value and returning what is wrong with it as text, or None).
+
+Every value is checked where the option is declared, whichever way it comes (command
+line, ``--config`` file, or the dataclass built directly by the Python API): the
+dataclass's ``__post_init__`` calls `check_fields`, so all three refuse the same values
+with the same message (`InputFormatError` naming the first flag).  Beyond a field's own
+``check``, every number must be finite (``nan``/``inf`` never switch a check off), a
+whole-number field takes whole numbers only, and a name field takes names only.
 
 Every such command also takes ``--config FILE.toml`` (`read_config`): a run-configuration
 file whose keys are the fields (``max_offset_step``) or their long options
@@ -35,6 +45,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import math
+import numbers
 import re
 import tomllib
 import types
@@ -109,6 +121,100 @@ def parameters(cls: type) -> list[inspect.Parameter]:
     return params
 
 
+#: Longest averaging interval (s) an option may ask for: one day, the span of a daily
+#: product (an average over more than the product holds has no sample).
+MAX_AVERAGE_S = 86_400
+
+
+def _whole(value: Any) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _problem(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> str | None:
+    """Return what is wrong with a field's final value (type, finite, choices, empty), else None."""
+    if value is None:
+        return None if optional or kind in ("path", "str") else "a value is required"
+    if kind == "float" and not (isinstance(value, numbers.Real)
+                                and not isinstance(value, bool)):
+        return f"{value!r}: expected a number"
+    if kind == "float" and not math.isfinite(value):
+        return f"{value}: expected a finite number"
+    if kind == "int" and not _whole(value):
+        return f"{value!r}: expected a whole number"
+    if kind == "bool" and not isinstance(value, bool):
+        return f"{value!r}: expected true or false"
+    if kind == "ints" and not all(_whole(v) for v in value):
+        return f"{_shown(value)}: expected whole numbers"
+    if kind in ("strs", "str"):
+        values = tuple(value) if kind == "strs" else (value,)
+        if not all(isinstance(v, str) for v in values):
+            return f"{_shown(value)}: expected names"
+        choices = f.metadata.get("choices")
+        if choices is not None:
+            canonical = {str(c).lower() for c in choices}
+            bad = [v for v in values if v.lower() not in canonical]
+            if bad:
+                return (f"unknown value{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
+                        f"choose from {','.join(map(str, choices))}")
+            if kind == "strs" and not values and not f.metadata.get("empty_ok", True):
+                return f"give at least one of {','.join(map(str, choices))}"
+    check = f.metadata.get("check")
+    return check(value) if check is not None else None
+
+
+def _shown(value: Any) -> str:
+    """Return a value as a user writes it: a list comma-separated, not a Python repr."""
+    if isinstance(value, (tuple, list)):
+        return ",".join(map(str, value)) or "''"
+    return str(value)
+
+
+def _normal(kind: str, value: Any) -> Any:
+    """Return a value of the API in the form the command line gives (list -> tuple, str -> Path)."""
+    if kind in ("strs", "ints") and isinstance(value, (list, tuple)):
+        return tuple(int(v) if kind == "ints" and _whole(v) else v for v in value)
+    if kind == "strs" and isinstance(value, str):  # one name, not its letters
+        return tuple(v.strip() for v in value.split(",") if v.strip())
+    if kind == "path" and isinstance(value, str):
+        return Path(value)
+    if kind == "float" and _whole(value):
+        return float(value)
+    return value
+
+
+def check_fields(options: Any) -> None:
+    """Check every field of a run-options dataclass instance (its ``__post_init__``).
+
+    Normalises what the Python API may pass (a list for a tuple, a str for a path), then
+    checks each value as the command line does (`_problem`).
+
+    Raises
+    ------
+    InputFormatError
+        Naming the field's first flag and the value: a number that is not finite, a
+        value of the wrong type, an unknown choice, an empty list where one is needed,
+        or what the field's ``check`` refuses.
+    """
+    hints = typing.get_type_hints(type(options))
+    for f in dataclasses.fields(options):
+        kind, optional = _kind(hints[f.name])
+        value = _normal(kind, getattr(options, f.name))
+        problem = _problem(f, kind, optional, value)
+        if problem is not None:
+            raise InputFormatError(problem, field=flags(f)[0])
+        object.__setattr__(options, f.name, _canonical(f, kind, value))  # frozen: normal form
+
+
+def _canonical(f: dataclasses.Field, kind: str, value: Any) -> Any:
+    """Return a checked name (or names) as its choice is spelled ('CDF' -> 'cdf')."""
+    choices = f.metadata.get("choices")
+    if choices is None or value is None or kind not in ("strs", "str"):
+        return value
+    canonical = {str(c).lower(): c for c in choices}
+    return (tuple(canonical[v.lower()] for v in value) if kind == "strs"
+            else canonical[value.lower()])
+
+
 def _parse_one(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> Any:
     flag = flags(f)[0]
     if kind in ("strs", "ints"):
@@ -117,30 +223,26 @@ def _parse_one(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> A
             try:
                 items = [int(v) for v in items]
             except ValueError:
-                raise InputFormatError(f"{value!r}: expected whole numbers separated by "
+                raise InputFormatError(f"{value}: expected whole numbers separated by "
                                        "commas", field=flag) from None
         value = None if optional and not items else tuple(items)
-        values = value or ()
     elif kind == "str":
         value = str(value).strip()
         if optional and not value:
             value = None
-        values = () if value is None else (value,)
-    else:
-        values = (value,)
-    choices = f.metadata.get("choices")
-    if choices is not None:  # canonical lower-case names; 'CDF' means 'cdf'
-        canonical = {str(c).lower(): c for c in choices}
-        bad = [v for v in values if str(v).lower() not in canonical]
-        if bad or (kind == "strs" and not values and not f.metadata.get("empty_ok", True)):
-            raise InputFormatError(f"{value!r}: unknown value(s) {bad}; choose from "
-                                   f"{','.join(map(str, choices))}", field=flag)
-        if kind == "strs":
-            value = tuple(canonical[str(v).lower()] for v in value)
-        elif value is not None:
-            value = canonical[str(value).lower()]
+    elif kind == "float" and value is not None and not math.isfinite(value):
+        # before ``parse``: "<= 0 disables" must not turn nan or -inf into "off"
+        raise InputFormatError(f"{value}: expected a finite number", field=flag)
+    problem = _problem(f, kind, optional, value) if kind in ("strs", "str") else None
+    if problem is not None:
+        raise InputFormatError(problem, field=flag)
+    value = _canonical(f, kind, value)
     parse = f.metadata.get("parse")
-    return parse(value) if parse is not None else value
+    value = parse(value) if parse is not None else value
+    problem = _problem(f, kind, optional, value)
+    if problem is not None:
+        raise InputFormatError(problem, field=flag)
+    return value
 
 
 def from_command_line(cls: type[T], values: dict[str, Any],

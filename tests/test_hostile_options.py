@@ -1,0 +1,130 @@
+"""Hostile option values and inputs (issue 31 item 4): refused in one line, exit 2.
+
+Every run option is checked where it is declared (`fluxcal.runs.options.check_fields`),
+so the command line, a ``--config`` TOML file and the Python API refuse the same values
+with the same message.  The expected refusals are the issue's reproducers and the ranges
+documented in docs/guide/run_config.md: numbers finite, averaging intervals 1 s to one
+day (86,400 s), at least one frame, product version 1-99.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from fluxcal.cli import main
+from fluxcal.errors import InputFormatError
+from fluxcal.missions.messenger.options import MessengerOptions
+from fluxcal.missions.rosetta.options import RosettaOptions
+
+NAN, INF = float("nan"), float("inf")
+
+# (options class, command-line flag, CLI text, TOML text, API keyword and value)
+BAD = [
+    (MessengerOptions, "--max-offset-step", "nan", "nan", {"max_offset_step": NAN}),
+    (MessengerOptions, "--max-offset-step", "inf", "inf", {"max_offset_step": INF}),
+    (MessengerOptions, "--max-offset-step", "-inf", "-inf", {"max_offset_step": -INF}),
+    (MessengerOptions, "--frames", "", "[]", {"frames": ()}),
+    (MessengerOptions, "--frames", "mso,xyz", '["mso", "xyz"]', {"frames": ("mso", "xyz")}),
+    (MessengerOptions, "--average", "100000", "[100000]", {"averages": (100000,)}),
+    (MessengerOptions, "--average", "0", "[0]", {"averages": (0,)}),
+    (MessengerOptions, "--average", "5,5", "[5, 5]", {"averages": (5, 5)}),
+    (MessengerOptions, "--version", "0", "0", {"version": 0}),
+    (MessengerOptions, "--formats", "xls", '["xls"]', {"formats": ("xls",)}),
+    (RosettaOptions, "--average", "nan", "nan", {"average_s": NAN}),
+    (RosettaOptions, "--average", "100000", "100000", {"average_s": 100000.0}),
+    (RosettaOptions, "--stitch-gap-hours", "inf", "inf", {"stitch_gap_hours": INF}),
+    (RosettaOptions, "--stitch-gap-hours", "-1", "-1", {"stitch_gap_hours": -1.0}),
+]
+IDS = [f"{c[0].__name__[:-7]}{c[1]}={c[2] or 'empty'}" for c in BAD]
+
+
+def _argv(cls: type, tmp: Path, *extra: str) -> list[str]:
+    """A command of ``cls``'s mission whose inputs do not exist (options are checked first)."""
+    out = str(tmp / "out")
+    if cls is MessengerOptions:
+        return ["messenger", "edr2cdr", "--sci", str(tmp / "none.csv"), "--kernels",
+                str(tmp / "none.tm"), "--out", out, *extra]
+    return ["rosetta", "calibrate", "--science", str(tmp / "none.csv"), "--sensor", "OB",
+            "--out", out, *extra]
+
+
+def _one_line(capsys) -> str:
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("fluxcal: error: "), err
+    assert "Traceback" not in err and "(" + "'" not in lines[0]  # no Python tuple repr
+    return lines[0]
+
+
+def _reason(line: str) -> str:
+    """The message after ``field '<name>': `` (the same wherever the value came from)."""
+    return line.split("': ", 1)[1]
+
+
+@pytest.mark.parametrize(("cls", "flag", "cli", "toml", "api"), BAD, ids=IDS)
+def test_cli_config_and_api_refuse_alike(tmp_path: Path, capsys, cls, flag, cli, toml,
+                                         api) -> None:
+    assert main(_argv(cls, tmp_path, f"{flag}={cli}")) == 2
+    on_cli = _one_line(capsys)
+    assert f"'{flag}'" in on_cli
+
+    config = tmp_path / "run.toml"
+    key = flag.lstrip("-")
+    config.write_text(f"{key} = {toml}\n")
+    assert main(_argv(cls, tmp_path, "--config", str(config))) == 2
+    in_file = _one_line(capsys)
+    assert str(config) in in_file and "line 1" in in_file and f"'{key}'" in in_file
+
+    with pytest.raises(InputFormatError) as exc:
+        cls(**api)
+    assert f"'{flag}'" in str(exc.value)
+    assert _reason(on_cli) == _reason(in_file) == _reason(str(exc.value))
+    assert not (tmp_path / "out").exists()
+
+
+def test_nan_never_switches_the_offset_check_off() -> None:
+    """``<= 0 disables`` is a decision of the command line; nan is not <= 0 nor > 0."""
+    assert MessengerOptions(max_offset_step=None).max_offset_step is None
+    for value in (NAN, INF, 0.0, -1.0):
+        with pytest.raises(InputFormatError, match="--max-offset-step"):
+            MessengerOptions(max_offset_step=value)
+    assert math.isclose(MessengerOptions(max_offset_step=3).max_offset_step, 3.0)
+
+
+def test_api_forms_are_normalised() -> None:
+    """A list, a comma-separated string or an upper-case name mean what the CLI means."""
+    opts = MessengerOptions(frames=["MSO", "rtn"], averages=[1, 60], calib="cal")
+    assert opts.frames == ("mso", "rtn") and opts.averages == (1, 60)
+    assert opts.calib == Path("cal")
+    assert MessengerOptions(frames="mso,rtn").frames == ("mso", "rtn")
+    assert RosettaOptions(average_s=2).average_s == 2.0
+
+
+@pytest.mark.parametrize("kwargs", [{"averages": (NAN,)}, {"averages": (1.5,)},
+                                    {"version": True}, {"version": 2.0},
+                                    {"frames": (1,)}, {"quicklook": "yes"}])
+def test_api_wrong_types_are_input_errors(kwargs) -> None:
+    """Not ``cannot convert float NaN to integer`` deep in the run: refused up front."""
+    with pytest.raises(InputFormatError, match="field '--"):
+        MessengerOptions(**kwargs)
+
+
+def test_messenger_api_nan_option(tmp_path: Path) -> None:
+    """The function route with a NaN option refuses before anything is read."""
+    from fluxcal.missions.messenger.routes import run_edr2cdr
+
+    with pytest.raises(InputFormatError, match="--average"):
+        run_edr2cdr([tmp_path / "s.csv"], [], [], tmp_path / "k.tm", tmp_path / "out",
+                    averages=[NAN])
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("value", ["1", "86400", "1,5,10,60"])
+def test_average_range_accepts_its_ends(value: str) -> None:
+    from fluxcal.runs.options import from_command_line
+
+    opts = from_command_line(MessengerOptions, {"averages": value})
+    assert opts.averages == tuple(int(v) for v in value.split(","))
