@@ -128,3 +128,37 @@ def test_average_range_accepts_its_ends(value: str) -> None:
 
     opts = from_command_line(MessengerOptions, {"averages": value})
     assert opts.averages == tuple(int(v) for v in value.split(","))
+
+
+def _cdf(path: Path, attrs: dict[str, str]) -> Path:
+    from cdflib.cdfwrite import CDF
+
+    cdf = CDF(str(path), cdf_spec={"Compressed": False})
+    cdf.write_globalattrs({k: {0: v} for k, v in attrs.items()})
+    cdf.close()
+    return path
+
+
+@pytest.mark.parametrize(("attrs", "expect"), [
+    ({"Project": "another tool"}, "not a product written by fluxcal"),
+    ({"software": "fluxcal", "inputs": 'json:[{"name": '}, "field 'inputs': broken JSON"),
+    ({"software": "fluxcal", "kernels": "json:5"}, "field 'kernels': expected a JSON list"),
+    ({"software": "fluxcal", "calibration": 'json:{"a": 1}'},
+     "field 'calibration': expected a JSON dict"),
+])
+def test_provenance_of_a_foreign_or_broken_file(tmp_path: Path, capsys, attrs, expect) -> None:
+    """Not empty lists and exit 0, not a JSONDecodeError: one line naming file and field."""
+    path = _cdf(tmp_path / "x.cdf", attrs)
+    assert main(["provenance", str(path)]) == 2
+    line = _one_line(capsys)
+    assert "x.cdf" in line and expect in line, line
+
+
+def test_provenance_of_a_foreign_netcdf(tmp_path: Path, capsys) -> None:
+    import numpy as np
+    import xarray as xr
+
+    path = tmp_path / "x.nc"
+    xr.Dataset({"a": ("t", np.arange(3.0))}, attrs={"title": "x"}).to_netcdf(path)
+    assert main(["provenance", str(path)]) == 2
+    assert "not a product written by fluxcal" in _one_line(capsys)
