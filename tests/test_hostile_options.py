@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fluxcal.cli import main
@@ -155,10 +156,54 @@ def test_provenance_of_a_foreign_or_broken_file(tmp_path: Path, capsys, attrs, e
 
 
 def test_provenance_of_a_foreign_netcdf(tmp_path: Path, capsys) -> None:
-    import numpy as np
     import xarray as xr
 
     path = tmp_path / "x.nc"
     xr.Dataset({"a": ("t", np.arange(3.0))}, attrs={"title": "x"}).to_netcdf(path)
     assert main(["provenance", str(path)]) == 2
     assert "not a product written by fluxcal" in _one_line(capsys)
+
+
+def _quoted(lines: list[str]) -> str:
+    """The lines as a spreadsheet exports them: every field quoted, CRLF (RFC 4180)."""
+    return "".join(",".join(f'"{v}"' for v in ln.split(",")) + "\r\n" for ln in lines)
+
+
+def test_messenger_csv_with_quoted_header_reads_as_plain(tmp_path: Path) -> None:
+    """The same numbers from ``"partition","met",...`` as from the unquoted file."""
+    from fluxcal.missions.messenger.readers import SCIENCE_COLUMNS, _read_table
+
+    lines = [",".join(SCIENCE_COLUMNS), "1,246993728.5,3,0,12,-7,30000",
+             "1,246993729,3,1,-32768,0,5"]
+    plain, quoted = tmp_path / "plain.csv", tmp_path / "quoted.csv"
+    plain.write_text("\n".join(lines) + "\n")
+    quoted.write_bytes(_quoted(lines).encode())
+    expected = np.array([[1, 1], [246993728.5, 246993729], [3, 3], [0, 1], [12, -32768],
+                         [-7, 0], [30000, 5]], dtype=float)  # the numbers written above
+    np.testing.assert_array_equal(_read_table(plain, SCIENCE_COLUMNS), expected)
+    np.testing.assert_array_equal(_read_table(quoted, SCIENCE_COLUMNS), expected)
+
+
+def test_rosetta_csv_with_quoted_header_reads_as_plain(tmp_path: Path) -> None:
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.missions.rosetta import io
+
+    lines = ["time_utc,obt,sid,bx,by,bz,t_ob,t_ib,quality",
+             "2014-08-01T00:00:00.000000,366076800.000000,2,1000,-2000,300,16000,17000,0",
+             "2014-08-01T00:00:00.050000,366076800.050000,2,1001,-2001,301,16000,17000,0"]
+    quoted = tmp_path / "quoted.csv"
+    quoted.write_bytes(_quoted(lines).encode())
+    with KernelPool():
+        ds = io.read_science_csv(quoted, "OB")
+    assert ds["b_counts"].values.tolist() == [[1000, -2000, 300], [1001, -2001, 301]]
+    assert ds["epoch"].values[1] - ds["epoch"].values[0] == 50_000_000  # 0.05 s apart
+
+
+def test_rosetta_wrong_header_message_has_no_tuple_repr(tmp_path: Path) -> None:
+    from fluxcal.missions.rosetta import io
+
+    path = tmp_path / "bad.csv"
+    path.write_text("a,b\n1,2\n")
+    with pytest.raises(InputFormatError) as exc:
+        io.read_science_csv(path, "OB")
+    assert "header a,b differs from the expected time_utc,obt," in str(exc.value)

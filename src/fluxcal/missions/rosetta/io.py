@@ -16,6 +16,7 @@ the file, line and field.
 
 from __future__ import annotations
 
+import csv
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -30,7 +31,7 @@ from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
 from fluxcal.missions.rosetta.calib import check_sensor
 from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
 from fluxcal.missions.rosetta.input_checks import report_time_defects
-from fluxcal.textfile import decode_text
+from fluxcal.textfile import csv_header, decode_text
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
 HK_COLUMNS = (
@@ -80,17 +81,18 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     header, _, body = decode_text(data, path, f"a CSV text file with the columns "
                                               f"{','.join(columns)}").partition("\n")
     del data
-    names = tuple(h.strip() for h in header.strip().split(","))
+    names = tuple(csv_header(header))  # RFC 4180: a spreadsheet export quotes the names
     if names != columns:
-        raise InputFormatError(
-            f"header {names} differs from the expected {columns}", path=str(path), line=1
-        )
+        raise InputFormatError(f"header {','.join(names)} differs from the expected "
+                               f"{','.join(columns)}", path=str(path), line=1)
     lines = body.splitlines()
     if lines and not lines[-1].strip():
         lines = lines[:-1]
     if not lines:
         raise InputFormatError("no data records", path=str(path), line=2)
-    cells = np.char.split(np.array(lines, dtype=str), ",")
+    quoted = '"' in body  # RFC 4180 quoting (a spreadsheet export): the csv module
+    cells = (list(csv.reader(lines)) if quoted
+             else np.char.split(np.array(lines, dtype=str), ","))
     counts = np.fromiter((len(c) for c in cells), dtype=np.int64, count=len(cells))
     bad = np.flatnonzero(counts != len(columns))
     if bad.size:
@@ -98,7 +100,7 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
         raise InputFormatError(
             f"{counts[i]} fields, expected {len(columns)}", path=str(path), line=i + 2
         )
-    return np.array(cells.tolist(), dtype=str)
+    return np.array(cells if quoted else cells.tolist(), dtype=str)
 
 
 class _TextColumn:
