@@ -207,3 +207,51 @@ def test_rosetta_wrong_header_message_has_no_tuple_repr(tmp_path: Path) -> None:
     with pytest.raises(InputFormatError) as exc:
         io.read_science_csv(path, "OB")
     assert "header a,b differs from the expected time_utc,obt," in str(exc.value)
+
+
+@pytest.mark.slow
+def test_messenger_files_across_a_long_gap_calibrate(tmp_path: Path) -> None:
+    """2012-06-01 and 2013-01-09 (after the clock reset) in one run, kernels over each.
+
+    Was: exit 2 with a SPICE error at a time in neither input (positions looked up over
+    the months between).  Now each day is written, and its field equals the field of
+    the same file calibrated alone to 1e-6 nT (interpolation grids differ only in their
+    verified nodes: 1e-4 km, 5e-10 rad).
+    """
+    import fluxcal
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+
+    inputs, kernels = [], []
+    for i, start in enumerate(("2012-06-01T00:00:00", "2013-01-09T02:00:00")):
+        mk = write_messenger_like_kernels(tmp_path / f"k{i}", start, 600.0, margin_s=600.0)
+        with KernelPool(mk):
+            sim = simulate(SimulationConfig(start_utc=start, duration_s=600.0,
+                                            solar_wind="quiet"),
+                           load_calibration(start), SclkKernel.from_pool(-236))
+        inputs.append(write_inputs(sim, tmp_path / f"in{i}"))
+        kernels.append(mk)
+
+    def run(out: Path, which: list[int], kernel_files: list[Path]) -> int:
+        argv = ["messenger", "edr2cdr", "--out", str(out), "--formats", "cdf",
+                "--average", "", "--frames", "mso"]
+        for i in which:
+            argv += ["--sci", str(inputs[i]["science"]), "--heater",
+                     str(inputs[i]["heater"]), "--temperature",
+                     str(inputs[i]["temperature"])]
+        return main(argv + [a for k in kernel_files for a in ("--kernels", str(k))])
+
+    both = [kernels[0].parent / n for n in ("msgr_synthetic.tsc", "msgr_synthetic.tf")]
+    both += [k.parent / n for k in kernels for n in ("msgr_synthetic.bsp",
+                                                     "msgr_synthetic_sc.bc")]
+    assert run(tmp_path / "both", [0, 1], both) == 0
+    for i, day in enumerate(("20120601", "20130109")):
+        assert run(tmp_path / f"alone{i}", [i], [kernels[i]]) == 0
+        name = f"messenger_mag_mso-sci_{day}_v01.cdf"
+        joint = fluxcal.read_product(tmp_path / "both" / name)
+        alone = fluxcal.read_product(tmp_path / f"alone{i}" / name)
+        assert joint.sizes["time"] == alone.sizes["time"] > 0
+        assert np.abs(joint["b"].values - alone["b"].values).max() < 1e-6
