@@ -395,6 +395,35 @@ def _read(path: Path, lsk=None) -> xr.Dataset:
     return ds
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file (a link or another spelling included)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one does not exist: reported when it is read
+        return Path(a).resolve() == Path(b).resolve()
+
+
+def _check_two_sensors(inputs: Sequence[Path], data: Sequence[xr.Dataset]) -> None:
+    """Refuse LEVEL_J inputs that are not the OB product then the IB product.
+
+    The sensor is the product's own ``SENSOR`` attribute: a product labelled IB made
+    from OB data (residuals all 0) must never be written.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the input and its option: a product of the wrong sensor, or of none.
+    """
+    for path, ds, want, option in zip(inputs, data, ("OB", "IB"), ("--input", "--input-ib"),
+                                      strict=True):
+        have = str(ds.attrs.get("sensor", ds.attrs.get("SENSOR", ""))).strip().upper()
+        if have != want:
+            what = f"the {have} sensor's product" if have else "a product with no SENSOR"
+            raise InputFormatError(f"is {what}; LEVEL_J takes the OB product as --input "
+                                   "and the IB product as --input-ib", path=str(path),
+                                   field=option)
+
+
 def clean_files(
     level: str,
     inputs: Sequence[Path],
@@ -443,6 +472,10 @@ def clean_files(
             f"LEVEL_{level} needs {need} input product(s) "
             + ("(--input OB, --input-ib IB)" if need == 2 else "(--input)")
         )
+    if level == "J" and _same_file(*inputs):
+        raise InputFormatError("is given as both --input (OB) and --input-ib (IB); LEVEL_J "
+                               "needs the two sensors' products", path=str(inputs[1]),
+                               field="--input-ib")
     if level == "L" and kernels is None:
         raise FluxcalError("LEVEL_L needs SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
     if level == "H" and wheels is None and not len(lap_lines_hz):
@@ -479,6 +512,8 @@ def clean_files(
                     + " or LEVEL_".join(SOURCE_LEVELS[level]),
                     path=str(path),
                 )
+        if level == "J":
+            _check_two_sensors(inputs, data)
         used_inputs: list[Path] = list(inputs)
         src = data[0]
         sensor = str(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")))
