@@ -314,8 +314,9 @@ def science_dataset(epoch: np.ndarray, obt: np.ndarray, sid: np.ndarray, ints: d
 
     ``ints`` holds the integer columns ``bx, by, bz, t_ob, t_ib, quality``; ``row`` says
     where each record was read (``row_description``: line in a CSV, row in a table).
+    A record repeating the time of the one before is dropped (`drop_repeated_times`).
     """
-    return xr.Dataset(
+    return drop_repeated_times(xr.Dataset(
         {
             "obt": ("time", obt, {"units": "s"}),
             "sid": ("time", sid, {"units": "1"}),
@@ -334,7 +335,26 @@ def science_dataset(epoch: np.ndarray, obt: np.ndarray, sid: np.ndarray, ints: d
             "component": ["x", "y", "z"],
         },
         attrs=attrs,
-    )
+    ))
+
+
+def drop_repeated_times(ds: xr.Dataset) -> xr.Dataset:
+    """Drop each record whose ``epoch`` repeats the record before it (the first is kept).
+
+    A product must not hold two vectors at one time (as MESSENGER's duplicated blocks,
+    `fluxcal.missions.messenger.products.time_order`); the records are in
+    non-decreasing time (`_epoch` refuses a step back), so repeats are neighbours.  The
+    count is kept as the attribute ``duplicates_dropped`` (only when some were: a clean
+    file's products are unchanged), which every level's products carry and the run
+    report lists; `report_time_defects` has warned naming the file and the first line.
+    """
+    epoch = ds["epoch"].values
+    keep = np.ones(epoch.size, dtype=bool)
+    keep[1:] = epoch[1:] != epoch[:-1]
+    dropped = int(epoch.size - np.count_nonzero(keep))
+    if not dropped:
+        return ds
+    return ds.isel(time=keep).assign_attrs(duplicates_dropped=dropped)
 
 
 def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
@@ -366,14 +386,14 @@ def hk_dataset(epoch: np.ndarray, obt: np.ndarray, ints: dict, attrs: dict) -> x
     }
     for name in ("stage_a_id", "stage_b_id", "filter_cfg"):
         data[name] = ("time", ints[name], {"units": "1"})
-    return xr.Dataset(
+    return drop_repeated_times(xr.Dataset(
         data,
         coords={
             "epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
             "component": ["x", "y", "z"],
         },
         attrs=attrs,
-    )
+    ))
 
 
 #: Records formatted and written at a time: a day's text (and its temporaries, ~3 GB for
