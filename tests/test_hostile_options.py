@@ -255,3 +255,22 @@ def test_messenger_files_across_a_long_gap_calibrate(tmp_path: Path) -> None:
         alone = fluxcal.read_product(tmp_path / f"alone{i}" / name)
         assert joint.sizes["time"] == alone.sizes["time"] > 0
         assert np.abs(joint["b"].values - alone["b"].values).max() < 1e-6
+
+
+@pytest.mark.parametrize("mission", ["synthetic", "rosetta", "messenger"])
+def test_batch_over_a_folder_without_the_missions_files(tmp_path: Path, capsys,
+                                                        mission: str) -> None:
+    """Every day without data is not success: exit 2 naming the folder, nothing written."""
+    folder = tmp_path / "inputs"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("not telemetry\n")
+    (folder / "MAG_science.csv").write_text("partition,met,rate,range,cx,cy,cz\n")
+    out = tmp_path / "out"
+    code = main(["batch", mission, "--start", "2014-08-01", "--end", "2014-08-03",
+                 "--input", str(folder), "--out", str(out), "--scheduler", "serial",
+                 "--quiet"])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "error" in ln]
+    assert code == 2 and len(err) == 1, err
+    assert "--input" in err[0] and str(folder) in err[0] and mission in err[0]
+    assert "2014-08-01 to 2014-08-03" in err[0]
+    assert not out.exists()
