@@ -274,3 +274,19 @@ def test_batch_over_a_folder_without_the_missions_files(tmp_path: Path, capsys,
     assert "--input" in err[0] and str(folder) in err[0] and mission in err[0]
     assert "2014-08-01 to 2014-08-03" in err[0]
     assert not out.exists()
+
+
+def test_verbose_shows_fluxcal_steps_not_other_libraries(tmp_path: Path, capsys) -> None:
+    """``-v``: fluxcal's INFO lines (the driver's steps), other libraries' at WARNING."""
+    import logging
+
+    try:
+        assert main(["-v", "simulate", "rosetta", "--out", str(tmp_path / "sim"), "--hours",
+                     "0.005"]) == 0
+        assert logging.getLogger("fluxcal.runs.driver").isEnabledFor(logging.INFO)
+        for other in ("numba", "distributed", "matplotlib", "fsspec"):
+            assert not logging.getLogger(other).isEnabledFor(logging.INFO), other
+    finally:
+        logging.getLogger("fluxcal").setLevel(logging.NOTSET)
+    assert main(["version"]) == 0
+    assert not logging.getLogger("fluxcal.runs.driver").isEnabledFor(logging.INFO)

@@ -61,10 +61,12 @@ def _root(
         raise typer.BadParameter("-v/--verbose and -q/--quiet exclude each other",
                                  param_hint="'--quiet'")
     QUIET.set(quiet)
-    logging.basicConfig(
-        level=logging.ERROR if quiet else logging.INFO if verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
+    # other libraries (numba, distributed, matplotlib ...) say warnings and errors only;
+    # -v makes fluxcal's own steps readable (`fluxcal.runs.driver`: read, calibrated,
+    # written, with sizes and times)
+    logging.basicConfig(level=logging.ERROR if quiet else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("fluxcal").setLevel(logging.INFO if verbose else logging.NOTSET)
 
 
 def version() -> None:

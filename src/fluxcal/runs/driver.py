@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import logging
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +22,8 @@ from typing import Any, Protocol
 from fluxcal.extras import require_for_options
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.runs.batch import DayInputs, DayResult, worker_kernel_pool
+
+log = logging.getLogger(__name__)
 
 #: Progress callback: (description, steps done, steps in total).
 Progress = Callable[[str, int, int], None]
@@ -105,18 +109,27 @@ def run(
     """
     require_for_options(options)  # a missing plot/zarr extra: one line, nothing read
     pipeline.check(options)
+    t0 = time.perf_counter()
     with _pool(pipeline, kernels) as pool:
+        log.info("%d kernel file(s) loaded", len(pool.kernel_list()))
         if progress is not None:
             progress("reading inputs", 0, 1)
         raw, inputs = pipeline.read(source, options)
         n_vectors = pipeline.size(raw)
+        t1 = time.perf_counter()
+        log.info("read %s vectors from %d file(s) in %.1f s", f"{n_vectors:,}", len(inputs),
+                 t1 - t0)
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
+        t2 = time.perf_counter()
+        log.info("calibrated in %.1f s", t2 - t1)
         if on_calibrated is not None:
             on_calibrated(calibrated)
         written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
                                  kernel_list=pool.kernel_list(), only_day=only_day,
                                  progress=progress)
+        log.info("wrote %d file(s) to %s in %.1f s", len(written), Path(out_dir).name,
+                 time.perf_counter() - t2)
     return written, n_vectors
 
 
