@@ -32,7 +32,7 @@ BAD = [
     (MessengerOptions, "--average", "100000", "[100000]", {"averages": (100000,)}),
     (MessengerOptions, "--average", "0", "[0]", {"averages": (0,)}),
     (MessengerOptions, "--average", "5,5", "[5, 5]", {"averages": (5, 5)}),
-    (MessengerOptions, "--version", "0", "0", {"version": 0}),
+    (MessengerOptions, "--product-version", "0", "0", {"version": 0}),
     (MessengerOptions, "--formats", "xls", '["xls"]', {"formats": ("xls",)}),
     (RosettaOptions, "--average", "nan", "nan", {"average_s": NAN}),
     (RosettaOptions, "--average", "100000", "100000", {"average_s": 100000.0}),
@@ -46,9 +46,9 @@ def _argv(cls: type, tmp: Path, *extra: str) -> list[str]:
     """A command of ``cls``'s mission whose inputs do not exist (options are checked first)."""
     out = str(tmp / "out")
     if cls is MessengerOptions:
-        return ["messenger", "edr2cdr", "--sci", str(tmp / "none.csv"), "--kernels",
+        return ["messenger", "edr2cdr", "--input", str(tmp / "none.csv"), "--kernels",
                 str(tmp / "none.tm"), "--out", out, *extra]
-    return ["rosetta", "calibrate", "--science", str(tmp / "none.csv"), "--sensor", "OB",
+    return ["rosetta", "calibrate", "--input", str(tmp / "none.csv"), "--sensor", "OB",
             "--out", out, *extra]
 
 
@@ -290,3 +290,30 @@ def test_verbose_shows_fluxcal_steps_not_other_libraries(tmp_path: Path, capsys)
         logging.getLogger("fluxcal").setLevel(logging.NOTSET)
     assert main(["version"]) == 0
     assert not logging.getLogger("fluxcal.runs.driver").isEnabledFor(logging.INFO)
+
+
+@pytest.mark.parametrize(("argv", "shown", "hidden"), [
+    (["messenger", "edr2cdr"], ["--input", "--product-version"], ["--sci", "--version"]),
+    (["messenger", "fit"], ["--input"], ["--sci"]),
+    (["rosetta", "calibrate"], ["--input"], ["--science"]),
+    (["rosetta", "fit"], ["--input"], ["--science"]),
+    (["batch", "messenger"], ["--input", "--product-version"], ["--version"]),
+])
+def test_one_input_name_old_names_hidden_but_working(capsys, argv, shown, hidden) -> None:
+    """The main input is ``--input`` everywhere; ``--sci``/``--science``/``--version`` parse."""
+    assert main([*argv, "--help"]) == 0
+    words = set(capsys.readouterr().out.replace(",", " ").split())
+    assert set(shown) <= words and not set(hidden) & words, words & set(hidden)
+
+
+@pytest.mark.parametrize(("old", "new"), [("--sci", "--input"), ("--version", "--product-version")])
+def test_old_names_refuse_like_the_new(tmp_path: Path, capsys, old: str, new: str) -> None:
+    value = ["0"] if "version" in old else [str(tmp_path / "none.csv")]
+    base = ["messenger", "edr2cdr", "--kernels", str(tmp_path / "k.tm"), "--out",
+            str(tmp_path / "out")]
+    extra = ["--heater", str(tmp_path / "h.csv"), "--temperature", str(tmp_path / "t.csv")]
+    extra += [] if "version" not in old else ["--input", str(tmp_path / "none.csv")]
+    assert main([*base, *extra, old, *value]) == 2
+    line_old = _one_line(capsys)
+    assert main([*base, *extra, new, *value]) == 2
+    assert _one_line(capsys) == line_old and new in line_old

@@ -58,8 +58,49 @@ def command_summary(cmd: Any) -> str:
     return " ".join(first.replace("\b", "").split())
 
 
+#: Old option names kept working but not shown in help: every command names its main input
+#: ``--input`` (was ``--sci`` for MESSENGER, ``--science`` for Rosetta), and a product's
+#: version is ``--product-version`` (``--version`` is fluxcal's own, ``fluxcal --version``).
+HIDDEN_ALIASES = ("--sci", "--science", "--version")
+
+
+def hide_aliases(command: Any) -> Any:
+    """Leave `HIDDEN_ALIASES` out of ``command``'s help where an option has another name.
+
+    The names still parse (click's parser is built from every name); only the help
+    record of such an option lists the other names.
+    """
+    for param in getattr(command, "params", ()):
+        opts = list(getattr(param, "opts", ()))
+        if not any(o in HIDDEN_ALIASES for o in opts) or all(o in HIDDEN_ALIASES for o in opts):
+            continue
+        if getattr(param, "_fluxcal_aliases_hidden", False):
+            continue
+        shown = [o for o in opts if o not in HIDDEN_ALIASES]
+
+        def record(ctx: Any, _param: Any = param, _shown: list = shown,
+                   _original: Any = param.get_help_record) -> Any:
+            saved = _param.opts
+            _param.opts = _shown
+            try:
+                return _original(ctx)
+            finally:
+                _param.opts = saved
+
+        param.get_help_record = record
+        param._fluxcal_aliases_hidden = True
+    return command
+
+
 class HelpGroup(TyperGroup):
-    """A command group whose list of commands wraps each summary instead of cutting it."""
+    """A command group whose list of commands wraps each summary instead of cutting it.
+
+    Its commands' help leaves out the old option names (`hide_aliases`).
+    """
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        """Return the command, its old option names left out of its help."""
+        return hide_aliases(super().get_command(ctx, cmd_name))
 
     def format_commands(self, ctx: Any, formatter: Any) -> None:
         """Write the ``Commands:`` section: name and whole first paragraph of each."""

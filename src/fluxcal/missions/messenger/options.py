@@ -84,7 +84,7 @@ class MessengerOptions:
         "choices": FRAMES})
     version: int = field(default=DEFAULT_VERSION, metadata={
         "help": "Product version: the _V<nn> of the file names.",
-        "flags": ("--version", "--product-version"), "check": _version_problem})
+        "flags": ("--product-version", "--version"), "check": _version_problem})
     calib: Path | None = field(default=None, metadata={
         "help": "Calibration folder to use in place of the shipped tables (e.g. the --out "
                 "of 'fluxcal messenger fit'; docs/formats/calibration.md)."})

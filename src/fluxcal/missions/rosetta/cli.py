@@ -54,8 +54,9 @@ app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True,
 @with_options(RosettaOptions)
 def calibrate(
     science: Path = typer.Option(
-        ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a CSV "
-        "file, or the archive's EDITED products (a folder searched recursively, or one .LBL)."
+        ..., "--input", "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. "
+        "4.1.2): a CSV file, or the archive's EDITED products (a folder searched "
+        "recursively, or one .LBL)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
@@ -81,7 +82,7 @@ def calibrate(
     from fluxcal.missions.rosetta.routes import FILE_LEVELS, run_files
 
     calib = options.calib
-    check_raw_source(science, "--science")
+    check_raw_source(science, "--input")
     if hk is not None:
         check_raw_source(hk, "--hk")
     if calib is not None:
@@ -107,8 +108,9 @@ def calibrate(
 @app.command()
 def fit(
     science: list[Path] = typer.Option(
-        ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a "
-        "CSV, or EDITED archive products (folder or .LBL); repeat for several files (days)."
+        ..., "--input", "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. "
+        "4.1.2): a CSV, or EDITED archive products (folder or .LBL); repeat for several "
+        "files (days)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the fitted calibration files."),
@@ -163,7 +165,7 @@ def fit(
     from fluxcal.missions.rosetta.fit_run import fit_files
 
     for path in science:
-        check_raw_source(path, "--science")
+        check_raw_source(path, "--input")
     if hk is not None:
         check_raw_source(hk, "--hk")
     if calib is not None:
@@ -288,7 +290,7 @@ def simulate_archive_layout(out: Path, start: str, hours: float, rate: float, pr
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")
     edited, day = paths["archive"], start[:10]
-    typer.echo(f"run: fluxcal rosetta calibrate --science {edited} --hk {edited} --sensor OB "
+    typer.echo(f"run: fluxcal rosetta calibrate --input {edited} --hk {edited} --sensor OB "
                f"--calib {paths['calib']} --kernels {out / 'kernels.tm'} --out OUT; or: "
                f"fluxcal batch rosetta --input {out} --start {day} --end {day} --out OUT")
 
