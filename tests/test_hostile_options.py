@@ -317,3 +317,46 @@ def test_old_names_refuse_like_the_new(tmp_path: Path, capsys, old: str, new: st
     line_old = _one_line(capsys)
     assert main([*base, *extra, new, *value]) == 2
     assert _one_line(capsys) == line_old and new in line_old
+
+
+@pytest.mark.parametrize(("argv", "text", "expect"), [
+    (["rosetta", "clean", "--level", "K", "--input", "x.cdf"], 'input = "y.cdf"\n',
+     ["line 1", "'input'", "unknown key", "lap-lines", "inputs and --out"]),
+    (["rosetta", "clean", "--level", "K", "--input", "x.cdf"], 'seed = 1.5\n',
+     ["line 1", "'seed'", "--seed"]),
+    (["rosetta", "fit", "--input", "x.csv", "--sensor", "OB"], 'degree = 2\nblok = 3\n',
+     ["line 2", "'blok'", "unknown key", "block-seconds"]),
+    (["messenger", "fit", "--input", "x.csv"], 'passes = "many"\n',
+     ["line 1", "'passes'", "--passes"]),
+    (["messenger", "fit", "--input", "x.csv"], 'estimator = ["a", "b"]\n',
+     ["line 1", "'estimator'", "expected one value"]),
+])
+def test_fit_and_clean_take_config_and_refuse_bad_keys(tmp_path: Path, capsys, argv, text,
+                                                      expect) -> None:
+    config = tmp_path / "run.toml"
+    config.write_text(text)
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out), "--config", str(config)]) == 2
+    line = _one_line(capsys)
+    assert str(config) in line and all(e in line for e in expect), line
+    assert not out.exists()
+
+
+def test_clean_config_merged_under_the_command_line(tmp_path: Path) -> None:
+    """The file's values are defaults; an option given on the command line wins."""
+    sim, cal = tmp_path / "sim", tmp_path / "cal"
+    assert main(["simulate", "rosetta", "--out", str(sim), "--hours", "0.005"]) == 0
+    assert main(["rosetta", "calibrate", "--input", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
+                 "--sensor", "OB", "--calib", str(sim / "calib"), "--out", str(cal),
+                 "--formats", "cdf"]) == 0
+    (level_b,) = cal.glob("rosetta_rpcmag_clb-ob_*.cdf")
+    config = tmp_path / "clean.toml"
+    config.write_text('no-plot = true\nformats = "cdf"\n')
+    base = ["rosetta", "clean", "--level", "K", "--input", str(level_b), "--config",
+            str(config)]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 0
+    assert sorted(p.suffix for p in (tmp_path / "a").iterdir() if p.name != "index.html") \
+        == [".cdf"]  # formats and no-plot from the file
+    assert main([*base, "--out", str(tmp_path / "b"), "--formats", "tab"]) == 0
+    assert sorted(p.suffix for p in (tmp_path / "b").iterdir() if p.name != "index.html") \
+        == [".LBL", ".TAB"]  # the command line wins

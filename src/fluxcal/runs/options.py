@@ -51,7 +51,7 @@ import re
 import tomllib
 import types
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -330,6 +330,32 @@ def _toml_value(kind: str, value: Any, folder: Path) -> Any:
     return None
 
 
+def _load_toml(path: Path) -> tuple[str, dict[str, Any]]:
+    """Return the text and the table of a run-configuration file.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file (and the line): unreadable, not UTF-8, or not TOML.
+    """
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else (
+            "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc))
+        raise InputFormatError(f"cannot read the run-configuration file: {what} (give a "
+                               "TOML file, docs/guide/run_config.md)",
+                               path=str(path), field=CONFIG_FLAG) from None
+    try:
+        return text, tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))
+        line = int(where.group(1)) if where else None
+        message = re.sub(r"\s*\(at (line .*|end of document)\)$", "", str(exc))
+        raise InputFormatError(f"not valid TOML: {message}", path=str(path),
+                               line=line) from None
+
+
 def read_config(path: Path, cls: type) -> dict[str, Any]:
     r"""Read a run-configuration file (TOML) for the options dataclass ``cls``.
 
@@ -373,22 +399,7 @@ def read_config(path: Path, cls: type) -> dict[str, Any]:
     {'frames': ('mso', 'rtn'), 'max_step': 3.0}
     """
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else (
-            "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc))
-        raise InputFormatError(f"cannot read the run-configuration file: {what} (give a "
-                               "TOML file, docs/guide/run_config.md)",
-                               path=str(path), field=CONFIG_FLAG) from None
-    try:
-        table = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))
-        line = int(where.group(1)) if where else None
-        message = re.sub(r"\s*\(at (line .*|end of document)\)$", "", str(exc))
-        raise InputFormatError(f"not valid TOML: {message}", path=str(path),
-                               line=line) from None
+    text, table = _load_toml(path)
     keys = config_keys(cls)
     hints = typing.get_type_hints(cls)
     parsed: dict[str, Any] = {}
@@ -506,3 +517,107 @@ def with_options(cls: type, name: str = "options",
 def as_keywords(options: Any) -> dict[str, Any]:
     """Return a run-options dataclass as keyword arguments (field name -> value)."""
     return {f.name: getattr(options, f.name) for f in dataclasses.fields(options)}
+
+
+def _names_paths(hint: Any) -> bool:
+    """Whether a type hint is a path (``Path``, ``Path | None``, ``list[Path]``)."""
+    return hint is Path or any(_names_paths(a) for a in typing.get_args(hint))
+
+
+def _command_config(ctx: Any, path: Path, exclude: Sequence[str],
+                    paths: set[str]) -> dict[str, Any]:
+    """Return a run-configuration file as click defaults of ``ctx.command``'s options.
+
+    Keys are the options' names or long options without dashes (``-`` = ``_``), as for
+    `read_config`; the options in ``exclude`` (inputs, ``--out``) stay on the command
+    line.  Each value goes through the option's own conversion and checks; a relative
+    path (an option named in ``paths``) is relative to the file's folder.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file, the key and its line: an unknown key, or a value the option
+        does not take.
+    """
+    text, table = _load_toml(path)
+    params = {}
+    for param in ctx.command.params:
+        if getattr(param, "param_type_name", "") != "option" or \
+                param.name in (*exclude, "config"):
+            continue
+        for name in (param.name, *(o.lstrip("-") for o in param.opts if o.startswith("--"))):
+            params[name.replace("-", "_")] = param
+    defaults: dict[str, Any] = {}
+    for key, value in table.items():
+        line = _key_line(text, key)
+        param = params.get(key.replace("-", "_"))
+        if param is None:
+            known = ", ".join(sorted({p.opts[0].lstrip("-") for p in params.values()}))
+            raise InputFormatError(f"unknown key; this command's run options are {known} "
+                                   "(inputs and --out go on the command line)",
+                                   path=str(path), line=line, field=key)
+        if param.name in defaults:
+            raise InputFormatError(f"sets {param.opts[0]} again", path=str(path), line=line,
+                                   field=key)
+        items = value if param.multiple and isinstance(value, list) else (
+            [value] if param.multiple else None)
+        if param.name in paths:  # relative to the file's folder
+            def near(v: Any) -> Any:
+                return str(path.parent / v) if isinstance(v, str) and v and \
+                    not Path(v).expanduser().is_absolute() else v
+            items = None if items is None else [near(v) for v in items]
+            value = near(value)
+        if isinstance(value, (dict, list)) and items is None:
+            raise InputFormatError(f"{value!r} ({type(value).__name__}): expected one value",
+                                   path=str(path), line=line, field=key)
+        try:
+            defaults[param.name] = param.process_value(ctx, items if items is not None
+                                                       else value)
+        except typer.BadParameter as exc:
+            raise InputFormatError(exc.format_message(), path=str(path), line=line,
+                                   field=key) from None
+    return defaults
+
+
+def with_config(exclude: Sequence[str] = ("out",)) -> Callable[[Callable], Callable]:
+    """Give a command of plain typer options ``--config FILE.toml`` (`read_config`'s rules).
+
+    For commands without a run-options dataclass (``fit``, ``clean``): the file's values
+    become the defaults of the command's options (click's ``default_map``), so an option
+    given on the command line wins; the options named in ``exclude`` (parameter names:
+    the inputs and ``out``) are not keys.  Errors name the file, the key and its line
+    (exit 2) before the command runs (`_command_config`).
+    """
+    def decorate(func: Callable) -> Callable:
+        signature = inspect.signature(func)
+        hints = typing.get_type_hints(func)
+        paths = {name for name, hint in hints.items() if _names_paths(hint)}
+
+        def load(ctx: typer.Context, param: typer.CallbackParam, value: Any) -> Any:
+            if value is not None:
+                ctx.default_map = {**(ctx.default_map or {}),
+                                   **_command_config(ctx, Path(value), exclude, paths)}
+            return value
+
+        option = typer.Option(None, CONFIG_FLAG, is_eager=True, callback=load,
+                              help="Run-configuration file (TOML): options by name, "
+                                   "merged under the command line (docs/guide/"
+                                   "run_config.md).")
+
+        @functools.wraps(func)
+        def command(*args: Any, **kwargs: Any) -> Any:
+            kwargs.pop("config", None)
+            return func(*args, **kwargs)
+
+        params = [p.replace(annotation=hints.get(p.name, p.annotation))
+                  for p in signature.parameters.values()]
+        params.append(inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY,
+                                        default=option, annotation=Path | None))
+        command.__signature__ = signature.replace(  # type: ignore[attr-defined]
+            parameters=params)
+        command.__annotations__ = {**hints, "config": Path | None}
+        del command.__wrapped__  # typer must see the new signature
+        return command
+
+    return decorate
+

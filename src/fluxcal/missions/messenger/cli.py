@@ -13,7 +13,7 @@ from fluxcal.cli_help import HelpGroup, progress_wanted, quiet_requested
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.preflight import plain_text_file
-from fluxcal.runs.options import with_options
+from fluxcal.runs.options import with_config, with_options
 
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
                   rich_markup_mode=None, cls=HelpGroup)
@@ -105,6 +105,8 @@ def check_calibration_folder(folder: Path) -> None:
 
 
 @app.command("fit")
+@with_config(exclude=("sci", "heater", "temperature", "kernels", "input_dir", "days",
+                      "intervals", "out"))
 def fit(
     sci: list[Path] = typer.Option([], "--input", "--sci", help="Science CSV file(s)."),
     heater: list[Path] = typer.Option([], "--heater", help="Heater-bit CSV file(s)."),

@@ -34,6 +34,7 @@ from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import check_average
+from fluxcal.runs.options import with_config
 from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
@@ -588,6 +589,8 @@ def _direction(text: str) -> list[float] | None:
     return values
 
 
+@with_config(exclude=("input", "input_ib", "out", "wheels", "intervals", "heater_states",
+                      "kernels"))
 def clean(
     level: str = typer.Option(..., "--level", help="Level to make: F, G, H, I, J, K or L."),
     input: list[Path] = typer.Option(  # noqa: A002 - the option's natural name

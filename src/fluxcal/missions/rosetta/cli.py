@@ -20,7 +20,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
-from fluxcal.runs.options import with_options
+from fluxcal.runs.options import with_config, with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
 ALIGNED_LEVELS = frozenset("BCFG")
@@ -106,6 +106,7 @@ def calibrate(
 
 
 @app.command()
+@with_config(exclude=("science", "sensor", "out", "hk", "kernels", "intervals"))
 def fit(
     science: list[Path] = typer.Option(
         ..., "--input", "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. "
