@@ -67,7 +67,8 @@ def to_level(l1a_sets: dict[tuple[str, str], xr.Dataset], level: str,
              calib: Path | None = None) -> dict[tuple[str, str], xr.Dataset]:
     """Return the L1A datasets as they are (``level="l1a"``) or calibrated to L1B in nT."""
     if level not in LEVELS:
-        raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
+        raise InputFormatError(f"level {level!r}: expected one of {', '.join(LEVELS)}",
+                               field="--level")
     if level == "l1a":
         return l1a_sets
     cal = load_calibration(calib)
@@ -96,7 +97,8 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
         An unknown level, or an input error naming file, packet or line, and field.
     """
     if level not in LEVELS:
-        raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
+        raise InputFormatError(f"level {level!r}: expected one of {', '.join(LEVELS)}",
+                               field="--level")
     if level == "l1b":
         load_calibration(calib)  # a bad calibration file fails before any packet is read
     with KernelPool(kernels if kernels is not None else [data_file(DEFAULT_SCLK)],

@@ -54,7 +54,7 @@ class ImapRun:
     def check(self, options: ImapOptions) -> None:
         """Refuse an unknown level and an unreadable calibration file before any packet."""
         if options.level not in LEVELS:
-            raise InputFormatError(f"level {options.level!r}: expected one of {LEVELS}",
+            raise InputFormatError(f"level {options.level!r}: expected one of {', '.join(LEVELS)}",
                                    field="--level")
         if options.level == "l1b":
             load_calibration(options.calib)
