@@ -360,3 +360,18 @@ def test_clean_config_merged_under_the_command_line(tmp_path: Path) -> None:
     assert main([*base, "--out", str(tmp_path / "b"), "--formats", "tab"]) == 0
     assert sorted(p.suffix for p in (tmp_path / "b").iterdir() if p.name != "index.html") \
         == [".LBL", ".TAB"]  # the command line wins
+
+
+@pytest.mark.parametrize(("option", "value"), [
+    ("--step", "nan"), ("--step", "inf"), ("--max-gap", "inf"), ("--max-gap", "nan"),
+    ("--bandwidth", "inf"), ("--lap-lines", "inf"), ("--lap-lines", "nan")])
+def test_clean_refuses_nonfinite_numbers_before_reading(tmp_path: Path, capsys, option: str,
+                                                       value: str) -> None:
+    level = "J" if option in ("--step", "--max-gap") else "H"
+    argv = ["rosetta", "clean", "--level", level, "--input", str(tmp_path / "ob.cdf"),
+            "--out", str(tmp_path / "out"), "--no-plot", option, value]
+    argv += ["--input-ib", str(tmp_path / "ib.cdf")] if level == "J" else []
+    argv += ["--lap-lines", "2.5"] if option == "--bandwidth" else []
+    assert main(argv) == 2
+    line = _one_line(capsys)
+    assert option in line and "finite" in line, line

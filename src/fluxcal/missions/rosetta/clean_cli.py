@@ -484,11 +484,18 @@ def clean_files(
             "LEVEL_H removes reaction-wheel and LAP lines and none were given: pass --wheels "
             "CSV and/or --lap-lines HZ[,HZ...]"
         )
-    if bandwidth_hz is not None and not bandwidth_hz > 0:
-        raise FluxcalError(f"--bandwidth {bandwidth_hz:g}: the replaced band width must be > 0 Hz")
-    negative = [f for f in lap_lines_hz if not f > 0]
+    if bandwidth_hz is not None and not 0 < bandwidth_hz < float("inf"):
+        raise FluxcalError(f"--bandwidth {bandwidth_hz:g}: the replaced band width must be a "
+                           "finite number > 0 Hz")
+    if step_s is not None and not 0 < step_s < float("inf"):
+        raise FluxcalError(f"--step {step_s:g}: the grid step must be a finite number > 0 s")
+    if not 0 <= max_gap_samples < float("inf"):
+        raise FluxcalError(f"--max-gap {max_gap_samples:g}: give a finite number of sample "
+                           "intervals >= 0")
+    negative = [f for f in lap_lines_hz if not 0 < f < float("inf")]
     if negative:
-        raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be > 0 Hz")
+        raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be a finite "
+                           "number > 0 Hz")
     if level == "K" and intervals is not None and heater_states is not None:
         raise FluxcalError("give either --intervals or --heater-states, not both")
     if level in ("F", "G", "I"):
