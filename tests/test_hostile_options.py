@@ -375,3 +375,18 @@ def test_clean_refuses_nonfinite_numbers_before_reading(tmp_path: Path, capsys, 
     assert main(argv) == 2
     line = _one_line(capsys)
     assert option in line and "finite" in line, line
+
+
+@pytest.mark.parametrize(("option", "value"), [
+    ("--block-seconds", "inf"), ("--block-seconds", "nan"), ("--block-seconds", "100000"),
+    ("--max-sigma", "nan"), ("--max-sigma", "inf"), ("--max-sigma", "0")])
+def test_rosetta_fit_refuses_nonsense_numbers(tmp_path: Path, capsys, option: str,
+                                              value: str) -> None:
+    """Was: inf an internal error (OverflowError), nan/inf --max-sigma accepted."""
+    science = tmp_path / "RPCMAG_20140801_RAW_OB.csv"
+    science.write_text("time_utc,obt,sid,bx,by,bz,t_ob,t_ib,quality\n"
+                       "2014-08-01T00:00:00.000000,365471901.094381,2,1,2,3,10193,10818,0\n")
+    assert main(["rosetta", "fit", "--input", str(science), "--sensor", "OB", "--out",
+                 str(tmp_path / "out"), option, value]) == 2
+    assert f"'{option}'" in _one_line(capsys)
+    assert not (tmp_path / "out").exists()

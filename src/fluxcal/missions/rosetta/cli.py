@@ -177,9 +177,12 @@ def fit(
         preflight.plain_text_file(intervals, "--intervals")
     if not 0 <= degree <= 5:
         raise InputFormatError(f"{degree}: the daily files hold degrees 0 to 5", field="--degree")
-    if block is not None and not block > 0:
-        raise InputFormatError(f"{block} s: give a positive block length",
-                               field="--block-seconds")
+    if block is not None and not 0 < block <= 86_400:
+        raise InputFormatError(f"{block:g} s: give a block length above 0 s and at most "
+                               "86400 s (one day)", field="--block-seconds")
+    if not 0 < max_sigma < float("inf"):
+        raise InputFormatError(f"{max_sigma:g} nT: give a finite limit above 0 nT",
+                               field="--max-sigma")
     if estimator not in ("zero-mean", "variance"):
         raise InputFormatError(f"{estimator}: choose zero-mean or variance", field="--estimator")
     preflight.writable_folder(out, "--out")
