@@ -37,7 +37,7 @@ def check_frames(frames: Sequence[str]) -> None:
     unknown = set(frames) - set(levels.FRAMES)
     if unknown:
         raise InputFormatError(
-            f"unknown frame(s) {', '.join(sorted(map(str, unknown)))}; expected some of "
+            f"unknown frame(s) {', '.join(map(repr, sorted(map(str, unknown))))}; expected some of "
             f"{', '.join(sorted(levels.FRAMES))}",
             field="frames",
         )
