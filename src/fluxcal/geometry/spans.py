@@ -33,9 +33,11 @@ def sample_spans(et: np.ndarray, max_gap: float = BRIDGED_GAP_S) -> np.ndarray:
     array([[   0.,   10.],
            [2000., 2001.]])
     """
-    t = np.unique(np.asarray(et, dtype=float))
+    t = np.asarray(et, dtype=float).ravel()
     if t.size == 0:
         return np.empty((0, 2))
+    if not (t[1:] >= t[:-1]).all():  # a run is nearly always in time order: no sort then
+        t = np.sort(t)
     cut = np.flatnonzero(np.diff(t) > max_gap)
     return np.column_stack([t[np.r_[0, cut + 1]], t[np.r_[cut, t.size - 1]]])
 
