@@ -390,3 +390,20 @@ def test_rosetta_fit_refuses_nonsense_numbers(tmp_path: Path, capsys, option: st
                  str(tmp_path / "out"), option, value]) == 2
     assert f"'{option}'" in _one_line(capsys)
     assert not (tmp_path / "out").exists()
+
+
+def test_rosetta_run_reports_progress(tmp_path: Path) -> None:
+    """The driver's steps reach the progress display of every mission's run (issue 31)."""
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import run_files
+
+    sim = tmp_path / "sim"
+    assert main(["simulate", "rosetta", "--out", str(sim), "--hours", "0.005"]) == 0
+    steps: list[tuple[str, int, int]] = []
+    run_files(sim / "RPCMAG_20140801_RAW_OB.csv", "OB", tmp_path / "out",
+              options=RosettaOptions(calib=sim / "calib", formats=("cdf",)),
+              progress=lambda text, done, total: steps.append((text, done, total)))
+    texts = [s[0] for s in steps]
+    assert texts[0] == "reading inputs" and texts[1].startswith("calibrating ")
+    assert "writing the products" in texts and steps[-1][1:] == (1, 1)
+    assert texts[-1].startswith("wrote ")

@@ -1,17 +1,22 @@
-"""Help pages of the ``fluxcal`` command groups: never cut (issue 25).
+"""Help pages of the ``fluxcal`` command groups (never cut, issue 25) and their displays.
 
 Imported by every module that builds a command group (`fluxcal.cli` and the missions'
-``cli`` modules), so it imports nothing of fluxcal's.  `quiet_requested` and
-`progress_wanted` read ``fluxcal -q`` from the command line being run.
+``cli`` modules), so it imports nothing of fluxcal's (rich and numba only inside the
+displays).  `quiet_requested` and `progress_wanted` read ``fluxcal -q`` from the command
+line being run; `progress_display`, `status_display` and `compilation_notice` are what
+every mission's run commands show on a terminal.
 """
 
 from __future__ import annotations
 
 import inspect
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from contextvars import ContextVar
 from typing import Any
 
+import typer
 from typer.core import TyperGroup
 
 #: Help is wrapped to the terminal, up to this many columns (click's default: 80).
@@ -112,3 +117,77 @@ class HelpGroup(TyperGroup):
         if rows:
             with formatter.section("Commands"):
                 formatter.write_dl(rows)
+
+
+@contextmanager
+def compilation_notice() -> Iterator[None]:
+    """Say once on stderr when numba compiles a kernel (the first run, before the cache).
+
+    Listens to numba's ``numba:compile`` event, which fires only for a real compilation
+    (a kernel loaded from numba's on-disk cache does not raise it), so later runs are
+    quiet; ``fluxcal -q`` says nothing.
+    """
+    if quiet_requested():
+        yield
+        return
+    from numba.core import event
+
+    class Notice(event.Listener):
+        said = False
+
+        def on_start(self, ev: event.Event) -> None:
+            if not self.said:
+                self.said = True
+                typer.echo("fluxcal: compiling the numerical kernels (first run only, "
+                           "cached afterwards; up to a minute) ...", err=True)
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    with event.install_listener("numba:compile", Notice()):
+        yield
+
+
+@contextmanager
+def status_display(text: str) -> Iterator[None]:
+    """Show a rich spinner with ``text`` on a terminal (stderr) while a long step runs."""
+    if not progress_wanted():
+        yield
+        return
+    from rich.console import Console
+
+    with Console(stderr=True).status(text):
+        yield
+
+
+@contextmanager
+def progress_display() -> Iterator[object | None]:
+    """Show a rich progress bar on a terminal (stderr), nothing otherwise.
+
+    Yields the ``progress(description, done, total)`` callback of the run driver
+    (`fluxcal.runs.driver.run`: reading, calibrating, writing, and each product where
+    the mission says so), or ``None`` when stderr is not a terminal (logs and pipes stay
+    quiet) or under ``fluxcal -q``.
+    """
+    if not progress_wanted():
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                  MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=Console(stderr=True), transient=False) as bar:
+        task = bar.add_task("fluxcal", total=None)
+
+        def update(description: str, done: int, total: int) -> None:
+            bar.update(task, description=description, completed=done, total=total)
+
+        yield update

@@ -119,17 +119,23 @@ def run(
         t1 = time.perf_counter()
         log.info("read %s vectors from %d file(s) in %.1f s", f"{n_vectors:,}", len(inputs),
                  t1 - t0)
+        if progress is not None:  # a mission may say more (its own steps, each product)
+            progress(f"calibrating {n_vectors:,} vectors", 0, 1)
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
         t2 = time.perf_counter()
         log.info("calibrated in %.1f s", t2 - t1)
         if on_calibrated is not None:
             on_calibrated(calibrated)
+        if progress is not None:
+            progress("writing the products", 0, 1)
         written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
                                  kernel_list=pool.kernel_list(), only_day=only_day,
                                  progress=progress)
         log.info("wrote %d file(s) to %s in %.1f s", len(written), Path(out_dir).name,
                  time.perf_counter() - t2)
+        if progress is not None:
+            progress(f"wrote {len(written)} files", 1, 1)
     return written, n_vectors
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import typer
 
 from fluxcal import preflight
-from fluxcal.cli_help import HelpGroup
+from fluxcal.cli_help import HelpGroup, progress_display
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.runs.options import with_options
 
@@ -51,6 +51,7 @@ def calibrate(
     for path in kernels or []:
         preflight.existing_file(path, "--kernels")
     preflight.writable_folder(out, "--out")
-    paths, n_vectors = driver.run(ImapRun(), tuple(inputs), kernels or default_kernels(), out,
-                                  options)
+    with progress_display() as progress:
+        paths, n_vectors = driver.run(ImapRun(), tuple(inputs), kernels or default_kernels(),
+                                      out, options, progress=progress)
     typer.echo(f"{options.level.upper()}: {n_vectors} vectors; {len(paths)} files in {out}")

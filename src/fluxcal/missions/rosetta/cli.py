@@ -17,7 +17,7 @@ from pathlib import Path
 import typer
 
 from fluxcal import preflight
-from fluxcal.cli_help import HelpGroup
+from fluxcal.cli_help import HelpGroup, compilation_notice, progress_display
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
 from fluxcal.runs.options import with_config, with_options
@@ -97,8 +97,9 @@ def calibrate(
         a = levels.sensors[0].levels["A"]
         summary.update(n=a.sizes["time"], dropped=a.attrs["n_dropped_quality"])
 
-    paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
-                      state_file=stitch_state, on_calibrated=count)
+    with compilation_notice(), progress_display() as progress:
+        paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
+                          state_file=stitch_state, on_calibrated=count, progress=progress)
     if ALIGNED_LEVELS & set(level_list) and not options.alignment_from_kernels:
         warn_placeholder_alignment(calib)
     typer.echo(f"{summary['n']} vectors calibrated ({summary['dropped']} dropped for "

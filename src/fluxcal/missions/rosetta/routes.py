@@ -476,17 +476,19 @@ def run_files(
     options: RosettaOptions | None = None,
     state_file: Path | None = None,
     on_calibrated: Callable[[RosettaLevels], None] | None = None,
+    progress: driver.Progress | None = None,
 ) -> list[Path]:
     """``fluxcal rosetta calibrate``: one sensor's raw science (and HK) to its products.
 
     ``options`` default `RosettaOptions` (levels A, B); ``on_calibrated`` receives the
-    levels before they are written (`fluxcal.runs.driver.run`).  Returns the files.
+    levels before they are written, ``progress`` the driver's steps
+    (`fluxcal.runs.driver.run`).  Returns the files.
     """
     options = options or RosettaOptions()
     source = file_source(science, sensor, hk=hk, state_file=state_file)
     run = RosettaRun(kernels=None if kernels is None else Path(kernels))
     return driver.run(run, source, kernels, Path(out), options,
-                      on_calibrated=on_calibrated)[0]
+                      on_calibrated=on_calibrated, progress=progress)[0]
 
 
 def calibrate_levels(
