@@ -257,7 +257,7 @@ def test_messenger_files_across_a_long_gap_calibrate(tmp_path: Path) -> None:
         assert np.abs(joint["b"].values - alone["b"].values).max() < 1e-6
 
 
-@pytest.mark.parametrize("mission", ["synthetic", "rosetta", "messenger"])
+@pytest.mark.parametrize("mission", ["synthetic", "rosetta", "messenger", "imap"])
 def test_batch_over_a_folder_without_the_missions_files(tmp_path: Path, capsys,
                                                         mission: str) -> None:
     """Every day without data is not success: exit 2 naming the folder, nothing written."""

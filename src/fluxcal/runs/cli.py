@@ -118,8 +118,8 @@ def _some_input(task: Any, days: list[_dt.date], input_dir: Path, kernels: Path 
 
     A day without data is a status (``no_data``); every day without data means the folder
     is not the mission's (or the days are wrong), which a run must not report as success.
-    The day's inputs are the task's `DayInputs` files (without the ``--kernels`` given);
-    a task without ``inputs`` is not checked.
+    The day's inputs are the task's `DayInputs` files (without the kernels: ``--kernels``
+    or the task's default ones); a task without ``inputs`` is not checked.
 
     Raises
     ------
@@ -129,7 +129,9 @@ def _some_input(task: Any, days: list[_dt.date], input_dir: Path, kernels: Path 
     inputs = getattr(task, "inputs", None)
     if inputs is None:
         return
-    given = {Path(kernels).resolve()} if kernels is not None else set()
+    own = getattr(task, "kernels", None)  # the kernels a task uses are not day inputs
+    own = [] if own is None else [own] if isinstance(own, (str, Path)) else list(own)
+    given = {Path(k).resolve() for k in [*own, *([kernels] if kernels is not None else [])]}
     for day in days:
         if any(Path(p).exists() and Path(p).resolve() not in given
                for p in inputs(day).files):
