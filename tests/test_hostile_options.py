@@ -407,3 +407,9 @@ def test_rosetta_run_reports_progress(tmp_path: Path) -> None:
     assert texts[0] == "reading inputs" and texts[1].startswith("calibrating ")
     assert "writing the products" in texts and steps[-1][1:] == (1, 1)
     assert texts[-1].startswith("wrote ")
+
+
+def test_missing_input_names_the_new_option_only(tmp_path: Path, capsys) -> None:
+    assert main(["rosetta", "calibrate", "--sensor", "OB", "--out", str(tmp_path / "o")]) == 2
+    line = _one_line(capsys)
+    assert "Missing option '--input'" in line and "--science" not in line

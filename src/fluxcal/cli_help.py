@@ -82,19 +82,24 @@ def hide_aliases(command: Any) -> Any:
         if getattr(param, "_fluxcal_aliases_hidden", False):
             continue
         shown = [o for o in opts if o not in HIDDEN_ALIASES]
-
-        def record(ctx: Any, _param: Any = param, _shown: list = shown,
-                   _original: Any = param.get_help_record) -> Any:
-            saved = _param.opts
-            _param.opts = _shown
-            try:
-                return _original(ctx)
-            finally:
-                _param.opts = saved
-
-        param.get_help_record = record
+        for method in ("get_help_record", "get_error_hint"):  # help, and "Missing option"
+            if hasattr(param, method):
+                setattr(param, method, _with_opts(param, shown, getattr(param, method)))
         param._fluxcal_aliases_hidden = True
     return command
+
+
+def _with_opts(param: Any, shown: list[str], original: Any) -> Any:
+    """Return ``original`` (a bound method of ``param``) run with only ``shown`` names."""
+    def call(*args: Any, **kwargs: Any) -> Any:
+        saved = param.opts
+        param.opts = shown
+        try:
+            return original(*args, **kwargs)
+        finally:
+            param.opts = saved
+
+    return call
 
 
 class HelpGroup(TyperGroup):
