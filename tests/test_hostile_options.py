@@ -106,7 +106,8 @@ def test_api_forms_are_normalised() -> None:
 
 @pytest.mark.parametrize("kwargs", [{"averages": (NAN,)}, {"averages": (1.5,)},
                                     {"version": True}, {"version": 2.0},
-                                    {"frames": (1,)}, {"quicklook": "yes"}])
+                                    {"frames": (1,)}, {"quicklook": "yes"},
+                                    {"averages": 5}, {"frames": 3}])
 def test_api_wrong_types_are_input_errors(kwargs) -> None:
     """Not ``cannot convert float NaN to integer`` deep in the run: refused up front."""
     with pytest.raises(InputFormatError, match="field '--"):

@@ -143,6 +143,8 @@ def _problem(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> str
         return f"{value!r}: expected a whole number"
     if kind == "bool" and not isinstance(value, bool):
         return f"{value!r}: expected true or false"
+    if kind in ("strs", "ints") and not isinstance(value, tuple):
+        return f"{value!r}: expected a list of {'names' if kind == 'strs' else 'numbers'}"
     if kind == "ints" and not all(_whole(v) for v in value):
         return f"{_shown(value)}: expected whole numbers"
     if kind in ("strs", "str"):
