@@ -10,6 +10,7 @@ day (86,400 s), at least one frame, product version 1-99.
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -414,3 +415,31 @@ def test_missing_input_names_the_new_option_only(tmp_path: Path, capsys) -> None
     assert main(["rosetta", "calibrate", "--sensor", "OB", "--out", str(tmp_path / "o")]) == 2
     line = _one_line(capsys)
     assert "Missing option '--input'" in line and "--science" not in line
+
+
+def test_closing_a_local_cluster_says_nothing(caplog) -> None:
+    """No "Worker process still alive ... killing" warnings after a finished batch."""
+    import logging
+
+    pytest.importorskip("distributed")
+    from distributed import Client
+
+    from fluxcal.runs.cluster import make_local_cluster
+
+    cluster = make_local_cluster(2)
+    level = logging.getLogger("distributed").level
+    client = Client(cluster)
+    # both workers busy in a sleep: they cannot stop within the 4 s the nanny waits, so
+    # each is killed, which is what a slow machine does to a finished cluster
+    busy = [client.submit(time.sleep, 30, pure=False, workers=[w], allow_other_workers=False)
+            for w in client.scheduler_info()["workers"]]
+    while sum(len(v) for v in client.processing().values()) < len(busy):
+        time.sleep(0.1)
+    time.sleep(0.5)
+    client.close()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        cluster.close()
+    assert not [r for r in caplog.records if r.name.startswith("distributed")
+                and logging.WARNING <= r.levelno < logging.ERROR]
+    assert logging.getLogger("distributed").level == level  # restored
