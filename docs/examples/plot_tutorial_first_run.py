@@ -48,7 +48,7 @@ config = work / "run.toml"
 config.write_text('frames = ["mso", "rtn"]\nformats = ["cdf"]\naverage = [1, 60]\n'
                   "quicklook = true\n")
 code = main(["-q", "messenger", "edr2cdr", "--config", str(config),
-             "--sci", str(inputs / "MAG_science.csv"),
+             "--input", str(inputs / "MAG_science.csv"),
              "--heater", str(inputs / "MAG_heater.csv"),
              "--temperature", str(inputs / "MAG_temperature.csv"),
              "--kernels", str(kernels), "--out", str(work / "products")])

@@ -62,10 +62,25 @@ def _root(
         raise typer.BadParameter("-v/--verbose and -q/--quiet exclude each other",
                                  param_hint="'--quiet'")
     QUIET.set(quiet)
-    logging.basicConfig(
-        level=logging.ERROR if quiet else logging.INFO if verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
+    # other libraries (numba, distributed, matplotlib ...) say warnings and errors only;
+    # -v makes fluxcal's own steps readable (`fluxcal.runs.driver`: read, calibrated,
+    # written, with sizes and times)
+    others = logging.ERROR if quiet else logging.WARNING
+    logging.basicConfig(level=others, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("fluxcal").setLevel(logging.INFO if verbose else logging.NOTSET)
+    _quiet_other_loggers(others)
+
+
+def _quiet_other_loggers(level: int) -> None:
+    """Raise the loggers of other libraries that set their own lower level to ``level``.
+
+    ``distributed`` sets its logger to INFO when imported; its lines would fill ``-v``.
+    (`fluxcal.runs.cli` does the same after importing it for a batch.)
+    """
+    for name, logger in list(logging.root.manager.loggerDict.items()):
+        if (isinstance(logger, logging.Logger) and name.split(".")[0] != "fluxcal"
+                and logging.NOTSET < logger.level < level):
+            logger.setLevel(level)
 
 
 def version() -> None:

@@ -1,8 +1,9 @@
-"""Help pages of the ``fluxcal`` command groups: never cut (issue 25).
+"""Help pages of the ``fluxcal`` command groups (never cut, issue 25) and their displays.
 
 Imported by every module that builds a command group (`fluxcal.cli` and the missions'
-``cli`` modules), so it imports nothing of fluxcal's.  `quiet_requested` and
-`progress_wanted` read ``fluxcal -q`` from the command line being run.
+``cli`` modules), so it imports nothing of fluxcal's (rich and numba only inside the
+displays).  `quiet_requested` and `progress_wanted` read ``fluxcal -q`` from the command
+line being run (the displays of a running command: `fluxcal.runs.display_cli`).
 """
 
 from __future__ import annotations
@@ -58,8 +59,54 @@ def command_summary(cmd: Any) -> str:
     return " ".join(first.replace("\b", "").split())
 
 
+#: Old option names kept working but not shown in help: every command names its main input
+#: ``--input`` (was ``--sci`` for MESSENGER, ``--science`` for Rosetta), and a product's
+#: version is ``--product-version`` (``--version`` is fluxcal's own, ``fluxcal --version``).
+HIDDEN_ALIASES = ("--sci", "--science", "--version")
+
+
+def hide_aliases(command: Any) -> Any:
+    """Leave `HIDDEN_ALIASES` out of ``command``'s help where an option has another name.
+
+    The names still parse (click's parser is built from every name); only the help
+    record of such an option lists the other names.
+    """
+    for param in getattr(command, "params", ()):
+        opts = list(getattr(param, "opts", ()))
+        if not any(o in HIDDEN_ALIASES for o in opts) or all(o in HIDDEN_ALIASES for o in opts):
+            continue
+        if getattr(param, "_fluxcal_aliases_hidden", False):
+            continue
+        shown = [o for o in opts if o not in HIDDEN_ALIASES]
+        for method in ("get_help_record", "get_error_hint"):  # help, and "Missing option"
+            if hasattr(param, method):
+                setattr(param, method, _with_opts(param, shown, getattr(param, method)))
+        param._fluxcal_aliases_hidden = True
+    return command
+
+
+def _with_opts(param: Any, shown: list[str], original: Any) -> Any:
+    """Return ``original`` (a bound method of ``param``) run with only ``shown`` names."""
+    def call(*args: Any, **kwargs: Any) -> Any:
+        saved = param.opts
+        param.opts = shown
+        try:
+            return original(*args, **kwargs)
+        finally:
+            param.opts = saved
+
+    return call
+
+
 class HelpGroup(TyperGroup):
-    """A command group whose list of commands wraps each summary instead of cutting it."""
+    """A command group whose list of commands wraps each summary instead of cutting it.
+
+    Its commands' help leaves out the old option names (`hide_aliases`).
+    """
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        """Return the command, its old option names left out of its help."""
+        return hide_aliases(super().get_command(ctx, cmd_name))
 
     def format_commands(self, ctx: Any, formatter: Any) -> None:
         """Write the ``Commands:`` section: name and whole first paragraph of each."""

@@ -9,6 +9,7 @@ column's name).
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 from fluxcal.errors import FluxcalError, InputFormatError
@@ -103,3 +104,19 @@ def read_text(path: str | Path, what: str,
         If it holds bytes that are not text.
     """
     return decode_text(Path(path).read_bytes(), path, what, error)
+
+
+def csv_header(line: str) -> list[str]:
+    """Return the column names of a CSV header line (RFC 4180: names may be quoted).
+
+    Spreadsheet exports quote every name (``"partition","met",...``); a name is taken
+    without its quotes and surrounding blanks.
+
+    Examples
+    --------
+    >>> csv_header('"partition", "met",rate')
+    ['partition', 'met', 'rate']
+    """
+    row = next(csv.reader([line.strip("\r\n")], skipinitialspace=True), [])
+    return [name.strip() for name in row]
+

@@ -539,6 +539,36 @@ def test_clean_command_j_writes_three_products(tmp_path, lsk):
     assert back.sizes["time"] == n - 1 - 3
 
 
+def test_level_j_refuses_one_sensor_twice(tmp_path, lsk, capsys):
+    """Issue 31: the OB product given as both inputs (or as --input-ib) is refused, exit 2.
+
+    Was: a product labelled SENSOR="IB" made from OB data, residuals all 0, exit 0.
+    """
+    from fluxcal.cli import main
+
+    rng = np.random.default_rng(3)
+    t0 = int(utc_to_tt2000(np.array([START]), lsk)[0])
+    epoch = t0 + np.arange(600, dtype=np.int64) * 1_000_000_000
+    ext = rotating_field(np.arange(600), magnitude=5.0, period=1e4)
+    f_ob = _write(_dataset(epoch, ext + rng.normal(size=(600, 3)), level="G", sensor="OB"),
+                  tmp_path / "ob", lsk)[".cdf"]
+    f_ob2 = _write(_dataset(epoch, ext + rng.normal(size=(600, 3)), level="G", sensor="OB"),
+                   tmp_path / "ob2", lsk)[".cdf"]
+    f_ib = _write(_dataset(epoch, ext + rng.normal(size=(600, 3)), level="G", sensor="IB"),
+                  tmp_path / "ib", lsk)[".cdf"]
+    cases = [(f_ob, f_ob, "--input-ib", "both --input (OB) and --input-ib"),
+             (f_ob, f_ob2, "--input-ib", "is the OB sensor's product"),
+             (f_ib, f_ob, "--input", "is the IB sensor's product")]
+    for first, second, option, expect in cases:
+        out = tmp_path / "out"
+        code = main(["rosetta", "clean", "--level", "J", "--input", str(first),
+                     "--input-ib", str(second), "--out", str(out)])
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and line.startswith("fluxcal: error: ") and option in line, line
+        assert expect in line, line
+        assert not out.exists() or not any(out.iterdir())
+
+
 def test_fluxcal_rosetta_clean_k_with_romap_intervals(tmp_path, lsk):
     # the registered command (fluxcal.cli.main), method 2 from an interval CSV
     from fluxcal.cli import main

@@ -90,9 +90,11 @@ def test_cli_batch_rosetta_placeholder_alignment_warns(tmp_path: Path, capsys) -
     args = ["batch", "rosetta", "--start", "2014-08-01", "--end", "2014-08-01",
             "--input", str(inp), "--out", str(out), "--scheduler", "serial", "--quiet",
             "--formats", "cdf"]
-    assert main(args) == 0  # no data that day: nothing to compute, but the warning stands
+    # no input at all: refused (issue 31), after the warning about the calibration
+    assert main(args) == 2
     err = capsys.readouterr().err
     assert "PLACEHOLDER" in err and "RPCMAG_SC_ALIGN.TXT" in err
+    assert "no input file of rosetta" in err
     missing = tmp_path / "no_calib"
     assert main([*args, "--calib", str(missing)]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
@@ -180,7 +182,7 @@ def test_batch_formats_png_is_messenger_only_and_checked_first(tmp_path: Path, c
                 "--formats", "cdf,png"]
         assert main(args) == 2
         (line,) = capsys.readouterr().err.strip().splitlines()
-        assert "'png'" in line and "--formats" in line
+        assert "unknown value png" in line and "--formats" in line
     from fluxcal.products.writer import FORMATS
     from fluxcal.runs.batch import accepted_formats
 

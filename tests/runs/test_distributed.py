@@ -57,8 +57,9 @@ class Cluster:
         self.procs = [_spawn("dask_scheduler", ["--scheduler-file", str(self.file),
                                                 "--dashboard-address", ":0", "--port", "0"],
                              folder / "scheduler.log")]
-        deadline = time.time() + 60
+        deadline = time.time() + 300  # a busy machine starts Python slowly
         while not self.file.exists() and time.time() < deadline:
+            assert self.procs[0].poll() is None, (folder / "scheduler.log").read_text()
             time.sleep(0.2)
         self.workers = [_spawn("dask_worker", ["--scheduler-file", str(self.file),
                                                "--nthreads", "1", "--nworkers", "1",
@@ -68,7 +69,7 @@ class Cluster:
         self.procs += self.workers
         self.address = json.loads(self.file.read_text())["address"]
         with Client(self.address, timeout=60) as client:
-            client.wait_for_workers(n, timeout=120)
+            client.wait_for_workers(n, timeout=600)
 
     def kill_worker(self, i: int) -> None:
         os.killpg(self.workers[i].pid, signal.SIGKILL)

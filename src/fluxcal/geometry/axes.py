@@ -27,6 +27,7 @@ import spiceypy
 from fluxcal.geometry import compiled
 from fluxcal.geometry.frames import Rotator, rotation_matrices
 from fluxcal.geometry.positions import rtn_spherical
+from fluxcal.geometry.spans import sample_spans, span_grid
 
 #: Grid step (s) of the heliocentric angles when the samples are denser (`spherical_rtn`).
 RTN_ANGLE_STEP_S = 1.0
@@ -162,12 +163,14 @@ def spherical_rtn(
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 10.2.
     """
     out = np.empty((et.size, 3))
-    span = float(et[-1] - et[0]) if et.size else 0.0
-    if method == "oracle" or et.size < 4 * (span / step + 2):
+    # a grid over each span of samples, none over a long gap (`fluxcal.geometry.spans`)
+    spans = sample_spans(et)
+    covered = float(np.sum(spans[:, 1] - spans[:, 0]))
+    if method == "oracle" or et.size < 4 * (covered / step + 2 * len(spans)):
         out[:, 0], out[:, 1], out[:, 2] = rtn_spherical(
             target, et, method=method, target_position=sun)
         return out
-    grid = np.linspace(et[0], et[-1], int(np.ceil(span / step)) + 1)
+    grid = span_grid(spans, step)[0]
     _r, lat, az = rtn_spherical(
         target, grid, target_position=None if sun_at is None else sun_at(grid))
     # |sun|, np.interp of lat and of np.unwrap(az, period=360), az wrapped back

@@ -38,6 +38,7 @@ from fluxcal.errors import KernelError
 from fluxcal.geometry import compiled
 from fluxcal.geometry.cspice_loops import pxform_into
 from fluxcal.geometry.kernels import spice_errors
+from fluxcal.geometry.spans import intervals_with_samples, sample_spans, span_grid
 from fluxcal.geometry.time import SclkKernel
 
 log = logging.getLogger(__name__)
@@ -363,10 +364,11 @@ class _Leg:
     ) -> None:
         self.frame = frame
         self.tolerance = tolerance
-        tmin, tmax = float(et.min()), float(et.max())
+        # the spans of the samples: no node, nor check, in a long gap (`geometry.spans`)
+        self.spans = sample_spans(et)
         segments = _loaded_ck_segments() if spiceypy.ktotal("CK") else []
         instruments = _ck_instruments(frame, segments)
-        ck_nodes = [self._ck_nodes(i, segments, tmin, tmax, sclk_cache) for i in instruments]
+        ck_nodes = [self._ck_nodes(i, segments, self.spans, sclk_cache) for i in instruments]
         for inst in instruments:
             self._check_coverage(inst, segments, et)
         self._records: tuple[int, _CkSegment, np.ndarray, np.ndarray] | None = None
@@ -376,11 +378,12 @@ class _Leg:
                 ticks, quats = _ck_type3_records(own[0])
                 clock = sclk_cache[spiceypy.ckmeta(instruments[0], "SCLK")]
                 self._records = (instruments[0], own[0], clock.encoded_to_et(ticks), quats)
-        self._build(tmin, tmax, ck_nodes, grid_step)
+        self._build(ck_nodes, grid_step)
 
     def _ck_nodes(
-        self, instrument: int, segments: list[_CkSegment], tmin: float, tmax: float, cache: dict
+        self, instrument: int, segments: list[_CkSegment], spans: np.ndarray, cache: dict
     ) -> np.ndarray:
+        """Return the instrument's CK record times over each span (and one each side of it)."""
         clock = spiceypy.ckmeta(instrument, "SCLK")
         if clock not in cache:
             cache[clock] = SclkKernel.from_pool(clock)
@@ -388,9 +391,9 @@ class _Leg:
         ticks = [_ck_record_ticks(s) for s in segments if s.instrument == instrument]
         ticks = np.unique(np.concatenate(ticks)) if ticks else np.empty(0)
         nodes = sclk.encoded_to_et(ticks)
-        lo = max(np.searchsorted(nodes, tmin, side="right") - 1, 0)
-        hi = np.searchsorted(nodes, tmax, side="left") + 1
-        return nodes[lo:hi]
+        lo = np.maximum(np.searchsorted(nodes, spans[:, 0], side="right") - 1, 0)
+        hi = np.searchsorted(nodes, spans[:, 1], side="left") + 1
+        return np.unique(np.concatenate([nodes[a:b] for a, b in zip(lo, hi, strict=True)]))
 
     def _check_coverage(self, instrument: int, segments: list[_CkSegment], et: np.ndarray) -> None:
         windows = _ck_coverage(instrument, segments)
@@ -408,12 +411,10 @@ class _Leg:
                 f"{_utc(windows[0, 0])} .. {_utc(windows[-1, 1])})"
             )
 
-    def _build(
-        self, tmin: float, tmax: float, ck_nodes: list[np.ndarray], grid_step: float
-    ) -> None:
+    def _build(self, ck_nodes: list[np.ndarray], grid_step: float) -> None:
         if ck_nodes:
             # CK records: SLERP between them is exact; verified on a sample of intervals
-            nodes = np.unique(np.concatenate([*ck_nodes, [tmin, tmax]]))
+            nodes = np.unique(np.concatenate([*ck_nodes, self.spans.ravel()]))
             matrices = self._record_matrices(nodes)
             if matrices is None:
                 matrices = pxform_oracle(self.frame, _INERTIAL, nodes)
@@ -421,8 +422,7 @@ class _Leg:
             if nodes.size < 2 or self._sampled_error() <= self.tolerance:
                 return
         else:
-            n = max(int(np.ceil((tmax - tmin) / grid_step)), 1)
-            nodes = np.linspace(tmin, tmax, n + 1) if tmax > tmin else np.array([tmin])
+            nodes = span_grid(self.spans, grid_step)[0]
             matrices = pxform_oracle(self.frame, _INERTIAL, nodes)
             self._set(nodes, matrices)
             if nodes.size < 2:
@@ -471,8 +471,8 @@ class _Leg:
         return out
 
     def _refine(self, nodes: np.ndarray, matrices: np.ndarray) -> None:
-        """Bisect every interval whose mid-point error exceeds the tolerance."""
-        check = np.ones(nodes.size - 1, dtype=bool)
+        """Bisect every interval with samples whose mid-point error exceeds the tolerance."""
+        check = intervals_with_samples(nodes, self.spans)
         for _ in range(40):
             idx = np.flatnonzero(check)
             mids = 0.5 * (nodes[idx] + nodes[idx + 1])
@@ -504,12 +504,13 @@ class _Leg:
         nodes = self.nodes
         gaps = np.diff(nodes)
         order = np.argsort(gaps)[::-1]
+        inner = intervals_with_samples(nodes, self.spans)  # not one across a long gap
+        order, candidates = order[inner[order]], np.flatnonzero(inner)
+        if order.size == 0:
+            return 0.0
         rng = np.random.default_rng(0)
-        pick = np.unique(
-            np.concatenate(
-                [order[:64], rng.choice(order.size, size=min(192, order.size), replace=False)]
-            )
-        )
+        chosen = rng.choice(candidates.size, size=min(192, candidates.size), replace=False)
+        pick = np.unique(np.concatenate([order[:64], candidates[chosen]]))
         probe = nodes[pick] + 0.5 * gaps[pick]
         try:
             truth = pxform_oracle(self.frame, _INERTIAL, probe)

@@ -20,6 +20,7 @@ from fluxcal.errors import KernelError
 from fluxcal.geometry import compiled
 from fluxcal.geometry.cspice_loops import spkezr_into
 from fluxcal.geometry.kernels import spice_errors
+from fluxcal.geometry.spans import sample_spans, span_grid
 
 #: Default accuracy of interpolated positions (km).
 DEFAULT_POSITION_TOLERANCE = 1e-4
@@ -132,6 +133,10 @@ class StateInterpolator:
         Accuracy in km.
     step : float
         First grid step in seconds.
+    spans : ndarray, shape (k, 2), optional
+        Intervals (ET) with samples (`fluxcal.geometry.spans.sample_spans`); the grid
+        covers each and nothing between them (default: ``[[tmin, tmax]]``).
+        `over_samples` builds it for given epochs.
     """
 
     #: Samples per block of the Hermite evaluation (keeps temporaries in cache).
@@ -147,17 +152,27 @@ class StateInterpolator:
         *,
         tolerance: float = DEFAULT_POSITION_TOLERANCE,
         step: float = 300.0,
+        spans: np.ndarray | None = None,
     ) -> None:
         self.target, self.observer, self.frame = target, observer, frame
-        n = max(int(np.ceil((tmax - tmin) / step)), 1)
-        nodes = np.linspace(tmin, tmax, n + 1)
-        states = states_oracle(target, observer, frame, nodes)
-        check = np.ones(nodes.size - 1, dtype=bool)
+        if spans is None:
+            n = max(int(np.ceil((tmax - tmin) / step)), 1)
+            nodes, check = np.linspace(tmin, tmax, n + 1), np.ones(n, dtype=bool)
+        else:  # no node, and no check, in a gap between spans
+            nodes, check = span_grid(spans, step)
+        if nodes.size < 2:  # one epoch: its exact state, held
+            nodes = np.r_[nodes, nodes[0] + step]
+            check = np.zeros(1, dtype=bool)
+            states = states_oracle(target, observer, frame, nodes[:1])
+            states = np.vstack([states, states])
+        else:
+            states = states_oracle(target, observer, frame, nodes)
         # bisect every interval whose mid-point error exceeds the tolerance
         for _ in range(40):
             idx = np.flatnonzero(check)
             mids = 0.5 * (nodes[idx] + nodes[idx + 1])
-            truth = states_oracle(target, observer, frame, mids)
+            truth = states_oracle(target, observer, frame, mids) if idx.size else \
+                np.empty((0, 6))
             error = np.abs(hermite(nodes, states, mids) - truth[:, :3]).max(axis=1)
             bad = error > tolerance
             if not bad.any():
@@ -175,6 +190,18 @@ class StateInterpolator:
             f"positions of {target} relative to {observer} cannot be interpolated to "
             f"{tolerance} km; use method='oracle'"
         )
+
+    @classmethod
+    def over_samples(cls, target: str, observer: str, frame: str, et: np.ndarray,
+                     **kwargs: float) -> StateInterpolator:
+        """Return the interpolator over the spans of ``et`` (`sample_spans`), not its gaps.
+
+        SPICE is asked only about the spans where samples are: two files of one run
+        months apart need no kernel for the months between them.
+        """
+        spans = sample_spans(et)
+        return cls(target, observer, frame, float(spans[0, 0]), float(spans[-1, 1]),
+                   spans=spans, **kwargs)
 
     def __call__(self, et: np.ndarray) -> np.ndarray:
         """Return (n, 3) interpolated positions (km) at ``et``.
@@ -247,9 +274,7 @@ def position(
         raise ValueError(f"method must be 'interpolate' or 'oracle', not {method!r}")
     if et.size < 4:
         return position_oracle(target, observer, frame, et)
-    interp = StateInterpolator(
-        target, observer, frame, float(et.min()), float(et.max()), tolerance=tolerance
-    )
+    interp = StateInterpolator.over_samples(target, observer, frame, et, tolerance=tolerance)
     return interp(et)
 
 
@@ -304,9 +329,7 @@ def rtn_spherical(
     if method == "oracle" or et.size < 4:
         earth_states = lambda t: states_oracle("EARTH", observer, frame, t)  # noqa: E731
     else:
-        earth_states = StateInterpolator(
-            "EARTH", observer, frame, float(et.min()), float(et.max())
-        ).states_at
+        earth_states = StateInterpolator.over_samples("EARTH", observer, frame, et).states_at
     r = np.empty(et.size)
     lat = np.empty(et.size)
     az = np.empty(et.size)

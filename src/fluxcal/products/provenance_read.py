@@ -15,7 +15,7 @@ import cdflib
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
-from fluxcal.products.attrs import decode_attrs
+from fluxcal.products.attrs import decode_value
 from fluxcal.products.label import decode_attributes, find_objects, read_label
 from fluxcal.products.netcdf import netcdf_engine
 from fluxcal.products.paths import check_pointers
@@ -73,8 +73,7 @@ def read_provenance(path: Path | str) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - a foreign or truncated file breaks the readers
         raise InputFormatError(f"not a readable product ({type(exc).__name__}: "
                                f"{' '.join(str(exc).split())[:200]})", path=str(p)) from exc
-    attrs = decode_attrs({k: (v.item() if hasattr(v, "item") and getattr(v, "ndim", 1) == 0
-                              else v) for k, v in attrs.items()})
+    attrs = _decoded(attrs, p)
     out: dict[str, Any] = {"product": p.name}
     for key in SUMMARY_KEYS:
         if attrs.get(key) not in (None, "", []):
@@ -82,6 +81,43 @@ def read_provenance(path: Path | str) -> dict[str, Any]:
     out["inputs"] = list(attrs.get("inputs") or [])
     out["calibration"] = dict(attrs.get("calibration") or {})
     out["kernels"] = list(attrs.get("kernels") or [])
+    return out
+
+
+#: The provenance records every product fluxcal writes carries (`provenance_attrs`), and
+#: the JSON type of each.
+RECORDS = {"inputs": list, "calibration": dict, "kernels": list}
+
+
+def _decoded(attrs: Mapping[str, Any], path: Path) -> dict[str, Any]:
+    """Return the decoded attributes, checked to hold fluxcal's provenance records.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file (and the attribute): a file with none of the records (not written
+        by fluxcal), an attribute whose JSON is broken, or a record of the wrong shape.
+    """
+    if not any(key in attrs for key in RECORDS):
+        raise InputFormatError("no provenance attributes (inputs, calibration, kernels): not "
+                               "a product written by fluxcal", path=str(path))
+    out: dict[str, Any] = {}
+    for key, value in attrs.items():
+        if hasattr(value, "item") and getattr(value, "ndim", 1) == 0:
+            value = value.item()
+        try:
+            out[str(key)] = decode_value(value)
+        except ValueError as exc:  # json.JSONDecodeError
+            raise InputFormatError(f"broken JSON in the attribute ({exc}); the file was "
+                                   "changed after fluxcal wrote it", path=str(path),
+                                   field=str(key)) from None
+    for key, kind in RECORDS.items():
+        value = out.get(key)
+        records = value.values() if isinstance(value, dict) else value
+        if value is not None and not (isinstance(value, kind)
+                                      and all(isinstance(r, dict) for r in records)):
+            raise InputFormatError(f"expected a JSON {kind.__name__} of file records, found "
+                                   f"{type(value).__name__}", path=str(path), field=key)
     return out
 
 

@@ -72,6 +72,7 @@ def batch(
     if mission.before_batch is not None:
         registry.load_piece(mission, "before_batch")(task)
     days = day_range(d0, d1)
+    _some_input(task, days, input_dir, kernels, mission.name)
     quiet = quiet or quiet_requested()  # fluxcal -q batch ...
     console = Console(stderr=True)
     if scheduler != "serial" and not logging.getLogger().isEnabledFor(logging.INFO):
@@ -111,6 +112,36 @@ def _preflight(out: Path, kernels: Path | None, calib: Path | None,
     preflight.writable_folder(out, "--out")
     if scheduler is not None and scheduler != "serial":
         preflight.reachable_scheduler(scheduler)
+
+
+def _some_input(task: Any, days: list[_dt.date], input_dir: Path, kernels: Path | None,
+                name: str) -> None:
+    """Refuse a batch whose ``--input`` holds no input file of any of its days.
+
+    A day without data is a status (``no_data``); every day without data means the folder
+    is not the mission's (or the days are wrong), which a run must not report as success.
+    The day's inputs are the task's `DayInputs` files (without the kernels: ``--kernels``
+    or the task's default ones); a task without ``inputs`` is not checked.
+
+    Raises
+    ------
+    InputFormatError
+        Naming ``--input``, the folder, the mission and the days.
+    """
+    inputs = getattr(task, "inputs", None)
+    if inputs is None:
+        return
+    own = getattr(task, "kernels", None)  # the kernels a task uses are not day inputs
+    own = [] if own is None else [own] if isinstance(own, (str, Path)) else list(own)
+    given = {Path(k).resolve() for k in [*own, *([kernels] if kernels is not None else [])]}
+    for day in days:
+        if any(Path(p).exists() and Path(p).resolve() not in given
+               for p in inputs(day).files):
+            return
+    span = f"{days[0]}" if len(days) == 1 else f"{days[0]} to {days[-1]}"
+    raise InputFormatError(f"{input_dir}: no input file of {name} for {span}; check the "
+                           "folder and the days (docs/formats/ has each mission's layout)",
+                           field="--input")
 
 
 def batch_command(mission: Mission) -> Any:

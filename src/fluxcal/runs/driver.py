@@ -14,6 +14,7 @@ import contextlib
 import dataclasses
 import datetime as _dt
 import logging
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,6 +110,7 @@ def run(
     """
     require_for_options(options)  # a missing plot/zarr extra: one line, nothing read
     pipeline.check(options)
+    t0 = time.perf_counter()
     with _pool(pipeline, kernels) as pool:
         loaded = pool.kernel_list()
         log.info("kernels loaded: %d file(s)%s", len(loaded),
@@ -117,9 +119,14 @@ def run(
             progress("reading inputs", 0, 1)
         raw, inputs = pipeline.read(source, options)
         n_vectors = pipeline.size(raw)
+        t1 = time.perf_counter()
         log.info("read %d input file(s): %s vectors", len(inputs), f"{n_vectors:,}")
+        if progress is not None:  # a mission may say more (its own steps, each product)
+            progress(f"calibrating {n_vectors:,} vectors", 0, 1)
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
+        t2 = time.perf_counter()
+        log.info("calibrated in %.1f s (read in %.1f s)", t2 - t1, t1 - t0)
         if on_calibrated is not None:
             on_calibrated(calibrated)
         if progress is not None:
@@ -129,6 +136,7 @@ def run(
                                  progress=progress)
         if progress is not None:
             progress(f"wrote {len(written)} files", 1, 1)
+        log.info("written in %.1f s", time.perf_counter() - t2)
     log.info("wrote %d product file(s) to %s", len(written), out_dir)
     return written, n_vectors
 

@@ -19,8 +19,18 @@ field type                     command line
 =============================  ========================================================
 
 Metadata keys: ``help`` (required), ``flags`` (tuple of option names, default
-``--<field-name>``), ``parse`` (callable applied to the parsed value, e.g. "<= 0
-disables"), ``choices`` (allowed values; each element of a tuple field is checked).
+``--<field-name>``; the first is the one messages name, the others are aliases),
+``parse`` (callable applied to the command-line value, e.g. "<= 0 disables"),
+``choices`` (allowed values; each element of a tuple field is checked), ``empty_ok``
+(False: a tuple field needs at least one value), ``check`` (callable taking the final
+value and returning what is wrong with it as text, or None).
+
+Every value is checked where the option is declared, whichever way it comes (command
+line, ``--config`` file, or the dataclass built directly by the Python API): the
+dataclass's ``__post_init__`` calls `check_fields`, so all three refuse the same values
+with the same message (`InputFormatError` naming the first flag).  Beyond a field's own
+``check``, every number must be finite (``nan``/``inf`` never switch a check off), a
+whole-number field takes whole numbers only, and a name field takes names only.
 
 Every such command also takes ``--config FILE.toml`` (`read_config`): a run-configuration
 file whose keys are the fields (``max_offset_step``) or their long options
@@ -35,11 +45,13 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import math
+import numbers
 import re
 import tomllib
 import types
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -109,6 +121,102 @@ def parameters(cls: type) -> list[inspect.Parameter]:
     return params
 
 
+#: Longest averaging interval (s) an option may ask for: one day, the span of a daily
+#: product (an average over more than the product holds has no sample).
+MAX_AVERAGE_S = 86_400
+
+
+def _whole(value: Any) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _problem(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> str | None:
+    """Return what is wrong with a field's final value (type, finite, choices, empty), else None."""
+    if value is None:
+        return None if optional or kind in ("path", "str") else "a value is required"
+    if kind == "float" and not (isinstance(value, numbers.Real)
+                                and not isinstance(value, bool)):
+        return f"{value!r}: expected a number"
+    if kind == "float" and not math.isfinite(value):
+        return f"{value}: expected a finite number"
+    if kind == "int" and not _whole(value):
+        return f"{value!r}: expected a whole number"
+    if kind == "bool" and not isinstance(value, bool):
+        return f"{value!r}: expected true or false"
+    if kind in ("strs", "ints") and not isinstance(value, tuple):
+        return f"{value!r}: expected a list of {'names' if kind == 'strs' else 'numbers'}"
+    if kind == "ints" and not all(_whole(v) for v in value):
+        return f"{_shown(value)}: expected whole numbers"
+    if kind in ("strs", "str"):
+        values = tuple(value) if kind == "strs" else (value,)
+        if not all(isinstance(v, str) for v in values):
+            return f"{_shown(value)}: expected names"
+        choices = f.metadata.get("choices")
+        if choices is not None:
+            canonical = {str(c).lower() for c in choices}
+            bad = [v for v in values if v.lower() not in canonical]
+            if bad:
+                return (f"unknown value{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
+                        f"choose from {','.join(map(str, choices))}")
+            if kind == "strs" and not values and not f.metadata.get("empty_ok", True):
+                return f"give at least one of {','.join(map(str, choices))}"
+    check = f.metadata.get("check")
+    return check(value) if check is not None else None
+
+
+def _shown(value: Any) -> str:
+    """Return a value as a user writes it: a list comma-separated, not a Python repr."""
+    if isinstance(value, (tuple, list)):
+        return ",".join(map(str, value)) or "''"
+    return str(value)
+
+
+def _normal(kind: str, value: Any) -> Any:
+    """Return a value of the API in the form the command line gives (list -> tuple, str -> Path)."""
+    if kind in ("strs", "ints") and isinstance(value, (list, tuple)):
+        return tuple(int(v) if kind == "ints" and _whole(v) else v for v in value)
+    if kind == "strs" and isinstance(value, str):  # one name, not its letters
+        return tuple(v.strip() for v in value.split(",") if v.strip())
+    if kind == "path" and isinstance(value, str):
+        return Path(value)
+    if kind == "float" and _whole(value):
+        return float(value)
+    return value
+
+
+def check_fields(options: Any) -> None:
+    """Check every field of a run-options dataclass instance (its ``__post_init__``).
+
+    Normalises what the Python API may pass (a list for a tuple, a str for a path), then
+    checks each value as the command line does (`_problem`).
+
+    Raises
+    ------
+    InputFormatError
+        Naming the field's first flag and the value: a number that is not finite, a
+        value of the wrong type, an unknown choice, an empty list where one is needed,
+        or what the field's ``check`` refuses.
+    """
+    hints = typing.get_type_hints(type(options))
+    for f in dataclasses.fields(options):
+        kind, optional = _kind(hints[f.name])
+        value = _normal(kind, getattr(options, f.name))
+        problem = _problem(f, kind, optional, value)
+        if problem is not None:
+            raise InputFormatError(problem, field=flags(f)[0])
+        object.__setattr__(options, f.name, _canonical(f, kind, value))  # frozen: normal form
+
+
+def _canonical(f: dataclasses.Field, kind: str, value: Any) -> Any:
+    """Return a checked name (or names) as its choice is spelled ('CDF' -> 'cdf')."""
+    choices = f.metadata.get("choices")
+    if choices is None or value is None or kind not in ("strs", "str"):
+        return value
+    canonical = {str(c).lower(): c for c in choices}
+    return (tuple(canonical[v.lower()] for v in value) if kind == "strs"
+            else canonical[value.lower()])
+
+
 def _parse_one(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> Any:
     flag = flags(f)[0]
     if kind in ("strs", "ints"):
@@ -117,30 +225,26 @@ def _parse_one(f: dataclasses.Field, kind: str, optional: bool, value: Any) -> A
             try:
                 items = [int(v) for v in items]
             except ValueError:
-                raise InputFormatError(f"{value!r}: expected whole numbers separated by "
+                raise InputFormatError(f"{value}: expected whole numbers separated by "
                                        "commas", field=flag) from None
         value = None if optional and not items else tuple(items)
-        values = value or ()
     elif kind == "str":
         value = str(value).strip()
         if optional and not value:
             value = None
-        values = () if value is None else (value,)
-    else:
-        values = (value,)
-    choices = f.metadata.get("choices")
-    if choices is not None:  # canonical lower-case names; 'CDF' means 'cdf'
-        canonical = {str(c).lower(): c for c in choices}
-        bad = [v for v in values if str(v).lower() not in canonical]
-        if bad or (kind == "strs" and not values and not f.metadata.get("empty_ok", True)):
-            raise InputFormatError(f"{value!r}: unknown value(s) {bad}; choose from "
-                                   f"{','.join(map(str, choices))}", field=flag)
-        if kind == "strs":
-            value = tuple(canonical[str(v).lower()] for v in value)
-        elif value is not None:
-            value = canonical[str(value).lower()]
+    elif kind == "float" and value is not None and not math.isfinite(value):
+        # before ``parse``: "<= 0 disables" must not turn nan or -inf into "off"
+        raise InputFormatError(f"{value}: expected a finite number", field=flag)
+    problem = _problem(f, kind, optional, value) if kind in ("strs", "str") else None
+    if problem is not None:
+        raise InputFormatError(problem, field=flag)
+    value = _canonical(f, kind, value)
     parse = f.metadata.get("parse")
-    return parse(value) if parse is not None else value
+    value = parse(value) if parse is not None else value
+    problem = _problem(f, kind, optional, value)
+    if problem is not None:
+        raise InputFormatError(problem, field=flag)
+    return value
 
 
 def from_command_line(cls: type[T], values: dict[str, Any],
@@ -228,6 +332,32 @@ def _toml_value(kind: str, value: Any, folder: Path) -> Any:
     return None
 
 
+def _load_toml(path: Path) -> tuple[str, dict[str, Any]]:
+    """Return the text and the table of a run-configuration file.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file (and the line): unreadable, not UTF-8, or not TOML.
+    """
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else (
+            "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc))
+        raise InputFormatError(f"cannot read the run-configuration file: {what} (give a "
+                               "TOML file, docs/guide/run_config.md)",
+                               path=str(path), field=CONFIG_FLAG) from None
+    try:
+        return text, tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))
+        line = int(where.group(1)) if where else None
+        message = re.sub(r"\s*\(at (line .*|end of document)\)$", "", str(exc))
+        raise InputFormatError(f"not valid TOML: {message}", path=str(path),
+                               line=line) from None
+
+
 def read_config(path: Path, cls: type) -> dict[str, Any]:
     r"""Read a run-configuration file (TOML) for the options dataclass ``cls``.
 
@@ -271,22 +401,7 @@ def read_config(path: Path, cls: type) -> dict[str, Any]:
     {'frames': ('mso', 'rtn'), 'max_step': 3.0}
     """
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else (
-            "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc))
-        raise InputFormatError(f"cannot read the run-configuration file: {what} (give a "
-                               "TOML file, docs/guide/run_config.md)",
-                               path=str(path), field=CONFIG_FLAG) from None
-    try:
-        table = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))
-        line = int(where.group(1)) if where else None
-        message = re.sub(r"\s*\(at (line .*|end of document)\)$", "", str(exc))
-        raise InputFormatError(f"not valid TOML: {message}", path=str(path),
-                               line=line) from None
+    text, table = _load_toml(path)
     keys = config_keys(cls)
     hints = typing.get_type_hints(cls)
     parsed: dict[str, Any] = {}
@@ -404,3 +519,107 @@ def with_options(cls: type, name: str = "options",
 def as_keywords(options: Any) -> dict[str, Any]:
     """Return a run-options dataclass as keyword arguments (field name -> value)."""
     return {f.name: getattr(options, f.name) for f in dataclasses.fields(options)}
+
+
+def _names_paths(hint: Any) -> bool:
+    """Whether a type hint is a path (``Path``, ``Path | None``, ``list[Path]``)."""
+    return hint is Path or any(_names_paths(a) for a in typing.get_args(hint))
+
+
+def _command_config(ctx: Any, path: Path, exclude: Sequence[str],
+                    paths: set[str]) -> dict[str, Any]:
+    """Return a run-configuration file as click defaults of ``ctx.command``'s options.
+
+    Keys are the options' names or long options without dashes (``-`` = ``_``), as for
+    `read_config`; the options in ``exclude`` (inputs, ``--out``) stay on the command
+    line.  Each value goes through the option's own conversion and checks; a relative
+    path (an option named in ``paths``) is relative to the file's folder.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the file, the key and its line: an unknown key, or a value the option
+        does not take.
+    """
+    text, table = _load_toml(path)
+    params = {}
+    for param in ctx.command.params:
+        if getattr(param, "param_type_name", "") != "option" or \
+                param.name in (*exclude, "config"):
+            continue
+        for name in (param.name, *(o.lstrip("-") for o in param.opts if o.startswith("--"))):
+            params[name.replace("-", "_")] = param
+    defaults: dict[str, Any] = {}
+    for key, value in table.items():
+        line = _key_line(text, key)
+        param = params.get(key.replace("-", "_"))
+        if param is None:
+            known = ", ".join(sorted({p.opts[0].lstrip("-") for p in params.values()}))
+            raise InputFormatError(f"unknown key; this command's run options are {known} "
+                                   "(inputs and --out go on the command line)",
+                                   path=str(path), line=line, field=key)
+        if param.name in defaults:
+            raise InputFormatError(f"sets {param.opts[0]} again", path=str(path), line=line,
+                                   field=key)
+        items = value if param.multiple and isinstance(value, list) else (
+            [value] if param.multiple else None)
+        if param.name in paths:  # relative to the file's folder
+            def near(v: Any) -> Any:
+                return str(path.parent / v) if isinstance(v, str) and v and \
+                    not Path(v).expanduser().is_absolute() else v
+            items = None if items is None else [near(v) for v in items]
+            value = near(value)
+        if isinstance(value, (dict, list)) and items is None:
+            raise InputFormatError(f"{value!r} ({type(value).__name__}): expected one value",
+                                   path=str(path), line=line, field=key)
+        try:
+            defaults[param.name] = param.process_value(ctx, items if items is not None
+                                                       else value)
+        except typer.BadParameter as exc:
+            raise InputFormatError(exc.format_message(), path=str(path), line=line,
+                                   field=key) from None
+    return defaults
+
+
+def with_config(exclude: Sequence[str] = ("out",)) -> Callable[[Callable], Callable]:
+    """Give a command of plain typer options ``--config FILE.toml`` (`read_config`'s rules).
+
+    For commands without a run-options dataclass (``fit``, ``clean``): the file's values
+    become the defaults of the command's options (click's ``default_map``), so an option
+    given on the command line wins; the options named in ``exclude`` (parameter names:
+    the inputs and ``out``) are not keys.  Errors name the file, the key and its line
+    (exit 2) before the command runs (`_command_config`).
+    """
+    def decorate(func: Callable) -> Callable:
+        signature = inspect.signature(func)
+        hints = typing.get_type_hints(func)
+        paths = {name for name, hint in hints.items() if _names_paths(hint)}
+
+        def load(ctx: typer.Context, param: typer.CallbackParam, value: Any) -> Any:
+            if value is not None:
+                ctx.default_map = {**(ctx.default_map or {}),
+                                   **_command_config(ctx, Path(value), exclude, paths)}
+            return value
+
+        option = typer.Option(None, CONFIG_FLAG, is_eager=True, callback=load,
+                              help="Run-configuration file (TOML): options by name, "
+                                   "merged under the command line (docs/guide/"
+                                   "run_config.md).")
+
+        @functools.wraps(func)
+        def command(*args: Any, **kwargs: Any) -> Any:
+            kwargs.pop("config", None)
+            return func(*args, **kwargs)
+
+        params = [p.replace(annotation=hints.get(p.name, p.annotation))
+                  for p in signature.parameters.values()]
+        params.append(inspect.Parameter("config", inspect.Parameter.KEYWORD_ONLY,
+                                        default=option, annotation=Path | None))
+        command.__signature__ = signature.replace(  # type: ignore[attr-defined]
+            parameters=params)
+        command.__annotations__ = {**hints, "config": Path | None}
+        del command.__wrapped__  # typer must see the new signature
+        return command
+
+    return decorate
+

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from fluxcal.products.format_names import FORMATS
 from fluxcal.runs.contract import Mission
+from fluxcal.runs.options import check_fields
 
 
 @dataclass(frozen=True)
@@ -22,10 +23,15 @@ class SyntheticOptions:
         "empty_ok": False})
     quicklook: bool = field(default=False, metadata={"help": "Also write a PNG per day."})
     delay: float = field(default=0.0, metadata={
-        "help": "Seconds each day waits before it writes (tests: a day in flight)."})
+        "help": "Seconds each day waits before it writes (tests: a day in flight).",
+        "check": lambda s: None if s >= 0 else f"{s:g} s: give 0 s or more"})
     hog_mb_on: str = field(default="", metadata={
         "help": "YYYY-MM-DD:MB: that day holds MB of memory for 5 s (tests: a worker out of "
                 "memory)."})
+
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 #: The synthetic "mission": the batch machinery with no mission pipeline behind it.

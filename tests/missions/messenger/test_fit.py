@@ -412,7 +412,7 @@ def test_cli_fit_error_lines(tmp_path, training, simulated_files, messenger_kern
     rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                "--input-dir", str(tmp_path), "--out", str(tmp_path / "d")])
     err = capsys.readouterr().err.strip()
-    assert rc == 2 and "either --input-dir or --sci" in err
+    assert rc == 2 and "either --input-dir or --input" in err
 
 
 def test_fit_report_toml_is_readable(tmp_path, training, capsys):

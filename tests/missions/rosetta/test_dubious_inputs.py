@@ -11,6 +11,7 @@ import logging
 import numpy as np
 import pytest
 
+from fluxcal.api import read_product
 from fluxcal.cli import main
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.rosetta.fit import (
@@ -67,6 +68,15 @@ def test_duplicate_epoch_is_reported(sim, tmp_path, caplog):
         assert _calibrate(sim, path, tmp_path / "out") == 0
     text = " ".join(r.getMessage() for r in caplog.records)
     assert "line 12" in text and "1 record(s) repeat the time" in text
+    assert "dropped, the first of each time kept" in text
+    # issue 31: the repeated record is dropped (counted): the product is the clean file's
+    assert _calibrate(sim, sim / "RPCMAG_20140801_RAW_OB.csv", tmp_path / "clean") == 0
+    (cdf,) = (tmp_path / "out").glob("*.cdf")
+    product, clean = read_product(cdf), read_product(tmp_path / "clean" / cdf.name)
+    assert int(product.attrs["duplicates_dropped"]) == 1
+    assert "duplicates_dropped" not in clean.attrs
+    np.testing.assert_array_equal(product["epoch"].values, clean["epoch"].values)
+    np.testing.assert_array_equal(product["b"].values, clean["b"].values)
 
 
 @pytest.mark.parametrize("kernels", [False, True])

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fluxcal.products.format_names import FORMATS
+from fluxcal.runs.options import check_fields
 
 
 @dataclass(frozen=True)
@@ -35,3 +36,6 @@ class ImapOptions:
         "choices": ("fluxcal", "team")})
     quicklook: bool = field(default=False, metadata={
         "help": "Also write a PNG quicklook per mode, sensor and UTC day (L1B)."})
+
+    def __post_init__(self) -> None:
+        check_fields(self)  # the command line, --config and the API refuse the same values

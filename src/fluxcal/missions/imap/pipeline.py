@@ -124,7 +124,8 @@ def to_level(l1a_sets: dict[tuple[str, str], xr.Dataset], level: str,
     ``progress(description, done, total)`` is called per (mode, sensor) calibrated.
     """
     if level not in LEVELS:
-        raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
+        raise InputFormatError(f"level {level!r}: expected one of {', '.join(LEVELS)}",
+                               field="--level")
     if level == "l1a":
         log.info("L1A: %s vectors", _counts(l1a_sets) or "no")
         return l1a_sets
@@ -169,7 +170,8 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
         An unknown level, or an input error naming file, packet or line, and field.
     """
     if level not in LEVELS:
-        raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
+        raise InputFormatError(f"level {level!r}: expected one of {', '.join(LEVELS)}",
+                               field="--level")
     if level == "l1b":
         load_calibration(calib)  # a bad calibration file fails before any packet is read
     with KernelPool(sclk_kernels(kernels), fluxcal_frames=False):

@@ -58,7 +58,7 @@ class ImapRun:
         read (`fluxcal.missions.imap.packets.xtce_path`): L1A CSV inputs need none.
         """
         if options.level not in LEVELS:
-            raise InputFormatError(f"level {options.level!r}: expected one of {LEVELS}",
+            raise InputFormatError(f"level {options.level!r}: expected one of {', '.join(LEVELS)}",
                                    field="--level")
         if options.level == "l1b":
             load_calibration(options.calib)

@@ -12,7 +12,7 @@ from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.preflight import plain_text_file
 from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
-from fluxcal.runs.options import with_options
+from fluxcal.runs.options import with_config, with_options
 
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
                   rich_markup_mode=None, cls=HelpGroup)
@@ -21,11 +21,11 @@ app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
 @app.command("edr2cdr")
 @with_options(MessengerOptions)
 def edr2cdr(
-    sci: list[Path] = typer.Option([], "--sci", help="Science CSV file(s)."),
+    sci: list[Path] = typer.Option([], "--input", "--sci", help="Science CSV file(s)."),
     heater: list[Path] = typer.Option([], "--heater", help="Heater-bit CSV file(s)."),
     temperature: list[Path] = typer.Option([], "--temperature", help="Temperature CSV file(s)."),
     edr: Path = typer.Option(None, "--edr", help="Folder of archived MAG EDRs (PDS3 labels "
-                             "+ tables), instead of --sci/--heater/--temperature; needs "
+                             "+ tables), instead of --input/--heater/--temperature; needs "
                              "--mapping."),
     mapping: Path = typer.Option(None, "--mapping", help="EDR column mapping (TOML; template: "
                                  "fluxcal/missions/messenger/data/edr_mapping_template.toml)."),
@@ -42,7 +42,7 @@ def edr2cdr(
 
     prepare_formats(options.formats)  # both routes: before any EDR or CSV is read
     _check_input_style(sci, heater, temperature, edr, mapping)
-    for option, paths in (("--sci", sci), ("--heater", heater), ("--temperature", temperature)):
+    for option, paths in (("--input", sci), ("--heater", heater), ("--temperature", temperature)):
         for path in paths:  # before any work: not compressed, a data line after the header
             plain_text_file(path, option, header_lines=1)
     calib = options.calib
@@ -104,8 +104,10 @@ def check_calibration_folder(folder: Path) -> None:
 
 
 @app.command("fit")
+@with_config(exclude=("sci", "heater", "temperature", "kernels", "input_dir", "days",
+                      "intervals", "out"))
 def fit(
-    sci: list[Path] = typer.Option([], "--sci", help="Science CSV file(s)."),
+    sci: list[Path] = typer.Option([], "--input", "--sci", help="Science CSV file(s)."),
     heater: list[Path] = typer.Option([], "--heater", help="Heater-bit CSV file(s)."),
     temperature: list[Path] = typer.Option([], "--temperature",
                                            help="Temperature CSV file(s)."),
@@ -184,12 +186,12 @@ def _check_input_style(sci: list[Path], heater: list[Path], temperature: list[Pa
     """Exactly one input style: the three CSV streams, or --edr with --mapping."""
     csv = bool(sci or heater or temperature)
     if edr is not None and csv:
-        raise InputFormatError("give either --edr/--mapping or --sci/--heater/--temperature, "
+        raise InputFormatError("give either --edr/--mapping or --input/--heater/--temperature, "
                                "not both", field="--edr")
     if edr is None:
         if mapping is not None:
             raise InputFormatError("--mapping goes with --edr DIR", field="--mapping")
-        for option, paths in (("--sci", sci), ("--heater", heater),
+        for option, paths in (("--input", sci), ("--heater", heater),
                               ("--temperature", temperature)):
             if not paths:
                 raise InputFormatError(f"missing {option} (or give --edr DIR --mapping FILE)",

@@ -941,7 +941,7 @@ def refuse_edr_folder(input_dir: Path) -> None:
         raise InputFormatError(
             f"holds {EDR_MAPPING}: 'fluxcal messenger fit' reads the CSV batch layout "
             "(MAGSCI/MAGHTR/MAGTMP_YYYYDDD.csv), not archived EDRs; convert them first or "
-            "give the CSV streams with --sci/--heater/--temperature",
+            "give the CSV streams with --input/--heater/--temperature",
             path=str(input_dir), field="--input-dir")
 
 

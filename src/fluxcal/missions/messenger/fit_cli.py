@@ -151,12 +151,12 @@ def run_fit(
         require("batch", f"--scheduler {scheduler}")
     streams = bool(sci or heater or temperature)
     if input_dir is not None and streams:
-        raise InputFormatError("give either --input-dir or --sci/--heater/--temperature, "
+        raise InputFormatError("give either --input-dir or --input/--heater/--temperature, "
                                "not both", field="--input-dir")
     if input_dir is None:
         if days.strip():
             raise InputFormatError("--days needs --input-dir", field="--days")
-        for option, paths in (("--sci", sci), ("--heater", heater),
+        for option, paths in (("--input", sci), ("--heater", heater),
                               ("--temperature", temperature), ("--kernels", kernels)):
             if not paths:
                 raise InputFormatError(f"{option} is missing (or give --input-dir)",

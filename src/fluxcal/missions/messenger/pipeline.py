@@ -37,7 +37,8 @@ def check_frames(frames: Sequence[str]) -> None:
     unknown = set(frames) - set(levels.FRAMES)
     if unknown:
         raise InputFormatError(
-            f"unknown frame(s) {sorted(unknown)}; expected some of {sorted(levels.FRAMES)}",
+            f"unknown frame(s) {', '.join(map(repr, sorted(map(str, unknown))))}; expected some of "
+            f"{', '.join(sorted(levels.FRAMES))}",
             field="frames",
         )
 

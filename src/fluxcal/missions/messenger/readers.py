@@ -35,7 +35,7 @@ from pyarrow import csv as pacsv
 
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.defects import clock_jumps, ordered_records
-from fluxcal.textfile import decode_text
+from fluxcal.textfile import csv_header, decode_text
 
 SCIENCE_COLUMNS = ("partition", "met", "rate", "range", "cx", "cy", "cz")
 HEATER_COLUMNS = ("partition", "met", "heater")
@@ -59,7 +59,7 @@ def _read_table(path: Path, expected: Sequence[str]) -> np.ndarray:
         raise InputFormatError(f"cannot read file: {exc}", path=str(path)) from exc
     # a UTF-8 BOM is dropped (not part of the first name); binary bytes are an error
     header = decode_text(first, path, f"a CSV text file with the columns {','.join(expected)}")
-    names = [h.strip() for h in header.strip().split(",")]
+    names = csv_header(header)  # RFC 4180: a spreadsheet export quotes the names
     for name in names:
         if name not in expected:
             raise InputFormatError(

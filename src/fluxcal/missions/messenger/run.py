@@ -51,7 +51,8 @@ def check_formats(formats: Sequence[str]) -> None:
     """Refuse a format not in `FORMATS` before any work (one line, field ``formats``)."""
     unknown = [f for f in formats if f not in FORMATS]
     if unknown:
-        raise InputFormatError(f"unknown format(s) {unknown}; expected some of {list(FORMATS)}",
+        raise InputFormatError(f"unknown format(s) {', '.join(map(str, unknown))}; "
+                               f"expected some of {', '.join(FORMATS)}",
                                field="formats")
 
 
@@ -101,7 +102,8 @@ def calibrate_run(
     """
     if quicklook_frame is not None and quicklook_frame not in levels.FRAMES:
         raise InputFormatError(
-            f"quicklook frame {quicklook_frame!r}; expected one of {sorted(levels.FRAMES)}",
+            f"quicklook frame {quicklook_frame!r}; expected one of "
+            f"{', '.join(sorted(levels.FRAMES))}",
             field="quicklook_frame",
         )
     check_frames(frames)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +36,7 @@ from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import check_average
 from fluxcal.products.atomic import atomic_path
 from fluxcal.products.paths import make_folder, plain_name
+from fluxcal.runs.options import with_config
 from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
@@ -393,6 +395,35 @@ def _read(path: Path, lsk=None) -> xr.Dataset:
     return ds
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file (a link or another spelling included)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one does not exist: reported when it is read
+        return Path(a).resolve() == Path(b).resolve()
+
+
+def _check_two_sensors(inputs: Sequence[Path], data: Sequence[xr.Dataset]) -> None:
+    """Refuse LEVEL_J inputs that are not the OB product then the IB product.
+
+    The sensor is the product's own ``SENSOR`` attribute: a product labelled IB made
+    from OB data (residuals all 0) must never be written.
+
+    Raises
+    ------
+    InputFormatError
+        Naming the input and its option: a product of the wrong sensor, or of none.
+    """
+    for path, ds, want, option in zip(inputs, data, ("OB", "IB"), ("--input", "--input-ib"),
+                                      strict=True):
+        have = str(ds.attrs.get("sensor", ds.attrs.get("SENSOR", ""))).strip().upper()
+        if have != want:
+            what = f"the {have} sensor's product" if have else "a product with no SENSOR"
+            raise InputFormatError(f"is {what}; LEVEL_J takes the OB product as --input "
+                                   "and the IB product as --input-ib", path=str(path),
+                                   field=option)
+
+
 def clean_files(
     level: str,
     inputs: Sequence[Path],
@@ -441,6 +472,10 @@ def clean_files(
             f"LEVEL_{level} needs {need} input product(s) "
             + ("(--input OB, --input-ib IB)" if need == 2 else "(--input)")
         )
+    if level == "J" and _same_file(*inputs):
+        raise InputFormatError("is given as both --input (OB) and --input-ib (IB); LEVEL_J "
+                               "needs the two sensors' products", path=str(inputs[1]),
+                               field="--input-ib")
     if level == "L" and kernels is None:
         raise FluxcalError("LEVEL_L needs SPICE kernels: pass --kernels META (SCLK, CK, SPK)")
     if level == "H" and wheels is None and not len(lap_lines_hz):
@@ -448,11 +483,18 @@ def clean_files(
             "LEVEL_H removes reaction-wheel and LAP lines and none were given: pass --wheels "
             "CSV and/or --lap-lines HZ[,HZ...]"
         )
-    if bandwidth_hz is not None and not bandwidth_hz > 0:
-        raise FluxcalError(f"--bandwidth {bandwidth_hz:g}: the replaced band width must be > 0 Hz")
-    negative = [f for f in lap_lines_hz if not f > 0]
+    if bandwidth_hz is not None and not 0 < bandwidth_hz < float("inf"):
+        raise FluxcalError(f"--bandwidth {bandwidth_hz:g}: the replaced band width must be a "
+                           "finite number > 0 Hz")
+    if step_s is not None and not 0 < step_s < float("inf"):
+        raise FluxcalError(f"--step {step_s:g}: the grid step must be a finite number > 0 s")
+    if not 0 <= max_gap_samples < float("inf"):
+        raise FluxcalError(f"--max-gap {max_gap_samples:g}: give a finite number of sample "
+                           "intervals >= 0")
+    negative = [f for f in lap_lines_hz if not 0 < f < float("inf")]
     if negative:
-        raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be > 0 Hz")
+        raise FluxcalError(f"--lap-lines {negative[0]:g}: a line frequency must be a finite "
+                           "number > 0 Hz")
     if level == "K" and intervals is not None and heater_states is not None:
         raise FluxcalError("give either --intervals or --heater-states, not both")
     if level in ("F", "G", "I"):
@@ -477,6 +519,8 @@ def clean_files(
                     + " or LEVEL_".join(SOURCE_LEVELS[level]),
                     path=str(path),
                 )
+        if level == "J":
+            _check_two_sensors(inputs, data)
         used_inputs: list[Path] = list(inputs)
         src = data[0]
         # a name from the input's metadata becomes part of file names (paths rule 3)
@@ -553,6 +597,8 @@ def _direction(text: str) -> list[float] | None:
     return values
 
 
+@with_config(exclude=("input", "input_ib", "out", "wheels", "intervals", "heater_states",
+                      "kernels"))
 def clean(
     level: str = typer.Option(..., "--level", help="Level to make: F, G, H, I, J, K or L."),
     input: list[Path] = typer.Option(  # noqa: A002 - the option's natural name

@@ -21,7 +21,7 @@ from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
 from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
-from fluxcal.runs.options import with_options
+from fluxcal.runs.options import with_config, with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
 ALIGNED_LEVELS = frozenset("BCFG")
@@ -68,8 +68,9 @@ app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True,
 @with_options(RosettaOptions)
 def calibrate(
     science: Path = typer.Option(
-        ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a CSV "
-        "file, or the archive's EDITED products (a folder searched recursively, or one .LBL)."
+        ..., "--input", "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. "
+        "4.1.2): a CSV file, or the archive's EDITED products (a folder searched "
+        "recursively, or one .LBL)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the products."),
@@ -95,7 +96,7 @@ def calibrate(
     from fluxcal.missions.rosetta.routes import FILE_LEVELS, run_files
 
     calib = options.calib
-    check_raw_source(science, "--science")
+    check_raw_source(science, "--input")
     if hk is not None:
         check_raw_source(hk, "--hk")
     if calib is not None:
@@ -120,10 +121,12 @@ def calibrate(
 
 
 @app.command()
+@with_config(exclude=("science", "sensor", "out", "hk", "kernels", "intervals"))
 def fit(
     science: list[Path] = typer.Option(
-        ..., "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. 4.1.2): a "
-        "CSV, or EDITED archive products (folder or .LBL); repeat for several files (days)."
+        ..., "--input", "--science", help="Raw science of one sensor (RO-IGEP-TR0028 sec. "
+        "4.1.2): a CSV, or EDITED archive products (folder or .LBL); repeat for several "
+        "files (days)."
     ),
     sensor: str = typer.Option(..., "--sensor", help="OB or IB."),
     out: Path = typer.Option(..., "--out", help="Folder for the fitted calibration files."),
@@ -184,7 +187,7 @@ def fit(
     from fluxcal.missions.rosetta.fit_run import fit_files
 
     for path in science:
-        check_raw_source(path, "--science")
+        check_raw_source(path, "--input")
     if hk is not None:
         check_raw_source(hk, "--hk")
     if calib is not None:
@@ -195,13 +198,16 @@ def fit(
         preflight.plain_text_file(intervals, "--intervals")
     if not 0 <= degree <= 5:
         raise InputFormatError(f"{degree}: the daily files hold degrees 0 to 5", field="--degree")
-    if block is not None and not block > 0:
-        raise InputFormatError(f"{block} s: give a positive block length",
-                               field="--block-seconds")
+    if block is not None and not 0 < block <= 86_400:
+        raise InputFormatError(f"{block:g} s: give a block length above 0 s and at most "
+                               "86400 s (one day)", field="--block-seconds")
+    if not 0 < max_sigma < float("inf"):
+        raise InputFormatError(f"{max_sigma:g} nT: give a finite limit above 0 nT",
+                               field="--max-sigma")
     if estimator not in ("zero-mean", "variance"):
         raise InputFormatError(f"{estimator}: choose zero-mean or variance", field="--estimator")
-    if not goal > 0:
-        raise InputFormatError(f"{goal} nT: give a positive goal", field="--goal")
+    if not 0 < goal < float("inf"):
+        raise InputFormatError(f"{goal:g} nT: give a finite goal above 0 nT", field="--goal")
     preflight.writable_folder(out, "--out")
     paths = fit_files(
         science, sensor, out, hk_file=hk, calib_dir=calib, kernels=kernels, primary=primary,
@@ -320,7 +326,7 @@ def simulate_archive_layout(out: Path, start: str, hours: float, rate: float, pr
     for name, path in paths.items():
         typer.echo(f"{name}: {path}")
     edited, day = paths["archive"], start[:10]
-    typer.echo(f"run: fluxcal rosetta calibrate --science {edited} --hk {edited} --sensor OB "
+    typer.echo(f"run: fluxcal rosetta calibrate --input {edited} --hk {edited} --sensor OB "
                f"--calib {paths['calib']} --kernels {out / 'kernels.tm'} --out OUT; or: "
                f"fluxcal batch rosetta --input {out} --start {day} --end {day} --out OUT")
 

@@ -143,7 +143,7 @@ def fit_files(
     """
     files = [Path(science)] if isinstance(science, (str, Path)) else [Path(s) for s in science]
     if not files:
-        raise FluxcalError("no science file given (--science)")
+        raise FluxcalError("no science file given (--input)")
     sensor = check_sensor(sensor)
     out = Path(out)
     if estimator not in ESTIMATORS:

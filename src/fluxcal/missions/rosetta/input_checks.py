@@ -2,9 +2,11 @@
 
 A record's time may be wrong without the file being unreadable: two records with the same
 time, or a ``time_utc`` that disagrees with the spacecraft clock ``obt`` (a day off, a
-clock-correlation slip).  fluxcal keeps the data and says so once per file, naming the
-file, the first line and the size, so the user can judge; errors that make the data
-unusable (time going backwards, unparsable fields) stay refusals (`fluxcal.missions.rosetta.io`).
+clock-correlation slip).  fluxcal keeps the data (but for the second of two records at one
+time, dropped and counted: `fluxcal.missions.rosetta.io.drop_repeated_times`) and says so
+once per file, naming the file, the first line and the size, so the user can judge;
+errors that make the data unusable (time going backwards, unparsable fields) stay
+refusals (`fluxcal.missions.rosetta.io`).
 
 References
 ----------
@@ -83,7 +85,7 @@ def report_time_defects(
         out.append(
             f"{path}, line {line_of(i)}, field '{names[1] if from_obt else names[0]}': "
             f"{dup.size} record(s) repeat the time of the record before (first {utc[i]}); "
-            "kept, a product will hold both"
+            "dropped, the first of each time kept"
         )
     if from_obt:
         pick = np.unique(np.linspace(0, epoch.size - 1, min(epoch.size, UTC_CHECK_RECORDS))

@@ -16,6 +16,7 @@ the file, line and field.
 
 from __future__ import annotations
 
+import csv
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -30,7 +31,7 @@ from fluxcal.missions.rosetta.calib import check_sensor
 from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
 from fluxcal.missions.rosetta.input_checks import report_time_defects
 from fluxcal.products.atomic import atomic_path
-from fluxcal.textfile import decode_text
+from fluxcal.textfile import csv_header, decode_text
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
 HK_COLUMNS = (
@@ -80,17 +81,18 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     header, _, body = decode_text(data, path, f"a CSV text file with the columns "
                                               f"{','.join(columns)}").partition("\n")
     del data
-    names = tuple(h.strip() for h in header.strip().split(","))
+    names = tuple(csv_header(header))  # RFC 4180: a spreadsheet export quotes the names
     if names != columns:
-        raise InputFormatError(
-            f"header {names} differs from the expected {columns}", path=str(path), line=1
-        )
+        raise InputFormatError(f"header {','.join(names)} differs from the expected "
+                               f"{','.join(columns)}", path=str(path), line=1)
     lines = body.splitlines()
     if lines and not lines[-1].strip():
         lines = lines[:-1]
     if not lines:
         raise InputFormatError("no data records", path=str(path), line=2)
-    cells = np.char.split(np.array(lines, dtype=str), ",")
+    quoted = '"' in body  # RFC 4180 quoting (a spreadsheet export): the csv module
+    cells = (list(csv.reader(lines)) if quoted
+             else np.char.split(np.array(lines, dtype=str), ","))
     counts = np.fromiter((len(c) for c in cells), dtype=np.int64, count=len(cells))
     bad = np.flatnonzero(counts != len(columns))
     if bad.size:
@@ -98,7 +100,7 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
         raise InputFormatError(
             f"{counts[i]} fields, expected {len(columns)}", path=str(path), line=i + 2
         )
-    return np.array(cells.tolist(), dtype=str)
+    return np.array(cells if quoted else cells.tolist(), dtype=str)
 
 
 class _TextColumn:
@@ -312,8 +314,9 @@ def science_dataset(epoch: np.ndarray, obt: np.ndarray, sid: np.ndarray, ints: d
 
     ``ints`` holds the integer columns ``bx, by, bz, t_ob, t_ib, quality``; ``row`` says
     where each record was read (``row_description``: line in a CSV, row in a table).
+    A record repeating the time of the one before is dropped (`drop_repeated_times`).
     """
-    return xr.Dataset(
+    return drop_repeated_times(xr.Dataset(
         {
             "obt": ("time", obt, {"units": "s"}),
             "sid": ("time", sid, {"units": "1"}),
@@ -332,7 +335,26 @@ def science_dataset(epoch: np.ndarray, obt: np.ndarray, sid: np.ndarray, ints: d
             "component": ["x", "y", "z"],
         },
         attrs=attrs,
-    )
+    ))
+
+
+def drop_repeated_times(ds: xr.Dataset) -> xr.Dataset:
+    """Drop each record whose ``epoch`` repeats the record before it (the first is kept).
+
+    A product must not hold two vectors at one time (as MESSENGER's duplicated blocks,
+    `fluxcal.missions.messenger.products.time_order`); the records are in
+    non-decreasing time (`_epoch` refuses a step back), so repeats are neighbours.  The
+    count is kept as the attribute ``duplicates_dropped`` (only when some were: a clean
+    file's products are unchanged), which every level's products carry and the run
+    report lists; `report_time_defects` has warned naming the file and the first line.
+    """
+    epoch = ds["epoch"].values
+    keep = np.ones(epoch.size, dtype=bool)
+    keep[1:] = epoch[1:] != epoch[:-1]
+    dropped = int(epoch.size - np.count_nonzero(keep))
+    if not dropped:
+        return ds
+    return ds.isel(time=keep).assign_attrs(duplicates_dropped=dropped)
 
 
 def read_hk_csv(path: Path, *, sclk=None, lsk=None) -> xr.Dataset:
@@ -364,14 +386,14 @@ def hk_dataset(epoch: np.ndarray, obt: np.ndarray, ints: dict, attrs: dict) -> x
     }
     for name in ("stage_a_id", "stage_b_id", "filter_cfg"):
         data[name] = ("time", ints[name], {"units": "1"})
-    return xr.Dataset(
+    return drop_repeated_times(xr.Dataset(
         data,
         coords={
             "epoch": ("time", epoch, {"units": "ns", "time_base": "TT2000"}),
             "component": ["x", "y", "z"],
         },
         attrs=attrs,
-    )
+    ))
 
 
 #: Records formatted and written at a time: a day's text (and its temporaries, ~3 GB for

@@ -16,23 +16,36 @@ from pathlib import Path
 
 from fluxcal.errors import InputFormatError
 from fluxcal.products.format_names import FORMATS
+from fluxcal.runs.options import MAX_AVERAGE_S, check_fields
 
-#: Longest averaging interval of LEVEL_E, F, G (s): one day, the span of a daily product.
-MAX_AVERAGE_S = 86_400.0
+
+def _average_problem(seconds: float) -> str | None:
+    """Refuse an averaging interval not above 0 s or above one day (`MAX_AVERAGE_S`).
+
+    LEVEL_E, F, G, RO-IGEP-TR0028 sec. 4.6-4.8; one day is the span of a daily product.
+    """
+    if 0.0 < seconds <= MAX_AVERAGE_S:
+        return None
+    return (f"{seconds:g} s: give an averaging interval above 0 s and at most "
+            f"{MAX_AVERAGE_S} s (one day)")
 
 
 def check_average(seconds: float, option: str = "--average") -> float:
-    """Check an averaging interval (LEVEL_E, F, G; RO-IGEP-TR0028 sec. 4.6-4.8) up front.
+    """Check an averaging interval up front (`_average_problem`; ``rosetta clean``).
 
     Raises
     ------
     InputFormatError
         Naming the option: an interval that is not above 0 s and at most one day.
     """
-    if not 0.0 < seconds <= MAX_AVERAGE_S:
-        raise InputFormatError(f"{seconds:g} s: give an averaging interval above 0 s and at "
-                               f"most {MAX_AVERAGE_S:.0f} s (one day)", field=option)
+    problem = _average_problem(seconds)
+    if problem is not None:
+        raise InputFormatError(problem, field=option)
     return seconds
+
+
+def _gap_problem(hours: float) -> str | None:
+    return None if hours >= 0 else f"{hours:g} h: give a gap of 0 h or more"
 
 
 #: LEVEL_C frames (``auto``: CSEQ from 2014-01-20, RO-IGEP-TR0028 sec. 4.4.1).
@@ -58,8 +71,9 @@ class RosettaOptions:
     primary: str = field(default="OB", metadata={
         "help": "Primary sensor (time-shift table).", "choices": ("OB", "IB")})
     average_s: float = field(default=1.0, metadata={
-        "help": "Averaging interval of E, F, G (s).", "flags": ("--average",),
-        "parse": check_average})
+        "help": f"Averaging interval of E, F, G (s, above 0, at most {MAX_AVERAGE_S}).",
+        "flags": ("--average",),
+        "check": _average_problem})
     frame: str = field(default="auto", metadata={
         "help": "LEVEL_C frame: ECLIPJ2000, CSEQ, or auto (CSEQ from 2014-01-20, "
                 "RO-IGEP-TR0028 sec. 4.4.1).", "choices": FRAMES})
@@ -69,9 +83,13 @@ class RosettaOptions:
     boom: str = field(default="deployed", metadata={
         "help": "Boom state: deployed or stowed.", "choices": ("deployed", "stowed")})
     stitch_gap_hours: float = field(default=3.0, metadata={
-        "help": "No midnight stitching across longer gaps (RO-IGEP-TR0028 sec. 4.2.3.3)."})
+        "help": "No midnight stitching across longer gaps (RO-IGEP-TR0028 sec. 4.2.3.3).",
+        "check": _gap_problem})
     alignment_from_kernels: bool = field(default=False, metadata={
         "help": "Take URF -> s/c from the frames ROS_RPC_MAG_OB/IB (needs the boom CK) "
                 "instead of RPCMAG_SC_ALIGN.TXT."})
     no_jumps: bool = field(default=False, metadata={
         "help": "Skip the Appendix B offset jumps."})
+
+    def __post_init__(self) -> None:
+        check_fields(self)  # the command line, --config and the API refuse the same values

@@ -154,10 +154,10 @@ def calibration_frames(frames: Sequence[str]) -> tuple[str, ...]:
 
 
 def _sun_interpolator(et: np.ndarray):
-    """MESSENGER relative to the Sun (J2000) over ``et`` (None: < 4 samples)."""
+    """MESSENGER relative to the Sun (J2000) over the spans of ``et`` (None: < 4 samples)."""
     if et.size < 4:
         return None
-    return StateInterpolator(NAIF_NAME, "SUN", "J2000", float(et.min()), float(et.max()))
+    return StateInterpolator.over_samples(NAIF_NAME, "SUN", "J2000", et)
 
 
 def frame_variables(ds: xr.Dataset, frame: str) -> dict[str, xr.Variable]:
