@@ -4,7 +4,7 @@ Writing a product
 -----------------
 >>> import numpy as np, xarray as xr
 >>> from pathlib import Path
->>> from fluxcal.products import Column, write_product, read_product, provenance_attrs
+>>> from fluxcal.products import Column, write_product, read_fluxcal_product, provenance_attrs
 >>> ds = xr.Dataset(
 ...     {"B_mso": (("time", "component"), np.zeros((2, 3)), {"units": "nT"}),
 ...      "quality": ("time", np.array([0, 1]), {"units": "1"})},
@@ -21,7 +21,7 @@ Writing a product
 ['MAGMSOSCI24001.TAB', 'MAGMSOSCI24001.LBL', 'MAGMSOSCI24001.cdf']
 >>> (out / "MAGMSOSCI24001.TAB").read_text().splitlines()[1]
 '            50000000      0.000      0.000      0.000  1'
->>> read_product(out / "MAGMSOSCI24001.cdf")["epoch"].values.tolist()
+>>> read_fluxcal_product(out / "MAGMSOSCI24001.cdf")["epoch"].values.tolist()
 [0, 50000000]
 
 Column naming
@@ -52,7 +52,7 @@ _SOURCE = {
     "provenance_attrs": "provenance",
     "read_cdf": "cdf",
     "read_netcdf": "netcdf",
-    "read_product": "writer",
+    "read_fluxcal_product": "writer",
     "read_tab": "tab",
     "read_zarr": "netcdf",
     "sha256_file": "provenance",
@@ -70,7 +70,7 @@ __all__ = [
     "provenance_attrs",
     "read_cdf",
     "read_netcdf",
-    "read_product",
+    "read_fluxcal_product",
     "read_tab",
     "read_zarr",
     "sha256_file",

@@ -87,7 +87,7 @@ def frame_kernels() -> dict[str, Path]:
 def archived_readers() -> dict[str, Any]:
     """Return mission name -> archived-product reader of every mission that has one.
 
-    The default of `fluxcal.archive.products.read_product`.
+    The default of `fluxcal.archive.products.read_archive_product`.
     """
     return {name: m.load("archived_products") for name, m in missions().items()
             if m.archived_products is not None}
