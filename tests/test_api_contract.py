@@ -11,8 +11,6 @@ nT: 0.0005 nT; UTC with the milliseconds truncated: < 1 ms, never later).
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import xarray as xr

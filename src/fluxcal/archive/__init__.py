@@ -12,4 +12,5 @@ See ``docs/formats/archive.md``.
 
 from fluxcal.archive.pds3 import read_label, read_table, read_table_columns
 
-__all__ = ["read_label", "read_table", "read_table_columns"]
+#: The public names: the table reader and the public modules (the API reference's pages).
+__all__ = ["pds3", "products", "read_label", "read_table", "read_table_columns"]

@@ -63,6 +63,9 @@ _SOURCE = {
     "write_zarr": "netcdf",
     "zarr_available": "netcdf",
 }
+#: Public modules (imported on first use): the API reference's pages of this package.
+_MODULES = ("atomic", "attrs", "cdf", "columns", "compare", "format_names", "label", "netcdf",
+            "provenance", "provenance_read", "quicklook", "tab", "timeindex", "writer")
 __all__ = [
     "FORMATS",
     "Column",
@@ -80,10 +83,13 @@ __all__ = [
     "write_tab",
     "write_zarr",
     "zarr_available",
+    *_MODULES,
 ]
 
 
 def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return import_module(f"{__name__}.{name}")
     module = _SOURCE.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -93,4 +99,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_SOURCE})
+    return sorted({*globals(), *_SOURCE, *_MODULES})
