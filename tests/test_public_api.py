@@ -113,6 +113,7 @@ def test_the_public_api_holds_no_internal_module():
 
 def test_calibrate_and_read_product_are_the_top_level_api():
     assert {"calibrate", "read_product"} <= set(fluxcal.__all__)
+    assert set(fluxcal.__all__) <= set(dir(fluxcal))  # ``fluxcal.<TAB>`` completes them
     assert fluxcal.calibrate is importlib.import_module("fluxcal.api").calibrate
     for name in ("fluxcal.products", "fluxcal.archive"):
         assert "read_product" not in importlib.import_module(name).__all__  # internal

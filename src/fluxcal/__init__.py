@@ -28,3 +28,8 @@ def __getattr__(name: str) -> object:
 
         return getattr(api, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    # the lazy names too: ``fluxcal.<TAB>`` completes the API (PEP 562)
+    return sorted({*globals(), *__all__})
