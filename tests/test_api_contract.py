@@ -74,6 +74,15 @@ def test_messenger_calibrate_matches_the_table_to_its_printed_precision(messenge
     assert lag.min() >= 0 and lag.max() < 1_000_000  # ns: the TAB's ms truncated
 
 
+def test_the_internal_table_reader_gives_the_time_index_too(messenger):
+    from fluxcal.products import read_fluxcal_product
+
+    tab = messenger["products"] / "MAGMSOSCI12153_V01.TAB"
+    raw = read_fluxcal_product(tab)  # fluxcal's column names, epoch from the UTC fields
+    assert raw.indexes["time"].dtype.kind == "M"
+    np.testing.assert_array_equal(raw["epoch"].values, fluxcal.read_product(tab)["epoch"].values)
+
+
 def test_the_wrapper_is_calibrate(messenger):
     inputs = messenger["inputs"]
     got = fluxcal.calibrate_messenger(inputs["science"], inputs["heater"],

@@ -111,3 +111,11 @@ def test_the_site_builds_without_warnings(tmp_path):
         broken = [href for href, ok in seen["links"]
                   if not ok and not href.startswith(("http://", "https://", "mailto:"))]
         assert not broken, broken
+        # MathJax typesets every formula of a page opened from its folder, offline
+        dom = subprocess.run(
+            [browser(), "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files",
+             "--virtual-time-budget=10000", "--dump-dom",
+             (out / "guide" / "messenger.html").as_uri()],
+            capture_output=True, text=True, timeout=90).stdout
+        formulas = dom.count('class="math notranslate')
+        assert formulas > 0 and dom.count("<mjx-container") == formulas, formulas
