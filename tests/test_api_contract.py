@@ -1,6 +1,6 @@
 """`fluxcal.calibrate` returns what `fluxcal.read_product` reads back (issue 32, item 3).
 
-The contract (docs/decisions/products.md, decision 70): for every product kind the
+The contract (docs/decisions/products.md, decision 72): for every product kind the
 in-memory result of ``fluxcal.calibrate(mission, ...)`` has the variable names, the
 dimension names, the component labels and the values of the full-resolution product
 the same inputs give through the command line.  Expected values are the products' own

@@ -5,7 +5,7 @@ Each function returns xarray Datasets indexed by UTC ``time`` (``ds.sel(time=...
 reached as ``fluxcal.calibrate`` (any registered mission), its thin wrappers
 ``fluxcal.calibrate_messenger``, ``fluxcal.calibrate_rosetta``, ``fluxcal.calibrate_imap``,
 and ``fluxcal.read_product``.  What `calibrate` returns has the names `read_product`
-reads back from the products (docs/decisions/products.md, decision 70).
+reads back from the products (docs/decisions/products.md, decision 72).
 
 Examples
 --------
@@ -28,31 +28,26 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from fluxcal.archive.products import read_archive_product as read_table_product
-from fluxcal.products import read_fluxcal_product
+from fluxcal.products.compare import load_product
 from fluxcal.products.timeindex import with_time_index
 from fluxcal.runs import registry
-
-#: Suffixes read as PDS3 tables (the archive's and fluxcal's labels alike).
-TABLE_SUFFIXES = (".lbl", ".tab")
 
 
 def read_product(path: str | Path) -> xr.Dataset:
     """Read any product: fluxcal's (TAB/LBL, CDF, netCDF, Zarr) or an archived table.
 
-    PDS3 tables go through the label-driven archive reader
-    (`fluxcal.archive.products.read_archive_product`, which also reads fluxcal's own
-    labels); the other formats through `fluxcal.products.read_fluxcal_product`.
+    A PDS3 table that a registered mission's archived-product reader accepts goes through
+    it (`fluxcal.archive.products.read_archive_product`, which also reads fluxcal's own
+    labels of those layouts); another table (a plugin's own layout) and the other formats
+    through `fluxcal.products.read_fluxcal_product` (`fluxcal.products.compare.load_product`).
+    The engine ``xr.open_dataset(path, engine="fluxcal")`` is this function.
 
     Raises
     ------
     fluxcal.errors.InputFormatError
         A file that is not a product (naming the file, row and column where it can).
     """
-    path = Path(path)
-    if path.suffix.lower() in TABLE_SUFFIXES:
-        return read_table_product(path)
-    return read_fluxcal_product(path)
+    return load_product(Path(path), registry.archived_readers())
 
 
 def calibrate(mission: str, inputs: Any, **options: Any) -> dict[str, xr.Dataset]:
@@ -79,7 +74,7 @@ def calibrate(mission: str, inputs: Any, **options: Any) -> dict[str, xr.Dataset
         full-resolution product's content, indexed by UTC ``time`` (in time order) with
         the exact TT2000 ``epoch``: the same variable and component names (and values)
         `read_product` reads back from the run's products (docs/decisions/products.md,
-        decision 70).
+        decision 72).
 
     Raises
     ------

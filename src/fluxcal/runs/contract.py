@@ -129,7 +129,7 @@ class Mission:
         mission's piece of `fluxcal.calibrate`: product kind (a frame, a level, ...) ->
         that full-resolution product's content in memory, with the variable and
         component names `fluxcal.read_product` reads back from the product (nothing
-        written; docs/decisions/products.md, decision 70).
+        written; docs/decisions/products.md, decision 72).
     """
 
     name: str

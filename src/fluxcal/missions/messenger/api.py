@@ -3,7 +3,7 @@
 `calibrate` returns each frame's full-resolution product content (`products.product_dataset`):
 the names and components `fluxcal.read_product` reads back from the run's products
 (``b`` on ``b_component`` ``B_X B_Y B_Z``, or ``B_R B_T B_N`` in RTN; docs/decisions/products.md,
-decision 70).
+decision 72).
 """
 
 from __future__ import annotations

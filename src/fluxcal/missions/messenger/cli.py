@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
-from fluxcal.cli_help import HelpGroup, progress_wanted, quiet_requested
+from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.preflight import plain_text_file
+from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
@@ -54,7 +53,7 @@ def edr2cdr(
                        version=options.version, calibration_folder=calib)
     if calib is not None:
         check_calibration_folder(calib)
-    with compilation_notice(), progress_display() as progress:
+    with compilation_notice(), progress_display("edr2cdr") as progress:
         if edr is not None:
             from fluxcal.missions.messenger.routes import run_edr_archive
 
@@ -160,7 +159,7 @@ def fit(
 
     if calib is not None:
         check_calibration_folder(calib)
-    with compilation_notice(), progress_display() as progress:
+    with compilation_notice(), progress_display("fit") as progress:
         text = run_fit(sci=sci, heater=heater, temperature=temperature, kernels=kernels,
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
@@ -193,79 +192,6 @@ def _check_input_style(sci: list[Path], heater: list[Path], temperature: list[Pa
         raise InputFormatError(f"{edr}: not a folder of EDR labels and tables", field="--edr")
     if not mapping.is_file():
         raise InputFormatError(f"{mapping}: no such mapping file", field="--mapping")
-
-
-@contextmanager
-def compilation_notice() -> Iterator[None]:
-    """Say once on stderr when numba compiles a kernel (the first run, before the cache).
-
-    Listens to numba's ``numba:compile`` event, which fires only for a real compilation
-    (a kernel loaded from numba's on-disk cache does not raise it), so later runs are
-    quiet; ``fluxcal -q`` says nothing.
-    """
-    if quiet_requested():
-        yield
-        return
-    from numba.core import event
-
-    class Notice(event.Listener):
-        said = False
-
-        def on_start(self, ev: event.Event) -> None:
-            if not self.said:
-                self.said = True
-                typer.echo("fluxcal: compiling the numerical kernels (first run only, "
-                           "cached afterwards; up to a minute) ...", err=True)
-
-        def on_end(self, ev: event.Event) -> None:
-            pass
-
-    with event.install_listener("numba:compile", Notice()):
-        yield
-
-
-@contextmanager
-def status_display(text: str) -> Iterator[None]:
-    """Show a rich spinner with ``text`` on a terminal (stderr) while a long step runs."""
-    if not progress_wanted():
-        yield
-        return
-    from rich.console import Console
-
-    with Console(stderr=True).status(text):
-        yield
-
-
-@contextmanager
-def progress_display() -> Iterator[object | None]:
-    """Show a rich progress bar on a terminal (stderr), nothing otherwise.
-
-    Yields the ``progress(description, done, total)`` callback of
-    `fluxcal.missions.messenger.run.run_edr2cdr`, or ``None`` when stderr is not a
-    terminal (logs and pipes stay quiet) or under ``fluxcal -q``.
-    """
-    if not progress_wanted():
-        yield None
-        return
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        SpinnerColumn,
-        TextColumn,
-        TimeElapsedColumn,
-    )
-
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
-                  MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=Console(stderr=True), transient=False) as bar:
-        task = bar.add_task("edr2cdr", total=None)
-
-        def update(description: str, done: int, total: int) -> None:
-            bar.update(task, description=description, completed=done, total=total)
-
-        yield update
 
 
 def simulate(

@@ -67,7 +67,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     relaxation_response,
 )
 from fluxcal.missions.messenger.fit_variance import VarianceStatistics, reduce_variance
-from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.routes import EDR_MAPPING, day_file_groups
 from fluxcal.products.provenance import sha256_file
@@ -830,7 +830,7 @@ def reduce_chunk(
 
     With ``estimator="variance"`` also `fit_variance.reduce_variance`: returns both.
     """
-    worker_kernel_pool(list(chunk.kernels))
+    worker_kernel_pool(list(chunk.kernels), FRAME_KERNELS)
     sclk = SclkKernel.from_pool(SPACECRAFT_ID)
     inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
     sci, htr = read_science(list(chunk.science)), read_heater(list(chunk.heater))
@@ -1007,7 +1007,12 @@ def fit_days(
             return run(serial)
         finally:
             release_worker_kernel_pool()
-    from fluxcal.runs.cluster import Client, as_completed, make_local_cluster  # batch extra
+    from fluxcal.runs.cluster import (  # batch extra
+        Client,
+        as_completed,
+        close_local_cluster,
+        make_local_cluster,
+    )
 
     cluster = make_local_cluster(n_workers) if scheduler is None else None
     try:
@@ -1040,7 +1045,7 @@ def fit_days(
             return run(distributed)
     finally:
         if cluster is not None:
-            cluster.close()
+            close_local_cluster(cluster)
 
 
 _log = logging.getLogger(__name__)
