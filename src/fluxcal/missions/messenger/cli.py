@@ -123,7 +123,7 @@ def fit(
     out: Path = typer.Option(..., "--out", help="Calibration folder to write."),
     calib: Path | None = typer.Option(
         None, "--calib", help="Starting/base calibration folder (default: shipped tables)."),
-    passes: int = typer.Option(6, "--passes", min=1, max=20,
+    passes: int = typer.Option(12, "--passes", min=1, max=20,
                                help="Most reduce-and-fit passes."),
     fit_delay: bool = typer.Option(True, "--fit-delay/--hold-delay",
                                    help="Fit the heater delay dt, or hold the base value."),
@@ -143,9 +143,19 @@ def fit(
         "zero over each bin's samples (a quiet field, e.g. the demo's). Temperature law, "
         "D0, tau and dt; the waveforms are phase-binned either way."),
     hold_d0: str = typer.Option(
-        "", "--hold-d0", help="Comma list of axes (x, y, z) whose duty-cycle coefficient "
-        "D0 keeps the base value (variance estimator): for an axis whose D0 the data do "
-        "not determine, which the fit otherwise refuses; the report marks it held."),
+        "", "--hold-d0", help="Comma list of AXIS[=VALUE][+-WIDTH] (x, y, z; counts/ppt): "
+        "the duty-cycle coefficient D0 of these axes is held at VALUE (default: the base "
+        "table's) with the stated WIDTH (default: half the value), which enters every "
+        "other stated error (variance estimator): for an axis whose D0 the data do not "
+        "determine, which the fit otherwise refuses; the report marks it held."),
+    error_goal: float | None = typer.Option(
+        None, "--error-goal", help="Largest predicted rms error (nT) of a day recalibrated "
+        "with the fitted tables (default 0.1); the fit refuses above it. A larger value "
+        "accepts a worse table and is written into every table header."),
+    max_compressive_share: float | None = typer.Option(
+        None, "--max-compressive-share", help="Largest share of the judged 15-min intervals "
+        "rejected as compressive (default 0.5); the fit refuses above it. A larger value is "
+        "written into every table header."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
@@ -164,7 +174,8 @@ def fit(
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
                        workers=workers, progress=progress, temperature_law=temperature_law,
-                       estimator=estimator, hold_d0=hold_d0)
+                       estimator=estimator, hold_d0=hold_d0, error_goal=error_goal,
+                       max_compressive_share=max_compressive_share)
     typer.echo(text)
 
 
