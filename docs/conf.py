@@ -25,6 +25,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 shipped in the package and copied into _static/mathjax: math renders
+    # offline (no CDN; docs/decisions/packaging.md)
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
@@ -41,9 +44,13 @@ templates_path = ["_templates"]
 # --- API reference ------------------------------------------------------------------
 autosummary_generate = True
 autosummary_imported_members = False
-# members are documented on the page of the module that defines them (the module
-# template); a package's page shows its docstring and its modules, so a name a package
-# re-exports is not described twice
+# the reference is the public API: a package's ``__all__`` names its public modules (only
+# those get pages; the command line, demos and simulators are internal) or, for a package
+# without public modules (``fluxcal.cleaning``, ``fluxcal.missions.messenger.levels``),
+# the names it re-exports, documented on its own page (docs/_templates/autosummary/
+# module.rst).  Members are documented on the page of the public module that defines them,
+# so a name a package re-exports is not described twice
+autosummary_ignore_module_all = False
 autodoc_default_options: dict[str, bool] = {}
 autodoc_typehints = "none"  # numpydoc's Parameters sections carry the types
 autodoc_member_order = "bysource"

@@ -43,16 +43,18 @@ def test_messenger_day_in_one_call(messenger_day) -> None:
     kernels = next(v for v in files.values() if v.endswith(".tm"))
     code = f"""
 import json, numpy as np, fluxcal
-ds = fluxcal.calibrate_messenger([{sci!r}], [{heat!r}], [{temp!r}], {kernels!r},
-                                 frames=("mso", "rtn"))
+made = fluxcal.calibrate_messenger([{sci!r}], [{heat!r}], [{temp!r}], {kernels!r},
+                                   frames=("mso", "rtn"))
+ds = made["mso"]
 part = ds.sel(time=slice(ds.time.values[10], ds.time.values[200]))
-minute = ds["b_mso"].resample(time="1min").mean()
+minute = ds["b"].resample(time="1min").mean()
 print(json.dumps({{"n": int(ds.sizes["time"]), "part": int(part.sizes["time"]),
-                   "minutes": int(minute.sizes["time"]), "vars": sorted(ds.data_vars)}}))
+                   "minutes": int(minute.sizes["time"]), "frames": sorted(made),
+                   "vars": sorted(ds.data_vars)}}))
 """
     got = _fresh(code)
     assert got["part"] == 191 and got["minutes"] >= 10
-    assert {"b_mso", "b_rtn"} <= set(got["vars"])
+    assert got["frames"] == ["mso", "rtn"] and {"b", "b_total", "quality"} <= set(got["vars"])
 
 
 def test_rosetta_run_in_one_call(tmp_path: Path) -> None:
@@ -80,8 +82,8 @@ def test_imap_packets_in_one_call() -> None:
 import json, fluxcal
 out = fluxcal.calibrate_imap([{str(NORM_PACKETS)!r}], kernels={str(SCLK)!r},
                              calib={str(CALIBRATION)!r}, xtce={str(XTCE)!r})
-ds = out[("norm", "mago")]
-print(json.dumps({{"keys": sorted("-".join(k) for k in out), "n": int(ds.sizes["time"]),
+ds = out["norm-mago"]
+print(json.dumps({{"keys": sorted(out), "n": int(ds.sizes["time"]),
                    "sel": int(ds.sel(time=slice(ds.time.values[0], ds.time.values[9]))
                               .sizes["time"]), "units": ds["b"].attrs.get("units")}}))
 """

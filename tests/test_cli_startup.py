@@ -100,12 +100,12 @@ def test_a_cdf_only_product_loads_no_table_writer(tmp_path):
     code = f"""
 import numpy as np, xarray as xr
 from pathlib import Path
-from fluxcal.products import write_product, read_product
+from fluxcal.products import write_product, read_fluxcal_product
 ds = xr.Dataset({{"b": (("time",), np.arange(3.0), {{"units": "nT", "valid_min": -9.0,
                                                       "valid_max": 9.0}})}},
                 coords={{"epoch": ("time", 757339269184000000 + np.arange(3) * 50000000)}})
 (path,) = write_product(ds, Path({str(tmp_path)!r}) / "P", formats=("cdf",))
-assert read_product(path)["b"].values.tolist() == [0.0, 1.0, 2.0]
+assert read_fluxcal_product(path)["b"].values.tolist() == [0.0, 1.0, 2.0]
 """
     loaded = _modules_after(code)
     assert not [m for m in ("pvl", "fluxcal.products.tab", "fluxcal.products.netcdf")

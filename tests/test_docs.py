@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from tests.browser import browser, browser_check
+from tests.test_public_api import INTERNAL
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -83,6 +84,18 @@ def test_the_site_builds_without_warnings(tmp_path):
     index = (out / "index.html").read_text()
     assert "MESSENGER MAG EDR to CDR" in index and "api.html" in index
     assert (out / "api" / "fluxcal.missions.messenger.levels.html").exists()
+    # the reference is the public API (every package's ``__all__``): no command-line,
+    # demo or simulator page; the objects the cleaning package re-exports on its page
+    pages = {p.stem for p in (out / "api").glob("*.html")}
+    assert {"fluxcal.api", "fluxcal.runs.contract", "fluxcal.cleaning"} <= pages
+    assert not [p for p in pages if INTERNAL.search(p)], sorted(pages)
+    assert "minimum_variance" in (out / "api" / "fluxcal.cleaning.html").read_text()
+    # math renders offline: MathJax is a file of the site, no page loads a script from
+    # another site (the browser check below opens the pages without a network)
+    assert (out / "_static" / "mathjax" / "tex-chtml.js").exists()
+    for page in out.rglob("*.html"):
+        remote = re.findall(r"<script[^>]+src=\"(https?:[^\"]+)", page.read_text())
+        assert not remote, (page, remote)
     # the gallery ran at build time: one page and at least one figure per example
     for example in ("plot_tutorial_first_run", "plot_messenger_day", "plot_rosetta_run",
                     "plot_imap_product"):
@@ -98,3 +111,11 @@ def test_the_site_builds_without_warnings(tmp_path):
         broken = [href for href, ok in seen["links"]
                   if not ok and not href.startswith(("http://", "https://", "mailto:"))]
         assert not broken, broken
+        # MathJax typesets every formula of a page opened from its folder, offline
+        dom = subprocess.run(
+            [browser(), "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files",
+             "--virtual-time-budget=10000", "--dump-dom",
+             (out / "guide" / "messenger.html").as_uri()],
+            capture_output=True, text=True, timeout=90).stdout
+        formulas = dom.count('class="math notranslate')
+        assert formulas > 0 and dom.count("<mjx-container") == formulas, formulas

@@ -3,7 +3,8 @@ MESSENGER: calibrate simulated telemetry in one call
 ====================================================
 
 `fluxcal.calibrate_messenger` runs the whole EDR -> CDR chain (MESSENGER MAG EDR-to-CDR
-Processing, sec. 5-12) on the three telemetry streams and returns a Dataset indexed by
+Processing, sec. 5-12) on the three telemetry streams and returns, per frame, the
+content of that frame's product (the names `fluxcal.read_product` reads back), indexed by
 UTC time.  The streams and SPICE kernels here come from fluxcal's forward model
 (``fluxcal simulate messenger``): ten minutes of 20 Hz science from a known field.
 """
@@ -24,12 +25,12 @@ inputs = work / "inputs"
 ds = fluxcal.calibrate_messenger(
     [inputs / "MAG_science.csv"], [inputs / "MAG_heater.csv"],
     [inputs / "MAG_temperature.csv"], work / "kernels" / "messenger_synthetic.tm",
-    frames=("mso",))
-print(ds["b_mso"])
+    frames=("mso",))["mso"]
+print(ds["b"])
 
 # %%
 # The result is indexed by time: select a slice, average to 10 s.
-b = ds["b_mso"]
+b = ds["b"]
 ten_s = b.resample(time="10s").mean()
 fig, (ax, ax_mag) = plt.subplots(2, 1, sharex=True, figsize=(8, 5), layout="constrained")
 for k, axis in enumerate("XYZ"):

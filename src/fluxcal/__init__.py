@@ -3,15 +3,17 @@
 Turns raw magnetometer telemetry (ADC counts, clock ticks, heater bits, thermistor
 voltages) into calibrated magnetic-field products in physical frames.  Implements the
 MESSENGER MAG EDR-to-CDR procedure and the Rosetta RPC-MAG step-by-step calibration, and
-IMAP MAG from raw packets.  One call each: `calibrate_messenger`, `calibrate_rosetta`,
-`calibrate_imap`, `read_product` (`fluxcal.api`).
+IMAP MAG from raw packets.  One call: `calibrate` (any registered mission; its wrappers
+`calibrate_messenger`, `calibrate_rosetta`, `calibrate_imap`) and `read_product`
+(`fluxcal.api`).
 """
 
-__all__ = ["__version__", "calibrate_imap", "calibrate_messenger", "calibrate_rosetta",
-           "read_product"]
+__all__ = ["__version__", "calibrate", "calibrate_imap", "calibrate_messenger",
+           "calibrate_rosetta", "read_product"]
 
 #: The one-call API (`fluxcal.api`), imported on first use: ``import fluxcal`` stays light.
-_API = ("calibrate_imap", "calibrate_messenger", "calibrate_rosetta", "read_product")
+_API = ("calibrate", "calibrate_imap", "calibrate_messenger", "calibrate_rosetta",
+        "read_product")
 
 
 def __getattr__(name: str) -> object:
@@ -26,3 +28,8 @@ def __getattr__(name: str) -> object:
 
         return getattr(api, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    # the lazy names too: ``fluxcal.<TAB>`` completes the API (PEP 562)
+    return sorted({*globals(), *__all__})

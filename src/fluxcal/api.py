@@ -2,8 +2,10 @@
 
 Each function returns xarray Datasets indexed by UTC ``time`` (``ds.sel(time=...)`` and
 ``ds.resample(time=...)`` work) with the exact TT2000 ``epoch`` beside it.  They are
-reached as ``fluxcal.calibrate_messenger``, ``fluxcal.calibrate_rosetta``,
-``fluxcal.calibrate_imap`` and ``fluxcal.read_product``.
+reached as ``fluxcal.calibrate`` (any registered mission), its thin wrappers
+``fluxcal.calibrate_messenger``, ``fluxcal.calibrate_rosetta``, ``fluxcal.calibrate_imap``,
+and ``fluxcal.read_product``.  What `calibrate` returns has the names `read_product`
+reads back from the products (docs/decisions/products.md, decision 72).
 
 Examples
 --------
@@ -11,23 +13,21 @@ Examples
 >>> from pathlib import Path
 >>> ds = fluxcal.read_product(Path("MAGMSOSCI12153_V01.cdf"))  # doctest: +SKIP
 >>> ds["b"].sel(time=slice("2012-06-01T00:10", "2012-06-01T00:20"))  # doctest: +SKIP
+>>> made = fluxcal.calibrate("messenger", {"science": ["MAG_science.csv"],
+...     "heater": ["MAG_heater.csv"], "temperature": ["MAG_temperature.csv"]},
+...     kernels="messenger.tm", frames=("mso",))  # doctest: +SKIP
+>>> made["mso"]["b"].sel(b_component="B_X")  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from fluxcal.geometry.kernels import KernelPool
-from fluxcal.missions.imap.pipeline import process
-from fluxcal.missions.messenger.levels import frame_variables
-from fluxcal.missions.messenger.options import MessengerOptions
-from fluxcal.missions.messenger.routes import CsvSource, MessengerRun
-from fluxcal.missions.rosetta.options import RosettaOptions
-from fluxcal.missions.rosetta.routes import calibrate_levels
 from fluxcal.products.compare import load_product
 from fluxcal.products.timeindex import with_time_index
 from fluxcal.runs import registry
@@ -37,9 +37,9 @@ def read_product(path: str | Path) -> xr.Dataset:
     """Read any product: fluxcal's (TAB/LBL, CDF, netCDF, Zarr) or an archived table.
 
     A PDS3 table that a registered mission's archived-product reader accepts goes through
-    it (`fluxcal.archive.products.read_product`, which also reads fluxcal's own labels
-    of those layouts); another table (a plugin's own layout) and the other formats
-    through `fluxcal.products.read_product` (`fluxcal.products.compare.load_product`).
+    it (`fluxcal.archive.products.read_archive_product`, which also reads fluxcal's own
+    labels of those layouts); another table (a plugin's own layout) and the other formats
+    through `fluxcal.products.read_fluxcal_product` (`fluxcal.products.compare.load_product`).
     The engine ``xr.open_dataset(path, engine="fluxcal")`` is this function.
 
     Raises
@@ -50,6 +50,44 @@ def read_product(path: str | Path) -> xr.Dataset:
     return load_product(Path(path), registry.archived_readers())
 
 
+def calibrate(mission: str, inputs: Any, **options: Any) -> dict[str, xr.Dataset]:
+    """Calibrate a registered mission's inputs in one call; nothing is written.
+
+    The mission's ``calibrate`` piece (`fluxcal.runs.contract.Mission`) found through
+    the registry (`fluxcal.runs.registry.get`), so a plugin's mission works the same.
+
+    Parameters
+    ----------
+    mission : str
+        Registered mission name (``messenger``, ``rosetta``, ``imap``, a plugin's).
+    inputs : object
+        What the mission reads: MESSENGER ``{"science": files, "heater": files,
+        "temperature": files}``; Rosetta one raw science file; IMAP packet files.
+    **options
+        The mission's options (`calibrate_messenger`, `calibrate_rosetta`,
+        `calibrate_imap` list them).
+
+    Returns
+    -------
+    dict of str -> xarray.Dataset
+        Product kind (MESSENGER frame, Rosetta level, IMAP ``<mode>-<sensor>``) -> that
+        full-resolution product's content, indexed by UTC ``time`` (in time order) with
+        the exact TT2000 ``epoch``: the same variable and component names (and values)
+        `read_product` reads back from the run's products (docs/decisions/products.md,
+        decision 72).
+
+    Raises
+    ------
+    fluxcal.errors.FluxcalError
+        An unknown mission, one without a ``calibrate`` piece, or a bad input or option
+        (the message names it).
+    """
+    piece = registry.get(mission).load("calibrate")
+    made = piece(inputs, **options)
+    return {name: _in_time_order(with_time_index(ds)) if "epoch" in ds.coords else ds
+            for name, ds in made.items()}
+
+
 def calibrate_messenger(
     science: Sequence[str | Path],
     heater: Sequence[str | Path],
@@ -58,8 +96,11 @@ def calibrate_messenger(
     *,
     frames: Sequence[str] = ("mso",),
     calib: str | Path | None = None,
-) -> xr.Dataset:
+) -> dict[str, xr.Dataset]:
     """Calibrate MESSENGER MAG streams (CSV files) in one call; nothing is written.
+
+    ``calibrate("messenger", {"science": science, "heater": heater, "temperature":
+    temperature}, kernels=kernels, frames=frames, calib=calib)`` (`calibrate`).
 
     Parameters
     ----------
@@ -68,34 +109,25 @@ def calibrate_messenger(
     kernels : path or sequence of paths
         Meta-kernel or kernel files (SCLK, FK, SPK, CK).
     frames : sequence of str
-        Frames of the field to return (``mso``, ``j2000``, ``mbf``, ``rtn``, ``sc``,
-        ``vso``): one variable ``b_<frame>`` (nT) and its position variable each.
+        Frames of the products (``mso``, ``j2000``, ``mbf``, ``rtn``, ``sc``, ``vso``).
     calib : path, optional
         A calibration folder in place of the shipped tables.
 
     Returns
     -------
-    xarray.Dataset
-        Indexed by UTC ``time`` (in time order); ``b_<frame>`` per frame, positions,
-        ``quality`` and the applied offsets, as the products hold them.
+    dict of str -> xarray.Dataset
+        Frame -> its full-resolution product's content, indexed by UTC ``time``:
+        ``b`` (nT) on ``b_component`` (``B_X B_Y B_Z``; ``B_R B_T B_N`` in RTN),
+        ``b_total``, ``met``, ``quality`` and the position, as `read_product` reads the
+        product back.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-12.
     """
-    run = MessengerRun()
-    options = MessengerOptions(frames=tuple(frames), formats=("cdf",),
-                               calib=None if calib is None else Path(calib))
-    run.check(options)
-    source = CsvSource(tuple(map(Path, science)), tuple(map(Path, heater)),
-                       tuple(map(Path, temperature)))
-    with KernelPool(kernels, frames=run.frame_kernels):
-        raw, _ = run.read(source, options)
-        ds, _cal = run.calibrate(raw, options, None)
-        del raw
-        for frame in frames:
-            ds = ds.assign(frame_variables(ds, frame))
-    return _in_time_order(with_time_index(ds))
+    return calibrate("messenger", {"science": science, "heater": heater,
+                                   "temperature": temperature},
+                     kernels=kernels, frames=frames, calib=calib)
 
 
 def calibrate_rosetta(
@@ -108,6 +140,8 @@ def calibrate_rosetta(
     kernels: str | Path | None = None,
 ) -> dict[str, xr.Dataset]:
     """Calibrate one Rosetta RPC-MAG sensor's raw file in one call; nothing is written.
+
+    ``calibrate("rosetta", science, sensor=sensor, ...)`` (`calibrate`).
 
     Parameters
     ----------
@@ -128,35 +162,27 @@ def calibrate_rosetta(
     ----------
     .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.1-4.8.
     """
-    made = calibrate_levels(Path(science), sensor, hk=None if hk is None else Path(hk),
-                            kernels=None if kernels is None else Path(kernels),
-                            options=RosettaOptions(calib=None if calib is None else Path(calib),
-                                                   levels=tuple(levels)))
-    return {name: _in_time_order(with_time_index(ds)) if "epoch" in ds.coords else ds
-            for name, ds in made.items()}
+    return calibrate("rosetta", science, sensor=sensor, levels=levels, hk=hk, calib=calib,
+                     kernels=kernels)
 
 
-def calibrate_imap(inputs: Sequence[str | Path], *, kernels: str | Path | Sequence[str | Path],
+def calibrate_imap(inputs: Sequence[str | Path], *,
+                   kernels: str | Path | Sequence[str | Path] | None = None,
                    level: str = "l1b", calib: str | Path | None = None,
-                   xtce: str | Path | None = None
-                   ) -> dict[tuple[str, str], xr.Dataset]:
+                   xtce: str | Path | None = None) -> dict[str, xr.Dataset]:
     """Decode and calibrate IMAP MAG packet (or L1A CSV) files in one call.
 
-    ``kernels``: the IMAP SCLK kernel; ``calib``: the team's calibration CDF (L1B);
-    ``xtce``: the team's packet definition (default: the installed team package's).
-    fluxcal ships none of them (`fluxcal.missions.imap.sources`).
+    ``calibrate("imap", inputs, ...)`` (`calibrate`).  ``kernels``: the IMAP SCLK
+    kernel; ``calib``: the team's calibration CDF (L1B); ``xtce``: the team's packet
+    definition (default: the installed team package's).
 
     Returns
     -------
-    dict of (mode, sensor) -> xarray.Dataset
-        ``("norm", "mago")`` ...: L1A counts or L1B nT, indexed by UTC ``time``.
+    dict of str -> xarray.Dataset
+        ``"norm-mago"`` ... (``<mode>-<sensor>``): L1A counts or L1B nT, indexed by UTC
+        ``time``.
     """
-    out = process([Path(p) for p in inputs], level=level,
-                  calib=None if calib is None else Path(calib),
-                  kernels=[Path(kernels)] if isinstance(kernels, (str, Path))
-                  else [Path(k) for k in kernels],
-                  xtce=None if xtce is None else Path(xtce))
-    return {key: _in_time_order(with_time_index(ds)) for key, ds in out.items()}
+    return calibrate("imap", inputs, kernels=kernels, level=level, calib=calib, xtce=xtce)
 
 
 def _in_time_order(ds: xr.Dataset) -> xr.Dataset:

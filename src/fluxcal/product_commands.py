@@ -29,11 +29,11 @@ def plot(
         spectrogram_figure,
         write_quicklooks,
     )
-    from fluxcal.products.writer import read_product
+    from fluxcal.products.writer import read_fluxcal_product
 
     out_dir = out or product.parent
     preflight.writable_folder(out_dir, "--out")
-    ds = epoch_from_table(read_product(product))
+    ds = epoch_from_table(read_fluxcal_product(product))
     paths = write_quicklooks(ds, out_dir, product.stem, field=field)
     if spectrogram:
         paths.append(save_png(spectrogram_figure(ds, field),

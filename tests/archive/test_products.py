@@ -1,4 +1,4 @@
-"""Archived calibrated products (`fluxcal.archive.products.read_product`).
+"""Archived calibrated products (`fluxcal.archive.products.read_archive_product`).
 
 Tables in the archive layouts are written with fluxcal's table writer and the column
 lists of the missions (or hand-written, for the V9 quality string); the expected epochs
@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from fluxcal.archive.products import read_product as read_with
+from fluxcal.archive.products import read_archive_product as read_with
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.archive_products import messenger_epoch
 from fluxcal.products import Column, write_product
 from fluxcal.runs import registry
 
 
-def read_product(path: Path):
+def read_archive_product(path: Path):
     """The archive reader with every registered mission's readers (as the CLI passes them)."""
     return read_with(path, registry.archived_readers())
 
@@ -69,7 +69,7 @@ def test_messenger_cdr_rdr(tmp_path: Path, frame: str, averaged: bool) -> None:
     ds = _messenger(n, frame == "rtn", averaged, frame == "sc")
     name = product_name(frame, "12153", 2, 1 if averaged else None)
     write_product(ds, tmp_path / name, ("tab",), table_columns(frame, averaged))
-    p = read_product(tmp_path / f"{name}.LBL")
+    p = read_archive_product(tmp_path / f"{name}.LBL")
     expected = _cdflib_tt2000([[2012, 6, 1, 7, int(m), int(s), int(round(s * 1000)) % 1000,
                                 0, 0] for m, s in zip(ds["minute"].values,
                                                       ds["second"].values, strict=True)])
@@ -142,7 +142,7 @@ def test_rosetta_calibrated_and_resampled(tmp_path: Path, level: str, stem: str)
     ds, parts = _rosetta(n, level)
     extra = {"COORDINATE_SYSTEM_NAME": "ECLIPJ2000"} if level in ("C", "G") else {}
     write_product(ds, tmp_path / stem, ("tab",), product_columns(level), extra)
-    p = read_product(tmp_path / f"{stem}.TAB")
+    p = read_archive_product(tmp_path / f"{stem}.TAB")
     expected = _cdflib_tt2000([[int(x) for x in s.split()[:6]]
                                + [int(s.split()[6]) // 1000, int(s.split()[6]) % 1000, 0]
                                for s in parts])
@@ -179,7 +179,7 @@ def test_rosetta_v9_quality_string(tmp_path: Path) -> None:
             Column("quality", "A8", label="QUALITY")]
     stem = "RPCMAG140801_CLE_OB_A01"
     write_product(ds, tmp_path / stem, ("tab",), cols)
-    p = read_product(tmp_path / f"{stem}.LBL")
+    p = read_archive_product(tmp_path / f"{stem}.LBL")
     np.testing.assert_array_equal(p["quality"].values, q)
     assert p["b"].attrs["frame"] == "ROS_RPC_MAG_OB"
 
@@ -192,7 +192,7 @@ def test_missing_field_column_is_named(tmp_path: Path) -> None:
             Column("b", "F11.3", label="BZ", component="z", unit="nT")]
     write_product(ds, tmp_path / "RPCMAG140801T0000_CLB_OB_M3", ("tab",), cols)
     with pytest.raises(InputFormatError) as err:
-        read_product(tmp_path / "RPCMAG140801T0000_CLB_OB_M3.LBL")
+        read_archive_product(tmp_path / "RPCMAG140801T0000_CLB_OB_M3.LBL")
     assert err.value.field == "BY" and "RPCMAG140801T0000_CLB_OB_M3.LBL" in str(err.value)
 
 
@@ -200,5 +200,5 @@ def test_unknown_table_is_refused(tmp_path: Path) -> None:
     ds = xr.Dataset({"v": ("time", np.arange(3.0))}, attrs={"creation_time": "x"})
     write_product(ds, tmp_path / "OTHER", ("tab",))
     with pytest.raises(InputFormatError) as err:
-        read_product(tmp_path / "OTHER.LBL")
+        read_archive_product(tmp_path / "OTHER.LBL")
     assert "OTHER.LBL" in str(err.value) and "TIME.UTC" in str(err.value)

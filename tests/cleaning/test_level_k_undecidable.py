@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.rosetta import cleaning_levels as cl
 from fluxcal.missions.rosetta.clean_cli import clean
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from tests.cleaning._synthetic import red_noise, rotating_field
 from tests.cleaning.test_rosetta_cleaning import FS, START, _dataset, _write, lsk  # noqa: F401
 
@@ -59,7 +59,7 @@ def test_heater_direction_from_the_command(tmp_path, lsk):  # noqa: F811
     res = CliRunner().invoke(app, ["clean", "--level", "K", "--input", str(files[".cdf"]),
                                    "--out", str(out), "--heater-direction", arg, "--no-plot"])
     assert res.exit_code == 0, res.output
-    k = read_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
+    k = read_fluxcal_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
     assert abs(np.mean((k["b"].values - bg) @ d)) < 0.01
     bad = CliRunner().invoke(app, ["clean", "--level", "K", "--input", str(files[".cdf"]),
                                    "--out", str(out), "--heater-direction", "0,0,0"])

@@ -16,7 +16,7 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import leapseconds, utc_to_tt2000
 from fluxcal.missions.rosetta import cleaning_levels as cl
 from fluxcal.missions.rosetta.clean_cli import clean
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from tests.cleaning._synthetic import red_noise
 from tests.cleaning.test_rosetta_cleaning import START, _dataset, _write
 
@@ -78,7 +78,7 @@ def test_level_j_estimator_from_the_command(tmp_path, lsk, estimator):
             str(f_ib[".cdf"]), "--out", str(out), "--pca-estimator", estimator]
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
-    back = read_product(out / "rosetta_rpcmag_clj-ext_20140801_v01.cdf")
+    back = read_fluxcal_product(out / "rosetta_rpcmag_clj-ext_20140801_v01.cdf")
     assert back.attrs["pca_estimator"] == estimator
     want = two_sensor_pca(ob["b"].values, ib["b"].values, method=estimator).external
     np.testing.assert_allclose(back["b"].values, want, atol=2e-3)  # the table's 3 decimals

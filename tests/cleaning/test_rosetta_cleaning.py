@@ -19,7 +19,7 @@ from fluxcal.geometry.time import leapseconds, utc_to_tt2000
 from fluxcal.missions.rosetta import cleaning_levels as cl
 from fluxcal.missions.rosetta.clean_cli import clean, clean_files, read_intervals
 from fluxcal.missions.rosetta.reaction_wheels import ReactionWheelTable, read_reaction_wheels
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from tests.cleaning._synthetic import red_noise, rotating_field
 
 FS = 20.0
@@ -386,7 +386,7 @@ def test_clean_command_h_i_k(tmp_path, lsk):
         "RPCMAG_20140801_CLH_OB.png",
         "rosetta_rpcmag_clh-ob_20140801_v01.cdf",
     ]
-    h = read_product(out / "rosetta_rpcmag_clh-ob_20140801_v01.cdf")
+    h = read_fluxcal_product(out / "rosetta_rpcmag_clh-ob_20140801_v01.cdf")
     assert h.attrs["level"] == "H"
     assert np.sqrt(np.mean((h["b"].values - bg[:8000]) ** 2)) < 0.05
     assert (out / "RPCMAG_20140801_CLH_OB.png").read_bytes()[:4] == b"\x89PNG"
@@ -407,7 +407,7 @@ def test_clean_command_h_i_k(tmp_path, lsk):
         ],
     )
     assert res.exit_code == 0, res.output
-    i = read_product(out / "rosetta_rpcmag_cli-ob_20140801_v01.cdf")
+    i = read_fluxcal_product(out / "rosetta_rpcmag_cli-ob_20140801_v01.cdf")
     assert i.sizes["time"] == 400 and i.attrs["level"] == "I"
 
     hds, *_ = _heater_case(lsk, n=6000)
@@ -417,7 +417,7 @@ def test_clean_command_h_i_k(tmp_path, lsk):
     )
     assert res.exit_code == 0, res.output
     assert (out / "RPCMAG_20140801_CLK_OB.png").exists()
-    k = read_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
+    k = read_fluxcal_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
     assert k.attrs["heater_jumps"] > 0 and "temperature" in k
 
 
@@ -518,7 +518,8 @@ def test_clean_command_j_writes_three_products(tmp_path, lsk):
     res = clean_files("J", [f_ob[".cdf"], f_ib[".cdf"]], tmp_path / "out")
     assert set(res.levels) == {"EXT", "OB", "IB"}
     for tag in ("EXT", "OB", "IB"):
-        back = read_product(tmp_path / "out" / f"rosetta_rpcmag_clj-{tag.lower()}_20140801_v01.cdf")
+        back = read_fluxcal_product(
+            tmp_path / "out" / f"rosetta_rpcmag_clj-{tag.lower()}_20140801_v01.cdf")
         assert back.attrs["pca_part"] == tag and back.sizes["time"] == n
     # the command with a regular grid and a gap limit (IB shifted by 0.25 s, a 4 s gap)
     ib2 = _dataset(np.delete(epoch, range(100, 103)) + 250_000_000, ib["b"].values[3:],
@@ -531,7 +532,7 @@ def test_clean_command_j_writes_three_products(tmp_path, lsk):
     out = tmp_path / "out2"
     res = CliRunner().invoke(app, args + ["--out", str(out), "--step", "1", "--max-gap", "3"])
     assert res.exit_code == 0, res.output
-    back = read_product(out / "rosetta_rpcmag_clj-ext_20140801_v01.cdf")
+    back = read_fluxcal_product(out / "rosetta_rpcmag_clj-ext_20140801_v01.cdf")
     assert str(back.attrs["pca_time_base"]).startswith("regular grid of 1 s")
     # grid every 1 s from IB's first tag (the overlap start), n - 1 times; IB's gap of
     # 4 s (> 3 samples) holds 3 of them strictly inside, OB has none
@@ -585,7 +586,7 @@ def test_fluxcal_rosetta_clean_k_with_romap_intervals(tmp_path, lsk):
     out = tmp_path / "out"
     args = ["rosetta", "clean", "--level", "K", "--input", str(files[".cdf"]), "--out", str(out)]
     assert main(args + ["--intervals", str(csv_path)]) == 0
-    k = read_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
+    k = read_fluxcal_product(out / "rosetta_rpcmag_clk-ob_20140801_v01.cdf")
     assert "assisted" in k.attrs["heater_method"]
     assert set(k.attrs["heater_offsets_nT"]) == set(offsets)
     # same as the level function on the same intervals (products store B to 1 pT)
@@ -630,7 +631,7 @@ def test_clean_command_f_and_g(tmp_path, lsk):
     kfile = _write(cl.level_k(hds), tmp_path / "kin", lsk)
     out = tmp_path / "out"
     f = clean_files("F", [kfile[".cdf"]], out).levels["OB"]
-    k = read_product(kfile[".cdf"])
+    k = read_fluxcal_product(kfile[".cdf"])
     # tolerance: the K product stores B with 3 decimals
     np.testing.assert_allclose(f["b"].values, _one_second_means(k["b"].values), atol=1e-9)
     # written like F from B (archive columns), its name saying the source level so that
@@ -644,7 +645,7 @@ def test_clean_command_f_and_g(tmp_path, lsk):
     lres = clean_files("L", [kfile[".cdf"]], out, kernels=meta)
     lfile = [p for p in lres.paths if p.suffix == ".cdf"][0]
     g = clean_files("G", [lfile], out).levels["OB"]
-    ldata = read_product(lfile)
+    ldata = read_fluxcal_product(lfile)
     assert g.attrs["level"] == "G" and g.sizes["time"] == 100
     np.testing.assert_allclose(g["b"].values, _one_second_means(ldata["b"].values), atol=1e-9)
     np.testing.assert_allclose(
@@ -678,7 +679,7 @@ def test_clean_k_with_heater_states(tmp_path, lsk):
     assert "assisted" in k.attrs["heater_method"]
     assert set(k.attrs["heater_offsets_nT"]) == set(offsets)  # labels "A" and "B+C"
     # the same as the level function on the intervals themselves (inputs stored to 1 pT)
-    expected = cl.level_k_assisted(read_product(files[".cdf"]), intervals)["b"].values
+    expected = cl.level_k_assisted(read_fluxcal_product(files[".cdf"]), intervals)["b"].values
     np.testing.assert_allclose(k["b"].values, expected, atol=1e-9)
     residual = np.linalg.norm(k["b"].values - bg, axis=1)
     assert np.sqrt(np.mean(residual**2)) < 0.1  # issue 5: residual < 0.1 nT rms

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.runs import registry
 from fluxcal.runs.batch import (
@@ -75,7 +75,7 @@ def test_five_days_one_corrupted(cluster, tmp_path: Path) -> None:
     # products are complete and correct
     for d in DAYS:
         if d != BAD:
-            back = read_product(out / f"SYNTH_{d:%Y%m%d}_v01.cdf")
+            back = read_fluxcal_product(out / f"SYNTH_{d:%Y%m%d}_v01.cdf")
             np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
     # JSON report of every day
     report = json.loads(Path(rep.report_path).read_text())
@@ -116,7 +116,7 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     for d in DAYS:
         cdf = out / f"SYNTH_{d:%Y%m%d}_v01.cdf"
         if statuses[d.isoformat()] == "done":
-            back = read_product(cdf)
+            back = read_fluxcal_product(cdf)
             np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
             assert manifest_path(out, "synthetic", d).exists()
     # Rerun completes every day (the interrupted one, if Dask did not already retry it).
@@ -307,14 +307,14 @@ def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
     for day in DAYS:  # every product present is complete (even one whose manifest is missing)
         cdf = out / f"SYNTH_{day:%Y%m%d}_v01.cdf"
         if cdf.exists():
-            np.testing.assert_allclose(read_product(cdf)["B"].values,
+            np.testing.assert_allclose(read_fluxcal_product(cdf)["B"].values,
                                        _expected_field(inp, day), atol=1e-9)
     rep2 = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
     assert rep2.ok and {d.status for d in rep2.days} <= {"done", "skipped"}
     assert _products(out) == [f"SYNTH_{d:%Y%m%d}_v01.cdf" for d in DAYS]
     for d in DAYS:
-        np.testing.assert_allclose(read_product(out / f"SYNTH_{d:%Y%m%d}_v01.cdf")["B"].values,
-                                   _expected_field(inp, d), atol=1e-9)
+        back = read_fluxcal_product(out / f"SYNTH_{d:%Y%m%d}_v01.cdf")
+        np.testing.assert_allclose(back["B"].values, _expected_field(inp, d), atol=1e-9)
 
 
 def test_clean_stale_temporaries_files_and_store_directories(tmp_path: Path) -> None:

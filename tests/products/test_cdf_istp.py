@@ -10,7 +10,7 @@ import pytest
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
-from fluxcal.products import read_product, write_product
+from fluxcal.products import read_fluxcal_product, write_product
 from fluxcal.products.cdf import istp_file_stem, istp_logical_source
 
 from .conftest import EPOCH0
@@ -81,7 +81,7 @@ def test_nan_is_fillval_in_the_file_and_nan_again(dataset: xr.Dataset, tmp_path:
     path = _write(ds, tmp_path)
     raw = cdflib.CDF(str(path)).varget("B_mso")
     assert raw[4, 2] == -1e31 and not np.isnan(raw).any()
-    back = read_product(path)
+    back = read_fluxcal_product(path)
     assert np.isnan(back["B_mso"].values[4, 2])
     np.testing.assert_array_equal(back["B_mso"].values, ds["B_mso"].values)
 
@@ -122,7 +122,7 @@ def test_attrs_map_to_istp_and_back(dataset: xr.Dataset, tmp_path: Path) -> None
     assert t["LABLAXIS"] == "T sensor" and t["VAR_TYPE"] == "support_data"
     assert "DISPLAY_TYPE" not in t
     assert np.asarray(t["VALIDMIN"]).dtype == np.float32
-    back = read_product(path)
+    back = read_fluxcal_product(path)
     assert back["B_mso"].attrs["coordinate_system"] == "MSO>Mercury Solar Orbital"
     assert back["B_mso"].attrs["valid_min"] == -2000.0
     assert back["temperature"].attrs["long_name"] == "T sensor"
@@ -137,7 +137,7 @@ def test_component_labels_come_from_the_coordinate(dataset: xr.Dataset,
     cdf = cdflib.CDF(str(_write(ds, tmp_path)))
     assert [s.strip() for s in cdf.varget("b_component_label")] == ["B_R", "B_T", "B_N"]
     assert cdf.varattsget("b")["LABL_PTR_1"] == "b_component_label"
-    back = read_product(tmp_path / "P.cdf")
+    back = read_fluxcal_product(tmp_path / "P.cdf")
     assert back["b"].dims == ("time", "b_component")
     assert back["b_component"].values.tolist() == ["B_R", "B_T", "B_N"]
     assert "b_component_label" not in back.variables
@@ -203,7 +203,7 @@ def test_reads_a_foreign_istp_cdf(tmp_path: Path) -> None:
     cdf.write_var({"Variable": "label_B", "Data_Type": 51, "Num_Elements": 4, "Rec_Vary": False,
                    "Dim_Sizes": [3]}, {"VAR_TYPE": "metadata"}, ["Bx  ", "By  ", "Bz  "])
     cdf.close()
-    ds = read_product(tmp_path / "foreign.cdf")
+    ds = read_fluxcal_product(tmp_path / "foreign.cdf")
     np.testing.assert_array_equal(ds["epoch"].values, epoch)
     np.testing.assert_array_equal(ds["B_GSE"].values, b)
     assert ds["B_GSE"].dims == ("time", "label_B")

@@ -24,7 +24,7 @@ import xarray as xr
 
 from fluxcal.missions.messenger.products import istp_files as messenger_istp
 from fluxcal.missions.rosetta.pipeline import istp_yaml as rosetta_istp
-from fluxcal.products import read_product, write_product, zarr_available
+from fluxcal.products import read_fluxcal_product, write_product, zarr_available
 from fluxcal.products.cdf import istp_file_stem
 
 N = 1200  # 20 minutes at 1 Hz
@@ -320,7 +320,7 @@ def test_plain_xarray_open_zarr_has_a_time_index(kind: str, written) -> None:
 def test_fluxcal_readers_return_the_time_index_and_exact_values(kind: str, written) -> None:
     ds, stem = written[kind]
     for path in (_cdf(stem), stem.with_name(stem.name + ".nc")):
-        back = read_product(path)
+        back = read_fluxcal_product(path)
         assert "time" in back.indexes, path
         np.testing.assert_array_equal(back["epoch"].values, ds["epoch"].values)
         for name in ds.data_vars:
@@ -427,7 +427,7 @@ def test_pipeline_rtn_product_in_pyspedas(pipeline_products) -> None:
     (path,) = [p for p in pipeline_products
                if p.name.startswith("messenger_mag_rtn-sci") and p.suffix == ".cdf"]
     names = pyspedas.cdf_to_tplot(str(path))
-    back = read_product(path)
+    back = read_fluxcal_product(path)
     field = "b"
     assert field in names and back[field].ndim == 2
     assert back["b_component"].values.tolist() == ["B_R", "B_T", "B_N"]

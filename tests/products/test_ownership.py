@@ -260,7 +260,7 @@ def test_a_batch_day_equals_a_single_run_with_samples_after_midnight(tmp_path):
     import shutil
 
     from fluxcal.missions.messenger.batch_task import day_file, make_day_task
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
     from fluxcal.runs.batch import run_batch
 
     sim = tmp_path / "sim"
@@ -289,11 +289,11 @@ def test_a_batch_day_equals_a_single_run_with_samples_after_midnight(tmp_path):
     names = sorted(p.name for p in single.glob("*.TAB"))
     assert names == sorted(p.name for p in batch.glob("*.TAB"))
     for name in names:
-        a, b = read_product(single / name), read_product(batch / name)
+        a, b = read_fluxcal_product(single / name), read_fluxcal_product(batch / name)
         assert a.sizes == b.sizes
         for var in a.data_vars:
             np.testing.assert_array_equal(a[var].values, b[var].values, err_msg=name)
-    assert read_product(batch / "MAGMSOSCI12153_V01.TAB").sizes["time"] == n_science
+    assert read_fluxcal_product(batch / "MAGMSOSCI12153_V01.TAB").sizes["time"] == n_science
 
 
 def test_calibrate_f_and_clean_f_have_distinct_names():

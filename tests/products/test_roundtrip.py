@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import fluxcal.products.atomic as atomic_mod
 from fluxcal.errors import InputFormatError
-from fluxcal.products import Column, read_product, write_product, zarr_available
+from fluxcal.products import Column, read_fluxcal_product, write_product, zarr_available
 from fluxcal.products.label import find_objects
 from fluxcal.products.tab import read_label
 from fluxcal.products.timeindex import with_time_index
@@ -34,7 +34,7 @@ MAIN_FILE = {"tab": ".TAB", "cdf": ".cdf", "nc": ".nc", "zarr": ".zarr"}
 
 def _roundtrip(ds: xr.Dataset, fmt: str, tmp: Path, **kw) -> tuple[xr.Dataset, list[Path]]:
     paths = write_product(ds, tmp / "PROD", formats=(fmt,), **kw)
-    return read_product(tmp / f"PROD{MAIN_FILE[fmt]}"), paths
+    return read_fluxcal_product(tmp / f"PROD{MAIN_FILE[fmt]}"), paths
 
 
 def _assert_same_science(ds: xr.Dataset, back: xr.Dataset) -> None:
@@ -87,7 +87,7 @@ def test_tab_printed_precision(dataset: xr.Dataset, tmp_path: Path) -> None:
             Column("B_mso", "%10.3f", label="b{c}"), Column("temperature", "%7.2f"),
             Column("quality", "%3d")]
     write_product(dataset, tmp_path / "P", formats=("tab",), columns=cols)
-    back = read_product(tmp_path / "P.TAB")
+    back = read_fluxcal_product(tmp_path / "P.TAB")
     # "%10.3f" rounds to the nearest 0.001 nT: error <= 0.0005 (+ binary rounding slack).
     np.testing.assert_allclose(back["B_mso"].values, dataset["B_mso"].values, rtol=0,
                                atol=0.0005 + 1e-9)
@@ -143,7 +143,7 @@ def test_same_run_twice_same_science_bytes(dataset: xr.Dataset, tmp_path: Path) 
     diff = [(x, y) for x, y in zip(la, lb, strict=True) if x != y]
     assert diff and all("2026-" in x and "creation" in x.lower() for x, _ in diff)
     for fmt in (".cdf", ".nc"):
-        ra, rb = read_product(a / f"P{fmt}"), read_product(b / f"P{fmt}")
+        ra, rb = read_fluxcal_product(a / f"P{fmt}"), read_fluxcal_product(b / f"P{fmt}")
         xr.testing.assert_equal(ra.drop_attrs(), rb.drop_attrs())
 
 

@@ -23,7 +23,7 @@ from fluxcal.missions.imap.sources import TEAM_FILES, sclk_kernels, shared_folde
 from fluxcal.missions.rosetta.options import RosettaOptions
 from fluxcal.missions.rosetta.routes import run_files
 from fluxcal.missions.rosetta.simulate import write_simulation
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from fluxcal.runs import driver
 
 
@@ -57,7 +57,7 @@ def test_rosetta_run_reports_progress_and_steps(tmp_path: Path, caplog) -> None:
     assert f"OB science: {rows:,} records from {sim['science_OB'].name}" in text
     for level in "AB":  # each level done with the vectors its product holds
         cdf = tmp_path / "out" / f"rosetta_rpcmag_cl{level.lower()}-ob_20140801_v01.cdf"
-        n = read_product(cdf).sizes["time"]
+        n = read_fluxcal_product(cdf).sizes["time"]
         assert f"OB LEVEL_{level} done: {n:,} vectors" in text, (level, text)
     assert f"wrote {len(written)} product file(s) to {tmp_path / 'out'}" in text
     assert len(text) <= 12  # one line per step, not a line per sample or file
@@ -84,7 +84,7 @@ def test_imap_run_reports_progress_and_steps(tmp_path: Path, caplog) -> None:
                for m in text), text
     assert f"calibration: {TEAM_FILES['calib']}" in text
     assert any(m.startswith(f"read {TEAM_FILES['norm']}: norm-") for m in text), text
-    products = [read_product(p) for p in written if Path(p).suffix == ".cdf"]
+    products = [read_fluxcal_product(p) for p in written if Path(p).suffix == ".cdf"]
     assert sum(p.sizes["time"] for p in products) == n_vectors  # every vector written
     done = [m for m in text if re.match(r"L1B \w+-mag[io] done: [\d,]+ vectors", m)]
     assert sum(int(re.search(r"([\d,]+) vectors", m)[1].replace(",", "")) for m in done) \

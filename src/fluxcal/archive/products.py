@@ -1,6 +1,6 @@
 """Readers of archived calibrated magnetometer products into fluxcal's Dataset shape.
 
-`read_product` reads a PDS3 table (`fluxcal.archive.pds3.read_table`) and hands it to
+`read_archive_product` reads a PDS3 table (`fluxcal.archive.pds3.read_table`) and hands it to
 the first `ArchivedReader` whose `ArchivedReader.matches` accepts the label's column
 names -- the label is the source of truth.  Each mission ships its reader (its file
 names, columns and frames) in its own folder; the readers are an argument
@@ -33,7 +33,7 @@ from fluxcal.products.label import decode_attributes, find_objects
 from fluxcal.products.timeindex import with_time_index
 
 __all__ = ["ArchivedReader", "FRAME_CODES", "frame_code", "frame_codes", "identify",
-           "normalise_frame", "read_product"]
+           "normalise_frame", "read_archive_product"]
 
 #: Frame codes of the frames that belong to no mission.
 FRAME_CODES = {"J2000": "J2000", "ECLIPJ2000": "ECLIPJ2000"}
@@ -152,7 +152,7 @@ def vector_variable(table: xr.Dataset, names: tuple[str, ...], dim: str, labels:
                         attrs={**attrs, "units": table[names[0]].attrs.get("units", "")})
 
 
-def read_product(path: Path | str, readers: Mapping[str, ArchivedReader]) -> xr.Dataset:
+def read_archive_product(path: Path | str, readers: Mapping[str, ArchivedReader]) -> xr.Dataset:
     """Read an archived calibrated product (``.TAB`` + ``.LBL``) into fluxcal's shape.
 
     Parameters

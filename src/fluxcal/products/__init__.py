@@ -4,7 +4,7 @@ Writing a product
 -----------------
 >>> import numpy as np, xarray as xr
 >>> from pathlib import Path
->>> from fluxcal.products import Column, write_product, read_product, provenance_attrs
+>>> from fluxcal.products import Column, write_product, read_fluxcal_product, provenance_attrs
 >>> ds = xr.Dataset(
 ...     {"B_mso": (("time", "component"), np.zeros((2, 3)), {"units": "nT"}),
 ...      "quality": ("time", np.array([0, 1]), {"units": "1"})},
@@ -21,7 +21,7 @@ Writing a product
 ['MAGMSOSCI24001.TAB', 'MAGMSOSCI24001.LBL', 'MAGMSOSCI24001.cdf']
 >>> (out / "MAGMSOSCI24001.TAB").read_text().splitlines()[1]
 '            50000000      0.000      0.000      0.000  1'
->>> read_product(out / "MAGMSOSCI24001.cdf")["epoch"].values.tolist()
+>>> read_fluxcal_product(out / "MAGMSOSCI24001.cdf")["epoch"].values.tolist()
 [0, 50000000]
 
 Column naming
@@ -52,7 +52,7 @@ _SOURCE = {
     "provenance_attrs": "provenance",
     "read_cdf": "cdf",
     "read_netcdf": "netcdf",
-    "read_product": "writer",
+    "read_fluxcal_product": "writer",
     "read_tab": "tab",
     "read_zarr": "netcdf",
     "sha256_file": "provenance",
@@ -63,6 +63,9 @@ _SOURCE = {
     "write_zarr": "netcdf",
     "zarr_available": "netcdf",
 }
+#: Public modules (imported on first use): the API reference's pages of this package.
+_MODULES = ("atomic", "attrs", "cdf", "columns", "compare", "format_names", "label", "netcdf",
+            "provenance", "provenance_read", "quicklook", "tab", "timeindex", "writer")
 __all__ = [
     "FORMATS",
     "Column",
@@ -70,7 +73,7 @@ __all__ = [
     "provenance_attrs",
     "read_cdf",
     "read_netcdf",
-    "read_product",
+    "read_fluxcal_product",
     "read_tab",
     "read_zarr",
     "sha256_file",
@@ -80,10 +83,13 @@ __all__ = [
     "write_tab",
     "write_zarr",
     "zarr_available",
+    *_MODULES,
 ]
 
 
 def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return import_module(f"{__name__}.{name}")
     module = _SOURCE.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -93,4 +99,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_SOURCE})
+    return sorted({*globals(), *_SOURCE, *_MODULES})

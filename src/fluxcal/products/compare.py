@@ -1,8 +1,8 @@
 """Compare two magnetic-field products: match in time, difference statistics, a plot.
 
 `load_product` reads either side: an archived or fluxcal PDS3 table (``.TAB``/``.LBL``,
-`fluxcal.archive.products.read_product`; a fluxcal table of another layout through
-`fluxcal.products.read_product`), or a fluxcal CDF / netCDF / Zarr product.
+`fluxcal.archive.products.read_archive_product`; a fluxcal table of another layout through
+`fluxcal.products.read_fluxcal_product`), or a fluxcal CDF / netCDF / Zarr product.
 `compare` matches every sample of A to the nearest sample of B in time (TT2000
 ``epoch``), keeps the pairs closer than the tolerance, one B sample per A sample at
 most, and returns the statistics of ``A - B`` per field component: mean, rms, max ``|diff|``
@@ -30,13 +30,18 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.archive.pds3 import column_names, find_label, read_label
-from fluxcal.archive.products import ArchivedReader, identify, normalise_frame, read_product
+from fluxcal.archive.products import (
+    ArchivedReader,
+    identify,
+    normalise_frame,
+    read_archive_product,
+)
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.time import tt2000_to_datetime64
 from fluxcal.products.attrs import variable_units
 from fluxcal.products.paths import make_folder
 from fluxcal.products.timeindex import default_lsk
-from fluxcal.products.writer import read_product as read_fluxcal
+from fluxcal.products.writer import read_fluxcal_product
 
 __all__ = ["Comparison", "ComponentStats", "compare", "difference_figure", "format_report",
            "load_product", "parse_tolerance", "product_frame"]
@@ -78,9 +83,9 @@ def load_product(path: Path | str,
         try:
             identify(names, readers)
         except InputFormatError:
-            return read_fluxcal(label)
-        return read_product(label, readers)
-    return read_fluxcal(path)
+            return read_fluxcal_product(label)
+        return read_archive_product(label, readers)
+    return read_fluxcal_product(path)
 
 
 def field_name(ds: xr.Dataset, path: Path | str) -> str:

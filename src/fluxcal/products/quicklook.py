@@ -48,10 +48,9 @@ from matplotlib.ticker import ScalarFormatter  # noqa: E402
 from scipy.signal import spectrogram  # noqa: E402
 
 from fluxcal.errors import InputFormatError  # noqa: E402
-from fluxcal.geometry.time import utc_fields_to_tt2000, utc_to_tt2000  # noqa: E402
 from fluxcal.products.atomic import atomic_path  # noqa: E402
 from fluxcal.products.attrs import variable_units  # noqa: E402
-from fluxcal.products.timeindex import default_lsk  # noqa: E402
+from fluxcal.products.timeindex import default_lsk, epoch_from_table  # noqa: E402, F401
 
 log = logging.getLogger(__name__)
 
@@ -390,32 +389,6 @@ def split_days(ds: xr.Dataset) -> list[tuple[str, xr.Dataset]]:
         del bounds[1], names[0]
     return [(f"{k:08d}", ds.isel(time=slice(a, b)))
             for k, a, b in zip(names, bounds[:-1], bounds[1:], strict=True)]
-
-
-def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
-    """Return ``ds`` with an int64 TT2000 ``epoch`` made from a table's time columns.
-
-    Archive tables (``.TAB``) carry time as text or fields, not TT2000: seed 003's
-    ISO ``time_utc`` (microseconds) and seed 000's ``year``, ``doy``, ``hour``,
-    ``minute``, ``second``.  A dataset with ``epoch`` already is returned unchanged.
-
-    Raises
-    ------
-    InputFormatError
-        If the dataset has neither form of time.
-    """
-    if "epoch" in ds.coords or "epoch" in ds:
-        return ds
-    lsk = lsk or default_lsk()
-    if "time_utc" in ds:
-        epoch = utc_to_tt2000(ds["time_utc"].values.astype(str), lsk)
-    elif all(n in ds for n in ("year", "doy", "hour", "minute", "second")):
-        epoch = utc_fields_to_tt2000(*(ds[n].values for n in ("year", "doy", "hour", "minute",
-                                                              "second")), lsk)
-    else:
-        raise InputFormatError("no time in the table: expected 'time_utc' or the fields "
-                               "year, doy, hour, minute, second", field="time")
-    return ds.assign_coords(epoch=("time", np.asarray(epoch, dtype=np.int64)))
 
 
 def write_quicklooks(ds: xr.Dataset, out_dir: Path, stem: str, field: str | None = None,

@@ -28,7 +28,13 @@ import xarray as xr
 
 from fluxcal.errors import InputFormatError, KernelError
 from fluxcal.geometry.kernels import KernelPool, leapseconds_kernel
-from fluxcal.geometry.time import LeapSecondTable, leapseconds, tt2000_to_datetime64
+from fluxcal.geometry.time import (
+    LeapSecondTable,
+    leapseconds,
+    tt2000_to_datetime64,
+    utc_fields_to_tt2000,
+    utc_to_tt2000,
+)
 from fluxcal.products.columns import TIME_DIM
 
 #: Name of the indexed UTC coordinate.
@@ -99,3 +105,37 @@ def with_time_index(ds: xr.Dataset, lsk: LeapSecondTable | None = None) -> xr.Da
 def without_time_index(ds: xr.Dataset) -> xr.Dataset:
     """Return ``ds`` without the derived ``time`` coordinate (``epoch`` kept)."""
     return ds.drop_vars(TIME_COORD) if TIME_COORD in ds.variables else ds
+
+
+#: A table's UTC fields (seed 000 sec. 9), the other form of time beside ``time_utc``.
+TABLE_TIME_FIELDS = ("year", "doy", "hour", "minute", "second")
+
+
+def has_table_time(ds: xr.Dataset) -> bool:
+    """Return whether a table has a time `epoch_from_table` reads (``time_utc`` or the fields)."""
+    return "time_utc" in ds or all(n in ds for n in TABLE_TIME_FIELDS)
+
+
+def epoch_from_table(ds: xr.Dataset, lsk=None) -> xr.Dataset:
+    """Return ``ds`` with an int64 TT2000 ``epoch`` made from a table's time columns.
+
+    Archive tables (``.TAB``) carry time as text or fields, not TT2000: seed 003's
+    ISO ``time_utc`` (microseconds) and seed 000's ``year``, ``doy``, ``hour``,
+    ``minute``, ``second``.  A dataset with ``epoch`` already is returned unchanged.
+
+    Raises
+    ------
+    InputFormatError
+        If the dataset has neither form of time.
+    """
+    if "epoch" in ds.coords or "epoch" in ds:
+        return ds
+    lsk = lsk or default_lsk()
+    if "time_utc" in ds:
+        epoch = utc_to_tt2000(ds["time_utc"].values.astype(str), lsk)
+    elif has_table_time(ds):
+        epoch = utc_fields_to_tt2000(*(ds[n].values for n in TABLE_TIME_FIELDS), lsk)
+    else:
+        raise InputFormatError("no time in the table: expected 'time_utc' or the fields "
+                               "year, doy, hour, minute, second", field="time")
+    return ds.assign_coords(epoch=("time", np.asarray(epoch, dtype=np.int64)))

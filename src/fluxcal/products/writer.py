@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.products.atomic import atomic_group
 from fluxcal.products.format_names import FORMATS
-from fluxcal.products.timeindex import with_time_index
+from fluxcal.products.timeindex import epoch_from_table, has_table_time, with_time_index
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -113,11 +113,14 @@ READERS: dict[str, tuple[str, str]] = {
 }
 
 
-def read_product(path: Path) -> xr.Dataset:
+def read_fluxcal_product(path: Path) -> xr.Dataset:
     """Read any fluxcal product (format from the suffix) into a Dataset.
 
-    The Dataset has the indexed UTC ``time`` coordinate beside the exact ``epoch``
-    (`fluxcal.products.timeindex.with_time_index`) whenever it has ``epoch``.
+    Internal: the one public reader is `fluxcal.read_product` (which also reads the
+    archive's tables).  The Dataset has the indexed UTC ``time`` coordinate beside the
+    exact ``epoch`` (`fluxcal.products.timeindex.with_time_index`) whenever it has
+    ``epoch``; a table's ``epoch`` is made from its UTC columns (``time_utc``, or year,
+    day of year, hour, minute, second: `fluxcal.products.timeindex.epoch_from_table`).
     """
     path = Path(path)
     source = READERS.get(path.suffix.lower())
@@ -138,4 +141,6 @@ def read_product(path: Path) -> xr.Dataset:
             f"not a readable {path.suffix.lstrip('.').upper()} product ({type(exc).__name__}: "
             f"{' '.join(str(exc).split())[:200]}); give a product written by fluxcal",
             path=str(path)) from exc
+    if "epoch" not in ds.coords and "epoch" not in ds and has_table_time(ds):
+        ds = epoch_from_table(ds)
     return with_time_index(ds) if "epoch" in ds.coords else ds

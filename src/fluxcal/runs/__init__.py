@@ -11,5 +11,14 @@ done here once, for every mission:
 - `fluxcal.runs.cli`: ``fluxcal batch <mission>`` built from the registry;
 - `fluxcal.runs.demo`: ``fluxcal demo``, the demo parts every mission declares.
 
-Nothing in this package names a mission.
+Nothing in this package names a mission.  ``__all__`` lists the public modules (what a
+plugin author uses); the command line, the demos and the synthetic mission are internal.
 """
+
+__all__ = [
+    "batch",
+    "contract",
+    "driver",
+    "options",
+    "registry",
+]

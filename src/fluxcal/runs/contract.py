@@ -124,6 +124,12 @@ class Mission:
     before_batch : str, optional
         Reference to ``check(task) -> None`` called once before the days run (warnings
         about the calibration the task will use).
+    calibrate : str, optional
+        Reference to ``calibrate(inputs, **options) -> dict[str, xarray.Dataset]``, the
+        mission's piece of `fluxcal.calibrate`: product kind (a frame, a level, ...) ->
+        that full-resolution product's content in memory, with the variable and
+        component names `fluxcal.read_product` reads back from the product (nothing
+        written; docs/decisions/products.md, decision 72).
     """
 
     name: str
@@ -140,6 +146,7 @@ class Mission:
     archived_products: str | None = None
     frame_kernels: str | None = None
     before_batch: str | None = None
+    calibrate: str | None = None
 
     def load(self, piece: str) -> Any:
         """Return the object the reference ``piece`` (an attribute name) points to.

@@ -198,6 +198,6 @@ def frame_kernels() -> dict[str, Path]:
 def archived_readers() -> Mapping[str, Any]:
     """Return mission name -> archived-product reader of every mission that has one.
 
-    What `fluxcal.read_product` passes to `fluxcal.archive.products.read_product`.
+    What `fluxcal.read_product` passes to `fluxcal.archive.products.read_archive_product`.
     """
     return _pieces("archived_products")

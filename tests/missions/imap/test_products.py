@@ -16,7 +16,7 @@ from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import utc_to_tt2000
 from fluxcal.missions.imap.cli import app
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from fluxcal.products.compare import compare, load_product
 from tests.missions.imap.conftest import CALIBRATION, SCLK, T010, T010_L1A, XTCE
 
@@ -52,7 +52,7 @@ def test_cdf_product_names_and_contents(imap_data: Path, tmp_path: Path) -> None
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == [f"imap_mag_l1a_norm-{s}_20250206_v001.{x}"
                      for s in ("magi", "mago") for x in ("cdf", "nc")] + ["index.html"]
-    ds = read_product(tmp_path / "imap_mag_l1a_norm-mago_20250206_v001.cdf")
+    ds = read_fluxcal_product(tmp_path / "imap_mag_l1a_norm-mago_20250206_v001.cdf")
     assert ds.attrs["Logical_file_id"] == "imap_mag_l1a_norm-mago_20250206_v001"
     assert ds["counts"].attrs["units"] == "count"
     with pytest.raises(InputFormatError, match="'counts' is in count, not nT"):
@@ -183,7 +183,7 @@ def test_compare_reads_an_imap_layout_l1b(imap_data: Path, tmp_path: Path) -> No
                     for r in rows])
     team = tmp_path / "team_l1b.cdf"
     _write_imap_layout(team, epoch, vec, "nT")
-    ds = read_product(team)
+    ds = read_fluxcal_product(team)
     assert ds["vectors"].dims == ("time", "direction") and ds.sizes["time"] == 16
     _run("--input", str(T010_L1A), "--out", str(tmp_path / "ours"))
     ours = load_product(tmp_path / "ours" / "imap_mag_l1b_norm-mago_20250206_v001.cdf")

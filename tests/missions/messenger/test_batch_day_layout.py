@@ -36,7 +36,7 @@ from fluxcal.missions.messenger.routes import run_edr2cdr
 from fluxcal.missions.messenger.run import batch_day_rows, merge_fragment_days
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from fluxcal.runs.batch import run_batch
 
 D1, D2 = dt.date(2012, 6, 1), dt.date(2012, 6, 2)
@@ -113,11 +113,11 @@ def test_batch_equals_the_single_run_across_midnight(stream, tmp_path, layout, m
     assert "MAGMSOSCI12154_V01.TAB" in names
     assert names == sorted(p.name for p in out.glob("*.TAB"))
     for name in names:
-        a, b = read_product(stream["single"] / name), read_product(out / name)
+        a, b = read_fluxcal_product(stream["single"] / name), read_fluxcal_product(out / name)
         assert a.sizes == b.sizes, name
         for var in a.data_vars:
             np.testing.assert_array_equal(a[var].values, b[var].values, err_msg=name)
-    assert sum(read_product(out / f"MAGMSOSCI{d:%y%j}_V01.TAB").sizes["time"]
+    assert sum(read_fluxcal_product(out / f"MAGMSOSCI{d:%y%j}_V01.TAB").sizes["time"]
                for d in (D1, D2)) == n_science
     if layout == "split at midnight":  # the neighbour's file holds none of the day's: unread
         assert parsed == [["MAGSCI_2012153.csv"], ["MAGSCI_2012154.csv"]]
@@ -134,7 +134,7 @@ def test_a_day_outside_the_batch_is_named(stream, tmp_path, caplog):
     report = run_batch([D1], task, out, scheduler="serial")
     n_after = int((stream["recorded"]["science"] >= stream["midnight"]).sum())
     assert report.days[0].n_vectors == stream["sim"]["science"].sizes["time"] - n_after
-    assert read_product(out / "MAGMSOSCI12153_V01.TAB").sizes["time"] == (
+    assert read_fluxcal_product(out / "MAGMSOSCI12153_V01.TAB").sizes["time"] == (
         report.days[0].n_vectors)
     assert f"{n_after} science sample(s)" in caplog.text and "2012-06-02" in caplog.text
 

@@ -55,7 +55,7 @@ def test_two_days_across_midnight(tmp_path):
 def test_simulate_days_feeds_the_batch_task(tmp_path):
     """Short simulated days with a gap; the batch recovers the forward model's field."""
     from fluxcal.missions.messenger.simulate import read_truth
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
     from fluxcal.runs import registry
 
     days = [dt.date(2012, 6, 1), dt.date(2012, 6, 2), dt.date(2012, 6, 5)]
@@ -76,7 +76,7 @@ def test_simulate_days_feeds_the_batch_task(tmp_path):
                       "2012-06-05": "done"}, [d.error for d in report.days]
     for day in days:
         assert (out / f"MAGMSOSCI{day:%y%j}_{day:%Y%m%d}.png").is_file()
-        prod = read_product(out / f"MAGMSOSCI{day:%y%j}_V01.TAB")
+        prod = read_fluxcal_product(out / f"MAGMSOSCI{day:%y%j}_V01.TAB")
         truth = read_truth(inp / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
         # products are in time order: the truth sorted the same way
         truth = truth.isel(time=np.argsort(truth["epoch"].values, kind="stable"))

@@ -3,7 +3,7 @@
 import numpy as np
 
 from fluxcal.cli import main
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 
 
 def _args(files, kernels, out, *extra):
@@ -25,8 +25,8 @@ def test_edr2cdr_writes_archive_named_products(tmp_path, simulated_files, messen
     assert "MAGRTNSCIAVG12153_60_V01.TAB" in names
     assert "MAGOFFSETS12153.png" in names and "MAGOFFSETS12153.txt" in names
     assert not any(n.startswith(".tmp") for n in names)
-    tab = read_product(out / "MAGMSOSCI12153_V01.TAB")
-    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
+    tab = read_fluxcal_product(out / "MAGMSOSCI12153_V01.TAB")
+    cdf = read_fluxcal_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
     np.testing.assert_allclose(np.asarray(tab["b"].values, float), cdf["b"].values, atol=5e-4)
     label = (out / "MAGMSOSCI12153_V01.LBL").read_text()
     assert "offsets_temperature" in label and "msgr_synthetic" in label

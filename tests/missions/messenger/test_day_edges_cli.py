@@ -9,7 +9,7 @@ Table 1 net lag) wrote a second complete product set for 2012-06-02 holding 2 sa
 import pytest
 
 from fluxcal.cli import main
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 
 
 def _run(tmp_path, duration: float) -> tuple[list[str], int]:
@@ -30,7 +30,7 @@ def _run(tmp_path, duration: float) -> tuple[list[str], int]:
 def test_lag_sized_tail_joins_the_day(tmp_path, caplog):
     names, n = _run(tmp_path, 600.0)
     assert not [x for x in names if "12154" in x], names  # no second product set
-    prod = read_product(tmp_path / "out" / "MAGMSOSCI12153_V01.TAB")
+    prod = read_fluxcal_product(tmp_path / "out" / "MAGMSOSCI12153_V01.TAB")
     assert prod.sizes["time"] == n  # every sample in the one day's product
     # the last sample is past midnight (its corrected time too): held, not dropped
     last = {k: int(prod[k].values[-1]) for k in ("year", "doy", "hour", "minute")}
@@ -44,6 +44,6 @@ def test_a_real_next_day_keeps_its_own_products(tmp_path, duration):
     # 30 s recorded after midnight (> 2.358 s, the largest net lag): a day of its own
     names, n = _run(tmp_path, duration)
     assert "MAGMSOSCI12154_V01.TAB" in names and "MAGMSOSCI12153_V01.TAB" in names
-    a = read_product(tmp_path / "out" / "MAGMSOSCI12153_V01.TAB").sizes["time"]
-    b = read_product(tmp_path / "out" / "MAGMSOSCI12154_V01.TAB").sizes["time"]
+    a = read_fluxcal_product(tmp_path / "out" / "MAGMSOSCI12153_V01.TAB").sizes["time"]
+    b = read_fluxcal_product(tmp_path / "out" / "MAGMSOSCI12154_V01.TAB").sizes["time"]
     assert a + b == n and b > 2

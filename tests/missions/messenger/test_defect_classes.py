@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fluxcal.cli import main
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from tests.missions.messenger import _defect_days as dd
 
 #: Table 5 bit of each cause, typed from docs/formats/messenger.md ("Defect flag").
@@ -32,7 +32,7 @@ def _check_day(out, paths, causes=dd.CAUSES):
     from fluxcal.missions.messenger.simulate import read_truth
     from fluxcal.missions.messenger.validation_report import read_defect_spans
 
-    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
+    cdf = read_fluxcal_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
     truth = read_truth(paths["truth"])
     t_epoch = truth["epoch"].values.astype(np.int64)
     p_epoch = _epoch_ns(cdf)

@@ -92,7 +92,7 @@ def test_edr2cdr_writes_the_day_with_its_defects(gapped, simulated_files, messen
                                                  tmp_path):
     # the CSV route of the command: exit 0, products written, the spans in their attributes
     from fluxcal.cli import main
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     heater, temperature, hg, tg = gapped
     out = tmp_path / "out"
@@ -101,7 +101,7 @@ def test_edr2cdr_writes_the_day_with_its_defects(gapped, simulated_files, messen
                  str(messenger_kernels), "--out", str(out), "--frames", "mso", "--average", "",
                  "--formats", "cdf"])
     assert code == 0
-    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
+    cdf = read_fluxcal_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
     spans = str(cdf.attrs["defect_spans"])
     assert "heater_gap (flag 1)" in spans and "temperature_gap (flag 2)" in spans
 
@@ -151,7 +151,7 @@ def test_batch_day_with_a_heater_gap_is_done_and_flagged(tmp_path):
     import datetime as dt
 
     from fluxcal.missions.messenger.batch_task import day_file, make_day_task, simulate_days
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
     from fluxcal.runs.batch import run_batch
 
     day = dt.date(2012, 6, 1)
@@ -166,5 +166,5 @@ def test_batch_day_with_a_heater_gap_is_done_and_flagged(tmp_path):
     task = make_day_task(inp, out, formats=("cdf",), frames=("mso",), averages=())
     report = run_batch([day], task, out, scheduler="serial")
     assert [d.status for d in report.days] == ["done"], [d.error for d in report.days]
-    cdf = read_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
+    cdf = read_fluxcal_product(out / "messenger_mag_mso-sci_20120601_v01.cdf")
     assert "heater_gap (flag 1)" in str(cdf.attrs["defect_spans"])

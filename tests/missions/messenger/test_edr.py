@@ -30,7 +30,7 @@ from fluxcal.missions.messenger.readers import read_heater, read_science, read_t
 from fluxcal.missions.messenger.routes import run_edr2cdr, run_edr_archive
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 
 #: Table 1 of the seed (sec. 5): sample rate (1/s) per rate setting 0..10.
 TABLE1_HZ = [0.01, 0.02, 0.05, 0.10, 0.20, 0.50, 1.00, 2.0, 5.0, 10.0, 20.0]
@@ -403,8 +403,8 @@ def test_simulate_layout_edr_then_edr2cdr_and_batch(tmp_path):
                  "--quiet"]) == 0
     for day in ("12153", "12154"):
         name = f"MAGMSOSCI{day}_V01.TAB"
-        one = read_product(tmp_path / "one" / name)
-        batch = read_product(tmp_path / "batch" / name)
+        one = read_fluxcal_product(tmp_path / "one" / name)
+        batch = read_fluxcal_product(tmp_path / "batch" / name)
         np.testing.assert_array_equal(one["met"].values, batch["met"].values)
         # a batch day sees the LAC of its day and the day before only, as for the CSV
         # batch; the field agrees to the products' print resolution (0.001 nT)

@@ -8,7 +8,7 @@ import logging
 
 from fluxcal.cli import main
 from fluxcal.missions.messenger.simulate import read_truth
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 
 
 def test_simulate_batch_layout_then_batch(tmp_path, capsys, caplog):
@@ -22,7 +22,7 @@ def test_simulate_batch_layout_then_batch(tmp_path, capsys, caplog):
                      "--scheduler", "serial", "--quiet"])
     assert code == 0, capsys.readouterr()
     for day in ("12153", "12154"):
-        prod = read_product(out / f"MAGMSOSCI{day}_V01.TAB")
+        prod = read_fluxcal_product(out / f"MAGMSOSCI{day}_V01.TAB")
         truth = read_truth(sim / "truth" / f"MAGTRUTH_20{day}.csv")
         assert prod.sizes["time"] == truth.sizes["time"] > 0
     # issue 12 item: the batch passes the previous day's heater file, whose data start

@@ -99,7 +99,7 @@ def _products(out: Path) -> dict[str, bytes]:
 
 def test_archive_route_products_equal_csv_route(sim, tmp_path):
     """Same simulation, two input layouts: bit-identical tables, identical CDF data."""
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     routes = {"csv": {s: sim[f"science_{s}"] for s in ("OB", "IB")} | {"hk": sim["hk"]},
               "archive": {s: sim["archive"] for s in ("OB", "IB")} | {"hk": sim["archive"]}}
@@ -114,7 +114,7 @@ def test_archive_route_products_equal_csv_route(sim, tmp_path):
     for name in a:
         assert a[name] == b[name], name
     for cdf in sorted((tmp_path / "csv").glob("*.cdf")):
-        x, y = read_product(cdf), read_product(tmp_path / "archive" / cdf.name)
+        x, y = read_fluxcal_product(cdf), read_fluxcal_product(tmp_path / "archive" / cdf.name)
         for var in x.variables:
             np.testing.assert_array_equal(x[var].values, y[var].values, err_msg=var)
     # the provenance names the EDITED products read and the archived ground-calibration name

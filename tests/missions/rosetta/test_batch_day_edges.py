@@ -24,7 +24,7 @@ from fluxcal.missions.rosetta import simulate as simulate_module
 from fluxcal.missions.rosetta.batch_task import science_file, simulate_days
 from fluxcal.missions.rosetta.routes import make_day_task
 from fluxcal.missions.rosetta.simulate import read_truth_csv
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from fluxcal.runs.batch import run_batch
 
 D1, D2 = dt.date(2014, 11, 1), dt.date(2014, 11, 2)
@@ -109,7 +109,7 @@ def _expected(sim, sensor):
 
 
 def _level_a(out, day, sensor):
-    return read_product(out / f"rosetta_rpcmag_cla-{sensor.lower()}_{day:%Y%m%d}_v01.cdf")
+    return read_fluxcal_product(out / f"rosetta_rpcmag_cla-{sensor.lower()}_{day:%Y%m%d}_v01.cdf")
 
 
 def _check_day(out, sim, day, sensor, expected):

@@ -112,7 +112,7 @@ def test_changed_earlier_day_changes_later_inputs(campaign, tmp_path, pool):
 
 
 def test_day_task_writes_stitched_products(campaign, tmp_path, pool):
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     inp, whole = campaign
     ref = _a(whole, inp)
@@ -122,7 +122,7 @@ def test_day_task_writes_stitched_products(campaign, tmp_path, pool):
         result = task(day)
         cdf = [p for p in result.products if str(p).endswith(".cdf")]
         assert len(cdf) == 1
-        a = read_product(cdf[0])
+        a = read_fluxcal_product(cdf[0])
         sel = np.isin(ref["epoch"].values, a["epoch"].values)
         # products keep the field to 1e-3 nT or better; the stitch shifts are > 2 nT
         np.testing.assert_allclose(a["b"].values, ref["b"].values[sel], atol=1e-3)

@@ -17,7 +17,7 @@ from fluxcal.cli import main
 from fluxcal.missions.rosetta.batch_task import science_file, simulate_days
 from fluxcal.missions.rosetta.routes import make_day_task
 from fluxcal.missions.rosetta.simulate import read_truth_csv
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 from fluxcal.runs.batch import DayWithoutData, run_batch
 
 DAYS = [dt.date(2014, 11, 1), dt.date(2014, 11, 2), dt.date(2014, 11, 3)]
@@ -139,7 +139,7 @@ def test_batch_products_recover_truth(sim, serial_products, sensor):
     good = truth["good"]
     ref = truth["b_ref"][good][np.argsort(truth["epoch"][good], kind="stable")]
     name = f"rosetta_rpcmag_clc-{sensor.lower()}_{DAYS[0]:%Y%m%d}_v01.cdf"
-    c = read_product(serial_products / name)
+    c = read_fluxcal_product(serial_products / name)
     assert c.sizes["time"] == ref.shape[0]
     rms = np.sqrt(((c["b"].values - ref) ** 2).mean(axis=0))
     assert np.all(rms < 0.03), rms
@@ -192,7 +192,7 @@ def test_without_kernels_levels_a_b_e_f(tmp_path):
     truth = read_truth_csv(inp / f"{day:%Y%m%d}" / "truth_OB.csv")
     good = truth["good"]
     ref = truth["b_sc"][good][np.argsort(truth["epoch"][good], kind="stable")]
-    b = read_product(out / f"rosetta_rpcmag_clb-ob_{day:%Y%m%d}_v01.cdf")
+    b = read_fluxcal_product(out / f"rosetta_rpcmag_clb-ob_{day:%Y%m%d}_v01.cdf")
     rms = np.sqrt(((b["b"].values - ref) ** 2).mean(axis=0))
     assert np.all(rms < 0.03), rms  # same budget as LEVEL_C above
 
@@ -218,7 +218,7 @@ def test_quicklook_figure_panels(sim, serial_products):
 
     from fluxcal.products.quicklook import quicklook_figure
 
-    c = read_product(serial_products / f"rosetta_rpcmag_clc-ob_{DAYS[0]:%Y%m%d}_v01.cdf")
+    c = read_fluxcal_product(serial_products / f"rosetta_rpcmag_clc-ob_{DAYS[0]:%Y%m%d}_v01.cdf")
     fig = quicklook_figure(c, field="b")
     labels = " ".join(ax.get_ylabel() for ax in fig.axes)
     plt.close(fig)

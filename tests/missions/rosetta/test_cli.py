@@ -5,7 +5,7 @@ import pytest
 
 from fluxcal.cli import main
 from fluxcal.missions.rosetta.simulate import read_truth_csv
-from fluxcal.products import read_product
+from fluxcal.products import read_fluxcal_product
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def test_calibrate_all_levels(sim, tmp_path, sensor):
     assert (tmp_path / "RPCMAG_20140801_HKA.TAB").is_file()
     # LEVEL_G table with the archive's column positions (sec. 4.8): TIME.UTC TIME.OBT
     # POSITION.X Y Z BX BY BZ QUALITY, read by a whitespace split
-    g = read_product(tmp_path / f"rosetta_rpcmag_clg-{sensor.lower()}-a01_20140801_v01.cdf")
+    g = read_fluxcal_product(tmp_path / f"rosetta_rpcmag_clg-{sensor.lower()}-a01_20140801_v01.cdf")
     rows = (tmp_path / f"RPCMAG140801_CLG_{sensor}_A01.TAB").read_text().splitlines()
     cols = np.array([[float(x) for x in r.split()[1:]] for r in rows])
     assert cols.shape == (g.sizes["time"], 8)
@@ -79,7 +79,7 @@ def test_calibrate_all_levels(sim, tmp_path, sensor):
     truth = read_truth_csv(sim / f"RPCMAG_20140801_TRUTH_{sensor}.csv")
     good = truth["good"]
     ref = truth["b_ref"][good][np.argsort(truth["epoch"][good], kind="stable")]
-    c = read_product(tmp_path / f"rosetta_rpcmag_clc-{sensor.lower()}_20140801_v01.cdf")
+    c = read_fluxcal_product(tmp_path / f"rosetta_rpcmag_clc-{sensor.lower()}_20140801_v01.cdf")
     rms = np.sqrt(((c["b"].values - ref) ** 2).mean(axis=0))
     assert np.all(rms < 0.03), rms
 

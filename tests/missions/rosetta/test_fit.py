@@ -279,7 +279,7 @@ def test_extended_model_exact_without_ambient_field(pool, sign, degree, reading)
 # ----------------------------------------------------------------------------------------
 def test_fitted_file_calibrates_unseen_stretch(day_fit, tmp_path):
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     model, raw, b_true, _, _ = day_fit
     with KernelPool():
@@ -301,7 +301,7 @@ def test_fitted_file_calibrates_unseen_stretch(day_fit, tmp_path):
         assert main(["rosetta", "calibrate", "--science", str(tmp_path / "unseen.csv"),
                      "--sensor", "OB", "--levels", "A", "--formats", "cdf", "--out", str(out),
                      *extra]) == 0
-        a = read_product(out / "rosetta_rpcmag_cla-ob_20091113_v01.cdf")
+        a = read_fluxcal_product(out / "rosetta_rpcmag_cla-ob_20091113_v01.cdf")
         errors[name] = np.sqrt(((a["b"].values - b_unseen) ** 2).mean(axis=0))
     tol_rms, _ = curve_tolerances(b_true, raw["epoch"].values)
     assert np.all(errors["fitted"] < tol_rms), (errors, tol_rms)  # tol ~1.6-2.1 nT

@@ -215,7 +215,7 @@ def test_variance_errors_cover_the_truth_over_realisations(pool):
 @pytest.mark.slow
 def test_cli_variance_file_calibrates_an_unseen_stretch(day, tmp_path):
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     coefficients, raw, _, _, _, _ = day
     with KernelPool():
@@ -234,7 +234,7 @@ def test_cli_variance_file_calibrates_an_unseen_stretch(day, tmp_path):
         assert main(["rosetta", "calibrate", "--science", str(tmp_path / "unseen.csv"),
                      "--sensor", "OB", "--levels", "A", "--formats", "cdf", "--out", str(out),
                      "--calib", str(fitted)]) == 0
-        a = read_product(out / "rosetta_rpcmag_cla-ob_20091113_v01.cdf")
+        a = read_fluxcal_product(out / "rosetta_rpcmag_cla-ob_20091113_v01.cdf")
         errors[estimator] = np.sqrt(((a["b"].values - b_unseen) ** 2).mean(axis=0))
     print({k: v.round(3) for k, v in errors.items()})
     assert np.all(errors["variance"] < TARGET), errors  # measured 0.012 / 0.048 / 0.029 nT

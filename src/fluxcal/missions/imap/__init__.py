@@ -2,5 +2,23 @@
 
 Pure functions for the mission contract: `packets.read_packets`, `l1a.from_packets`,
 `l1a.read_l1a_csv`, `l1b.calibrate`, `calibration.load_calibration`,
-`pipeline.process` / `pipeline.write_products`; the command is `cli.app`.
+`pipeline.process` / `pipeline.write_products`; the command is `cli.app`.  ``__all__``
+lists the public modules (the command line and the demo are internal).
 """
+
+__all__ = [
+    "api",
+    "cadence",
+    "calibration",
+    "l1a",
+    "l1b",
+    "l1c",
+    "l2",
+    "mission",
+    "options",
+    "packets",
+    "pipeline",
+    "sources",
+    "team_layout",
+    "vectors",
+]

@@ -26,4 +26,5 @@ MISSION = Mission(
                          "fluxcal.missions.imap.demo:run_demo", "imap", 80),
                 DemoPart("IMAP MAG from real packets: L1B", "fluxcal.missions.imap.demo:"
                          "run_quick_demo", "imap", 80, quick=True)),
+    calibrate="fluxcal.missions.imap.api:calibrate",
 )

@@ -33,7 +33,7 @@ from fluxcal.missions.imap.cadence import interval_rates
 from fluxcal.products.atomic import atomic_group, atomic_path
 from fluxcal.products.attrs import encode_attrs
 from fluxcal.products.timeindex import default_lsk
-from fluxcal.products.writer import read_product
+from fluxcal.products.writer import read_fluxcal_product
 
 COMPONENTS = np.array(["x", "y", "z"])
 #: CDF fill of the team's float vectors and of TT2000.
@@ -290,7 +290,7 @@ def read_l1b(path: Path) -> xr.Dataset:
     """Read an L1B (or L1C) file of any layout, recognised by content, into fluxcal's.
 
     The team's CSV (first column ``t``), a team-layout CDF (``epoch`` + ``vectors``:
-    `from_team`), or a fluxcal product (`fluxcal.products.writer.read_product`).
+    `from_team`), or a fluxcal product (`fluxcal.products.writer.read_fluxcal_product`).
 
     Raises
     ------
@@ -305,7 +305,7 @@ def read_l1b(path: Path) -> xr.Dataset:
     if head[:4] == bytes.fromhex("cdf30001") and \
             "vectors" in cdflib.CDF(str(path)).cdf_info().zVariables:
         return from_team(path)
-    ds = read_product(path)
+    ds = read_fluxcal_product(path)
     if "b" not in ds or "range" not in ds or "epoch" not in ds.coords:
         raise InputFormatError("not an IMAP MAG L1B/L1C product: expected fluxcal's ('b', "
                                "'range', 'epoch'), the team's CDF ('epoch', 'vectors') or "

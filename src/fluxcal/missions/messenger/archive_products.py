@@ -8,7 +8,7 @@ X Y Z BX BY BZ``; ``MAG<FFF>SCIAVG<yyddd>_<NN>_V<nn>``, 16 columns with ``NAVG``
 ``azimuth``, and for averages ``count`` and ``b_std``.  The archived tables have no
 quality column (the SHC flag is in the label): ``quality`` exists only when the table
 has a ``QUALITY`` column.  `READER` plugs this into
-`fluxcal.archive.products.read_product`.
+`fluxcal.archive.products.read_archive_product`.
 
 References
 ----------
@@ -119,7 +119,7 @@ def read(table: xr.Dataset, label: Path, product_id: str, stem: str,
     return data, {"epoch": ("time", epoch)}, attrs
 
 
-#: The MESSENGER reader for `fluxcal.archive.products.read_product`.
+#: The MESSENGER reader for `fluxcal.archive.products.read_archive_product`.
 READER = ArchivedReader(
     description="MESSENGER MAG CDR/RDR (columns YEAR DAY_OF_YEAR HOUR MINUTE SECOND)",
     matches=matches, read=read, frame_codes=MESSENGER_FRAME_CODES)

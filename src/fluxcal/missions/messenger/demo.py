@@ -54,11 +54,11 @@ def simulate_to_dir(
 
 def compare(product_tabs: list[Path], truth_path: Path) -> dict[str, np.ndarray]:
     """Recovered-minus-true MSO field statistics per range from MAGMSOSCI tables."""
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     parts = []
     for tab in sorted(product_tabs):
-        prod = read_product(tab)
+        prod = read_fluxcal_product(tab)
         parts.append(np.asarray(prod["b"].values, dtype=float))
     truth = read_truth(truth_path)
     # the products are in time order (fast -> slow switches move samples back)

@@ -36,4 +36,5 @@ MISSION = Mission(
     ),
     archived_products=f"{_M}.archive_products:READER",
     frame_kernels=f"{_M}.identity:FRAME_KERNELS",
+    calibrate=f"{_M}.api:calibrate",
 )

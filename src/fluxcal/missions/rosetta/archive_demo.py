@@ -27,12 +27,12 @@ LEVEL, TRUTH = "C", "b_ref"
 def _level_tables(folder: Path, level: str, sensor: str) -> xr.Dataset:
     """Every mode table of one calibrated level and sensor, read back and joined in time.
 
-    Read as archived products are (`fluxcal.archive.products.read_product`).
+    Read as archived products are (`fluxcal.archive.products.read_archive_product`).
     """
-    from fluxcal.archive.products import read_product
+    from fluxcal.archive.products import read_archive_product
     from fluxcal.missions.rosetta.archive_products import READER
 
-    parts = [read_product(p.with_suffix(".LBL"), {"rosetta": READER})
+    parts = [read_archive_product(p.with_suffix(".LBL"), {"rosetta": READER})
              for p in sorted(folder.glob(f"RPCMAG*_CL{level}_{sensor}_M*.TAB"))]
     joined = xr.concat(parts, dim="time", data_vars="minimal", coords="minimal",
                        compat="override", combine_attrs="override")

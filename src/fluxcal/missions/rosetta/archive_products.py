@@ -5,7 +5,7 @@ columns ``TIME.UTC TIME.OBT [POSITION.X/Y/Z] BX BY BZ [T] QUALITY`` -> ``epoch``
 ``obt``, ``b`` (time, component ``x y z``), ``b_total``, ``position``,
 ``temperature``, ``quality`` (an integer, or the text of the V9 8-digit quality string
 when the label says CHARACTER).  `READER` plugs this into
-`fluxcal.archive.products.read_product`.
+`fluxcal.archive.products.read_archive_product`.
 
 References
 ----------
@@ -100,7 +100,7 @@ def read(table: xr.Dataset, label: Path, product_id: str, stem: str,
     return data, {"epoch": ("time", epoch)}, attrs
 
 
-#: The Rosetta reader for `fluxcal.archive.products.read_product`.
+#: The Rosetta reader for `fluxcal.archive.products.read_archive_product`.
 READER = ArchivedReader(
     description="Rosetta RPC-MAG CALIBRATED/RESAMPLED table (column TIME.UTC)",
     matches=matches, read=read, frame_codes=ROSETTA_FRAME_CODES)

@@ -377,12 +377,12 @@ def _read(path: Path, lsk=None) -> xr.Dataset:
     import numpy as np
 
     from fluxcal.geometry.time import utc_to_tt2000
-    from fluxcal.products import read_product
+    from fluxcal.products import read_fluxcal_product
 
     path = Path(path)
     if not path.exists():
         raise InputFormatError("input product not found", path=str(path))
-    ds = read_product(path)
+    ds = read_fluxcal_product(path)
     if "b" not in ds:
         raise InputFormatError(
             "not an RPC-MAG level product: no 'b' (BX, BY, BZ) variable", path=str(path)

@@ -58,4 +58,5 @@ MISSION = Mission(
     before_batch=f"{_M}.mission:before_batch",
     archived_products=f"{_M}.archive_products:READER",
     frame_kernels=f"{_M}.identity:FRAME_KERNELS",
+    calibrate=f"{_M}.api:calibrate",
 )
