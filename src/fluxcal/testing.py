@@ -110,7 +110,7 @@ class MissionContract:
         raise NotImplementedError
 
     def register(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        """Register the mission when the installed entry points do not (e.g. ``FLUXCAL_MISSIONS``)."""
+        """Register the mission if no installed entry point does (``FLUXCAL_MISSIONS``)."""
 
     # --- fixtures and helpers -----------------------------------------------------------
     @pytest.fixture
