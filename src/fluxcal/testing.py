@@ -49,6 +49,10 @@ from fluxcal.runs import registry
 
 __all__ = ["MissionContract", "Truth"]
 
+#: Suffixes of the products whose provenance is checked (a mission's side files, e.g.
+#: a text table of offsets, are named by `MissionContract.product_names` but not read).
+PRODUCT_SUFFIXES = (".cdf", ".nc", ".zarr", ".lbl")
+
 
 @dataclass
 class Truth:
@@ -80,7 +84,9 @@ class MissionContract:
     stated with its reason in the subclass), `time_tolerance_ns` (largest time
     difference of a matched sample), `field` (the products' field variable),
     `bad_input_exit` (2 for a single run; 1 for a batch, whose failed day is reported),
-    `extra_files` (a regex of the run's other files: report, manifests).
+    `extra_files` (a regex of the run's other files: report, manifests), `day_edge_ns`
+    (how far outside its UTC day a product may hold samples: a mission whose days are
+    those of the recorded time, before a time correction; state the decision).
     """
 
     mission: str = ""
@@ -91,6 +97,7 @@ class MissionContract:
     field: str = "b"
     bad_input_exit: int = 2
     extra_files: str = r"index\.html|batch_report_.*|manifests|stitch"
+    day_edge_ns: int = 0
 
     # --- the hooks a mission fills in -------------------------------------------------
     def simulate(self, folder: Path, start: str, seconds: float) -> Truth:
@@ -171,7 +178,10 @@ class MissionContract:
         """``fluxcal provenance`` lists the inputs and the calibration by name and SHA-256."""
         truth, out = self.run_stream(cli, tmp_path, f"{self.day}T10:00:00")
         capsys.readouterr()
-        for name in self.product_names(self.day):
+        products = [n for n in self.product_names(self.day)
+                    if Path(n).suffix.lower() in PRODUCT_SUFFIXES]
+        assert products, "no product of a format fluxcal provenance reads"
+        for name in products:
             assert cli(["provenance", "--json", str(out / name)]) == 0
             prov = json.loads(capsys.readouterr().out)
             listed = {r["name"]: r.get("sha256") for r in prov["inputs"]}
@@ -191,7 +201,10 @@ class MissionContract:
         for day in days:
             times, _ = self.read_day(out, day)
             assert times.size, f"no samples in the product of {day}"
-            assert (times.astype("M8[D]") == np.datetime64(day, "D")).all(), day
+            edge = np.timedelta64(self.day_edge_ns, "ns")
+            first = np.datetime64(day, "D").astype("M8[ns]") - edge
+            after = first + np.timedelta64(86_400, "s") + 2 * edge
+            assert ((times >= first) & (times < after)).all(), f"{day}: {times[[0, -1]]}"
             found.append(self.match(truth, times))
         index = np.concatenate(found)
         assert np.array_equal(np.sort(index), np.arange(len(truth.time))), "lost or repeated"
