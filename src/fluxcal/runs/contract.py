@@ -4,7 +4,8 @@ A mission is one `Mission` object.  Its pieces are named by reference
 (``"package.module:attribute"``) and imported only when used, so building the command
 line imports no mission's numerical code.
 
-Example: a minimal mission with a batch day task (see ``tests/runs/toy_mission.py``)::
+Example: a minimal mission with a batch day task (the template package
+``templates/fluxcal-plugin-groundtest``, docs/guide/plugins.md)::
 
     MISSION = Mission(
         name="toy",
