@@ -135,7 +135,7 @@ def _plain_fields(section: Section, width: int, with_range: bool) -> tuple[np.nd
 
 
 def _compressed_fields(section: Section, width: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """Reference vector, then Fibonacci-coded differences (or plain after a long vector).
+    """Write a reference vector, then Fibonacci-coded differences (plain after a long one).
 
     Returns the fields (packet, field) and the number of vectors written plain.
     """
@@ -163,7 +163,7 @@ def _pad(bits: np.ndarray) -> np.ndarray:
 
 def vector_fields(primary: Section, secondary: Section, width: int
                   ) -> tuple[np.ndarray, np.ndarray, int]:
-    """The ``VECTORS`` field of a block of packets as fields, (packet, field), whole bytes.
+    """Return the ``VECTORS`` field of a block of packets as fields (packet, field).
 
     ``width`` 0: uncompressed; otherwise compressed with that ``W``.  Returns values,
     widths and the number of vectors written plain inside compressed packets.
@@ -215,7 +215,7 @@ def packets(header: dict[str, np.ndarray], primary: Section, secondary: Section,
 
 
 def xtce_text() -> str:
-    """An XTCE definition of the science packets, written by fluxcal from `HEADER`.
+    """Return an XTCE definition of the science packets, written by fluxcal from `HEADER`.
 
     fluxcal's own description of the layout (not the team's file), for reading the
     simulated packets where the team's ``MAG_SCI_COMBINED.xml`` is not at hand.

@@ -76,7 +76,7 @@ VALIDITY_NS = (631_108_869_184_000_000, 1_262_260_869_184_000_000)
 
 
 def matrices(sensor: str) -> np.ndarray:
-    """The simulated calibration of ``sensor``: (range, 3, 3), nT per 16-bit count."""
+    """Return the simulated calibration of ``sensor``: (range, 3, 3), nT per 16-bit count."""
     return np.array([s * SHAPE[sensor] for s in RANGE_SCALE_NT])
 
 
@@ -141,8 +141,11 @@ def met_of_utc(utc: str) -> int:
 
 
 def field_at(tt2000: np.ndarray, t0_ns: int, wind: np.ndarray) -> np.ndarray:
-    """The known field (nT) at times ``tt2000``: the wind on its 1-s grid, interpolated,
-    turned about the spin axis z by the spin phase."""
+    """Return the known field (nT) at times ``tt2000``.
+
+    The wind on its 1-s grid from ``t0_ns``, interpolated, turned about the spin axis z
+    by the spin phase (`SPIN_PERIOD_S`).
+    """
     s = (np.asarray(tt2000, np.int64) - t0_ns) / 1e9
     grid = np.arange(wind.shape[0], dtype=float)
     b = np.stack([np.interp(s, grid, wind[:, j]) for j in range(3)], axis=1)
@@ -152,8 +155,10 @@ def field_at(tt2000: np.ndarray, t0_ns: int, wind: np.ndarray) -> np.ndarray:
 
 
 def _ranges(x16: np.ndarray) -> np.ndarray:
-    """Most sensitive range (3 .. 0) whose 16-bit output stays below `RANGE_LIMIT`;
-    ``x16`` is (range, vector, 3)."""
+    """Return the most sensitive range (3 .. 0) whose output stays below `RANGE_LIMIT`.
+
+    ``x16`` is the 16-bit output of every range, (range, vector, 3).
+    """
     fits = np.abs(x16).max(axis=2) < RANGE_LIMIT
     best = np.zeros(x16.shape[1], dtype=np.int64)
     for r in range(4):
@@ -163,7 +168,7 @@ def _ranges(x16: np.ndarray) -> np.ndarray:
 
 def _sensor_block(sensor: str, tags: np.ndarray, width: int, forced: np.ndarray,
                   t0_ns: int, wind: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Counts, ranges and field of one sensor's vectors (packet, vector)."""
+    """Return counts, ranges and field of one sensor's vectors (packet, vector)."""
     shape = tags.shape
     b = field_at(tags.ravel() + int(TIME_SHIFT_S[sensor] * 1e9), t0_ns, wind)
     inverse = np.linalg.inv(matrices(sensor))
@@ -323,7 +328,7 @@ def write_support(out: Path) -> dict[str, Path]:
 def simulate_day(start_utc: str, hours: float, burst_minutes: float, *,
                  widths: tuple[int, ...] = (0, 16, 18, 13), range_changes: bool = True,
                  seed: int = 0) -> tuple[bytes, dict[tuple[str, str], Truth], dict[str, int]]:
-    """Normal mode over ``hours`` from ``start_utc`` with a burst in the middle.
+    """Simulate normal mode over ``hours`` from ``start_utc``, a burst in the middle.
 
     Returns the packets (normal, then burst), the truth per (mode, sensor) and counts
     (packets, vectors written plain in compressed packets).
