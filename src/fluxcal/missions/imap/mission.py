@@ -17,6 +17,7 @@ MISSION = Mission(
     title="IMAP MAG: CCSDS packets -> L1A counts -> L1B nT (real ground-test data)",
     spacecraft_id=SPACECRAFT_ID,
     commands="fluxcal.missions.imap.cli:app",
+    simulate="fluxcal.missions.imap.cli:simulate",
     day_task="fluxcal.missions.imap.routes:make_day_task",
     options="fluxcal.missions.imap.options:ImapOptions",
     # no simulate_days: the batch tour needs files fluxcal does not ship (the team's
