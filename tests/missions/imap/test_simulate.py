@@ -64,15 +64,9 @@ def _check_l1a(ds, t) -> None:
     assert np.abs(ds["epoch"].values - t.epoch).max() <= 1
 
 
-def _bound(t, sensor: str) -> np.ndarray:
-    width = np.where(t.width == 0, 16, t.width)
-    rows = np.abs(simulate.matrices(sensor)[t.ranges]).sum(axis=2)
-    return 0.5 * np.exp2(16.0 - width)[:, None] * rows
-
-
 def _check_l1b(ds, t, sensor: str) -> float:
     err = np.abs(ds["b"].values - t.b_nt)
-    bound = _bound(t, sensor)
+    bound = simulate.quantisation_bound(t, sensor)
     assert np.all(err <= bound + 1e-9), float((err / bound).max())
     assert np.abs(ds["epoch"].values - t.epoch_b).max() <= 1
     return float((err / bound).max())
@@ -260,3 +254,15 @@ def test_cli_simulate_then_calibrate(tmp_path):
     res = CliRunner().invoke(app, ["simulate", "imap", "--out", str(sim), "--widths", "3"])
     # fluxcal.cli.main prints this one line and exits 2
     assert isinstance(res.exception, InputFormatError) and "--widths" in str(res.exception)
+
+
+def test_demo_runs_on_the_forward_model_without_the_teams_files(tmp_path, monkeypatch):
+    from fluxcal.missions.imap import demo
+
+    monkeypatch.setattr(demo, "shared_folder", lambda: None)
+    monkeypatch.setattr(demo, "SIM_HOURS", 0.05)
+    text = demo.run_quick_demo(tmp_path)
+    assert "simulated packets" in text and "were not found" in text
+    share = float(text.split(" of half a count")[0].rsplit(", ", 1)[1])
+    assert 0.5 < share <= 1.0
+    assert len(list(tmp_path.glob("imap_mag_l1b_*.cdf"))) == 4

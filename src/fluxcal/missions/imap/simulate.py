@@ -251,6 +251,17 @@ def simulate(start_met: int, seconds: int, *, plan: ModePlan = NORMAL,
     return Simulation(b"".join(chunks), truth, n, plain)
 
 
+def quantisation_bound(truth: Truth, sensor: str) -> np.ndarray:
+    """Largest error (nT) of an L1B field from the truth's counts: half a count of ``W`` bits.
+
+    ``0.5 * 2**(16 - W) * sum_j |M[range]_ij|`` per vector and component (``W = 16``
+    uncompressed): the rounding of the sensor's output to the packet's counts.
+    """
+    width = np.where(truth.width == 0, 16, truth.width)
+    rows = np.abs(matrices(sensor)[truth.ranges]).sum(axis=2)
+    return 0.5 * np.exp2(16.0 - width)[:, None] * rows
+
+
 def write_sclk(path: Path) -> Path:
     """Write fluxcal's simulated IMAP SCLK kernel (-43; rate 1 from MET 0)."""
     comment = ("fluxcal simulated IMAP spacecraft clock (NAIF -43), written by 'fluxcal "
