@@ -266,3 +266,29 @@ def test_demo_runs_on_the_forward_model_without_the_teams_files(tmp_path, monkey
     share = float(text.split(" of half a count")[0].rsplit(", ", 1)[1])
     assert 0.5 < share <= 1.0
     assert len(list(tmp_path.glob("imap_mag_l1b_*.cdf"))) == 4
+
+
+def test_batch_on_simulated_days_uses_the_folders_support_files(tmp_path):
+    """``fluxcal batch imap`` over the simulator's batch layout, no file option given."""
+    import json
+
+    import cdflib
+
+    from fluxcal.cli import main
+
+    days = [datetime.date(2025, 10, 17), datetime.date(2025, 10, 18)]
+    simulate.simulate_days(tmp_path / "in", days, hours=0.02, burst_minutes=0.5)
+    assert main(["batch", "imap", "--start", "2025-10-16", "--end", "2025-10-18",
+                 "--input", str(tmp_path / "in"), "--out", str(tmp_path / "out"),
+                 "--scheduler", "serial", "--quiet"]) == 0
+    report = json.loads((tmp_path / "out" / "batch_report_imap.json").read_text())
+    assert report["counts"]["done"] == 2 and report["counts"]["no_data"] == 1
+    for k, day in enumerate(days):
+        _, truth, _ = simulate.simulate_day(f"{day}T00:00:00", 0.02, 0.5, seed=k)
+        for (mode, sensor), t in truth.items():
+            cdf = cdflib.CDF(str(tmp_path / "out" /
+                                 f"imap_mag_l1b_{mode}-{sensor}_{day:%Y%m%d}_v001.cdf"))
+            b, epoch = cdf.varget("b"), cdf.varget("epoch")
+            assert np.all(np.abs(b - t.b_nt) <= simulate.quantisation_bound(t, sensor)
+                          + 1e-9)
+            assert np.abs(epoch - t.epoch_b).max() <= 1

@@ -49,6 +49,7 @@ from fluxcal.geometry.synthetic import sclk_text
 from fluxcal.geometry.time import datetime64_to_tt2000
 from fluxcal.missions.imap import sim_packets
 from fluxcal.missions.imap.sim_packets import Section
+from fluxcal.missions.imap.sources import BATCH_FILES
 from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
 from fluxcal.products.timeindex import default_lsk
 
@@ -391,3 +392,31 @@ def write_simulation(out: Path, *, start_utc: str = "2025-10-17T00:00:00",
                 (folder / f"{day:%Y%m%d}_{mode}-{sensor}.csv").write_text(truth_table(t))
             paths.setdefault("truth", folder)
     return paths
+
+
+def simulate_days(input_dir: Path, days: list[_dt.date], *, hours: float = 0.5,
+                  burst_minutes: float = 2.0, seed: int = 0) -> list[_dt.date]:
+    """Write ``days`` in the input layout of ``fluxcal batch imap`` (the batch demo).
+
+    Per day ``imap_mag_l0_raw_<yyyymmdd>_v001.pkts`` (`simulate_day` from 00:00 UTC) and
+    its truth under ``truth/``; once, the batch layout's support files: ``kernels.tm``
+    (a meta-kernel of the simulated SCLK), ``calibration.cdf`` and
+    ``packet_definition.xml`` (fluxcal's simulated ones, `write_support`), which
+    ``fluxcal batch imap`` uses when ``--kernels``/``--calib``/``--xtce`` are not given.
+    """
+    from fluxcal.geometry.synthetic import write_meta_kernel
+
+    input_dir = Path(input_dir)
+    support = write_support(input_dir / "support")
+    write_meta_kernel(input_dir / BATCH_FILES["kernels"], [support["kernels"]])
+    for role in ("calib", "xtce"):
+        (input_dir / BATCH_FILES[role]).write_bytes(support[role].read_bytes())
+    for k, day in enumerate(sorted(days)):
+        data, truth, _ = simulate_day(f"{day.isoformat()}T00:00:00", hours, burst_minutes,
+                                      seed=seed + k)
+        (input_dir / packet_file_name(day)).write_bytes(data)
+        folder = input_dir / "truth"
+        folder.mkdir(exist_ok=True)
+        for (mode, sensor), t in truth.items():
+            (folder / f"{day:%Y%m%d}_{mode}-{sensor}.csv").write_text(truth_table(t))
+    return sorted(days)
