@@ -292,3 +292,16 @@ def test_batch_on_simulated_days_uses_the_folders_support_files(tmp_path):
             assert np.all(np.abs(b - t.b_nt) <= simulate.quantisation_bound(t, sensor)
                           + 1e-9)
             assert np.abs(epoch - t.epoch_b).max() <= 1
+
+
+def test_a_failed_simulation_leaves_no_file(tmp_path, monkeypatch):
+    def full(*args, **kwargs):  # after the support files are written
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(simulate, "simulate_day", full)
+    with pytest.raises(OSError):
+        simulate.write_simulation(tmp_path / "sim", hours=0.02)
+    assert not [p for p in (tmp_path / "sim").rglob("*") if p.is_file()]
+    with pytest.raises(OSError):
+        simulate.simulate_days(tmp_path / "in", [datetime.date(2025, 10, 17)])
+    assert not [p for p in (tmp_path / "in").rglob("*") if p.is_file()]

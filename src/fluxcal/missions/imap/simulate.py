@@ -45,12 +45,13 @@ from pathlib import Path
 import cdflib
 import numpy as np
 
-from fluxcal.geometry.synthetic import sclk_text
+from fluxcal.geometry.synthetic import sclk_text, write_meta_kernel
 from fluxcal.geometry.time import datetime64_to_tt2000
 from fluxcal.missions.imap import sim_packets
 from fluxcal.missions.imap.sim_packets import Section
 from fluxcal.missions.imap.sources import BATCH_FILES
 from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
+from fluxcal.products.atomic import atomic_group, atomic_path, atomic_write_bytes
 from fluxcal.products.timeindex import default_lsk
 
 #: TT2000 ns of mission elapsed time 0 (2010-01-01T00:00:00 UTC = 00:01:06.184 TT).
@@ -269,16 +270,20 @@ def write_sclk(path: Path) -> Path:
                "simulate imap' for its simulated packets: NOT the IMAP team's kernel.\n"
                "32-bit seconds and 1/50000-s ticks; mission elapsed time 0 at "
                "2010-01-01T00:00:00 UTC (TDT 315576066.184 s past J2000); rate exactly 1.")
-    path = Path(path)
-    path.write_text(sclk_text(-43, (4294967296, 50000), [(0.0, 2.147483648e14)],
-                              [(0.0, MET_EPOCH_TT2000_NS / 1e9, 1.0)], comment))
-    return path
+    return atomic_write_bytes(Path(path), sclk_text(
+        -43, (4294967296, 50000), [(0.0, 2.147483648e14)],
+        [(0.0, MET_EPOCH_TT2000_NS / 1e9, 1.0)], comment).encode())
 
 
 def write_calibration(path: Path) -> Path:
     """Write fluxcal's simulated L1B calibration CDF (the pipeline's variable layout)."""
     path = Path(path)
-    path.unlink(missing_ok=True)
+    with atomic_path(path) as tmp:
+        _write_calibration_cdf(tmp)
+    return path
+
+
+def _write_calibration_cdf(path: Path) -> None:
     cdf = cdflib.cdfwrite.CDF(str(path), cdf_spec={"Compressed": False})
     try:
         cdf.write_globalattrs({
@@ -301,7 +306,6 @@ def write_calibration(path: Path) -> Path:
                           var_data=np.array([value], dtype=np.int64))
     finally:
         cdf.close()
-    return path
 
 
 def truth_table(truth: Truth) -> str:
@@ -330,9 +334,7 @@ def packet_file_name(day: _dt.date) -> str:
 def write_support(out: Path) -> dict[str, Path]:
     """Write the simulated SCLK kernel, calibration and XTCE into ``out``."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    xtce = out / XTCE_NAME
-    xtce.write_text(sim_packets.xtce_text())
+    xtce = atomic_write_bytes(out / XTCE_NAME, sim_packets.xtce_text().encode())
     return {"kernels": write_sclk(out / SCLK_NAME), "calib": write_calibration(out / CALIB_NAME),
             "xtce": xtce}
 
@@ -375,23 +377,27 @@ def write_simulation(out: Path, *, start_utc: str = "2025-10-17T00:00:00",
     (``kernels``, ``calib``, ``xtce``, ``packets`` (the first day's), ``truth``).
     """
     out = Path(out)
-    paths = write_support(out)
     first = _dt.datetime.fromisoformat(start_utc)
-    for d in range(days):
-        day = first + _dt.timedelta(days=d)
-        data, day_truth, _ = simulate_day(day.isoformat(), hours, burst_minutes,
-                                          widths=widths, range_changes=range_changes,
-                                          seed=seed + d)
-        packet_path = out / packet_file_name(day.date())
-        packet_path.write_bytes(data)
-        paths.setdefault("packets", packet_path)
-        if truth:
-            folder = out / "truth"
-            folder.mkdir(exist_ok=True)
-            for (mode, sensor), t in day_truth.items():
-                (folder / f"{day:%Y%m%d}_{mode}-{sensor}.csv").write_text(truth_table(t))
-            paths.setdefault("truth", folder)
+    with atomic_group():  # all files or none
+        paths = write_support(out)
+        for d in range(days):
+            day = first + _dt.timedelta(days=d)
+            data, day_truth, _ = simulate_day(day.isoformat(), hours, burst_minutes,
+                                              widths=widths, range_changes=range_changes,
+                                              seed=seed + d)
+            paths.setdefault("packets", atomic_write_bytes(
+                out / packet_file_name(day.date()), data))
+            if truth:
+                paths.setdefault("truth", write_truth(out / "truth", day.date(), day_truth))
     return paths
+
+
+def write_truth(folder: Path, day: _dt.date, truth: dict[tuple[str, str], Truth]) -> Path:
+    """Write ``<folder>/<yyyymmdd>_<mode>-<sensor>.csv`` (`truth_table`); return the folder."""
+    for (mode, sensor), t in truth.items():
+        atomic_write_bytes(folder / f"{day:%Y%m%d}_{mode}-{sensor}.csv",
+                           truth_table(t).encode())
+    return folder
 
 
 def simulate_days(input_dir: Path, days: list[_dt.date], *, hours: float = 0.5,
@@ -404,19 +410,17 @@ def simulate_days(input_dir: Path, days: list[_dt.date], *, hours: float = 0.5,
     ``packet_definition.xml`` (fluxcal's simulated ones, `write_support`), which
     ``fluxcal batch imap`` uses when ``--kernels``/``--calib``/``--xtce`` are not given.
     """
-    from fluxcal.geometry.synthetic import write_meta_kernel
-
     input_dir = Path(input_dir)
-    support = write_support(input_dir / "support")
-    write_meta_kernel(input_dir / BATCH_FILES["kernels"], [support["kernels"]])
-    for role in ("calib", "xtce"):
-        (input_dir / BATCH_FILES[role]).write_bytes(support[role].read_bytes())
-    for k, day in enumerate(sorted(days)):
-        data, truth, _ = simulate_day(f"{day.isoformat()}T00:00:00", hours, burst_minutes,
-                                      seed=seed + k)
-        (input_dir / packet_file_name(day)).write_bytes(data)
-        folder = input_dir / "truth"
-        folder.mkdir(exist_ok=True)
-        for (mode, sensor), t in truth.items():
-            (folder / f"{day:%Y%m%d}_{mode}-{sensor}.csv").write_text(truth_table(t))
+    with atomic_group():  # all files or none
+        support = write_support(input_dir / "support")
+        with atomic_path(input_dir / BATCH_FILES["kernels"]) as tmp:
+            write_meta_kernel(tmp, [support["kernels"]])
+        with atomic_path(input_dir / BATCH_FILES["calib"]) as tmp:
+            _write_calibration_cdf(tmp)
+        atomic_write_bytes(input_dir / BATCH_FILES["xtce"], sim_packets.xtce_text().encode())
+        for k, day in enumerate(sorted(days)):
+            data, truth, _ = simulate_day(f"{day.isoformat()}T00:00:00", hours,
+                                          burst_minutes, seed=seed + k)
+            atomic_write_bytes(input_dir / packet_file_name(day), data)
+            write_truth(input_dir / "truth", day, truth)
     return sorted(days)
