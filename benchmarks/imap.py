@@ -5,8 +5,9 @@ cycled every 4 packets, 0 = uncompressed; range changes inside every third packe
 fluxcal's forward model (`fluxcal.missions.imap.simulate`) and its own SCLK kernel,
 calibration CDF and XTCE, then, each case in a fresh child process:
 
-* **fluxcal in-process**: ``pipeline.process`` to L1A, and to L1B, timed after a warm-up
-  on a small file in the same process (imports, numba cache loaded), no product written;
+* **fluxcal in-process**: ``pipeline.process`` to L1A, and to L1B (the L1A included),
+  timed after a warm-up on a small file in the same process (imports, numba cache
+  loaded), the best of two runs each, no product written;
 * **fluxcal whole process**: ``fluxcal imap calibrate`` (the CLI entry point
   `fluxcal.cli.main`: interpreter start, imports, decode, L1B, CDF products written);
 * **team in-process** (when a Python with ``imap-processing`` is found: ``--team-python``,
@@ -51,7 +52,8 @@ DAY = np.datetime64("2025-10-17", "ns")  # the day of the simulated packets
 _cdf = cdflib.CDF(sys.argv[5])
 CAL = xr.Dataset({name: (("epoch", "row", "col", "range")[:1 + _cdf.varget(name).ndim],
                          _cdf.varget(name)[None]) for name in ("MFOTOURFO", "MFITOURFI")}
-                 | {name: (("epoch",), np.atleast_1d(_cdf.varget(name))) for name in ("OTS", "ITS")},
+                 | {name: (("epoch",), np.atleast_1d(_cdf.varget(name)))
+                    for name in ("OTS", "ITS")},
                  coords={"epoch": [DAY]})
 
 def hwm():
@@ -111,9 +113,13 @@ def child_fluxcal(paths: dict, n: str) -> dict:
 
     run(paths["2000"], "l1b")
     Path("/proc/self/clear_refs").write_text("5")
-    vec, t_l1a = run(paths[n], "l1a")
-    _, t_l1b = run(paths[n], "l1b")
-    return {"vectors": vec, "l1a_s": t_l1a, "l1b_s": t_l1b, "peak_mib": peak_mib()}
+    times: dict[str, list[float]] = {"l1a": [], "l1b": []}
+    for _ in range(2):  # the best of two: the first run also grows the heap
+        for level in times:
+            vec, seconds = run(paths[n], level)
+            times[level].append(seconds)
+    return {"vectors": vec, "l1a_s": min(times["l1a"]), "l1b_s": min(times["l1b"]),
+            "peak_mib": peak_mib()}
 
 
 def child_cli(paths: dict, n: str, out: str) -> dict:
