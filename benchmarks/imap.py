@@ -37,6 +37,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from products import peak_rss_mb  # benchmarks/products.py: VmHWM, else ru_maxrss
+
 #: Vectors per second of the simulated burst mode (MAGo 64 + MAGi 8).
 BURST_VECTORS_PER_S = 72
 
@@ -78,14 +80,6 @@ print(json.dumps({"vectors": n, "l1a_s": t_l1a, "l1b_s": t_l1b, "peak_mib": hwm(
 """
 
 
-def peak_mib() -> float:
-    """``VmHWM`` of this process (MiB)."""
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) / 1024.0
-    raise OSError("no VmHWM in /proc/self/status")
-
-
 def simulate_files(folder: Path, vectors: list[int], widths: tuple[int, ...]) -> dict:
     """Write the support files, a small warm-up file and one packet file per size."""
     from fluxcal.missions.imap import simulate
@@ -119,7 +113,7 @@ def child_fluxcal(paths: dict, n: str) -> dict:
             vec, seconds = run(paths[n], level)
             times[level].append(seconds)
     return {"vectors": vec, "l1a_s": min(times["l1a"]), "l1b_s": min(times["l1b"]),
-            "peak_mib": peak_mib()}
+            "peak_mib": peak_rss_mb()}
 
 
 def child_cli(paths: dict, n: str, out: str) -> dict:
@@ -128,7 +122,7 @@ def child_cli(paths: dict, n: str, out: str) -> dict:
 
     code = main(["imap", "calibrate", "--input", paths[n], "--kernels", paths["kernels"],
                  "--calib", paths["calib"], "--xtce", paths["xtce"], "--out", out])
-    return {"exit": code, "peak_mib": peak_mib()}
+    return {"exit": code, "peak_mib": peak_rss_mb()}
 
 
 def team_python(given: str | None) -> str | None:
