@@ -305,3 +305,40 @@ def test_a_failed_simulation_leaves_no_file(tmp_path, monkeypatch):
     with pytest.raises(OSError):
         simulate.simulate_days(tmp_path / "in", [datetime.date(2025, 10, 17)])
     assert not [p for p in (tmp_path / "in").rglob("*") if p.is_file()]
+
+
+def _split_packets(data: bytes) -> list[bytes]:
+    """Whole packets of a stream by their CCSDS length (written here, not the decoder's)."""
+    out, pos = [], 0
+    while pos < len(data):
+        end = pos + 7 + int.from_bytes(data[pos + 4:pos + 6], "big")
+        out.append(data[pos:end])
+        pos = end
+    return out
+
+
+def test_gaps_and_a_day_boundary(tmp_path, support):
+    """Every third packet lost, data across midnight: the rest comes back, split by UTC day."""
+    from fluxcal.missions.imap.pipeline import write_products
+
+    data, truth, _ = simulate.simulate_day("2025-10-17T23:54:00", 0.2, 1.0, widths=(0, 18))
+    packets = _split_packets(data)
+    assert b"".join(packets) == data
+    kept = [p for k, p in enumerate(packets) if k % 3 != 1]
+    lost = {(int.from_bytes(p[:2], "big") & 0x7FF, int.from_bytes(p[2:4], "big") & 0x3FFF)
+            for k, p in enumerate(packets) if k % 3 == 1}
+    path = tmp_path / "gappy.pkts"
+    path.write_bytes(b"".join(kept))
+    l1b = process([path], level="l1b", calib=support["calib"], kernels=support["kernels"],
+                  xtce=support["xtce"])
+    for (mode, sensor), t in truth.items():
+        apid = sim_packets.APIDS[mode]
+        keep = np.array([(apid, int(s)) not in lost for s in t.sequence])
+        assert 0 < keep.sum() < keep.size
+        ds = l1b[(mode, sensor)]
+        np.testing.assert_array_equal(ds["sequence"].values, t.sequence[keep])
+        assert np.all(np.abs(ds["b"].values - t.b_nt[keep])
+                      <= simulate.quantisation_bound(t, sensor)[keep] + 1e-9)
+    paths = write_products(l1b, tmp_path / "out")
+    days = {p.name.split("_")[-2] for p in paths}
+    assert days == {"20251017", "20251018"}
