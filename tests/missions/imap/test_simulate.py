@@ -263,8 +263,8 @@ def test_demo_runs_on_the_forward_model_without_the_teams_files(tmp_path, monkey
     monkeypatch.setattr(demo, "SIM_HOURS", 0.05)
     text = demo.run_quick_demo(tmp_path)
     assert "simulated packets" in text and "were not found" in text
-    share = float(text.split(" of half a count")[0].rsplit(", ", 1)[1])
-    assert 0.5 < share <= 1.0
+    share = float(text.split(" % of half a count")[0].rsplit(", ", 1)[1])
+    assert 50.0 < share <= 100.0
     assert len(list(tmp_path.glob("imap_mag_l1b_*.cdf"))) == 4
 
 

@@ -50,11 +50,12 @@ def _truth_line(datasets: dict, truth: dict) -> str:
         worst_nt = max(worst_nt, float(err.max()))
         worst_share = max(worst_share, float((err / half).max()))
     return (f"  L1B vs the simulation's truth: largest |dB| {worst_nt:.3g} nT, "
-            f"{worst_share:.3f} of half a count (the quantisation of W bits)")
+            f"{np.floor(worst_share * 1e4) / 100:.2f} % of half a count of W bits (the "
+            "counts' rounding: <= 100 %)")
 
 
-def _run(out: Path, level: str, quicklook: bool) -> tuple[str, int, str]:
-    """One level of normal and burst packets into ``out``: counts, files, what it ran on."""
+def _run(out: Path, level: str, quicklook: bool) -> tuple[str, list[str]]:
+    """One level of normal and burst packets into ``out``: what it ran on, summary lines."""
     files, truth = _inputs(out)
     datasets = process(files["inputs"], level=level, calib=files["calib"],
                        kernels=files["kernels"], xtce=files["xtce"])
@@ -62,12 +63,13 @@ def _run(out: Path, level: str, quicklook: bool) -> tuple[str, int, str]:
                             if level == "l1b" else {}, [files["kernels"]])
     paths = write_products(datasets, out, ["cdf"], prov, quicklook=quicklook)
     counts = ", ".join(f"{m}-{s} {ds.sizes['time']}" for (m, s), ds in datasets.items())
+    lines = [f"{counts} vectors; {len(paths)} files in {out}"]
     if truth is None:
-        return counts, len(paths), "real IMAP MAG ground-test packets"
-    source = (f"simulated packets (fluxcal simulate imap; {missing_team_files()})")
+        return "real IMAP MAG ground-test packets", lines
+    lines.append(f"  ran on fluxcal's forward model: {missing_team_files()}")
     if level == "l1b":
-        source += "\n" + _truth_line(datasets, truth)
-    return counts, len(paths), source
+        lines.append(_truth_line(datasets, truth))
+    return "simulated packets (fluxcal simulate imap)", lines
 
 
 def run_demo(out: Path) -> str:
@@ -75,9 +77,8 @@ def run_demo(out: Path) -> str:
     out = Path(out)
     lines = []
     for level in ("l1a", "l1b"):
-        counts, n_files, source = _run(out / level, level, quicklook=level == "l1b")
-        lines.append(f"{level.upper()} from {source}: {counts} vectors; {n_files} files in "
-                     f"{out / level}")
+        source, done = _run(out / level, level, quicklook=level == "l1b")
+        lines += [f"{level.upper()} from {source}: {done[0]}", *done[1:]]
     return "\n".join(lines)
 
 
@@ -86,8 +87,8 @@ def run_quick_demo(out: Path) -> str:
     from fluxcal.products.html_report import write_run_report
 
     out = Path(out)
-    counts, n_files, source = _run(out, "l1b", quicklook=True)
+    source, done = _run(out, "l1b", quicklook=True)
     kind = "real" if source.startswith("real") else "simulated"
     report = write_run_report(out, title=f"fluxcal demo: IMAP MAG L1B from {kind} packets")
-    return (f"IMAP MAG L1B from {source}: {counts} vectors; {n_files} files in {out}\n"
-            f"  report: {report}")
+    return "\n".join([f"IMAP MAG L1B from {source}: {done[0]}", *done[1:],
+                      f"  report: {report}"])
