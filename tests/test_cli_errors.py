@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from fluxcal.cli import main
+from fluxcal.errors import FluxcalError
 
 ROSETTA_CSV = ("time_utc,obt,sid,bx,by,bz,t_ob,t_ib,quality\n"
                "2014-08-01T00:00:00.000000,365471901.094381,2,12267,-3093,21919,10193,10818,0\n")
@@ -173,10 +174,11 @@ def test_full_disk_during_simulate_leaves_nothing(world, capsys, monkeypatch) ->
 
 
 def test_debug_shows_the_traceback(world, monkeypatch) -> None:
-    with pytest.raises(OSError):
+    # the --out check (before the command runs) raises; --debug lets it through
+    with pytest.raises(FluxcalError, match="is a file, not a folder"):
         main(["--debug", "demo", "--out", str(world["blocked"])])
     monkeypatch.setenv("FLUXCAL_DEBUG", "1")
-    with pytest.raises(OSError):
+    with pytest.raises(FluxcalError, match="is a file, not a folder"):
         main(["demo", "--out", str(world["blocked"])])
 
 

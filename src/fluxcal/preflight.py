@@ -14,6 +14,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from fluxcal.errors import FluxcalError, InputFormatError
+from fluxcal.products.paths import temporary_affixes
 
 #: First bytes of compressed files a CSV/text reader cannot read as they are.
 _COMPRESSED = {
@@ -28,9 +29,11 @@ _COMPRESSED = {
 def writable_folder(path: Path, option: str = "--out") -> Path:
     """Check that ``path`` is, or can be created as, a folder this process can write.
 
-    Creates nothing that stays: the first existing ancestor is probed with a
-    temporary file that is removed at once (``os.access`` says yes to root on a
-    read-only mount, a real write does not).
+    Creates nothing that stays and writes nothing outside ``path``: an existing folder
+    is probed with a temporary file (fluxcal's temporary name,
+    `fluxcal.products.paths.temporary_affixes`) removed at once (``os.access`` says yes
+    to root on a read-only mount, a real write does not); for a folder still to be made,
+    its first existing ancestor is only asked (``os.access``), not written.
 
     Raises
     ------
@@ -44,8 +47,14 @@ def writable_folder(path: Path, option: str = "--out") -> Path:
     if probe.exists() and not probe.is_dir():
         raise FluxcalError(f"{option} {p}: {probe} is a file, not a folder; "
                            f"choose another {option}")
+    if probe != p:
+        if not os.access(probe, os.W_OK | os.X_OK):
+            raise FluxcalError(f"{option} {p}: cannot create it in {probe} (permission "
+                               f"denied); choose a folder you can write to")
+        return p
+    prefix, suffix = temporary_affixes(p / "write-test")
     try:
-        fd, name = tempfile.mkstemp(prefix=".fluxcal-write-test.", dir=probe)
+        fd, name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=probe)
     except OSError as exc:
         raise FluxcalError(f"{option} {p}: cannot write in {probe} ({exc.strerror}); "
                            f"choose a folder you can write to") from None

@@ -13,6 +13,7 @@ import pytest
 
 from fluxcal.products import read_product
 from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.runs import registry
 from fluxcal.runs.batch import (
     BatchReport,
     DayResult,
@@ -109,7 +110,7 @@ def test_killed_worker_loses_no_product(cluster, tmp_path: Path) -> None:
     task = SyntheticDayTask(inp, out, delay=0.3, crash_once_on=DAYS[1])
     rep = run_batch(DAYS, task, out, scheduler=cluster.scheduler_address)
     assert (out / ".crashed-SYNTH_20240302").exists()  # the worker really was killed
-    assert not list(out.glob(".*.tmp*"))  # its half-written temporary was removed
+    assert not list(out.glob("*fluxcal-tmp*"))  # its half-written temporary was removed
     statuses = {d.day: d.status for d in rep.days}
     # Every product that exists is complete; none is partial.
     for d in DAYS:
@@ -192,10 +193,10 @@ def test_worker_kernel_pool_switches_lists() -> None:
     try:
         a = worker_kernel_pool([])
         n_a = spiceypy.ktotal("ALL")
-        b = worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
+        b = worker_kernel_pool([frame_kernel_path("MSGR_MSO", registry.frame_kernels())])
         assert b is not a
         assert spiceypy.ktotal("ALL") >= n_a
-        assert worker_kernel_pool([frame_kernel_path("MSGR_MSO")]) is b
+        assert worker_kernel_pool([frame_kernel_path("MSGR_MSO", registry.frame_kernels())]) is b
     finally:
         release_worker_kernel_pool()
     assert spiceypy.ktotal("ALL") == before
@@ -227,7 +228,7 @@ class KernelDayTask:
         from fluxcal.geometry.kernels import frame_kernel_path
         from fluxcal.runs.batch import worker_kernel_pool
 
-        worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
+        worker_kernel_pool([frame_kernel_path("MSGR_MSO", registry.frame_kernels())])
         path = atomic_write_bytes(Path(self.out_dir) / f"K_{day:%Y%m%d}.txt",
                                   str(spiceypy.ktotal("ALL")).encode())
         return DayResult(day, [path])
@@ -296,7 +297,7 @@ def test_worker_killed_from_outside_mid_run(cluster, tmp_path: Path) -> None:
     assert killed
     with pytest.raises(ProcessLookupError):
         os.kill(killed[0], 0)  # the worker process really is gone
-    assert not list(out.glob(".*.tmp*"))
+    assert not list(out.glob("*fluxcal-tmp*"))
     assert {d.status for d in rep.days} <= {"done", "failed"}
     assert all("KilledWorker" in (d.error or "") for d in rep.days if d.status == "failed")
     for day in DAYS:  # every product present is complete (even one whose manifest is missing)
@@ -317,11 +318,12 @@ def test_clean_stale_temporaries_files_and_store_directories(tmp_path: Path) -> 
 
     (tmp_path / "P.zarr" / "B").mkdir(parents=True)  # a finished store: kept
     (tmp_path / "P.zarr" / "B" / "0.0").write_bytes(b"x")
-    stale_dir = tmp_path / ".P.zarr.k3j2.tmp.zarr"  # a Zarr store a killed worker was writing
+    # a Zarr store a killed worker (pid 2**22 + 1: above Linux's pid_max) was writing
+    stale_dir = tmp_path / f".P.zarr.{2**22 + 1}.k3j2ab12.fluxcal-tmp.zarr"
     (stale_dir / "B").mkdir(parents=True)
     (stale_dir / "B" / "0.0.abc.partial").write_bytes(b"x")
     (stale_dir / ".zgroup").write_text("{}")
-    stale_file = tmp_path / "sub" / ".P.TAB.x1y2.tmp.TAB"
+    stale_file = tmp_path / "sub" / f".P.TAB.{2**22 + 1}.x1y2ab12.fluxcal-tmp.TAB"
     stale_file.parent.mkdir()
     stale_file.write_text("partial")
     (tmp_path / "P.TAB").write_text("done")

@@ -135,14 +135,15 @@ def test_temporaries_of_a_running_process_are_spared(tmp_path: Path) -> None:
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True)
     try:
-        running = tmp_path / f".A.TAB.{alive.pid}.abcd1234.tmp.TAB"
-        stale = tmp_path / f".B.TAB.{int(dead.stdout)}.abcd1234.tmp.TAB"
-        old_style = tmp_path / ".C.TAB.abcd1234.tmp.TAB"  # written before names had a pid
-        for p in (running, stale, old_style):
+        running = tmp_path / f".A.TAB.{alive.pid}.abcd1234.fluxcal-tmp.TAB"
+        stale = tmp_path / f".B.TAB.{int(dead.stdout)}.abcd1234.fluxcal-tmp.TAB"
+        # not fluxcal's pattern (a user's file, or a pre-0.x name): never removed
+        other = tmp_path / ".C.TAB.abcd1234.tmp.TAB"
+        for p in (running, stale, other):
             p.write_text("x")
         removed = clean_stale_temporaries(tmp_path)
-        assert sorted(removed) == sorted([stale, old_style])
-        assert running.exists()
+        assert removed == [stale]
+        assert running.exists() and other.exists()
     finally:
         alive.kill()
         alive.wait()

@@ -153,7 +153,7 @@ def test_sigkill_leaves_temporaries_that_the_next_run_removes(sim, good, caplog)
     proc = subprocess.run([sys.executable, "-c", script], env={**os.environ, "PYTHONPATH": SRC},
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == -signal.SIGKILL, proc.stderr
-    stale = [n for n in _snapshot(out) if n.startswith(".") and ".tmp" in n]
+    stale = [n for n in _snapshot(out) if n.startswith(".") and "fluxcal-tmp" in n]
     assert len(stale) >= 4, stale  # the killed run's staged products
     assert {k: v for k, v in _snapshot(out).items() if k in snap} == snap  # old set intact
     assert main(_calibrate(sim, out)) == 0
@@ -250,7 +250,7 @@ def test_ctrl_c_on_a_batch_prints_the_summary_and_writes_the_report(tmp_path):
     assert report["counts"]["interrupted"] >= 1  # a day done on the worker may not have
     # reached the report yet: its products stay, without a manifest, and a rerun redoes it
     assert sum(report["counts"].values()) == len(days)
-    assert not list(out.rglob(".*.tmp*")) and not (out / LOCK_NAME).exists()
+    assert not list(out.rglob("*fluxcal-tmp*")) and not (out / LOCK_NAME).exists()
 
 
 @pytest.mark.slow

@@ -58,6 +58,7 @@ from pvl.grammar import OmniGrammar
 
 from fluxcal.archive.fixedparse import parse_ints, parse_reals, pow10
 from fluxcal.errors import InputFormatError
+from fluxcal.products.paths import pointer_target
 
 __all__ = [
     "ROW_DIM",
@@ -251,19 +252,23 @@ def _int_key(block: Mapping[str, Any], key: str, where: str, path: Path,
     return int(value)
 
 
-def _locate_file(folder: Path, name: str, label_path: Path) -> Path:
+def _locate_file(folder: Path, name: str, label_path: Path, pointer: str = "^TABLE") -> Path:
     """Find the data file a pointer names, relative to the label's folder.
 
     PDS3 names are upper case, but copies on disk are often lower case: an exact name
-    is tried first, then a unique case-insensitive match in the same folder.
+    is tried first, then a unique case-insensitive match in the same folder.  The name
+    is a plain file name in that folder: a pointer never leads out of it
+    (`fluxcal.products.paths.pointer_target`; PDS3 Standards Reference ch. 5: a
+    pointer names a file, found by the search rules, not a path;
+    docs/decisions/products.md, decision 66).
     """
-    exact = folder / name
+    exact = pointer_target(folder, name, label_path, pointer)
     if exact.exists():
         return exact
     matches = [p for p in folder.iterdir() if p.name.lower() == name.lower()] \
         if folder.is_dir() else []
     if len(matches) == 1:
-        return matches[0]
+        return pointer_target(folder, matches[0].name, label_path, pointer)
     raise _err(f"data file {name!r} named by the label's pointer not found in {folder}",
                label_path)
 
@@ -295,7 +300,7 @@ def _pointer(label: Mapping[str, Any], label_path: Path, name: str) -> tuple[Pat
     if offset < 0:
         raise _err(f"^{name} points before the start of the file", label_path)
     data = label_path if file_name is None else _locate_file(label_path.parent, file_name,
-                                                             label_path)
+                                                             label_path, "^" + name)
     return data, offset
 
 
@@ -421,15 +426,16 @@ def _format_file(name: Any, label_path: Path) -> Path:
     """
     if not isinstance(name, str):
         raise _err(f"^STRUCTURE = {name!r}: expected a file name", label_path)
+    pointer_target(label_path.parent, name, label_path, "^STRUCTURE")  # a plain name
     try:
-        return _locate_file(label_path.parent, name, label_path)
+        return _locate_file(label_path.parent, name, label_path, "^STRUCTURE")
     except InputFormatError:
         pass
     for folder in label_path.resolve().parents:
         for sub in (p for p in folder.iterdir() if p.is_dir() and p.name.upper() == "LABEL") \
                 if folder.is_dir() else ():
             try:
-                return _locate_file(sub, name, label_path)
+                return _locate_file(sub, name, label_path, "^STRUCTURE")
             except InputFormatError:
                 continue
     raise _err(f"format file {name!r} named by ^STRUCTURE not found beside the label or in "

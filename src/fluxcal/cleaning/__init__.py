@@ -5,6 +5,7 @@ Pure array functions (any magnetometer; arrays and parameters in, arrays out):
 - `minimum_variance` (MVA: eigenvalues, eigenvectors, ratio),
 - `remove_spectral_lines` (aliased reaction-wheel / fixed instrument lines),
 - `remove_heater_steps`, `remove_labelled_offsets` (square-wave heater disturbances),
+  `pool_heater_signs` (which level is heater-off, from several stretches),
   `states_from_steps`, `intervals_from_states` (heater states and labelled intervals
   from a strongly disturbed sensor: stage 1 of the assisted method),
 - `two_sensor_pca` (external field versus sensor-local noise of two sensors),
@@ -18,6 +19,7 @@ References
 .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.9-4.13.
 """
 
+from fluxcal.cleaning.heater_pooling import pool_heater_signs
 from fluxcal.cleaning.heater_states import (
     HeaterStates,
     intervals_from_states,
@@ -59,6 +61,7 @@ __all__ = [
     "default_bandwidth",
     "fold_frequency",
     "heater_off_segments",
+    "pool_heater_signs",
     "interpolate_linear",
     "intervals_from_states",
     "interpolated_lines",

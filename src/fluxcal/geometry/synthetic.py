@@ -23,6 +23,8 @@ import spiceypy
 from fluxcal.errors import KernelError
 from fluxcal.geometry.kernels import relative_meta_kernel_files
 from fluxcal.geometry.time import SclkKernel
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder, note_created
 
 GM_MERCURY = 22031.78  # km^3/s^2 (DE421 / pck00010)
 GM_SUN = 1.32712440018e11
@@ -63,7 +65,7 @@ def write_meta_kernel(path: Path, files: list[Path]) -> Path:
             continued = "+" if j < len(pieces) - 1 else ""
             lines.append(f"   '{piece}{continued}'")
     lines += [")", "", "\\begintext", ""]
-    path.write_text("\n".join(lines))
+    atomic_write_bytes(path, "\n".join(lines), now=True)
     return path
 
 
@@ -118,11 +120,12 @@ SCLK01_COEFFICIENTS_{cid}  = (
 def prepare_kernel_folder(out_dir: str | Path, prefix: str) -> tuple[Path, Path, Path, Path, Path]:
     """Create ``out_dir``; return it and the SCLK, FK, SPK, CK paths (old binaries removed)."""
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     sclk, fk = out / f"{prefix}.tsc", out / f"{prefix}.tf"
     spk, ck = out / f"{prefix}.bsp", out / f"{prefix}_sc.bc"
     for path in (spk, ck):  # the SPICE writers refuse to overwrite
         path.unlink(missing_ok=True)
+        note_created(path)  # written by SPICE itself: a failed run removes it
     return out, sclk, fk, spk, ck
 
 

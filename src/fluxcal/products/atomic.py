@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import errno
 import os
-import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -17,12 +16,24 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
 
+from fluxcal.products.paths import (
+    check_write,
+    make_folder,
+    note_created,
+    old_copy,
+    temporary_affixes,
+    temporary_owner,
+)
+
+__all__ = ["atomic_group", "atomic_path", "atomic_write_bytes", "pending_renames",
+           "process_alive", "temporary_owner", "ungrouped"]
+
 # Pending (temporary, final, is_directory) renames of the innermost `atomic_group`.
 _GROUP: ContextVar[list[tuple[Path, Path, bool]] | None] = ContextVar("_GROUP", default=None)
 
 
 @contextmanager
-def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
+def atomic_path(final: Path, *, directory: bool = False, now: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``final``; rename it to ``final`` on success.
 
     Parameters
@@ -31,13 +42,17 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
         The path the product must finally have.
     directory : bool
         The product is a directory (e.g. a Zarr store) rather than a file.
+    now : bool
+        Rename at once, inside an `atomic_group` too (an input, a kernel or a table the
+        same command reads back).
 
     Yields
     ------
     Path
         A not-yet-existing temporary path in ``final``'s folder, with the same suffix
         (some writers, e.g. cdflib, insist on the suffix):
-        ``.<name>.<pid>.<random>.tmp<suffix>``.  The process id lets a clean-up of
+        ``.<name>.<pid>.<random>.fluxcal-tmp<suffix>``
+        (`fluxcal.products.paths.temporary_affixes`).  The process id lets a clean-up of
         stale temporaries (`temporary_owner`) spare those of a process still running.
 
     Notes
@@ -47,15 +62,14 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
     full disk (``ENOSPC``, ``EDQUOT``) is re-raised as a plain `OSError` naming
     ``final`` (the libraries' own messages name the temporary, or nothing).
     """
-    final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{final.name}.{os.getpid()}.", suffix=f".tmp{final.suffix}", dir=final.parent
-    )
+    final = check_write(Path(final))  # inside the run's --out (paths rule 1)
+    make_folder(final.parent)
+    prefix, suffix = temporary_affixes(final)
+    fd, tmp_name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=final.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     tmp.unlink()  # writers create it themselves (cdflib refuses an existing file)
-    group = _GROUP.get()
+    group = None if now else _GROUP.get()
     try:
         yield tmp
         if group is not None:
@@ -72,15 +86,6 @@ def atomic_path(final: Path, *, directory: bool = False) -> Iterator[Path]:
         raise
 
 
-_TMP_PID = re.compile(r"\.(\d+)\.[A-Za-z0-9_]+\.tmp[^/]*$")
-
-
-def temporary_owner(path: Path) -> int | None:
-    """Process id in a temporary name made by `atomic_path` (``None`` if it has none)."""
-    m = _TMP_PID.search(Path(path).name)
-    return int(m.group(1)) if m else None
-
-
 def process_alive(pid: int) -> bool:
     """Whether a process with id ``pid`` exists (signal 0 probes without signalling)."""
     try:
@@ -93,16 +98,19 @@ def process_alive(pid: int) -> bool:
 
 
 def _commit(tmp: Path, final: Path, directory: bool) -> None:
+    new = not os.path.lexists(final)
     if directory:
         _replace_dir(tmp, final)
     else:
-        os.replace(tmp, final)
+        os.replace(tmp, final)  # replaces a link at ``final``, never writes through it
+    if new:
+        note_created(final)  # a failed run removes it again (`fluxcal.products.staging`)
 
 
 def _discard(tmp: Path) -> None:
-    if tmp.is_dir():
+    if tmp.is_dir() and not tmp.is_symlink():
         shutil.rmtree(tmp, ignore_errors=True)
-    elif tmp.exists():
+    elif os.path.lexists(tmp):
         tmp.unlink()
 
 
@@ -166,19 +174,22 @@ def atomic_group() -> Iterator[None]:
 
 def _replace_dir(tmp: Path, final: Path) -> None:
     """Swap a finished directory in (a directory cannot be replaced in one syscall)."""
-    if final.exists():
-        old = final.with_name(f".{final.name}.old")
-        if old.exists():
-            shutil.rmtree(old)
+    if os.path.lexists(final):
+        old = old_copy(final)
         os.replace(final, old)
         os.replace(tmp, final)
-        shutil.rmtree(old, ignore_errors=True)
+        _discard(old)  # a link or a file that stood there is removed, not followed
     else:
         os.replace(tmp, final)
 
 
-def atomic_write_bytes(final: Path, data: bytes) -> Path:
-    """Write ``data`` to ``final`` atomically and return ``final``."""
-    with atomic_path(final) as tmp:
-        tmp.write_bytes(data)
+def atomic_write_bytes(final: Path, data: bytes | str, *, now: bool = False) -> Path:
+    """Write ``data`` (text as UTF-8) to ``final`` atomically and return ``final``.
+
+    Every file fluxcal writes goes through `atomic_path`, so the path rule holds for it
+    (`fluxcal.products.paths`: inside the run's ``--out``, recorded for a failed run's
+    clean-up, a temporary name fluxcal alone uses).  ``now``: see `atomic_path`.
+    """
+    with atomic_path(final, now=now) as tmp:
+        tmp.write_bytes(data.encode() if isinstance(data, str) else data)
     return Path(final)

@@ -18,6 +18,7 @@ from fluxcal.errors import InputFormatError
 from fluxcal.products.attrs import decode_attrs
 from fluxcal.products.label import decode_attributes, find_objects, read_label
 from fluxcal.products.netcdf import netcdf_engine
+from fluxcal.products.paths import check_pointers
 
 #: Global attributes a provenance summary shows, beside the provenance records.
 SUMMARY_KEYS = ("Logical_file_id", "Logical_source", "Data_type", "Parents", "software",
@@ -56,7 +57,9 @@ def read_provenance(path: Path | str) -> dict[str, Any]:
             with opened as f:
                 attrs = dict(f.attrs)
         elif suffix in (".lbl", ".tab"):
-            label = read_label(p.with_suffix(".LBL") if suffix == ".tab" else p)
+            label_path = p.with_suffix(".LBL") if suffix == ".tab" else p
+            label = read_label(label_path)
+            check_pointers(label, label_path)  # no pointer out of the label's folder
             found = find_objects(label, "DATASET_ATTRIBUTES")
             attrs = decode_attributes(found[0]) if found else {}
             if label.get("PRODUCT_CREATION_TIME") not in (None, "N/A"):

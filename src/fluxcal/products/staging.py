@@ -34,12 +34,22 @@ from types import FrameType
 from typing import Any, TypeVar
 
 from fluxcal.errors import FluxcalError
-from fluxcal.products.atomic import atomic_group, process_alive, temporary_owner, ungrouped
+from fluxcal.preflight import writable_folder
+from fluxcal.products.atomic import atomic_group, process_alive, ungrouped
+from fluxcal.products.paths import (
+    LOCK_NAME,
+    current_folder,
+    open_lock_file,
+    own_leftover,
+    remove_created,
+    write_scope,
+)
 
 log = logging.getLogger(__name__)
 
-#: Lock file of an output folder (an ``flock``; held by single runs and batches alike).
-LOCK_NAME = ".fluxcal.lock"
+__all__ = ["LOCK_NAME", "Interrupted", "OutputFolderBusy", "clean_stale_temporaries",
+           "interrupt_signals", "interrupted_signal", "output_lock", "owned_run",
+           "reads_back", "report_stale"]
 
 
 class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
@@ -65,34 +75,47 @@ class Interrupted(BaseException):  # noqa: N818 - reads as what happened
 
 
 def clean_stale_temporaries(out_dir: Path) -> list[Path]:
-    """Remove temporaries left by a killed writer (``.<name>.*.tmp<suffix>``).
+    """Remove the temporaries a killed fluxcal writer left below ``out_dir``.
 
-    Files and directories (a Zarr store is written as a temporary directory) alike, and
-    a directory product's old copy (``.<name>.old``) left half-way through its swap.
-    A temporary whose name carries the id of another process still running
-    (`fluxcal.products.atomic.temporary_owner`) is left alone: it is being written.
+    Only names fluxcal gives its temporaries are touched
+    (``.<name>.<pid>.<random>.fluxcal-tmp<suffix>``, and a directory product's
+    ``.<name>.<pid>.fluxcal-old`` half-way through its swap;
+    `fluxcal.products.paths.own_leftover`): a user's ``.draft.tmp`` or ``.bashrc.old``
+    never matches.  Files and directories (a Zarr store is written as a temporary
+    directory) alike; no link is followed or removed, and no folder where another run
+    holds a lock (a run writing into a folder nested below ``out_dir``) is entered.  A
+    temporary whose pid is that of another process still running is left alone: it is
+    being written.
     """
     removed: list[Path] = []
     me = os.getpid()
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return removed
-    found = [*out_dir.rglob(".*.tmp*"), *out_dir.rglob(".*.old")]
-    for p in sorted(found):
-        if any(r in p.parents for r in removed):
-            continue  # inside a temporary directory already removed
-        owner = temporary_owner(p)
-        if owner is not None and owner != me and process_alive(owner):
-            continue  # being written by another running process (a command, a worker)
-        if p.suffix == ".old" and not p.with_name(p.name[1:-4]).exists():
-            continue  # the only copy of a directory product whose swap was cut: keep it
-        if p.is_dir():
-            shutil.rmtree(p, ignore_errors=True)
-        elif p.exists():
-            p.unlink(missing_ok=True)
-        else:
+    for folder, dirs, files in os.walk(out_dir, followlinks=False):
+        here = Path(folder)
+        if here != out_dir and os.path.lexists(here / LOCK_NAME):
+            dirs[:] = []  # another run's --out, being written now: not ours to clean
             continue
-        removed.append(p)
+        for name in sorted([*dirs, *files]):
+            found = own_leftover(name)
+            if found is None:
+                continue
+            kind, owner, final = found
+            p = here / name
+            if name in dirs:
+                dirs.remove(name)  # removed whole (or kept): never walked into
+            if p.is_symlink():
+                continue  # fluxcal never makes links: not its own
+            if owner != me and process_alive(owner):
+                continue  # being written by another running process (a command, a worker)
+            if kind == "old" and not os.path.lexists(here / final):
+                continue  # the only copy of a directory product whose swap was cut: keep it
+            if p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+            else:
+                p.unlink(missing_ok=True)
+            removed.append(p)
     return removed
 
 
@@ -122,7 +145,7 @@ def output_lock(out_dir: Path) -> Iterator[Path]:
 
     path = Path(out_dir) / LOCK_NAME
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = open_lock_file(path)  # never through a link (paths rule 2)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -131,10 +154,7 @@ def output_lock(out_dir: Path) -> Iterator[Path]:
             raise OutputFolderBusy(
                 f"--out {out_dir}: another fluxcal run (pid {holder}) is writing into this "
                 "folder; wait for it to finish, or choose another --out") from None
-        try:
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
+        same = _same_file(fd, path)
         if same:
             break
         os.close(fd)  # locked a file the previous holder had just removed: take the new one
@@ -143,39 +163,39 @@ def output_lock(out_dir: Path) -> Iterator[Path]:
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         yield path
     finally:
-        path.unlink(missing_ok=True)  # still locked here: no other run is inside
+        if _same_file(fd, path):  # still locked here: no other run is inside
+            path.unlink(missing_ok=True)
         os.close(fd)
 
 
-class _NewFiles:
-    """What a run created under its output folder (``undo`` removes exactly that)."""
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` (not followed) is the file open as ``fd``."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return False
+    mine = os.fstat(fd)
+    return (st.st_ino, st.st_dev) == (mine.st_ino, mine.st_dev)
 
-    def __init__(self, out: Path, existed: bool) -> None:
-        self.out = out
-        self.existed = existed
-        self.before = set(out.rglob("*")) if existed and out.is_dir() else set()
 
-    def undo(self) -> None:
-        out = self.out
-        if not out.exists():
-            return
-        if not self.existed:
-            shutil.rmtree(out, ignore_errors=True)
-            return
-        if not out.is_dir():
-            return
-        new = sorted(set(out.rglob("*")) - self.before, key=lambda p: len(p.parts),
-                     reverse=True)
-        for p in new:
-            if p.name == LOCK_NAME and p.parent == out:
-                continue  # ours: `output_lock` removes it
-            try:
-                if p.is_dir() and not p.is_symlink():
-                    shutil.rmtree(p, ignore_errors=True)
-                else:
-                    p.unlink(missing_ok=True)
-            except OSError:
-                pass
+def _undo(out: Path, before: set[str], created: list[Path]) -> None:
+    """Remove what a failed run created in ``out``, and nothing else.
+
+    The files and folders the run's writers recorded (`fluxcal.products.paths.note_created`;
+    a folder only once empty), its temporaries (by name, `clean_stale_temporaries`), and
+    new plain files directly in ``out`` (the lock is held: no other run writes there).
+    Files that appear in a folder nested below ``out`` are not removed unless this run
+    recorded them: another run may be writing there under its own ``--out``.
+    """
+    remove_created(created)
+    if not out.is_dir():
+        return
+    clean_stale_temporaries(out)  # its own, by name (a store a library was still writing)
+    for entry in os.scandir(out):
+        if entry.name not in before and entry.name != LOCK_NAME \
+                and entry.is_file(follow_symlinks=False):
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
 
 
 @contextlib.contextmanager
@@ -190,59 +210,111 @@ def owned_run(out: Path | None) -> Iterator[None]:
     on any exception (an error, an interruption), removes what the run created and
     re-raises.
 
-    ``out`` None (a command without ``--out``), or a path that cannot hold a lock (a
-    file, an unwritable parent), runs the command unguarded: its own checks then report
-    the path (one line, exit 2) before it writes anything.
+    ``out`` is checked first, before the command reads any input (`_make_out`: a file
+    in its path, a folder that cannot be written); every write of the run must lie
+    inside it (`fluxcal.products.paths.write_scope`).  ``out`` None (a command without
+    ``--out``) runs the command unguarded.
 
     Raises
     ------
     OutputFolderBusy
         Another run holds ``out``'s lock; nothing is touched.
+    FluxcalError
+        ``out`` cannot be a folder this run writes, or its lock file is a link or not a
+        regular file (left as it is).
     """
     if out is None:
         yield
         return
     out = Path(out)
-    existed = out.exists()
+    made = _make_out(out)
     try:
-        out.mkdir(parents=True, exist_ok=True)
         lock = output_lock(out)
         lock.__enter__()
-    except OutputFolderBusy:
+    except BaseException:
+        _remove_folders(made)
         raise
-    except OSError:
-        if not existed:
-            shutil.rmtree(out, ignore_errors=True)
-        yield  # the command's own preflight names the path
-        return
     try:
         report_stale(clean_stale_temporaries(out), out)
-        created = _NewFiles(out, existed)
-        try:
-            with atomic_group():
-                yield
-        except BaseException:
-            created.undo()
-            raise
+        before = {e.name for e in os.scandir(out)}
+        with write_scope(out) as created:
+            try:
+                with atomic_group():
+                    yield
+            except BaseException:
+                _undo(out, before, created)
+                raise
     except BaseException as exc:
         lock.__exit__(type(exc), exc, exc.__traceback__)
+        _remove_folders(made)  # only those that are empty again
         raise
     lock.__exit__(None, None, None)
 
 
+def _make_out(out: Path) -> list[Path]:
+    """Create ``out`` (and missing parents) and check it can be written; return what was made.
+
+    Runs before the command reads any input, so an unusable ``--out`` (a file in its
+    path, a read-only folder) is one line at once, not after a day's calibration.
+
+    Raises
+    ------
+    FluxcalError
+        A file stands in the path, or the folder cannot be created or written.
+    """
+    missing: list[Path] = []
+    p = out
+    while not os.path.lexists(p) and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    if os.path.lexists(p) and not p.is_dir():
+        raise FluxcalError(f"--out {out}: {p} is a file, not a folder; choose another --out")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        _remove_folders(missing)
+        raise FluxcalError(f"--out {out}: cannot create it ({exc.strerror}); choose a folder "
+                           "you can write to") from None
+    try:
+        writable_folder(out, "--out")  # a real write: root on a read-only mount too
+    except FluxcalError:
+        _remove_folders(missing)
+        raise
+    return missing
+
+
+def _remove_folders(folders: list[Path]) -> None:
+    """Remove the folders `_make_out` created, deepest first, each only if empty."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)
+
+
 @contextlib.contextmanager
-def interrupt_signals() -> Iterator[None]:
+def interrupt_signals() -> Iterator[Callable[[], None]]:
     """Turn SIGINT and SIGTERM into `Interrupted` in the main thread while the block runs.
 
     The exception unwinds the run like any error, so every ``finally`` and every
     clean-up (temporaries, staged products, files the run created) runs before the
     process exits.  A second signal during that clean-up is ignored.  Outside the main
     thread (a command run from a worker thread) nothing is installed.
+
+    Python runs a handler between two bytecodes of the main thread, which may be inside
+    code that swallows exceptions (a ``__del__``, a weakref or garbage-collector
+    callback, a library's ``except BaseException``): the exception is then lost.  So the
+    block gets a function that raises `Interrupted` again if a signal arrived; the
+    command line (`fluxcal.cli.main`) calls it when the command returns, before its
+    products are committed: a SIGTERM is never ignored (exit 143).
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     fired: list[int] = []
+
+    def pending() -> None:
+        if fired:
+            raise Interrupted(fired[0])
+
+    if threading.current_thread() is not threading.main_thread():
+        yield pending
+        return
 
     def handler(signum: int, frame: FrameType | None) -> None:
         if fired:
@@ -252,7 +324,7 @@ def interrupt_signals() -> Iterator[None]:
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield
+        yield pending
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
@@ -280,10 +352,17 @@ def reads_back(command: _Command) -> _Command:
     such a command instead has each file renamed into place as soon as it is complete
     (`fluxcal.products.atomic.ungrouped`; each file is still written atomically, and a
     failed run still removes what it created).  The signature is kept for the CLI.
+
+    Such commands have a default ``--out`` (a simulator's, the demo's), which
+    `fluxcal.cli.main` cannot see on the command line: when no run owns a folder yet,
+    the command's ``out`` is owned here (`owned_run`: checked, locked, writes confined).
     """
     @functools.wraps(command)
     def run(*args: Any, **kwargs: Any) -> Any:
-        with ungrouped():
+        out = kwargs.get("out")
+        owner = owned_run(Path(out)) if out is not None and current_folder() is None \
+            else contextlib.nullcontext()
+        with owner, ungrouped():
             return command(*args, **kwargs)
 
     return run  # type: ignore[return-value]

@@ -13,10 +13,10 @@ import dataclasses
 import datetime as _dt
 import json
 import logging
-import shutil
 from pathlib import Path
 
 from fluxcal.errors import FluxcalError
+from fluxcal.products.paths import make_folder
 from fluxcal.runs import registry
 from fluxcal.runs.cli import batch
 from fluxcal.runs.contract import Mission
@@ -24,8 +24,12 @@ from fluxcal.runs.contract import Mission
 log = logging.getLogger(__name__)
 
 
-def _batch(mission: Mission, days: list[_dt.date], input_dir: Path, out_dir: Path) -> int:
-    """Run ``fluxcal batch <mission> --quicklook --quiet`` over ``days``; return its exit code."""
+def _batch(mission: Mission, days: list[_dt.date], input_dir: Path, out_dir: Path,
+           force: bool = False) -> int:
+    """Run ``fluxcal batch <mission> --quicklook --quiet`` over ``days``; return its exit code.
+
+    ``force`` redoes days an earlier demo left up to date (the demo removes no folder).
+    """
     options = None
     if mission.options is not None:
         options = mission.load("options")()
@@ -33,7 +37,7 @@ def _batch(mission: Mission, days: list[_dt.date], input_dir: Path, out_dir: Pat
             options = dataclasses.replace(options, quicklook=True)
     try:
         batch(mission, days[0].isoformat(), days[-1].isoformat(), input_dir, out_dir, options,
-              quiet=True)
+              quiet=True, force=force)
     except SystemExit as exc:
         return int(exc.code or 0)
     except (FluxcalError, OSError) as exc:
@@ -43,7 +47,7 @@ def _batch(mission: Mission, days: list[_dt.date], input_dir: Path, out_dir: Pat
 
 
 def _run(mission: Mission, days: list[_dt.date], input_dir: Path, out_dir: Path) -> list[str]:
-    code = _batch(mission, days, input_dir, out_dir)
+    code = _batch(mission, days, input_dir, out_dir, force=True)
     name = mission.name
     report_path = out_dir / f"batch_report_{name}.json"
     report = json.loads(report_path.read_text()) if report_path.exists() else {}
@@ -72,13 +76,11 @@ def _run(mission: Mission, days: list[_dt.date], input_dir: Path, out_dir: Path)
 
 def run_demo(out: Path) -> str:
     """Run ``fluxcal batch`` over two simulated days of each mission; return a summary."""
-    out = Path(out)
-    if out.exists():
-        shutil.rmtree(out)
+    out = Path(out)  # an earlier demo's files are overwritten, never removed (decision 66)
     lines: list[str] = []
     for mission in _demo_missions():
         inp = out / mission.name / "input"
-        inp.mkdir(parents=True, exist_ok=True)
+        make_folder(inp)
         days = list(mission.demo_days)
         try:
             mission.load("simulate_days")(inp, days)

@@ -28,8 +28,10 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import CalibrationError, InputFormatError
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.columns import Column
+from fluxcal.products.paths import make_folder
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.products.writer import write_product
 from fluxcal.runs.batch import DayInputs, DayResult, DayWithoutData
@@ -54,11 +56,11 @@ def write_synthetic_inputs(input_dir: Path, days: list[_dt.date], n_per_day: int
                            seed: int = 1, offset=(12.0, -7.0, 3.0), gain: float = 0.05) -> None:
     """Write the calibration file and one CSV per day (field = a rotating 100 nT vector)."""
     input_dir = Path(input_dir)
-    input_dir.mkdir(parents=True, exist_ok=True)
-    (input_dir / CALIB_NAME).write_text(
-        "# synthetic calibration, version 1\n"
-        f"offset = {offset[0]} {offset[1]} {offset[2]}\ngain = {gain}\n"
-    )
+    make_folder(input_dir)
+    atomic_write_bytes(input_dir / CALIB_NAME,
+                       "# synthetic calibration, version 1\n"
+                       f"offset = {offset[0]} {offset[1]} {offset[2]}\ngain = {gain}\n",
+                       now=True)
     rng = np.random.default_rng(seed)
     for day in days:
         t = np.arange(n_per_day) * (_DAY_NS // max(n_per_day, 1))
@@ -126,6 +128,10 @@ class SyntheticDayTask:
         return DayInputs((input_path(self.input_dir, day),),
                          {"synthetic_calib": Path(self.input_dir) / CALIB_NAME})
 
+    def settings(self) -> dict[str, object]:
+        """Return the options that change a product (``delay`` and fault injection do not)."""
+        return {"formats": self.formats, "quicklook": self.quicklook}
+
     def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day``."""
         src = input_path(self.input_dir, day)
@@ -167,7 +173,8 @@ class SyntheticDayTask:
             return
         marker.write_text(str(os.getpid()))
         # A half-written temporary, as a writer killed mid-file would leave it.
-        (stem.parent / f".{stem.name}.TAB.x1y2.tmp.TAB").write_text("partial")
+        (stem.parent / f".{stem.name}.TAB.{os.getpid()}.x1y2z3w4.fluxcal-tmp.TAB"
+         ).write_text("partial")
         os.kill(os.getpid(), signal.SIGKILL)
 
 

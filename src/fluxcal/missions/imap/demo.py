@@ -18,6 +18,7 @@ import numpy as np
 from fluxcal.missions.imap import simulate
 from fluxcal.missions.imap.pipeline import process, write_products
 from fluxcal.missions.imap.sources import TEAM_FILES, missing_team_files, shared_folder
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.provenance import provenance_attrs
 
 #: The simulated inputs of the demo without the team's files: one hour of normal mode,
@@ -36,8 +37,8 @@ def _inputs(out: Path) -> tuple[dict[str, Path], dict | None]:
     paths = simulate.write_support(sim)
     data, truth, _ = simulate.simulate_day("2025-10-17T00:00:00", SIM_HOURS,
                                            SIM_BURST_MINUTES)
-    packets = sim / simulate.packet_file_name(_dt.date(2025, 10, 17))
-    packets.write_bytes(data)
+    packets = atomic_write_bytes(sim / simulate.packet_file_name(_dt.date(2025, 10, 17)),
+                                 data)
     return {**paths, "inputs": [packets]}, truth
 
 

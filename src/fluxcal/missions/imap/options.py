@@ -29,5 +29,9 @@ class ImapOptions:
     csv_layout: str | None = field(default=None, metadata={
         "help": "Mode and rates of an L1A CSV whose name does not give them, as the "
                 "team's names do: <normal|burst>-(<pri>,<sec>)-<n>s, e.g. normal-(2,2)-8s."})
+    layout: str = field(default="fluxcal", metadata={
+        "help": "fluxcal (b in nT, Epoch) or team (the IMAP MAG team's CDF variables: "
+                "epoch, vectors, compression_flags ...; CDF only).",
+        "choices": ("fluxcal", "team")})
     quicklook: bool = field(default=False, metadata={
         "help": "Also write a PNG quicklook per mode, sensor and UTC day (L1B)."})

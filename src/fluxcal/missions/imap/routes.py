@@ -9,6 +9,7 @@ write one product per mode, sensor and UTC day.  ``fluxcal imap calibrate`` and
 from __future__ import annotations
 
 import datetime as _dt
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,8 +19,9 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.days import utc_day
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a
+from fluxcal.missions.imap import l1a, team_layout
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.missions.imap.packets import packet_definition
@@ -31,8 +33,11 @@ from fluxcal.missions.imap.pipeline import (
 )
 from fluxcal.missions.imap.sources import BATCH_FILES, sclk_kernels
 from fluxcal.products.provenance import provenance_attrs
+from fluxcal.products.timeindex import default_lsk
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
+
+log = logging.getLogger(__name__)
 
 Datasets = dict[tuple[str, str], xr.Dataset]
 #: Input files of a batch day: names holding the day as ``yyyymmdd`` (IMAP's convention,
@@ -59,12 +64,22 @@ class ImapRun:
             load_calibration(options.calib)
         if options.xtce is not None:
             packet_definition(options.xtce)
+        if options.layout == "team" and tuple(options.formats) != ("cdf",):
+            raise InputFormatError("--layout team writes the team's CDFs only: leave out "
+                                   "--formats or give --formats cdf", field="--formats")
 
-    def read(self, source: Sequence[Path], options: ImapOptions) -> tuple[Datasets, list[Path]]:
-        """Decode the packets (or read the L1A CSVs) into L1A datasets (kernels loaded)."""
+    def read(self, source: Sequence[Path] | DaySource,
+             options: ImapOptions) -> tuple[Datasets, list[Path]]:
+        """Decode the packets (or read the L1A CSVs) into L1A datasets (kernels loaded).
+
+        A `DaySource` (a batch day) keeps the vectors of its UTC day only (`day_vectors`).
+        """
+        files = list(map(Path, source.files if isinstance(source, DaySource) else source))
         clock = SclkKernel.from_pool(l1a.IMAP_SCLK_ID)
-        return (read_l1a(source, clock, xtce=options.xtce, csv_layout=options.csv_layout),
-                list(map(Path, source)))
+        raw = read_l1a(files, clock, xtce=options.xtce, csv_layout=options.csv_layout)
+        if isinstance(source, DaySource):
+            raw = day_vectors(raw, source)
+        return raw, files
 
     def size(self, raw: Datasets) -> int:
         """Return the number of vectors of both sensors."""
@@ -72,7 +87,7 @@ class ImapRun:
 
     def calibrate(self, raw: Datasets, options: ImapOptions, progress: Any) -> Datasets:
         """L1A as read, or L1B in nT (`fluxcal.missions.imap.pipeline.to_level`)."""
-        return to_level(raw, options.level, options.calib)
+        return to_level(raw, options.level, options.calib, progress)
 
     def write(self, calibrated: Datasets, out_dir: Path, options: ImapOptions, *,
               inputs: Sequence[Path], kernel_list: Sequence[str],
@@ -81,26 +96,80 @@ class ImapRun:
         calibration = {"imap_mag_l1b": options.calib} if options.level == "l1b" else {}
         prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
         day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
+        if options.layout == "team":  # the team's variable names (issue 33 item 4)
+            return team_layout.write_products(calibrated, out_dir, prov, only_day=day)
         return write_products(calibrated, out_dir, options.formats, prov,
                               quicklook=options.quicklook, only_day=day)
 
     def day_files(self, input_dir: Path, day: _dt.date, options: ImapOptions) -> list[Path]:
-        """Return the packet and L1A CSV files named for ``day`` (`DAY_PATTERNS`)."""
-        return sorted({p for pattern in DAY_PATTERNS
-                       for p in Path(input_dir).glob(pattern.format(day=day))})
+        """Return the packet and L1A CSV files named for ``day`` and the days beside it.
 
-    def day_source(self, input_dir: Path, day: _dt.date, options: ImapOptions) -> list[Path]:
-        """Return the day's files.
+        A file named for a day may hold vectors of the days beside it (a stream across
+        midnight given as one day's file): the day's vectors are taken from all three
+        (`day_vectors`), as a single run of every file would put them in its product.
+        """
+        one = _dt.timedelta(days=1)
+        return sorted({p for d in (day - one, day, day + one) for p in named_for(input_dir, d)})
+
+    def day_source(self, input_dir: Path, day: _dt.date, options: ImapOptions) -> DaySource:
+        """Return the files of the day and the days beside it, and the day.
 
         Raises
         ------
         DayWithoutData
-            When no file is named for the day.
+            When no file is named for the day or the days beside it.
         """
         files = self.day_files(input_dir, day, options)
         if not files:
-            raise DayWithoutData(f"no IMAP MAG file named for {day:%Y%m%d} in {input_dir}")
-        return files
+            raise DayWithoutData(f"no IMAP MAG file named for {day:%Y%m%d} or the days beside "
+                                 f"it in {input_dir}")
+        return DaySource(tuple(files), day)
+
+
+@dataclass(frozen=True)
+class DaySource:
+    """A batch day's files (its own and those of the days beside it) and the day."""
+
+    files: tuple[Path, ...]
+    day: _dt.date
+
+
+def named_for(input_dir: Path, day: _dt.date) -> list[Path]:
+    """Return the packet and L1A CSV files named for ``day`` (`DAY_PATTERNS`)."""
+    return sorted({p for pattern in DAY_PATTERNS
+                   for p in Path(input_dir).glob(pattern.format(day=day))})
+
+
+def day_vectors(raw: Datasets, source: DaySource) -> Datasets:
+    """Keep the vectors of the UTC day ``source.day`` (the product day of `write_products`).
+
+    Vectors of a day beside it that has no file of its own are named in a warning (only
+    a batch that runs that day writes them).
+
+    Raises
+    ------
+    DayWithoutData
+        When no vector read is of the day.
+    """
+    day = np.datetime64(source.day.isoformat(), "D")
+    out: Datasets = {}
+    others: dict[str, int] = {}
+    for key, ds in raw.items():
+        days = utc_day(ds["epoch"].values, default_lsk())
+        keep = days == day
+        for other in (day - 1, day + 1):
+            others[str(other)] = others.get(str(other), 0) + int((days == other).sum())
+        if keep.any():
+            out[key] = ds.isel(time=np.flatnonzero(keep))
+    names = ", ".join(p.name for p in source.files)
+    for other, n in others.items():
+        if n and not named_for(source.files[0].parent, _dt.date.fromisoformat(other)):
+            log.warning("%d IMAP MAG vector(s) of %s in %s: that day has no file, its "
+                        "products hold them only when the batch runs %s too",
+                        n, other, names, other)
+    if not out:
+        raise DayWithoutData(f"no IMAP MAG vector of {source.day} in {names}")
+    return out
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options: Any) -> driver.DayTask:

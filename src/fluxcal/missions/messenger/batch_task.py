@@ -8,6 +8,10 @@ Input folder layout (one file per stream and day, day = UTC day of the recorded 
     MAGTMP_YYYYDDD.csv   sensor temperatures (previous and next day read when present)
     kernels.tm           meta-kernel (or ``--kernels``)
 
+A day's products hold the science samples recorded in that UTC day, read from the
+science files of the day before, the day and the day after (a stream across midnight may
+be given as one day's files; `routes.csv_day_files`, `run.batch_day_rows`).
+
 or, when the folder holds ``edr_mapping.toml`` (`routes.EDR_MAPPING`), archived MAG EDRs (PDS3
 labels + tables, any sub-folders) read through that mapping
 (`fluxcal.missions.messenger.edr.read_edr`; day D reads the science EDRs of D, the
@@ -25,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import shutil
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -34,7 +39,7 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.synthetic import copy_meta_kernel, write_meta_kernel
 from fluxcal.geometry.time import SclkKernel, et_to_utc, utc_to_et
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.options import (
     MessengerOptions,
 )
@@ -44,6 +49,8 @@ from fluxcal.missions.messenger.routes import (
 )
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder, move_into, temporary_affixes
 from fluxcal.runs import driver
 
 DAY_S = 86_400.0
@@ -135,7 +142,7 @@ def simulate_days(
     if not 0.0 < seconds_per_day <= DAY_S:
         raise ValueError(f"seconds_per_day must be in (0, 86400], got {seconds_per_day}")
     input_dir = Path(input_dir)
-    input_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(input_dir)
     kernel_files: list[Path] = []
     done: list[_dt.date] = []
     for run in _runs(days):
@@ -156,11 +163,14 @@ def simulate_days(
                    for w0, _ in windows]
         mk = write_messenger_like_kernels(input_dir / "kernels" / f"run_{run[0]:%Y%j}", start,
                                           duration + config.lead_s, plus_y_sunward=sunward)
-        # the SCLK and frame kernels are the same for every run: list the first ones
-        listed = sorted(p for p in mk.parent.iterdir() if p.suffix != ".tm")
+        # the SCLK and frame kernels are the same for every run: list the first ones; the
+        # dynamic frames' copies are left out (the runs load fluxcal's, `FRAME_KERNELS`)
+        frames = {Path(p).name for p in FRAME_KERNELS.values()}
+        listed = sorted(p for p in mk.parent.iterdir()
+                        if p.suffix != ".tm" and p.name not in frames)
         kernel_files += listed if not kernel_files else [k for k in listed
                                                          if k.suffix in (".bsp", ".bc")]
-        with KernelPool(mk):
+        with KernelPool(mk, frames=FRAME_KERNELS):
             sclk = SclkKernel.from_pool(SPACECRAFT_ID)
             sim = simulate(config, load_calibration(start), sclk)
             first = run[0] - _dt.timedelta(days=1)
@@ -171,7 +181,9 @@ def simulate_days(
                                             side="right") - 1
                          for k in ("science", "heater", "temperature")}
         dims = {"science": "time", "heater": "heater_time", "temperature": "temperature_time"}
-        tmp = input_dir / ".simulation"
+        # fluxcal's own temporary name: only such a folder is ever removed (paths rule 4)
+        prefix, suffix = temporary_affixes(input_dir / "simulation")
+        tmp = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=input_dir))
         for k in range(len(run) + 1):
             day = first + _dt.timedelta(days=k)
             part = {key: sim[key].isel({dims[key]: day_index[key] == k}) for key in dims}
@@ -180,10 +192,10 @@ def simulate_days(
             has_science = part["science"].sizes["time"] > 0
             for key, code in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):
                 if part[key].sizes[dims[key]] and (key != "science" or has_science):
-                    paths[key].replace(day_file(input_dir, code, day))
+                    move_into(paths[key], day_file(input_dir, code, day))
             if has_science:
-                (input_dir / "truth").mkdir(exist_ok=True)
-                paths["truth"].replace(input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
+                make_folder(input_dir / "truth")
+                move_into(paths["truth"], input_dir / "truth" / f"MAGTRUTH_{day:%Y%j}.csv")
                 done.append(day)
         shutil.rmtree(tmp, ignore_errors=True)
     write_meta_kernel(input_dir / "kernels.tm", kernel_files)
@@ -205,7 +217,7 @@ def _split_by_day(path: Path, stream: str, out_dir: Path, sclk) -> list[Path]:
     for day in np.unique(days):
         d = _dt.date.fromisoformat(str(day))
         dest = out_dir / f"MAG{stream}_{d:%Y%j}.csv"
-        dest.write_text("\n".join([header, *rows[days == day].tolist()]) + "\n")
+        atomic_write_bytes(dest, "\n".join([header, *rows[days == day].tolist()]) + "\n", now=True)
         written.append(dest)
     return written
 
@@ -231,10 +243,10 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
     mk = write_messenger_like_kernels(work / "kernels", start_utc,
                                       duration_s + 2 * config.lead_s,
                                       plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)])
-    with KernelPool(mk):
+    with KernelPool(mk, frames=FRAME_KERNELS):
         sim = simulate(config, load_calibration(start_utc), SclkKernel.from_pool(SPACECRAFT_ID))
     paths = {"kernels": mk, **write_inputs(sim, work / "inputs")}
-    with KernelPool(paths["kernels"]):
+    with KernelPool(paths["kernels"], frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         days = []
         for key, stream in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):

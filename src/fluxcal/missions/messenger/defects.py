@@ -59,6 +59,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+import scipy.ndimage
 import xarray as xr
 from numba import njit
 
@@ -78,11 +79,12 @@ DEFECT_ACTIONS = {"heater_gap": "flagged", "temperature_gap": "flagged",
                   "clock_jump": "dropped"}
 #: ``flag_meanings`` of the products' ``defect_flag`` (bit order).
 FLAG_MEANINGS = " ".join(DEFECT_FLAGS)
-#: A temperature record further than this (degC) from the line through its two
-#: neighbours (and further than they are from theirs) is a glitch.  Table 2's steepest slope (6.62
-#: counts/degC) makes 0.3 degC the smallest jump that trips sec. 13's 2-count check; 0.5
-#: degC leaves room for a record's quantisation and for real curvature (the sensor's
-#: fastest changes, e.g. the 55-C excursions, bend by far less between 10-s records).
+#: A temperature record further than this (degC) from the lines through its two neighbours
+#: on each side, on the same side of both, is a glitch (`drop_temperature_glitches`).
+#: Table 2's steepest slope (6.62 counts/degC) makes 0.3 degC the smallest jump that trips
+#: sec. 13's 2-count check; 0.5 degC leaves room for a record's quantisation and for real
+#: curvature (the sensor's fastest changes, e.g. the 55-C excursions, bend by far less
+#: between 10-s records).
 GLITCH_DEGC = 0.5
 #: A science step longer than this many nominal sample spacings (of the slower side) is
 #: a gap: the gap rule of the sec. 13 check (`levels.validation.GAP_SPACINGS`).
@@ -180,17 +182,54 @@ def clock_jumps(partition: np.ndarray, met: np.ndarray, keep: np.ndarray, *, str
     return out
 
 
+def _line_departure(t: np.ndarray, met: np.ndarray, part: np.ndarray,
+                    side: int) -> np.ndarray:
+    """Signed departure of each record from the line through its two neighbours on one side.
+
+    ``side = -1``: the line through records ``i - 2`` and ``i - 1``, extrapolated to
+    ``i``; ``side = +1``: through ``i + 1`` and ``i + 2``.  NaN where that side has fewer
+    than two records of the same partition.
+    """
+    n = t.size
+    out = np.full(n, np.nan)
+    if n < 3:
+        return out
+    i = np.arange(2, n) if side < 0 else np.arange(0, n - 2)
+    a, b = (i - 2, i - 1) if side < 0 else (i + 2, i + 1)  # far, near
+    ok = (part[a] == part[i]) & (part[b] == part[i]) & (met[b] != met[a])
+    slope = (t[b] - t[a]) / np.where(ok, met[b] - met[a], 1.0)
+    out[i] = np.where(ok, t[i] - (t[b] + slope * (met[i] - met[b])), np.nan)
+    return out
+
+
 def drop_temperature_glitches(
     temperature: xr.Dataset, threshold_degc: float = GLITCH_DEGC
 ) -> xr.Dataset:
     """Drop isolated glitch records of the temperature stream; record them for the flags.
 
-    A record ``i`` (with records ``i - 1`` and ``i + 1`` of the same partition) is a
+    A glitch is a spike: one record off a curve its neighbours follow.  Record ``i`` is a
     glitch when it lies more than ``threshold_degc`` from the line through its two
-    neighbours and further than either neighbour from theirs (a glitch of ``d`` leaves
-    ``d / 2`` at each neighbour).  The linear interpolation of sec. 7 then bridges it.
-    The dropped records are listed in ``attrs["temperature_glitches"]`` as
-    ``[partition, met_before, met_after, met, T]``.
+    neighbours on the left (records ``i - 2``, ``i - 1`` of its partition) extrapolated
+    to it *and* from the line through its two neighbours on the right, on the same side
+    of both (at the first and last records but one, where a side lacks two records, the
+    chord through ``i - 1`` and ``i + 1`` stands in for it).  A spike of ``d`` is ``d``
+    off both lines; its neighbours are not (each lies on the line of its far side).
+
+    A spike also bends the one-sided lines of the records two away from it, so of the
+    records found within two records of each other only the one with the largest score
+    (the smaller of its distances from the two lines plus its distance from the chord) is
+    a glitch.
+
+    A kink -- a real turning point of the temperature, e.g. the apex of a heater-off warm
+    excursion, where the slope changes at a record -- lies *on* both one-sided lines (the
+    neighbours lie on their straight lines, which meet at the record), however far it is
+    from the chord, so it is kept: dropping it and interpolating the temperature left up
+    to 0.39 nT in the fine-range field (issue 31; docs/decisions/messenger.md).  A spike
+    on a kink is still found (both lines meet at the kink).  Smooth curvature ``a`` puts
+    a record ``2 a h^2`` off the lines (``h`` the record spacing): 0.02 C for the
+    sensor's 55-C excursions at 10-s records.  The linear interpolation of sec. 7 then
+    bridges a glitch.  The dropped records are listed in
+    ``attrs["temperature_glitches"]`` as ``[partition, met_before, met_after, met, T]``.
 
     References
     ----------
@@ -202,19 +241,43 @@ def drop_temperature_glitches(
     part = np.asarray(temperature["partition"].values)
     if t.size < 3:
         return temperature.assign_attrs(temperature_glitches=[])
-    same = (part[1:-1] == part[:-2]) & (part[1:-1] == part[2:])
-    # distance from the line through the two neighbours (time-weighted: records need not
-    # be evenly spaced); a glitch of d puts d there and d/2 at each neighbour
-    w = (met[1:-1] - met[:-2]) / np.maximum(met[2:] - met[:-2], 1e-9)
-    off = np.where(same, np.abs(t[1:-1] - ((1 - w) * t[:-2] + w * t[2:])), 0.0)
-    padded = np.r_[0.0, off, 0.0]
-    peak = (off >= padded[:-2]) & (off >= padded[2:])
-    bad = np.flatnonzero(peak & (off > threshold_degc)) + 1
-    glitches = [[float(part[i]), float(met[i - 1]), float(met[i + 1]), float(met[i]),
-                 float(t[i])] for i in bad]
-    keep = np.ones(t.size, dtype=bool)
-    keep[bad] = False
+    score = _spike_score(t, met, part, threshold_degc)
+    # a spike bends the lines of the records two away from it: of the spikes within two
+    # records of each other only the largest score is one (ties: the earlier record)
+    ranked = score - 1e-9 * np.arange(score.size) / max(score.size, 1)
+    best = scipy.ndimage.maximum_filter1d(ranked, 5, mode="constant", cval=-np.inf)
+    keep = ~((score > 0) & (ranked >= best))
+    bad = np.flatnonzero(~keep)
+    kept = np.flatnonzero(keep)
+    pos = np.searchsorted(kept, bad)
+    glitches = [[float(part[i]), float(met[kept[k - 1]]), float(met[kept[k]]), float(met[i]),
+                 float(t[i])] for i, k in zip(bad, pos, strict=True)]
     return temperature.isel(temperature_time=keep).assign_attrs(temperature_glitches=glitches)
+
+
+def _spike_score(t: np.ndarray, met: np.ndarray, part: np.ndarray,
+                 threshold_degc: float) -> np.ndarray:
+    """Score of each record as a spike (`drop_temperature_glitches`); 0 where it is none.
+
+    A spike lies more than ``threshold_degc`` off both one-sided lines, on the same side;
+    its score is the smaller of those two distances plus its distance from the chord (a
+    record two away from a spike, or beside a kink, has one line bent and the chord
+    nearly through it).
+    """
+    n = t.size
+    same = (part[1:-1] == part[:-2]) & (part[1:-1] == part[2:])
+    # signed distance from the chord through the two neighbours (time-weighted: records
+    # need not be evenly spaced): stands in for a side without two records
+    w = (met[1:-1] - met[:-2]) / np.maximum(met[2:] - met[:-2], 1e-9)
+    chord = np.full(n, np.nan)
+    chord[1:-1] = np.where(same, t[1:-1] - ((1 - w) * t[:-2] + w * t[2:]), np.nan)
+    left, right = (_line_departure(t, met, part, side) for side in (-1, 1))
+    left, right = np.where(np.isnan(left), chord, left), np.where(np.isnan(right), chord, right)
+    with np.errstate(invalid="ignore"):  # NaN: a side without records, never a glitch
+        spike = ((np.abs(left) > threshold_degc) & (np.abs(right) > threshold_degc)
+                 & (np.sign(left) == np.sign(right)))
+    return np.where(spike, np.minimum(np.abs(left), np.abs(right))
+                    + np.abs(np.nan_to_num(chord)), 0.0)
 
 
 def heater_settle_s(cal) -> float:

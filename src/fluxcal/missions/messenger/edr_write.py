@@ -38,8 +38,10 @@ from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.columns import Column
 from fluxcal.products.label import Symbol, read_label, render_label
+from fluxcal.products.paths import make_folder
 from fluxcal.products.tab import write_tab
 
 #: Samples per simulated science packet (fluxcal's fixture choice: odd, so packets start
@@ -151,7 +153,7 @@ def _write(ds: xr.Dataset, columns: list[Column], stem: Path, vectors: dict[str,
         for key in ("PDS_VERSION_ID", "RECORD_TYPE", "INTERCHANGE_FORMAT", "DATA_TYPE"):
             if key in block:  # symbols again (reading the label back made them text)
                 block[key] = Symbol(str(block[key]))
-    lbl.write_text(render_label(label), encoding="ascii", newline="")
+    atomic_write_bytes(lbl, render_label(label).encode("ascii"), now=True)
     return [tab, lbl]
 
 
@@ -256,7 +258,7 @@ def write_edr_archive(
                 pattern = m[kind]["file"]["pattern"]
                 name = _name(pattern, yyddd, hhmm, v)
                 folder = out / _FILE_TAGS[kind] / f"20{yyddd[:2]}"
-                folder.mkdir(parents=True, exist_ok=True)
+                make_folder(folder)
                 p0, p1 = int(part[rows[0]]), int(part[rows[-1]])
                 extra = {"DATA_SET_ID": DATA_SET_ID, "INSTRUMENT_ID": "MAG",
                          "PRODUCT_VERSION_ID": str(v),
@@ -391,7 +393,7 @@ def filled_mapping(template: str | Path, out: str | Path,
                      text)
     if n != 1:
         raise ValueError(f"{template}: no empty 'coefficients = []' line to fill")
-    Path(out).write_text(new, encoding="utf-8")
+    atomic_write_bytes(Path(out), new, now=True)
     return Path(out)
 
 
@@ -415,14 +417,14 @@ def simulate_edr_layout(out: str | Path, start_utc: str = "2012-06-01T00:00:00",
         ``temperature``, ``truth``.
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     config = SimulationConfig(start_utc=start_utc, duration_s=duration_s,
                               solar_wind=solar_wind)
     mk = write_messenger_like_kernels(
         out / "kernels", start_utc, duration_s + 2 * config.lead_s,
         plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)],
     )
-    (out / "edr").mkdir(exist_ok=True)
+    make_folder(out / "edr")
     mapping = filled_mapping(template_path(), out / "edr" / "edr_mapping.toml")
     c0, c1 = -150.0, 0.0625
     with KernelPool(mk, frames=FRAME_KERNELS):

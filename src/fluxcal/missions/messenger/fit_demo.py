@@ -25,15 +25,20 @@ References
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
 
 from fluxcal.calibration.offsets import two_segment_offset
-from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.calibration_data import (
+    data_dir,
+    load_calibration,
+    required_look_back_s,
+)
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.solar_wind import alfvenic_wind
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 
 #: The training winds of `simulate_training`: ``realistic`` (the default) or ``quiet``.
 FIELDS = ("realistic", "quiet")
@@ -57,10 +62,10 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
     import re
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     src = data_dir()
     for p in src.glob("*_v1.*"):
-        shutil.copyfile(p, out / p.name)
+        atomic_write_bytes(out / p.name, p.read_bytes(), now=True)
     rows = []
     for line in (src / "offsets_temperature_v1.csv").read_text().splitlines():
         if line.startswith(("x,", "y,", "z,")):
@@ -69,14 +74,14 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
             b0, b1 = float(b0) * temperature_scale, float(b1) * temperature_scale
             line = f"{a},{a0:.6f},{b0:.6f},{a1:.6f},{b1:.6f},{(a0 - a1) / (b1 - b0):.6f}"
         rows.append(line.replace("# version: 1", "# version: 2"))
-    (out / "offsets_temperature_v2.csv").write_text("\n".join(rows) + "\n")
+    atomic_write_bytes(out / "offsets_temperature_v2.csv", "\n".join(rows) + "\n", now=True)
     rows = []
     for line in (src / "offsets_duty_cycle_v1.csv").read_text().splitlines():
         if line.startswith(("x,", "y,", "z,")):
             a, c0, d0 = line.split(",")
             line = f"{a},{c0},{float(d0) * d0_scale:.6f}"
         rows.append(line.replace("# version: 1", "# version: 2"))
-    (out / "offsets_duty_cycle_v2.csv").write_text("\n".join(rows) + "\n")
+    atomic_write_bytes(out / "offsets_duty_cycle_v2.csv", "\n".join(rows) + "\n", now=True)
     for axis in "xyz":
         rows = []
         for line in (src / f"heater_signal_{axis}_v1.csv").read_text().splitlines():
@@ -84,11 +89,14 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
                 t, *vals = line.split(",")
                 line = t + "," + ",".join(f"{float(v) * waveform_scale:.5f}" for v in vals)
             rows.append(line.replace("# version: 1", "# version: 2"))
-        (out / f"heater_signal_{axis}_v2.csv").write_text("\n".join(rows) + "\n")
+        atomic_write_bytes(out / f"heater_signal_{axis}_v2.csv", "\n".join(rows) + "\n", now=True)
     text = (src / "processing_v1.toml").read_text()
     text = re.sub(r"(?m)^version = 1", "version = 2", text)
     text = re.sub(r"(?m)^tau_s = .*$", f"tau_s = {tau_s}", text)
-    (out / "processing_v2.toml").write_text(text)
+    # the look-back follows tau (sec. 7's truncation; `calibration_data.check_look_back`)
+    text = re.sub(r"(?m)^look_back_s = .*$",
+                  f"look_back_s = {np.ceil(required_look_back_s(tau_s) * 10) / 10:.1f}", text)
+    atomic_write_bytes(out / "processing_v2.toml", text, now=True)
     return out
 
 
@@ -162,6 +170,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.errors import FitRefusedError
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger import fit_merit
     from fluxcal.missions.messenger.fit import Chunk, check_fit, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.pipeline import calibrate
@@ -180,16 +189,18 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     # figures it refuses (the command line, `fluxcal messenger fit`, writes nothing then)
     result = fit_days([chunk], base, estimator="variance", guard=False, hold_d0=("z",))
     try:
+        if not result.convergence["converged"]:
+            raise FitRefusedError(result.convergence["stop"])
         check_fit(result)
+        fit_merit.check_merit(result)
         verdict, fitted = "accepted by the guards", out / "fitted"
     except FitRefusedError as exc:
         verdict = f"REFUSED by the guards (the command would write nothing): {exc}"
         fitted = out / "fitted_refused"
-    for old in (out / "fitted", out / "fitted_refused"):
-        if old.exists():
-            shutil.rmtree(old)
+    # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
     write_calibration_folder(result, fitted, None, {
-        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"})
+        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"},
+        study=fitted.name == "fitted_refused")
     # an unseen day (after the training): the forward model's own field and schedule
     unseen = "2012-06-04T00:00:00"
     config = SimulationConfig(start_utc=unseen, duration_s=7200.0)

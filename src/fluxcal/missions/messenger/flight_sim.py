@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import re
-import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
@@ -63,6 +62,8 @@ from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
+from fluxcal.products.atomic import atomic_path, atomic_write_bytes
+from fluxcal.products.paths import make_folder
 
 DAY_S = 86_400.0
 #: Heater period (s) and the controller's evaluation interval (s), sec. 6 and 7.
@@ -268,7 +269,8 @@ def _rewrite_csv(src: Path, dest: Path, columns: dict[str, list[str]], note: str
             row[j] = value
     header = [re.sub(r"^# version: \d+", f"# version: {version}", ln) for ln in header]
     header.insert(2, f"# fluxcal flight simulation TRUTH: {note}")
-    dest.write_text("\n".join(header + [",".join(names)] + [",".join(r) for r in rows]) + "\n")
+    atomic_write_bytes(dest, "\n".join(header + [",".join(names)]
+                                        + [",".join(r) for r in rows]) + "\n", now=True)
 
 
 def write_true_calibration(folder: str | Path, changes: CalibrationChanges | None = None
@@ -291,7 +293,7 @@ def write_true_calibration(folder: str | Path, changes: CalibrationChanges | Non
     """
     ch = changes or CalibrationChanges()
     out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     seed = forward.read_tables(None)
     v = ch.version
     paths: list[Path] = []
@@ -329,11 +331,11 @@ def write_true_calibration(folder: str | Path, changes: CalibrationChanges | Non
     text = re.sub(r"(?m)^version = \d+", f"version = {v}", text)
     text = re.sub(r"(?m)^tau_s = .*$", f"tau_s = {tau:.3f}", text)
     p = out / f"processing_v{v}.toml"
-    p.write_text(f"# fluxcal flight simulation TRUTH: tau x {ch.tau}\n" + text)
+    atomic_write_bytes(p, f"# fluxcal flight simulation TRUTH: tau x {ch.tau}\n" + text, now=True)
     paths.append(p)
     for name in ("latency", "gain_matrix"):
         p = out / _packaged(name).name
-        shutil.copyfile(_packaged(name), p)
+        atomic_write_bytes(p, _packaged(name).read_bytes(), now=True)
         paths.append(p)
     return paths
 
@@ -497,11 +499,9 @@ def _write(path: Path, header: str, columns: list[np.ndarray]) -> None:
     (MET and temperatures stay exact).
     """
     table = pa.table(dict(zip(header.split(","), columns, strict=True)))
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("wb") as fh:
+    with atomic_path(path, now=True) as tmp, tmp.open("wb") as fh:
         fh.write((header + "\n").encode())
         pacsv.write_csv(table, fh, write_options=pacsv.WriteOptions(include_header=False))
-    tmp.replace(path)
 
 
 def _day_samples(met_a: float, met_b: float, t0_met: float, config: FlightConfig,
@@ -566,7 +566,7 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
     cal_dir = out / "calibration"
     tables = forward.read_tables(write_true_calibration(cal_dir, changes))
     inp = out / "input"
-    inp.mkdir(parents=True, exist_ok=True)
+    make_folder(inp)
     first = _dt.date.fromisoformat(config.start)
     start_utc = f"{first}T00:00:00"
     span = config.days * DAY_S
@@ -650,10 +650,10 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
                    [np.full(met_rec.size, partition), met_rec, rate, rng_flag,
                     counts[:, 0], counts[:, 1], counts[:, 2]])
             if truth:
-                (inp / "truth").mkdir(exist_ok=True)
-                np.savez(inp / "truth" / f"MAGTRUTH_{stem}.npz", met=met_rec, range=rng_flag,
-                         b_sensor=b, zero_level=zero, temperature_c=temp,
-                         duty_percent=d_sample)
+                make_folder(inp / "truth")
+                with atomic_path(inp / "truth" / f"MAGTRUTH_{stem}.npz", now=True) as tmp:
+                    np.savez(tmp, met=met_rec, range=rng_flag, b_sensor=b, zero_level=zero,
+                             temperature_c=temp, duty_percent=d_sample)
             written.append(day)
             total += met_rec.size
     return FlightRun(inp, cal_dir, written, total, sched.duty_percent, origin)

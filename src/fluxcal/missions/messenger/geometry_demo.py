@@ -13,6 +13,8 @@ from fluxcal.geometry.positions import position, rtn_spherical
 from fluxcal.geometry.time import SclkKernel, et_to_tt2000, tt2000_to_utc
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, NAIF_NAME, SPACECRAFT_ID
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 
 MERCURY_RADIUS_KM = 2440.0
 
@@ -32,7 +34,7 @@ def run_geometry_demo(out: Path, rate_hz: float = 1.0) -> str:
     str
         The printed summary.
     """
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     meta = write_messenger_like_kernels(out / "kernels", "2012-06-01T00:00:00", 86400.0,
                                         plus_y_sunward=[(30000.0, 34000.0)])
     lines = [f"Synthetic MESSENGER-like kernels: {meta}"]
@@ -67,7 +69,7 @@ def run_geometry_demo(out: Path, rate_hz: float = 1.0) -> str:
         *["  " + " ".join(f"{v:+.6f}" for v in row) for row in mats["MSGR_MSO"][0]],
     ]
     summary = "\n".join(lines)
-    (out / "geometry_summary.txt").write_text(summary + "\n")
+    atomic_write_bytes(out / "geometry_summary.txt", summary + "\n", now=True)
     return summary
 
 

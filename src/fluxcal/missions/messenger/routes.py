@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from fluxcal.archive.pds3 import read_label, table_names
+from fluxcal.missions.messenger.batch_day import day_file, read_day_science
 from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
 from fluxcal.missions.messenger.identity import FRAME_KERNELS
@@ -49,11 +50,16 @@ EDR_MAPPING = "edr_mapping.toml"
 
 @dataclass(frozen=True)
 class CsvSource:
-    """The three CSV streams of a run (docs/formats/messenger.md)."""
+    """The three CSV streams of a run (docs/formats/messenger.md).
+
+    ``day``: a batch day, whose science files are those of the day before, the day and
+    the day after; only the samples of that day are kept (`run.batch_day_rows`).
+    """
 
     science: tuple[Path, ...]
     heater: tuple[Path, ...]
     temperature: tuple[Path, ...]
+    day: _dt.date | None = None
 
 
 @dataclass(frozen=True)
@@ -68,11 +74,6 @@ class EdrSource:
     mapping: Path
     days: tuple[_dt.date, ...] | None = None
     inputs: tuple[Path, ...] | None = None
-
-
-def day_file(folder: Path, stream: str, day: _dt.date) -> Path:
-    """Return ``folder/MAG<stream>_YYYYDDD.csv`` (the batch input layout)."""
-    return Path(folder) / f"MAG{stream}_{day:%Y%j}.csv"
 
 
 def edr_day_files(folder: Path, mapping: Path, day: _dt.date) -> dict[str, list[Path]]:
@@ -91,14 +92,22 @@ def edr_day_files(folder: Path, mapping: Path, day: _dt.date) -> dict[str, list[
 def csv_day_files(folder: Path, day: _dt.date) -> dict[str, list[Path]]:
     """Return a batch day's CSV streams: its science file, heater D-1..D, temperature D-1..D+1.
 
-    The previous day's heater file serves the 5-change look-back of sec. 7.
+    The previous day's heater file serves the 5-change look-back of sec. 7.  Besides
+    (``science_around``, ``heater_after``): the science files of D-1 and D+1 and the
+    heater file of D+1 that exist, which a batch day reads too, for its samples that a
+    file of the day beside holds (a stream across midnight given as one day's files;
+    `run.batch_day_rows`).
     """
     one = _dt.timedelta(days=1)
     heat = [p for p in (day_file(folder, "HTR", day - one), day_file(folder, "HTR", day))
             if p.exists()]
     temp = [p for p in (day_file(folder, "TMP", day - one), day_file(folder, "TMP", day),
                         day_file(folder, "TMP", day + one)) if p.exists()]
-    return {"science": [day_file(folder, "SCI", day)], "heater": heat, "temperature": temp}
+    around = [p for p in (day_file(folder, "SCI", day - one), day_file(folder, "SCI", day + one))
+              if p.exists()]
+    after = [p for p in (day_file(folder, "HTR", day + one),) if p.exists()]
+    return {"science": [day_file(folder, "SCI", day)], "heater": heat, "temperature": temp,
+            "science_around": around, "heater_after": after}
 
 
 def day_file_groups(input_dir: Path, day: _dt.date) -> dict[str, list[Path]]:
@@ -146,10 +155,14 @@ class MessengerRun:
                 return streams, list(source.inputs)
             labels = [Path(p) for ds in streams for p in ds.attrs["inputs"].split(";")]
             return streams, [*labels, *_edr_tables(labels), m.path]
-        streams = (read_science(source.science), read_heater(source.heater),
-                   read_temperature(source.temperature))
-        return streams, [*map(Path, source.science), *map(Path, source.heater),
-                         *map(Path, source.temperature)]
+        if source.day is None:
+            science, read = read_science(source.science), list(map(Path, source.science))
+        else:  # a batch day: its samples, from its file or the files beside it
+            science, read = read_day_science(source.science,
+                                             day_file(Path(source.science[0]).parent, "SCI",
+                                                      source.day), source.day, options.calib)
+        streams = (science, read_heater(source.heater), read_temperature(source.temperature))
+        return streams, [*read, *map(Path, source.heater), *map(Path, source.temperature)]
 
     def size(self, raw: tuple[Any, Any, Any]) -> int:
         """Return the number of science vectors."""
@@ -214,9 +227,12 @@ class MessengerRun:
                 raise DayWithoutData(f"no science EDR of {day} in {input_dir}")
             return EdrSource(input_dir, files["mapping"][0], days=(day,),
                              inputs=tuple(p for group in files.values() for p in group))
-        if not files["science"][0].exists():
-            raise DayWithoutData(f"no science file {files['science'][0]}")
-        return CsvSource(*(tuple(files[k]) for k in ("science", "heater", "temperature")))
+        science = [p for p in files["science"] if p.exists()] + files["science_around"]
+        if not science:
+            raise DayWithoutData(f"no science file {files['science'][0]}, nor of the days "
+                                 "beside it")
+        return CsvSource(tuple(science), (*files["heater"], *files["heater_after"]),
+                         tuple(files["temperature"]), day=day)
 
     @staticmethod
     def _quicklook_frame(options: MessengerOptions) -> str | None:

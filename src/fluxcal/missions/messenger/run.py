@@ -7,6 +7,7 @@ References
 
 from __future__ import annotations
 
+import datetime as _dt
 import logging
 from collections.abc import Sequence
 from pathlib import Path
@@ -105,6 +106,8 @@ def calibrate_run(
         )
     check_frames(frames)
     cal = load_calibration(day_of(sci), calibration_folder)
+    log.info("calibration tables: %s", ", ".join(f"{name} v{version}"
+                                                 for name, version in cal.files))
     if progress is not None:
         progress("calibrating (sec. 5-12)", 0, 1)
     wanted = tuple(frames) + ((quicklook_frame,) if quicklook_frame is not None else ())
@@ -142,10 +145,9 @@ def write_run(
     under temporary names and renamed into place only when all of them succeeded
     (`fluxcal.products.atomic.atomic_group`).  ``only_day`` (``yyddd``) writes that day
     only (other days in the data are dropped, e.g. the previous day's files given for the
-    look-back); a last lag-sized fragment recorded just after the next midnight joins its
-    day first (`merge_tail_fragment`), so a batch day (``only_day``) holds the same
-    samples as a run of the same files without it.  ``quicklook_frame`` writes a
-    quicklook per day in that frame.
+    look-back); a lag-sized fragment recorded just after a midnight joins its day first
+    (`merge_fragment_days`), as a batch day decides it (`batch_day_rows`).
+    ``quicklook_frame`` writes a quicklook per day in that frame.
 
     Raises
     ------
@@ -162,7 +164,7 @@ def write_run(
     written: list[Path] = []
     failures: list[str] = []
     # before ``only_day`` selects: a batch day and a single run split days the same way
-    days = merge_tail_fragment(ds, split_days(ds), float(np.max(cal.net_lag_s)))
+    days = merge_fragment_days(ds, split_days(ds), float(np.max(cal.net_lag_s)))
     spans = defects.span_records(ds)
     for day in days:
         yyddd = day_code(day)[2]
@@ -194,19 +196,32 @@ def quicklook_frame_of(frames: Sequence[str], quicklook: bool,
     return quicklook_frame or (frames[0] if frames else "mso")
 
 
-def merge_tail_fragment(
+def _recorded_et(ds: xr.Dataset) -> np.ndarray:
+    """Return the recorded (EDR) times that decide a sample's product day."""
+    return ds["et_recorded"].values if "et_recorded" in ds else ds["et"].values
+
+
+def _is_fragment(recorded_et: np.ndarray, midnight_et: float, max_lag_s: float) -> bool:
+    """Whether samples (all of one UTC day) were all recorded within ``max_lag_s`` of its start."""
+    return recorded_et.size > 0 and float(recorded_et.max()) - midnight_et < max_lag_s
+
+
+def merge_fragment_days(
     ds: xr.Dataset, days: list[xr.Dataset], max_lag_s: float
 ) -> list[xr.Dataset]:
-    """Merge a last EDR day that is only a lag-sized fragment into the day before it.
+    """Merge each EDR day that is only a lag-sized fragment into the whole day before it.
 
     A product day holds the samples recorded (EDR time) in that UTC day (`split_days`).
     An input cut at midnight of the corrected (true) time, as a simulation or a
     hand-made extract is, leaves its last samples recorded up to one net lag
     (Table 1, at most 2.358 s) after that midnight; they would make a whole second
-    product set of a few samples.  When the last day's samples were all recorded less
-    than ``max_lag_s`` after its midnight they join the previous day's product
-    (a warning says how many); the field values are untouched (0 nT), the product
-    then ends at most ``max_lag_s`` after its UTC day (docs/decisions/messenger.md).
+    product set of a few samples.  A day whose samples were all recorded less than
+    ``max_lag_s`` after its midnight joins the product of the day before it when that
+    day is in the data and is not such a fragment itself (a warning says how many); the
+    field values are untouched (0 nT), the product then ends at most ``max_lag_s``
+    after its UTC day (docs/decisions/messenger.md).  The rule looks at the two days
+    only, so a batch day decides it as a run of every file does
+    (`batch_day_rows`, docs/decisions/products.md).
 
     Parameters
     ----------
@@ -223,19 +238,77 @@ def merge_tail_fragment(
     """
     if len(days) < 2:
         return days
-    last = days[-1]
-    year, doy, _ = day_code(last)
-    midnight = from_day_of_year(year, doy)
-    rec = last["et_recorded"].values if "et_recorded" in last else last["et"].values
-    if float(rec.max()) - float(utc_to_et(np.array([f"{midnight}T00:00:00"]))[0]) >= max_lag_s:
-        return days
-    n = last.sizes["time"] + days[-2].sizes["time"]
-    log.warning(
-        "%d sample(s) recorded less than %.3f s (the largest net lag) after %s 00:00 UTC "
-        "join the previous day's product instead of making a product set of their own",
-        last.sizes["time"], max_lag_s, midnight,
-    )
-    return [*days[:-2], ds.isel(time=slice(ds.sizes["time"] - n, None))]
+    dates = [from_day_of_year(*day_code(d)[:2]) for d in days]
+    midnights = utc_to_et(np.array([f"{d}T00:00:00" for d in dates]))
+    fragment = [_is_fragment(_recorded_et(d), float(m), max_lag_s)
+                for d, m in zip(days, midnights, strict=True)]
+    starts = np.cumsum([0] + [d.sizes["time"] for d in days])
+    groups: list[list[int]] = []
+    for k in range(len(days)):
+        if (k and fragment[k] and not fragment[k - 1]
+                and dates[k] - dates[k - 1] == np.timedelta64(1, "D")):
+            log.warning(
+                "%d sample(s) recorded less than %.3f s (the largest net lag) after %s "
+                "00:00 UTC join the previous day's product instead of making a product "
+                "set of their own", days[k].sizes["time"], max_lag_s, dates[k])
+            groups[-1][1] = k
+        else:
+            groups.append([k, k])
+    return [days[a] if a == b else ds.isel(time=slice(int(starts[a]), int(starts[b + 1])))
+            for a, b in groups]
+
+
+def batch_day_rows(recorded_et: np.ndarray, day: _dt.date, max_lag_s: float,
+                   context_et: np.ndarray | None = None) -> tuple[np.ndarray, str | None]:
+    """Select the science samples a batch day's products hold, of all the samples it read.
+
+    A batch day reads the science files of the day before, the day and the day after
+    (a file may hold samples of the days beside its own: a stream across midnight given
+    as one day's files); it keeps the samples recorded in its own UTC day, so every
+    sample goes to the product of its recorded day whichever file holds it, as in a run
+    of all the files (`split_days`).  The lag-sized fragments of `merge_fragment_days`
+    follow the same rule: the next day's samples join this day when they are only such
+    a fragment and this day is not; this day's own samples, when they are a fragment
+    and the day before is not, are left to the day before (returned as no row, with the
+    reason).
+
+    Parameters
+    ----------
+    recorded_et : ndarray
+        Recorded (EDR) ET of every science sample read (s).
+    day : datetime.date
+        The batch day.
+    max_lag_s : float
+        Largest net lag of the calibration (s, Table 1).
+    context_et : ndarray, optional
+        Recorded ET of samples not read, for the fragment decisions only: the first and
+        last samples of a neighbour's file that holds none of this day's (`batch_day`),
+        which decide them as all its samples would (its records are in time order).
+
+    Returns
+    -------
+    ndarray of bool, str or None
+        The rows of ``recorded_et`` to keep; why none are kept when the day's samples
+        join the day before.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5 (EDR day, Table 1 net lags).
+    """
+    one = _dt.timedelta(days=1)
+    m = utc_to_et(np.array([f"{day + k * one}T00:00:00" for k in (-1, 0, 1, 2)]))
+    n = np.size(recorded_et)
+    rec = np.concatenate([np.asarray(recorded_et, dtype=float),
+                          np.asarray([] if context_et is None else context_et, dtype=float)])
+    before, own, after = ((rec >= m[k]) & (rec < m[k + 1]) for k in range(3))
+    own_fragment = _is_fragment(rec[own], float(m[1]), max_lag_s)
+    if own_fragment and before.any() and not _is_fragment(rec[before], float(m[0]), max_lag_s):
+        return np.zeros(n, dtype=bool), (
+            f"its {int(own.sum())} sample(s), recorded less than {max_lag_s:.3f} s after "
+            f"{day} 00:00 UTC, join the product of {day - one}")
+    if own.any() and not own_fragment and _is_fragment(rec[after], float(m[2]), max_lag_s):
+        return (own | after)[:n], None
+    return own[:n], None
 
 
 def write_day_outputs(

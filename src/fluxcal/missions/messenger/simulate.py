@@ -40,6 +40,8 @@ from fluxcal.geometry.positions import position
 from fluxcal.geometry.time import et_to_tt2000, utc_to_et
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
+from fluxcal.products.atomic import atomic_path
+from fluxcal.products.paths import make_folder
 
 if TYPE_CHECKING:
     from fluxcal.geometry.time import SclkKernel
@@ -408,8 +410,7 @@ def simulate(
 
 
 def _write_csv(path: Path, header: str, columns: list[np.ndarray], fmts: list[str]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w") as fh:
+    with atomic_path(path, now=True) as tmp, tmp.open("w") as fh:
         fh.write(header + "\n")
         # format column-wise with numpy to keep exact fixed-point text
         cols = [np.char.mod(f, c) for f, c in zip(fmts, columns, strict=True)]
@@ -418,7 +419,6 @@ def _write_csv(path: Path, header: str, columns: list[np.ndarray], fmts: list[st
             lines = np.char.add(np.char.add(lines, ","), c)
         fh.write("\n".join(lines.tolist()))
         fh.write("\n")
-    tmp.replace(path)
 
 
 def write_inputs(sim: dict[str, xr.Dataset], out_dir: str | Path, stem: str = "MAG") -> dict:
@@ -430,7 +430,7 @@ def write_inputs(sim: dict[str, xr.Dataset], out_dir: str | Path, stem: str = "M
         Paths keyed ``"science"``, ``"heater"``, ``"temperature"``, ``"truth"``.
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     s, h, t, tr = sim["science"], sim["heater"], sim["temperature"], sim["truth"]
     paths = {k: out / f"{stem}_{k}.csv" for k in ("science", "heater", "temperature", "truth")}
     c = s["counts"].values

@@ -17,7 +17,6 @@ References
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,8 @@ from fluxcal.errors import FluxcalError
 from fluxcal.missions.rosetta import calib
 from fluxcal.missions.rosetta.io import _utc
 from fluxcal.products import Column
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 from fluxcal.products.tab import write_tab
 
 EDITED = ("DATA", "EDITED")
@@ -97,7 +98,7 @@ def _write(ds: xr.Dataset, rows: np.ndarray, stem: Path, columns, extra: dict,
         raise FluxcalError(f"two EDITED products would be named {stem.name} (the same mode "
                            "starting twice within one minute)")
     seen.add(stem.name)
-    stem.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(stem.parent)
     piece = ds.isel(time=rows)
     piece.attrs = {"description": "archive-style EDITED raw product written by fluxcal"}
     return write_tab(piece, stem, columns=columns, label_extra=extra)
@@ -160,6 +161,6 @@ def write_archive_calibration(calib_dir: Path) -> list[Path]:
     out = []
     for name in calib.GROUND_FILE.values():  # the archive's names: calib.ARCHIVE_NAMES
         dest = Path(calib_dir) / calib.ARCHIVE_NAMES[name]
-        shutil.copyfile(calib.default_dir() / name, dest)
+        atomic_write_bytes(dest, (calib.default_dir() / name).read_bytes(), now=True)
         out.append(dest)
     return out

@@ -67,6 +67,7 @@ from fluxcal.geometry.time import SclkKernel, leapseconds
 from fluxcal.missions.rosetta import calib, io, level_a
 from fluxcal.missions.rosetta.archive import find_products, read_science, source_files
 from fluxcal.missions.rosetta.extended_model import stitch_day
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.level_a import stitch_edges
 from fluxcal.missions.rosetta.simulate import (
     simulate,
@@ -76,6 +77,7 @@ from fluxcal.missions.rosetta.simulate import (
 )
 from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 from fluxcal.runs.batch import worker_kernel_pool
 
 log = logging.getLogger(__name__)
@@ -354,7 +356,7 @@ def simulate_days(
     days = sorted(days)
     duration = float(minutes) * 60.0
     calib_dir = input_dir / "calib"
-    calib_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(calib_dir)
     alignment = synthetic_alignment()
     calib.write_alignment(alignment, calib_dir / calib.ALIGN_FILE)
     models = synthetic_daily_models([np.datetime64(d.isoformat(), "D") for d in days])
@@ -372,11 +374,11 @@ def simulate_days(
     nominal = calib.load_nominal_conversion()
     jumps = calib.load_offset_jump_table()
     folders = []
-    with KernelPool(meta):
+    with KernelPool(meta, frames=FRAME_KERNELS):
         lsk = leapseconds()
         for k, day in enumerate(days):
             folder = day_folder(input_dir, day)
-            folder.mkdir(parents=True, exist_ok=True)
+            make_folder(folder)
             sim = simulate(
                 f"{day.isoformat()}T{start_time}", duration, calibrations=cals,
                 time_shifts=shifts, nominal=nominal, alignment=alignment, jumps=jumps,

@@ -22,7 +22,6 @@ from __future__ import annotations
 import csv
 import io
 import logging
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +33,8 @@ from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import check_average
+from fluxcal.products.atomic import atomic_path
+from fluxcal.products.paths import make_folder, plain_name
 from fluxcal.textfile import read_text
 
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
@@ -147,7 +148,7 @@ def write_clean_level(
     from fluxcal.products.cdf import istp_file_stem
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors to write")
@@ -361,14 +362,11 @@ def _save(fig, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
     try:
-        fig.savefig(tmp, dpi=100, format="png")
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=100, format="png")
     finally:
         plt.close(fig)
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -481,7 +479,9 @@ def clean_files(
                 )
         used_inputs: list[Path] = list(inputs)
         src = data[0]
-        sensor = str(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")))
+        # a name from the input's metadata becomes part of file names (paths rule 3)
+        sensor = plain_name(src.attrs.get("sensor", src.attrs.get("SENSOR", "OB")),
+                            what="SENSOR", path=str(inputs[0]))
         if level == "H":
             if wheels is not None:
                 used_inputs.append(Path(wheels))

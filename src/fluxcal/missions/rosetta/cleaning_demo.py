@@ -15,6 +15,8 @@ import numpy as np
 from fluxcal.cleaning.minimum_variance import minimum_variance
 from fluxcal.cleaning.spectral_lines import remove_spectral_lines
 from fluxcal.cleaning.steps import remove_heater_steps
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import make_folder
 
 FS = 20.0
 
@@ -55,7 +57,7 @@ def run_demo(out: Path, hours: float = 1.0, seed: int = 3) -> str:
     str
         The printed summary.
     """
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     rng = np.random.default_rng(seed)
     n = int(hours * 3600 * FS)
     t = np.arange(n) / FS
@@ -106,5 +108,5 @@ def run_demo(out: Path, hours: float = 1.0, seed: int = 3) -> str:
         + " ".join(f"{v:.4f}" for v in np.sqrt(np.mean(residual**2, axis=0))),
     ]
     summary = "\n".join(lines_out)
-    (out / "cleaning_summary.txt").write_text(summary + "\n")
+    atomic_write_bytes(out / "cleaning_summary.txt", summary + "\n", now=True)
     return summary

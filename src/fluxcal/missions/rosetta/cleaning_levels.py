@@ -30,6 +30,7 @@ import numpy as np
 import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
+from fluxcal.cleaning.heater_pooling import pool_heater_signs
 from fluxcal.cleaning.pca import two_sensor_pca
 from fluxcal.cleaning.resample import (
     TwoSensorResample,
@@ -64,6 +65,10 @@ log = logging.getLogger(__name__)
 #: MEDIUM (5 vectors/s) and BURST (20 vectors/s) modes: the only rates at which the
 #: wheel lines emerge from the noise (seed 003 sec. 4.9); others pass through unchanged.
 CLEANABLE_RATES_HZ = (5.0, 20.0)
+#: LEVEL_K: stretches further apart than this (s) are not compared at their border when
+#: the heater-off level is pooled (`fluxcal.cleaning.heater_pooling`): over a longer gap
+#: the background may move by as much as a lander heater's field.
+POOL_MAX_GAP_S = 1.0
 
 
 def _vectors(ds: xr.Dataset, level: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -565,20 +570,25 @@ def level_k(
     for _, group in _groups(level_b):
         group = group[np.argsort(epoch[group], kind="stable")]
         stretches += [group[a:c] for a, c in _uniform_segments(epoch[group], max_gap_s)]
+    params = dict(width=width, threshold=threshold, k_mad=k_mad,
+                  average_samples=average_samples, baseline_segments=baseline_segments)
+    cleaned = []
     for idx in stretches:
         if idx.size < max(min_segment, 2 * width + 2):
             unchanged += idx.size
             continue
-        res = remove_heater_steps(
-            b[idx],
-            width=width,
-            threshold=threshold,
-            k_mad=k_mad,
-            average_samples=average_samples,
-            baseline_segments=baseline_segments,
-            direction=direction,
-            heater_sign=None if direction is None else 1,
-        )
+        res = remove_heater_steps(b[idx], direction=direction,
+                                  heater_sign=None if direction is None else 1, **params)
+        cleaned.append((idx, res))
+    if direction is None:  # a stretch that cannot tell the off level asks the others
+        results = pool_heater_signs(
+            [epoch[idx] * 1e-9 for idx, _ in cleaned], [b[idx] for idx, _ in cleaned],
+            [res for _, res in cleaned],
+            lambda k, e, sign: remove_heater_steps(b[cleaned[k][0]], direction=e,
+                                                   heater_sign=sign, **params),
+            max_gap_s=POOL_MAX_GAP_S, samples=average_samples)
+        cleaned = [(idx, res) for (idx, _), res in zip(cleaned, results, strict=True)]
+    for idx, res in cleaned:
         out_b[idx] = res.values
         n_jumps += int(res.jump_indices.size)
         thresholds.append(float(res.threshold))

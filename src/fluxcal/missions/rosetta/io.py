@@ -16,7 +16,6 @@ the file, line and field.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -30,6 +29,7 @@ from fluxcal.geometry.time import tt2000_to_utc, utc_to_tt2000
 from fluxcal.missions.rosetta.calib import check_sensor
 from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
 from fluxcal.missions.rosetta.input_checks import report_time_defects
+from fluxcal.products.atomic import atomic_path
 from fluxcal.textfile import decode_text
 
 SCIENCE_COLUMNS = ("time_utc", "obt", "sid", "bx", "by", "bz", "t_ob", "t_ib", "quality")
@@ -391,8 +391,7 @@ def _write_atomic(path: Path, header: tuple[str, ...], columns: Sequence[Column]
     path = Path(path)
     cols = [c if isinstance(c, tuple) else (c, None) for c in columns]
     n = len(cols[0][0])
-    tmp = path.with_name(path.name + ".tmp")
-    try:
+    with atomic_path(path, now=True) as tmp:
         with open(tmp, "w", encoding="ascii") as fh:
             fh.write(",".join(header) + "\n")
             if n == 0:
@@ -405,9 +404,6 @@ def _write_atomic(path: Path, header: tuple[str, ...], columns: Sequence[Column]
                 for c in text[1:]:
                     rows = np.char.add(np.char.add(rows, ","), c)
                 fh.write("\n".join(rows.tolist()) + "\n")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return path
 
 

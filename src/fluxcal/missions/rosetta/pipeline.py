@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,9 @@ from fluxcal.geometry.days import utc_days
 from fluxcal.geometry.time import tt2000_to_utc
 from fluxcal.missions.rosetta import archive, calib, hk, level_a
 from fluxcal.products import Column, write_product
+from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.cdf import istp_file_stem
+from fluxcal.products.paths import make_folder
 
 log = logging.getLogger(__name__)
 
@@ -185,7 +186,7 @@ def write_level(
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]
     seconds = ds.attrs.get("average_seconds")
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors left to write")
@@ -530,10 +531,7 @@ def write_stitch_state(state: dict | None, path: Path) -> Path | None:
     if not state:
         path.unlink(missing_ok=True)
         return None
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(state, indent=1), encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    return atomic_write_bytes(path, json.dumps(state, indent=1), now=True)
 
 
 def _round_us(epoch: np.ndarray) -> np.ndarray:

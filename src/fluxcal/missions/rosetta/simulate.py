@@ -60,6 +60,7 @@ from fluxcal.missions.rosetta.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.rosetta.io import _write_atomic
 from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
 from fluxcal.missions.solar_wind import AlfvenicWind, alfvenic_wind
+from fluxcal.products.paths import make_folder
 
 log = logging.getLogger(__name__)
 NS = 1_000_000_000
@@ -475,7 +476,7 @@ def write_simulation(
     out = Path(out)
     archive = "archive" in layouts
     calib_dir = out / ("CALIB" if archive else "calib")
-    calib_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(calib_dir)
     duration = float(hours) * 3600.0
     meta = write_rosetta_like_kernels(out / "kernels", start_utc, duration, margin_s=3600.0)
     if archive:

@@ -30,7 +30,8 @@ from fluxcal.geometry.synthetic import (
     write_meta_kernel,
     write_spk,
 )
-from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS, SPACECRAFT_ID
+from fluxcal.products.atomic import atomic_write_bytes
 
 ROSETTA_FK = """KPL/FK
 
@@ -79,13 +80,13 @@ def write_rosetta_like_kernels(
     Returns
     -------
     Path
-        The meta-kernel ``rosetta_synthetic.tm``.
+        The meta-kernel ``rosetta_synthetic.tm`` (SCLK, FK, SPK, CK, and the frames of
+        `FRAME_KERNELS` copied beside them, listed last as a pool loaded them before).
     """
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "ros_synthetic")
     with KernelPool([], frames={}):
         epoch0 = tdt("2003-01-01T00:00:00")
-        sclk_path.write_text(
-            sclk_text(
+        atomic_write_bytes(sclk_path, sclk_text(
                 SPACECRAFT_ID,
                 (4294967296, 65536),
                 [(0.0, 2.81474976710655e14)],
@@ -95,9 +96,8 @@ def write_rosetta_like_kernels(
                 ],
                 f"fluxcal synthetic Rosetta-like SCLK (id {SPACECRAFT_ID}): OBT seconds since "
                 "2003-01-01.",
-            )
-        )
-        fk_path.write_text(ROSETTA_FK)
+            ), now=True)
+        atomic_write_bytes(fk_path, ROSETTA_FK, now=True)
         with furnished(sclk_path, fk_path):
             et0 = spiceypy.str2et(start_utc) - margin_s
             et1 = spiceypy.str2et(start_utc) + duration_s + margin_s
@@ -121,4 +121,9 @@ def write_rosetta_like_kernels(
             cmat = np.stack([x_axis, y_axis, z_axis], axis=1)
             write_ck(ck_path, SPACECRAFT_ID * 1000, SPACECRAFT_ID, att_epochs, cmat,
                      "ROSETTA-LIKE ATTITUDE")
-    return write_meta_kernel(out / "rosetta_synthetic.tm", [sclk_path, fk_path, spk_path, ck_path])
+    # the comet-centred frame (CSEQ) in the set, as the real set's comet FK has it
+    frames = [out / p.name for p in FRAME_KERNELS.values()]
+    for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
+        dest.write_bytes(Path(src).read_bytes())
+    return write_meta_kernel(out / "rosetta_synthetic.tm",
+                             [sclk_path, fk_path, spk_path, ck_path, *frames])
