@@ -198,22 +198,34 @@ def _team_python() -> str | None:
 
 
 _TEAM_SCRIPT = """
-import sys, numpy as np, spiceypy
+import sys, numpy as np, spiceypy, cdflib, xarray as xr
 from pathlib import Path
 spiceypy.furnsh(sys.argv[1]); spiceypy.furnsh(sys.argv[2])
 from imap_processing.mag.l1a.mag_l1a import mag_l1a
+from imap_processing.mag.l1b.mag_l1b import mag_l1b
+day = np.datetime64("2025-10-17", "ns")
+c = cdflib.CDF(sys.argv[4])
+cal = xr.Dataset({n: (("epoch", "row", "col", "range"), c.varget(n)[None])
+                  for n in ("MFOTOURFO", "MFITOURFI")}
+                 | {n: (("epoch",), np.atleast_1d(c.varget(n))) for n in ("OTS", "ITS")},
+                 coords={"epoch": [day]})
 out = {}
 for ds in mag_l1a(Path(sys.argv[3])):
     if "vectors" in ds:
         key = ds.attrs["Logical_source"].split("_")[-1]
         out[key + "_vectors"] = ds["vectors"].values
         out[key + "_flags"] = ds["compression_flags"].values
-np.savez(sys.argv[4], **out)
+        out[key + "_b"] = mag_l1b(ds, day, cal)["vectors"].values
+np.savez(sys.argv[5], **out)
 """
 
 
-def test_the_teams_l1a_decodes_the_simulated_packets(tmp_path, support):
-    """The team's own decoder (imap-processing, a separate interpreter) gets the truth."""
+def test_the_teams_l1a_and_l1b_read_the_simulated_packets(tmp_path, support):
+    """The team's own L1A and L1B (imap-processing, in its own interpreter) get the truth.
+
+    L1A: counts, ranges and compression flags exactly; L1B with fluxcal's simulated
+    calibration file: the field within the same half-count bound as fluxcal's.
+    """
     exe = _team_python()
     if exe is None or not LSK.is_file():
         pytest.skip("the IMAP team's package (imap-processing) or ../shared's LSK is "
@@ -221,7 +233,8 @@ def test_the_teams_l1a_decodes_the_simulated_packets(tmp_path, support):
     path, truth, _ = _run(tmp_path, support, (0, 16, 18, 13), hours=0.05, burst_minutes=1)
     out = tmp_path / "team.npz"
     res = subprocess.run([exe, "-c", _TEAM_SCRIPT, str(LSK), str(support["kernels"]),
-                          str(path), str(out)], capture_output=True, text=True, timeout=600)
+                          str(path), str(support["calib"]), str(out)], capture_output=True,
+                         text=True, timeout=900)
     assert res.returncode == 0, res.stderr[-2000:]
     team = np.load(out)
     for (mode, sensor), t in truth.items():
@@ -230,6 +243,8 @@ def test_the_teams_l1a_decodes_the_simulated_packets(tmp_path, support):
         np.testing.assert_array_equal(v[:, 3], t.ranges)
         np.testing.assert_array_equal(flags[:, 0], t.compression)
         np.testing.assert_array_equal(flags[:, 1], t.width)
+        b = team[f"{mode}-{sensor}_b"][:, :3]
+        assert np.all(np.abs(b - t.b_nt) <= simulate.quantisation_bound(t, sensor) + 1e-9)
 
 
 def test_cli_simulate_then_calibrate(tmp_path):
