@@ -25,6 +25,8 @@ SIMULATORS = [
     "fluxcal.missions.messenger.flight_sim",
     "fluxcal.missions.rosetta.simulate",
     "fluxcal.missions.rosetta.forward",
+    "fluxcal.missions.imap.simulate",
+    "fluxcal.missions.imap.sim_packets",
 ]
 FORBIDDEN = (
     "fluxcal.calibration",  # also binned_stats, constrained_fits, solar_wind_offsets (fit)
@@ -44,6 +46,14 @@ FORBIDDEN = (
     "fluxcal.missions.rosetta.extended_model",
     "fluxcal.missions.rosetta.averaged",
     "fluxcal.missions.rosetta.cleaning_levels",
+    # the IMAP decoder and levels (the forward model writes packets with its own packer)
+    "fluxcal.missions.imap.vectors",
+    "fluxcal.missions.imap.packets",
+    "fluxcal.missions.imap.l1a",
+    "fluxcal.missions.imap.l1b",
+    "fluxcal.missions.imap.calibration",
+    "fluxcal.missions.imap.pipeline",
+    "fluxcal.missions.imap.routes",
 )
 
 

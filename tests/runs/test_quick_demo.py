@@ -23,11 +23,9 @@ def test_quick_demo_shows_a_product_quicklook_and_report_per_mission(tmp_path: P
     text = capsys.readouterr().out
     from fluxcal.missions.imap.sources import shared_folder
 
-    folders = ["messenger/products", "rosetta/products"]
-    if shared_folder() is not None:  # the IMAP team's files beside the checkout
-        folders.append("imap")
-    else:
-        assert "IMAP MAG part skipped: the IMAP MAG team's files" in text
+    folders = ["messenger/products", "rosetta/products", "imap"]
+    if shared_folder() is None:  # no IMAP team files beside the checkout: the forward model
+        assert "IMAP MAG L1B from simulated packets" in text
     for folder in folders:
         report = out / folder / "index.html"
         assert report.exists(), folder

@@ -19,6 +19,7 @@ A dataset per (mode, sensor) has dimension ``time`` with the int64 TT2000 coordi
 
 from __future__ import annotations
 
+import itertools
 import re
 from pathlib import Path
 
@@ -36,6 +37,8 @@ IMAP_SCLK_ID = -43
 FINE_PER_SECOND = 65536
 SENSORS = ("mago", "magi")
 COMPONENTS = np.array(["x", "y", "z"])
+#: Vectors converted at once by `vector_tt2000` (its temporaries stay below ~20 MB).
+_BLOCK = 1 << 18
 _CSV_NAME = re.compile(r"MAGScience-(normal|burst)-\((\d+),(\d+)\)-(\d+)s-(\d{8})")
 _LAYOUT = re.compile(r"(normal|burst)-\((\d+),(\d+)\)-(\d+)s$")
 _CSV_COLUMNS = ("sequence", "x_pri", "y_pri", "z_pri", "rng_pri", "x_sec", "y_sec", "z_sec",
@@ -63,6 +66,15 @@ def vector_tt2000(clock: SclkKernel, coarse: np.ndarray, fine: np.ndarray,
             per_second, 1) != 0)].ravel()[0])
         raise InputFormatError(f"{bad} vectors per second does not divide 65536",
                                field="vectors_per_second")
+    shape = np.broadcast_shapes(np.shape(coarse), np.shape(fine), np.shape(index),
+                                per_second.shape)
+    if len(shape) == 1 and shape[0] > _BLOCK:  # bounded temporaries (peak memory)
+        args = [np.broadcast_to(np.asarray(a, dtype=np.int64), shape)
+                for a in (coarse, fine, index, per_second)]
+        out = np.empty(shape, dtype=np.int64)
+        for lo in range(0, shape[0], _BLOCK):
+            out[lo:lo + _BLOCK] = vector_tt2000(clock, *(a[lo:lo + _BLOCK] for a in args))
+        return out
     reading = (np.asarray(coarse, dtype=np.int64) * FINE_PER_SECOND
                + np.asarray(fine, dtype=np.int64)
                + np.asarray(index, dtype=np.int64) * (FINE_PER_SECOND // per_second))
@@ -121,25 +133,24 @@ def from_packets(packets: MagPackets, clock: SclkKernel) -> dict[tuple[str, str]
     """
     f = packets.fields
     dec = decode_vectors(packets)
-    pk, sec = dec.packet, dec.secondary
-    mago = (f["PRI_SENS"][pk] == 0) != sec
-    apid = f["PKT_APID"][pk]
-    columns = {
-        "counts": dec.counts, "rng": dec.range, "sequence": f["SRC_SEQ_CTR"][pk],
-        "coarse": np.where(sec, f["SEC_COARSETM"][pk], f["PRI_COARSETM"][pk]),
-        "fine": np.where(sec, f["SEC_FNTM"][pk], f["PRI_FNTM"][pk]), "index": dec.index,
-        "per_second": vectors_per_second(np.where(sec, f["SEC_VECSEC"][pk],
-                                                  f["PRI_VECSEC"][pk])),
-        "compression": f["COMPRESSION"][pk], "width": dec.width[pk],
-    }
+    # each dataset's columns are taken for its own vectors only, never built for every
+    # vector and then copied (peak memory: docs/decisions/imap.md)
+    mago = (f["PRI_SENS"] == 0)[dec.packet] != dec.secondary
     out = {}
-    for code, mode in MODES.items():
-        for sensor, is_mago in (("mago", True), ("magi", False)):
-            take = (apid == code) & (mago == is_mago)
-            if take.any():
-                out[(mode, sensor)] = sensor_dataset(
-                    clock, **{k: v[take] for k, v in columns.items()}, mode=mode,
-                    sensor=sensor)
+    for (code, mode), (sensor, is_mago) in itertools.product(
+            MODES.items(), (("mago", True), ("magi", False))):
+        take = np.flatnonzero((f["PKT_APID"] == code)[dec.packet] & (mago == is_mago))
+        if take.size == 0:
+            continue
+        pk, sec = dec.packet[take], dec.secondary[take]
+        out[(mode, sensor)] = sensor_dataset(
+            clock, counts=dec.counts[take], rng=dec.range[take],
+            sequence=f["SRC_SEQ_CTR"][pk],
+            coarse=np.where(sec, f["SEC_COARSETM"][pk], f["PRI_COARSETM"][pk]),
+            fine=np.where(sec, f["SEC_FNTM"][pk], f["PRI_FNTM"][pk]), index=dec.index[take],
+            per_second=vectors_per_second(np.where(sec, f["SEC_VECSEC"][pk],
+                                                   f["PRI_VECSEC"][pk])),
+            compression=f["COMPRESSION"][pk], width=dec.width[pk], mode=mode, sensor=sensor)
     return out
 
 

@@ -55,7 +55,8 @@ def drop_duplicates(ds: xr.Dataset) -> tuple[xr.Dataset, int, int]:
     dropped count distinct (sequence, coarse, fine) among the dropped vectors.
     """
     n = ds.sizes["time"]
-    if n < 2:
+    epoch = ds["epoch"].values
+    if n < 2 or np.all(epoch[1:] > epoch[:-1]):  # no two vectors at one time: none identical
         return ds, 0, 0
     keys = [ds[v].values for v in reversed(_IDENTITY)]
     keys += [ds["counts"].values[:, j] for j in (2, 1, 0)] + [ds["epoch"].values]
@@ -84,9 +85,10 @@ def _merge(parts: list[dict[tuple[str, str], xr.Dataset]]) -> dict[tuple[str, st
         if n_vectors:
             log.warning("IMAP MAG %s-%s: %d duplicated packet(s) dropped (%d vectors read "
                         "twice)", *key, n_packets, n_vectors)
-        order = np.argsort(ds["epoch"].values, kind="stable")
-        out[key] = ds.isel(time=order)
-        out[key].attrs["FLUXCAL_DUPLICATES_DROPPED"] = n_vectors
+        epoch = ds["epoch"].values
+        if np.any(epoch[1:] < epoch[:-1]):  # a copy only when the order changes
+            ds = ds.isel(time=np.argsort(epoch, kind="stable"))
+        out[key] = ds.assign_attrs(FLUXCAL_DUPLICATES_DROPPED=n_vectors)
     return out
 
 

@@ -31,7 +31,7 @@ from fluxcal.missions.imap.pipeline import (
     to_level,
     write_products,
 )
-from fluxcal.missions.imap.sources import sclk_kernels
+from fluxcal.missions.imap.sources import BATCH_FILES, sclk_kernels
 from fluxcal.products.provenance import provenance_attrs
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.runs import driver
@@ -173,9 +173,17 @@ def day_vectors(raw: Datasets, source: DaySource) -> Datasets:
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options: Any) -> driver.DayTask:
-    """Build the task for ``fluxcal batch imap`` (options: kernels and `ImapOptions`)."""
-    kernels = options.pop("kernels", None)
+    """Build the task for ``fluxcal batch imap`` (options: kernels and `ImapOptions`).
+
+    Kernels, calibration and packet definition not named by an option are the input
+    folder's ``kernels.tm``, ``calibration.cdf``, ``packet_definition.xml`` when there
+    (`fluxcal.missions.imap.sources.BATCH_FILES`).
+    """
     fields = {f for f in ImapOptions.__dataclass_fields__}
-    opts = ImapOptions(**{k: v for k, v in options.items() if k in fields})
-    return driver.DayTask(ImapRun(), Path(input_dir), Path(out_dir), opts,
+    values = {k: v for k, v in options.items() if k in fields or k == "kernels"}
+    for role, name in BATCH_FILES.items():  # the input folder's own, when none is named
+        if values.get(role) is None and (Path(input_dir) / name).is_file():
+            values[role] = Path(input_dir) / name
+    kernels = values.pop("kernels", None)
+    return driver.DayTask(ImapRun(), Path(input_dir), Path(out_dir), ImapOptions(**values),
                           sclk_kernels(kernels), name="imap")

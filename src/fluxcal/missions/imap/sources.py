@@ -21,6 +21,11 @@ TEAM_FILES = {"sclk": "imap_sclk_0036.tsc",
               "xtce": "MAG_SCI_COMBINED.xml",
               "norm": "mag_l1_test_data.pkts",
               "burst": "mag_l0_test_data.pkts"}
+#: Support files of a ``fluxcal batch imap`` input folder, by role: used when no option
+#: names one (`fluxcal.missions.imap.routes.make_day_task`; the simulator's batch layout,
+#: `fluxcal.missions.imap.simulate.simulate_days`, writes them).
+BATCH_FILES = {"kernels": "kernels.tm", "calib": "calibration.cdf",
+               "xtce": "packet_definition.xml"}
 #: The folder of the team's files, relative to the folder that holds the checkout.
 SHARED_IMAP = Path("shared") / "data" / "imap"
 
