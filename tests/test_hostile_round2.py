@@ -1,0 +1,102 @@
+"""Second hostile round (issue 31, "Done when"): the reproducers of the cases it found.
+
+Each test is a case that failed at the start of the round (docs/decisions/products.md,
+decision 66, "second hostile round"); the expected outcomes are the issue's: exit 2
+with one line ``fluxcal: error: ...``, the bytes of every file outside ``--out``
+unchanged (compared with what the test itself wrote before the run), and a link the
+user made as ``--out`` written into as the folder it names.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from fluxcal.cli import main
+from fluxcal.errors import FluxcalError
+from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.paths import LOCK_NAME, PathOutsideFolder, inside, write_scope
+from fluxcal.products.staging import owned_run
+
+
+def _one_error_line(capsys) -> str:
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("fluxcal: error: "), lines[0]
+    return lines[0]
+
+
+def test_a_lock_that_is_a_hard_link_of_a_users_file_is_refused(tmp_path, capsys):
+    """Before: a regular file with a second name passed as the lock: the pid overwrote it."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's own file\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    os.link(victim, out / LOCK_NAME)
+    assert main(["simulate", "rosetta", "--rate", "0", "--out", str(out)]) == 2
+    line = _one_error_line(capsys)
+    assert LOCK_NAME in line and "hard link" in line
+    assert victim.read_text() == "the user's own file\n"
+    assert (out / LOCK_NAME).exists()  # left as it is
+
+
+def test_a_batch_refuses_a_hard_linked_lock_too(tmp_path):
+    from fluxcal.runs.batch import run_batch
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's own file\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    os.link(victim, out / LOCK_NAME)
+    with pytest.raises(FluxcalError, match="hard link"):
+        run_batch([], lambda day: None, out, scheduler="serial")
+    assert victim.read_text() == "the user's own file\n"
+
+
+def test_an_out_that_is_a_link_the_user_made_is_written_into(tmp_path):
+    """Before: --out out -> /scratch/x was refused as 'outside this folder' (exit 2)."""
+    target = tmp_path / "scratch"
+    target.mkdir()
+    (tmp_path / "out").symlink_to(target)
+    out = tmp_path / "out"
+    assert inside(out, out)
+    with owned_run(out):
+        atomic_write_bytes(out / "day" / "P.TAB", b"x")
+    assert (target / "day" / "P.TAB").read_bytes() == b"x"
+    assert (tmp_path / "out").is_symlink()
+
+
+def test_a_batchs_own_files_stay_inside_its_out(tmp_path):
+    """Before: a link ``out/manifests -> elsewhere`` had every day's manifest written there.
+
+    The manifests, the report and index.html are written by the batch itself (outside a
+    day's scope); they are now inside the batch's `write_scope` too: the days fail with
+    one line naming the file, nothing lands in ``elsewhere``.
+    """
+    import datetime as dt
+
+    from fluxcal.runs.batch import DayResult, run_batch
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "manifests").symlink_to(elsewhere)
+
+    def task(day):
+        return DayResult(day, [atomic_write_bytes(out / f"{day}.TAB", b"x")], n_vectors=1)
+
+    report = run_batch([dt.date(2014, 8, 1)], task, out, scheduler="serial")
+    assert [d.status for d in report.days] == ["failed"]
+    assert "outside this folder" in report.days[0].error
+    assert list(elsewhere.iterdir()) == []
+
+
+def test_the_refusal_names_a_link_in_the_folder_as_a_cause(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "up").symlink_to(tmp_path)
+    with write_scope(out), pytest.raises(PathOutsideFolder, match="or a link in the folder"):
+        atomic_write_bytes(out / "up" / "x.TAB", b"x", now=True)
+    assert not (tmp_path / "x.TAB").exists()
