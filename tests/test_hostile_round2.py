@@ -100,3 +100,38 @@ def test_the_refusal_names_a_link_in_the_folder_as_a_cause(tmp_path):
     with write_scope(out), pytest.raises(PathOutsideFolder, match="or a link in the folder"):
         atomic_write_bytes(out / "up" / "x.TAB", b"x", now=True)
     assert not (tmp_path / "x.TAB").exists()
+
+
+@pytest.mark.parametrize("attrs", [{"sensor": "sub/x"}, {"sensor": "magx"},
+                                   {"mode": "norm/../x"}, {"mode": "survey"}],
+                         ids=["sensor-path", "sensor-unknown", "mode-path", "mode-unknown"])
+def test_an_imap_product_whose_sensor_or_mode_is_no_name_is_refused(tmp_path, capsys, attrs):
+    """Before: a fluxcal L1B with ``sensor = 'sub/x'`` made ``out/imap_mag_l1c_norm-sub/``.
+
+    The sensor and mode attributes of an input product name the IMAP products; only the
+    instrument's own (mago, magi; norm, burst) are names (decision 66, rule 3).
+    """
+    import numpy as np
+    import xarray as xr
+
+    from fluxcal.products import write_product
+    from fluxcal.products.atomic import ungrouped
+
+    n = 50
+    t0 = 788_961_669_184_000_000  # 2025-01-01T10:00 in TT2000 ns (any day will do)
+    ds = xr.Dataset({"b": (("time", "component"), np.tile([10.0, -5.0, 3.0], (n, 1)),
+                           {"units": "nT"}),
+                     "range": ("time", np.zeros(n, np.int64)),
+                     "compression": ("time", np.zeros(n, np.int64)),
+                     "compression_width": ("time", np.zeros(n, np.int64))},
+                    coords={"epoch": ("time", t0 + np.arange(n, dtype=np.int64) * 125_000_000),
+                            "component": ["x", "y", "z"]},
+                    attrs={"level": "l1b", "sensor": "mago", "mode": "norm", **attrs})
+    with ungrouped():
+        product = write_product(ds, tmp_path / "in" / "P", formats=("cdf",))[0]
+    out = tmp_path / "out"
+    assert main(["imap", "l1c", "--input", str(product), "--out", str(out)]) == 2
+    line = _one_error_line(capsys)
+    key = next(iter(attrs))
+    assert str(product) in line and f"field '{key}'" in line
+    assert not out.exists()
