@@ -41,6 +41,27 @@ def test_a_lock_that_is_a_hard_link_of_a_users_file_is_refused(tmp_path, capsys)
     assert (out / LOCK_NAME).exists()  # left as it is
 
 
+def test_a_users_file_named_like_the_lock_is_left_alone(tmp_path, capsys):
+    """Before: a user's ``.fluxcal.lock`` (notes) was truncated to a pid, then removed."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).write_text("my notes on this folder\n")
+    assert main(["simulate", "rosetta", "--rate", "0", "--out", str(out)]) == 2
+    assert "holds no process id" in _one_error_line(capsys)
+    assert (out / LOCK_NAME).read_text() == "my notes on this folder\n"
+
+
+@pytest.mark.parametrize("text", ["", "4242\n", "4242"])
+def test_a_stale_lock_of_a_killed_run_is_taken(tmp_path, text):
+    """What a killed run leaves (its pid, or nothing) is fluxcal's: it is reused."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).write_text(text)
+    with owned_run(out):
+        atomic_write_bytes(out / "P.TAB", b"x")
+    assert (out / "P.TAB").read_bytes() == b"x" and not (out / LOCK_NAME).exists()
+
+
 def test_a_batch_refuses_a_hard_linked_lock_too(tmp_path):
     from fluxcal.runs.batch import run_batch
 

@@ -50,6 +50,8 @@ OLD_MARK = "fluxcal-old"
 # `tempfile.mkstemp`'s random part: 8 characters of [a-z0-9_]
 _TEMP = re.compile(rf"^\.(?P<name>.+)\.(?P<pid>\d+)\.[a-z0-9_]{{8}}\.{TEMP_MARK}(\.[^./]*)?$")
 _OLD = re.compile(rf"^\.(?P<name>.+)\.(?P<pid>\d+)\.{OLD_MARK}$")
+# What a lock file holds: nothing (just made) or the holder's pid (`staging.output_lock`)
+_LOCK_TEXT = re.compile(rb"^(\d{1,10}\n?)?$")
 
 # The folder a run may write into, and the paths it created (`write_scope`).
 _ROOT: ContextVar[Path | None] = ContextVar("_ROOT", default=None)
@@ -348,8 +350,9 @@ def open_lock_file(path: Path) -> int:
     Raises
     ------
     FluxcalError
-        ``path`` is a link, a folder or anything but a regular file, or a hard link of
-        another file (the holder's pid would overwrite that file): it is left as it is,
+        ``path`` is a link, a folder or anything but a regular file, a hard link of
+        another file (the holder's pid would overwrite that file), or a file holding
+        anything but a process id (a user's file of that name): it is left as it is,
         and so is what it points to.
     """
     flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
@@ -360,12 +363,15 @@ def open_lock_file(path: Path) -> int:
             raise
         fd = None
     st = os.fstat(fd) if fd is not None else None
-    if st is not None and stat.S_ISREG(st.st_mode) and st.st_nlink == 1:
+    regular = st is not None and stat.S_ISREG(st.st_mode)
+    held = os.pread(fd, 64, 0) if regular and st.st_nlink == 1 else b""
+    if regular and st.st_nlink == 1 and _LOCK_TEXT.match(held):
         return fd
     if fd is not None:
         os.close(fd)
-    what = "a hard link of another file" if st is not None and stat.S_ISREG(st.st_mode) \
-        else "not a regular file (a link, a folder or a device)"
+    what = ("not a regular file (a link, a folder or a device)" if not regular
+            else "a hard link of another file" if st.st_nlink != 1
+            else "a file fluxcal did not write (it holds no process id)")
     raise FluxcalError(
         f"--out {Path(path).parent}: {Path(path).name} is {what}; fluxcal does not write "
         "through it: remove it, or choose another --out")
