@@ -156,3 +156,23 @@ def test_an_imap_product_whose_sensor_or_mode_is_no_name_is_refused(tmp_path, ca
     key = next(iter(attrs))
     assert str(product) in line and f"field '{key}'" in line
     assert not out.exists()
+
+
+def test_a_file_another_program_writes_into_out_survives_a_failed_run(tmp_path):
+    """Before: a run that failed (or was interrupted) removed every new plain file in --out.
+
+    At 60cb1b8 through the command line: ``rosetta calibrate --out out``, ``echo data >
+    out/download.txt`` 8 s in, SIGTERM 2 s later: exit 143 and ``download.txt`` gone.  The
+    lock keeps other fluxcal runs out, not the user's other programs: a failed run removes
+    what it recorded, and its own temporaries by name, nothing else.
+    """
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.txt").write_bytes(b"before")
+    with pytest.raises(KeyboardInterrupt), owned_run(out):
+        atomic_write_bytes(out / "P.TAB", b"staged")
+        atomic_write_bytes(out / "early.csv", b"mine", now=True)
+        (out / "download.txt").write_bytes(b"another program's")
+        raise KeyboardInterrupt
+    assert sorted(os.listdir(out)) == ["download.txt", "old.txt"]
+    assert (out / "download.txt").read_bytes() == b"another program's"

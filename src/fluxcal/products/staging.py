@@ -178,24 +178,19 @@ def _same_file(fd: int, path: Path) -> bool:
     return (st.st_ino, st.st_dev) == (mine.st_ino, mine.st_dev)
 
 
-def _undo(out: Path, before: set[str], created: list[Path]) -> None:
+def _undo(out: Path, created: list[Path]) -> None:
     """Remove what a failed run created in ``out``, and nothing else.
 
     The files and folders the run's writers recorded (`fluxcal.products.paths.note_created`;
-    a folder only once empty), its temporaries (by name, `clean_stale_temporaries`), and
-    new plain files directly in ``out`` (the lock is held: no other run writes there).
-    Files that appear in a folder nested below ``out`` are not removed unless this run
-    recorded them: another run may be writing there under its own ``--out``.
+    a folder only once empty) and its temporaries (by name, `clean_stale_temporaries`).
+    A file that appears in ``out`` or below during the run and that the run did not
+    record is not removed: the lock keeps other fluxcal runs out, not the user's other
+    programs (a download, an editor), nor a run under its own ``--out`` nested below.
     """
     remove_created(created)
     if not out.is_dir():
         return
     clean_stale_temporaries(out)  # its own, by name (a store a library was still writing)
-    for entry in os.scandir(out):
-        if entry.name not in before and entry.name != LOCK_NAME \
-                and entry.is_file(follow_symlinks=False):
-            with contextlib.suppress(OSError):
-                os.unlink(entry.path)
 
 
 @contextlib.contextmanager
@@ -236,13 +231,12 @@ def owned_run(out: Path | None) -> Iterator[None]:
         raise
     try:
         report_stale(clean_stale_temporaries(out), out)
-        before = {e.name for e in os.scandir(out)}
         with write_scope(out) as created:
             try:
                 with atomic_group():
                     yield
             except BaseException:
-                _undo(out, before, created)
+                _undo(out, created)
                 raise
     except BaseException as exc:
         lock.__exit__(type(exc), exc, exc.__traceback__)
