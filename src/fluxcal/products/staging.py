@@ -12,8 +12,8 @@ A single run (`owned_run`) then
   when the whole command succeeded (`fluxcal.products.atomic.atomic_group`), so an
   existing product is replaced only by a complete, successful run;
 - on a failure or an interruption removes only what it created: its temporaries, and
-  the files that appeared in the folder during the run (with the lock held, no other
-  fluxcal run can have written them).
+  the files and folders its writers recorded (`fluxcal.products.paths.note_created`);
+  a file another program put into the folder meanwhile stays.
 
 `interrupt_signals` turns SIGINT and SIGTERM into `Interrupted`, so the clean-up above
 runs before the command exits 130 or 143 (docs/decisions/products.md, decisions 52-57).
