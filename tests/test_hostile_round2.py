@@ -176,3 +176,17 @@ def test_a_file_another_program_writes_into_out_survives_a_failed_run(tmp_path):
         raise KeyboardInterrupt
     assert sorted(os.listdir(out)) == ["download.txt", "old.txt"]
     assert (out / "download.txt").read_bytes() == b"another program's"
+
+
+@pytest.mark.parametrize("args", [["--out", ""], ["--out="], ["--out", "  "]],
+                         ids=["space", "equals", "blank"])
+def test_an_empty_out_is_refused_not_the_current_folder(tmp_path, capsys, monkeypatch, args):
+    """Before: ``--out ""`` (an unset variable) wrote the 18 products into the current folder."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "rosetta", "--hours", "0.01", *args]) == 2
+    assert "--out is empty" in _one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
+    assert main(["batch", "rosetta", "--input", str(tmp_path), "--start", "2014-08-01",
+                 "--end", "2014-08-01", *args]) == 2
+    assert "--out is empty" in _one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
