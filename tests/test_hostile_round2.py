@@ -190,3 +190,11 @@ def test_an_empty_out_is_refused_not_the_current_folder(tmp_path, capsys, monkey
                  "--end", "2014-08-01", *args]) == 2
     assert "--out is empty" in _one_error_line(capsys)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_out_that_is_a_dangling_link_is_named_as_such(tmp_path, capsys):
+    """Before: ``out -> /gone`` was reported as "a file, not a folder"; nothing is created."""
+    (tmp_path / "out").symlink_to(tmp_path / "gone")
+    assert main(["simulate", "rosetta", "--hours", "0.01", "--out", str(tmp_path / "out")]) == 2
+    assert "which does not exist" in _one_error_line(capsys)
+    assert not (tmp_path / "gone").exists()

@@ -262,7 +262,9 @@ def _make_out(out: Path) -> list[Path]:
         missing.append(p)
         p = p.parent
     if os.path.lexists(p) and not p.is_dir():
-        raise FluxcalError(f"--out {out}: {p} is a file, not a folder; choose another --out")
+        what = f"a link to {os.readlink(p)}, which does not exist" \
+            if p.is_symlink() and not p.exists() else "a file, not a folder"
+        raise FluxcalError(f"--out {out}: {p} is {what}; choose another --out")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
