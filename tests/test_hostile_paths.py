@@ -289,7 +289,6 @@ def test_a_failing_run_keeps_another_runs_products_nested_below_its_out(tmp_path
         # this run writes (a file read back at once, a staged product) ...
         atomic_write_bytes(out / "mine" / "early.csv", b"mine", now=True)
         atomic_write_bytes(out / "P.TAB", b"staged")
-        (out / "loose.txt").write_bytes(b"mine too")  # a writer outside the module
         # ... while another process finishes its products in a folder below (--out out/B)
         (nested / "sub").mkdir(parents=True)
         (nested / "B.TAB").write_bytes(b"theirs")

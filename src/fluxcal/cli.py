@@ -259,13 +259,17 @@ def _out_folder(args: list[str]) -> Path | None:
     ------
     FluxcalError
         ``--out`` given more than once (the command would write into the last one while
-        the lock is taken on the first).
+        the lock is taken on the first), or empty (``--out "$UNSET"`` would write into the
+        current folder).
     """
     command = next((a for a in args if not a.startswith("-")), "")
     if "--help" in args:
         return None
-    found = [Path(args[i + 1]) for i, a in enumerate(args) if a == "--out" and i + 1 < len(args)]
-    found += [Path(a.split("=", 1)[1]) for a in args if a.startswith("--out=")]
+    given = [args[i + 1] for i, a in enumerate(args) if a == "--out" and i + 1 < len(args)]
+    given += [a.split("=", 1)[1] for a in args if a.startswith("--out=")]
+    if any(not g.strip() for g in given):  # an unset variable: not the current folder
+        raise FluxcalError("--out is empty: name a folder ('.' for the current one)")
+    found = [Path(g) for g in given]
     if len(found) > 1:
         raise FluxcalError(f"--out given {len(found)} times ({', '.join(map(str, found))}); "
                            "give one output folder")

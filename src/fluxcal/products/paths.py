@@ -50,6 +50,8 @@ OLD_MARK = "fluxcal-old"
 # `tempfile.mkstemp`'s random part: 8 characters of [a-z0-9_]
 _TEMP = re.compile(rf"^\.(?P<name>.+)\.(?P<pid>\d+)\.[a-z0-9_]{{8}}\.{TEMP_MARK}(\.[^./]*)?$")
 _OLD = re.compile(rf"^\.(?P<name>.+)\.(?P<pid>\d+)\.{OLD_MARK}$")
+# What a lock file holds: nothing (just made) or the holder's pid (`staging.output_lock`)
+_LOCK_TEXT = re.compile(rb"^(\d{1,10}\n?)?$")
 
 # The folder a run may write into, and the paths it created (`write_scope`).
 _ROOT: ContextVar[Path | None] = ContextVar("_ROOT", default=None)
@@ -78,9 +80,13 @@ def inside(path: Path, folder: Path) -> bool:
     True
     >>> inside(Path("/data/out/a/../../x.TAB"), Path("/data/out"))
     False
+    >>> inside(Path("/data/out"), Path("/data/out"))  # a link the user named as --out too
+    True
     """
     if Path(path).name in ("..", "."):
         path = Path(path) / "x"
+    if os.path.normpath(os.path.abspath(path)) == os.path.normpath(os.path.abspath(folder)):
+        return True  # the folder itself, as named (``--out`` may be a link the user made)
     real = Path(os.path.normpath(_real(Path(path))))
     root = Path(os.path.realpath(folder))
     return real == root or real.is_relative_to(root)
@@ -101,7 +107,8 @@ def check_write(path: Path) -> Path:
     if root is not None and not inside(path, root):
         raise PathOutsideFolder(
             f"--out {root}: refusing to write {path}, which lies outside this folder "
-            "(a name from the input leads out of it); nothing was written there")
+            "(a name from the input, or a link in the folder, leads out of it); nothing was "
+            "written there")
     return Path(path)
 
 
@@ -338,13 +345,15 @@ def open_lock_file(path: Path) -> int:
     Returns
     -------
     int
-        A read-write file descriptor of a regular file.
+        A read-write file descriptor of a regular file that has no other name.
 
     Raises
     ------
     FluxcalError
-        ``path`` is a link, a folder or anything but a regular file: it is left as it
-        is, and so is what it points to.
+        ``path`` is a link, a folder or anything but a regular file, a hard link of
+        another file (the holder's pid would overwrite that file), or a file holding
+        anything but a process id (a user's file of that name): it is left as it is,
+        and so is what it points to.
     """
     flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
     try:
@@ -353,10 +362,16 @@ def open_lock_file(path: Path) -> int:
         if exc.errno not in (errno.ELOOP, errno.EISDIR, errno.ENXIO, errno.EMLINK):
             raise
         fd = None
-    if fd is not None and stat.S_ISREG(os.fstat(fd).st_mode):
+    st = os.fstat(fd) if fd is not None else None
+    regular = st is not None and stat.S_ISREG(st.st_mode)
+    held = os.pread(fd, 64, 0) if regular and st.st_nlink == 1 else b""
+    if regular and st.st_nlink == 1 and _LOCK_TEXT.match(held):
         return fd
     if fd is not None:
         os.close(fd)
+    what = ("not a regular file (a link, a folder or a device)" if not regular
+            else "a hard link of another file" if st.st_nlink != 1
+            else "a file fluxcal did not write (it holds no process id)")
     raise FluxcalError(
-        f"--out {Path(path).parent}: {Path(path).name} is not a regular file (a link, a folder "
-        "or a device); fluxcal does not follow it: remove it, or choose another --out")
+        f"--out {Path(path).parent}: {Path(path).name} is {what}; fluxcal does not write "
+        "through it: remove it, or choose another --out")

@@ -12,8 +12,8 @@ A single run (`owned_run`) then
   when the whole command succeeded (`fluxcal.products.atomic.atomic_group`), so an
   existing product is replaced only by a complete, successful run;
 - on a failure or an interruption removes only what it created: its temporaries, and
-  the files that appeared in the folder during the run (with the lock held, no other
-  fluxcal run can have written them).
+  the files and folders its writers recorded (`fluxcal.products.paths.note_created`);
+  a file another program put into the folder meanwhile stays.
 
 `interrupt_signals` turns SIGINT and SIGTERM into `Interrupted`, so the clean-up above
 runs before the command exits 130 or 143 (docs/decisions/products.md, decisions 52-57).
@@ -178,24 +178,19 @@ def _same_file(fd: int, path: Path) -> bool:
     return (st.st_ino, st.st_dev) == (mine.st_ino, mine.st_dev)
 
 
-def _undo(out: Path, before: set[str], created: list[Path]) -> None:
+def _undo(out: Path, created: list[Path]) -> None:
     """Remove what a failed run created in ``out``, and nothing else.
 
     The files and folders the run's writers recorded (`fluxcal.products.paths.note_created`;
-    a folder only once empty), its temporaries (by name, `clean_stale_temporaries`), and
-    new plain files directly in ``out`` (the lock is held: no other run writes there).
-    Files that appear in a folder nested below ``out`` are not removed unless this run
-    recorded them: another run may be writing there under its own ``--out``.
+    a folder only once empty) and its temporaries (by name, `clean_stale_temporaries`).
+    A file that appears in ``out`` or below during the run and that the run did not
+    record is not removed: the lock keeps other fluxcal runs out, not the user's other
+    programs (a download, an editor), nor a run under its own ``--out`` nested below.
     """
     remove_created(created)
     if not out.is_dir():
         return
     clean_stale_temporaries(out)  # its own, by name (a store a library was still writing)
-    for entry in os.scandir(out):
-        if entry.name not in before and entry.name != LOCK_NAME \
-                and entry.is_file(follow_symlinks=False):
-            with contextlib.suppress(OSError):
-                os.unlink(entry.path)
 
 
 @contextlib.contextmanager
@@ -236,13 +231,12 @@ def owned_run(out: Path | None) -> Iterator[None]:
         raise
     try:
         report_stale(clean_stale_temporaries(out), out)
-        before = {e.name for e in os.scandir(out)}
         with write_scope(out) as created:
             try:
                 with atomic_group():
                     yield
             except BaseException:
-                _undo(out, before, created)
+                _undo(out, created)
                 raise
     except BaseException as exc:
         lock.__exit__(type(exc), exc, exc.__traceback__)
@@ -268,7 +262,9 @@ def _make_out(out: Path) -> list[Path]:
         missing.append(p)
         p = p.parent
     if os.path.lexists(p) and not p.is_dir():
-        raise FluxcalError(f"--out {out}: {p} is a file, not a folder; choose another --out")
+        what = f"a link to {os.readlink(p)}, which does not exist" \
+            if p.is_symlink() and not p.exists() else "a file, not a folder"
+        raise FluxcalError(f"--out {out}: {p} is {what}; choose another --out")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

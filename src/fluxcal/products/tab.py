@@ -53,6 +53,7 @@ from fluxcal.products.label import (
     render_label,
     text_value,
 )
+from fluxcal.products.paths import check_pointers
 from fluxcal.products.provenance import portable_attrs
 from fluxcal.products.tabshare import SHARED, Run
 from fluxcal.version import software_version
@@ -495,6 +496,7 @@ def read_tab(path: Path) -> xr.Dataset:
         path = path.with_name(path.name + ".TAB")
     lbl = path.with_suffix(".LBL")
     label = read_label(lbl)
+    check_pointers(label, lbl)  # no pointer out of the label's folder (decision 66)
     tables = find_objects(label, "TABLE")
     if not tables:
         raise InputFormatError("label has no TABLE object", path=str(lbl))

@@ -378,7 +378,8 @@ def run_batch(
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    with output_lock(out_dir):
+    # every write of the batch (manifests, report, index.html) inside --out (decision 66)
+    with output_lock(out_dir), write_scope(out_dir):
         return _run_batch_locked(days, task, out_dir, scheduler, n_workers, force, name,
                                  on_day_done, report_path)
 

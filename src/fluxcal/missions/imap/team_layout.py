@@ -295,7 +295,9 @@ def read_l1b(path: Path) -> xr.Dataset:
     Raises
     ------
     InputFormatError
-        None of these layouts, or a field not in nT (naming the file).
+        None of these layouts, a field not in nT, or a fluxcal product whose ``sensor``
+        or ``mode`` attribute (part of the products' names) is not mago/magi, norm/burst
+        (naming the file).
     """
     path = Path(path)
     with path.open("rb") as fh:
@@ -311,6 +313,11 @@ def read_l1b(path: Path) -> xr.Dataset:
                                "'range', 'epoch'), the team's CDF ('epoch', 'vectors') or "
                                "the team's CSV (t,coarse,fine,...,x,y,z,range)", path=str(path))
     ds = ds.drop_vars("time", errors="ignore") if "time" in ds.coords else ds
+    for key, known in (("sensor", ("mago", "magi")), ("mode", ("norm", "burst"))):
+        value = ds.attrs.get(key, known[0])  # they name the products (decision 66, rule 3)
+        if value not in known:
+            raise InputFormatError(f"{value!r} is not an IMAP MAG {key} ({', '.join(known)}); "
+                                   "fix the input file", path=str(path), field=key)
     return ds
 
 
