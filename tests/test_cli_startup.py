@@ -145,3 +145,13 @@ def test_the_command_turns_numpy_huge_page_advice_off():
 @pytest.mark.parametrize("value, advised", [("1", True), ("0", False)])
 def test_a_users_huge_page_setting_is_kept(value, advised):
     assert _hugepage_advice(value) is advised
+
+
+def test_quicklooks_and_the_offset_figure_load_no_scipy_signal():
+    # scipy.signal costs ~0.8 s of CPU at import (docs/decisions/products.md, decision 52);
+    # only a spectrogram needs it (fluxcal.products.spectrogram)
+    pytest.importorskip("matplotlib")
+    loaded = _modules_after("import fluxcal.products.quicklook\n"
+                            "import fluxcal.missions.messenger.validation_report")
+    assert "scipy.signal" not in loaded
+    assert "scipy.signal" in _modules_after("import fluxcal.products.spectrogram")

@@ -23,12 +23,8 @@ def plot(
                                           "B* vector in nT)."),
 ) -> None:
     """Render a quicklook PNG per day of a product."""
-    from fluxcal.products.quicklook import (
-        epoch_from_table,
-        save_png,
-        spectrogram_figure,
-        write_quicklooks,
-    )
+    from fluxcal.products.quicklook import epoch_from_table, save_png, write_quicklooks
+    from fluxcal.products.spectrogram import spectrogram_figure
     from fluxcal.products.writer import read_fluxcal_product
 
     out_dir = out or product.parent

@@ -13,10 +13,10 @@ from fluxcal.products import write_product
 from fluxcal.products.quicklook import (
     envelope,
     quicklook_figure,
-    spectrogram_figure,
     split_days,
     write_quicklooks,
 )
+from fluxcal.products.spectrogram import spectrogram_figure
 
 from .conftest import EPOCH0, make_dataset
 
