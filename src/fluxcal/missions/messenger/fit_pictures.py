@@ -1,0 +1,150 @@
+"""The pictures of a ``messenger fit`` (`fluxcal.products.fit_pictures`) from its `FitResult`.
+
+* offsets against sensor temperature: the heater-off 10-C bin means (the seed's
+  long-term averages, the decaying duty-cycle offset removed as the fit removes it)
+  at each bin's mean temperature, the Table 2 law (eq. 3a/3b: the larger of two lines)
+  with its stated 1-sigma band (`fluxcal.missions.messenger.fit.law_sigma`) and the
+  fitted range shaded;
+* offsets against heater duty cycle: the 4-% bin means at their mean relaxed duty
+  cycle and the Table 3 line ``C0 + D0 d`` (eq. 5a);
+* the relaxation: the axis-combined normalised superposed epoch and the fitted step
+  response (eq. 6f, `RelaxationFit`);
+* pulls of the bin means about the laws;
+* the variance estimator's 15-min intervals by reason on a UTC time line.
+
+With the variance estimator the bin means are drawn as the seed's estimator would see
+them (the field's bin average, zero only in a zero-mean wind); the law is the variance
+fit's.
+
+References
+----------
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, eq. 3a-3b, 5a, 6f, Tables 2-3.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from fluxcal.geometry.time import et_to_tt2000, tt2000_to_datetime64
+from fluxcal.missions.messenger.fit import AXES, MIN_BIN_SAMPLES, FitResult, law_sigma
+from fluxcal.products.fit_pictures import (
+    Curve,
+    Panel,
+    Picture,
+    Points,
+    Pulls,
+    Rejections,
+    pull_values,
+    write_fit_report,
+)
+from fluxcal.products.timeindex import default_lsk
+
+#: Points on the drawn law (the temperature axis).
+N_CURVE = 241
+
+
+def law(result: FitResult, t: np.ndarray) -> np.ndarray:
+    """Return the fitted temperature law (counts) at ``t`` (C), shape (n, 3): eq. 3a/3b."""
+    t = np.asarray(t, float)[:, None]
+    c = np.asarray(result.calibration.temperature_coefficients, float)  # (3, 4)
+    return np.maximum(c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
+
+
+def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
+    m = result.stats.temperature
+    mean, err = m.mean(), m.standard_error()
+    ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
+    d0 = np.asarray(result.calibration.duty_cycle_d0, float)
+    y = mean[ok, :3] - mean[ok, 4:5] * d0[None, :]
+    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means")
+    lo, hi = result.fitted_range
+    seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
+    grid = np.linspace(min(seen) - 5.0, max(seen) + 5.0, N_CURVE)
+    curve = Curve(grid, law(result, grid), law_sigma(result.temperature, grid),
+                  "Table 2 law (eq. 3a/3b)")
+    fitted = (lo, hi) if np.isfinite(lo) and np.isfinite(hi) else None
+    panel = Panel("fit_offsets_temperature", "Offsets against sensor temperature (heater off)",
+                  "sensor temperature (C)", "offset (counts)", AXES,
+                  "the heater-off bin means (decaying duty-cycle offset removed) with their "
+                  "standard errors, the fitted Table 2 law and its stated 1-sigma band; "
+                  "shaded: the range over which the data determine the law", pts, curve,
+                  fitted)
+    return panel, pull_values(pts, law(result, pts.x))
+
+
+def _duty(result: FitResult) -> tuple[Panel, np.ndarray]:
+    m = result.stats.duty
+    mean, err = m.mean(), m.standard_error()
+    ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
+    pts = Points(mean[ok, 3], mean[ok, :3], err[ok, :3], "4-% bin means")
+    c0 = np.asarray(result.calibration.duty_cycle_c0, float)
+    d0 = np.asarray(result.calibration.duty_cycle_d0, float)
+    grid = np.linspace(0.0, 1.1 * float(pts.x.max()) if pts.x.size else 1000.0, 101)
+    line = c0[None, :] + d0[None, :] * grid[:, None]
+    held = [a for a in AXES if a in result.held_d0]
+    panel = Panel("fit_offsets_duty_cycle", "Offsets against heater duty cycle",
+                  "relaxed duty cycle (ppt)", "offset (counts)", AXES,
+                  "the bin means inside heater periods at their mean relaxed duty cycle, "
+                  "and the Table 3 line C0 + D0 d (C0 held at the law at -50 C)"
+                  + (f"; D0 held for {', '.join(held)}" if held else ""),
+                  pts, Curve(grid, line, None, "Table 3 line (eq. 5a)"))
+    return panel, pull_values(pts, c0[None, :] + d0[None, :] * pts.x[:, None])
+
+
+def _relaxation(result: FitResult) -> Panel | None:
+    e = np.asarray(result.epoch_curve, float)
+    if e.ndim != 2 or e.shape[0] == 0:
+        return None
+    r = result.relaxation
+    lag = e[:, 0]
+    grid = np.linspace(float(np.nanmin(lag)), float(np.nanmax(lag)), N_CURVE)
+    g = np.where(grid > r.dt, -np.expm1(-np.maximum(grid - r.dt, 0.0) / r.tau), 0.0)
+    model = r.y0 + r.amplitude * g + r.prior_amplitude * np.exp(-grid / r.tau)
+    ok = np.isfinite(e[:, 1])
+    return Panel("fit_relaxation", "Relaxation after a duty-cycle change",
+                 "lag after the change (s)", "normalised epoch", ("all axes",),
+                 f"the superposed epoch of the duty-cycle changes, normalised by each step "
+                 f"and combined over the axes, with the fitted step response (tau "
+                 f"{r.tau:.0f} +- {r.tau_err:.0f} s, dt {r.dt:.1f} s)",
+                 Points(lag[ok], e[ok, 1:2], e[ok, 2:3], "epoch bins"),
+                 Curve(grid, model[:, None], None, "fitted response (eq. 6f)"))
+
+
+def _rejections(result: FitResult) -> Rejections | None:
+    v = result.variance
+    if v is None or np.size(v.interval_start) == 0:
+        return None
+    lsk = default_lsk()  # the fit's kernels are unloaded by now
+    start = tt2000_to_datetime64(et_to_tt2000(np.asarray(v.interval_start, float), lsk), lsk)
+    return Rejections("fit_intervals", "Intervals of the variance estimator by reason",
+                      "every interval of the variance estimator at its UTC start: accepted, "
+                      "or the first criterion it failed", start, np.asarray(v.reason))
+
+
+def pictures(result: FitResult) -> list[Picture]:
+    """Return the pictures of ``result`` (those its data allow), in page order."""
+    temp, temp_pulls = _temperature(result)
+    duty, duty_pulls = _duty(result)
+    out: list[Picture] = [temp, duty]
+    relax = _relaxation(result)
+    if relax is not None:
+        out.append(relax)
+    out.append(Pulls("fit_pulls", "Pulls of the bin means about the fitted laws",
+                     "(bin mean - law) / standard error of the temperature and duty-cycle "
+                     "bins, beside the unit normal: a spread near 1 when the stated errors "
+                     "are honest", {"temperature": temp_pulls, "duty cycle": duty_pulls}))
+    rej = _rejections(result)
+    if rej is not None:
+        out.append(rej)
+    return out
+
+
+def write_fit_pictures(result: FitResult, out: Path) -> tuple[list[Path], str]:
+    """Draw the pictures of ``result`` into ``out`` and write its ``index.html``.
+
+    Returns the files written and the one-line note when the pictures need
+    ``fluxcal[plot]`` (`fluxcal.products.fit_pictures.write_fit_report`).
+    """
+    return write_fit_report(out, pictures(result), f"fluxcal messenger fit: {Path(out).name}")

@@ -1,0 +1,117 @@
+"""Pictures and ``index.html`` of ``fluxcal messenger fit`` (issue 34, item 6).
+
+The law drawn is compared with the law of the written table, evaluated here from the CSV
+by eq. 3a/3b (the larger of the two lines ``A0 + B0 T`` and ``A1 + B1 T``) with no
+fluxcal code; the figure's line data are read back from matplotlib.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+from urllib.parse import unquote
+
+import numpy as np
+import pytest
+
+from fluxcal.cli import main
+from fluxcal.missions.messenger import fit_pictures as mfp
+
+pytest.importorskip("matplotlib")
+
+START = "2012-06-01T00:00:00"
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """A 1-pass zero-mean fit of 6 h of the demo's training streams; the pictures drawn."""
+    from fluxcal.missions.messenger.fit_demo import perturbed_folder, simulate_training
+
+    tmp = tmp_path_factory.mktemp("fit_pictures")
+    files = simulate_training(tmp, perturbed_folder(tmp / "truth"), START, 0.25,
+                              field="quiet", sigma_nt=0.1)
+    drawn = []
+    real = mfp.write_fit_report
+
+    def spy(out, pictures, title):
+        drawn.extend(pictures)
+        return real(out, pictures, title)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(mfp, "write_fit_report", spy)
+    try:
+        assert main(["messenger", "fit", "--sci", str(files["science"]), "--heater",
+                     str(files["heater"]), "--temperature", str(files["temperature"]),
+                     "--kernels", str(files["kernels"]), "--estimator", "zero-mean",
+                     "--passes", "1", "--out", str(tmp / "fitted")]) == 0
+    finally:
+        mp.undo()
+    return tmp / "fitted", {p.name: p for p in drawn}
+
+
+def links(index: Path) -> list[str]:
+    return re.findall(r'(?:href|src)="([^"#][^"]*)"', index.read_text())
+
+
+def test_pictures_and_index_written(fitted):
+    out, drawn = fitted
+    for name in ("fit_offsets_temperature", "fit_offsets_duty_cycle", "fit_relaxation",
+                 "fit_pulls"):
+        assert name in drawn
+        assert (out / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = (out / "index.html").read_text()
+    assert "fit_report.txt" in page and "offsets_temperature_v2.csv" in page
+    assert "stated 1-sigma band" in page  # the caption says what the picture shows
+    targets = links(out / "index.html")
+    assert {f"{n}.png" for n in drawn} <= set(targets)
+    for rel in targets:  # every link relative and resolving inside the folder
+        assert not rel.startswith(("/", "http")) and (out / unquote(rel)).is_file(), rel
+
+
+def _table_law(out: Path, t: np.ndarray) -> np.ndarray:
+    rows = [r for r in csv.DictReader(line for line in (out / "offsets_temperature_v2.csv")
+                                      .read_text().splitlines() if not line.startswith("#"))]
+    law = np.empty((t.size, 3))
+    for j, r in enumerate(rows):
+        a0, b0, a1, b1 = (float(r[k]) for k in ("A0", "B0", "A1", "B1"))
+        law[:, j] = np.maximum(a0 + b0 * t, a1 + b1 * t)
+    return law
+
+
+def test_drawn_law_is_the_written_table(fitted):
+    """The first line of each axis's subplot is the law of offsets_temperature_v2.csv.
+
+    Tolerance 1e-3 counts: the table holds A and B to 6 decimals (<= 5e-5 counts at 50 C).
+    """
+    import matplotlib.pyplot as plt
+
+    from fluxcal.products.fit_plots import panel_figure
+
+    out, drawn = fitted
+    fig = panel_figure(drawn["fit_offsets_temperature"])
+    try:
+        for j, ax in enumerate(fig.axes[:3]):
+            x, y = (np.asarray(v, float) for v in ax.get_lines()[0].get_data())
+            pick = np.linspace(0, x.size - 1, 7).astype(int)
+            np.testing.assert_allclose(y[pick], _table_law(out, x[pick])[:, j], atol=1e-3)
+            assert ax.collections, "the 1-sigma band is drawn"
+    finally:
+        plt.close(fig)
+    band = drawn["fit_offsets_temperature"].curve.band
+    assert np.all(np.isfinite(band)) and np.all(band > 0)
+
+
+def test_rejected_intervals_on_a_utc_time_line():
+    """ET 0 (J2000 TDB) is 2000-01-01T11:58:55.816 UTC (TT - UTC = 64.184 s in 2000)."""
+    from types import SimpleNamespace
+
+    from fluxcal.missions.messenger.fit_variance import VarianceStatistics
+
+    v = VarianceStatistics(interval_start=np.array([0.0, 900.0, 1800.0]),
+                           reason=np.array(["", "compressive", "small_fluctuations"]))
+    rej = mfp._rejections(SimpleNamespace(variance=v))
+    expect = np.datetime64("2000-01-01T11:58:55.816", "ns") + np.array(
+        [0, 900, 1800]).astype("m8[s]")
+    assert np.all(np.abs((rej.start - expect).astype(np.int64)) < 2_000_000)  # 2 ms: TDB-TT
+    assert list(rej.reason) == ["", "compressive", "small_fluctuations"]
