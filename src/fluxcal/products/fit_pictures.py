@@ -14,9 +14,9 @@ fit result.  Four kinds of picture (issue 34, item 6):
 `write_fit_report` draws them (matplotlib, the ``plot`` extra: `fluxcal.products.fit_plots`)
 into the fit's output folder and writes that folder's ``index.html`` with the run-report
 machinery of the calibration runs (`fluxcal.products.html_report.write_run_report`):
-pictures with a caption saying what each shows, the text reports, every file linked
-relatively.  Without matplotlib the index is written without pictures and the returned
-note says, in one line, that they need ``fluxcal[plot]``.
+pictures with a caption saying what each shows, the text reports, every file of the
+folder linked relatively (those already in place and those the run still stages).
+Without matplotlib the index is written without pictures and the returned note says, in one line, that they need ``fluxcal[plot]``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.extras import available
-from fluxcal.products.html_report import write_run_report
+from fluxcal.products.atomic import ungrouped
+from fluxcal.products.html_report import run_products, write_run_report
 
 #: The one line a fit prints when matplotlib is missing.
 NO_PLOT_NOTE = "fit pictures need matplotlib: install fluxcal[plot] (the index lists the tables)"
@@ -145,6 +146,9 @@ def write_fit_report(out: Path, pictures: Sequence[Picture], title: str
     else:
         note = NO_PLOT_NOTE
     captions = {f"{p.name}.png": p.caption for p in pictures}
-    index = write_run_report(out, title, captions=captions,
-                             no_figures=note or "This fit drew no picture.")
+    with ungrouped():  # what is in the folder already (tables some fits rename at once)
+        files = {f.rel: f for f in run_products(out)}
+    files.update({f.rel: f for f in run_products(out)})  # and what the run stages
+    index = write_run_report(out, title, [files[k] for k in sorted(files)],
+                             captions=captions, no_figures=note or "This fit drew no picture.")
     return written + ([index] if index is not None else []), note

@@ -52,7 +52,7 @@ def panel_figure(panel: Panel) -> Figure:
             ax.errorbar(p.x, p.y[:, j], yerr=err, fmt="o", ms=3, color="k", lw=0.8,
                         label=p.label)
         if panel.fitted_range is not None and all(np.isfinite(panel.fitted_range)):
-            ax.axvspan(*panel.fitted_range, color="0.85", zorder=0,
+            ax.axvspan(*panel.fitted_range, color="0.93", zorder=0,
                        label="range the data determine")
         ax.set_ylabel(f"{name}\n{panel.ylabel}")
         ax.grid(alpha=0.3)
