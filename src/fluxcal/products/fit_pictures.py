@@ -16,7 +16,8 @@ into the fit's output folder and writes that folder's ``index.html`` with the ru
 machinery of the calibration runs (`fluxcal.products.html_report.write_run_report`):
 pictures with a caption saying what each shows, the text reports, every file of the
 folder linked relatively (those already in place and those the run still stages).
-Without matplotlib the index is written without pictures and the returned note says, in one line, that they need ``fluxcal[plot]``.
+Without matplotlib the index is written without pictures and the returned note says,
+in one line, that they need ``fluxcal[plot]``.
 """
 
 from __future__ import annotations
