@@ -153,8 +153,8 @@ def run_fit(
                   for key, value in provenance.items()}
     written = write_calibration_folder(result, Path(out), calib, provenance)
     drawn, note = write_fit_pictures(result, Path(out))
-    return (report_text(result, provenance) + f"\nwrote {len(written) + len(drawn)} files to "
-            f"{out}" + (f"\n{note}" if note else ""))
+    return (report_text(result, provenance) + f"\nwrote {len(written)} files to {out}\n"
+            + (note or f"pictures of the fit: {Path(out) / 'index.html'} ({len(drawn) - 1} PNG)"))
 
 
 def _first_time(chunk) -> str:
