@@ -38,12 +38,18 @@ NO_PLOT_NOTE = "fit pictures need matplotlib: install fluxcal[plot] (the index l
 
 @dataclass(frozen=True)
 class Points:
-    """Measured values with their standard errors: ``x`` (n,), ``y`` and ``err`` (n, n_axes)."""
+    """Measured values with their standard errors: ``x`` (n,), ``y`` and ``err`` (n, n_axes).
+
+    ``model`` (n, n_axes) is what the fit expects each value to be, when that is not the
+    law at ``x`` (a bin mean modelled as the law averaged over the bin's samples); the
+    residuals drawn are ``y - model`` (default: the law interpolated at ``x``).
+    """
 
     x: np.ndarray
     y: np.ndarray
     err: np.ndarray | None = None
     label: str = "measured"
+    model: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -33,33 +33,56 @@ PULL_LIMIT = 5.0
 def panel_figure(panel: Panel) -> Figure:
     """One subplot per axis: points with error bars, the law, its band, the fitted range.
 
-    The law's line is the first line of each subplot (`matplotlib.axes.Axes.get_lines`),
-    its data exactly ``panel.curve.x`` and ``panel.curve.y[:, j]``.
+    The first ``len(panel.axes)`` subplots (`matplotlib.figure.Figure.axes`) are these;
+    the law's line is the first line of each, its data exactly ``panel.curve.x`` and
+    ``panel.curve.y[:, j]``.  When the law has a band, a second column shows the points'
+    residuals about the law (``points.model``, else the law interpolated on its samples)
+    inside the band around zero:
+    a band of 0.1 nT on a law spanning hundreds is invisible in the first column.
     """
     n = len(panel.axes)
-    fig, axs = plt.subplots(n, 1, figsize=(8, 2.4 * n + 0.8), sharex=True, squeeze=False)
-    for j, (ax, name) in enumerate(zip(axs[:, 0], panel.axes, strict=True)):
+    c, p = panel.curve, panel.points
+    residuals = c is not None and c.band is not None
+    fig = plt.figure(figsize=(12 if residuals else 8, 2.4 * n + 0.8))
+    grid = fig.add_gridspec(n, 2 if residuals else 1, width_ratios=[3, 2] if residuals else [1])
+    left = [fig.add_subplot(grid[0, 0])]
+    left += [fig.add_subplot(grid[j, 0], sharex=left[0]) for j in range(1, n)]
+    right = [fig.add_subplot(grid[j, 1], sharex=left[0]) for j in range(n)] if residuals else []
+    for j, (ax, name) in enumerate(zip(left, panel.axes, strict=True)):
         color = COLORS[j % len(COLORS)]
-        c = panel.curve
         if c is not None:
             ax.plot(c.x, c.y[:, j], color=color, lw=1.4, label=c.label, zorder=3)
             if c.band is not None:
                 ax.fill_between(c.x, c.y[:, j] - c.band[:, j], c.y[:, j] + c.band[:, j],
                                 color=color, alpha=0.25, lw=0, label="1-sigma band")
-        p = panel.points
         if p is not None:
             err = None if p.err is None else p.err[:, j]
             ax.errorbar(p.x, p.y[:, j], yerr=err, fmt="o", ms=3, color="k", lw=0.8,
                         label=p.label)
-        if panel.fitted_range is not None and all(np.isfinite(panel.fitted_range)):
-            ax.axvspan(*panel.fitted_range, color="0.93", zorder=0,
-                       label="range the data determine")
         ax.set_ylabel(f"{name}\n{panel.ylabel}")
-        ax.grid(alpha=0.3)
-    axs[0, 0].legend(fontsize=7, loc="best")
-    if panel.points is not None and np.asarray(panel.points.x).dtype.kind == "M":
-        date_axis(axs[-1, 0])
-    axs[-1, 0].set_xlabel(panel.xlabel)
+        if residuals:
+            r = right[j]
+            r.fill_between(c.x, -c.band[:, j], c.band[:, j], color=color, alpha=0.25, lw=0,
+                           label="law's 1-sigma band")
+            r.axhline(0.0, color=color, lw=1.0)
+            if p is not None and np.asarray(p.x).size:
+                res = p.y[:, j] - (np.interp(p.x, c.x, c.y[:, j]) if p.model is None
+                                   else p.model[:, j])
+                r.errorbar(p.x, res, yerr=None if p.err is None else p.err[:, j], fmt="o",
+                           ms=3, color="k", lw=0.8, label="measured - law")
+            r.set_ylabel(f"{name} - law\n{panel.ylabel}")
+        for a in (ax, *([right[j]] if residuals else [])):
+            if panel.fitted_range is not None and all(np.isfinite(panel.fitted_range)):
+                a.axvspan(*panel.fitted_range, color="0.93", zorder=0,
+                          label="range the data determine")
+            a.grid(alpha=0.3)
+    left[0].legend(fontsize=7, loc="best")
+    if residuals:
+        right[0].legend(fontsize=7, loc="best")
+        right[-1].set_xlabel(panel.xlabel)
+    if p is not None and np.asarray(p.x).dtype.kind == "M":
+        date_axis(left[-1])
+    left[-1].set_xlabel(panel.xlabel)
     fig.suptitle(panel.title)
     fig.tight_layout()
     return fig
@@ -103,6 +126,8 @@ def rejections_figure(rej: Rejections) -> Figure:
     ax.set_ylim(-0.7, len(names) - 0.3)
     if start.size:
         date_axis(ax)
+        if start.min() == start.max():  # one time: an hour around it, not years
+            ax.set_xlim(start.min() - np.timedelta64(1, "h"), start.max() + np.timedelta64(1, "h"))
     ax.set_title(rej.title)
     fig.tight_layout()
     return fig

@@ -102,6 +102,20 @@ def test_drawn_law_is_the_written_table(fitted):
     assert np.all(np.isfinite(band)) and np.all(band > 0)
 
 
+def test_bin_model_of_a_linear_stretch_is_the_law_at_its_mean_temperature(fitted):
+    """The residuals are about the law averaged over each bin's temperatures; on a bin
+    that holds no break that average is the law at the bin's mean temperature (a line's
+    mean), evaluated here from the table (1e-3 counts as above)."""
+    out, drawn = fitted
+    pts = drawn["fit_offsets_temperature"].points
+    rows = [r for r in csv.DictReader(line for line in (out / "offsets_temperature_v2.csv")
+                                      .read_text().splitlines() if not line.startswith("#"))]
+    breaks = np.array([float(r["Tm_c"]) for r in rows])
+    clear = np.all(np.abs(pts.x[:, None] - breaks[None, :]) > 10.0, axis=1)
+    assert clear.sum() >= 5
+    np.testing.assert_allclose(pts.model[clear], _table_law(out, pts.x[clear]), atol=1e-3)
+
+
 def test_rejected_intervals_on_a_utc_time_line():
     """ET 0 (J2000 TDB) is 2000-01-01T11:58:55.816 UTC (TT - UTC = 64.184 s in 2000)."""
     from types import SimpleNamespace
@@ -115,3 +129,25 @@ def test_rejected_intervals_on_a_utc_time_line():
         [0, 900, 1800]).astype("m8[s]")
     assert np.all(np.abs((rej.start - expect).astype(np.int64)) < 2_000_000)  # 2 ms: TDB-TT
     assert list(rej.reason) == ["", "compressive", "small_fluctuations"]
+
+
+def test_variance_fit_without_bin_means_draws_what_it_has(tmp_path):
+    """A variance fit from normal equations alone (no bin means, no epoch): the law with
+    its band over the fitted range, the intervals' time line; nothing fails on the empty
+    statistics."""
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+
+    from .test_fit_variance import N_PARAMETERS, _variance_result
+
+    res = _variance_result(load_calibration(START), np.zeros(N_PARAMETERS))
+    res.variance.reason = res.variance.reason.astype("<U24")
+    res.variance.reason[::3] = "compressive"
+    res.variance.interval_start = np.arange(res.variance.reason.size) * 900.0
+    (tmp_path / "fit_report.txt").write_text("a fit\n")
+    written, note = mfp.write_fit_pictures(res, tmp_path)
+    names = {p.name for p in written}
+    assert note == "" and {"fit_offsets_temperature.png", "fit_intervals.png",
+                           "index.html"} <= names
+    temp = {p.name: p for p in mfp.pictures(res)}["fit_offsets_temperature"]
+    assert temp.fitted_range == (-60.0, 40.0) and temp.points.x.size == 0
+    assert temp.curve.x.min() < -60.0 and temp.curve.x.max() > 40.0

@@ -2,9 +2,10 @@
 
 * offsets against sensor temperature: the heater-off 10-C bin means (the seed's
   long-term averages, the decaying duty-cycle offset removed as the fit removes it)
-  at each bin's mean temperature, the Table 2 law (eq. 3a/3b: the larger of two lines)
-  with its stated 1-sigma band (`fluxcal.missions.messenger.fit.law_sigma`) and the
-  fitted range shaded;
+  at each bin's mean temperature, their residuals and pulls about the law as the fit
+  models each bin (averaged over the bin's temperatures), the Table 2 law (eq. 3a/3b:
+  the larger of two lines) with its stated 1-sigma band
+  (`fluxcal.missions.messenger.fit.law_sigma`) and the fitted range shaded;
 * offsets against heater duty cycle: the 4-% bin means at their mean relaxed duty
   cycle and the Table 3 line ``C0 + D0 d`` (eq. 5a);
 * the relaxation: the axis-combined normalised superposed epoch and the fitted step
@@ -27,8 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
+from fluxcal.errors import FluxcalError
 from fluxcal.geometry.time import et_to_tt2000, tt2000_to_datetime64
-from fluxcal.missions.messenger.fit import AXES, MIN_BIN_SAMPLES, FitResult, law_sigma
+from fluxcal.missions.messenger.fit import (
+    AXES,
+    MIN_BIN_SAMPLES,
+    FitResult,
+    _temperature_distribution,
+    law_sigma,
+)
 from fluxcal.products.fit_pictures import (
     Curve,
     Panel,
@@ -52,13 +60,33 @@ def law(result: FitResult, t: np.ndarray) -> np.ndarray:
     return np.maximum(c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
 
 
+def _bin_model(result: FitResult, ok: np.ndarray, t_mean: np.ndarray) -> np.ndarray:
+    """Return the law as the fit models each used bin (averaged over its temperatures).
+
+    The ``distribution`` estimator (docs/decisions/messenger_fit.md, entry 8) models a bin
+    as the average of the law over its samples' temperatures; the ``binned-mean`` one (or
+    statistics without the sub-bins) as the law at the bin's mean temperature.
+    """
+    if result.temperature_law == "distribution" and result.stats.temperature_fine is not None:
+        try:
+            t_sub, weights = _temperature_distribution(result.stats, ok)
+        except FluxcalError:
+            return law(result, t_mean)
+        used = weights.sum(axis=1) > 0
+        if used.all():
+            filled = np.isfinite(t_sub)
+            return (weights[:, filled] @ law(result, t_sub[filled])) / weights.sum(axis=1)[:, None]
+    return law(result, t_mean)
+
+
 def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     m = result.stats.temperature
     mean, err = m.mean(), m.standard_error()
     ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)
     y = mean[ok, :3] - mean[ok, 4:5] * d0[None, :]
-    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means")
+    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means",
+                 _bin_model(result, ok, mean[ok, 3]))
     lo, hi = result.fitted_range
     seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
     grid = np.linspace(min(seen) - 5.0, max(seen) + 5.0, N_CURVE)
@@ -71,7 +99,7 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
                   "standard errors, the fitted Table 2 law and its stated 1-sigma band; "
                   "shaded: the range over which the data determine the law", pts, curve,
                   fitted)
-    return panel, pull_values(pts, law(result, pts.x))
+    return panel, pull_values(pts, pts.model)
 
 
 def _duty(result: FitResult) -> tuple[Panel, np.ndarray]:
