@@ -1,4 +1,4 @@
-"""The generic fit pictures (`fluxcal.products.fit_pictures`, `fluxcal.products.fit_plots`).
+"""The generic fit pictures (`fluxcal.products.fit_pictures`, `fit_plots`, `fit_report`).
 
 Expected values are closed forms: pulls ``(y - law) / err`` computed here by hand, one
 time-line row per reason with its count, the arrays passed in read back from the figure.
@@ -14,6 +14,7 @@ import pytest
 
 from fluxcal.errors import MissingExtraError
 from fluxcal.products import fit_pictures as fp
+from fluxcal.products import fit_report
 
 
 def _panel() -> fp.Panel:
@@ -56,7 +57,7 @@ def test_figures_hold_the_arrays_given():
 def test_report_pictures_captions_and_relative_links(tmp_path):
     pytest.importorskip("matplotlib")
     (tmp_path / "table.csv").write_text("a,b\n1,2\n")
-    written, note = fp.write_fit_report(tmp_path, [_panel()], "a fit")
+    written, note = fit_report.write_fit_report(tmp_path, [_panel()], "a fit")
     assert note == "" and {p.name for p in written} == {"fit_law.png", "index.html"}
     page = (tmp_path / "index.html").read_text()
     assert 'src="fit_law.png"' in page and "fit_law.png: a law" in page
@@ -64,11 +65,11 @@ def test_report_pictures_captions_and_relative_links(tmp_path):
 
 
 def test_without_matplotlib_index_only_and_one_line(tmp_path, monkeypatch):
-    monkeypatch.setattr(fp, "available", lambda extra: False)
+    monkeypatch.setattr(fit_report, "available", lambda extra: False)
     (tmp_path / "table.csv").write_text("a,b\n1,2\n")
-    written, note = fp.write_fit_report(tmp_path, [_panel()], "a fit")
+    written, note = fit_report.write_fit_report(tmp_path, [_panel()], "a fit")
     assert [p.name for p in written] == ["index.html"] and not list(tmp_path.glob("*.png"))
-    assert note == fp.NO_PLOT_NOTE and "\n" not in note and "fluxcal[plot]" in note
+    assert note == fit_report.NO_PLOT_NOTE and "\n" not in note and "fluxcal[plot]" in note
     assert "fluxcal[plot]" in (tmp_path / "index.html").read_text()
 
 

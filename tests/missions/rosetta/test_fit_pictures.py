@@ -17,7 +17,7 @@ from numpy.polynomial import Polynomial
 from fluxcal.cli import main
 from fluxcal.missions.rosetta import calib, io
 from fluxcal.missions.rosetta import fit_pictures as rfp
-from fluxcal.products import fit_pictures
+from fluxcal.products import fit_report
 
 from .test_fit import DAY, simulate_raw, true_model
 
@@ -82,7 +82,7 @@ def test_daily_curve_drawn_is_the_written_file(science, tmp_path, monkeypatch):
 
 def test_without_matplotlib_the_fit_runs_and_says_so(science, tmp_path, monkeypatch, caplog):
     """No plot extra: the daily file and the index are written, no PNG, one warning line."""
-    monkeypatch.setattr(fit_pictures, "available", lambda extra: False)
+    monkeypatch.setattr(fit_report, "available", lambda extra: False)
     out = tmp_path / "fit"
     assert _fit(science, out) == 0
     assert (out / DAILY).is_file() and (out / "index.html").is_file()

@@ -45,8 +45,8 @@ from fluxcal.products.fit_pictures import (
     Pulls,
     Rejections,
     pull_values,
-    write_fit_report,
 )
+from fluxcal.products.fit_report import write_fit_report
 from fluxcal.products.timeindex import default_lsk
 
 #: Points on the drawn law (the temperature axis).
@@ -173,6 +173,6 @@ def write_fit_pictures(result: FitResult, out: Path) -> tuple[list[Path], str]:
     """Draw the pictures of ``result`` into ``out`` and write its ``index.html``.
 
     Returns the files written and the one-line note when the pictures need
-    ``fluxcal[plot]`` (`fluxcal.products.fit_pictures.write_fit_report`).
+    ``fluxcal[plot]`` (`fluxcal.products.fit_report.write_fit_report`).
     """
     return write_fit_report(out, pictures(result), f"fluxcal messenger fit: {Path(out).name}")

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.missions.rosetta.fit import DailyModelFit, OffsetJumpFit
-from fluxcal.products.fit_pictures import Curve, Panel, Picture, Points, write_fit_report
+from fluxcal.products.fit_pictures import Curve, Panel, Picture, Points
+from fluxcal.products.fit_report import write_fit_report
 
 log = logging.getLogger(__name__)
 
