@@ -151,3 +151,12 @@ def test_variance_fit_without_bin_means_draws_what_it_has(tmp_path):
     temp = {p.name: p for p in mfp.pictures(res)}["fit_offsets_temperature"]
     assert temp.fitted_range == (-60.0, 40.0) and temp.points.x.size == 0
     assert temp.curve.x.min() < -60.0 and temp.curve.x.max() > 40.0
+
+
+def test_band_is_the_results_stated_law_error_when_it_has_one():
+    """A result stating its own law error (break included) is drawn with that band."""
+    from types import SimpleNamespace
+
+    t = np.array([-20.0, 0.0, 30.0])
+    own = SimpleNamespace(law_error=lambda x: np.outer(np.abs(x) + 1.0, [1.0, 2.0, 3.0]))
+    np.testing.assert_array_equal(mfp.law_band(own, t), np.outer(np.abs(t) + 1.0, [1, 2, 3]))

@@ -4,8 +4,8 @@
   long-term averages, the decaying duty-cycle offset removed as the fit removes it)
   at each bin's mean temperature, their residuals and pulls about the law as the fit
   models each bin (averaged over the bin's temperatures), the Table 2 law (eq. 3a/3b:
-  the larger of two lines) with its stated 1-sigma band
-  (`fluxcal.missions.messenger.fit.law_sigma`) and the fitted range shaded;
+  the larger of two lines) with its stated 1-sigma band (`law_band`) and the fitted range
+  shaded;
 * offsets against heater duty cycle: the 4-% bin means at their mean relaxed duty
   cycle and the Table 3 line ``C0 + D0 d`` (eq. 5a);
 * the relaxation: the axis-combined normalised superposed epoch and the fitted step
@@ -60,6 +60,16 @@ def law(result: FitResult, t: np.ndarray) -> np.ndarray:
     return np.maximum(c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
 
 
+def law_band(result: FitResult, t: np.ndarray) -> np.ndarray:
+    """Return the law's stated 1-sigma error (counts) at ``t``, shape (n, 3).
+
+    The fit's own ``law_error`` where the result states one (the full covariance, break
+    included), else `law_sigma` (the covariance of the two lines at the chosen break).
+    """
+    stated = getattr(result, "law_error", None)
+    return stated(t) if callable(stated) else law_sigma(result.temperature, t)
+
+
 def _bin_model(result: FitResult, ok: np.ndarray, t_mean: np.ndarray) -> np.ndarray:
     """Return the law as the fit models each used bin (averaged over its temperatures).
 
@@ -90,8 +100,7 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     lo, hi = result.fitted_range
     seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
     grid = np.linspace(min(seen) - 5.0, max(seen) + 5.0, N_CURVE)
-    curve = Curve(grid, law(result, grid), law_sigma(result.temperature, grid),
-                  "Table 2 law (eq. 3a/3b)")
+    curve = Curve(grid, law(result, grid), law_band(result, grid), "Table 2 law (eq. 3a/3b)")
     fitted = (lo, hi) if np.isfinite(lo) and np.isfinite(hi) else None
     panel = Panel("fit_offsets_temperature", "Offsets against sensor temperature (heater off)",
                   "sensor temperature (C)", "offset (counts)", AXES,
