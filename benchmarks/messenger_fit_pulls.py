@@ -10,11 +10,18 @@ Each realisation simulates ``--days`` days of the independent realistic wind of
 ``--compressive`` relative |B| fluctuation) through `flight_sim` at 1 Hz with seed
 ``--first-seed + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
 errors), and prints, per realisation and then over all, the pulls ``(fit - truth) /
-stated error`` of tau, dt (when adopted), D0 (x, y, z) and the temperature law at
+stated error`` of tau, dt (when adopted), D0 (x, y, z), the breaks T_m, and the temperature law at
 -50, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
 error (nT) over the fitted range.  Pulls with mean ~0 and spread ~1, all within
-[-3, 3], mean the errors say what they mean.  ``--markdown`` prints the table for
-docs/decisions/messenger_fit_verification.md.
+[-3, 3], mean the errors say what they mean.  Each line also gives the passes run, the
+predicted error of a recalibrated day (issue 34) and what the command line would have
+done (the compressive share, convergence, `check_fit`, `fit_merit.check_merit`).
+Issue 34's verification (20 realisations per world, 16 days; a 16-core machine)::
+
+    .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 16 \
+        --unseen --passes 6 --processes 16 [--broadband --compressive 0.05] [--hold-d0 z]
+
+``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.
 """
 
 from __future__ import annotations
@@ -42,13 +49,12 @@ from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E40
 from tests.missions.messenger._unseen_day import recalibrate_rms  # noqa: E402
 
 from fluxcal.errors import FitRefusedError  # noqa: E402
-from fluxcal.missions.messenger import forward  # noqa: E402
+from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
     check_fit,
     day_chunks,
     fit_days,
-    law_sigma,
 )
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
@@ -83,7 +89,7 @@ def defects(seed: int, days: int) -> dict:
 
 def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
         first_seed: int = 1000, unseen: bool = False, broadband: bool = False,
-        with_defects: bool = False) -> dict:
+        with_defects: bool = False, hold_d0: tuple[str, ...] = ()) -> dict:
     """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth;
     ``unseen``: one more day simulated, recalibrated with the fitted tables;
     ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`)."""
@@ -97,9 +103,15 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
         res = fit_days(day_chunks(run.input_dir, run.days[:days]), base, passes=passes,
-                       estimator="variance", guard=False)
+                       estimator="variance", guard=False, hold_d0=hold_d0)
         try:  # what the command line would do with this fit (it writes nothing if refused)
+            cause = fit_merit.compressive_refusal(res.variance.reason)
+            if cause:
+                raise FitRefusedError(cause)
+            if not res.convergence["converged"]:
+                raise FitRefusedError(res.convergence["stop"])
             check_fit(res)
+            fit_merit.check_merit(res)
             verdict = "accepted"
         except FitRefusedError as exc:
             verdict = f"refused: {str(exc).split(';')[0]}"
@@ -108,7 +120,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             folder = Path(tmp) / "fitted"
             write_calibration_folder(res, folder, None, {
                 "inputs": {}, "intervals": "all data", "days": f"first {days}",
-                "command": "messenger_fit_pulls"})
+                "command": "messenger_fit_pulls"}, study=True)
             unseen_rms = recalibrate_rms(run.input_dir, run.days[-1], folder)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
@@ -120,7 +132,8 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
     law_t = np.array(LAW_T)
     inside = (law_t >= lo) & (law_t <= hi)
     law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
-                / law_sigma(res.temperature, law_t))
+                / res.law_error(law_t))
+    true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
     law_pull[~inside] = np.nan
     rel = true.constants["relaxation"]
     r = res.relaxation
@@ -134,6 +147,11 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "law_max_nt": NT_PER_COUNT * np.abs(_law(cal.temperature_coefficients, t_all)
                                             - _law(tc, t_all)).max(axis=0),
         "range": (lo, hi),
+        "tm_pull": (np.asarray(cal.breakpoint_temperature_c) - true_tm)
+        / np.array([f.x_m_err for f in res.temperature]),
+        "tm_err": np.array([f.x_m_err for f in res.temperature]),
+        "predicted_nt": np.asarray(res.merit.get("total_nt", [np.nan] * 3)),
+        "passes": res.convergence["passes_run"],
         "unseen_nt": unseen_rms,
         "verdict": verdict,
     }
@@ -153,6 +171,8 @@ def table(rows: list[dict]) -> list[tuple[str, np.ndarray]]:
     d0 = np.stack([r["d0_pull"] for r in rows])
     law = np.stack([r["law_pull"] for r in rows])
     out += [(f"D0 {a}", d0[:, j]) for j, a in enumerate("xyz")]
+    tm = np.stack([r["tm_pull"] for r in rows])
+    out += [(f"T_m {a}", tm[:, j]) for j, a in enumerate("xyz")]
     out += [(f"law {a} at {t:+.0f} C", law[:, i, j]) for j, a in enumerate("xyz")
             for i, t in enumerate(LAW_T)]
     return out
@@ -179,6 +199,8 @@ def main() -> None:
     ap.add_argument("--defects", action="store_true",
                     help="Telemetry defects: science, heater and temperature gaps, coarse "
                          "range, a rate change (`defects`).")
+    ap.add_argument("--hold-d0", default="",
+                    help="Comma list of axes whose D0 is held (shipped value, default width).")
     ap.add_argument("--save", type=Path, default=None,
                     help="Folder to pickle each realisation's fit and true tables into.")
     args = ap.parse_args()
@@ -187,7 +209,8 @@ def main() -> None:
     run = functools.partial(_timed, days=args.days, compressive=args.compressive,
                             passes=args.passes, save=args.save, first_seed=args.first_seed,
                             unseen=args.unseen, broadband=args.broadband,
-                            with_defects=args.defects)
+                            with_defects=args.defects,
+                            hold_d0=tuple(a for a in args.hold_d0.split(",") if a))
     if args.processes > 1:
         pool = ProcessPoolExecutor(max_workers=args.processes)
         done = (f.result() for f in as_completed([pool.submit(run, k)
@@ -201,7 +224,9 @@ def main() -> None:
               f"{np.round(r['d0_pull'], 2)} ({np.round(r['d0_rel'], 3)})  law pulls max "
               f"{np.round(np.nanmax(np.abs(r['law_pull']), axis=0), 2)}  law max "
               f"{np.round(r['law_max_nt'], 3)} nT over {r['range'][0]:+.0f}.."
-              f"{r['range'][1]:+.0f} C  unseen day {np.round(r['unseen_nt'], 3)} nT; guards: "
+              f"{r['range'][1]:+.0f} C  T_m pulls {np.round(r['tm_pull'], 2)} (+- "
+              f"{np.round(r['tm_err'], 2)} C)  predicted {np.round(r['predicted_nt'], 3)} nT  "
+              f"unseen day {np.round(r['unseen_nt'], 3)} nT; passes {r['passes']}; guards: "
               f"{r['verdict']}", flush=True)
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
           f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "

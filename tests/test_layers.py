@@ -252,3 +252,65 @@ def test_the_lazy_modules_are_the_command_and_extras_modules():
     assert "fluxcal.cli" in lazy and "fluxcal.missions.rosetta.clean_cli" in lazy
     assert "fluxcal.missions.messenger.fit_demo" in lazy and "fluxcal.runs.cluster" in lazy
     assert "fluxcal.missions.rosetta.pipeline" not in lazy and "fluxcal.api" not in lazy
+
+
+#: Packages below ``fluxcal.runs``: they take the registry's pieces (frame kernels,
+#: archived-product readers) as arguments and never look missions up (issue 32).
+LOWER = ("geometry", "calibration", "cleaning", "products", "archive")
+#: What a lower-layer module must not name, in an import or in a string of its code: the
+#: run layer and the missions (a ``"module:attribute"`` string imported at run time is an
+#: import the import graph does not see).
+UPWARD = re.compile(r"\bfluxcal\.(runs|missions)\b")
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    """ids of the docstring nodes of a module, its classes and functions."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+                    and isinstance(body[0].value.value, str):
+                out.add(id(body[0].value))
+    return out
+
+
+def _upward_names(module: str, pattern: re.Pattern = UPWARD) -> list[str]:
+    """Imports and string constants (docstrings aside) of ``module`` matching ``pattern``."""
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    hits = [f"imports {n}" for n in sorted(_imports(module, top_level_only=False))
+            if pattern.search(n)]
+    docs = _docstrings(tree)
+    hits += [f"line {node.lineno}: {node.value!r}" for node in ast.walk(tree)
+             if isinstance(node, ast.Constant) and isinstance(node.value, str)
+             and id(node) not in docs and pattern.search(node.value)]
+    return hits
+
+
+def _is_lower(module: str) -> bool:
+    parts = module.split(".")
+    return len(parts) > 1 and parts[1] in LOWER
+
+
+@pytest.mark.parametrize("module", [m for m in MODULES if _is_lower(m)])
+def test_lower_layer_names_neither_runs_nor_missions(module):
+    hits = _upward_names(module)
+    assert not hits, f"{module} reaches up:\n" + "\n".join(hits)
+
+
+@pytest.mark.parametrize("module", [m for m in MODULES if m.startswith("fluxcal.runs.")])
+def test_runs_name_no_mission_module(module):
+    # the entry-point group "fluxcal.missions" is a name, not a module: a module is
+    # "fluxcal.missions.<name>" or "fluxcal.missions:<attribute>"
+    hits = _upward_names(module, re.compile(r"\bfluxcal\.missions[.:]\w"))
+    assert not hits, f"{module} names a mission module:\n" + "\n".join(hits)
+
+
+def test_the_string_check_sees_a_reference_by_name(tmp_path, monkeypatch):
+    """The check fails for the right reason: a ``module:attribute`` string is caught."""
+    bad = tmp_path / "bad.py"
+    bad.write_text('"""Doc: fluxcal.runs.registry is fine here."""\n'
+                   'DEFAULT = "fluxcal.runs.registry:frame_kernels"\n')
+    monkeypatch.setitem(MODULES, "fluxcal.geometry.bad", bad)
+    assert _upward_names("fluxcal.geometry.bad") == [
+        "line 2: 'fluxcal.runs.registry:frame_kernels'"]

@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from fluxcal.archive.products import read_product as read_table_product
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.imap.pipeline import process
 from fluxcal.missions.messenger.levels import frame_variables
@@ -29,29 +28,26 @@ from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.missions.messenger.routes import CsvSource, MessengerRun
 from fluxcal.missions.rosetta.options import RosettaOptions
 from fluxcal.missions.rosetta.routes import calibrate_levels
-from fluxcal.products import read_product as read_fluxcal_product
+from fluxcal.products.compare import load_product
 from fluxcal.products.timeindex import with_time_index
-
-#: Suffixes read as PDS3 tables (the archive's and fluxcal's labels alike).
-TABLE_SUFFIXES = (".lbl", ".tab")
+from fluxcal.runs import registry
 
 
 def read_product(path: str | Path) -> xr.Dataset:
     """Read any product: fluxcal's (TAB/LBL, CDF, netCDF, Zarr) or an archived table.
 
-    PDS3 tables go through the label-driven archive reader
-    (`fluxcal.archive.products.read_product`, which also reads fluxcal's own labels);
-    the other formats through `fluxcal.products.read_product`.
+    A PDS3 table that a registered mission's archived-product reader accepts goes through
+    it (`fluxcal.archive.products.read_product`, which also reads fluxcal's own labels
+    of those layouts); another table (a plugin's own layout) and the other formats
+    through `fluxcal.products.read_product` (`fluxcal.products.compare.load_product`).
+    The engine ``xr.open_dataset(path, engine="fluxcal")`` is this function.
 
     Raises
     ------
     fluxcal.errors.InputFormatError
         A file that is not a product (naming the file, row and column where it can).
     """
-    path = Path(path)
-    if path.suffix.lower() in TABLE_SUFFIXES:
-        return read_table_product(path)
-    return read_fluxcal_product(path)
+    return load_product(Path(path), registry.archived_readers())
 
 
 def calibrate_messenger(

@@ -15,6 +15,7 @@ import logging
 import os
 import signal
 import sys
+import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -34,7 +35,7 @@ from fluxcal.products.staging import (
     reads_back,
 )
 from fluxcal.runs import registry
-from fluxcal.runs.cli import batch_app
+from fluxcal.runs.cli import batch_app, unavailable_command
 from fluxcal.runs.contract import Mission
 
 
@@ -96,7 +97,10 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
     from its day task and options dataclass); ``plot``, ``compare``, ``provenance``, ``demo`` and
     ``version`` work on every mission's products.
     """
-    missions = registry.missions() if missions is None else missions
+    if missions is None:  # a broken plugin: skipped here, said once by `main`
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", registry.PluginWarning)
+            missions = registry.missions()
     # rich_markup_mode=None: click's plain help, which wraps long option names and paths
     # instead of cutting them with an ellipsis and shows no metavar for flags (issue 25)
     root = typer.Typer(
@@ -116,17 +120,36 @@ def build_app(missions: dict[str, Mission] | None = None) -> typer.Typer:
         rich_markup_mode=None, cls=HelpGroup)
     for name, mission in sorted(missions.items()):
         if mission.commands is not None:
-            commands = mission.load("commands")
-            commands = commands if isinstance(commands, typer.Typer) else commands()
-            root.add_typer(commands, name=name, help=mission.title or None)
+            try:
+                commands = registry.load_piece(mission, "commands")
+                commands = commands if isinstance(commands, typer.Typer) else commands()
+                root.add_typer(commands, name=name, help=mission.title or None)
+            except FluxcalError as exc:
+                unavailable_command(root, name, str(exc))
         if mission.simulate is not None:
-            simulate_app.command(name)(reads_back(mission.load("simulate")))
+            try:
+                simulate_app.command(name)(reads_back(registry.load_piece(mission, "simulate")))
+            except FluxcalError as exc:
+                unavailable_command(simulate_app, name, str(exc))
+    batch = batch_app(missions)
+    for name, message in registry.broken().items():
+        if name not in missions and ":" not in name:  # an entry point's name
+            for group in (root, simulate_app, batch):
+                unavailable_command(group, name, message)
     root.add_typer(simulate_app, name="simulate")
-    root.add_typer(batch_app(missions), name="batch")
+    root.add_typer(batch, name="batch")
     root.command("plot")(product_commands.plot)
     root.command("compare")(product_commands.compare)
     root.command("provenance")(product_commands.provenance)
     return root
+
+
+def _warn_broken_plugins(args: Sequence[str]) -> None:
+    """Print one line per mission plugin that failed to load (not under ``-q``)."""
+    if "-q" in args or "--quiet" in args:
+        return
+    for message in registry.broken().values():
+        typer.echo(f"fluxcal: warning: {message}; skipped", err=True)
 
 
 app = build_app()
@@ -259,6 +282,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     atexit.register(_freeze_at_exit)
     args = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_requested(args)
+    _warn_broken_plugins(args)
     quiet = QUIET.set(False)  # set by the root callback for this command only
     command = COMMAND_ARGS.set(("fluxcal", *args))  # what products record (not pytest's argv)
     try:

@@ -9,6 +9,7 @@ import typer
 
 from fluxcal import preflight
 from fluxcal.extras import require
+from fluxcal.runs import registry
 
 
 def plot(
@@ -67,8 +68,10 @@ def compare(
     tol = parse_tolerance(tolerance)
     out_dir = out or Path.cwd()
     preflight.writable_folder(out_dir, "--out")
-    a, b = load_product(product_a), load_product(product_b)
-    result = run_compare(a, b, tol, path_a=str(product_a), path_b=str(product_b), force=force)
+    readers = registry.archived_readers()  # every registered mission's, passed down
+    a, b = load_product(product_a, readers), load_product(product_b, readers)
+    result = run_compare(a, b, tol, path_a=str(product_a), path_b=str(product_b), force=force,
+                         readers=readers)
     png = write_difference_plot(result, out_dir)
     typer.echo(format_report(result))
     typer.echo(f"plot: {png}")

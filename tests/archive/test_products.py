@@ -16,10 +16,16 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from fluxcal.archive.products import read_product
+from fluxcal.archive.products import read_product as read_with
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.messenger.archive_products import messenger_epoch
 from fluxcal.products import Column, write_product
+from fluxcal.runs import registry
+
+
+def read_product(path: Path):
+    """The archive reader with every registered mission's readers (as the CLI passes them)."""
+    return read_with(path, registry.archived_readers())
 
 
 def _cdflib_tt2000(parts: list[list[int]]) -> np.ndarray:

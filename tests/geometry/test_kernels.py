@@ -7,6 +7,7 @@ from fluxcal.errors import KernelError
 from fluxcal.geometry import frames
 from fluxcal.geometry import kernels as kernels_mod
 from fluxcal.geometry.kernels import KernelPool, frame_defined
+from fluxcal.runs import registry
 
 
 def test_pool_restores_previous_state(shared_kernels):
@@ -41,14 +42,26 @@ def test_generic_kernels_come_from_pypi():
 
 
 def test_fluxcal_frames_loaded_only_when_undefined(shared_kernels):
+    # the frames are the caller's (the runner passes the registered missions'; issue 32)
+    frames = registry.frame_kernels()
     # ROS_V38.TF defines 67P/C-G_CSEQ itself (id -226910): fluxcal must keep it
-    with KernelPool([shared_kernels / "rosetta" / "ROS_V38.TF"]):
+    with KernelPool([shared_kernels / "rosetta" / "ROS_V38.TF"], frames=frames):
         assert spiceypy.namfrm("67P/C-G_CSEQ") == -226910
         assert spiceypy.namfrm("MSGR_MSO") == 1499001
-    with KernelPool([]):
+    with KernelPool([], frames=frames):
         assert spiceypy.namfrm("67P/C-G_CSEQ") == 1499010
-    with KernelPool([], fluxcal_frames=False):
+    with KernelPool([], frames=frames, fluxcal_frames=False):
         assert not frame_defined("MSGR_MSO")
+
+
+def test_pool_without_frames_loads_no_mission_frames(monkeypatch):
+    """``KernelPool()`` looks no mission up: no registry scan, no frame (issue 32)."""
+    def no_scan(*args, **kwargs):
+        raise AssertionError("KernelPool() scanned the mission registry")
+
+    monkeypatch.setattr(registry, "missions", no_scan)
+    with KernelPool():
+        assert not frame_defined("MSGR_MSO") and not frame_defined("67P/C-G_CSEQ")
 
 
 def test_unknown_frame_is_kernel_error():

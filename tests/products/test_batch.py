@@ -13,6 +13,7 @@ import pytest
 
 from fluxcal.products import read_product
 from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.runs import registry
 from fluxcal.runs.batch import (
     BatchReport,
     DayResult,
@@ -192,10 +193,10 @@ def test_worker_kernel_pool_switches_lists() -> None:
     try:
         a = worker_kernel_pool([])
         n_a = spiceypy.ktotal("ALL")
-        b = worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
+        b = worker_kernel_pool([frame_kernel_path("MSGR_MSO", registry.frame_kernels())])
         assert b is not a
         assert spiceypy.ktotal("ALL") >= n_a
-        assert worker_kernel_pool([frame_kernel_path("MSGR_MSO")]) is b
+        assert worker_kernel_pool([frame_kernel_path("MSGR_MSO", registry.frame_kernels())]) is b
     finally:
         release_worker_kernel_pool()
     assert spiceypy.ktotal("ALL") == before
@@ -227,7 +228,7 @@ class KernelDayTask:
         from fluxcal.geometry.kernels import frame_kernel_path
         from fluxcal.runs.batch import worker_kernel_pool
 
-        worker_kernel_pool([frame_kernel_path("MSGR_MSO")])
+        worker_kernel_pool([frame_kernel_path("MSGR_MSO", registry.frame_kernels())])
         path = atomic_write_bytes(Path(self.out_dir) / f"K_{day:%Y%m%d}.txt",
                                   str(spiceypy.ktotal("ALL")).encode())
         return DayResult(day, [path])

@@ -159,6 +159,8 @@ def test_report_summarises_products_and_quality(imap_run: Path) -> None:
     # the norm-mode sample: 96 vectors at 2 per second (the packets' own count)
     assert "<td class=\"num\">96</td>" in page and "<td class=\"num\">0.5</td>" in page
     assert "calibration_valid" in page  # what the product records about its calibration
+    # and why it is not valid: the ground-test packets (2023) precede the file's validity
+    assert "are outside the calibration file" in page and "calibration_validity: " in page
     assert "<script" not in page and "http" not in page.replace("http-equiv", "")
 
 

@@ -33,7 +33,10 @@ def test_quick_demo_shows_a_product_quicklook_and_report_per_mission(tmp_path: P
         assert report.exists(), folder
         assert list(report.parent.glob("*.cdf")) and list(report.parent.glob("*.png")), folder
         assert static_check(report) == [], folder
-        assert f'href="{folder}/index.html"' in (out / "index.html").read_text()
+        top = (out / "index.html").read_text()
+        assert f'href="{folder}/index.html"' in top
+        for product in report.parent.glob("*.cdf"):  # the product files too (issue 31)
+            assert f'href="{folder}/{product.name}"' in top, product.name
     assert static_check(out / "index.html") == []
     assert not (out / "batch").exists() and not (out / "messenger_fit").exists()
     assert "fluxcal demo --full" in text

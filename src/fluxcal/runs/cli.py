@@ -19,10 +19,11 @@ import typer
 
 from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup, quiet_requested
-from fluxcal.errors import InputFormatError
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require, require_for_options
 from fluxcal.products.staging import Interrupted
 from fluxcal.runs import options as run_options
+from fluxcal.runs import registry
 from fluxcal.runs.contract import Mission
 
 
@@ -59,7 +60,7 @@ def batch(
     d0, d1 = _parse_date(start, "--start"), _parse_date(end, "--end")
     if d1 < d0:
         raise InputFormatError(f"--end {d1} is before --start {d0}", field="--end")
-    factory = mission.load("day_task")
+    factory = registry.load_piece(mission, "day_task")
     values = run_options.as_keywords(options) if options is not None else {}
     require_for_options(options)  # plot/zarr extras the options ask for
     if scheduler != "serial":
@@ -69,7 +70,7 @@ def batch(
         values["kernels"] = kernels
     task = factory(input_dir, out, **values)
     if mission.before_batch is not None:
-        mission.load("before_batch")(task)
+        registry.load_piece(mission, "before_batch")(task)
     days = day_range(d0, d1)
     quiet = quiet or quiet_requested()  # fluxcal -q batch ...
     console = Console(stderr=True)
@@ -139,11 +140,26 @@ def batch_command(mission: Mission) -> Any:
                        "task per day; resumable; exits 1 if a day failed.")
     if mission.options is not None:
         # the batch writes its folder's HTML report itself (fluxcal.runs.batch.run_batch)
-        return run_options.with_options(mission.load("options"), report=False)(command)
+        return run_options.with_options(registry.load_piece(mission, "options"),
+                                        report=False)(command)
     signature = inspect.signature(command)
     command.__signature__ = signature.replace(  # type: ignore[attr-defined]
         parameters=[p for p in signature.parameters.values() if p.name != "options"])
     return command
+
+
+def unavailable_command(group: typer.Typer, name: str, message: str) -> None:
+    """Add a hidden command ``name`` to ``group`` that refuses with ``message`` (exit 2).
+
+    The place of a mission plugin (or a piece of one) that failed to load
+    (`fluxcal.runs.registry`): the other commands work; asking for it is one error line.
+    """
+    def unavailable() -> None:
+        raise FluxcalError(message)
+
+    group.command(name, hidden=True, add_help_option=False,
+                  context_settings={"allow_extra_args": True,
+                                    "ignore_unknown_options": True})(unavailable)
 
 
 def batch_app(missions: dict[str, Mission]) -> typer.Typer:
@@ -152,7 +168,10 @@ def batch_app(missions: dict[str, Mission]) -> typer.Typer:
                       rich_markup_mode=None, cls=HelpGroup)
     names = sorted(name for name, m in missions.items() if m.day_task is not None)
     for name in names:
-        app.command(name)(batch_command(missions[name]))
+        try:
+            app.command(name)(batch_command(missions[name]))
+        except FluxcalError as exc:  # a plugin's options fail to load: refused when asked
+            unavailable_command(app, name, str(exc))
 
     @app.callback(invoke_without_command=True)
     def _needs_a_mission(ctx: typer.Context) -> None:
@@ -190,6 +209,7 @@ def _run_with_progress(days, task, out, scheduler, workers, force, name, console
         return run_batch(days, task, out, scheduler=scheduler, n_workers=workers, force=force,
                          name=name, on_day_done=done)
 def _summary(report, console, full: bool = True) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
     statuses = ("done", "skipped", "no_data", "failed")
@@ -202,13 +222,14 @@ def _summary(report, console, full: bool = True) -> None:
 
     table = Table(title=f"fluxcal batch {report.name}: {report.wall_seconds:.1f} s on "
                         f"{report.scheduler} ({report.n_workers} workers)")
-    for col in ("day", "status", "vectors", "seconds", "error"):
+    for col in ("day", "status", "why", "vectors", "seconds", "error"):
         table.add_column(col)
     style = {"done": "green", "skipped": "cyan", "no_data": "yellow", "failed": "bold red",
              "interrupted": "magenta"}
     for d in report.days:
-        table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}", f"{d.n_vectors:,}",
-                      f"{d.seconds:.2f}", (d.error or "")[:120])
+        table.add_row(d.day, f"[{style.get(d.status, '')}]{d.status}",
+                      escape((d.reason or "")[:60]), f"{d.n_vectors:,}", f"{d.seconds:.2f}",
+                      (d.error or "")[:120])
     console.print(table)
     console.print(f"{counts}; report: {report.report_path}", soft_wrap=True)
 

@@ -11,7 +11,9 @@ day (`run_day`) are the same path, so they give the same products for the same d
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as _dt
+import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +23,8 @@ from fluxcal.extras import require_for_options
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.runs.batch import DayInputs, DayResult, worker_kernel_pool
 
+log = logging.getLogger(__name__)
+
 #: Progress callback: (description, steps done, steps in total).
 Progress = Callable[[str, int, int], None]
 
@@ -28,8 +32,8 @@ Progress = Callable[[str, int, int], None]
 class Pipeline(Protocol):
     """What a mission hands the driver for one run (a picklable object for batch days).
 
-    ``frame_kernels`` (frame name -> frames kernel, or None for the registry's) are the
-    frames the kernel pool defines when the user's kernels do not.
+    ``frame_kernels`` (frame name -> frames kernel; None or empty: none) are the frames
+    the kernel pool defines when the user's kernels do not (the mission's own).
     """
 
     frame_kernels: Mapping[str, Path] | None
@@ -106,17 +110,26 @@ def run(
     require_for_options(options)  # a missing plot/zarr extra: one line, nothing read
     pipeline.check(options)
     with _pool(pipeline, kernels) as pool:
+        loaded = pool.kernel_list()
+        log.info("kernels loaded: %d file(s)%s", len(loaded),
+                 f" ({', '.join(Path(k).name for k in loaded)})" if loaded else "")
         if progress is not None:
             progress("reading inputs", 0, 1)
         raw, inputs = pipeline.read(source, options)
         n_vectors = pipeline.size(raw)
+        log.info("read %d input file(s): %s vectors", len(inputs), f"{n_vectors:,}")
         calibrated = pipeline.calibrate(raw, options, progress)
         del raw  # what the products need is in ``calibrated``: the telemetry is freed
         if on_calibrated is not None:
             on_calibrated(calibrated)
+        if progress is not None:
+            progress("writing products", 0, 1)
         written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
                                  kernel_list=pool.kernel_list(), only_day=only_day,
                                  progress=progress)
+        if progress is not None:
+            progress(f"wrote {len(written)} files", 1, 1)
+    log.info("wrote %d product file(s) to %s", len(written), out_dir)
     return written, n_vectors
 
 
@@ -168,8 +181,9 @@ class DayTask:
 
     A mission whose day needs nothing but its pipeline returns one of these from its
     ``make_day_task``; ``inputs(day)`` lists the day's files (``pipeline.day_files``)
-    and, when the pipeline has one, ``pipeline.day_calibration``, so that an unchanged
-    day is skipped.
+    and, when the pipeline has one, ``pipeline.day_calibration``, and ``settings()``
+    the run options, so that an unchanged day is skipped and a day whose inputs,
+    calibration or options changed is redone (`fluxcal.runs.manifest.stale_reason`).
     """
 
     pipeline: Pipeline
@@ -188,6 +202,18 @@ class DayTask:
         calibration = ({} if day_calibration is None
                        else day_calibration(Path(self.input_dir), day, self.options))
         return DayInputs(tuple(Path(p) for p in [*files, *kernels]), calibration)
+
+    def settings(self) -> dict[str, Any]:
+        """Return the run options that change a product (the manifest key's options).
+
+        Every field of the options dataclass but those whose metadata says
+        ``"changes_products": False`` (a progress or test option).
+        """
+        if not dataclasses.is_dataclass(self.options):
+            return {}
+        return {f.name: getattr(self.options, f.name)
+                for f in dataclasses.fields(self.options)
+                if f.metadata.get("changes_products", True)}
 
     def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day`` (`run_day`)."""

@@ -128,6 +128,10 @@ class SyntheticDayTask:
         return DayInputs((input_path(self.input_dir, day),),
                          {"synthetic_calib": Path(self.input_dir) / CALIB_NAME})
 
+    def settings(self) -> dict[str, object]:
+        """Return the options that change a product (``delay`` and fault injection do not)."""
+        return {"formats": self.formats, "quicklook": self.quicklook}
+
     def __call__(self, day: _dt.date) -> DayResult:
         """Process ``day``."""
         src = input_path(self.input_dir, day)

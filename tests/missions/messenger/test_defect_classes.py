@@ -98,14 +98,16 @@ def test_csv_route_every_defect_class(csv_run, rate, other, sign):
     gap = next(s for s in spans if s["cause"] == "science_gap"
                and abs(s["seconds"] - 300) < 5)
     assert abs(gap["samples"] - 300 * n_rate[rate]) <= 2 * n_rate[rate]
-    # the TAB carries the flag column with its label entry; the 60-s average ORs the bits
+    # the archive-named TAB keeps the archive's columns (issue 32): the flags are the
+    # CDF's; the 60-s average's CDF ORs the bits
+    import cdflib
+
     from fluxcal.archive import read_table
 
     tab = read_table(out / "MAGMSOSCI12153_V01.LBL")
-    np.testing.assert_array_equal(tab["DEFECT_FLAG"].values,
-                                  cdf["defect_flag"].values.astype(int))
-    avg = read_table(out / "MAGMSOSCIAVG12153_60_V01.LBL")
-    assert set(np.unique(avg["DEFECT_FLAG"].values) & 127) >= {0, 1}
+    assert "DEFECT_FLAG" not in tab
+    avg = cdflib.CDF(str(out / "messenger_mag_mso-avg60_20120601_v01.cdf"))
+    assert set(np.unique(avg.varget("defect_flag")) & 127) >= {0, 1}
 
 
 def test_defect_flag_passes_istp_and_pds3_interop_checks(csv_run):
@@ -139,12 +141,16 @@ def test_defect_flag_passes_istp_and_pds3_interop_checks(csv_run):
         assert int(x["defect_flag"].values.max()) <= 127
     lbl = out / "MAGMSOSCI12153_V01.LBL"
     label = pvl.load(str(lbl))
-    col = [c for k, c in label["TABLE"].items()
-           if k == "COLUMN" and c["NAME"] == "DEFECT_FLAG"]
-    assert col and "clock_jump" in col[0]["DESCRIPTION"]
+    names = [c["NAME"] for k, c in label["TABLE"].items() if k == "COLUMN"]
+    assert len(names) == 12 and "DEFECT_FLAG" not in names  # the archive's columns (issue 32)
+    # the spans are still in the TAB's label (the products' defect_spans attribute)
+    from fluxcal.archive.pds3 import read_label
+    from fluxcal.archive.products import fluxcal_attrs
+
+    assert "clock_jump" in str(fluxcal_attrs(read_label(lbl))["defect_spans"])
     ours = read_table(lbl)
-    np.testing.assert_array_equal(ours["DEFECT_FLAG"].values,
-                                  pdr.read(str(lbl))["TABLE"]["DEFECT_FLAG"].to_numpy())
+    np.testing.assert_array_equal(ours["BZ"].values,
+                                  pdr.read(str(lbl))["TABLE"]["BZ"].to_numpy())
 
 
 def test_batch_day_with_every_defect_class(tmp_path, mk):

@@ -350,8 +350,8 @@ def test_cli_fit_then_edr2cdr_calib(tmp_path, training, simulated_files, messeng
     from fluxcal.cli import main
 
     fitted = tmp_path / "fitted"
-    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN, "--out", str(fitted),
-               "--passes", "2"])
+    # default passes: a fit stops on convergence or refuses (issue 34)
+    rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN, "--out", str(fitted)])
     out = capsys.readouterr()
     assert rc == 0, out.err
     assert "wrote 10 files" in out.out
@@ -421,8 +421,15 @@ def test_fit_report_toml_is_readable(tmp_path, training, capsys):
     from fluxcal.cli import main
 
     fitted = tmp_path / "fitted"
+    # one pass cannot show convergence: refused in one line, nothing written (issue 34)
     assert main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
-                 "--out", str(fitted), "--passes", "1", "--hold-delay"]) == 0
+                 "--out", str(fitted), "--passes", "1", "--hold-delay"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("fluxcal: error: not converged after 1 passes: the last changed "
+                          "tau ") and len(err.splitlines()) == 1, err
+    assert not fitted.exists() or not any(fitted.iterdir())
+    assert main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
+                 "--out", str(fitted), "--hold-delay"]) == 0
     capsys.readouterr()
     report = tomllib.loads((fitted / "fit_report.toml").read_text())
     assert report["relaxation"]["delay_fitted"] is False
@@ -430,6 +437,12 @@ def test_fit_report_toml_is_readable(tmp_path, training, capsys):
     assert set(report["inputs"]) == {p.name for k, p in training.items()
                                      if k in ("science", "heater", "temperature")}
     assert json.dumps(report["temperature"]["x"]["A0"])  # a number
+    conv = report["convergence"]
+    n = conv["passes_run"]
+    ratio = report["passes"][f"pass_{n}"]["changes"]["ratio"]
+    assert conv["converged"] and ratio <= 1.0 and conv["stop"] == (
+        f"converged after {n} passes: the last changed every parameter by at most "
+        f"{ratio:.2g} of its allowance")
 
 
 def test_cli_fit_refuses_an_edr_batch_folder(tmp_path, capsys):

@@ -247,8 +247,8 @@ def test_d0_the_data_put_out_of_range_is_refused_naming_the_hold_option(shipped)
     res = _variance_result(shipped, step)
     assert res.duty[2].slope == pytest.approx(5.0 * d0[2], rel=1e-3)
     with pytest.raises(FitRefusedError, match=r"D0 z = .* is 5x the shipped .*not written\. "
-                                              r"Needs .*, or keep the base value of this "
-                                              r"axis \(--hold-d0 z\)"):
+                                              r"Needs .*, or hold it with a stated width "
+                                              r"\(--hold-d0 z=VALUE\+-WIDTH\)"):
         check_fit(res)
 
 
@@ -262,8 +262,11 @@ def test_held_d0_keeps_the_base_value_and_the_other_parameters(shipped, tmp_path
     step[0 * 5 + 4] = 0.1 * d0[0]   # D0 x -> 1.1x (free)
     step[-2] = 50.0                 # tau 872 -> 922 s
     res = _variance_result(shipped, step, hold_d0=("z",))
-    # z is the base value exactly, with no error; x and tau still come from the data
-    assert res.duty[2].slope == d0[2] and res.duty[2].slope_err == 0.0
+    # z is the base value exactly, with the default width (half the held value, entry
+    # 18; 200 draws: the spread within 15 %); x and tau still come from the data
+    assert res.duty[2].slope == d0[2]
+    assert res.duty[2].slope_err == pytest.approx(0.5 * d0[2], rel=0.15)
+    assert res.held == {"z": (d0[2], 0.5 * d0[2])}
     assert res.duty[0].slope == pytest.approx(1.1 * d0[0], rel=1e-4)
     assert res.relaxation.tau == pytest.approx(922.0, abs=0.05)
     assert res.held_d0 == ("z",)
@@ -271,11 +274,14 @@ def test_held_d0_keeps_the_base_value_and_the_other_parameters(shipped, tmp_path
     prov = {"inputs": {}, "intervals": "all data", "days": "x", "command": "test"}
     write_calibration_folder(res, tmp_path / "out", None, prov)
     header = next((tmp_path / "out").glob("offsets_duty_cycle_v*.csv")).read_text()
-    assert "z: D0 held at the base value (--hold-d0)" in header
+    width = 0.5 * d0[2]
+    assert (f"z: D0 held at {d0[2]:.6g} +- {width:.3g} (--hold-d0; the width enters every "
+            "stated error)") in header
     report = tomllib.loads((tmp_path / "out" / "fit_report.toml").read_text())
     assert report["duty_cycle"]["z"]["D0_held"] and not report["duty_cycle"]["x"]["D0_held"]
-    assert "D0 held" not in report_text(res, prov).split("x: C0")[1].split("\n")[0]
-    assert "(held at the base value: --hold-d0)" in report_text(res, prov)
+    assert report["duty_cycle"]["z"]["D0_held_width"] == pytest.approx(width)
+    assert "held at" not in report_text(res, prov).split("x: C0")[1].split("\n")[0]
+    assert f"(held at {d0[2]:.5g} +- {width:.3g}: --hold-d0)" in report_text(res, prov)
 
 
 def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
@@ -354,22 +360,24 @@ def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
 
 
 def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
-    # entry 16: a pass converges only when the law has settled; its change is the largest
-    # shift of the Table 2 law (counts) over -65..+55 C, here in closed form
-    from fluxcal.missions.messenger.fit import LAW_TOLERANCE_COUNTS, _law_change
+    # entry 16/18: a pass's law change is the largest shift of the Table 2 law (counts)
+    # over -65..+55 C per axis, here in closed form
+    from fluxcal.missions.messenger.fit import LAW_TOLERANCE_COUNTS, pass_changes
 
-    coeff = np.asarray(shipped.temperature_coefficients, dtype=float)
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    coeff = np.asarray(res.calibration.temperature_coefficients, dtype=float)
     shifted = coeff.copy()
-    shifted[:, [0, 2]] += 0.3  # both lines of every axis up by 0.3 counts
-    moved = dataclasses.replace(shipped, temperature_coefficients=shifted)
-    assert _law_change(shipped, moved) == pytest.approx(0.3, abs=1e-9)
-    assert _law_change(shipped, moved) > LAW_TOLERANCE_COUNTS
-    # the upper line's slope of x up by 0.01 counts/C: the upper segment turns about
-    # T = 0 C of its own line (A1 + B1 T), largest at +55 C: 0.55 counts
+    shifted[:, [0, 2]] -= 0.3  # both lines of every axis down by 0.3 counts (old)
+    moved = dataclasses.replace(res.calibration, temperature_coefficients=shifted)
+    np.testing.assert_allclose(pass_changes(moved, res)["law_counts"], 0.3, atol=1e-9)
+    assert 0.3 > LAW_TOLERANCE_COUNTS
+    # the upper line's slope of x 0.01 counts/C smaller before: the upper segment turns
+    # about T = 0 C of its own line (A1 + B1 T), largest at +55 C: 0.55 counts
     steeper = coeff.copy()
-    steeper[0, 3] += 0.01
-    assert _law_change(shipped, dataclasses.replace(
-        shipped, temperature_coefficients=steeper)) == pytest.approx(0.55, abs=1e-9)
+    steeper[0, 3] -= 0.01
+    got = pass_changes(dataclasses.replace(res.calibration,
+                                           temperature_coefficients=steeper), res)
+    assert got["law_counts"][0] == pytest.approx(0.55, abs=1e-9)
 
 
 def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C):

@@ -119,7 +119,7 @@ def test_fit_recovers_altered_tables_in_a_quiet_wind(tmp_path):
     # one test, one fit (~30-60 s): under pytest-xdist separate tests would each redo it
     config = FlightConfig(start=str(START), days=QUIET_FIT_DAYS + 1, seed=1313,
                           solar_wind=QUIET)
-    run, result, true, folder = _run(tmp_path, config, QUIET_FIT_DAYS, passes=3)
+    run, result, true, folder = _run(tmp_path, config, QUIET_FIT_DAYS, passes=6)
     cal = result.calibration
     errors = {}
     # --- temperature law -----------------------------------------------------------------
@@ -144,7 +144,7 @@ def test_fit_recovers_altered_tables_in_a_quiet_wind(tmp_path):
     # 1.7 counts on z, the break inside a bin), computed without noise from the true
     # heater-off temperatures: the fit equals it within its statistical error (0.3 count)
     seed_fit = fit.fit_days(fit.day_chunks(run.input_dir, run.days[:-1]), cal, passes=1,
-                            temperature_law="binned-mean")
+                            temperature_law="binned-mean", guard=False)  # a study pass
     assert seed_fit.temperature_law == "binned-mean"
     seed_law = np.abs(_law(seed_fit.calibration.temperature_coefficients, t)
                       - _law(true, t)).max(axis=0)
@@ -212,13 +212,13 @@ def test_temperature_law_with_the_break_at_a_bin_centre(tmp_path):
     run = simulate_flight(tmp_path / "sim", config, changes)
     base = load_calibration(np.datetime64(str(START)))
     chunks = fit.day_chunks(run.input_dir, run.days)
-    result = fit.fit_days(chunks, base, passes=3)
+    result = fit.fit_days(chunks, base, passes=6)
     true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
     assert abs(-(true.a0[2] - true.a1[2]) / (true.b0[2] - true.b1[2]) + 10.0) < 1e-3
     t = np.arange(-60.0, 40.01, 0.5)
     err = np.abs(_law(result.calibration.temperature_coefficients, t) - _law(true, t))
     seed_fit = fit.fit_days(chunks, result.calibration, passes=1,
-                            temperature_law="binned-mean")
+                            temperature_law="binned-mean", guard=False)  # a study pass
     seed_err = np.abs(_law(seed_fit.calibration.temperature_coefficients, t) - _law(true, t))
     truths = [read_flight_truth(run.input_dir, d) for d in run.days]
     temps = np.concatenate([tr["temperature_c"][tr["duty_percent"] == 0] for tr in truths])

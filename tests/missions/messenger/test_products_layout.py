@@ -5,8 +5,8 @@ DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG X Y Z BX BY BZ``, RDR ``YEAR DAY_OF_YEAR
 MINUTE SECOND TIME_TAG NAVG X Y Z BX BY BZ DBX DBY DBZ`` -- reads fluxcal's tables with
 plain numpy (no fluxcal code) and gets the right quantities: compared with the CDF
 (cdflib), with averages recomputed from the full-resolution table, and with cdflib's
-breakdown of the CDF epochs.  fluxcal's one addition, the defect flag ``DEFECT_FLAG``
-(issue 23), is the last column: the archive's columns keep their positions.
+breakdown of the CDF epochs.  A table that takes the archive's name has exactly the
+archive's columns (issue 32: no ``DEFECT_FLAG`` column; the flags are in the CDF).
 """
 
 import re
@@ -59,9 +59,8 @@ def test_names_carry_day_interval_and_version(out):
 
 def test_cdr_columns_are_the_archive_columns(out):
     tab = _table(out / "MAGMSOSCI12153_V03.TAB")
-    assert tab.shape[1] == 12 + 1  # the archive's 12, then DEFECT_FLAG (issue 23)
+    assert tab.shape[1] == 12  # the archive's 12, nothing more (issue 32)
     cdf, v = _cdf(out / _cdf_name("mso"))
-    np.testing.assert_array_equal(tab[:, 12], v["defect_flag"])
     np.testing.assert_allclose(tab[:, 6:9], v["position"], atol=PRINT_TOL)  # X Y Z
     np.testing.assert_allclose(tab[:, 9:12], v["b"], atol=PRINT_TOL)  # BX BY BZ
     np.testing.assert_allclose(tab[:, 5], v["met"], atol=5e-7)  # TIME_TAG
@@ -77,9 +76,8 @@ def test_cdr_columns_are_the_archive_columns(out):
 def test_rdr_columns_and_values_from_the_cdr_table(out):
     full = _table(out / "MAGMSOSCI12153_V03.TAB")
     avg = _table(out / "MAGMSOSCIAVG12153_60_V03.TAB")
-    assert avg.shape[1] == 16 + 1
+    assert avg.shape[1] == 16
     _, v = _cdf(out / _cdf_name("mso", 60))
-    np.testing.assert_array_equal(avg[:, 16], v["defect_flag"])
     np.testing.assert_array_equal(avg[:, 6], v["count"])  # NAVG
     np.testing.assert_allclose(avg[:, 7:10], v["position"], atol=PRINT_TOL)
     np.testing.assert_allclose(avg[:, 13:16], v["b_std"], atol=PRINT_TOL)  # DBX DBY DBZ
@@ -99,7 +97,7 @@ def test_rdr_columns_and_values_from_the_cdr_table(out):
 
 def test_rtn_and_sc_layouts(out):
     rtn = _table(out / "MAGRTNSCI12153_V03.TAB")
-    assert rtn.shape[1] == 12 + 1
+    assert rtn.shape[1] == 12
     _, v = _cdf(out / _cdf_name("rtn"))
     np.testing.assert_allclose(rtn[:, 6], v["r"], atol=0.05 + 1e-6)  # R printed to 0.1 km
     np.testing.assert_allclose(rtn[:, 7], v["latitude"], atol=5e-6)
@@ -107,9 +105,36 @@ def test_rtn_and_sc_layouts(out):
     np.testing.assert_allclose(rtn[:, 9:12], v["b"], atol=PRINT_TOL)
     assert 0.3 * 1.496e8 < rtn[:, 6].min() and rtn[:, 6].max() < 0.47 * 1.496e8
     sc = _table(out / "MAGSCSCI12153_V03.TAB")
-    assert sc.shape[1] == 9 + 1  # no position
+    assert sc.shape[1] == 9  # no position
     sc_avg = _table(out / "MAGSCSCIAVG12153_60_V03.TAB")
-    assert sc_avg.shape[1] == 13 + 1
+    assert sc_avg.shape[1] == 13
+
+
+#: The archive's columns (docs/formats/messenger.md, table "CDR column / RDR column"; the
+#: seed's sec. 12 keeps the SHC quality flag out of them), written out here by hand.
+_TIME = ["YEAR", "DAY_OF_YEAR", "HOUR", "MINUTE", "SECOND", "TIME_TAG"]
+ARCHIVE_COLUMNS = {
+    ("MSO", False): [*_TIME, "X", "Y", "Z", "BX", "BY", "BZ"],
+    ("MSO", True): [*_TIME, "NAVG", "X", "Y", "Z", "BX", "BY", "BZ", "DBX", "DBY", "DBZ"],
+    ("RTN", False): [*_TIME, "R", "LATITUDE", "AZIMUTH", "BR", "BT", "BN"],
+    ("RTN", True): [*_TIME, "NAVG", "R", "LATITUDE", "AZIMUTH", "BR", "BT", "BN", "DBR",
+                    "DBT", "DBN"],
+    ("SC", False): [*_TIME, "BX", "BY", "BZ"],
+    ("SC", True): [*_TIME, "NAVG", "BX", "BY", "BZ", "DBX", "DBY", "DBZ"],
+}
+
+
+@pytest.mark.parametrize("frame, averaged", sorted(ARCHIVE_COLUMNS))
+def test_archive_named_tables_have_exactly_the_archive_columns(out, frame, averaged):
+    """Names and count from the label (pvl, not fluxcal), and the rows' field count."""
+    import pvl
+
+    stem = f"MAG{frame}SCI{'AVG' if averaged else ''}12153{'_60' if averaged else ''}_V03"
+    label = pvl.load(str(out / f"{stem}.LBL"))
+    names = [c["NAME"] for k, c in label["TABLE"].items() if k == "COLUMN"]
+    assert names == ARCHIVE_COLUMNS[frame, averaged]
+    assert label["TABLE"]["COLUMNS"] == len(names)
+    assert _table(out / f"{stem}.TAB").shape[1] == len(names)
 
 
 def test_order_and_quality_reported_in_label_and_cdf(out):

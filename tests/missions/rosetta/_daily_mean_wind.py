@@ -81,14 +81,8 @@ def simulate_raw(day: str, start_s: float, hours: float, coefficients: np.ndarra
     rng = np.random.default_rng(seed)
     cal = calib.load_ground_calibration("OB")
     nominal = calib.load_nominal_conversion()
-    shifts = calib.load_time_shift_table()
-    n = int(hours * 3600 * rate_hz)
-    midnight = int(utc_to_tt2000(np.array([day + "T00:00:00"]))[0])
-    secs = start_s + np.arange(n) / rate_hz
-    stamps = midnight + np.rint(secs * NS).astype(np.int64)
-    sid = np.full(n, 2, dtype=np.int16)
-    delay = forward.filter_delay(sid, shifts, secondary=False)
-    b = daily_mean_field(n, 1.0 / rate_hz, rng, compression=compression)
+    secs, stamps, sid, delay = time_line(day, start_s, hours, rate_hz)
+    b = daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
     temp = temperature(secs + delay, phase)
     model = DailyOffsetModel(np.datetime64(day, "D"), "OB", coefficients, "truth")
     ext = forward.extended_offset(stamps, forward.reduced_temperature(temp, cal),
@@ -96,6 +90,16 @@ def simulate_raw(day: str, start_s: float, hours: float, coefficients: np.ndarra
     raw = instrument_raw(stamps, sid, b + ext, temp, cal, nominal,
                          f"daily-mean wind seed {seed}")
     return raw, b, temp
+
+
+def time_line(day: str, start_s: float, hours: float, rate_hz: float):
+    """``(seconds after midnight, TT2000 stamps, SID 2, filter delay s)`` of a stretch."""
+    n = int(hours * 3600 * rate_hz)
+    midnight = int(utc_to_tt2000(np.array([day + "T00:00:00"]))[0])
+    secs = start_s + np.arange(n) / rate_hz
+    sid = np.full(n, 2, dtype=np.int16)
+    delay = forward.filter_delay(sid, calib.load_time_shift_table(), secondary=False)
+    return secs, midnight + np.rint(secs * NS).astype(np.int64), sid, delay
 
 
 def curve(coefficients: np.ndarray, reduced_t: np.ndarray) -> np.ndarray:
@@ -138,9 +142,11 @@ JUMP_INTERVALS = (("2014-08-01T00:00:00", "2014-08-03T00:00:00"),
 
 
 def jump_data(seed: int, rate_hz: float = 0.1, compression: float = COMPRESSION,
-              jumps: np.ndarray = TRUE_JUMPS):
+              jumps: np.ndarray = TRUE_JUMPS, field=None):
     """Four days of the daily-mean wind in CSEQ, turned into the spacecraft frame by a
     slow attitude, plus ``jumps[0]`` / ``jumps[1]`` over the two `JUMP_INTERVALS`.
+
+    ``field(seconds, rng)``, optional, gives another CSEQ field (nT, (n, 3)).
 
     Returns ``(epoch tt2000, b_sc, rotation matrices, b_cseq)``.
     """
@@ -150,7 +156,8 @@ def jump_data(seed: int, rate_hz: float = 0.1, compression: float = COMPRESSION,
     secs = np.arange(0.0, 4 * 86400.0, 1.0 / rate_hz)
     epoch = t0 + np.rint(secs * NS).astype(np.int64)
     second = epoch >= split
-    b_cseq = daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
+    b_cseq = (daily_mean_field(secs.size, 1.0 / rate_hz, rng, compression=compression)
+              if field is None else field(secs, rng))
     rot = Rotation.from_euler("zyx", np.stack([60 * np.sin(secs / 40_000.0),
                                                20 * np.sin(secs / 25_000.0),
                                                10 * np.cos(secs / 17_000.0)], 1),

@@ -15,6 +15,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.missions.imap.levels_cli import register as _register_levels
 from fluxcal.missions.imap.options import ImapOptions
+from fluxcal.runs.display_cli import compilation_notice, progress_display
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="IMAP MAG pipeline commands.", no_args_is_help=True,
@@ -57,6 +58,7 @@ def calibrate(
     for path in kernels or []:
         preflight.existing_file(path, "--kernels")
     preflight.writable_folder(out, "--out")
-    paths, n_vectors = driver.run(ImapRun(), tuple(inputs), sclk_kernels(kernels), out,
-                                  options)
+    with compilation_notice(), progress_display("imap calibrate") as progress:
+        paths, n_vectors = driver.run(ImapRun(), tuple(inputs), sclk_kernels(kernels), out,
+                                      options, progress=progress)
     typer.echo(f"{options.level.upper()}: {n_vectors} vectors; {len(paths)} files in {out}")

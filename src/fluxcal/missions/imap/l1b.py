@@ -21,7 +21,9 @@ import xarray as xr
 
 from fluxcal.calibration.matrices import apply_lookup
 from fluxcal.errors import InputFormatError
+from fluxcal.geometry.time import tt2000_to_utc
 from fluxcal.missions.imap.calibration import MagCalibration
+from fluxcal.products.timeindex import default_lsk
 
 
 def compression_scale(l1a: xr.Dataset) -> np.ndarray:
@@ -59,6 +61,29 @@ def calibrate(l1a: xr.Dataset, calibration: MagCalibration) -> xr.Dataset:
                                       "Magnetic field, sensor unit reference frame"}),
     ).assign_coords(epoch=("time", epoch), component=l1a["component"].values)
     ds.attrs = {**l1a.attrs, "level": "l1b", "calibration_file": calibration.path.name,
-                "calibration_valid": "yes" if inside.all() else
-                f"no: {int((~inside).sum())} samples outside the file's validity"}
+                **validity_attrs(epoch, inside, calibration)}
     return ds
+
+
+def validity_attrs(epoch: np.ndarray, inside: np.ndarray,
+                   calibration: MagCalibration) -> dict[str, str]:
+    """``calibration_valid`` (yes, or no with the samples and why) and ``calibration_validity``.
+
+    A calibration used outside its validity is recorded, not refused (docs/decisions/
+    imap.md decision 7): the product says how many of its samples, over which span, lie
+    outside the file's validity, and that the file's matrices were applied as given.
+    ``calibration_validity`` names the file and its validity (UTC).
+    """
+    lsk = default_lsk()
+    span = tt2000_to_utc(np.array([calibration.valid_from, calibration.valid_to],
+                                  dtype=np.int64), digits=0, lsk=lsk)
+    attrs = {"calibration_validity": f"{calibration.path.name}: {span[0]} .. {span[1]} UTC"}
+    outside = np.flatnonzero(~np.asarray(inside, dtype=bool))
+    if outside.size == 0:
+        return {"calibration_valid": "yes", **attrs}
+    first, last = tt2000_to_utc(np.asarray(epoch)[outside[[0, -1]]], digits=0, lsk=lsk)
+    attrs["calibration_valid"] = (
+        f"no: {outside.size} of {np.size(epoch)} samples ({first} .. {last} UTC) are "
+        "outside the calibration file's validity (see calibration_validity); its matrices "
+        "were applied as given")
+    return attrs

@@ -10,7 +10,7 @@ calibration; `write_products` writes one product per mode, sensor and UTC day na
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -106,18 +106,40 @@ def read_l1a(inputs: Sequence[Path], clock: SclkKernel, *, xtce: Path | None = N
             parts.append(l1a.read_l1a_csv(path, clock, layout=csv_layout))
         else:
             parts.append(l1a.from_packets(read_packets(path, xtce=xtce), clock))
+        log.info("read %s: %s", path.name, _counts(parts[-1]) or "no vectors")
     return _merge(parts)
 
 
+def _counts(datasets: dict[tuple[str, str], xr.Dataset]) -> str:
+    """``norm-mago 96, norm-magi 96`` vectors of each (mode, sensor), for a log line."""
+    return ", ".join(f"{m}-{s} {ds.sizes['time']:,}" for (m, s), ds in datasets.items())
+
+
 def to_level(l1a_sets: dict[tuple[str, str], xr.Dataset], level: str,
-             calib: Path | None = None) -> dict[tuple[str, str], xr.Dataset]:
-    """Return the L1A datasets as they are (``level="l1a"``) or calibrated to L1B in nT."""
+             calib: Path | None = None,
+             progress: Callable[[str, int, int], None] | None = None,
+             ) -> dict[tuple[str, str], xr.Dataset]:
+    """Return the L1A datasets as they are (``level="l1a"``) or calibrated to L1B in nT.
+
+    ``progress(description, done, total)`` is called per (mode, sensor) calibrated.
+    """
     if level not in LEVELS:
         raise InputFormatError(f"level {level!r}: expected one of {LEVELS}", field="--level")
     if level == "l1a":
+        log.info("L1A: %s vectors", _counts(l1a_sets) or "no")
         return l1a_sets
     cal = load_calibration(calib)
-    return {key: l1b.calibrate(ds, cal) for key, ds in l1a_sets.items()}
+    log.info("calibration: %s", cal.path.name)
+    out = {}
+    for k, ((mode, sensor), ds) in enumerate(l1a_sets.items()):
+        if progress is not None:
+            progress(f"L1B {mode}-{sensor}", k, len(l1a_sets))
+        out[mode, sensor] = l1b.calibrate(ds, cal)
+        log.info("L1B %s-%s done: %s vectors; calibration_valid: %s", mode, sensor,
+                 f"{ds.sizes['time']:,}", out[mode, sensor].attrs["calibration_valid"])
+    if progress is not None:
+        progress("L1B calibrated", len(l1a_sets), len(l1a_sets))
+    return out
 
 
 def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = None,

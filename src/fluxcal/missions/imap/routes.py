@@ -87,7 +87,7 @@ class ImapRun:
 
     def calibrate(self, raw: Datasets, options: ImapOptions, progress: Any) -> Datasets:
         """L1A as read, or L1B in nT (`fluxcal.missions.imap.pipeline.to_level`)."""
-        return to_level(raw, options.level, options.calib)
+        return to_level(raw, options.level, options.calib, progress)
 
     def write(self, calibrated: Datasets, out_dir: Path, options: ImapOptions, *,
               inputs: Sequence[Path], kernel_list: Sequence[str],

@@ -39,7 +39,7 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.synthetic import copy_meta_kernel, write_meta_kernel
 from fluxcal.geometry.time import SclkKernel, et_to_utc, utc_to_et
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.options import (
     MessengerOptions,
 )
@@ -163,11 +163,14 @@ def simulate_days(
                    for w0, _ in windows]
         mk = write_messenger_like_kernels(input_dir / "kernels" / f"run_{run[0]:%Y%j}", start,
                                           duration + config.lead_s, plus_y_sunward=sunward)
-        # the SCLK and frame kernels are the same for every run: list the first ones
-        listed = sorted(p for p in mk.parent.iterdir() if p.suffix != ".tm")
+        # the SCLK and frame kernels are the same for every run: list the first ones; the
+        # dynamic frames' copies are left out (the runs load fluxcal's, `FRAME_KERNELS`)
+        frames = {Path(p).name for p in FRAME_KERNELS.values()}
+        listed = sorted(p for p in mk.parent.iterdir()
+                        if p.suffix != ".tm" and p.name not in frames)
         kernel_files += listed if not kernel_files else [k for k in listed
                                                          if k.suffix in (".bsp", ".bc")]
-        with KernelPool(mk):
+        with KernelPool(mk, frames=FRAME_KERNELS):
             sclk = SclkKernel.from_pool(SPACECRAFT_ID)
             sim = simulate(config, load_calibration(start), sclk)
             first = run[0] - _dt.timedelta(days=1)
@@ -240,10 +243,10 @@ def simulate_messenger_days(input_dir: Path, duration_s: float = 1800.0,
     mk = write_messenger_like_kernels(work / "kernels", start_utc,
                                       duration_s + 2 * config.lead_s,
                                       plus_y_sunward=[(0.25 * duration_s, 0.45 * duration_s)])
-    with KernelPool(mk):
+    with KernelPool(mk, frames=FRAME_KERNELS):
         sim = simulate(config, load_calibration(start_utc), SclkKernel.from_pool(SPACECRAFT_ID))
     paths = {"kernels": mk, **write_inputs(sim, work / "inputs")}
-    with KernelPool(paths["kernels"]):
+    with KernelPool(paths["kernels"], frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         days = []
         for key, stream in (("science", "SCI"), ("heater", "HTR"), ("temperature", "TMP")):

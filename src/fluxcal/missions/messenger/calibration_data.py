@@ -42,6 +42,46 @@ TABLE_NAMES = (
 #: Header fields every MESSENGER table carries (docs/formats/calibration.md).
 REQUIRED_FIELDS = ("version", "valid_from", "valid_to")
 _NAME_RE = re.compile(r"^(?P<name>[a-z_]+)_v(?P<version>\d+)\.(?P<ext>csv|toml)$")
+#: Sec. 7: a 5000-s look-back for tau = 872 s; the offset before it, assumed zero, errs
+#: by at most 200 exp(-5000 / 872) = 0.65 DN (docs/decisions/messenger_fit.md entry 10).
+SEED_LOOK_BACK_S, SEED_TAU_S = 5000.0, 872.0
+
+
+def required_look_back_s(tau_s: float) -> float:
+    """Return the shortest look-back (s) that keeps sec. 7's truncation for ``tau_s``.
+
+    ``max(5000, 5000 / 872 x tau)``: 200 exp(-look_back / tau) stays at the seed's
+    0.65 DN for a longer tau; a shorter tau keeps the seed's 5000 s.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (the 5000-s look-back).
+    """
+    return float(max(SEED_LOOK_BACK_S, SEED_LOOK_BACK_S / SEED_TAU_S * float(tau_s)))
+
+
+def check_look_back(path: Path, relaxation: dict) -> None:
+    """Refuse a ``processing`` table whose tau needs a longer look-back than it has.
+
+    A look-back shorter than `required_look_back_s` truncates the relaxing offset by
+    more than sec. 7 accepts (issue 34: 0.03 nT rms, up to 0.12 nT, for tau = 1150 s with
+    5000 s); it is refused, naming the value to set, never applied silently.
+
+    Raises
+    ------
+    CalibrationError
+        Naming the file, the field, the truncation and the least look-back.
+    """
+    tau = float(relaxation["tau_s"])
+    look_back = float(relaxation["look_back_s"])
+    need = required_look_back_s(tau)
+    if look_back < need - 0.1:  # written to 0.1 s
+        dn = 200.0 * np.exp(-look_back / tau)
+        raise CalibrationError(
+            f"{path}: [relaxation] look_back_s = {look_back:g} s is too short for tau_s = "
+            f"{tau:g} s: the offset before the look-back, assumed zero, errs by up to "
+            f"200 exp(-look_back_s / tau_s) = {dn:.2g} DN, above sec. 7's 0.65 DN; set "
+            f"look_back_s to at least {np.ceil(need * 10) / 10:.1f} (5000 s x tau_s / 872 s)")
 
 
 def data_dir() -> Path:
@@ -320,6 +360,7 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
             f"{proc.path}: [offsets] prelaunch_offsets must be one of {readings} "
             "(how Table 4's pre-launch offsets enter the offset model)"
         )
+    check_look_back(proc.path, proc.toml["relaxation"])
     heater = []
     bins = None
     for axis in "xyz":

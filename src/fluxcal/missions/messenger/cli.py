@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import typer
 
-from fluxcal.cli_help import HelpGroup, progress_wanted, quiet_requested
+from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.preflight import plain_text_file
+from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
 from fluxcal.runs.options import with_options
 
 app = typer.Typer(help="Messenger pipeline commands.", no_args_is_help=True,
@@ -54,7 +53,7 @@ def edr2cdr(
                        version=options.version, calibration_folder=calib)
     if calib is not None:
         check_calibration_folder(calib)
-    with compilation_notice(), progress_display() as progress:
+    with compilation_notice(), progress_display("edr2cdr") as progress:
         if edr is not None:
             from fluxcal.missions.messenger.routes import run_edr_archive
 
@@ -124,7 +123,7 @@ def fit(
     out: Path = typer.Option(..., "--out", help="Calibration folder to write."),
     calib: Path | None = typer.Option(
         None, "--calib", help="Starting/base calibration folder (default: shipped tables)."),
-    passes: int = typer.Option(6, "--passes", min=1, max=20,
+    passes: int = typer.Option(12, "--passes", min=1, max=20,
                                help="Most reduce-and-fit passes."),
     fit_delay: bool = typer.Option(True, "--fit-delay/--hold-delay",
                                    help="Fit the heater delay dt, or hold the base value."),
@@ -144,9 +143,19 @@ def fit(
         "zero over each bin's samples (a quiet field, e.g. the demo's). Temperature law, "
         "D0, tau and dt; the waveforms are phase-binned either way."),
     hold_d0: str = typer.Option(
-        "", "--hold-d0", help="Comma list of axes (x, y, z) whose duty-cycle coefficient "
-        "D0 keeps the base value (variance estimator): for an axis whose D0 the data do "
-        "not determine, which the fit otherwise refuses; the report marks it held."),
+        "", "--hold-d0", help="Comma list of AXIS[=VALUE][+-WIDTH] (x, y, z; counts/ppt): "
+        "the duty-cycle coefficient D0 of these axes is held at VALUE (default: the base "
+        "table's) with the stated WIDTH (default: half the value), which enters every "
+        "other stated error (variance estimator): for an axis whose D0 the data do not "
+        "determine, which the fit otherwise refuses; the report marks it held."),
+    error_goal: float | None = typer.Option(
+        None, "--error-goal", help="Largest predicted rms error (nT) of a day recalibrated "
+        "with the fitted tables (default 0.1); the fit refuses above it. A larger value "
+        "accepts a worse table and is written into every table header."),
+    max_compressive_share: float | None = typer.Option(
+        None, "--max-compressive-share", help="Largest share of the judged 15-min intervals "
+        "rejected as compressive (default 0.5); the fit refuses above it. A larger value is "
+        "written into every table header."),
 ) -> None:
     """Fit the offset and heater calibration tables to flight data (solar wind).
 
@@ -160,12 +169,13 @@ def fit(
 
     if calib is not None:
         check_calibration_folder(calib)
-    with compilation_notice(), progress_display() as progress:
+    with compilation_notice(), progress_display("fit") as progress:
         text = run_fit(sci=sci, heater=heater, temperature=temperature, kernels=kernels,
                        input_dir=input_dir, days=days, intervals=intervals, out=out,
                        calib=calib, passes=passes, fit_delay=fit_delay, scheduler=scheduler,
                        workers=workers, progress=progress, temperature_law=temperature_law,
-                       estimator=estimator, hold_d0=hold_d0)
+                       estimator=estimator, hold_d0=hold_d0, error_goal=error_goal,
+                       max_compressive_share=max_compressive_share)
     typer.echo(text)
 
 
@@ -193,79 +203,6 @@ def _check_input_style(sci: list[Path], heater: list[Path], temperature: list[Pa
         raise InputFormatError(f"{edr}: not a folder of EDR labels and tables", field="--edr")
     if not mapping.is_file():
         raise InputFormatError(f"{mapping}: no such mapping file", field="--mapping")
-
-
-@contextmanager
-def compilation_notice() -> Iterator[None]:
-    """Say once on stderr when numba compiles a kernel (the first run, before the cache).
-
-    Listens to numba's ``numba:compile`` event, which fires only for a real compilation
-    (a kernel loaded from numba's on-disk cache does not raise it), so later runs are
-    quiet; ``fluxcal -q`` says nothing.
-    """
-    if quiet_requested():
-        yield
-        return
-    from numba.core import event
-
-    class Notice(event.Listener):
-        said = False
-
-        def on_start(self, ev: event.Event) -> None:
-            if not self.said:
-                self.said = True
-                typer.echo("fluxcal: compiling the numerical kernels (first run only, "
-                           "cached afterwards; up to a minute) ...", err=True)
-
-        def on_end(self, ev: event.Event) -> None:
-            pass
-
-    with event.install_listener("numba:compile", Notice()):
-        yield
-
-
-@contextmanager
-def status_display(text: str) -> Iterator[None]:
-    """Show a rich spinner with ``text`` on a terminal (stderr) while a long step runs."""
-    if not progress_wanted():
-        yield
-        return
-    from rich.console import Console
-
-    with Console(stderr=True).status(text):
-        yield
-
-
-@contextmanager
-def progress_display() -> Iterator[object | None]:
-    """Show a rich progress bar on a terminal (stderr), nothing otherwise.
-
-    Yields the ``progress(description, done, total)`` callback of
-    `fluxcal.missions.messenger.run.run_edr2cdr`, or ``None`` when stderr is not a
-    terminal (logs and pipes stay quiet) or under ``fluxcal -q``.
-    """
-    if not progress_wanted():
-        yield None
-        return
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        SpinnerColumn,
-        TextColumn,
-        TimeElapsedColumn,
-    )
-
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
-                  MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=Console(stderr=True), transient=False) as bar:
-        task = bar.add_task("edr2cdr", total=None)
-
-        def update(description: str, done: int, total: int) -> None:
-            bar.update(task, description=description, completed=done, total=total)
-
-        yield update
 
 
 def simulate(

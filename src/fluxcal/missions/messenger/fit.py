@@ -34,7 +34,7 @@ import dataclasses
 import functools
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import reduce
 from pathlib import Path
@@ -55,9 +55,14 @@ from fluxcal.calibration.constrained_fits import (
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.errors import FitRefusedError, FluxcalError, InputFormatError
 from fluxcal.geometry.time import SclkKernel
+from fluxcal.missions.messenger import fit_merit
 from fluxcal.missions.messenger import fit_variance as fv
 from fluxcal.missions.messenger.batch_task import default_kernels
-from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
+from fluxcal.missions.messenger.calibration_data import (
+    MessengerCalibration,
+    load_calibration,
+    required_look_back_s,
+)
 from fluxcal.missions.messenger.fit_reduce import (
     TAU_STEP,
     DayStatistics,
@@ -67,7 +72,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     relaxation_response,
 )
 from fluxcal.missions.messenger.fit_variance import VarianceStatistics, reduce_variance
-from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.routes import EDR_MAPPING, day_file_groups
 from fluxcal.products.provenance import sha256_file
@@ -114,6 +119,11 @@ D0_RANGE_FACTOR = 3.0
 DELAY_RANGE_S = (0.0, 50.0)
 MAX_BREAK_ERROR_C = 10.0
 MAX_RELATIVE_ERROR = 0.3
+#: Default width of a held D0, as a fraction of the held value (``--hold-d0 z`` without
+#: ``+-WIDTH``; docs/decisions/messenger_fit.md entry 18).
+HOLD_D0_DEFAULT_WIDTH = 0.5
+#: Held D0: axes (base value, default width) or ``axis -> (value or None, width or None)``.
+HoldD0 = tuple[str, ...] | Mapping[str, tuple[float | None, float | None]]
 #: A day inside the shipped tables' validity, to load them as the guards' reference.
 _SHIPPED_DAY = "2010-01-01"
 
@@ -154,7 +164,22 @@ class FitResult:
         estimator: `VarianceStatistics.fitted_range`); ``(nan, nan)``: the filled
         heater-off bins (`check_fit`).
     held_d0 : tuple of str
-        Axes whose D0 kept the base value at the user's request (``--hold-d0``).
+        Axes whose D0 was held at the user's request (``--hold-d0``).
+    held : dict
+        ``axis -> (value, width)`` of the held D0 (`held_d0_values`).
+    bootstrap : dict or None
+        The variance estimator's resamples of the tables' parameters (widened):
+        ``law`` (n, 3, 4) as ``(a, b, c, T_m)``, ``d0`` (n, 3), ``tau`` (n,), ``dt``
+        (n,); every stated error and the law's band come from them.
+    break_shift : ndarray, shape (3,)
+        The break shifts (C) the last pass took (0: the linearised step).
+    convergence : dict
+        `fit_days`: passes run, whether they converged, why the fit stopped and every
+        pass's changes (`pass_changes`).
+    merit : dict
+        `fit_merit.predicted_error` of the written tables and the goal it was held to.
+    waveform_error : ndarray, shape (3, n_duty_bins) or None
+        Stated rms error (counts) of each waveform column (`_fit_waveforms`).
     """
 
     calibration: MessengerCalibration
@@ -171,6 +196,24 @@ class FitResult:
     variance: Any = None
     fitted_range: tuple[float, float] = (float("nan"), float("nan"))
     held_d0: tuple[str, ...] = ()
+    held: dict[str, tuple[float, float]] = field(default_factory=dict)
+    bootstrap: dict[str, np.ndarray] | None = None
+    break_shift: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    convergence: dict[str, Any] = field(default_factory=dict)
+    merit: dict[str, Any] = field(default_factory=dict)
+    waveform_error: np.ndarray | None = None
+
+    def law_error(self, t: np.ndarray) -> np.ndarray:
+        """Stated standard error (counts) of the law at temperatures ``t``, per axis.
+
+        The variance estimator: the spread of the resampled laws at each temperature
+        (the full covariance of the law's parameters, break included); else `law_sigma`.
+        Shape ``(len(t), 3)``.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.bootstrap is None:
+            return law_sigma(self.temperature, t)
+        return np.std(fv.law_values(self.bootstrap["law"], t), axis=0)
 
     def summary(self) -> dict[str, Any]:
         """Return the headline numbers (for the pass history and the report)."""
@@ -361,7 +404,8 @@ def _fit_relaxation(
     return fit, bool(adopted), curve
 
 
-def unmix_waveforms(stats: DayStatistics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def unmix_waveforms(stats: DayStatistics, waveform: Sequence | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per phase bin, the waveform columns whose interpolation gives the bin averages.
 
     A duty-cycle bin holds periods of several duty cycles; each period's waveform is the
@@ -380,9 +424,10 @@ def unmix_waveforms(stats: DayStatistics) -> tuple[np.ndarray, np.ndarray, np.nd
     support : ndarray, shape (n_phase, n_columns)
         Samples leaning on each column (sum of weights).
     """
-    nb = len(stats.waveform)
-    count = np.stack([w.count for w in stats.waveform])  # (nb, n_phase)
-    mean = np.stack([w.mean() for w in stats.waveform])  # (nb, n_phase, 4 + nb)
+    waveform = stats.waveform if waveform is None else waveform
+    nb = len(waveform)
+    count = np.stack([w.count for w in waveform])  # (nb, n_phase)
+    mean = np.stack([w.mean() for w in waveform])  # (nb, n_phase, 4 + nb)
     n_phase = count.shape[1]
     usable = count >= MIN_BIN_SAMPLES
     with np.errstate(invalid="ignore"):
@@ -406,22 +451,40 @@ def unmix_waveforms(stats: DayStatistics) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def _fit_waveforms(
     stats: DayStatistics, base: MessengerCalibration
-) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]]]:
+) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]], np.ndarray]:
+    """Fit the waveform columns (sec. 6), and state their error from two halves.
+
+    Returns the table, the splines (None where kept from ``base``) and, per axis and
+    duty bin, the rms (counts, over the phase) of half the difference between the
+    waveforms fitted to the even and the odd 2-h blocks (`DayStatistics.waveform_halves`;
+    the error of their mean); a column kept from ``base`` is given its own rms (its
+    error unknown, entry 19).
+    """
     table = np.array(base.heater_signal, dtype=float)
     nb = len(stats.waveform)
     fits: list[list[PeriodicSplineFit | None]] = [[None] * nb for _ in AXES]
+    error = np.sqrt(np.mean(table[:, :100, :] ** 2, axis=1))  # (axis, bin): base's own rms
     phase, columns, support = unmix_waveforms(stats)
-    for b in range(nb):
-        ok = np.isfinite(phase) & np.all(np.isfinite(columns[:, b]), axis=1)
+    halves = [unmix_waveforms(stats, h) for h in stats.waveform_halves]
+
+    def spline(ph, col, sup, b, j):
+        ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
         if ok.sum() < MIN_PHASE_BINS:
-            continue
-        w = np.sqrt(support[ok, b])
+            return None
+        fit = fit_periodic_spline(ph[ok], col[ok, b, j], np.sqrt(sup[ok, b]), 100.0)
+        values = fit.table(1.0)[1]
+        return fit, values - values[:-1].mean()
+
+    for b in range(nb):
         for j in range(3):
-            spline = fit_periodic_spline(phase[ok], columns[ok, b, j], w, 100.0)
-            _, values = spline.table(1.0)
-            table[j, :, b] = values - values[:-1].mean()  # zero mean over the cycle
-            fits[j][b] = spline
-    return table, fits
+            got = spline(phase, columns, support, b, j)
+            if got is None:
+                continue
+            fits[j][b], table[j, :, b] = got
+            parts = [spline(*h, b, j) for h in halves]
+            error[j, b] = (np.sqrt(np.mean((0.5 * (parts[0][1] - parts[1][1]))[:-1] ** 2))
+                           if all(x is not None for x in parts) else error[j, b])
+    return table, fits, error
 
 
 def look_back_for(tau: float) -> float:
@@ -429,18 +492,16 @@ def look_back_for(tau: float) -> float:
 
     Sec. 7 looks back 5000 s for tau = 872 s: an offset assumed zero before the look-back
     errs by at most ``200 exp(-5000 / tau) = 0.6`` DN, below one count.  The fit keeps
-    that ratio ``k = 5000 / 872`` (the shipped ``look_back_s / tau_s``) for a longer
-    tau, so the truncation stays below the 0.65-count bound, and never looks back less
-    than the shipped 5000 s (a shorter tau then truncates less).  The shipped tau gives
-    back exactly the shipped 5000 s.
+    that ratio for a longer tau (`calibration_data.required_look_back_s`, rounded up to
+    0.1 s), so the truncation stays below the 0.65-count bound, and never looks back less
+    than 5000 s (a shorter tau then truncates less).  The shipped tau gives back exactly
+    the shipped 5000 s.
 
     References
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 (the 5000-s look-back).
     """
-    rel = _shipped().constants["relaxation"]
-    shipped = float(rel["look_back_s"])
-    return round(float(max(shipped, shipped / float(rel["tau_s"]) * float(tau))), 1)
+    return float(np.ceil(round(required_look_back_s(float(tau)) * 10.0, 6)) / 10.0)
 
 
 def fit_calibration(
@@ -499,7 +560,7 @@ def fit_calibration(
         if done or abs(tau - tau_base) > MAX_TAU_SHIFT * tau_base:
             break
     total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
-    heater, waveform = _fit_waveforms(stats, base)
+    heater, waveform, waveform_error = _fit_waveforms(stats, base)
     table2 = total.copy()
     if base.prelaunch_offsets_reading == "added_to_table2":
         table2[:, 0] -= base.prelaunch_offsets[0]
@@ -519,7 +580,8 @@ def fit_calibration(
     )
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=delay_fitted, waveform=waveform,
-                     stats=stats, epoch_curve=curve, temperature_law=temperature_law)
+                     stats=stats, epoch_curve=curve, temperature_law=temperature_law,
+                     waveform_error=waveform_error)
 
 
 def law_sigma(temperature: Sequence[TwoSegmentFit], t: np.ndarray) -> np.ndarray:
@@ -600,20 +662,22 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     d0_ref = np.asarray(ref.duty_cycle_d0, dtype=float)
     what_d0 = "more heater-regulated samples over a wider range of duty cycles"
     for a, f, ref_j in zip(AXES, result.duty, d0_ref, strict=True):
+        if a in result.held_d0:  # the user's value and width (`fit_merit` judges them)
+            continue
         ratio = f.slope / ref_j if ref_j != 0 else np.inf
         if not (1.0 / D0_RANGE_FACTOR <= ratio <= D0_RANGE_FACTOR):
             raise FitRefusedError(
                 f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
                 f"{f.slope_err:.2g} counts/ppt is {ratio:.2g}x the shipped {ref_j:.4g} "
                 f"(allowed: same sign, 1/{D0_RANGE_FACTOR:g}..{D0_RANGE_FACTOR:g}x); not "
-                f"written. Needs {what_d0}, or keep the base value of this axis "
-                f"(--hold-d0 {a})")
+                f"written. Needs {what_d0}, or hold it with a stated width "
+                f"(--hold-d0 {a}=VALUE+-WIDTH)")
         if not (np.isfinite(f.slope_err) and f.slope_err <= MAX_RELATIVE_ERROR * abs(f.slope)):
             raise FitRefusedError(
                 f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
                 f"{f.slope_err:.2g} counts/ppt, a relative error above "
-                f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}, or keep the base "
-                f"value of this axis (--hold-d0 {a})")
+                f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}, or hold it with a "
+                f"stated width (--hold-d0 {a}=VALUE+-WIDTH)")
     t = result.stats.temperature
     ok = _usable(t)
     # the variance estimator's data: 5-C bins holding an interval's worth of accepted
@@ -645,6 +709,61 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                     f"written. Needs {what_t}")
 
 
+def held_d0_values(hold_d0: HoldD0, base: MessengerCalibration
+                   ) -> dict[str, tuple[float, float]]:
+    """``{axis: (value, width)}`` of the held D0 (``--hold-d0``; entry 18).
+
+    ``hold_d0`` is a tuple of axes (the base value, the default width) or a mapping
+    ``axis -> (value or None, width or None)``; a missing value is the base's, a missing
+    width `HOLD_D0_DEFAULT_WIDTH` times the held value.
+
+    Raises
+    ------
+    FluxcalError
+        An axis other than x, y, z, or a negative width.
+    """
+    spec = dict(hold_d0) if isinstance(hold_d0, Mapping) else {a: (None, None) for a in hold_d0}
+    if set(spec) - set(AXES):
+        raise FluxcalError(f"--hold-d0 takes axes x, y, z, got {', '.join(spec)}")
+    d0 = np.asarray(base.duty_cycle_d0, dtype=float)
+    out = {}
+    for a in AXES:
+        if a not in spec:
+            continue
+        value, width = spec[a]
+        value = float(d0[AXES.index(a)]) if value is None else float(value)
+        width = HOLD_D0_DEFAULT_WIDTH * abs(value) if width is None else float(width)
+        if not width >= 0.0:
+            raise FluxcalError(f"--hold-d0 {a}: the width must not be negative, got {width}")
+        out[a] = (value, width)
+    return out
+
+
+def with_tables(base: MessengerCalibration, law: np.ndarray, d0: np.ndarray, tau: float,
+                dt: float, heater: np.ndarray) -> MessengerCalibration:
+    """Return ``base`` with the law ``(a, b, c, T_m)`` per axis, D0, tau, dt and waveforms.
+
+    C0 is the law at the reference temperature (eq. 5a); the look-back follows tau
+    (`look_back_for`); Table 2 is written without the pre-launch offsets where the base
+    adds them to it.
+    """
+    table2 = fv.law_to_table(law)
+    if base.prelaunch_offsets_reading == "added_to_table2":
+        table2[:, 0] -= base.prelaunch_offsets[0]
+        table2[:, 2] -= base.prelaunch_offsets[0]
+    constants = copy.deepcopy(base.constants)
+    rel = constants["relaxation"]
+    c_ref = fv.law_at(law, float(rel.get("reference_temperature_c", -50.0)))
+    rel["tau_s"] = float(tau)
+    rel["delay_s"] = float(dt)
+    rel["look_back_s"] = look_back_for(float(tau))
+    return dataclasses.replace(
+        base, temperature_coefficients=table2,
+        breakpoint_temperature_c=np.asarray(law[:, 3], dtype=float),
+        duty_cycle_c0=np.asarray(c_ref, dtype=float), duty_cycle_d0=np.asarray(d0, dtype=float),
+        heater_signal=np.asarray(heater, dtype=float), constants=constants)
+
+
 def fit_variance_calibration(
     stats: DayStatistics,
     vstats: Any,
@@ -652,15 +771,17 @@ def fit_variance_calibration(
     *,
     fit_delay: bool = True,
     n_bootstrap: int = 200,
-    hold_d0: tuple[str, ...] = (),
+    hold_d0: HoldD0 = (),
+    max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
-    deviations over a bootstrap of the blocks; the waveforms from ``stats`` as in
-    `fit_calibration`.  dt is adopted under the same rule as there (error below 3 s,
-    not negative), else held.
+    deviations over a bootstrap of the blocks, each resample choosing its own break
+    temperatures and drawing each held D0 from its width (entry 18); the waveforms from
+    ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
+    (error below 3 s, not negative), else held.
 
     Parameters
     ----------
@@ -671,8 +792,11 @@ def fit_variance_calibration(
     base : MessengerCalibration
     fit_delay : bool
     n_bootstrap : int
-    hold_d0 : tuple of str
-        Axes (``"x"``, ``"y"``, ``"z"``) whose D0 keeps the base value (error 0).
+    hold_d0 : tuple of str or mapping
+        Axes whose D0 is held (`held_d0_values`: value and width).
+    max_compressive_share : float
+        Named as the cause when too little accepted data remain
+        (`fit_merit.compressive_refusal`).
 
     Returns
     -------
@@ -688,38 +812,70 @@ def fit_variance_calibration(
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 eq. 2-7.
     """
+    cause = fit_merit.compressive_refusal(vstats.reason, max_compressive_share)
+
+    def too_little(text: str) -> FluxcalError:
+        # too little accepted data: name the compressive wind when it is the cause
+        return FitRefusedError(f"{cause}; {text}") if cause else FluxcalError(text)
+
     accepted = int(np.count_nonzero(vstats.reason == ""))
     if accepted == 0 or vstats.normal.shape[0] == 0:
-        raise FluxcalError(
+        raise too_little(
             f"variance estimator: no interval of {fv.VarianceSettings().interval_s:.0f} s "
             f"passes the selection (rejected: {vstats.rejections() or 'none'}); give "
             "solar-wind data with rotating field, or choose --estimator zero-mean")
     t_range = vstats.fitted_range()
     if not np.all(np.isfinite(t_range)):
-        raise FluxcalError(
+        raise too_little(
             f"variance estimator: no 5-C temperature bin holds {fv.MIN_RANGE_SAMPLES} "
             f"accepted samples (accepted per bin: {int(vstats.temperature_count.max())} at "
             "most); the temperature law is not constrained: give more days of solar wind")
-    sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                            hold_d0=tuple(AXES.index(a) for a in hold_d0),
-                            law=fv.law_parameters(base))
+    held = held_d0_values(hold_d0, base)
+    d0_base = np.asarray(base.duty_cycle_d0, dtype=float)
+    held_step, held_width = np.zeros(3), np.zeros(3)
+    for a, (value, width) in held.items():
+        held_step[AXES.index(a)] = value - d0_base[AXES.index(a)]
+        held_width[AXES.index(a)] = width
+    try:
+        sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
+                                hold_d0=tuple(AXES.index(a) for a in held),
+                                law=fv.law_parameters(base), held_step=held_step,
+                                held_width=held_width)
+    except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
+        if cause:
+            raise too_little(str(exc)) from None
+        raise
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
     boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
-                           break_shift=sol.break_shift) for b in sol.boot]
+                           break_shift=s) for b, s in zip(sol.boot, sol.boot_shift, strict=True)]
     b_law = np.stack([x[0] for x in boots])
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])
     b_dt = np.array([x[3] for x in boots])
+    # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
+    # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
+    # (entry 13), in the tables' parameters (each resample has its own break choice);
+    # a held D0 keeps its own draws (its width is the user's, not the data's)
+    w = sol.widening
+    drawn = b_d0.copy()
+    b_law = law + w * (b_law - b_law.mean(axis=0))
+    b_d0 = d0 + w * (b_d0 - b_d0.mean(axis=0))
+    b_tau = tau + w * (b_tau - b_tau.mean())
+    b_dt = dt + w * (b_dt - b_dt.mean())
+    for a in held:
+        b_d0[:, AXES.index(a)] = drawn[:, AXES.index(a)]
     dt_err = float(np.std(b_dt))
     adopted = fit_delay and dt_err < MAX_DELAY_ERROR_S and dt >= 0.0
     if fit_delay and not adopted:
         return fit_variance_calibration(stats, vstats, base, fit_delay=False,
-                                        n_bootstrap=n_bootstrap, hold_d0=hold_d0)
+                                        n_bootstrap=n_bootstrap, hold_d0=hold_d0,
+                                        max_compressive_share=max_compressive_share)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
+        b_dt = np.full_like(b_tau, dt)
     total = fv.law_to_table(law)
     b_total = np.stack([fv.law_to_table(x) for x in b_law])
     t_ref = float(rel.get("reference_temperature_c", -50.0))
@@ -735,8 +891,7 @@ def fit_variance_calibration(
             b1=float(total[j, 3]), x_m=float(law[j, 3]), a0_err=float(err[0]),
             b0_err=float(err[1]), a1_err=float(err[2]), b1_err=float(err[3]),
             x_m_err=float(err[4]), covariance=cov, chi2=chi2, dof=sol.dof))
-    duty = [LineFit(slope=float(d0[j]),
-                    slope_err=0.0 if AXES[j] in hold_d0 else float(np.std(b_d0[:, j])),
+    duty = [LineFit(slope=float(d0[j]), slope_err=float(np.std(b_d0[:, j])),
                     intercept=float(c_ref[j]), intercept_err=0.0, x0=0.0, y0=float(c_ref[j]),
                     chi2=chi2, dof=sol.dof) for j in range(3)]
     relaxation = RelaxationFit(
@@ -744,24 +899,16 @@ def fit_variance_calibration(
         amplitude=1.0, amplitude_err=0.0, y0=0.0, y0_err=0.0, fit_delay=bool(fit_delay),
         covariance=np.cov(np.column_stack([b_tau, b_dt]), rowvar=False), chi2=chi2,
         dof=sol.dof)
-    heater, waveform = _fit_waveforms(stats, base)
-    table2 = total.copy()
-    if base.prelaunch_offsets_reading == "added_to_table2":
-        table2[:, 0] -= base.prelaunch_offsets[0]
-        table2[:, 2] -= base.prelaunch_offsets[0]
-    constants = copy.deepcopy(base.constants)
-    constants["relaxation"]["tau_s"] = float(tau)
-    constants["relaxation"]["delay_s"] = float(dt)
-    constants["relaxation"]["look_back_s"] = look_back_for(float(tau))
-    cal = dataclasses.replace(
-        base, temperature_coefficients=table2,
-        breakpoint_temperature_c=np.asarray(law[:, 3], dtype=float),
-        duty_cycle_c0=np.asarray(c_ref, dtype=float), duty_cycle_d0=np.asarray(d0, dtype=float),
-        heater_signal=heater, constants=constants)
+    heater, waveform, waveform_error = _fit_waveforms(stats, base)
+    cal = with_tables(base, law, d0, tau, dt, heater)
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
                      stats=stats, epoch_curve=np.empty((0, 4)), estimator="variance",
-                     variance=vstats, fitted_range=t_range, held_d0=tuple(hold_d0))
+                     variance=vstats, fitted_range=t_range, held_d0=tuple(held),
+                     held=held, bootstrap={"law": b_law, "d0": b_d0, "tau": b_tau,
+                                           "dt": b_dt},
+                     break_shift=np.asarray(sol.break_shift, dtype=float),
+                     waveform_error=waveform_error)
 
 
 # ---------------------------------------------------------------------------------------
@@ -830,7 +977,7 @@ def reduce_chunk(
 
     With ``estimator="variance"`` also `fit_variance.reduce_variance`: returns both.
     """
-    worker_kernel_pool(list(chunk.kernels))
+    worker_kernel_pool(list(chunk.kernels), FRAME_KERNELS)
     sclk = SclkKernel.from_pool(SPACECRAFT_ID)
     inputs = {p.name: sha256_file(p) for p in chunk.files()} if hash_inputs else None
     sci, htr = read_science(list(chunk.science)), read_heater(list(chunk.heater))
@@ -855,19 +1002,110 @@ LAW_TOLERANCE_COUNTS = 0.2
 LAW_CHANGE_GRID_C = np.arange(-65.0, 55.5, 1.0)
 
 
-def _law_change(old: MessengerCalibration, new: MessengerCalibration) -> float:
-    """Largest change (fine counts) of the Table 2 law over `LAW_CHANGE_GRID_C`."""
-    return float(np.max(np.abs(
-        two_segment_offset(LAW_CHANGE_GRID_C, new.offset_coefficients())
-        - two_segment_offset(LAW_CHANGE_GRID_C, old.offset_coefficients()))))
+#: A pass has converged when every parameter changed by less than the larger of its
+#: absolute tolerance and this fraction of its stated error (entry 18): what is left
+#: to move (at most about the last change for a contracting iteration) is then a tenth
+#: of the stated error, which it widens by half a percent.
+CONVERGENCE_SIGMA = 0.1
+#: Absolute tolerance of dt's change (s) between passes.
+DELAY_TOLERANCE_S = 0.05
 
 
-def _relative_change(old: MessengerCalibration, new: MessengerCalibration) -> float:
-    """Largest relative change of tau and D0 between two passes."""
-    tau = [float(c.constants["relaxation"]["tau_s"]) for c in (old, new)]
-    d0_old, d0_new = (np.asarray(c.duty_cycle_d0, dtype=float) for c in (old, new))
-    return float(max(abs(tau[1] - tau[0]) / tau[1],
-                     np.max(np.abs(d0_new - d0_old) / np.maximum(np.abs(d0_new), 1e-12))))
+def pass_changes(old: MessengerCalibration, new: FitResult,
+                 tolerance: float = 2e-3) -> dict[str, Any]:
+    """Change of every parameter from ``old`` to ``new`` and its allowance (entry 18).
+
+    Each change is compared with the larger of an absolute tolerance (``tolerance``
+    of tau and of each D0; `DELAY_TOLERANCE_S`; `LAW_TOLERANCE_COUNTS` of the law at
+    every temperature of `LAW_CHANGE_GRID_C`) and `CONVERGENCE_SIGMA` times its stated
+    error (the law's at each temperature, `FitResult.law_error`).  ``ratio`` is the
+    largest change over its allowance: the pass has converged when it is at most 1.
+    """
+    cal = new.calibration
+    r = new.relaxation
+    rel_old, rel_new = old.constants["relaxation"], cal.constants["relaxation"]
+    d_tau = float(rel_new["tau_s"]) - float(rel_old["tau_s"])
+    d_dt = float(rel_new["delay_s"]) - float(rel_old["delay_s"])
+    d0_new = np.asarray(cal.duty_cycle_d0, dtype=float)
+    d_d0 = d0_new - np.asarray(old.duty_cycle_d0, dtype=float)
+    law_new = two_segment_offset(LAW_CHANGE_GRID_C, cal.offset_coefficients())
+    d_law = law_new - two_segment_offset(LAW_CHANGE_GRID_C, old.offset_coefficients())
+    allow_law = np.maximum(LAW_TOLERANCE_COUNTS,
+                           CONVERGENCE_SIGMA * np.nan_to_num(new.law_error(LAW_CHANGE_GRID_C)))
+    law_ratio = np.abs(d_law) / allow_law
+    at = np.argmax(law_ratio, axis=0)
+    items = [("tau", d_tau, max(tolerance * abs(float(rel_new["tau_s"])),
+                                CONVERGENCE_SIGMA * np.nan_to_num(r.tau_err)), "s"),
+             ("dt", d_dt, max(DELAY_TOLERANCE_S, CONVERGENCE_SIGMA * np.nan_to_num(r.dt_err)),
+              "s")]
+    items += [(f"D0 {a}", float(d_d0[j]),
+               max(tolerance * abs(float(d0_new[j])),
+                   CONVERGENCE_SIGMA * np.nan_to_num(new.duty[j].slope_err)), "counts/ppt")
+              for j, a in enumerate(AXES)]
+    items += [(f"law {a} at {LAW_CHANGE_GRID_C[at[j]]:+.0f} C", float(d_law[at[j], j]),
+               float(allow_law[at[j], j]), "counts") for j, a in enumerate(AXES)]
+    ratios = [abs(c) / allow if allow > 0 else (0.0 if c == 0 else np.inf)
+              for _, c, allow, _ in items]
+    return {
+        "tau_s": d_tau, "delay_s": d_dt, "D0": d_d0.tolist(),
+        "law_counts": np.abs(d_law).max(axis=0).tolist(),
+        "Tm_c": (np.asarray(cal.breakpoint_temperature_c, dtype=float)
+                 - np.asarray(old.breakpoint_temperature_c, dtype=float)).tolist(),
+        "ratio": float(max(ratios)),
+        "over": [f"{name} {c:+.4g} {unit} (allowed {allow:.2g})"
+                 for (name, c, allow, unit), q in zip(items, ratios, strict=True) if q > 1.0],
+    }
+
+
+#: A pass reverses the previous one when the cosine of their steps (in units of the
+#: stated errors) is below this: the two-state cycle of entry 18.
+REVERSAL_COSINE = -0.5
+
+
+def _table_step(old: MessengerCalibration, new: FitResult) -> np.ndarray:
+    """Return the change of the law ``(a, b, c, T_m)``, D0 and tau in units of their errors."""
+    law_old, law_new = fv.law_parameters(old), fv.law_parameters(new.calibration)
+    err_law = np.array([[f.a0_err, f.b0_err, max(f.b0_err, f.b1_err), f.x_m_err]
+                        for f in new.temperature])
+    err_d0 = np.array([f.slope_err for f in new.duty])
+    tau = [float(c.constants["relaxation"]["tau_s"]) for c in (old, new.calibration)]
+
+    def scaled(d, e):
+        e = np.asarray(e, dtype=float)
+        return np.where(e > 0, np.asarray(d, dtype=float) / np.where(e > 0, e, 1.0), 0.0)
+
+    return np.concatenate([
+        scaled(law_new - law_old, err_law).ravel(),
+        scaled(np.asarray(new.calibration.duty_cycle_d0) - np.asarray(old.duty_cycle_d0),
+               err_d0),
+        scaled([tau[1] - tau[0]], [new.relaxation.tau_err])])
+
+
+def _reverses(before: np.ndarray, step: np.ndarray) -> bool:
+    """Whether ``step`` goes back along ``before`` (`REVERSAL_COSINE`)."""
+    norm = float(np.linalg.norm(before) * np.linalg.norm(step))
+    return norm > 0 and float(before @ step) / norm < REVERSAL_COSINE
+
+
+def _midpoint(old: MessengerCalibration, new: FitResult) -> MessengerCalibration:
+    """Return the calibration half way between two passes (the new waveforms kept)."""
+    rel_old, rel_new = old.constants["relaxation"], new.calibration.constants["relaxation"]
+    return with_tables(
+        new.calibration,
+        0.5 * (fv.law_parameters(old) + fv.law_parameters(new.calibration)),
+        0.5 * (np.asarray(old.duty_cycle_d0) + np.asarray(new.calibration.duty_cycle_d0)),
+        0.5 * (float(rel_old["tau_s"]) + float(rel_new["tau_s"])),
+        0.5 * (float(rel_old["delay_s"]) + float(rel_new["delay_s"])),
+        new.calibration.heater_signal)
+
+
+def convergence_criterion(tolerance: float) -> str:
+    """Return the stated convergence criterion (report and refusal)."""
+    return (f"every parameter changed by less than the larger of an absolute tolerance "
+            f"(tau and each D0 {tolerance:g} of their value, dt {DELAY_TOLERANCE_S:g} s, the "
+            f"law {LAW_TOLERANCE_COUNTS:g} counts at every temperature of "
+            f"{LAW_CHANGE_GRID_C[0]:.0f}..{LAW_CHANGE_GRID_C[-1]:.0f} C) and "
+            f"{CONVERGENCE_SIGMA:g} of its stated error")
 
 
 def fit_days(
@@ -875,7 +1113,7 @@ def fit_days(
     base: MessengerCalibration,
     *,
     intervals: np.ndarray | None = None,
-    passes: int = 6,
+    passes: int = 12,
     tolerance: float = 2e-3,
     scheduler: str | None = "serial",
     n_workers: int = 2,
@@ -885,7 +1123,9 @@ def fit_days(
     temperature_law: str = "distribution",
     estimator: str = "zero-mean",
     guard: bool = True,
-    hold_d0: tuple[str, ...] = (),
+    hold_d0: HoldD0 = (),
+    error_goal: float = fit_merit.ERROR_GOAL_NT,
+    max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
 ) -> FitResult:
     """Fit the calibration to many days: reduce each (map), merge, fit; ``passes`` times.
 
@@ -901,8 +1141,10 @@ def fit_days(
         Most reduce-and-fit iterations (each pass removes the others' terms with the
         previous estimates; docs/decisions/messenger_fit.md, entry 1).
     tolerance : float
-        Stop after a pass that changed tau and every D0 by less than this fraction and
-        the Table 2 law by less than `LAW_TOLERANCE_COUNTS`.
+        Stop after a pass that changed every parameter by less than its allowance
+        (`pass_changes`: the larger of this fraction of tau and of each D0, dt by
+        `DELAY_TOLERANCE_S`, the law by `LAW_TOLERANCE_COUNTS`, and `CONVERGENCE_SIGMA`
+        of its stated error).
     scheduler : str or None
         ``"serial"``: in this process; None: a local Dask cluster of ``n_workers``
         single-threaded processes (`fluxcal.runs.batch.make_local_cluster`); else
@@ -922,12 +1164,22 @@ def fit_days(
         variable within 15-min intervals (`fit_variance_calibration`), which assumes
         rotations at nearly constant ``|B|`` (docs/decisions/messenger_fit.md, entry 11).
     guard : bool
-        Refuse a pass outside the physical ranges (`check_fit`); False only for studies
-        of the estimators themselves (the result must then not be written).
-    hold_d0 : tuple of str
-        Axes (``"x"``, ``"y"``, ``"z"``) whose D0 keeps the base value (variance
-        estimator only): the user's choice for an axis whose D0 the data do not
-        determine (``--hold-d0``; docs/decisions/messenger_fit.md, entry 15).
+        Refuse a fit that has not converged after ``passes``, a pass outside the
+        physical ranges (`check_fit`) and, with the variance estimator, a fit whose
+        predicted error exceeds ``error_goal`` or that the data cannot support
+        (`fit_merit.check_merit`); False only for studies of the estimators themselves
+        (the result must then not be written).
+    hold_d0 : tuple of str or mapping
+        Axes whose D0 is held (variance estimator only; `held_d0_values`): the user's
+        choice for an axis whose D0 the data do not determine (``--hold-d0``;
+        docs/decisions/messenger_fit.md, entries 15 and 18), with a width that enters
+        every other error.
+    error_goal : float
+        Largest predicted rms error (nT) of a recalibrated day (`fit_merit`).
+    max_compressive_share : float
+        Largest share of the judged intervals rejected as compressive
+        (`fit_merit.compressive_refusal`; above the default it is written into every
+        header).
 
     Returns
     -------
@@ -939,7 +1191,9 @@ def fit_days(
     FluxcalError
         No chunk, or the fit's own errors (`fit_calibration`).
     FitRefusedError
-        A pass's parameter outside its physical range or undetermined (`check_fit`).
+        Not converged after ``passes``; a parameter outside its physical range or
+        undetermined (`check_fit`); the predicted error above ``error_goal`` or a
+        named guard (`fit_merit.check_merit`).
     """
     if not chunks:
         raise FluxcalError("no day with a science file to fit")
@@ -956,6 +1210,7 @@ def fit_days(
                            f"(--estimator variance), got {estimator!r}")
     if set(hold_d0) - set(AXES):
         raise FluxcalError(f"--hold-d0 takes axes x, y, z, got {', '.join(hold_d0)}")
+    held_d0_values(hold_d0, base)  # the widths, before any day is read
     s = settings or FitSettings()
     total = passes * len(chunks)
     history: list[dict[str, Any]] = []
@@ -965,6 +1220,7 @@ def fit_days(
     def run(mapper: Callable[[MessengerCalibration, bool, int], list[Any]]) -> FitResult:
         nonlocal cal, result
         inputs: dict[str, str] = {}
+        converged = False
         for p in range(passes):
             # merged in groups, level by level: linear in the days (a left fold copies
             # the growing variance blocks at every day), the same sums as on Dask
@@ -973,22 +1229,59 @@ def fit_days(
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
             if estimator == "variance":
-                result = fit_variance_calibration(stats, vstats, cal, fit_delay=fit_delay,
-                                                  hold_d0=hold_d0)
+                result = fit_variance_calibration(
+                    stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
+                    max_compressive_share=max_compressive_share)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)
-            last = p == passes - 1
-            converged = (_relative_change(cal, result.calibration) < tolerance
-                         and _law_change(cal, result.calibration) < LAW_TOLERANCE_COUNTS)
-            if guard:  # never carry a tau out of range; refuse an unphysical final pass
-                check_fit(result, final=last or converged)
-            history.append({"pass": p + 1, **result.summary()})
-            cal = result.calibration
+            changes = pass_changes(cal, result, tolerance)
+            converged = changes["ratio"] <= 1.0
+            if guard:  # never carry a tau out of range
+                check_fit(result, final=False)
+            damped = (estimator == "variance" and not converged and len(history) >= 1
+                      and _reverses(history[-1]["step"], _table_step(cal, result)))
+            history.append({"pass": p + 1, **result.summary(), "changes": changes,
+                            "step": _table_step(cal, result), "damped": damped})
+            previous, cal = cal, result.calibration
             if converged:
                 break
+            if damped:  # a two-state cycle: the next pass starts half way (entry 18)
+                cal = _midpoint(previous, result)
         assert result is not None
+        for h in history:  # the scaled steps were for the cycle test only
+            h.pop("step", None)
         result.passes = history
+        last = history[-1]["changes"]
+        result.convergence = {
+            "passes_run": len(history), "max_passes": passes, "converged": converged,
+            "criterion": convergence_criterion(tolerance),
+            "stop": (f"converged after {len(history)} passes: the last changed every "
+                     f"parameter by at most {last['ratio']:.2g} of its allowance"
+                     if converged else
+                     f"not converged after {len(history)} passes: the last changed "
+                     + ", ".join(last["over"])),
+        }
+        if guard:
+            # the named cause first: a wind too compressive for the variance estimator
+            # also keeps it from converging (entry 19)
+            cause = (fit_merit.compressive_refusal(result.variance.reason,
+                                                   max_compressive_share)
+                     if estimator == "variance" else "")
+            if cause:
+                raise FitRefusedError(f"{cause}; not written. Give calmer (Alfvenic) "
+                                      "solar-wind days or intervals")
+            if not converged:
+                raise FitRefusedError(
+                    f"{result.convergence['stop']}; not written (converged: "
+                    f"{convergence_criterion(tolerance)}). Give "
+                    + (f"more passes (--passes {min(20, 2 * passes)}) or " if passes < 20
+                       else "") + "more days")
+            check_fit(result)
+        if estimator == "variance":
+            fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
+            if guard:
+                fit_merit.check_merit(result)
         return result
 
     def tick(p: int, i: int) -> None:
@@ -1007,7 +1300,12 @@ def fit_days(
             return run(serial)
         finally:
             release_worker_kernel_pool()
-    from fluxcal.runs.cluster import Client, as_completed, make_local_cluster  # batch extra
+    from fluxcal.runs.cluster import (  # batch extra
+        Client,
+        as_completed,
+        close_local_cluster,
+        make_local_cluster,
+    )
 
     cluster = make_local_cluster(n_workers) if scheduler is None else None
     try:
@@ -1040,7 +1338,7 @@ def fit_days(
             return run(distributed)
     finally:
         if cluster is not None:
-            cluster.close()
+            close_local_cluster(cluster)
 
 
 _log = logging.getLogger(__name__)

@@ -20,6 +20,39 @@ from fluxcal.preflight import plain_text_file
 from fluxcal.products.provenance import portable_command_line, portable_text
 
 _DAY_FILE = re.compile(r"^MAGSCI_(\d{4})(\d{3})\.csv$")
+_HOLD = re.compile(r"^(?P<axis>[xyz])(?:=(?P<value>[^+]+?))?(?:\+-(?P<width>.+))?$")
+
+
+def parse_hold_d0(text: str) -> dict[str, tuple[float | None, float | None]]:
+    """Return ``{axis: (value, width)}`` of the ``--hold-d0`` text.
+
+    A comma list of ``AXIS[=VALUE][+-WIDTH]``: ``VALUE`` (counts/ppt) defaults to the
+    base table's D0 (None here), ``WIDTH`` (counts/ppt) to `fit.HOLD_D0_DEFAULT_WIDTH`
+    of the value (None here; `fit.held_d0_values`; docs/decisions/messenger_fit.md
+    entry 18).
+
+    Raises
+    ------
+    InputFormatError
+        An item that is not of that form, a repeated axis, a negative width.
+    """
+    out: dict[str, tuple[float | None, float | None]] = {}
+    for item in (x.strip().lower().replace(" ", "") for x in text.split(",")):
+        if not item:
+            continue
+        m = _HOLD.match(item)
+        try:
+            value = float(m["value"]) if m and m["value"] is not None else None
+            width = float(m["width"]) if m and m["width"] is not None else None
+        except ValueError:
+            m = None
+        if m is None or m["axis"] in out or (width is not None and width < 0):
+            raise InputFormatError(
+                f"--hold-d0 takes a comma list of the axes x, y, z, each as AXIS, "
+                f"AXIS=VALUE, AXIS+-WIDTH or AXIS=VALUE+-WIDTH (counts/ppt), each axis "
+                f"once, width not negative; got {text!r}", field="--hold-d0")
+        out[m["axis"]] = (value, width)
+    return out
 
 
 def parse_days(text: str, input_dir: Path) -> list[_dt.date]:
@@ -66,7 +99,7 @@ def run_fit(
     intervals: Path | None,
     out: Path,
     calib: Path | None = None,
-    passes: int = 6,
+    passes: int = 12,
     fit_delay: bool = True,
     scheduler: str = "serial",
     workers: int = 2,
@@ -74,14 +107,18 @@ def run_fit(
     temperature_law: str = "distribution",
     estimator: str = "variance",
     hold_d0: str = "",
+    error_goal: float | None = None,
+    max_compressive_share: float | None = None,
 ) -> str:
     """Run ``fluxcal messenger fit`` and return the summary text (`report_text`).
 
     Either the three streams (``sci``, ``heater``, ``temperature``, with ``kernels``) as
     one reduction, or ``input_dir`` in the batch layout with one reduction per day.
 
-    ``hold_d0`` is the ``--hold-d0`` text: a comma list of axes whose D0 keeps the base
-    value.
+    ``hold_d0`` is the ``--hold-d0`` text (`parse_hold_d0`); ``error_goal`` the largest
+    predicted error (nT) of a recalibrated day (None: `fit_merit.ERROR_GOAL_NT`);
+    ``max_compressive_share`` the compressive share allowed (None:
+    `fit_merit.MAX_COMPRESSIVE_SHARE`).
 
     Raises
     ------
@@ -97,12 +134,20 @@ def run_fit(
     from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
     from fluxcal.products.provenance import sha256_file
 
-    held = tuple(a.strip().lower() for a in hold_d0.split(",") if a.strip())
-    if set(held) - {"x", "y", "z"} or len(set(held)) != len(held):
-        raise InputFormatError(f"--hold-d0 takes a comma list of the axes x, y, z, got "
-                               f"{hold_d0!r}", field="--hold-d0")
+    held = parse_hold_d0(hold_d0)
     if held and estimator != "variance":
         raise InputFormatError("--hold-d0 needs --estimator variance", field="--hold-d0")
+    from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
+
+    goal = ERROR_GOAL_NT if error_goal is None else float(error_goal)
+    if not goal > 0:
+        raise InputFormatError(f"--error-goal must be a positive number of nT, got {goal}",
+                               field="--error-goal")
+    share = MAX_COMPRESSIVE_SHARE if max_compressive_share is None else float(
+        max_compressive_share)
+    if not 0 < share <= 1:
+        raise InputFormatError(f"--max-compressive-share must lie in (0, 1], got {share}",
+                               field="--max-compressive-share")
     if scheduler != "serial":  # before any input is read
         require("batch", f"--scheduler {scheduler}")
     streams = bool(sci or heater or temperature)
@@ -141,7 +186,8 @@ def run_fit(
         preflight.reachable_scheduler(sched)
     result = fit_days(chunks, base, intervals=iv, passes=passes, scheduler=sched,
                       n_workers=workers, fit_delay=fit_delay, progress=progress,
-                      temperature_law=temperature_law, estimator=estimator, hold_d0=held)
+                      temperature_law=temperature_law, estimator=estimator, hold_d0=held,
+                      error_goal=goal, max_compressive_share=share)
     provenance = {
         "inputs": result.stats.inputs,
         "intervals": (f"{Path(intervals).name} sha256={sha256_file(intervals)} "

@@ -30,7 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.calibration.offsets import two_segment_offset
-from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.calibration_data import (
+    data_dir,
+    load_calibration,
+    required_look_back_s,
+)
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.solar_wind import alfvenic_wind
 from fluxcal.products.atomic import atomic_write_bytes
@@ -89,6 +93,9 @@ def perturbed_folder(out: Path, *, temperature_scale: float = 1.25,
     text = (src / "processing_v1.toml").read_text()
     text = re.sub(r"(?m)^version = 1", "version = 2", text)
     text = re.sub(r"(?m)^tau_s = .*$", f"tau_s = {tau_s}", text)
+    # the look-back follows tau (sec. 7's truncation; `calibration_data.check_look_back`)
+    text = re.sub(r"(?m)^look_back_s = .*$",
+                  f"look_back_s = {np.ceil(required_look_back_s(tau_s) * 10) / 10:.1f}", text)
     atomic_write_bytes(out / "processing_v2.toml", text, now=True)
     return out
 
@@ -163,6 +170,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.errors import FitRefusedError
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
+    from fluxcal.missions.messenger import fit_merit
     from fluxcal.missions.messenger.fit import Chunk, check_fit, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.pipeline import calibrate
@@ -181,14 +189,18 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     # figures it refuses (the command line, `fluxcal messenger fit`, writes nothing then)
     result = fit_days([chunk], base, estimator="variance", guard=False, hold_d0=("z",))
     try:
+        if not result.convergence["converged"]:
+            raise FitRefusedError(result.convergence["stop"])
         check_fit(result)
+        fit_merit.check_merit(result)
         verdict, fitted = "accepted by the guards", out / "fitted"
     except FitRefusedError as exc:
         verdict = f"REFUSED by the guards (the command would write nothing): {exc}"
         fitted = out / "fitted_refused"
     # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
     write_calibration_folder(result, fitted, None, {
-        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"})
+        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"},
+        study=fitted.name == "fitted_refused")
     # an unseen day (after the training): the forward model's own field and schedule
     unseen = "2012-06-04T00:00:00"
     config = SimulationConfig(start_utc=unseen, duration_s=7200.0)

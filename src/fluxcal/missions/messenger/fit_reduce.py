@@ -129,6 +129,10 @@ class DayStatistics:
         the least-squares response to a unit step (sec. 7's normalised epoch).
     waveform : list of BinnedMoments
         Analysis 4, one per waveform duty-cycle bin.
+    waveform_halves : list of list of BinnedMoments
+        Analysis 4 split by the parity of the 2-h block of each sample (even, odd): the
+        difference of the two halves' waveforms states the waveform's error
+        (docs/decisions/messenger_fit.md entry 19).
     temperature_fine : BinnedMoments
         The temperature-law samples in 0.25-C sub-bins; its one value column is the
         temperature (count and mean temperature per sub-bin).
@@ -155,6 +159,7 @@ class DayStatistics:
     epoch_weight: BinnedMoments | None = None
     temperature_fine: BinnedMoments | None = None
     heater_off: BinnedMoments | None = None
+    waveform_halves: list[list[BinnedMoments]] | None = None
     n_samples: dict[str, int] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
     days: list[str] = field(default_factory=list)
@@ -190,6 +195,10 @@ class DayStatistics:
                 temperature_edges_c=tuple(edges)).temperature_fine_edges())
         if self.heater_off is None:
             self.heater_off = _empty_off(self.temperature.edges)
+        if self.waveform_halves is None:
+            self.waveform_halves = [[BinnedMoments.empty(w.edges, w.n_comp, label="phase",
+                                                         units="s", value_units="counts")
+                                     for w in self.waveform] for _ in range(2)]
 
     def merge(self, other: DayStatistics) -> DayStatistics:
         """Return the statistics of both (bins must agree)."""
@@ -202,6 +211,9 @@ class DayStatistics:
             epoch_weight=self.epoch_weight.merge(other.epoch_weight),
             temperature_fine=self.temperature_fine.merge(other.temperature_fine),
             heater_off=self.heater_off.merge(other.heater_off),
+            waveform_halves=[[a.merge(b) for a, b in zip(ha, hb, strict=True)]
+                             for ha, hb in zip(self.waveform_halves, other.waveform_halves,
+                                               strict=True)],
             n_samples={k: self.n_samples.get(k, 0) + other.n_samples.get(k, 0) for k in keys},
             inputs={**self.inputs, **other.inputs},
             days=[*self.days, *other.days],
@@ -499,14 +511,56 @@ def reduce_day(
         lower = centres[0] - width / 2
         b = np.floor((duty_pct - lower) / width)
         weights = interpolation_weights(duty_pct, centres)
-        r4 = np.column_stack([counts - offset, phase, weights])
+        # the field's own variation within a heater period leaks into the phase bins (a
+        # ramp of the field becomes a sawtooth): the field is estimated by the centred
+        # mean over one heater period of the counts less the current model (the
+        # waveform's mean over its period is zero) and removed (entry 19)
+        field_est = _period_mean(et, counts - offset - w_est, 100.0)
+        r4 = np.column_stack([counts - offset - field_est, phase, weights])
         period_bin = np.floor((periods.duty_cycle * 100.0 - lower) / width)
+        parity = np.floor(et / WAVEFORM_HALF_BLOCK_S).astype(np.int64) % 2
+        covered = np.all(np.isfinite(field_est), axis=1)
         for j in range(centres.size):
-            sel = powered & (b == j)
+            sel = powered & (b == j) & covered
             starts = periods.start[periods.applied & (period_bin == j)]
             if sel.any() and starts.size:
                 out.waveform[j] = phase_binned(et[sel], r4[sel], starts, 100.0, s.phase_bins,
                                                value_units="counts")
+                for h in range(2):
+                    half = sel & (parity == h)
+                    if half.any():
+                        out.waveform_halves[h][j] = phase_binned(
+                            et[half], r4[half], starts, 100.0, s.phase_bins,
+                            value_units="counts")
+    return out
+
+
+#: Blocks (s) whose parity splits the waveform samples into two halves (2 h, the
+#: variance estimator's bootstrap block).
+WAVEFORM_HALF_BLOCK_S = 7200.0
+
+
+def _period_mean(t: np.ndarray, values: np.ndarray, period: float) -> np.ndarray:
+    """Centred mean of ``values`` over ``[t - period / 2, t + period / 2)``, per sample.
+
+    NaN where the window is not covered: its samples span less than ``period`` minus two
+    median sample spacings, or hold fewer than 90 % of the samples that spacing gives.
+    """
+    n = t.size
+    out = np.full(values.shape, np.nan)
+    if n < 3:
+        return out
+    order = np.argsort(t, kind="stable")
+    ts, vs = t[order], values[order]
+    dt = float(np.median(np.diff(ts)))
+    lo = np.searchsorted(ts, ts - period / 2.0, side="left")
+    hi = np.searchsorted(ts, ts + period / 2.0, side="left")
+    csum = np.vstack([np.zeros((1, vs.shape[1])), np.cumsum(vs, axis=0)])
+    count = hi - lo
+    span = ts[np.maximum(hi - 1, 0)] - ts[lo]
+    ok = (count > 0) & (span >= period - 2.0 * dt) & (count >= 0.9 * period / max(dt, 1e-9))
+    mean = (csum[hi] - csum[lo]) / np.maximum(count, 1)[:, None]
+    out[order] = np.where(ok[:, None], mean, np.nan)
     return out
 
 

@@ -69,9 +69,10 @@ from fluxcal.missions.messenger import levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
-__all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "N_PARAMETERS", "TEMPERATURE_EDGES_C",
-           "VarianceSettings", "VarianceStatistics", "apply_step", "choose_breaks",
-           "reduce_variance", "solve_variance"]
+__all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
+           "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
+           "apply_step", "choose_breaks", "law_values", "offset_moments", "reduce_variance",
+           "solve_variance"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
@@ -86,6 +87,13 @@ N_PARAMETERS = 3 * PER_AXIS + 3 * N_SHIFTS + 2
 DELAY_STEP_S = 1.0
 #: Edges (C) of the histogram of the accepted samples' temperatures (`fitted_range`).
 TEMPERATURE_EDGES_C = np.arange(-100.0, 100.1, 5.0)
+#: Edges (C) of the 1-C bins of every used sample's temperature, relaxed duty cycle and
+#: its derivatives (`VarianceStatistics.offset_moments`, for `predicted_error`).
+MOMENT_EDGES_C = np.arange(-100.0, 100.1, 1.0)
+#: Columns of `VarianceStatistics.offset_moments`: sums per 1-C bin of 1, T, R, R^2,
+#: r_tau, r_tau^2, R r_tau, r_dt, r_dt^2, R r_dt, r_tau r_dt (R: relaxed duty cycle,
+#: ppt; r_tau, r_dt: its derivatives in tau and dt, ppt/s).
+MOMENT_COLUMNS = ("n", "T", "R", "RR", "Rt", "RtRt", "RRt", "Rd", "RdRd", "RRd", "RtRd")
 #: Fewest accepted samples in a 5-C bin for the bin to count as fitted: half an hour at
 #: 1 Hz, two 900-s intervals (docs/decisions/messenger_fit.md entry 13).
 MIN_RANGE_SAMPLES = 1800
@@ -162,6 +170,10 @@ class VarianceStatistics:
         Accepted samples per 5-C bin of the sensor temperature (`fitted_range`).
     segments : int
         Segments of the accepted intervals (one constant each).
+    offset_moments : ndarray, shape (len(MOMENT_EDGES_C) - 1, len(MOMENT_COLUMNS))
+        Sums per 1-C bin over every used sample (accepted or not) of the quantities the
+        offset's error depends on (`MOMENT_COLUMNS`): the distribution of temperatures
+        and duty cycles a recalibrated day of these data sees (`predicted_error`).
     """
 
     normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
@@ -175,6 +187,8 @@ class VarianceStatistics:
     temperature_count: np.ndarray = field(
         default_factory=lambda: np.zeros(TEMPERATURE_EDGES_C.size - 1))
     segments: int = 0
+    offset_moments: np.ndarray = field(
+        default_factory=lambda: np.zeros((MOMENT_EDGES_C.size - 1, len(MOMENT_COLUMNS))))
 
     def merge(self, other: VarianceStatistics) -> VarianceStatistics:
         """Return the statistics of both (blocks of the same start are summed)."""
@@ -194,7 +208,8 @@ class VarianceStatistics:
             interval_start=np.concatenate([self.interval_start, other.interval_start]),
             reason=np.concatenate([self.reason, other.reason]).astype("<U24"),
             temperature_count=self.temperature_count + other.temperature_count,
-            segments=self.segments + other.segments)
+            segments=self.segments + other.segments,
+            offset_moments=self.offset_moments + other.offset_moments)
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
@@ -222,6 +237,17 @@ def _relaxed(et: np.ndarray, changes, cal: MessengerCalibration, tau: float,
     return relaxed_offset(et, changes.time, target, tau=tau, delay=delay,
                           look_back=int(rel["look_back"]),
                           look_back_s=float(rel["look_back_s"]))[:, 0]
+
+
+def offset_moments(temp_c: np.ndarray, r: np.ndarray, dr_tau: np.ndarray,
+                   dr_dt: np.ndarray) -> np.ndarray:
+    """Return the sums of `MOMENT_COLUMNS` per 1-C bin of ``temp_c`` (`MOMENT_EDGES_C`)."""
+    cols = (np.ones_like(temp_c), temp_c, r, r * r, dr_tau, dr_tau * dr_tau, r * dr_tau,
+            dr_dt, dr_dt * dr_dt, r * dr_dt, dr_tau * dr_dt)
+    idx = np.searchsorted(MOMENT_EDGES_C, temp_c, side="right") - 1
+    ok = (idx >= 0) & (idx < MOMENT_EDGES_C.size - 1)
+    nb = MOMENT_EDGES_C.size - 1
+    return np.column_stack([np.bincount(idx[ok], c[ok], nb) for c in cols])
 
 
 def law_parameters(cal: MessengerCalibration) -> np.ndarray:
@@ -294,6 +320,7 @@ def reduce_variance(
         return out
     sel = np.flatnonzero(valid)
     et, b, temp_c, r, dr_tau, dr_dt = (x[sel] for x in (et, b, temp_c, r, dr_tau, dr_dt))
+    out.offset_moments = offset_moments(temp_c, r, dr_tau, dr_dt)
     mag = np.sqrt(np.einsum("ij,ij->i", b, b))
     label = np.floor(et / s.interval_s).astype(np.int64)
     labels, codes = np.unique(label, return_inverse=True)
@@ -387,7 +414,9 @@ class VarianceSolution:
     step : ndarray, shape (N_PARAMETERS,)
         Correction to the linearisation point (see module docstring for the order).
     boot : ndarray, shape (n_bootstrap, N_PARAMETERS)
-        The step re-solved on blocks resampled with replacement.
+        The step re-solved on blocks resampled with replacement, each with its own break
+        choices (``boot_shift``) and held D0 drawn from its width (not yet widened:
+        ``widening``).
     chi2 : float
         Residual sum of squares (weighted).
     dof : int
@@ -395,6 +424,12 @@ class VarianceSolution:
     break_shift : ndarray, shape (3,)
         Per axis, the break shift (C, one of `BREAK_SHIFTS_C`) taken instead of the
         linearised step, or 0 (`apply_step`).
+    boot_shift : ndarray, shape (n_bootstrap, 3)
+        ``break_shift`` of every resample (chosen again on the resampled blocks).
+    widening : float
+        ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
+        finite-sample correction of the pairs bootstrap, to be applied to the spread of
+        the resamples' parameters about their mean (`fit.fit_variance_calibration`).
     """
 
     step: np.ndarray
@@ -402,6 +437,8 @@ class VarianceSolution:
     chi2: float
     dof: int
     break_shift: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    boot_shift: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    widening: float = 1.0
 
 
 def _shift_column(axis: int, k: int) -> int:
@@ -439,50 +476,93 @@ def _solve(aa: np.ndarray, vv: np.ndarray) -> np.ndarray:
 
 
 def _fit(a: np.ndarray, v: np.ndarray, free: np.ndarray, fixed: np.ndarray) -> np.ndarray:
-    """Parameters (fixed ones at ``fixed``) minimising the residual of ``a``, ``v``."""
+    """Parameters (fixed ones at ``fixed``) minimising the residual of ``a``, ``v``.
+
+    ``a``, ``v`` may be stacks (resamples); ``fixed`` broadcasts against ``v``.
+    """
     theta = np.broadcast_to(fixed, (*v.shape[:-1], N_PARAMETERS)).copy()
-    rhs = v[..., free] - (a[..., free, :] @ fixed)
+    theta[..., free] = 0.0
+    rhs = v[..., free] - np.einsum("...ij,...j->...i", a[..., free, :], theta)
     theta[..., free] = _solve(a[..., free][..., free, :], rhs)
     return theta
 
 
-def _residual(a: np.ndarray, v: np.ndarray, yy: float, theta: np.ndarray) -> float:
-    """Residual sum of squares of ``theta`` from the normal equations."""
-    return float(yy - 2.0 * theta @ v + theta @ a @ theta)
+def _residual(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
+              theta: np.ndarray) -> np.ndarray:
+    """Residual sum of squares of ``theta`` from the normal equations (stacks too)."""
+    return (yy - 2.0 * np.einsum("...i,...i->...", theta, v)
+            + np.einsum("...i,...ij,...j->...", theta, a, theta))
 
 
-def choose_breaks(a: np.ndarray, v: np.ndarray, yy: float, base_free: np.ndarray,
-                  law: np.ndarray, t_range: tuple[float, float],
-                  sweeps: int = 2) -> tuple[int, ...]:
+def _by_choice(choice: np.ndarray):
+    """Yield ``(rows, choice tuple)`` for every distinct row of ``choice`` (n, 3)."""
+    keys, inv = np.unique(choice, axis=0, return_inverse=True)
+    inv = np.asarray(inv).reshape(-1)
+    for g, key in enumerate(keys):
+        yield np.flatnonzero(inv == g), tuple(int(x) for x in key)
+
+
+def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
+                  base_free: np.ndarray, law: np.ndarray, t_range: tuple[float, float],
+                  sweeps: int = 2, fixed: np.ndarray | None = None):
     """Per axis, the break shift of least residual (-1: keep the break, linearised step).
 
     The exact two-segment law at each shifted break is compared with the law whose break
     stays (its slope change free, no linearised step); axes in turn, ``sweeps`` times.
     Shifts whose break falls outside ``t_range`` (the fitted range) are not tried.
+
+    ``a``, ``v``, ``yy`` may be stacks of resampled normal equations (leading axis
+    ``n``): each resample then chooses its own breaks (the bootstrap repeats every
+    discrete choice, issue 34), and an ``(n, 3)`` array is returned; else a tuple.
+    ``fixed`` (broadcasting to ``(n, N_PARAMETERS)``): values of the held parameters.
     """
-    choice = [-1, -1, -1]
+    stacked = a.ndim == 3
+    a_s, v_s = (a, v) if stacked else (a[None], v[None])
+    yy_s = np.atleast_1d(np.asarray(yy, dtype=float))
+    n = a_s.shape[0]
+    held = np.broadcast_to(np.zeros(N_PARAMETERS) if fixed is None else fixed,
+                           (n, N_PARAMETERS))
+    choice = np.full((n, 3), -1, dtype=np.int64)
     lo, hi = t_range
     for _ in range(sweeps):
         for j in range(3):
-            best, best_r = choice[j], np.inf
+            best = choice[:, j].copy()
+            best_r = np.full(n, np.inf)
             for k in (-1, *range(N_SHIFTS)):
                 if k >= 0 and not (lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
                     continue
-                trial = tuple(choice[:j] + [k] + choice[j + 1:])
-                free, fixed = _layout(trial, base_free, law[:, 2])
-                if k == -1:  # the break kept: exact, without the linearised step
-                    free[j * PER_AXIS + 3] = False
-                r = _residual(a, v, yy, _fit(a, v, free, fixed))
-                if r < best_r:
-                    best, best_r = k, r
-            choice[j] = best
-    return tuple(choice)
+                trial = choice.copy()
+                trial[:, j] = k
+                r = np.empty(n)
+                for rows, key in _by_choice(trial):
+                    free, fx = _layout(key, base_free, law[:, 2])
+                    if k == -1:  # the break kept: exact, without the linearised step
+                        free[j * PER_AXIS + 3] = False
+                    fx = fx + held[rows]
+                    if stacked:
+                        r[rows] = _residual(a_s[rows], v_s[rows], yy_s[rows],
+                                            _fit(a_s[rows], v_s[rows], free, fx))
+                    else:  # the single system: least squares as before (rank-safe)
+                        r[rows] = _residual(a, v, yy_s[0], _fit(a, v, free, fx[0]))
+                better = r < best_r
+                best[better] = k
+                best_r[better] = r[better]
+            choice[:, j] = best
+    return choice if stacked else tuple(int(c) for c in choice[0])
+
+
+def _shifts(choice: np.ndarray) -> np.ndarray:
+    """Break shifts (C) of break choices (``-1``: 0)."""
+    table = np.array([*BREAK_SHIFTS_C, 0.0])
+    return table[np.where(np.asarray(choice) >= 0, choice, N_SHIFTS)]
 
 
 def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    n_bootstrap: int = 200, seed: int = 0,
                    hold_d0: tuple[int, ...] = (),
-                   law: np.ndarray | None = None) -> VarianceSolution:
+                   law: np.ndarray | None = None,
+                   held_step: np.ndarray | None = None,
+                   held_width: np.ndarray | None = None) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
     Parameters
@@ -495,21 +575,29 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     seed : int
         Seed of the resampling.
     hold_d0 : tuple of int
-        Axes (0, 1, 2) whose D0 step is held at 0 (the base value kept; the user's
-        choice where the data do not determine it, ``--hold-d0``).
+        Axes (0, 1, 2) whose D0 is held (not fitted; the user's choice where the data
+        do not determine it, ``--hold-d0``).
     law : ndarray, shape (3, 4), optional
         The linearisation point's ``(a, b, c, T_m)`` per axis (`law_parameters`): the
         breaks are then also tried at `BREAK_SHIFTS_C` inside the fitted range
-        (`choose_breaks`); None: the linearised step only.
+        (`choose_breaks`), in the solution and again in every resample; None: the
+        linearised step only.
+    held_step : ndarray, shape (3,), optional
+        D0 step of each held axis (the held value minus the linearisation point's);
+        default 0 (the base value kept).
+    held_width : ndarray, shape (3,), optional
+        Standard error of each held D0: every resample draws the held value from a
+        normal distribution of this width, so that it propagates into every other
+        parameter's error (issue 34); default 0.
 
     Returns
     -------
     VarianceSolution
-        ``boot`` is centred on ``step`` with its spread widened by ``sqrt(n / (n - p))``
-        (``n`` resampled units, ``p`` free parameters). The units are runs of ``k``
-        consecutive blocks, ``k`` the largest that leaves ``2 p`` units, at most
-        `MAX_GROUP` (2 h on 2-4 days, 10 h on 16 days).  The resamples keep the
-        chosen breaks.
+        ``boot`` holds the resamples' steps (each with its own break choices and held
+        draws); ``widening`` is ``sqrt(n / (n - p))`` (``n`` resampled units, ``p``
+        free parameters). The units are runs of ``k`` consecutive blocks, ``k`` the
+        largest that leaves ``2 p`` units, at most `MAX_GROUP` (2 h on 2-4 days, 10 h
+        on 16 days).
 
     Raises
     ------
@@ -518,15 +606,21 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     """
     base_free = np.ones(N_PARAMETERS, dtype=bool)
     base_free[-1] = fit_delay
+    step_h = np.zeros(3) if held_step is None else np.asarray(held_step, dtype=float)
+    width_h = np.zeros(3) if held_width is None else np.asarray(held_width, dtype=float)
+    fixed_h = np.zeros(N_PARAMETERS)
     for j in hold_d0:
         base_free[j * PER_AXIS + 4] = False
-    a, v = stats.normal, stats.rhs
+        fixed_h[j * PER_AXIS + 4] = step_h[j]
+    a, v, yy_b = stats.normal, stats.rhs, stats.yy
     nb = a.shape[0]
-    choice = (-1, -1, -1)
+    choice: tuple[int, ...] = (-1, -1, -1)
     total_a, total_v, yy = a.sum(axis=0), v.sum(axis=0), float(stats.yy.sum())
+    t_range = stats.fitted_range()
+    slope = law[:, 2] if law is not None else np.zeros(3)
     if law is not None:
-        choice = choose_breaks(total_a, total_v, yy, base_free, law, stats.fitted_range())
-    free, fixed = _layout(choice, base_free, law[:, 2] if law is not None else np.zeros(3))
+        choice = choose_breaks(total_a, total_v, yy, base_free, law, t_range, fixed=fixed_h)
+    free, fixed = _layout(choice, base_free, slope)
     p_free = int(free.sum())
     if nb <= p_free + MIN_SPARE_BLOCKS:
         raise FluxcalError(
@@ -541,22 +635,35 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         group = np.arange(nb) // k
         n_units = int(group[-1]) + 1
         a_g, v_g = np.zeros((n_units, *a.shape[1:])), np.zeros((n_units, v.shape[1]))
+        yy_g = np.zeros(n_units)
         np.add.at(a_g, group, a)
         np.add.at(v_g, group, v)
-        a, v, nb = a_g, v_g, n_units
-    step = _fit(total_a, total_v, free, fixed)
-    chi2 = _residual(total_a, total_v, yy, step)
+        np.add.at(yy_g, group, yy_b)
+        a, v, yy_b, nb = a_g, v_g, yy_g, n_units
+    step = _fit(total_a, total_v, free, fixed + fixed_h)
+    chi2 = float(_residual(total_a, total_v, yy, step))
     rng = np.random.default_rng(seed)
     picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
                       for _ in range(n_bootstrap)]).astype(float)
-    boot = _fit(np.einsum("rb,bij->rij", picks, a), picks @ v, free, fixed)
-    # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
-    # resamples' spread about their mean is widened by sqrt(n / (n - p)) (n blocks;
-    # entry 13: on 2 days of 2-h blocks this brings the pulls' spread to 0.95-1.04)
-    boot = step + np.sqrt(nb / (nb - p_free)) * (boot - boot.mean(axis=0))
+    a_r, v_r, yy_r = np.einsum("rb,bij->rij", picks, a), picks @ v, picks @ yy_b
+    held_r = np.broadcast_to(fixed_h, (n_bootstrap, N_PARAMETERS)).copy()
+    if hold_d0:
+        draws = rng.standard_normal((n_bootstrap, 3)) * width_h
+        for j in hold_d0:
+            held_r[:, j * PER_AXIS + 4] += draws[:, j]
+    if law is not None:
+        boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, t_range, fixed=held_r)
+    else:
+        boot_choice = np.full((n_bootstrap, 3), -1, dtype=np.int64)
+    boot = np.empty((n_bootstrap, N_PARAMETERS))
+    for rows, key in _by_choice(boot_choice):
+        free_r, fixed_r = _layout(key, base_free, slope)
+        boot[rows] = _fit(a_r[rows], v_r[rows], free_r, fixed_r + held_r[rows])
     dof = int(stats.samples.sum()) - p_free - stats.segments
-    shift = np.array([BREAK_SHIFTS_C[c] if c >= 0 else 0.0 for c in choice])
-    return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof, break_shift=shift)
+    return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
+                            break_shift=_shifts(np.asarray(choice)),
+                            boot_shift=_shifts(boot_choice),
+                            widening=float(np.sqrt(nb / (nb - p_free))))
 
 
 def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float = 0.3,
@@ -599,6 +706,17 @@ def law_to_table(law: np.ndarray) -> np.ndarray:
     """Convert ``(a, b, c, T_m)`` per axis to Table 2's total ``(A0, B0, A1, B1)`` (eq. 4)."""
     a, b, c, tm = law.T
     return np.column_stack([a, b, a - c * tm, b + c])
+
+
+def law_values(law: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Return the law ``a + b T + c max(0, T - T_m)`` (counts) at temperatures ``t``.
+
+    ``law`` of shape ``(..., 3, 4)``; the result ``(..., len(t), 3)`` (eq. 3a, 3b, 4).
+    """
+    law = np.asarray(law, dtype=float)
+    t = np.atleast_1d(np.asarray(t, dtype=float))[:, None]
+    a, b, c, tm = (law[..., None, :, i] for i in range(4))
+    return a + b * t + c * np.maximum(0.0, t - tm)
 
 
 def law_at(law: np.ndarray, t: float) -> np.ndarray:

@@ -25,7 +25,8 @@ import numpy as np
 
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
-from fluxcal.missions.messenger.fit import AXES, FitResult, law_sigma
+from fluxcal.missions.messenger.fit import AXES, FitResult
+from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
     TEMPERATURE_EDGES_C,
@@ -41,6 +42,48 @@ __all__ = ["write_calibration_folder"]
 FITTED = ("offsets_temperature", "offsets_duty_cycle", "heater_signal_x", "heater_signal_y",
           "heater_signal_z", "processing")
 SOURCE = "fitted by fluxcal messenger fit"
+#: Temperatures (C) at which the law's error band is written (header and report).
+BAND_GRID_C = np.arange(-65.0, 55.5, 5.0)
+
+
+def merit_lines(result: FitResult) -> list[str]:
+    """Header lines: how the fit stopped and the predicted error against its goal."""
+    lines = []
+    c = result.convergence
+    if c:
+        lines.append(f"passes: {c['stop']}")
+        if not c["converged"]:
+            lines.append("NOT CONVERGED: written for a study of the estimator, not for use")
+    m = result.merit
+    if m and "total_nt" in m:
+        goal = float(m["goal_nt"])
+        lines.append(
+            "predicted error of a recalibrated day: "
+            + " / ".join(f"{v:.3f}" for v in m["total_nt"])
+            + f" nT rms (x / y / z; law, D0, tau and dt from the stated covariance over the "
+            f"fitted days' temperatures and duty cycles, the waveforms' stated error, the "
+            f"counts' rounding); goal "
+            f"{goal:g} nT")
+        if goal > ERROR_GOAL_NT:
+            lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
+                         f"{goal:g}")
+    if m and "judged" in m:
+        share = float(m["max_compressive_share"])
+        lines.append(f"intervals rejected as compressive: {m['compressive']} of {m['judged']} "
+                     f"judged (limit {share:.0%})")
+        if share > MAX_COMPRESSIVE_SHARE:
+            lines.append(f"ACCEPTED ABOVE THE DEFAULT COMPRESSIVE SHARE "
+                         f"{MAX_COMPRESSIVE_SHARE:.0%}: --max-compressive-share {share:g}")
+    return lines
+
+
+def band_lines(result: FitResult) -> list[str]:
+    """Header lines: the law's stated error (counts, 1 sigma) on `BAND_GRID_C`."""
+    band = result.law_error(BAND_GRID_C)
+    return [f"law error band (counts, 1 sigma, full covariance with the break) at "
+            f"{BAND_GRID_C[0]:.0f}..{BAND_GRID_C[-1]:.0f} C every "
+            f"{BAND_GRID_C[1] - BAND_GRID_C[0]:.0f} C, {a}: {_fmt(band[:, j], 3)}"
+            for j, a in enumerate(AXES)]
 
 
 def _toml_value(v: Any) -> str:
@@ -109,8 +152,13 @@ def write_calibration_folder(
     out_dir: Path,
     base_folder: Path | None,
     provenance: Mapping[str, Any],
+    *,
+    study: bool = False,
 ) -> list[Path]:
     """Write ``result`` as a calibration folder that ``load_calibration`` reads.
+
+    A result whose passes did not converge (``result.convergence``) is refused unless
+    ``study`` (a study of the estimator; every header then says so).
 
     Parameters
     ----------
@@ -132,9 +180,13 @@ def write_calibration_folder(
     Raises
     ------
     CalibrationError
-        When ``out_dir`` already holds calibration tables (versions would mix).
+        When ``out_dir`` already holds calibration tables (versions would mix), or the
+        fit did not converge (and not ``study``).
     """
     out = Path(out_dir)
+    if result.convergence and not result.convergence["converged"] and not study:
+        raise CalibrationError(f"{out}: {result.convergence['stop']}; not written (the "
+                               "last pass of a fit that has not converged is no result)")
     base_folder = data_dir() if base_folder is None else Path(base_folder)
     cal = result.calibration
     stale = sorted(p.name for p in out.glob("*_v*.*") if _NAME_RE.match(p.name)) if (
@@ -156,7 +208,7 @@ def write_calibration_folder(
              for a, f in zip(AXES, t, strict=True)]
     tm = result.stats.temperature
     if result.estimator == "variance":
-        extra += [_range_line(result)]
+        extra += [_range_line(result), *band_lines(result)]
     else:
         extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}",
                   f"estimator: {result.temperature_law} (bin "
@@ -171,12 +223,14 @@ def write_calibration_folder(
         "MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, Table 2 form; heater off, 10-C bins,"
         " sqrt(N) weights", version["offsets_temperature"], base_files["offsets_temperature"],
         base["offsets_temperature"].header, provenance,
-        ["units: A0, A1 = counts (fine range); B0, B1 = counts per degC; Tm_c = degC", *extra],
+        ["units: A0, A1 = counts (fine range); B0, B1 = counts per degC; Tm_c = degC", *extra,
+         *merit_lines(result)],
     ) + rows) + "\n"
     # Table 3 form
     d = result.duty
     dm = result.stats.duty
-    extra = [f"{a}: D0 held at the base value (--hold-d0)" if a in result.held_d0 else
+    extra = [f"{a}: D0 held at {result.held[a][0]:.6g} +- {result.held[a][1]:.3g} (--hold-d0; "
+             "the width enters every stated error)" if a in result.held_d0 else
              f"{a}: chi2 {f.chi2:.4g} dof {f.dof}; D0 error {f.slope_err:.3g}"
              for a, f in zip(AXES, d, strict=True)]
     extra += [f"bins (ppt): {_fmt(dm.centers, 4)}", f"N per bin: {_fmt(dm.count, 12)}",
@@ -189,7 +243,7 @@ def write_calibration_folder(
         "weights, intercept held", version["offsets_duty_cycle"],
         base_files["offsets_duty_cycle"], base["offsets_duty_cycle"].header, provenance,
         ["units: C0 = counts (fine range); D0 = counts per part-per-1000 of duty cycle",
-         *extra]) + rows) + "\n"
+         *extra, *merit_lines(result)]) + rows) + "\n"
     # Tables 6-8 form
     bins = cal.heater_duty_bins_percent
     for j, axis in enumerate(AXES):
@@ -214,7 +268,7 @@ def write_calibration_folder(
             " periodic smoothing spline of the phase-binned residual", version[name],
             base_files[name], base[name].header, provenance,
             ["units: counts; t_s = seconds since the heater-bit rising edge; columns = "
-             "duty-cycle bin centres in percent", *extra]) + rows) + "\n"
+             "duty-cycle bin centres in percent", *extra, *merit_lines(result)]) + rows) + "\n"
     # processing: tau, dt and the look-back that follows tau replaced
     r = result.relaxation
     text = base_files["processing"].read_text()
@@ -238,6 +292,11 @@ def write_calibration_folder(
         "amplitude_err": r.amplitude_err, "chi2": r.chi2, "dof": r.dof,
         "events": int(result.stats.n_samples.get("events", 0)),
         "intervals": str(provenance.get("intervals", "all data")),
+        **({"passes_run": result.convergence["passes_run"],
+            "converged": result.convergence["converged"],
+            "stop": result.convergence["stop"]} if result.convergence else {}),
+        **({"predicted_error_nt": result.merit["total_nt"],
+            "error_goal_nt": result.merit["goal_nt"]} if "total_nt" in result.merit else {}),
     }}) + "\n"
     texts["processing"] = text
     written: list[Path] = []
@@ -261,9 +320,14 @@ def write_calibration_folder(
 def _range_line(result: FitResult) -> str:
     """Return the fitted temperature range and the law's stated error at its ends."""
     lo, hi = result.fitted_range
-    err = law_sigma(result.temperature, np.array([lo, hi]))
+    err = result.law_error(np.array([lo, hi]))
+    data = result.merit.get("data_range_c") if result.merit else None
+    narrowed = (f", narrowed from {data[0]:.0f}..{data[1]:.0f} C to where the law's stated "
+                f"error is within {result.merit['band_limit_nt']:g} nT"
+                if data is not None and tuple(data) != (lo, hi) else "")
     return (f"fitted range: {lo:.0f}..{hi:.0f} C (5-C bins holding >= {MIN_RANGE_SAMPLES} "
-            "samples of accepted intervals); the law is not constrained outside it; stated "
+            f"samples of accepted intervals{narrowed}); the law is not constrained outside "
+            "it; stated "
             f"error at {lo:.0f} C {_fmt(err[0], 3)} counts, at {hi:.0f} C {_fmt(err[1], 3)} "
             "counts (x, y, z)")
 
@@ -295,7 +359,10 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
         "duty_cycle": {
             "bin_centre_ppt": st.duty.centers, "n": st.duty.count,
             **{a: {"C0": f.intercept, "D0": f.slope, "D0_err": f.slope_err,
-                   "D0_held": a in result.held_d0, "chi2": f.chi2,
+                   "D0_held": a in result.held_d0,
+                   **({"D0_held_value": result.held[a][0], "D0_held_width": result.held[a][1]}
+                      if a in result.held_d0 else {}),
+                   "chi2": f.chi2,
                    "dof": f.dof, "bin_mean": st.duty.mean()[:, j]}
                for j, (a, f) in enumerate(zip(AXES, result.duty, strict=True))},
         },
@@ -317,7 +384,13 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
         "passes": {f"pass_{p['pass']}": {k: v for k, v in p.items() if k != "pass"}
                    for p in result.passes},
         "estimator": result.estimator,
+        "convergence": {k: v for k, v in result.convergence.items()},
+        "merit": dict(result.merit),
     }
+    doc["temperature"]["band_temperature_c"] = BAND_GRID_C
+    band = result.law_error(BAND_GRID_C)
+    for j, a in enumerate(AXES):
+        doc["temperature"][a]["band_counts"] = band[:, j]
     v = result.variance
     if v is not None:
         doc["variance_intervals"] = {
@@ -388,7 +461,8 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
                      f"  Tm {f.x_m:7.2f} +- {f.x_m_err:.2f} C")
     lines.append("duty-cycle law (Table 3 form):")
     for a, f in zip(AXES, result.duty, strict=True):
-        d0 = (f"D0 {f.slope:.5f} (held at the base value: --hold-d0)" if a in result.held_d0
+        d0 = (f"D0 {f.slope:.5f} +- {f.slope_err:.5f} (held at {result.held[a][0]:.5g} +- "
+              f"{result.held[a][1]:.3g}: --hold-d0)" if a in result.held_d0
               else f"D0 {f.slope:.5f} +- {f.slope_err:.5f}")
         lines.append(f"  {a}: C0 {f.intercept:9.3f} (held)  {d0}")
     lines.append(f"relaxation: tau {r.tau:.1f} +- {r.tau_err:.1f} s; dt {r.dt:.1f} s "
@@ -404,4 +478,18 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
     lines.append("  (* kept from the base table: too little data)")
     lines.append("passes: " + "; ".join(
         f"{p['pass']}: tau {p['tau_s']} s, D0 {p['D0']}" for p in result.passes))
+    if result.convergence:
+        lines.append(f"  {result.convergence['stop']}")
+        lines.append(f"  (converged: {result.convergence['criterion']})")
+    if result.estimator == "variance":
+        lines += [f"  {x}" for x in band_lines(result)]
+    m = result.merit
+    if m and "total_nt" in m:
+        lines.append(
+            "predicted error of a recalibrated day (nT rms, x / y / z): "
+            + " / ".join(f"{v:.3f}" for v in m["total_nt"]) + f" (goal {m['goal_nt']:g}); law "
+            + " / ".join(f"{v:.3f}" for v in m["law_nt"]) + ", D0 "
+            + " / ".join(f"{v:.3f}" for v in m["d0_nt"]) + ", tau and dt "
+            + " / ".join(f"{v:.3f}" for v in m["relaxation_nt"]) + ", waveforms "
+            + " / ".join(f"{v:.3f}" for v in m["waveform_nt"]))
     return "\n".join(lines)

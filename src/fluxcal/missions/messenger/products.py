@@ -13,10 +13,12 @@ TT2000 epoch (milliseconds truncated, as SPICE ``timout`` prints them), ``TIME_T
 lag-corrected MET; for an average both are the centre of the interval and ``DB*`` are the
 population standard deviations of the field components in it.  The SC product has no
 position columns; RTN positions are ``R LATITUDE AZIMUTH`` (km, deg, deg, sec. 10.2); the
-SHC quality flag (sec. 12) is in the label and the CDF, not in the table.  fluxcal adds
-one last column, ``DEFECT_FLAG`` (the bits of
-`fluxcal.missions.messenger.defects.DEFECT_FLAGS`; in an average the OR of its samples'
-bits), also a CDF variable ``defect_flag`` (issue 23; not in the archived tables).
+SHC quality flag (sec. 12) is in the label and the CDF, not in the table.  A table that
+takes the archive's name keeps the archive's columns exactly (issue 32): the telemetry
+defect flags (the bits of `fluxcal.missions.messenger.defects.DEFECT_FLAGS`; in an
+average the OR of its samples' bits) are the CDF/netCDF/Zarr variable ``defect_flag``,
+and their spans are in every product's ``defect_spans`` attribute (the TAB's label too)
+and the day's ``MAGOFFSETS`` report (docs/decisions/products.md, decision 68).
 
 Samples are written in time order: the lag correction moves samples recorded after a
 fast -> slow rate switch before the last fast ones (the net lag grows), so each day is
@@ -448,13 +450,14 @@ def product_name(frame: str, yyddd: str, version: int, seconds: int | None = Non
     return f"{stem}AVG{yyddd}_{int(seconds):02d}_V{int(version):02d}"
 
 
-def table_columns(frame: str, averaged: bool, defect_flag: bool = False) -> list:
-    """Return the archive's table columns (names as archived; formats are fluxcal's).
+def table_columns(frame: str, averaged: bool) -> list:
+    """Return the archive's table columns, exactly (names as archived; formats fluxcal's).
 
-    CDR: ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG X Y Z BX BY BZ``; RDR adds ``NAVG``
-    after ``TIME_TAG`` and ``DBX DBY DBZ`` at the end.  RTN: ``R LATITUDE AZIMUTH`` and
-    ``BR BT BN`` (``DBR DBT DBN``) in the same positions; SC: no position columns.
-    ``defect_flag``: fluxcal's last column ``DEFECT_FLAG`` (issue 23, not archived).
+    CDR: ``YEAR DAY_OF_YEAR HOUR MINUTE SECOND TIME_TAG X Y Z BX BY BZ`` (12); RDR adds
+    ``NAVG`` after ``TIME_TAG`` and ``DBX DBY DBZ`` at the end (16).  RTN: ``R LATITUDE
+    AZIMUTH`` and ``BR BT BN`` (``DBR DBT DBN``) in the same positions; SC: no position
+    columns (9 and 13).  No column of fluxcal's own: the defect flags are in the CDF
+    (docs/formats/messenger.md, the table of columns).
     """
     cols = [Column("year", "%4d", label="YEAR"), Column("doy", "%03d", label="DAY_OF_YEAR"),
             Column("hour", "%02d", label="HOUR"), Column("minute", "%02d", label="MINUTE"),
@@ -474,8 +477,6 @@ def table_columns(frame: str, averaged: bool, defect_flag: bool = False) -> list
     if averaged:
         cols += [Column("b_std", "%9.3f", component=lab, label=f"DB{a}")
                  for lab, a in zip(labels, axes, strict=True)]
-    if defect_flag:
-        cols.append(Column("defect_flag", "%3d", label="DEFECT_FLAG"))
     return cols
 
 
@@ -592,10 +593,11 @@ def write_day(
                     tab_extra["AVERAGING_INTERVAL_S"] = cdf_extra["AVERAGING_INTERVAL_S"] = sec
                     if key not in quality:  # the largest flag per interval: frame-independent
                         quality[key] = _quality_keywords(out["quality"].values)
-                columns = table_columns(frame, sec is not None, "defect_flag" in out)
+                columns = table_columns(frame, sec is not None)
                 written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
                                   istp, day, version, utc.get(key), quality[key])
                 done += 1
+                log.info("%s done: %s vectors", name, f"{out.sizes['time']:,}")
                 if progress is not None:
                     progress(f"{yyddd} {name}", done, total)
             # free this frame's arrays before the next frame's are made (peak memory)

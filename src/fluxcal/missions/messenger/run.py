@@ -106,6 +106,8 @@ def calibrate_run(
         )
     check_frames(frames)
     cal = load_calibration(day_of(sci), calibration_folder)
+    log.info("calibration tables: %s", ", ".join(f"{name} v{version}"
+                                                 for name, version in cal.files))
     if progress is not None:
         progress("calibrating (sec. 5-12)", 0, 1)
     wanted = tuple(frames) + ((quicklook_frame,) if quicklook_frame is not None else ())

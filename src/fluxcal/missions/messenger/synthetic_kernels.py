@@ -32,7 +32,7 @@ from fluxcal.geometry.synthetic import (
     write_meta_kernel,
     write_spk,
 )
-from fluxcal.missions.messenger.identity import SPACECRAFT_ID
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.products.atomic import atomic_write_bytes
 
 MESSENGER_FK = """KPL/FK
@@ -108,7 +108,8 @@ def write_messenger_like_kernels(
     Returns
     -------
     Path
-        The meta-kernel ``messenger_synthetic.tm``.
+        The meta-kernel ``messenger_synthetic.tm`` (SCLK, FK, SPK, CK, and the dynamic
+        frames of `FRAME_KERNELS` copied beside them).
     """
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "msgr_synthetic")
     with KernelPool([], frames={}):
@@ -155,7 +156,12 @@ def write_messenger_like_kernels(
                                          plus_y_sunward)
             write_ck(ck_path, SPACECRAFT_ID * 1000, SPACECRAFT_ID, att_epochs, cmat,
                      "MESSENGER-LIKE ATTITUDE")
-    files = [sclk_path, fk_path, spk_path, ck_path]
+    # the dynamic frames (MSO, VSO, RTN) in the set, as the real set's msgr_dyn FK has them
+    frames = [out / p.name for p in FRAME_KERNELS.values()]
+    for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
+        dest.write_bytes(Path(src).read_bytes())
+    # listed last: loaded where `KernelPool` loaded them when they came from its ``frames``
+    files = [sclk_path, fk_path, spk_path, ck_path, *frames]
     return write_meta_kernel(out / "messenger_synthetic.tm", files)
 
 

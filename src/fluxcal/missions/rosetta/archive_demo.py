@@ -30,8 +30,9 @@ def _level_tables(folder: Path, level: str, sensor: str) -> xr.Dataset:
     Read as archived products are (`fluxcal.archive.products.read_product`).
     """
     from fluxcal.archive.products import read_product
+    from fluxcal.missions.rosetta.archive_products import READER
 
-    parts = [read_product(p.with_suffix(".LBL"))
+    parts = [read_product(p.with_suffix(".LBL"), {"rosetta": READER})
              for p in sorted(folder.glob(f"RPCMAG*_CL{level}_{sensor}_M*.TAB"))]
     joined = xr.concat(parts, dim="time", data_vars="minimal", coords="minimal",
                        compat="override", combine_attrs="override")

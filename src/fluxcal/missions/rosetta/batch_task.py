@@ -67,6 +67,7 @@ from fluxcal.geometry.time import SclkKernel, leapseconds
 from fluxcal.missions.rosetta import calib, io, level_a
 from fluxcal.missions.rosetta.archive import find_products, read_science, source_files
 from fluxcal.missions.rosetta.extended_model import stitch_day
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.level_a import stitch_edges
 from fluxcal.missions.rosetta.simulate import (
     simulate,
@@ -373,7 +374,7 @@ def simulate_days(
     nominal = calib.load_nominal_conversion()
     jumps = calib.load_offset_jump_table()
     folders = []
-    with KernelPool(meta):
+    with KernelPool(meta, frames=FRAME_KERNELS):
         lsk = leapseconds()
         for k, day in enumerate(days):
             folder = day_folder(input_dir, day)

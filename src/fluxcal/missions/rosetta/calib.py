@@ -505,13 +505,19 @@ class DailyOffsetModel:
     """Daily extended-temperature offset polynomial of one sensor (seed 003, sec. 4.2.3.3).
 
     ``coefficients[k]`` holds ``P_k`` (x, y, z, nT per deg C^k); the polynomial's variable
-    is the calibrated sensor temperature in deg C.
+    is the calibrated sensor temperature in deg C.  A file written by ``fluxcal rosetta
+    fit`` also records where the polynomial was fitted, ``temperature_range`` (reduced
+    temperature, deg C; key ``T_RANGE``), and its stated 1-sigma error there,
+    ``curve_sigma`` (largest over the range, x y z nT; key ``SIGMA_CURVE``); both
+    ``None`` for a file without them (the seed's files; issue 34).
     """
 
     day: np.datetime64
     sensor: str
     coefficients: np.ndarray
     source: str = ""
+    temperature_range: tuple[float, float] | None = None
+    curve_sigma: np.ndarray | None = None
 
     def __repr__(self) -> str:
         """One line: day, sensor, polynomial degree, file."""
@@ -545,7 +551,16 @@ def read_daily_offset_model(path: Path) -> DailyOffsetModel:
             f"{path}: SENSOR = {file_sensor} contradicts the file name ({sensor})"
         )
     coeffs = np.stack([_numbers(entries, f"P_{k}", 3, path) for k in range(6)])
-    return DailyOffsetModel(day=day, sensor=sensor, coefficients=coeffs, source=str(path))
+    t_range = None
+    if "T_RANGE" in entries:
+        lo, hi = _numbers(entries, "T_RANGE", 2, path)
+        if not lo <= hi:
+            raise CalibrationError(f"{path}, line {entries['T_RANGE'][1]}: T_RANGE {lo:g} "
+                                   f"{hi:g} is not 'lowest highest' (deg C)")
+        t_range = (float(lo), float(hi))
+    sigma = _numbers(entries, "SIGMA_CURVE", 3, path) if "SIGMA_CURVE" in entries else None
+    return DailyOffsetModel(day=day, sensor=sensor, coefficients=coeffs, source=str(path),
+                            temperature_range=t_range, curve_sigma=sigma)
 
 
 def find_daily_offset_models(
@@ -588,6 +603,10 @@ def write_daily_offset_model(
     lines += [
         f"P_{k} = " + " ".join(repr(float(v)) for v in model.coefficients[k]) for k in range(6)
     ]
+    if model.temperature_range is not None:
+        lines.append("T_RANGE = " + " ".join(repr(float(v)) for v in model.temperature_range))
+    if model.curve_sigma is not None:
+        lines.append("SIGMA_CURVE = " + " ".join(repr(float(v)) for v in model.curve_sigma))
     atomic_write_bytes(path, "\n".join(lines) + "\n", now=True)
     return path
 

@@ -20,6 +20,7 @@ from fluxcal import preflight
 from fluxcal.cli_help import HelpGroup
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.runs.display_cli import compilation_notice, progress_display, status_display
 from fluxcal.runs.options import with_options
 
 #: Levels computed from LEVEL_B, i.e. through the sensor-to-spacecraft alignment.
@@ -45,6 +46,19 @@ def warn_placeholder_alignment(calib_dir: Path | None) -> bool:
             "--calib FOLDER holding the real RPCMAG_SC_ALIGN.TXT, or "
             "--alignment-from-kernels", err=True)
     return alignment.placeholder
+
+def describe_daily_model(path: Path) -> str:
+    """One line: where a written daily model was fitted and its stated curve error."""
+    from fluxcal.missions.rosetta import calib
+
+    model = calib.read_daily_offset_model(path)
+    if model.temperature_range is None or model.curve_sigma is None:
+        return "no fitted range or curve error recorded"
+    lo, hi = model.temperature_range
+    return (f"fitted on T~ {lo:.2f} .. {hi:.2f} C; curve error (1 sigma, largest over "
+            "that range) x y z " + " ".join(f"{v:.3f}" for v in model.curve_sigma) + " nT; "
+            "'rosetta calibrate' warns about vectors outside the range")
+
 
 app = typer.Typer(help="Rosetta pipeline commands.", no_args_is_help=True,
                   rich_markup_mode=None, cls=HelpGroup)
@@ -96,8 +110,9 @@ def calibrate(
         a = levels.sensors[0].levels["A"]
         summary.update(n=a.sizes["time"], dropped=a.attrs["n_dropped_quality"])
 
-    paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
-                      state_file=stitch_state, on_calibrated=count)
+    with compilation_notice(), progress_display("rosetta calibrate") as progress:
+        paths = run_files(science, sensor, out, hk=hk, kernels=kernels, options=options,
+                          state_file=stitch_state, on_calibrated=count, progress=progress)
     if ALIGNED_LEVELS & set(level_list) and not options.alignment_from_kernels:
         warn_placeholder_alignment(calib)
     typer.echo(f"{summary['n']} vectors calibrated ({summary['dropped']} dropped for "
@@ -141,6 +156,12 @@ def fit(
         1.0, "--max-sigma", help="Refuse a jump (and, with --estimator variance, a daily "
         "curve anywhere over the day's temperatures) known worse than this (nT)."
     ),
+    goal: float = typer.Option(
+        0.2, "--goal", help="--estimator variance: refuse a daily curve whose predicted error "
+        "of the recalibrated day (twice the rms of its stated error over the day), or a jump "
+        "whose twice its error, exceeds this (nT; the goal 0.2 nT). A larger value accepts a "
+        "worse table and is written into it."
+    ),
     boom: str = typer.Option("deployed", "--boom", help="Boom state: deployed or stowed."),
     alignment_from_kernels: bool = typer.Option(
         False, "--alignment-from-kernels",
@@ -179,15 +200,19 @@ def fit(
                                field="--block-seconds")
     if estimator not in ("zero-mean", "variance"):
         raise InputFormatError(f"{estimator}: choose zero-mean or variance", field="--estimator")
+    if not goal > 0:
+        raise InputFormatError(f"{goal} nT: give a positive goal", field="--goal")
     preflight.writable_folder(out, "--out")
     paths = fit_files(
         science, sensor, out, hk_file=hk, calib_dir=calib, kernels=kernels, primary=primary,
         degree=degree, block_s=block, jumps=jumps, intervals=intervals, max_sigma=max_sigma,
         boom=boom,
-        alignment_from_kernels=alignment_from_kernels, estimator=estimator,
+        alignment_from_kernels=alignment_from_kernels, estimator=estimator, goal=goal,
     )
     for path in paths:
         typer.echo(str(path))
+        if not jumps:
+            typer.echo("  " + describe_daily_model(path))
 
 
 @app.command("list-calibration")
@@ -237,6 +262,13 @@ def simulate(
     if layout not in ("files", "batch", "archive"):
         raise InputFormatError(f"{layout!r}: choose files, batch or archive", field="--layout")
     preflight.writable_folder(out, "--out")
+    with compilation_notice(), status_display(f"simulating {hours:g} h of Rosetta RPC-MAG"):
+        _simulate(out, start, hours, rate, primary, seed, layout, days, field)
+
+
+def _simulate(out: Path, start: str, hours: float, rate: float, primary: str, seed: int,
+              layout: str, days: int, field: str) -> None:
+    """``fluxcal simulate rosetta`` once its options are checked."""
     if layout == "archive":
         simulate_archive_layout(out, start, hours, rate, primary, seed, field)
         return

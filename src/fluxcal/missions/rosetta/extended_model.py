@@ -23,6 +23,8 @@ from fluxcal.missions.rosetta.calib import DailyOffsetModel
 NS = 1_000_000_000
 #: Default largest gap (s) across which the midnight stitching of sec. 4.2.3.3 continues.
 STITCH_GAP_S = 3 * 3600.0
+#: Vectors within this of a daily model's fitted range (deg C) count as inside it.
+RANGE_TOLERANCE_C = 0.02
 
 
 @dataclass(frozen=True)
@@ -220,3 +222,61 @@ def extended_offset(
             index, grid = lookup
             out[i0:i1] = (thermal.polynomial(model.coefficients, grid) - correction)[index[i0:i1]]
     return out, state, sources
+
+
+def outside_fitted_range(
+    temperature: np.ndarray,
+    day_index: np.ndarray,
+    days: list[np.datetime64],
+    models: Mapping[np.datetime64, DailyOffsetModel],
+    tolerance_c: float = RANGE_TOLERANCE_C,
+) -> list[str]:
+    """Say, per day, which vectors a daily polynomial reaches outside its fitted range.
+
+    A file written by ``fluxcal rosetta fit`` records the reduced temperatures it was
+    fitted over (``DailyOffsetModel.temperature_range``); a cubic applied beyond them is an
+    extrapolation whose error the fit does not state (issue 34: 1.2 nT at 4 C outside).
+    Files without a range (the seed's) are not judged.
+
+    Parameters
+    ----------
+    temperature : ndarray, shape (n,)
+        Reduced temperature ``T~`` (deg C) of each vector.
+    day_index : ndarray of int, shape (n,)
+        Index into ``days`` of each vector's UTC day.
+    days : list of numpy.datetime64[D]
+    models : mapping day -> DailyOffsetModel
+    tolerance_c : float
+        Vectors less than this outside (deg C) are not reported: two half steps of the
+        thermistor word (0.0098 C each, docs/decisions/rosetta_fit.md decision 6), the
+        resolution the range itself was measured with.
+
+    Returns
+    -------
+    list of str
+        One line per day with vectors outside: how many, the range, and how far (C).
+
+    References
+    ----------
+    .. [1] RO-IGEP-TR0028 (seed 003), sec. 4.2.3.3 (daily polynomials fitted per day).
+    """
+    out = []
+    t = np.asarray(temperature, dtype=float)
+    for d, day in enumerate(days):  # a loop over days, not samples
+        model = models.get(day)
+        if model is None or model.temperature_range is None:
+            continue
+        lo, hi = model.temperature_range
+        sel = t[np.asarray(day_index) == d]
+        below, above = sel < lo - tolerance_c, sel > hi + tolerance_c
+        n = int(np.count_nonzero(below | above))
+        if not n:
+            continue
+        far = max(float(lo - sel[below].min()) if below.any() else 0.0,
+                  float(sel[above].max() - hi) if above.any() else 0.0)
+        out.append(
+            f"{day}: {n} of {sel.size} vectors at reduced temperatures outside the range "
+            f"{lo:.2f} .. {hi:.2f} C the daily model {model.source or 'file'} was fitted on "
+            f"(up to {far:.2f} C outside: the polynomial is extrapolated there, its error "
+            f"unknown; lowest T~ {sel.min():.2f} C, highest {sel.max():.2f} C)")
+    return out

@@ -235,8 +235,14 @@ class DailyModelFit:
                                  for c in self.covariance_q], axis=1))
 
     def to_model(self, source: str = "") -> DailyOffsetModel:
-        """Return the `DailyOffsetModel` the pipeline applies."""
-        return DailyOffsetModel(self.day, self.sensor, self.coefficients.copy(), source)
+        """Return the `DailyOffsetModel` the pipeline applies, with its range and error.
+
+        ``curve_sigma``: the largest stated error of the curve over the fitted range.
+        """
+        grid = np.linspace(*self.temperature_range, 101)
+        return DailyOffsetModel(self.day, self.sensor, self.coefficients.copy(), source,
+                                temperature_range=tuple(map(float, self.temperature_range)),
+                                curve_sigma=self.offset_sigma(grid).max(axis=0))
 
 
 def reduced_temperature(level_a: xr.Dataset, calibration: GroundCalibration) -> np.ndarray:
@@ -416,9 +422,11 @@ def write_daily_model(
 ) -> Path:
     """Write ``fit`` as ``RPCMAG_<yymmdd>_006_CALIB_<sensor>.TXT`` in ``out_dir``.
 
-    The format `calib.read_daily_offset_model` reads (keys ``SENSOR``, ``P_0`` .. ``P_5``)
-    with ``#`` comment lines recording the fit: inputs, degree, blocks, temperature range,
-    residual rms, chi2, and the standard error of every coefficient.
+    The format `calib.read_daily_offset_model` reads (keys ``SENSOR``, ``P_0`` .. ``P_5``,
+    ``T_RANGE`` (fitted reduced temperatures) and ``SIGMA_CURVE`` (the curve's largest
+    1-sigma over them)) with ``#`` comment lines recording the fit: inputs, degree, blocks,
+    temperature range, residual rms, chi2, the standard error of every coefficient and the
+    estimator's notes (curve error, figure of merit, convergence).
 
     Raises
     ------

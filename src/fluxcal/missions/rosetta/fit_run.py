@@ -38,6 +38,7 @@ from fluxcal.missions.rosetta.fit import (
 from fluxcal.missions.rosetta.fit_pictures import write_fit_pictures
 from fluxcal.missions.rosetta.fit_variance import (
     ESTIMATORS,
+    GOAL_NT,
     VarianceSettings,
     fit_extended_model_variance,
     fit_offset_jumps_variance,
@@ -104,6 +105,7 @@ def fit_files(
     boom: str = "deployed",
     alignment_from_kernels: bool = False,
     estimator: str = "variance",
+    goal: float | None = None,
 ) -> list[Path]:
     """Run ``fluxcal rosetta fit`` on one or more raw science files of one sensor.
 
@@ -126,7 +128,9 @@ def fit_files(
     ``|B|`` within intervals of ``block_s``, default 1200 s, nothing about the mean
     field; no attitude needed for the jumps) or ``"zero-mean"`` (the seed's criteria:
     the day's field, or the CSEQ ``B_z``, averages to zero).  A variance fit whose error
-    exceeds ``max_sigma`` (nT) is refused.
+    exceeds ``max_sigma`` (nT) is refused, and so is one whose figure of merit (the
+    predicted error of a recalibrated day, or twice a jump's error) exceeds ``goal`` (nT;
+    default `fit_variance.GOAL_NT`, 0.2 nT; a larger value is written into the file).
 
     Returns
     -------
@@ -147,7 +151,8 @@ def fit_files(
         raise FluxcalError(f"estimator {estimator!r}: choose one of {', '.join(ESTIMATORS)}")
     variance = estimator == "variance"
     vset = VarianceSettings(**({"interval_s": block_s} if block_s else {}),
-                            **({"max_sigma": max_sigma} if max_sigma is not None else {}))
+                            **({"max_sigma": max_sigma} if max_sigma is not None else {}),
+                            **({"goal": goal} if goal is not None else {}))
     if jumps and kernels is None and not variance:
         raise FluxcalError("--jumps needs --kernels (attitude and comet for the CSEQ frame; "
                            "--estimator variance needs none)")
@@ -235,6 +240,9 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
         order = np.argsort(epoch, kind="stable")
         fit = fit_offset_jumps_variance(epoch[order], b_sc[order], start, end, sensor=sensor,
                                         settings=variance, lsk=lsk)
+        prov["goal"] = (f"{variance.goal:g} nT (twice each jump's error)" + (
+            "" if variance.goal <= GOAL_NT else
+            f" (ACCEPTED ABOVE THE DEFAULT GOAL {GOAL_NT:g} nT by --goal)"))
         prov["alignment"] = levels_b[0].attrs["alignment"]
         prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
         return _with_pictures(fit, out, write_offset_jump_table(

@@ -46,10 +46,13 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from fluxcal.calibration.solar_wind_offsets import (
-    count_reasons,
-    interval_moments,
+from fluxcal.calibration.segment_trends import (
+    remove_segment_lines,
+    segment_codes,
+    segment_variance,
 )
+from fluxcal.calibration.solar_wind_offsets import count_reasons
+from fluxcal.calibration.step_scan import JumpScan, scan_offset_step
 from fluxcal.calibration.variance_offsets import (
     DEFAULT_MAX_COMPRESSIBILITY,
     DEFAULT_MIN_EIGENVALUE_RATIO,
@@ -71,11 +74,13 @@ from fluxcal.missions.rosetta.fit import (
     interval_bounds,
 )
 
-__all__ = ["ESTIMATORS", "VarianceSettings", "fit_extended_model_variance",
-           "fit_offset_jumps_variance"]
+__all__ = ["ESTIMATORS", "GOAL_NT", "VarianceSettings", "curve_error_text",
+           "fit_extended_model_variance", "fit_offset_jumps_variance", "predicted_error"]
 
 #: Estimators of ``fluxcal rosetta fit --estimator``, named by what they assume.
 ESTIMATORS = ("zero-mean", "variance")
+#: Default goal (nT) of a Rosetta daily curve's figure of merit (issue 34).
+GOAL_NT = 0.2
 
 
 @dataclass(frozen=True)
@@ -117,6 +122,28 @@ class VarianceSettings:
         Refuse a day (or jump interval) whose intervals are rejected as ``compressive``
         for more than this share of those passing the static criteria: the selection
         then depends on the fit and the errors understate (rosetta_fit.md decision 13).
+    segment_s : float
+        Daily model: ``|B|`` is taken constant up to a straight line in time within
+        segments of this length inside each interval (the slow compressive changes of
+        ``|B|`` are removed, the fast rotations kept; rosetta_fit.md decision 15); the
+        ``compressive`` criterion compares the powers left within the segments.  A
+        segment shorter than ``min_segment_samples`` samples at the data's median rate
+        is lengthened to hold them.  ``interval_s`` or more: one segment per interval,
+        its mean only removed (the estimator before issue 34).
+    min_segment_samples : int
+        Samples a segment holds at least (the line takes two of them).
+    jump_min_side : int
+        Daily model: the change-point scan (`scan_offset_step`) tries splits with at least
+        this many accepted intervals on each side.
+    max_jump_chi2 : float
+        Daily model: refuse a day whose largest step ``chi2`` (3 dof) exceeds this: an
+        offset jump inside the day, named with its time and size (rosetta_fit.md
+        decision 16).
+    goal : float
+        Figure of merit (nT): refuse a daily curve whose predicted error of the
+        recalibrated day, twice the rms of its stated error over the day's vectors, exceeds
+        this in any axis (issue 34: 0.2 nT for Rosetta; rosetta_fit.md decision 17).  A
+        larger value accepts a worse table and is written into it.
     """
 
     interval_s: float = 1200.0
@@ -132,6 +159,11 @@ class VarianceSettings:
     max_offset: float = 200.0
     max_jump: float = 100.0
     max_compressive_share: float = 1.0 / 3.0
+    segment_s: float = 60.0
+    min_segment_samples: int = 8
+    jump_min_side: int = 6
+    max_jump_chi2: float = 25.0
+    goal: float = GOAL_NT
 
 
 def _intervals(epoch: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -147,13 +179,68 @@ def _min_count(epoch: np.ndarray, s: VarianceSettings) -> float:
     return max(float(s.min_samples), 0.5 * s.interval_s / max(float(step), 1e-9))
 
 
+@dataclass(frozen=True)
+class _Segments:
+    """Segments of the intervals: per-sample code ``0..m-1``, time (s), line removed.
+
+    ``on`` False: one segment per interval, its mean only (the estimator before issue 34).
+    """
+
+    codes: np.ndarray
+    m: int
+    seconds: np.ndarray
+    on: bool
+    length_s: float
+
+    @classmethod
+    def of(cls, epoch: np.ndarray, codes: np.ndarray, labels: np.ndarray,
+           s: VarianceSettings) -> _Segments:
+        seconds = (epoch - epoch.min()) / NS
+        length = _segment_length(epoch, s)
+        if length is None:
+            return cls(codes, int(labels.size), seconds, False, float(s.interval_s))
+        seg, m = segment_codes(seconds, codes, labels * s.interval_s, length)
+        return cls(seg, m, seconds, True, length)
+
+    def residual(self, values: np.ndarray) -> np.ndarray:
+        """``values`` less each segment's mean (and line)."""
+        return remove_segment_lines(values, self.codes, self.m, self.seconds, line=self.on)
+
+    def compressibility(self, b: np.ndarray, codes: np.ndarray, k: int) -> np.ndarray | None:
+        """Per interval, power of ``|b|`` over that of ``b`` left within the segments."""
+        if not self.on:
+            return None
+        mag = np.sqrt(np.einsum("ij,ij->i", b, b))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (segment_variance(self.residual(mag), codes, k)
+                    / segment_variance(self.residual(b), codes, k).sum(axis=1))
+
+
+def _segment_length(epoch: np.ndarray, s: VarianceSettings) -> float | None:
+    """Segment length (s): ``segment_s``, or ``min_segment_samples`` at the median rate.
+
+    ``None`` when that is an interval or more (one segment per interval, mean only).
+    """
+    step = float(np.median(np.diff(epoch)) / NS) if epoch.size > 1 else s.interval_s
+    length = max(float(s.segment_s), s.min_segment_samples * step)
+    return None if length >= s.interval_s else length
+
+
 def _select(b: np.ndarray, codes: np.ndarray, k: int, min_count: float,
-            s: VarianceSettings, static_only: bool = False) -> np.ndarray:
+            s: VarianceSettings, static_only: bool = False,
+            segments: _Segments | None = None) -> np.ndarray:
     """First failed criterion per interval (``""``: accepted), evaluated on ``b``."""
+    ratio = None if segments is None or static_only else segments.compressibility(b, codes, k)
     return interval_reasons(b, codes, k, min_samples=min_count,
                             min_eigenvalue_ratio=s.min_eigenvalue_ratio,
                             min_relative_amplitude=s.min_relative_amplitude,
-                            max_compressibility=s.max_compressibility, static_only=static_only)
+                            max_compressibility=s.max_compressibility, static_only=static_only,
+                            compressibility=ratio)
+
+
+def _history_text(history: list[tuple[float, int, int]]) -> str:
+    """Return the steps as ``curve moved, accepted, flipped`` text."""
+    return "; ".join(f"{m:.3g} nT, {a} accepted, {f} flipped" for m, a, f in history) or "none"
 
 
 def _reasons_text(reason: np.ndarray) -> str:
@@ -162,23 +249,22 @@ def _reasons_text(reason: np.ndarray) -> str:
 
 
 def _normal_equations(b: np.ndarray, powers: np.ndarray, codes: np.ndarray, k: int,
-                      accepted: np.ndarray, block: np.ndarray, nb: int
+                      accepted: np.ndarray, block: np.ndarray, nb: int, segments: _Segments
                       ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """Per-block normal equations of the linearised variance of ``|b - dP|``.
 
-    Columns ``u_i x^k`` (axis-major); target ``|b|``; both with each interval's mean
-    removed.  Returns ``(normal (nb, p, p), rhs (nb, p), residual sum, samples)``.
+    Columns ``u_i x^k`` (axis-major); target ``|b|``; both with each segment's mean (and
+    line in time) removed.  Returns ``(normal (nb, p, p), rhs (nb, p), residual sum,
+    samples)``.
     """
     ok = accepted[codes]
-    b, powers, codes, block = b[ok], powers[ok], codes[ok], block[ok]
+    b, powers, block = b[ok], powers[ok], block[ok]
+    part = _Segments(segments.codes[ok], segments.m, segments.seconds[ok], segments.on,
+                     segments.length_s)
     mag = np.sqrt(np.einsum("ij,ij->i", b, b))
     u = b / mag[:, None]
-    x = (u[:, :, None] * powers[:, None, :]).reshape(mag.size, -1)
-    n_k = np.bincount(codes, minlength=k).astype(float)
-    inv = np.where(n_k > 0, 1.0 / np.maximum(n_k, 1.0), 0.0)
-    x = x - np.stack([np.bincount(codes, x[:, j], k) for j in range(x.shape[1])],
-                     axis=1)[codes] * inv[codes, None]
-    y = mag - (np.bincount(codes, mag, k) * inv)[codes]
+    x = part.residual((u[:, :, None] * powers[:, None, :]).reshape(mag.size, -1))
+    y = part.residual(mag)
     p = x.shape[1]
     normal = np.zeros((nb, p, p))
     rhs = np.zeros((nb, p))
@@ -282,14 +368,17 @@ def fit_extended_model_variance(
     block_ids, block_code = np.unique(block_of_interval, return_inverse=True)
     nb = block_ids.size
     block = block_code[codes]
+    segments = _Segments.of(epoch, codes, labels, s)
     q = start.q.copy()
     p = 3 * (degree + 1)
     reason = previous = None
     converged = False
     static_phase = True
+    history: list[tuple[float, int, int]] = []  # per step: curve moved (nT), accepted, flips
     for _ in range(s.max_iterations):  # Gauss-Newton steps
         bp = b - powers @ q
-        previous, reason = reason, _select(bp, codes, k, min_count, s, static_only=static_phase)
+        previous, reason = reason, _select(bp, codes, k, min_count, s, static_only=static_phase,
+                                           segments=segments)
         accepted = reason == ""
         if np.count_nonzero(accepted) < p + 1:
             raise FitRefusedError(
@@ -299,10 +388,13 @@ def fit_extended_model_variance(
                 "(Alfvenic) intervals or a lower --degree, or use --estimator zero-mean if "
                 "the field averages to zero"
             )
-        normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, accepted, block, nb)
+        normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, accepted, block, nb,
+                                              segments)
         step = _solve(normal.sum(axis=0), rhs.sum(axis=0)).reshape(3, degree + 1).T
         q = q + step
         moved = float(np.abs(powers @ step).max())
+        history.append((moved, int(np.count_nonzero(accepted)),
+                        0 if previous is None else int(np.count_nonzero(reason != previous))))
         if moved < s.tolerance and np.array_equal(reason, previous):
             if not static_phase:
                 converged = True
@@ -310,7 +402,7 @@ def fit_extended_model_variance(
             static_phase = False
     if not converged:
         bp = b - powers @ q
-        full = _select(bp, codes, k, min_count, s)
+        full = _select(bp, codes, k, min_count, s, segments=segments)
         too_compressive = _compressive_refusal(
             what, full, _select(bp, codes, k, min_count, s, static_only=True) == "", s)
         if too_compressive:
@@ -324,6 +416,7 @@ def fit_extended_model_variance(
                  f"{s.tolerance:g} nT)")
         raise FitRefusedError(
             f"{what}: no convergence in {s.max_iterations} Gauss-Newton steps: {cause}; "
+            f"last steps {_history_text(history[-3:])}; "
             f"rejected intervals at the last curve: {_reasons_text(full)}; give a day with "
             "more rotating "
             "(Alfvenic) intervals, a lower --degree, or use --estimator zero-mean if the "
@@ -337,14 +430,14 @@ def fit_extended_model_variance(
     if too_compressive:
         raise FitRefusedError(too_compressive)
     # per-interval normal equations of every interval that passes the static criteria
-    normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, static, codes, k)
+    normal, rhs, _, _ = _normal_equations(bp, powers, codes, k, static, codes, k, segments)
     mag = np.sqrt(np.einsum("ij,ij->i", bp, bp))
     count = np.bincount(codes, minlength=k).astype(float)
-    centred = mag - (np.bincount(codes, mag, k) / np.maximum(count, 1.0))[codes]
-    yy_k = np.bincount(codes, centred**2, k)
-    trace_k = np.trace(interval_moments(bp, codes, k).cov, axis1=1, axis2=2)
+    yy_k = segment_variance(segments.residual(mag), codes, k) * count
+    trace_k = segment_variance(segments.residual(bp), codes, k).sum(axis=1)
     yy, n_used = float(yy_k[accepted].sum()), int(count[accepted].sum())
     eligible = static & (reason != "small_fluctuations")  # kept as selected
+    scan = scan_offset_step(normal, rhs, accepted, np.arange(3) * (degree + 1), s.jump_min_side)
 
     def compressive_ok(d: np.ndarray) -> np.ndarray:
         """Intervals passing ``compressive`` after the curve moves by ``d`` (linearised)."""
@@ -380,7 +473,26 @@ def fit_extended_model_variance(
         chi2=np.full(3, np.nan), dof=n_used - p - n_acc, noise=None, estimator="variance",
         notes={**start.notes,
                "intervals": f"{n_acc} of {k} accepted; rejected: {_reasons_text(reason)}",
-               "bootstrap": f"{s.n_bootstrap} resamples of {nb} blocks of {s.block_s:g} s"})
+               "bootstrap": f"{s.n_bootstrap} resamples of {nb} blocks of {s.block_s:g} s",
+               "jump scan": (f"largest change-point chi2 {scan.statistic:.1f} (limit "
+                             f"{s.max_jump_chi2:g}, 3 dof) at interval {scan.split} step "
+                             + " ".join(f"{v:.3f}" for v in scan.step) + " +- "
+                             + " ".join(f"{v:.3f}" for v in scan.sigma) + " nT"),
+               "segments": (f"|B| constant up to a line in time within {segments.length_s:g}-s "
+                            f"segments ({segments.m})" if segments.on else
+                            f"|B| constant within each {s.interval_s:g}-s interval"),
+               "convergence": (f"{len(history)} Gauss-Newton steps; stopped: the curve moved "
+                               f"{history[-1][0]:.2g} nT < {s.tolerance:g} nT with the "
+                               "selection unchanged; per step (curve moved, accepted, "
+                               f"flipped): {_history_text(history)}")})
+    if scan.statistic > s.max_jump_chi2:
+        size, first, last, stats = _jump_found(scan, int(epoch.min()), labels, s)
+        raise FitRefusedError(
+            f"{what}: {size} between {first} and {last} UTC {stats}: the daily polynomial "
+            "cannot hold a jump and would spread it over the day; fit the part of the day "
+            "before or after it alone (the jump itself belongs in an Appendix B table, "
+            "fluxcal rosetta fit --jumps)"
+        )
     grid = np.linspace(*fit.temperature_range, 101)
     curve_sigma = fit.offset_sigma(grid)
     worst = np.unravel_index(np.argmax(curve_sigma), curve_sigma.shape)
@@ -404,7 +516,82 @@ def fit_extended_model_variance(
             "field taken for an offset, or a wrong ground calibration); check --calib, "
             "or fit a day with rotating field over the temperature range"
         )
-    return fit
+    merit = predicted_error(fit, t)
+    if not np.all(merit <= s.goal):
+        axis = int(np.argmax(merit))
+        raise FitRefusedError(
+            f"{what}: predicted error of the recalibrated day " + " ".join(
+                f"{v:.3f}" for v in merit) + f" nT (x y z; twice the rms of the curve's stated "
+            f"error over the day's vectors) is above the goal {s.goal:g} nT in "
+            f"{'xyz'[axis]} ({n_acc} of {k} intervals accepted, rejected: "
+            f"{_reasons_text(reason)}; |B| rms within {segments.length_s:g}-s segments "
+            f"{rms:.3g} nT); give a day with more rotation and less compression, a lower "
+            "--degree, or accept a worse table with --goal (written into the file)"
+        )
+    return dataclasses.replace(fit, notes={
+        **fit.notes, "curve error": curve_error_text(fit, t),
+        "figure of merit": (
+            "predicted error of the recalibrated day (2 x rms stated error over its "
+            "vectors) x y z " + " ".join(f"{v:.3f}" for v in merit) + f" nT; goal {s.goal:g} nT"
+            + ("" if s.goal <= GOAL_NT else f" (ACCEPTED ABOVE THE DEFAULT GOAL {GOAL_NT:g} "
+               "nT by --goal)"))})
+
+
+def predicted_error(fit: DailyModelFit, temperature: np.ndarray) -> np.ndarray:
+    """Twice the rms of the curve's stated error over ``temperature`` (nT, x y z).
+
+    The figure of merit of a daily curve (issue 34): the error a day recalibrated with it
+    is expected to stay within (95 %), from the fit's covariance alone.
+    """
+    return 2.0 * np.sqrt(np.mean(fit.offset_sigma(np.asarray(temperature)) ** 2, axis=0))
+
+
+def curve_error_text(fit: DailyModelFit, temperature: np.ndarray) -> str:
+    """Return the curve's stated error: rms over the day's vectors, largest over the range."""
+    grid = np.linspace(*fit.temperature_range, 101)
+    rms = np.sqrt(np.mean(fit.offset_sigma(np.asarray(temperature)) ** 2, axis=0))
+    worst = fit.offset_sigma(grid).max(axis=0)
+    return ("1-sigma x y z: rms over the day " + " ".join(f"{v:.3f}" for v in rms)
+            + " nT, largest over the range " + " ".join(f"{v:.3f}" for v in worst) + " nT")
+
+
+def _jump_found(scan: JumpScan, origin: int, labels: np.ndarray, s: VarianceSettings,
+                lsk=None) -> tuple[str, str, str, str]:
+    """Return a detected jump's size, its interval's first and last time (UTC), statistics.
+
+    The intervals start at ``labels`` x ``s.interval_s`` from ``origin`` (TT2000).
+    """
+    at = origin + int(round(labels[scan.split] * s.interval_s * NS))
+    when = tt2000_to_utc(np.array([at - int(round(s.interval_s * NS)), at]), digits=0, lsk=lsk)
+    size = ("an offset jump of " + " ".join(f"{v:+.2f}" for v in scan.step) + " +- "
+            + " ".join(f"{v:.2f}" for v in scan.sigma) + " nT (x y z)")
+    stats = (f"(change-point chi2 {scan.statistic:.0f} for 3 dof over {scan.splits} splits, "
+             f"limit {s.max_jump_chi2:g})")
+    return size, str(when[0]), str(when[1]), stats
+
+
+def _scan_jump_interval(epoch: np.ndarray, b: np.ndarray, sub: np.ndarray, est,
+                        start: int, s: VarianceSettings) -> JumpScan:
+    """`scan_offset_step` over the sub-intervals of one Appendix B interval.
+
+    The per-sub-interval normal equations of a constant offset (the daily model's with
+    degree 0) at the fitted offset, with the segments `hedgecock_offsets` used.
+    """
+    labels, codes = np.unique(sub, return_inverse=True)
+    k = labels.size
+    seconds = (epoch - start) / NS
+    length = _segment_length(epoch, s)
+    if length is None:
+        segments = _Segments(codes, k, seconds, False, float(s.interval_s))
+    else:
+        first = np.full(k, np.inf)
+        np.minimum.at(first, codes, seconds)
+        seg, m = segment_codes(seconds, codes, first, length)
+        segments = _Segments(seg, m, seconds, True, length)
+    accepted = np.isin(labels, est.labels[est.accepted])
+    normal, rhs, _, _ = _normal_equations(b - est.offset, np.ones((b.shape[0], 1)), codes, k,
+                                          accepted, codes, k, segments)
+    return scan_offset_step(normal, rhs, accepted, np.arange(3), s.jump_min_side)
 
 
 def _compressive_refusal(what: str, reason: np.ndarray, static: np.ndarray,
@@ -539,7 +726,8 @@ def fit_offset_jumps_variance(
                 min_eigenvalue_ratio=s.min_eigenvalue_ratio,
                 min_relative_amplitude=s.min_relative_amplitude,
                 max_compressibility=s.max_compressibility,
-                max_iterations=s.max_iterations, n_bootstrap=s.n_bootstrap, seed=seed)
+                max_iterations=s.max_iterations, n_bootstrap=s.n_bootstrap, seed=seed,
+                seconds=(e - starts[j]) / NS, segment_s=_segment_length(e, s))
         except FluxcalError as exc:
             raise FitRefusedError(
                 f"{what}: the sub-intervals of {s.interval_s:g} s do not determine the "
@@ -557,13 +745,17 @@ def fit_offset_jumps_variance(
                 "depends on the fitted offset and its error would be too small "
                 "(rosetta_fit.md decision 13); give calmer data in the interval"
             )
-        if not np.all(sigma[j] <= s.max_sigma):
+        over_sigma = not np.all(sigma[j] <= s.max_sigma)
+        if over_sigma or not np.all(2.0 * sigma[j] <= s.goal):
+            why, advice = ((f"limit {s.max_sigma:g} nT", "raise --max-sigma") if over_sigma else
+                           (f"twice the error is above the goal {s.goal:g} nT",
+                            "accept a worse table with --goal (written into the file)"))
             raise FitRefusedError(
                 f"{what}: J = " + " ".join(f"{v:.3g}" for v in jumps[j]) + " +- "
                 + " ".join(f"{v:.3g}" for v in sigma[j])
-                + f" nT (limit {s.max_sigma:g} nT; {est.n_used} of {est.labels.size} "
+                + f" nT ({why}; {est.n_used} of {est.labels.size} "
                 f"sub-intervals accepted, rejected: {_reasons_text(est.reason)}); give more "
-                "rotating data in the interval, or raise --max-sigma"
+                f"rotating data in the interval, or {advice}"
             )
         if not np.all(np.abs(jumps[j]) <= s.max_jump):
             axis = int(np.argmax(np.abs(jumps[j])))
@@ -572,6 +764,14 @@ def fit_offset_jumps_variance(
                 f"outside the physical range +-{s.max_jump:g} nT of an Appendix B jump (the "
                 "largest shipped is 25 nT): a field taken for an offset or data of another "
                 "sensor state; check the interval's data and --calib"
+            )
+        scan = _scan_jump_interval(e, b, sub, est, starts[j], s)
+        if scan.statistic > s.max_jump_chi2:
+            size, first, last, stats = _jump_found(scan, int(starts[j]), est.labels, s, lsk)
+            raise FitRefusedError(
+                f"{what}: {size} inside the interval, between {first} and {last} UTC "
+                f"{stats}: one constant offset would spread it; split the interval at about "
+                f"{last} (--intervals CSV) and fit again"
             )
         used = np.isin(sub, est.labels[est.accepted])
         mag = np.linalg.norm(b[used] - est.offset, axis=1)

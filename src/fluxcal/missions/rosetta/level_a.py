@@ -34,6 +34,7 @@ from fluxcal.missions.rosetta.extended_model import (
     STITCH_GAP_S,
     StitchState,
     extended_offset,
+    outside_fitted_range,
 )
 
 log = logging.getLogger(__name__)
@@ -339,10 +340,11 @@ def level_a(
         grid = calibration.extended_model_temperature(
             sensor_temperature(np.arange(lo, int(words.max()) + 1), calibration, nominal)
         )
+        reduced = calibration.extended_model_temperature(t_c)
         try:
             ext, state, sources = extended_offset(
                 epoch,
-                calibration.extended_model_temperature(t_c),
+                reduced,
                 day_index,
                 days,
                 models,
@@ -353,6 +355,11 @@ def level_a(
         except ValueError as exc:
             raise FluxcalError(f"{source}: midnight stitching (sec. 4.2.3.3): {exc}") from None
         b_c -= ext  # in place: a 20 Hz day's (n, 3) copy is 41 MB
+        outside = outside_fitted_range(reduced, day_index, days, models)
+        if outside:
+            attrs["extended_model_outside_fitted_range"] = "; ".join(outside)
+            for text in outside:
+                log.warning("%s: %s", source, text)
     else:
         state, sources = None, []
     attrs["extended_temperature_model"] = (

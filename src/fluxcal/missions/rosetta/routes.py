@@ -247,7 +247,11 @@ class RosettaRun:
         for k, s in enumerate(source.sensors):
             calib.check_sensor(s.sensor)
             tables = load_tables(s.sensor, options.calib, options.quicklook)
+            log.info("%s calibration: %r; %r; %d daily offset model(s)", s.sensor,
+                     tables.ground, tables.shifts, len(tables.models))
             raw = archive.read_science(s.science, s.sensor, sclk=sclk, lsk=lsk)
+            log.info("%s science: %s records from %s", s.sensor,
+                     f"{raw.sizes['time']:,}", _name(s.science))
             if bounds is not None:
                 check_day_records(raw, bounds, s.science, lsk)
                 check_shifts_nonnegative(tables.shifts)
@@ -282,7 +286,19 @@ class RosettaRun:
         wanted = tuple(lev for lev in LEVELS
                        if lev in parse_levels(",".join(options.levels or FILE_LEVELS)))
         lsk = leapseconds()
-        sensors = [self._sensor_levels(s, wanted, raw.day, options, lsk) for s in raw.sensors]
+        sensors = []
+        for k, s in enumerate(raw.sensors):
+            if progress is not None:
+                progress(f"{s.source.sensor}: calibrating LEVEL_{','.join(wanted)}", k,
+                         len(raw.sensors))
+            levels = self._sensor_levels(s, wanted, raw.day, options, lsk)
+            for name, ds in levels.levels.items():
+                log.info("%s %s done: %s %s", levels.sensor,
+                         "HK LEVEL_A" if name == "HK" else f"LEVEL_{name}",
+                         f"{ds.sizes['time']:,}", "records" if name == "HK" else "vectors")
+            sensors.append(levels)
+        if progress is not None:
+            progress("calibrated", len(raw.sensors), len(raw.sensors))
         return RosettaLevels(sensors, wanted, raw.day, raw.state_file)
 
     def write(self, calibrated: RosettaLevels, out_dir: Path, options: RosettaOptions, *,
@@ -425,6 +441,13 @@ class RosettaRun:
         return a
 
 
+def _name(source: Any) -> str:
+    """Return a source's file or folder name for a log line (not the whole path)."""
+    if isinstance(source, (str, Path)):
+        return Path(source).name
+    return f"{len(source)} files" if isinstance(source, Sequence) else str(source)
+
+
 def _utc(epoch: np.ndarray, lsk: Any) -> np.ndarray:
     return tt2000_to_utc(epoch, digits=0, lsk=lsk)
 
@@ -476,17 +499,19 @@ def run_files(
     options: RosettaOptions | None = None,
     state_file: Path | None = None,
     on_calibrated: Callable[[RosettaLevels], None] | None = None,
+    progress: driver.Progress | None = None,
 ) -> list[Path]:
     """``fluxcal rosetta calibrate``: one sensor's raw science (and HK) to its products.
 
     ``options`` default `RosettaOptions` (levels A, B); ``on_calibrated`` receives the
-    levels before they are written (`fluxcal.runs.driver.run`).  Returns the files.
+    levels before they are written, ``progress(description, done, total)`` each step
+    (`fluxcal.runs.driver.run`).  Returns the files.
     """
     options = options or RosettaOptions()
     source = file_source(science, sensor, hk=hk, state_file=state_file)
     run = RosettaRun(kernels=None if kernels is None else Path(kernels))
     return driver.run(run, source, kernels, Path(out), options,
-                      on_calibrated=on_calibrated)[0]
+                      on_calibrated=on_calibrated, progress=progress)[0]
 
 
 def calibrate_levels(

@@ -30,7 +30,7 @@ from fluxcal.geometry.synthetic import (
     write_meta_kernel,
     write_spk,
 )
-from fluxcal.missions.rosetta.identity import SPACECRAFT_ID
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.products.atomic import atomic_write_bytes
 
 ROSETTA_FK = """KPL/FK
@@ -80,7 +80,8 @@ def write_rosetta_like_kernels(
     Returns
     -------
     Path
-        The meta-kernel ``rosetta_synthetic.tm``.
+        The meta-kernel ``rosetta_synthetic.tm`` (SCLK, FK, SPK, CK, and the frames of
+        `FRAME_KERNELS` copied beside them, listed last as a pool loaded them before).
     """
     out, sclk_path, fk_path, spk_path, ck_path = prepare_kernel_folder(out_dir, "ros_synthetic")
     with KernelPool([], frames={}):
@@ -120,4 +121,9 @@ def write_rosetta_like_kernels(
             cmat = np.stack([x_axis, y_axis, z_axis], axis=1)
             write_ck(ck_path, SPACECRAFT_ID * 1000, SPACECRAFT_ID, att_epochs, cmat,
                      "ROSETTA-LIKE ATTITUDE")
-    return write_meta_kernel(out / "rosetta_synthetic.tm", [sclk_path, fk_path, spk_path, ck_path])
+    # the comet-centred frame (CSEQ) in the set, as the real set's comet FK has it
+    frames = [out / p.name for p in FRAME_KERNELS.values()]
+    for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
+        dest.write_bytes(Path(src).read_bytes())
+    return write_meta_kernel(out / "rosetta_synthetic.tm",
+                             [sclk_path, fk_path, spk_path, ck_path, *frames])

@@ -1,0 +1,335 @@
+"""Issue 34: stated errors that cover the truth, the figure of merit, the look-back.
+
+Closed-form checks (no simulation): the bootstrap chooses the break again in every
+resample; a held D0's width propagates into the other parameters as the normal
+equations say; the predicted error of a recalibrated day equals a brute-force average
+over samples and resamples; a pass's changes and the convergence criterion; the
+``--hold-d0`` syntax; a table whose look-back is too short for its tau is refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fluxcal.errors import CalibrationError, FitRefusedError, InputFormatError
+from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.fit import (
+    CONVERGENCE_SIGMA,
+    pass_changes,
+)
+from fluxcal.missions.messenger.fit_cli import parse_hold_d0
+from fluxcal.missions.messenger.fit_merit import (
+    check_merit,
+    compressive_share,
+    predicted_error,
+)
+from fluxcal.missions.messenger.fit_variance import (
+    BREAK_SHIFTS_C,
+    MOMENT_EDGES_C,
+    N_PARAMETERS,
+    PER_AXIS,
+    law_parameters,
+    law_values,
+    offset_moments,
+    solve_variance,
+)
+from tests.missions.messenger.test_fit_variance import _hinge_statistics, _variance_result
+
+START = "2010-03-01"
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    return load_calibration(START)
+
+
+def _noisy_hinge(now, true, seed, noise):
+    """`_hinge_statistics` with Gaussian noise of ``noise`` (counts) on every sample."""
+    rng = np.random.default_rng(seed)
+    stats = _hinge_statistics(now, true, rng)
+    # the noise enters rhs and yy through the design: add it by rebuilding from the
+    # normal equations of y + e (e independent of x): rhs += X^T e, yy += 2 y.e + e.e;
+    # X^T e has covariance noise^2 X^T X per block
+    for b in range(stats.normal.shape[0]):
+        chol = np.linalg.cholesky(stats.normal[b] + 1e-9 * np.eye(N_PARAMETERS))
+        stats.rhs[b] += noise * chol @ rng.standard_normal(N_PARAMETERS)
+        stats.yy[b] += noise ** 2 * 300
+    return stats
+
+
+def test_every_resample_chooses_its_own_break(shipped):
+    # the true x break 1.4 C above the current one (between the shifts 1 and 2 C) with
+    # noise: the resamples do not all take the solution's choice, so T_m's spread is
+    # not zero (issue 34: every resample reused the chosen break, T_m +- 0.00 C)
+    now = law_parameters(shipped)
+    true = now.copy()
+    true[0, 3] += 1.4
+    stats = _noisy_hinge(now, true, 31, noise=3.0)
+    sol = solve_variance(stats, n_bootstrap=60, law=now)
+    shifts = sol.boot_shift[:, 0]
+    assert set(np.unique(shifts)) <= {0.0, *BREAK_SHIFTS_C}
+    assert np.unique(shifts).size > 1, shifts
+    # a stack of one system chooses as the single system does (the same rule)
+    from fluxcal.missions.messenger.fit_variance import choose_breaks
+
+    free = np.ones(N_PARAMETERS, dtype=bool)
+    a, v, yy = stats.normal.sum(0), stats.rhs.sum(0), stats.yy.sum()
+    single = choose_breaks(a, v, yy, free, now, stats.fitted_range())
+    stacked = choose_breaks(a[None], v[None], np.array([yy]), free, now, stats.fitted_range())
+    assert tuple(stacked[0]) == single
+
+
+def test_break_pulls_over_closed_form_realisations(shipped):
+    # 12 realisations of the noisy hinge world, each iterated like `fit_days` (the
+    # statistics rebuilt about the new law, 3 passes): the stated T_m error covers the
+    # truth (pulls within 3.5; their rms within 0.5-1.8, 12 draws)
+    from fluxcal.missions.messenger.fit_variance import apply_step
+
+    pulls = []
+    for seed in range(12):
+        cal = shipped
+        true = law_parameters(shipped).copy()
+        true[0, 3] += 1.4
+        true[1, 3] -= 2.7
+        for _ in range(3):
+            now = law_parameters(cal)
+            stats = _noisy_hinge(now, true, 100 + seed, noise=3.0)
+            sol = solve_variance(stats, n_bootstrap=60, law=now)
+            law, _, _, _ = apply_step(cal, sol.step, break_shift=sol.break_shift)
+            boots = np.stack([apply_step(cal, b, max_tau_shift=np.inf,
+                                         max_break_shift_c=np.inf, break_shift=s)[0]
+                              for b, s in zip(sol.boot, sol.boot_shift, strict=True)])
+            from fluxcal.missions.messenger.fit_variance import law_to_table
+
+            cal = dataclasses.replace(cal, temperature_coefficients=law_to_table(law),
+                                      breakpoint_temperature_c=law[:, 3])
+        err = np.std(boots[:, :2, 3], axis=0) * sol.widening
+        pulls.append((law[:2, 3] - true[:2, 3]) / err)
+    pulls = np.array(pulls)
+    print("T_m pulls", pulls.round(2))
+    assert np.all(np.abs(pulls) < 3.5), pulls
+    assert 0.5 < np.sqrt(np.mean(pulls ** 2)) < 1.8, pulls
+
+
+def test_held_width_propagates_as_the_normal_equations_say(shipped):
+    # D0 z held with width w: every other parameter moves with it by -(A_ff^-1 A_fh),
+    # so tau's variance grows by (that coefficient x w)^2 (closed form from the same
+    # normal equations; 400 draws: within 15 %)
+    rng = np.random.default_rng(4)
+    from fluxcal.missions.messenger.fit_variance import VarianceStatistics
+
+    n, rows = 48, 400
+    x = rng.normal(size=(n, rows, N_PARAMETERS))
+    x[:, :, -2] += 0.8 * x[:, :, 2 * PER_AXIS + 4]  # tau's column leans on D0 z's
+    x[:, :, 3 * PER_AXIS:3 * PER_AXIS + 30] = 0.0   # no shifted hinges
+    y = 1e-4 * rng.normal(size=(n, rows))
+    stats = VarianceStatistics(
+        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
+        yy=np.einsum("bn,bn->b", y, y), samples=np.full(n, float(rows)),
+        block_start=np.arange(n) * 7200.0, interval_start=np.zeros(n), reason=np.full(n, ""))
+    w = 0.01
+    held = solve_variance(stats, n_bootstrap=400, hold_d0=(2,), held_width=np.array([0, 0, w]))
+    a = stats.normal.sum(0)
+    free = np.ones(N_PARAMETERS, dtype=bool)
+    free[2 * PER_AXIS + 4] = False
+    free[3 * PER_AXIS:3 * PER_AXIS + 30] = False
+    coef = np.linalg.solve(a[free][:, free], a[free][:, 2 * PER_AXIS + 4])
+    tau_coef = coef[np.flatnonzero(free) == N_PARAMETERS - 2][0]
+    assert np.std(held.boot[:, -2]) == pytest.approx(abs(tau_coef) * w, rel=0.15)
+    assert np.std(held.boot[:, 2 * PER_AXIS + 4]) == pytest.approx(w, rel=0.15)
+
+
+def test_predicted_error_equals_a_brute_force_average(shipped):
+    # a fitted result whose bootstrap moves the law, D0 and tau: the predicted rms of
+    # M dO over samples and resamples, computed sample by sample here
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    rng = np.random.default_rng(9)
+    n = 5000
+    temp = rng.uniform(-60.0, 30.0, n)
+    r = rng.uniform(0.0, 400.0, n)
+    r_tau = rng.normal(0.0, 0.05, n) + 1e-4 * r
+    r_dt = rng.normal(0.0, 0.5, n)
+    res.variance.offset_moments = offset_moments(temp, r, r_tau, r_dt)
+    law = law_parameters(res.calibration)
+    k = 40
+    b_law = law + rng.normal(0.0, 0.5, (k, 3, 4)) * np.array([1.0, 0.01, 0.02, 1.0])
+    d0 = np.asarray(res.calibration.duty_cycle_d0)
+    rel = res.calibration.constants["relaxation"]
+    boot = {"law": b_law, "d0": d0 + rng.normal(0.0, 0.002, (k, 3)),
+            "tau": rel["tau_s"] + rng.normal(0.0, 30.0, k),
+            "dt": rel["delay_s"] + rng.normal(0.0, 1.0, k)}
+    res = dataclasses.replace(res, bootstrap=boot, waveform_error=None)
+    got = predicted_error(res)
+    m = np.asarray(res.calibration.matrices[0])
+    # brute force: per resample and sample; the law at the 1-C bin's mean temperature
+    # (the moments' resolution), as the prediction states
+    idx = np.searchsorted(MOMENT_EDGES_C, temp, side="right") - 1
+    t_mean = np.bincount(idx, temp, MOMENT_EDGES_C.size)[idx] / np.bincount(
+        idx, minlength=MOMENT_EDGES_C.size)[idx]
+    sq = np.zeros(3)
+    for j in range(k):
+        d_o = (law_values(b_law[j], t_mean) - law_values(law, t_mean)
+               + (boot["d0"][j] - d0)[None, :] * r[:, None]
+               + d0[None, :] * (r_tau * (boot["tau"][j] - rel["tau_s"])
+                                + r_dt * (boot["dt"][j] - rel["delay_s"]))[:, None])
+        sq += ((d_o @ m.T) ** 2).mean(axis=0)
+    rounding = np.sqrt((m ** 2).sum(axis=1) / 12.0)
+    np.testing.assert_allclose(got["total_nt"], np.sqrt(sq / k + rounding ** 2), rtol=1e-9)
+    assert got["samples"] == n
+
+
+def test_merit_refuses_above_the_goal_naming_the_largest_part(shipped):
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    res.merit = {"total_nt": [0.05, 0.16, 0.07], "law_nt": [0.01, 0.03, 0.01],
+                 "d0_nt": [0.02, 0.15, 0.03], "relaxation_nt": [0.0, 0.01, 0.0],
+                 "waveform_nt": [0.01, 0.02, 0.01], "goal_nt": 0.1, "law_determined": True,
+                 "data_range_c": [-60.0, 40.0], "band_limit_nt": 0.05}
+    with pytest.raises(FitRefusedError, match=r"predicted error of a recalibrated day 0\.05 / "
+                                              r"0\.16 / 0\.07 nT .* exceeds the goal 0\.1 nT; "
+                                              r"largest part on y: D0 0\.15 nT.*--error-goal "
+                                              r"0\.16"):
+        check_merit(res)
+    res.merit["goal_nt"] = 0.2  # the user accepts it (written into the headers)
+    check_merit(res)
+
+
+def test_compressive_share_guard_names_the_count(shipped):
+    reason = np.array(["compressive"] * 6 + [""] * 3 + ["too_few_samples"] * 4)
+    assert compressive_share(reason) == (6, 9)
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    res.variance.reason = reason
+    res.merit = {"law_determined": True, "total_nt": [0.0] * 3, "goal_nt": 0.1}
+    with pytest.raises(FitRefusedError, match=r"6 of 9 intervals of 900 s rejected as "
+                                              r"compressive \(limit 50%\)"):
+        check_merit(res)
+    res.merit["max_compressive_share"] = 0.7  # --max-compressive-share 0.7 (6 / 9 = 67 %)
+    check_merit(res)
+
+
+def test_pass_changes_compare_each_change_with_its_allowance(shipped):
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    tau = res.relaxation.tau
+    old = dataclasses.replace(res.calibration, constants={
+        **res.calibration.constants,
+        "relaxation": {**res.calibration.constants["relaxation"], "tau_s": tau - 12.0}})
+    ch = pass_changes(old, res)
+    assert ch["tau_s"] == pytest.approx(12.0)
+    allow = max(2e-3 * tau, CONVERGENCE_SIGMA * res.relaxation.tau_err)
+    assert ch["ratio"] == pytest.approx(12.0 / allow)
+    assert any(item.startswith("tau +12 s") for item in ch["over"]), ch["over"]
+    # no change at all: converged
+    assert pass_changes(res.calibration, res)["ratio"] == 0.0
+
+
+def test_hold_d0_syntax():
+    assert parse_hold_d0("z") == {"z": (None, None)}
+    assert parse_hold_d0(" x=0.2+-0.01, z+-0.005 ") == {"x": (0.2, 0.01), "z": (None, 0.005)}
+    assert parse_hold_d0("y=0.3") == {"y": (0.3, None)}
+    for bad in ("w", "z,z", "z=abc", "z+-", "z+--1", "x=0.1+-0.01+-2"):
+        with pytest.raises(InputFormatError, match="--hold-d0"):
+            parse_hold_d0(bad)
+
+
+def _folder_with(tmp_path, tau_s, look_back_s):
+    import shutil
+
+    out = tmp_path / "calib"
+    out.mkdir(parents=True)
+    for p in data_dir().glob("*_v1.*"):
+        shutil.copy(p, out / p.name)
+    text = (out / "processing_v1.toml").read_text()
+    import re
+
+    text = re.sub(r"(?m)^tau_s = .*$", f"tau_s = {tau_s}", text)
+    text = re.sub(r"(?m)^look_back_s = .*$", f"look_back_s = {look_back_s}", text)
+    (out / "processing_v1.toml").write_text(text)
+    return out
+
+
+def test_a_look_back_too_short_for_tau_is_refused(tmp_path):
+    # tau 1150 s with the seed's 5000 s: truncation 200 exp(-5000/1150) = 2.6 DN, above
+    # sec. 7's 0.65 DN; the least look-back is 5000 x 1150 / 872 = 6594.0 s
+    folder = _folder_with(tmp_path, 1150.0, 5000.0)
+    with pytest.raises(CalibrationError, match=r"processing_v1\.toml: \[relaxation\] "
+                                               r"look_back_s = 5000 s is too short for tau_s = "
+                                               r"1150 s: .* = 2\.6 DN, above sec\. 7's 0\.65 DN;"
+                                               r" set look_back_s to at least 6594\.1"):
+        load_calibration(START, folder)
+    ok = _folder_with(tmp_path / "b", 1150.0, 6594.1)
+    assert load_calibration(START, ok).constants["relaxation"]["look_back_s"] == 6594.1
+    # a shorter tau keeps the seed's 5000 s
+    assert load_calibration(START, _folder_with(tmp_path / "c", 654.0, 5000.0))
+
+
+def test_error_goal_is_checked_before_any_input_is_read(tmp_path, capsys):
+    from fluxcal.cli import main
+
+    rc = main(["messenger", "fit", "--input-dir", str(tmp_path / "missing"), "--out",
+               str(tmp_path / "out"), "--error-goal", "0"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert "--error-goal must be a positive number of nT" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_period_mean_keeps_a_ramp_and_removes_the_waveform():
+    # a zero-mean 100-s waveform on a ramp, 1 Hz: the centred mean over one period is the
+    # ramp at the window's mean time (t - 0.5 s for the samples t-50..t+49), NaN where the
+    # window is not covered (the ends, a 30-s gap)
+    from fluxcal.missions.messenger.fit_reduce import _period_mean
+
+    t = np.arange(0.0, 1000.0)
+    t = t[(t < 400.0) | (t >= 430.0)]
+    x = 0.3 * t + 5.0 * np.sin(2 * np.pi * t / 100.0)
+    m = _period_mean(t, x[:, None], 100.0)[:, 0]
+    inner = (t >= 50.0) & (t < 950.0) & ((t < 350.0) | (t >= 480.0))
+    np.testing.assert_allclose(m[inner], 0.3 * (t[inner] - 0.5), atol=1e-9)
+    assert np.all(np.isnan(m[(t < 49.0) | (t > 951.0)]))
+    assert np.all(np.isnan(m[(t >= 360.0) & (t < 470.0)]))
+
+
+def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped):
+    # resampled laws differing only in their slope b (sigma 0.03 counts/C): the band is
+    # 0.03 |T| counts, within 0.05 nT for |T| <= 0.05 / (0.03 |M_jj|) = 35 C on every axis
+    # (inside the data's -60..40 C)
+    from fluxcal.missions.messenger.fit_merit import LAW_BAND_LIMIT_NT, stated_range
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    assert res.fitted_range == (-60.0, 40.0)
+    law = law_parameters(res.calibration)
+    rng = np.random.default_rng(2)
+    b_law = np.repeat(law[None], 4000, axis=0)
+    b_law[:, :, 1] += 0.03 * rng.standard_normal((4000, 1))
+    res = dataclasses.replace(res, bootstrap={"law": b_law})
+    limit = LAW_BAND_LIMIT_NT / (0.03 * np.abs(np.diag(res.calibration.matrices[0])).max())
+    lo, hi = stated_range(res)
+    assert lo == pytest.approx(-limit, abs=1.5) and hi == pytest.approx(limit, abs=1.5)
+    # a limit nowhere met: (nan, nan), which `check_merit` refuses
+    assert np.isnan(stated_range(res, limit_nt=-1.0)).all()
+
+
+def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):
+    # closed form: two calibrations whose laws, D0 and tau differ; the midpoint is their
+    # average, and a step that goes back along the previous one is a reversal
+    from fluxcal.missions.messenger.fit import _midpoint, _reverses, _table_step
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(res.calibration)
+    moved = law.copy()
+    moved[:, 3] += 2.0
+    moved[:, 0] += 3.0
+    from fluxcal.missions.messenger.fit import with_tables
+
+    rel = res.calibration.constants["relaxation"]
+    d0 = np.asarray(res.calibration.duty_cycle_d0)
+    other = with_tables(res.calibration, moved, 1.2 * d0, rel["tau_s"] + 40.0,
+                        rel["delay_s"], res.calibration.heater_signal)
+    mid = _midpoint(other, res)
+    np.testing.assert_allclose(law_parameters(mid), 0.5 * (law + moved), atol=1e-9)
+    np.testing.assert_allclose(mid.duty_cycle_d0, 1.1 * d0, rtol=1e-12)
+    assert mid.constants["relaxation"]["tau_s"] == pytest.approx(rel["tau_s"] + 20.0)
+    step = _table_step(other, res)  # other -> res
+    assert _reverses(-step, step) and not _reverses(step, step)

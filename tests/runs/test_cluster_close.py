@@ -1,0 +1,64 @@
+"""Closing the local Dask cluster: no "worker still alive" warning per worker (issue 31).
+
+``fluxcal demo --full`` printed 16 "Worker process still alive after 4.0 seconds,
+killing" warnings: distributed's nannies log one for each worker process that takes
+longer than the close's grace period to exit, after every result is in.  They are
+counted and summed up in one INFO line during the close only; any other warning of the
+nannies, and the same warning outside a close, still shows.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+pytest.importorskip("distributed")
+
+from fluxcal.runs.cluster import close_local_cluster  # noqa: E402 - after the skip
+
+NANNY = logging.getLogger("distributed.nanny")
+
+
+class SlowWorkersCluster:
+    """A stand-in cluster whose close logs what distributed's nannies log on a busy machine."""
+
+    closed = False
+
+    def close(self) -> None:
+        for _ in range(2):
+            NANNY.warning("Worker process still alive after 4.0 seconds, killing")
+        NANNY.warning("some other nanny warning")
+        self.closed = True
+
+
+def _warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+def test_close_counts_the_still_alive_warnings_in_one_info_line(caplog) -> None:
+    cluster = SlowWorkersCluster()
+    with caplog.at_level(logging.INFO):
+        close_local_cluster(cluster)
+    assert cluster.closed
+    assert _warnings(caplog) == ["some other nanny warning"]
+    assert ("local Dask cluster closed (2 worker process(es) stopped after the grace "
+            "period)") in [r.getMessage() for r in caplog.records]
+
+
+def test_the_warning_shows_outside_a_close(caplog) -> None:
+    close_local_cluster(SlowWorkersCluster())
+    caplog.clear()
+    NANNY.warning("Worker process still alive after 4.0 seconds, killing")
+    assert _warnings(caplog) == ["Worker process still alive after 4.0 seconds, killing"]
+
+
+def test_a_failing_close_leaves_no_filter_behind() -> None:
+    class Broken:
+        def close(self) -> None:
+            raise OSError("boom")
+
+    before = list(NANNY.filters)
+    with pytest.raises(OSError):
+        close_local_cluster(Broken())
+    assert NANNY.filters == before
