@@ -197,7 +197,8 @@ def fit_files(
                         a, reduced_temperature(a, cal), degree=degree,
                         block_s=block_s or MODEL_BLOCK_S, day=day))
             written = [write_daily_model(f, out, provenance=_portable(prov)) for f in fits]
-            return written + write_fit_pictures(fits, out)
+            write_fit_pictures(fits, out)
+            return written
         return [_fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov,
                            calib_dir=calib_dir, primary=primary, block_s=block_s or JUMP_BLOCK_S,
                            intervals=intervals, max_sigma=max_sigma, boom=boom,
