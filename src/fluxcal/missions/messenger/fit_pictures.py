@@ -14,8 +14,9 @@
 * the variance estimator's 15-min intervals by reason on a UTC time line.
 
 With the variance estimator the bin means are drawn as the seed's estimator would see
-them (the field's bin average, zero only in a zero-mean wind); the law is the variance
-fit's.
+them, labelled so (the field's bin average: on the law only in a zero-mean wind; a mean
+field moves them off it), and their pulls are not drawn (they are not what that fit
+measured); the law and its band are the variance fit's.
 
 References
 ----------
@@ -49,6 +50,9 @@ from fluxcal.products.fit_pictures import (
 from fluxcal.products.fit_report import write_fit_report
 from fluxcal.products.timeindex import default_lsk
 
+#: The bin means' label: with the variance estimator they are not what the fit measured
+#: (the seed's zero-mean view: a mean field moves them off the law), and get no pulls.
+_VIEW = ("", " (zero-mean view)")
 #: Points on the drawn law (the temperature axis).
 N_CURVE = 241
 
@@ -95,7 +99,8 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)
     y = mean[ok, :3] - mean[ok, 4:5] * d0[None, :]
-    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means",
+    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means" + _VIEW[
+        result.estimator == "variance"],
                  _bin_model(result, ok, mean[ok, 3]))
     lo, hi = result.fitted_range
     seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
@@ -115,7 +120,8 @@ def _duty(result: FitResult) -> tuple[Panel, np.ndarray]:
     m = result.stats.duty
     mean, err = m.mean(), m.standard_error()
     ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
-    pts = Points(mean[ok, 3], mean[ok, :3], err[ok, :3], "4-% bin means")
+    pts = Points(mean[ok, 3], mean[ok, :3], err[ok, :3],
+                 "4-% bin means" + _VIEW[result.estimator == "variance"])
     c0 = np.asarray(result.calibration.duty_cycle_c0, float)
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)
     grid = np.linspace(0.0, 1.1 * float(pts.x.max()) if pts.x.size else 1000.0, 101)
@@ -168,10 +174,12 @@ def pictures(result: FitResult) -> list[Picture]:
     relax = _relaxation(result)
     if relax is not None:
         out.append(relax)
-    out.append(Pulls("fit_pulls", "Pulls of the bin means about the fitted laws",
-                     "(bin mean - law) / standard error of the temperature and duty-cycle "
-                     "bins, beside the unit normal: a spread near 1 when the stated errors "
-                     "are honest", {"temperature": temp_pulls, "duty cycle": duty_pulls}))
+    if result.estimator == "zero-mean":  # the bin means are what that fit measured
+        out.append(Pulls("fit_pulls", "Pulls of the bin means about the fitted laws",
+                         "(bin mean - law) / standard error of the temperature and "
+                         "duty-cycle bins, beside the unit normal: a spread near 1 when the "
+                         "stated errors are honest",
+                         {"temperature": temp_pulls, "duty cycle": duty_pulls}))
     rej = _rejections(result)
     if rej is not None:
         out.append(rej)
