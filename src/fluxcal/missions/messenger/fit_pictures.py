@@ -13,10 +13,9 @@
 * pulls of the bin means about the laws;
 * the variance estimator's 15-min intervals by reason on a UTC time line.
 
-With the variance estimator the bin means are drawn as the seed's estimator would see
-them, labelled so (the field's bin average: on the law only in a zero-mean wind; a mean
-field moves them off it), and their pulls are not drawn (they are not what that fit
-measured); the law and its band are the variance fit's.
+With the variance estimator (which measures no bin means: a bin mean is on the law only
+in a zero-mean wind) the pictures show the law, its band and the fitted range, the
+duty-cycle line, the relaxation and the intervals, without bin means or pulls.
 
 References
 ----------
@@ -50,9 +49,6 @@ from fluxcal.products.fit_pictures import (
 from fluxcal.products.fit_report import write_fit_report
 from fluxcal.products.timeindex import default_lsk
 
-#: The bin means' label: with the variance estimator they are not what the fit measured
-#: (the seed's zero-mean view: a mean field moves them off the law), and get no pulls.
-_VIEW = ("", " (zero-mean view)")
 #: Points on the drawn law (the temperature axis).
 N_CURVE = 241
 
@@ -72,6 +68,16 @@ def law_band(result: FitResult, t: np.ndarray) -> np.ndarray:
     """
     stated = getattr(result, "law_error", None)
     return stated(t) if callable(stated) else law_sigma(result.temperature, t)
+
+
+def _measured(result: FitResult) -> bool:
+    """Whether the bin means are what the fit measured (the zero-mean estimator).
+
+    The variance estimator measures none: a bin mean is the field's average, on the law
+    only in a zero-mean wind (a mean field moves it hundreds of counts off), so it is
+    neither drawn nor pulled.
+    """
+    return result.estimator != "variance"
 
 
 def _bin_model(result: FitResult, ok: np.ndarray, t_mean: np.ndarray) -> np.ndarray:
@@ -99,8 +105,7 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)
     y = mean[ok, :3] - mean[ok, 4:5] * d0[None, :]
-    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means" + _VIEW[
-        result.estimator == "variance"],
+    pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means",
                  _bin_model(result, ok, mean[ok, 3]))
     lo, hi = result.fitted_range
     seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
@@ -109,10 +114,13 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     fitted = (lo, hi) if np.isfinite(lo) and np.isfinite(hi) else None
     panel = Panel("fit_offsets_temperature", "Offsets against sensor temperature (heater off)",
                   "sensor temperature (C)", "offset (counts)", AXES,
-                  "the heater-off bin means (decaying duty-cycle offset removed) with their "
-                  "standard errors, the fitted Table 2 law and its stated 1-sigma band; "
-                  "shaded: the range over which the data determine the law", pts, curve,
-                  fitted)
+                  ("the heater-off bin means (decaying duty-cycle offset removed) with their "
+                   "standard errors, " if _measured(result) else "")
+                  + "the fitted Table 2 law and its stated 1-sigma band; right: "
+                  + ("each bin minus the law as the fit models it, inside the band; "
+                     if _measured(result) else "the band about the law; ")
+                  + "shaded: the range over which the data determine the law",
+                  pts if _measured(result) else None, curve, fitted)
     return panel, pull_values(pts, pts.model)
 
 
@@ -120,8 +128,7 @@ def _duty(result: FitResult) -> tuple[Panel, np.ndarray]:
     m = result.stats.duty
     mean, err = m.mean(), m.standard_error()
     ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
-    pts = Points(mean[ok, 3], mean[ok, :3], err[ok, :3],
-                 "4-% bin means" + _VIEW[result.estimator == "variance"])
+    pts = Points(mean[ok, 3], mean[ok, :3], err[ok, :3], "4-% bin means")
     c0 = np.asarray(result.calibration.duty_cycle_c0, float)
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)
     grid = np.linspace(0.0, 1.1 * float(pts.x.max()) if pts.x.size else 1000.0, 101)
@@ -129,10 +136,12 @@ def _duty(result: FitResult) -> tuple[Panel, np.ndarray]:
     held = [a for a in AXES if a in result.held_d0]
     panel = Panel("fit_offsets_duty_cycle", "Offsets against heater duty cycle",
                   "relaxed duty cycle (ppt)", "offset (counts)", AXES,
-                  "the bin means inside heater periods at their mean relaxed duty cycle, "
-                  "and the Table 3 line C0 + D0 d (C0 held at the law at -50 C)"
+                  ("the bin means inside heater periods at their mean relaxed duty cycle, "
+                   "and " if _measured(result) else "")
+                  + "the Table 3 line C0 + D0 d (C0 held at the law at -50 C)"
                   + (f"; D0 held for {', '.join(held)}" if held else ""),
-                  pts, Curve(grid, line, None, "Table 3 line (eq. 5a)"))
+                  pts if _measured(result) else None,
+                  Curve(grid, line, None, "Table 3 line (eq. 5a)"))
     return panel, pull_values(pts, c0[None, :] + d0[None, :] * pts.x[:, None])
 
 
@@ -174,7 +183,7 @@ def pictures(result: FitResult) -> list[Picture]:
     relax = _relaxation(result)
     if relax is not None:
         out.append(relax)
-    if result.estimator == "zero-mean":  # the bin means are what that fit measured
+    if _measured(result):
         out.append(Pulls("fit_pulls", "Pulls of the bin means about the fitted laws",
                          "(bin mean - law) / standard error of the temperature and "
                          "duty-cycle bins, beside the unit normal: a spread near 1 when the "
