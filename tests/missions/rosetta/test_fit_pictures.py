@@ -18,6 +18,7 @@ from fluxcal.cli import main
 from fluxcal.missions.rosetta import calib, io
 from fluxcal.missions.rosetta import fit_pictures as rfp
 from fluxcal.products import fit_report
+from tests.browser import browser, browser_check
 
 from .test_fit import DAY, simulate_raw, true_model
 
@@ -65,6 +66,10 @@ def test_daily_curve_drawn_is_the_written_file(science, tmp_path, monkeypatch):
     assert png.name in targets and DAILY in targets
     for rel in targets:
         assert not rel.startswith(("/", "http")) and (out / unquote(rel)).is_file(), rel
+    if browser() is not None:  # a headless browser opens the page from the folder
+        seen = browser_check(out / "index.html")
+        assert seen["images"] and all(ok for _src, ok in seen["images"]), seen
+        assert all(ok for _href, ok in seen["links"]), seen
     p = calib.read_daily_offset_model(out / DAILY).coefficients
     (panel,) = drawn
     lo, hi = panel.fitted_range
