@@ -205,7 +205,8 @@ LAZY_MODULES = re.compile(r"fluxcal\.((\w+\.)*(cli|\w+_cli|\w*demo)|"
                           r"product_commands|products\.quicklook|runs\.cluster)")
 #: The optional extras, and fluxcal's modules that import them at their top.
 EXTRA_IMPORTS = ("matplotlib", "dask", "distributed", "zarr", "sphinx", "pyspedas",
-                 "fluxcal.products.quicklook", "fluxcal.runs.cluster")
+                 "fluxcal.products.quicklook", "fluxcal.products.fit_plots",
+                 "fluxcal.runs.cluster")
 #: Imports inside functions of the other (library) modules, extras left out: 208
 #: before issue 20 item 3 moved them up.  Those left: ``import fluxcal`` stays light
 #: (``fluxcal.__getattr__``), a table writer loads when its format is asked for

@@ -22,7 +22,7 @@ from __future__ import annotations
 import html
 import json
 import re
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,8 @@ MAX_QUALITY_PRODUCTS = 200
 GAP_FACTOR = 4.0
 #: Gaps and flag spans listed per product (the longest / the first ones).
 MAX_LISTED = 10
+#: What the page says when a run drew no figure.
+NO_FIGURES = "This run wrote no figure (ask for one with --quicklook)."
 #: Lines of a text report shown in the page.
 MAX_TEXT_LINES = 60
 #: Global attributes shown as data-quality counts (names matched case-insensitively).
@@ -412,15 +414,19 @@ def _products_section(products: Sequence[ProductFile]) -> list[str]:
             "<table><tr><th>file</th><th>kind</th><th>size</th></tr>", *rows, "</table>"]
 
 
-def _quicklook_section(products: Sequence[ProductFile]) -> list[str]:
+def _quicklook_section(products: Sequence[ProductFile],
+                       captions: Mapping[str, str] | None = None,
+                       no_figures: str = NO_FIGURES) -> list[str]:
     pngs = [p for p in products if p.kind == "quicklook"]
     lines = ["<h2 id=\"quicklooks\">Quicklooks</h2>"]
     if not pngs:
-        return [*lines, "<p>This run wrote no figure (ask for one with --quicklook).</p>"]
+        return [*lines, f"<p>{_e(no_figures)}</p>"]
     for p in pngs:
+        text = (captions or {}).get(p.rel, "")
+        caption = _e(p.rel) + (f": {_e(text)}" if text else "")
         lines.append(f'<figure><a href="{_href(p.rel, p.kind)}"><img src="'
                      f'{_href(p.rel, p.kind)}" alt="{_e(p.rel)}"></a>'
-                     f"<figcaption>{_e(p.rel)}</figcaption></figure>")
+                     f"<figcaption>{caption}</figcaption></figure>")
     return lines
 
 
@@ -544,8 +550,13 @@ def _reports_section(products: Sequence[ProductFile]) -> list[str]:
 
 def render(title: str, products: Sequence[ProductFile],
            qualities: Sequence[tuple[Sequence[ProductFile], Quality]], n_readable: int,
-           version: str = "") -> str:
-    """Return the report page (HTML5, inline CSS, relative links, no script)."""
+           version: str = "", captions: Mapping[str, str] | None = None,
+           no_figures: str = NO_FIGURES) -> str:
+    """Return the report page (HTML5, inline CSS, relative links, no script).
+
+    ``captions`` maps a figure's relative path to the sentence under it; ``no_figures``
+    is the text of a run that drew none.
+    """
     sections = (("runs", "Run reports"), ("quicklooks", "Quicklooks"), ("products", "Products"))
     if not any(p.kind == "run report" for p in products):
         sections = (("quicklooks", "Quicklooks"), ("quality", "Data quality"),
@@ -558,9 +569,10 @@ def render(title: str, products: Sequence[ProductFile],
     if runs:  # an overview of several runs (the demo): their reports first
         body += ["<h2 id=\"runs\">Run reports</h2>", "<p>Each run's products, quicklooks "
                  "and data quality:</p>", "<ul>", *[f"<li>{_link(p)}</li>" for p in runs],
-                 "</ul>", *_quicklook_section(products)]
+                 "</ul>", *_quicklook_section(products, captions, no_figures)]
     else:
-        body += [*_quicklook_section(products), *_quality_section(qualities, n_readable),
+        body += [*_quicklook_section(products, captions, no_figures),
+                 *_quality_section(qualities, n_readable),
                  *_reports_section(products)]
     body += _products_section(products)
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
@@ -570,7 +582,9 @@ def render(title: str, products: Sequence[ProductFile],
 
 
 def write_run_report(out: Path, title: str | None = None,
-                     products: Iterable[ProductFile] | None = None) -> Path | None:
+                     products: Iterable[ProductFile] | None = None, *,
+                     captions: Mapping[str, str] | None = None,
+                     no_figures: str = NO_FIGURES) -> Path | None:
     """Write ``out/index.html``, the report of the run writing into ``out``.
 
     Parameters
@@ -581,6 +595,10 @@ def write_run_report(out: Path, title: str | None = None,
         Page title (default: ``fluxcal run: <folder name>``).
     products : iterable of ProductFile, optional
         The files to list (default: `run_products`).
+    captions : mapping, optional
+        Figure path (relative to ``out``) -> what the figure shows (`render`).
+    no_figures : str
+        What the page says when the run drew no figure.
 
     Returns
     -------
@@ -599,5 +617,5 @@ def write_run_report(out: Path, title: str | None = None,
                  if (q := product_quality(members[0])) is not None]
     page = render(title or f"fluxcal run: {out.resolve().name}", files, qualities,
                   len({_stem(p.rel) for p in files if p.kind in _READABLE}),
-                  software_version())
+                  software_version(), captions, no_figures)
     return atomic_write_bytes(out / REPORT_NAME, page.encode("utf-8"))

@@ -129,6 +129,7 @@ def run_fit(
     """
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days, refuse_edr_folder
+    from fluxcal.missions.messenger.fit_pictures import write_fit_pictures
     from fluxcal.missions.messenger.fit_reduce import read_intervals
     from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
     from fluxcal.products.provenance import sha256_file
@@ -197,7 +198,9 @@ def run_fit(
     provenance = {key: portable_text(value) if isinstance(value, str) else value
                   for key, value in provenance.items()}
     written = write_calibration_folder(result, Path(out), calib, provenance)
-    return report_text(result, provenance) + f"\nwrote {len(written)} files to {out}"
+    drawn, note = write_fit_pictures(result, Path(out))
+    return (report_text(result, provenance) + f"\nwrote {len(written)} files to {out}\n"
+            + (note or f"pictures of the fit: {Path(out) / 'index.html'} ({len(drawn) - 1} PNG)"))
 
 
 def _first_time(chunk) -> str:

@@ -219,6 +219,7 @@ def fit(
         typer.echo(str(path))
         if not jumps:
             typer.echo("  " + describe_daily_model(path))
+    typer.echo(f"pictures and report of the fit: {Path(out) / 'index.html'}")
 
 
 @app.command("list-calibration")

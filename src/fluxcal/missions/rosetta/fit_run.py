@@ -35,6 +35,7 @@ from fluxcal.missions.rosetta.fit import (
     write_daily_model,
     write_offset_jump_table,
 )
+from fluxcal.missions.rosetta.fit_pictures import write_fit_pictures
 from fluxcal.missions.rosetta.fit_variance import (
     ESTIMATORS,
     GOAL_NT,
@@ -195,7 +196,9 @@ def fit_files(
                     fits.append(fit_extended_model(
                         a, reduced_temperature(a, cal), degree=degree,
                         block_s=block_s or MODEL_BLOCK_S, day=day))
-            return [write_daily_model(f, out, provenance=_portable(prov)) for f in fits]
+            written = [write_daily_model(f, out, provenance=_portable(prov)) for f in fits]
+            write_fit_pictures(fits, out)
+            return written
         return [_fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov,
                            calib_dir=calib_dir, primary=primary, block_s=block_s or JUMP_BLOCK_S,
                            intervals=intervals, max_sigma=max_sigma, boom=boom,
@@ -243,8 +246,8 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
             f" (ACCEPTED ABOVE THE DEFAULT GOAL {GOAL_NT:g} nT by --goal)"))
         prov["alignment"] = levels_b[0].attrs["alignment"]
         prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
-        return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE,
-                                      provenance=_portable(prov))
+        return _with_pictures(fit, out, write_offset_jump_table(
+            [fit], Path(out) / calib.JUMPS_FILE, provenance=_portable(prov)))
     blocks = []
     for b in levels_b:
         epoch = b["epoch"].values.astype(np.int64)
@@ -255,5 +258,11 @@ def _fit_jumps(files, raws, sensor, out, cal, shifts, nominal, prov, *, calib_di
     fit = solve_offset_jumps(blocks, start, end, sensor=sensor, max_sigma=max_sigma)
     prov["alignment"] = levels_b[0].attrs["alignment"]
     prov["daily models"] = ", ".join(m.source for m in models.values()) or "none"
-    return write_offset_jump_table([fit], Path(out) / calib.JUMPS_FILE,
-                                      provenance=_portable(prov))
+    return _with_pictures(fit, out, write_offset_jump_table(
+        [fit], Path(out) / calib.JUMPS_FILE, provenance=_portable(prov)))
+
+
+def _with_pictures(fit, out: Path, table: Path) -> Path:
+    """Draw the jump fit's picture and the folder's index beside ``table``; return it."""
+    write_fit_pictures([fit], out)
+    return table
