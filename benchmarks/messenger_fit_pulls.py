@@ -165,7 +165,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
 
 #: The worlds ``--world`` knows: the test wind of issue 21 and issue 34's two hard worlds
 #: (tests/missions/messenger/_hard_worlds.py).
-WORLDS = ("realistic", "cruise-hard", "mercury-orbit")
+WORLDS = ("realistic", "cruise-hard", "mercury-orbit", "mercury-orbit-late")
 
 
 def world_model(world: str, seed: int, compressive: float | None, broadband: bool):
@@ -179,8 +179,9 @@ def world_model(world: str, seed: int, compressive: float | None, broadband: boo
                                  compressive=0.03 if compressive is None else compressive), None
     if world == "cruise-hard":
         return functools.partial(cruise_hard_wind, compressive=compressive), None
-    if world == "mercury-orbit":
-        orbit = MercuryOrbit(seed)
+    if world in ("mercury-orbit", "mercury-orbit-late"):
+        orbit = (MercuryOrbit(seed) if world == "mercury-orbit"
+                 else MercuryOrbit(seed, peak_lag_min=(40.0, 80.0)))
         return orbit.field, orbit.schedule
     raise ValueError(f"world {world!r}: choose one of {', '.join(WORLDS)}")
 
@@ -216,7 +217,8 @@ def main() -> None:
                          "cruise wind draws 0.10-0.15 per realisation).")
     ap.add_argument("--world", choices=WORLDS, default="realistic",
                     help="realistic: the test wind of issue 21; cruise-hard, mercury-orbit: "
-                         "issue 34's hard worlds (tests/missions/messenger/_hard_worlds.py).")
+                         "issue 34's hard worlds (tests/missions/messenger/_hard_worlds.py); "
+                         "mercury-orbit-late: the warm peaks 40-80 min after periapsis.")
     ap.add_argument("--passes", type=int, default=4)
     ap.add_argument("--markdown", action="store_true")
     ap.add_argument("--first-seed", type=int, default=1000,

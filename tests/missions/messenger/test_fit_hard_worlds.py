@@ -37,8 +37,10 @@ START = "2010-03-01"
 #: As in test_fit_honest.py: one unseen day is one draw of a predicted rms.
 UNSEEN_OVER_PREDICTED = 1.5
 #: The causes a refusal may name (fit.py, fit_merit.py): each a sentence the user can act on.
-CAUSES = (r"rejected as compressive", r"not converged after", r"predicted error",
-          r"relative error", r"T_m", r"undetermined", r"too few", r"outside")
+CAUSES = (r"rejected as compressive \(limit", r"^not converged after \d+ passes: the last "
+          r"changed", r"^predicted error of a recalibrated day", r"a relative error above",
+          r"fitted break T_m [xyz] = .* lies outside", r"an error above",
+          r"its stated error exceeds", r"lies outside")
 
 
 def _fit_or_refuse(run, days: int) -> str:
