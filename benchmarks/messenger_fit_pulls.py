@@ -53,6 +53,7 @@ from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
+    break_refusal,
     check_fit,
     day_chunks,
     fit_days,
@@ -112,7 +113,9 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             if cause:
                 raise FitRefusedError(cause)
             if not res.convergence["converged"]:
-                raise FitRefusedError(res.convergence["stop"])
+                cause = break_refusal(res, error=False)  # named first, as fit_days does
+                raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause
+                                      else res.convergence["stop"])
             check_fit(res)
             fit_merit.check_merit(res)
             verdict = "accepted"
