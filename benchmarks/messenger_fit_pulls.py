@@ -45,6 +45,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from tests.missions.messenger._hard_worlds import MercuryOrbit, cruise_hard_wind  # noqa: E402
 from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E402
 from tests.missions.messenger._unseen_day import recalibrate_rms  # noqa: E402
 
@@ -52,6 +53,7 @@ from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
+    break_refusal,
     check_fit,
     day_chunks,
     fit_days,
@@ -89,17 +91,19 @@ def defects(seed: int, days: int) -> dict:
 
 def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
         first_seed: int = 1000, unseen: bool = False, broadband: bool = False,
-        with_defects: bool = False, hold_d0: tuple[str, ...] = ()) -> dict:
+        with_defects: bool = False, hold_d0: tuple[str, ...] = (),
+        world: str = "realistic") -> dict:
     """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth;
     ``unseen``: one more day simulated, recalibrated with the fitted tables;
-    ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`)."""
+    ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`;
+    ``world``: `WORLDS`)."""
     with tempfile.TemporaryDirectory() as tmp:
-        wind = functools.partial(realistic_wind, compressive=compressive, broadband=broadband)
+        wind, schedule = world_model(world, first_seed + k, compressive, broadband)
         extra = defects(first_seed + k, days) if with_defects else {}
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01",
                                                               days=days + int(unseen),
                                                               seed=first_seed + k, **extra),
-                              wind=wind, truth=unseen)
+                              wind=wind, schedule=schedule, truth=unseen)
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
         res = fit_days(day_chunks(run.input_dir, run.days[:days]), base, passes=passes,
@@ -109,12 +113,14 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             if cause:
                 raise FitRefusedError(cause)
             if not res.convergence["converged"]:
-                raise FitRefusedError(res.convergence["stop"])
+                cause = break_refusal(res, error=False)  # named first, as fit_days does
+                raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause
+                                      else res.convergence["stop"])
             check_fit(res)
             fit_merit.check_merit(res)
             verdict = "accepted"
         except FitRefusedError as exc:
-            verdict = f"refused: {str(exc).split(';')[0]}"
+            verdict = f"refused: {exc}"
         unseen_rms = np.full(3, np.nan)
         if unseen:
             folder = Path(tmp) / "fitted"
@@ -154,7 +160,33 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "passes": res.convergence["passes_run"],
         "unseen_nt": unseen_rms,
         "verdict": verdict,
+        "compressive_share": fit_merit.compressive_share(res.variance.reason),
+        "reasons": dict(zip(*np.unique(np.asarray(res.variance.reason), return_counts=True),
+                            strict=True)),
     }
+
+
+#: The worlds ``--world`` knows: the test wind of issue 21 and issue 34's two hard worlds
+#: (tests/missions/messenger/_hard_worlds.py).
+WORLDS = ("realistic", "cruise-hard", "mercury-orbit", "mercury-orbit-late")
+
+
+def world_model(world: str, seed: int, compressive: float | None, broadband: bool):
+    """``(wind, schedule)`` callables for `simulate_flight` (``None``: its default).
+
+    ``compressive``: the relative rms of the compressive part (``None``: 0.03 in the
+    realistic wind, drawn in 0.10-0.15 in the hard cruise wind).
+    """
+    if world == "realistic":
+        return functools.partial(realistic_wind, broadband=broadband,
+                                 compressive=0.03 if compressive is None else compressive), None
+    if world == "cruise-hard":
+        return functools.partial(cruise_hard_wind, compressive=compressive), None
+    if world in ("mercury-orbit", "mercury-orbit-late"):
+        orbit = (MercuryOrbit(seed) if world == "mercury-orbit"
+                 else MercuryOrbit(seed, peak_lag_min=(40.0, 80.0)))
+        return orbit.field, orbit.schedule
+    raise ValueError(f"world {world!r}: choose one of {', '.join(WORLDS)}")
 
 
 def _timed(k: int, **kwargs) -> tuple[int, float, dict]:
@@ -183,7 +215,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--realisations", type=int, default=20)
     ap.add_argument("--days", type=int, default=2)
-    ap.add_argument("--compressive", type=float, default=0.03)
+    ap.add_argument("--compressive", type=float, default=None,
+                    help="Relative rms of the compressive part (default 0.03; the hard "
+                         "cruise wind draws 0.10-0.15 per realisation).")
+    ap.add_argument("--world", choices=WORLDS, default="realistic",
+                    help="realistic: the test wind of issue 21; cruise-hard, mercury-orbit: "
+                         "issue 34's hard worlds (tests/missions/messenger/_hard_worlds.py); "
+                         "mercury-orbit-late: the warm peaks 40-80 min after periapsis.")
     ap.add_argument("--passes", type=int, default=4)
     ap.add_argument("--markdown", action="store_true")
     ap.add_argument("--first-seed", type=int, default=1000,
@@ -210,7 +248,8 @@ def main() -> None:
                             passes=args.passes, save=args.save, first_seed=args.first_seed,
                             unseen=args.unseen, broadband=args.broadband,
                             with_defects=args.defects,
-                            hold_d0=tuple(a for a in args.hold_d0.split(",") if a))
+                            hold_d0=tuple(a for a in args.hold_d0.split(",") if a),
+                            world=args.world)
     if args.processes > 1:
         pool = ProcessPoolExecutor(max_workers=args.processes)
         done = (f.result() for f in as_completed([pool.submit(run, k)
@@ -227,10 +266,11 @@ def main() -> None:
               f"{r['range'][1]:+.0f} C  T_m pulls {np.round(r['tm_pull'], 2)} (+- "
               f"{np.round(r['tm_err'], 2)} C)  predicted {np.round(r['predicted_nt'], 3)} nT  "
               f"unseen day {np.round(r['unseen_nt'], 3)} nT; passes {r['passes']}; guards: "
-              f"{r['verdict']}", flush=True)
+              f"{r['verdict']}; compressive {r['compressive_share'][0]} of "
+              f"{r['compressive_share'][1]} judged; intervals {r['reasons']}", flush=True)
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
           f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
-          f"{args.days} days at 1 Hz, compressive {args.compressive}"
+          f"{args.days} days at 1 Hz, world {args.world}, compressive {args.compressive}"
           f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}, "
           f"{args.passes} passes, "
           f"{time.perf_counter() - t_start:.0f} s")

@@ -678,6 +678,22 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"{f.slope_err:.2g} counts/ppt, a relative error above "
                 f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}, or hold it with a "
                 f"stated width (--hold-d0 {a}=VALUE+-WIDTH)")
+    cause = break_refusal(result)
+    if cause:
+        raise FitRefusedError(cause)
+
+
+def break_refusal(result: FitResult, *, error: bool = True) -> str:
+    """Return why a break temperature is not determined by the data, else ``""``.
+
+    The break T_m of an axis outside the temperatures of the data (the variance
+    estimator's accepted intervals, 5-C bins with an interval's worth of samples; else
+    the filled heater-off bins), or (``error``) known worse than `MAX_BREAK_ERROR_C`
+    (`check_fit`).  The first is asked before the convergence refusal too: a law whose
+    upper line no data reach does not settle, and the cause is the missing temperatures,
+    not the passes (issue 34's Mercury orbit, docs/decisions/messenger_fit_verification.md
+    section 15).
+    """
     t = result.stats.temperature
     ok = _usable(t)
     # the variance estimator's data: 5-C bins holding an interval's worth of accepted
@@ -698,15 +714,14 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     if (np.all(np.isfinite(span)) or ok.any()) and result.temperature:
         for a, f in zip(AXES, result.temperature, strict=True):
             if not (t_lo <= f.x_m <= t_hi):
-                raise FitRefusedError(
-                    f"temperature law (sec. 7, Table 2): fitted break T_m {a} = {f.x_m:.1f} "
-                    f"+- {f.x_m_err:.2g} C lies outside the {data} ({t_lo:.1f}.."
-                    f"{t_hi:.1f} C); not written. Needs {what_t}")
-            if not (np.isfinite(f.x_m_err) and f.x_m_err <= MAX_BREAK_ERROR_C):
-                raise FitRefusedError(
-                    f"temperature law (sec. 7, Table 2): fitted break T_m {a} = {f.x_m:.1f} "
-                    f"+- {f.x_m_err:.2g} C, an error above {MAX_BREAK_ERROR_C:g} C; not "
-                    f"written. Needs {what_t}")
+                return (f"temperature law (sec. 7, Table 2): fitted break T_m {a} = "
+                        f"{f.x_m:.1f} +- {f.x_m_err:.2g} C lies outside the {data} "
+                        f"({t_lo:.1f}..{t_hi:.1f} C); not written. Needs {what_t}")
+            if error and not (np.isfinite(f.x_m_err) and f.x_m_err <= MAX_BREAK_ERROR_C):
+                return (f"temperature law (sec. 7, Table 2): fitted break T_m {a} = "
+                        f"{f.x_m:.1f} +- {f.x_m_err:.2g} C, an error above "
+                        f"{MAX_BREAK_ERROR_C:g} C; not written. Needs {what_t}")
+    return ""
 
 
 def held_d0_values(hold_d0: HoldD0, base: MessengerCalibration
@@ -1272,6 +1287,12 @@ def fit_days(
                 raise FitRefusedError(f"{cause}; not written. Give calmer (Alfvenic) "
                                       "solar-wind days or intervals")
             if not converged:
+                # the named cause first: a break outside the data's temperatures (the
+                # law's upper line unseen) keeps the passes from settling (section 15)
+                cause = (break_refusal(result, error=False) if estimator == "variance"
+                         else "")
+                if cause:
+                    raise FitRefusedError(f"{cause} ({result.convergence['stop']})")
                 raise FitRefusedError(
                     f"{result.convergence['stop']}; not written (converged: "
                     f"{convergence_criterion(tolerance)}). Give "

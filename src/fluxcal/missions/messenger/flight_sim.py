@@ -526,6 +526,7 @@ def _day_samples(met_a: float, met_b: float, t0_met: float, config: FlightConfig
 def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
                     changes: CalibrationChanges | None = None, *, truth: bool = True,
                     wind: Callable[[np.random.Generator, int], np.ndarray] | None = None,
+                    schedule: Callable[[np.random.Generator, int, int], Schedule] | None = None,
                     ) -> FlightRun:
     """Simulate ``config.days`` days of cruise solar wind into a batch input folder.
 
@@ -550,6 +551,11 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
         ``wind(rng, n)`` -> field (nT, sensor axes) on the 1-s grid, shape (n, 3), used
         instead of `solar_wind` with ``config.solar_wind`` (e.g. an independent
         solar-wind model written elsewhere); the noise of ``config.solar_wind`` still adds.
+    schedule : callable, optional
+        ``schedule(rng, n_blocks, lead_blocks)`` -> `Schedule` (duty cycle per 1000-s block
+        from the schedule origin, temperature on its 1-s grid; heater off at -50 C before
+        ``lead_blocks``), used instead of `heater_schedule` with ``config.heater`` (e.g.
+        an orbit's heater schedule written elsewhere, issue 34).
 
     Returns
     -------
@@ -589,8 +595,9 @@ def simulate_flight(out_dir: str | Path, config: FlightConfig | None = None,
         origin = float(np.floor(t0_met)) - config.lead_s  # schedule origin (block 0)
         n = int(edges_met[-1] - origin + 4 * BLOCK_S)
         n_blocks = n // int(BLOCK_S) + 1
-        sched = heater_schedule(rng, n_blocks, int(np.ceil(config.lead_s / BLOCK_S)),
-                                config.heater)
+        lead_blocks = int(np.ceil(config.lead_s / BLOCK_S))
+        sched = (heater_schedule(rng, n_blocks, lead_blocks, config.heater) if schedule is None
+                 else schedule(rng, n_blocks, lead_blocks))
         field_grid = (solar_wind(rng, sched.temperature_c.size, wind_stats)
                       if wind is None else np.asarray(wind(rng, sched.temperature_c.size),
                                                       dtype=float))
