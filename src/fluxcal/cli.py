@@ -67,6 +67,7 @@ def _root(
     # written, with sizes and times)
     others = logging.ERROR if quiet else logging.WARNING
     logging.basicConfig(level=others, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger().setLevel(others)  # also where a host (pytest, a notebook) set up logging
     logging.getLogger("fluxcal").setLevel(logging.INFO if verbose else logging.NOTSET)
     _quiet_other_loggers(others)
 

@@ -175,7 +175,10 @@ def test_every_reference_resolves_offline(imap_run: Path) -> None:
                     "(apt-get install chromium-headless-shell)")
 def test_browser_loads_every_image_and_link(imap_run: Path, tmp_path: Path) -> None:
     result = browser_check(imap_run / REPORT_NAME)
-    assert len(result["images"]) == 4 and all(ok for _src, ok in result["images"]), result
+    # one image per quicklook the run wrote (the team's packets: norm and burst, both sensors)
+    pngs = sorted(p.name for p in imap_run.glob("*.png"))
+    assert len(pngs) >= 4 and sorted(src for src, _ok in result["images"]) == pngs, result
+    assert all(ok for _src, ok in result["images"]), result
     assert len(result["links"]) >= 12 and all(ok for _href, ok in result["links"]), result
     # the check has teeth: a folder with one quicklook missing fails both checks
     broken = tmp_path / "broken"

@@ -32,6 +32,7 @@ from fluxcal.geometry.time import datetime64_to_tt2000, tt2000_to_datetime64
 from fluxcal.missions.imap.cadence import interval_rates
 from fluxcal.products.atomic import atomic_group, atomic_path
 from fluxcal.products.attrs import encode_attrs
+from fluxcal.products.paths import make_folder
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.products.writer import read_fluxcal_product
 
@@ -329,8 +330,7 @@ def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
     Named ``imap_mag_<level>_<mode>-<sensor|frame>_<yyyymmdd>_<version>.cdf`` as the
     team's files; provenance goes into the global attributes.
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(Path(out))
     written: list[Path] = []
     with atomic_group():
         for (mode, name), ds in datasets.items():

@@ -159,7 +159,7 @@ def write_messenger_like_kernels(
     # the dynamic frames (MSO, VSO, RTN) in the set, as the real set's msgr_dyn FK has them
     frames = [out / p.name for p in FRAME_KERNELS.values()]
     for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
-        dest.write_bytes(Path(src).read_bytes())
+        atomic_write_bytes(dest, Path(src).read_bytes(), now=True)
     # listed last: loaded where `KernelPool` loaded them when they came from its ``frames``
     files = [sclk_path, fk_path, spk_path, ck_path, *frames]
     return write_meta_kernel(out / "messenger_synthetic.tm", files)

@@ -124,6 +124,6 @@ def write_rosetta_like_kernels(
     # the comet-centred frame (CSEQ) in the set, as the real set's comet FK has it
     frames = [out / p.name for p in FRAME_KERNELS.values()]
     for src, dest in zip(FRAME_KERNELS.values(), frames, strict=True):
-        dest.write_bytes(Path(src).read_bytes())
+        atomic_write_bytes(dest, Path(src).read_bytes(), now=True)
     return write_meta_kernel(out / "rosetta_synthetic.tm",
                              [sclk_path, fk_path, spk_path, ck_path, *frames])
