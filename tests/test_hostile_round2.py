@@ -124,13 +124,16 @@ def test_the_refusal_names_a_link_in_the_folder_as_a_cause(tmp_path):
 
 
 @pytest.mark.parametrize("attrs", [{"sensor": "sub/x"}, {"sensor": "magx"},
-                                   {"mode": "norm/../x"}, {"mode": "survey"}],
-                         ids=["sensor-path", "sensor-unknown", "mode-path", "mode-unknown"])
+                                   {"mode": "norm/../x"}, {"mode": "survey"},
+                                   {"drop": "compression"}, {"drop": "compression_width"}],
+                         ids=["sensor-path", "sensor-unknown", "mode-path", "mode-unknown",
+                              "no-compression", "no-compression-width"])
 def test_an_imap_product_whose_sensor_or_mode_is_no_name_is_refused(tmp_path, capsys, attrs):
     """Before: a fluxcal L1B with ``sensor = 'sub/x'`` made ``out/imap_mag_l1c_norm-sub/``.
 
     The sensor and mode attributes of an input product name the IMAP products; only the
-    instrument's own (mago, magi; norm, burst) are names (decision 66, rule 3).
+    instrument's own (mago, magi; norm, burst) are names (decision 66, rule 3).  A product
+    without the compression flags L1C keeps per row was an internal error (KeyError).
     """
     import numpy as np
     import xarray as xr
@@ -147,13 +150,18 @@ def test_an_imap_product_whose_sensor_or_mode_is_no_name_is_refused(tmp_path, ca
                      "compression_width": ("time", np.zeros(n, np.int64))},
                     coords={"epoch": ("time", t0 + np.arange(n, dtype=np.int64) * 125_000_000),
                             "component": ["x", "y", "z"]},
-                    attrs={"level": "l1b", "sensor": "mago", "mode": "norm", **attrs})
+                    attrs={"level": "l1b", "sensor": "mago", "mode": "norm"})
+    if "drop" in attrs:
+        ds = ds.drop_vars(attrs["drop"])
+        key = attrs["drop"]
+    else:
+        ds.attrs.update(attrs)
+        key = next(iter(attrs))
     with ungrouped():
         product = write_product(ds, tmp_path / "in" / "P", formats=("cdf",))[0]
     out = tmp_path / "out"
     assert main(["imap", "l1c", "--input", str(product), "--out", str(out)]) == 2
     line = _one_error_line(capsys)
-    key = next(iter(attrs))
     assert str(product) in line and f"field '{key}'" in line
     assert not out.exists()
 

@@ -296,7 +296,8 @@ def read_l1b(path: Path) -> xr.Dataset:
     Raises
     ------
     InputFormatError
-        None of these layouts, a field not in nT, or a fluxcal product whose ``sensor``
+        None of these layouts, a field not in nT, a fluxcal product without the
+        compression flags L1C keeps, or one whose ``sensor``
         or ``mode`` attribute (part of the products' names) is not mago/magi, norm/burst
         (naming the file).
     """
@@ -313,6 +314,11 @@ def read_l1b(path: Path) -> xr.Dataset:
         raise InputFormatError("not an IMAP MAG L1B/L1C product: expected fluxcal's ('b', "
                                "'range', 'epoch'), the team's CDF ('epoch', 'vectors') or "
                                "the team's CSV (t,coarse,fine,...,x,y,z,range)", path=str(path))
+    for name in ("compression", "compression_width"):  # L1C keeps them per row
+        if name not in ds:
+            raise InputFormatError(f"the L1B product holds no {name!r} variable (written by "
+                                   "another tool or edited?): L1C needs it per vector",
+                                   path=str(path), field=name)
     ds = ds.drop_vars("time", errors="ignore") if "time" in ds.coords else ds
     for key, known in (("sensor", ("mago", "magi")), ("mode", ("norm", "burst"))):
         value = ds.attrs.get(key, known[0])  # they name the products (decision 66, rule 3)
