@@ -68,6 +68,25 @@ class _StillAlive(logging.Filter):
         return True
 
 
+#: What the Dask client logs when a result it gathers is lost with its worker (the day is
+#: computed again; an interrupted batch's workers stop before they are gathered).
+_LOST_RESULT = "Couldn't gather"
+
+
+class _LostResults(logging.Filter):
+    """Drop (and count) the client's "Couldn't gather ... rescheduling" records."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.lost = 0
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.getMessage().startswith(_LOST_RESULT):
+            self.lost += 1
+            return False
+        return True
+
+
 def close_local_cluster(cluster: Any) -> None:
     """Close a `make_local_cluster` cluster once its work is done (its client closed).
 
@@ -141,6 +160,8 @@ def run_days_on_dask(days: Iterable[_dt.date], func: Callable[..., Any],
                               key=f"{name}-{day.isoformat()}-{time.time_ns()}"): day
                 for day in days
             }
+            lost = _LostResults()  # a rescheduled day is no news; Ctrl-C's race is none
+            logging.getLogger("distributed.client").addFilter(lost)
             try:
                 for fut in as_completed(futures):
                     day = futures[fut]
@@ -153,6 +174,11 @@ def run_days_on_dask(days: Iterable[_dt.date], func: Callable[..., Any],
                 client.cancel(list(futures))  # an external scheduler stops the days too
                 _quiet_shutdown(client, cluster)
                 raise
+            finally:
+                logging.getLogger("distributed.client").removeFilter(lost)
+            if lost.lost:
+                log.info("Dask computed %d day(s) again after their worker lost the result",
+                         lost.lost)
     finally:
         if cluster is not None:
             close_local_cluster(cluster)
