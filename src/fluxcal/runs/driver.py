@@ -15,14 +15,16 @@ import dataclasses
 import datetime as _dt
 import logging
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 from fluxcal.extras import require_for_options
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.runs.batch import DayInputs, DayResult, worker_kernel_pool
+from fluxcal.products.declared import Declared, Product, write_declared
+from fluxcal.products.provenance import provenance_attrs
+from fluxcal.runs.batch import DayInputs, DayResult, DayWithoutData, worker_kernel_pool
 
 log = logging.getLogger(__name__)
 
@@ -33,11 +35,10 @@ Progress = Callable[[str, int, int], None]
 class Pipeline(Protocol):
     """What a mission hands the driver for one run (a picklable object for batch days).
 
-    ``frame_kernels`` (frame name -> frames kernel; None or empty: none) are the frames
-    the kernel pool defines when the user's kernels do not (the mission's own).
+    Optional attribute ``frame_kernels`` (frame name -> frames kernel; absent, None or
+    empty: none): the frames the kernel pool defines when the user's kernels do not (the
+    mission's own).
     """
-
-    frame_kernels: Mapping[str, Path] | None
 
     def check(self, options: Any) -> None:
         """Refuse bad options before any input is read (one line, `FluxcalError`)."""
@@ -51,19 +52,24 @@ class Pipeline(Protocol):
     def calibrate(self, raw: Any, options: Any, progress: Progress | None) -> Any:
         """Calibrate raw telemetry (kernels loaded)."""
 
-    def write(self, calibrated: Any, out_dir: Path, options: Any, *, inputs: Sequence[Path],
-              kernel_list: Sequence[str], only_day: _dt.date | None,
-              progress: Progress | None) -> list[Path]:
-        """Write the products of every day (or of ``only_day``) atomically; return them."""
+    def products(self, calibrated: Any, options: Any) -> Iterable[Declared]:
+        """Declare the run's products (`fluxcal.products.declared`); the driver writes them.
+
+        A generator is consumed one product at a time (memory-bound products).
+        """
+
+    def calibration(self, calibrated: Any, options: Any) -> Mapping[str, Any]:
+        """Return the calibration used (name -> file or version) for the provenance."""
 
     def day_files(self, input_dir: Path, day: _dt.date, options: Any) -> list[Path]:
         """Return the files one batch day reads (its manifest checksums them)."""
 
-    def day_source(self, input_dir: Path, day: _dt.date, options: Any) -> Any:
-        """Return one batch day's source; raise `~fluxcal.runs.batch.DayWithoutData` if none."""
+    # Optional: ``day_source(input_dir, day, options)``, one batch day's source (raising
+    # `~fluxcal.runs.batch.DayWithoutData` if none); default: the ``day_files`` list.
 
     # Optional: ``day_calibration(input_dir, day, options) -> {name: path or version}``,
-    # what else a day depends on (checksummed in its manifest beside `day_files`).
+    # what else a day depends on (checksummed in its manifest beside `day_files`);
+    # default: ``calibration(None, options)``.
     # Optional: ``day_defects(products) -> [span, ...]``, the telemetry-defect spans the
     # day's products record (cause, start, end, samples), listed in the batch report.
 
@@ -72,7 +78,28 @@ def _pool(pipeline: Pipeline, kernels: Path | Sequence[Path] | KernelPool | None
     """Return the kernel pool of a run: ``kernels`` if already loaded, else a new scoped pool."""
     if isinstance(kernels, KernelPool):
         return contextlib.nullcontext(kernels)
-    return KernelPool(kernels if kernels is not None else [], frames=pipeline.frame_kernels)
+    return KernelPool(kernels if kernels is not None else [], frames=_frames(pipeline))
+
+
+def _frames(pipeline: Pipeline) -> Mapping[str, Path] | None:
+    return getattr(pipeline, "frame_kernels", None)
+
+
+def day_source(pipeline: Pipeline, input_dir: Path, day: _dt.date, options: Any) -> Any:
+    """Return a batch day's source: ``pipeline.day_source``, else its ``day_files``.
+
+    Raises
+    ------
+    fluxcal.runs.batch.DayWithoutData
+        When the day has no input file.
+    """
+    own = getattr(pipeline, "day_source", None)
+    if own is not None:
+        return own(Path(input_dir), day, options)
+    files = pipeline.day_files(Path(input_dir), day, options)
+    if not files:
+        raise DayWithoutData(f"no input file of {day} in {input_dir}")
+    return files
 
 
 def run(
@@ -131,14 +158,64 @@ def run(
             on_calibrated(calibrated)
         if progress is not None:
             progress("writing products", 0, 1)
-        written = pipeline.write(calibrated, Path(out_dir), options, inputs=inputs,
-                                 kernel_list=pool.kernel_list(), only_day=only_day,
-                                 progress=progress)
+        written = write(pipeline, calibrated, Path(out_dir), options, inputs=inputs,
+                        kernel_list=pool.kernel_list(), only_day=only_day,
+                        progress=progress)
         if progress is not None:
             progress(f"wrote {len(written)} files", 1, 1)
         log.info("written in %.1f s", time.perf_counter() - t2)
     log.info("wrote %d product file(s) to %s", len(written), out_dir)
     return written, n_vectors
+
+
+def write(
+    pipeline: Pipeline,
+    calibrated: Any,
+    out_dir: Path,
+    options: Any,
+    *,
+    inputs: Sequence[Path],
+    kernel_list: Sequence[str],
+    only_day: _dt.date | None = None,
+    progress: Progress | None = None,
+) -> list[Path]:
+    """Write the products ``pipeline.products`` declares, all or nothing; return them.
+
+    Each product's provenance (`fluxcal.products.provenance.provenance_attrs`) records
+    the run's inputs, ``pipeline.calibration`` and the kernels loaded, or the inputs and
+    calibration the product names itself (one sensor of several); each distinct record
+    is made once (checksums of large inputs are not recomputed per product).
+
+    Raises
+    ------
+    fluxcal.runs.batch.DayWithoutData
+        When ``only_day`` is given and no product of that day was declared.
+    """
+    if not hasattr(pipeline, "products"):  # TRANSITIONAL: a mission not yet converted
+        return pipeline.write(calibrated, out_dir, options, inputs=inputs,
+                              kernel_list=kernel_list, only_day=only_day, progress=progress)
+    run_calibration = dict(pipeline.calibration(calibrated, options))
+    records: dict[tuple, Mapping[str, Any]] = {}
+
+    def provenance(product: Product) -> Mapping[str, Any]:
+        used_inputs = tuple(inputs if product.inputs is None else product.inputs)
+        used = dict(run_calibration if product.calibration is None else product.calibration)
+        key = (tuple(map(str, used_inputs)), tuple((k, str(v)) for k, v in used.items()))
+        if key not in records:
+            records[key] = provenance_attrs(list(used_inputs), used, list(kernel_list))
+        return records[key]
+
+    def step(name: str, done: int, total: int) -> None:
+        log.info("%s written", name)
+        if progress is not None:
+            progress(f"wrote {name}", done, total)
+
+    written = write_declared(pipeline.products(calibrated, options), out_dir, provenance,
+                             only_day=only_day, progress=step)
+    if only_day is not None and not written:
+        raise DayWithoutData(f"no samples of {only_day} in "
+                             f"{', '.join(Path(p).name for p in inputs) or 'the inputs'}")
+    return written
 
 
 def calibrate(
@@ -173,8 +250,8 @@ def run_day(
         When the day has no input (status ``no_data``).
     """
     pipeline.check(options)  # before looking for the day's files
-    source = pipeline.day_source(Path(input_dir), day, options)
-    pool = worker_kernel_pool(kernels, pipeline.frame_kernels)
+    source = day_source(pipeline, input_dir, day, options)
+    pool = worker_kernel_pool(kernels, _frames(pipeline))
     paths, n_vectors = run(pipeline, source, pool, out_dir, options, only_day=day)
     result = DayResult(day, paths, n_vectors=n_vectors)
     day_defects = getattr(pipeline, "day_defects", None)
@@ -207,8 +284,12 @@ class DayTask:
         kernels = [] if self.kernels is None else (
             [self.kernels] if isinstance(self.kernels, (str, Path)) else list(self.kernels))
         day_calibration = getattr(self.pipeline, "day_calibration", None)
-        calibration = ({} if day_calibration is None
-                       else day_calibration(Path(self.input_dir), day, self.options))
+        if day_calibration is not None:
+            calibration = day_calibration(Path(self.input_dir), day, self.options)
+        elif hasattr(self.pipeline, "calibration"):
+            calibration = self.pipeline.calibration(None, self.options)
+        else:
+            calibration = {}
         return DayInputs(tuple(Path(p) for p in [*files, *kernels]), calibration)
 
     def settings(self) -> dict[str, Any]:

@@ -14,14 +14,10 @@ import typer
 import xarray as xr
 
 from fluxcal.errors import CalibrationError, FluxcalError, InputFormatError
-from fluxcal.geometry.days import split_days
 from fluxcal.geometry.time import utc_to_tt2000
-from fluxcal.products import write_product
-from fluxcal.products.atomic import atomic_group
+from fluxcal.products.declared import Product, Quicklook
 from fluxcal.products.format_names import FORMATS
-from fluxcal.products.provenance import provenance_attrs
 from fluxcal.runs import driver
-from fluxcal.runs.batch import DayWithoutData
 from fluxcal.runs.contract import Mission
 from fluxcal.runs.options import with_options
 
@@ -81,8 +77,6 @@ def day_file(folder: Path, day: dt.date) -> Path:
 class GroundTestRun:
     """The `fluxcal.runs.driver.Pipeline` (picklable): the driver runs its steps."""
 
-    frame_kernels: None = None
-
     def check(self, options: GroundTestOptions) -> None:
         """Refuse a bad calibration file before any input is read."""
         read_calibration(options.calib or CALIB)
@@ -105,41 +99,20 @@ class GroundTestRun:
         return raw.drop_vars("counts").assign(b=(("time", "component"), sensor @ c[
             "misalignment"].reshape(3, 3).T, {"units": "nT", "description": "field"}))
 
-    def write(self, calibrated: xr.Dataset, out_dir: Path, options: GroundTestOptions, *,
-              inputs, kernel_list, only_day, progress) -> list[Path]:
-        """Write one product per UTC day (or ``only_day``), all or nothing."""
-        prov = provenance_attrs(inputs, {"groundtest_calib": options.calib or CALIB})
-        days = [(dt.date.fromisoformat(str(d)), p) for d, p in split_days(calibrated)]
-        days = [(d, p.assign_attrs(prov, Logical_source="groundtest_mag"))
-                for d, p in days if only_day in (None, d)]
-        if not days:
-            raise DayWithoutData(f"no samples of {only_day} in {', '.join(map(str, inputs))}")
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-        paths: list[Path] = []
-        if options.quicklook:
-            from fluxcal.products.quicklook import write_quicklooks  # matplotlib: when asked
-        with atomic_group():
-            for day, part in days:
-                paths += write_product(part, Path(out_dir) / f"GROUNDTEST_{day:%Y%m%d}",
-                                       formats=options.formats)
-                if options.quicklook:
-                    paths += write_quicklooks(part, Path(out_dir), "GROUNDTEST_QL", "b")
-        return paths
+    def products(self, calibrated: xr.Dataset, options: GroundTestOptions) -> list[Product]:
+        """Declare one product per UTC day (the runner splits, names and writes them)."""
+        ql = [Quicklook("GROUNDTEST_QL", calibrated)] if options.quicklook else []
+        return [Product("GROUNDTEST_{day:%Y%m%d}", calibrated, formats=options.formats,
+                        attrs={"Logical_source": "groundtest_mag"}), *ql]
+
+    def calibration(self, calibrated: xr.Dataset, options: GroundTestOptions) -> dict:
+        """Return the calibration used (provenance; the batch manifest's key)."""
+        return {"groundtest_calib": options.calib or CALIB}
 
     def day_files(self, input_dir: Path, day: dt.date, options) -> list[Path]:
         """Return the day's file and the day before's (a recording may cross midnight)."""
         return [p for p in (day_file(input_dir, day - dt.timedelta(days=1)),
                             day_file(input_dir, day)) if p.is_file()]
-
-    def day_calibration(self, input_dir: Path, day: dt.date, options) -> dict:
-        """Return the calibration file (its checksum is in the batch manifest's key)."""
-        return {"groundtest_calib": options.calib or CALIB}
-
-    def day_source(self, input_dir: Path, day: dt.date, options) -> list[Path]:
-        """Return the files of `day_files`; none is a day without data."""
-        if not self.day_files(input_dir, day, options):
-            raise DayWithoutData(f"no input {day_file(input_dir, day)}")
-        return self.day_files(input_dir, day, options)
 
 
 def make_day_task(input_dir: Path, out_dir: Path, **options) -> driver.DayTask:
