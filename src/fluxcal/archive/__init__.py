@@ -5,7 +5,7 @@
   xarray Dataset with units and descriptions from the label.
 * `fluxcal.archive.products`: `read_archive_product` -- archived calibrated products in the
   Dataset shape of fluxcal's own products, through the readers each mission ships
-  (``fluxcal.missions.<mission>.archive_products``).
+  (each mission package's ``archive_products``, handed down by the registry).
 
 See ``docs/formats/archive.md``.
 """

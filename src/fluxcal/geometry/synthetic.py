@@ -1,7 +1,7 @@
 """A synthetic-mission kit: helpers to write spacecraft clock, ephemeris and attitude kernels.
 
 The demos and the forward-model tests run without mission archives: a mission's
-synthetic kernel writer (``fluxcal.missions.<mission>.synthetic_kernels``) makes a
+synthetic kernel writer (the mission package's ``synthetic_kernels``) makes a
 self-consistent kernel set with these helpers -- spiceypy's own writers (``spkw13``,
 ``ckw03``), a type 1 SCLK text kernel, meta-kernels with relative paths -- on top of
 the generic kernels from PyPI (LSK, DE421).

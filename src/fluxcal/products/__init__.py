@@ -43,7 +43,7 @@ from importlib import import_module
 from typing import Any
 
 #: Public name -> module that defines it; imported on first use (PEP 562), so that
-#: ``fluxcal.runs.cli`` and the ``fluxcal --help`` listing do not load xarray,
+#: the command line and the ``fluxcal --help`` listing do not load xarray,
 #: cdflib and pvl.
 _SOURCE = {
     "FORMATS": "writer",

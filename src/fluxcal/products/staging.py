@@ -1,7 +1,7 @@
 """A run owns only what it wrote: the output folder's lock, staged products, clean-up.
 
 Every command that writes into an ``--out`` folder (`fluxcal.cli.main` for the single
-commands, `fluxcal.runs.batch.run_batch` for a batch) holds that folder's lock
+commands, the batch runner for a batch) holds that folder's lock
 (`output_lock`) for the whole run, so two runs never write into one folder at once: the
 second refuses at once (`OutputFolderBusy`, one line, exit 2) and touches nothing.
 
