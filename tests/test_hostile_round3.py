@@ -1,0 +1,131 @@
+"""Third hostile round (issue 31 follow-up): the WEAK outcomes of the second round, fixed.
+
+docs/decisions/products.md, decision 74.  Expected outcomes are the issue's: a folder
+another run is writing into is one line ``fluxcal: error: ...`` and exit 2 with nothing
+written; every writer takes the lock of the folder it writes into, named or not; the
+bytes of every file outside the run's own products unchanged (compared with what the
+test itself wrote before the run).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from fluxcal.cli import main
+from fluxcal.products import write_product
+from fluxcal.products.paths import LOCK_NAME
+from fluxcal.products.staging import clean_stale_temporaries, output_lock
+from tests.products.conftest import make_dataset
+
+#: Above Linux's largest pid_max (2**22): a process that cannot be running.
+DEAD_PID = 2**22 + 1
+
+
+def _one_error_line(capsys) -> str:
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("fluxcal: error: "), lines[0]
+    return lines[0]
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    """Every entry below ``folder`` (links as their target text), to compare before/after."""
+    out: dict[str, bytes] = {}
+    for p in sorted(folder.rglob("*")):
+        rel = p.relative_to(folder).as_posix()
+        out[rel] = (b"->" + os.readlink(p).encode()) if p.is_symlink() else \
+            b"<dir>" if p.is_dir() else p.read_bytes()
+    return out
+
+
+@pytest.fixture()
+def product(tmp_path: Path) -> Path:
+    """A small netCDF product (600 vectors at 20 Hz on 2024-01-01) in ``tmp_path / "data"``."""
+    folder = tmp_path / "data"
+    folder.mkdir()
+    write_product(make_dataset(600), folder / "P", formats=("nc",))
+    return folder / "P.nc"
+
+
+# --- 1. ``fluxcal plot`` without --out locks the product's folder ----------------------------
+
+def test_plot_beside_its_product_refuses_a_folder_another_run_is_writing(product, capsys):
+    """Before: no lock was taken in the product's folder; the PNG was written beside a
+    run that held it (exit 0)."""
+    before = _tree(product.parent)
+    with output_lock(product.parent):  # another run, writing into that folder now
+        before = _tree(product.parent)
+        assert main(["plot", str(product)]) == 2
+        line = _one_error_line(capsys)
+        assert "another fluxcal run" in line and str(product.parent) in line
+        assert _tree(product.parent) == before  # no PNG, no temporary, the lock kept
+    assert not (product.parent / LOCK_NAME).exists()
+
+
+def test_plot_beside_its_product_still_writes_its_pngs(product, capsys):
+    assert main(["plot", str(product), "--spectrogram"]) == 0
+    names = sorted(p.name for p in product.parent.iterdir())
+    assert names == ["P.nc", "P_20240101.png", "P_spec.png"]  # no lock or probe left
+    assert capsys.readouterr().out.split() == [str(product.parent / "P_20240101.png"),
+                                               str(product.parent / "P_spec.png")]
+
+
+def test_plot_with_out_refuses_a_busy_out_too(product, tmp_path, capsys):
+    out = tmp_path / "ql"
+    out.mkdir()
+    with output_lock(out):
+        assert main(["plot", str(product), "--out", str(out)]) == 2
+        assert "another fluxcal run" in _one_error_line(capsys)
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME]
+
+
+def test_a_failing_plot_beside_its_product_leaves_nothing(tmp_path, capsys):
+    """Before: the day's PNG stayed when the spectrogram then failed (too few samples for
+    ``nperseg=256``), exit 2 with partial output.  Now staged: nothing is left."""
+    write_product(make_dataset(200), tmp_path / "P", formats=("nc",))
+    before = _tree(tmp_path)
+    assert main(["plot", str(tmp_path / "P.nc"), "--spectrogram"]) == 2
+    assert "spectrogram" in _one_error_line(capsys)
+    assert _tree(tmp_path) == before
+
+
+def test_plot_beside_its_product_enters_no_subfolder(product, capsys):
+    """The product's folder is not one the user named: its own stale temporaries are
+    removed (as with --out), nothing in its subfolders is looked at or removed."""
+    sub = product.parent / "someone_elses"
+    sub.mkdir()
+    deep = sub / f".x.TAB.{DEAD_PID}.abcdefgh.fluxcal-tmp.TAB"
+    deep.write_text("in a folder the user did not name")
+    top = product.parent / f".y.TAB.{DEAD_PID}.abcdefgh.fluxcal-tmp.TAB"
+    top.write_text("a killed run's temporary where plot writes")
+    assert main(["plot", str(product)]) == 0
+    assert deep.exists() and not top.exists()
+
+
+def test_clean_stale_temporaries_below_false_stays_in_the_folder(tmp_path):
+    name = f".x.TAB.{DEAD_PID}.abcdefgh.fluxcal-tmp.TAB"
+    (tmp_path / "sub").mkdir()
+    for p in (tmp_path / name, tmp_path / "sub" / name):
+        p.write_text("stale")
+    assert clean_stale_temporaries(tmp_path, below=False) == [tmp_path / name]
+    assert (tmp_path / "sub" / name).exists()
+    assert clean_stale_temporaries(tmp_path) == [tmp_path / "sub" / name]
+
+
+# --- ``fluxcal compare`` without --out locks the current folder ------------------------------
+
+def test_compare_into_the_current_folder_refuses_a_busy_folder(product, tmp_path, capsys,
+                                                               monkeypatch):
+    """Before: the difference plot went into the current folder with no lock taken."""
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    with output_lock(here):
+        assert main(["compare", str(product), str(product)]) == 2
+        assert "another fluxcal run" in _one_error_line(capsys)
+        assert sorted(p.name for p in here.iterdir()) == [LOCK_NAME]
+    assert main(["compare", str(product), str(product)]) == 0
+    assert sorted(p.name for p in here.iterdir()) == ["compare_P_vs_P.png"]
