@@ -129,3 +129,22 @@ def test_compare_into_the_current_folder_refuses_a_busy_folder(product, tmp_path
         assert sorted(p.name for p in here.iterdir()) == [LOCK_NAME]
     assert main(["compare", str(product), str(product)]) == 0
     assert sorted(p.name for p in here.iterdir()) == ["compare_P_vs_P.png"]
+
+
+# --- a batch's --out that is a dangling link ------------------------------------------------
+
+def test_a_batch_out_that_is_a_dangling_link_is_named_as_such(tmp_path, capsys):
+    """Before: the batch started, then "out: File exists (a file stands where a folder is
+    expected)"; a single run said "a link to ..., which does not exist" (second round)."""
+    import datetime as dt
+
+    from fluxcal.runs.synthetic_task import write_synthetic_inputs
+
+    write_synthetic_inputs(tmp_path / "in", [dt.date(2024, 1, 1)], n_per_day=50)
+    (tmp_path / "out").symlink_to(tmp_path / "gone")
+    assert main(["batch", "synthetic", "--input", str(tmp_path / "in"), "--start",
+                 "2024-01-01", "--end", "2024-01-01", "--out", str(tmp_path / "out"),
+                 "--scheduler", "serial", "--quiet"]) == 2
+    line = _one_error_line(capsys)
+    assert f"{tmp_path / 'out'} is a link to {tmp_path / 'gone'}, which does not exist" in line
+    assert not (tmp_path / "gone").exists()

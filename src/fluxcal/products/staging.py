@@ -42,6 +42,7 @@ from fluxcal.products.paths import (
     open_lock_file,
     own_leftover,
     remove_created,
+    what_stands_at,
     write_scope,
 )
 
@@ -282,9 +283,7 @@ def _make_out(out: Path) -> list[Path]:
         missing.append(p)
         p = p.parent
     if os.path.lexists(p) and not p.is_dir():
-        what = f"a link to {os.readlink(p)}, which does not exist" \
-            if p.is_symlink() and not p.exists() else "a file, not a folder"
-        raise FluxcalError(f"--out {out}: {p} is {what}; choose another --out")
+        raise FluxcalError(f"--out {out}: {p} is {what_stands_at(p)}; choose another --out")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
