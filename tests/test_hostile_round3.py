@@ -148,3 +148,29 @@ def test_a_batch_out_that_is_a_dangling_link_is_named_as_such(tmp_path, capsys):
     line = _one_error_line(capsys)
     assert f"{tmp_path / 'out'} is a link to {tmp_path / 'gone'}, which does not exist" in line
     assert not (tmp_path / "gone").exists()
+
+
+# --- writers that bypassed the path rule (item 3) -------------------------------------------
+
+def test_synthetic_inputs_replace_a_link_never_write_through_it(tmp_path):
+    """Before: ``np.savetxt`` opened the day's CSV by name, so a link planted there (in a
+    demo's --out) had its target outside --out overwritten.  Now `atomic_path`: the link
+    is replaced by the file, its target keeps its bytes."""
+    import datetime as dt
+
+    from fluxcal.products.paths import write_scope
+    from fluxcal.runs.synthetic_task import input_path, write_synthetic_inputs
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's own file\n")
+    out = tmp_path / "out"
+    (out / "in").mkdir(parents=True)
+    day = dt.date(2024, 1, 1)
+    input_path(out / "in", day).symlink_to(victim)
+    with write_scope(out):
+        write_synthetic_inputs(out / "in", [day], n_per_day=10)
+    assert victim.read_text() == "the user's own file\n"
+    csv = input_path(out / "in", day)
+    assert not csv.is_symlink()
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "epoch_ns,cx,cy,cz" and len(lines) == 11  # header + 10 records
