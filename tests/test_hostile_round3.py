@@ -174,3 +174,52 @@ def test_synthetic_inputs_replace_a_link_never_write_through_it(tmp_path):
     assert not csv.is_symlink()
     lines = csv.read_text().splitlines()
     assert lines[0] == "epoch_ns,cx,cy,cz" and len(lines) == 11  # header + 10 records
+
+
+def _states(epochs):
+    """A straight line at 1 km/s along x from (7000, 0, 0) km: a closed form to read back."""
+    import numpy as np
+
+    t = epochs - epochs[0]
+    return np.column_stack([7000.0 + t, 0 * t, 0 * t, 1.0 + 0 * t, 0 * t, 0 * t])
+
+
+def test_synthetic_kernels_replace_an_earlier_set_only_when_complete(tmp_path):
+    """Before: `prepare_kernel_folder` removed the earlier .bsp/.bc at once and SPICE wrote
+    the new ones in place, so a simulation that then failed left the set without them.
+    Now each is written into a temporary and renamed over the old one when closed."""
+    import numpy as np
+    import spiceypy
+
+    from fluxcal.geometry.synthetic import prepare_kernel_folder, write_spk
+    from fluxcal.products.paths import write_scope
+
+    out = tmp_path / "kernels"
+    out.mkdir()
+    (out / "x.bsp").write_bytes(b"an earlier set's SPK")
+    (out / "x_sc.bc").write_bytes(b"an earlier set's CK")
+    victim = tmp_path / "victim.bsp"
+    victim.write_bytes(b"the user's own file")
+    epochs = np.arange(0.0, 3600.0, 600.0)
+    with write_scope(out):
+        *_, spk, ck = prepare_kernel_folder(out, "x")
+        assert spk.read_bytes() == b"an earlier set's SPK"  # kept until replaced
+        assert ck.read_bytes() == b"an earlier set's CK"
+        with pytest.raises(spiceypy.utils.exceptions.SpiceyError):  # epochs not increasing
+            write_spk(spk, -99, 399, epochs[::-1].copy(), _states(epochs), "BAD")
+        assert spk.read_bytes() == b"an earlier set's SPK"
+        assert [p.name for p in out.iterdir() if "fluxcal-tmp" in p.name] == []
+        spk.unlink()
+        spk.symlink_to(victim)  # a link planted at the name: replaced, not written through
+        write_spk(spk, -99, 399, epochs, _states(epochs), "LINE")
+        write_spk(spk, -98, 399, epochs, _states(epochs) * 2, "LINE2", append=True)
+    assert victim.read_bytes() == b"the user's own file" and not spk.is_symlink()
+    spiceypy.furnsh(str(spk))
+    try:
+        for body, scale in ((-99, 1.0), (-98, 2.0)):
+            state, _ = spiceypy.spkgeo(body, 1234.0, "J2000", 399)
+            # the closed form at t = 1234 s: Hermite through the exact line is exact (1e-9 km)
+            np.testing.assert_allclose(state, scale * np.array([8234.0, 0, 0, 1, 0, 0]),
+                                       atol=1e-9)
+    finally:
+        spiceypy.unload(str(spk))
