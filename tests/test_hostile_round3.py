@@ -150,6 +150,18 @@ def test_a_batch_out_that_is_a_dangling_link_is_named_as_such(tmp_path, capsys):
     assert not (tmp_path / "gone").exists()
 
 
+
+def test_run_batch_from_python_names_a_dangling_out_link_too(tmp_path):
+    """Before: ``out_dir.mkdir`` raised a bare ``FileExistsError`` ("File exists")."""
+    from fluxcal.errors import FluxcalError
+    from fluxcal.runs.batch import run_batch
+
+    (tmp_path / "out").symlink_to(tmp_path / "gone")
+    with pytest.raises(FluxcalError, match="which does not exist"):
+        run_batch([], lambda day: None, tmp_path / "out", scheduler="serial")
+    assert not (tmp_path / "gone").exists()
+
+
 # --- writers that bypassed the path rule (item 3) -------------------------------------------
 
 def test_synthetic_inputs_replace_a_link_never_write_through_it(tmp_path):
