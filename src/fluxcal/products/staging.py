@@ -1,7 +1,8 @@
 """A run owns only what it wrote: the output folder's lock, staged products, clean-up.
 
 Every command that writes into an ``--out`` folder (`fluxcal.cli.main` for the single
-commands, `fluxcal.runs.batch.run_batch` for a batch) holds that folder's lock
+commands, `fluxcal.runs.batch.run_batch` for a batch; `owned_default` for a folder a
+command writes into when ``--out`` is not given) holds that folder's lock
 (`output_lock`) for the whole run, so two runs never write into one folder at once: the
 second refuses at once (`OutputFolderBusy`, one line, exit 2) and touches nothing.
 
@@ -50,8 +51,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["LOCK_NAME", "Interrupted", "OutputFolderBusy", "clean_stale_temporaries",
            "interrupt_signals", "interrupted_signal", "output_lock", "owned_default",
-           "owned_run",
-           "reads_back", "report_stale"]
+           "owned_run", "reads_back", "report_stale"]
 
 
 class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
