@@ -14,7 +14,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from fluxcal.errors import FluxcalError, InputFormatError
-from fluxcal.products.paths import temporary_affixes
+from fluxcal.products.paths import temporary_affixes, what_stands_at
 
 #: First bytes of compressed files a CSV/text reader cannot read as they are.
 _COMPRESSED = {
@@ -42,10 +42,10 @@ def writable_folder(path: Path, option: str = "--out") -> Path:
     """
     p = Path(path)
     probe = p
-    while not probe.exists() and probe != probe.parent:
+    while not os.path.lexists(probe) and probe != probe.parent:
         probe = probe.parent
-    if probe.exists() and not probe.is_dir():
-        raise FluxcalError(f"{option} {p}: {probe} is a file, not a folder; "
+    if os.path.lexists(probe) and not probe.is_dir():  # a dangling link named as such
+        raise FluxcalError(f"{option} {p}: {probe} is {what_stands_at(probe)}; "
                            f"choose another {option}")
     if probe != p:
         if not os.access(probe, os.W_OK | os.X_OK):

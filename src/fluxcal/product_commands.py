@@ -7,8 +7,8 @@ from pathlib import Path
 
 import typer
 
-from fluxcal import preflight
 from fluxcal.extras import require
+from fluxcal.products.staging import owned_default
 from fluxcal.runs import registry
 
 
@@ -22,18 +22,22 @@ def plot(
                                      help="Field variable to plot (default: the first "
                                           "B* vector in nT)."),
 ) -> None:
-    """Render a quicklook PNG per day of a product."""
+    """Render a quicklook PNG per day of a product.
+
+    Without ``--out`` the PNGs go beside the product, and that folder is locked and
+    owned as an ``--out`` would be (`fluxcal.products.staging.owned_default`).
+    """
     from fluxcal.products.quicklook import epoch_from_table, save_png, write_quicklooks
     from fluxcal.products.spectrogram import spectrogram_figure
     from fluxcal.products.writer import read_fluxcal_product
 
     out_dir = out or product.parent
-    preflight.writable_folder(out_dir, "--out")
-    ds = epoch_from_table(read_fluxcal_product(product))
-    paths = write_quicklooks(ds, out_dir, product.stem, field=field)
-    if spectrogram:
-        paths.append(save_png(spectrogram_figure(ds, field),
-                              out_dir / f"{product.stem}_spec.png"))
+    with owned_default(out_dir):  # checked, locked, staged (as main does for an --out)
+        ds = epoch_from_table(read_fluxcal_product(product))
+        paths = write_quicklooks(ds, out_dir, product.stem, field=field)
+        if spectrogram:
+            paths.append(save_png(spectrogram_figure(ds, field),
+                                  out_dir / f"{product.stem}_spec.png"))
     for p in paths:
         typer.echo(str(p))
 
@@ -63,12 +67,12 @@ def compare(
 
     tol = parse_tolerance(tolerance)
     out_dir = out or Path.cwd()
-    preflight.writable_folder(out_dir, "--out")
-    readers = registry.archived_readers()  # every registered mission's, passed down
-    a, b = load_product(product_a, readers), load_product(product_b, readers)
-    result = run_compare(a, b, tol, path_a=str(product_a), path_b=str(product_b), force=force,
-                         readers=readers)
-    png = write_difference_plot(result, out_dir)
+    with owned_default(out_dir):  # the current folder: checked, locked, staged
+        readers = registry.archived_readers()  # every registered mission's, passed down
+        a, b = load_product(product_a, readers), load_product(product_b, readers)
+        result = run_compare(a, b, tol, path_a=str(product_a), path_b=str(product_b),
+                             force=force, readers=readers)
+        png = write_difference_plot(result, out_dir)
     typer.echo(format_report(result))
     typer.echo(f"plot: {png}")
 

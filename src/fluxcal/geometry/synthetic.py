@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,8 +24,8 @@ import spiceypy
 from fluxcal.errors import KernelError
 from fluxcal.geometry.kernels import relative_meta_kernel_files
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.paths import make_folder, note_created
+from fluxcal.products.atomic import atomic_path, atomic_write_bytes
+from fluxcal.products.paths import make_folder
 
 GM_MERCURY = 22031.78  # km^3/s^2 (DE421 / pck00010)
 GM_SUN = 1.32712440018e11
@@ -118,14 +119,15 @@ SCLK01_COEFFICIENTS_{cid}  = (
 
 
 def prepare_kernel_folder(out_dir: str | Path, prefix: str) -> tuple[Path, Path, Path, Path, Path]:
-    """Create ``out_dir``; return it and the SCLK, FK, SPK, CK paths (old binaries removed)."""
+    """Create ``out_dir``; return it and the SCLK, FK, SPK, CK paths.
+
+    An earlier set's kernels stay until the new ones are complete: `write_spk` and
+    `write_ck` write into a temporary and rename it over them.
+    """
     out = Path(out_dir)
     make_folder(out)
     sclk, fk = out / f"{prefix}.tsc", out / f"{prefix}.tf"
     spk, ck = out / f"{prefix}.bsp", out / f"{prefix}_sc.bc"
-    for path in (spk, ck):  # the SPICE writers refuse to overwrite
-        path.unlink(missing_ok=True)
-        note_created(path)  # written by SPICE itself: a failed run removes it
     return out, sclk, fk, spk, ck
 
 
@@ -162,24 +164,35 @@ def write_spk(
     *,
     append: bool = False,
 ) -> None:
-    """Write (or append) a type 13 (Hermite) SPK segment of ``states`` relative to J2000."""
-    if append:
-        handle = spiceypy.spkopa(str(path))
-    else:
-        handle = spiceypy.spkopn(str(path), "fluxcal synthetic SPK", 0)
-    try:
-        spiceypy.spkw13(
-            handle, body, center, "J2000", float(epochs[0]), float(epochs[-1]), segid, 7,
-            len(epochs), states.tolist(), epochs.tolist(),
-        )
-    finally:
-        spiceypy.spkcls(handle)
+    """Write (or append) a type 13 (Hermite) SPK segment of ``states`` relative to J2000.
+
+    Atomically (`fluxcal.products.atomic.atomic_path`): SPICE writes a temporary (a copy
+    of ``path`` to append to), renamed over ``path`` once the file is closed, so a
+    failed write leaves the earlier file as it was and a link at ``path`` is replaced,
+    never written through.
+    """
+    with atomic_path(path, now=True) as tmp:
+        if append:
+            shutil.copyfile(path, tmp)
+            handle = spiceypy.spkopa(str(tmp))
+        else:
+            handle = spiceypy.spkopn(str(tmp), "fluxcal synthetic SPK", 0)
+        try:
+            spiceypy.spkw13(
+                handle, body, center, "J2000", float(epochs[0]), float(epochs[-1]), segid,
+                7, len(epochs), states.tolist(), epochs.tolist(),
+            )
+        finally:
+            spiceypy.spkcls(handle)
 
 
 def write_ck(
     path: Path, instrument: int, sclk_id: int, epochs: np.ndarray, cmat: np.ndarray, segid: str
 ) -> None:
-    """Write a type 3 CK segment of the C-matrices ``cmat`` (J2000 -> ``instrument``)."""
+    """Write a type 3 CK segment of the C-matrices ``cmat`` (J2000 -> ``instrument``).
+
+    Atomically, as `write_spk`.
+    """
     sclk = SclkKernel.from_pool(sclk_id)
     ticks = sclk.et_to_encoded(epochs)
     quats = np.array([spiceypy.m2q(m) for m in cmat])
@@ -187,15 +200,16 @@ def write_ck(
     for i in range(1, len(quats)):
         if np.dot(quats[i], quats[i - 1]) < 0:
             quats[i] = -quats[i]
-    handle = spiceypy.ckopn(str(path), "fluxcal synthetic CK", 0)
-    try:
-        spiceypy.ckw03(
-            handle, float(ticks[0]), float(ticks[-1]), instrument, "J2000", False, segid,
-            len(ticks), ticks.tolist(), quats.tolist(), np.zeros((len(ticks), 3)).tolist(),
-            1, [float(ticks[0])],
-        )
-    finally:
-        spiceypy.ckcls(handle)
+    with atomic_path(path, now=True) as tmp:  # as `write_spk`
+        handle = spiceypy.ckopn(str(tmp), "fluxcal synthetic CK", 0)
+        try:
+            spiceypy.ckw03(
+                handle, float(ticks[0]), float(ticks[-1]), instrument, "J2000", False, segid,
+                len(ticks), ticks.tolist(), quats.tolist(),
+                np.zeros((len(ticks), 3)).tolist(), 1, [float(ticks[0])],
+            )
+        finally:
+            spiceypy.ckcls(handle)
 
 
 def unit(v: np.ndarray) -> np.ndarray:

@@ -165,6 +165,24 @@ def make_folder(path: Path) -> Path:
     return path
 
 
+def what_stands_at(path: Path) -> str:
+    """Say what stands at ``path`` where a folder is needed (for a one-line error).
+
+    ``"a link to <target>, which does not exist"`` for a dangling link (``path.exists()``
+    is False for it, so a plain check would call it missing, or make a folder through
+    it), ``"a file, not a folder"`` for anything else that is no folder.
+
+    Examples
+    --------
+    >>> what_stands_at(Path(__file__))
+    'a file, not a folder'
+    """
+    path = Path(path)
+    if path.is_symlink() and not path.exists():
+        return f"a link to {os.readlink(path)}, which does not exist"
+    return "a file, not a folder"
+
+
 def move_into(source: Path, dest: Path) -> Path:
     """Rename a finished file of this run to ``dest`` (checked, recorded; no link followed).
 

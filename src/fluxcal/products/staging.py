@@ -1,7 +1,8 @@
 """A run owns only what it wrote: the output folder's lock, staged products, clean-up.
 
 Every command that writes into an ``--out`` folder (`fluxcal.cli.main` for the single
-commands, the batch runner for a batch) holds that folder's lock
+commands, the batch runner for a batch; `owned_default` for a folder a
+command writes into when ``--out`` is not given) holds that folder's lock
 (`output_lock`) for the whole run, so two runs never write into one folder at once: the
 second refuses at once (`OutputFolderBusy`, one line, exit 2) and touches nothing.
 
@@ -42,14 +43,15 @@ from fluxcal.products.paths import (
     open_lock_file,
     own_leftover,
     remove_created,
+    what_stands_at,
     write_scope,
 )
 
 log = logging.getLogger(__name__)
 
 __all__ = ["LOCK_NAME", "Interrupted", "OutputFolderBusy", "clean_stale_temporaries",
-           "interrupt_signals", "interrupted_signal", "output_lock", "owned_run",
-           "reads_back", "report_stale"]
+           "interrupt_signals", "interrupted_signal", "output_lock", "owned_default",
+           "owned_run", "reads_back", "report_stale"]
 
 
 class OutputFolderBusy(FluxcalError):  # noqa: N818 - reads as a state
@@ -74,7 +76,7 @@ class Interrupted(BaseException):  # noqa: N818 - reads as what happened
         super().__init__(signal.Signals(signum).name)
 
 
-def clean_stale_temporaries(out_dir: Path) -> list[Path]:
+def clean_stale_temporaries(out_dir: Path, *, below: bool = True) -> list[Path]:
     """Remove the temporaries a killed fluxcal writer left below ``out_dir``.
 
     Only names fluxcal gives its temporaries are touched
@@ -85,7 +87,8 @@ def clean_stale_temporaries(out_dir: Path) -> list[Path]:
     directory) alike; no link is followed or removed, and no folder where another run
     holds a lock (a run writing into a folder nested below ``out_dir``) is entered.  A
     temporary whose pid is that of another process still running is left alone: it is
-    being written.
+    being written.  ``below`` False: ``out_dir``'s own entries only, no subfolder is
+    entered (a folder the user did not name, `owned_run`).
     """
     removed: list[Path] = []
     me = os.getpid()
@@ -116,6 +119,8 @@ def clean_stale_temporaries(out_dir: Path) -> list[Path]:
             else:
                 p.unlink(missing_ok=True)
             removed.append(p)
+        if not below:
+            break  # os.walk gives ``out_dir`` first: its own entries only
     return removed
 
 
@@ -194,7 +199,7 @@ def _undo(out: Path, created: list[Path]) -> None:
 
 
 @contextlib.contextmanager
-def owned_run(out: Path | None) -> Iterator[None]:
+def owned_run(out: Path | None, *, named: bool = True) -> Iterator[None]:
     """Run a command that writes into ``out`` so that it owns only what it wrote.
 
     Takes ``out``'s lock (`output_lock`; creating ``out`` for it, removed again if the
@@ -208,7 +213,9 @@ def owned_run(out: Path | None) -> Iterator[None]:
     ``out`` is checked first, before the command reads any input (`_make_out`: a file
     in its path, a folder that cannot be written); every write of the run must lie
     inside it (`fluxcal.products.paths.write_scope`).  ``out`` None (a command without
-    ``--out``) runs the command unguarded.
+    ``--out``) runs the command unguarded.  ``named`` False: a folder the command writes
+    into by default, which the user did not name (`owned_default`): the stale
+    temporaries are looked for in that folder only, no subfolder is entered.
 
     Raises
     ------
@@ -230,7 +237,7 @@ def owned_run(out: Path | None) -> Iterator[None]:
         _remove_folders(made)
         raise
     try:
-        report_stale(clean_stale_temporaries(out), out)
+        report_stale(clean_stale_temporaries(out, below=named), out)
         with write_scope(out) as created:
             try:
                 with atomic_group():
@@ -243,6 +250,20 @@ def owned_run(out: Path | None) -> Iterator[None]:
         _remove_folders(made)  # only those that are empty again
         raise
     lock.__exit__(None, None, None)
+
+
+def owned_default(folder: Path) -> contextlib.AbstractContextManager[None]:
+    """Own ``folder``, a command's default output folder, unless a run owns one already.
+
+    A command that writes beside its input or into the current folder when ``--out`` is
+    not given (`fluxcal.product_commands.plot`, ``compare``) takes that folder's lock
+    like every other writer (`owned_run`, ``named=False``): two commands never write
+    into one folder at once, a busy folder is one line (`OutputFolderBusy`, exit 2),
+    and every write is staged and confined to it.  With ``--out`` given, `fluxcal.cli.main`
+    owns that folder already and nothing more is taken.
+    """
+    return owned_run(Path(folder), named=False) if current_folder() is None \
+        else contextlib.nullcontext()
 
 
 def _make_out(out: Path) -> list[Path]:
@@ -262,9 +283,7 @@ def _make_out(out: Path) -> list[Path]:
         missing.append(p)
         p = p.parent
     if os.path.lexists(p) and not p.is_dir():
-        what = f"a link to {os.readlink(p)}, which does not exist" \
-            if p.is_symlink() and not p.exists() else "a file, not a folder"
-        raise FluxcalError(f"--out {out}: {p} is {what}; choose another --out")
+        raise FluxcalError(f"--out {out}: {p} is {what_stands_at(p)}; choose another --out")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -43,6 +43,7 @@ from typing import Any, Protocol
 
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.kernels import KernelPool
+from fluxcal.preflight import writable_folder
 from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.html_report import run_products, write_run_report
 from fluxcal.products.paths import write_scope
@@ -375,8 +376,11 @@ def run_batch(
     ------
     OutputFolderBusy
         If another batch is writing into ``out_dir`` (`output_lock`).
+    FluxcalError
+        ``out_dir`` cannot be a folder (a file, or a dangling link, in its path;
+        `fluxcal.preflight.writable_folder`).
     """
-    out_dir = Path(out_dir)
+    out_dir = writable_folder(Path(out_dir), "--out")  # a dangling link named, not mkdir'd
     out_dir.mkdir(parents=True, exist_ok=True)
     # every write of the batch (manifests, report, index.html) inside --out (decision 66)
     with output_lock(out_dir), write_scope(out_dir):

@@ -28,7 +28,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.errors import CalibrationError, InputFormatError
-from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.atomic import atomic_path, atomic_write_bytes
 from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.columns import Column
 from fluxcal.products.paths import make_folder
@@ -69,8 +69,9 @@ def write_synthetic_inputs(input_dir: Path, days: list[_dt.date], n_per_day: int
                      axis=1)
         counts = np.round(b / gain + np.asarray(offset)).astype(np.int64)
         rows = np.column_stack([day_epoch0(day) + t, counts])
-        np.savetxt(input_path(input_dir, day), rows, fmt="%d", delimiter=",",
-                   header="epoch_ns,cx,cy,cz", comments="")
+        with atomic_path(input_path(input_dir, day), now=True) as tmp:  # never through a link
+            np.savetxt(tmp, rows, fmt="%d", delimiter=",", header="epoch_ns,cx,cy,cz",
+                       comments="")
 
 
 def read_calibration(path: Path) -> tuple[np.ndarray, float]:
@@ -171,8 +172,9 @@ class SyntheticDayTask:
         marker = Path(self.out_dir) / f".crashed-{stem.name}"
         if marker.exists():
             return
-        marker.write_text(str(os.getpid()))
-        # A half-written temporary, as a writer killed mid-file would leave it.
+        atomic_write_bytes(marker, str(os.getpid()), now=True)
+        # A half-written temporary, as a writer killed mid-file would leave it (by hand:
+        # the point is a temporary no rename ever finishes).
         (stem.parent / f".{stem.name}.TAB.{os.getpid()}.x1y2z3w4.fluxcal-tmp.TAB"
          ).write_text("partial")
         os.kill(os.getpid(), signal.SIGKILL)
