@@ -334,9 +334,13 @@ def team_day(part: xr.Dataset, provenance: Mapping[str, Any], *, logical_source:
     """Return one UTC day of a dataset in the team's layout (`to_team`).
 
     The team's ``Parents`` name the files it was made from: the inputs and calibration
-    files of ``provenance`` (`fluxcal.products.provenance.provenance_attrs`), by name.
+    files of ``provenance`` (`fluxcal.products.provenance.provenance_attrs`), by name;
+    ``Generation_date`` is the provenance's ``creation_time`` (``SOURCE_DATE_EPOCH``
+    honoured: a rerun is byte-identical; docs/decisions/products.md decision 74).
     """
     team = to_team(part, logical_source, version)
+    if provenance.get("creation_time"):
+        team.attrs["Generation_date"] = str(provenance["creation_time"]).removesuffix("Z")
     parents = [i["name"] for i in provenance.get("inputs", [])] + [
         c["name"] for c in provenance.get("calibration", {}).values() if "name" in c]
     if parents:
