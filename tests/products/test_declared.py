@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from fluxcal.errors import InputFormatError
+from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.products.declared import Product, Quicklook, write_declared
 
 DAY1, DAY2 = dt.date(2024, 3, 12), dt.date(2024, 3, 13)
@@ -172,3 +172,50 @@ def test_a_name_that_is_not_a_plain_file_name_is_refused(tmp_path: Path, name: s
         write_declared([Product(name, _dataset(), day=DAY1, formats=("cdf",))], out,
                        _provenance)
     assert _names(out) == [] and _names(tmp_path) == ["out"]  # nothing written anywhere
+
+
+def _own_layout(part: xr.Dataset, provenance: dict) -> xr.Dataset:
+    """An archive-like layout: its own variable names and ISTP attributes."""
+    epoch = part["epoch"].values
+    ds = xr.Dataset(
+        {"field_vectors": (("epoch", "axis"), part["b"].values, {
+            "CATDESC": "Field", "DEPEND_0": "epoch", "DEPEND_1": "axis", "FIELDNAM": "Field",
+            "FILLVAL": -1e31, "FORMAT": "F12.5", "LABL_PTR_1": "axis_label", "UNITS": "nT",
+            "VALIDMIN": -1e9, "VALIDMAX": 1e9, "VAR_TYPE": "data", "DISPLAY_TYPE":
+            "time_series"})},
+        coords={"epoch": ("epoch", epoch, {"CATDESC": "Time", "FIELDNAM": "epoch",
+                                           "FILLVAL": np.int64(-9223372036854775808),
+                                           "FORMAT": " ", "UNITS": "ns", "VAR_TYPE":
+                                           "support_data", "VALIDMIN": np.int64(0),
+                                           "VALIDMAX": np.int64(2**62)}),
+                "axis": ("axis", np.arange(3), {"CATDESC": "Axis", "FIELDNAM": "axis",
+                                                "FORMAT": "I1", "VAR_TYPE": "support_data",
+                                                "UNITS": " ", "FILLVAL": np.int64(-1),
+                                                "VALIDMIN": np.int64(0),
+                                                "VALIDMAX": np.int64(2)}),
+                "axis_label": ("axis", np.array(["x", "y", "z"]), {
+                    "CATDESC": "Axis label", "FIELDNAM": "axis label", "FORMAT": "A1",
+                    "VAR_TYPE": "metadata"})},
+        attrs={"Logical_source": "arc_mag", "Parents": [i["name"] for i in
+                                                         provenance["inputs"]]})
+    return ds
+
+
+def test_a_product_with_a_layout_of_its_own_is_written_as_it_is(tmp_path: Path) -> None:
+    times = _utc_times()
+    product = Product("ARC_{day:%Y%m%d}", _dataset(times), formats=("cdf",),
+                      layout=_own_layout, attrs={"Mission_group": "TEST"})
+    written = write_declared([product], tmp_path, _provenance)
+    assert sorted(p.name for p in written) == ["ARC_20240312.cdf", "ARC_20240313.cdf"]
+    cdf = cdflib.CDF(str(tmp_path / "ARC_20240313.cdf"))
+    assert set(cdf.cdf_info().zVariables) >= {"epoch", "field_vectors"}
+    assert cdf.varget("field_vectors").shape == (int((times >= MIDNIGHT).sum()), 3)
+    g = cdf.globalattsget()
+    assert g["Parents"] == ["in.csv"] and g["Mission_group"] == ["TEST"]
+    assert g["software_version"] == ["9.9.9"]
+    # provenance lists and dicts are JSON with fluxcal's prefix (sorted keys)
+    assert g["inputs"] == ['json:[{"name": "in.csv", "sha256": "' + "ab" * 32 + '"}]']
+    with pytest.raises(FluxcalError, match="CDF only"):
+        write_declared([Product("ARC", _dataset(), day=DAY1, formats=("cdf", "nc"),
+                                layout=_own_layout)], tmp_path / "x", _provenance)
+    assert _names(tmp_path / "x") == []
