@@ -15,7 +15,11 @@ mission's own products, read back with `fluxcal.read_product`:
 - **product names**: the run writes exactly the files `MissionContract.product_names`
   declares for its days (beside the run's report and batch files);
 - **bad inputs**: a malformed input is refused naming the file, and no product is
-  written.
+  written;
+- **declared products**: the mission's batch day task runs a
+  `~fluxcal.runs.driver.Pipeline` that declares its products (``products`` and
+  ``calibration``) and has no ``write`` of its own: the runner writes them
+  (`fluxcal.products.declared`).
 
 Example (docs/guide/plugins.md)::
 
@@ -38,6 +42,7 @@ import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -118,6 +123,14 @@ class MissionContract:
 
     def register(self, monkeypatch: pytest.MonkeyPatch) -> None:
         """Register the mission if no installed entry point does (``FLUXCAL_MISSIONS``)."""
+
+    def day_task(self, folder: Path, out: Path, truth: Truth) -> Any:
+        """Return the mission's batch day task for ``folder`` (checked for declarations).
+
+        Default: its registered ``make_day_task(folder, out)`` with no option; override
+        when the task needs one (kernels, say).
+        """
+        return registry.get(self.mission).load("day_task")(folder, out)
 
     # --- fixtures and helpers -----------------------------------------------------------
     @pytest.fixture
@@ -210,6 +223,20 @@ class MissionContract:
         assert np.array_equal(np.sort(index), np.arange(len(truth.time))), "lost or repeated"
         names = {p.name for p in out.iterdir() if not re.fullmatch(self.extra_files, p.name)}
         assert names == {n for day in days for n in self.product_names(day)}
+
+    def test_products_are_declared(self, cli, tmp_path: Path) -> None:
+        """The mission declares its products, the runner writes them (no ``write``)."""
+        truth = self.simulate(tmp_path / "in", f"{self.day}T10:00:00", self.seconds)
+        task = self.day_task(tmp_path / "in", tmp_path / "out", truth)
+        pipeline = getattr(task, "pipeline", None)
+        if pipeline is None:
+            pytest.skip(f"{self.mission}: its day task is no fluxcal.runs.driver.DayTask")
+        name = type(pipeline).__name__
+        assert not hasattr(pipeline, "write"), (
+            f"{name} writes its own products: declare them (products, calibration) and "
+            "let the runner write them (docs/guide/plugins.md)")
+        for method in ("products", "calibration"):
+            assert callable(getattr(pipeline, method, None)), f"{name} has no {method}()"
 
     def test_bad_input(self, cli, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
         """A malformed input: refused naming the file, no product written."""

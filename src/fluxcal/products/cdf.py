@@ -54,6 +54,7 @@ import numpy as np
 import xarray as xr
 import yaml
 from cdflib.cdfwrite import CDF as CDFWriter
+from cdflib.xarray import xarray_to_cdf
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import tt2000_to_datetime64
@@ -735,3 +736,24 @@ def _plain_attr(v: Any) -> Any:
 
 __all__ = ["ISTP_NAME", "istp_file_stem", "istp_logical_source", "istp_parents", "read_cdf",
            "write_cdf"]
+
+
+def write_cdf_as_is(ds: xr.Dataset, path: Path) -> Path:
+    """Write a dataset already in a CDF layout of its own at ``path`` (atomically).
+
+    For a product that keeps an archive's variable names, dimensions and ISTP
+    attributes as the dataset holds them (record dimension ``epoch``): cdflib's xarray
+    writer with its ISTP checks [1]_, no fluxcal attribute table and no renaming
+    (`write_cdf` writes fluxcal's own layout).  Global attribute values must be
+    strings, numbers or lists of them (`fluxcal.products.attrs.encode_attrs`).
+
+    References
+    ----------
+    .. [1] cdflib, ``cdflib.xarray.xarray_to_cdf``,
+           https://cdflib.readthedocs.io/en/latest/api/cdflib.xarray.xarray_to_cdf.html.
+    """
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        xarray_to_cdf(ds, str(tmp), istp=True, terminate_on_warning=False,
+                      auto_fix_depends=False, record_dimensions=["epoch"])
+    return path

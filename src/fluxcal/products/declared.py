@@ -24,7 +24,8 @@ import numpy as np
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.days import split_days
 from fluxcal.products.atomic import atomic_group
-from fluxcal.products.cdf import istp_file_stem
+from fluxcal.products.attrs import encode_attrs
+from fluxcal.products.cdf import istp_file_stem, write_cdf_as_is
 from fluxcal.products.paths import make_folder, plain_name
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.products.writer import write_product
@@ -60,7 +61,9 @@ class Product:
     logical_source : str, optional
         ISTP ``Logical_source``: the formats but ``tab`` are then named
         ``<logical_source>_<yyyymmdd>_v<version>`` (`fluxcal.products.cdf.istp_file_stem`)
-        and the table keeps ``name``.
+        and the table keeps ``name``; their global attributes ``Logical_source`` and
+        ``Data_version`` are these unless the data or ``attrs`` set them (the CDF's
+        ``Logical_file_id`` is then its file name).
     version : int or str
         Data version of the ISTP file name.
     attrs : mapping
@@ -70,6 +73,13 @@ class Product:
     inputs, calibration : optional
         What this product was made from when not the whole run's (a multi-sensor run):
         input files and calibration name -> path or version, for its provenance.
+    layout : callable, optional
+        ``layout(day_data, provenance) -> dataset``: the product has a CDF layout of its
+        own (an archive's variable names, dimensions and ISTP attributes), made from each
+        UTC day's data and its provenance attributes (an archive's ``Parents``, say) and
+        written as it is (`fluxcal.products.cdf.write_cdf_as_is`; ``formats`` must be
+        ``("cdf",)``); the provenance, JSON-encoded (`fluxcal.products.attrs`), and
+        ``attrs`` follow its own global attributes.
     """
 
     name: str
@@ -85,6 +95,7 @@ class Product:
     global_yaml: Path | None = None
     inputs: tuple[Path, ...] | None = None
     calibration: Mapping[str, Any] | None = None
+    layout: Callable[[xr.Dataset, Mapping[str, Any]], xr.Dataset] | None = None
 
 
 @dataclass(frozen=True)
@@ -181,6 +192,8 @@ def write_declared(
 
 def _write_product(item: Product, out_dir: Path, provenance: Provenance) -> list[Path]:
     ds = _content(item)
+    if item.layout is not None:
+        return [_write_laid_out(item, ds, out_dir, provenance(item))]
     ds = ds.copy(deep=False)
     ds.attrs = {**ds.attrs, **provenance(item), **item.attrs}
     yaml = {"variable_yaml": item.variable_yaml, "global_yaml": item.global_yaml}
@@ -196,8 +209,21 @@ def _write_product(item: Product, out_dir: Path, provenance: Provenance) -> list
     others = tuple(f for f in item.formats if f != "tab")
     if others:
         stem = istp_file_stem(item.logical_source, item.day, item.version)
+        istp = {"Logical_source": item.logical_source, "Data_version": item.version}
+        ds = ds.assign_attrs({k: v for k, v in istp.items() if k not in ds.attrs})
         written += write_product(ds, out_dir / stem, others, None, item.label_extra, **yaml)
     return written
+
+
+def _write_laid_out(item: Product, ds: xr.Dataset, out_dir: Path,
+                    provenance: Mapping[str, Any]) -> Path:
+    """Write a product with a layout of its own (`Product.layout`): a CDF, as it is."""
+    if tuple(item.formats) != ("cdf",):
+        raise FluxcalError(f"{item.name}: a product with a layout of its own is a CDF "
+                           f"only (formats {', '.join(item.formats)})")
+    laid = item.layout(ds, provenance).copy(deep=False)
+    laid.attrs = {**laid.attrs, **encode_attrs(provenance), **item.attrs}
+    return write_cdf_as_is(laid, out_dir / f"{item.name}.cdf")
 
 
 def _write_quicklook(item: Quicklook, out_dir: Path, only_day: _dt.date | None) -> list[Path]:

@@ -101,7 +101,15 @@ class Mission:
         Reference to the ``fluxcal simulate <name>`` command function.
     day_task : str, optional
         Reference to ``make_day_task(input_dir, out_dir, **options)`` returning a
-        picklable ``task(day) -> fluxcal.runs.batch.DayResult`` (``fluxcal batch <name>``).
+        picklable ``task(day) -> fluxcal.runs.batch.DayResult`` (``fluxcal batch <name>``;
+        `fluxcal.runs.driver.DayTask` is the ready-made task of a mission's
+        `~fluxcal.runs.driver.Pipeline`).  ``options`` holds every field of the
+        mission's ``options`` dataclass by its field name, with the values the command
+        line or ``--config`` gave, checked and normalised (a tuple of formats, a `Path`:
+        `fluxcal.runs.options.as_keywords`), and ``kernels`` (a `Path`) only when
+        ``--kernels`` was given; nothing else: the batch's own options (``--start``,
+        ``--scheduler``, ``--force`` ...) stay with the runner.  A mission without
+        ``options`` gets ``kernels`` at most.
     options : str, optional
         Reference to the mission's run-options dataclass (`fluxcal.runs.options`): the
         options of ``fluxcal batch <name>`` beside the generic ones, the same dataclass

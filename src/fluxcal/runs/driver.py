@@ -206,9 +206,9 @@ def write(
         return records[key]
 
     def step(name: str, done: int, total: int) -> None:
-        log.info("%s written", name)
-        if progress is not None:
-            progress(f"wrote {name}", done, total)
+        log.debug("%s written", name)  # INFO: one line per step, not per product
+        if progress is not None:  # an unknown total (0): still the one step of writing
+            progress(f"wrote {name}", *((done, total) if total else (0, 1)))
 
     written = write_declared(pipeline.products(calibrated, options), out_dir, provenance,
                              only_day=only_day, progress=step)

@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import utc_day_start_tt2000
 from fluxcal.missions.imap import l1c
-from fluxcal.missions.imap.team_layout import read_l1b_csv, to_team, write_team_cdf
+from fluxcal.missions.imap.team_layout import read_l1b_csv, to_team
+from fluxcal.products.cdf import write_cdf_as_is
 from fluxcal.products.timeindex import default_lsk
 from tests.missions.imap._levels import run_team, team_dir
 
@@ -190,8 +191,8 @@ def test_team_l1c_on_fluxcal_team_layout_agrees(tmp_path: Path) -> None:
     """The team's package (1.0.40) merges fluxcal's team-layout L1B like fluxcal does."""
     norm = read_l1b_csv(_case("T015", "magi", "normal-in"))
     burst = read_l1b_csv(_case("T015", "magi", "burst-in"))
-    write_team_cdf(to_team(norm, "imap_mag_l1b_norm-magi"), tmp_path / "n.cdf")
-    write_team_cdf(to_team(burst, "imap_mag_l1b_burst-magi"), tmp_path / "b.cdf")
+    write_cdf_as_is(to_team(norm, "imap_mag_l1b_norm-magi"), tmp_path / "n.cdf")
+    write_cdf_as_is(to_team(burst, "imap_mag_l1b_burst-magi"), tmp_path / "b.cdf")
     team = run_team(
         "import sys, numpy as np\n"
         "from imap_processing.cdf.utils import load_cdf\n"

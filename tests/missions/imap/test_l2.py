@@ -21,7 +21,8 @@ from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.imap import l2
 from fluxcal.missions.imap.cli import app
-from fluxcal.missions.imap.team_layout import from_team, to_team, write_team_cdf
+from fluxcal.missions.imap.team_layout import from_team, to_team
+from fluxcal.products.cdf import write_cdf_as_is
 from tests.missions.imap._levels import run_team, team_dir
 
 DAY = "2025-10-17"
@@ -187,7 +188,7 @@ def test_team_l2_agrees_to_1e9_nt(tmp_path: Path) -> None:
     """The team's package (1.0.40) applies the same matrices, offsets and time deltas."""
     ds, cal, offsets, deltas = _synthetic(tmp_path)
     ds.attrs["sensor"] = "mago"
-    write_team_cdf(to_team(ds, "imap_mag_l1b_norm-mago"), tmp_path / "l1b.cdf")
+    write_cdf_as_is(to_team(ds, "imap_mag_l1b_norm-mago"), tmp_path / "l1b.cdf")
     team = run_team(
         "import sys, numpy as np\n"
         "from imap_processing.cdf.utils import load_cdf\n"
@@ -213,7 +214,7 @@ def test_team_l2_agrees_to_1e9_nt(tmp_path: Path) -> None:
 def test_team_mag_l2_in_srf_agrees(tmp_path: Path) -> None:
     """The team's whole ``mag_l2`` (1.0.40) in SRF, with the frames kernel written here."""
     ds, cal, _, _ = _synthetic(tmp_path)
-    write_team_cdf(to_team(ds, "imap_mag_l1b_norm-mago"), tmp_path / "l1b.cdf")
+    write_cdf_as_is(to_team(ds, "imap_mag_l1b_norm-mago"), tmp_path / "l1b.cdf")
     (tmp_path / "imap_test.tf").write_text(TK)
     team = run_team(
         "import sys, numpy as np, spiceypy, xarray as xr\n"

@@ -122,3 +122,37 @@ def test_team_layout_is_cdf_only(imap_data: Path, tmp_path: Path) -> None:
                                           "--layout", "team", "--formats", "cdf,nc"])
         assert isinstance(result.exception, InputFormatError)
         assert "CDFs only" in str(result.exception) and not (tmp_path / "x").exists()
+
+
+def test_team_layout_is_reproducible_and_names_its_parents(tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """Two runs with SOURCE_DATE_EPOCH fixed write the same bytes (issue 32).
+
+    Before, ``Generation_date`` was the wall clock of each run.  1700000000 s after
+    1970-01-01 is 2023-11-14T22:13:20 UTC (19675 days and 80000 s).  The team's
+    ``Parents`` are the input files, by name.
+    """
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    d = team_dir() / "L1c" / "T015"
+    names = ["mag-l1b-l1c-t015-magi-normal-in.csv", "mag-l1b-l1c-t015-magi-burst-in.csv"]
+    written = []
+    for run in ("a", "b"):
+        args = ["l1c", *(a for n in names for a in ("--input", str(d / n))),
+                "--out", str(tmp_path / run / "out"), "--layout", "team"]
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 0, result.output
+        written.append(tmp_path / run / "out" / "imap_mag_l1c_norm-magi_20250311_v001.cdf")
+    assert written[0].read_bytes() == written[1].read_bytes()
+    attrs = cdflib.CDF(str(written[0])).globalattsget()
+    assert attrs["Generation_date"] == ["2023-11-14T22:13:20"]
+    assert attrs["Parents"] == names
+
+
+def test_imap_declares_its_products() -> None:
+    """The runner writes IMAP's products: its pipelines declare them (issue 32)."""
+    from fluxcal.missions.imap.routes import ImapRun, LevelRun
+
+    for pipeline in (ImapRun(), LevelRun()):
+        assert not hasattr(pipeline, "write")
+        assert callable(pipeline.products) and callable(pipeline.calibration)

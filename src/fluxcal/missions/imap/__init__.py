@@ -2,7 +2,7 @@
 
 Pure functions for the mission contract: `packets.read_packets`, `l1a.from_packets`,
 `l1a.read_l1a_csv`, `l1b.calibrate`, `calibration.load_calibration`,
-`pipeline.process` / `pipeline.write_products`; the command is `cli.app`.  ``__all__``
+`pipeline.process` / `pipeline.products`; the command is `cli.app`.  ``__all__``
 lists the public modules (the command line and the demo are internal).
 """
 

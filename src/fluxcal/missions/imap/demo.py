@@ -16,10 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.missions.imap import simulate
-from fluxcal.missions.imap.pipeline import process, write_products
+from fluxcal.missions.imap.options import ImapOptions
+from fluxcal.missions.imap.pipeline import process
+from fluxcal.missions.imap.routes import ImapRun
 from fluxcal.missions.imap.sources import TEAM_FILES, missing_team_files, shared_folder
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.provenance import provenance_attrs
+from fluxcal.runs import driver
 
 #: The simulated inputs of the demo without the team's files: one hour of normal mode,
 #: two minutes of burst, every compression width, range changes (a second or two).
@@ -60,9 +62,10 @@ def _run(out: Path, level: str, quicklook: bool) -> tuple[str, list[str]]:
     files, truth = _inputs(out)
     datasets = process(files["inputs"], level=level, calib=files["calib"],
                        kernels=files["kernels"], xtce=files["xtce"])
-    prov = provenance_attrs(files["inputs"], {"imap_mag_l1b": files["calib"]}
-                            if level == "l1b" else {}, [files["kernels"]])
-    paths = write_products(datasets, out, ["cdf"], prov, quicklook=quicklook)
+    options = ImapOptions(level=level, calib=files["calib"], xtce=files["xtce"],
+                          quicklook=quicklook)
+    paths = driver.write(ImapRun(), datasets, out, options, inputs=files["inputs"],
+                         kernel_list=[str(files["kernels"])])
     counts = ", ".join(f"{m}-{s} {ds.sizes['time']}" for (m, s), ds in datasets.items())
     lines = [f"{counts} vectors; {len(paths)} files in {out}"]
     if truth is None:

@@ -38,12 +38,14 @@ def _check(options: LevelOptions) -> None:
                                "--formats or give --formats cdf", field="--formats")
 
 
-def _write(datasets: dict, out: Path, options: LevelOptions, prov: dict) -> list[Path]:
-    from fluxcal.missions.imap import pipeline, team_layout
+def _write(datasets: dict, out: Path, options: LevelOptions, inputs: list[Path],
+           calibration: dict | None = None, kernels: list[Path] | None = None) -> list[Path]:
+    """Write the level's products (`fluxcal.runs.driver.write`: provenance, all or nothing)."""
+    from fluxcal.missions.imap.routes import LevelRun
+    from fluxcal.runs import driver
 
-    if options.layout == "team":
-        return team_layout.write_products(datasets, out, prov)  # formats: checked cdf
-    return pipeline.write_products(datasets, out, options.formats, prov)
+    return driver.write(LevelRun(calibration or {}), datasets, out, options, inputs=inputs,
+                        kernel_list=[str(k) for k in kernels or []])
 
 
 def register(app: typer.Typer) -> None:
@@ -69,7 +71,6 @@ def register(app: typer.Typer) -> None:
         import xarray as xr
 
         from fluxcal.missions.imap import l1c, team_layout
-        from fluxcal.products.provenance import provenance_attrs
 
         _check(options)
         for path in inputs:
@@ -90,7 +91,7 @@ def register(app: typer.Typer) -> None:
             norm = joined[("norm", sensor)]
             merged[("norm", sensor)] = l1c.merge(norm, joined.get(("burst", sensor)),
                                                  _day(day, norm))
-        paths = _write(merged, out, options, provenance_attrs(list(inputs)))
+        paths = _write(merged, out, options, list(inputs))
         n = sum(ds.sizes["time"] for ds in merged.values())
         dup = sum(ds.attrs["duplicates_dropped"] for ds in joined.values())
         typer.echo(f"L1C: {n} rows; {len(paths)} files in {out}"
@@ -124,7 +125,6 @@ def register(app: typer.Typer) -> None:
         """
         from fluxcal.geometry.kernels import KernelPool
         from fluxcal.missions.imap import l2, team_layout
-        from fluxcal.products.provenance import provenance_attrs
 
         _check(options)
         for path in inputs:
@@ -148,10 +148,8 @@ def register(app: typer.Typer) -> None:
             sensor_frame = l2.calibrate(ds, cal, _day(day, ds))
             results = {(mode, sensor if name == "sensor" else name):
                        l2.to_frame(sensor_frame, name) for name in dict.fromkeys(frame)}
-        prov = provenance_attrs(list(inputs), {"imap_mag_l2_matrices": matrices,
-                                               "imap_mag_l2_offsets": offsets},
-                                list(kernels or []))
-        paths = _write(results, out, options, prov)
+        paths = _write(results, out, options, list(inputs), {
+            "imap_mag_l2_matrices": matrices, "imap_mag_l2_offsets": offsets}, kernels)
         n = sum(d.sizes["time"] for d in results.values())
         typer.echo(f"L2: {n} vectors in {len(results)} frame(s); {len(paths)} files in {out}")
 

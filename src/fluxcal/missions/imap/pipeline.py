@@ -3,32 +3,28 @@
 `process` reads packet files and the team's L1A CSV files (told apart by content, not by
 name: `fluxcal.missions.imap.l1a.csv_header`), makes L1A datasets through the SCLK
 kernel, drops duplicated packets (counted and warned) and, for L1B, applies the
-calibration; `write_products` writes one product per mode, sensor and UTC day named
-``imap_mag_<level>_<mode>-<sensor>_<yyyymmdd>_v<nnn>`` with fluxcal's product writers.
+calibration; `products` declares one product per mode, sensor and UTC day named
+``imap_mag_<level>_<mode>-<sensor>_<yyyymmdd>_v<nnn>`` (the runner writes them:
+`fluxcal.runs.driver.write`).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from fluxcal.errors import InputFormatError
-from fluxcal.geometry.days import split_days
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a, l1b
+from fluxcal.missions.imap import l1a, l1b, team_layout
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.packets import data_file, read_packets
 from fluxcal.missions.imap.sources import sclk_kernels
-from fluxcal.products import write_product
-from fluxcal.products.atomic import atomic_group
-from fluxcal.products.cdf import istp_file_stem
-from fluxcal.products.paths import make_folder
-from fluxcal.products.timeindex import default_lsk
+from fluxcal.products.declared import Declared, Product, Quicklook
 
 log = logging.getLogger(__name__)
 
@@ -182,37 +178,27 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
     return to_level(merged, level, calib)
 
 
-def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
-                   formats: Sequence[str] = ("cdf",), provenance: dict | None = None,
-                   version: str = DATA_VERSION, quicklook: bool = False,
-                   only_day: np.datetime64 | None = None) -> list[Path]:
-    """Write one product per (mode, sensor) and UTC day; return the paths written.
+def products(datasets: dict[tuple[str, str], xr.Dataset], formats: Sequence[str] = ("cdf",),
+             *, quicklook: bool = False, layout: str = "fluxcal",
+             version: str = DATA_VERSION) -> Iterator[Declared]:
+    """Declare one product per (mode, sensor) and UTC day (`fluxcal.products.declared`).
 
-    ``only_day`` (a batch day) writes that UTC day's products only.
-
-    With ``quicklook``, L1B datasets also get ``imap_mag_ql_<mode>-<sensor>_<yyyymmdd>.png``
-    (`fluxcal.products.quicklook.write_quicklooks`).  All files of the call are written as
-    one group (`atomic_group`): on an error no file of the call appears.
+    Named ``imap_mag_<level>_<mode>-<sensor>_<yyyymmdd>_v<nnn>`` as the team's files;
+    the runner splits each dataset by UTC day, adds the provenance and writes.  With
+    ``layout="team"`` the products hold the team's CDF variables
+    (`fluxcal.missions.imap.team_layout.team_product`); with ``quicklook`` an L1B
+    dataset also gets ``imap_mag_ql_<mode>-<sensor>_<yyyymmdd>.png``.
     """
-    out = Path(out)
-    make_folder(out)
-    written: list[Path] = []
-    yaml = {"global_yaml": data_file("istp_global.yaml")}
-    with atomic_group():
-        for (mode, sensor), ds in datasets.items():
-            level = ds.attrs["level"]
-            source = logical_source(level, mode, sensor)
-            for day, part in split_days(ds, lsk=default_lsk()):
-                if only_day is not None and day != np.datetime64(only_day, "D"):
-                    continue
-                part.attrs = {**ds.attrs, **(provenance or {}), "Logical_source": source,
-                              "Data_version": version,
-                              "Data_type": f"{level.upper()}>{level.upper()} {mode}"}
-                stem = out / istp_file_stem(source, day, version)
-                written += write_product(part, stem, formats=formats, **yaml)
-            if quicklook and level == "l1b":
-                from fluxcal.products.quicklook import write_quicklooks
-
-                written += write_quicklooks(ds, out, f"imap_mag_ql_{mode}-{sensor}", field="b",
-                                            frame="sensor unit frame")
-    return written
+    for (mode, sensor), ds in datasets.items():
+        level = ds.attrs["level"]
+        source = logical_source(level, mode, sensor)
+        if layout == "team":
+            yield team_layout.team_product(ds, source, f"v{version}")
+            continue
+        yield Product(f"{source}_{{day:%Y%m%d}}_v{version}", ds, formats=tuple(formats),
+                      attrs={"Logical_source": source, "Data_version": version,
+                             "Data_type": f"{level.upper()}>{level.upper()} {mode}"},
+                      global_yaml=data_file("istp_global.yaml"))
+        if quicklook and level == "l1b":
+            yield Quicklook(f"imap_mag_ql_{mode}-{sensor}", ds, field="b",
+                            frame="sensor unit frame")

@@ -2,7 +2,8 @@
 
 `ImapRun` is the mission's `~fluxcal.runs.driver.Pipeline`: read packet files (or the
 team's L1A CSV layout) into L1A datasets through the SCLK kernel, calibrate them to L1B,
-write one product per mode, sensor and UTC day.  ``fluxcal imap calibrate`` and
+declare one product per mode, sensor and UTC day (the driver writes them).  `LevelRun`
+declares the products of ``fluxcal imap l1c`` and ``imap l2``.  ``fluxcal imap calibrate`` and
 ``fluxcal batch imap`` are the same driver with another source.
 """
 
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,18 +22,13 @@ import xarray as xr
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.days import utc_day
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a, team_layout
+from fluxcal.missions.imap import l1a
 from fluxcal.missions.imap.calibration import load_calibration
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.missions.imap.packets import packet_definition
-from fluxcal.missions.imap.pipeline import (
-    LEVELS,
-    read_l1a,
-    to_level,
-    write_products,
-)
+from fluxcal.missions.imap.pipeline import LEVELS, products, read_l1a, to_level
 from fluxcal.missions.imap.sources import BATCH_FILES, sclk_kernels
-from fluxcal.products.provenance import provenance_attrs
+from fluxcal.products.declared import Declared
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
@@ -89,17 +85,14 @@ class ImapRun:
         """L1A as read, or L1B in nT (`fluxcal.missions.imap.pipeline.to_level`)."""
         return to_level(raw, options.level, options.calib, progress)
 
-    def write(self, calibrated: Datasets, out_dir: Path, options: ImapOptions, *,
-              inputs: Sequence[Path], kernel_list: Sequence[str],
-              only_day: _dt.date | None, progress: Any) -> list[Path]:
-        """One product per mode, sensor and UTC day (or ``only_day``), all or nothing."""
-        calibration = {"imap_mag_l1b": options.calib} if options.level == "l1b" else {}
-        prov = provenance_attrs(list(inputs), calibration, list(kernel_list))
-        day = None if only_day is None else np.datetime64(only_day.isoformat(), "D")
-        if options.layout == "team":  # the team's variable names (issue 33 item 4)
-            return team_layout.write_products(calibrated, out_dir, prov, only_day=day)
-        return write_products(calibrated, out_dir, options.formats, prov,
-                              quicklook=options.quicklook, only_day=day)
+    def products(self, calibrated: Datasets, options: ImapOptions) -> Iterator[Declared]:
+        """One product per mode, sensor and UTC day (`fluxcal.missions.imap.pipeline.products`)."""
+        return products(calibrated, options.formats, quicklook=options.quicklook,
+                        layout=options.layout)
+
+    def calibration(self, calibrated: Datasets | None, options: ImapOptions) -> dict:
+        """Return the L1B calibration file (none for L1A): provenance, batch manifest."""
+        return {"imap_mag_l1b": options.calib} if options.level == "l1b" else {}
 
     def day_files(self, input_dir: Path, day: _dt.date, options: ImapOptions) -> list[Path]:
         """Return the packet and L1A CSV files named for ``day`` and the days beside it.
@@ -127,6 +120,24 @@ class ImapRun:
 
 
 @dataclass(frozen=True)
+class LevelRun:
+    """The products of ``imap l1c`` and ``imap l2`` for `fluxcal.runs.driver.write`.
+
+    ``calibration_files``: the calibration (name -> file) the level was made with.
+    """
+
+    calibration_files: Mapping[str, Path] = field(default_factory=dict)
+
+    def products(self, calibrated: Datasets, options: Any) -> Iterator[Declared]:
+        """One product per mode, sensor (or frame) and UTC day (`products`)."""
+        return products(calibrated, options.formats, layout=options.layout)
+
+    def calibration(self, calibrated: Datasets | None, options: Any) -> dict:
+        """Return the calibration files (provenance)."""
+        return dict(self.calibration_files)
+
+
+@dataclass(frozen=True)
 class DaySource:
     """A batch day's files (its own and those of the days beside it) and the day."""
 
@@ -141,7 +152,7 @@ def named_for(input_dir: Path, day: _dt.date) -> list[Path]:
 
 
 def day_vectors(raw: Datasets, source: DaySource) -> Datasets:
-    """Keep the vectors of the UTC day ``source.day`` (the product day of `write_products`).
+    """Keep the vectors of the UTC day ``source.day`` (the product day of `products`).
 
     Vectors of a day beside it that has no file of its own are named in a warning (only
     a batch that runs that day writes them).

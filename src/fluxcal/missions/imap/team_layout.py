@@ -5,9 +5,10 @@ fluxcal's own IMAP products hold ``b`` (time, component) in nT with ``Epoch``; t
 x, y, z and the sensor range as the 4th column, ``compression_flags`` (epoch, compression)
 with the flag and the width, and global attributes ``Logical_source``, ``is_mago``,
 ``is_active``, ``vectors_per_second``, ``missing_sequences``.  `to_team` builds that
-layout from a fluxcal L1B/L1C dataset; `write_team_cdf` writes it with cdflib's
-xarray writer (ISTP checked); `from_team` reads it back into fluxcal's layout, and
-`read_l1b_csv` reads the team's L1B validation CSVs (``t,coarse,fine,...``).
+layout from a fluxcal L1B/L1C dataset; `team_product` declares it, one CDF per UTC
+day written as it is (`fluxcal.products.cdf.write_cdf_as_is`, ISTP checked);
+`from_team` reads it back into fluxcal's layout, and `read_l1b_csv` reads the team's
+L1B validation CSVs (``t,coarse,fine,...``).
 
 References
 ----------
@@ -18,21 +19,20 @@ L1B/L1C products; docs/decisions/imap.md (team-layout entry).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import cdflib
 import numpy as np
 import pandas as pd
 import xarray as xr
-from cdflib.xarray import xarray_to_cdf
 
 from fluxcal.errors import InputFormatError
-from fluxcal.geometry.days import split_days
 from fluxcal.geometry.time import datetime64_to_tt2000, tt2000_to_datetime64
 from fluxcal.missions.imap.cadence import interval_rates
-from fluxcal.products.atomic import atomic_group, atomic_path
-from fluxcal.products.attrs import encode_attrs
-from fluxcal.products.paths import make_folder
+from fluxcal.products.declared import Product
 from fluxcal.products.timeindex import default_lsk
 from fluxcal.products.writer import read_fluxcal_product
 
@@ -238,15 +238,6 @@ def _label(catdesc: str, dim: str) -> dict:
             "DEPEND_1": dim}
 
 
-def write_team_cdf(team: xr.Dataset, path: Path) -> Path:
-    """Write a `to_team` dataset as a CDF at ``path`` (atomically; cdflib's ISTP checks)."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        xarray_to_cdf(team, str(tmp), istp=True, terminate_on_warning=False,
-                      auto_fix_depends=False, record_dimensions=["epoch"])
-    return path
-
-
 def from_team(path: Path) -> xr.Dataset:
     """Read a team-layout L1B/L1C CDF (the team's own or fluxcal's) into fluxcal's layout.
 
@@ -328,30 +319,30 @@ def read_l1b(path: Path) -> xr.Dataset:
     return ds
 
 
-def write_products(datasets: dict[tuple[str, str], xr.Dataset], out: Path,
-                   provenance: dict | None = None, version: str = "v001",
-                   only_day: np.datetime64 | None = None) -> list[Path]:
-    """Write team-layout CDFs, one per (mode, sensor-or-frame) and UTC day (all or none).
+def team_product(ds: xr.Dataset, logical_source: str, version: str = "v001") -> Product:
+    """Declare the team-layout CDFs of one (mode, sensor-or-frame) dataset, one per UTC day.
 
-    Named ``imap_mag_<level>_<mode>-<sensor|frame>_<yyyymmdd>_<version>.cdf`` as the
-    team's files; provenance goes into the global attributes.
+    Named ``<logical_source>_<yyyymmdd>_<version>.cdf`` as the team's files; each day's
+    part is laid out by `team_day`.
     """
-    out = make_folder(Path(out))
-    written: list[Path] = []
-    with atomic_group():
-        for (mode, name), ds in datasets.items():
-            source = f"imap_mag_{ds.attrs['level']}_{mode}-{name}"
-            for day, part in split_days(ds, lsk=default_lsk()):
-                if only_day is not None and day != np.datetime64(only_day, "D"):
-                    continue
-                team = to_team(part, source, version)
-                prov = provenance or {}
-                parents = [i["name"] for i in prov.get("inputs", [])] + [
-                    c["name"] for c in prov.get("calibration", {}).values()]
-                if parents:  # the team's Parents: the files this one was made from
-                    team.attrs["Parents"] = parents
-                team.attrs |= {k: v for k, v in encode_attrs(prov).items()
-                               if k not in team.attrs}
-                stem = f"{source}_{str(day).replace('-', '')}_{version}.cdf"
-                written.append(write_team_cdf(team, out / stem))
-    return written
+    return Product(f"{logical_source}_{{day:%Y%m%d}}_{version}", ds, formats=("cdf",),
+                   layout=partial(team_day, logical_source=logical_source, version=version))
+
+
+def team_day(part: xr.Dataset, provenance: Mapping[str, Any], *, logical_source: str,
+             version: str = "v001") -> xr.Dataset:
+    """Return one UTC day of a dataset in the team's layout (`to_team`).
+
+    The team's ``Parents`` name the files it was made from: the inputs and calibration
+    files of ``provenance`` (`fluxcal.products.provenance.provenance_attrs`), by name;
+    ``Generation_date`` is the provenance's ``creation_time`` (``SOURCE_DATE_EPOCH``
+    honoured: a rerun is byte-identical; docs/decisions/products.md decision 74).
+    """
+    team = to_team(part, logical_source, version)
+    if provenance.get("creation_time"):
+        team.attrs["Generation_date"] = str(provenance["creation_time"]).removesuffix("Z")
+    parents = [i["name"] for i in provenance.get("inputs", [])] + [
+        c["name"] for c in provenance.get("calibration", {}).values() if "name" in c]
+    if parents:
+        team.attrs["Parents"] = parents
+    return team
