@@ -336,7 +336,7 @@ def team_day(part: xr.Dataset, provenance: Mapping[str, Any], *, logical_source:
     The team's ``Parents`` name the files it was made from: the inputs and calibration
     files of ``provenance`` (`fluxcal.products.provenance.provenance_attrs`), by name;
     ``Generation_date`` is the provenance's ``creation_time`` (``SOURCE_DATE_EPOCH``
-    honoured: a rerun is byte-identical; docs/decisions/products.md decision 74).
+    honoured: a rerun is byte-identical; docs/decisions/products.md decision 75).
     """
     team = to_team(part, logical_source, version)
     if provenance.get("creation_time"):
