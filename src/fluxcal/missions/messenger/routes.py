@@ -3,7 +3,8 @@
 `MessengerRun` is MESSENGER's `~fluxcal.runs.driver.Pipeline`: check the options, read
 a source (`CsvSource`: the three CSV streams; `EdrSource`: a folder of archived EDRs
 through a mapping), calibrate (`fluxcal.missions.messenger.run.calibrate_run`) and
-write every day (`~fluxcal.missions.messenger.run.write_run`).  ``edr2cdr`` on CSV
+declare every day's products (`~fluxcal.missions.messenger.run.run_products`), which the
+driver writes.  ``edr2cdr`` on CSV
 files (`run_edr2cdr`) or on an EDR folder (`run_edr_archive`) and the batch day task
 (`fluxcal.missions.messenger.batch_task`) are the same driver with another source.
 
@@ -15,7 +16,7 @@ References
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,9 +39,10 @@ from fluxcal.missions.messenger.run import (
     calibrate_run,
     prepare_formats,
     quicklook_frame_of,
-    write_run,
+    run_products,
 )
 from fluxcal.missions.messenger.validation_report import read_defect_spans
+from fluxcal.products.declared import Declared
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
 
@@ -176,17 +178,15 @@ class MessengerRun:
                              quicklook_frame=self._quicklook_frame(options),
                              calibration_folder=options.calib, progress=progress)
 
-    def write(self, calibrated: tuple[Any, Any], out_dir: Path, options: MessengerOptions,
-              *, inputs: Sequence[Path], kernel_list: Sequence[str],
-              only_day: _dt.date | None, progress: Progress | None) -> list[Path]:
-        """`write_run`: every day (or ``only_day``), each all or nothing."""
-        ds, cal = calibrated
-        return write_run(ds, cal, out_dir, inputs=inputs, kernel_list=kernel_list,
-                         frames=options.frames, formats=options.formats,
-                         averages=options.averages, max_offset_step=options.max_offset_step,
-                         only_day=None if only_day is None else f"{only_day:%y%j}",
-                         quicklook_frame=self._quicklook_frame(options),
-                         version=options.version, progress=progress)
+    def products(self, calibrated: tuple[Any, Any],
+                 options: MessengerOptions) -> Iterator[Declared]:
+        """`run_products`: every day's products, offset report and quicklook, day after day."""
+        return run_products(*calibrated, options)
+
+    def calibration(self, calibrated: tuple[Any, Any],
+                    options: MessengerOptions) -> dict[str, Path]:
+        """Return the calibration tables the run used (name -> path), for the provenance."""
+        return {path.name: path for path in calibrated[1].paths}
 
     def day_files(self, input_dir: Path, day: _dt.date,
                   options: MessengerOptions) -> list[Path]:
