@@ -45,6 +45,7 @@ from fluxcal.products.declared import Declared, Refused
 
 log = logging.getLogger(__name__)
 
+
 def prepare_formats(formats: Sequence[str]) -> None:
     """Refuse a format not in `FORMATS` (one line, field ``formats``); load the figure's support.
 
