@@ -15,8 +15,9 @@ memory, no product).  Printed per case: the child's whole life in wall seconds (
 start-up, imports and all: what a user waits for), vectors/s from it, the ratio to the
 baseline's time, peak RSS of the child (`peak_rss_mb`: ``VmHWM``, else ``ru_maxrss``)
 CPU seconds (user + system; less sensitive to other load on the machine than the wall
-time) and seconds per stage (functions of `fluxcal.missions.messenger.routes`, ``run``
-and ``products`` wrapped with a timer; nested stages are included in their callers),
+time) and seconds per stage (functions of `fluxcal.missions.messenger.routes`, ``run``,
+``products``, ``validation_report`` and of the runner's `fluxcal.products.declared`
+wrapped with a timer; nested stages are included in their callers),
 system time, page faults, the optional libraries the case loaded, and a write control
 (`write_control`).
 Every case starts after ``sync`` with the files of the cases before it deleted.
@@ -48,10 +49,10 @@ STAGES = (
     ("fluxcal.missions.messenger.routes", "read_temperature"),
     ("fluxcal.missions.messenger.run", "calibrate"),
     ("fluxcal.missions.messenger.run", "split_days"),
-    ("fluxcal.missions.messenger.run", "write_day"),
-    ("fluxcal.missions.messenger.run", "write_report"),
+    ("fluxcal.runs.driver", "write_declared"),
+    ("fluxcal.missions.messenger.validation_report", "report_figure"),
     ("fluxcal.missions.messenger.products", "product_dataset"),
-    ("fluxcal.missions.messenger.products", "write_product"),
+    ("fluxcal.products.declared", "write_product"),
 )
 
 

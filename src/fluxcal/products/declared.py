@@ -9,6 +9,10 @@ attributes, the writers and the all-or-nothing write group.
 A mission's declarations may be a generator: each product is made only when the one
 before it has been written, so a memory-bound mission (twenty frames and averages of a
 20 Hz day) holds one product's arrays at a time.
+
+A mission may also declare a `File` (bytes it made whole: a text report, a figure) and
+a `Refused` product (a day that failed its validation): the other products are written,
+then the refusal is raised.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.days import split_days
-from fluxcal.products.atomic import atomic_group
+from fluxcal.products.atomic import atomic_group, atomic_write_bytes
 from fluxcal.products.attrs import encode_attrs
 from fluxcal.products.cdf import istp_file_stem, write_cdf_as_is
 from fluxcal.products.paths import make_folder, plain_name
@@ -103,7 +107,8 @@ class Quicklook:
     """A quicklook: ``<name>_<yyyymmdd>.png`` per UTC day of ``data``.
 
     ``field`` is the vector drawn, ``frame`` its frame's name in the titles
-    (`fluxcal.products.quicklook.write_quicklooks`).
+    (`fluxcal.products.quicklook.write_quicklooks`).  With ``day`` the data is the
+    mission's day as it is (a batch day does not cut it at the UTC midnights).
     """
 
     name: str
@@ -113,10 +118,35 @@ class Quicklook:
     day: _dt.date | None = None
 
 
-Declared = Product | Quicklook
+@dataclass(frozen=True)
+class File:
+    """A file the mission made whole (a text report, a figure): ``name`` with its suffix.
+
+    ``data`` (bytes, text written as UTF-8, or a function of no argument returning
+    them) is written as it is: no provenance is added.
+    """
+
+    name: str
+    data: bytes | str | Callable[[], bytes | str]
+    day: _dt.date | None = None
 
 
-def _content(item: Declared) -> xr.Dataset:
+@dataclass(frozen=True)
+class Refused:
+    """A product the mission refuses to write (a day that failed its validation).
+
+    The other declared products are written; then ``error`` is raised (several
+    refusals: one error of the first one's class, their messages joined by ``"; "``).
+    """
+
+    error: FluxcalError
+    day: _dt.date | None = None
+
+
+Declared = Product | Quicklook | File | Refused
+
+
+def _content(item: Product | Quicklook | File) -> Any:
     return item.data() if callable(item.data) else item.data
 
 
@@ -127,12 +157,13 @@ def _day(value: Any) -> _dt.date:
 def dated(products: Iterable[Declared]) -> Iterable[Declared]:
     """Split every undated `Product` into one product per UTC day of its samples."""
     for item in products:
-        if isinstance(item, Quicklook) or item.day is not None:
+        if isinstance(item, Product) and item.day is None:
+            for day, part in split_days(_content(item), lsk=default_lsk()):
+                day = _day(day)
+                yield _replace(item, name=item.name.format(day=day), data=part, day=day)
+        else:
             yield item
-            continue
-        for day, part in split_days(_content(item), lsk=default_lsk()):
-            day = _day(day)
-            yield _replace(item, name=item.name.format(day=day), data=part, day=day)
+        del item  # not held while the next declaration is made (memory)
 
 
 def _replace(item: Product, **changes: Any) -> Product:
@@ -165,7 +196,8 @@ def write_declared(
     Raises
     ------
     FluxcalError
-        A product name that is not a plain file name.
+        A product name that is not a plain file name; a `Refused` product's error, after
+        the others are written.
 
     Notes
     -----
@@ -176,18 +208,34 @@ def write_declared(
     out_dir = Path(out_dir)
     make_folder(out_dir)
     written: list[Path] = []
+    refused: list[FluxcalError] = []
+    done = 0
     with atomic_group():
-        for done, item in enumerate(dated(products), start=1):
-            if only_day is not None and item.day is not None and item.day != only_day:
-                continue
-            plain_name(item.name, what="product name")
-            if isinstance(item, Quicklook):
-                written += _write_quicklook(item, out_dir, only_day)
-            else:
-                written += _write_product(item, out_dir, provenance)
-            if progress is not None:
-                progress(item.name, done, 0)
+        for item in dated(products):  # (not enumerate: its tuple would hold the item)
+            done += 1
+            if only_day is None or item.day is None or item.day == only_day:
+                if isinstance(item, Refused):
+                    refused.append(item.error)
+                else:
+                    written += _write_item(item, out_dir, provenance, only_day)
+                    if progress is not None:
+                        progress(item.name, done, 0)
+            del item  # not held while the next declaration is made (memory)
+    if refused:
+        if len(refused) == 1:
+            raise refused[0]
+        raise type(refused[0])("; ".join(map(str, refused)))
     return written
+
+
+def _write_item(item: Declared, out_dir: Path, provenance: Provenance,
+                only_day: _dt.date | None) -> list[Path]:
+    plain_name(item.name, what="product name")
+    if isinstance(item, Quicklook):
+        return _write_quicklook(item, out_dir, only_day)
+    if isinstance(item, File):
+        return [atomic_write_bytes(out_dir / item.name, _content(item))]
+    return _write_product(item, out_dir, provenance)
 
 
 def _write_product(item: Product, out_dir: Path, provenance: Provenance) -> list[Path]:
@@ -230,7 +278,7 @@ def _write_quicklook(item: Quicklook, out_dir: Path, only_day: _dt.date | None) 
     from fluxcal.products.quicklook import write_quicklooks  # matplotlib: when drawn
 
     ds = _content(item)
-    if only_day is not None:
+    if only_day is not None and item.day is None:  # a dated quicklook: drawn as declared
         days = [part for day, part in split_days(ds, lsk=default_lsk()) if _day(day) == only_day]
         if not days:
             return []

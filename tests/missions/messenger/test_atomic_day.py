@@ -1,11 +1,13 @@
-"""A MESSENGER day is written all or nothing (issue 3 "Nothing is written for a day that
-failed", issue 6 atomic writes): failures injected after the first product, in the 4th
-frame's product, in the quicklook, and by the sec. 13 validation."""
+"""A MESSENGER run is written all or nothing (issue 3 "Nothing is written for a day that
+failed", issue 6 atomic writes, issue 32 declared products): failures injected after the
+first product, in the 4th frame's product, in the quicklook, and by the sec. 13
+validation (a failed day is refused, the other days are written)."""
 
 import pytest
 
 import fluxcal.missions.messenger.products as msgr_products
-import fluxcal.missions.messenger.run as msgr_run
+import fluxcal.products.declared as declared
+import fluxcal.products.quicklook as quicklook
 from fluxcal.errors import ValidationError
 from fluxcal.missions.messenger.routes import run_edr2cdr
 
@@ -31,7 +33,7 @@ def _listing(folder):
 
 def test_failure_after_the_first_product_writes_nothing(tmp_path, monkeypatch,
                                                          simulated_files, messenger_kernels):
-    real = msgr_products.write_product
+    real = declared.write_product
     calls = []
 
     def failing(*args, **kwargs):
@@ -40,7 +42,7 @@ def test_failure_after_the_first_product_writes_nothing(tmp_path, monkeypatch,
             raise Injected("disk full")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(msgr_products, "write_product", failing)
+    monkeypatch.setattr(declared, "write_product", failing)
     out = tmp_path / "out"
     with pytest.raises(Injected):
         _run(simulated_files, messenger_kernels, out)
@@ -78,7 +80,7 @@ def test_failing_quicklook_writes_nothing_and_keeps_the_old_day(tmp_path, monkey
     def failing(*args, **kwargs):
         raise Injected("quicklook failed")
 
-    monkeypatch.setattr(msgr_run, "write_quicklook", failing)
+    monkeypatch.setattr(quicklook, "write_quicklooks", failing)
     with pytest.raises(Injected):
         _run(simulated_files, messenger_kernels, out, frames=("mso",), formats=("tab",),
              quicklook=True)
@@ -100,3 +102,4 @@ def test_success_writes_every_file_of_the_day(tmp_path, simulated_files, messeng
     # 5 frames x (full + 60-s average) x (TAB, LBL, cdf) + report (txt, png) + quicklook
     assert len(written) == 5 * 2 * 3 + 2 + 1
     assert _listing(out) == sorted(p.name for p in written)
+

@@ -24,8 +24,9 @@ from fluxcal.missions.messenger.levels import (
     note_mbf_rotation,
 )
 from fluxcal.missions.messenger.pipeline import calibrate
-from fluxcal.missions.messenger.products import write_day
+from fluxcal.missions.messenger.products import day_products
 from fluxcal.missions.messenger.run import RAW_UNWRITTEN, calibrate_run
+from fluxcal.products.declared import write_declared
 
 ALL = ("mso", "j2000", "mbf", "rtn", "sc", "vso")
 
@@ -172,8 +173,9 @@ def test_products_equal_to_those_of_a_run_with_every_frame(runs, messenger_kerne
     with KernelPool(messenger_kernels):
         only = note_mbf_rotation(only, frames)
         sc = full[["b_sc"]]
-        a = write_day(only.assign(sc), tmp_path / "a", frames, ("tab", "cdf"), (60,), {})
-        b = write_day(full, tmp_path / "b", frames, ("tab", "cdf"), (60,), {})
+        a, b = (write_declared(day_products(ds, frames, ("tab", "cdf"), (60,)),
+                               tmp_path / name, lambda product: {})
+                for ds, name in ((only.assign(sc), "a"), (full, "b")))
     assert [p.name for p in a] == [p.name for p in b] and len(a) == 5 * 2 * 3
     for pa, pb in zip(a, b, strict=True):
         assert pa.read_bytes() == pb.read_bytes(), pa.name

@@ -14,11 +14,11 @@ def test_progress_reports_every_product(tmp_path, simulated_files, messenger_ker
                           tmp_path / "out", frames=("mso", "sc"), formats=("cdf",),
                           averages=(60,), progress=lambda *a: seen.append(a))
     assert written
-    products = [a for a in seen if a[0].startswith("12153 ")]
-    # 2 frames x (full resolution + one average), counted up to the total
-    assert [a[1:] for a in products] == [(1, 4), (2, 4), (3, 4), (4, 4)]
-    assert products[0][0] == "12153 MAGMSOSCI12153_V01"
-    assert seen[0][0] == "reading inputs"
+    products = [a[0] for a in seen if a[0].startswith("wrote messenger_mag_")]
+    # 2 frames x (full resolution + one average), each CDF named by its Logical_source
+    assert products == [f"wrote messenger_mag_{f}-{k}" for f in ("mso", "sc")
+                        for k in ("sci", "avg60")]
+    assert seen[0][0] == "reading inputs" and seen[-1][0] == f"wrote {len(written)} files"
 
 
 def test_no_progress_display_off_a_terminal(capsys):

@@ -37,7 +37,7 @@ def edr2cdr(
 
     Follows MESSENGER MAG EDR-to-CDR Processing, sec. 5-13.
     """
-    from fluxcal.missions.messenger.routes import run_edr2cdr
+    from fluxcal.missions.messenger.routes import CsvSource, EdrSource, run_source
     from fluxcal.missions.messenger.run import prepare_formats
 
     prepare_formats(options.formats)  # both routes: before any EDR or CSV is read
@@ -45,22 +45,12 @@ def edr2cdr(
     for option, paths in (("--input", sci), ("--heater", heater), ("--temperature", temperature)):
         for path in paths:  # before any work: not compressed, a data line after the header
             plain_text_file(path, option, header_lines=1)
-    calib = options.calib
-    run_options = dict(frames=list(options.frames), formats=list(options.formats),
-                       averages=list(options.averages),
-                       max_offset_step=options.max_offset_step,
-                       quicklook=options.quicklook, quicklook_frame=options.quicklook_frame,
-                       version=options.version, calibration_folder=calib)
-    if calib is not None:
-        check_calibration_folder(calib)
+    if options.calib is not None:
+        check_calibration_folder(options.calib)
+    source = EdrSource(edr, mapping) if edr is not None else CsvSource(
+        tuple(sci), tuple(heater), tuple(temperature))
     with compilation_notice(), progress_display("edr2cdr") as progress:
-        if edr is not None:
-            from fluxcal.missions.messenger.routes import run_edr_archive
-
-            written = run_edr_archive(edr, mapping, kernels, out, progress=progress, **run_options)
-        else:
-            written = run_edr2cdr(sci, heater, temperature, kernels, out, progress=progress,
-                                  **run_options)
+        written = run_source(source, kernels, out, options, progress)
     typer.echo(f"wrote {len(written)} files to {out}")
 
 

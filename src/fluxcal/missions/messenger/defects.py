@@ -42,7 +42,7 @@ trusted: when fewer than half its records lie on one time-ordered run
 ``defect_flag`` is 0 elsewhere; Table 5's ``quality`` is unchanged.  The dataset's
 ``defect_spans`` attribute lists each span (cause, UTC start and end, seconds, samples)
 for the day's report; ``defect_records`` holds the same as JSON (`span_records`), which
-`fluxcal.missions.messenger.run.write_run` splits by day.
+`fluxcal.missions.messenger.run.run_products` splits by day.
 
 References
 ----------

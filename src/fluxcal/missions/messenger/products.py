@@ -32,11 +32,13 @@ References
 
 from __future__ import annotations
 
+import datetime as _dt
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -58,10 +60,8 @@ from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.defects import DEFECT_FLAGS, FLAG_MEANINGS
 from fluxcal.missions.messenger.levels import FRAMES, POSITION_VARIABLE, SC_ID, frame_variables
 from fluxcal.missions.messenger.options import DEFAULT_VERSION
-from fluxcal.products import Column, write_product
-from fluxcal.products.atomic import atomic_group
-from fluxcal.products.cdf import istp_file_stem
-from fluxcal.products.paths import make_folder
+from fluxcal.products import Column
+from fluxcal.products.declared import Product, Quicklook
 
 log = logging.getLogger(__name__)
 
@@ -206,7 +206,7 @@ def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderR
 
     `time_order` applied to ``epoch``, ``et``, ``met_corrected``, ``quality``,
     ``b_<frame>`` and the frame's position (`frame_variables`: taken from ``ds`` or
-    computed from its J2000 field); `write_day` does the same one frame at a time (less
+    computed from its J2000 field); `day_products` does the same one frame at a time (less
     memory).
 
     Parameters
@@ -398,7 +398,7 @@ def _met_at(tt2000: np.ndarray, sclk) -> np.ndarray:
 
 
 def istp_files() -> tuple[Path, Path]:
-    """Return the mission's ISTP (global, variable) attribute files for `write_product`."""
+    """Return the mission's ISTP (global, variable) attribute files of its products."""
     return data_dir() / "istp_global.yaml", data_dir() / "istp_variables.yaml"
 
 
@@ -493,63 +493,43 @@ def _quality_keywords(quality: np.ndarray) -> dict:
             "FLUXCAL_QUALITY_SAMPLES": [int(c) for c in counts]}
 
 
-def _write(prod: xr.Dataset, out_dir: Path, name: str, formats: Sequence[str], columns: list,
-           tab_extra: dict, cdf_extra: dict, istp: dict, day: np.datetime64,
-           version: int, utc: dict[str, xr.Variable] | None = None,
-           quality: dict | None = None) -> list[Path]:
-    """Write the TAB (archive name, with its UTC columns) and the other formats.
-
-    ``utc`` and ``quality`` (`_quality_keywords`) are computed from ``prod`` when not given
-    (`write_day` shares them between the frames of one time grid).
-
-    The CDF (and netCDF/Zarr) get the ISTP file name ``<logical_source>_<yyyymmdd>_v<nn>``
-    (`fluxcal.products.cdf.istp_file_stem`, equal to their ``Logical_file_id``).
-    """
-    written: list[Path] = []
-    if quality is None:
-        quality = _quality_keywords(prod["quality"].values)
-    if "tab" in formats:
-        tab = prod.assign(utc if utc is not None else utc_columns(prod["epoch"].values))
-        written += write_product(tab, out_dir / name, ("tab",), columns,
-                                 dict(tab_extra, **quality), **istp)
-    others = tuple(f for f in formats if f != "tab")
-    if others:
-        stem = out_dir / istp_file_stem(cdf_extra["Logical_source"], day, version)
-        written += write_product(prod, stem, others, None,
-                                 dict(cdf_extra, Data_version=str(int(version)), **quality),
-                                 **istp)
-    return written
-
-
-def write_day(
+def day_products(
     ds: xr.Dataset,
-    out_dir: Path,
     frames: Sequence[str],
     formats: Sequence[str],
     averages: Sequence[int],
-    provenance: dict,
     version: int = DEFAULT_VERSION,
-    progress: Progress | None = None,
-) -> list[Path]:
-    """Write every product of one UTC day (all or nothing) and return the final paths.
+    attrs: Mapping[str, Any] | None = None,
+) -> Iterator[Product]:
+    """Declare every product of one UTC day (`fluxcal.products.declared`), one frame at a time.
 
-    The day is put in time order first (`order_day`), one frame at a time: each frame's
-    field and position are taken from ``ds`` or computed from its J2000 field when that
-    frame is written (`frame_variables`), so only one frame's arrays (and their sorted
-    copies) exist at a time.  The bins of each averaging interval and the table's UTC
-    columns are computed once and shared by all frames.  Every file is written under a temporary
-    name; the renames into place happen only when every product of the day is complete
-    (`fluxcal.products.atomic.atomic_group`; inside a caller's group, at the end of it).
+    The day is put in time order first (`time_order`); each frame's field and position
+    are taken from ``ds`` or computed from its J2000 field when that frame's products are
+    made (`frame_variables`), after the previous frame's were written, so only one
+    frame's arrays (and their sorted copies) exist at a time.  The bins of each averaging
+    interval, the table's UTC columns, the averages' MET and the quality keywords are
+    computed once per day and time grid and shared by all frames.
+
+    Each product is two declarations sharing its content: the table under the archive's
+    name (`product_name`) with its UTC columns (`utc_columns`), columns (`table_columns`)
+    and label keywords, and the other formats under the ISTP name of its
+    ``Logical_source`` (`istp_product_attrs`) with ``Data_version``.
 
     Parameters
     ----------
+    ds : xarray.Dataset
+        One calibrated day (`split_days`).
+    formats : sequence of str
+        Product formats (`fluxcal.products.format_names.FORMATS`).
     version : int
         Product version, the ``_V<nn>`` of the file names (1..99).
-    progress : callable, optional
-        Called with ``(description, done, total)`` after each product.
+    attrs : mapping, optional
+        Global attributes set after the provenance (then ``averaging_interval_s``).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 9-12.
     """
-    out_dir = Path(out_dir)
-    make_folder(out_dir)
     year, doy, yyddd = day_code(ds)
     day = from_day_of_year(year, doy)
     day0 = day_start(day)
@@ -560,49 +540,46 @@ def write_day(
     bins = {int(s): averaging.bin_index(epoch, int(s) * NS, day0) for s in averages}
     sclk = SclkKernel.from_pool(SC_ID) if averages and epoch.size else None
     global_yaml, variable_yaml = istp_files()
-    istp = {"global_yaml": global_yaml, "variable_yaml": variable_yaml}
+    common = {"day": day, "variable_yaml": variable_yaml, "global_yaml": global_yaml}
     order_kw = report.label_keywords()
+    tab = "tab" in formats
+    others = tuple(f for f in formats if f != "tab")
     # per time grid, shared by every frame: the table's UTC columns, the averages' MET
     # (interval centres) and the quality keywords
-    utc: dict = {}
-    if "tab" in formats:
-        utc[None] = utc_columns(epoch)
-        utc.update({s: utc_columns(b.centre) for s, b in bins.items()})
+    utc = {None: utc_columns(epoch), **{s: utc_columns(b.centre) for s, b in bins.items()}} \
+        if tab else {}
     met = {s: _met_at(b.centre, sclk) for s, b in bins.items()}
     quality: dict = {None: _quality_keywords(base["quality"].values)}
     # a fast -> slow day's computed frames are put in time order in place through this
     buffer = np.empty(epoch.size) if index is not None else None
-    written: list[Path] = []
-    total = len(frames) * (1 + len(averages))
-    done = 0
-    with atomic_group():
-        for frame in frames:
-            # one frame's field and position at a time (computed here, `frame_variables`)
-            prod = product_dataset(_with_frame(base, ds, frame, index, buffer), frame)
-            prod.attrs.update(provenance)
-            for sec in (None, *averages):
-                name = product_name(frame, yyddd, version, sec)
-                tab_extra = {"PRODUCT_ID": name, "PRODUCT_VERSION_ID": f"V{int(version):02d}",
-                             "COORDINATE_SYSTEM_NAME": FRAMES[frame][0], **order_kw}
-                cdf_extra = {**istp_product_attrs(frame, sec), **order_kw}
-                key = None if sec is None else int(sec)
-                if key is None:
-                    out = prod
-                else:
-                    out = average(prod, key, day0, bins=bins[key], sclk=sclk, met=met[key])
-                    tab_extra["AVERAGING_INTERVAL_S"] = cdf_extra["AVERAGING_INTERVAL_S"] = sec
-                    if key not in quality:  # the largest flag per interval: frame-independent
-                        quality[key] = _quality_keywords(out["quality"].values)
-                columns = table_columns(frame, sec is not None)
-                written += _write(out, out_dir, name, formats, columns, tab_extra, cdf_extra,
-                                  istp, day, version, utc.get(key), quality[key])
-                done += 1
-                log.info("%s done: %s vectors", name, f"{out.sizes['time']:,}")
-                if progress is not None:
-                    progress(f"{yyddd} {name}", done, total)
-            # free this frame's arrays before the next frame's are made (peak memory)
-            del prod, out
-    return written
+    for frame in frames:
+        # one frame's field and position at a time (computed here, `frame_variables`)
+        prod = product_dataset(_with_frame(base, ds, frame, index, buffer), frame)
+        for sec in (None, *averages):
+            name = product_name(frame, yyddd, version, sec)
+            tab_extra = {"PRODUCT_ID": name, "PRODUCT_VERSION_ID": f"V{int(version):02d}",
+                         "COORDINATE_SYSTEM_NAME": FRAMES[frame][0], **order_kw}
+            istp = {**istp_product_attrs(frame, sec), **order_kw}
+            key = None if sec is None else int(sec)
+            out, extra = prod, dict(attrs or {})
+            if key is not None:
+                out = average(prod, key, day0, bins=bins[key], sclk=sclk, met=met[key])
+                # after the provenance, as when it was set before averaging
+                extra["averaging_interval_s"] = out.attrs.pop("averaging_interval_s")
+                tab_extra["AVERAGING_INTERVAL_S"] = istp["AVERAGING_INTERVAL_S"] = sec
+                if key not in quality:  # the largest flag per interval: frame-independent
+                    quality[key] = _quality_keywords(out["quality"].values)
+            if tab:
+                yield Product(name, out.assign(utc[key]), formats=("tab",), attrs=extra,
+                              columns=table_columns(frame, key is not None),
+                              label_extra={**tab_extra, **quality[key]}, **common)
+            if others:
+                yield Product(istp["Logical_source"], out, formats=others, attrs=extra,
+                              logical_source=istp["Logical_source"], version=version,
+                              label_extra={**istp, "Data_version": str(int(version)),
+                                           **quality[key]}, **common)
+        # free this frame's arrays before the next frame's are made (peak memory)
+        del prod, out
 
 
 def quicklook_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
@@ -637,21 +614,18 @@ def quicklook_dataset(ds: xr.Dataset, frame: str) -> xr.Dataset:
     )
 
 
-def write_quicklook(ds: xr.Dataset, out_dir: Path, frame: str) -> list[Path]:
-    """Write the day's quicklook PNG ``<stem><yyddd>_<yyyymmdd>.png`` (atomically).
+def quicklook(ds: xr.Dataset, frame: str, day: _dt.date | None = None) -> Quicklook:
+    """Declare the day's quicklook ``<stem><yyddd>_<yyyymmdd>.png`` (made when drawn).
 
     Panels: the field in ``frame``, its magnitude, the applied offsets, the quality
-    flag and the distance from Mercury (`fluxcal.products.quicklook.write_quicklooks`).
+    flag and the distance from Mercury (`quicklook_dataset`,
+    `fluxcal.products.quicklook.write_quicklooks`).
     """
-    from fluxcal.products.quicklook import write_quicklooks
-
-    yyddd = day_code(ds)[2]
-    return write_quicklooks(quicklook_dataset(ds, frame), Path(out_dir),
-                            f"{FRAMES[frame][1]}{yyddd}", field=f"b_{frame}",
-                            frame=FRAMES[frame][0])
+    return Quicklook(f"{FRAMES[frame][1]}{day_code(ds)[2]}", partial(quicklook_dataset, ds, frame),
+                     field=f"b_{frame}", frame=FRAMES[frame][0], day=day)
 
 
-def _day_et(ds: xr.Dataset) -> np.ndarray:
+def recorded_et(ds: xr.Dataset) -> np.ndarray:
     """Return the times that decide a sample's product day (recorded EDR time if known)."""
     return ds["et_recorded"].values if "et_recorded" in ds else ds["et"].values
 
@@ -663,7 +637,7 @@ def _year_doy(et: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def day_code(ds: xr.Dataset) -> tuple[int, int, str]:
     """Return (year, day of year, ``yyddd``) of the first sample's (EDR) UTC day."""
-    year, doy = (int(v[0]) for v in _year_doy(_day_et(ds)[:1]))
+    year, doy = (int(v[0]) for v in _year_doy(recorded_et(ds)[:1]))
     return year, doy, f"{year % 100:02d}{doy:03d}"
 
 
@@ -676,7 +650,7 @@ def split_days(ds: xr.Dataset) -> list[xr.Dataset]:
     boundaries are found by binary search of each UTC midnight; the days are slices
     (views) of ``ds``.
     """
-    et = _day_et(ds)
+    et = recorded_et(ds)
     if et.size == 0:
         return []
     if et.size > 1 and not (np.diff(et) >= 0).all():

@@ -3,9 +3,10 @@
 `MessengerRun` is MESSENGER's `~fluxcal.runs.driver.Pipeline`: check the options, read
 a source (`CsvSource`: the three CSV streams; `EdrSource`: a folder of archived EDRs
 through a mapping), calibrate (`fluxcal.missions.messenger.run.calibrate_run`) and
-write every day (`~fluxcal.missions.messenger.run.write_run`).  ``edr2cdr`` on CSV
-files (`run_edr2cdr`) or on an EDR folder (`run_edr_archive`) and the batch day task
-(`fluxcal.missions.messenger.batch_task`) are the same driver with another source.
+declare every day's products (`~fluxcal.missions.messenger.run.run_products`), which the
+driver writes.  ``edr2cdr`` (`run_source`: CSV files, `run_edr2cdr`, or an EDR folder,
+`run_edr_archive`) and the batch day task (`fluxcal.missions.messenger.batch_task`) are
+the same driver with another source.
 
 References
 ----------
@@ -15,7 +16,7 @@ References
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,22 +26,17 @@ from fluxcal.missions.messenger.batch_day import day_file, read_day_science
 from fluxcal.missions.messenger.calibration_data import data_dir
 from fluxcal.missions.messenger.edr import DAY_OFFSETS, load_mapping, read_edr, select_files
 from fluxcal.missions.messenger.identity import FRAME_KERNELS
-from fluxcal.missions.messenger.options import (
-    AVERAGES_S,
-    DEFAULT_FORMATS,
-    DEFAULT_FRAMES,
-    DEFAULT_VERSION,
-    MessengerOptions,
-)
+from fluxcal.missions.messenger.options import MessengerOptions
 from fluxcal.missions.messenger.products import Progress, istp_files
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.run import (
     calibrate_run,
     prepare_formats,
     quicklook_frame_of,
-    write_run,
+    run_products,
 )
 from fluxcal.missions.messenger.validation_report import read_defect_spans
+from fluxcal.products.declared import Declared
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
 
@@ -173,20 +169,19 @@ class MessengerRun:
         """`calibrate_run` for the products and quicklook the options ask for."""
         sci, heat, temp = raw
         return calibrate_run(sci, heat, temp, frames=options.frames,
-                             quicklook_frame=self._quicklook_frame(options),
+                             quicklook_frame=quicklook_frame_of(
+                                 options.frames, options.quicklook, options.quicklook_frame),
                              calibration_folder=options.calib, progress=progress)
 
-    def write(self, calibrated: tuple[Any, Any], out_dir: Path, options: MessengerOptions,
-              *, inputs: Sequence[Path], kernel_list: Sequence[str],
-              only_day: _dt.date | None, progress: Progress | None) -> list[Path]:
-        """`write_run`: every day (or ``only_day``), each all or nothing."""
-        ds, cal = calibrated
-        return write_run(ds, cal, out_dir, inputs=inputs, kernel_list=kernel_list,
-                         frames=options.frames, formats=options.formats,
-                         averages=options.averages, max_offset_step=options.max_offset_step,
-                         only_day=None if only_day is None else f"{only_day:%y%j}",
-                         quicklook_frame=self._quicklook_frame(options),
-                         version=options.version, progress=progress)
+    def products(self, calibrated: tuple[Any, Any],
+                 options: MessengerOptions) -> Iterator[Declared]:
+        """`run_products`: every day's products, offset report and quicklook, day after day."""
+        return run_products(*calibrated, options)
+
+    def calibration(self, calibrated: tuple[Any, Any],
+                    options: MessengerOptions) -> dict[str, Path]:
+        """Return the calibration tables the run used (name -> path), for the provenance."""
+        return {path.name: path for path in calibrated[1].paths}
 
     def day_files(self, input_dir: Path, day: _dt.date,
                   options: MessengerOptions) -> list[Path]:
@@ -234,77 +229,47 @@ class MessengerRun:
         return CsvSource(tuple(science), (*files["heater"], *files["heater_after"]),
                          tuple(files["temperature"]), day=day)
 
-    @staticmethod
-    def _quicklook_frame(options: MessengerOptions) -> str | None:
-        return quicklook_frame_of(options.frames, options.quicklook, options.quicklook_frame)
 
-
-def _options(**kwargs: Any) -> MessengerOptions:
-    """`MessengerOptions` from the keyword arguments of the function routes."""
-    if "calibration_folder" in kwargs:
-        kwargs["calib"] = kwargs.pop("calibration_folder")
-    return MessengerOptions(**kwargs)
-
-
-def run_edr2cdr(
-    science: Sequence[Path],
-    heater: Sequence[Path],
-    temperature: Sequence[Path],
-    kernels: Path | Sequence[Path],
-    out_dir: Path,
-    *,
-    frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = DEFAULT_FORMATS,
-    averages: Sequence[int] = AVERAGES_S,
-    max_offset_step: float | None = 2.0,
-    quicklook: bool = False,
-    quicklook_frame: str | None = None,
-    version: int = DEFAULT_VERSION,
-    progress: Progress | None = None,
-    calibration_folder: Path | None = None,
-) -> list[Path]:
-    """Run the MESSENGER MAG EDR -> CDR chain on CSV files; write every day's products.
+def run_source(source: CsvSource | EdrSource, kernels: Path | Sequence[Path], out_dir: Path,
+               options: MessengerOptions, progress: Progress | None = None) -> list[Path]:
+    """Run EDR -> CDR on one source with the generic driver; return every file written.
 
     A day whose offsets fail the smoothness check (sec. 13) gets no file; the other
     days are written, then `ValidationError` is raised naming the failed days.
-    ``version`` is the product version ``_V<nn>``; ``progress(description, done,
-    total)`` is called after reading, calibrating and each product (the CLI draws it);
-    ``calibration_folder`` replaces the shipped tables (``edr2cdr --calib``).
-
-    Returns
-    -------
-    list of Path
-        Every file written.
+    ``progress(description, done, total)`` is called after reading, calibrating and each
+    product (the CLI draws it).
     """
-    options = _options(frames=frames, formats=formats, averages=averages,
-                       max_offset_step=max_offset_step, quicklook=quicklook,
-                       quicklook_frame=quicklook_frame, version=version,
-                       calibration_folder=calibration_folder)
-    source = CsvSource(tuple(map(Path, science)), tuple(map(Path, heater)),
-                       tuple(map(Path, temperature)))
     return driver.run(MessengerRun(), source, kernels, out_dir, options, progress=progress)[0]
 
 
-def run_edr_archive(
-    edr_dir: str | Path,
-    mapping: str | Path,
-    kernels: Path | Sequence[Path],
-    out_dir: Path,
-    *,
-    progress: Progress | None = None,
-    **options: Any,
-) -> list[Path]:
-    """``edr2cdr`` on an EDR folder: `read_edr`, then the same driver as the CSV route.
+def _options(options: dict[str, Any]) -> MessengerOptions:
+    """`MessengerOptions` of the function routes' keywords (``calibration_folder``: ``calib``)."""
+    if "calibration_folder" in options:
+        options["calib"] = options.pop("calibration_folder")
+    return MessengerOptions(**options)
 
-    ``options`` are those of `run_edr2cdr` (frames, formats, averages, max_offset_step,
-    quicklook, quicklook_frame, version, calibration_folder).  The product provenance
-    lists every EDR label and table read and the mapping file.
 
-    Returns
-    -------
-    list of Path
-        Every file written.
+def run_edr2cdr(science: Sequence[Path], heater: Sequence[Path], temperature: Sequence[Path],
+                kernels: Path | Sequence[Path], out_dir: Path, *,
+                progress: Progress | None = None, **options: Any) -> list[Path]:
+    """`run_source` on the three CSV streams (docs/formats/messenger.md).
+
+    ``options``: the fields of `MessengerOptions` (frames, formats, averages,
+    max_offset_step, quicklook, quicklook_frame, version; ``calibration_folder`` or
+    ``calib`` replaces the shipped tables).
+    """
+    source = CsvSource(tuple(map(Path, science)), tuple(map(Path, heater)),
+                       tuple(map(Path, temperature)))
+    return run_source(source, kernels, out_dir, _options(options), progress)
+
+
+def run_edr_archive(edr_dir: str | Path, mapping: str | Path, kernels: Path | Sequence[Path],
+                    out_dir: Path, *, progress: Progress | None = None,
+                    **options: Any) -> list[Path]:
+    """`run_source` on a folder of archived EDRs read through ``mapping`` (`read_edr`).
+
+    ``options`` as `run_edr2cdr`.  The product provenance lists every EDR label and
+    table read and the mapping file.
     """
     source = EdrSource(Path(edr_dir), Path(mapping))
-    return driver.run(MessengerRun(), source, kernels, out_dir, _options(**options),
-                      progress=progress)[0]
+    return run_source(source, kernels, out_dir, _options(options), progress)

@@ -1,4 +1,6 @@
-"""``edr2cdr`` as a function: read the streams, calibrate, validate and write per day.
+"""``edr2cdr`` as a function: calibrate the streams, then declare every day's outputs.
+
+The driver (`fluxcal.runs.driver`) writes what `run_products` declares.
 
 References
 ----------
@@ -9,8 +11,9 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -23,45 +26,37 @@ from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
 from fluxcal.missions.messenger.options import (
-    AVERAGES_S,
-    DEFAULT_FORMATS,
     DEFAULT_FRAMES,
-    DEFAULT_VERSION,
     FORMATS,
     REPORT_FIGURE,
+    MessengerOptions,
 )
 from fluxcal.missions.messenger.pipeline import calibrate, check_frames, day_of
 from fluxcal.missions.messenger.products import (
     Progress,
     day_code,
+    day_products,
+    quicklook,
+    recorded_et,
     split_days,
-    write_day,
-    write_quicklook,
 )
-from fluxcal.missions.messenger.validation_report import (
-    load_figure_support,
-    write_report,
-)
-from fluxcal.products import provenance_attrs
-from fluxcal.products.atomic import atomic_group
+from fluxcal.missions.messenger.validation_report import load_figure_support, report_files
+from fluxcal.products.declared import Declared, Refused
 
 log = logging.getLogger(__name__)
 
-def check_formats(formats: Sequence[str]) -> None:
-    """Refuse a format not in `FORMATS` before any work (one line, field ``formats``)."""
+
+def prepare_formats(formats: Sequence[str]) -> None:
+    """Refuse a format not in `FORMATS` (one line, field ``formats``); load the figure's support.
+
+    For every route that writes MESSENGER products to call before it reads any data
+    (`load_figure_support` when the report's figure is asked for).
+    """
     unknown = [f for f in formats if f not in FORMATS]
     if unknown:
         raise InputFormatError(f"unknown format(s) {', '.join(map(str, unknown))}; "
                                f"expected some of {', '.join(FORMATS)}",
                                field="formats")
-
-
-def prepare_formats(formats: Sequence[str]) -> None:
-    """`check_formats`, then `load_figure_support` when the figure is asked for.
-
-    For every route that writes MESSENGER products to call before it reads any data.
-    """
-    check_formats(formats)
     if REPORT_FIGURE in formats:
         load_figure_support()  # before any data exists (see there)
 
@@ -125,66 +120,46 @@ def calibrate_run(
     return ds, cal
 
 
-def write_run(
-    ds: xr.Dataset,
-    cal: MessengerCalibration,
-    out_dir: Path,
-    *,
-    inputs: Sequence[Path],
-    kernel_list: Sequence[str],
-    frames: Sequence[str] = DEFAULT_FRAMES,
-    formats: Sequence[str] = DEFAULT_FORMATS,
-    averages: Sequence[int] = AVERAGES_S,
-    max_offset_step: float | None = 2.0,
-    only_day: str | None = None,
-    quicklook_frame: str | None = None,
-    version: int = DEFAULT_VERSION,
-    progress: Progress | None = None,
-) -> list[Path]:
-    """Validate and write every day of a calibrated run (`calibrate_run`), each all or nothing.
+def run_products(ds: xr.Dataset, cal: MessengerCalibration,
+                 options: MessengerOptions) -> Iterator[Declared]:
+    """Declare every day's outputs of a calibrated run (`calibrate_run`), day after day.
 
-    Each day's validation (sec. 13), products, offset report and quicklook are written
-    under temporary names and renamed into place only when all of them succeeded
-    (`fluxcal.products.atomic.atomic_group`).  ``only_day`` (``yyddd``) writes that day
-    only (other days in the data are dropped, e.g. the previous day's files given for the
-    look-back); a lag-sized fragment recorded just after a midnight joins its day first
-    (`merge_fragment_days`), as a batch day decides it (`batch_day_rows`).
-    ``quicklook_frame`` writes a quicklook per day in that frame.
-
-    Raises
-    ------
-    ValidationError
-        After writing the good days, naming every day that failed the sec. 13 check.
+    A day (`split_days`; a lag-sized fragment recorded just after a midnight joins its
+    day first, `merge_fragment_days`, as a batch day decides it, `batch_day_rows`) is
+    checked (sec. 13), then declares its products (`day_products`), its offset report
+    (`report_files`) and, with ``options.quicklook``, its quicklook (`quicklook`).  A day
+    that fails the check is `Refused`: nothing of it is written, the other days are, then
+    `ValidationError` names every failed day (`fluxcal.products.declared.write_declared`).
     """
-    check_formats(formats)
-    prov = provenance_attrs(
-        inputs=list(inputs),
-        calibration={path.name: path for path in cal.paths},
-        kernels=list(kernel_list),
-    )
-    prov["calibration_tables"] = cal.provenance()
-    written: list[Path] = []
-    failures: list[str] = []
-    # before ``only_day`` selects: a batch day and a single run split days the same way
     days = merge_fragment_days(ds, split_days(ds), float(np.max(cal.net_lag_s)))
     spans = defects.span_records(ds)
+    attrs = {"calibration_tables": cal.provenance()}
+    look = quicklook_frame_of(options.frames, options.quicklook, options.quicklook_frame)
     for day in days:
-        yyddd = day_code(day)[2]
-        if only_day is not None and yyddd != only_day:
-            continue
         # each day's products and report list the defect spans that touch it (issue 23)
         day = defects.set_span_attrs(day, defects.day_spans(spans, day["et"].values))
-        try:
-            written += write_day_outputs(
-                day, Path(out_dir), frames, formats, averages, prov, max_offset_step,
-                quicklook_frame, version=version, progress=progress,
-            )
-        except ValidationError as exc:
-            failures.append(f"day {yyddd}: {exc}")
-            log.error("day %s failed validation: %s", yyddd, exc)
-    if failures:
-        raise ValidationError("; ".join(failures))
-    return written
+        yield from _day_outputs(day, options, attrs, look)
+
+
+def _day_outputs(day: xr.Dataset, options: MessengerOptions, attrs: Mapping[str, Any],
+                 quicklook_frame: str | None) -> Iterator[Declared]:
+    """One day's declarations: refused when its offsets fail sec. 13, else every output."""
+    year, doy, yyddd = day_code(day)
+    date = from_day_of_year(year, doy)
+    threshold = options.max_offset_step
+    try:
+        steps = levels.validate_offsets(day, threshold) if threshold is not None else None
+    except ValidationError as exc:
+        log.error("day %s failed validation: %s", yyddd, exc)
+        yield Refused(ValidationError(f"day {yyddd}: {exc}"), date)
+        return
+    products = [f for f in options.formats if f != REPORT_FIGURE]
+    yield from day_products(day, options.frames, products, options.averages, options.version,
+                            attrs)
+    yield from report_files(day, f"MAGOFFSETS{yyddd}", threshold, steps, date,
+                            figure=REPORT_FIGURE in options.formats)
+    if quicklook_frame is not None:
+        yield quicklook(day, quicklook_frame, date)
 
 
 def quicklook_frame_of(frames: Sequence[str], quicklook: bool,
@@ -196,11 +171,6 @@ def quicklook_frame_of(frames: Sequence[str], quicklook: bool,
     if not quicklook:
         return None
     return quicklook_frame or (frames[0] if frames else "mso")
-
-
-def _recorded_et(ds: xr.Dataset) -> np.ndarray:
-    """Return the recorded (EDR) times that decide a sample's product day."""
-    return ds["et_recorded"].values if "et_recorded" in ds else ds["et"].values
 
 
 def _is_fragment(recorded_et: np.ndarray, midnight_et: float, max_lag_s: float) -> bool:
@@ -242,7 +212,7 @@ def merge_fragment_days(
         return days
     dates = [from_day_of_year(*day_code(d)[:2]) for d in days]
     midnights = utc_to_et(np.array([f"{d}T00:00:00" for d in dates]))
-    fragment = [_is_fragment(_recorded_et(d), float(m), max_lag_s)
+    fragment = [_is_fragment(recorded_et(d), float(m), max_lag_s)
                 for d, m in zip(days, midnights, strict=True)]
     starts = np.cumsum([0] + [d.sizes["time"] for d in days])
     groups: list[list[int]] = []
@@ -311,40 +281,3 @@ def batch_day_rows(recorded_et: np.ndarray, day: _dt.date, max_lag_s: float,
     if own.any() and not own_fragment and _is_fragment(rec[after], float(m[2]), max_lag_s):
         return (own | after)[:n], None
     return own[:n], None
-
-
-def write_day_outputs(
-    day: xr.Dataset,
-    out_dir: Path,
-    frames: Sequence[str],
-    formats: Sequence[str],
-    averages: Sequence[int],
-    provenance: dict,
-    max_offset_step: float | None,
-    quicklook_frame: str | None = None,
-    *,
-    version: int = DEFAULT_VERSION,
-    progress: Progress | None = None,
-) -> list[Path]:
-    """Validate one calibrated day and write all its files, all or nothing.
-
-    ``formats``: product formats (`fluxcal.products.write_product`), and `REPORT_FIGURE`
-    for the offset report's figure (its text is always written).
-
-    Raises
-    ------
-    ValidationError
-        When the day's offsets fail the sec. 13 check (nothing is written).
-    """
-    yyddd = day_code(day)[2]
-    with atomic_group():  # any exception below: no file of the day appears
-        steps = (levels.validate_offsets(day, max_offset_step)
-                 if max_offset_step is not None else None)
-        products = [f for f in formats if f != REPORT_FIGURE]
-        written = write_day(day, out_dir, frames, products, averages, provenance, version,
-                            progress)
-        written += write_report(day, out_dir / f"MAGOFFSETS{yyddd}", max_offset_step, steps,
-                                figure=REPORT_FIGURE in formats)
-        if quicklook_frame is not None:
-            written += write_quicklook(day, out_dir, quicklook_frame)
-    return written

@@ -10,6 +10,9 @@ References
 
 from __future__ import annotations
 
+import datetime as _dt
+import io
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -19,17 +22,17 @@ from fluxcal.extras import require
 from fluxcal.geometry.time import et_to_utc
 from fluxcal.missions.messenger.defects import span_records
 from fluxcal.missions.messenger.levels import offset_step_report
-from fluxcal.products.atomic import atomic_path, atomic_write_bytes
+from fluxcal.products.declared import File
 
 
 def load_figure_support() -> None:
     """Import matplotlib's figure module; for a run to call before it makes any data.
 
     Importing matplotlib raises and catches pyparsing errors whose tracebacks keep
-    every calling frame alive in reference cycles; imported from inside `write_report`,
+    every calling frame alive in reference cycles; imported from inside `report_figure`,
     those frames would hold the day's whole Dataset until a full collection of the
     garbage collector (212 MB at 20 Hz).  A run that writes the figure therefore
-    imports it first (`fluxcal.missions.messenger.run.prepare_formats`); `write_report`
+    imports it first (`fluxcal.missions.messenger.run.prepare_formats`); `report_figure`
     imports it itself when nobody did.  Without the ``plot`` extra it raises
     `~fluxcal.errors.MissingExtraError` (one line, exit 2, nothing read or written).
     """
@@ -86,24 +89,25 @@ def read_defect_spans(path: Path) -> list[dict]:
     return out
 
 
-def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
-                 report: dict | None = None, *, figure: bool = True) -> list[Path]:
-    """Write ``stem.txt`` and, with ``figure``, ``stem.png`` (applied offsets versus time).
+def report_files(ds: xr.Dataset, name: str, threshold_counts: float | None,
+                 report: dict | None = None, day: _dt.date | None = None, *,
+                 figure: bool = True) -> list[File]:
+    """Declare ``name.txt`` (`report_text`) and, with ``figure``, ``name.png`` (`report_figure`).
 
-    ``report``: the day's `offset_step_report`, when already computed (`report_text`).
-
-    Both files go through `fluxcal.products.atomic.atomic_path`, so inside a caller's
-    `atomic_group` they appear only with the rest of the day's products.
+    ``report``: the day's `offset_step_report`, when already computed (`report_text`);
+    the figure is drawn when written (`fluxcal.products.declared.write_declared`).
     """
-    stem = Path(stem)
-    txt = stem.with_name(stem.name + ".txt")
-    atomic_write_bytes(txt, report_text(ds, threshold_counts, report).encode())
-    if not figure:
-        return [txt]
+    files = [File(f"{name}.txt", report_text(ds, threshold_counts, report), day)]
+    if figure:
+        files.append(File(f"{name}.png", partial(report_figure, ds), day))
+    return files
+
+
+def report_figure(ds: xr.Dataset) -> bytes:
+    """Return the PNG of the applied offsets versus time (fine-range counts, per axis)."""
     # the plot extra's module, imported only when a figure is asked for
     from fluxcal.products.quicklook import Figure, date_axis, plot_times
 
-    png = stem.with_name(stem.name + ".png")
     times = plot_times(ds["epoch"].values)  # UTC date ticks (issue 25 item 6)
     fig = Figure(figsize=(8, 6))
     axes = fig.subplots(3, 1, sharex=True)
@@ -113,6 +117,6 @@ def write_report(ds: xr.Dataset, stem: Path, threshold_counts: float | None,
         axes[j].set_ylabel(f"offset {axis} (counts)")
     date_axis(axes[-1])
     fig.suptitle("Applied thermal offsets (fine-range counts)")
-    with atomic_path(png) as tmp:
-        fig.savefig(tmp, dpi=80, format="png")
-    return [txt, png]
+    png = io.BytesIO()
+    fig.savefig(png, dpi=80, format="png")
+    return png.getvalue()
