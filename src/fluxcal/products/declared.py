@@ -2,9 +2,10 @@
 
 A mission says *what* its products are: a `Product` per file set (its name, its UTC
 day, its content or a function making it, its formats, table columns and label
-keywords) or a `Quicklook` per picture.  `write_declared` does the rest once for every
-mission: the UTC day split of undated products, the ISTP file names, the provenance
-attributes, the writers and the all-or-nothing write group.
+keywords), a `Quicklook` per picture or a `File` (a figure of its own, a state the next
+run starts from).  `write_declared` does the rest once for every mission: the UTC day
+split of undated products, the ISTP file names, the provenance attributes, the writers
+and the all-or-nothing write group.
 
 A mission's declarations may be a generator: each product is made only when the one
 before it has been written, so a memory-bound mission (twenty frames and averages of a
@@ -23,7 +24,7 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.days import split_days
-from fluxcal.products.atomic import atomic_group
+from fluxcal.products.atomic import atomic_group, atomic_path
 from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.paths import make_folder, plain_name
 from fluxcal.products.timeindex import default_lsk
@@ -102,7 +103,33 @@ class Quicklook:
     day: _dt.date | None = None
 
 
-Declared = Product | Quicklook
+@dataclass(frozen=True)
+class File:
+    """A file written with the products that is not one (no provenance, no ISTP name).
+
+    A picture the mission draws itself, or a state the next run starts from.
+
+    Parameters
+    ----------
+    path : Path or str
+        Relative to the product folder, or absolute (a file the user named).
+    content : bytes, str, callable or None
+        The bytes (text as UTF-8), or ``write(path)`` writing the file at the temporary
+        path it is given; ``None`` removes an older file at ``path`` once the products
+        are in place (a state that no longer holds).
+    day : datetime.date, optional
+        As `Product.day` (a batch day writes only its own day's files).
+    listed : bool
+        Among the paths `write_declared` returns (a picture); a state is not.
+    """
+
+    path: Path | str
+    content: bytes | str | Callable[[Path], Any] | None
+    day: _dt.date | None = None
+    listed: bool = True
+
+
+Declared = Product | Quicklook | File
 
 
 def _content(item: Declared) -> xr.Dataset:
@@ -116,7 +143,7 @@ def _day(value: Any) -> _dt.date:
 def dated(products: Iterable[Declared]) -> Iterable[Declared]:
     """Split every undated `Product` into one product per UTC day of its samples."""
     for item in products:
-        if isinstance(item, Quicklook) or item.day is not None:
+        if isinstance(item, (Quicklook, File)) or item.day is not None:
             yield item
             continue
         for day, part in split_days(_content(item), lsk=default_lsk()):
@@ -140,7 +167,7 @@ def write_declared(
 
     Parameters
     ----------
-    products : iterable of Product or Quicklook
+    products : iterable of Product, Quicklook or File
         The mission's declarations, in writing order (a generator is consumed lazily).
     out_dir : Path
         Product folder (inside the run's ``--out``; `fluxcal.products.paths`).
@@ -165,9 +192,15 @@ def write_declared(
     out_dir = Path(out_dir)
     make_folder(out_dir)
     written: list[Path] = []
+    stale: list[Path] = []
     with atomic_group():
         for done, item in enumerate(dated(products), start=1):
             if only_day is not None and item.day is not None and item.day != only_day:
+                continue
+            if isinstance(item, File):
+                path = _write_file(item, out_dir, stale)
+                if item.listed and item.content is not None:
+                    written.append(path)
                 continue
             plain_name(item.name, what="product name")
             if isinstance(item, Quicklook):
@@ -176,7 +209,23 @@ def write_declared(
                 written += _write_product(item, out_dir, provenance)
             if progress is not None:
                 progress(item.name, done, 0)
+    for path in stale:  # once every file of the group is in place
+        path.unlink(missing_ok=True)
     return written
+
+
+def _write_file(item: File, out_dir: Path, stale: list[Path]) -> Path:
+    path = out_dir / item.path  # an absolute ``item.path`` stays itself
+    if item.content is None:
+        stale.append(path)
+    elif callable(item.content):
+        with atomic_path(path) as tmp:
+            item.content(tmp)
+    else:
+        with atomic_path(path) as tmp:
+            content = item.content
+            tmp.write_bytes(content.encode() if isinstance(content, str) else content)
+    return path
 
 
 def _write_product(item: Product, out_dir: Path, provenance: Provenance) -> list[Path]:
