@@ -92,3 +92,31 @@ def test_a_single_run_returns_its_products_not_its_state(tmp_path):
     assert state.is_file() and state not in paths
     assert read_stitch_state(state) is not None
     assert {p.suffix for p in paths} == {".TAB", ".LBL"}
+
+
+def test_a_batch_day_refuses_a_product_of_another_day(tmp_path):
+    """The safeguard of a batch day (its LEVEL_A is trimmed to the day): a level reaching
+    into the next day is refused, naming the table it would write, and nothing is written."""
+    import datetime as dt
+
+    from fluxcal.errors import InputFormatError
+    from fluxcal.geometry.kernels import KernelPool
+    from fluxcal.missions.rosetta.options import RosettaOptions
+    from fluxcal.missions.rosetta.routes import (
+        RosettaLevels,
+        RosettaRun,
+        SensorLevels,
+        calibrate_levels,
+    )
+    from fluxcal.missions.rosetta.simulate import write_simulation
+
+    sim = write_simulation(tmp_path / "sim", start_utc="2014-08-01T23:58:00", hours=0.05)
+    levels = calibrate_levels(sim["science_OB"], "OB", options=RosettaOptions(calib=sim["calib"]))
+    run = RosettaLevels([SensorLevels("OB", sim["science_OB"], levels, [], {})], ("A",),
+                        day=dt.date(2014, 8, 1))
+    out = tmp_path / "out"
+    with KernelPool([]), pytest.raises(InputFormatError,
+                                       match=r"outside the day 2014-08-01 .*RPCMAG140802T"):
+        write_declared(RosettaRun().products(run, RosettaOptions(formats=("tab",))), out,
+                       lambda p: {})
+    assert not any(out.iterdir())

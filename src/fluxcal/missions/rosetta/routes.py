@@ -337,10 +337,8 @@ class RosettaRun:
 
     def calibration(self, calibrated: RosettaLevels | None,
                     options: RosettaOptions) -> dict[str, Any]:
-        """Return the calibration of every sensor (each product names its own sensor's)."""
-        if calibrated is None:
-            return {}
-        return {k: v for s in calibrated.sensors for k, v in s.used.items()}
+        """Return no run-wide calibration: each product names its own sensor's (`products`)."""
+        return {}
 
     def day_files(self, input_dir: Path, day: _dt.date, options: RosettaOptions) -> list[Path]:
         """Return the day's raw files and the previous day's science (its tail)."""
