@@ -24,7 +24,7 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.days import split_days
-from fluxcal.products.atomic import atomic_group, atomic_path
+from fluxcal.products.atomic import atomic_group, atomic_path, atomic_write_bytes
 from fluxcal.products.cdf import istp_file_stem
 from fluxcal.products.paths import make_folder, plain_name
 from fluxcal.products.timeindex import default_lsk
@@ -222,9 +222,7 @@ def _write_file(item: File, out_dir: Path, stale: list[Path]) -> Path:
         with atomic_path(path) as tmp:
             item.content(tmp)
     else:
-        with atomic_path(path) as tmp:
-            content = item.content
-            tmp.write_bytes(content.encode() if isinstance(content, str) else content)
+        atomic_write_bytes(path, item.content)
     return path
 
 
