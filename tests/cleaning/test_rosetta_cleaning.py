@@ -341,17 +341,19 @@ def test_wheel_table_must_cover_the_data(lsk):
 
 
 def _write(ds, out, lsk):
-    from fluxcal.missions.rosetta.clean_cli import write_clean_level
-    from fluxcal.missions.rosetta.pipeline import write_level
+    from fluxcal.missions.rosetta.clean_cli import clean_products
+    from fluxcal.missions.rosetta.pipeline import level_products
+    from fluxcal.products.declared import write_declared
 
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]
     if level in "ABC" and "sid" not in ds:
         # calibrated tables are written per filter mode (archive names, issue 10)
         ds = ds.assign(sid=("time", np.full(ds.sizes["time"], 3, np.int16), {"units": "1"}))
     if level in "ABCEFG":
-        paths = write_level(ds, out, lsk=lsk)
+        products = level_products(ds, lsk=lsk)
     else:
-        paths = write_clean_level(ds, out, level=level, sensor=sensor, lsk=lsk)
+        products = [clean_products(ds, level=level, sensor=sensor, lsk=lsk)]
+    paths = write_declared(products, out, lambda product: {})  # no provenance
     return {p.suffix: p for p in paths}
 
 

@@ -34,7 +34,7 @@ def _none(product):
 
 def test_files_are_written_as_declared(tmp_path):
     written = write_declared([File("a.txt", "text\n", DAY), File("b.bin", b"\x00\x01"),
-                              File("c.txt", lambda: "made when written")],
+                              File("c.txt", lambda tmp: tmp.write_text("made when written"))],
                              tmp_path, _none)
     assert [p.name for p in written] == ["a.txt", "b.bin", "c.txt"]
     assert (tmp_path / "a.txt").read_bytes() == b"text\n"
@@ -50,7 +50,7 @@ def test_a_file_of_another_day_is_not_written_on_a_batch_day(tmp_path):
 
 
 def test_a_file_name_with_a_folder_is_refused(tmp_path):
-    with pytest.raises(InputFormatError, match="product name"):
+    with pytest.raises(InputFormatError, match="file name"):
         write_declared([File("../a.txt", "a")], tmp_path / "out", _none)
     assert not (tmp_path / "a.txt").exists()
 
@@ -80,7 +80,7 @@ def test_a_refusal_of_another_day_is_not_raised_on_a_batch_day(tmp_path):
 
 
 def test_an_error_after_a_file_writes_nothing(tmp_path):
-    def failing():
+    def failing(tmp):
         raise RuntimeError("injected")
 
     with pytest.raises(RuntimeError, match="injected"):

@@ -86,19 +86,19 @@ def test_a_batch_refuses_a_folder_a_single_run_holds(tmp_path):
 
 
 def _fail_on_second_level(monkeypatch, action) -> None:
-    """Make `write_level` run ``action`` after the first level of the run is written."""
+    """Make `level_products` run ``action`` after the first level of the run is written."""
     from fluxcal.missions.rosetta import pipeline
 
-    original = pipeline.write_level
+    original = pipeline.level_products
     calls = []
 
-    def write_level(*args, **kwargs):
+    def level_products(*args, **kwargs):
         calls.append(1)
         if len(calls) == 2:
             action()
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, "write_level", write_level)
+    monkeypatch.setattr(pipeline, "level_products", level_products)
 
 
 def test_a_failing_run_leaves_a_good_product_set_byte_equal(sim, good, capsys, monkeypatch):
@@ -141,13 +141,13 @@ def test_sigkill_leaves_temporaries_that_the_next_run_removes(sim, good, caplog)
         import os, signal
         from fluxcal.missions.rosetta import pipeline
         from fluxcal.cli import main
-        original, calls = pipeline.write_level, []
-        def write_level(*args, **kwargs):
+        original, calls = pipeline.level_products, []
+        def level_products(*args, **kwargs):
             calls.append(1)
             if len(calls) == 3:  # LEVEL_A and B staged under temporary names
                 os.kill(os.getpid(), signal.SIGKILL)
             return original(*args, **kwargs)
-        pipeline.write_level = write_level
+        pipeline.level_products = level_products
         main({_calibrate(sim, out)!r})
     """)
     proc = subprocess.run([sys.executable, "-c", script], env={**os.environ, "PYTHONPATH": SRC},

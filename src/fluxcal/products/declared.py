@@ -2,17 +2,17 @@
 
 A mission says *what* its products are: a `Product` per file set (its name, its UTC
 day, its content or a function making it, its formats, table columns and label
-keywords) or a `Quicklook` per picture.  `write_declared` does the rest once for every
-mission: the UTC day split of undated products, the ISTP file names, the provenance
-attributes, the writers and the all-or-nothing write group.
+keywords), a `Quicklook` per picture or a `File` (a figure of its own, a state the next
+run starts from).  `write_declared` does the rest once for every mission: the UTC day
+split of undated products, the ISTP file names, the provenance attributes, the writers
+and the all-or-nothing write group.
 
 A mission's declarations may be a generator: each product is made only when the one
 before it has been written, so a memory-bound mission (twenty frames and averages of a
 20 Hz day) holds one product's arrays at a time.
 
-A mission may also declare a `File` (bytes it made whole: a text report, a figure) and
-a `Refused` product (a day that failed its validation): the other products are written,
-then the refusal is raised.
+A mission may also declare a `Refused` product (a day that failed its validation): the
+other products are written, then the refusal is raised.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 from fluxcal.geometry.days import split_days
-from fluxcal.products.atomic import atomic_group, atomic_write_bytes
+from fluxcal.products.atomic import atomic_group, atomic_path, atomic_write_bytes
 from fluxcal.products.attrs import encode_attrs
 from fluxcal.products.cdf import istp_file_stem, write_cdf_as_is
 from fluxcal.products.paths import make_folder, plain_name
@@ -120,15 +120,28 @@ class Quicklook:
 
 @dataclass(frozen=True)
 class File:
-    """A file the mission made whole (a text report, a figure): ``name`` with its suffix.
+    """A file written with the products that is not one (no provenance, no ISTP name).
 
-    ``data`` (bytes, text written as UTF-8, or a function of no argument returning
-    them) is written as it is: no provenance is added.
+    A picture the mission draws itself, or a state the next run starts from.
+
+    Parameters
+    ----------
+    path : Path or str
+        Relative to the product folder, or absolute (a file the user named).
+    content : bytes, str, callable or None
+        The bytes (text as UTF-8), or ``write(path)`` writing the file at the temporary
+        path it is given; ``None`` removes an older file at ``path`` once the products
+        are in place (a state that no longer holds).
+    day : datetime.date, optional
+        As `Product.day` (a batch day writes only its own day's files).
+    listed : bool
+        Among the paths `write_declared` returns (a picture); a state is not.
     """
 
-    name: str
-    data: bytes | str | Callable[[], bytes | str]
+    path: Path | str
+    content: bytes | str | Callable[[Path], Any] | None
     day: _dt.date | None = None
+    listed: bool = True
 
 
 @dataclass(frozen=True)
@@ -146,7 +159,7 @@ class Refused:
 Declared = Product | Quicklook | File | Refused
 
 
-def _content(item: Product | Quicklook | File) -> Any:
+def _content(item: Product | Quicklook) -> Any:
     return item.data() if callable(item.data) else item.data
 
 
@@ -182,7 +195,7 @@ def write_declared(
 
     Parameters
     ----------
-    products : iterable of Product or Quicklook
+    products : iterable of Product, Quicklook or File
         The mission's declarations, in writing order (a generator is consumed lazily).
     out_dir : Path
         Product folder (inside the run's ``--out``; `fluxcal.products.paths`).
@@ -209,6 +222,7 @@ def write_declared(
     make_folder(out_dir)
     written: list[Path] = []
     refused: list[FluxcalError] = []
+    stale: list[Path] = []
     done = 0
     with atomic_group():
         for item in dated(products):  # (not enumerate: its tuple would hold the item)
@@ -216,11 +230,17 @@ def write_declared(
             if only_day is None or item.day is None or item.day == only_day:
                 if isinstance(item, Refused):
                     refused.append(item.error)
+                elif isinstance(item, File):
+                    path = _write_file(item, out_dir, stale)
+                    if item.listed and item.content is not None:
+                        written.append(path)
                 else:
                     written += _write_item(item, out_dir, provenance, only_day)
                     if progress is not None:
                         progress(item.name, done, 0)
             del item  # not held while the next declaration is made (memory)
+    for path in stale:  # once every file of the group is in place
+        path.unlink(missing_ok=True)
     if refused:
         if len(refused) == 1:
             raise refused[0]
@@ -228,14 +248,27 @@ def write_declared(
     return written
 
 
-def _write_item(item: Declared, out_dir: Path, provenance: Provenance,
+def _write_item(item: Product | Quicklook, out_dir: Path, provenance: Provenance,
                 only_day: _dt.date | None) -> list[Path]:
     plain_name(item.name, what="product name")
     if isinstance(item, Quicklook):
         return _write_quicklook(item, out_dir, only_day)
-    if isinstance(item, File):
-        return [atomic_write_bytes(out_dir / item.name, _content(item))]
     return _write_product(item, out_dir, provenance)
+
+
+def _write_file(item: File, out_dir: Path, stale: list[Path]) -> Path:
+    if not Path(item.path).is_absolute():  # a folder of the products' own, never ``..``
+        for part in Path(item.path).parts:
+            plain_name(part, what="file name")
+    path = out_dir / item.path  # an absolute ``item.path`` (a file the user named) stays
+    if item.content is None:
+        stale.append(path)
+    elif callable(item.content):
+        with atomic_path(path) as tmp:
+            item.content(tmp)
+    else:
+        atomic_write_bytes(path, item.content)
+    return path
 
 
 def _write_product(item: Product, out_dir: Path, provenance: Provenance) -> list[Path]:

@@ -99,8 +99,13 @@ def report_files(ds: xr.Dataset, name: str, threshold_counts: float | None,
     """
     files = [File(f"{name}.txt", report_text(ds, threshold_counts, report), day)]
     if figure:
-        files.append(File(f"{name}.png", partial(report_figure, ds), day))
+        files.append(File(f"{name}.png", partial(_save_figure, ds), day))
     return files
+
+
+def _save_figure(ds: xr.Dataset, path: Path) -> None:
+    """Write `report_figure` at ``path`` (the declared file's temporary)."""
+    Path(path).write_bytes(report_figure(ds))
 
 
 def report_figure(ds: xr.Dataset) -> bytes:

@@ -5,9 +5,9 @@ returns) are written the way the PDS3 archive lays out EDITED raw data: one deta
 ASCII table per sensor and measurement-mode run, split at UTC midnight of the time
 stamps, named ``RPCMAG<yymmdd>T<hhmm>_RAW_<OB|IB>_M<mode>`` (``hhmm`` of the first
 record, the mode only in the name), HK as ``RPCMAG<yymmdd>T<hhmm>_RAW_HK``, in
-``DATA/EDITED/<yyyy>/<MON>/<OB|IB|HK>/``.  Tables and labels are written by fluxcal's
-product writer (`fluxcal.products.tab.write_tab`, labels through
-`fluxcal.products.label`); the columns carry the names of seed 003 sec. 4.1.1 / 4.1.2.
+``DATA/EDITED/<yyyy>/<MON>/<OB|IB|HK>/``.  Tables and labels are declared products
+written by fluxcal's writer (`fluxcal.products.declared.write_declared`, without
+provenance: raw telemetry); the columns carry the names of seed 003 sec. 4.1.1 / 4.1.2.
 The calibration files get their archived names (`write_archive_calibration`).
 
 References
@@ -17,6 +17,7 @@ References
 
 from __future__ import annotations
 
+import datetime as _dt
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +28,7 @@ from fluxcal.missions.rosetta import calib
 from fluxcal.missions.rosetta.io import _utc
 from fluxcal.products import Column
 from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.paths import make_folder
-from fluxcal.products.tab import write_tab
+from fluxcal.products.declared import Product, write_declared
 
 EDITED = ("DATA", "EDITED")
 #: Month folders of the archive tree (``DATA/EDITED/<yyyy>/<MON>/``).
@@ -98,10 +98,11 @@ def _write(ds: xr.Dataset, rows: np.ndarray, stem: Path, columns, extra: dict,
         raise FluxcalError(f"two EDITED products would be named {stem.name} (the same mode "
                            "starting twice within one minute)")
     seen.add(stem.name)
-    make_folder(stem.parent)
     piece = ds.isel(time=rows)
     piece.attrs = {"description": "archive-style EDITED raw product written by fluxcal"}
-    return write_tab(piece, stem, columns=columns, label_extra=extra)
+    day = _dt.date.fromisoformat(str(piece["time_utc"].values[0])[:10])
+    product = Product(stem.name, piece, day, ("tab",), columns=columns, label_extra=extra)
+    return write_declared([product], stem.parent, lambda _: {})  # raw telemetry: no provenance
 
 
 def write_science_products(raw: xr.Dataset, root: Path, *, flat: bool = False,

@@ -39,8 +39,9 @@ its two vectors and writes the file), and resolves the chain forward.  Order of 
 does not matter, and the incoming state is part of the day's manifest inputs, so a change
 in an earlier day redoes the later days of its campaign.
 
-Every file of a day (both sensors, every level and format, HK, quicklooks) is renamed
-into place only when the whole day succeeded (`RosettaRun.write`).
+Every file of a day (both sensors, every level and format, HK, quicklooks, its stitch
+files) is renamed into place only when the whole day succeeded (`RosettaRun.products`,
+written by the driver).
 
 References
 ----------
@@ -164,15 +165,12 @@ def edge_key(science: Any, sensor: str, kernels: Path | None) -> list:
     return [[_file_key(p) for p in files], _file_key(kernels)]
 
 
-def write_stitch(stitch_dir: Path, day: _dt.date, sensor: str, key: list, edges,
-                 end_state: dict | None) -> None:
-    """Write a day's stitch file: its key, first and last good vectors, end-of-day state."""
-    data = {"key": key,
-            "first": list(edges[0]) if edges else None,
-            "last": list(edges[1]) if edges else None,
-            "end_state": end_state}
-    atomic_write_bytes(Path(stitch_dir) / stitch_name(day, sensor),
-                       json.dumps(data, indent=1).encode())
+def stitch_text(key: list, edges, end_state: dict | None) -> str:
+    """Return a day's stitch file: its key, first and last good vectors, end-of-day state."""
+    return json.dumps({"key": key,
+                       "first": list(edges[0]) if edges else None,
+                       "last": list(edges[1]) if edges else None,
+                       "end_state": end_state}, indent=1)
 
 
 @dataclass(frozen=True)
@@ -211,8 +209,9 @@ class DayChain:
         source = science_source(self.input_dir, day, sensor)
         raw = read_science(source, sensor, sclk=sclk, lsk=leapseconds())
         edges = stitch_edges(raw, sensor)
-        write_stitch(self.stitch_dir, day, sensor, edge_key(source, sensor, self.kernels),
-                     edges, None)
+        # the chain's cache of an earlier day (no product of this day): written at once
+        atomic_write_bytes(Path(self.stitch_dir) / stitch_name(day, sensor),
+                           stitch_text(edge_key(source, sensor, self.kernels), edges, None))
         return edges
 
     def incoming_state(self, day: _dt.date, sensor: str):

@@ -4,8 +4,9 @@ File I/O around the pure level functions of `fluxcal.missions.rosetta.cleaning_l
 read earlier-level products (``.cdf``, ``.nc`` or ``.TAB``), run one level, write
 ``RPCMAG_<yyyymmdd>_CL<level>_<sensor>`` tables and ISTP-named
 ``rosetta_rpcmag_cl<level>-<sensor>_<yyyymmdd>_v01`` CDF, netCDF or Zarr
-(`write_clean_level`), plus a before/after spectrogram PNG for H and a before/after
-time-series PNG for K.
+(`clean_products`), plus a before/after spectrogram PNG for H and a before/after
+time-series PNG for K, declared (`CleanRun`) and written by the generic driver with the
+provenance.
 
 Registration (in ``fluxcal/cli.py``)::
 
@@ -23,7 +24,7 @@ import csv
 import io
 import logging
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -34,8 +35,8 @@ from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import check_average
-from fluxcal.products.atomic import atomic_path
-from fluxcal.products.paths import make_folder, plain_name
+from fluxcal.products.declared import Declared, File, Product
+from fluxcal.products.paths import plain_name
 from fluxcal.runs.options import with_config
 from fluxcal.textfile import read_text
 
@@ -126,31 +127,27 @@ def clean_logical_source(level: str, sensor: str) -> tuple[str, str]:
     return data_type, f"rosetta_rpcmag_cl{level}-{sensor}".lower()
 
 
-def write_clean_level(
+def clean_products(
     ds: xr.Dataset,
-    out_dir: Path,
     *,
     level: str,
     sensor: str,
     formats: Sequence[str] = ("tab", "cdf"),
-    provenance: dict | None = None,
     lsk=None,
-) -> list[Path]:
-    """Write one cleaned level of one sensor (one day); return the paths written.
+) -> Product:
+    """Declare one cleaned level of one sensor (one day; `fluxcal.products.declared`).
 
     The table is ``RPCMAG_<yyyymmdd>_CL<level>_<sensor>.TAB`` (+ label); CDF, netCDF and
     Zarr have the ISTP names of the calibrated levels,
     ``rosetta_rpcmag_cl<level>-<sensor>_<yyyymmdd>_v01``, with the level's own
     ``Logical_source`` and ``Data_type`` (`clean_logical_source`) and the Rosetta ISTP
-    attribute files.
+    attribute files.  The input's provenance is kept as ``parent_*`` attributes.
     """
+    import datetime as _dt
+
     from fluxcal.geometry.time import tt2000_to_utc
     from fluxcal.missions.rosetta.pipeline import DATA_VERSION, istp_yaml
-    from fluxcal.products import write_product
-    from fluxcal.products.cdf import istp_file_stem
 
-    out_dir = Path(out_dir)
-    make_folder(out_dir)
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors to write")
@@ -159,24 +156,55 @@ def write_clean_level(
     for key in ("inputs", "calibration", "kernels"):
         if key in attrs:
             attrs[f"parent_{key}"] = attrs.pop(key)
-    attrs.update(provenance or {})
-    data_type, source = clean_logical_source(level, sensor)
-    attrs.update(Data_type=data_type, Logical_source=source, Data_version=str(DATA_VERSION),
-                 Logical_source_description=f"Rosetta RPC-MAG LEVEL_{level}, "
-                                            f"{CLEAN_DESCRIPTION[level.upper()]}")
     part.attrs = attrs
+    data_type, source = clean_logical_source(level, sensor)
     day = _day(epoch, lsk)
-    extra = {"LEVEL": f"LEVEL_{level}", "SENSOR": sensor}
-    written: list[Path] = []
-    if "tab" in formats:
-        written += write_product(part, out_dir / f"RPCMAG_{day}_CL{level}_{sensor}",
-                                 formats=("tab",), columns=_columns(level, part),
-                                 label_extra=extra)
-    other = [f for f in formats if f != "tab"]
-    if other:
-        written += write_product(part, out_dir / istp_file_stem(source, day, DATA_VERSION),
-                                 formats=other, label_extra=extra, **istp_yaml())
-    return written
+    return Product(f"RPCMAG_{day}_CL{level}_{sensor}", part,
+                   _dt.date(int(day[:4]), int(day[4:6]), int(day[6:])), tuple(formats),
+                   logical_source=source, version=DATA_VERSION,
+                   columns=_columns(level, part),
+                   label_extra={"LEVEL": f"LEVEL_{level}", "SENSOR": sensor}, **istp_yaml(),
+                   attrs={"Data_type": data_type, "Logical_source": source,
+                          "Data_version": str(DATA_VERSION),
+                          "Logical_source_description": f"Rosetta RPC-MAG LEVEL_{level}, "
+                                                        f"{CLEAN_DESCRIPTION[level.upper()]}"})
+
+
+@dataclass(frozen=True)
+class CleanRun:
+    """The products of one cleaning level (`fluxcal.runs.driver.write`: provenance, one group).
+
+    ``before`` is the input the before/after PNG compares with (H, K; ``None``: no PNG).
+    """
+
+    level: str
+    formats: tuple[str, ...]
+    before: xr.Dataset | None = None
+    lsk: object = None
+
+    def products(self, made: dict[str, xr.Dataset], options: object = None) -> Iterator[Declared]:
+        """Declare each sensor's cleaned level, then the before/after PNG."""
+        from fluxcal.missions.rosetta.pipeline import level_products
+
+        for tag, ds in made.items():
+            if self.level in ("F", "G"):
+                # the same products (archive names, columns) as F/G from B/C
+                yield from level_products(ds.assign_attrs(sensor=tag), self.formats,
+                                          lsk=self.lsk)
+            else:
+                yield clean_products(ds, level=self.level, sensor=tag, formats=self.formats,
+                                     lsk=self.lsk)
+        if self.before is not None:
+            sensor, after = next(iter(made.items()))
+            title = f"RPC-MAG {sensor} LEVEL_{self.level}"
+            plotter = plot_spectrogram if self.level == "H" else plot_timeseries
+            yield File(f"RPCMAG_{_day(after['epoch'].values, self.lsk)}_CL{self.level}_"
+                       f"{sensor}.png",
+                       lambda path: plotter(self.before, after, path, title))
+
+    def calibration(self, made: object, options: object = None) -> dict:
+        """Return no calibration: a cleaning level is made from products and side tables."""
+        return {}
 
 
 def read_intervals(path: Path, lsk=None) -> list[tuple[int, int, str]]:
@@ -361,12 +389,12 @@ def plot_timeseries(before: xr.Dataset, after: xr.Dataset, path: Path, title: st
 
 
 def _save(fig, path: Path) -> Path:
+    """Save ``fig`` as PNG at ``path`` (a declared file's temporary: `CleanRun`)."""
     import matplotlib.pyplot as plt
 
     path = Path(path)
     try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=100, format="png")
+        fig.savefig(path, dpi=100, format="png")
     finally:
         plt.close(fig)
     return path
@@ -458,7 +486,7 @@ def clean_files(
     from fluxcal.geometry.time import leapseconds
     from fluxcal.missions.rosetta import cleaning_levels as cl
     from fluxcal.missions.rosetta.reaction_wheels import read_reaction_wheels
-    from fluxcal.products import provenance_attrs
+    from fluxcal.runs import driver
 
     level = level.strip().upper()
     if pca_estimator not in ("robust", "common-mode", "projection"):
@@ -554,25 +582,11 @@ def clean_files(
                 made = {sensor: cl.level_k(src, heater_direction=heater_direction)}
         else:
             made = {sensor: cl.level_l(src, lsk=lsk)}
-        prov = provenance_attrs(inputs=used_inputs, kernels=[Path(str(k)) for k in pool.loaded])
-        for tag, ds in made.items():
-            result.levels[tag] = ds
-            if level in ("F", "G"):
-                # the same products (archive names, columns) as F/G from B/C
-                from fluxcal.missions.rosetta.pipeline import write_level
-
-                part = ds.assign_attrs(sensor=tag)
-                result.paths += write_level(part, out, formats=formats, provenance=prov, lsk=lsk)
-                continue
-            result.paths += write_clean_level(
-                ds, out, level=level, sensor=tag, formats=formats, provenance=prov, lsk=lsk
-            )
-        if plot and level in ("H", "K"):
-            ds = made[sensor]
-            png = out / f"RPCMAG_{_day(ds['epoch'].values, lsk)}_CL{level}_{sensor}.png"
-            title = f"RPC-MAG {sensor} LEVEL_{level}"
-            plotter = plot_spectrogram if level == "H" else plot_timeseries
-            result.paths.append(plotter(src, ds, png, title))
+        result.levels.update(made)
+        run = CleanRun(level, tuple(formats), src if plot and level in ("H", "K") else None,
+                       lsk)
+        result.paths = driver.write(run, made, out, None, inputs=used_inputs,
+                                    kernel_list=[Path(str(k)) for k in pool.loaded])
     return result
 
 

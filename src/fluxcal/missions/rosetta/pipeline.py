@@ -1,11 +1,12 @@
-"""The products of the RPC-MAG pipeline (names, columns, writers) and its day edges.
+"""The products of the RPC-MAG pipeline (names, columns, declarations) and its day edges.
 
 The level functions (`level_a`, `level_b`, `level_c`, `averaged.average`) are pure; the
 run around them is `fluxcal.missions.rosetta.routes.RosettaRun` on the generic driver.
-This module names and writes the products and holds the checks and the previous day's
-tail of a batch day (docs/formats/rosetta.md, "Day edges").
+This module names and declares the products (`fluxcal.products.declared`: the driver
+writes them) and holds the checks and the previous day's tail of a batch day
+(docs/formats/rosetta.md, "Day edges").
 
-Tables carry the archive's names (`write_level`): calibrated levels
+Tables carry the archive's names (`level_products`): calibrated levels
 ``RPCMAG<yymmdd>T<hhmm>_CL<A|B|C>_<OB|IB>_M<mode>.TAB`` (a new file at each mode change),
 resampled levels ``RPCMAG<yymmdd>_CL<E|F|G>_<OB|IB>_A<NN>.TAB``, with the columns of the
 seed's tables: TIME.UTC (ISO, 6 decimals), TIME.OBT, [POSITION.X/Y/Z for C/G], BX, BY,
@@ -19,9 +20,10 @@ References
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
 import logging
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,10 +34,8 @@ from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.geometry.days import utc_days
 from fluxcal.geometry.time import tt2000_to_utc
 from fluxcal.missions.rosetta import archive, calib, hk, level_a
-from fluxcal.products import Column, write_product
-from fluxcal.products.atomic import atomic_write_bytes
-from fluxcal.products.cdf import istp_file_stem
-from fluxcal.products.paths import make_folder
+from fluxcal.products import Column
+from fluxcal.products.declared import Declared, Product, Quicklook
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +52,7 @@ def istp_yaml() -> dict[str, Path]:
 
     ``missions/rosetta/data/istp_global.yaml`` (Project, Source_name, Descriptor,
     Discipline, ...) and ``istp_variables.yaml`` (the variables of the RPC-MAG levels),
-    passed to `fluxcal.products.write_product`.
+    of the declared products (`fluxcal.products.declared.Product`).
     """
     data = Path(__file__).resolve().parent / "data"
     return {"global_yaml": data / "istp_global.yaml",
@@ -161,21 +161,22 @@ def product_columns(level: str) -> list:
     return cols
 
 
-def write_level(
+def level_products(
     ds: xr.Dataset,
-    out_dir: Path,
-    *,
     formats: Sequence[str] = ("tab", "cdf"),
-    provenance: dict | None = None,
+    *,
     lsk=None,
-) -> list[Path]:
-    """Write one level of one sensor; return the paths written.
+    **common: Any,
+) -> Iterator[Product]:
+    """Declare one level of one sensor (`fluxcal.products.declared`), part by part.
 
     Tables (``tab``) carry the archive's names: calibrated levels A, B, C one file per
     UTC day and measurement-mode segment (``RPCMAG<yymmdd>T<hhmm>_CL<A|B|C>_<sensor>_M<sid>``,
     `calibrated_tab_stem`), resampled levels E, F, G one per UTC day
-    (`resampled_tab_stem`).  CDF, netCDF and Zarr are one file per UTC day named by the
-    ISTP convention ``rosetta_rpcmag_cl<level>-<sensor>[-a<NN>]_<yyyymmdd>_v01``.
+    (`resampled_tab_stem`).  CDF, netCDF and Zarr are one product per UTC day named by
+    the ISTP convention ``rosetta_rpcmag_cl<level>-<sensor>[-a<NN>]_<yyyymmdd>_v01``.
+    ``common``: further `~fluxcal.products.declared.Product` fields of every part (the
+    sensor's ``inputs`` and ``calibration``).
 
     Raises
     ------
@@ -185,8 +186,6 @@ def write_level(
     """
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]
     seconds = ds.attrs.get("average_seconds")
-    out_dir = Path(out_dir)
-    make_folder(out_dir)
     epoch = ds["epoch"].values
     if epoch.size == 0:
         raise FluxcalError(f"LEVEL_{level} {sensor}: no vectors left to write")
@@ -200,42 +199,38 @@ def write_level(
         )
     )
     attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("stitch_")}
-    attrs.update(provenance or {})
-    attrs.update(Logical_source=source, Data_version=str(DATA_VERSION))
+    common = {**common, "attrs": {"Logical_source": source, "Data_version": str(DATA_VERSION)}}
     extra = {"LEVEL": f"LEVEL_{level}", "SENSOR": sensor}
     if seconds is not None:
         extra["AVERAGE_SECONDS"] = float(seconds)
-    other = [f for f in formats if f != "tab"]
+    other = tuple(f for f in formats if f != "tab")
     day_index, days, _ = utc_days(epoch, lsk)
-    written: list[Path] = []
-    for d, day in enumerate(days):
+    for d, day64 in enumerate(days):
         sel = np.flatnonzero(day_index == d)
         if sel.size == 0:
             continue
+        day = _dt.date.fromisoformat(str(np.datetime64(day64, "D")))
         # a one-day level is written as it is (a copy of a 20 Hz day is ~400 MB)
         part = ds.copy(deep=False) if sel.size == epoch.size else ds.isel(time=sel)
         part.attrs = dict(attrs)
         segment = part["mode_segment"].values if "mode_segment" in part.coords else None
         part = part.drop_vars("mode_segment", errors="ignore")
         if other:
-            written += write_product(
-                part, out_dir / istp_file_stem(source, day, DATA_VERSION), formats=other,
-                label_extra=extra, **istp_yaml(),
-            )
+            yield Product(f"{source}_{day:%Y%m%d}", part, day, other, logical_source=source,
+                          version=DATA_VERSION, label_extra=extra, **istp_yaml(), **common)
         if "tab" not in formats:
             continue
         if level not in CALIBRATED_LEVELS:
-            stem = resampled_tab_stem(day, level, sensor, seconds or 1.0, src_level)
-            written += write_product(part, out_dir / stem, formats=("tab",),
-                                     columns=product_columns(level), label_extra=extra)
+            stem = resampled_tab_stem(day64, level, sensor, seconds or 1.0, src_level)
+            yield Product(stem, part, day, ("tab",), columns=product_columns(level),
+                          label_extra=extra, **common)
             continue
         if segment is None:
             segment = np.zeros(sel.size, dtype=np.int32)
         ids, first = np.unique(segment, return_index=True)
         seen: dict[str, int] = {}
         for seg in ids[np.argsort(first)]:
-            rows = np.flatnonzero(segment == seg)
-            piece = part.isel(time=rows)
+            piece = part.isel(time=np.flatnonzero(segment == seg))
             mode = int(piece["sid"].values[0])
             stem = calibrated_tab_stem(str(piece["time_utc"].values[0]), level, sensor, mode)
             if stem in seen:
@@ -244,10 +239,8 @@ def write_level(
                     f"minute ({stem}); the archive names cannot tell them apart"
                 )
             seen[stem] = int(seg)
-            written += write_product(piece, out_dir / stem, formats=("tab",),
-                                     columns=product_columns(level),
-                                     label_extra={**extra, "FILTER_MODE_SID": mode})
-    return written
+            yield Product(stem, piece, day, ("tab",), columns=product_columns(level),
+                          label_extra={**extra, "FILTER_MODE_SID": mode}, **common)
 
 
 def quicklook_dataset(levels: dict[str, xr.Dataset]) -> xr.Dataset:
@@ -310,19 +303,16 @@ def thermistor_temperatures(
     return out
 
 
-def write_quicklook(
+def quicklook_product(
     levels: dict[str, xr.Dataset],
-    out_dir: Path,
     temperatures: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
-) -> list[Path]:
-    """Write ``RPCMAG_QL_<sensor>_<yyyymmdd>.png`` per UTC day.
+) -> Quicklook:
+    """Declare ``RPCMAG_QL_<sensor>_<yyyymmdd>.png`` per UTC day.
 
     Panels: the field of `quicklook_dataset`, the sensor temperatures (both sensors'
     when ``temperatures`` is given, see `thermistor_temperatures`, interpolated to the
     field's time stamps for drawing; else the sensor's own), quality and distance.
     """
-    from fluxcal.products.quicklook import write_quicklooks
-
     ds = quicklook_dataset(levels)
     if temperatures:
         t = ds["epoch"].values.astype(np.int64)
@@ -335,36 +325,32 @@ def write_quicklook(
             ds = ds.drop_vars("temperature", errors="ignore").assign(extra)
     ds = with_distance(ds)
     frame = str(ds["b"].attrs.get("frame", ds.attrs.get("frame", "")) or "") or None
-    stem = QUICKLOOK_STEM.format(sensor=ds.attrs["sensor"])
-    return write_quicklooks(ds, Path(out_dir), stem, field="b", frame=frame)
+    return Quicklook(QUICKLOOK_STEM.format(sensor=ds.attrs["sensor"]), ds, field="b",
+                     frame=frame)
 
 
-def write_sensor(
+def sensor_products(
     levels: dict[str, xr.Dataset],
     wanted: Sequence[str],
-    out: Path,
-    provenance: dict,
     *,
     formats: Sequence[str] = ("tab", "cdf"),
     quicklook: bool = False,
     temperatures: dict | None = None,
     lsk=None,
-) -> list[Path]:
-    """Write one sensor's levels asked for, its HK product and its quicklook.
+    **common: Any,
+) -> Iterator[Declared]:
+    """Declare one sensor's levels asked for, its HK product and its quicklook.
 
-    ``levels`` maps level names (and ``"HK"``) to datasets; ``wanted`` the levels written
-    (in `LEVELS` order).  Kernels loaded.  Returns the files written.
+    ``levels`` maps level names (and ``"HK"``) to datasets; ``wanted`` the levels
+    declared (in `LEVELS` order); ``common`` as `level_products`.  Kernels loaded.
     """
-    paths: list[Path] = []
     for lev in LEVELS:
         if lev in wanted:
-            paths += write_level(levels[lev], out, formats=formats, provenance=provenance,
-                                 lsk=lsk)
+            yield from level_products(levels[lev], formats, lsk=lsk, **common)
     if "HK" in levels:
-        paths += _write_hk(levels["HK"], out, provenance, formats, lsk)
+        yield hk_product(levels["HK"], formats, lsk=lsk, **common)
     if quicklook:
-        paths += write_quicklook(levels, out, temperatures)
-    return paths
+        yield quicklook_product(levels, temperatures)
 
 
 def parse_levels(text: str) -> list[str]:
@@ -512,7 +498,7 @@ def merge_tail(tail: xr.Dataset, a: xr.Dataset) -> xr.Dataset:
 
 
 def read_stitch_state(path: Path | None) -> level_a.StitchState | None:
-    """Read the end-of-day stitching state written by `write_stitch_state` (``None`` if absent)."""
+    """Read the end-of-day stitching state (`stitch_state_text`; ``None`` if absent)."""
     if path is None or not Path(path).is_file():
         return None
     try:
@@ -521,17 +507,13 @@ def read_stitch_state(path: Path | None) -> level_a.StitchState | None:
         raise FluxcalError(f"{path}: not a fluxcal stitching state file ({exc})") from None
 
 
-def write_stitch_state(state: dict | None, path: Path) -> Path | None:
-    """Write the end-of-day stitching state (``stitch_*`` attributes) as JSON, atomically.
+def stitch_state_text(state: dict | None) -> str | None:
+    """Return the end-of-day stitching state file (``stitch_*`` attributes) as JSON text.
 
-    A stale file is removed when the day had no extended model (``state`` empty: the
-    chain is broken).
+    ``None`` when the day had no extended model (``state`` empty: the chain is broken,
+    a stale file is removed).
     """
-    path = Path(path)
-    if not state:
-        path.unlink(missing_ok=True)
-        return None
-    return atomic_write_bytes(path, json.dumps(state, indent=1), now=True)
+    return json.dumps(state, indent=1) if state else None
 
 
 def _round_us(epoch: np.ndarray) -> np.ndarray:
@@ -543,8 +525,8 @@ def _utc(epoch: np.ndarray, lsk) -> np.ndarray:
     return tt2000_to_utc(epoch, digits=0, lsk=lsk)
 
 
-def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]:
-    """HK LEVEL_A: table ``RPCMAG_<yyyymmdd>_HKA`` (fluxcal's name), ISTP-named CDF."""
+def hk_product(ds: xr.Dataset, formats: Sequence[str], *, lsk=None, **common: Any) -> Product:
+    """Declare HK LEVEL_A: table ``RPCMAG_<yyyymmdd>_HKA`` (fluxcal's name), ISTP-named CDF."""
     ds = ds.assign(
         time_utc=(
             "time",
@@ -553,9 +535,7 @@ def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]
         )
     )
     source = "rosetta_rpcmag_cla-hk"
-    ds.attrs = {**ds.attrs, **prov, "level": "A (HK)", "Logical_source": source,
-                "Data_version": str(DATA_VERSION)}
-    day = str(_utc(ds["epoch"].values[:1], lsk)[0])[:10].replace("-", "")
+    day = _dt.date.fromisoformat(str(_utc(ds["epoch"].values[:1], lsk)[0])[:10])
     # column names of seed 003 sec. 4.1.1
     cols = [
         Column("time_utc", "A26", label="TIME.UTC", data_type="TIME"),
@@ -570,12 +550,7 @@ def _write_hk(ds: xr.Dataset, out: Path, prov: dict, formats, lsk) -> list[Path]
         Column("pos_voltage", "F9.5", label="MAG.POS.VOLTAGE"),
         Column("b_ob", "F11.3", label="B{c}.OB"),
     ]
-    written = []
-    if "tab" in formats:
-        written += write_product(ds, Path(out) / f"RPCMAG_{day}_HKA", formats=("tab",),
-                                 columns=cols)
-    other = [f for f in formats if f != "tab"]
-    if other:
-        written += write_product(ds, Path(out) / istp_file_stem(source, day, DATA_VERSION),
-                                 formats=other, **istp_yaml())
-    return written
+    return Product(f"RPCMAG_{day:%Y%m%d}_HKA", ds, day, tuple(formats), logical_source=source,
+                   version=DATA_VERSION, columns=cols, **istp_yaml(), **common,
+                   attrs={"level": "A (HK)", "Logical_source": source,
+                          "Data_version": str(DATA_VERSION)})

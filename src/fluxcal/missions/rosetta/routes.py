@@ -3,16 +3,17 @@
 `RosettaRun` is the mission's `~fluxcal.runs.driver.Pipeline`: read the raw science of
 each sensor (a CSV file or the archive's EDITED products), its calibration tables and,
 for a batch day, the previous day's records that cross midnight; calibrate LEVEL_A..G
-(sec. 4.2-4.8); write every level, the HK product and the quicklooks of the run, all or
-nothing.  ``fluxcal rosetta calibrate`` (`run_files`), the one-call API
+(sec. 4.2-4.8); declare every level, the HK product and the quicklooks of the run (the
+driver writes them, all or nothing).  ``fluxcal rosetta calibrate`` (`run_files`), the one-call API
 (`calibrate_levels`) and ``fluxcal batch rosetta`` (`make_day_task`) are the same
 pipeline with another source.
 
 No state is hidden: the midnight-stitching state a sensor starts from, and the previous
 day's file with the state that day starts from, are fields of its `SensorSource`; the
 end-of-day state and the first and last good vectors are fields of its
-`SensorLevels`, written by `RosettaRun.write` (the ``--stitch-state`` file of a single
-run, the ``<out>/stitch`` files of a batch day, docs/decisions/rosetta.md decision 27).
+`SensorLevels`, declared by `RosettaRun.products` (the ``--stitch-state`` file of a
+single run, the ``<out>/stitch`` files of a batch day, docs/decisions/rosetta.md
+decision 27): run state beside the products, not a product.
 
 References
 ----------
@@ -24,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import logging
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,12 +58,11 @@ from fluxcal.missions.rosetta.pipeline import (
     previous_day_records,
     previous_day_tail,
     read_stitch_state,
+    sensor_products,
+    stitch_state_text,
     thermistor_temperatures,
-    write_sensor,
-    write_stitch_state,
 )
-from fluxcal.products.atomic import atomic_group
-from fluxcal.products.provenance import provenance_attrs
+from fluxcal.products.declared import Declared, File
 from fluxcal.runs import driver
 from fluxcal.runs.batch import DayWithoutData
 
@@ -301,36 +301,44 @@ class RosettaRun:
             progress("calibrated", len(raw.sensors), len(raw.sensors))
         return RosettaLevels(sensors, wanted, raw.day, raw.state_file)
 
-    def write(self, calibrated: RosettaLevels, out_dir: Path, options: RosettaOptions, *,
-              inputs: Sequence[Path], kernel_list: Sequence[str], only_day: _dt.date | None,
-              progress: driver.Progress | None) -> list[Path]:
-        """Write every sensor's products as one group, then the stitching states.
+    def products(self, calibrated: RosettaLevels,
+                 options: RosettaOptions) -> Iterator[Declared]:
+        """Declare every sensor's products, then the stitching states (run state, no product).
 
         Each sensor's products name its own input files and calibration.  The states go
-        to the single run's ``state_file`` and the batch's stitch files only when every
-        product is in place.
+        to the single run's ``state_file`` and the batch's stitch files with the
+        products, all or nothing (`fluxcal.products.declared.File`).
+
+        Raises
+        ------
+        InputFormatError
+            A batch day's product of another day (a safeguard: LEVEL_A is trimmed).
         """
         lsk = leapseconds()
-        day = calibrated.day or only_day
-        paths: list[Path] = []
-        with atomic_group():  # nothing of the run appears unless every file is complete
-            for s in calibrated.sensors:
-                prov = provenance_attrs(inputs=s.inputs, calibration=s.used,
-                                        kernels=list(kernel_list))
-                paths += write_sensor(s.levels, calibrated.wanted, Path(out_dir), prov,
-                                      formats=options.formats, quicklook=options.quicklook,
-                                      temperatures=s.temperatures, lsk=lsk)
-            if day is not None:
-                _check_day_names(paths, day, calibrated.sensors[0].science)
+        day = calibrated.day
+        for s in calibrated.sensors:
+            for item in sensor_products(s.levels, calibrated.wanted, formats=options.formats,
+                                        quicklook=options.quicklook,
+                                        temperatures=s.temperatures, lsk=lsk,
+                                        inputs=tuple(s.inputs), calibration=s.used):
+                if day is not None and item.day not in (None, day):
+                    raise InputFormatError(f"records outside the day {day} (would write "
+                                           f"{item.name})", path=str(s.science),
+                                           field="time_utc")
+                yield item
         if calibrated.state_file is not None:
             for s in calibrated.sensors:
-                write_stitch_state(s.end_state, calibrated.state_file)
+                yield File(calibrated.state_file, stitch_state_text(s.end_state), listed=False)
         if self.stitch_dir is not None and day is not None:
             for s in calibrated.sensors:
-                batch_task.write_stitch(self.stitch_dir, day, s.sensor,
-                                        batch_task.edge_key(s.science, s.sensor, self.kernels),
-                                        s.edges, s.end_state)
-        return paths
+                key = batch_task.edge_key(s.science, s.sensor, self.kernels)
+                yield File(Path(self.stitch_dir) / batch_task.stitch_name(day, s.sensor),
+                           batch_task.stitch_text(key, s.edges, s.end_state), listed=False)
+
+    def calibration(self, calibrated: RosettaLevels | None,
+                    options: RosettaOptions) -> dict[str, Any]:
+        """Return no run-wide calibration: each product names its own sensor's (`products`)."""
+        return {}
 
     def day_files(self, input_dir: Path, day: _dt.date, options: RosettaOptions) -> list[Path]:
         """Return the day's raw files and the previous day's science (its tail)."""
@@ -457,18 +465,6 @@ def _unreadable(source: SensorSource, exc: Exception) -> str:
     note = f"previous day's file unreadable, its tail is missing: {exc}"
     log.warning("%s: %s", source.science, note)
     return note
-
-
-def _check_day_names(paths: Sequence[Path], day: _dt.date, source: Any) -> None:
-    """Refuse a batch day's product named for another day (a safeguard: LEVEL_A is trimmed).
-
-    Archive tables carry ``RPCMAG<yymmdd>``, ISTP CDFs, HK and quicklooks ``_<yyyymmdd>``.
-    """
-    stamps = (f"RPCMAG{day:%y%m%d}", f"_{day:%Y%m%d}")
-    stray = [p for p in paths if not any(s in Path(p).name for s in stamps)]
-    if stray:
-        raise InputFormatError(f"records outside the day {day} (would write "
-                               f"{Path(stray[0]).name})", path=str(source), field="time_utc")
 
 
 def file_source(science: Any, sensor: str, *, hk: Any = None,
