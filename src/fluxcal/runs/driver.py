@@ -191,9 +191,6 @@ def write(
     fluxcal.runs.batch.DayWithoutData
         When ``only_day`` is given and no product of that day was declared.
     """
-    if not hasattr(pipeline, "products"):  # TRANSITIONAL: a mission not yet converted
-        return pipeline.write(calibrated, out_dir, options, inputs=inputs,
-                              kernel_list=kernel_list, only_day=only_day, progress=progress)
     run_calibration = dict(pipeline.calibration(calibrated, options))
     records: dict[tuple, Mapping[str, Any]] = {}
 
