@@ -12,6 +12,7 @@ from __future__ import annotations
 import tracemalloc
 from pathlib import Path
 
+import cdflib
 import numpy as np
 import pytest
 import xarray as xr
@@ -55,6 +56,8 @@ def _mixed(n: int) -> xr.Dataset:
     return ds.assign(
         B_mso=(("time", "component"), b, ds["B_mso"].attrs),
         strided=(("time", "component"), wide[:, ::2], kw),  # not C-contiguous
+        column=("time", wide[:, 1], kw),  # a strided 1-D view
+        fortran=(("time", "component"), np.asfortranarray(wide[:, 3:]), kw),
         i8=("time", rng.integers(-100, 100, n).astype(np.int8), kw),
         i16=("time", rng.integers(-100, 100, n).astype(np.int16), kw),
         i64=("time", rng.integers(-100, 100, n).astype(np.int64), kw),
@@ -75,6 +78,23 @@ def test_bytes_equal_cdflibs_own_conversion(tmp_path: Path, monkeypatch, n: int)
     monkeypatch.setattr(cdf, "CDFWriter", cdflib_writer_of_lists(ds))
     theirs = cdf.write_cdf(ds, tmp_path / "theirs.cdf")
     assert ours.read_bytes() == theirs.read_bytes()
+
+
+@pytest.mark.parametrize("n", [1, 257])
+def test_every_value_reads_back_with_cdflib(tmp_path: Path, n: int) -> None:
+    """Row-major values of every type and memory layout; NaN as the ISTP fill -1e31."""
+    ds = _mixed(n)
+    got = cdflib.CDF(str(cdf.write_cdf(ds, tmp_path / "x.cdf")))
+    np.testing.assert_array_equal(got.varget("Epoch").reshape(-1), ds["epoch"].values)
+    for name, var in ds.data_vars.items():
+        expected = var.values
+        if expected.dtype.kind == "f":
+            expected = np.where(np.isnan(expected), -1e31, expected)
+        elif expected.dtype.kind == "U":
+            expected = expected.astype(str)
+        raw = np.asarray(got.varget(name)).reshape(var.shape)
+        np.testing.assert_array_equal(raw.astype(expected.dtype) if expected.dtype == bool
+                                      else raw, expected, err_msg=name)
 
 
 def test_a_text_column_is_not_a_python_list(tmp_path: Path) -> None:

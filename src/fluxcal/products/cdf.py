@@ -349,7 +349,7 @@ def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
         nan = np.isnan(values)
         if nan.any():
             values = np.where(nan, fill, values)
-    return _TYPES[key][0], 1, np.ascontiguousarray(values)
+    return _TYPES[key][0], 1, values  # cdflib makes its own C-ordered copy
 
 
 def _spec(name: str, cdf_type: str, nelem: int, shape: tuple[int, ...],
