@@ -9,6 +9,7 @@ with NUL to the width), byte for byte; memory bounds from cdflib's numeric conve
 
 from __future__ import annotations
 
+import ast
 import tracemalloc
 from pathlib import Path
 
@@ -139,3 +140,16 @@ def test_a_large_vector_costs_cdflibs_two_copies_only(tmp_path: Path) -> None:
     finally:
         tracemalloc.stop()
     assert peak < 2 * 4.8e6 + 2e6, peak
+
+
+def test_the_writer_uses_no_private_name_of_cdflib() -> None:
+    """Project rule: no other library's private internals (decision 74).
+
+    The module defines no class (no subclass of cdflib's writer) and reads no attribute
+    whose name starts with one underscore on any object.
+    """
+    tree = ast.parse(Path(cdf.__file__).read_text())
+    private = sorted({node.attr for node in ast.walk(tree) if isinstance(node, ast.Attribute)
+                      and node.attr.startswith("_") and not node.attr.startswith("__")})
+    assert private == []
+    assert not [n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)]
