@@ -32,6 +32,8 @@
   day of the median sample and ``Data_version``; ``Generation_date``,
   ``Software_version`` (from ``software_version``) and ``Parents`` are filled in.
 * No compression: the bytes of the data records depend only on the values.
+* Written through cdflib's public writer only (`cdflib.cdfwrite.CDF`: ``write_globalattrs``,
+  ``write_var``), never its private methods (docs/decisions/products.md, decision 74).
 
 References
 ----------
@@ -106,98 +108,6 @@ _TYPE_NUM = {
 }
 _TT2000_FILL = -(2**63)
 _VERSION = re.compile(r"^[vV]?(\d+)$")
-
-
-#: CDF data type number -> numpy dtype whose native bytes are that type's values.
-_NUMPY_OF_TYPE: dict[int, np.dtype] = {
-    _TYPE_NUM[cdf_type]: np.dtype(name) for name, (cdf_type, _f, _fmt) in _TYPES.items()
-    if name != "bool"  # bool is written as uint8
-}
-_NUMPY_OF_TYPE[_TYPE_NUM["CDF_TIME_TT2000"]] = np.dtype(np.int64)
-#: CDF text types (cdflib's ``CDF_CHAR``, ``CDF_UCHAR``).
-_CDF_CHAR, _CDF_UCHAR = 51, 52
-
-
-class _Writer(CDFWriter):
-    """cdflib's CDF writer, taking numeric arrays as they are.
-
-    cdflib converts every array to bytes with two copies (``np.array`` of it, then
-    ``tobytes``): 80 MB more for a 20 Hz day's vector.  A C-contiguous array of the
-    variable's type in the file's byte order (host encoding) is handed over as a
-    ``memoryview`` of its bytes, the very bytes ``tobytes`` gives; so is a C-contiguous
-    ``S<num_elems>`` array of CDF_CHAR text (NUL-padded, as cdflib pads each string of
-    a list; `_payload`), where cdflib would build one Python string of the whole
-    column.  Anything else goes through cdflib's conversion.  Attribute entries are
-    linked without reading the file back (`_update_aedr_link`).
-    """
-
-    def __init__(self, path: Path, cdf_spec: dict[str, Any]) -> None:
-        super().__init__(path, cdf_spec=cdf_spec)
-        #: (attribute number, zVar) -> [first entry's offset, entries, largest entry]
-        self._chains: dict[tuple[int, bool], list[int]] = {}
-        self._entry_num: dict[int, int] = {}  # entry offset -> its variable number
-        self._entry_next: dict[int, int] = {}  # entry offset -> next entry's (0: none)
-
-    def _convert_data(self, data_type: int, num_elems: int, num_values: int,
-                      indata: Any) -> tuple[int, Any]:
-        if (data_type in (_CDF_CHAR, _CDF_UCHAR) and isinstance(indata, np.ndarray)
-                and indata.dtype.kind == "S" and indata.dtype.itemsize == num_elems
-                and indata.flags.c_contiguous and indata.size):
-            # cdflib's list path: recs = len(list) / num_values, bytes = each string
-            # ljust(num_elems, NUL), joined and encoded (ASCII: the same bytes)
-            return (indata.size // max(num_values, 1),
-                    memoryview(indata.reshape(-1).view(np.uint8)))
-        dtype = _NUMPY_OF_TYPE.get(data_type)
-        if (dtype is None or not isinstance(indata, np.ndarray) or indata.dtype != dtype
-                or not indata.flags.c_contiguous or self._convert_option() != "="):
-            return super()._convert_data(data_type, num_elems, num_values, indata)
-        if indata.size == 0:  # cdflib's record count rule (_numpy_to_bytes)
-            recs = 0
-        elif indata.size == num_values * num_elems:
-            recs = 1
-        else:
-            recs = len(indata)
-        return recs, memoryview(indata).cast("B")
-
-    def _update_aedr_link(self, f: Any, attrNum: int, zVar: bool, varNum: int,
-                          offset: int) -> None:
-        """Link a variable's new attribute entry into its attribute's chain of entries.
-
-        cdflib's own version reads the chain back from the file (two seeks and reads
-        per entry already linked, for every new entry); here the chain is remembered
-        (`_chains`, `_entry_num`, `_entry_next`) and only the same words are written
-        to the same places as cdflib writes them: the file's bytes are the same.
-        """
-        adr = self.attrsinfo[attrNum][2]
-        # ADR fields: head of the entry chain, number of entries, largest entry number
-        head_at, count_at, max_at = (adr + 48, adr + 56, adr + 60) if zVar else (
-            adr + 20, adr + 36, adr + 40)
-        chains, num, nxt = self._chains, self._entry_num, self._entry_next
-        num[offset] = varNum
-        state = chains.get((attrNum, zVar))
-        if state is None:  # the first entry
-            self._update_offset_value(f, head_at, 8, offset)
-            self._update_offset_value(f, count_at, 4, 1)
-            self._update_offset_value(f, max_at, 4, varNum)
-            chains[(attrNum, zVar)] = [offset, 1, varNum]
-            return
-        head, entries, max_entry = state
-        entry = previous = head
-        for _ in range(entries):  # the walk of cdflib's version, on the remembered chain
-            if num[entry] > varNum:
-                self._update_offset_value(f, previous + 12, 8, offset)
-                self._update_offset_value(f, offset + 12, 8, entry)
-                nxt[previous], nxt[offset] = offset, entry
-                break
-            previous, entry = entry, nxt.get(entry, 0)
-        else:
-            self._update_offset_value(f, previous + 12, 8, offset)
-            nxt[previous] = offset
-        self._update_offset_value(f, count_at, 4, entries + 1)
-        state[1] = entries + 1
-        if max_entry < varNum:
-            self._update_offset_value(f, max_at, 4, varNum)
-            state[2] = varNum
 
 
 # ----------------------------------------------------------------------------------------
@@ -402,9 +312,15 @@ def _var_attrs(name: str, var: xr.Variable, table: Mapping[str, Any], cdf_type: 
 
 
 def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
-    """CDF type, element count and data of a variable (NaN -> FILLVAL)."""
+    """CDF type, element count and data of a variable (NaN -> FILLVAL).
+
+    The data is in a form cdflib's public `write_var` takes: a numpy array of the
+    variable's type (cdflib copies it into bytes), ASCII text as one ``bytes`` of
+    NUL-padded fixed-width strings (the bytes cdflib makes of a list of strings, without
+    a Python string per value), other text as a list of str.
+    """
     if var.dtype.kind in "US":
-        try:  # ASCII text as fixed-width bytes (`_Writer._convert_data`), no Python list
+        try:  # ASCII text as fixed-width bytes, no Python list
             data = np.ascontiguousarray(var.values).astype("S").reshape(-1)
         except UnicodeEncodeError:
             data = None
@@ -413,7 +329,7 @@ def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
             nelem = max(1, int(np.char.str_len(data).max(initial=1)))
             if data.dtype.itemsize != nelem:
                 data = data.astype(f"S{nelem}")
-            return "CDF_CHAR", nelem, data
+            return "CDF_CHAR", nelem, data.tobytes()
     if var.dtype.kind in "USO":
         data = var.values.astype(str)
         nelem = max(1, max((len(s) for s in data.ravel().tolist()), default=1))
@@ -436,7 +352,7 @@ def _payload(name: str, var: xr.Variable) -> tuple[str, int, Any]:
         nan = np.isnan(values)
         if nan.any():
             values = np.where(nan, fill, values)
-    return _TYPES[key][0], 1, np.ascontiguousarray(values)
+    return _TYPES[key][0], 1, values  # cdflib makes its own C-ordered copy
 
 
 def _spec(name: str, cdf_type: str, nelem: int, shape: tuple[int, ...],
@@ -604,7 +520,7 @@ def write_cdf(
                 (d,), np.array([f"{d}{i}" for i in range(ds.sizes[d])]))
     extra = [(d, v) for d, v in coord_of.items() if d not in ds.variables]
     with atomic_path(path) as tmp:
-        cdf = _Writer(tmp, cdf_spec={"Majority": "Row_major", "Checksum": False})
+        cdf = CDFWriter(tmp, cdf_spec={"Majority": "Row_major", "Checksum": False})
         try:
             cdf.write_globalattrs(globals_cdf)
             spec = _spec(EPOCH, "CDF_TIME_TT2000", 1, (), True)
