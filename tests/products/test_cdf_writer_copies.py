@@ -143,7 +143,7 @@ def test_a_large_vector_costs_cdflibs_two_copies_only(tmp_path: Path) -> None:
 
 
 def test_the_writer_uses_no_private_name_of_cdflib() -> None:
-    """Project rule: no other library's private internals (decision 74).
+    """Project rule: no other library's private internals (decision 77).
 
     The module defines no class (no subclass of cdflib's writer) and reads no attribute
     whose name starts with one underscore on any object.

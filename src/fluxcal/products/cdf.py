@@ -33,7 +33,7 @@
   ``Software_version`` (from ``software_version``) and ``Parents`` are filled in.
 * No compression: the bytes of the data records depend only on the values.
 * Written through cdflib's public writer only (`cdflib.cdfwrite.CDF`: ``write_globalattrs``,
-  ``write_var``), never its private methods (docs/decisions/products.md, decision 74).
+  ``write_var``), never its private methods (docs/decisions/products.md, decision 77).
 
 References
 ----------
