@@ -295,14 +295,14 @@ def _write_calibration_cdf(path: Path) -> None:
         for sensor, (mat, shift) in {"mago": ("MFOTOURFO", "OTS"),
                                      "magi": ("MFITOURFI", "ITS")}.items():
             cdf.write_var({"Variable": mat, "Data_Type": cdflib.cdfwrite.CDF.CDF_DOUBLE,
-                           "Num_Elements": 1, "Rec_Vary": False, "Dim_Sizes": [3, 3, 4]},
+                           "Num_Elements": 1, "Rec_Vary": False, "Compress": 0, "Dim_Sizes": [3, 3, 4]},
                           var_data=np.ascontiguousarray(np.moveaxis(matrices(sensor), 0, 2)))
             cdf.write_var({"Variable": shift, "Data_Type": cdflib.cdfwrite.CDF.CDF_DOUBLE,
-                           "Num_Elements": 1, "Rec_Vary": False, "Dim_Sizes": []},
+                           "Num_Elements": 1, "Rec_Vary": False, "Compress": 0, "Dim_Sizes": []},
                           var_data=np.array([TIME_SHIFT_S[sensor]]))
         for name, value in zip(("STARTVALIDITY", "ENDVALIDITY"), VALIDITY_NS, strict=True):
             cdf.write_var({"Variable": name, "Data_Type": cdflib.cdfwrite.CDF.CDF_TIME_TT2000,
-                           "Num_Elements": 1, "Rec_Vary": False, "Dim_Sizes": []},
+                           "Num_Elements": 1, "Rec_Vary": False, "Compress": 0, "Dim_Sizes": []},
                           var_data=np.array([value], dtype=np.int64))
     finally:
         cdf.close()
