@@ -295,7 +295,8 @@ def _write_calibration_cdf(path: Path) -> None:
         for sensor, (mat, shift) in {"mago": ("MFOTOURFO", "OTS"),
                                      "magi": ("MFITOURFI", "ITS")}.items():
             cdf.write_var({"Variable": mat, "Data_Type": cdflib.cdfwrite.CDF.CDF_DOUBLE,
-                           "Num_Elements": 1, "Rec_Vary": False, "Compress": 0, "Dim_Sizes": [3, 3, 4]},
+                           "Num_Elements": 1, "Rec_Vary": False, "Compress": 0,
+                           "Dim_Sizes": [3, 3, 4]},
                           var_data=np.ascontiguousarray(np.moveaxis(matrices(sensor), 0, 2)))
             cdf.write_var({"Variable": shift, "Data_Type": cdflib.cdfwrite.CDF.CDF_DOUBLE,
                            "Num_Elements": 1, "Rec_Vary": False, "Compress": 0, "Dim_Sizes": []},
