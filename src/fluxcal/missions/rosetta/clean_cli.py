@@ -35,7 +35,6 @@ from fluxcal.errors import FluxcalError, InputFormatError
 from fluxcal.extras import require
 from fluxcal.missions.rosetta.identity import FRAME_KERNELS
 from fluxcal.missions.rosetta.options import check_average
-from fluxcal.products.declared import Declared, File, Product
 from fluxcal.products.paths import plain_name
 from fluxcal.runs.options import with_config
 from fluxcal.textfile import read_text
@@ -43,6 +42,8 @@ from fluxcal.textfile import read_text
 if TYPE_CHECKING:  # numpy and xarray load inside the functions: not for 'fluxcal --help'
     import numpy as np
     import xarray as xr
+
+    from fluxcal.products.declared import Declared, Product
 
 log = logging.getLogger(__name__)
 
@@ -147,6 +148,7 @@ def clean_products(
 
     from fluxcal.geometry.time import tt2000_to_utc
     from fluxcal.missions.rosetta.pipeline import DATA_VERSION, istp_yaml
+    from fluxcal.products.declared import Product  # numpy: not for 'fluxcal --help'
 
     epoch = ds["epoch"].values
     if epoch.size == 0:
@@ -185,6 +187,7 @@ class CleanRun:
     def products(self, made: dict[str, xr.Dataset], options: object = None) -> Iterator[Declared]:
         """Declare each sensor's cleaned level, then the before/after PNG."""
         from fluxcal.missions.rosetta.pipeline import level_products
+        from fluxcal.products.declared import File
 
         for tag, ds in made.items():
             if self.level in ("F", "G"):
