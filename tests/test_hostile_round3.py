@@ -19,16 +19,7 @@ from fluxcal.products import write_product
 from fluxcal.products.paths import LOCK_NAME
 from fluxcal.products.staging import clean_stale_temporaries, output_lock
 from tests.products.conftest import make_dataset
-
-#: Above Linux's largest pid_max (2**22): a process that cannot be running.
-DEAD_PID = 2**22 + 1
-
-
-def _one_error_line(capsys) -> str:
-    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
-    assert len(lines) == 1, lines
-    assert lines[0].startswith("fluxcal: error: "), lines[0]
-    return lines[0]
+from tests.test_hostile_paths import DEAD_PID, _one_error_line
 
 
 def _tree(folder: Path) -> dict[str, bytes]:
