@@ -46,6 +46,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -509,7 +510,8 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
 
     The exact two-segment law at each shifted break is compared with the law whose break
     stays (its slope change free, no linearised step); axes in turn, ``sweeps`` times.
-    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried.
+    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried, nor
+    any on an axis whose break column is not free in ``base_free`` (a held break).
 
     ``a``, ``v``, ``yy`` may be stacks of resampled normal equations (leading axis
     ``n``): each resample then chooses its own breaks (the bootstrap repeats every
@@ -529,8 +531,9 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
             best = choice[:, j].copy()
             best_r = np.full(n, np.inf)
             for k in (-1, *range(N_SHIFTS)):
-                if k >= 0 and not (lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
-                    continue
+                if k >= 0 and not (base_free[j * PER_AXIS + 3]
+                                   and lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
+                    continue  # outside the fitted range, or the break held
                 trial = choice.copy()
                 trial[:, j] = k
                 r = np.empty(n)
@@ -562,7 +565,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    hold_d0: tuple[int, ...] = (),
                    law: np.ndarray | None = None,
                    held_step: np.ndarray | None = None,
-                   held_width: np.ndarray | None = None) -> VarianceSolution:
+                   held_width: np.ndarray | None = None,
+                   held: Mapping[int, tuple[float, float]] | None = None
+                   ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
     Parameters
@@ -589,6 +594,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         Standard error of each held D0: every resample draws the held value from a
         normal distribution of this width, so that it propagates into every other
         parameter's error (issue 34); default 0.
+    held : mapping, optional
+        Any other held parameter: column (`PER_AXIS` layout) -> ``(step, width)``, the
+        same way as a held D0 (not fitted, the step to the held value, every resample
+        drawing it from a normal distribution of ``width``).  An axis whose break
+        column (``-c dT_m``) is held keeps its break: no shift is tried for it
+        (`fit.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
 
     Returns
     -------
@@ -608,10 +619,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     base_free[-1] = fit_delay
     step_h = np.zeros(3) if held_step is None else np.asarray(held_step, dtype=float)
     width_h = np.zeros(3) if held_width is None else np.asarray(held_width, dtype=float)
+    columns = {j * PER_AXIS + 4: (float(step_h[j]), float(width_h[j])) for j in hold_d0}
+    columns.update(held or {})
     fixed_h = np.zeros(N_PARAMETERS)
-    for j in hold_d0:
-        base_free[j * PER_AXIS + 4] = False
-        fixed_h[j * PER_AXIS + 4] = step_h[j]
+    for col, (value, _) in columns.items():
+        base_free[col] = False
+        fixed_h[col] = value
     a, v, yy_b = stats.normal, stats.rhs, stats.yy
     nb = a.shape[0]
     choice: tuple[int, ...] = (-1, -1, -1)
@@ -647,10 +660,10 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                       for _ in range(n_bootstrap)]).astype(float)
     a_r, v_r, yy_r = np.einsum("rb,bij->rij", picks, a), picks @ v, picks @ yy_b
     held_r = np.broadcast_to(fixed_h, (n_bootstrap, N_PARAMETERS)).copy()
-    if hold_d0:
-        draws = rng.standard_normal((n_bootstrap, 3)) * width_h
-        for j in hold_d0:
-            held_r[:, j * PER_AXIS + 4] += draws[:, j]
+    if columns:
+        cols = sorted(columns)
+        draws = rng.standard_normal((n_bootstrap, len(cols)))
+        held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
     if law is not None:
         boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, t_range, fixed=held_r)
     else:
