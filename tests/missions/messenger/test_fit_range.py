@@ -161,3 +161,26 @@ def test_unseen_warm_segment_is_held_and_the_stated_range_narrowed(tmp_path, cap
         float(msg.split("up to ")[1].split(" C")[0]) - temp.max()) < 0.5, msg
     print(f"T_RANGE {lo:g}..{hi:g} C, unseen day inside it {inside.round(3)} nT, "
           f"predicted {np.round(res.merit['total_nt'], 3)} nT; {msg}")
+
+
+@pytest.mark.slow
+def test_warm_end_seen_in_the_wind_holds_nothing(tmp_path):
+    # the same orbit with the warm peaks 2-3 h after periapsis, past the sheath: the wind
+    # holds 300-2500 accepted samples per 5-C bin up to +20 C in 2 days, so every upper
+    # segment is seen and fitted as before entry 21 (nothing held)
+    run, true = _orbit(tmp_path / "sim", 3400, 2, peak_lag_min=(120.0, 180.0))
+    res = fit_days(day_chunks(run.input_dir, run.days), load_calibration(START),
+                   estimator="variance", guard=False)
+    assert res.convergence["converged"], res.convergence["stop"]
+    assert res.held_upper == {}
+    assert all(f.x_m_err < HOLD_BREAK_WIDTH_C for f in res.temperature)
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    fit_c = res.calibration.temperature_coefficients
+    lo, hi = res.fitted_range
+    t = np.arange(lo, hi + 0.01, 1.0)
+    err = np.abs(_law(fit_c, t) - _law(tc, t))
+    assert np.all(err <= 3.0 * res.law_error(t) + COUNT_TOLERANCE), (err.max(0), res.law_error(t))
+    # the fitted upper line (not a held one) is within its band above the breaks too
+    t_up = np.array([0.0, 20.0])
+    pulls = (_law(fit_c, t_up) - _law(tc, t_up)) / res.law_error(t_up)
+    assert np.all(np.abs(pulls) < 3.0), pulls
