@@ -813,11 +813,17 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     `levels.offsets`).  The figure of merit ``total_nt`` (and its parts) becomes
     `fit_merit.predicted_error` over the samples whose 1-C bin lies inside the range;
     ``outside`` keeps the share of the samples outside and the prediction over all
-    samples, both stated in every header and the report.
+    samples, both stated in every header and the report.  Only when T_RANGE holds the
+    regulated temperature (eq. 2, -50 C): the heater runs only there, and the
+    prediction's waveform part counts every heater-on sample as inside; a range without
+    it keeps the prediction over all samples.
     """
     m = result.merit
     lo, hi = result.fitted_range
     if not m or "total_nt" not in m or not np.all(np.isfinite((lo, hi))):
+        return
+    rel = result.calibration.constants["relaxation"]
+    if not lo <= float(rel.get("reference_temperature_c", -50.0)) <= hi:
         return
     v = result.variance
     mom = v.offset_moments
