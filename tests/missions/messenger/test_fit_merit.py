@@ -333,3 +333,55 @@ def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):
     assert mid.constants["relaxation"]["tau_s"] == pytest.approx(rel["tau_s"] + 20.0)
     step = _table_step(other, res)  # other -> res
     assert _reverses(-step, step) and not _reverses(step, step)
+
+
+def test_a_segment_beyond_the_data_is_held_with_its_width(shipped):
+    # data fill -60..-30 C only; the table's breaks (-10.2 / -12.7 / -14.8 C, Table 2) lie
+    # above: the resamples cannot move the upper segments (their band is ~0 there), so
+    # each is held with its width.  Brute force: 40000 draws of the slope change
+    # c' ~ N(c, (HINGE_WIDTH c)^2) and break T_m' ~ N(T_m, BREAK_WIDTH_C^2) per axis, the
+    # law's error c' max(0, T - T_m') - c max(0, T - T_m) through eq. 8's fine matrix
+    # (Table 4), rms over a warm day's samples (uniform -60..+40 C) and draws: within 3 %
+    # (Monte Carlo error about 1 %).  Below every break nothing is added.
+    from fluxcal.missions.messenger.fit_merit import (
+        BREAK_WIDTH_C,
+        HINGE_WIDTH,
+        law_band,
+        undetermined_segments,
+    )
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
+    assert res.variance.fitted_range() == (-60.0, -30.0)
+    assert undetermined_segments(res) == ("upper", "upper", "upper")
+    rng = np.random.default_rng(5)
+    n = 20000
+    temp = rng.uniform(-60.0, 40.0, n)
+    res.variance.offset_moments = offset_moments(temp, np.zeros(n), np.zeros(n), np.zeros(n))
+    got = predicted_error(res)
+    assert got["held_segments"] == ["upper"] * 3
+    assert got["samples_beyond_data"] == pytest.approx(0.7 * n, rel=0.05)
+    # Table 2 and Table 4 from the seed (sec. 7, sec. 8)
+    a0 = np.array([-10.802, -76.138, 432.27])
+    b0 = np.array([1.2043, 2.042, 0.45175])
+    a1 = np.array([2.8435, -18.176, 455.4])
+    b1 = np.array([2.5445, 6.6181, 2.016])
+    c, tm = b1 - b0, (a0 - a1) / (b1 - b0)
+    k = np.array([0.046769, 0.046673, 0.047997])
+    m = np.array([[k[0], 0, 0], [-0.00462 * k[0], k[1], 0],
+                  [0.00053 * k[0], -0.00736 * k[1], k[2]]])
+    draws = 40000
+    c2 = c + HINGE_WIDTH * np.abs(c) * rng.standard_normal((draws, 3))
+    t2 = tm + BREAK_WIDTH_C * rng.standard_normal((draws, 3))
+    t_s = rng.choice(temp, draws)  # one sample per draw: the same double average
+    err = (c2 * np.maximum(0.0, t_s[:, None] - t2) - c * np.maximum(0.0, t_s[:, None] - tm))
+    want = np.sqrt(((err @ m.T) ** 2).mean(axis=0))
+    np.testing.assert_allclose(got["held_segment_nt"], want, rtol=0.03)
+    assert np.all(np.asarray(got["law_nt"]) >= want * 0.97)
+    # the band: at 0 C the held segment's rms per axis (counts), nothing at -40 C
+    band = law_band(res, np.array([-40.0, 0.0]))
+    at0 = np.sqrt(((c2 * np.maximum(0.0, -t2) - c * np.maximum(0.0, -tm)) ** 2).mean(axis=0))
+    np.testing.assert_allclose(band[1], at0, rtol=0.03)
+    assert np.all(band[0] < 0.05), band
+    # data that reach 10 C beyond every break: nothing held (the resamples' band only)
+    wide = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=0.0)
+    assert undetermined_segments(wide) == ("", "", "")

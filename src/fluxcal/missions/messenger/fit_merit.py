@@ -6,7 +6,11 @@ tables of the variance estimator's bootstrap (`FitResult.bootstrap`: the law wit
 break, D0 with any held width, tau, dt) over the distribution of temperatures, relaxed
 duty cycles and their derivatives of the fitted days' samples
 (`VarianceStatistics.offset_moments`), through eq. 8's fine-range matrix, with the
-counts' rounding added.  `check_merit` refuses the fit when that exceeds the goal
+counts' rounding added.  Where a segment of the law lies beyond the temperatures the
+data fill (the break outside them, or within `MIN_SEGMENT_SPAN_C` of their edge), the
+data cannot say how the law bends there: that segment is held at the table's value
+with a stated width (`HINGE_WIDTH`, `BREAK_WIDTH_C`, `segment_prior`), added to the
+law's band and to the prediction.  `check_merit` refuses the fit when that exceeds the goal
 (default 0.1 nT, `--error-goal`), or when a named guard finds that the data cannot
 support the fit: too many intervals rejected as compressive.  `stated_range` narrows
 the temperature range the table states to where the law's band is within
@@ -29,8 +33,10 @@ from fluxcal.missions.messenger import fit_variance as fv
 #: `fluxcal.missions.messenger.fit.FitResult` (not imported: `fit` imports this module).
 FitResult = Any
 
-__all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess", "check_merit",
-           "compressive_refusal", "compressive_share", "predicted_error", "stated_range"]
+__all__ = ["BREAK_WIDTH_C", "ERROR_GOAL_NT", "HINGE_WIDTH", "LAW_BAND_LIMIT_NT",
+           "MAX_COMPRESSIVE_SHARE", "MIN_SEGMENT_SPAN_C", "assess", "check_merit",
+           "compressive_refusal", "compressive_share", "law_band", "predicted_error",
+           "segment_prior", "stated_range", "undetermined_segments"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -44,6 +50,19 @@ MAX_COMPRESSIVE_SHARE = 0.5
 LAW_BAND_LIMIT_NT = 0.05
 #: Temperatures (C) at which the law's band is evaluated for `stated_range`.
 BAND_STEP_C = 1.0
+#: Least span (C) of the data's temperatures beyond a break for the data to determine
+#: the segment there: two of the 5-C bins that make the data's range (entry 21).
+MIN_SEGMENT_SPAN_C = 10.0
+#: Width (1 sigma), as a share of ``|c|``, of the slope change ``c = B1 - B0`` at a
+#: break whose far segment the data do not determine (entry 21): the simulated worlds'
+#: true tables change it by -40..+79 % from the seed's Table 2.
+HINGE_WIDTH = 1.0
+#: Width (C, 1 sigma) of such a break's temperature (entry 21): the simulated worlds move
+#: it by 4-6 C from Table 2.
+BREAK_WIDTH_C = 5.0
+_SIDE = {"upper": "above", "lower": "below"}
+#: Gauss-Hermite order per dimension of the expectation over the held segment's widths.
+_ORDER = 12
 
 
 def compressive_share(reason: np.ndarray) -> tuple[int, int]:
@@ -73,28 +92,114 @@ def _nt_per_count(cal) -> np.ndarray:
     return np.asarray(cal.matrices[0], dtype=float)
 
 
-def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT) -> dict[str, Any]:
+def undetermined_segments(result: FitResult,
+                          min_span_c: float = MIN_SEGMENT_SPAN_C) -> tuple[str, str, str]:
+    """Per axis, the segment of the law the data do not determine: ``upper``, ``lower``, ``""``.
+
+    ``upper`` where the break lies above the data's range (``variance.fitted_range()``,
+    the 5-C bins of 1800 accepted samples, entry 13) or less than ``min_span_c`` below
+    its upper edge: the slope change ``c`` and the break come from the table the fit
+    started from, not from the data (the resamples cannot move them); ``lower`` likewise
+    below.  All ``""`` where the data fill no bin (the fit refuses that itself).
+    """
+    v = result.variance
+    lo, hi = v.fitted_range() if v is not None else (float("nan"), float("nan"))
+    if not np.all(np.isfinite((lo, hi))):
+        return ("", "", "")
+    tm = fv.law_parameters(result.calibration)[:, 3]
+    return tuple("upper" if hi - t < min_span_c else "lower" if t - lo < min_span_c else ""
+                 for t in tm)
+
+
+def segment_prior(result: FitResult, t: np.ndarray, *, hinge_width: float = HINGE_WIDTH,
+                  break_width_c: float = BREAK_WIDTH_C) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and mean square (counts, ``(t.size, 3)``) of the law's error from held segments.
+
+    For an axis whose ``upper`` segment is undetermined (`undetermined_segments`) the
+    truth is taken as ``c' max(0, T - T_m')`` about the table's ``c max(0, T - T_m)``,
+    with ``c' ~ N(c, (hinge_width c)^2)`` and ``T_m' ~ N(T_m, break_width_c^2)``; a
+    ``lower`` one likewise with ``max(0, T_m - T)`` (the law written about its upper
+    line, which the data determine).  The expectation by Gauss-Hermite quadrature
+    (deterministic).  Zero for a determined axis.
+    """
+    t = np.asarray(t, dtype=float)
+    side = undetermined_segments(result)
+    mean = np.zeros((t.size, 3))
+    square = np.zeros((t.size, 3))
+    if not any(side):
+        return mean, square
+    z, w = np.polynomial.hermite_e.hermegauss(_ORDER)
+    w = w / w.sum()
+    law = fv.law_parameters(result.calibration)
+    for j, s in enumerate(side):
+        if not s:
+            continue
+        c, tm = law[j, 2], law[j, 3]
+        sign = 1.0 if s == "upper" else -1.0
+
+        def hinge(cc, tt, sign=sign):
+            return cc * np.maximum(0.0, sign * (t[:, None, None] - tt))
+
+        c2 = c + hinge_width * abs(c) * z[None, :, None]
+        t2 = tm + break_width_c * z[None, None, :]
+        d = hinge(c2, t2) - hinge(np.float64(c), np.float64(tm))     # (t, zc, zt)
+        ww = w[None, :, None] * w[None, None, :]
+        mean[:, j] = (ww * d).sum(axis=(1, 2))
+        square[:, j] = (ww * d * d).sum(axis=(1, 2))
+    return mean, square
+
+
+def _prior_square_nt(result: FitResult, t: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Mean square (nT^2, ``(t.size, 3)`` sensor axes) of ``M`` times `segment_prior`."""
+    mean, square = segment_prior(result, t)
+    # axes independent: E[X_j X_k] = E[X_j] E[X_k] (j != k), E[X_j^2] on the diagonal
+    s = mean[:, :, None] * mean[:, None, :]
+    idx = np.arange(3)
+    s[:, idx, idx] = square
+    return np.einsum("ij,bjk,ik->bi", m, s, m)
+
+
+def law_band(result: FitResult, t: np.ndarray) -> np.ndarray:
+    """Return the law's stated error (counts, ``(t.size, 3)``): resamples and held segments.
+
+    ``sqrt(law_error^2 + segment_prior mean square)``: the resamples' spread
+    (`FitResult.law_error`, the break included) and, where a segment is held
+    (`undetermined_segments`), its rms error about the table.
+    """
+    t = np.asarray(t, dtype=float)
+    return np.sqrt(np.nan_to_num(result.law_error(t)) ** 2 + segment_prior(result, t)[1])
+
+
+def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
+                    moments: np.ndarray | None = None) -> dict[str, Any]:
     """Predicted rms error (nT) per sensor axis of a day recalibrated with ``result``.
 
-    ``sqrt(E[(M dO)^2])`` over the fitted days' samples and the bootstrap's resamples,
+    ``sqrt(E[(M dO)^2])`` over the fitted days' samples (or ``moments``: another day's
+    `fit_variance.offset_moments`, e.g. ``reduce_variance(...).offset_moments`` of a day
+    to be recalibrated) and the bootstrap's resamples,
     ``dO = dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (eq. 2-6 linearised; ``M`` eq.
     8's fine matrix), plus the rounding of the counts (``M`` times 1/sqrt(12) count)
     and the heater waveforms' stated error (`FitResult.waveform_error`, weighted by the
-    share of the samples in each duty bin), both independent of the rest.
+    share of the samples in each duty bin), both independent of the rest.  A law
+    segment the data do not determine (`undetermined_segments`) adds its held width
+    (`segment_prior`, independent of the resamples) to the law's part.
 
     Returns
     -------
     dict
-        ``total_nt``, ``law_nt``, ``d0_nt``, ``relaxation_nt`` (tau and dt),
-        ``waveform_nt``, ``rounding_nt`` (per axis), ``goal_nt``, ``samples`` and
-        ``samples_outside_range`` (outside the stated temperature range).
+        ``total_nt``, ``law_nt`` (with ``held_segment_nt``, the held segments' share),
+        ``d0_nt``, ``relaxation_nt`` (tau and dt), ``waveform_nt``, ``rounding_nt`` (per
+        axis), ``goal_nt``, ``samples``, ``samples_outside_range`` (outside the stated
+        temperature range), ``samples_beyond_data`` (outside the data's range,
+        ``variance.fitted_range()``) and ``held_segments`` (per axis, ``upper``,
+        ``lower`` or ``""``).
     """
     boot = result.bootstrap
     v = result.variance
     cal = result.calibration
     m = _nt_per_count(cal)
     rounding = np.sqrt((m ** 2).sum(axis=1) / 12.0)
-    mom = v.offset_moments
+    mom = v.offset_moments if moments is None else np.asarray(moments, dtype=float)
     use = mom[:, 0] > 0
     mom = mom[use]
     n_total = float(mom[:, 0].sum())
@@ -105,10 +210,12 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT) -> dict[str,
         wave = np.sqrt((m ** 2) @ var_counts)
     out: dict[str, Any] = {"goal_nt": float(goal), "rounding_nt": rounding.tolist(),
                            "waveform_nt": wave.tolist(), "samples": int(n_total)}
+    out["held_segments"] = list(undetermined_segments(result))
     if boot is None or n_total == 0:
         nan = [float("nan")] * 3
         return {**out, "total_nt": nan, "law_nt": nan, "d0_nt": nan, "relaxation_nt": nan,
-                "samples_outside_range": 0}
+                "held_segment_nt": nan, "samples_outside_range": 0,
+                "samples_beyond_data": 0}
     sums = {name: mom[:, i] for i, name in enumerate(fv.MOMENT_COLUMNS)}
     t_b = sums["T"] / sums["n"]
     law = fv.law_parameters(cal)
@@ -132,30 +239,38 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT) -> dict[str,
         return np.maximum(s / n_total, 0.0).mean(axis=0)                           # (3,)
 
     zc, z = np.zeros_like(c), np.zeros_like(d)
-    total = np.sqrt(mean_square(c, d, e, f) + rounding ** 2 + wave ** 2)
-    lo, hi = result.fitted_range
-    outside = sums["n"][(t_b < lo) | (t_b > hi)].sum() if np.all(np.isfinite((lo, hi))) else 0
+    held = (sums["n"][:, None] * _prior_square_nt(result, t_b, m)).sum(axis=0) / n_total
+    total = np.sqrt(mean_square(c, d, e, f) + held + rounding ** 2 + wave ** 2)
+
+    def outside(lo, hi):
+        if not np.all(np.isfinite((lo, hi))):
+            return 0
+        return int(sums["n"][(t_b < lo) | (t_b > hi)].sum())
+
     return {**out, "total_nt": total.tolist(),
-            "law_nt": np.sqrt(mean_square(c, z, z, z)).tolist(),
+            "law_nt": np.sqrt(mean_square(c, z, z, z) + held).tolist(),
+            "held_segment_nt": np.sqrt(held).tolist(),
             "d0_nt": np.sqrt(mean_square(zc, d, z, z)).tolist(),
             "relaxation_nt": np.sqrt(mean_square(zc, z, e, f)).tolist(),
-            "samples_outside_range": int(outside)}
+            "samples_outside_range": outside(*result.fitted_range),
+            "samples_beyond_data": outside(*v.fitted_range())}
 
 
 def stated_range(result: FitResult, limit_nt: float = LAW_BAND_LIMIT_NT
                  ) -> tuple[float, float]:
     """Return the part of the fitted range where the law's band is within ``limit_nt``.
 
-    On every axis (the law's stated error at each temperature, in nT through eq. 8's
-    diagonal); ``(nan, nan)`` where it is nowhere.  The range grows from the
-    temperature of least band outwards while the band stays within the limit.
+    On every axis (the law's stated error at each temperature, `law_band`: a held
+    segment's width included, in nT through eq. 8's diagonal); ``(nan, nan)`` where it is
+    nowhere.  The range grows from the temperature of least band outwards while the band
+    stays within the limit.
     """
     lo, hi = result.fitted_range
     if not np.all(np.isfinite((lo, hi))):
         return lo, hi
     t = np.arange(lo, hi + 0.5 * BAND_STEP_C, BAND_STEP_C)
     scale = np.abs(np.diag(_nt_per_count(result.calibration)))
-    band = (result.law_error(t) * scale).max(axis=1)
+    band = (law_band(result, t) * scale).max(axis=1)
     ok = band <= limit_nt
     if not ok.any():
         return float("nan"), float("nan")
@@ -217,7 +332,7 @@ def check_merit(result: FitResult) -> None:
     if not m["law_determined"]:
         f_lo, f_hi = m["data_range_c"]
         t = np.arange(f_lo, f_hi + 0.5, 1.0)
-        band = result.law_error(t) * np.abs(np.diag(_nt_per_count(result.calibration)))
+        band = law_band(result, t) * np.abs(np.diag(_nt_per_count(result.calibration)))
         raise FitRefusedError(
             f"temperature law (sec. 7, Table 2): its stated error exceeds "
             f"{m['band_limit_nt']:g} nT at every temperature of the fitted range "
@@ -232,12 +347,25 @@ def check_merit(result: FitResult) -> None:
         name = max(parts, key=lambda k: parts[k][worst])
         held = (f" (D0 {', '.join(result.held_d0)} held: its width enters)"
                 if result.held_d0 else "")
+        segments = m.get("held_segments") or ("", "", "")
+        if name == "the temperature law" and any(segments):
+            tm = fv.law_parameters(result.calibration)[:, 3]
+            lo, hi = m["data_range_c"]
+            held = (" (" + ", ".join(
+                f"{a} {_SIDE[s]} its break {t:.1f} C" for a, s, t in zip(AXES, segments, tm,
+                                                                   strict=True) if s)
+                    + f": not determined by the data's {lo:.0f}..{hi:.0f} C, held at the table "
+                    f"with widths {HINGE_WIDTH:.0%} of the slope change and {BREAK_WIDTH_C:g} C, "
+                    f"{_axes(m['held_segment_nt'])} nT; {m.get('samples_beyond_data', 0)} of "
+                    f"{m['samples']} samples outside the data's range)")
         raise FitRefusedError(
             f"predicted error of a recalibrated day {_axes(total)} nT (x / y / z) exceeds "
             f"the goal {goal:g} nT; largest part on {AXES[worst]}: {name} "
             f"{parts[name][worst]:.3g} nT{held} (law {_axes(m['law_nt'])}, D0 "
             f"{_axes(m['d0_nt'])}, tau and dt {_axes(m['relaxation_nt'])}, waveforms "
             f"{_axes(m['waveform_nt'])} nT); not written. "
-            "Give more days, or accept the larger error with --error-goal "
+            + ("Give solar-wind days at the temperatures the law is not determined at "
+               "(heater-off runs), or more days, " if any(segments) else "Give more days, ")
+            + "or accept the larger error with --error-goal "
             f"{np.ceil(round(float(np.nanmax(total)) * 100, 6)) / 100:g} (written into every "
             "table header)")
