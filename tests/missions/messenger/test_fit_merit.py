@@ -385,3 +385,38 @@ def test_a_segment_beyond_the_data_is_held_with_its_width(shipped):
     # data that reach 10 C beyond every break: nothing held (the resamples' band only)
     wide = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=0.0)
     assert undetermined_segments(wide) == ("", "", "")
+
+
+def test_an_accepted_goal_scales_the_law_band_limit(shipped):
+    # resampled laws whose intercepts scatter by 1.406 counts on every axis: a band of
+    # 1.406 x 0.047997 = 0.0675 nT on z (Table 4's largest fine gain) at every
+    # temperature, above the default limit 0.05 nT: refused as "not determined", with the
+    # goal whose limit (half of it) admits it, 0.14 nT; at --error-goal 0.14 it is stated
+    from fluxcal.missions.messenger.fit_merit import assess, band_limit_for
+
+    assert band_limit_for(0.1) == pytest.approx(0.05)
+    assert band_limit_for(0.2) == pytest.approx(0.1)
+    base = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(base.calibration)
+    rng = np.random.default_rng(8)
+    k = 4000
+    b_law = np.repeat(law[None], k, axis=0)
+    b_law[:, :, 0] += 1.406 * rng.standard_normal((k, 1))
+    rel = base.calibration.constants["relaxation"]
+    boot = {"law": b_law, "d0": np.repeat(np.asarray(base.calibration.duty_cycle_d0)[None], k, 0),
+            "tau": np.full(k, float(rel["tau_s"])), "dt": np.full(k, float(rel["delay_s"]))}
+    temp = rng.uniform(-60.0, 30.0, 3000)
+    base.variance.offset_moments = offset_moments(temp, np.zeros(3000), np.zeros(3000),
+                                                  np.zeros(3000))
+    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    assess(res)
+    assert not res.merit["law_determined"] and res.merit["band_limit_nt"] == 0.05
+    with pytest.raises(FitRefusedError, match=r"exceeds 0\.05 nT at every temperature .* "
+                                              r"--error-goal 0\.14 \(the law's limit is 0\.5 "
+                                              r"of the goal"):
+        check_merit(res)
+    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    assess(res, 0.14)
+    assert res.merit["law_determined"] and res.merit["band_limit_nt"] == pytest.approx(0.07)
+    assert res.fitted_range == (-60.0, 40.0)
+    check_merit(res)  # the predicted error (about 0.067 nT) is within 0.14

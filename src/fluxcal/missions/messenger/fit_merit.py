@@ -34,7 +34,7 @@ from fluxcal.missions.messenger import fit_variance as fv
 FitResult = Any
 
 __all__ = ["BREAK_WIDTH_C", "ERROR_GOAL_NT", "HINGE_WIDTH", "LAW_BAND_LIMIT_NT",
-           "MAX_COMPRESSIVE_SHARE", "MIN_SEGMENT_SPAN_C", "assess", "check_merit",
+           "MAX_COMPRESSIVE_SHARE", "MIN_SEGMENT_SPAN_C", "assess", "band_limit_for", "check_merit",
            "compressive_refusal", "compressive_share", "law_band", "predicted_error",
            "segment_prior", "stated_range", "undetermined_segments"]
 
@@ -46,7 +46,8 @@ ERROR_GOAL_NT = 0.1
 #: selection keeps a biased remainder (entry 19: measured boundary).
 MAX_COMPRESSIVE_SHARE = 0.5
 #: Largest stated error (nT, 1 sigma) of the law inside the range the table states: a
-#: third of the law's 0.15-nT goal (issue 21), so that the law meets it at 3 sigma.
+#: third of the law's 0.15-nT goal (issue 21), so that the law meets it at 3 sigma;
+#: scaled with a goal other than `ERROR_GOAL_NT` (`band_limit_for`).
 LAW_BAND_LIMIT_NT = 0.05
 #: Temperatures (C) at which the law's band is evaluated for `stated_range`.
 BAND_STEP_C = 1.0
@@ -290,15 +291,33 @@ def _axes(values) -> str:
     return " / ".join(f"{v:.3g}" for v in values)
 
 
+def _goal_for_band(band_nt: float) -> float:
+    """Return the least goal (nT, up to 0.01) whose `band_limit_for` admits ``band_nt``."""
+    return float(np.ceil(round(band_nt * ERROR_GOAL_NT / LAW_BAND_LIMIT_NT * 100, 6)) / 100)
+
+
+def band_limit_for(goal: float) -> float:
+    """Largest stated law error (nT) for an error goal: `LAW_BAND_LIMIT_NT` at the default.
+
+    Scaled with the goal (``LAW_BAND_LIMIT_NT x goal / ERROR_GOAL_NT``): a user who
+    accepts a recalibrated day's error of ``goal`` (``--error-goal``, written into every
+    header) accepts the law's share of it in the same ratio (entry 22).
+    """
+    return LAW_BAND_LIMIT_NT * (float(goal) / ERROR_GOAL_NT)
+
+
 def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
-           band_limit_nt: float = LAW_BAND_LIMIT_NT,
+           band_limit_nt: float | None = None,
            max_compressive_share: float = MAX_COMPRESSIVE_SHARE) -> None:
     """Narrow ``result.fitted_range`` to `stated_range` and set ``result.merit``.
 
-    ``result.merit`` is `predicted_error` (over the narrowed range) with
+    ``band_limit_nt``: None for `band_limit_for` ``goal``.  ``result.merit`` is
+    `predicted_error` (over the narrowed range) with
     ``data_range_c`` (the range the data fill), ``band_limit_nt``, the intervals
     ``compressive`` and ``judged`` (`compressive_share`) and ``max_compressive_share``.
     """
+    if band_limit_nt is None:
+        band_limit_nt = band_limit_for(goal)
     n_comp, judged = compressive_share(result.variance.reason)
     data = tuple(result.fitted_range)
     lo, hi = stated_range(result, band_limit_nt)
@@ -337,7 +356,10 @@ def check_merit(result: FitResult) -> None:
             f"temperature law (sec. 7, Table 2): its stated error exceeds "
             f"{m['band_limit_nt']:g} nT at every temperature of the fitted range "
             f"{f_lo:.0f}..{f_hi:.0f} C (least {_axes(band.min(axis=0))} nT, x / y / z); not "
-            "written. Give more days of solar wind at these temperatures")
+            "written. Give more days of solar wind at these temperatures, or accept a larger "
+            f"error with --error-goal {_goal_for_band(float(band.max(axis=1).min())):g} "
+            f"(the law's limit is {LAW_BAND_LIMIT_NT / ERROR_GOAL_NT:g} of the goal; "
+            "written into every table header)")
     total = np.asarray(m["total_nt"], dtype=float)
     goal = float(m["goal_nt"])
     if not np.all(total <= goal):
