@@ -346,6 +346,7 @@ def test_a_segment_beyond_the_data_is_held_with_its_width(shipped):
     from fluxcal.missions.messenger.fit_merit import (
         BREAK_WIDTH_C,
         HINGE_WIDTH,
+        held_segments_text,
         law_band,
         undetermined_segments,
     )
@@ -382,9 +383,13 @@ def test_a_segment_beyond_the_data_is_held_with_its_width(shipped):
     at0 = np.sqrt(((c2 * np.maximum(0.0, -t2) - c * np.maximum(0.0, -tm)) ** 2).mean(axis=0))
     np.testing.assert_allclose(band[1], at0, rtol=0.03)
     assert np.all(band[0] < 0.05), band
+    assert held_segments_text(res) == (
+        "x above its break -10.2 C, y above its break -12.7 C, z above its break -14.8 C: "
+        "not determined by the data's -60..-30 C, held at the table with widths 100% of "
+        "the slope change and 5 C")
     # data that reach 10 C beyond every break: nothing held (the resamples' band only)
     wide = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=0.0)
-    assert undetermined_segments(wide) == ("", "", "")
+    assert undetermined_segments(wide) == ("", "", "") and held_segments_text(wide) == ""
 
 
 def test_an_accepted_goal_scales_the_law_band_limit(shipped):

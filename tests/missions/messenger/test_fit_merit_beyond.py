@@ -101,6 +101,8 @@ def test_cold_table_predicts_the_error_of_a_warmer_unseen_day(tmp_path):
     write_calibration_folder(res, folder, None, {"inputs": {}, "intervals": "all data",
                                                  "days": "2 simulated cold days"},
                              study=not res.convergence["converged"])
+    header = next(folder.glob("offsets_temperature_v*.csv")).read_text()
+    assert "temperature law HELD beyond the data: x above its break -10.2 C" in header
     unseen_rms = recalibrate_rms(unseen.input_dir, day, folder)
     total = np.asarray(pred["total_nt"])
     print(f"unseen day {unseen_rms.round(3)} predicted {total.round(3)}")

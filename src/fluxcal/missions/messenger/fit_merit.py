@@ -34,9 +34,10 @@ from fluxcal.missions.messenger import fit_variance as fv
 FitResult = Any
 
 __all__ = ["BREAK_WIDTH_C", "ERROR_GOAL_NT", "HINGE_WIDTH", "LAW_BAND_LIMIT_NT",
-           "MAX_COMPRESSIVE_SHARE", "MIN_SEGMENT_SPAN_C", "assess", "band_limit_for", "check_merit",
-           "compressive_refusal", "compressive_share", "law_band", "predicted_error",
-           "segment_prior", "stated_range", "undetermined_segments"]
+           "MAX_COMPRESSIVE_SHARE", "MIN_SEGMENT_SPAN_C", "assess", "band_limit_for",
+           "check_merit", "compressive_refusal", "compressive_share", "held_segments_text",
+           "law_band", "predicted_error", "segment_prior", "stated_range",
+           "undetermined_segments"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -158,6 +159,24 @@ def _prior_square_nt(result: FitResult, t: np.ndarray, m: np.ndarray) -> np.ndar
     idx = np.arange(3)
     s[:, idx, idx] = square
     return np.einsum("ij,bjk,ik->bi", m, s, m)
+
+
+def held_segments_text(result: FitResult) -> str:
+    """One line naming the held law segments and their widths (`segment_prior`), or ``""``.
+
+    For the table headers and the refusals: e.g. ``x above its break -10.2 C, y above
+    its break -12.7 C: not determined by the data's -55..-30 C, held at the table with
+    widths 100% of the slope change and 5 C``.
+    """
+    side = undetermined_segments(result)
+    if not any(side):
+        return ""
+    tm = fv.law_parameters(result.calibration)[:, 3]
+    lo, hi = result.variance.fitted_range()
+    return (", ".join(f"{a} {_SIDE[s]} its break {t:.1f} C"
+                      for a, s, t in zip(AXES, side, tm, strict=True) if s)
+            + f": not determined by the data's {lo:.0f}..{hi:.0f} C, held at the table with "
+            f"widths {HINGE_WIDTH:.0%} of the slope change and {BREAK_WIDTH_C:g} C")
 
 
 def law_band(result: FitResult, t: np.ndarray) -> np.ndarray:
@@ -371,15 +390,9 @@ def check_merit(result: FitResult) -> None:
                 if result.held_d0 else "")
         segments = m.get("held_segments") or ("", "", "")
         if name == "the temperature law" and any(segments):
-            tm = fv.law_parameters(result.calibration)[:, 3]
-            lo, hi = m["data_range_c"]
-            held = (" (" + ", ".join(
-                f"{a} {_SIDE[s]} its break {t:.1f} C" for a, s, t in zip(AXES, segments, tm,
-                                                                   strict=True) if s)
-                    + f": not determined by the data's {lo:.0f}..{hi:.0f} C, held at the table "
-                    f"with widths {HINGE_WIDTH:.0%} of the slope change and {BREAK_WIDTH_C:g} C, "
-                    f"{_axes(m['held_segment_nt'])} nT; {m.get('samples_beyond_data', 0)} of "
-                    f"{m['samples']} samples outside the data's range)")
+            held = (f" ({held_segments_text(result)}, {_axes(m['held_segment_nt'])} nT; "
+                    f"{m.get('samples_beyond_data', 0)} of {m['samples']} samples outside "
+                    "the data's range)")
         raise FitRefusedError(
             f"predicted error of a recalibrated day {_axes(total)} nT (x / y / z) exceeds "
             f"the goal {goal:g} nT; largest part on {AXES[worst]}: {name} "

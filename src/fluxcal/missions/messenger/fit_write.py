@@ -26,7 +26,11 @@ import numpy as np
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
 from fluxcal.missions.messenger.fit import AXES, FitResult
-from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
+from fluxcal.missions.messenger.fit_merit import (
+    ERROR_GOAL_NT,
+    MAX_COMPRESSIVE_SHARE,
+    held_segments_text,
+)
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
     TEMPERATURE_EDGES_C,
@@ -67,6 +71,8 @@ def merit_lines(result: FitResult) -> list[str]:
         if goal > ERROR_GOAL_NT:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
                          f"{goal:g}")
+        if any(m.get("held_segments") or ()):  # fit_merit entry 21
+            lines.append(f"temperature law HELD beyond the data: {held_segments_text(result)}")
     if m and "judged" in m:
         share = float(m["max_compressive_share"])
         lines.append(f"intervals rejected as compressive: {m['compressive']} of {m['judged']} "
