@@ -387,9 +387,12 @@ def test_a_segment_beyond_the_data_is_held_with_its_width(shipped):
         "x above its break -10.2 C, y above its break -12.7 C, z above its break -14.8 C: "
         "not determined by the data's -60..-30 C, held at the table with widths 100% of "
         "the slope change and 5 C")
-    # data that reach 10 C beyond every break: nothing held (the resamples' band only)
-    wide = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=0.0)
+    # data that reach a 5-C bin beyond every break (-60..-5 C: 5.2 / 7.7 / 9.8 C above
+    # them): nothing held (the resamples' band only); to -10 C (0.2 / 2.7 / 4.8 C): held
+    wide = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-5.0)
     assert undetermined_segments(wide) == ("", "", "") and held_segments_text(wide) == ""
+    edge = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-10.0)
+    assert undetermined_segments(edge) == ("upper", "upper", "upper")
 
 
 def test_an_accepted_goal_scales_the_law_band_limit(shipped):

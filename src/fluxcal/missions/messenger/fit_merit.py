@@ -53,8 +53,9 @@ LAW_BAND_LIMIT_NT = 0.05
 #: Temperatures (C) at which the law's band is evaluated for `stated_range`.
 BAND_STEP_C = 1.0
 #: Least span (C) of the data's temperatures beyond a break for the data to determine
-#: the segment there: two of the 5-C bins that make the data's range (entry 21).
-MIN_SEGMENT_SPAN_C = 10.0
+#: the segment there: one of the 5-C bins of 1800 accepted samples that make the data's
+#: range (entry 13), the rule the range itself follows (entry 21).
+MIN_SEGMENT_SPAN_C = 5.0
 #: Width (1 sigma), as a share of ``|c|``, of the slope change ``c = B1 - B0`` at a
 #: break whose far segment the data do not determine (entry 21): the simulated worlds'
 #: true tables change it by -40..+79 % from the seed's Table 2.
