@@ -311,9 +311,14 @@ def _axes(values) -> str:
     return " / ".join(f"{v:.3g}" for v in values)
 
 
+def _up_to_cent(value_nt: float) -> float:
+    """Return ``value_nt`` rounded up to 0.01 nT (a goal a refusal can name)."""
+    return float(np.ceil(round(float(value_nt) * 100, 6)) / 100)
+
+
 def _goal_for_band(band_nt: float) -> float:
     """Return the least goal (nT, up to 0.01) whose `band_limit_for` admits ``band_nt``."""
-    return float(np.ceil(round(band_nt * ERROR_GOAL_NT / LAW_BAND_LIMIT_NT * 100, 6)) / 100)
+    return _up_to_cent(band_nt * ERROR_GOAL_NT / LAW_BAND_LIMIT_NT)
 
 
 def band_limit_for(goal: float) -> float:
@@ -403,5 +408,5 @@ def check_merit(result: FitResult) -> None:
             + ("Give solar-wind days at the temperatures the law is not determined at "
                "(heater-off runs), or more days, " if any(segments) else "Give more days, ")
             + "or accept the larger error with --error-goal "
-            f"{np.ceil(round(float(np.nanmax(total)) * 100, 6)) / 100:g} (written into every "
+            f"{_up_to_cent(np.nanmax(total)):g} (written into every "
             "table header)")
