@@ -51,10 +51,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
-from scipy import sparse
 
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
+from fluxcal.calibration.segment_trends import (
+    remove_segment_lines,
+    segment_codes,
+    segment_variance,
+)
 from fluxcal.calibration.solar_wind_offsets import (
     count_reasons,
 )
@@ -357,32 +361,17 @@ def reduce_variance(
     cols.append((u @ d0) * dr_dt)
     x = np.column_stack(cols)
     y = mag
-    # the mean (and trend) per segment; the weights below per interval
+    # the mean (and trend) per segment (`segment_trends`, as Rosetta's); the weights
+    # below per interval
     interval_codes = codes
-    per = int(np.ceil(s.interval_s / s.segment_s)) + 1
-    within = np.floor((et - labels[interval_codes] * s.interval_s) / s.segment_s)
-    _, codes = np.unique(interval_codes * per + within.astype(np.int64), return_inverse=True)
-    k = int(codes.max()) + 1
+    codes, k = segment_codes(et, interval_codes, labels * s.interval_s, s.segment_s)
     out.segments = k
-    n_k = np.bincount(codes, minlength=k).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        inv = np.where(n_k > 0, 1.0 / n_k, 0.0)
-    # per-segment sums of every column at once: a (segments x samples) indicator matrix
-    member = sparse.csr_matrix((np.ones(codes.size), (codes, np.arange(codes.size))),
-                               shape=(k, codes.size))
-    x -= (member @ x)[codes] * inv[codes, None]
-    y = y - (np.bincount(codes, y, k) * inv)[codes]
-    if s.detrend:
-        tc = et - (np.bincount(codes, et, k) * inv)[codes]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tt = np.bincount(codes, tc * tc, k)
-            tinv = np.where(tt > 0, 1.0 / np.where(tt > 0, tt, 1.0), 0.0)
-        x -= tc[:, None] * ((member @ (tc[:, None] * x)) * tinv[:, None])[codes]
-        y = y - tc * (np.bincount(codes, tc * y, k) * tinv)[codes]
+    xy = remove_segment_lines(np.column_stack([x, y]), codes, k, et, line=s.detrend)
+    x, y = np.ascontiguousarray(xy[:, :-1]), xy[:, -1]
     if s.weighting == "inverse_variance":
         ki = labels.size
-        n_i = np.bincount(interval_codes, minlength=ki).astype(float)
-        var_i = np.bincount(interval_codes, y * y, ki) / np.maximum(n_i, 1.0)
+        n_i = np.bincount(interval_codes, minlength=ki)
+        var_i = np.nan_to_num(segment_variance(y, interval_codes, ki))
         floor = 0.1 * np.median(var_i[n_i > 0])
         w = 1.0 / np.sqrt(np.maximum(var_i, floor))
         x *= w[interval_codes, None]
