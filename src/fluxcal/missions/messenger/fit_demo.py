@@ -273,7 +273,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         f"MESSENGER fit demo: {days:g} simulated days at 1 vector/s of realistic solar wind "
         f"(variance estimator), truth tables in {truth}",
         f"  fit {verdict}",
-        f"  fitted folder: {fitted}",
+        f"  fitted folder: {fitted}; the law stated over T_RANGE "
+        f"{result.fitted_range[0]:g}..{result.fitted_range[1]:g} C (calibrating a sample "
+        "outside it warns; the held upper segments: "
+        + (", ".join(result.held_upper) or "none") + ")",
         f"  tau {result.relaxation.tau:.0f} +- {result.relaxation.tau_err:.0f} s (truth "
         f"{tc.constants['relaxation']['tau_s']:.0f}, shipped 872); D0 "
         + " ".join(f"{f.slope:.4f} (held)" if a in result.held_d0 else

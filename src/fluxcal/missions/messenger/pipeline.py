@@ -177,7 +177,7 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     Returns
     -------
     bool
-        Whether the warning was logged.
+        True when it warned; False for a table without ``T_RANGE`` or every sample inside.
 
     References
     ----------
