@@ -278,8 +278,10 @@ def check_merit(result: FitResult) -> None:
                 if result.held_d0 else "")
         upper = getattr(result, "held_upper", None) or {}
         if name == "the temperature law" and upper:
+            # of all fitted samples (`fit.merit_inside_range` may narrow ``samples``)
+            of = (m.get("outside") or {}).get("of", m["samples"])
             held = (f" (upper segment {', '.join(upper)} held at the table with its widths, "
-                    f"entry 21; {m.get('samples_beyond_data', 0)} of {m['samples']} samples "
+                    f"entry 21; {m.get('samples_beyond_data', 0)} of {of} samples "
                     "outside the data's range)")
         raise FitRefusedError(
             f"predicted error of a recalibrated day {_axes(total)} nT (x / y / z) exceeds "
