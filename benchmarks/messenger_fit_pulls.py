@@ -121,13 +121,15 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             verdict = "accepted"
         except FitRefusedError as exc:
             verdict = f"refused: {exc}"
-        unseen_rms = np.full(3, np.nan)
+        unseen_rms = unseen_in = np.full(3, np.nan)
         if unseen:
             folder = Path(tmp) / "fitted"
             write_calibration_folder(res, folder, None, {
                 "inputs": {}, "intervals": "all data", "days": f"first {days}",
                 "command": "messenger_fit_pulls"}, study=True)
             unseen_rms = recalibrate_rms(run.input_dir, run.days[-1], folder)
+            unseen_in = recalibrate_rms(run.input_dir, run.days[-1], folder,
+                                        res.fitted_range)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
         (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
@@ -159,6 +161,13 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "predicted_nt": np.asarray(res.merit.get("total_nt", [np.nan] * 3)),
         "passes": res.convergence["passes_run"],
         "unseen_nt": unseen_rms,
+        "unseen_in_range_nt": unseen_in,
+        "held_upper": sorted(res.held_upper),
+        "law_band_max_nt": NT_PER_COUNT * res.law_error(t_all).max(axis=0),
+        "law_max_pull": np.abs((_law(cal.temperature_coefficients, t_all) - _law(tc, t_all))
+                               / res.law_error(t_all)).max(axis=0),
+        "outside_share": (res.merit["outside"]["samples"] / max(res.merit["outside"]["of"], 1)
+                          if "outside" in res.merit else 0.0),
         "verdict": verdict,
         "compressive_share": fit_merit.compressive_share(res.variance.reason),
         "reasons": dict(zip(*np.unique(np.asarray(res.variance.reason), return_counts=True),
@@ -265,7 +274,11 @@ def main() -> None:
               f"{np.round(r['law_max_nt'], 3)} nT over {r['range'][0]:+.0f}.."
               f"{r['range'][1]:+.0f} C  T_m pulls {np.round(r['tm_pull'], 2)} (+- "
               f"{np.round(r['tm_err'], 2)} C)  predicted {np.round(r['predicted_nt'], 3)} nT  "
-              f"unseen day {np.round(r['unseen_nt'], 3)} nT; passes {r['passes']}; guards: "
+              f"unseen day {np.round(r['unseen_nt'], 3)} nT (inside the stated range "
+              f"{np.round(r['unseen_in_range_nt'], 3)} nT; samples outside "
+              f"{r['outside_share']:.1%}); held upper segments {r['held_upper']}; law band "
+              f"max {np.round(r['law_band_max_nt'], 3)} nT, law max |error / band| "
+              f"{np.round(r['law_max_pull'], 2)}; passes {r['passes']}; guards: "
               f"{r['verdict']}; compressive {r['compressive_share'][0]} of "
               f"{r['compressive_share'][1]} judged; intervals {r['reasons']}", flush=True)
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "

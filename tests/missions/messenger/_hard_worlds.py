@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fluxcal.missions.messenger.flight_sim import Schedule
+from tests.missions.messenger._realistic_wind import powerlaw
 
 DAY_S = 86400.0
 HOUR_S = 3600.0
@@ -57,20 +58,6 @@ ORBIT_S = 12 * HOUR_S
 BLOCK_S = 1000.0
 REGULATED_C = -50.0
 PARKER = (0.55, -0.6, 0.58)
-
-
-def powerlaw(rng: np.random.Generator, n: int, dims: int, slope: float, f_lo: float,
-             f_hi: float) -> np.ndarray:
-    """Unit-variance Gaussian series on a 1-s grid with PSD ~ f^slope in [f_lo, f_hi]."""
-    m = 1 << int(np.ceil(np.log2(max(n, 2))))
-    f = np.fft.rfftfreq(m, d=1.0)
-    amp = np.zeros_like(f)
-    band = (f >= f_lo) & (f <= f_hi)
-    amp[band] = f[band] ** (slope / 2.0)
-    spec = amp[:, None] * (rng.standard_normal((f.size, dims))
-                           + 1j * rng.standard_normal((f.size, dims)))
-    x = np.fft.irfft(spec, n=m, axis=0)[:n]
-    return x / x.std(axis=0, keepdims=True)
 
 
 def _unit(x: np.ndarray) -> np.ndarray:

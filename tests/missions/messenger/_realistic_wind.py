@@ -21,10 +21,15 @@ import numpy as np
 DAY_S = 86400.0
 
 
-def _powerlaw(rng: np.random.Generator, n: int, dims: int, slope: float, f_lo: float,
+def powerlaw(rng: np.random.Generator, n: int, dims: int, slope: float, f_lo: float,
               f_hi: float) -> np.ndarray:
-    """Unit-variance Gaussian series on a 1-s grid with PSD ~ f^slope in [f_lo, f_hi]."""
-    m = 1 << int(np.ceil(np.log2(n)))
+    """Unit-variance Gaussian series on a 1-s grid with PSD ~ f^slope in [f_lo, f_hi].
+
+    FFT synthesis: Gaussian real and imaginary parts per frequency, amplitude
+    ``f^(slope/2)`` in the band, zero outside; the series is cut to ``n`` and scaled to
+    unit variance per column (also used by `_hard_worlds`).
+    """
+    m = 1 << int(np.ceil(np.log2(max(n, 2))))
     f = np.fft.rfftfreq(m, d=1.0)
     amp = np.zeros_like(f)
     band = (f >= f_lo) & (f <= f_hi)
@@ -48,7 +53,7 @@ def realistic_wind(rng: np.random.Generator, n: int, *, b_nt: float = 18.0,
     """
     p = np.asarray(parker, dtype=float)
     p /= np.linalg.norm(p)
-    v = _powerlaw(rng, n, 3, -5.0 / 3.0, 1.0 / (12 * 3600.0), 0.5)
+    v = powerlaw(rng, n, 3, -5.0 / 3.0, 1.0 / (12 * 3600.0), 0.5)
     # |u| ~ 1 with s p of unit length and a v of rms a sqrt(3) per vector: the angle
     # spread gives dB/B ~ rotation for a = rotation / sqrt(3) (small-angle)
     a = rotation / np.sqrt(3.0)
@@ -59,8 +64,8 @@ def realistic_wind(rng: np.random.Generator, n: int, *, b_nt: float = 18.0,
         np.searchsorted(flips, np.arange(n), side="right") % 2 == 0, 1.0, -1.0)
     u = s[:, None] * p[None, :] + a * v
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    g = _powerlaw(rng, n, 1, -2.0, 1.0 / (4 * DAY_S), 1.0 / (12 * 3600.0))[:, 0]
-    h = (_powerlaw(rng, n, 1, -5.0 / 3.0, 1.0 / 3600.0, 0.5) if broadband
-         else _powerlaw(rng, n, 1, -2.0, 1.0 / 3600.0, 1.0 / 300.0))[:, 0]
+    g = powerlaw(rng, n, 1, -2.0, 1.0 / (4 * DAY_S), 1.0 / (12 * 3600.0))[:, 0]
+    h = (powerlaw(rng, n, 1, -5.0 / 3.0, 1.0 / 3600.0, 0.5) if broadband
+         else powerlaw(rng, n, 1, -2.0, 1.0 / 3600.0, 1.0 / 300.0))[:, 0]
     mag = b_nt * np.exp(0.15 * g) * (1.0 + compressive * h)
     return u * mag[:, None]

@@ -32,12 +32,21 @@ def day_streams(inp: Path, day: dt.date):
                                           f("TMP", day + one)) if p.exists()]))
 
 
-def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None) -> np.ndarray:
-    """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth."""
+def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None,
+                    t_range: tuple[float, float] | None = None) -> np.ndarray:
+    """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth.
+
+    ``t_range``: only the samples whose true sensor temperature lies in it (C; the range
+    a fitted table states, ``T_RANGE``).
+    """
     sci, htr, tmp = day_streams(inp, day)
     cal = load_calibration(np.datetime64(str(day)), folder)
     with KernelPool(inp / "kernels.tm"):
         ds = calibrate(sci, htr, tmp, cal, frames=("sc",), max_offset_step=None)
     truth = read_flight_truth(inp, day)
     assert np.array_equal(ds["met"].values, truth["met"])
-    return np.sqrt(((ds["b_sensor"].values - truth["b_sensor"]) ** 2).mean(axis=0))
+    err = ds["b_sensor"].values - truth["b_sensor"]
+    if t_range is not None:
+        temp = truth["temperature_c"]
+        err = err[(temp >= t_range[0]) & (temp <= t_range[1])]
+    return np.sqrt((err ** 2).mean(axis=0))

@@ -333,3 +333,84 @@ def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):
     assert mid.constants["relaxation"]["tau_s"] == pytest.approx(rel["tau_s"] + 20.0)
     step = _table_step(other, res)  # other -> res
     assert _reverses(-step, step) and not _reverses(step, step)
+
+
+def test_an_accepted_goal_scales_the_law_band_limit(shipped):
+    # resampled laws whose intercepts scatter by 1.406 counts on every axis: a band of
+    # 1.406 x 0.047997 = 0.0675 nT on z (Table 4's largest fine gain) at every
+    # temperature, above the default limit 0.05 nT: refused as "not determined", with the
+    # goal whose limit (half of it) admits it, 0.14 nT; at --error-goal 0.14 it is stated
+    from fluxcal.missions.messenger.fit_merit import assess, band_limit_for
+
+    assert band_limit_for(0.1) == pytest.approx(0.05)
+    assert band_limit_for(0.2) == pytest.approx(0.1)
+    base = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(base.calibration)
+    rng = np.random.default_rng(8)
+    k = 4000
+    b_law = np.repeat(law[None], k, axis=0)
+    b_law[:, :, 0] += 1.406 * rng.standard_normal((k, 1))
+    rel = base.calibration.constants["relaxation"]
+    boot = {"law": b_law, "d0": np.repeat(np.asarray(base.calibration.duty_cycle_d0)[None], k, 0),
+            "tau": np.full(k, float(rel["tau_s"])), "dt": np.full(k, float(rel["delay_s"]))}
+    temp = rng.uniform(-60.0, 30.0, 3000)
+    base.variance.offset_moments = offset_moments(temp, np.zeros(3000), np.zeros(3000),
+                                                  np.zeros(3000))
+    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    assess(res)
+    assert not res.merit["law_determined"] and res.merit["band_limit_nt"] == 0.05
+    with pytest.raises(FitRefusedError, match=r"exceeds 0\.05 nT at every temperature .* "
+                                              r"--error-goal 0\.14 \(the law's limit is 0\.5 "
+                                              r"of the goal"):
+        check_merit(res)
+    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    assess(res, 0.14)
+    assert res.merit["law_determined"] and res.merit["band_limit_nt"] == pytest.approx(0.07)
+    assert res.fitted_range == (-60.0, 40.0)
+    check_merit(res)  # the predicted error (about 0.067 nT) is within 0.14
+
+
+def test_a_segment_held_in_the_fit_is_counted_once(shipped):
+    # entries 21-22: an upper segment held by the fit is drawn in every resample (c with
+    # HOLD_SLOPE_CHANGE_WIDTH |c|, T_m with HOLD_BREAK_WIDTH_C); the prediction reads its
+    # width from the resampled laws only.  Brute force over the draws here (the law at
+    # the 1-C bins' mean temperatures, as the prediction states): equal to 1e-9, and the
+    # same number whether or not the result says the segment is held (nothing added);
+    # a refusal whose largest part is the law names the held segments.
+    from fluxcal.missions.messenger.fit import HOLD_BREAK_WIDTH_C, HOLD_SLOPE_CHANGE_WIDTH
+
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
+    rng = np.random.default_rng(21)
+    n = 4000
+    temp = rng.uniform(-60.0, 30.0, n)
+    res.variance.offset_moments = offset_moments(temp, np.zeros(n), np.zeros(n), np.zeros(n))
+    law = law_parameters(res.calibration)
+    k = 300
+    b_law = np.repeat(law[None], k, axis=0)
+    b_law[:, :, 2] += HOLD_SLOPE_CHANGE_WIDTH * np.abs(law[:, 2]) * rng.standard_normal((k, 3))
+    b_law[:, :, 3] += HOLD_BREAK_WIDTH_C * rng.standard_normal((k, 3))
+    d0 = np.asarray(res.calibration.duty_cycle_d0)
+    rel = res.calibration.constants["relaxation"]
+    boot = {"law": b_law, "d0": np.repeat(d0[None], k, 0), "tau": np.full(k, rel["tau_s"]),
+            "dt": np.full(k, rel["delay_s"])}
+    free = dataclasses.replace(res, bootstrap=boot, waveform_error=None)
+    held = dataclasses.replace(free, held_upper={
+        a: {"Tm_c": (law[j, 3], HOLD_BREAK_WIDTH_C),
+            "slope_change": (law[j, 2], HOLD_SLOPE_CHANGE_WIDTH * abs(law[j, 2]))}
+        for j, a in enumerate("xyz")})
+    got = predicted_error(held)
+    assert got["law_nt"] == predicted_error(free)["law_nt"]
+    m = np.asarray(res.calibration.matrices[0])
+    idx = np.searchsorted(MOMENT_EDGES_C, temp, side="right") - 1
+    t_mean = np.bincount(idx, temp, MOMENT_EDGES_C.size)[idx] / np.bincount(
+        idx, minlength=MOMENT_EDGES_C.size)[idx]
+    sq = sum(((((law_values(b_law[j], t_mean) - law_values(law, t_mean)) @ m.T) ** 2)
+              .mean(axis=0)) for j in range(k))
+    np.testing.assert_allclose(got["law_nt"], np.sqrt(sq / k), rtol=1e-9)
+    assert got["samples_beyond_data"] == pytest.approx(n * 60.0 / 90.0, rel=0.05)
+    held.merit = {**got, "goal_nt": 0.1, "law_determined": True,
+                  "data_range_c": [-60.0, -30.0], "band_limit_nt": 0.05}
+    with pytest.raises(FitRefusedError, match=r"largest part on .: the temperature law "
+                                              r"[\d.]+ nT \(upper segment x, y, z held at "
+                                              r"the table with its widths"):
+        check_merit(held)

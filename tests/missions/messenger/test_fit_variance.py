@@ -20,7 +20,14 @@ import pytest
 from fluxcal.errors import FitRefusedError, FluxcalError
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import Chunk, check_fit, day_chunks, fit_days
+from fluxcal.missions.messenger.fit import (
+    HOLD_BREAK_WIDTH_C,
+    HOLD_SLOPE_CHANGE_WIDTH,
+    Chunk,
+    check_fit,
+    day_chunks,
+    fit_days,
+)
 from fluxcal.missions.messenger.fit_variance import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
@@ -156,13 +163,15 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
 # item 2: the guards on the variance path (closed-form normal equations)
 # ---------------------------------------------------------------------------------------
 def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0,
-                     sparse_to_c=None, hold_d0=()):
+                     sparse_to_c=None, hold_d0=(), upper_unseen=False):
     """`fit_variance_calibration` on normal equations whose solution is ``step``.
 
     48 one-hour blocks of 400 rows ``y = X step + noise``; accepted samples' temperatures
     fill the 5-C bins from ``counts_from_c`` to ``counts_to_c`` (3000 each; 500 each on
     to ``sparse_to_c``, fewer than `MIN_RANGE_SAMPLES`); no heater
-    phase data (the waveforms are kept from ``base``).
+    phase data (the waveforms are kept from ``base``).  ``upper_unseen``: the hinge
+    regressors (``max(0, T - T_m)``, the break step, the shifted hinges) are zero, as
+    they are when no accepted sample lies above the breaks.
     """
     from fluxcal.missions.messenger.fit import fit_variance_calibration
     from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
@@ -171,6 +180,9 @@ def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c
     rng = np.random.default_rng(11)
     v = _stats(np.arange(48) * 3600.0, rng, np.zeros(N_PARAMETERS))
     x = rng.normal(size=(48, 400, N_PARAMETERS))
+    if upper_unseen:
+        x[..., [j * PER_AXIS + k for j in range(3) for k in (2, 3)]] = 0.0
+        x[..., 3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = 0.0
     y = x @ step + noise * rng.normal(size=(48, 400))
     centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
     v.normal, v.rhs = np.einsum("bni,bnj->bij", x, x), np.einsum("bni,bn->bi", x, y)
@@ -197,21 +209,37 @@ def test_variance_fit_inside_its_ranges_passes_the_guards(shipped):
     check_fit(res)
 
 
-def test_variance_break_outside_the_fitted_range_is_refused(shipped):
-    # accepted samples only at -60..-30 C: the shipped breaks (-15..-10 C) are not in
-    # the data, whatever their stated error
-    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
+def test_variance_break_outside_the_fitted_range_is_held_with_its_width(shipped):
+    # accepted samples only at -60..-30 C: the shipped breaks (-15..-10 C) and the upper
+    # segments are not in the data; they are held at the start table's values with the
+    # default widths (entry 21), no longer refused, and not judged by the break guard
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
+                           upper_unseen=True)
     assert res.fitted_range == (-60.0, -30.0)
-    with pytest.raises(FitRefusedError, match=r"T_m x = -10\.2 \+- .* C lies outside the "
-                                              r"temperatures of the accepted intervals "
-                                              r"\(-60\.0\.\.-30\.0 C\).*both sides of the "
-                                              r"break"):
-        check_fit(res)
-    # fewer samples (500 per bin) on to 0 C: the law is stated over -60..-30 C only, but
-    # the breaks lie inside the data and pass
+    assert sorted(res.held_upper) == ["x", "y", "z"]
+    law = law_parameters(shipped)
+    for j, a in enumerate("xyz"):
+        h = res.held_upper[a]
+        assert h["Tm_c"] == (pytest.approx(law[j, 3]), HOLD_BREAK_WIDTH_C)
+        assert h["slope_change"] == (pytest.approx(law[j, 2]),
+                                     pytest.approx(HOLD_SLOPE_CHANGE_WIDTH * abs(law[j, 2])))
+        # the break is the held one; its stated error is its width (200 draws: 15 %)
+        assert res.temperature[j].x_m == pytest.approx(law[j, 3], abs=1e-9)
+        assert res.temperature[j].x_m_err == pytest.approx(HOLD_BREAK_WIDTH_C, rel=0.15)
+    # the band above the breaks is the widths' (closed form, first order: the lower line
+    # is known to 1e-3): (w_c (T - T_m))^2 + (c w_T)^2 at +40 C, within the draws' 15 %
+    t = 40.0
+    expect = np.hypot(HOLD_SLOPE_CHANGE_WIDTH * np.abs(law[:, 2]) * (t - law[:, 3]),
+                      np.abs(law[:, 2]) * HOLD_BREAK_WIDTH_C)
+    assert res.law_error(np.array([t]))[0] == pytest.approx(expect, rel=0.15)
+    # below the breaks (by three widths) the law keeps the data's own error
+    assert np.all(res.law_error(np.array([-45.0]))[0] < 1e-2)
+    check_fit(res)
+    # fewer samples (500 per bin) on to 0 C: two bins above every break hold an
+    # interval's worth: nothing held, the law stated over -60..-30 C, the breaks pass
     res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
                            sparse_to_c=0.0)
-    assert res.fitted_range == (-60.0, -30.0)
+    assert res.fitted_range == (-60.0, -30.0) and res.held_upper == {}
     check_fit(res)
 
 

@@ -25,7 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.calibration.gain_matrix import lower_triangular_matrix
-from fluxcal.calibration.store import CalibrationStore, TableHeader, read_header, user_folder
+from fluxcal.calibration.store import (
+    CalibrationStore,
+    TableHeader,
+    _key,
+    read_header,
+    user_folder,
+)
 from fluxcal.errors import CalibrationError
 from fluxcal.textfile import read_text
 
@@ -239,6 +245,11 @@ class MessengerCalibration:
         File names and versions used, for product provenance.
     paths : tuple of Path
         The files themselves (checksummed in product provenance).
+    temperature_range : tuple of float or None
+        ``T_RANGE`` of the Table 2 file's header (C): the range over which a fitted law
+        is determined (`fluxcal.missions.messenger.fit_write`); calibrating samples
+        outside it warns (`pipeline.warn_outside_temperature_range`).  None: the
+        table states no range (the seed's Table 2).
     """
 
     net_lag_s: np.ndarray
@@ -254,6 +265,7 @@ class MessengerCalibration:
     constants: dict
     files: list[tuple[str, int]]
     paths: tuple[Path, ...] = ()
+    temperature_range: tuple[float, float] | None = None
 
     def __repr__(self) -> str:
         """Two lines: the tables by version and folder, then validity and key constants."""
@@ -384,4 +396,26 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
         constants=t["processing"].toml,
         files=[(tf.path.name, tf.version) for tf in t.values()],
         paths=tuple(tf.path for tf in t.values()),
+        temperature_range=_temperature_range(t["offsets_temperature"]),
     )
+
+
+def _temperature_range(table: TableFile) -> tuple[float, float] | None:
+    """``T_RANGE: lo hi`` (C) of a Table 2 file's header, or None when it has none.
+
+    Raises
+    ------
+    CalibrationError
+        A ``T_RANGE`` that is not two finite numbers, low before high.
+    """
+    text = next((v for k, v in table.header.items() if _key(k) == "t_range"), None)
+    if text is None:
+        return None
+    try:
+        lo, hi = (float(x) for x in text.replace(",", " ").split())
+    except ValueError:
+        lo = hi = float("nan")
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise CalibrationError(f"{table.path}: header field 'T_RANGE' must be two numbers "
+                               f"LOW HIGH (C, low below high), got {text!r}")
+    return lo, hi

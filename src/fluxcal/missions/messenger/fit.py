@@ -122,6 +122,17 @@ MAX_RELATIVE_ERROR = 0.3
 #: Default width of a held D0, as a fraction of the held value (``--hold-d0 z`` without
 #: ``+-WIDTH``; docs/decisions/messenger_fit.md entry 18).
 HOLD_D0_DEFAULT_WIDTH = 0.5
+#: The upper segment of an axis's law (above its break T_m, eq. 3b) counts as determined
+#: when at least this many 5-C bins wholly above the break hold an interval's worth of
+#: accepted samples (`VarianceSettings.min_samples`): the line is then seen over 10 C
+#: (docs/decisions/messenger_fit.md entry 21); otherwise `held_upper_segments`.
+UPPER_SEGMENT_MIN_BINS = 2
+#: Widths (1 sigma) of a held upper segment: its slope change ``c = B1 - B0`` (fraction
+#: of the held value) and its break T_m (C).  The simulated worlds' true tables change c
+#: by -40 / +79 / +54 % from the seed's Table 2 and move the breaks by 4-6 C; at +30 C
+#: the x truth lies 1.05 sigma from the held law with 100 %, 2.1 with 50 % (entry 21).
+HOLD_SLOPE_CHANGE_WIDTH = 1.0
+HOLD_BREAK_WIDTH_C = 5.0
 #: Held D0: axes (base value, default width) or ``axis -> (value or None, width or None)``.
 HoldD0 = tuple[str, ...] | Mapping[str, tuple[float | None, float | None]]
 #: A day inside the shipped tables' validity, to load them as the guards' reference.
@@ -167,6 +178,10 @@ class FitResult:
         Axes whose D0 was held at the user's request (``--hold-d0``).
     held : dict
         ``axis -> (value, width)`` of the held D0 (`held_d0_values`).
+    held_upper : dict
+        ``axis -> {"Tm_c": (value, width), "slope_change": (value, width)}`` of the
+        upper segments no accepted interval determines (`held_upper_segments`): held
+        at the start table's values, each resample drawing them from their widths.
     bootstrap : dict or None
         The variance estimator's resamples of the tables' parameters (widened):
         ``law`` (n, 3, 4) as ``(a, b, c, T_m)``, ``d0`` (n, 3), ``tau`` (n,), ``dt``
@@ -197,6 +212,7 @@ class FitResult:
     fitted_range: tuple[float, float] = (float("nan"), float("nan"))
     held_d0: tuple[str, ...] = ()
     held: dict[str, tuple[float, float]] = field(default_factory=dict)
+    held_upper: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
     bootstrap: dict[str, np.ndarray] | None = None
     break_shift: np.ndarray = field(default_factory=lambda: np.zeros(3))
     convergence: dict[str, Any] = field(default_factory=dict)
@@ -713,6 +729,8 @@ def break_refusal(result: FitResult, *, error: bool = True) -> str:
         what_t = "heater-off samples over a wider temperature range around the break"
     if (np.all(np.isfinite(span)) or ok.any()) and result.temperature:
         for a, f in zip(AXES, result.temperature, strict=True):
+            if a in result.held_upper:  # held with its width (`held_upper_segments`)
+                continue
             if not (t_lo <= f.x_m <= t_hi):
                 return (f"temperature law (sec. 7, Table 2): fitted break T_m {a} = "
                         f"{f.x_m:.1f} +- {f.x_m_err:.2g} C lies outside the {data} "
@@ -754,6 +772,80 @@ def held_d0_values(hold_d0: HoldD0, base: MessengerCalibration
     return out
 
 
+def held_upper_segments(vstats: VarianceStatistics, start: MessengerCalibration,
+                        force: Sequence[str] = ()
+                        ) -> dict[str, dict[str, tuple[float, float]]]:
+    """Upper segments (eq. 3b) that no accepted interval determines, held (entry 21).
+
+    An axis's segment above its break T_m (of ``start``, the table the fit started
+    from) is undetermined when fewer than `UPPER_SEGMENT_MIN_BINS` 5-C bins wholly
+    above the break hold `VarianceSettings.min_samples` accepted samples (issue 34's
+    Mercury orbit: the warm end seen only near periapsis, in intervals rejected as
+    compressive), or when it is in ``force`` (`fit_variance_calibration`: the fit's
+    own bootstrap left its break undetermined, an error above `MAX_BREAK_ERROR_C`).
+    Its break and its slope change ``c = B1 - B0`` are then held at
+    ``start``'s values with the widths `HOLD_BREAK_WIDTH_C` and
+    `HOLD_SLOPE_CHANGE_WIDTH` x ``|c|``; the upper line follows the fitted lower one
+    (eq. 4).
+
+    Returns
+    -------
+    dict
+        ``axis -> {"Tm_c": (value, width), "slope_change": (value, width)}``.
+    """
+    law = fv.law_parameters(start)
+    edges = fv.TEMPERATURE_EDGES_C
+    seen = vstats.temperature_count >= fv.VarianceSettings().min_samples
+    out = {}
+    for j, a in enumerate(AXES):
+        above = int(np.count_nonzero(seen & (edges[:-1] >= law[j, 3])))
+        if above < UPPER_SEGMENT_MIN_BINS or a in force:
+            out[a] = {"Tm_c": (float(law[j, 3]), HOLD_BREAK_WIDTH_C),
+                      "slope_change": (float(law[j, 2]),
+                                       HOLD_SLOPE_CHANGE_WIDTH * abs(float(law[j, 2])))}
+    return out
+
+
+def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT) -> None:
+    """Hold the predicted error to the samples inside the stated range (entry 21).
+
+    ``result.merit`` (`fit_merit.assess`) predicts the error over every used sample;
+    the table states its law only over ``result.fitted_range`` (``T_RANGE``), and
+    calibrating a sample outside it warns with how far (`calibration_data`,
+    `levels.offsets`).  The figure of merit ``total_nt`` (and its parts) becomes
+    `fit_merit.predicted_error` over the samples whose 1-C bin lies inside the range;
+    ``outside`` keeps the share of the samples outside and the prediction over all
+    samples, both stated in every header and the report.  Only when T_RANGE holds the
+    regulated temperature (eq. 2, -50 C): the heater runs only there, and the
+    prediction's waveform part counts every heater-on sample as inside; a range without
+    it keeps the prediction over all samples.
+    """
+    m = result.merit
+    lo, hi = result.fitted_range
+    if not m or "total_nt" not in m or not np.all(np.isfinite((lo, hi))):
+        return
+    rel = result.calibration.constants["relaxation"]
+    if not lo <= float(rel.get("reference_temperature_c", -50.0)) <= hi:
+        return
+    v = result.variance
+    mom = v.offset_moments
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_b = mom[:, 1] / mom[:, 0]
+    inside = (mom[:, 0] > 0) & (t_b >= lo) & (t_b <= hi)
+    view = dataclasses.replace(result, variance=dataclasses.replace(
+        v, offset_moments=mom * inside[:, None]))
+    within = fit_merit.predicted_error(view, goal)
+    n_all = int(m["samples"])
+    result.merit = {
+        **m, **{k: within[k] for k in ("total_nt", "law_nt", "d0_nt", "relaxation_nt",
+                                        "waveform_nt", "samples")},
+        "range_c": [float(lo), float(hi)],
+        "outside": {"samples": n_all - int(within["samples"]), "of": n_all,
+                    "all_samples_total_nt": list(m["total_nt"]),
+                    "all_samples_law_nt": list(m["law_nt"])},
+    }
+
+
 def with_tables(base: MessengerCalibration, law: np.ndarray, d0: np.ndarray, tau: float,
                 dt: float, heater: np.ndarray) -> MessengerCalibration:
     """Return ``base`` with the law ``(a, b, c, T_m)`` per axis, D0, tau, dt and waveforms.
@@ -788,6 +880,8 @@ def fit_variance_calibration(
     n_bootstrap: int = 200,
     hold_d0: HoldD0 = (),
     max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
+    start: MessengerCalibration | None = None,
+    hold_upper: tuple[str, ...] = (),
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
@@ -812,6 +906,12 @@ def fit_variance_calibration(
     max_compressive_share : float
         Named as the cause when too little accepted data remain
         (`fit_merit.compressive_refusal`).
+    start : MessengerCalibration, optional
+        The table the fit started from (default ``base``): an upper segment no accepted
+        interval determines is held at its values (`held_upper_segments`, entry 21).
+    hold_upper : tuple of str
+        Axes whose upper segment is held whatever the data (set by the re-solve when a
+        free break comes out with an error above `MAX_BREAK_ERROR_C`).
 
     Returns
     -------
@@ -847,15 +947,21 @@ def fit_variance_calibration(
             "most); the temperature law is not constrained: give more days of solar wind")
     held = held_d0_values(hold_d0, base)
     d0_base = np.asarray(base.duty_cycle_d0, dtype=float)
-    held_step, held_width = np.zeros(3), np.zeros(3)
-    for a, (value, width) in held.items():
-        held_step[AXES.index(a)] = value - d0_base[AXES.index(a)]
-        held_width[AXES.index(a)] = width
+    columns: dict[int, tuple[float, float]] = {
+        AXES.index(a) * fv.PER_AXIS + 4: (value - d0_base[AXES.index(a)], width)
+        for a, (value, width) in held.items()}
+    # an upper segment no accepted interval sees: its break and slope change held at the
+    # start table's values, with widths (the columns d(c) and -c d(T_m))
+    now = fv.law_parameters(base)
+    upper = held_upper_segments(vstats, base if start is None else start, hold_upper)
+    for a, h in upper.items():
+        j = AXES.index(a)
+        (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
+        columns[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
+        columns[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     try:
         sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                                hold_d0=tuple(AXES.index(a) for a in held),
-                                law=fv.law_parameters(base), held_step=held_step,
-                                held_width=held_width)
+                                law=now, held=columns)
     except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
         if cause:
             raise too_little(str(exc)) from None
@@ -873,20 +979,32 @@ def fit_variance_calibration(
     # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
     # (entry 13), in the tables' parameters (each resample has its own break choice);
     # a held D0 keeps its own draws (its width is the user's, not the data's)
+    # a free break the bootstrap leaves undetermined (its upper segment seen in too few
+    # or too short intervals): held like an unseen one, the fit solved again (entry 21)
+    loose = tuple(a for j, a in enumerate(AXES) if a not in upper
+                  and not sol.widening * np.std(b_law[:, j, 3]) <= MAX_BREAK_ERROR_C)
+    if loose:
+        return fit_variance_calibration(stats, vstats, base, fit_delay=fit_delay,
+                                        n_bootstrap=n_bootstrap, hold_d0=hold_d0,
+                                        max_compressive_share=max_compressive_share,
+                                        start=start, hold_upper=(*hold_upper, *loose))
     w = sol.widening
-    drawn = b_d0.copy()
+    drawn, drawn_law = b_d0.copy(), b_law.copy()
     b_law = law + w * (b_law - b_law.mean(axis=0))
     b_d0 = d0 + w * (b_d0 - b_d0.mean(axis=0))
     b_tau = tau + w * (b_tau - b_tau.mean())
     b_dt = dt + w * (b_dt - b_dt.mean())
     for a in held:
         b_d0[:, AXES.index(a)] = drawn[:, AXES.index(a)]
+    for a in upper:  # the held slope change and break keep their draws too
+        b_law[:, AXES.index(a), 2:] = drawn_law[:, AXES.index(a), 2:]
     dt_err = float(np.std(b_dt))
     adopted = fit_delay and dt_err < MAX_DELAY_ERROR_S and dt >= 0.0
     if fit_delay and not adopted:
         return fit_variance_calibration(stats, vstats, base, fit_delay=False,
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
-                                        max_compressive_share=max_compressive_share)
+                                        max_compressive_share=max_compressive_share,
+                                        start=start, hold_upper=hold_upper)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
@@ -920,7 +1038,8 @@ def fit_variance_calibration(
                      relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
                      stats=stats, epoch_curve=np.empty((0, 4)), estimator="variance",
                      variance=vstats, fitted_range=t_range, held_d0=tuple(held),
-                     held=held, bootstrap={"law": b_law, "d0": b_d0, "tau": b_tau,
+                     held=held, held_upper=upper,
+                     bootstrap={"law": b_law, "d0": b_d0, "tau": b_tau,
                                            "dt": b_dt},
                      break_shift=np.asarray(sol.break_shift, dtype=float),
                      waveform_error=waveform_error)
@@ -1246,7 +1365,7 @@ def fit_days(
             if estimator == "variance":
                 result = fit_variance_calibration(
                     stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
-                    max_compressive_share=max_compressive_share)
+                    max_compressive_share=max_compressive_share, start=base)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)
@@ -1301,6 +1420,7 @@ def fit_days(
             check_fit(result)
         if estimator == "variance":
             fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
+            merit_inside_range(result, error_goal)
             if guard:
                 fit_merit.check_merit(result)
         return result

@@ -13,8 +13,12 @@
 3. `fit_days` with the variance estimator (``estimator="variance"``: ``|B|`` nearly
    constant within 1-min segments of 15-min intervals; the seed's zero-mean estimator is
    refused on a realistic wind; D0 z held at the shipped value, ``--hold-d0 z``: two days do not
-   determine it), passes until tau and D0 settle, and `write_calibration_folder`.
-4. An unseen day (the forward model's own field: Mercury dipole, IMF, waves) calibrated
+   determine it), passes until tau and D0 settle, the command line's guards, and
+   `write_calibration_folder`.  Two days miss the default goal of 0.1 nT (the refusal is
+   shown); the demo then writes the table with ``--error-goal 0.2`` (`DEMO_ERROR_GOAL_NT`),
+   says so, and every header states it.
+4. An unseen day (the forward model's own field: Mercury dipole, IMF, waves), the fit's
+   predicted error for it (`fit_merit.predicted_error` with its samples), calibrated
    with the shipped tables and with the fitted folder (``edr2cdr --calib``'s
    `load_calibration(day, folder)`), both compared with the truth.
 
@@ -40,6 +44,10 @@ from fluxcal.missions.solar_wind import alfvenic_wind
 from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.paths import make_folder
 
+#: The demo's ``--error-goal`` (nT): 2 days do not reach the default 0.1 nT (their law's
+#: band and predicted error lie above it, docs/decisions/messenger_fit.md entry 23), and
+#: more days would double the demo's time; the demo says when it uses it.
+DEMO_ERROR_GOAL_NT = 0.2
 #: The training winds of `simulate_training`: ``realistic`` (the default) or ``quiet``.
 FIELDS = ("realistic", "quiet")
 
@@ -154,6 +162,46 @@ def simulate_training(out: Path, truth: Path, start: str, days: float, *,
     return {"kernels": mk, **write_inputs(sim, out / "inputs")}
 
 
+def _verdict(result, out: Path):
+    """Return ``(verdict, folder, result)``: the command line's guards, then the demo's goal.
+
+    The guards at their defaults first; a table refused only on its figure of merit (the
+    predicted error or the law's band, `fit_merit.check_merit`) is judged again at
+    `DEMO_ERROR_GOAL_NT`, as ``--error-goal`` would (its headers then say so); any other
+    refusal is shown as it is and the folder written as a study.
+    """
+    import dataclasses
+
+    from fluxcal.errors import FitRefusedError
+    from fluxcal.missions.messenger import fit_merit
+    from fluxcal.missions.messenger.fit import check_fit, merit_inside_range
+
+    try:
+        if not result.convergence["converged"]:
+            raise FitRefusedError(result.convergence["stop"])
+        check_fit(result)
+    except FitRefusedError as exc:
+        return (f"REFUSED by the guards (the command would write nothing): {exc}",
+                out / "fitted_refused", result)
+    try:
+        fit_merit.check_merit(result)
+        return "accepted by the guards at their defaults", out / "fitted", result
+    except FitRefusedError as exc:
+        default = str(exc)
+    accepted = dataclasses.replace(result, fitted_range=tuple(result.merit["data_range_c"]))
+    fit_merit.assess(accepted, DEMO_ERROR_GOAL_NT,
+                     max_compressive_share=result.merit["max_compressive_share"])
+    merit_inside_range(accepted, DEMO_ERROR_GOAL_NT)  # as `fit_days` does
+    try:
+        fit_merit.check_merit(accepted)
+    except FitRefusedError as exc:
+        return (f"REFUSED by the guards (the command would write nothing): {default}; also "
+                f"at --error-goal {DEMO_ERROR_GOAL_NT:g}: {exc}", out / "fitted_refused", result)
+    return (f"refused at the default goal {fit_merit.ERROR_GOAL_NT:g} nT ({default}); "
+            f"WRITTEN WITH --error-goal {DEMO_ERROR_GOAL_NT:g} (the demo's option, stated in "
+            "every table header; a user gives more days instead)", out / "fitted", accepted)
+
+
 def run_demo(out: Path, *, days: float = 2.0) -> str:
     """Simulate, fit, recalibrate an unseen day, compare; return a short summary.
 
@@ -167,11 +215,11 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         (about 8 counts at 40 % duty) stays undetermined: the guards would refuse it and
         name ``--hold-d0 z``; the demo holds it at the shipped value, as a user would.
     """
-    from fluxcal.errors import FitRefusedError
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit import Chunk, check_fit, fit_days
+    from fluxcal.missions.messenger.fit import Chunk, fit_days
+    from fluxcal.missions.messenger.fit_variance import reduce_variance
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
@@ -188,15 +236,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     # the guards of `check_fit` run after the fit, so that a refusal is shown with the
     # figures it refuses (the command line, `fluxcal messenger fit`, writes nothing then)
     result = fit_days([chunk], base, estimator="variance", guard=False, hold_d0=("z",))
-    try:
-        if not result.convergence["converged"]:
-            raise FitRefusedError(result.convergence["stop"])
-        check_fit(result)
-        fit_merit.check_merit(result)
-        verdict, fitted = "accepted by the guards", out / "fitted"
-    except FitRefusedError as exc:
-        verdict = f"REFUSED by the guards (the command would write nothing): {exc}"
-        fitted = out / "fitted_refused"
+    verdict, fitted, result = _verdict(result, out)
     # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
     write_calibration_folder(result, fitted, None, {
         "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"},
@@ -210,7 +250,12 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     truth_cal = load_calibration(unseen, truth)
     lines = []
     with KernelPool(mk, frames=FRAME_KERNELS):
-        sim = forward_simulate(config, truth_cal, SclkKernel.from_pool(SPACECRAFT_ID))
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
+        sim = forward_simulate(config, truth_cal, sclk)
+        # the prediction for this day: its own temperatures and relaxed duty cycles
+        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
+                                  result.calibration).offset_moments
+        unseen_pred = fit_merit.predicted_error(result, moments=moments)["total_nt"]
         tr = sim["truth"]
         fine = tr["range"].values == 0
         for name, folder in (("shipped tables", None), ("fitted folder", fitted),
@@ -228,7 +273,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         f"MESSENGER fit demo: {days:g} simulated days at 1 vector/s of realistic solar wind "
         f"(variance estimator), truth tables in {truth}",
         f"  fit {verdict}",
-        f"  fitted folder: {fitted}",
+        f"  fitted folder: {fitted}; the law stated over T_RANGE "
+        f"{result.fitted_range[0]:g}..{result.fitted_range[1]:g} C (calibrating a sample "
+        "outside it warns; the held upper segments: "
+        + (", ".join(result.held_upper) or "none") + ")",
         f"  tau {result.relaxation.tau:.0f} +- {result.relaxation.tau_err:.0f} s (truth "
         f"{tc.constants['relaxation']['tau_s']:.0f}, shipped 872); D0 "
         + " ".join(f"{f.slope:.4f} (held)" if a in result.held_d0 else
@@ -242,6 +290,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         "  heater waveforms, rms of fitted - truth over the 8 duty bins (counts): "
         + " ".join(f"{v:.2f}" for v in np.sqrt(np.mean(
             (cal.heater_signal - tc.heater_signal)[:, :100] ** 2, axis=(1, 2)))),
+        "  predicted error of a recalibrated day (nT rms, sensor x y z): "
+        + " ".join(f"{v:.3f}" for v in result.merit.get("total_nt", [float("nan")] * 3))
+        + " over the fitted days, "
+        + " ".join(f"{v:.3f}" for v in unseen_pred) + " for the unseen day below",
         "  unseen 2-h day (Mercury orbit, 20/5/1/10 Hz; fine-range samples):",
     ]
     return "\n".join(head + lines)

@@ -46,14 +46,19 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
-from scipy import sparse
 
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
+from fluxcal.calibration.segment_trends import (
+    remove_segment_lines,
+    segment_codes,
+    segment_variance,
+)
 from fluxcal.calibration.solar_wind_offsets import (
     count_reasons,
 )
@@ -356,32 +361,17 @@ def reduce_variance(
     cols.append((u @ d0) * dr_dt)
     x = np.column_stack(cols)
     y = mag
-    # the mean (and trend) per segment; the weights below per interval
+    # the mean (and trend) per segment (`segment_trends`, as Rosetta's); the weights
+    # below per interval
     interval_codes = codes
-    per = int(np.ceil(s.interval_s / s.segment_s)) + 1
-    within = np.floor((et - labels[interval_codes] * s.interval_s) / s.segment_s)
-    _, codes = np.unique(interval_codes * per + within.astype(np.int64), return_inverse=True)
-    k = int(codes.max()) + 1
+    codes, k = segment_codes(et, interval_codes, labels * s.interval_s, s.segment_s)
     out.segments = k
-    n_k = np.bincount(codes, minlength=k).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        inv = np.where(n_k > 0, 1.0 / n_k, 0.0)
-    # per-segment sums of every column at once: a (segments x samples) indicator matrix
-    member = sparse.csr_matrix((np.ones(codes.size), (codes, np.arange(codes.size))),
-                               shape=(k, codes.size))
-    x -= (member @ x)[codes] * inv[codes, None]
-    y = y - (np.bincount(codes, y, k) * inv)[codes]
-    if s.detrend:
-        tc = et - (np.bincount(codes, et, k) * inv)[codes]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tt = np.bincount(codes, tc * tc, k)
-            tinv = np.where(tt > 0, 1.0 / np.where(tt > 0, tt, 1.0), 0.0)
-        x -= tc[:, None] * ((member @ (tc[:, None] * x)) * tinv[:, None])[codes]
-        y = y - tc * (np.bincount(codes, tc * y, k) * tinv)[codes]
+    xy = remove_segment_lines(np.column_stack([x, y]), codes, k, et, line=s.detrend)
+    x, y = np.ascontiguousarray(xy[:, :-1]), xy[:, -1]
     if s.weighting == "inverse_variance":
         ki = labels.size
-        n_i = np.bincount(interval_codes, minlength=ki).astype(float)
-        var_i = np.bincount(interval_codes, y * y, ki) / np.maximum(n_i, 1.0)
+        n_i = np.bincount(interval_codes, minlength=ki)
+        var_i = np.nan_to_num(segment_variance(y, interval_codes, ki))
         floor = 0.1 * np.median(var_i[n_i > 0])
         w = 1.0 / np.sqrt(np.maximum(var_i, floor))
         x *= w[interval_codes, None]
@@ -509,7 +499,8 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
 
     The exact two-segment law at each shifted break is compared with the law whose break
     stays (its slope change free, no linearised step); axes in turn, ``sweeps`` times.
-    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried.
+    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried, nor
+    any on an axis whose break column is not free in ``base_free`` (a held break).
 
     ``a``, ``v``, ``yy`` may be stacks of resampled normal equations (leading axis
     ``n``): each resample then chooses its own breaks (the bootstrap repeats every
@@ -529,8 +520,9 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
             best = choice[:, j].copy()
             best_r = np.full(n, np.inf)
             for k in (-1, *range(N_SHIFTS)):
-                if k >= 0 and not (lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
-                    continue
+                if k >= 0 and not (base_free[j * PER_AXIS + 3]
+                                   and lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
+                    continue  # outside the fitted range, or the break held
                 trial = choice.copy()
                 trial[:, j] = k
                 r = np.empty(n)
@@ -562,7 +554,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    hold_d0: tuple[int, ...] = (),
                    law: np.ndarray | None = None,
                    held_step: np.ndarray | None = None,
-                   held_width: np.ndarray | None = None) -> VarianceSolution:
+                   held_width: np.ndarray | None = None,
+                   held: Mapping[int, tuple[float, float]] | None = None
+                   ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
     Parameters
@@ -589,6 +583,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         Standard error of each held D0: every resample draws the held value from a
         normal distribution of this width, so that it propagates into every other
         parameter's error (issue 34); default 0.
+    held : mapping, optional
+        Any other held parameter: column (`PER_AXIS` layout) -> ``(step, width)``, the
+        same way as a held D0 (not fitted, the step to the held value, every resample
+        drawing it from a normal distribution of ``width``).  An axis whose break
+        column (``-c dT_m``) is held keeps its break: no shift is tried for it
+        (`fit.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
 
     Returns
     -------
@@ -608,10 +608,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     base_free[-1] = fit_delay
     step_h = np.zeros(3) if held_step is None else np.asarray(held_step, dtype=float)
     width_h = np.zeros(3) if held_width is None else np.asarray(held_width, dtype=float)
+    columns = {j * PER_AXIS + 4: (float(step_h[j]), float(width_h[j])) for j in hold_d0}
+    columns.update(held or {})
     fixed_h = np.zeros(N_PARAMETERS)
-    for j in hold_d0:
-        base_free[j * PER_AXIS + 4] = False
-        fixed_h[j * PER_AXIS + 4] = step_h[j]
+    for col, (value, _) in columns.items():
+        base_free[col] = False
+        fixed_h[col] = value
     a, v, yy_b = stats.normal, stats.rhs, stats.yy
     nb = a.shape[0]
     choice: tuple[int, ...] = (-1, -1, -1)
@@ -647,10 +649,10 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                       for _ in range(n_bootstrap)]).astype(float)
     a_r, v_r, yy_r = np.einsum("rb,bij->rij", picks, a), picks @ v, picks @ yy_b
     held_r = np.broadcast_to(fixed_h, (n_bootstrap, N_PARAMETERS)).copy()
-    if hold_d0:
-        draws = rng.standard_normal((n_bootstrap, 3)) * width_h
-        for j in hold_d0:
-            held_r[:, j * PER_AXIS + 4] += draws[:, j]
+    if columns:
+        cols = sorted(columns)
+        draws = rng.standard_normal((n_bootstrap, len(cols)))
+        held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
     if law is not None:
         boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, t_range, fixed=held_r)
     else:

@@ -67,6 +67,15 @@ def merit_lines(result: FitResult) -> list[str]:
         if goal > ERROR_GOAL_NT:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
                          f"{goal:g}")
+        if "outside" in m:
+            o = m["outside"]
+            lines.append(
+                f"the predicted error holds for the samples inside T_RANGE "
+                f"{m['range_c'][0]:g}..{m['range_c'][1]:g} C; {o['samples']} of {o['of']} "
+                f"fitted samples ({o['samples'] / max(o['of'], 1):.1%}) lie outside it, "
+                "where the law is extrapolated (calibrating them warns); over all samples "
+                "the prediction is " + " / ".join(f"{v:.3g}" for v in o["all_samples_total_nt"])
+                + " nT")
     if m and "judged" in m:
         share = float(m["max_compressive_share"])
         lines.append(f"intervals rejected as compressive: {m['compressive']} of {m['judged']} "
@@ -75,6 +84,17 @@ def merit_lines(result: FitResult) -> list[str]:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT COMPRESSIVE SHARE "
                          f"{MAX_COMPRESSIVE_SHARE:.0%}: --max-compressive-share {share:g}")
     return lines
+
+
+def held_upper_lines(result: FitResult) -> list[str]:
+    """Header lines: the upper segments held because no accepted interval saw them."""
+    return [f"{a}: upper segment (eq. 3b) held: no accepted interval determines it "
+            f"(fewer than 2 5-C bins above the break, or its free break +- more than 10 C); "
+            f"Tm held at {h['Tm_c'][0]:.2f} +- "
+            f"{h['Tm_c'][1]:.3g} C, B1 - B0 at {h['slope_change'][0]:.4g} +- "
+            f"{h['slope_change'][1]:.3g} counts/C (the widths enter every stated error; "
+            "the upper line follows the fitted lower one, eq. 4)"
+            for a, h in result.held_upper.items()]
 
 
 def band_lines(result: FitResult) -> list[str]:
@@ -208,7 +228,7 @@ def write_calibration_folder(
              for a, f in zip(AXES, t, strict=True)]
     tm = result.stats.temperature
     if result.estimator == "variance":
-        extra += [_range_line(result), *band_lines(result)]
+        extra += [_range_line(result), *held_upper_lines(result), *band_lines(result)]
     else:
         extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}",
                   f"estimator: {result.temperature_law} (bin "
@@ -218,6 +238,11 @@ def write_calibration_folder(
         f"{a},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{c[3]:.6f},{tmv:.4f}"
         for a, c, tmv in zip(AXES, cal.temperature_coefficients, cal.breakpoint_temperature_c,
                              strict=True)]
+    lo, hi = result.fitted_range
+    # the range the law is stated over, read back by `load_calibration` (calibrating a
+    # sample outside it warns: `pipeline.warn_outside_temperature_range`)
+    t_range = ([f"# T_RANGE: {lo:g} {hi:g}"] if result.estimator == "variance"
+               and np.all(np.isfinite((lo, hi))) else [])
     texts["offsets_temperature"] = "\n".join(_header(
         "MESSENGER MAG offsets versus sensor temperature, two-segment line (eq. 3a, 3b, 4)",
         "MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, Table 2 form; heater off, 10-C bins,"
@@ -225,7 +250,7 @@ def write_calibration_folder(
         base["offsets_temperature"].header, provenance,
         ["units: A0, A1 = counts (fine range); B0, B1 = counts per degC; Tm_c = degC", *extra,
          *merit_lines(result)],
-    ) + rows) + "\n"
+    ) + t_range + rows) + "\n"
     # Table 3 form
     d = result.duty
     dm = result.stats.duty
@@ -402,6 +427,12 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
             "interval_s": VarianceSettings().interval_s,
             "segment_s": VarianceSettings().segment_s, "segments": int(v.segments)}
         doc["temperature"]["fitted_range_c"] = list(result.fitted_range)
+        doc["temperature"]["T_RANGE"] = list(result.fitted_range)
+        for a, h in result.held_upper.items():
+            doc["temperature"][a].update({
+                "upper_held": True, "Tm_held_value": h["Tm_c"][0],
+                "Tm_held_width": h["Tm_c"][1], "slope_change_held_value":
+                h["slope_change"][0], "slope_change_held_width": h["slope_change"][1]})
         doc["temperature"]["fitted_range_rule"] = (
             f"5-C bins holding >= {MIN_RANGE_SAMPLES} samples of accepted intervals")
         doc["temperature"]["variance_bin_edges_c"] = TEMPERATURE_EDGES_C
@@ -455,6 +486,7 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
     ]
     if result.estimator == "variance":
         lines.append(f"  {_range_line(result)}")
+        lines += [f"  {x}" for x in held_upper_lines(result)]
     for a, f in zip(AXES, result.temperature, strict=True):
         lines.append(f"  {a}: A0 {f.a0:9.3f} +- {f.a0_err:.3f}  B0 {f.b0:7.4f} +- {f.b0_err:.4f}"
                      f"  A1 {f.a1:9.3f} +- {f.a1_err:.3f}  B1 {f.b1:7.4f} +- {f.b1_err:.4f}"
@@ -492,4 +524,5 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
             + " / ".join(f"{v:.3f}" for v in m["d0_nt"]) + ", tau and dt "
             + " / ".join(f"{v:.3f}" for v in m["relaxation_nt"]) + ", waveforms "
             + " / ".join(f"{v:.3f}" for v in m["waveform_nt"]))
+        lines += [x for x in merit_lines(result) if x.startswith("the predicted error holds")]
     return "\n".join(lines)

@@ -95,6 +95,7 @@ def calibrate(
     ds = levels.mark_sunlit(ds, cal, method=method)
     temperature = defects.drop_temperature_glitches(temperature)  # issue 23
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
+    warn_outside_temperature_range(ds, cal)
     ds = levels.counts_to_field(ds, cal)
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_BEFORE_GEOMETRY)
@@ -162,6 +163,46 @@ def warn_unseen_duty_cycle(
         "look-back (%.0f s) of its start; give the previous day's heater file",
         first_file, changes.duty_cycle_ppt[0], int(hit.sum()), look_back_s,
     )
+    return True
+
+
+def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) -> bool:
+    """Warn when samples lie outside the temperature range the Table 2 file states.
+
+    A fitted Table 2 states ``T_RANGE`` (`MessengerCalibration.temperature_range`),
+    the sensor temperatures over which its law is determined; outside it the law is
+    extrapolated (issue 34, docs/decisions/messenger_fit.md entry 21).  The warning
+    counts the samples and says how far below and above the range they reach.
+
+    Returns
+    -------
+    bool
+        True when it warned; False for a table without ``T_RANGE`` or every sample inside.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 3-4, Table 2.
+    """
+    if cal.temperature_range is None or "temperature" not in ds:
+        return False
+    lo, hi = cal.temperature_range
+    t = ds["temperature"].values
+    below, above = t < lo, t > hi
+    n = int(below.sum() + above.sum())
+    if n == 0:
+        return False
+    far = []
+    if below.any():
+        far.append(f"down to {float(t[below].min()):.1f} C ({lo - float(t[below].min()):.1f} C "
+                   "below)")
+    if above.any():
+        far.append(f"up to {float(t[above].max()):.1f} C ({float(t[above].max()) - hi:.1f} C "
+                   "above)")
+    table = next((f for f, _ in cal.files if f.startswith("offsets_temperature")), "Table 2")
+    log.warning(
+        "%d of %d samples lie at sensor temperatures outside the range %s states "
+        "(T_RANGE %.1f..%.1f C), %s: the temperature law is extrapolated there (its header "
+        "states the error)", n, t.size, table, lo, hi, " and ".join(far))
     return True
 
 
