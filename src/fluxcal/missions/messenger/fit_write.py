@@ -32,8 +32,7 @@ from fluxcal.missions.messenger.fit_variance import (
     TEMPERATURE_EDGES_C,
     VarianceSettings,
 )
-from fluxcal.products.atomic import atomic_group, atomic_write_bytes
-from fluxcal.products.paths import make_folder
+from fluxcal.products.declared import File, write_declared
 from fluxcal.products.provenance import creation_time, sha256_file
 from fluxcal.version import software_version
 
@@ -324,21 +323,15 @@ def write_calibration_folder(
             "error_goal_nt": result.merit["goal_nt"]} if "total_nt" in result.merit else {}),
     }}) + "\n"
     texts["processing"] = text
-    written: list[Path] = []
-    make_folder(out)
-    with atomic_group():
-        for name in FITTED:
-            ext = "toml" if name == "processing" else "csv"
-            path = out / f"{name}_v{version[name]}.{ext}"
-            written.append(atomic_write_bytes(path, texts[name].encode()))
-        for name in ("latency", "gain_matrix"):
-            written.append(atomic_write_bytes(out / base_files[name].name,
-                                              base_files[name].read_bytes()))
-        report = fit_report(result, base_files, version, provenance)
-        written.append(atomic_write_bytes(out / "fit_report.toml",
-                                          (dump_toml(report) + "\n").encode()))
-        written.append(atomic_write_bytes(out / "fit_report.txt",
-                                          (report_text(result, provenance) + "\n").encode()))
+    report = fit_report(result, base_files, version, provenance)
+    files = [File(f"{name}_v{version[name]}.{'toml' if name == 'processing' else 'csv'}",
+                  texts[name]) for name in FITTED]
+    files += [File(base_files[name].name, base_files[name].read_bytes())
+              for name in ("latency", "gain_matrix")]
+    files += [File("fit_report.toml", dump_toml(report) + "\n"),
+              File("fit_report.txt", report_text(result, provenance) + "\n")]
+    # one all-or-nothing group (the tables record their own provenance in their headers)
+    written = write_declared(files, out, provenance=lambda product: {})
     return written
 
 
