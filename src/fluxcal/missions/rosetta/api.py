@@ -26,23 +26,11 @@ def calibrate(
 ) -> dict[str, xr.Dataset]:
     """Calibrate one RPC-MAG sensor's raw file; return each level's product content.
 
-    Parameters
-    ----------
-    inputs : path
-        Raw science CSV, or the archive's EDITED products (folder or ``.LBL``).
-    sensor : {"OB", "IB"}
-    levels : sequence of str
-        Levels to make (A, B, C, E, F, G; C and G need ``kernels``).
-    hk, calib, kernels : path, optional
-        Raw HK, a calibration folder, a meta-kernel (as ``fluxcal rosetta calibrate``).
-
-    Returns
-    -------
-    dict of str -> xarray.Dataset
-        Level (and ``HK`` with ``hk``) -> the variables of its products (``b`` on
-        ``component`` ``x y z``, ...).  The products add ``time_utc`` (the UTC text of
-        ``epoch``); the coordinate ``mode_segment`` that splits the tables by filter
-        mode is not returned, as no product holds it.
+    The registry's piece behind `fluxcal.calibrate_rosetta` (parameters there, with
+    ``inputs`` its ``science``).  Each level's dataset holds the variables of its
+    products (``b`` on ``component`` ``x y z``, ...); the products add ``time_utc`` (the
+    UTC text of ``epoch``); the coordinate ``mode_segment`` that splits the tables by
+    filter mode is not returned, as no product holds it.
 
     References
     ----------
