@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.flight_sim import read_flight_truth
@@ -33,11 +34,11 @@ def day_streams(inp: Path, day: dt.date):
 
 
 def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None,
-                    t_range: tuple[float, float] | None = None) -> np.ndarray:
+                    t_range: StatedRanges | tuple[float, float] | None = None) -> np.ndarray:
     """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth.
 
     ``t_range``: only the samples whose true sensor temperature lies in it (C; the range
-    a fitted table states, ``T_RANGE``).
+    a fitted table states, ``T_RANGE``: `StatedRanges` or one ``(lo, hi)``).
     """
     sci, htr, tmp = day_streams(inp, day)
     cal = load_calibration(np.datetime64(str(day)), folder)
@@ -48,5 +49,5 @@ def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None,
     err = ds["b_sensor"].values - truth["b_sensor"]
     if t_range is not None:
         temp = truth["temperature_c"]
-        err = err[(temp >= t_range[0]) & (temp <= t_range[1])]
+        err = err[StatedRanges.of(t_range).contains(temp)]
     return np.sqrt((err ** 2).mean(axis=0))

@@ -291,10 +291,20 @@ def test_period_mean_keeps_a_ramp_and_removes_the_waveform():
     assert np.all(np.isnan(m[(t >= 360.0) & (t < 470.0)]))
 
 
+def _boot(res, law, d0=None):
+    """A bootstrap of the given resampled laws (and D0), tau and dt at the table's values."""
+    k = law.shape[0]
+    rel = res.calibration.constants["relaxation"]
+    d0 = (np.repeat(np.asarray(res.calibration.duty_cycle_d0, dtype=float)[None], k, 0)
+          if d0 is None else d0)
+    return {"law": law, "d0": d0, "tau": np.full(k, float(rel["tau_s"])),
+            "dt": np.full(k, float(rel["delay_s"]))}
+
+
 def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped):
     # resampled laws differing only in their slope b (sigma 0.03 counts/C): the band is
     # 0.03 |T| counts, within 0.05 nT for |T| <= 0.05 / (0.03 |M_jj|) = 35 C on every axis
-    # (inside the data's -60..40 C)
+    # (inside the data's -60..40 C; no fitted samples: the law's band, R = 0)
     from fluxcal.missions.messenger.fit_merit import LAW_BAND_LIMIT_NT, stated_range
 
     res = _variance_result(shipped, np.zeros(N_PARAMETERS))
@@ -303,12 +313,65 @@ def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped)
     rng = np.random.default_rng(2)
     b_law = np.repeat(law[None], 4000, axis=0)
     b_law[:, :, 1] += 0.03 * rng.standard_normal((4000, 1))
-    res = dataclasses.replace(res, bootstrap={"law": b_law})
+    res = dataclasses.replace(res, bootstrap=_boot(res, b_law))
     limit = LAW_BAND_LIMIT_NT / (0.03 * np.abs(np.diag(res.calibration.matrices[0])).max())
-    lo, hi = stated_range(res)
+    ranges = stated_range(res)
+    assert len(ranges.intervals) == 1
+    lo, hi = ranges.span
     assert lo == pytest.approx(-limit, abs=1.5) and hi == pytest.approx(limit, abs=1.5)
-    # a limit nowhere met: (nan, nan), which `check_merit` refuses
-    assert np.isnan(stated_range(res, limit_nt=-1.0)).all()
+    # a limit nowhere met: None, which `check_merit` refuses
+    assert stated_range(res, limit_nt=-1.0) is None
+
+
+def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_there(shipped):
+    # entry 24-trange, closed form.  Resampled laws whose slope b scatters by +-beta
+    # (two resamples, z = +1 / -1, so the rms is exactly beta |T|) and whose D0 moves
+    # against it, dD0 = beta z 50 / R0 on every axis: at the regulated -50 C with the
+    # heater on (R = R0) the offset the table applies, cT(-50) + D0 R0 (eq. 5a, 5b),
+    # does not move at all, while the law alone there has the band 50 beta.
+    # Fitted samples: 1000 heater-on at -50.0 C (R0 = 200 ppt) and 10 heater-off
+    # (R = 0) per 0.1 C from -45 to +40 C (bin means k + 0.5).  By hand, with beta =
+    # 0.03 counts/C and |M_jj| of Table 4: a heater-off bin is inside iff
+    # beta |k + 0.5| max|M_jj| <= 0.05 nT; the bins -60..-50 and -49..-45 hold no sample
+    # (the law's band at the centre, R = 0: above the limit); the -50 C bin is inside.
+    from fluxcal.missions.messenger.fit_merit import (
+        LAW_BAND_LIMIT_NT,
+        offset_band,
+        stated_range,
+    )
+
+    beta, r0 = 0.03, 200.0
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    assert res.fitted_range == (-60.0, 40.0)
+    law = law_parameters(res.calibration)
+    z = np.array([1.0, -1.0])
+    b_law = np.repeat(law[None], 2, axis=0)
+    b_law[:, :, 1] += beta * z[:, None]
+    d0 = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
+    b_d0 = d0[None, :] + (beta * 50.0 / r0) * z[:, None]
+    hot = np.round(np.arange(-45.0, 40.0, 0.1) + 0.05, 6)
+    hot = np.repeat(hot, 10)
+    temp = np.concatenate([np.full(1000, -50.0), hot])
+    r = np.concatenate([np.full(1000, r0), np.zeros(hot.size)])
+    zeros = np.zeros(temp.size)
+    res.variance.offset_moments = offset_moments(temp, r, zeros, zeros)
+    res = dataclasses.replace(res, bootstrap=_boot(res, b_law, b_d0), waveform_error=None)
+    m_max = np.abs(np.diag(res.calibration.matrices[0])).max()
+    reach = LAW_BAND_LIMIT_NT / (beta * m_max)  # 34.7 C
+    k = np.arange(-45, 40)
+    inside = k[np.abs(k + 0.5) <= reach]
+    expected = ((-50.0, -49.0), (float(inside[0]), float(inside[-1] + 1)))
+    ranges = stated_range(res)
+    assert ranges.intervals == expected, ranges
+    edges, band = offset_band(res)
+    assert band[edges[:-1] == -50.0].max() == pytest.approx(0.0, abs=1e-12)
+    # the law alone at -50 C would be outside (the rule before: 50 beta |M_jj| nT)
+    assert (res.law_error(np.array([-50.0])) * m_max).max() == pytest.approx(
+        50 * beta * m_max, rel=1e-9)
+    assert 50 * beta * m_max > LAW_BAND_LIMIT_NT
+    # a heater-off bin's band is the law's, beta |T| |M_jj| (z: the largest |M_jj|)
+    j = int(np.argmax(edges[:-1] == 10.0))
+    assert band[j].max() == pytest.approx(beta * 10.5 * m_max, rel=1e-9)
 
 
 def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
@@ -64,10 +65,29 @@ def _table2(tmp_path, t_range_line: str | None):
 def test_t_range_is_read_from_the_table2_header(tmp_path):
     assert load_calibration(START).temperature_range is None  # the seed's table states none
     cal = load_calibration(START, _table2(tmp_path, "# T_RANGE: -55 -46"))
-    assert cal.temperature_range == (-55.0, -46.0)
+    assert cal.temperature_range == StatedRanges(((-55.0, -46.0),))
 
 
-@pytest.mark.parametrize("text", ["-40 -50", "-40", "a b", "nan 3"])
+@pytest.mark.parametrize(("line", "intervals"), [
+    # the one-interval form fit_write wrote before entry 24-trange, and "lo, hi"
+    ("# T_RANGE: -55 -46", ((-55.0, -46.0),)),
+    ("# T_RANGE: -55, -46", ((-55.0, -46.0),)),
+    # several intervals: lo hi pairs separated by commas (entry 24-trange)
+    ("# T_RANGE: -50 -49, -40 -17, 2 40", ((-50.0, -49.0), (-40.0, -17.0), (2.0, 40.0))),
+    ("# T_RANGE: -50.5 -49.25,7 37", ((-50.5, -49.25), (7.0, 37.0))),
+])
+def test_t_range_of_one_or_several_intervals_is_read(tmp_path, line, intervals):
+    cal = load_calibration(START, _table2(tmp_path / "a", line))
+    assert cal.temperature_range.intervals == intervals
+    # what the fit writes (`StatedRanges.header_text`) reads back to the same intervals
+    again = load_calibration(START, _table2(
+        tmp_path / "b", f"# T_RANGE: {cal.temperature_range.header_text()}"))
+    assert again.temperature_range == cal.temperature_range
+
+
+@pytest.mark.parametrize("text", ["-40 -50", "-40", "a b", "nan 3",
+                                  "-50 -49, -52 -40", "-50 -49, -49 -40", "-50 -49,",
+                                  "-50 -49, 1", "-50 -49; 2 40"])
 def test_malformed_t_range_is_one_line_naming_the_file(tmp_path, text):
     folder = _table2(tmp_path, f"# T_RANGE: {text}")
     with pytest.raises(CalibrationError, match=r"offsets_temperature_v1\.csv: header field "
@@ -90,6 +110,28 @@ def test_samples_outside_t_range_warn_with_how_far_on_both_sides(tmp_path, caplo
     inside = xr.Dataset({"temperature": ("time", np.array([-55.0, -46.0]))})
     assert not warn_outside_temperature_range(inside, cal)
     assert not warn_outside_temperature_range(ds, load_calibration(START))  # no T_RANGE
+    assert not caplog.records
+
+
+def test_samples_in_the_gap_between_intervals_warn(tmp_path, caplog):
+    # T_RANGE -50..-49, -40..-17, 2..40: -45 and -48.5 lie in the first gap (4 and 0.5 C
+    # from the nearest end), -10 and 1 in the second (7 and 1 C); -60 below (10 C), 45
+    # above (5 C); -50, -49.5, -40, -17, 2, 20, 40 inside (ends included)
+    cal = load_calibration(START, _table2(tmp_path, "# T_RANGE: -50 -49, -40 -17, 2 40"))
+    t = np.array([-60.0, -50.0, -49.5, -48.5, -45.0, -40.0, -17.0, -10.0, 1.0, 2.0, 20.0,
+                  40.0, 45.0])
+    ds = xr.Dataset({"temperature": ("time", t)})
+    with caplog.at_level(logging.WARNING):
+        assert warn_outside_temperature_range(ds, cal)
+    msg = caplog.records[-1].getMessage()
+    assert msg.startswith("6 of 13 samples lie at sensor temperatures outside the range "
+                          "offsets_temperature_v1.csv states (T_RANGE -50.0..-49.0, "
+                          "-40.0..-17.0, 2.0..40.0 C)"), msg
+    assert ("down to -60.0 C (10.0 C below) and up to 45.0 C (5.0 C above) and 4 in the "
+            "gaps between its intervals (up to 7.0 C from the nearest)") in msg, msg
+    caplog.clear()
+    inside = xr.Dataset({"temperature": ("time", np.array([-50.0, -49.0, -30.0, 2.0, 40.0]))})
+    assert not warn_outside_temperature_range(inside, cal)
     assert not caplog.records
 
 
@@ -121,12 +163,14 @@ def test_unseen_warm_segment_is_held_and_the_stated_range_narrowed(tmp_path, cap
         assert res.held_upper[a]["slope_change"] == (
             pytest.approx(law[j, 2]), pytest.approx(HOLD_SLOPE_CHANGE_WIDTH * abs(law[j, 2])))
     # the stated range lies in the data the world gives: nothing above -40 C
-    lo, hi = res.fitted_range
-    assert -65.0 <= lo < hi <= -40.0, res.fitted_range
+    ranges = res.stated_ranges
+    lo, hi = ranges.span
+    assert -65.0 <= lo < hi <= -40.0, ranges
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     fit_c = res.calibration.temperature_coefficients
     # inside T_RANGE the stated error covers the truth (3 sigma + the counts' rounding)
     t = np.arange(lo, hi + 0.01, 1.0)
+    t = t[ranges.contains(t)]
     err = np.abs(_law(fit_c, t) - _law(tc, t))
     assert np.all(err <= 3.0 * res.law_error(t) + COUNT_TOLERANCE), (err.max(0), res.law_error(t))
     # outside it the held widths cover the truth of the flight model too (its breaks
@@ -144,14 +188,14 @@ def test_unseen_warm_segment_is_held_and_the_stated_range_narrowed(tmp_path, cap
     write_calibration_folder(res, out, None, {"inputs": {}, "intervals": "all data",
                                               "days": "2", "command": "test"})
     header = next(out.glob("offsets_temperature_v*.csv")).read_text()
-    assert f"# T_RANGE: {lo:g} {hi:g}\n" in header
+    assert f"# T_RANGE: {ranges.header_text()}\n" in header
     assert header.count("upper segment (eq. 3b) held") == 3
     assert "the predicted error holds for the samples inside T_RANGE" in header
-    assert load_calibration(START, out).temperature_range == (lo, hi)
+    assert load_calibration(START, out).temperature_range == ranges
     with caplog.at_level(logging.WARNING):
-        inside = recalibrate_rms(run.input_dir, run.days[2], out, (lo, hi))
+        inside = recalibrate_rms(run.input_dir, run.days[2], out, ranges)
     temp = read_flight_truth(run.input_dir, run.days[2])["temperature_c"]
-    n_out = int(np.count_nonzero((temp < lo) | (temp > hi)))
+    n_out = int(np.count_nonzero(~ranges.contains(temp)))
     msg = next(r.getMessage() for r in caplog.records if "T_RANGE" in r.getMessage())
     n_warned = int(msg.split(" of ")[0])
     # the pipeline's temperature is the stream interpolated to the samples: 2 % of the
@@ -159,7 +203,7 @@ def test_unseen_warm_segment_is_held_and_the_stated_range_narrowed(tmp_path, cap
     assert n_warned == pytest.approx(n_out, rel=0.02), (msg, n_out)
     assert f"up to {temp.max():.0f}" in msg or abs(
         float(msg.split("up to ")[1].split(" C")[0]) - temp.max()) < 0.5, msg
-    print(f"T_RANGE {lo:g}..{hi:g} C, unseen day inside it {inside.round(3)} nT, "
+    print(f"T_RANGE {ranges} C, unseen day inside it {inside.round(3)} nT, "
           f"predicted {np.round(res.merit['total_nt'], 3)} nT; {msg}")
 
 
@@ -178,6 +222,7 @@ def test_warm_end_seen_in_the_wind_holds_nothing(tmp_path):
     fit_c = res.calibration.temperature_coefficients
     lo, hi = res.fitted_range
     t = np.arange(lo, hi + 0.01, 1.0)
+    t = t[res.stated_ranges.contains(t)]
     err = np.abs(_law(fit_c, t) - _law(tc, t))
     assert np.all(err <= 3.0 * res.law_error(t) + COUNT_TOLERANCE), (err.max(0), res.law_error(t))
     # the fitted upper line (not a held one) is within its band above the breaks too

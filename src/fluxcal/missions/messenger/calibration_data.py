@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.calibration.gain_matrix import lower_triangular_matrix
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.calibration.store import (
     CalibrationStore,
     TableHeader,
@@ -245,11 +246,13 @@ class MessengerCalibration:
         File names and versions used, for product provenance.
     paths : tuple of Path
         The files themselves (checksummed in product provenance).
-    temperature_range : tuple of float or None
-        ``T_RANGE`` of the Table 2 file's header (C): the range over which a fitted law
-        is determined (`fluxcal.missions.messenger.fit_write`); calibrating samples
-        outside it warns (`pipeline.warn_outside_temperature_range`).  None: the
-        table states no range (the seed's Table 2).
+    temperature_range : StatedRanges or None
+        ``T_RANGE`` of the Table 2 file's header (C): the temperatures over which a
+        fitted law is determined (`fluxcal.missions.messenger.fit_write`), one or more
+        intervals (``lo hi`` pairs separated by commas; a table of one interval, the
+        older form, reads the same); calibrating samples outside it warns
+        (`pipeline.warn_outside_temperature_range`).  None: the table states no range
+        (the seed's Table 2).
     """
 
     net_lag_s: np.ndarray
@@ -265,7 +268,7 @@ class MessengerCalibration:
     constants: dict
     files: list[tuple[str, int]]
     paths: tuple[Path, ...] = ()
-    temperature_range: tuple[float, float] | None = None
+    temperature_range: StatedRanges | None = None
 
     def __repr__(self) -> str:
         """Two lines: the tables by version and folder, then validity and key constants."""
@@ -400,22 +403,22 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
     )
 
 
-def _temperature_range(table: TableFile) -> tuple[float, float] | None:
-    """``T_RANGE: lo hi`` (C) of a Table 2 file's header, or None when it has none.
+def _temperature_range(table: TableFile) -> StatedRanges | None:
+    """``T_RANGE: lo hi[, lo hi ...]`` (C) of a Table 2 file's header, or None without it.
 
     Raises
     ------
     CalibrationError
-        A ``T_RANGE`` that is not two finite numbers, low before high.
+        A ``T_RANGE`` that is not pairs of finite numbers, low before high, the pairs in
+        increasing order and not overlapping (`StatedRanges.parse`).
     """
     text = next((v for k, v in table.header.items() if _key(k) == "t_range"), None)
     if text is None:
         return None
     try:
-        lo, hi = (float(x) for x in text.replace(",", " ").split())
-    except ValueError:
-        lo = hi = float("nan")
-    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        return StatedRanges.parse(text)
+    except ValueError as exc:
         raise CalibrationError(f"{table.path}: header field 'T_RANGE' must be two numbers "
-                               f"LOW HIGH (C, low below high), got {text!r}")
-    return lo, hi
+                               f"LOW HIGH (C, low below high), or several such pairs "
+                               f"separated by commas in increasing order, got {text!r}: "
+                               f"{exc}") from None

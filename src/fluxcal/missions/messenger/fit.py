@@ -53,6 +53,7 @@ from fluxcal.calibration.constrained_fits import (
     fit_two_segment,
 )
 from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError, FluxcalError, InputFormatError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import fit_merit
@@ -173,7 +174,12 @@ class FitResult:
     fitted_range : tuple of float
         Temperature range (C) over which the data constrain the law (the variance
         estimator: `VarianceStatistics.fitted_range`); ``(nan, nan)``: the filled
-        heater-off bins (`check_fit`).
+        heater-off bins (`check_fit`).  After `fit_merit.assess`: the span of
+        ``temperature_ranges``.
+    temperature_ranges : StatedRanges or None
+        The temperatures over which the table states its law (``T_RANGE``, one or more
+        intervals; `fit_merit.stated_range`, entry 24-trange); None: not assessed, or
+        determined nowhere.
     held_d0 : tuple of str
         Axes whose D0 was held at the user's request (``--hold-d0``).
     held : dict
@@ -210,6 +216,7 @@ class FitResult:
     estimator: str = "zero-mean"
     variance: Any = None
     fitted_range: tuple[float, float] = (float("nan"), float("nan"))
+    temperature_ranges: StatedRanges | None = None
     held_d0: tuple[str, ...] = ()
     held: dict[str, tuple[float, float]] = field(default_factory=dict)
     held_upper: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
@@ -218,6 +225,18 @@ class FitResult:
     convergence: dict[str, Any] = field(default_factory=dict)
     merit: dict[str, Any] = field(default_factory=dict)
     waveform_error: np.ndarray | None = None
+
+    @property
+    def stated_ranges(self) -> StatedRanges | None:
+        """``T_RANGE``: `temperature_ranges`, else the one interval ``fitted_range``.
+
+        None where neither is (the range is not finite).
+        """
+        if self.temperature_ranges is not None:
+            return self.temperature_ranges
+        lo, hi = self.fitted_range
+        ok = np.isfinite(lo) and np.isfinite(hi) and lo < hi
+        return StatedRanges(((lo, hi),)) if ok else None
 
     def law_error(self, t: np.ndarray) -> np.ndarray:
         """Stated standard error (counts) of the law at temperatures ``t``, per axis.
@@ -810,28 +829,29 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     """Hold the predicted error to the samples inside the stated range (entry 21).
 
     ``result.merit`` (`fit_merit.assess`) predicts the error over every used sample;
-    the table states its law only over ``result.fitted_range`` (``T_RANGE``), and
-    calibrating a sample outside it warns with how far (`calibration_data`,
-    `levels.offsets`).  The figure of merit ``total_nt`` (and its parts) becomes
-    `fit_merit.predicted_error` over the samples whose 1-C bin lies inside the range;
-    ``outside`` keeps the share of the samples outside and the prediction over all
-    samples, both stated in every header and the report.  Only when T_RANGE holds the
-    regulated temperature (eq. 2, -50 C): the heater runs only there, and the
-    prediction's waveform part counts every heater-on sample as inside; a range without
-    it keeps the prediction over all samples.
+    the table states its law only over ``result.temperature_ranges`` (``T_RANGE``, one
+    or more intervals), and calibrating a sample outside it warns with how far
+    (`calibration_data`, `pipeline.warn_outside_temperature_range`).  The figure of
+    merit ``total_nt`` (and its parts) becomes `fit_merit.predicted_error` over the
+    samples whose 1-C bin's mean temperature T_RANGE contains
+    (`StatedRanges.contains`); ``outside`` keeps the share of the samples outside and
+    the prediction over all samples, both stated in every header and the report.  Only
+    when T_RANGE holds the regulated temperature (eq. 2, -50 C): the heater runs only
+    there, and the prediction's waveform part counts every heater-on sample as inside;
+    a range without it keeps the prediction over all samples.
     """
     m = result.merit
-    lo, hi = result.fitted_range
-    if not m or "total_nt" not in m or not np.all(np.isfinite((lo, hi))):
+    ranges = result.temperature_ranges
+    if not m or "total_nt" not in m or ranges is None:
         return
     rel = result.calibration.constants["relaxation"]
-    if not lo <= float(rel.get("reference_temperature_c", -50.0)) <= hi:
+    if not ranges.contains(float(rel.get("reference_temperature_c", -50.0))):
         return
     v = result.variance
     mom = v.offset_moments
     with np.errstate(invalid="ignore", divide="ignore"):
         t_b = mom[:, 1] / mom[:, 0]
-    inside = (mom[:, 0] > 0) & (t_b >= lo) & (t_b <= hi)
+    inside = (mom[:, 0] > 0) & ranges.contains(t_b)
     view = dataclasses.replace(result, variance=dataclasses.replace(
         v, offset_moments=mom * inside[:, None]))
     within = fit_merit.predicted_error(view, goal)
@@ -839,7 +859,7 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     result.merit = {
         **m, **{k: within[k] for k in ("total_nt", "law_nt", "d0_nt", "relaxation_nt",
                                         "waveform_nt", "samples")},
-        "range_c": [float(lo), float(hi)],
+        "range_c": [list(pair) for pair in ranges.intervals],
         "outside": {"samples": n_all - int(within["samples"]), "of": n_all,
                     "all_samples_total_nt": list(m["total_nt"]),
                     "all_samples_law_nt": list(m["law_nt"])},

@@ -274,7 +274,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         f"(variance estimator), truth tables in {truth}",
         f"  fit {verdict}",
         f"  fitted folder: {fitted}; the law stated over T_RANGE "
-        f"{result.fitted_range[0]:g}..{result.fitted_range[1]:g} C (calibrating a sample "
+        f"{result.stated_ranges} C (calibrating a sample "
         "outside it warns; the held upper segments: "
         + (", ".join(result.held_upper) or "none") + ")",
         f"  tau {result.relaxation.tau:.0f} +- {result.relaxation.tau_err:.0f} s (truth "

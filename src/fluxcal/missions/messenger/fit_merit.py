@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger import fit_variance as fv
 
@@ -34,7 +35,7 @@ FitResult = Any
 
 __all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
-           "predicted_error", "stated_range"]
+           "offset_band", "predicted_error", "stated_range"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -121,72 +122,129 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
         return {**out, "total_nt": nan, "law_nt": nan, "d0_nt": nan, "relaxation_nt": nan,
                 "samples_outside_range": 0,
                 "samples_beyond_data": 0}
+    t_b, per_bin = _bin_mean_squares(result, mom, m)
+
+    def mean_square(part):
+        return np.maximum(per_bin[part].sum(axis=0) / n_total, 0.0)                 # (3,)
+
+    total = np.sqrt(mean_square("total") + rounding ** 2 + wave ** 2)
+
+    def outside(stated):
+        if stated is None:
+            return 0
+        return int(mom[~stated.contains(t_b), 0].sum())
+
+    data = v.fitted_range()
+    return {**out, "total_nt": total.tolist(),
+            "law_nt": np.sqrt(mean_square("law")).tolist(),
+            "d0_nt": np.sqrt(mean_square("d0")).tolist(),
+            "relaxation_nt": np.sqrt(mean_square("relaxation")).tolist(),
+            "samples_outside_range": outside(result.stated_ranges),
+            "samples_beyond_data": outside(_finite_range(data))}
+
+
+def _finite_range(span: tuple[float, float]) -> StatedRanges | None:
+    lo, hi = (float(v) for v in span)
+    ok = np.isfinite(lo) and np.isfinite(hi) and lo < hi
+    return StatedRanges(((lo, hi),)) if ok else None
+
+
+def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
+                      ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Per 1-C bin of ``mom`` (rows with samples), the offset error's squares through ``m``.
+
+    Over the bin's samples, averaged over the bootstrap's resamples: the sum of
+    ``(m dO)^2`` with ``dO = dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (``total``)
+    and of each part alone (``law``, ``d0``, ``relaxation``), each shape ``(bins, 3)``;
+    the law at each bin's mean temperature (returned first).  `predicted_error` sums
+    them over the bins, `stated_range` divides each by its bin's samples.
+    """
+    boot = result.bootstrap
+    cal = result.calibration
     sums = {name: mom[:, i] for i, name in enumerate(fv.MOMENT_COLUMNS)}
     t_b = sums["T"] / sums["n"]
     law = fv.law_parameters(cal)
     d0 = np.asarray(cal.duty_cycle_d0, dtype=float)
     rel = cal.constants["relaxation"]
     c = (fv.law_values(boot["law"], t_b) - fv.law_values(law, t_b)[None]) @ m.T  # (r, b, 3)
-    d = (boot["d0"] - d0) @ m.T                                                   # (r, 3)
+    d = ((boot["d0"] - d0) @ m.T)[:, None, :]                                    # (r, 1, 3)
     md0 = m @ d0
-    e = (boot["tau"] - float(rel["tau_s"]))[:, None] * md0                          # (r, 3)
-    f = (boot["dt"] - float(rel["delay_s"]))[:, None] * md0
+    e = ((boot["tau"] - float(rel["tau_s"]))[:, None] * md0)[:, None, :]
+    f = ((boot["dt"] - float(rel["delay_s"]))[:, None] * md0)[:, None, :]
 
-    def mean_square(c, d, e, f):
-        n = sums["n"][None, :, None]
-        s = ((n * c ** 2).sum(axis=1)
-             + 2.0 * d * (c * sums["R"][None, :, None]).sum(axis=1)
-             + 2.0 * e * (c * sums["Rt"][None, :, None]).sum(axis=1)
-             + 2.0 * f * (c * sums["Rd"][None, :, None]).sum(axis=1)
-             + d ** 2 * sums["RR"].sum() + e ** 2 * sums["RtRt"].sum()
-             + f ** 2 * sums["RdRd"].sum() + 2.0 * d * e * sums["RRt"].sum()
-             + 2.0 * d * f * sums["RRd"].sum() + 2.0 * e * f * sums["RtRd"].sum())
-        return np.maximum(s / n_total, 0.0).mean(axis=0)                           # (3,)
+    def per_bin(c, d, e, f):
+        def col(name):
+            return sums[name][None, :, None]
+        s = (col("n") * c ** 2 + 2.0 * d * c * col("R") + 2.0 * e * c * col("Rt")
+             + 2.0 * f * c * col("Rd") + d ** 2 * col("RR") + e ** 2 * col("RtRt")
+             + f ** 2 * col("RdRd") + 2.0 * d * e * col("RRt") + 2.0 * d * f * col("RRd")
+             + 2.0 * e * f * col("RtRd"))
+        return s.mean(axis=0)                                                       # (b, 3)
 
     zc, z = np.zeros_like(c), np.zeros_like(d)
-    total = np.sqrt(mean_square(c, d, e, f) + rounding ** 2 + wave ** 2)
+    return t_b, {"total": per_bin(c, d, e, f), "law": per_bin(c, z, z, z),
+                 "d0": per_bin(zc, d, z, z), "relaxation": per_bin(zc, z, e, f)}
 
-    def outside(lo, hi):
-        if not np.all(np.isfinite((lo, hi))):
-            return 0
-        return int(sums["n"][(t_b < lo) | (t_b > hi)].sum())
 
-    return {**out, "total_nt": total.tolist(),
-            "law_nt": np.sqrt(mean_square(c, z, z, z)).tolist(),
-            "d0_nt": np.sqrt(mean_square(zc, d, z, z)).tolist(),
-            "relaxation_nt": np.sqrt(mean_square(zc, z, e, f)).tolist(),
-            "samples_outside_range": outside(*result.fitted_range),
-            "samples_beyond_data": outside(*v.fitted_range())}
+def offset_band(result: FitResult) -> tuple[np.ndarray, np.ndarray]:
+    """Stated error (nT, per axis) of the offset the table applies, per 1-C bin of the data.
+
+    Over the data's range (``result.fitted_range`` as `assess` receives it: the 5-C
+    bins the accepted intervals fill), per bin of `fit_variance.MOMENT_EDGES_C`: the rms
+    over the bin's fitted samples and the bootstrap's resamples of the offset error
+    ``dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (eq. 2-6 linearised, the
+    prediction's own terms) times ``|M_jj|`` (eq. 8's fine diagonal).  Where the heater
+    has been off for long (``R = 0``) that is the law's band; at the regulated -50 C,
+    where the heater runs and the heater-on samples determine ``cT(-50 C) + D0 R``
+    (eq. 5a, 5b) much better than either part, it is that sum's error.  A bin of the
+    data's range without fitted samples gets the law's band at its centre (``R = 0``).
+    Without a bootstrap (the zero-mean estimator): the law's band (`FitResult.law_error`).
+
+    Returns
+    -------
+    edges : ndarray, shape (k + 1,)
+        The bins' edges (C).
+    band : ndarray, shape (k, 3)
+        The stated error per bin and axis (nT).
+    """
+    lo, hi = (float(x) for x in result.fitted_range)
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return np.array([lo, hi]), np.empty((0, 3))
+    all_edges = fv.MOMENT_EDGES_C
+    use = (all_edges[:-1] >= lo) & (all_edges[1:] <= hi)
+    if not use.any():
+        return np.array([lo, hi]), np.empty((0, 3))
+    edges = all_edges[np.flatnonzero(use).tolist() + [int(np.flatnonzero(use)[-1]) + 1]]
+    centre = 0.5 * (edges[:-1] + edges[1:])
+    scale = np.abs(np.diag(_nt_per_count(result.calibration)))
+    if result.bootstrap is None:
+        return edges, result.law_error(centre) * scale
+    mom = np.zeros((centre.size, len(fv.MOMENT_COLUMNS)))
+    v = result.variance
+    if v is not None and v.offset_moments is not None:
+        mom = np.array(v.offset_moments, dtype=float)[use]
+    empty = mom[:, 0] <= 0
+    mom[empty] = 0.0
+    mom[empty, 0], mom[empty, 1] = 1.0, centre[empty]  # one heater-off sample (R = 0)
+    _, per_bin = _bin_mean_squares(result, mom, np.diag(scale))
+    return edges, np.sqrt(np.maximum(per_bin["total"], 0.0) / mom[:, :1])
 
 
 def stated_range(result: FitResult, limit_nt: float = LAW_BAND_LIMIT_NT
-                 ) -> tuple[float, float]:
-    """Return the part of the fitted range where the law's band is within ``limit_nt``.
+                 ) -> StatedRanges | None:
+    """Return the temperatures (C) of the data's range where the offset is determined.
 
-    On every axis (the law's stated error at each temperature, a held segment's width
-    included, in nT through eq. 8's diagonal); ``(nan, nan)`` where it is nowhere.  The
-    range grows from the temperature of least band outwards while the band stays within
-    the limit.
+    The 1-C bins whose `offset_band` is within ``limit_nt`` on every axis, adjacent
+    bins merged into intervals (`StatedRanges`); None where no bin is.  Several
+    intervals where bins between them are not: the regulated -50 C (heater on,
+    ``cT(-50 C) + D0 R`` determined by most of the samples) and a warm stretch seen in
+    heater-off runs, with the relaxing tail between them less well determined
+    (docs/decisions/messenger_fit.md entry 24-trange).
     """
-    lo, hi = result.fitted_range
-    if not np.all(np.isfinite((lo, hi))):
-        return lo, hi
-    t = np.arange(lo, hi + 0.5 * BAND_STEP_C, BAND_STEP_C)
-    scale = np.abs(np.diag(_nt_per_count(result.calibration)))
-    band = (result.law_error(t) * scale).max(axis=1)
-    ok = band <= limit_nt
-    if not ok.any():
-        return float("nan"), float("nan")
-    i = int(np.argmin(band))
-    if not ok[i]:
-        return float("nan"), float("nan")
-    a = i
-    while a > 0 and ok[a - 1]:
-        a -= 1
-    b = i
-    while b < t.size - 1 and ok[b + 1]:
-        b += 1
-    return float(t[a]), float(t[b])
+    edges, band = offset_band(result)
+    if not band.size:
+        return None
+    return StatedRanges.from_bins(edges, band.max(axis=1) <= limit_nt)
 
 
 def _axes(values) -> str:
@@ -216,8 +274,11 @@ def band_limit_for(goal: float) -> float:
 def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
            band_limit_nt: float | None = None,
            max_compressive_share: float = MAX_COMPRESSIVE_SHARE) -> None:
-    """Narrow ``result.fitted_range`` to `stated_range` and set ``result.merit``.
+    """Narrow the stated range to `stated_range` and set ``result.merit``.
 
+    ``result.temperature_ranges`` becomes `stated_range` of the data's range
+    (``result.fitted_range`` on entry), ``result.fitted_range`` its span (unchanged
+    where the law is determined nowhere).
     ``band_limit_nt``: None for `band_limit_for` ``goal``.  ``result.merit`` is
     `predicted_error` (over the narrowed range) with
     ``data_range_c`` (the range the data fill), ``band_limit_nt``, the intervals
@@ -227,12 +288,13 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
         band_limit_nt = band_limit_for(goal)
     n_comp, judged = compressive_share(result.variance.reason)
     data = tuple(result.fitted_range)
-    lo, hi = stated_range(result, band_limit_nt)
-    if np.all(np.isfinite((lo, hi))):
-        result.fitted_range = (lo, hi)
+    ranges = stated_range(result, band_limit_nt)
+    result.temperature_ranges = ranges
+    if ranges is not None:
+        result.fitted_range = ranges.span
     result.merit = {**predicted_error(result, goal), "data_range_c": list(data),
                     "band_limit_nt": float(band_limit_nt),
-                    "law_determined": bool(np.all(np.isfinite((lo, hi)))),
+                    "law_determined": ranges is not None,
                     "compressive": n_comp, "judged": judged,
                     "max_compressive_share": float(max_compressive_share)}
 
@@ -257,8 +319,7 @@ def check_merit(result: FitResult) -> None:
                               "days or intervals")
     if not m["law_determined"]:
         f_lo, f_hi = m["data_range_c"]
-        t = np.arange(f_lo, f_hi + 0.5, 1.0)
-        band = result.law_error(t) * np.abs(np.diag(_nt_per_count(result.calibration)))
+        _, band = offset_band(result)  # the law with D0 and tau as the samples carry them
         raise FitRefusedError(
             f"temperature law (sec. 7, Table 2): its stated error exceeds "
             f"{m['band_limit_nt']:g} nT at every temperature of the fitted range "

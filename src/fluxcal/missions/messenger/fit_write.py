@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
 from fluxcal.missions.messenger.fit import AXES, FitResult
@@ -70,7 +71,7 @@ def merit_lines(result: FitResult) -> list[str]:
             o = m["outside"]
             lines.append(
                 f"the predicted error holds for the samples inside T_RANGE "
-                f"{m['range_c'][0]:g}..{m['range_c'][1]:g} C; {o['samples']} of {o['of']} "
+                f"{StatedRanges.of(m['range_c'])} C; {o['samples']} of {o['of']} "
                 f"fitted samples ({o['samples'] / max(o['of'], 1):.1%}) lie outside it, "
                 "where the law is extrapolated (calibrating them warns); over all samples "
                 "the prediction is " + " / ".join(f"{v:.3g}" for v in o["all_samples_total_nt"])
@@ -237,11 +238,12 @@ def write_calibration_folder(
         f"{a},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{c[3]:.6f},{tmv:.4f}"
         for a, c, tmv in zip(AXES, cal.temperature_coefficients, cal.breakpoint_temperature_c,
                              strict=True)]
-    lo, hi = result.fitted_range
     # the range the law is stated over, read back by `load_calibration` (calibrating a
-    # sample outside it warns: `pipeline.warn_outside_temperature_range`)
-    t_range = ([f"# T_RANGE: {lo:g} {hi:g}"] if result.estimator == "variance"
-               and np.all(np.isfinite((lo, hi))) else [])
+    # sample outside it warns: `pipeline.warn_outside_temperature_range`); one or more
+    # intervals, ``lo hi`` pairs separated by commas (entry 24-trange)
+    ranges = result.stated_ranges
+    t_range = ([f"# T_RANGE: {ranges.header_text()}"] if result.estimator == "variance"
+               and ranges is not None else [])
     texts["offsets_temperature"] = "\n".join(_header(
         "MESSENGER MAG offsets versus sensor temperature, two-segment line (eq. 3a, 3b, 4)",
         "MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7, Table 2 form; heater off, 10-C bins,"
@@ -336,14 +338,19 @@ def write_calibration_folder(
 
 
 def _range_line(result: FitResult) -> str:
-    """Return the fitted temperature range and the law's stated error at its ends."""
-    lo, hi = result.fitted_range
+    """Return the stated temperature range and the law's stated error at its ends."""
+    ranges = result.stated_ranges
+    lo, hi = result.fitted_range if ranges is None else ranges.span
     err = result.law_error(np.array([lo, hi]))
     data = result.merit.get("data_range_c") if result.merit else None
-    narrowed = (f", narrowed from {data[0]:.0f}..{data[1]:.0f} C to where the law's stated "
-                f"error is within {result.merit['band_limit_nt']:g} nT"
-                if data is not None and tuple(data) != (lo, hi) else "")
-    return (f"fitted range: {lo:.0f}..{hi:.0f} C (5-C bins holding >= {MIN_RANGE_SAMPLES} "
+    stated = f"{lo:.0f}..{hi:.0f}" if ranges is None else str(ranges)
+    narrowed = (f", narrowed from {data[0]:.0f}..{data[1]:.0f} C to the 1-C bins where the "
+                "stated error of the offset the table applies there (the law, with D0 and "
+                "tau as the fitted samples there carry them) is within "
+                f"{result.merit['band_limit_nt']:g} nT"
+                if data is not None and (ranges is None or ranges.intervals
+                                         != ((data[0], data[1]),)) else "")
+    return (f"fitted range: {stated} C (5-C bins holding >= {MIN_RANGE_SAMPLES} "
             f"samples of accepted intervals{narrowed}); the law is not constrained outside "
             "it; stated "
             f"error at {lo:.0f} C {_fmt(err[0], 3)} counts, at {hi:.0f} C {_fmt(err[1], 3)} "
@@ -420,7 +427,10 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
             "interval_s": VarianceSettings().interval_s,
             "segment_s": VarianceSettings().segment_s, "segments": int(v.segments)}
         doc["temperature"]["fitted_range_c"] = list(result.fitted_range)
-        doc["temperature"]["T_RANGE"] = list(result.fitted_range)
+        ranges = result.stated_ranges
+        # [[lo, hi], ...]: one or more intervals (entry 24-trange)
+        doc["temperature"]["T_RANGE"] = ([] if ranges is None else
+                                         [list(pair) for pair in ranges.intervals])
         for a, h in result.held_upper.items():
             doc["temperature"][a].update({
                 "upper_held": True, "Tm_held_value": h["Tm_c"][0],

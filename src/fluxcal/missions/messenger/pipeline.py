@@ -167,12 +167,15 @@ def warn_unseen_duty_cycle(
 
 
 def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) -> bool:
-    """Warn when samples lie outside the temperature range the Table 2 file states.
+    """Warn when samples lie outside the temperatures the Table 2 file states.
 
-    A fitted Table 2 states ``T_RANGE`` (`MessengerCalibration.temperature_range`),
-    the sensor temperatures over which its law is determined; outside it the law is
-    extrapolated (issue 34, docs/decisions/messenger_fit.md entry 21).  The warning
-    counts the samples and says how far below and above the range they reach.
+    A fitted Table 2 states ``T_RANGE`` (`MessengerCalibration.temperature_range`, one
+    or more intervals), the sensor temperatures over which its law is determined;
+    outside it the law is extrapolated, or between two intervals poorly determined
+    (issue 34, docs/decisions/messenger_fit.md entries 21 and 24-trange).  The warning
+    counts the samples (`StatedRanges.contains`) and says how far below and above the
+    range they reach and, with several intervals, how many lie in the gaps between
+    them and how far from the nearest interval.
 
     Returns
     -------
@@ -183,14 +186,17 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 3-4, Table 2.
     """
-    if cal.temperature_range is None or "temperature" not in ds:
+    ranges = cal.temperature_range
+    if ranges is None or "temperature" not in ds:
         return False
-    lo, hi = cal.temperature_range
+    lo, hi = ranges.span
     t = ds["temperature"].values
-    below, above = t < lo, t > hi
-    n = int(below.sum() + above.sum())
+    outside = ~ranges.contains(t)
+    n = int(outside.sum())
     if n == 0:
         return False
+    below, above = outside & (t < lo), outside & (t > hi)
+    gap = outside & ~below & ~above
     far = []
     if below.any():
         far.append(f"down to {float(t[below].min()):.1f} C ({lo - float(t[below].min()):.1f} C "
@@ -198,11 +204,14 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     if above.any():
         far.append(f"up to {float(t[above].max()):.1f} C ({float(t[above].max()) - hi:.1f} C "
                    "above)")
+    if gap.any():
+        far.append(f"{int(gap.sum())} in the gaps between its intervals (up to "
+                   f"{float(ranges.distance(t[gap]).max()):.1f} C from the nearest)")
     table = next((f for f, _ in cal.files if f.startswith("offsets_temperature")), "Table 2")
     log.warning(
         "%d of %d samples lie at sensor temperatures outside the range %s states "
-        "(T_RANGE %.1f..%.1f C), %s: the temperature law is extrapolated there (its header "
-        "states the error)", n, t.size, table, lo, hi, " and ".join(far))
+        "(T_RANGE %s C), %s: the temperature law is extrapolated there (its header "
+        "states the error)", n, t.size, table, f"{ranges:.1f}", " and ".join(far))
     return True
 
 
