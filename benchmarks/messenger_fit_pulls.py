@@ -129,16 +129,19 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
                 "command": "messenger_fit_pulls"}, study=True)
             unseen_rms = recalibrate_rms(run.input_dir, run.days[-1], folder)
             unseen_in = recalibrate_rms(run.input_dir, run.days[-1], folder,
-                                        res.fitted_range)
+                                        res.stated_ranges)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
         (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    ranges = res.stated_ranges
     lo, hi = res.fitted_range
     t_all = np.arange(lo, hi + 0.01, 1.0)
     law_t = np.array(LAW_T)
-    inside = (law_t >= lo) & (law_t <= hi)
+    if ranges is not None:  # T_RANGE: one or more intervals (entry 24-trange)
+        t_all = t_all[ranges.contains(t_all)]
+    inside = ranges.contains(law_t) if ranges is not None else (law_t >= lo) & (law_t <= hi)
     law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
                 / res.law_error(law_t))
     true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
@@ -155,6 +158,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "law_max_nt": NT_PER_COUNT * np.abs(_law(cal.temperature_coefficients, t_all)
                                             - _law(tc, t_all)).max(axis=0),
         "range": (lo, hi),
+        "t_range": str(ranges),
         "tm_pull": (np.asarray(cal.breakpoint_temperature_c) - true_tm)
         / np.array([f.x_m_err for f in res.temperature]),
         "tm_err": np.array([f.x_m_err for f in res.temperature]),
@@ -271,8 +275,8 @@ def main() -> None:
               f"({r['tau_rel']:+.3f})  dt pull {r['dt_pull']:+.2f}  D0 pulls "
               f"{np.round(r['d0_pull'], 2)} ({np.round(r['d0_rel'], 3)})  law pulls max "
               f"{np.round(np.nanmax(np.abs(r['law_pull']), axis=0), 2)}  law max "
-              f"{np.round(r['law_max_nt'], 3)} nT over {r['range'][0]:+.0f}.."
-              f"{r['range'][1]:+.0f} C  T_m pulls {np.round(r['tm_pull'], 2)} (+- "
+              f"{np.round(r['law_max_nt'], 3)} nT over T_RANGE {r['t_range']} C  "
+              f"T_m pulls {np.round(r['tm_pull'], 2)} (+- "
               f"{np.round(r['tm_err'], 2)} C)  predicted {np.round(r['predicted_nt'], 3)} nT  "
               f"unseen day {np.round(r['unseen_nt'], 3)} nT (inside the stated range "
               f"{np.round(r['unseen_in_range_nt'], 3)} nT; samples outside "

@@ -84,7 +84,7 @@ def test_cli_fit_writes_a_table_that_meets_its_stated_errors_or_refuses(calm, tm
     assert np.all(predicted <= 0.1), predicted
     # the prediction holds inside the range the table states (T_RANGE, entry 21)
     unseen = recalibrate_rms(run.input_dir, run.days[2], out,
-                             tuple(report["temperature"]["T_RANGE"]))
+                             report["temperature"]["T_RANGE"])
     print(f"predicted {predicted.round(3)} nT, unseen {unseen.round(3)} nT")
     assert np.all(unseen <= UNSEEN_OVER_PREDICTED * predicted), (unseen, predicted)
     # T_m: its stated error (re-chosen in every resample) covers the truth at 3 sigma
@@ -123,7 +123,7 @@ def test_holding_d0_is_refused_or_meets_its_width(calm):
     out = run.input_dir.parent / "held"
     write_calibration_folder(res, out, None, {"inputs": {}, "intervals": "all data",
                                               "days": "2", "command": "test"})
-    unseen = recalibrate_rms(run.input_dir, run.days[2], out, res.fitted_range)
+    unseen = recalibrate_rms(run.input_dir, run.days[2], out, res.stated_ranges)
     predicted = np.asarray(res.merit["total_nt"])
     assert np.all(unseen <= UNSEEN_OVER_PREDICTED * predicted), (unseen, predicted)
 

@@ -336,7 +336,7 @@ def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_the
     # (the law's band at the centre, R = 0: above the limit); the -50 C bin is inside.
     from fluxcal.missions.messenger.fit_merit import (
         LAW_BAND_LIMIT_NT,
-        offset_band,
+        range_bands,
         stated_range,
     )
 
@@ -363,15 +363,26 @@ def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_the
     expected = ((-50.0, -49.0), (float(inside[0]), float(inside[-1] + 1)))
     ranges = stated_range(res)
     assert ranges.intervals == expected, ranges
-    edges, band = offset_band(res)
-    assert band[edges[:-1] == -50.0].max() == pytest.approx(0.0, abs=1e-12)
-    # the law alone at -50 C would be outside (the rule before: 50 beta |M_jj| nT)
-    assert (res.law_error(np.array([-50.0])) * m_max).max() == pytest.approx(
-        50 * beta * m_max, rel=1e-9)
+    edges, law_band, offset = range_bands(res)
+    reg = edges[:-1] == -50.0
+    assert offset[reg].max() == pytest.approx(0.0, abs=1e-12)
+    # the law alone at -50 C is outside (the rule before: 50 beta |M_jj| nT)
+    assert law_band[reg].max() == pytest.approx(50 * beta * m_max, rel=1e-9)
     assert 50 * beta * m_max > LAW_BAND_LIMIT_NT
-    # a heater-off bin's band is the law's, beta |T| |M_jj| (z: the largest |M_jj|)
+    # a heater-off bin's bands are the law's, beta |T| |M_jj| (z: the largest |M_jj|)
     j = int(np.argmax(edges[:-1] == 10.0))
-    assert band[j].max() == pytest.approx(beta * 10.5 * m_max, rel=1e-9)
+    assert offset[j].max() == pytest.approx(beta * 10.5 * m_max, rel=1e-9)
+    assert law_band[j].max() == pytest.approx(beta * 10.5 * m_max, rel=1e-9)
+    # the other way round: the law determined on its own everywhere (beta / 3: 0.024 nT
+    # at -50 C, 0.029 nT at -60 C) and D0 poorly (+-0.01 counts/ppt, 2 counts at R0,
+    # 0.1 nT): every bin is inside, the regulated one by its law; D0's error is its own
+    # stated error and the figure of merit's, not a narrower T_RANGE
+    b_law = np.repeat(law[None], 2, axis=0)
+    b_law[:, :, 1] += (beta / 3) * z[:, None]
+    b_d0 = d0[None, :] + 0.01 * z[:, None]
+    res = dataclasses.replace(res, bootstrap=_boot(res, b_law, b_d0))
+    assert stated_range(res).intervals == ((-60.0, 40.0),)
+    assert range_bands(res)[2][reg].min() > LAW_BAND_LIMIT_NT
 
 
 def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):

@@ -48,6 +48,8 @@ from fluxcal.products.paths import make_folder
 #: band and predicted error lie above it, docs/decisions/messenger_fit.md entry 23), and
 #: more days would double the demo's time; the demo says when it uses it.
 DEMO_ERROR_GOAL_NT = 0.2
+#: Start of the unseen 2-h orbit (`simulate_unseen`), after the training days.
+UNSEEN_START = "2012-06-04T00:00:00"
 #: The training winds of `simulate_training`: ``realistic`` (the default) or ``quiet``.
 FIELDS = ("realistic", "quiet")
 
@@ -202,6 +204,47 @@ def _verdict(result, out: Path):
             "every table header; a user gives more days instead)", out / "fitted", accepted)
 
 
+def fit_training(out: Path, days: float = 2.0):
+    """Truth tables, training days, the fit and its folder: ``(verdict, folder, result, truth)``.
+
+    `perturbed_folder`, `simulate_training` from 2012-06-01, `fit_days` with the
+    variance estimator and D0 z held (``--hold-d0 z``), `_verdict`, and
+    `write_calibration_folder` into ``out / "fitted"`` (or ``"fitted_refused"``, a
+    study).
+    """
+    from fluxcal.missions.messenger.fit import Chunk, fit_days
+    from fluxcal.missions.messenger.fit_write import write_calibration_folder
+
+    start = "2012-06-01T00:00:00"
+    truth = perturbed_folder(out / "truth_tables")
+    train = simulate_training(out / "training", truth, start, days)
+    chunk = Chunk("training", (train["science"],), (train["heater"],),
+                  (train["temperature"],), (train["kernels"],))
+    base = load_calibration(start)
+    # the guards of `check_fit` run after the fit, so that a refusal is shown with the
+    # figures it refuses (the command line, `fluxcal messenger fit`, writes nothing then)
+    result = fit_days([chunk], base, estimator="variance", guard=False, hold_d0=("z",))
+    verdict, fitted, result = _verdict(result, out)
+    # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
+    write_calibration_folder(result, fitted, None, {
+        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"},
+        study=fitted.name == "fitted_refused")
+    return verdict, fitted, result, truth
+
+
+def simulate_unseen(truth_cal, sclk):
+    """Simulate the unseen 2-h orbit from `UNSEEN_START` with the truth tables.
+
+    The forward model's own field and schedule (the heater on, the sensor at the
+    regulated -50 C); run inside a `KernelPool` of kernels covering it (`run_demo`).
+    """
+    from fluxcal.missions.messenger.simulate import SimulationConfig
+    from fluxcal.missions.messenger.simulate import simulate as forward_simulate
+
+    return forward_simulate(SimulationConfig(start_utc=UNSEEN_START, duration_s=7200.0),
+                            truth_cal, sclk)
+
+
 def run_demo(out: Path, *, days: float = 2.0) -> str:
     """Simulate, fit, recalibrate an unseen day, compare; return a short summary.
 
@@ -218,40 +261,22 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit import Chunk, fit_days
     from fluxcal.missions.messenger.fit_variance import reduce_variance
-    from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
-    from fluxcal.missions.messenger.simulate import simulate as forward_simulate
     from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     out = Path(out)
-    start = "2012-06-01T00:00:00"
-    truth = perturbed_folder(out / "truth_tables")
-    train = simulate_training(out / "training", truth, start, days)
-    chunk = Chunk("training", (train["science"],), (train["heater"],),
-                  (train["temperature"],), (train["kernels"],))
-    base = load_calibration(start)
-    # the guards of `check_fit` run after the fit, so that a refusal is shown with the
-    # figures it refuses (the command line, `fluxcal messenger fit`, writes nothing then)
-    result = fit_days([chunk], base, estimator="variance", guard=False, hold_d0=("z",))
-    verdict, fitted, result = _verdict(result, out)
-    # a rerun overwrites its files; no folder is removed (docs/decisions/products.md, 66)
-    write_calibration_folder(result, fitted, None, {
-        "inputs": {}, "intervals": "all data", "days": f"{days:g} simulated days"},
-        study=fitted.name == "fitted_refused")
+    verdict, fitted, result, truth = fit_training(out, days)
     # an unseen day (after the training): the forward model's own field and schedule
-    unseen = "2012-06-04T00:00:00"
-    config = SimulationConfig(start_utc=unseen, duration_s=7200.0)
-    mk = write_messenger_like_kernels(out / "unseen" / "kernels", unseen,
-                                      7200.0 + 2 * config.lead_s,
+    mk = write_messenger_like_kernels(out / "unseen" / "kernels", UNSEEN_START,
+                                      7200.0 + 2 * SimulationConfig().lead_s,
                                       plus_y_sunward=[(1800.0, 3240.0)])
-    truth_cal = load_calibration(unseen, truth)
+    truth_cal = load_calibration(UNSEEN_START, truth)
     lines = []
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
-        sim = forward_simulate(config, truth_cal, sclk)
+        sim = simulate_unseen(truth_cal, sclk)
         # the prediction for this day: its own temperatures and relaxed duty cycles
         moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
                                   result.calibration).offset_moments
@@ -261,12 +286,16 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         for name, folder in (("shipped tables", None), ("fitted folder", fitted),
                              ("truth tables", truth)):
             ds = calibrate(sim["science"], sim["heater"], sim["temperature"],
-                           load_calibration(unseen, folder), frames=("sc",),
+                           load_calibration(UNSEEN_START, folder), frames=("sc",),
                            max_offset_step=None)
             err = ds["b_sensor"].values[fine] - tr["b_sensor"].values[fine]
             rms = np.sqrt(np.mean(err**2, axis=0))
+            stated = load_calibration(UNSEEN_START, folder).temperature_range
+            n_out = ("" if stated is None else
+                     f" ({np.count_nonzero(~stated.contains(ds['temperature'].values))} of "
+                     f"{ds.sizes['time']} samples outside its T_RANGE)")
             lines.append(f"  {name:15s} rms error (nT, sensor x y z): "
-                         + " ".join(f"{v:.3f}" for v in rms))
+                         + " ".join(f"{v:.3f}" for v in rms) + n_out)
     cal, tc = result.calibration, truth_cal
     grid = np.linspace(-60.0, 40.0, 101)
     head = [

@@ -35,7 +35,7 @@ FitResult = Any
 
 __all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
-           "offset_band", "predicted_error", "stated_range"]
+           "predicted_error", "range_bands", "stated_range"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -186,39 +186,48 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
                  "d0": per_bin(zc, d, z, z), "relaxation": per_bin(zc, z, e, f)}
 
 
-def offset_band(result: FitResult) -> tuple[np.ndarray, np.ndarray]:
-    """Stated error (nT, per axis) of the offset the table applies, per 1-C bin of the data.
+def range_bands(result: FitResult, data_range: tuple[float, float] | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stated errors (nT, per axis) of the law and of the offset, per 1-C bin of the data.
 
-    Over the data's range (``result.fitted_range`` as `assess` receives it: the 5-C
-    bins the accepted intervals fill), per bin of `fit_variance.MOMENT_EDGES_C`: the rms
-    over the bin's fitted samples and the bootstrap's resamples of the offset error
-    ``dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (eq. 2-6 linearised, the
-    prediction's own terms) times ``|M_jj|`` (eq. 8's fine diagonal).  Where the heater
-    has been off for long (``R = 0``) that is the law's band; at the regulated -50 C,
-    where the heater runs and the heater-on samples determine ``cT(-50 C) + D0 R``
-    (eq. 5a, 5b) much better than either part, it is that sum's error.  A bin of the
-    data's range without fitted samples gets the law's band at its centre (``R = 0``).
-    Without a bootstrap (the zero-mean estimator): the law's band (`FitResult.law_error`).
+    Over the data's range (``data_range``; None: ``result.fitted_range``, the 5-C bins
+    the accepted intervals fill until `assess` narrows it), per bin of
+    `fit_variance.MOMENT_EDGES_C`, the rms over the bootstrap's resamples times
+    ``|M_jj|`` (eq. 8's fine diagonal) of
+
+    * ``law``: the law's error at the bin's mean temperature (its band);
+    * ``offset``: the error of the offset the table applies to the bin's fitted
+      samples, ``dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (eq. 2-6 linearised, the
+      prediction's own terms), rms over those samples.  Where the heater has been off
+      for long (``R = 0``) it is the law's band; at the regulated -50 C, where the
+      heater runs, it is the error of ``cT(-50 C) + D0 R`` (eq. 5a, 5b), which the
+      heater-on samples determine much better than either part.
+
+    A bin without fitted samples has both at its centre with ``R = 0`` (the law's
+    band).  Without a bootstrap (the zero-mean estimator) both are
+    `FitResult.law_error` at the centres.
 
     Returns
     -------
     edges : ndarray, shape (k + 1,)
         The bins' edges (C).
-    band : ndarray, shape (k, 3)
-        The stated error per bin and axis (nT).
+    law, offset : ndarray, shape (k, 3)
+        The stated errors per bin and axis (nT).
     """
-    lo, hi = (float(x) for x in result.fitted_range)
+    lo, hi = (float(x) for x in (result.fitted_range if data_range is None else data_range))
+    none = np.empty((0, 3))
     if not (np.isfinite(lo) and np.isfinite(hi)):
-        return np.array([lo, hi]), np.empty((0, 3))
+        return np.array([lo, hi]), none, none
     all_edges = fv.MOMENT_EDGES_C
     use = (all_edges[:-1] >= lo) & (all_edges[1:] <= hi)
     if not use.any():
-        return np.array([lo, hi]), np.empty((0, 3))
+        return np.array([lo, hi]), none, none
     edges = all_edges[np.flatnonzero(use).tolist() + [int(np.flatnonzero(use)[-1]) + 1]]
     centre = 0.5 * (edges[:-1] + edges[1:])
     scale = np.abs(np.diag(_nt_per_count(result.calibration)))
     if result.bootstrap is None:
-        return edges, result.law_error(centre) * scale
+        band = result.law_error(centre) * scale
+        return edges, band, band
     mom = np.zeros((centre.size, len(fv.MOMENT_COLUMNS)))
     v = result.variance
     if v is not None and v.offset_moments is not None:
@@ -227,24 +236,29 @@ def offset_band(result: FitResult) -> tuple[np.ndarray, np.ndarray]:
     mom[empty] = 0.0
     mom[empty, 0], mom[empty, 1] = 1.0, centre[empty]  # one heater-off sample (R = 0)
     _, per_bin = _bin_mean_squares(result, mom, np.diag(scale))
-    return edges, np.sqrt(np.maximum(per_bin["total"], 0.0) / mom[:, :1])
+    n = mom[:, :1]
+    return (edges, np.sqrt(np.maximum(per_bin["law"], 0.0) / n),
+            np.sqrt(np.maximum(per_bin["total"], 0.0) / n))
 
 
-def stated_range(result: FitResult, limit_nt: float = LAW_BAND_LIMIT_NT
-                 ) -> StatedRanges | None:
-    """Return the temperatures (C) of the data's range where the offset is determined.
+def stated_range(result: FitResult, limit_nt: float = LAW_BAND_LIMIT_NT,
+                 data_range: tuple[float, float] | None = None) -> StatedRanges | None:
+    """Return the temperatures (C) of the data's range where the law is determined.
 
-    The 1-C bins whose `offset_band` is within ``limit_nt`` on every axis, adjacent
-    bins merged into intervals (`StatedRanges`); None where no bin is.  Several
-    intervals where bins between them are not: the regulated -50 C (heater on,
-    ``cT(-50 C) + D0 R`` determined by most of the samples) and a warm stretch seen in
-    heater-off runs, with the relaxing tail between them less well determined
-    (docs/decisions/messenger_fit.md entry 24-trange).
+    The 1-C bins of ``data_range`` (None: ``result.fitted_range``) where, on every
+    axis, the law's band is within ``limit_nt`` or the offset the table applies to the
+    bin's fitted samples is (`range_bands`): the law determined on its own (heater
+    off), or in the sum ``cT(-50 C) + D0 R`` the regulated heater-on samples determine
+    (eq. 5a, 5b); a poor D0 is D0's stated error and the figure of merit's, not a
+    narrower T_RANGE.  Adjacent bins merge into intervals (`StatedRanges`); None where
+    no bin qualifies.  Several intervals where bins between them do not: the regulated
+    -50 C and a warm stretch seen in heater-off runs, with the relaxing tail between
+    them less well determined (docs/decisions/messenger_fit.md entry 24-trange).
     """
-    edges, band = offset_band(result)
-    if not band.size:
+    edges, law, offset = range_bands(result, data_range)
+    if not law.size:
         return None
-    return StatedRanges.from_bins(edges, band.max(axis=1) <= limit_nt)
+    return StatedRanges.from_bins(edges, np.minimum(law, offset).max(axis=1) <= limit_nt)
 
 
 def _axes(values) -> str:
@@ -288,7 +302,7 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
         band_limit_nt = band_limit_for(goal)
     n_comp, judged = compressive_share(result.variance.reason)
     data = tuple(result.fitted_range)
-    ranges = stated_range(result, band_limit_nt)
+    ranges = stated_range(result, band_limit_nt, data)
     result.temperature_ranges = ranges
     if ranges is not None:
         result.fitted_range = ranges.span
@@ -319,7 +333,9 @@ def check_merit(result: FitResult) -> None:
                               "days or intervals")
     if not m["law_determined"]:
         f_lo, f_hi = m["data_range_c"]
-        _, band = offset_band(result)  # the law with D0 and tau as the samples carry them
+        # the law alone or with D0 and tau as the samples carry them (`stated_range`)
+        _, law, offset = range_bands(result, (f_lo, f_hi))
+        band = np.minimum(law, offset)
         raise FitRefusedError(
             f"temperature law (sec. 7, Table 2): its stated error exceeds "
             f"{m['band_limit_nt']:g} nT at every temperature of the fitted range "

@@ -208,10 +208,12 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
         far.append(f"{int(gap.sum())} in the gaps between its intervals (up to "
                    f"{float(ranges.distance(t[gap]).max()):.1f} C from the nearest)")
     table = next((f for f, _ in cal.files if f.startswith("offsets_temperature")), "Table 2")
+    how = ("extrapolated there" if not gap.any() else "extrapolated there or, in the gaps, "
+           "determined less well than the limit its header states")
     log.warning(
         "%d of %d samples lie at sensor temperatures outside the range %s states "
-        "(T_RANGE %s C), %s: the temperature law is extrapolated there (its header "
-        "states the error)", n, t.size, table, f"{ranges:.1f}", " and ".join(far))
+        "(T_RANGE %s C), %s: the temperature law is %s (its header states the error)",
+        n, t.size, table, f"{ranges:.1f}", " and ".join(far), how)
     return True
 
 
