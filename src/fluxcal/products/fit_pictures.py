@@ -54,7 +54,9 @@ class Panel:
     """One picture: a subplot per axis of ``points`` and ``curve`` against ``xlabel``.
 
     ``fitted_range`` (x units) is shaded: the range over which the data determine the
-    law (outside it the curve is drawn but not constrained).  ``name`` is the PNG stem.
+    law (outside it the curve is drawn but not constrained), one ``(lo, hi)`` or
+    several intervals (`fluxcal.calibration.stated_ranges.StatedRanges.intervals`).
+    ``name`` is the PNG stem.
     """
 
     name: str
@@ -65,7 +67,7 @@ class Panel:
     caption: str
     points: Points | None = None
     curve: Curve | None = None
-    fitted_range: tuple[float, float] | None = None
+    fitted_range: tuple[float, float] | tuple[tuple[float, float], ...] | None = None
 
 
 @dataclass(frozen=True)

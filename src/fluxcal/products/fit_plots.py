@@ -72,9 +72,12 @@ def panel_figure(panel: Panel) -> Figure:
                            ms=3, color="k", lw=0.8, label="measured - law")
             r.set_ylabel(f"{name} - law\n{panel.ylabel}")
         for a in (ax, *([right[j]] if residuals else [])):
-            if panel.fitted_range is not None and all(np.isfinite(panel.fitted_range)):
-                a.axvspan(*panel.fitted_range, color="0.93", zorder=0,
-                          label="range the data determine")
+            if panel.fitted_range is not None:
+                spans = ([panel.fitted_range] if np.ndim(panel.fitted_range) == 1
+                         else panel.fitted_range)
+                for k, (lo, hi) in enumerate(s for s in spans if all(np.isfinite(s))):
+                    a.axvspan(lo, hi, color="0.93", zorder=0,
+                              label=None if k else "range the data determine")
             a.grid(alpha=0.3)
     left[0].legend(fontsize=7, loc="best")
     if residuals:

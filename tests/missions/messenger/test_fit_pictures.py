@@ -163,7 +163,7 @@ def test_variance_fit_without_bin_means_draws_what_it_has(tmp_path):
                            "index.html"} <= names
     assert "fit_pulls.png" not in names  # the bin means are not what a variance fit measured
     temp = {p.name: p for p in mfp.pictures(res)}["fit_offsets_temperature"]
-    assert temp.fitted_range == (-60.0, 40.0) and temp.points is None  # none measured
+    assert temp.fitted_range == ((-60.0, 40.0),) and temp.points is None  # none measured
     assert temp.curve.x.min() < -60.0 and temp.curve.x.max() > 40.0
 
 

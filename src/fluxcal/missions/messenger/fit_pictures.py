@@ -111,7 +111,8 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
     grid = np.linspace(min(seen) - 5.0, max(seen) + 5.0, N_CURVE)
     curve = Curve(grid, law(result, grid), law_band(result, grid), "Table 2 law (eq. 3a/3b)")
-    fitted = (lo, hi) if np.isfinite(lo) and np.isfinite(hi) else None
+    ranges = result.stated_ranges  # T_RANGE, one or more intervals (entry 24-trange)
+    fitted = None if ranges is None else ranges.intervals
     panel = Panel("fit_offsets_temperature", "Offsets against sensor temperature (heater off)",
                   "sensor temperature (C)", "offset (counts)", AXES,
                   ("the heater-off bin means (decaying duty-cycle offset removed) with their "
@@ -119,7 +120,7 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
                   + "the fitted Table 2 law and its stated 1-sigma band; right: "
                   + ("each bin minus the law as the fit models it, inside the band; "
                      if _measured(result) else "the band about the law; ")
-                  + "shaded: the range over which the data determine the law",
+                  + "shaded: T_RANGE, where the data determine the law",
                   pts if _measured(result) else None, curve, fitted)
     return panel, pull_values(pts, pts.model)
 
