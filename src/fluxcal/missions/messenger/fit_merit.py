@@ -12,8 +12,9 @@ draws it, so its width is in the resampled laws, the band and the prediction onc
 (nothing is added here).  `check_merit` refuses the fit when that exceeds the goal
 (default 0.1 nT, `--error-goal`), or when a named guard finds that the data cannot
 support the fit: too many intervals rejected as compressive.  `stated_range` narrows
-the temperature range the table states to where the law's band is within
-`LAW_BAND_LIMIT_NT`.  docs/decisions/messenger_fit.md, entry 19.
+the temperature range the table states (``T_RANGE``, one or more intervals) to the 1-C
+bins where the law's band, or the offset the table applies to the samples there, is
+within `LAW_BAND_LIMIT_NT`.  docs/decisions/messenger_fit.md, entries 19 and 24-trange.
 
 References
 ----------
@@ -48,8 +49,6 @@ MAX_COMPRESSIVE_SHARE = 0.5
 #: third of the law's 0.15-nT goal (issue 21), so that the law meets it at 3 sigma;
 #: scaled with a goal other than `ERROR_GOAL_NT` (`band_limit_for`).
 LAW_BAND_LIMIT_NT = 0.05
-#: Temperatures (C) at which the law's band is evaluated for `stated_range`.
-BAND_STEP_C = 1.0
 
 
 def compressive_share(reason: np.ndarray) -> tuple[int, int]:
