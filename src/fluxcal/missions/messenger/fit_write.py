@@ -345,8 +345,8 @@ def _range_line(result: FitResult) -> str:
     data = result.merit.get("data_range_c") if result.merit else None
     stated = f"{lo:.0f}..{hi:.0f}" if ranges is None else str(ranges)
     narrowed = (f", narrowed from {data[0]:.0f}..{data[1]:.0f} C to the 1-C bins where the "
-                "stated error of the offset the table applies there (the law, with D0 and "
-                "tau as the fitted samples there carry them) is within "
+                "law's stated error, or that of the offset the table applies there (the law "
+                "with D0 and tau as the fitted samples carry them), is within "
                 f"{result.merit['band_limit_nt']:g} nT"
                 if data is not None and (ranges is None or ranges.intervals
                                          != ((data[0], data[1]),)) else "")
