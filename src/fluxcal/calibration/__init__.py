@@ -20,6 +20,7 @@ __all__ = [
     "relaxation",
     "segment_trends",
     "solar_wind_offsets",
+    "stated_ranges",
     "step_scan",
     "store",
     "thermal",
