@@ -119,12 +119,12 @@ def test_samples_in_the_gap_between_intervals_warn(tmp_path, caplog):
     # above (5 C); -50, -49.5, -40, -17, 2, 20, 40 inside (ends included)
     cal = load_calibration(START, _table2(tmp_path, "# T_RANGE: -50 -49, -40 -17, 2 40"))
     t = np.array([-60.0, -50.0, -49.5, -48.5, -45.0, -40.0, -17.0, -10.0, 1.0, 2.0, 20.0,
-                  40.0, 45.0])
+                  40.0, 45.0, np.nan])  # NaN: no temperature, not judged (as before)
     ds = xr.Dataset({"temperature": ("time", t)})
     with caplog.at_level(logging.WARNING):
         assert warn_outside_temperature_range(ds, cal)
     msg = caplog.records[-1].getMessage()
-    assert msg.startswith("6 of 13 samples lie at sensor temperatures outside the range "
+    assert msg.startswith("6 of 14 samples lie at sensor temperatures outside the range "
                           "offsets_temperature_v1.csv states (T_RANGE -50.0..-49.0, "
                           "-40.0..-17.0, 2.0..40.0 C)"), msg
     assert ("down to -60.0 C (10.0 C below) and up to 45.0 C (5.0 C above) and 4 in the "

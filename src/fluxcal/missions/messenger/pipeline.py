@@ -191,7 +191,7 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
         return False
     lo, hi = ranges.span
     t = ds["temperature"].values
-    outside = ~ranges.contains(t)
+    outside = ~ranges.contains(t) & ~np.isnan(t)  # a sample without temperature: not judged
     n = int(outside.sum())
     if n == 0:
         return False
