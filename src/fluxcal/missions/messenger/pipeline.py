@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
+from fluxcal.calibration.heater_signal import HeaterPeriods, period_index
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel, et_to_utc
 from fluxcal.missions.messenger import defects, levels
@@ -92,6 +93,7 @@ def calibrate(
     periods, changes = levels.find_heater_periods(heater, cal, sclk)
     warn_unseen_duty_cycle(ds, heater, changes, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
+    warn_outside_duty_range(ds, periods, cal)
     ds = levels.mark_sunlit(ds, cal, method=method)
     temperature = defects.drop_temperature_glitches(temperature)  # issue 23
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
@@ -166,13 +168,57 @@ def warn_unseen_duty_cycle(
     return True
 
 
+def warn_outside_range(values: np.ndarray, stated: tuple[float, float] | None, *,
+                       samples: str, quantity: str, key: str, unit: str, table: str,
+                       consequence: str, upper_open: bool = False) -> bool:
+    """Warn once when ``values`` lie outside a range a calibration table states.
+
+    One implementation for every stated range (``T_RANGE``, ``D_RANGE``): the warning
+    counts the values outside ``stated`` among all ``values`` and says how far below and
+    above the range they reach.  ``upper_open``: the range is ``lo <= v < hi``.
+
+    Returns
+    -------
+    bool
+        True when it warned; False for no stated range or every value inside.
+    """
+    if stated is None:
+        return False
+    lo, hi = stated
+    v = np.asarray(values, dtype=float)
+    below = v < lo
+    above = v >= hi if upper_open else v > hi
+    n = int(below.sum() + above.sum())
+    if n == 0:
+        return False
+    far = []
+    if below.any():
+        low = float(v[below].min())
+        far.append(f"down to {low:.1f} {unit} ({lo - low:.1f} {unit} below)")
+    if above.any():
+        high = float(v[above].max())
+        far.append(f"up to {high:.1f} {unit} ({high - hi:.1f} {unit} above)")
+    edge = ", upper edge excluded" if upper_open else ""
+    log.warning(
+        "%d of %d %s lie at %s outside the range %s states (%s %.1f..%.1f %s%s), %s: %s",
+        n, v.size, samples, quantity, table, key, lo, hi, unit, edge, " and ".join(far),
+        consequence)
+    return True
+
+
+def _table_name(cal: MessengerCalibration, stem: str, default: str) -> str:
+    """Return the file name of the calibration table ``stem`` in use (for a warning)."""
+    return next((f for f, _ in cal.files if f.startswith(stem)), default)
+
+
 def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) -> bool:
     """Warn when samples lie outside the temperature range the Table 2 file states.
 
     A fitted Table 2 states ``T_RANGE`` (`MessengerCalibration.temperature_range`),
     the sensor temperatures over which its law is determined; outside it the law is
     extrapolated (issue 34, docs/decisions/messenger_fit.md entry 21).  The warning
-    counts the samples and says how far below and above the range they reach.
+    counts the samples and says how far below and above the range they reach
+    (`warn_outside_range`).
 
     Returns
     -------
@@ -183,27 +229,51 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 3-4, Table 2.
     """
-    if cal.temperature_range is None or "temperature" not in ds:
+    if "temperature" not in ds:
         return False
-    lo, hi = cal.temperature_range
-    t = ds["temperature"].values
-    below, above = t < lo, t > hi
-    n = int(below.sum() + above.sum())
-    if n == 0:
+    return warn_outside_range(
+        ds["temperature"].values, cal.temperature_range, samples="samples",
+        quantity="sensor temperatures", key="T_RANGE", unit="C",
+        table=_table_name(cal, "offsets_temperature", "Table 2"),
+        consequence="the temperature law is extrapolated there (its header states the error)")
+
+
+def warn_outside_duty_range(ds: xr.Dataset, periods: HeaterPeriods,
+                            cal: MessengerCalibration) -> bool:
+    """Warn when heater-on samples lie at duty cycles outside the stated waveform range.
+
+    Fitted heater-signal tables state ``D_RANGE`` (`MessengerCalibration.duty_range`,
+    percent, ``lo <= d < hi``), the duty cycles whose samples determined the waveform
+    columns; outside it the pipeline extrapolates the columns (sec. 6: the 36-40 %
+    slope above 40 %) and no table states the error (issue 34, entry 24-duty; in the
+    Mercury-orbit world 0.1-0.3 nT there).  The warning counts the samples whose heater
+    signal is subtracted (``heater_applied``) in periods of a duty cycle outside the
+    range, and says how far (`warn_outside_range`).  No quality flag is set: Table 5's
+    contamination digit already says "corrected", which these samples are.
+
+    Returns
+    -------
+    bool
+        True when it warned; False for tables without ``D_RANGE``, no heater-on sample,
+        or every heater-on sample inside.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+    """
+    if cal.duty_range is None or "heater_applied" not in ds or not len(periods):
         return False
-    far = []
-    if below.any():
-        far.append(f"down to {float(t[below].min()):.1f} C ({lo - float(t[below].min()):.1f} C "
-                   "below)")
-    if above.any():
-        far.append(f"up to {float(t[above].max()):.1f} C ({float(t[above].max()) - hi:.1f} C "
-                   "above)")
-    table = next((f for f, _ in cal.files if f.startswith("offsets_temperature")), "Table 2")
-    log.warning(
-        "%d of %d samples lie at sensor temperatures outside the range %s states "
-        "(T_RANGE %.1f..%.1f C), %s: the temperature law is extrapolated there (its header "
-        "states the error)", n, t.size, table, lo, hi, " and ".join(far))
-    return True
+    applied = ds["heater_applied"].values.astype(bool)
+    if not applied.any():
+        return False
+    k = period_index(ds["et"].values[applied], periods)
+    duty = np.where(k >= 0, np.asarray(periods.duty_cycle)[np.maximum(k, 0)] * 100.0, np.nan)
+    return warn_outside_range(
+        duty[np.isfinite(duty)], cal.duty_range, samples="heater-on samples",
+        quantity="heater duty cycles", key="D_RANGE", unit="%",
+        table=_table_name(cal, "heater_signal", "Tables 6-8"),
+        consequence="the heater waveform is extrapolated there beyond the fitted columns "
+                    "(sec. 6; no table states its error)", upper_open=True)
 
 
 def day_of(science: xr.Dataset) -> np.datetime64:
