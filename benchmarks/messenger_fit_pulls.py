@@ -66,6 +66,7 @@ from fluxcal.missions.messenger.fit import (  # noqa: E402
     check_fit,
     day_chunks,
     fit_days,
+    merit_inside_range,
 )
 from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
@@ -238,39 +239,20 @@ def waveform_parts(inp: Path, day, folder: Path, res, true, truth: dict,
     return out
 
 
-class _NoDutyRange:
-    """A fit result seen without its D_RANGE (the prediction before issue 34's duty range)."""
-
-    duty_range = None
-
-    def __init__(self, result) -> None:
-        self._result = result
-
-    def __getattr__(self, name: str):
-        return getattr(self._result, name)
-
-
 def _parts(p: dict) -> str:
     return ", ".join(f"{k} {np.round(v, 3)}" for k, v in p.items()) or "-"
 
 
 def _prediction_without_duty_range(res) -> np.ndarray:
     """The predicted error as before the duty range: every heater-on sample counted, the
-    waveform share of the samples above the bins zero (inside T_RANGE, as
-    `fit.merit_inside_range`)."""
+    waveform share of the samples in no bin zero (a copy of ``res`` whose columns all
+    read as kept states no D_RANGE; judged as `fit_days` judges, inside T_RANGE)."""
     if "total_nt" not in res.merit:
         return np.full(3, np.nan)
-    view = res
-    if "range_c" in res.merit:
-        lo, hi = res.merit["range_c"]
-        mom = res.variance.offset_moments
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t_b = mom[:, 1] / mom[:, 0]
-        inside = (mom[:, 0] > 0) & (t_b >= lo) & (t_b <= hi)
-        view = dataclasses.replace(res, variance=dataclasses.replace(
-            res.variance, offset_moments=mom * inside[:, None]))
-    return np.asarray(fit_merit.predicted_error(_NoDutyRange(view),
-                                                res.merit["goal_nt"])["total_nt"])
+    copy = dataclasses.replace(res, waveform=[[None] * len(w) for w in res.waveform])
+    fit_merit.assess(copy, res.merit["goal_nt"])
+    merit_inside_range(copy, res.merit["goal_nt"])
+    return np.asarray(copy.merit["total_nt"])
 
 
 #: The worlds ``--world`` knows: the test wind of issue 21 and issue 34's two hard worlds
