@@ -25,7 +25,7 @@ import numpy as np
 
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
-from fluxcal.missions.messenger.fit import AXES, FitResult
+from fluxcal.missions.messenger.fit import AXES, MIN_PHASE_BINS, FitResult
 from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
@@ -360,8 +360,8 @@ def _duty_range_text(d_range: tuple[float, float] | None) -> str:
         return "D_RANGE: none (no column fitted; every column kept from the base table)"
     return (f"D_RANGE {d_range[0]:g}..{d_range[1]:g} %: the duty cycles (lo <= d < hi) of "
             f"the contiguous fitted 4-% bins around the fullest (each bin's own samples in "
-            f">= 50 phase bins, its column fitted on every axis); outside it the pipeline "
-            "extrapolates the columns (sec. 6) and nothing states the error")
+            f">= {MIN_PHASE_BINS} phase bins, its column fitted on every axis); outside it the "
+            "pipeline extrapolates the columns (sec. 6) and nothing states the error")
 
 
 def _range_line(result: FitResult) -> str:
