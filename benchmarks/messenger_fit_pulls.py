@@ -27,6 +27,7 @@ Issue 34's verification (20 realisations per world, 16 days; a 16-core machine):
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime as dt
 import functools
 import os
@@ -47,17 +48,27 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.missions.messenger._hard_worlds import MercuryOrbit, cruise_hard_wind  # noqa: E402
 from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E402
-from tests.missions.messenger._unseen_day import recalibrate_rms  # noqa: E402
+from tests.missions.messenger._unseen_day import (  # noqa: E402
+    day_streams,
+    inside_ranges,
+    recalibrate_errors,
+    rms,
+)
 
+from fluxcal.calibration.heater_signal import heater_signal, period_index  # noqa: E402
 from fluxcal.errors import FitRefusedError  # noqa: E402
-from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
+from fluxcal.geometry.kernels import KernelPool  # noqa: E402
+from fluxcal.geometry.time import SclkKernel  # noqa: E402
+from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
     break_refusal,
     check_fit,
     day_chunks,
     fit_days,
+    merit_inside_range,
 )
+from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
@@ -121,15 +132,26 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             verdict = "accepted"
         except FitRefusedError as exc:
             verdict = f"refused: {exc}"
-        unseen_rms = unseen_in = np.full(3, np.nan)
+        nan3 = np.full(3, np.nan)
+        unseen_rms = unseen_in = unseen_both = unseen_beyond = nan3
+        beyond_share = np.nan
+        wave_parts = {}
         if unseen:
             folder = Path(tmp) / "fitted"
             write_calibration_folder(res, folder, None, {
                 "inputs": {}, "intervals": "all data", "days": f"first {days}",
                 "command": "messenger_fit_pulls"}, study=True)
-            unseen_rms = recalibrate_rms(run.input_dir, run.days[-1], folder)
-            unseen_in = recalibrate_rms(run.input_dir, run.days[-1], folder,
-                                        res.stated_ranges)
+            err, truth = recalibrate_errors(run.input_dir, run.days[-1], folder)
+            unseen_rms = rms(err)
+            in_t = inside_ranges(truth, res.stated_ranges)
+            unseen_in = rms(err, in_t)
+            # inside T_RANGE and D_RANGE: what the prediction now holds for (issue 34)
+            both = inside_ranges(truth, res.stated_ranges, res.duty_range)
+            unseen_both = rms(err, both)
+            unseen_beyond = rms(err, in_t & ~both)  # heater-on, duty outside D_RANGE
+            beyond_share = float(np.count_nonzero(in_t & ~both)) / max(in_t.sum(), 1)
+            wave_parts = waveform_parts(run.input_dir, run.days[-1], folder, res, true,
+                                        truth, in_t & ~both)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
         (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
@@ -166,6 +188,14 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "passes": res.convergence["passes_run"],
         "unseen_nt": unseen_rms,
         "unseen_in_range_nt": unseen_in,
+        "unseen_in_both_nt": unseen_both,
+        "unseen_beyond_duty_nt": unseen_beyond,
+        "unseen_beyond_duty_share": beyond_share,
+        "duty_range": res.duty_range,
+        "waveform_parts": wave_parts,
+        "duty_outside_share": (res.merit.get("samples_outside_duty_range", 0)
+                               / max(res.merit.get("heater_on_samples", 0), 1)),
+        "predicted_without_duty_nt": _prediction_without_duty_range(res),
         "held_upper": sorted(res.held_upper),
         "law_band_max_nt": NT_PER_COUNT * res.law_error(t_all).max(axis=0),
         "law_max_pull": np.abs((_law(cal.temperature_coefficients, t_all) - _law(tc, t_all))
@@ -177,6 +207,56 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "reasons": dict(zip(*np.unique(np.asarray(res.variance.reason), return_counts=True),
                             strict=True)),
     }
+
+
+def waveform_parts(inp: Path, day, folder: Path, res, true, truth: dict,
+                   outside: np.ndarray) -> dict:
+    """The unseen day's heater-waveform error alone, inside and outside D_RANGE.
+
+    The pipeline's heater signal (`heater_signal`, its periods from the day's heater
+    bits) with the fitted columns less the same with the flight model's true columns,
+    through eq. 8's fine matrix (nT rms per axis), over the heater-on samples whose
+    duty cycle lies inside / outside D_RANGE (``outside``); and what the columns'
+    stated errors give when propagated through the pipeline's interpolation weights
+    (``sum_k w_k(d)^2 err_k^2``, the columns independent: the statistical part alone).
+    """
+    sci, htr, _ = day_streams(inp, day)
+    cal = load_calibration(np.datetime64(str(day)), folder)
+    with KernelPool(inp / "kernels.tm"):
+        sclk = SclkKernel.from_pool(levels.SC_ID)
+        et = levels.correct_time(sci, cal, sclk)["et"].values
+        periods, _ = levels.find_heater_periods(htr, cal, sclk)
+    bins = cal.heater_duty_bins_percent
+    fitted, on = heater_signal(et, periods, cal.heater_signal, bins)
+    truth_signal, _ = heater_signal(et, periods, np.asarray(true.heater), true.heater_bins)
+    m = np.asarray(cal.matrices[0])
+    diff = (fitted - truth_signal) @ m.T
+    k = period_index(et, periods)
+    duty = np.where(k >= 0, periods.duty_cycle[np.maximum(k, 0)] * 100.0, np.nan)
+    w2 = interpolation_weights(duty, bins) ** 2                       # (n, bins)
+    var = w2 @ (np.asarray(res.waveform_error) ** 2).T                 # (n, axes)
+    out = {}
+    for name, sel in (("inside", on & ~outside), ("outside", on & outside)):
+        out[f"{name}_true_nt"] = rms(diff, sel)
+        out[f"{name}_propagated_nt"] = (np.sqrt((m ** 2) @ var[sel].mean(axis=0))
+                                        if sel.any() else np.full(3, np.nan))
+    return out
+
+
+def _parts(p: dict) -> str:
+    return ", ".join(f"{k} {np.round(v, 3)}" for k, v in p.items()) or "-"
+
+
+def _prediction_without_duty_range(res) -> np.ndarray:
+    """The predicted error as before the duty range: every heater-on sample counted, the
+    waveform share of the samples in no bin zero (a copy of ``res`` whose columns all
+    read as kept states no D_RANGE; judged as `fit_days` judges, inside T_RANGE)."""
+    if "total_nt" not in res.merit:
+        return np.full(3, np.nan)
+    copy = dataclasses.replace(res, waveform=[[None] * len(w) for w in res.waveform])
+    fit_merit.assess(copy, res.merit["goal_nt"])
+    merit_inside_range(copy, res.merit["goal_nt"])
+    return np.asarray(copy.merit["total_nt"])
 
 
 #: The worlds ``--world`` knows: the test wind of issue 21 and issue 34's two hard worlds
@@ -280,7 +360,15 @@ def main() -> None:
               f"{np.round(r['tm_err'], 2)} C)  predicted {np.round(r['predicted_nt'], 3)} nT  "
               f"unseen day {np.round(r['unseen_nt'], 3)} nT (inside the stated range "
               f"{np.round(r['unseen_in_range_nt'], 3)} nT; samples outside "
-              f"{r['outside_share']:.1%}); held upper segments {r['held_upper']}; law band "
+              f"{r['outside_share']:.1%}); D_RANGE {r['duty_range']} % (fitted heater-on "
+              f"samples outside {r['duty_outside_share']:.1%}): unseen inside T_RANGE and "
+              f"D_RANGE {np.round(r['unseen_in_both_nt'], 3)} nT against predicted "
+              f"{np.round(r['predicted_nt'], 3)} nT (before the duty range "
+              f"{np.round(r['predicted_without_duty_nt'], 3)} nT); unseen heater-on outside "
+              f"D_RANGE {np.round(r['unseen_beyond_duty_nt'], 3)} nT "
+              f"({r['unseen_beyond_duty_share']:.1%} of the samples in T_RANGE); waveform "
+              f"part alone {_parts(r['waveform_parts'])}; held upper "
+              f"segments {r['held_upper']}; law band "
               f"max {np.round(r['law_band_max_nt'], 3)} nT, law max |error / band| "
               f"{np.round(r['law_max_pull'], 2)}; passes {r['passes']}; guards: "
               f"{r['verdict']}; compressive {r['compressive_share'][0]} of "

@@ -33,6 +33,41 @@ def day_streams(inp: Path, day: dt.date):
                                           f("TMP", day + one)) if p.exists()]))
 
 
+def recalibrate_errors(inp: Path, day: dt.date, folder: Path | None
+                       ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The pipeline's field less the truth (nT, sensor axes) per sample, and the truth."""
+    sci, htr, tmp = day_streams(inp, day)
+    cal = load_calibration(np.datetime64(str(day)), folder)
+    with KernelPool(inp / "kernels.tm"):
+        ds = calibrate(sci, htr, tmp, cal, frames=("sc",), max_offset_step=None)
+    truth = read_flight_truth(inp, day)
+    assert np.array_equal(ds["met"].values, truth["met"])
+    return ds["b_sensor"].values - truth["b_sensor"], truth
+
+
+def inside_ranges(truth: dict[str, np.ndarray],
+                  t_range: StatedRanges | tuple[float, float] | None = None,
+                  d_range: tuple[float, float] | None = None) -> np.ndarray:
+    """Samples whose true temperature lies in ``t_range`` (C, closed intervals) and, when heater-on
+    (the truth's duty cycle of at least the sec. 6 persistence, 10 %), whose duty cycle
+    lies in ``d_range`` (percent, ``lo <= d < hi``: ``D_RANGE``)."""
+    ok = np.ones(truth["met"].size, dtype=bool)
+    if t_range is not None:
+        temp = truth["temperature_c"]
+        ok &= StatedRanges.of(t_range).contains(temp)
+    if d_range is not None:
+        d = truth["duty_percent"]
+        on = (d >= 10) & (d < 100)
+        ok &= ~on | ((d >= d_range[0]) & (d < d_range[1]))
+    return ok
+
+
+def rms(err: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Per-axis rms of ``err`` over ``mask`` (NaN where no sample)."""
+    e = err if mask is None else err[mask]
+    return np.sqrt((e ** 2).mean(axis=0)) if e.size else np.full(err.shape[1], np.nan)
+
+
 def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None,
                     t_range: StatedRanges | tuple[float, float] | None = None) -> np.ndarray:
     """Per-axis rms (nT, sensor axes) of the pipeline's field against the truth.
@@ -40,14 +75,5 @@ def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None,
     ``t_range``: only the samples whose true sensor temperature lies in it (C; the range
     a fitted table states, ``T_RANGE``: `StatedRanges` or one ``(lo, hi)``).
     """
-    sci, htr, tmp = day_streams(inp, day)
-    cal = load_calibration(np.datetime64(str(day)), folder)
-    with KernelPool(inp / "kernels.tm"):
-        ds = calibrate(sci, htr, tmp, cal, frames=("sc",), max_offset_step=None)
-    truth = read_flight_truth(inp, day)
-    assert np.array_equal(ds["met"].values, truth["met"])
-    err = ds["b_sensor"].values - truth["b_sensor"]
-    if t_range is not None:
-        temp = truth["temperature_c"]
-        err = err[StatedRanges.of(t_range).contains(temp)]
-    return np.sqrt((err ** 2).mean(axis=0))
+    err, truth = recalibrate_errors(inp, day, folder)
+    return rms(err, inside_ranges(truth, t_range))

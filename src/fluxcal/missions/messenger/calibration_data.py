@@ -253,6 +253,12 @@ class MessengerCalibration:
         older form, reads the same); calibrating samples outside it warns
         (`pipeline.warn_outside_temperature_range`).  None: the table states no range
         (the seed's Table 2).
+    duty_range : tuple of float or None
+        ``D_RANGE`` of the heater-signal files' headers (percent, ``lo <= d < hi``):
+        the duty cycles over which fitted waveforms are determined (`fit.supported_duty_range`);
+        calibrating a heater-on sample outside it warns
+        (`pipeline.warn_outside_duty_range`).  Several files: the narrowest (their
+        intersection).  None: no file states one (the seed's Tables 6-8), nothing warns.
     """
 
     net_lag_s: np.ndarray
@@ -269,6 +275,7 @@ class MessengerCalibration:
     files: list[tuple[str, int]]
     paths: tuple[Path, ...] = ()
     temperature_range: StatedRanges | None = None
+    duty_range: tuple[float, float] | None = None
 
     def __repr__(self) -> str:
         """Two lines: the tables by version and folder, then validity and key constants."""
@@ -399,26 +406,57 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
         constants=t["processing"].toml,
         files=[(tf.path.name, tf.version) for tf in t.values()],
         paths=tuple(tf.path for tf in t.values()),
-        temperature_range=_temperature_range(t["offsets_temperature"]),
+        temperature_range=_stated_range(t["offsets_temperature"], "T_RANGE", "C"),
+        duty_range=_duty_range([t[f"heater_signal_{axis}"] for axis in "xyz"]),
     )
 
 
-def _temperature_range(table: TableFile) -> StatedRanges | None:
-    """``T_RANGE: lo hi[, lo hi ...]`` (C) of a Table 2 file's header, or None without it.
+def _stated_range(table: TableFile, key: str, unit: str) -> StatedRanges | None:
+    """``KEY: lo hi[, lo hi ...]`` of a table's header (``T_RANGE``, ``D_RANGE``), or None.
 
     Raises
     ------
     CalibrationError
-        A ``T_RANGE`` that is not pairs of finite numbers, low before high, the pairs in
+        A range that is not pairs of finite numbers, low before high, the pairs in
         increasing order and not overlapping (`StatedRanges.parse`).
     """
-    text = next((v for k, v in table.header.items() if _key(k) == "t_range"), None)
+    text = next((v for k, v in table.header.items() if _key(k) == key.lower()), None)
     if text is None:
         return None
     try:
         return StatedRanges.parse(text)
     except ValueError as exc:
-        raise CalibrationError(f"{table.path}: header field 'T_RANGE' must be two numbers "
-                               f"LOW HIGH (C, low below high), or several such pairs "
+        raise CalibrationError(f"{table.path}: header field {key!r} must be two numbers "
+                               f"LOW HIGH ({unit}, low below high), or several such pairs "
                                f"separated by commas in increasing order, got {text!r}: "
                                f"{exc}") from None
+
+
+def _duty_range(tables: list[TableFile]) -> tuple[float, float] | None:
+    """Return the narrowest ``D_RANGE`` (percent) the heater-signal files state, or None.
+
+    Raises
+    ------
+    CalibrationError
+        A malformed ``D_RANGE``, one of several intervals, or files whose ranges do not
+        overlap.
+    """
+    stated = []
+    for tf in tables:
+        ranges = _stated_range(tf, "D_RANGE", "%")
+        if ranges is None:
+            continue
+        if len(ranges.intervals) != 1:
+            raise CalibrationError(f"{tf.path}: header field 'D_RANGE' must be one interval "
+                                   f"LOW HIGH (%), got {ranges.header_text()!r}")
+        stated.append((tf, ranges.span))
+    if not stated:
+        return None
+    lo = max(r[0] for _, r in stated)
+    hi = min(r[1] for _, r in stated)
+    if not lo < hi:
+        raise CalibrationError(
+            f"{stated[-1][0].path}: header field 'D_RANGE' does not overlap the D_RANGE of "
+            f"{', '.join(tf.path.name for tf, _ in stated[:-1])}; give heater-signal files "
+            "of one fit")
+    return lo, hi

@@ -250,6 +250,19 @@ class FitResult:
             return law_sigma(self.temperature, t)
         return np.std(fv.law_values(self.bootstrap["law"], t), axis=0)
 
+    @property
+    def duty_range(self) -> tuple[float, float] | None:
+        """``D_RANGE`` (percent, ``lo <= d < hi``): the duty cycles the waveforms are fitted on.
+
+        `supported_duty_range` of the merged statistics' own bin counts and the fitted
+        columns; None when no column was fitted (entry 24-duty).
+        """
+        fitted = np.array([[fit is not None for fit in axis] for axis in self.waveform],
+                          dtype=bool)
+        count = np.stack([w.count for w in self.stats.waveform])
+        return supported_duty_range(count, fitted,
+                                    self.calibration.heater_duty_bins_percent)
+
     def summary(self) -> dict[str, Any]:
         """Return the headline numbers (for the pass history and the report)."""
         cal = self.calibration
@@ -520,6 +533,58 @@ def _fit_waveforms(
             error[j, b] = (np.sqrt(np.mean((0.5 * (parts[0][1] - parts[1][1]))[:-1] ** 2))
                            if all(x is not None for x in parts) else error[j, b])
     return table, fits, error
+
+
+def supported_duty_range(count: np.ndarray, fitted: np.ndarray, centres: np.ndarray
+                         ) -> tuple[float, float] | None:
+    """Return the duty-cycle range (percent) over which the heater waveforms are determined.
+
+    A duty-cycle bin (4 % wide around each column's centre, sec. 6) is *supported* when
+    its own heater-on samples fill at least `MIN_PHASE_BINS` of its phase bins with
+    `MIN_BIN_SAMPLES` each (the rule `_fit_waveforms` fits a column by, applied to the
+    bin's own samples, not to those of its neighbours that lean on the column through
+    the interpolation) and its column was fitted on every axis.  The range is the
+    contiguous run of supported bins around the one holding the most samples, from the
+    lower edge of its first bin to the upper edge of its last (``lo <= d < hi``: the fit
+    bins a period of duty ``d`` by ``floor((d - lo) / 4)``).  Between two supported
+    columns the pipeline interpolates two fitted columns; within half a bin beyond the
+    last centre it extends the last two (sec. 6), as it did for the bin's own samples
+    in the fit; further out it extrapolates what no sample determined (issue 34,
+    docs/decisions/messenger_fit.md entry 24-duty).
+
+    Parameters
+    ----------
+    count : ndarray, shape (n_bins, n_phase)
+        Samples per phase bin of each duty-cycle bin (`DayStatistics.waveform` counts).
+    fitted : ndarray of bool, shape (n_axes, n_bins)
+        Whether each axis's column was fitted (not kept from the base table).
+    centres : ndarray, shape (n_bins,)
+        Evenly spaced bin centres (percent; 12..40 in Tables 6-8).
+
+    Returns
+    -------
+    tuple of float or None
+        ``(lo, hi)`` in percent; None when no bin is supported.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 (4 % bins, centres 12-40 %,
+       linear between bins, the 36-40 % slope extended above 40 %).
+    """
+    count = np.asarray(count)
+    centres = np.asarray(centres, dtype=float)
+    filled = (count >= MIN_BIN_SAMPLES).sum(axis=1) >= MIN_PHASE_BINS
+    ok = filled & np.all(np.asarray(fitted, dtype=bool), axis=0)
+    if not ok.any():
+        return None
+    total = np.where(ok, count.sum(axis=1), -1)
+    a = b = int(np.argmax(total))
+    while a > 0 and ok[a - 1]:
+        a -= 1
+    while b < ok.size - 1 and ok[b + 1]:
+        b += 1
+    half = 0.5 * float(centres[1] - centres[0])
+    return float(centres[a] - half), float(centres[b] + half)
 
 
 def look_back_for(tau: float) -> float:

@@ -36,7 +36,7 @@ FitResult = Any
 
 __all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
-           "predicted_error", "range_bands", "stated_range"]
+           "duty_range_counts", "predicted_error", "range_bands", "stated_range"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -88,7 +88,12 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
     ``dO = dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (eq. 2-6 linearised; ``M`` eq.
     8's fine matrix), plus the rounding of the counts (``M`` times 1/sqrt(12) count)
     and the heater waveforms' stated error (`FitResult.waveform_error`, weighted by the
-    share of the samples in each duty bin), both independent of the rest.  A held upper
+    share of the samples in each duty bin), both independent of the rest.  The
+    waveform part holds for the samples inside ``D_RANGE`` (`duty_range_counts`, the
+    fitted days only): the bins outside it do not count and its denominator leaves the
+    heater-on samples outside it out (entry 24-duty); the law, D0 and tau parts keep
+    them (the moments carry no duty cycle; they lie at the regulated -50 C, where the
+    law's part is that of the samples inside).  A held upper
     segment's widths are in the resamples (`fit.held_upper_segments`): a day warmer than
     the data (``moments``) is predicted with them.
 
@@ -98,7 +103,9 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
         ``total_nt``, ``law_nt``, ``d0_nt``, ``relaxation_nt`` (tau and dt),
         ``waveform_nt``, ``rounding_nt`` (per axis), ``goal_nt``, ``samples``,
         ``samples_outside_range`` (outside the stated temperature range) and
-        ``samples_beyond_data`` (outside the data's range, ``variance.fitted_range()``).
+        ``samples_beyond_data`` (outside the data's range, ``variance.fitted_range()``);
+        with a D_RANGE (fitted days): ``duty_range_pct``, ``samples_outside_duty_range``
+        and ``heater_on_samples``.
     """
     boot = result.bootstrap
     v = result.variance
@@ -110,12 +117,22 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
     mom = mom[use]
     n_total = float(mom[:, 0].sum())
     wave = np.zeros(3)
+    duty = duty_range_counts(result) if moments is None else None
     if result.waveform_error is not None and n_total > 0:
-        share = np.array([w.count.sum() for w in result.stats.waveform], dtype=float) / n_total
+        count = np.array([w.count.sum() for w in result.stats.waveform], dtype=float)
+        n_wave = n_total
+        if duty is not None:  # the samples inside D_RANGE only (entry 24-duty)
+            count = np.where(duty["inside_bins"], count, 0.0)
+            n_wave = max(n_total - min(duty["outside"], n_total), 1.0)
+        share = count / n_wave
         var_counts = (np.asarray(result.waveform_error) ** 2 * share[None, :]).sum(axis=1)
         wave = np.sqrt((m ** 2) @ var_counts)
     out: dict[str, Any] = {"goal_nt": float(goal), "rounding_nt": rounding.tolist(),
                            "waveform_nt": wave.tolist(), "samples": int(n_total)}
+    if duty is not None:
+        out.update(duty_range_pct=list(duty["range"]),
+                   samples_outside_duty_range=int(duty["outside"]),
+                   heater_on_samples=int(duty["heater_on"]))
     if boot is None or n_total == 0:
         nan = [float("nan")] * 3
         return {**out, "total_nt": nan, "law_nt": nan, "d0_nt": nan, "relaxation_nt": nan,
@@ -183,6 +200,27 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
     zc, z = np.zeros_like(c), np.zeros_like(d)
     return t_b, {"total": per_bin(c, d, e, f), "law": per_bin(c, z, z, z),
                  "d0": per_bin(zc, d, z, z), "relaxation": per_bin(zc, z, e, f)}
+
+
+def duty_range_counts(result: FitResult) -> dict[str, Any] | None:
+    """Count the fitted days' heater-on samples inside and outside ``result.duty_range``.
+
+    Returns None when the result states no D_RANGE (no column fitted), else
+    ``range`` (percent, `fit.supported_duty_range`), ``inside_bins`` (bool per
+    waveform bin), ``heater_on`` (samples of every bin and beyond them) and ``outside``
+    (those of the bins outside the range and of no bin, above 42 % or below 10 %:
+    ``DayStatistics.n_samples["heater_on_beyond_bins"]``).
+    """
+    rng = getattr(result, "duty_range", None)
+    if rng is None:
+        return None
+    centres = np.asarray(result.calibration.heater_duty_bins_percent, dtype=float)
+    count = np.array([w.count.sum() for w in result.stats.waveform], dtype=float)
+    inside = (centres > rng[0]) & (centres < rng[1])
+    beyond = float(result.stats.n_samples.get("heater_on_beyond_bins", 0))
+    return {"range": (float(rng[0]), float(rng[1])), "inside_bins": inside,
+            "heater_on": float(count.sum()) + beyond,
+            "outside": float(count[~inside].sum()) + beyond}
 
 
 def range_bands(result: FitResult, data_range: tuple[float, float] | None = None

@@ -145,7 +145,8 @@ class DayStatistics:
     n_samples : dict
         Sample counts: ``total``, ``used`` (fine, V10, inside intervals), ``coarse``,
         ``outside_intervals``, ``before_v10``; ``events`` (duty-cycle changes in the
-        epoch) and ``events_positive``.
+        epoch) and ``events_positive``; ``heater_on_beyond_bins`` (heater-on samples
+        whose period's duty cycle lies in no ``waveform`` bin: outside every D_RANGE).
     inputs : dict
         Input file name -> sha256 (provenance).
     days : list of str
@@ -520,6 +521,10 @@ def reduce_day(
         period_bin = np.floor((periods.duty_cycle * 100.0 - lower) / width)
         parity = np.floor(et / WAVEFORM_HALF_BLOCK_S).astype(np.int64) % 2
         covered = np.all(np.isfinite(field_est), axis=1)
+        # heater-on samples whose period's duty cycle lies in no bin (above 42 %, below
+        # 10 %): no column sees them, so they lie outside every stated D_RANGE (issue 34)
+        beyond = powered & covered & (p >= 0) & ((b < 0) | (b >= centres.size))
+        out.n_samples["heater_on_beyond_bins"] = int(np.count_nonzero(beyond))
         for j in range(centres.size):
             sel = powered & (b == j) & covered
             starts = periods.start[periods.applied & (period_bin == j)]

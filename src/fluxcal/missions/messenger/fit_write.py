@@ -26,7 +26,7 @@ import numpy as np
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
-from fluxcal.missions.messenger.fit import AXES, FitResult
+from fluxcal.missions.messenger.fit import AXES, MIN_PHASE_BINS, FitResult
 from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
@@ -76,6 +76,8 @@ def merit_lines(result: FitResult) -> list[str]:
                 "where the law is extrapolated (calibrating them warns); over all samples "
                 "the prediction is " + " / ".join(f"{v:.3g}" for v in o["all_samples_total_nt"])
                 + " nT")
+    if m and "duty_range_pct" in m:
+        lines.append(duty_range_line(m))
     if m and "judged" in m:
         share = float(m["max_compressive_share"])
         lines.append(f"intervals rejected as compressive: {m['compressive']} of {m['judged']} "
@@ -84,6 +86,17 @@ def merit_lines(result: FitResult) -> list[str]:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT COMPRESSIVE SHARE "
                          f"{MAX_COMPRESSIVE_SHARE:.0%}: --max-compressive-share {share:g}")
     return lines
+
+
+def duty_range_line(merit: Mapping[str, Any]) -> str:
+    """Header line: the heater-on samples the prediction's waveform part holds for."""
+    lo, hi = merit["duty_range_pct"]
+    n, of = int(merit["samples_outside_duty_range"]), int(merit["heater_on_samples"])
+    return (f"the predicted error's waveform part holds for the heater-on samples inside "
+            f"D_RANGE {lo:g}..{hi:g} % (duty cycles d with {lo:g} <= d < {hi:g}); {n} of {of} "
+            f"fitted heater-on samples ({n / max(of, 1):.1%}) lie outside it, where the "
+            "waveform is extrapolated beyond the fitted columns (sec. 6) and its error is "
+            "not stated (calibrating them warns)")
 
 
 def held_upper_lines(result: FitResult) -> list[str]:
@@ -272,6 +285,10 @@ def write_calibration_folder(
          *extra, *merit_lines(result)]) + rows) + "\n"
     # Tables 6-8 form
     bins = cal.heater_duty_bins_percent
+    # the duty cycles the waveforms are fitted on, read back by `load_calibration`
+    # (calibrating a heater-on sample outside it warns: `pipeline.warn_outside_duty_range`)
+    d_range = result.duty_range
+    d_line = ([f"# D_RANGE: {d_range[0]:g} {d_range[1]:g}"] if d_range is not None else [])
     for j, axis in enumerate(AXES):
         name = f"heater_signal_{axis}"
         table_no = 6 + j
@@ -280,6 +297,7 @@ def write_calibration_folder(
         extra = [f"duty bins fitted (%): {' '.join(fitted) or 'none'}",
                  f"duty bins kept from {base_files[name].name} (too little data): "
                  f"{' '.join(kept) or 'none'}",
+                 _duty_range_text(d_range),
                  f"N per duty bin: {_fmt([w.count.sum() for w in result.stats.waveform], 12)}",
                  "zero mean over the 100-s cycle (the mean belongs to the duty-cycle law)"]
         extra += [f"{b:.0f}%: chi2 {fit.chi2:.4g} dof {fit.dof:.4g} max error "
@@ -294,7 +312,8 @@ def write_calibration_folder(
             " periodic smoothing spline of the phase-binned residual", version[name],
             base_files[name], base[name].header, provenance,
             ["units: counts; t_s = seconds since the heater-bit rising edge; columns = "
-             "duty-cycle bin centres in percent", *extra, *merit_lines(result)]) + rows) + "\n"
+             "duty-cycle bin centres in percent", *extra, *merit_lines(result)]) + d_line
+            + rows) + "\n"
     # processing: tau, dt and the look-back that follows tau replaced
     r = result.relaxation
     text = base_files["processing"].read_text()
@@ -335,6 +354,16 @@ def write_calibration_folder(
     # one all-or-nothing group (the tables record their own provenance in their headers)
     written = write_declared(files, out, provenance=lambda product: {})
     return written
+
+
+def _duty_range_text(d_range: tuple[float, float] | None) -> str:
+    """Return the duty-cycle range the waveforms are fitted on, with its rule (entry 24-duty)."""
+    if d_range is None:
+        return "D_RANGE: none (no column fitted; every column kept from the base table)"
+    return (f"D_RANGE {d_range[0]:g}..{d_range[1]:g} %: the duty cycles (lo <= d < hi) of "
+            f"the contiguous fitted 4-% bins around the fullest (each bin's own samples in "
+            f">= {MIN_PHASE_BINS} phase bins, its column fitted on every axis); outside it the "
+            "pipeline extrapolates the columns (sec. 6) and nothing states the error")
 
 
 def _range_line(result: FitResult) -> str:
@@ -402,6 +431,8 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
         "waveform": {
             "duty_bins_percent": cal.heater_duty_bins_percent,
             "n": [int(w.count.sum()) for w in st.waveform],
+            **({"D_RANGE": list(result.duty_range)} if result.duty_range is not None else {}),
+            "duty_range_rule": _duty_range_text(result.duty_range),
             **{a: {"fitted": [fit is not None for fit in result.waveform[j]],
                    "rms_counts": np.sqrt(np.mean(cal.heater_signal[j, :100] ** 2, axis=0))}
                for j, a in enumerate(AXES)},
@@ -511,6 +542,7 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
         lines.append(f"  {a}: " + " ".join(f"{v:.2f}{m}" for v, m in zip(rms, marks,
                                                                          strict=True)))
     lines.append("  (* kept from the base table: too little data)")
+    lines.append(f"  {_duty_range_text(result.duty_range)}")
     lines.append("passes: " + "; ".join(
         f"{p['pass']}: tau {p['tau_s']} s, D0 {p['D0']}" for p in result.passes))
     if result.convergence:
@@ -527,5 +559,6 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
             + " / ".join(f"{v:.3f}" for v in m["d0_nt"]) + ", tau and dt "
             + " / ".join(f"{v:.3f}" for v in m["relaxation_nt"]) + ", waveforms "
             + " / ".join(f"{v:.3f}" for v in m["waveform_nt"]))
-        lines += [x for x in merit_lines(result) if x.startswith("the predicted error holds")]
+        lines += [x for x in merit_lines(result) if x.startswith(("the predicted error holds",
+                                                                   "the predicted error's"))]
     return "\n".join(lines)

@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
+from fluxcal.calibration.heater_signal import HeaterPeriods, period_index
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel, et_to_utc
 from fluxcal.missions.messenger import defects, levels
@@ -92,6 +94,7 @@ def calibrate(
     periods, changes = levels.find_heater_periods(heater, cal, sclk)
     warn_unseen_duty_cycle(ds, heater, changes, cal, sclk)
     ds = levels.correct_heater_signal(ds, periods, cal)
+    warn_outside_duty_range(ds, periods, cal)
     ds = levels.mark_sunlit(ds, cal, method=method)
     temperature = defects.drop_temperature_glitches(temperature)  # issue 23
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
@@ -166,6 +169,61 @@ def warn_unseen_duty_cycle(
     return True
 
 
+def warn_outside_range(values: np.ndarray, stated: StatedRanges | tuple[float, float] | None,
+                       *, samples: str, quantity: str, key: str, unit: str, table: str,
+                       consequence: str, gap_consequence: str | None = None,
+                       upper_open: bool = False) -> bool:
+    """Warn once when ``values`` lie outside the range(s) a calibration table states.
+
+    One implementation for every stated range (``T_RANGE``, ``D_RANGE``): the warning
+    counts the values outside ``stated`` (`StatedRanges.contains`; NaN is not judged)
+    among all ``values`` and says how far below and above the range they reach and,
+    with several intervals, how many lie in the gaps between them and how far from the
+    nearest.  ``upper_open``: the range's upper end is excluded (``lo <= v < hi``).
+
+    Returns
+    -------
+    bool
+        True when it warned; False for no stated range or every value inside.
+    """
+    if stated is None:
+        return False
+    ranges = StatedRanges.of(stated)
+    lo, hi = ranges.span
+    v = np.asarray(values, dtype=float)
+    inside = ranges.contains(v)
+    if upper_open:
+        inside &= v < hi
+    outside = ~inside & ~np.isnan(v)
+    n = int(outside.sum())
+    if n == 0:
+        return False
+    below = outside & (v < lo)
+    above = outside & (v >= hi)
+    gap = outside & ~below & ~above
+    far = []
+    if below.any():
+        low = float(v[below].min())
+        far.append(f"down to {low:.1f} {unit} ({lo - low:.1f} {unit} below)")
+    if above.any():
+        high = float(v[above].max())
+        far.append(f"up to {high:.1f} {unit} ({high - hi:.1f} {unit} above)")
+    if gap.any():
+        far.append(f"{int(gap.sum())} in the gaps between its intervals (up to "
+                   f"{float(ranges.distance(v[gap]).max()):.1f} {unit} from the nearest)")
+    edge = ", upper edge excluded" if upper_open else ""
+    how = gap_consequence if gap.any() and gap_consequence else consequence
+    log.warning("%d of %d %s lie at %s outside the range %s states (%s %s %s%s), %s: %s",
+                n, v.size, samples, quantity, table, key, f"{ranges:.1f}", unit, edge,
+                " and ".join(far), how)
+    return True
+
+
+def _table_name(cal: MessengerCalibration, stem: str, default: str) -> str:
+    """Return the file name of the calibration table ``stem`` in use (for a warning)."""
+    return next((f for f, _ in cal.files if f.startswith(stem)), default)
+
+
 def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) -> bool:
     """Warn when samples lie outside the temperatures the Table 2 file states.
 
@@ -175,7 +233,7 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     (issue 34, docs/decisions/messenger_fit.md entries 21 and 24-trange).  The warning
     counts the samples (`StatedRanges.contains`) and says how far below and above the
     range they reach and, with several intervals, how many lie in the gaps between
-    them and how far from the nearest interval.
+    them and how far from the nearest interval (`warn_outside_range`).
 
     Returns
     -------
@@ -186,35 +244,54 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     ----------
     .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 3-4, Table 2.
     """
-    ranges = cal.temperature_range
-    if ranges is None or "temperature" not in ds:
+    if "temperature" not in ds:
         return False
-    lo, hi = ranges.span
-    t = ds["temperature"].values
-    outside = ~ranges.contains(t) & ~np.isnan(t)  # a sample without temperature: not judged
-    n = int(outside.sum())
-    if n == 0:
+    return warn_outside_range(
+        ds["temperature"].values, cal.temperature_range, samples="samples",
+        quantity="sensor temperatures", key="T_RANGE", unit="C",
+        table=_table_name(cal, "offsets_temperature", "Table 2"),
+        consequence="the temperature law is extrapolated there (its header states the error)",
+        gap_consequence="the temperature law is extrapolated there or, in the gaps, "
+                        "determined less well than the limit its header states (its header "
+                        "states the error)")
+
+
+def warn_outside_duty_range(ds: xr.Dataset, periods: HeaterPeriods,
+                            cal: MessengerCalibration) -> bool:
+    """Warn when heater-on samples lie at duty cycles outside the stated waveform range.
+
+    Fitted heater-signal tables state ``D_RANGE`` (`MessengerCalibration.duty_range`,
+    percent, ``lo <= d < hi``), the duty cycles whose samples determined the waveform
+    columns; outside it the pipeline extrapolates the columns (sec. 6: the 36-40 %
+    slope above 40 %) and no table states the error (issue 34, entry 24-duty; in the
+    Mercury-orbit world 0.1-0.3 nT there).  The warning counts the samples whose heater
+    signal is subtracted (``heater_applied``) in periods of a duty cycle outside the
+    range, and says how far (`warn_outside_range`).  No quality flag is set: Table 5's
+    contamination digit already says "corrected", which these samples are.
+
+    Returns
+    -------
+    bool
+        True when it warned; False for tables without ``D_RANGE``, no heater-on sample,
+        or every heater-on sample inside.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+    """
+    if cal.duty_range is None or "heater_applied" not in ds or not len(periods):
         return False
-    below, above = outside & (t < lo), outside & (t > hi)
-    gap = outside & ~below & ~above
-    far = []
-    if below.any():
-        far.append(f"down to {float(t[below].min()):.1f} C ({lo - float(t[below].min()):.1f} C "
-                   "below)")
-    if above.any():
-        far.append(f"up to {float(t[above].max()):.1f} C ({float(t[above].max()) - hi:.1f} C "
-                   "above)")
-    if gap.any():
-        far.append(f"{int(gap.sum())} in the gaps between its intervals (up to "
-                   f"{float(ranges.distance(t[gap]).max()):.1f} C from the nearest)")
-    table = next((f for f, _ in cal.files if f.startswith("offsets_temperature")), "Table 2")
-    how = ("extrapolated there" if not gap.any() else "extrapolated there or, in the gaps, "
-           "determined less well than the limit its header states")
-    log.warning(
-        "%d of %d samples lie at sensor temperatures outside the range %s states "
-        "(T_RANGE %s C), %s: the temperature law is %s (its header states the error)",
-        n, t.size, table, f"{ranges:.1f}", " and ".join(far), how)
-    return True
+    applied = ds["heater_applied"].values.astype(bool)
+    if not applied.any():
+        return False
+    k = period_index(ds["et"].values[applied], periods)
+    duty = np.where(k >= 0, np.asarray(periods.duty_cycle)[np.maximum(k, 0)] * 100.0, np.nan)
+    return warn_outside_range(
+        duty[np.isfinite(duty)], cal.duty_range, samples="heater-on samples",
+        quantity="heater duty cycles", key="D_RANGE", unit="%",
+        table=_table_name(cal, "heater_signal", "Tables 6-8"),
+        consequence="the heater waveform is extrapolated there beyond the fitted columns "
+                    "(sec. 6; no table states its error)", upper_open=True)
 
 
 def day_of(science: xr.Dataset) -> np.datetime64:
