@@ -931,6 +931,21 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     }
 
 
+def judged_at(result: FitResult, goal: float) -> FitResult:
+    """Return a copy of ``result`` judged at the error goal ``goal`` (nT).
+
+    As `fit_days` judges a fit at ``--error-goal goal``: `fit_merit.assess` over the
+    data's range (``merit["data_range_c"]``), then `merit_inside_range`.  The passes do
+    not depend on the goal, so this is the table that option writes, or refuses
+    (`fit_merit.advised_goal`: a refusal's advice; the fit demo's goal).  ``result`` is
+    left as it is.
+    """
+    out = dataclasses.replace(result, fitted_range=tuple(result.merit["data_range_c"]))
+    fit_merit.assess(out, goal, max_compressive_share=result.merit["max_compressive_share"])
+    merit_inside_range(out, goal)
+    return out
+
+
 def with_tables(base: MessengerCalibration, law: np.ndarray, d0: np.ndarray, tau: float,
                 dt: float, heater: np.ndarray) -> MessengerCalibration:
     """Return ``base`` with the law ``(a, b, c, T_m)`` per axis, D0, tau, dt and waveforms.
@@ -1507,7 +1522,7 @@ def fit_days(
             fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
             merit_inside_range(result, error_goal)
             if guard:
-                fit_merit.check_merit(result)
+                fit_merit.check_merit(result, rejudge=judged_at)
         return result
 
     def tick(p: int, i: int) -> None:

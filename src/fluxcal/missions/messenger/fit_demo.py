@@ -172,11 +172,9 @@ def _verdict(result, out: Path):
     `DEMO_ERROR_GOAL_NT`, as ``--error-goal`` would (its headers then say so); any other
     refusal is shown as it is and the folder written as a study.
     """
-    import dataclasses
-
     from fluxcal.errors import FitRefusedError
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit import check_fit, merit_inside_range
+    from fluxcal.missions.messenger.fit import check_fit, judged_at
 
     try:
         if not result.convergence["converged"]:
@@ -186,14 +184,11 @@ def _verdict(result, out: Path):
         return (f"REFUSED by the guards (the command would write nothing): {exc}",
                 out / "fitted_refused", result)
     try:
-        fit_merit.check_merit(result)
+        fit_merit.check_merit(result, rejudge=judged_at)  # its advice as the command's
         return "accepted by the guards at their defaults", out / "fitted", result
     except FitRefusedError as exc:
         default = str(exc)
-    accepted = dataclasses.replace(result, fitted_range=tuple(result.merit["data_range_c"]))
-    fit_merit.assess(accepted, DEMO_ERROR_GOAL_NT,
-                     max_compressive_share=result.merit["max_compressive_share"])
-    merit_inside_range(accepted, DEMO_ERROR_GOAL_NT)  # as `fit_days` does
+    accepted = judged_at(result, DEMO_ERROR_GOAL_NT)  # as `fit_days` judges that goal
     try:
         fit_merit.check_merit(accepted)
     except FitRefusedError as exc:
@@ -303,8 +298,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
         f"(variance estimator), truth tables in {truth}",
         f"  fit {verdict}",
         f"  fitted folder: {fitted}; the law stated over T_RANGE "
-        f"{result.stated_ranges} C (calibrating a sample "
-        "outside it warns; the held upper segments: "
+        f"{result.stated_ranges} C, the heater waveforms over D_RANGE "
+        + ("none stated" if result.duty_range is None else
+           "{:g}..{:g} % (upper edge excluded)".format(*result.duty_range))
+        + " (calibrating a sample outside either warns; the held upper segments: "
         + (", ".join(result.held_upper) or "none") + ")",
         f"  tau {result.relaxation.tau:.0f} +- {result.relaxation.tau_err:.0f} s (truth "
         f"{tc.constants['relaxation']['tau_s']:.0f}, shipped 872); D0 "

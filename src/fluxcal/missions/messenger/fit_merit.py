@@ -23,6 +23,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -34,7 +35,8 @@ from fluxcal.missions.messenger import fit_variance as fv
 #: `fluxcal.missions.messenger.fit.FitResult` (not imported: `fit` imports this module).
 FitResult = Any
 
-__all__ = ["ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE", "assess",
+__all__ = ["ADVICE_TRIES", "ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE",
+           "advised_goal", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
            "duty_range_counts", "predicted_error", "range_bands", "stated_range"]
 
@@ -49,6 +51,9 @@ MAX_COMPRESSIVE_SHARE = 0.5
 #: third of the law's 0.15-nT goal (issue 21), so that the law meets it at 3 sigma;
 #: scaled with a goal other than `ERROR_GOAL_NT` (`band_limit_for`).
 LAW_BAND_LIMIT_NT = 0.05
+#: Most goals a refusal's advice judges (`advised_goal`): each a re-judgement of the
+#: fitted tables (no pass), so that the goal advised writes the table it describes.
+ADVICE_TRIES = 8
 
 
 def compressive_share(reason: np.ndarray) -> tuple[int, int]:
@@ -350,12 +355,90 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
                     "max_compressive_share": float(max_compressive_share)}
 
 
-def check_merit(result: FitResult) -> None:
+def _regulated_c(result: FitResult) -> float:
+    """Return the regulated sensor temperature (C; eq. 2: the heater runs only there)."""
+    rel = result.calibration.constants["relaxation"]
+    return float(rel.get("reference_temperature_c", -50.0))
+
+
+def _goal_failure(result: FitResult) -> float | None:
+    """Return the next goal (nT) to try for ``result`` as judged, None when it would do.
+
+    The least goal ``result``'s own numbers name if it would be refused at its goal
+    (`check_merit` after `assess`), or if its stated range leaves out the regulated
+    temperature its data hold (`advised_goal`).
+    """
+    m = result.merit
+    f_lo, f_hi = m["data_range_c"]
+    edges, law, offset = range_bands(result, (f_lo, f_hi))
+    band = np.minimum(law, offset)
+    if not m["law_determined"]:
+        return _goal_for_band(float(band.max(axis=1).min()))
+    total = np.asarray(m["total_nt"], dtype=float)
+    if not np.all(total <= float(m["goal_nt"])):
+        return _up_to_cent(np.nanmax(total))
+    reg = _regulated_c(result)
+    held = (edges[:-1] <= reg) & (reg < edges[1:]) if band.size else np.zeros(0, dtype=bool)
+    if held.any() and not result.temperature_ranges.contains(reg):
+        return _goal_for_band(float(band[held].max()))
+    return None
+
+
+def advised_goal(result: FitResult, guess: float,
+                 rejudge: Callable[[FitResult, float], FitResult] | None
+                 ) -> tuple[float | None, FitResult | None]:
+    """Return the least ``--error-goal`` a refusal may advise, and ``result`` judged at it.
+
+    ``guess`` is the goal the refusal's own numbers name (the least band, or the
+    largest predicted error, rounded up to 0.01 nT).  A goal also widens the law's band
+    limit (`band_limit_for`), hence the stated range, hence the samples the prediction
+    holds for: the guess alone may write a different table, or another refusal (entry
+    24-advice).  With ``rejudge`` (`fit.judged_at`: ``result`` judged at a goal as
+    `fit.fit_days` judges it) each candidate is judged as the fit would be, starting
+    at ``guess``; the next candidate is what that judgement names (`_goal_failure`),
+    at least 0.01 nT more, up to `ADVICE_TRIES` candidates.  A candidate is advised when
+    the table would be written there with its stated range holding the regulated
+    temperature (eq. 2), where its data hold it: a table that states its law only
+    elsewhere warns for nearly every heater-on sample.  ``(None, None)`` when no
+    candidate qualifies; ``(guess, None)`` without ``rejudge``.
+    """
+    if rejudge is None:
+        return guess, None
+    goal = float(guess)
+    for _ in range(ADVICE_TRIES):
+        judged = rejudge(result, goal)
+        nxt = _goal_failure(judged)
+        if nxt is None:
+            return goal, judged
+        goal = max(float(nxt), _up_to_cent(goal + 0.01))
+    return None, None
+
+
+def _goal_advice(result: FitResult, guess: float,
+                 rejudge: Callable[[FitResult, float], FitResult] | None, what: str,
+                 note: str = "") -> str:
+    """Return the refusal's ``--error-goal`` sentence (`advised_goal`), or why none."""
+    goal, judged = advised_goal(result, guess, rejudge)
+    if goal is None:
+        return (f"; no --error-goal up to {ADVICE_TRIES} tries from {guess:g} nT would write "
+                "it with the regulated temperature inside its stated range (a larger goal "
+                "widens the range, and the prediction with it), so none is advised")
+    said = ("" if judged is None else
+            f"; judged at {goal:g} as the fit would be: T_RANGE {judged.stated_ranges} C, "
+            f"predicted {_axes(judged.merit['total_nt'])} nT")
+    return (f", or accept {what} with --error-goal {goal:g} ({note}written into every table "
+            f"header{said})")
+
+
+def check_merit(result: FitResult,
+                rejudge: Callable[[FitResult, float], FitResult] | None = None) -> None:
     """Refuse a fit the data cannot support, or whose predicted error exceeds its goal.
 
     In this order (``result`` as left by `assess`): the compressive share
     (`compressive_share` above ``merit["max_compressive_share"]``); the law's band above
-    its limit everywhere in the data's range; the predicted error above its goal.
+    its limit everywhere in the data's range; the predicted error above its goal.  The
+    ``--error-goal`` a refusal advises is `advised_goal` (``rejudge``: `fit.judged_at`,
+    as `fit.fit_days` passes it; None: the refusal's own numbers).
 
     Raises
     ------
@@ -377,10 +460,10 @@ def check_merit(result: FitResult) -> None:
             f"temperature law (sec. 7, Table 2): its stated error exceeds "
             f"{m['band_limit_nt']:g} nT at every temperature of the fitted range "
             f"{f_lo:.0f}..{f_hi:.0f} C (least {_axes(band.min(axis=0))} nT, x / y / z); not "
-            "written. Give more days of solar wind at these temperatures, or accept a larger "
-            f"error with --error-goal {_goal_for_band(float(band.max(axis=1).min())):g} "
-            f"(the law's limit is {LAW_BAND_LIMIT_NT / ERROR_GOAL_NT:g} of the goal; "
-            "written into every table header)")
+            "written. Give more days of solar wind at these temperatures"
+            + _goal_advice(result, _goal_for_band(float(band.max(axis=1).min())), rejudge,
+                           "a larger error", f"the law's limit is "
+                           f"{LAW_BAND_LIMIT_NT / ERROR_GOAL_NT:g} of the goal; "))
     total = np.asarray(m["total_nt"], dtype=float)
     goal = float(m["goal_nt"])
     if not np.all(total <= goal):
@@ -404,7 +487,6 @@ def check_merit(result: FitResult) -> None:
             f"{_axes(m['d0_nt'])}, tau and dt {_axes(m['relaxation_nt'])}, waveforms "
             f"{_axes(m['waveform_nt'])} nT); not written. "
             + ("Give solar-wind days at the temperatures the law is not determined at "
-               "(heater-off runs), or more days, " if upper else "Give more days, ")
-            + "or accept the larger error with --error-goal "
-            f"{_up_to_cent(np.nanmax(total)):g} (written into every "
-            "table header)")
+               "(heater-off runs), or more days" if upper else "Give more days")
+            + _goal_advice(result, _up_to_cent(np.nanmax(total)), rejudge,
+                           "the larger error"))
