@@ -90,7 +90,7 @@ def advice(message: str) -> dict:
     out = {}
     if m := re.search(r"--error-goal ([0-9.]+)", message):
         out["error_goal"] = float(m.group(1).rstrip("."))
-    if m := re.search(r"--hold-d0 ([xyz][^\s)]*)", message):
+    if m := re.search(r"--hold-d0 ([xyz])\b", message):  # the option as typed: AXIS
         out["hold_d0"] = m.group(1)
     if m := re.search(r"--passes (\d+)", message):
         out["passes"] = int(m.group(1))
@@ -281,8 +281,7 @@ def main() -> None:
                 return
             refit = False
             if "hold_d0" in adv:
-                spec = adv["hold_d0"].replace("=VALUE+-WIDTH", "")
-                opts["hold_d0"] = ",".join(filter(None, [opts["hold_d0"], spec]))
+                opts["hold_d0"] = ",".join(filter(None, [opts["hold_d0"], adv["hold_d0"]]))
                 refit = True
             if "passes" in adv:
                 opts["passes"], refit = adv["passes"], True

@@ -276,7 +276,9 @@ def test_d0_the_data_put_out_of_range_is_refused_naming_the_hold_option(shipped)
     assert res.duty[2].slope == pytest.approx(5.0 * d0[2], rel=1e-3)
     with pytest.raises(FitRefusedError, match=r"D0 z = .* is 5x the shipped .*not written\. "
                                               r"Needs .*, or hold it with a stated width "
-                                              r"\(--hold-d0 z=VALUE\+-WIDTH\)"):
+                                              r"\(--hold-d0 z: the start table.s D0, its "
+                                              r"width 50% of the value, entry 18; or "
+                                              r"z=VALUE\+-WIDTH from a better source\)"):
         check_fit(res)
 
 

@@ -771,16 +771,23 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"{f.slope_err:.2g} counts/ppt is {ratio:.2g}x the shipped {ref_j:.4g} "
                 f"(allowed: same sign, 1/{D0_RANGE_FACTOR:g}..{D0_RANGE_FACTOR:g}x); not "
                 f"written. Needs {what_d0}, or hold it with a stated width "
-                f"(--hold-d0 {a}=VALUE+-WIDTH)")
+                f"({_hold_d0_advice(a)})")
         if not (np.isfinite(f.slope_err) and f.slope_err <= MAX_RELATIVE_ERROR * abs(f.slope)):
             raise FitRefusedError(
                 f"duty-cycle law (sec. 7, Table 3): fitted D0 {a} = {f.slope:.4g} +- "
                 f"{f.slope_err:.2g} counts/ppt, a relative error above "
                 f"{MAX_RELATIVE_ERROR:.0%}; not written. Needs {what_d0}, or hold it with a "
-                f"stated width (--hold-d0 {a}=VALUE+-WIDTH)")
+                f"stated width ({_hold_d0_advice(a)})")
     cause = break_refusal(result)
     if cause:
         raise FitRefusedError(cause)
+
+
+def _hold_d0_advice(axis: str) -> str:
+    """Return the ``--hold-d0`` a D0 refusal advises, to type as it is (entry 24-advice)."""
+    return (f"--hold-d0 {axis}: the start table's D0, its width "
+            f"{HOLD_D0_DEFAULT_WIDTH:.0%} of the value, entry 18; or {axis}=VALUE+-WIDTH "
+            "from a better source")
 
 
 def break_refusal(result: FitResult, *, error: bool = True) -> str:
@@ -1038,7 +1045,9 @@ def fit_variance_calibration(
         raise too_little(
             f"variance estimator: no interval of {fv.VarianceSettings().interval_s:.0f} s "
             f"passes the selection (rejected: {vstats.rejections() or 'none'}); give "
-            "solar-wind data with rotating field, or choose --estimator zero-mean")
+            "solar-wind data with rotating field, or, only if the field averages to zero "
+            "over the days (sec. 7's premise; not the solar wind, entry 11), choose "
+            "--estimator zero-mean (its tables state no predicted error)")
     t_range = vstats.fitted_range()
     if not np.all(np.isfinite(t_range)):
         raise too_little(
