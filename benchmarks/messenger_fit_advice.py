@@ -75,8 +75,11 @@ def verdict(res) -> str:
             raise FitRefusedError(cause)
         if not res.convergence["converged"]:
             cause = break_refusal(res, error=False)
-            raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause
-                                  else res.convergence["stop"])
+            passes = res.convergence["max_passes"]  # the advice as `fit_days` words it
+            raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause else
+                                  f"{res.convergence['stop']}; not written. Give "
+                                  + (f"more passes (--passes {min(20, 2 * passes)}) or "
+                                     if passes < 20 else "") + "more days")
         check_fit(res)
         fit_merit.check_merit(res, rejudge=judged_at)  # its advice as the command's
     except FitRefusedError as exc:

@@ -14,7 +14,9 @@ draws it, so its width is in the resampled laws, the band and the prediction onc
 support the fit: too many intervals rejected as compressive.  `stated_range` narrows
 the temperature range the table states (``T_RANGE``, one or more intervals) to the 1-C
 bins where the law's band, or the offset the table applies to the samples there, is
-within `LAW_BAND_LIMIT_NT`.  docs/decisions/messenger_fit.md, entries 19 and 24-trange.
+within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
+the same tables judged at it first (entry 24-advice).  docs/decisions/messenger_fit.md,
+entries 19 and 24-trange.
 
 References
 ----------
