@@ -48,6 +48,7 @@ from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
+    MAX_PASSES,
     break_refusal,
     check_fit,
     day_chunks,
@@ -78,8 +79,8 @@ def verdict(res) -> str:
             passes = res.convergence["max_passes"]  # the advice as `fit_days` words it
             raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause else
                                   f"{res.convergence['stop']}; not written. Give "
-                                  + (f"more passes (--passes {min(20, 2 * passes)}) or "
-                                     if passes < 20 else "") + "more days")
+                                  + (f"more passes (--passes {MAX_PASSES}) or "
+                                     if passes < MAX_PASSES else "") + "more days")
         check_fit(res)
         fit_merit.check_merit(res, rejudge=judged_at)  # its advice as the command's
     except FitRefusedError as exc:

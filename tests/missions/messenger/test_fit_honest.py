@@ -54,7 +54,8 @@ def test_a_pass_limit_below_convergence_is_refused_with_the_last_changes(calm):
     run, _ = calm
     with pytest.raises(FitRefusedError, match=r"^not converged after 1 passes: the last "
                                               r"changed .*\(allowed .*\); not written "
-                                              r"\(converged: every parameter .*--passes 2"):
+                                              r"\(converged: every parameter .*--passes 20: "
+                                              r"the fit stops as soon as it converges"):
         fit_days(day_chunks(run.input_dir, run.days[:2]), load_calibration(START), passes=1,
                  estimator="variance")
 

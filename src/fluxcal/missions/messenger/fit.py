@@ -1252,6 +1252,10 @@ LAW_CHANGE_GRID_C = np.arange(-65.0, 55.5, 1.0)
 CONVERGENCE_SIGMA = 0.1
 #: Absolute tolerance of dt's change (s) between passes.
 DELAY_TOLERANCE_S = 0.05
+#: Most passes (``--passes``); a convergence refusal advises it, not a doubling: a fit
+#: stops as soon as it converges, and 6 -> 12 passes was refused again at 12 where 13
+#: converged (entry 24-advice).
+MAX_PASSES = 20
 
 
 def pass_changes(old: MessengerCalibration, new: FitResult,
@@ -1524,8 +1528,8 @@ def fit_days(
                 raise FitRefusedError(
                     f"{result.convergence['stop']}; not written (converged: "
                     f"{convergence_criterion(tolerance)}). Give "
-                    + (f"more passes (--passes {min(20, 2 * passes)}) or " if passes < 20
-                       else "") + "more days")
+                    + (f"more passes (--passes {MAX_PASSES}: the fit stops as soon as it "
+                       "converges) or " if passes < MAX_PASSES else "") + "more days")
             check_fit(result)
         if estimator == "variance":
             fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
