@@ -972,6 +972,7 @@ def fit_variance_calibration(
     boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
                            break_shift=s) for b, s in zip(sol.boot, sol.boot_shift, strict=True)]
     b_law = np.stack([x[0] for x in boots])
+    b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 24b)
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])
     b_dt = np.array([x[3] for x in boots])
@@ -981,8 +982,9 @@ def fit_variance_calibration(
     # a held D0 keeps its own draws (its width is the user's, not the data's)
     # a free break the bootstrap leaves undetermined (its upper segment seen in too few
     # or too short intervals): held like an unseen one, the fit solved again (entry 21)
+    spread = sol.widening * np.sqrt(np.mean((b_law[:, :, 3] - law[:, 3]) ** 2, axis=0))
     loose = tuple(a for j, a in enumerate(AXES) if a not in upper
-                  and not sol.widening * np.std(b_law[:, j, 3]) <= MAX_BREAK_ERROR_C)
+                  and not spread[j] <= MAX_BREAK_ERROR_C)
     if loose:
         return fit_variance_calibration(stats, vstats, base, fit_delay=fit_delay,
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
@@ -990,7 +992,10 @@ def fit_variance_calibration(
                                         start=start, hold_upper=(*hold_upper, *loose))
     w = sol.widening
     drawn, drawn_law = b_d0.copy(), b_law.copy()
-    b_law = law + w * (b_law - b_law.mean(axis=0))
+    # the law about the solution, not about the resamples' mean: a break the passes
+    # left where the resamples do not choose it (the linearised step stalled on a
+    # break seen in few warm peaks) counts its distance from their choices (entry 24b)
+    b_law = law + w * (b_law - law)
     b_d0 = d0 + w * (b_d0 - b_d0.mean(axis=0))
     b_tau = tau + w * (b_tau - b_tau.mean())
     b_dt = dt + w * (b_dt - b_dt.mean())
@@ -1355,6 +1360,7 @@ def fit_days(
         nonlocal cal, result
         inputs: dict[str, str] = {}
         converged = False
+        held_upper: tuple[str, ...] = ()  # once held, held in every later pass (entry 24b)
         for p in range(passes):
             # merged in groups, level by level: linear in the days (a left fold copies
             # the growing variance blocks at every day), the same sums as on Dask
@@ -1365,7 +1371,9 @@ def fit_days(
             if estimator == "variance":
                 result = fit_variance_calibration(
                     stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
-                    max_compressive_share=max_compressive_share, start=base)
+                    max_compressive_share=max_compressive_share, start=base,
+                    hold_upper=held_upper)
+                held_upper = tuple(a for a in AXES if a in result.held_upper)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)
