@@ -888,8 +888,9 @@ def fit_variance_calibration(
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
     deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures and drawing each held D0 from its width (entry 18); the waveforms from
-    ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
+    temperatures and drawing each held D0 from its width (entry 18); the law's
+    resamples are taken about the solution, each shifted break drawn in its shift's
+    cell (entry 24b); the waveforms from ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
 
     Parameters
@@ -911,7 +912,9 @@ def fit_variance_calibration(
         interval determines is held at its values (`held_upper_segments`, entry 21).
     hold_upper : tuple of str
         Axes whose upper segment is held whatever the data (set by the re-solve when a
-        free break comes out with an error above `MAX_BREAK_ERROR_C`).
+        free break comes out with an error above `MAX_BREAK_ERROR_C`, and by `fit_days`
+        for the axes an earlier pass held: a hold that came and went from pass to pass
+        kept the late-peak Mercury orbit from converging, entry 24b).
 
     Returns
     -------

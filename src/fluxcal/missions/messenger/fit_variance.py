@@ -505,8 +505,9 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
 
     The exact two-segment law at each shifted break is compared with the law whose break
     stays (its slope change free, no linearised step); axes in turn, ``sweeps`` times.
-    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried, nor
-    any on an axis whose break column is not free in ``base_free`` (a held break).
+    Shifts whose break falls outside ``t_range`` (`solve_variance`: the data's range,
+    5-C bins with an interval's worth of accepted samples) are not tried, nor any on an
+    axis whose break column is not free in ``base_free`` (a held break).
 
     ``a``, ``v``, ``yy`` may be stacks of resampled normal equations (leading axis
     ``n``): each resample then chooses its own breaks (the bootstrap repeats every
@@ -598,8 +599,10 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         do not determine it, ``--hold-d0``).
     law : ndarray, shape (3, 4), optional
         The linearisation point's ``(a, b, c, T_m)`` per axis (`law_parameters`): the
-        breaks are then also tried at `BREAK_SHIFTS_C` inside the fitted range
-        (`choose_breaks`), in the solution and again in every resample; None: the
+        breaks are then also tried at `BREAK_SHIFTS_C` inside the data's range
+        (``stats.fitted_range`` of `VarianceSettings.min_samples` per 5-C bin;
+        `choose_breaks`), in the solution and again in every resample, each shifted
+        resample's break drawn in its shift's cell (`quantisation`); None: the
         linearised step only.
     held_step : ndarray, shape (3,), optional
         D0 step of each held axis (the held value minus the linearisation point's);
