@@ -81,8 +81,8 @@ def _sparse_peaks() -> np.ndarray:
 def _fit(shipped, true, temp, seed, passes):
     """``passes`` Gauss-Newton steps as `fit_days` takes them (the statistics rebuilt
     about each new law, the same noise draw); the breaks and their stated errors as
-    `fit.fit_variance_calibration` states them (the resamples about the solution, each
-    shifted break drawn in its cell, widened)."""
+    `fit.fit_variance_calibration` states them (the resamples' spread, each shifted
+    break drawn in its cell, widened)."""
     noise = NOISE * np.random.default_rng(900 + seed).normal(size=temp.size)
     cal = shipped
     for _ in range(passes):
@@ -97,7 +97,7 @@ def _fit(shipped, true, temp, seed, passes):
         boots += sol.boot_dither
         cal = dataclasses.replace(cal, temperature_coefficients=law_to_table(law),
                                   breakpoint_temperature_c=law[:, 3])
-    err = sol.widening * np.sqrt(np.mean((boots - law[:, 3]) ** 2, axis=0))
+    err = sol.widening * np.std(boots, axis=0)
     return law[:, 3], err, stats
 
 
@@ -124,9 +124,9 @@ def test_sparse_world_puts_the_breaks_above_the_stated_range(shipped):
 def test_a_break_not_yet_brought_home_is_covered_by_its_stated_error(shipped):
     # one step from the shipped breaks, 2.6 and 3.3 C from the truth: the linearised
     # step takes part of the way, and before issue 34's fix (no shift outside the
-    # stated range, the resamples' spread about their own mean) the x / y pulls were
-    # up to 3.1 / 7.1 (their rms 1.9 / 5.2, 8 draws): the stated error covered the
-    # noise, not the way left.  Now within 3.
+    # stated range, no draw in the shift's cell) the x / y pulls were up to 3.1 / 7.1
+    # (their rms 1.9 / 5.2, 8 draws): the stated error covered the noise, not the way
+    # left.  Now within 3.
     true, temp = _world(shipped)
     pulls = np.array([(lambda tm, err, _: (tm - true[:, 3]) / err)(
         *_fit(shipped, true, temp, seed, passes=1)) for seed in range(8)])

@@ -888,9 +888,9 @@ def fit_variance_calibration(
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
     deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures and drawing each held D0 from its width (entry 18); the law's
-    resamples are taken about the solution, each shifted break drawn in its shift's
-    cell (entry 24b); the waveforms from ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
+    temperatures (each shifted break drawn in its shift's cell, entry 24b) and drawing
+    each held D0 from its width (entry 18); the waveforms from ``stats`` as in
+    `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
 
     Parameters
@@ -985,9 +985,8 @@ def fit_variance_calibration(
     # a held D0 keeps its own draws (its width is the user's, not the data's)
     # a free break the bootstrap leaves undetermined (its upper segment seen in too few
     # or too short intervals): held like an unseen one, the fit solved again (entry 21)
-    spread = sol.widening * np.sqrt(np.mean((b_law[:, :, 3] - law[:, 3]) ** 2, axis=0))
     loose = tuple(a for j, a in enumerate(AXES) if a not in upper
-                  and not spread[j] <= MAX_BREAK_ERROR_C)
+                  and not sol.widening * np.std(b_law[:, j, 3]) <= MAX_BREAK_ERROR_C)
     if loose:
         return fit_variance_calibration(stats, vstats, base, fit_delay=fit_delay,
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
@@ -995,10 +994,7 @@ def fit_variance_calibration(
                                         start=start, hold_upper=(*hold_upper, *loose))
     w = sol.widening
     drawn, drawn_law = b_d0.copy(), b_law.copy()
-    # the law about the solution, not about the resamples' mean: a break the passes
-    # left where the resamples do not choose it (the linearised step stalled on a
-    # break seen in few warm peaks) counts its distance from their choices (entry 24b)
-    b_law = law + w * (b_law - law)
+    b_law = law + w * (b_law - b_law.mean(axis=0))
     b_d0 = d0 + w * (b_d0 - b_d0.mean(axis=0))
     b_tau = tau + w * (b_tau - b_tau.mean())
     b_dt = dt + w * (b_dt - b_dt.mean())
