@@ -563,8 +563,9 @@ def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     half-way to the next lower shift (or the kept break, 0) to half-way to the next
     higher one, the outermost cells as wide outward as inward.  Uniform over the cell
     (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
-    that took a shift would otherwise leave out (the resamples of issue 34's late-peak
-    Mercury orbit all took the same shift; docs/decisions/messenger_fit.md entry 24b).
+    that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
+    resample took the same -4-C shift: spread 0; tests/missions/messenger/
+    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 24b).
     """
     grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
     mid = 0.5 * (grid[1:] + grid[:-1])
