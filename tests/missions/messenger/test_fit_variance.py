@@ -410,15 +410,19 @@ def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
     assert got["law_counts"][0] == pytest.approx(0.55, abs=1e-9)
 
 
-def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C):
+def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C, temp=None, noise=None):
     """Normal equations of ``|B'| = u . (true law - current law)(T)``, written from the
     column definitions of the module docstring (unit matrix, M = 1): per axis ``u_j``
     times ``1, T, max(0, T - T_m), [T > T_m], R`` and the hinges at the shifted breaks,
-    then tau and dt (zero here); 48 two-hour blocks over -60..+40 C."""
-    n = 48 * 300
+    then tau and dt (zero here); 48 two-hour blocks over -60..+40 C, or over the
+    temperatures ``temp`` (one per sample, the blocks in order; the accepted samples
+    per 5-C bin then counted from them), plus ``noise`` (counts, one per sample) on
+    ``|B'|``."""
+    n = 48 * 300 if temp is None else temp.size
     u = rng.normal(size=(n, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    temp = rng.uniform(-60.0, 40.0, n)
+    given = temp is not None
+    temp = np.asarray(temp, dtype=float) if given else rng.uniform(-60.0, 40.0, n)
     ratio = rng.uniform(0.0, 400.0, n)
 
     def offset(law):
@@ -434,16 +438,19 @@ def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C):
     for j in range(3):
         cols += [u[:, j] * np.maximum(0.0, temp - law_now[j, 3] - d) for d in shifts]
     x = np.column_stack([*cols, rng.normal(size=n), rng.normal(size=n)])
-    xb, yb = x.reshape(48, 300, -1), y.reshape(48, 300)
+    if noise is not None:
+        y = y + noise
+    xb, yb = x.reshape(48, n // 48, -1), y.reshape(48, n // 48)
     from fluxcal.missions.messenger.fit_variance import TEMPERATURE_EDGES_C
 
     centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
+    count = (np.histogram(temp, TEMPERATURE_EDGES_C)[0].astype(float) if given
+             else np.where((centre > -60) & (centre < 40), 3000.0, 0.0))
     return VarianceStatistics(
         normal=np.einsum("bni,bnj->bij", xb, xb), rhs=np.einsum("bni,bn->bi", xb, yb),
-        yy=np.einsum("bn,bn->b", yb, yb), samples=np.full(48, 300.0),
+        yy=np.einsum("bn,bn->b", yb, yb), samples=np.full(48, n / 48),
         block_start=np.arange(48) * 7200.0, interval_start=np.zeros(48),
-        reason=np.full(48, ""),
-        temperature_count=np.where((centre > -60) & (centre < 40), 3000.0, 0.0))
+        reason=np.full(48, ""), temperature_count=count)
 
 
 def test_a_distant_break_is_moved_exactly_to_the_shift_of_least_residual(shipped):

@@ -995,8 +995,9 @@ def fit_variance_calibration(
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
     deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures and drawing each held D0 from its width (entry 18); the waveforms from
-    ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
+    temperatures (each shifted break drawn in its shift's cell, entry 24b) and drawing
+    each held D0 from its width (entry 18); the waveforms from ``stats`` as in
+    `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
 
     Parameters
@@ -1018,7 +1019,9 @@ def fit_variance_calibration(
         interval determines is held at its values (`held_upper_segments`, entry 21).
     hold_upper : tuple of str
         Axes whose upper segment is held whatever the data (set by the re-solve when a
-        free break comes out with an error above `MAX_BREAK_ERROR_C`).
+        free break comes out with an error above `MAX_BREAK_ERROR_C`, and by `fit_days`
+        for the axes an earlier pass held: a hold that came and went from pass to pass
+        kept the late-peak Mercury orbit from converging, entry 24b).
 
     Returns
     -------
@@ -1081,6 +1084,7 @@ def fit_variance_calibration(
     boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
                            break_shift=s) for b, s in zip(sol.boot, sol.boot_shift, strict=True)]
     b_law = np.stack([x[0] for x in boots])
+    b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 24b)
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])
     b_dt = np.array([x[3] for x in boots])
@@ -1468,6 +1472,7 @@ def fit_days(
         nonlocal cal, result
         inputs: dict[str, str] = {}
         converged = False
+        held_upper: tuple[str, ...] = ()  # once held, held in every later pass (entry 24b)
         for p in range(passes):
             # merged in groups, level by level: linear in the days (a left fold copies
             # the growing variance blocks at every day), the same sums as on Dask
@@ -1478,7 +1483,9 @@ def fit_days(
             if estimator == "variance":
                 result = fit_variance_calibration(
                     stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
-                    max_compressive_share=max_compressive_share, start=base)
+                    max_compressive_share=max_compressive_share, start=base,
+                    hold_upper=held_upper)
+                held_upper = tuple(a for a in AXES if a in result.held_upper)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law)

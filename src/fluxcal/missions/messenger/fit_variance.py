@@ -76,8 +76,8 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
            "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
-           "apply_step", "choose_breaks", "law_values", "offset_moments", "reduce_variance",
-           "solve_variance"]
+           "apply_step", "choose_breaks", "law_values", "offset_moments", "quantisation",
+           "reduce_variance", "solve_variance"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
@@ -416,6 +416,11 @@ class VarianceSolution:
         linearised step, or 0 (`apply_step`).
     boot_shift : ndarray, shape (n_bootstrap, 3)
         ``break_shift`` of every resample (chosen again on the resampled blocks).
+    boot_dither : ndarray, shape (n_bootstrap, 3)
+        Per resample and axis, where in the cell of its chosen shift its break lies
+        (C, uniform over the half-ways to the neighbouring shifts; 0 where the break
+        was kept): a resample that takes a shift knows its break only to that cell
+        (`quantisation`), added to the resampled breaks (`fit.fit_variance_calibration`).
     widening : float
         ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
         finite-sample correction of the pairs bootstrap, to be applied to the spread of
@@ -429,6 +434,7 @@ class VarianceSolution:
     break_shift: np.ndarray = field(default_factory=lambda: np.zeros(3))
     boot_shift: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     widening: float = 1.0
+    boot_dither: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 def _shift_column(axis: int, k: int) -> int:
@@ -499,8 +505,9 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
 
     The exact two-segment law at each shifted break is compared with the law whose break
     stays (its slope change free, no linearised step); axes in turn, ``sweeps`` times.
-    Shifts whose break falls outside ``t_range`` (the fitted range) are not tried, nor
-    any on an axis whose break column is not free in ``base_free`` (a held break).
+    Shifts whose break falls outside ``t_range`` (`solve_variance`: the data's range,
+    5-C bins with an interval's worth of accepted samples) are not tried, nor any on an
+    axis whose break column is not free in ``base_free`` (a held break).
 
     ``a``, ``v``, ``yy`` may be stacks of resampled normal equations (leading axis
     ``n``): each resample then chooses its own breaks (the bootstrap repeats every
@@ -549,6 +556,26 @@ def _shifts(choice: np.ndarray) -> np.ndarray:
     return table[np.where(np.asarray(choice) >= 0, choice, N_SHIFTS)]
 
 
+def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw, per chosen shift, where in its cell the break lies (C; 0 for a kept break).
+
+    A break moved to a shift of `BREAK_SHIFTS_C` is known only to the cell about it: from
+    half-way to the next lower shift (or the kept break, 0) to half-way to the next
+    higher one, the outermost cells as wide outward as inward.  Uniform over the cell
+    (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
+    that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
+    resample took the same -4-C shift: spread 0; tests/missions/messenger/
+    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 24b).
+    """
+    grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
+    mid = 0.5 * (grid[1:] + grid[:-1])
+    lo = np.r_[2.0 * grid[0] - mid[0], mid]
+    hi = np.r_[mid, 2.0 * grid[-1] - mid[-1]]
+    s = _shifts(choice)
+    i = np.searchsorted(grid, s)
+    return np.where(np.asarray(choice) >= 0, rng.uniform(lo[i], hi[i]) - s, 0.0)
+
+
 def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    n_bootstrap: int = 200, seed: int = 0,
                    hold_d0: tuple[int, ...] = (),
@@ -573,8 +600,10 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         do not determine it, ``--hold-d0``).
     law : ndarray, shape (3, 4), optional
         The linearisation point's ``(a, b, c, T_m)`` per axis (`law_parameters`): the
-        breaks are then also tried at `BREAK_SHIFTS_C` inside the fitted range
-        (`choose_breaks`), in the solution and again in every resample; None: the
+        breaks are then also tried at `BREAK_SHIFTS_C` inside the data's range
+        (``stats.fitted_range`` of `VarianceSettings.min_samples` per 5-C bin;
+        `choose_breaks`), in the solution and again in every resample, each shifted
+        resample's break drawn in its shift's cell (`quantisation`); None: the
         linearised step only.
     held_step : ndarray, shape (3,), optional
         D0 step of each held axis (the held value minus the linearisation point's);
@@ -618,10 +647,17 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     nb = a.shape[0]
     choice: tuple[int, ...] = (-1, -1, -1)
     total_a, total_v, yy = a.sum(axis=0), v.sum(axis=0), float(stats.yy.sum())
-    t_range = stats.fitted_range()
+    # the shifts reach as far as the data do (5-C bins with an interval's worth of
+    # accepted samples, the range `fit.break_refusal` judges a break by), not only the
+    # stated range: a break seen only in a few short warm peaks lies above the stated
+    # range, where the linearised step alone stalls on its bumpy residual and a
+    # resample without those peaks cannot move it at all (stated +- 0.04-0.5 C while
+    # 0.5-5 C off, issue 34; docs/decisions/messenger_fit.md entry 24b)
+    data_range = stats.fitted_range(VarianceSettings().min_samples)
     slope = law[:, 2] if law is not None else np.zeros(3)
     if law is not None:
-        choice = choose_breaks(total_a, total_v, yy, base_free, law, t_range, fixed=fixed_h)
+        choice = choose_breaks(total_a, total_v, yy, base_free, law, data_range,
+                               fixed=fixed_h)
     free, fixed = _layout(choice, base_free, slope)
     p_free = int(free.sum())
     if nb <= p_free + MIN_SPARE_BLOCKS:
@@ -654,7 +690,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         draws = rng.standard_normal((n_bootstrap, len(cols)))
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
     if law is not None:
-        boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, t_range, fixed=held_r)
+        boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, data_range,
+                                     fixed=held_r)
     else:
         boot_choice = np.full((n_bootstrap, 3), -1, dtype=np.int64)
     boot = np.empty((n_bootstrap, N_PARAMETERS))
@@ -665,6 +702,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),
                             boot_shift=_shifts(boot_choice),
+                            boot_dither=quantisation(boot_choice, rng),
                             widening=float(np.sqrt(nb / (nb - p_free))))
 
 
