@@ -227,7 +227,8 @@ class VarianceStatistics:
             temperature_count=self.temperature_count + other.temperature_count,
             segments=self.segments + other.segments,
             offset_moments=self.offset_moments + other.offset_moments,
-            field_sum=add(self.field_sum, other.field_sum))
+            field_sum=add(*(_per_block(x.field_sum, x.block_start.size, 4)
+                            for x in (self, other))))
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
@@ -244,6 +245,12 @@ class VarianceStatistics:
         if full.size == 0:
             return float("nan"), float("nan")
         return float(TEMPERATURE_EDGES_C[full[0]]), float(TEMPERATURE_EDGES_C[full[-1] + 1])
+
+
+def _per_block(values: np.ndarray, blocks: int, width: int) -> np.ndarray:
+    """``values`` with one row per block; statistics built without them: zeros."""
+    values = np.asarray(values, dtype=float).reshape(-1, width)
+    return values if values.shape[0] == blocks else np.zeros((blocks, width))
 
 
 def _relaxed(et: np.ndarray, changes, cal: MessengerCalibration, tau: float,
