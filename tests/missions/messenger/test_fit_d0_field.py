@@ -10,8 +10,6 @@ field's one-sidedness `fit_variance.d0_field_balance`.
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 
@@ -96,34 +94,37 @@ def test_widening_leaves_a_held_axis_alone():
 
 @pytest.mark.slow
 def test_one_sided_field_states_d0_along_it_honestly(tmp_path):
-    """Forward model (independent test wind, one sector for the whole run): the field's
-    sense is one-sided, the widening is on, and D0's error along the field is within 2.5
-    of its stated error (before: about 2 of the bootstrap's alone on every realisation,
-    verification section 17), the per-axis pulls within 3."""
+    """Forward model (issue 34's Mercury orbit, `_hard_worlds`, one wind sector): the
+    field is one-sided, the widening is on, and D0's error along the field lies within
+    1.5 of its stated error there.  Without the widening this seed's error there is 1.89
+    of the bootstrap's (10 realisations: 1.85 +- 0.19, verification section 17), so the
+    test fails for the cause it guards; with it about 0.85."""
     from fluxcal.missions.messenger import forward
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.fit import day_chunks, fit_days
     from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
-    from tests.missions.messenger._realistic_wind import realistic_wind
+    from tests.missions.messenger._hard_worlds import MercuryOrbit
 
-    run = simulate_flight(tmp_path / "sim", FlightConfig(start="2010-03-01", days=2, seed=7004),
-                          wind=functools.partial(realistic_wind, compressive=0.03,
-                                                 sector_days=(10.0, 10.0)), truth=True)
+    orbit = MercuryOrbit(3400)
+    run = simulate_flight(tmp_path / "sim", FlightConfig(start="2010-03-01", days=2, seed=3400),
+                          wind=orbit.field, schedule=orbit.schedule, truth=True)
     true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
     res = fit_days(day_chunks(run.input_dir, run.days), load_calibration("2010-03-01"),
                    estimator="variance", guard=False)
     info = res.d0_field
+    direction = np.asarray(info["direction"])
     assert info["balance"] > 0.9  # one sector: the field kept its sense
-    assert abs(np.asarray(info["direction"]) @ PARKER) > 0.9
+    assert abs(direction @ PARKER) > 0.9  # the wind's direction (`_hard_worlds.PARKER`)
     assert info["added_nt_per_ppt"] == pytest.approx(
         fv.D0_FIELD_BIAS_SIGMA * info["balance"] * info["along_nt_per_ppt"])
     m = np.asarray(res.calibration.matrices[0], dtype=float)
     err = m @ (np.asarray(res.calibration.duty_cycle_d0) - true.d0)
-    direction = np.asarray(info["direction"])
     stated = np.std((res.bootstrap["d0"] @ m.T) @ direction)
+    # in quadrature in expectation: 200 resamples leave a sample correlation of the draws
+    # with them of about 1 / sqrt(200), 10 % on the sum
     assert stated == pytest.approx(np.hypot(info["along_nt_per_ppt"],
-                                            info["added_nt_per_ppt"]), rel=0.02)
-    assert abs(err @ direction) < 2.5 * stated, (err @ direction, stated)
+                                            info["added_nt_per_ppt"]), rel=0.1)
+    assert abs(err @ direction) < 1.5 * stated, (err @ direction / stated)
     pulls = (np.asarray(res.calibration.duty_cycle_d0) - true.d0) / np.array(
         [f.slope_err for f in res.duty])
-    assert np.all(np.abs(pulls) < 3.0), pulls
+    assert np.all(np.abs(pulls) < 2.5), pulls
