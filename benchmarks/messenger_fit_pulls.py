@@ -176,6 +176,8 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "dt_pull": (r.dt - rel["delay_s"]) / r.dt_err if res.delay_fitted else np.nan,
         "d0_pull": (cal.duty_cycle_d0 - true.d0) / np.array([f.slope_err for f in res.duty]),
         "d0_rel": cal.duty_cycle_d0 / true.d0 - 1.0,
+        "d0_err_rel": np.array([f.slope_err for f in res.duty]) / np.abs(true.d0),
+        "d0_balance": float(getattr(res, "d0_field", {}).get("balance", np.nan)),
         "law_pull": law_pull,  # (temperature, axis)
         "law_max_nt": NT_PER_COUNT * np.abs(_law(cal.temperature_coefficients, t_all)
                                             - _law(tc, t_all)).max(axis=0),
@@ -353,7 +355,9 @@ def main() -> None:
         rows.append(r)
         print(f"{k:3d} {seconds:6.1f} s  tau pull {r['tau_pull']:+.2f} "
               f"({r['tau_rel']:+.3f})  dt pull {r['dt_pull']:+.2f}  D0 pulls "
-              f"{np.round(r['d0_pull'], 2)} ({np.round(r['d0_rel'], 3)})  law pulls max "
+              f"{np.round(r['d0_pull'], 2)} ({np.round(r['d0_rel'], 3)} +- "
+              f"{np.round(r['d0_err_rel'], 3)}; field one-sided {r['d0_balance']:.2f})  "
+              "law pulls max "
               f"{np.round(np.nanmax(np.abs(r['law_pull']), axis=0), 2)}  law max "
               f"{np.round(r['law_max_nt'], 3)} nT over T_RANGE {r['t_range']} C  "
               f"T_m pulls {np.round(r['tm_pull'], 2)} (+- "

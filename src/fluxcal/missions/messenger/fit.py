@@ -201,6 +201,11 @@ class FitResult:
         `fit_merit.predicted_error` of the written tables and the goal it was held to.
     waveform_error : ndarray, shape (3, n_duty_bins) or None
         Stated rms error (counts) of each waveform column (`_fit_waveforms`).
+    d0_field : dict
+        The variance estimator: the field's mean direction weighted as D0's information
+        (``direction``, ``balance`` 0..1), D0's bootstrap error along it and the error
+        added there (``along_nt_per_ppt``, ``added_nt_per_ppt``;
+        `fit_variance.widen_d0_along_field`, docs/decisions/messenger_fit.md entry 24d0).
     """
 
     calibration: MessengerCalibration
@@ -225,6 +230,7 @@ class FitResult:
     convergence: dict[str, Any] = field(default_factory=dict)
     merit: dict[str, Any] = field(default_factory=dict)
     waveform_error: np.ndarray | None = None
+    d0_field: dict[str, Any] = field(default_factory=dict)
 
     @property
     def stated_ranges(self) -> StatedRanges | None:
@@ -1111,6 +1117,11 @@ def fit_variance_calibration(
         b_d0[:, AXES.index(a)] = drawn[:, AXES.index(a)]
     for a in upper:  # the held slope change and break keep their draws too
         b_law[:, AXES.index(a), 2:] = drawn_law[:, AXES.index(a), 2:]
+    # D0's error along the field's mean direction that no resample sees (entry 24d0)
+    direction, balance = fv.d0_field_balance(vstats)
+    b_d0, along, added = fv.widen_d0_along_field(
+        b_d0, d0, np.asarray(base.matrices[0], dtype=float), direction, balance,
+        np.array([a not in held for a in AXES]))
     dt_err = float(np.std(b_dt))
     adopted = fit_delay and dt_err < MAX_DELAY_ERROR_S and dt >= 0.0
     if fit_delay and not adopted:
@@ -1155,7 +1166,9 @@ def fit_variance_calibration(
                      bootstrap={"law": b_law, "d0": b_d0, "tau": b_tau,
                                            "dt": b_dt},
                      break_shift=np.asarray(sol.break_shift, dtype=float),
-                     waveform_error=waveform_error)
+                     waveform_error=waveform_error,
+                     d0_field={"direction": direction.tolist(), "balance": balance,
+                               "along_nt_per_ppt": along, "added_nt_per_ppt": added})
 
 
 # ---------------------------------------------------------------------------------------

@@ -76,8 +76,8 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
            "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
-           "apply_step", "choose_breaks", "law_values", "offset_moments", "quantisation",
-           "reduce_variance", "solve_variance"]
+           "apply_step", "choose_breaks", "d0_field_balance", "law_values", "offset_moments",
+           "quantisation", "reduce_variance", "solve_variance", "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
@@ -106,6 +106,12 @@ MIN_RANGE_SAMPLES = 1800
 MIN_SPARE_BLOCKS = 2
 #: Most consecutive blocks resampled together (`solve_variance`): 12 h of 2-h blocks.
 MAX_GROUP = 6
+#: Measured bias of D0 along the field's mean direction, in units of D0's bootstrap error
+#: along it, per unit of the field's one-sidedness (`d0_field_balance`): the part of D0's
+#: error no resample of the blocks sees (the heater waveforms are fitted once, from the
+#: same data); added in quadrature as a stated error (`widen_d0_along_field`;
+#: docs/decisions/messenger_fit.md entry 24d0).
+D0_FIELD_BIAS_SIGMA = 2.0
 
 
 @dataclass(frozen=True)
@@ -179,6 +185,11 @@ class VarianceStatistics:
         Sums per 1-C bin over every used sample (accepted or not) of the quantities the
         offset's error depends on (`MOMENT_COLUMNS`): the distribution of temperatures
         and duty cycles a recalibrated day of these data sees (`predicted_error`).
+    field_sum : ndarray, shape (n_blocks, 4)
+        Per block, over the accepted samples, the sums of ``w^2 R^2 B'/|B'|`` (3, the
+        field's unit vector, sensor axes) and of ``w^2 R^2`` (``w`` the interval weight,
+        ``R`` the relaxed duty cycle): the field's mean direction weighted as D0's
+        information (`d0_field_balance`, docs/decisions/messenger_fit.md entry 24d0).
     """
 
     normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
@@ -194,6 +205,7 @@ class VarianceStatistics:
     segments: int = 0
     offset_moments: np.ndarray = field(
         default_factory=lambda: np.zeros((MOMENT_EDGES_C.size - 1, len(MOMENT_COLUMNS))))
+    field_sum: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
     def merge(self, other: VarianceStatistics) -> VarianceStatistics:
         """Return the statistics of both (blocks of the same start are summed)."""
@@ -214,7 +226,9 @@ class VarianceStatistics:
             reason=np.concatenate([self.reason, other.reason]).astype("<U24"),
             temperature_count=self.temperature_count + other.temperature_count,
             segments=self.segments + other.segments,
-            offset_moments=self.offset_moments + other.offset_moments)
+            offset_moments=self.offset_moments + other.offset_moments,
+            field_sum=add(*(_per_block(x.field_sum, x.block_start.size, 4)
+                            for x in (self, other))))
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
@@ -231,6 +245,12 @@ class VarianceStatistics:
         if full.size == 0:
             return float("nan"), float("nan")
         return float(TEMPERATURE_EDGES_C[full[0]]), float(TEMPERATURE_EDGES_C[full[-1] + 1])
+
+
+def _per_block(values: np.ndarray, blocks: int, width: int) -> np.ndarray:
+    """``values`` with one row per block; statistics built without them: zeros."""
+    values = np.asarray(values, dtype=float).reshape(-1, width)
+    return values if values.shape[0] == blocks else np.zeros((blocks, width))
 
 
 def _relaxed(et: np.ndarray, changes, cal: MessengerCalibration, tau: float,
@@ -343,6 +363,7 @@ def reduce_variance(
     out.temperature_count = np.histogram(temp_c[ok], TEMPERATURE_EDGES_C)[0].astype(float)
     b, temp_c, r, dr_tau, dr_dt, et, mag = (x[ok] for x in (b, temp_c, r, dr_tau, dr_dt, et,
                                                             mag))
+    unit = b / mag[:, None]  # the field's direction (nT, sensor axes), for `field_sum`
     # M^T of the unit vector per sample: d|B'| / d(offset counts) = -u (the |B| form: the
     # regressors are direction cosines, independent of the compressive |B| changes;
     # the |B|^2 form's regressors carry them and bias the along-field offset)
@@ -368,6 +389,7 @@ def reduce_variance(
     out.segments = k
     xy = remove_segment_lines(np.column_stack([x, y]), codes, k, et, line=s.detrend)
     x, y = np.ascontiguousarray(xy[:, :-1]), xy[:, -1]
+    w2 = np.ones_like(y)
     if s.weighting == "inverse_variance":
         ki = labels.size
         n_i = np.bincount(interval_codes, minlength=ki)
@@ -376,6 +398,7 @@ def reduce_variance(
         w = 1.0 / np.sqrt(np.maximum(var_i, floor))
         x *= w[interval_codes, None]
         y = y * w[interval_codes]
+        w2 = w[interval_codes] ** 2
     block = np.floor(et / s.block_s).astype(np.int64)
     starts, bcode = np.unique(block, return_inverse=True)
     nb = starts.size
@@ -383,6 +406,9 @@ def reduce_variance(
     out.rhs = np.zeros((nb, N_PARAMETERS))
     out.yy = np.bincount(bcode, y * y, nb)
     out.samples = np.bincount(bcode, minlength=nb).astype(float)
+    info = w2 * r * r
+    out.field_sum = np.column_stack([np.bincount(bcode, info * unit[:, j], nb) for j in range(3)]
+                                    + [np.bincount(bcode, info, nb)])
     bounds = np.searchsorted(bcode, np.arange(nb + 1)) if np.all(np.diff(bcode) >= 0) else None
     for i in range(nb):  # bootstrap blocks (a few per day), each one matrix product
         if bounds is not None:
@@ -740,6 +766,77 @@ def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float
     tau_new = tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau))
     dt_new = float(rel["delay_s"]) + float(st[-1])
     return law, d0, tau_new, dt_new
+
+
+def d0_field_balance(stats: VarianceStatistics) -> tuple[np.ndarray, float]:
+    """Return the field's mean direction weighted as D0's information, and its length.
+
+    ``sum(w^2 R^2 u) / sum(w^2 R^2)`` over the accepted samples (`VarianceStatistics.
+    field_sum`): a length near 1 means the field kept one sense (polarity) while the
+    heater regulated, near 0 both senses equally.
+
+    Returns
+    -------
+    direction : ndarray, shape (3,)
+        Unit vector (sensor axes, nT); zeros when there is no information.
+    balance : float
+        The length, 0..1.
+    """
+    total = np.asarray(stats.field_sum, dtype=float).reshape(-1, 4).sum(axis=0)
+    if total[3] <= 0:
+        return np.zeros(3), 0.0
+    mean = total[:3] / total[3]
+    length = float(np.linalg.norm(mean))
+    return (mean / length if length > 0 else np.zeros(3)), length
+
+
+def widen_d0_along_field(b_d0: np.ndarray, d0: np.ndarray, matrix: np.ndarray,
+                         direction: np.ndarray, balance: float, free: np.ndarray,
+                         seed: int = 34) -> tuple[np.ndarray, float, float]:
+    """Add D0's unresampled error along the field's mean direction to the resamples.
+
+    Each resample's D0 (counts/ppt) moves along ``M^-1 direction`` (so that its field
+    equivalent ``M D0`` moves along ``direction``) by a normal draw of standard deviation
+    ``D0_FIELD_BIAS_SIGMA x balance x s``, ``s`` the resamples' own spread of ``M D0``
+    along ``direction`` (about ``d0``); axes not ``free`` (held) do not move.  The draws
+    are independent of every other parameter, as the measured bias is (entry 24d0).
+
+    Parameters
+    ----------
+    b_d0 : ndarray, shape (n, 3)
+        Resampled D0 (already widened by ``sqrt(n / (n - p))``).
+    d0 : ndarray, shape (3,)
+        The solution.
+    matrix : ndarray, shape (3, 3)
+        Eq. 8's fine-range matrix (nT per count).
+    direction, balance
+        `d0_field_balance`.
+    free : ndarray of bool, shape (3,)
+        Axes whose D0 is fitted.
+    seed : int
+
+    Returns
+    -------
+    b_d0 : ndarray, shape (n, 3)
+    along : float
+        ``s`` (nT per ppt).
+    added : float
+        The added standard deviation (nT per ppt).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 5-6 (D0), sec. 8 eq. 8.
+    """
+    b_d0 = np.asarray(b_d0, dtype=float)
+    m = np.asarray(matrix, dtype=float)
+    along = float(np.sqrt(np.mean((((b_d0 - d0) @ m.T) @ direction) ** 2)))
+    added = D0_FIELD_BIAS_SIGMA * float(balance) * along
+    if added == 0.0 or not np.any(free):
+        return b_d0, along, 0.0
+    step = np.where(free, np.linalg.solve(m, direction), 0.0)
+    draws = np.random.default_rng(seed).standard_normal(b_d0.shape[0])
+    draws *= added / max(float(np.std(draws)), 1e-12)  # exactly the stated spread
+    return b_d0 + draws[:, None] * step[None, :], along, added
 
 
 def law_to_table(law: np.ndarray) -> np.ndarray:

@@ -158,6 +158,17 @@ def _next_version(base_folder: Path, name: str, current: int) -> int:
     return max([current, *versions]) + 1
 
 
+def d0_field_lines(result: FitResult) -> list[str]:
+    """Header lines: D0's error along the field's mean direction (entry 24d0), if added."""
+    f = result.d0_field
+    if not f or not f.get("added_nt_per_ppt"):
+        return []
+    return [f"D0 errors include {f['added_nt_per_ppt']:.3g} nT/ppt along the field's mean "
+            f"direction ({' '.join(f'{x:+.3f}' for x in f['direction'])}, sensor axes; "
+            f"one-sided {f['balance']:.2f}) added to the bootstrap's {f['along_nt_per_ppt']:.3g}"
+            ": the measured bias of D0 there, which no resample sees (decision 24d0)"]
+
+
 def _header(title: str, form: str, version: int, base_file: Path, base_header: dict,
             provenance: Mapping[str, Any], extra: list[str]) -> list[str]:
     lines = [
@@ -274,6 +285,7 @@ def write_calibration_folder(
              for a, f in zip(AXES, d, strict=True)]
     extra += [f"bins (ppt): {_fmt(dm.centers, 4)}", f"N per bin: {_fmt(dm.count, 12)}",
               "C0 = cT(-50 C) of the fitted temperature law (held, eq. 5a)"]
+    extra += d0_field_lines(result)
     rows = ["axis,C0,D0"] + [f"{a},{c:.4f},{s:.6f}" for a, c, s in zip(
         AXES, cal.duty_cycle_c0, cal.duty_cycle_d0, strict=True)]
     texts["offsets_duty_cycle"] = "\n".join(_header(
@@ -419,6 +431,7 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
                    "chi2": f.chi2,
                    "dof": f.dof, "bin_mean": st.duty.mean()[:, j]}
                for j, (a, f) in enumerate(zip(AXES, result.duty, strict=True))},
+            **({"D0_along_field": result.d0_field} if result.d0_field else {}),
         },
         "relaxation": {
             "tau_s": result.relaxation.tau, "tau_err_s": result.relaxation.tau_err,
