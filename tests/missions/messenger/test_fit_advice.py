@@ -105,10 +105,10 @@ def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 #: One unseen day is one draw of a predicted rms (test_fit_honest.py).
 UNSEEN_OVER_PREDICTED = 1.5
-#: D0's stated errors are about 2x short in the Mercury-orbit world (messenger_fit.md's
-#: open D0 item: pulls up to 3.4 at 16 days, 3.05 here on y at 2 days): checked at 3.5
-#: until that is fixed; tau and the law at 3.
-D0_PULL_LIMIT = 3.5
+#: D0, tau and the law against their stated errors: within 3 (D0's error along the
+#: field's mean direction stated since messenger_fit.md entry 28; before it, D0 y's pull
+#: here was 3.05).
+D0_PULL_LIMIT = 3.0
 
 
 @pytest.mark.slow
@@ -133,13 +133,28 @@ def test_mercury_orbit_advice_writes_a_table_that_meets_its_stated_errors(tmp_pa
                           wind=world.field, schedule=world.schedule, truth=True)
     chunks = day_chunks(run.input_dir, run.days[:days])
     base = load_calibration(str(START))
-    held = parse_hold_d0(hold)
-    with pytest.raises(FitRefusedError, match=r"predicted error of a recalibrated day") as info:
-        fit_days(chunks, base, estimator="variance", hold_d0=held)
-    advice = re.search(r"--error-goal ([0-9.]+[0-9])", str(info.value))
-    assert advice, str(info.value)
-    goal = float(advice.group(1))
-    res = fit_days(chunks, base, estimator="variance", hold_d0=held, error_goal=goal)
+    # follow each refusal's advice exactly, as a user would: a D0 the data do not
+    # determine (--hold-d0 AXIS), then the predicted error (--error-goal G)
+    hold_text, goal, followed = hold, None, []
+    for _ in range(3):
+        try:
+            res = fit_days(chunks, base, estimator="variance", hold_d0=parse_hold_d0(hold_text),
+                           **({} if goal is None else {"error_goal": goal}))
+            break
+        except FitRefusedError as exc:
+            msg = str(exc)
+            if m := re.search(r"--error-goal ([0-9.]+[0-9])", msg):
+                goal = float(m.group(1))
+            elif m := re.search(r"--hold-d0 ([xyz])\b", msg):
+                hold_text = ",".join(filter(None, (hold_text, m.group(1))))
+            else:  # a refusal that advises no option: it says why (entry 26)
+                assert "none is advised" in msg or "more days" in msg, msg
+                print(f"{days} days: followed {followed}, then refused: {msg}")
+                return
+            followed.append(m.group(0))
+    else:
+        pytest.fail(f"still refused after following {followed}")
+    assert followed  # this world needs advice (seed 3400)
     assert res.merit["goal_nt"] == goal and res.stated_ranges.contains(REGULATED_C)
     out = tmp_path / "fitted"
     write_calibration_folder(res, out, None, {"inputs": {}, "intervals": "all data",
@@ -166,7 +181,7 @@ def test_mercury_orbit_advice_writes_a_table_that_meets_its_stated_errors(tmp_pa
     d0_pull = ((res.calibration.duty_cycle_d0 - true.d0)
                / np.array([f.slope_err for f in res.duty]))
     assert np.all(np.abs(d0_pull) <= D0_PULL_LIMIT), d0_pull
-    print(f"{days} days, held {hold or 'none'}: advised --error-goal {goal:g}; T_RANGE "
+    print(f"{days} days, held {hold_text or 'none'}: followed {followed}; T_RANGE "
           f"{res.stated_ranges} C, D_RANGE {res.duty_range}; predicted {predicted.round(3)} "
           f"nT, unseen inside both {unseen.round(3)} nT; law pulls within "
           f"{np.abs(law_pull).max():.2f}; D0 pulls {d0_pull.round(2)}")

@@ -37,7 +37,8 @@ from fluxcal.missions.messenger import fit_variance as fv
 #: `fluxcal.missions.messenger.fit.FitResult` (not imported: `fit` imports this module).
 FitResult = Any
 
-__all__ = ["ADVICE_TRIES", "ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_COMPRESSIVE_SHARE",
+__all__ = ["ADVICE_TRIES", "ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_ADVISED_GOAL_NT",
+           "MAX_COMPRESSIVE_SHARE",
            "advised_goal", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
            "duty_range_counts", "predicted_error", "range_bands", "stated_range"]
@@ -56,6 +57,11 @@ LAW_BAND_LIMIT_NT = 0.05
 #: Most goals a refusal's advice judges (`advised_goal`): each a re-judgement of the
 #: fitted tables (no pass), so that the goal advised writes the table it describes.
 ADVICE_TRIES = 8
+#: Largest goal (nT) a refusal advises: the seed's science requirement, contamination
+#: "correctable to meet the science requirement of 1 nT" (sec. 8, Table 5).  A table
+#: whose predicted error exceeds it is not worth advising (a 2-day Mercury orbit with a
+#: free break: 78 nT advised before, entry 26); a user may still ask for it.
+MAX_ADVISED_GOAL_NT = 1.0
 
 
 def compressive_share(reason: np.ndarray) -> tuple[int, int]:
@@ -401,13 +407,18 @@ def advised_goal(result: FitResult, guess: float,
     at least 0.01 nT more, up to `ADVICE_TRIES` candidates.  A candidate is advised when
     the table would be written there with its stated range holding the regulated
     temperature (eq. 2), where its data hold it: a table that states its law only
-    elsewhere warns for nearly every heater-on sample.  ``(None, None)`` when no
-    candidate qualifies; ``(guess, None)`` without ``rejudge``.
+    elsewhere warns for nearly every heater-on sample.  No candidate above
+    `MAX_ADVISED_GOAL_NT` (the seed's 1-nT science requirement) is advised.  ``(None,
+    None)`` when no candidate qualifies; ``(guess, None)`` without ``rejudge``.
     """
+    goal = float(guess)
+    if goal > MAX_ADVISED_GOAL_NT:
+        return None, None
     if rejudge is None:
         return guess, None
-    goal = float(guess)
     for _ in range(ADVICE_TRIES):
+        if goal > MAX_ADVISED_GOAL_NT:
+            return None, None
         judged = rejudge(result, goal)
         nxt = _goal_failure(judged)
         if nxt is None:
@@ -422,9 +433,11 @@ def _goal_advice(result: FitResult, guess: float,
     """Return the refusal's ``--error-goal`` sentence (`advised_goal`), or why none."""
     goal, judged = advised_goal(result, guess, rejudge)
     if goal is None:
-        return (f"; no --error-goal up to {ADVICE_TRIES} tries from {guess:g} nT would write "
-                "it with the regulated temperature inside its stated range (a larger goal "
-                "widens the range, and the prediction with it), so none is advised")
+        return (f"; no --error-goal within {ADVICE_TRIES} tries from {guess:g} nT and at most "
+                f"the seed's {MAX_ADVISED_GOAL_NT:g}-nT science requirement (sec. 8, Table 5) "
+                "would write it with the regulated temperature inside its stated range (a "
+                "larger goal widens the range, and the prediction with it), so none is "
+                "advised")
     said = ("" if judged is None else
             f"; judged at {goal:g} as the fit would be: T_RANGE {judged.stated_ranges} C, "
             f"predicted {_axes(judged.merit['total_nt'])} nT")
