@@ -242,6 +242,33 @@ def waveform_parts(inp: Path, day, folder: Path, res, true, truth: dict,
         out[f"{name}_true_nt"] = rms(diff, sel)
         out[f"{name}_propagated_nt"] = (np.sqrt((m ** 2) @ var[sel].mean(axis=0))
                                         if sel.any() else np.full(3, np.nan))
+    # where a shortfall inside D_RANGE comes from (entry 24-wave): each column's true
+    # error (rms over the phase, counts) weighted by the fitted days' shares (the merit's
+    # weighting with the truth's errors), by the unseen day's shares, and through the
+    # unseen day's interpolation weights (the columns' cross terms left out)
+    table = np.asarray(true.heater, dtype=float)[:, :100, :]
+    col_true = np.sqrt(np.mean((np.asarray(cal.heater_signal, dtype=float)[:, :100, :]
+                                - (table - table.mean(axis=1, keepdims=True))) ** 2, axis=1))
+    sel = on & ~outside
+    if sel.any():
+        count = np.array([w.count.sum() for w in res.stats.waveform], dtype=float)
+        duty_range = res.duty_range or (-np.inf, np.inf)
+        count[(bins < duty_range[0]) | (bins >= duty_range[1])] = 0.0
+        fitted_share = count / count.sum()
+        width = bins[1] - bins[0]
+        b = np.clip(np.floor((duty[sel] - bins[0] + width / 2) / width).astype(int), 0,
+                    bins.size - 1)
+        unseen_share = np.bincount(b, minlength=bins.size) / b.size
+        for name, share in (("fitted_share", fitted_share), ("unseen_share", unseen_share)):
+            out[f"{name}_true_cols_nt"] = np.sqrt((m ** 2) @ (col_true ** 2 @ share))
+        out["unseen_weights_true_cols_nt"] = np.sqrt(
+            (m ** 2) @ (w2[sel] @ (col_true ** 2).T).mean(axis=0))
+        for name, share in (("fitted_share", fitted_share), ("unseen_share", unseen_share)):
+            out[f"{name}_stated_nt"] = np.sqrt(
+                (m ** 2) @ (np.asarray(res.waveform_error) ** 2 @ share))
+        out["col_true_over_stated"] = np.round(col_true / np.asarray(res.waveform_error), 2)
+        out["fitted_share"] = np.round(fitted_share, 3)
+        out["unseen_share"] = np.round(unseen_share, 3)
     return out
 
 

@@ -27,7 +27,7 @@ from tests.missions.messenger._unseen_day import recalibrate_rms
 
 START = "2010-03-01"
 #: The unseen day may exceed the predicted rms by this factor: one day is one draw, and
-#: the prediction is itself estimated (bootstrap, two halves of the waveforms).
+#: the prediction is itself estimated (bootstrap, four folds of the waveforms).
 UNSEEN_OVER_PREDICTED = 1.5
 
 pytestmark = pytest.mark.slow

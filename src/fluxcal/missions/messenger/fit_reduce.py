@@ -129,10 +129,10 @@ class DayStatistics:
         the least-squares response to a unit step (sec. 7's normalised epoch).
     waveform : list of BinnedMoments
         Analysis 4, one per waveform duty-cycle bin.
-    waveform_halves : list of list of BinnedMoments
-        Analysis 4 split by the parity of the 2-h block of each sample (even, odd): the
-        difference of the two halves' waveforms states the waveform's error
-        (docs/decisions/messenger_fit.md entry 19).
+    waveform_folds : list of list of BinnedMoments
+        Analysis 4 split into `WAVEFORM_FOLDS` folds by the 30-min block of each sample
+        (block index modulo the folds): the spread of the folds' waveforms states the
+        waveform's error (docs/decisions/messenger_fit.md entries 19 and 24-wave).
     temperature_fine : BinnedMoments
         The temperature-law samples in 0.25-C sub-bins; its one value column is the
         temperature (count and mean temperature per sub-bin).
@@ -160,7 +160,7 @@ class DayStatistics:
     epoch_weight: BinnedMoments | None = None
     temperature_fine: BinnedMoments | None = None
     heater_off: BinnedMoments | None = None
-    waveform_halves: list[list[BinnedMoments]] | None = None
+    waveform_folds: list[list[BinnedMoments]] | None = None
     n_samples: dict[str, int] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
     days: list[str] = field(default_factory=list)
@@ -196,10 +196,10 @@ class DayStatistics:
                 temperature_edges_c=tuple(edges)).temperature_fine_edges())
         if self.heater_off is None:
             self.heater_off = _empty_off(self.temperature.edges)
-        if self.waveform_halves is None:
-            self.waveform_halves = [[BinnedMoments.empty(w.edges, w.n_comp, label="phase",
-                                                         units="s", value_units="counts")
-                                     for w in self.waveform] for _ in range(2)]
+        if self.waveform_folds is None:
+            self.waveform_folds = [[BinnedMoments.empty(w.edges, w.n_comp, label="phase",
+                                                        units="s", value_units="counts")
+                                    for w in self.waveform] for _ in range(WAVEFORM_FOLDS)]
 
     def merge(self, other: DayStatistics) -> DayStatistics:
         """Return the statistics of both (bins must agree)."""
@@ -212,9 +212,9 @@ class DayStatistics:
             epoch_weight=self.epoch_weight.merge(other.epoch_weight),
             temperature_fine=self.temperature_fine.merge(other.temperature_fine),
             heater_off=self.heater_off.merge(other.heater_off),
-            waveform_halves=[[a.merge(b) for a, b in zip(ha, hb, strict=True)]
-                             for ha, hb in zip(self.waveform_halves, other.waveform_halves,
-                                               strict=True)],
+            waveform_folds=[[a.merge(b) for a, b in zip(ha, hb, strict=True)]
+                            for ha, hb in zip(self.waveform_folds, other.waveform_folds,
+                                              strict=True)],
             n_samples={k: self.n_samples.get(k, 0) + other.n_samples.get(k, 0) for k in keys},
             inputs={**self.inputs, **other.inputs},
             days=[*self.days, *other.days],
@@ -519,7 +519,7 @@ def reduce_day(
         field_est = _period_mean(et, counts - offset - w_est, 100.0)
         r4 = np.column_stack([counts - offset - field_est, phase, weights])
         period_bin = np.floor((periods.duty_cycle * 100.0 - lower) / width)
-        parity = np.floor(et / WAVEFORM_HALF_BLOCK_S).astype(np.int64) % 2
+        fold = np.floor(et / WAVEFORM_FOLD_BLOCK_S).astype(np.int64) % WAVEFORM_FOLDS
         covered = np.all(np.isfinite(field_est), axis=1)
         # heater-on samples whose period's duty cycle lies in no bin (above 42 %, below
         # 10 %): no column sees them, so they lie outside every stated D_RANGE (issue 34)
@@ -531,18 +531,22 @@ def reduce_day(
             if sel.any() and starts.size:
                 out.waveform[j] = phase_binned(et[sel], r4[sel], starts, 100.0, s.phase_bins,
                                                value_units="counts")
-                for h in range(2):
-                    half = sel & (parity == h)
-                    if half.any():
-                        out.waveform_halves[h][j] = phase_binned(
-                            et[half], r4[half], starts, 100.0, s.phase_bins,
+                for h in range(WAVEFORM_FOLDS):
+                    part = sel & (fold == h)
+                    if part.any():
+                        out.waveform_folds[h][j] = phase_binned(
+                            et[part], r4[part], starts, 100.0, s.phase_bins,
                             value_units="counts")
     return out
 
 
-#: Blocks (s) whose parity splits the waveform samples into two halves (2 h, the
-#: variance estimator's bootstrap block).
-WAVEFORM_HALF_BLOCK_S = 7200.0
+#: Blocks (s) that split the waveform samples into folds (block index modulo
+#: `WAVEFORM_FOLDS`): 30 min, 18 heater periods, so that a duty-cycle bin visited for
+#: an hour or two still falls into several folds (entry 24-wave).
+WAVEFORM_FOLD_BLOCK_S = 1800.0
+#: Folds whose spread states the waveform columns' errors (entry 24-wave; two halves
+#: before, whose variance estimate had one degree of freedom per phase component).
+WAVEFORM_FOLDS = 4
 
 
 def _period_mean(t: np.ndarray, values: np.ndarray, period: float) -> np.ndarray:
