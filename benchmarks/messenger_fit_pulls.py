@@ -161,7 +161,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
     lo, hi = res.fitted_range
     t_all = np.arange(lo, hi + 0.01, 1.0)
     law_t = np.array(LAW_T)
-    if ranges is not None:  # T_RANGE: one or more intervals (entry 24-trange)
+    if ranges is not None:  # T_RANGE: one or more intervals (entry 24)
         t_all = t_all[ranges.contains(t_all)]
     inside = ranges.contains(law_t) if ranges is not None else (law_t >= lo) & (law_t <= hi)
     law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
@@ -242,7 +242,7 @@ def waveform_parts(inp: Path, day, folder: Path, res, true, truth: dict,
         out[f"{name}_true_nt"] = rms(diff, sel)
         out[f"{name}_propagated_nt"] = (np.sqrt((m ** 2) @ var[sel].mean(axis=0))
                                         if sel.any() else np.full(3, np.nan))
-    # where a shortfall inside D_RANGE comes from (entry 24-wave): each column's true
+    # where a shortfall inside D_RANGE comes from (entry 29): each column's true
     # error (rms over the phase, counts) weighted by the fitted days' shares (the merit's
     # weighting with the truth's errors), by the unseen day's shares, and through the
     # unseen day's interpolation weights (the columns' cross terms left out)

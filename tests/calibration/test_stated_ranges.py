@@ -1,4 +1,4 @@
-"""`StatedRanges`: the intervals a fitted law is stated over (entry 24-trange).
+"""`StatedRanges`: the intervals a fitted law is stated over (entry 24).
 
 Expected values by hand (bins merged, ends included, distances to the nearest end) and
 a round trip of the header text over random interval sets (hypothesis).

@@ -12,7 +12,7 @@ parser.
 
 References
 ----------
-.. [1] docs/decisions/messenger_fit.md, entry 24-trange (T_RANGE as a set of intervals).
+.. [1] docs/decisions/messenger_fit.md, entry 24 (T_RANGE as a set of intervals).
 """
 
 from __future__ import annotations

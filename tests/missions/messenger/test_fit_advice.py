@@ -1,7 +1,7 @@
 """Issue 34, item 2: a refusal never advises an option that then writes a table failing it.
 
 The ``--error-goal`` a MESSENGER fit refusal advises (`fit_merit.advised_goal`, entry
-24-advice) is the least goal at which the same tables, judged as ``fit_days`` judges that
+26) is the least goal at which the same tables, judged as ``fit_days`` judges that
 goal (`fit.judged_at`), are written with the regulated temperature inside the range they
 state.  Expected values here come from brute force over the constructed resamples, never
 from the code under test.
@@ -193,7 +193,7 @@ def test_the_demo_follows_each_advice_to_a_table_that_meets_its_stated_errors(tm
     # refused on D0 z, whose advice (--hold-d0 z) is refused on the law's band, whose
     # advice (--error-goal G) writes a table stating the regulated -50 C; checked against
     # the true tables and the unseen 2-h orbit (heater on at -50 C, fine range).  Before
-    # entry 24-advice the band refusal advised 0.13 nT, which states T_RANGE 21..23 C
+    # entry 26 the band refusal advised 0.13 nT, which states T_RANGE 21..23 C
     # only.  Three fits, about 4 min
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel, utc_to_et

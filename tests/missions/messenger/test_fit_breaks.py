@@ -1,4 +1,4 @@
-"""Issue 34, item 2: the break temperatures' stated errors cover their truth (entry 24b).
+"""Issue 34, item 2: the break temperatures' stated errors cover their truth (entry 27).
 
 Closed forms first (no simulation): the quantisation of the shift grid is uniform over
 the chosen shift's cell; in a hinge world whose break is seen only in a few warm blocks

@@ -1,4 +1,4 @@
-"""D0's error along the field's mean direction (issue 34 item 2; messenger_fit.md entry 24d0).
+"""D0's error along the field's mean direction (issue 34 item 2; messenger_fit.md entry 28).
 
 The variance estimator determines an offset along the mean field only through the
 rotations; fitted on a field that keeps one sense (polarity) while the heater regulates,
@@ -97,7 +97,7 @@ def test_one_sided_field_states_d0_along_it_honestly(tmp_path):
     """Forward model (issue 34's Mercury orbit, `_hard_worlds`, one wind sector): the
     field is one-sided, the widening is on, and D0's error along the field lies within
     1.5 of its stated error there.  Without the widening this seed's error there is 1.89
-    of the bootstrap's (10 realisations: 1.85 +- 0.19, verification section 17), so the
+    of the bootstrap's (10 realisations: 1.85 +- 0.19, verification section 21), so the
     test fails for the cause it guards; with it about 0.85."""
     from fluxcal.missions.messenger import forward
     from fluxcal.missions.messenger.calibration_data import load_calibration

@@ -1,4 +1,4 @@
-"""Issue 34, entry 24-trange: the fit demo's stated range holds its unseen regulated orbit.
+"""Issue 34, entry 24: the fit demo's stated range holds its unseen regulated orbit.
 
 `fluxcal demo --full`'s MESSENGER fit (`fit_demo.fit_training`: 2 simulated days of the
 realistic wind, D0 z held, written with ``--error-goal 0.2``) used to state T_RANGE 7..37

@@ -9,7 +9,7 @@ inside it.  Expected values: the rule worked by hand on constructed bin counts, 
 simulator's duty-cycle schedule (``conftest.sim_config``: blocks of 40, 36, 0, 0, 0, 25,
 8, 44 % ...) with the heater bits counted by brute force from the input file, and the
 Mercury-orbit forward model's truth (`tests/missions/messenger/_hard_worlds.py`, duty
-cycles 10-45 %).  docs/decisions/messenger_fit.md entry 24-duty.
+cycles 10-45 %).  docs/decisions/messenger_fit.md entry 25.
 """
 
 from __future__ import annotations

@@ -324,7 +324,7 @@ def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped)
 
 
 def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_there(shipped):
-    # entry 24-trange, closed form.  Resampled laws whose slope b scatters by +-beta
+    # entry 24, closed form.  Resampled laws whose slope b scatters by +-beta
     # (two resamples, z = +1 / -1, so the rms is exactly beta |T|) and whose D0 moves
     # against it, dD0 = beta z 50 / R0 on every axis: at the regulated -50 C with the
     # heater on (R = R0) the offset the table applies, cT(-50) + D0 R0 (eq. 5a, 5b),

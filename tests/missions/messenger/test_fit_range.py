@@ -69,10 +69,10 @@ def test_t_range_is_read_from_the_table2_header(tmp_path):
 
 
 @pytest.mark.parametrize(("line", "intervals"), [
-    # the one-interval form fit_write wrote before entry 24-trange, and "lo, hi"
+    # the one-interval form fit_write wrote before entry 24, and "lo, hi"
     ("# T_RANGE: -55 -46", ((-55.0, -46.0),)),
     ("# T_RANGE: -55, -46", ((-55.0, -46.0),)),
-    # several intervals: lo hi pairs separated by commas (entry 24-trange)
+    # several intervals: lo hi pairs separated by commas (entry 24)
     ("# T_RANGE: -50 -49, -40 -17, 2 40", ((-50.0, -49.0), (-40.0, -17.0), (2.0, 40.0))),
     ("# T_RANGE: -50.5 -49.25,7 37", ((-50.5, -49.25), (7.0, 37.0))),
 ])

@@ -1,4 +1,4 @@
-"""The heater waveform columns' stated errors against brute force (issue 34, entry 24-wave).
+"""The heater waveform columns' stated errors against brute force (issue 34, entry 29).
 
 Expected values come from the construction, never from the code: a known waveform plus
 Gaussian noise of a known size, drawn many times; the truth is the fitted column less

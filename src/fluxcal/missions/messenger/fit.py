@@ -179,7 +179,7 @@ class FitResult:
         ``temperature_ranges``.
     temperature_ranges : StatedRanges or None
         The temperatures over which the table states its law (``T_RANGE``, one or more
-        intervals; `fit_merit.stated_range`, entry 24-trange); None: not assessed, or
+        intervals; `fit_merit.stated_range`, entry 24); None: not assessed, or
         determined nowhere.
     held_d0 : tuple of str
         Axes whose D0 was held at the user's request (``--hold-d0``).
@@ -206,7 +206,7 @@ class FitResult:
         The variance estimator: the field's mean direction weighted as D0's information
         (``direction``, ``balance`` 0..1), D0's bootstrap error along it and the error
         added there (``along_nt_per_ppt``, ``added_nt_per_ppt``;
-        `fit_variance.widen_d0_along_field`, docs/decisions/messenger_fit.md entry 24d0).
+        `fit_variance.widen_d0_along_field`, docs/decisions/messenger_fit.md entry 28).
     """
 
     calibration: MessengerCalibration
@@ -262,7 +262,7 @@ class FitResult:
         """``D_RANGE`` (percent, ``lo <= d < hi``): the duty cycles the waveforms are fitted on.
 
         `supported_duty_range` of the merged statistics' own bin counts and the fitted
-        columns; None when no column was fitted (entry 24-duty).
+        columns; None when no column was fitted (entry 25).
         """
         fitted = np.array([[fit is not None for fit in axis] for axis in self.waveform],
                           dtype=bool)
@@ -513,7 +513,7 @@ def fold_error(values: np.ndarray, weight: np.ndarray) -> float:
     ``sum_k n_k (x_k - mean)^2 / ((K - 1) N)`` at each phase (with two equal halves:
     half their difference, squared).  Folds of unequal size are weighted as they enter
     the mean: half the difference of a 5 % and a 95 % half overstates the mean's error
-    2.3x (entry 24-wave).  NaN with fewer than two folds.
+    2.3x (entry 29).  NaN with fewer than two folds.
     """
     x = np.asarray(values, dtype=float)
     n = np.asarray(weight, dtype=float)
@@ -530,7 +530,7 @@ def few_folds_widening(own: np.ndarray, folds: int) -> float:
 
     ``own`` holds the column's own samples (its duty-cycle bin's) in each fold.  The
     folds' spread pools 100 phases, so for a column whose own samples fill every fold it
-    covers the truth as it is (entry 24-wave: mean (true / stated)^2 1.02 over 117
+    covers the truth as it is (entry 29: mean (true / stated)^2 1.02 over 117
     columns of five 2-6-day fits).  With its own samples in ``K_eff = N^2 / sum n_k^2``
     effective folds (Kish), the spread compares ``K_eff - 1`` of them: widened by the
     Student-t ratio ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the
@@ -558,7 +558,7 @@ def _fit_waveforms(
     (`few_folds_widening`), and the spline's smoothing bias added in quadrature (the
     smoothing applied once more to the fitted curve, ``(S - I) f_hat``: common to the
     folds, so not in their spread); a column kept from ``base``, or fitted in fewer
-    than two folds, is given its own rms (its error unknown, entries 19 and 24-wave).
+    than two folds, is given its own rms (its error unknown, entries 19 and 29).
     """
     table = np.array(base.heater_signal, dtype=float)
     nb = len(stats.waveform)
@@ -578,7 +578,7 @@ def _fit_waveforms(
 
     def smoothing_bias(fit, ph, col, sup, b):
         # the spline's own smoothing applied to the fitted curve: (S - I) f_hat, the
-        # plug-in estimate of (S - I) f, a bias the folds share (entry 24-wave)
+        # plug-in estimate of (S - I) f, a bias the folds share (entry 29)
         ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
         f_hat = fit(ph[ok])
         again = fit_periodic_spline(ph[ok], f_hat, np.sqrt(sup[ok, b]), 100.0,
@@ -616,7 +616,7 @@ def supported_duty_range(count: np.ndarray, fitted: np.ndarray, centres: np.ndar
     columns the pipeline interpolates two fitted columns; within half a bin beyond the
     last centre it extends the last two (sec. 6), as it did for the bin's own samples
     in the fit; further out it extrapolates what no sample determined (issue 34,
-    docs/decisions/messenger_fit.md entry 24-duty).
+    docs/decisions/messenger_fit.md entry 25).
 
     Parameters
     ----------
@@ -850,7 +850,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
 
 
 def _hold_d0_advice(axis: str) -> str:
-    """Return the ``--hold-d0`` a D0 refusal advises, to type as it is (entry 24-advice)."""
+    """Return the ``--hold-d0`` a D0 refusal advises, to type as it is (entry 26)."""
     return (f"--hold-d0 {axis}: the start table's D0, its width "
             f"{HOLD_D0_DEFAULT_WIDTH:.0%} of the value, entry 18; or {axis}=VALUE+-WIDTH "
             "from a better source")
@@ -1061,7 +1061,7 @@ def fit_variance_calibration(
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
     deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures (each shifted break drawn in its shift's cell, entry 24b) and drawing
+    temperatures (each shifted break drawn in its shift's cell, entry 27) and drawing
     each held D0 from its width (entry 18); the waveforms from ``stats`` as in
     `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
@@ -1087,7 +1087,7 @@ def fit_variance_calibration(
         Axes whose upper segment is held whatever the data (set by the re-solve when a
         free break comes out with an error above `MAX_BREAK_ERROR_C`, and by `fit_days`
         for the axes an earlier pass held: a hold that came and went from pass to pass
-        kept the late-peak Mercury orbit from converging, entry 24b).
+        kept the late-peak Mercury orbit from converging, entry 27).
 
     Returns
     -------
@@ -1150,7 +1150,7 @@ def fit_variance_calibration(
     boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
                            break_shift=s) for b, s in zip(sol.boot, sol.boot_shift, strict=True)]
     b_law = np.stack([x[0] for x in boots])
-    b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 24b)
+    b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 27)
     b_d0 = np.stack([x[1] for x in boots])
     b_tau = np.array([x[2] for x in boots])
     b_dt = np.array([x[3] for x in boots])
@@ -1177,7 +1177,7 @@ def fit_variance_calibration(
         b_d0[:, AXES.index(a)] = drawn[:, AXES.index(a)]
     for a in upper:  # the held slope change and break keep their draws too
         b_law[:, AXES.index(a), 2:] = drawn_law[:, AXES.index(a), 2:]
-    # D0's error along the field's mean direction that no resample sees (entry 24d0)
+    # D0's error along the field's mean direction that no resample sees (entry 28)
     direction, balance = fv.d0_field_balance(vstats)
     b_d0, along, added = fv.widen_d0_along_field(
         b_d0, d0, np.asarray(base.matrices[0], dtype=float), direction, balance,
@@ -1331,7 +1331,7 @@ CONVERGENCE_SIGMA = 0.1
 DELAY_TOLERANCE_S = 0.05
 #: Most passes (``--passes``); a convergence refusal advises it, not a doubling: a fit
 #: stops as soon as it converges, and 6 -> 12 passes was refused again at 12 where 13
-#: converged (entry 24-advice).
+#: converged (entry 26).
 MAX_PASSES = 20
 
 
@@ -1545,7 +1545,7 @@ def fit_days(
         nonlocal cal, result
         inputs: dict[str, str] = {}
         converged = False
-        held_upper: tuple[str, ...] = ()  # once held, held in every later pass (entry 24b)
+        held_upper: tuple[str, ...] = ()  # once held, held in every later pass (entry 27)
         for p in range(passes):
             # merged in groups, level by level: linear in the days (a left fold copies
             # the growing variance blocks at every day), the same sums as on Dask

@@ -15,8 +15,8 @@ support the fit: too many intervals rejected as compressive.  `stated_range` nar
 the temperature range the table states (``T_RANGE``, one or more intervals) to the 1-C
 bins where the law's band, or the offset the table applies to the samples there, is
 within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
-the same tables judged at it first (entry 24-advice).  docs/decisions/messenger_fit.md,
-entries 19 and 24-trange.
+the same tables judged at it first (entry 26).  docs/decisions/messenger_fit.md,
+entries 19 and 24.
 
 References
 ----------
@@ -104,7 +104,7 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
     share of the samples in each duty bin), both independent of the rest.  The
     waveform part holds for the samples inside ``D_RANGE`` (`duty_range_counts`, the
     fitted days only): the bins outside it do not count and its denominator leaves the
-    heater-on samples outside it out (entry 24-duty); the law, D0 and tau parts keep
+    heater-on samples outside it out (entry 25); the law, D0 and tau parts keep
     them (the moments carry no duty cycle; they lie at the regulated -50 C, where the
     law's part is that of the samples inside).  A held upper
     segment's widths are in the resamples (`fit.held_upper_segments`): a day warmer than
@@ -134,7 +134,7 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
     if result.waveform_error is not None and n_total > 0:
         count = np.array([w.count.sum() for w in result.stats.waveform], dtype=float)
         n_wave = n_total
-        if duty is not None:  # the samples inside D_RANGE only (entry 24-duty)
+        if duty is not None:  # the samples inside D_RANGE only (entry 25)
             count = np.where(duty["inside_bins"], count, 0.0)
             n_wave = max(n_total - min(duty["outside"], n_total), 1.0)
         share = count / n_wave
@@ -303,7 +303,7 @@ def stated_range(result: FitResult, limit_nt: float = LAW_BAND_LIMIT_NT,
     narrower T_RANGE.  Adjacent bins merge into intervals (`StatedRanges`); None where
     no bin qualifies.  Several intervals where bins between them do not: the regulated
     -50 C and a warm stretch seen in heater-off runs, with the relaxing tail between
-    them less well determined (docs/decisions/messenger_fit.md entry 24-trange).
+    them less well determined (docs/decisions/messenger_fit.md entry 24).
     """
     edges, law, offset = range_bands(result, data_range)
     if not law.size:
@@ -401,7 +401,7 @@ def advised_goal(result: FitResult, guess: float,
     largest predicted error, rounded up to 0.01 nT).  A goal also widens the law's band
     limit (`band_limit_for`), hence the stated range, hence the samples the prediction
     holds for: the guess alone may write a different table, or another refusal (entry
-    24-advice).  With ``rejudge`` (`fit.judged_at`: ``result`` judged at a goal as
+    26).  With ``rejudge`` (`fit.judged_at`: ``result`` judged at a goal as
     `fit.fit_days` judges it) each candidate is judged as the fit would be, starting
     at ``guess``; the next candidate is what that judgement names (`_goal_failure`),
     at least 0.01 nT more, up to `ADVICE_TRIES` candidates.  A candidate is advised when

@@ -111,7 +111,7 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     seen = [v for v in (*pts.x, lo, hi) if np.isfinite(v)] or list(m.edges[[0, -1]])
     grid = np.linspace(min(seen) - 5.0, max(seen) + 5.0, N_CURVE)
     curve = Curve(grid, law(result, grid), law_band(result, grid), "Table 2 law (eq. 3a/3b)")
-    ranges = result.stated_ranges  # T_RANGE, one or more intervals (entry 24-trange)
+    ranges = result.stated_ranges  # T_RANGE, one or more intervals (entry 24)
     fitted = None if ranges is None else ranges.intervals
     panel = Panel("fit_offsets_temperature", "Offsets against sensor temperature (heater off)",
                   "sensor temperature (C)", "offset (counts)", AXES,

@@ -132,7 +132,7 @@ class DayStatistics:
     waveform_folds : list of list of BinnedMoments
         Analysis 4 split into `WAVEFORM_FOLDS` folds by the 30-min block of each sample
         (block index modulo the folds): the spread of the folds' waveforms states the
-        waveform's error (docs/decisions/messenger_fit.md entries 19 and 24-wave).
+        waveform's error (docs/decisions/messenger_fit.md entries 19 and 29).
     temperature_fine : BinnedMoments
         The temperature-law samples in 0.25-C sub-bins; its one value column is the
         temperature (count and mean temperature per sub-bin).
@@ -542,9 +542,9 @@ def reduce_day(
 
 #: Blocks (s) that split the waveform samples into folds (block index modulo
 #: `WAVEFORM_FOLDS`): 30 min, 18 heater periods, so that a duty-cycle bin visited for
-#: an hour or two still falls into several folds (entry 24-wave).
+#: an hour or two still falls into several folds (entry 29).
 WAVEFORM_FOLD_BLOCK_S = 1800.0
-#: Folds whose spread states the waveform columns' errors (entry 24-wave; two halves
+#: Folds whose spread states the waveform columns' errors (entry 29; two halves
 #: before, whose variance estimate had one degree of freedom per phase component).
 WAVEFORM_FOLDS = 4
 

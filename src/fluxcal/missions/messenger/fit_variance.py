@@ -110,7 +110,7 @@ MAX_GROUP = 6
 #: along it, per unit of the field's one-sidedness (`d0_field_balance`): the part of D0's
 #: error no resample of the blocks sees (the heater waveforms are fitted once, from the
 #: same data); added in quadrature as a stated error (`widen_d0_along_field`;
-#: docs/decisions/messenger_fit.md entry 24d0).
+#: docs/decisions/messenger_fit.md entry 28).
 D0_FIELD_BIAS_SIGMA = 2.0
 
 
@@ -189,7 +189,7 @@ class VarianceStatistics:
         Per block, over the accepted samples, the sums of ``w^2 R^2 B'/|B'|`` (3, the
         field's unit vector, sensor axes) and of ``w^2 R^2`` (``w`` the interval weight,
         ``R`` the relaxed duty cycle): the field's mean direction weighted as D0's
-        information (`d0_field_balance`, docs/decisions/messenger_fit.md entry 24d0).
+        information (`d0_field_balance`, docs/decisions/messenger_fit.md entry 28).
     """
 
     normal: np.ndarray = field(default_factory=lambda: np.zeros((0, N_PARAMETERS,
@@ -591,7 +591,7 @@ def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
     that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
     resample took the same -4-C shift: spread 0; tests/missions/messenger/
-    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 24b).
+    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).
     """
     grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
     mid = 0.5 * (grid[1:] + grid[:-1])
@@ -678,7 +678,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     # stated range: a break seen only in a few short warm peaks lies above the stated
     # range, where the linearised step alone stalls on its bumpy residual and a
     # resample without those peaks cannot move it at all (stated +- 0.04-0.5 C while
-    # 0.5-5 C off, issue 34; docs/decisions/messenger_fit.md entry 24b)
+    # 0.5-5 C off, issue 34; docs/decisions/messenger_fit.md entry 27)
     data_range = stats.fitted_range(VarianceSettings().min_samples)
     slope = law[:, 2] if law is not None else np.zeros(3)
     if law is not None:
@@ -799,7 +799,7 @@ def widen_d0_along_field(b_d0: np.ndarray, d0: np.ndarray, matrix: np.ndarray,
     equivalent ``M D0`` moves along ``direction``) by a normal draw of standard deviation
     ``D0_FIELD_BIAS_SIGMA x balance x s``, ``s`` the resamples' own spread of ``M D0``
     along ``direction`` (about ``d0``); axes not ``free`` (held) do not move.  The draws
-    are independent of every other parameter, as the measured bias is (entry 24d0).
+    are independent of every other parameter, as the measured bias is (entry 28).
 
     Parameters
     ----------

@@ -159,14 +159,14 @@ def _next_version(base_folder: Path, name: str, current: int) -> int:
 
 
 def d0_field_lines(result: FitResult) -> list[str]:
-    """Header lines: D0's error along the field's mean direction (entry 24d0), if added."""
+    """Header lines: D0's error along the field's mean direction (entry 28), if added."""
     f = result.d0_field
     if not f or not f.get("added_nt_per_ppt"):
         return []
     return [f"D0 errors include {f['added_nt_per_ppt']:.3g} nT/ppt along the field's mean "
             f"direction ({' '.join(f'{x:+.3f}' for x in f['direction'])}, sensor axes; "
             f"one-sided {f['balance']:.2f}) added to the bootstrap's {f['along_nt_per_ppt']:.3g}"
-            ": the measured bias of D0 there, which no resample sees (decision 24d0)"]
+            ": the measured bias of D0 there, which no resample sees (decision 28)"]
 
 
 def _header(title: str, form: str, version: int, base_file: Path, base_header: dict,
@@ -264,7 +264,7 @@ def write_calibration_folder(
                              strict=True)]
     # the range the law is stated over, read back by `load_calibration` (calibrating a
     # sample outside it warns: `pipeline.warn_outside_temperature_range`); one or more
-    # intervals, ``lo hi`` pairs separated by commas (entry 24-trange)
+    # intervals, ``lo hi`` pairs separated by commas (entry 24)
     ranges = result.stated_ranges
     t_range = ([f"# T_RANGE: {ranges.header_text()}"] if result.estimator == "variance"
                and ranges is not None else [])
@@ -369,7 +369,7 @@ def write_calibration_folder(
 
 
 def _duty_range_text(d_range: tuple[float, float] | None) -> str:
-    """Return the duty-cycle range the waveforms are fitted on, with its rule (entry 24-duty)."""
+    """Return the duty-cycle range the waveforms are fitted on, with its rule (entry 25)."""
     if d_range is None:
         return "D_RANGE: none (no column fitted; every column kept from the base table)"
     return (f"D_RANGE {d_range[0]:g}..{d_range[1]:g} %: the duty cycles (lo <= d < hi) of "
@@ -472,7 +472,7 @@ def fit_report(result: FitResult, base_files: Mapping[str, Path], version: Mappi
             "segment_s": VarianceSettings().segment_s, "segments": int(v.segments)}
         doc["temperature"]["fitted_range_c"] = list(result.fitted_range)
         ranges = result.stated_ranges
-        # [[lo, hi], ...]: one or more intervals (entry 24-trange)
+        # [[lo, hi], ...]: one or more intervals (entry 24)
         doc["temperature"]["T_RANGE"] = ([] if ranges is None else
                                          [list(pair) for pair in ranges.intervals])
         for a, h in result.held_upper.items():

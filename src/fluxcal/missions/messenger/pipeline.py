@@ -230,7 +230,7 @@ def warn_outside_temperature_range(ds: xr.Dataset, cal: MessengerCalibration) ->
     A fitted Table 2 states ``T_RANGE`` (`MessengerCalibration.temperature_range`, one
     or more intervals), the sensor temperatures over which its law is determined;
     outside it the law is extrapolated, or between two intervals poorly determined
-    (issue 34, docs/decisions/messenger_fit.md entries 21 and 24-trange).  The warning
+    (issue 34, docs/decisions/messenger_fit.md entries 21 and 24).  The warning
     counts the samples (`StatedRanges.contains`) and says how far below and above the
     range they reach and, with several intervals, how many lie in the gaps between
     them and how far from the nearest interval (`warn_outside_range`).
@@ -263,7 +263,7 @@ def warn_outside_duty_range(ds: xr.Dataset, periods: HeaterPeriods,
     Fitted heater-signal tables state ``D_RANGE`` (`MessengerCalibration.duty_range`,
     percent, ``lo <= d < hi``), the duty cycles whose samples determined the waveform
     columns; outside it the pipeline extrapolates the columns (sec. 6: the 36-40 %
-    slope above 40 %) and no table states the error (issue 34, entry 24-duty; in the
+    slope above 40 %) and no table states the error (issue 34, entry 25; in the
     Mercury-orbit world 0.1-0.3 nT there).  The warning counts the samples whose heater
     signal is subtracted (``heater_applied``) in periods of a duty cycle outside the
     range, and says how far (`warn_outside_range`).  No quality flag is set: Table 5's
