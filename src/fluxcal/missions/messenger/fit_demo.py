@@ -15,8 +15,9 @@
    refused on a realistic wind; D0 z held at the shipped value, ``--hold-d0 z``: two days do not
    determine it), passes until tau and D0 settle, the command line's guards, and
    `write_calibration_folder`.  Two days miss the default goal of 0.1 nT (the refusal is
-   shown); the demo then writes the table with ``--error-goal 0.2`` (`DEMO_ERROR_GOAL_NT`),
-   says so, and every header states it.
+   shown); the demo then follows the refusal's advice, ``--error-goal G`` (`advised_goal`:
+   the least goal whose table states the regulated -50 C), as a user would, says so, and
+   every header states it.
 4. An unseen day (the forward model's own field: Mercury dipole, IMF, waves), the fit's
    predicted error for it (`fit_merit.predicted_error` with its samples), calibrated
    with the shipped tables and with the fitted folder (``edr2cdr --calib``'s
@@ -29,6 +30,7 @@ References
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -44,10 +46,10 @@ from fluxcal.missions.solar_wind import alfvenic_wind
 from fluxcal.products.atomic import atomic_write_bytes
 from fluxcal.products.paths import make_folder
 
-#: The demo's ``--error-goal`` (nT): 2 days do not reach the default 0.1 nT (their law's
-#: band and predicted error lie above it, docs/decisions/messenger_fit.md entry 23), and
-#: more days would double the demo's time; the demo says when it uses it.
-DEMO_ERROR_GOAL_NT = 0.2
+#: The ``--error-goal G`` a refusal advises (`fit_merit.advised_goal`, entry 26).  2 days do
+#: not reach the default 0.1 nT (entry 23) and more days would double the demo's time, so
+#: the demo follows the advice, as a user would, and says so.
+_ADVICE = re.compile(r"--error-goal ([0-9.]*[0-9])")
 #: Start of the unseen 2-h orbit (`simulate_unseen`), after the training days.
 UNSEEN_START = "2012-06-04T00:00:00"
 #: The training winds of `simulate_training`: ``realistic`` (the default) or ``quiet``.
@@ -168,9 +170,10 @@ def _verdict(result, out: Path):
     """Return ``(verdict, folder, result)``: the command line's guards, then the demo's goal.
 
     The guards at their defaults first; a table refused only on its figure of merit (the
-    predicted error or the law's band, `fit_merit.check_merit`) is judged again at
-    `DEMO_ERROR_GOAL_NT`, as ``--error-goal`` would (its headers then say so); any other
-    refusal is shown as it is and the folder written as a study.
+    predicted error or the law's band, `fit_merit.check_merit`) is judged again at the
+    ``--error-goal`` its refusal advises (`fit_merit.advised_goal`), as the command would
+    (its headers then say so); any other refusal, or one that advises no goal, is shown
+    as it is and the folder written as a study.
     """
     from fluxcal.errors import FitRefusedError
     from fluxcal.missions.messenger import fit_merit
@@ -188,15 +191,21 @@ def _verdict(result, out: Path):
         return "accepted by the guards at their defaults", out / "fitted", result
     except FitRefusedError as exc:
         default = str(exc)
-    accepted = judged_at(result, DEMO_ERROR_GOAL_NT)  # as `fit_days` judges that goal
+    advice = _ADVICE.search(default)
+    if advice is None:
+        return (f"REFUSED by the guards (the command would write nothing): {default}",
+                out / "fitted_refused", result)
+    goal = float(advice.group(1))
+    accepted = judged_at(result, goal)  # as `fit_days` judges that goal
     try:
         fit_merit.check_merit(accepted)
     except FitRefusedError as exc:
         return (f"REFUSED by the guards (the command would write nothing): {default}; also "
-                f"at --error-goal {DEMO_ERROR_GOAL_NT:g}: {exc}", out / "fitted_refused", result)
+                f"at the advised --error-goal {goal:g}: {exc}", out / "fitted_refused", result)
     return (f"refused at the default goal {fit_merit.ERROR_GOAL_NT:g} nT ({default}); "
-            f"WRITTEN WITH --error-goal {DEMO_ERROR_GOAL_NT:g} (the demo's option, stated in "
-            "every table header; a user gives more days instead)", out / "fitted", accepted)
+            f"WRITTEN WITH --error-goal {goal:g} (the refusal's advice, followed as a user "
+            "would; stated in every table header; a user gives more days instead)",
+            out / "fitted", accepted)
 
 
 def fit_training(out: Path, days: float = 2.0):
