@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from fluxcal.errors import FitRefusedError, FluxcalError
+from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import (
@@ -33,13 +34,18 @@ from fluxcal.missions.messenger.fit_variance import (
     N_PARAMETERS,
     N_SHIFTS,
     PER_AXIS,
+    VarianceSettings,
     VarianceStatistics,
     apply_step,
     law_parameters,
     law_to_table,
+    reduce_variance,
     solve_variance,
 )
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
+from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+from fluxcal.runs.batch import release_worker_kernel_pool, worker_kernel_pool
 from tests.missions.messenger._realistic_wind import realistic_wind
 
 START = dt.date(2010, 3, 1)
@@ -486,3 +492,33 @@ def test_a_shift_outside_the_fitted_range_is_not_tried(shipped):
     sol = solve_variance(stats, n_bootstrap=20, law=now)
     assert sol.break_shift[0] in (0.0, 0.5, 1.0, 2.0, 4.0)
     assert now[0, 3] + sol.break_shift[0] <= stats.fitted_range()[1]
+
+
+def test_the_regressors_do_not_carry_the_heater_waveform_table(tmp_path):
+    # entry 31: a waveform table's error in the regressors' direction u and in |B'|
+    # together biases D0 along the field (even in the error), so u is taken before the
+    # table is subtracted.  By construction: two tables that differ by a random error
+    # give the same regressors (normal matrices equal to rounding) and different |B'|
+    # (right-hand sides differ), on one simulated day of the rotating wind.
+    run = simulate_flight(tmp_path / "sim", FlightConfig(start=str(START), days=1, seed=3131),
+                          wind=functools.partial(realistic_wind, compressive=0.0), truth=False)
+    base = load_calibration(str(START))
+    chunk = day_chunks(run.input_dir, run.days)[0]
+    rng = np.random.default_rng(31)
+    wrong = dataclasses.replace(base, heater_signal=base.heater_signal + rng.normal(
+        0.0, 5.0, base.heater_signal.shape))
+    # unweighted: the inverse-variance weights are taken from |B'| and would differ
+    worker_kernel_pool(list(chunk.kernels), FRAME_KERNELS)
+    try:
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
+        streams = (read_science(list(chunk.science)), read_heater(list(chunk.heater)),
+                   read_temperature(list(chunk.temperature)), sclk)
+        plain = VarianceSettings(weighting="none")
+        a = reduce_variance(*streams, base, settings=plain)
+        b = reduce_variance(*streams, wrong, settings=plain)
+    finally:
+        release_worker_kernel_pool()
+    assert a.normal.shape == b.normal.shape and a.normal.size
+    scale = np.abs(a.normal).max()
+    assert np.allclose(a.normal, b.normal, rtol=0, atol=1e-9 * scale)
+    assert not np.allclose(a.rhs, b.rhs, rtol=1e-6, atol=0)

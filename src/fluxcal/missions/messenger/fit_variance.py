@@ -335,6 +335,10 @@ def reduce_variance(
     offset = levels.offset_model(et, temp_c, changes, cal)
     m = np.asarray(cal.matrices[0], dtype=float)  # fine range, eq. 8
     b = (counts - offset - heat["heater_signal"].values) @ m.T
+    # the regressors' direction from the field before the fitted heater waveform is
+    # subtracted: a direction that carried the table's error would share it with |B'|,
+    # and that shared error biases D0 along the field (even in the error; entry 31)
+    b_dir = (counts - offset) @ m.T
     rel = cal.constants["relaxation"]
     tau, delay = float(rel["tau_s"]), float(rel["delay_s"])
     r = _relaxed(et, changes, cal, tau, delay)
@@ -344,7 +348,8 @@ def reduce_variance(
     if not valid.any():
         return out
     sel = np.flatnonzero(valid)
-    et, b, temp_c, r, dr_tau, dr_dt = (x[sel] for x in (et, b, temp_c, r, dr_tau, dr_dt))
+    et, b, b_dir, temp_c, r, dr_tau, dr_dt = (x[sel] for x in (et, b, b_dir, temp_c, r, dr_tau,
+                                                                dr_dt))
     out.offset_moments = offset_moments(temp_c, r, dr_tau, dr_dt)
     mag = np.sqrt(np.einsum("ij,ij->i", b, b))
     label = np.floor(et / s.interval_s).astype(np.int64)
@@ -361,13 +366,13 @@ def reduce_variance(
         return out
     codes = codes[ok]
     out.temperature_count = np.histogram(temp_c[ok], TEMPERATURE_EDGES_C)[0].astype(float)
-    b, temp_c, r, dr_tau, dr_dt, et, mag = (x[ok] for x in (b, temp_c, r, dr_tau, dr_dt, et,
-                                                            mag))
+    b, b_dir, temp_c, r, dr_tau, dr_dt, et, mag = (x[ok] for x in (b, b_dir, temp_c, r, dr_tau,
+                                                                   dr_dt, et, mag))
     unit = b / mag[:, None]  # the field's direction (nT, sensor axes), for `field_sum`
     # M^T of the unit vector per sample: d|B'| / d(offset counts) = -u (the |B| form: the
     # regressors are direction cosines, independent of the compressive |B| changes;
     # the |B|^2 form's regressors carry them and bias the along-field offset)
-    u = (b / mag[:, None]) @ m
+    u = (b_dir / np.linalg.norm(b_dir, axis=1)[:, None]) @ m
     law = law_parameters(cal)
     d0 = np.asarray(cal.duty_cycle_d0, dtype=float)
     cols = []
