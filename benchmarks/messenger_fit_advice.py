@@ -165,7 +165,6 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
     from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     folder = out / "fitted"
     write_calibration_folder(res, folder, None, {"inputs": {}, "intervals": "all data",
@@ -173,9 +172,7 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     tc = load_calibration(fit_demo.UNSEEN_START, truth)
     cal = load_calibration(fit_demo.UNSEEN_START, folder)
     config = SimulationConfig()
-    mk = write_messenger_like_kernels(out / "unseen" / "kernels", fit_demo.UNSEEN_START,
-                                      7200.0 + 2 * config.lead_s,
-                                      plus_y_sunward=[(1800.0, 3240.0)])
+    mk = fit_demo.unseen_kernels(out)
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = fit_demo.simulate_unseen(tc, sclk)

@@ -204,7 +204,6 @@ def test_the_demo_follows_each_advice_to_a_table_that_meets_its_stated_errors(tm
     from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
     from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
     from tests.missions.messenger._unseen_day import inside_ranges, rms
 
     start = "2012-06-01T00:00:00"
@@ -247,9 +246,7 @@ def test_the_demo_follows_each_advice_to_a_table_that_meets_its_stated_errors(tm
     # D_RANGE (the commanded duty cycle of each 1000-s block of the forward model's
     # schedule), within 1.5x the prediction the header states
     config = SimulationConfig()
-    mk = write_messenger_like_kernels(tmp_path / "unseen" / "kernels", fit_demo.UNSEEN_START,
-                                      7200.0 + 2 * config.lead_s,
-                                      plus_y_sunward=[(1800.0, 3240.0)])
+    mk = fit_demo.unseen_kernels(tmp_path)
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = fit_demo.simulate_unseen(tc, sclk)

@@ -31,7 +31,6 @@ from fluxcal.missions.messenger.fit_variance import (
 )
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.pipeline import calibrate
-from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
 #: The regulated sensor temperature (C; sec. 7, eq. 2: the heater holds it there).
 REGULATED_C = -50.0
@@ -73,8 +72,7 @@ def test_the_demo_states_its_regulated_temperature_and_the_unseen_orbit_meets_it
     # sensor): every sample at the regulated temperature inside T_RANGE, the warned ones
     # only those of the warming run between the intervals; inside T_RANGE its field
     # within the goal the table states and within 1.5x the day's prediction
-    mk = write_messenger_like_kernels(tmp_path / "unseen" / "kernels", fit_demo.UNSEEN_START,
-                                      7200.0 + 2 * 1200.0, plus_y_sunward=[(1800.0, 3240.0)])
+    mk = fit_demo.unseen_kernels(tmp_path)
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = fit_demo.simulate_unseen(tc, sclk)

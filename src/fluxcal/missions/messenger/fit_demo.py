@@ -236,6 +236,21 @@ def fit_training(out: Path, days: float = 2.0):
     return verdict, fitted, result, truth
 
 
+def unseen_kernels(out: Path) -> Path:
+    """Write the kernels covering the unseen orbit into ``out / "unseen" / "kernels"``.
+
+    The meta-kernel of `write_messenger_like_kernels` from `UNSEEN_START` over the 2-h
+    orbit and the simulator's lead on both sides, +Y sunward from 1800 to 3240 s (the
+    heater-off warming run); `simulate_unseen` runs inside a `KernelPool` of it.
+    """
+    from fluxcal.missions.messenger.simulate import SimulationConfig
+    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+
+    return write_messenger_like_kernels(Path(out) / "unseen" / "kernels", UNSEEN_START,
+                                        7200.0 + 2 * SimulationConfig().lead_s,
+                                        plus_y_sunward=[(1800.0, 3240.0)])
+
+
 def simulate_unseen(truth_cal, sclk):
     """Simulate the unseen 2-h orbit from `UNSEEN_START` with the truth tables.
 
@@ -267,15 +282,11 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.missions.messenger import fit_merit
     from fluxcal.missions.messenger.fit_variance import reduce_variance
     from fluxcal.missions.messenger.pipeline import calibrate
-    from fluxcal.missions.messenger.simulate import SimulationConfig
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
     out = Path(out)
     verdict, fitted, result, truth = fit_training(out, days)
     # an unseen day (after the training): the forward model's own field and schedule
-    mk = write_messenger_like_kernels(out / "unseen" / "kernels", UNSEEN_START,
-                                      7200.0 + 2 * SimulationConfig().lead_s,
-                                      plus_y_sunward=[(1800.0, 3240.0)])
+    mk = unseen_kernels(out)
     truth_cal = load_calibration(UNSEEN_START, truth)
     lines = []
     with KernelPool(mk, frames=FRAME_KERNELS):
