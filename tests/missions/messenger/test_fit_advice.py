@@ -9,7 +9,6 @@ from the code under test.
 
 from __future__ import annotations
 
-import dataclasses
 import re
 
 import numpy as np
@@ -24,8 +23,8 @@ from fluxcal.missions.messenger.fit_variance import (
     N_PARAMETERS,
     law_parameters,
     law_values,
-    offset_moments,
 )
+from tests.missions.messenger._fit_tables import scattered_laws, with_law_resamples
 from tests.missions.messenger.test_fit_variance import START, _variance_result
 
 #: The regulated sensor temperature (C; sec. 7, eq. 2).
@@ -54,16 +53,9 @@ def test_the_band_refusal_advises_the_goal_that_states_the_regulated_temperature
     law = law_parameters(base.calibration)
     rng = np.random.default_rng(34)
     k = 4000
-    b_law = np.repeat(law[None], k, axis=0)
-    b_law[:, :, 0] += 1.25 * rng.standard_normal((k, 3))
-    b_law[:, :, 1] += 0.0223 * rng.standard_normal((k, 3))
-    rel = base.calibration.constants["relaxation"]
-    boot = {"law": b_law, "d0": np.repeat(np.asarray(base.calibration.duty_cycle_d0)[None], k, 0),
-            "tau": np.full(k, float(rel["tau_s"])), "dt": np.full(k, float(rel["delay_s"]))}
+    b_law = scattered_laws(law, rng, k, (1.25, 0.0223, 0.0, 0.0))
     temp = rng.uniform(-60.0, 40.0, 6000)
-    zero = np.zeros(temp.size)
-    base.variance.offset_moments = offset_moments(temp, zero, zero, zero)
-    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    res = with_law_resamples(base, b_law, temp)
     assess(res)
     # brute force: each 1-C bin's band (nT) at its samples' mean temperature, the
     # resamples' rms through Table 4's fine diagonal, the worst axis

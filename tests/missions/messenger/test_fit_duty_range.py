@@ -15,14 +15,13 @@ cycles 10-45 %).  docs/decisions/messenger_fit.md entry 25.
 from __future__ import annotations
 
 import logging
-import shutil
 
 import numpy as np
 import pytest
 
 from fluxcal.cli import main
 from fluxcal.errors import CalibrationError
-from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import (
     MIN_PHASE_BINS,
     day_chunks,
@@ -31,6 +30,7 @@ from fluxcal.missions.messenger.fit import (
 )
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, read_flight_truth, simulate_flight
+from tests.missions.messenger._fit_tables import tables_with_header_lines
 from tests.missions.messenger._hard_worlds import MercuryOrbit
 from tests.missions.messenger._unseen_day import recalibrate_errors
 
@@ -75,15 +75,8 @@ def test_duty_range_is_the_supported_run_around_the_fullest_bin():
 
 def _heater_folder(tmp_path, lines: dict[str, str | None]):
     """The packaged tables with a header line added to heater_signal_{axis}."""
-    folder = tmp_path / "cal"
-    shutil.copytree(data_dir(), folder)
-    for axis, line in lines.items():
-        path = folder / f"heater_signal_{axis}_v1.csv"
-        text = path.read_text().splitlines()
-        if line is not None:
-            text.insert(3, line)
-        path.write_text("\n".join(text) + "\n")
-    return folder
+    return tables_with_header_lines(
+        tmp_path, {f"heater_signal_{axis}_v1.csv": line for axis, line in lines.items()})
 
 
 def test_d_range_header_round_trip(tmp_path):

@@ -36,6 +36,11 @@ from fluxcal.missions.messenger.fit_variance import (
     offset_moments,
     solve_variance,
 )
+from tests.missions.messenger._fit_tables import (
+    scattered_laws,
+    table_bootstrap,
+    with_law_resamples,
+)
 from tests.missions.messenger.test_fit_variance import _hinge_statistics, _variance_result
 
 START = "2010-03-01"
@@ -291,16 +296,6 @@ def test_period_mean_keeps_a_ramp_and_removes_the_waveform():
     assert np.all(np.isnan(m[(t >= 360.0) & (t < 470.0)]))
 
 
-def _boot(res, law, d0=None):
-    """A bootstrap of the given resampled laws (and D0), tau and dt at the table's values."""
-    k = law.shape[0]
-    rel = res.calibration.constants["relaxation"]
-    d0 = (np.repeat(np.asarray(res.calibration.duty_cycle_d0, dtype=float)[None], k, 0)
-          if d0 is None else d0)
-    return {"law": law, "d0": d0, "tau": np.full(k, float(rel["tau_s"])),
-            "dt": np.full(k, float(rel["delay_s"]))}
-
-
 def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped):
     # resampled laws differing only in their slope b (sigma 0.03 counts/C): the band is
     # 0.03 |T| counts, within 0.05 nT for |T| <= 0.05 / (0.03 |M_jj|) = 35 C on every axis
@@ -311,9 +306,8 @@ def test_stated_range_is_narrowed_to_where_the_band_is_within_its_limit(shipped)
     assert res.fitted_range == (-60.0, 40.0)
     law = law_parameters(res.calibration)
     rng = np.random.default_rng(2)
-    b_law = np.repeat(law[None], 4000, axis=0)
-    b_law[:, :, 1] += 0.03 * rng.standard_normal((4000, 1))
-    res = dataclasses.replace(res, bootstrap=_boot(res, b_law))
+    b_law = scattered_laws(law, rng, 4000, (0.0, 0.03, 0.0, 0.0), shared=True)
+    res = dataclasses.replace(res, bootstrap=table_bootstrap(res, b_law))
     limit = LAW_BAND_LIMIT_NT / (0.03 * np.abs(np.diag(res.calibration.matrices[0])).max())
     ranges = stated_range(res)
     assert len(ranges.intervals) == 1
@@ -355,7 +349,7 @@ def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_the
     r = np.concatenate([np.full(1000, r0), np.zeros(hot.size)])
     zeros = np.zeros(temp.size)
     res.variance.offset_moments = offset_moments(temp, r, zeros, zeros)
-    res = dataclasses.replace(res, bootstrap=_boot(res, b_law, b_d0), waveform_error=None)
+    res = dataclasses.replace(res, bootstrap=table_bootstrap(res, b_law, b_d0), waveform_error=None)
     m_max = np.abs(np.diag(res.calibration.matrices[0])).max()
     reach = LAW_BAND_LIMIT_NT / (beta * m_max)  # 34.7 C
     k = np.arange(-45, 40)
@@ -380,7 +374,7 @@ def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_the
     b_law = np.repeat(law[None], 2, axis=0)
     b_law[:, :, 1] += (beta / 3) * z[:, None]
     b_d0 = d0[None, :] + 0.01 * z[:, None]
-    res = dataclasses.replace(res, bootstrap=_boot(res, b_law, b_d0))
+    res = dataclasses.replace(res, bootstrap=table_bootstrap(res, b_law, b_d0))
     assert stated_range(res).intervals == ((-60.0, 40.0),)
     assert range_bands(res)[2][reg].min() > LAW_BAND_LIMIT_NT
 
@@ -422,22 +416,16 @@ def test_an_accepted_goal_scales_the_law_band_limit(shipped):
     law = law_parameters(base.calibration)
     rng = np.random.default_rng(8)
     k = 4000
-    b_law = np.repeat(law[None], k, axis=0)
-    b_law[:, :, 0] += 1.406 * rng.standard_normal((k, 1))
-    rel = base.calibration.constants["relaxation"]
-    boot = {"law": b_law, "d0": np.repeat(np.asarray(base.calibration.duty_cycle_d0)[None], k, 0),
-            "tau": np.full(k, float(rel["tau_s"])), "dt": np.full(k, float(rel["delay_s"]))}
+    b_law = scattered_laws(law, rng, k, (1.406, 0.0, 0.0, 0.0), shared=True)
     temp = rng.uniform(-60.0, 30.0, 3000)
-    base.variance.offset_moments = offset_moments(temp, np.zeros(3000), np.zeros(3000),
-                                                  np.zeros(3000))
-    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    res = with_law_resamples(base, b_law, temp)
     assess(res)
     assert not res.merit["law_determined"] and res.merit["band_limit_nt"] == 0.05
     with pytest.raises(FitRefusedError, match=r"exceeds 0\.05 nT at every temperature .* "
                                               r"--error-goal 0\.14 \(the law's limit is 0\.5 "
                                               r"of the goal"):
         check_merit(res)
-    res = dataclasses.replace(base, bootstrap=boot, waveform_error=None)
+    res = with_law_resamples(base, b_law, temp)
     assess(res, 0.14)
     assert res.merit["law_determined"] and res.merit["band_limit_nt"] == pytest.approx(0.07)
     assert res.fitted_range == (-60.0, 40.0)
@@ -457,17 +445,11 @@ def test_a_segment_held_in_the_fit_is_counted_once(shipped):
     rng = np.random.default_rng(21)
     n = 4000
     temp = rng.uniform(-60.0, 30.0, n)
-    res.variance.offset_moments = offset_moments(temp, np.zeros(n), np.zeros(n), np.zeros(n))
     law = law_parameters(res.calibration)
     k = 300
-    b_law = np.repeat(law[None], k, axis=0)
-    b_law[:, :, 2] += HOLD_SLOPE_CHANGE_WIDTH * np.abs(law[:, 2]) * rng.standard_normal((k, 3))
-    b_law[:, :, 3] += HOLD_BREAK_WIDTH_C * rng.standard_normal((k, 3))
-    d0 = np.asarray(res.calibration.duty_cycle_d0)
-    rel = res.calibration.constants["relaxation"]
-    boot = {"law": b_law, "d0": np.repeat(d0[None], k, 0), "tau": np.full(k, rel["tau_s"]),
-            "dt": np.full(k, rel["delay_s"])}
-    free = dataclasses.replace(res, bootstrap=boot, waveform_error=None)
+    b_law = scattered_laws(law, rng, k, (0.0, 0.0, HOLD_SLOPE_CHANGE_WIDTH * np.abs(law[:, 2]),
+                                         HOLD_BREAK_WIDTH_C))
+    free = with_law_resamples(res, b_law, temp)
     held = dataclasses.replace(free, held_upper={
         a: {"Tm_c": (law[j, 3], HOLD_BREAK_WIDTH_C),
             "slope_change": (law[j, 2], HOLD_SLOPE_CHANGE_WIDTH * abs(law[j, 2]))}

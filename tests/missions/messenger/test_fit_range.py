@@ -14,7 +14,6 @@ docs/decisions/messenger_fit_verification.md section 16.
 from __future__ import annotations
 
 import logging
-import shutil
 
 import numpy as np
 import pytest
@@ -23,7 +22,7 @@ import xarray as xr
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger import forward
-from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
+from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import (
     HOLD_BREAK_WIDTH_C,
     HOLD_SLOPE_CHANGE_WIDTH,
@@ -34,6 +33,7 @@ from fluxcal.missions.messenger.fit_variance import law_parameters
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, read_flight_truth, simulate_flight
 from fluxcal.missions.messenger.pipeline import warn_outside_temperature_range
+from tests.missions.messenger._fit_tables import tables_with_header_lines
 from tests.missions.messenger._hard_worlds import MercuryOrbit
 from tests.missions.messenger._unseen_day import recalibrate_rms
 
@@ -49,14 +49,7 @@ def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _table2(tmp_path, t_range_line: str | None):
     """A calibration folder: the packaged tables with a Table 2 header line added."""
-    folder = tmp_path / "cal"
-    shutil.copytree(data_dir(), folder)
-    path = folder / "offsets_temperature_v1.csv"
-    lines = path.read_text().splitlines()
-    if t_range_line is not None:
-        lines.insert(3, t_range_line)
-    path.write_text("\n".join(lines) + "\n")
-    return folder
+    return tables_with_header_lines(tmp_path, {"offsets_temperature_v1.csv": t_range_line})
 
 
 # ---------------------------------------------------------------------------------------
