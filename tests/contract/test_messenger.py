@@ -22,6 +22,7 @@ from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 from fluxcal.testing import MissionContract, Truth
+from tests.contract._spoil import replace_csv_field
 
 
 class TestMessenger(MissionContract):
@@ -60,10 +61,4 @@ class TestMessenger(MissionContract):
                 f"MAGOFFSETS{day:%y}{day.timetuple().tm_yday:03d}.txt"]
 
     def break_input(self, truth: Truth) -> Path:
-        path = truth.inputs[0]
-        lines = path.read_text().splitlines()
-        fields = lines[5].split(",")
-        fields[-1] = "x"  # a field that is not a number
-        lines[5] = ",".join(fields)
-        path.write_text("\n".join(lines) + "\n")
-        return path
+        return replace_csv_field(truth.inputs[0], 5, -1, "x")  # a field that is not a number

@@ -17,9 +17,10 @@ import cdflib
 import numpy as np
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.missions.rosetta import calib, io
-from fluxcal.missions.rosetta import simulate as forward
+from fluxcal.missions.rosetta import io
 from fluxcal.testing import MissionContract, Truth
+from tests.contract._spoil import replace_csv_field
+from tests.missions.rosetta._tables import rosetta_tables, simulate_with
 
 
 class TestRosetta(MissionContract):
@@ -30,13 +31,8 @@ class TestRosetta(MissionContract):
 
     def simulate(self, folder: Path, start: str, seconds: float) -> Truth:
         folder.mkdir(parents=True, exist_ok=True)
-        cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
         with KernelPool():
-            sim = forward.simulate(start, seconds, calibrations=cals,
-                                   time_shifts=calib.load_time_shift_table(),
-                                   nominal=calib.load_nominal_conversion(),
-                                   alignment=calib.load_alignment(),
-                                   jumps=calib.load_offset_jump_table(), seed=3)
+            sim = simulate_with(rosetta_tables(), start, seconds, seed=3)
             path = io.write_science_csv(sim.science["OB"], folder / "science_OB.csv")
         truth = sim.truth["OB"]
         good = truth["good"].values
@@ -51,10 +47,4 @@ class TestRosetta(MissionContract):
         return [f"rosetta_rpcmag_cla-ob_{day:%Y%m%d}_v01.cdf"]
 
     def break_input(self, truth: Truth) -> Path:
-        path = truth.inputs[0]
-        lines = path.read_text().splitlines()
-        fields = lines[5].split(",")
-        fields[-2] = "x"  # a field that is not a number
-        lines[5] = ",".join(fields)
-        path.write_text("\n".join(lines) + "\n")
-        return path
+        return replace_csv_field(truth.inputs[0], 5, -2, "x")  # a field that is not a number

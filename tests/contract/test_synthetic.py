@@ -14,6 +14,7 @@ import cdflib
 import numpy as np
 
 from fluxcal.testing import MissionContract, Truth
+from tests.contract._spoil import replace_csv_field
 
 GAIN, OFFSET = 0.05, np.array([12.0, -7.0, 3.0])
 
@@ -58,8 +59,4 @@ class TestSynthetic(MissionContract):
         return [f"SYNTH_{day:%Y%m%d}_v01.cdf"]
 
     def break_input(self, truth: Truth) -> Path:
-        path = truth.inputs[0]
-        lines = path.read_text().splitlines()
-        lines[3] = lines[3].rsplit(",", 1)[0] + ",1.5"  # not an integer count
-        path.write_text("\n".join(lines) + "\n")
-        return path
+        return replace_csv_field(truth.inputs[0], 3, -1, "1.5")  # not an integer count

@@ -32,26 +32,17 @@ def test_simulate_writes_inputs(sim):
     assert head[1].startswith("2014-08-01T00:00:00.0")
 
 
+def _calibrate(sim, out, levels: str, sensor: str = "OB") -> list[str]:
+    """``fluxcal rosetta calibrate`` of the simulated day's ``sensor`` file into ``out``."""
+    return ["rosetta", "calibrate", "--science", str(sim / f"RPCMAG_20140801_RAW_{sensor}.csv"),
+            "--sensor", sensor, "--levels", levels, "--out", str(out)]
+
+
 @pytest.mark.parametrize("sensor", ["OB", "IB"])
 def test_calibrate_all_levels(sim, tmp_path, sensor):
-    args = [
-        "rosetta",
-        "calibrate",
-        "--science",
-        str(sim / f"RPCMAG_20140801_RAW_{sensor}.csv"),
-        "--sensor",
-        sensor,
-        "--levels",
-        "A,B,C,E,F,G",
-        "--calib",
-        str(sim / "calib"),
-        "--kernels",
-        str(sim / "kernels" / "rosetta_synthetic.tm"),
-        "--out",
-        str(tmp_path),
-        "--hk",
-        str(sim / "RPCMAG_20140801_RAW_HK.csv"),
-    ]
+    args = [*_calibrate(sim, tmp_path, "A,B,C,E,F,G", sensor), "--calib", str(sim / "calib"),
+            "--kernels", str(sim / "kernels" / "rosetta_synthetic.tm"),
+            "--hk", str(sim / "RPCMAG_20140801_RAW_HK.csv")]
     assert main(args + ["--frame", "ECLIPJ2000"]) == 0  # the frame of the simulator's truth
     for code in ("CLA", "CLB", "CLC"):  # archive names, one table per mode segment
         tabs = sorted(tmp_path.glob(f"RPCMAG140801T*_{code}_{sensor}_M*.TAB"))
@@ -85,57 +76,19 @@ def test_calibrate_all_levels(sim, tmp_path, sensor):
 
 
 def test_calibrate_c_without_kernels_fails(sim, tmp_path, capsys):
-    args = [
-        "rosetta",
-        "calibrate",
-        "--science",
-        str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-        "--sensor",
-        "OB",
-        "--levels",
-        "A,C",
-        "--out",
-        str(tmp_path),
-    ]
-    assert main(args) == 2
+    assert main(_calibrate(sim, tmp_path, "A,C")) == 2
     assert "need SPICE kernels" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
 
 
 def test_calibrate_unknown_level(sim, tmp_path, capsys):
-    args = [
-        "rosetta",
-        "calibrate",
-        "--science",
-        str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-        "--sensor",
-        "OB",
-        "--levels",
-        "A,Q",
-        "--out",
-        str(tmp_path),
-    ]
-    assert main(args) == 2
+    assert main(_calibrate(sim, tmp_path, "A,Q")) == 2
     assert "unknown level" in capsys.readouterr().err
 
 
 def test_calibrate_level_a_from_utc_only(sim, tmp_path):
     # without kernels times come from time_utc; LEVEL_A with the ground calibration alone
-    args = [
-        "rosetta",
-        "calibrate",
-        "--science",
-        str(sim / "RPCMAG_20140801_RAW_OB.csv"),
-        "--sensor",
-        "OB",
-        "--levels",
-        "A,B",
-        "--out",
-        str(tmp_path),
-        "--formats",
-        "tab",
-    ]
-    assert main(args) == 0
+    assert main([*_calibrate(sim, tmp_path, "A,B"), "--formats", "tab"]) == 0
     label = next(tmp_path.glob("RPCMAG140801T*_CLA_OB_M*.LBL")).read_text()
     assert "ground calibration alone" in label
     # fluxcal's default alignment file is a placeholder and the LEVEL_B label says so

@@ -11,8 +11,9 @@ from fluxcal.errors import CalibrationError, FluxcalError
 from fluxcal.geometry.days import day_midnight
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
-from fluxcal.missions.rosetta import averaged, calib, level_a, level_b, level_c, simulate
+from fluxcal.missions.rosetta import averaged, calib, level_a, level_b, level_c
 from fluxcal.missions.rosetta.synthetic_kernels import write_rosetta_like_kernels
+from tests.missions.rosetta._tables import rosetta_tables, simulate_with
 
 START = "2014-08-01T00:00:00"
 DURATION = 600.0
@@ -36,20 +37,9 @@ def _alignment():
 @pytest.fixture(scope="module")
 def run(kernels):
     with KernelPool(kernels):
-        cals = {s: calib.load_ground_calibration(s) for s in ("OB", "IB")}
-        ts, nom = calib.load_time_shift_table(), calib.load_nominal_conversion()
-        al, jumps = _alignment(), calib.load_offset_jump_table()
-        sim = simulate.simulate(
-            START,
-            DURATION,
-            calibrations=cals,
-            time_shifts=ts,
-            nominal=nom,
-            alignment=al,
-            jumps=jumps,
-            with_kernels=True,
-            seed=5,
-        )
+        tables = rosetta_tables(alignment=_alignment())
+        cals, ts, nom, al, jumps = tables
+        sim = simulate_with(tables, START, DURATION, with_kernels=True, seed=5)
         out = {}
         for sensor in ("OB", "IB"):
             a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom)

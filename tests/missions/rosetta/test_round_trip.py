@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from fluxcal.geometry.time import utc_to_tt2000
-from fluxcal.missions.rosetta import calib, io, level_a, simulate
+from fluxcal.missions.rosetta import calib, io, level_a
 from fluxcal.missions.rosetta.calib import DailyOffsetModel
+from tests.missions.rosetta._tables import rosetta_tables, simulate_with
 
 # The independent forward model (missions/rosetta/forward.py) quantises twice: the 20-bit
 # field LSB 0.0286 nT (uniform rounding: 0.0083 nT rms) and the 16-bit thermistor word, read
@@ -17,15 +18,22 @@ from fluxcal.missions.rosetta.calib import DailyOffsetModel
 RMS_NT = 0.03
 
 
-def _setup(calib_dir=None):
-    cals = {s: calib.load_ground_calibration(s, calib_dir) for s in ("OB", "IB")}
-    return (
-        cals,
-        calib.load_time_shift_table(calib_dir),
-        calib.load_nominal_conversion(calib_dir),
-        calib.load_alignment(calib_dir),
-        calib.load_offset_jump_table(calib_dir),
-    )
+#: The two days of the tests across midnight.
+DAYS = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
+
+
+def _two_day_models(slopes):
+    """Per sensor, a daily polynomial for each of `DAYS`: P_0 steps by (5, -3, 4) nT from
+    day 1 to day 2, P_1 is ``slopes[k]`` (nT/C) on day ``k``."""
+    models = {}
+    for sensor in ("OB", "IB"):
+        models[sensor] = {}
+        for k, day in enumerate(DAYS):
+            c = np.zeros((6, 3))
+            c[0] = [2.0 + 5 * k, -1.0 - 3 * k, 0.5 + 4 * k]
+            c[1] = slopes[k]
+            models[sensor][day] = DailyOffsetModel(day, sensor, c, f"{sensor} {day}")
+    return models
 
 
 def _compare(a, truth):
@@ -39,17 +47,9 @@ def _compare(a, truth):
 
 @pytest.mark.parametrize("sensor", ["OB", "IB"])
 def test_level_a_recovers_truth(pool, sensor):
-    cals, ts, nom, al, jumps = _setup()
-    sim = simulate.simulate(
-        "2014-08-01T00:00:00",
-        900.0,
-        calibrations=cals,
-        time_shifts=ts,
-        nominal=nom,
-        alignment=al,
-        jumps=jumps,
-        seed=1,
-    )
+    tables = rosetta_tables()
+    cals, ts, nom = tables[:3]
+    sim = simulate_with(tables, "2014-08-01T00:00:00", 900.0, seed=1)
     a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom)
     diff = _compare(a, sim.truth[sensor])
     rms = np.sqrt((diff**2).mean(axis=0))
@@ -89,20 +89,11 @@ def _user_calibration(tmp_path):
 def test_round_trip_with_user_calibration_dir_and_csv(pool, tmp_path, sensor):
     (tmp_path / "calib").mkdir()
     user_dir = _user_calibration(tmp_path / "calib")
-    cals, ts, nom, al, jumps = _setup(user_dir)
+    tables = rosetta_tables(user_dir)
+    cals, ts, nom = tables[:3]
     assert cals[sensor].version == "user-9"
     models = {s: calib.find_daily_offset_models(user_dir, s) for s in ("OB", "IB")}
-    sim = simulate.simulate(
-        "2014-08-01T00:00:00",
-        600.0,
-        calibrations=cals,
-        time_shifts=ts,
-        nominal=nom,
-        alignment=al,
-        jumps=jumps,
-        daily_models=models,
-        seed=2,
-    )
+    sim = simulate_with(tables, "2014-08-01T00:00:00", 600.0, daily_models=models, seed=2)
     path = io.write_science_csv(sim.science[sensor], tmp_path / f"{sensor}.csv")
     raw = io.read_science_csv(path, sensor)
     a = level_a.level_a(raw, cals[sensor], ts, nom, daily_models=models[sensor])
@@ -117,17 +108,9 @@ def test_round_trip_with_user_calibration_dir_and_csv(pool, tmp_path, sensor):
 
 
 def test_primary_ib_swaps_time_shift_tables(pool):
-    cals, ts, nom, al, jumps = _setup()
-    sim = simulate.simulate(
-        "2014-08-01T00:00:00",
-        300.0,
-        calibrations=cals,
-        time_shifts=ts,
-        nominal=nom,
-        alignment=al,
-        primary="IB",
-        seed=3,
-    )
+    tables = rosetta_tables()
+    cals, ts, nom = tables[:3]
+    sim = simulate_with(tables, "2014-08-01T00:00:00", 300.0, jumps=None, primary="IB", seed=3)
     for sensor in ("OB", "IB"):
         a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom, primary="IB")
         assert np.sqrt((_compare(a, sim.truth[sensor]) ** 2).mean()) < RMS_NT
@@ -136,27 +119,11 @@ def test_primary_ib_swaps_time_shift_tables(pool):
 def test_round_trip_across_midnight_with_two_daily_files(pool):
     """Two days, each with its own polynomial: LEVEL_A stays within the quantisation budget and
     the applied extended offset has no jump at midnight (sec. 4.2.3.3)."""
-    cals, ts, nom, al, jumps = _setup()
-    days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
-    models = {}
-    for sensor in ("OB", "IB"):
-        models[sensor] = {}
-        for k, day in enumerate(days):
-            c = np.zeros((6, 3))
-            c[0] = [2.0 + 5 * k, -1.0 - 3 * k, 0.5 + 4 * k]  # 5 nT step between the days' P_0
-            c[1] = [0.01, 0.02 * (1 - k), -0.01]
-            models[sensor][day] = DailyOffsetModel(day, sensor, c, f"{sensor} {day}")
-    sim = simulate.simulate(
-        "2014-08-01T23:55:00",
-        600.0,
-        calibrations=cals,
-        time_shifts=ts,
-        nominal=nom,
-        alignment=al,
-        jumps=jumps,
-        daily_models=models,
-        seed=7,
-    )
+    tables = rosetta_tables()
+    cals, ts, nom = tables[:3]
+    # a 5 nT step between the days' P_0
+    models = _two_day_models([[0.01, 0.02, -0.01], [0.01, 0.0, -0.01]])
+    sim = simulate_with(tables, "2014-08-01T23:55:00", 600.0, daily_models=models, seed=7)
     a = level_a.level_a(sim.science["OB"], cals["OB"], ts, nom, daily_models=models["OB"])
     diff = _compare(a, sim.truth["OB"])
     assert np.all(np.sqrt((diff**2).mean(axis=0)) < RMS_NT)
@@ -172,7 +139,7 @@ def test_round_trip_across_midnight_with_two_daily_files(pool):
         raw["t_ob_counts"].values[[last, first]], cals["OB"], nom
     )
     p = lambda c, t: c[0] + c[1] * t  # noqa: E731
-    c1, c2 = (models["OB"][d].coefficients for d in days)
+    c1, c2 = (models["OB"][d].coefficients for d in DAYS)
     np.testing.assert_allclose(state.correction, p(c2, tf) - p(c1, te), atol=1e-12)
     assert a.attrs["extended_temperature_model"].count("OB 2014-08-0") == 2
 
@@ -184,18 +151,18 @@ def test_round_trip_across_midnight_with_two_daily_files(pool):
 def test_round_trip_under_both_readings_of_the_switches(pool, residual, reduced):
     # B_RES_IN_OFFSET (up to 21.9 nT) and REDUCED_TEMPERATURE (T_OFF = 1.5/2.7 C in a cubic):
     # the forward model reads the same keys; the pipeline must honour them on every path
-    cals, ts, nom, al, jumps = _setup()
+    tables = rosetta_tables()
     cals = {s: replace(c, residual_in_offset=residual, reduced_temperature=reduced)
-            for s, c in cals.items()}
+            for s, c in tables.cals.items()}
+    tables = tables._replace(cals=cals)
+    ts, nom = tables.time_shifts, tables.nominal
     day = np.datetime64("2014-08-01")
     models = {}
     for sensor, sign in (("OB", 1.0), ("IB", -1.0)):
         c = np.zeros((6, 3))
         c[0], c[1], c[2] = sign * np.array([2.0, -1.0, 0.5]), [0.05, -0.03, 0.02], 2e-4
         models[sensor] = {day: DailyOffsetModel(day, sensor, c, f"{sensor} {day}")}
-    sim = simulate.simulate("2014-08-01T00:00:00", 300.0, calibrations=cals, time_shifts=ts,
-                            nominal=nom, alignment=al, jumps=jumps, daily_models=models,
-                            seed=11)
+    sim = simulate_with(tables, "2014-08-01T00:00:00", 300.0, daily_models=models, seed=11)
     for sensor in ("OB", "IB"):
         a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom,
                             daily_models=models[sensor])
@@ -210,20 +177,12 @@ def test_round_trip_across_midnight_after_a_gap(pool, gap_s, stitched):
     # forward model writes the seed's rule; a pipeline that matched the two polynomials at
     # the last temperature of day 1 instead would be off by P_2(T_first) - P_2(T_last)
     # (the issue's 0.5 nT for a 10 C change; here several nT)
-    cals, ts, nom, al, jumps = _setup()
-    days = [np.datetime64("2014-08-01"), np.datetime64("2014-08-02")]
-    models = {}
-    for sensor in ("OB", "IB"):
-        models[sensor] = {}
-        for k, day in enumerate(days):
-            c = np.zeros((6, 3))
-            c[0] = [2.0 + 5 * k, -1.0 - 3 * k, 0.5 + 4 * k]
-            c[1] = [0.01 + 0.05 * k, -0.04 * k, 0.03 * k]
-            models[sensor][day] = DailyOffsetModel(day, sensor, c, f"{sensor} {day}")
+    tables = rosetta_tables()
+    cals, ts, nom = tables[:3]
+    models = _two_day_models([[0.01, 0.0, 0.0], [0.01 + 0.05, -0.04, 0.03]])
     start, first = "2014-08-01T23:30:00", 1800.0  # day 1: its last 30 min
-    sim = simulate.simulate(start, first + gap_s + 1800.0, calibrations=cals, time_shifts=ts,
-                            nominal=nom, alignment=al, jumps=jumps, daily_models=models,
-                            rate_hz=2.0, gaps=[(first, first + gap_s)], seed=13)
+    sim = simulate_with(tables, start, first + gap_s + 1800.0, daily_models=models,
+                        rate_hz=2.0, gaps=[(first, first + gap_s)], seed=13)
     for sensor in ("OB", "IB"):
         a = level_a.level_a(sim.science[sensor], cals[sensor], ts, nom,
                             daily_models=models[sensor])
