@@ -15,34 +15,14 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from fluxcal.calibration.heater_signal import heater_periods, heater_signal
+from fluxcal.calibration.heater_signal import heater_periods
 from fluxcal.calibration.relaxation import duty_cycle_changes, relaxed_offset, steady_state_offset
-from fluxcal.missions.messenger.calibration_data import load_calibration
-
-CAL = load_calibration("2012-06-01")
-TAU, DT = 872.0, 10.0  # sec. 7
-D0 = np.array([0.17885, 0.32851, 0.01477])  # Table 3, counts per ppt
-K_FINE = np.array([0.046769, 0.046673, 0.047997])  # Table 4, nT per fine count
-QUIET = 200  # seconds of zero bits before the schedule (more than one period)
-
-
-def _bits(on_seconds):
-    """1-s bits: QUIET zeros, then one period per entry (on for the first d s)."""
-    out = [0] * QUIET
-    for d in on_seconds:
-        out += [1] * d + [0] * (100 - d)
-    out += [0] * 300
-    return np.arange(len(out), dtype=float), np.array(out, dtype=np.int8)
+from tests.calibration._heater_chain import CAL, D0, DT, K_FINE, QUIET, TAU, heater_chain
+from tests.calibration._heater_chain import schedule_bits as _bits
 
 
 def _pipeline(t, b, samples):
-    p = heater_periods(t, b)
-    ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
-    target = steady_state_offset(ch.duty_cycle_ppt, D0)
-    delta = relaxed_offset(samples, ch.time, target, tau=TAU, delay=DT, look_back=5,
-                           look_back_s=5000.0)
-    wave, _ = heater_signal(samples, p, CAL.heater_signal, CAL.heater_duty_bins_percent)
-    return p, ch, delta, wave
+    return heater_chain(t, b, samples)[:4]
 
 
 def _one_step(samples, t0, ppt):
@@ -85,9 +65,16 @@ def _gap_case(gap_from, gap_to):
     return _pipeline(t[keep], b[keep], samples), samples
 
 
-def test_gap_hiding_an_edge_with_the_bit_on_after_it():
-    edge = QUIET + 100 * 20
-    (p, ch, delta, wave), s = _gap_case(edge - 10, edge + 20)
+@pytest.mark.parametrize(("gap_from", "gap_to"), [
+    # a 30-s gap from 10 s before an edge: the bit is on after it
+    (QUIET + 100 * 20 - 10, QUIET + 100 * 20 + 20),
+    # a 65-s gap from 5 s before an edge: the whole 40-s on-phase is missing, the first
+    # record after the gap is off; the next edge, one period after the grid point,
+    # shows the heater kept cycling
+    (QUIET + 100 * 30 - 5, QUIET + 100 * 30 + 60),
+], ids=["edge_with_the_bit_on_after_it", "whole_on_phase"])
+def test_gap_hiding_an_edge(gap_from, gap_to):
+    (p, ch, delta, wave), s = _gap_case(gap_from, gap_to)
     starts = QUIET + 100.0 * np.arange(108)
     np.testing.assert_array_equal(p.start, starts)
     np.testing.assert_allclose(p.duty_cycle, 0.40)
@@ -99,20 +86,6 @@ def test_gap_hiding_an_edge_with_the_bit_on_after_it():
     # waveform: the scheduled periods outside the gap (inside it no bit tells the phase,
     # but the grid does: same waveform), 1e-9 counts
     np.testing.assert_allclose(wave, _scheduled_wave(s, starts, 40.0), atol=1e-9)
-
-
-def test_gap_hiding_a_whole_on_phase():
-    # 65-s gap from 5 s before an edge: the whole 40-s on-phase is missing, the first
-    # record after the gap is off; the next edge, one period after the grid point,
-    # shows the heater kept cycling
-    edge = QUIET + 100 * 30
-    (p, ch, delta, wave), s = _gap_case(edge - 5, edge + 60)
-    starts = QUIET + 100.0 * np.arange(108)
-    np.testing.assert_array_equal(p.start, starts)
-    np.testing.assert_allclose(p.duty_cycle, 0.40)
-    np.testing.assert_array_equal(ch.duty_cycle_ppt, [400, 0])
-    in_heat = s < starts[-1] + 100
-    np.testing.assert_allclose(delta[in_heat], _one_step(s, QUIET, 400)[in_heat], atol=1e-9)
 
 
 # --- +-1 s jitter of the on-count in every third period ---------------------------------

@@ -12,33 +12,14 @@ import numpy as np
 import pytest
 
 from fluxcal.calibration.heater_signal import heater_periods, heater_signal, persistent_bits
-from fluxcal.calibration.relaxation import duty_cycle_changes, relaxed_offset, steady_state_offset
-from fluxcal.missions.messenger.calibration_data import load_calibration
+from tests.calibration._heater_chain import CAL, K_FINE, QUIET, schedule_bits
+from tests.calibration._heater_chain import heater_chain as _run
 
-CAL = load_calibration("2012-06-01")
-TAU, DT = 872.0, 10.0  # sec. 7
-D0 = np.array([0.17885, 0.32851, 0.01477])  # Table 3, counts per ppt
-K_FINE = np.array([0.046769, 0.046673, 0.047997])  # Table 4, nT per fine count
-QUIET = 200
 N = 60  # periods at 40 %
 
 
 def _schedule():
-    out = [0] * QUIET
-    for _ in range(N):
-        out += [1] * 40 + [0] * 60
-    out += [0] * 300
-    return np.arange(len(out), dtype=float), np.array(out, dtype=np.int8)
-
-
-def _run(t, b, samples):
-    p = heater_periods(t, b)
-    ch = duty_cycle_changes(p, data_end=t[-1] + 1.0, data_start=t[0])
-    target = steady_state_offset(ch.duty_cycle_ppt, D0)
-    delta = relaxed_offset(samples, ch.time, target, tau=TAU, delay=DT, look_back=5,
-                           look_back_s=5000.0)
-    wave, applied = heater_signal(samples, p, CAL.heater_signal, CAL.heater_duty_bins_percent)
-    return p, ch, delta, wave, applied
+    return schedule_bits([40] * N)
 
 
 # (period, second within the period, run length, value written).  A wrong bit right next
@@ -124,14 +105,7 @@ def test_transition_among_short_runs_changes_the_fewest_bits():
 # quiet for 1000 s, 40 % again from 2200 s; the gap hides [2195, 2250).
 @pytest.mark.parametrize("gap", [(2195, 2250), (2199, 2241), (2150, 2245)])
 def test_gap_hiding_the_first_on_phase_after_quiet(gap):
-    blocks = [40, 0, 40, 40]
-    out = [0] * QUIET
-    for d in blocks:
-        for _ in range(10):
-            out += [1] * d + [0] * (100 - d)
-    out += [0] * 300
-    t = np.arange(len(out), dtype=float)
-    clean = np.array(out, dtype=np.int8)
+    t, clean = schedule_bits([d for d in (40, 0, 40, 40) for _ in range(10)])
     keep = (t < gap[0]) | (t >= gap[1])
     s = np.arange(0.0, t[-1], 0.5)
     p0, ch0, d0, w0, a0 = _run(t, clean, s)

@@ -105,28 +105,30 @@ SIGMA_PREDICTED = 0.25 * 14.0 * np.sqrt(3.0) / (5.0 * np.sqrt(DAY / (2 * np.sqrt
 ACCEPTANCE_NT = 0.2
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_davis_smith_one_day_within_0p2_nt(seed):
-    rng = np.random.default_rng(seed)
+def _one_day_within_0p2_nt(method, rng_seed, seed):
+    """One simulated Alfvenic day (random offset, gaps; generator ``rng_seed``): ``method``
+    finds the offset within ACCEPTANCE_NT and 5 standard errors, with a standard error
+    below twice SIGMA_PREDICTED.  Returns the estimate."""
+    rng = np.random.default_rng(rng_seed)
     offset = random_offset(rng)
     b = with_gaps(rng, alfvenic(rng, DAY // L_ALF) + offset)
-    est = davis_smith_offsets(b, interval_length=L_ALF, seed=seed, n_bootstrap=400)
+    est = method(b, interval_length=L_ALF, seed=seed, n_bootstrap=400)
     assert np.all(np.abs(est.offset - offset) < ACCEPTANCE_NT), est.offset - offset
     assert np.all(np.abs(est.offset - offset) < 5 * est.standard_error)
     assert np.all(est.standard_error < 2 * SIGMA_PREDICTED)
+    return est
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_davis_smith_one_day_within_0p2_nt(seed):
+    est = _one_day_within_0p2_nt(davis_smith_offsets, seed, seed)
     assert np.all(est.standard_error > SIGMA_PREDICTED / 2)
     assert est.n_used + est.n_rejected == est.labels.size
 
 
 @pytest.mark.parametrize("seed", range(3))
 def test_hedgecock_one_day_within_0p2_nt(seed):
-    rng = np.random.default_rng(100 + seed)
-    offset = random_offset(rng)
-    b = with_gaps(rng, alfvenic(rng, DAY // L_ALF) + offset)
-    est = hedgecock_offsets(b, interval_length=L_ALF, seed=seed, n_bootstrap=400)
-    assert np.all(np.abs(est.offset - offset) < ACCEPTANCE_NT), est.offset - offset
-    assert np.all(np.abs(est.offset - offset) < 5 * est.standard_error)
-    assert np.all(est.standard_error < 2 * SIGMA_PREDICTED)
+    _one_day_within_0p2_nt(hedgecock_offsets, 100 + seed, seed)
 
 
 @pytest.mark.parametrize("seed", range(4))

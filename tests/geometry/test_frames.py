@@ -17,12 +17,6 @@ TARGETS = ["J2000", "MSGR_MSO", "IAU_MERCURY", "MSGR_RTN", "MSGR_SPACECRAFT", "M
 
 
 @pytest.fixture(scope="module")
-def msgr_pool(messenger_kernels):
-    with KernelPool([messenger_kernels]) as pool:
-        yield pool
-
-
-@pytest.fixture(scope="module")
 def day_epochs(msgr_pool):
     et0 = spiceypy.str2et(DAY0)
     rng = np.random.default_rng(42)

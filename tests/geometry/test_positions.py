@@ -7,13 +7,6 @@ import pytest
 import spiceypy
 
 from fluxcal.geometry import positions
-from fluxcal.geometry.kernels import KernelPool
-
-
-@pytest.fixture(scope="module")
-def msgr_pool(messenger_kernels):
-    with KernelPool([messenger_kernels]) as pool:
-        yield pool
 
 
 @pytest.fixture(scope="module")
