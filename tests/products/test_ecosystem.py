@@ -12,7 +12,6 @@ readers.
 from __future__ import annotations
 
 import logging
-import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -26,14 +25,10 @@ from fluxcal.missions.messenger.products import istp_files as messenger_istp
 from fluxcal.missions.rosetta.pipeline import istp_yaml as rosetta_istp
 from fluxcal.products import read_fluxcal_product, write_product, zarr_available
 from fluxcal.products.cdf import istp_file_stem
+from tests.products._istp import SPACEPY_TOLERATED, istp_problems
 
 N = 1200  # 20 minutes at 1 Hz
 
-#: spacepy's VariableChecks.validdisplaytype wants DISPLAY_TYPE spectrogram for every
-#: multi-dimensional variable; ISTP (and pyspedas, which plots spectrograms as such) use
-#: time_series for vectors with LABL_PTR_1.  spacepy issue #387 (open) records the check as
-#: wrong for stacked line plots.  This is the only message tolerated (docs/decisions).
-SPACEPY_TOLERATED = re.compile(r"^\w+: Multi dim variable with time_series display type\.$")
 
 
 def _epoch(day: str, step_s: float = 1.0, n: int = N) -> np.ndarray:
@@ -389,25 +384,13 @@ def pipeline_products(tmp_path_factory) -> list[Path]:
 
 def test_pipeline_cdfs_pass_spacepy_and_cdflib_istp_checks(
         pipeline_products, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    from spacepy import pycdf
-    from spacepy.pycdf import istp
-
     cdfs = [p for p in pipeline_products if p.suffix == ".cdf"]
     kinds = {p.name.split("_")[2] for p in cdfs}
     # MESSENGER: 6 frames x (sci, avg1, avg60); Rosetta: A B C E F G x (OB, IB) + HK; synthetic
     assert len(cdfs) == 18 + 13 + 1, sorted(p.name for p in cdfs)
     assert {"mso-sci", "rtn-avg60", "cla-hk", "clg-ib-a01"} <= kinds
-    problems = {}
-    caplog.set_level(logging.INFO, logger="cdflib")
-    for path in cdfs:
-        with pycdf.CDF(str(path)) as f:
-            errors = [e for e in istp.FileChecks.all(f) if not SPACEPY_TOLERATED.match(e)]
-        caplog.clear()
-        cx.xarray_to_cdf(cx.cdf_to_xarray(str(path), to_datetime=False),
-                         str(tmp_path / path.name), istp=True)
-        errors += [r.getMessage() for r in caplog.records if r.name.startswith("cdflib")]
-        if errors:
-            problems[path.name] = errors
+    problems = {path.name: errors for path in cdfs
+                if (errors := istp_problems(path, tmp_path, caplog))}
     assert problems == {}
 
 

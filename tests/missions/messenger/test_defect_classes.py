@@ -121,7 +121,7 @@ def test_defect_flag_passes_istp_and_pds3_interop_checks(csv_run):
     from spacepy.pycdf import istp
 
     from fluxcal.archive import read_table
-    from tests.products.test_ecosystem import SPACEPY_TOLERATED
+    from tests.products._istp import SPACEPY_TOLERATED
 
     out, _ = csv_run(6, 7, 1.0)
     for name in ("messenger_mag_mso-sci_20120601_v01", "messenger_mag_mso-avg60_20120601_v01"):
