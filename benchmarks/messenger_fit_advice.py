@@ -42,6 +42,7 @@ from tests.missions.messenger._unseen_day import (  # noqa: E402
     inside_ranges,
     recalibrate_errors,
     rms,
+    unseen_orbit,
 )
 
 from fluxcal.errors import FitRefusedError  # noqa: E402
@@ -158,12 +159,7 @@ def check_table(res, run, days: int, tmp: Path, true) -> dict:
 def check_demo_table(res, out: Path, truth: Path) -> dict:
     """Write the demo's table and check it against its true tables and unseen 2-h orbit
     (`fit_demo.simulate_unseen`: heater on at the regulated -50 C, one warming run)."""
-    from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import SclkKernel, utc_to_et
     from fluxcal.missions.messenger import fit_demo
-    from fluxcal.missions.messenger.fit_variance import reduce_variance
-    from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
-    from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
 
     folder = out / "fitted"
@@ -172,15 +168,8 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     tc = load_calibration(fit_demo.UNSEEN_START, truth)
     cal = load_calibration(fit_demo.UNSEEN_START, folder)
     config = SimulationConfig()
-    mk = fit_demo.unseen_kernels(out)
-    with KernelPool(mk, frames=FRAME_KERNELS):
-        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
-        sim = fit_demo.simulate_unseen(tc, sclk)
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  res.calibration).offset_moments
-        ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
-                       frames=("sc",), max_offset_step=None)
-        et0 = float(utc_to_et(np.array([fit_demo.UNSEEN_START]))[0])
+    orbit = unseen_orbit(out, tc, cal, res.calibration)
+    sim, moments, ds, et0 = (orbit[k] for k in ("sim", "moments", "calibrated", "start_et"))
     tr = sim["truth"]
     # the commanded duty cycle of each sample's 1000-s block (the forward model's schedule)
     u = tr["et"].values - et0 + config.lead_s

@@ -33,12 +33,16 @@ def brute_force(ts, change_t, cstar, tau=TAU, dt=DT):
     return c[0] - (c[0] - ct0) * e(ts, t[0])
 
 
+def _changes(n: int, last_sample_s: float) -> dict:
+    """Hypothesis strategies: up to ``n`` changes 5..3000 s apart to values of -200..200,
+    1..30 samples from -100 s to ``last_sample_s``."""
+    return {"gaps": st.lists(st.floats(5.0, 3000.0), min_size=0, max_size=n - 1),
+            "values": st.lists(st.floats(-200, 200), min_size=n, max_size=n),
+            "samples": st.lists(st.floats(-100.0, last_sample_s), min_size=1, max_size=30)}
+
+
 @settings(max_examples=60, deadline=None)
-@given(
-    gaps=st.lists(st.floats(5.0, 3000.0), min_size=0, max_size=11),
-    values=st.lists(st.floats(-200, 200), min_size=12, max_size=12),
-    samples=st.lists(st.floats(-100.0, 40000.0), min_size=1, max_size=30),
-)
+@given(**_changes(12, 40000.0))
 def test_vectorized_equals_brute_force(gaps, values, samples):
     _check_against(brute_force, gaps, values, samples)
 
@@ -139,10 +143,6 @@ def brute_force_span(ts, change_t, cstar, span=5000.0, tau=TAU, dt=DT):
 
 
 @settings(max_examples=60, deadline=None)
-@given(
-    gaps=st.lists(st.floats(5.0, 3000.0), min_size=0, max_size=14),
-    values=st.lists(st.floats(-200, 200), min_size=15, max_size=15),
-    samples=st.lists(st.floats(-100.0, 60000.0), min_size=1, max_size=30),
-)
+@given(**_changes(15, 60000.0))
 def test_look_back_span_equals_brute_force(gaps, values, samples):
     _check_against(brute_force_span, gaps, values, samples, look_back_s=5000.0)

@@ -147,6 +147,14 @@ def test_the_check_would_catch_a_pipeline_import():
     assert any(_forbidden(m) for m in _imports("fluxcal.missions.messenger.pipeline"))
 
 
+def _modules_after(code: str) -> list[str]:
+    """The fluxcal modules a fresh interpreter holds after running ``code``."""
+    code += 'print(json.dumps(sorted(m for m in sys.modules if m.startswith("fluxcal"))))\n'
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=300)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def test_sys_modules_after_a_rosetta_simulation():
     code = """
 import json, sys
@@ -162,11 +170,8 @@ with KernelPool([]):
         alignment=simulate.synthetic_alignment(), jumps=calib.load_offset_jump_table(),
         daily_models=simulate.synthetic_daily_models(days), hk_period_s=2.0)
 assert sim.science["OB"].sizes["time"] == 400
-print(json.dumps(sorted(m for m in sys.modules if m.startswith("fluxcal"))))
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, timeout=300)
-    loaded = json.loads(out.stdout.strip().splitlines()[-1])
+    loaded = _modules_after(code)
     assert "fluxcal.missions.rosetta.forward" in loaded
     assert not [m for m in loaded if _forbidden(m)]
 
@@ -177,10 +182,7 @@ import json, sys
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
 run = simulate_flight({str(tmp_path)!r}, FlightConfig(days=1, rate_setting=3))
 assert run.n_samples == 8640
-print(json.dumps(sorted(m for m in sys.modules if m.startswith("fluxcal"))))
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, timeout=300)
-    loaded = json.loads(out.stdout.strip().splitlines()[-1])
+    loaded = _modules_after(code)
     assert "fluxcal.missions.messenger.forward" in loaded
     assert not [m for m in loaded if _forbidden(m)]

@@ -1,7 +1,9 @@
 """An unseen day recalibrated with a calibration folder, against the flight model's truth.
 
 The figure of merit of issue 21 (an unseen day's rms error per sensor axis), shared by
-``test_fit_verification.py`` and ``benchmarks/messenger_fit_pulls.py --unseen``.
+``test_fit_verification.py`` and ``benchmarks/messenger_fit_pulls.py --unseen``; and the
+fit demo's unseen 2-h orbit (`unseen_orbit`), shared by ``test_fit_demo_range.py`` and
+``benchmarks/messenger_fit_advice.py``.
 """
 
 from __future__ import annotations
@@ -13,8 +15,12 @@ import numpy as np
 
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.missions.messenger import fit_demo
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit_variance import reduce_variance
 from fluxcal.missions.messenger.flight_sim import read_flight_truth
+from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 
@@ -77,3 +83,23 @@ def recalibrate_rms(inp: Path, day: dt.date, folder: Path | None,
     """
     err, truth = recalibrate_errors(inp, day, folder)
     return rms(err, inside_ranges(truth, t_range))
+
+
+def unseen_orbit(out: Path, truth_cal, cal, fitted) -> dict:
+    """The fit demo's unseen 2-h orbit (`fit_demo.simulate_unseen` with the true tables
+    ``truth_cal``, kernels written under ``out``) and the pipeline's calibration of it with
+    ``cal`` (spacecraft frame, no offset-step limit).
+
+    Returns ``sim`` (the forward model's streams and truth), ``moments`` (the orbit's
+    offset moments, `reduce_variance` with the fitted calibration ``fitted``, for the
+    fit's prediction on it), ``calibrated`` and ``start_et`` (`fit_demo.UNSEEN_START`).
+    """
+    with KernelPool(fit_demo.unseen_kernels(out), frames=FRAME_KERNELS):
+        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
+        sim = fit_demo.simulate_unseen(truth_cal, sclk)
+        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
+                                  fitted).offset_moments
+        ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
+                       frames=("sc",), max_offset_step=None)
+        start_et = float(utc_to_et(np.array([fit_demo.UNSEEN_START]))[0])
+    return {"sim": sim, "moments": moments, "calibrated": ds, "start_et": start_et}

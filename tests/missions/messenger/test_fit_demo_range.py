@@ -18,8 +18,6 @@ import logging
 import numpy as np
 import pytest
 
-from fluxcal.geometry.kernels import KernelPool
-from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import fit_demo
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit_merit import predicted_error, range_bands
@@ -27,10 +25,8 @@ from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
     law_at,
     law_parameters,
-    reduce_variance,
 )
-from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
-from fluxcal.missions.messenger.pipeline import calibrate
+from tests.missions.messenger._unseen_day import unseen_orbit
 
 #: The regulated sensor temperature (C; sec. 7, eq. 2: the heater holds it there).
 REGULATED_C = -50.0
@@ -72,15 +68,9 @@ def test_the_demo_states_its_regulated_temperature_and_the_unseen_orbit_meets_it
     # sensor): every sample at the regulated temperature inside T_RANGE, the warned ones
     # only those of the warming run between the intervals; inside T_RANGE its field
     # within the goal the table states and within 1.5x the day's prediction
-    mk = fit_demo.unseen_kernels(tmp_path)
-    with KernelPool(mk, frames=FRAME_KERNELS):
-        sclk = SclkKernel.from_pool(SPACECRAFT_ID)
-        sim = fit_demo.simulate_unseen(tc, sclk)
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  res.calibration).offset_moments
-        with caplog.at_level(logging.WARNING):
-            ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
-                           frames=("sc",), max_offset_step=None)
+    with caplog.at_level(logging.WARNING):
+        orbit = unseen_orbit(tmp_path, tc, cal, res.calibration)
+    sim, moments, ds = orbit["sim"], orbit["moments"], orbit["calibrated"]
     temp = ds["temperature"].values
     regulated = temp < REGULATED_C + 1.0
     assert regulated.mean() > 0.5 and ranges.contains(temp[regulated]).all()

@@ -116,24 +116,31 @@ def test_vso_on_request(messenger_kernels, simulated, calibration):
     assert "b_j2000" not in ds
 
 
-def test_heater_always_on_round_trip(tmp_path):
-    # a bit that stays on (100 % duty, sec. 6-7: no rising edge inside the run) keeps the
-    # steady state D0 * 1000 (8.4/15.3/0.7 nT if read as the heater stopping); the forward
-    # model puts no cyclic waveform there (no on/off cycle)
+def _simulated_and_calibrated(tmp_path, duration_s, kernel_s, **schedule):
+    """A forward-model run from 2012-06-01 of ``duration_s`` at rate setting 6, fine range
+    only, with the heater ``schedule`` (SimulationConfig fields), and the pipeline's
+    calibration of it; (calibrated, truth)."""
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
     from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 
-    cfg = SimulationConfig(start_utc="2012-06-01T00:00:00", duration_s=4000.0,
-                           rate_segments=[(0.0, 6)], coarse_intervals=[],
-                           duty_cycles_percent=[40, 100, 100, 40, 30, 20])
-    mk = write_messenger_like_kernels(tmp_path, cfg.start_utc, 6000.0)
+    cfg = SimulationConfig(start_utc="2012-06-01T00:00:00", duration_s=duration_s,
+                           rate_segments=[(0.0, 6)], coarse_intervals=[], **schedule)
+    mk = write_messenger_like_kernels(tmp_path, cfg.start_utc, kernel_s)
     cal = load_calibration(cfg.start_utc)
     with KernelPool(mk):
         sim = simulate(cfg, cal, SclkKernel.from_pool(-236))
         ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal)
-    truth = sim["truth"]
+    return ds, sim["truth"]
+
+
+def test_heater_always_on_round_trip(tmp_path):
+    # a bit that stays on (100 % duty, sec. 6-7: no rising edge inside the run) keeps the
+    # steady state D0 * 1000 (8.4/15.3/0.7 nT if read as the heater stopping); the forward
+    # model puts no cyclic waveform there (no on/off cycle)
+    ds, truth = _simulated_and_calibrated(tmp_path, 4000.0, 6000.0,
+                                          duty_cycles_percent=[40, 100, 100, 40, 30, 20])
     # six changes at most behind every sample: eq. 6a-6f is exact (see above)
     np.testing.assert_allclose(ds["offset"].values, truth["offset"].values, atol=0.02)
     err = np.abs(ds["b_mso"].values - truth["b_mso"].values)
@@ -150,20 +157,8 @@ def test_heater_always_on_round_trip(tmp_path):
     {"heater_gaps": [(3050.0, 3110.0)]},
 ])
 def test_heater_bits_with_jitter_or_gap_round_trip(tmp_path, bits):
-    from fluxcal.geometry.time import SclkKernel
-    from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
-    from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
-
-    cfg = SimulationConfig(start_utc="2012-06-01T00:00:00", duration_s=7200.0,
-                           rate_segments=[(0.0, 6)], coarse_intervals=[],
-                           duty_cycles_percent=[40, 36, 25, 30, 21, 40], **bits)
-    mk = write_messenger_like_kernels(tmp_path, cfg.start_utc, 9000.0)
-    cal = load_calibration(cfg.start_utc)
-    with KernelPool(mk):
-        sim = simulate(cfg, cal, SclkKernel.from_pool(-236))
-        ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal)
-    truth = sim["truth"]
+    ds, truth = _simulated_and_calibrated(tmp_path, 7200.0, 9000.0,
+                                          duty_cycles_percent=[40, 36, 25, 30, 21, 40], **bits)
     # the schedule's changes over the heater stream (8600 s): 40 36 25 30 21 40 | 40 36 25
     assert ds.attrs["duty_cycle_changes"] == 8
     # waveform at each period's actual duty cycle (sec. 6), offsets within sec. 7's 0.6 DN

@@ -44,6 +44,15 @@ def _fit(science: Path, out: Path) -> int:
                  "--estimator", "zero-mean", "--out", str(out)])
 
 
+def _capture_pictures(monkeypatch) -> list:
+    """The pictures the fit hands to ``write_fit_report``, collected as it writes them."""
+    drawn = []
+    real = rfp.write_fit_report
+    monkeypatch.setattr(rfp, "write_fit_report",
+                        lambda out, pics, title: (drawn.extend(pics), real(out, pics, title))[1])
+    return drawn
+
+
 def _links(index: Path) -> list[str]:
     return re.findall(r'(?:href|src)="([^"#][^"]*)"', index.read_text())
 
@@ -54,10 +63,7 @@ def test_daily_curve_drawn_is_the_written_file(science, tmp_path, monkeypatch):
 
     from fluxcal.products.fit_plots import panel_figure
 
-    drawn = []
-    real = rfp.write_fit_report
-    monkeypatch.setattr(rfp, "write_fit_report",
-                        lambda out, pics, title: (drawn.extend(pics), real(out, pics, title))[1])
+    drawn = _capture_pictures(monkeypatch)
     out = tmp_path / "fit"
     assert _fit(science, out) == 0
     png = out / f"fit_{DAY}_OB.png"
@@ -99,10 +105,7 @@ def test_without_matplotlib_the_fit_runs_and_says_so(science, tmp_path, monkeypa
 
 def test_jump_fit_picture(tmp_path, capsys, monkeypatch):
     """``--jumps``: the interval offsets drawn are the written Appendix B table's."""
-    drawn = []
-    real = rfp.write_fit_report
-    monkeypatch.setattr(rfp, "write_fit_report",
-                        lambda out, pics, title: (drawn.extend(pics), real(out, pics, title))[1])
+    drawn = _capture_pictures(monkeypatch)
     sim = tmp_path / "sim"
     assert main(["simulate", "rosetta", "--out", str(sim), "--hours", "0.1", "--rate", "2"]) == 0
     out = tmp_path / "out"
