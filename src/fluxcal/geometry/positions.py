@@ -33,6 +33,22 @@ def _utc(et: float) -> str:
         return f"ET {et:.3f}"
 
 
+def _per_epoch(call, et: np.ndarray, out: np.ndarray, what: str) -> np.ndarray:
+    """Fill ``out[i] = call(et[i])``, one SPICE call per epoch (the reference paths).
+
+    A SPICE error is raised again by `spice_errors` naming ``what`` and the failing
+    epoch's UTC; the context (with its UTC string) is built only for that epoch.
+    """
+    i = 0
+    try:
+        for i, t in enumerate(et):
+            out[i] = call(float(t))
+    except spiceypy.utils.exceptions.SpiceyError:
+        with spice_errors(f"{what} at {_utc(et[i])}"):
+            call(float(et[i]))
+    return out
+
+
 def states_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> np.ndarray:
     """Return (n, 6) states (km, km/s) with one ``spkezr`` call per epoch, abcorr NONE.
 
@@ -43,31 +59,17 @@ def states_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> np.
     out = np.empty((et.size, 6))
     if spkezr_into(target, observer, frame, et, out):  # the same CSPICE call, one loop
         return out
-    i = 0  # an error: repeat through spiceypy to raise naming the epoch
-    try:
-        for i, t in enumerate(et):
-            out[i] = spiceypy.spkezr(target, float(t), frame, "NONE", observer)[0]
-    except spiceypy.utils.exceptions.SpiceyError:
-        # the context (with its UTC string) is built only for the failing epoch
-        with spice_errors(f"state of {target} relative to {observer} in {frame} at "
-                          f"{_utc(et[i])}"):
-            spiceypy.spkezr(target, float(et[i]), frame, "NONE", observer)
-    return out
+    # an error: repeat through spiceypy to raise naming the epoch
+    return _per_epoch(lambda t: spiceypy.spkezr(target, t, frame, "NONE", observer)[0], et,
+                      out, f"state of {target} relative to {observer} in {frame}")
 
 
 def position_oracle(target: str, observer: str, frame: str, et: np.ndarray) -> np.ndarray:
     """Return (n, 3) positions (km) with one ``spkpos`` call per epoch (the reference path)."""
     et = np.atleast_1d(np.asarray(et, dtype=float))
-    out = np.empty((et.size, 3))
-    i = 0
-    try:
-        for i, t in enumerate(et):
-            out[i] = spiceypy.spkpos(target, float(t), frame, "NONE", observer)[0]
-    except spiceypy.utils.exceptions.SpiceyError:
-        with spice_errors(f"position of {target} relative to {observer} in {frame} at "
-                          f"{_utc(et[i])}"):
-            spiceypy.spkpos(target, float(et[i]), frame, "NONE", observer)
-    return out
+    return _per_epoch(lambda t: spiceypy.spkpos(target, t, frame, "NONE", observer)[0], et,
+                      np.empty((et.size, 3)),
+                      f"position of {target} relative to {observer} in {frame}")
 
 
 def hermite_coefficients(nodes: np.ndarray, states: np.ndarray) -> np.ndarray:
