@@ -161,7 +161,6 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel, utc_to_et
     from fluxcal.missions.messenger import fit_demo
-    from fluxcal.missions.messenger.fit_variance import reduce_variance
     from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
     from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
@@ -176,8 +175,8 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = fit_demo.simulate_unseen(tc, sclk)
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  res.calibration).offset_moments
+        day = fit_merit.day_samples(sim["science"], sim["heater"], sim["temperature"], sclk,
+                                    res.calibration)
         ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
                        frames=("sc",), max_offset_step=None)
         et0 = float(utc_to_et(np.array([fit_demo.UNSEEN_START]))[0])
@@ -193,7 +192,7 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     err = ds["b_sensor"].values - tr["b_sensor"].values
     unseen = rms(err, both)
     predicted = np.asarray(res.merit["total_nt"])
-    day_pred = np.asarray(fit_merit.predicted_error(res, moments=moments)["total_nt"])
+    day_pred = np.asarray(fit_merit.predicted_error(res, day=day)["total_nt"])
     lo, hi = res.merit["data_range_c"]
     grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, 0.5)
     grid = grid[res.stated_ranges.contains(grid)]

@@ -22,12 +22,11 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import fit_demo
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit_merit import predicted_error, range_bands
+from fluxcal.missions.messenger.fit_merit import day_samples, predicted_error, range_bands
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
     law_at,
     law_parameters,
-    reduce_variance,
 )
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.pipeline import calibrate
@@ -76,8 +75,8 @@ def test_the_demo_states_its_regulated_temperature_and_the_unseen_orbit_meets_it
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = fit_demo.simulate_unseen(tc, sclk)
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  res.calibration).offset_moments
+        day = day_samples(sim["science"], sim["heater"], sim["temperature"], sclk,
+                          res.calibration)
         with caplog.at_level(logging.WARNING):
             ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
                            frames=("sc",), max_offset_step=None)
@@ -96,7 +95,7 @@ def test_the_demo_states_its_regulated_temperature_and_the_unseen_orbit_meets_it
     fine = (sim["truth"]["range"].values == 0) & ~outside
     err = ds["b_sensor"].values[fine] - sim["truth"]["b_sensor"].values[fine]
     rms = np.sqrt(np.mean(err ** 2, axis=0))
-    predicted = np.asarray(predicted_error(res, moments=moments)["total_nt"])
+    predicted = np.asarray(predicted_error(res, day=day)["total_nt"])
     print(f"T_RANGE {ranges} C; regulated offset error {true_err.round(3)} nT against "
           f"{stated.round(3)} stated; unseen orbit inside T_RANGE {rms.round(3)} nT, "
           f"predicted {predicted.round(3)} nT; {int(outside.sum())} of {temp.size} samples "

@@ -280,7 +280,6 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit_variance import reduce_variance
     from fluxcal.missions.messenger.pipeline import calibrate
 
     out = Path(out)
@@ -292,10 +291,11 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = simulate_unseen(truth_cal, sclk)
-        # the prediction for this day: its own temperatures and relaxed duty cycles
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  result.calibration).offset_moments
-        unseen_pred = fit_merit.predicted_error(result, moments=moments)["total_nt"]
+        # the prediction for this day: its own temperatures, relaxed duty cycles and
+        # heater duty-cycle mix
+        day = fit_merit.day_samples(sim["science"], sim["heater"], sim["temperature"], sclk,
+                                    result.calibration)
+        unseen_pred = fit_merit.predicted_error(result, day=day)["total_nt"]
         tr = sim["truth"]
         fine = tr["range"].values == 0
         for name, folder in (("shipped tables", None), ("fitted folder", fitted),
