@@ -19,7 +19,8 @@
    the least goal whose table states the regulated -50 C), as a user would, says so, and
    every header states it.
 4. An unseen day (the forward model's own field: Mercury dipole, IMF, waves), the fit's
-   predicted error for it (`fit_merit.predicted_error` with its samples), calibrated
+   predicted error for it (`fit_merit.predicted_error` with its samples and duty
+   cycles, `fit_merit.day_samples`), calibrated
    with the shipped tables and with the fitted folder (``edr2cdr --calib``'s
    `load_calibration(day, folder)`), both compared with the truth.
 
@@ -338,8 +339,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
             (cal.heater_signal - tc.heater_signal)[:, :100] ** 2, axis=(1, 2)))),
         "  predicted error of a recalibrated day (nT rms, sensor x y z): "
         + " ".join(f"{v:.3f}" for v in result.merit.get("total_nt", [float("nan")] * 3))
-        + " over the fitted days, "
-        + " ".join(f"{v:.3f}" for v in unseen_pred) + " for the unseen day below",
+        + " stated (the fitted days, each waveform column's share at least the even one "
+        "over D_RANGE), "
+        + " ".join(f"{v:.3f}" for v in unseen_pred) + " for the unseen day below (its own "
+        "samples and duty cycles)",
         "  unseen 2-h day (Mercury orbit, 20/5/1/10 Hz; fine-range samples):",
     ]
     return "\n".join(head + lines)

@@ -71,6 +71,14 @@ def merit_lines(result: FitResult) -> list[str]:
             f"fitted days' temperatures and duty cycles, the waveforms' stated error, the "
             f"counts' rounding); goal "
             f"{goal:g} nT")
+        if "waveform_fitted_mix_nt" in m:
+            lines.append(
+                "its waveform part " + " / ".join(f"{v:.3f}" for v in m["waveform_nt"])
+                + " nT (WAVEFORM_PART_NT) weighs each column's stated error (WAVEFORM_ERROR) "
+                "by the fitted days' share of its duty bin, at least the even share over "
+                "D_RANGE (a day to be calibrated has its own mix; at the fitted mix alone "
+                + " / ".join(f"{v:.3f}" for v in m["waveform_fitted_mix_nt"])
+                + " nT); calibrating a day whose own mix gives more warns")
         if goal > ERROR_GOAL_NT:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
                          f"{goal:g}")
