@@ -39,6 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from messenger_fit_pulls import NT_PER_COUNT, WORLDS, _law, world_model  # noqa: E402
 from tests.missions.messenger._unseen_day import (  # noqa: E402
+    commanded_duty,
     inside_ranges,
     recalibrate_errors,
     rms,
@@ -159,18 +160,16 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     """Write the demo's table and check it against its true tables and unseen 2-h orbit
     (`fit_demo.simulate_unseen`: heater on at the regulated -50 C, one warming run)."""
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.geometry.time import SclkKernel, utc_to_et
+    from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import fit_demo
     from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
     from fluxcal.missions.messenger.pipeline import calibrate
-    from fluxcal.missions.messenger.simulate import SimulationConfig
 
     folder = out / "fitted"
     write_calibration_folder(res, folder, None, {"inputs": {}, "intervals": "all data",
                                                  "days": "demo", "command": "advice"})
     tc = load_calibration(fit_demo.UNSEEN_START, truth)
     cal = load_calibration(fit_demo.UNSEEN_START, folder)
-    config = SimulationConfig()
     mk = fit_demo.unseen_kernels(out)
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
@@ -179,14 +178,12 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
                                     res.calibration)
         ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
                        frames=("sc",), max_offset_step=None)
-        et0 = float(utc_to_et(np.array([fit_demo.UNSEEN_START]))[0])
+        # the commanded duty cycle of each sample's 1000-s block (the forward model's
+        # schedule; the leapseconds kernel loaded)
+        duty = commanded_duty(sim["truth"]["et"].values, fit_demo.UNSEEN_START)
     tr = sim["truth"]
-    # the commanded duty cycle of each sample's 1000-s block (the forward model's schedule)
-    u = tr["et"].values - et0 + config.lead_s
-    block = np.floor(u / config.block_s).astype(int)
-    duty = np.asarray(config.duty_cycles_percent)[np.mod(np.maximum(block, 0), 12)]
     truth_d = {"met": tr["et"].values, "temperature_c": tr["temperature"].values,
-               "duty_percent": np.where(block >= 0, duty, 0)}
+               "duty_percent": duty}
     both = inside_ranges(truth_d, _prediction_range(res), res.duty_range) & (
         tr["range"].values == 0)
     err = ds["b_sensor"].values - tr["b_sensor"].values

@@ -13,10 +13,12 @@ import numpy as np
 
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.geometry.kernels import KernelPool
+from fluxcal.geometry.time import utc_to_et
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.flight_sim import read_flight_truth
 from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+from fluxcal.missions.messenger.simulate import SimulationConfig
 
 
 def day_streams(inp: Path, day: dt.date):
@@ -60,6 +62,20 @@ def inside_ranges(truth: dict[str, np.ndarray],
         on = (d >= 10) & (d < 100)
         ok &= ~on | ((d >= d_range[0]) & (d < d_range[1]))
     return ok
+
+
+def commanded_duty(et: np.ndarray, start_utc: str) -> np.ndarray:
+    """The duty cycle (percent) `simulate` commands at each ET (0 before its schedule).
+
+    `SimulationConfig`'s default schedule: 1000-s blocks cycling through its duty cycles
+    from ``lead_s`` before ``start_utc`` (the fit demo's unseen 2-h orbit).
+    """
+    config = SimulationConfig()
+    et0 = float(utc_to_et(np.array([start_utc]))[0])
+    block = np.floor((np.asarray(et, dtype=float) - et0 + config.lead_s)
+                     / config.block_s).astype(int)
+    duty = np.asarray(config.duty_cycles_percent)
+    return np.where(block >= 0, duty[np.mod(np.maximum(block, 0), duty.size)], 0)
 
 
 def rms(err: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
