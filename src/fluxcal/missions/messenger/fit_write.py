@@ -393,7 +393,7 @@ def waveform_error_lines(result: FitResult, axis: int) -> list[str]:
     part of its own duty-cycle mix from them (`pipeline.warn_waveform_part`).
     """
     err = result.waveform_error
-    if err is None:
+    if err is None or not np.all(np.isfinite(err)):
         return []
     text = " ".join(f"{v:.4g}" for v in np.asarray(err, dtype=float)[axis])
     return [f"# {WAVEFORM_ERROR_KEY}: {text}"]
@@ -402,7 +402,8 @@ def waveform_error_lines(result: FitResult, axis: int) -> list[str]:
 def waveform_part_line(result: FitResult) -> list[str]:
     """Header line: the waveform part of the stated prediction (nT, x y z), or none."""
     m = result.merit
-    if not m or "waveform_nt" not in m or result.waveform_error is None:
+    if (not m or "waveform_nt" not in m or result.waveform_error is None
+            or not np.all(np.isfinite(m["waveform_nt"]))):
         return []
     return [f"# {WAVEFORM_PART_KEY}: " + " ".join(f"{v:.4g}" for v in m["waveform_nt"])]
 
