@@ -160,29 +160,23 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     """Write the demo's table and check it against its true tables and unseen 2-h orbit
     (`fit_demo.simulate_unseen`: heater on at the regulated -50 C, one warming run)."""
     from fluxcal.missions.messenger import fit_demo
-    from fluxcal.missions.messenger.simulate import SimulationConfig
 
     folder = out / "fitted"
     write_calibration_folder(res, folder, None, {"inputs": {}, "intervals": "all data",
                                                  "days": "demo", "command": "advice"})
     tc = load_calibration(fit_demo.UNSEEN_START, truth)
     cal = load_calibration(fit_demo.UNSEEN_START, folder)
-    config = SimulationConfig()
     orbit = unseen_orbit(out, tc, cal, res.calibration)
-    sim, moments, ds, et0 = (orbit[k] for k in ("sim", "moments", "calibrated", "start_et"))
+    sim, day, ds, duty = (orbit[k] for k in ("sim", "day", "calibrated", "duty"))
     tr = sim["truth"]
-    # the commanded duty cycle of each sample's 1000-s block (the forward model's schedule)
-    u = tr["et"].values - et0 + config.lead_s
-    block = np.floor(u / config.block_s).astype(int)
-    duty = np.asarray(config.duty_cycles_percent)[np.mod(np.maximum(block, 0), 12)]
     truth_d = {"met": tr["et"].values, "temperature_c": tr["temperature"].values,
-               "duty_percent": np.where(block >= 0, duty, 0)}
+               "duty_percent": duty}
     both = inside_ranges(truth_d, _prediction_range(res), res.duty_range) & (
         tr["range"].values == 0)
     err = ds["b_sensor"].values - tr["b_sensor"].values
     unseen = rms(err, both)
     predicted = np.asarray(res.merit["total_nt"])
-    day_pred = np.asarray(fit_merit.predicted_error(res, moments=moments)["total_nt"])
+    day_pred = np.asarray(fit_merit.predicted_error(res, day=day)["total_nt"])
     lo, hi = res.merit["data_range_c"]
     grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, 0.5)
     grid = grid[res.stated_ranges.contains(grid)]

@@ -62,11 +62,13 @@ from fluxcal.geometry.time import SclkKernel  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
+    FitSettings,
     break_refusal,
     check_fit,
     day_chunks,
     fit_days,
     merit_inside_range,
+    reduce_chunk,
 )
 from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
@@ -136,6 +138,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         unseen_rms = unseen_in = unseen_both = unseen_beyond = nan3
         beyond_share = np.nan
         wave_parts = {}
+        day_pred = {}
         if unseen:
             folder = Path(tmp) / "fitted"
             write_calibration_folder(res, folder, None, {
@@ -152,6 +155,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             beyond_share = float(np.count_nonzero(in_t & ~both)) / max(in_t.sum(), 1)
             wave_parts = waveform_parts(run.input_dir, run.days[-1], folder, res, true,
                                         truth, in_t & ~both)
+            day_pred = unseen_day_prediction(run.input_dir, run.days[-1], res)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
         (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
@@ -187,6 +191,9 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         / np.array([f.x_m_err for f in res.temperature]),
         "tm_err": np.array([f.x_m_err for f in res.temperature]),
         "predicted_nt": np.asarray(res.merit.get("total_nt", [np.nan] * 3)),
+        "stated_waveform_nt": np.asarray(res.merit.get("waveform_nt", [np.nan] * 3)),
+        "fitted_mix_waveform_nt": np.asarray(res.merit.get("waveform_fitted_mix_nt",
+                                                           [np.nan] * 3)),
         "passes": res.convergence["passes_run"],
         "unseen_nt": unseen_rms,
         "unseen_in_range_nt": unseen_in,
@@ -195,6 +202,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "unseen_beyond_duty_share": beyond_share,
         "duty_range": res.duty_range,
         "waveform_parts": wave_parts,
+        "day_prediction": day_pred,
         "duty_outside_share": (res.merit.get("samples_outside_duty_range", 0)
                                / max(res.merit.get("heater_on_samples", 0), 1)),
         "predicted_without_duty_nt": _prediction_without_duty_range(res),
@@ -270,6 +278,24 @@ def waveform_parts(inp: Path, day, folder: Path, res, true, truth: dict,
         out["fitted_share"] = np.round(fitted_share, 3)
         out["unseen_share"] = np.round(unseen_share, 3)
     return out
+
+
+def unseen_day_prediction(inp: Path, day, res) -> dict:
+    """The prediction for the unseen day itself (`fit_merit.DaySamples`: its own
+    temperatures, relaxed duty cycles and duty-bin counts; entry 3x-dutymix), over its
+    samples inside T_RANGE as `merit_inside_range` holds the fit's own: ``total_nt``,
+    ``waveform_nt``."""
+    reduced = reduce_chunk(day_chunks(inp, [day])[0], res.calibration, None, FitSettings(),
+                           estimator="variance")
+    samples = fit_merit.DaySamples.of(*reduced)
+    mom = samples.moments
+    ranges = res.stated_ranges
+    if ranges is not None and ranges.contains(-50.0):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            inside = (mom[:, 0] > 0) & ranges.contains(mom[:, 1] / mom[:, 0])
+        samples = dataclasses.replace(samples, moments=mom * inside[:, None])
+    p = fit_merit.predicted_error(res, res.merit.get("goal_nt", 0.1), day=samples)
+    return {"total_nt": np.round(p["total_nt"], 3), "waveform_nt": np.round(p["waveform_nt"], 3)}
 
 
 def _parts(p: dict) -> str:
@@ -398,7 +424,10 @@ def main() -> None:
               f"{np.round(r['predicted_without_duty_nt'], 3)} nT); unseen heater-on outside "
               f"D_RANGE {np.round(r['unseen_beyond_duty_nt'], 3)} nT "
               f"({r['unseen_beyond_duty_share']:.1%} of the samples in T_RANGE); waveform "
-              f"part alone {_parts(r['waveform_parts'])}; held upper "
+              f"part alone {_parts(r['waveform_parts'])}; the unseen day's own prediction "
+              f"{_parts(r['day_prediction'])} (stated waveform part "
+              f"{np.round(r['stated_waveform_nt'], 3)} nT, fitted mix "
+              f"{np.round(r['fitted_mix_waveform_nt'], 3)} nT); held upper "
               f"segments {r['held_upper']}; law band "
               f"max {np.round(r['law_band_max_nt'], 3)} nT, law max |error / band| "
               f"{np.round(r['law_max_pull'], 2)}; passes {r['passes']}; guards: "

@@ -11,6 +11,7 @@ __all__ = [
     "constrained_fits",
     "counts",
     "gain_matrix",
+    "heater_error",
     "heater_signal",
     "matrices",
     "mirror_mode_offsets",

@@ -18,11 +18,12 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger import fit_demo
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit_variance import reduce_variance
+from fluxcal.missions.messenger.fit_merit import day_samples
 from fluxcal.missions.messenger.flight_sim import read_flight_truth
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
+from fluxcal.missions.messenger.simulate import SimulationConfig
 
 
 def day_streams(inp: Path, day: dt.date):
@@ -68,6 +69,20 @@ def inside_ranges(truth: dict[str, np.ndarray],
     return ok
 
 
+def commanded_duty(et: np.ndarray, start_utc: str) -> np.ndarray:
+    """The duty cycle (percent) `simulate` commands at each ET (0 before its schedule).
+
+    `SimulationConfig`'s default schedule: 1000-s blocks cycling through its duty cycles
+    from ``lead_s`` before ``start_utc`` (the fit demo's unseen 2-h orbit).
+    """
+    config = SimulationConfig()
+    et0 = float(utc_to_et(np.array([start_utc]))[0])
+    block = np.floor((np.asarray(et, dtype=float) - et0 + config.lead_s)
+                     / config.block_s).astype(int)
+    duty = np.asarray(config.duty_cycles_percent)
+    return np.where(block >= 0, duty[np.mod(np.maximum(block, 0), duty.size)], 0)
+
+
 def rms(err: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """Per-axis rms of ``err`` over ``mask`` (NaN where no sample)."""
     e = err if mask is None else err[mask]
@@ -90,16 +105,18 @@ def unseen_orbit(out: Path, truth_cal, cal, fitted) -> dict:
     ``truth_cal``, kernels written under ``out``) and the pipeline's calibration of it with
     ``cal`` (spacecraft frame, no offset-step limit).
 
-    Returns ``sim`` (the forward model's streams and truth), ``moments`` (the orbit's
-    offset moments, `reduce_variance` with the fitted calibration ``fitted``, for the
-    fit's prediction on it), ``calibrated`` and ``start_et`` (`fit_demo.UNSEEN_START`).
+    Returns ``sim`` (the forward model's streams and truth), ``day`` (the orbit's
+    `fit_merit.DaySamples`: its offset moments and heater-on samples per duty bin,
+    reduced with the fitted calibration ``fitted``, for the fit's prediction on it),
+    ``calibrated`` and ``duty`` (the duty cycle the forward model's schedule commands at
+    each true sample, `commanded_duty`).
     """
     with KernelPool(fit_demo.unseen_kernels(out), frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = fit_demo.simulate_unseen(truth_cal, sclk)
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  fitted).offset_moments
+        day = day_samples(sim["science"], sim["heater"], sim["temperature"], sclk, fitted)
         ds = calibrate(sim["science"], sim["heater"], sim["temperature"], cal,
                        frames=("sc",), max_offset_step=None)
-        start_et = float(utc_to_et(np.array([fit_demo.UNSEEN_START]))[0])
-    return {"sim": sim, "moments": moments, "calibrated": ds, "start_et": start_et}
+        # the forward model's schedule (the leapseconds kernel loaded)
+        duty = commanded_duty(sim["truth"]["et"].values, fit_demo.UNSEEN_START)
+    return {"sim": sim, "day": day, "calibrated": ds, "duty": duty}

@@ -189,11 +189,16 @@ def test_fit_states_d_range_and_the_samples_above_it_are_warned_and_left_out(tmp
     assert share_true > 0.005  # 1000 samples (one 1000-s block at 42-45 %)
     assert share_fit == pytest.approx(share_true, rel=0.05), (share_fit, share_true)
     # the waveform part holds for the samples inside: each column's stated error
-    # weighted by its bin's share of the samples inside T_RANGE and D_RANGE
+    # weighted by its bin's share of the samples inside T_RANGE and D_RANGE (at the
+    # fitted mix); the stated part floors each share at the even one (entry 3x-dutymix)
     count = np.array([wf.count.sum() for wf in res.stats.waveform], dtype=float)
-    var = (res.waveform_error ** 2 * count).sum(axis=1) / (
-        m["samples"] - m["samples_outside_duty_range"])
+    n_in = m["samples"] - m["samples_outside_duty_range"]
+    var = (res.waveform_error ** 2 * count).sum(axis=1) / n_in
     mat = np.asarray(res.calibration.matrices[0])
+    np.testing.assert_allclose(m["waveform_fitted_mix_nt"], np.sqrt(mat ** 2 @ var),
+                               rtol=1e-9)
+    even = np.maximum(count, count.sum() / count.size)  # every bin inside 10..42 %
+    var = (res.waveform_error ** 2 * even).sum(axis=1) / n_in
     np.testing.assert_allclose(m["waveform_nt"], np.sqrt(mat ** 2 @ var), rtol=1e-9)
     # the written tables state it, the loader reads it, calibrating warns for them
     out = tmp_path / "fitted"
@@ -204,7 +209,11 @@ def test_fit_states_d_range_and_the_samples_above_it_are_warned_and_left_out(tmp
         assert "# D_RANGE: 10 42\n" in text
         assert "the predicted error's waveform part holds for the heater-on samples inside "\
                "D_RANGE 10..42 %" in text
-    assert load_calibration(START, out).duty_range == (10.0, 42.0)
+    cal = load_calibration(START, out)
+    assert cal.duty_range == (10.0, 42.0)
+    # each column's stated error and the stated part, read back (4 significant digits)
+    np.testing.assert_allclose(cal.waveform_error, res.waveform_error, rtol=1e-3)
+    np.testing.assert_allclose(cal.waveform_part_nt, m["waveform_nt"], rtol=1e-3)
     with caplog.at_level(logging.WARNING):
         err, truth3 = recalibrate_errors(run.input_dir, run.days[2], out)
     msg = next(r.getMessage() for r in caplog.records if "D_RANGE" in r.getMessage())

@@ -81,9 +81,9 @@ def test_cold_table_predicts_the_error_of_a_warmer_unseen_day(tmp_path):
     assert hi <= -25.0, (lo, hi)
     assert sorted(res.held_upper) == ["x", "y", "z"]
     day = unseen.days[0]
-    moments = reduce_chunk(day_chunks(unseen.input_dir, [day])[0], res.calibration, None,
-                           FitSettings(), estimator="variance")[1].offset_moments
-    pred = fit_merit.predicted_error(res, moments=moments)
+    reduced = reduce_chunk(day_chunks(unseen.input_dir, [day])[0], res.calibration, None,
+                           FitSettings(), estimator="variance")
+    pred = fit_merit.predicted_error(res, day=fit_merit.DaySamples.of(*reduced))
     # the law's true error over the unseen day's fine-range samples, from the truth
     tr = read_flight_truth(unseen.input_dir, day)
     t = tr["temperature_c"][tr["range"] == 0]

@@ -259,6 +259,14 @@ class MessengerCalibration:
         calibrating a heater-on sample outside it warns
         (`pipeline.warn_outside_duty_range`).  Several files: the narrowest (their
         intersection).  None: no file states one (the seed's Tables 6-8), nothing warns.
+    waveform_error : ndarray, shape (3, n_bins) or None
+        ``WAVEFORM_ERROR`` of the heater-signal files' headers: each column's stated
+        error (counts, 1 sigma, rms over the phase) per axis.  None unless all three
+        files state it (the seed's tables, fits before it was written).
+    waveform_part_nt : ndarray, shape (3,) or None
+        ``WAVEFORM_PART_NT``: the waveform part (nT, sensor x y z) of the fit's stated
+        prediction; a calibrated day whose own duty cycles give more warns
+        (`pipeline.warn_waveform_part`).  Several files: the least per axis.
     """
 
     net_lag_s: np.ndarray
@@ -276,6 +284,8 @@ class MessengerCalibration:
     paths: tuple[Path, ...] = ()
     temperature_range: StatedRanges | None = None
     duty_range: tuple[float, float] | None = None
+    waveform_error: np.ndarray | None = None
+    waveform_part_nt: np.ndarray | None = None
 
     def __repr__(self) -> str:
         """Two lines: the tables by version and folder, then validity and key constants."""
@@ -408,6 +418,7 @@ def load_calibration(day: np.datetime64 | str, folder: Path | None = None) -> Me
         paths=tuple(tf.path for tf in t.values()),
         temperature_range=_stated_range(t["offsets_temperature"], "T_RANGE", "C"),
         duty_range=_duty_range([t[f"heater_signal_{axis}"] for axis in "xyz"]),
+        **_waveform_errors([t[f"heater_signal_{axis}"] for axis in "xyz"], bins.size),
     )
 
 
@@ -460,3 +471,48 @@ def _duty_range(tables: list[TableFile]) -> tuple[float, float] | None:
             f"{', '.join(tf.path.name for tf, _ in stated[:-1])}; give heater-signal files "
             "of one fit")
     return lo, hi
+
+
+#: Header field of each heater-signal file: its columns' stated errors (counts), one per
+#: column in the table's order (issue 34, docs/decisions/messenger_fit.md entry 3x-dutymix).
+WAVEFORM_ERROR_KEY = "WAVEFORM_ERROR"
+#: Header field of the heater-signal files: the waveform part (nT, x y z) of the fit's
+#: stated prediction of a recalibrated day.
+WAVEFORM_PART_KEY = "WAVEFORM_PART_NT"
+
+
+def _header_numbers(table: TableFile, key: str, size: int, what: str) -> np.ndarray | None:
+    """``KEY: v1 ... vn`` of a table's header as ``size`` finite non-negative numbers, or None.
+
+    Raises
+    ------
+    CalibrationError
+        Not ``size`` numbers, or one not finite or negative.
+    """
+    text = next((v for k, v in table.header.items() if _key(k) == key.lower()), None)
+    if text is None:
+        return None
+    try:
+        values = np.array([float(v) for v in text.split()])
+    except ValueError:
+        values = np.array([])
+    if values.size != size or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise CalibrationError(f"{table.path}: header field {key!r} must be {size} finite "
+                               f"non-negative numbers ({what}), got {text!r}")
+    return values
+
+
+def _waveform_errors(tables: list[TableFile], n_bins: int) -> dict[str, np.ndarray | None]:
+    """Return ``waveform_error`` (3, n_bins) and ``waveform_part_nt`` (3,) of the heater files.
+
+    ``waveform_error`` only when all three files state it; ``waveform_part_nt`` the least
+    per axis over the files stating it.
+    """
+    errors = [_header_numbers(tf, WAVEFORM_ERROR_KEY, n_bins,
+                              "counts, one per column") for tf in tables]
+    parts = [p for p in (_header_numbers(tf, WAVEFORM_PART_KEY, 3, "nT, x y z")
+                         for tf in tables) if p is not None]
+    return {"waveform_error": (np.stack(errors) if all(e is not None for e in errors)
+                               else None),
+            "waveform_part_nt": np.min(parts, axis=0) if parts else None}
+

@@ -996,7 +996,8 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     n_all = int(m["samples"])
     result.merit = {
         **m, **{k: within[k] for k in ("total_nt", "law_nt", "d0_nt", "relaxation_nt",
-                                        "waveform_nt", "samples")},
+                                        "waveform_nt", "waveform_fitted_mix_nt", "samples")
+                if k in within},
         "range_c": [list(pair) for pair in ranges.intervals],
         "outside": {"samples": n_all - int(within["samples"]), "of": n_all,
                     "all_samples_total_nt": list(m["total_nt"]),

@@ -19,7 +19,8 @@
    the least goal whose table states the regulated -50 C), as a user would, says so, and
    every header states it.
 4. An unseen day (the forward model's own field: Mercury dipole, IMF, waves), the fit's
-   predicted error for it (`fit_merit.predicted_error` with its samples), calibrated
+   predicted error for it (`fit_merit.predicted_error` with its samples and duty
+   cycles, `fit_merit.day_samples`), calibrated
    with the shipped tables and with the fitted folder (``edr2cdr --calib``'s
    `load_calibration(day, folder)`), both compared with the truth.
 
@@ -280,7 +281,6 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit_variance import reduce_variance
     from fluxcal.missions.messenger.pipeline import calibrate
 
     out = Path(out)
@@ -292,10 +292,11 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     with KernelPool(mk, frames=FRAME_KERNELS):
         sclk = SclkKernel.from_pool(SPACECRAFT_ID)
         sim = simulate_unseen(truth_cal, sclk)
-        # the prediction for this day: its own temperatures and relaxed duty cycles
-        moments = reduce_variance(sim["science"], sim["heater"], sim["temperature"], sclk,
-                                  result.calibration).offset_moments
-        unseen_pred = fit_merit.predicted_error(result, moments=moments)["total_nt"]
+        # the prediction for this day: its own temperatures, relaxed duty cycles and
+        # heater duty-cycle mix
+        day = fit_merit.day_samples(sim["science"], sim["heater"], sim["temperature"], sclk,
+                                    result.calibration)
+        unseen_pred = fit_merit.predicted_error(result, day=day)["total_nt"]
         tr = sim["truth"]
         fine = tr["range"].values == 0
         for name, folder in (("shipped tables", None), ("fitted folder", fitted),
@@ -338,8 +339,10 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
             (cal.heater_signal - tc.heater_signal)[:, :100] ** 2, axis=(1, 2)))),
         "  predicted error of a recalibrated day (nT rms, sensor x y z): "
         + " ".join(f"{v:.3f}" for v in result.merit.get("total_nt", [float("nan")] * 3))
-        + " over the fitted days, "
-        + " ".join(f"{v:.3f}" for v in unseen_pred) + " for the unseen day below",
+        + " stated (the fitted days, each waveform column's share at least the even one "
+        "over D_RANGE), "
+        + " ".join(f"{v:.3f}" for v in unseen_pred) + " for the unseen day below (its own "
+        "samples and duty cycles)",
         "  unseen 2-h day (Mercury orbit, 20/5/1/10 Hz; fine-range samples):",
     ]
     return "\n".join(head + lines)

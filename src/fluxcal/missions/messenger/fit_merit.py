@@ -26,22 +26,29 @@ References
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import xarray as xr
 
+from fluxcal.calibration.heater_error import waveform_part
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError
+from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import fit_variance as fv
+from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.missions.messenger.fit_reduce import reduce_day
 
 #: `fluxcal.missions.messenger.fit.FitResult` (not imported: `fit` imports this module).
 FitResult = Any
 
 __all__ = ["ADVICE_TRIES", "ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_ADVISED_GOAL_NT",
-           "MAX_COMPRESSIVE_SHARE",
+           "MAX_COMPRESSIVE_SHARE", "DaySamples",
            "advised_goal", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
-           "duty_range_counts", "predicted_error", "range_bands", "stated_range"]
+           "day_samples", "duty_range_counts", "predicted_error", "range_bands",
+           "stated_duty_counts", "stated_range"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -91,24 +98,90 @@ def _nt_per_count(cal) -> np.ndarray:
     return np.asarray(cal.matrices[0], dtype=float)
 
 
+@dataclass(frozen=True)
+class DaySamples:
+    """The samples of a day to be recalibrated, as `predicted_error` weighs them.
+
+    Attributes
+    ----------
+    moments : ndarray, shape (len(MOMENT_EDGES_C) - 1, len(MOMENT_COLUMNS))
+        `fit_variance.offset_moments` of the day's samples
+        (``reduce_variance(...).offset_moments``).
+    duty_counts : ndarray, shape (n_duty_bins,)
+        The day's heater-on samples per waveform duty bin (the heater signal applied,
+        `heater_error.duty_bin_index` of their period's duty cycle).
+    beyond_bins : float
+        Its heater-on samples in no bin (duty cycle above 42 % or below 10 %).
+    """
+
+    moments: np.ndarray
+    duty_counts: np.ndarray
+    beyond_bins: float = 0.0
+
+    @classmethod
+    def of(cls, stats: Any, variance: fv.VarianceStatistics) -> DaySamples:
+        """Return a day's samples from its reduction.
+
+        ``stats`` and ``variance``: what `fit.reduce_chunk` with the variance estimator
+        returns for the day (`DayStatistics`, `VarianceStatistics`).
+        """
+        return cls(moments=np.asarray(variance.offset_moments, dtype=float),
+                   duty_counts=_bin_counts(stats),
+                   beyond_bins=float(stats.n_samples.get("heater_on_beyond_bins", 0)))
+
+
+def day_samples(science: xr.Dataset, heater: xr.Dataset, temperature: xr.Dataset,
+                sclk: SclkKernel, cal: MessengerCalibration) -> DaySamples:
+    """Return the `DaySamples` of a day's raw streams, reduced as the fit reduces its days.
+
+    `fit_reduce.reduce_day` (its heater-on samples per duty bin) and
+    `fit_variance.reduce_variance` (its offset moments) with ``cal`` (the fitted
+    tables), all samples; the kernels must be loaded.
+    """
+    return DaySamples.of(reduce_day(science, heater, temperature, sclk, cal),
+                         fv.reduce_variance(science, heater, temperature, sclk, cal))
+
+
+def _bin_counts(stats: Any) -> np.ndarray:
+    """Heater-on samples per waveform duty bin of a `DayStatistics` (its phase bins summed)."""
+    return np.array([w.count.sum() for w in stats.waveform], dtype=float)
+
+
+def stated_duty_counts(count: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """Return the duty-bin counts the fit's own waveform part is stated for (entry 3x-dutymix).
+
+    Per bin inside D_RANGE (``inside``) the larger of the fitted days' heater-on samples
+    there and an even share of those inside, ``max(n_k, N_in / K)`` (``K`` the bins
+    inside); zero outside.  Not renormalised: the stated part is at least the fitted
+    days' mix and at least the even mix over D_RANGE, and at most their sum.
+    """
+    count = np.where(inside, np.asarray(count, dtype=float), 0.0)
+    k = int(np.count_nonzero(inside))
+    if k == 0:
+        return count
+    return np.where(inside, np.maximum(count, count.sum() / k), 0.0)
+
+
 def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
-                    moments: np.ndarray | None = None) -> dict[str, Any]:
+                    day: DaySamples | None = None) -> dict[str, Any]:
     """Predicted rms error (nT) per sensor axis of a day recalibrated with ``result``.
 
-    ``sqrt(E[(M dO)^2])`` over the fitted days' samples (or ``moments``: another day's
-    `fit_variance.offset_moments`, e.g. ``reduce_variance(...).offset_moments`` of a day
-    to be recalibrated) and the bootstrap's resamples,
+    ``sqrt(E[(M dO)^2])`` over the samples of the day (``day``: another day's
+    `DaySamples`, e.g. a day to be recalibrated; None: the fitted days, the fit's own
+    stated prediction) and the bootstrap's resamples,
     ``dO = dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (eq. 2-6 linearised; ``M`` eq.
     8's fine matrix), plus the rounding of the counts (``M`` times 1/sqrt(12) count)
-    and the heater waveforms' stated error (`FitResult.waveform_error`, weighted by the
-    share of the samples in each duty bin), both independent of the rest.  The
-    waveform part holds for the samples inside ``D_RANGE`` (`duty_range_counts`, the
-    fitted days only): the bins outside it do not count and its denominator leaves the
-    heater-on samples outside it out (entry 25); the law, D0 and tau parts keep
-    them (the moments carry no duty cycle; they lie at the regulated -50 C, where the
-    law's part is that of the samples inside).  A held upper
-    segment's widths are in the resamples (`fit.held_upper_segments`): a day warmer than
-    the data (``moments``) is predicted with them.
+    and the heater waveforms' stated error (`FitResult.waveform_error`), both
+    independent of the rest.  The waveform part (`heater_error.waveform_part`) weights
+    each column's error by the samples in its duty bin: ``day``'s own heater-on samples
+    per bin; for the fitted days `stated_duty_counts` (their mix, each bin inside
+    D_RANGE at least an even share: an unseen day's mix differs, entry 3x-dutymix).  It
+    holds for the samples inside ``D_RANGE``: the bins outside it do not count and its
+    denominator leaves the heater-on samples outside it out (entry 25); the law, D0 and
+    tau parts keep them (the moments carry no duty cycle; they lie at the regulated -50
+    C, where the law's part is that of the samples inside).  A held upper segment's
+    widths are in the resamples (`fit.held_upper_segments`): a day warmer than the
+    data (``day``) is predicted with them.
 
     Returns
     -------
@@ -117,31 +190,41 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
         ``waveform_nt``, ``rounding_nt`` (per axis), ``goal_nt``, ``samples``,
         ``samples_outside_range`` (outside the stated temperature range) and
         ``samples_beyond_data`` (outside the data's range, ``variance.fitted_range()``);
-        with a D_RANGE (fitted days): ``duty_range_pct``, ``samples_outside_duty_range``
-        and ``heater_on_samples``.
+        with a D_RANGE: ``duty_range_pct``, ``samples_outside_duty_range`` and
+        ``heater_on_samples`` (of the day predicted); for the fitted days also
+        ``waveform_fitted_mix_nt`` (the waveform part at their own mix, for comparison).
     """
     boot = result.bootstrap
     v = result.variance
     cal = result.calibration
     m = _nt_per_count(cal)
     rounding = np.sqrt((m ** 2).sum(axis=1) / 12.0)
-    mom = v.offset_moments if moments is None else np.asarray(moments, dtype=float)
+    mom = v.offset_moments if day is None else np.asarray(day.moments, dtype=float)
     use = mom[:, 0] > 0
     mom = mom[use]
     n_total = float(mom[:, 0].sum())
     wave = np.zeros(3)
-    duty = duty_range_counts(result) if moments is None else None
-    if result.waveform_error is not None and n_total > 0:
-        count = np.array([w.count.sum() for w in result.stats.waveform], dtype=float)
-        n_wave = n_total
-        if duty is not None:  # the samples inside D_RANGE only (entry 25)
-            count = np.where(duty["inside_bins"], count, 0.0)
-            n_wave = max(n_total - min(duty["outside"], n_total), 1.0)
-        share = count / n_wave
-        var_counts = (np.asarray(result.waveform_error) ** 2 * share[None, :]).sum(axis=1)
-        wave = np.sqrt((m ** 2) @ var_counts)
+    if day is None:
+        count = _bin_counts(result.stats)
+        beyond = float(result.stats.n_samples.get("heater_on_beyond_bins", 0))
+    else:
+        count = np.asarray(day.duty_counts, dtype=float)
+        beyond = float(day.beyond_bins)
+    duty = duty_range_counts(result, count, beyond)
     out: dict[str, Any] = {"goal_nt": float(goal), "rounding_nt": rounding.tolist(),
-                           "waveform_nt": wave.tolist(), "samples": int(n_total)}
+                           "samples": int(n_total)}
+    if result.waveform_error is not None and n_total > 0:
+        n_wave = n_total
+        stated = count
+        if duty is not None:  # the samples inside D_RANGE only (entry 25)
+            stated = np.where(duty["inside_bins"], count, 0.0)
+            n_wave = max(n_total - min(duty["outside"], n_total), 1.0)
+            if day is None:
+                out["waveform_fitted_mix_nt"] = waveform_part(
+                    result.waveform_error, stated, n_wave, m).tolist()
+                stated = stated_duty_counts(count, duty["inside_bins"])
+        wave = waveform_part(result.waveform_error, stated, n_wave, m)
+    out["waveform_nt"] = wave.tolist()
     if duty is not None:
         out.update(duty_range_pct=list(duty["range"]),
                    samples_outside_duty_range=int(duty["outside"]),
@@ -215,22 +298,25 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
                  "d0": per_bin(zc, d, z, z), "relaxation": per_bin(zc, z, e, f)}
 
 
-def duty_range_counts(result: FitResult) -> dict[str, Any] | None:
-    """Count the fitted days' heater-on samples inside and outside ``result.duty_range``.
+def duty_range_counts(result: FitResult, count: np.ndarray | None = None,
+                      beyond: float | None = None) -> dict[str, Any] | None:
+    """Count heater-on samples inside and outside ``result.duty_range``.
 
-    Returns None when the result states no D_RANGE (no column fitted), else
-    ``range`` (percent, `fit.supported_duty_range`), ``inside_bins`` (bool per
-    waveform bin), ``heater_on`` (samples of every bin and beyond them) and ``outside``
-    (those of the bins outside the range and of no bin, above 42 % or below 10 %:
-    ``DayStatistics.n_samples["heater_on_beyond_bins"]``).
+    ``count`` (per waveform duty bin) and ``beyond`` (in no bin): a day's own
+    (`DaySamples`); None: the fitted days'.  Returns None when the result states no
+    D_RANGE (no column fitted), else ``range`` (percent, `fit.supported_duty_range`),
+    ``inside_bins`` (bool per waveform bin), ``heater_on`` (samples of every bin and
+    beyond them) and ``outside`` (those of the bins outside the range and of no bin,
+    above 42 % or below 10 %: ``DayStatistics.n_samples["heater_on_beyond_bins"]``).
     """
     rng = getattr(result, "duty_range", None)
     if rng is None:
         return None
     centres = np.asarray(result.calibration.heater_duty_bins_percent, dtype=float)
-    count = np.array([w.count.sum() for w in result.stats.waveform], dtype=float)
+    count = _bin_counts(result.stats) if count is None else np.asarray(count, dtype=float)
     inside = (centres > rng[0]) & (centres < rng[1])
-    beyond = float(result.stats.n_samples.get("heater_on_beyond_bins", 0))
+    if beyond is None:
+        beyond = float(result.stats.n_samples.get("heater_on_beyond_bins", 0))
     return {"range": (float(rng[0]), float(rng[1])), "inside_bins": inside,
             "heater_on": float(count.sum()) + beyond,
             "outside": float(count[~inside].sum()) + beyond}

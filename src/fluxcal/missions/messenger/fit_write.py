@@ -25,7 +25,14 @@ import numpy as np
 
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import CalibrationError
-from fluxcal.missions.messenger.calibration_data import _NAME_RE, TABLE_NAMES, _read_table, data_dir
+from fluxcal.missions.messenger.calibration_data import (
+    _NAME_RE,
+    TABLE_NAMES,
+    WAVEFORM_ERROR_KEY,
+    WAVEFORM_PART_KEY,
+    _read_table,
+    data_dir,
+)
 from fluxcal.missions.messenger.fit import AXES, MIN_PHASE_BINS, FitResult
 from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 from fluxcal.missions.messenger.fit_variance import (
@@ -64,6 +71,14 @@ def merit_lines(result: FitResult) -> list[str]:
             f"fitted days' temperatures and duty cycles, the waveforms' stated error, the "
             f"counts' rounding); goal "
             f"{goal:g} nT")
+        if "waveform_fitted_mix_nt" in m:
+            lines.append(
+                "its waveform part " + " / ".join(f"{v:.3f}" for v in m["waveform_nt"])
+                + " nT (WAVEFORM_PART_NT) weighs each column's stated error (WAVEFORM_ERROR) "
+                "by the fitted days' share of its duty bin, at least the even share over "
+                "D_RANGE (a day to be calibrated has its own mix; at the fitted mix alone "
+                + " / ".join(f"{v:.3f}" for v in m["waveform_fitted_mix_nt"])
+                + " nT); calibrating a day whose own mix gives more warns")
         if goal > ERROR_GOAL_NT:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
                          f"{goal:g}")
@@ -301,6 +316,7 @@ def write_calibration_folder(
     # (calibrating a heater-on sample outside it warns: `pipeline.warn_outside_duty_range`)
     d_range = result.duty_range
     d_line = ([f"# D_RANGE: {d_range[0]:g} {d_range[1]:g}"] if d_range is not None else [])
+    part = waveform_part_line(result)
     for j, axis in enumerate(AXES):
         name = f"heater_signal_{axis}"
         table_no = 6 + j
@@ -325,7 +341,7 @@ def write_calibration_folder(
             base_files[name], base[name].header, provenance,
             ["units: counts; t_s = seconds since the heater-bit rising edge; columns = "
              "duty-cycle bin centres in percent", *extra, *merit_lines(result)]) + d_line
-            + rows) + "\n"
+            + waveform_error_lines(result, j) + part + rows) + "\n"
     # processing: tau, dt and the look-back that follows tau replaced
     r = result.relaxation
     text = base_files["processing"].read_text()
@@ -366,6 +382,30 @@ def write_calibration_folder(
     # one all-or-nothing group (the tables record their own provenance in their headers)
     written = write_declared(files, out, provenance=lambda product: {})
     return written
+
+
+def waveform_error_lines(result: FitResult, axis: int) -> list[str]:
+    """Header lines of one heater-signal file: its columns' stated errors (entry 3x-dutymix).
+
+    ``# WAVEFORM_ERROR: e_1 ... e_n`` (counts, 1 sigma, rms over the phase; one per
+    column, in the table's column order), read back by `load_calibration`
+    (`MessengerCalibration.waveform_error`): calibrating a day computes the waveform
+    part of its own duty-cycle mix from them (`pipeline.warn_waveform_part`).
+    """
+    err = result.waveform_error
+    if err is None or not np.all(np.isfinite(err)):
+        return []
+    text = " ".join(f"{v:.4g}" for v in np.asarray(err, dtype=float)[axis])
+    return [f"# {WAVEFORM_ERROR_KEY}: {text}"]
+
+
+def waveform_part_line(result: FitResult) -> list[str]:
+    """Header line: the waveform part of the stated prediction (nT, x y z), or none."""
+    m = result.merit
+    if (not m or "waveform_nt" not in m or result.waveform_error is None
+            or not np.all(np.isfinite(m["waveform_nt"]))):
+        return []
+    return [f"# {WAVEFORM_PART_KEY}: " + " ".join(f"{v:.4g}" for v in m["waveform_nt"])]
 
 
 def _duty_range_text(d_range: tuple[float, float] | None) -> str:

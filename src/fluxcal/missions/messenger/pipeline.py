@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
+from fluxcal.calibration.heater_error import duty_bin_counts, waveform_part
 from fluxcal.calibration.heater_signal import HeaterPeriods, period_index
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import InputFormatError
@@ -99,6 +100,7 @@ def calibrate(
     temperature = defects.drop_temperature_glitches(temperature)  # issue 23
     ds = levels.correct_offsets(ds, temperature, changes, cal, sclk)
     warn_outside_temperature_range(ds, cal)
+    warn_waveform_part(ds, periods, cal)
     ds = levels.counts_to_field(ds, cal)
     if not keep_intermediates:
         ds = ds.drop_vars(UNWRITTEN_BEFORE_GEOMETRY)
@@ -292,6 +294,95 @@ def warn_outside_duty_range(ds: xr.Dataset, periods: HeaterPeriods,
         table=_table_name(cal, "heater_signal", "Tables 6-8"),
         consequence="the heater waveform is extrapolated there beyond the fitted columns "
                     "(sec. 6; no table states its error)", upper_open=True)
+
+
+def day_waveform_part(ds: xr.Dataset, periods: HeaterPeriods, cal: MessengerCalibration
+                      ) -> tuple[np.ndarray, dict[str, int | float]] | None:
+    """Return the heater waveforms' error (nT, sensor x y z) this day's duty cycles give.
+
+    The columns' stated errors (`MessengerCalibration.waveform_error`) weighted by the
+    day's own heater-on samples per duty bin (`heater_error.waveform_part`), over the
+    fine-range samples inside ``T_RANGE``, the heater-on ones outside ``D_RANGE`` left
+    out (as the fit's prediction holds, docs/decisions/messenger_fit.md entries 25 and
+    3x-dutymix).  None without stated column errors or samples.  Also returned: the
+    counts (``samples``, ``heater_on``) and the duty bin (%) holding most heater-on
+    samples (``fullest_pct``).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 8 eq. 8, Appendix
+       Tables 6-8.
+    """
+    if cal.waveform_error is None or "heater_applied" not in ds or "temperature" not in ds:
+        return None
+    use = ds["range"].values == 0 if "range" in ds else np.ones(ds.sizes["time"], dtype=bool)
+    temp = ds["temperature"].values
+    use &= np.isfinite(temp)
+    if cal.temperature_range is not None:
+        use &= cal.temperature_range.contains(temp)
+    on = use & ds["heater_applied"].values.astype(bool)
+    bins = np.asarray(cal.heater_duty_bins_percent, dtype=float)
+    duty = np.full(int(on.sum()), np.nan)
+    if len(periods) and on.any():
+        k = period_index(ds["et"].values[on], periods)
+        duty = np.where(k >= 0, np.asarray(periods.duty_cycle)[np.maximum(k, 0)] * 100.0,
+                        np.nan)
+    counts, beyond = duty_bin_counts(duty, bins)
+    inside = np.ones(bins.size, dtype=bool)
+    if cal.duty_range is not None:
+        inside = (bins > cal.duty_range[0]) & (bins < cal.duty_range[1])
+    n = float(use.sum()) - float(counts[~inside].sum()) - beyond
+    if n <= 0:
+        return None
+    counts = np.where(inside, counts, 0.0)
+    part = waveform_part(cal.waveform_error, counts, n, np.asarray(cal.matrices[0]))
+    return part, {"samples": int(n), "heater_on": int(counts.sum()),
+                  "fullest_pct": float(bins[int(np.argmax(counts))])}
+
+
+def warn_waveform_part(ds: xr.Dataset, periods: HeaterPeriods,
+                       cal: MessengerCalibration) -> bool:
+    """Warn when this day's duty cycles give a larger waveform error than the table states.
+
+    A fitted table states the waveform part of its predicted error
+    (``WAVEFORM_PART_NT``, `MessengerCalibration.waveform_part_nt`) for the duty-cycle
+    mix it was stated for, and each column's error (``WAVEFORM_ERROR``).  A day that
+    spends its heater-on time in worse-determined columns carries more
+    (`day_waveform_part`; docs/decisions/messenger_fit.md entry 3x-dutymix): the
+    warning gives both, per axis, and where the day's heater-on samples lie.
+
+    Returns
+    -------
+    bool
+        True when it warned; False for tables without the two fields, or a day within.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, Appendix Tables 6-8.
+    """
+    stated = cal.waveform_part_nt
+    got = day_waveform_part(ds, periods, cal)
+    if stated is None or got is None:
+        return False
+    part, n = got
+    if not np.any(part > WAVEFORM_PART_SLACK * np.asarray(stated)):
+        return False
+    log.warning("the heater waveforms' error on this day's %d samples (fine range, inside "
+                "T_RANGE and D_RANGE; %d heater-on, most at the %g-%% column) is %s nT (x "
+                "/ y / z) from its duty cycles, above the %s nT %s states (%s): the "
+                "day's heater-on samples lie where the columns' stated errors (%s) are "
+                "larger than the fit's own prediction weighed them (sec. 6)",
+                n["samples"], n["heater_on"], n["fullest_pct"],
+                " / ".join(f"{v:.3f}" for v in part),
+                " / ".join(f"{v:.3f}" for v in stated),
+                _table_name(cal, "heater_signal", "Tables 6-8"), "WAVEFORM_PART_NT",
+                "WAVEFORM_ERROR")
+    return True
+
+
+#: A day warns when its waveform part exceeds the stated one by more than the header's
+#: rounding (4 significant digits).
+WAVEFORM_PART_SLACK = 1.001
 
 
 def day_of(science: xr.Dataset) -> np.datetime64:
