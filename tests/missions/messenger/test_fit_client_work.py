@@ -1,14 +1,18 @@
-"""Issue 34, item 7: the waveform columns' fold errors are fitted once, after the passes.
+"""Issue 34, item 7: less serial work in the fit's client, the same results bit for bit.
 
-No pass reads ``FitResult.waveform_error`` (only the figure of merit after the passes
-does, `fit_merit.predicted_error`), so `fit.fit_days` skips the four folds' splines in
-every pass and states the errors once, from the last pass's statistics and starting
-table (docs/decisions/messenger_fit.md, entry 3x-folds).  The expected values are the
-fit's own, stated the way every pass stated them before: the same `fit_days` with the
-per-pass errors forced back on.  Everything must agree bit for bit (the same
-arithmetic on the same inputs), and the folds must be fitted once instead of once per
-pass.  The data are a forward model that shares no code with the fit
-(`flight_sim`, 2 days of the realistic wind).
+1. The waveform columns' fold errors are fitted once, after the passes.  No pass reads
+   ``FitResult.waveform_error`` (only the figure of merit after the passes does,
+   `fit_merit.predicted_error`), so `fit.fit_days` skips the four folds' splines in
+   every pass and states the errors once, from the last pass's statistics and starting
+   table (docs/decisions/messenger_fit.md, entry 3x-folds).  The expected values are
+   the fit's own, stated the way every pass stated them before: the same `fit_days`
+   with the per-pass errors forced back on.  Everything must agree bit for bit (the
+   same arithmetic on the same inputs), and the folds must be fitted once instead of
+   once per pass.  The data are a forward model that shares no code with the fit
+   (`flight_sim`, 2 days of the realistic wind).
+2. The bootstrap's resamples, each with its own break choice, are solved in batches
+   (`fit_variance._fit_rows`) instead of one call per distinct choice: against the
+   per-choice `fit_variance._fit` on random systems, bit for bit.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import numpy as np
 import pytest
 
 from fluxcal.missions.messenger import fit
+from fluxcal.missions.messenger import fit_variance as fv
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit_reduce import WAVEFORM_FOLDS
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
@@ -92,3 +97,33 @@ def test_fold_errors_once_equal_the_last_pass_errors_and_change_nothing_else(
     assert now.merit == before.merit
     if estimator == "variance":
         assert now.merit["waveform_nt"] == before.merit["waveform_nt"]
+
+
+def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
+    # random normal equations (A = X'X of a random design, so symmetric positive
+    # definite on every free block), every break choice per axis (-1: kept, or one of
+    # the shifts), dt free or held, held values on some columns: each row solved alone
+    # by `_fit` with its own `_layout` must give the batched rows exactly (the same
+    # gathered numbers and the same LAPACK solve per matrix)
+    rng = np.random.default_rng(34)
+    n, p = 300, fv.N_PARAMETERS
+    x = rng.standard_normal((n, 2 * p, p))
+    a = np.einsum("rki,rkj->rij", x, x)
+    v = rng.standard_normal((n, p))
+    choice = rng.integers(-1, fv.N_SHIFTS, size=(n, 3))
+    slope = rng.normal(0.0, 0.1, 3)
+    for fit_delay in (True, False):
+        base_free = np.ones(p, dtype=bool)
+        base_free[-1] = fit_delay
+        base_free[4] = False  # D0 x held
+        held = np.zeros((n, p))
+        held[:, 4] = rng.normal(0.0, 0.01, n)
+        free, fixed = fv._layout_rows(choice, base_free, slope)
+        got = fv._fit_rows(a, v, free, fixed + held)
+        for r in range(n):
+            f1, x1 = fv._layout(tuple(int(c) for c in choice[r]), base_free, slope)
+            np.testing.assert_array_equal(free[r], f1)
+            want = fv._fit(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
+            np.testing.assert_array_equal(got[r], want)
+        # more than one batch: rows with one, two and three moved breaks differ in size
+        assert np.unique(free.sum(axis=1)).size > 1
