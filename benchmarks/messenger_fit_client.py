@@ -123,8 +123,9 @@ def main() -> None:
         print(f"  {'part':34s} {'calls':>5s} {'total s':>8s} {'per call':>8s} "
               f"{'of client':>9s} {'of run':>7s}")
         for label, (calls, cum) in parts.items():
+            of_client = "" if label.startswith(("map", "merge")) else f"{cum / client:9.1%}"
             print(f"  {label:34s} {calls:5d} {cum:8.3f} {cum / max(calls, 1):8.3f} "
-                  f"{cum / client:9.1%} {cum / wall_p:7.1%}")
+                  f"{of_client:>9s} {cum / wall_p:7.1%}")
         if args.json is not None:
             args.json.write_text(json.dumps({
                 "days": args.days, "samples": run.n_samples, "passes": args.passes,
