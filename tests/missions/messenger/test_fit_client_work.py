@@ -104,7 +104,9 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
     # definite on every free block), every break choice per axis (-1: kept, or one of
     # the shifts), dt free or held, held values on some columns: each row solved alone
     # by `_fit` with its own `_layout` must give the batched rows exactly (the same
-    # gathered numbers and the same LAPACK solve per matrix)
+    # gathered numbers and the same LAPACK solve per matrix).  The layouts themselves
+    # against the rule written out: a moved axis frees its shift's hinge column only,
+    # fixes its slope change at -c and its break step at 0
     rng = np.random.default_rng(34)
     n, p = 300, fv.N_PARAMETERS
     x = rng.standard_normal((n, 2 * p, p))
@@ -123,6 +125,13 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
         for r in range(n):
             f1, x1 = fv._layout(tuple(int(c) for c in choice[r]), base_free, slope)
             np.testing.assert_array_equal(free[r], f1)
+            moved = [j for j in range(3) if choice[r, j] >= 0]
+            hinge = free[r, 3 * fv.PER_AXIS:3 * fv.PER_AXIS + 3 * fv.N_SHIFTS]
+            assert sorted(np.flatnonzero(hinge)) == sorted(
+                j * fv.N_SHIFTS + choice[r, j] for j in moved)
+            for j in range(3):
+                assert free[r, j * fv.PER_AXIS + 2] == (j not in moved)
+                assert x1[j * fv.PER_AXIS + 2] == (-slope[j] if j in moved else 0.0)
             want = fv._fit(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
             np.testing.assert_array_equal(got[r], want)
         # more than one batch: rows with one, two and three moved breaks differ in size

@@ -482,20 +482,14 @@ def _layout(shift: tuple[int, ...], base_free: np.ndarray,
     and fits the slope of the hinge at the shifted break; the linearised break step of
     that axis is not used.
     """
-    free = base_free.copy()
-    fixed = np.zeros(N_PARAMETERS)
-    free[3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = False
-    for j, k in enumerate(shift):
-        if k >= 0:
-            free[j * PER_AXIS + 2] = free[j * PER_AXIS + 3] = False
-            fixed[j * PER_AXIS + 2] = -slope[j]
-            free[_shift_column(j, k)] = True
-    return free, fixed
+    free, fixed = _layout_rows(np.asarray([shift], dtype=np.int64), base_free, slope)
+    return free[0], fixed[0]
 
 
 def _layout_rows(choice: np.ndarray, base_free: np.ndarray,
                  slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """`_layout` of every row of ``choice`` (n, 3): free (n, p) and fixed (n, p)."""
+    choice = np.asarray(choice, dtype=np.int64)
     n = choice.shape[0]
     rows = np.arange(n)
     free = np.broadcast_to(base_free, (n, N_PARAMETERS)).copy()
