@@ -546,8 +546,8 @@ def few_folds_widening(own: np.ndarray, folds: int) -> float:
 
 
 def _fit_waveforms(
-    stats: DayStatistics, base: MessengerCalibration
-) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]], np.ndarray]:
+    stats: DayStatistics, base: MessengerCalibration, *, errors: bool = True
+) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]], np.ndarray | None]:
     """Fit the waveform columns (sec. 6), and state their error from the folds' spread.
 
     Returns the table, the splines (None where kept from ``base``) and, per axis and
@@ -559,13 +559,17 @@ def _fit_waveforms(
     smoothing applied once more to the fitted curve, ``(S - I) f_hat``: common to the
     folds, so not in their spread); a column kept from ``base``, or fitted in fewer
     than two folds, is given its own rms (its error unknown, entries 19 and 29).
+
+    With ``errors=False`` the folds are not fitted and the error is None: no pass
+    reads it, so `fit_days` states it once, from the last pass's statistics and
+    table (entry 3x-folds).
     """
     table = np.array(base.heater_signal, dtype=float)
     nb = len(stats.waveform)
     fits: list[list[PeriodicSplineFit | None]] = [[None] * nb for _ in AXES]
     error = np.sqrt(np.mean(table[:, :100, :] ** 2, axis=1))  # (axis, bin): base's own rms
     phase, columns, support = unmix_waveforms(stats)
-    folds = [unmix_waveforms(stats, h) for h in stats.waveform_folds]
+    folds = [unmix_waveforms(stats, h) for h in stats.waveform_folds] if errors else []
     own = np.array([[w.count.sum() for w in h] for h in stats.waveform_folds], dtype=float)
 
     def spline(ph, col, sup, b, j):
@@ -591,6 +595,8 @@ def _fit_waveforms(
             if got is None:
                 continue
             fits[j][b], table[j, :, b] = got
+            if not errors:
+                continue
             parts = [(spline(*h, b, j), float(np.nansum(h[2][:, b]))) for h in folds]
             parts = [(p[1][:-1], n) for p, n in parts if p is not None]
             if len(parts) >= 2:
@@ -598,7 +604,16 @@ def _fit_waveforms(
                 err *= few_folds_widening(own[:, b], len(folds))
                 err = np.hypot(err, smoothing_bias(fits[j][b], phase, columns, support, b))
                 error[j, b] = err if np.isfinite(err) else error[j, b]
-    return table, fits, error
+    return table, fits, (error if errors else None)
+
+
+def waveform_column_errors(stats: DayStatistics, base: MessengerCalibration) -> np.ndarray:
+    """Stated error (counts) of each waveform column, shape (3, n_duty_bins).
+
+    What `_fit_waveforms` states for the fit of ``stats`` from ``base``: `fit_days` calls
+    it once after its passes, for the last one, whose fit skipped it (entry 3x-folds).
+    """
+    return _fit_waveforms(stats, base)[2]
 
 
 def supported_duty_range(count: np.ndarray, fitted: np.ndarray, centres: np.ndarray
@@ -676,6 +691,7 @@ def fit_calibration(
     *,
     fit_delay: bool = True,
     temperature_law: str = "distribution",
+    waveform_errors: bool = True,
 ) -> FitResult:
     """Fit the four calibration terms of sec. 6-7 to merged statistics (one pass).
 
@@ -693,6 +709,9 @@ def fit_calibration(
         10-C bin's heater-off temperatures matches the bin mean; ``binned-mean`` is the
         seed's estimator, the law at the bins' mean temperatures
         (docs/decisions/messenger_fit.md, entry 8).
+    waveform_errors : bool
+        State the waveform columns' errors (`_fit_waveforms`); False leaves
+        ``waveform_error`` None (`fit_days`'s passes: entry 3x-folds).
 
     Returns
     -------
@@ -726,7 +745,7 @@ def fit_calibration(
         if done or abs(tau - tau_base) > MAX_TAU_SHIFT * tau_base:
             break
     total = np.array([[f.a0, f.b0, f.a1, f.b1] for f in temperature])
-    heater, waveform, waveform_error = _fit_waveforms(stats, base)
+    heater, waveform, waveform_error = _fit_waveforms(stats, base, errors=waveform_errors)
     table2 = total.copy()
     if base.prelaunch_offsets_reading == "added_to_table2":
         table2[:, 0] -= base.prelaunch_offsets[0]
@@ -1056,6 +1075,7 @@ def fit_variance_calibration(
     max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
     start: MessengerCalibration | None = None,
     hold_upper: tuple[str, ...] = (),
+    waveform_errors: bool = True,
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
@@ -1089,6 +1109,9 @@ def fit_variance_calibration(
         free break comes out with an error above `MAX_BREAK_ERROR_C`, and by `fit_days`
         for the axes an earlier pass held: a hold that came and went from pass to pass
         kept the late-peak Mercury orbit from converging, entry 27).
+    waveform_errors : bool
+        State the waveform columns' errors (`_fit_waveforms`); False leaves
+        ``waveform_error`` None (`fit_days`'s passes: entry 3x-folds).
 
     Returns
     -------
@@ -1167,7 +1190,8 @@ def fit_variance_calibration(
         return fit_variance_calibration(stats, vstats, base, fit_delay=fit_delay,
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
                                         max_compressive_share=max_compressive_share,
-                                        start=start, hold_upper=(*hold_upper, *loose))
+                                        start=start, hold_upper=(*hold_upper, *loose),
+                                        waveform_errors=waveform_errors)
     w = sol.widening
     drawn, drawn_law = b_d0.copy(), b_law.copy()
     b_law = law + w * (b_law - b_law.mean(axis=0))
@@ -1189,7 +1213,8 @@ def fit_variance_calibration(
         return fit_variance_calibration(stats, vstats, base, fit_delay=False,
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
                                         max_compressive_share=max_compressive_share,
-                                        start=start, hold_upper=hold_upper)
+                                        start=start, hold_upper=hold_upper,
+                                        waveform_errors=waveform_errors)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
@@ -1217,7 +1242,7 @@ def fit_variance_calibration(
         amplitude=1.0, amplitude_err=0.0, y0=0.0, y0_err=0.0, fit_delay=bool(fit_delay),
         covariance=np.cov(np.column_stack([b_tau, b_dt]), rowvar=False), chi2=chi2,
         dof=sol.dof)
-    heater, waveform, waveform_error = _fit_waveforms(stats, base)
+    heater, waveform, waveform_error = _fit_waveforms(stats, base, errors=waveform_errors)
     cal = with_tables(base, law, d0, tau, dt, heater)
     return FitResult(calibration=cal, temperature=temperature, duty=duty,
                      relaxation=relaxation, delay_fitted=bool(fit_delay), waveform=waveform,
@@ -1554,15 +1579,19 @@ def fit_days(
             stats, vstats = merged if estimator == "variance" else (merged, None)
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
+            # the waveform columns' errors are read by no pass: stated after the loop,
+            # from the table this pass starts from (entry 3x-folds)
+            fitted_from = cal
             if estimator == "variance":
                 result = fit_variance_calibration(
                     stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
                     max_compressive_share=max_compressive_share, start=base,
-                    hold_upper=held_upper)
+                    hold_upper=held_upper, waveform_errors=False)
                 held_upper = tuple(a for a in AXES if a in result.held_upper)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
-                                         temperature_law=temperature_law)
+                                         temperature_law=temperature_law,
+                                         waveform_errors=False)
             changes = pass_changes(cal, result, tolerance)
             converged = changes["ratio"] <= 1.0
             if guard:  # never carry a tau out of range
@@ -1612,6 +1641,10 @@ def fit_days(
                     + (f"more passes (--passes {MAX_PASSES}: the fit stops as soon as it "
                        "converges) or " if passes < MAX_PASSES else "") + "more days")
             check_fit(result)
+        # the last pass's waveform columns' errors, as its fit would have stated them (the
+        # same statistics and table, so the same splines): read only by the figure of
+        # merit, so neither by any pass nor by the refusals above (entry 3x-folds)
+        result.waveform_error = waveform_column_errors(result.stats, fitted_from)
         if estimator == "variance":
             fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)
             merit_inside_range(result, error_goal)

@@ -482,15 +482,47 @@ def _layout(shift: tuple[int, ...], base_free: np.ndarray,
     and fits the slope of the hinge at the shifted break; the linearised break step of
     that axis is not used.
     """
-    free = base_free.copy()
-    fixed = np.zeros(N_PARAMETERS)
-    free[3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = False
-    for j, k in enumerate(shift):
-        if k >= 0:
-            free[j * PER_AXIS + 2] = free[j * PER_AXIS + 3] = False
-            fixed[j * PER_AXIS + 2] = -slope[j]
-            free[_shift_column(j, k)] = True
+    free, fixed = _layout_rows(np.asarray([shift], dtype=np.int64), base_free, slope)
+    return free[0], fixed[0]
+
+
+def _layout_rows(choice: np.ndarray, base_free: np.ndarray,
+                 slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`_layout` of every row of ``choice`` (n, 3): free (n, p) and fixed (n, p)."""
+    choice = np.asarray(choice, dtype=np.int64)
+    n = choice.shape[0]
+    rows = np.arange(n)
+    free = np.broadcast_to(base_free, (n, N_PARAMETERS)).copy()
+    fixed = np.zeros((n, N_PARAMETERS))
+    free[:, 3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = False
+    for j in range(3):
+        moved = choice[:, j] >= 0
+        free[moved, j * PER_AXIS + 2] = free[moved, j * PER_AXIS + 3] = False
+        fixed[moved, j * PER_AXIS + 2] = -slope[j]
+        free[rows[moved], _shift_column(j, choice[moved, j])] = True
     return free, fixed
+
+
+def _fit_rows(a: np.ndarray, v: np.ndarray, free: np.ndarray,
+              fixed: np.ndarray) -> np.ndarray:
+    """`_fit` of a stack whose rows each have their own free columns (``free`` (n, p)).
+
+    The rows are solved together, in one batch per number of free columns, each row's
+    free block gathered as `_fit` takes it for that row alone (the same numbers, the
+    same solver), instead of one call per distinct layout (issue 34, item 7).
+    """
+    theta = np.where(free, 0.0, fixed)
+    out = theta.copy()
+    n_free = free.sum(axis=1)
+    for m in np.unique(n_free):
+        rows = np.flatnonzero(n_free == m)
+        idx = np.nonzero(free[rows])[1].reshape(rows.size, int(m))  # ascending per row
+        a_rows = a[rows[:, None], idx]  # (rows, m, p): the free rows of each system
+        rhs = (np.take_along_axis(v[rows], idx, axis=1)
+               - np.einsum("...ij,...j->...i", a_rows, theta[rows]))
+        aa = np.take_along_axis(a_rows, idx[:, None, :], axis=2)
+        out[rows[:, None], idx] = _solve(aa, rhs)
+    return out
 
 
 def _solve(aa: np.ndarray, vv: np.ndarray) -> np.ndarray:
@@ -520,14 +552,6 @@ def _residual(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
     """Residual sum of squares of ``theta`` from the normal equations (stacks too)."""
     return (yy - 2.0 * np.einsum("...i,...i->...", theta, v)
             + np.einsum("...i,...ij,...j->...", theta, a, theta))
-
-
-def _by_choice(choice: np.ndarray):
-    """Yield ``(rows, choice tuple)`` for every distinct row of ``choice`` (n, 3)."""
-    keys, inv = np.unique(choice, axis=0, return_inverse=True)
-    inv = np.asarray(inv).reshape(-1)
-    for g, key in enumerate(keys):
-        yield np.flatnonzero(inv == g), tuple(int(x) for x in key)
 
 
 def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
@@ -564,17 +588,18 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
                     continue  # outside the fitted range, or the break held
                 trial = choice.copy()
                 trial[:, j] = k
-                r = np.empty(n)
-                for rows, key in _by_choice(trial):
-                    free, fx = _layout(key, base_free, law[:, 2])
+                if stacked:  # every resample's own layout, one batched solve (item 7)
+                    free, fx = _layout_rows(trial, base_free, law[:, 2])
                     if k == -1:  # the break kept: exact, without the linearised step
+                        free[:, j * PER_AXIS + 3] = False
+                    r = _residual(a_s, v_s, yy_s, _fit_rows(a_s, v_s, free, fx + held))
+                else:  # the single system: least squares as before (rank-safe)
+                    free, fx = _layout(tuple(int(c) for c in trial[0]), base_free,
+                                       law[:, 2])
+                    if k == -1:
                         free[j * PER_AXIS + 3] = False
-                    fx = fx + held[rows]
-                    if stacked:
-                        r[rows] = _residual(a_s[rows], v_s[rows], yy_s[rows],
-                                            _fit(a_s[rows], v_s[rows], free, fx))
-                    else:  # the single system: least squares as before (rank-safe)
-                        r[rows] = _residual(a, v, yy_s[0], _fit(a, v, free, fx[0]))
+                    r = np.atleast_1d(_residual(a, v, yy_s[0],
+                                                _fit(a, v, free, fx + held[0])))
                 better = r < best_r
                 best[better] = k
                 best_r[better] = r[better]
@@ -726,10 +751,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                                      fixed=held_r)
     else:
         boot_choice = np.full((n_bootstrap, 3), -1, dtype=np.int64)
-    boot = np.empty((n_bootstrap, N_PARAMETERS))
-    for rows, key in _by_choice(boot_choice):
-        free_r, fixed_r = _layout(key, base_free, slope)
-        boot[rows] = _fit(a_r[rows], v_r[rows], free_r, fixed_r + held_r[rows])
+    free_r, fixed_r = _layout_rows(boot_choice, base_free, slope)
+    boot = _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),

@@ -1,0 +1,138 @@
+"""Issue 34, item 7: less serial work in the fit's client, the same results bit for bit.
+
+1. The waveform columns' fold errors are fitted once, after the passes.  No pass reads
+   ``FitResult.waveform_error`` (only the figure of merit after the passes does,
+   `fit_merit.predicted_error`), so `fit.fit_days` skips the four folds' splines in
+   every pass and states the errors once, from the last pass's statistics and starting
+   table (docs/decisions/messenger_fit.md, entry 3x-folds).  The expected values are
+   the fit's own, stated the way every pass stated them before: the same `fit_days`
+   with the per-pass errors forced back on.  Everything must agree bit for bit (the
+   same arithmetic on the same inputs), and the folds must be fitted once instead of
+   once per pass.  The data are a forward model that shares no code with the fit
+   (`flight_sim`, 2 days of the realistic wind).
+2. The bootstrap's resamples, each with its own break choice, are solved in batches
+   (`fit_variance._fit_rows`) instead of one call per distinct choice: against the
+   per-choice `fit_variance._fit` on random systems, bit for bit.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import pytest
+
+from fluxcal.missions.messenger import fit
+from fluxcal.missions.messenger import fit_variance as fv
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit_reduce import WAVEFORM_FOLDS
+from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
+
+START = dt.date(2010, 3, 1)
+PASSES = 3
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory):
+    return simulate_flight(tmp_path_factory.mktemp("flight"),
+                           FlightConfig(start=str(START), days=2, seed=2121), truth=False)
+
+
+def _fit(flight, monkeypatch, estimator: str, per_pass: bool):
+    """`fit_days` as it runs (``per_pass`` False) or with every pass stating its errors."""
+    stated: list[np.ndarray | None] = []
+    fold_unmixes = []
+    unmix = fit.unmix_waveforms
+
+    def counting_unmix(stats, waveform=None):
+        if waveform is not None:  # one fold's statistics
+            fold_unmixes.append(1)
+        return unmix(stats, waveform)
+
+    monkeypatch.setattr(fit, "unmix_waveforms", counting_unmix)
+    if per_pass:
+        name = "fit_variance_calibration" if estimator == "variance" else "fit_calibration"
+        original = getattr(fit, name)
+
+        def stating(*args, **kwargs):
+            out = original(*args, **{**kwargs, "waveform_errors": True})
+            stated.append(out.waveform_error)
+            return out
+
+        monkeypatch.setattr(fit, name, stating)
+    res = fit.fit_days(fit.day_chunks(flight.input_dir, flight.days),
+                       load_calibration(str(START)), passes=PASSES, estimator=estimator,
+                       guard=False)
+    monkeypatch.undo()
+    return res, stated, len(fold_unmixes)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("estimator", ["variance", "zero-mean"])
+def test_fold_errors_once_equal_the_last_pass_errors_and_change_nothing_else(
+        flight, monkeypatch, estimator):
+    now, _, folds_now = _fit(flight, monkeypatch, estimator, per_pass=False)
+    before, stated, folds_before = _fit(flight, monkeypatch, estimator, per_pass=True)
+    runs = len(before.passes)
+    assert len(now.passes) == runs
+    # the folds' spread fitted once (the four folds unmixed once), not once per pass
+    assert folds_now == WAVEFORM_FOLDS
+    assert folds_before >= WAVEFORM_FOLDS * runs
+    # the stated column errors: those the last pass's own fit stated, bit for bit
+    assert stated[-1] is not None and np.all(np.isfinite(stated[-1]))
+    np.testing.assert_array_equal(now.waveform_error, stated[-1])
+    np.testing.assert_array_equal(now.waveform_error, before.waveform_error)
+    # and nothing else moved: the tables, every pass's history, the stated errors of
+    # the other terms and the figure of merit built from all of them
+    for name in ("temperature_coefficients", "breakpoint_temperature_c", "duty_cycle_c0",
+                 "duty_cycle_d0", "heater_signal"):
+        np.testing.assert_array_equal(getattr(now.calibration, name),
+                                      getattr(before.calibration, name), err_msg=name)
+    assert now.calibration.constants == before.calibration.constants
+    assert now.passes == before.passes and now.convergence == before.convergence
+    law = ("a0", "b0", "a1", "b1", "x_m", "a0_err", "b0_err", "a1_err", "b1_err", "x_m_err")
+    assert [[getattr(f, k) for k in law] for f in now.temperature] == [
+        [getattr(f, k) for k in law] for f in before.temperature]
+    assert [f.slope_err for f in now.duty] == [f.slope_err for f in before.duty]
+    assert now.merit == before.merit
+    if estimator == "variance":
+        assert now.merit["waveform_nt"] == before.merit["waveform_nt"]
+
+
+def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
+    # random normal equations (A = X'X of a random design, so symmetric positive
+    # definite on every free block), every break choice per axis (-1: kept, or one of
+    # the shifts), dt free or held, held values on some columns: each row solved alone
+    # by `_fit` with its own `_layout` must give the batched rows exactly (the same
+    # gathered numbers and the same LAPACK solve per matrix).  The layouts themselves
+    # against the rule written out: a moved axis frees its shift's hinge column only,
+    # fixes its slope change at -c and its break step at 0
+    rng = np.random.default_rng(34)
+    n, p = 300, fv.N_PARAMETERS
+    x = rng.standard_normal((n, 2 * p, p))
+    a = np.einsum("rki,rkj->rij", x, x)
+    v = rng.standard_normal((n, p))
+    choice = rng.integers(-1, fv.N_SHIFTS, size=(n, 3))
+    slope = rng.normal(0.0, 0.1, 3)
+    for fit_delay in (True, False):
+        base_free = np.ones(p, dtype=bool)
+        base_free[-1] = fit_delay
+        base_free[4] = False  # D0 x held
+        held = np.zeros((n, p))
+        held[:, 4] = rng.normal(0.0, 0.01, n)
+        free, fixed = fv._layout_rows(choice, base_free, slope)
+        got = fv._fit_rows(a, v, free, fixed + held)
+        for r in range(n):
+            f1, x1 = fv._layout(tuple(int(c) for c in choice[r]), base_free, slope)
+            np.testing.assert_array_equal(free[r], f1)
+            moved = [j for j in range(3) if choice[r, j] >= 0]
+            hinge = free[r, 3 * fv.PER_AXIS:3 * fv.PER_AXIS + 3 * fv.N_SHIFTS]
+            assert sorted(np.flatnonzero(hinge)) == sorted(
+                j * fv.N_SHIFTS + choice[r, j] for j in moved)
+            for j in range(3):
+                assert free[r, j * fv.PER_AXIS + 2] == (j not in moved)
+                assert x1[j * fv.PER_AXIS + 2] == (-slope[j] if j in moved else 0.0)
+            want = fv._fit(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
+            np.testing.assert_array_equal(got[r], want)
+        # more than one batch: rows with one, two and three moved breaks differ in size
+        assert np.unique(free.sum(axis=1)).size > 1
