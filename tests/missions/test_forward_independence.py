@@ -52,7 +52,8 @@ FORBIDDEN = (
     "fluxcal.missions.imap.l1a",
     "fluxcal.missions.imap.l1b",
     "fluxcal.missions.imap.calibration",
-    "fluxcal.missions.imap.pipeline",
+    "fluxcal.missions.imap.chain",
+    "fluxcal.missions.imap.products",
     "fluxcal.missions.imap.routes",
 )
 
