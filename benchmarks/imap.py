@@ -5,7 +5,7 @@ cycled every 4 packets, 0 = uncompressed; range changes inside every third packe
 fluxcal's forward model (`fluxcal.missions.imap.simulate`) and its own SCLK kernel,
 calibration CDF and XTCE, then, each case in a fresh child process:
 
-* **fluxcal in-process**: ``pipeline.process`` to L1A, and to L1B (the L1A included),
+* **fluxcal in-process**: ``chain.process`` to L1A, and to L1B (the L1A included),
   timed after a warm-up on a small file in the same process (imports, numba cache
   loaded), the best of two runs each, no product written;
 * **fluxcal whole process**: ``fluxcal imap calibrate`` (the CLI entry point
@@ -97,7 +97,7 @@ def simulate_files(folder: Path, vectors: list[int], widths: tuple[int, ...]) ->
 
 def child_fluxcal(paths: dict, n: str) -> dict:
     """In-process fluxcal: L1A, then L1B, after a warm-up on the small file."""
-    from fluxcal.missions.imap.pipeline import process
+    from fluxcal.missions.imap.chain import process
 
     def run(path: str, level: str) -> tuple[int, float]:
         t = time.perf_counter()

@@ -140,7 +140,7 @@ def child(case: str, paths: dict[str, Path], out: Path) -> dict:
     if case == "baseline":
         from fluxcal.geometry.kernels import KernelPool
         from fluxcal.missions.messenger.calibration_data import load_calibration
-        from fluxcal.missions.messenger.pipeline import calibrate, day_of
+        from fluxcal.missions.messenger.chain import calibrate, day_of
         from fluxcal.missions.messenger.readers import (
             read_heater,
             read_science,

@@ -33,7 +33,8 @@ def _cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
 def test_the_core_modules_import_without_the_extras(tmp_path):
     run = _core("import fluxcal.cli, fluxcal.api, fluxcal.runs.driver, fluxcal.runs.batch\n"
                 "import fluxcal.products.writer, fluxcal.missions.messenger.routes\n"
-                "import fluxcal.missions.rosetta.pipeline, fluxcal.missions.imap.pipeline\n"
+                "import fluxcal.missions.rosetta.products, fluxcal.missions.rosetta.day_edges\n"
+                "import fluxcal.missions.imap.chain, fluxcal.missions.imap.products\n"
                 "print('ok')", tmp_path)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr
 

@@ -251,7 +251,7 @@ def test_the_lazy_modules_are_the_command_and_extras_modules():
     lazy = sorted(m for m in MODULES if LAZY_MODULES.fullmatch(m))
     assert "fluxcal.cli" in lazy and "fluxcal.missions.rosetta.clean_cli" in lazy
     assert "fluxcal.missions.messenger.fit_demo" in lazy and "fluxcal.runs.cluster" in lazy
-    assert "fluxcal.missions.rosetta.pipeline" not in lazy and "fluxcal.api" not in lazy
+    assert "fluxcal.missions.rosetta.products" not in lazy and "fluxcal.api" not in lazy
 
 
 #: Packages below ``fluxcal.runs``: they take the registry's pieces (frame kernels,

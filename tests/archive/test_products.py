@@ -136,7 +136,7 @@ def _rosetta(n: int, level: str) -> tuple[xr.Dataset, list[str]]:
                                              ("F", "RPCMAG140801_CLF_OB_A01"),
                                              ("G", "RPCMAG140801_CLG_IB_A60")])
 def test_rosetta_calibrated_and_resampled(tmp_path: Path, level: str, stem: str) -> None:
-    from fluxcal.missions.rosetta.pipeline import product_columns
+    from fluxcal.missions.rosetta.products import product_columns
 
     n = 200
     ds, parts = _rosetta(n, level)

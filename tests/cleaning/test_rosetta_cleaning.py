@@ -342,7 +342,7 @@ def test_wheel_table_must_cover_the_data(lsk):
 
 def _write(ds, out, lsk):
     from fluxcal.missions.rosetta.clean_cli import clean_products
-    from fluxcal.missions.rosetta.pipeline import level_products
+    from fluxcal.missions.rosetta.products import level_products
     from fluxcal.products.declared import write_declared
 
     level, sensor = ds.attrs["level"], ds.attrs["sensor"]

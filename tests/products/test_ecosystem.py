@@ -22,7 +22,7 @@ import pytest
 import xarray as xr
 
 from fluxcal.missions.messenger.products import istp_files as messenger_istp
-from fluxcal.missions.rosetta.pipeline import istp_yaml as rosetta_istp
+from fluxcal.missions.rosetta.products import istp_yaml as rosetta_istp
 from fluxcal.products import read_fluxcal_product, write_product, zarr_available
 from fluxcal.products.cdf import istp_file_stem
 from tests.products._istp import SPACEPY_TOLERATED, istp_problems
@@ -89,7 +89,7 @@ def messenger_full(frame: str, averaged: bool = False) -> xr.Dataset:
 
 
 def rosetta_level(level: str) -> xr.Dataset:
-    """Shaped like missions/rosetta/pipeline.write_level (LEVEL_A/B/C/E/F/G)."""
+    """Shaped like missions/rosetta/products.level_products (LEVEL_A/B/C/E/F/G)."""
     step = 60.0 if level in "EFG" else 1.0
     n = N // 60 if level in "EFG" else N
     epoch = _epoch("2014-08-01", step, n)
@@ -116,7 +116,7 @@ def rosetta_level(level: str) -> xr.Dataset:
 
 
 def rosetta_hk() -> xr.Dataset:
-    """Shaped like missions/rosetta/hk.py + pipeline._write_hk."""
+    """Shaped like missions/rosetta/hk.py + products.hk_product."""
     n = N // 32
     epoch = _epoch("2014-08-01", 32.0, n)
     t = ("time",)

@@ -87,9 +87,9 @@ def test_a_batch_refuses_a_folder_a_single_run_holds(tmp_path):
 
 def _fail_on_second_level(monkeypatch, action) -> None:
     """Make `level_products` run ``action`` after the first level of the run is written."""
-    from fluxcal.missions.rosetta import pipeline
+    from fluxcal.missions.rosetta import products as rosetta_products
 
-    original = pipeline.level_products
+    original = rosetta_products.level_products
     calls = []
 
     def level_products(*args, **kwargs):
@@ -98,7 +98,7 @@ def _fail_on_second_level(monkeypatch, action) -> None:
             action()
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, "level_products", level_products)
+    monkeypatch.setattr(rosetta_products, "level_products", level_products)
 
 
 def test_a_failing_run_leaves_a_good_product_set_byte_equal(sim, good, capsys, monkeypatch):
@@ -139,15 +139,15 @@ def test_sigkill_leaves_temporaries_that_the_next_run_removes(sim, good, caplog)
     out, snap = good
     script = textwrap.dedent(f"""
         import os, signal
-        from fluxcal.missions.rosetta import pipeline
+        from fluxcal.missions.rosetta import products as rosetta_products
         from fluxcal.cli import main
-        original, calls = pipeline.level_products, []
+        original, calls = rosetta_products.level_products, []
         def level_products(*args, **kwargs):
             calls.append(1)
             if len(calls) == 3:  # LEVEL_A and B staged under temporary names
                 os.kill(os.getpid(), signal.SIGKILL)
             return original(*args, **kwargs)
-        pipeline.level_products = level_products
+        rosetta_products.level_products = level_products
         main({_calibrate(sim, out)!r})
     """)
     proc = subprocess.run([sys.executable, "-c", script], env={**os.environ, "PYTHONPATH": SRC},
@@ -298,7 +298,7 @@ def test_a_batch_day_equals_a_single_run_with_samples_after_midnight(tmp_path):
 
 def test_calibrate_f_and_clean_f_have_distinct_names():
     """Before: clean --level F (from K) replaced calibrate's F (from B) of the same day."""
-    from fluxcal.missions.rosetta.pipeline import logical_source, made_from, resampled_tab_stem
+    from fluxcal.missions.rosetta.products import logical_source, made_from, resampled_tab_stem
 
     day = np.datetime64("2014-08-01")
     assert made_from({}, "F") is None and made_from({"averaged_from": "LEVEL_B"}, "F") is None

@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from fluxcal.missions.rosetta.pipeline import AU_KM, with_distance
+from fluxcal.missions.rosetta.products import AU_KM, with_distance
 from fluxcal.products.quicklook import quicklook_figure
 
 from .conftest import make_dataset

@@ -34,7 +34,7 @@ from typer.testing import CliRunner
 
 from fluxcal.errors import InputFormatError
 from fluxcal.missions.imap import sim_packets, simulate
-from fluxcal.missions.imap.pipeline import process
+from fluxcal.missions.imap.chain import process
 from tests.missions.imap.conftest import XTCE
 
 START = "2025-10-17T06:00:00"
@@ -334,7 +334,7 @@ def _split_packets(data: bytes) -> list[bytes]:
 
 def test_gaps_and_a_day_boundary(tmp_path, support):
     """Every third packet lost, data across midnight: the rest comes back, split by UTC day."""
-    from fluxcal.missions.imap.pipeline import products
+    from fluxcal.missions.imap.products import products
     from fluxcal.products.declared import write_declared
 
     data, truth, _ = simulate.simulate_day("2025-10-17T23:54:00", 0.2, 1.0, widths=(0, 18))

@@ -18,10 +18,10 @@ from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel, utc_to_et
 from fluxcal.missions.messenger import fit_demo
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.fit_merit import day_samples
 from fluxcal.missions.messenger.flight_sim import read_flight_truth
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
-from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.simulate import SimulationConfig
 

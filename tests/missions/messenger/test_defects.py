@@ -10,8 +10,8 @@ import pytest
 
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.defects import DEFECT_FLAGS, heater_settle_s
-from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.simulate import read_truth
 

@@ -190,11 +190,11 @@ def test_the_demo_follows_each_advice_to_a_table_that_meets_its_stated_errors(tm
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel, utc_to_et
     from fluxcal.missions.messenger import fit_demo
+    from fluxcal.missions.messenger.chain import calibrate
     from fluxcal.missions.messenger.fit import Chunk, fit_days
     from fluxcal.missions.messenger.fit_cli import parse_hold_d0
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
-    from fluxcal.missions.messenger.pipeline import calibrate
     from fluxcal.missions.messenger.simulate import SimulationConfig
     from tests.missions.messenger._unseen_day import inside_ranges, rms
 

@@ -23,6 +23,7 @@ from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.chain import warn_outside_temperature_range
 from fluxcal.missions.messenger.fit import (
     HOLD_BREAK_WIDTH_C,
     HOLD_SLOPE_CHANGE_WIDTH,
@@ -32,7 +33,6 @@ from fluxcal.missions.messenger.fit import (
 from fluxcal.missions.messenger.fit_variance import law_parameters
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, read_flight_truth, simulate_flight
-from fluxcal.missions.messenger.pipeline import warn_outside_temperature_range
 from tests.missions.messenger._fit_tables import tables_with_header_lines
 from tests.missions.messenger._hard_worlds import MercuryOrbit
 from tests.missions.messenger._unseen_day import recalibrate_rms

@@ -124,7 +124,7 @@ def test_quiet_solar_wind_statistics():
 
 
 def _calibrated_rms(inp, day, folder):
-    from fluxcal.missions.messenger.pipeline import calibrate
+    from fluxcal.missions.messenger.chain import calibrate
 
     one = dt.timedelta(days=1)
 

@@ -12,7 +12,7 @@ import spiceypy
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.positions import position, rtn_spherical
 from fluxcal.missions.messenger import levels
-from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.chain import calibrate
 
 
 def _sub(ds, step):

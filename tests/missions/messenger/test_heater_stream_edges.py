@@ -8,7 +8,7 @@ Neither boundary may turn into a spurious duty-cycle change.
 import numpy as np
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.chain import calibrate
 
 
 def _truncate_heater(simulated, end_rel):
@@ -49,9 +49,9 @@ def test_stream_starting_inside_heater_operation(messenger_kernels, simulated, c
                                                       SclkKernel.from_pool(-236))
     assert np.isneginf(changes.time[0]) and changes.duty_cycle_ppt[0] == 360
     assert np.all(np.isfinite(changes.time[1:]))
-    # the warning (pipeline.warn_unseen_duty_cycle) needs science samples within the
+    # the warning (chain.warn_unseen_duty_cycle) needs science samples within the
     # 5000-s look-back of the stream start: the simulated science starts 95 s after it
-    from fluxcal.missions.messenger.pipeline import warn_unseen_duty_cycle
+    from fluxcal.missions.messenger.chain import warn_unseen_duty_cycle
 
     with KernelPool(messenger_kernels), caplog.at_level("WARNING"):
         sclk = SclkKernel.from_pool(-236)

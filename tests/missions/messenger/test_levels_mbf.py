@@ -6,7 +6,7 @@ import spiceypy
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import utc_to_et
 from fluxcal.missions.messenger import levels
-from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.chain import calibrate
 
 
 def _iau_mercury(et):

@@ -18,12 +18,12 @@ import spiceypy
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger import levels
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.levels import (
     calibration_frames,
     frame_variables,
     note_mbf_rotation,
 )
-from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.products import day_products
 from fluxcal.missions.messenger.run import RAW_UNWRITTEN, calibrate_run
 from fluxcal.products.declared import write_declared

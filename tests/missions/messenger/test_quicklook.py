@@ -10,7 +10,7 @@ import fluxcal.products.quicklook as ql
 from fluxcal.cli import main
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.missions.messenger.batch_task import make_day_task
-from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.products import quicklook_dataset
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fluxcal.geometry.kernels import KernelPool
-from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.simulate import read_truth
 
@@ -175,7 +175,7 @@ def test_calibrate_without_intermediates(messenger_kernels, simulated, calibrati
     Reference: the same call keeping every intermediate; every variable left must be
     identical (same bits, same attributes), since the drop only frees memory.
     """
-    from fluxcal.missions.messenger.pipeline import (
+    from fluxcal.missions.messenger.chain import (
         UNWRITTEN_AFTER_QUALITY,
         UNWRITTEN_BEFORE_GEOMETRY,
     )

@@ -7,7 +7,7 @@ from fluxcal.cli import main
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.pipeline import calibrate
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
 

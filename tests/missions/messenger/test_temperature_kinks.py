@@ -29,8 +29,8 @@ from hypothesis import strategies as st
 
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel, utc_to_et
+from fluxcal.missions.messenger.chain import calibrate
 from fluxcal.missions.messenger.defects import drop_temperature_glitches
-from fluxcal.missions.messenger.pipeline import calibrate
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 
 #: Table 2 (fine counts; T in C): A0, B0, A1, B1 per axis x, y, z.

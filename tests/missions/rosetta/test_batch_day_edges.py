@@ -215,7 +215,7 @@ def test_negative_filter_shift_is_refused_with_table_and_sid():
     # before their day's midnight, which the day edges of decision 30 do not handle
     from fluxcal.errors import FluxcalError
     from fluxcal.missions.rosetta.calib import TimeShiftTable, load_time_shift_table
-    from fluxcal.missions.rosetta.pipeline import check_shifts_nonnegative
+    from fluxcal.missions.rosetta.day_edges import check_shifts_nonnegative
 
     seed = load_time_shift_table()
     check_shifts_nonnegative(seed)

@@ -248,7 +248,7 @@ def test_quicklook_temperatures_of_both_sensors_recover_truth(sim):
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import leapseconds
     from fluxcal.missions.rosetta import calib, io, level_a
-    from fluxcal.missions.rosetta.pipeline import thermistor_temperatures
+    from fluxcal.missions.rosetta.products import thermistor_temperatures
 
     folder = sim / f"{DAYS[0]:%Y%m%d}"
     nominal = calib.load_nominal_conversion()

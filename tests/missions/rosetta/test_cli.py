@@ -104,8 +104,8 @@ def test_stitch_state_file_between_runs(tmp_path):
 
     sim = write_simulation(tmp_path / "sim", start_utc="2014-08-01T23:58:00", hours=0.05)
     state = tmp_path / "state.json"
+    from fluxcal.missions.rosetta.day_edges import read_stitch_state
     from fluxcal.missions.rosetta.options import RosettaOptions
-    from fluxcal.missions.rosetta.pipeline import read_stitch_state
     from fluxcal.missions.rosetta.routes import calibrate_levels, run_files
 
     options = RosettaOptions(calib=sim["calib"], formats=("tab",))

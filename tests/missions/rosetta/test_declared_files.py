@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 from fluxcal.errors import FluxcalError
-from fluxcal.missions.rosetta.pipeline import read_stitch_state, stitch_state_text
+from fluxcal.missions.rosetta.day_edges import read_stitch_state, stitch_state_text
 from fluxcal.products.declared import File, Product, write_declared
 
 STATE = {"stitch_epoch": 460123626934000808, "stitch_offset_nt": [1.5, -0.25, 0.125],

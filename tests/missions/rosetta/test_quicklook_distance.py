@@ -6,7 +6,7 @@ import pytest
 
 import fluxcal.products.quicklook as ql
 from fluxcal.cli import main
-from fluxcal.missions.rosetta.pipeline import AU_KM
+from fluxcal.missions.rosetta.products import AU_KM
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 
 Pure functions for the mission contract: `packets.read_packets`, `l1a.from_packets`,
 `l1a.read_l1a_csv`, `l1b.calibrate`, `calibration.load_calibration`,
-`pipeline.process` / `pipeline.products`; the command is `cli.app`.  ``__all__``
+`chain.process` / `products.products`; the command is `cli.app`.  ``__all__``
 lists the public modules (the command line and the demo are internal).
 """
 
@@ -10,6 +10,7 @@ __all__ = [
     "api",
     "cadence",
     "calibration",
+    "chain",
     "l1a",
     "l1b",
     "l1c",
@@ -17,7 +18,7 @@ __all__ = [
     "mission",
     "options",
     "packets",
-    "pipeline",
+    "products",
     "sources",
     "team_layout",
     "vectors",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from fluxcal.missions.imap.pipeline import process
+from fluxcal.missions.imap.chain import process
 
 
 def calibrate(
@@ -25,7 +25,7 @@ def calibrate(
     inputs : sequence of path
         Packet files, or files in the team's L1A CSV layout.
     kernels : path or sequence of paths
-        The IMAP SCLK kernel (`fluxcal.missions.imap.pipeline.process`).
+        The IMAP SCLK kernel (`fluxcal.missions.imap.chain.process`).
     level : {"l1a", "l1b"}
     calib : path, optional
         The team's calibration CDF (L1B).

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from fluxcal.missions.imap import simulate
+from fluxcal.missions.imap.chain import process
 from fluxcal.missions.imap.options import ImapOptions
-from fluxcal.missions.imap.pipeline import process
 from fluxcal.missions.imap.routes import ImapRun
 from fluxcal.missions.imap.sources import TEAM_FILES, missing_team_files, shared_folder
 from fluxcal.products.atomic import atomic_write_bytes

@@ -24,9 +24,10 @@ from fluxcal.geometry.days import utc_day
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.imap import l1a
 from fluxcal.missions.imap.calibration import load_calibration
+from fluxcal.missions.imap.chain import LEVELS, read_l1a, to_level
 from fluxcal.missions.imap.options import ImapOptions
 from fluxcal.missions.imap.packets import packet_definition
-from fluxcal.missions.imap.pipeline import LEVELS, products, read_l1a, to_level
+from fluxcal.missions.imap.products import products
 from fluxcal.missions.imap.sources import BATCH_FILES, sclk_kernels
 from fluxcal.products.declared import Declared
 from fluxcal.products.timeindex import default_lsk
@@ -82,11 +83,11 @@ class ImapRun:
         return int(sum(ds.sizes["time"] for ds in raw.values()))
 
     def calibrate(self, raw: Datasets, options: ImapOptions, progress: Any) -> Datasets:
-        """L1A as read, or L1B in nT (`fluxcal.missions.imap.pipeline.to_level`)."""
+        """L1A as read, or L1B in nT (`fluxcal.missions.imap.chain.to_level`)."""
         return to_level(raw, options.level, options.calib, progress)
 
     def products(self, calibrated: Datasets, options: ImapOptions) -> Iterator[Declared]:
-        """One product per mode, sensor and UTC day (`fluxcal.missions.imap.pipeline.products`)."""
+        """One product per mode, sensor and UTC day (`fluxcal.missions.imap.products.products`)."""
         return products(calibrated, options.formats, quicklook=options.quicklook,
                         layout=options.layout)
 

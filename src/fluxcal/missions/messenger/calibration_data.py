@@ -251,13 +251,13 @@ class MessengerCalibration:
         fitted law is determined (`fluxcal.missions.messenger.fit_write`), one or more
         intervals (``lo hi`` pairs separated by commas; a table of one interval, the
         older form, reads the same); calibrating samples outside it warns
-        (`pipeline.warn_outside_temperature_range`).  None: the table states no range
+        (`chain.warn_outside_temperature_range`).  None: the table states no range
         (the seed's Table 2).
     duty_range : tuple of float or None
         ``D_RANGE`` of the heater-signal files' headers (percent, ``lo <= d < hi``):
         the duty cycles over which fitted waveforms are determined (`fit.supported_duty_range`);
         calibrating a heater-on sample outside it warns
-        (`pipeline.warn_outside_duty_range`).  Several files: the narrowest (their
+        (`chain.warn_outside_duty_range`).  Several files: the narrowest (their
         intersection).  None: no file states one (the seed's Tables 6-8), nothing warns.
     waveform_error : ndarray, shape (3, n_bins) or None
         ``WAVEFORM_ERROR`` of the heater-signal files' headers: each column's stated
@@ -266,7 +266,7 @@ class MessengerCalibration:
     waveform_part_nt : ndarray, shape (3,) or None
         ``WAVEFORM_PART_NT``: the waveform part (nT, sensor x y z) of the fit's stated
         prediction; a calibrated day whose own duty cycles give more warns
-        (`pipeline.warn_waveform_part`).  Several files: the least per axis.
+        (`chain.warn_waveform_part`).  Several files: the least per axis.
     """
 
     net_lag_s: np.ndarray

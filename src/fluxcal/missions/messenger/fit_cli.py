@@ -210,7 +210,7 @@ def _first_time(chunk) -> str:
     except ValueError:
         pass
     from fluxcal.geometry.kernels import KernelPool
-    from fluxcal.missions.messenger.pipeline import day_of
+    from fluxcal.missions.messenger.chain import day_of
     from fluxcal.missions.messenger.readers import read_science
 
     sci = read_science(list(chunk.science[:1]))

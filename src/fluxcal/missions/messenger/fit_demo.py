@@ -281,7 +281,7 @@ def run_demo(out: Path, *, days: float = 2.0) -> str:
     from fluxcal.geometry.kernels import KernelPool
     from fluxcal.geometry.time import SclkKernel
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.pipeline import calibrate
+    from fluxcal.missions.messenger.chain import calibrate
 
     out = Path(out)
     verdict, fitted, result, truth = fit_training(out, days)

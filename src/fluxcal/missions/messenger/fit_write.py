@@ -278,7 +278,7 @@ def write_calibration_folder(
         for a, c, tmv in zip(AXES, cal.temperature_coefficients, cal.breakpoint_temperature_c,
                              strict=True)]
     # the range the law is stated over, read back by `load_calibration` (calibrating a
-    # sample outside it warns: `pipeline.warn_outside_temperature_range`); one or more
+    # sample outside it warns: `chain.warn_outside_temperature_range`); one or more
     # intervals, ``lo hi`` pairs separated by commas (entry 24)
     ranges = result.stated_ranges
     t_range = ([f"# T_RANGE: {ranges.header_text()}"] if result.estimator == "variance"
@@ -313,7 +313,7 @@ def write_calibration_folder(
     # Tables 6-8 form
     bins = cal.heater_duty_bins_percent
     # the duty cycles the waveforms are fitted on, read back by `load_calibration`
-    # (calibrating a heater-on sample outside it warns: `pipeline.warn_outside_duty_range`)
+    # (calibrating a heater-on sample outside it warns: `chain.warn_outside_duty_range`)
     d_range = result.duty_range
     d_line = ([f"# D_RANGE: {d_range[0]:g} {d_range[1]:g}"] if d_range is not None else [])
     part = waveform_part_line(result)
@@ -390,7 +390,7 @@ def waveform_error_lines(result: FitResult, axis: int) -> list[str]:
     ``# WAVEFORM_ERROR: e_1 ... e_n`` (counts, 1 sigma, rms over the phase; one per
     column, in the table's column order), read back by `load_calibration`
     (`MessengerCalibration.waveform_error`): calibrating a day computes the waveform
-    part of its own duty-cycle mix from them (`pipeline.warn_waveform_part`).
+    part of its own duty-cycle mix from them (`chain.warn_waveform_part`).
     """
     err = result.waveform_error
     if err is None or not np.all(np.isfinite(err)):

@@ -212,7 +212,7 @@ def order_day(ds: xr.Dataset, frames: Sequence[str]) -> tuple[xr.Dataset, OrderR
     Parameters
     ----------
     ds : xarray.Dataset
-        One calibrated day (`fluxcal.missions.messenger.pipeline.calibrate`, split by
+        One calibrated day (`fluxcal.missions.messenger.chain.calibrate`, split by
         `split_days`).
     frames : sequence of str
         Product frames (keys of `FRAMES`).

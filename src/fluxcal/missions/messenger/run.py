@@ -24,6 +24,7 @@ from fluxcal.geometry.days import from_day_of_year
 from fluxcal.geometry.time import utc_to_et
 from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration, load_calibration
+from fluxcal.missions.messenger.chain import calibrate, check_frames, day_of
 from fluxcal.missions.messenger.levels import calibration_frames, note_mbf_rotation
 from fluxcal.missions.messenger.options import (
     DEFAULT_FRAMES,
@@ -31,7 +32,6 @@ from fluxcal.missions.messenger.options import (
     REPORT_FIGURE,
     MessengerOptions,
 )
-from fluxcal.missions.messenger.pipeline import calibrate, check_frames, day_of
 from fluxcal.missions.messenger.products import (
     Progress,
     day_code,

@@ -12,6 +12,7 @@ __all__ = [
     "averaged",
     "calib",
     "cleaning_levels",
+    "day_edges",
     "extended_model",
     "fit",
     "hk",
@@ -22,7 +23,7 @@ __all__ = [
     "level_c",
     "mission",
     "options",
-    "pipeline",
+    "products",
     "reaction_wheels",
     "routes",
 ]

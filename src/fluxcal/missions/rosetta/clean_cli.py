@@ -83,7 +83,7 @@ class CleanResult:
 
 
 def _columns(level: str, ds: xr.Dataset) -> list:
-    from fluxcal.missions.rosetta.pipeline import product_columns
+    from fluxcal.missions.rosetta.products import product_columns
 
     cols = product_columns(_COLUMNS_LIKE[level])
     present = set(ds.data_vars) | set(ds.coords) | {"time_utc"}
@@ -147,7 +147,7 @@ def clean_products(
     import datetime as _dt
 
     from fluxcal.geometry.time import tt2000_to_utc
-    from fluxcal.missions.rosetta.pipeline import DATA_VERSION, istp_yaml
+    from fluxcal.missions.rosetta.products import DATA_VERSION, istp_yaml
     from fluxcal.products.declared import Product  # numpy: not for 'fluxcal --help'
 
     epoch = ds["epoch"].values
@@ -186,7 +186,7 @@ class CleanRun:
 
     def products(self, made: dict[str, xr.Dataset], options: object = None) -> Iterator[Declared]:
         """Declare each sensor's cleaned level, then the before/after PNG."""
-        from fluxcal.missions.rosetta.pipeline import level_products
+        from fluxcal.missions.rosetta.products import level_products
         from fluxcal.products.declared import File
 
         for tag, ds in made.items():

@@ -92,7 +92,7 @@ def calibrate(
 
     Follows "RO-IGEP-TR0028 Rosetta RPC-MAG calibration" sec. 4.1-4.8.
     """
-    from fluxcal.missions.rosetta.pipeline import parse_levels
+    from fluxcal.missions.rosetta.products import parse_levels
     from fluxcal.missions.rosetta.routes import FILE_LEVELS, run_files
 
     calib = options.calib

@@ -47,19 +47,21 @@ from fluxcal.missions.rosetta import (
     level_b,
     level_c,
 )
-from fluxcal.missions.rosetta.identity import FRAME_KERNELS
-from fluxcal.missions.rosetta.options import RosettaOptions
-from fluxcal.missions.rosetta.pipeline import (
-    LEVELS,
+from fluxcal.missions.rosetta.day_edges import (
     check_day_records,
     check_shifts_nonnegative,
     merge_tail,
-    parse_levels,
     previous_day_records,
     previous_day_tail,
     read_stitch_state,
-    sensor_products,
     stitch_state_text,
+)
+from fluxcal.missions.rosetta.identity import FRAME_KERNELS
+from fluxcal.missions.rosetta.options import RosettaOptions
+from fluxcal.missions.rosetta.products import (
+    LEVELS,
+    parse_levels,
+    sensor_products,
     thermistor_temperatures,
 )
 from fluxcal.products.declared import Declared, File

@@ -279,7 +279,7 @@ def note_mbf_rotation(ds: xr.Dataset, frames: Sequence[str]) -> xr.Dataset:
     When MBF is produced with fluxcal's built-in Mercury rotation (no mission PCK,
     `mercury_orientation_is_builtin`): logs `MBF_BUILTIN_NOTE` as a warning, sets it as
     the ``mbf_rotation`` attribute (which every product of the run carries; placed before
-    ``software_version`` when present, the attributes `pipeline.calibrate` adds last, so
+    ``software_version`` when present, the attributes `chain.calibrate` adds last, so
     the labels list it in the same place whether MBF is computed by `add_geometry` or
     when written) and notes ``rotation_model`` on ``b_mbf`` when ``ds`` holds it.
     Otherwise returns ``ds`` itself.

@@ -32,7 +32,7 @@ def find_heater_periods(
 
     A heater stream that starts inside heater operation (less than one heater period of
     data before the first rising edge) gives a first change at ``-inf``: that duty cycle
-    is taken as steady before the data (`fluxcal.missions.messenger.pipeline.calibrate`
+    is taken as steady before the data (`fluxcal.missions.messenger.chain.calibrate`
     warns when that enters a science sample).  A last period cut inside
     its on-phase by the end of the stream keeps the previous period's duty cycle.
 

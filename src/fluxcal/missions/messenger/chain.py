@@ -1,5 +1,12 @@
 """The whole MESSENGER MAG EDR -> CDR chain on in-memory datasets.
 
+`calibrate` runs the pure levels (`fluxcal.missions.messenger.levels`, each
+``Dataset -> Dataset``) in the order of sec. 5-13 and warns where a day's samples lie
+outside what the calibration tables state (`warn_outside_range` and its uses,
+`warn_unseen_duty_cycle`, `warn_waveform_part`).  Reading the streams and writing the
+products around it is `fluxcal.missions.messenger.run` on the generic driver
+(`fluxcal.missions.messenger.routes`).
+
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 5-13.

@@ -1,17 +1,16 @@
-"""IMAP MAG runs: inputs -> L1A or L1B datasets per (mode, sensor) -> products.
+"""IMAP MAG inputs -> L1A or L1B datasets per (mode, sensor).
 
 `process` reads packet files and the team's L1A CSV files (told apart by content, not by
 name: `fluxcal.missions.imap.l1a.csv_header`), makes L1A datasets through the SCLK
 kernel, drops duplicated packets (counted and warned) and, for L1B, applies the
-calibration; `products` declares one product per mode, sensor and UTC day named
-``imap_mag_<level>_<mode>-<sensor>_<yyyymmdd>_v<nnn>`` (the runner writes them:
-`fluxcal.runs.driver.write`).
+calibration; the products of those datasets are declared by
+`fluxcal.missions.imap.products` (the run on the driver: `fluxcal.missions.imap.routes`).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -20,21 +19,14 @@ import xarray as xr
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.kernels import KernelPool
 from fluxcal.geometry.time import SclkKernel
-from fluxcal.missions.imap import l1a, l1b, team_layout
+from fluxcal.missions.imap import l1a, l1b
 from fluxcal.missions.imap.calibration import load_calibration
-from fluxcal.missions.imap.packets import data_file, read_packets
+from fluxcal.missions.imap.packets import read_packets
 from fluxcal.missions.imap.sources import sclk_kernels
-from fluxcal.products.declared import Declared, Product, Quicklook
 
 log = logging.getLogger(__name__)
 
 LEVELS = ("l1a", "l1b")
-DATA_VERSION = "001"
-
-
-def logical_source(level: str, mode: str, sensor: str) -> str:
-    """IMAP logical source, e.g. ``imap_mag_l1b_norm-mago``."""
-    return f"imap_mag_{level}_{mode}-{sensor}"
 
 
 #: Variables that make a vector the same vector (with ``epoch``).
@@ -176,29 +168,3 @@ def process(inputs: Sequence[Path], *, level: str = "l1b", calib: Path | None = 
         merged = read_l1a(inputs, SclkKernel.from_pool(l1a.IMAP_SCLK_ID), xtce=xtce,
                           csv_layout=csv_layout)
     return to_level(merged, level, calib)
-
-
-def products(datasets: dict[tuple[str, str], xr.Dataset], formats: Sequence[str] = ("cdf",),
-             *, quicklook: bool = False, layout: str = "fluxcal",
-             version: str = DATA_VERSION) -> Iterator[Declared]:
-    """Declare one product per (mode, sensor) and UTC day (`fluxcal.products.declared`).
-
-    Named ``imap_mag_<level>_<mode>-<sensor>_<yyyymmdd>_v<nnn>`` as the team's files;
-    the runner splits each dataset by UTC day, adds the provenance and writes.  With
-    ``layout="team"`` the products hold the team's CDF variables
-    (`fluxcal.missions.imap.team_layout.team_product`); with ``quicklook`` an L1B
-    dataset also gets ``imap_mag_ql_<mode>-<sensor>_<yyyymmdd>.png``.
-    """
-    for (mode, sensor), ds in datasets.items():
-        level = ds.attrs["level"]
-        source = logical_source(level, mode, sensor)
-        if layout == "team":
-            yield team_layout.team_product(ds, source, f"v{version}")
-            continue
-        yield Product(f"{source}_{{day:%Y%m%d}}_v{version}", ds, formats=tuple(formats),
-                      attrs={"Logical_source": source, "Data_version": version,
-                             "Data_type": f"{level.upper()}>{level.upper()} {mode}"},
-                      global_yaml=data_file("istp_global.yaml"))
-        if quicklook and level == "l1b":
-            yield Quicklook(f"imap_mag_ql_{mode}-{sensor}", ds, field="b",
-                            frame="sensor unit frame")

@@ -1,11 +1,11 @@
-"""Frame keys are checked once (`pipeline.check_frames`), before any work."""
+"""Frame keys are checked once (`chain.check_frames`), before any work."""
 
 from __future__ import annotations
 
 import pytest
 
 from fluxcal.errors import InputFormatError
-from fluxcal.missions.messenger.pipeline import check_frames
+from fluxcal.missions.messenger.chain import check_frames
 
 
 def test_every_product_frame_is_accepted():
