@@ -988,7 +988,7 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     ``result.merit`` (`fit_merit.assess`) predicts the error over every used sample;
     the table states its law only over ``result.temperature_ranges`` (``T_RANGE``, one
     or more intervals), and calibrating a sample outside it warns with how far
-    (`calibration_data`, `pipeline.warn_outside_temperature_range`).  The figure of
+    (`calibration_data`, `chain.warn_outside_temperature_range`).  The figure of
     merit ``total_nt`` (and its parts) becomes `fit_merit.predicted_error` over the
     samples whose 1-C bin's mean temperature T_RANGE contains
     (`StatedRanges.contains`); ``outside`` keeps the share of the samples outside and
