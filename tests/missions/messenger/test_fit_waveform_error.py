@@ -20,7 +20,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     FitSettings,
     interpolation_weights,
 )
-from fluxcal.missions.messenger.fit_waveform_error import cluster_robust_error, fold_parts
+from fluxcal.missions.messenger.fit_waveform_error import jackknife_error, leave_one_out
 
 START = "2012-06-01T00:00:00"
 PHASE = np.arange(100.0)
@@ -52,49 +52,50 @@ def _fold_moments(values: list[np.ndarray]) -> tuple[BinnedMoments, list[BinnedM
     return pooled, folds
 
 
-def test_cluster_robust_error_covers_unequal_and_unequally_noisy_folds():
+def test_jackknife_error_covers_unequal_and_unequally_noisy_folds():
     # one column seen alone (weights 1), folds of 2 / 6 / 12 / 20 samples per phase; the
     # smallest fold is 4x noisier (a disturbed hour, the 7003 pattern).  The pooled
     # column is the count-weighted mean of the folds (w_k = n_k / N), its true variance
-    # V = sum w_k^2 v_k, v_k = s_k^2 / n_k.  Closed forms, from E (x_k - mean)^2 =
-    # v_k (1 - 2 w_k) + V: the stated variance (CR2) averages to
-    # sum w_k^2 / (1 - w_k) (v_k (1 - 2 w_k) + V) = 1.26 V here (exactly V with equal
-    # noise per sample), the folds' spread weighted by their sizes (entry 29's
+    # V = sum w_k^2 v_k, v_k = s_k^2 / n_k.  Closed forms: leaving fold k out gives
+    # L x with L_ki = n_i / (N - n_k) (i != k), so the jackknife variance averages to
+    # (K - 1) / K sum_i (M'M)_ii v_i, M = (I - 1/K) L: 1.38 V here (exactly V for equal
+    # folds of equal noise); the folds' spread weighted by their sizes (entry 29's
     # estimator, written out here) to sum w_k (v_k (1 - 2 w_k) + V) / (K - 1) = 3.3 V:
     # it counts the noisy small fold at its own variance, the pooled mean at w_0^2 of
     # it.  400 draws of 100 phases scatter each ratio by about 2 % (5 % allowed).
     rng = np.random.default_rng(3434)
     n = np.array([2, 6, 12, 20])
     s = np.array([8.0, 2.0, 2.0, 2.0])
+    k = n.size
     w = n / n.sum()
     v = s ** 2 / n
     truth = _known(PHASE)
     stated2, true2, spread2 = [], [], []
     for _ in range(400):
-        values = [truth[None, :, None] + s[k] * rng.standard_normal((n[k], PHASE.size, 3))
-                  for k in range(n.size)]
+        values = [truth[None, :, None] + s[i] * rng.standard_normal((n[i], PHASE.size, 3))
+                  for i in range(k)]
         pooled, folds = _fold_moments(values)
         none = [BinnedMoments.empty(pooled.edges, pooled.n_comp)] * 7  # other bins
-        parts, share = fold_parts([pooled, *none], [[f, *none] for f in folds], 2)
-        fold_mean = np.stack([f.mean()[:, 0] for f in folds])  # (K, phase), axis x
+        without = leave_one_out([[f, *none] for f in folds])
+        refit = np.stack([h[0].mean()[:, 0] for h in without])  # (K, phase), axis x
+        stated2.append(jackknife_error(refit) ** 2)
+        fold_mean = np.stack([f.mean()[:, 0] for f in folds])
         column = (n[:, None] * fold_mean).sum(axis=0) / n.sum()
-        err, _ = cluster_robust_error(parts[:, :, 0, 0], share[:, :, 0].mean(axis=1))
-        stated2.append(err ** 2)
         true2.append(np.mean((column - truth) ** 2))
         spread2.append(np.mean((n[:, None] * (fold_mean - column) ** 2).sum(axis=0)
-                               / ((n.size - 1) * n.sum())))
+                               / ((k - 1) * n.sum())))
     big_v = (w ** 2 * v).sum()
-    e_dev = v * (1 - 2 * w) + big_v
     assert np.mean(true2) == pytest.approx(big_v, rel=0.05)
-    cr2 = (w ** 2 / (1 - w) * e_dev).sum() / big_v
-    spread = (w * e_dev).sum() / (n.size - 1) / big_v
-    assert 1.0 < cr2 < 1.3 and spread > 3.0
-    assert np.mean(stated2) / np.mean(true2) == pytest.approx(cr2, rel=0.05)
+    big_l = np.where(np.eye(k) > 0, 0.0, n[None, :] / (n.sum() - n)[:, None])
+    m = (np.eye(k) - 1.0 / k) @ big_l
+    jack = (k - 1) / k * ((m.T @ m).diagonal() * v).sum() / big_v
+    spread = (w * (v * (1 - 2 * w) + big_v)).sum() / (k - 1) / big_v
+    assert 1.0 < jack < 1.6 and spread > 3.0
+    assert np.mean(stated2) / np.mean(true2) == pytest.approx(jack, rel=0.05)
     assert np.mean(spread2) / np.mean(true2) == pytest.approx(spread, rel=0.05)
-    # with equal noise per sample the stated variance is the true one
-    assert (w ** 2 / (1 - w) * (v * 0 + 4.0 / n * (1 - 2 * w)
-                                + (w ** 2 * 4.0 / n).sum())).sum() == pytest.approx(
-        (w ** 2 * 4.0 / n).sum(), rel=1e-12)
+    # four equal folds of equal noise: the jackknife is the pooled mean's variance
+    m4 = (np.eye(4) - 0.25) @ np.where(np.eye(4) > 0, 0.0, 1.0 / 3.0)
+    assert 0.75 * (m4.T @ m4).diagonal().sum() * 1.0 == pytest.approx(4 * (0.25 ** 2))
 
 
 def _t_quantile(nu: int, q: float) -> float:
@@ -204,8 +205,8 @@ def test_edge_column_seen_through_its_neighbour_is_not_overstated():
     # truth: two known columns (36 and 40 %), the others empty.  The pipeline's own fit,
     # 60 draws, three axes each: the 40-% column's stated error must cover its true
     # error (mean stated^2 / true^2 at least 1; stated >= true in at least 70 % of the
-    # 180 column draws) and not be grossly conservative (the ratio at most 2.5, stated
-    # rms at most 1.6x; 1.95 in 20 draws).  The folds' spread (entry 29) gave 7.9
+    # 180 column draws) and not be grossly conservative (the ratio at most 3, stated
+    # rms at most 1.7x; 2.0 in 20 draws).  The folds' spread (entry 29) gave 7.9
     # here, 2.8x in rms (20 draws, checked by hand on main f6aae58, not kept): fold
     # 0's own 40-% solution is poor, and the spread counted it at the weight of all
     # the samples leaning on the column there.
@@ -225,5 +226,5 @@ def test_edge_column_seen_through_its_neighbour_is_not_overstated():
         stated.append(error[:, 7])
     stated, true = np.concatenate(stated), np.concatenate(true)
     ratio = np.mean(stated ** 2) / np.mean(true ** 2)
-    assert 1.0 <= ratio <= 2.5, ratio
+    assert 1.0 <= ratio <= 3.0, ratio
     assert np.mean(stated >= true) >= 0.7

@@ -74,7 +74,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     relaxation_response,
 )
 from fluxcal.missions.messenger.fit_variance import VarianceStatistics, reduce_variance
-from fluxcal.missions.messenger.fit_waveform_error import cluster_robust_error, fold_parts
+from fluxcal.missions.messenger.fit_waveform_error import jackknife_error, leave_one_out
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.routes import EDR_MAPPING, day_file_groups
@@ -506,17 +506,15 @@ def unmix_waveforms(stats: DayStatistics, waveform: Sequence | None = None
 
 
 def few_folds_widening(own: np.ndarray, folds: int) -> float:
-    """Factor (>= 1) on a waveform column's stated error when it rests on few folds.
+    """Factor (>= 1) on a waveform column's jackknife error when its own samples lie in few folds.
 
-    ``own`` holds, per fold, what the column's error estimate draws on: the folds'
-    leverages on the column, or their contributions to the estimate
-    (`fit_waveform_error.cluster_robust_error`; `_fit_waveforms` takes the larger
-    factor).  The estimate pools 100 phases, so a column resting on every fold covers
-    its truth as it is (entry 3x-calm).  Resting on ``K_eff = N^2 / sum n_k^2``
-    effective folds (Kish), it compares ``K_eff - 1`` of them: widened by the
-    Student-t ratio ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the
-    t quantile of one normal standard deviation (two equal folds: 1.54 for four folds;
-    entry 29).
+    ``own`` holds the column's own samples (its duty-cycle bin's) in each fold.  The
+    refits' spread pools 100 phases, so for a column whose own samples fill every fold
+    it covers the truth as it is (entries 29 and 3x-calm).  With its own samples in
+    ``K_eff = N^2 / sum n_k^2`` effective folds (Kish), the spread compares
+    ``K_eff - 1`` of them: widened by the Student-t ratio
+    ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the t quantile of one
+    normal standard deviation (two equal folds: 1.54 for four folds).
     """
     n = np.asarray(own, dtype=float)
     if n.sum() <= 0 or folds < 2:
@@ -530,26 +528,28 @@ def few_folds_widening(own: np.ndarray, folds: int) -> float:
 def _fit_waveforms(
     stats: DayStatistics, base: MessengerCalibration
 ) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]], np.ndarray]:
-    """Fit the waveform columns (sec. 6), and state their error from the folds' spread.
+    """Fit the waveform columns (sec. 6), and state their error by refitting without each fold.
 
     Returns the table, the splines (None where kept from ``base``) and, per axis and
-    duty bin, the rms (counts, over the phase) of the pooled column's error from each
-    fold of 30-min blocks' part of it (`DayStatistics.waveform_folds`,
-    `fit_waveform_error.fold_parts`, each part smoothed by the column's own spline,
-    `fit_waveform_error.cluster_robust_error`), widened when the estimate rests on few
-    folds (`few_folds_widening` of the folds' leverages on the column or of their
-    contributions to the estimate, the larger), and the spline's smoothing bias
-    added in quadrature (the smoothing applied once more to the fitted curve,
-    ``(S - I) f_hat``: common to the folds, so not in their parts); a column kept from
-    ``base``, or resting on fewer than two folds, is given its own rms (its error
-    unknown, entries 19, 29 and 3x-calm).
+    duty bin, the rms (counts, over the phase) of the delete-a-fold jackknife error of
+    the fitted column (the same fit on the statistics without each fold of 30-min
+    blocks, `DayStatistics.waveform_folds`, `fit_waveform_error.leave_one_out`,
+    `fit_waveform_error.jackknife_error`), widened when the column's own samples lie in
+    few folds (`few_folds_widening`), and the spline's smoothing bias added in
+    quadrature (the smoothing applied once more to the fitted curve, ``(S - I) f_hat``:
+    common to the refits, so not in their spread); a column kept from ``base`` is given
+    its own rms (its error unknown, entries 19 and 29), and a fitted column that some
+    fold's removal leaves unfitted (it rests on one fold), or with fewer than two folds
+    holding samples, the larger of its rms and the shipped column's (entry 3x-calm).
     """
     table = np.array(base.heater_signal, dtype=float)
     nb = len(stats.waveform)
     fits: list[list[PeriodicSplineFit | None]] = [[None] * nb for _ in AXES]
     error = np.sqrt(np.mean(table[:, :100, :] ** 2, axis=1))  # (axis, bin): base's own rms
     phase, columns, support = unmix_waveforms(stats)
-    parts, share = fold_parts(stats.waveform, stats.waveform_folds, MIN_BIN_SAMPLES)
+    without = [unmix_waveforms(stats, h) for h in leave_one_out(stats.waveform_folds)
+               if h is not None]
+    own = np.array([[w.count.sum() for w in h] for h in stats.waveform_folds], dtype=float)
 
     def spline(ph, col, sup, b, j):
         ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
@@ -559,32 +559,14 @@ def _fit_waveforms(
         values = fit.table(1.0)[1]
         return fit, values - values[:-1].mean()
 
-    def smoothed(fit, y, b):
-        # the column's own spline (its lam and knots: linear in y) applied to y
-        ok = np.isfinite(phase) & np.all(np.isfinite(columns[:, b]), axis=1)
-        return fit_periodic_spline(phase[ok], np.nan_to_num(y[ok]), np.sqrt(support[ok, b]),
-                                   100.0, smoothing=fit.lam, n_knots=fit.n_knots), ok
-
-    def smoothing_bias(fit, b):
+    def smoothing_bias(fit, ph, col, sup, b):
         # the spline's own smoothing applied to the fitted curve: (S - I) f_hat, the
         # plug-in estimate of (S - I) f, a bias the folds share (entry 29)
-        again, ok = smoothed(fit, np.where(np.isfinite(phase), fit(np.nan_to_num(phase)),
-                                           np.nan), b)
-        f_hat = fit(phase[ok])
-        return float(np.sqrt(np.mean((again(phase[ok]) - f_hat) ** 2)))
-
-    def fold_part_error(fit, b, j):
-        # each fold's part of the pooled column, smoothed as the column was, and its
-        # leverage on the column (mean over the phase; entry 3x-calm)
-        curves = []
-        for k in range(parts.shape[0]):
-            values = smoothed(fit, parts[k, :, b, j], b)[0].table(1.0)[1][:-1]
-            curves.append(values - values.mean())
-        ok = np.isfinite(phase) & np.all(np.isfinite(columns[:, b]), axis=1)
-        h = np.nanmean(np.where(ok, share[:, :, b], np.nan), axis=1)
-        err, contribution = cluster_robust_error(np.stack(curves), h)
-        return err * max(few_folds_widening(np.clip(h, 0.0, None), h.size),
-                         few_folds_widening(contribution, h.size))
+        ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
+        f_hat = fit(ph[ok])
+        again = fit_periodic_spline(ph[ok], f_hat, np.sqrt(sup[ok, b]), 100.0,
+                                    smoothing=fit.lam, n_knots=fit.n_knots)
+        return float(np.sqrt(np.mean((again(ph[ok]) - f_hat) ** 2)))
 
     for b in range(nb):
         for j in range(3):
@@ -592,8 +574,16 @@ def _fit_waveforms(
             if got is None:
                 continue
             fits[j][b], table[j, :, b] = got
-            err = np.hypot(fold_part_error(fits[j][b], b, j), smoothing_bias(fits[j][b], b))
-            error[j, b] = err if np.isfinite(err) else error[j, b]
+            refits = [spline(*h, b, j) for h in without]
+            err = float("nan")
+            if len(refits) >= 2 and all(r is not None for r in refits):
+                err = jackknife_error(np.stack([r[1][:-1] for r in refits]))
+                err *= few_folds_widening(own[:, b], len(stats.waveform_folds))
+                err = np.hypot(err, smoothing_bias(fits[j][b], phase, columns, support, b))
+            # unknown (the column rests on one fold): as large as the column itself,
+            # fitted or shipped, not the shipped one's rms alone (entry 3x-calm)
+            error[j, b] = err if np.isfinite(err) else max(
+                error[j, b], float(np.sqrt(np.mean(table[j, :100, b] ** 2))))
     return table, fits, error
 
 
