@@ -13,13 +13,14 @@ from scipy.optimize import brentq
 
 from fluxcal.calibration.binned_stats import BinnedMoments
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import _fit_waveforms, few_folds_widening, fold_error
+from fluxcal.missions.messenger.fit import _fit_waveforms, few_folds_widening
 from fluxcal.missions.messenger.fit_reduce import (
     WAVEFORM_FOLDS,
     DayStatistics,
     FitSettings,
     interpolation_weights,
 )
+from fluxcal.missions.messenger.fit_waveform_error import jackknife_error, leave_one_out
 
 START = "2012-06-01T00:00:00"
 PHASE = np.arange(100.0)
@@ -32,32 +33,69 @@ def _known(phase: np.ndarray) -> np.ndarray:
     return w - w.mean()
 
 
-def test_fold_error_is_the_pooled_means_error_by_brute_force():
-    # unequal folds of n_k samples per phase, noise sigma per sample: each fold's mean
-    # has variance sigma^2 / n_k and the pooled mean sigma^2 / N (the closed form);
-    # the stated error squared must average to the true error squared.  4000 draws of
-    # 100 phases: the ratio of the averages scatters by about 0.2 % (3 % allowed)
-    rng = np.random.default_rng(34)
-    n = np.array([40.0, 160.0, 300.0, 500.0])
-    sigma = 2.0
+def _fold_moments(values: list[np.ndarray]) -> tuple[BinnedMoments, list[BinnedMoments]]:
+    """Pooled and per-fold phase-binned moments of one duty bin at its centre (column 0).
+
+    ``values[k]``: fold k's samples, shape (n_k, phase, 3); the weights columns put the
+    whole sample on the first waveform column."""
+    edges = np.arange(101) - 0.5
+    nb = 8
+    folds = []
+    for v in values:
+        w = np.zeros((v.shape[0] * PHASE.size, nb))
+        w[:, 0] = 1.0
+        data = np.column_stack([v.reshape(-1, 3), np.tile(PHASE, v.shape[0]), w])
+        folds.append(BinnedMoments.accumulate(data[:, 3], data, edges))
+    pooled = folds[0]
+    for f in folds[1:]:
+        pooled = pooled.merge(f)
+    return pooled, folds
+
+
+def test_jackknife_error_covers_unequal_and_unequally_noisy_folds():
+    # one column seen alone (weights 1), folds of 2 / 6 / 12 / 20 samples per phase; the
+    # smallest fold is 4x noisier (a disturbed hour, the 7003 pattern).  The pooled
+    # column is the count-weighted mean of the folds (w_k = n_k / N), its true variance
+    # V = sum w_k^2 v_k, v_k = s_k^2 / n_k.  Closed forms: leaving fold k out gives
+    # L x with L_ki = n_i / (N - n_k) (i != k), so the jackknife variance averages to
+    # (K - 1) / K sum_i (M'M)_ii v_i, M = (I - 1/K) L: 1.38 V here (exactly V for equal
+    # folds of equal noise); the folds' spread weighted by their sizes (entry 29's
+    # estimator, written out here) to sum w_k (v_k (1 - 2 w_k) + V) / (K - 1) = 3.3 V:
+    # it counts the noisy small fold at its own variance, the pooled mean at w_0^2 of
+    # it.  400 draws of 100 phases scatter each ratio by about 2 % (5 % allowed).
+    rng = np.random.default_rng(3434)
+    n = np.array([2, 6, 12, 20])
+    s = np.array([8.0, 2.0, 2.0, 2.0])
+    k = n.size
+    w = n / n.sum()
+    v = s ** 2 / n
     truth = _known(PHASE)
-    h = np.array([0.05, 0.95]) * 1000.0  # two halves of 5 % and 95 %
-    stated2, true2, halves2, stated_h2, true_h2 = [], [], [], [], []
-    for _ in range(4000):
-        x = truth + sigma / np.sqrt(n)[:, None] * rng.standard_normal((n.size, PHASE.size))
-        stated2.append(fold_error(x, n) ** 2)
-        true2.append(np.mean(((n[:, None] * x).sum(axis=0) / n.sum() - truth) ** 2))
-        xh = truth + sigma / np.sqrt(h)[:, None] * rng.standard_normal((2, PHASE.size))
-        halves2.append(np.mean((0.5 * (xh[0] - xh[1])) ** 2))  # the estimator before
-        stated_h2.append(fold_error(xh, h) ** 2)
-        true_h2.append(np.mean(((h[:, None] * xh).sum(axis=0) / h.sum() - truth) ** 2))
-    assert np.mean(stated2) / np.mean(true2) == pytest.approx(1.0, abs=0.03)
-    # the closed form of the pooled mean's variance, sigma^2 / N
-    assert np.mean(true2) == pytest.approx(sigma ** 2 / n.sum(), rel=0.03)
-    assert np.mean(stated_h2) / np.mean(true_h2) == pytest.approx(1.0, abs=0.03)
-    # half the difference overstates the variance by N^2 / (4 n1 n2) = 5.26 (2.3x rms)
-    assert np.mean(halves2) / np.mean(true_h2) == pytest.approx(1 / (4 * 0.05 * 0.95),
-                                                                rel=0.03)
+    stated2, true2, spread2 = [], [], []
+    for _ in range(400):
+        values = [truth[None, :, None] + s[i] * rng.standard_normal((n[i], PHASE.size, 3))
+                  for i in range(k)]
+        pooled, folds = _fold_moments(values)
+        none = [BinnedMoments.empty(pooled.edges, pooled.n_comp)] * 7  # other bins
+        without = leave_one_out([[f, *none] for f in folds])
+        refit = np.stack([h[0].mean()[:, 0] for h in without])  # (K, phase), axis x
+        stated2.append(jackknife_error(refit) ** 2)
+        fold_mean = np.stack([f.mean()[:, 0] for f in folds])
+        column = (n[:, None] * fold_mean).sum(axis=0) / n.sum()
+        true2.append(np.mean((column - truth) ** 2))
+        spread2.append(np.mean((n[:, None] * (fold_mean - column) ** 2).sum(axis=0)
+                               / ((k - 1) * n.sum())))
+    big_v = (w ** 2 * v).sum()
+    assert np.mean(true2) == pytest.approx(big_v, rel=0.05)
+    big_l = np.where(np.eye(k) > 0, 0.0, n[None, :] / (n.sum() - n)[:, None])
+    m = (np.eye(k) - 1.0 / k) @ big_l
+    jack = (k - 1) / k * ((m.T @ m).diagonal() * v).sum() / big_v
+    spread = (w * (v * (1 - 2 * w) + big_v)).sum() / (k - 1) / big_v
+    assert 1.0 < jack < 1.6 and spread > 3.0
+    assert np.mean(stated2) / np.mean(true2) == pytest.approx(jack, rel=0.05)
+    assert np.mean(spread2) / np.mean(true2) == pytest.approx(spread, rel=0.05)
+    # four equal folds of equal noise: the jackknife is the pooled mean's variance
+    m4 = (np.eye(4) - 0.25) @ np.where(np.eye(4) > 0, 0.0, 1.0 / 3.0)
+    assert 0.75 * (m4.T @ m4).diagonal().sum() * 1.0 == pytest.approx(4 * (0.25 ** 2))
 
 
 def _t_quantile(nu: int, q: float) -> float:
@@ -110,13 +148,13 @@ def test_fitted_column_errors_cover_brute_force(periods):
     # one duty-cycle bin (28 %), its periods in unequal folds (or in two of the four),
     # sigma 3 counts per sample, a waveform with sharp edges (the splines' smoothing
     # bias is 1/3 of the noise error here); the pipeline's own fit (unmixing, splines,
-    # folds) drawn 100 times: mean stated^2 against mean true^2 (the fitted column less
-    # the known waveform), averaged over the three axes (independent draws).  Expected:
-    # 1, times the Student-t widening squared where the column's samples lie in two
-    # folds ((t_1 / t_3)^2 = 2.36, closed forms).  Allowed 0.78-1.3: 300 draws scatter
-    # the ratio by about 5 %; the folds' own GCV splines smooth a little more than the
-    # pooled one, so their spread runs 5-8 % short (rms) in this construction.  Without
-    # the smoothing bias the ratio is 0.70-0.78 (checked by hand, not kept).
+    # refits without each fold) drawn 100 times: mean stated^2 against mean true^2 (the
+    # fitted column less the known waveform), averaged over the three axes (independent
+    # draws).  Expected: 1, times the Student-t widening squared where the column's
+    # samples lie in two folds ((t_1 / t_3)^2 = 2.36, closed forms).  Allowed 0.78-1.3:
+    # 300 draws scatter the ratio by about 5 %.  The jackknife of unequal folds errs on
+    # the high side (entry 3x-calm): 1.14 and 0.87 here (entry 29's fold spread: within
+    # 0.78-1.3 too; without the smoothing bias it was 0.70-0.78; by hand, not kept).
     assert len(periods) == WAVEFORM_FOLDS
     rng = np.random.default_rng(7)
     base = load_calibration(np.datetime64(START))
@@ -133,3 +171,60 @@ def test_fitted_column_errors_cover_brute_force(periods):
     expected = 1.0 if min(periods) > 0 else (_t_quantile(1, q) / _t_quantile(3, q)) ** 2
     ratio = np.mean(stated2) / np.mean(true2) / expected
     assert 0.78 < ratio < 1.3, ratio
+
+
+def _edge_statistics(rng: np.random.Generator, groups, truth: dict) -> DayStatistics:
+    """Statistics of heater periods ``(fold, duty %, periods, sigma)``: each period one
+    sample per phase bin, the pipeline's interpolation (sec. 6) of the known columns
+    ``truth`` (bin index -> waveform) plus noise of ``sigma`` counts."""
+    s = FitSettings()
+    centres = np.asarray(s.waveform_bins_percent)
+    stats = DayStatistics.empty(s)
+    edges = np.arange(101) - 0.5
+    rows: dict[tuple[int, int], list[np.ndarray]] = {}
+    for fold, duty, periods, sigma in groups:
+        w = interpolation_weights(np.full(PHASE.size, duty), centres)
+        mean = sum(w[:, j] * col for j, col in truth.items())
+        value = mean[None, :, None] + sigma * rng.standard_normal((periods, PHASE.size, 3))
+        b = int(np.floor((duty - (centres[0] - 2.0)) / 4.0))
+        rows.setdefault((fold, b), []).extend(np.column_stack([v, PHASE, w]) for v in value)
+    for (fold, b), parts in rows.items():
+        data = np.concatenate(parts)
+        stats.waveform_folds[fold][b] = stats.waveform_folds[fold][b].merge(
+            BinnedMoments.accumulate(data[:, 3], data, edges))
+        stats.waveform[b] = stats.waveform[b].merge(
+            BinnedMoments.accumulate(data[:, 3], data, edges))
+    return stats
+
+
+def test_edge_column_seen_through_its_neighbour_is_not_overstated():
+    # the pattern of calm seed 7003 at 2 days (entry 3x-calm): the 40-% column's own
+    # periods lie in folds 2 and 3 (15 and 18) and 4 (at 39 %) in fold 0, whose data
+    # are 4x noisier (sigma 12 counts against 3); fold 1 reaches the column only
+    # through 37-% periods of the 36-% bin (weight 0.25).  Every fold holds 36-% periods.  The
+    # truth: two known columns (36 and 40 %), the others empty.  The pipeline's own fit,
+    # 60 draws, three axes each: the 40-% column's stated error must cover its true
+    # error (mean stated^2 / true^2 at least 1; stated >= true in at least 70 % of the
+    # 180 column draws) and not be grossly conservative (the ratio at most 3, stated
+    # rms at most 1.7x; 2.0 in 20 draws).  The folds' spread (entry 29) gave 7.9
+    # here, 2.8x in rms (20 draws, checked by hand on main f6aae58, not kept): fold
+    # 0's own 40-% solution is poor, and the spread counted it at the weight of all
+    # the samples leaning on the column there.
+    rng = np.random.default_rng(7003)
+    base = load_calibration(np.datetime64(START))
+    truth = {6: _known(PHASE), 7: 0.8 * _known((PHASE + 35.0) % 100.0)}
+    groups = [(0, 36.0, 10, 12.0), (0, 39.0, 4, 12.0),
+              (1, 36.0, 8, 3.0), (1, 37.0, 12, 3.0),
+              (2, 36.0, 10, 3.0), (2, 40.0, 15, 3.0),
+              (3, 36.0, 12, 3.0), (3, 40.0, 18, 3.0)]
+    stated, true = [], []
+    for _ in range(60):
+        stats = _edge_statistics(rng, groups, truth)
+        table, fits, error = _fit_waveforms(stats, base)
+        assert fits[0][7] is not None and fits[0][0] is None
+        true.append(np.sqrt(np.mean((table[:, :100, 7] - truth[7][None]) ** 2, axis=1)))
+        stated.append(error[:, 7])
+    stated, true = np.concatenate(stated), np.concatenate(true)
+    ratio = np.mean(stated ** 2) / np.mean(true ** 2)
+    assert 1.0 <= ratio <= 3.0, ratio
+    assert np.mean(stated >= true) >= 0.7

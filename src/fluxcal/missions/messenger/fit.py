@@ -74,6 +74,7 @@ from fluxcal.missions.messenger.fit_reduce import (
     relaxation_response,
 )
 from fluxcal.missions.messenger.fit_variance import VarianceStatistics, reduce_variance
+from fluxcal.missions.messenger.fit_waveform_error import jackknife_error, leave_one_out
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.routes import EDR_MAPPING, day_file_groups
@@ -504,37 +505,16 @@ def unmix_waveforms(stats: DayStatistics, waveform: Sequence | None = None
     return phase, columns, support
 
 
-def fold_error(values: np.ndarray, weight: np.ndarray) -> float:
-    """Rms over the phase of the error of the folds' weighted mean (counts).
-
-    ``values`` (folds, phase) are independent estimates of one waveform column, each
-    with the variance ``s^2 / n_k`` of ``n_k`` samples (``weight``); the pooled mean
-    ``sum n_k x_k / N`` then has the variance ``s^2 / N``, estimated without bias by
-    ``sum_k n_k (x_k - mean)^2 / ((K - 1) N)`` at each phase (with two equal halves:
-    half their difference, squared).  Folds of unequal size are weighted as they enter
-    the mean: half the difference of a 5 % and a 95 % half overstates the mean's error
-    2.3x (entry 29).  NaN with fewer than two folds.
-    """
-    x = np.asarray(values, dtype=float)
-    n = np.asarray(weight, dtype=float)
-    if x.shape[0] < 2 or not np.all(n > 0):
-        return float("nan")
-    total = n.sum()
-    mean = (n[:, None] * x).sum(axis=0) / total
-    var = (n[:, None] * (x - mean) ** 2).sum(axis=0) / ((x.shape[0] - 1) * total)
-    return float(np.sqrt(np.mean(var)))
-
-
 def few_folds_widening(own: np.ndarray, folds: int) -> float:
-    """Factor (>= 1) on a waveform column's `fold_error` when its own samples lie in few folds.
+    """Factor (>= 1) on a waveform column's jackknife error when its own samples lie in few folds.
 
     ``own`` holds the column's own samples (its duty-cycle bin's) in each fold.  The
-    folds' spread pools 100 phases, so for a column whose own samples fill every fold it
-    covers the truth as it is (entry 29: mean (true / stated)^2 1.02 over 117
-    columns of five 2-6-day fits).  With its own samples in ``K_eff = N^2 / sum n_k^2``
-    effective folds (Kish), the spread compares ``K_eff - 1`` of them: widened by the
-    Student-t ratio ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the
-    t quantile of one normal standard deviation (two equal folds: 1.54 for four folds).
+    refits' spread pools 100 phases, so for a column whose own samples fill every fold
+    it covers the truth as it is (entries 29 and 3x-calm).  With its own samples in
+    ``K_eff = N^2 / sum n_k^2`` effective folds (Kish), the spread compares
+    ``K_eff - 1`` of them: widened by the Student-t ratio
+    ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the t quantile of one
+    normal standard deviation (two equal folds: 1.54 for four folds).
     """
     n = np.asarray(own, dtype=float)
     if n.sum() <= 0 or folds < 2:
@@ -548,19 +528,21 @@ def few_folds_widening(own: np.ndarray, folds: int) -> float:
 def _fit_waveforms(
     stats: DayStatistics, base: MessengerCalibration, *, errors: bool = True
 ) -> tuple[np.ndarray, list[list[PeriodicSplineFit | None]], np.ndarray | None]:
-    """Fit the waveform columns (sec. 6), and state their error from the folds' spread.
+    """Fit the waveform columns (sec. 6), and state their error by refitting without each fold.
 
     Returns the table, the splines (None where kept from ``base``) and, per axis and
-    duty bin, the rms (counts, over the phase) of the error of the mean of the
-    waveforms fitted to each fold of 30-min blocks (`DayStatistics.waveform_folds`,
-    `fold_error`, the folds where the column is fitted, weighted by the samples leaning
-    on it), widened when the column's own samples lie in few folds
-    (`few_folds_widening`), and the spline's smoothing bias added in quadrature (the
-    smoothing applied once more to the fitted curve, ``(S - I) f_hat``: common to the
-    folds, so not in their spread); a column kept from ``base``, or fitted in fewer
-    than two folds, is given its own rms (its error unknown, entries 19 and 29).
+    duty bin, the rms (counts, over the phase) of the delete-a-fold jackknife error of
+    the fitted column (the same fit on the statistics without each fold of 30-min
+    blocks, `DayStatistics.waveform_folds`, `fit_waveform_error.leave_one_out`,
+    `fit_waveform_error.jackknife_error`), widened when the column's own samples lie in
+    few folds (`few_folds_widening`), and the spline's smoothing bias added in
+    quadrature (the smoothing applied once more to the fitted curve, ``(S - I) f_hat``:
+    common to the refits, so not in their spread); a column kept from ``base`` is given
+    its own rms (its error unknown, entries 19 and 29), and a fitted column that some
+    fold's removal leaves unfitted (it rests on one fold), or with fewer than two folds
+    holding samples, the larger of its rms and the shipped column's (entry 3x-calm).
 
-    With ``errors=False`` the folds are not fitted and the error is None: no pass
+    With ``errors=False`` the refits are not done and the error is None: no pass
     reads it, so `fit_days` states it once, from the last pass's statistics and
     table (entry 3x-folds).
     """
@@ -569,7 +551,8 @@ def _fit_waveforms(
     fits: list[list[PeriodicSplineFit | None]] = [[None] * nb for _ in AXES]
     error = np.sqrt(np.mean(table[:, :100, :] ** 2, axis=1))  # (axis, bin): base's own rms
     phase, columns, support = unmix_waveforms(stats)
-    folds = [unmix_waveforms(stats, h) for h in stats.waveform_folds] if errors else []
+    without = ([unmix_waveforms(stats, h) for h in leave_one_out(stats.waveform_folds)
+                if h is not None] if errors else [])
     own = np.array([[w.count.sum() for w in h] for h in stats.waveform_folds], dtype=float)
 
     def spline(ph, col, sup, b, j):
@@ -597,13 +580,16 @@ def _fit_waveforms(
             fits[j][b], table[j, :, b] = got
             if not errors:
                 continue
-            parts = [(spline(*h, b, j), float(np.nansum(h[2][:, b]))) for h in folds]
-            parts = [(p[1][:-1], n) for p, n in parts if p is not None]
-            if len(parts) >= 2:
-                err = fold_error(np.stack([p for p, _ in parts]), np.array([n for _, n in parts]))
-                err *= few_folds_widening(own[:, b], len(folds))
+            refits = [spline(*h, b, j) for h in without]
+            err = float("nan")
+            if len(refits) >= 2 and all(r is not None for r in refits):
+                err = jackknife_error(np.stack([r[1][:-1] for r in refits]))
+                err *= few_folds_widening(own[:, b], len(stats.waveform_folds))
                 err = np.hypot(err, smoothing_bias(fits[j][b], phase, columns, support, b))
-                error[j, b] = err if np.isfinite(err) else error[j, b]
+            # unknown (the column rests on one fold): as large as the column itself,
+            # fitted or shipped, not the shipped one's rms alone (entry 3x-calm)
+            error[j, b] = err if np.isfinite(err) else max(
+                error[j, b], float(np.sqrt(np.mean(table[j, :100, b] ** 2))))
     return table, fits, (error if errors else None)
 
 

@@ -131,8 +131,8 @@ class DayStatistics:
         Analysis 4, one per waveform duty-cycle bin.
     waveform_folds : list of list of BinnedMoments
         Analysis 4 split into `WAVEFORM_FOLDS` folds by the 30-min block of each sample
-        (block index modulo the folds): the spread of the folds' waveforms states the
-        waveform's error (docs/decisions/messenger_fit.md entries 19 and 29).
+        (block index modulo the folds): the waveforms refitted without each fold state
+        the waveform's error (docs/decisions/messenger_fit.md entries 19, 29, 3x-calm).
     temperature_fine : BinnedMoments
         The temperature-law samples in 0.25-C sub-bins; its one value column is the
         temperature (count and mean temperature per sub-bin).
@@ -544,8 +544,8 @@ def reduce_day(
 #: `WAVEFORM_FOLDS`): 30 min, 18 heater periods, so that a duty-cycle bin visited for
 #: an hour or two still falls into several folds (entry 29).
 WAVEFORM_FOLD_BLOCK_S = 1800.0
-#: Folds whose spread states the waveform columns' errors (entry 29; two halves
-#: before, whose variance estimate had one degree of freedom per phase component).
+#: Folds left out in turn to state the waveform columns' errors (entries 29, 3x-calm;
+#: two halves before, whose variance estimate had one degree of freedom per phase).
 WAVEFORM_FOLDS = 4
 
 
