@@ -62,17 +62,16 @@ from fluxcal.geometry.time import SclkKernel  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
-    FitSettings,
     break_refusal,
     check_fit,
     day_chunks,
     fit_days,
     merit_inside_range,
-    reduce_chunk,
 )
 from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
+from fluxcal.missions.messenger.identity import FRAME_KERNELS  # noqa: E402
 
 #: Temperatures (C) of the law's pulls: the heater-regulated level, both sides of the
 #: breaks (-18..-8 C in the true tables), the upper segment.
@@ -285,9 +284,12 @@ def unseen_day_prediction(inp: Path, day, res) -> dict:
     temperatures, relaxed duty cycles and duty-bin counts; entry 3x-dutymix), over its
     samples inside T_RANGE as `merit_inside_range` holds the fit's own: ``total_nt``,
     ``waveform_nt``."""
-    reduced = reduce_chunk(day_chunks(inp, [day])[0], res.calibration, None, FitSettings(),
-                           estimator="variance")
-    samples = fit_merit.DaySamples.of(*reduced)
+    sci, htr, tmp = day_streams(inp, day)
+    # a pool of its own, unloaded on exit (not the fit workers' process-wide pool, which
+    # would stay loaded after this realisation's folder is deleted)
+    with KernelPool(inp / "kernels.tm", frames=FRAME_KERNELS):
+        sclk = SclkKernel.from_pool(levels.SC_ID)
+        samples = fit_merit.day_samples(sci, htr, tmp, sclk, res.calibration)
     mom = samples.moments
     ranges = res.stated_ranges
     if ranges is not None and ranges.contains(-50.0):
