@@ -144,7 +144,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             beyond_share = float(np.count_nonzero(in_t & ~both)) / max(in_t.sum(), 1)
             wave_parts = waveform_parts(run.input_dir, run.days[-1], folder, res, true,
                                         truth, in_t & ~both)
-    row = {**pulls(res, true), "verdict": verdict, "unseen_nt": unseen_rms,
+    row = {**pulls(res, true), "k": k, "verdict": verdict, "unseen_nt": unseen_rms,
            "unseen_in_range_nt": unseen_in, "unseen_in_both_nt": unseen_both,
            "unseen_beyond_duty_nt": unseen_beyond, "unseen_beyond_duty_share": beyond_share,
            "waveform_parts": wave_parts}
@@ -351,10 +351,27 @@ def table(rows: list[dict]) -> list[tuple[str, np.ndarray]]:
     return out
 
 
+def realisation_table(rows: list[dict]) -> None:
+    """Print one markdown row per realisation: verdict and issue 34's goal checks."""
+    print("| k | passes | held | T_RANGE (C) | law in T_RANGE (nT) | tau | D0 x / y / z | "
+          "unseen in T_RANGE, D_RANGE (nT) | predicted (nT) | verdict |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        def nt(v):
+            return " / ".join(f"{x:.3f}" for x in v)
+        print(f"| {r.get('k', '')} | {r['passes']} | {', '.join(r['held_upper']) or '-'} | "
+              f"{r['t_range']} | {nt(r['law_max_nt'])} | {r['tau_rel']:+.1%} | "
+              f"{' / '.join(f'{x:+.1%}' for x in r['d0_rel'])} | "
+              f"{nt(r['unseen_in_both_nt'])} | {nt(r['predicted_nt'])} | "
+              f"{r['verdict'][:90]} |")
+
+
 def summarise(rows: list[dict], markdown: bool = False) -> None:
     """Print, per parameter, the pulls' mean, spread, largest size and count beyond 3
     (issue 34: spread within 0.7-1.5, fewer than 1 % beyond 3), then the goals met."""
     if markdown:
+        realisation_table(rows)
+        print()
         print("| parameter | N | mean pull | spread (std) | max abs pull | beyond 3 |")
         print("|---|---|---|---|---|---|")
     for name, p in table(rows):
@@ -378,6 +395,11 @@ def summarise(rows: list[dict], markdown: bool = False) -> None:
         print(f"unseen day rms (nT): median {np.round(np.median(un, axis=0), 3)}, max "
               f"{np.round(un.max(axis=0), 3)}; within 0.1 nT on every axis "
               f"{int(np.all(un <= 0.1, axis=1).sum())} of {len(rows)}")
+        both = np.stack([r["unseen_in_both_nt"] for r in rows])
+        print(f"unseen day inside T_RANGE and D_RANGE (nT): median "
+              f"{np.round(np.nanmedian(both, axis=0), 3)}, max "
+              f"{np.round(np.nanmax(both, axis=0), 3)}; within 0.1 nT on every axis "
+              f"{int(np.all(both <= 0.1, axis=1).sum())} of {len(rows)}")
     accepted = [r for r in rows if r["verdict"] == "accepted"]
     print(f"guards: {len(accepted)} of {len(rows)} accepted; refused: "
           f"{sorted({r['verdict'] for r in rows} - {'accepted'})}")
@@ -426,7 +448,8 @@ def saved_rows(folder: Path) -> list[dict]:
             rows.append(pickle.loads(row.read_bytes()))
             continue
         res, true = pickle.loads(fit.read_bytes())
-        rows.append({**pulls(res, true), "verdict": command_line_verdict(res),
+        rows.append({**pulls(res, true), "k": int(fit.stem[4:]),
+                     "verdict": command_line_verdict(res),
                      "unseen_nt": nan3, "unseen_in_both_nt": nan3})
     return rows
 
