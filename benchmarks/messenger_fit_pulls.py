@@ -84,8 +84,19 @@ NT_PER_COUNT = 0.047
 
 
 def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Table 2 law (counts), the larger of the two lines (eq. 3a, 3b), shape (t, axis)."""
-    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
+    """Table 2 law (counts), shape (t, axis): ``A0 + B0 T`` up to ``T_m``, ``A1 + B1 T``
+    above (eq. 3a, 3b; ``T_m`` of eq. 4), as the table is applied.
+
+    Not the larger of the two lines: that is the same only while ``B1 > B0`` (the
+    seed's Table 2 and the flight model's truth); a fitted upper segment that no data
+    determine can come out with ``B1 < B0`` (Mercury orbit, 16 days, seed 3507: x's
+    ``B1 = -239 +- 683`` counts/C), and the larger line then reads 10 000 counts off
+    at -60 C where the table applies its lower line (verification section 24).
+    """
+    c = np.asarray(c, dtype=float)
+    t = np.asarray(t, dtype=float)[:, None]
+    tm = (c[:, 0] - c[:, 2]) / (c[:, 3] - c[:, 1])
+    return np.where(t <= tm, c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
 
 
 def defects(seed: int, days: int) -> dict:
