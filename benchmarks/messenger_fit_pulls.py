@@ -11,7 +11,7 @@ Each realisation simulates ``--days`` days of the independent realistic wind of
 ``--first-seed + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
 errors), and prints, per realisation and then over all, the pulls ``(fit - truth) /
 stated error`` of tau, dt (when adopted), D0 (x, y, z), the breaks T_m, and the temperature law at
--50, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
+-50, -40, -30, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
 error (nT) over the fitted range.  Pulls with mean ~0 and spread ~1, all within
 [-3, 3], mean the errors say what they mean.  Each line also gives the passes run, the
 predicted error of a recalibrated day (issue 34) and what the command line would have
@@ -76,9 +76,10 @@ from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa:
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
-#: Temperatures (C) of the law's pulls: the heater-regulated level, both sides of the
-#: breaks (-18..-8 C in the true tables), the upper segment.
-LAW_T = (-50.0, -20.0, 0.0, 30.0)
+#: Temperatures (C) of the law's pulls: the heater-regulated level, the heater-off warm
+#: run up to the breaks (-18..-8 C in the true tables; the Mercury orbit's T_RANGE ends
+#: at -45..-24 C), both sides of the breaks, the upper segment.
+LAW_T = (-50.0, -40.0, -30.0, -20.0, 0.0, 30.0)
 #: Counts to nT (fine range, eq. 8's diagonal, ~0.047 nT per count).
 NT_PER_COUNT = 0.047
 
@@ -449,19 +450,19 @@ def goals_missed(r: dict) -> list[str]:
 
 
 def saved_rows(folder: Path) -> list[dict]:
-    """The rows of a ``--save`` folder: ``row_*.pkl``, or for a fit saved without one
-    (before this option) its pulls and verdict with the unseen day not known."""
+    """The rows of a ``--save`` folder, the pulls recomputed from each saved fit and truth
+    (`pulls` as it is now), the unseen day and the verdict from its ``row_*.pkl``; for a
+    fit saved without one (before this option) the verdict recomputed and the unseen
+    day not known."""
     rows = []
     nan3 = np.full(3, np.nan)
     for fit in sorted(folder.glob("fit_*.pkl")):
-        row = folder / fit.name.replace("fit_", "row_")
-        if row.exists():
-            rows.append(pickle.loads(row.read_bytes()))
-            continue
         res, true = pickle.loads(fit.read_bytes())
-        rows.append({**pulls(res, true), "k": int(fit.stem[4:]),
-                     "verdict": command_line_verdict(res),
-                     "unseen_nt": nan3, "unseen_in_both_nt": nan3})
+        row = folder / fit.name.replace("fit_", "row_")
+        saved = (pickle.loads(row.read_bytes()) if row.exists()
+                 else {"verdict": command_line_verdict(res), "unseen_nt": nan3,
+                       "unseen_in_both_nt": nan3})
+        rows.append({**saved, **pulls(res, true), "k": int(fit.stem[4:])})
     return rows
 
 
@@ -500,7 +501,10 @@ def main() -> None:
                     help="Print the summary of a --save folder's realisations; run nothing.")
     args = ap.parse_args()
     if args.summarise is not None:
-        summarise(saved_rows(args.summarise), args.markdown)
+        rows = saved_rows(args.summarise)
+        if not rows:
+            ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
+        summarise(rows, args.markdown)
         return
     rows = []
     t_start = time.perf_counter()
