@@ -11,7 +11,7 @@ Each realisation simulates ``--days`` days of the independent realistic wind of
 ``--first-seed + k``, fits it with ``--estimator variance`` (guards off: the estimator's own
 errors), and prints, per realisation and then over all, the pulls ``(fit - truth) /
 stated error`` of tau, dt (when adopted), D0 (x, y, z), the breaks T_m, and the temperature law at
--50, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
+-50, -40, -30, -20, 0 and +30 C (per axis, where inside the fitted range), and the law's largest
 error (nT) over the fitted range.  Pulls with mean ~0 and spread ~1, all within
 [-3, 3], mean the errors say what they mean.  Each line also gives the passes run, the
 predicted error of a recalibrated day (issue 34) and what the command line would have
@@ -21,7 +21,11 @@ Issue 34's verification (20 realisations per world, 16 days; a 16-core machine):
     .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 16 \
         --unseen --passes 6 --processes 16 [--broadband --compressive 0.05] [--hold-d0 z]
 
-``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.
+``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.  The
+summary gives per parameter the pulls' spread, largest size and count beyond 3 (issue 34:
+spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a goal.
+``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
+prints the summary of a saved run again (fits saved without a row: no unseen day).
 """
 
 from __future__ import annotations
@@ -73,16 +77,28 @@ from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noq
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 from fluxcal.missions.messenger.identity import FRAME_KERNELS  # noqa: E402
 
-#: Temperatures (C) of the law's pulls: the heater-regulated level, both sides of the
-#: breaks (-18..-8 C in the true tables), the upper segment.
-LAW_T = (-50.0, -20.0, 0.0, 30.0)
+#: Temperatures (C) of the law's pulls: the heater-regulated level, the heater-off warm
+#: run up to the breaks (-18..-8 C in the true tables; the Mercury orbit's T_RANGE ends
+#: at -45..-24 C), both sides of the breaks, the upper segment.
+LAW_T = (-50.0, -40.0, -30.0, -20.0, 0.0, 30.0)
 #: Counts to nT (fine range, eq. 8's diagonal, ~0.047 nT per count).
 NT_PER_COUNT = 0.047
 
 
 def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Table 2 law (counts), the larger of the two lines (eq. 3a, 3b), shape (t, axis)."""
-    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
+    """Table 2 law (counts), shape (t, axis): ``A0 + B0 T`` up to ``T_m``, ``A1 + B1 T``
+    above (eq. 3a, 3b; ``T_m`` of eq. 4), as the table is applied.
+
+    Not the larger of the two lines: that is the same only while ``B1 > B0`` (the
+    seed's Table 2 and the flight model's truth); a fitted upper segment that no data
+    determine can come out with ``B1 < B0`` (Mercury orbit, 16 days, seed 3507: x's
+    ``B1 = -239 +- 683`` counts/C), and the larger line then reads 10 000 counts off
+    at -60 C where the table applies its lower line (verification section 24).
+    """
+    c = np.asarray(c, dtype=float)
+    t = np.asarray(t, dtype=float)[:, None]
+    tm = (c[:, 0] - c[:, 2]) / (c[:, 3] - c[:, 1])
+    return np.where(t <= tm, c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
 
 
 def defects(seed: int, days: int) -> dict:
@@ -120,19 +136,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         base = load_calibration(np.datetime64("2010-03-01"))
         res = fit_days(day_chunks(run.input_dir, run.days[:days]), base, passes=passes,
                        estimator="variance", guard=False, hold_d0=hold_d0)
-        try:  # what the command line would do with this fit (it writes nothing if refused)
-            cause = fit_merit.compressive_refusal(res.variance.reason)
-            if cause:
-                raise FitRefusedError(cause)
-            if not res.convergence["converged"]:
-                cause = break_refusal(res, error=False)  # named first, as fit_days does
-                raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause
-                                      else res.convergence["stop"])
-            check_fit(res)
-            fit_merit.check_merit(res)
-            verdict = "accepted"
-        except FitRefusedError as exc:
-            verdict = f"refused: {exc}"
+        verdict = command_line_verdict(res)
         nan3 = np.full(3, np.nan)
         unseen_rms = unseen_in = unseen_both = unseen_beyond = nan3
         beyond_share = np.nan
@@ -155,9 +159,39 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
             wave_parts = waveform_parts(run.input_dir, run.days[-1], folder, res, true,
                                         truth, in_t & ~both)
             day_pred = unseen_day_prediction(run.input_dir, run.days[-1], res)
+    row = {**pulls(res, true), "k": k, "verdict": verdict, "unseen_nt": unseen_rms,
+           "unseen_in_range_nt": unseen_in, "unseen_in_both_nt": unseen_both,
+           "unseen_beyond_duty_nt": unseen_beyond, "unseen_beyond_duty_share": beyond_share,
+           "waveform_parts": wave_parts,
+           "day_prediction": day_pred}
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
         (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
+        (save / f"row_{k:03d}.pkl").write_bytes(pickle.dumps(row))
+    return row
+
+
+def command_line_verdict(res) -> str:
+    """What the command line would do with the fit ``res`` (it writes nothing if refused):
+    ``"accepted"`` or ``"refused: <cause>"``."""
+    try:
+        cause = fit_merit.compressive_refusal(res.variance.reason)
+        if cause:
+            raise FitRefusedError(cause)
+        if not res.convergence["converged"]:
+            cause = break_refusal(res, error=False)  # named first, as fit_days does
+            raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause
+                                  else res.convergence["stop"])
+        check_fit(res)
+        fit_merit.check_merit(res)
+    except FitRefusedError as exc:
+        return f"refused: {exc}"
+    return "accepted"
+
+
+def pulls(res, true) -> dict:
+    """The pulls and errors of the fit ``res`` against the flight model's ``true`` tables
+    (everything `one` reports but the unseen day and the verdict)."""
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     ranges = res.stated_ranges
@@ -194,14 +228,7 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
         "fitted_mix_waveform_nt": np.asarray(res.merit.get("waveform_fitted_mix_nt",
                                                            [np.nan] * 3)),
         "passes": res.convergence["passes_run"],
-        "unseen_nt": unseen_rms,
-        "unseen_in_range_nt": unseen_in,
-        "unseen_in_both_nt": unseen_both,
-        "unseen_beyond_duty_nt": unseen_beyond,
-        "unseen_beyond_duty_share": beyond_share,
         "duty_range": res.duty_range,
-        "waveform_parts": wave_parts,
-        "day_prediction": day_pred,
         "duty_outside_share": (res.merit.get("samples_outside_duty_range", 0)
                                / max(res.merit.get("heater_on_samples", 0), 1)),
         "predicted_without_duty_nt": _prediction_without_duty_range(res),
@@ -211,7 +238,6 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
                                / res.law_error(t_all)).max(axis=0),
         "outside_share": (res.merit["outside"]["samples"] / max(res.merit["outside"]["of"], 1)
                           if "outside" in res.merit else 0.0),
-        "verdict": verdict,
         "compressive_share": fit_merit.compressive_share(res.variance.reason),
         "reasons": dict(zip(*np.unique(np.asarray(res.variance.reason), return_counts=True),
                             strict=True)),
@@ -353,11 +379,119 @@ def table(rows: list[dict]) -> list[tuple[str, np.ndarray]]:
     d0 = np.stack([r["d0_pull"] for r in rows])
     law = np.stack([r["law_pull"] for r in rows])
     out += [(f"D0 {a}", d0[:, j]) for j, a in enumerate("xyz")]
+    # a held upper segment's break is the shipped one, its error the held width: with
+    # the flight model's truth the same in every realisation its pull is one number
     tm = np.stack([r["tm_pull"] for r in rows])
-    out += [(f"T_m {a}", tm[:, j]) for j, a in enumerate("xyz")]
+    held = np.array([[a in r["held_upper"] for a in "xyz"] for r in rows])
+    out += [(f"T_m {a}", np.where(held[:, j], np.nan, tm[:, j])) for j, a in enumerate("xyz")]
+    out += [(f"T_m {a} held", np.where(held[:, j], tm[:, j], np.nan))
+            for j, a in enumerate("xyz")]
     out += [(f"law {a} at {t:+.0f} C", law[:, i, j]) for j, a in enumerate("xyz")
             for i, t in enumerate(LAW_T)]
     return out
+
+
+def realisation_table(rows: list[dict]) -> None:
+    """Print one markdown row per realisation: verdict and issue 34's goal checks."""
+    print("| k | passes | held | T_RANGE (C) | law in T_RANGE (nT) | tau | D0 x / y / z | "
+          "unseen in T_RANGE, D_RANGE (nT) | predicted (nT) | verdict |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        def nt(v):
+            return " / ".join(f"{x:.3f}" for x in v)
+        print(f"| {r.get('k', '')} | {r['passes']} | {', '.join(r['held_upper']) or '-'} | "
+              f"{r['t_range']} | {nt(r['law_max_nt'])} | {r['tau_rel']:+.1%} | "
+              f"{' / '.join(f'{x:+.1%}' for x in r['d0_rel'])} | "
+              f"{nt(r['unseen_in_both_nt'])} | {nt(r['predicted_nt'])} | "
+              f"{r['verdict'][:90]} |")
+
+
+def summarise(rows: list[dict], markdown: bool = False) -> None:
+    """Print, per parameter, the pulls' mean, spread, largest size and count beyond 3
+    (issue 34: spread within 0.7-1.5, fewer than 1 % beyond 3), then the goals met."""
+    if markdown:
+        realisation_table(rows)
+        print()
+        print("| parameter | N | mean pull | spread (std) | max abs pull | beyond 3 |")
+        print("|---|---|---|---|---|---|")
+    for name, p in table(rows):
+        p = p[np.isfinite(p)]
+        if p.size == 0:
+            continue
+        spread = p.std(ddof=1) if p.size > 1 else np.nan
+        beyond = int(np.count_nonzero(np.abs(p) > 3.0))
+        if markdown:
+            print(f"| {name} | {p.size} | {p.mean():+.2f} | {spread:.2f} | "
+                  f"{np.abs(p).max():.2f} | {beyond} |")
+        else:
+            flag = "" if 0.7 <= spread <= 1.5 and beyond < 0.01 * p.size else "  <- outside"
+            print(f"{name}: N {p.size} mean {p.mean():+.2f} std {spread:.2f} "
+                  f"max |pull| {np.abs(p).max():.2f} beyond 3: {beyond}{flag}")
+    law_max = np.stack([r["law_max_nt"] for r in rows])
+    print(f"law's largest error over the fitted range (nT): median "
+          f"{np.round(np.median(law_max, axis=0), 3)}, max {np.round(law_max.max(axis=0), 3)}")
+    if np.isfinite(rows[0]["unseen_nt"]).all():
+        un = np.stack([r["unseen_nt"] for r in rows])
+        print(f"unseen day rms (nT): median {np.round(np.median(un, axis=0), 3)}, max "
+              f"{np.round(un.max(axis=0), 3)}; within 0.1 nT on every axis "
+              f"{int(np.all(un <= 0.1, axis=1).sum())} of {len(rows)}")
+        both = np.stack([r["unseen_in_both_nt"] for r in rows])
+        print(f"unseen day inside T_RANGE and D_RANGE (nT): median "
+              f"{np.round(np.nanmedian(both, axis=0), 3)}, max "
+              f"{np.round(np.nanmax(both, axis=0), 3)}; within 0.1 nT on every axis "
+              f"{int(np.all(both <= 0.1, axis=1).sum())} of {len(rows)}")
+    accepted = [r for r in rows if r["verdict"] == "accepted"]
+    print(f"guards: {len(accepted)} of {len(rows)} accepted; refused: "
+          f"{sorted({r['verdict'] for r in rows} - {'accepted'})}")
+    if accepted:
+        worst = max(float(np.nanmax(np.abs(np.r_[r["tau_pull"], r["d0_pull"],
+                                                  r["law_pull"].ravel()])))
+                    for r in accepted)
+        print(f"largest |pull| of tau, D0 and the law among the accepted fits: {worst:.2f}")
+    tau = np.abs([r["tau_rel"] for r in rows])
+    d0 = np.abs(np.stack([r["d0_rel"] for r in rows]))
+    print(f"targets met (issue 21) in {len(rows)} realisations: law <= 0.15 nT on every axis "
+          f"{int(np.all(law_max <= 0.15, axis=1).sum())}; tau within 5 % "
+          f"{int((tau <= 0.05).sum())}; D0 within 5 % (x y z) "
+          f"{(d0 <= 0.05).sum(axis=0).tolist()}")
+    for k, r in enumerate(accepted):  # issue 34: every written table meets the goals
+        missed = goals_missed(r)
+        if missed:
+            print(f"written table {k + 1} of {len(accepted)} misses: {'; '.join(missed)}")
+    print(f"written tables meeting every goal (unseen day inside T_RANGE and D_RANGE <= 0.1 "
+          f"nT, law in T_RANGE <= 0.15 nT, tau and D0 within 5 %): "
+          f"{sum(not goals_missed(r) for r in accepted)} of {len(accepted)}")
+
+
+def goals_missed(r: dict) -> list[str]:
+    """Issue 34's goals a written table misses (an unseen day not simulated: not judged)."""
+    out = []
+    if np.any(r["unseen_in_both_nt"] > 0.1):
+        out.append(f"unseen {np.round(r['unseen_in_both_nt'], 3)} nT")
+    if np.any(r["law_max_nt"] > 0.15):
+        out.append(f"law {np.round(r['law_max_nt'], 3)} nT")
+    if abs(r["tau_rel"]) > 0.05:
+        out.append(f"tau {r['tau_rel']:+.1%}")
+    if np.any(np.abs(r["d0_rel"]) > 0.05):
+        out.append(f"D0 {np.round(100 * r['d0_rel'], 1)} %")
+    return out
+
+
+def saved_rows(folder: Path) -> list[dict]:
+    """The rows of a ``--save`` folder, the pulls recomputed from each saved fit and truth
+    (`pulls` as it is now), the unseen day and the verdict from its ``row_*.pkl``; for a
+    fit saved without one (before this option) the verdict recomputed and the unseen
+    day not known."""
+    rows = []
+    nan3 = np.full(3, np.nan)
+    for fit in sorted(folder.glob("fit_*.pkl")):
+        res, true = pickle.loads(fit.read_bytes())
+        row = folder / fit.name.replace("fit_", "row_")
+        saved = (pickle.loads(row.read_bytes()) if row.exists()
+                 else {"verdict": command_line_verdict(res), "unseen_nt": nan3,
+                       "unseen_in_both_nt": nan3})
+        rows.append({**saved, **pulls(res, true), "k": int(fit.stem[4:])})
+    return rows
 
 
 def main() -> None:
@@ -391,7 +525,15 @@ def main() -> None:
                     help="Comma list of axes whose D0 is held (shipped value, default width).")
     ap.add_argument("--save", type=Path, default=None,
                     help="Folder to pickle each realisation's fit and true tables into.")
+    ap.add_argument("--summarise", type=Path, default=None,
+                    help="Print the summary of a --save folder's realisations; run nothing.")
     args = ap.parse_args()
+    if args.summarise is not None:
+        rows = saved_rows(args.summarise)
+        if not rows:
+            ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
+        summarise(rows, args.markdown)
+        return
     rows = []
     t_start = time.perf_counter()
     run = functools.partial(_timed, days=args.days, compressive=args.compressive,
@@ -441,42 +583,7 @@ def main() -> None:
           f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}, "
           f"{args.passes} passes, "
           f"{time.perf_counter() - t_start:.0f} s")
-    if args.markdown:
-        print("| parameter | N | mean pull | spread (std) | max abs pull |")
-        print("|---|---|---|---|---|")
-    for name, p in table(rows):
-        p = p[np.isfinite(p)]
-        if p.size == 0:
-            continue
-        spread = p.std(ddof=1) if p.size > 1 else np.nan
-        if args.markdown:
-            print(f"| {name} | {p.size} | {p.mean():+.2f} | {spread:.2f} | "
-                  f"{np.abs(p).max():.2f} |")
-        else:
-            print(f"{name}: N {p.size} mean {p.mean():+.2f} std {spread:.2f} "
-                  f"max |pull| {np.abs(p).max():.2f}")
-    law_max = np.stack([r["law_max_nt"] for r in rows])
-    print(f"law's largest error over the fitted range (nT): median "
-          f"{np.round(np.median(law_max, axis=0), 3)}, max {np.round(law_max.max(axis=0), 3)}")
-    if args.unseen:
-        un = np.stack([r["unseen_nt"] for r in rows])
-        print(f"unseen day rms (nT): median {np.round(np.median(un, axis=0), 3)}, max "
-              f"{np.round(un.max(axis=0), 3)}; within 0.1 nT on every axis "
-              f"{int(np.all(un <= 0.1, axis=1).sum())} of {len(rows)}")
-    accepted = [r for r in rows if r["verdict"] == "accepted"]
-    print(f"guards: {len(accepted)} of {len(rows)} accepted; refused: "
-          f"{sorted({r['verdict'] for r in rows} - {'accepted'})}")
-    if accepted:
-        worst = max(float(np.nanmax(np.abs(np.r_[r["tau_pull"], r["d0_pull"],
-                                                  r["law_pull"].ravel()])))
-                    for r in accepted)
-        print(f"largest |pull| of tau, D0 and the law among the accepted fits: {worst:.2f}")
-    tau = np.abs([r["tau_rel"] for r in rows])
-    d0 = np.abs(np.stack([r["d0_rel"] for r in rows]))
-    print(f"targets met (issue 21) in {len(rows)} realisations: law <= 0.15 nT on every axis "
-          f"{int(np.all(law_max <= 0.15, axis=1).sum())}; tau within 5 % "
-          f"{int((tau <= 0.05).sum())}; D0 within 5 % (x y z) "
-          f"{(d0 <= 0.05).sum(axis=0).tolist()}")
+    summarise(rows, args.markdown)
     if pool is not None:
         pool.shutdown()
 

@@ -1,0 +1,43 @@
+"""The pull benchmark's law is eq. 3a/3b as the table applies it (h-pulls16).
+
+``benchmarks/messenger_fit_pulls.py`` judged the fitted law by the larger of its two
+lines; with a fitted upper slope below the lower one (Mercury orbit, 16 days, seed 3507)
+that read the upper line below the break, 10 000 counts off a law the table applies
+correctly (docs/decisions/messenger_fit_verification.md section 24).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
+
+
+@pytest.fixture(scope="module")
+def law():
+    spec = importlib.util.spec_from_file_location("messenger_fit_pulls", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module._law
+
+
+def test_upper_slope_below_lower_applies_each_line_on_its_side(law):
+    # A0 = 0, B0 = 1, A1 = -10, B1 = -1: T_m = (0 + 10) / (-1 - 1) = -5 C (eq. 4);
+    # eq. 3a below it (T), eq. 3b above it (-10 - T); the larger line would give
+    # -10 - T = 0 at -10 C and T = 0 at 0 C
+    c = np.array([[0.0, 1.0, -10.0, -1.0]])
+    got = law(c, np.array([-10.0, -5.0, 0.0]))[:, 0]
+    np.testing.assert_allclose(got, [-10.0, -5.0, -10.0], atol=1e-12)
+
+
+def test_seed_shaped_law_is_continuous_at_the_break(law):
+    # B1 > B0 (Table 2's shape): both lines meet at T_m = (A0 - A1) / (B1 - B0) = -10 C
+    # on both axes, the lower line below, the upper above (hand values)
+    c = np.array([[-14.0, 0.9, 10.0, 3.3], [2.0, 1.0, 12.0, 2.0]])
+    got = law(c, np.array([-60.0, -10.0, 20.0]))
+    np.testing.assert_allclose(got[:, 0], [-68.0, -23.0, 76.0], atol=1e-12)
+    np.testing.assert_allclose(got[:, 1], [-58.0, -8.0, 52.0], atol=1e-12)
