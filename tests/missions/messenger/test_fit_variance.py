@@ -24,10 +24,12 @@ from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import (
     HOLD_BREAK_WIDTH_C,
     HOLD_SLOPE_CHANGE_WIDTH,
+    MAX_BREAK_ERROR_C,
     Chunk,
     check_fit,
     day_chunks,
     fit_days,
+    undetermined_upper,
 )
 from fluxcal.missions.messenger.fit_variance import (
     BREAK_SHIFTS_C,
@@ -42,6 +44,7 @@ from fluxcal.missions.messenger.fit_variance import (
     reduce_variance,
     solve_variance,
 )
+from fluxcal.missions.messenger.fit_write import held_upper_lines
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
@@ -169,7 +172,7 @@ def test_variance_estimator_recovers_the_laws_in_a_rotating_wind(tmp_path):
 # item 2: the guards on the variance path (closed-form normal equations)
 # ---------------------------------------------------------------------------------------
 def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c=40.0,
-                     sparse_to_c=None, hold_d0=(), upper_unseen=False):
+                     sparse_to_c=None, hold_d0=(), upper_unseen=False, hinge_scale=None):
     """`fit_variance_calibration` on normal equations whose solution is ``step``.
 
     48 one-hour blocks of 400 rows ``y = X step + noise``; accepted samples' temperatures
@@ -177,7 +180,9 @@ def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c
     to ``sparse_to_c``, fewer than `MIN_RANGE_SAMPLES`); no heater
     phase data (the waveforms are kept from ``base``).  ``upper_unseen``: the hinge
     regressors (``max(0, T - T_m)``, the break step, the shifted hinges) are zero, as
-    they are when no accepted sample lies above the breaks.
+    they are when no accepted sample lies above the breaks.  ``hinge_scale`` (per axis):
+    those regressors multiplied by it, their columns' errors divided by it (few or
+    short intervals above the break).
     """
     from fluxcal.missions.messenger.fit import fit_variance_calibration
     from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
@@ -189,6 +194,9 @@ def _variance_result(base, step, *, noise=1e-3, counts_from_c=-60.0, counts_to_c
     if upper_unseen:
         x[..., [j * PER_AXIS + k for j in range(3) for k in (2, 3)]] = 0.0
         x[..., 3 * PER_AXIS:3 * PER_AXIS + 3 * N_SHIFTS] = 0.0
+    for j, scale in enumerate(() if hinge_scale is None else hinge_scale):
+        x[..., [j * PER_AXIS + 2, j * PER_AXIS + 3]] *= scale
+        x[..., 3 * PER_AXIS + j * N_SHIFTS:3 * PER_AXIS + (j + 1) * N_SHIFTS] *= scale
     y = x @ step + noise * rng.normal(size=(48, 400))
     centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
     v.normal, v.rhs = np.einsum("bni,bnj->bij", x, x), np.einsum("bni,bn->bi", x, y)
@@ -247,6 +255,57 @@ def test_variance_break_outside_the_fitted_range_is_held_with_its_width(shipped)
                            sparse_to_c=0.0)
     assert res.fitted_range == (-60.0, -30.0) and res.held_upper == {}
     check_fit(res)
+
+
+def test_undetermined_upper_judges_the_stated_spreads():
+    # constructed resamples (closed form): law c = +2 / -2 / +2 counts/C; the stated error
+    # is the resamples' standard deviation times the widening (1.5 here)
+    rng = np.random.default_rng(3)
+    law = np.array([[0.0, 1.0, 2.0, -10.0], [0.0, 1.0, -2.0, -12.0], [0.0, 1.0, 2.0, -15.0]])
+    z = rng.standard_normal((4000, 3, 4))
+    z = (z - z.mean(axis=0)) / z.std(axis=0)  # unit spread exactly
+    # c spread 1.2 x 1.5 = 1.8 < 2 (free); 1.4 x 1.5 = 2.1 > 2 (held, either sign of c);
+    # break spread 6 x 1.5 = 9 C < 10 C, 7 x 1.5 = 10.5 C > 10 C
+    for c_sd, tm_sd, expect in [((1.2, 1.2, 1.2), 6.0, [False] * 3),
+                                ((1.4, 1.2, 1.2), 6.0, [True, False, False]),
+                                ((1.2, 1.4, 1.2), 6.0, [False, True, False]),
+                                ((1.2, 1.2, 1.2), 7.0, [True] * 3)]:
+        b = law + z * np.array([[[0.0, 0.0, c, tm_sd]] for c in c_sd]).reshape(1, 3, 4)
+        assert list(undetermined_upper(law, b, 1.5)) == expect, (c_sd, tm_sd)
+    assert MAX_BREAK_ERROR_C == 10.0  # the break figures above assume it
+    nan = law.copy()
+    nan[0, 2] = np.nan  # no slope change stated: not judged determined
+    assert list(undetermined_upper(nan, law + 0.0 * z, 1.0)) == [True, False, False]
+
+
+@pytest.mark.parametrize(("noise", "held"), [(0.02, False), (0.2, True)])
+def test_variance_upper_slope_of_undetermined_sign_is_held(shipped, noise, held):
+    # x's hinge regressors 1000x weaker than the rest (few, short intervals above its
+    # break) while every 5-C bin to +40 C holds samples, so the bin rule holds nothing.
+    # noise 0.2: a free fit states B1 - B0 = 3.3 +- 5.2 counts/C (true 1.34: the shipped
+    # value, the step is 0) with its break +- 5.2 C (< 10 C): neither earlier rule held it
+    # (section 24's 3507 x); the error exceeds |c|, so x is held at the start table's
+    # values with the widths (entry 3x-upper).  noise 0.02: +- 0.19 counts/C, free.
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS), noise=noise,
+                           hinge_scale=(1e-3, 1.0, 1.0))
+    assert res.fitted_range == (-60.0, 40.0)
+    law = law_parameters(shipped)
+    f = res.temperature[0]
+    if not held:
+        assert res.held_upper == {}
+        assert f.b1_err < abs(f.b1 - f.b0)
+        return
+    assert sorted(res.held_upper) == ["x"]  # y and z: well determined, free
+    h = res.held_upper["x"]
+    assert h["Tm_c"] == (pytest.approx(law[0, 3]), HOLD_BREAK_WIDTH_C)
+    assert h["slope_change"] == (pytest.approx(law[0, 2]),
+                                 pytest.approx(HOLD_SLOPE_CHANGE_WIDTH * abs(law[0, 2])))
+    # the written law is the held one, its stated error the widths' (200 draws: 15 %)
+    assert f.b1 - f.b0 == pytest.approx(law[0, 2], abs=1e-6)
+    assert f.x_m == pytest.approx(law[0, 3], abs=1e-6)
+    assert f.x_m_err == pytest.approx(HOLD_BREAK_WIDTH_C, rel=0.15)
+    header = "\n".join(held_upper_lines(res))
+    assert header.startswith("x: upper segment (eq. 3b) held") and "B1 - B0 +- more" in header
 
 
 def test_variance_tau_outside_its_range_is_refused(shipped):

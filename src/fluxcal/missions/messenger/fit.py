@@ -944,7 +944,8 @@ def held_upper_segments(vstats: VarianceStatistics, start: MessengerCalibration,
     above the break hold `VarianceSettings.min_samples` accepted samples (issue 34's
     Mercury orbit: the warm end seen only near periapsis, in intervals rejected as
     compressive), or when it is in ``force`` (`fit_variance_calibration`: the fit's
-    own bootstrap left its break undetermined, an error above `MAX_BREAK_ERROR_C`).
+    own bootstrap left its break undetermined, an error above `MAX_BREAK_ERROR_C`, or
+    its slope change's sign, an error above ``|c|``; `undetermined_upper`).
     Its break and its slope change ``c = B1 - B0`` are then held at
     ``start``'s values with the widths `HOLD_BREAK_WIDTH_C` and
     `HOLD_SLOPE_CHANGE_WIDTH` x ``|c|``; the upper line follows the fitted lower one
@@ -966,6 +967,39 @@ def held_upper_segments(vstats: VarianceStatistics, start: MessengerCalibration,
                       "slope_change": (float(law[j, 2]),
                                        HOLD_SLOPE_CHANGE_WIDTH * abs(float(law[j, 2])))}
     return out
+
+
+def undetermined_upper(law: np.ndarray, b_law: np.ndarray, widening: float) -> np.ndarray:
+    """Axes whose free upper segment (eq. 3b) the fit's own bootstrap leaves undetermined.
+
+    An axis's upper segment is undetermined when its break's stated error (the
+    resamples' spread times ``widening``, as stated) exceeds `MAX_BREAK_ERROR_C`
+    (entry 21), or when its slope change ``c = B1 - B0``'s stated error exceeds
+    ``|c|``: the data do not determine even the sign of the change (issue 34's 16-day
+    Mercury orbit, seed 3507: x's B1 = -239 +- 683 counts/C against 3.3 true, 100-700
+    nT off above T_m; docs/decisions/messenger_fit.md entry 3x-upper).  Either is then
+    held by `held_upper_segments` (its ``force``), the fit solved again.
+
+    Parameters
+    ----------
+    law : ndarray, shape (3, 4)
+        The fitted ``(a, b, c, T_m)`` per axis (`fit_variance.law_parameters` form).
+    b_law : ndarray, shape (n, 3, 4)
+        The bootstrap's resamples of ``law`` (unwidened).
+    widening : float
+        The bootstrap's finite-sample widening (`fit_variance.VarianceSolution`).
+
+    Returns
+    -------
+    ndarray of bool, shape (3,)
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 3a, 3b, 4.
+    """
+    spread = widening * np.std(np.asarray(b_law, dtype=float), axis=0)
+    c = np.abs(np.asarray(law, dtype=float)[:, 2])
+    return ~(spread[:, 3] <= MAX_BREAK_ERROR_C) | ~(spread[:, 2] <= c)
 
 
 def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT) -> None:
@@ -1092,7 +1126,8 @@ def fit_variance_calibration(
         interval determines is held at its values (`held_upper_segments`, entry 21).
     hold_upper : tuple of str
         Axes whose upper segment is held whatever the data (set by the re-solve when a
-        free break comes out with an error above `MAX_BREAK_ERROR_C`, and by `fit_days`
+        free break comes out with an error above `MAX_BREAK_ERROR_C` or a free slope
+        change with an error above its size (`undetermined_upper`), and by `fit_days`
         for the axes an earlier pass held: a hold that came and went from pass to pass
         kept the late-peak Mercury orbit from converging, entry 27).
     waveform_errors : bool
@@ -1170,8 +1205,10 @@ def fit_variance_calibration(
     # a held D0 keeps its own draws (its width is the user's, not the data's)
     # a free break the bootstrap leaves undetermined (its upper segment seen in too few
     # or too short intervals): held like an unseen one, the fit solved again (entry 21)
-    loose = tuple(a for j, a in enumerate(AXES) if a not in upper
-                  and not sol.widening * np.std(b_law[:, j, 3]) <= MAX_BREAK_ERROR_C)
+    # and a free slope change whose error exceeds its size (not even its sign known,
+    # entry 3x-upper): held in the same way
+    undetermined = undetermined_upper(law, b_law, sol.widening)
+    loose = tuple(a for j, a in enumerate(AXES) if a not in upper and undetermined[j])
     if loose:
         return fit_variance_calibration(stats, vstats, base, fit_delay=fit_delay,
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,

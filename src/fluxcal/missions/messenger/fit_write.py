@@ -117,7 +117,8 @@ def duty_range_line(merit: Mapping[str, Any]) -> str:
 def held_upper_lines(result: FitResult) -> list[str]:
     """Header lines: the upper segments held because no accepted interval saw them."""
     return [f"{a}: upper segment (eq. 3b) held: no accepted interval determines it "
-            f"(fewer than 2 5-C bins above the break, or its free break +- more than 10 C); "
+            f"(fewer than 2 5-C bins above the break, or its free break +- more than 10 C, "
+            f"or its free B1 - B0 +- more than its size); "
             f"Tm held at {h['Tm_c'][0]:.2f} +- "
             f"{h['Tm_c'][1]:.3g} C, B1 - B0 at {h['slope_change'][0]:.4g} +- "
             f"{h['slope_change'][1]:.3g} counts/C (the widths enter every stated error; "
