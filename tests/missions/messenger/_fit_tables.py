@@ -1,6 +1,6 @@
 """Constructed MESSENGER calibration inputs for the fit tests (issue 34).
 
-Two builders the fit tests share, neither of which calls the fit or its judgement:
+Builders the fit tests share, neither of which calls the fit or its judgement:
 
 * `tables_with_header_lines`: the packaged calibration tables (seed 000, Tables 2-8) copied
   into a test folder with a header line (``# T_RANGE: ...``, ``# D_RANGE: ...``) put in by
@@ -8,6 +8,8 @@ Two builders the fit tests share, neither of which calls the fit or its judgemen
   here rather than by ``fit_write``.
 * `scattered_laws`: Table 2 laws resampled with normal scatter of stated widths on their
   coefficients, drawn here (numpy only).
+* `applied_law`: the Table 2 law as a table applies it (eq. 3a below T_m, 3b above,
+  T_m of eq. 4), written here from the seed, not the pipeline's law function.
 * `table_bootstrap`: a bootstrap (the resampled laws, D0, tau and dt that
   ``fit_merit.assess`` reads) built from arrays the test draws itself, with tau and dt held
   at the table's values; `with_law_resamples`: a fit result carrying such a bootstrap of
@@ -55,6 +57,24 @@ def scattered_laws(law: np.ndarray, rng: np.random.Generator, k: int,
         if np.any(width):
             out[:, :, c] += width * rng.standard_normal((k, 1 if shared else 3))
     return out
+
+
+def applied_law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Table 2 law (counts), shape ``(t, axis)``, as the table applies it.
+
+    ``c`` is ``(axis, (A0, B0, A1, B1))``: ``A0 + B0 T`` up to ``T_m = (A0 - A1) / (B1 -
+    B0)`` (eq. 4), ``A1 + B1 T`` above (eq. 3a, 3b; MESSENGER MAG EDR-to-CDR Processing
+    v2i, sec. 7).  Not the larger of the two lines: that is the same only while ``B1 >
+    B0``; a fitted upper slope below the lower one (16-day Mercury orbit, seed 3507) read
+    as the larger line is 10 000 counts off below the break (verification section 24).
+    Parallel lines (``B1 = B0``): the lower line everywhere.
+    """
+    c = np.asarray(c, dtype=float)
+    t = np.asarray(t, dtype=float)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tm = (c[:, 0] - c[:, 2]) / (c[:, 3] - c[:, 1])
+    tm = np.where(c[:, 3] == c[:, 1], np.inf, tm)
+    return np.where(t <= tm, c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
 
 
 def table_bootstrap(res: Any, law: np.ndarray, d0: np.ndarray | None = None) -> dict:

@@ -24,7 +24,11 @@ from fluxcal.missions.messenger.fit_variance import (
     law_parameters,
     law_values,
 )
-from tests.missions.messenger._fit_tables import scattered_laws, with_law_resamples
+from tests.missions.messenger._fit_tables import (
+    applied_law,
+    scattered_laws,
+    with_law_resamples,
+)
 from tests.missions.messenger.test_fit_variance import START, _variance_result
 
 #: The regulated sensor temperature (C; sec. 7, eq. 2).
@@ -88,11 +92,6 @@ def test_the_band_refusal_advises_the_goal_that_states_the_regulated_temperature
     # without a re-judgement the refusal names its own numbers' goal (the old advice)
     with pytest.raises(FitRefusedError, match=rf"--error-goal {guess:g} \("):
         check_merit(res)
-
-
-def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Table 2 law (counts) from its coefficients (eq. 3a, 3b: the larger line)."""
-    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
 
 
 #: One unseen day is one draw of a predicted rms (test_fit_honest.py).
@@ -164,8 +163,8 @@ def test_mercury_orbit_advice_writes_a_table_that_meets_its_stated_errors(tmp_pa
     grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, 0.5)
     grid = grid[res.stated_ranges.contains(grid)]
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
-    law_pull = ((_law(res.calibration.temperature_coefficients, grid) - _law(tc, grid))
-                / res.law_error(grid))
+    law_pull = ((applied_law(res.calibration.temperature_coefficients, grid)
+                 - applied_law(tc, grid)) / res.law_error(grid))
     assert np.all(np.abs(law_pull) <= 3.0), np.abs(law_pull).max(axis=0)
     # tau and D0 (a held one: its width) against their stated errors
     tau = true.constants["relaxation"]["tau_s"]
@@ -226,8 +225,8 @@ def test_the_demo_follows_each_advice_to_a_table_that_meets_its_stated_errors(tm
     lo, hi = res.merit["data_range_c"]
     grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, 0.5)
     grid = grid[ranges.contains(grid)]
-    law_pull = ((_law(res.calibration.offset_coefficients(), grid)
-                 - _law(tc.offset_coefficients(), grid)) / res.law_error(grid))
+    law_pull = ((applied_law(res.calibration.offset_coefficients(), grid)
+                 - applied_law(tc.offset_coefficients(), grid)) / res.law_error(grid))
     assert np.all(np.abs(law_pull) <= 3.0), np.abs(law_pull).max(axis=0)
     tau = tc.constants["relaxation"]["tau_s"]
     assert abs(res.relaxation.tau - tau) <= 3.0 * res.relaxation.tau_err

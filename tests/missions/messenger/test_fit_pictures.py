@@ -17,6 +17,7 @@ import pytest
 
 from fluxcal.cli import main
 from fluxcal.missions.messenger import fit_pictures as mfp
+from tests.missions.messenger._fit_tables import applied_law
 
 pytest.importorskip("matplotlib")
 
@@ -85,11 +86,9 @@ def test_pictures_and_index_written(fitted):
 def _table_law(out: Path, t: np.ndarray) -> np.ndarray:
     rows = [r for r in csv.DictReader(line for line in (out / "offsets_temperature_v2.csv")
                                       .read_text().splitlines() if not line.startswith("#"))]
-    law = np.empty((t.size, 3))
-    for j, r in enumerate(rows):
-        a0, b0, a1, b1 = (float(r[k]) for k in ("A0", "B0", "A1", "B1"))
-        law[:, j] = np.maximum(a0 + b0 * t, a1 + b1 * t)
-    return law
+    # as the table applies it (eq. 3a, 3b, 4), not the larger line
+    return applied_law(np.array([[float(r[k]) for k in ("A0", "B0", "A1", "B1")]
+                                 for r in rows]), t)
 
 
 def test_drawn_law_is_the_written_table(fitted):

@@ -33,7 +33,7 @@ from fluxcal.missions.messenger.fit import (
 from fluxcal.missions.messenger.fit_variance import law_parameters
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, read_flight_truth, simulate_flight
-from tests.missions.messenger._fit_tables import tables_with_header_lines
+from tests.missions.messenger._fit_tables import applied_law, tables_with_header_lines
 from tests.missions.messenger._hard_worlds import MercuryOrbit
 from tests.missions.messenger._unseen_day import recalibrate_rms
 
@@ -42,14 +42,20 @@ START = "2010-03-01"
 COUNT_TOLERANCE = 0.3
 
 
-def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Table 2 law (counts), the larger of the two lines (eq. 3a, 3b; convex)."""
-    return np.maximum(c[:, 0] + c[:, 1] * t[:, None], c[:, 2] + c[:, 3] * t[:, None])
-
-
 def _table2(tmp_path, t_range_line: str | None):
     """A calibration folder: the packaged tables with a Table 2 header line added."""
     return tables_with_header_lines(tmp_path, {"offsets_temperature_v1.csv": t_range_line})
+
+
+def test_applied_law_takes_each_line_on_its_side_of_the_break():
+    # A0 = 0, B0 = 1, A1 = -10, B1 = -1: T_m = (0 + 10) / (-1 - 1) = -5 C (eq. 4); eq. 3a
+    # below it (T), 3b above it (-10 - T): at -20 C -20, not the larger line's +10
+    # (section 24's 3507 x); y: the seed's convex form, both rules agree; z: parallel
+    c = np.array([[0.0, 1.0, -10.0, -1.0], [0.0, 1.0, -10.0, 3.0], [5.0, 2.0, 7.0, 2.0]])
+    t = np.array([-20.0, -5.0, 0.0, 10.0])
+    # (y's break at +5 C; z: 5 + 2 T everywhere)
+    np.testing.assert_allclose(applied_law(c, t), [[-20.0, -20.0, -35.0], [-5.0, -5.0, -5.0],
+                                                   [-10.0, 0.0, 5.0], [-20.0, 20.0, 25.0]])
 
 
 # ---------------------------------------------------------------------------------------
@@ -164,12 +170,12 @@ def test_unseen_warm_segment_is_held_and_the_stated_range_narrowed(tmp_path, cap
     # inside T_RANGE the stated error covers the truth (3 sigma + the counts' rounding)
     t = np.arange(lo, hi + 0.01, 1.0)
     t = t[ranges.contains(t)]
-    err = np.abs(_law(fit_c, t) - _law(tc, t))
+    err = np.abs(applied_law(fit_c, t) - applied_law(tc, t))
     assert np.all(err <= 3.0 * res.law_error(t) + COUNT_TOLERANCE), (err.max(0), res.law_error(t))
     # outside it the held widths cover the truth of the flight model too (its breaks
     # moved by -6 / +5 / +4 C and B1 - B0 by x1.79 / 0.60 / 1.54 from the shipped ones)
     t_out = np.array([-20.0, 0.0, 30.0])
-    pulls = (_law(fit_c, t_out) - _law(tc, t_out)) / res.law_error(t_out)
+    pulls = (applied_law(fit_c, t_out) - applied_law(tc, t_out)) / res.law_error(t_out)
     assert np.all(np.abs(pulls) < 3.0), pulls
     true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
     for j, f in enumerate(res.temperature):
@@ -216,9 +222,9 @@ def test_warm_end_seen_in_the_wind_holds_nothing(tmp_path):
     lo, hi = res.fitted_range
     t = np.arange(lo, hi + 0.01, 1.0)
     t = t[res.stated_ranges.contains(t)]
-    err = np.abs(_law(fit_c, t) - _law(tc, t))
+    err = np.abs(applied_law(fit_c, t) - applied_law(tc, t))
     assert np.all(err <= 3.0 * res.law_error(t) + COUNT_TOLERANCE), (err.max(0), res.law_error(t))
     # the fitted upper line (not a held one) is within its band above the breaks too
     t_up = np.array([0.0, 20.0])
-    pulls = (_law(fit_c, t_up) - _law(tc, t_up)) / res.law_error(t_up)
+    pulls = (applied_law(fit_c, t_up) - applied_law(tc, t_up)) / res.law_error(t_up)
     assert np.all(np.abs(pulls) < 3.0), pulls
