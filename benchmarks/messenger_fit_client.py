@@ -11,7 +11,7 @@ seconds of each part (calls, total, per call, share of the profiled run).
 On a Dask cluster `fit.fit_days` maps only `fit.reduce_chunk` and the merges onto the
 workers; everything else is the client's serial part: the fit of each pass
 (`fit.fit_variance_calibration`) with its bootstrap (`fit_variance.solve_variance`)
-and its heater waveforms (`fit._fit_waveforms`; before entry 3x-folds each pass also
+and its heater waveforms (`fit._fit_waveforms`; before entry 33 each pass also
 fitted the four folds for the column errors), the pass bookkeeping
 (`fit.pass_changes`, `fit.check_fit`), and after the passes the last pass's waveform
 column errors (`fit.waveform_column_errors`; its own `_fit_waveforms` call is also

@@ -307,7 +307,7 @@ def waveform_parts(inp: Path, day, folder: Path, res, true, truth: dict,
 
 def unseen_day_prediction(inp: Path, day, res) -> dict:
     """The prediction for the unseen day itself (`fit_merit.DaySamples`: its own
-    temperatures, relaxed duty cycles and duty-bin counts; entry 3x-dutymix), over its
+    temperatures, relaxed duty cycles and duty-bin counts; entry 32), over its
     samples inside T_RANGE as `merit_inside_range` holds the fit's own: ``total_nt``,
     ``waveform_nt``."""
     sci, htr, tmp = day_streams(inp, day)

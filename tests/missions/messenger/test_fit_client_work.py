@@ -4,7 +4,7 @@
    ``FitResult.waveform_error`` (only the figure of merit after the passes does,
    `fit_merit.predicted_error`), so `fit.fit_days` skips the four folds' splines in
    every pass and states the errors once, from the last pass's statistics and starting
-   table (docs/decisions/messenger_fit.md, entry 3x-folds).  The expected values are
+   table (docs/decisions/messenger_fit.md, entry 33).  The expected values are
    the fit's own, stated the way every pass stated them before: the same `fit_days`
    with the per-pass errors forced back on.  Everything must agree bit for bit (the
    same arithmetic on the same inputs), and the folds must be fitted once instead of

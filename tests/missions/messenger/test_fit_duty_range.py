@@ -190,7 +190,7 @@ def test_fit_states_d_range_and_the_samples_above_it_are_warned_and_left_out(tmp
     assert share_fit == pytest.approx(share_true, rel=0.05), (share_fit, share_true)
     # the waveform part holds for the samples inside: each column's stated error
     # weighted by its bin's share of the samples inside T_RANGE and D_RANGE (at the
-    # fitted mix); the stated part floors each share at the even one (entry 3x-dutymix)
+    # fitted mix); the stated part floors each share at the even one (entry 32)
     count = np.array([wf.count.sum() for wf in res.stats.waveform], dtype=float)
     n_in = m["samples"] - m["samples_outside_duty_range"]
     var = (res.waveform_error ** 2 * count).sum(axis=1) / n_in

@@ -9,7 +9,7 @@ whose own mix gives more warns.  Expected values: sums over the samples written 
 here (brute force), a Monte Carlo of column errors, sec. 6's 4-% bins worked by hand,
 and the simulator's heater bits counted from the input file
 (`test_fit_duty_range._period_duty_samples`).  docs/decisions/messenger_fit.md entry
-3x-dutymix.
+32.
 """
 
 from __future__ import annotations

@@ -285,7 +285,7 @@ def test_variance_upper_slope_of_undetermined_sign_is_held(shipped, noise, held)
     # noise 0.2: a free fit states B1 - B0 = 3.3 +- 5.2 counts/C (true 1.34: the shipped
     # value, the step is 0) with its break +- 5.2 C (< 10 C): neither earlier rule held it
     # (section 24's 3507 x); the error exceeds |c|, so x is held at the start table's
-    # values with the widths (entry 3x-upper).  noise 0.02: +- 0.19 counts/C, free.
+    # values with the widths (entry 35).  noise 0.02: +- 0.19 counts/C, free.
     res = _variance_result(shipped, np.zeros(N_PARAMETERS), noise=noise,
                            hinge_scale=(1e-3, 1.0, 1.0))
     assert res.fitted_range == (-60.0, 40.0)

@@ -153,7 +153,7 @@ def test_fitted_column_errors_cover_brute_force(periods):
     # draws).  Expected: 1, times the Student-t widening squared where the column's
     # samples lie in two folds ((t_1 / t_3)^2 = 2.36, closed forms).  Allowed 0.78-1.3:
     # 300 draws scatter the ratio by about 5 %.  The jackknife of unequal folds errs on
-    # the high side (entry 3x-calm): 1.14 and 0.87 here (entry 29's fold spread: within
+    # the high side (entry 34): 1.14 and 0.87 here (entry 29's fold spread: within
     # 0.78-1.3 too; without the smoothing bias it was 0.70-0.78; by hand, not kept).
     assert len(periods) == WAVEFORM_FOLDS
     rng = np.random.default_rng(7)
@@ -198,7 +198,7 @@ def _edge_statistics(rng: np.random.Generator, groups, truth: dict) -> DayStatis
 
 
 def test_edge_column_seen_through_its_neighbour_is_not_overstated():
-    # the pattern of calm seed 7003 at 2 days (entry 3x-calm): the 40-% column's own
+    # the pattern of calm seed 7003 at 2 days (entry 34): the 40-% column's own
     # periods lie in folds 2 and 3 (15 and 18) and 4 (at 39 %) in fold 0, whose data
     # are 4x noisier (sigma 12 counts against 3); fold 1 reaches the column only
     # through 37-% periods of the 36-% bin (weight 0.25).  Every fold holds 36-% periods.  The

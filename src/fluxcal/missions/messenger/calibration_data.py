@@ -474,7 +474,7 @@ def _duty_range(tables: list[TableFile]) -> tuple[float, float] | None:
 
 
 #: Header field of each heater-signal file: its columns' stated errors (counts), one per
-#: column in the table's order (issue 34, docs/decisions/messenger_fit.md entry 3x-dutymix).
+#: column in the table's order (issue 34, docs/decisions/messenger_fit.md entry 32).
 WAVEFORM_ERROR_KEY = "WAVEFORM_ERROR"
 #: Header field of the heater-signal files: the waveform part (nT, x y z) of the fit's
 #: stated prediction of a recalibrated day.

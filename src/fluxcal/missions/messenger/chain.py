@@ -311,7 +311,7 @@ def day_waveform_part(ds: xr.Dataset, periods: HeaterPeriods, cal: MessengerCali
     day's own heater-on samples per duty bin (`heater_error.waveform_part`), over the
     fine-range samples inside ``T_RANGE``, the heater-on ones outside ``D_RANGE`` left
     out (as the fit's prediction holds, docs/decisions/messenger_fit.md entries 25 and
-    3x-dutymix).  None without stated column errors or samples.  Also returned: the
+    32).  None without stated column errors or samples.  Also returned: the
     counts (``samples``, ``heater_on``) and the duty bin (%) holding most heater-on
     samples (``fullest_pct``).
 
@@ -355,7 +355,7 @@ def warn_waveform_part(ds: xr.Dataset, periods: HeaterPeriods,
     (``WAVEFORM_PART_NT``, `MessengerCalibration.waveform_part_nt`) for the duty-cycle
     mix it was stated for, and each column's error (``WAVEFORM_ERROR``).  A day that
     spends its heater-on time in worse-determined columns carries more
-    (`day_waveform_part`; docs/decisions/messenger_fit.md entry 3x-dutymix): the
+    (`day_waveform_part`; docs/decisions/messenger_fit.md entry 32): the
     warning gives both, per axis, and where the day's heater-on samples lie.
 
     Returns

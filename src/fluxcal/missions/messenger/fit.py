@@ -510,7 +510,7 @@ def few_folds_widening(own: np.ndarray, folds: int) -> float:
 
     ``own`` holds the column's own samples (its duty-cycle bin's) in each fold.  The
     refits' spread pools 100 phases, so for a column whose own samples fill every fold
-    it covers the truth as it is (entries 29 and 3x-calm).  With its own samples in
+    it covers the truth as it is (entries 29 and 34).  With its own samples in
     ``K_eff = N^2 / sum n_k^2`` effective folds (Kish), the spread compares
     ``K_eff - 1`` of them: widened by the Student-t ratio
     ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the t quantile of one
@@ -540,11 +540,11 @@ def _fit_waveforms(
     common to the refits, so not in their spread); a column kept from ``base`` is given
     its own rms (its error unknown, entries 19 and 29), and a fitted column that some
     fold's removal leaves unfitted (it rests on one fold), or with fewer than two folds
-    holding samples, the larger of its rms and the shipped column's (entry 3x-calm).
+    holding samples, the larger of its rms and the shipped column's (entry 34).
 
     With ``errors=False`` the refits are not done and the error is None: no pass
     reads it, so `fit_days` states it once, from the last pass's statistics and
-    table (entry 3x-folds).
+    table (entry 33).
     """
     table = np.array(base.heater_signal, dtype=float)
     nb = len(stats.waveform)
@@ -587,7 +587,7 @@ def _fit_waveforms(
                 err *= few_folds_widening(own[:, b], len(stats.waveform_folds))
                 err = np.hypot(err, smoothing_bias(fits[j][b], phase, columns, support, b))
             # unknown (the column rests on one fold): as large as the column itself,
-            # fitted or shipped, not the shipped one's rms alone (entry 3x-calm)
+            # fitted or shipped, not the shipped one's rms alone (entry 34)
             error[j, b] = err if np.isfinite(err) else max(
                 error[j, b], float(np.sqrt(np.mean(table[j, :100, b] ** 2))))
     return table, fits, (error if errors else None)
@@ -597,7 +597,7 @@ def waveform_column_errors(stats: DayStatistics, base: MessengerCalibration) -> 
     """Stated error (counts) of each waveform column, shape (3, n_duty_bins).
 
     What `_fit_waveforms` states for the fit of ``stats`` from ``base``: `fit_days` calls
-    it once after its passes, for the last one, whose fit skipped it (entry 3x-folds).
+    it once after its passes, for the last one, whose fit skipped it (entry 33).
     """
     return _fit_waveforms(stats, base)[2]
 
@@ -697,7 +697,7 @@ def fit_calibration(
         (docs/decisions/messenger_fit.md, entry 8).
     waveform_errors : bool
         State the waveform columns' errors (`_fit_waveforms`); False leaves
-        ``waveform_error`` None (`fit_days`'s passes: entry 3x-folds).
+        ``waveform_error`` None (`fit_days`'s passes: entry 33).
 
     Returns
     -------
@@ -977,7 +977,7 @@ def undetermined_upper(law: np.ndarray, b_law: np.ndarray, widening: float) -> n
     (entry 21), or when its slope change ``c = B1 - B0``'s stated error exceeds
     ``|c|``: the data do not determine even the sign of the change (issue 34's 16-day
     Mercury orbit, seed 3507: x's B1 = -239 +- 683 counts/C against 3.3 true, 100-700
-    nT off above T_m; docs/decisions/messenger_fit.md entry 3x-upper).  Either is then
+    nT off above T_m; docs/decisions/messenger_fit.md entry 35).  Either is then
     held by `held_upper_segments` (its ``force``), the fit solved again.
 
     Parameters
@@ -1132,7 +1132,7 @@ def fit_variance_calibration(
         kept the late-peak Mercury orbit from converging, entry 27).
     waveform_errors : bool
         State the waveform columns' errors (`_fit_waveforms`); False leaves
-        ``waveform_error`` None (`fit_days`'s passes: entry 3x-folds).
+        ``waveform_error`` None (`fit_days`'s passes: entry 33).
 
     Returns
     -------
@@ -1206,7 +1206,7 @@ def fit_variance_calibration(
     # a free break the bootstrap leaves undetermined (its upper segment seen in too few
     # or too short intervals): held like an unseen one, the fit solved again (entry 21)
     # and a free slope change whose error exceeds its size (not even its sign known,
-    # entry 3x-upper): held in the same way
+    # entry 35): held in the same way
     undetermined = undetermined_upper(law, b_law, sol.widening)
     loose = tuple(a for j, a in enumerate(AXES) if a not in upper and undetermined[j])
     if loose:
@@ -1603,7 +1603,7 @@ def fit_days(
             inputs = inputs or stats.inputs  # hashed on the first pass only
             stats.inputs = inputs
             # the waveform columns' errors are read by no pass: stated after the loop,
-            # from the table this pass starts from (entry 3x-folds)
+            # from the table this pass starts from (entry 33)
             fitted_from = cal
             if estimator == "variance":
                 result = fit_variance_calibration(
@@ -1666,7 +1666,7 @@ def fit_days(
             check_fit(result)
         # the last pass's waveform columns' errors, as its fit would have stated them (the
         # same statistics and table, so the same splines): read only by the figure of
-        # merit, so neither by any pass nor by the refusals above (entry 3x-folds)
+        # merit, so neither by any pass nor by the refusals above (entry 33)
         result.waveform_error = waveform_column_errors(result.stats, fitted_from)
         if estimator == "variance":
             fit_merit.assess(result, error_goal, max_compressive_share=max_compressive_share)

@@ -148,7 +148,7 @@ def _bin_counts(stats: Any) -> np.ndarray:
 
 
 def stated_duty_counts(count: np.ndarray, inside: np.ndarray) -> np.ndarray:
-    """Return the duty-bin counts the fit's own waveform part is stated for (entry 3x-dutymix).
+    """Return the duty-bin counts the fit's own waveform part is stated for (entry 32).
 
     Per bin inside D_RANGE (``inside``) the larger of the fitted days' heater-on samples
     there and an even share of those inside, ``max(n_k, N_in / K)`` (``K`` the bins
@@ -175,7 +175,7 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
     independent of the rest.  The waveform part (`heater_error.waveform_part`) weights
     each column's error by the samples in its duty bin: ``day``'s own heater-on samples
     per bin; for the fitted days `stated_duty_counts` (their mix, each bin inside
-    D_RANGE at least an even share: an unseen day's mix differs, entry 3x-dutymix).  It
+    D_RANGE at least an even share: an unseen day's mix differs, entry 32).  It
     holds for the samples inside ``D_RANGE``: the bins outside it do not count and its
     denominator leaves the heater-on samples outside it out (entry 25); the law, D0 and
     tau parts keep them (the moments carry no duty cycle; they lie at the regulated -50

@@ -132,7 +132,7 @@ class DayStatistics:
     waveform_folds : list of list of BinnedMoments
         Analysis 4 split into `WAVEFORM_FOLDS` folds by the 30-min block of each sample
         (block index modulo the folds): the waveforms refitted without each fold state
-        the waveform's error (docs/decisions/messenger_fit.md entries 19, 29, 3x-calm).
+        the waveform's error (docs/decisions/messenger_fit.md entries 19, 29, 34).
     temperature_fine : BinnedMoments
         The temperature-law samples in 0.25-C sub-bins; its one value column is the
         temperature (count and mean temperature per sub-bin).
@@ -544,7 +544,7 @@ def reduce_day(
 #: `WAVEFORM_FOLDS`): 30 min, 18 heater periods, so that a duty-cycle bin visited for
 #: an hour or two still falls into several folds (entry 29).
 WAVEFORM_FOLD_BLOCK_S = 1800.0
-#: Folds left out in turn to state the waveform columns' errors (entries 29, 3x-calm;
+#: Folds left out in turn to state the waveform columns' errors (entries 29, 34;
 #: two halves before, whose variance estimate had one degree of freedom per phase).
 WAVEFORM_FOLDS = 4
 

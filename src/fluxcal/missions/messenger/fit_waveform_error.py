@@ -16,7 +16,7 @@ column of calm seed 7003 at 9.3 counts against 1.7 true.  Refitted without a fol
 column is still solved through the other folds, so a fold moves it only as much as it
 moved the pooled fit; a fold noisier than the others (a disturbed hour) counts with its
 own noise, and a column that leans on a poorly determined neighbour carries the
-neighbour's error into its own refits (docs/decisions/messenger_fit.md, entry 3x-calm).
+neighbour's error into its own refits (docs/decisions/messenger_fit.md, entry 34).
 
 References
 ----------

@@ -386,7 +386,7 @@ def write_calibration_folder(
 
 
 def waveform_error_lines(result: FitResult, axis: int) -> list[str]:
-    """Header lines of one heater-signal file: its columns' stated errors (entry 3x-dutymix).
+    """Header lines of one heater-signal file: its columns' stated errors (entry 32).
 
     ``# WAVEFORM_ERROR: e_1 ... e_n`` (counts, 1 sigma, rms over the phase; one per
     column, in the table's column order), read back by `load_calibration`
