@@ -53,6 +53,7 @@ import numpy as np
 import xarray as xr
 
 from fluxcal.calibration.binned_stats import BinnedMoments, phase_binned, superposed_epoch
+from fluxcal.calibration.heater_error import duty_bin_index
 from fluxcal.calibration.heater_signal import heater_waveform, period_index
 from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.relaxation import relaxed_offset, steady_state_offset
@@ -508,9 +509,7 @@ def reduce_day(
         half = 0.5 * 100.0 / s.phase_bins
         phase = np.where(phase >= 100.0 - half, phase - 100.0, phase)
         centres = np.asarray(s.waveform_bins_percent)
-        width = centres[1] - centres[0]
-        lower = centres[0] - width / 2
-        b = np.floor((duty_pct - lower) / width)
+        b = duty_bin_index(duty_pct, centres)  # -1: in no bin (NaN, above 42 %, below 10 %)
         weights = interpolation_weights(duty_pct, centres)
         # the field's own variation within a heater period leaks into the phase bins (a
         # ramp of the field becomes a sawtooth): the field is estimated by the centred
@@ -518,12 +517,12 @@ def reduce_day(
         # waveform's mean over its period is zero) and removed (entry 19)
         field_est = _period_mean(et, counts - offset - w_est, 100.0)
         r4 = np.column_stack([counts - offset - field_est, phase, weights])
-        period_bin = np.floor((periods.duty_cycle * 100.0 - lower) / width)
+        period_bin = duty_bin_index(periods.duty_cycle * 100.0, centres)
         fold = np.floor(et / WAVEFORM_FOLD_BLOCK_S).astype(np.int64) % WAVEFORM_FOLDS
         covered = np.all(np.isfinite(field_est), axis=1)
         # heater-on samples whose period's duty cycle lies in no bin (above 42 %, below
         # 10 %): no column sees them, so they lie outside every stated D_RANGE (issue 34)
-        beyond = powered & covered & (p >= 0) & ((b < 0) | (b >= centres.size))
+        beyond = powered & covered & (p >= 0) & (b < 0)
         out.n_samples["heater_on_beyond_bins"] = int(np.count_nonzero(beyond))
         for j in range(centres.size):
             sel = powered & (b == j) & covered
