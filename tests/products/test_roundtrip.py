@@ -233,15 +233,18 @@ def test_unknown_format(dataset: xr.Dataset, tmp_path: Path) -> None:
 
 # --- round-trip law (hypothesis) ----------------------------------------------------------
 
+#: Any finite or NaN value but the CDF fill value -1e31, which the CDF writer refuses
+#: out loud (a reader would take it for a missing value; test_cdf_attribute_links).
 _floats = hnp.arrays(np.float64, st.integers(0, 20).map(lambda n: (n, 3)),
-                     elements=st.floats(allow_nan=True, allow_infinity=False, width=64))
+                     elements=st.floats(allow_nan=True, allow_infinity=False, width=64)
+                     .filter(lambda x: x != -1e31))
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(b=_floats, offset=st.integers(-(2**62), 2**62 - 10**12),
        fmt=st.sampled_from(["tab", "cdf", "nc", *(["zarr"] if zarr_available() else [])]))
 def test_roundtrip_law(b: np.ndarray, offset: int, fmt: str) -> None:
-    """read(write(ds)) == ds for any finite/NaN field and any TT2000 epoch, every format.
+    """read(write(ds)) == ds for any finite/NaN field but -1e31, any TT2000 epoch, every format.
 
     +-2**62 ns is +-146 years around J2000, inside the UTC datetime64[ns] range of the
     ``time`` index (1678-2262) that netCDF and Zarr store beside the int64 epoch.
