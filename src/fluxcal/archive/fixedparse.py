@@ -22,11 +22,12 @@ _MAX_EXACT = 2**53
 
 
 @njit(cache=True)
-def _digits(row, j, n):
-    """Read digits from ``j``: (value, digits read, significant digits, next index)."""
-    value = np.uint64(0)
+def _digits(row, j, n, value, significant):
+    """Read digits from ``j`` onto ``value``: (value, digits read, significant, next index).
+
+    ``significant`` counts the significant digits so far (the first 19 are kept).
+    """
     count = 0
-    significant = 0
     while j < n and 48 <= row[j] <= 57:
         d = row[j] - 48
         if significant > 0 or d != 0:
@@ -60,19 +61,10 @@ def parse_reals(field, pow10):  # pragma: no cover - compiled
     for i in range(rows):
         row = field[i]
         negative, j = _sign(row, n)
-        mant, c1, sig, j = _digits(row, j, n)
+        mant, c1, sig, j = _digits(row, j, n, np.uint64(0), 0)
         c2 = 0
-        if j < n and row[j] == 46:
-            j += 1
-            start = j
-            while j < n and 48 <= row[j] <= 57:
-                d = row[j] - 48
-                if sig > 0 or d != 0:
-                    sig += 1
-                if sig <= 19:
-                    mant = mant * np.uint64(10) + np.uint64(d)
-                j += 1
-            c2 = j - start
+        if j < n and row[j] == 46:  # the fraction's digits continue the mantissa
+            mant, c2, sig, j = _digits(row, j + 1, n, mant, sig)
         if c1 + c2 == 0 or sig > 19:
             ok[i] = False
             continue
@@ -83,7 +75,7 @@ def parse_reals(field, pow10):  # pragma: no cover - compiled
             if j < n and (row[j] == 45 or row[j] == 43):
                 eneg = row[j] == 45
                 j += 1
-            ev, ec, _, j = _digits(row, j, n)
+            ev, ec, _, j = _digits(row, j, n, np.uint64(0), 0)
             if ec == 0 or ec > 4:
                 ok[i] = False
                 continue
@@ -112,7 +104,7 @@ def parse_ints(field):  # pragma: no cover - compiled
     for i in range(rows):
         row = field[i]
         negative, j = _sign(row, n)
-        value, count, significant, j = _digits(row, j, n)
+        value, count, significant, j = _digits(row, j, n, np.uint64(0), 0)
         while j < n and row[j] == 32:
             j += 1
         if count == 0 or significant > 18 or j != n:
