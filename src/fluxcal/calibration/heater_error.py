@@ -10,6 +10,12 @@ the phase); the columns' errors are independent.  Over a day's samples, of which
 whose duty cycles sit in the worse-determined bins carries more error than the days the
 table was fitted on.
 
+Whether that is worth saying (`exceeds_stated`): the day's own total, the stated total
+with its waveform part replaced by the day's (`day_total`, the parts independent),
+against the goal the table was accepted at, and against the stated total plus the
+stated part's own scatter (`part_scatter`: the columns' errors are themselves estimates,
+a delete-a-fold jackknife over ``K`` folds, ``K - 1`` degrees of freedom).
+
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 (duty-cycle bins, the
@@ -20,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["duty_bin_counts", "duty_bin_index", "waveform_part"]
+__all__ = ["day_total", "duty_bin_counts", "duty_bin_index", "exceeds_stated",
+           "part_scatter", "waveform_part"]
 
 
 def duty_bin_index(duty_percent: np.ndarray, bins_percent: np.ndarray) -> np.ndarray:
@@ -67,3 +74,46 @@ def waveform_part(column_error: np.ndarray, counts: np.ndarray, n_samples: float
     var = (err ** 2 * (c / float(n_samples))[None, :]).sum(axis=1)
     m2 = np.eye(err.shape[0]) if matrix is None else np.asarray(matrix, dtype=float) ** 2
     return np.sqrt(m2 @ var)
+
+
+def day_total(stated_total: np.ndarray, stated_part: np.ndarray,
+              day_part: np.ndarray) -> np.ndarray:
+    """Return a day's own total error: the stated total with its waveform part the day's.
+
+    ``sqrt(max(T^2 - W_s^2, 0) + W_d^2)`` per axis: ``T`` the stated total (the waveform
+    part independent of the rest and added in quadrature), ``W_s`` its waveform part,
+    ``W_d`` the day's own (`waveform_part` over the day's duty-bin counts).  The other
+    parts are kept as stated (over the fitted samples' temperatures).
+    """
+    t = np.asarray(stated_total, dtype=float)
+    rest = np.maximum(t ** 2 - np.asarray(stated_part, dtype=float) ** 2, 0.0)
+    return np.sqrt(rest + np.asarray(day_part, dtype=float) ** 2)
+
+
+def part_scatter(stated_part: np.ndarray, folds: int) -> np.ndarray:
+    """Return the stated waveform part's own scatter: ``W_s / sqrt(2 (K - 1))``.
+
+    The relative standard error of a standard deviation estimated with ``K - 1`` degrees
+    of freedom (a delete-a-fold jackknife over ``K`` folds), ``1 / sqrt(2 (K - 1))``:
+    0.41 for 4 folds.  A part summed over several columns whose errors are estimated
+    alike scatters at most that much relatively (a positive combination of estimates of
+    one relative scatter, whatever their correlation), so this is the most the stated
+    part may be off by at 1 sigma, in nT.
+    """
+    if folds < 2:
+        raise ValueError(f"folds {folds}: a jackknife needs at least 2")
+    return np.asarray(stated_part, dtype=float) / np.sqrt(2.0 * (folds - 1))
+
+
+def exceeds_stated(day_part: np.ndarray, stated_part: np.ndarray, stated_total: np.ndarray,
+                   goal: float, folds: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return which axes a day's own waveform part puts beyond what the table states.
+
+    An axis is beyond when the day's own total (`day_total`) exceeds the goal, or
+    exceeds the stated total by more than the stated part's scatter (`part_scatter`):
+    ``T_d > goal`` or ``T_d - T > W_s / sqrt(2 (K - 1))``.  Returns ``(beyond, T_d)``
+    per axis.  ``goal`` may be ``inf`` (none stated).
+    """
+    t_d = day_total(stated_total, stated_part, day_part)
+    excess = t_d - np.asarray(stated_total, dtype=float)
+    return (t_d > goal) | (excess > part_scatter(stated_part, folds)), t_d

@@ -20,13 +20,19 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-from fluxcal.calibration.heater_error import duty_bin_counts, waveform_part
+from fluxcal.calibration.heater_error import (
+    duty_bin_counts,
+    exceeds_stated,
+    part_scatter,
+    waveform_part,
+)
 from fluxcal.calibration.heater_signal import HeaterPeriods, period_index
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import InputFormatError
 from fluxcal.geometry.time import SclkKernel, et_to_utc
 from fluxcal.missions.messenger import defects, levels
 from fluxcal.missions.messenger.calibration_data import MessengerCalibration
+from fluxcal.missions.messenger.fit_reduce import WAVEFORM_FOLDS
 from fluxcal.missions.messenger.options import DEFAULT_FRAMES
 from fluxcal.version import software_version
 
@@ -349,19 +355,28 @@ def day_waveform_part(ds: xr.Dataset, periods: HeaterPeriods, cal: MessengerCali
 
 def warn_waveform_part(ds: xr.Dataset, periods: HeaterPeriods,
                        cal: MessengerCalibration) -> bool:
-    """Warn when this day's duty cycles give a larger waveform error than the table states.
+    """Warn when this day's duty cycles put its error beyond what the table states.
 
     A fitted table states the waveform part of its predicted error
     (``WAVEFORM_PART_NT``, `MessengerCalibration.waveform_part_nt`) for the duty-cycle
-    mix it was stated for, and each column's error (``WAVEFORM_ERROR``).  A day that
-    spends its heater-on time in worse-determined columns carries more
-    (`day_waveform_part`; docs/decisions/messenger_fit.md entry 32): the
-    warning gives both, per axis, and where the day's heater-on samples lie.
+    mix it was stated for, each column's error (``WAVEFORM_ERROR``), and in its
+    processing file the predicted error and the goal it was accepted at (``[fit]``
+    ``predicted_error_nt``, ``error_goal_nt``).  A day that spends its heater-on time
+    in worse-determined columns carries more (`day_waveform_part`): its own total is
+    the stated one with the day's waveform part (`heater_error.day_total`).  It warns
+    when, on some axis, that total exceeds the goal, or exceeds the stated total by
+    more than the stated part's own scatter (`heater_error.part_scatter`, the columns'
+    jackknife over `WAVEFORM_FOLDS` folds: 0.41 of the part); a day within both is what
+    the table states (docs/decisions/messenger_fit.md entries 32 and 3x-warn).  A table
+    without ``[fit]`` numbers is judged with its waveform part as the whole total and
+    no goal.  The one line gives the day's part, the stated part and its scatter, the
+    day's total, the stated total and the goal (nT, x / y / z).
 
     Returns
     -------
     bool
-        True when it warned; False for tables without the two fields, or a day within.
+        True when it warned; False for tables without the two header fields, or a day
+        within.
 
     References
     ----------
@@ -372,24 +387,53 @@ def warn_waveform_part(ds: xr.Dataset, periods: HeaterPeriods,
     if stated is None or got is None:
         return False
     part, n = got
-    if not np.any(part > WAVEFORM_PART_SLACK * np.asarray(stated)):
+    stated = np.asarray(stated, dtype=float)
+    total, goal = _stated_total_and_goal(cal, stated)
+    beyond, day_total = exceeds_stated(part, stated, total, goal, WAVEFORM_FOLDS)
+    if not beyond.any():
         return False
+    over_goal = day_total > goal
+    reasons = (["above the goal"] if over_goal.any() else []) + (
+        ["beyond the table's by more than the part's scatter"]
+        if np.any(beyond & ~over_goal) else [])
+
+    def nt(v):
+        return " / ".join(f"{x:.3f}" for x in v)
+
     log.warning("the heater waveforms' error on this day's %d samples (fine range, inside "
                 "T_RANGE and D_RANGE; %d heater-on, most at the %g-%% column) is %s nT (x "
-                "/ y / z) from its duty cycles, above the %s nT %s states (%s): the "
-                "day's heater-on samples lie where the columns' stated errors (%s) are "
-                "larger than the fit's own prediction weighed them (sec. 6)",
-                n["samples"], n["heater_on"], n["fullest_pct"],
-                " / ".join(f"{v:.3f}" for v in part),
-                " / ".join(f"{v:.3f}" for v in stated),
-                _table_name(cal, "heater_signal", "Tables 6-8"), "WAVEFORM_PART_NT",
-                "WAVEFORM_ERROR")
+                "/ y / z) from its duty cycles, against the %s nT +- %s %s states "
+                "(WAVEFORM_PART_NT; +- its columns' jackknife scatter over %d folds, "
+                "WAVEFORM_ERROR): the day's predicted error is %s nT against the table's "
+                "%s nT and %s, %s (sec. 6)",
+                n["samples"], n["heater_on"], n["fullest_pct"], nt(part), nt(stated),
+                nt(part_scatter(stated, WAVEFORM_FOLDS)),
+                _table_name(cal, "heater_signal", "Tables 6-8"), WAVEFORM_FOLDS,
+                nt(day_total), nt(total),
+                f"its goal {goal:g} nT" if np.isfinite(goal) else "no goal stated",
+                " and ".join(reasons))
     return True
 
 
-#: A day warns when its waveform part exceeds the stated one by more than the header's
-#: rounding (4 significant digits).
-WAVEFORM_PART_SLACK = 1.001
+def _stated_total_and_goal(cal: MessengerCalibration, stated_part: np.ndarray
+                           ) -> tuple[np.ndarray, float]:
+    """Return the table's stated predicted error (nT, x y z) and goal (nT) from ``[fit]``.
+
+    Written by `fit_write` (``predicted_error_nt``, ``error_goal_nt``).  Absent or not
+    three finite numbers: the waveform part stands for the total and there is no goal
+    (``inf``).
+    """
+    fit = cal.constants.get("fit") if isinstance(cal.constants, dict) else None
+    if not isinstance(fit, dict):
+        return stated_part, np.inf
+    try:
+        total = np.asarray(fit.get("predicted_error_nt"), dtype=float)
+        goal = float(fit.get("error_goal_nt", np.inf))
+    except (TypeError, ValueError):
+        return stated_part, np.inf
+    if total.shape != (3,) or not np.all(np.isfinite(total)):
+        total = stated_part
+    return total, goal if np.isfinite(goal) and goal > 0 else np.inf
 
 
 def day_of(science: xr.Dataset) -> np.datetime64:
