@@ -205,42 +205,119 @@ def _edr2cdr(files, kernels, out, folder) -> int:
                  "--formats", "tab", "--calib", str(folder)])
 
 
-def test_calibrate_warns_when_the_days_mix_gives_more_than_stated(
-        tmp_path, simulated_files, messenger_kernels, caplog):
-    # the day's heater-on blocks: 40, 36, 25, 30 % (44 % in no bin, 8 % not applied).
-    # Columns: 1 count everywhere but the 24-% column (25 % lies in it), 20 counts
-    err = np.ones((3, 8))
-    err[:, 3] = 20.0
-    lines = {a: _error_line(err[j]) + "\n# WAVEFORM_PART_NT: 0.05 0.05 0.05"
-             for j, a in enumerate("xyz")}
-    folder = _heater_folder(tmp_path, lines)
-    with caplog.at_level(logging.WARNING):
-        assert _edr2cdr(simulated_files, messenger_kernels, tmp_path / "out", folder) == 0
-    msgs = [r.getMessage() for r in caplog.records if "WAVEFORM_PART_NT" in r.getMessage()]
-    assert len(msgs) == 1, msgs
-    # brute force from the files: each fine-range sample's period duty cycle (bits
-    # counted), the 10-s persistence (sec. 6), sec. 6's bins; the samples in no bin left
-    # out of the denominator (they lie outside every D_RANGE)
-    duty, _ = _period_duty_samples(simulated_files)
-    rng_flag = np.loadtxt(simulated_files["science"], delimiter=",", skiprows=1, usecols=(3,))
+def _brute_day_part(files, err) -> tuple[np.ndarray, np.ndarray]:
+    """The day's waveform part by brute force from the input files: each fine-range
+    sample's period duty cycle (bits counted), the 10-s persistence (sec. 6), sec. 6's
+    bins; the samples in no bin left out of the denominator (they lie outside every
+    D_RANGE)."""
+    duty, _ = _period_duty_samples(files)
+    rng_flag = np.loadtxt(files["science"], delimiter=",", skiprows=1, usecols=(3,))
     fine = rng_flag == 0
     on = fine & (duty >= 10)
     b = np.where(on, np.floor((duty - 10.0) / 4.0), -1).astype(int)
     beyond = on & ((b < 0) | (b > 7))
     b = np.where(beyond, -1, b)[fine & ~beyond]
-    expected = _brute_part(err, b, np.asarray(load_calibration(START).matrices[0]))
-    got = np.array([float(v) for v in re.search(
-        r"is ([\d.]+) / ([\d.]+) / ([\d.]+) nT", msgs[0]).groups()])
+    return _brute_part(err, b, np.asarray(load_calibration(START).matrices[0])), b
+
+
+def _fit_folder(tmp_path, err, stated, total=None, goal=None):
+    """Packaged tables whose heater files state ``err`` and the part ``stated`` (nT), and
+    whose processing file states the predicted error ``total`` and the goal (``[fit]``,
+    as `fit_write` writes them; None: no such table, an older fit's form)."""
+    part = " ".join(repr(float(v)) for v in stated)
+    folder = _heater_folder(tmp_path, {a: _error_line(err[j]) + f"\n# WAVEFORM_PART_NT: {part}"
+                                       for j, a in enumerate("xyz")})
+    if total is not None:
+        p = folder / "processing_v1.toml"
+        p.write_text(p.read_text() + "\n[fit]\npredicted_error_nt = ["
+                     + ", ".join(repr(float(v)) for v in total) + f"]\nerror_goal_nt = {goal!r}\n")
+    return folder
+
+
+def _numbers(pattern: str, msg: str) -> np.ndarray:
+    return np.array([float(v) for v in re.search(pattern, msg).groups()])
+
+
+#: The day's blocks: 40, 36, 25, 30 % (44 % in no bin, 8 % not applied).  Columns: 1
+#: count everywhere but the 24-% column (25 % lies in it), 20 counts.
+_ERR = np.where(np.arange(8) == 3, 20.0, 1.0)[None, :].repeat(3, axis=0)
+_NUM3 = r"([\d.]+) / ([\d.]+) / ([\d.]+)"
+
+
+def test_calibrate_warns_when_the_days_mix_gives_more_than_stated(
+        tmp_path, simulated_files, messenger_kernels, caplog):
+    # a table stating its waveform part (0.05 nT) but no predicted error or goal (no
+    # [fit]): the part stands for the total and no goal is stated, so the day warns when
+    # its part exceeds 0.05 by more than the part's scatter 0.05 / sqrt(6) = 0.0204
+    expected, b = _brute_day_part(simulated_files, _ERR)
+    assert np.all(expected > 0.05 + 0.05 / np.sqrt(6.0))  # the rule worked by hand
+    folder = _fit_folder(tmp_path, _ERR, [0.05] * 3)
+    with caplog.at_level(logging.WARNING):
+        assert _edr2cdr(simulated_files, messenger_kernels, tmp_path / "out", folder) == 0
+    msgs = [r.getMessage() for r in caplog.records if "WAVEFORM_PART_NT" in r.getMessage()]
+    assert len(msgs) == 1, msgs
+    got = _numbers(r"is " + _NUM3 + " nT", msgs[0])
     # period boundaries by lag-corrected time against MET (under 1 %), printed to 0.001
     np.testing.assert_allclose(got, expected, rtol=0.02, atol=0.001)
-    assert np.all(expected > 0.05)
-    assert "above the 0.050 / 0.050 / 0.050 nT heater_signal_x_v1.csv states" in msgs[0]
+    assert ("against the 0.050 / 0.050 / 0.050 nT +- 0.020 / 0.020 / 0.020 "
+            "heater_signal_x_v1.csv states") in msgs[0], msgs[0]
+    # with no other part stated the day's total is its part
+    np.testing.assert_allclose(_numbers(r"predicted error is " + _NUM3, msgs[0]), got)
+    assert "no goal stated, beyond the table's by more than the part's scatter" in msgs[0]
     fullest = CENTRES[np.argmax(np.bincount(b[b >= 0], minlength=8))]
     assert f"most at the {fullest:g}-% column" in msgs[0], msgs[0]
     # a table stating more than the day gives: nothing said
-    lines = {a: _error_line(err[j]) + "\n# WAVEFORM_PART_NT: 2 2 2" for j, a in enumerate("xyz")}
-    folder = _heater_folder(tmp_path / "b", lines)
+    folder = _fit_folder(tmp_path / "b", _ERR, [2.0] * 3)
     caplog.clear()
     with caplog.at_level(logging.WARNING):
         assert _edr2cdr(simulated_files, messenger_kernels, tmp_path / "out2", folder) == 0
     assert not [r for r in caplog.records if "WAVEFORM_PART_NT" in r.getMessage()]
+
+
+@pytest.mark.parametrize(("case", "ratio"), [("within", 1.15), ("goal", 1.10),
+                                             ("scatter", 1.6)])
+def test_calibrate_judges_the_days_total_against_the_goal_and_the_scatter(
+        tmp_path, simulated_files, messenger_kernels, caplog, case, ratio):
+    # a fitted table's [fit] numbers around the day's brute-force part W_d: the stated
+    # part W_s = W_d / ratio, the rest of the stated total a tenth of it (T = W_s
+    # sqrt(1.01)).  "within": 1.15x (the 16-day runs reached 1.18x), goal 1 nT: the day's
+    # total is at most 0.16 W_s above T, inside the scatter 0.41 W_s: silent.
+    # "goal": 1.10x, the goal 0.95 of the day's largest total (above every T): warns,
+    # above the goal.  "scatter": 1.6x, goal 1 nT: 0.6 W_s above T: warns.
+    expected, _ = _brute_day_part(simulated_files, _ERR)
+    stated = expected / ratio
+    total = stated * np.sqrt(1.01)
+    day_total = np.sqrt(total ** 2 - stated ** 2 + expected ** 2)   # the rule by hand
+    goal = 0.95 * float(day_total.max()) if case == "goal" else 1.0
+    assert np.all(total < goal)
+    over_goal = day_total > goal
+    beyond = day_total - total > stated / np.sqrt(6.0)
+    assert (over_goal | beyond).any() == (case != "within")
+    folder = _fit_folder(tmp_path, _ERR, stated, total, goal)
+    with caplog.at_level(logging.WARNING):
+        assert _edr2cdr(simulated_files, messenger_kernels, tmp_path / "out", folder) == 0
+    msgs = [r.getMessage() for r in caplog.records if "WAVEFORM_PART_NT" in r.getMessage()]
+    if case == "within":
+        assert not msgs, msgs
+        return
+    assert len(msgs) == 1, msgs
+    msg = msgs[0]
+    # the one line: the day's part, the stated part and its scatter, the day's total,
+    # the stated total and the goal (nT)
+    np.testing.assert_allclose(_numbers(r"is " + _NUM3 + " nT", msg), expected, rtol=0.02,
+                               atol=0.001)
+    np.testing.assert_allclose(_numbers(r"against the " + _NUM3 + " nT", msg), stated,
+                               atol=5e-4)
+    np.testing.assert_allclose(_numbers(r"nT \+- " + _NUM3, msg), stated / np.sqrt(6.0),
+                               atol=5e-4)
+    np.testing.assert_allclose(_numbers(r"predicted error is " + _NUM3, msg), day_total,
+                               rtol=0.02, atol=0.001)
+    np.testing.assert_allclose(_numbers(r"against the table's " + _NUM3, msg), total,
+                               atol=5e-4)
+    assert f"its goal {goal:g} nT" in msg, msg
+    if case == "goal":
+        assert over_goal.any() and not beyond.any()
+        assert msg.endswith("above the goal (sec. 6)"), msg
+    else:
+        assert beyond.all() and not over_goal.any()
+        assert msg.endswith("beyond the table's by more than the part's scatter (sec. 6)"), msg
