@@ -78,7 +78,8 @@ def merit_lines(result: FitResult) -> list[str]:
                 "by the fitted days' share of its duty bin, at least the even share over "
                 "D_RANGE (a day to be calibrated has its own mix; at the fitted mix alone "
                 + " / ".join(f"{v:.3f}" for v in m["waveform_fitted_mix_nt"])
-                + " nT); calibrating a day whose own mix gives more warns")
+                + " nT); calibrating a day whose own mix puts its predicted error above the "
+                "goal, or above this by more than the part's scatter, warns")
         if goal > ERROR_GOAL_NT:
             lines.append(f"ACCEPTED ABOVE THE DEFAULT GOAL {ERROR_GOAL_NT:g} nT: --error-goal "
                          f"{goal:g}")
