@@ -18,6 +18,11 @@ moved the pooled fit; a fold noisier than the others (a disturbed hour) counts w
 own noise, and a column that leans on a poorly determined neighbour carries the
 neighbour's error into its own refits (docs/decisions/messenger_fit.md, entry 34).
 
+A column whose own samples fill fewer than three effective folds (`effective_folds`)
+scales the jackknife by what each fold tells it (`jackknife_scale`): ``(K - 1) / K``
+counts a fold holding none of its samples as a whole group, 1.5x the variance for a
+column in two folds of four, on top of the few-folds widening (entry 3x-calm2).
+
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 (waveform columns per 4-% duty
