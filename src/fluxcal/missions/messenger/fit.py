@@ -74,7 +74,12 @@ from fluxcal.missions.messenger.fit_reduce import (
     relaxation_response,
 )
 from fluxcal.missions.messenger.fit_variance import VarianceStatistics, reduce_variance
-from fluxcal.missions.messenger.fit_waveform_error import jackknife_error, leave_one_out
+from fluxcal.missions.messenger.fit_waveform_error import (
+    effective_folds,
+    jackknife_error,
+    jackknife_scale,
+    leave_one_out,
+)
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
 from fluxcal.missions.messenger.routes import EDR_MAPPING, day_file_groups
@@ -481,28 +486,65 @@ def unmix_waveforms(stats: DayStatistics, waveform: Sequence | None = None
         Samples leaning on each column (sum of weights).
     """
     waveform = stats.waveform if waveform is None else waveform
-    nb = len(waveform)
-    count = np.stack([w.count for w in waveform])  # (nb, n_phase)
-    mean = np.stack([w.mean() for w in waveform])  # (nb, n_phase, 4 + nb)
-    n_phase = count.shape[1]
-    usable = count >= MIN_BIN_SAMPLES
+    count, mean, usable, support = _unmixing_design(waveform)
     with np.errstate(invalid="ignore"):
         phase = np.nansum(np.where(usable, mean[:, :, 3] * count, 0.0), axis=0) / np.sum(
             np.where(usable, count, 0), axis=0)
-    support = np.einsum("bp,bpj->pj", np.where(usable, count, 0).astype(float),
-                        np.where(usable[:, :, None], np.abs(mean[:, :, 4:]), 0.0))
-    columns = np.full((n_phase, nb, 3), np.nan)
-    for p in range(n_phase):  # phase bins (100), each a small least-squares problem
-        rows = usable[:, p]
-        cols = support[p] >= MIN_BIN_SAMPLES
-        if not rows.any() or not cols.any():
+    columns = np.full((count.shape[1], len(waveform), 3), np.nan)
+    for p in range(count.shape[1]):  # phase bins (100), each a small least-squares problem
+        got = _phase_system(count, mean, usable, support, p)
+        if got is None:
             continue
-        w = np.sqrt(count[rows, p].astype(float))[:, None]
-        a = mean[rows, p, 4:][:, cols] * w
-        y = mean[rows, p, :3] * w
+        cols, a, y = got
         sol, *_ = np.linalg.lstsq(a, y, rcond=None)
         columns[p, cols] = sol
     return phase, columns, support
+
+
+def _unmixing_design(waveform: Sequence) -> tuple[np.ndarray, ...]:
+    """Return the counts, means, usable bins and samples leaning on each column.
+
+    Shapes ``(nb, n_phase)``, ``(nb, n_phase, 4 + nb)``, ``(nb, n_phase)`` and
+    ``(n_phase, nb)``: the design of `unmix_waveforms` and `unmixing_variance`.
+    """
+    count = np.stack([w.count for w in waveform])
+    mean = np.stack([w.mean() for w in waveform])
+    usable = count >= MIN_BIN_SAMPLES
+    support = np.einsum("bp,bpj->pj", np.where(usable, count, 0).astype(float),
+                        np.where(usable[:, :, None], np.abs(mean[:, :, 4:]), 0.0))
+    return count, mean, usable, support
+
+
+def _phase_system(count, mean, usable, support, p: int):
+    """Return, at phase bin ``p``, the columns solved, the weighted design and the data.
+
+    Each bin weighted by ``sqrt(N)``; None when nothing is solved there.
+    """
+    rows = usable[:, p]
+    cols = support[p] >= MIN_BIN_SAMPLES
+    if not rows.any() or not cols.any():
+        return None
+    w = np.sqrt(count[rows, p].astype(float))[:, None]
+    return cols, mean[rows, p, 4:][:, cols] * w, mean[rows, p, :3] * w
+
+
+def unmixing_variance(waveform: Sequence) -> np.ndarray:
+    """Return the variance of `unmix_waveforms`' solution per unit sample variance.
+
+    Per phase bin and column: ``diag(A+ A+')`` of the weighted design (``A+`` its
+    pseudo-inverse, the solution `numpy.linalg.lstsq` gives), shape
+    ``(n_phase, n_columns)``, NaN where the column is not solved.  It depends on the
+    counts and interpolation weights alone: how much a set of samples determines each
+    column (`fit_waveform_error.jackknife_scale`).
+    """
+    count, mean, usable, support = _unmixing_design(waveform)
+    out = np.full(support.shape, np.nan)
+    for p in range(count.shape[1]):
+        got = _phase_system(count, mean, usable, support, p)
+        if got is not None:
+            cols, a, _ = got
+            out[p, cols] = (np.linalg.pinv(a) ** 2).sum(axis=1)
+    return out
 
 
 def few_folds_widening(own: np.ndarray, folds: int) -> float:
@@ -516,10 +558,9 @@ def few_folds_widening(own: np.ndarray, folds: int) -> float:
     ``t_nu(0.841) / t_{K-1}(0.841)``, ``nu = max(K_eff - 1, 1)``, the t quantile of one
     normal standard deviation (two equal folds: 1.54 for four folds).
     """
-    n = np.asarray(own, dtype=float)
-    if n.sum() <= 0 or folds < 2:
+    k_eff = effective_folds(own)
+    if k_eff <= 0 or folds < 2:
         return 1.0
-    k_eff = n.sum() ** 2 / (n ** 2).sum()
     q = sps.norm.cdf(1.0)
     nu = max(k_eff - 1.0, 1.0)
     return float(max(sps.t.ppf(q, nu) / sps.t.ppf(q, folds - 1), 1.0))
@@ -535,7 +576,9 @@ def _fit_waveforms(
     the fitted column (the same fit on the statistics without each fold of 30-min
     blocks, `DayStatistics.waveform_folds`, `fit_waveform_error.leave_one_out`,
     `fit_waveform_error.jackknife_error`), widened when the column's own samples lie in
-    few folds (`few_folds_widening`), and the spline's smoothing bias added in
+    few folds (`few_folds_widening`; scaled by the information each fold gives the
+    column where those are fewer than three, `fit_waveform_error.jackknife_scale`,
+    entry 3x-calm2), and the spline's smoothing bias added in
     quadrature (the smoothing applied once more to the fitted curve, ``(S - I) f_hat``:
     common to the refits, so not in their spread); a column kept from ``base`` is given
     its own rms (its error unknown, entries 19 and 29), and a fitted column that some
@@ -551,8 +594,11 @@ def _fit_waveforms(
     fits: list[list[PeriodicSplineFit | None]] = [[None] * nb for _ in AXES]
     error = np.sqrt(np.mean(table[:, :100, :] ** 2, axis=1))  # (axis, bin): base's own rms
     phase, columns, support = unmix_waveforms(stats)
-    without = ([unmix_waveforms(stats, h) for h in leave_one_out(stats.waveform_folds)
-                if h is not None] if errors else [])
+    loo = [h for h in leave_one_out(stats.waveform_folds) if h is not None] if errors else []
+    without = [unmix_waveforms(stats, h) for h in loo]
+    if errors:  # how much each fold determines each column (jackknife_scale)
+        info = unmixing_variance(stats.waveform)
+        info_without = np.stack([unmixing_variance(h) for h in loo]) if loo else None
     own = np.array([[w.count.sum() for w in h] for h in stats.waveform_folds], dtype=float)
 
     def spline(ph, col, sup, b, j):
@@ -583,7 +629,8 @@ def _fit_waveforms(
             refits = [spline(*h, b, j) for h in without]
             err = float("nan")
             if len(refits) >= 2 and all(r is not None for r in refits):
-                err = jackknife_error(np.stack([r[1][:-1] for r in refits]))
+                scale = jackknife_scale(own[:, b], info[:, b], info_without[:, :, b])
+                err = jackknife_error(np.stack([r[1][:-1] for r in refits]), scale)
                 err *= few_folds_widening(own[:, b], len(stats.waveform_folds))
                 err = np.hypot(err, smoothing_bias(fits[j][b], phase, columns, support, b))
             # unknown (the column rests on one fold): as large as the column itself,
