@@ -10,6 +10,7 @@ the decay of the preceding heater period's offset.
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -64,8 +65,61 @@ def test_d0_sign_change_and_error_are_refused(fitted):
     with pytest.raises(FitRefusedError, match=r"D0 y = -0\.2 .*same sign.*duty cycles"):
         check_fit(dataclasses.replace(res, duty=duty))
     duty[1] = dataclasses.replace(res.duty[1], slope_err=0.5 * res.duty[1].slope)
-    with pytest.raises(FitRefusedError, match=r"D0 y = .* relative error above 30%"):
+    with pytest.raises(FitRefusedError, match=r"D0 y = .* relative error above the 5% goal "
+                                              r"\(50\.0%"):
         check_fit(dataclasses.replace(res, duty=duty))
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_d0_goal_sits_at_five_percent_of_the_stated_error(fitted, axis):
+    # issue 34's goal "D0 within 5 %" as the stated 1-sigma error (entry 3x-d0): the
+    # closed form |error / value| <= 0.05, on each axis, just inside and just outside;
+    # the fixture's own errors lie inside (test_a_sound_fit_passes)
+    res = fitted[1]
+    name = "xyz"[axis]
+    duty = list(res.duty)
+    for rel, refused in ((0.0499, False), (0.0501, True), (np.nan, True)):
+        duty[axis] = dataclasses.replace(res.duty[axis],
+                                         slope_err=rel * abs(res.duty[axis].slope))
+        case = dataclasses.replace(res, duty=duty)
+        if not refused:
+            check_fit(case)
+            continue
+        with pytest.raises(FitRefusedError, match=rf"D0 {name} = .* a relative error above "
+                                                  r"the 5% goal \(") as info:
+            check_fit(case)
+        if rel == rel:  # the stated error in % (one decimal), then the goal's entry
+            assert f"({100 * rel:.1f}%; entry 3x-d0)" in str(info.value)
+        # a held axis is not the fit's: its width is judged by the figure of merit
+        check_fit(dataclasses.replace(case, held_d0=(name,)))
+
+
+@pytest.mark.parametrize("value, error, expected", [
+    (0.02465, 0.00301, "12.2%"),    # the hard cruise's written z (16 days, 5 % compressive)
+    (-0.2, 0.0102, "5.1%"),         # the other sign: judged on |error / value|
+    (0.3285, 0.01642, ""),          # 4.998 %: inside
+    (0.0, 0.001, "inf%"),           # no value to be relative to: refused
+])
+def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, error, expected):
+    from fluxcal.missions.messenger.fit import d0_goal_refusal
+    from fluxcal.missions.messenger.fit_cli import parse_hold_d0
+
+    msg = d0_goal_refusal("z", value, error)
+    if not expected:
+        assert msg == ""
+        return
+    assert f"D0 z = {value:.4g} +- {error:.2g} counts/ppt" in msg
+    assert f"above the 5% goal ({expected}; entry 3x-d0); not written" in msg
+    # both holds it advises are options to type: this fit's value and error, then the
+    # start table's value with the default width
+    advised = re.findall(r"--hold-d0 (\S+?)[ :]", msg)
+    assert len(advised) == 2 and advised[1] == "z", advised
+    held, width = parse_hold_d0(advised[0])["z"]
+    # the value to 4 significant digits; the width rounded *up* to 2 (never narrower
+    # than the stated error, at most one step of the second digit wider)
+    assert held == pytest.approx(value, rel=5e-4)
+    assert error <= width <= error + 10.0 ** (np.floor(np.log10(error)) - 1) + 1e-15
+    assert parse_hold_d0(advised[1]) == {"z": (None, None)}
 
 
 def test_break_outside_the_data_is_refused(fitted):
