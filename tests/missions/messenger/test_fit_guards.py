@@ -94,6 +94,54 @@ def test_d0_goal_sits_at_five_percent_of_the_stated_error(fitted, axis):
         check_fit(dataclasses.replace(case, held_d0=(name,)))
 
 
+class _Moments:
+    """Variance statistics reduced to what the D0 goal reads: ``n`` samples whose relaxed
+    duty cycle R has the rms ``rms_r`` (ppt); no accepted temperatures (the break guard
+    then uses the heater-off bins)."""
+
+    def __init__(self, n: float, rms_r: float):
+        from fluxcal.missions.messenger.fit_variance import MOMENT_COLUMNS
+
+        self.offset_moments = np.zeros((2, len(MOMENT_COLUMNS)))
+        # two temperature rows, the samples split unevenly: only the sums count
+        self.offset_moments[:, MOMENT_COLUMNS.index("n")] = (0.25 * n, 0.75 * n)
+        self.offset_moments[:, MOMENT_COLUMNS.index("RR")] = (0.25 * n * rms_r ** 2,
+                                                              0.75 * n * rms_r ** 2)
+
+    def fitted_range(self, *args):
+        return (np.nan, np.nan)
+
+
+def test_d0_goal_binds_where_five_percent_costs_less_than_the_merit_goal(fitted):
+    from fluxcal.missions.messenger.fit import d0_goal_cost_nt
+
+    res = fitted[1]
+    # closed form: 5 % of |D0_j| times the rms relaxed duty cycle (300 ppt) through the
+    # largest |M_ij| of eq. 8's fine matrix (seed 000 sec. 9, the shipped table)
+    m = np.abs(np.asarray(res.calibration.matrices[0], dtype=float)).max(axis=0)
+    d0 = np.abs(np.asarray(res.calibration.duty_cycle_d0, dtype=float))
+    case = dataclasses.replace(res, variance=_Moments(86400.0, 300.0))
+    cost = d0_goal_cost_nt(case)
+    np.testing.assert_allclose(cost, 0.05 * d0 * 300.0 * m, rtol=1e-12)
+    # the fixture's D0 (Table 3-like: x, y about 10x z) put x, y above the 0.1-nT goal
+    # and z below it: x, y keep the 30 % guard (the figure of merit holds them), z the 5 %
+    assert cost[0] > 0.1 and cost[1] > 0.1 and cost[2] < 0.1, cost
+    duty = list(res.duty)
+    for j, rel, match in ((0, 0.06, None), (1, 0.29, None), (0, 0.31, r"D0 x = .* above 30%"),
+                          (2, 0.06, r"D0 z = .* above the 5% goal \(6\.0%, the goal "
+                                    rf"{cost[2]:.3f} nT rms over the fitted days")):
+        duty = list(res.duty)
+        duty[j] = dataclasses.replace(res.duty[j], slope_err=rel * abs(res.duty[j].slope))
+        judged = dataclasses.replace(case, duty=duty)
+        if match is None:
+            check_fit(judged)
+        else:
+            with pytest.raises(FitRefusedError, match=match):
+                check_fit(judged)
+    # no samples: no size; the goal binds every axis
+    assert np.all(np.isnan(d0_goal_cost_nt(dataclasses.replace(res, variance=_Moments(0, 1)))))
+
+
 @pytest.mark.parametrize("value, error, expected", [
     (0.02465, 0.00301, "12.2%"),    # the hard cruise's written z (16 days, 5 % compressive)
     (-0.2, 0.0102, "5.1%"),         # the other sign: judged on |error / value|
