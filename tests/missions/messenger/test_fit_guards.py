@@ -123,9 +123,10 @@ def test_d0_goal_binds_where_five_percent_costs_less_than_the_merit_goal(fitted)
     case = dataclasses.replace(res, variance=_Moments(86400.0, 300.0))
     cost = d0_goal_cost_nt(case)
     np.testing.assert_allclose(cost, 0.05 * d0 * 300.0 * m, rtol=1e-12)
-    # the fixture's D0 (Table 3-like: x, y about 10x z) put x, y above the 0.1-nT goal
-    # and z below it: x, y keep the 30 % guard (the figure of merit holds them), z the 5 %
-    assert cost[0] > 0.1 and cost[1] > 0.1 and cost[2] < 0.1, cost
+    # the fixture's D0 (Table 3-like: x, y about 10x z) put x, y above half the 0.1-nT
+    # goal and z below it: x, y keep the 30 % guard (the figure of merit holds them), z
+    # the 5 % goal
+    assert cost[0] > 0.05 and cost[1] > 0.05 and cost[2] < 0.05, cost
     duty = list(res.duty)
     for j, rel, match in ((0, 0.06, None), (1, 0.29, None), (0, 0.31, r"D0 x = .* above 30%"),
                           (2, 0.06, r"D0 z = .* above the 5% goal \(6\.0%, the goal "
