@@ -99,7 +99,8 @@ def test_cli_fit_writes_a_table_that_meets_its_stated_errors_or_refuses(calm, tm
     # the prediction holds inside the range the table states (T_RANGE, entry 21)
     unseen = recalibrate_rms(run.input_dir, run.days[2], out,
                              report["temperature"]["T_RANGE"])
-    print(f"predicted {predicted.round(3)} nT, unseen {unseen.round(3)} nT")
+    print(f"{'held ' + hold.group(1) + ': ' if hold else ''}predicted "
+          f"{predicted.round(3)} nT, unseen {unseen.round(3)} nT")
     assert np.all(unseen <= UNSEEN_OVER_PREDICTED * predicted), (unseen, predicted)
     # T_m: its stated error (re-chosen in every resample) covers the truth at 3 sigma
     t = report["temperature"]
