@@ -125,10 +125,10 @@ MAX_RELATIVE_ERROR = 0.3
 #: Goal for a fitted D0 (issue 34: "D0 and tau within 5 %"): `check_fit` refuses an axis
 #: whose stated relative error (1 sigma) exceeds it (docs/decisions/messenger_fit.md entry
 #: 3x-d0: the 16-day Mercury orbit states 1.8-3.7 % on z, the written hard-cruise tables
-#: 12-16 %; 5 % on z is 0.012-0.014 nT over the fitted days, on x or y 0.11-0.13 nT).
+#: 12-16 %; 5 % on z is 0.009-0.014 nT over the fitted days, on x or y 0.10-0.13 nT).
 D0_ERROR_GOAL = 0.05
 #: The D0 goal binds an axis where its 5 % costs less than this share of the figure of
-#: merit's default goal (`d0_goal_cost_nt`; entry 3x-d0): z (0.013 nT) and not x, y
+#: merit's default goal (`d0_goal_cost_nt`; entry 3x-d0): z (0.009-0.014 nT) and not x, y
 #: (0.094-0.13 nT), whose stated errors the figure of merit itself holds near 5 %.
 D0_GOAL_BINDS_BELOW = 0.5
 #: Default width of a held D0, as a fraction of the held value (``--hold-d0 z`` without
@@ -877,11 +877,11 @@ def d0_goal_cost_nt(result: FitResult, goal: float = D0_ERROR_GOAL) -> np.ndarra
 
     Per sensor axis j: ``goal |D0_j| sqrt(sum R^2 / n) max_i |M_ij|``, the figure of
     merit's D0 part (`fit_merit.predicted_error`) for that error on axis j alone, on the
-    output axis it reaches most (``R`` the relaxed duty cycle in ppt, eq. 5-6, over the
-    variance estimator's accepted samples, heater-off ones at 0; ``M`` eq. 8's fine
-    matrix).  `check_fit` holds an axis to `D0_ERROR_GOAL` where this is below
-    `D0_GOAL_BINDS_BELOW` of the figure of merit's default goal (z: 0.012-0.014 nT);
-    where it is above (x, y: 0.094-0.13 nT) the figure of merit's D0 part alone holds the
+    output axis it reaches most (``R`` the relaxed duty cycle in ppt, eq. 5-6, over
+    every used sample of the fitted days, `VarianceStatistics.offset_moments`; ``M``
+    eq. 8's fine matrix).  `check_fit` holds an axis to `D0_ERROR_GOAL` where this is below
+    `D0_GOAL_BINDS_BELOW` of the figure of merit's default goal (z: 0.009-0.014 nT);
+    where it is above (x, y: 0.094-0.134 nT) the figure of merit's D0 part alone holds the
     stated error to ``5 % x goal / cost`` (entry 3x-d0).  NaN without the variance
     estimator's moments (the zero-mean estimator states no figure of merit: the goal
     then binds every axis).
