@@ -935,13 +935,15 @@ def d0_goal_refusal(axis: str, value: float, error: float,
         return ""
     size = (f", the goal {cost_nt:.3f} nT rms over the fitted days" if np.isfinite(cost_nt)
             else "")
+    # this fit's own value as a hold only with an error to hold it with
+    own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
+           f"value and error, rounded up: the table states D0 {axis} held, beyond the "
+           f"goal), or " if np.isfinite(error) and value != 0 else "")
     return (f"duty-cycle law (sec. 7, Table 3): fitted D0 {axis} = {value:.4g} +- "
             f"{error:.2g} counts/ppt, a relative error above the {goal:.0%} goal "
-            f"({rel:.1%}{size}; entry 3x-d0); not written. Needs more heater-regulated samples "
-            f"over a wider range of duty cycles (more days: the error falls about as "
-            f"1/sqrt(days)), or hold it with a stated width: --hold-d0 "
-            f"{axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's value and "
-            f"error, rounded up: the table states D0 {axis} held, beyond the goal), or "
+            f"({rel:.1%}{size}; entry 3x-d0); not written. Needs more heater-regulated "
+            f"samples over a wider range of duty cycles (more days: the error falls about "
+            f"as 1/sqrt(days)), or hold it with a stated width: {own}"
             f"{_hold_d0_advice(axis)}")
 
 
