@@ -50,7 +50,11 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.missions.messenger._hard_worlds import MercuryOrbit, cruise_hard_wind  # noqa: E402
+from tests.missions.messenger._hard_worlds import (  # noqa: E402
+    MercuryOrbit,
+    cruise_hard_wind,
+    drawn_law,
+)
 from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E402
 from tests.missions.messenger._unseen_day import (  # noqa: E402
     day_streams,
@@ -120,17 +124,18 @@ def defects(seed: int, days: int) -> dict:
 def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
         first_seed: int = 1000, unseen: bool = False, broadband: bool = False,
         with_defects: bool = False, hold_d0: tuple[str, ...] = (),
-        world: str = "realistic") -> dict:
-    """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth;
-    ``unseen``: one more day simulated, recalibrated with the fitted tables;
-    ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`;
-    ``world``: `WORLDS`)."""
+        world: str = "realistic", draw_law: bool = False) -> dict:
+    """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth as
+    ``fit_<seed>.pkl``; ``unseen``: one more day simulated, recalibrated with the fitted
+    tables; ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`;
+    ``world``: `WORLDS`; ``draw_law``: the true Table 2 drawn per seed, `drawn_law`)."""
     with tempfile.TemporaryDirectory() as tmp:
         wind, schedule = world_model(world, first_seed + k, compressive, broadband)
         extra = defects(first_seed + k, days) if with_defects else {}
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01",
                                                               days=days + int(unseen),
                                                               seed=first_seed + k, **extra),
+                              drawn_law(first_seed + k) if draw_law else None,
                               wind=wind, schedule=schedule, truth=unseen)
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
@@ -166,8 +171,9 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
            "day_prediction": day_pred}
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
-        (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
-        (save / f"row_{k:03d}.pkl").write_bytes(pickle.dumps(row))
+        # named by seed: runs of consecutive seeds (--first-seed) can share a folder
+        (save / f"fit_{first_seed + k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
+        (save / f"row_{first_seed + k:03d}.pkl").write_bytes(pickle.dumps(row))
     return row
 
 
@@ -523,6 +529,10 @@ def main() -> None:
                          "range, a rate change (`defects`).")
     ap.add_argument("--hold-d0", default="",
                     help="Comma list of axes whose D0 is held (shipped value, default width).")
+    ap.add_argument("--draw-law", action="store_true",
+                    help="Draw the true temperature law (Table 2, breaks included) per "
+                         "realisation (tests/missions/messenger/_hard_worlds.drawn_law), "
+                         "so that the breaks' pulls test a spread of truths.")
     ap.add_argument("--save", type=Path, default=None,
                     help="Folder to pickle each realisation's fit and true tables into.")
     ap.add_argument("--summarise", type=Path, default=None,
@@ -541,7 +551,7 @@ def main() -> None:
                             unseen=args.unseen, broadband=args.broadband,
                             with_defects=args.defects,
                             hold_d0=tuple(a for a in args.hold_d0.split(",") if a),
-                            world=args.world)
+                            world=args.world, draw_law=args.draw_law)
     if args.processes > 1:
         pool = ProcessPoolExecutor(max_workers=args.processes)
         done = (f.result() for f in as_completed([pool.submit(run, k)
@@ -580,7 +590,8 @@ def main() -> None:
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
           f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
           f"{args.days} days at 1 Hz, world {args.world}, compressive {args.compressive}"
-          f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}, "
+          f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}"
+          f"{', law drawn per realisation' if args.draw_law else ''}, "
           f"{args.passes} passes, "
           f"{time.perf_counter() - t_start:.0f} s")
     summarise(rows, args.markdown)
