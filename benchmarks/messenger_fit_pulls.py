@@ -21,7 +21,12 @@ Issue 34's verification (20 realisations per world, 16 days; a 16-core machine):
     .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 16 \
         --unseen --passes 6 --processes 16 [--broadband --compressive 0.05] [--hold-d0 z]
 
-``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.  The
+``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.
+``--draw-law`` draws the true temperature law (breaks and slopes) per realisation, so the
+breaks' pulls test a spread of truths (``_hard_worlds.drawn_law``); ``--summarise FOLDER
+--estimators`` compares spread estimators of the stated errors (standard deviation, half
+the 15.9-84.1 percentile width, 1.4826 MAD, a mixture that states a rare break jump
+apart) by the pulls each would give on the saved fits' own resamples (entry 3x-pulls).  The
 summary gives per parameter the pulls' spread, largest size and count beyond 3 (issue 34:
 spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a goal.
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
@@ -68,6 +73,7 @@ from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
 from fluxcal.geometry.time import SclkKernel  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
+from fluxcal.missions.messenger import fit_variance as fv  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
     break_refusal,
@@ -500,6 +506,124 @@ def saved_rows(folder: Path) -> list[dict]:
     return rows
 
 
+# --- spread estimators of the stated errors (docs/decisions/messenger_fit.md 3x-pulls) ------
+
+#: The normal distribution's tail beyond +1 sigma: a discrete break jump taken by fewer of
+#: the resamples than this lies outside their central 68 % (`spread_mixture`).
+ONE_SIGMA_TAIL = 0.15866
+
+
+def spread_sd(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """Standard deviation over the resamples (axis 0): what the fit states."""
+    return np.std(np.asarray(x, dtype=float), axis=0)
+
+
+def spread_percentile(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """Half the width between the resamples' 15.87th and 84.13th percentiles (axis 0)."""
+    lo, hi = np.percentile(np.asarray(x, dtype=float), [15.866, 84.134], axis=0)
+    return 0.5 * (hi - lo)
+
+
+def spread_mad(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """1.4826 times the median absolute deviation from the median (axis 0)."""
+    x = np.asarray(x, dtype=float)
+    return 1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+
+
+def spread_mixture(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """A discrete break jump stated apart: the standard deviation of the resamples that
+    kept the solution's break, when those that moved it are fewer than `ONE_SIGMA_TAIL`
+    of them (outside the central 68 %); else of all (the jump then is the error).
+
+    ``x``: (n, ..., axis); ``moved``: (n, axis) bool, per resample and axis whether its
+    break choice differs from the solution's (None: none moved, the standard deviation).
+    """
+    x = np.asarray(x, dtype=float)
+    if moved is None:
+        return spread_sd(x)
+    moved = np.asarray(moved, dtype=bool)
+    out = np.empty(x.shape[1:])
+    for j in range(x.shape[-1]):
+        keep = ~moved[:, j] if moved[:, j].mean() < ONE_SIGMA_TAIL else np.ones(len(x), bool)
+        out[..., j] = np.std(x[keep][..., j], axis=0)
+    return out
+
+
+SPREADS = {"sd": spread_sd, "percentile": spread_percentile, "mad": spread_mad,
+           "mixture": spread_mixture}
+
+
+def moved_resamples(res) -> np.ndarray:
+    """Per resample and axis whether its break choice differs from the solution's, (n, 3).
+
+    From the fit's stored ``bootstrap["break_shift"]``; a fit saved before that was kept
+    (entry 3x-pulls): the last pass's bootstrap solved again on its normal equations at
+    the fitted tables (the same resamples, seed 0; the linearisation point moved by the
+    last step only, so a resample on the edge of two choices may choose otherwise).
+    """
+    shifts = res.bootstrap.get("break_shift")
+    if shifts is None:
+        now = fv.law_parameters(res.calibration)
+        held = {}
+        for a, h in res.held_upper.items():  # as fit_variance_calibration holds them
+            j = "xyz".index(a)
+            (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
+            held[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
+            held[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
+        d0_base = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
+        for a, (value, width) in res.held.items():
+            held[(j := "xyz".index(a)) * fv.PER_AXIS + 4] = (value - d0_base[j], width)
+        sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted, law=now, held=held)
+        shifts = sol.boot_shift
+    return np.asarray(shifts) != np.asarray(res.break_shift)[None, :]
+
+
+def estimator_row(res, true, spread) -> dict:
+    """The pulls of `pulls` (tau, D0, T_m, the law at `LAW_T`) with the stated errors
+    taken as ``spread`` of the fit's stored resamples, and the break-jump shares."""
+    boot = res.bootstrap
+    moved = moved_resamples(res)
+    cal = res.calibration
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    law_t = np.array(LAW_T)
+    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+                / spread(fv.law_values(boot["law"], law_t), moved))
+    law_pull[~res.stated_ranges.contains(law_t)] = np.nan
+    true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
+    return {"tau_pull": float((res.relaxation.tau - true.constants["relaxation"]["tau_s"])
+                              / spread(boot["tau"])),
+            "dt_pull": np.nan,
+            "d0_pull": (cal.duty_cycle_d0 - true.d0) / spread(boot["d0"]),
+            "tm_pull": (np.asarray(cal.breakpoint_temperature_c) - true_tm)
+            / spread(boot["law"][:, :, 3], moved),
+            "law_pull": law_pull, "held_upper": sorted(res.held_upper),
+            "jump_share": moved.mean(axis=0)}
+
+
+def estimator_summary(folder: Path) -> None:
+    """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
+    of `SPREADS` on the saved fits of ``folder`` (entry 3x-pulls)."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    per = {name: [estimator_row(res, true, f) for res, true in fits]
+           for name, f in SPREADS.items()}
+    jump = np.stack([r["jump_share"] for r in per["sd"]])
+    print(f"{len(fits)} fits; resamples whose break moved from the solution's, per axis: "
+          f"median {np.round(np.median(jump, axis=0), 3)}, max {np.round(jump.max(axis=0), 3)}")
+    print("| parameter | " + " | ".join(SPREADS) + " |")
+    print("|---|" + "---|" * len(SPREADS) + "   (spread, max |pull|, beyond 3)")
+    tables = {name: dict(table(rows)) for name, rows in per.items()}
+    for name in tables["sd"]:
+        cells = []
+        for est in SPREADS:
+            p = tables[est][name]
+            p = p[np.isfinite(p)]
+            cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
+                         f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
+        if any(cells):
+            n = int(np.isfinite(tables["sd"][name]).sum())
+            print(f"| {name} (N {n}) | " + " | ".join(cells) + " |")
+
+
 def main() -> None:
     """Run the study and print the pulls."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -537,12 +661,17 @@ def main() -> None:
                     help="Folder to pickle each realisation's fit and true tables into.")
     ap.add_argument("--summarise", type=Path, default=None,
                     help="Print the summary of a --save folder's realisations; run nothing.")
+    ap.add_argument("--estimators", action="store_true",
+                    help="With --summarise: the pulls under each spread estimator of the "
+                         "stated errors (SPREADS) instead of the summary.")
     args = ap.parse_args()
     if args.summarise is not None:
-        rows = saved_rows(args.summarise)
-        if not rows:
+        if not any(args.summarise.glob("fit_*.pkl")):
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
-        summarise(rows, args.markdown)
+        if args.estimators:
+            estimator_summary(args.summarise)
+            return
+        summarise(saved_rows(args.summarise), args.markdown)
         return
     rows = []
     t_start = time.perf_counter()
