@@ -600,21 +600,93 @@ def estimator_row(res, true, spread) -> dict:
             "jump_share": moved.mean(axis=0)}
 
 
+def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
+    """Design-fixed, linearised errors of T_m (C) and of the law at `LAW_T` (counts).
+
+    The last pass's normal equations at the fitted tables, grouped into the bootstrap's
+    units (`fit_variance.solve_variance`): ``A^-1 (sum_u g_u g_u^T) A^-1 n / (n - p)``,
+    ``g_u`` each unit's score at the solution, the breaks kept; a held column's width
+    propagated through ``-A_ff^-1 A_fh``.  The fifth candidate of entry 3x-pulls: the
+    pairs bootstrap without its resampling of the design and its break re-choices.
+    Returns ``(tm_err (3,), law_err (len(LAW_T), 3))``.
+    """
+    now = fv.law_parameters(res.calibration)
+    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
+    base_free[-1] = res.delay_fitted
+    held = {}
+    for a, h in res.held_upper.items():
+        j = "xyz".index(a)
+        held[j * fv.PER_AXIS + 2] = h["slope_change"][1]
+        held[j * fv.PER_AXIS + 3] = abs(now[j, 2]) * h["Tm_c"][1]
+    for a, (_, width) in res.held.items():
+        held["xyz".index(a) * fv.PER_AXIS + 4] = width
+    base_free[list(held)] = False
+    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
+    a, v = res.variance.normal, res.variance.rhs
+    p = int(free.sum())
+    group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
+    n = int(group[-1]) + 1
+    a_u, v_u = np.zeros((n, *a.shape[1:])), np.zeros((n, v.shape[1]))
+    np.add.at(a_u, group, a)
+    np.add.at(v_u, group, v)
+    total = a_u.sum(axis=0)
+    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
+    f = np.flatnonzero(free)
+    score = (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f]
+    inv = np.linalg.inv(total[np.ix_(f, f)])
+    cov = np.zeros((fv.N_PARAMETERS, fv.N_PARAMETERS))
+    cov[np.ix_(f, f)] = inv @ (score.T @ score) @ inv * n / (n - p)
+    if held:
+        h = np.array(sorted(held))
+        jac = np.zeros((fv.N_PARAMETERS, h.size))
+        jac[f] = -inv @ total[np.ix_(f, h)]
+        jac[h, np.arange(h.size)] = 1.0
+        cov += jac @ np.diag([held[c] ** 2 for c in h]) @ jac.T
+    law_t = np.array(LAW_T)
+    tm_err, law_err = np.empty(3), np.empty((law_t.size, 3))
+    for j in range(3):
+        cols = [j * fv.PER_AXIS + i for i in range(4)]  # a, b, c, -c T_m
+        c = cov[np.ix_(cols, cols)]
+        tm_err[j] = np.sqrt(c[3, 3]) / abs(now[j, 2])
+        grad = np.column_stack([np.ones_like(law_t), law_t, np.maximum(0.0, law_t - now[j, 3]),
+                                (law_t > now[j, 3]).astype(float)])
+        law_err[:, j] = np.sqrt(np.einsum("ti,ij,tj->t", grad, c, grad))
+    return tm_err, law_err
+
+
+def sandwich_row(res, true, with_jumps: bool) -> dict:
+    """`estimator_row` with T_m and the law stated by `sandwich_errors` (``with_jumps``:
+    the bootstrap's standard deviation on an axis whose break jumps in at least
+    `ONE_SIGMA_TAIL` of the resamples); tau and D0 as stated."""
+    row = estimator_row(res, true, spread_sd)
+    tm_s, law_s = sandwich_errors(res)
+    boot = res.bootstrap
+    if with_jumps:
+        common = row["jump_share"] >= ONE_SIGMA_TAIL
+        tm_s = np.where(common, spread_sd(boot["law"][:, :, 3]), tm_s)
+        law_s = np.where(common[None, :], spread_sd(fv.law_values(boot["law"], LAW_T)), law_s)
+    row["tm_pull"] = row["tm_pull"] * spread_sd(boot["law"][:, :, 3]) / tm_s
+    row["law_pull"] = row["law_pull"] * spread_sd(fv.law_values(boot["law"], LAW_T)) / law_s
+    return row
+
+
 def estimator_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
     of `SPREADS` on the saved fits of ``folder`` (entry 3x-pulls)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     per = {name: [estimator_row(res, true, f) for res, true in fits]
            for name, f in SPREADS.items()}
+    per["sandwich"] = [sandwich_row(res, true, False) for res, true in fits]
+    per["sandwich+jumps"] = [sandwich_row(res, true, True) for res, true in fits]
     jump = np.stack([r["jump_share"] for r in per["sd"]])
     print(f"{len(fits)} fits; resamples whose break moved from the solution's, per axis: "
           f"median {np.round(np.median(jump, axis=0), 3)}, max {np.round(jump.max(axis=0), 3)}")
-    print("| parameter | " + " | ".join(SPREADS) + " |")
-    print("|---|" + "---|" * len(SPREADS) + "   (spread, max |pull|, beyond 3)")
+    print("| parameter | " + " | ".join(per) + " |")
+    print("|---|" + "---|" * len(per) + "   (spread, max |pull|, beyond 3)")
     tables = {name: dict(table(rows)) for name, rows in per.items()}
     for name in tables["sd"]:
         cells = []
-        for est in SPREADS:
+        for est in per:
             p = tables[est][name]
             p = p[np.isfinite(p)]
             cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
