@@ -22,8 +22,16 @@ from scipy.optimize import brentq
 from scipy.special import ndtr
 
 from fluxcal.missions.messenger import forward
+from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit_variance import (
+    BREAK_SHIFTS_C,
+    N_PARAMETERS,
+    PER_AXIS,
+    law_parameters,
+)
 from fluxcal.missions.messenger.flight_sim import write_true_calibration
 from tests.missions.messenger._hard_worlds import LAW_FACTORS, LAW_TM_SHIFT_C, drawn_law
+from tests.missions.messenger.test_fit_variance import _variance_result
 
 BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
 #: Draws per sample: the standard deviation's relative sampling error is about
@@ -128,3 +136,27 @@ def test_drawn_law_lies_in_its_ranges_and_keeps_table2s_form(tmp_path, seed):
     np.testing.assert_allclose(tm, np.add(SEED_TABLE2_TM, ch.tm_shift_c), atol=1e-3)
     assert np.all(true.b1 > true.b0)
     assert np.all((tm > -23.0) & (tm < -2.0))
+
+
+def test_the_fit_keeps_each_resamples_break_shift(bench):
+    # closed-form normal equations (test_fit_variance._variance_result) whose solution
+    # moves x's break by +2 C (its hinge cancelled, the hinge at +2 C carrying the
+    # shipped slope change): the solution and nearly every resample take that shift,
+    # their shifts lie on the grid, and none moves; with the upper segments unseen
+    # every axis is held and no resample tries a shift (entry 21)
+    shipped = load_calibration("2010-03-01")
+    c = law_parameters(shipped)[0, 2]
+    step = np.zeros(N_PARAMETERS)
+    step[2] = -c
+    step[3 * PER_AXIS + BREAK_SHIFTS_C.index(2.0)] = c
+    res = _variance_result(shipped, step)
+    shifts = res.bootstrap["break_shift"]
+    assert shifts.shape == (200, 3)
+    assert set(np.unique(shifts)) <= {0.0, *BREAK_SHIFTS_C}
+    assert res.break_shift[0] == 2.0
+    assert np.mean(shifts[:, 0] == 2.0) > 0.9
+    assert bench.moved_resamples(res).mean() < 0.05
+    held = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0,
+                            upper_unseen=True)
+    assert sorted(held.held_upper) == ["x", "y", "z"]
+    np.testing.assert_array_equal(held.bootstrap["break_shift"], 0.0)
