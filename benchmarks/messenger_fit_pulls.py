@@ -563,19 +563,28 @@ def moved_resamples(res) -> np.ndarray:
     """
     shifts = res.bootstrap.get("break_shift")
     if shifts is None:
-        now = fv.law_parameters(res.calibration)
-        held = {}
-        for a, h in res.held_upper.items():  # as fit_variance_calibration holds them
-            j = "xyz".index(a)
-            (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
-            held[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
-            held[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
-        d0_base = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
-        for a, (value, width) in res.held.items():
-            held[(j := "xyz".index(a)) * fv.PER_AXIS + 4] = (value - d0_base[j], width)
-        sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted, law=now, held=held)
+        sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
+                                law=fv.law_parameters(res.calibration),
+                                held=_held_columns(res))
         shifts = sol.boot_shift
     return np.asarray(shifts) != np.asarray(res.break_shift)[None, :]
+
+
+def _held_columns(res) -> dict[int, tuple[float, float]]:
+    """The held parameters of ``res`` as `fit_variance.solve_variance` takes them
+    (column -> (step, width)) at the fitted tables, as `fit_variance_calibration` holds
+    them: each held upper segment's slope change and break, each held D0 (steps 0)."""
+    now = fv.law_parameters(res.calibration)
+    held = {}
+    for a, h in res.held_upper.items():
+        j = "xyz".index(a)
+        (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
+        held[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
+        held[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
+    d0 = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
+    for a, (value, width) in res.held.items():
+        held["xyz".index(a) * fv.PER_AXIS + 4] = (value - d0["xyz".index(a)], width)
+    return held
 
 
 def estimator_row(res, true, spread) -> dict:
@@ -613,13 +622,7 @@ def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     now = fv.law_parameters(res.calibration)
     base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
     base_free[-1] = res.delay_fitted
-    held = {}
-    for a, h in res.held_upper.items():
-        j = "xyz".index(a)
-        held[j * fv.PER_AXIS + 2] = h["slope_change"][1]
-        held[j * fv.PER_AXIS + 3] = abs(now[j, 2]) * h["Tm_c"][1]
-    for a, (_, width) in res.held.items():
-        held["xyz".index(a) * fv.PER_AXIS + 4] = width
+    held = {col: width for col, (_, width) in _held_columns(res).items()}
     base_free[list(held)] = False
     free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
     a, v = res.variance.normal, res.variance.rhs
