@@ -21,7 +21,12 @@ Issue 34's verification (20 realisations per world, 16 days; a 16-core machine):
     .venv/bin/python benchmarks/messenger_fit_pulls.py --realisations 20 --days 16 \
         --unseen --passes 6 --processes 16 [--broadband --compressive 0.05] [--hold-d0 z]
 
-``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.  The
+``--markdown`` prints the table for docs/decisions/messenger_fit_verification.md.
+``--draw-law`` draws the true temperature law (breaks and slopes) per realisation, so the
+breaks' pulls test a spread of truths (``_hard_worlds.drawn_law``); ``--summarise FOLDER
+--estimators`` compares spread estimators of the stated errors (standard deviation, half
+the 15.9-84.1 percentile width, 1.4826 MAD, a mixture that states a rare break jump
+apart) by the pulls each would give on the saved fits' own resamples (entry 3x-pulls).  The
 summary gives per parameter the pulls' spread, largest size and count beyond 3 (issue 34:
 spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a goal.
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
@@ -50,7 +55,11 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.missions.messenger._hard_worlds import MercuryOrbit, cruise_hard_wind  # noqa: E402
+from tests.missions.messenger._hard_worlds import (  # noqa: E402
+    MercuryOrbit,
+    cruise_hard_wind,
+    drawn_law,
+)
 from tests.missions.messenger._realistic_wind import realistic_wind  # noqa: E402
 from tests.missions.messenger._unseen_day import (  # noqa: E402
     day_streams,
@@ -64,6 +73,7 @@ from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
 from fluxcal.geometry.time import SclkKernel  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
+from fluxcal.missions.messenger import fit_variance as fv  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
     break_refusal,
@@ -120,17 +130,18 @@ def defects(seed: int, days: int) -> dict:
 def one(k: int, days: int, compressive: float, passes: int, save: Path | None = None,
         first_seed: int = 1000, unseen: bool = False, broadband: bool = False,
         with_defects: bool = False, hold_d0: tuple[str, ...] = (),
-        world: str = "realistic") -> dict:
-    """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth;
-    ``unseen``: one more day simulated, recalibrated with the fitted tables;
-    ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`;
-    ``world``: `WORLDS`)."""
+        world: str = "realistic", draw_law: bool = False) -> dict:
+    """Simulate, fit and compare realisation ``k`` (``save``: pickle the fit and truth as
+    ``fit_<seed>.pkl``; ``unseen``: one more day simulated, recalibrated with the fitted
+    tables; ``broadband``: the compressive part down to 2 s; ``with_defects``: `defects`;
+    ``world``: `WORLDS`; ``draw_law``: the true Table 2 drawn per seed, `drawn_law`)."""
     with tempfile.TemporaryDirectory() as tmp:
         wind, schedule = world_model(world, first_seed + k, compressive, broadband)
         extra = defects(first_seed + k, days) if with_defects else {}
         run = simulate_flight(Path(tmp) / "sim", FlightConfig(start="2010-03-01",
                                                               days=days + int(unseen),
                                                               seed=first_seed + k, **extra),
+                              drawn_law(first_seed + k) if draw_law else None,
                               wind=wind, schedule=schedule, truth=unseen)
         true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
         base = load_calibration(np.datetime64("2010-03-01"))
@@ -166,8 +177,9 @@ def one(k: int, days: int, compressive: float, passes: int, save: Path | None = 
            "day_prediction": day_pred}
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
-        (save / f"fit_{k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
-        (save / f"row_{k:03d}.pkl").write_bytes(pickle.dumps(row))
+        # named by seed: runs of consecutive seeds (--first-seed) can share a folder
+        (save / f"fit_{first_seed + k:03d}.pkl").write_bytes(pickle.dumps((res, true)))
+        (save / f"row_{first_seed + k:03d}.pkl").write_bytes(pickle.dumps(row))
     return row
 
 
@@ -494,6 +506,199 @@ def saved_rows(folder: Path) -> list[dict]:
     return rows
 
 
+# --- spread estimators of the stated errors (docs/decisions/messenger_fit.md 3x-pulls) ------
+
+#: The normal distribution's tail beyond +1 sigma: a discrete break jump taken by fewer of
+#: the resamples than this lies outside their central 68 % (`spread_mixture`).
+ONE_SIGMA_TAIL = 0.15866
+
+
+def spread_sd(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """Standard deviation over the resamples (axis 0): what the fit states."""
+    return np.std(np.asarray(x, dtype=float), axis=0)
+
+
+def spread_percentile(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """Half the width between the resamples' 15.87th and 84.13th percentiles (axis 0)."""
+    lo, hi = np.percentile(np.asarray(x, dtype=float), [15.866, 84.134], axis=0)
+    return 0.5 * (hi - lo)
+
+
+def spread_mad(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """1.4826 times the median absolute deviation from the median (axis 0)."""
+    x = np.asarray(x, dtype=float)
+    return 1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+
+
+def spread_mixture(x: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """A discrete break jump stated apart: the standard deviation of the resamples that
+    kept the solution's break, when those that moved it are fewer than `ONE_SIGMA_TAIL`
+    of them (outside the central 68 %); else of all (the jump then is the error).
+
+    ``x``: (n, ..., axis); ``moved``: (n, axis) bool, per resample and axis whether its
+    break choice differs from the solution's (None: none moved, the standard deviation).
+    """
+    x = np.asarray(x, dtype=float)
+    if moved is None:
+        return spread_sd(x)
+    moved = np.asarray(moved, dtype=bool)
+    out = np.empty(x.shape[1:])
+    for j in range(x.shape[-1]):
+        keep = ~moved[:, j] if moved[:, j].mean() < ONE_SIGMA_TAIL else np.ones(len(x), bool)
+        out[..., j] = np.std(x[keep][..., j], axis=0)
+    return out
+
+
+SPREADS = {"sd": spread_sd, "percentile": spread_percentile, "mad": spread_mad,
+           "mixture": spread_mixture}
+
+
+def moved_resamples(res) -> np.ndarray:
+    """Per resample and axis whether its break choice differs from the solution's, (n, 3).
+
+    From the fit's stored ``bootstrap["break_shift"]``; a fit saved before that was kept
+    (entry 3x-pulls): the last pass's bootstrap solved again on its normal equations at
+    the fitted tables (the same resamples, seed 0; the linearisation point moved by the
+    last step only, so a resample on the edge of two choices may choose otherwise).
+    """
+    shifts = res.bootstrap.get("break_shift")
+    if shifts is None:
+        sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
+                                law=fv.law_parameters(res.calibration),
+                                held=_held_columns(res))
+        shifts = sol.boot_shift
+    return np.asarray(shifts) != np.asarray(res.break_shift)[None, :]
+
+
+def _held_columns(res) -> dict[int, tuple[float, float]]:
+    """The held parameters of ``res`` as `fit_variance.solve_variance` takes them
+    (column -> (step, width)) at the fitted tables, as `fit_variance_calibration` holds
+    them: each held upper segment's slope change and break, each held D0 (steps 0)."""
+    now = fv.law_parameters(res.calibration)
+    held = {}
+    for a, h in res.held_upper.items():
+        j = "xyz".index(a)
+        (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
+        held[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
+        held[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
+    d0 = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
+    for a, (value, width) in res.held.items():
+        held["xyz".index(a) * fv.PER_AXIS + 4] = (value - d0["xyz".index(a)], width)
+    return held
+
+
+def estimator_row(res, true, spread) -> dict:
+    """The pulls of `pulls` (tau, D0, T_m, the law at `LAW_T`) with the stated errors
+    taken as ``spread`` of the fit's stored resamples, and the break-jump shares."""
+    boot = res.bootstrap
+    moved = moved_resamples(res)
+    cal = res.calibration
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    law_t = np.array(LAW_T)
+    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+                / spread(fv.law_values(boot["law"], law_t), moved))
+    law_pull[~res.stated_ranges.contains(law_t)] = np.nan
+    true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
+    return {"tau_pull": float((res.relaxation.tau - true.constants["relaxation"]["tau_s"])
+                              / spread(boot["tau"])),
+            "dt_pull": np.nan,
+            "d0_pull": (cal.duty_cycle_d0 - true.d0) / spread(boot["d0"]),
+            "tm_pull": (np.asarray(cal.breakpoint_temperature_c) - true_tm)
+            / spread(boot["law"][:, :, 3], moved),
+            "law_pull": law_pull, "held_upper": sorted(res.held_upper),
+            "jump_share": moved.mean(axis=0)}
+
+
+def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
+    """Design-fixed, linearised errors of T_m (C) and of the law at `LAW_T` (counts).
+
+    The last pass's normal equations at the fitted tables, grouped into the bootstrap's
+    units (`fit_variance.solve_variance`): ``A^-1 (sum_u g_u g_u^T) A^-1 n / (n - p)``,
+    ``g_u`` each unit's score at the solution, the breaks kept; a held column's width
+    propagated through ``-A_ff^-1 A_fh``.  The fifth candidate of entry 3x-pulls: the
+    pairs bootstrap without its resampling of the design and its break re-choices.
+    Returns ``(tm_err (3,), law_err (len(LAW_T), 3))``.
+    """
+    now = fv.law_parameters(res.calibration)
+    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
+    base_free[-1] = res.delay_fitted
+    held = {col: width for col, (_, width) in _held_columns(res).items()}
+    base_free[list(held)] = False
+    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
+    a, v = res.variance.normal, res.variance.rhs
+    p = int(free.sum())
+    group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
+    n = int(group[-1]) + 1
+    a_u, v_u = np.zeros((n, *a.shape[1:])), np.zeros((n, v.shape[1]))
+    np.add.at(a_u, group, a)
+    np.add.at(v_u, group, v)
+    total = a_u.sum(axis=0)
+    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
+    f = np.flatnonzero(free)
+    score = (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f]
+    inv = np.linalg.inv(total[np.ix_(f, f)])
+    cov = np.zeros((fv.N_PARAMETERS, fv.N_PARAMETERS))
+    cov[np.ix_(f, f)] = inv @ (score.T @ score) @ inv * n / (n - p)
+    if held:
+        h = np.array(sorted(held))
+        jac = np.zeros((fv.N_PARAMETERS, h.size))
+        jac[f] = -inv @ total[np.ix_(f, h)]
+        jac[h, np.arange(h.size)] = 1.0
+        cov += jac @ np.diag([held[c] ** 2 for c in h]) @ jac.T
+    law_t = np.array(LAW_T)
+    tm_err, law_err = np.empty(3), np.empty((law_t.size, 3))
+    for j in range(3):
+        cols = [j * fv.PER_AXIS + i for i in range(4)]  # a, b, c, -c T_m
+        c = cov[np.ix_(cols, cols)]
+        tm_err[j] = np.sqrt(c[3, 3]) / abs(now[j, 2])
+        grad = np.column_stack([np.ones_like(law_t), law_t, np.maximum(0.0, law_t - now[j, 3]),
+                                (law_t > now[j, 3]).astype(float)])
+        law_err[:, j] = np.sqrt(np.einsum("ti,ij,tj->t", grad, c, grad))
+    return tm_err, law_err
+
+
+def sandwich_row(res, true, with_jumps: bool) -> dict:
+    """`estimator_row` with T_m and the law stated by `sandwich_errors` (``with_jumps``:
+    the bootstrap's standard deviation on an axis whose break jumps in at least
+    `ONE_SIGMA_TAIL` of the resamples); tau and D0 as stated."""
+    row = estimator_row(res, true, spread_sd)
+    tm_s, law_s = sandwich_errors(res)
+    boot = res.bootstrap
+    if with_jumps:
+        common = row["jump_share"] >= ONE_SIGMA_TAIL
+        tm_s = np.where(common, spread_sd(boot["law"][:, :, 3]), tm_s)
+        law_s = np.where(common[None, :], spread_sd(fv.law_values(boot["law"], LAW_T)), law_s)
+    row["tm_pull"] = row["tm_pull"] * spread_sd(boot["law"][:, :, 3]) / tm_s
+    row["law_pull"] = row["law_pull"] * spread_sd(fv.law_values(boot["law"], LAW_T)) / law_s
+    return row
+
+
+def estimator_summary(folder: Path) -> None:
+    """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
+    of `SPREADS` on the saved fits of ``folder`` (entry 3x-pulls)."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    per = {name: [estimator_row(res, true, f) for res, true in fits]
+           for name, f in SPREADS.items()}
+    per["sandwich"] = [sandwich_row(res, true, False) for res, true in fits]
+    per["sandwich+jumps"] = [sandwich_row(res, true, True) for res, true in fits]
+    jump = np.stack([r["jump_share"] for r in per["sd"]])
+    print(f"{len(fits)} fits; resamples whose break moved from the solution's, per axis: "
+          f"median {np.round(np.median(jump, axis=0), 3)}, max {np.round(jump.max(axis=0), 3)}")
+    print("| parameter | " + " | ".join(per) + " |")
+    print("|---|" + "---|" * len(per) + "   (spread, max |pull|, beyond 3)")
+    tables = {name: dict(table(rows)) for name, rows in per.items()}
+    for name in tables["sd"]:
+        cells = []
+        for est in per:
+            p = tables[est][name]
+            p = p[np.isfinite(p)]
+            cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
+                         f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
+        if any(cells):
+            n = int(np.isfinite(tables["sd"][name]).sum())
+            print(f"| {name} (N {n}) | " + " | ".join(cells) + " |")
+
+
 def main() -> None:
     """Run the study and print the pulls."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -523,16 +728,25 @@ def main() -> None:
                          "range, a rate change (`defects`).")
     ap.add_argument("--hold-d0", default="",
                     help="Comma list of axes whose D0 is held (shipped value, default width).")
+    ap.add_argument("--draw-law", action="store_true",
+                    help="Draw the true temperature law (Table 2, breaks included) per "
+                         "realisation (tests/missions/messenger/_hard_worlds.drawn_law), "
+                         "so that the breaks' pulls test a spread of truths.")
     ap.add_argument("--save", type=Path, default=None,
                     help="Folder to pickle each realisation's fit and true tables into.")
     ap.add_argument("--summarise", type=Path, default=None,
                     help="Print the summary of a --save folder's realisations; run nothing.")
+    ap.add_argument("--estimators", action="store_true",
+                    help="With --summarise: the pulls under each spread estimator of the "
+                         "stated errors (SPREADS) instead of the summary.")
     args = ap.parse_args()
     if args.summarise is not None:
-        rows = saved_rows(args.summarise)
-        if not rows:
+        if not any(args.summarise.glob("fit_*.pkl")):
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
-        summarise(rows, args.markdown)
+        if args.estimators:
+            estimator_summary(args.summarise)
+            return
+        summarise(saved_rows(args.summarise), args.markdown)
         return
     rows = []
     t_start = time.perf_counter()
@@ -541,7 +755,7 @@ def main() -> None:
                             unseen=args.unseen, broadband=args.broadband,
                             with_defects=args.defects,
                             hold_d0=tuple(a for a in args.hold_d0.split(",") if a),
-                            world=args.world)
+                            world=args.world, draw_law=args.draw_law)
     if args.processes > 1:
         pool = ProcessPoolExecutor(max_workers=args.processes)
         done = (f.result() for f in as_completed([pool.submit(run, k)
@@ -580,7 +794,8 @@ def main() -> None:
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "
           f"{args.first_seed}..{args.first_seed + len(rows) - 1}), "
           f"{args.days} days at 1 Hz, world {args.world}, compressive {args.compressive}"
-          f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}, "
+          f"{' (broadband)' if args.broadband else ''}{', defects' if args.defects else ''}"
+          f"{', law drawn per realisation' if args.draw_law else ''}, "
           f"{args.passes} passes, "
           f"{time.perf_counter() - t_start:.0f} s")
     summarise(rows, args.markdown)

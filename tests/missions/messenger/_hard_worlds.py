@@ -36,10 +36,17 @@ is `flight_sim.Schedule`, the forward model's container for a heater schedule):
   at most 2 C below -50. Regulated in between at -50 C, duty cycle a reflected random walk
   in 10-45 % (steps of at most 8 %, 3 in 4 blocks change).
 
+**A true temperature law per realisation** (`drawn_law`, ``--draw-law`` of
+``benchmarks/messenger_fit_pulls.py``): the flight model's true Table 2 drawn from the
+seed, so that pulls of the break temperatures (held or free) test a spread of truths
+and not one fixed table: per axis ``A0`` x U(0.75, 1.3), ``B0`` x U(0.7, 1.3), ``B1`` x
+U(0.75, 1.4) and the break ``T_m`` moved by U(-8, +8) C (``A1`` from eq. 4); the other
+tables as `CalibrationChanges`' defaults.
+
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6-7 (heater period 100 s, 1000-s
-   evaluation, temperature varies only with the heater off).
+   evaluation, temperature varies only with the heater off; Table 2 and eq. 3-4).
 .. [2] Issue 34, "MESSENGER, hard cruise wind" and "MESSENGER, Mercury orbit".
 """
 
@@ -49,7 +56,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fluxcal.missions.messenger.flight_sim import Schedule
+from fluxcal.missions.messenger.flight_sim import CalibrationChanges, Schedule
 from tests.missions.messenger._realistic_wind import powerlaw
 
 DAY_S = 86400.0
@@ -68,6 +75,28 @@ def _events(rng: np.random.Generator, n: int, per_hour: float) -> np.ndarray:
     """Poisson event times (s) in [0, n)."""
     k = rng.poisson(per_hour * n / HOUR_S)
     return np.sort(rng.uniform(0.0, n, k))
+
+
+#: Ranges of `drawn_law` (factors on the seed's Table 2, and the break's move in C).  The
+#: seed's breaks lie at -10.2 / -12.7 / -14.8 C ("the offsets vary slowly with temperature
+#: below -10 C", sec. 7); moved by up to 8 C they stay in -23..-2 C, the heater-off warm
+#: runs' span.  The factors bracket `CalibrationChanges`' defaults (0.75-1.35); every
+#: draw keeps ``B1 > B0`` (the seed's ratios are 2.1 / 3.2 / 4.5, the draws' least
+#: 2.1 x 0.75 / 1.3 = 1.2).
+LAW_FACTORS = {"a0": (0.75, 1.3), "b0": (0.7, 1.3), "b1": (0.75, 1.4)}
+LAW_TM_SHIFT_C = (-8.0, 8.0)
+
+
+def drawn_law(seed: int) -> CalibrationChanges:
+    """The flight model's true tables with Table 2 drawn per realisation (module docstring).
+
+    A function of ``seed`` only (its own stream, apart from the world's draws).
+    """
+    rng = np.random.default_rng([seed, 36])
+    draw = {k: tuple(float(x) for x in rng.uniform(lo, hi, 3))
+            for k, (lo, hi) in LAW_FACTORS.items()}
+    shift = tuple(float(x) for x in rng.uniform(*LAW_TM_SHIFT_C, 3))
+    return CalibrationChanges(**draw, tm_shift_c=shift)
 
 
 @dataclass(frozen=True)

@@ -207,7 +207,10 @@ class FitResult:
     bootstrap : dict or None
         The variance estimator's resamples of the tables' parameters (widened):
         ``law`` (n, 3, 4) as ``(a, b, c, T_m)``, ``d0`` (n, 3), ``tau`` (n,), ``dt``
-        (n,); every stated error and the law's band come from them.
+        (n,); every stated error and the law's band come from them; ``break_shift``
+        (n, 3): each resample's own break shift (C, `fit_variance.BREAK_SHIFTS_C`, 0: the
+        linearised step), kept so that spread estimators can be compared offline
+        (``benchmarks/messenger_fit_pulls.py --summarise DIR --estimators``, entry 3x-pulls).
     break_shift : ndarray, shape (3,)
         The break shifts (C) the last pass took (0: the linearised step).
     convergence : dict
@@ -1421,7 +1424,8 @@ def fit_variance_calibration(
                      variance=vstats, fitted_range=t_range, held_d0=tuple(held),
                      held=held, held_upper=upper,
                      bootstrap={"law": b_law, "d0": b_d0, "tau": b_tau,
-                                           "dt": b_dt},
+                                           "dt": b_dt,
+                                "break_shift": np.asarray(sol.boot_shift, dtype=float)},
                      break_shift=np.asarray(sol.break_shift, dtype=float),
                      waveform_error=waveform_error,
                      d0_field={"direction": direction.tolist(), "balance": balance,
