@@ -50,6 +50,7 @@ from fluxcal.calibration.constrained_fits import (
     TwoSegmentFit,
     fit_line_fixed_intercept,
     fit_periodic_spline,
+    fit_periodic_splines,
     fit_relaxation,
     fit_two_segment,
 )
@@ -555,13 +556,18 @@ def _fit_waveforms(
                 if h is not None] if errors else [])
     own = np.array([[w.count.sum() for w in h] for h in stats.waveform_folds], dtype=float)
 
-    def spline(ph, col, sup, b, j):
+    def splines(ph, col, sup, b):
+        # the three axes of a column share its phases and weights: one decomposition
+        # (`fit_periodic_splines`, the same fits as one at a time; h-serial)
         ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
         if ok.sum() < MIN_PHASE_BINS:
-            return None
-        fit = fit_periodic_spline(ph[ok], col[ok, b, j], np.sqrt(sup[ok, b]), 100.0)
-        values = fit.table(1.0)[1]
-        return fit, values - values[:-1].mean()
+            return [None] * 3
+        out = []
+        for fit in fit_periodic_splines(ph[ok], [col[ok, b, j] for j in range(3)],
+                                        np.sqrt(sup[ok, b]), 100.0):
+            values = fit.table(1.0)[1]
+            out.append((fit, values - values[:-1].mean()))
+        return out
 
     def smoothing_bias(fit, ph, col, sup, b):
         # the spline's own smoothing applied to the fitted curve: (S - I) f_hat, the
@@ -573,14 +579,17 @@ def _fit_waveforms(
         return float(np.sqrt(np.mean((again(ph[ok]) - f_hat) ** 2)))
 
     for b in range(nb):
+        got_b = splines(phase, columns, support, b)
+        refits_b = ([splines(*h, b) for h in without]
+                    if errors and got_b[0] is not None else [])
         for j in range(3):
-            got = spline(phase, columns, support, b, j)
+            got = got_b[j]
             if got is None:
                 continue
             fits[j][b], table[j, :, b] = got
             if not errors:
                 continue
-            refits = [spline(*h, b, j) for h in without]
+            refits = [r[j] for r in refits_b]
             err = float("nan")
             if len(refits) >= 2 and all(r is not None for r in refits):
                 err = jackknife_error(np.stack([r[1][:-1] for r in refits]))

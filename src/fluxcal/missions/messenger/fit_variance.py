@@ -577,22 +577,35 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
     held = np.broadcast_to(np.zeros(N_PARAMETERS) if fixed is None else fixed,
                            (n, N_PARAMETERS))
     choice = np.full((n, 3), -1, dtype=np.int64)
+    # the other axes' choices when each axis was last chosen: an axis whose others have
+    # not moved since would try the same layouts again and choose the same shift, so
+    # those rows are not solved again (a later sweep then costs only the rows that
+    # moved; the same numbers: every row is solved on its own, h-serial)
+    seen = [np.full((n, 3), -2, dtype=np.int64) for _ in range(3)]
     lo, hi = t_range
     for _ in range(sweeps):
         for j in range(3):
-            best = choice[:, j].copy()
-            best_r = np.full(n, np.inf)
+            others = np.arange(3) != j
+            rows = np.flatnonzero(np.any(choice[:, others] != seen[j][:, others], axis=1))
+            seen[j] = choice.copy()
+            if rows.size == 0:
+                continue
+            best = choice[rows, j].copy()
+            best_r = np.full(rows.size, np.inf)
             for k in (-1, *range(N_SHIFTS)):
                 if k >= 0 and not (base_free[j * PER_AXIS + 3]
                                    and lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
                     continue  # outside the fitted range, or the break held
-                trial = choice.copy()
+                trial = choice[rows].copy()
                 trial[:, j] = k
                 if stacked:  # every resample's own layout, one batched solve (item 7)
                     free, fx = _layout_rows(trial, base_free, law[:, 2])
                     if k == -1:  # the break kept: exact, without the linearised step
                         free[:, j * PER_AXIS + 3] = False
-                    r = _residual(a_s, v_s, yy_s, _fit_rows(a_s, v_s, free, fx + held))
+                    every = rows.size == n  # all rows: no copy of the stack
+                    a_k, v_k = (a_s, v_s) if every else (a_s[rows], v_s[rows])
+                    r = _residual(a_k, v_k, yy_s if every else yy_s[rows],
+                                  _fit_rows(a_k, v_k, free, fx + held[rows]))
                 else:  # the single system: least squares as before (rank-safe)
                     free, fx = _layout(tuple(int(c) for c in trial[0]), base_free,
                                        law[:, 2])
@@ -603,7 +616,7 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
                 better = r < best_r
                 best[better] = k
                 best_r[better] = r[better]
-            choice[:, j] = best
+            choice[rows, j] = best
     return choice if stacked else tuple(int(c) for c in choice[0])
 
 
