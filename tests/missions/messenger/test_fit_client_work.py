@@ -252,3 +252,49 @@ def test_waveform_axes_share_one_spline_decomposition_bit_for_bit(monkeypatch):
                 np.testing.assert_array_equal(getattr(f, name), getattr(g, name))
             np.testing.assert_array_equal(f.spline.c, g.spline.c)
             np.testing.assert_array_equal(f.table(1.0)[1], g.table(1.0)[1])
+
+
+def _step_written_out(cal, st, max_tau_shift, max_break_shift_c, shifts):
+    """`apply_step`'s rule for one resample, written out axis by axis."""
+    law = fv.law_parameters(cal).copy()
+    d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
+    for j in range(3):
+        da, db, dc, dstep, dd0 = st[fv.PER_AXIS * j:fv.PER_AXIS * (j + 1)]
+        c = law[j, 2]
+        law[j, 0] += da
+        law[j, 1] += db
+        d0[j] += dd0
+        if shifts[j] != 0.0:  # moved: the slope change fitted at the shifted break
+            law[j, 2] = st[3 * fv.PER_AXIS + j * fv.N_SHIFTS
+                           + fv.BREAK_SHIFTS_C.index(float(shifts[j]))]
+            law[j, 3] += shifts[j]
+        else:  # kept: the linearised break step -(step on [T > T_m]) / c, clipped
+            law[j, 2] += dc
+            law[j, 3] += float(np.clip(-dstep / c if c != 0 else 0.0,
+                                       -max_break_shift_c, max_break_shift_c))
+    rel = cal.constants["relaxation"]
+    tau = float(rel["tau_s"])
+    return (law, d0, tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau)),
+            float(rel["delay_s"]) + float(st[-1]))
+
+
+def test_resample_steps_applied_at_once_equal_one_at_a_time():
+    # every resample's step applied in one call (`apply_steps`, h-serial) against the
+    # rule one resample at a time: steps of three sizes (the clips bind for the large
+    # ones), every break shift and none, the clipped and the unclipped ranges
+    rng = np.random.default_rng(77)
+    cal = load_calibration(str(START))
+    n = 300
+    steps = rng.normal(0, 1, (n, fv.N_PARAMETERS)) * rng.choice([0.01, 1.0, 300.0],
+                                                                (n, fv.N_PARAMETERS))
+    shifts = rng.choice([0.0, *fv.BREAK_SHIFTS_C], (n, 3))
+    for limits in ((0.3, 10.0), (np.inf, np.inf)):
+        law, d0, tau, dt = fv.apply_steps(cal, steps, *limits, break_shifts=shifts)
+        assert law.shape == (n, 3, 4) and d0.shape == (n, 3) and tau.shape == dt.shape == (n,)
+        for r in range(n):
+            want = _step_written_out(cal, steps[r], *limits, shifts[r])
+            np.testing.assert_array_equal(law[r], want[0])
+            np.testing.assert_array_equal(d0[r], want[1])
+            assert (tau[r], dt[r]) == want[2:]
+            one = fv.apply_step(cal, steps[r], *limits, break_shift=shifts[r])
+            assert all(np.array_equal(x, y) for x, y in zip(one, want, strict=True))

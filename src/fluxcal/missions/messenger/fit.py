@@ -1201,13 +1201,10 @@ def fit_variance_calibration(
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
-    boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
-                           break_shift=s) for b, s in zip(sol.boot, sol.boot_shift, strict=True)]
-    b_law = np.stack([x[0] for x in boots])
+    b_law, b_d0, b_tau, b_dt = fv.apply_steps(base, sol.boot, max_tau_shift=np.inf,
+                                              max_break_shift_c=np.inf,
+                                              break_shifts=sol.boot_shift)
     b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 27)
-    b_d0 = np.stack([x[1] for x in boots])
-    b_tau = np.array([x[2] for x in boots])
-    b_dt = np.array([x[3] for x in boots])
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
     # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
     # (entry 13), in the tables' parameters (each resample has its own break choice);

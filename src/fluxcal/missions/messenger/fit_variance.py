@@ -76,8 +76,9 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
            "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
-           "apply_step", "choose_breaks", "d0_field_balance", "law_values", "offset_moments",
-           "quantisation", "reduce_variance", "solve_variance", "widen_d0_along_field"]
+           "apply_step", "apply_steps", "choose_breaks", "d0_field_balance", "law_values",
+           "offset_moments", "quantisation", "reduce_variance", "solve_variance",
+           "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
@@ -785,28 +786,47 @@ def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float
     shifted break with the slope change fitted there; tau by at most ``max_tau_shift``
     of itself (the linearisation's range).
     """
-    law = law_parameters(cal).copy()
-    d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
-    st = np.asarray(step, dtype=float).reshape(-1)
-    shifts = np.zeros(3) if break_shift is None else np.asarray(break_shift, dtype=float)
+    law, d0, tau, dt = apply_steps(
+        cal, np.asarray(step, dtype=float).reshape(1, -1), max_tau_shift, max_break_shift_c,
+        None if break_shift is None else np.asarray(break_shift, dtype=float).reshape(1, 3))
+    return law[0], d0[0], float(tau[0]), float(dt[0])
+
+
+def apply_steps(cal: MessengerCalibration, steps: np.ndarray, max_tau_shift: float = 0.3,
+                max_break_shift_c: float = 10.0, break_shifts: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return `apply_step` of every row of ``steps`` (n, `N_PARAMETERS`), stacked.
+
+    The law (n, 3, 4), D0 (n, 3), tau (n,) and dt (n,); ``break_shifts`` (n, 3): each
+    row's break shifts (default none).  The same arithmetic element by element as one
+    row at a time (the bootstrap's resamples at once, instead of a Python call per
+    resample; issue 34, item 7).
+    """
+    law0 = law_parameters(cal)
+    st = np.asarray(steps, dtype=float)
+    n = st.shape[0]
+    law = np.broadcast_to(law0, (n, 3, 4)).copy()
+    d0 = np.broadcast_to(np.asarray(cal.duty_cycle_d0, dtype=float), (n, 3)).copy()
+    shifts = np.zeros((n, 3)) if break_shifts is None else np.asarray(break_shifts,
+                                                                       dtype=float)
     for j in range(3):
-        da, db, dc, dstep, dd0 = st[PER_AXIS * j:PER_AXIS * (j + 1)]
-        c = law[j, 2]
-        law[j, 0] += da
-        law[j, 1] += db
-        d0[j] += dd0
-        if shifts[j] != 0.0:
-            k = BREAK_SHIFTS_C.index(float(shifts[j]))
-            law[j, 2] = st[_shift_column(j, k)]
-            law[j, 3] += shifts[j]
-            continue
-        dtm = -dstep / c if c != 0 else 0.0
-        law[j, 2] += dc
-        law[j, 3] += float(np.clip(dtm, -max_break_shift_c, max_break_shift_c))
+        da, db, dc, dstep, dd0 = st[:, PER_AXIS * j:PER_AXIS * (j + 1)].T
+        c = law0[j, 2]
+        law[:, j, 0] += da
+        law[:, j, 1] += db
+        d0[:, j] += dd0
+        moved = np.flatnonzero(shifts[:, j] != 0.0)
+        kept = np.flatnonzero(shifts[:, j] == 0.0)
+        k = np.array([BREAK_SHIFTS_C.index(float(x)) for x in shifts[moved, j]], dtype=int)
+        law[moved, j, 2] = st[moved, _shift_column(j, k)]
+        law[moved, j, 3] += shifts[moved, j]
+        dtm = -dstep[kept] / c if c != 0 else np.zeros(kept.size)
+        law[kept, j, 2] += dc[kept]
+        law[kept, j, 3] += np.clip(dtm, -max_break_shift_c, max_break_shift_c)
     rel = cal.constants["relaxation"]
     tau = float(rel["tau_s"])
-    tau_new = tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau))
-    dt_new = float(rel["delay_s"]) + float(st[-1])
+    tau_new = tau + np.clip(st[:, -2], -max_tau_shift * tau, max_tau_shift * tau)
+    dt_new = float(rel["delay_s"]) + st[:, -1]
     return law, d0, tau_new, dt_new
 
 
