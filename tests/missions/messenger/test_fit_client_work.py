@@ -298,3 +298,33 @@ def test_resample_steps_applied_at_once_equal_one_at_a_time():
             assert (tau[r], dt[r]) == want[2:]
             one = fv.apply_step(cal, steps[r], *limits, break_shift=shifts[r])
             assert all(np.array_equal(x, y) for x, y in zip(one, want, strict=True))
+
+
+def test_resamples_in_blocks_equal_the_whole_stack():
+    # the bootstrap's resamples solved in blocks of rows (`fit_days` on Dask maps them
+    # onto the workers, `solve_variance(map_rows=...)`) against the whole stack at once:
+    # every row chooses and solves on its own, so the blocks must give the same choices
+    # and steps, bit for bit, for any split (one row per block included)
+    rng = np.random.default_rng(4711)
+    p = fv.N_PARAMETERS
+    n = 90
+    x = rng.standard_normal((n, 2 * p, p)) * rng.uniform(0.1, 3.0, p)
+    a = np.einsum("rki,rkj->rij", x, x)
+    v = rng.standard_normal((n, p)) * 5.0
+    yy = np.einsum("ri,rij,rj->r", v, np.linalg.inv(a), v) + rng.uniform(0.1, 10.0, n)
+    law = np.column_stack([rng.normal(0, 1, 3), rng.normal(0, 1, 3),
+                           rng.normal(0, 0.3, 3), rng.uniform(-10, 30, 3)])
+    held = np.zeros((n, p))
+    held[:, 4] = rng.normal(0.0, 0.01, n)
+    for fit_delay, with_law in ((True, True), (False, True), (True, False)):
+        base_free = np.ones(p, dtype=bool)
+        base_free[-1] = fit_delay
+        base_free[4] = False
+        args = (base_free, law if with_law else None, (-15.0, 35.0))
+        whole = fv.resample_fits(a, v, yy, held, *args)
+        assert (whole[0] >= 0).any() == with_law
+        for blocks in (2, 7, n):
+            parts = [fv.resample_fits(a[c], v[c], yy[c], held[c], *args)
+                     for c in np.array_split(np.arange(n), blocks)]
+            np.testing.assert_array_equal(np.concatenate([c for c, _ in parts]), whole[0])
+            np.testing.assert_array_equal(np.concatenate([b for _, b in parts]), whole[1])

@@ -1105,6 +1105,7 @@ def fit_variance_calibration(
     start: MessengerCalibration | None = None,
     hold_upper: tuple[str, ...] = (),
     waveform_errors: bool = True,
+    resample_map: Mapping[str, Any] | None = None,
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
@@ -1142,6 +1143,10 @@ def fit_variance_calibration(
     waveform_errors : bool
         State the waveform columns' errors (`_fit_waveforms`); False leaves
         ``waveform_error`` None (`fit_days`'s passes: entry 33).
+    resample_map : mapping, optional
+        ``map_rows`` and ``n_blocks`` of `fit_variance.solve_variance`: the bootstrap's
+        resamples solved in blocks elsewhere (`fit_days` on Dask: on the workers), the
+        same numbers; None: here.
 
     Returns
     -------
@@ -1193,7 +1198,7 @@ def fit_variance_calibration(
         columns[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     try:
         sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                                law=now, held=columns)
+                                law=now, held=columns, **(resample_map or {}))
     except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
         if cause:
             raise too_little(str(exc)) from None
@@ -1220,7 +1225,8 @@ def fit_variance_calibration(
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
                                         max_compressive_share=max_compressive_share,
                                         start=start, hold_upper=(*hold_upper, *loose),
-                                        waveform_errors=waveform_errors)
+                                        waveform_errors=waveform_errors,
+                                        resample_map=resample_map)
     w = sol.widening
     drawn, drawn_law = b_d0.copy(), b_law.copy()
     b_law = law + w * (b_law - b_law.mean(axis=0))
@@ -1243,7 +1249,8 @@ def fit_variance_calibration(
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
                                         max_compressive_share=max_compressive_share,
                                         start=start, hold_upper=hold_upper,
-                                        waveform_errors=waveform_errors)
+                                        waveform_errors=waveform_errors,
+                                        resample_map=resample_map)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
@@ -1595,6 +1602,7 @@ def fit_days(
     history: list[dict[str, Any]] = []
     cal = base
     result: FitResult | None = None
+    resample_map: dict[str, Any] | None = None  # on Dask: the resamples on the workers
 
     def run(mapper: Callable[[MessengerCalibration, bool, int], list[Any]]) -> FitResult:
         nonlocal cal, result
@@ -1615,7 +1623,8 @@ def fit_days(
                 result = fit_variance_calibration(
                     stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
                     max_compressive_share=max_compressive_share, start=base,
-                    hold_upper=held_upper, waveform_errors=False)
+                    hold_upper=held_upper, waveform_errors=False,
+                    resample_map=resample_map)
                 held_upper = tuple(a for a in AXES if a in result.held_upper)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
@@ -1732,6 +1741,13 @@ def fit_days(
                                                  "gathered": time.perf_counter()}})
                 return [out]
 
+            def map_rows(f: Callable, args: list[tuple]) -> list[Any]:
+                # the bootstrap's blocks of resamples on the workers, idle while the
+                # client fits (issue 34, item 7; the same numbers, h-serial)
+                return client.gather([client.submit(f, *a, pure=False) for a in args])
+
+            resample_map = {"map_rows": map_rows,
+                            "n_blocks": max(1, len(client.scheduler_info()["workers"]))}
             return run(distributed)
     finally:
         if cluster is not None:

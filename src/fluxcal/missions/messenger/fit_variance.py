@@ -46,7 +46,7 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -77,7 +77,8 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
            "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
            "apply_step", "apply_steps", "choose_breaks", "d0_field_balance", "law_values",
-           "offset_moments", "quantisation", "reduce_variance", "solve_variance",
+           "offset_moments", "quantisation", "reduce_variance", "resample_fits",
+           "solve_variance",
            "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
@@ -621,6 +622,25 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
     return choice if stacked else tuple(int(c) for c in choice[0])
 
 
+def resample_fits(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np.ndarray,
+                  base_free: np.ndarray, law: np.ndarray | None,
+                  data_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Return the break choices (n, 3) and the fitted steps (n, p) of resamples.
+
+    Each row of the stacked normal equations chooses its own breaks (`choose_breaks`;
+    none tried without ``law``) and is solved with them (`_fit_rows`), on its own: a
+    block of rows gives the numbers those rows get in the whole stack (`solve_variance`).
+    """
+    n = a_r.shape[0]
+    slope = law[:, 2] if law is not None else np.zeros(3)
+    if law is not None:
+        choice = choose_breaks(a_r, v_r, yy_r, base_free, law, data_range, fixed=held_r)
+    else:
+        choice = np.full((n, 3), -1, dtype=np.int64)
+    free_r, fixed_r = _layout_rows(choice, base_free, slope)
+    return choice, _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
+
+
 def _shifts(choice: np.ndarray) -> np.ndarray:
     """Break shifts (C) of break choices (``-1``: 0)."""
     table = np.array([*BREAK_SHIFTS_C, 0.0])
@@ -653,7 +673,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    law: np.ndarray | None = None,
                    held_step: np.ndarray | None = None,
                    held_width: np.ndarray | None = None,
-                   held: Mapping[int, tuple[float, float]] | None = None
+                   held: Mapping[int, tuple[float, float]] | None = None,
+                   map_rows: Callable[[Callable, list[tuple]], list] | None = None,
+                   n_blocks: int = 1,
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -689,6 +711,14 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         drawing it from a normal distribution of ``width``).  An axis whose break
         column (``-c dT_m``) is held keeps its break: no shift is tried for it
         (`fit.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
+    map_rows : callable, optional
+        ``map_rows(resample_fits, [args, ...])`` -> the results in order: the resamples'
+        break choices and fits (`resample_fits`) in ``n_blocks`` blocks of rows, e.g.
+        on the Dask workers, idle while the client fits (`fit.fit_days`); the rows are
+        independent, so the numbers are those of one block (issue 34, item 7).  None:
+        here, in one block.
+    n_blocks : int
+        Blocks of resamples given to ``map_rows``.
 
     Returns
     -------
@@ -760,13 +790,14 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         cols = sorted(columns)
         draws = rng.standard_normal((n_bootstrap, len(cols)))
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
-    if law is not None:
-        boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, data_range,
-                                     fixed=held_r)
-    else:
-        boot_choice = np.full((n_bootstrap, 3), -1, dtype=np.int64)
-    free_r, fixed_r = _layout_rows(boot_choice, base_free, slope)
-    boot = _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
+    if map_rows is None:
+        boot_choice, boot = resample_fits(a_r, v_r, yy_r, held_r, base_free, law, data_range)
+    else:  # blocks of resamples elsewhere (the rows are independent: the same numbers)
+        cuts = np.array_split(np.arange(n_bootstrap), max(1, min(n_blocks, n_bootstrap)))
+        parts = map_rows(resample_fits, [(a_r[c], v_r[c], yy_r[c], held_r[c], base_free,
+                                          law, data_range) for c in cuts if c.size])
+        boot_choice = np.concatenate([c for c, _ in parts])
+        boot = np.concatenate([b for _, b in parts])
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),
