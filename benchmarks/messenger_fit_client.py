@@ -8,11 +8,15 @@ benchmarks/messenger_fit.py does), then runs ``fluxcal messenger fit --input-dir
 (`fit_cli.run_fit`) serially, once plainly and once under `cProfile`, and prints the
 seconds of each part (calls, total, per call, share of the profiled run).
 
-On a Dask cluster `fit.fit_days` maps only `fit.reduce_chunk` and the merges onto the
-workers; everything else is the client's serial part: the fit of each pass
+On a Dask cluster `fit.fit_days` maps `fit.reduce_chunk`, the merges and the
+bootstrap's resamples (`fit_variance.resample_fits`, one block per worker) onto the
+workers; everything else is the client's serial part (in this serial run the resamples
+are on the client too, printed as their own line): the fit of each pass
 (`fit.fit_variance_calibration`) with its bootstrap (`fit_variance.solve_variance`)
-and its heater waveforms (`fit._fit_waveforms`; before entry 33 each pass also
-fitted the four folds for the column errors), the pass bookkeeping
+with its break choices (`fit_variance.choose_breaks`, in the solution and in every
+resample) and the resamples' steps (`fit_variance.apply_steps`), and its heater
+waveforms (`fit._fit_waveforms`; before entry 33 each pass also fitted the four folds
+for the column errors), the pass bookkeeping
 (`fit.pass_changes`, `fit.check_fit`), and after the passes the last pass's waveform
 column errors (`fit.waveform_column_errors`; its own `_fit_waveforms` call is also
 counted on that line), the figure of merit (`fit_merit.assess`,
@@ -55,6 +59,9 @@ PARTS = (
     ("merge (workers on Dask)", "messenger/fit.py", "_merge_all"),
     ("fit of a pass", "messenger/fit.py", "fit_variance_calibration"),
     ("  bootstrap (solve_variance)", "messenger/fit_variance.py", "solve_variance"),
+    ("    resamples (workers on Dask)", "messenger/fit_variance.py", "resample_fits"),
+    ("    break choices (choose_breaks)", "messenger/fit_variance.py", "choose_breaks"),
+    ("  resample steps (apply_steps)", "messenger/fit_variance.py", "apply_steps"),
     ("  waveforms (_fit_waveforms)", "messenger/fit.py", "_fit_waveforms"),
     ("waveform column errors, once", "messenger/fit.py", "waveform_column_errors"),
     ("pass_changes", "messenger/fit.py", "pass_changes"),

@@ -7,7 +7,8 @@
 * `fit_relaxation`: exponential relaxation after a (delayed) step, fitted to a normalised
   superposed epoch of duty-cycle changes (sec. 7, tau = 872 s).
 * `fit_periodic_spline`: a periodic smoothing cubic spline of a waveform (sec. 6,
-  Appendix Tables 6-8, evaluated on t = 0..100 s), smoothing by GCV.
+  Appendix Tables 6-8, evaluated on t = 0..100 s), smoothing by GCV;
+  `fit_periodic_splines` fits several waveforms on the same phases at once.
 
 Weights
 -------
@@ -28,7 +29,7 @@ References
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,7 @@ __all__ = [
     "TwoSegmentFit",
     "fit_line_fixed_intercept",
     "fit_periodic_spline",
+    "fit_periodic_splines",
     "fit_relaxation",
     "fit_two_segment",
 ]
@@ -862,11 +864,79 @@ def fit_periodic_spline(
     .. [2] P. Craven, G. Wahba, "Smoothing noisy data with spline functions",
        Numer. Math. 31 (1979) 377-403 (GCV).
     """
+    return fit_periodic_splines(phase, [y], weights, period, smoothing, n_knots=n_knots,
+                                absolute_weights=absolute_weights)[0]
+
+
+def fit_periodic_splines(
+    phase: np.ndarray,
+    ys: Sequence[np.ndarray],
+    weights: np.ndarray | None,
+    period: float,
+    smoothing: float | None = None,
+    *,
+    n_knots: int | None = None,
+    absolute_weights: bool = False,
+) -> list[PeriodicSplineFit]:
+    """`fit_periodic_spline` of each of ``ys`` on the same ``phase`` and ``weights``.
+
+    The design matrix, the Cholesky factor and the Demmler-Reinsch eigenvectors depend
+    on the points and weights, not on the values: they are computed once for every
+    ``y`` whose usable points (finite, positive weight) are the same, and each fit is
+    the one `fit_periodic_spline` returns for that ``y`` alone, bit for bit (the same
+    arithmetic on the same numbers).  Used for the three axes of a waveform column,
+    which share their phases and weights (MESSENGER sec. 6; issue 34, item 7).
+
+    Parameters
+    ----------
+    phase, weights, period, smoothing, n_knots, absolute_weights
+        As `fit_periodic_spline`.
+    ys : sequence of ndarray, each shape (n,)
+        The values of each fit.
+
+    Returns
+    -------
+    list of PeriodicSplineFit
+        One per ``ys``, in order.
+
+    Raises
+    ------
+    FitError, InputFormatError
+        As `fit_periodic_spline`, for the first ``y`` that fails.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and Appendix Tables 6-8.
+    """
     if not (np.isfinite(period) and period > 0):
         raise InputFormatError(f"period must be positive, got {period}", field="period")
     phase = np.mod(np.asarray(phase, dtype=np.float64).ravel(), period)
-    x, yy, w, _ = _prepare(phase, y, weights, 5, "fit_periodic_spline")
-    n = x.size
+    out = []
+    shared: tuple[np.ndarray, np.ndarray, _PeriodicSmoother] | None = None
+    for y in ys:
+        x, yy, w, _ = _prepare(phase, y, weights, 5, "fit_periodic_spline")
+        if shared is None or not (np.array_equal(shared[0], x)
+                                  and np.array_equal(shared[1], w)):
+            shared = (x, w, _periodic_smoother(x, w, period, n_knots))
+        out.append(_periodic_fit(shared[2], x, yy, w, period, smoothing, absolute_weights))
+    return out
+
+
+@dataclass(frozen=True)
+class _PeriodicSmoother:
+    """The value-free part of a periodic smoothing spline (`_periodic_smoother`)."""
+
+    m: int
+    b: np.ndarray
+    w2: np.ndarray
+    mu: np.ndarray
+    v: np.ndarray
+    bv: np.ndarray
+
+
+def _periodic_smoother(x: np.ndarray, w: np.ndarray, period: float,
+                       n_knots: int | None) -> _PeriodicSmoother:
+    """Design, weights and Demmler-Reinsch basis of prepared points ``x``, ``w``."""
     distinct = np.unique(x).size
     m = min(distinct, 200) if n_knots is None else int(n_knots)
     if m < 4 or m > distinct:
@@ -890,8 +960,15 @@ def fit_periodic_spline(
     mu, u = eigh(0.5 * (k_mat + k_mat.T))
     mu = np.clip(mu, 0.0, 1.0)
     v = solve_triangular(chol.T, u, lower=False)  # L^-T U
+    return _PeriodicSmoother(m=m, b=b, w2=w2, mu=mu, v=v, bv=b @ v)
+
+
+def _periodic_fit(sm: _PeriodicSmoother, x: np.ndarray, yy: np.ndarray, w: np.ndarray,
+                  period: float, smoothing: float | None,
+                  absolute_weights: bool) -> PeriodicSplineFit:
+    """Fit the spline of values ``yy`` at the smoother's points (`fit_periodic_spline`)."""
+    n, m, b, w2, mu, v, bv = x.size, sm.m, sm.b, sm.w2, sm.mu, sm.v, sm.bv
     z = v.T @ ((b.T * w2) @ yy)
-    bv = b @ v
 
     def diag(lam: float) -> np.ndarray:
         return 1.0 + (lam - 1.0) * mu

@@ -13,6 +13,12 @@
 2. The bootstrap's resamples, each with its own break choice, are solved in batches
    (`fit_variance._fit_rows`) instead of one call per distinct choice: against the
    per-choice `fit_variance._fit` on random systems, bit for bit.
+3. (h-serial) `fit_variance.choose_breaks` solves, in a later sweep, only the rows
+   whose other axes' choices moved since that axis was last chosen: against the rule
+   written out here (every row, every sweep, every trial), bit for bit, and with fewer
+   rows solved.  The three axes of a waveform column share one spline decomposition
+   (`constrained_fits.fit_periodic_splines`): against `fit_periodic_spline` one value
+   set at a time, bit for bit, with one decomposition per distinct set of points.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import datetime as dt
 import numpy as np
 import pytest
 
+from fluxcal.calibration import constrained_fits as cf
 from fluxcal.missions.messenger import fit
 from fluxcal.missions.messenger import fit_variance as fv
 from fluxcal.missions.messenger.calibration_data import load_calibration
@@ -136,3 +143,188 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
             np.testing.assert_array_equal(got[r], want)
         # more than one batch: rows with one, two and three moved breaks differ in size
         assert np.unique(free.sum(axis=1)).size > 1
+
+
+def _sweeps_written_out(a, v, yy, base_free, law, t_range, fixed, sweeps=2,
+                        single=False):
+    """`choose_breaks`'s rule with nothing skipped: every row, every sweep, every trial
+    (axes in turn, the first least residual in the order kept, then the shifts)."""
+    n = a.shape[0]
+    choice = np.full((n, 3), -1, dtype=np.int64)
+    for _ in range(sweeps):
+        for j in range(3):
+            best, best_r = choice[:, j].copy(), np.full(n, np.inf)
+            for k in (-1, *range(fv.N_SHIFTS)):
+                if k >= 0 and not (base_free[j * fv.PER_AXIS + 3] and t_range[0]
+                                   <= law[j, 3] + fv.BREAK_SHIFTS_C[k] <= t_range[1]):
+                    continue
+                trial = choice.copy()
+                trial[:, j] = k
+                free, fx = fv._layout_rows(trial, base_free, law[:, 2])
+                if k == -1:
+                    free[:, j * fv.PER_AXIS + 3] = False
+                if single:  # the solution's own system: least squares, as written
+                    r = np.atleast_1d(fv._residual(a[0], v[0], yy[0], fv._fit(
+                        a[0], v[0], free[0], fx[0] + fixed[0])))
+                else:
+                    r = fv._residual(a, v, yy, fv._fit_rows(a, v, free, fx + fixed))
+                better = r < best_r
+                best[better], best_r[better] = k, r[better]
+            choice[:, j] = best
+    return choice
+
+
+def test_later_sweeps_skip_unmoved_rows_and_choose_the_same_breaks(monkeypatch):
+    # random normal equations whose residuals favour a shifted break on some axes of
+    # some rows (so later sweeps have rows to redo and rows to skip); dt free and held,
+    # a held D0 drawn per row, a held break on one axis, a range that excludes some
+    # shifts; the written-out rule must choose exactly the same shifts, and the
+    # skipping must solve fewer rows than it (the saving, item 7)
+    rng = np.random.default_rng(3434)
+    p = fv.N_PARAMETERS
+    solved = []
+    rows_of = fv._fit_rows
+
+    def counting(a, v, free, fixed):
+        solved.append(a.shape[0])
+        return rows_of(a, v, free, fixed)
+
+    for case in range(6):
+        n = int(rng.integers(40, 160))
+        x = rng.standard_normal((n, 2 * p, p)) * rng.uniform(0.1, 3.0, p)
+        a = np.einsum("rki,rkj->rij", x, x)
+        v = rng.standard_normal((n, p)) * 5.0
+        yy = np.einsum("ri,rij,rj->r", v, np.linalg.inv(a), v) + rng.uniform(0.1, 10.0, n)
+        law = np.column_stack([rng.normal(0, 1, 3), rng.normal(0, 1, 3),
+                               rng.normal(0, 0.3, 3), rng.uniform(-10, 30, 3)])
+        base_free = np.ones(p, dtype=bool)
+        base_free[-1] = case % 2 == 0
+        base_free[fv.PER_AXIS + 3] = case % 3 != 0  # y's break held in some cases
+        fixed = np.zeros((n, p))
+        base_free[4] = False
+        fixed[:, 4] = rng.normal(0.0, 0.01, n)
+        t_range = (float(rng.uniform(-20, 5)), float(rng.uniform(10, 40)))
+        want = _sweeps_written_out(a, v, yy, base_free, law, t_range, fixed)
+        monkeypatch.setattr(fv, "_fit_rows", counting)
+        solved.clear()
+        got = fv.choose_breaks(a, v, yy, base_free, law, t_range, fixed=fixed)
+        monkeypatch.undo()
+        np.testing.assert_array_equal(got, want)
+        tried = sum(1 for j in range(3) for k in (-1, *range(fv.N_SHIFTS)) if k < 0 or (
+            base_free[j * fv.PER_AXIS + 3]
+            and t_range[0] <= law[j, 3] + fv.BREAK_SHIFTS_C[k] <= t_range[1]))
+        assert (want >= 0).any()  # some rows moved a break
+        assert sum(solved) < 2 * tried * n  # the second sweep redid only moved rows
+        # the single system (the solution's own choice) by the same rule
+        one = fv.choose_breaks(a[0], v[0], yy[0], base_free, law, t_range, fixed=fixed[0])
+        assert one == tuple(int(c) for c in _sweeps_written_out(
+            a[:1], v[:1], yy[:1], base_free, law, t_range, fixed[:1], single=True)[0])
+
+
+def test_waveform_axes_share_one_spline_decomposition_bit_for_bit(monkeypatch):
+    # three waveforms on the same phases and weights (a column's x, y, z), GCV and a
+    # fixed smoothing, and one set with a missing point (its own points, so its own
+    # decomposition): each fit must equal `fit_periodic_spline` of that set alone
+    rng = np.random.default_rng(61)
+    made = []
+    smoother = cf._periodic_smoother
+
+    def counting(*args, **kwargs):
+        made.append(1)
+        return smoother(*args, **kwargs)
+
+    for smoothing in (None, 0.05):
+        ph = np.sort(rng.uniform(0.0, 100.0, 90))
+        w = rng.uniform(2.0, 30.0, ph.size)
+        ys = [3.0 * np.sin(2 * np.pi * (k + 1) * ph / 100.0) + rng.normal(0, 1 / w)
+              for k in range(3)]
+        gap = ys[2].copy()
+        gap[7] = np.nan
+        monkeypatch.setattr(cf, "_periodic_smoother", counting)
+        made.clear()
+        many = cf.fit_periodic_splines(ph, [*ys, gap], w, 100.0, smoothing)
+        monkeypatch.undo()
+        assert len(made) == 2  # the three full sets share one; the gapped set its own
+        for y, f in zip([*ys, gap], many, strict=True):
+            g = cf.fit_periodic_spline(ph, y, w, 100.0, smoothing)
+            assert (f.lam, f.n_knots, f.chi2, f.dof) == (g.lam, g.n_knots, g.chi2, g.dof)
+            for name in ("coef_cov", "phase", "value_err"):
+                np.testing.assert_array_equal(getattr(f, name), getattr(g, name))
+            np.testing.assert_array_equal(f.spline.c, g.spline.c)
+            np.testing.assert_array_equal(f.table(1.0)[1], g.table(1.0)[1])
+
+
+def _step_written_out(cal, st, max_tau_shift, max_break_shift_c, shifts):
+    """`apply_step`'s rule for one resample, written out axis by axis."""
+    law = fv.law_parameters(cal).copy()
+    d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
+    for j in range(3):
+        da, db, dc, dstep, dd0 = st[fv.PER_AXIS * j:fv.PER_AXIS * (j + 1)]
+        c = law[j, 2]
+        law[j, 0] += da
+        law[j, 1] += db
+        d0[j] += dd0
+        if shifts[j] != 0.0:  # moved: the slope change fitted at the shifted break
+            law[j, 2] = st[3 * fv.PER_AXIS + j * fv.N_SHIFTS
+                           + fv.BREAK_SHIFTS_C.index(float(shifts[j]))]
+            law[j, 3] += shifts[j]
+        else:  # kept: the linearised break step -(step on [T > T_m]) / c, clipped
+            law[j, 2] += dc
+            law[j, 3] += float(np.clip(-dstep / c if c != 0 else 0.0,
+                                       -max_break_shift_c, max_break_shift_c))
+    rel = cal.constants["relaxation"]
+    tau = float(rel["tau_s"])
+    return (law, d0, tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau)),
+            float(rel["delay_s"]) + float(st[-1]))
+
+
+def test_resample_steps_applied_at_once_equal_one_at_a_time():
+    # every resample's step applied in one call (`apply_steps`, h-serial) against the
+    # rule one resample at a time: steps of three sizes (the clips bind for the large
+    # ones), every break shift and none, the clipped and the unclipped ranges
+    rng = np.random.default_rng(77)
+    cal = load_calibration(str(START))
+    n = 300
+    steps = rng.normal(0, 1, (n, fv.N_PARAMETERS)) * rng.choice([0.01, 1.0, 300.0],
+                                                                (n, fv.N_PARAMETERS))
+    shifts = rng.choice([0.0, *fv.BREAK_SHIFTS_C], (n, 3))
+    for limits in ((0.3, 10.0), (np.inf, np.inf)):
+        law, d0, tau, dt = fv.apply_steps(cal, steps, *limits, break_shifts=shifts)
+        assert law.shape == (n, 3, 4) and d0.shape == (n, 3) and tau.shape == dt.shape == (n,)
+        for r in range(n):
+            want = _step_written_out(cal, steps[r], *limits, shifts[r])
+            np.testing.assert_array_equal(law[r], want[0])
+            np.testing.assert_array_equal(d0[r], want[1])
+            assert (tau[r], dt[r]) == want[2:]
+            one = fv.apply_step(cal, steps[r], *limits, break_shift=shifts[r])
+            assert all(np.array_equal(x, y) for x, y in zip(one, want, strict=True))
+
+
+def test_resamples_in_blocks_equal_the_whole_stack():
+    # the bootstrap's resamples solved in blocks of rows (`fit_days` on Dask maps them
+    # onto the workers, `solve_variance(map_rows=...)`) against the whole stack at once:
+    # every row chooses and solves on its own, so the blocks must give the same choices
+    # and steps, bit for bit, for any split (one row per block included)
+    rng = np.random.default_rng(4711)
+    p = fv.N_PARAMETERS
+    n = 90
+    x = rng.standard_normal((n, 2 * p, p)) * rng.uniform(0.1, 3.0, p)
+    a = np.einsum("rki,rkj->rij", x, x)
+    v = rng.standard_normal((n, p)) * 5.0
+    yy = np.einsum("ri,rij,rj->r", v, np.linalg.inv(a), v) + rng.uniform(0.1, 10.0, n)
+    law = np.column_stack([rng.normal(0, 1, 3), rng.normal(0, 1, 3),
+                           rng.normal(0, 0.3, 3), rng.uniform(-10, 30, 3)])
+    held = np.zeros((n, p))
+    held[:, 4] = rng.normal(0.0, 0.01, n)
+    for fit_delay, with_law in ((True, True), (False, True), (True, False)):
+        base_free = np.ones(p, dtype=bool)
+        base_free[-1] = fit_delay
+        base_free[4] = False
+        args = (base_free, law if with_law else None, (-15.0, 35.0))
+        whole = fv.resample_fits(a, v, yy, held, *args)
+        assert (whole[0] >= 0).any() == with_law
+        for blocks in (2, 7, n):
+            parts = [fv.resample_fits(a[c], v[c], yy[c], held[c], *args)
+                     for c in np.array_split(np.arange(n), blocks)]
+            np.testing.assert_array_equal(np.concatenate([c for c, _ in parts]), whole[0])
+            np.testing.assert_array_equal(np.concatenate([b for _, b in parts]), whole[1])

@@ -50,6 +50,7 @@ from fluxcal.calibration.constrained_fits import (
     TwoSegmentFit,
     fit_line_fixed_intercept,
     fit_periodic_spline,
+    fit_periodic_splines,
     fit_relaxation,
     fit_two_segment,
 )
@@ -613,13 +614,18 @@ def _fit_waveforms(
         info_without = np.stack([unmixing_variance(h) for h in loo]) if loo else None
     own = np.array([[w.count.sum() for w in h] for h in stats.waveform_folds], dtype=float)
 
-    def spline(ph, col, sup, b, j):
+    def splines(ph, col, sup, b):
+        # the three axes of a column share its phases and weights: one decomposition
+        # (`fit_periodic_splines`, the same fits as one at a time; h-serial)
         ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
         if ok.sum() < MIN_PHASE_BINS:
-            return None
-        fit = fit_periodic_spline(ph[ok], col[ok, b, j], np.sqrt(sup[ok, b]), 100.0)
-        values = fit.table(1.0)[1]
-        return fit, values - values[:-1].mean()
+            return [None] * 3
+        out = []
+        for fit in fit_periodic_splines(ph[ok], [col[ok, b, j] for j in range(3)],
+                                        np.sqrt(sup[ok, b]), 100.0):
+            values = fit.table(1.0)[1]
+            out.append((fit, values - values[:-1].mean()))
+        return out
 
     def smoothing_bias(fit, ph, col, sup, b):
         # the spline's own smoothing applied to the fitted curve: (S - I) f_hat, the
@@ -631,14 +637,17 @@ def _fit_waveforms(
         return float(np.sqrt(np.mean((again(ph[ok]) - f_hat) ** 2)))
 
     for b in range(nb):
+        got_b = splines(phase, columns, support, b)
+        refits_b = ([splines(*h, b) for h in without]
+                    if errors and got_b[0] is not None else [])
         for j in range(3):
-            got = spline(phase, columns, support, b, j)
+            got = got_b[j]
             if got is None:
                 continue
             fits[j][b], table[j, :, b] = got
             if not errors:
                 continue
-            refits = [spline(*h, b, j) for h in without]
+            refits = [r[j] for r in refits_b]
             err = float("nan")
             if len(refits) >= 2 and all(r is not None for r in refits):
                 scale = jackknife_scale(own[:, b], info[:, b], info_without[:, :, b])
@@ -1247,6 +1256,7 @@ def fit_variance_calibration(
     start: MessengerCalibration | None = None,
     hold_upper: tuple[str, ...] = (),
     waveform_errors: bool = True,
+    resample_map: Mapping[str, Any] | None = None,
 ) -> FitResult:
     """One Gauss-Newton step of the variance estimator (`fit_variance`), and the waveforms.
 
@@ -1284,6 +1294,10 @@ def fit_variance_calibration(
     waveform_errors : bool
         State the waveform columns' errors (`_fit_waveforms`); False leaves
         ``waveform_error`` None (`fit_days`'s passes: entry 33).
+    resample_map : mapping, optional
+        ``map_rows`` and ``n_blocks`` of `fit_variance.solve_variance`: the bootstrap's
+        resamples solved in blocks elsewhere (`fit_days` on Dask: on the workers), the
+        same numbers; None: here.
 
     Returns
     -------
@@ -1335,7 +1349,7 @@ def fit_variance_calibration(
         columns[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     try:
         sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                                law=now, held=columns)
+                                law=now, held=columns, **(resample_map or {}))
     except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
         if cause:
             raise too_little(str(exc)) from None
@@ -1343,13 +1357,10 @@ def fit_variance_calibration(
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
-    boots = [fv.apply_step(base, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
-                           break_shift=s) for b, s in zip(sol.boot, sol.boot_shift, strict=True)]
-    b_law = np.stack([x[0] for x in boots])
+    b_law, b_d0, b_tau, b_dt = fv.apply_steps(base, sol.boot, max_tau_shift=np.inf,
+                                              max_break_shift_c=np.inf,
+                                              break_shifts=sol.boot_shift)
     b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 27)
-    b_d0 = np.stack([x[1] for x in boots])
-    b_tau = np.array([x[2] for x in boots])
-    b_dt = np.array([x[3] for x in boots])
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
     # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
     # (entry 13), in the tables' parameters (each resample has its own break choice);
@@ -1365,7 +1376,8 @@ def fit_variance_calibration(
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
                                         max_compressive_share=max_compressive_share,
                                         start=start, hold_upper=(*hold_upper, *loose),
-                                        waveform_errors=waveform_errors)
+                                        waveform_errors=waveform_errors,
+                                        resample_map=resample_map)
     w = sol.widening
     drawn, drawn_law = b_d0.copy(), b_law.copy()
     b_law = law + w * (b_law - b_law.mean(axis=0))
@@ -1388,7 +1400,8 @@ def fit_variance_calibration(
                                         n_bootstrap=n_bootstrap, hold_d0=hold_d0,
                                         max_compressive_share=max_compressive_share,
                                         start=start, hold_upper=hold_upper,
-                                        waveform_errors=waveform_errors)
+                                        waveform_errors=waveform_errors,
+                                        resample_map=resample_map)
     rel = base.constants["relaxation"]
     if not fit_delay:
         dt, dt_err = float(rel["delay_s"]), 0.0
@@ -1741,6 +1754,7 @@ def fit_days(
     history: list[dict[str, Any]] = []
     cal = base
     result: FitResult | None = None
+    resample_map: dict[str, Any] | None = None  # on Dask: the resamples on the workers
 
     def run(mapper: Callable[[MessengerCalibration, bool, int], list[Any]]) -> FitResult:
         nonlocal cal, result
@@ -1761,7 +1775,8 @@ def fit_days(
                 result = fit_variance_calibration(
                     stats, vstats, cal, fit_delay=fit_delay, hold_d0=hold_d0,
                     max_compressive_share=max_compressive_share, start=base,
-                    hold_upper=held_upper, waveform_errors=False)
+                    hold_upper=held_upper, waveform_errors=False,
+                    resample_map=resample_map)
                 held_upper = tuple(a for a in AXES if a in result.held_upper)
             else:
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
@@ -1878,6 +1893,13 @@ def fit_days(
                                                  "gathered": time.perf_counter()}})
                 return [out]
 
+            def map_rows(f: Callable, args: list[tuple]) -> list[Any]:
+                # the bootstrap's blocks of resamples on the workers, idle while the
+                # client fits (issue 34, item 7; the same numbers, h-serial)
+                return client.gather([client.submit(f, *a, pure=False) for a in args])
+
+            resample_map = {"map_rows": map_rows,
+                            "n_blocks": max(1, len(client.scheduler_info()["workers"]))}
             return run(distributed)
     finally:
         if cluster is not None:

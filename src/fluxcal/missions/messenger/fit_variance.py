@@ -46,7 +46,7 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -76,8 +76,10 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
            "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
-           "apply_step", "choose_breaks", "d0_field_balance", "law_values", "offset_moments",
-           "quantisation", "reduce_variance", "solve_variance", "widen_d0_along_field"]
+           "apply_step", "apply_steps", "choose_breaks", "d0_field_balance", "law_values",
+           "offset_moments", "quantisation", "reduce_variance", "resample_fits",
+           "solve_variance",
+           "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
@@ -577,22 +579,35 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
     held = np.broadcast_to(np.zeros(N_PARAMETERS) if fixed is None else fixed,
                            (n, N_PARAMETERS))
     choice = np.full((n, 3), -1, dtype=np.int64)
+    # the other axes' choices when each axis was last chosen: an axis whose others have
+    # not moved since would try the same layouts again and choose the same shift, so
+    # those rows are not solved again (a later sweep then costs only the rows that
+    # moved; the same numbers: every row is solved on its own, h-serial)
+    seen = [np.full((n, 3), -2, dtype=np.int64) for _ in range(3)]
     lo, hi = t_range
     for _ in range(sweeps):
         for j in range(3):
-            best = choice[:, j].copy()
-            best_r = np.full(n, np.inf)
+            others = np.arange(3) != j
+            rows = np.flatnonzero(np.any(choice[:, others] != seen[j][:, others], axis=1))
+            seen[j] = choice.copy()
+            if rows.size == 0:
+                continue
+            best = choice[rows, j].copy()
+            best_r = np.full(rows.size, np.inf)
             for k in (-1, *range(N_SHIFTS)):
                 if k >= 0 and not (base_free[j * PER_AXIS + 3]
                                    and lo <= law[j, 3] + BREAK_SHIFTS_C[k] <= hi):
                     continue  # outside the fitted range, or the break held
-                trial = choice.copy()
+                trial = choice[rows].copy()
                 trial[:, j] = k
                 if stacked:  # every resample's own layout, one batched solve (item 7)
                     free, fx = _layout_rows(trial, base_free, law[:, 2])
                     if k == -1:  # the break kept: exact, without the linearised step
                         free[:, j * PER_AXIS + 3] = False
-                    r = _residual(a_s, v_s, yy_s, _fit_rows(a_s, v_s, free, fx + held))
+                    every = rows.size == n  # all rows: no copy of the stack
+                    a_k, v_k = (a_s, v_s) if every else (a_s[rows], v_s[rows])
+                    r = _residual(a_k, v_k, yy_s if every else yy_s[rows],
+                                  _fit_rows(a_k, v_k, free, fx + held[rows]))
                 else:  # the single system: least squares as before (rank-safe)
                     free, fx = _layout(tuple(int(c) for c in trial[0]), base_free,
                                        law[:, 2])
@@ -603,8 +618,27 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
                 better = r < best_r
                 best[better] = k
                 best_r[better] = r[better]
-            choice[:, j] = best
+            choice[rows, j] = best
     return choice if stacked else tuple(int(c) for c in choice[0])
+
+
+def resample_fits(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np.ndarray,
+                  base_free: np.ndarray, law: np.ndarray | None,
+                  data_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Return the break choices (n, 3) and the fitted steps (n, p) of resamples.
+
+    Each row of the stacked normal equations chooses its own breaks (`choose_breaks`;
+    none tried without ``law``) and is solved with them (`_fit_rows`), on its own: a
+    block of rows gives the numbers those rows get in the whole stack (`solve_variance`).
+    """
+    n = a_r.shape[0]
+    slope = law[:, 2] if law is not None else np.zeros(3)
+    if law is not None:
+        choice = choose_breaks(a_r, v_r, yy_r, base_free, law, data_range, fixed=held_r)
+    else:
+        choice = np.full((n, 3), -1, dtype=np.int64)
+    free_r, fixed_r = _layout_rows(choice, base_free, slope)
+    return choice, _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
 
 
 def _shifts(choice: np.ndarray) -> np.ndarray:
@@ -639,7 +673,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    law: np.ndarray | None = None,
                    held_step: np.ndarray | None = None,
                    held_width: np.ndarray | None = None,
-                   held: Mapping[int, tuple[float, float]] | None = None
+                   held: Mapping[int, tuple[float, float]] | None = None,
+                   map_rows: Callable[[Callable, list[tuple]], list] | None = None,
+                   n_blocks: int = 1,
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -675,6 +711,14 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         drawing it from a normal distribution of ``width``).  An axis whose break
         column (``-c dT_m``) is held keeps its break: no shift is tried for it
         (`fit.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
+    map_rows : callable, optional
+        ``map_rows(resample_fits, [args, ...])`` -> the results in order: the resamples'
+        break choices and fits (`resample_fits`) in ``n_blocks`` blocks of rows, e.g.
+        on the Dask workers, idle while the client fits (`fit.fit_days`); the rows are
+        independent, so the numbers are those of one block (issue 34, item 7).  None:
+        here, in one block.
+    n_blocks : int
+        Blocks of resamples given to ``map_rows``.
 
     Returns
     -------
@@ -746,13 +790,14 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         cols = sorted(columns)
         draws = rng.standard_normal((n_bootstrap, len(cols)))
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
-    if law is not None:
-        boot_choice = choose_breaks(a_r, v_r, yy_r, base_free, law, data_range,
-                                     fixed=held_r)
-    else:
-        boot_choice = np.full((n_bootstrap, 3), -1, dtype=np.int64)
-    free_r, fixed_r = _layout_rows(boot_choice, base_free, slope)
-    boot = _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
+    if map_rows is None:
+        boot_choice, boot = resample_fits(a_r, v_r, yy_r, held_r, base_free, law, data_range)
+    else:  # blocks of resamples elsewhere (the rows are independent: the same numbers)
+        cuts = np.array_split(np.arange(n_bootstrap), max(1, min(n_blocks, n_bootstrap)))
+        parts = map_rows(resample_fits, [(a_r[c], v_r[c], yy_r[c], held_r[c], base_free,
+                                          law, data_range) for c in cuts if c.size])
+        boot_choice = np.concatenate([c for c, _ in parts])
+        boot = np.concatenate([b for _, b in parts])
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),
@@ -772,28 +817,47 @@ def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float
     shifted break with the slope change fitted there; tau by at most ``max_tau_shift``
     of itself (the linearisation's range).
     """
-    law = law_parameters(cal).copy()
-    d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
-    st = np.asarray(step, dtype=float).reshape(-1)
-    shifts = np.zeros(3) if break_shift is None else np.asarray(break_shift, dtype=float)
+    law, d0, tau, dt = apply_steps(
+        cal, np.asarray(step, dtype=float).reshape(1, -1), max_tau_shift, max_break_shift_c,
+        None if break_shift is None else np.asarray(break_shift, dtype=float).reshape(1, 3))
+    return law[0], d0[0], float(tau[0]), float(dt[0])
+
+
+def apply_steps(cal: MessengerCalibration, steps: np.ndarray, max_tau_shift: float = 0.3,
+                max_break_shift_c: float = 10.0, break_shifts: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return `apply_step` of every row of ``steps`` (n, `N_PARAMETERS`), stacked.
+
+    The law (n, 3, 4), D0 (n, 3), tau (n,) and dt (n,); ``break_shifts`` (n, 3): each
+    row's break shifts (default none).  The same arithmetic element by element as one
+    row at a time (the bootstrap's resamples at once, instead of a Python call per
+    resample; issue 34, item 7).
+    """
+    law0 = law_parameters(cal)
+    st = np.asarray(steps, dtype=float)
+    n = st.shape[0]
+    law = np.broadcast_to(law0, (n, 3, 4)).copy()
+    d0 = np.broadcast_to(np.asarray(cal.duty_cycle_d0, dtype=float), (n, 3)).copy()
+    shifts = np.zeros((n, 3)) if break_shifts is None else np.asarray(break_shifts,
+                                                                       dtype=float)
     for j in range(3):
-        da, db, dc, dstep, dd0 = st[PER_AXIS * j:PER_AXIS * (j + 1)]
-        c = law[j, 2]
-        law[j, 0] += da
-        law[j, 1] += db
-        d0[j] += dd0
-        if shifts[j] != 0.0:
-            k = BREAK_SHIFTS_C.index(float(shifts[j]))
-            law[j, 2] = st[_shift_column(j, k)]
-            law[j, 3] += shifts[j]
-            continue
-        dtm = -dstep / c if c != 0 else 0.0
-        law[j, 2] += dc
-        law[j, 3] += float(np.clip(dtm, -max_break_shift_c, max_break_shift_c))
+        da, db, dc, dstep, dd0 = st[:, PER_AXIS * j:PER_AXIS * (j + 1)].T
+        c = law0[j, 2]
+        law[:, j, 0] += da
+        law[:, j, 1] += db
+        d0[:, j] += dd0
+        moved = np.flatnonzero(shifts[:, j] != 0.0)
+        kept = np.flatnonzero(shifts[:, j] == 0.0)
+        k = np.array([BREAK_SHIFTS_C.index(float(x)) for x in shifts[moved, j]], dtype=int)
+        law[moved, j, 2] = st[moved, _shift_column(j, k)]
+        law[moved, j, 3] += shifts[moved, j]
+        dtm = -dstep[kept] / c if c != 0 else np.zeros(kept.size)
+        law[kept, j, 2] += dc[kept]
+        law[kept, j, 3] += np.clip(dtm, -max_break_shift_c, max_break_shift_c)
     rel = cal.constants["relaxation"]
     tau = float(rel["tau_s"])
-    tau_new = tau + float(np.clip(st[-2], -max_tau_shift * tau, max_tau_shift * tau))
-    dt_new = float(rel["delay_s"]) + float(st[-1])
+    tau_new = tau + np.clip(st[:, -2], -max_tau_shift * tau, max_tau_shift * tau)
+    dt_new = float(rel["delay_s"]) + st[:, -1]
     return law, d0, tau_new, dt_new
 
 
