@@ -26,7 +26,7 @@ Issue 34's verification (20 realisations per world, 16 days; a 16-core machine):
 breaks' pulls test a spread of truths (``_hard_worlds.drawn_law``); ``--summarise FOLDER
 --estimators`` compares spread estimators of the stated errors (standard deviation, half
 the 15.9-84.1 percentile width, 1.4826 MAD, a mixture that states a rare break jump
-apart) by the pulls each would give on the saved fits' own resamples (entry 3x-pulls).  The
+apart) by the pulls each would give on the saved fits' own resamples (entry 39).  The
 summary gives per parameter the pulls' spread, largest size and count beyond 3 (issue 34:
 spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a goal.
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
@@ -506,7 +506,7 @@ def saved_rows(folder: Path) -> list[dict]:
     return rows
 
 
-# --- spread estimators of the stated errors (docs/decisions/messenger_fit.md 3x-pulls) ------
+# --- spread estimators of the stated errors (docs/decisions/messenger_fit.md 39) ------
 
 #: The normal distribution's tail beyond +1 sigma: a discrete break jump taken by fewer of
 #: the resamples than this lies outside their central 68 % (`spread_mixture`).
@@ -557,7 +557,7 @@ def moved_resamples(res) -> np.ndarray:
     """Per resample and axis whether its break choice differs from the solution's, (n, 3).
 
     From the fit's stored ``bootstrap["break_shift"]``; a fit saved before that was kept
-    (entry 3x-pulls): the last pass's bootstrap solved again on its normal equations at
+    (entry 39): the last pass's bootstrap solved again on its normal equations at
     the fitted tables (the same resamples, seed 0; the linearisation point moved by the
     last step only, so a resample on the edge of two choices may choose otherwise).
     """
@@ -615,7 +615,7 @@ def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     The last pass's normal equations at the fitted tables, grouped into the bootstrap's
     units (`fit_variance.solve_variance`): ``A^-1 (sum_u g_u g_u^T) A^-1 n / (n - p)``,
     ``g_u`` each unit's score at the solution, the breaks kept; a held column's width
-    propagated through ``-A_ff^-1 A_fh``.  The fifth candidate of entry 3x-pulls: the
+    propagated through ``-A_ff^-1 A_fh``.  The fifth candidate of entry 39: the
     pairs bootstrap without its resampling of the design and its break re-choices.
     Returns ``(tm_err (3,), law_err (len(LAW_T), 3))``.
     """
@@ -675,7 +675,7 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
 
 def estimator_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
-    of `SPREADS` on the saved fits of ``folder`` (entry 3x-pulls)."""
+    of `SPREADS` on the saved fits of ``folder`` (entry 39)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     per = {name: [estimator_row(res, true, f) for res, true in fits]
            for name, f in SPREADS.items()}

@@ -19,7 +19,7 @@ the truth's rms inside T_RANGE and D_RANGE against the stated total.
 ``--saved``: the rule on the unseen days of `messenger_fit_pulls.py --unseen --save`
 folders whose rows carry the unseen day's own prediction (``day_prediction``; stop 38
 on): the stated numbers from the saved fit, the day's part from the row (3 decimals).
-docs/decisions/messenger_fit.md entry 3x-warn, messenger_fit_verification.md h-warn.
+docs/decisions/messenger_fit.md entry 36, messenger_fit_verification.md section 29.
 """
 
 from __future__ import annotations

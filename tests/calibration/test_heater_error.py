@@ -1,6 +1,6 @@
 """When a day's own heater-waveform error is worth a warning (`heater_error.exceeds_stated`).
 
-The rule (docs/decisions/messenger_fit.md entry 3x-warn): a day's own total, the stated
+The rule (docs/decisions/messenger_fit.md entry 36): a day's own total, the stated
 total with its waveform part replaced by the day's, warns when it exceeds the goal or
 exceeds the stated total by more than the stated part's own scatter, ``W_s / sqrt(2 (K -
 1))`` for a delete-a-fold jackknife over ``K`` folds.  Expected values: the closed form

@@ -13,7 +13,7 @@
 2. The bootstrap's resamples, each with its own break choice, are solved in batches
    (`fit_variance._fit_rows`) instead of one call per distinct choice: against the
    per-choice `fit_variance._fit` on random systems, bit for bit.
-3. (h-serial) `fit_variance.choose_breaks` solves, in a later sweep, only the rows
+3. (entry 40) `fit_variance.choose_breaks` solves, in a later sweep, only the rows
    whose other axes' choices moved since that axis was last chosen: against the rule
    written out here (every row, every sweep, every trial), bit for bit, and with fewer
    rows solved.  The three axes of a waveform column share one spline decomposition
@@ -279,7 +279,7 @@ def _step_written_out(cal, st, max_tau_shift, max_break_shift_c, shifts):
 
 
 def test_resample_steps_applied_at_once_equal_one_at_a_time():
-    # every resample's step applied in one call (`apply_steps`, h-serial) against the
+    # every resample's step applied in one call (`apply_steps`, entry 40) against the
     # rule one resample at a time: steps of three sizes (the clips bind for the large
     # ones), every break shift and none, the clipped and the unclipped ranges
     rng = np.random.default_rng(77)

@@ -10,7 +10,7 @@ the regulated temperature, ``cT(-50 C) + D0 R`` (eq. 5a, 5b), against the truth'
 the unseen orbit recalibrated against the forward model's true field.  Slow (about 1.5
 min: 2 days at 1 Hz and one fit).  The waveform part's warning on the orbit is judged by
 the rule worked by hand on the orbit's own part, by brute force over the forward model's
-schedule (docs/decisions/messenger_fit.md entry 3x-warn).
+schedule (docs/decisions/messenger_fit.md entry 36).
 """
 
 from __future__ import annotations
@@ -105,7 +105,7 @@ def test_the_demo_states_its_regulated_temperature_and_the_unseen_orbit_meets_it
           "outside")
     assert np.all(rms <= res.merit["goal_nt"]), rms
     assert np.all(rms <= 1.5 * predicted), (rms, predicted)
-    # the waveform part's warning (entry 3x-warn): the orbit's own part by brute force
+    # the waveform part's warning (entry 36): the orbit's own part by brute force
     # over the forward model's schedule (its commanded duty cycles in sec. 6's 4-% bins,
     # the fine-range samples inside T_RANGE, the heater-on ones outside D_RANGE or in no
     # bin left out), the header's column errors; its total with the [fit] numbers the

@@ -6,11 +6,11 @@ stated prediction floors each column's share at the even share over D_RANGE (a d
 be recalibrated has another mix); the heater-signal headers state each column's error
 (``WAVEFORM_ERROR``) and the stated part (``WAVEFORM_PART_NT``), and calibrating a day
 whose own mix puts its predicted error above the goal, or above the stated one by more
-than the stated part's scatter, warns (entry 3x-warn).  Expected values: sums over the
+than the stated part's scatter, warns (entry 36).  Expected values: sums over the
 samples written out here (brute force), a Monte Carlo of column errors, sec. 6's 4-%
 bins worked by hand, the simulator's heater bits counted from the input file
 (`test_fit_duty_range._period_duty_samples`), and the rule worked by hand on that
-brute-force part.  docs/decisions/messenger_fit.md entries 32 and 3x-warn.
+brute-force part.  docs/decisions/messenger_fit.md entries 32 and 36.
 """
 
 from __future__ import annotations

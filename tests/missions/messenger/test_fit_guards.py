@@ -72,7 +72,7 @@ def test_d0_sign_change_and_error_are_refused(fitted):
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_d0_goal_sits_at_five_percent_of_the_stated_error(fitted, axis):
-    # issue 34's goal "D0 within 5 %" as the stated 1-sigma error (entry 3x-d0): the
+    # issue 34's goal "D0 within 5 %" as the stated 1-sigma error (entry 38): the
     # closed form |error / value| <= 0.05, on each axis, just inside and just outside;
     # the fixture's own errors lie inside (test_a_sound_fit_passes)
     res = fitted[1]
@@ -89,7 +89,7 @@ def test_d0_goal_sits_at_five_percent_of_the_stated_error(fitted, axis):
                                                   r"the 5% goal \(") as info:
             check_fit(case)
         if rel == rel:  # the stated error in % (one decimal), then the goal's entry
-            assert f"({100 * rel:.1f}%; entry 3x-d0)" in str(info.value)
+            assert f"({100 * rel:.1f}%; entry 38)" in str(info.value)
         # a held axis is not the fit's: its width is judged by the figure of merit
         check_fit(dataclasses.replace(case, held_d0=(name,)))
 
@@ -159,7 +159,7 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
         assert msg == ""
         return
     assert f"D0 z = {value:.4g} +- {error:.2g} counts/ppt" in msg
-    assert f"above the 5% goal ({expected}; entry 3x-d0); not written" in msg
+    assert f"above the 5% goal ({expected}; entry 38); not written" in msg
     # both holds it advises are options to type: this fit's value and error, then the
     # start table's value with the default width
     advised = re.findall(r"--hold-d0 (\S+?)[ :]", msg)

@@ -71,7 +71,7 @@ def test_cli_fit_writes_a_table_that_meets_its_stated_errors_or_refuses(calm, tm
                f"{run.days[0]}:{run.days[1]}", "--out", str(out)]
     rc = main(command)
     cap = capsys.readouterr()
-    # 2 days do not pin D0 z to its 5 % goal (entry 3x-d0: +- 10.6 % on seed 7000): the
+    # 2 days do not pin D0 z to its 5 % goal (entry 38: +- 10.6 % on seed 7000): the
     # refusal advises this fit's own value and error as a hold; followed exactly, the
     # table states D0 z held with that width and must meet its stated errors like any
     hold = re.search(r"D0 z = .* above the 5% goal.* --hold-d0 (z=\S+) \(this fit's", cap.err)

@@ -1,4 +1,4 @@
-"""Spread estimators of the stated errors and the drawn true law (issue 34, entry 3x-pulls).
+"""Spread estimators of the stated errors and the drawn true law (issue 34, entry 39).
 
 The estimators the pull harness compares (``benchmarks/messenger_fit_pulls.py
 --summarise DIR --estimators``) on drawn samples whose spreads are known in closed form:
@@ -88,7 +88,7 @@ def test_estimators_on_a_mixture_match_their_closed_forms(bench, p, jump, sign):
 
 
 def test_a_rare_jump_sets_the_standard_deviation_not_the_robust_spreads(bench):
-    # the late-peak world's case (entry 3x-pulls): 5 % of the resamples 8 sigma away
+    # the late-peak world's case (entry 39): 5 % of the resamples 8 sigma away
     # double the standard deviation (2.01) while the percentile and MAD spreads stay
     # within 10 % of the core's 1
     x, _ = _mixture(0.05, 8.0)

@@ -216,7 +216,7 @@ def test_edge_column_seen_through_its_neighbour_is_not_overstated():
     # error (mean stated^2 / true^2 at least 1; stated >= true in at least 70 % of the
     # 180 column draws) and not be grossly conservative (the ratio at most 3, stated
     # rms at most 1.7x; 2.0 in 20 draws; 2.1 in these 60 draws, covering 99 %, on main
-    # 5fb8022; 1.52, covering 93 %, with entry 3x-calm2's scale for the 40-% column's
+    # 5fb8022; 1.52, covering 93 %, with entry 37's scale for the 40-% column's
     # 2.4 effective folds: its fold 0 is the noisy one and the scale assumes equal
     # noise, yet it still covers).  The folds' spread (entry 29) gave 7.9
     # here, 2.8x in rms (20 draws, checked by hand on main f6aae58, not kept): fold
@@ -309,7 +309,7 @@ def test_a_fold_without_the_columns_own_samples_changes_nothing():
     # two extra groups pull the refits' mean towards the pooled fit), 4 % allowed.
     # (K - 1) / K states it 1.22x larger (sqrt(0.75 / 0.5); 1.21-1.25 measured on main
     # 5fb8022) with the filled folds: the calm 2-day fits' columns seen in few folds
-    # (entry 3x-calm2).
+    # (entry 37).
     base = load_calibration(np.datetime64(START))
     truth = {4: _known(PHASE), 0: 0.5 * _known((PHASE + 20.0) % 100.0)}
     alone = [(0, 28.0, 25, 3.0), (1, 28.0, 25, 3.0)]

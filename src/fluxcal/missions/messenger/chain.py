@@ -367,7 +367,7 @@ def warn_waveform_part(ds: xr.Dataset, periods: HeaterPeriods,
     when, on some axis, that total exceeds the goal, or exceeds the stated total by
     more than the stated part's own scatter (`heater_error.part_scatter`, the columns'
     jackknife over `WAVEFORM_FOLDS` folds: 0.41 of the part); a day within both is what
-    the table states (docs/decisions/messenger_fit.md entries 32 and 3x-warn).  A table
+    the table states (docs/decisions/messenger_fit.md entries 32 and 36).  A table
     without ``[fit]`` numbers is judged with its waveform part as the whole total and
     no goal.  The one line gives the day's part, the stated part and its scatter, the
     day's total, the stated total and the goal (nT, x / y / z).

@@ -130,11 +130,11 @@ MAX_BREAK_ERROR_C = 10.0
 MAX_RELATIVE_ERROR = 0.3
 #: Goal for a fitted D0 (issue 34: "D0 and tau within 5 %"): `check_fit` refuses an axis
 #: whose stated relative error (1 sigma) exceeds it (docs/decisions/messenger_fit.md entry
-#: 3x-d0: the 16-day Mercury orbit states 1.8-3.7 % on z, the written hard-cruise tables
+#: 38: the 16-day Mercury orbit states 1.8-3.7 % on z, the written hard-cruise tables
 #: 12-16 %; 5 % on z is 0.009-0.014 nT over the fitted days, on x or y 0.10-0.13 nT).
 D0_ERROR_GOAL = 0.05
 #: The D0 goal binds an axis where its 5 % costs less than this share of the figure of
-#: merit's default goal (`d0_goal_cost_nt`; entry 3x-d0): z (0.009-0.014 nT) and not x, y
+#: merit's default goal (`d0_goal_cost_nt`; entry 38): z (0.009-0.014 nT) and not x, y
 #: (0.094-0.13 nT), whose stated errors the figure of merit itself holds near 5 %.
 D0_GOAL_BINDS_BELOW = 0.5
 #: Default width of a held D0, as a fraction of the held value (``--hold-d0 z`` without
@@ -211,7 +211,7 @@ class FitResult:
         (n,); every stated error and the law's band come from them; ``break_shift``
         (n, 3): each resample's own break shift (C, `fit_variance.BREAK_SHIFTS_C`, 0: the
         linearised step), kept so that spread estimators can be compared offline
-        (``benchmarks/messenger_fit_pulls.py --summarise DIR --estimators``, entry 3x-pulls).
+        (``benchmarks/messenger_fit_pulls.py --summarise DIR --estimators``, entry 39).
     break_shift : ndarray, shape (3,)
         The break shifts (C) the last pass took (0: the linearised step).
     convergence : dict
@@ -591,7 +591,7 @@ def _fit_waveforms(
     `fit_waveform_error.jackknife_error`), widened when the column's own samples lie in
     few folds (`few_folds_widening`; scaled by the information each fold gives the
     column where those are fewer than three, `fit_waveform_error.jackknife_scale`,
-    entry 3x-calm2), and the spline's smoothing bias added in
+    entry 37), and the spline's smoothing bias added in
     quadrature (the smoothing applied once more to the fitted curve, ``(S - I) f_hat``:
     common to the refits, so not in their spread); a column kept from ``base`` is given
     its own rms (its error unknown, entries 19 and 29), and a fitted column that some
@@ -616,7 +616,7 @@ def _fit_waveforms(
 
     def splines(ph, col, sup, b):
         # the three axes of a column share its phases and weights: one decomposition
-        # (`fit_periodic_splines`, the same fits as one at a time; h-serial)
+        # (`fit_periodic_splines`, the same fits as one at a time; entry 40)
         ok = np.isfinite(ph) & np.all(np.isfinite(col[:, b]), axis=1)
         if ok.sum() < MIN_PHASE_BINS:
             return [None] * 3
@@ -915,7 +915,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"(allowed: same sign, 1/{D0_RANGE_FACTOR:g}..{D0_RANGE_FACTOR:g}x); not "
                 f"written. Needs {what_d0}, or hold it with a stated width "
                 f"({_hold_d0_advice(a)})")
-        if binds[AXES.index(a)]:  # the 5 % goal (entry 3x-d0)
+        if binds[AXES.index(a)]:  # the 5 % goal (entry 38)
             cause = d0_goal_refusal(a, f.slope, f.slope_err, cost_nt=cost[AXES.index(a)])
             if cause:
                 raise FitRefusedError(cause)
@@ -941,7 +941,7 @@ def d0_goal_cost_nt(result: FitResult, goal: float = D0_ERROR_GOAL) -> np.ndarra
     eq. 8's fine matrix).  `check_fit` holds an axis to `D0_ERROR_GOAL` where this is below
     `D0_GOAL_BINDS_BELOW` of the figure of merit's default goal (z: 0.009-0.014 nT);
     where it is above (x, y: 0.094-0.134 nT) the figure of merit's D0 part alone holds the
-    stated error to ``5 % x goal / cost`` (entry 3x-d0).  NaN without the variance
+    stated error to ``5 % x goal / cost`` (entry 38).  NaN without the variance
     estimator's moments (the zero-mean estimator states no figure of merit: the goal
     then binds every axis).
 
@@ -965,7 +965,7 @@ def d0_goal_cost_nt(result: FitResult, goal: float = D0_ERROR_GOAL) -> np.ndarra
 
 def d0_goal_refusal(axis: str, value: float, error: float,
                     goal: float = D0_ERROR_GOAL, cost_nt: float = np.nan) -> str:
-    """Return why a fitted D0 misses its goal, else ``""`` (`check_fit`; entry 3x-d0).
+    """Return why a fitted D0 misses its goal, else ``""`` (`check_fit`; entry 38).
 
     A fitted D0 whose stated relative error ``error / |value|`` (1 sigma) exceeds ``goal``
     (`D0_ERROR_GOAL`, issue 34's "D0 within 5 %") is not written: the data do not pin
@@ -1000,7 +1000,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
            f"goal), or " if np.isfinite(error) and value != 0 else "")
     return (f"duty-cycle law (sec. 7, Table 3): fitted D0 {axis} = {value:.4g} +- "
             f"{error:.2g} counts/ppt, a relative error above the {goal:.0%} goal "
-            f"({rel:.1%}{size}; entry 3x-d0); not written. Needs more heater-regulated "
+            f"({rel:.1%}{size}; entry 38); not written. Needs more heater-regulated "
             f"samples over a wider range of duty cycles (more days: the error falls about "
             f"as 1/sqrt(days)), or hold it with a stated width: {own}"
             f"{_hold_d0_advice(axis)}")
@@ -1895,7 +1895,7 @@ def fit_days(
 
             def map_rows(f: Callable, args: list[tuple]) -> list[Any]:
                 # the bootstrap's blocks of resamples on the workers, idle while the
-                # client fits (issue 34, item 7; the same numbers, h-serial)
+                # client fits (issue 34, item 7; the same numbers, entry 40)
                 return client.gather([client.submit(f, *a, pure=False) for a in args])
 
             resample_map = {"map_rows": map_rows,

@@ -582,7 +582,7 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
     # the other axes' choices when each axis was last chosen: an axis whose others have
     # not moved since would try the same layouts again and choose the same shift, so
     # those rows are not solved again (a later sweep then costs only the rows that
-    # moved; the same numbers: every row is solved on its own, h-serial)
+    # moved; the same numbers: every row is solved on its own, entry 40)
     seen = [np.full((n, 3), -2, dtype=np.int64) for _ in range(3)]
     lo, hi = t_range
     for _ in range(sweeps):

@@ -21,7 +21,7 @@ neighbour's error into its own refits (docs/decisions/messenger_fit.md, entry 34
 A column whose own samples fill fewer than three effective folds (`effective_folds`)
 scales the jackknife by what each fold tells it (`jackknife_scale`): ``(K - 1) / K``
 counts a fold holding none of its samples as a whole group, 1.5x the variance for a
-column in two folds of four, on top of the few-folds widening (entry 3x-calm2).
+column in two folds of four, on top of the few-folds widening (entry 37).
 
 References
 ----------
@@ -113,7 +113,7 @@ def jackknife_scale(own: np.ndarray, variance: np.ndarray, without: np.ndarray
     column's own samples fill fewer than `FEW_FOLDS` effective folds: there
     `fit.few_folds_widening` already states the estimate's own scatter (Student t of
     fewer than two comparisons, >= 1.10x), and the conservative side of ``(K - 1) / K``
-    would count it a second time (entry 3x-calm2).  Elsewhere (None) the jackknife
+    would count it a second time (entry 37).  Elsewhere (None) the jackknife
     keeps it (entry 34).  ``V`` and the differences are averaged over the phases where
     every fit solves the column; a difference below zero (a pseudo-inverse artefact:
     taking samples away cannot determine a column better) counts as zero; ``c`` is at
