@@ -174,6 +174,21 @@ def _sweeps_written_out(a, v, yy, base_free, law, t_range, fixed, sweeps=2,
     return choice
 
 
+def _random_system(rng: np.random.Generator, n: int, p: int):
+    """``n`` random positive-definite normal-equation systems of ``p`` parameters.
+
+    Returns ``(a, v, yy, law)``: matrices (n, p, p), right-hand sides (n, p), sums of
+    squares above each system's minimum (n,), and a law (3, 4) with breaks in -10..30 C.
+    """
+    x = rng.standard_normal((n, 2 * p, p)) * rng.uniform(0.1, 3.0, p)
+    a = np.einsum("rki,rkj->rij", x, x)
+    v = rng.standard_normal((n, p)) * 5.0
+    yy = np.einsum("ri,rij,rj->r", v, np.linalg.inv(a), v) + rng.uniform(0.1, 10.0, n)
+    law = np.column_stack([rng.normal(0, 1, 3), rng.normal(0, 1, 3),
+                           rng.normal(0, 0.3, 3), rng.uniform(-10, 30, 3)])
+    return a, v, yy, law
+
+
 def test_later_sweeps_skip_unmoved_rows_and_choose_the_same_breaks(monkeypatch):
     # random normal equations whose residuals favour a shifted break on some axes of
     # some rows (so later sweeps have rows to redo and rows to skip); dt free and held,
@@ -191,12 +206,7 @@ def test_later_sweeps_skip_unmoved_rows_and_choose_the_same_breaks(monkeypatch):
 
     for case in range(6):
         n = int(rng.integers(40, 160))
-        x = rng.standard_normal((n, 2 * p, p)) * rng.uniform(0.1, 3.0, p)
-        a = np.einsum("rki,rkj->rij", x, x)
-        v = rng.standard_normal((n, p)) * 5.0
-        yy = np.einsum("ri,rij,rj->r", v, np.linalg.inv(a), v) + rng.uniform(0.1, 10.0, n)
-        law = np.column_stack([rng.normal(0, 1, 3), rng.normal(0, 1, 3),
-                               rng.normal(0, 0.3, 3), rng.uniform(-10, 30, 3)])
+        a, v, yy, law = _random_system(rng, n, p)
         base_free = np.ones(p, dtype=bool)
         base_free[-1] = case % 2 == 0
         base_free[fv.PER_AXIS + 3] = case % 3 != 0  # y's break held in some cases
@@ -308,12 +318,7 @@ def test_resamples_in_blocks_equal_the_whole_stack():
     rng = np.random.default_rng(4711)
     p = fv.N_PARAMETERS
     n = 90
-    x = rng.standard_normal((n, 2 * p, p)) * rng.uniform(0.1, 3.0, p)
-    a = np.einsum("rki,rkj->rij", x, x)
-    v = rng.standard_normal((n, p)) * 5.0
-    yy = np.einsum("ri,rij,rj->r", v, np.linalg.inv(a), v) + rng.uniform(0.1, 10.0, n)
-    law = np.column_stack([rng.normal(0, 1, 3), rng.normal(0, 1, 3),
-                           rng.normal(0, 0.3, 3), rng.uniform(-10, 30, 3)])
+    a, v, yy, law = _random_system(rng, n, p)
     held = np.zeros((n, p))
     held[:, 4] = rng.normal(0.0, 0.01, n)
     for fit_delay, with_law in ((True, True), (False, True), (True, False)):
