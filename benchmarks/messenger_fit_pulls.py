@@ -673,6 +673,50 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
     return row
 
 
+def replayed_errors(res, fixed_design: bool) -> dict:
+    """The stated errors of ``res`` replayed from its last pass's normal equations at the
+    fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
+    one (`fit_variance.fixed_design_resamples`), the resamples treated as
+    `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
+    the field): tau, D0 (3,), T_m (3,), the law at `LAW_T` (len(LAW_T), 3)."""
+    held = _held_columns(res)
+    sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
+                            law=fv.law_parameters(res.calibration), held=held,
+                            fixed_design=fixed_design)
+    law, d0, tau, _ = fv.apply_step(res.calibration, sol.step, break_shift=sol.break_shift)
+    b_law, b_d0, b_tau, _ = fv.apply_steps(res.calibration, sol.boot, max_tau_shift=np.inf,
+                                           max_break_shift_c=np.inf,
+                                           break_shifts=sol.boot_shift)
+    b_law[:, :, 3] += sol.boot_dither
+    w = sol.widening
+    w_law = np.full((3, 4), w)
+    for a in res.held_upper:  # a held slope change and break keep their draws
+        w_law["xyz".index(a), 2:] = 1.0
+    w_d0 = np.array([1.0 if a in res.held else w for a in "xyz"])
+    b_law = law + w_law * (b_law - b_law.mean(axis=0))
+    b_d0 = d0 + w_d0 * (b_d0 - b_d0.mean(axis=0))
+    direction, balance = fv.d0_field_balance(res.variance)
+    b_d0 = fv.widen_d0_along_field(b_d0, d0, np.asarray(res.calibration.matrices[0], float),
+                                   direction, balance,
+                                   np.array([a not in res.held for a in "xyz"]))[0]
+    return {"tau": w * np.std(b_tau), "d0": np.std(b_d0, axis=0),
+            "tm": np.std(b_law[:, :, 3], axis=0),
+            "law": np.std(fv.law_values(b_law, np.array(LAW_T)), axis=0)}
+
+
+def fixed_design_row(res, true) -> dict:
+    """`estimator_row` with every stated error scaled by the replayed fixed-design
+    bootstrap's over the replayed pairs bootstrap's (entry 3x-core): the same resample
+    counts, so the ratio is the design's part alone."""
+    row = estimator_row(res, true, spread_sd)
+    pairs, fixed = replayed_errors(res, False), replayed_errors(res, True)
+    row["tau_pull"] *= pairs["tau"] / fixed["tau"]
+    row["d0_pull"] = row["d0_pull"] * pairs["d0"] / fixed["d0"]
+    row["tm_pull"] = row["tm_pull"] * pairs["tm"] / fixed["tm"]
+    row["law_pull"] = row["law_pull"] * pairs["law"] / fixed["law"]
+    return row
+
+
 def estimator_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
     of `SPREADS` on the saved fits of ``folder`` (entry 39)."""
@@ -681,6 +725,7 @@ def estimator_summary(folder: Path) -> None:
            for name, f in SPREADS.items()}
     per["sandwich"] = [sandwich_row(res, true, False) for res, true in fits]
     per["sandwich+jumps"] = [sandwich_row(res, true, True) for res, true in fits]
+    per["fixed design"] = [fixed_design_row(res, true) for res, true in fits]
     jump = np.stack([r["jump_share"] for r in per["sd"]])
     print(f"{len(fits)} fits; resamples whose break moved from the solution's, per axis: "
           f"median {np.round(np.median(jump, axis=0), 3)}, max {np.round(jump.max(axis=0), 3)}")
