@@ -609,6 +609,112 @@ def estimator_row(res, true, spread) -> dict:
             "jump_share": moved.mean(axis=0)}
 
 
+def unit_scores(res) -> dict:
+    """The last pass's normal equations at the fitted tables, grouped into the bootstrap's
+    units (`fit_variance.solve_variance`), the breaks kept, the held columns at their
+    held steps: per unit ``a_u``, ``v_u``; ``total``; the solution ``theta``; the free
+    columns ``free`` / ``f``; each unit's score ``v_u - a_u theta`` on them (``score``);
+    ``inv`` (the free block of ``total``, inverted); ``n`` units, ``p`` free; ``held``
+    (column -> width)."""
+    now = fv.law_parameters(res.calibration)
+    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
+    base_free[-1] = res.delay_fitted
+    held_cols = _held_columns(res)
+    base_free[list(held_cols)] = False
+    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
+    for col, (step, _) in held_cols.items():
+        fixed[col] = step
+    a, v = res.variance.normal, res.variance.rhs
+    p = int(free.sum())
+    group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
+    n = int(group[-1]) + 1
+    a_u, v_u = np.zeros((n, *a.shape[1:])), np.zeros((n, v.shape[1]))
+    np.add.at(a_u, group, a)
+    np.add.at(v_u, group, v)
+    total = a_u.sum(axis=0)
+    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
+    f = np.flatnonzero(free)
+    return {"a_u": a_u, "v_u": v_u, "total": total, "theta": theta, "free": free,
+            "fixed": fixed, "f": f, "n": n, "p": p,
+            "score": (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f],
+            "inv": np.linalg.inv(total[np.ix_(f, f)]),
+            "held": {col: width for col, (_, width) in held_cols.items()}}
+
+
+def core_factors(res, true) -> dict:
+    """Per quantity (T_m and the law at `LAW_T`, per axis), the stated error split into
+    factors (entry 3x-core): ``jumps`` (the resamples' standard deviation over that of
+    those that kept the solution's break), ``w`` (``sqrt(n / (n - p))``), ``design`` (the
+    pairs bootstrap of the linear solve, breaks kept, over the same counts applied to the
+    units' scores with the whole normal matrix kept), ``cr0`` (the design-fixed cluster
+    sandwich, no widening), ``top3`` (the three largest units' share of it), ``lag1``
+    (adjacent units' correlation of it), and the fit's error ``err`` about the truth."""
+    u = unit_scores(res)
+    now = fv.law_parameters(res.calibration)
+    f, score, inv = u["f"], u["score"], u["inv"]
+    rng = np.random.default_rng(0)
+    picks = np.stack([np.bincount(rng.integers(0, u["n"], u["n"]), minlength=u["n"])
+                      for _ in range(200)]).astype(float)
+    pairs = fv._fit(np.einsum("rb,bij->rij", picks, u["a_u"]), picks @ u["v_u"],
+                    u["free"], u["fixed"])[:, f]
+    fixed = (picks - 1.0) @ score @ inv.T
+    moved = moved_resamples(res)
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    law_t = np.array(LAW_T)
+    err_tm = (np.asarray(res.calibration.breakpoint_temperature_c)
+              - (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1]))
+    err_law = _law(res.calibration.temperature_coefficients, law_t) - _law(tc, law_t)
+    b_law = res.bootstrap["law"]
+    out = {}
+    for j, a in enumerate("xyz"):
+        rows = [(f"T_m {a}", np.eye(4)[3] * -1.0 / now[j, 2], err_tm[j], b_law[:, j, 3])]
+        vals = fv.law_values(b_law, law_t)[:, :, j]
+        rows += [(f"law {a} {t:+g}", np.array([1.0, t, max(0.0, t - now[j, 3]),
+                                                float(t > now[j, 3])]), err_law[i, j],
+                  vals[:, i]) for i, t in enumerate(law_t)]
+        for name, g4, err, boot in rows:
+            g = np.zeros(fv.N_PARAMETERS)
+            g[j * fv.PER_AXIS:j * fv.PER_AXIS + 4] = g4
+            gf = g[f]
+            e_u = score @ inv @ gf
+            cr0 = float(np.sqrt(np.sum(e_u ** 2)))
+            keep = ~moved[:, j]
+            out[name] = {"err": float(err), "stated": float(np.std(boot)),
+                         "jumps": float(np.std(boot) / np.std(boot[keep]))
+                         if keep.sum() > 2 else np.nan,
+                         "w": float(np.sqrt(u["n"] / (u["n"] - u["p"]))),
+                         "design": float(np.std(pairs @ gf) / np.std(fixed @ gf)),
+                         "cr0": cr0,
+                         "top3": float(np.sort(e_u ** 2)[-3:].sum() / max(cr0 ** 2, 1e-300)),
+                         "lag1": float(np.sum(e_u[1:] * e_u[:-1]) / max(cr0 ** 2, 1e-300))}
+    return out
+
+
+def core_summary(folder: Path) -> None:
+    """Print `core_factors` per quantity over the fits of ``folder`` (medians; the rms
+    error about the truth; in C for T_m, nT for the law; entry 3x-core)."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    per = [(res, core_factors(res, true)) for res, true in fits]
+    print("| quantity | N | rms error | stated (median) | jumps | w | design | CR0 / rms |"
+          " top-3 share | lag-1 |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in per[0][1]:
+        unit = 1.0 if name.startswith("T_m") else NT_PER_COUNT
+        if name.startswith("T_m"):
+            sel = [o[name] for res, o in per if name[-1] not in res.held_upper]
+        else:
+            t = float(name.split()[-1])
+            sel = [o[name] for res, o in per if res.stated_ranges.contains(np.array([t]))[0]]
+        if len(sel) < 3:
+            continue
+        g = {k: np.array([d[k] for d in sel], dtype=float) for k in sel[0]}
+        rms = float(np.sqrt(np.mean(g["err"] ** 2)))
+        print(f"| {name} | {len(sel)} | {rms * unit:.4f} | {np.median(g['stated']) * unit:.4f} |"
+              f" {np.nanmedian(g['jumps']):.2f} | {np.median(g['w']):.3f} |"
+              f" {np.median(g['design']):.2f} | {np.median(g['cr0']) / rms:.2f} |"
+              f" {np.median(g['top3']):.2f} | {np.median(g['lag1']):+.2f} |")
+
+
 def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     """Design-fixed, linearised errors of T_m (C) and of the law at `LAW_T` (counts).
 
@@ -620,23 +726,9 @@ def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     Returns ``(tm_err (3,), law_err (len(LAW_T), 3))``.
     """
     now = fv.law_parameters(res.calibration)
-    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
-    base_free[-1] = res.delay_fitted
-    held = {col: width for col, (_, width) in _held_columns(res).items()}
-    base_free[list(held)] = False
-    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
-    a, v = res.variance.normal, res.variance.rhs
-    p = int(free.sum())
-    group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
-    n = int(group[-1]) + 1
-    a_u, v_u = np.zeros((n, *a.shape[1:])), np.zeros((n, v.shape[1]))
-    np.add.at(a_u, group, a)
-    np.add.at(v_u, group, v)
-    total = a_u.sum(axis=0)
-    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
-    f = np.flatnonzero(free)
-    score = (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f]
-    inv = np.linalg.inv(total[np.ix_(f, f)])
+    u = unit_scores(res)
+    held, f, inv, score, total = u["held"], u["f"], u["inv"], u["score"], u["total"]
+    n, p = u["n"], u["p"]
     cov = np.zeros((fv.N_PARAMETERS, fv.N_PARAMETERS))
     cov[np.ix_(f, f)] = inv @ (score.T @ score) @ inv * n / (n - p)
     if held:
@@ -784,12 +876,18 @@ def main() -> None:
     ap.add_argument("--estimators", action="store_true",
                     help="With --summarise: the pulls under each spread estimator of the "
                          "stated errors (SPREADS) instead of the summary.")
+    ap.add_argument("--core", action="store_true",
+                    help="With --summarise: the stated errors of T_m and the law split into "
+                         "factors (jumps, widening, design, sandwich; entry 3x-core).")
     args = ap.parse_args()
     if args.summarise is not None:
         if not any(args.summarise.glob("fit_*.pkl")):
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
         if args.estimators:
             estimator_summary(args.summarise)
+            return
+        if args.core:
+            core_summary(args.summarise)
             return
         summarise(saved_rows(args.summarise), args.markdown)
         return
