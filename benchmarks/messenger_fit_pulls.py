@@ -678,12 +678,14 @@ def core_factors(res, true) -> dict:
             gf = g[f]
             e_u = score @ inv @ gf
             cr0 = float(np.sqrt(np.sum(e_u ** 2)))
+            s_fixed = float(np.std(fixed @ gf))  # 0 for a held break: no factor
             keep = ~moved[:, j]
             out[name] = {"err": float(err), "stated": float(np.std(boot)),
                          "jumps": float(np.std(boot) / np.std(boot[keep]))
                          if keep.sum() > 2 else np.nan,
                          "w": float(np.sqrt(u["n"] / (u["n"] - u["p"]))),
-                         "design": float(np.std(pairs @ gf) / np.std(fixed @ gf)),
+                         "design": float(np.std(pairs @ gf)) / s_fixed if s_fixed > 0
+                         else np.nan,
                          "cr0": cr0,
                          "top3": float(np.sort(e_u ** 2)[-3:].sum() / max(cr0 ** 2, 1e-300)),
                          "lag1": float(np.sum(e_u[1:] * e_u[:-1]) / max(cr0 ** 2, 1e-300))}
