@@ -609,6 +609,114 @@ def estimator_row(res, true, spread) -> dict:
             "jump_share": moved.mean(axis=0)}
 
 
+def unit_scores(res) -> dict:
+    """The last pass's normal equations at the fitted tables, grouped into the bootstrap's
+    units (`fit_variance.solve_variance`), the breaks kept, the held columns at their
+    held steps: per unit ``a_u``, ``v_u``; ``total``; the solution ``theta``; the free
+    columns ``free`` / ``f``; each unit's score ``v_u - a_u theta`` on them (``score``);
+    ``inv`` (the free block of ``total``, inverted); ``n`` units, ``p`` free; ``held``
+    (column -> width)."""
+    now = fv.law_parameters(res.calibration)
+    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
+    base_free[-1] = res.delay_fitted
+    held_cols = _held_columns(res)
+    base_free[list(held_cols)] = False
+    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
+    for col, (step, _) in held_cols.items():
+        fixed[col] = step
+    a, v = res.variance.normal, res.variance.rhs
+    p = int(free.sum())
+    group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
+    n = int(group[-1]) + 1
+    a_u, v_u = np.zeros((n, *a.shape[1:])), np.zeros((n, v.shape[1]))
+    np.add.at(a_u, group, a)
+    np.add.at(v_u, group, v)
+    total = a_u.sum(axis=0)
+    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
+    f = np.flatnonzero(free)
+    return {"a_u": a_u, "v_u": v_u, "total": total, "theta": theta, "free": free,
+            "fixed": fixed, "f": f, "n": n, "p": p,
+            "score": (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f],
+            "inv": np.linalg.inv(total[np.ix_(f, f)]),
+            "held": {col: width for col, (_, width) in held_cols.items()}}
+
+
+def core_factors(res, true) -> dict:
+    """Per quantity (T_m and the law at `LAW_T`, per axis), the stated error split into
+    factors (entry 3x-core): ``jumps`` (the resamples' standard deviation over that of
+    those that kept the solution's break), ``w`` (``sqrt(n / (n - p))``), ``design`` (the
+    pairs bootstrap of the linear solve, breaks kept, over the same counts applied to the
+    units' scores with the whole normal matrix kept), ``cr0`` (the design-fixed cluster
+    sandwich, no widening), ``top3`` (the three largest units' share of it), ``lag1``
+    (adjacent units' correlation of it), and the fit's error ``err`` about the truth."""
+    u = unit_scores(res)
+    now = fv.law_parameters(res.calibration)
+    f, score, inv = u["f"], u["score"], u["inv"]
+    rng = np.random.default_rng(0)
+    picks = np.stack([np.bincount(rng.integers(0, u["n"], u["n"]), minlength=u["n"])
+                      for _ in range(200)]).astype(float)
+    pairs = fv._fit(np.einsum("rb,bij->rij", picks, u["a_u"]), picks @ u["v_u"],
+                    u["free"], u["fixed"])[:, f]
+    fixed = (picks - 1.0) @ score @ inv.T
+    moved = moved_resamples(res)
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    law_t = np.array(LAW_T)
+    err_tm = (np.asarray(res.calibration.breakpoint_temperature_c)
+              - (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1]))
+    err_law = _law(res.calibration.temperature_coefficients, law_t) - _law(tc, law_t)
+    b_law = res.bootstrap["law"]
+    out = {}
+    for j, a in enumerate("xyz"):
+        rows = [(f"T_m {a}", np.eye(4)[3] * -1.0 / now[j, 2], err_tm[j], b_law[:, j, 3])]
+        vals = fv.law_values(b_law, law_t)[:, :, j]
+        rows += [(f"law {a} {t:+g}", np.array([1.0, t, max(0.0, t - now[j, 3]),
+                                                float(t > now[j, 3])]), err_law[i, j],
+                  vals[:, i]) for i, t in enumerate(law_t)]
+        for name, g4, err, boot in rows:
+            g = np.zeros(fv.N_PARAMETERS)
+            g[j * fv.PER_AXIS:j * fv.PER_AXIS + 4] = g4
+            gf = g[f]
+            e_u = score @ inv @ gf
+            cr0 = float(np.sqrt(np.sum(e_u ** 2)))
+            s_fixed = float(np.std(fixed @ gf))  # 0 for a held break: no factor
+            keep = ~moved[:, j]
+            out[name] = {"err": float(err), "stated": float(np.std(boot)),
+                         "jumps": float(np.std(boot) / np.std(boot[keep]))
+                         if keep.sum() > 2 else np.nan,
+                         "w": float(np.sqrt(u["n"] / (u["n"] - u["p"]))),
+                         "design": float(np.std(pairs @ gf)) / s_fixed if s_fixed > 0
+                         else np.nan,
+                         "cr0": cr0,
+                         "top3": float(np.sort(e_u ** 2)[-3:].sum() / max(cr0 ** 2, 1e-300)),
+                         "lag1": float(np.sum(e_u[1:] * e_u[:-1]) / max(cr0 ** 2, 1e-300))}
+    return out
+
+
+def core_summary(folder: Path) -> None:
+    """Print `core_factors` per quantity over the fits of ``folder`` (medians; the rms
+    error about the truth; in C for T_m, nT for the law; entry 3x-core)."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    per = [(res, core_factors(res, true)) for res, true in fits]
+    print("| quantity | N | rms error | stated (median) | jumps | w | design | CR0 / rms |"
+          " top-3 share | lag-1 |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in per[0][1]:
+        unit = 1.0 if name.startswith("T_m") else NT_PER_COUNT
+        if name.startswith("T_m"):
+            sel = [o[name] for res, o in per if name[-1] not in res.held_upper]
+        else:
+            t = float(name.split()[-1])
+            sel = [o[name] for res, o in per if res.stated_ranges.contains(np.array([t]))[0]]
+        if len(sel) < 3:
+            continue
+        g = {k: np.array([d[k] for d in sel], dtype=float) for k in sel[0]}
+        rms = float(np.sqrt(np.mean(g["err"] ** 2)))
+        print(f"| {name} | {len(sel)} | {rms * unit:.4f} | {np.median(g['stated']) * unit:.4f} |"
+              f" {np.nanmedian(g['jumps']):.2f} | {np.median(g['w']):.3f} |"
+              f" {np.median(g['design']):.2f} | {np.median(g['cr0']) / rms:.2f} |"
+              f" {np.median(g['top3']):.2f} | {np.median(g['lag1']):+.2f} |")
+
+
 def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     """Design-fixed, linearised errors of T_m (C) and of the law at `LAW_T` (counts).
 
@@ -620,23 +728,9 @@ def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     Returns ``(tm_err (3,), law_err (len(LAW_T), 3))``.
     """
     now = fv.law_parameters(res.calibration)
-    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
-    base_free[-1] = res.delay_fitted
-    held = {col: width for col, (_, width) in _held_columns(res).items()}
-    base_free[list(held)] = False
-    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
-    a, v = res.variance.normal, res.variance.rhs
-    p = int(free.sum())
-    group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
-    n = int(group[-1]) + 1
-    a_u, v_u = np.zeros((n, *a.shape[1:])), np.zeros((n, v.shape[1]))
-    np.add.at(a_u, group, a)
-    np.add.at(v_u, group, v)
-    total = a_u.sum(axis=0)
-    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
-    f = np.flatnonzero(free)
-    score = (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f]
-    inv = np.linalg.inv(total[np.ix_(f, f)])
+    u = unit_scores(res)
+    held, f, inv, score, total = u["held"], u["f"], u["inv"], u["score"], u["total"]
+    n, p = u["n"], u["p"]
     cov = np.zeros((fv.N_PARAMETERS, fv.N_PARAMETERS))
     cov[np.ix_(f, f)] = inv @ (score.T @ score) @ inv * n / (n - p)
     if held:
@@ -673,6 +767,50 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
     return row
 
 
+def replayed_errors(res, fixed_design: bool) -> dict:
+    """The stated errors of ``res`` replayed from its last pass's normal equations at the
+    fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
+    one (`fit_variance.fixed_design_resamples`), the resamples treated as
+    `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
+    the field): tau, D0 (3,), T_m (3,), the law at `LAW_T` (len(LAW_T), 3)."""
+    held = _held_columns(res)
+    sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
+                            law=fv.law_parameters(res.calibration), held=held,
+                            fixed_design=fixed_design)
+    law, d0, tau, _ = fv.apply_step(res.calibration, sol.step, break_shift=sol.break_shift)
+    b_law, b_d0, b_tau, _ = fv.apply_steps(res.calibration, sol.boot, max_tau_shift=np.inf,
+                                           max_break_shift_c=np.inf,
+                                           break_shifts=sol.boot_shift)
+    b_law[:, :, 3] += sol.boot_dither
+    w = sol.widening
+    w_law = np.full((3, 4), w)
+    for a in res.held_upper:  # a held slope change and break keep their draws
+        w_law["xyz".index(a), 2:] = 1.0
+    w_d0 = np.array([1.0 if a in res.held else w for a in "xyz"])
+    b_law = law + w_law * (b_law - b_law.mean(axis=0))
+    b_d0 = d0 + w_d0 * (b_d0 - b_d0.mean(axis=0))
+    direction, balance = fv.d0_field_balance(res.variance)
+    b_d0 = fv.widen_d0_along_field(b_d0, d0, np.asarray(res.calibration.matrices[0], float),
+                                   direction, balance,
+                                   np.array([a not in res.held for a in "xyz"]))[0]
+    return {"tau": w * np.std(b_tau), "d0": np.std(b_d0, axis=0),
+            "tm": np.std(b_law[:, :, 3], axis=0),
+            "law": np.std(fv.law_values(b_law, np.array(LAW_T)), axis=0)}
+
+
+def fixed_design_row(res, true) -> dict:
+    """`estimator_row` with every stated error scaled by the replayed fixed-design
+    bootstrap's over the replayed pairs bootstrap's (entry 3x-core): the same resample
+    counts, so the ratio is the design's part alone."""
+    row = estimator_row(res, true, spread_sd)
+    pairs, fixed = replayed_errors(res, False), replayed_errors(res, True)
+    row["tau_pull"] *= pairs["tau"] / fixed["tau"]
+    row["d0_pull"] = row["d0_pull"] * pairs["d0"] / fixed["d0"]
+    row["tm_pull"] = row["tm_pull"] * pairs["tm"] / fixed["tm"]
+    row["law_pull"] = row["law_pull"] * pairs["law"] / fixed["law"]
+    return row
+
+
 def estimator_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
     of `SPREADS` on the saved fits of ``folder`` (entry 39)."""
@@ -681,6 +819,7 @@ def estimator_summary(folder: Path) -> None:
            for name, f in SPREADS.items()}
     per["sandwich"] = [sandwich_row(res, true, False) for res, true in fits]
     per["sandwich+jumps"] = [sandwich_row(res, true, True) for res, true in fits]
+    per["fixed design"] = [fixed_design_row(res, true) for res, true in fits]
     jump = np.stack([r["jump_share"] for r in per["sd"]])
     print(f"{len(fits)} fits; resamples whose break moved from the solution's, per axis: "
           f"median {np.round(np.median(jump, axis=0), 3)}, max {np.round(jump.max(axis=0), 3)}")
@@ -739,12 +878,18 @@ def main() -> None:
     ap.add_argument("--estimators", action="store_true",
                     help="With --summarise: the pulls under each spread estimator of the "
                          "stated errors (SPREADS) instead of the summary.")
+    ap.add_argument("--core", action="store_true",
+                    help="With --summarise: the stated errors of T_m and the law split into "
+                         "factors (jumps, widening, design, sandwich; entry 3x-core).")
     args = ap.parse_args()
     if args.summarise is not None:
         if not any(args.summarise.glob("fit_*.pkl")):
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
         if args.estimators:
             estimator_summary(args.summarise)
+            return
+        if args.core:
+            core_summary(args.summarise)
             return
         summarise(saved_rows(args.summarise), args.markdown)
         return
