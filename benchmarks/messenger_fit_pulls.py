@@ -643,7 +643,7 @@ def unit_scores(res) -> dict:
 
 def core_factors(res, true) -> dict:
     """Per quantity (T_m and the law at `LAW_T`, per axis), the stated error split into
-    factors (entry 3x-core): ``jumps`` (the resamples' standard deviation over that of
+    factors (entry 41): ``jumps`` (the resamples' standard deviation over that of
     those that kept the solution's break), ``w`` (``sqrt(n / (n - p))``), ``design`` (the
     pairs bootstrap of the linear solve, breaks kept, over the same counts applied to the
     units' scores with the whole normal matrix kept), ``cr0`` (the design-fixed cluster
@@ -694,7 +694,7 @@ def core_factors(res, true) -> dict:
 
 def core_summary(folder: Path) -> None:
     """Print `core_factors` per quantity over the fits of ``folder`` (medians; the rms
-    error about the truth; in C for T_m, nT for the law; entry 3x-core)."""
+    error about the truth; in C for T_m, nT for the law; entry 41)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     per = [(res, core_factors(res, true)) for res, true in fits]
     print("| quantity | N | rms error | stated (median) | jumps | w | design | CR0 / rms |"
@@ -800,7 +800,7 @@ def replayed_errors(res, fixed_design: bool) -> dict:
 
 def fixed_design_row(res, true) -> dict:
     """`estimator_row` with every stated error scaled by the replayed fixed-design
-    bootstrap's over the replayed pairs bootstrap's (entry 3x-core): the same resample
+    bootstrap's over the replayed pairs bootstrap's (entry 41): the same resample
     counts, so the ratio is the design's part alone."""
     row = estimator_row(res, true, spread_sd)
     pairs, fixed = replayed_errors(res, False), replayed_errors(res, True)
@@ -880,7 +880,7 @@ def main() -> None:
                          "stated errors (SPREADS) instead of the summary.")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
-                         "factors (jumps, widening, design, sandwich; entry 3x-core).")
+                         "factors (jumps, widening, design, sandwich; entry 41).")
     args = ap.parse_args()
     if args.summarise is not None:
         if not any(args.summarise.glob("fit_*.pkl")):

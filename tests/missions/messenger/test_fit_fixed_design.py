@@ -1,4 +1,4 @@
-"""The fixed-design (score) bootstrap of the variance estimator (issue 34, entry 3x-core).
+"""The fixed-design (score) bootstrap of the variance estimator (issue 34, entry 41).
 
 Expected values are computed here from the raw samples of a linear model split into
 units (blocks), by ``numpy.linalg.lstsq`` on the stacked samples and the units' own

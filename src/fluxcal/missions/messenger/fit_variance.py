@@ -688,9 +688,9 @@ def fixed_design_resamples(picks: np.ndarray, a: np.ndarray, v: np.ndarray,
     doubles the few warm units that fix a law's lever arm: the error for the fitted
     days' temperatures as given.  On the saved 16-day late-peak fits the pairs
     bootstrap's resampled design states the law at 0 C 1.24-1.47x and T_m 1.07-1.11x
-    wider than this (docs/decisions/messenger_fit.md entry 3x-core).  Not the default
+    wider than this (docs/decisions/messenger_fit.md entry 41).  Not the default
     (`solve_variance`'s ``fixed_design``): on one of 80 saved fits it narrows the law at
-    -50 C by 4 % and moves a pull from 2.89 to 3.00 (entry 3x-core).
+    -50 C by 4 % and moves a pull from 2.89 to 3.00 (entry 41).
 
     Returns
     -------
@@ -761,7 +761,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     fixed_design : bool
         Resample the units' scores with the whole data's normal matrix kept
         (`fixed_design_resamples`) instead of the units' normal equations (the pairs
-        bootstrap, the default; docs/decisions/messenger_fit.md entry 3x-core).
+        bootstrap, the default; docs/decisions/messenger_fit.md entry 41).
 
     Returns
     -------
