@@ -884,8 +884,8 @@ def fit_periodic_splines(
     on the points and weights, not on the values: they are computed once for every
     ``y`` whose usable points (finite, positive weight) are the same, and each fit is
     the one `fit_periodic_spline` returns for that ``y`` alone, bit for bit (the same
-    arithmetic on the same numbers).  Used for the three axes of a waveform column,
-    which share their phases and weights (MESSENGER sec. 6; issue 34, item 7).
+    arithmetic on the same numbers): e.g. the three axes of a sensor sampled on one
+    phase grid with one weighting.
 
     Parameters
     ----------
