@@ -322,3 +322,25 @@ def test_calibrate_judges_the_days_total_against_the_goal_and_the_scatter(
     else:
         assert beyond.all() and not over_goal.any()
         assert msg.endswith("beyond the table's by more than the part's scatter (sec. 6)"), msg
+
+
+@pytest.mark.parametrize("field, text", [
+    ("predicted_error_nt", 'predicted_error_nt = [0.05, "x", 0.05]\nerror_goal_nt = 0.1'),
+    ("predicted_error_nt", "predicted_error_nt = [0.05, 0.05]\nerror_goal_nt = 0.1"),
+    ("error_goal_nt", "predicted_error_nt = [0.05, 0.05, 0.05]\nerror_goal_nt = -1.0"),
+])
+def test_a_malformed_fit_section_is_refused_naming_file_and_field(
+        tmp_path, simulated_files, messenger_kernels, capsys, field, text):
+    # the warning's numbers come from the processing file's [fit]; a hand-edited, broken
+    # value must not quietly turn the warning into the no-[fit] rule: exit 2, one line
+    # naming the file and the field, nothing written
+    folder = _fit_folder(tmp_path, _ERR, [0.05] * 3)
+    p = folder / "processing_v1.toml"
+    p.write_text(p.read_text() + "\n[fit]\n" + text + "\n")
+    out = tmp_path / "out"
+    assert _edr2cdr(simulated_files, messenger_kernels, out, folder) == 2
+    err = capsys.readouterr().err
+    assert "processing_v1.toml" in err and f"[fit] {field}" in err, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert not out.exists() or not any(out.iterdir())
+

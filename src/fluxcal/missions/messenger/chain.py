@@ -419,21 +419,38 @@ def _stated_total_and_goal(cal: MessengerCalibration, stated_part: np.ndarray
                            ) -> tuple[np.ndarray, float]:
     """Return the table's stated predicted error (nT, x y z) and goal (nT) from ``[fit]``.
 
-    Written by `fit_write` (``predicted_error_nt``, ``error_goal_nt``).  Absent or not
-    three finite numbers: the waveform part stands for the total and there is no goal
-    (``inf``).
+    Written by `fit_write` (``predicted_error_nt``, ``error_goal_nt``).  Absent (the
+    seed's tables, fits before they were written): the waveform part stands for the
+    total and there is no goal (``inf``); so too ``nan`` on every axis, the fit's own
+    "no figure" (`fit_merit.predicted_error` without a bootstrap), and a goal of
+    ``inf``.  Present but not three positive numbers (or three ``nan``) and one positive
+    number: `InputFormatError` naming the processing file and the field, not a quieter
+    warning.
     """
     fit = cal.constants.get("fit") if isinstance(cal.constants, dict) else None
-    if not isinstance(fit, dict):
+    if not isinstance(fit, dict) or "predicted_error_nt" not in fit:
         return stated_part, np.inf
-    try:
-        total = np.asarray(fit.get("predicted_error_nt"), dtype=float)
-        goal = float(fit.get("error_goal_nt", np.inf))
-    except (TypeError, ValueError):
-        return stated_part, np.inf
-    if total.shape != (3,) or not np.all(np.isfinite(total)):
+    where = str(next((q for q in cal.paths if q.name.startswith("processing")),
+                     _table_name(cal, "processing", "the processing file")))
+
+    def numbers(key: str, shape: tuple[int, ...], text: str) -> np.ndarray:
+        try:
+            v = np.asarray(fit[key], dtype=float)
+        except (TypeError, ValueError):
+            v = np.full(1, -1.0)
+        if v.shape != shape or not (np.all(np.isnan(v)) or np.all(v > 0)):
+            raise InputFormatError(f"{key} = {fit[key]!r}: expected {text} (written by "
+                                   "`messenger fit`; entry 36)", path=where,
+                                   field=f"[fit] {key}")
+        return v
+
+    total = numbers("predicted_error_nt", (3,), "three positive numbers in nT (x, y, z)")
+    if np.all(np.isnan(total)):
         total = stated_part
-    return total, goal if np.isfinite(goal) and goal > 0 else np.inf
+    if "error_goal_nt" not in fit:
+        return total, np.inf
+    goal = float(numbers("error_goal_nt", (), "one positive number in nT"))
+    return total, goal if goal > 0 else np.inf
 
 
 def day_of(science: xr.Dataset) -> np.datetime64:
