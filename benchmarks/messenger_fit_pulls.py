@@ -767,17 +767,19 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
     return row
 
 
-def replayed_errors(res, fixed_design: bool) -> dict:
+def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200) -> dict:
     """The stated errors of ``res`` replayed from its last pass's normal equations at the
     fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
-    one (`fit_variance.fixed_design_resamples`), the resamples treated as
-    `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
-    the field): tau, D0 (3,), T_m (3,), the law at `LAW_T` (len(LAW_T), 3)."""
+    one (`fit_variance.fixed_design_resamples`) of ``n_bootstrap`` resamples, treated as
+    `fit.fit_variance_calibration` treats them (moved breaks inside their cells,
+    widening, held draws, D0 along the field): tau, D0 (3,), T_m (3,), the law at
+    `LAW_T` (len(LAW_T), 3)."""
     held = _held_columns(res)
     sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
                             law=fv.law_parameters(res.calibration), held=held,
-                            fixed_design=fixed_design)
+                            fixed_design=fixed_design, n_bootstrap=n_bootstrap)
     law, d0, tau, _ = fv.apply_step(res.calibration, sol.step, break_shift=sol.break_shift)
+    law[:, 3] += sol.break_offset
     b_law, b_d0, b_tau, _ = fv.apply_steps(res.calibration, sol.boot, max_tau_shift=np.inf,
                                            max_break_shift_c=np.inf,
                                            break_shifts=sol.boot_shift)
@@ -809,6 +811,49 @@ def fixed_design_row(res, true) -> dict:
     row["tm_pull"] = row["tm_pull"] * pairs["tm"] / fixed["tm"]
     row["law_pull"] = row["law_pull"] * pairs["law"] / fixed["law"]
     return row
+
+
+#: The bootstraps `replay_summary` replays: (column, fixed design, resamples).
+REPLAYS = (("pairs 200", False, 200), ("fixed 200", True, 200), ("fixed 800", True, 800))
+
+
+def replay_row(res, true, fixed_design: bool, n_bootstrap: int) -> dict:
+    """`estimator_row` with every stated error replaced by this tree's bootstrap replayed
+    on the fit's stored normal equations (`replayed_errors`): the pulls the fit would
+    state with this tree's variance code, the fitted tables kept (entry 3x-spread)."""
+    row = estimator_row(res, true, spread_sd)
+    boot = res.bootstrap
+    now = replayed_errors(res, fixed_design, n_bootstrap)
+    row["tau_pull"] *= spread_sd(boot["tau"]) / now["tau"]
+    row["d0_pull"] = row["d0_pull"] * spread_sd(boot["d0"]) / now["d0"]
+    row["tm_pull"] = row["tm_pull"] * spread_sd(boot["law"][:, :, 3]) / now["tm"]
+    row["law_pull"] = (row["law_pull"] * spread_sd(fv.law_values(boot["law"], LAW_T))
+                       / now["law"])
+    return row
+
+
+def replay_summary(folder: Path) -> None:
+    """Print, per parameter, the pulls' spread, largest size and count beyond 3 as stored
+    in the saved fits of ``folder`` and as this tree's bootstrap replays them
+    (`REPLAYS`; docs/decisions/messenger_fit.md entry 3x-spread)."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    per = {"stored": [estimator_row(res, true, spread_sd) for res, true in fits]}
+    per.update({name: [replay_row(res, true, fixed, n) for res, true in fits]
+                for name, fixed, n in REPLAYS})
+    print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
+    print("| parameter | " + " | ".join(per) + " |")
+    print("|---|" + "---|" * len(per))
+    tables = {name: dict(table(rows)) for name, rows in per.items()}
+    for name in tables["stored"]:
+        cells = []
+        for est in per:
+            p = tables[est][name]
+            p = p[np.isfinite(p)]
+            cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
+                         f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
+        if any(cells):
+            n = int(np.isfinite(tables["stored"][name]).sum())
+            print(f"| {name} (N {n}) | " + " | ".join(cells) + " |")
 
 
 def estimator_summary(folder: Path) -> None:
@@ -878,6 +923,10 @@ def main() -> None:
     ap.add_argument("--estimators", action="store_true",
                     help="With --summarise: the pulls under each spread estimator of the "
                          "stated errors (SPREADS) instead of the summary.")
+    ap.add_argument("--replay", action="store_true",
+                    help="With --summarise: the pulls as stored and as this tree's "
+                         "bootstrap states them, replayed on the stored normal equations "
+                         "(REPLAYS; entry 3x-spread).")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")
@@ -890,6 +939,9 @@ def main() -> None:
             return
         if args.core:
             core_summary(args.summarise)
+            return
+        if args.replay:
+            replay_summary(args.summarise)
             return
         summarise(saved_rows(args.summarise), args.markdown)
         return

@@ -1250,7 +1250,7 @@ def fit_variance_calibration(
     base: MessengerCalibration,
     *,
     fit_delay: bool = True,
-    n_bootstrap: int = 200,
+    n_bootstrap: int = fv.N_BOOTSTRAP,
     hold_d0: HoldD0 = (),
     max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
     start: MessengerCalibration | None = None,
@@ -1262,10 +1262,13 @@ def fit_variance_calibration(
 
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
-    deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures (each shifted break drawn in its shift's cell, entry 27) and drawing
-    each held D0 from its width (entry 18); the waveforms from ``stats`` as in
-    `fit_calibration`.  dt is adopted under the same rule as there
+    deviations over a fixed-design bootstrap of the blocks (the units' scores resampled,
+    the whole data's normal matrix kept: the error for the fitted days' temperature
+    coverage as given; `fit_variance.fixed_design_resamples`, entry 3x-spread), each
+    resample choosing its own break temperatures (each shifted break placed inside its
+    shift's cell by its own data, entry 3x-spread) and drawing each held D0 from its
+    width (entry 18); the waveforms
+    from ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
 
     Parameters
@@ -1277,6 +1280,7 @@ def fit_variance_calibration(
     base : MessengerCalibration
     fit_delay : bool
     n_bootstrap : int
+        Resamples (`fit_variance.N_BOOTSTRAP`).
     hold_d0 : tuple of str or mapping
         Axes whose D0 is held (`held_d0_values`: value and width).
     max_compressive_share : float
@@ -1348,19 +1352,24 @@ def fit_variance_calibration(
         columns[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
         columns[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     try:
+        # the units' scores resampled with the design kept: the pairs bootstrap's
+        # resampled lever arm stated the law at the warm edge 1.24-1.47x too wide
+        # (entries 41, 3x-spread)
         sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                                law=now, held=columns, **(resample_map or {}))
+                                law=now, held=columns, fixed_design=True,
+                                **(resample_map or {}))
     except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
         if cause:
             raise too_little(str(exc)) from None
         raise
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
+    law[:, 3] += sol.break_offset  # a shifted break inside its cell (entry 3x-spread)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
     b_law, b_d0, b_tau, b_dt = fv.apply_steps(base, sol.boot, max_tau_shift=np.inf,
                                               max_break_shift_c=np.inf,
                                               break_shifts=sol.boot_shift)
-    b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 27)
+    b_law[:, :, 3] += sol.boot_dither  # a shifted break inside its cell (entry 3x-spread)
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
     # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
     # (entry 13), in the tables' parameters (each resample has its own break choice);

@@ -75,10 +75,11 @@ from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
-           "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
+           "N_BOOTSTRAP", "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings",
+           "VarianceStatistics",
            "apply_step", "apply_steps", "choose_breaks", "d0_field_balance",
            "fixed_design_resamples", "law_values",
-           "offset_moments", "quantisation", "reduce_variance", "resample_fits",
+           "offset_moments", "reduce_variance", "refine_breaks", "resample_fits",
            "solve_variance",
            "widen_d0_along_field"]
 
@@ -109,6 +110,12 @@ MIN_RANGE_SAMPLES = 1800
 MIN_SPARE_BLOCKS = 2
 #: Most consecutive blocks resampled together (`solve_variance`): 12 h of 2-h blocks.
 MAX_GROUP = 6
+#: Resamples of the fit's bootstrap (`fit.fit_variance_calibration`).  A standard
+#: deviation from B resamples scatters by about ``1 / sqrt(2 B)`` for normal resamples;
+#: at 200 the law's error at -50 C scattered by +-13 % from one bootstrap seed to the
+#: next (16-day late peak, entry 41), enough to move a pull from 2.9 to 3.0 by the
+#: seed alone; 800 halve it, for 0.3-0.4 s more per pass at 16 days (entry 3x-spread).
+N_BOOTSTRAP = 800
 #: Residual bias of D0 along the field's mean direction, in units of D0's bootstrap error
 #: along it, per unit of the field's one-sidedness (`d0_field_balance`): the part of D0's
 #: error no resample of the blocks sees; added in quadrature as a stated error
@@ -452,14 +459,17 @@ class VarianceSolution:
     boot_shift : ndarray, shape (n_bootstrap, 3)
         ``break_shift`` of every resample (chosen again on the resampled blocks).
     boot_dither : ndarray, shape (n_bootstrap, 3)
-        Per resample and axis, where in the cell of its chosen shift its break lies
-        (C, uniform over the half-ways to the neighbouring shifts; 0 where the break
-        was kept): a resample that takes a shift knows its break only to that cell
-        (`quantisation`), added to the resampled breaks (`fit.fit_variance_calibration`).
+        Per resample and axis, where in the cell of its chosen shift its own data put
+        its break (C from the shift, `refine_breaks`; 0 where the break was kept), added
+        to the resampled breaks (`fit.fit_variance_calibration`).
     widening : float
         ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
         finite-sample correction of the pairs bootstrap, to be applied to the spread of
         the resamples' parameters about their mean (`fit.fit_variance_calibration`).
+    break_offset : ndarray, shape (3,)
+        Per axis, where in the cell of ``break_shift`` the data put the break (C from
+        the shift, `refine_breaks`; 0 where no shift was taken), added to the stepped
+        break (`fit.fit_variance_calibration`).
     """
 
     step: np.ndarray
@@ -470,6 +480,7 @@ class VarianceSolution:
     boot_shift: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     widening: float = 1.0
     boot_dither: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    break_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 def _shift_column(axis: int, k: int) -> int:
@@ -648,24 +659,122 @@ def _shifts(choice: np.ndarray) -> np.ndarray:
     return table[np.where(np.asarray(choice) >= 0, choice, N_SHIFTS)]
 
 
-def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Draw, per chosen shift, where in its cell the break lies (C; 0 for a kept break).
+def _neighbour(axis: int, shift_c: np.ndarray) -> np.ndarray:
+    """Return the column of axis ``axis``'s hinge at each grid point ``shift_c`` (C).
 
-    A break moved to a shift of `BREAK_SHIFTS_C` is known only to the cell about it: from
-    half-way to the next lower shift (or the kept break, 0) to half-way to the next
-    higher one, the outermost cells as wide outward as inward.  Uniform over the cell
-    (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
-    that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
-    resample took the same -4-C shift: spread 0; tests/missions/messenger/
-    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).
+    A shifted break's own column; for 0 (the kept break) the column d(c) of its hinge.
     """
+    k = np.searchsorted(np.asarray(BREAK_SHIFTS_C), shift_c).clip(0, N_SHIFTS - 1)
+    return np.where(shift_c == 0.0, axis * PER_AXIS + 2, _shift_column(axis, k))
+
+
+def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np.ndarray,
+                  base_free: np.ndarray, law: np.ndarray, choice: np.ndarray,
+                  steps: np.ndarray, data_range: tuple[float, float]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Place every break moved to a grid shift inside its cell, on its own data.
+
+    A break moved to ``s_k`` (one of `BREAK_SHIFTS_C`) lies between ``s_k`` and a
+    neighbouring grid point ``s_n`` (the kept break counts as 0).  Its hinge is split
+    between the two, the slope changes ``c_k`` and ``c_n`` fitted by least squares with
+    every other parameter (on the side, below or above ``s_k``, of the lower residual
+    among those whose two hinges make one, ``0 <= lambda <= 1`` below; a neighbour
+    outside ``data_range`` is not tried, as in `choose_breaks`).  Below both
+    grid points the two hinges are 0, and above both ``c_k (T - T_m - s_k) + c_n (T - T_m
+    - s_n)`` is exactly one hinge of slope change ``c = c_k + c_n`` at ``s = s_k + lambda
+    (s_n - s_k)``, ``lambda = c_n / c``: only inside the cell is the corner rounded.  The
+    break is taken at ``s`` with the slope change ``c`` where ``0 <= lambda <= 1``; where
+    not (slopes of opposite sign: no single hinge between the grid points), at ``s_k``
+    as chosen (the pair dropped, the row solved again).
+
+    This replaces a uniform draw over the cell (entry 27): a resample whose data put
+    its break 0.3 C from the solution, just past half-way to the +0.5-C grid point,
+    was drawn anywhere in 0.25..0.75 C (docs/decisions/messenger_fit.md entry 3x-spread).
+
+    Parameters
+    ----------
+    a_r, v_r, yy_r, held_r
+        The resamples' normal equations and held values (`resample_fits`).
+    base_free : ndarray of bool
+    law : ndarray, shape (3, 4)
+        The linearisation point (`law_parameters`).
+    choice : ndarray of int, shape (n, 3)
+        The break choices (`choose_breaks`; -1: kept).
+    steps : ndarray, shape (n, N_PARAMETERS)
+        The resamples' steps at those choices (`resample_fits`).
+    data_range : tuple of float
+
+    Returns
+    -------
+    steps : ndarray, shape (n, N_PARAMETERS)
+        ``steps`` with each refined row solved again; a refined axis's shifted column
+        holds ``c`` (`apply_steps` reads the slope change there).
+    offset : ndarray, shape (n, 3)
+        ``s - s_k`` (C) per resample and axis; 0 where the break was kept or not refined.
+    """
+    choice = np.asarray(choice, dtype=np.int64)
+    n = choice.shape[0]
     grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
-    mid = 0.5 * (grid[1:] + grid[:-1])
-    lo = np.r_[2.0 * grid[0] - mid[0], mid]
-    hi = np.r_[mid, 2.0 * grid[-1] - mid[-1]]
-    s = _shifts(choice)
-    i = np.searchsorted(grid, s)
-    return np.where(np.asarray(choice) >= 0, rng.uniform(lo[i], hi[i]) - s, 0.0)
+    lo, hi = data_range
+    free, fixed = _layout_rows(choice, base_free, law[:, 2])
+    fixed = fixed + held_r
+    shift_c = np.array([*BREAK_SHIFTS_C, 0.0])[np.where(choice >= 0, choice, N_SHIFTS)]
+    pair = np.full((n, 3), np.nan)  # the neighbour grid point of each refined break
+    for j in range(3):
+        rows = np.flatnonzero(choice[:, j] >= 0)
+        best = np.full(rows.size, np.inf)
+        for side in (-1, 1):
+            g = np.searchsorted(grid, shift_c[rows, j]) + side
+            s_n = grid[g.clip(0, grid.size - 1)]
+            ok = ((g >= 0) & (g < grid.size)
+                  & ((s_n == 0.0) | ((lo <= law[j, 3] + s_n) & (law[j, 3] + s_n <= hi))))
+            r_ok = rows[ok]
+            if r_ok.size == 0:
+                continue
+            f = free[r_ok].copy()
+            col = _neighbour(j, s_n[ok])
+            f[np.arange(r_ok.size), col] = True
+            theta = _fit_rows(a_r[r_ok], v_r[r_ok], f, fixed[r_ok])
+            r = _residual(a_r[r_ok], v_r[r_ok], yy_r[r_ok], theta)
+            # a side counts only where its two hinges make one between the grid points
+            c_n = theta[np.arange(r_ok.size), col] + np.where(s_n[ok] == 0.0, law[j, 2], 0.0)
+            c = theta[np.arange(r_ok.size), _shift_column(j, choice[r_ok, j])] + c_n
+            single = (c != 0.0) & (c_n * c >= 0.0) & (np.abs(c_n) <= np.abs(c))
+            r = np.where(single, r, np.inf)
+            better = np.zeros(rows.size, dtype=bool)
+            better[ok] = r < best[ok]
+            best[better] = r[better[ok]]
+            pair[rows[better], j] = s_n[better]
+    out, offset = np.array(steps, dtype=float, copy=True), np.zeros((n, 3))
+    while True:  # drop the pairs with no single hinge between them, solve again (each
+        # round drops at least one pair, so this ends)
+        rows = np.flatnonzero(np.isfinite(pair).any(axis=1))
+        if rows.size == 0:
+            break
+        f = free[rows].copy()
+        for j in range(3):
+            m = np.isfinite(pair[rows, j])
+            f[np.flatnonzero(m), _neighbour(j, pair[rows[m], j])] = True
+        theta = _fit_rows(a_r[rows], v_r[rows], f, fixed[rows])
+        dropped = False
+        for j in range(3):
+            m = np.flatnonzero(np.isfinite(pair[rows, j]))
+            s_k, s_n = shift_c[rows[m], j], pair[rows[m], j]
+            c_k = theta[m, _shift_column(j, choice[rows[m], j])]
+            c_n = theta[m, _neighbour(j, s_n)] + np.where(s_n == 0.0, law[j, 2], 0.0)
+            c = c_k + c_n
+            lam = np.divide(c_n, c, out=np.full(m.size, -1.0), where=c != 0.0)
+            bad = (lam < 0.0) | (lam > 1.0)
+            if np.any(bad):
+                pair[rows[m[bad]], j] = np.nan
+                dropped = True
+            theta[m, _shift_column(j, choice[rows[m], j])] = c
+            offset[rows[m], j] = np.where(bad, 0.0, lam * (s_n - s_k))
+        if not dropped:
+            out[rows] = theta
+            break
+        offset[rows] = 0.0
+    return out, offset
 
 
 def fixed_design_resamples(picks: np.ndarray, a: np.ndarray, v: np.ndarray,
@@ -735,8 +844,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         breaks are then also tried at `BREAK_SHIFTS_C` inside the data's range
         (``stats.fitted_range`` of `VarianceSettings.min_samples` per 5-C bin;
         `choose_breaks`), in the solution and again in every resample, each shifted
-        resample's break drawn in its shift's cell (`quantisation`); None: the
-        linearised step only.
+        break placed inside its shift's cell by its own data (`refine_breaks`); None:
+        the linearised step only.
     held_step : ndarray, shape (3,), optional
         D0 step of each held axis (the held value minus the linearisation point's);
         default 0 (the base value kept).
@@ -844,12 +953,22 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                                           law, data_range) for c in cuts if c.size])
         boot_choice = np.concatenate([c for c, _ in parts])
         boot = np.concatenate([b for _, b in parts])
+    boot_offset, offset = np.zeros((n_bootstrap, 3)), np.zeros(3)
+    if law is not None:  # a moved break inside its cell, on its own data (entry 3x-spread)
+        boot, boot_offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law,
+                                          boot_choice, boot, data_range)
+        if max(choice) >= 0:
+            steps, offsets = refine_breaks(total_a[None], total_v[None], np.array([yy]),
+                                           fixed_h[None], base_free, law,
+                                           np.array([choice]), step[None], data_range)
+            step, offset = steps[0], offsets[0]  # chi2 stays the grid solution's
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),
                             boot_shift=_shifts(boot_choice),
-                            boot_dither=quantisation(boot_choice, rng),
-                            widening=float(np.sqrt(nb / (nb - p_free))))
+                            boot_dither=boot_offset,
+                            widening=float(np.sqrt(nb / (nb - p_free))),
+                            break_offset=offset)
 
 
 def apply_step(cal: MessengerCalibration, step: np.ndarray, max_tau_shift: float = 0.3,
