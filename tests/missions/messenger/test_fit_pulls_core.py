@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-import importlib.util
 import pickle
 import types
 from pathlib import Path
@@ -63,7 +62,6 @@ from fluxcal.missions.messenger.fit_variance import (
     solve_step,
 )
 
-BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
 START = dt.date(2010, 3, 1)
 #: 2-h blocks, samples per block, noise (counts): T_m's error about 0.02-0.1 C, no
 #: upper segment undetermined, no break moved in any resample.
@@ -81,11 +79,8 @@ REL = 1e-6
 
 
 @pytest.fixture(scope="module")
-def bench():
-    spec = importlib.util.spec_from_file_location("messenger_fit_pulls", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def bench(pulls_bench):
+    return pulls_bench
 
 
 @pytest.fixture(scope="module")
