@@ -31,6 +31,10 @@ algebra of `fit_variance` or of the harness:
 * the pulls ``(fit - truth) / stated`` by hand, the truth set a known distance from the
   fit.
 
+`solve_step` itself is checked against ``lstsq`` with the columns' layout written out
+here (the breaks kept or moved, dt, held columns), and bit for bit against
+`solve_variance`'s own solution at the break choice it made.
+
 Tolerances: 1e-6 relative where the same quantity is computed two ways (the normal
 equations against ``lstsq``: about 1e-12 apart); 25 % where the fixed-design bootstrap's
 200 resamples estimate the sandwich (their standard deviation's sampling error is about
@@ -59,7 +63,9 @@ from fluxcal.missions.messenger.fit_variance import (
     PER_AXIS,
     TEMPERATURE_EDGES_C,
     VarianceStatistics,
+    law_parameters,
     solve_step,
+    solve_variance,
 )
 
 START = dt.date(2010, 3, 1)
@@ -247,6 +253,34 @@ def test_solve_step_moves_a_break_to_a_shifted_hinge():
     want = np.linalg.lstsq(x[:, want_free], y + slope[1] * x[:, PER_AXIS + 2], rcond=None)[0]
     np.testing.assert_allclose(step[want_free], want, rtol=REL, atol=1e-12)
     assert step[PER_AXIS + 2] == -slope[1] and step[PER_AXIS + 3] == 0.0
+
+
+def test_solve_step_gives_solve_variances_solution_bit_for_bit(shipped):
+    # normal equations whose solution moves x's break by +2 C (its hinge cancelled, the
+    # hinge at +2 C carrying the shipped slope change), D0 z held: `solve_variance`
+    # chooses that shift, and `solve_step` at its choice and held step is its solution
+    law = law_parameters(shipped)
+    step = np.zeros(N_PARAMETERS)
+    step[2] = -law[0, 2]
+    step[3 * PER_AXIS + BREAK_SHIFTS_C.index(2.0)] = law[0, 2]
+    x, noise = _raw(9)
+    y = x @ step + 0.01 * noise
+    centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
+    stats = VarianceStatistics(
+        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
+        yy=np.einsum("bn,bn->b", y, y), samples=np.full(BLOCKS, float(PER_BLOCK)),
+        block_start=np.arange(BLOCKS) * 7200.0, interval_start=np.zeros(BLOCKS),
+        reason=np.full(BLOCKS, ""),
+        temperature_count=np.where((centre > -60.0) & (centre < 40.0), 3000.0, 0.0))
+    d0_z = 2 * PER_AXIS + 4
+    sol = solve_variance(stats, fit_delay=False, n_bootstrap=3, law=law,
+                         held={d0_z: (0.05, HELD_WIDTH)})
+    np.testing.assert_array_equal(sol.break_shift, [2.0, 0.0, 0.0])
+    got, free = solve_step(stats.normal.sum(axis=0), stats.rhs.sum(axis=0), law[:, 2],
+                           choice=(BREAK_SHIFTS_C.index(2.0), -1, -1), fit_delay=False,
+                           held={d0_z: 0.05})
+    np.testing.assert_array_equal(got, sol.step)
+    assert not free[d0_z] and not free[-1] and free[3 * PER_AXIS + BREAK_SHIFTS_C.index(2.0)]
 
 
 @pytest.mark.parametrize(("choice", "held"), [((-2, -1, -1), {}),
