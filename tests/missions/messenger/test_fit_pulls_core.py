@@ -105,17 +105,21 @@ def _raw(seed: int) -> tuple[np.ndarray, np.ndarray]:
     return x, NOISE * scale * rng.normal(size=(BLOCKS, PER_BLOCK))
 
 
-def _fit(x: np.ndarray, y: np.ndarray, base, hold_d0=()):
-    """The pipeline's fit of the samples' normal equations (dt not fitted; every 5-C
-    bin from -60 to 40 C full, so every break is free and shifts are tried)."""
+def _stats(x: np.ndarray, y: np.ndarray) -> VarianceStatistics:
+    """The samples' normal equations per 2-h block, every interval accepted, every 5-C
+    bin from -60 to 40 C full (so every break is free and shifts are tried)."""
     centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
-    v = VarianceStatistics(
+    return VarianceStatistics(
         normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
         yy=np.einsum("bn,bn->b", y, y), samples=np.full(BLOCKS, float(PER_BLOCK)),
         block_start=np.arange(BLOCKS) * 7200.0, interval_start=np.zeros(BLOCKS),
         reason=np.full(BLOCKS, ""),
         temperature_count=np.where((centre > -60.0) & (centre < 40.0), 3000.0, 0.0))
-    return fit_variance_calibration(DayStatistics.empty(FitSettings()), v, base,
+
+
+def _fit(x: np.ndarray, y: np.ndarray, base, hold_d0=()):
+    """The pipeline's fit of the samples' normal equations (`_stats`; dt not fitted)."""
+    return fit_variance_calibration(DayStatistics.empty(FitSettings()), _stats(x, y), base,
                                     fit_delay=False, hold_d0=hold_d0)
 
 
@@ -264,14 +268,7 @@ def test_solve_step_gives_solve_variances_solution_bit_for_bit(shipped):
     step[2] = -law[0, 2]
     step[3 * PER_AXIS + BREAK_SHIFTS_C.index(2.0)] = law[0, 2]
     x, noise = _raw(9)
-    y = x @ step + 0.01 * noise
-    centre = 0.5 * (TEMPERATURE_EDGES_C[:-1] + TEMPERATURE_EDGES_C[1:])
-    stats = VarianceStatistics(
-        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
-        yy=np.einsum("bn,bn->b", y, y), samples=np.full(BLOCKS, float(PER_BLOCK)),
-        block_start=np.arange(BLOCKS) * 7200.0, interval_start=np.zeros(BLOCKS),
-        reason=np.full(BLOCKS, ""),
-        temperature_count=np.where((centre > -60.0) & (centre < 40.0), 3000.0, 0.0))
+    stats = _stats(x, x @ step + 0.01 * noise)
     d0_z = 2 * PER_AXIS + 4
     sol = solve_variance(stats, fit_delay=False, n_bootstrap=3, law=law,
                          held={d0_z: (0.05, HELD_WIDTH)})
