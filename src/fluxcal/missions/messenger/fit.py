@@ -1026,11 +1026,10 @@ def tau_goal_refusal(tau: float, error: float, goal: float = TAU_ERROR_GOAL,
     ----------
     Seed 000 sec. 7 (tau = 872 s, eq. 6); issue 34, "Done when".
     """
-    rel = abs(error / tau) if tau != 0 else np.inf
-    if np.isfinite(error) and rel <= goal:
+    beyond = _beyond_goal(tau, error, goal, cost_nt)
+    if beyond is None:
         return ""
-    size = (f", the goal {cost_nt:.3f} nT rms over the fitted days" if np.isfinite(cost_nt)
-            else "")
+    rel, size = beyond
     more = (f" (in a calm wind the error falls about as 1/sqrt(days) or faster: about "
             f"{(rel / goal) ** 2:.1f}x the days fitted; in a compressive one it falls slower)"
             if np.isfinite(rel) else "")
@@ -1065,11 +1064,10 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     ----------
     Seed 000 sec. 7, eq. 5 and Table 3 (D0); issue 34, "Done when".
     """
-    rel = abs(error / value) if value != 0 else np.inf
-    if np.isfinite(error) and rel <= goal:
+    beyond = _beyond_goal(value, error, goal, cost_nt)
+    if beyond is None:
         return ""
-    size = (f", the goal {cost_nt:.3f} nT rms over the fitted days" if np.isfinite(cost_nt)
-            else "")
+    rel, size = beyond
     # this fit's own value as a hold only with an error to hold it with
     own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
            f"value and error, rounded up: the table states D0 {axis} held, beyond the "
@@ -1080,6 +1078,20 @@ def d0_goal_refusal(axis: str, value: float, error: float,
             f"samples over a wider range of duty cycles (more days: the error falls about "
             f"as 1/sqrt(days)), or hold it with a stated width: {own}"
             f"{_hold_d0_advice(axis)}")
+
+
+def _beyond_goal(value: float, error: float, goal: float,
+                 cost_nt: float) -> tuple[float, str] | None:
+    """Return ``(|error / value|, the goal's size in nT as text)`` beyond ``goal``, else None.
+
+    Beyond: the stated error exceeds ``goal`` of ``|value|``, is not finite, or ``value``
+    is 0 (`d0_goal_refusal`, `tau_goal_refusal`).
+    """
+    rel = abs(error / value) if value != 0 else np.inf
+    if np.isfinite(error) and rel <= goal:
+        return None
+    return rel, (f", the goal {cost_nt:.3f} nT rms over the fitted days"
+                 if np.isfinite(cost_nt) else "")
 
 
 def _up_to_two_digits(x: float) -> float:
