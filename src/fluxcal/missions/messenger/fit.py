@@ -141,7 +141,7 @@ D0_GOAL_BINDS_BELOW = 0.5
 #: Goal for the fitted tau (issue 34: "D0 and tau within 5 %"): `check_fit` refuses a tau
 #: whose stated relative error (1 sigma) exceeds it (`tau_goal_refusal`; docs/decisions/
 #: messenger_fit.md entry 3x-tau: the 16-day Mercury orbit states 0.35-0.86 %, 5 % of
-#: tau is 0.014-0.022 nT over the fitted days, so the figure of merit never holds it).
+#: tau is 0.012-0.023 nT over the fitted days, so the figure of merit never holds it).
 TAU_ERROR_GOAL = 0.05
 #: The data that constrain tau (the refusals of `check_fit` name them).
 _TAU_DATA = ("more duty-cycle changes (heater regulating, steps of several %), or "
@@ -889,13 +889,12 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     ref = reference if reference is not None else _shipped()
     tau_ref = float(ref.constants["relaxation"]["tau_s"])
     r = result.relaxation
-    what_tau = _TAU_DATA
     lo, hi = tau_ref / TAU_RANGE_FACTOR, tau_ref * TAU_RANGE_FACTOR
     if not (lo <= r.tau <= hi):
         raise FitRefusedError(
             f"relaxation time (sec. 7): fitted tau = {r.tau:.0f} +- {r.tau_err:.0f} s lies "
             f"outside {lo:.0f}..{hi:.0f} s ({TAU_RANGE_FACTOR:g}x the shipped {tau_ref:.0f} s)"
-            f"; not written. Needs {what_tau}")
+            f"; not written. Needs {_TAU_DATA}")
     if not final:
         return
     cause = tau_goal_refusal(r.tau, r.tau_err, cost_nt=float(np.max(tau_goal_cost_nt(result))))
@@ -987,7 +986,7 @@ def tau_goal_cost_nt(result: FitResult, goal: float = TAU_ERROR_GOAL) -> np.ndar
     relative tau error of ``goal`` alone (``R_tau`` the derivative of the relaxed duty
     cycle eq. 6 with respect to tau, ppt/s, over every used sample of the fitted days,
     `VarianceStatistics.offset_moments`; ``M`` eq. 8's fine matrix).  5 % of tau is
-    0.014-0.022 nT in the measured worlds (entry 3x-tau).  NaN without the variance
+    0.012-0.023 nT in the measured worlds (entry 3x-tau).  NaN without the variance
     estimator's moments.
 
     References
