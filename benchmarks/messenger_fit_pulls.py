@@ -613,18 +613,17 @@ def unit_scores(res) -> dict:
     """The last pass's normal equations at the fitted tables, grouped into the bootstrap's
     units (`fit_variance.solve_variance`), the breaks kept, the held columns at their
     held steps: per unit ``a_u``, ``v_u``; ``total``; the solution ``theta``; the free
-    columns ``free`` / ``f``; each unit's score ``v_u - a_u theta`` on them (``score``);
-    ``inv`` (the free block of ``total``, inverted); ``n`` units, ``p`` free; ``held``
-    (column -> width)."""
+    columns ``free`` / ``f``; ``layout`` (`fit_variance.solve_step`'s ``fit_delay`` and
+    ``held`` steps); each unit's score ``v_u - a_u theta`` on them (``score``); ``inv``
+    (the free block of ``total``, inverted); ``n`` units, ``p`` free; ``held`` (column ->
+    width)."""
     now = fv.law_parameters(res.calibration)
-    base_free = np.ones(fv.N_PARAMETERS, dtype=bool)
-    base_free[-1] = res.delay_fitted
     held_cols = _held_columns(res)
-    base_free[list(held_cols)] = False
-    free, fixed = fv._layout((-1, -1, -1), base_free, now[:, 2])
-    for col, (step, _) in held_cols.items():
-        fixed[col] = step
+    layout = {"fit_delay": res.delay_fitted,
+              "held": {col: step for col, (step, _) in held_cols.items()}}
     a, v = res.variance.normal, res.variance.rhs
+    # the free columns (breaks kept) set the units' length, as in solve_variance
+    free = fv.solve_step(a.sum(axis=0), v.sum(axis=0), now[:, 2], **layout)[1]
     p = int(free.sum())
     group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
     n = int(group[-1]) + 1
@@ -632,10 +631,10 @@ def unit_scores(res) -> dict:
     np.add.at(a_u, group, a)
     np.add.at(v_u, group, v)
     total = a_u.sum(axis=0)
-    theta = fv._fit(total, v_u.sum(axis=0), free, fixed)
+    theta = fv.solve_step(total, v_u.sum(axis=0), now[:, 2], **layout)[0]
     f = np.flatnonzero(free)
     return {"a_u": a_u, "v_u": v_u, "total": total, "theta": theta, "free": free,
-            "fixed": fixed, "f": f, "n": n, "p": p,
+            "layout": layout, "f": f, "n": n, "p": p,
             "score": (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f],
             "inv": np.linalg.inv(total[np.ix_(f, f)]),
             "held": {col: width for col, (_, width) in held_cols.items()}}
@@ -655,8 +654,8 @@ def core_factors(res, true) -> dict:
     rng = np.random.default_rng(0)
     picks = np.stack([np.bincount(rng.integers(0, u["n"], u["n"]), minlength=u["n"])
                       for _ in range(200)]).astype(float)
-    pairs = fv._fit(np.einsum("rb,bij->rij", picks, u["a_u"]), picks @ u["v_u"],
-                    u["free"], u["fixed"])[:, f]
+    pairs = fv.solve_step(np.einsum("rb,bij->rij", picks, u["a_u"]), picks @ u["v_u"],
+                          now[:, 2], **u["layout"])[0][:, f]
     fixed = (picks - 1.0) @ score @ inv.T
     moved = moved_resamples(res)
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])

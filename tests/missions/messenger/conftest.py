@@ -1,3 +1,6 @@
+import importlib.util
+from pathlib import Path
+
 import pytest
 
 from fluxcal.geometry.kernels import KernelPool
@@ -41,3 +44,16 @@ def simulated(messenger_kernels, sim_config, calibration):
 @pytest.fixture(scope="session")
 def simulated_files(tmp_path_factory, simulated):
     return write_inputs(simulated, tmp_path_factory.mktemp("msgr_inputs"))
+
+
+#: The pull harness (a script, not a package), loaded from its file by `pulls_bench`.
+PULLS_BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
+
+
+@pytest.fixture(scope="session")
+def pulls_bench():
+    """``benchmarks/messenger_fit_pulls.py`` as a module, for its functions under test."""
+    spec = importlib.util.spec_from_file_location("messenger_fit_pulls", PULLS_BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

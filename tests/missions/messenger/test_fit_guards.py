@@ -95,11 +95,12 @@ def test_d0_goal_sits_at_five_percent_of_the_stated_error(fitted, axis):
 
 
 class _Moments:
-    """Variance statistics reduced to what the D0 goal reads: ``n`` samples whose relaxed
-    duty cycle R has the rms ``rms_r`` (ppt); no accepted temperatures (the break guard
-    then uses the heater-off bins)."""
+    """Variance statistics reduced to what the D0 and tau goals read: ``n`` samples whose
+    relaxed duty cycle R has the rms ``rms_r`` (ppt) and its tau derivative R_tau the rms
+    ``rms_rt`` (ppt/s); no accepted temperatures (the break guard then uses the heater-off
+    bins)."""
 
-    def __init__(self, n: float, rms_r: float):
+    def __init__(self, n: float, rms_r: float, rms_rt: float = 0.0):
         from fluxcal.missions.messenger.fit_variance import MOMENT_COLUMNS
 
         self.offset_moments = np.zeros((2, len(MOMENT_COLUMNS)))
@@ -107,6 +108,8 @@ class _Moments:
         self.offset_moments[:, MOMENT_COLUMNS.index("n")] = (0.25 * n, 0.75 * n)
         self.offset_moments[:, MOMENT_COLUMNS.index("RR")] = (0.25 * n * rms_r ** 2,
                                                               0.75 * n * rms_r ** 2)
+        self.offset_moments[:, MOMENT_COLUMNS.index("RtRt")] = (0.25 * n * rms_rt ** 2,
+                                                                0.75 * n * rms_rt ** 2)
 
     def fitted_range(self, *args):
         return (np.nan, np.nan)
@@ -173,6 +176,77 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
     assert held == pytest.approx(value, rel=5e-4)
     assert error <= width <= error + 10.0 ** (np.floor(np.log10(error)) - 1) + 1e-15
     assert parse_hold_d0(advised[1]) == {"z": (None, None)}
+
+
+def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
+    # issue 34's goal "tau within 5 %" as the stated 1-sigma error (entry 3x-tau): the
+    # closed form |error / tau| <= 0.05, just inside and just outside; the fixture's own
+    # error (0.015 %) lies inside (test_a_sound_fit_passes)
+    res = fitted[1]
+    tau = res.relaxation.tau
+    for rel, refused in ((0.0499, False), (0.0501, True), (0.29, True), (np.nan, True)):
+        case = _with(res, tau_err=rel * tau)
+        check_fit(case, final=False)  # an intermediate pass: tau's range only (entry 9)
+        if not refused:
+            check_fit(case)
+            continue
+        with pytest.raises(FitRefusedError, match=r"fitted tau = \d+ \+- (\d+|nan) s, a "
+                                                  r"relative error above the 5% goal \(") as info:
+            check_fit(case)
+        if rel == rel:  # the stated error in s and % (one decimal), then the entry
+            assert f"+- {rel * tau:.0f} s" in str(info.value)
+            assert f"({100 * rel:.1f}%; entry 3x-tau)" in str(info.value)
+        assert "--" not in str(info.value)  # no option: tau cannot be held
+
+
+def test_tau_goal_cost_is_the_merits_tau_part_for_five_percent(fitted):
+    from fluxcal.missions.messenger.fit import tau_goal_cost_nt
+
+    res = fitted[1]
+    # brute force over samples: a tau error dtau moves the offset of sensor axis j by
+    # D0_j R_tau dtau (seed 000 eq. 5-6 linearised), the field by M of it (eq. 8, the
+    # shipped fine matrix); the rms over samples whose R_tau are drawn, at dtau = 5 % tau
+    rng = np.random.default_rng(5)
+    r_tau = rng.normal(0.0, 0.02, 5000)  # ppt/s
+    m = np.asarray(res.calibration.matrices[0], dtype=float)
+    d0 = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
+    d_offset = np.outer(r_tau * 0.05 * res.relaxation.tau, d0)   # (samples, sensor axes)
+    brute = np.sqrt(np.mean((d_offset @ m.T) ** 2, axis=0))       # (output axes,)
+    rms_rt = np.sqrt(np.mean(r_tau ** 2))
+    case = dataclasses.replace(res, variance=_Moments(r_tau.size, 300.0, rms_rt))
+    np.testing.assert_allclose(tau_goal_cost_nt(case), brute, rtol=1e-10)
+    # linear in the goal; no samples or no moments: no size (the goal still binds)
+    np.testing.assert_allclose(tau_goal_cost_nt(case, 0.10), 2.0 * brute, rtol=1e-10)
+    assert np.all(np.isnan(tau_goal_cost_nt(dataclasses.replace(res, variance=_Moments(0, 1)))))
+    assert np.all(np.isnan(tau_goal_cost_nt(res)))
+    # the refusal states the size on the largest axis, in nT
+    with pytest.raises(FitRefusedError, match=rf"\(6\.0%, the goal {brute.max():.3f} nT rms "
+                                              r"over the fitted days; entry 3x-tau\)"):
+        check_fit(_with(case, tau_err=0.06 * res.relaxation.tau))
+
+
+@pytest.mark.parametrize("tau, error, expected, factor", [
+    (654.0, 40.0, "6.1%", "1.5x"),      # (40 / 654 / 0.05)^2 = 1.50 times the days
+    (-654.0, 65.4, "10.0%", "4.0x"),    # the sign of tau is not the error's
+    (654.0, 32.69, "", ""),             # 4.998 %: inside
+    (654.0, np.nan, "nan%", ""),        # no error: refused, no factor
+    (0.0, 10.0, "inf%", ""),            # no value to be relative to: refused
+])
+def test_tau_goal_refusal_names_the_stated_error_the_goal_and_the_days(tau, error, expected,
+                                                                        factor):
+    from fluxcal.missions.messenger.fit import tau_goal_refusal
+
+    msg = tau_goal_refusal(tau, error)
+    if not expected:
+        assert msg == ""
+        return
+    assert f"tau = {tau:.0f} +- {error:.0f} s, a relative error above the 5% goal " \
+           f"({expected}; entry 3x-tau); not written" in msg
+    assert "duty-cycle changes" in msg and "more days" in msg
+    if factor:
+        assert f"about {factor} the days fitted" in msg
+    else:
+        assert "days fitted" not in msg
 
 
 def test_break_outside_the_data_is_refused(fitted):

@@ -8,21 +8,13 @@ correctly (docs/decisions/messenger_fit_verification.md section 24).
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
-
 
 @pytest.fixture(scope="module")
-def law():
-    spec = importlib.util.spec_from_file_location("messenger_fit_pulls", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module._law
+def law(pulls_bench):
+    return pulls_bench._law
 
 
 def test_upper_slope_below_lower_applies_each_line_on_its_side(law):

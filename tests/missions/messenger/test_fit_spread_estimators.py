@@ -12,9 +12,7 @@ Table 2 (`_hard_worlds.drawn_law`): its ranges, eq. 4, and one draw per seed.
 
 from __future__ import annotations
 
-import importlib.util
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -34,7 +32,6 @@ from fluxcal.missions.messenger.flight_sim import write_true_calibration
 from tests.missions.messenger._hard_worlds import LAW_FACTORS, LAW_TM_SHIFT_C, drawn_law
 from tests.missions.messenger.test_fit_variance import _variance_result
 
-BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
 #: Draws per sample: the standard deviation's relative sampling error is about
 #: ``kurtosis / sqrt(n)`` < 0.3 %, the percentiles' a few 0.1 %; tolerance 1.5 %.
 N = 400_000
@@ -42,11 +39,8 @@ RTOL = 0.015
 
 
 @pytest.fixture(scope="module")
-def bench():
-    spec = importlib.util.spec_from_file_location("messenger_fit_pulls", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def bench(pulls_bench):
+    return pulls_bench
 
 
 def _mixture(p: float, jump: float, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:

@@ -326,7 +326,7 @@ def test_variance_meaningless_error_is_refused(shipped):
     res = _variance_result(shipped, np.zeros(N_PARAMETERS), noise=1e5)
     assert res.relaxation.tau_err > 0.3 * res.relaxation.tau
     with pytest.raises(FitRefusedError, match=r"tau = \d+ \+- \d+ s, a relative error above "
-                                              r"30%.*duty-cycle changes"):
+                                              r"the 5% goal.*duty-cycle changes"):
         check_fit(res)
 
 

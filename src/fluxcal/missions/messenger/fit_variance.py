@@ -80,7 +80,7 @@ __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGE
            "apply_step", "apply_steps", "choose_breaks", "d0_field_balance",
            "fixed_design_resamples", "law_values",
            "offset_moments", "reduce_variance", "refine_breaks", "resample_fits",
-           "solve_variance",
+           "solve_step", "solve_variance",
            "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
@@ -566,6 +566,80 @@ def _residual(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
     """Residual sum of squares of ``theta`` from the normal equations (stacks too)."""
     return (yy - 2.0 * np.einsum("...i,...i->...", theta, v)
             + np.einsum("...i,...ij,...j->...", theta, a, theta))
+
+
+def solve_step(a: np.ndarray, v: np.ndarray, slope: np.ndarray,
+               choice: tuple[int, int, int] = (-1, -1, -1), fit_delay: bool = True,
+               held: Mapping[int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Solve (a stack of) the normal equations for given break choices and held steps.
+
+    The solve `solve_variance` makes for one layout of the columns, without its break
+    search and bootstrap: for diagnostics of its errors on saved statistics (the pull
+    harness's sandwich and design factors, ``benchmarks/messenger_fit_pulls.py``;
+    docs/decisions/messenger_fit.md entries 39 and 41).  The shifted breaks' hinge
+    columns are free only on an axis moved to one (`choose_breaks`); such an axis
+    cancels its current hinge (its d(c) fixed at ``-slope``) and takes no linearised
+    break step.
+
+    Parameters
+    ----------
+    a : ndarray, shape (N_PARAMETERS, N_PARAMETERS) or (n, N_PARAMETERS, N_PARAMETERS)
+        Normal matrix (e.g. `VarianceStatistics.normal` summed over blocks), or a stack
+        of them (resamples).
+    v : ndarray, shape (N_PARAMETERS,) or (n, N_PARAMETERS)
+        Right-hand side(s).
+    slope : ndarray, shape (3,)
+        Each axis's slope change ``c`` at the linearisation point (`law_parameters`'
+        third column).
+    choice : tuple of int
+        Per axis, the index of the break shift in `BREAK_SHIFTS_C`, or -1: the break
+        kept, with its linearised step (`choose_breaks`' convention).
+    fit_delay : bool
+        Solve for dt too (else its step is 0).
+    held : mapping, optional
+        Held parameters: column (`PER_AXIS` layout) -> step (not fitted; the value
+        `solve_variance`'s ``held`` gives without its width).
+
+    Returns
+    -------
+    step : ndarray, shape (N_PARAMETERS,) or (n, N_PARAMETERS)
+        The solution(s), the held columns at their steps.
+    free : ndarray of bool, shape (N_PARAMETERS,)
+        The columns solved for.
+
+    Raises
+    ------
+    FluxcalError
+        A choice outside ``-1 .. len(BREAK_SHIFTS_C) - 1``, a held column outside the
+        parameters, or a break moved on an axis whose break column is held.
+
+    Notes
+    -----
+    A single system is solved by least squares on the matrix scaled to unit diagonal
+    (rank-safe), a stack by one batched solve: `solve_variance`'s own solver, so its
+    solution at the same choices and held steps comes out bit for bit.
+    """
+    held = dict(held or {})
+    choice = tuple(int(c) for c in choice)
+    if len(choice) != 3 or not all(-1 <= c < N_SHIFTS for c in choice):
+        raise FluxcalError(f"solve_step: choice {choice}: give one of -1..{N_SHIFTS - 1} "
+                           "per axis (the index in BREAK_SHIFTS_C, -1 for the break kept)")
+    if not all(0 <= int(col) < N_PARAMETERS for col in held):
+        raise FluxcalError(f"solve_step: held columns {sorted(held)}: give columns "
+                           f"0..{N_PARAMETERS - 1}")
+    moved_held = [j for j in range(3) if choice[j] >= 0 and j * PER_AXIS + 3 in held]
+    if moved_held:
+        raise FluxcalError(f"solve_step: axes {moved_held} hold their break column; their "
+                           "break cannot move (choice -1)")
+    base_free = np.ones(N_PARAMETERS, dtype=bool)
+    base_free[-1] = fit_delay
+    fixed_h = np.zeros(N_PARAMETERS)
+    for col, value in held.items():
+        base_free[int(col)] = False
+        fixed_h[int(col)] = value
+    free, fixed = _layout(choice, base_free, np.asarray(slope, dtype=float))
+    return _fit(np.asarray(a, dtype=float), np.asarray(v, dtype=float), free,
+                fixed + fixed_h), free
 
 
 def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
