@@ -617,7 +617,9 @@ def solve_step(a: np.ndarray, v: np.ndarray, slope: np.ndarray,
     -----
     A single system is solved by least squares on the matrix scaled to unit diagonal
     (rank-safe), a stack by one batched solve: `solve_variance`'s own solver, so its
-    solution at the same choices and held steps comes out bit for bit.
+    solution at the same choices and held steps comes out bit for bit, except where
+    `refine_breaks` then places a moved break inside its grid cell
+    (``VarianceSolution.break_offset`` nonzero: another layout, one more column).
     """
     held = dict(held or {})
     choice = tuple(int(c) for c in choice)
