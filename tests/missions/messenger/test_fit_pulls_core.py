@@ -59,6 +59,7 @@ from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
 from fluxcal.missions.messenger.fit_variance import (
     BREAK_SHIFTS_C,
     MAX_GROUP,
+    N_BOOTSTRAP,
     N_PARAMETERS,
     PER_AXIS,
     TEMPERATURE_EDGES_C,
@@ -476,3 +477,23 @@ def test_estimator_rows_and_summary_give_the_pulls_by_hand(bench, saved, tmp_pat
             assert spread == pytest.approx(p.std(ddof=1), abs=5.1e-3), (a, name)
             assert largest == pytest.approx(np.abs(p).max(), abs=5.1e-3), (a, name)
             assert beyond == np.count_nonzero(np.abs(p) > 3)
+
+
+# --- the harness: --replay (entry 3x-spread) ---------------------------------------
+
+
+def test_replay_states_the_raw_samples_sandwich(bench, saved):
+    # the fit's bootstrap (fixed design, N_BOOTSTRAP resamples) replayed on the saved
+    # fits: T_m's error is the raw samples' cluster sandwich (lstsq, `_independent`)
+    # widened by w, within the resamples' noise (an sd from 800 resamples scatters by
+    # about 1 / sqrt(1600) = 2.5 %; 10 % allowed).  (The replay is at the fitted tables,
+    # these fits one step from the shipped ones: it is not the fit's own bootstrap to
+    # the digit, as it is for converged fits.)
+    for x, y, res, true, _ in saved[:3]:
+        ind = _independent(x, y, res, {})
+        err_tm = ind["tm"] - true.t_m
+        sandwich = np.array([ind["w"] * np.sqrt(ind["grads"][f"T_m {a}"] @ ind["cov"]
+                                                @ ind["grads"][f"T_m {a}"]) for a in "xyz"])
+        row = bench.replay_row(res, true, True, N_BOOTSTRAP)
+        np.testing.assert_allclose(row["tm_pull"], err_tm / sandwich, rtol=0.1)
+        assert res.bootstrap["law"].shape[0] == N_BOOTSTRAP  # the fit's own count
