@@ -130,15 +130,15 @@ def _sparse_peaks() -> np.ndarray:
 def _fit(shipped, true, temp, seed, passes):
     """``passes`` Gauss-Newton steps as `fit_days` takes them (the statistics rebuilt
     about each new law, the same noise draw); the breaks and their stated errors as
-    `fit.fit_variance_calibration` states them (the fixed-design resamples' spread,
-    each shifted break placed inside its cell by its own data, widened)."""
+    `fit.fit_variance_calibration` states them (the resamples' spread, each shifted
+    break placed inside its cell by its own data, widened)."""
     noise = NOISE * np.random.default_rng(900 + seed).normal(size=temp.size)
     cal = shipped
     for _ in range(passes):
         now = law_parameters(cal)
         stats = _hinge_statistics(now, true, np.random.default_rng(500 + seed), temp=temp,
                                   noise=noise)
-        sol = solve_variance(stats, n_bootstrap=60, law=now, fixed_design=True)
+        sol = solve_variance(stats, n_bootstrap=60, law=now)
         law = apply_step(cal, sol.step, break_shift=sol.break_shift)[0]
         law[:, 3] += sol.break_offset
         boots = np.stack([apply_step(cal, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,

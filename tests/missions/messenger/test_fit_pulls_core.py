@@ -483,8 +483,8 @@ def test_estimator_rows_and_summary_give_the_pulls_by_hand(bench, saved, tmp_pat
 
 
 def test_replay_states_the_raw_samples_sandwich(bench, saved):
-    # the fit's bootstrap (fixed design, N_BOOTSTRAP resamples) replayed on the saved
-    # fits: T_m's error is the raw samples' cluster sandwich (lstsq, `_independent`)
+    # the fixed-design bootstrap (800 resamples) replayed on the saved fits by the
+    # harness: T_m's error is the raw samples' cluster sandwich (lstsq, `_independent`)
     # widened by w, within the resamples' noise (an sd from 800 resamples scatters by
     # about 1 / sqrt(1600) = 2.5 %; 10 % allowed).  (The replay is at the fitted tables,
     # these fits one step from the shipped ones: it is not the fit's own bootstrap to
@@ -494,6 +494,6 @@ def test_replay_states_the_raw_samples_sandwich(bench, saved):
         err_tm = ind["tm"] - true.t_m
         sandwich = np.array([ind["w"] * np.sqrt(ind["grads"][f"T_m {a}"] @ ind["cov"]
                                                 @ ind["grads"][f"T_m {a}"]) for a in "xyz"])
-        row = bench.replay_row(res, true, True, N_BOOTSTRAP)
+        row = bench.replay_row(res, true, True, 800)
         np.testing.assert_allclose(row["tm_pull"], err_tm / sandwich, rtol=0.1)
         assert res.bootstrap["law"].shape[0] == N_BOOTSTRAP  # the fit's own count

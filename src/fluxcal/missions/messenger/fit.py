@@ -1349,12 +1349,9 @@ def fit_variance_calibration(
 
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
-    deviations over a fixed-design bootstrap of the blocks (the units' scores resampled,
-    the whole data's normal matrix kept: the error for the fitted days' temperature
-    coverage as given; `fit_variance.fixed_design_resamples`, entry 3x-spread), each
-    resample choosing its own break temperatures (each shifted break placed inside its
-    shift's cell by its own data, entry 3x-spread) and drawing each held D0 from its
-    width (entry 18); the waveforms
+    deviations over a bootstrap of the blocks, each resample choosing its own break
+    temperatures (each shifted break placed inside its shift's cell by its own data,
+    entry 3x-spread) and drawing each held D0 from its width (entry 18); the waveforms
     from ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
 
@@ -1439,12 +1436,8 @@ def fit_variance_calibration(
         columns[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
         columns[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     try:
-        # the units' scores resampled with the design kept: the pairs bootstrap's
-        # resampled lever arm stated the law at the warm edge 1.24-1.47x too wide
-        # (entries 41, 3x-spread)
         sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
-                                law=now, held=columns, fixed_design=True,
-                                **(resample_map or {}))
+                                law=now, held=columns, **(resample_map or {}))
     except FluxcalError as exc:  # too few blocks: name the compressive cause if it is one
         if cause:
             raise too_little(str(exc)) from None

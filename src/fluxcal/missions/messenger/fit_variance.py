@@ -110,12 +110,11 @@ MIN_RANGE_SAMPLES = 1800
 MIN_SPARE_BLOCKS = 2
 #: Most consecutive blocks resampled together (`solve_variance`): 12 h of 2-h blocks.
 MAX_GROUP = 6
-#: Resamples of the fit's bootstrap (`fit.fit_variance_calibration`).  A standard
-#: deviation from B resamples scatters by about ``1 / sqrt(2 B)`` for normal resamples;
-#: at 200 the law's error at -50 C scattered by +-13 % from one bootstrap seed to the
-#: next (16-day late peak, entry 41), enough to move a pull from 2.9 to 3.0 by the
-#: seed alone; 800 halve it, for 0.3-0.4 s more per pass at 16 days (entry 3x-spread).
-N_BOOTSTRAP = 800
+#: Resamples of the fit's bootstrap (`fit.fit_variance_calibration`).  The stated errors
+#: scatter with the bootstrap's seed by about +-13 % at -50 C (16-day late peak, entry
+#: 41); 800 would halve that for 0.3-0.4 s more per pass at 16 days, measured with the
+#: fixed design, which stays off (entry 3x-spread).
+N_BOOTSTRAP = 200
 #: Residual bias of D0 along the field's mean direction, in units of D0's bootstrap error
 #: along it, per unit of the field's one-sidedness (`d0_field_balance`): the part of D0's
 #: error no resample of the blocks sees; added in quadrature as a stated error
