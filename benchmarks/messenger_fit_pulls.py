@@ -766,17 +766,20 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
     return row
 
 
-def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200) -> dict:
+def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
+                    refine: bool = False) -> dict:
     """The stated errors of ``res`` replayed from its last pass's normal equations at the
     fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
     one (`fit_variance.fixed_design_resamples`) of ``n_bootstrap`` resamples, treated as
-    `fit.fit_variance_calibration` treats them (moved breaks inside their cells,
-    widening, held draws, D0 along the field): tau, D0 (3,), T_m (3,), the law at
-    `LAW_T` (len(LAW_T), 3)."""
+    `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
+    the field; ``refine``: moved breaks placed inside their cells instead,
+    `fit_variance.refine_breaks`): tau, D0 (3,), T_m (3,), the law at `LAW_T`
+    (len(LAW_T), 3)."""
     held = _held_columns(res)
     sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
                             law=fv.law_parameters(res.calibration), held=held,
-                            fixed_design=fixed_design, n_bootstrap=n_bootstrap)
+                            fixed_design=fixed_design, n_bootstrap=n_bootstrap,
+                            refine=refine)
     law, d0, tau, _ = fv.apply_step(res.calibration, sol.step, break_shift=sol.break_shift)
     law[:, 3] += sol.break_offset
     b_law, b_d0, b_tau, _ = fv.apply_steps(res.calibration, sol.boot, max_tau_shift=np.inf,
@@ -812,17 +815,19 @@ def fixed_design_row(res, true) -> dict:
     return row
 
 
-#: The bootstraps `replay_summary` replays: (column, fixed design, resamples).
-REPLAYS = (("pairs 200", False, 200), ("fixed 200", True, 200), ("fixed 800", True, 800))
+#: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine).
+REPLAYS = (("pairs 200", False, 200, False), ("refined", False, 200, True),
+           ("fixed 800", True, 800, False), ("refined, fixed 800", True, 800, True))
 
 
-def replay_row(res, true, fixed_design: bool, n_bootstrap: int) -> dict:
-    """`estimator_row` with every stated error replaced by this tree's bootstrap replayed
-    on the fit's stored normal equations (`replayed_errors`): the pulls the fit would
-    state with this tree's variance code, the fitted tables kept (entry 3x-spread)."""
+def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
+               refine: bool = False) -> dict:
+    """`estimator_row` with every stated error replaced by a bootstrap replayed on the
+    fit's stored normal equations (`replayed_errors`): the pulls the fit would state
+    with that bootstrap, the fitted tables kept (entry 3x-spread)."""
     row = estimator_row(res, true, spread_sd)
     boot = res.bootstrap
-    now = replayed_errors(res, fixed_design, n_bootstrap)
+    now = replayed_errors(res, fixed_design, n_bootstrap, refine)
     row["tau_pull"] *= spread_sd(boot["tau"]) / now["tau"]
     row["d0_pull"] = row["d0_pull"] * spread_sd(boot["d0"]) / now["d0"]
     row["tm_pull"] = row["tm_pull"] * spread_sd(boot["law"][:, :, 3]) / now["tm"]
@@ -833,12 +838,12 @@ def replay_row(res, true, fixed_design: bool, n_bootstrap: int) -> dict:
 
 def replay_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 as stored
-    in the saved fits of ``folder`` and as this tree's bootstrap replays them
-    (`REPLAYS`; docs/decisions/messenger_fit.md entry 3x-spread)."""
+    in the saved fits of ``folder`` and under each bootstrap of `REPLAYS` replayed on
+    them (docs/decisions/messenger_fit.md entry 3x-spread)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     per = {"stored": [estimator_row(res, true, spread_sd) for res, true in fits]}
-    per.update({name: [replay_row(res, true, fixed, n) for res, true in fits]
-                for name, fixed, n in REPLAYS})
+    per.update({name: [replay_row(res, true, fixed, n, refine) for res, true in fits]
+                for name, fixed, n, refine in REPLAYS})
     print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
     print("| parameter | " + " | ".join(per) + " |")
     print("|---|" + "---|" * len(per))
@@ -923,9 +928,9 @@ def main() -> None:
                     help="With --summarise: the pulls under each spread estimator of the "
                          "stated errors (SPREADS) instead of the summary.")
     ap.add_argument("--replay", action="store_true",
-                    help="With --summarise: the pulls as stored and as this tree's "
-                         "bootstrap states them, replayed on the stored normal equations "
-                         "(REPLAYS; entry 3x-spread).")
+                    help="With --summarise: the pulls as stored and under the pairs, "
+                         "refined and fixed-design bootstraps replayed on the stored normal "
+                         "equations (REPLAYS; entry 3x-spread).")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")

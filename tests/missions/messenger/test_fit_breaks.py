@@ -1,12 +1,14 @@
 """Issue 34, item 2: the break temperatures' stated errors cover their truth (entry 27).
 
-Closed forms first (no simulation): a break between grid shifts is placed at its truth
-(noise-free hinge worlds, entry 3x-spread); in a hinge world whose break is seen only in
-a few warm blocks (above the stated 1800-sample range, inside the data's 300-sample
-range, as in issue 34's late-peak Mercury orbit) the stated T_m error covers the truth,
-both where the linearised step has not brought the break home and after the passes,
-where it is compared with the brute-force spread of the fitted breaks over noise draws.  Then the
-late-peak Mercury orbit itself (`_hard_worlds.MercuryOrbit`, numpy only; slow).
+Closed forms first (no simulation): the quantisation of the shift grid is uniform over
+the chosen shift's cell; the opt-in refinement places a break between grid shifts at its
+truth (noise-free hinge worlds, entry 3x-spread); in a hinge world whose break is seen
+only in a few warm blocks (above the stated 1800-sample range, inside the data's
+300-sample range, as in issue 34's late-peak Mercury orbit) the stated T_m error covers
+the truth, both where the linearised step has not brought the break home and after the
+passes, where it is compared with the brute-force spread of the fitted breaks over noise
+draws.  Then the late-peak Mercury orbit itself (`_hard_worlds.MercuryOrbit`, numpy only;
+slow).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from fluxcal.missions.messenger.fit_variance import (
     law_parameters,
     law_to_table,
     law_values,
+    quantisation,
     refine_breaks,
     resample_fits,
     solve_variance,
@@ -50,6 +53,24 @@ def shipped():
     return load_calibration(START)
 
 
+def test_quantisation_is_uniform_over_the_chosen_shifts_cell():
+    # the cell of a shift reaches half-way to its neighbours (the kept break, 0, counts
+    # as one); the outermost cells as far outward as inward; a kept break draws 0
+    grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
+    rng = np.random.default_rng(5)
+    n = 20000
+    for k, s in enumerate(BREAK_SHIFTS_C):
+        i = int(np.searchsorted(grid, s))
+        lo = 0.5 * (grid[i - 1] + s) if i > 0 else s - 0.5 * (grid[1] - s)
+        hi = 0.5 * (grid[i + 1] + s) if i < grid.size - 1 else s + 0.5 * (s - grid[-2])
+        d = quantisation(np.full((n, 3), k), rng)[:, 1]
+        assert d.min() >= lo - s and d.max() <= hi - s
+        # uniform: mean at the cell's centre, variance width^2 / 12 (20000 draws: 3 %)
+        assert d.mean() == pytest.approx(0.5 * (lo + hi) - s, abs=0.02 * (hi - lo))
+        assert d.var() == pytest.approx((hi - lo) ** 2 / 12.0, rel=0.03)
+    np.testing.assert_array_equal(quantisation(np.full((4, 3), -1), rng), 0.0)
+
+
 @pytest.mark.parametrize("off", [(0.3, -2.6, 6.0), (0.7, -1.3, -5.0)])
 def test_a_break_between_grid_points_is_placed_at_its_truth(shipped, off):
     # noise-free hinge worlds whose true breaks lie inside grid cells (0.3 / 0.7 C: the
@@ -63,7 +84,7 @@ def test_a_break_between_grid_points_is_placed_at_its_truth(shipped, off):
     true[:, 3] += off
     true[:, 2] *= 1.1  # a slope change 10 % larger too
     stats = _hinge_statistics(now, true, np.random.default_rng(31))
-    sol = solve_variance(stats, n_bootstrap=20, law=now)
+    sol = solve_variance(stats, n_bootstrap=20, law=now, refine=True)
     assert np.all(sol.break_shift != 0.0)  # every axis took a grid shift
     law = apply_step(shipped, sol.step, break_shift=sol.break_shift)[0]
     grid_only = law[:, 3].copy()
@@ -131,7 +152,7 @@ def _fit(shipped, true, temp, seed, passes):
     """``passes`` Gauss-Newton steps as `fit_days` takes them (the statistics rebuilt
     about each new law, the same noise draw); the breaks and their stated errors as
     `fit.fit_variance_calibration` states them (the resamples' spread, each shifted
-    break placed inside its cell by its own data, widened)."""
+    break drawn in its cell, widened)."""
     noise = NOISE * np.random.default_rng(900 + seed).normal(size=temp.size)
     cal = shipped
     for _ in range(passes):
@@ -140,7 +161,6 @@ def _fit(shipped, true, temp, seed, passes):
                                   noise=noise)
         sol = solve_variance(stats, n_bootstrap=60, law=now)
         law = apply_step(cal, sol.step, break_shift=sol.break_shift)[0]
-        law[:, 3] += sol.break_offset
         boots = np.stack([apply_step(cal, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
                                      break_shift=s)[0][:, 3]
                           for b, s in zip(sol.boot, sol.boot_shift, strict=True)])

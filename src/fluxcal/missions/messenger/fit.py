@@ -1337,7 +1337,7 @@ def fit_variance_calibration(
     base: MessengerCalibration,
     *,
     fit_delay: bool = True,
-    n_bootstrap: int = fv.N_BOOTSTRAP,
+    n_bootstrap: int = 200,
     hold_d0: HoldD0 = (),
     max_compressive_share: float = fit_merit.MAX_COMPRESSIVE_SHARE,
     start: MessengerCalibration | None = None,
@@ -1350,9 +1350,9 @@ def fit_variance_calibration(
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
     deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures (each shifted break placed inside its shift's cell by its own data,
-    entry 3x-spread) and drawing each held D0 from its width (entry 18); the waveforms
-    from ``stats`` as in `fit_calibration`.  dt is adopted under the same rule as there
+    temperatures (each shifted break drawn in its shift's cell, entry 27) and drawing
+    each held D0 from its width (entry 18); the waveforms from ``stats`` as in
+    `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
 
     Parameters
@@ -1364,7 +1364,6 @@ def fit_variance_calibration(
     base : MessengerCalibration
     fit_delay : bool
     n_bootstrap : int
-        Resamples (`fit_variance.N_BOOTSTRAP`).
     hold_d0 : tuple of str or mapping
         Axes whose D0 is held (`held_d0_values`: value and width).
     max_compressive_share : float
@@ -1443,13 +1442,12 @@ def fit_variance_calibration(
             raise too_little(str(exc)) from None
         raise
     law, d0, tau, dt = fv.apply_step(base, sol.step, break_shift=sol.break_shift)
-    law[:, 3] += sol.break_offset  # a shifted break inside its cell (entry 3x-spread)
     # the errors from the unclipped resamples: clipping them to the step's range (30 % of
     # tau, 10 C of a break) would cap a stated error at that range, below the guard's 30 %
     b_law, b_d0, b_tau, b_dt = fv.apply_steps(base, sol.boot, max_tau_shift=np.inf,
                                               max_break_shift_c=np.inf,
                                               break_shifts=sol.boot_shift)
-    b_law[:, :, 3] += sol.boot_dither  # a shifted break inside its cell (entry 3x-spread)
+    b_law[:, :, 3] += sol.boot_dither  # a shifted break known to its cell (entry 27)
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
     # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
     # (entry 13), in the tables' parameters (each resample has its own break choice);

@@ -75,11 +75,11 @@ from fluxcal.missions.messenger.calibration_data import MessengerCalibration
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C",
-           "N_BOOTSTRAP", "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings",
-           "VarianceStatistics",
+           "N_PARAMETERS", "TEMPERATURE_EDGES_C", "VarianceSettings", "VarianceStatistics",
            "apply_step", "apply_steps", "choose_breaks", "d0_field_balance",
            "fixed_design_resamples", "law_values",
-           "offset_moments", "reduce_variance", "refine_breaks", "resample_fits",
+           "offset_moments", "quantisation", "reduce_variance", "refine_breaks",
+           "resample_fits",
            "solve_step", "solve_variance",
            "widen_d0_along_field"]
 
@@ -110,11 +110,6 @@ MIN_RANGE_SAMPLES = 1800
 MIN_SPARE_BLOCKS = 2
 #: Most consecutive blocks resampled together (`solve_variance`): 12 h of 2-h blocks.
 MAX_GROUP = 6
-#: Resamples of the fit's bootstrap (`fit.fit_variance_calibration`).  The stated errors
-#: scatter with the bootstrap's seed by about +-13 % at -50 C (16-day late peak, entry
-#: 41); 800 would halve that for 0.3-0.4 s more per pass at 16 days, measured with the
-#: fixed design, which stays off (entry 3x-spread).
-N_BOOTSTRAP = 200
 #: Residual bias of D0 along the field's mean direction, in units of D0's bootstrap error
 #: along it, per unit of the field's one-sidedness (`d0_field_balance`): the part of D0's
 #: error no resample of the blocks sees; added in quadrature as a stated error
@@ -458,17 +453,19 @@ class VarianceSolution:
     boot_shift : ndarray, shape (n_bootstrap, 3)
         ``break_shift`` of every resample (chosen again on the resampled blocks).
     boot_dither : ndarray, shape (n_bootstrap, 3)
-        Per resample and axis, where in the cell of its chosen shift its own data put
-        its break (C from the shift, `refine_breaks`; 0 where the break was kept), added
-        to the resampled breaks (`fit.fit_variance_calibration`).
+        Per resample and axis, where in the cell of its chosen shift its break lies
+        (C, uniform over the half-ways to the neighbouring shifts; 0 where the break
+        was kept): a resample that takes a shift knows its break only to that cell
+        (`quantisation`), added to the resampled breaks (`fit.fit_variance_calibration`);
+        with ``refine`` (`solve_variance`), where its own data put it (`refine_breaks`).
     widening : float
         ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
         finite-sample correction of the pairs bootstrap, to be applied to the spread of
         the resamples' parameters about their mean (`fit.fit_variance_calibration`).
     break_offset : ndarray, shape (3,)
-        Per axis, where in the cell of ``break_shift`` the data put the break (C from
-        the shift, `refine_breaks`; 0 where no shift was taken), added to the stepped
-        break (`fit.fit_variance_calibration`).
+        With ``refine`` (`solve_variance`), per axis, where in the cell of
+        ``break_shift`` the data put the break (C from the shift, `refine_breaks`);
+        else 0.  To be added to the stepped break (the fit leaves ``refine`` off).
     """
 
     step: np.ndarray
@@ -734,6 +731,26 @@ def _shifts(choice: np.ndarray) -> np.ndarray:
     return table[np.where(np.asarray(choice) >= 0, choice, N_SHIFTS)]
 
 
+def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw, per chosen shift, where in its cell the break lies (C; 0 for a kept break).
+
+    A break moved to a shift of `BREAK_SHIFTS_C` is known only to the cell about it: from
+    half-way to the next lower shift (or the kept break, 0) to half-way to the next
+    higher one, the outermost cells as wide outward as inward.  Uniform over the cell
+    (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
+    that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
+    resample took the same -4-C shift: spread 0; tests/missions/messenger/
+    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).
+    """
+    grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
+    mid = 0.5 * (grid[1:] + grid[:-1])
+    lo = np.r_[2.0 * grid[0] - mid[0], mid]
+    hi = np.r_[mid, 2.0 * grid[-1] - mid[-1]]
+    s = _shifts(choice)
+    i = np.searchsorted(grid, s)
+    return np.where(np.asarray(choice) >= 0, rng.uniform(lo[i], hi[i]) - s, 0.0)
+
+
 def _neighbour(axis: int, shift_c: np.ndarray) -> np.ndarray:
     """Return the column of axis ``axis``'s hinge at each grid point ``shift_c`` (C).
 
@@ -899,6 +916,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    map_rows: Callable[[Callable, list[tuple]], list] | None = None,
                    n_blocks: int = 1,
                    fixed_design: bool = False,
+                   refine: bool = False,
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -919,8 +937,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         breaks are then also tried at `BREAK_SHIFTS_C` inside the data's range
         (``stats.fitted_range`` of `VarianceSettings.min_samples` per 5-C bin;
         `choose_breaks`), in the solution and again in every resample, each shifted
-        break placed inside its shift's cell by its own data (`refine_breaks`); None:
-        the linearised step only.
+        resample's break drawn in its shift's cell (`quantisation`); None: the
+        linearised step only.
     held_step : ndarray, shape (3,), optional
         D0 step of each held axis (the held value minus the linearisation point's);
         default 0 (the base value kept).
@@ -946,6 +964,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         Resample the units' scores with the whole data's normal matrix kept
         (`fixed_design_resamples`) instead of the units' normal equations (the pairs
         bootstrap, the default; docs/decisions/messenger_fit.md entry 41).
+    refine : bool
+        Place each break moved to a shift inside its cell on its own data
+        (`refine_breaks`), in the solution and in every resample, instead of drawing the
+        resamples' breaks over the cell (`quantisation`).  Off: it changes the passes'
+        path, and the 4-day late-peak orbit (seed 3401) then ends with every upper
+        segment held (entry 3x-spread).
 
     Returns
     -------
@@ -1028,8 +1052,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                                           law, data_range) for c in cuts if c.size])
         boot_choice = np.concatenate([c for c, _ in parts])
         boot = np.concatenate([b for _, b in parts])
-    boot_offset, offset = np.zeros((n_bootstrap, 3)), np.zeros(3)
-    if law is not None:  # a moved break inside its cell, on its own data (entry 3x-spread)
+    boot_offset, offset = quantisation(boot_choice, rng), np.zeros(3)
+    if law is not None and refine:  # a moved break inside its cell, on its own data
         boot, boot_offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law,
                                           boot_choice, boot, data_range)
         if max(choice) >= 0:
