@@ -15,7 +15,9 @@ support the fit: too many intervals rejected as compressive.  `stated_range` nar
 the temperature range the table states (``T_RANGE``, one or more intervals) to the 1-C
 bins where the law's band, or the offset the table applies to the samples there, is
 within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
-the same tables judged at it first (entry 26).  docs/decisions/messenger_fit.md,
+the same tables judged at it first (entry 26), none for a table whose regulated
+temperature only the sum ``cT + D0 R`` states in a compressive wind
+(`regulated_sum_untrusted`, entry 3x-advice).  docs/decisions/messenger_fit.md,
 entries 19 and 24.
 
 References
@@ -503,7 +505,9 @@ def advised_goal(result: FitResult, guess: float,
     the table would be written there with its stated range holding the regulated
     temperature (eq. 2), where its data hold it: a table that states its law only
     elsewhere warns for nearly every heater-on sample.  No candidate above
-    `MAX_ADVISED_GOAL_NT` (the seed's 1-nT science requirement) is advised.  ``(None,
+    `MAX_ADVISED_GOAL_NT` (the seed's 1-nT science requirement) is advised, and none
+    when the first table that would be written is `regulated_sum_untrusted` (a larger
+    goal widens its range, not its prediction over the regulated samples).  ``(None,
     None)`` when no candidate qualifies; ``(guess, None)`` without ``rejudge``.
     """
     goal, judged, _ = _advised(result, guess, rejudge)
@@ -563,8 +567,8 @@ def regulated_sum_untrusted(result: FitResult) -> str:
             f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
             f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
             "error along the field is short (entry 3x-advice), so no --error-goal is "
-            "advised: give more days (16 days of such a wind state it within its error) "
-            "or calmer solar-wind days")
+            "advised: give more days, until the law is determined on its own at the "
+            "regulated temperature, or calmer solar-wind days")
 
 
 def _goal_advice(result: FitResult, guess: float,
