@@ -162,6 +162,28 @@ def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
         assert f"{law_band[0]:.3g} / {law_band[1]:.3g} / {law_band[2]:.3g} nT" in msg, msg
 
 
+def test_a_compressive_wind_alone_keeps_the_advice_where_the_law_states_the_regulated_bin(
+        shipped):
+    # entry 3x-advice: the share alone withholds nothing.  The band test's world (the
+    # laws pivot about 0 C, D0 not resampled: the regulated bin's band is the law's own),
+    # 20 of 48 intervals compressive (42 %, below the 50 % guard): the advice is the goal
+    # whose half admits the -50 C bin's band, brute force as in that test
+    base = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(base.calibration)
+    rng = np.random.default_rng(34)
+    b_law = scattered_laws(law, rng, 4000, (1.25, 0.0223, 0.0, 0.0))
+    temp = rng.uniform(-60.0, 40.0, 6000)
+    res = with_law_resamples(base, b_law, temp)
+    res.variance.reason = np.array(["compressive"] * 20 + [""] * 28)
+    assess(res)
+    m_diag = np.abs(np.diag(np.asarray(res.calibration.matrices[0])))
+    t_reg = temp[(temp >= REGULATED_C) & (temp < REGULATED_C + 1.0)].mean()
+    spread = law_values(b_law, np.array([t_reg]))[:, 0] - law_values(law, np.array([t_reg]))[0]
+    regulated = _goal_for((np.sqrt((spread ** 2).mean(axis=0)) * m_diag).max())
+    with pytest.raises(FitRefusedError, match=rf"--error-goal {regulated:g} \("):
+        check_merit(res, rejudge=judged_at)
+
+
 #: One unseen day is one draw of a predicted rms (test_fit_honest.py).
 UNSEEN_OVER_PREDICTED = 1.5
 #: D0, tau and the law against their stated errors: within 3 (D0's error along the

@@ -466,6 +466,13 @@ def _regulated_c(result: FitResult) -> float:
     return float(rel.get("reference_temperature_c", -50.0))
 
 
+def _regulated_bin(edges: np.ndarray, reg: float, band: np.ndarray) -> np.ndarray:
+    """Return which of `range_bands`' bins (``band`` rows) holds the temperature ``reg``."""
+    if not band.size:
+        return np.zeros(0, dtype=bool)
+    return (edges[:-1] <= reg) & (reg < edges[1:])
+
+
 def _goal_failure(result: FitResult) -> float | None:
     """Return the next goal (nT) to try for ``result`` as judged, None when it would do.
 
@@ -483,7 +490,7 @@ def _goal_failure(result: FitResult) -> float | None:
     if not np.all(total <= float(m["goal_nt"])):
         return _up_to_cent(np.nanmax(total))
     reg = _regulated_c(result)
-    held = (edges[:-1] <= reg) & (reg < edges[1:]) if band.size else np.zeros(0, dtype=bool)
+    held = _regulated_bin(edges, reg, band)
     if held.any() and not result.temperature_ranges.contains(reg):
         return _goal_for_band(float(band[held].max()))
     return None
@@ -558,7 +565,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
         return ""
     edges, law, _ = range_bands(result, tuple(m["data_range_c"]))
     reg = _regulated_c(result)
-    held = (edges[:-1] <= reg) & (reg < edges[1:]) if law.size else np.zeros(0, dtype=bool)
+    held = _regulated_bin(edges, reg, law)
     if not held.any() or float(law[held].max()) <= float(m["band_limit_nt"]):
         return ""
     return (f"judged at {m['goal_nt']:g} nT, the table would state the regulated {reg:g} C "
