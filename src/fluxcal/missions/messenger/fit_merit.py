@@ -76,7 +76,7 @@ MAX_ADVISED_GOAL_NT = 1.0
 #: ``--error-goal`` whose table states the regulated temperature only through the sum
 #: ``cT(-50 C) + D0 R`` (`regulated_sum_untrusted`): half `MAX_COMPRESSIVE_SHARE`, between
 #: the Mercury orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4
-#: days) and the 5-%-compressive hard cruise's 0.28-0.33 (1.4-1.7 at 4-8 days; one table
+#: days) and the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table
 #: written on the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md
 #: entry 3x-advice.
 ADVICE_MAX_COMPRESSIVE_SHARE = 0.25
@@ -558,6 +558,11 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     and D0; in such a wind its error along the field's mean direction is larger than
     stated at 4-8 days (entry 3x-advice), and every heater-on sample of a day carries
     the same draw of it.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2 (the regulated
+       temperature), eq. 3-5 (the law and ``D0 R``).
     """
     m = result.merit
     n_comp, judged = compressive_share(result.variance.reason)
