@@ -160,6 +160,11 @@ def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
         assert "only through the sum of the law and D0 R" in msg
         # the law's own band there, as the brute force gives it (3 digits)
         assert f"{law_band[0]:.3g} / {law_band[1]:.3g} / {law_band[2]:.3g} nT" in msg, msg
+        # entry 3x-sumguard: the goal the 25-% share would have advised, given by the
+        # user anyway: that table's prediction is short, so it is refused, not written
+        with pytest.raises(FitRefusedError, match=rf"regulated temperature \(sec. 7, eq. "
+                           rf"2\): judged at {goal:g} nT.*{compressive} of 48 intervals"):
+            check_merit(judged_at(res, goal))
 
 
 def test_a_compressive_wind_alone_keeps_the_advice_where_the_law_states_the_regulated_bin(

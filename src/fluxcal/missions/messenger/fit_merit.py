@@ -609,7 +609,10 @@ def check_merit(result: FitResult,
 
     In this order (``result`` as left by `assess`): the compressive share
     (`compressive_share` above ``merit["max_compressive_share"]``); the law's band above
-    its limit everywhere in the data's range; the predicted error above its goal.  The
+    its limit everywhere in the data's range; the predicted error above its goal; a
+    table that states the regulated temperature only through ``cT(-50 C) + D0 R`` in a
+    wind too compressive to trust that sum's error (`regulated_sum_untrusted`: the
+    prediction itself is short there, at any goal; entry 3x-sumguard).  The
     ``--error-goal`` a refusal advises is `advised_goal` (``rejudge``: `fit.judged_at`,
     as `fit.fit_days` passes it; None: the refusal's own numbers).
 
@@ -663,3 +666,6 @@ def check_merit(result: FitResult,
                "(heater-off runs), or more days" if upper else "Give more days")
             + _goal_advice(result, _up_to_cent(np.nanmax(total)), rejudge,
                            "the larger error"))
+    why = regulated_sum_untrusted(result)
+    if why:  # the predicted error may be short however it compares with the goal
+        raise FitRefusedError(f"regulated temperature (sec. 7, eq. 2): {why}; not written")
