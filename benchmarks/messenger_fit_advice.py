@@ -89,13 +89,17 @@ def verdict(res) -> str:
     return ""
 
 
-def advice(message: str) -> dict:
+def advice(message: str, own: bool = False) -> dict:
     """The options a refusal names: ``error_goal``, ``hold_d0`` (text), ``passes``,
-    ``hold_delay``."""
+    ``hold_delay``.  ``hold_d0``: the start table's hold (``AXIS``), or with ``own`` the
+    D0 goal refusal's first advice, this fit's own value and error (``AXIS=VALUE+-WIDTH``,
+    entry 38) where it names one."""
     out = {}
     if m := re.search(r"--error-goal ([0-9.]+)", message):
         out["error_goal"] = float(m.group(1).rstrip("."))
-    if m := re.search(r"--hold-d0 ([xyz])\b", message):  # the option as typed: AXIS
+    if own and (m := re.search(r"--hold-d0 ([xyz]=\S+?) \(this fit", message)):
+        out["hold_d0"] = m.group(1)
+    elif m := re.search(r"--hold-d0 ([xyz])\b", message):  # the option as typed: AXIS
         out["hold_d0"] = m.group(1)
     if m := re.search(r"--passes (\d+)", message):
         out["passes"] = int(m.group(1))
@@ -208,6 +212,9 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=12)
     ap.add_argument("--hold-d0", default="")
     ap.add_argument("--steps", type=int, default=3, help="Most advices followed in turn.")
+    ap.add_argument("--own-hold", action="store_true",
+                    help="Follow a D0 goal refusal's first advice, this fit's own value and "
+                         "error (default: the start table's hold, --hold-d0 AXIS).")
     ap.add_argument("--demo", action="store_true",
                     help="The fit demo's world instead (`fit_demo.fit_training`: its true "
                          "tables, --days of its training wind, its unseen orbit; the demo "
@@ -259,7 +266,7 @@ def main() -> None:
                                        for k, v in r.items()), flush=True)
                 print(f"  MEETS ITS STATED ERRORS: {all(r['ok'].values())}", flush=True)
                 return
-            adv = advice(why)
+            adv = advice(why, args.own_hold)
             if not adv or step == args.steps:
                 print("  no option advised (or steps spent): end", flush=True)
                 return

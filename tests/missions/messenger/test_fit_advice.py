@@ -9,6 +9,7 @@ from the code under test.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -23,10 +24,12 @@ from fluxcal.missions.messenger.fit_variance import (
     N_PARAMETERS,
     law_parameters,
     law_values,
+    offset_moments,
 )
 from tests.missions.messenger._fit_tables import (
     applied_law,
     scattered_laws,
+    table_bootstrap,
     with_law_resamples,
 )
 from tests.missions.messenger.test_fit_variance import START, _variance_result
@@ -92,6 +95,98 @@ def test_the_band_refusal_advises_the_goal_that_states_the_regulated_temperature
     # without a re-judgement the refusal names its own numbers' goal (the old advice)
     with pytest.raises(FitRefusedError, match=rf"--error-goal {guess:g} \("):
         check_merit(res)
+
+
+def _regulated_sum_result(shipped, compressive: int, judged: int = 48):
+    """A fit whose law no bin determines on its own, while the regulated -50 C bin's
+    offset ``cT(-50 C) + D0 R`` is determined: its D0 resamples cancel the law's error
+    there up to 1.5 counts at ``R = 300`` ppt; ``compressive`` of ``judged`` intervals
+    rejected as compressive.  Returns the result and the brute-force bands (nT) of the
+    regulated bin: the law alone and the sum, per axis."""
+    base = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(base.calibration)
+    rng = np.random.default_rng(35)
+    k = 4000
+    b_law = scattered_laws(law, rng, k, (4.0, 0.03, 0.0, 0.0))
+    off = rng.uniform(-60.0, 40.0, 6000)
+    off = off[(off < -51.0) | (off >= -48.0)]  # heater off (R = 0), away from -50 C
+    t_reg, r_reg = -49.6, 300.0  # heater-on at the regulated temperature
+    n_reg = 3000
+    temp = np.concatenate([off, np.full(n_reg, t_reg)])
+    r = np.concatenate([np.zeros(off.size), np.full(n_reg, r_reg)])
+    d_law = law_values(b_law, np.array([t_reg]))[:, 0, :] - law_values(law, np.array([t_reg]))[0]
+    e = 1.5 * rng.standard_normal((k, 3))  # the sum's own scatter (counts)
+    d0 = np.asarray(base.calibration.duty_cycle_d0, dtype=float)
+    b_d0 = d0 + (e - d_law) / r_reg
+    zero = np.zeros(temp.size)
+    base.variance.offset_moments = offset_moments(temp, r, zero, zero)
+    base.variance.reason = np.array(["compressive"] * compressive + [""] * (judged - compressive)
+                                    + ["too_few_samples"] * (48 - judged))
+    res = dataclasses.replace(base, bootstrap=table_bootstrap(base, b_law, b_d0),
+                              waveform_error=None)
+    assess(res)
+    m_diag = np.abs(np.diag(np.asarray(res.calibration.matrices[0])))
+    return (res, np.sqrt((d_law ** 2).mean(axis=0)) * m_diag,
+            np.sqrt((e ** 2).mean(axis=0)) * m_diag)
+
+
+@pytest.mark.parametrize("compressive, advised", [(12, True), (13, False), (0, True)])
+def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
+        shipped, compressive, advised):
+    # entry 3x-advice: a table that would state the regulated -50 C only through the sum
+    # cT(-50 C) + D0 R (the law's own band there above the limit) is advised only while at
+    # most 25 % of the judged intervals were compressive (12 of 48 = 25 %: advised; 13:
+    # not).  Expected goal: brute force, the least 0.01-nT goal whose half admits the
+    # sum's band (the worst axis) in the regulated bin, the one bin any goal admits
+    res, law_band, sum_band = _regulated_sum_result(shipped, compressive)
+    goal = _goal_for(sum_band.max())
+    assert law_band.min() > goal  # the law alone: beyond the limit at that goal, every axis
+    assert sum_band.max() > 0.05  # refused at the default goal: the band
+    assert not res.merit["law_determined"]
+    with pytest.raises(FitRefusedError) as info:
+        check_merit(res, rejudge=judged_at)
+    msg = str(info.value)
+    got, judged = advised_goal(res, goal, judged_at)
+    if advised:
+        assert re.search(rf"--error-goal {goal:g} \(", msg), msg
+        assert got == pytest.approx(goal)
+        assert str(judged.stated_ranges) == "-50..-49"
+        check_merit(judged)  # written there
+    else:
+        assert got is None and judged is None
+        assert "--error-goal" not in msg.split("not written.")[1].replace(
+            "no --error-goal is advised", ""), msg
+        assert re.search(rf"{compressive} of 48 intervals compressive \(above 25%\)", msg), msg
+        assert "only through the sum of the law and D0 R" in msg
+        # the law's own band there, as the brute force gives it (3 digits)
+        assert f"{law_band[0]:.3g} / {law_band[1]:.3g} / {law_band[2]:.3g} nT" in msg, msg
+        # entry 3x-sumguard: the goal the 25-% share would have advised, given by the
+        # user anyway: that table's prediction is short, so it is refused, not written
+        with pytest.raises(FitRefusedError, match=rf"regulated temperature \(sec. 7, eq. "
+                           rf"2\): judged at {goal:g} nT.*{compressive} of 48 intervals"):
+            check_merit(judged_at(res, goal))
+
+
+def test_a_compressive_wind_alone_keeps_the_advice_where_the_law_states_the_regulated_bin(
+        shipped):
+    # entry 3x-advice: the share alone withholds nothing.  The band test's world (the
+    # laws pivot about 0 C, D0 not resampled: the regulated bin's band is the law's own),
+    # 20 of 48 intervals compressive (42 %, below the 50 % guard): the advice is the goal
+    # whose half admits the -50 C bin's band, brute force as in that test
+    base = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(base.calibration)
+    rng = np.random.default_rng(34)
+    b_law = scattered_laws(law, rng, 4000, (1.25, 0.0223, 0.0, 0.0))
+    temp = rng.uniform(-60.0, 40.0, 6000)
+    res = with_law_resamples(base, b_law, temp)
+    res.variance.reason = np.array(["compressive"] * 20 + [""] * 28)
+    assess(res)
+    m_diag = np.abs(np.diag(np.asarray(res.calibration.matrices[0])))
+    t_reg = temp[(temp >= REGULATED_C) & (temp < REGULATED_C + 1.0)].mean()
+    spread = law_values(b_law, np.array([t_reg]))[:, 0] - law_values(law, np.array([t_reg]))[0]
+    regulated = _goal_for((np.sqrt((spread ** 2).mean(axis=0)) * m_diag).max())
+    with pytest.raises(FitRefusedError, match=rf"--error-goal {regulated:g} \("):
+        check_merit(res, rejudge=judged_at)
 
 
 #: One unseen day is one draw of a predicted rms (test_fit_honest.py).

@@ -15,7 +15,9 @@ support the fit: too many intervals rejected as compressive.  `stated_range` nar
 the temperature range the table states (``T_RANGE``, one or more intervals) to the 1-C
 bins where the law's band, or the offset the table applies to the samples there, is
 within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
-the same tables judged at it first (entry 26).  docs/decisions/messenger_fit.md,
+the same tables judged at it first (entry 26), none for a table whose regulated
+temperature only the sum ``cT + D0 R`` states in a compressive wind
+(`regulated_sum_untrusted`, entry 3x-advice).  docs/decisions/messenger_fit.md,
 entries 19 and 24.
 
 References
@@ -43,12 +45,13 @@ from fluxcal.missions.messenger.fit_reduce import reduce_day
 #: `fluxcal.missions.messenger.fit.FitResult` (not imported: `fit` imports this module).
 FitResult = Any
 
-__all__ = ["ADVICE_TRIES", "ERROR_GOAL_NT", "LAW_BAND_LIMIT_NT", "MAX_ADVISED_GOAL_NT",
+__all__ = ["ADVICE_MAX_COMPRESSIVE_SHARE", "ADVICE_TRIES", "ERROR_GOAL_NT",
+           "LAW_BAND_LIMIT_NT", "MAX_ADVISED_GOAL_NT",
            "MAX_COMPRESSIVE_SHARE", "DaySamples",
            "advised_goal", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
            "day_samples", "duty_range_counts", "predicted_error", "range_bands",
-           "stated_duty_counts", "stated_range"]
+           "regulated_sum_untrusted", "stated_duty_counts", "stated_range"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -69,6 +72,14 @@ ADVICE_TRIES = 8
 #: whose predicted error exceeds it is not worth advising (a 2-day Mercury orbit with a
 #: free break: 78 nT advised before, entry 26); a user may still ask for it.
 MAX_ADVISED_GOAL_NT = 1.0
+#: Largest compressive share (`compressive_share`) at which a refusal advises an
+#: ``--error-goal`` whose table states the regulated temperature only through the sum
+#: ``cT(-50 C) + D0 R`` (`regulated_sum_untrusted`): half `MAX_COMPRESSIVE_SHARE`, between
+#: the Mercury orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4
+#: days) and the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table
+#: written on the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md
+#: entry 3x-advice.
+ADVICE_MAX_COMPRESSIVE_SHARE = 0.25
 
 
 def compressive_share(reason: np.ndarray) -> tuple[int, int]:
@@ -455,6 +466,13 @@ def _regulated_c(result: FitResult) -> float:
     return float(rel.get("reference_temperature_c", -50.0))
 
 
+def _regulated_bin(edges: np.ndarray, reg: float, band: np.ndarray) -> np.ndarray:
+    """Return which of `range_bands`' bins (``band`` rows) holds the temperature ``reg``."""
+    if not band.size:
+        return np.zeros(0, dtype=bool)
+    return (edges[:-1] <= reg) & (reg < edges[1:])
+
+
 def _goal_failure(result: FitResult) -> float | None:
     """Return the next goal (nT) to try for ``result`` as judged, None when it would do.
 
@@ -472,7 +490,7 @@ def _goal_failure(result: FitResult) -> float | None:
     if not np.all(total <= float(m["goal_nt"])):
         return _up_to_cent(np.nanmax(total))
     reg = _regulated_c(result)
-    held = (edges[:-1] <= reg) & (reg < edges[1:]) if band.size else np.zeros(0, dtype=bool)
+    held = _regulated_bin(edges, reg, band)
     if held.any() and not result.temperature_ranges.contains(reg):
         return _goal_for_band(float(band[held].max()))
     return None
@@ -494,30 +512,84 @@ def advised_goal(result: FitResult, guess: float,
     the table would be written there with its stated range holding the regulated
     temperature (eq. 2), where its data hold it: a table that states its law only
     elsewhere warns for nearly every heater-on sample.  No candidate above
-    `MAX_ADVISED_GOAL_NT` (the seed's 1-nT science requirement) is advised.  ``(None,
+    `MAX_ADVISED_GOAL_NT` (the seed's 1-nT science requirement) is advised, and none
+    when the first table that would be written is `regulated_sum_untrusted` (a larger
+    goal widens its range, not its prediction over the regulated samples).  ``(None,
     None)`` when no candidate qualifies; ``(guess, None)`` without ``rejudge``.
+    """
+    goal, judged, _ = _advised(result, guess, rejudge)
+    return goal, judged
+
+
+def _advised(result: FitResult, guess: float,
+             rejudge: Callable[[FitResult, float], FitResult] | None
+             ) -> tuple[float | None, FitResult | None, str]:
+    """Return `advised_goal`'s pair and why a table it would write is not advised.
+
+    The reason is `regulated_sum_untrusted`'s, else ``""``.
     """
     goal = float(guess)
     if goal > MAX_ADVISED_GOAL_NT:
-        return None, None
+        return None, None, ""
     if rejudge is None:
-        return guess, None
+        return guess, None, ""
     for _ in range(ADVICE_TRIES):
         if goal > MAX_ADVISED_GOAL_NT:
-            return None, None
+            return None, None, ""
         judged = rejudge(result, goal)
         nxt = _goal_failure(judged)
         if nxt is None:
-            return goal, judged
+            # a larger goal widens T_RANGE, not the prediction over the regulated samples
+            why = regulated_sum_untrusted(judged)
+            return (None, None, why) if why else (goal, judged, "")
         goal = max(float(nxt), _up_to_cent(goal + 0.01))
-    return None, None
+    return None, None, ""
+
+
+def regulated_sum_untrusted(result: FitResult) -> str:
+    """Return why ``result``'s table may not be advised, else ``""`` (entry 3x-advice).
+
+    ``result`` as judged at a goal (`fit.judged_at`).  Its stated range holds the
+    regulated temperature (eq. 2) only through the offset the table applies there,
+    ``cT(-50 C) + D0 R`` (`stated_range`): the law's own band in that bin (worst axis)
+    exceeds ``merit["band_limit_nt"]``; and more than `ADVICE_MAX_COMPRESSIVE_SHARE`
+    of the judged intervals were rejected as compressive (`compressive_share`).  The
+    sum's stated error is small only through the resamples' anticorrelation of the law
+    and D0; in such a wind its error along the field's mean direction is larger than
+    stated at 4-8 days (entry 3x-advice), and every heater-on sample of a day carries
+    the same draw of it.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2 (the regulated
+       temperature), eq. 3-5 (the law and ``D0 R``).
+    """
+    m = result.merit
+    n_comp, judged = compressive_share(result.variance.reason)
+    if not judged or n_comp <= ADVICE_MAX_COMPRESSIVE_SHARE * judged:
+        return ""
+    edges, law, _ = range_bands(result, tuple(m["data_range_c"]))
+    reg = _regulated_c(result)
+    held = _regulated_bin(edges, reg, law)
+    if not held.any() or float(law[held].max()) <= float(m["band_limit_nt"]):
+        return ""
+    return (f"judged at {m['goal_nt']:g} nT, the table would state the regulated {reg:g} C "
+            f"only through the sum of the law and D0 R (the law's own band there "
+            f"{_axes(law[held].max(axis=0))} nT, above its limit "
+            f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
+            f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
+            "error along the field is short (entry 3x-advice), so no --error-goal is "
+            "advised: give more days, until the law is determined on its own at the "
+            "regulated temperature, or calmer solar-wind days")
 
 
 def _goal_advice(result: FitResult, guess: float,
                  rejudge: Callable[[FitResult, float], FitResult] | None, what: str,
                  note: str = "") -> str:
     """Return the refusal's ``--error-goal`` sentence (`advised_goal`), or why none."""
-    goal, judged = advised_goal(result, guess, rejudge)
+    goal, judged, why = _advised(result, guess, rejudge)
+    if why:
+        return f"; {why}"
     if goal is None:
         return (f"; no --error-goal within {ADVICE_TRIES} tries from {guess:g} nT and at most "
                 f"the seed's {MAX_ADVISED_GOAL_NT:g}-nT science requirement (sec. 8, Table 5) "
@@ -537,7 +609,10 @@ def check_merit(result: FitResult,
 
     In this order (``result`` as left by `assess`): the compressive share
     (`compressive_share` above ``merit["max_compressive_share"]``); the law's band above
-    its limit everywhere in the data's range; the predicted error above its goal.  The
+    its limit everywhere in the data's range; the predicted error above its goal; a
+    table that states the regulated temperature only through ``cT(-50 C) + D0 R`` in a
+    wind too compressive to trust that sum's error (`regulated_sum_untrusted`: the
+    prediction itself is short there, at any goal; entry 3x-sumguard).  The
     ``--error-goal`` a refusal advises is `advised_goal` (``rejudge``: `fit.judged_at`,
     as `fit.fit_days` passes it; None: the refusal's own numbers).
 
@@ -591,3 +666,6 @@ def check_merit(result: FitResult,
                "(heater-off runs), or more days" if upper else "Give more days")
             + _goal_advice(result, _up_to_cent(np.nanmax(total)), rejudge,
                            "the larger error"))
+    why = regulated_sum_untrusted(result)
+    if why:  # the predicted error may be short however it compares with the goal
+        raise FitRefusedError(f"regulated temperature (sec. 7, eq. 2): {why}; not written")
