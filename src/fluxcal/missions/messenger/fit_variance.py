@@ -779,9 +779,10 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     not (slopes of opposite sign: no single hinge between the grid points), at ``s_k``
     as chosen (the pair dropped, the row solved again).
 
-    This replaces a uniform draw over the cell (entry 27): a resample whose data put
-    its break 0.3 C from the solution, just past half-way to the +0.5-C grid point,
-    was drawn anywhere in 0.25..0.75 C (docs/decisions/messenger_fit.md entry 3x-spread).
+    The alternative to a uniform draw over the cell (`quantisation`, entry 27), where a
+    resample whose data put its break 0.3 C from the solution, just past half-way to the
+    +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  Opt-in
+    (`solve_variance`'s ``refine``; docs/decisions/messenger_fit.md entry 3x-spread).
 
     Parameters
     ----------
