@@ -273,8 +273,7 @@ def test_solve_step_gives_solve_variances_solution_bit_for_bit(shipped):
     sol = solve_variance(stats, fit_delay=False, n_bootstrap=3, law=law,
                          held={d0_z: (0.05, HELD_WIDTH)})
     np.testing.assert_array_equal(sol.break_shift, [2.0, 0.0, 0.0])
-    # the break lies on the grid point: `refine_breaks` leaves it there (with other noise
-    # it may move it by 1e-4 C, another layout; entry 3x-spread)
+    # the break stays on its grid point (`refine` off, the fit's default; entry 3x-spread)
     np.testing.assert_array_equal(sol.break_offset, 0.0)
     got, free = solve_step(stats.normal.sum(axis=0), stats.rhs.sum(axis=0), law[:, 2],
                            choice=(BREAK_SHIFTS_C.index(2.0), -1, -1), fit_delay=False,

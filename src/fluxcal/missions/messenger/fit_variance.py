@@ -613,9 +613,9 @@ def solve_step(a: np.ndarray, v: np.ndarray, slope: np.ndarray,
     -----
     A single system is solved by least squares on the matrix scaled to unit diagonal
     (rank-safe), a stack by one batched solve: `solve_variance`'s own solver, so its
-    solution at the same choices and held steps comes out bit for bit, except where
-    `refine_breaks` then places a moved break inside its grid cell
-    (``VarianceSolution.break_offset`` nonzero: another layout, one more column).
+    solution at the same choices and held steps comes out bit for bit (with ``refine``,
+    only where `refine_breaks` leaves a moved break on its grid point:
+    ``VarianceSolution.break_offset`` 0).
     """
     held = dict(held or {})
     choice = tuple(int(c) for c in choice)
