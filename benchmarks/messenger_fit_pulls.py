@@ -824,7 +824,7 @@ def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
                refine: bool = False) -> dict:
     """`estimator_row` with every stated error replaced by a bootstrap replayed on the
     fit's stored normal equations (`replayed_errors`): the pulls the fit would state
-    with that bootstrap, the fitted tables kept (entry 3x-spread)."""
+    with that bootstrap, the fitted tables kept (entry 42)."""
     row = estimator_row(res, true, spread_sd)
     boot = res.bootstrap
     now = replayed_errors(res, fixed_design, n_bootstrap, refine)
@@ -839,7 +839,7 @@ def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
 def replay_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 as stored
     in the saved fits of ``folder`` and under each bootstrap of `REPLAYS` replayed on
-    them (docs/decisions/messenger_fit.md entry 3x-spread)."""
+    them (docs/decisions/messenger_fit.md entry 42)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     per = {"stored": [estimator_row(res, true, spread_sd) for res, true in fits]}
     per.update({name: [replay_row(res, true, fixed, n, refine) for res, true in fits]
@@ -930,7 +930,7 @@ def main() -> None:
     ap.add_argument("--replay", action="store_true",
                     help="With --summarise: the pulls as stored and under the pairs, "
                          "refined and fixed-design bootstraps replayed on the stored normal "
-                         "equations (REPLAYS; entry 3x-spread).")
+                         "equations (REPLAYS; entry 42).")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")

@@ -1,4 +1,4 @@
-"""tau against its 5 % goal on saved MESSENGER fits (issue 34; messenger_fit.md entry 3x-tau).
+"""tau against its 5 % goal on saved MESSENGER fits (issue 34; messenger_fit.md entry 43).
 
     .venv/bin/python benchmarks/messenger_fit_tau.py /tmp/s39/mo16 /tmp/s39/late16 ...
 

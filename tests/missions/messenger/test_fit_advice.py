@@ -133,7 +133,7 @@ def _regulated_sum_result(shipped, compressive: int, judged: int = 48):
 @pytest.mark.parametrize("compressive, advised", [(12, True), (13, False), (0, True)])
 def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
         shipped, compressive, advised):
-    # entry 3x-advice: a table that would state the regulated -50 C only through the sum
+    # entry 44: a table that would state the regulated -50 C only through the sum
     # cT(-50 C) + D0 R (the law's own band there above the limit) is advised only while at
     # most 25 % of the judged intervals were compressive (12 of 48 = 25 %: advised; 13:
     # not).  Expected goal: brute force, the least 0.01-nT goal whose half admits the
@@ -160,7 +160,7 @@ def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
         assert "only through the sum of the law and D0 R" in msg
         # the law's own band there, as the brute force gives it (3 digits)
         assert f"{law_band[0]:.3g} / {law_band[1]:.3g} / {law_band[2]:.3g} nT" in msg, msg
-        # entry 3x-sumguard: the goal the 25-% share would have advised, given by the
+        # entry 45: the goal the 25-% share would have advised, given by the
         # user anyway: that table's prediction is short, so it is refused, not written
         with pytest.raises(FitRefusedError, match=rf"regulated temperature \(sec. 7, eq. "
                            rf"2\): judged at {goal:g} nT.*{compressive} of 48 intervals"):
@@ -169,7 +169,7 @@ def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
 
 def test_a_compressive_wind_alone_keeps_the_advice_where_the_law_states_the_regulated_bin(
         shipped):
-    # entry 3x-advice: the share alone withholds nothing.  The band test's world (the
+    # entry 44: the share alone withholds nothing.  The band test's world (the
     # laws pivot about 0 C, D0 not resampled: the regulated bin's band is the law's own),
     # 20 of 48 intervals compressive (42 %, below the 50 % guard): the advice is the goal
     # whose half admits the -50 C bin's band, brute force as in that test

@@ -2,7 +2,7 @@
 
 Closed forms first (no simulation): the quantisation of the shift grid is uniform over
 the chosen shift's cell; the opt-in refinement places a break between grid shifts at its
-truth (noise-free hinge worlds, entry 3x-spread); in a hinge world whose break is seen
+truth (noise-free hinge worlds, entry 42); in a hinge world whose break is seen
 only in a few warm blocks (above the stated 1800-sample range, inside the data's
 300-sample range, as in issue 34's late-peak Mercury orbit) the stated T_m error covers
 the truth, both where the linearised step has not brought the break home and after the

@@ -179,7 +179,7 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
 
 
 def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
-    # issue 34's goal "tau within 5 %" as the stated 1-sigma error (entry 3x-tau): the
+    # issue 34's goal "tau within 5 %" as the stated 1-sigma error (entry 43): the
     # closed form |error / tau| <= 0.05, just inside and just outside; the fixture's own
     # error (0.015 %) lies inside (test_a_sound_fit_passes)
     res = fitted[1]
@@ -195,7 +195,7 @@ def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
             check_fit(case)
         if rel == rel:  # the stated error in s and % (one decimal), then the entry
             assert f"+- {rel * tau:.0f} s" in str(info.value)
-            assert f"({100 * rel:.1f}%; entry 3x-tau)" in str(info.value)
+            assert f"({100 * rel:.1f}%; entry 43)" in str(info.value)
         assert "--" not in str(info.value)  # no option: tau cannot be held
 
 
@@ -221,7 +221,7 @@ def test_tau_goal_cost_is_the_merits_tau_part_for_five_percent(fitted):
     assert np.all(np.isnan(tau_goal_cost_nt(res)))
     # the refusal states the size on the largest axis, in nT
     with pytest.raises(FitRefusedError, match=rf"\(6\.0%, the goal {brute.max():.3f} nT rms "
-                                              r"over the fitted days; entry 3x-tau\)"):
+                                              r"over the fitted days; entry 43\)"):
         check_fit(_with(case, tau_err=0.06 * res.relaxation.tau))
 
 
@@ -241,7 +241,7 @@ def test_tau_goal_refusal_names_the_stated_error_the_goal_and_the_days(tau, erro
         assert msg == ""
         return
     assert f"tau = {tau:.0f} +- {error:.0f} s, a relative error above the 5% goal " \
-           f"({expected}; entry 3x-tau); not written" in msg
+           f"({expected}; entry 43); not written" in msg
     assert "duty-cycle changes" in msg and "more days" in msg
     if factor:
         assert f"about {factor} the days fitted" in msg

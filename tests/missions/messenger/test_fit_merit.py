@@ -206,7 +206,7 @@ def test_compressive_share_guard_names_the_count(shipped):
     assert compressive_share(reason) == (6, 9)
     res = _variance_result(shipped, np.zeros(N_PARAMETERS))
     res.variance.reason = reason
-    # the law states every bin on its own (no band limit): entry 3x-sumguard's refusal of
+    # the law states every bin on its own (no band limit): entry 45's refusal of
     # a regulated bin stated only through cT + D0 R cannot apply, only the share's guard
     res.merit = {"law_determined": True, "total_nt": [0.0] * 3, "goal_nt": 0.1,
                  "data_range_c": (-60.0, 40.0), "band_limit_nt": np.inf}

@@ -273,7 +273,7 @@ def test_solve_step_gives_solve_variances_solution_bit_for_bit(shipped):
     sol = solve_variance(stats, fit_delay=False, n_bootstrap=3, law=law,
                          held={d0_z: (0.05, HELD_WIDTH)})
     np.testing.assert_array_equal(sol.break_shift, [2.0, 0.0, 0.0])
-    # the break stays on its grid point (`refine` off, the fit's default; entry 3x-spread)
+    # the break stays on its grid point (`refine` off, the fit's default; entry 42)
     np.testing.assert_array_equal(sol.break_offset, 0.0)
     got, free = solve_step(stats.normal.sum(axis=0), stats.rhs.sum(axis=0), law[:, 2],
                            choice=(BREAK_SHIFTS_C.index(2.0), -1, -1), fit_delay=False,
@@ -477,7 +477,7 @@ def test_estimator_rows_and_summary_give_the_pulls_by_hand(bench, saved, tmp_pat
             assert beyond == np.count_nonzero(np.abs(p) > 3)
 
 
-# --- the harness: --replay (entry 3x-spread) ---------------------------------------
+# --- the harness: --replay (entry 42) ---------------------------------------
 
 
 def test_replay_states_the_raw_samples_sandwich(bench, saved):

@@ -140,7 +140,7 @@ D0_ERROR_GOAL = 0.05
 D0_GOAL_BINDS_BELOW = 0.5
 #: Goal for the fitted tau (issue 34: "D0 and tau within 5 %"): `check_fit` refuses a tau
 #: whose stated relative error (1 sigma) exceeds it (`tau_goal_refusal`; docs/decisions/
-#: messenger_fit.md entry 3x-tau: the 16-day Mercury orbit states 0.35-0.86 %, 5 % of
+#: messenger_fit.md entry 43: the 16-day Mercury orbit states 0.35-0.86 %, 5 % of
 #: tau is 0.012-0.023 nT over the fitted days, so the figure of merit never holds it).
 TAU_ERROR_GOAL = 0.05
 #: The data that constrain tau (the refusals of `check_fit` name them).
@@ -898,7 +898,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     if not final:
         return
     cause = tau_goal_refusal(r.tau, r.tau_err, cost_nt=float(np.max(tau_goal_cost_nt(result))))
-    if cause:  # the 5 % goal (entry 3x-tau)
+    if cause:  # the 5 % goal (entry 43)
         raise FitRefusedError(cause)
     if result.delay_fitted and not (DELAY_RANGE_S[0] <= r.dt <= DELAY_RANGE_S[1]):
         raise FitRefusedError(
@@ -986,7 +986,7 @@ def tau_goal_cost_nt(result: FitResult, goal: float = TAU_ERROR_GOAL) -> np.ndar
     relative tau error of ``goal`` alone (``R_tau`` the derivative of the relaxed duty
     cycle eq. 6 with respect to tau, ppt/s, over every used sample of the fitted days,
     `VarianceStatistics.offset_moments`; ``M`` eq. 8's fine matrix).  5 % of tau is
-    0.012-0.023 nT in the measured worlds (entry 3x-tau).  NaN without the variance
+    0.012-0.023 nT in the measured worlds (entry 43).  NaN without the variance
     estimator's moments.
 
     References
@@ -1000,7 +1000,7 @@ def tau_goal_cost_nt(result: FitResult, goal: float = TAU_ERROR_GOAL) -> np.ndar
 
 def tau_goal_refusal(tau: float, error: float, goal: float = TAU_ERROR_GOAL,
                      cost_nt: float = np.nan) -> str:
-    """Return why a fitted tau misses its goal, else ``""`` (`check_fit`; entry 3x-tau).
+    """Return why a fitted tau misses its goal, else ``""`` (`check_fit`; entry 43).
 
     A tau whose stated relative error ``error / tau`` (1 sigma) exceeds ``goal``
     (`TAU_ERROR_GOAL`, issue 34's "tau within 5 %") is not written: the data do not pin
@@ -1033,7 +1033,7 @@ def tau_goal_refusal(tau: float, error: float, goal: float = TAU_ERROR_GOAL,
             f"{(rel / goal) ** 2:.1f}x the days fitted; in a compressive one it falls slower)"
             if np.isfinite(rel) else "")
     return (f"relaxation time (sec. 7): fitted tau = {tau:.0f} +- {error:.0f} s, a relative "
-            f"error above the {goal:.0%} goal ({rel:.1%}{size}; entry 3x-tau); not "
+            f"error above the {goal:.0%} goal ({rel:.1%}{size}; entry 43); not "
             f"written. Needs {_TAU_DATA}, or more days{more}")
 
 

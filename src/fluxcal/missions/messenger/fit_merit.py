@@ -17,7 +17,7 @@ bins where the law's band, or the offset the table applies to the samples there,
 within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
 the same tables judged at it first (entry 26), none for a table whose regulated
 temperature only the sum ``cT + D0 R`` states in a compressive wind
-(`regulated_sum_untrusted`, entry 3x-advice).  docs/decisions/messenger_fit.md,
+(`regulated_sum_untrusted`, entry 44).  docs/decisions/messenger_fit.md,
 entries 19 and 24.
 
 References
@@ -78,7 +78,7 @@ MAX_ADVISED_GOAL_NT = 1.0
 #: the Mercury orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4
 #: days) and the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table
 #: written on the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md
-#: entry 3x-advice.
+#: entry 44.
 ADVICE_MAX_COMPRESSIVE_SHARE = 0.25
 
 
@@ -547,7 +547,7 @@ def _advised(result: FitResult, guess: float,
 
 
 def regulated_sum_untrusted(result: FitResult) -> str:
-    """Return why ``result``'s table may not be advised, else ``""`` (entry 3x-advice).
+    """Return why ``result``'s table may not be advised, else ``""`` (entry 44).
 
     ``result`` as judged at a goal (`fit.judged_at`).  Its stated range holds the
     regulated temperature (eq. 2) only through the offset the table applies there,
@@ -556,7 +556,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     of the judged intervals were rejected as compressive (`compressive_share`).  The
     sum's stated error is small only through the resamples' anticorrelation of the law
     and D0; in such a wind its error along the field's mean direction is larger than
-    stated at 4-8 days (entry 3x-advice), and every heater-on sample of a day carries
+    stated at 4-8 days (entry 44), and every heater-on sample of a day carries
     the same draw of it.
 
     References
@@ -578,7 +578,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
             f"{_axes(law[held].max(axis=0))} nT, above its limit "
             f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
             f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
-            "error along the field is short (entry 3x-advice), so no --error-goal is "
+            "error along the field is short (entry 44), so no --error-goal is "
             "advised: give more days, until the law is determined on its own at the "
             "regulated temperature, or calmer solar-wind days")
 
@@ -612,7 +612,7 @@ def check_merit(result: FitResult,
     its limit everywhere in the data's range; the predicted error above its goal; a
     table that states the regulated temperature only through ``cT(-50 C) + D0 R`` in a
     wind too compressive to trust that sum's error (`regulated_sum_untrusted`: the
-    prediction itself is short there, at any goal; entry 3x-sumguard).  The
+    prediction itself is short there, at any goal; entry 45).  The
     ``--error-goal`` a refusal advises is `advised_goal` (``rejudge``: `fit.judged_at`,
     as `fit.fit_days` passes it; None: the refusal's own numbers).
 

@@ -782,7 +782,7 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     The alternative to a uniform draw over the cell (`quantisation`, entry 27), where a
     resample whose data put its break 0.3 C from the solution, just past half-way to the
     +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  Opt-in
-    (`solve_variance`'s ``refine``; docs/decisions/messenger_fit.md entry 3x-spread).
+    (`solve_variance`'s ``refine``; docs/decisions/messenger_fit.md entry 42).
 
     Parameters
     ----------
@@ -970,7 +970,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         (`refine_breaks`), in the solution and in every resample, instead of drawing the
         resamples' breaks over the cell (`quantisation`).  Off: it changes the passes'
         path, and the 4-day late-peak orbit (seed 3401) then ends with every upper
-        segment held (entry 3x-spread).
+        segment held (entry 42).
 
     Returns
     -------
