@@ -836,6 +836,24 @@ def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
     return row
 
 
+def _print_pull_rows(per: dict) -> None:
+    """Print one markdown row per parameter of the first column's rows: in each column of
+    ``per`` (name -> `estimator_row`-like rows) the pulls' spread, largest size and count
+    beyond 3 (`replay_summary`, `estimator_summary`)."""
+    tables = {name: dict(table(rows)) for name, rows in per.items()}
+    first = next(iter(tables))
+    for name in tables[first]:
+        cells = []
+        for est in per:
+            p = tables[est][name]
+            p = p[np.isfinite(p)]
+            cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
+                         f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
+        if any(cells):
+            n = int(np.isfinite(tables[first][name]).sum())
+            print(f"| {name} (N {n}) | " + " | ".join(cells) + " |")
+
+
 def replay_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 as stored
     in the saved fits of ``folder`` and under each bootstrap of `REPLAYS` replayed on
@@ -847,17 +865,7 @@ def replay_summary(folder: Path) -> None:
     print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
     print("| parameter | " + " | ".join(per) + " |")
     print("|---|" + "---|" * len(per))
-    tables = {name: dict(table(rows)) for name, rows in per.items()}
-    for name in tables["stored"]:
-        cells = []
-        for est in per:
-            p = tables[est][name]
-            p = p[np.isfinite(p)]
-            cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
-                         f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
-        if any(cells):
-            n = int(np.isfinite(tables["stored"][name]).sum())
-            print(f"| {name} (N {n}) | " + " | ".join(cells) + " |")
+    _print_pull_rows(per)
 
 
 def estimator_summary(folder: Path) -> None:
@@ -874,17 +882,7 @@ def estimator_summary(folder: Path) -> None:
           f"median {np.round(np.median(jump, axis=0), 3)}, max {np.round(jump.max(axis=0), 3)}")
     print("| parameter | " + " | ".join(per) + " |")
     print("|---|" + "---|" * len(per) + "   (spread, max |pull|, beyond 3)")
-    tables = {name: dict(table(rows)) for name, rows in per.items()}
-    for name in tables["sd"]:
-        cells = []
-        for est in per:
-            p = tables[est][name]
-            p = p[np.isfinite(p)]
-            cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
-                         f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
-        if any(cells):
-            n = int(np.isfinite(tables["sd"][name]).sum())
-            print(f"| {name} (N {n}) | " + " | ".join(cells) + " |")
+    _print_pull_rows(per)
 
 
 def main() -> None:
