@@ -38,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from messenger_fit_pulls import NT_PER_COUNT, WORLDS, _law, world_model  # noqa: E402
+from tests.missions.messenger._hard_worlds import drawn_law  # noqa: E402
 from tests.missions.messenger._unseen_day import (  # noqa: E402
     inside_ranges,
     recalibrate_errors,
@@ -215,6 +216,10 @@ def main() -> None:
     ap.add_argument("--own-hold", action="store_true",
                     help="Follow a D0 goal refusal's first advice, this fit's own value and "
                          "error (default: the start table's hold, --hold-d0 AXIS).")
+    ap.add_argument("--draw-law", action="store_true",
+                    help="Draw the true temperature law per seed, as the pulls harness's "
+                         "--draw-law (tests/missions/messenger/_hard_worlds.drawn_law): "
+                         "the same seed is the same world.")
     ap.add_argument("--demo", action="store_true",
                     help="The fit demo's world instead (`fit_demo.fit_training`: its true "
                          "tables, --days of its training wind, its unseen orbit; the demo "
@@ -238,6 +243,7 @@ def main() -> None:
             run = simulate_flight(tmp / "sim", FlightConfig(start="2010-03-01",
                                                             days=args.days + 1,
                                                             seed=args.seed),
+                                  drawn_law(args.seed) if args.draw_law else None,
                                   wind=wind, schedule=schedule, truth=True)
             true = forward.read_tables(sorted(run.calibration_dir.glob("*_v*.*")))
             base = load_calibration(np.datetime64("2010-03-01"))
