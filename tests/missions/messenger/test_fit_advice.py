@@ -15,10 +15,16 @@ import re
 import numpy as np
 import pytest
 
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import judged_at
-from fluxcal.missions.messenger.fit_merit import advised_goal, assess, check_merit
+from fluxcal.missions.messenger.fit_merit import (
+    advised_goal,
+    assess,
+    check_merit,
+    regulated_sum_untrusted,
+)
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
     N_PARAMETERS,
@@ -165,6 +171,11 @@ def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
         with pytest.raises(FitRefusedError, match=rf"regulated temperature \(sec. 7, eq. "
                            rf"2\): judged at {goal:g} nT.*{compressive} of 48 intervals"):
             check_merit(judged_at(res, goal))
+        # a table that does not state -50 C at all predicts none of its samples there:
+        # the sum's short error does not enter its prediction, so it is not judged
+        elsewhere = dataclasses.replace(judged_at(res, goal),
+                                        temperature_ranges=StatedRanges(((-40.0, -30.0),)))
+        assert regulated_sum_untrusted(elsewhere) == ""
 
 
 def test_a_compressive_wind_alone_keeps_the_advice_where_the_law_states_the_regulated_bin(

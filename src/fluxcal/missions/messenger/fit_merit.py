@@ -550,7 +550,8 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     """Return why ``result``'s table may not be advised, else ``""`` (entry 44).
 
     ``result`` as judged at a goal (`fit.judged_at`).  Its stated range holds the
-    regulated temperature (eq. 2) only through the offset the table applies there,
+    regulated temperature (eq. 2; a table that does not state it is not judged here)
+    only through the offset the table applies there,
     ``cT(-50 C) + D0 R`` (`stated_range`): the law's own band in that bin (worst axis)
     exceeds ``merit["band_limit_nt"]``; and more than `ADVICE_MAX_COMPRESSIVE_SHARE`
     of the judged intervals were rejected as compressive (`compressive_share`).  The
@@ -568,8 +569,11 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     n_comp, judged = compressive_share(result.variance.reason)
     if not judged or n_comp <= ADVICE_MAX_COMPRESSIVE_SHARE * judged:
         return ""
-    edges, law, _ = range_bands(result, tuple(m["data_range_c"]))
     reg = _regulated_c(result)
+    ranges = result.stated_ranges
+    if ranges is None or not bool(ranges.contains(reg)):
+        return ""  # not stated there: its samples are warned, not predicted (entry 45)
+    edges, law, _ = range_bands(result, tuple(m["data_range_c"]))
     held = _regulated_bin(edges, reg, law)
     if not held.any() or float(law[held].max()) <= float(m["band_limit_nt"]):
         return ""
