@@ -22,7 +22,7 @@ workers), the gather of the merged statistics, and the client's serial part (set
 fit of each pass, the folder written).  That serial share ``f`` of the serial run's time
 bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the bound is
 also given at the parallelism the pure-CPU control measures (`_control.control`).  A fit
-that the guards refuse (`fit.check_fit`), or that stops on too little data, is reported
+that the guards refuse (`fit_guards.check_fit`), or that stops on too little data, is reported
 and still timed (serial and Dask do the same work up to there).
 """
 

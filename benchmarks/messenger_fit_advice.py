@@ -51,13 +51,12 @@ from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit import (  # noqa: E402
     MAX_PASSES,
-    break_refusal,
-    check_fit,
     day_chunks,
     fit_days,
     judged_at,
 )
 from fluxcal.missions.messenger.fit_cli import parse_hold_d0  # noqa: E402
+from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 

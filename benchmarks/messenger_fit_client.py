@@ -17,7 +17,7 @@ with its break choices (`fit_variance.choose_breaks`, in the solution and in eve
 resample) and the resamples' steps (`fit_variance.apply_steps`), and its heater
 waveforms (`fit._fit_waveforms`; before entry 33 each pass also fitted the four folds
 for the column errors), the pass bookkeeping
-(`fit.pass_changes`, `fit.check_fit`), and after the passes the last pass's waveform
+(`fit.pass_changes`, `fit_guards.check_fit`), and after the passes the last pass's waveform
 column errors (`fit.waveform_column_errors`; its own `_fit_waveforms` call is also
 counted on that line), the figure of merit (`fit_merit.assess`,
 `fit.merit_inside_range`, `fit_merit.check_merit`), the folder written
@@ -65,7 +65,7 @@ PARTS = (
     ("  waveforms (_fit_waveforms)", "messenger/fit.py", "_fit_waveforms"),
     ("waveform column errors, once", "messenger/fit.py", "waveform_column_errors"),
     ("pass_changes", "messenger/fit.py", "pass_changes"),
-    ("check_fit", "messenger/fit.py", "check_fit"),
+    ("check_fit", "messenger/fit_guards.py", "check_fit"),
     ("merit: assess", "messenger/fit_merit.py", "assess"),
     ("merit: merit_inside_range", "messenger/fit.py", "merit_inside_range"),
     ("merit: check_merit", "messenger/fit_merit.py", "check_merit"),

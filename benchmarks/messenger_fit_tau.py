@@ -5,7 +5,7 @@
 Each FOLDER is a ``benchmarks/messenger_fit_pulls.py --save`` folder (``fit_*.pkl``: the
 fit and the forward model's true tables).  Per folder one Markdown row: tau's stated
 relative error (1 sigma) and its true error against the truth, the pulls' spread and
-largest, the size in nT of a 5 % tau error (`fit.tau_goal_cost_nt`, largest axis), how
+largest, the size in nT of a 5 % tau error (`fit_guards.tau_goal_cost_nt`, largest axis), how
 many fits a guard ``stated <= 5 % / k`` would refuse for k = 1, 1.5, 2, and the first cause
 the command line gives with this tree's guards (`messenger_fit_pulls.command_line_verdict`).
 ``--demo`` fits the fit demo's 2 days (`fit_demo.simulate_training`, its true tables) free
@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from messenger_fit_pulls import command_line_verdict  # noqa: E402
 
-from fluxcal.missions.messenger.fit import TAU_ERROR_GOAL, tau_goal_cost_nt  # noqa: E402
+from fluxcal.missions.messenger.fit_guards import TAU_ERROR_GOAL, tau_goal_cost_nt  # noqa: E402
 
 #: Coverage factors of the guards compared (stated <= goal / k).
 FACTORS = (1.0, 1.5, 2.0)

@@ -18,7 +18,14 @@ import pytest
 from fluxcal.calibration.binned_stats import BinnedMoments
 from fluxcal.errors import FitRefusedError, FluxcalError
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import check_fit, fit_calibration
+from fluxcal.missions.messenger.fit import fit_calibration
+from fluxcal.missions.messenger.fit_guards import (
+    check_fit,
+    d0_goal_cost_nt,
+    d0_goal_refusal,
+    tau_goal_cost_nt,
+    tau_goal_refusal,
+)
 from fluxcal.missions.messenger.fit_reduce import FitSettings
 from tests.missions.messenger.test_fit import START, _known_statistics, _truth
 
@@ -116,8 +123,6 @@ class _Moments:
 
 
 def test_d0_goal_binds_where_five_percent_costs_less_than_the_merit_goal(fitted):
-    from fluxcal.missions.messenger.fit import d0_goal_cost_nt
-
     res = fitted[1]
     # closed form: 5 % of |D0_j| times the rms relaxed duty cycle (300 ppt) through the
     # largest |M_ij| of eq. 8's fine matrix (seed 000 sec. 9, the shipped table)
@@ -154,7 +159,6 @@ def test_d0_goal_binds_where_five_percent_costs_less_than_the_merit_goal(fitted)
     (0.02465, np.nan, "nan%"),      # no error: refused, no error to hold it with
 ])
 def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, error, expected):
-    from fluxcal.missions.messenger.fit import d0_goal_refusal
     from fluxcal.missions.messenger.fit_cli import parse_hold_d0
 
     msg = d0_goal_refusal("z", value, error)
@@ -200,8 +204,6 @@ def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
 
 
 def test_tau_goal_cost_is_the_merits_tau_part_for_five_percent(fitted):
-    from fluxcal.missions.messenger.fit import tau_goal_cost_nt
-
     res = fitted[1]
     # brute force over samples: a tau error dtau moves the offset of sensor axis j by
     # D0_j R_tau dtau (seed 000 eq. 5-6 linearised), the field by M of it (eq. 8, the
@@ -234,8 +236,6 @@ def test_tau_goal_cost_is_the_merits_tau_part_for_five_percent(fitted):
 ])
 def test_tau_goal_refusal_names_the_stated_error_the_goal_and_the_days(tau, error, expected,
                                                                         factor):
-    from fluxcal.missions.messenger.fit import tau_goal_refusal
-
     msg = tau_goal_refusal(tau, error)
     if not expected:
         assert msg == ""

@@ -24,13 +24,12 @@ from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import (
     HOLD_BREAK_WIDTH_C,
     HOLD_SLOPE_CHANGE_WIDTH,
-    MAX_BREAK_ERROR_C,
     Chunk,
-    check_fit,
     day_chunks,
     fit_days,
     undetermined_upper,
 )
+from fluxcal.missions.messenger.fit_guards import MAX_BREAK_ERROR_C, check_fit
 from fluxcal.missions.messenger.fit_variance import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,

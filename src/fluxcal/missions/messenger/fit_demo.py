@@ -178,7 +178,8 @@ def _verdict(result, out: Path):
     """
     from fluxcal.errors import FitRefusedError
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit import check_fit, judged_at
+    from fluxcal.missions.messenger.fit import judged_at
+    from fluxcal.missions.messenger.fit_guards import check_fit
 
     try:
         if not result.convergence["converged"]:

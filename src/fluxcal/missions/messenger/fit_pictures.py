@@ -32,11 +32,11 @@ from fluxcal.errors import FluxcalError
 from fluxcal.geometry.time import et_to_tt2000, tt2000_to_datetime64
 from fluxcal.missions.messenger.fit import (
     AXES,
-    MIN_BIN_SAMPLES,
     FitResult,
     _temperature_distribution,
     law_sigma,
 )
+from fluxcal.missions.messenger.fit_reduce import usable_bins
 from fluxcal.products.fit_pictures import (
     Curve,
     Panel,
@@ -102,7 +102,7 @@ def _bin_model(result: FitResult, ok: np.ndarray, t_mean: np.ndarray) -> np.ndar
 def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
     m = result.stats.temperature
     mean, err = m.mean(), m.standard_error()
-    ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
+    ok = usable_bins(m, 3)
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)
     y = mean[ok, :3] - mean[ok, 4:5] * d0[None, :]
     pts = Points(mean[ok, 3], y, err[ok, :3], "heater-off 10-C bin means",
@@ -128,7 +128,7 @@ def _temperature(result: FitResult) -> tuple[Panel, np.ndarray]:
 def _duty(result: FitResult) -> tuple[Panel, np.ndarray]:
     m = result.stats.duty
     mean, err = m.mean(), m.standard_error()
-    ok = (m.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, 3])
+    ok = usable_bins(m, 3)
     pts = Points(mean[ok, 3], mean[ok, :3], err[ok, :3], "4-% bin means")
     c0 = np.asarray(result.calibration.duty_cycle_c0, float)
     d0 = np.asarray(result.calibration.duty_cycle_d0, float)

@@ -68,6 +68,9 @@ __all__ = ["DayStatistics", "FitSettings", "read_intervals", "reduce_day"]
 
 #: Relative step of tau for the derivative of the relaxed duty cycle (``slope`` columns).
 TAU_STEP = 0.01
+#: Fewest samples in a bin for it to enter a fit (the variance needs two; a bin mean of
+#: a few samples of a 5-nT field is noise, its sqrt(N) weight makes it harmless).
+MIN_BIN_SAMPLES = 2
 
 
 @dataclass(frozen=True)
@@ -234,6 +237,12 @@ class DayStatistics:
         for pct, w in zip(FitSettings().waveform_bins_percent, self.waveform, strict=False):
             out[f"waveform_{pct:.0f}"] = w.to_dataset()
         return out
+
+
+def usable_bins(moments: BinnedMoments, column: int = 0) -> np.ndarray:
+    """Bins that enter a fit: `MIN_BIN_SAMPLES` samples and a finite mean of ``column``."""
+    mean = moments.mean()
+    return (moments.count >= MIN_BIN_SAMPLES) & np.isfinite(mean[:, column])
 
 
 def _empty_fine(edges: np.ndarray) -> BinnedMoments:
