@@ -10,6 +10,9 @@ estimated from long-term averages of solar-wind data, whose mean field is zero:
 * `fit_days` iterates: reduce all days (serially or on a Dask cluster), merge, fit, and
   reduce again with the new estimates, ``passes`` times (each step then removes the
   others' current estimates, sec. 7: "iterative");
+* `fluxcal.missions.messenger.fit_guards.check_fit` refuses a table whose parameters lie
+  outside their physical range or that the data do not determine to their goal (tau's
+  range after every pass, everything after the last);
 * `fluxcal.missions.messenger.fit_write.write_calibration_folder` writes a versioned
   folder that `load_calibration(day, folder)` and ``edr2cdr --calib`` read.
 
