@@ -20,7 +20,8 @@ import pytest
 
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import HOLD_BREAK_WIDTH_C, day_chunks, fit_days
+from fluxcal.missions.messenger.fit import day_chunks, fit_days
+from fluxcal.missions.messenger.fit_holds import HOLD_BREAK_WIDTH_C
 from fluxcal.missions.messenger.fit_variance import (
     BREAK_SHIFTS_C,
     MIN_RANGE_SAMPLES,

@@ -442,7 +442,7 @@ def test_a_segment_held_in_the_fit_is_counted_once(shipped):
     # the 1-C bins' mean temperatures, as the prediction states): equal to 1e-9, and the
     # same number whether or not the result says the segment is held (nothing added);
     # a refusal whose largest part is the law names the held segments.
-    from fluxcal.missions.messenger.fit import HOLD_BREAK_WIDTH_C, HOLD_SLOPE_CHANGE_WIDTH
+    from fluxcal.missions.messenger.fit_holds import HOLD_BREAK_WIDTH_C, HOLD_SLOPE_CHANGE_WIDTH
 
     res = _variance_result(shipped, np.zeros(N_PARAMETERS), counts_to_c=-30.0)
     rng = np.random.default_rng(21)

@@ -14,7 +14,7 @@ seed), the total against the unseen day recalibrated through the pipeline.
 Before docs/decisions/messenger_fit.md entry 21 the resamples could not move the upper
 segments beyond the data, the prediction's law part was ~0.01 nT there, and the
 prediction (0.17 nT, the waveforms) did not cover the day (0.44 / 0.68 / 0.21 nT, seed
-9100).  Now the fit holds them (`fit.held_upper_segments`) and every resample draws
+9100).  Now the fit holds them (`fit_holds.held_upper_segments`) and every resample draws
 their widths, so the prediction's law part carries them once.  Slow: about 3 passes of
 2 days at 1 Hz.
 """

@@ -21,15 +21,13 @@ from fluxcal.errors import FitRefusedError, FluxcalError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import (
+from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days
+from fluxcal.missions.messenger.fit_guards import MAX_BREAK_ERROR_C, check_fit
+from fluxcal.missions.messenger.fit_holds import (
     HOLD_BREAK_WIDTH_C,
     HOLD_SLOPE_CHANGE_WIDTH,
-    Chunk,
-    day_chunks,
-    fit_days,
     undetermined_upper,
 )
-from fluxcal.missions.messenger.fit_guards import MAX_BREAK_ERROR_C, check_fit
 from fluxcal.missions.messenger.fit_variance import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,

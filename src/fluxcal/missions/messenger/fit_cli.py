@@ -28,7 +28,7 @@ def parse_hold_d0(text: str) -> dict[str, tuple[float | None, float | None]]:
 
     A comma list of ``AXIS[=VALUE][+-WIDTH]``: ``VALUE`` (counts/ppt) defaults to the
     base table's D0 (None here), ``WIDTH`` (counts/ppt) to `fit_guards.HOLD_D0_DEFAULT_WIDTH`
-    of the value (None here; `fit.held_d0_values`; docs/decisions/messenger_fit.md
+    of the value (None here; `fit_holds.held_d0_values`; docs/decisions/messenger_fit.md
     entry 18).
 
     Raises
