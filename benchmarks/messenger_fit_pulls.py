@@ -938,7 +938,8 @@ def band_correlation(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
 def band_leverage_floored(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
                           data_t: np.ndarray, lever=None) -> np.ndarray:
     """The fixed-design band widened per temperature by the units' leverage (``lever(t)``,
-    `leverage_ratio`: CR2 over CR0), floored as `band_floor_regulated`."""
+    `leverage_ratio`: CR2 over CR0; never narrowed by it, where the ratio is below 1),
+    floored as `band_floor_regulated`."""
     return np.maximum(_band(fixed, t) * lever(t),
                       band_floor_regulated(pairs, fixed, t, data_t))
 

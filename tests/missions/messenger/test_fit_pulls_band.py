@@ -104,13 +104,15 @@ def test_the_floors_are_the_pairs_band_least_or_at_the_regulated_temperature(ben
     at_55 = np.sqrt(sa ** 2 + 55.0 ** 2 * sb ** 2 - 110.0 * rho * sa * sb)
     np.testing.assert_allclose(bench.band_floor_regulated(pairs, fixed, T, cold),
                                np.maximum(f, at_55), rtol=REL)
-    # the leverage rule: the fixed band times the ratio, under the same floor
-    def lever(t):
-        return np.full((np.size(t), 3), 1.5)
+    # the leverage rule: the fixed band times the ratio (never below the fixed band),
+    # under the same floor
+    for r in (1.5, 0.5):
+        def lever(t, r=r):
+            return np.full((np.size(t), 3), r)
 
-    np.testing.assert_allclose(
-        bench.band_leverage_floored(pairs, fixed, T, DATA_T, lever),
-        np.maximum(1.5 * f, at_50), rtol=REL)
+        np.testing.assert_allclose(
+            bench.band_leverage_floored(pairs, fixed, T, DATA_T, lever),
+            np.maximum(max(r, 1.0) * f, at_50), rtol=REL)
 
 
 def test_the_correlation_rule_keeps_the_pairs_correlation_at_the_fixed_widths(bench):
