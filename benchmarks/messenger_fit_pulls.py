@@ -29,6 +29,9 @@ the 15.9-84.1 percentile width, 1.4826 MAD, a mixture that states a rare break j
 apart) by the pulls each would give on the saved fits' own resamples (entry 39).  The
 summary gives per parameter the pulls' spread, largest size and count beyond 3 (issue 34:
 spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a goal.
+``--summarise FOLDER --bands`` gives the law's pulls under design-fixed bands that cannot
+pinch (`BANDS`: the fixed-design bootstrap replayed, floored by or combined with the
+stored pairs band; entry 3x-band), at `LAW_T` and over the stated range's grid.
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
 prints the summary of a saved run again (fits saved without a row: no unseen day).
 """
@@ -774,6 +777,17 @@ def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
     the field; ``refine``: moved breaks placed inside their cells instead,
     `fit_variance.refine_breaks`): tau, D0 (3,), T_m (3,), the law at `LAW_T`
     (len(LAW_T), 3)."""
+    b = replayed_resamples(res, fixed_design, n_bootstrap, refine)
+    return {"tau": np.std(b["tau"]), "d0": np.std(b["d0"], axis=0),
+            "tm": np.std(b["law"][:, :, 3], axis=0),
+            "law": np.std(fv.law_values(b["law"], np.array(LAW_T)), axis=0)}
+
+
+def replayed_resamples(res, fixed_design: bool, n_bootstrap: int = 200,
+                       refine: bool = False) -> dict:
+    """The resamples behind `replayed_errors`, widened as the fit widens them: the law
+    (n, 3, 4), D0 (n, 3) and tau (n,) (tau about its mean, the others about the
+    solution)."""
     held = _held_columns(res)
     sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
                             law=fv.law_parameters(res.calibration), held=held,
@@ -796,9 +810,7 @@ def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
     b_d0 = fv.widen_d0_along_field(b_d0, d0, np.asarray(res.calibration.matrices[0], float),
                                    direction, balance,
                                    np.array([a not in res.held for a in "xyz"]))[0]
-    return {"tau": w * np.std(b_tau), "d0": np.std(b_d0, axis=0),
-            "tm": np.std(b_law[:, :, 3], axis=0),
-            "law": np.std(fv.law_values(b_law, np.array(LAW_T)), axis=0)}
+    return {"law": b_law, "d0": b_d0, "tau": w * (b_tau - b_tau.mean())}
 
 
 def fixed_design_row(res, true) -> dict:
@@ -867,6 +879,176 @@ def replay_summary(folder: Path) -> None:
     _print_pull_rows(per)
 
 
+# --- design-fixed law bands that cannot pinch (docs/decisions/messenger_fit.md 3x-band) --
+
+#: The regulated sensor temperature (C; sec. 7, eq. 2): `band_floor_regulated`'s floor.
+REGULATED_C = -50.0
+#: Step (C) of the grids over the data's range (the floors) and over the stated range (the
+#: largest pull of a band, `band_pulls`).
+BAND_GRID_STEP_C = 0.5
+
+
+def _band(law: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The spread of resampled laws ``law`` (n, 3, 4) at ``t``: (len(t), 3) counts."""
+    return np.std(fv.law_values(law, t), axis=0)
+
+
+def band_fixed(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
+               data_t: np.ndarray, lever=None) -> np.ndarray:
+    """The fixed-design band alone (entry 41): it pinches at its pivot (entry 42)."""
+    return _band(fixed, t)
+
+
+def band_max(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
+             data_t: np.ndarray, lever=None) -> np.ndarray:
+    """Per temperature and axis the larger of the pairs and the fixed-design bands."""
+    return np.maximum(_band(pairs, t), _band(fixed, t))
+
+
+def band_floor_least(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
+                     data_t: np.ndarray, lever=None) -> np.ndarray:
+    """The fixed-design band, floored per axis by the pairs band's least value over the
+    data's range ``data_t`` (its pivot)."""
+    return np.maximum(_band(fixed, t), _band(pairs, data_t).min(axis=0)[None, :])
+
+
+def band_floor_regulated(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
+                         data_t: np.ndarray, lever=None) -> np.ndarray:
+    """The fixed-design band, floored per axis by the pairs band at `REGULATED_C` where
+    the data's range ``data_t`` holds it (there the law is tied to D0 R, an error the
+    units' scores do not see and the widening covers, entry 42), else by its least."""
+    floor = _band(pairs, data_t).min(axis=0)
+    if data_t.size and data_t.min() <= REGULATED_C <= data_t.max():
+        floor = np.maximum(floor, _band(pairs, np.array([REGULATED_C]))[0])
+    return np.maximum(_band(fixed, t), floor[None, :])
+
+
+def band_correlation(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
+                     data_t: np.ndarray, lever=None) -> np.ndarray:
+    """The pairs resamples rescaled per law parameter (a, b, c, T_m per axis) about their
+    mean to the fixed design's standard deviations: the fixed design's widths with the
+    pairs' correlations."""
+    sd_p, sd_f = np.std(pairs, axis=0), np.std(fixed, axis=0)
+    mean = pairs.mean(axis=0)
+    scale = np.divide(sd_f, sd_p, out=np.ones_like(sd_p), where=sd_p > 0)
+    return _band(mean + (pairs - mean) * scale, t)
+
+
+def band_leverage_floored(pairs: np.ndarray, fixed: np.ndarray, t: np.ndarray,
+                          data_t: np.ndarray, lever=None) -> np.ndarray:
+    """The fixed-design band widened per temperature by the units' leverage (``lever(t)``,
+    `leverage_ratio`: CR2 over CR0; never narrowed by it, where the ratio is below 1),
+    floored as `band_floor_regulated`."""
+    return np.maximum(_band(fixed, t) * lever(t),
+                      band_floor_regulated(pairs, fixed, t, data_t))
+
+
+def leverage_ratio(res):
+    """Return ``ratio(t)`` -> (len(t), 3): per temperature and axis, the law's cluster
+    sandwich with each unit's score adjusted for its leverage over the unadjusted one.
+
+    The units, scores and normal matrix of `unit_scores` (the breaks kept, the free
+    columns): CR0 is ``A^-1 (sum_u g_u g_u^T) A^-1``; CR2 (Bell and McCaffrey 2002) takes
+    ``X_u^T (I - H_uu)^(-1/2) e_u`` instead of ``g_u = X_u^T e_u``, ``H_uu = X_u A^-1
+    X_u^T`` the unit's block of the hat matrix.  From the normal equations alone:
+    ``X_u^T f(X_u A^-1 X_u^T) = f(A_u A^-1) X_u^T``, so the adjusted score is
+    ``A^(1/2) (I - A^(-1/2) A_u A^(-1/2))^(-1/2) A^(-1/2) g_u``.  A unit that alone fixes
+    a direction (a few warm peaks: the lever arm the pairs bootstrap resamples and the
+    fixed design keeps, entry 41) has an eigenvalue of ``A^(-1/2) A_u A^(-1/2)`` near 1
+    and its score is inflated; the law is linearised, ``(1, t, max(0, t - T_m), [t >
+    T_m])`` as in `sandwich_errors`.
+    """
+    u = unit_scores(res)
+    f, inv, score = u["f"], u["inv"], u["score"]
+    a = u["total"][np.ix_(f, f)]
+    lam, vec = np.linalg.eigh(a)
+    lam = np.clip(lam, lam.max() * 1e-15, None)
+    root, inv_root = (vec * np.sqrt(lam)) @ vec.T, (vec / np.sqrt(lam)) @ vec.T
+    adjusted = np.empty_like(score)
+    for k, a_k in enumerate(u["a_u"][:, f][:, :, f]):  # one small eigenproblem per unit
+        mu, w = np.linalg.eigh(inv_root @ a_k @ inv_root)
+        mu = np.clip(mu, 0.0, 1.0 - 1e-9)
+        adjusted[k] = root @ (w / np.sqrt(1.0 - mu)) @ w.T @ inv_root @ score[k]
+    cr0 = inv @ (score.T @ score) @ inv
+    cr2 = inv @ (adjusted.T @ adjusted) @ inv
+    now = fv.law_parameters(res.calibration)
+
+    def ratio(t: np.ndarray) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        out = np.ones((t.size, 3))
+        for j in range(3):
+            g = np.zeros((t.size, fv.N_PARAMETERS))
+            g[:, j * fv.PER_AXIS:j * fv.PER_AXIS + 4] = np.column_stack(
+                [np.ones_like(t), t, np.maximum(0.0, t - now[j, 3]), (t > now[j, 3])])
+            g = g[:, f]
+            v0 = np.einsum("ti,ij,tj->t", g, cr0, g)
+            v2 = np.einsum("ti,ij,tj->t", g, cr2, g)
+            out[:, j] = np.sqrt(np.divide(v2, v0, out=np.ones_like(v0), where=v0 > 0))
+        return out
+
+    return ratio
+
+
+#: The band candidates `band_summary` compares (column -> rule).
+BANDS = {"fixed 800": band_fixed, "max": band_max, "floor: pairs' least": band_floor_least,
+         "floor: pairs at -50 C": band_floor_regulated, "pairs' correlation": band_correlation,
+         "leverage, floor at -50 C": band_leverage_floored}
+
+
+def band_pulls(res, true, fixed: np.ndarray, rule, lever=None) -> dict:
+    """The law's pulls with its band from ``rule`` (`BANDS`; the pairs resamples are the
+    fit's stored ones, ``fixed`` the replayed fixed-design ones, ``lever`` the fit's
+    `leverage_ratio`): ``law_pull`` at `LAW_T` ((len(LAW_T), 3), NaN outside the stated
+    range) and ``grid_max`` (3,), the largest |pull| per axis over a `BAND_GRID_STEP_C`
+    grid of the stated range."""
+    lo, hi = res.fitted_range
+    data_t = np.arange(np.ceil(lo), np.floor(hi) + 0.01, BAND_GRID_STEP_C)
+    grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, BAND_GRID_STEP_C)
+    grid = grid[res.stated_ranges.contains(grid)]
+    law_t = np.array(LAW_T)
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    fit = res.calibration.temperature_coefficients
+    pairs = res.bootstrap["law"]
+    pull = (_law(fit, law_t) - _law(tc, law_t)) / rule(pairs, fixed, law_t, data_t, lever)
+    pull[~res.stated_ranges.contains(law_t)] = np.nan
+    on_grid = (_law(fit, grid) - _law(tc, grid)) / rule(pairs, fixed, grid, data_t, lever)
+    return {"law_pull": pull, "grid_max": np.abs(on_grid).max(axis=0)}
+
+
+def band_summary(folder: Path, n_bootstrap: int = 800) -> None:
+    """Print, per law row at `LAW_T` (inside the stated range), the pulls' spread, largest
+    size and count beyond 3 with the stored (pairs) band and each candidate of `BANDS`
+    (the fixed-design resamples replayed, ``n_bootstrap``, `replayed_resamples`), then the
+    largest |pull| over the stated range's grid and the fits with one beyond 3."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    fixed = [replayed_resamples(res, True, n_bootstrap)["law"] for res, _ in fits]
+    lever = [leverage_ratio(res) for res, _ in fits]
+    per = {"stored": [band_pulls(res, true, None, lambda p, f, t, d, lv: _band(p, t))
+                      for res, true in fits]}
+    per.update({name: [band_pulls(res, true, fx, rule, lv)
+                       for (res, true), fx, lv in zip(fits, fixed, lever, strict=True)]
+                for name, rule in BANDS.items()})
+    print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
+    print("| law row | " + " | ".join(per) + " |")
+    print("|---|" + "---|" * len(per))
+    for i, t in enumerate(LAW_T):
+        for j, a in enumerate("xyz"):
+            cells = []
+            for rows in per.values():
+                p = np.array([r["law_pull"][i, j] for r in rows])
+                p = p[np.isfinite(p)]
+                cells.append(f"{p.std(ddof=1):.2f}, {np.abs(p).max():.2f}, "
+                             f"{int(np.count_nonzero(np.abs(p) > 3))}" if p.size > 1 else "")
+            if any(cells):
+                print(f"| law {a} at {t:+.0f} C (N {p.size}) | " + " | ".join(cells) + " |")
+    cells = []
+    for rows in per.values():
+        g = np.stack([r["grid_max"] for r in rows])
+        cells.append(f"{g.max():.2f}, {int(np.count_nonzero(np.any(g > 3, axis=1)))} fits")
+    print(f"| grid of T_RANGE, every {BAND_GRID_STEP_C:g} C: max |pull|, fits beyond 3 | "
+          + " | ".join(cells) + " |")
+
+
 def estimator_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 under each
     of `SPREADS` on the saved fits of ``folder`` (entry 39)."""
@@ -928,6 +1110,11 @@ def main() -> None:
                     help="With --summarise: the pulls as stored and under the pairs, "
                          "refined and fixed-design bootstraps replayed on the stored normal "
                          "equations (REPLAYS; entry 42).")
+    ap.add_argument("--bands", action="store_true",
+                    help="With --summarise: the law's pulls under the design-fixed band "
+                         "candidates (BANDS: the fixed-design bootstrap replayed, floored "
+                         "or combined with the pairs band so that it cannot pinch; entry "
+                         "3x-band), at LAW_T and over the stated range.")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")
@@ -943,6 +1130,9 @@ def main() -> None:
             return
         if args.replay:
             replay_summary(args.summarise)
+            return
+        if args.bands:
+            band_summary(args.summarise)
             return
         summarise(saved_rows(args.summarise), args.markdown)
         return
