@@ -80,7 +80,7 @@ __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGE
            "fixed_design_resamples", "law_values",
            "offset_moments", "quantisation", "reduce_variance", "refine_breaks",
            "resample_fits",
-           "solve_step", "solve_variance",
+           "solution_distance", "solve_step", "solve_variance",
            "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
@@ -870,6 +870,31 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     return out, offset
 
 
+def solution_distance(offset: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Per resample and axis, ``+offset`` or ``-offset``, half each in a random order.
+
+    The solution's break left at its grid point while its own data put it ``offset``
+    (C, `refine_breaks`) from there (`solve_variance`'s ``refine_resamples``): added to
+    every resample's break, so that the stated error counts that distance too.  Over an
+    even ``n`` the draws' mean is exactly 0 and their variance exactly ``offset^2`` (an
+    odd ``n``: one more of one sign), independent of the resamples' own order.
+
+    Parameters
+    ----------
+    offset : ndarray, shape (3,)
+    n : int
+        Resamples.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    offset = np.asarray(offset, dtype=float)
+    signs = np.stack([rng.permutation(np.resize([1.0, -1.0], n)) for _ in offset], axis=1)
+    return signs * offset[None, :]
+
+
 def fixed_design_resamples(picks: np.ndarray, a: np.ndarray, v: np.ndarray,
                            total_a: np.ndarray, total_v: np.ndarray, yy: float,
                            step: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -918,6 +943,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    n_blocks: int = 1,
                    fixed_design: bool = False,
                    refine: bool = False,
+                   refine_resamples: bool = False,
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -971,6 +997,12 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         resamples' breaks over the cell (`quantisation`).  Off: it changes the passes'
         path, and the 4-day late-peak orbit (seed 3401) then ends with every upper
         segment held (entry 42).
+    refine_resamples : bool
+        `refine_breaks` in the resamples only: the solution stays at its grid point
+        (the passes' path is the default's), and where the solution itself took a shift,
+        the distance from its grid point to where its own data put the break is counted
+        in every resample's break (`solution_distance`, variance ``d^2``).  Off (entry
+        3x-tm: it narrows no T_m error enough, and the wider of its pulls stay below 0.7).
 
     Returns
     -------
@@ -1054,14 +1086,18 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         boot_choice = np.concatenate([c for c, _ in parts])
         boot = np.concatenate([b for _, b in parts])
     boot_offset, offset = quantisation(boot_choice, rng), np.zeros(3)
-    if law is not None and refine:  # a moved break inside its cell, on its own data
+    if law is not None and (refine or refine_resamples):  # a moved break inside its
+        # cell, on its own data
         boot, boot_offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law,
                                           boot_choice, boot, data_range)
         if max(choice) >= 0:
             steps, offsets = refine_breaks(total_a[None], total_v[None], np.array([yy]),
                                            fixed_h[None], base_free, law,
                                            np.array([choice]), step[None], data_range)
-            step, offset = steps[0], offsets[0]  # chi2 stays the grid solution's
+            if refine:
+                step, offset = steps[0], offsets[0]  # chi2 stays the grid solution's
+            else:  # the solution kept at its grid point: its distance counted instead
+                boot_offset = boot_offset + solution_distance(offsets[0], n_bootstrap, rng)
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),
