@@ -817,7 +817,8 @@ def fixed_design_row(res, true) -> dict:
 
 
 #: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine;
-#: ``"resamples"``: the resamples only, entry 3x-tm).
+#: False: the uniform draw over the cell, the fit's default before entry 3x-tm;
+#: ``"resamples"``: refined in the resamples only, the fit's default since).
 REPLAYS = (("pairs 200", False, 200, False), ("refined", False, 200, True),
            ("refined resamples", False, 200, "resamples"),
            ("fixed 800", True, 800, False), ("refined, fixed 800", True, 800, True))

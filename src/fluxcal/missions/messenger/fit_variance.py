@@ -457,7 +457,9 @@ class VarianceSolution:
         (C, uniform over the half-ways to the neighbouring shifts; 0 where the break
         was kept): a resample that takes a shift knows its break only to that cell
         (`quantisation`), added to the resampled breaks (`fit.fit_variance_calibration`);
-        with ``refine`` (`solve_variance`), where its own data put it (`refine_breaks`).
+        with ``refine`` or ``refine_resamples`` (`solve_variance`, the default), where its
+        own data put it (`refine_breaks`), plus the solution's own distance
+        (`solution_distance`) where the solution took a shift and stays on it.
     widening : float
         ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
         finite-sample correction of the pairs bootstrap, to be applied to the spread of
@@ -740,7 +742,10 @@ def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
     that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
     resample took the same -4-C shift: spread 0; tests/missions/messenger/
-    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).
+    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).  The fit places a
+    resample's break in the cell by its own data instead (`refine_breaks`,
+    `solve_variance`'s ``refine_resamples``, entry 3x-tm); this draw stays for
+    ``refine_resamples=False``.
     """
     grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
     mid = 0.5 * (grid[1:] + grid[:-1])
@@ -781,8 +786,9 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
 
     The alternative to a uniform draw over the cell (`quantisation`, entry 27), where a
     resample whose data put its break 0.3 C from the solution, just past half-way to the
-    +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  Opt-in
-    (`solve_variance`'s ``refine``; docs/decisions/messenger_fit.md entry 42).
+    +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  In the resamples only by
+    default (`solve_variance`'s ``refine_resamples``, entry 3x-tm); in the solution too
+    opt-in (``refine``, entry 42: it changes the passes' path).
 
     Parameters
     ----------
@@ -943,7 +949,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    n_blocks: int = 1,
                    fixed_design: bool = False,
                    refine: bool = False,
-                   refine_resamples: bool = False,
+                   refine_resamples: bool = True,
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -964,7 +970,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         breaks are then also tried at `BREAK_SHIFTS_C` inside the data's range
         (``stats.fitted_range`` of `VarianceSettings.min_samples` per 5-C bin;
         `choose_breaks`), in the solution and again in every resample, each shifted
-        resample's break drawn in its shift's cell (`quantisation`); None: the
+        resample's break placed inside its shift's cell on its own data
+        (``refine_resamples``) or drawn over the cell (`quantisation`); None: the
         linearised step only.
     held_step : ndarray, shape (3,), optional
         D0 step of each held axis (the held value minus the linearisation point's);
@@ -993,16 +1000,18 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         bootstrap, the default; docs/decisions/messenger_fit.md entry 41).
     refine : bool
         Place each break moved to a shift inside its cell on its own data
-        (`refine_breaks`), in the solution and in every resample, instead of drawing the
-        resamples' breaks over the cell (`quantisation`).  Off: it changes the passes'
-        path, and the 4-day late-peak orbit (seed 3401) then ends with every upper
-        segment held (entry 42).
+        (`refine_breaks`), in the solution and in every resample.  Off: it changes the
+        passes' path, and the 4-day late-peak orbit (seed 3401) then ends with every
+        upper segment held (entry 42).
     refine_resamples : bool
-        `refine_breaks` in the resamples only: the solution stays at its grid point
-        (the passes' path is the default's), and where the solution itself took a shift,
-        the distance from its grid point to where its own data put the break is counted
-        in every resample's break (`solution_distance`, variance ``d^2``).  Off (entry
-        3x-tm: it narrows no T_m error enough, and the wider of its pulls stay below 0.7).
+        `refine_breaks` in the resamples only (the default): the solution stays at its
+        grid point (the passes' path is that of the uniform draw), and where the solution
+        itself took a shift, the distance from its grid point to where its own data put
+        the break is counted in every resample's break (`solution_distance`, variance
+        ``d^2``).  False (and ``refine`` False): every moved resample's break drawn
+        uniformly over its cell (`quantisation`, entry 27), the default before entry
+        3x-tm (which measured both on the late-peak orbit: T_m pull spreads 0.39 / 0.39
+        / 0.47 -> 0.46 / 0.42 / 0.63, no pull beyond 3 added, the fitted tables the same).
 
     Returns
     -------
