@@ -453,13 +453,13 @@ class VarianceSolution:
     boot_shift : ndarray, shape (n_bootstrap, 3)
         ``break_shift`` of every resample (chosen again on the resampled blocks).
     boot_dither : ndarray, shape (n_bootstrap, 3)
-        Per resample and axis, where in the cell of its chosen shift its break lies
-        (C, uniform over the half-ways to the neighbouring shifts; 0 where the break
-        was kept): a resample that takes a shift knows its break only to that cell
-        (`quantisation`), added to the resampled breaks (`fit.fit_variance_calibration`);
-        with ``refine`` or ``refine_resamples`` (`solve_variance`, the default), where its
-        own data put it (`refine_breaks`), plus the solution's own distance
-        (`solution_distance`) where the solution took a shift and stays on it.
+        Per resample and axis, where in the cell of its chosen shift its break lies (C
+        from the shift; 0 where the break was kept), to be added to the resampled breaks
+        (`fit.fit_variance_calibration`): with ``refine_resamples`` (`solve_variance`,
+        the default) or ``refine``, where its own data put it (`refine_breaks`), plus
+        the solution's own distance (`solution_distance`) where the solution took a
+        shift and stays on it; else drawn uniformly over the half-ways to the
+        neighbouring shifts (`quantisation`, entry 27).
     widening : float
         ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
         finite-sample correction of the pairs bootstrap, to be applied to the spread of
