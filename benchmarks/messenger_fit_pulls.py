@@ -769,13 +769,14 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
 
 
 def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
-                    refine: bool = False) -> dict:
+                    refine: bool | str = False) -> dict:
     """The stated errors of ``res`` replayed from its last pass's normal equations at the
     fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
     one (`fit_variance.fixed_design_resamples`) of ``n_bootstrap`` resamples, treated as
     `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
     the field; ``refine``: moved breaks placed inside their cells instead,
-    `fit_variance.refine_breaks`): tau, D0 (3,), T_m (3,), the law at `LAW_T`
+    `fit_variance.refine_breaks`; ``"resamples"``: in the resamples only, the solution's
+    distance counted, ``refine_resamples``): tau, D0 (3,), T_m (3,), the law at `LAW_T`
     (len(LAW_T), 3)."""
     b = replayed_resamples(res, fixed_design, n_bootstrap, refine)
     return {"tau": np.std(b["tau"]), "d0": np.std(b["d0"], axis=0),
@@ -792,7 +793,7 @@ def replayed_resamples(res, fixed_design: bool, n_bootstrap: int = 200,
     sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
                             law=fv.law_parameters(res.calibration), held=held,
                             fixed_design=fixed_design, n_bootstrap=n_bootstrap,
-                            refine=refine)
+                            refine=refine is True, refine_resamples=refine == "resamples")
     law, d0, tau, _ = fv.apply_step(res.calibration, sol.step, break_shift=sol.break_shift)
     law[:, 3] += sol.break_offset
     b_law, b_d0, b_tau, _ = fv.apply_steps(res.calibration, sol.boot, max_tau_shift=np.inf,
@@ -826,13 +827,16 @@ def fixed_design_row(res, true) -> dict:
     return row
 
 
-#: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine).
+#: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine;
+#: False: the uniform draw over the cell, the fit's default before entry 3x-tm;
+#: ``"resamples"``: refined in the resamples only, the fit's default since).
 REPLAYS = (("pairs 200", False, 200, False), ("refined", False, 200, True),
+           ("refined resamples", False, 200, "resamples"),
            ("fixed 800", True, 800, False), ("refined, fixed 800", True, 800, True))
 
 
 def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
-               refine: bool = False) -> dict:
+               refine: bool | str = False) -> dict:
     """`estimator_row` with every stated error replaced by a bootstrap replayed on the
     fit's stored normal equations (`replayed_errors`): the pulls the fit would state
     with that bootstrap, the fitted tables kept (entry 42)."""

@@ -35,6 +35,7 @@ from fluxcal.missions.messenger.fit_variance import (
     quantisation,
     refine_breaks,
     resample_fits,
+    solution_distance,
     solve_variance,
 )
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
@@ -136,6 +137,54 @@ def test_kept_breaks_and_unmoved_resamples_are_left_as_they_are(shipped):
     assert np.all((moved >= lo - 1e-9) & (moved <= hi + 1e-9))
 
 
+@pytest.mark.parametrize("n", [200, 201])
+def test_solution_distance_is_plus_or_minus_the_offset_half_each(n):
+    # closed form: each draw is +d or -d; over an even count half each, so the mean is
+    # exactly 0 and the variance exactly d^2 (np.var, ddof 0); an odd count: one more of
+    # one sign
+    d = np.array([0.2, -0.6, 0.0])
+    out = solution_distance(d, n, np.random.default_rng(3))
+    assert out.shape == (n, 3)
+    np.testing.assert_array_equal(np.abs(out), np.broadcast_to(np.abs(d), (n, 3)))
+    plus = np.count_nonzero(out[:, :2] > 0, axis=0)
+    assert np.all(np.abs(2 * plus - n) == n % 2)
+    if n % 2 == 0:
+        np.testing.assert_allclose(out.mean(axis=0), 0.0, atol=1e-15)
+        np.testing.assert_allclose(out.var(axis=0), d ** 2, rtol=1e-12)
+    # the signs are independent of the axes' order of the resamples (not all alike)
+    assert np.any(np.sign(out[:, 0]) != np.sign(out[:, 1]))
+
+
+def test_refined_resamples_keep_the_solution_and_count_its_distance(shipped):
+    # the noise-free hinge world of `test_a_break_between_grid_points_is_placed_at_its
+    # _truth`: every axis's true break inside a grid cell.  With the refinement in the
+    # resamples only, the solution is the default's bit for bit (the passes' path
+    # unchanged) and stays on its grid point; every resample's data put its break at the
+    # truth (noise-free), and the solution's own distance d = truth - grid point (the
+    # world's definition) is added as +-d, so the resamples' breaks spread by |d| about
+    # their mean (tolerance 0.06 C: the rounded corner, as in that test) and the grid
+    # solution lies within 1 of that spread from the truth
+    now = law_parameters(shipped)
+    true = now.copy()
+    true[:, 3] += (0.3, -2.6, 6.0)
+    true[:, 2] *= 1.1
+    stats = _hinge_statistics(now, true, np.random.default_rng(31))
+    plain = solve_variance(stats, n_bootstrap=40, law=now, refine_resamples=False)
+    sol = solve_variance(stats, n_bootstrap=40, law=now)  # refine_resamples, the default
+    np.testing.assert_array_equal(sol.step, plain.step)
+    np.testing.assert_array_equal(sol.break_shift, plain.break_shift)
+    np.testing.assert_array_equal(sol.break_offset, 0.0)
+    assert np.all(sol.break_shift != 0.0)
+    grid = now[:, 3] + sol.break_shift  # the solution's break, on the grid
+    distance = true[:, 3] - grid
+    boots = np.stack([apply_step(shipped, b, max_tau_shift=np.inf, max_break_shift_c=np.inf,
+                                 break_shift=s)[0][:, 3]
+                      for b, s in zip(sol.boot, sol.boot_shift, strict=True)]) + sol.boot_dither
+    print("distance", distance.round(3), "spread", boots.std(axis=0).round(3))
+    np.testing.assert_allclose(boots.std(axis=0), np.abs(distance), atol=0.06)
+    assert np.all(np.abs(distance) <= boots.std(axis=0) + 0.06)
+
+
 def _sparse_peaks() -> np.ndarray:
     """Temperatures (C) of 48 blocks: regulated at -52..-48 C, every `WARM_EVERY`-th
     block a warm peak (Gaussian in time, -15..+40 C): 300-830 samples per 5-C bin from
@@ -153,7 +202,7 @@ def _fit(shipped, true, temp, seed, passes):
     """``passes`` Gauss-Newton steps as `fit_days` takes them (the statistics rebuilt
     about each new law, the same noise draw); the breaks and their stated errors as
     `fit.fit_variance_calibration` states them (the resamples' spread, each shifted
-    break drawn in its cell, widened)."""
+    break placed in its cell by its own data, widened)."""
     noise = NOISE * np.random.default_rng(900 + seed).normal(size=temp.size)
     cal = shipped
     for _ in range(passes):

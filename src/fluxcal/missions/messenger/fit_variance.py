@@ -80,7 +80,7 @@ __all__ = ["BREAK_SHIFTS_C", "MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGE
            "fixed_design_resamples", "law_values",
            "offset_moments", "quantisation", "reduce_variance", "refine_breaks",
            "resample_fits",
-           "solve_step", "solve_variance",
+           "solution_distance", "solve_step", "solve_variance",
            "widen_d0_along_field"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
@@ -453,11 +453,13 @@ class VarianceSolution:
     boot_shift : ndarray, shape (n_bootstrap, 3)
         ``break_shift`` of every resample (chosen again on the resampled blocks).
     boot_dither : ndarray, shape (n_bootstrap, 3)
-        Per resample and axis, where in the cell of its chosen shift its break lies
-        (C, uniform over the half-ways to the neighbouring shifts; 0 where the break
-        was kept): a resample that takes a shift knows its break only to that cell
-        (`quantisation`), added to the resampled breaks (`fit.fit_variance_calibration`);
-        with ``refine`` (`solve_variance`), where its own data put it (`refine_breaks`).
+        Per resample and axis, where in the cell of its chosen shift its break lies (C
+        from the shift; 0 where the break was kept), to be added to the resampled breaks
+        (`fit.fit_variance_calibration`): with ``refine_resamples`` (`solve_variance`,
+        the default) or ``refine``, where its own data put it (`refine_breaks`), plus
+        the solution's own distance (`solution_distance`) where the solution took a
+        shift and stays on it; else drawn uniformly over the half-ways to the
+        neighbouring shifts (`quantisation`, entry 27).
     widening : float
         ``sqrt(n / (n - p))`` (``n`` resampled units, ``p`` free parameters): the
         finite-sample correction of the pairs bootstrap, to be applied to the spread of
@@ -740,7 +742,10 @@ def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     (variance ``width^2 / 12``): the quantisation of the shift grid, which a resample
     that took a shift would otherwise leave out (one step from breaks 3.3 C away, every
     resample took the same -4-C shift: spread 0; tests/missions/messenger/
-    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).
+    test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).  The fit places a
+    resample's break in the cell by its own data instead (`refine_breaks`,
+    `solve_variance`'s ``refine_resamples``, entry 3x-tm); this draw stays for
+    ``refine_resamples=False``.
     """
     grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
     mid = 0.5 * (grid[1:] + grid[:-1])
@@ -781,8 +786,9 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
 
     The alternative to a uniform draw over the cell (`quantisation`, entry 27), where a
     resample whose data put its break 0.3 C from the solution, just past half-way to the
-    +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  Opt-in
-    (`solve_variance`'s ``refine``; docs/decisions/messenger_fit.md entry 42).
+    +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  In the resamples only by
+    default (`solve_variance`'s ``refine_resamples``, entry 3x-tm); in the solution too
+    opt-in (``refine``, entry 42: it changes the passes' path).
 
     Parameters
     ----------
@@ -870,6 +876,31 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     return out, offset
 
 
+def solution_distance(offset: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Per resample and axis, ``+offset`` or ``-offset``, half each in a random order.
+
+    The solution's break left at its grid point while its own data put it ``offset``
+    (C, `refine_breaks`) from there (`solve_variance`'s ``refine_resamples``): added to
+    every resample's break, so that the stated error counts that distance too.  Over an
+    even ``n`` the draws' mean is exactly 0 and their variance exactly ``offset^2`` (an
+    odd ``n``: one more of one sign), independent of the resamples' own order.
+
+    Parameters
+    ----------
+    offset : ndarray, shape (3,)
+    n : int
+        Resamples.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    offset = np.asarray(offset, dtype=float)
+    signs = np.stack([rng.permutation(np.resize([1.0, -1.0], n)) for _ in offset], axis=1)
+    return signs * offset[None, :]
+
+
 def fixed_design_resamples(picks: np.ndarray, a: np.ndarray, v: np.ndarray,
                            total_a: np.ndarray, total_v: np.ndarray, yy: float,
                            step: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -918,6 +949,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    n_blocks: int = 1,
                    fixed_design: bool = False,
                    refine: bool = False,
+                   refine_resamples: bool = True,
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -938,7 +970,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         breaks are then also tried at `BREAK_SHIFTS_C` inside the data's range
         (``stats.fitted_range`` of `VarianceSettings.min_samples` per 5-C bin;
         `choose_breaks`), in the solution and again in every resample, each shifted
-        resample's break drawn in its shift's cell (`quantisation`); None: the
+        resample's break placed inside its shift's cell on its own data
+        (``refine_resamples``) or drawn over the cell (`quantisation`); None: the
         linearised step only.
     held_step : ndarray, shape (3,), optional
         D0 step of each held axis (the held value minus the linearisation point's);
@@ -967,10 +1000,18 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         bootstrap, the default; docs/decisions/messenger_fit.md entry 41).
     refine : bool
         Place each break moved to a shift inside its cell on its own data
-        (`refine_breaks`), in the solution and in every resample, instead of drawing the
-        resamples' breaks over the cell (`quantisation`).  Off: it changes the passes'
-        path, and the 4-day late-peak orbit (seed 3401) then ends with every upper
-        segment held (entry 42).
+        (`refine_breaks`), in the solution and in every resample.  Off: it changes the
+        passes' path, and the 4-day late-peak orbit (seed 3401) then ends with every
+        upper segment held (entry 42).
+    refine_resamples : bool
+        `refine_breaks` in the resamples only (the default): the solution stays at its
+        grid point (the passes' path is that of the uniform draw), and where the solution
+        itself took a shift, the distance from its grid point to where its own data put
+        the break is counted in every resample's break (`solution_distance`, variance
+        ``d^2``).  False (and ``refine`` False): every moved resample's break drawn
+        uniformly over its cell (`quantisation`, entry 27), the default before entry
+        3x-tm (which measured both on the late-peak orbit: T_m pull spreads 0.39 / 0.39
+        / 0.47 -> 0.46 / 0.42 / 0.63, no pull beyond 3 added, the fitted tables the same).
 
     Returns
     -------
@@ -1054,14 +1095,18 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         boot_choice = np.concatenate([c for c, _ in parts])
         boot = np.concatenate([b for _, b in parts])
     boot_offset, offset = quantisation(boot_choice, rng), np.zeros(3)
-    if law is not None and refine:  # a moved break inside its cell, on its own data
+    if law is not None and (refine or refine_resamples):  # a moved break inside its
+        # cell, on its own data
         boot, boot_offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law,
                                           boot_choice, boot, data_range)
         if max(choice) >= 0:
             steps, offsets = refine_breaks(total_a[None], total_v[None], np.array([yy]),
                                            fixed_h[None], base_free, law,
                                            np.array([choice]), step[None], data_range)
-            step, offset = steps[0], offsets[0]  # chi2 stays the grid solution's
+            if refine:
+                step, offset = steps[0], offsets[0]  # chi2 stays the grid solution's
+            else:  # the solution kept at its grid point: its distance counted instead
+                boot_offset = boot_offset + solution_distance(offsets[0], n_bootstrap, rng)
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
                             break_shift=_shifts(np.asarray(choice)),
