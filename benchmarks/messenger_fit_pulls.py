@@ -785,7 +785,7 @@ def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
 
 
 def replayed_resamples(res, fixed_design: bool, n_bootstrap: int = 200,
-                       refine: bool = False) -> dict:
+                       refine: bool | str = False) -> dict:
     """The resamples behind `replayed_errors`, widened as the fit widens them: the law
     (n, 3, 4), D0 (n, 3) and tau (n,) (tau about its mean, the others about the
     solution)."""
