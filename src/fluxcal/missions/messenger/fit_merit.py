@@ -18,9 +18,8 @@ within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_
 the same tables judged at it first (entry 26).  In a compressive wind the sum ``cT(-50
 C) + D0 R`` is predicted with only part of the bootstrap's law-D0 covariance along the
 field (`sum_along_field`, entry 3x-sum); none is advised for a table whose regulated
-temperature only that sum states where the fit gives no field direction
-(`regulated_sum_untrusted`, entry 44).  docs/decisions/messenger_fit.md,
-entries 19 and 24.
+temperature only that sum states (`regulated_sum_untrusted`, entries 44, 3x-sum).
+docs/decisions/messenger_fit.md, entries 19 and 24.
 
 References
 ----------
@@ -77,9 +76,9 @@ ADVICE_TRIES = 8
 MAX_ADVISED_GOAL_NT = 1.0
 #: Largest compressive share (`compressive_share`) at which the prediction takes the
 #: bootstrap's sum ``cT(-50 C) + D0 R`` as it is; above it the sum's covariance along the
-#: field is partly dropped (`sum_along_field`, entry 3x-sum), or, where the fit states
-#: no field direction, no ``--error-goal`` is advised for a table whose regulated
-#: temperature only that sum states (`regulated_sum_untrusted`).  Half
+#: field is partly dropped (`sum_along_field`, entry 3x-sum), and no ``--error-goal``
+#: is advised for a table whose regulated temperature only that sum states
+#: (`regulated_sum_untrusted`).  Half
 #: `MAX_COMPRESSIVE_SHARE`, between
 #: the Mercury orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4
 #: days) and the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table
@@ -617,14 +616,15 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     only through the offset the table applies there,
     ``cT(-50 C) + D0 R`` (`stated_range`): the law's own band in that bin (worst axis)
     exceeds ``merit["band_limit_nt"]``; and more than `ADVICE_MAX_COMPRESSIVE_SHARE`
-    of the judged intervals were rejected as compressive (`compressive_share`); and the
-    prediction cannot state that sum along the field (`sum_along_field` is None: no
-    field direction, entry 3x-sum).  The sum's stated error is small only through the
-    resamples' anticorrelation of the law and D0; in such a wind its error along the
-    field's mean direction is larger than the bootstrap says at 4-8 days (entry 44), and
-    every heater-on sample of a day carries the same draw of it.  Where the fit states
-    the field's direction, the prediction keeps only `SUM_FIELD_CORRELATION_KEPT` of
-    that covariance (`_bin_mean_squares`) and the table is judged like any other.
+    of the judged intervals were rejected as compressive (`compressive_share`).  The
+    sum's stated error is small only through the resamples' anticorrelation of the law
+    and D0; in such a wind its error along the field's mean direction is larger than
+    the bootstrap says at 4-8 days (entry 44), and every heater-on sample of a day
+    carries the same draw of it.  The prediction now keeps only
+    `SUM_FIELD_CORRELATION_KEPT` of that covariance (`sum_along_field`, entry 3x-sum),
+    which states the sum and the unseen day honestly in the measured chains, but the
+    law and D0 R apart are still short there (one advised table: the law's own band at
+    -50 C on y, pull 3.16), so the refusal stays.
 
     References
     ----------
@@ -643,15 +643,13 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     held = _regulated_bin(edges, reg, law)
     if not held.any() or float(law[held].max()) <= float(m["band_limit_nt"]):
         return ""
-    if sum_along_field(result) is not None:
-        return ""  # the prediction states the sum along the field (entry 3x-sum)
     return (f"judged at {m['goal_nt']:g} nT, the table would state the regulated {reg:g} C "
             f"only through the sum of the law and D0 R (the law's own band there "
             f"{_axes(law[held].max(axis=0))} nT, above its limit "
             f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
             f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
-            "error along the field is short (entry 44) and the fit states no field "
-            "direction to widen it along, so no --error-goal is "
+            "error along the field is short and the law and D0 R apart are not "
+            "stated honestly (entries 44, 3x-sum), so no --error-goal is "
             "advised: give more days, until the law is determined on its own at the "
             "regulated temperature, or calmer solar-wind days")
 
