@@ -76,14 +76,12 @@ ADVICE_TRIES = 8
 MAX_ADVISED_GOAL_NT = 1.0
 #: Largest compressive share (`compressive_share`) at which the prediction takes the
 #: bootstrap's sum ``cT(-50 C) + D0 R`` as it is; above it the sum's covariance along the
-#: field is partly dropped (`sum_along_field`, entry 3x-sum), and no ``--error-goal``
-#: is advised for a table whose regulated temperature only that sum states
-#: (`regulated_sum_untrusted`).  Half
-#: `MAX_COMPRESSIVE_SHARE`, between
-#: the Mercury orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4
-#: days) and the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table
-#: written on the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md
-#: entry 44.
+#: field is partly dropped (`sum_along_field`, entry 3x-sum), and no ``--error-goal`` is
+#: advised for a table whose regulated temperature only that sum states
+#: (`regulated_sum_untrusted`).  Half `MAX_COMPRESSIVE_SHARE`, between the Mercury
+#: orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4 days) and
+#: the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table written on
+#: the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md entry 44.
 ADVICE_MAX_COMPRESSIVE_SHARE = 0.25
 #: Share of the resamples' covariance between D0's error along the field's mean direction
 #: and the rest of the offset (the law above all) that the prediction keeps in a wind
@@ -291,7 +289,10 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
     ``(m dO)^2`` with ``dO = dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (``total``)
     and of each part alone (``law``, ``d0``, ``relaxation``), each shape ``(bins, 3)``;
     the law at each bin's mean temperature (returned first).  `predicted_error` sums
-    them over the bins, `stated_range` divides each by its bin's samples.
+    them over the bins, `stated_range` divides each by its bin's samples.  Where
+    `sum_along_field` applies (a compressive wind), ``total`` keeps only
+    `SUM_FIELD_CORRELATION_KEPT` of the resamples' covariance between D0's error along
+    the field and the rest of ``dO`` (never less than with all of it; entry 3x-sum).
     """
     boot = result.bootstrap
     cal = result.calibration
@@ -337,9 +338,9 @@ def sum_along_field(result: FitResult) -> np.ndarray | None:
     """Return the resamples' D0 error along the field's mean direction, or None.
 
     ``(n, 3)`` counts per ppt: each resample's ``D0 - D0_fit`` on the fitted axes,
-    projected along ``M^-1 u`` (``u`` = ``result.d0_field["direction"]``, the fitted axes only, as
-    `fit_variance.widen_d0_along_field` moves them) so that its field equivalent ``M D0``
-    keeps the resample's whole component along ``u``.  None, where the model does not
+    projected along ``M^-1 u`` restricted to them (``u`` = ``result.d0_field["direction"]``,
+    as `fit_variance.widen_d0_along_field` moves D0) so that its field equivalent
+    ``M D0`` keeps the resample's whole component along ``u``.  None, where the model does not
     apply: at most `ADVICE_MAX_COMPRESSIVE_SHARE` of the judged intervals compressive
     (the bootstrap's sum honest there), no resamples, no field direction, or every D0
     axis held (its draws are the user's, independent of the law already).
