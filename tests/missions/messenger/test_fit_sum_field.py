@@ -123,6 +123,7 @@ def test_the_regulated_bin_states_the_sum_along_the_field_in_a_compressive_wind(
     along = v * ALONG_NT  # counts: v_j s R
     expected = mjj * np.sqrt(EPS_COUNTS ** 2 + (along ** 2 if modelled else 0.0))
     np.testing.assert_allclose(offset[reg][0], expected, rtol=1e-9)
+    assert res.merit.get("sum_along_field_kept") == (0.5 if modelled else None)
     np.testing.assert_allclose(law_band[reg][0], mjj * np.sqrt(EPS_COUNTS ** 2 + along ** 2),
                                rtol=1e-9)
     # the prediction over these samples alone, through the full matrix: (M e)_j^2 plus

@@ -506,7 +506,9 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
     ``band_limit_nt``: None for `band_limit_for` ``goal``.  ``result.merit`` is
     `predicted_error` (over the narrowed range) with
     ``data_range_c`` (the range the data fill), ``band_limit_nt``, the intervals
-    ``compressive`` and ``judged`` (`compressive_share`) and ``max_compressive_share``.
+    ``compressive`` and ``judged`` (`compressive_share`), ``max_compressive_share`` and,
+    where the prediction models the regulated sum along the field (`sum_along_field`),
+    ``sum_along_field_kept`` (`SUM_FIELD_CORRELATION_KEPT`; written in fit_report.toml).
     """
     if band_limit_nt is None:
         band_limit_nt = band_limit_for(goal)
@@ -520,7 +522,9 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
                     "band_limit_nt": float(band_limit_nt),
                     "law_determined": ranges is not None,
                     "compressive": n_comp, "judged": judged,
-                    "max_compressive_share": float(max_compressive_share)}
+                    "max_compressive_share": float(max_compressive_share),
+                    **({"sum_along_field_kept": SUM_FIELD_CORRELATION_KEPT}
+                       if sum_along_field(result) is not None else {})}
 
 
 def _regulated_c(result: FitResult) -> float:
