@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import pickle
 import re
 import shutil
 import sys
@@ -219,6 +220,9 @@ def main() -> None:
                     help="Draw the true temperature law per seed, as the pulls harness's "
                          "--draw-law (tests/missions/messenger/_hard_worlds.drawn_law): "
                          "the same seed is the same world.")
+    ap.add_argument("--save", type=Path, default=None,
+                    help="Pickle the written fit and the true tables, (fit, truth), as "
+                         "SAVE/fit_SEED.pkl (the pulls harness's layout: offline re-judging).")
     ap.add_argument("--demo", action="store_true",
                     help="The fit demo's world instead (`fit_demo.fit_training`: its true "
                          "tables, --days of its training wind, its unseen orbit; the demo "
@@ -265,6 +269,10 @@ def main() -> None:
                   f"T_RANGE {res.stated_ranges} C, passes {res.convergence['passes_run']}: "
                   + (f"REFUSED: {why}" if why else "WRITTEN"), flush=True)
             if not why:
+                if args.save is not None and not args.demo:
+                    args.save.mkdir(parents=True, exist_ok=True)
+                    (args.save / f"fit_{args.seed}.pkl").write_bytes(
+                        pickle.dumps((res, true)))
                 r = (check_demo_table(res, tmp, truth) if args.demo
                      else check_table(res, run, args.days, tmp, true))
                 print("  " + "; ".join(f"{k} {np.round(v, 3) if isinstance(v, np.ndarray) else v}"

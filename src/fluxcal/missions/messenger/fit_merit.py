@@ -15,10 +15,11 @@ support the fit: too many intervals rejected as compressive.  `stated_range` nar
 the temperature range the table states (``T_RANGE``, one or more intervals) to the 1-C
 bins where the law's band, or the offset the table applies to the samples there, is
 within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
-the same tables judged at it first (entry 26), none for a table whose regulated
-temperature only the sum ``cT + D0 R`` states in a compressive wind
-(`regulated_sum_untrusted`, entry 44).  docs/decisions/messenger_fit.md,
-entries 19 and 24.
+the same tables judged at it first (entry 26).  In a compressive wind the sum ``cT(-50
+C) + D0 R`` is predicted with only part of the bootstrap's law-D0 covariance along the
+field (`sum_along_field`, entry 3x-sum); none is advised for a table whose regulated
+temperature only that sum states (`regulated_sum_untrusted`, entries 44, 3x-sum).
+docs/decisions/messenger_fit.md, entries 19 and 24.
 
 References
 ----------
@@ -51,7 +52,8 @@ __all__ = ["ADVICE_MAX_COMPRESSIVE_SHARE", "ADVICE_TRIES", "ERROR_GOAL_NT",
            "advised_goal", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
            "day_samples", "duty_range_counts", "predicted_error", "range_bands",
-           "regulated_sum_untrusted", "stated_duty_counts", "stated_range"]
+           "SUM_FIELD_CORRELATION_KEPT", "regulated_sum_untrusted", "stated_duty_counts",
+           "stated_range", "sum_along_field"]
 
 AXES = ("x", "y", "z")
 #: Default goal (nT): the predicted rms error per axis of a recalibrated day (issue 34).
@@ -72,14 +74,21 @@ ADVICE_TRIES = 8
 #: whose predicted error exceeds it is not worth advising (a 2-day Mercury orbit with a
 #: free break: 78 nT advised before, entry 26); a user may still ask for it.
 MAX_ADVISED_GOAL_NT = 1.0
-#: Largest compressive share (`compressive_share`) at which a refusal advises an
-#: ``--error-goal`` whose table states the regulated temperature only through the sum
-#: ``cT(-50 C) + D0 R`` (`regulated_sum_untrusted`): half `MAX_COMPRESSIVE_SHARE`, between
-#: the Mercury orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4
-#: days) and the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table
-#: written on the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md
-#: entry 44.
+#: Largest compressive share (`compressive_share`) at which the prediction takes the
+#: bootstrap's sum ``cT(-50 C) + D0 R`` as it is; above it the sum's covariance along the
+#: field is partly dropped (`sum_along_field`, entry 3x-sum), and no ``--error-goal`` is
+#: advised for a table whose regulated temperature only that sum states
+#: (`regulated_sum_untrusted`).  Half `MAX_COMPRESSIVE_SHARE`, between the Mercury
+#: orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4 days) and
+#: the 5-%-compressive hard cruise's 0.27-0.33 (1.1-1.7 at 4-8 days; one table written on
+#: the advice missed its prediction 1.69x).  docs/decisions/messenger_fit.md entry 44.
 ADVICE_MAX_COMPRESSIVE_SHARE = 0.25
+#: Share of the resamples' covariance between D0's error along the field's mean direction
+#: and the rest of the offset (the law above all) that the prediction keeps in a wind
+#: with more than `ADVICE_MAX_COMPRESSIVE_SHARE` of its intervals compressive
+#: (`sum_along_field`): there the bootstrap's anticorrelation of ``cT(-50 C)`` and ``D0 R``
+#: along the field is not the truth's (entry 44).  docs/decisions/messenger_fit.md entry 3x-sum.
+SUM_FIELD_CORRELATION_KEPT = 0.5
 
 
 def compressive_share(reason: np.ndarray) -> tuple[int, int]:
@@ -280,7 +289,10 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
     ``(m dO)^2`` with ``dO = dlaw(T) + dD0 R + D0 (R_tau dtau + R_dt ddt)`` (``total``)
     and of each part alone (``law``, ``d0``, ``relaxation``), each shape ``(bins, 3)``;
     the law at each bin's mean temperature (returned first).  `predicted_error` sums
-    them over the bins, `stated_range` divides each by its bin's samples.
+    them over the bins, `stated_range` divides each by its bin's samples.  Where
+    `sum_along_field` applies (a compressive wind), ``total`` keeps only
+    `SUM_FIELD_CORRELATION_KEPT` of the resamples' covariance between D0's error along
+    the field and the rest of ``dO`` (never less than with all of it; entry 3x-sum).
     """
     boot = result.bootstrap
     cal = result.calibration
@@ -295,9 +307,10 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
     e = ((boot["tau"] - float(rel["tau_s"]))[:, None] * md0)[:, None, :]
     f = ((boot["dt"] - float(rel["delay_s"]))[:, None] * md0)[:, None, :]
 
+    def col(name):
+        return sums[name][None, :, None]
+
     def per_bin(c, d, e, f):
-        def col(name):
-            return sums[name][None, :, None]
         s = (col("n") * c ** 2 + 2.0 * d * c * col("R") + 2.0 * e * c * col("Rt")
              + 2.0 * f * c * col("Rd") + d ** 2 * col("RR") + e ** 2 * col("RtRt")
              + f ** 2 * col("RdRd") + 2.0 * d * e * col("RRt") + 2.0 * d * f * col("RRd")
@@ -305,8 +318,58 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
         return s.mean(axis=0)                                                       # (b, 3)
 
     zc, z = np.zeros_like(c), np.zeros_like(d)
-    return t_b, {"total": per_bin(c, d, e, f), "law": per_bin(c, z, z, z),
-                 "d0": per_bin(zc, d, z, z), "relaxation": per_bin(zc, z, e, f)}
+    total = per_bin(c, d, e, f)
+    along = sum_along_field(result)
+    if along is not None:  # the law-D0 covariance along the field, partly kept (3x-sum)
+        a = (along @ m.T)[:, None, :]                                           # (r, 1, 3)
+        p = (c - c.mean(axis=0), d - a - (d - a).mean(axis=0), e - e.mean(axis=0),
+             f - f.mean(axis=0))
+        a = a - a.mean(axis=0)
+        # the resamples' covariance of (m dO without D0's along-field part) with that
+        # part, per bin and axis: the cross terms of ``per_bin`` between the two
+        cov = (col("R") * a * p[0] + col("RR") * a * p[1] + col("RRt") * a * p[2]
+               + col("RRd") * a * p[3]).mean(axis=0)
+        total = total + np.maximum(-2.0 * (1.0 - SUM_FIELD_CORRELATION_KEPT) * cov, 0.0)
+    return t_b, {"total": total, "law": per_bin(c, z, z, z), "d0": per_bin(zc, d, z, z),
+                 "relaxation": per_bin(zc, z, e, f)}
+
+
+def sum_along_field(result: FitResult) -> np.ndarray | None:
+    """Return the resamples' D0 error along the field's mean direction, or None.
+
+    ``(n, 3)`` counts per ppt: each resample's ``D0 - D0_fit`` on the fitted axes,
+    projected along ``M^-1 u`` restricted to them (``u`` = ``result.d0_field["direction"]``,
+    as `fit_variance.widen_d0_along_field` moves D0) so that its field equivalent
+    ``M D0`` keeps the resample's whole component along ``u``.  None, where the model does not
+    apply: at most `ADVICE_MAX_COMPRESSIVE_SHARE` of the judged intervals compressive
+    (the bootstrap's sum honest there), no resamples, no field direction, or every D0
+    axis held (its draws are the user's, independent of the law already).
+    docs/decisions/messenger_fit.md entry 3x-sum.
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 5-6 (D0 R), sec. 8 eq. 8.
+    """
+    boot = result.bootstrap
+    v = result.variance
+    if boot is None or v is None:
+        return None
+    n_comp, judged = compressive_share(v.reason)
+    if not judged or n_comp <= ADVICE_MAX_COMPRESSIVE_SHARE * judged:
+        return None
+    u = np.asarray((result.d0_field or {}).get("direction", np.zeros(3)), dtype=float)
+    if not np.any(u):
+        return None
+    m = _nt_per_count(result.calibration)
+    free = np.array([a not in result.held_d0 for a in AXES])
+    step = np.where(free, np.linalg.solve(m, u), 0.0)
+    reach = float(u @ (m @ step))
+    if not np.any(free) or abs(reach) < 1e-12:
+        return None
+    dd = np.asarray(boot["d0"], dtype=float) - np.asarray(result.calibration.duty_cycle_d0,
+                                                           dtype=float)
+    dd = np.where(free, dd, 0.0)  # a held axis's draws are the user's: left paired
+    return ((dd @ m.T) @ u / reach)[:, None] * step[None, :]
 
 
 def duty_range_counts(result: FitResult, count: np.ndarray | None = None,
@@ -443,7 +506,9 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
     ``band_limit_nt``: None for `band_limit_for` ``goal``.  ``result.merit`` is
     `predicted_error` (over the narrowed range) with
     ``data_range_c`` (the range the data fill), ``band_limit_nt``, the intervals
-    ``compressive`` and ``judged`` (`compressive_share`) and ``max_compressive_share``.
+    ``compressive`` and ``judged`` (`compressive_share`), ``max_compressive_share`` and,
+    where the prediction models the regulated sum along the field (`sum_along_field`),
+    ``sum_along_field_kept`` (`SUM_FIELD_CORRELATION_KEPT`; written in fit_report.toml).
     """
     if band_limit_nt is None:
         band_limit_nt = band_limit_for(goal)
@@ -457,7 +522,9 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
                     "band_limit_nt": float(band_limit_nt),
                     "law_determined": ranges is not None,
                     "compressive": n_comp, "judged": judged,
-                    "max_compressive_share": float(max_compressive_share)}
+                    "max_compressive_share": float(max_compressive_share),
+                    **({"sum_along_field_kept": SUM_FIELD_CORRELATION_KEPT}
+                       if sum_along_field(result) is not None else {})}
 
 
 def _regulated_c(result: FitResult) -> float:
@@ -557,8 +624,12 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     of the judged intervals were rejected as compressive (`compressive_share`).  The
     sum's stated error is small only through the resamples' anticorrelation of the law
     and D0; in such a wind its error along the field's mean direction is larger than
-    stated at 4-8 days (entry 44), and every heater-on sample of a day carries
-    the same draw of it.
+    the bootstrap says at 4-8 days (entry 44), and every heater-on sample of a day
+    carries the same draw of it.  The prediction now keeps only
+    `SUM_FIELD_CORRELATION_KEPT` of that covariance (`sum_along_field`, entry 3x-sum),
+    which states the sum and the unseen day honestly in the measured chains, but the
+    law and D0 R apart are still short there (one advised table: the law's own band at
+    -50 C on y, pull 3.16), so the refusal stays.
 
     References
     ----------
@@ -582,7 +653,8 @@ def regulated_sum_untrusted(result: FitResult) -> str:
             f"{_axes(law[held].max(axis=0))} nT, above its limit "
             f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
             f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
-            "error along the field is short (entry 44), so no --error-goal is "
+            "error along the field is short and the law and D0 R apart are not "
+            "stated honestly (entries 44, 3x-sum), so no --error-goal is "
             "advised: give more days, until the law is determined on its own at the "
             "regulated temperature, or calmer solar-wind days")
 
