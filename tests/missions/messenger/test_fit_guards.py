@@ -111,6 +111,7 @@ class _Moments:
         from fluxcal.missions.messenger.fit_variance import MOMENT_COLUMNS
 
         self.offset_moments = np.zeros((2, len(MOMENT_COLUMNS)))
+        self.reason = np.zeros(0, dtype="<U24")  # no interval judged (entry 3x-ownhold's share)
         # two temperature rows, the samples split unevenly: only the sums count
         self.offset_moments[:, MOMENT_COLUMNS.index("n")] = (0.25 * n, 0.75 * n)
         self.offset_moments[:, MOMENT_COLUMNS.index("RR")] = (0.25 * n * rms_r ** 2,
@@ -180,6 +181,37 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
     assert held == pytest.approx(value, rel=5e-4)
     assert error <= width <= error + 10.0 ** (np.floor(np.log10(error)) - 1) + 1e-15
     assert parse_hold_d0(advised[1]) == {"z": (None, None)}
+
+
+@pytest.mark.parametrize("n_comp, judged, own_advised", [
+    (0, 0, True),        # nothing judged: no share to judge by
+    (25, 100, True),     # exactly 25 %: the orbit's shares (0.20-0.24) stay advised
+    (26, 100, False),    # just above: the hard cruise's 0.27-0.33 (entry 3x-ownhold)
+    (130, 400, False),
+])
+def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
+        fitted, n_comp, judged, own_advised):
+    # entry 3x-ownhold: above 25 % compressive intervals the fitted D0 along the field is not
+    # covered by its stated error (8-day cruise seed 3600: its own-value hold written,
+    # the held D0 z 2.84 widths off), so only the start table's hold is advised
+    res = fitted[1]
+    duty = list(res.duty)
+    duty[2] = dataclasses.replace(res.duty[2], slope_err=0.08 * abs(res.duty[2].slope))
+    reason = np.array(["compressive"] * n_comp + [""] * (judged - n_comp)
+                      + ["too_few_samples"] * 7, dtype="<U24")
+    variance = _Moments(1000, 1.0)  # 1 ppt rms: the D0 goal binds (its cost < 0.001 nT)
+    variance.reason = reason
+    case = dataclasses.replace(res, duty=duty, variance=variance)
+    with pytest.raises(FitRefusedError, match=r"D0 z = .*\(8\.0%, .*; entry 38\)") as info:
+        check_fit(case)
+    advised = re.findall(r"--hold-d0 (\S+?)[ :]", str(info.value))
+    if own_advised:
+        assert len(advised) == 2 and advised[0].startswith("z=") and advised[1] == "z"
+        assert "entry 3x-ownhold" not in str(info.value)
+    else:  # only the start table's value, and why not the fit's own
+        assert advised == ["z"], advised
+        assert (f"not this fit's own value: {n_comp} of {judged} intervals compressive, "
+                "above 25%") in str(info.value)
 
 
 def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):

@@ -141,6 +141,8 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
             f"{DELAY_RANGE_S[0]:g}..{DELAY_RANGE_S[1]:g} s (half a heater period); not "
             f"written. Needs more heater on/off transitions, or hold it (--hold-delay)")
     d0_ref = np.asarray(ref.duty_cycle_d0, dtype=float)
+    compressive = (fit_merit.compressive_share(result.variance.reason)
+                   if result.variance is not None else (0, 0))
     what_d0 = "more heater-regulated samples over a wider range of duty cycles"
     cost = d0_goal_cost_nt(result)
     # NaN (no moments): the goal binds
@@ -157,7 +159,8 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"written. Needs {what_d0}, or hold it with a stated width "
                 f"({_hold_d0_advice(a)})")
         if binds[AXES.index(a)]:  # the 5 % goal (entry 38)
-            cause = d0_goal_refusal(a, f.slope, f.slope_err, cost_nt=cost[AXES.index(a)])
+            cause = d0_goal_refusal(a, f.slope, f.slope_err, cost_nt=cost[AXES.index(a)],
+                                    compressive=compressive)
             if cause:
                 raise FitRefusedError(cause)
         elif not (np.isfinite(f.slope_err)
@@ -273,7 +276,8 @@ def tau_goal_refusal(tau: float, error: float, goal: float = TAU_ERROR_GOAL,
 
 
 def d0_goal_refusal(axis: str, value: float, error: float,
-                    goal: float = D0_ERROR_GOAL, cost_nt: float = np.nan) -> str:
+                    goal: float = D0_ERROR_GOAL, cost_nt: float = np.nan,
+                    compressive: tuple[int, int] = (0, 0)) -> str:
     """Return why a fitted D0 misses its goal, else ``""`` (`check_fit`; entry 38).
 
     A fitted D0 whose stated relative error ``error / |value|`` (1 sigma) exceeds ``goal``
@@ -281,7 +285,12 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     it to the goal.  The message names the axis, the stated error and the goal, and
     what to do: more data, or hold the axis with a stated width (``--hold-d0``), either
     this fit's own value and error (the table then states the axis held, beyond the
-    goal; the predicted-error guard judges its width) or the start table's value.
+    goal; the predicted-error guard judges its width) or the start table's value.  This
+    fit's own value is not advised where more than
+    `fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE` of the judged intervals were compressive
+    (entry 3x-ownhold): there the fitted D0 and law are each less determined along the field than
+    stated (only their sum is, entry 3x-sum), and a table holding the fit's own D0 at its
+    stated width missed it by 2.8 widths.
 
     Parameters
     ----------
@@ -293,6 +302,8 @@ def d0_goal_refusal(axis: str, value: float, error: float,
         Largest relative error written.
     cost_nt : float
         `d0_goal_cost_nt` of the axis (stated in the message when finite).
+    compressive : tuple of int
+        ``(compressive, judged)`` interval counts (`fit_merit.compressive_share`).
 
     References
     ----------
@@ -302,10 +313,19 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     if beyond is None:
         return ""
     rel, size = beyond
-    # this fit's own value as a hold only with an error to hold it with
-    own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
-           f"value and error, rounded up: the table states D0 {axis} held, beyond the "
-           f"goal), or " if np.isfinite(error) and value != 0 else "")
+    # this fit's own value as a hold only with an error to hold it with, and not in a
+    # compressive wind (entry 3x-ownhold)
+    n_comp, judged = compressive
+    if judged and n_comp > fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE * judged:
+        own = (f"(not this fit's own value: {n_comp} of {judged} intervals compressive, "
+               f"above {fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE:.0%}, where its stated error "
+               f"does not cover D0 along the field; entry 3x-ownhold) ")
+    elif np.isfinite(error) and value != 0:
+        own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
+               f"value and error, rounded up: the table states D0 {axis} held, beyond the "
+               f"goal), or ")
+    else:
+        own = ""
     return (f"duty-cycle law (sec. 7, Table 3): fitted D0 {axis} = {value:.4g} +- "
             f"{error:.2g} counts/ppt, a relative error above the {goal:.0%} goal "
             f"({rel:.1%}{size}; entry 38); not written. Needs more heater-regulated "

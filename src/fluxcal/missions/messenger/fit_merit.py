@@ -7,7 +7,7 @@ break, D0 with any held width, tau, dt) over the distribution of temperatures, r
 duty cycles and their derivatives of the fitted days' samples
 (`VarianceStatistics.offset_moments`), through eq. 8's fine-range matrix, with the
 counts' rounding added.  An upper law segment the data do not determine is held in
-the fit itself with stated widths (`fit.held_upper_segments`, entry 21): every resample
+the fit itself with stated widths (`fit_holds.held_upper_segments`, entry 21): every resample
 draws it, so its width is in the resampled laws, the band and the prediction once
 (nothing is added here).  `check_merit` refuses the fit when that exceeds the goal
 (default 0.1 nT, `--error-goal`), or when a named guard finds that the data cannot
@@ -200,7 +200,7 @@ def predicted_error(result: FitResult, goal: float = ERROR_GOAL_NT,
     denominator leaves the heater-on samples outside it out (entry 25); the law, D0 and
     tau parts keep them (the moments carry no duty cycle; they lie at the regulated -50
     C, where the law's part is that of the samples inside).  A held upper segment's
-    widths are in the resamples (`fit.held_upper_segments`): a day warmer than the
+    widths are in the resamples (`fit_holds.held_upper_segments`): a day warmer than the
     data (``day``) is predicted with them.
 
     Returns

@@ -985,7 +985,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         same way as a held D0 (not fitted, the step to the held value, every resample
         drawing it from a normal distribution of ``width``).  An axis whose break
         column (``-c dT_m``) is held keeps its break: no shift is tried for it
-        (`fit.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
+        (`fit_holds.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
     map_rows : callable, optional
         ``map_rows(resample_fits, [args, ...])`` -> the results in order: the resamples'
         break choices and fits (`resample_fits`) in ``n_blocks`` blocks of rows, e.g.
@@ -1042,7 +1042,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     choice: tuple[int, ...] = (-1, -1, -1)
     total_a, total_v, yy = a.sum(axis=0), v.sum(axis=0), float(stats.yy.sum())
     # the shifts reach as far as the data do (5-C bins with an interval's worth of
-    # accepted samples, the range `fit.break_refusal` judges a break by), not only the
+    # accepted samples, the range `fit_guards.break_refusal` judges a break by), not only the
     # stated range: a break seen only in a few short warm peaks lies above the stated
     # range, where the linearised step alone stalls on its bumpy residual and a
     # resample without those peaks cannot move it at all (stated +- 0.04-0.5 C while
