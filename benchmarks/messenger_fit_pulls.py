@@ -31,7 +31,7 @@ summary gives per parameter the pulls' spread, largest size and count beyond 3 (
 spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a goal.
 ``--summarise FOLDER --bands`` gives the law's pulls under design-fixed bands that cannot
 pinch (`BANDS`: the fixed-design bootstrap replayed, floored by or combined with the
-stored pairs band; entry 3x-band), at `LAW_T` and over the stated range's grid.
+stored pairs band; entry 46), at `LAW_T` and over the stated range's grid.
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
 prints the summary of a saved run again (fits saved without a row: no unseen day).
 """
@@ -828,7 +828,7 @@ def fixed_design_row(res, true) -> dict:
 
 
 #: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine;
-#: False: the uniform draw over the cell, the fit's default before entry 3x-tm;
+#: False: the uniform draw over the cell, the fit's default before entry 47;
 #: ``"resamples"``: refined in the resamples only, the fit's default since).
 REPLAYS = (("pairs 200", False, 200, False), ("refined", False, 200, True),
            ("refined resamples", False, 200, "resamples"),
@@ -883,7 +883,7 @@ def replay_summary(folder: Path) -> None:
     _print_pull_rows(per)
 
 
-# --- design-fixed law bands that cannot pinch (docs/decisions/messenger_fit.md 3x-band) --
+# --- design-fixed law bands that cannot pinch (docs/decisions/messenger_fit.md 46) --
 
 #: The regulated sensor temperature (C; sec. 7, eq. 2): `band_floor_regulated`'s floor.
 REGULATED_C = -50.0
@@ -1118,7 +1118,7 @@ def main() -> None:
                     help="With --summarise: the law's pulls under the design-fixed band "
                          "candidates (BANDS: the fixed-design bootstrap replayed, floored "
                          "or combined with the pairs band so that it cannot pinch; entry "
-                         "3x-band), at LAW_T and over the stated range.")
+                         "46), at LAW_T and over the stated range.")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")

@@ -145,7 +145,7 @@ def test_no_goal_is_advised_for_a_regulated_sum_alone_in_a_compressive_wind(
     # not).  Expected goal: brute force, the least 0.01-nT goal whose half admits the
     # sum's band (the worst axis) in the regulated bin, the one bin any goal admits.
     # This fit states no field direction (`FitResult.d0_field`), so the sum is not
-    # widened along it (entry 3x-sum: test_fit_sum_field.py, where it is): the refusal stands
+    # widened along it (entry 48: test_fit_sum_field.py, where it is): the refusal stands
     res, law_band, sum_band = _regulated_sum_result(shipped, compressive)
     goal = _goal_for(sum_band.max())
     assert law_band.min() > goal  # the law alone: beyond the limit at that goal, every axis

@@ -111,7 +111,7 @@ class _Moments:
         from fluxcal.missions.messenger.fit_variance import MOMENT_COLUMNS
 
         self.offset_moments = np.zeros((2, len(MOMENT_COLUMNS)))
-        self.reason = np.zeros(0, dtype="<U24")  # no interval judged (entry 3x-ownhold's share)
+        self.reason = np.zeros(0, dtype="<U24")  # no interval judged (entry 49's share)
         # two temperature rows, the samples split unevenly: only the sums count
         self.offset_moments[:, MOMENT_COLUMNS.index("n")] = (0.25 * n, 0.75 * n)
         self.offset_moments[:, MOMENT_COLUMNS.index("RR")] = (0.25 * n * rms_r ** 2,
@@ -186,12 +186,12 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
 @pytest.mark.parametrize("n_comp, judged, own_advised", [
     (0, 0, True),        # nothing judged: no share to judge by
     (25, 100, True),     # exactly 25 %: the orbit's shares (0.20-0.24) stay advised
-    (26, 100, False),    # just above: the hard cruise's 0.27-0.33 (entry 3x-ownhold)
+    (26, 100, False),    # just above: the hard cruise's 0.27-0.33 (entry 49)
     (130, 400, False),
 ])
 def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
         fitted, n_comp, judged, own_advised):
-    # entry 3x-ownhold: above 25 % compressive intervals the fitted D0 along the field is not
+    # entry 49: above 25 % compressive intervals the fitted D0 along the field is not
     # covered by its stated error (8-day cruise seed 3600: its own-value hold written,
     # the held D0 z 2.84 widths off), so only the start table's hold is advised
     res = fitted[1]
@@ -207,7 +207,7 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
     advised = re.findall(r"--hold-d0 (\S+?)[ :]", str(info.value))
     if own_advised:
         assert len(advised) == 2 and advised[0].startswith("z=") and advised[1] == "z"
-        assert "entry 3x-ownhold" not in str(info.value)
+        assert "entry 49" not in str(info.value)
     else:  # only the start table's value, and why not the fit's own
         assert advised == ["z"], advised
         assert (f"not this fit's own value: {n_comp} of {judged} intervals compressive, "

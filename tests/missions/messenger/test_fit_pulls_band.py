@@ -1,4 +1,4 @@
-"""The pull harness's design-fixed law bands that cannot pinch (``--bands``; entry 3x-band).
+"""The pull harness's design-fixed law bands that cannot pinch (``--bands``; entry 46).
 
 ``benchmarks/messenger_fit_pulls.py --summarise DIR --bands`` states the law's error at
 each temperature by rules that combine the fit's pairs resamples with replayed

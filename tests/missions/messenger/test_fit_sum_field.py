@@ -1,6 +1,6 @@
 """The regulated sum ``cT(-50 C) + D0 R`` stated along the field in a compressive wind.
 
-docs/decisions/messenger_fit.md entry 3x-sum: where more than a quarter of the judged
+docs/decisions/messenger_fit.md entry 48: where more than a quarter of the judged
 intervals were compressive, the prediction keeps only `SUM_FIELD_CORRELATION_KEPT` of the
 bootstrap's covariance between D0's error along the field's mean direction and the rest
 of the offset (the law's error above all), so that the sum at the regulated temperature
@@ -102,7 +102,7 @@ def _world(shipped, compressive: int, stated: bool = True, k: float = 1.0,
 
 
 def test_the_kept_share_is_half():
-    # the decision's constant (entry 3x-sum: the 4- and 8-day cruise's along-field pulls
+    # the decision's constant (entry 48: the 4- and 8-day cruise's along-field pulls
     # rms 1.21, largest 2.66 with all of the covariance kept; 0.62 / 1.23 with half)
     assert SUM_FIELD_CORRELATION_KEPT == 0.5
 
@@ -138,7 +138,7 @@ def test_the_regulated_bin_states_the_sum_along_the_field_in_a_compressive_wind(
 
 
 def test_the_refusal_stays_where_the_sum_alone_states_the_regulated_bin(shipped):
-    # entries 44-45 stand (entry 3x-sum: the sum is stated honestly, the law and D0 R
+    # entries 44-45 stand (entry 48: the sum is stated honestly, the law and D0 R
     # apart are not, one advised 4-day cruise table missed the law's band at -50 C):
     # 13 of 48 intervals compressive, -50 C stated only through the sum, no goal is
     # advised and the goal that would admit the modelled band (brute force above) is

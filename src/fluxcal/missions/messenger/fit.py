@@ -911,7 +911,7 @@ def fit_variance_calibration(
     The temperature law, D0, tau and dt come from the normal equations ``vstats``
     (reduced with ``base`` as the linearisation point); their errors are the standard
     deviations over a bootstrap of the blocks, each resample choosing its own break
-    temperatures (each shifted break placed in its shift's cell, entries 27, 3x-tm) and drawing
+    temperatures (each shifted break placed in its shift's cell, entries 27, 47) and drawing
     each held D0 from its width (entry 18); the waveforms from ``stats`` as in
     `fit_calibration`.  dt is adopted under the same rule as there
     (error below 3 s, not negative), else held.
@@ -1008,7 +1008,7 @@ def fit_variance_calibration(
     b_law, b_d0, b_tau, b_dt = fv.apply_steps(base, sol.boot, max_tau_shift=np.inf,
                                               max_break_shift_c=np.inf,
                                               break_shifts=sol.boot_shift)
-    b_law[:, :, 3] += sol.boot_dither  # a shifted break inside its cell (entries 27, 3x-tm)
+    b_law[:, :, 3] += sol.boot_dither  # a shifted break inside its cell (entries 27, 47)
     # finite-sample correction of the pairs bootstrap, like a regression's n - p: the
     # resamples' spread about their mean widened by sqrt(n / (n - p)) about the solution
     # (entry 13), in the tables' parameters (each resample has its own break choice);

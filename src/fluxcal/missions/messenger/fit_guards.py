@@ -288,8 +288,8 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     goal; the predicted-error guard judges its width) or the start table's value.  This
     fit's own value is not advised where more than
     `fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE` of the judged intervals were compressive
-    (entry 3x-ownhold): there the fitted D0 and law are each less determined along the field than
-    stated (only their sum is, entry 3x-sum), and a table holding the fit's own D0 at its
+    (entry 49): there the fitted D0 and law are each less determined along the field than
+    stated (only their sum is, entry 48), and a table holding the fit's own D0 at its
     stated width missed it by 2.8 widths.
 
     Parameters
@@ -314,12 +314,12 @@ def d0_goal_refusal(axis: str, value: float, error: float,
         return ""
     rel, size = beyond
     # this fit's own value as a hold only with an error to hold it with, and not in a
-    # compressive wind (entry 3x-ownhold)
+    # compressive wind (entry 49)
     n_comp, judged = compressive
     if judged and n_comp > fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE * judged:
         own = (f"(not this fit's own value: {n_comp} of {judged} intervals compressive, "
                f"above {fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE:.0%}, where its stated error "
-               f"does not cover D0 along the field; entry 3x-ownhold) ")
+               f"does not cover D0 along the field; entry 49) ")
     elif np.isfinite(error) and value != 0:
         own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
                f"value and error, rounded up: the table states D0 {axis} held, beyond the "

@@ -17,8 +17,8 @@ bins where the law's band, or the offset the table applies to the samples there,
 within `LAW_BAND_LIMIT_NT`.  The ``--error-goal`` a refusal advises is `advised_goal`:
 the same tables judged at it first (entry 26).  In a compressive wind the sum ``cT(-50
 C) + D0 R`` is predicted with only part of the bootstrap's law-D0 covariance along the
-field (`sum_along_field`, entry 3x-sum); none is advised for a table whose regulated
-temperature only that sum states (`regulated_sum_untrusted`, entries 44, 3x-sum).
+field (`sum_along_field`, entry 48); none is advised for a table whose regulated
+temperature only that sum states (`regulated_sum_untrusted`, entries 44, 48).
 docs/decisions/messenger_fit.md, entries 19 and 24.
 
 References
@@ -76,7 +76,7 @@ ADVICE_TRIES = 8
 MAX_ADVISED_GOAL_NT = 1.0
 #: Largest compressive share (`compressive_share`) at which the prediction takes the
 #: bootstrap's sum ``cT(-50 C) + D0 R`` as it is; above it the sum's covariance along the
-#: field is partly dropped (`sum_along_field`, entry 3x-sum), and no ``--error-goal`` is
+#: field is partly dropped (`sum_along_field`, entry 48), and no ``--error-goal`` is
 #: advised for a table whose regulated temperature only that sum states
 #: (`regulated_sum_untrusted`).  Half `MAX_COMPRESSIVE_SHARE`, between the Mercury
 #: orbit's 0.20-0.24 (that sum's pulls along the field spread 0.64-0.86 at 2-4 days) and
@@ -87,7 +87,7 @@ ADVICE_MAX_COMPRESSIVE_SHARE = 0.25
 #: and the rest of the offset (the law above all) that the prediction keeps in a wind
 #: with more than `ADVICE_MAX_COMPRESSIVE_SHARE` of its intervals compressive
 #: (`sum_along_field`): there the bootstrap's anticorrelation of ``cT(-50 C)`` and ``D0 R``
-#: along the field is not the truth's (entry 44).  docs/decisions/messenger_fit.md entry 3x-sum.
+#: along the field is not the truth's (entry 44).  docs/decisions/messenger_fit.md entry 48.
 SUM_FIELD_CORRELATION_KEPT = 0.5
 
 
@@ -292,7 +292,7 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
     them over the bins, `stated_range` divides each by its bin's samples.  Where
     `sum_along_field` applies (a compressive wind), ``total`` keeps only
     `SUM_FIELD_CORRELATION_KEPT` of the resamples' covariance between D0's error along
-    the field and the rest of ``dO`` (never less than with all of it; entry 3x-sum).
+    the field and the rest of ``dO`` (never less than with all of it; entry 48).
     """
     boot = result.bootstrap
     cal = result.calibration
@@ -320,7 +320,7 @@ def _bin_mean_squares(result: FitResult, mom: np.ndarray, m: np.ndarray
     zc, z = np.zeros_like(c), np.zeros_like(d)
     total = per_bin(c, d, e, f)
     along = sum_along_field(result)
-    if along is not None:  # the law-D0 covariance along the field, partly kept (3x-sum)
+    if along is not None:  # the law-D0 covariance along the field, partly kept (48)
         a = (along @ m.T)[:, None, :]                                           # (r, 1, 3)
         p = (c - c.mean(axis=0), d - a - (d - a).mean(axis=0), e - e.mean(axis=0),
              f - f.mean(axis=0))
@@ -344,7 +344,7 @@ def sum_along_field(result: FitResult) -> np.ndarray | None:
     apply: at most `ADVICE_MAX_COMPRESSIVE_SHARE` of the judged intervals compressive
     (the bootstrap's sum honest there), no resamples, no field direction, or every D0
     axis held (its draws are the user's, independent of the law already).
-    docs/decisions/messenger_fit.md entry 3x-sum.
+    docs/decisions/messenger_fit.md entry 48.
 
     References
     ----------
@@ -626,7 +626,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     and D0; in such a wind its error along the field's mean direction is larger than
     the bootstrap says at 4-8 days (entry 44), and every heater-on sample of a day
     carries the same draw of it.  The prediction now keeps only
-    `SUM_FIELD_CORRELATION_KEPT` of that covariance (`sum_along_field`, entry 3x-sum),
+    `SUM_FIELD_CORRELATION_KEPT` of that covariance (`sum_along_field`, entry 48),
     which states the sum and the unseen day honestly in the measured chains, but the
     law and D0 R apart are still short there (one advised table: the law's own band at
     -50 C on y, pull 3.16), so the refusal stays.
@@ -654,7 +654,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
             f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
             f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
             "error along the field is short and the law and D0 R apart are not "
-            "stated honestly (entries 44, 3x-sum), so no --error-goal is "
+            "stated honestly (entries 44, 48), so no --error-goal is "
             "advised: give more days, until the law is determined on its own at the "
             "regulated temperature, or calmer solar-wind days")
 

@@ -744,7 +744,7 @@ def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     resample took the same -4-C shift: spread 0; tests/missions/messenger/
     test_fit_breaks.py, docs/decisions/messenger_fit.md entry 27).  The fit places a
     resample's break in the cell by its own data instead (`refine_breaks`,
-    `solve_variance`'s ``refine_resamples``, entry 3x-tm); this draw stays for
+    `solve_variance`'s ``refine_resamples``, entry 47); this draw stays for
     ``refine_resamples=False``.
     """
     grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
@@ -787,7 +787,7 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     The alternative to a uniform draw over the cell (`quantisation`, entry 27), where a
     resample whose data put its break 0.3 C from the solution, just past half-way to the
     +0.5-C grid point, is drawn anywhere in 0.25..0.75 C.  In the resamples only by
-    default (`solve_variance`'s ``refine_resamples``, entry 3x-tm); in the solution too
+    default (`solve_variance`'s ``refine_resamples``, entry 47); in the solution too
     opt-in (``refine``, entry 42: it changes the passes' path).
 
     Parameters
@@ -1010,7 +1010,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         the break is counted in every resample's break (`solution_distance`, variance
         ``d^2``).  False (and ``refine`` False): every moved resample's break drawn
         uniformly over its cell (`quantisation`, entry 27), the default before entry
-        3x-tm (which measured both on the late-peak orbit: T_m pull spreads 0.39 / 0.39
+        47 (which measured both on the late-peak orbit: T_m pull spreads 0.39 / 0.39
         / 0.47 -> 0.46 / 0.42 / 0.63, no pull beyond 3 added, the fitted tables the same).
 
     Returns
