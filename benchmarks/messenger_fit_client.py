@@ -9,11 +9,11 @@ benchmarks/messenger_fit.py does), then runs ``fluxcal messenger fit --input-dir
 seconds of each part (calls, total, per call, share of the profiled run).
 
 On a Dask cluster `fit.fit_days` maps `fit.reduce_chunk`, the merges and the
-bootstrap's resamples (`fit_variance.resample_fits`, one block per worker) onto the
+bootstrap's resamples (`fit_breaks.resample_fits`, one block per worker) onto the
 workers; everything else is the client's serial part (in this serial run the resamples
 are on the client too, printed as their own line): the fit of each pass
 (`fit.fit_variance_calibration`) with its bootstrap (`fit_variance.solve_variance`)
-with its break choices (`fit_variance.choose_breaks`, in the solution and in every
+with its break choices (`fit_breaks.choose_breaks`, in the solution and in every
 resample) and the resamples' steps (`fit_variance.apply_steps`), and its heater
 waveforms (`fit._fit_waveforms`; before entry 33 each pass also fitted the four folds
 for the column errors), the pass bookkeeping
@@ -59,8 +59,8 @@ PARTS = (
     ("merge (workers on Dask)", "messenger/fit.py", "_merge_all"),
     ("fit of a pass", "messenger/fit.py", "fit_variance_calibration"),
     ("  bootstrap (solve_variance)", "messenger/fit_variance.py", "solve_variance"),
-    ("    resamples (workers on Dask)", "messenger/fit_variance.py", "resample_fits"),
-    ("    break choices (choose_breaks)", "messenger/fit_variance.py", "choose_breaks"),
+    ("    resamples (workers on Dask)", "messenger/fit_breaks.py", "resample_fits"),
+    ("    break choices (choose_breaks)", "messenger/fit_breaks.py", "choose_breaks"),
     ("  resample steps (apply_steps)", "messenger/fit_variance.py", "apply_steps"),
     ("  waveforms (_fit_waveforms)", "messenger/fit.py", "_fit_waveforms"),
     ("waveform column errors, once", "messenger/fit.py", "waveform_column_errors"),

@@ -75,6 +75,7 @@ from fluxcal.calibration.heater_signal import heater_signal, period_index  # noq
 from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
 from fluxcal.geometry.time import SclkKernel  # noqa: E402
+from fluxcal.missions.messenger import fit_breaks as fb  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
 from fluxcal.missions.messenger import fit_variance as fv  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
@@ -581,11 +582,11 @@ def _held_columns(res) -> dict[int, tuple[float, float]]:
     for a, h in res.held_upper.items():
         j = "xyz".index(a)
         (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
-        held[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
-        held[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
+        held[j * fb.PER_AXIS + 2] = (c - now[j, 2], w_c)
+        held[j * fb.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     d0 = np.asarray(res.calibration.duty_cycle_d0, dtype=float)
     for a, (value, width) in res.held.items():
-        held["xyz".index(a) * fv.PER_AXIS + 4] = (value - d0["xyz".index(a)], width)
+        held["xyz".index(a) * fb.PER_AXIS + 4] = (value - d0["xyz".index(a)], width)
     return held
 
 
@@ -615,7 +616,7 @@ def unit_scores(res) -> dict:
     """The last pass's normal equations at the fitted tables, grouped into the bootstrap's
     units (`fit_variance.solve_variance`), the breaks kept, the held columns at their
     held steps: per unit ``a_u``, ``v_u``; ``total``; the solution ``theta``; the free
-    columns ``free`` / ``f``; ``layout`` (`fit_variance.solve_step`'s ``fit_delay`` and
+    columns ``free`` / ``f``; ``layout`` (`fit_breaks.solve_step`'s ``fit_delay`` and
     ``held`` steps); each unit's score ``v_u - a_u theta`` on them (``score``); ``inv``
     (the free block of ``total``, inverted); ``n`` units, ``p`` free; ``held`` (column ->
     width)."""
@@ -625,7 +626,7 @@ def unit_scores(res) -> dict:
               "held": {col: step for col, (step, _) in held_cols.items()}}
     a, v = res.variance.normal, res.variance.rhs
     # the free columns (breaks kept) set the units' length, as in solve_variance
-    free = fv.solve_step(a.sum(axis=0), v.sum(axis=0), now[:, 2], **layout)[1]
+    free = fb.solve_step(a.sum(axis=0), v.sum(axis=0), now[:, 2], **layout)[1]
     p = int(free.sum())
     group = np.arange(a.shape[0]) // int(min(fv.MAX_GROUP, max(1, a.shape[0] // (2 * p))))
     n = int(group[-1]) + 1
@@ -633,7 +634,7 @@ def unit_scores(res) -> dict:
     np.add.at(a_u, group, a)
     np.add.at(v_u, group, v)
     total = a_u.sum(axis=0)
-    theta = fv.solve_step(total, v_u.sum(axis=0), now[:, 2], **layout)[0]
+    theta = fb.solve_step(total, v_u.sum(axis=0), now[:, 2], **layout)[0]
     f = np.flatnonzero(free)
     return {"a_u": a_u, "v_u": v_u, "total": total, "theta": theta, "free": free,
             "layout": layout, "f": f, "n": n, "p": p,
@@ -656,7 +657,7 @@ def core_factors(res, true) -> dict:
     rng = np.random.default_rng(0)
     picks = np.stack([np.bincount(rng.integers(0, u["n"], u["n"]), minlength=u["n"])
                       for _ in range(200)]).astype(float)
-    pairs = fv.solve_step(np.einsum("rb,bij->rij", picks, u["a_u"]), picks @ u["v_u"],
+    pairs = fb.solve_step(np.einsum("rb,bij->rij", picks, u["a_u"]), picks @ u["v_u"],
                           now[:, 2], **u["layout"])[0][:, f]
     fixed = (picks - 1.0) @ score @ inv.T
     moved = moved_resamples(res)
@@ -674,8 +675,8 @@ def core_factors(res, true) -> dict:
                                                 float(t > now[j, 3])]), err_law[i, j],
                   vals[:, i]) for i, t in enumerate(law_t)]
         for name, g4, err, boot in rows:
-            g = np.zeros(fv.N_PARAMETERS)
-            g[j * fv.PER_AXIS:j * fv.PER_AXIS + 4] = g4
+            g = np.zeros(fb.N_PARAMETERS)
+            g[j * fb.PER_AXIS:j * fb.PER_AXIS + 4] = g4
             gf = g[f]
             e_u = score @ inv @ gf
             cr0 = float(np.sqrt(np.sum(e_u ** 2)))
@@ -732,18 +733,18 @@ def sandwich_errors(res) -> tuple[np.ndarray, np.ndarray]:
     u = unit_scores(res)
     held, f, inv, score, total = u["held"], u["f"], u["inv"], u["score"], u["total"]
     n, p = u["n"], u["p"]
-    cov = np.zeros((fv.N_PARAMETERS, fv.N_PARAMETERS))
+    cov = np.zeros((fb.N_PARAMETERS, fb.N_PARAMETERS))
     cov[np.ix_(f, f)] = inv @ (score.T @ score) @ inv * n / (n - p)
     if held:
         h = np.array(sorted(held))
-        jac = np.zeros((fv.N_PARAMETERS, h.size))
+        jac = np.zeros((fb.N_PARAMETERS, h.size))
         jac[f] = -inv @ total[np.ix_(f, h)]
         jac[h, np.arange(h.size)] = 1.0
         cov += jac @ np.diag([held[c] ** 2 for c in h]) @ jac.T
     law_t = np.array(LAW_T)
     tm_err, law_err = np.empty(3), np.empty((law_t.size, 3))
     for j in range(3):
-        cols = [j * fv.PER_AXIS + i for i in range(4)]  # a, b, c, -c T_m
+        cols = [j * fb.PER_AXIS + i for i in range(4)]  # a, b, c, -c T_m
         c = cov[np.ix_(cols, cols)]
         tm_err[j] = np.sqrt(c[3, 3]) / abs(now[j, 2])
         grad = np.column_stack([np.ones_like(law_t), law_t, np.maximum(0.0, law_t - now[j, 3]),
@@ -772,10 +773,10 @@ def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
                     refine: bool | str = False) -> dict:
     """The stated errors of ``res`` replayed from its last pass's normal equations at the
     fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
-    one (`fit_variance.fixed_design_resamples`) of ``n_bootstrap`` resamples, treated as
+    one (`fit_breaks.fixed_design_resamples`) of ``n_bootstrap`` resamples, treated as
     `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
     the field; ``refine``: moved breaks placed inside their cells instead,
-    `fit_variance.refine_breaks`; ``"resamples"``: in the resamples only, the solution's
+    `fit_breaks.refine_breaks`; ``"resamples"``: in the resamples only, the solution's
     distance counted, ``refine_resamples``): tau, D0 (3,), T_m (3,), the law at `LAW_T`
     (len(LAW_T), 3)."""
     b = replayed_resamples(res, fixed_design, n_bootstrap, refine)
@@ -981,8 +982,8 @@ def leverage_ratio(res):
         t = np.atleast_1d(np.asarray(t, dtype=float))
         out = np.ones((t.size, 3))
         for j in range(3):
-            g = np.zeros((t.size, fv.N_PARAMETERS))
-            g[:, j * fv.PER_AXIS:j * fv.PER_AXIS + 4] = np.column_stack(
+            g = np.zeros((t.size, fb.N_PARAMETERS))
+            g[:, j * fb.PER_AXIS:j * fb.PER_AXIS + 4] = np.column_stack(
                 [np.ones_like(t), t, np.maximum(0.0, t - now[j, 3]), (t > now[j, 3])])
             g = g[:, f]
             v0 = np.einsum("ti,ij,tj->t", g, cr0, g)

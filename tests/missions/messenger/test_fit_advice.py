@@ -19,6 +19,7 @@ from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import judged_at
+from fluxcal.missions.messenger.fit_breaks import N_PARAMETERS
 from fluxcal.missions.messenger.fit_merit import (
     advised_goal,
     assess,
@@ -27,7 +28,6 @@ from fluxcal.missions.messenger.fit_merit import (
 )
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
-    N_PARAMETERS,
     law_parameters,
     law_values,
     offset_moments,

@@ -21,21 +21,23 @@ import pytest
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import day_chunks, fit_days
+from fluxcal.missions.messenger.fit_breaks import (
+    BREAK_SHIFTS_C,
+    N_PARAMETERS,
+    quantisation,
+    refine_breaks,
+    resample_fits,
+    solution_distance,
+)
 from fluxcal.missions.messenger.fit_holds import HOLD_BREAK_WIDTH_C
 from fluxcal.missions.messenger.fit_variance import (
-    BREAK_SHIFTS_C,
     MIN_RANGE_SAMPLES,
-    N_PARAMETERS,
     TEMPERATURE_EDGES_C,
     VarianceSettings,
     apply_step,
     law_parameters,
     law_to_table,
     law_values,
-    quantisation,
-    refine_breaks,
-    resample_fits,
-    solution_distance,
     solve_variance,
 )
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight

@@ -11,9 +11,9 @@
    once per pass.  The data are a forward model that shares no code with the fit
    (`flight_sim`, 2 days of the realistic wind).
 2. The bootstrap's resamples, each with its own break choice, are solved in batches
-   (`fit_variance._fit_rows`) instead of one call per distinct choice: against the
-   per-choice `fit_variance._fit` on random systems, bit for bit.
-3. (entry 40) `fit_variance.choose_breaks` solves, in a later sweep, only the rows
+   (`fit_breaks._fit_rows`) instead of one call per distinct choice: against the
+   per-choice `fit_breaks._fit` on random systems, bit for bit.
+3. (entry 40) `fit_breaks.choose_breaks` solves, in a later sweep, only the rows
    whose other axes' choices moved since that axis was last chosen: against the rule
    written out here (every row, every sweep, every trial), bit for bit, and with fewer
    rows solved.  The three axes of a waveform column share one spline decomposition
@@ -30,6 +30,7 @@ import pytest
 
 from fluxcal.calibration import constrained_fits as cf
 from fluxcal.missions.messenger import fit
+from fluxcal.missions.messenger import fit_breaks as fb
 from fluxcal.missions.messenger import fit_variance as fv
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit_reduce import WAVEFORM_FOLDS
@@ -115,11 +116,11 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
     # against the rule written out: a moved axis frees its shift's hinge column only,
     # fixes its slope change at -c and its break step at 0
     rng = np.random.default_rng(34)
-    n, p = 300, fv.N_PARAMETERS
+    n, p = 300, fb.N_PARAMETERS
     x = rng.standard_normal((n, 2 * p, p))
     a = np.einsum("rki,rkj->rij", x, x)
     v = rng.standard_normal((n, p))
-    choice = rng.integers(-1, fv.N_SHIFTS, size=(n, 3))
+    choice = rng.integers(-1, fb.N_SHIFTS, size=(n, 3))
     slope = rng.normal(0.0, 0.1, 3)
     for fit_delay in (True, False):
         base_free = np.ones(p, dtype=bool)
@@ -127,19 +128,19 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
         base_free[4] = False  # D0 x held
         held = np.zeros((n, p))
         held[:, 4] = rng.normal(0.0, 0.01, n)
-        free, fixed = fv._layout_rows(choice, base_free, slope)
-        got = fv._fit_rows(a, v, free, fixed + held)
+        free, fixed = fb._layout_rows(choice, base_free, slope)
+        got = fb._fit_rows(a, v, free, fixed + held)
         for r in range(n):
-            f1, x1 = fv._layout(tuple(int(c) for c in choice[r]), base_free, slope)
+            f1, x1 = fb._layout(tuple(int(c) for c in choice[r]), base_free, slope)
             np.testing.assert_array_equal(free[r], f1)
             moved = [j for j in range(3) if choice[r, j] >= 0]
-            hinge = free[r, 3 * fv.PER_AXIS:3 * fv.PER_AXIS + 3 * fv.N_SHIFTS]
+            hinge = free[r, 3 * fb.PER_AXIS:3 * fb.PER_AXIS + 3 * fb.N_SHIFTS]
             assert sorted(np.flatnonzero(hinge)) == sorted(
-                j * fv.N_SHIFTS + choice[r, j] for j in moved)
+                j * fb.N_SHIFTS + choice[r, j] for j in moved)
             for j in range(3):
-                assert free[r, j * fv.PER_AXIS + 2] == (j not in moved)
-                assert x1[j * fv.PER_AXIS + 2] == (-slope[j] if j in moved else 0.0)
-            want = fv._fit(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
+                assert free[r, j * fb.PER_AXIS + 2] == (j not in moved)
+                assert x1[j * fb.PER_AXIS + 2] == (-slope[j] if j in moved else 0.0)
+            want = fb._fit(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
             np.testing.assert_array_equal(got[r], want)
         # more than one batch: rows with one, two and three moved breaks differ in size
         assert np.unique(free.sum(axis=1)).size > 1
@@ -154,20 +155,20 @@ def _sweeps_written_out(a, v, yy, base_free, law, t_range, fixed, sweeps=2,
     for _ in range(sweeps):
         for j in range(3):
             best, best_r = choice[:, j].copy(), np.full(n, np.inf)
-            for k in (-1, *range(fv.N_SHIFTS)):
-                if k >= 0 and not (base_free[j * fv.PER_AXIS + 3] and t_range[0]
-                                   <= law[j, 3] + fv.BREAK_SHIFTS_C[k] <= t_range[1]):
+            for k in (-1, *range(fb.N_SHIFTS)):
+                if k >= 0 and not (base_free[j * fb.PER_AXIS + 3] and t_range[0]
+                                   <= law[j, 3] + fb.BREAK_SHIFTS_C[k] <= t_range[1]):
                     continue
                 trial = choice.copy()
                 trial[:, j] = k
-                free, fx = fv._layout_rows(trial, base_free, law[:, 2])
+                free, fx = fb._layout_rows(trial, base_free, law[:, 2])
                 if k == -1:
-                    free[:, j * fv.PER_AXIS + 3] = False
+                    free[:, j * fb.PER_AXIS + 3] = False
                 if single:  # the solution's own system: least squares, as written
-                    r = np.atleast_1d(fv._residual(a[0], v[0], yy[0], fv._fit(
+                    r = np.atleast_1d(fb._residual(a[0], v[0], yy[0], fb._fit(
                         a[0], v[0], free[0], fx[0] + fixed[0])))
                 else:
-                    r = fv._residual(a, v, yy, fv._fit_rows(a, v, free, fx + fixed))
+                    r = fb._residual(a, v, yy, fb._fit_rows(a, v, free, fx + fixed))
                 better = r < best_r
                 best[better], best_r[better] = k, r[better]
             choice[:, j] = best
@@ -196,9 +197,9 @@ def test_later_sweeps_skip_unmoved_rows_and_choose_the_same_breaks(monkeypatch):
     # shifts; the written-out rule must choose exactly the same shifts, and the
     # skipping must solve fewer rows than it (the saving, item 7)
     rng = np.random.default_rng(3434)
-    p = fv.N_PARAMETERS
+    p = fb.N_PARAMETERS
     solved = []
-    rows_of = fv._fit_rows
+    rows_of = fb._fit_rows
 
     def counting(a, v, free, fixed):
         solved.append(a.shape[0])
@@ -209,24 +210,24 @@ def test_later_sweeps_skip_unmoved_rows_and_choose_the_same_breaks(monkeypatch):
         a, v, yy, law = _random_system(rng, n, p)
         base_free = np.ones(p, dtype=bool)
         base_free[-1] = case % 2 == 0
-        base_free[fv.PER_AXIS + 3] = case % 3 != 0  # y's break held in some cases
+        base_free[fb.PER_AXIS + 3] = case % 3 != 0  # y's break held in some cases
         fixed = np.zeros((n, p))
         base_free[4] = False
         fixed[:, 4] = rng.normal(0.0, 0.01, n)
         t_range = (float(rng.uniform(-20, 5)), float(rng.uniform(10, 40)))
         want = _sweeps_written_out(a, v, yy, base_free, law, t_range, fixed)
-        monkeypatch.setattr(fv, "_fit_rows", counting)
+        monkeypatch.setattr(fb, "_fit_rows", counting)
         solved.clear()
-        got = fv.choose_breaks(a, v, yy, base_free, law, t_range, fixed=fixed)
+        got = fb.choose_breaks(a, v, yy, base_free, law, t_range, fixed=fixed)
         monkeypatch.undo()
         np.testing.assert_array_equal(got, want)
-        tried = sum(1 for j in range(3) for k in (-1, *range(fv.N_SHIFTS)) if k < 0 or (
-            base_free[j * fv.PER_AXIS + 3]
-            and t_range[0] <= law[j, 3] + fv.BREAK_SHIFTS_C[k] <= t_range[1]))
+        tried = sum(1 for j in range(3) for k in (-1, *range(fb.N_SHIFTS)) if k < 0 or (
+            base_free[j * fb.PER_AXIS + 3]
+            and t_range[0] <= law[j, 3] + fb.BREAK_SHIFTS_C[k] <= t_range[1]))
         assert (want >= 0).any()  # some rows moved a break
         assert sum(solved) < 2 * tried * n  # the second sweep redid only moved rows
         # the single system (the solution's own choice) by the same rule
-        one = fv.choose_breaks(a[0], v[0], yy[0], base_free, law, t_range, fixed=fixed[0])
+        one = fb.choose_breaks(a[0], v[0], yy[0], base_free, law, t_range, fixed=fixed[0])
         assert one == tuple(int(c) for c in _sweeps_written_out(
             a[:1], v[:1], yy[:1], base_free, law, t_range, fixed[:1], single=True)[0])
 
@@ -269,14 +270,14 @@ def _step_written_out(cal, st, max_tau_shift, max_break_shift_c, shifts):
     law = fv.law_parameters(cal).copy()
     d0 = np.asarray(cal.duty_cycle_d0, dtype=float).copy()
     for j in range(3):
-        da, db, dc, dstep, dd0 = st[fv.PER_AXIS * j:fv.PER_AXIS * (j + 1)]
+        da, db, dc, dstep, dd0 = st[fb.PER_AXIS * j:fb.PER_AXIS * (j + 1)]
         c = law[j, 2]
         law[j, 0] += da
         law[j, 1] += db
         d0[j] += dd0
         if shifts[j] != 0.0:  # moved: the slope change fitted at the shifted break
-            law[j, 2] = st[3 * fv.PER_AXIS + j * fv.N_SHIFTS
-                           + fv.BREAK_SHIFTS_C.index(float(shifts[j]))]
+            law[j, 2] = st[3 * fb.PER_AXIS + j * fb.N_SHIFTS
+                           + fb.BREAK_SHIFTS_C.index(float(shifts[j]))]
             law[j, 3] += shifts[j]
         else:  # kept: the linearised break step -(step on [T > T_m]) / c, clipped
             law[j, 2] += dc
@@ -295,9 +296,9 @@ def test_resample_steps_applied_at_once_equal_one_at_a_time():
     rng = np.random.default_rng(77)
     cal = load_calibration(str(START))
     n = 300
-    steps = rng.normal(0, 1, (n, fv.N_PARAMETERS)) * rng.choice([0.01, 1.0, 300.0],
-                                                                (n, fv.N_PARAMETERS))
-    shifts = rng.choice([0.0, *fv.BREAK_SHIFTS_C], (n, 3))
+    steps = rng.normal(0, 1, (n, fb.N_PARAMETERS)) * rng.choice([0.01, 1.0, 300.0],
+                                                                (n, fb.N_PARAMETERS))
+    shifts = rng.choice([0.0, *fb.BREAK_SHIFTS_C], (n, 3))
     for limits in ((0.3, 10.0), (np.inf, np.inf)):
         law, d0, tau, dt = fv.apply_steps(cal, steps, *limits, break_shifts=shifts)
         assert law.shape == (n, 3, 4) and d0.shape == (n, 3) and tau.shape == dt.shape == (n,)
@@ -316,7 +317,7 @@ def test_resamples_in_blocks_equal_the_whole_stack():
     # every row chooses and solves on its own, so the blocks must give the same choices
     # and steps, bit for bit, for any split (one row per block included)
     rng = np.random.default_rng(4711)
-    p = fv.N_PARAMETERS
+    p = fb.N_PARAMETERS
     n = 90
     a, v, yy, law = _random_system(rng, n, p)
     held = np.zeros((n, p))
@@ -326,10 +327,10 @@ def test_resamples_in_blocks_equal_the_whole_stack():
         base_free[-1] = fit_delay
         base_free[4] = False
         args = (base_free, law if with_law else None, (-15.0, 35.0))
-        whole = fv.resample_fits(a, v, yy, held, *args)
+        whole = fb.resample_fits(a, v, yy, held, *args)
         assert (whole[0] >= 0).any() == with_law
         for blocks in (2, 7, n):
-            parts = [fv.resample_fits(a[c], v[c], yy[c], held[c], *args)
+            parts = [fb.resample_fits(a[c], v[c], yy[c], held[c], *args)
                      for c in np.array_split(np.arange(n), blocks)]
             np.testing.assert_array_equal(np.concatenate([c for c, _ in parts]), whole[0])
             np.testing.assert_array_equal(np.concatenate([b for _, b in parts]), whole[1])

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fluxcal.missions.messenger import fit_breaks as fb
 from fluxcal.missions.messenger import fit_variance as fv
 
 #: Eq. 8's fine-range matrix, seed Table 4 gains with small cross terms (nT per count).
@@ -22,7 +23,7 @@ PARKER = np.array([0.55, -0.6, 0.58]) / np.linalg.norm([0.55, -0.6, 0.58])
 
 def _stats(blocks: list[tuple[np.ndarray, float]], first: int = 0) -> fv.VarianceStatistics:
     """Statistics whose blocks hold only ``field_sum`` ``(sum w^2 R^2 u, sum w^2 R^2)``."""
-    nb, p = len(blocks), fv.N_PARAMETERS
+    nb, p = len(blocks), fb.N_PARAMETERS
     return fv.VarianceStatistics(
         normal=np.zeros((nb, p, p)), rhs=np.zeros((nb, p)), yy=np.zeros(nb),
         samples=np.zeros(nb), block_start=(first + np.arange(nb)) * 7200.0,

@@ -17,10 +17,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluxcal.missions.messenger.fit_variance import (
+from fluxcal.missions.messenger.fit_breaks import (
     N_PARAMETERS,
-    VarianceStatistics,
     fixed_design_resamples,
+)
+from fluxcal.missions.messenger.fit_variance import (
+    VarianceStatistics,
     solve_variance,
 )
 

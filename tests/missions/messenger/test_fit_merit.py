@@ -20,6 +20,11 @@ from fluxcal.missions.messenger.fit import (
     CONVERGENCE_SIGMA,
     pass_changes,
 )
+from fluxcal.missions.messenger.fit_breaks import (
+    BREAK_SHIFTS_C,
+    N_PARAMETERS,
+    PER_AXIS,
+)
 from fluxcal.missions.messenger.fit_cli import parse_hold_d0
 from fluxcal.missions.messenger.fit_merit import (
     check_merit,
@@ -27,10 +32,7 @@ from fluxcal.missions.messenger.fit_merit import (
     predicted_error,
 )
 from fluxcal.missions.messenger.fit_variance import (
-    BREAK_SHIFTS_C,
     MOMENT_EDGES_C,
-    N_PARAMETERS,
-    PER_AXIS,
     law_parameters,
     law_values,
     offset_moments,
@@ -78,7 +80,7 @@ def test_every_resample_chooses_its_own_break(shipped):
     assert set(np.unique(shifts)) <= {0.0, *BREAK_SHIFTS_C}
     assert np.unique(shifts).size > 1, shifts
     # a stack of one system chooses as the single system does (the same rule)
-    from fluxcal.missions.messenger.fit_variance import choose_breaks
+    from fluxcal.missions.messenger.fit_breaks import choose_breaks
 
     free = np.ones(N_PARAMETERS, dtype=bool)
     a, v, yy = stats.normal.sum(0), stats.rhs.sum(0), stats.yy.sum()

@@ -4,7 +4,7 @@
 T_m and the law into factors (the widening, the design, the design-fixed cluster
 sandwich and the units' shares of it); ``--estimators`` gives the pulls the stated
 errors, the sandwich and the fixed-design bootstrap would give.  Both read the saved
-fits' last normal equations through `fit_variance.solve_step`.
+fits' last normal equations through `fit_breaks.solve_step`.
 
 The saved fits here are `fit.fit_variance_calibration` on the normal equations of raw
 samples ``y = X 0 + noise`` (random regressors, the noise 5x larger in every seventh
@@ -55,16 +55,18 @@ import pytest
 from fluxcal.errors import FluxcalError
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import fit_variance_calibration
-from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
-from fluxcal.missions.messenger.fit_variance import (
+from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
-    MAX_GROUP,
     N_PARAMETERS,
     PER_AXIS,
+    solve_step,
+)
+from fluxcal.missions.messenger.fit_reduce import DayStatistics, FitSettings
+from fluxcal.missions.messenger.fit_variance import (
+    MAX_GROUP,
     TEMPERATURE_EDGES_C,
     VarianceStatistics,
     law_parameters,
-    solve_step,
     solve_variance,
 )
 
@@ -204,7 +206,7 @@ def _held(hold) -> dict[int, float]:
     return {2 * PER_AXIS + 4: HELD_WIDTH} if hold else {}
 
 
-# --- fit_variance.solve_step --------------------------------------------------------
+# --- fit_breaks.solve_step --------------------------------------------------------
 
 
 def _random_system(seed: int, stack: int | None = None):

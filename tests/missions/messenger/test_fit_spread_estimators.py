@@ -21,10 +21,12 @@ from scipy.special import ndtr
 
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit_variance import (
+from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
     PER_AXIS,
+)
+from fluxcal.missions.messenger.fit_variance import (
     law_parameters,
 )
 from fluxcal.missions.messenger.flight_sim import write_true_calibration

@@ -21,6 +21,7 @@ import pytest
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import judged_at
+from fluxcal.missions.messenger.fit_breaks import N_PARAMETERS
 from fluxcal.missions.messenger.fit_merit import (
     SUM_FIELD_CORRELATION_KEPT,
     DaySamples,
@@ -31,7 +32,6 @@ from fluxcal.missions.messenger.fit_merit import (
     regulated_sum_untrusted,
 )
 from fluxcal.missions.messenger.fit_variance import (
-    N_PARAMETERS,
     law_parameters,
     offset_moments,
 )

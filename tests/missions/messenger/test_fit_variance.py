@@ -22,6 +22,12 @@ from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days
+from fluxcal.missions.messenger.fit_breaks import (
+    BREAK_SHIFTS_C,
+    N_PARAMETERS,
+    N_SHIFTS,
+    PER_AXIS,
+)
 from fluxcal.missions.messenger.fit_guards import MAX_BREAK_ERROR_C, check_fit
 from fluxcal.missions.messenger.fit_holds import (
     HOLD_BREAK_WIDTH_C,
@@ -29,10 +35,6 @@ from fluxcal.missions.messenger.fit_holds import (
     undetermined_upper,
 )
 from fluxcal.missions.messenger.fit_variance import (
-    BREAK_SHIFTS_C,
-    N_PARAMETERS,
-    N_SHIFTS,
-    PER_AXIS,
     VarianceSettings,
     VarianceStatistics,
     apply_step,

@@ -6,7 +6,10 @@ estimated from long-term averages of solar-wind data, whose mean field is zero:
 
 * `fluxcal.missions.messenger.fit_reduce.reduce_day` reduces each day to mergeable
   `DayStatistics` given the current estimate of every term;
-* `fit_calibration` turns merged statistics into new estimates (`FitResult`);
+* `fit_calibration` turns merged statistics into new estimates (`FitResult`); with
+  ``estimator="variance"`` `fit_variance_calibration` (the statistics reduced and solved
+  by `fluxcal.missions.messenger.fit_variance`, the breaks chosen and the bootstrap's
+  resamples solved by `fluxcal.missions.messenger.fit_breaks`);
 * `fit_days` iterates: reduce all days (serially or on a Dask cluster), merge, fit, and
   reduce again with the new estimates, ``passes`` times (each step then removes the
   others' current estimates, sec. 7: "iterative");
@@ -62,6 +65,7 @@ from fluxcal.calibration.offsets import two_segment_offset
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError, FluxcalError, InputFormatError
 from fluxcal.geometry.time import SclkKernel
+from fluxcal.missions.messenger import fit_breaks as fb
 from fluxcal.missions.messenger import fit_merit
 from fluxcal.missions.messenger import fit_variance as fv
 from fluxcal.missions.messenger.batch_task import default_kernels
@@ -181,7 +185,7 @@ class FitResult:
         The variance estimator's resamples of the tables' parameters (widened):
         ``law`` (n, 3, 4) as ``(a, b, c, T_m)``, ``d0`` (n, 3), ``tau`` (n,), ``dt``
         (n,); every stated error and the law's band come from them; ``break_shift``
-        (n, 3): each resample's own break shift (C, `fit_variance.BREAK_SHIFTS_C`, 0: the
+        (n, 3): each resample's own break shift (C, `fit_breaks.BREAK_SHIFTS_C`, 0: the
         linearised step), kept so that spread estimators can be compared offline
         (``benchmarks/messenger_fit_pulls.py --summarise DIR --estimators``, entry 39).
     break_shift : ndarray, shape (3,)
@@ -984,7 +988,7 @@ def fit_variance_calibration(
     held = held_d0_values(hold_d0, base)
     d0_base = np.asarray(base.duty_cycle_d0, dtype=float)
     columns: dict[int, tuple[float, float]] = {
-        AXES.index(a) * fv.PER_AXIS + 4: (value - d0_base[AXES.index(a)], width)
+        AXES.index(a) * fb.PER_AXIS + 4: (value - d0_base[AXES.index(a)], width)
         for a, (value, width) in held.items()}
     # an upper segment no accepted interval sees: its break and slope change held at the
     # start table's values, with widths (the columns d(c) and -c d(T_m))
@@ -993,8 +997,8 @@ def fit_variance_calibration(
     for a, h in upper.items():
         j = AXES.index(a)
         (tm, w_tm), (c, w_c) = h["Tm_c"], h["slope_change"]
-        columns[j * fv.PER_AXIS + 2] = (c - now[j, 2], w_c)
-        columns[j * fv.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
+        columns[j * fb.PER_AXIS + 2] = (c - now[j, 2], w_c)
+        columns[j * fb.PER_AXIS + 3] = (-now[j, 2] * (tm - now[j, 3]), abs(now[j, 2]) * w_tm)
     try:
         sol = fv.solve_variance(vstats, fit_delay=fit_delay, n_bootstrap=n_bootstrap,
                                 law=now, held=columns, **(resample_map or {}))
