@@ -316,7 +316,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     # this fit's own value as a hold only with an error to hold it with, and not in a
     # compressive wind (entry 49)
     n_comp, judged = compressive
-    if judged and n_comp > fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE * judged:
+    if fit_merit.compressive_wind(n_comp, judged):
         own = (f"(not this fit's own value: {n_comp} of {judged} intervals compressive, "
                f"above {fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE:.0%}, where its stated error "
                f"does not cover D0 along the field; entry 49) ")

@@ -51,6 +51,7 @@ __all__ = ["ADVICE_MAX_COMPRESSIVE_SHARE", "ADVICE_TRIES", "ERROR_GOAL_NT",
            "MAX_COMPRESSIVE_SHARE", "DaySamples",
            "advised_goal", "assess",
            "band_limit_for", "check_merit", "compressive_refusal", "compressive_share",
+           "compressive_wind",
            "day_samples", "duty_range_counts", "predicted_error", "range_bands",
            "SUM_FIELD_CORRELATION_KEPT", "regulated_sum_untrusted", "stated_duty_counts",
            "stated_range", "sum_along_field"]
@@ -100,6 +101,16 @@ def compressive_share(reason: np.ndarray) -> tuple[int, int]:
     reason = np.asarray(reason)
     judged = ~np.isin(reason, ("too_few_samples", "ill_conditioned"))
     return int(np.count_nonzero(reason == "compressive")), int(np.count_nonzero(judged))
+
+
+def compressive_wind(n_comp: int, judged: int) -> bool:
+    """Return whether more than `ADVICE_MAX_COMPRESSIVE_SHARE` of the intervals were compressive.
+
+    ``n_comp`` and ``judged`` are `compressive_share`'s counts.  In such a wind the law
+    and D0 along the field are not trusted apart (`sum_along_field`,
+    `regulated_sum_untrusted`, `fit_guards.d0_goal_refusal`; entries 44, 48, 49).
+    """
+    return bool(judged) and n_comp > ADVICE_MAX_COMPRESSIVE_SHARE * judged
 
 
 def compressive_refusal(reason: np.ndarray,
@@ -354,8 +365,7 @@ def sum_along_field(result: FitResult) -> np.ndarray | None:
     v = result.variance
     if boot is None or v is None:
         return None
-    n_comp, judged = compressive_share(v.reason)
-    if not judged or n_comp <= ADVICE_MAX_COMPRESSIVE_SHARE * judged:
+    if not compressive_wind(*compressive_share(v.reason)):
         return None
     u = np.asarray((result.d0_field or {}).get("direction", np.zeros(3)), dtype=float)
     if not np.any(u):
@@ -638,7 +648,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     """
     m = result.merit
     n_comp, judged = compressive_share(result.variance.reason)
-    if not judged or n_comp <= ADVICE_MAX_COMPRESSIVE_SHARE * judged:
+    if not compressive_wind(n_comp, judged):
         return ""
     reg = _regulated_c(result)
     ranges = result.stated_ranges
