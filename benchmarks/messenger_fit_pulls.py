@@ -1127,18 +1127,11 @@ def main() -> None:
     if args.summarise is not None:
         if not any(args.summarise.glob("fit_*.pkl")):
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
-        if args.estimators:
-            estimator_summary(args.summarise)
-            return
-        if args.core:
-            core_summary(args.summarise)
-            return
-        if args.replay:
-            replay_summary(args.summarise)
-            return
-        if args.bands:
-            band_summary(args.summarise)
-            return
+        for flag, summary in (("estimators", estimator_summary), ("core", core_summary),
+                              ("replay", replay_summary), ("bands", band_summary)):
+            if getattr(args, flag):  # the first option given, in this order
+                summary(args.summarise)
+                return
         summarise(saved_rows(args.summarise), args.markdown)
         return
     rows = []
