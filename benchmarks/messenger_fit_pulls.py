@@ -770,31 +770,34 @@ def sandwich_row(res, true, with_jumps: bool) -> dict:
 
 
 def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
-                    refine: bool | str = False) -> dict:
+                    refine: bool | str = False, bootstrap: str = "pairs") -> dict:
     """The stated errors of ``res`` replayed from its last pass's normal equations at the
     fitted tables (as `moved_resamples`), with the pairs bootstrap or the fixed-design
     one (`fit_breaks.fixed_design_resamples`) of ``n_bootstrap`` resamples, treated as
     `fit.fit_variance_calibration` treats them (dither, widening, held draws, D0 along
     the field; ``refine``: moved breaks placed inside their cells instead,
     `fit_breaks.refine_breaks`; ``"resamples"``: in the resamples only, the solution's
-    distance counted, ``refine_resamples``): tau, D0 (3,), T_m (3,), the law at `LAW_T`
-    (len(LAW_T), 3)."""
-    b = replayed_resamples(res, fixed_design, n_bootstrap, refine)
+    distance counted, ``refine_resamples``; ``bootstrap``: `fit_variance.solve_variance`'s,
+    ``"wild"`` the wild cluster bootstrap, entry 3x-wild): tau, D0 (3,), T_m (3,), the law
+    at `LAW_T` (len(LAW_T), 3)."""
+    b = replayed_resamples(res, fixed_design, n_bootstrap, refine, bootstrap)
     return {"tau": np.std(b["tau"]), "d0": np.std(b["d0"], axis=0),
             "tm": np.std(b["law"][:, :, 3], axis=0),
             "law": np.std(fv.law_values(b["law"], np.array(LAW_T)), axis=0)}
 
 
 def replayed_resamples(res, fixed_design: bool, n_bootstrap: int = 200,
-                       refine: bool | str = False) -> dict:
+                       refine: bool | str = False, bootstrap: str = "pairs") -> dict:
     """The resamples behind `replayed_errors`, widened as the fit widens them: the law
     (n, 3, 4), D0 (n, 3) and tau (n,) (tau about its mean, the others about the
-    solution)."""
+    solution), and ``moved`` (n, 3): whether each resample's break choice differs from
+    the solution's."""
     held = _held_columns(res)
     sol = fv.solve_variance(res.variance, fit_delay=res.delay_fitted,
                             law=fv.law_parameters(res.calibration), held=held,
                             fixed_design=fixed_design, n_bootstrap=n_bootstrap,
-                            refine=refine is True, refine_resamples=refine == "resamples")
+                            refine=refine is True, refine_resamples=refine == "resamples",
+                            bootstrap=bootstrap)
     law, d0, tau, _ = fv.apply_step(res.calibration, sol.step, break_shift=sol.break_shift)
     law[:, 3] += sol.break_offset
     b_law, b_d0, b_tau, _ = fv.apply_steps(res.calibration, sol.boot, max_tau_shift=np.inf,
@@ -812,7 +815,8 @@ def replayed_resamples(res, fixed_design: bool, n_bootstrap: int = 200,
     b_d0 = fv.widen_d0_along_field(b_d0, d0, np.asarray(res.calibration.matrices[0], float),
                                    direction, balance,
                                    np.array([a not in res.held for a in "xyz"]))[0]
-    return {"law": b_law, "d0": b_d0, "tau": w * (b_tau - b_tau.mean())}
+    return {"law": b_law, "d0": b_d0, "tau": w * (b_tau - b_tau.mean()),
+            "moved": np.asarray(sol.boot_shift) != np.asarray(sol.break_shift)[None, :]}
 
 
 def fixed_design_row(res, true) -> dict:
@@ -828,22 +832,25 @@ def fixed_design_row(res, true) -> dict:
     return row
 
 
-#: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine;
-#: False: the uniform draw over the cell, the fit's default before entry 47;
-#: ``"resamples"``: refined in the resamples only, the fit's default since).
-REPLAYS = (("pairs 200", False, 200, False), ("refined", False, 200, True),
-           ("refined resamples", False, 200, "resamples"),
-           ("fixed 800", True, 800, False), ("refined, fixed 800", True, 800, True))
+#: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine,
+#: bootstrap; refine False: the uniform draw over the cell, the fit's default before
+#: entry 47; ``"resamples"``: refined in the resamples only, the fit's default since;
+#: bootstrap ``"wild"``: the wild cluster bootstrap, breaks chosen again, entry 3x-wild).
+REPLAYS = (("pairs 200", False, 200, False, "pairs"), ("refined", False, 200, True, "pairs"),
+           ("refined resamples", False, 200, "resamples", "pairs"),
+           ("fixed 800", True, 800, False, "pairs"),
+           ("refined, fixed 800", True, 800, True, "pairs"),
+           ("wild", False, 200, "resamples", "wild"))
 
 
 def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
-               refine: bool | str = False) -> dict:
+               refine: bool | str = False, bootstrap: str = "pairs") -> dict:
     """`estimator_row` with every stated error replaced by a bootstrap replayed on the
     fit's stored normal equations (`replayed_errors`): the pulls the fit would state
     with that bootstrap, the fitted tables kept (entry 42)."""
     row = estimator_row(res, true, spread_sd)
     boot = res.bootstrap
-    now = replayed_errors(res, fixed_design, n_bootstrap, refine)
+    now = replayed_errors(res, fixed_design, n_bootstrap, refine, bootstrap)
     row["tau_pull"] *= spread_sd(boot["tau"]) / now["tau"]
     row["d0_pull"] = row["d0_pull"] * spread_sd(boot["d0"]) / now["d0"]
     row["tm_pull"] = row["tm_pull"] * spread_sd(boot["law"][:, :, 3]) / now["tm"]
@@ -876,12 +883,111 @@ def replay_summary(folder: Path) -> None:
     them (docs/decisions/messenger_fit.md entry 42)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     per = {"stored": [estimator_row(res, true, spread_sd) for res, true in fits]}
-    per.update({name: [replay_row(res, true, fixed, n, refine) for res, true in fits]
-                for name, fixed, n, refine in REPLAYS})
+    per.update({name: [replay_row(res, true, fixed, n, refine, kind) for res, true in fits]
+                for name, fixed, n, refine, kind in REPLAYS})
     print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
     print("| parameter | " + " | ".join(per) + " |")
     print("|---|" + "---|" * len(per))
     _print_pull_rows(per)
+
+
+# --- the wild cluster bootstrap (docs/decisions/messenger_fit.md 3x-wild) -----------
+
+#: The columns `wild_summary` prints beside the stored errors: the fit's own bootstrap
+#: replayed (pairs, refined in the resamples), the wild one (Rademacher, Webb's six
+#: points), and two combinations: T_m alone from the wild bootstrap; T_m from it and the
+#: law's band per temperature the larger of the wild and the pairs bands (a fixed design
+#: pinches at the law's pivot, entry 42 (4)); the wild errors of an axis (T_m and the
+#: law) only where fewer than `ONE_SIGMA_TAIL` of the pairs resamples moved its break
+#: (entry 39's rule for a jump that is the error), else the pairs'; and that with the
+#: law's wild band floored as `band_floor_regulated` floors the fixed design's (entry 46
+#: rule 3: at the pairs band at -50 C and its least over the data's range).
+WILD_COLUMNS = ("pairs (fit)", "wild", "wild webb", "wild T_m only",
+                "wild T_m, law max(wild, pairs)", "wild where pairs rarely jump",
+                "... law floored at -50 C")
+
+
+def _resample_errors(b: dict, t: np.ndarray) -> dict:
+    """Errors of replayed resamples ``b`` (`replayed_resamples`): tau, D0, T_m and the law
+    at ``t`` (len(t), 3) counts."""
+    return {"tau": np.std(b["tau"]), "d0": np.std(b["d0"], axis=0),
+            "tm": np.std(b["law"][:, :, 3], axis=0), "law": _band(b["law"], t)}
+
+
+def _pull_row(res, true, err: dict, law_t: np.ndarray) -> dict:
+    """The pulls of ``res`` against ``true`` with the errors ``err`` (`_resample_errors`
+    at ``law_t``): tau, D0, T_m, the law at ``law_t`` (NaN outside the stated range)."""
+    cal = res.calibration
+    tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
+    law_pull = (_law(cal.temperature_coefficients, law_t) - _law(tc, law_t)) / err["law"]
+    law_pull[~res.stated_ranges.contains(law_t)] = np.nan
+    return {"tau_pull": float((res.relaxation.tau - true.constants["relaxation"]["tau_s"])
+                              / err["tau"]),
+            "dt_pull": np.nan,
+            "d0_pull": (cal.duty_cycle_d0 - true.d0) / err["d0"],
+            "tm_pull": (np.asarray(cal.breakpoint_temperature_c)
+                        - (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])) / err["tm"],
+            "law_pull": law_pull, "held_upper": sorted(res.held_upper)}
+
+
+def wild_rows(res, true, n_bootstrap: int = 200) -> dict:
+    """Per column of `WILD_COLUMNS`, the pulls of ``res`` (`_pull_row` at `LAW_T`) with
+    its errors replayed on the stored normal equations (`replayed_resamples`, refined in
+    the resamples as the fit does), and ``grid_max`` (3,): the law's largest |pull| per
+    axis over a `BAND_GRID_STEP_C` grid of the stated range (where a band pinches)."""
+    lo, hi = res.fitted_range
+    grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, BAND_GRID_STEP_C)
+    grid = grid[res.stated_ranges.contains(grid)]
+    t = np.concatenate([np.array(LAW_T), grid])
+    boots = {name: replayed_resamples(res, False, n_bootstrap, "resamples", kind)
+             for name, kind in (("pairs (fit)", "pairs"), ("wild", "wild"),
+                                ("wild webb", "wild-webb"))}
+    err = {name: _resample_errors(b, t) for name, b in boots.items()}
+    err["wild T_m only"] = {**err["pairs (fit)"], "tm": err["wild"]["tm"]}
+    err["wild T_m, law max(wild, pairs)"] = {
+        **err["wild T_m only"], "law": np.maximum(err["wild"]["law"],
+                                                  err["pairs (fit)"]["law"])}
+    rare = boots["pairs (fit)"]["moved"].mean(axis=0) < ONE_SIGMA_TAIL  # per axis
+    pairs, wild = err["pairs (fit)"], err["wild"]
+    err["wild where pairs rarely jump"] = {
+        **pairs, "tm": np.where(rare, wild["tm"], pairs["tm"]),
+        "law": np.where(rare[None, :], wild["law"], pairs["law"])}
+    lo_d, hi_d = res.fitted_range
+    data_t = np.arange(np.ceil(lo_d), np.floor(hi_d) + 0.01, BAND_GRID_STEP_C)
+    floored = band_floor_regulated(boots["pairs (fit)"]["law"], boots["wild"]["law"], t,
+                                   data_t)
+    err["... law floored at -50 C"] = {
+        **err["wild where pairs rarely jump"],
+        "law": np.where(rare[None, :], floored, pairs["law"])}
+    out = {}
+    n_law = len(LAW_T)
+    for name in WILD_COLUMNS:
+        row = _pull_row(res, true, err[name], t)
+        row["grid_max"] = (np.abs(row["law_pull"][n_law:]).max(axis=0) if grid.size
+                           else np.zeros(3))
+        row["law_pull"] = row["law_pull"][:n_law]
+        out[name] = row
+    return out
+
+
+def wild_summary(folder: Path) -> None:
+    """Print, per parameter, the pulls' spread, largest size and count beyond 3 as stored
+    and under each column of `WILD_COLUMNS` (`wild_rows`), then the law's largest |pull|
+    over the stated range's grid and the fits with one beyond 3 (entry 3x-wild)."""
+    fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
+    rows = [wild_rows(res, true) for res, true in fits]
+    per = {"stored": [estimator_row(res, true, spread_sd) for res, true in fits]}
+    per.update({name: [r[name] for r in rows] for name in WILD_COLUMNS})
+    print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
+    print("| parameter | " + " | ".join(per) + " |")
+    print("|---|" + "---|" * len(per))
+    _print_pull_rows(per)
+    cells = [""]
+    for name in WILD_COLUMNS:
+        g = np.stack([r[name]["grid_max"] for r in rows])
+        cells.append(f"{g.max():.2f}, {int(np.count_nonzero(np.any(g > 3, axis=1)))} fits")
+    print(f"| grid of T_RANGE, every {BAND_GRID_STEP_C:g} C: max |pull|, fits beyond 3 | "
+          + " | ".join(cells) + " |")
 
 
 # --- design-fixed law bands that cannot pinch (docs/decisions/messenger_fit.md 46) --
@@ -1120,6 +1226,11 @@ def main() -> None:
                          "candidates (BANDS: the fixed-design bootstrap replayed, floored "
                          "or combined with the pairs band so that it cannot pinch; entry "
                          "46), at LAW_T and over the stated range.")
+    ap.add_argument("--wild", action="store_true",
+                    help="With --summarise: the pulls under the wild cluster bootstrap "
+                         "replayed on the stored normal equations, beside the fit's own "
+                         "(pairs) and two combinations (WILD_COLUMNS; entry 3x-wild), and "
+                         "the law's largest pull over the stated range.")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")
@@ -1128,7 +1239,8 @@ def main() -> None:
         if not any(args.summarise.glob("fit_*.pkl")):
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
         for flag, summary in (("estimators", estimator_summary), ("core", core_summary),
-                              ("replay", replay_summary), ("bands", band_summary)):
+                              ("replay", replay_summary), ("bands", band_summary),
+                              ("wild", wild_summary)):
             if getattr(args, flag):  # the first option given, in this order
                 summary(args.summarise)
                 return

@@ -15,13 +15,19 @@ bootstrap's resamples (`fit_variance.solve_variance` drives them):
   (`quantisation`, entry 27); the solution's own distance from its grid point is counted
   in every resample (`solution_distance`, entry 47);
 * the units' scores resampled with the whole data's design kept, opt-in
-  (`fixed_design_resamples`, entry 41).
+  (`fixed_design_resamples`, entry 41);
+* the wild cluster bootstrap: each unit's residual sign-flipped (or Webb-weighted) about
+  the fit, the design kept, the breaks chosen again on that world, opt-in
+  (`wild_weights`, `wild_resamples`, entry 3x-wild).
 
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2-7 (the offset laws whose
    parameters are fitted: Table 2, eq. 3-4; D0, tau, dt, eq. 5-6).
-.. [2] docs/decisions/messenger_fit.md entries 17, 27, 39, 40, 41, 42 and 47.
+.. [2] docs/decisions/messenger_fit.md entries 17, 27, 39, 40, 41, 42, 47 and 3x-wild.
+.. [3] Cameron, A. C., Gelbach, J. B. and Miller, D. L., Rev. Econ. Stat. 90, 414-427
+   (2008) (the wild cluster bootstrap); Webb, M. D., Can. J. Econ. 56, 1-23 (2023)
+   (the six-point weights).
 """
 
 from __future__ import annotations
@@ -32,9 +38,9 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 
-__all__ = ["BREAK_SHIFTS_C", "N_PARAMETERS", "choose_breaks", "fixed_design_resamples",
-           "quantisation", "refine_breaks", "resample_fits", "solution_distance",
-           "solve_step"]
+__all__ = ["BREAK_SHIFTS_C", "N_PARAMETERS", "WILD_WEIGHTS", "choose_breaks",
+           "fixed_design_resamples", "quantisation", "refine_breaks", "resample_fits",
+           "solution_distance", "solve_step", "wild_resamples", "wild_weights"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
 #: axis the hinge slopes at the shifted breaks (`BREAK_SHIFTS_C`); then the shared
@@ -45,6 +51,12 @@ PER_AXIS = 5
 BREAK_SHIFTS_C = (-8.0, -4.0, -2.0, -1.0, -0.5, 0.5, 1.0, 2.0, 4.0, 8.0)
 N_SHIFTS = len(BREAK_SHIFTS_C)
 N_PARAMETERS = 3 * PER_AXIS + 3 * N_SHIFTS + 2
+#: The wild bootstrap's weight distributions (`wild_weights`): mean 0, variance 1.
+#: Rademacher: +-1, half each; Webb's six points: +-sqrt(1/2), +-1, +-sqrt(3/2), a sixth
+#: each (more distinct resamples where the units are few, Webb 2023).
+WILD_WEIGHTS = {"rademacher": np.array([-1.0, 1.0]),
+                "webb": np.array([-np.sqrt(1.5), -1.0, -np.sqrt(0.5),
+                                  np.sqrt(0.5), 1.0, np.sqrt(1.5)])}
 
 
 def _shift_column(axis: int, k: int) -> int:
@@ -502,3 +514,99 @@ def fixed_design_resamples(picks: np.ndarray, a: np.ndarray, v: np.ndarray,
     score = v - np.einsum("uij,j->ui", a, step)
     a_r = np.broadcast_to(total_a, (picks.shape[0], *total_a.shape))
     return a_r, total_v + (picks - 1.0) @ score, np.full(picks.shape[0], float(yy))
+
+
+def wild_weights(n_bootstrap: int, n_units: int, rng: np.random.Generator,
+                 kind: str = "rademacher") -> np.ndarray:
+    """Draw the wild bootstrap's weights, one per resample and unit.
+
+    Parameters
+    ----------
+    n_bootstrap, n_units : int
+    rng : numpy.random.Generator
+    kind : {"rademacher", "webb"}
+        The distribution (`WILD_WEIGHTS`), each point equally likely: mean 0, variance
+        1 (Rademacher: ``eta^2 = 1`` always).
+
+    Returns
+    -------
+    ndarray, shape (n_bootstrap, n_units)
+
+    Raises
+    ------
+    FluxcalError
+        An unknown ``kind``.
+    """
+    if kind not in WILD_WEIGHTS:
+        raise FluxcalError(f"wild_weights: kind {kind!r}: give one of {sorted(WILD_WEIGHTS)}")
+    points = WILD_WEIGHTS[kind]
+    return points[rng.integers(0, points.size, (n_bootstrap, n_units))]
+
+
+def wild_resamples(weights: np.ndarray, a: np.ndarray, v: np.ndarray, yy: np.ndarray,
+                   total_a: np.ndarray, step: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the wild cluster bootstrap's resampled normal equations, exactly from sums.
+
+    Each resample is the fitted model plus every unit's own residual times that unit's
+    weight: ``y*_u = X_u b + eta_ru e_u`` (``b = step``, every column of the layout, the
+    held and fixed ones at their values; ``e_u = y_u - X_u b``), on the data's own design
+    (every column, the shifted breaks' hinges too, so that each resample can choose its
+    breaks again, `choose_breaks`).  With ``g_u = v_u - A_u b`` (the unit's score) and
+    ``e_u'e_u = yy_u - 2 b'v_u + b'A_u b``::
+
+        A*_r  = sum_u A_u                                   (the design kept)
+        v*_r  = A b + sum_u eta_ru g_u
+        yy*_r = b'A b + 2 sum_u eta_ru b'g_u + sum_u eta_ru^2 e_u'e_u
+
+    Unlike the pairs bootstrap (``A_r = sum_u picks_ru A_u``: a resample's residual is the
+    data's own, its roughness over the break's grid, plus a resampled part again) and the
+    fixed-design one (`fixed_design_resamples`: ``v_r = A b + sum_u picks_ru g_u``, the
+    data's own residual kept in every resample), a wild resample's residual is only its
+    units' residuals, each with a random sign: the world the resample chooses its break
+    in is one whose truth is the fit (its break at the solution) with noise like the
+    data's (Cameron, Gelbach and Miller 2008; the cure for a bootstrap of an argmin over
+    a rough criterion re-adding that roughness, docs/decisions/messenger_fit.md entry
+    42 (2)).  On the solution's free columns the linear step's covariance is the cluster
+    sandwich ``A^-1 (sum_u g_u g_u') A^-1`` (``E eta = 0``, ``E eta^2 = 1``), as the
+    fixed design's.
+
+    Parameters
+    ----------
+    weights : ndarray, shape (n_bootstrap, n_units)
+        ``eta`` (`wild_weights`).
+    a : ndarray, shape (n_units, N_PARAMETERS, N_PARAMETERS)
+    v : ndarray, shape (n_units, N_PARAMETERS)
+    yy : ndarray, shape (n_units,)
+        The units' normal equations (`fit_variance.VarianceStatistics`, grouped into the
+        bootstrap's units).
+    total_a : ndarray, shape (N_PARAMETERS, N_PARAMETERS)
+        ``sum_u A_u``.
+    step : ndarray, shape (N_PARAMETERS,)
+        The fitted parameters ``b`` in the full layout (`solve_step`, `_fit`: the held
+        columns and an axis's cancelled hinge at their fixed values).
+
+    Returns
+    -------
+    a_r : ndarray, shape (n_bootstrap, N_PARAMETERS, N_PARAMETERS)
+        ``A`` for every resample (a read-only broadcast view).
+    v_r : ndarray, shape (n_bootstrap, N_PARAMETERS)
+    yy_r : ndarray, shape (n_bootstrap,)
+
+    References
+    ----------
+    .. [1] Cameron, A. C., Gelbach, J. B. and Miller, D. L., Bootstrap-based improvements
+       for inference with clustered errors, Rev. Econ. Stat. 90, 414-427 (2008).
+    """
+    weights = np.asarray(weights, dtype=float)
+    b = np.asarray(step, dtype=float)
+    a, v, yy = np.asarray(a, dtype=float), np.asarray(v, dtype=float), np.asarray(yy, float)
+    a_b = np.einsum("uij,j->ui", a, b)  # A_u b
+    score = v - a_b  # g_u
+    bab = a_b @ b  # b'A_u b
+    ee = yy - 2.0 * (v @ b) + bab  # e_u'e_u
+    fitted = total_a @ b
+    a_r = np.broadcast_to(total_a, (weights.shape[0], *total_a.shape))
+    v_r = fitted[None, :] + weights @ score
+    yy_r = float(fitted @ b) + 2.0 * (weights @ (score @ b)) + (weights ** 2) @ ee
+    return a_r, v_r, yy_r

@@ -88,6 +88,8 @@ from fluxcal.missions.messenger.fit_breaks import (
     refine_breaks,
     resample_fits,
     solution_distance,
+    wild_resamples,
+    wild_weights,
 )
 from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
@@ -497,6 +499,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                    fixed_design: bool = False,
                    refine: bool = False,
                    refine_resamples: bool = True,
+                   bootstrap: str = "pairs",
                    ) -> VarianceSolution:
     """Solve the summed normal equations; bootstrap over blocks for the errors.
 
@@ -559,6 +562,13 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         uniformly over its cell (`quantisation`, entry 27), the default before entry
         47 (which measured both on the late-peak orbit: T_m pull spreads 0.39 / 0.39
         / 0.47 -> 0.46 / 0.42 / 0.63, no pull beyond 3 added, the fitted tables the same).
+    bootstrap : {"pairs", "wild", "wild-webb"}
+        ``"pairs"`` (the default): the units resampled with replacement, their normal
+        equations summed.  ``"wild"``: the wild cluster bootstrap (`wild_resamples`),
+        each unit's residual about the solution times a Rademacher weight (``"wild-webb"``:
+        Webb's six-point weights, `wild_weights`), the design kept; each resample chooses
+        its breaks again in a world whose truth is the solution.  Opt-in
+        (docs/decisions/messenger_fit.md entry 3x-wild); not with ``fixed_design``.
 
     Returns
     -------
@@ -572,8 +582,13 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     Raises
     ------
     FluxcalError
-        ``n <= p + MIN_SPARE_BLOCKS``: too few blocks for an error estimate.
+        ``n <= p + MIN_SPARE_BLOCKS``: too few blocks for an error estimate; an unknown
+        ``bootstrap``, or a wild one with ``fixed_design``.
     """
+    wild = {"pairs": None, "wild": "rademacher", "wild-webb": "webb"}
+    if bootstrap not in wild or (wild[bootstrap] and fixed_design):
+        raise FluxcalError(f"solve_variance: bootstrap {bootstrap!r}: give one of "
+                           f"{sorted(wild)} (a wild one without fixed_design)")
     base_free = np.ones(N_PARAMETERS, dtype=bool)
     base_free[-1] = fit_delay
     step_h = np.zeros(3) if held_step is None else np.asarray(held_step, dtype=float)
@@ -622,12 +637,16 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     step = _fit(total_a, total_v, free, fixed + fixed_h)
     chi2 = float(_residual(total_a, total_v, yy, step))
     rng = np.random.default_rng(seed)
-    picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
-                      for _ in range(n_bootstrap)]).astype(float)
-    if fixed_design:  # the units' scores resampled, the whole data's design kept
-        a_r, v_r, yy_r = fixed_design_resamples(picks, a, v, total_a, total_v, yy, step)
+    if wild[bootstrap]:  # every unit's residual about the solution, weighted (entry 3x)
+        a_r, v_r, yy_r = wild_resamples(wild_weights(n_bootstrap, nb, rng, wild[bootstrap]),
+                                        a, v, yy_b, total_a, step)
     else:
-        a_r, v_r, yy_r = np.einsum("rb,bij->rij", picks, a), picks @ v, picks @ yy_b
+        picks = np.stack([np.bincount(rng.integers(0, nb, nb), minlength=nb)
+                          for _ in range(n_bootstrap)]).astype(float)
+        if fixed_design:  # the units' scores resampled, the whole data's design kept
+            a_r, v_r, yy_r = fixed_design_resamples(picks, a, v, total_a, total_v, yy, step)
+        else:
+            a_r, v_r, yy_r = np.einsum("rb,bij->rij", picks, a), picks @ v, picks @ yy_b
     held_r = np.broadcast_to(fixed_h, (n_bootstrap, N_PARAMETERS)).copy()
     if columns:
         cols = sorted(columns)
