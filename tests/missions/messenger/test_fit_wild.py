@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from fluxcal.errors import FluxcalError
+from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit_breaks import (
     N_PARAMETERS,
     PER_AXIS,
@@ -25,8 +26,13 @@ from fluxcal.missions.messenger.fit_breaks import (
 )
 from fluxcal.missions.messenger.fit_variance import (
     VarianceStatistics,
+    apply_step,
+    apply_steps,
+    law_parameters,
     solve_variance,
 )
+from tests.missions.messenger.test_fit_breaks import NOISE, _sparse_peaks
+from tests.missions.messenger.test_fit_variance import _hinge_statistics
 
 
 def _rows(rng, units: int, per_unit: int):
@@ -118,3 +124,42 @@ def test_solve_variance_wild_is_lstsq_on_the_rows_resampled():
         solve_variance(stats, bootstrap="jackknife")
     with pytest.raises(FluxcalError, match="without fixed_design"):
         solve_variance(stats, bootstrap="wild", fixed_design=True)
+
+
+def test_wild_break_errors_match_the_spread_of_the_fitted_breaks_over_noise_draws():
+    # entry 27's hinge world (`test_fit_breaks._sparse_peaks`: the breaks seen only in
+    # 16 warm peaks of 48 two-hour blocks), its rows written with numpy from the column
+    # definitions (`_hinge_statistics`), linearised at the true law (a converged pass:
+    # the break kept or moved to a grid shift, the linearised step taken); the design
+    # (directions, duty cycles) fixed, white noise of NOISE counts drawn 60 times.  The
+    # fitted breaks' rms about the truth over the 60 draws is known to about
+    # 1 / sqrt(2 x 60) = 9 %; the wild bootstrap's stated error (its resamples' spread
+    # with the fit's widening, 200 resamples: 5 %) over the first 12 draws, median: 6 %.
+    # The ratio is required within the issue's 0.7-1.5 (measured 0.87 / 1.25 / 1.23; the
+    # pairs bootstrap 0.93 / 1.31 / 1.31 in this world, where its jumps are rare), and
+    # every one of the 12 draws' pulls within 3.
+    shipped = load_calibration("2010-03-01")
+    true = law_parameters(shipped)
+    temp = _sparse_peaks()
+    fitted, stated = [], []
+    for seed in range(60):
+        noise = NOISE * np.random.default_rng(900 + seed).normal(size=temp.size)
+        stats = _hinge_statistics(true, true, np.random.default_rng(500), temp=temp,
+                                  noise=noise)
+        n_boot = 200 if seed < 12 else 2  # the solution does not depend on the resamples
+        sol = solve_variance(stats, n_bootstrap=n_boot, law=true, bootstrap="wild",
+                             seed=seed)
+        fitted.append(apply_step(shipped, sol.step, break_shift=sol.break_shift)[0][:, 3])
+        if seed < 12:
+            boots = apply_steps(shipped, sol.boot, max_tau_shift=np.inf,
+                                max_break_shift_c=np.inf,
+                                break_shifts=sol.boot_shift)[0][:, :, 3] + sol.boot_dither
+            stated.append(sol.widening * boots.std(axis=0))
+    off = np.array(fitted) - true[:, 3]
+    rms = np.sqrt(np.mean(off ** 2, axis=0))
+    stated = np.array(stated)
+    ratio = np.median(stated, axis=0) / rms
+    print("T_m rms about the truth", rms.round(3), "wild stated (median)",
+          np.median(stated, axis=0).round(3), "ratio", ratio.round(2))
+    assert np.all((ratio > 0.7) & (ratio < 1.5)), ratio
+    assert np.all(np.abs(off[:12] / stated) < 3.0), off[:12] / stated
