@@ -32,6 +32,9 @@ spread within 0.7-1.5, fewer than 1 % beyond 3), and which written tables miss a
 ``--summarise FOLDER --bands`` gives the law's pulls under design-fixed bands that cannot
 pinch (`BANDS`: the fixed-design bootstrap replayed, floored by or combined with the
 stored pairs band; entry 46), at `LAW_T` and over the stated range's grid.
+``--summarise FOLDER --wild`` gives the pulls under the wild cluster bootstrap
+(`fit_variance.solve_variance(bootstrap="wild")`) beside the fit's own and combinations of
+the two (`WILD_COLUMNS`; entry 3x-wild).
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
 prints the summary of a saved run again (fits saved without a row: no unseen day).
 """
