@@ -588,10 +588,10 @@ def wild_resamples(weights: np.ndarray, a: np.ndarray, v: np.ndarray, yy: np.nda
 
     Returns
     -------
-    a_r : ndarray, shape (n_bootstrap, N_PARAMETERS, N_PARAMETERS)
-        ``A`` for every resample (a read-only broadcast view).
-    v_r : ndarray, shape (n_bootstrap, N_PARAMETERS)
-    yy_r : ndarray, shape (n_bootstrap,)
+    a_r, v_r, yy_r : ndarray
+        ``A*`` (a read-only broadcast view of ``total_a``), ``v*`` and ``yy*`` per
+        resample: shapes ``(n_bootstrap, N_PARAMETERS, N_PARAMETERS)``, ``(n_bootstrap,
+        N_PARAMETERS)``, ``(n_bootstrap,)``, as `fixed_design_resamples` returns them.
 
     References
     ----------
