@@ -12,7 +12,7 @@
    (`flight_sim`, 2 days of the realistic wind).
 2. The bootstrap's resamples, each with its own break choice, are solved in batches
    (`fit_breaks._fit_rows`) instead of one call per distinct choice: against the
-   per-choice `fit_breaks._fit` on random systems, bit for bit.
+   per-choice `fit_breaks.fit_columns` on random systems, bit for bit.
 3. (entry 40) `fit_breaks.choose_breaks` solves, in a later sweep, only the rows
    whose other axes' choices moved since that axis was last chosen: against the rule
    written out here (every row, every sweep, every trial), bit for bit, and with fewer
@@ -111,7 +111,7 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
     # random normal equations (A = X'X of a random design, so symmetric positive
     # definite on every free block), every break choice per axis (-1: kept, or one of
     # the shifts), dt free or held, held values on some columns: each row solved alone
-    # by `_fit` with its own `_layout` must give the batched rows exactly (the same
+    # by `fit_columns` with its own `break_layout` must give the batched rows exactly (the same
     # gathered numbers and the same LAPACK solve per matrix).  The layouts themselves
     # against the rule written out: a moved axis frees its shift's hinge column only,
     # fixes its slope change at -c and its break step at 0
@@ -131,7 +131,7 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
         free, fixed = fb._layout_rows(choice, base_free, slope)
         got = fb._fit_rows(a, v, free, fixed + held)
         for r in range(n):
-            f1, x1 = fb._layout(tuple(int(c) for c in choice[r]), base_free, slope)
+            f1, x1 = fb.break_layout(tuple(int(c) for c in choice[r]), base_free, slope)
             np.testing.assert_array_equal(free[r], f1)
             moved = [j for j in range(3) if choice[r, j] >= 0]
             hinge = free[r, 3 * fb.PER_AXIS:3 * fb.PER_AXIS + 3 * fb.N_SHIFTS]
@@ -140,7 +140,7 @@ def test_batched_resample_fits_equal_the_per_choice_fits_bit_for_bit():
             for j in range(3):
                 assert free[r, j * fb.PER_AXIS + 2] == (j not in moved)
                 assert x1[j * fb.PER_AXIS + 2] == (-slope[j] if j in moved else 0.0)
-            want = fb._fit(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
+            want = fb.fit_columns(a[r:r + 1], v[r:r + 1], f1, x1 + held[r:r + 1])[0]
             np.testing.assert_array_equal(got[r], want)
         # more than one batch: rows with one, two and three moved breaks differ in size
         assert np.unique(free.sum(axis=1)).size > 1
@@ -165,10 +165,10 @@ def _sweeps_written_out(a, v, yy, base_free, law, t_range, fixed, sweeps=2,
                 if k == -1:
                     free[:, j * fb.PER_AXIS + 3] = False
                 if single:  # the solution's own system: least squares, as written
-                    r = np.atleast_1d(fb._residual(a[0], v[0], yy[0], fb._fit(
+                    r = np.atleast_1d(fb.residual_sum(a[0], v[0], yy[0], fb.fit_columns(
                         a[0], v[0], free[0], fx[0] + fixed[0])))
                 else:
-                    r = fb._residual(a, v, yy, fb._fit_rows(a, v, free, fx + fixed))
+                    r = fb.residual_sum(a, v, yy, fb._fit_rows(a, v, free, fx + fixed))
                 better = r < best_r
                 best[better], best_r[better] = k, r[better]
             choice[:, j] = best

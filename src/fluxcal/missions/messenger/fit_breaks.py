@@ -38,8 +38,9 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 
-__all__ = ["BREAK_SHIFTS_C", "N_PARAMETERS", "WILD_WEIGHTS", "choose_breaks",
-           "fixed_design_resamples", "quantisation", "refine_breaks", "resample_fits",
+__all__ = ["BREAK_SHIFTS_C", "N_PARAMETERS", "WILD_WEIGHTS", "break_layout", "choice_shifts_c",
+           "choose_breaks", "fit_columns", "fixed_design_resamples", "quantisation",
+           "refine_breaks", "resample_fits", "residual_sum", "shift_column",
            "solution_distance", "solve_step", "wild_resamples", "wild_weights"]
 
 #: Per axis: d(a), d(b) (counts per C), d(c) (hinge slope), -c d(T_m), d(D0); then per
@@ -59,12 +60,12 @@ WILD_WEIGHTS = {"rademacher": np.array([-1.0, 1.0]),
                                   np.sqrt(0.5), 1.0, np.sqrt(1.5)])}
 
 
-def _shift_column(axis: int, k: int) -> int:
+def shift_column(axis: int, k: int) -> int:
     """Index of axis ``axis``'s hinge column at the break shifted by BREAK_SHIFTS_C[k]."""
     return 3 * PER_AXIS + axis * N_SHIFTS + k
 
 
-def _layout(shift: tuple[int, ...], base_free: np.ndarray,
+def break_layout(shift: tuple[int, ...], base_free: np.ndarray,
             slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Free columns and fixed values for break choices ``shift`` (-1: linearised step).
 
@@ -78,7 +79,7 @@ def _layout(shift: tuple[int, ...], base_free: np.ndarray,
 
 def _layout_rows(choice: np.ndarray, base_free: np.ndarray,
                  slope: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """`_layout` of every row of ``choice`` (n, 3): free (n, p) and fixed (n, p)."""
+    """`break_layout` of every row of ``choice`` (n, 3): free (n, p) and fixed (n, p)."""
     choice = np.asarray(choice, dtype=np.int64)
     n = choice.shape[0]
     rows = np.arange(n)
@@ -89,16 +90,16 @@ def _layout_rows(choice: np.ndarray, base_free: np.ndarray,
         moved = choice[:, j] >= 0
         free[moved, j * PER_AXIS + 2] = free[moved, j * PER_AXIS + 3] = False
         fixed[moved, j * PER_AXIS + 2] = -slope[j]
-        free[rows[moved], _shift_column(j, choice[moved, j])] = True
+        free[rows[moved], shift_column(j, choice[moved, j])] = True
     return free, fixed
 
 
 def _fit_rows(a: np.ndarray, v: np.ndarray, free: np.ndarray,
               fixed: np.ndarray) -> np.ndarray:
-    """`_fit` of a stack whose rows each have their own free columns (``free`` (n, p)).
+    """`fit_columns` of a stack whose rows each have their own free columns (``free`` (n, p)).
 
     The rows are solved together, in one batch per number of free columns, each row's
-    free block gathered as `_fit` takes it for that row alone (the same numbers, the
+    free block gathered as `fit_columns` takes it for that row alone (the same numbers, the
     same solver), instead of one call per distinct layout (issue 34, item 7).
     """
     theta = np.where(free, 0.0, fixed)
@@ -125,7 +126,7 @@ def _solve(aa: np.ndarray, vv: np.ndarray) -> np.ndarray:
     return sol / d
 
 
-def _fit(a: np.ndarray, v: np.ndarray, free: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+def fit_columns(a: np.ndarray, v: np.ndarray, free: np.ndarray, fixed: np.ndarray) -> np.ndarray:
     """Parameters (fixed ones at ``fixed``) minimising the residual of ``a``, ``v``.
 
     ``a``, ``v`` may be stacks (resamples); ``fixed`` broadcasts against ``v``.
@@ -137,7 +138,7 @@ def _fit(a: np.ndarray, v: np.ndarray, free: np.ndarray, fixed: np.ndarray) -> n
     return theta
 
 
-def _residual(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
+def residual_sum(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
               theta: np.ndarray) -> np.ndarray:
     """Residual sum of squares of ``theta`` from the normal equations (stacks too)."""
     return (yy - 2.0 * np.einsum("...i,...i->...", theta, v)
@@ -215,8 +216,8 @@ def solve_step(a: np.ndarray, v: np.ndarray, slope: np.ndarray,
     for col, value in held.items():
         base_free[int(col)] = False
         fixed_h[int(col)] = value
-    free, fixed = _layout(choice, base_free, np.asarray(slope, dtype=float))
-    return _fit(np.asarray(a, dtype=float), np.asarray(v, dtype=float), free,
+    free, fixed = break_layout(choice, base_free, np.asarray(slope, dtype=float))
+    return fit_columns(np.asarray(a, dtype=float), np.asarray(v, dtype=float), free,
                 fixed + fixed_h), free
 
 
@@ -270,15 +271,15 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
                         free[:, j * PER_AXIS + 3] = False
                     every = rows.size == n  # all rows: no copy of the stack
                     a_k, v_k = (a_s, v_s) if every else (a_s[rows], v_s[rows])
-                    r = _residual(a_k, v_k, yy_s if every else yy_s[rows],
+                    r = residual_sum(a_k, v_k, yy_s if every else yy_s[rows],
                                   _fit_rows(a_k, v_k, free, fx + held[rows]))
                 else:  # the single system: least squares as before (rank-safe)
-                    free, fx = _layout(tuple(int(c) for c in trial[0]), base_free,
+                    free, fx = break_layout(tuple(int(c) for c in trial[0]), base_free,
                                        law[:, 2])
                     if k == -1:
                         free[j * PER_AXIS + 3] = False
-                    r = np.atleast_1d(_residual(a, v, yy_s[0],
-                                                _fit(a, v, free, fx + held[0])))
+                    r = np.atleast_1d(residual_sum(a, v, yy_s[0],
+                                                fit_columns(a, v, free, fx + held[0])))
                 better = r < best_r
                 best[better] = k
                 best_r[better] = r[better]
@@ -305,7 +306,7 @@ def resample_fits(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     return choice, _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
 
 
-def _shifts(choice: np.ndarray) -> np.ndarray:
+def choice_shifts_c(choice: np.ndarray) -> np.ndarray:
     """Break shifts (C) of break choices (``-1``: 0)."""
     table = np.array([*BREAK_SHIFTS_C, 0.0])
     return table[np.where(np.asarray(choice) >= 0, choice, N_SHIFTS)]
@@ -329,7 +330,7 @@ def quantisation(choice: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     mid = 0.5 * (grid[1:] + grid[:-1])
     lo = np.r_[2.0 * grid[0] - mid[0], mid]
     hi = np.r_[mid, 2.0 * grid[-1] - mid[-1]]
-    s = _shifts(choice)
+    s = choice_shifts_c(choice)
     i = np.searchsorted(grid, s)
     return np.where(np.asarray(choice) >= 0, rng.uniform(lo[i], hi[i]) - s, 0.0)
 
@@ -340,7 +341,7 @@ def _neighbour(axis: int, shift_c: np.ndarray) -> np.ndarray:
     A shifted break's own column; for 0 (the kept break) the column d(c) of its hinge.
     """
     k = np.searchsorted(np.asarray(BREAK_SHIFTS_C), shift_c).clip(0, N_SHIFTS - 1)
-    return np.where(shift_c == 0.0, axis * PER_AXIS + 2, _shift_column(axis, k))
+    return np.where(shift_c == 0.0, axis * PER_AXIS + 2, shift_column(axis, k))
 
 
 def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np.ndarray,
@@ -412,10 +413,10 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
             col = _neighbour(j, s_n[ok])
             f[np.arange(r_ok.size), col] = True
             theta = _fit_rows(a_r[r_ok], v_r[r_ok], f, fixed[r_ok])
-            r = _residual(a_r[r_ok], v_r[r_ok], yy_r[r_ok], theta)
+            r = residual_sum(a_r[r_ok], v_r[r_ok], yy_r[r_ok], theta)
             # a side counts only where its two hinges make one between the grid points
             c_n = theta[np.arange(r_ok.size), col] + np.where(s_n[ok] == 0.0, law[j, 2], 0.0)
-            c = theta[np.arange(r_ok.size), _shift_column(j, choice[r_ok, j])] + c_n
+            c = theta[np.arange(r_ok.size), shift_column(j, choice[r_ok, j])] + c_n
             single = (c != 0.0) & (c_n * c >= 0.0) & (np.abs(c_n) <= np.abs(c))
             r = np.where(single, r, np.inf)
             better = np.zeros(rows.size, dtype=bool)
@@ -437,7 +438,7 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
         for j in range(3):
             m = np.flatnonzero(np.isfinite(pair[rows, j]))
             s_k, s_n = shift_c[rows[m], j], pair[rows[m], j]
-            c_k = theta[m, _shift_column(j, choice[rows[m], j])]
+            c_k = theta[m, shift_column(j, choice[rows[m], j])]
             c_n = theta[m, _neighbour(j, s_n)] + np.where(s_n == 0.0, law[j, 2], 0.0)
             c = c_k + c_n
             lam = np.divide(c_n, c, out=np.full(m.size, -1.0), where=c != 0.0)
@@ -445,7 +446,7 @@ def refine_breaks(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
             if np.any(bad):
                 pair[rows[m[bad]], j] = np.nan
                 dropped = True
-            theta[m, _shift_column(j, choice[rows[m], j])] = c
+            theta[m, shift_column(j, choice[rows[m], j])] = c
             offset[rows[m], j] = np.where(bad, 0.0, lam * (s_n - s_k))
         if not dropped:
             out[rows] = theta
@@ -583,7 +584,7 @@ def wild_resamples(weights: np.ndarray, a: np.ndarray, v: np.ndarray, yy: np.nda
     total_a : ndarray, shape (N_PARAMETERS, N_PARAMETERS)
         ``sum_u A_u``.
     step : ndarray, shape (N_PARAMETERS,)
-        The fitted parameters ``b`` in the full layout (`solve_step`, `_fit`: the held
+        The fitted parameters ``b`` in the full layout (`solve_step`, `fit_columns`: the held
         columns and an axis's cancelled hinge at their fixed values).
 
     Returns

@@ -77,16 +77,16 @@ from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
     PER_AXIS,
-    _fit,
-    _layout,
-    _residual,
-    _shift_column,
-    _shifts,
+    break_layout,
+    choice_shifts_c,
     choose_breaks,
+    fit_columns,
     fixed_design_resamples,
     quantisation,
     refine_breaks,
     resample_fits,
+    residual_sum,
+    shift_column,
     solution_distance,
     wild_resamples,
     wild_weights,
@@ -614,7 +614,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     if law is not None:
         choice = choose_breaks(total_a, total_v, yy, base_free, law, data_range,
                                fixed=fixed_h)
-    free, fixed = _layout(choice, base_free, slope)
+    free, fixed = break_layout(choice, base_free, slope)
     p_free = int(free.sum())
     if nb <= p_free + MIN_SPARE_BLOCKS:
         raise FluxcalError(
@@ -634,8 +634,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         np.add.at(v_g, group, v)
         np.add.at(yy_g, group, yy_b)
         a, v, yy_b, nb = a_g, v_g, yy_g, n_units
-    step = _fit(total_a, total_v, free, fixed + fixed_h)
-    chi2 = float(_residual(total_a, total_v, yy, step))
+    step = fit_columns(total_a, total_v, free, fixed + fixed_h)
+    chi2 = float(residual_sum(total_a, total_v, yy, step))
     rng = np.random.default_rng(seed)
     if wild[bootstrap]:  # every unit's residual about the solution, weighted (entry 3x)
         a_r, v_r, yy_r = wild_resamples(wild_weights(n_bootstrap, nb, rng, wild[bootstrap]),
@@ -675,8 +675,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
                 boot_offset = boot_offset + solution_distance(offsets[0], n_bootstrap, rng)
     dof = int(stats.samples.sum()) - p_free - stats.segments
     return VarianceSolution(step=step, boot=boot, chi2=chi2, dof=dof,
-                            break_shift=_shifts(np.asarray(choice)),
-                            boot_shift=_shifts(boot_choice),
+                            break_shift=choice_shifts_c(np.asarray(choice)),
+                            boot_shift=choice_shifts_c(boot_choice),
                             boot_dither=boot_offset,
                             widening=float(np.sqrt(nb / (nb - p_free))),
                             break_offset=offset)
@@ -725,7 +725,7 @@ def apply_steps(cal: MessengerCalibration, steps: np.ndarray, max_tau_shift: flo
         moved = np.flatnonzero(shifts[:, j] != 0.0)
         kept = np.flatnonzero(shifts[:, j] == 0.0)
         k = np.array([BREAK_SHIFTS_C.index(float(x)) for x in shifts[moved, j]], dtype=int)
-        law[moved, j, 2] = st[moved, _shift_column(j, k)]
+        law[moved, j, 2] = st[moved, shift_column(j, k)]
         law[moved, j, 3] += shifts[moved, j]
         dtm = -dstep[kept] / c if c != 0 else np.zeros(kept.size)
         law[kept, j, 2] += dc[kept]
