@@ -862,13 +862,14 @@ def replay_row(res, true, fixed_design: bool, n_bootstrap: int,
     return row
 
 
-def _print_pull_rows(per: dict) -> None:
+def _print_pull_rows(per: dict, only: str = "") -> None:
     """Print one markdown row per parameter of the first column's rows: in each column of
     ``per`` (name -> `estimator_row`-like rows) the pulls' spread, largest size and count
-    beyond 3 (`replay_summary`, `estimator_summary`)."""
+    beyond 3 (`replay_summary`, `estimator_summary`); ``only``: the parameters whose name
+    starts with it."""
     tables = {name: dict(table(rows)) for name, rows in per.items()}
     first = next(iter(tables))
-    for name in tables[first]:
+    for name in (n for n in tables[first] if n.startswith(only)):
         cells = []
         for est in per:
             p = tables[est][name]
@@ -991,6 +992,104 @@ def wild_summary(folder: Path) -> None:
         cells.append(f"{g.max():.2f}, {int(np.count_nonzero(np.any(g > 3, axis=1)))} fits")
     print(f"| grid of T_RANGE, every {BAND_GRID_STEP_C:g} C: max |pull|, fits beyond 3 | "
           + " | ".join(cells) + " |")
+
+
+# --- T_m from the residual's profile against the break (messenger_fit.md 3x-profile) --
+
+#: The columns `profile_summary` prints: T_m's error as the fit states it (the pairs
+#: bootstrap replayed, refined in the resamples: the fit's default since entry 47), from
+#: the profile of the residual against the break (`fit_variance.profile_break_errors`),
+#: and the larger of the profile's and these fractions of the pairs' (a floor where the
+#: profile alone is too narrow).
+PROFILE_FLOORS = (0.5, 0.65)
+
+
+def linearisation_point(res) -> tuple[np.ndarray, tuple[int, int, int], dict]:
+    """The law ``(a, b, c, T_m)`` per axis that the saved fit's last normal equations were
+    reduced at (the pass's starting table), its break choices and its held columns.
+
+    The last step solved again on the stored normal equations (`fit_breaks.solve_step`
+    at the fit's break choices, the held columns at `_held_columns`' steps) and taken
+    back from the fitted table: ``a``, ``b``, ``c`` by their steps, ``T_m`` by its
+    linearised step ``-q / c`` (or the shift where the last pass took one)."""
+    now = fv.law_parameters(res.calibration)
+    held = _held_columns(res)
+    shifts = np.asarray(res.break_shift, dtype=float)
+    choice = tuple(fb.BREAK_SHIFTS_C.index(float(x)) if x != 0.0 else -1 for x in shifts)
+    step = fb.solve_step(res.variance.normal.sum(axis=0), res.variance.rhs.sum(axis=0),
+                         now[:, 2], choice, fit_delay=res.delay_fitted,
+                         held={col: st for col, (st, _) in held.items()})[0]
+    base = now.copy()
+    for j in range(3):
+        base[j, 0] -= step[j * fb.PER_AXIS]
+        base[j, 1] -= step[j * fb.PER_AXIS + 1]
+        if choice[j] < 0:
+            base[j, 2] -= step[j * fb.PER_AXIS + 2]
+            base[j, 3] += step[j * fb.PER_AXIS + 3] / base[j, 2]
+        else:
+            base[j, 2] = -step[j * fb.PER_AXIS + 2]
+            base[j, 3] -= shifts[j]
+    return base, choice, held
+
+
+def profile_tm(res) -> dict:
+    """`fit_variance.profile_break_errors` of the saved fit ``res`` at its linearisation
+    point (`linearisation_point`), the fitted breaks' offsets taken from its table."""
+    base, choice, held = linearisation_point(res)
+    fitted = np.asarray(res.calibration.breakpoint_temperature_c, dtype=float) - base[:, 3]
+    return fv.profile_break_errors(res.variance, base, held, res.delay_fitted, choice,
+                                   fitted_c=fitted)
+
+
+def profile_rows(res, true) -> dict:
+    """Per column (pairs replayed, profile, the floors of `PROFILE_FLOORS`), `estimator_row`
+    with T_m's error replaced (a held break keeps its replayed held width), and
+    ``detail``: the fit's T_m error, the pairs' and the profile's errors and interval."""
+    row = estimator_row(res, true, spread_sd)
+    stored = np.array([f.x_m_err for f in res.temperature])
+    row["tm_pull"] = row["tm_pull"] * stored  # the error itself; the pulls below
+    pairs = replayed_errors(res, False, 200, "resamples")["tm"]
+    prof = profile_tm(res)
+    err = {"pairs (fit)": pairs, "profile": np.where(np.isfinite(prof["error"]),
+                                                     prof["error"], pairs)}
+    for f in PROFILE_FLOORS:
+        err[f"max(profile, {f:g} pairs)"] = np.maximum(err["profile"], f * pairs)
+    out = {name: {**row, "tm_pull": row["tm_pull"] / e} for name, e in err.items()}
+    out["detail"] = {"err": row["tm_pull"], "pairs": pairs, **prof}
+    return out
+
+
+def profile_summary(folder: Path) -> None:
+    """Print, per parameter, the T_m pulls' spread, largest size and count beyond 3 under
+    each column of `profile_rows`, then per free axis with a pull beyond 2 under any column
+    or an error beyond 0.5 C: the error, the errors and the profile's interval
+    (entry 3x-profile)."""
+    fits = sorted(folder.glob("fit_*.pkl"))
+    rows = []
+    for f in fits:
+        res, true = pickle.loads(f.read_bytes())
+        rows.append((f.stem, res.held_upper, profile_rows(res, true)))
+    names = [n for n in rows[0][2] if n != "detail"]
+    per = {name: [r[name] for _, _, r in rows] for name in names}
+    print(f"{len(fits)} fits; (spread, max |pull|, beyond 3)")
+    print("| parameter | " + " | ".join(per) + " |")
+    print("|---|" + "---|" * len(per))
+    _print_pull_rows(per, only="T_m")
+    print("| fit | axis | err (C) | pairs (C) | profile (C) | interval about the fit (C) |"
+          " pulls: " + " / ".join(names) + " |")
+    print("|---|---|---|---|---|---|---|")
+    for stem, held, r in rows:
+        d = r["detail"]
+        for j, a in enumerate("xyz"):
+            if a in held:
+                continue
+            pulls = [r[n]["tm_pull"][j] for n in names]
+            if max(abs(x) for x in pulls) > 2.0 or abs(d["err"][j]) > 0.5:
+                lo, hi = d["lo"][j] - d["fitted"][j], d["hi"][j] - d["fitted"][j]
+                print(f"| {stem} | {a} | {d['err'][j]:+.3f} | {d['pairs'][j]:.3f} | "
+                      f"{d['error'][j]:.3f} | {lo:+.2f}..{hi:+.2f}"
+                      f"{'' if d['closed'][j].all() else ' (open)'} | "
+                      + " / ".join(f"{x:+.2f}" for x in pulls) + " |")
 
 
 # --- design-fixed law bands that cannot pinch (docs/decisions/messenger_fit.md 46) --
@@ -1234,6 +1333,11 @@ def main() -> None:
                          "replayed on the stored normal equations, beside the fit's own "
                          "(pairs) and two combinations (WILD_COLUMNS; entry 3x-wild), and "
                          "the law's largest pull over the stated range.")
+    ap.add_argument("--profile", action="store_true",
+                    help="With --summarise: T_m's pulls with its error from the residual's "
+                         "profile against the break (fit_variance.profile_break_errors), "
+                         "beside the fit's own (pairs) and floored at a fraction of it "
+                         "(PROFILE_FLOORS; entry 3x-profile), and the fits far off.")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")
@@ -1243,7 +1347,7 @@ def main() -> None:
             ap.error(f"--summarise {args.summarise}: no fit_*.pkl there (a --save folder)")
         for flag, summary in (("estimators", estimator_summary), ("core", core_summary),
                               ("replay", replay_summary), ("bands", band_summary),
-                              ("wild", wild_summary)):
+                              ("wild", wild_summary), ("profile", profile_summary)):
             if getattr(args, flag):  # the first option given, in this order
                 summary(args.summarise)
                 return

@@ -482,6 +482,11 @@ def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C, temp=None, 
     temperatures ``temp`` (one per sample, the blocks in order; the accepted samples
     per 5-C bin then counted from them), plus ``noise`` (counts, one per sample) on
     ``|B'|``."""
+    return _hinge_rows(law_now, law_true, rng, shifts, temp, noise)[0]
+
+
+def _hinge_rows(law_now, law_true, rng, shifts=BREAK_SHIFTS_C, temp=None, noise=None):
+    """`_hinge_statistics` and the rows it sums: ``(stats, x, y, temp, u)``."""
     n = 48 * 300 if temp is None else temp.size
     u = rng.normal(size=(n, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
@@ -514,7 +519,7 @@ def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C, temp=None, 
         normal=np.einsum("bni,bnj->bij", xb, xb), rhs=np.einsum("bni,bn->bi", xb, yb),
         yy=np.einsum("bn,bn->b", yb, yb), samples=np.full(48, n / 48),
         block_start=np.arange(48) * 7200.0, interval_start=np.zeros(48),
-        reason=np.full(48, ""), temperature_count=count)
+        reason=np.full(48, ""), temperature_count=count), x, y, temp, u
 
 
 def test_a_distant_break_is_moved_exactly_to_the_shift_of_least_residual(shipped):

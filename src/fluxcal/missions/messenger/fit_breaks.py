@@ -38,8 +38,9 @@ import numpy as np
 
 from fluxcal.errors import FluxcalError
 
-__all__ = ["BREAK_SHIFTS_C", "N_PARAMETERS", "WILD_WEIGHTS", "break_layout", "choice_shifts_c",
-           "choose_breaks", "fit_columns", "fixed_design_resamples", "quantisation",
+__all__ = ["BREAK_SHIFTS_C", "N_PARAMETERS", "WILD_WEIGHTS", "break_layout", "break_profile",
+           "choice_shifts_c", "choose_breaks", "fit_columns", "fixed_design_resamples",
+           "profile_interval", "profile_threshold", "quantisation",
            "refine_breaks", "resample_fits", "residual_sum", "shift_column",
            "solution_distance", "solve_step", "wild_resamples", "wild_weights"]
 
@@ -611,3 +612,165 @@ def wild_resamples(weights: np.ndarray, a: np.ndarray, v: np.ndarray, yy: np.nda
     v_r = fitted[None, :] + weights @ score
     yy_r = float(fitted @ b) + 2.0 * (weights @ (score @ b)) + (weights ** 2) @ ee
     return a_r, v_r, yy_r
+
+
+def break_profile(a: np.ndarray, v: np.ndarray, yy: float, base_free: np.ndarray,
+                  law: np.ndarray, choice: tuple[int, int, int], axis: int,
+                  offsets_c: np.ndarray, fixed: np.ndarray | None = None,
+                  parameters: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Residual sum with axis ``axis``'s break placed at each of ``offsets_c``, profiled.
+
+    The profile of the exact residual against the break (docs/decisions/messenger_fit.md
+    entry 3x-profile): at each offset ``s`` (C from ``law[axis, 3]``) the break is a hinge
+    of free slope change at ``s``, every other parameter re-fitted (the other axes at
+    their ``choice``, `choose_breaks`' convention; the held ones at ``fixed``).  At a grid
+    point (0, the kept break, or one of `BREAK_SHIFTS_C`) the hinge is that point's
+    column; between two grid points ``s_k < s < s_n`` it is ``(1 - lambda) h(s_k) +
+    lambda h(s_n)``, ``lambda = (s - s_k) / (s_n - s_k)``: `refine_breaks`' two-hinge
+    split with ``lambda`` given instead of fitted, the same line as one hinge at ``s``
+    below ``s_k`` and above ``s_n``, its corner rounded inside the cell.  The break's
+    linearised step (``-c dT_m``) is not used, so each value is the residual of a law
+    whose break lies at ``s``, not a step from it.
+
+    Parameters
+    ----------
+    a, v, yy
+        The summed normal equations (`solve_variance`'s ``total_a``, ``total_v``, ``yy``).
+    base_free : ndarray of bool, shape (N_PARAMETERS,)
+        The columns free in the fit (dt, the held columns not).
+    law : ndarray, shape (3, 4)
+        The linearisation point's ``(a, b, c, T_m)`` per axis (`law_parameters`).
+    choice : tuple of int
+        The other axes' break choices (axis ``axis``'s entry is not read).
+    axis : int
+    offsets_c : ndarray, shape (m,)
+        Break positions (C from ``law[axis, 3]``), each between ``BREAK_SHIFTS_C[0]`` and
+        ``BREAK_SHIFTS_C[-1]``.
+    fixed : ndarray, shape (N_PARAMETERS,), optional
+        Values of the held columns (default 0).
+    parameters : bool
+        Also return each offset's parameters.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        The least residual sum at each offset (`residual_sum`).
+    theta : ndarray, shape (m, N_PARAMETERS)
+        With ``parameters``: the parameters in the full layout (the moved hinge's slope
+        change split between its two grid columns as ``1 - lambda`` and ``lambda``).
+
+    Raises
+    ------
+    FluxcalError
+        An offset outside the grid, or an axis whose break column is held.
+    """
+    s = np.atleast_1d(np.asarray(offsets_c, dtype=float))
+    grid = np.array(sorted((0.0, *BREAK_SHIFTS_C)))
+    if np.any((s < grid[0]) | (s > grid[-1])) or not base_free[axis * PER_AXIS + 3]:
+        raise FluxcalError(f"break_profile: axis {axis}: give offsets within "
+                           f"{grid[0]:g}..{grid[-1]:g} C of a free break")
+    ch = np.array(choice, dtype=np.int64)
+    ch[axis] = -1
+    free, fx = break_layout(tuple(int(c) for c in ch), base_free, law[:, 2])
+    fx = fx + (np.zeros(N_PARAMETERS) if fixed is None else np.asarray(fixed, float))
+    # the axis's own hinge moves: its d(c) cancels the current one, no linearised step
+    free[axis * PER_AXIS + 2] = free[axis * PER_AXIS + 3] = False
+    fx[axis * PER_AXIS + 2] = -law[axis, 2]
+    fx[axis * PER_AXIS + 3] = 0.0
+    k = np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2)
+    lam = (s - grid[k]) / (grid[k + 1] - grid[k])
+    cols = np.flatnonzero(free)
+    q = cols.size + 1
+    m = np.zeros((s.size, N_PARAMETERS, q))  # theta = fx + m phi
+    m[:, cols, np.arange(cols.size)] = 1.0
+    rows = np.arange(s.size)
+    m[rows, _neighbour(axis, grid[k]), -1] += 1.0 - lam
+    m[rows, _neighbour(axis, grid[k + 1]), -1] += lam
+    a = np.asarray(a, dtype=float)
+    v0 = np.asarray(v, dtype=float) - a @ fx
+    a_q = np.einsum("sia,ij,sjb->sab", m, a, m)
+    v_q = np.einsum("sia,i->sa", m, v0)
+    phi = _solve(a_q, v_q)
+    theta = fx[None, :] + np.einsum("sia,sa->si", m, phi)
+    r = residual_sum(a[None], np.asarray(v, float)[None], float(yy), theta)
+    return (r, theta) if parameters else r
+
+
+def profile_interval(offsets_c: np.ndarray, residual: np.ndarray,
+                     threshold: float) -> tuple[float, float, bool, bool]:
+    """Return the outermost offsets whose residual lies within ``threshold`` of its least.
+
+    Every offset whose residual exceeds the least by at most ``threshold`` belongs to the
+    interval, a second minimum too: the interval runs from the lowest to the highest of
+    them (a hull, not the connected piece about the least), each end interpolated
+    linearly to where the residual crosses the threshold between two offsets.
+
+    Parameters
+    ----------
+    offsets_c : ndarray, shape (m,)
+        Ascending.
+    residual : ndarray, shape (m,)
+        `break_profile` at ``offsets_c``.
+    threshold : float
+        ``Delta`` of the residual sum (`profile_threshold`).
+
+    Returns
+    -------
+    lo, hi : float
+        The interval's ends (C).
+    closed_lo, closed_hi : bool
+        Whether each end was crossed inside ``offsets_c`` (False: the interval reaches the
+        first or last offset, so it is a lower bound of the break's uncertainty there).
+    """
+    s = np.asarray(offsets_c, dtype=float)
+    d = np.asarray(residual, dtype=float) - float(np.min(residual)) - float(threshold)
+    inside = np.flatnonzero(d <= 0.0)
+    i, j = int(inside[0]), int(inside[-1])
+    lo = s[i] if i == 0 else s[i - 1] + (s[i] - s[i - 1]) * d[i - 1] / (d[i - 1] - d[i])
+    hi = (s[j] if j == s.size - 1
+          else s[j] + (s[j + 1] - s[j]) * (-d[j]) / (d[j + 1] - d[j]))
+    return float(lo), float(hi), i > 0, j < s.size - 1
+
+
+def profile_threshold(a_u: np.ndarray, v_u: np.ndarray, base_free: np.ndarray,
+                      law: np.ndarray, choice: tuple[int, int, int], axis: int,
+                      fixed: np.ndarray | None = None, widening: float = 1.0) -> float:
+    """Return the rise of the residual sum that one standard error of the break makes.
+
+    At the break kept (axis ``axis`` at choice -1, the other axes at ``choice``), the
+    linearised break column ``q = -c dT_m`` has the naive variance ``s^2 (A^-1)_qq`` and
+    the cluster-robust one ``(A^-1 (sum_u g_u g_u') A^-1)_qq`` (``g_u = v_u - A_u theta``
+    each unit's score at the solution, free columns); their ratio is the ``Delta chi^2``
+    of one standard error, so that correlated units do not shrink the interval.  In
+    residual units (``Delta chi^2 s^2``) the naive scale ``s^2`` cancels::
+
+        Delta = w^2 (A^-1 S A^-1)_qq / (A^-1)_qq
+
+    (``w``: ``widening``, the fit's ``sqrt(n / (n - p))``).  Where the residual is
+    quadratic in the break (the linearised model), `profile_interval` at this threshold
+    is the break +- its widened sandwich error exactly.
+
+    Parameters
+    ----------
+    a_u, v_u : ndarray, shapes (n, N_PARAMETERS, N_PARAMETERS), (n, N_PARAMETERS)
+        The resampling units' normal equations (`fit_variance.resampling_units`).
+    base_free, law, choice, axis, fixed
+        As `break_profile`.
+    widening : float
+
+    Returns
+    -------
+    float
+    """
+    ch = np.array(choice, dtype=np.int64)
+    ch[axis] = -1
+    free, fx = break_layout(tuple(int(c) for c in ch), base_free, law[:, 2])
+    fx = fx + (np.zeros(N_PARAMETERS) if fixed is None else np.asarray(fixed, float))
+    total_a, total_v = a_u.sum(axis=0), v_u.sum(axis=0)
+    theta = fit_columns(total_a, total_v, free, fx)
+    f = np.flatnonzero(free)
+    score = (v_u - np.einsum("uij,j->ui", a_u, theta))[:, f]
+    inv = np.linalg.pinv(total_a[np.ix_(f, f)])
+    q = int(np.flatnonzero(f == axis * PER_AXIS + 3)[0])
+    e = score @ inv[:, q]
+    return float(widening ** 2 * np.sum(e ** 2) / inv[q, q])
