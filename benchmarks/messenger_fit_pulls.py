@@ -35,6 +35,9 @@ stored pairs band; entry 46), at `LAW_T` and over the stated range's grid.
 ``--summarise FOLDER --wild`` gives the pulls under the wild cluster bootstrap
 (`fit_variance.solve_variance(bootstrap="wild")`) beside the fit's own and combinations of
 the two (`WILD_COLUMNS`; entry 3x-wild).
+``--summarise FOLDER --profile`` gives T_m's pulls with its error from the residual's
+profile against the break (`fit_variance.profile_break_errors`) beside the fit's own and
+floored at fractions of it (`PROFILE_FLOORS`; entry 3x-profile).
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
 prints the summary of a saved run again (fits saved without a row: no unseen day).
 """

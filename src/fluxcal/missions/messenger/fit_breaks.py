@@ -18,13 +18,17 @@ bootstrap's resamples (`fit_variance.solve_variance` drives them):
   (`fixed_design_resamples`, entry 41);
 * the wild cluster bootstrap: each unit's residual sign-flipped (or Webb-weighted) about
   the fit, the design kept, the breaks chosen again on that world, opt-in
-  (`wild_weights`, `wild_resamples`, entry 3x-wild).
+  (`wild_weights`, `wild_resamples`, entry 3x-wild);
+* the residual profiled against one axis's break placed anywhere on the shift grid's
+  span, and the likelihood-ratio interval it gives at the units' cluster-robust scale,
+  opt-in (`break_profile`, `profile_threshold`, `profile_interval`; entry 3x-profile).
 
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2-7 (the offset laws whose
    parameters are fitted: Table 2, eq. 3-4; D0, tau, dt, eq. 5-6).
-.. [2] docs/decisions/messenger_fit.md entries 17, 27, 39, 40, 41, 42, 47 and 3x-wild.
+.. [2] docs/decisions/messenger_fit.md entries 17, 27, 39, 40, 41, 42, 47, 3x-wild and
+   3x-profile.
 .. [3] Cameron, A. C., Gelbach, J. B. and Miller, D. L., Rev. Econ. Stat. 90, 414-427
    (2008) (the wild cluster bootstrap); Webb, M. D., Can. J. Econ. 56, 1-23 (2023)
    (the six-point weights).
