@@ -1049,8 +1049,7 @@ def profile_rows(res, true) -> dict:
     with T_m's error replaced (a held break keeps its replayed held width), and
     ``detail``: the fit's T_m error, the pairs' and the profile's errors and interval."""
     row = estimator_row(res, true, spread_sd)
-    stored = np.array([f.x_m_err for f in res.temperature])
-    row["tm_pull"] = row["tm_pull"] * stored  # the error itself; the pulls below
+    row["tm_pull"] = row["tm_pull"] * spread_sd(res.bootstrap["law"][:, :, 3])  # the error
     pairs = replayed_errors(res, False, 200, "resamples")["tm"]
     prof = profile_tm(res)
     err = {"pairs (fit)": pairs, "profile": np.where(np.isfinite(prof["error"]),

@@ -165,7 +165,7 @@ def test_the_profile_interval_covers_the_truth_in_the_sparse_hinge_world(now):
     # 3 counts, DRAWS draws.  The interval is +-1 standard error widened by
     # w = sqrt(n / (n - p)) = sqrt(48 / 31): where the sandwich is right it covers the
     # truth in 2 Phi(w) - 1 = 0.787 of the draws; COVERAGE_TOL is three binomial
-    # standard errors (measured 0.71 / 0.74 / 0.76; 390 s on the shared 2-core host)
+    # standard errors (measured 0.71 / 0.74 / 0.76; 16 s on the shared 2-core host)
     true = now.copy()
     off = np.array([0.3, -0.7, 0.0])
     true[:, 3] += off

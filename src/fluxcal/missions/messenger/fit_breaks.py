@@ -692,7 +692,7 @@ def break_profile(a: np.ndarray, v: np.ndarray, yy: float, base_free: np.ndarray
     m[rows, _neighbour(axis, grid[k + 1]), -1] += lam
     a = np.asarray(a, dtype=float)
     v0 = np.asarray(v, dtype=float) - a @ fx
-    a_q = np.einsum("sia,ij,sjb->sab", m, a, m)
+    a_q = np.swapaxes(m, 1, 2) @ (a @ m)  # m' A m per offset (batched matmuls)
     v_q = np.einsum("sia,i->sa", m, v0)
     phi = _solve(a_q, v_q)
     theta = fx[None, :] + np.einsum("sia,sa->si", m, phi)
