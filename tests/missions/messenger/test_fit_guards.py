@@ -214,6 +214,33 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
                 "above 25%") in str(info.value)
 
 
+@pytest.mark.parametrize("split, own_advised", [(True, True), (False, False)])
+def test_d0_refusal_in_a_compressive_wind_advises_its_own_value_where_the_split_is_stated(
+        fitted, split, own_advised):
+    # entry 3x-comp: where the fit widened its D0 and law along their trade-off (a
+    # compressive wind: `fit_variance.widen_law_d0_split`), its own value and error are
+    # advised again (130 of 400 intervals compressive, as the hard cruise's 0.27-0.33)
+    res = fitted[1]
+    duty = list(res.duty)
+    duty[2] = dataclasses.replace(res.duty[2], slope_err=0.08 * abs(res.duty[2].slope))
+    variance = _Moments(1000, 1.0)
+    variance.reason = np.array(["compressive"] * 130 + [""] * 270, dtype="<U24")
+    field = {**(res.d0_field or {}),
+             **({"law_d0_split": {"rho": [-0.9, -0.9, -0.9],
+                                  "added_counts_per_ppt": [1e-3, 1e-3, 1e-3]}}
+                if split else {})}
+    case = dataclasses.replace(res, duty=duty, variance=variance, d0_field=field)
+    with pytest.raises(FitRefusedError, match=r"D0 z = .*\(8\.0%, .*; entry 38\)") as info:
+        check_fit(case)
+    advised = re.findall(r"--hold-d0 (\S+?)[ :]", str(info.value))
+    if own_advised:
+        assert len(advised) == 2 and advised[0].startswith("z=") and advised[1] == "z"
+        assert "entry 49" not in str(info.value)
+    else:
+        assert advised == ["z"], advised
+        assert "not this fit's own value: 130 of 400 intervals compressive" in str(info.value)
+
+
 def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
     # issue 34's goal "tau within 5 %" as the stated 1-sigma error (entry 43): the
     # closed form |error / tau| <= 0.05, just inside and just outside; the fixture's own

@@ -143,6 +143,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     d0_ref = np.asarray(ref.duty_cycle_d0, dtype=float)
     compressive = (fit_merit.compressive_share(result.variance.reason)
                    if result.variance is not None else (0, 0))
+    split = bool((getattr(result, "d0_field", None) or {}).get("law_d0_split"))
     what_d0 = "more heater-regulated samples over a wider range of duty cycles"
     cost = d0_goal_cost_nt(result)
     # NaN (no moments): the goal binds
@@ -160,7 +161,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"({_hold_d0_advice(a)})")
         if binds[AXES.index(a)]:  # the 5 % goal (entry 38)
             cause = d0_goal_refusal(a, f.slope, f.slope_err, cost_nt=cost[AXES.index(a)],
-                                    compressive=compressive)
+                                    compressive=compressive, split_stated=split)
             if cause:
                 raise FitRefusedError(cause)
         elif not (np.isfinite(f.slope_err)
@@ -277,7 +278,7 @@ def tau_goal_refusal(tau: float, error: float, goal: float = TAU_ERROR_GOAL,
 
 def d0_goal_refusal(axis: str, value: float, error: float,
                     goal: float = D0_ERROR_GOAL, cost_nt: float = np.nan,
-                    compressive: tuple[int, int] = (0, 0)) -> str:
+                    compressive: tuple[int, int] = (0, 0), split_stated: bool = False) -> str:
     """Return why a fitted D0 misses its goal, else ``""`` (`check_fit`; entry 38).
 
     A fitted D0 whose stated relative error ``error / |value|`` (1 sigma) exceeds ``goal``
@@ -290,7 +291,9 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     `fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE` of the judged intervals were compressive
     (entry 49): there the fitted D0 and law are each less determined along the field than
     stated (only their sum is, entry 48), and a table holding the fit's own D0 at its
-    stated width missed it by 2.8 widths.
+    stated width missed it by 2.8 widths; unless the fit states that split
+    (``split_stated``: `fit_variance.widen_law_d0_split` widened its D0 and law, entry
+    3x-comp), whose own-value tables met their stated errors (the same 8 days: 2.15 widths).
 
     Parameters
     ----------
@@ -304,6 +307,9 @@ def d0_goal_refusal(axis: str, value: float, error: float,
         `d0_goal_cost_nt` of the axis (stated in the message when finite).
     compressive : tuple of int
         ``(compressive, judged)`` interval counts (`fit_merit.compressive_share`).
+    split_stated : bool
+        The fit's D0 and law carry the split's widening (``FitResult.d0_field``'s
+        ``law_d0_split``).
 
     References
     ----------
@@ -316,7 +322,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     # this fit's own value as a hold only with an error to hold it with, and not in a
     # compressive wind (entry 49)
     n_comp, judged = compressive
-    if fit_merit.compressive_wind(n_comp, judged):
+    if fit_merit.compressive_wind(n_comp, judged) and not split_stated:
         own = (f"(not this fit's own value: {n_comp} of {judged} intervals compressive, "
                f"above {fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE:.0%}, where its stated error "
                f"does not cover D0 along the field; entry 49) ")
