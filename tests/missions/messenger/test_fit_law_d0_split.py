@@ -107,9 +107,10 @@ def test_compressive_cruise_states_the_law_and_d0_apart_honestly(tmp_path):
     """Forward model (issue 34's hard cruise wind, 5 % compressive, `_hard_worlds`; 4
     days, seed 3603, 28 % of the intervals compressive): the split is widened, the
     header says so, and the law at -50 C and D0 each lie within 2.7 of their stated
-    errors on every axis (with it: law y 2.44, D0 y 1.75).  Without the widening this
-    seed's law y is 2.97 of its band off at -50 C (verification section h-comp): the
-    test fails for that cause; 2.7 sits between the two.  The truth is the forward
+    errors on every axis (with it: law y 2.44, D0 y 1.75).  Without the widening
+    (`LAW_D0_SPLIT_WIDENING` = 0) this seed's law y is 2.98 of its band off at -50 C
+    (verification section h-comp): the test fails for that cause (checked); 2.7 sits
+    between the two.  The truth is the forward
     model's Table 2 and 3, the law at -50 C in closed form (eq. 3a, below every break)."""
     import functools
 
