@@ -189,6 +189,8 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
     (26, 100, False, False),    # just above: the hard cruise's 0.27-0.33 (entry 49)
     (130, 400, False, False),
     (130, 400, True, True),     # the split stated (entry 3x-comp): advised again
+    (133, 400, True, True),     # up to a third
+    (134, 400, True, False),    # above it (the 7-% cruise's 0.48-0.50): not
 ])
 def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
         fitted, n_comp, judged, split, own_advised):
@@ -218,7 +220,7 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
     else:  # only the start table's value, and why not the fit's own
         assert advised == ["z"], advised
         assert (f"not this fit's own value: {n_comp} of {judged} intervals compressive, "
-                "above 25%") in str(info.value)
+                f"above {'33' if split else '25'}%") in str(info.value)
 
 
 def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
