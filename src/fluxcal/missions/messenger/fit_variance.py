@@ -130,8 +130,9 @@ D0_FIELD_BIAS_SIGMA = 0.5
 #: + D0 R`` but not its split, and the bootstrap states the split short (law and D0 pulls
 #: of opposite sign up to 2.9-3.0 on one axis, 5-%-compressive hard cruise at 4-8 days).
 #: 1.0 doubles that part's variance: on 23 saved 4-16-day cruise fits (5 and 7 %
-#: compressive) it takes the pulls' spread 1.12 / 1.01 (law / D0) to 0.95 / 0.78, the
-#: largest within 0.7-1.5 (docs/decisions/messenger_fit.md entry 3x-comp).
+#: compressive) it takes the pulls' spread 1.12 / 1.01 (law / D0) to 0.95 / 0.78: the
+#: largest value that keeps both within 0.7-1.5 (docs/decisions/messenger_fit.md entry
+#: 3x-comp).
 LAW_D0_SPLIT_WIDENING = 1.0
 
 
