@@ -183,17 +183,22 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
     assert parse_hold_d0(advised[1]) == {"z": (None, None)}
 
 
-@pytest.mark.parametrize("n_comp, judged, own_advised", [
-    (0, 0, True),        # nothing judged: no share to judge by
-    (25, 100, True),     # exactly 25 %: the orbit's shares (0.20-0.24) stay advised
-    (26, 100, False),    # just above: the hard cruise's 0.27-0.33 (entry 49)
-    (130, 400, False),
+@pytest.mark.parametrize("n_comp, judged, split, own_advised", [
+    (0, 0, False, True),        # nothing judged: no share to judge by
+    (25, 100, False, True),     # exactly 25 %: the orbit's shares (0.20-0.24) stay advised
+    (26, 100, False, False),    # just above: the hard cruise's 0.27-0.33 (entry 49)
+    (130, 400, False, False),
+    (130, 400, True, True),     # the split stated (entry 3x-comp): advised again
+    (133, 400, True, True),     # up to a third
+    (134, 400, True, False),    # above it (the 7-% cruise's 0.48-0.50): not
 ])
 def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
-        fitted, n_comp, judged, own_advised):
+        fitted, n_comp, judged, split, own_advised):
     # entry 49: above 25 % compressive intervals the fitted D0 along the field is not
     # covered by its stated error (8-day cruise seed 3600: its own-value hold written,
-    # the held D0 z 2.84 widths off), so only the start table's hold is advised
+    # the held D0 z 2.84 widths off), so only the start table's hold is advised; unless
+    # the fit widened its D0 and law along their trade-off (`fit_variance.
+    # widen_law_d0_split`, entry 3x-comp: that table's held z then 2.15 widths off)
     res = fitted[1]
     duty = list(res.duty)
     duty[2] = dataclasses.replace(res.duty[2], slope_err=0.08 * abs(res.duty[2].slope))
@@ -201,7 +206,11 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
                       + ["too_few_samples"] * 7, dtype="<U24")
     variance = _Moments(1000, 1.0)  # 1 ppt rms: the D0 goal binds (its cost < 0.001 nT)
     variance.reason = reason
-    case = dataclasses.replace(res, duty=duty, variance=variance)
+    field = {**(res.d0_field or {}),
+             **({"law_d0_split": {"rho": [-0.9, -0.9, -0.9],
+                                  "added_counts_per_ppt": [1e-3, 1e-3, 1e-3]}}
+                if split else {})}
+    case = dataclasses.replace(res, duty=duty, variance=variance, d0_field=field)
     with pytest.raises(FitRefusedError, match=r"D0 z = .*\(8\.0%, .*; entry 38\)") as info:
         check_fit(case)
     advised = re.findall(r"--hold-d0 (\S+?)[ :]", str(info.value))
@@ -211,7 +220,7 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
     else:  # only the start table's value, and why not the fit's own
         assert advised == ["z"], advised
         assert (f"not this fit's own value: {n_comp} of {judged} intervals compressive, "
-                "above 25%") in str(info.value)
+                f"above {'33' if split else '25'}%") in str(info.value)
 
 
 def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):

@@ -1040,6 +1040,14 @@ def fit_variance_calibration(
         b_d0[:, AXES.index(a)] = drawn[:, AXES.index(a)]
     for a in upper:  # the held slope change and break keep their draws too
         b_law[:, AXES.index(a), 2:] = drawn_law[:, AXES.index(a), 2:]
+    # in a compressive wind the law at -50 C and D0 are pinned as their sum, not apart:
+    # the split's share of their error drawn once more (entry 3x-comp)
+    split: dict[str, Any] = {}
+    if fit_merit.compressive_wind(*fit_merit.compressive_share(vstats.reason)):
+        b_law, b_d0, split = fv.widen_law_d0_split(
+            b_law, b_d0, float(base.constants["relaxation"].get("reference_temperature_c",
+                                                                  -50.0)),
+            np.array([a not in held for a in AXES]), np.array([a not in upper for a in AXES]))
     # D0's error along the field's mean direction that no resample sees (entry 28)
     direction, balance = fv.d0_field_balance(vstats)
     b_d0, along, added = fv.widen_d0_along_field(
@@ -1094,7 +1102,8 @@ def fit_variance_calibration(
                      break_shift=np.asarray(sol.break_shift, dtype=float),
                      waveform_error=waveform_error,
                      d0_field={"direction": direction.tolist(), "balance": balance,
-                               "along_nt_per_ppt": along, "added_nt_per_ppt": added})
+                               "along_nt_per_ppt": along, "added_nt_per_ppt": added,
+                               **({"law_d0_split": split} if split else {})})
 
 
 # ---------------------------------------------------------------------------------------

@@ -98,8 +98,9 @@ from fluxcal.missions.messenger.fit_reduce import TAU_STEP, inside_intervals
 
 __all__ = ["MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C", "TEMPERATURE_EDGES_C",
            "VarianceSettings", "VarianceStatistics", "apply_step", "apply_steps",
-           "d0_field_balance", "law_values", "offset_moments", "profile_break_errors",
-           "reduce_variance", "resampling_units", "solve_variance", "widen_d0_along_field"]
+           "LAW_D0_SPLIT_WIDENING", "d0_field_balance", "law_values", "offset_moments",
+           "profile_break_errors", "reduce_variance", "resampling_units", "solve_variance",
+           "widen_d0_along_field", "widen_law_d0_split"]
 
 #: Step of dt (s) for the derivative of the relaxed duty cycle in dt.
 DELAY_STEP_S = 1.0
@@ -126,6 +127,18 @@ MAX_GROUP = 6
 #: waveforms' error (docs/decisions/messenger_fit.md entry 28); 0.5 since it does not
 #: (entry 31: Mercury orbit, 4 days, 12 realisations, +0.08 +- 0.21 at b 0.92-0.94).
 D0_FIELD_BIAS_SIGMA = 0.5
+#: In a wind with more than `fit_merit.ADVICE_MAX_COMPRESSIVE_SHARE` of its intervals
+#: compressive, the part of each D0 axis's resampled error that trades with the law at the
+#: regulated temperature (``|rho|`` of it, ``rho`` their correlation over the resamples) is
+#: drawn once more, independently, with the law following it along the resamples' own
+#: trade-off (`widen_law_d0_split`): there the heater-on samples pin the sum ``cT(-50 C)
+#: + D0 R`` but not its split, and the bootstrap states the split short (law and D0 pulls
+#: of opposite sign up to 2.9-3.0 on one axis, 5-%-compressive hard cruise at 4-8 days).
+#: 1.0 doubles that part's variance: on 23 saved 4-16-day cruise fits (5 and 7 %
+#: compressive) it takes the pulls' spread 1.12 / 1.01 (law / D0) to 0.95 / 0.78: the
+#: largest value that keeps both within 0.7-1.5 (docs/decisions/messenger_fit.md entry
+#: 3x-comp).
+LAW_D0_SPLIT_WIDENING = 1.0
 
 
 @dataclass(frozen=True)
@@ -823,6 +836,77 @@ def widen_d0_along_field(b_d0: np.ndarray, d0: np.ndarray, matrix: np.ndarray,
     draws = np.random.default_rng(seed).standard_normal(b_d0.shape[0])
     draws *= added / max(float(np.std(draws)), 1e-12)  # exactly the stated spread
     return b_d0 + draws[:, None] * step[None, :], along, added
+
+
+def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
+                       free: np.ndarray, law_free: np.ndarray, seed: int = 35
+                       ) -> tuple[np.ndarray, np.ndarray, dict[str, list[float]]]:
+    """Widen each D0 axis and the law at ``t_ref`` along the split the data cannot make.
+
+    Per axis ``j`` whose D0 is ``free``: ``s`` the resamples' D0 about their mean,
+    ``L`` their law at ``t_ref`` (the regulated temperature, eq. 2), ``rho`` the
+    correlation of ``L`` and ``s`` and ``beta`` the law's parameters ``(a, b, c)``
+    regressed on ``s`` over the resamples (``c`` only where ``law_free``: a held upper
+    segment keeps its draws; ``T_m`` never).  Each resample's D0 moves by a draw ``eta``
+    of standard deviation ``LAW_D0_SPLIT_WIDENING x |rho| x sd(s)`` and its law by
+    ``beta x eta``: the sum ``L + R D0`` that the heater-on samples pin keeps its spread
+    where the trade-off is the sum's (``beta`` at ``t_ref``, ``beta_L = cov(L, s) /
+    var(s)``, equal to ``-R``; otherwise its variance grows by ``(beta_L + R)^2`` times
+    the draws'), while D0 and the law at ``t_ref`` apart widen by ``sqrt(1 + (lambda
+    rho)^2)`` and ``sqrt(1 + lambda^2 rho^4)`` (``lambda`` = `LAW_D0_SPLIT_WIDENING`).
+    The draws are made orthogonal (over the resamples) to ``1``, ``s`` and ``L``, and
+    scaled to exactly that spread, so that these hold exactly below every break.
+    docs/decisions/messenger_fit.md entry 3x-comp.
+
+    Parameters
+    ----------
+    b_law : ndarray, shape (n, 3, 4)
+        Resampled laws ``(a, b, c, T_m)`` per axis.
+    b_d0 : ndarray, shape (n, 3)
+        Resampled D0 (counts/ppt).
+    t_ref : float
+        The regulated temperature (C).
+    free : ndarray of bool, shape (3,)
+        Axes whose D0 is fitted (a held axis keeps its draws: they are the user's).
+    law_free : ndarray of bool, shape (3,)
+        Axes whose upper segment is fitted.
+    seed : int
+
+    Returns
+    -------
+    b_law, b_d0 : ndarray
+    added : dict
+        ``rho`` and ``added_counts_per_ppt`` (the draws' standard deviation) per axis
+        (0 where nothing was added).
+
+    References
+    ----------
+    .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2-5 (the law, D0 R).
+    """
+    b_law = np.array(b_law, dtype=float)
+    b_d0 = np.array(b_d0, dtype=float)
+    n = b_d0.shape[0]
+    draws = np.random.default_rng(seed).standard_normal((n, 3))
+    at_ref = law_values(b_law, np.array([float(t_ref)]))[:, 0, :]               # (n, 3)
+    rho, added = np.zeros(3), np.zeros(3)
+    for j in range(3):
+        s = b_d0[:, j] - b_d0[:, j].mean()
+        el = at_ref[:, j] - at_ref[:, j].mean()
+        var = float(np.mean(s ** 2))
+        if not free[j] or n < 4 or np.ptp(b_d0[:, j]) == 0.0 or np.ptp(at_ref[:, j]) == 0.0:
+            continue
+        rho[j] = float(np.mean(s * el) / np.sqrt(var * np.mean(el ** 2)))
+        beta = (s[:, None] * (b_law[:, j, :] - b_law[:, j, :].mean(axis=0))).mean(axis=0) / var
+        beta[3] = 0.0
+        if not law_free[j]:
+            beta[2] = 0.0
+        x = np.column_stack([np.ones(n), s, el])
+        eta = draws[:, j] - x @ np.linalg.lstsq(x, draws[:, j], rcond=None)[0]
+        added[j] = LAW_D0_SPLIT_WIDENING * abs(rho[j]) * np.sqrt(var)
+        eta *= added[j] / max(float(np.sqrt(np.mean(eta ** 2))), 1e-300)
+        b_d0[:, j] += eta
+        b_law[:, j, :] += eta[:, None] * beta[None, :]
+    return b_law, b_d0, {"rho": rho.tolist(), "added_counts_per_ppt": added.tolist()}
 
 
 def law_to_table(law: np.ndarray) -> np.ndarray:

@@ -176,11 +176,23 @@ def _next_version(base_folder: Path, name: str, current: int) -> int:
 
 
 def d0_field_lines(result: FitResult) -> list[str]:
-    """Header lines: D0's error along the field's mean direction (entry 28), if added."""
+    """Header lines: D0's error along the field's mean direction (entry 28), if added.
+
+    And the law-D0 split's widening in a compressive wind (entry 3x-comp), if made.
+    """
     f = result.d0_field
-    if not f or not f.get("added_nt_per_ppt"):
+    if not f:
         return []
-    return [f"D0 errors include {f['added_nt_per_ppt']:.3g} nT/ppt along the field's mean "
+    split = f.get("law_d0_split") or {}
+    lines = [] if not split else [
+        "compressive wind: D0 errors include "
+        + " / ".join(f"{x:.3g}" for x in split["added_counts_per_ppt"])
+        + " counts/ppt (x / y / z) traded with the law at -50 C (their resamples' correlation "
+        + " / ".join(f"{x:+.2f}" for x in split["rho"])
+        + "), drawn once more: the data pin cT(-50 C) + D0 R, not its split (decision 3x-comp)"]
+    if not f.get("added_nt_per_ppt"):
+        return lines
+    return lines + [f"D0 errors include {f['added_nt_per_ppt']:.3g} nT/ppt along the field's mean "
             f"direction ({' '.join(f'{x:+.3f}' for x in f['direction'])}, sensor axes; "
             f"one-sided {f['balance']:.2f}) added to the bootstrap's {f['along_nt_per_ppt']:.3g}"
             ": the measured bias of D0 there, which no resample sees (decision 28)"]
