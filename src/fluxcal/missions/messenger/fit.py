@@ -1499,12 +1499,20 @@ def fit_days(
             progress(f"pass {p + 1}/{passes}: reducing days", p * len(chunks) + i, total)
 
     if scheduler == "serial":
-        def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[DayStatistics]:
+        def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[Any]:
+            start = time.perf_counter()
             out = []
             for i, chunk in enumerate(chunks):
                 out.append(reduce_chunk(chunk, c, intervals, s, hashing, estimator))
                 tick(p, i + 1)
-            return out
+            reduced = time.perf_counter()
+            merged = _merge_all(out)  # run's own _merge_all of one part returns it as is
+            _log.debug("pass %d: %d chunks reduced here in %.3f s, merged in %.3f s",
+                       p + 1, len(chunks), reduced - start, time.perf_counter() - reduced,
+                       extra={"fit_timing": {"pass": p + 1, "start": start,
+                                             "reduced": reduced,
+                                             "gathered": time.perf_counter()}})
+            return [merged]
 
         try:
             return run(serial)
