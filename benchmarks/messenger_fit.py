@@ -53,6 +53,8 @@ from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight 
 
 START = dt.date(2010, 3, 1)
 FIT_LOGGER = "fluxcal.missions.messenger.fit"
+#: Seconds for the workers' heartbeats to report their task metrics to the scheduler.
+HEARTBEAT_S = 2.0
 
 
 class _Timings(logging.Handler):
@@ -103,16 +105,46 @@ def _split(t0: float, t1: float, passes: list[dict[str, float]]) -> dict[str, An
             "serial_s": setup + sum(gather_s) + sum(client_s), "parallel_s": sum(reduce_s)}
 
 
-def _serial_parts(t0: float, t1: float, passes: list[dict[str, float]]) -> dict[str, Any]:
+def _cpu(passes: list[dict[str, float]], cpu1: float) -> dict[str, list[float]]:
+    """This process's CPU seconds per pass: before and after ``reduced``, then its client.
+
+    ``cpu1``: ``time.process_time()`` at the end of `run_fit`.
+    """
+    ends = [p["start_cpu"] for p in passes[1:]] + [cpu1]
+    return {"reduce_cpu_s": [p["reduced_cpu"] - p["start_cpu"] for p in passes],
+            "gather_cpu_s": [p["gathered_cpu"] - p["reduced_cpu"] for p in passes],
+            "client_cpu_s": [e - p["gathered_cpu"] for p, e in zip(passes, ends, strict=True)]}
+
+
+def _serial_parts(t0: float, t1: float, cpu1: float,
+                  passes: list[dict[str, float]]) -> dict[str, Any]:
     """The serial run's time split per pass: reduce the days, merge them, client fit.
 
     From the same ``fit_timing`` records `fit.fit_days` logs serially (``reduced``: every
     day reduced, ``gathered``: merged); the client's part runs to the next pass's start
     (the last one to the end of `run_fit`: the figure of merit, the folder, the pictures).
+    Wall seconds, and CPU seconds (``*_cpu_s``; on a shared host the wall includes waits
+    for a core).
     """
     split = _split(t0, t1, passes)
+    cpu = _cpu(passes, cpu1)
     return {"setup_s": split["setup_s"], "reduce_s": split["reduce_s"],
-            "merge_s": split["gather_s"], "client_s": split["client_s"]}
+            "merge_s": split["gather_s"], "client_s": split["client_s"],
+            "reduce_cpu_s": cpu["reduce_cpu_s"], "merge_cpu_s": cpu["gather_cpu_s"],
+            "client_cpu_s": cpu["client_cpu_s"]}
+
+
+def _worker_metrics(client) -> dict[str, float]:
+    """The workers' cumulative CPU and non-CPU (waiting for a core) seconds per task name.
+
+    Dask's fine performance metrics, as the workers' heartbeats last reported them.
+    """
+    def read(dask_scheduler):
+        return {f"{k[1]}:{k[2]}": v for k, v in dask_scheduler.cumulative_worker_metrics.items()
+                if isinstance(k, tuple) and len(k) == 4 and k[0] == "execute"
+                and k[2] in ("thread-cpu", "thread-noncpu")}
+
+    return client.run_on_scheduler(read)
 
 
 def _tasks(records: list[dict[str, Any]], offset: float) -> list[dict[str, Any]]:
@@ -213,7 +245,8 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
         cpu, s0 = time.process_time(), time.perf_counter()
         serial, outcome = _fit(run, passes, "serial", n_workers, work / label / "fit_serial",
                                estimator)
-        serial_cpu, s1 = time.process_time() - cpu, time.perf_counter()
+        s1, s1_cpu = time.perf_counter(), time.process_time()
+        serial_cpu = s1_cpu - cpu
     finally:
         log.removeHandler(serial_timing)
     handler = _Timings()
@@ -221,19 +254,26 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
     try:
         # the workers' task stream (the scheduler's record of every task's compute and
         # transfers) during the Dask fit: what of its reduce the workers spent computing
-        with Client(cluster) as watcher, get_task_stream(client=watcher) as stream:
-            t0 = time.perf_counter()
-            parallel, outcome_p = _fit(run, passes, address, n_workers,
-                                       work / label / "fit_parallel", estimator)
-            t1 = time.perf_counter()
-            offset = time.time() - time.perf_counter()
+        with Client(cluster) as watcher:
+            time.sleep(HEARTBEAT_S)
+            before = _worker_metrics(watcher)
+            with get_task_stream(client=watcher) as stream:
+                t0 = time.perf_counter()
+                parallel, outcome_p = _fit(run, passes, address, n_workers,
+                                           work / label / "fit_parallel", estimator)
+                t1, cpu1 = time.perf_counter(), time.process_time()
+                offset = time.time() - time.perf_counter()
+            time.sleep(HEARTBEAT_S)
+            after = _worker_metrics(watcher)
     finally:
         log.removeHandler(handler)
         log.setLevel(logging.NOTSET)
     ctrl = control(cluster, 2 * n_workers)
     split = _split(t0, t1, handler.passes)
-    serial_parts = _serial_parts(s0, s1, serial_timing.passes)
+    serial_parts = _serial_parts(s0, s1, s1_cpu, serial_timing.passes)
     dask_parts = _dask_parts(t1, handler.passes, _tasks(stream.data, offset), n_workers)
+    dask_cpu = _cpu(handler.passes, cpu1)
+    worker_cpu = {k: after[k] - before.get(k, 0.0) for k in after}
     f = min(split["serial_s"] / serial, 1.0)
     speed_up = serial / parallel
     print(f"{label}: {days} day(s), {n:,} samples, estimator {estimator}, at most {passes} "
@@ -265,6 +305,17 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
                 f"({d['resamples']} {d['resample_compute_s']:.3f}, "
                 f"{d['resample_union_s']:.3f})")
         print(f"      pass {p + 1}: {r:.3f} / {m:.3f} / {c:.3f}{dask}")
+    print("    CPU s per pass: serial reduce / merge / client | Dask client process during "
+          "the reduce / gather / its fit: "
+          + "; ".join(f"{a:.2f} / {b:.2f} / {c:.2f} | {d:.2f} / {e:.2f} / {g:.2f}"
+                      for a, b, c, d, e, g in zip(
+                          serial_parts["reduce_cpu_s"], serial_parts["merge_cpu_s"],
+                          serial_parts["client_cpu_s"], dask_cpu["reduce_cpu_s"],
+                          dask_cpu["gather_cpu_s"], dask_cpu["client_cpu_s"], strict=False)))
+    print("    workers' task seconds (CPU / waiting for a core): " + ", ".join(
+        f"{name} {worker_cpu.get(name + ':thread-cpu', 0.0):.2f} / "
+        f"{worker_cpu.get(name + ':thread-noncpu', 0.0):.2f}"
+        for name in ("reduce_chunk", "merge_parts", "resample_fits")))
     print(f"  speed-up serial/parallel: {speed_up:.2f}x (ideal {n_workers}x; load average "
           f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores)")
     print(f"  control: a pure-CPU task reaches {ctrl:.2f}x on this cluster right now (the "
@@ -277,6 +328,7 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
             "control": ctrl, "ratio_to_control": speed_up / ctrl, "serial_share": f,
             "amdahl_workers": _amdahl(f, n_workers), "amdahl_control": _amdahl(f, ctrl),
             "split": split, "serial_parts": serial_parts, "dask_parts": dask_parts,
+            "dask_client_cpu": dask_cpu, "worker_cpu": worker_cpu,
             "outcome": outcome, "outcome_parallel": outcome_p,
             "cpu_count": os.cpu_count(), "load_average": os.getloadavg()[0]}
 
