@@ -316,6 +316,14 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
         f"{name} {worker_cpu.get(name + ':thread-cpu', 0.0):.2f} / "
         f"{worker_cpu.get(name + ':thread-noncpu', 0.0):.2f}"
         for name in ("reduce_chunk", "merge_parts", "resample_fits")))
+    day_serial = sum(serial_parts["reduce_s"]) / max(days * len(serial_parts["reduce_s"]), 1)
+    day_dask = [t for p in dask_parts for t in p["day_s"]]
+    if day_dask:
+        per_day = sum(day_dask) / len(day_dask)
+        slow = per_day / day_serial
+        print(f"    one day's reduce: {day_serial:.3f} s serially, {per_day:.3f} s on a worker "
+              f"({slow:.2f}x; the control's task {n_workers / ctrl:.2f}x: the reduce slows "
+              f"{slow * ctrl / n_workers:.2f}x as much when the workers run together)")
     print(f"  speed-up serial/parallel: {speed_up:.2f}x (ideal {n_workers}x; load average "
           f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores)")
     print(f"  control: a pure-CPU task reaches {ctrl:.2f}x on this cluster right now (the "

@@ -58,6 +58,8 @@ DEVICE = (("issue 34 (eabefb7)", 64, 16, 8.20, 13.54), ("fit_scaling S6", 64, 16
 TARGET = 0.8
 #: The model's parts taken from the 1-worker runs (`parts`).
 PARTS = ("w", "w_workers", "m", "m_workers", "s", "s_own", "b", "z", "o_rs", "setup")
+#: The parts in CPU seconds (the rest are wall seconds or counts).
+CPU_PARTS = ("w", "w_workers", "m", "m_workers", "s", "s_own", "b", "z")
 #: Parts per day or per call, which do not grow with the days.
 PER_DAY = ("w", "w_workers", "o_rs", "setup")
 
@@ -172,12 +174,25 @@ def _linear(runs: list[dict[str, float]], key: str, days: float) -> float:
     return float(icpt + slope * days)
 
 
+def _common_speed(runs: list[dict[str, float]]) -> list[dict[str, float]]:
+    """The runs' CPU parts at one per-core speed: each scaled by the median ``w`` / its own.
+
+    On a shared host a core's CPU second does less work when its sibling is busy (the
+    same reduce took 0.37-0.59 CPU s per day); the parts of one run share its
+    contention, so their ratios to its own day's reduce are steadier than the parts.
+    """
+    ref = _median([q["w"] for q in runs])
+    return [{**q, **{k: q[k] * ref / q["w"] for k in CPU_PARTS}} for q in runs]
+
+
 def project(runs: list[dict[str, float]], days: int, workers: int, control: float,
-            rng: np.random.Generator, n_boot: int) -> dict[str, Any]:
+            rng: np.random.Generator, n_boot: int,
+            day_spread: float | None = None) -> dict[str, Any]:
     """The model at (days, workers, control) from the 1-worker runs, resampled."""
     ones = [q for q in runs if q["workers"] == 1]
 
     def once(sample: list[dict[str, float]]) -> tuple[float, float, dict, dict]:
+        sample = _common_speed(sample)
         same = [q for q in sample if q["days"] == days]
         if same:  # measured at these days: only the workers and the control modelled
             at = {k: _median([q[k] for q in same]) for k in PARTS}
@@ -186,7 +201,8 @@ def project(runs: list[dict[str, float]], days: int, workers: int, control: floa
                       else _linear(sample, k, days)) for k in PARTS}
         at["passes"] = round(_median([q["passes"] for q in same or sample]))
         fixed, gap = _latencies(sample)
-        spread = _median([q["day_spread"] for q in sample])
+        spread = (_median([q["day_spread"] for q in sample]) if day_spread is None
+                  else day_spread)
         extra = imbalance(days, workers, spread, rng, draws=100)
         t1, tn, dp = model(at, days, workers, control, gap, fixed, extra)
         return t1, tn, dp, at
@@ -221,6 +237,9 @@ def main() -> None:
                     help="DAYS:WORKERS:CONTROL to project to (repeatable; default "
                     "64:16:13.54 and 64:16:9.92, the devices' controls)")
     ap.add_argument("--boot", type=int, default=200, help="resamples of the runs (200)")
+    ap.add_argument("--day-spread", type=float, default=None,
+                    help="the days' relative spread for the projection's uneven days "
+                    "(default: the runs' own, which a shared host inflates)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = ap.parse_args()
@@ -267,8 +286,9 @@ def main() -> None:
     print(f"  {'run':18s} {'vectors/s serial':>16s} {'Dask':>10s} {'control':>8s} "
           f"{'speed-up':>8s} {'ratio':>6s} {'model':>6s} {'model ratio':>11s}")
     checks = []
+    ones_common = _common_speed(ones)
     for q in sorted(runs, key=lambda q: (q["days"], q["workers"], q["file"])):
-        same = [o for o in ones if o["days"] == q["days"]] or ones
+        same = [o for o in ones_common if o["days"] == q["days"]] or ones_common
         at = {k: _median([o[k] for o in same]) for k in PARTS}
         at["passes"] = q["passes"]
         extra = imbalance(q["days"], q["workers"], _median([o["day_spread"] for o in same]),
@@ -284,12 +304,27 @@ def main() -> None:
               f"{measured:7.2f}x {measured / q['control']:6.0%} {predicted:5.2f}x "
               f"{predicted / q['control']:11.0%}")
     out["checks"] = checks
+    print("  per days and workers, medians (a single control measurement scatters: at 1 "
+          "worker it is 1 by construction):")
+    for d, n in sorted({(c["days"], c["workers"]) for c in checks}):
+        at = [c for c in checks if (c["days"], c["workers"]) == (d, n)]
+        su, ctrl = _median([c["speed_up"] for c in at]), _median([c["control"] for c in at])
+        same = [o for o in ones_common if o["days"] == d] or ones_common
+        p = {k: _median([o[k] for o in same]) for k in PARTS}
+        p["passes"] = round(_median([o["passes"] for o in same]))
+        extra = imbalance(d, n, _median([o["day_spread"] for o in same]), rng, draws=200)
+        c_model = 1.0 if n == 1 else ctrl
+        t1, tn, _ = model(p, d, n, c_model, gap, fixed, extra)
+        print(f"    {d} days x {n}: {len(at)} runs, speed-up {su:.2f}x "
+              f"({min(c['speed_up'] for c in at):.2f}-{max(c['speed_up'] for c in at):.2f}), "
+              f"control {ctrl:.2f}x, ratio {su / ctrl:.0%}; model at a control of "
+              f"{c_model:.2f}x: {t1 / tn:.2f}x, {t1 / tn / c_model:.0%}")
 
     targets = ([tuple(float(v) for v in t.split(":")) for t in args.project]
                if args.project else [(64, 16, 13.54), (64, 16, 9.92)])
     out["projections"] = []
     for days, workers, ctrl in targets:
-        pr = project(runs, int(days), int(workers), ctrl, rng, args.boot)
+        pr = project(runs, int(days), int(workers), ctrl, rng, args.boot, args.day_spread)
         pr.update({"days": int(days), "workers": int(workers), "control": ctrl})
         out["projections"].append(pr)
         print(f"\nProjection: {int(days)} days on {int(workers)} workers at a control of "
