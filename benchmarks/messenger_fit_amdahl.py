@@ -174,6 +174,23 @@ def _linear(runs: list[dict[str, float]], key: str, days: float) -> float:
     return float(icpt + slope * days)
 
 
+def parts_at(runs: list[dict[str, float]], days: int) -> dict[str, float]:
+    """The model's parts at ``days``: the runs' medians there, else extrapolated.
+
+    Measured at these days, only the workers and the control are modelled; otherwise the
+    parts per day or per call (`PER_DAY`) are the runs' medians and the others lie on a
+    line through the runs' values against the days (a median if the runs have one).
+    """
+    same = [q for q in runs if q["days"] == days]
+    if same:
+        at = {k: _median([q[k] for q in same]) for k in PARTS}
+    else:
+        at = {k: (_median([q[k] for q in runs]) if k in PER_DAY else _linear(runs, k, days))
+              for k in PARTS}
+    at["passes"] = round(_median([q["passes"] for q in same or runs]))
+    return at
+
+
 def _common_speed(runs: list[dict[str, float]]) -> list[dict[str, float]]:
     """The runs' CPU parts at one per-core speed: each scaled by the median ``w`` / its own.
 
@@ -193,13 +210,7 @@ def project(runs: list[dict[str, float]], days: int, workers: int, control: floa
 
     def once(sample: list[dict[str, float]]) -> tuple[float, float, dict, dict]:
         sample = _common_speed(sample)
-        same = [q for q in sample if q["days"] == days]
-        if same:  # measured at these days: only the workers and the control modelled
-            at = {k: _median([q[k] for q in same]) for k in PARTS}
-        else:  # the per-day parts as measured, the others on a line in the days
-            at = {k: (_median([q[k] for q in sample]) if k in PER_DAY
-                      else _linear(sample, k, days)) for k in PARTS}
-        at["passes"] = round(_median([q["passes"] for q in same or sample]))
+        at = parts_at(sample, days)
         fixed, gap = _latencies(sample)
         spread = (_median([q["day_spread"] for q in sample]) if day_spread is None
                   else day_spread)
@@ -288,9 +299,9 @@ def main() -> None:
     checks = []
     ones_common = _common_speed(ones)
     for q in sorted(runs, key=lambda q: (q["days"], q["workers"], q["file"])):
-        same = [o for o in ones_common if o["days"] == q["days"]] or ones_common
-        at = {k: _median([o[k] for o in same]) for k in PARTS}
+        at = parts_at(ones_common, q["days"])
         at["passes"] = q["passes"]
+        same = [o for o in ones_common if o["days"] == q["days"]] or ones_common
         extra = imbalance(q["days"], q["workers"], _median([o["day_spread"] for o in same]),
                           rng, draws=200)
         t1, tn, _ = model(at, q["days"], q["workers"], q["control"], gap, fixed, extra)
@@ -310,8 +321,7 @@ def main() -> None:
         at = [c for c in checks if (c["days"], c["workers"]) == (d, n)]
         su, ctrl = _median([c["speed_up"] for c in at]), _median([c["control"] for c in at])
         same = [o for o in ones_common if o["days"] == d] or ones_common
-        p = {k: _median([o[k] for o in same]) for k in PARTS}
-        p["passes"] = round(_median([o["passes"] for o in same]))
+        p = parts_at(ones_common, d)
         extra = imbalance(d, n, _median([o["day_spread"] for o in same]), rng, draws=200)
         c_model = 1.0 if n == 1 else ctrl
         t1, tn, _ = model(p, d, n, c_model, gap, fixed, extra)
@@ -327,9 +337,10 @@ def main() -> None:
         pr = project(runs, int(days), int(workers), ctrl, rng, args.boot, args.day_spread)
         pr.update({"days": int(days), "workers": int(workers), "control": ctrl})
         out["projections"].append(pr)
+        how = ("measured at these days" if any(q["days"] == int(days) for q in ones)
+               else "extrapolated in the days")
         print(f"\nProjection: {int(days)} days on {int(workers)} workers at a control of "
-              f"{ctrl:.2f}x ({pr['at']['passes']} passes; parts extrapolated linearly in the "
-              "days from the 1-worker runs):")
+              f"{ctrl:.2f}x ({pr['at']['passes']} passes; the 1-worker runs' parts, {how}):")
         print(f"  serial fit {pr['t1']:.2f} CPU s; Dask {pr['tn']:.2f} s: speed-up "
               f"{pr['speed_up']:.2f}x, {pr['ratio']:.0%} of the control "
               f"(resampled runs: {pr['ratio_p10']:.0%}-{pr['ratio_p90']:.0%})")
