@@ -11,16 +11,18 @@ and the rest; see its `_serial_parts` and `_dask_parts`) and states the model of
 docs/decisions/messenger_fit.md entry 3x-amdahl:
 
     serial  T1 = A + P (D w + m + s) + Z
-    Dask    TN = A + P ((D w' + m') / c + O + g (D + D / 3) / N + I(D, N) + s_own + b / c
-                        + o_rs) + Z
+    Dask    TN = A + P ((D w' + (1 - x) m') / c + F + g (D + D / 3) / N + I(D, N) + L
+                        + s_own + b / c + o_rs) + Z
 
 per pass, with ``P`` passes of ``D`` days: ``w`` the reduce of one day and ``m`` the
 merges, serially (``w'``, ``m'`` the same on a worker; both divide by the workers); ``s``
 the client's fit of a pass run serially (its bootstrap resamples ``b`` included);
 ``s_own`` the client's fit on Dask less the resamples (which run on the workers); ``o_rs``
-what sending the resamples to the workers costs per pass; ``O`` the fixed latency of a
-Dask pass (scatter, first task, the merge tree's last levels, the gather); ``g`` the
-scheduling gap per task (about D + D/3 tasks: days and merges of four); ``I`` the uneven
+what sending the resamples to the workers costs per pass; ``F`` the wait for the first
+task (the scatter, the submission); ``L`` the merge tree's tail, from the last day to the
+merged statistics gathered (the merges on that chain, a share ``x`` of ``m'``, and the
+gather: they do not divide); ``g`` the scheduling gap per task (about D + D/3 tasks: days
+and merges of four); ``I`` the uneven
 days (list scheduling of the measured per-day spread, simulated); ``A`` and ``Z`` the
 set-up and the once-per-fit work (column errors, merit, folder, pictures: serial in
 both); ``c`` the pure-CPU control's speed-up on N workers (the parallelism the machine
@@ -57,11 +59,12 @@ import numpy as np
 DEVICE = (("issue 34 (eabefb7)", 64, 16, 8.20, 13.54), ("fit_scaling S6", 64, 16, 8.69, 9.92))
 TARGET = 0.8
 #: The model's parts taken from the 1-worker runs (`parts`).
-PARTS = ("w", "w_workers", "m", "m_workers", "s", "s_own", "b", "z", "o_rs", "setup")
+PARTS = ("w", "w_workers", "m", "m_workers", "s", "s_own", "b", "z", "o_rs", "setup",
+         "first", "gap", "tail")
 #: The parts in CPU seconds (the rest are wall seconds or counts).
 CPU_PARTS = ("w", "w_workers", "m", "m_workers", "s", "s_own", "b", "z")
 #: Parts per day or per call, which do not grow with the days.
-PER_DAY = ("w", "w_workers", "o_rs", "setup")
+PER_DAY = ("w", "w_workers", "o_rs", "setup", "first", "gap")
 
 
 def _median(x: list[float]) -> float:
@@ -95,6 +98,10 @@ def parts(r: dict[str, Any]) -> dict[str, float]:
         "q": _median(dc["reduce_cpu_s"]) + _median(dc["gather_cpu_s"]),
         # wall latencies of the Dask passes
         "idle": _median([p["idle_s"] for p in dp]),
+        # the 1-worker idle less the first task's wait and the tail's own waits, per task
+        "gap": max(0.0, _median([(p["idle_s"] - p["first_task_s"] - p["tail_s"]
+                                  + tail_share(days) * p["merge_compute_s"])
+                                 / (days + p["merges"]) for p in dp])) if dp else 0.0,
         "first": _median([p["first_task_s"] for p in dp]),
         "tail": _median([p["tail_s"] for p in dp]),
         "transfer": _median([p["transfer_s"] for p in dp]),
@@ -109,6 +116,23 @@ def parts(r: dict[str, Any]) -> dict[str, float]:
                                      + sum(s) + sp["setup_s"], 1e-9),
     }
     return out
+
+
+def tail_share(days: int, fan_in: int = 4) -> float:
+    """Share of a pass's merge work on the chain after its last day (`fit._merge_tree`).
+
+    The days merge in consecutive groups of ``fan_in``, level by level; a merge costs in
+    proportion to the days it holds.  After the last day only the last group of each
+    level is left: the days they hold over the days all merges hold.
+    """
+    sizes, chain, total = [1] * days, 0, 0
+    while len(sizes) > 1:
+        groups = [sizes[i:i + fan_in] for i in range(0, len(sizes), fan_in)]
+        merged = [g for g in groups if len(g) > 1]
+        total += sum(sum(g) for g in merged)
+        chain += sum(groups[-1]) if len(groups[-1]) > 1 else 0
+        sizes = [sum(g) for g in groups]
+    return chain / total if total else 0.0
 
 
 def imbalance(days: int, workers: int, spread: float, rng: np.random.Generator,
@@ -134,7 +158,7 @@ def imbalance(days: int, workers: int, spread: float, rng: np.random.Generator,
 
 
 def model(p: dict[str, float], days: int, workers: int, control: float,
-          gap: float, fixed: float, spread_extra: float) -> tuple[float, float, dict]:
+          spread_extra: float) -> tuple[float, float, dict]:
     """(T1, TN, parts of one Dask pass) of the model in the module docstring (CPU s)."""
     passes = p["passes"]
     t1 = p["setup"] + passes * (days * p["w"] + p["m"] + p["s"]) + p["z"]
@@ -142,26 +166,16 @@ def model(p: dict[str, float], days: int, workers: int, control: float,
     dask_pass = {
         "reduce / c": days * p["w"] / control,
         "the days' extra on a worker / c": days * (p["w_workers"] - p["w"]) / control,
-        "merges / c": p["m_workers"] / control, "latency O": fixed,
-        "task gaps g (D + D/3) / N": gap * tasks / workers,
+        "merges / c": (1.0 - tail_share(days)) * p["m_workers"] / control,
+        "first task": p["first"],
+        "task gaps g (D + D/3) / N": p["gap"] * tasks / workers,
+        "merge tree's tail and gather": p["tail"],
         "uneven days I": spread_extra * p["w_workers"],
         "client s_own": p["s_own"], "resamples b / c": p["b"] / control,
         "sending resamples o_rs": max(p["o_rs"], 0.0),
     }
     tn = p["setup"] + passes * sum(dask_pass.values()) + p["z"]
     return t1, tn, dask_pass
-
-
-def _latencies(ones: list[dict[str, float]]) -> tuple[float, float]:
-    """(fixed O, gap g) per pass: the 1-worker runs' idle wall = O + g (D + D/3)."""
-    x = np.array([q["days"] * 4.0 / 3.0 for q in ones])
-    y = np.array([q["idle"] for q in ones])
-    if len(set(x)) < 2:
-        return float(np.median(y)), 0.0
-    g, o = np.polyfit(x, y, 1)
-    if g < 0.0:  # no growth with the tasks within the noise: all of it fixed
-        return float(np.median(y)), 0.0
-    return float(o), float(g)
 
 
 def _linear(runs: list[dict[str, float]], key: str, days: float) -> float:
@@ -211,11 +225,10 @@ def project(runs: list[dict[str, float]], days: int, workers: int, control: floa
     def once(sample: list[dict[str, float]]) -> tuple[float, float, dict, dict]:
         sample = _common_speed(sample)
         at = parts_at(sample, days)
-        fixed, gap = _latencies(sample)
         spread = (_median([q["day_spread"] for q in sample]) if day_spread is None
                   else day_spread)
         extra = imbalance(days, workers, spread, rng, draws=100)
-        t1, tn, dp = model(at, days, workers, control, gap, fixed, extra)
+        t1, tn, dp = model(at, days, workers, control, extra)
         return t1, tn, dp, at
 
     t1, tn, dp, at = once(ones)
@@ -227,7 +240,8 @@ def project(runs: list[dict[str, float]], days: int, workers: int, control: floa
         b1, bn, _, _ = once(sample)
         boot.append(b1 / bn / control)
     serial = at["setup"] + at["passes"] * (at["s_own"] + sum(
-        v for k, v in dp.items() if k in ("latency O", "task gaps g (D + D/3) / N",
+        v for k, v in dp.items() if k in ("first task", "task gaps g (D + D/3) / N",
+                                          "merge tree's tail and gather",
                                           "uneven days I", "sending resamples o_rs"))) \
         + at["z"]
     return {"t1": t1, "tn": tn, "speed_up": t1 / tn, "ratio": t1 / tn / control,
@@ -279,6 +293,7 @@ def main() -> None:
             ("q", "client CPU during the Dask reduce"), ("idle", "Dask reduce idle (wall)"),
             ("first", "  of it to the first task (wall)"),
             ("tail", "  from the last day to the gather (wall)"),
+            ("gap", "  gap per task (wall)"),
             ("o_rs", "sending the resamples (wall)"), ("day_spread", "days' relative spread"),
             ("kappa", "serial wall per CPU s (load)"))
     for d in sorted({q["days"] for q in ones}):
@@ -288,9 +303,6 @@ def main() -> None:
             vals = [q[k] for q in at if np.isfinite(q[k])]
             if vals:
                 print(f"    {label:55s} {_spread(vals)}")
-    fixed, gap = _latencies(ones)
-    print(f"  latency per Dask pass O = {fixed:.3f} s, gap per task g = {gap * 1e3:.1f} ms "
-          "(line through the 1-worker runs' idle wall)")
 
     print("\nEach run: measured against the model from the 1-worker runs' parts at its days "
           "(with its own control and its serial run's wall per CPU s):")
@@ -304,7 +316,7 @@ def main() -> None:
         same = [o for o in ones_common if o["days"] == q["days"]] or ones_common
         extra = imbalance(q["days"], q["workers"], _median([o["day_spread"] for o in same]),
                           rng, draws=200)
-        t1, tn, _ = model(at, q["days"], q["workers"], q["control"], gap, fixed, extra)
+        t1, tn, _ = model(at, q["days"], q["workers"], q["control"], extra)
         measured = q["serial_s"] / q["parallel_s"]
         predicted = t1 / tn
         checks.append({"file": q["file"], "days": q["days"], "workers": q["workers"],
@@ -324,7 +336,7 @@ def main() -> None:
         p = parts_at(ones_common, d)
         extra = imbalance(d, n, _median([o["day_spread"] for o in same]), rng, draws=200)
         c_model = 1.0 if n == 1 else ctrl
-        t1, tn, _ = model(p, d, n, c_model, gap, fixed, extra)
+        t1, tn, _ = model(p, d, n, c_model, extra)
         print(f"    {d} days x {n}: {len(at)} runs, speed-up {su:.2f}x "
               f"({min(c['speed_up'] for c in at):.2f}-{max(c['speed_up'] for c in at):.2f}), "
               f"control {ctrl:.2f}x, ratio {su / ctrl:.0%}; model at a control of "

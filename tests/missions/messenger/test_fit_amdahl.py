@@ -99,18 +99,36 @@ def test_dask_parts_from_the_task_stream(fit_bench):
 
 def _params(**over):
     p = {"passes": 3, "w": 0.5, "w_workers": 0.5, "m": 0.05, "m_workers": 0.05,
-         "s": 0.4, "s_own": 0.4, "b": 0.0, "z": 0.2, "o_rs": 0.0, "setup": 0.1}
+         "s": 0.4, "s_own": 0.4, "b": 0.0, "z": 0.2, "o_rs": 0.0, "setup": 0.1,
+         "first": 0.0, "gap": 0.0, "tail": 0.0}
     p.update(over)
     return p
 
 
+def test_tail_share_by_hand(amdahl):
+    """The merges left after the last day, counted on the tree of groups of four."""
+    assert amdahl.tail_share(1) == 0.0  # nothing to merge
+    assert amdahl.tail_share(4) == 1.0  # one merge, after the last day
+    # 5 days: (1+1+1+1) then (4+1); day 5 waits only for the second: 5 of 4 + 5
+    assert amdahl.tail_share(5) == pytest.approx(5 / 9, abs=1e-15)
+    # 8 days: 4 + 4, then 8; the last group of four and the top: 4 + 8 of 16
+    assert amdahl.tail_share(8) == pytest.approx(12 / 16, abs=1e-15)
+    # 64 days: levels of 64, 64 and 64 days merged; the chain holds 4 + 16 + 64
+    assert amdahl.tail_share(64) == pytest.approx(84 / 192, abs=1e-15)
+
+
 @pytest.mark.parametrize("control", [1.0, 1.9, 13.54])
 def test_model_without_overheads_is_amdahl(amdahl, control):
-    """No latency, gaps, uneven days or resamples: Amdahl's law with the serial share."""
-    p, days = _params(), 64
-    t1, tn, _ = amdahl.model(p, days, 16, control, gap=0.0, fixed=0.0, spread_extra=0.0)
-    serial = 0.1 + 3 * 0.4 + 0.2
-    parallel = 3 * (64 * 0.5 + 0.05)
+    """No waits, gaps, uneven days or resamples: Amdahl's law with the serial share.
+
+    The merges on the chain after the last day (84 of 192 day-merges at 64 days, as
+    worked out in `test_tail_share_by_hand`) are the merge tree's tail: serial.
+    """
+    chain = 84 / 192 * 0.05
+    p, days = _params(tail=chain), 64
+    t1, tn, _ = amdahl.model(p, days, 16, control, spread_extra=0.0)
+    serial = 0.1 + 3 * (0.4 + chain) + 0.2
+    parallel = 3 * (64 * 0.5 + 0.05 - chain)
     f = serial / (serial + parallel)
     assert t1 == pytest.approx(serial + parallel, rel=1e-12)
     assert t1 / tn == pytest.approx(1.0 / (f + (1.0 - f) / control), rel=1e-12)
@@ -118,12 +136,12 @@ def test_model_without_overheads_is_amdahl(amdahl, control):
 
 def test_model_overheads_add_per_pass(amdahl):
     """Each overhead enters every pass once; the resamples divide by the control."""
-    p = _params(w_workers=0.6, m_workers=0.08, s_own=0.3, b=0.2, o_rs=0.05)
+    p = _params(w_workers=0.6, m_workers=0.08, s_own=0.3, b=0.2, o_rs=0.05, first=0.04,
+                gap=0.003, tail=0.07)
     days, workers, control = 8, 4, 3.0
-    t1, tn, parts = amdahl.model(p, days, workers, control, gap=0.003, fixed=0.04,
-                                 spread_extra=0.5)
-    per_pass = (8 * 0.6 + 0.08) / 3.0 + 0.04 + 0.003 * (8 + 8 / 3) / 4 + 0.5 * 0.6 \
-        + 0.3 + 0.2 / 3.0 + 0.05
+    t1, tn, parts = amdahl.model(p, days, workers, control, spread_extra=0.5)
+    per_pass = (8 * 0.6 + (1 - 12 / 16) * 0.08) / 3.0 + 0.04 + 0.003 * (8 + 8 / 3) / 4 \
+        + 0.5 * 0.6 + 0.07 + 0.3 + 0.2 / 3.0 + 0.05
     assert sum(parts.values()) == pytest.approx(per_pass, rel=1e-12)
     assert tn == pytest.approx(0.1 + 3 * per_pass + 0.2, rel=1e-12)
     assert t1 == pytest.approx(0.1 + 3 * (8 * 0.5 + 0.05 + 0.4) + 0.2, rel=1e-12)
