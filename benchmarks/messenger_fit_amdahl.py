@@ -325,7 +325,7 @@ def main() -> None:
 
     print("\nEach run: measured against the model from the 1-worker runs' parts at its days "
           "(with its own control and its serial run's wall per CPU s):")
-    print(f"  {'run':18s} {'vectors/s serial':>16s} {'Dask':>10s} {'control':>8s} "
+    print(f"  {'run':28s} {'vectors/s serial':>16s} {'Dask':>10s} {'control':>8s} "
           f"{'speed-up':>8s} {'ratio':>6s} {'model':>6s} {'model ratio':>11s}")
     checks = []
     ones_common = _common_speed(ones)
@@ -341,7 +341,7 @@ def main() -> None:
         checks.append({"file": q["file"], "days": q["days"], "workers": q["workers"],
                        "control": q["control"], "speed_up": measured,
                        "model_speed_up": predicted})
-        print(f"  {q['file']:18s} {q['samples'] / q['serial_s']:16,.0f} "
+        print(f"  {q['file']:28s} {q['samples'] / q['serial_s']:16,.0f} "
               f"{q['samples'] / q['parallel_s']:10,.0f} {q['control']:7.2f}x "
               f"{measured:7.2f}x {measured / q['control']:6.0%} {predicted:5.2f}x "
               f"{predicted / q['control']:11.0%}")
@@ -372,9 +372,10 @@ def main() -> None:
                else "extrapolated in the days")
         print(f"\nProjection: {int(days)} days on {int(workers)} workers at a control of "
               f"{ctrl:.2f}x ({pr['at']['passes']} passes; the 1-worker runs' parts, {how}):")
+        spread = (f"resampled runs: {pr['ratio_p10']:.0%}-{pr['ratio_p90']:.0%}"
+                  if np.isfinite(pr["ratio_p10"]) else "too few runs to resample")
         print(f"  serial fit {pr['t1']:.2f} CPU s; Dask {pr['tn']:.2f} s: speed-up "
-              f"{pr['speed_up']:.2f}x, {pr['ratio']:.0%} of the control "
-              f"(resampled runs: {pr['ratio_p10']:.0%}-{pr['ratio_p90']:.0%})")
+              f"{pr['speed_up']:.2f}x, {pr['ratio']:.0%} of the control ({spread})")
         print(f"  serial-equivalent share {pr['serial_equivalent_share']:.1%}; 80 % needs at "
               f"most {pr['needed_share']:.1%} at this control")
         print("  one Dask pass: " + "; ".join(f"{k} {v:.3f} s" for k, v in pr["pass"].items()))
