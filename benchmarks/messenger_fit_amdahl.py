@@ -237,13 +237,14 @@ def _common_speed(runs: list[dict[str, float]]) -> list[dict[str, float]]:
 
 def project(runs: list[dict[str, float]], days: int, workers: int, control: float,
             rng: np.random.Generator, n_boot: int,
-            day_spread: float | None = None) -> dict[str, Any]:
+            day_spread: float | None = None, tail_factor: float = 1.0) -> dict[str, Any]:
     """The model at (days, workers, control) from the 1-worker runs, resampled."""
     ones = [q for q in runs if q["workers"] == 1]
 
     def once(sample: list[dict[str, float]]) -> tuple[float, float, dict, dict]:
         sample = _common_speed(sample)
         at = parts_at(sample, days)
+        at["tail"] *= tail_factor  # the chain's transfers between workers (1 worker: none)
         spread = (min(q["day_spread"] for q in sample) if day_spread is None
                   else day_spread)
         extra = imbalance(days, workers, spread, rng, draws=100)
@@ -284,6 +285,9 @@ def main() -> None:
     ap.add_argument("--day-spread", type=float, default=None,
                     help="the days' relative spread for the projection's uneven days "
                     "(default: the least of the runs', which a shared host inflates)")
+    ap.add_argument("--tail-factor", type=float, default=1.0,
+                    help="the projection's merge-tree tail times this (the chain's transfers "
+                    "between workers, which the 1-worker runs lack; default 1)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = ap.parse_args()
@@ -365,7 +369,8 @@ def main() -> None:
                if args.project else [(64, 16, 13.54), (64, 16, 9.92)])
     out["projections"] = []
     for days, workers, ctrl in targets:
-        pr = project(runs, int(days), int(workers), ctrl, rng, args.boot, args.day_spread)
+        pr = project(runs, int(days), int(workers), ctrl, rng, args.boot, args.day_spread,
+                     args.tail_factor)
         pr.update({"days": int(days), "workers": int(workers), "control": ctrl})
         out["projections"].append(pr)
         how = ("measured at these days" if any(q["days"] == int(days) for q in ones)
