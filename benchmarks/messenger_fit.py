@@ -21,7 +21,15 @@ of `fit.fit_days`): the parallel reduce per pass (map over the days and the merg
 workers), the gather of the merged statistics, and the client's serial part (set-up, the
 fit of each pass, the folder written).  That serial share ``f`` of the serial run's time
 bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the bound is
-also given at the parallelism the pure-CPU control measures (`_control.control`).  A fit
+also given at the parallelism the pure-CPU control measures (`_control.control`).
+
+Both runs are also split per pass for `benchmarks/messenger_fit_amdahl.py` (issue 34,
+item 7; docs/decisions/messenger_fit.md entry 3x-amdahl), into the ``--json`` file too:
+the serial run's reduce, merge and client fit (`fit_days` logs the same timing records
+serially), and the Dask run's workers' compute inside each reduce and client fit, its
+idle wall, the wait for the first task and the tail after the last day (Dask's task
+stream).  Each in CPU seconds as well (the client process from the records, the workers'
+tasks from Dask's metrics), and one day's reduce serially against on a worker.  A fit
 that the guards refuse (`fit_guards.check_fit`), or that stops on too little data, is reported
 and still timed (serial and Dask do the same work up to there).
 """
