@@ -13,10 +13,15 @@
 #
 #   OUT=/tmp/out bash benchmarks/device_fit_scaling.sh        # from the repository root
 #   OUT=/tmp/out PY=python3 WORKERS=2 RUNS="2:2" bash benchmarks/device_fit_scaling.sh
+#   OUT=/tmp/out RUNS="64:1 64:16" BUDGET_S=480 bash benchmarks/device_fit_scaling.sh  # + the model
+#
+# Without .whl/ the packages installed for $PY are used.  With a 1-worker run among RUNS,
+# benchmarks/messenger_fit_amdahl.py then splits the runs into the model's parts and
+# checks the model against the 16-worker runs ($OUT/amdahl.txt, amdahl.json).
 #
 # Writes $OUT/device_fit_scaling.log (environment, each run's output) and per run
-# $OUT/fit_<days>d_<workers>w_<estimator>.{txt,json}.  RUNS lists days:workers[:estimator]
-# in order; a run starts only if BUDGET_S seconds (default 300) minus the time used leave
+# $OUT/fit_<days>d_<workers>w_<estimator>[_rK].{txt,json} (_rK: the K-th repeat).
+# RUNS lists days:workers[:estimator] in order; a run starts only if BUDGET_S seconds (default 300) minus the time used leave
 # its estimate (EST_S_PER_DAY per day plus 60 s; the per-day figure is raised to what the
 # runs before took); a run is killed after 300 s or when BUDGET_S + 100 s have passed since
 # the start, so the script ends within ~7 min.
@@ -41,7 +46,9 @@ say() { echo "$*" | tee -a "$LOG"; }
 
 say "# device_fit_scaling $(date -u +%FT%TZ) on $(uname -m), $(nproc) cores, $(git rev-parse --short HEAD 2>/dev/null) + working tree"
 "$PY" -V >>"$LOG" 2>&1
-if "$PY" -m pip --version >/dev/null 2>&1; then
+if ! ls .whl/*.whl >/dev/null 2>&1; then  # no carried wheels: the machine's own packages
+    say "# no .whl/*.whl: using the packages installed for $PY"
+elif "$PY" -m pip --version >/dev/null 2>&1; then
     "$PY" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target "$SITE" .whl/*.whl >>"$LOG" 2>&1 \
         || { say "pip install of .whl failed"; exit 1; }
 else  # no pip: a wheel is a zip; its files go to the target as they are
@@ -81,6 +88,8 @@ for run in $RUNS; do
         continue
     fi
     name=fit_${days}d_${workers}w_${estimator}
+    k=2; base=$name
+    while [ -e "$OUT/$name.json" ] || [ -e "$OUT/$name.txt" ]; do name=${base}_r$k; k=$((k + 1)); done  # a repeat
     limit=$(( BUDGET_S + 100 - used ))  # the whole script ends by BUDGET_S + 100 s
     [ "$limit" -gt 300 ] && limit=300
     say "# run $name at $used s (killed after $limit s)"
@@ -94,4 +103,11 @@ for run in $RUNS; do
     EST_S_PER_DAY=$(awk -v s="$(( $(date +%s) - t_run ))" -v d="$days" -v e="$EST_S_PER_DAY" \
         'BEGIN { r = (s - 45) / d; printf "%.2f", (r > e ? r : e) }')
 done
+# the time split and the speed-up model (issue 34 item 7, messenger_fit.md entry 3x-amdahl):
+# needs a 1-worker run among RUNS (e.g. RUNS="64:1 64:16" BUDGET_S=480)
+if ls "$OUT"/fit_*d_1w_variance*.json >/dev/null 2>&1; then
+    "$PY" benchmarks/messenger_fit_amdahl.py "$OUT"/fit_*_variance*.json \
+        --json "$OUT/amdahl.json" >"$OUT/amdahl.txt" 2>&1
+    tail -n 40 "$OUT/amdahl.txt" | tee -a "$LOG"
+fi
 say "# done in $(( $(date +%s) - t0 )) s"

@@ -21,7 +21,15 @@ of `fit.fit_days`): the parallel reduce per pass (map over the days and the merg
 workers), the gather of the merged statistics, and the client's serial part (set-up, the
 fit of each pass, the folder written).  That serial share ``f`` of the serial run's time
 bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the bound is
-also given at the parallelism the pure-CPU control measures (`_control.control`).  A fit
+also given at the parallelism the pure-CPU control measures (`_control.control`).
+
+Both runs are also split per pass for `benchmarks/messenger_fit_amdahl.py` (issue 34,
+item 7; docs/decisions/messenger_fit.md entry 3x-amdahl), into the ``--json`` file too:
+the serial run's reduce, merge and client fit (`fit_days` logs the same timing records
+serially), and the Dask run's workers' compute inside each reduce and client fit, its
+idle wall, the wait for the first task and the tail after the last day (Dask's task
+stream).  Each in CPU seconds as well (the client process from the records, the workers'
+tasks from Dask's metrics), and one day's reduce serially against on a worker.  A fit
 that the guards refuse (`fit_guards.check_fit`), or that stops on too little data, is reported
 and still timed (serial and Dask do the same work up to there).
 """
@@ -53,6 +61,8 @@ from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight 
 
 START = dt.date(2010, 3, 1)
 FIT_LOGGER = "fluxcal.missions.messenger.fit"
+#: Seconds for the workers' heartbeats to report their task metrics to the scheduler.
+HEARTBEAT_S = 2.0
 
 
 class _Timings(logging.Handler):
@@ -103,6 +113,115 @@ def _split(t0: float, t1: float, passes: list[dict[str, float]]) -> dict[str, An
             "serial_s": setup + sum(gather_s) + sum(client_s), "parallel_s": sum(reduce_s)}
 
 
+def _cpu(passes: list[dict[str, float]], cpu1: float) -> dict[str, list[float]]:
+    """This process's CPU seconds per pass: before and after ``reduced``, then its client.
+
+    ``cpu1``: ``time.process_time()`` at the end of `run_fit`.
+    """
+    ends = [p["start_cpu"] for p in passes[1:]] + [cpu1]
+    return {"reduce_cpu_s": [p["reduced_cpu"] - p["start_cpu"] for p in passes],
+            "gather_cpu_s": [p["gathered_cpu"] - p["reduced_cpu"] for p in passes],
+            "client_cpu_s": [e - p["gathered_cpu"] for p, e in zip(passes, ends, strict=True)]}
+
+
+def _serial_parts(t0: float, t1: float, cpu1: float,
+                  passes: list[dict[str, float]]) -> dict[str, Any]:
+    """The serial run's time split per pass: reduce the days, merge them, client fit.
+
+    From the same ``fit_timing`` records `fit.fit_days` logs serially (``reduced``: every
+    day reduced, ``gathered``: merged); the client's part runs to the next pass's start
+    (the last one to the end of `run_fit`: the figure of merit, the folder, the pictures).
+    Wall seconds, and CPU seconds (``*_cpu_s``; on a shared host the wall includes waits
+    for a core).
+    """
+    split = _split(t0, t1, passes)
+    cpu = _cpu(passes, cpu1)
+    return {"setup_s": split["setup_s"], "reduce_s": split["reduce_s"],
+            "merge_s": split["gather_s"], "client_s": split["client_s"],
+            "reduce_cpu_s": cpu["reduce_cpu_s"], "merge_cpu_s": cpu["gather_cpu_s"],
+            "client_cpu_s": cpu["client_cpu_s"]}
+
+
+def _worker_metrics(client) -> dict[str, float]:
+    """The workers' cumulative CPU and non-CPU (waiting for a core) seconds per task name.
+
+    Dask's fine performance metrics, as the workers' heartbeats last reported them.
+    """
+    def read(dask_scheduler):
+        return {f"{k[1]}:{k[2]}": v for k, v in dask_scheduler.cumulative_worker_metrics.items()
+                if isinstance(k, tuple) and len(k) == 4 and k[0] == "execute"
+                and k[2] in ("thread-cpu", "thread-noncpu")}
+
+    return client.run_on_scheduler(read)
+
+
+def _tasks(records: list[dict[str, Any]], offset: float) -> list[dict[str, Any]]:
+    """The Dask task stream's records as (name, worker, compute start/stop, transfer s).
+
+    ``offset`` turns the workers' ``time.time()`` into this process's ``perf_counter``.
+    """
+    from dask.utils import key_split
+
+    out = []
+    for r in records:
+        compute = [s for s in r["startstops"] if s["action"] == "compute"]
+        if not compute:
+            continue
+        out.append({"name": key_split(r["key"]), "worker": r["worker"],
+                    "start": compute[0]["start"] - offset,
+                    "stop": compute[-1]["stop"] - offset,
+                    "compute_s": sum(s["stop"] - s["start"] for s in compute),
+                    "transfer_s": sum(s["stop"] - s["start"] for s in r["startstops"]
+                                      if s["action"] == "transfer")})
+    return out
+
+
+def _union(spans: list[tuple[float, float]]) -> float:
+    """Seconds covered by the union of ``spans`` (start, stop)."""
+    total, end = 0.0, -float("inf")
+    for a, b in sorted(spans):
+        if b > end:
+            total += b - max(a, end)
+            end = b
+    return total
+
+
+def _dask_parts(t1: float, passes: list[dict[str, float]], tasks: list[dict[str, Any]],
+                n_workers: int) -> list[dict[str, Any]]:
+    """Per Dask pass: the workers' compute inside its reduce and inside its client fit.
+
+    Window of the reduce: the pass's ``start`` to ``gathered`` (the merges after the last
+    day run while the client waits for the merged object); of the client fit: from
+    ``gathered`` to the next pass's start (the bootstrap's resamples, `resample_fits`, run
+    on the workers then).  ``idle_s``: worker-seconds of the reduce window in which no
+    task computed, divided by the workers (the wall the reduce lost to scheduling,
+    transfers, the merge tree's tail and uneven days).
+    """
+    ends = [p["start"] for p in passes[1:]] + [t1]
+    out = []
+    for p, end in zip(passes, ends, strict=True):
+        red = [t for t in tasks if p["start"] <= t["start"] < p["gathered"]]
+        cli = [t for t in tasks if p["gathered"] <= t["start"] < end]
+        days = [t["compute_s"] for t in red if t["name"] == "reduce_chunk"]
+        merges = [t["compute_s"] for t in red if t["name"] == "merge_parts"]
+        wall = p["gathered"] - p["start"]
+        busy = sum(t["compute_s"] for t in red)
+        first = min((t["start"] for t in red), default=p["gathered"])
+        last_day = max((t["stop"] for t in red if t["name"] == "reduce_chunk"),
+                       default=p["start"])
+        rs = [t for t in cli if t["name"] == "resample_fits"]
+        out.append({
+            "days": len(days), "day_s": days, "day_compute_s": sum(days),
+            "merges": len(merges), "merge_compute_s": sum(merges),
+            "transfer_s": sum(t["transfer_s"] for t in red), "reduce_wall_s": wall,
+            "idle_s": wall - busy / n_workers, "first_task_s": first - p["start"],
+            "tail_s": p["gathered"] - last_day,
+            "client_wall_s": end - p["gathered"], "resamples": len(rs),
+            "resample_compute_s": sum(t["compute_s"] for t in rs),
+            "resample_union_s": _union([(t["start"], t["stop"]) for t in rs])})
+    return out
+
+
 def _amdahl(f: float, n: float) -> float:
     return 1.0 / (f + (1.0 - f) / n)
 
@@ -124,24 +243,45 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
     with contextlib.suppress(FluxcalError):
         _fit(run, 1, address, n_workers, work / label / "warm_parallel", estimator,
              run.days[:n_workers])
-    cpu = time.process_time()
-    serial, outcome = _fit(run, passes, "serial", n_workers, work / label / "fit_serial",
-                           estimator)
-    serial_cpu = time.process_time() - cpu
-    handler = _Timings()
+    from distributed import Client, get_task_stream
+
     log = logging.getLogger(FIT_LOGGER)
-    log.addHandler(handler)
+    serial_timing = _Timings()
+    log.addHandler(serial_timing)
     log.setLevel(logging.DEBUG)
     try:
-        t0 = time.perf_counter()
-        parallel, outcome_p = _fit(run, passes, address, n_workers,
-                                   work / label / "fit_parallel", estimator)
-        t1 = time.perf_counter()
+        cpu, s0 = time.process_time(), time.perf_counter()
+        serial, outcome = _fit(run, passes, "serial", n_workers, work / label / "fit_serial",
+                               estimator)
+        s1, s1_cpu = time.perf_counter(), time.process_time()
+        serial_cpu = s1_cpu - cpu
+    finally:
+        log.removeHandler(serial_timing)
+    handler = _Timings()
+    log.addHandler(handler)
+    try:
+        # the workers' task stream (the scheduler's record of every task's compute and
+        # transfers) during the Dask fit: what of its reduce the workers spent computing
+        with Client(cluster) as watcher:
+            time.sleep(HEARTBEAT_S)
+            before = _worker_metrics(watcher)
+            with get_task_stream(client=watcher) as stream:
+                t0 = time.perf_counter()
+                parallel, outcome_p = _fit(run, passes, address, n_workers,
+                                           work / label / "fit_parallel", estimator)
+                t1, cpu1 = time.perf_counter(), time.process_time()
+                offset = time.time() - time.perf_counter()
+            time.sleep(HEARTBEAT_S)
+            after = _worker_metrics(watcher)
     finally:
         log.removeHandler(handler)
         log.setLevel(logging.NOTSET)
     ctrl = control(cluster, 2 * n_workers)
     split = _split(t0, t1, handler.passes)
+    serial_parts = _serial_parts(s0, s1, s1_cpu, serial_timing.passes)
+    dask_parts = _dask_parts(t1, handler.passes, _tasks(stream.data, offset), n_workers)
+    dask_cpu = _cpu(handler.passes, cpu1)
+    worker_cpu = {k: after[k] - before.get(k, 0.0) for k in after}
     f = min(split["serial_s"] / serial, 1.0)
     speed_up = serial / parallel
     print(f"{label}: {days} day(s), {n:,} samples, estimator {estimator}, at most {passes} "
@@ -160,6 +300,38 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
     print(f"    client serial part {split['serial_s']:.2f} s = {f:.1%} of the serial run; "
           f"Amdahl bound {_amdahl(f, n_workers):.2f}x on {n_workers} workers, "
           f"{_amdahl(f, ctrl):.2f}x at the control's {ctrl:.2f}x")
+    print("    parts per pass (s): serial reduce / merge / client | Dask reduce wall = "
+          "day compute / workers + idle (tail after the last day) | merges | client wall "
+          "(resamples on the workers: compute, wall)")
+    for p, (r, m, c) in enumerate(zip(serial_parts["reduce_s"], serial_parts["merge_s"],
+                                      serial_parts["client_s"], strict=True)):
+        d = dask_parts[p] if p < len(dask_parts) else None
+        dask = ("" if d is None else
+                f" | {d['reduce_wall_s']:.3f} = {d['day_compute_s']:.3f} / {n_workers} + "
+                f"{d['idle_s']:.3f} ({d['tail_s']:.3f}) | {d['merges']} "
+                f"{d['merge_compute_s']:.3f} | {d['client_wall_s']:.3f} "
+                f"({d['resamples']} {d['resample_compute_s']:.3f}, "
+                f"{d['resample_union_s']:.3f})")
+        print(f"      pass {p + 1}: {r:.3f} / {m:.3f} / {c:.3f}{dask}")
+    print("    CPU s per pass: serial reduce / merge / client | Dask client process during "
+          "the reduce / gather / its fit: "
+          + "; ".join(f"{a:.2f} / {b:.2f} / {c:.2f} | {d:.2f} / {e:.2f} / {g:.2f}"
+                      for a, b, c, d, e, g in zip(
+                          serial_parts["reduce_cpu_s"], serial_parts["merge_cpu_s"],
+                          serial_parts["client_cpu_s"], dask_cpu["reduce_cpu_s"],
+                          dask_cpu["gather_cpu_s"], dask_cpu["client_cpu_s"], strict=False)))
+    print("    workers' task seconds (CPU / waiting for a core): " + ", ".join(
+        f"{name} {worker_cpu.get(name + ':thread-cpu', 0.0):.2f} / "
+        f"{worker_cpu.get(name + ':thread-noncpu', 0.0):.2f}"
+        for name in ("reduce_chunk", "merge_parts", "resample_fits")))
+    day_serial = sum(serial_parts["reduce_s"]) / max(days * len(serial_parts["reduce_s"]), 1)
+    day_dask = [t for p in dask_parts for t in p["day_s"]]
+    if day_dask:
+        per_day = sum(day_dask) / len(day_dask)
+        slow = per_day / day_serial
+        print(f"    one day's reduce: {day_serial:.3f} s serially, {per_day:.3f} s on a worker "
+              f"({slow:.2f}x; the control's task {n_workers / ctrl:.2f}x: the reduce slows "
+              f"{slow * ctrl / n_workers:.2f}x as much when the workers run together)")
     print(f"  speed-up serial/parallel: {speed_up:.2f}x (ideal {n_workers}x; load average "
           f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores)")
     print(f"  control: a pure-CPU task reaches {ctrl:.2f}x on this cluster right now (the "
@@ -171,7 +343,9 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
             "serial_s": serial, "parallel_s": parallel, "speed_up": speed_up,
             "control": ctrl, "ratio_to_control": speed_up / ctrl, "serial_share": f,
             "amdahl_workers": _amdahl(f, n_workers), "amdahl_control": _amdahl(f, ctrl),
-            "split": split, "outcome": outcome, "outcome_parallel": outcome_p,
+            "split": split, "serial_parts": serial_parts, "dask_parts": dask_parts,
+            "dask_client_cpu": dask_cpu, "worker_cpu": worker_cpu,
+            "outcome": outcome, "outcome_parallel": outcome_p,
             "cpu_count": os.cpu_count(), "load_average": os.getloadavg()[0]}
 
 

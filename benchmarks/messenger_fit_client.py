@@ -53,7 +53,8 @@ from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight 
 
 START = dt.date(2010, 3, 1)
 
-#: (label, module file suffix, function name) of the parts timed.
+#: (label, module file suffix, function name[, calling function: only its calls]) of the
+#: parts timed.
 PARTS = (
     ("map: reduce_chunk (workers)", "messenger/fit.py", "reduce_chunk"),
     ("merge (workers on Dask)", "messenger/fit.py", "_merge_all"),
@@ -61,6 +62,10 @@ PARTS = (
     ("  bootstrap (solve_variance)", "messenger/fit_variance.py", "solve_variance"),
     ("    resamples (workers on Dask)", "messenger/fit_breaks.py", "resample_fits"),
     ("    break choices (choose_breaks)", "messenger/fit_breaks.py", "choose_breaks"),
+    ("      of the solution (client)", "messenger/fit_breaks.py", "choose_breaks",
+     "solve_variance"),
+    ("    resamples' breaks in their cells", "messenger/fit_breaks.py", "refine_breaks"),
+    ("    resampled sums (einsum)", "numpy/_core/einsumfunc.py", "einsum", "solve_variance"),
     ("  resample steps (apply_steps)", "messenger/fit_variance.py", "apply_steps"),
     ("  waveforms (_fit_waveforms)", "messenger/fit.py", "_fit_waveforms"),
     ("waveform column errors, once", "messenger/fit.py", "waveform_column_errors"),
@@ -77,11 +82,16 @@ PARTS = (
 def _cumulative(stats: pstats.Stats) -> dict[str, tuple[int, float]]:
     """(primitive calls, cumulative s) of each part (`PARTS`); (0, 0) if never called."""
     out = {}
-    for label, suffix, name in PARTS:
+    for label, suffix, name, *caller in PARTS:
         calls, cum = 0, 0.0
-        for (path, _line, func), (cc, _nc, _tt, ct, _callers) in stats.stats.items():
+        for (path, _line, func), (cc, _nc, _tt, ct, callers) in stats.stats.items():
             if func == name and path.replace("\\", "/").endswith(suffix):
-                calls, cum = calls + cc, cum + ct
+                if not caller:
+                    calls, cum = calls + cc, cum + ct
+                    continue
+                for (_p, _l, f), c in callers.items():  # only the calls from ``caller``
+                    if f == caller[0]:
+                        calls, cum = calls + c[0], cum + c[3]
         out[label] = (calls, cum)
     return out
 

@@ -1508,12 +1508,21 @@ def fit_days(
             progress(f"pass {p + 1}/{passes}: reducing days", p * len(chunks) + i, total)
 
     if scheduler == "serial":
-        def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[DayStatistics]:
+        def serial(c: MessengerCalibration, hashing: bool, p: int) -> list[Any]:
+            start, start_cpu = time.perf_counter(), time.process_time()
             out = []
             for i, chunk in enumerate(chunks):
                 out.append(reduce_chunk(chunk, c, intervals, s, hashing, estimator))
                 tick(p, i + 1)
-            return out
+            reduced, reduced_cpu = time.perf_counter(), time.process_time()
+            merged = _merge_all(out)  # run's own _merge_all of one part returns it as is
+            _log.debug("pass %d: %d chunks reduced here in %.3f s, merged in %.3f s",
+                       p + 1, len(chunks), reduced - start, time.perf_counter() - reduced,
+                       extra={"fit_timing": {
+                           "pass": p + 1, "start": start, "reduced": reduced,
+                           "gathered": time.perf_counter(), "start_cpu": start_cpu,
+                           "reduced_cpu": reduced_cpu, "gathered_cpu": time.process_time()}})
+            return [merged]
 
         try:
             return run(serial)
@@ -1534,7 +1543,7 @@ def fit_days(
                 # the calibration travels once per pass (not once per day); the days'
                 # statistics are merged on the workers in day order (`_merge_tree`), so
                 # the client receives one merged object per pass
-                start = time.perf_counter()
+                start, start_cpu = time.perf_counter(), time.process_time()
                 cal_future = client.scatter(c, hash=False)
                 futures = client.map(reduce_chunk, list(chunks), cal=cal_future,
                                      intervals=intervals, settings=s, hash_inputs=hashing,
@@ -1544,14 +1553,16 @@ def fit_days(
                     if fut.status == "error":
                         fut.result()  # the day's own error, at once
                     tick(p, i + 1)
-                reduced = time.perf_counter()
+                reduced, reduced_cpu = time.perf_counter(), time.process_time()
                 out = merged.result()
                 _log.debug("pass %d: %d chunks reduced on the workers in %.3f s, merged "
                            "statistics gathered in %.3f s", p + 1, len(chunks),
                            reduced - start, time.perf_counter() - reduced,
-                           extra={"fit_timing": {"pass": p + 1, "start": start,
-                                                 "reduced": reduced,
-                                                 "gathered": time.perf_counter()}})
+                           extra={"fit_timing": {
+                               "pass": p + 1, "start": start, "reduced": reduced,
+                               "gathered": time.perf_counter(), "start_cpu": start_cpu,
+                               "reduced_cpu": reduced_cpu,
+                               "gathered_cpu": time.process_time()}})
                 return [out]
 
             def map_rows(f: Callable, args: list[tuple]) -> list[Any]:
