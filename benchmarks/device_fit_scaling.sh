@@ -103,7 +103,7 @@ for run in $RUNS; do
     EST_S_PER_DAY=$(awk -v s="$(( $(date +%s) - t_run ))" -v d="$days" -v e="$EST_S_PER_DAY" \
         'BEGIN { r = (s - 45) / d; printf "%.2f", (r > e ? r : e) }')
 done
-# the time split and the speed-up model (issue 34 item 7, messenger_fit.md entry 3x-amdahl):
+# the time split and the speed-up model (issue 34 item 7, messenger_fit.md entry 53):
 # needs a 1-worker run among RUNS (e.g. RUNS="64:1 64:16" BUDGET_S=480)
 if ls "$OUT"/fit_*d_1w_variance*.json >/dev/null 2>&1; then
     "$PY" benchmarks/messenger_fit_amdahl.py "$OUT"/fit_*_variance*.json \

@@ -24,7 +24,7 @@ bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the 
 also given at the parallelism the pure-CPU control measures (`_control.control`).
 
 Both runs are also split per pass for `benchmarks/messenger_fit_amdahl.py` (issue 34,
-item 7; docs/decisions/messenger_fit.md entry 3x-amdahl), into the ``--json`` file too:
+item 7; docs/decisions/messenger_fit.md entry 53), into the ``--json`` file too:
 the serial run's reduce, merge and client fit (`fit_days` logs the same timing records
 serially), and the Dask run's workers' compute inside each reduce and client fit, its
 idle wall, the wait for the first task and the tail after the last day (Dask's task

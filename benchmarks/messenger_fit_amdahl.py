@@ -8,7 +8,7 @@
 Reads the ``--json`` files of `benchmarks/messenger_fit.py` (each a serial fit and a Dask
 fit of the same simulated days, split per pass into the work that divides by the workers
 and the rest; see its `_serial_parts` and `_dask_parts`) and states the model of
-docs/decisions/messenger_fit.md entry 3x-amdahl:
+docs/decisions/messenger_fit.md entry 53:
 
     serial  T1 = A + P (D w + m + s) + Z
     Dask    TN = A + P ((D w' + (1 - x) m') / c + F + g (D + D / 3) / N + I(D, N) + L

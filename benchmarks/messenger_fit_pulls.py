@@ -34,10 +34,10 @@ pinch (`BANDS`: the fixed-design bootstrap replayed, floored by or combined with
 stored pairs band; entry 46), at `LAW_T` and over the stated range's grid.
 ``--summarise FOLDER --wild`` gives the pulls under the wild cluster bootstrap
 (`fit_variance.solve_variance(bootstrap="wild")`) beside the fit's own and combinations of
-the two (`WILD_COLUMNS`; entry 3x-wild).
+the two (`WILD_COLUMNS`; entry 50).
 ``--summarise FOLDER --profile`` gives T_m's pulls with its error from the residual's
 profile against the break (`fit_variance.profile_break_errors`) beside the fit's own and
-floored at fractions of it (`PROFILE_FLOORS`; entry 3x-profile).
+floored at fractions of it (`PROFILE_FLOORS`; entry 51).
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
 prints the summary of a saved run again (fits saved without a row: no unseen day).
 """
@@ -784,7 +784,7 @@ def replayed_errors(res, fixed_design: bool, n_bootstrap: int = 200,
     the field; ``refine``: moved breaks placed inside their cells instead,
     `fit_breaks.refine_breaks`; ``"resamples"``: in the resamples only, the solution's
     distance counted, ``refine_resamples``; ``bootstrap``: `fit_variance.solve_variance`'s,
-    ``"wild"`` the wild cluster bootstrap, entry 3x-wild): tau, D0 (3,), T_m (3,), the law
+    ``"wild"`` the wild cluster bootstrap, entry 50): tau, D0 (3,), T_m (3,), the law
     at `LAW_T` (len(LAW_T), 3)."""
     b = replayed_resamples(res, fixed_design, n_bootstrap, refine, bootstrap)
     return {"tau": np.std(b["tau"]), "d0": np.std(b["d0"], axis=0),
@@ -841,7 +841,7 @@ def fixed_design_row(res, true) -> dict:
 #: The bootstraps `replay_summary` replays: (column, fixed design, resamples, refine,
 #: bootstrap; refine False: the uniform draw over the cell, the fit's default before
 #: entry 47; ``"resamples"``: refined in the resamples only, the fit's default since;
-#: bootstrap ``"wild"``: the wild cluster bootstrap, breaks chosen again, entry 3x-wild).
+#: bootstrap ``"wild"``: the wild cluster bootstrap, breaks chosen again, entry 50).
 REPLAYS = (("pairs 200", False, 200, False, "pairs"), ("refined", False, 200, True, "pairs"),
            ("refined resamples", False, 200, "resamples", "pairs"),
            ("fixed 800", True, 800, False, "pairs"),
@@ -898,7 +898,7 @@ def replay_summary(folder: Path) -> None:
     _print_pull_rows(per)
 
 
-# --- the wild cluster bootstrap (docs/decisions/messenger_fit.md 3x-wild) -----------
+# --- the wild cluster bootstrap (docs/decisions/messenger_fit.md 50) -----------
 
 #: The columns `wild_summary` prints beside the stored errors: the fit's own bootstrap
 #: replayed (pairs, refined in the resamples), the wild one (Rademacher, Webb's six
@@ -980,7 +980,7 @@ def wild_rows(res, true, n_bootstrap: int = 200) -> dict:
 def wild_summary(folder: Path) -> None:
     """Print, per parameter, the pulls' spread, largest size and count beyond 3 as stored
     and under each column of `WILD_COLUMNS` (`wild_rows`), then the law's largest |pull|
-    over the stated range's grid and the fits with one beyond 3 (entry 3x-wild)."""
+    over the stated range's grid and the fits with one beyond 3 (entry 50)."""
     fits = [pickle.loads(f.read_bytes()) for f in sorted(folder.glob("fit_*.pkl"))]
     rows = [wild_rows(res, true) for res, true in fits]
     per = {"stored": [estimator_row(res, true, spread_sd) for res, true in fits]}
@@ -997,7 +997,7 @@ def wild_summary(folder: Path) -> None:
           + " | ".join(cells) + " |")
 
 
-# --- T_m from the residual's profile against the break (messenger_fit.md 3x-profile) --
+# --- T_m from the residual's profile against the break (messenger_fit.md 51) --
 
 #: The columns `profile_summary` prints: T_m's error as the fit states it (the pairs
 #: bootstrap replayed, refined in the resamples: the fit's default since entry 47), from
@@ -1065,7 +1065,7 @@ def profile_summary(folder: Path) -> None:
     """Print, per parameter, the T_m pulls' spread, largest size and count beyond 3 under
     each column of `profile_rows`, then per free axis with a pull beyond 2 under any column
     or an error beyond 0.5 C: the error, the errors and the profile's interval
-    (entry 3x-profile)."""
+    (entry 51)."""
     fits = sorted(folder.glob("fit_*.pkl"))
     rows = []
     for f in fits:
@@ -1333,13 +1333,13 @@ def main() -> None:
     ap.add_argument("--wild", action="store_true",
                     help="With --summarise: the pulls under the wild cluster bootstrap "
                          "replayed on the stored normal equations, beside the fit's own "
-                         "(pairs) and two combinations (WILD_COLUMNS; entry 3x-wild), and "
+                         "(pairs) and two combinations (WILD_COLUMNS; entry 50), and "
                          "the law's largest pull over the stated range.")
     ap.add_argument("--profile", action="store_true",
                     help="With --summarise: T_m's pulls with its error from the residual's "
                          "profile against the break (fit_variance.profile_break_errors), "
                          "beside the fit's own (pairs) and floored at a fraction of it "
-                         "(PROFILE_FLOORS; entry 3x-profile), and the fits far off.")
+                         "(PROFILE_FLOORS; entry 51), and the fits far off.")
     ap.add_argument("--core", action="store_true",
                     help="With --summarise: the stated errors of T_m and the law split into "
                          "factors (jumps, widening, design, sandwich; entry 41).")

@@ -3,7 +3,7 @@
 ``benchmarks/messenger_fit.py`` splits a serial and a Dask fit per pass (`_serial_parts`,
 `_dask_parts`, from `fit.fit_days`'s timing records and Dask's task stream);
 ``benchmarks/messenger_fit_amdahl.py`` projects the speed-up on N workers from those parts
-(docs/decisions/messenger_fit.md entry 3x-amdahl).  No timing is asserted here: the
+(docs/decisions/messenger_fit.md entry 53).  No timing is asserted here: the
 inputs are made-up records, and the expected values are worked out by hand from them
 (sums and differences of the given times), from Amdahl's law ``1 / (f + (1 - f) / c)``
 in closed form, and, for the uneven days, from order statistics drawn directly with

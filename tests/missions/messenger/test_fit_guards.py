@@ -188,7 +188,7 @@ def test_d0_goal_refusal_names_axis_stated_and_goal_and_a_hold_to_type(value, er
     (25, 100, False, True),     # exactly 25 %: the orbit's shares (0.20-0.24) stay advised
     (26, 100, False, False),    # just above: the hard cruise's 0.27-0.33 (entry 49)
     (130, 400, False, False),
-    (130, 400, True, True),     # the split stated (entry 3x-comp): advised again
+    (130, 400, True, True),     # the split stated (entry 52): advised again
     (133, 400, True, True),     # up to a third
     (134, 400, True, False),    # above it (the 7-% cruise's 0.48-0.50): not
 ])
@@ -198,7 +198,7 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
     # covered by its stated error (8-day cruise seed 3600: its own-value hold written,
     # the held D0 z 2.84 widths off), so only the start table's hold is advised; unless
     # the fit widened its D0 and law along their trade-off (`fit_variance.
-    # widen_law_d0_split`, entry 3x-comp: that table's held z then 2.15 widths off)
+    # widen_law_d0_split`, entry 52: that table's held z then 2.15 widths off)
     res = fitted[1]
     duty = list(res.duty)
     duty[2] = dataclasses.replace(res.duty[2], slope_err=0.08 * abs(res.duty[2].slope))

@@ -1,6 +1,6 @@
 """The law at -50 C and D0 apart in a compressive wind: the split's widening (issue 34).
 
-docs/decisions/messenger_fit.md entry 3x-comp.  Closed form: resamples built from the
+docs/decisions/messenger_fit.md entry 52.  Closed form: resamples built from the
 columns of a Hadamard matrix (mean zero, orthogonal, unit mean square), so every mean,
 variance and covariance of the constructed resamples is exact, and the widening's draws,
 orthogonal to them by construction, add exactly their stated variance.
@@ -109,7 +109,7 @@ def test_compressive_cruise_states_the_law_and_d0_apart_honestly(tmp_path):
     header says so, and the law at -50 C and D0 each lie within 2.7 of their stated
     errors on every axis (with it: law y 2.44, D0 y 1.75).  Without the widening
     (`LAW_D0_SPLIT_WIDENING` = 0) this seed's law y is 2.98 of its band off at -50 C
-    (verification section h-comp): the test fails for that cause (checked); 2.7 sits
+    (verification section 46): the test fails for that cause (checked); 2.7 sits
     between the two.  The truth is the forward
     model's Table 2 and 3, the law at -50 C in closed form (eq. 3a, below every break)."""
     import functools

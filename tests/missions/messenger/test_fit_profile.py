@@ -1,4 +1,4 @@
-"""Issue 34, open item 1: the breaks' errors from the residual's profile (entry 3x-profile).
+"""Issue 34, open item 1: the breaks' errors from the residual's profile (entry 51).
 
 `fit_breaks.break_profile` against ``numpy.linalg.lstsq`` on the explicit rows of a hinge
 world (the moved hinge written from its definition, ``(1 - lambda) max(0, T - T_m - s_k)

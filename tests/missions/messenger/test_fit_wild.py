@@ -1,4 +1,4 @@
-"""Issue 34, open item 1: the wild cluster bootstrap of the variance fit (entry 3x-wild).
+"""Issue 34, open item 1: the wild cluster bootstrap of the variance fit (entry 50).
 
 The resamples' normal equations from the units' sums (`fit_breaks.wild_resamples`)
 against the same resamples built row by row (``y* = X b + eta_u e_u`` on explicit rows,

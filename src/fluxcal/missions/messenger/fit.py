@@ -1041,7 +1041,7 @@ def fit_variance_calibration(
     for a in upper:  # the held slope change and break keep their draws too
         b_law[:, AXES.index(a), 2:] = drawn_law[:, AXES.index(a), 2:]
     # in a compressive wind the law at -50 C and D0 are pinned as their sum, not apart:
-    # the split's share of their error drawn once more (entry 3x-comp)
+    # the split's share of their error drawn once more (entry 52)
     split: dict[str, Any] = {}
     if fit_merit.compressive_wind(*fit_merit.compressive_share(vstats.reason)):
         b_law, b_d0, split = fv.widen_law_d0_split(

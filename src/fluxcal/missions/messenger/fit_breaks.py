@@ -18,17 +18,17 @@ bootstrap's resamples (`fit_variance.solve_variance` drives them):
   (`fixed_design_resamples`, entry 41);
 * the wild cluster bootstrap: each unit's residual sign-flipped (or Webb-weighted) about
   the fit, the design kept, the breaks chosen again on that world, opt-in
-  (`wild_weights`, `wild_resamples`, entry 3x-wild);
+  (`wild_weights`, `wild_resamples`, entry 50);
 * the residual profiled against one axis's break placed anywhere on the shift grid's
   span, and the likelihood-ratio interval it gives at the units' cluster-robust scale,
-  opt-in (`break_profile`, `profile_threshold`, `profile_interval`; entry 3x-profile).
+  opt-in (`break_profile`, `profile_threshold`, `profile_interval`; entry 51).
 
 References
 ----------
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7 eq. 2-7 (the offset laws whose
    parameters are fitted: Table 2, eq. 3-4; D0, tau, dt, eq. 5-6).
-.. [2] docs/decisions/messenger_fit.md entries 17, 27, 39, 40, 41, 42, 47, 3x-wild and
-   3x-profile.
+.. [2] docs/decisions/messenger_fit.md entries 17, 27, 39, 40, 41, 42, 47, 50 and
+   51.
 .. [3] Cameron, A. C., Gelbach, J. B. and Miller, D. L., Rev. Econ. Stat. 90, 414-427
    (2008) (the wild cluster bootstrap); Webb, M. D., Can. J. Econ. 56, 1-23 (2023)
    (the six-point weights).
@@ -625,7 +625,7 @@ def break_profile(a: np.ndarray, v: np.ndarray, yy: float, base_free: np.ndarray
     """Residual sum with axis ``axis``'s break placed at each of ``offsets_c``, profiled.
 
     The profile of the exact residual against the break (docs/decisions/messenger_fit.md
-    entry 3x-profile): at each offset ``s`` (C from ``law[axis, 3]``) the break is a hinge
+    entry 51): at each offset ``s`` (C from ``law[axis, 3]``) the break is a hinge
     of free slope change at ``s``, every other parameter re-fitted (the other axes at
     their ``choice``, `choose_breaks`' convention; the held ones at ``fixed``).  At a grid
     point (0, the kept break, or one of `BREAK_SHIFTS_C`) the hinge is that point's

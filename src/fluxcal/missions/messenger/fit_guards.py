@@ -79,7 +79,7 @@ D0_GOAL_BINDS_BELOW = 0.5
 #: tau is 0.012-0.023 nT over the fitted days, so the figure of merit never holds it).
 TAU_ERROR_GOAL = 0.05
 #: Largest compressive share at which a D0 refusal advises the fit's own value where the
-#: law-D0 split is stated (`d0_goal_refusal`, entry 3x-comp): the 5-%-compressive hard
+#: law-D0 split is stated (`d0_goal_refusal`, entry 52): the 5-%-compressive hard
 #: cruise (0.26-0.33) is where its own-value tables were measured to meet their stated
 #: errors; in the 7-% cruise (0.48-0.50) a fit kept the law z 3.5 of its widened band off.
 OWN_HOLD_SPLIT_MAX_SHARE = 1.0 / 3.0
@@ -299,7 +299,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     stated (only their sum is, entry 48), and a table holding the fit's own D0 at its
     stated width missed it by 2.8 widths; where the fit states that split
     (``split_stated``: `fit_variance.widen_law_d0_split` widened its D0 and law, entry
-    3x-comp) up to `OWN_HOLD_SPLIT_MAX_SHARE` compressive, where its own-value tables met
+    52) up to `OWN_HOLD_SPLIT_MAX_SHARE` compressive, where its own-value tables met
     their stated errors (the same 8 days: 2.15 widths), it is advised again.
 
     Parameters
@@ -334,7 +334,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     if fit_merit.compressive_wind(n_comp, judged) and n_comp > limit * judged:
         own = (f"(not this fit's own value: {n_comp} of {judged} intervals compressive, "
                f"above {limit:.0%}, where its stated error does not cover D0 along the "
-               f"field; entries 49, 3x-comp) ")
+               f"field; entries 49, 52) ")
     elif np.isfinite(error) and value != 0:
         own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
                f"value and error, rounded up: the table states D0 {axis} held, beyond the "

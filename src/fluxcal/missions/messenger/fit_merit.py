@@ -640,7 +640,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     which states the sum and the unseen day honestly in the measured chains, but the
     law and D0 R apart were short there (one advised table: the law's own band at -50 C
     on y, pull 3.16).  With them widened along their trade-off
-    (`fit_variance.widen_law_d0_split`, entry 3x-comp) the three such tables of the
+    (`fit_variance.widen_law_d0_split`, entry 52) the three such tables of the
     4-day cruise met their stated errors but not the goals (the law 0.20 nT, tau 6.4 %,
     the unseen day 0.11-0.12 nT at the goals they were written at), so the refusal stays.
 
@@ -667,7 +667,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
             f"{float(m['band_limit_nt']):g} nT), and with {n_comp} of {judged} intervals "
             f"compressive (above {ADVICE_MAX_COMPRESSIVE_SHARE:.0%}) that sum's stated "
             "error along the field is short (entries 44, 48), and such tables, the law "
-            "and D0 R apart widened (entry 3x-comp), missed the goals, so no "
+            "and D0 R apart widened (entry 52), missed the goals, so no "
             "--error-goal is advised: give more days, until the law is determined on its "
             "own at the "
             "regulated temperature, or calmer solar-wind days")

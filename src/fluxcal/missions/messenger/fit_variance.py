@@ -137,7 +137,7 @@ D0_FIELD_BIAS_SIGMA = 0.5
 #: 1.0 doubles that part's variance: on 23 saved 4-16-day cruise fits (5 and 7 %
 #: compressive) it takes the pulls' spread 1.12 / 1.01 (law / D0) to 0.95 / 0.78: the
 #: largest value that keeps both within 0.7-1.5 (docs/decisions/messenger_fit.md entry
-#: 3x-comp).
+#: 52).
 LAW_D0_SPLIT_WIDENING = 1.0
 
 
@@ -606,7 +606,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         each unit's residual about the solution times a Rademacher weight (``"wild-webb"``:
         Webb's six-point weights, `wild_weights`), the design kept; each resample chooses
         its breaks again in a world whose truth is the solution.  Opt-in
-        (docs/decisions/messenger_fit.md entry 3x-wild); not with ``fixed_design``.
+        (docs/decisions/messenger_fit.md entry 50); not with ``fixed_design``.
 
     Returns
     -------
@@ -856,7 +856,7 @@ def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
     rho)^2)`` and ``sqrt(1 + lambda^2 rho^4)`` (``lambda`` = `LAW_D0_SPLIT_WIDENING`).
     The draws are made orthogonal (over the resamples) to ``1``, ``s`` and ``L``, and
     scaled to exactly that spread, so that these hold exactly below every break.
-    docs/decisions/messenger_fit.md entry 3x-comp.
+    docs/decisions/messenger_fit.md entry 52.
 
     Parameters
     ----------
@@ -953,7 +953,7 @@ def profile_break_errors(stats: VarianceStatistics, law: np.ndarray,
     units, widened by ``sqrt(n / (n - p))`` as the bootstrap is), a second minimum inside
     it kept (`fit_breaks.profile_interval`), and the break's error the larger distance
     from the fitted break to the interval's ends (docs/decisions/messenger_fit.md entry
-    3x-profile).
+    51).
 
     Parameters
     ----------

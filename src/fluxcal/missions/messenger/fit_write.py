@@ -178,7 +178,7 @@ def _next_version(base_folder: Path, name: str, current: int) -> int:
 def d0_field_lines(result: FitResult) -> list[str]:
     """Header lines: D0's error along the field's mean direction (entry 28), if added.
 
-    And the law-D0 split's widening in a compressive wind (entry 3x-comp), if made.
+    And the law-D0 split's widening in a compressive wind (entry 52), if made.
     """
     f = result.d0_field
     if not f:
@@ -189,7 +189,7 @@ def d0_field_lines(result: FitResult) -> list[str]:
         + " / ".join(f"{x:.3g}" for x in split["added_counts_per_ppt"])
         + " counts/ppt (x / y / z) traded with the law at -50 C (their resamples' correlation "
         + " / ".join(f"{x:+.2f}" for x in split["rho"])
-        + "), drawn once more: the data pin cT(-50 C) + D0 R, not its split (decision 3x-comp)"]
+        + "), drawn once more: the data pin cT(-50 C) + D0 R, not its split (decision 52)"]
     if not f.get("added_nt_per_ppt"):
         return lines
     return lines + [f"D0 errors include {f['added_nt_per_ppt']:.3g} nT/ppt along the field's mean "
