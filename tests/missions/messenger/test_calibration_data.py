@@ -1,5 +1,6 @@
 """Every seed table reproduced from its data file (spot values typed from the seed)."""
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,19 @@ def test_table3_intercept_is_ct_minus50(cal, axis, c0, d0):
     assert cal.duty_cycle_d0[axis] == d0
     ct = two_segment_offset(np.array([-50.0]), cal.temperature_coefficients)[0, axis]
     assert ct == pytest.approx(c0, abs=0.05)
+
+
+# sec. 7: the duty-cycle law is anchored at the regulated -50 C (C0 = cT(-50 C)); the
+# packaged processing file states it, a file that leaves it out gets the seed's value
+def test_reference_temperature_is_the_seeds_minus50(cal):
+    assert cal.reference_temperature_c == -50.0
+    rel = {k: v for k, v in cal.constants["relaxation"].items()
+           if k != "reference_temperature_c"}
+    bare = dataclasses.replace(cal, constants={**cal.constants, "relaxation": rel})
+    assert bare.reference_temperature_c == -50.0
+    moved = dataclasses.replace(cal, constants={
+        **cal.constants, "relaxation": {**rel, "reference_temperature_c": -45.0}})
+    assert moved.reference_temperature_c == -45.0
 
 
 # Table 4 (sec. 8)

@@ -54,6 +54,11 @@ _NAME_RE = re.compile(r"^(?P<name>[a-z_]+)_v(?P<version>\d+)\.(?P<ext>csv|toml)$
 SEED_LOOK_BACK_S, SEED_TAU_S = 5000.0, 872.0
 
 
+#: The regulated temperature of sec. 7 (``C0 = cT(-50 C)``), where a processing file
+#: leaves ``reference_temperature_c`` out.
+SEED_REFERENCE_TEMPERATURE_C = -50.0
+
+
 def required_look_back_s(tau_s: float) -> float:
     """Return the shortest look-back (s) that keeps sec. 7's truncation for ``tau_s``.
 
@@ -304,6 +309,22 @@ class MessengerCalibration:
                 f"  processing valid {valid[0]} .. {valid[1]}; tau {relax.get('tau_s')} s, "
                 f"heater delay {relax.get('delay_s')} s; Table 4 offsets "
                 f"{self.constants.get('offsets', {}).get('prelaunch_offsets')})")
+
+    @property
+    def reference_temperature_c(self) -> float:
+        """The regulated sensor temperature (C) that anchors the duty-cycle law.
+
+        ``C0 = cT(-50 C)``: the heater runs only while the sensor is regulated at
+        -50 C (sec. 7, eq. 2); the ``processing`` TOML's
+        ``[relaxation] reference_temperature_c``, the seed's value where a file
+        leaves it out.
+
+        References
+        ----------
+        MESSENGER MAG EDR-to-CDR Processing v2i, sec. 7.
+        """
+        rel = self.constants.get("relaxation", {})
+        return float(rel.get("reference_temperature_c", SEED_REFERENCE_TEMPERATURE_C))
 
     @property
     def prelaunch_offsets_reading(self) -> str:

@@ -385,7 +385,7 @@ def _fit_offsets(
     and the duty-cycle law needs the temperature law at -50 C (its intercept); both are
     linear in the stored bin means, so they are alternated here without a data pass.
     """
-    t_ref = float(base.constants["relaxation"].get("reference_temperature_c", -50.0))
+    t_ref = base.reference_temperature_c
     d0 = np.asarray(base.duty_cycle_d0, dtype=float)
     tau = float(base.constants["relaxation"]["tau_s"])  # the reduction's decay cut used it
     for _ in range(INNER_ITERATIONS):
@@ -833,8 +833,7 @@ def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT)
     ranges = result.temperature_ranges
     if not m or "total_nt" not in m or ranges is None:
         return
-    rel = result.calibration.constants["relaxation"]
-    if not ranges.contains(float(rel.get("reference_temperature_c", -50.0))):
+    if not ranges.contains(result.calibration.reference_temperature_c):
         return
     v = result.variance
     mom = v.offset_moments
@@ -885,7 +884,7 @@ def with_tables(base: MessengerCalibration, law: np.ndarray, d0: np.ndarray, tau
         table2[:, 2] -= base.prelaunch_offsets[0]
     constants = copy.deepcopy(base.constants)
     rel = constants["relaxation"]
-    c_ref = fv.law_at(law, float(rel.get("reference_temperature_c", -50.0)))
+    c_ref = fv.law_at(law, base.reference_temperature_c)
     rel["tau_s"] = float(tau)
     rel["delay_s"] = float(dt)
     rel["look_back_s"] = look_back_for(float(tau))
@@ -1045,8 +1044,7 @@ def fit_variance_calibration(
     split: dict[str, Any] = {}
     if fit_merit.compressive_wind(*fit_merit.compressive_share(vstats.reason)):
         b_law, b_d0, split = fv.widen_law_d0_split(
-            b_law, b_d0, float(base.constants["relaxation"].get("reference_temperature_c",
-                                                                  -50.0)),
+            b_law, b_d0, base.reference_temperature_c,
             np.array([a not in held for a in AXES]), np.array([a not in upper for a in AXES]))
     # D0's error along the field's mean direction that no resample sees (entry 28)
     direction, balance = fv.d0_field_balance(vstats)
@@ -1068,7 +1066,7 @@ def fit_variance_calibration(
         b_dt = np.full_like(b_tau, dt)
     total = fv.law_to_table(law)
     b_total = np.stack([fv.law_to_table(x) for x in b_law])
-    t_ref = float(rel.get("reference_temperature_c", -50.0))
+    t_ref = base.reference_temperature_c
     c_ref = fv.law_at(law, t_ref)
     chi2 = sol.chi2
     temperature = []

@@ -537,12 +537,6 @@ def assess(result: FitResult, goal: float = ERROR_GOAL_NT,
                        if sum_along_field(result) is not None else {})}
 
 
-def _regulated_c(result: FitResult) -> float:
-    """Return the regulated sensor temperature (C; eq. 2: the heater runs only there)."""
-    rel = result.calibration.constants["relaxation"]
-    return float(rel.get("reference_temperature_c", -50.0))
-
-
 def _regulated_bin(edges: np.ndarray, reg: float, band: np.ndarray) -> np.ndarray:
     """Return which of `range_bands`' bins (``band`` rows) holds the temperature ``reg``."""
     if not band.size:
@@ -566,7 +560,7 @@ def _goal_failure(result: FitResult) -> float | None:
     total = np.asarray(m["total_nt"], dtype=float)
     if not np.all(total <= float(m["goal_nt"])):
         return _up_to_cent(np.nanmax(total))
-    reg = _regulated_c(result)
+    reg = result.calibration.reference_temperature_c
     held = _regulated_bin(edges, reg, band)
     if held.any() and not result.temperature_ranges.contains(reg):
         return _goal_for_band(float(band[held].max()))
@@ -653,7 +647,7 @@ def regulated_sum_untrusted(result: FitResult) -> str:
     n_comp, judged = compressive_share(result.variance.reason)
     if not compressive_wind(n_comp, judged):
         return ""
-    reg = _regulated_c(result)
+    reg = result.calibration.reference_temperature_c
     ranges = result.stated_ranges
     if ranges is None or not bool(ranges.contains(reg)):
         return ""  # not stated there: its samples are warned, not predicted (entry 45)

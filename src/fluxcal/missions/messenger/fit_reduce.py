@@ -478,7 +478,7 @@ def reduce_day(
     # 2. duty-cycle law: counts minus the temperature variation and the heater signal,
     # binned by the duty cycle the offset has relaxed to (eq. 6f with unit slope), in
     # heater periods with a finite duty cycle (docs/decisions/messenger_fit.md, entry 2)
-    t_ref = float(rel.get("reference_temperature_c", -50.0))
+    t_ref = cal.reference_temperature_c
     c_ref = two_segment_offset(np.array([t_ref]), coeff)[0]
     p = period_index(et, periods)
     on = (level_eff > 0) & (p >= 0)
