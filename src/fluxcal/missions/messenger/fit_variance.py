@@ -585,8 +585,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         (`fit_holds.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
     map_rows : callable, optional
         ``map_rows(resample_fits, [args, ...])`` -> the results in order: the resamples'
-        break choices and fits (`resample_fits`) in ``n_blocks`` blocks of rows, e.g.
-        on the Dask workers, idle while the client fits (`fit.fit_days`); the rows are
+        break choices and fits (`resample_fits`, their breaks placed in their cells
+        there too where they are refined) in ``n_blocks`` blocks of rows, e.g. on the
+        Dask workers, idle while the client fits (`fit.fit_days`); the rows are
         independent, so the numbers are those of one block (issue 34, item 7).  None:
         here, in one block.
     n_blocks : int
@@ -691,19 +692,21 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         cols = sorted(columns)
         draws = rng.standard_normal((n_bootstrap, len(cols)))
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
+    # a moved break placed inside its cell on its own data, in every resample (with the
+    # resamples: on Dask on the workers, entry 3x-serial3)
+    refined = law is not None and (refine or refine_resamples)
     if map_rows is None:
-        boot_choice, boot = resample_fits(a_r, v_r, yy_r, held_r, base_free, law, data_range)
+        boot_choice, boot, refined_offset = resample_fits(a_r, v_r, yy_r, held_r, base_free,
+                                                          law, data_range, refined)
     else:  # blocks of resamples elsewhere (the rows are independent: the same numbers)
         cuts = np.array_split(np.arange(n_bootstrap), max(1, min(n_blocks, n_bootstrap)))
         parts = map_rows(resample_fits, [(a_r[c], v_r[c], yy_r[c], held_r[c], base_free,
-                                          law, data_range) for c in cuts if c.size])
-        boot_choice = np.concatenate([c for c, _ in parts])
-        boot = np.concatenate([b for _, b in parts])
+                                          law, data_range, refined) for c in cuts if c.size])
+        boot_choice, boot, refined_offset = (np.concatenate(x) for x in zip(*parts,
+                                                                            strict=True))
     boot_offset, offset = quantisation(boot_choice, rng), np.zeros(3)
-    if law is not None and (refine or refine_resamples):  # a moved break inside its
-        # cell, on its own data
-        boot, boot_offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law,
-                                          boot_choice, boot, data_range)
+    if refined:
+        boot_offset = refined_offset
         if max(choice) >= 0:
             steps, offsets = refine_breaks(total_a[None], total_v[None], np.array([yy]),
                                            fixed_h[None], base_free, law,
