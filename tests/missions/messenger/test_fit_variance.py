@@ -139,6 +139,31 @@ def test_statistics_merge_sums_as_add_at_did_bit_for_bit(starts_a, starts_b):
             assert getattr(m, name).tobytes() == w.tobytes(), name
 
 
+@pytest.mark.parametrize("starts", [
+    [[0.0, 7200.0], [7200.0, 14400.0], [0.0, 21600.0], [28800.0]],  # shared, also 1st-3rd
+    [[0.0], [7200.0], [14400.0], [21600.0], [28800.0]],  # days apart
+    [[], [0.0, 7200.0], [7200.0], []],  # empty parts
+    [[0.0, 0.0], [7200.0], [0.0]],  # a part repeating a start: folded
+    [[0.0], [7200.0]],  # two: `merge` itself
+])
+def test_merge_all_is_the_fold_bit_for_bit(starts):
+    # the merge tree's node merges all its parts in one pass (entry 3x-serial3): the
+    # same bits as merging them pairwise left to right, signed zeros included
+    rng = np.random.default_rng(12)
+    truth = _truth(rng)
+    parts = [_stats(x, rng, truth) if x else VarianceStatistics() for x in starts]
+    for x in parts:
+        if x.normal.size:
+            x.normal[0, 0, :2] = [-0.0, -0.0]
+            x.rhs[0, :1] = -0.0
+    got, want = VarianceStatistics.merge_all(parts), functools.reduce(
+        VarianceStatistics.merge, parts)
+    for f in dataclasses.fields(VarianceStatistics):
+        g, w = getattr(got, f.name), getattr(want, f.name)
+        assert np.asarray(g).dtype == np.asarray(w).dtype, f.name
+        assert np.asarray(g).tobytes() == np.asarray(w).tobytes(), f.name
+
+
 def test_unknown_estimator_is_refused(tmp_path):
     chunk = Chunk("x", (tmp_path / "s.csv",), (), (), ())
     with pytest.raises(FluxcalError, match="estimator must be one of zero-mean, variance"):

@@ -47,8 +47,9 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import reduce
 
 import numpy as np
 import xarray as xr
@@ -265,6 +266,45 @@ class VarianceStatistics:
             offset_moments=self.offset_moments + other.offset_moments,
             field_sum=add(*(_per_block(x.field_sum, x.block_start.size, 4)
                             for x in (self, other))))
+
+    @staticmethod
+    def merge_all(parts: Sequence[VarianceStatistics]) -> VarianceStatistics:
+        """Return ``reduce(VarianceStatistics.merge, parts)``, bit for bit, in one pass.
+
+        Each part's blocks go into one array once, instead of the growing merged arrays
+        being copied at every step of the fold (the merge tree's last, largest merge:
+        docs/decisions/messenger_fit.md entry 3x-serial3).  A block is summed in the
+        fold's order, ``((0 + first) + second) + ...``: adding 0 again to a sum that
+        already had 0 added changes no bit.  A part that repeats a start is folded.
+        """
+        parts = list(parts)
+        if len(parts) < 3:
+            return reduce(VarianceStatistics.merge, parts)
+        uniq, inv = np.unique(np.concatenate([x.block_start for x in parts]),
+                              return_inverse=True)
+        cuts = np.cumsum([0, *(x.block_start.size for x in parts)])
+        idx = [inv[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+        if any(np.unique(i).size != i.size for i in idx):
+            return reduce(VarianceStatistics.merge, parts)
+
+        def add(arrays: list[np.ndarray]) -> np.ndarray:
+            out = np.zeros((uniq.size, *np.shape(arrays[0])[1:]))
+            for i, a in zip(idx, arrays, strict=True):
+                out[i] += a
+            return out
+
+        def column(name: str) -> list[np.ndarray]:
+            return [getattr(x, name) for x in parts]
+
+        return VarianceStatistics(
+            normal=add(column("normal")), rhs=add(column("rhs")), yy=add(column("yy")),
+            samples=add(column("samples")), block_start=uniq,
+            interval_start=np.concatenate(column("interval_start")),
+            reason=np.concatenate(column("reason")).astype("<U24"),
+            temperature_count=reduce(np.add, column("temperature_count")),
+            segments=sum(x.segments for x in parts),
+            offset_moments=reduce(np.add, column("offset_moments")),
+            field_sum=add([_per_block(x.field_sum, x.block_start.size, 4) for x in parts]))
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
