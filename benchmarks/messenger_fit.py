@@ -361,6 +361,12 @@ def main() -> None:
     ap.add_argument("--estimator", choices=ESTIMATORS, default="variance",
                     help="the fit's --estimator (default variance)")
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
+    ap.add_argument("--scheduler-process", action="store_true",
+                    help="the scheduler in a process of its own (distributed's experimental "
+                    "SubprocessCluster) instead of the LocalCluster's scheduler in this "
+                    "process, to measure the client without the scheduler's CPU "
+                    "(docs/decisions/messenger_fit.md entries 53 and 3x-serial3); its workers "
+                    "keep Dask's default environment")
     args = ap.parse_args()
     d1 = args.days_1hz if args.days_1hz is not None else (3 if args.quick else 30)
     d20 = args.days_20hz if args.days_20hz is not None else (1 if args.quick else 7)
@@ -372,7 +378,16 @@ def main() -> None:
 
     work = Path(tempfile.mkdtemp(prefix="fluxcal-bench-fit-"))
     t = time.perf_counter()
-    cluster = make_local_cluster(args.workers)
+    if args.scheduler_process:
+        from distributed.deploy.subprocess import SubprocessCluster
+
+        # its processes unpickle this folder's `_control.burn`: give them the folder
+        os.environ["PYTHONPATH"] = os.pathsep.join(
+            [str(Path(__file__).resolve().parent), *filter(None, [os.environ.get("PYTHONPATH")])])
+        cluster = SubprocessCluster(n_workers=args.workers, threads_per_worker=1,
+                                    dashboard_address=":0", silence_logs=logging.ERROR)
+    else:
+        cluster = make_local_cluster(args.workers)
     with Client(cluster) as client:
         client.run(lambda: logging.getLogger("fluxcal").setLevel(logging.ERROR))
     print(f"local Dask cluster: {args.workers} workers, start-up {time.perf_counter() - t:.1f} s"

@@ -257,14 +257,33 @@ class BinnedMoments:
     def reshifted(self, shift: np.ndarray | float) -> BinnedMoments:
         """Return the same statistics expressed about another reference ``shift``."""
         new = np.broadcast_to(np.asarray(shift, dtype=np.float64), (self.n_comp,)).copy()
+        total, total_sq = self._sums_about(new)
+        return self._assembled(self.count.copy(), total, total_sq, new, self)
+
+    def _sums_about(self, new: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``total`` and ``total_sq`` about the reference ``new`` (shape (n_comp,))."""
         delta = self.shift - new  # v - new = (v - old) + delta (exact when delta == 0)
         n = self.count[:, None].astype(np.float64)
         total = self.total + n * delta
         total_sq = self.total_sq + 2.0 * delta * self.total + n * delta * delta
-        return BinnedMoments(
-            self.edges, self.count.copy(), total, total_sq, new,
-            self.label, self.units, self.value_units,
-        )
+        return total, total_sq
+
+    def _assembled(self, count: np.ndarray, total: np.ndarray, total_sq: np.ndarray,
+                   shift: np.ndarray, other: BinnedMoments) -> BinnedMoments:
+        """Build a reduction on these edges from sums already checked against them.
+
+        `merge` and `reshifted` build their results from arrays whose shapes and types
+        their operands' own checks have fixed, so they skip `__post_init__`'s checks,
+        which cost more than the sums themselves on the few hundred bins of a merge.  The
+        metadata are this one's, or where empty ``other``'s.
+        """
+        out = object.__new__(BinnedMoments)
+        out.edges, out.count, out.total, out.total_sq, out.shift = (
+            self.edges, count, total, total_sq, shift)
+        out.label = self.label or other.label
+        out.units = self.units or other.units
+        out.value_units = self.value_units or other.value_units
+        return out
 
     def merge(self, other: BinnedMoments) -> BinnedMoments:
         """Return the reduction of both data sets (bin edges must be identical).
@@ -280,7 +299,9 @@ class BinnedMoments:
         """
         if not isinstance(other, BinnedMoments):
             raise TypeError(f"cannot merge BinnedMoments with {type(other).__name__}")
-        if self.edges.shape != other.edges.shape or not np.array_equal(self.edges, other.edges):
+        if self.edges is not other.edges and (
+                self.edges.shape != other.edges.shape
+                or not np.array_equal(self.edges, other.edges)):
             raise InputFormatError(
                 f"cannot merge binned statistics with different bin edges "
                 f"({self.edges.size - 1} bins on [{self.edges[0]}, {self.edges[-1]}] vs "
@@ -295,17 +316,9 @@ class BinnedMoments:
         # keep the reference of the operand holding more samples (ties: this one), so an
         # empty accumulator never imposes its (arbitrary) shift on the data
         base, extra = (other, self) if other.count.sum() > self.count.sum() else (self, other)
-        o = extra.reshifted(base.shift)
-        return BinnedMoments(
-            edges=self.edges,
-            count=base.count + o.count,
-            total=base.total + o.total,
-            total_sq=base.total_sq + o.total_sq,
-            shift=base.shift.copy(),
-            label=self.label or other.label,
-            units=self.units or other.units,
-            value_units=self.value_units or other.value_units,
-        )
+        total, total_sq = extra._sums_about(base.shift)
+        return self._assembled(base.count + extra.count, base.total + total,
+                               base.total_sq + total_sq, base.shift.copy(), other)
 
     def __add__(self, other: BinnedMoments) -> BinnedMoments:
         """Merge (see `merge`)."""

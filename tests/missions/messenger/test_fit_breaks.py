@@ -125,9 +125,13 @@ def test_kept_breaks_and_unmoved_resamples_are_left_as_they_are(shipped):
     free = np.ones(N_PARAMETERS, dtype=bool)
     held = np.zeros((100, N_PARAMETERS))
     data_range = stats.fitted_range(VarianceSettings().min_samples)
-    choice, steps = resample_fits(a_r, v_r, yy_r, held, free, now, data_range)
+    choice, steps, _ = resample_fits(a_r, v_r, yy_r, held, free, now, data_range)
     assert np.any(choice >= 0) and np.any(choice < 0)  # both kinds present
     out, offset = refine_breaks(a_r, v_r, yy_r, held, free, now, choice, steps, data_range)
+    # refined inside `resample_fits` (on Dask: on the workers): the same, bit for bit
+    _, inside, inside_offset = resample_fits(a_r, v_r, yy_r, held, free, now, data_range,
+                                             refine=True)
+    assert inside.tobytes() == out.tobytes() and inside_offset.tobytes() == offset.tobytes()
     kept = np.all(choice < 0, axis=1)
     np.testing.assert_array_equal(out[kept], steps[kept])
     np.testing.assert_array_equal(offset[choice < 0], 0.0)

@@ -314,23 +314,37 @@ def test_resample_steps_applied_at_once_equal_one_at_a_time():
 def test_resamples_in_blocks_equal_the_whole_stack():
     # the bootstrap's resamples solved in blocks of rows (`fit_days` on Dask maps them
     # onto the workers, `solve_variance(map_rows=...)`) against the whole stack at once:
-    # every row chooses and solves on its own, so the blocks must give the same choices
-    # and steps, bit for bit, for any split (one row per block included)
+    # every row chooses, solves and (``refine``) places its breaks in their cells on its
+    # own, so the blocks must give the same choices, steps and offsets, bit for bit, for
+    # any split (one row per block included), and the refinement inside `resample_fits`
+    # must be `refine_breaks` after it (entry 3x-serial3)
     rng = np.random.default_rng(4711)
     p = fb.N_PARAMETERS
     n = 90
     a, v, yy, law = _random_system(rng, n, p)
     held = np.zeros((n, p))
     held[:, 4] = rng.normal(0.0, 0.01, n)
-    for fit_delay, with_law in ((True, True), (False, True), (True, False)):
+    for fit_delay, with_law, refine in ((True, True, False), (False, True, False),
+                                        (True, False, False), (True, True, True),
+                                        (False, True, True), (True, False, True)):
         base_free = np.ones(p, dtype=bool)
         base_free[-1] = fit_delay
         base_free[4] = False
-        args = (base_free, law if with_law else None, (-15.0, 35.0))
+        args = (base_free, law if with_law else None, (-15.0, 35.0), refine)
         whole = fb.resample_fits(a, v, yy, held, *args)
         assert (whole[0] >= 0).any() == with_law
+        if refine and with_law:
+            plain = fb.resample_fits(a, v, yy, held, *args[:3])
+            want = fb.refine_breaks(a, v, yy, held, base_free, law, plain[0], plain[1],
+                                    (-15.0, 35.0))
+            assert whole[1].tobytes() == want[0].tobytes()
+            assert whole[2].tobytes() == want[1].tobytes()
+            assert (whole[2] != 0.0).any()  # some breaks were placed inside their cells
+        else:
+            np.testing.assert_array_equal(whole[2], 0.0)
         for blocks in (2, 7, n):
             parts = [fb.resample_fits(a[c], v[c], yy[c], held[c], *args)
                      for c in np.array_split(np.arange(n), blocks)]
-            np.testing.assert_array_equal(np.concatenate([c for c, _ in parts]), whole[0])
-            np.testing.assert_array_equal(np.concatenate([b for _, b in parts]), whole[1])
+            for k in range(3):
+                got = np.concatenate([x[k] for x in parts])
+                assert got.tobytes() == whole[k].tobytes()

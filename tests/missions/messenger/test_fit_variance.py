@@ -106,6 +106,64 @@ def test_statistics_merge_sums_shared_blocks_and_solve_recovers_the_step():
     assert np.all(sol.boot.std(axis=0) < 5e-5)
 
 
+def _merged_by_add_at(a, b):
+    """`VarianceStatistics.merge` as it was written before entry 3x-serial3: every
+    block's arrays summed by ``np.add.at`` over the concatenation, in its order."""
+    uniq, inv = np.unique(np.concatenate([a.block_start, b.block_start]),
+                          return_inverse=True)
+    out = {}
+    for name in ("normal", "rhs", "yy", "samples"):
+        both = np.concatenate([getattr(a, name), getattr(b, name)])
+        out[name] = np.zeros((uniq.size, *both.shape[1:]))
+        np.add.at(out[name], inv, both)
+    return out
+
+
+@pytest.mark.parametrize("starts_a, starts_b", [
+    ([0.0, 10800.0, 21600.0], [21600.0, 32400.0]),  # a block on both sides
+    ([32400.0, 0.0], [7200.0, 0.0, 36000.0]),  # unsorted, shared
+    ([0.0, 7200.0], [14400.0]),  # disjoint
+    ([], [0.0, 7200.0]),  # an empty side
+    ([0.0, 0.0, 7200.0], [7200.0, 7200.0]),  # a side repeating a start: np.add.at kept
+])
+def test_statistics_merge_sums_as_add_at_did_bit_for_bit(starts_a, starts_b):
+    rng = np.random.default_rng(11)
+    truth = _truth(rng)
+    a = _stats(starts_a, rng, truth) if starts_a else VarianceStatistics()
+    b = _stats(starts_b, rng, truth)
+    if a.normal.size:
+        a.normal[0, 0, :3] = [-0.0, 0.0, -0.0]  # signed zeros: 0 + (-0) is +0 both ways
+    for x, y in ((a, b), (b, a)):
+        m, want = x.merge(y), _merged_by_add_at(x, y)
+        for name, w in want.items():
+            assert getattr(m, name).tobytes() == w.tobytes(), name
+
+
+@pytest.mark.parametrize("starts", [
+    [[0.0, 7200.0], [7200.0, 14400.0], [0.0, 21600.0], [28800.0]],  # shared, also 1st-3rd
+    [[0.0], [7200.0], [14400.0], [21600.0], [28800.0]],  # days apart
+    [[], [0.0, 7200.0], [7200.0], []],  # empty parts
+    [[0.0, 0.0], [7200.0], [0.0]],  # a part repeating a start: folded
+    [[0.0], [7200.0]],  # two: `merge` itself
+])
+def test_merge_all_is_the_fold_bit_for_bit(starts):
+    # the merge tree's node merges all its parts in one pass (entry 3x-serial3): the
+    # same bits as merging them pairwise left to right, signed zeros included
+    rng = np.random.default_rng(12)
+    truth = _truth(rng)
+    parts = [_stats(x, rng, truth) if x else VarianceStatistics() for x in starts]
+    for x in parts:
+        if x.normal.size:
+            x.normal[0, 0, :2] = [-0.0, -0.0]
+            x.rhs[0, :1] = -0.0
+    got, want = VarianceStatistics.merge_all(parts), functools.reduce(
+        VarianceStatistics.merge, parts)
+    for f in dataclasses.fields(VarianceStatistics):
+        g, w = getattr(got, f.name), getattr(want, f.name)
+        assert np.asarray(g).dtype == np.asarray(w).dtype, f.name
+        assert np.asarray(g).tobytes() == np.asarray(w).tobytes(), f.name
+
+
 def test_unknown_estimator_is_refused(tmp_path):
     chunk = Chunk("x", (tmp_path / "s.csv",), (), (), ())
     with pytest.raises(FluxcalError, match="estimator must be one of zero-mean, variance"):

@@ -1585,7 +1585,7 @@ def _merge_parts(*parts: Any) -> Any:
     """Merge `reduce_chunk` outputs left to right (one node of `_merge_tree`)."""
     if isinstance(parts[0], tuple):
         return (reduce(DayStatistics.merge, [d for d, _ in parts]),
-                reduce(VarianceStatistics.merge, [v for _, v in parts]))
+                VarianceStatistics.merge_all([v for _, v in parts]))
     return reduce(DayStatistics.merge, parts)
 
 

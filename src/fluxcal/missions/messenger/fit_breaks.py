@@ -294,12 +294,17 @@ def choose_breaks(a: np.ndarray, v: np.ndarray, yy: np.ndarray | float,
 
 def resample_fits(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np.ndarray,
                   base_free: np.ndarray, law: np.ndarray | None,
-                  data_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Return the break choices (n, 3) and the fitted steps (n, p) of resamples.
+                  data_range: tuple[float, float], refine: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the break choices (n, 3), the fitted steps (n, p) and the break offsets (n, 3).
 
     Each row of the stacked normal equations chooses its own breaks (`choose_breaks`;
     none tried without ``law``) and is solved with them (`_fit_rows`), on its own: a
     block of rows gives the numbers those rows get in the whole stack (`solve_variance`).
+    With ``refine`` (and a ``law``) every moved break is then placed inside its cell on
+    its row's own data (`refine_breaks`, which also treats each row on its own), so that
+    on Dask the refinement runs on the workers with the resamples (docs/decisions/
+    messenger_fit.md entry 3x-serial3); else the offsets are 0.
     """
     n = a_r.shape[0]
     slope = law[:, 2] if law is not None else np.zeros(3)
@@ -308,7 +313,12 @@ def resample_fits(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     else:
         choice = np.full((n, 3), -1, dtype=np.int64)
     free_r, fixed_r = _layout_rows(choice, base_free, slope)
-    return choice, _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
+    steps = _fit_rows(a_r, v_r, free_r, fixed_r + held_r)
+    if refine and law is not None:
+        steps, offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law, choice, steps,
+                                      data_range)
+        return choice, steps, offset
+    return choice, steps, np.zeros((n, 3))
 
 
 def choice_shifts_c(choice: np.ndarray) -> np.ndarray:

@@ -47,8 +47,9 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import reduce
 
 import numpy as np
 import xarray as xr
@@ -238,11 +239,20 @@ class VarianceStatistics:
         """Return the statistics of both (blocks of the same start are summed)."""
         starts = np.concatenate([self.block_start, other.block_start])
         uniq, inv = np.unique(starts, return_inverse=True)
+        n_self = self.block_start.size
+        # each side's blocks are distinct (unique starts), so adding one side at a time by
+        # index sums what np.add.at sums, in its order: (0 + self's) + other's, bit for bit
+        # (entry 3x-serial3); np.add.at itself where a side repeats a start
+        by_side = (np.unique(inv[:n_self]).size == n_self
+                   and np.unique(inv[n_self:]).size == inv.size - n_self)
 
         def add(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-            both = np.concatenate([a, b])
-            out = np.zeros((uniq.size, *both.shape[1:]))
-            np.add.at(out, inv, both)
+            out = np.zeros((uniq.size, *np.shape(a)[1:]))
+            if by_side:
+                out[inv[:n_self]] += a
+                out[inv[n_self:]] += b
+            else:
+                np.add.at(out, inv, np.concatenate([a, b]))
             return out
 
         return VarianceStatistics(
@@ -256,6 +266,45 @@ class VarianceStatistics:
             offset_moments=self.offset_moments + other.offset_moments,
             field_sum=add(*(_per_block(x.field_sum, x.block_start.size, 4)
                             for x in (self, other))))
+
+    @staticmethod
+    def merge_all(parts: Sequence[VarianceStatistics]) -> VarianceStatistics:
+        """Return ``reduce(VarianceStatistics.merge, parts)``, bit for bit, in one pass.
+
+        Each part's blocks go into one array once, instead of the growing merged arrays
+        being copied at every step of the fold (the merge tree's last, largest merge:
+        docs/decisions/messenger_fit.md entry 3x-serial3).  A block is summed in the
+        fold's order, ``((0 + first) + second) + ...``: adding 0 again to a sum that
+        already had 0 added changes no bit.  A part that repeats a start is folded.
+        """
+        parts = list(parts)
+        if len(parts) < 3:
+            return reduce(VarianceStatistics.merge, parts)
+        uniq, inv = np.unique(np.concatenate([x.block_start for x in parts]),
+                              return_inverse=True)
+        cuts = np.cumsum([0, *(x.block_start.size for x in parts)])
+        idx = [inv[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+        if any(np.unique(i).size != i.size for i in idx):
+            return reduce(VarianceStatistics.merge, parts)
+
+        def add(arrays: list[np.ndarray]) -> np.ndarray:
+            out = np.zeros((uniq.size, *np.shape(arrays[0])[1:]))
+            for i, a in zip(idx, arrays, strict=True):
+                out[i] += a
+            return out
+
+        def column(name: str) -> list[np.ndarray]:
+            return [getattr(x, name) for x in parts]
+
+        return VarianceStatistics(
+            normal=add(column("normal")), rhs=add(column("rhs")), yy=add(column("yy")),
+            samples=add(column("samples")), block_start=uniq,
+            interval_start=np.concatenate(column("interval_start")),
+            reason=np.concatenate(column("reason")).astype("<U24"),
+            temperature_count=reduce(np.add, column("temperature_count")),
+            segments=sum(x.segments for x in parts),
+            offset_moments=reduce(np.add, column("offset_moments")),
+            field_sum=add([_per_block(x.field_sum, x.block_start.size, 4) for x in parts]))
 
     def rejections(self) -> dict[str, int]:
         """Return ``{reason: count}`` of the rejected intervals."""
@@ -576,8 +625,9 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         (`fit_holds.held_upper_segments`, docs/decisions/messenger_fit.md entry 21).
     map_rows : callable, optional
         ``map_rows(resample_fits, [args, ...])`` -> the results in order: the resamples'
-        break choices and fits (`resample_fits`) in ``n_blocks`` blocks of rows, e.g.
-        on the Dask workers, idle while the client fits (`fit.fit_days`); the rows are
+        break choices and fits (`resample_fits`, their breaks placed in their cells
+        there too where they are refined) in ``n_blocks`` blocks of rows, e.g. on the
+        Dask workers, idle while the client fits (`fit.fit_days`); the rows are
         independent, so the numbers are those of one block (issue 34, item 7).  None:
         here, in one block.
     n_blocks : int
@@ -682,19 +732,21 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         cols = sorted(columns)
         draws = rng.standard_normal((n_bootstrap, len(cols)))
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
+    # a moved break placed inside its cell on its own data, in every resample (with the
+    # resamples: on Dask on the workers, entry 3x-serial3)
+    refined = law is not None and (refine or refine_resamples)
     if map_rows is None:
-        boot_choice, boot = resample_fits(a_r, v_r, yy_r, held_r, base_free, law, data_range)
+        boot_choice, boot, refined_offset = resample_fits(a_r, v_r, yy_r, held_r, base_free,
+                                                          law, data_range, refined)
     else:  # blocks of resamples elsewhere (the rows are independent: the same numbers)
         cuts = np.array_split(np.arange(n_bootstrap), max(1, min(n_blocks, n_bootstrap)))
         parts = map_rows(resample_fits, [(a_r[c], v_r[c], yy_r[c], held_r[c], base_free,
-                                          law, data_range) for c in cuts if c.size])
-        boot_choice = np.concatenate([c for c, _ in parts])
-        boot = np.concatenate([b for _, b in parts])
+                                          law, data_range, refined) for c in cuts if c.size])
+        boot_choice, boot, refined_offset = (np.concatenate(x) for x in zip(*parts,
+                                                                            strict=True))
     boot_offset, offset = quantisation(boot_choice, rng), np.zeros(3)
-    if law is not None and (refine or refine_resamples):  # a moved break inside its
-        # cell, on its own data
-        boot, boot_offset = refine_breaks(a_r, v_r, yy_r, held_r, base_free, law,
-                                          boot_choice, boot, data_range)
+    if refined:
+        boot_offset = refined_offset
         if max(choice) >= 0:
             steps, offsets = refine_breaks(total_a[None], total_v[None], np.array([yy]),
                                            fixed_h[None], base_free, law,
