@@ -365,7 +365,7 @@ def main() -> None:
                     help="the scheduler in a process of its own (distributed's experimental "
                     "SubprocessCluster) instead of the LocalCluster's scheduler in this "
                     "process, to measure the client without the scheduler's CPU "
-                    "(docs/decisions/messenger_fit.md entries 53 and 3x-serial3); its workers "
+                    "(docs/decisions/messenger_fit.md entries 53 and 54); its workers "
                     "keep Dask's default environment")
     args = ap.parse_args()
     d1 = args.days_1hz if args.days_1hz is not None else (3 if args.quick else 30)

@@ -11,7 +11,7 @@ times, in CPU seconds (``time.process_time``):
 
 - ``fit._merge_all`` of all the days: a pass's merges, in `fit._merge_tree`'s groups;
 - the merge tree's tail: the last merge of each level, which on Dask runs after the last
-  day has been reduced (docs/decisions/messenger_fit.md entries 53 and 3x-serial3);
+  day has been reduced (docs/decisions/messenger_fit.md entries 53 and 54);
 - the top merge alone.
 
 It prints the median and range of each and the sha256 of every number the merge gives

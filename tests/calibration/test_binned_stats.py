@@ -134,7 +134,7 @@ def _merged_by_the_algebra(a, b):
 @given(seed=st.integers(0, 2**32 - 1), n_a=st.integers(0, 300), n_b=st.integers(0, 300),
        n_comp=st.integers(1, 4), same_shift=st.booleans(), labelled=st.booleans())
 def test_merge_is_the_algebra_bit_for_bit(seed, n_a, n_b, n_comp, same_shift, labelled):
-    """`merge` and `reshifted` (built without re-validating their sums: entry 3x-serial3)
+    """`merge` and `reshifted` (built without re-validating their sums: entry 54)
     equal the shifted-sum algebra evaluated through the validating constructor, bit for
     bit (both signs of zero included), and their results are valid reductions."""
     rng = np.random.default_rng(seed)

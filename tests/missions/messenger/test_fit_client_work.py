@@ -317,7 +317,7 @@ def test_resamples_in_blocks_equal_the_whole_stack():
     # every row chooses, solves and (``refine``) places its breaks in their cells on its
     # own, so the blocks must give the same choices, steps and offsets, bit for bit, for
     # any split (one row per block included), and the refinement inside `resample_fits`
-    # must be `refine_breaks` after it (entry 3x-serial3)
+    # must be `refine_breaks` after it (entry 54)
     rng = np.random.default_rng(4711)
     p = fb.N_PARAMETERS
     n = 90

@@ -107,7 +107,7 @@ def test_statistics_merge_sums_shared_blocks_and_solve_recovers_the_step():
 
 
 def _merged_by_add_at(a, b):
-    """`VarianceStatistics.merge` as it was written before entry 3x-serial3: every
+    """`VarianceStatistics.merge` as it was written before entry 54: every
     block's arrays summed by ``np.add.at`` over the concatenation, in its order."""
     uniq, inv = np.unique(np.concatenate([a.block_start, b.block_start]),
                           return_inverse=True)
@@ -147,7 +147,7 @@ def test_statistics_merge_sums_as_add_at_did_bit_for_bit(starts_a, starts_b):
     [[0.0], [7200.0]],  # two: `merge` itself
 ])
 def test_merge_all_is_the_fold_bit_for_bit(starts):
-    # the merge tree's node merges all its parts in one pass (entry 3x-serial3): the
+    # the merge tree's node merges all its parts in one pass (entry 54): the
     # same bits as merging them pairwise left to right, signed zeros included
     rng = np.random.default_rng(12)
     truth = _truth(rng)

@@ -304,7 +304,7 @@ def resample_fits(a_r: np.ndarray, v_r: np.ndarray, yy_r: np.ndarray, held_r: np
     With ``refine`` (and a ``law``) every moved break is then placed inside its cell on
     its row's own data (`refine_breaks`, which also treats each row on its own), so that
     on Dask the refinement runs on the workers with the resamples (docs/decisions/
-    messenger_fit.md entry 3x-serial3); else the offsets are 0.
+    messenger_fit.md entry 54); else the offsets are 0.
     """
     n = a_r.shape[0]
     slope = law[:, 2] if law is not None else np.zeros(3)

@@ -242,7 +242,7 @@ class VarianceStatistics:
         n_self = self.block_start.size
         # each side's blocks are distinct (unique starts), so adding one side at a time by
         # index sums what np.add.at sums, in its order: (0 + self's) + other's, bit for bit
-        # (entry 3x-serial3); np.add.at itself where a side repeats a start
+        # (entry 54); np.add.at itself where a side repeats a start
         by_side = (np.unique(inv[:n_self]).size == n_self
                    and np.unique(inv[n_self:]).size == inv.size - n_self)
 
@@ -273,7 +273,7 @@ class VarianceStatistics:
 
         Each part's blocks go into one array once, instead of the growing merged arrays
         being copied at every step of the fold (the merge tree's last, largest merge:
-        docs/decisions/messenger_fit.md entry 3x-serial3).  A block is summed in the
+        docs/decisions/messenger_fit.md entry 54).  A block is summed in the
         fold's order, ``((0 + first) + second) + ...``: adding 0 again to a sum that
         already had 0 added changes no bit.  A part that repeats a start is folded.
         """
@@ -733,7 +733,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         draws = rng.standard_normal((n_bootstrap, len(cols)))
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
     # a moved break placed inside its cell on its own data, in every resample (with the
-    # resamples: on Dask on the workers, entry 3x-serial3)
+    # resamples: on Dask on the workers, entry 54)
     refined = law is not None and (refine or refine_resamples)
     if map_rows is None:
         boot_choice, boot, refined_offset = resample_fits(a_r, v_r, yy_r, held_r, base_free,
