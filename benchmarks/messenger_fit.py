@@ -17,7 +17,7 @@ benchmarks/batch.py does).
 
 Prints seconds and input samples per second for both and their ratio, the simulator's
 own speed, and for the Dask run the split of its wall time (from the DEBUG timing records
-of `fit.fit_days`): the parallel reduce per pass (map over the days and the merge on the
+of `fit_passes.fit_days`): the parallel reduce per pass (map over the days and the merge on the
 workers), the gather of the merged statistics, and the client's serial part (set-up, the
 fit of each pass, the folder written).  That serial share ``f`` of the serial run's time
 bounds the speed-up on ``N`` workers by ``1 / (f + (1 - f) / N)`` (Amdahl); the bound is
@@ -60,13 +60,13 @@ from fluxcal.missions.messenger.fit_cli import run_fit  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
 START = dt.date(2010, 3, 1)
-FIT_LOGGER = "fluxcal.missions.messenger.fit"
+FIT_LOGGER = "fluxcal.missions.messenger.fit_passes"
 #: Seconds for the workers' heartbeats to report their task metrics to the scheduler.
 HEARTBEAT_S = 2.0
 
 
 class _Timings(logging.Handler):
-    """Collects the ``fit_timing`` records of `fit.fit_days`'s Dask passes."""
+    """Collects the ``fit_timing`` records of `fit_passes.fit_days`'s Dask passes."""
 
     def __init__(self) -> None:
         super().__init__(logging.DEBUG)
@@ -128,7 +128,7 @@ def _serial_parts(t0: float, t1: float, cpu1: float,
                   passes: list[dict[str, float]]) -> dict[str, Any]:
     """The serial run's time split per pass: reduce the days, merge them, client fit.
 
-    From the same ``fit_timing`` records `fit.fit_days` logs serially (``reduced``: every
+    From the same ``fit_timing`` records `fit_passes.fit_days` logs serially (``reduced``: every
     day reduced, ``gathered``: merged); the client's part runs to the next pass's start
     (the last one to the end of `run_fit`: the figure of merit, the folder, the pictures).
     Wall seconds, and CPU seconds (``*_cpu_s``; on a shared host the wall includes waits

@@ -50,14 +50,14 @@ from tests.missions.messenger._unseen_day import (  # noqa: E402
 from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
-from fluxcal.missions.messenger.fit import (  # noqa: E402
+from fluxcal.missions.messenger.fit_cli import parse_hold_d0  # noqa: E402
+from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # noqa: E402
+from fluxcal.missions.messenger.fit_passes import (  # noqa: E402
     MAX_PASSES,
     day_chunks,
     fit_days,
     judged_at,
 )
-from fluxcal.missions.messenger.fit_cli import parse_hold_d0  # noqa: E402
-from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
@@ -111,7 +111,7 @@ def advice(message: str, own: bool = False) -> dict:
 
 def _prediction_range(res):
     """The temperatures the header's prediction holds for: T_RANGE when it holds the
-    regulated -50 C, else every temperature (`fit.merit_inside_range`)."""
+    regulated -50 C, else every temperature (`fit_passes.merit_inside_range`)."""
     return res.stated_ranges if res.stated_ranges.contains(-50.0) else None
 
 
@@ -233,7 +233,7 @@ def main() -> None:
         tmp = Path(tmp)
         if args.demo:
             from fluxcal.missions.messenger import fit_demo
-            from fluxcal.missions.messenger.fit import Chunk
+            from fluxcal.missions.messenger.fit_passes import Chunk
 
             truth = fit_demo.perturbed_folder(tmp / "truth_tables")
             train = fit_demo.simulate_training(tmp / "training", truth,

@@ -125,7 +125,7 @@ def parts(r: dict[str, Any]) -> dict[str, float]:
 
 
 def tail_share(days: int, fan_in: int = 4) -> float:
-    """Share of a pass's merge work on the chain after its last day (`fit._merge_tree`).
+    """Share of a pass's merge work on the chain after its last day (`fit_passes._merge_tree`).
 
     The days merge in consecutive groups of ``fan_in``, level by level; a merge costs in
     proportion to the days it holds.  After the last day only the last group of each

@@ -8,19 +8,19 @@ benchmarks/messenger_fit.py does), then runs ``fluxcal messenger fit --input-dir
 (`fit_cli.run_fit`) serially, once plainly and once under `cProfile`, and prints the
 seconds of each part (calls, total, per call, share of the profiled run).
 
-On a Dask cluster `fit.fit_days` maps `fit.reduce_chunk`, the merges and the
+On a Dask cluster `fit_passes.fit_days` maps `fit_passes.reduce_chunk`, the merges and the
 bootstrap's resamples (`fit_breaks.resample_fits`, one block per worker) onto the
 workers; everything else is the client's serial part (in this serial run the resamples
 are on the client too, printed as their own line): the fit of each pass
 (`fit.fit_variance_calibration`) with its bootstrap (`fit_variance.solve_variance`)
 with its break choices (`fit_breaks.choose_breaks`, in the solution and in every
 resample) and the resamples' steps (`fit_variance.apply_steps`), and its heater
-waveforms (`fit._fit_waveforms`; before entry 33 each pass also fitted the four folds
+waveforms (`fit_waveforms.fit_waveforms`; before entry 33 each pass also fitted the four folds
 for the column errors), the pass bookkeeping
-(`fit.pass_changes`, `fit_guards.check_fit`), and after the passes the last pass's waveform
-column errors (`fit.waveform_column_errors`; its own `_fit_waveforms` call is also
+(`fit_passes.pass_changes`, `fit_guards.check_fit`), and after the passes the last pass's waveform
+column errors (`fit_waveforms.waveform_column_errors`; its own `fit_waveforms` call is also
 counted on that line), the figure of merit (`fit_merit.assess`,
-`fit.merit_inside_range`, `fit_merit.check_merit`), the folder written
+`fit_passes.merit_inside_range`, `fit_merit.check_merit`), the folder written
 (`fit_write.write_calibration_folder`) and its pictures
 (`fit_pictures.write_fit_pictures`).
 
@@ -56,8 +56,8 @@ START = dt.date(2010, 3, 1)
 #: (label, module file suffix, function name[, calling function: only its calls]) of the
 #: parts timed.
 PARTS = (
-    ("map: reduce_chunk (workers)", "messenger/fit.py", "reduce_chunk"),
-    ("merge (workers on Dask)", "messenger/fit.py", "_merge_all"),
+    ("map: reduce_chunk (workers)", "messenger/fit_passes.py", "reduce_chunk"),
+    ("merge (workers on Dask)", "messenger/fit_passes.py", "_merge_all"),
     ("fit of a pass", "messenger/fit.py", "fit_variance_calibration"),
     ("  bootstrap (solve_variance)", "messenger/fit_variance.py", "solve_variance"),
     ("    resamples (workers on Dask)", "messenger/fit_breaks.py", "resample_fits"),
@@ -70,12 +70,12 @@ PARTS = (
      "solve_variance"),
     ("    resampled sums (einsum)", "numpy/_core/einsumfunc.py", "einsum", "solve_variance"),
     ("  resample steps (apply_steps)", "messenger/fit_variance.py", "apply_steps"),
-    ("  waveforms (_fit_waveforms)", "messenger/fit.py", "_fit_waveforms"),
-    ("waveform column errors, once", "messenger/fit.py", "waveform_column_errors"),
-    ("pass_changes", "messenger/fit.py", "pass_changes"),
+    ("  waveforms (fit_waveforms)", "messenger/fit_waveforms.py", "fit_waveforms"),
+    ("waveform column errors, once", "messenger/fit_waveforms.py", "waveform_column_errors"),
+    ("pass_changes", "messenger/fit_passes.py", "pass_changes"),
     ("check_fit", "messenger/fit_guards.py", "check_fit"),
     ("merit: assess", "messenger/fit_merit.py", "assess"),
-    ("merit: merit_inside_range", "messenger/fit.py", "merit_inside_range"),
+    ("merit: merit_inside_range", "messenger/fit_passes.py", "merit_inside_range"),
     ("merit: check_merit", "messenger/fit_merit.py", "check_merit"),
     ("write folder", "messenger/fit_write.py", "write_calibration_folder"),
     ("pictures", "messenger/fit_pictures.py", "write_fit_pictures"),

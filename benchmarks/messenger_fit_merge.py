@@ -5,11 +5,11 @@
         --load /tmp/parts16.pkl                       # the same days, another code
 
 Simulates ``--days`` cruise days at 1 Hz (`flight_sim.simulate_flight`, as
-benchmarks/messenger_fit.py does) and reduces each once (`fit.reduce_chunk`, variance
+benchmarks/messenger_fit.py does) and reduces each once (`fit_passes.reduce_chunk`, variance
 estimator), or loads reduced days saved with ``--save``, then times, ``--repeats``
 times, in CPU seconds (``time.process_time``):
 
-- ``fit._merge_all`` of all the days: a pass's merges, in `fit._merge_tree`'s groups;
+- ``fit_passes._merge_all`` of all the days: a pass's merges, in `fit_passes._merge_tree`'s groups;
 - the merge tree's tail: the last merge of each level, which on Dask runs after the last
   day has been reduced (docs/decisions/messenger_fit.md entries 53 and 54);
 - the top merge alone.
@@ -38,7 +38,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from fluxcal.missions.messenger import fit  # noqa: E402
+from fluxcal.missions.messenger import fit_passes  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
 from fluxcal.missions.messenger.fit_cli import _first_time, parse_days  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
@@ -49,10 +49,10 @@ def reduced_days(days: int) -> list[Any]:
     with tempfile.TemporaryDirectory(prefix="fit-merge-") as work:
         run = simulate_flight(Path(work) / "sim", FlightConfig(start="2010-03-01", days=days),
                               truth=False)
-        chunks = fit.day_chunks(run.input_dir, parse_days(f"{run.days[0]}:{run.days[-1]}",
+        chunks = fit_passes.day_chunks(run.input_dir, parse_days(f"{run.days[0]}:{run.days[-1]}",
                                                           run.input_dir), None)
         base = load_calibration(_first_time(chunks[0]), None)
-        return [fit.reduce_chunk(c, base, None, fit.FitSettings(), False, "variance")
+        return [fit_passes.reduce_chunk(c, base, None, fit_passes.FitSettings(), False, "variance")
                 for c in chunks]
 
 
@@ -75,12 +75,12 @@ def digest(obj: Any, h: Any) -> None:
 
 
 def tail_nodes(parts: list[Any]) -> list[list[Any]]:
-    """The inputs of the last merge of each level of `fit._merge_tree`."""
-    k, level, out = fit.MERGE_FAN_IN, list(parts), []
+    """The inputs of the last merge of each level of `fit_passes._merge_tree`."""
+    k, level, out = fit_passes.MERGE_FAN_IN, list(parts), []
     while len(level) > 1:
         if len(level[-k:]) > 1 and (len(level) - 1) % k:
             out.append(level[len(level) - 1 - (len(level) - 1) % k:])
-        level = [fit._merge_parts(*level[i:i + k]) for i in range(0, len(level), k)]
+        level = [fit_passes._merge_parts(*level[i:i + k]) for i in range(0, len(level), k)]
     return out
 
 
@@ -104,19 +104,19 @@ def main() -> None:
     times: dict[str, list[float]] = {"merge_all": [], "tail": [], "top": []}
     for _ in range(args.repeats):
         t = time.process_time()
-        merged = fit._merge_all(parts)
+        merged = fit_passes._merge_all(parts)
         times["merge_all"].append(time.process_time() - t)
         t = time.process_time()
         for node in chain:
-            fit._merge_parts(*node)
+            fit_passes._merge_parts(*node)
         times["tail"].append(time.process_time() - t)
         t = time.process_time()
-        fit._merge_parts(*chain[-1])
+        fit_passes._merge_parts(*chain[-1])
         times["top"].append(time.process_time() - t)
     h = hashlib.sha256()
     digest(merged, h)
     print(f"{len(parts)} days, {len(chain)} merges on the tail, {args.repeats} repeats "
-          f"({fit.__file__})")
+          f"({fit_passes.__file__})")
     for name, x in times.items():
         print(f"  {name:10s} {statistics.median(x):.4f} CPU s ({min(x):.4f}-{max(x):.4f})")
     print(f"  sha256 of the merged statistics {h.hexdigest()}")

@@ -85,12 +85,12 @@ from fluxcal.missions.messenger import fit_breaks as fb  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
 from fluxcal.missions.messenger import fit_variance as fv  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
-from fluxcal.missions.messenger.fit import (  # noqa: E402
+from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # noqa: E402
+from fluxcal.missions.messenger.fit_passes import (  # noqa: E402
     day_chunks,
     fit_days,
     merit_inside_range,
 )
-from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # noqa: E402
 from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa: E402
 from fluxcal.missions.messenger.fit_write import write_calibration_folder  # noqa: E402
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402

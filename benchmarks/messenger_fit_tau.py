@@ -76,7 +76,7 @@ def demo() -> None:
     """tau of the fit demo's world, free and with D0 z held (as its refusal advises)."""
     from fluxcal.missions.messenger import fit_demo
     from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.fit import Chunk, fit_days
+    from fluxcal.missions.messenger.fit_passes import Chunk, fit_days
 
     with tempfile.TemporaryDirectory() as tmp:
         start = "2012-06-01T00:00:00"

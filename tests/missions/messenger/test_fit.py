@@ -146,8 +146,8 @@ def test_fit_recovers_closed_form_laws():
 def test_unmixing_recovers_columns_from_off_centre_duty_cycles():
     # every period at 13 % or 18 %: bin averages mix columns 12/16 and 16/20 (sec. 6's
     # linear interpolation); solving the weights recovers the columns themselves
-    from fluxcal.missions.messenger.fit import unmix_waveforms
     from fluxcal.missions.messenger.fit_reduce import interpolation_weights
+    from fluxcal.missions.messenger.fit_waveforms import unmix_waveforms
 
     s = FitSettings()
     # the weights themselves, by hand: linear between the 4-% bins, the edge slopes

@@ -2,7 +2,7 @@
 
 The ``--error-goal`` a MESSENGER fit refusal advises (`fit_merit.advised_goal`, entry
 26) is the least goal at which the same tables, judged as ``fit_days`` judges that
-goal (`fit.judged_at`), are written with the regulated temperature inside the range they
+goal (`fit_passes.judged_at`), are written with the regulated temperature inside the range they
 state.  Expected values here come from brute force over the constructed resamples, never
 from the code under test.
 """
@@ -18,7 +18,6 @@ import pytest
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import judged_at
 from fluxcal.missions.messenger.fit_breaks import N_PARAMETERS
 from fluxcal.missions.messenger.fit_merit import (
     advised_goal,
@@ -26,6 +25,7 @@ from fluxcal.missions.messenger.fit_merit import (
     check_merit,
     regulated_sum_untrusted,
 )
+from fluxcal.missions.messenger.fit_passes import judged_at
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
     law_parameters,
@@ -219,8 +219,8 @@ def test_mercury_orbit_advice_writes_a_table_that_meets_its_stated_errors(tmp_pa
     # flight model's tables and its unseen next day (seed 3400: refused on the predicted
     # error, the heater waveforms the largest part; about 2-3 min)
     from fluxcal.missions.messenger import forward
-    from fluxcal.missions.messenger.fit import day_chunks, fit_days
     from fluxcal.missions.messenger.fit_cli import parse_hold_d0
+    from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
     from tests.missions.messenger._hard_worlds import MercuryOrbit
@@ -298,8 +298,8 @@ def test_the_demo_follows_each_advice_to_a_table_that_meets_its_stated_errors(tm
     from fluxcal.geometry.time import SclkKernel, utc_to_et
     from fluxcal.missions.messenger import fit_demo
     from fluxcal.missions.messenger.chain import calibrate
-    from fluxcal.missions.messenger.fit import Chunk, fit_days
     from fluxcal.missions.messenger.fit_cli import parse_hold_d0
+    from fluxcal.missions.messenger.fit_passes import Chunk, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
     from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
     from fluxcal.missions.messenger.simulate import SimulationConfig

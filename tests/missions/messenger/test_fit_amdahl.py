@@ -1,7 +1,7 @@
 """The fit benchmark's time split and the speed-up model built on it (issue 34, item 7).
 
 ``benchmarks/messenger_fit.py`` splits a serial and a Dask fit per pass (`_serial_parts`,
-`_dask_parts`, from `fit.fit_days`'s timing records and Dask's task stream);
+`_dask_parts`, from `fit_passes.fit_days`'s timing records and Dask's task stream);
 ``benchmarks/messenger_fit_amdahl.py`` projects the speed-up on N workers from those parts
 (docs/decisions/messenger_fit.md entry 53).  No timing is asserted here: the
 inputs are made-up records, and the expected values are worked out by hand from them

@@ -20,7 +20,6 @@ import pytest
 
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import day_chunks, fit_days
 from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
@@ -30,6 +29,7 @@ from fluxcal.missions.messenger.fit_breaks import (
     solution_distance,
 )
 from fluxcal.missions.messenger.fit_holds import HOLD_BREAK_WIDTH_C
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
     TEMPERATURE_EDGES_C,

@@ -2,7 +2,7 @@
 
 1. The waveform columns' fold errors are fitted once, after the passes.  No pass reads
    ``FitResult.waveform_error`` (only the figure of merit after the passes does,
-   `fit_merit.predicted_error`), so `fit.fit_days` skips the four folds' splines in
+   `fit_merit.predicted_error`), so `fit_passes.fit_days` skips the four folds' splines in
    every pass and states the errors once, from the last pass's statistics and starting
    table (docs/decisions/messenger_fit.md, entry 33).  The expected values are
    the fit's own, stated the way every pass stated them before: the same `fit_days`
@@ -29,8 +29,8 @@ import numpy as np
 import pytest
 
 from fluxcal.calibration import constrained_fits as cf
-from fluxcal.missions.messenger import fit
 from fluxcal.missions.messenger import fit_breaks as fb
+from fluxcal.missions.messenger import fit_passes, fit_waveforms
 from fluxcal.missions.messenger import fit_variance as fv
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit_reduce import WAVEFORM_FOLDS
@@ -50,27 +50,27 @@ def _fit(flight, monkeypatch, estimator: str, per_pass: bool):
     """`fit_days` as it runs (``per_pass`` False) or with every pass stating its errors."""
     stated: list[np.ndarray | None] = []
     fold_unmixes = []
-    unmix = fit.unmix_waveforms
+    unmix = fit_waveforms.unmix_waveforms
 
     def counting_unmix(stats, waveform=None):
         if waveform is not None:  # one fold's statistics
             fold_unmixes.append(1)
         return unmix(stats, waveform)
 
-    monkeypatch.setattr(fit, "unmix_waveforms", counting_unmix)
+    monkeypatch.setattr(fit_waveforms, "unmix_waveforms", counting_unmix)
     if per_pass:
         name = "fit_variance_calibration" if estimator == "variance" else "fit_calibration"
-        original = getattr(fit, name)
+        original = getattr(fit_passes, name)
 
         def stating(*args, **kwargs):
             out = original(*args, **{**kwargs, "waveform_errors": True})
             stated.append(out.waveform_error)
             return out
 
-        monkeypatch.setattr(fit, name, stating)
-    res = fit.fit_days(fit.day_chunks(flight.input_dir, flight.days),
-                       load_calibration(str(START)), passes=PASSES, estimator=estimator,
-                       guard=False)
+        monkeypatch.setattr(fit_passes, name, stating)
+    res = fit_passes.fit_days(fit_passes.day_chunks(flight.input_dir, flight.days),
+                              load_calibration(str(START)), passes=PASSES,
+                              estimator=estimator, guard=False)
     monkeypatch.undo()
     return res, stated, len(fold_unmixes)
 

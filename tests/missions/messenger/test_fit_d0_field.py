@@ -104,7 +104,7 @@ def test_one_sided_field_states_d0_along_it_honestly(tmp_path):
     is 0.02 of the bootstrap's."""
     from fluxcal.missions.messenger import forward
     from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.fit import day_chunks, fit_days
+    from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
     from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
     from tests.missions.messenger._hard_worlds import MercuryOrbit
 

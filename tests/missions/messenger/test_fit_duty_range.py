@@ -1,6 +1,6 @@
 """Issue 34: the duty-cycle range over which the heater waveforms are determined (D_RANGE).
 
-The fit states ``D_RANGE`` (`fit.supported_duty_range`: the contiguous fitted 4-% bins
+The fit states ``D_RANGE`` (`fit_waveforms.supported_duty_range`: the contiguous fitted 4-% bins
 around the fullest, from the lower edge of the first to the upper edge of the last) in
 the heater-signal tables' headers; `load_calibration` reads it back; calibrating
 heater-on samples outside it warns with how many and how far (the pipeline extrapolates
@@ -22,12 +22,8 @@ import pytest
 from fluxcal.cli import main
 from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import (
-    MIN_PHASE_BINS,
-    day_chunks,
-    fit_days,
-    supported_duty_range,
-)
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
+from fluxcal.missions.messenger.fit_waveforms import MIN_PHASE_BINS, supported_duty_range
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, read_flight_truth, simulate_flight
 from tests.missions.messenger._fit_tables import tables_with_header_lines

@@ -19,7 +19,7 @@ import pytest
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger import fit_merit
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import day_chunks, fit_days
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
 from tests.missions.messenger._hard_worlds import (
@@ -36,7 +36,7 @@ pytestmark = pytest.mark.slow
 START = "2010-03-01"
 #: As in test_fit_honest.py: one unseen day is one draw of a predicted rms.
 UNSEEN_OVER_PREDICTED = 1.5
-#: The causes a refusal may name (fit.py, fit_merit.py): each a sentence the user can act on.
+#: The causes a refusal may name (fit_passes.py, fit_merit.py): each a sentence the user can act on.
 CAUSES = (r"rejected as compressive \(limit", r"^not converged after \d+ passes: the last "
           r"changed", r"^predicted error of a recalibrated day", r"a relative error above",
           r"fitted break T_m [xyz] = .* lies outside", r"an error above",

@@ -21,7 +21,7 @@ import pytest
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import day_chunks, fit_days
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
 from tests.missions.messenger._realistic_wind import realistic_wind
 from tests.missions.messenger._unseen_day import recalibrate_rms

@@ -116,7 +116,7 @@ def test_compressive_cruise_states_the_law_and_d0_apart_honestly(tmp_path):
 
     from fluxcal.missions.messenger import forward
     from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.fit import day_chunks, fit_days
+    from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
     from fluxcal.missions.messenger.fit_write import d0_field_lines
     from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
     from tests.missions.messenger._hard_worlds import cruise_hard_wind

@@ -16,10 +16,6 @@ import pytest
 
 from fluxcal.errors import CalibrationError, FitRefusedError, InputFormatError
 from fluxcal.missions.messenger.calibration_data import data_dir, load_calibration
-from fluxcal.missions.messenger.fit import (
-    CONVERGENCE_SIGMA,
-    pass_changes,
-)
 from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
@@ -30,6 +26,10 @@ from fluxcal.missions.messenger.fit_merit import (
     check_merit,
     compressive_share,
     predicted_error,
+)
+from fluxcal.missions.messenger.fit_passes import (
+    CONVERGENCE_SIGMA,
+    pass_changes,
 )
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
@@ -387,7 +387,7 @@ def test_the_regulated_temperature_is_judged_by_the_offset_the_table_applies_the
 def test_a_reversing_pass_is_followed_by_the_midpoint(shipped):
     # closed form: two calibrations whose laws, D0 and tau differ; the midpoint is their
     # average, and a step that goes back along the previous one is a reversal
-    from fluxcal.missions.messenger.fit import _midpoint, _reverses, _table_step
+    from fluxcal.missions.messenger.fit_passes import _midpoint, _reverses, _table_step
 
     res = _variance_result(shipped, np.zeros(N_PARAMETERS))
     law = law_parameters(res.calibration)

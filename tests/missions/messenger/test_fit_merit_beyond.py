@@ -29,7 +29,7 @@ import pytest
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger import fit_merit, forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import FitSettings, day_chunks, fit_days, reduce_chunk
+from fluxcal.missions.messenger.fit_passes import FitSettings, day_chunks, fit_days, reduce_chunk
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import (
     FlightConfig,

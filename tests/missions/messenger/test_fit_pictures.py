@@ -33,8 +33,7 @@ def fitted(tmp_path_factory):
     takes ~12 passes, 4 min on the 2-core machine; the pictures draw what any pass
     returns, and tests/missions/messenger/test_fit.py runs the converged command).
     """
-    from fluxcal.missions.messenger import fit as fit_module
-    from fluxcal.missions.messenger import fit_write
+    from fluxcal.missions.messenger import fit_passes, fit_write
     from fluxcal.missions.messenger.fit_demo import perturbed_folder, simulate_training
 
     tmp = tmp_path_factory.mktemp("fit_pictures")
@@ -49,8 +48,8 @@ def fitted(tmp_path_factory):
 
     mp = pytest.MonkeyPatch()
     mp.setattr(mfp, "write_fit_report", spy)
-    real_fit, real_write = fit_module.fit_days, fit_write.write_calibration_folder
-    mp.setattr(fit_module, "fit_days",
+    real_fit, real_write = fit_passes.fit_days, fit_write.write_calibration_folder
+    mp.setattr(fit_passes, "fit_days",
                lambda *a, **k: real_fit(*a, **{**k, "passes": 1, "guard": False}))
     mp.setattr(fit_write, "write_calibration_folder",
                lambda *a, **k: real_write(*a, **{**k, "study": True}))

@@ -24,8 +24,8 @@ from fluxcal.errors import CalibrationError
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.chain import warn_outside_temperature_range
-from fluxcal.missions.messenger.fit import day_chunks, fit_days
 from fluxcal.missions.messenger.fit_holds import HOLD_BREAK_WIDTH_C, HOLD_SLOPE_CHANGE_WIDTH
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
 from fluxcal.missions.messenger.fit_variance import law_parameters
 from fluxcal.missions.messenger.fit_write import write_calibration_folder
 from fluxcal.missions.messenger.flight_sim import FlightConfig, read_flight_truth, simulate_flight

@@ -20,7 +20,6 @@ import pytest
 
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import judged_at
 from fluxcal.missions.messenger.fit_breaks import N_PARAMETERS
 from fluxcal.missions.messenger.fit_merit import (
     SUM_FIELD_CORRELATION_KEPT,
@@ -31,6 +30,7 @@ from fluxcal.missions.messenger.fit_merit import (
     range_bands,
     regulated_sum_untrusted,
 )
+from fluxcal.missions.messenger.fit_passes import judged_at
 from fluxcal.missions.messenger.fit_variance import (
     law_parameters,
     offset_moments,

@@ -21,7 +21,6 @@ from fluxcal.errors import FitRefusedError, FluxcalError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days
 from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
@@ -34,6 +33,7 @@ from fluxcal.missions.messenger.fit_holds import (
     HOLD_SLOPE_CHANGE_WIDTH,
     undetermined_upper,
 )
+from fluxcal.missions.messenger.fit_passes import Chunk, day_chunks, fit_days
 from fluxcal.missions.messenger.fit_variance import (
     VarianceSettings,
     VarianceStatistics,
@@ -514,7 +514,7 @@ def test_bootstrap_resamples_runs_of_blocks_when_the_days_allow():
 def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
     # entry 16/18: a pass's law change is the largest shift of the Table 2 law (counts)
     # over -65..+55 C per axis, here in closed form
-    from fluxcal.missions.messenger.fit import LAW_TOLERANCE_COUNTS, pass_changes
+    from fluxcal.missions.messenger.fit_passes import LAW_TOLERANCE_COUNTS, pass_changes
 
     res = _variance_result(shipped, np.zeros(N_PARAMETERS))
     coeff = np.asarray(res.calibration.temperature_coefficients, dtype=float)

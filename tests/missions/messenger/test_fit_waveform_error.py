@@ -13,12 +13,6 @@ from scipy.optimize import brentq
 
 from fluxcal.calibration.binned_stats import BinnedMoments
 from fluxcal.missions.messenger.calibration_data import load_calibration
-from fluxcal.missions.messenger.fit import (
-    _fit_waveforms,
-    few_folds_widening,
-    unmix_waveforms,
-    unmixing_variance,
-)
 from fluxcal.missions.messenger.fit_reduce import (
     WAVEFORM_FOLDS,
     DayStatistics,
@@ -29,6 +23,12 @@ from fluxcal.missions.messenger.fit_waveform_error import (
     jackknife_error,
     jackknife_scale,
     leave_one_out,
+)
+from fluxcal.missions.messenger.fit_waveforms import (
+    few_folds_widening,
+    fit_waveforms,
+    unmix_waveforms,
+    unmixing_variance,
 )
 
 START = "2012-06-01T00:00:00"
@@ -172,7 +172,7 @@ def test_fitted_column_errors_cover_brute_force(periods):
     stated2, true2 = [], []
     for _ in range(100):
         stats = _statistics(rng, np.array(periods), 3.0, truth, b)
-        table, fits, error = _fit_waveforms(stats, base)
+        table, fits, error = fit_waveforms(stats, base)
         assert fits[0][b] is not None
         true2.append(np.mean((table[:, :100, b] - truth[None]) ** 2, axis=1))
         stated2.append(error[:, b] ** 2)
@@ -232,7 +232,7 @@ def test_edge_column_seen_through_its_neighbour_is_not_overstated():
     stated, true = [], []
     for _ in range(60):
         stats = _edge_statistics(rng, groups, truth)
-        table, fits, error = _fit_waveforms(stats, base)
+        table, fits, error = fit_waveforms(stats, base)
         assert fits[0][7] is not None and fits[0][0] is None
         true.append(np.sqrt(np.mean((table[:, :100, 7] - truth[7][None]) ** 2, axis=1)))
         stated.append(error[:, 7])
@@ -315,8 +315,8 @@ def test_a_fold_without_the_columns_own_samples_changes_nothing():
     alone = [(0, 28.0, 25, 3.0), (1, 28.0, 25, 3.0)]
     filler = [(2, 12.0, 25, 3.0), (3, 12.0, 25, 3.0)]
     for seed in (1, 2):
-        two = _fit_waveforms(_edge_statistics(np.random.default_rng(seed), alone, truth),
+        two = fit_waveforms(_edge_statistics(np.random.default_rng(seed), alone, truth),
                              base)[2][:, 4]
         rng = np.random.default_rng(seed)
-        four = _fit_waveforms(_edge_statistics(rng, alone + filler, truth), base)[2][:, 4]
+        four = fit_waveforms(_edge_statistics(rng, alone + filler, truth), base)[2][:, 4]
         assert four == pytest.approx(two, rel=0.04), (four / two)

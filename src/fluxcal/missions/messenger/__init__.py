@@ -14,6 +14,7 @@ __all__ = [
     "defects",
     "edr",
     "fit",
+    "fit_passes",
     "identity",
     "levels",
     "mission",

@@ -260,8 +260,8 @@ class MessengerCalibration:
         (the seed's Table 2).
     duty_range : tuple of float or None
         ``D_RANGE`` of the heater-signal files' headers (percent, ``lo <= d < hi``):
-        the duty cycles over which fitted waveforms are determined (`fit.supported_duty_range`);
-        calibrating a heater-on sample outside it warns
+        the duty cycles over which fitted waveforms are determined
+        (`fit_waveforms.supported_duty_range`); calibrating a heater-on sample outside it warns
         (`chain.warn_outside_duty_range`).  Several files: the narrowest (their
         intersection).  None: no file states one (the seed's Tables 6-8), nothing warns.
     waveform_error : ndarray, shape (3, n_bins) or None

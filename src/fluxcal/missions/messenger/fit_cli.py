@@ -128,7 +128,7 @@ def run_fit(
         (`fluxcal.missions.messenger.fit.fit_calibration`).
     """
     from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.fit import Chunk, day_chunks, fit_days, refuse_edr_folder
+    from fluxcal.missions.messenger.fit_passes import Chunk, day_chunks, fit_days, refuse_edr_folder
     from fluxcal.missions.messenger.fit_pictures import write_fit_pictures
     from fluxcal.missions.messenger.fit_reduce import read_intervals
     from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder

@@ -178,8 +178,8 @@ def _verdict(result, out: Path):
     """
     from fluxcal.errors import FitRefusedError
     from fluxcal.missions.messenger import fit_merit
-    from fluxcal.missions.messenger.fit import judged_at
     from fluxcal.missions.messenger.fit_guards import check_fit
+    from fluxcal.missions.messenger.fit_passes import judged_at
 
     try:
         if not result.convergence["converged"]:
@@ -218,7 +218,7 @@ def fit_training(out: Path, days: float = 2.0):
     `write_calibration_folder` into ``out / "fitted"`` (or ``"fitted_refused"``, a
     study).
     """
-    from fluxcal.missions.messenger.fit import Chunk, fit_days
+    from fluxcal.missions.messenger.fit_passes import Chunk, fit_days
     from fluxcal.missions.messenger.fit_write import write_calibration_folder
 
     start = "2012-06-01T00:00:00"

@@ -1,7 +1,7 @@
 """Guards of the MESSENGER in-flight fit: a table the data do not support is refused.
 
 A fitted table is written only when each parameter lies in its physical range and the
-data determine it (`check_fit`, run by `fluxcal.missions.messenger.fit.fit_days` after
+data determine it (`check_fit`, run by `fluxcal.missions.messenger.fit_passes.fit_days` after
 every pass for tau's range and after the last pass for everything); each refusal is
 one line naming the parameter, its value and stated error, the allowed range or goal
 and the data (or the option) that would settle it:

@@ -153,7 +153,7 @@ class DaySamples:
     def of(cls, stats: Any, variance: fv.VarianceStatistics) -> DaySamples:
         """Return a day's samples from its reduction.
 
-        ``stats`` and ``variance``: what `fit.reduce_chunk` with the variance estimator
+        ``stats`` and ``variance``: what `fit_passes.reduce_chunk` with the variance estimator
         returns for the day (`DayStatistics`, `VarianceStatistics`).
         """
         return cls(moments=np.asarray(variance.offset_moments, dtype=float),
@@ -388,7 +388,7 @@ def duty_range_counts(result: FitResult, count: np.ndarray | None = None,
 
     ``count`` (per waveform duty bin) and ``beyond`` (in no bin): a day's own
     (`DaySamples`); None: the fitted days'.  Returns None when the result states no
-    D_RANGE (no column fitted), else ``range`` (percent, `fit.supported_duty_range`),
+    D_RANGE (no column fitted), else ``range`` (percent, `fit_waveforms.supported_duty_range`),
     ``inside_bins`` (bool per waveform bin), ``heater_on`` (samples of every bin and
     beyond them) and ``outside`` (those of the bins outside the range and of no bin,
     above 42 % or below 10 %: ``DayStatistics.n_samples["heater_on_beyond_bins"]``).
@@ -576,8 +576,8 @@ def advised_goal(result: FitResult, guess: float,
     largest predicted error, rounded up to 0.01 nT).  A goal also widens the law's band
     limit (`band_limit_for`), hence the stated range, hence the samples the prediction
     holds for: the guess alone may write a different table, or another refusal (entry
-    26).  With ``rejudge`` (`fit.judged_at`: ``result`` judged at a goal as
-    `fit.fit_days` judges it) each candidate is judged as the fit would be, starting
+    26).  With ``rejudge`` (`fit_passes.judged_at`: ``result`` judged at a goal as
+    `fit_passes.fit_days` judges it) each candidate is judged as the fit would be, starting
     at ``guess``; the next candidate is what that judgement names (`_goal_failure`),
     at least 0.01 nT more, up to `ADVICE_TRIES` candidates.  A candidate is advised when
     the table would be written there with its stated range holding the regulated
@@ -620,7 +620,7 @@ def _advised(result: FitResult, guess: float,
 def regulated_sum_untrusted(result: FitResult) -> str:
     """Return why ``result``'s table may not be advised, else ``""`` (entry 44).
 
-    ``result`` as judged at a goal (`fit.judged_at`).  Its stated range holds the
+    ``result`` as judged at a goal (`fit_passes.judged_at`).  Its stated range holds the
     regulated temperature (eq. 2; a table that does not state it is not judged here)
     only through the offset the table applies there,
     ``cT(-50 C) + D0 R`` (`stated_range`): the law's own band in that bin (worst axis)
@@ -697,8 +697,8 @@ def check_merit(result: FitResult,
     table that states the regulated temperature only through ``cT(-50 C) + D0 R`` in a
     wind too compressive to trust that sum's error (`regulated_sum_untrusted`: the
     prediction itself is short there, at any goal; entry 45).  The
-    ``--error-goal`` a refusal advises is `advised_goal` (``rejudge``: `fit.judged_at`,
-    as `fit.fit_days` passes it; None: the refusal's own numbers).
+    ``--error-goal`` a refusal advises is `advised_goal` (``rejudge``: `fit_passes.judged_at`,
+    as `fit_passes.fit_days` passes it; None: the refusal's own numbers).
 
     Raises
     ------
@@ -735,7 +735,7 @@ def check_merit(result: FitResult,
                 if result.held_d0 else "")
         upper = getattr(result, "held_upper", None) or {}
         if name == "the temperature law" and upper:
-            # of all fitted samples (`fit.merit_inside_range` may narrow ``samples``)
+            # of all fitted samples (`fit_passes.merit_inside_range` may narrow ``samples``)
             of = (m.get("outside") or {}).get("of", m["samples"])
             held = (f" (upper segment {', '.join(upper)} held at the table with its widths, "
                     f"entry 21; {m.get('samples_beyond_data', 0)} of {of} samples "

@@ -33,8 +33,8 @@ from fluxcal.geometry.time import et_to_tt2000, tt2000_to_datetime64
 from fluxcal.missions.messenger.fit import (
     AXES,
     FitResult,
-    _temperature_distribution,
     law_sigma,
+    temperature_distribution,
 )
 from fluxcal.missions.messenger.fit_reduce import usable_bins
 from fluxcal.products.fit_pictures import (
@@ -89,7 +89,7 @@ def _bin_model(result: FitResult, ok: np.ndarray, t_mean: np.ndarray) -> np.ndar
     """
     if result.temperature_law == "distribution" and result.stats.temperature_fine is not None:
         try:
-            t_sub, weights = _temperature_distribution(result.stats, ok)
+            t_sub, weights = temperature_distribution(result.stats, ok)
         except FluxcalError:
             return law(result, t_mean)
         used = weights.sum(axis=1) > 0

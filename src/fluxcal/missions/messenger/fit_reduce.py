@@ -29,10 +29,10 @@ of the other calibration terms, for the four analyses of sec. 6 and 7:
    current offsets ``cT(T) + Delta(t)`` against seconds since the heater-bit rising
    edge (100 bins of 1 s centred on 0..99 s; columns x, y, z, the phase and the
    weights of the eight duty-cycle columns in the pipeline's interpolation at the
-   period's duty cycle, which `fluxcal.missions.messenger.fit` unmixes).
+   period's duty cycle, which `fluxcal.missions.messenger.fit_waveforms` unmixes).
 
 Everything is a `fluxcal.calibration.binned_stats.BinnedMoments`, so days merge exactly
-(`DayStatistics.merge`) and a month runs as a map-reduce (`fluxcal.missions.messenger.fit`).
+(`DayStatistics.merge`) and a month runs as a map-reduce (`fluxcal.missions.messenger.fit_passes`).
 
 Only fine-range samples after MAG FSW V10 (2007-03-09) inside the solar-wind intervals
 enter (docs/decisions/messenger_fit.md).

@@ -32,7 +32,7 @@ the offset through that condition:
   ``B'``; each rejected interval is kept with its reason;
 * the normal equations are summed per bootstrap block (``block_s``) so that days merge
   exactly (map-reduce) and the errors come from a bootstrap over blocks;
-* `fluxcal.missions.messenger.fit.fit_days` repeats reduce-and-solve (Gauss-Newton):
+* `fluxcal.missions.messenger.fit_passes.fit_days` repeats reduce-and-solve (Gauss-Newton):
   each pass re-linearises about the previous pass's tables.
 
 The heater waveforms keep the phase-binned estimator of sec. 6 (it needs the field to
@@ -627,7 +627,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
         ``map_rows(resample_fits, [args, ...])`` -> the results in order: the resamples'
         break choices and fits (`resample_fits`, their breaks placed in their cells
         there too where they are refined) in ``n_blocks`` blocks of rows, e.g. on the
-        Dask workers, idle while the client fits (`fit.fit_days`); the rows are
+        Dask workers, idle while the client fits (`fit_passes.fit_days`); the rows are
         independent, so the numbers are those of one block (issue 34, item 7).  None:
         here, in one block.
     n_blocks : int

@@ -1,7 +1,7 @@
 """The heater waveform columns' stated errors: the pooled fit refitted without each fold (issue 34).
 
 The waveform columns (sec. 6) are unmixed from the duty-cycle bins' phase-binned means
-by weighted least squares at each phase (`fluxcal.missions.messenger.fit.unmix_waveforms`)
+by weighted least squares at each phase (`fluxcal.missions.messenger.fit_waveforms.unmix_waveforms`)
 and smoothed by a periodic spline; the samples are split into folds of 30-min blocks
 (`fit_reduce.WAVEFORM_FOLDS`).  The column's error is the delete-a-group jackknife of
 that whole fit: refitted on the statistics without fold k (`leave_one_out`, the other
@@ -102,7 +102,7 @@ def jackknife_scale(own: np.ndarray, variance: np.ndarray, without: np.ndarray
 
     ``own`` (K,): the column's own samples per fold; ``variance`` (phase,) and
     ``without`` (K, phase): its unmixing variance per unit sample variance
-    (`fit.unmixing_variance`) with all folds and without each.  For a linear fit with
+    (`fit_waveforms.unmixing_variance`) with all folds and without each.  For a linear fit with
     weights right up to a common factor, the refit without fold k differs from the
     pooled one by an amount uncorrelated with the pooled one, so
     ``E[(x_(-k) - x)^2] = V_(-k) - V`` and ``c = V / sum_k (V_(-k) - V)`` makes the
@@ -111,7 +111,7 @@ def jackknife_scale(own: np.ndarray, variance: np.ndarray, without: np.ndarray
     column only through a neighbour, or not at all) ``(K - 1) / K`` counts it as a
     whole group: two equal folds of four give 1.5x the variance.  Used only where the
     column's own samples fill fewer than `FEW_FOLDS` effective folds: there
-    `fit.few_folds_widening` already states the estimate's own scatter (Student t of
+    `fit_waveforms.few_folds_widening` already states the estimate's own scatter (Student t of
     fewer than two comparisons, >= 1.10x), and the conservative side of ``(K - 1) / K``
     would count it a second time (entry 37).  Elsewhere (None) the jackknife
     keeps it (entry 34).  ``V`` and the differences are averaged over the phases where

@@ -33,13 +33,14 @@ from fluxcal.missions.messenger.calibration_data import (
     _read_table,
     data_dir,
 )
-from fluxcal.missions.messenger.fit import AXES, MIN_PHASE_BINS, FitResult
+from fluxcal.missions.messenger.fit import AXES, FitResult
 from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, MAX_COMPRESSIVE_SHARE
 from fluxcal.missions.messenger.fit_variance import (
     MIN_RANGE_SAMPLES,
     TEMPERATURE_EDGES_C,
     VarianceSettings,
 )
+from fluxcal.missions.messenger.fit_waveforms import MIN_PHASE_BINS
 from fluxcal.products.declared import File, write_declared
 from fluxcal.products.provenance import creation_time, sha256_file
 from fluxcal.version import software_version
@@ -236,7 +237,7 @@ def write_calibration_folder(
     Parameters
     ----------
     result : FitResult
-        From `fluxcal.missions.messenger.fit.fit_days` or `fit_calibration`.
+        From `fluxcal.missions.messenger.fit_passes.fit_days` or `fit_calibration`.
     out_dir : Path
         Folder to write (created; must not already hold calibration tables).
     base_folder : Path or None
