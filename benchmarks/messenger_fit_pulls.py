@@ -36,7 +36,7 @@ stored pairs band; entry 46), at `LAW_T` and over the stated range's grid.
 (`fit_variance.solve_variance(bootstrap="wild")`) beside the fit's own and combinations of
 the two (`WILD_COLUMNS`; entry 50).
 ``--summarise FOLDER --profile`` gives T_m's pulls with its error from the residual's
-profile against the break (`fit_variance.profile_break_errors`) beside the fit's own and
+profile against the break (`fit_break_profile.profile_break_errors`) beside the fit's own and
 floored at fractions of it (`PROFILE_FLOORS`; entry 51).
 ``--save FOLDER`` keeps each realisation's fit, truth and row; ``--summarise FOLDER``
 prints the summary of a saved run again (fits saved without a row: no unseen day).
@@ -85,6 +85,7 @@ from fluxcal.missions.messenger import fit_breaks as fb  # noqa: E402
 from fluxcal.missions.messenger import fit_merit, forward, levels  # noqa: E402
 from fluxcal.missions.messenger import fit_variance as fv  # noqa: E402
 from fluxcal.missions.messenger.calibration_data import load_calibration  # noqa: E402
+from fluxcal.missions.messenger.fit_break_profile import profile_break_errors  # noqa: E402
 from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # noqa: E402
 from fluxcal.missions.messenger.fit_passes import (  # noqa: E402
     day_chunks,
@@ -1001,7 +1002,7 @@ def wild_summary(folder: Path) -> None:
 
 #: The columns `profile_summary` prints: T_m's error as the fit states it (the pairs
 #: bootstrap replayed, refined in the resamples: the fit's default since entry 47), from
-#: the profile of the residual against the break (`fit_variance.profile_break_errors`),
+#: the profile of the residual against the break (`fit_break_profile.profile_break_errors`),
 #: and the larger of the profile's and these fractions of the pairs' (a floor where the
 #: profile alone is too narrow).
 PROFILE_FLOORS = (0.5, 0.65)
@@ -1036,12 +1037,12 @@ def linearisation_point(res) -> tuple[np.ndarray, tuple[int, int, int], dict]:
 
 
 def profile_tm(res) -> dict:
-    """`fit_variance.profile_break_errors` of the saved fit ``res`` at its linearisation
+    """`fit_break_profile.profile_break_errors` of the saved fit ``res`` at its linearisation
     point (`linearisation_point`), the fitted breaks' offsets taken from its table."""
     base, choice, held = linearisation_point(res)
     fitted = np.asarray(res.calibration.breakpoint_temperature_c, dtype=float) - base[:, 3]
-    return fv.profile_break_errors(res.variance, base, held, res.delay_fitted, choice,
-                                   fitted_c=fitted)
+    return profile_break_errors(res.variance, base, held, res.delay_fitted, choice,
+                                fitted_c=fitted)
 
 
 def profile_rows(res, true) -> dict:
@@ -1337,7 +1338,7 @@ def main() -> None:
                          "the law's largest pull over the stated range.")
     ap.add_argument("--profile", action="store_true",
                     help="With --summarise: T_m's pulls with its error from the residual's "
-                         "profile against the break (fit_variance.profile_break_errors), "
+                         "profile against the break (fit_break_profile.profile_break_errors), "
                          "beside the fit's own (pairs) and floored at a fraction of it "
                          "(PROFILE_FLOORS; entry 51), and the fits far off.")
     ap.add_argument("--core", action="store_true",

@@ -16,6 +16,7 @@ import pytest
 from scipy.stats import norm
 
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit_break_profile import profile_break_errors
 from fluxcal.missions.messenger.fit_breaks import (
     BREAK_SHIFTS_C,
     N_PARAMETERS,
@@ -24,11 +25,7 @@ from fluxcal.missions.messenger.fit_breaks import (
     profile_interval,
     profile_threshold,
 )
-from fluxcal.missions.messenger.fit_variance import (
-    law_parameters,
-    profile_break_errors,
-    resampling_units,
-)
+from fluxcal.missions.messenger.fit_variance import law_parameters, resampling_units
 from tests.missions.messenger.test_fit_breaks import NOISE, _sparse_peaks
 from tests.missions.messenger.test_fit_variance import _hinge_rows
 
