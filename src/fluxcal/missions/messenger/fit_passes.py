@@ -11,17 +11,19 @@ sums over many days, so the fit runs as a map-reduce:
 * `fit_days` fits the merged statistics (`fit.fit_calibration` or
   `fit.fit_variance_calibration`), reduces the days again with the new estimates, and
   repeats until a pass changes every parameter by less than its allowance
-  (`pass_changes`, `convergence_criterion`) or ``passes`` have run, halving a two-state
-  cycle (`REVERSAL_COSINE`); then it states the waveform columns' errors, judges the
-  last pass at the error goal (`fit_merit.assess`, `merit_inside_range`; `judged_at` at
-  another goal) and refuses what the guards refuse (`fit_guards.check_fit`,
-  `fit_merit.check_merit`).
+  (`pass_changes`, `convergence_criterion`) or ``passes`` have run (with the variance
+  estimator a pass that reverses the previous one, `REVERSAL_COSINE`, is followed from
+  half way); then it states the waveform columns' errors, judges the last pass at the
+  error goal (`fit_merit.assess`, `merit_inside_range`; `judged_at` at another goal) and
+  refuses what the guards refuse (`fit_guards.check_fit`, `fit_merit.check_merit`).
 
 References
 ----------
-.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6, sec. 7 (long-term averages of
-   solar-wind data, "iterative"; the 5000-s look-back of the heater files).
-.. [2] docs/decisions/messenger_fit.md entries 1, 16, 18, 19, 21, 26, 27, 33, 40 and 54.
+.. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and sec. 7 (long-term averages
+   of solar-wind data binned by temperature and duty cycle; eq. 6a-6f look back over the
+   duty-cycle changes before a sample, so a day reads the heater files of the day before).
+.. [2] docs/decisions/messenger_fit.md entries 1, 16, 18, 19, 21, 26, 27, 33, 40, 53 and
+   54.
 """
 
 from __future__ import annotations
