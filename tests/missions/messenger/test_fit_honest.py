@@ -21,6 +21,7 @@ import pytest
 from fluxcal.errors import FitRefusedError
 from fluxcal.missions.messenger import forward
 from fluxcal.missions.messenger.calibration_data import load_calibration
+from fluxcal.missions.messenger.fit_guards import check_fit
 from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
 from tests.missions.messenger._realistic_wind import realistic_wind
@@ -59,6 +60,25 @@ def test_a_pass_limit_below_convergence_is_refused_with_the_last_changes(calm):
                                               r"the fit stops as soon as it converges"):
         fit_days(day_chunks(run.input_dir, run.days[:2]), load_calibration(START), passes=1,
                  estimator="variance")
+
+
+def test_a_convergence_refusal_names_the_last_pass_s_other_cause(calm):
+    """1 pass on 2 calm days: not converged, and beyond a 5 % goal as well (after one pass
+    tau's, entry 43; converged, D0 z's, entry 38), so the refusal says more passes alone
+    will not write it and names the cause `check_fit` gives its last pass."""
+    run, _ = calm
+    chunks = day_chunks(run.input_dir, run.days[:2])
+    last = fit_days(chunks, load_calibration(START), passes=1, estimator="variance",
+                    guard=False)
+    assert not last.convergence["converged"]
+    with pytest.raises(FitRefusedError, match=r"a relative error above the 5% goal") as judged:
+        check_fit(last)
+    cause = str(judged.value).split("; not written", 1)[0]
+    with pytest.raises(FitRefusedError) as refused:
+        fit_days(chunks, load_calibration(START), passes=1, estimator="variance")
+    text = str(refused.value)
+    assert text.startswith("not converged after 1 passes") and "\n" not in text
+    assert text.endswith("more passes alone will not write it: " + cause + ")"), text
 
 
 def test_cli_fit_writes_a_table_that_meets_its_stated_errors_or_refuses(calm, tmp_path,

@@ -263,6 +263,21 @@ def _midpoint(old: MessengerCalibration, new: FitResult) -> MessengerCalibration
         new.calibration.heater_signal)
 
 
+def also_refused(result: FitResult) -> str:
+    """Return what `check_fit` refuses a fit's last pass for, without its advice ('' if none).
+
+    A fit refused as not converged names that cause first; this says whether its last pass
+    would be refused for another one as well (in a 5-%-compressive cruise wind all ten fits
+    refused as not converged were, on the D0 z goal: verification section h-cruise20), so
+    that more passes are not advised as if they alone would write the table.
+    """
+    try:
+        check_fit(result)
+    except FitRefusedError as err:
+        return str(err).split("; not written", 1)[0]
+    return ""
+
+
 def convergence_criterion(tolerance: float) -> str:
     """Return the stated convergence criterion (report and refusal)."""
     return (f"every parameter changed by less than the larger of an absolute tolerance "
@@ -507,11 +522,14 @@ def fit_days(
                          else "")
                 if cause:
                     raise FitRefusedError(f"{cause} ({result.convergence['stop']})")
+                other = also_refused(result)
                 raise FitRefusedError(
                     f"{result.convergence['stop']}; not written (converged: "
                     f"{convergence_criterion(tolerance)}). Give "
                     + (f"more passes (--passes {MAX_PASSES}: the fit stops as soon as it "
-                       "converges) or " if passes < MAX_PASSES else "") + "more days")
+                       "converges) or " if passes < MAX_PASSES else "") + "more days"
+                    + (f" (its last pass is refused as well, so more passes alone will "
+                       f"not write it: {other})" if other else ""))
             check_fit(result)
         # the last pass's waveform columns' errors, as its fit would have stated them (the
         # same statistics and table, so the same splines): read only by the figure of
