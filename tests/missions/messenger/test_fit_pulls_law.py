@@ -33,3 +33,36 @@ def test_seed_shaped_law_is_continuous_at_the_break(law):
     got = law(c, np.array([-60.0, -10.0, 20.0]))
     np.testing.assert_allclose(got[:, 0], [-68.0, -23.0, 76.0], atol=1e-12)
     np.testing.assert_allclose(got[:, 1], [-58.0, -8.0, 52.0], atol=1e-12)
+
+
+def _row(**kw):
+    row = {"tau_pull": 0.4, "d0_pull": np.array([1.0, -2.9, 0.2]),
+           "tm_pull": np.array([np.nan, 0.5, -1.0]), "law_max_pull": np.array([0.3, 2.0, 1.1])}
+    return {**row, **kw}
+
+
+def test_stated_errors_missed_names_each_quantity_beyond_three(pulls_bench):
+    # h-short20: a written late-peak table (4 days, seed 3911) stated T_m z +- 0.76 C
+    # 2.56 C off (pull 3.37) while the summary's largest accepted pull (tau, D0, law)
+    # read 0.84; every stated quantity is judged, a NaN (no free break) is not
+    missed = pulls_bench.stated_errors_missed
+    assert missed(_row()) == []
+    assert missed(_row(tm_pull=np.array([2.43, -2.72, 3.37]))) == [
+        "T_m [ 2.43 -2.72  3.37]"]
+    got = missed(_row(tau_pull=-3.01, d0_pull=np.array([0.0, 3.2, 0.0]),
+                      law_max_pull=np.array([0.0, 0.0, 3.5])))
+    assert [g.split(" ")[0] for g in got] == ["tau", "D0", "law"]
+    assert missed(_row(tm_pull=np.array([-3.0, 3.0, np.nan]))) == []  # at 3: inside
+
+
+def test_the_summary_names_a_written_table_beyond_its_stated_errors(pulls_bench, capsys):
+    nan3 = np.full(3, np.nan)
+    base = {"verdict": "accepted", "unseen_nt": nan3, "unseen_in_both_nt": nan3,
+            "law_max_nt": np.full(3, 0.01), "tau_rel": 0.0, "d0_rel": np.zeros(3),
+            "dt_pull": np.nan, "held_upper": [],
+            "law_pull": np.zeros((len(pulls_bench.LAW_T), 3))}
+    rows = [_row(**base, k=1), _row(**base, k=2, tm_pull=np.array([0.1, 0.2, 3.37]))]
+    pulls_bench.summarise(rows)
+    out = capsys.readouterr().out
+    assert "(seed 2) lies beyond 3 of its stated errors: T_m" in out
+    assert "(seed 1)" not in out
