@@ -17,6 +17,7 @@ import functools
 import numpy as np
 import pytest
 
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError, FluxcalError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import forward
@@ -43,7 +44,7 @@ from fluxcal.missions.messenger.fit_variance import (
     reduce_variance,
     solve_variance,
 )
-from fluxcal.missions.messenger.fit_write import held_upper_lines
+from fluxcal.missions.messenger.fit_write import break_outside_lines, held_upper_lines
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
 from fluxcal.missions.messenger.identity import FRAME_KERNELS, SPACECRAFT_ID
 from fluxcal.missions.messenger.readers import read_heater, read_science, read_temperature
@@ -363,6 +364,24 @@ def test_variance_upper_slope_of_undetermined_sign_is_held(shipped, noise, held)
     assert f.x_m_err == pytest.approx(HOLD_BREAK_WIDTH_C, rel=0.15)
     header = "\n".join(held_upper_lines(res))
     assert header.startswith("x: upper segment (eq. 3b) held") and "B1 - B0 +- more" in header
+
+
+def test_a_free_break_beyond_t_range_is_said_in_the_header(shipped):
+    # the shipped breaks (seed 000 Table 2, eq. 4) lie inside -60..40 C: no line; T_RANGE
+    # cut to end 5 C below the lowest break: every free axis says how far above it lies
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    assert res.held_upper == {} and res.stated_ranges.span == (-60.0, 40.0)
+    assert break_outside_lines(res) == []
+    tm = law_parameters(shipped)[:, 3]
+    top = float(np.min(tm)) - 5.0
+    res = dataclasses.replace(res, temperature_ranges=StatedRanges(((-60.0, top),)))
+    lines = break_outside_lines(res)
+    assert len(lines) == 3
+    for a, line, t in zip("xyz", lines, tm, strict=True):
+        assert line.startswith(f"{a}: the break Tm = {t:.2f} +- ")
+        assert f"lies {t - top:.1f} C above T_RANGE (-60..{top:g})" in line
+    below = dataclasses.replace(res, temperature_ranges=StatedRanges(((top + 40.0, 50.0),)))
+    assert all(" C below T_RANGE" in line for line in break_outside_lines(below))
 
 
 def test_variance_tau_outside_its_range_is_refused(shipped):

@@ -128,6 +128,30 @@ def held_upper_lines(result: FitResult) -> list[str]:
             for a, h in result.held_upper.items()]
 
 
+def break_outside_lines(result: FitResult) -> list[str]:
+    """Header lines: a free break beyond T_RANGE, which the stated law does not rest on.
+
+    Inside T_RANGE the table then applies one line of eq. 3 only; the break itself lies
+    where the law is not stated, so no temperature the table states checks it. Said
+    out loud because such a break was found 2-3x its stated error off (a 4-day late-peak
+    fit: verification section h-short20, entry 3x-tmout).
+    """
+    ranges = result.stated_ranges
+    if ranges is None:
+        return []
+    lo, hi = ranges.span
+    out = []
+    for a, f in zip(AXES, result.temperature, strict=True):
+        if a in result.held_upper or lo <= f.x_m <= hi:
+            continue
+        side = f"{f.x_m - hi:.1f} C above" if f.x_m > hi else f"{lo - f.x_m:.1f} C below"
+        out.append(f"{a}: the break Tm = {f.x_m:.2f} +- {f.x_m_err:.3g} C lies {side} "
+                   f"T_RANGE ({ranges}): inside T_RANGE the law is one line of eq. 3; Tm and "
+                   "its error rest on data where the law is not stated and are not checked "
+                   "by it (calibrating beyond T_RANGE warns)")
+    return out
+
+
 def band_lines(result: FitResult) -> list[str]:
     """Header lines: the law's stated error (counts, 1 sigma) on `BAND_GRID_C`."""
     band = result.law_error(BAND_GRID_C)
@@ -282,7 +306,8 @@ def write_calibration_folder(
              for a, f in zip(AXES, t, strict=True)]
     tm = result.stats.temperature
     if result.estimator == "variance":
-        extra += [_range_line(result), *held_upper_lines(result), *band_lines(result)]
+        extra += [_range_line(result), *held_upper_lines(result),
+                  *break_outside_lines(result), *band_lines(result)]
     else:
         extra += [f"bins (C): {_fmt(tm.centers, 4)}", f"N per bin: {_fmt(tm.count, 12)}",
                   f"estimator: {result.temperature_law} (bin "
