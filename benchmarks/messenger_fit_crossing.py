@@ -83,11 +83,24 @@ def each_guard(res) -> dict[str, str]:
     return out
 
 
-def _short(message: str, n: int = 60) -> str:
-    """A refusal's first words for a markdown cell (its ``|B|`` escaped)."""
-    message = message.replace("variance estimator: ", "").replace(
-        " intervals of 900 s rejected as compressive", " compressive").split(": |B|")[0]
-    return (message[:n] or "-").replace("|", "\\|")
+#: A refusal's guard, named by the words its message starts with (`_guard_name`).
+GUARD_NAMES = (("refused: ", ""), ("variance estimator: ", "share"),
+               ("not converged", "not converged"), ("duty-cycle law", "D0"),
+               ("relaxation time", "tau"), ("temperature law", "law band"),
+               ("predicted error", "predicted"), ("regulated temperature", "regulated sum"))
+
+
+def _guard_name(message: str) -> str:
+    """The guard a refusal names, in a word or two (``-``: none); D0's axis kept."""
+    if not message or message == "accepted":
+        return "-" if not message else "written"
+    message = message.removeprefix("refused: ")
+    for start, name in GUARD_NAMES[1:]:
+        if message.startswith(start):
+            if name == "D0":
+                return f"D0 {message.split('fitted D0 ')[1][0]}"
+            return name
+    return message[:40].replace("|", "\\|")
 
 
 def _axes(values, fmt: str = "{:.3f}") -> str:
@@ -104,7 +117,7 @@ def main() -> None:
     levels = []
     print("| folder | seed | compressive / judged | passes | unseen in T_RANGE, D_RANGE "
           "(nT) | predicted (nT) | law in T_RANGE (nT) | tau | D0 x / y / z | T_RANGE (C) "
-          "| verdict | alone: share; converged; check_fit; merit |")
+          "| verdict | each alone: share, convergence, check_fit, merit |")
     print("|" + "---|" * 12)
     for folder in args.folders:
         share, worst, predicted, converged, written = [], [], [], 0, 0
@@ -126,8 +139,8 @@ def main() -> None:
                   f"{p['passes']}{'' if res.convergence['converged'] else ', not conv.'} | "
                   f"{_axes(unseen)} | {_axes(p['predicted_nt'])} | {_axes(p['law_max_nt'])} "
                   f"| {100 * p['tau_rel']:+.1f} % | {_axes(100 * p['d0_rel'], '{:+.1f}')} % | "
-                  f"{p['t_range']} | {_short(row['verdict'], 70)} | "
-                  + "; ".join(_short(guards[k]) for k in ("share", "converged", "check_fit",
+                  f"{p['t_range']} | {_guard_name(row['verdict'])} | "
+                  + ", ".join(_guard_name(guards[k]) for k in ("share", "converged", "check_fit",
                                                           "merit")) + " |", flush=True)
         if share:
             levels.append((folder.name, np.array(share), np.array(worst),
