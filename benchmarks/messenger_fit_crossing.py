@@ -22,7 +22,7 @@ seeds in each: the same wind and law with only the compressive part scaled) and 
 
     .venv/bin/python benchmarks/messenger_fit_crossing.py /tmp/cross/c0.055 /tmp/cross/c0.065 ...
 
-docs/decisions/messenger_fit_verification.md section h-cross.
+docs/decisions/messenger_fit_verification.md section 51.
 """
 
 from __future__ import annotations

@@ -512,7 +512,7 @@ def stated_errors_missed(r: dict) -> list[str]:
     """The stated quantities of a table whose truth lies beyond `MAX_STATED_PULL` of its
     stated error: tau, each D0 (a held one: its width), each break T_m (a held one: its
     width) and the law over T_RANGE (its largest error over its band).  The summary's
-    largest accepted pull leaves T_m out; this does not (h-short20)."""
+    largest accepted pull leaves T_m out; this does not (verification section 50)."""
     out = []
     if abs(r["tau_pull"]) > MAX_STATED_PULL:
         out.append(f"tau {r['tau_pull']:+.2f}")

@@ -1,7 +1,7 @@
-"""The crossing benchmark's interpolation (benchmarks/messenger_fit_crossing.py; h-cross).
+"""The crossing benchmark's interpolation (verification section 51).
 
 Expected values by hand: the straight line between the two levels around the first rise
-past the goal (messenger_fit_verification.md section h-cross).
+past the goal (messenger_fit_verification.md section 51).
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ def _row(**kw):
 
 
 def test_stated_errors_missed_names_each_quantity_beyond_three(pulls_bench):
-    # h-short20: a written late-peak table (4 days, seed 3911) stated T_m z +- 0.76 C
+    # verification section 50: a written late-peak table (4 days, seed 3911) stated T_m z +- 0.76 C
     # 2.56 C off (pull 3.37) while the summary's largest accepted pull (tau, D0, law)
     # read 0.84; every stated quantity is judged, a NaN (no free break) is not
     missed = pulls_bench.stated_errors_missed

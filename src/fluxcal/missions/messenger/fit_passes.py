@@ -268,7 +268,7 @@ def also_refused(result: FitResult) -> str:
 
     A fit refused as not converged names that cause first; this says whether its last pass
     would be refused for another one as well (in a 5-%-compressive cruise wind all ten fits
-    refused as not converged were, on the D0 z goal: verification section h-cruise20), so
+    refused as not converged were, on the D0 z goal: verification section 49), so
     that more passes are not advised as if they alone would write the table.
     """
     try:

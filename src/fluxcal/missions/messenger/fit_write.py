@@ -134,7 +134,7 @@ def break_outside_lines(result: FitResult) -> list[str]:
     Inside T_RANGE the table then applies one line of eq. 3 only; the break itself lies
     where the law is not stated, so no temperature the table states checks it. Said
     out loud because such a break was found 2-3x its stated error off (a 4-day late-peak
-    fit: verification section h-short20, entry 3x-tmout).
+    fit: verification section 50, entry 56).
     """
     ranges = result.stated_ranges
     if ranges is None:
