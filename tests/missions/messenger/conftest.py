@@ -1,6 +1,3 @@
-import importlib.util
-from pathlib import Path
-
 import pytest
 
 from fluxcal.geometry.kernels import KernelPool
@@ -8,6 +5,7 @@ from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.simulate import SimulationConfig, simulate, write_inputs
 from fluxcal.missions.messenger.synthetic_kernels import write_messenger_like_kernels
+from tests.missions.messenger._benchmarks import load_benchmark
 
 START = "2012-06-01T00:00:00"
 
@@ -46,14 +44,7 @@ def simulated_files(tmp_path_factory, simulated):
     return write_inputs(simulated, tmp_path_factory.mktemp("msgr_inputs"))
 
 
-#: The pull harness (a script, not a package), loaded from its file by `pulls_bench`.
-PULLS_BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_pulls.py"
-
-
 @pytest.fixture(scope="session")
 def pulls_bench():
     """``benchmarks/messenger_fit_pulls.py`` as a module, for its functions under test."""
-    spec = importlib.util.spec_from_file_location("messenger_fit_pulls", PULLS_BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("messenger_fit_pulls")

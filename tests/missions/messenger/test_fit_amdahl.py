@@ -13,22 +13,17 @@ the draws for the simulated list scheduling.
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[3] / "benchmarks"
+from tests.missions.messenger._benchmarks import BENCHMARKS, load_benchmark
 
 
 def _load(name: str, monkeypatch):
-    monkeypatch.syspath_prepend(str(BENCH))  # messenger_fit.py imports _control beside it
-    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    monkeypatch.syspath_prepend(str(BENCHMARKS))  # messenger_fit.py imports _control beside it
+    return load_benchmark(name)
 
 
 @pytest.fixture

@@ -6,20 +6,14 @@ past the goal (messenger_fit_verification.md section 51).
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
-CROSSING_BENCH = Path(__file__).resolve().parents[3] / "benchmarks" / "messenger_fit_crossing.py"
+from tests.missions.messenger._benchmarks import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def crossing_share():
-    spec = importlib.util.spec_from_file_location("messenger_fit_crossing", CROSSING_BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.crossing_share
+    return load_benchmark("messenger_fit_crossing").crossing_share
 
 
 def test_linear_between_the_levels_around_the_crossing(crossing_share):
