@@ -134,7 +134,12 @@ def break_outside_lines(result: FitResult) -> list[str]:
     Inside T_RANGE the table then applies one line of eq. 3 only; the break itself lies
     where the law is not stated, so no temperature the table states checks it. Said
     out loud because such a break was found 2-3x its stated error off (a 4-day late-peak
-    fit: verification section 50, entry 56).
+    fit: verification section 50, entry 56). A break that is not a number is skipped.
+
+    References
+    ----------
+    Seed 000 sec. 7, eq. 3a-3b and 4 (the two lines meet at the break); issue 34, "Done
+    when" (T_m's pulls inside the stated range).
     """
     ranges = result.stated_ranges
     if ranges is None:
@@ -142,7 +147,7 @@ def break_outside_lines(result: FitResult) -> list[str]:
     lo, hi = ranges.span
     out = []
     for a, f in zip(AXES, result.temperature, strict=True):
-        if a in result.held_upper or lo <= f.x_m <= hi:
+        if a in result.held_upper or not np.isfinite(f.x_m) or lo <= f.x_m <= hi:
             continue
         side = f"{f.x_m - hi:.1f} C above" if f.x_m > hi else f"{lo - f.x_m:.1f} C below"
         out.append(f"{a}: the break Tm = {f.x_m:.2f} +- {f.x_m_err:.3g} C lies {side} "
