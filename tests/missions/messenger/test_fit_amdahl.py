@@ -59,22 +59,23 @@ def test_serial_parts_from_timing_records(fit_bench):
     assert parts["client_cpu_s"] == pytest.approx([1.1, 1.5], abs=1e-12)
 
 
+def _task(name: str, worker: str, start: float, stop: float, compute_s: float, *,
+          transfer_s: float = 0.0) -> dict:
+    """One task-stream record as `_dask_parts` reads it (times in s)."""
+    return {"name": name, "worker": worker, "start": start, "stop": stop,
+            "compute_s": compute_s, "transfer_s": transfer_s}
+
+
 def test_dask_parts_from_the_task_stream(fit_bench):
     # one pass on 2 workers: the reduce window 10..14 (gathered), the client to 16
     passes = [{"start": 10.0, "reduced": 13.5, "gathered": 14.0}]
     tasks = [
-        {"name": "reduce_chunk", "worker": "a", "start": 10.2, "stop": 11.2,
-         "compute_s": 1.0, "transfer_s": 0.0},
-        {"name": "reduce_chunk", "worker": "b", "start": 10.1, "stop": 11.6,
-         "compute_s": 1.5, "transfer_s": 0.0},
-        {"name": "reduce_chunk", "worker": "a", "start": 11.3, "stop": 12.5,
-         "compute_s": 1.2, "transfer_s": 0.0},
-        {"name": "merge_parts", "worker": "b", "start": 12.6, "stop": 12.9,
-         "compute_s": 0.3, "transfer_s": 0.1},
-        {"name": "resample_fits", "worker": "a", "start": 14.5, "stop": 15.0,
-         "compute_s": 0.5, "transfer_s": 0.0},
-        {"name": "resample_fits", "worker": "b", "start": 14.6, "stop": 15.2,
-         "compute_s": 0.6, "transfer_s": 0.0},
+        _task("reduce_chunk", "a", 10.2, 11.2, 1.0),
+        _task("reduce_chunk", "b", 10.1, 11.6, 1.5),
+        _task("reduce_chunk", "a", 11.3, 12.5, 1.2),
+        _task("merge_parts", "b", 12.6, 12.9, 0.3, transfer_s=0.1),
+        _task("resample_fits", "a", 14.5, 15.0, 0.5),
+        _task("resample_fits", "b", 14.6, 15.2, 0.6),
     ]
     (p,) = fit_bench._dask_parts(16.0, passes, tasks, n_workers=2)
     assert p["days"] == 3 and p["merges"] == 1
