@@ -715,7 +715,7 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     step = fit_columns(total_a, total_v, free, fixed + fixed_h)
     chi2 = float(residual_sum(total_a, total_v, yy, step))
     rng = np.random.default_rng(seed)
-    if wild[bootstrap]:  # every unit's residual about the solution, weighted (entry 3x)
+    if wild[bootstrap]:  # every unit's residual about the solution, weighted (entry 50)
         a_r, v_r, yy_r = wild_resamples(wild_weights(n_bootstrap, nb, rng, wild[bootstrap]),
                                         a, v, yy_b, total_a, step)
     else:
