@@ -407,7 +407,7 @@ def judged_at(result: FitResult, goal: float) -> FitResult:
     fit_merit.assess(out, goal, max_compressive_share=result.merit["max_compressive_share"])
     merit_inside_range(out, goal)
     c = result.convergence
-    if c and result.pass_start is not None and result.passes:
+    if c and result.pass_start is not None:
         # the last pass judged again over this goal's T_RANGE, as a fit at this goal
         # judges it: a wider range may take in a law still moving (issue 34, item 1)
         out.convergence = convergence_record(
