@@ -11,7 +11,8 @@ sums over many days, so the fit runs as a map-reduce:
 * `fit_days` fits the merged statistics (`fit.fit_calibration` or
   `fit.fit_variance_calibration`), reduces the days again with the new estimates, and
   repeats until a pass changes every parameter by less than its allowance
-  (`pass_changes`, `convergence_criterion`) or ``passes`` have run (with the variance
+  (`pass_changes`, `convergence_criterion`; the law over the span of the T_RANGE that
+  pass's table would state, `judged_law_range`) or ``passes`` have run (with the variance
   estimator a pass that reverses the previous one, `REVERSAL_COSINE`, is followed from
   half way); then it states the waveform columns' errors, judges the last pass at the
   error goal (`fit_merit.assess`, `merit_inside_range`; `judged_at` at another goal) and
@@ -23,7 +24,7 @@ References
    of solar-wind data binned by temperature and duty cycle; eq. 6a-6f look back over the
    duty-cycle changes before a sample, so a day reads the heater files of the day before).
 .. [2] docs/decisions/messenger_fit.md entries 1, 16, 18, 19, 21, 26, 27, 33, 40, 53 and
-   54.
+   54, and the entry of scope h-conv (the law's convergence over T_RANGE, issue 34 item 1).
 """
 
 from __future__ import annotations
@@ -451,8 +452,9 @@ def fit_days(
     tolerance : float
         Stop after a pass that changed every parameter by less than its allowance
         (`pass_changes`: the larger of this fraction of tau and of each D0, dt by
-        `DELAY_TOLERANCE_S`, the law by `LAW_TOLERANCE_COUNTS`, and `CONVERGENCE_SIGMA`
-        of its stated error).
+        `DELAY_TOLERANCE_S`, the law by `LAW_TOLERANCE_COUNTS` over the span of the
+        T_RANGE the pass's table would state at ``error_goal`` (`judged_law_range`), and
+        `CONVERGENCE_SIGMA` of its stated error).
     scheduler : str or None
         ``"serial"``: in this process; None: a local Dask cluster of ``n_workers``
         single-threaded processes (`fluxcal.runs.batch.make_local_cluster`); else
