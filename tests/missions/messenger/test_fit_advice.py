@@ -25,7 +25,13 @@ from fluxcal.missions.messenger.fit_merit import (
     check_merit,
     regulated_sum_untrusted,
 )
-from fluxcal.missions.messenger.fit_passes import judged_at
+from fluxcal.missions.messenger.fit_passes import (
+    CONVERGENCE_SIGMA,
+    LAW_TOLERANCE_COUNTS,
+    convergence_record,
+    judged_at,
+    pass_changes,
+)
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
     law_parameters,
@@ -101,6 +107,57 @@ def test_the_band_refusal_advises_the_goal_that_states_the_regulated_temperature
     # without a re-judgement the refusal names its own numbers' goal (the old advice)
     with pytest.raises(FitRefusedError, match=rf"--error-goal {guess:g} \("):
         check_merit(res)
+
+
+def test_a_goal_is_judged_with_the_law_s_convergence_over_its_own_t_range(shipped):
+    # issue 34, item 1: the passes judge the law's change over the span of the T_RANGE
+    # the table states, so a goal whose wider T_RANGE takes in a law the last pass still
+    # moved would not write the table `judged_at` describes: it says so, and no such
+    # goal is advised.  The first test's resampled laws with a smaller scatter (0.8
+    # counts): the law is stated near 0 C at the default goal, wider at larger goals.
+    # The last pass started from x's lower line rotated about its break (B0 + d,
+    # A0 - d T_m: the lines still meet at T_m, eq. 4), so the law changed by
+    # d (T_m - T) below T_m (closed form), inside the allowance over the default T_RANGE
+    # and beyond it over a wider one.
+    base = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    law = law_parameters(base.calibration)
+    rng = np.random.default_rng(34)
+    b_law = scattered_laws(law, rng, 4000, (0.8, 0.0223, 0.0, 0.0))
+    res = with_law_resamples(base, b_law, rng.uniform(-60.0, 40.0, 6000))
+    assess(res)
+    tm, d = float(law[0, 3]), 0.008  # C, counts/C
+    start = np.asarray(res.calibration.temperature_coefficients, dtype=float).copy()
+    start[0, 0] -= d * tm
+    start[0, 1] += d
+    res.pass_start = dataclasses.replace(res.calibration, temperature_coefficients=start)
+
+    def ratio_at(result, t):
+        allow = max(LAW_TOLERANCE_COUNTS, CONVERGENCE_SIGMA * float(result.law_error(t)[0, 0]))
+        return d * (tm - t) / allow
+
+    lo = res.stated_ranges.span[0]
+    assert lo < tm and ratio_at(res, lo) < 1.0  # the case this test is about
+    res.convergence = convergence_record(
+        pass_changes(res.pass_start, res, 2e-3, res.stated_ranges), 5, 12, 2e-3,
+        res.stated_ranges)
+    assert res.convergence["converged"]
+    assert res.convergence["stop"].endswith(
+        f"(the law judged over T_RANGE's span {res.stated_ranges.span[0]:g}.."
+        f"{res.stated_ranges.span[1]:g} C)")
+    wider = judged_at(res, 0.14)
+    w_lo = wider.stated_ranges.span[0]
+    assert w_lo < lo and ratio_at(wider, w_lo) > 1.0
+    assert not wider.convergence["converged"]
+    assert wider.convergence["stop"].startswith(
+        f"not converged after 5 passes: the last changed law x at {w_lo:+.0f} C "
+        f"{d * (tm - w_lo):+.4g} counts")
+    assert res.convergence["converged"]  # ``res`` itself is left as it was
+    # no goal is advised once a candidate's T_RANGE takes in the moving law (a larger
+    # goal only widens it)
+    assert advised_goal(res, 0.14, judged_at) == (None, None)
+    # the same tables, the last pass not moving the law: the candidate converges
+    res.pass_start = res.calibration
+    assert judged_at(res, 0.14).convergence["converged"]
 
 
 def _regulated_sum_result(shipped, compressive: int, judged: int = 48):

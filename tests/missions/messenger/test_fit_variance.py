@@ -34,7 +34,14 @@ from fluxcal.missions.messenger.fit_holds import (
     HOLD_SLOPE_CHANGE_WIDTH,
     undetermined_upper,
 )
-from fluxcal.missions.messenger.fit_passes import Chunk, day_chunks, fit_days
+from fluxcal.missions.messenger.fit_passes import (
+    CONVERGENCE_SIGMA,
+    LAW_TOLERANCE_COUNTS,
+    Chunk,
+    day_chunks,
+    fit_days,
+    pass_changes,
+)
 from fluxcal.missions.messenger.fit_variance import (
     VarianceSettings,
     VarianceStatistics,
@@ -549,6 +556,42 @@ def test_law_change_between_passes_is_the_largest_shift_over_the_grid(shipped):
     got = pass_changes(dataclasses.replace(res.calibration,
                                            temperature_coefficients=steeper), res)
     assert got["law_counts"][0] == pytest.approx(0.55, abs=1e-9)
+
+
+def test_law_change_is_judged_over_the_span_of_the_stated_range_only(shipped):
+    # issue 34, item 1: the law's change between passes is judged over the span of the
+    # T_RANGE the table states.  The old table differs from the new by a slope change
+    # above x's break only (A1 - d T_m, B1 + d: the lines still meet at T_m, eq. 4), so
+    # the law's change is d (T - T_m) above T_m and 0 below, in closed form.
+    res = _variance_result(shipped, np.zeros(N_PARAMETERS))
+    coeff = np.asarray(res.calibration.temperature_coefficients, dtype=float)
+    tm = float(law_parameters(res.calibration)[0, 3])
+    d = 0.1  # counts/C
+    old = coeff.copy()
+    old[0, 2] -= d * tm
+    old[0, 3] += d
+    old = dataclasses.replace(res.calibration, temperature_coefficients=old)
+    # a break beyond T_RANGE (5-6 C above its end): no change inside, converged
+    below = StatedRanges(((-60.0, np.floor(tm) - 5.0),))
+    got = pass_changes(old, res, ranges=below)
+    assert got["law_counts"][0] == pytest.approx(0.0, abs=1e-9)
+    assert got["ratio"] == 0.0 and got["over"] == []
+    assert got["law_range_c"] == [-60.0, np.floor(tm) - 5.0]
+    # where no T_RANGE is stated (None), -65..+55 C: d (55 - T_m) at +55 C, not converged
+    every = pass_changes(old, res)
+    assert every["law_counts"][0] == pytest.approx(d * (55.0 - tm), rel=1e-9)
+    assert every["ratio"] > 1.0
+    # T_RANGE whose span holds the break, the break in the gap between two intervals:
+    # judged up to the span's end hi, d (hi - T_m) there, against its allowance
+    hi = np.ceil(tm) + 6.0
+    around = StatedRanges(((-60.0, np.floor(tm) - 5.0), (np.ceil(tm) + 3.0, hi)))
+    got = pass_changes(old, res, ranges=around)
+    change = d * (hi - tm)
+    allow = max(LAW_TOLERANCE_COUNTS, CONVERGENCE_SIGMA * float(res.law_error(hi)[0, 0]))
+    assert got["law_counts"][0] == pytest.approx(change, rel=1e-9)
+    assert got["ratio"] == pytest.approx(change / allow, rel=1e-9) and change > allow
+    # the new law is the flatter one: its change is negative
+    assert got["over"] == [f"law x at {hi:+.0f} C {-change:+.4g} counts (allowed {allow:.2g})"]
 
 
 def _hinge_statistics(law_now, law_true, rng, shifts=BREAK_SHIFTS_C, temp=None, noise=None):

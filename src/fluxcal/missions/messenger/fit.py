@@ -186,6 +186,9 @@ class FitResult:
         (``direction``, ``balance`` 0..1), D0's bootstrap error along it and the error
         added there (``along_nt_per_ppt``, ``added_nt_per_ppt``;
         `fit_variance.widen_d0_along_field`, docs/decisions/messenger_fit.md entry 28).
+    pass_start : MessengerCalibration or None
+        `fit_passes.fit_days`: the table the last pass started from, so that its changes
+        can be judged again over the T_RANGE of another goal (`fit_passes.judged_at`).
     """
 
     calibration: MessengerCalibration
@@ -211,6 +214,7 @@ class FitResult:
     merit: dict[str, Any] = field(default_factory=dict)
     waveform_error: np.ndarray | None = None
     d0_field: dict[str, Any] = field(default_factory=dict)
+    pass_start: MessengerCalibration | None = None
 
     @property
     def stated_ranges(self) -> StatedRanges | None:

@@ -585,7 +585,10 @@ def advised_goal(result: FitResult, guess: float,
     elsewhere warns for nearly every heater-on sample.  No candidate above
     `MAX_ADVISED_GOAL_NT` (the seed's 1-nT science requirement) is advised, and none
     when the first table that would be written is `regulated_sum_untrusted` (a larger
-    goal widens its range, not its prediction over the regulated samples).  ``(None,
+    goal widens its range, not its prediction over the regulated samples), or once a
+    candidate's wider T_RANGE takes in a law its last pass had not settled (the fit
+    judges the law's convergence over the T_RANGE it states, `fit_passes.judged_at`;
+    a larger goal widens it further).  ``(None,
     None)`` when no candidate qualifies; ``(guess, None)`` without ``rejudge``.
     """
     goal, judged, _ = _advised(result, guess, rejudge)
@@ -597,7 +600,8 @@ def _advised(result: FitResult, guess: float,
              ) -> tuple[float | None, FitResult | None, str]:
     """Return `advised_goal`'s pair and why a table it would write is not advised.
 
-    The reason is `regulated_sum_untrusted`'s, else ``""``.
+    The reason is `regulated_sum_untrusted`'s, or that the candidate's table would not
+    have converged over its T_RANGE, else ``""``.
     """
     goal = float(guess)
     if goal > MAX_ADVISED_GOAL_NT:
@@ -608,6 +612,14 @@ def _advised(result: FitResult, guess: float,
         if goal > MAX_ADVISED_GOAL_NT:
             return None, None, ""
         judged = rejudge(result, goal)
+        c = judged.convergence
+        if c and not c["converged"]:
+            # its wider T_RANGE takes in a law still moving; a larger goal widens it more
+            return None, None, (
+                f"judged at {goal:g} nT, the table would state T_RANGE "
+                f"{judged.stated_ranges} C, where its last pass had not converged "
+                f"({c['stop']}), so no --error-goal is advised: give more passes "
+                "(--passes) or more days")
         nxt = _goal_failure(judged)
         if nxt is None:
             # a larger goal widens T_RANGE, not the prediction over the regulated samples

@@ -11,7 +11,8 @@ sums over many days, so the fit runs as a map-reduce:
 * `fit_days` fits the merged statistics (`fit.fit_calibration` or
   `fit.fit_variance_calibration`), reduces the days again with the new estimates, and
   repeats until a pass changes every parameter by less than its allowance
-  (`pass_changes`, `convergence_criterion`) or ``passes`` have run (with the variance
+  (`pass_changes`, `convergence_criterion`; the law over the span of the T_RANGE that
+  pass's table would state, `judged_law_range`) or ``passes`` have run (with the variance
   estimator a pass that reverses the previous one, `REVERSAL_COSINE`, is followed from
   half way); then it states the waveform columns' errors, judges the last pass at the
   error goal (`fit_merit.assess`, `merit_inside_range`; `judged_at` at another goal) and
@@ -23,7 +24,7 @@ References
    of solar-wind data binned by temperature and duty cycle; eq. 6a-6f look back over the
    duty-cycle changes before a sample, so a day reads the heater files of the day before).
 .. [2] docs/decisions/messenger_fit.md entries 1, 16, 18, 19, 21, 26, 27, 33, 40, 53 and
-   54.
+   54, and the entry of scope h-conv (the law's convergence over T_RANGE, issue 34 item 1).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from fluxcal.calibration.offsets import two_segment_offset
+from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError, FluxcalError, InputFormatError
 from fluxcal.geometry.time import SclkKernel
 from fluxcal.missions.messenger import fit_merit
@@ -154,11 +156,13 @@ Progress = Callable[[str, int, int], None]
 
 
 #: A pass converges when, besides tau and D0 (``tolerance``), the Table 2 law moved by less
-#: than this many fine counts (0.2 x 0.047 = 0.009 nT) anywhere in -65..+55 C: the law and
-#: its break can still move after tau and D0 have settled (docs/decisions/messenger_fit.md,
-#: entry 16: 0.19 nT left on y in a 32-day fit that stopped on tau and D0 alone).
+#: than this many fine counts (0.2 x 0.047 = 0.009 nT) anywhere the table states it (the
+#: span of its T_RANGE, `law_change_temperatures`): the law and its break can still move
+#: after tau and D0 have settled (docs/decisions/messenger_fit.md, entry 16: 0.19 nT left
+#: on y in a 32-day fit that stopped on tau and D0 alone).
 LAW_TOLERANCE_COUNTS = 0.2
-#: Temperatures (C) over which the law's change between passes is taken.
+#: Temperatures (C) over which the law's change between passes is taken where the table
+#: states no T_RANGE (the zero-mean estimator), on this 1-C grid inside a T_RANGE.
 LAW_CHANGE_GRID_C = np.arange(-65.0, 55.5, 1.0)
 
 
@@ -175,15 +179,48 @@ DELAY_TOLERANCE_S = 0.05
 MAX_PASSES = 20
 
 
-def pass_changes(old: MessengerCalibration, new: FitResult,
-                 tolerance: float = 2e-3) -> dict[str, Any]:
+def law_change_temperatures(ranges: StatedRanges | None) -> np.ndarray:
+    """Return the temperatures (C) at which a pass's law change is judged.
+
+    The 1-C grid over the span of ``ranges`` (the table's T_RANGE, gaps between its
+    intervals included) with the span's ends; `LAW_CHANGE_GRID_C` where None.  The law
+    outside the span is not stated (calibrating there warns), and a break beyond it is
+    said in the header as not checked (`fit_write.break_outside_lines`, entry 56); a
+    break inside the span is judged through the law around it.
+    """
+    if ranges is None:
+        return LAW_CHANGE_GRID_C
+    lo, hi = ranges.span
+    return np.union1d(np.arange(np.ceil(lo), hi, 1.0), [lo, hi])
+
+
+def judged_law_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT
+                     ) -> StatedRanges | None:
+    """Return the T_RANGE ``result``'s table would state at ``goal``: where its law is judged.
+
+    The variance estimator: `fit_merit.stated_range` over the data's range at the goal's
+    band limit, as `fit_merit.assess` states it after the last pass; where the law is
+    determined nowhere, the data's range (the table then states that, and
+    `fit_merit.check_merit` refuses it).  None for the zero-mean estimator, whose table
+    states no T_RANGE (`LAW_CHANGE_GRID_C` then).
+    """
+    if result.estimator != "variance":
+        return None
+    ranges = fit_merit.stated_range(result, fit_merit.band_limit_for(goal))
+    return ranges if ranges is not None else result.stated_ranges
+
+
+def pass_changes(old: MessengerCalibration, new: FitResult, tolerance: float = 2e-3,
+                 ranges: StatedRanges | None = None) -> dict[str, Any]:
     """Change of every parameter from ``old`` to ``new`` and its allowance (entry 18).
 
     Each change is compared with the larger of an absolute tolerance (``tolerance``
     of tau and of each D0; `DELAY_TOLERANCE_S`; `LAW_TOLERANCE_COUNTS` of the law at
-    every temperature of `LAW_CHANGE_GRID_C`) and `CONVERGENCE_SIGMA` times its stated
-    error (the law's at each temperature, `FitResult.law_error`).  ``ratio`` is the
-    largest change over its allowance: the pass has converged when it is at most 1.
+    every temperature of `law_change_temperatures` ``ranges``: the span of the T_RANGE
+    the table states, `judged_law_range`; None: `LAW_CHANGE_GRID_C`) and
+    `CONVERGENCE_SIGMA` times its stated error (the law's at each temperature,
+    `FitResult.law_error`).  ``ratio`` is the largest change over its allowance: the
+    pass has converged when it is at most 1.  ``law_range_c``: the temperatures judged.
     """
     cal = new.calibration
     r = new.relaxation
@@ -192,10 +229,11 @@ def pass_changes(old: MessengerCalibration, new: FitResult,
     d_dt = float(rel_new["delay_s"]) - float(rel_old["delay_s"])
     d0_new = np.asarray(cal.duty_cycle_d0, dtype=float)
     d_d0 = d0_new - np.asarray(old.duty_cycle_d0, dtype=float)
-    law_new = two_segment_offset(LAW_CHANGE_GRID_C, cal.offset_coefficients())
-    d_law = law_new - two_segment_offset(LAW_CHANGE_GRID_C, old.offset_coefficients())
+    grid = law_change_temperatures(ranges)
+    law_new = two_segment_offset(grid, cal.offset_coefficients())
+    d_law = law_new - two_segment_offset(grid, old.offset_coefficients())
     allow_law = np.maximum(LAW_TOLERANCE_COUNTS,
-                           CONVERGENCE_SIGMA * np.nan_to_num(new.law_error(LAW_CHANGE_GRID_C)))
+                           CONVERGENCE_SIGMA * np.nan_to_num(new.law_error(grid)))
     law_ratio = np.abs(d_law) / allow_law
     at = np.argmax(law_ratio, axis=0)
     items = [("tau", d_tau, max(tolerance * abs(float(rel_new["tau_s"])),
@@ -206,13 +244,14 @@ def pass_changes(old: MessengerCalibration, new: FitResult,
                max(tolerance * abs(float(d0_new[j])),
                    CONVERGENCE_SIGMA * np.nan_to_num(new.duty[j].slope_err)), "counts/ppt")
               for j, a in enumerate(AXES)]
-    items += [(f"law {a} at {LAW_CHANGE_GRID_C[at[j]]:+.0f} C", float(d_law[at[j], j]),
+    items += [(f"law {a} at {grid[at[j]]:+.0f} C", float(d_law[at[j], j]),
                float(allow_law[at[j], j]), "counts") for j, a in enumerate(AXES)]
     ratios = [abs(c) / allow if allow > 0 else (0.0 if c == 0 else np.inf)
               for _, c, allow, _ in items]
     return {
         "tau_s": d_tau, "delay_s": d_dt, "D0": d_d0.tolist(),
         "law_counts": np.abs(d_law).max(axis=0).tolist(),
+        "law_range_c": [float(grid[0]), float(grid[-1])],
         "Tm_c": (np.asarray(cal.breakpoint_temperature_c, dtype=float)
                  - np.asarray(old.breakpoint_temperature_c, dtype=float)).tolist(),
         "ratio": float(max(ratios)),
@@ -278,13 +317,41 @@ def also_refused(result: FitResult) -> str:
     return ""
 
 
-def convergence_criterion(tolerance: float) -> str:
-    """Return the stated convergence criterion (report and refusal)."""
+def convergence_criterion(tolerance: float, ranges: StatedRanges | None = None) -> str:
+    """Return the stated convergence criterion (report and refusal).
+
+    ``ranges``: the T_RANGE over whose span the law was judged (`judged_law_range`);
+    None: `LAW_CHANGE_GRID_C`.
+    """
+    grid = law_change_temperatures(ranges)
+    where = (f"every 1 C of {grid[0]:.0f}..{grid[-1]:.0f} C" if ranges is None else
+             f"every 1 C of {grid[0]:g}..{grid[-1]:g} C, the span of the T_RANGE the table "
+             "states: beyond it the table states no law, and its header says a break "
+             "there is not checked")
     return (f"every parameter changed by less than the larger of an absolute tolerance "
             f"(tau and each D0 {tolerance:g} of their value, dt {DELAY_TOLERANCE_S:g} s, the "
-            f"law {LAW_TOLERANCE_COUNTS:g} counts at every temperature of "
-            f"{LAW_CHANGE_GRID_C[0]:.0f}..{LAW_CHANGE_GRID_C[-1]:.0f} C) and "
+            f"law {LAW_TOLERANCE_COUNTS:g} counts at {where}) and "
             f"{CONVERGENCE_SIGMA:g} of its stated error")
+
+
+def convergence_record(changes: dict[str, Any], passes_run: int, max_passes: int,
+                       tolerance: float, ranges: StatedRanges | None) -> dict[str, Any]:
+    """Return ``FitResult.convergence`` for a last pass's `pass_changes` ``changes``.
+
+    ``ranges``: the T_RANGE over whose span the law was judged (`judged_law_range`),
+    named in the stop reason (every header) and the criterion (report and refusal).
+    """
+    converged = changes["ratio"] <= 1.0
+    lo, hi = changes["law_range_c"]
+    where = "" if ranges is None else f" (the law judged over T_RANGE's span {lo:g}..{hi:g} C)"
+    return {
+        "passes_run": passes_run, "max_passes": max_passes, "converged": converged,
+        "tolerance": tolerance, "criterion": convergence_criterion(tolerance, ranges),
+        "stop": (f"converged after {passes_run} passes: the last changed every parameter "
+                 f"by at most {changes['ratio']:.2g} of its allowance{where}" if converged
+                 else f"not converged after {passes_run} passes: the last changed "
+                 + ", ".join(changes["over"]) + where),
+    }
 
 
 def merit_inside_range(result: FitResult, goal: float = fit_merit.ERROR_GOAL_NT) -> None:
@@ -340,6 +407,13 @@ def judged_at(result: FitResult, goal: float) -> FitResult:
     out = dataclasses.replace(result, fitted_range=tuple(result.merit["data_range_c"]))
     fit_merit.assess(out, goal, max_compressive_share=result.merit["max_compressive_share"])
     merit_inside_range(out, goal)
+    c = result.convergence
+    if c and result.pass_start is not None:
+        # the last pass judged again over this goal's T_RANGE, as a fit at this goal
+        # judges it: a wider range may take in a law still moving (issue 34, item 1)
+        out.convergence = convergence_record(
+            pass_changes(result.pass_start, out, c["tolerance"], out.stated_ranges),
+            c["passes_run"], c["max_passes"], c["tolerance"], out.stated_ranges)
     return out
 
 
@@ -378,8 +452,9 @@ def fit_days(
     tolerance : float
         Stop after a pass that changed every parameter by less than its allowance
         (`pass_changes`: the larger of this fraction of tau and of each D0, dt by
-        `DELAY_TOLERANCE_S`, the law by `LAW_TOLERANCE_COUNTS`, and `CONVERGENCE_SIGMA`
-        of its stated error).
+        `DELAY_TOLERANCE_S`, the law by `LAW_TOLERANCE_COUNTS` over the span of the
+        T_RANGE the pass's table would state at ``error_goal`` (`judged_law_range`), and
+        `CONVERGENCE_SIGMA` of its stated error).
     scheduler : str or None
         ``"serial"``: in this process; None: a local Dask cluster of ``n_workers``
         single-threaded processes (`fluxcal.runs.batch.make_local_cluster`); else
@@ -457,6 +532,7 @@ def fit_days(
         nonlocal cal, result
         inputs: dict[str, str] = {}
         converged = False
+        law_range: StatedRanges | None = None
         held_upper: tuple[str, ...] = ()  # once held, held in every later pass (entry 27)
         for p in range(passes):
             # merged in groups, level by level: linear in the days (a left fold copies
@@ -479,7 +555,10 @@ def fit_days(
                 result = fit_calibration(stats, cal, fit_delay=fit_delay,
                                          temperature_law=temperature_law,
                                          waveform_errors=False)
-            changes = pass_changes(cal, result, tolerance)
+            # the law judged where this pass's table would state it (its T_RANGE at the
+            # goal; the rest of its law is not stated: issue 34, item 1)
+            law_range = judged_law_range(result, error_goal)
+            changes = pass_changes(cal, result, tolerance, law_range)
             converged = changes["ratio"] <= 1.0
             if guard:  # never carry a tau out of range
                 check_fit(result, final=False)
@@ -496,16 +575,10 @@ def fit_days(
         for h in history:  # the scaled steps were for the cycle test only
             h.pop("step", None)
         result.passes = history
-        last = history[-1]["changes"]
-        result.convergence = {
-            "passes_run": len(history), "max_passes": passes, "converged": converged,
-            "criterion": convergence_criterion(tolerance),
-            "stop": (f"converged after {len(history)} passes: the last changed every "
-                     f"parameter by at most {last['ratio']:.2g} of its allowance"
-                     if converged else
-                     f"not converged after {len(history)} passes: the last changed "
-                     + ", ".join(last["over"])),
-        }
+        result.pass_start = fitted_from
+        result.convergence = convergence_record(history[-1]["changes"], len(history),
+                                                passes, tolerance, law_range)
+        converged = result.convergence["converged"]
         if guard:
             # the named cause first: a wind too compressive for the variance estimator
             # also keeps it from converging (entry 19)
@@ -525,7 +598,7 @@ def fit_days(
                 other = also_refused(result)
                 raise FitRefusedError(
                     f"{result.convergence['stop']}; not written (converged: "
-                    f"{convergence_criterion(tolerance)}). Give "
+                    f"{result.convergence['criterion']}). Give "
                     + (f"more passes (--passes {MAX_PASSES}: the fit stops as soon as it "
                        "converges) or " if passes < MAX_PASSES else "") + "more days"
                     + (f" (its last pass is refused as well, so more passes alone will "

@@ -134,7 +134,9 @@ def break_outside_lines(result: FitResult) -> list[str]:
     Inside T_RANGE the table then applies one line of eq. 3 only; the break itself lies
     where the law is not stated, so no temperature the table states checks it. Said
     out loud because such a break was found 2-3x its stated error off (a 4-day late-peak
-    fit: verification section 50, entry 56). A break that is not a number is skipped.
+    fit: verification section 50, entry 56), and because the passes judge the law's
+    convergence over T_RANGE's span only (`fit_passes.pass_changes`), so such a break
+    may still have been moving at the last pass. A break that is not a number is skipped.
 
     References
     ----------
@@ -153,7 +155,7 @@ def break_outside_lines(result: FitResult) -> list[str]:
         out.append(f"{a}: the break Tm = {f.x_m:.2f} +- {f.x_m_err:.3g} C lies {side} "
                    f"T_RANGE ({ranges}): inside T_RANGE the law is one line of eq. 3; Tm and "
                    "its error rest on data where the law is not stated and are not checked "
-                   "by it (calibrating beyond T_RANGE warns)")
+                   "by it, nor is its convergence (calibrating beyond T_RANGE warns)")
     return out
 
 
