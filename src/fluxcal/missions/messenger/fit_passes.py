@@ -23,8 +23,8 @@ References
 .. [1] MESSENGER MAG EDR-to-CDR Processing v2i, sec. 6 and sec. 7 (long-term averages
    of solar-wind data binned by temperature and duty cycle; eq. 6a-6f look back over the
    duty-cycle changes before a sample, so a day reads the heater files of the day before).
-.. [2] docs/decisions/messenger_fit.md entries 1, 16, 18, 19, 21, 26, 27, 33, 40, 53 and
-   54, and 57 (the law's convergence over T_RANGE, issue 34 item 1).
+.. [2] docs/decisions/messenger_fit.md entries 1, 16, 18, 19, 21, 26, 27, 33, 40, 53,
+   54 and 57 (the law's convergence over T_RANGE, issue 34 item 1).
 """
 
 from __future__ import annotations
