@@ -25,7 +25,8 @@ gather: they do not divide); ``g`` the scheduling gap per task (about D + D/3 ta
 and merges of four); ``I`` the uneven
 days (list scheduling of the measured per-day spread, simulated); ``A`` and ``Z`` the
 set-up and the once-per-fit work (column errors, merit, folder, pictures: serial in
-both); ``c`` the pure-CPU control's speed-up on N workers (the parallelism the machine
+both; messenger_fit.py times ``Z`` apart, its ``once_per_fit``, and a file without it
+counts 0); ``c`` the pure-CPU control's speed-up on N workers (the parallelism the machine
 offers; `_control.control`).  Every part is CPU seconds of one core
 (``time.process_time`` of the client, Dask's per-task thread CPU of the workers) or, for
 the latencies, the wall of the 1-worker runs, so waits for a core on a shared host stay
@@ -79,8 +80,16 @@ def parts(r: dict[str, Any]) -> dict[str, float]:
     wk = r["worker_cpu"]
     n_pass, days, n = len(sp["reduce_cpu_s"]), r["days"], r["workers"]
     n_dask = len(dp)
-    s = sp["client_cpu_s"]
-    own = dc["client_cpu_s"]
+    s = list(sp["client_cpu_s"])
+    own = list(dc["client_cpu_s"])
+    # the once-per-fit work (messenger_fit.py's `once_per_fit`: column errors, merit,
+    # folder, pictures), timed apart; a written fit's last pass holds it already
+    once = r.get("once_per_fit") or {}
+    z = float(once.get("total_cpu_s", 0.0))
+    if z and r.get("outcome") == "written":
+        s[-1] = max(s[-1] - z, 0.0)
+    if z and r.get("outcome_parallel", r.get("outcome")) == "written" and own:
+        own[-1] = max(own[-1] - z, 0.0)
     b = wk.get("resample_fits:thread-cpu", 0.0) / max(n_dask, 1)
     out = {
         "days": days, "workers": n, "passes": n_pass, "control": r["control"],
@@ -91,13 +100,12 @@ def parts(r: dict[str, Any]) -> dict[str, float]:
         "m": _median(sp["merge_cpu_s"]),
         "m_workers": wk.get("merge_parts:thread-cpu", 0.0) / max(n_dask, 1),
         "b": b,
-        # the client, serial: its fit per pass (the last pass less the once-per-fit work)
-        # the client's fit per pass, the once-per-fit work (after the last pass: column
-        # errors, merit, folder, pictures) spread over the passes: serial in both runs, so
-        # only their sum counts (the passes differ: one or two bootstraps)
+        # the client's fit per pass, serially and on Dask (the passes differ: one or two
+        # bootstraps), without the once-per-fit work ``z`` (after the last pass: column
+        # errors, merit, folder, pictures; serial in both runs; 0 in a file without it)
         "s": sum(s) / n_pass,
         "s_own": sum(own) / max(n_dask, 1),
-        "z": 0.0,
+        "z": z,
         "z_serial": s[-1] - min(s),
         "setup": sp["setup_s"],
         # the client process during the Dask reduce (parallel to the workers)
@@ -310,7 +318,8 @@ def main() -> None:
     keys = (("w", "reduce of one day, per pass"), ("w_workers", "  the same on the worker"),
             ("m", "merges per pass"), ("m_workers", "  the same on the workers"),
             ("s", "client fit per pass, serial (once-per-fit work spread)"),
-            ("z_serial", "  of it the last pass's extra (once per fit)"),
+            ("z_serial", "  its last pass's extra"),
+            ("z", "once per fit: column errors, merit, folder, pictures"),
             ("s_own", "client fit per pass on Dask, resamples on the workers"),
             ("b", "bootstrap resamples per pass (workers)"), ("setup", "set-up (wall)"),
             ("q", "client CPU during the Dask reduce"), ("idle", "Dask reduce idle (wall)"),
@@ -384,6 +393,8 @@ def main() -> None:
         print(f"  serial-equivalent share {pr['serial_equivalent_share']:.1%}; 80 % needs at "
               f"most {pr['needed_share']:.1%} at this control")
         print("  one Dask pass: " + "; ".join(f"{k} {v:.3f} s" for k, v in pr["pass"].items()))
+        print(f"  once per fit, both runs: Z {pr['at']['z']:.3f} s ({pr['at']['z'] / pr['t1']:.1%} "
+              "of the serial fit)")
         for label, d, n, su, c in DEVICE:
             if (d, n) == (int(days), int(workers)):
                 print(f"  device ({label}): {su:.2f}x of {c:.2f}x = {su / c:.0%}")
