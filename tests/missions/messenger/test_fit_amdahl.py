@@ -161,12 +161,12 @@ def test_once_per_fit_read_from_the_benchmark(amdahl):
     refused = {**_run(4, 1, 1.0, 8.0, 8.0, 0), "outcome": "refused: not converged",
                "once_per_fit": {"total_cpu_s": 0.5}}
     q = amdahl.parts(refused)
-    assert q["z"] == 0.5
+    assert q["z"] == 0.5 and not q["written"]
     assert q["s"] == pytest.approx((0.64 + 0.64 + 0.84) / 3, abs=1e-12)
     assert q["s_own"] == pytest.approx((0.35 + 0.35 + 0.55) / 3, abs=1e-12)
     written = {**refused, "outcome": "written", "outcome_parallel": "written"}
     q = amdahl.parts(written)
-    assert q["z"] == 0.5
+    assert q["z"] == 0.5 and q["written"]
     assert q["s"] == pytest.approx((0.64 + 0.64 + 0.34) / 3, abs=1e-12)
     assert q["s_own"] == pytest.approx((0.35 + 0.35 + 0.05) / 3, abs=1e-12)
     assert amdahl.parts(_run(4, 1, 1.0, 8.0, 8.0, 0))["z"] == 0.0  # a file without it
