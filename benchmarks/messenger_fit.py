@@ -63,8 +63,21 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 from _control import control  # noqa: E402  (benchmarks/_control.py, beside this script)
 
 from fluxcal.errors import FitRefusedError, FluxcalError  # noqa: E402
-from fluxcal.missions.messenger.fit import ESTIMATORS  # noqa: E402
-from fluxcal.missions.messenger.fit_cli import run_fit  # noqa: E402
+from fluxcal.extras import available  # noqa: E402
+from fluxcal.missions.messenger.calibration_data import (  # noqa: E402
+    MessengerCalibration,
+    load_calibration,
+)
+from fluxcal.missions.messenger.fit import ESTIMATORS, FitResult  # noqa: E402
+from fluxcal.missions.messenger.fit_cli import parse_days, run_fit  # noqa: E402
+from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, check_merit  # noqa: E402
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days, judged_at  # noqa: E402
+from fluxcal.missions.messenger.fit_pictures import write_fit_pictures  # noqa: E402
+from fluxcal.missions.messenger.fit_waveforms import waveform_column_errors  # noqa: E402
+from fluxcal.missions.messenger.fit_write import (  # noqa: E402
+    report_text,
+    write_calibration_folder,
+)
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
 START = dt.date(2010, 3, 1)
@@ -237,7 +250,8 @@ def _clocked(f, *args, **kwargs) -> tuple[Any, list[float]]:
     return out, [time.perf_counter() - w, time.process_time() - c]
 
 
-def once_per_fit(result, base, out: Path, goal: float | None = None) -> dict[str, Any]:
+def once_per_fit(result: FitResult, base: MessengerCalibration, out: Path,
+                 goal: float | None = None) -> dict[str, Any]:
     """Time the work a written fit does once, after its last pass, step by step.
 
     What `fit_passes.fit_days` and `fit_cli.run_fit` do after the last pass of a fit that
@@ -259,14 +273,6 @@ def once_per_fit(result, base, out: Path, goal: float | None = None) -> dict[str
     process, timed before the pictures and not in ``total_cpu_s`` (0 when imported
     already).  The variance estimator only (``merit`` needs it).
     """
-    from fluxcal.errors import FitRefusedError
-    from fluxcal.extras import available
-    from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, check_merit
-    from fluxcal.missions.messenger.fit_passes import judged_at
-    from fluxcal.missions.messenger.fit_pictures import write_fit_pictures
-    from fluxcal.missions.messenger.fit_waveforms import waveform_column_errors
-    from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
-
     steps: dict[str, list[float]] = {}
     _, steps["column_errors"] = _clocked(waveform_column_errors, result.stats, base)
 
@@ -300,10 +306,6 @@ def _once_per_fit(run, address: str, n_workers: int, out: Path,
     ``guard=False``) and is fitted on the cluster's workers.  None for an estimator other
     than ``variance``, or when the pass stops (too little data).
     """
-    from fluxcal.missions.messenger.calibration_data import load_calibration
-    from fluxcal.missions.messenger.fit_cli import parse_days
-    from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
-
     if estimator != "variance":
         return None
     chunks = day_chunks(run.input_dir, parse_days("", run.input_dir))
