@@ -321,7 +321,7 @@ def main() -> None:
     print("Parts (CPU s of one core unless said), median (range) over the 1-worker runs:")
     keys = (("w", "reduce of one day, per pass"), ("w_workers", "  the same on the worker"),
             ("m", "merges per pass"), ("m_workers", "  the same on the workers"),
-            ("s", "client fit per pass, serial (once-per-fit work spread)"),
+            ("s", "client fit per pass, serial (a written fit's once-per-fit work out)"),
             ("z_serial", "  its last pass's extra"),
             ("z", "once per fit: column errors, merit, folder, pictures"),
             ("s_own", "client fit per pass on Dask, resamples on the workers"),
