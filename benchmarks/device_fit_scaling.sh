@@ -15,6 +15,10 @@
 #   OUT=/tmp/out PY=python3 WORKERS=2 RUNS="2:2" bash benchmarks/device_fit_scaling.sh
 #   OUT=/tmp/out RUNS="64:1 64:16" BUDGET_S=480 bash benchmarks/device_fit_scaling.sh  # + the model
 #
+# Each run also times the once-per-fit work of a written fit (messenger_fit.py's
+# once_per_fit) on one more, untimed pass over every day on the cluster: about a third
+# of its Dask fit more (docs/decisions/messenger_fit_verification.md, h-once).
+#
 # Without .whl/ the packages installed for $PY are used.  With a 1-worker run among RUNS,
 # benchmarks/messenger_fit_amdahl.py then splits the runs into the model's parts and
 # checks the model against the 16-worker runs ($OUT/amdahl.txt, amdahl.json).

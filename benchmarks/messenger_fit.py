@@ -32,6 +32,12 @@ stream).  Each in CPU seconds as well (the client process from the records, the 
 tasks from Dask's metrics), and one day's reduce serially against on a worker.  A fit
 that the guards refuse (`fit_guards.check_fit`), or that stops on too little data, is reported
 and still timed (serial and Dask do the same work up to there).
+
+A refused fit writes no folder, so the work a written fit does once after its last pass
+(the waveform columns' errors, the figure of merit, the folder, the pictures: serial in
+both runs) is timed apart, step by step (`once_per_fit`), on one more, untimed pass over
+every day on the cluster with the guards off; `benchmarks/messenger_fit_amdahl.py` adds it
+to both runs (docs/decisions/messenger_fit_verification.md, h-once).
 """
 
 from __future__ import annotations
@@ -39,10 +45,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime as dt
+import importlib
 import json
 import logging
 import os
 import shutil
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -55,8 +63,21 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 from _control import control  # noqa: E402  (benchmarks/_control.py, beside this script)
 
 from fluxcal.errors import FitRefusedError, FluxcalError  # noqa: E402
-from fluxcal.missions.messenger.fit import ESTIMATORS  # noqa: E402
-from fluxcal.missions.messenger.fit_cli import run_fit  # noqa: E402
+from fluxcal.extras import available  # noqa: E402
+from fluxcal.missions.messenger.calibration_data import (  # noqa: E402
+    MessengerCalibration,
+    load_calibration,
+)
+from fluxcal.missions.messenger.fit import ESTIMATORS, FitResult  # noqa: E402
+from fluxcal.missions.messenger.fit_cli import parse_days, run_fit  # noqa: E402
+from fluxcal.missions.messenger.fit_merit import ERROR_GOAL_NT, check_merit  # noqa: E402
+from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days, judged_at  # noqa: E402
+from fluxcal.missions.messenger.fit_pictures import write_fit_pictures  # noqa: E402
+from fluxcal.missions.messenger.fit_waveforms import waveform_column_errors  # noqa: E402
+from fluxcal.missions.messenger.fit_write import (  # noqa: E402
+    report_text,
+    write_calibration_folder,
+)
 from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight  # noqa: E402
 
 START = dt.date(2010, 3, 1)
@@ -222,6 +243,81 @@ def _dask_parts(t1: float, passes: list[dict[str, float]], tasks: list[dict[str,
     return out
 
 
+def _clocked(f, *args, **kwargs) -> tuple[Any, list[float]]:
+    """``f(*args, **kwargs)`` and its [wall, CPU] seconds in this process."""
+    w, c = time.perf_counter(), time.process_time()
+    out = f(*args, **kwargs)
+    return out, [time.perf_counter() - w, time.process_time() - c]
+
+
+def once_per_fit(result: FitResult, base: MessengerCalibration, out: Path,
+                 goal: float | None = None) -> dict[str, Any]:
+    """Time the work a written fit does once, after its last pass, step by step.
+
+    What `fit_passes.fit_days` and `fit_cli.run_fit` do after the last pass of a fit that
+    is written (docs/decisions/messenger_fit.md entry 33; h-once in
+    docs/decisions/messenger_fit_verification.md), on ``result`` (a `fit_days` result of
+    one pass from ``base``, so that its column errors are stated from ``base``) in their
+    order, each [wall, CPU] seconds of this process:
+
+    * ``column_errors``: `fit_waveforms.waveform_column_errors` (the waveform columns'
+      jackknife);
+    * ``merit``: `fit_passes.judged_at` (`fit_merit.assess` and `merit_inside_range`,
+      as `fit_days` judges a fit) and `fit_merit.check_merit` (its refusal caught);
+    * ``folder``: `fit_write.write_calibration_folder` (the tables and reports; as a
+      study, so that a fit that has not converged is written);
+    * ``report``: `fit_write.report_text`, which `run_fit` returns;
+    * ``pictures``: `fit_pictures.write_fit_pictures` (the PNGs and ``index.html``).
+
+    ``import_plot``: matplotlib's first import (`fluxcal.products.fit_plots`), once per
+    process, timed before the pictures and not in ``total_cpu_s`` (0 when imported
+    already).  The variance estimator only (``merit`` needs it).
+    """
+    steps: dict[str, list[float]] = {}
+    _, steps["column_errors"] = _clocked(waveform_column_errors, result.stats, base)
+
+    def merit():
+        judged = judged_at(result, ERROR_GOAL_NT if goal is None else goal)
+        with contextlib.suppress(FitRefusedError):
+            check_merit(judged, rejudge=judged_at)
+        return judged
+
+    judged, steps["merit"] = _clocked(merit)
+    provenance = {"inputs": judged.stats.inputs, "intervals": "all data",
+                  "days": ", ".join(judged.stats.days), "command": "messenger_fit.py"}
+    _, steps["folder"] = _clocked(write_calibration_folder, judged, out, None, provenance,
+                                  study=True)
+    _, steps["report"] = _clocked(report_text, judged, provenance)
+    imported = "fluxcal.products.fit_plots" in sys.modules or not available("plot")
+    _, import_plot = _clocked(lambda: imported or importlib.import_module(
+        "fluxcal.products.fit_plots"))
+    _, steps["pictures"] = _clocked(write_fit_pictures, judged, out)
+    return {"steps": steps, "total_s": sum(v[0] for v in steps.values()),
+            "total_cpu_s": sum(v[1] for v in steps.values()),
+            "import_plot": [0.0, 0.0] if imported else import_plot}
+
+
+def _once_per_fit(run, address: str, n_workers: int, out: Path,
+                  estimator: str) -> dict[str, Any] | None:
+    """`once_per_fit` of one untimed pass over every day of ``run`` on the cluster.
+
+    The passes of the timed fits are refused as not converged at 3 passes (section 47),
+    so neither fit writes its folder; this pass has the guards off (`fit_days`,
+    ``guard=False``) and is fitted on the cluster's workers.  None for an estimator other
+    than ``variance``, or when the pass stops (too little data).
+    """
+    if estimator != "variance":
+        return None
+    chunks = day_chunks(run.input_dir, parse_days("", run.input_dir))
+    base = load_calibration(chunks[0].label, None)
+    try:
+        result = fit_days(chunks, base, passes=1, scheduler=address, n_workers=n_workers,
+                          estimator=estimator, guard=False)
+    except FluxcalError:
+        return None
+    return once_per_fit(result, base, out)
+
+
 def _amdahl(f: float, n: float) -> float:
     return 1.0 / (f + (1.0 - f) / n)
 
@@ -277,6 +373,7 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
         log.removeHandler(handler)
         log.setLevel(logging.NOTSET)
     ctrl = control(cluster, 2 * n_workers)
+    once = _once_per_fit(run, address, n_workers, work / label / "once", estimator)
     split = _split(t0, t1, handler.passes)
     serial_parts = _serial_parts(s0, s1, s1_cpu, serial_timing.passes)
     dask_parts = _dask_parts(t1, handler.passes, _tasks(stream.data, offset), n_workers)
@@ -332,6 +429,18 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
         print(f"    one day's reduce: {day_serial:.3f} s serially, {per_day:.3f} s on a worker "
               f"({slow:.2f}x; the control's task {n_workers / ctrl:.2f}x: the reduce slows "
               f"{slow * ctrl / n_workers:.2f}x as much when the workers run together)")
+    if once is not None:
+        st = once["steps"]
+        z = once["total_cpu_s"]
+        with_z = serial_cpu + (0.0 if outcome == "written" else z)
+        print("    once per fit (after the last pass of a written fit; timed apart on one "
+              "untimed pass with the guards off), CPU s: " + " / ".join(
+                  f"{k.replace('_', ' ')} {v[1]:.3f}" for k, v in st.items())
+              + f"; total {z:.3f} CPU s, {once['total_s']:.3f} s wall: "
+              f"{z / with_z:.1%} of the serial run's CPU with it"
+              + (" (in it already: the fits were written)" if outcome == "written" else "")
+              + f"; matplotlib's first import {once['import_plot'][1]:.3f} CPU s (once per "
+              "process, not counted)")
     print(f"  speed-up serial/parallel: {speed_up:.2f}x (ideal {n_workers}x; load average "
           f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores)")
     print(f"  control: a pure-CPU task reaches {ctrl:.2f}x on this cluster right now (the "
@@ -344,7 +453,8 @@ def _case(label: str, days: int, rate_setting: int, passes: int, cluster, work: 
             "control": ctrl, "ratio_to_control": speed_up / ctrl, "serial_share": f,
             "amdahl_workers": _amdahl(f, n_workers), "amdahl_control": _amdahl(f, ctrl),
             "split": split, "serial_parts": serial_parts, "dask_parts": dask_parts,
-            "dask_client_cpu": dask_cpu, "worker_cpu": worker_cpu,
+            "dask_client_cpu": dask_cpu, "worker_cpu": worker_cpu, "once_per_fit": once,
+            "serial_cpu_s": serial_cpu,
             "outcome": outcome, "outcome_parallel": outcome_p,
             "cpu_count": os.cpu_count(), "load_average": os.getloadavg()[0]}
 

@@ -143,6 +143,35 @@ def test_model_overheads_add_per_pass(amdahl):
     assert t1 == pytest.approx(0.1 + 3 * (8 * 0.5 + 0.05 + 0.4) + 0.2, rel=1e-12)
 
 
+@pytest.mark.parametrize("control", [1.0, 13.54])
+def test_once_per_fit_work_adds_to_both_runs_once(amdahl, control):
+    """``Z`` is serial in both runs: it adds itself to T1 and to TN, once per fit."""
+    without = amdahl.model(_params(z=0.0), 64, 16, control, spread_extra=0.1)
+    with_z = amdahl.model(_params(z=1.3), 64, 16, control, spread_extra=0.1)
+    assert with_z[0] - without[0] == pytest.approx(1.3, abs=1e-12)
+    assert with_z[1] - without[1] == pytest.approx(1.3, abs=1e-12)
+
+
+def test_once_per_fit_read_from_the_benchmark(amdahl):
+    """``z`` is messenger_fit.py's ``once_per_fit`` total; a written fit's last pass holds it.
+
+    A refused fit's passes are taken as they are (3 passes: 0.64, 0.64, 0.84 CPU s serially,
+    0.35, 0.35, 0.55 on Dask); a written one's last pass less ``z`` (0.5 CPU s).
+    """
+    refused = {**_run(4, 1, 1.0, 8.0, 8.0, 0), "outcome": "refused: not converged",
+               "once_per_fit": {"total_cpu_s": 0.5}}
+    q = amdahl.parts(refused)
+    assert q["z"] == 0.5 and not q["written"]
+    assert q["s"] == pytest.approx((0.64 + 0.64 + 0.84) / 3, abs=1e-12)
+    assert q["s_own"] == pytest.approx((0.35 + 0.35 + 0.55) / 3, abs=1e-12)
+    written = {**refused, "outcome": "written", "outcome_parallel": "written"}
+    q = amdahl.parts(written)
+    assert q["z"] == 0.5 and q["written"]
+    assert q["s"] == pytest.approx((0.64 + 0.64 + 0.34) / 3, abs=1e-12)
+    assert q["s_own"] == pytest.approx((0.35 + 0.35 + 0.05) / 3, abs=1e-12)
+    assert amdahl.parts(_run(4, 1, 1.0, 8.0, 8.0, 0))["z"] == 0.0  # a file without it
+
+
 def test_uneven_days_against_order_statistics(amdahl):
     """One day per worker: the extra is E[max] - E[mean] of the workers' days."""
     assert amdahl.imbalance(64, 1, 0.2, np.random.default_rng(0)) == 0.0
@@ -184,6 +213,42 @@ def _run(days, workers, control, serial_s, parallel_s, seed):
             "worker_cpu": {"reduce_chunk:thread-cpu": 3 * 0.5 * days,
                            "merge_parts:thread-cpu": 0.15,
                            "resample_fits:thread-cpu": 0.9}}
+
+
+@pytest.mark.slow
+def test_once_per_fit_times_what_fit_days_and_run_fit_do(fit_bench, tmp_path):
+    """The benchmark's once-per-fit steps: the column errors ``fit_days`` stated, the folder
+    and the pictures ``run_fit`` writes; the total is the steps' sum.
+
+    Two simulated days of the benchmark's world, one pass with the guards off (its column
+    errors are stated from the base table, which the step is given).
+    """
+    from fluxcal.extras import available
+    from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.fit_cli import parse_days
+    from fluxcal.missions.messenger.fit_passes import day_chunks, fit_days
+    from fluxcal.missions.messenger.fit_waveforms import waveform_column_errors
+    from fluxcal.missions.messenger.flight_sim import FlightConfig, simulate_flight
+
+    run = simulate_flight(tmp_path / "sim", FlightConfig(start="2010-03-01", days=2,
+                                                         rate_setting=6), truth=False)
+    chunks = day_chunks(run.input_dir, parse_days("", run.input_dir))
+    base = load_calibration(chunks[0].label, None)
+    result = fit_days(chunks, base, passes=1, estimator="variance", guard=False)
+    # what the step recomputes is what fit_days stated, bit for bit
+    again = waveform_column_errors(result.stats, base)
+    assert again.tobytes() == np.asarray(result.waveform_error).tobytes()
+    once = fit_bench.once_per_fit(result, base, tmp_path / "out")
+    steps = once["steps"]
+    assert list(steps) == ["column_errors", "merit", "folder", "report", "pictures"]
+    assert once["total_cpu_s"] == pytest.approx(sum(v[1] for v in steps.values()), abs=1e-12)
+    assert once["total_s"] == pytest.approx(sum(v[0] for v in steps.values()), abs=1e-12)
+    assert all(v[0] >= 0.0 and v[1] >= 0.0 for v in steps.values())
+    names = {p.name for p in (tmp_path / "out").iterdir()}
+    assert {"fit_report.txt", "fit_report.toml", "index.html"} <= names
+    assert any(n.startswith("offsets_temperature_v") for n in names)
+    if available("plot"):
+        assert "fit_offsets_temperature.png" in names
 
 
 def test_amdahl_report_runs_on_saved_results(amdahl, tmp_path, monkeypatch, capsys):
