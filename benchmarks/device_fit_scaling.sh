@@ -17,7 +17,7 @@
 #
 # Each run also times the once-per-fit work of a written fit (messenger_fit.py's
 # once_per_fit) on one more, untimed pass over every day on the cluster: about a third
-# of its Dask fit more (docs/decisions/messenger_fit_verification.md, h-once).
+# of its Dask fit more (docs/decisions/messenger_fit_verification.md, section 53).
 #
 # Without .whl/ the packages installed for $PY are used.  With a 1-worker run among RUNS,
 # benchmarks/messenger_fit_amdahl.py then splits the runs into the model's parts and

@@ -37,7 +37,7 @@ A refused fit writes no folder, so the work a written fit does once after its la
 (the waveform columns' errors, the figure of merit, the folder, the pictures: serial in
 both runs) is timed apart, step by step (`once_per_fit`), on one more, untimed pass over
 every day on the cluster with the guards off; `benchmarks/messenger_fit_amdahl.py` adds it
-to both runs (docs/decisions/messenger_fit_verification.md, h-once).
+to both runs (docs/decisions/messenger_fit_verification.md, section 53).
 """
 
 from __future__ import annotations
@@ -255,7 +255,7 @@ def once_per_fit(result: FitResult, base: MessengerCalibration, out: Path,
     """Time the work a written fit does once, after its last pass, step by step.
 
     What `fit_passes.fit_days` and `fit_cli.run_fit` do after the last pass of a fit that
-    is written (docs/decisions/messenger_fit.md entry 33; h-once in
+    is written (docs/decisions/messenger_fit.md entry 33; section 53 of
     docs/decisions/messenger_fit_verification.md), on ``result`` (a `fit_days` result of
     one pass from ``base``, so that its column errors are stated from ``base``) in their
     order, each [wall, CPU] seconds of this process:
