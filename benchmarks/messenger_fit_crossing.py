@@ -16,7 +16,12 @@ seeds in each: the same wind and law with only the compressive part scaled) and 
   axis within it (the figure of merit's guard would pass them), how many converged and
   were written;
 - per seed: the share where its worst-axis unseen day first crosses `GOAL_NT`, linear
-  between the two levels around it (`crossing_share`).
+  between the two levels around it (`crossing_share`);
+- per folder (verification section h-cross20): the share's quartiles, the fraction of fits
+  whose worst axis exceeds `GOAL_NT` with its central 68 % Clopper-Pearson interval
+  (`binomial_interval`), and how often each guard refuses, alone and as the verdict
+  (`guard_tally`); then how the seeds lie against the goal at the lowest and highest
+  level (`bracket_counts`).
 
 ::
 
@@ -35,6 +40,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import beta
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -65,6 +71,57 @@ def crossing_share(points: list[tuple[float, float]], goal: float = GOAL_NT
         if e0 <= goal < e1:
             return "at", s0 + (goal - e0) * (s1 - s0) / (e1 - e0)
     return "above", pts[-1][0]
+
+
+#: The central probability of `binomial_interval` (one normal sigma either side).
+ONE_SIGMA_LEVEL = 0.6827
+
+
+def binomial_interval(k: int, n: int, level: float = ONE_SIGMA_LEVEL
+                      ) -> tuple[float, float]:
+    """Central Clopper-Pearson interval of a binomial fraction, ``k`` of ``n``.
+
+    The lower end is the ``p`` whose chance of ``k`` or more is ``(1 - level) / 2`` (0 at
+    ``k = 0``), the upper the ``p`` whose chance of ``k`` or fewer is that (1 at ``k = n``):
+    the beta quantiles ``B((1 - level) / 2; k, n - k + 1)`` and ``B((1 + level) / 2; k + 1,
+    n - k)``.
+    """
+    tail = (1.0 - level) / 2.0
+    lo = float(beta.ppf(tail, k, n - k + 1)) if k > 0 else 0.0
+    hi = float(beta.ppf(1.0 - tail, k + 1, n - k)) if k < n else 1.0
+    return lo, hi
+
+
+def bracket_counts(by_seed: dict[int, list[tuple[float, float]]], goal: float = GOAL_NT
+                   ) -> dict[str, list[int]]:
+    """The seeds by where their worst axis lies against ``goal`` at their lowest and highest
+    share: ``within`` at both, ``crossed`` within then above (the crossing between them),
+    ``above`` at both (the crossing below the lowest level), ``fell`` above then within."""
+    out: dict[str, list[int]] = {"within": [], "crossed": [], "above": [], "fell": []}
+    for seed, points in sorted(by_seed.items()):
+        pts = sorted(points)
+        if len(pts) < 2:
+            continue
+        first, last = pts[0][1] > goal, pts[-1][1] > goal
+        out[{(False, False): "within", (False, True): "crossed", (True, True): "above",
+             (True, False): "fell"}[(first, last)]].append(seed)
+    return out
+
+
+def guard_tally(verdicts: list[str], alone: list[dict[str, str]]) -> dict[str, dict[str, int]]:
+    """How often each guard refuses: ``verdict`` (the command line's first refusal, by
+    `_guard_name`) and, for each guard judged alone (`each_guard`'s keys), its refusals
+    by name (``-``, passing, left out)."""
+    out: dict[str, dict[str, int]] = {"verdict": defaultdict(int)}
+    for v in verdicts:
+        out["verdict"][_guard_name(v)] += 1
+    for guards in alone:
+        for key, message in guards.items():
+            name = _guard_name(message)
+            out.setdefault(key, defaultdict(int))
+            if name != "-":
+                out[key][name] += 1
+    return {k: dict(sorted(v.items(), key=lambda kv: (-kv[1], kv[0]))) for k, v in out.items()}
 
 
 def each_guard(res) -> dict[str, str]:
@@ -123,6 +180,7 @@ def main() -> None:
     print("|" + "---|" * 12)
     for folder in args.folders:
         share, worst, predicted, converged, written, missed = [], [], [], 0, 0, 0
+        verdicts, alone = [], []
         for fit in sorted(folder.glob("fit_*.pkl")):
             res, true = pickle.loads(fit.read_bytes())
             row = pickle.loads((folder / fit.name.replace("fit_", "row_")).read_bytes())
@@ -130,6 +188,8 @@ def main() -> None:
             n_comp, judged = p["compressive_share"]
             unseen = np.asarray(row["unseen_in_both_nt"], dtype=float)
             guards = each_guard(res)
+            verdicts.append(row["verdict"])
+            alone.append(guards)
             seed = int(fit.stem[4:])
             share.append(n_comp / judged)
             worst.append(float(unseen.max()))
@@ -148,17 +208,31 @@ def main() -> None:
                                                           "merit")) + " |", flush=True)
         if share:
             levels.append((folder.name, np.array(share), np.array(worst),
-                           np.array(predicted), converged, written, missed))
+                           np.array(predicted), converged, written, missed,
+                           guard_tally(verdicts, alone)))
     print("\n| folder | share: median (range) | N | worst-axis unseen: median / max (nT) | "
           f"above {GOAL_NT:g} | worst-axis predicted: median / max | above {GOAL_NT:g} | "
           "unseen above, every axis predicted within | converged | written |")
     print("|" + "---|" * 10)
-    for name, share, worst, predicted, converged, written, missed in levels:
+    for name, share, worst, predicted, converged, written, missed, _ in levels:
         print(f"| {name} | {np.median(share):.1%} ({share.min():.1%}-{share.max():.1%}) | "
               f"{share.size} | {np.median(worst):.3f} / {worst.max():.3f} | "
               f"{np.sum(worst > GOAL_NT)} | {np.median(predicted):.3f} / "
               f"{predicted.max():.3f} | {np.sum(predicted > GOAL_NT)} | {missed} | {converged} | "
               f"{written} |")
+    print(f"\n| folder | N | share: quartiles (range) | worst axis above {GOAL_NT:g} nT: "
+          "fraction (68 % interval) | verdict | each alone: share | convergence | check_fit "
+          "| merit (share lifted) |")
+    print("|" + "---|" * 9)
+    for name, share, worst, *_, tally in levels:
+        k = int(np.sum(worst > GOAL_NT))
+        lo, hi = binomial_interval(k, worst.size)
+        q1, q2, q3 = np.percentile(share, [25, 50, 75])
+        print(f"| {name} | {share.size} | {q1:.1%} / {q2:.1%} / {q3:.1%} ({share.min():.1%}-"
+              f"{share.max():.1%}) | {k} of {worst.size}: {k / worst.size:.2f} ({lo:.2f}-"
+              f"{hi:.2f}) | " + " | ".join(
+                  ", ".join(f"{g} {c}" for g, c in tally.get(key, {}).items()) or "-"
+                  for key in ("verdict", "share", "converged", "check_fit", "merit")) + " |")
     print("\n| seed | share: worst-axis unseen (nT), by level | crosses the goal |")
     print("|---|---|---|")
     at = []
@@ -169,6 +243,10 @@ def main() -> None:
         at += [s] if where == "at" else []
         print(f"| {seed} | " + ", ".join(f"{a:.1%}: {e:.3f}" for a, e in sorted(points))
               + f" | {where} {s:.1%} |")
+    counts = bracket_counts(by_seed)
+    print("\nseeds against the goal at their lowest / highest level: "
+          + "; ".join(f"{k} {len(v)}" + (f" ({', '.join(map(str, v))})" if v else "")
+                      for k, v in counts.items()))
     if at:
         print(f"\ncrossings: {len(at)} seeds, median {np.median(at):.1%}, "
               f"range {min(at):.1%}-{max(at):.1%}")
