@@ -17,7 +17,7 @@ seeds in each: the same wind and law with only the compressive part scaled) and 
   were written;
 - per seed: the share where its worst-axis unseen day first crosses `GOAL_NT`, linear
   between the two levels around it (`crossing_share`);
-- per folder (verification section h-cross20): the share's quartiles, the fraction of fits
+- per folder (verification section 54): the share's quartiles, the fraction of fits
   whose worst axis exceeds `GOAL_NT` with its central 68 % Clopper-Pearson interval
   (`binomial_interval`), and how often each guard refuses, alone and as the verdict
   (`guard_tally`); then how the seeds lie against the goal at the lowest and highest
