@@ -90,6 +90,7 @@ from fluxcal.missions.messenger.fit_guards import break_refusal, check_fit  # no
 from fluxcal.missions.messenger.fit_passes import (  # noqa: E402
     day_chunks,
     fit_days,
+    judged_at,
     merit_inside_range,
 )
 from fluxcal.missions.messenger.fit_reduce import interpolation_weights  # noqa: E402
@@ -205,7 +206,7 @@ def command_line_verdict(res) -> str:
             raise FitRefusedError(f"{cause} ({res.convergence['stop']})" if cause
                                   else res.convergence["stop"])
         check_fit(res)
-        fit_merit.check_merit(res)
+        fit_merit.check_merit(res, rejudge=judged_at)  # advice judged as fit_days does
     except FitRefusedError as exc:
         return f"refused: {exc}"
     return "accepted"

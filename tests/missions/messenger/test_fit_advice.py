@@ -17,6 +17,7 @@ import pytest
 
 from fluxcal.calibration.stated_ranges import StatedRanges
 from fluxcal.errors import FitRefusedError
+from fluxcal.missions.messenger import fit_merit
 from fluxcal.missions.messenger.calibration_data import load_calibration
 from fluxcal.missions.messenger.fit_breaks import N_PARAMETERS
 from fluxcal.missions.messenger.fit_merit import (
@@ -155,6 +156,11 @@ def test_a_goal_is_judged_with_the_law_s_convergence_over_its_own_t_range(shippe
     # no goal is advised once a candidate's T_RANGE takes in the moving law (a larger
     # goal only widens it)
     assert advised_goal(res, 0.14, judged_at) == (None, None)
+    # and the refusal says why, advising more days, not more passes: the fit converged at
+    # its own goal, so more --passes would run the same passes (verification section 55)
+    said = fit_merit._goal_advice(res, 0.14, judged_at, "the table")
+    assert "so no --error-goal is advised: give more days" in said
+    assert "give more passes" not in said
     # the same tables, the last pass not moving the law: the candidate converges
     res.pass_start = res.calibration
     assert judged_at(res, 0.14).convergence["converged"]

@@ -619,8 +619,9 @@ def _advised(result: FitResult, guess: float,
             return None, None, (
                 f"judged at {goal:g} nT, the table would state T_RANGE "
                 f"{judged.stated_ranges} C, where its last pass had not converged "
-                f"({c['stop']}), so no --error-goal is advised: give more passes "
-                "(--passes) or more days")
+                f"({c['stop']}), so no --error-goal is advised: give more days (more "
+                "--passes would not run: the fit converged at its own goal, "
+                "verification section 55)")
         nxt = _goal_failure(judged)
         if nxt is None:
             # a larger goal widens T_RANGE, not the prediction over the regulated samples
