@@ -3,7 +3,7 @@
     PYTHONPATH=src .venv/bin/python benchmarks/messenger_law_pivot.py DIR [DIR ...]
 
 ``DIR``: ``benchmarks/messenger_fit_pulls.py --save`` folders (``fit_<seed>.pkl``).
-Per folder (verification section h-pivot, issue 34):
+Per folder (verification section 58, issue 34):
 
 - how far the last pass moved the law at -50 C, against the band there (is the fit
   stopped before the law settled? `fit_passes.LAW_TOLERANCE_COUNTS` allows 0.2 counts);
