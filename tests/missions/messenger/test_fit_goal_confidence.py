@@ -6,7 +6,7 @@ seed 4111: D0 z stated +-2.04 %, 6.4 % off the truth).  The header line states, 
 and each fitted D0 axis, the goal in stated sigmas and ``2 Phi(goal / rel) - 1``.
 Expected values come from the closed form (scipy's normal cdf, not the code's erf) and
 a standard normal table; the fit is test_fit's closed-form statistics with the stated
-errors replaced (entry 3x-conf of docs/decisions/messenger_fit.md).
+errors replaced (entry 59 of docs/decisions/messenger_fit.md).
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def test_goal_within_is_the_two_sided_normal_probability(rel):
 def test_the_line_states_sigmas_and_probabilities_from_the_closed_form(fitted):
     # tau 2 %: 2.5 sigma, 2 Phi(2.5) - 1 = 0.98758 (normal table Phi(2.5) = 0.99379);
     # D0 x 1 %: 5 sigma (>99.9 %); y 4 %: 1.25 sigma, Phi(1.25) = 0.89435 -> 78.9 %;
-    # z 2.04 % (orbit seed 4111, section h-board16): 2.45 sigma, Phi(2.45) = 0.99286 -> 98.6 %
+    # z 2.04 % (orbit seed 4111, section 56): 2.45 sigma, Phi(2.45) = 0.99286 -> 98.6 %
     res = _stated(fitted, 0.02, (0.01, 0.04, 0.0204))
     # (the table's 5 digits, and 0.05 / 0.0204 = 2.451 read at 2.45: 1e-4)
     for k, table in [(2.5, 0.99379), (1.25, 0.89435), (0.05 / 0.0204, 0.99286)]:

@@ -137,7 +137,7 @@ def goal_confidence_lines(result: FitResult) -> list[str]:
     Issue 34 asks tau and D0 "within 5 %" (`TAU_ERROR_GOAL`, `D0_ERROR_GOAL`); the guards
     refuse a stated 1-sigma relative error above the goal (decision entries 38 and 43),
     so a written table meets the goal against the truth only with a probability (orbit
-    seed 4111: D0 z stated +-2.04 %, 6.4 % off, verification section h-board16).  This
+    seed 4111: D0 z stated +-2.04 %, 6.4 % off, verification section 56).  This
     line states it, for tau and each fitted D0 axis: the goal in stated sigmas and
     `goal_within`'s normal probability; a held D0 axis (``--hold-d0``) is named with its
     stated width instead (`fit_merit` judges it).  A quantity without a stated error is
@@ -146,7 +146,7 @@ def goal_confidence_lines(result: FitResult) -> list[str]:
     References
     ----------
     Seed 000 sec. 7, eq. 5-6 and Table 3 (tau, D0); issue 34, "Done when";
-    docs/decisions/messenger_fit.md entry 3x-conf.
+    docs/decisions/messenger_fit.md entry 59.
     """
     parts = []
     r = result.relaxation
