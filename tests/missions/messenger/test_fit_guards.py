@@ -223,6 +223,62 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
                 f"above {'33' if split else '25'}%") in str(info.value)
 
 
+@pytest.mark.parametrize("rho, n_comp, split, factor", [
+    (-0.71, 93, False, np.sqrt(1.0 + 0.71 ** 2)),  # seed 4311's z at 24.2 % (section h-ownhold)
+    (0.5, 1, False, np.sqrt(1.0 + 0.5 ** 2)),      # any compressive interval, either sign
+    (-0.71, 0, False, 1.0),                        # none compressive: the fit's error as stated
+    (-0.71, 130, True, 1.0),                       # the split stated (entry 52): already in it
+])
+def test_own_value_hold_is_advised_widened_along_the_law_d0_split(fitted, rho, n_comp, split,
+                                                                  factor):
+    # entry 3x-ownhold: below 25 % compressive the fit states no law-D0 split, and its own
+    # D0 is biased along that trade-off (4-day hard cruise seed 4311 at 24.2 %: the held
+    # table 3.24 widths off); the advised width is the stated error times entry 52's
+    # factor for D0, sqrt(1 + (lambda rho)^2) with lambda = 1 (`LAW_D0_SPLIT_WIDENING`),
+    # rho the resamples' correlation of D0 z with the law at the regulated temperature.
+    # Resamples built with exactly that sample correlation: D0 z = d0 + e s, the law's
+    # constant a = a0 + rho s + sqrt(1 - rho^2) u (s, u standardised and orthogonal; no
+    # slope, no upper segment: the law at -50 C is a)
+    from fluxcal.missions.messenger.fit_cli import parse_hold_d0
+    from fluxcal.missions.messenger.fit_variance import LAW_D0_SPLIT_WIDENING
+
+    assert LAW_D0_SPLIT_WIDENING == 1.0  # the factors above are written for lambda = 1
+    res = fitted[1]
+    error = 0.08 * abs(res.duty[2].slope)
+    duty = list(res.duty)
+    duty[2] = dataclasses.replace(res.duty[2], slope_err=error)
+    rng = np.random.default_rng(11)
+    x = np.linalg.qr(np.column_stack([np.ones(400), rng.standard_normal((400, 2))]))[0]
+    s, u = x[:, 1] / x[:, 1].std(), x[:, 2] / x[:, 2].std()   # mean 0, sd 1, orthogonal
+    b_d0 = np.tile(res.calibration.duty_cycle_d0, (400, 1)).astype(float)
+    b_d0[:, 2] += error * s
+    b_law = np.zeros((400, 3, 4))
+    b_law[:, :, 0] = 5.0 + rng.standard_normal((400, 3))
+    b_law[:, :, 3] = 100.0                      # no break inside: the law is a + b T
+    b_law[:, 2, 0] = 5.0 + rho * s + np.sqrt(1.0 - rho ** 2) * u
+    variance = _Moments(1000, 1.0)  # the D0 goal binds (its cost < 0.001 nT)
+    variance.reason = np.array(["compressive"] * n_comp + [""] * (400 - n_comp), dtype="<U24")
+    field = {**(res.d0_field or {}),
+             **({"law_d0_split": {"rho": [rho] * 3, "added_counts_per_ppt": [1e-3] * 3}}
+                if split else {})}
+    case = dataclasses.replace(res, duty=duty, variance=variance, d0_field=field,
+                               bootstrap={**(res.bootstrap or {}), "law": b_law, "d0": b_d0})
+    with pytest.raises(FitRefusedError, match=r"D0 z = .*\(8\.0%, .*; entry 38\)") as info:
+        check_fit(case)
+    advised = re.findall(r"--hold-d0 (\S+?)[ :]", str(info.value))
+    assert len(advised) == 2 and advised[1] == "z", advised
+    held, width = parse_hold_d0(advised[0])["z"]
+    assert held == pytest.approx(res.duty[2].slope, rel=5e-4)
+    # the width: error x factor rounded up to two significant digits (at most one step
+    # of the second digit wider, never narrower)
+    want = error * factor
+    assert want <= width <= want + 10.0 ** (np.floor(np.log10(want)) - 1) + 1e-15
+    assert ("widened" in str(info.value)) == (factor > 1.0)
+    if factor > 1.0:
+        assert f"widened {factor:.2f}x" in str(info.value)
+        assert f"rho {rho:+.2f}" in str(info.value)
+
+
 def test_tau_goal_sits_at_five_percent_of_the_stated_error(fitted):
     # issue 34's goal "tau within 5 %" as the stated 1-sigma error (entry 43): the
     # closed form |error / tau| <= 0.05, just inside and just outside; the fixture's own

@@ -150,6 +150,7 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     compressive = (fit_merit.compressive_share(result.variance.reason)
                    if result.variance is not None else (0, 0))
     split = bool((getattr(result, "d0_field", None) or {}).get("law_d0_split"))
+    rho = _own_hold_rho(result, compressive, split)
     what_d0 = "more heater-regulated samples over a wider range of duty cycles"
     cost = d0_goal_cost_nt(result)
     # NaN (no moments): the goal binds
@@ -167,7 +168,8 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
                 f"({_hold_d0_advice(a)})")
         if binds[AXES.index(a)]:  # the 5 % goal (entry 38)
             cause = d0_goal_refusal(a, f.slope, f.slope_err, cost_nt=cost[AXES.index(a)],
-                                    compressive=compressive, split_stated=split)
+                                    compressive=compressive, split_stated=split,
+                                    split_rho=float(rho[AXES.index(a)]))
             if cause:
                 raise FitRefusedError(cause)
         elif not (np.isfinite(f.slope_err)
@@ -180,6 +182,22 @@ def check_fit(result: FitResult, reference: MessengerCalibration | None = None, 
     cause = break_refusal(result)
     if cause:
         raise FitRefusedError(cause)
+
+
+def _own_hold_rho(result: FitResult, compressive: tuple[int, int],
+                  split_stated: bool) -> np.ndarray:
+    """Return per axis the ``rho`` by whose split factor an own-value hold is widened.
+
+    `fit_variance.law_d0_correlation` over the fit's resamples (``result.bootstrap``) at
+    the regulated temperature, where any judged interval was compressive and the fit
+    does not state the split already (``split_stated``: its D0 error carries the factor,
+    entry 52); else 0 (factor 1).  `d0_goal_refusal`, entry 3x-ownhold.
+    """
+    boot = getattr(result, "bootstrap", None) or {}
+    if compressive[0] <= 0 or split_stated or "law" not in boot or "d0" not in boot:
+        return np.zeros(3)
+    return fv.law_d0_correlation(boot["law"], boot["d0"],
+                                 result.calibration.reference_temperature_c)
 
 
 def d0_goal_cost_nt(result: FitResult, goal: float = D0_ERROR_GOAL) -> np.ndarray:
@@ -284,7 +302,8 @@ def tau_goal_refusal(tau: float, error: float, goal: float = TAU_ERROR_GOAL,
 
 def d0_goal_refusal(axis: str, value: float, error: float,
                     goal: float = D0_ERROR_GOAL, cost_nt: float = np.nan,
-                    compressive: tuple[int, int] = (0, 0), split_stated: bool = False) -> str:
+                    compressive: tuple[int, int] = (0, 0), split_stated: bool = False,
+                    split_rho: float = 0.0) -> str:
     """Return why a fitted D0 misses its goal, else ``""`` (`check_fit`; entry 38).
 
     A fitted D0 whose stated relative error ``error / |value|`` (1 sigma) exceeds ``goal``
@@ -300,7 +319,12 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     stated width missed it by 2.8 widths; where the fit states that split
     (``split_stated``: `fit_variance.widen_law_d0_split` widened its D0 and law, entry
     52) up to `OWN_HOLD_SPLIT_MAX_SHARE` compressive, where its own-value tables met
-    their stated errors (the same 8 days: 2.15 widths), it is advised again.
+    their stated errors (the same 8 days: 2.15 widths), it is advised again.  Below that
+    share, in a wind with any compressive interval, the fit states no split, and its own
+    D0 is biased along the law-D0 trade-off by the compressive part (seed 4311, 4-day
+    hard cruise at 24.2 %: the held table 3.24 widths off): the advised width is the
+    stated error times entry 52's factor for D0, ``sqrt(1 + (lambda rho)^2)``
+    (`fit_variance.split_widening_factor`, ``rho`` = ``split_rho``; entry 3x-ownhold).
 
     Parameters
     ----------
@@ -317,6 +341,10 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     split_stated : bool
         The fit's D0 and law carry the split's widening (``FitResult.d0_field``'s
         ``law_d0_split``).
+    split_rho : float
+        The correlation over the fit's resamples of this axis's D0 with the law at the
+        regulated temperature (`fit_variance.law_d0_correlation`; 0 where the split is
+        stated or no interval was compressive: `check_fit`).
 
     References
     ----------
@@ -336,9 +364,13 @@ def d0_goal_refusal(axis: str, value: float, error: float,
                f"above {limit:.0%}, where its stated error does not cover D0 along the "
                f"field; entries 49, 52) ")
     elif np.isfinite(error) and value != 0:
-        own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error):.2g} (this fit's "
-               f"value and error, rounded up: the table states D0 {axis} held, beyond the "
-               f"goal), or ")
+        factor = float(fv.split_widening_factor(split_rho))
+        widened = (f" widened {factor:.2f}x along the law-D0 split the {n_comp} compressive "
+                   f"intervals leave (rho {split_rho:+.2f}; entries 52, 3x-ownhold)"
+                   if factor > 1.0 else "")
+        own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error * factor):.2g} "
+               f"(this fit's value and error{widened}, rounded up: the table states D0 "
+               f"{axis} held, beyond the goal), or ")
     else:
         own = ""
     return (f"duty-cycle law (sec. 7, Table 3): fitted D0 {axis} = {value:.4g} +- "

@@ -98,7 +98,7 @@ __all__ = ["MIN_RANGE_SAMPLES", "MOMENT_COLUMNS", "MOMENT_EDGES_C", "TEMPERATURE
            "VarianceSettings", "VarianceStatistics", "apply_step", "apply_steps",
            "LAW_D0_SPLIT_WIDENING", "d0_field_balance", "law_values", "offset_moments",
            "reduce_variance", "resampling_units", "solve_variance", "widen_d0_along_field",
-           "widen_law_d0_split"]
+           "widen_law_d0_split", "law_d0_correlation", "split_widening_factor"]
 
 #: Step of dt (s) for the derivative of the relaxed duty cycle in dt.
 DELAY_STEP_S = 1.0
@@ -938,14 +938,14 @@ def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
     n = b_d0.shape[0]
     draws = np.random.default_rng(seed).standard_normal((n, 3))
     at_ref = law_values(b_law, np.array([float(t_ref)]))[:, 0, :]               # (n, 3)
-    rho, added = np.zeros(3), np.zeros(3)
+    rho = np.where(free, law_d0_correlation(b_law, b_d0, t_ref), 0.0)
+    added = np.zeros(3)
     for j in range(3):
         s = b_d0[:, j] - b_d0[:, j].mean()
         el = at_ref[:, j] - at_ref[:, j].mean()
         var = float(np.mean(s ** 2))
-        if not free[j] or n < 4 or np.ptp(b_d0[:, j]) == 0.0 or np.ptp(at_ref[:, j]) == 0.0:
+        if rho[j] == 0.0:
             continue
-        rho[j] = float(np.mean(s * el) / np.sqrt(var * np.mean(el ** 2)))
         beta = (s[:, None] * (b_law[:, j, :] - b_law[:, j, :].mean(axis=0))).mean(axis=0) / var
         beta[3] = 0.0
         if not law_free[j]:
@@ -957,6 +957,50 @@ def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
         b_d0[:, j] += eta
         b_law[:, j, :] += eta[:, None] * beta[None, :]
     return b_law, b_d0, {"rho": rho.tolist(), "added_counts_per_ppt": added.tolist()}
+
+
+def law_d0_correlation(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float) -> np.ndarray:
+    """Return ``rho`` per axis: the resamples' correlation of D0 with the law at ``t_ref``.
+
+    ``t_ref`` the regulated temperature (eq. 2): the trade-off between the law there and
+    D0 that a compressive wind leaves undetermined (`widen_law_d0_split`,
+    `split_widening_factor`; docs/decisions/messenger_fit.md entry 52).  0 on an axis
+    whose D0 or law does not vary over the resamples, or with fewer than 4 of them.
+
+    Parameters
+    ----------
+    b_law : ndarray, shape (n, 3, 4)
+        Resampled laws ``(a, b, c, T_m)`` per axis.
+    b_d0 : ndarray, shape (n, 3)
+        Resampled D0 (counts/ppt).
+    t_ref : float
+        The regulated temperature (C).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    b_d0 = np.asarray(b_d0, dtype=float)
+    at_ref = law_values(b_law, np.array([float(t_ref)]))[:, 0, :]               # (n, 3)
+    rho = np.zeros(3)
+    for j in range(3):  # per axis, as entry 52's widening computed it (the same bits)
+        if b_d0.shape[0] < 4 or np.ptp(b_d0[:, j]) == 0.0 or np.ptp(at_ref[:, j]) == 0.0:
+            continue
+        s = b_d0[:, j] - b_d0[:, j].mean()
+        el = at_ref[:, j] - at_ref[:, j].mean()
+        rho[j] = float(np.mean(s * el) / np.sqrt(np.mean(s ** 2) * np.mean(el ** 2)))
+    return rho
+
+
+def split_widening_factor(rho: np.ndarray | float) -> np.ndarray:
+    """Return entry 52's widening of D0 along the law-D0 split: ``sqrt(1 + (lambda rho)^2)``.
+
+    ``lambda`` = `LAW_D0_SPLIT_WIDENING`, ``rho`` = `law_d0_correlation`: the factor by
+    which `widen_law_d0_split` widens a free D0's stated error (docs/decisions/
+    messenger_fit.md entry 52); `fit_guards.d0_goal_refusal` widens the width it advises
+    for this fit's own D0 by it where the split is not stated (entry 3x-ownhold).
+    """
+    return np.sqrt(1.0 + (LAW_D0_SPLIT_WIDENING * np.asarray(rho, dtype=float)) ** 2)
 
 
 def law_to_table(law: np.ndarray) -> np.ndarray:
