@@ -224,14 +224,14 @@ def test_d0_refusal_advises_its_own_value_only_outside_a_compressive_wind(
 
 
 @pytest.mark.parametrize("rho, n_comp, split, factor", [
-    (-0.71, 93, False, np.sqrt(1.0 + 0.71 ** 2)),  # seed 4311's z at 24.2 % (section h-ownhold)
+    (-0.71, 93, False, np.sqrt(1.0 + 0.71 ** 2)),  # seed 4311's z at 24.2 % (section 60)
     (0.5, 1, False, np.sqrt(1.0 + 0.5 ** 2)),      # any compressive interval, either sign
     (-0.71, 0, False, 1.0),                        # none compressive: the fit's error as stated
     (-0.71, 130, True, 1.0),                       # the split stated (entry 52): already in it
 ])
 def test_own_value_hold_is_advised_widened_along_the_law_d0_split(fitted, rho, n_comp, split,
                                                                   factor):
-    # entry 3x-ownhold: below 25 % compressive the fit states no law-D0 split, and its own
+    # entry 60: below 25 % compressive the fit states no law-D0 split, and its own
     # D0 is biased along that trade-off (4-day hard cruise seed 4311 at 24.2 %: the held
     # table 3.24 widths off); the advised width is the stated error times entry 52's
     # factor for D0, sqrt(1 + (lambda rho)^2) with lambda = 1 (`LAW_D0_SPLIT_WIDENING`),

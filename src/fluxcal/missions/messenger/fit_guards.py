@@ -191,7 +191,7 @@ def _own_hold_rho(result: FitResult, compressive: tuple[int, int],
     `fit_variance.law_d0_correlation` over the fit's resamples (``result.bootstrap``) at
     the regulated temperature, where any judged interval was compressive and the fit
     does not state the split already (``split_stated``: its D0 error carries the factor,
-    entry 52); else 0 (factor 1).  `d0_goal_refusal`, entry 3x-ownhold.
+    entry 52); else 0 (factor 1).  `d0_goal_refusal`, entry 60.
     """
     boot = getattr(result, "bootstrap", None) or {}
     if compressive[0] <= 0 or split_stated or "law" not in boot or "d0" not in boot:
@@ -324,7 +324,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     D0 is biased along the law-D0 trade-off by the compressive part (seed 4311, 4-day
     hard cruise at 24.2 %: the held table 3.24 widths off): the advised width is the
     stated error times entry 52's factor for D0, ``sqrt(1 + (lambda rho)^2)``
-    (`fit_variance.split_widening_factor`, ``rho`` = ``split_rho``; entry 3x-ownhold).
+    (`fit_variance.split_widening_factor`, ``rho`` = ``split_rho``; entry 60).
 
     Parameters
     ----------
@@ -366,7 +366,7 @@ def d0_goal_refusal(axis: str, value: float, error: float,
     elif np.isfinite(error) and value != 0:
         factor = float(fv.split_widening_factor(split_rho))
         widened = (f" widened {factor:.2f}x along the law-D0 split the {n_comp} compressive "
-                   f"intervals leave (rho {split_rho:+.2f}; entries 52, 3x-ownhold)"
+                   f"intervals leave (rho {split_rho:+.2f}; entries 52, 60)"
                    if factor > 1.0 else "")
         own = (f"--hold-d0 {axis}={value:.4g}+-{_up_to_two_digits(error * factor):.2g} "
                f"(this fit's value and error{widened}, rounded up: the table states D0 "

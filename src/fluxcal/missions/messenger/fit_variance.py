@@ -998,7 +998,7 @@ def split_widening_factor(rho: np.ndarray | float) -> np.ndarray:
     ``lambda`` = `LAW_D0_SPLIT_WIDENING`, ``rho`` = `law_d0_correlation`: the factor by
     which `widen_law_d0_split` widens a free D0's stated error (docs/decisions/
     messenger_fit.md entry 52); `fit_guards.d0_goal_refusal` widens the width it advises
-    for this fit's own D0 by it where the split is not stated (entry 3x-ownhold).
+    for this fit's own D0 by it where the split is not stated (entry 60).
     """
     return np.sqrt(1.0 + (LAW_D0_SPLIT_WIDENING * np.asarray(rho, dtype=float)) ** 2)
 
