@@ -13,7 +13,13 @@
 #
 #   OUT=/tmp/out bash benchmarks/device_fit_scaling.sh        # from the repository root
 #   OUT=/tmp/out PY=python3 WORKERS=2 RUNS="2:2" bash benchmarks/device_fit_scaling.sh
-#   OUT=/tmp/out RUNS="64:1 64:16" BUDGET_S=480 bash benchmarks/device_fit_scaling.sh  # + the model
+#   OUT=/tmp/out RUNS="64:16 32:1" BUDGET_S=480 bash benchmarks/device_fit_scaling.sh  # + the model
+#
+# On the 16-core device of 2026-11-30 (gVisor; one day's reduce 0.51 s against 0.31 s on
+# the 2-core VM) a 64-day 1-worker run took 293 s and 64 x 16 took 191-195 s, so
+# "64:1 64:16" at BUDGET_S=480 skipped the 16-worker run: run the 16-worker one first and
+# take the model's parts from 32 days on 1 worker (messenger_fit_amdahl.py extrapolates
+# them linearly in the days).  Verification section 62 holds that run.
 #
 # Each run also times the once-per-fit work of a written fit (messenger_fit.py's
 # once_per_fit) on one more, untimed pass over every day on the cluster: about a third
@@ -27,8 +33,9 @@
 # $OUT/fit_<days>d_<workers>w_<estimator>[_rK].{txt,json} (_rK: the K-th repeat).
 # RUNS lists days:workers[:estimator] in order; a run starts only if BUDGET_S seconds (default 300) minus the time used leave
 # its estimate (EST_S_PER_DAY per day plus 60 s; the per-day figure is raised to what the
-# runs before took); a run is killed after 300 s or when BUDGET_S + 100 s have passed since
-# the start, so the script ends within ~7 min.
+# runs before took); a run is killed after RUN_LIMIT_S (default 300) s or when BUDGET_S +
+# 100 s have passed since the start, so the script ends within ~7 min.  At most 8 files
+# come back from a device's $OUT: two runs and the model write 7 with the log.
 # Estimate for 16 cores from the 2-core VM's per-core speeds (simulate 0.45 s CPU per day,
 # reduce 0.28 s per day and pass, fit 0.25 s per pass, numba's first compile ~15 s, the
 # control 0.5 s per task): install and imports 15 s, 16 d x 16 w 70 s (with the compile),
@@ -67,7 +74,8 @@ export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 # numba compiles once (~15 s) into a cache the Dask workers then load
 export NUMBA_CACHE_DIR=${NUMBA_CACHE_DIR:-/tmp/fluxcal-numba-cache}
 say "# installed in $(( $(date +%s) - t0 )) s"
-"$PY" - >"$OUT/imports.txt" 2>&1 <<'EOF'; rc=$?
+IMPORTS=$(mktemp)  # into the log only: the device returns at most 8 files
+"$PY" - >"$IMPORTS" 2>&1 <<'EOF'; rc=$?
 import importlib
 import fluxcal, fluxcal.missions.messenger.fit, fluxcal.missions.messenger.fit_cli  # noqa
 import fluxcal.missions.messenger.flight_sim, fluxcal.runs.cluster  # noqa
@@ -79,7 +87,7 @@ for name in ("numpy", "scipy", "xarray", "pandas", "numba", "pyarrow", "dask", "
     m = importlib.import_module(name)
     print(f"{name} {getattr(m, '__version__', '?')} {m.__file__}")
 EOF
-tee -a "$LOG" <"$OUT/imports.txt"
+tee -a "$LOG" <"$IMPORTS"; rm -f "$IMPORTS"
 [ "$rc" -eq 0 ] || { say "imports failed (see above)"; exit 1; }
 
 for run in $RUNS; do
@@ -95,7 +103,7 @@ for run in $RUNS; do
     k=2; base=$name
     while [ -e "$OUT/$name.json" ] || [ -e "$OUT/$name.txt" ]; do name=${base}_r$k; k=$((k + 1)); done  # a repeat
     limit=$(( BUDGET_S + 100 - used ))  # the whole script ends by BUDGET_S + 100 s
-    [ "$limit" -gt 300 ] && limit=300
+    [ "$limit" -gt "${RUN_LIMIT_S:-300}" ] && limit=${RUN_LIMIT_S:-300}
     say "# run $name at $used s (killed after $limit s)"
     t_run=$(date +%s)
     timeout "$limit" "$PY" benchmarks/messenger_fit.py --days-1hz "$days" --days-20hz 0 \
@@ -108,7 +116,7 @@ for run in $RUNS; do
         'BEGIN { r = (s - 45) / d; printf "%.2f", (r > e ? r : e) }')
 done
 # the time split and the speed-up model (issue 34 item 7, messenger_fit.md entry 53):
-# needs a 1-worker run among RUNS (e.g. RUNS="64:1 64:16" BUDGET_S=480)
+# needs a 1-worker run among RUNS (e.g. RUNS="64:16 32:1" BUDGET_S=480)
 if ls "$OUT"/fit_*d_1w_variance*.json >/dev/null 2>&1; then
     "$PY" benchmarks/messenger_fit_amdahl.py "$OUT"/fit_*_variance*.json \
         --json "$OUT/amdahl.json" >"$OUT/amdahl.txt" 2>&1
