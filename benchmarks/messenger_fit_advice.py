@@ -38,7 +38,12 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from messenger_fit_pulls import NT_PER_COUNT, WORLDS, _law, world_model  # noqa: E402
+from messenger_fit_pulls import (  # noqa: E402
+    NT_PER_COUNT,
+    WORLDS,
+    law_difference,
+    world_model,
+)
 from tests.missions.messenger._hard_worlds import drawn_law  # noqa: E402
 from tests.missions.messenger._unseen_day import (  # noqa: E402
     inside_ranges,
@@ -129,7 +134,7 @@ def check_table(res, run, days: int, tmp: Path, true) -> dict:
     lo, hi = res.merit["data_range_c"]
     grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, 0.5)
     grid = grid[res.stated_ranges.contains(grid)]
-    law_err = _law(res.calibration.temperature_coefficients, grid) - _law(tc, grid)
+    law_err = law_difference(res.calibration.temperature_coefficients, tc, grid)
     law_pull = np.abs(law_err / res.law_error(grid)).max(axis=0)
     rel = true.constants["relaxation"]
     tau_pull = (res.relaxation.tau - rel["tau_s"]) / res.relaxation.tau_err
@@ -185,8 +190,7 @@ def check_demo_table(res, out: Path, truth: Path) -> dict:
     lo, hi = res.merit["data_range_c"]
     grid = np.arange(np.floor(lo), np.ceil(hi) + 0.01, 0.5)
     grid = grid[res.stated_ranges.contains(grid)]
-    law_err = (_law(res.calibration.offset_coefficients(), grid)
-               - _law(tc.offset_coefficients(), grid))
+    law_err = law_difference(res.calibration.offset_coefficients(), tc.offset_coefficients(), grid)
     law_pull = np.abs(law_err / res.law_error(grid)).max(axis=0)
     tau_true = tc.constants["relaxation"]["tau_s"]
     tau_pull = (res.relaxation.tau - tau_true) / res.relaxation.tau_err

@@ -78,6 +78,7 @@ from tests.missions.messenger._unseen_day import (  # noqa: E402
 )
 
 from fluxcal.calibration.heater_signal import heater_signal, period_index  # noqa: E402
+from fluxcal.calibration.offsets import two_segment_offset  # noqa: E402
 from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
 from fluxcal.geometry.time import SclkKernel  # noqa: E402
@@ -106,20 +107,23 @@ LAW_T = (-50.0, -40.0, -30.0, -20.0, 0.0, 30.0)
 NT_PER_COUNT = 0.047
 
 
-def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Table 2 law (counts), shape (t, axis): ``A0 + B0 T`` up to ``T_m``, ``A1 + B1 T``
-    above (eq. 3a, 3b; ``T_m`` of eq. 4), as the table is applied.
+def law_difference(fitted: np.ndarray, truth: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Return the fitted minus the true Table 2 law (counts) at ``t``, shape (t, axis).
 
-    Not the larger of the two lines: that is the same only while ``B1 > B0`` (the
-    seed's Table 2 and the flight model's truth); a fitted upper segment that no data
-    determine can come out with ``B1 < B0`` (Mercury orbit, 16 days, seed 3507: x's
-    ``B1 = -239 +- 683`` counts/C), and the larger line then reads 10 000 counts off
-    at -60 C where the table applies its lower line (verification section 24).
+    Each as the table applies it (`two_segment_offset`, eq. 3a, 3b, 4): ``A0 + B0 T`` up
+    to ``T_m``, ``A1 + B1 T`` above; not the larger of the two lines, which differs where
+    a fitted upper segment no data determine comes out with ``B1 < B0`` (Mercury orbit,
+    16 days, seed 3507: x's ``B1 = -239 +- 683`` counts/C, 10 000 counts off at -60 C;
+    verification section 24).
+
+    Parameters
+    ----------
+    fitted, truth : ndarray, shape (3, 4)
+        ``A0, B0, A1, B1`` per axis.
+    t : ndarray, shape (n,)
+        Temperatures (C).
     """
-    c = np.asarray(c, dtype=float)
-    t = np.asarray(t, dtype=float)[:, None]
-    tm = (c[:, 0] - c[:, 2]) / (c[:, 3] - c[:, 1])
-    return np.where(t <= tm, c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
+    return two_segment_offset(t, fitted) - two_segment_offset(t, truth)
 
 
 def defects(seed: int, days: int) -> dict:
@@ -224,7 +228,7 @@ def pulls(res, true) -> dict:
     if ranges is not None:  # T_RANGE: one or more intervals (entry 24)
         t_all = t_all[ranges.contains(t_all)]
     inside = ranges.contains(law_t) if ranges is not None else (law_t >= lo) & (law_t <= hi)
-    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+    law_pull = (law_difference(cal.temperature_coefficients, tc, law_t)
                 / res.law_error(law_t))
     true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
     law_pull[~inside] = np.nan
@@ -239,8 +243,8 @@ def pulls(res, true) -> dict:
         "d0_err_rel": np.array([f.slope_err for f in res.duty]) / np.abs(true.d0),
         "d0_balance": float(getattr(res, "d0_field", {}).get("balance", np.nan)),
         "law_pull": law_pull,  # (temperature, axis)
-        "law_max_nt": NT_PER_COUNT * np.abs(_law(cal.temperature_coefficients, t_all)
-                                            - _law(tc, t_all)).max(axis=0),
+        "law_max_nt": NT_PER_COUNT * np.abs(law_difference(cal.temperature_coefficients, tc,
+                                                           t_all)).max(axis=0),
         "range": (lo, hi),
         "t_range": str(ranges),
         "tm_pull": (np.asarray(cal.breakpoint_temperature_c) - true_tm)
@@ -257,7 +261,7 @@ def pulls(res, true) -> dict:
         "predicted_without_duty_nt": _prediction_without_duty_range(res),
         "held_upper": sorted(res.held_upper),
         "law_band_max_nt": NT_PER_COUNT * res.law_error(t_all).max(axis=0),
-        "law_max_pull": np.abs((_law(cal.temperature_coefficients, t_all) - _law(tc, t_all))
+        "law_max_pull": np.abs(law_difference(cal.temperature_coefficients, tc, t_all)
                                / res.law_error(t_all)).max(axis=0),
         "outside_share": (res.merit["outside"]["samples"] / max(res.merit["outside"]["of"], 1)
                           if "outside" in res.merit else 0.0),
@@ -631,7 +635,7 @@ def estimator_row(res, true, spread) -> dict:
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     law_t = np.array(LAW_T)
-    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+    law_pull = (law_difference(cal.temperature_coefficients, tc, law_t)
                 / spread(fv.law_values(boot["law"], law_t), moved))
     law_pull[~res.stated_ranges.contains(law_t)] = np.nan
     true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
@@ -698,7 +702,7 @@ def core_factors(res, true) -> dict:
     law_t = np.array(LAW_T)
     err_tm = (np.asarray(res.calibration.breakpoint_temperature_c)
               - (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1]))
-    err_law = _law(res.calibration.temperature_coefficients, law_t) - _law(tc, law_t)
+    err_law = law_difference(res.calibration.temperature_coefficients, tc, law_t)
     b_law = res.bootstrap["law"]
     out = {}
     for j, a in enumerate("xyz"):
@@ -953,7 +957,7 @@ def _pull_row(res, true, err: dict, law_t: np.ndarray) -> dict:
     at ``law_t``): tau, D0, T_m, the law at ``law_t`` (NaN outside the stated range)."""
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
-    law_pull = (_law(cal.temperature_coefficients, law_t) - _law(tc, law_t)) / err["law"]
+    law_pull = law_difference(cal.temperature_coefficients, tc, law_t) / err["law"]
     law_pull[~res.stated_ranges.contains(law_t)] = np.nan
     return {"tau_pull": float((res.relaxation.tau - true.constants["relaxation"]["tau_s"])
                               / err["tau"]),
@@ -1251,9 +1255,9 @@ def band_pulls(res, true, fixed: np.ndarray, rule, lever=None) -> dict:
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     fit = res.calibration.temperature_coefficients
     pairs = res.bootstrap["law"]
-    pull = (_law(fit, law_t) - _law(tc, law_t)) / rule(pairs, fixed, law_t, data_t, lever)
+    pull = law_difference(fit, tc, law_t) / rule(pairs, fixed, law_t, data_t, lever)
     pull[~res.stated_ranges.contains(law_t)] = np.nan
-    on_grid = (_law(fit, grid) - _law(tc, grid)) / rule(pairs, fixed, grid, data_t, lever)
+    on_grid = law_difference(fit, tc, grid) / rule(pairs, fixed, grid, data_t, lever)
     return {"law_pull": pull, "grid_max": np.abs(on_grid).max(axis=0)}
 
 

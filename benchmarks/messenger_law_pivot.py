@@ -48,8 +48,7 @@ def fit_record(path: Path, rng: np.random.Generator) -> dict:
     t = np.arange(np.ceil(lo), hi + 0.01, 1.0)
     t = t[res.stated_ranges.contains(t)]
     truth = np.column_stack([true.a0, true.b0, true.a1, true.b1])
-    err = mp.NT_PER_COUNT * (mp._law(res.calibration.temperature_coefficients, t)
-                             - mp._law(truth, t))
+    err = mp.NT_PER_COUNT * mp.law_difference(res.calibration.temperature_coefficients, truth, t)
     band = mp.NT_PER_COUNT * res.law_error(t)
     dev = fv.law_values(np.asarray(res.bootstrap["law"], dtype=float), t)
     dev = dev - dev.mean(axis=0)  # (resamples, T, 3): the band is its spread per T
@@ -61,7 +60,7 @@ def fit_record(path: Path, rng: np.random.Generator) -> dict:
     last = np.full(3, np.nan)
     if len(res.passes) > 1:
         c1, c0 = (np.asarray(h["temperature_coefficients"]) for h in res.passes[-2:][::-1])
-        last = mp.NT_PER_COUNT * np.abs(mp._law(c1, m50) - mp._law(c0, m50))[0]
+        last = mp.NT_PER_COUNT * np.abs(mp.law_difference(c1, c0, m50))[0]
     return {"seed": int(path.stem[4:]), "t": t, "err": err, "band": band,
             "p_beyond": p_beyond, "p_own": own, "passes": len(res.passes),
             "last_50": last, "band_50": mp.NT_PER_COUNT * res.law_error(m50)[0]}
