@@ -521,8 +521,8 @@ MAX_STATED_PULL = 3.0
 #: |error / band| over a grid (decision entry 3x-tidy).
 POINTWISE_FALSE_ALARM = float(2.0 * norm.sf(MAX_STATED_PULL))
 #: Directions drawn behind `law_max_false_alarm` and `simultaneous_law_threshold`: with
-#: the radius integrated exactly, 1e5 of them leave about 0.003 of Monte Carlo error in
-#: the threshold (seed to seed over section h-tidy's lines).
+#: the radius integrated exactly, 1e5 of them move the threshold by at most 0.01 from seed
+#: to seed (0.0003 on a straight line; 0.005-0.01 where T_RANGE spans a break; h-tidy).
 SIMULTANEOUS_DRAWS = 100_000
 #: Seed of those draws: the same fit always gets the same threshold.
 SIMULTANEOUS_SEED = 34
