@@ -61,6 +61,8 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
+from scipy.optimize import brentq  # noqa: E402
+from scipy.stats import chi2, norm  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -78,6 +80,7 @@ from tests.missions.messenger._unseen_day import (  # noqa: E402
 )
 
 from fluxcal.calibration.heater_signal import heater_signal, period_index  # noqa: E402
+from fluxcal.calibration.offsets import two_segment_offset  # noqa: E402
 from fluxcal.errors import FitRefusedError  # noqa: E402
 from fluxcal.geometry.kernels import KernelPool  # noqa: E402
 from fluxcal.geometry.time import SclkKernel  # noqa: E402
@@ -106,20 +109,23 @@ LAW_T = (-50.0, -40.0, -30.0, -20.0, 0.0, 30.0)
 NT_PER_COUNT = 0.047
 
 
-def _law(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Table 2 law (counts), shape (t, axis): ``A0 + B0 T`` up to ``T_m``, ``A1 + B1 T``
-    above (eq. 3a, 3b; ``T_m`` of eq. 4), as the table is applied.
+def law_difference(fitted: np.ndarray, truth: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Return the fitted minus the true Table 2 law (counts) at ``t``, shape (t, axis).
 
-    Not the larger of the two lines: that is the same only while ``B1 > B0`` (the
-    seed's Table 2 and the flight model's truth); a fitted upper segment that no data
-    determine can come out with ``B1 < B0`` (Mercury orbit, 16 days, seed 3507: x's
-    ``B1 = -239 +- 683`` counts/C), and the larger line then reads 10 000 counts off
-    at -60 C where the table applies its lower line (verification section 24).
+    Each as the table applies it (`two_segment_offset`, eq. 3a, 3b, 4): ``A0 + B0 T`` up
+    to ``T_m``, ``A1 + B1 T`` above; not the larger of the two lines, which differs where
+    a fitted upper segment no data determine comes out with ``B1 < B0`` (Mercury orbit,
+    16 days, seed 3507: x's ``B1 = -239 +- 683`` counts/C, 10 000 counts off at -60 C;
+    verification section 24).
+
+    Parameters
+    ----------
+    fitted, truth : ndarray, shape (3, 4)
+        ``A0, B0, A1, B1`` per axis.
+    t : ndarray, shape (n,)
+        Temperatures (C).
     """
-    c = np.asarray(c, dtype=float)
-    t = np.asarray(t, dtype=float)[:, None]
-    tm = (c[:, 0] - c[:, 2]) / (c[:, 3] - c[:, 1])
-    return np.where(t <= tm, c[:, 0] + c[:, 1] * t, c[:, 2] + c[:, 3] * t)
+    return two_segment_offset(t, fitted) - two_segment_offset(t, truth)
 
 
 def defects(seed: int, days: int) -> dict:
@@ -224,7 +230,7 @@ def pulls(res, true) -> dict:
     if ranges is not None:  # T_RANGE: one or more intervals (entry 24)
         t_all = t_all[ranges.contains(t_all)]
     inside = ranges.contains(law_t) if ranges is not None else (law_t >= lo) & (law_t <= hi)
-    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+    law_pull = (law_difference(cal.temperature_coefficients, tc, law_t)
                 / res.law_error(law_t))
     true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
     law_pull[~inside] = np.nan
@@ -239,8 +245,8 @@ def pulls(res, true) -> dict:
         "d0_err_rel": np.array([f.slope_err for f in res.duty]) / np.abs(true.d0),
         "d0_balance": float(getattr(res, "d0_field", {}).get("balance", np.nan)),
         "law_pull": law_pull,  # (temperature, axis)
-        "law_max_nt": NT_PER_COUNT * np.abs(_law(cal.temperature_coefficients, t_all)
-                                            - _law(tc, t_all)).max(axis=0),
+        "law_max_nt": NT_PER_COUNT * np.abs(law_difference(cal.temperature_coefficients, tc,
+                                                           t_all)).max(axis=0),
         "range": (lo, hi),
         "t_range": str(ranges),
         "tm_pull": (np.asarray(cal.breakpoint_temperature_c) - true_tm)
@@ -257,8 +263,8 @@ def pulls(res, true) -> dict:
         "predicted_without_duty_nt": _prediction_without_duty_range(res),
         "held_upper": sorted(res.held_upper),
         "law_band_max_nt": NT_PER_COUNT * res.law_error(t_all).max(axis=0),
-        "law_max_pull": np.abs((_law(cal.temperature_coefficients, t_all) - _law(tc, t_all))
-                               / res.law_error(t_all)).max(axis=0),
+        **dict(zip(("law_max_pull", "law_max_threshold"),
+                   law_grid_pull(res, cal.temperature_coefficients, tc, t_all), strict=True)),
         "outside_share": (res.merit["outside"]["samples"] / max(res.merit["outside"]["of"], 1)
                           if "outside" in res.merit else 0.0),
         "compressive_share": fit_merit.compressive_share(res.variance.reason),
@@ -485,6 +491,9 @@ def summarise(rows: list[dict], markdown: bool = False) -> None:
         if beyond:
             print(f"written table {k + 1} of {len(accepted)} (seed {r.get('k', '?')}) lies "
                   f"beyond {MAX_STATED_PULL:g} of its stated errors: {'; '.join(beyond)}")
+        if pointwise := law_pointwise_only(r):
+            print(f"written table {k + 1} of {len(accepted)} (seed {r.get('k', '?')}): "
+                  f"{pointwise}")
     print(f"written tables meeting every goal (unseen day inside T_RANGE and D_RANGE <= 0.1 "
           f"nT, law in T_RANGE <= 0.15 nT, tau and D0 within 5 %): "
           f"{sum(not goals_missed(r) for r in accepted)} of {len(accepted)}")
@@ -507,22 +516,171 @@ def goals_missed(r: dict) -> list[str]:
 #: A written table whose truth lies beyond this many of its stated errors fails them
 #: (issue 34: "beyond ~3 of its stated errors").
 MAX_STATED_PULL = 3.0
+#: How often an honest stated error puts one truth beyond `MAX_STATED_PULL` (two-sided
+#: normal, 0.27 %): the rate `simultaneous_law_threshold` keeps for the law's largest
+#: |error / band| over a grid (decision entry 3x-tidy).
+POINTWISE_FALSE_ALARM = float(2.0 * norm.sf(MAX_STATED_PULL))
+#: Directions drawn behind `law_max_false_alarm` and `simultaneous_law_threshold`: with
+#: the radius integrated exactly, 1e5 of them move the threshold by at most 0.01 from seed
+#: to seed (0.0003 on a straight line; 0.005-0.01 where T_RANGE spans a break; h-tidy).
+SIMULTANEOUS_DRAWS = 100_000
+#: Seed of those draws: the same fit always gets the same threshold.
+SIMULTANEOUS_SEED = 34
+#: Values (draws x grid points) held at once by `_largest_cosines` (32 MB).
+DRAW_BLOCK_VALUES = 4_000_000
+
+
+def _largest_cosines(b_law: np.ndarray, t: np.ndarray, draws: int, seed: int
+                     ) -> list[tuple[int, np.ndarray] | None]:
+    """Per axis, for random directions ``v``, the largest ``|u_T . v|`` over the grid.
+
+    The law's error over ``t`` drawn normal with the covariance of the fit's resampled
+    laws (`fv.law_values`; the population covariance, as the band is their standard
+    deviation at each temperature, `MessengerFitResult.law_error`) is ``w . u_T`` times
+    the band, ``u_T`` unit vectors in the resamples' rank-``r`` span (their singular
+    vectors) and ``w`` standard normal; ``w = R v``, ``R^2`` chi2_r and ``v`` uniform on
+    the sphere, independent.  Per axis ``(r, cosines)``, ``cosines`` of shape
+    ``(draws,)``; temperatures where the band is 0 are left out, and an axis with no
+    band anywhere is None.
+    """
+    vals = fv.law_values(np.asarray(b_law, dtype=float), t)          # (n, m, 3)
+    dev = (vals - vals.mean(axis=0)) / np.sqrt(vals.shape[0])
+    band = np.sqrt(np.sum(dev ** 2, axis=0))                          # (m, 3)
+    rng = np.random.default_rng(seed)
+    out: list[tuple[int, np.ndarray] | None] = []
+    for j in range(3):
+        keep = band[:, j] > 0
+        if not keep.any():
+            out.append(None)
+            continue
+        _, sv, vt = np.linalg.svd(dev[:, keep, j], full_matrices=False)
+        rank = sv > sv[0] * 1e-12
+        units = sv[rank, None] * vt[rank] / band[keep, j]             # (r, m'): u_T
+        cos = np.empty(draws)
+        step = max(1, DRAW_BLOCK_VALUES // units.shape[1])  # bounded memory
+        for lo in range(0, draws, step):
+            g = rng.standard_normal((min(step, draws - lo), units.shape[0]))
+            cos[lo:lo + g.shape[0]] = (np.abs(g @ units).max(axis=1)
+                                       / np.linalg.norm(g, axis=1))
+        out.append((int(rank.sum()), cos))
+    return out
+
+
+def _beyond(pair: tuple[int, np.ndarray], limit: float) -> float:
+    """``P(max_T |w . u_T| > limit) = E_v[P(chi2_r > limit^2 / cos^2)]`` from one axis of
+    `_largest_cosines` (the radius integrated exactly)."""
+    rank, cos = pair
+    return float(np.mean(chi2.sf(limit ** 2 / np.maximum(cos, 1e-300) ** 2, rank)))
+
+
+def law_max_false_alarm(b_law: np.ndarray, t: np.ndarray, limit: float,
+                        draws: int = SIMULTANEOUS_DRAWS,
+                        seed: int = SIMULTANEOUS_SEED) -> np.ndarray:
+    """Return per axis how often an honest band puts the law's largest |error / band|
+    over ``t`` beyond ``limit``.
+
+    The truth's error normal with the covariance of the fit's resamples (`_largest_cosines`;
+    verification sections 58 and h-tidy).  NaN on an axis with no band.
+
+    Parameters
+    ----------
+    b_law : ndarray, shape (n, 3, 4)
+        Resampled laws ``(a, b, c, T_m)`` per axis (``res.bootstrap["law"]``).
+    t : ndarray, shape (m,)
+        The grid (C).
+    limit : float
+    draws, seed : int
+        The Monte Carlo's size and seed (`SIMULTANEOUS_DRAWS`, `SIMULTANEOUS_SEED`).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    return np.array([np.nan if pair is None else _beyond(pair, limit)
+                     for pair in _largest_cosines(b_law, t, draws, seed)])
+
+
+def simultaneous_law_threshold(b_law: np.ndarray, t: np.ndarray,
+                               false_alarm: float = POINTWISE_FALSE_ALARM,
+                               draws: int = SIMULTANEOUS_DRAWS,
+                               seed: int = SIMULTANEOUS_SEED) -> np.ndarray:
+    """Return per axis the largest |error / band| over ``t`` that an honest band exceeds
+    with probability ``false_alarm``.
+
+    Where `law_max_false_alarm` equals ``false_alarm``: a maximum over a grid of
+    correlated points exceeds `MAX_STATED_PULL` more often than one point does (1.1-1.6 %
+    of axis-fits on the 16-day orbit; verification section 58), and this keeps the
+    pointwise rate (0.27 %) for the maximum.  It lies between `MAX_STATED_PULL` (the
+    maximum is at least each point's value, which an honest band puts beyond it at that
+    rate) and ``sqrt`` of chi2_r's ``1 - false_alarm`` point (every direction of the
+    rank-``r`` span on the grid; 3.44 for a straight line); `MAX_STATED_PULL` on an axis
+    with no band.  Decision entry 3x-tidy.
+
+    Parameters
+    ----------
+    b_law, t, draws, seed
+        As `law_max_false_alarm`.
+    false_alarm : float
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    out = np.full(3, MAX_STATED_PULL)
+    for j, pair in enumerate(_largest_cosines(b_law, t, draws, seed)):
+        if pair is None or _beyond(pair, MAX_STATED_PULL) <= false_alarm:
+            continue
+        top = float(np.sqrt(chi2.isf(false_alarm, pair[0])))
+        out[j] = top if _beyond(pair, top) >= false_alarm else brentq(
+            lambda c, pair=pair: _beyond(pair, c) - false_alarm, MAX_STATED_PULL, top,
+            xtol=1e-4)
+    return out
+
+
+def law_grid_pull(res, fitted: np.ndarray, truth: np.ndarray, t: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the law's largest |error / band| over the grid ``t`` per axis, and the
+    simultaneous threshold it is judged against (`simultaneous_law_threshold` of the
+    fit's resamples; `MAX_STATED_PULL` for a fit without them).
+
+    ``fitted``, ``truth``: ``A0, B0, A1, B1`` per axis (`law_difference`); the band
+    ``res.law_error(t)``.
+    """
+    big = np.abs(law_difference(fitted, truth, t) / res.law_error(t)).max(axis=0)
+    if res.bootstrap is None:
+        return big, np.full(3, MAX_STATED_PULL)
+    return big, simultaneous_law_threshold(res.bootstrap["law"], t)
 
 
 def stated_errors_missed(r: dict) -> list[str]:
     """The stated quantities of a table whose truth lies beyond `MAX_STATED_PULL` of its
     stated error: tau, each D0 (a held one: its width), each break T_m (a held one: its
-    width) and the law over T_RANGE (its largest error over its band).  The summary's
-    largest accepted pull leaves T_m out; this does not (verification section 50)."""
+    width); and the law over T_RANGE, whose largest |error / band| over the grid is
+    judged against its simultaneous threshold (``law_max_threshold``,
+    `simultaneous_law_threshold`: the same 0.27 % for an honest band; entry 3x-tidy).
+    The summary's largest accepted pull leaves T_m out; this does not (verification
+    section 50)."""
     out = []
     if abs(r["tau_pull"]) > MAX_STATED_PULL:
         out.append(f"tau {r['tau_pull']:+.2f}")
-    for name, key in (("D0", "d0_pull"), ("T_m", "tm_pull"), ("law in T_RANGE",
-                                                               "law_max_pull")):
+    for name, key in (("D0", "d0_pull"), ("T_m", "tm_pull")):
         p = np.asarray(r[key], dtype=float)
         if np.any(np.abs(p) > MAX_STATED_PULL):
             out.append(f"{name} {np.round(p, 2)}")
+    p, limit = (np.asarray(r[k], dtype=float) for k in ("law_max_pull", "law_max_threshold"))
+    if np.any(p > limit):
+        out.append(f"law in T_RANGE {np.round(p, 2)} (simultaneous {np.round(limit, 2)})")
     return out
+
+
+def law_pointwise_only(r: dict) -> str:
+    """``""``, or the law's largest |error / band| over T_RANGE where it is beyond
+    `MAX_STATED_PULL` but within its simultaneous threshold (reported, not a failure)."""
+    p, limit = (np.asarray(r[k], dtype=float) for k in ("law_max_pull", "law_max_threshold"))
+    if np.any(p > MAX_STATED_PULL) and np.all(p <= limit):
+        return (f"law in T_RANGE {np.round(p, 2)} beyond {MAX_STATED_PULL:g} pointwise, "
+                f"within its simultaneous {np.round(limit, 2)}")
+    return ""
 
 
 def saved_rows(folder: Path) -> list[dict]:
@@ -631,7 +789,7 @@ def estimator_row(res, true, spread) -> dict:
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     law_t = np.array(LAW_T)
-    law_pull = ((_law(cal.temperature_coefficients, law_t) - _law(tc, law_t))
+    law_pull = (law_difference(cal.temperature_coefficients, tc, law_t)
                 / spread(fv.law_values(boot["law"], law_t), moved))
     law_pull[~res.stated_ranges.contains(law_t)] = np.nan
     true_tm = (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1])
@@ -698,7 +856,7 @@ def core_factors(res, true) -> dict:
     law_t = np.array(LAW_T)
     err_tm = (np.asarray(res.calibration.breakpoint_temperature_c)
               - (tc[:, 0] - tc[:, 2]) / (tc[:, 3] - tc[:, 1]))
-    err_law = _law(res.calibration.temperature_coefficients, law_t) - _law(tc, law_t)
+    err_law = law_difference(res.calibration.temperature_coefficients, tc, law_t)
     b_law = res.bootstrap["law"]
     out = {}
     for j, a in enumerate("xyz"):
@@ -953,7 +1111,7 @@ def _pull_row(res, true, err: dict, law_t: np.ndarray) -> dict:
     at ``law_t``): tau, D0, T_m, the law at ``law_t`` (NaN outside the stated range)."""
     cal = res.calibration
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
-    law_pull = (_law(cal.temperature_coefficients, law_t) - _law(tc, law_t)) / err["law"]
+    law_pull = law_difference(cal.temperature_coefficients, tc, law_t) / err["law"]
     law_pull[~res.stated_ranges.contains(law_t)] = np.nan
     return {"tau_pull": float((res.relaxation.tau - true.constants["relaxation"]["tau_s"])
                               / err["tau"]),
@@ -1251,9 +1409,9 @@ def band_pulls(res, true, fixed: np.ndarray, rule, lever=None) -> dict:
     tc = np.column_stack([true.a0, true.b0, true.a1, true.b1])
     fit = res.calibration.temperature_coefficients
     pairs = res.bootstrap["law"]
-    pull = (_law(fit, law_t) - _law(tc, law_t)) / rule(pairs, fixed, law_t, data_t, lever)
+    pull = law_difference(fit, tc, law_t) / rule(pairs, fixed, law_t, data_t, lever)
     pull[~res.stated_ranges.contains(law_t)] = np.nan
-    on_grid = (_law(fit, grid) - _law(tc, grid)) / rule(pairs, fixed, grid, data_t, lever)
+    on_grid = law_difference(fit, tc, grid) / rule(pairs, fixed, grid, data_t, lever)
     return {"law_pull": pull, "grid_max": np.abs(on_grid).max(axis=0)}
 
 
@@ -1422,7 +1580,8 @@ def main() -> None:
               f"{np.round(r['fitted_mix_waveform_nt'], 3)} nT); held upper "
               f"segments {r['held_upper']}; law band "
               f"max {np.round(r['law_band_max_nt'], 3)} nT, law max |error / band| "
-              f"{np.round(r['law_max_pull'], 2)}; passes {r['passes']}; guards: "
+              f"{np.round(r['law_max_pull'], 2)} (simultaneous threshold "
+              f"{np.round(r['law_max_threshold'], 2)}); passes {r['passes']}; guards: "
               f"{r['verdict']}; compressive {r['compressive_share'][0]} of "
               f"{r['compressive_share'][1]} judged; intervals {r['reasons']}", flush=True)
     print(f"{dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC, {len(rows)} realisations (seeds "

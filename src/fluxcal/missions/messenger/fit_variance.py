@@ -895,17 +895,18 @@ def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
 
     Per axis ``j`` whose D0 is ``free``: ``s`` the resamples' D0 about their mean,
     ``L`` their law at ``t_ref`` (the regulated temperature, eq. 2), ``rho`` the
-    correlation of ``L`` and ``s`` and ``beta`` the law's parameters ``(a, b, c)``
-    regressed on ``s`` over the resamples (``c`` only where ``law_free``: a held upper
-    segment keeps its draws; ``T_m`` never).  Each resample's D0 moves by a draw ``eta``
-    of standard deviation ``LAW_D0_SPLIT_WIDENING x |rho| x sd(s)`` and its law by
-    ``beta x eta``: the sum ``L + R D0`` that the heater-on samples pin keeps its spread
-    where the trade-off is the sum's (``beta`` at ``t_ref``, ``beta_L = cov(L, s) /
-    var(s)``, equal to ``-R``; otherwise its variance grows by ``(beta_L + R)^2`` times
-    the draws'), while D0 and the law at ``t_ref`` apart widen by ``sqrt(1 + (lambda
-    rho)^2)`` and ``sqrt(1 + lambda^2 rho^4)`` (``lambda`` = `LAW_D0_SPLIT_WIDENING`).
-    The draws are made orthogonal (over the resamples) to ``1``, ``s`` and ``L``, and
-    scaled to exactly that spread, so that these hold exactly below every break.
+    correlation of ``L`` and ``s`` (`law_d0_correlation`) and ``beta`` the law's
+    parameters ``(a, b, c)`` regressed on ``s`` over the resamples (``c`` only where
+    ``law_free``: a held upper segment keeps its draws; ``T_m`` never).  Each
+    resample's D0 moves by a draw ``eta`` of standard deviation ``LAW_D0_SPLIT_WIDENING
+    x |rho| x sd(s)`` and its law by ``beta x eta``: the sum ``L + R D0`` that the
+    heater-on samples pin keeps its spread where the trade-off is the sum's (``beta``
+    at ``t_ref``, ``beta_L = cov(L, s) / var(s)``, equal to ``-R``; otherwise its
+    variance grows by ``(beta_L + R)^2`` times the draws'), while D0 and the law at
+    ``t_ref`` apart widen by ``sqrt(1 + (lambda rho)^2)`` and ``sqrt(1 + lambda^2
+    rho^4)`` (``lambda`` = `LAW_D0_SPLIT_WIDENING`).  The draws are made orthogonal
+    (over the resamples) to ``1``, ``s`` and ``L``, and scaled to exactly that spread,
+    so that these hold exactly below every break.
     docs/decisions/messenger_fit.md entry 52.
 
     Parameters
@@ -937,15 +938,14 @@ def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
     b_d0 = np.array(b_d0, dtype=float)
     n = b_d0.shape[0]
     draws = np.random.default_rng(seed).standard_normal((n, 3))
-    at_ref = law_values(b_law, np.array([float(t_ref)]))[:, 0, :]               # (n, 3)
-    rho = np.where(free, law_d0_correlation(b_law, b_d0, t_ref), 0.0)
+    dev_d0, dev_law = _split_deviations(b_law, b_d0, t_ref)
+    rho = np.where(free, _split_correlation(dev_d0, dev_law), 0.0)
     added = np.zeros(3)
     for j in range(3):
-        s = b_d0[:, j] - b_d0[:, j].mean()
-        el = at_ref[:, j] - at_ref[:, j].mean()
-        var = float(np.mean(s ** 2))
         if rho[j] == 0.0:
             continue
+        s, el = dev_d0[j], dev_law[j]
+        var = float(np.mean(s ** 2))
         beta = (s[:, None] * (b_law[:, j, :] - b_law[:, j, :].mean(axis=0))).mean(axis=0) / var
         beta[3] = 0.0
         if not law_free[j]:
@@ -962,32 +962,50 @@ def widen_law_d0_split(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float,
 def law_d0_correlation(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float) -> np.ndarray:
     """Return ``rho`` per axis: the resamples' correlation of D0 with the law at ``t_ref``.
 
-    ``t_ref`` the regulated temperature (eq. 2): the trade-off between the law there and
-    D0 that a compressive wind leaves undetermined (`widen_law_d0_split`,
-    `split_widening_factor`; docs/decisions/messenger_fit.md entry 52).  0 on an axis
-    whose D0 or law does not vary over the resamples, or with fewer than 4 of them.
+    The ``rho`` by which `widen_law_d0_split` widens the split (the same bits: both take
+    it from `_split_deviations`), for `split_widening_factor` where the split is not
+    widened (docs/decisions/messenger_fit.md entries 52, 60).  0 on an axis whose D0 or
+    law does not vary over the resamples, or with fewer than 4 of them.
 
     Parameters
     ----------
-    b_law : ndarray, shape (n, 3, 4)
-        Resampled laws ``(a, b, c, T_m)`` per axis.
-    b_d0 : ndarray, shape (n, 3)
-        Resampled D0 (counts/ppt).
-    t_ref : float
-        The regulated temperature (C).
+    b_law, b_d0, t_ref
+        As `widen_law_d0_split`.
 
     Returns
     -------
     ndarray, shape (3,)
     """
+    return _split_correlation(*_split_deviations(b_law, b_d0, t_ref))
+
+
+def _split_deviations(b_law: np.ndarray, b_d0: np.ndarray, t_ref: float
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the resamples' D0 and law at ``t_ref`` about their means, each ``(3, n)``.
+
+    Each axis recentred on its own (a column's mean), as entry 52's widening first
+    computed it: `widen_law_d0_split` and `law_d0_correlation` share these bits.
+    ``b_law, b_d0, t_ref`` as `widen_law_d0_split`.
+    """
     b_d0 = np.asarray(b_d0, dtype=float)
     at_ref = law_values(b_law, np.array([float(t_ref)]))[:, 0, :]               # (n, 3)
+    dev_d0 = np.array([b_d0[:, j] - b_d0[:, j].mean() for j in range(3)])
+    dev_law = np.array([at_ref[:, j] - at_ref[:, j].mean() for j in range(3)])
+    return dev_d0, dev_law
+
+
+def _split_correlation(dev_d0: np.ndarray, dev_law: np.ndarray) -> np.ndarray:
+    """Return ``rho`` per axis from `_split_deviations` (`law_d0_correlation`).
+
+    0 where either does not vary, or with fewer than 4 resamples.
+    """
     rho = np.zeros(3)
-    for j in range(3):  # per axis, as entry 52's widening computed it (the same bits)
-        if b_d0.shape[0] < 4 or np.ptp(b_d0[:, j]) == 0.0 or np.ptp(at_ref[:, j]) == 0.0:
+    if dev_d0.shape[1] < 4:
+        return rho
+    for j in range(3):
+        s, el = dev_d0[j], dev_law[j]
+        if np.ptp(s) == 0.0 or np.ptp(el) == 0.0:
             continue
-        s = b_d0[:, j] - b_d0[:, j].mean()
-        el = at_ref[:, j] - at_ref[:, j].mean()
         rho[j] = float(np.mean(s * el) / np.sqrt(np.mean(s ** 2) * np.mean(el ** 2)))
     return rho
 
