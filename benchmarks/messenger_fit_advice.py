@@ -17,7 +17,7 @@ T_RANGE and D_RANGE (the truth's temperature and duty cycle) within 1.5x the pre
 error its header states; the law's largest |error / band| over T_RANGE (0.5-C grid)
 within its simultaneous threshold (`messenger_fit_pulls.simultaneous_law_threshold`: what
 an honest band exceeds in 0.27 % of axis-fits, as one pull exceeds 3; decision entry
-3x-tidy; the largest value itself reported, pointwise); tau and each D0 (a held one: its
+61; the largest value itself reported, pointwise); tau and each D0 (a held one: its
 width) within 3 of their stated errors.
 """
 

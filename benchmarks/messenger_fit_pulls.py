@@ -518,11 +518,11 @@ def goals_missed(r: dict) -> list[str]:
 MAX_STATED_PULL = 3.0
 #: How often an honest stated error puts one truth beyond `MAX_STATED_PULL` (two-sided
 #: normal, 0.27 %): the rate `simultaneous_law_threshold` keeps for the law's largest
-#: |error / band| over a grid (decision entry 3x-tidy).
+#: |error / band| over a grid (decision entry 61).
 POINTWISE_FALSE_ALARM = float(2.0 * norm.sf(MAX_STATED_PULL))
 #: Directions drawn behind `law_max_false_alarm` and `simultaneous_law_threshold`: with
 #: the radius integrated exactly, 1e5 of them move the threshold by at most 0.01 from seed
-#: to seed (0.0003 on a straight line; 0.005-0.01 where T_RANGE spans a break; h-tidy).
+#: to seed (0.0003 on a straight line; 0.005-0.01 where T_RANGE spans a break; section 63).
 SIMULTANEOUS_DRAWS = 100_000
 #: Seed of those draws: the same fit always gets the same threshold.
 SIMULTANEOUS_SEED = 34
@@ -580,7 +580,7 @@ def law_max_false_alarm(b_law: np.ndarray, t: np.ndarray, limit: float,
     over ``t`` beyond ``limit``.
 
     The truth's error normal with the covariance of the fit's resamples (`_largest_cosines`;
-    verification sections 58 and h-tidy).  NaN on an axis with no band.
+    verification sections 58 and 63).  NaN on an axis with no band.
 
     Parameters
     ----------
@@ -614,7 +614,7 @@ def simultaneous_law_threshold(b_law: np.ndarray, t: np.ndarray,
     maximum is at least each point's value, which an honest band puts beyond it at that
     rate) and ``sqrt`` of chi2_r's ``1 - false_alarm`` point (every direction of the
     rank-``r`` span on the grid; 3.44 for a straight line); `MAX_STATED_PULL` on an axis
-    with no band.  Decision entry 3x-tidy.
+    with no band.  Decision entry 61.
 
     Parameters
     ----------
@@ -657,7 +657,7 @@ def stated_errors_missed(r: dict) -> list[str]:
     stated error: tau, each D0 (a held one: its width), each break T_m (a held one: its
     width); and the law over T_RANGE, whose largest |error / band| over the grid is
     judged against its simultaneous threshold (``law_max_threshold``,
-    `simultaneous_law_threshold`: the same 0.27 % for an honest band; entry 3x-tidy).
+    `simultaneous_law_threshold`: the same 0.27 % for an honest band; entry 61).
     The summary's largest accepted pull leaves T_m out; this does not (verification
     section 50)."""
     out = []

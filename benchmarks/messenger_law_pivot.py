@@ -13,7 +13,7 @@ Per folder (verification section 58, issue 34):
   `messenger_fit_pulls.law_max_false_alarm`): a largest value over a grid of a 2-4
   parameter law exceeds 3 more often than one pull (0.27 %); and the simultaneous
   threshold that keeps 0.27 % for it (`messenger_fit_pulls.simultaneous_law_threshold`,
-  decision entry 3x-tidy), with the fits beyond it;
+  decision entry 61), with the fits beyond it;
 - the law's pulls at -50 / -40 / -30 C and that largest value with candidate floors
   (`FLOORS_NT`, and the last pass's law change at -50 C) added to the band in quadrature.
 """

@@ -4,7 +4,7 @@
 lines; with a fitted upper slope below the lower one (Mercury orbit, 16 days, seed 3507)
 that read the upper line below the break, 10 000 counts off a law the table applies
 correctly (docs/decisions/messenger_fit_verification.md section 24).  The benchmarks now
-take the law from the public `two_segment_offset` (`law_difference`, section h-tidy).
+take the law from the public `two_segment_offset` (`law_difference`, section 63).
 Hand values below are exact in binary but for ``0.9`` and ``3.3`` (1e-12: rounding).
 """
 
@@ -67,7 +67,7 @@ def test_stated_errors_missed_names_each_quantity_beyond_three(pulls_bench):
     assert [g.split(" ")[0] for g in got] == ["tau", "D0", "law"]
     assert missed(_row(tm_pull=np.array([-3.0, 3.0, np.nan]))) == []  # at 3: inside
     # the law's largest |error / band| over the grid against its simultaneous threshold
-    # (entry 3x-tidy): 3.3 is beyond 3 pointwise, within 3.4; reported, not missed
+    # (entry 61): 3.3 is beyond 3 pointwise, within 3.4; reported, not missed
     pointwise = _row(law_max_pull=np.array([3.3, 0.0, 0.0]))
     assert missed(pointwise) == []
     assert pulls_bench.law_pointwise_only(pointwise).startswith("law in T_RANGE [3.3")
