@@ -238,7 +238,8 @@ def test_hold_d0_syntax():
     assert parse_hold_d0("z") == {"z": (None, None)}
     assert parse_hold_d0(" x=0.2+-0.01, z+-0.005 ") == {"x": (0.2, 0.01), "z": (None, 0.005)}
     assert parse_hold_d0("y=0.3") == {"y": (0.3, None)}
-    for bad in ("w", "z,z", "z=abc", "z+-", "z+--1", "x=0.1+-0.01+-2"):
+    for bad in ("w", "z,z", "z=abc", "z+-", "z+--1", "x=0.1+-0.01+-2", "z=nan", "z=inf",
+                "z+-nan", "z=0.01+-inf"):
         with pytest.raises(InputFormatError, match="--hold-d0"):
             parse_hold_d0(bad)
 

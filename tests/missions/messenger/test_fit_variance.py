@@ -469,7 +469,12 @@ def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
             str(tmp_path / "out")]
     for extra, message in ((["--hold-d0", "w"], "--hold-d0 takes a comma list of the axes"),
                            (["--hold-d0", "z", "--estimator", "zero-mean"],
-                            "--hold-d0 needs --estimator variance")):
+                            "--hold-d0 needs --estimator variance"),
+                           # nan and inf switch no check on (README, "numbers finite");
+                           # before h-newuser z=inf ran the fit into a tau refusal and
+                           # z+-nan was refused after the inputs were read
+                           (["--hold-d0", "z=inf"], "numbers finite"),
+                           (["--hold-d0", "z=0.01+-nan"], "numbers finite")):
         assert main([*base, *extra]) == 2
         err = capsys.readouterr().err
         assert message in err and "--hold-d0" in err and err.count("\n") == 1

@@ -8,6 +8,7 @@ References
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -34,7 +35,8 @@ def parse_hold_d0(text: str) -> dict[str, tuple[float | None, float | None]]:
     Raises
     ------
     InputFormatError
-        An item that is not of that form, a repeated axis, a negative width.
+        An item that is not of that form, a repeated axis, a value or width that is not
+        finite, a negative width.
     """
     out: dict[str, tuple[float | None, float | None]] = {}
     for item in (x.strip().lower().replace(" ", "") for x in text.split(",")):
@@ -46,11 +48,14 @@ def parse_hold_d0(text: str) -> dict[str, tuple[float | None, float | None]]:
             width = float(m["width"]) if m and m["width"] is not None else None
         except ValueError:
             m = None
-        if m is None or m["axis"] in out or (width is not None and width < 0):
+        # nan and inf parse as floats but switch no check on (README, "numbers finite")
+        finite = all(v is None or math.isfinite(v) for v in (value, width)) if m else False
+        if (m is None or not finite or m["axis"] in out
+                or (width is not None and width < 0)):
             raise InputFormatError(
                 f"--hold-d0 takes a comma list of the axes x, y, z, each as AXIS, "
                 f"AXIS=VALUE, AXIS+-WIDTH or AXIS=VALUE+-WIDTH (counts/ppt), each axis "
-                f"once, width not negative; got {text!r}", field="--hold-d0")
+                f"once, numbers finite, width not negative; got {text!r}", field="--hold-d0")
         out[m["axis"]] = (value, width)
     return out
 

@@ -67,7 +67,8 @@ def held_d0_values(hold_d0: HoldD0, base: MessengerCalibration
     Raises
     ------
     FluxcalError
-        An axis other than x, y, z, or a negative width.
+        An axis other than x, y, z, a value or width that is not finite, or a negative
+        width.
     """
     spec = dict(hold_d0) if isinstance(hold_d0, Mapping) else {a: (None, None) for a in hold_d0}
     if set(spec) - set(AXES):
@@ -80,8 +81,9 @@ def held_d0_values(hold_d0: HoldD0, base: MessengerCalibration
         value, width = spec[a]
         value = float(d0[AXES.index(a)]) if value is None else float(value)
         width = HOLD_D0_DEFAULT_WIDTH * abs(value) if width is None else float(width)
-        if not width >= 0.0:
-            raise FluxcalError(f"--hold-d0 {a}: the width must not be negative, got {width}")
+        if not (np.isfinite(value) and np.isfinite(width) and width >= 0.0):
+            raise FluxcalError(f"--hold-d0 {a}: the value and width must be finite and the "
+                               f"width not negative, got {value} +- {width}")
         out[a] = (value, width)
     return out
 
