@@ -241,3 +241,35 @@ def test_list_calibration_command(tmp_path, capsys):
     assert capsys.readouterr().err.strip() == (
         f"fluxcal: error: {tmp_path / 'nope'}: the user calibration folder does not exist "
         "or is not a folder")
+
+
+@pytest.mark.parametrize("cell", ["abc", "nan", "inf", ""])
+def test_a_table_value_that_is_no_finite_number_is_one_error(tmp_path, capsys, cell):
+    """A garbled number in a ``--calib`` table: one line naming file, line and column, exit
+    2, before any input is read (h-newuser; before, the column was kept as words and the
+    run ended in an internal error, exit 1, when the law was evaluated)."""
+    import shutil
+
+    from fluxcal.cli import main
+    from fluxcal.missions.messenger.calibration_data import data_dir
+
+    calib = tmp_path / "calib"
+    calib.mkdir()
+    for p in data_dir().glob("*_v1.*"):
+        shutil.copy(p, calib / p.name)
+    table = calib / "offsets_temperature_v1.csv"
+    lines = table.read_text().splitlines()
+    row = next(i for i, line in enumerate(lines) if line.startswith("y,"))
+    fields = lines[row].split(",")
+    fields[3] = cell  # A1
+    lines[row] = ",".join(fields)
+    table.write_text("\n".join(lines) + "\n")
+    with pytest.raises(CalibrationError, match=rf"line {row + 1}, column 'A1': "):
+        load_calibration("2012-06-01", calib)
+    out = tmp_path / "out"
+    assert main(["messenger", "fit", "--input-dir", str(tmp_path / "missing"), "--calib",
+                 str(calib), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("fluxcal: error: "), err
+    assert f"offsets_temperature_v1.csv: line {row + 1}, column 'A1': {cell!r}" in err, err
+    assert not out.exists()

@@ -115,9 +115,23 @@ class TableFile:
     toml: dict = field(repr=False, default_factory=dict)
 
 
+#: The columns of the CSV tables that hold words (Tables 2, 3: ``axis``; Table 4:
+#: ``range_name``); every other column is numbers (docs/formats/calibration.md).
+_TEXT_COLUMNS = frozenset({"axis", "range_name"})
+
+
 def _parse_csv(path: Path) -> dict[str, np.ndarray]:
-    """Return the columns of a CSV table (its ``#`` header lines are the store's)."""
+    """Return the columns of a CSV table (its ``#`` header lines are the store's).
+
+    Raises
+    ------
+    CalibrationError
+        A row with another number of fields than the column line, a value that is not
+        a finite number in a numeric column (every column but `_TEXT_COLUMNS`), naming
+        the file, line and column.
+    """
     rows: list[list[str]] = []
+    lines: list[int] = []
     names: list[str] | None = None
     text = read_text(path, "a CSV calibration table", CalibrationError)
     for lineno, line in enumerate(text.splitlines(), start=1):
@@ -132,15 +146,26 @@ def _parse_csv(path: Path) -> dict[str, np.ndarray]:
                 f"{path}: line {lineno}: expected {len(names)} fields, got {len(fields)}"
             )
         rows.append(fields)
+        lines.append(lineno)
     if names is None or not rows:
         raise CalibrationError(f"{path}: no column header or no data rows")
     columns: dict[str, np.ndarray] = {}
     for j, name in enumerate(names):
         values = [r[j] for r in rows]
-        try:
-            columns[name] = np.array([float(v) for v in values])
-        except ValueError:
+        if name.strip() in _TEXT_COLUMNS:
             columns[name] = np.array(values)
+            continue
+        numbers = []
+        for lineno, v in zip(lines, values, strict=True):
+            try:
+                x = float(v)
+            except ValueError:
+                x = float("nan")
+            if not np.isfinite(x):
+                raise CalibrationError(f"{path}: line {lineno}, column {name!r}: {v!r} is "
+                                       "not a finite number; correct the table")
+            numbers.append(x)
+        columns[name] = np.array(numbers)
     return columns
 
 
