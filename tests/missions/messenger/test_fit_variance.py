@@ -481,6 +481,22 @@ def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
         assert not (tmp_path / "out").exists()
 
 
+def test_an_out_holding_tables_is_refused_before_any_input_is_read(tmp_path, capsys):
+    """h-newuser: before, the fit ran to its end (minutes to hours) and then refused."""
+    from fluxcal.cli import main
+
+    out = tmp_path / "fitted"
+    out.mkdir()
+    (out / "offsets_temperature_v2.csv").write_text("# a table of an earlier fit\n")
+    (out / "notes.txt").write_text("another program's file\n")
+    assert main(["messenger", "fit", "--input-dir", str(tmp_path / "missing"), "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"fluxcal: error: {out}: already holds calibration tables "
+                   "(offsets_temperature_v2.csv); give an empty or new folder\n")
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "offsets_temperature_v2.csv"]
+
+
 def test_variance_without_a_fitted_temperature_bin_aborts_naming_it(shipped):
     with pytest.raises(FluxcalError, match=r"no 5-C temperature bin holds 1800 accepted "
                                            r"samples .*not constrained"):

@@ -128,17 +128,22 @@ def run_fit(
     Raises
     ------
     FluxcalError
-        Conflicting or missing inputs, a bad ``--hold-d0``, ``--intervals`` or
-        ``--days``, no day with data, and the fit's own errors
-        (`fluxcal.missions.messenger.fit.fit_calibration`).
+        An ``out`` that already holds calibration tables, conflicting or missing
+        inputs, a bad ``--hold-d0``, ``--intervals`` or ``--days``, no day with data,
+        and the fit's own errors (`fluxcal.missions.messenger.fit.fit_calibration`).
     """
     from fluxcal.missions.messenger.calibration_data import load_calibration
     from fluxcal.missions.messenger.fit_passes import Chunk, day_chunks, fit_days, refuse_edr_folder
     from fluxcal.missions.messenger.fit_pictures import write_fit_pictures
     from fluxcal.missions.messenger.fit_reduce import read_intervals
-    from fluxcal.missions.messenger.fit_write import report_text, write_calibration_folder
+    from fluxcal.missions.messenger.fit_write import (
+        refuse_out_with_tables,
+        report_text,
+        write_calibration_folder,
+    )
     from fluxcal.products.provenance import sha256_file
 
+    refuse_out_with_tables(Path(out))  # before any work (README, decision 66)
     held = parse_hold_d0(hold_d0)
     if held and estimator != "variance":
         raise InputFormatError("--hold-d0 needs --estimator variance", field="--hold-d0")

@@ -318,6 +318,25 @@ def _fmt(values: np.ndarray, digits: int = 6) -> str:
     return ",".join(f"{v:.{digits}g}" for v in np.asarray(values, dtype=float))
 
 
+def refuse_out_with_tables(out: Path) -> None:
+    """Refuse an ``--out`` folder that already holds calibration tables (versions would mix).
+
+    `run_fit` asks before any input is read, `write_calibration_folder` again before it
+    writes (README, "an unusable --out is exit 2 before any input is read").
+
+    Raises
+    ------
+    CalibrationError
+        Naming the folder and the tables in it.
+    """
+    out = Path(out)
+    stale = sorted(p.name for p in out.glob("*_v*.*") if _NAME_RE.match(p.name)) if (
+        out.is_dir()) else []
+    if stale:
+        raise CalibrationError(f"{out}: already holds calibration tables ({', '.join(stale)});"
+                               " give an empty or new folder")
+
+
 def write_calibration_folder(
     result: FitResult,
     out_dir: Path,
@@ -360,11 +379,7 @@ def write_calibration_folder(
                                "last pass of a fit that has not converged is no result)")
     base_folder = data_dir() if base_folder is None else Path(base_folder)
     cal = result.calibration
-    stale = sorted(p.name for p in out.glob("*_v*.*") if _NAME_RE.match(p.name)) if (
-        out.exists()) else []
-    if stale:
-        raise CalibrationError(f"{out}: already holds calibration tables ({', '.join(stale)});"
-                               " give an empty or new folder")
+    refuse_out_with_tables(out)
     base_files = {_NAME_RE.match(p.name)["name"]: p for p in cal.paths}
     missing = [n for n in TABLE_NAMES if n not in base_files]
     if missing:
