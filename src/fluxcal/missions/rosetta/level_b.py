@@ -10,14 +10,23 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from pathlib import Path
+
 import numpy as np
 import xarray as xr
 
 from fluxcal.calibration import matrices as mat
 from fluxcal.errors import CalibrationError
+from fluxcal.geometry.days import utc_days
 from fluxcal.geometry.frames import rotate
 from fluxcal.geometry.time import tt2000_to_et, utc_to_tt2000
-from fluxcal.missions.rosetta.calib import Alignment, OffsetJumpTable, check_sensor
+from fluxcal.missions.rosetta.calib import (
+    Alignment,
+    DailyOffsetModel,
+    OffsetJumpTable,
+    check_sensor,
+)
 
 
 def offset_jumps(
@@ -74,6 +83,47 @@ def offset_jumps(
     return out, idx
 
 
+def refuse_jumps_on_fitted_days(epoch: np.ndarray, jump: np.ndarray, idx: np.ndarray,
+                                table: OffsetJumpTable, sensor: str,
+                                daily_models: Mapping[np.datetime64, DailyOffsetModel],
+                                *, lsk=None) -> None:
+    """Refuse an Appendix B jump on a day whose daily model ``fluxcal rosetta fit`` wrote.
+
+    That fit takes LEVEL_A from the ground calibration alone, with no jump removed
+    (docs/decisions/rosetta_fit.md entry 3), so a constant jump over the day goes into its
+    ``P_0`` (in sensor axes); subtracting the jump again in LEVEL_B would leave the field
+    off by the whole jump (on a simulated 2014-08-01, 1.44 / 0.19 / 0.70 nT, while the
+    file states 0.03 nT).  The daily model and the jumps are alternatives (entry 5).  A
+    fitted file is one with ``T_RANGE`` (`DailyOffsetModel.temperature_range`; the
+    seed's files have none); a jump of zero (before 2012) is no jump.
+
+    Raises
+    ------
+    CalibrationError
+        Naming the daily file, the day, the jump interval and its size, and what to do.
+    """
+    fitted = {d: m for d, m in daily_models.items() if m.temperature_range is not None}
+    jumped = (idx >= 0) & np.any(jump != 0.0, axis=1)
+    if not fitted or not jumped.any():
+        return
+    day_index, days, _ = utc_days(epoch, lsk)
+    for k, day in enumerate(days):
+        model = fitted.get(np.datetime64(day, "D"))
+        hit = np.flatnonzero(jumped & (day_index == k))
+        if model is None or hit.size == 0:
+            continue
+        row = int(idx[hit[0]])
+        size = " ".join(f"{v:.4g}" for v in jump[hit[0]])
+        raise CalibrationError(
+            f"{Path(model.source).name}: fitted by fluxcal rosetta fit on {day}, inside the "
+            f"Appendix B interval {table.start_utc[row]} .. {table.end_utc[row]} of "
+            f"{Path(table.source).name} ({sensor} jump {size} nT, s/c), which the fitted "
+            "P_0 already holds; subtracting the jump again would leave LEVEL_B off by it. "
+            "Give --no-jumps with this daily file, or the seed's daily files with the jumps "
+            "(the daily model and the jumps are alternatives, docs/decisions/rosetta_fit.md "
+            "entry 5)")
+
+
 def level_b(
     level_a: xr.Dataset,
     alignment: Alignment | None,
@@ -82,6 +132,7 @@ def level_b(
     boom: str = "deployed",
     spacecraft_frame: str = "ROS_SPACECRAFT",
     lsk=None,
+    daily_models: Mapping[np.datetime64, DailyOffsetModel] | None = None,
 ) -> xr.Dataset:
     """LEVEL_A (URF) -> LEVEL_B (spacecraft coordinates).
 
@@ -100,6 +151,9 @@ def level_b(
     spacecraft_frame : str
         SPICE name of the spacecraft frame (SPICE path only).
     lsk : LeapSecondTable, optional
+    daily_models : mapping, optional
+        The daily models LEVEL_A applied, by UTC day: a jump on a day whose model
+        ``fluxcal rosetta fit`` wrote is refused (`refuse_jumps_on_fitted_days`).
 
     Returns
     -------
@@ -126,6 +180,8 @@ def level_b(
     n_jumped = 0
     if jumps is not None:
         jump, idx = offset_jumps(level_a["epoch"].values, jumps, sensor, lsk=lsk)
+        refuse_jumps_on_fitted_days(level_a["epoch"].values, jump, idx, jumps, sensor,
+                                    daily_models or {}, lsk=lsk)
         b_sc = b_sc - jump
         n_jumped = int((idx >= 0).sum())
     out = level_a.copy()

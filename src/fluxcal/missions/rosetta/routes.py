@@ -407,7 +407,8 @@ class RosettaRun:
                 out.used["alignment"] = alignment.source
             if table is not None:
                 out.used["offset_jumps"] = table.source
-            out.levels["B"] = level_b.level_b(a, alignment, table, boom=options.boom, lsk=lsk)
+            out.levels["B"] = level_b.level_b(a, alignment, table, boom=options.boom, lsk=lsk,
+                                              daily_models=t.models)
         if "C" in need:
             out.levels["C"] = level_c.level_c(out.levels["B"], frame=options.frame,
                                               centre=options.centre, lsk=lsk)
