@@ -51,3 +51,17 @@ def test_calibrate_refuses_the_jumps_on_a_day_whose_daily_model_fluxcal_fitted(t
         assert main(["-q", "rosetta", "calibrate", "--input", str(raw), "--sensor", "OB",
                      "--calib", str(sim / "calib"), "--formats", "cdf", "--out",
                      str(tmp_path / name), *extra]) == 0
+
+
+def test_the_fitted_daily_file_names_its_input_without_its_folder(tmp_path):
+    """h-newuser: its ``# source:`` line held the input's full path (README: no product
+    holds a folder of the machine that made it)."""
+    sim = tmp_path / "sim"
+    assert main(["-q", "simulate", "rosetta", "--hours", "24", "--rate", "1", "--out",
+                 str(sim)]) == 0
+    fitted = tmp_path / "fitted"
+    assert main(["-q", "rosetta", "fit", "--input", str(sim / "RPCMAG_20140801_RAW_OB.csv"),
+                 "--sensor", "OB", "--out", str(fitted)]) == 0
+    text = (fitted / "RPCMAG_140801_006_CALIB_OB.TXT").read_text()
+    assert "# source: RPCMAG_20140801_RAW_OB.csv" in text, text
+    assert str(tmp_path) not in text

@@ -47,6 +47,7 @@ from fluxcal.missions.rosetta.calib import (
     write_daily_offset_model,
 )
 from fluxcal.products.atomic import atomic_write_bytes
+from fluxcal.products.provenance import portable_text
 
 log = logging.getLogger(__name__)
 
@@ -461,7 +462,9 @@ def write_daily_model(
           if fit.noise is not None else []),
         *(f"warning: {w}" for w in warnings),
         *(f"sigma P_{k} x y z: {vec(fit.sigma[k])}" for k in range(fit.degree + 1)),
-        *(f"{k}: {v}" for k, v in {**fit.notes, **(provenance or {})}.items()),
+        # file names only: no folder of the machine that made it (README, provenance)
+        *(f"{k}: {portable_text(str(v))}"
+          for k, v in {**fit.notes, **(provenance or {})}.items()),
     ]
     model = fit.to_model()
     return write_daily_offset_model(model, Path(out_dir), comments=lines)
