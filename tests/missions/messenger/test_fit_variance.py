@@ -479,6 +479,15 @@ def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and "--hold-d0" in err and err.count("\n") == 1
         assert not (tmp_path / "out").exists()
+    # h-newuser: before, checked after the science was read, not naming the option
+    for extra, message in ((["--estimator", "median"],
+                            "'--estimator': 'median': choose one of zero-mean, variance"),
+                           (["--temperature-law", "mean"],
+                            "'--temperature-law': 'mean': choose one of distribution")):
+        assert main([*base, *extra]) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1, err
+        assert not (tmp_path / "out").exists()
 
 
 def test_an_out_holding_tables_is_refused_before_any_input_is_read(tmp_path, capsys):

@@ -133,6 +133,7 @@ def run_fit(
         and the fit's own errors (`fluxcal.missions.messenger.fit.fit_calibration`).
     """
     from fluxcal.missions.messenger.calibration_data import load_calibration
+    from fluxcal.missions.messenger.fit import ESTIMATORS, TEMPERATURE_LAWS
     from fluxcal.missions.messenger.fit_passes import Chunk, day_chunks, fit_days, refuse_edr_folder
     from fluxcal.missions.messenger.fit_pictures import write_fit_pictures
     from fluxcal.missions.messenger.fit_reduce import read_intervals
@@ -144,6 +145,11 @@ def run_fit(
     from fluxcal.products.provenance import sha256_file
 
     refuse_out_with_tables(Path(out))  # before any work (README, decision 66)
+    for option, value, allowed in (("--estimator", estimator, ESTIMATORS),
+                                   ("--temperature-law", temperature_law, TEMPERATURE_LAWS)):
+        if value not in allowed:
+            raise InputFormatError(f"{value!r}: choose one of {', '.join(allowed)}",
+                                   field=option)
     held = parse_hold_d0(hold_d0)
     if held and estimator != "variance":
         raise InputFormatError("--hold-d0 needs --estimator variance", field="--hold-d0")
