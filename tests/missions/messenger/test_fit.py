@@ -407,7 +407,8 @@ def test_cli_fit_error_lines(tmp_path, training, simulated_files, messenger_kern
     rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                "--temperature-law", "median", "--out", str(tmp_path / "e")])
     err = capsys.readouterr().err.strip()
-    assert rc == 2 and "temperature_law must be one of distribution, binned-mean" in err
+    assert rc == 2 and ("'--temperature-law': 'median': choose one of distribution, "
+                        "binned-mean") in err
     # both input styles
     rc = main(["messenger", "fit", *_stream_args(training), *ZERO_MEAN,
                "--input-dir", str(tmp_path), "--out", str(tmp_path / "d")])
