@@ -123,7 +123,9 @@ def compressive_refusal(reason: np.ndarray,
     return (f"variance estimator: {n_comp} of {judged} intervals of "
             f"{fv.VarianceSettings().interval_s:g} s rejected as compressive (limit "
             f"{max_share:.0%}): |B| varies too much within the intervals, the fit on the "
-            "rest is biased and its errors too small (messenger_fit.md entry 19)")
+            "rest is biased and its errors too small (messenger_fit.md entry 19); give "
+            "--intervals with the solar-wind intervals (outside the magnetosphere and "
+            "shocks), or days of a less compressive wind")
 
 
 def _nt_per_count(cal) -> np.ndarray:
