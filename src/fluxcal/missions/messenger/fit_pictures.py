@@ -15,7 +15,8 @@
 
 With the variance estimator (which measures no bin means: a bin mean is on the law only
 in a zero-mean wind) the pictures show the law, its band and the fitted range, the
-duty-cycle line, the relaxation and the intervals, without bin means or pulls.
+duty-cycle line and the intervals, without bin means, pulls or the relaxation (it fits tau
+from the variance of ``|B|``, with no superposed epoch to draw).
 
 References
 ----------
