@@ -672,7 +672,10 @@ def report_text(result: FitResult, provenance: Mapping[str, Any]) -> str:
     r = result.relaxation
     lines = [
         f"MESSENGER MAG in-flight calibration ({SOURCE} {software_version()})",
-        f"days: {len(st.days)} ({', '.join(st.days[:3])}{' ...' if len(st.days) > 3 else ''})",
+        # the --input files are one reduction labelled "files", whatever days they span
+        ("days: the --input files, one reduction" if list(st.days) == ["files"] else
+         f"days: {len(st.days)} ({', '.join(st.days[:3])}"
+         f"{' ...' if len(st.days) > 3 else ''})"),
         f"intervals: {provenance.get('intervals', 'all data')}",
         f"samples used: {st.n_samples.get('used', 0)} of {st.n_samples.get('total', 0)} "
         f"(coarse {st.n_samples.get('coarse', 0)}, outside intervals "
