@@ -89,7 +89,8 @@ class RosettaOptions:
         "help": "Take URF -> s/c from the frames ROS_RPC_MAG_OB/IB (needs the boom CK) "
                 "instead of RPCMAG_SC_ALIGN.TXT."})
     no_jumps: bool = field(default=False, metadata={
-        "help": "Skip the Appendix B offset jumps."})
+        "help": "Skip the Appendix B offset jumps (needed with a daily model that "
+                "'rosetta fit' fitted inside an Appendix B interval: it holds the jump)."})
 
     def __post_init__(self) -> None:
         check_fields(self)  # the command line, --config and the API refuse the same values
