@@ -246,7 +246,7 @@ def test_list_calibration_command(tmp_path, capsys):
 @pytest.mark.parametrize("cell", ["abc", "nan", "inf", ""])
 def test_a_table_value_that_is_no_finite_number_is_one_error(tmp_path, capsys, cell):
     """A garbled number in a ``--calib`` table: one line naming file, line and column, exit
-    2, before any input is read (h-newuser; before, the column was kept as words and the
+    2, before any input is read (entry 62; before, the column was kept as words and the
     run ended in an internal error, exit 1, when the law was evaluated)."""
     import shutil
 

@@ -355,7 +355,7 @@ def test_cli_fit_then_edr2cdr_calib(tmp_path, training, simulated_files, messeng
     out = capsys.readouterr()
     assert rc == 0, out.err
     assert "wrote 10 files" in out.out
-    # the --input files are one reduction, whatever days they span (h-newuser: "days: 1")
+    # the --input files are one reduction, whatever days they span (entry 62: "days: 1")
     assert "\ndays: the --input files, one reduction\n" in out.out
     names = sorted(p.name for p in fitted.iterdir())
     assert "offsets_temperature_v2.csv" in names and "processing_v2.toml" in names

@@ -471,7 +471,7 @@ def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
                            (["--hold-d0", "z", "--estimator", "zero-mean"],
                             "--hold-d0 needs --estimator variance"),
                            # nan and inf switch no check on (README, "numbers finite");
-                           # before h-newuser z=inf ran the fit into a tau refusal and
+                           # before entry 62 z=inf ran the fit into a tau refusal and
                            # z+-nan was refused after the inputs were read
                            (["--hold-d0", "z=inf"], "numbers finite"),
                            (["--hold-d0", "z=0.01+-nan"], "numbers finite")):
@@ -479,7 +479,7 @@ def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and "--hold-d0" in err and err.count("\n") == 1
         assert not (tmp_path / "out").exists()
-    # h-newuser: before, checked after the science was read, not naming the option
+    # entry 62: before, checked after the science was read, not naming the option
     for extra, message in ((["--estimator", "median"],
                             "'--estimator': 'median': choose one of zero-mean, variance"),
                            (["--temperature-law", "mean"],
@@ -491,7 +491,7 @@ def test_hold_d0_is_checked_before_any_input_is_read(tmp_path, capsys):
 
 
 def test_an_out_holding_tables_is_refused_before_any_input_is_read(tmp_path, capsys):
-    """h-newuser: before, the fit ran to its end (minutes to hours) and then refused."""
+    """entry 62: before, the fit ran to its end (minutes to hours) and then refused."""
     from fluxcal.cli import main
 
     out = tmp_path / "fitted"

@@ -3,7 +3,7 @@
 The daily fit takes LEVEL_A from the ground calibration alone (docs/decisions/rosetta_fit.md
 entry 3), so on a day inside an Appendix B interval the jump goes into its ``P_0``;
 ``rosetta calibrate`` subtracting the jump again in LEVEL_B left the field off by the whole
-jump, silently (h-newuser: 1.44 / 0.19 / 0.70 nT on a simulated 2014-08-01 whose file
+jump, silently (entry 62: 1.44 / 0.19 / 0.70 nT on a simulated 2014-08-01 whose file
 stated 0.03 nT).  Entry 5: the two are alternatives.
 """
 
@@ -54,7 +54,7 @@ def test_calibrate_refuses_the_jumps_on_a_day_whose_daily_model_fluxcal_fitted(t
 
 
 def test_the_fitted_daily_file_names_its_input_without_its_folder(tmp_path):
-    """h-newuser: its ``# source:`` line held the input's full path (README: no product
+    """entry 62: its ``# source:`` line held the input's full path (README: no product
     holds a folder of the machine that made it)."""
     sim = tmp_path / "sim"
     assert main(["-q", "simulate", "rosetta", "--hours", "24", "--rate", "1", "--out",
