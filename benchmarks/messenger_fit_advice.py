@@ -267,17 +267,28 @@ def main() -> None:
         goal = None
 
         def fit():
-            return fit_days(chunks, base, passes=opts["passes"], estimator="variance",
-                            guard=False, hold_d0=parse_hold_d0(opts["hold_d0"]),
-                            fit_delay=opts["fit_delay"])
+            """The fit, or ``None`` where the fit itself refuses (printed: the command
+            line's refusal too, e.g. the estimator's compressive share above 50 %)."""
+            try:
+                return fit_days(chunks, base, passes=opts["passes"], estimator="variance",
+                                guard=False, hold_d0=parse_hold_d0(opts["hold_d0"]),
+                                fit_delay=opts["fit_delay"])
+            except FitRefusedError as exc:
+                print(f"[{time.perf_counter() - t0:5.0f} s] options {opts}: REFUSED by the "
+                      f"fit itself: {exc}", flush=True)
+                return None
 
         res = fit()
         for step in range(args.steps + 1):
+            if res is None:
+                return
             if goal is not None:
                 res = judged_at(res, goal)
             why = verdict(res)
+            n, judged = fit_merit.compressive_share(res.variance.reason)
             print(f"[{time.perf_counter() - t0:5.0f} s] step {step}: options {opts}, "
-                  f"--error-goal {goal}: predicted {np.round(res.merit['total_nt'], 3)} nT, "
+                  f"--error-goal {goal}: compressive {n} / {judged}, predicted "
+                  f"{np.round(res.merit['total_nt'], 3)} nT, "
                   f"T_RANGE {res.stated_ranges} C, passes {res.convergence['passes_run']}: "
                   + (f"REFUSED: {why}" if why else "WRITTEN"), flush=True)
             if not why:
