@@ -135,17 +135,18 @@ def own_hold_record(message: str, res) -> dict:
 
 def chain_record(steps: list, hold: dict, r: dict | None, true) -> dict:
     """One chain as JSON-ready values (``--record``): ``steps`` (share, verdict, options
-    per step), the own-value ``hold`` advised, and a written table's check ``r`` with the
-    held axis's pull against the width held (``held_pull``; the truth's D0)."""
+    per step), the own-value ``hold`` advised with its pull against the width held
+    (``held_pull``: the truth's D0, written or not), and a written table's check ``r``."""
     out = {"steps": steps, "own_hold": hold, "written": r is not None}
+    if hold and true is not None:  # the advice's pull, whether or not a table is written
+        j = "xyz".index(hold["axis"])
+        out["true_d0"] = float(true.d0[j])
+        out["held_pull"] = (hold["value"] - float(true.d0[j])) / hold["width"]
     if r is not None:
         out.update({k: np.asarray(r[k], dtype=float).tolist() for k in (
             "predicted", "unseen_in_both", "law_pull", "tau_pull", "tau_rel", "d0_pull",
             "d0_rel")})
         out.update(ok=r["ok"], goal=r["goal"], t_range=r["t_range"])
-        if hold:
-            j = "xyz".index(hold["axis"])
-            out["held_pull"] = (hold["value"] - float(true.d0[j])) / hold["width"]
     return out
 
 
@@ -331,7 +332,7 @@ def main() -> None:
             adv = advice(why, args.own_hold)
             if not adv or step == args.steps:
                 print("  no option advised (or steps spent): end", flush=True)
-                _record(args, steps, hold, None, None)
+                _record(args, steps, hold, None, None if args.demo else true)
                 return
             refit = False
             if "hold_d0" in adv and "=" in adv["hold_d0"] and not hold:
