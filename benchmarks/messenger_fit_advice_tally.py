@@ -71,8 +71,11 @@ def spread(x: np.ndarray) -> float:
 
 def lambda_for_spread(chains: list[dict], target: float = 1.0) -> float:
     """The smallest ``lambda`` in 0..10 (0.01 steps) whose held pulls' spread is at most
-    ``target``; NaN if none."""
+    ``target`` (the spread falls as ``lambda`` grows); NaN if none, or if the spread is
+    below ``target`` already at ``lambda`` 0 (no ``lambda`` brings it up to ``target``)."""
     dev = np.array([c["own_hold"]["value"] - c["true_d0"] for c in chains])
+    if spread(dev / widths_at(chains, 0.0)) < target:
+        return float("nan")
     for lam in np.arange(0.0, 10.0001, 0.01):
         if spread(dev / widths_at(chains, lam)) <= target:
             return float(lam)
@@ -118,7 +121,8 @@ def side_summary(name: str, chains: list[dict]) -> list[str]:
                    f"{int(np.sum(np.abs(held) > 2))}")
         lam = lambda_for_spread(chains)
         dev = np.array([c["own_hold"]["value"] - c["true_d0"] for c in chains])
-        out.append(f"  lambda bringing the held spread to 1.0: {lam:.2f} (now 1.0); "
+        out.append(f"  lambda bringing the held spread to 1.0: {lam:.2f} (now 1.0; NaN: "
+                   f"none, the spread below 1 even unwidened); "
                    f"spread at lambda 0 / 1 / 1.5 / 2: " + " / ".join(
                        f"{spread(dev / widths_at(chains, la)):.2f}" for la in (0, 1, 1.5, 2)))
     if written:
