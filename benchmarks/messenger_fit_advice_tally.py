@@ -121,6 +121,13 @@ def side_summary(name: str, chains: list[dict]) -> list[str]:
                    f"{int(np.sum(np.abs(held) > 2))}")
         lam = lambda_for_spread(chains)
         dev = np.array([c["own_hold"]["value"] - c["true_d0"] for c in chains])
+        bare = dev / widths_at(chains, 0.0)
+        seeds = [c["seed"] for c in chains]
+        first = [seeds.index(x) for x in sorted(set(seeds))]  # one chain per seed
+        out.append(f"  {len(first)} seeds; one chain per seed (its lowest C): std "
+                   f"{spread(held[first]):.2f}; unwidened (lambda 0): std {spread(bare):.2f}, "
+                   f"range {bare.min():+.2f}..{bare.max():+.2f}, |pull| > 3: "
+                   f"{int(np.sum(np.abs(bare) > MAX_PULL))}")
         out.append(f"  lambda bringing the held spread to 1.0: {lam:.2f} (now 1.0; NaN: "
                    f"none, the spread below 1 even unwidened); "
                    f"spread at lambda 0 / 1 / 1.5 / 2: " + " / ".join(
