@@ -82,6 +82,38 @@ def lambda_for_spread(chains: list[dict], target: float = 1.0) -> float:
     return float("nan")
 
 
+def cause(verdict: str) -> str:
+    """A chain's end in a few words: the refusal's kind (or ``written``)."""
+    for key, word in (("WRITTEN", "written"), ("not converged", "not converged"),
+                      ("relaxation time", "tau goal"), ("predicted error", "predicted error"),
+                      ("duty-cycle law", "D0 goal"), ("temperature law", "law band"),
+                      ("compressive", "share")):
+        if verdict.startswith(key) or (key == "compressive" and key in verdict[:80]):
+            return word
+    return verdict.split(":")[0][:30]
+
+
+def level_rows(chains: list[dict]) -> list[str]:
+    """Per compressive level: chains, first-fit shares, own-value holds each side of the
+    25 %, and how the chains ended (markdown rows)."""
+    out = ["| C | chains | share at the first fit: median (range) | own-value holds: at or "
+           "below 25 % / above | chain ends |", "|---|---|---|---|---|"]
+    for level in sorted({c["compressive"] for c in chains}):
+        part = [c for c in chains if c["compressive"] == level]
+        share = np.array([c["steps"][0]["share"][0] / c["steps"][0]["share"][1] for c in part])
+        held = [c for c in part if c["own_hold"]]
+        n_below = sum(1 for c in held if hold_share(c) <= ADVICE_MAX_COMPRESSIVE_SHARE)
+        ends: dict[str, int] = {}
+        for c in part:
+            k = cause(c["steps"][-1]["verdict"])
+            ends[k] = ends.get(k, 0) + 1
+        out.append(f"| {level} | {len(part)} | {np.median(share):.1%} ({share.min():.1%}-"
+                   f"{share.max():.1%}) | {n_below} / {len(held) - n_below} | "
+                   + ", ".join(f"{k} {v}" for k, v in sorted(ends.items(), key=lambda x: -x[1]))
+                   + " |")
+    return out
+
+
 def row(c: dict) -> str:
     """One chain as a markdown table row."""
     h = c["own_hold"]
@@ -162,8 +194,10 @@ def main() -> None:
           "chain end | held pull | law max pull | tau pull | D0 max pull | unseen vs "
           "predicted nT (worst ratio) | harness |")
     print("|" + "---|" * 12)
-    for c in chains:
-        print(row(c))
+    for c in chains:  # the chains that reach a hold or a table (the rest: `level_rows`)
+        if c["own_hold"] or c["written"]:
+            print(row(c))
+    print("\n" + "\n".join(level_rows(chains)))
     held = [c for c in chains if c["own_hold"] and "true_d0" in c]
     below = [c for c in held if hold_share(c) <= ADVICE_MAX_COMPRESSIVE_SHARE]
     above = [c for c in held if hold_share(c) > ADVICE_MAX_COMPRESSIVE_SHARE]
