@@ -206,6 +206,12 @@ def main() -> None:
           f"at lambda 1 equals the advised one in {int(np.sum(same))} of {len(held)}")
     for name, part in (("at or below 25 %", below), ("above 25 %", above), ("all", held)):
         print("\n".join(side_summary(name, part)))
+    print("held pulls by the share where the hold was advised:")
+    for lo, hi in ((0.0, 0.22), (0.22, 0.25), (0.25, 0.28), (0.28, 1.0)):
+        part = np.array([c["held_pull"] for c in held if lo < hold_share(c) <= hi])
+        if len(part):
+            print(f"  {lo:.0%}-{hi:.0%}: {len(part)}, mean {part.mean():+.2f}, std "
+                  f"{spread(part):.2f}, largest |pull| {np.abs(part).max():.2f}")
     others = [c for c in chains if c["written"] and not c["own_hold"]]
     if others:
         print("\n".join(side_summary("written without an own-value hold", others)[1:]))
