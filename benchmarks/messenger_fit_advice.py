@@ -19,11 +19,17 @@ within its simultaneous threshold (`messenger_fit_pulls.simultaneous_law_thresho
 an honest band exceeds in 0.27 % of axis-fits, as one pull exceeds 3; decision entry
 61; the largest value itself reported, pointwise); tau and each D0 (a held one: its
 width) within 3 of their stated errors.
+
+``--record FILE`` appends the chain as one JSON line (`chain_record`): each step's
+compressive share, verdict and options, the own-value hold advised (value, width, the
+split factor and rho the refusal names, the fit's unwidened D0 error), and a written
+table's pulls, the held axis's against the width held (verification section 66).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import pickle
 import re
@@ -114,6 +120,41 @@ def advice(message: str, own: bool = False) -> dict:
         out["passes"] = int(m.group(1))
     if "--hold-delay" in message:
         out["hold_delay"] = True
+    return out
+
+
+def own_hold_record(message: str, res) -> dict:
+    """The own-value hold a D0 goal refusal ``message`` advises (``{}`` where none):
+    axis, value and width as advised, the split factor and rho it names (1 and 0 where
+    unwidened), and the refused fit's stated D0 error and its entry 52 split (``rho``,
+    the added draws' sd) where the fit states one (`fit_guards.d0_goal_refusal`)."""
+    m = re.search(r"--hold-d0 ([xyz])=(\S+?)\+-(\S+?) \(this fit's value and error"
+                  r"(?: widened ([0-9.]+)x .*?\(rho ([+-][0-9.]+))?", message)
+    if not m:
+        return {}
+    j = "xyz".index(m.group(1))
+    split = (getattr(res, "d0_field", None) or {}).get("law_d0_split") or {}
+    return {"axis": m.group(1), "value": float(m.group(2)), "width": float(m.group(3)),
+            "factor": float(m.group(4) or 1.0), "rho_named": float(m.group(5) or 0.0),
+            "fit_error": float(res.duty[j].slope_err),
+            "split_rho": float(split["rho"][j]) if split else None,
+            "split_added": float(split["added_counts_per_ppt"][j]) if split else None}
+
+
+def chain_record(steps: list, hold: dict, r: dict | None, true) -> dict:
+    """One chain as JSON-ready values (``--record``): ``steps`` (share, verdict, options
+    per step), the own-value ``hold`` advised with its pull against the width held
+    (``held_pull``: the truth's D0, written or not), and a written table's check ``r``."""
+    out = {"steps": steps, "own_hold": hold, "written": r is not None}
+    if hold and true is not None:  # the advice's pull, whether or not a table is written
+        j = "xyz".index(hold["axis"])
+        out["true_d0"] = float(true.d0[j])
+        out["held_pull"] = (hold["value"] - float(true.d0[j])) / hold["width"]
+    if r is not None:
+        out.update({k: np.asarray(r[k], dtype=float).tolist() for k in (
+            "predicted", "unseen_in_both", "law_pull", "tau_pull", "tau_rel", "d0_pull",
+            "d0_rel")})
+        out.update(ok=r["ok"], goal=r["goal"], t_range=r["t_range"])
     return out
 
 
@@ -239,7 +280,11 @@ def main() -> None:
                     help="The fit demo's world instead (`fit_demo.fit_training`: its true "
                          "tables, --days of its training wind, its unseen orbit; the demo "
                          "itself holds D0 z).")
+    ap.add_argument("--record", type=Path, default=None,
+                    help="Append the chain as one JSON line to RECORD (`chain_record`).")
     args = ap.parse_args()
+    steps: list[dict] = []
+    hold: dict = {}
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -280,12 +325,16 @@ def main() -> None:
 
         res = fit()
         for step in range(args.steps + 1):
-            if res is None:
+            if res is None:  # the fit's own refusal: the chain ends there
+                _record(args, steps, hold, None, None if args.demo else true)
                 return
             if goal is not None:
                 res = judged_at(res, goal)
             why = verdict(res)
             n, judged = fit_merit.compressive_share(res.variance.reason)
+            steps.append({"share": [n, judged],
+                          "options": dict(opts), "goal": goal, "verdict": why or "WRITTEN",
+                          "passes": int(res.convergence["passes_run"])})
             print(f"[{time.perf_counter() - t0:5.0f} s] step {step}: options {opts}, "
                   f"--error-goal {goal}: compressive {n} / {judged}, predicted "
                   f"{np.round(res.merit['total_nt'], 3)} nT, "
@@ -301,12 +350,16 @@ def main() -> None:
                 print("  " + "; ".join(f"{k} {np.round(v, 3) if isinstance(v, np.ndarray) else v}"
                                        for k, v in r.items()), flush=True)
                 print(f"  MEETS ITS STATED ERRORS: {all(r['ok'].values())}", flush=True)
+                _record(args, steps, hold, r, None if args.demo else true)
                 return
             adv = advice(why, args.own_hold)
             if not adv or step == args.steps:
                 print("  no option advised (or steps spent): end", flush=True)
+                _record(args, steps, hold, None, None if args.demo else true)
                 return
             refit = False
+            if "hold_d0" in adv and "=" in adv["hold_d0"] and not hold:
+                hold = own_hold_record(why, res)
             if "hold_d0" in adv:
                 opts["hold_d0"] = ",".join(filter(None, [opts["hold_d0"], adv["hold_d0"]]))
                 refit = True
@@ -318,6 +371,16 @@ def main() -> None:
                 goal = adv["error_goal"]
             if refit:
                 res = fit()
+
+
+def _record(args, steps: list, hold: dict, r: dict | None, true) -> None:
+    """Append the chain to ``args.record`` (``--record``), with its world and seed."""
+    if args.record is None:
+        return
+    line = {"world": args.world, "compressive": args.compressive, "days": args.days,
+            "seed": args.seed, **chain_record(steps, hold, r, true)}
+    with args.record.open("a") as fh:
+        fh.write(json.dumps(line) + "\n")
 
 
 if __name__ == "__main__":
