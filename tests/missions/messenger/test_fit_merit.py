@@ -149,6 +149,31 @@ def test_held_width_propagates_as_the_normal_equations_say(shipped):
     assert np.std(held.boot[:, 2 * PER_AXIS + 4]) == pytest.approx(w, rel=0.15)
 
 
+def test_a_held_width_is_stated_exactly_as_given(shipped):
+    # the held column's draws are scaled to unit spread (entry 63): a table states the
+    # width the user held, not 0.934 of it (verification section 66: 32 of 34 advised
+    # tables); float64 rounding only (rel 1e-12), for each held axis and widths of both
+    # sizes, and a second seed's draws too
+    rng = np.random.default_rng(8)
+    from fluxcal.missions.messenger.fit_variance import VarianceStatistics
+
+    n, rows = 40, 300
+    x = rng.normal(size=(n, rows, N_PARAMETERS))
+    x[:, :, 3 * PER_AXIS:3 * PER_AXIS + 30] = 0.0   # no shifted hinges
+    y = 1e-4 * rng.normal(size=(n, rows))
+    stats = VarianceStatistics(
+        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
+        yy=np.einsum("bn,bn->b", y, y), samples=np.full(n, float(rows)),
+        block_start=np.arange(n) * 7200.0, interval_start=np.zeros(n), reason=np.full(n, ""))
+    widths = np.array([0.003, 0.0, 0.02])
+    for seed in (0, 5):
+        held = solve_variance(stats, n_bootstrap=200, seed=seed, hold_d0=(0, 2),
+                              held_width=widths)
+        for axis in (0, 2):
+            got = np.std(held.boot[:, axis * PER_AXIS + 4])
+            assert got == pytest.approx(widths[axis], rel=1e-12), (seed, axis, got)
+
+
 def test_predicted_error_equals_a_brute_force_average(shipped):
     # a fitted result whose bootstrap moves the law, D0 and tau: the predicted rms of
     # M dO over samples and resamples, computed sample by sample here

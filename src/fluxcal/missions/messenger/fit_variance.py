@@ -729,6 +729,8 @@ def solve_variance(stats: VarianceStatistics, fit_delay: bool = True,
     if columns:
         cols = sorted(columns)
         draws = rng.standard_normal((n_bootstrap, len(cols)))
+        # each column scaled to unit spread: the table states the width held (entry 63)
+        draws /= np.maximum(np.std(draws, axis=0), 1e-12)
         held_r[:, cols] += draws * np.array([columns[c][1] for c in cols])
     # a moved break placed inside its cell on its own data, in every resample (with the
     # resamples: on Dask on the workers, entry 54)
