@@ -33,6 +33,7 @@ from fluxcal.missions.messenger.fit_passes import (
 )
 from fluxcal.missions.messenger.fit_variance import (
     MOMENT_EDGES_C,
+    VarianceStatistics,
     law_parameters,
     law_values,
     offset_moments,
@@ -121,22 +122,25 @@ def test_break_pulls_over_closed_form_realisations(shipped):
     assert 0.5 < np.sqrt(np.mean(pulls ** 2)) < 1.8, pulls
 
 
+def _random_statistics(seed: int, n: int, rows: int, tau_lean: float = 0.0):
+    """Variance statistics of ``n`` blocks of ``rows`` random design rows (no shifted
+    hinges), tau's column leaning on D0 z's by ``tau_lean``; residuals of 1e-4."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, rows, N_PARAMETERS))
+    x[:, :, -2] += tau_lean * x[:, :, 2 * PER_AXIS + 4]
+    x[:, :, 3 * PER_AXIS:3 * PER_AXIS + 30] = 0.0
+    y = 1e-4 * rng.normal(size=(n, rows))
+    return VarianceStatistics(
+        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
+        yy=np.einsum("bn,bn->b", y, y), samples=np.full(n, float(rows)),
+        block_start=np.arange(n) * 7200.0, interval_start=np.zeros(n), reason=np.full(n, ""))
+
+
 def test_held_width_propagates_as_the_normal_equations_say(shipped):
     # D0 z held with width w: every other parameter moves with it by -(A_ff^-1 A_fh),
     # so tau's variance grows by (that coefficient x w)^2 (closed form from the same
     # normal equations; 400 draws: within 15 %)
-    rng = np.random.default_rng(4)
-    from fluxcal.missions.messenger.fit_variance import VarianceStatistics
-
-    n, rows = 48, 400
-    x = rng.normal(size=(n, rows, N_PARAMETERS))
-    x[:, :, -2] += 0.8 * x[:, :, 2 * PER_AXIS + 4]  # tau's column leans on D0 z's
-    x[:, :, 3 * PER_AXIS:3 * PER_AXIS + 30] = 0.0   # no shifted hinges
-    y = 1e-4 * rng.normal(size=(n, rows))
-    stats = VarianceStatistics(
-        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
-        yy=np.einsum("bn,bn->b", y, y), samples=np.full(n, float(rows)),
-        block_start=np.arange(n) * 7200.0, interval_start=np.zeros(n), reason=np.full(n, ""))
+    stats = _random_statistics(4, 48, 400, tau_lean=0.8)
     w = 0.01
     held = solve_variance(stats, n_bootstrap=400, hold_d0=(2,), held_width=np.array([0, 0, w]))
     a = stats.normal.sum(0)
@@ -154,17 +158,7 @@ def test_a_held_width_is_stated_exactly_as_given(shipped):
     # width the user held, not 0.934 of it (verification section 66: 32 of 34 advised
     # tables); float64 rounding only (rel 1e-12), for each held axis and widths of both
     # sizes, and a second seed's draws too
-    rng = np.random.default_rng(8)
-    from fluxcal.missions.messenger.fit_variance import VarianceStatistics
-
-    n, rows = 40, 300
-    x = rng.normal(size=(n, rows, N_PARAMETERS))
-    x[:, :, 3 * PER_AXIS:3 * PER_AXIS + 30] = 0.0   # no shifted hinges
-    y = 1e-4 * rng.normal(size=(n, rows))
-    stats = VarianceStatistics(
-        normal=np.einsum("bni,bnj->bij", x, x), rhs=np.einsum("bni,bn->bi", x, y),
-        yy=np.einsum("bn,bn->b", y, y), samples=np.full(n, float(rows)),
-        block_start=np.arange(n) * 7200.0, interval_start=np.zeros(n), reason=np.full(n, ""))
+    stats = _random_statistics(8, 40, 300)
     widths = np.array([0.003, 0.0, 0.02])
     for seed in (0, 5):
         held = solve_variance(stats, n_bootstrap=200, seed=seed, hold_d0=(0, 2),
