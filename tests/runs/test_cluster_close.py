@@ -65,3 +65,26 @@ def test_a_failing_close_leaves_no_filter_behind() -> None:
     with pytest.raises(OSError):
         close_local_cluster(Broken())
     assert NANNY.filters == before
+
+
+def test_an_interrupted_run_gives_the_distributed_level_back() -> None:
+    """Ctrl-C during `run_days_on_dask` silences ``distributed`` (CRITICAL) for the close;
+    a process that goes on afterwards (a notebook, a test run) gets its level back."""
+    import datetime as dt
+
+    from fluxcal.runs.cluster import run_days_on_dask
+
+    dist = logging.getLogger("distributed")
+    before = dist.level
+    dist.setLevel(logging.INFO)
+
+    def interrupt(_result) -> None:
+        raise KeyboardInterrupt  # as Ctrl-C would, while the results arrive
+
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_days_on_dask([dt.date(2024, 3, 1), dt.date(2024, 3, 2)], abs, lambda d: (-1,),
+                             "interrupted", None, 1, interrupt, lambda day, exc: None)
+        assert dist.level == logging.INFO
+    finally:
+        dist.setLevel(before)

@@ -108,18 +108,22 @@ def close_local_cluster(cluster: Any) -> None:
              "after the grace period)" if quiet.killed else "")
 
 
-def _quiet_shutdown(client: Any, cluster: Any) -> None:
+def _quiet_shutdown(client: Any, cluster: Any) -> int | None:
     """Silence the cluster's logs before an interrupted batch closes it.
 
     Workers busy with a day cannot answer the closing scheduler: each would log its
     lost heartbeat with a traceback, and the nanny its kill.  The interruption and the
-    days it stopped are in the summary and the report instead.
+    days it stopped are in the summary and the report instead.  Returns this process's
+    former ``distributed`` level, for `run_days_on_dask` to give back once the cluster is
+    closed (``None``: nothing changed).
     """
     if cluster is None:
-        return  # an external cluster: its logs are its owner's
+        return None  # an external cluster: its logs are its owner's
+    before = logging.getLogger("distributed").level
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
     with contextlib.suppress(Exception):
         client.run(_silence_distributed_logs)
+    return before
 
 
 def _silence_distributed_logs() -> None:
@@ -151,6 +155,7 @@ def run_days_on_dask(days: Iterable[_dt.date], func: Callable[..., Any],
     ``failed(day, exc)``.  Ctrl-C or SIGTERM cancels the days and re-raises.
     """
     cluster = make_local_cluster(n_workers) if scheduler is None else None
+    restore: int | None = None
     try:
         with Client(cluster if cluster is not None else scheduler) as client:
             used = str(client.scheduler.address)
@@ -172,7 +177,7 @@ def run_days_on_dask(days: Iterable[_dt.date], func: Callable[..., Any],
                     record(st)
             except (KeyboardInterrupt, Interrupted):
                 client.cancel(list(futures))  # an external scheduler stops the days too
-                _quiet_shutdown(client, cluster)
+                restore = _quiet_shutdown(client, cluster)
                 raise
             finally:
                 logging.getLogger("distributed.client").removeFilter(lost)
@@ -182,4 +187,6 @@ def run_days_on_dask(days: Iterable[_dt.date], func: Callable[..., Any],
     finally:
         if cluster is not None:
             close_local_cluster(cluster)
+        if restore is not None:  # the calling process's logging as it was
+            logging.getLogger("distributed").setLevel(restore)
     return used, workers
